@@ -1,0 +1,113 @@
+"""``rovlink decode``: read a captured byte stream and print its events as JSON lines."""
+
+from __future__ import annotations
+
+import json
+import sys
+from collections import Counter
+from pathlib import Path
+from typing import BinaryIO
+
+import typer
+
+from rovlink.protocol import ALGORITHMS, BadFrame, Decoder, Event, Frame, Text
+
+__all__ = ["event_to_json", "register"]
+
+_READ_CHUNK_BYTES = 1 << 16
+
+
+def event_to_json(event: Event) -> dict[str, object]:
+    """The JSON object of one decoder event, as ``rovlink decode`` prints it."""
+    if isinstance(event, Frame):
+        message = event.message
+        return {
+            "event": "frame",
+            "kind": message.kind.value,
+            "name": message.name,
+            "values": list(message.values),
+            "raw": event.raw.decode("ascii"),
+        }
+    if isinstance(event, Text):
+        return {"event": "text", "text": event.text}
+    return {
+        "event": "error",
+        "reason": event.reason.value,
+        "raw": event.raw.decode("latin-1"),
+        "detail": event.detail,
+    }
+
+
+def _events(stream: BinaryIO, decoder: Decoder) -> list[Event] | None:
+    chunk = stream.read(_READ_CHUNK_BYTES)
+    if not chunk:
+        return None
+    return decoder.feed(chunk)
+
+
+def _count(stats: dict[str, Counter[str]], events: list[Event]) -> None:
+    for event in events:
+        if isinstance(event, Frame):
+            stats["events"]["frame"] += 1
+            message = event.message
+            stats["names"][message.kind.start_byte.decode() + message.name] += 1
+        elif isinstance(event, Text):
+            stats["events"]["text"] += 1
+        else:
+            stats["events"]["error"] += 1
+            stats["reasons"][event.reason.value] += 1
+
+
+def decode_stream(stream: BinaryIO, decoder: Decoder, *, stats_only: bool) -> None:
+    """Decode ``stream`` to the end, printing JSON lines (or one summary with ``stats_only``)."""
+    stats: dict[str, Counter[str]] = {"events": Counter(), "reasons": Counter(), "names": Counter()}
+    write = sys.stdout.write
+    while True:
+        events = _events(stream, decoder)
+        if events is None:
+            events = decoder.end()
+            last = True
+        else:
+            last = False
+        if stats_only:
+            _count(stats, events)
+        else:
+            for event in events:
+                write(json.dumps(event_to_json(event), ensure_ascii=False) + "\n")
+        if last:
+            break
+    if stats_only:
+        summary = {key: dict(sorted(counter.items())) for key, counter in stats.items()}
+        write(json.dumps(summary) + "\n")
+
+
+def register(app: typer.Typer) -> None:
+    """Add ``decode`` to the command line."""
+
+    @app.command()
+    def decode(
+        file: Path | None = typer.Argument(
+            None, help="A capture of the byte stream; standard input when omitted.",
+            exists=True, dir_okay=False, readable=True,
+        ),
+        checksum: bool = typer.Option(
+            False, "--checksum", help="Start in checksum mode (as after #crcon!)."
+        ),
+        algorithm: str = typer.Option(
+            "crc8", "--algorithm", help=f"Checksum algorithm: {', '.join(ALGORITHMS)}."
+        ),
+        stats: bool = typer.Option(
+            False, "--stats", help="Print one JSON summary of counts instead of the events."
+        ),
+    ) -> None:
+        """Decode a captured byte stream: one JSON object per line per event."""
+        if algorithm not in ALGORITHMS:
+            raise typer.BadParameter(
+                f"{algorithm!r} is not one of {', '.join(ALGORITHMS)}", param_hint="--algorithm"
+            )
+        decoder = Decoder(checksum_enabled=checksum, algorithm=algorithm)
+        if file is None:
+            decode_stream(sys.stdin.buffer, decoder, stats_only=stats)
+        else:
+            with file.open("rb") as stream:
+                decode_stream(stream, decoder, stats_only=stats)

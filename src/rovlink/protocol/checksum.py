@@ -1,0 +1,133 @@
+"""Checksum algorithms for frame bodies (PROTOCOL.md P2).
+
+The original specification leaves the algorithm undefined, so it is pluggable: a real controller
+may use another one. Every algorithm maps the BODY bytes (without the start and end characters)
+to one byte, sent as two hex digits.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+__all__ = [
+    "ALGORITHMS",
+    "DEFAULT_ALGORITHM",
+    "ChecksumAlgorithm",
+    "UnknownAlgorithmError",
+    "crc8_smbus",
+    "get_algorithm",
+    "sum8",
+    "xor8",
+]
+
+
+def _make_crc8_table(polynomial: int) -> tuple[int, ...]:
+    table = []
+    for byte in range(256):
+        crc = byte
+        for _ in range(8):
+            crc = ((crc << 1) ^ polynomial) & 0xFF if crc & 0x80 else (crc << 1) & 0xFF
+        table.append(crc)
+    return tuple(table)
+
+
+_CRC8_SMBUS_TABLE = _make_crc8_table(0x07)
+
+
+def crc8_smbus(data: bytes) -> int:
+    """CRC-8/SMBUS: poly 0x07, init 0, no reflection, xorout 0.
+
+    >>> hex(crc8_smbus(b"123456789"))
+    '0xf4'
+    """
+    crc = 0
+    table = _CRC8_SMBUS_TABLE
+    for byte in data:
+        crc = table[crc ^ byte]
+    return crc
+
+
+def xor8(data: bytes) -> int:
+    """NMEA-style XOR of all bytes.
+
+    >>> xor8(b"qd") == ord("q") ^ ord("d")
+    True
+    """
+    result = 0
+    for byte in data:
+        result ^= byte
+    return result
+
+
+def sum8(data: bytes) -> int:
+    """Sum of all bytes modulo 256.
+
+    >>> sum8(b"\\xff\\x02")
+    1
+    """
+    return sum(data) & 0xFF
+
+
+@dataclass(frozen=True, slots=True)
+class ChecksumAlgorithm:
+    """A named checksum function with its two-hex-digit rendering."""
+
+    name: str
+    function: Callable[[bytes], int]
+    description: str
+
+    def digits(self, body: bytes) -> bytes:
+        """The two uppercase hex digits that follow ``body`` in a frame.
+
+        >>> get_algorithm("crc8").digits(b"qd")
+        b'8C'
+        """
+        return b"%02X" % self.function(body)
+
+    def verify(self, body: bytes, digits: bytes) -> bool:
+        """Whether ``digits`` (either case) is the checksum of ``body``."""
+        if len(digits) != 2:
+            return False
+        try:
+            received = int(digits, 16)
+        except ValueError:
+            return False
+        # int() accepts "+f", " f" and "_": only two plain hex digits are a checksum.
+        if not (digits[0] in _HEX_DIGITS and digits[1] in _HEX_DIGITS):
+            return False
+        return received == self.function(body)
+
+
+_HEX_DIGITS = frozenset(b"0123456789abcdefABCDEF")
+
+ALGORITHMS: dict[str, ChecksumAlgorithm] = {
+    algorithm.name: algorithm
+    for algorithm in (
+        ChecksumAlgorithm("crc8", crc8_smbus, "CRC-8/SMBUS (poly 0x07, init 0x00), the default"),
+        ChecksumAlgorithm("xor", xor8, "XOR of the body bytes, as in NMEA 0183"),
+        ChecksumAlgorithm("sum8", sum8, "sum of the body bytes modulo 256"),
+    )
+}
+DEFAULT_ALGORITHM = "crc8"
+
+
+class UnknownAlgorithmError(ValueError):
+    """A checksum algorithm name that is not in :data:`ALGORITHMS`."""
+
+
+def get_algorithm(algorithm: str | ChecksumAlgorithm) -> ChecksumAlgorithm:
+    """Look an algorithm up by name (``crc8``, ``xor``, ``sum8``); an instance passes through.
+
+    >>> get_algorithm("xor").name
+    'xor'
+    """
+    if isinstance(algorithm, ChecksumAlgorithm):
+        return algorithm
+    try:
+        return ALGORITHMS[algorithm]
+    except KeyError:
+        known = ", ".join(sorted(ALGORITHMS))
+        raise UnknownAlgorithmError(
+            f"unknown checksum algorithm {algorithm!r}; expected one of: {known}"
+        ) from None

@@ -1,0 +1,209 @@
+"""The command table: the single definition of every frame of the protocol (PROTOCOL.md Part 1).
+
+Everything else — the encoder, the decoder, the controller's dispatch, the host driver's methods,
+console completion and help, and ``docs/commands.md`` — is derived from :data:`COMMANDS` and
+:data:`RESPONSES`. A new command is one new entry here plus its behaviour in the controller.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from enum import StrEnum
+
+__all__ = [
+    "COMMANDS",
+    "RESPONSES",
+    "SPELLINGS",
+    "Argument",
+    "Kind",
+    "Spec",
+    "UnknownCommandError",
+    "VerticalMode",
+    "lookup",
+]
+
+
+class Kind(StrEnum):
+    """Direction of a frame: host → controller commands start with ``#``, replies with ``$``."""
+
+    COMMAND = "command"
+    RESPONSE = "response"
+
+    @property
+    def start_byte(self) -> bytes:
+        """The frame's start character."""
+        return b"#" if self is Kind.COMMAND else b"$"
+
+
+class VerticalMode(StrEnum):
+    """The vertical control mode a command needs (P9)."""
+
+    DIRECT = "direct"
+    DEPTH = "depth"
+
+
+@dataclass(frozen=True, slots=True)
+class Argument:
+    """One decimal integer argument of a frame (P6)."""
+
+    name: str
+    minimum: int
+    maximum: int
+    signed: bool = False
+    description: str = ""
+
+    def range_text(self) -> str:
+        """The range as people write it, e.g. ``0–255`` or ``−100…+100``."""
+        if self.signed:
+            return f"{self.minimum:+d}…{self.maximum:+d}"
+        return f"{self.minimum}–{self.maximum}"
+
+    def format(self, value: int) -> str:
+        """The value as the controller writes it: no leading zeros, a sign if signed (P6)."""
+        return f"{value:+d}" if self.signed else str(value)
+
+
+@dataclass(frozen=True, slots=True)
+class Spec:
+    """Everything the project knows about one frame name."""
+
+    name: str
+    kind: Kind
+    description: str
+    arguments: tuple[Argument, ...] = ()
+    rules: tuple[str, ...] = ()
+    aliases: tuple[str, ...] = ()
+    #: Recognised by exact match before any checksum is stripped and never carries one (P3).
+    exact_match: bool = False
+    #: Dropped while the motors are locked (P7).
+    motion: bool = False
+    #: The vertical mode the command needs, if any (P9).
+    mode: VerticalMode | None = None
+    #: For a query: the names of the responses it produces, in order (P4, P12).
+    replies: tuple[str, ...] = ()
+
+    @property
+    def is_query(self) -> bool:
+        """Whether the command asks for a reply."""
+        return bool(self.replies)
+
+    def template(self) -> str:
+        """The frame with argument placeholders, e.g. ``#th.<direction_deg>.<power_percent>!``."""
+        parts = [self.name, *(f"<{argument.name}>" for argument in self.arguments)]
+        return self.kind.start_byte.decode() + ".".join(parts) + "!"
+
+    def body(self, values: tuple[int, ...]) -> str:
+        """The frame body (no start, checksum or end) for already validated values."""
+        if not values:
+            return self.name
+        formatted = (arg.format(value) for arg, value in zip(self.arguments, values, strict=True))
+        return self.name + "." + ".".join(formatted)
+
+
+def _arg(name: str, minimum: int, maximum: int, description: str, *, signed: bool = False) -> Argument:
+    return Argument(name, minimum, maximum, signed, description)
+
+
+_C = Kind.COMMAND
+_R = Kind.RESPONSE
+
+_DEPTH_CM = _arg("depth_cm", 0, 9999, "depth below the surface, cm")
+_RAW = _arg("raw", 0, 1024, "raw pressure-sensor reading")
+_GAIN = _arg("gain", 0, 99, "PID gain, scaled by the controller's configuration")
+_FLAG = _arg("enabled", 0, 1, "1 on, 0 off")
+_ROLL = _arg("roll_deg", -90, 90, "roll, degrees, + starboard down", signed=True)
+_PITCH = _arg("pitch_deg", -90, 90, "pitch, degrees, + bow up", signed=True)
+_HEADING = _arg("heading_deg", 0, 360, "magnetic heading, degrees")
+_LEAK = _arg("leak", 0, 1, "1 if the leak sensor fired since the last reset")
+
+_SENSOR_REPLIES = ("qd", "qr", "q.l", "qro", "qpi", "qhe")
+
+COMMANDS: tuple[Spec, ...] = (
+    Spec("crcon", _C, "turn checksum use on (never carries a checksum)", rules=("P3",),
+         exact_match=True),
+    Spec("crcoff", _C, "turn checksum use off (never carries a checksum)", rules=("P3",),
+         exact_match=True),
+    Spec("stop", _C, "switch all motors off and lock their control", rules=("P3", "P7")),
+    Spec("start", _C, "allow motor control, with neutral set-points", rules=("P7",)),
+    Spec("debug1", _C, "debug output on", rules=("P5",)),
+    Spec("debug0", _C, "debug output off", rules=("P5",)),
+    Spec("mgmp", _C, "maximum PWM duty for every thruster", rules=("P8",),
+         arguments=(_arg("max_pwm", 0, 255, "PWM duty cap"),)),
+    Spec("mvpdp", _C, "vertical (depth) PID proportional gain", rules=("P10",),
+         arguments=(_GAIN,)),
+    Spec("mvpdi", _C, "vertical (depth) PID integral gain", rules=("P10",), arguments=(_GAIN,)),
+    Spec("mvpidd", _C, "vertical (depth) PID derivative gain", rules=("P10", "P18"),
+         arguments=(_GAIN,), aliases=("mvpdd",)),
+    Spec("mvdirect", _C, "vertical direct-control mode on (1) or depth mode (0)", rules=("P9",),
+         arguments=(_FLAG,)),
+    Spec("mvs", _C, "direct mode: vertical thrust, % (+ up, − down)", rules=("P6", "P7", "P9"),
+         arguments=(_arg("thrust_percent", -100, 100, "vertical thrust, + up", signed=True),),
+         motion=True, mode=VerticalMode.DIRECT),
+    Spec("mvd", _C, "depth mode: hold this depth, cm from the surface", rules=("P7", "P9"),
+         arguments=(_arg("target_depth_cm", 0, 9999, "target depth, cm"),),
+         motion=True, mode=VerticalMode.DEPTH),
+    Spec("th", _C, "horizontal motion: direction (0 ahead, clockwise) and power", rules=("P7", "P11"),
+         arguments=(_arg("direction_deg", 0, 360, "degrees clockwise from the bow"),
+                    _arg("power_percent", 0, 100, "horizontal power, %")),
+         motion=True),
+    Spec("qd", _C, "query depth, cm", rules=("P13",), replies=("qd",)),
+    Spec("qr", _C, "query the raw pressure-sensor reading", rules=("P13",), replies=("qr",)),
+    Spec("sdz", _C, "set the depth zero: raw reading at the surface", rules=("P13",),
+         arguments=(_arg("zero_raw", 0, 1024, "raw reading at the surface"),)),
+    Spec("sdk", _C, "set the depth coefficient k: depth[m] = (raw − zero) · k / 10000",
+         rules=("P13",), arguments=(_arg("k", 0, 10000, "depth coefficient"),)),
+    Spec("q.l", _C, "query the leak latch (fired since the last reset?)", rules=("P14",),
+         replies=("q.l",)),
+    Spec("slreset", _C, "reset the leak latch", rules=("P14",)),
+    Spec("qro", _C, "query roll, degrees", rules=("P15",), replies=("qro",)),
+    Spec("qpi", _C, "query pitch, degrees", rules=("P15",), replies=("qpi",)),
+    Spec("qhe", _C, "query magnetic heading, degrees", rules=("P15",), replies=("qhe",)),
+    Spec("qsa", _C, "query all sensors: six replies qd, qr, q.l, qro, qpi, qhe", rules=("P12",),
+         replies=_SENSOR_REPLIES),
+    Spec("h+", _C, "claw open: run the claw motor for one pulse", rules=("P7", "P16"),
+         motion=True),
+    Spec("h-", _C, "claw close: run the claw motor for one pulse", rules=("P7", "P16"),
+         motion=True),
+)
+
+RESPONSES: tuple[Spec, ...] = (
+    Spec("qd", _R, "depth, cm", rules=("P13",), arguments=(_DEPTH_CM,)),
+    Spec("qr", _R, "raw pressure-sensor reading", rules=("P13",), arguments=(_RAW,)),
+    Spec("q.l", _R, "leak latch: 1 fired since the last reset, 0 not", rules=("P14",),
+         arguments=(_LEAK,)),
+    Spec("qro", _R, "roll, degrees", rules=("P15",), arguments=(_ROLL,)),
+    Spec("qpi", _R, "pitch, degrees", rules=("P15",), arguments=(_PITCH,)),
+    Spec("qhe", _R, "magnetic heading, degrees", rules=("P15",), arguments=(_HEADING,)),
+)
+
+_BY_KIND: dict[Kind, dict[str, Spec]] = {
+    Kind.COMMAND: {spec.name: spec for spec in COMMANDS},
+    Kind.RESPONSE: {spec.name: spec for spec in RESPONSES},
+}
+#: Names and aliases as they may appear in a frame, mapped to their spec.
+SPELLINGS: dict[Kind, dict[str, Spec]] = {
+    kind: {
+        spelling: spec
+        for spec in table.values()
+        for spelling in (spec.name, *spec.aliases)
+    }
+    for kind, table in _BY_KIND.items()
+}
+
+
+class UnknownCommandError(ValueError):
+    """A name that is not in the command table."""
+
+
+def lookup(name: str, kind: Kind = Kind.COMMAND) -> Spec:
+    """The spec of a command or response by its name or alias.
+
+    >>> lookup("th").arguments[0].name
+    'direction_deg'
+    >>> lookup("mvpdd").name
+    'mvpidd'
+    """
+    try:
+        return SPELLINGS[kind][name]
+    except KeyError:
+        raise UnknownCommandError(f"unknown {kind.value} {name!r}") from None

@@ -1,0 +1,237 @@
+"""The streaming decoder: bytes in, events out (PROTOCOL.md P1, P3, P5).
+
+``Decoder.feed`` takes any chunk of a byte stream and returns the events completed by it; feeding
+a stream whole, byte by byte or in any other chunks gives the same events. It never raises on its
+input, keeps at most one partial frame (at most :data:`MAX_FRAME_BYTES`) and one partial text line
+(at most :data:`MAX_TEXT_BYTES`) buffered, and resynchronises on every start character.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+
+from rovlink.protocol.checksum import DEFAULT_ALGORITHM, ChecksumAlgorithm, get_algorithm
+from rovlink.protocol.commands import Kind
+from rovlink.protocol.frames import MAX_FRAME_BYTES, FrameError, Reason, parse_body
+from rovlink.protocol.messages import Message
+
+__all__ = [
+    "MAX_TEXT_BYTES",
+    "BadFrame",
+    "Decoder",
+    "Event",
+    "Frame",
+    "Text",
+]
+
+#: A text line longer than this is reported in pieces of this size, so noise cannot grow memory.
+MAX_TEXT_BYTES = 256
+
+
+@dataclass(frozen=True, slots=True)
+class Frame:
+    """A valid frame and the message in it."""
+
+    message: Message
+    raw: bytes
+
+
+@dataclass(frozen=True, slots=True)
+class Text:
+    """One non-blank line of bytes between frames: debug output or line noise (never a frame)."""
+
+    text: str
+
+
+@dataclass(frozen=True, slots=True)
+class BadFrame:
+    """A frame that was dropped, why (:class:`Reason`), and its raw bytes."""
+
+    reason: Reason
+    raw: bytes
+    detail: str
+
+
+Event = Frame | Text | BadFrame
+
+_START = re.compile(rb"[#$]")
+# Bytes that end a frame's body: the end "!", a start character, or anything not printable.
+_BODY_STOP = re.compile(rb"[^\x22\x25-\x7e]")
+_LINE_BREAK = re.compile(rb"[\r\n]")
+_KIND_BY_START = {0x23: Kind.COMMAND, 0x24: Kind.RESPONSE}
+_EXACT_MODE_BODIES = {b"crcon": True, b"crcoff": False}
+
+
+class Decoder:
+    """Incremental decoder for one direction of the link (or a capture of both).
+
+    ``checksum_enabled`` is the current checksum mode; the decoder follows ``#crcon!`` and
+    ``#crcoff!`` frames in its own stream (P3) and its owner may set it directly.
+
+    >>> decoder = Decoder()
+    >>> [type(event).__name__ for event in decoder.feed(b"boot ok\\r\\n#qd!$qd.12")]
+    ['Text', 'Frame']
+    >>> decoder.feed(b"3!")[0].message
+    Response(name='qd', values=(123,))
+    """
+
+    __slots__ = ("_algorithm", "_frame", "_skipping", "_text", "checksum_enabled")
+
+    def __init__(
+        self,
+        *,
+        checksum_enabled: bool = False,
+        algorithm: str | ChecksumAlgorithm = DEFAULT_ALGORITHM,
+    ) -> None:
+        self.checksum_enabled = checksum_enabled
+        self._algorithm = get_algorithm(algorithm)
+        self._frame = b""  # the unfinished frame, start character included
+        self._skipping = False  # inside an over-long frame, dropping bytes until it ends
+        self._text = b""  # the unfinished text line
+
+    @property
+    def algorithm(self) -> ChecksumAlgorithm:
+        """The checksum algorithm used while the checksum mode is on."""
+        return self._algorithm
+
+    @algorithm.setter
+    def algorithm(self, algorithm: str | ChecksumAlgorithm) -> None:
+        self._algorithm = get_algorithm(algorithm)
+
+    @property
+    def buffered_bytes(self) -> int:
+        """Bytes of the unfinished frame held until more input arrives (at most 64)."""
+        return len(self._frame)
+
+    @property
+    def buffered_text_bytes(self) -> int:
+        """Bytes of the unfinished text line held until more input arrives."""
+        return len(self._text)
+
+    def feed(self, data: bytes) -> list[Event]:
+        """Decode another chunk of the stream; return the events it completes."""
+        events: list[Event] = []
+        position = 0
+        end = len(data)
+        while position < end:
+            if self._frame:
+                position = self._continue_frame(data, position, events)
+            elif self._skipping:
+                position = self._skip_overlong(data, position)
+            else:
+                position = self._read_text(data, position, events)
+        return events
+
+    def end(self) -> list[Event]:
+        """The events of the end of the stream: any unfinished text, any truncated frame."""
+        events: list[Event] = []
+        self._flush_text(events)
+        if self._frame:
+            events.append(BadFrame(Reason.TRUNCATED, self._frame, "input ended inside a frame"))
+            self._frame = b""
+        self._skipping = False
+        return events
+
+    def reset(self) -> None:
+        """Forget any partial frame or text (the checksum mode is kept)."""
+        self._frame = b""
+        self._text = b""
+        self._skipping = False
+
+    # -- states ---------------------------------------------------------------------------
+
+    def _read_text(self, data: bytes, position: int, events: list[Event]) -> int:
+        match = _START.search(data, position)
+        stop = match.start() if match else len(data)
+        if stop > position:
+            self._add_text(data[position:stop], events)
+        if match is None:
+            return stop
+        self._flush_text(events)
+        self._frame = data[stop : stop + 1]
+        return stop + 1
+
+    def _continue_frame(self, data: bytes, position: int, events: list[Event]) -> int:
+        match = _BODY_STOP.search(data, position)
+        stop = match.start() if match else len(data)
+        room = MAX_FRAME_BYTES - 1 - len(self._frame)  # the end "!" needs one byte too
+        if stop - position > room:
+            overlong = self._frame + data[position : position + room + 1]
+            events.append(BadFrame(
+                Reason.TOO_LONG, overlong, f"frame longer than {MAX_FRAME_BYTES} bytes"
+            ))
+            self._frame = b""
+            self._skipping = True
+            return position + room + 1
+        if match is None:
+            self._frame += data[position:]
+            return stop
+        frame = self._frame + data[position:stop]
+        self._frame = b""
+        byte = data[stop]
+        if byte == 0x21:  # "!"
+            events.append(self._complete(frame + b"!"))
+            return stop + 1
+        if byte in _KIND_BY_START:
+            events.append(BadFrame(
+                Reason.MALFORMED, frame, "frame interrupted by a new start character"
+            ))
+            return stop  # resynchronise: the start character begins the next frame
+        events.append(BadFrame(Reason.MALFORMED, frame, f"byte 0x{byte:02x} inside a frame"))
+        return stop  # the byte is between frames now: text or a line break
+
+    def _skip_overlong(self, data: bytes, position: int) -> int:
+        match = _BODY_STOP.search(data, position)
+        if match is None:
+            return len(data)
+        self._skipping = False
+        stop = match.start()
+        return stop + 1 if data[stop] == 0x21 else stop
+
+    # -- helpers --------------------------------------------------------------------------
+
+    def _add_text(self, chunk: bytes, events: list[Event]) -> None:
+        pieces = _LINE_BREAK.split(chunk)
+        last = len(pieces) - 1
+        for index, piece in enumerate(pieces):
+            self._text += piece
+            while len(self._text) >= MAX_TEXT_BYTES:
+                self._emit_text(self._text[:MAX_TEXT_BYTES], events)
+                self._text = self._text[MAX_TEXT_BYTES:]
+            if index < last:  # the piece ended at a line break
+                self._flush_text(events)
+
+    def _flush_text(self, events: list[Event]) -> None:
+        if self._text:
+            self._emit_text(self._text, events)
+            self._text = b""
+
+    @staticmethod
+    def _emit_text(line: bytes, events: list[Event]) -> None:
+        if line.strip():
+            events.append(Text(line.decode("utf-8", errors="replace")))
+
+    def _complete(self, frame: bytes) -> Event:
+        kind = _KIND_BY_START[frame[0]]
+        body = frame[1:-1]
+        if kind is Kind.COMMAND and body in _EXACT_MODE_BODIES:
+            self.checksum_enabled = _EXACT_MODE_BODIES[body]
+            return self._parse(kind, body, frame)
+        if self.checksum_enabled and not (kind is Kind.COMMAND and body == b"stop"):
+            digits = body[-2:]
+            body = body[:-2]
+            if not body or not self._algorithm.verify(body, digits):
+                return BadFrame(
+                    Reason.CHECKSUM, frame, f"missing or wrong {self._algorithm.name} checksum"
+                )
+        return self._parse(kind, body, frame)
+
+    @staticmethod
+    def _parse(kind: Kind, body: bytes, frame: bytes) -> Event:
+        if not body:
+            return BadFrame(Reason.MALFORMED, frame, "empty frame")
+        try:
+            return Frame(parse_body(kind, body.decode("ascii")), frame)
+        except FrameError as error:
+            return BadFrame(error.reason, frame, error.detail)

@@ -1,0 +1,133 @@
+"""Frame encoding and body parsing (PROTOCOL.md P1, P2, P3, P6, P15).
+
+``encode`` turns a message into bytes for the wire; ``parse_body`` turns the body of a received
+frame, already stripped of start, end and checksum, into a message or a :class:`FrameError` that
+says why it is not one.
+"""
+
+from __future__ import annotations
+
+from enum import StrEnum
+
+from rovlink.protocol.checksum import ChecksumAlgorithm, get_algorithm
+from rovlink.protocol.commands import SPELLINGS, Kind, Spec
+from rovlink.protocol.messages import Command, Message, Response
+
+__all__ = [
+    "MAX_FRAME_BYTES",
+    "FrameError",
+    "Reason",
+    "encode",
+    "parse_body",
+]
+
+#: The longest whole frame, start and end characters included (P1).
+MAX_FRAME_BYTES = 64
+
+
+class Reason(StrEnum):
+    """Why a received frame was dropped: machine-readable, stable names."""
+
+    CHECKSUM = "checksum"
+    TOO_LONG = "too_long"
+    UNKNOWN = "unknown"
+    RANGE = "range"
+    MALFORMED = "malformed"
+    TRUNCATED = "truncated"
+
+
+class FrameError(Exception):
+    """A received frame that is not a valid message (the peer's mistake, not the caller's)."""
+
+    def __init__(self, reason: Reason, detail: str) -> None:
+        super().__init__(detail)
+        self.reason = reason
+        self.detail = detail
+
+
+_MESSAGE_CLASS: dict[Kind, type[Message]] = {Kind.COMMAND: Command, Kind.RESPONSE: Response}
+
+
+def encode(message: Message, checksum: str | ChecksumAlgorithm | None = None) -> bytes:
+    """The frame for ``message``; with ``checksum`` (an algorithm or its name), checksummed.
+
+    ``crcon`` and ``crcoff`` never carry a checksum (P3).
+
+    >>> encode(Command("th", (270, 25)))
+    b'#th.270.25!'
+    >>> encode(Command("qd"), checksum="crc8")
+    b'#qd8C!'
+    """
+    body = message.body.encode("ascii")
+    start = message.kind.start_byte
+    if checksum is None or message.spec.exact_match:
+        return start + body + b"!"
+    return start + body + get_algorithm(checksum).digits(body) + b"!"
+
+
+def _find_spec(kind: Kind, body: str) -> tuple[Spec, str | None]:
+    """The spec whose spelling the body starts with, and the argument text after its ``.``."""
+    spellings = SPELLINGS[kind]
+    spec = spellings.get(body)
+    if spec is not None:
+        return spec, None
+    # A name may itself contain "." (q.l): try the longest spelling first.
+    position = body.rfind(".")
+    while position > 0:
+        spec = spellings.get(body[:position])
+        if spec is not None:
+            return spec, body[position + 1 :]
+        position = body.rfind(".", 0, position)
+    raise FrameError(Reason.UNKNOWN, f"unknown {kind.value} {body.split('.', 1)[0]!r}")
+
+
+def _parse_number(text: str, signed: bool) -> int:
+    digits = text[1:] if signed and text[:1] in ("+", "-") else text
+    if not digits or not digits.isascii() or not digits.isdigit():
+        raise ValueError(text)
+    value = int(digits)
+    return -value if text[0] == "-" else value
+
+
+def _split_values(kind: Kind, spec: Spec, text: str | None) -> list[str]:
+    tokens = [] if text is None else text.split(".")
+    if (
+        kind is Kind.RESPONSE
+        and len(spec.arguments) == 1
+        and spec.arguments[0].signed
+        and len(tokens) == 2
+        and tokens[0] in ("+", "-")
+    ):
+        # The original template writes roll as "$qro.-.1!" (P15): accept the sign on its own.
+        tokens = [tokens[0] + tokens[1]]
+    return tokens
+
+
+def parse_body(kind: Kind, body: str) -> Message:
+    """The message in a frame body (checksum already stripped), or raise :class:`FrameError`.
+
+    >>> parse_body(Kind.RESPONSE, "qro.-.7")
+    Response(name='qro', values=(-7,))
+    """
+    spec, text = _find_spec(kind, body)
+    tokens = _split_values(kind, spec, text)
+    if len(tokens) != len(spec.arguments):
+        raise FrameError(
+            Reason.MALFORMED,
+            f"{spec.name} takes {len(spec.arguments)} value(s), got {len(tokens)}",
+        )
+    values = []
+    for token, argument in zip(tokens, spec.arguments, strict=True):
+        try:
+            value = _parse_number(token, argument.signed)
+        except ValueError:
+            raise FrameError(
+                Reason.MALFORMED, f"{spec.name}: {argument.name} is not a number: {token!r}"
+            ) from None
+        if not argument.minimum <= value <= argument.maximum:
+            raise FrameError(
+                Reason.RANGE,
+                f"{spec.name}: {argument.name} must be in {argument.range_text()}, got {value}",
+            )
+        values.append(value)
+    return _MESSAGE_CLASS[kind](spec.name, tuple(values))

@@ -1,0 +1,109 @@
+"""Typed, frozen messages: one command (``#…!``) or one response (``$…!``) with its values.
+
+A message is validated against the command table when it is made, so an invalid message cannot
+exist: out-of-range or missing values raise :class:`ArgumentError`, naming the command, the
+argument and its range.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from rovlink.protocol.commands import Kind, Spec, UnknownCommandError, lookup
+
+__all__ = [
+    "ArgumentCountError",
+    "ArgumentError",
+    "Command",
+    "Message",
+    "Response",
+]
+
+
+class ArgumentError(ValueError):
+    """A value outside its argument's range (a caller's mistake, not the peer's)."""
+
+    def __init__(self, spec: Spec, index: int, value: int) -> None:
+        argument = spec.arguments[index]
+        self.command = spec.name
+        self.argument = argument.name
+        self.value = value
+        super().__init__(
+            f"{spec.name}: {argument.name} must be in {argument.range_text()}, got {value}"
+        )
+
+
+class ArgumentCountError(ValueError):
+    """The wrong number of values for a command."""
+
+    def __init__(self, spec: Spec, count: int) -> None:
+        self.command = spec.name
+        names = ", ".join(argument.name for argument in spec.arguments) or "no arguments"
+        super().__init__(
+            f"{spec.name} takes {len(spec.arguments)} value(s) ({names}), got {count}"
+        )
+
+
+def _validate(spec: Spec, values: tuple[int, ...]) -> None:
+    if len(values) != len(spec.arguments):
+        raise ArgumentCountError(spec, len(values))
+    for index, (argument, value) in enumerate(zip(spec.arguments, values, strict=True)):
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise TypeError(f"{spec.name}: {argument.name} must be an int, got {value!r}")
+        if not argument.minimum <= value <= argument.maximum:
+            raise ArgumentError(spec, index, value)
+
+
+@dataclass(frozen=True, slots=True)
+class Message:
+    """Base of :class:`Command` and :class:`Response`: a frame name and its integer values.
+
+    ``name`` is the canonical spelling (``mvpidd`` also for the alias ``mvpdd``).
+    """
+
+    name: str
+    values: tuple[int, ...] = ()
+    spec: Spec = field(init=False, repr=False, compare=False)
+
+    kind = Kind.COMMAND
+
+    def __post_init__(self) -> None:
+        try:
+            spec = lookup(self.name, self.kind)
+        except UnknownCommandError:
+            raise UnknownCommandError(f"unknown {self.kind.value} {self.name!r}") from None
+        values = tuple(self.values)
+        _validate(spec, values)
+        object.__setattr__(self, "values", values)
+        object.__setattr__(self, "name", spec.name)
+        object.__setattr__(self, "spec", spec)
+
+    @property
+    def body(self) -> str:
+        """The frame body as the controller writes it, without checksum: ``th.270.25``."""
+        return self.spec.body(self.values)
+
+    def __str__(self) -> str:
+        return self.kind.start_byte.decode() + self.body + "!"
+
+
+@dataclass(frozen=True, slots=True)
+class Command(Message):
+    """A frame from host to controller, e.g. ``Command("th", (270, 25))`` is ``#th.270.25!``.
+
+    >>> str(Command("mvs", (-50,)))
+    '#mvs.-50!'
+    """
+
+    kind = Kind.COMMAND
+
+
+@dataclass(frozen=True, slots=True)
+class Response(Message):
+    """A frame from controller to host, e.g. ``Response("qro", (-1,))`` is ``$qro.-1!``.
+
+    >>> str(Response("qro", (0,)))
+    '$qro.+0!'
+    """
+
+    kind = Kind.RESPONSE
