@@ -10,7 +10,7 @@ from typing import BinaryIO
 
 import typer
 
-from rovlink.protocol import ALGORITHMS, BadFrame, Decoder, Event, Frame, Text
+from rovlink.protocol import ALGORITHMS, Decoder, Event, Frame, Text
 
 __all__ = ["event_to_json", "register"]
 

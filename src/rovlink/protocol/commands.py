@@ -100,7 +100,9 @@ class Spec:
         return self.name + "." + ".".join(formatted)
 
 
-def _arg(name: str, minimum: int, maximum: int, description: str, *, signed: bool = False) -> Argument:
+def _arg(
+    name: str, minimum: int, maximum: int, description: str, *, signed: bool = False
+) -> Argument:
     return Argument(name, minimum, maximum, signed, description)
 
 
@@ -142,7 +144,8 @@ COMMANDS: tuple[Spec, ...] = (
     Spec("mvd", _C, "depth mode: hold this depth, cm from the surface", rules=("P7", "P9"),
          arguments=(_arg("target_depth_cm", 0, 9999, "target depth, cm"),),
          motion=True, mode=VerticalMode.DEPTH),
-    Spec("th", _C, "horizontal motion: direction (0 ahead, clockwise) and power", rules=("P7", "P11"),
+    Spec("th", _C, "horizontal motion: direction (0 ahead, clockwise) and power",
+         rules=("P7", "P11"),
          arguments=(_arg("direction_deg", 0, 360, "degrees clockwise from the bow"),
                     _arg("power_percent", 0, 100, "horizontal power, %")),
          motion=True),

@@ -209,7 +209,8 @@ class Decoder:
 
     @staticmethod
     def _emit_text(line: bytes, events: list[Event]) -> None:
-        if line.strip():
+        line = line.strip()
+        if line:
             events.append(Text(line.decode("utf-8", errors="replace")))
 
     def _complete(self, frame: bytes) -> Event:
