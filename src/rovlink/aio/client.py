@@ -1,0 +1,651 @@
+"""The asyncio client: ``rovlink.aio.connect(url)``, the blocking client's methods as coroutines.
+
+Native asyncio, not the blocking client in a thread: the event loop reads the port (see
+:mod:`rovlink.aio.transport`), feeds the shared :class:`~rovlink.client.session.Session` and
+resolves one future per query, so any number of queries can be in flight at once — their
+replies are matched in order — and polling pipelines up to the line rate without a thread hop
+per reply. Timeouts are one loop timer at the oldest query's deadline.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import logging
+from collections import deque
+from collections.abc import AsyncIterator, Generator
+from types import TracebackType
+from typing import Any, TypeVar
+
+from rovlink.aio.transport import ByteTransport, transport_for
+from rovlink.client import operations
+from rovlink.client.blocking import KEEPALIVE_QUERY
+from rovlink.client.counters import LinkCounters
+from rovlink.client.errors import ConnectionLostError, QueryTimeoutError
+from rovlink.client.links import Link, open_link
+from rovlink.client.options import ClientOptions, StrayCallback
+from rovlink.client.sensors import Sensors
+from rovlink.client.session import Outcome, PendingQuery, Session
+from rovlink.client.unsolicited import report
+from rovlink.client.url import parse_url
+from rovlink.protocol import Command, Response
+
+__all__ = ["DEFAULT_MAX_IN_FLIGHT", "AsyncClient", "connect"]
+
+T = TypeVar("T")
+logger = logging.getLogger("rovlink.aio")
+
+#: Queries on the wire at once: enough to keep a serial line busy, few enough for a small
+#: controller's receive buffer (8 × ``#qsa!`` is 40 bytes).
+DEFAULT_MAX_IN_FLIGHT = 8
+
+
+class AsyncClient:
+    """An asyncio connection to a controller. Make one with :func:`connect`.
+
+    Example::
+
+        async with rovlink.aio.connect("sim://") as rov:
+            await rov.start()
+            depth, heading = await asyncio.gather(rov.depth_cm(), rov.heading_deg())
+            async for reading in rov.telemetry(10):
+                print(reading.depth_cm)
+    """
+
+    def __init__(self, link: Link, options: ClientOptions | None = None, *,
+                 max_in_flight: int = DEFAULT_MAX_IN_FLIGHT) -> None:
+        """Wrap an open link; call :meth:`open` (``connect`` does) before use.
+
+        Example::
+
+            client = AsyncClient(open_link(parse_url("socket://localhost:5760")))
+            await client.open()
+        """
+        if isinstance(max_in_flight, bool) or not isinstance(max_in_flight, int) \
+                or max_in_flight < 1:
+            raise ValueError(f"max_in_flight must be an integer ≥ 1, got {max_in_flight!r}")
+        self._options = options or ClientOptions()
+        self._link = link
+        self._loop = asyncio.get_running_loop()
+        self._transport: ByteTransport = transport_for(link, self._loop)
+        self._session = Session(algorithm=self._options.algorithm,
+                                timeout_s=self._options.timeout_s)
+        self._in_flight = asyncio.Semaphore(max_in_flight)
+        self._max_in_flight = max_in_flight
+        self._mode_settled = asyncio.Event()  # cleared while a checksum switch drains
+        self._mode_settled.set()
+        self._timer: asyncio.TimerHandle | None = None
+        self._keepalive_task: asyncio.Task[None] | None = None
+        self._lost: ConnectionLostError | None = None
+        self._closed = False
+
+    async def open(self) -> AsyncClient:
+        """Start reading and put the controller in the asked checksum mode.
+
+        Example::
+
+            rov = await AsyncClient(link).open()
+        """
+        self._transport.start(self._on_data, self._on_lost)
+        self._send(operations.checksum(self._options.checksum))
+        if self._options.keepalive_enabled:
+            self._keepalive_task = asyncio.create_task(self._keepalive_loop())
+        return self
+
+    # -- the connection -------------------------------------------------------------------------
+
+    async def __aenter__(self) -> AsyncClient:
+        return self
+
+    async def __aexit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        traceback: TracebackType | None,
+    ) -> None:
+        if exc_type is not None and self._lost is None and not self._closed:
+            with contextlib.suppress(ConnectionError):
+                await self.stop()  # leaving by an error: make the robot safe first
+        await self.close()
+
+    async def close(self) -> None:
+        """Release the port; pending and later calls raise ConnectionLostError.
+
+        Example::
+
+            await rov.close()
+        """
+        if self._closed:
+            return
+        self._closed = True
+        if self._keepalive_task is not None:
+            self._keepalive_task.cancel()
+        await self._transport.close()
+        self._on_lost(ConnectionLostError(f"{self._link.description}: closed"))
+
+    @property
+    def closed(self) -> bool:
+        """Whether the client was closed or lost its connection.
+
+        Example::
+
+            if rov.closed: rov = await rovlink.aio.connect(url)
+        """
+        return self._closed or self._lost is not None
+
+    @property
+    def description(self) -> str:
+        """What the client is connected to.
+
+        Example::
+
+            print(rov.description)
+        """
+        return self._link.description
+
+    @property
+    def checksum_enabled(self) -> bool:
+        """Whether frames carry checksums now.
+
+        Example::
+
+            print(rov.checksum_enabled)
+        """
+        return self._session.checksum_enabled
+
+    @property
+    def counters(self) -> LinkCounters:
+        """A snapshot of the link's counters.
+
+        Example::
+
+            print(rov.counters.retries)
+        """
+        return self._session.counters.copy()
+
+    # -- commands -------------------------------------------------------------------------------
+
+    async def stop(self) -> None:
+        """``#stop!``: all motors off and motion locked.
+
+        Example::
+
+            await rov.stop()
+        """
+        self._send(operations.STOP)
+
+    async def start(self) -> None:
+        """``#start!``: unlock motion, with neutral set-points.
+
+        Example::
+
+            await rov.start()
+        """
+        self._send(operations.START)
+
+    async def set_checksum(self, enabled: bool) -> None:
+        """``#crcon!`` / ``#crcoff!``, after the queries on the wire are answered in the old mode.
+
+        Example::
+
+            await rov.set_checksum(True)
+        """
+        command = operations.checksum(enabled)
+        self._check_open()
+        while not self._mode_settled.is_set():
+            await self._mode_settled.wait()
+        self._mode_settled.clear()
+        try:
+            waiters = [query.waiter for query in self._session.pending]
+            if waiters:
+                await asyncio.wait([w for w in waiters if isinstance(w, asyncio.Future)])
+            self._send(command)
+        finally:
+            self._mode_settled.set()
+
+    async def set_debug(self, enabled: bool) -> None:
+        """``#debug1!`` / ``#debug0!``: debug text goes to ``on_stray`` and logging.
+
+        Example::
+
+            await rov.set_debug(True)
+        """
+        self._send(operations.debug(enabled))
+
+    async def set_max_pwm(self, duty: int) -> None:
+        """``#mgmp.N!``: cap every thruster's PWM duty, 0–255.
+
+        Example::
+
+            await rov.set_max_pwm(180)
+        """
+        self._send(operations.max_pwm(duty))
+
+    async def set_depth_pid(self, p: int | None = None, i: int | None = None,
+                            d: int | None = None) -> None:
+        """``#mvpdp.N!``, ``#mvpdi.N!``, ``#mvpidd.N!`` for each gain given (0–99 each).
+
+        Example::
+
+            await rov.set_depth_pid(p=30, d=10)
+        """
+        for command in operations.depth_pid(p, i, d):
+            self._send(command)
+
+    async def set_direct_mode(self, enabled: bool) -> None:
+        """``#mvdirect.1!`` / ``#mvdirect.0!``.
+
+        Example::
+
+            await rov.set_direct_mode(True)
+        """
+        self._send(operations.direct_mode(enabled))
+
+    async def set_vertical_thrust(self, percent: int) -> None:
+        """``#mvs.±N!``: vertical thrust in direct mode, −100…+100 %, + up.
+
+        Example::
+
+            await rov.set_vertical_thrust(-40)
+        """
+        self._send(operations.vertical_thrust(percent))
+
+    async def hold_depth(self, depth_cm: int) -> None:
+        """``#mvd.N!``: in depth mode, hold this depth, 0–9999 cm.
+
+        Example::
+
+            await rov.hold_depth(100)
+        """
+        self._send(operations.hold_depth(depth_cm))
+
+    async def move(self, direction_deg: int, power_percent: int) -> None:
+        """``#th.A.P!``: direction 0–360° clockwise from the bow, power 0–100 %.
+
+        Example::
+
+            await rov.move(90, 30)   # right at 30 %
+        """
+        self._send(operations.move(direction_deg, power_percent))
+
+    async def set_depth_zero(self, raw: int) -> None:
+        """``#sdz.N!``: the raw pressure reading at the surface, 0–1024.
+
+        Example::
+
+            await rov.set_depth_zero(await rov.pressure_raw())
+        """
+        self._send(operations.depth_zero(raw))
+
+    async def set_depth_scale(self, k: int) -> None:
+        """``#sdk.N!``: the depth coefficient k, 0–10000.
+
+        Example::
+
+            await rov.set_depth_scale(1000)
+        """
+        self._send(operations.depth_scale(k))
+
+    async def reset_leak(self) -> None:
+        """``#slreset!``: clear the leak latch.
+
+        Example::
+
+            await rov.reset_leak()
+        """
+        self._send(operations.RESET_LEAK)
+
+    async def claw_open(self) -> None:
+        """``#h+!``: one claw pulse towards open.
+
+        Example::
+
+            await rov.claw_open()
+        """
+        self._send(operations.CLAW_OPEN)
+
+    async def claw_close(self) -> None:
+        """``#h-!``: one claw pulse towards closed.
+
+        Example::
+
+            await rov.claw_close()
+        """
+        self._send(operations.CLAW_CLOSE)
+
+    # -- queries --------------------------------------------------------------------------------
+
+    async def depth_cm(self) -> int:
+        """``#qd!``: depth, cm.
+
+        Example::
+
+            depth = await rov.depth_cm()
+        """
+        return await self._ask(operations.DEPTH_CM)
+
+    async def pressure_raw(self) -> int:
+        """``#qr!``: the raw pressure reading, 0–1024.
+
+        Example::
+
+            raw = await rov.pressure_raw()
+        """
+        return await self._ask(operations.PRESSURE_RAW)
+
+    async def leak_detected(self) -> bool:
+        """``#q.l!``: whether the leak sensor fired since the last reset.
+
+        Example::
+
+            if await rov.leak_detected(): await rov.hold_depth(0)
+        """
+        return await self._ask(operations.LEAK_DETECTED)
+
+    async def roll_deg(self) -> int:
+        """``#qro!``: roll, −90…+90°.
+
+        Example::
+
+            roll = await rov.roll_deg()
+        """
+        return await self._ask(operations.ROLL_DEG)
+
+    async def pitch_deg(self) -> int:
+        """``#qpi!``: pitch, −90…+90°.
+
+        Example::
+
+            pitch = await rov.pitch_deg()
+        """
+        return await self._ask(operations.PITCH_DEG)
+
+    async def heading_deg(self) -> int:
+        """``#qhe!``: magnetic heading, 0–360°.
+
+        Example::
+
+            heading = await rov.heading_deg()
+        """
+        return await self._ask(operations.HEADING_DEG)
+
+    async def sensors(self) -> Sensors:
+        """``#qsa!``: every sensor at once.
+
+        Example::
+
+            reading = await rov.sensors()
+        """
+        return await self._ask(operations.SENSORS)
+
+    async def telemetry(self, rate_hz: float | None = 10.0) -> AsyncIterator[Sensors]:
+        """Poll :meth:`sensors` at ``rate_hz`` (``None``: as fast as the link allows), in order.
+
+        Polls are pipelined (up to ``max_in_flight``), so a slow line does not lower the rate
+        below what it can carry. A poll that times out is logged and skipped; a lost connection
+        ends the iteration with ConnectionLostError.
+
+        Example::
+
+            async for reading in rov.telemetry(20):
+                if reading.leak_detected:
+                    break
+        """
+        if rate_hz is not None and (isinstance(rate_hz, bool)
+                                    or not isinstance(rate_hz, int | float) or rate_hz <= 0):
+            raise ValueError(f"telemetry: rate_hz must be a positive number or None, "
+                             f"got {rate_hz!r}")
+        period_s = 1.0 / rate_hz if rate_hz else 0.0
+        loop = self._loop
+        polls: deque[asyncio.Task[Sensors]] = deque()
+        next_poll_at = loop.time()
+        try:
+            while True:
+                now = loop.time()
+                while len(polls) < self._max_in_flight and now >= next_poll_at:
+                    polls.append(loop.create_task(self.sensors()))
+                    # After a stall, carry on at the rate rather than catching up in a burst.
+                    next_poll_at = max(next_poll_at + period_s, now - period_s) \
+                        if period_s else now
+                if polls and polls[0].done():
+                    poll = polls.popleft()
+                    try:
+                        yield poll.result()
+                    except QueryTimeoutError as error:
+                        logger.warning("telemetry: skipped a reading: %s", error)
+                    continue
+                wait_s = next_poll_at - now if len(polls) < self._max_in_flight else None
+                if polls:
+                    await asyncio.wait({polls[0]}, timeout=wait_s)
+                elif wait_s:
+                    await asyncio.sleep(wait_s)
+        finally:
+            for poll in polls:
+                poll.cancel()
+
+    # -- any command ----------------------------------------------------------------------------
+
+    async def send(self, command: Command) -> tuple[Response, ...]:
+        """Send any command; a query returns its replies (retried like the others).
+
+        Example::
+
+            (reply,) = await rov.send(Command("qhe"))
+        """
+        if command.name in ("crcon", "crcoff"):
+            await self.set_checksum(command.name == "crcon")
+            return ()
+        if command.spec.is_query:
+            return await self._request(command)
+        self._send(command)
+        return ()
+
+    async def send_raw(self, frame: str | bytes) -> tuple[Response, ...]:
+        """Send a frame exactly as given, once; a query returns its replies.
+
+        Example::
+
+            replies = await rov.send_raw("#qsa!")
+        """
+        data = operations.raw_frame(frame)
+        if data in (b"#crcon!", b"#crcoff!"):
+            await self.set_checksum(data == b"#crcon!")
+            return ()
+        self._check_open()
+        await self._mode_settled.wait()
+        pending = self._session.raw(data, self._loop.time())
+        if pending is not None:
+            pending.waiter = self._loop.create_future()
+            self._arm_timer()
+        self._write(data)
+        if pending is None:
+            return ()
+        outcome = await self._outcome(pending)
+        if outcome is Outcome.ANSWERED:
+            return tuple(pending.responses)
+        raise QueryTimeoutError(pending.command, [outcome.value], self._options.timeout_s)
+
+    # -- internals ------------------------------------------------------------------------------
+
+    def _check_open(self) -> None:
+        if self._lost is not None:
+            raise self._lost_error()
+
+    def _lost_error(self) -> ConnectionLostError:
+        lost = self._lost
+        error = ConnectionLostError(f"connection lost: {lost if lost is not None else 'closed'}")
+        error.__cause__ = lost
+        return error
+
+    def _write(self, data: bytes) -> None:
+        try:
+            self._transport.write(data)
+        except ConnectionLostError as error:
+            self._on_lost(error)
+            raise self._lost_error() from error
+
+    def _send(self, command: Command) -> None:
+        self._check_open()
+        self._write(self._session.command(command, self._loop.time()))
+
+    async def _ask(self, query: operations.Query[T]) -> T:
+        return query.read(await self._request(query.command))
+
+    async def _request(self, command: Command) -> tuple[Response, ...]:
+        self._check_open()
+        failures: list[str] = []
+        async with self._in_flight:
+            for attempt in range(self._options.retries + 1):
+                pending = await self._send_query(command, retry=attempt > 0)
+                outcome = await self._outcome(pending)
+                if outcome is Outcome.ANSWERED:
+                    return tuple(pending.responses)
+                failures.append(outcome.value)
+        raise QueryTimeoutError(command, failures, self._options.timeout_s)
+
+    async def _send_query(self, command: Command, *, retry: bool) -> PendingQuery:
+        if not self._mode_settled.is_set():
+            await self._mode_settled.wait()
+        self._check_open()
+        if retry:
+            self._session.counters.retries += 1
+        data, pending = self._session.query(command, self._loop.time())
+        pending.waiter = self._loop.create_future()
+        self._write(data)
+        self._arm_timer()
+        return pending
+
+    async def _outcome(self, pending: PendingQuery) -> Outcome:
+        waiter = pending.waiter
+        assert isinstance(waiter, asyncio.Future)
+        outcome: Outcome = await waiter
+        if outcome is Outcome.DISCONNECTED:
+            raise self._lost_error()
+        return outcome
+
+    @staticmethod
+    def _wake(settled: list[PendingQuery]) -> None:
+        for query in settled:
+            waiter = query.waiter
+            if isinstance(waiter, asyncio.Future) and not waiter.done():
+                waiter.set_result(query.outcome)
+
+    def _on_data(self, data: bytes) -> None:
+        received = self._session.receive(data, self._loop.time())
+        self._wake(received.settled)
+        if received.unsolicited:
+            report(received.unsolicited, self._options.on_stray)
+
+    def _on_lost(self, error: ConnectionLostError) -> None:
+        if self._lost is not None:
+            return
+        self._lost = error
+        if self._timer is not None:
+            self._timer.cancel()
+            self._timer = None
+        self._wake(self._session.disconnect())
+        if not self._closed:
+            logger.warning("%s", error)
+
+    def _arm_timer(self) -> None:
+        if self._timer is None:
+            deadline = self._session.next_deadline()
+            if deadline is not None:
+                self._timer = self._loop.call_at(deadline, self._on_timer)
+
+    def _on_timer(self) -> None:
+        self._timer = None
+        self._wake(self._session.expire(self._loop.time()))
+        self._arm_timer()
+
+    async def _keepalive_loop(self) -> None:
+        keepalive_s = self._options.keepalive_s
+        assert keepalive_s
+        while self._lost is None:
+            idle_s = self._loop.time() - self._session.last_sent_at
+            if idle_s < keepalive_s:
+                await asyncio.sleep(keepalive_s - idle_s)
+                continue
+            if self._mode_settled.is_set():
+                data, pending = self._session.query(
+                    KEEPALIVE_QUERY, self._loop.time(), keepalive=True
+                )
+                pending.waiter = self._loop.create_future()
+                try:
+                    self._write(data)
+                except ConnectionLostError:
+                    return
+                self._arm_timer()
+            else:
+                await self._mode_settled.wait()
+
+
+class _Connecting:
+    """What :func:`connect` returns: ``await`` it, or use it with ``async with``."""
+
+    def __init__(self, url: str, options: ClientOptions, baudrate: int | None,
+                 max_in_flight: int) -> None:
+        self._endpoint = parse_url(url, baudrate)
+        self._options = options
+        self._max_in_flight = max_in_flight
+        self._client: AsyncClient | None = None
+
+    async def _open(self) -> AsyncClient:
+        # Opening a port or a TCP connection blocks: keep it off the loop.
+        link = await asyncio.to_thread(open_link, self._endpoint)
+        try:
+            client = AsyncClient(link, self._options, max_in_flight=self._max_in_flight)
+            return await client.open()
+        except BaseException:
+            link.close()
+            raise
+
+    def __await__(self) -> Generator[Any, None, AsyncClient]:
+        return self._open().__await__()
+
+    async def __aenter__(self) -> AsyncClient:
+        self._client = await self._open()
+        return self._client
+
+    async def __aexit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        traceback: TracebackType | None,
+    ) -> None:
+        assert self._client is not None
+        await self._client.__aexit__(exc_type, exc, traceback)
+
+
+def connect(
+    url: str,
+    *,
+    timeout: float = 0.5,
+    retries: int = 2,
+    checksum: bool = False,
+    algorithm: str = "crc8",
+    keepalive: float | None = 1.0,
+    baudrate: int | None = None,
+    on_stray: StrayCallback | None = None,
+    max_in_flight: int = DEFAULT_MAX_IN_FLIGHT,
+) -> _Connecting:
+    """Connect to a controller for asyncio: ``async with connect(url) as rov`` or ``await``.
+
+    The same URLs and options as :func:`rovlink.connect`; ``max_in_flight`` bounds the queries
+    on the wire at once. ``on_stray`` is called in the event loop.
+
+    Example::
+
+        import asyncio, rovlink.aio
+
+        async def main() -> None:
+            async with rovlink.aio.connect("sim://") as rov:
+                depths = await asyncio.gather(*(rov.depth_cm() for _ in range(10)))
+
+        asyncio.run(main())
+    """
+    options = ClientOptions(timeout, retries, checksum, algorithm, keepalive, on_stray)
+    if isinstance(max_in_flight, bool) or not isinstance(max_in_flight, int) \
+            or max_in_flight < 1:
+        raise ValueError(f"max_in_flight must be an integer ≥ 1, got {max_in_flight!r}")
+    return _Connecting(url, options, baudrate, max_in_flight)

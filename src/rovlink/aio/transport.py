@@ -1,0 +1,178 @@
+"""Byte transports for the asyncio client: the event loop reads the port, no thread in between.
+
+:class:`FdTransport` watches a link's file descriptor (serial device, pseudo-terminal, TCP
+socket) with ``loop.add_reader`` and reads whatever is waiting when it becomes readable; writes
+go straight to the descriptor and only what does not fit is buffered until it is writable.
+
+Ports without a descriptor (the in-process simulator, ``loop://``, ``rfc2217://``) have no
+readiness to wait on, so :class:`ThreadTransport` reads them in one thread and hands each chunk
+to the loop; everything else — matching, timeouts, retries — still runs in the loop.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import threading
+from collections.abc import Callable
+from typing import Protocol
+
+from rovlink.client.errors import ConnectionLostError
+from rovlink.client.links import FdLink, Link
+
+__all__ = ["ByteTransport", "FdTransport", "ThreadTransport", "transport_for"]
+
+DataCallback = Callable[[bytes], None]
+LostCallback = Callable[[ConnectionLostError], None]
+
+_THREAD_READ_WAIT_S = 0.25
+
+
+class ByteTransport(Protocol):
+    """Moves bytes between a link and the event loop."""
+
+    def start(self, on_data: DataCallback, on_lost: LostCallback) -> None:
+        """Begin delivering received bytes (and the loss of the link) to the callbacks."""
+        ...
+
+    def write(self, data: bytes) -> None:
+        """Queue ``data`` for the port without blocking; raise ConnectionLostError if it is gone."""
+        ...
+
+    async def close(self) -> None:
+        """Stop and release the link."""
+        ...
+
+
+class FdTransport:
+    """A link with a file descriptor, driven by the loop's readiness callbacks."""
+
+    def __init__(self, link: FdLink, loop: asyncio.AbstractEventLoop) -> None:
+        self._link = link
+        self._loop = loop
+        self._fd = link.fileno()
+        self._buffer = bytearray()
+        self._on_data: DataCallback | None = None
+        self._on_lost: LostCallback | None = None
+        self._closed = False
+
+    def start(self, on_data: DataCallback, on_lost: LostCallback) -> None:
+        """Watch the descriptor for input."""
+        self._on_data = on_data
+        self._on_lost = on_lost
+        self._loop.add_reader(self._fd, self._readable)
+
+    def _readable(self) -> None:
+        try:
+            data = self._link.recv_some()
+        except ConnectionLostError as error:
+            self._fail(error)
+            return
+        if data and self._on_data is not None:
+            self._on_data(data)
+
+    def write(self, data: bytes) -> None:
+        """Write now what fits; buffer the rest until the descriptor is writable."""
+        if self._closed:
+            raise ConnectionLostError(f"{self._link.description}: closed")
+        if self._buffer:
+            self._buffer += data
+            return
+        try:
+            written = self._link.send_some(data)
+        except ConnectionLostError as error:
+            self._fail(error)
+            raise
+        if written < len(data):
+            self._buffer += data[written:]
+            self._loop.add_writer(self._fd, self._writable)
+
+    def _writable(self) -> None:
+        try:
+            written = self._link.send_some(self._buffer)
+        except ConnectionLostError as error:
+            self._fail(error)
+            return
+        del self._buffer[:written]
+        if not self._buffer:
+            self._loop.remove_writer(self._fd)
+
+    def _fail(self, error: ConnectionLostError) -> None:
+        if self._closed:
+            return
+        self._stop_watching()
+        if self._on_lost is not None:
+            self._on_lost(error)
+
+    def _stop_watching(self) -> None:
+        self._loop.remove_reader(self._fd)
+        self._loop.remove_writer(self._fd)
+
+    async def close(self) -> None:
+        """Stop watching and close the link."""
+        if self._closed:
+            return
+        self._closed = True
+        self._stop_watching()
+        self._link.close()
+
+
+class ThreadTransport:
+    """A link without a descriptor: one thread reads, the loop does everything else."""
+
+    def __init__(self, link: Link, loop: asyncio.AbstractEventLoop) -> None:
+        self._link = link
+        self._loop = loop
+        self._closing = False
+        self._closed = False
+        self._thread: threading.Thread | None = None
+
+    def start(self, on_data: DataCallback, on_lost: LostCallback) -> None:
+        """Start the reading thread."""
+        self._thread = threading.Thread(
+            target=self._read_loop, args=(on_data, on_lost),
+            name=f"rovlink aio reader ({self._link.description})", daemon=True,
+        )
+        self._thread.start()
+
+    def _read_loop(self, on_data: DataCallback, on_lost: LostCallback) -> None:
+        while not self._closing:
+            try:
+                data = self._link.read_available(_THREAD_READ_WAIT_S)
+            except ConnectionLostError as error:
+                if not self._closing:
+                    self._call_in_loop(on_lost, error)
+                return
+            if data:
+                self._call_in_loop(on_data, data)
+
+    def _call_in_loop(self, callback: Callable[[object], None] | Callable[..., None],
+                      argument: object) -> None:
+        try:
+            self._loop.call_soon_threadsafe(callback, argument)
+        except RuntimeError:  # the loop is closed: nobody is listening any more
+            self._closing = True
+
+    def write(self, data: bytes) -> None:
+        """Write to the port (such ports take small writes without blocking)."""
+        if self._closing:
+            raise ConnectionLostError(f"{self._link.description}: closed")
+        self._link.write(data)
+
+    async def close(self) -> None:
+        """Stop the thread and close the link."""
+        if self._closed:
+            return
+        self._closed = True
+        self._closing = True
+        self._link.wake()
+        thread, self._thread = self._thread, None
+        if thread is not None:
+            await asyncio.to_thread(thread.join, 2.0)
+        self._link.close()
+
+
+def transport_for(link: Link, loop: asyncio.AbstractEventLoop) -> ByteTransport:
+    """The native transport for ``link``: descriptor-driven when it has one."""
+    if isinstance(link, FdLink):
+        return FdTransport(link, loop)
+    return ThreadTransport(link, loop)

@@ -1,0 +1,77 @@
+"""The host driver's exceptions: a caller's mistake, a query without a valid reply, a lost link.
+
+Every one subclasses the built-in exception a caller would reach for first (``ValueError``,
+``TimeoutError``, ``ConnectionError``), so ``except TimeoutError`` works without importing
+rovlink, and :class:`ClientError` catches everything the driver raises about the link.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+from rovlink.protocol import Command
+
+__all__ = [
+    "ClientError",
+    "ConnectError",
+    "ConnectionLostError",
+    "InvalidArgumentError",
+    "QueryTimeoutError",
+]
+
+
+class ClientError(Exception):
+    """Base of the errors about the link to the controller."""
+
+
+class InvalidArgumentError(ValueError):
+    """A driver method got a value outside its range; nothing was sent.
+
+    >>> str(InvalidArgumentError("move", "power_percent", 150, "0–100", "th"))
+    'move: power_percent must be in 0–100 (#th), got 150'
+    """
+
+    def __init__(self, method: str, argument: str, value: object, range_text: str,
+                 frame_name: str) -> None:
+        self.method = method
+        self.argument = argument
+        self.value = value
+        self.range_text = range_text
+        super().__init__(
+            f"{method}: {argument} must be in {range_text} (#{frame_name}), got {value!r}"
+        )
+
+
+class QueryTimeoutError(ClientError, TimeoutError):
+    """A query got no valid reply, however many times it was retried.
+
+    ``query`` is the command, ``failures`` says what happened to each attempt (``timeout``:
+    nothing arrived in time; ``corrupt``: the reply failed its checksum or was malformed;
+    ``lost``: the controller answered a later query first).
+
+    >>> from rovlink.protocol import Command
+    >>> str(QueryTimeoutError(Command("qd"), ["timeout", "corrupt"], 0.5))
+    '#qd! got no valid reply within 0.5 s (2 attempts: timeout, corrupt)'
+    """
+
+    def __init__(self, query: Command, failures: Sequence[str], timeout_s: float) -> None:
+        self.query = query
+        self.failures = tuple(failures)
+        self.timeout_s = timeout_s
+        attempts = len(self.failures)
+        noun = "attempt" if attempts == 1 else "attempts"
+        super().__init__(
+            f"{query} got no valid reply within {timeout_s:g} s "
+            f"({attempts} {noun}: {', '.join(self.failures)})"
+        )
+
+
+class ConnectionLostError(ClientError, ConnectionError):
+    """The link is gone (adapter unplugged, socket closed, or ``close()`` called).
+
+    Raised by the call that was waiting when it happened and by every later call.
+    """
+
+
+class ConnectError(ClientError, ConnectionError):
+    """The URL could not be opened (no such device, port in use, nothing listening)."""

@@ -1,0 +1,312 @@
+"""Links: the byte pipe under a client, opened from an :class:`~rovlink.client.url.Endpoint`.
+
+Two kinds, one interface. Ports with a file descriptor — a POSIX serial device or pseudo-terminal
+opened by pyserial, a TCP socket — are read with ``select`` and one ``read`` of whatever is
+waiting: pyserial's own ``read``/``read_until`` loop costs a system call per requested byte count
+and dominates a query's round trip. Everything else pyserial-like (``loop://``, ``rfc2217://``,
+the in-process simulated port) goes through its ``read``/``in_waiting``/``write``.
+
+Errors of the underlying port become :class:`~rovlink.client.errors.ConnectionLostError`.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import select
+import socket
+from typing import Any, Protocol
+
+from rovlink.client.errors import ConnectError, ConnectionLostError
+from rovlink.client.url import Endpoint, Scheme
+
+__all__ = ["POLL_INTERVAL_S", "Link", "PortLink", "SerialFdLink", "SocketLink", "open_link"]
+
+#: How long a read of a port without a file descriptor blocks before it looks around again.
+POLL_INTERVAL_S = 0.05
+#: A write that cannot make progress for this long means the link is dead.
+WRITE_TIMEOUT_S = 2.0
+CONNECT_TIMEOUT_S = 5.0
+_READ_BYTES = 65536
+
+
+class Link(Protocol):
+    """A bidirectional byte pipe to the controller."""
+
+    description: str
+
+    def read_available(self, timeout_s: float) -> bytes:
+        """Wait up to about ``timeout_s`` for bytes; return all that are waiting (maybe none)."""
+        ...
+
+    def write(self, data: bytes) -> None:
+        """Write all of ``data``."""
+        ...
+
+    def wake(self) -> None:
+        """Make a ``read_available`` blocked in another thread return soon."""
+        ...
+
+    def close(self) -> None:
+        """Release the port (idempotent)."""
+        ...
+
+
+class FdLink:
+    """Base of links over a file descriptor: ``select`` plus non-blocking reads and writes.
+
+    The asyncio client uses :meth:`fileno`, :meth:`recv_some` and :meth:`send_some` directly.
+    """
+
+    description = "fd"
+
+    def __init__(self, fd: int) -> None:
+        self._fd = fd
+        self._wake_r, self._wake_w = os.pipe()
+        os.set_blocking(self._wake_r, False)
+        os.set_blocking(self._wake_w, False)
+        self._closed = False
+
+    def fileno(self) -> int:
+        """The descriptor to watch for readability."""
+        return self._fd
+
+    # Subclasses read and write without blocking; b"" / 0 mean "nothing now".
+    def recv_some(self) -> bytes:
+        """Whatever is waiting now, b"" if nothing; raise ConnectionLostError at end of stream."""
+        raise NotImplementedError
+
+    def send_some(self, data: bytes | bytearray | memoryview) -> int:
+        """Write what fits now; the number of bytes written (0 if none fit)."""
+        raise NotImplementedError
+
+    def read_available(self, timeout_s: float) -> bytes:
+        """Wait up to ``timeout_s`` for bytes; return all that are waiting (maybe none)."""
+        if self._closed:
+            raise ConnectionLostError(f"{self.description}: closed")
+        try:
+            ready, _, _ = select.select([self._fd, self._wake_r], [], [], max(timeout_s, 0.0))
+        except (OSError, ValueError) as error:
+            raise ConnectionLostError(f"{self.description}: {error}") from error
+        if self._wake_r in ready:
+            with contextlib.suppress(BlockingIOError):
+                os.read(self._wake_r, 4096)
+        if self._fd not in ready:
+            return b""
+        return self.recv_some()
+
+    def write(self, data: bytes) -> None:
+        """Write all of ``data``, waiting for room at most :data:`WRITE_TIMEOUT_S` at a time."""
+        view = memoryview(data)
+        while view:
+            written = self.send_some(view)
+            view = view[written:]
+            if view and not written:
+                try:
+                    _, ready, _ = select.select([], [self._fd], [], WRITE_TIMEOUT_S)
+                except (OSError, ValueError) as error:
+                    raise ConnectionLostError(f"{self.description}: {error}") from error
+                if not ready:
+                    raise ConnectionLostError(
+                        f"{self.description}: write blocked for {WRITE_TIMEOUT_S:g} s"
+                    )
+
+    def wake(self) -> None:
+        """Make a ``read_available`` blocked in another thread return now."""
+        with contextlib.suppress(OSError):  # a wake-up already pending, or closed
+            os.write(self._wake_w, b"x")
+
+    def close(self) -> None:
+        """Close the port and the wake-up pipe (idempotent)."""
+        if self._closed:
+            return
+        self._closed = True
+        self._close_port()
+        os.close(self._wake_r)
+        os.close(self._wake_w)
+
+    def _close_port(self) -> None:
+        raise NotImplementedError
+
+
+class SerialFdLink(FdLink):
+    """A POSIX serial device or pseudo-terminal opened (and configured) by pyserial."""
+
+    def __init__(self, port: Any, description: str) -> None:
+        super().__init__(port.fileno())
+        self._port = port
+        self.description = description
+        os.set_blocking(self._fd, False)  # pyserial opens it so; make sure
+
+    def recv_some(self) -> bytes:
+        """Whatever is waiting now; raise ConnectionLostError if the device went away."""
+        try:
+            data = os.read(self._fd, _READ_BYTES)
+        except BlockingIOError:
+            return b""
+        except OSError as error:  # EIO: the other side of a pseudo-terminal closed
+            raise ConnectionLostError(f"{self.description}: {error.strerror or error}") from error
+        if not data:
+            # A device that is readable but yields nothing has been unplugged.
+            raise ConnectionLostError(f"{self.description}: device disconnected")
+        return data
+
+    def send_some(self, data: bytes | bytearray | memoryview) -> int:
+        """Write what fits now."""
+        try:
+            return os.write(self._fd, data)
+        except BlockingIOError:
+            return 0
+        except OSError as error:
+            raise ConnectionLostError(f"{self.description}: {error.strerror or error}") from error
+
+    def _close_port(self) -> None:
+        with contextlib.suppress(OSError):
+            self._port.close()
+
+
+class SocketLink(FdLink):
+    """A TCP connection (``socket://host:port``) with Nagle's algorithm off."""
+
+    def __init__(self, sock: socket.socket, description: str) -> None:
+        super().__init__(sock.fileno())
+        self._socket = sock
+        self.description = description
+        sock.setblocking(False)
+        if sock.family in (socket.AF_INET, socket.AF_INET6):
+            sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+
+    def recv_some(self) -> bytes:
+        """Whatever is waiting now; raise ConnectionLostError when the peer closed."""
+        try:
+            data = self._socket.recv(_READ_BYTES)
+        except BlockingIOError:
+            return b""
+        except OSError as error:
+            raise ConnectionLostError(f"{self.description}: {error.strerror or error}") from error
+        if not data:
+            raise ConnectionLostError(f"{self.description}: closed by the other end")
+        return data
+
+    def send_some(self, data: bytes | bytearray | memoryview) -> int:
+        """Write what fits now."""
+        try:
+            return self._socket.send(data)
+        except BlockingIOError:
+            return 0
+        except OSError as error:
+            raise ConnectionLostError(f"{self.description}: {error.strerror or error}") from error
+
+    def _close_port(self) -> None:
+        self._socket.close()
+
+
+class PortLink:
+    """Any pyserial-like port: ``read``, ``in_waiting``, ``write``, ``close``, ``timeout``."""
+
+    def __init__(self, port: Any, description: str) -> None:
+        self._port = port
+        self.description = description
+        port.timeout = POLL_INTERVAL_S
+        self._closed = False
+
+    @property
+    def port(self) -> Any:
+        """The wrapped port object."""
+        return self._port
+
+    def read_available(self, timeout_s: float) -> bytes:
+        """Wait up to :data:`POLL_INTERVAL_S` (not ``timeout_s``) for bytes; return all waiting."""
+        del timeout_s  # changing a pyserial timeout reconfigures the port: poll at a fixed rate
+        if self._closed:
+            raise ConnectionLostError(f"{self.description}: closed")
+        try:
+            first = self._port.read(1)
+            if not first:
+                if not self._port.is_open:
+                    raise ConnectionLostError(f"{self.description}: port closed")
+                return b""
+            waiting: int = self._port.in_waiting
+            rest: bytes = self._port.read(waiting) if waiting else b""
+            return bytes(first) + rest
+        except ConnectionLostError:
+            raise
+        except Exception as error:  # pyserial and stand-ins raise their own OSError kinds
+            raise ConnectionLostError(f"{self.description}: {error}") from error
+
+    def write(self, data: bytes) -> None:
+        """Write all of ``data``."""
+        if self._closed:
+            raise ConnectionLostError(f"{self.description}: closed")
+        try:
+            self._port.write(data)
+        except Exception as error:
+            raise ConnectionLostError(f"{self.description}: {error}") from error
+
+    def wake(self) -> None:
+        """Interrupt a blocked read where the port supports it; otherwise it returns on its own."""
+        cancel = getattr(self._port, "cancel_read", None)
+        if cancel is not None:
+            with contextlib.suppress(Exception):
+                cancel()
+
+    def close(self) -> None:
+        """Close the port (idempotent)."""
+        if not self._closed:
+            self._closed = True
+            self._port.close()
+
+
+def _open_serial(endpoint: Endpoint) -> Link:
+    import serial  # noqa: PLC0415 - pyserial is only needed when a serial port is opened
+    from serial import serialposix  # noqa: PLC0415
+
+    try:
+        port = serial.serial_for_url(
+            endpoint.target, baudrate=endpoint.baudrate, timeout=POLL_INTERVAL_S,
+            write_timeout=WRITE_TIMEOUT_S,
+        )
+    except (OSError, ValueError) as error:
+        raise ConnectError(f"could not open {endpoint.url}: {error}") from error
+    description = f"{endpoint.target} at {endpoint.baudrate} baud"
+    # Only pyserial's own POSIX class is read through its descriptor: wrappers such as spy://
+    # log in read() and write(), which reading the descriptor would bypass.
+    if type(port) is serialposix.Serial:
+        return SerialFdLink(port, description)
+    return PortLink(port, description)
+
+
+def _open_tcp(endpoint: Endpoint) -> Link:
+    try:
+        sock = socket.create_connection((endpoint.host, endpoint.port), CONNECT_TIMEOUT_S)
+    except OSError as error:
+        raise ConnectError(f"could not connect to {endpoint.url}: {error}") from error
+    return SocketLink(sock, f"tcp {endpoint.target}")
+
+
+def _open_sim(endpoint: Endpoint) -> Link:
+    try:
+        from rovlink.sim import open_port  # type: ignore[import-not-found,unused-ignore]  # noqa: PLC0415
+    except ImportError as error:
+        raise ConnectError(f"{endpoint.url}: the simulator is not available ({error})") from error
+    try:
+        port = open_port(**endpoint.sim_options)
+    except (OSError, ValueError) as error:
+        raise ConnectError(f"could not start {endpoint.url}: {error}") from error
+    return PortLink(port, "simulated controller")
+
+
+def open_link(endpoint: Endpoint) -> Link:
+    """Open the port an endpoint names.
+
+    >>> from rovlink.client.url import parse_url
+    >>> link = open_link(parse_url("loop://"))
+    >>> link.write(b"#qd!"); link.read_available(0.5)
+    b'#qd!'
+    >>> link.close()
+    """
+    if endpoint.scheme is Scheme.TCP:
+        return _open_tcp(endpoint)
+    if endpoint.scheme is Scheme.SIM:
+        return _open_sim(endpoint)
+    return _open_serial(endpoint)

@@ -1,0 +1,174 @@
+"""A scripted fake controller for driver tests: answers queries on the far end of a file descriptor.
+
+It decodes the host's frames exactly as a controller would (checksum mode follows ``#crcon!`` /
+``#crcoff!``, bad checksums are dropped), records every byte and frame, and answers each query by
+the next action of its script: ``reply`` (default), ``drop``, ``corrupt`` (a wrong checksum, or a
+mangled frame with checksums off), ``debug`` (debug text around the reply), ``noise`` (line noise
+before the reply), ``close`` (disconnect instead of answering).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import select
+import socket
+import threading
+from collections import deque
+from collections.abc import Callable
+
+from rovlink.protocol import (
+    BadFrame,
+    Command,
+    Decoder,
+    Frame,
+    Response,
+    encode,
+)
+
+DEFAULT_VALUES: dict[str, int] = {
+    "qd": 123, "qr": 530, "q.l": 0, "qro": -1, "qpi": 15, "qhe": 275,
+}
+
+
+class FakeController:
+    """Answers on ``fd`` from a thread; ``close()`` ends it and closes ``fd``."""
+
+    def __init__(self, fd: int, *, algorithm: str = "crc8",
+                 values: dict[str, int] | None = None,
+                 on_close: Callable[[], None] | None = None) -> None:
+        self._fd = fd
+        self._on_close = on_close
+        self.decoder = Decoder(algorithm=algorithm)
+        self.values = dict(DEFAULT_VALUES if values is None else values)
+        self.script: deque[str] = deque()
+        self.raw = bytearray()
+        self.commands: list[Command] = []
+        self.bad_frames: list[BadFrame] = []
+        self.queries_answered = 0
+        #: Incremented for every query, so replies can carry a sequence number.
+        self.query_count = 0
+        #: When set, ``qd`` answers the query's sequence number (to check reply ordering).
+        self.qd_counts_queries = False
+        self._condition = threading.Condition()
+        self._wake_r, self._wake_w = os.pipe()
+        self._stopping = False
+        self._thread = threading.Thread(target=self._run, name="fake controller", daemon=True)
+        self._thread.start()
+
+    @classmethod
+    def on_socketpair(cls, **kwargs: object) -> tuple[FakeController, socket.socket]:
+        """A fake on one end of a socket pair; the other end is returned for the client."""
+        ours, theirs = socket.socketpair()
+        fake = cls(ours.detach(), **kwargs)  # type: ignore[arg-type]
+        return fake, theirs
+
+    # -- scripting and inspection ----------------------------------------------------------
+
+    def then(self, *actions: str) -> FakeController:
+        """Queue actions for the next queries, in order."""
+        with self._condition:
+            self.script.extend(actions)
+        return self
+
+    def wait_for(self, predicate: Callable[[FakeController], bool], timeout_s: float = 2.0,
+                 ) -> bool:
+        """Wait until ``predicate(self)`` holds (checked whenever a frame arrives)."""
+        with self._condition:
+            return self._condition.wait_for(lambda: predicate(self), timeout_s)
+
+    def frames(self) -> list[str]:
+        """The commands received, as frames without checksums (``#th.270.25!``)."""
+        with self._condition:
+            return [str(command) for command in self.commands]
+
+    def send(self, data: bytes) -> None:
+        """Write unsolicited bytes to the host."""
+        os.write(self._fd, data)
+
+    def close(self) -> None:
+        """Disconnect: the host sees the end of the stream."""
+        with self._condition:
+            if self._wake_w < 0:
+                return
+            self._stopping = True
+        os.write(self._wake_w, b"x")
+        if threading.current_thread() is not self._thread:
+            self._thread.join(2.0)
+        os.close(self._wake_r)
+        os.close(self._wake_w)
+        self._wake_w = -1
+
+    # -- the controller ---------------------------------------------------------------------
+
+    def _run(self) -> None:
+        try:
+            while not self._stopping:
+                ready, _, _ = select.select([self._fd, self._wake_r], [], [], 1.0)
+                if self._fd not in ready:
+                    continue
+                try:
+                    data = os.read(self._fd, 4096)
+                except OSError:
+                    break
+                if not data:
+                    break
+                self._receive(data)
+        finally:
+            with contextlib.suppress(OSError):
+                os.close(self._fd)
+            with self._condition:
+                self._condition.notify_all()
+            if self._on_close is not None:
+                self._on_close()
+
+    def _receive(self, data: bytes) -> None:
+        replies = bytearray()
+        with self._condition:
+            self.raw += data
+            for event in self.decoder.feed(data):
+                if isinstance(event, BadFrame):
+                    self.bad_frames.append(event)
+                    continue
+                if not isinstance(event, Frame) or not isinstance(event.message, Command):
+                    continue
+                command = event.message
+                self.commands.append(command)
+                if command.spec.is_query:
+                    action = self.script.popleft() if self.script else "reply"
+                    if action == "close":
+                        self._stopping = True
+                        break
+                    replies += self._answer(command, action)
+            self._condition.notify_all()
+        if replies:
+            os.write(self._fd, bytes(replies))
+
+    def _reply_frames(self, command: Command) -> list[bytes]:
+        self.query_count += 1
+        checksum = self.decoder.algorithm if self.decoder.checksum_enabled else None
+        frames = []
+        for name in command.spec.replies:
+            value = self.values[name]
+            if name == "qd" and self.qd_counts_queries:
+                value = self.query_count % 10000
+            frames.append(encode(Response(name, (value,)), checksum))
+        return frames
+
+    def _answer(self, command: Command, action: str) -> bytes:
+        frames = self._reply_frames(command)
+        if action == "drop":
+            return b""
+        self.queries_answered += 1
+        if action == "corrupt":
+            first = frames[0]
+            if self.decoder.checksum_enabled:  # flip a checksum digit
+                digit = first[-2:-1]
+                frames[0] = first[:-2] + (b"0" if digit != b"0" else b"1") + first[-1:]
+            else:  # a letter where a digit belongs
+                frames[0] = first[:-2] + b"x!"
+        if action == "debug":
+            return b"depth pid: p=12 i=1 d=4\r\n" + b"".join(frames) + b"\r\nmode depth\r\n"
+        if action == "noise":
+            return b"\x00~ noise ~\r\n" + b"".join(frames)
+        return b"".join(frames)
