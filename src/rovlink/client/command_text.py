@@ -67,7 +67,10 @@ def _spec(name: str) -> Spec:
     try:
         return lookup(name)
     except UnknownCommandError:
-        close = difflib.get_close_matches(name, list(SPELLINGS[Kind.COMMAND]), n=3, cutoff=0.6)
+        spellings = list(SPELLINGS[Kind.COMMAND])
+        close = difflib.get_close_matches(name, spellings, n=3, cutoff=0.6)
+        # A word that starts with a command's name ("thrust" for "th") is probably that command.
+        close += [s for s in spellings if len(s) > 1 and name.startswith(s) and s not in close]
         hint = f"; did you mean {', '.join(close)}?" if close else ""
         raise CommandTextError(f"unknown command {name!r}{hint}") from None
 

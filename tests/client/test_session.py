@@ -1,0 +1,129 @@
+"""The sans-I/O session: replies matched in order, timeouts on a simulated clock, counters."""
+
+from __future__ import annotations
+
+import pytest
+
+from rovlink.client.session import Outcome, Session
+from rovlink.protocol import Command, Text
+
+QSA_REPLY = b"$qd.120!$qr.530!$q.l.0!$qro.-1!$qpi.+3!$qhe.275!"
+
+
+def test_replies_go_to_queries_in_order() -> None:
+    session = Session()
+    _, first = session.query(Command("qd"), now=0.0)
+    _, second = session.query(Command("qd"), now=0.0)
+    received = session.receive(b"$qd.1!$qd.2!", now=0.01)
+    assert received.settled == [first, second]
+    assert first.responses[0].values == (1,)
+    assert second.responses[0].values == (2,)
+    assert session.pending == ()
+
+
+def test_qsa_collects_its_six_replies_across_chunks() -> None:
+    session = Session()
+    _, query = session.query(Command("qsa"), now=0.0)
+    assert session.receive(QSA_REPLY[:20], now=0.001).settled == []
+    assert len(query.responses) == 2
+    assert session.receive(QSA_REPLY[20:], now=0.002).settled == [query]
+    assert [r.name for r in query.responses] == ["qd", "qr", "q.l", "qro", "qpi", "qhe"]
+
+
+def test_a_reply_to_a_later_query_settles_the_earlier_ones_as_lost() -> None:
+    session = Session()
+    _, depth = session.query(Command("qd"), now=0.0)
+    _, heading = session.query(Command("qhe"), now=0.0)
+    received = session.receive(b"$qhe.90!", now=0.01)
+    assert received.settled == [depth, heading]
+    assert depth.outcome is Outcome.LOST
+    assert heading.outcome is Outcome.ANSWERED
+
+
+def test_a_broken_qsa_reply_is_corrupt_and_the_frame_goes_on_to_the_next_query() -> None:
+    session = Session()
+    _, sensors = session.query(Command("qsa"), now=0.0)
+    _, roll = session.query(Command("qro"), now=0.0)
+    # qsa got two replies, then the answer to the next query: the rest of qsa never came.
+    received = session.receive(b"$qd.1!$qr.2!$qro.+5!", now=0.01)
+    assert sensors.outcome is Outcome.CORRUPT
+    assert roll.outcome is Outcome.ANSWERED
+    assert received.settled == [sensors, roll]
+
+
+def test_a_bad_checksum_makes_the_oldest_query_corrupt() -> None:
+    session = Session(checksum_enabled=False)
+    session.command(Command("crcon"), now=0.0)
+    _, query = session.query(Command("qd"), now=0.0)
+    received = session.receive(b"$qd.12300!", now=0.01)
+    assert query.outcome is Outcome.CORRUPT
+    assert received.settled == [query]
+    assert session.counters.checksum_errors == 1
+    assert session.counters.bad_frames == 1
+
+
+def test_unknown_replies_and_text_are_unsolicited_and_settle_nothing() -> None:
+    session = Session()
+    _, query = session.query(Command("qd"), now=0.0)
+    received = session.receive(b"boot ok\r\n$zz.1!$qhe.5!", now=0.01)
+    assert received.settled == []
+    assert query.outcome is Outcome.PENDING
+    assert isinstance(received.unsolicited[0], Text)
+    assert session.counters.text_lines == 1
+    assert session.counters.stray_frames == 1  # $qhe answers nothing pending
+
+
+def test_deadline_counts_from_sending_then_from_the_last_progress() -> None:
+    session = Session(timeout_s=0.5)
+    _, first = session.query(Command("qd"), now=0.0)
+    _, second = session.query(Command("qd"), now=0.1)
+    assert session.deadline(first) == pytest.approx(0.5)
+    session.receive(b"$qd.1!", now=0.45)
+    # The queue moved at 0.45: the second query waits a full timeout from there.
+    assert session.deadline(second) == pytest.approx(0.95)
+    assert session.expire(now=0.9) == []
+    assert session.expire(now=0.95) == [second]
+    assert second.outcome is Outcome.TIMEOUT
+    assert session.counters.timeouts == 1
+
+
+def test_a_dead_link_times_every_query_out_together() -> None:
+    session = Session(timeout_s=0.5)
+    queries = [session.query(Command("qd"), now=0.01 * n)[1] for n in range(5)]
+    assert session.expire(now=0.55) == queries
+    assert session.next_deadline() is None
+
+
+def test_checksum_mode_switches_both_directions() -> None:
+    session = Session()
+    assert session.command(Command("crcon"), now=0.0) == b"#crcon!"
+    data, query = session.query(Command("qd"), now=0.0)
+    assert data == b"#qd8C!"
+    session.receive(b"$qd.12313!", now=0.01)
+    assert query.responses[0].values == (123,)
+    assert session.command(Command("crcoff"), now=0.0) == b"#crcoff!"
+    assert session.query(Command("qd"), now=0.0)[0] == b"#qd!"
+
+
+def test_raw_frames_are_counted_and_a_raw_query_waits_for_its_reply() -> None:
+    session = Session()
+    assert session.raw(b"#bogus!", now=0.0) is None
+    query = session.raw(b"#qd!", now=0.0)
+    assert query is not None
+    assert query.command == Command("qd")
+    assert session.counters.frames_sent == 2
+
+
+def test_disconnect_settles_everything() -> None:
+    session = Session()
+    _, query = session.query(Command("qd"), now=0.0)
+    assert session.disconnect() == [query]
+    assert query.outcome is Outcome.DISCONNECTED
+
+
+def test_commands_and_queries_are_not_interchangeable() -> None:
+    session = Session()
+    with pytest.raises(ValueError, match="is a query"):
+        session.command(Command("qd"), now=0.0)
+    with pytest.raises(ValueError, match="expects no reply"):
+        session.query(Command("stop"), now=0.0)

@@ -1,0 +1,68 @@
+"""Connection URLs are parsed and checked before anything is opened."""
+
+from __future__ import annotations
+
+import pytest
+
+from rovlink.client.url import DEFAULT_BAUDRATE, Scheme, parse_url
+
+
+@pytest.mark.parametrize(
+    ("url", "scheme", "target", "baudrate"),
+    [
+        ("/dev/ttyUSB0", Scheme.SERIAL, "/dev/ttyUSB0", DEFAULT_BAUDRATE),
+        ("/dev/ttyUSB0?baudrate=9600", Scheme.SERIAL, "/dev/ttyUSB0", 9600),
+        ("/dev/pts/7", Scheme.SERIAL, "/dev/pts/7", DEFAULT_BAUDRATE),
+        ("loop://", Scheme.SERIAL, "loop://", DEFAULT_BAUDRATE),
+        ("rfc2217://host:7000?baudrate=57600", Scheme.SERIAL, "rfc2217://host:7000", 57600),
+        ("spy://COM3?file=log.txt", Scheme.SERIAL, "spy://COM3?file=log.txt", DEFAULT_BAUDRATE),
+        ("socket://localhost:5760", Scheme.TCP, "localhost:5760", DEFAULT_BAUDRATE),
+        # pyserial's own socket options go to pyserial's handler.
+        ("socket://localhost:5760?logging=debug", Scheme.SERIAL,
+         "socket://localhost:5760?logging=debug", DEFAULT_BAUDRATE),
+    ],
+)
+def test_serial_and_tcp_urls(url: str, scheme: Scheme, target: str, baudrate: int) -> None:
+    endpoint = parse_url(url)
+    assert (endpoint.scheme, endpoint.target, endpoint.baudrate) == (scheme, target, baudrate)
+
+
+def test_tcp_host_and_port() -> None:
+    endpoint = parse_url("socket://[::1]:5760")
+    assert (endpoint.host, endpoint.port) == ("::1", 5760)
+
+
+def test_baudrate_argument_and_url_must_agree() -> None:
+    assert parse_url("/dev/ttyS0", baudrate=9600).baudrate == 9600
+    assert parse_url("/dev/ttyS0?baudrate=9600", baudrate=9600).baudrate == 9600
+    with pytest.raises(ValueError, match="disagrees"):
+        parse_url("/dev/ttyS0?baudrate=9600", baudrate=115200)
+
+
+def test_sim_options_become_open_port_keywords() -> None:
+    endpoint = parse_url("sim://?leak_at=5&seed=1&realtime=0&config=robot.toml")
+    assert endpoint.scheme is Scheme.SIM
+    assert endpoint.sim_options == {
+        "leak_at_s": 5.0, "seed": 1, "realtime": False, "config": "robot.toml",
+    }
+    assert parse_url("sim://").sim_options == {}
+
+
+@pytest.mark.parametrize(
+    ("url", "message"),
+    [
+        ("", "non-empty"),
+        ("sim://?speed=2", "unknown sim option 'speed'"),
+        ("sim://?seed=x", "seed must be an integer"),
+        ("sim://?leak_at=-1", "leak_at must be a non-negative"),
+        ("sim://?realtime=maybe", "realtime must be 1 or 0"),
+        ("sim://host", "no host or path"),
+        ("/dev/ttyUSB0?baudrate=fast", "baudrate must be a positive integer"),
+        ("/dev/ttyUSB0?parity=E", r"only \?baudrate=, not parity"),
+        ("socket://localhost", "HOST:PORT"),
+        ("socket://localhost:99999", "HOST:PORT"),
+    ],
+)
+def test_bad_urls_say_what_is_wrong(url: str, message: str) -> None:
+    with pytest.raises(ValueError, match=message):
+        parse_url(url)
