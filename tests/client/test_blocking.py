@@ -268,9 +268,14 @@ def test_leaving_the_with_block_by_an_error_stops_the_robot(
     fake: FakeController, make_client: MakeClient
 ) -> None:
     client = make_client()
-    with pytest.raises(KeyError), client:
-        client.move(0, 50)
-        raise KeyError("the robot program failed")
+
+    def failing_program() -> None:
+        with client:
+            client.move(0, 50)
+            raise KeyError("the robot program failed")
+
+    with pytest.raises(KeyError):
+        failing_program()
     assert fake.wait_for(lambda f: f.frames()[-1:] == ["#stop!"])
     assert client.closed
 

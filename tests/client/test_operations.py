@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import inspect
+import re
 
 import pytest
 
@@ -43,15 +44,14 @@ def test_both_clients_have_every_method_with_the_same_signature(method: str) -> 
         (lambda: ops.depth_zero(1025), "set_depth_zero: raw must be in 0–1024 (#sdz)"),
         (lambda: ops.depth_scale(-1), "set_depth_scale: k must be in 0–10000 (#sdk)"),
         (lambda: ops.depth_pid(p=10, d=100), "set_depth_pid: d must be in 0–99 (#mvpidd)"),
-        (lambda: ops.depth_pid(), "give at least one of p, i, d"),
+        (ops.depth_pid, "give at least one of p, i, d"),
         (lambda: ops.raw_frame(""), "non-empty"),
         (lambda: ops.raw_frame("#qd°!"), "ASCII"),
     ],
 )
 def test_out_of_range_values_name_the_argument_and_range(call: object, message: str) -> None:
-    with pytest.raises(ValueError) as caught:
+    with pytest.raises(ValueError, match=re.escape(message)):
         call()  # type: ignore[operator]
-    assert message in str(caught.value)
 
 
 def test_invalid_argument_error_carries_the_details() -> None:

@@ -1,0 +1,269 @@
+"""The asyncio client against a scripted fake controller on a socket pair."""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+import random
+import time
+from collections.abc import Awaitable, Callable
+from typing import Any
+
+import pytest
+
+from rovlink.aio import AsyncClient, ConnectionLostError, InvalidArgumentError, QueryTimeoutError
+from rovlink.protocol import Command, Event, Response, Text, get_algorithm
+from tests.client.fake_controller import FakeController
+from tests.client.method_cases import QUERY_CASES, SET_CASES
+
+MakeAsyncClient = Callable[..., Awaitable[AsyncClient]]
+
+
+async def _arrived(fake: FakeController, predicate: Callable[[FakeController], bool]) -> bool:
+    return await asyncio.to_thread(fake.wait_for, predicate)
+
+
+async def _sent_after_connect(fake: FakeController, count: int) -> bytes:
+    assert await _arrived(fake, lambda f: len(f.commands) >= 1 + count)
+    raw = bytes(fake.raw)
+    for connect_frame in (b"#crcon!", b"#crcoff!"):
+        if raw.startswith(connect_frame):
+            return raw[len(connect_frame):]
+    raise AssertionError(f"no checksum mode frame first: {raw!r}")
+
+
+@pytest.mark.parametrize(("method", "args", "kwargs", "frames"), SET_CASES)
+@pytest.mark.parametrize("checksum", [False, True])
+async def test_set_commands_send_exact_frames(
+    fake: FakeController, make_async_client: MakeAsyncClient, method: str,
+    args: tuple[Any, ...], kwargs: dict[str, Any], frames: list[bytes], checksum: bool,
+) -> None:
+    client = await make_async_client(checksum=checksum)
+    assert await getattr(client, method)(*args, **kwargs) is None
+    if checksum:
+        crc8 = get_algorithm("crc8")
+        frames = [f[:-1] + crc8.digits(f[1:-1]) + b"!" for f in frames]
+    assert await _sent_after_connect(fake, len(frames)) == b"".join(frames)
+
+
+@pytest.mark.parametrize(("method", "frame", "expected"), QUERY_CASES)
+@pytest.mark.parametrize("checksum", [False, True])
+async def test_queries_send_exact_frames_and_decode_replies(
+    fake: FakeController, make_async_client: MakeAsyncClient, method: str, frame: bytes,
+    expected: Any, checksum: bool,
+) -> None:
+    client = await make_async_client(checksum=checksum)
+    assert await getattr(client, method)() == expected
+    if checksum:
+        frame = frame[:-1] + get_algorithm("crc8").digits(frame[1:-1]) + b"!"
+    assert await _sent_after_connect(fake, 1) == frame
+
+
+async def test_invalid_arguments_send_nothing(
+    fake: FakeController, make_async_client: MakeAsyncClient
+) -> None:
+    client = await make_async_client()
+    with pytest.raises(InvalidArgumentError, match="hold_depth: depth_cm must be in 0–9999"):
+        await client.hold_depth(12000)
+    with pytest.raises(InvalidArgumentError, match="p must be in 0–99"):
+        await client.set_depth_pid(p=100, i=1)
+    await client.stop()
+    assert await _sent_after_connect(fake, 1) == b"#stop!"
+
+
+async def test_many_concurrent_queries_are_matched_in_order(
+    fake: FakeController, make_async_client: MakeAsyncClient
+) -> None:
+    fake.qd_counts_queries = True
+    client = await make_async_client(max_in_flight=16, timeout_s=2.0)
+    depths = await asyncio.gather(*(client.depth_cm() for _ in range(300)))
+    assert sorted(depths) == list(range(1, 301))
+    assert client.counters.replies == 300
+    assert client.counters.retries == 0
+
+
+async def test_many_concurrent_mixed_queries_get_their_own_replies(
+    fake: FakeController, make_async_client: MakeAsyncClient
+) -> None:
+    client = await make_async_client(max_in_flight=8, timeout_s=2.0)
+    rng = random.Random(7)
+    cases = [rng.choice(QUERY_CASES) for _ in range(200)]
+    results = await asyncio.gather(*(getattr(client, method)() for method, _, _ in cases))
+    assert results == [expected for _, _, expected in cases]
+
+
+async def test_timeouts_retries_and_corrupt_replies(
+    fake: FakeController, make_async_client: MakeAsyncClient
+) -> None:
+    client = await make_async_client(retries=1)
+    fake.then("drop", "drop")
+    with pytest.raises(QueryTimeoutError) as caught:
+        await client.roll_deg()
+    assert caught.value.query == Command("qro")
+    assert caught.value.failures == ("timeout", "timeout")
+    fake.then("corrupt")
+    assert await client.roll_deg() == -1
+    counters = client.counters
+    assert (counters.timeouts, counters.retries, counters.bad_frames) == (2, 2, 1)
+
+
+async def test_a_lost_reply_among_many_in_flight_is_retried(
+    fake: FakeController, make_async_client: MakeAsyncClient
+) -> None:
+    client = await make_async_client(timeout_s=1.0)
+    fake.then("reply", "drop")
+    depth, heading, roll = await asyncio.gather(
+        client.depth_cm(), client.heading_deg(), client.roll_deg()
+    )
+    assert (depth, heading, roll) == (123, 275, -1)
+    # The controller answered roll before heading: heading was lost at once, not timed out.
+    assert client.counters.timeouts == 0
+    assert client.counters.retries == 1
+
+
+async def test_checksum_switch_waits_for_queries_in_flight(
+    fake: FakeController, make_async_client: MakeAsyncClient
+) -> None:
+    client = await make_async_client(timeout_s=2.0)
+    before = [asyncio.ensure_future(client.sensors()) for _ in range(10)]
+    await asyncio.sleep(0)  # let them reach the wire
+    switch = asyncio.ensure_future(client.set_checksum(True))
+    after = [asyncio.ensure_future(client.depth_cm()) for _ in range(10)]
+    await asyncio.gather(*before, switch, *after)
+    assert client.checksum_enabled
+    assert client.counters.retries == 0
+    assert fake.bad_frames == []
+    assert bytes(fake.raw).endswith(b"#qd8C!" * 10)
+
+
+async def test_debug_text_goes_to_the_callback_and_the_log(
+    fake: FakeController, make_async_client: MakeAsyncClient,
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    seen: list[Event] = []
+    client = await make_async_client(on_stray=seen.append)
+    fake.then("debug")
+    with caplog.at_level(logging.INFO, logger="rovlink.client"):
+        assert await client.pitch_deg() == 15
+        for _ in range(100):
+            if len(seen) == 2:
+                break
+            await asyncio.sleep(0.01)
+    assert [type(event) for event in seen] == [Text, Text]
+    assert any("depth pid" in record.getMessage() for record in caplog.records)
+
+
+async def test_disconnect_fails_pending_and_later_calls(
+    fake: FakeController, make_async_client: MakeAsyncClient
+) -> None:
+    client = await make_async_client(timeout_s=5.0)
+    fake.then("drop", "close")
+    first = asyncio.ensure_future(client.depth_cm())
+    second = asyncio.ensure_future(client.heading_deg())
+    for future in (first, second):
+        with pytest.raises(ConnectionLostError):
+            await future
+    assert client.closed
+    with pytest.raises(ConnectionLostError):
+        await client.stop()
+
+
+async def test_close_fails_waiting_queries(
+    fake: FakeController, make_async_client: MakeAsyncClient
+) -> None:
+    client = await make_async_client(timeout_s=5.0)
+    fake.then("drop")
+    waiting = asyncio.ensure_future(client.depth_cm())
+    assert await _arrived(fake, lambda f: "#qd!" in f.frames())
+    await client.close()
+    with pytest.raises(ConnectionLostError):
+        await waiting
+
+
+async def test_keepalive(fake: FakeController, make_async_client: MakeAsyncClient) -> None:
+    client = await make_async_client(keepalive_s=0.02)
+    assert await _arrived(fake, lambda f: f.frames().count("#qd!") >= 3)
+    assert client.counters.keepalives >= 3
+
+
+async def test_telemetry_as_fast_as_possible(
+    fake: FakeController, make_async_client: MakeAsyncClient
+) -> None:
+    client = await make_async_client()
+    readings = []
+    async for reading in client.telemetry(None):
+        readings.append(reading)
+        if len(readings) == 50:
+            break
+    assert all(reading.heading_deg == 275 for reading in readings)
+
+
+async def test_telemetry_keeps_its_rate(
+    fake: FakeController, make_async_client: MakeAsyncClient
+) -> None:
+    client = await make_async_client()
+    started = time.monotonic()
+    count = 0
+    async for _ in client.telemetry(50):
+        count += 1
+        if count == 6:
+            break
+    # Six polls at 50 Hz start 0.1 s apart at the least, however fast the replies come.
+    assert time.monotonic() - started >= 5 / 50 - 0.005
+    assert fake.frames().count("#qsa!") <= 8
+
+
+async def test_telemetry_skips_a_reading_that_timed_out(
+    fake: FakeController, make_async_client: MakeAsyncClient
+) -> None:
+    client = await make_async_client(retries=0, max_in_flight=1)
+    fake.then("drop")
+    readings = []
+    async for reading in client.telemetry(None):
+        readings.append(reading)
+        if len(readings) == 2:
+            break
+    assert client.counters.timeouts == 1
+
+
+async def test_telemetry_rejects_a_bad_rate(make_async_client: MakeAsyncClient) -> None:
+    client = await make_async_client()
+    with pytest.raises(ValueError, match="rate_hz must be a positive number"):
+        async for _ in client.telemetry(0):
+            pass
+
+
+async def test_send_and_send_raw(fake: FakeController, make_async_client: MakeAsyncClient,
+                                 ) -> None:
+    client = await make_async_client()
+    assert await client.send(Command("q.l")) == (Response("q.l", (0,)),)
+    assert await client.send_raw("#qro!") == (Response("qro", (-1,)),)
+    assert await client.send_raw("#nonsense!") == ()
+    assert await _sent_after_connect(fake, 2) == b"#q.l!#qro!#nonsense!"
+
+
+async def test_leaving_async_with_by_an_error_stops_the_robot(
+    fake: FakeController, make_async_client: MakeAsyncClient
+) -> None:
+    client = await make_async_client()
+
+    async def failing_program() -> None:
+        async with client:
+            await client.move(90, 30)
+            raise KeyError("bug")
+
+    with pytest.raises(KeyError):
+        await failing_program()
+    assert await _arrived(fake, lambda f: f.frames()[-1:] == ["#stop!"])
+    assert client.closed
+
+
+async def test_bad_options_are_rejected_before_connecting() -> None:
+    import rovlink.aio
+
+    with pytest.raises(ValueError, match="max_in_flight"):
+        rovlink.aio.connect("sim://", max_in_flight=0)
+    with pytest.raises(ValueError, match="timeout must be a positive number"):
+        rovlink.aio.connect("sim://", timeout=-1)
+    with pytest.raises(ValueError, match="unknown sim option"):
+        rovlink.aio.connect("sim://?bogus=1")

@@ -1,0 +1,140 @@
+"""Both clients over real transports: a pseudo-terminal, TCP, and pyserial's own socket handler."""
+
+from __future__ import annotations
+
+import asyncio
+import os
+import socket
+import threading
+import tty
+from collections.abc import Iterator
+
+import pytest
+
+import rovlink
+import rovlink.aio
+from rovlink.client import ConnectionLostError, Sensors
+from rovlink.client.links import PortLink, SerialFdLink, SocketLink
+from tests.client.conftest import wait_until
+from tests.client.fake_controller import FakeController
+
+pytestmark = pytest.mark.integration
+
+EXPECTED_SENSORS = Sensors(123, 530, False, -1, 15, 275)
+
+
+@pytest.fixture
+def pty_fake() -> Iterator[tuple[FakeController, str]]:
+    """A fake controller on a pseudo-terminal; yields it and the terminal's path."""
+    master, slave = os.openpty()
+    tty.setraw(slave)  # no echo, no line editing, before the client opens it
+    fake = FakeController(master)
+    yield fake, os.ttyname(slave)
+    fake.close()
+    os.close(slave)
+
+
+class _TcpFake:
+    """A fake controller behind a listening socket on the loopback interface."""
+
+    def __init__(self) -> None:
+        self.server = socket.create_server(("127.0.0.1", 0))
+        self.port = self.server.getsockname()[1]
+        self.fake: FakeController | None = None
+        self.accepted = threading.Event()
+        threading.Thread(target=self._accept, daemon=True).start()
+
+    def _accept(self) -> None:
+        connection, _ = self.server.accept()
+        self.fake = FakeController(connection.detach())
+        self.accepted.set()
+
+    def close(self) -> None:
+        self.server.close()
+        if self.fake is not None:
+            self.fake.close()
+
+
+@pytest.fixture
+def tcp_fake() -> Iterator[_TcpFake]:
+    server = _TcpFake()
+    yield server
+    server.close()
+
+
+def test_blocking_client_over_a_pty(pty_fake: tuple[FakeController, str]) -> None:
+    fake, path = pty_fake
+    with rovlink.connect(path, keepalive=None, checksum=True) as rov:
+        assert isinstance(rov._link, SerialFdLink)
+        assert rov.sensors() == EXPECTED_SENSORS
+        rov.move(270, 25)
+        assert rov.depth_cm() == 123
+    assert fake.frames() == ["#crcon!", "#qsa!", "#th.270.25!", "#qd!"]
+    assert bytes(fake.raw) == b"#crcon!#qsaB1!#th.270.25CA!#qd8C!"
+
+
+def test_pty_disconnect_is_a_lost_connection(pty_fake: tuple[FakeController, str]) -> None:
+    fake, path = pty_fake
+    rov = rovlink.connect(path, keepalive=None, timeout=2.0)
+    fake.then("close")
+    with pytest.raises(ConnectionLostError):
+        rov.depth_cm()
+    with pytest.raises(ConnectionLostError):
+        rov.stop()
+    rov.close()
+
+
+def test_blocking_client_over_tcp(tcp_fake: _TcpFake) -> None:
+    with rovlink.connect(f"socket://127.0.0.1:{tcp_fake.port}", keepalive=None) as rov:
+        assert isinstance(rov._link, SocketLink)
+        assert rov.heading_deg() == 275
+        assert rov.leak_detected() is False
+        assert tcp_fake.accepted.wait(2.0)
+        assert tcp_fake.fake is not None
+        tcp_fake.fake.close()
+        assert wait_until(lambda: rov.closed)
+        with pytest.raises(ConnectionLostError, match="closed by the other end"):
+            rov.pitch_deg()
+
+
+def test_blocking_client_through_pyserials_own_handler(tcp_fake: _TcpFake) -> None:
+    url = f"socket://127.0.0.1:{tcp_fake.port}?logging=warning"
+    with rovlink.connect(url, keepalive=None) as rov:
+        assert isinstance(rov._link, PortLink)
+        assert rov.sensors() == EXPECTED_SENSORS
+
+
+def test_connecting_to_nothing_is_a_connect_error() -> None:
+    server = socket.create_server(("127.0.0.1", 0))
+    port = server.getsockname()[1]
+    server.close()
+    with pytest.raises(ConnectionError, match="could not connect"):
+        rovlink.connect(f"socket://127.0.0.1:{port}")
+    with pytest.raises(ConnectionError, match="could not open"):
+        rovlink.connect("/dev/nonexistent-rovlink-port")
+
+
+async def test_async_client_over_a_pty(pty_fake: tuple[FakeController, str]) -> None:
+    fake, path = pty_fake
+    async with rovlink.aio.connect(path, keepalive=None) as rov:
+        results = await asyncio.gather(*(rov.sensors() for _ in range(50)))
+        assert results == [EXPECTED_SENSORS] * 50
+        await rov.claw_open()
+    assert fake.wait_for(lambda f: f.frames()[-1:] == ["#h+!"])
+
+
+async def test_async_client_over_tcp_and_disconnect(tcp_fake: _TcpFake) -> None:
+    rov = await rovlink.aio.connect(f"socket://127.0.0.1:{tcp_fake.port}", keepalive=None)
+    assert await rov.depth_cm() == 123
+    assert tcp_fake.fake is not None
+    tcp_fake.fake.then("close")
+    with pytest.raises(ConnectionLostError):
+        await rov.depth_cm()
+    await rov.close()
+
+
+async def test_async_client_through_pyserials_own_handler(tcp_fake: _TcpFake) -> None:
+    url = f"socket://127.0.0.1:{tcp_fake.port}?logging=warning"
+    async with rovlink.aio.connect(url, keepalive=None) as rov:
+        assert await rov.heading_deg() == 275
+        assert await rov.roll_deg() == -1
