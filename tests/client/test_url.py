@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from rovlink.client.url import DEFAULT_BAUDRATE, Scheme, parse_url
+from rovlink.client.url import DEFAULT_BAUDRATE, Scheme, SimOptions, parse_url
 
 
 @pytest.mark.parametrize(
@@ -42,10 +42,10 @@ def test_baudrate_argument_and_url_must_agree() -> None:
 def test_sim_options_become_open_port_keywords() -> None:
     endpoint = parse_url("sim://?leak_at=5&seed=1&realtime=0&config=robot.toml")
     assert endpoint.scheme is Scheme.SIM
-    assert endpoint.sim_options == {
-        "leak_at_s": 5.0, "seed": 1, "realtime": False, "config": "robot.toml",
-    }
-    assert parse_url("sim://").sim_options == {}
+    assert endpoint.sim_options == SimOptions(
+        seed=1, leak_at_s=5.0, config="robot.toml", realtime=False
+    )
+    assert parse_url("sim://").sim_options == SimOptions()
 
 
 @pytest.mark.parametrize(

@@ -286,11 +286,13 @@ def _open_tcp(endpoint: Endpoint) -> Link:
 
 def _open_sim(endpoint: Endpoint) -> Link:
     try:
-        from rovlink.sim import open_port  # type: ignore[import-not-found,unused-ignore]  # noqa: PLC0415
+        from rovlink.sim import open_port  # noqa: PLC0415 - the simulator loads only for sim://
     except ImportError as error:
         raise ConnectError(f"{endpoint.url}: the simulator is not available ({error})") from error
     try:
-        port = open_port(**endpoint.sim_options)
+        options = endpoint.sim_options
+        port = open_port(seed=options.seed, leak_at_s=options.leak_at_s, config=options.config,
+                         realtime=options.realtime)
     except (OSError, ValueError) as error:
         raise ConnectError(f"could not start {endpoint.url}: {error}") from error
     return PortLink(port, "simulated controller")

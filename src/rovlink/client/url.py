@@ -10,11 +10,11 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from enum import StrEnum
 from urllib.parse import parse_qsl, urlencode
 
-__all__ = ["DEFAULT_BAUDRATE", "SIM_OPTIONS", "Endpoint", "Scheme", "parse_url"]
+__all__ = ["DEFAULT_BAUDRATE", "SIM_OPTIONS", "Endpoint", "Scheme", "SimOptions", "parse_url"]
 
 DEFAULT_BAUDRATE = 115200
 
@@ -27,13 +27,23 @@ class Scheme(StrEnum):
     SIM = "sim"  # the in-process simulated controller
 
 
-#: ``sim://`` query parameters: name → (keyword of ``rovlink.sim.open_port``, description).
-SIM_OPTIONS: dict[str, tuple[str, str]] = {
-    "seed": ("seed", "integer seed of the simulator's noise"),
-    "leak_at": ("leak_at_s", "seconds after start when the leak sensor fires"),
-    "config": ("config", "path of a vehicle/controller configuration file"),
-    "realtime": ("realtime", "1 (default) to run in real time, 0 as fast as possible"),
+#: ``sim://`` query parameters and what they mean.
+SIM_OPTIONS: dict[str, str] = {
+    "seed": "integer seed of the simulator's noise",
+    "leak_at": "seconds after start when the leak sensor fires",
+    "config": "path of a vehicle/controller configuration file (TOML)",
+    "realtime": "1 (default) to run in real time, 0 as fast as possible",
 }
+
+
+@dataclass(frozen=True, slots=True)
+class SimOptions:
+    """The simulator's options from a ``sim://`` URL (keywords of ``rovlink.sim.open_port``)."""
+
+    seed: int | None = None
+    leak_at_s: float | None = None
+    config: str | None = None
+    realtime: bool = True
 
 
 @dataclass(frozen=True, slots=True)
@@ -41,14 +51,14 @@ class Endpoint:
     """A parsed connection URL.
 
     ``target`` is what the opener needs: the pyserial URL or path without ``baudrate``, or
-    ``host:port`` for TCP. ``sim_options`` are keyword arguments of ``rovlink.sim.open_port``.
+    ``host:port`` for TCP.
     """
 
     url: str
     scheme: Scheme
     target: str
     baudrate: int = DEFAULT_BAUDRATE
-    sim_options: dict[str, object] = field(default_factory=dict)
+    sim_options: SimOptions = field(default_factory=SimOptions)
     host: str = ""
     port: int = 0
 
@@ -68,37 +78,43 @@ def _parse_baudrate(url: str, text: str) -> int:
     return int(text)
 
 
-def _parse_sim_value(url: str, name: str, text: str) -> object:
-    try:
-        if name == "seed":
-            return int(text)
-        if name == "leak_at":
-            value = float(text)
-            if value < 0:
-                raise ValueError
-            return value
-    except ValueError:
-        kind = "an integer" if name == "seed" else "a non-negative number of seconds"
-        raise ValueError(f"{url!r}: {name} must be {kind}, got {text!r}") from None
-    if name == "realtime":
-        flags = {"1": True, "true": True, "yes": True, "0": False, "false": False, "no": False}
-        if text.lower() not in flags:
-            raise ValueError(f"{url!r}: realtime must be 1 or 0, got {text!r}")
-        return flags[text.lower()]
-    if not text:
-        raise ValueError(f"{url!r}: {name} needs a value")
-    return text
+_FLAGS = {"1": True, "true": True, "yes": True, "0": False, "false": False, "no": False}
 
 
 def _parse_sim(url: str, base: str, pairs: list[tuple[str, str]]) -> Endpoint:
     if base not in ("sim://", "sim:"):
         raise ValueError(f"{url!r}: sim:// takes no host or path, only ?options")
-    options: dict[str, object] = {}
-    for name, text in pairs:
-        if name not in SIM_OPTIONS:
-            known = ", ".join(SIM_OPTIONS)
-            raise ValueError(f"{url!r}: unknown sim option {name!r}; known options: {known}")
-        options[SIM_OPTIONS[name][0]] = _parse_sim_value(url, name, text)
+    values = dict(pairs)
+    unknown = [name for name in values if name not in SIM_OPTIONS]
+    if unknown:
+        known = ", ".join(SIM_OPTIONS)
+        raise ValueError(f"{url!r}: unknown sim option {unknown[0]!r}; known options: {known}")
+    options = SimOptions()
+    if "seed" in values:
+        try:
+            options = replace(options, seed=int(values["seed"]))
+        except ValueError:
+            raise ValueError(f"{url!r}: seed must be an integer, got {values['seed']!r}") from None
+    if "leak_at" in values:
+        text = values["leak_at"]
+        try:
+            leak_at_s = float(text)
+        except ValueError:
+            leak_at_s = -1.0
+        if not leak_at_s >= 0:
+            raise ValueError(
+                f"{url!r}: leak_at must be a non-negative number of seconds, got {text!r}"
+            )
+        options = replace(options, leak_at_s=leak_at_s)
+    if "realtime" in values:
+        flag = _FLAGS.get(values["realtime"].lower())
+        if flag is None:
+            raise ValueError(f"{url!r}: realtime must be 1 or 0, got {values['realtime']!r}")
+        options = replace(options, realtime=flag)
+    if "config" in values:
+        if not values["config"]:
+            raise ValueError(f"{url!r}: config needs a file path")
+        options = replace(options, config=values["config"])
     return Endpoint(url, Scheme.SIM, "sim://", sim_options=options)
 
 
@@ -119,7 +135,7 @@ def parse_url(url: str, baudrate: int | None = None) -> Endpoint:
     >>> parse_url("socket://localhost:5760").port
     5760
     >>> parse_url("sim://?leak_at=5&seed=1").sim_options
-    {'leak_at_s': 5.0, 'seed': 1}
+    SimOptions(seed=1, leak_at_s=5.0, config=None, realtime=True)
     """
     if not isinstance(url, str) or not url.strip():
         raise ValueError(f"connection URL must be a non-empty string, got {url!r}")
