@@ -1,0 +1,75 @@
+"""``rovlink demo``: the scripted dive runs through the driver and locks the robot at the end."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from typer.testing import CliRunner
+
+import rovlink
+from rovlink.cli import app
+from rovlink.cli.demo import DivePlan, DiveProgress, run_dive
+
+runner = CliRunner()
+
+
+def _fast_sim_url(tmp_path: Path) -> str:
+    # As fast as the CPU allows: the watchdog counts simulated seconds, which pass far faster
+    # than the demo's wall-clock polling, so it is off here.
+    config = tmp_path / "fast.toml"
+    config.write_text("[controller]\nwatchdog_s = 0\n")
+    return f"sim://?realtime=0&seed=1&config={config}"
+
+
+def test_the_dive_reaches_each_depth_and_ends_locked(tmp_path: Path) -> None:
+    seen: list[str] = []
+
+    def record(progress: DiveProgress) -> None:
+        running = [step.name for step in progress.steps if step.status == "running"]
+        if running and (not seen or seen[-1] != running[0]):
+            seen.append(running[0])
+
+    plan = DivePlan(depth_cm=60, hold_s=0.1, leg_s=0.1, reach_timeout_s=20)
+    with rovlink.connect(_fast_sim_url(tmp_path), keepalive=None) as rov:
+        progress = run_dive(rov, plan, record)
+        port = rov._link.port  # type: ignore[attr-defined]
+        with port.lock:
+            state = port.controller.state()
+    assert [step.status for step in progress.steps] == ["done"] * len(progress.steps)
+    assert seen[0] == "unlock"
+    assert seen[-1] == "lock"
+    assert len(seen) == len(progress.steps)
+    assert state.locked
+    assert progress.steps[1].detail.startswith("at ")
+
+
+def test_a_failing_dive_still_stops_the_robot(tmp_path: Path) -> None:
+    def explode(progress: DiveProgress) -> None:
+        if progress.steps[3].status == "running":
+            raise RuntimeError("display failed")
+
+    with rovlink.connect(_fast_sim_url(tmp_path), keepalive=None) as rov:
+        with pytest.raises(RuntimeError, match="display failed"):
+            run_dive(rov, DivePlan(depth_cm=20, hold_s=0, leg_s=0.1), explode)
+        port = rov._link.port  # type: ignore[attr-defined]
+        with port.lock:
+            state = port.controller.state()
+    assert state.locked
+    assert state.power_percent == 0
+
+
+def test_demo_command(tmp_path: Path) -> None:
+    result = runner.invoke(app, ["demo", _fast_sim_url(tmp_path), "--depth", "50", "--hold",
+                                 "0.1", "--leg", "0.1", "--reach-timeout", "20"])
+    assert result.exit_code == 0, result.output
+    for text in ("unlock", "dive to 50 cm", "square: left", "read every sensor", "surface",
+                 "lock", "#th.270.30!", "motors off and locked", "0 timeouts"):
+        assert text in result.output
+
+
+def test_demo_that_cannot_reach_its_depth_fails(tmp_path: Path) -> None:
+    result = runner.invoke(app, ["demo", _fast_sim_url(tmp_path), "--depth", "9000", "--hold",
+                                 "0", "--leg", "0", "--reach-timeout", "0.3"])
+    assert result.exit_code == 1
+    assert "not completed: dive to 9000 cm" in result.output
