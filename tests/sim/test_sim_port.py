@@ -140,6 +140,6 @@ def test_config_file_is_applied(tmp_path: Path) -> None:
 def test_port_is_a_simulated_port() -> None:
     with open_port(seed=1, manual=True) as port:
         assert isinstance(port, SimulatedPort)
-        with pytest.raises(RuntimeError):
-            port.start()
+        port.start()
+        with pytest.raises(RuntimeError, match="already running"):
             port.start()

@@ -46,6 +46,7 @@ __all__ = [
     "dataclass_from_table",
     "load_config",
     "read_toml",
+    "table_reference",
 ]
 
 _T = TypeVar("_T")
@@ -338,26 +339,39 @@ def load_config(path: Path | str, *, other_tables: Sequence[str] = ()) -> Contro
     return config_from_mapping(read_toml(path), str(path), other_tables=other_tables)
 
 
+def table_reference(heading: str, instance: object) -> str:
+    """A Markdown table of one TOML table's keys: name, default (from ``instance``), meaning."""
+    lines = [f"### `{heading}`", "", "| key | default | meaning |", "|---|---|---|"]
+    for item in dataclasses.fields(instance):  # type: ignore[arg-type]
+        if "doc" in item.metadata:
+            default = _toml_value(getattr(instance, item.name))
+            lines.append(f"| `{item.name}` | `{default}` | {item.metadata['doc']} |")
+    return "\n".join(lines) + "\n"
+
+
 def config_reference() -> str:
-    """Markdown tables of every key with its default and meaning, one per TOML table."""
+    """Markdown tables of every key with its default and meaning, and the default layout."""
     defaults = ControllerConfig()
-    instances: dict[str, object] = {
-        "controller": defaults,
-        "depth": defaults.depth,
-        "depth_pid": defaults.depth_pid,
-        "thrusters": ThrusterSpec(name="(required)"),
-    }
-    sections = []
-    for table, instance in instances.items():
-        heading = f"[[{table}]]" if table == "thrusters" else f"[{table}]"
-        lines = [f"### `{heading}`", "", "| key | default | meaning |", "|---|---|---|"]
-        for item in dataclasses.fields(instance):  # type: ignore[arg-type]
-            if "doc" not in item.metadata:
-                continue
-            default = getattr(instance, item.name)
-            lines.append(f"| `{item.name}` | `{_toml_value(default)}` | {item.metadata['doc']} |")
-        sections.append("\n".join(lines))
-    return "\n\n".join(sections) + "\n"
+    layout = "\n".join(
+        "[[thrusters]]\n"
+        + "\n".join(
+            f"{item.name} = {_toml_value(getattr(spec, item.name))}"
+            for item in dataclasses.fields(spec)
+        )
+        + "\n"
+        for spec in DEFAULT_THRUSTERS
+    )
+    return "\n".join([
+        table_reference("[controller]", defaults),
+        table_reference("[depth]", defaults.depth),
+        table_reference("[depth_pid]", defaults.depth_pid),
+        table_reference("[[thrusters]]", ThrusterSpec(name="required")),
+        "The default layout (a `[[thrusters]]` list replaces it as a whole; the output index of a "
+        "thruster is its place in the list):",
+        "",
+        "```toml",
+        layout + "```",
+    ]) + "\n"
 
 
 def _toml_value(value: object) -> str:

@@ -165,11 +165,12 @@ class Controller:
         self._depth_cm = depth_cm  # P13, inlined: this runs every tick
         if hardware.leak.fired_since_last_read():
             self._leak_fired()
-        if self._claw_direction and now >= self._claw_until_s:
+        if self._claw_direction and now + 1e-9 >= self._claw_until_s:
             self._claw_direction = 0
             hardware.claw.drive(0)
         watchdog_s = self._watchdog_s
-        if not self._locked and watchdog_s and now - self._last_frame_s >= watchdog_s:
+        # The slack keeps float noise in clock readings from costing a whole tick.
+        if not self._locked and watchdog_s and now - self._last_frame_s + 1e-9 >= watchdog_s:
             self._stop(f"failsafe: no valid frame for {watchdog_s:g} s")
         if self._locked:
             duties = self._idle_duties

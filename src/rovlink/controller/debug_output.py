@@ -4,18 +4,23 @@ from __future__ import annotations
 
 __all__ = ["debug_line", "describe_frame"]
 
-# The three frame characters become look-alikes that are plain text.
-_SAFE = str.maketrans({"#": "No.", "$": "S", "!": "."})
+# The three frame characters become look-alikes that are plain text, and the typography of
+# messages (ranges such as "0–255") becomes ASCII for any terminal.
+_SAFE = str.maketrans({
+    "#": "No.", "$": "S", "!": ".", "\r": " ", "\n": " ",
+    "–": "-", "—": "-", "−": "-", "…": "...", "·": "*", "×": "x", "≥": ">=", "≤": "<=",
+    "°": " deg",
+})
 _PRINTABLE = frozenset(range(0x20, 0x7F))
 
 
 def debug_line(text: str) -> bytes:
     """One debug line, CR LF ended, with ``#``, ``$``, ``!`` and line breaks replaced.
 
-    >>> debug_line("dropped #qd!")
-    b'debug: dropped No.qd.\\r\\n'
+    >>> debug_line("dropped #qd!: must be in 0–255")
+    b'debug: dropped No.qd.: must be in 0-255\\r\\n'
     """
-    safe = text.translate(_SAFE).replace("\r", " ").replace("\n", " ")
+    safe = text.translate(_SAFE)
     return b"debug: " + safe.encode("ascii", errors="backslashreplace") + b"\r\n"
 
 

@@ -7,7 +7,23 @@ from collections.abc import Sequence
 
 from rovlink.controller.config import ThrusterSpec
 
-__all__ = ["ThrusterMixer"]
+__all__ = ["ThrusterMixer", "duty"]
+
+# Fractions come out of trigonometry: ignore float noise at a half-way point of rounding, so that
+# thrusters meant to be equal get equal duties.
+_ROUNDING_SLACK = 1e-9
+
+
+def duty(fraction: float, max_pwm: int) -> int:
+    """The signed PWM duty for a thrust fraction −1…+1 (P8), rounded half away from zero.
+
+    >>> duty(0.5, 255), duty(-0.5, 255), duty(1.0, 200)
+    (128, -128, 200)
+    """
+    value = fraction * max_pwm
+    if value >= 0.0:
+        return int(value + 0.5 + _ROUNDING_SLACK)
+    return -int(0.5 + _ROUNDING_SLACK - value)
 
 
 class ThrusterMixer:
@@ -74,7 +90,7 @@ class ThrusterMixer:
     def _update_horizontal_duties(self) -> None:
         # Cached: horizontal set-points change rarely, the vertical thrust every tick.
         max_pwm = self._max_pwm
-        self._horizontal_duties = [round(value * max_pwm) for value in self._horizontal_fractions]
+        self._horizontal_duties = [duty(value, max_pwm) for value in self._horizontal_fractions]
 
     def horizontal_fractions(self) -> list[float]:
         """The horizontal thrust fraction (−1…+1) of every output, 0 for vertical thrusters."""
@@ -83,7 +99,7 @@ class ThrusterMixer:
     def duties(self, vertical_percent: float) -> list[int]:
         """Every output's duty, with ``vertical_percent`` (−100…+100, + up) of vertical thrust."""
         duties = self._horizontal_duties.copy()
-        vertical = round(vertical_percent * self._max_pwm / 100.0)
+        vertical = duty(vertical_percent / 100.0, self._max_pwm)
         for index in self._vertical_indices:
             duties[index] = vertical
         return duties

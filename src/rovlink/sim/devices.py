@@ -43,7 +43,11 @@ class SensorParams:
         metadata=_doc("ADC counts per metre of water (50: 2 cm a count, 0–20 m over 10 bits)"),
     )
     pressure_noise_counts: float = field(
-        default=0.25, metadata=_doc("pressure noise before quantisation, rms counts")
+        default=0.2,
+        metadata=_doc(
+            "pressure noise before quantisation, rms counts (triangular, so at most 2.45 × rms: "
+            "0.2 keeps every reading within one count of the truth)"
+        ),
     )
     attitude_noise_deg: float = field(
         default=0.3, metadata=_doc("roll and pitch noise, rms degrees")
