@@ -1,0 +1,200 @@
+"""What a console line asks for: a command for the robot (read by the driver's command-text
+parser) or one of the console's own words (``help``, ``checksum on``, ``raw``, ``status``,
+``quit``). Bad input raises :class:`InputError` with the position of the culprit in the line,
+so the prompt can put the cursor there; nothing is sent.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+
+from rovlink.client import CommandTextError, parse_command_text, usage
+from rovlink.protocol import Command, lookup
+
+__all__ = [
+    "BUILTINS",
+    "Action",
+    "Builtin",
+    "InputError",
+    "Quit",
+    "SendCommand",
+    "SendRaw",
+    "SetChecksum",
+    "ShowHelp",
+    "ShowStatus",
+    "parse_line",
+]
+
+_WORD = re.compile(r"[^\s,]+")
+
+
+@dataclass(frozen=True, slots=True)
+class Builtin:
+    """One of the console's own words."""
+
+    name: str
+    usage: str
+    description: str
+
+
+#: The console's own words, for help and completion (the robot's commands come from the table).
+BUILTINS: tuple[Builtin, ...] = (
+    Builtin("help", "help [COMMAND]", "list every command, or show one with its arguments"),
+    Builtin("checksum", "checksum on|off", "turn checksum mode on or off (#crcon! / #crcoff!)"),
+    Builtin("raw", "raw FRAME", "send FRAME exactly as typed, unchecked (e.g. raw #bogus!)"),
+    Builtin("status", "status", "the state as last sent and the link's figures"),
+    Builtin("quit", "quit", "leave (sends #stop! first unless locked as last sent); also Ctrl-D"),
+)
+_BUILTIN_NAMES = frozenset(builtin.name for builtin in BUILTINS) | {"exit"}
+
+
+@dataclass(frozen=True, slots=True)
+class SendCommand:
+    """Send a command of the table (the driver adds the checksum when the mode is on)."""
+
+    command: Command
+
+
+@dataclass(frozen=True, slots=True)
+class SendRaw:
+    """Send a frame exactly as typed."""
+
+    frame: str
+
+
+@dataclass(frozen=True, slots=True)
+class ShowHelp:
+    """List the commands, or show one."""
+
+    name: str | None = None
+
+
+@dataclass(frozen=True, slots=True)
+class SetChecksum:
+    """Checksum mode on or off."""
+
+    enabled: bool
+
+
+@dataclass(frozen=True, slots=True)
+class ShowStatus:
+    """Show the state as last sent and the link's figures."""
+
+
+@dataclass(frozen=True, slots=True)
+class Quit:
+    """Leave the console."""
+
+
+Action = SendCommand | SendRaw | ShowHelp | SetChecksum | ShowStatus | Quit
+
+
+class InputError(ValueError):
+    """A line that is not valid input; ``position`` is where in the line the problem is."""
+
+    def __init__(self, message: str, position: int) -> None:
+        super().__init__(message)
+        self.message = message
+        self.position = position
+
+
+def parse_line(line: str) -> Action | None:
+    """The action a console line asks for; ``None`` for a blank line.
+
+    >>> parse_line("th 270 25")
+    SendCommand(command=Command(name='th', values=(270, 25)))
+    >>> parse_line("checksum on")
+    SetChecksum(enabled=True)
+    >>> try:
+    ...     parse_line("th 400 25")
+    ... except InputError as error:
+    ...     print(error.position, error)
+    3 th: direction_deg must be in 0–360, got 400
+    """
+    words = list(_WORD.finditer(line))
+    if not words:
+        return None
+    first = words[0].group()
+    if first in _BUILTIN_NAMES:
+        return _builtin(line, first, words)
+    try:
+        return SendCommand(parse_command_text(line))
+    except CommandTextError as error:
+        raise InputError(str(error), _error_position(line, error)) from None
+
+
+def _builtin(line: str, name: str, words: list[re.Match[str]]) -> Action:
+    arguments = [word.group() for word in words[1:]]
+    if name in ("quit", "exit", "status"):
+        if arguments:
+            raise InputError(f"{name} takes nothing after it", words[1].start())
+        return Quit() if name != "status" else ShowStatus()
+    if name == "help":
+        if len(arguments) > 1:
+            raise InputError("help takes at most one command name", words[2].start())
+        if not arguments:
+            return ShowHelp()
+        topic = arguments[0].lstrip("#").rstrip("!")
+        if topic not in _BUILTIN_NAMES:
+            try:
+                usage(topic)
+            except CommandTextError as error:
+                raise InputError(str(error), words[1].start()) from None
+            topic = lookup(topic).name
+        return ShowHelp(topic)
+    if name == "checksum":
+        if len(arguments) != 1 or arguments[0] not in ("on", "off"):
+            position = words[1].start() if len(words) > 1 else len(line)
+            raise InputError("checksum takes on or off", position)
+        return SetChecksum(arguments[0] == "on")
+    # raw: everything after the word, as typed
+    frame = line[words[0].end():].strip()
+    if not frame:
+        raise InputError("raw takes a frame to send, e.g. raw #qd!", len(line))
+    if not frame.isascii() or " " in frame:
+        raise InputError("a raw frame is ASCII without spaces", words[1].start())
+    return SendRaw(frame)
+
+
+def _error_position(line: str, error: CommandTextError) -> int:
+    """Where in ``line`` the error is: the offending value, a missing or extra one, the name."""
+    stripped = line.strip()
+    offset = line.find(stripped)
+    words = list(_WORD.finditer(line))
+    is_frame = stripped.startswith("#") or (len(words) == 1 and "." in stripped)
+    if is_frame:
+        if stripped.startswith("#") and not stripped.endswith("!"):
+            return len(line.rstrip())
+        if error.argument is None:
+            return offset
+        body = stripped.lstrip("#").rstrip("!")
+        body_start = offset + (1 if stripped.startswith("#") else 0)
+        return body_start + _value_offset_in_body(body, error.argument)
+    try:
+        spec = lookup(words[0].group())
+    except ValueError:
+        return words[0].start()  # an unknown command: point at its name
+    names = [argument.name for argument in spec.arguments]
+    if error.argument in names:
+        return words[1 + names.index(error.argument)].start()
+    if len(words) - 1 > len(names):  # too many values: the first extra one
+        return words[1 + len(names)].start()
+    return len(line.rstrip())  # too few: where the next one goes
+
+
+def _value_offset_in_body(body: str, argument_name: str) -> int:
+    """The offset of an argument's value in a frame body such as ``th.400.25``."""
+    segments = body.split(".")
+    for count in range(len(segments), 0, -1):  # the longest name first: q.l has a dot
+        name = ".".join(segments[:count])
+        try:
+            spec = lookup(name)
+        except ValueError:
+            continue
+        names = [argument.name for argument in spec.arguments]
+        if argument_name not in names:
+            return 0
+        index = count + names.index(argument_name)
+        return sum(len(segment) + 1 for segment in segments[:index])
+    return 0

@@ -1,0 +1,176 @@
+"""The prompt_toolkit console: a live prompt over :class:`~rovlink.console.engine.ConsoleEngine`.
+
+The prompt never waits for the robot: a submitted line goes to the engine's queue and the next
+prompt appears at once, replies print above it as they come. Ctrl-X is bound *eagerly* (it does
+not wait to see whether a longer key sequence follows) to send ``#stop!`` without touching the
+line being typed; the bottom toolbar says so, and shows the state as last sent, the link's health
+and how to type the command at the cursor.
+"""
+
+from __future__ import annotations
+
+import asyncio
+from collections.abc import Awaitable, Callable, Iterable
+from pathlib import Path
+
+from prompt_toolkit import PromptSession, print_formatted_text
+from prompt_toolkit.application import get_app_or_none
+from prompt_toolkit.completion import CompleteEvent, Completer, Completion
+from prompt_toolkit.document import Document
+from prompt_toolkit.formatted_text import FormattedText, StyleAndTextTuples
+from prompt_toolkit.history import FileHistory, History, InMemoryHistory
+from prompt_toolkit.key_binding import KeyBindings, KeyPressEvent
+from prompt_toolkit.styles import Style
+from prompt_toolkit.validation import ValidationError, Validator
+
+from rovlink.aio import AsyncClient
+from rovlink.client.options import StrayCallback
+from rovlink.console.actions import InputError, Quit, parse_line
+from rovlink.console.completion import argument_hint, suggestions
+from rovlink.console.engine import ConsoleEngine
+from rovlink.console.help import STOP_KEY_TEXT
+from rovlink.console.transcript import Line, info_line
+from rovlink.operator import LockState, TrackedClient
+
+__all__ = ["STYLE", "Connector", "ConsoleCompleter", "ConsoleValidator", "run_console"]
+
+#: Opens the connection, given the callback for what the controller sends unasked.
+Connector = Callable[[StrayCallback], Awaitable[AsyncClient]]
+
+STYLE = Style.from_dict({
+    "prompt": "bold",
+    "sent": "ansibrightblack",
+    "reply": "ansigreen",
+    "frame": "ansibrightblack",
+    "alarm": "bold ansiwhite bg:ansired",
+    "debug": "italic ansiyellow",
+    "warning": "ansiyellow",
+    "error": "bold ansired",
+    "info": "",
+    "stop": "bold ansiwhite bg:ansired",
+    "bottom-toolbar": "noreverse bg:ansiblack ansiwhite",
+    "toolbar.stop": "bold ansiwhite bg:ansired",
+    "toolbar.locked": "ansigreen",
+    "toolbar.unlocked": "bold ansiyellow",
+    "toolbar.bad": "bold ansired",
+    "toolbar.hint": "ansicyan",
+})
+
+_TOOLBAR_REFRESH_S = 0.5
+
+
+class ConsoleCompleter(Completer):
+    """Command names, console words, argument values and hints (see ``completion``)."""
+
+    def get_completions(self, document: Document,
+                        complete_event: CompleteEvent) -> Iterable[Completion]:
+        """The suggestions for the text before the cursor."""
+        for suggestion in suggestions(document.text_before_cursor):
+            yield Completion(suggestion.text, start_position=suggestion.start,
+                             display=suggestion.display, display_meta=suggestion.meta)
+
+
+class ConsoleValidator(Validator):
+    """Refuses a line that is not valid input, with the cursor on the culprit."""
+
+    def validate(self, document: Document) -> None:
+        """Raise ValidationError naming what is wrong, e.g. which argument and its range."""
+        try:
+            parse_line(document.text)
+        except InputError as error:
+            raise ValidationError(cursor_position=error.position, message=error.message) from None
+
+
+def _stop_bindings(engine: ConsoleEngine) -> KeyBindings:
+    bindings = KeyBindings()
+
+    # eager: fire on Ctrl-X itself, not after waiting for a possible Ctrl-X Ctrl-E.
+    @bindings.add("c-x", eager=True)
+    async def _stop(event: KeyPressEvent) -> None:
+        await engine.stop_now()
+
+    return bindings
+
+
+def _toolbar(rov: TrackedClient) -> StyleAndTextTuples:
+    state = rov.commanded
+    lock_style = {LockState.LOCKED: "class:toolbar.locked",
+                  LockState.UNLOCKED: "class:toolbar.unlocked"}.get(state.lock, "")
+    health = rov.health
+    link = f"link {health.status}"
+    if health.last_reply_s is not None:
+        link += f", reply {health.last_reply_s * 1000:.0f} ms"
+    link_style = "class:toolbar.bad" if health.consecutive_failures or rov.client.closed else ""
+    if rov.client.closed:
+        link = "link lost"
+    checksum = f"checksum {rov.algorithm}" if rov.checksum_enabled else "checksum off"
+    fragments: StyleAndTextTuples = [
+        ("class:toolbar.stop", f" {STOP_KEY_TEXT}: STOP "),
+        ("", " as last sent: "), (lock_style, state.short_lock_text()),
+        ("", f", {state.short_mode_text()} │ {checksum} │ "), (link_style, link),
+        ("", "\n "),
+    ]
+    app = get_app_or_none()
+    hint = argument_hint(app.current_buffer.document.text_before_cursor) if app else None
+    if hint is not None:
+        fragments.append(("class:toolbar.hint", hint.text()))
+    else:
+        fragments.append(("", "Tab completes · 'help' lists commands · "
+                              "'help th' shows one · Ctrl-D quits"))
+    return fragments
+
+
+def _print(line: Line) -> None:
+    print_formatted_text(FormattedText(line), style=STYLE)
+
+
+async def run_console(connect: Connector, *, algorithm: str = "crc8",
+                      history_path: Path | None = None,
+                      emit: Callable[[Line], None] = _print) -> None:
+    """Connect and run the console until ``quit`` or Ctrl-D; the client is closed on the way out.
+
+    ``history_path`` keeps the input history between sessions (``None``: this session only).
+    Raises what ``connect`` raises if the connection cannot be opened.
+    """
+    engine = ConsoleEngine(emit)
+    client = await connect(engine.on_event)
+    rov = TrackedClient(client, algorithm=algorithm)
+    engine.attach(rov)
+    history: History = InMemoryHistory()
+    if history_path is not None:
+        history_path.parent.mkdir(parents=True, exist_ok=True)
+        history = FileHistory(str(history_path))
+    session: PromptSession[str] = PromptSession(
+        [("class:prompt", "rovlink> ")],
+        style=STYLE,
+        history=history,
+        completer=ConsoleCompleter(),
+        complete_while_typing=True,
+        validator=ConsoleValidator(),
+        validate_while_typing=False,
+        key_bindings=_stop_bindings(engine),
+        bottom_toolbar=lambda: _toolbar(rov),
+        refresh_interval=_TOOLBAR_REFRESH_S,
+    )
+    emit(info_line(f"connected to {client.description}; {STOP_KEY_TEXT} sends #stop! at any "
+                   "time; 'help' lists commands", "class:info"))
+    runner = asyncio.create_task(engine.run())
+    try:
+        while not runner.done():
+            try:
+                text = await session.prompt_async()
+            except EOFError:  # Ctrl-D
+                engine.submit(Quit())
+                break
+            except KeyboardInterrupt:  # Ctrl-C: drop the line, keep going
+                continue
+            action = parse_line(text)
+            if action is not None:
+                engine.submit(action)
+            if isinstance(action, Quit):
+                break
+        await runner
+    finally:
+        if not runner.done():
+            runner.cancel()
+        await client.close()

@@ -1,0 +1,175 @@
+"""The console's engine: runs what the operator typed, in order, and says what happened.
+
+Lines are queued and run one after another (a query waits for its replies before the next line
+goes out), while the prompt stays live. :meth:`ConsoleEngine.stop_now` jumps the queue: it sends
+``#stop!`` at once and drops whatever was typed before it but not sent yet. Everything the engine
+has to say goes to ``emit`` as :data:`~rovlink.console.transcript.Line` values.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+from collections.abc import Callable
+
+from rovlink.client import ClientError
+from rovlink.console.actions import (
+    Action,
+    Quit,
+    SendCommand,
+    SendRaw,
+    SetChecksum,
+    ShowHelp,
+    ShowStatus,
+)
+from rovlink.console.help import STOP_KEY_TEXT, command_help, overview
+from rovlink.console.transcript import (
+    Line,
+    error_line,
+    event_line,
+    info_line,
+    reply_line,
+    sent_lines,
+)
+from rovlink.operator import LockState, SentFrame, TrackedClient
+from rovlink.protocol import Command, Event, Response
+
+__all__ = ["ConsoleEngine", "status_lines"]
+
+logger = logging.getLogger("rovlink.console")
+
+Emit = Callable[[Line], None]
+
+
+def status_lines(rov: TrackedClient) -> list[str]:
+    """The state as last sent and the link's figures, for ``status``."""
+    state = rov.commanded
+    health = rov.health
+    counters = rov.client.counters
+    reply = "—" if health.last_reply_s is None else f"{health.last_reply_s * 1000:.1f} ms"
+    mode = f"on ({rov.algorithm})" if rov.checksum_enabled else "off"
+    return [
+        f"motors:     {state.lock_text()}",
+        f"vertical:   {state.mode_text()}",
+        f"horizontal: {state.horizontal_text()}",
+        f"checksum:   {mode}",
+        f"link:       {rov.client.description}, {health.status}, last reply {reply}",
+        f"            {counters.frames_sent} frames sent, {counters.replies} replies, "
+        f"{counters.timeouts} timeouts, {counters.retries} retries, "
+        f"{counters.checksum_errors} checksum errors",
+    ]
+
+
+class ConsoleEngine:
+    """Runs console actions on a :class:`~rovlink.operator.TrackedClient`, in order.
+
+    Make it first (its :meth:`on_event` is the client's ``on_stray``), then :meth:`attach` the
+    client, then run :meth:`run` while the prompt :meth:`submit`s lines.
+    """
+
+    def __init__(self, emit: Emit) -> None:
+        self._emit = emit
+        self._rov: TrackedClient | None = None
+        self._queue: asyncio.Queue[Action] = asyncio.Queue()
+        self.finished = asyncio.Event()
+
+    def attach(self, rov: TrackedClient) -> None:
+        """Drive ``rov``; every frame sent through it is shown."""
+        self._rov = rov
+        rov.add_sent_listener(self._on_sent)
+
+    @property
+    def rov(self) -> TrackedClient:
+        """The client being driven."""
+        if self._rov is None:
+            raise RuntimeError("no client attached")
+        return self._rov
+
+    # -- from the prompt and the driver ---------------------------------------------------------
+
+    def submit(self, action: Action) -> None:
+        """Queue an action behind those already waiting."""
+        self._queue.put_nowait(action)
+
+    def on_event(self, event: Event) -> None:
+        """Show what came from the controller unasked: debug text, dropped or stray frames."""
+        self._emit(event_line(event))
+
+    async def stop_now(self) -> None:
+        """``#stop!`` at once, dropping the lines queued and not yet sent (keeps a ``quit``)."""
+        dropped = 0
+        keep: list[Action] = []
+        while not self._queue.empty():
+            action = self._queue.get_nowait()
+            if isinstance(action, Quit):
+                keep.append(action)
+            else:
+                dropped += 1
+        for action in keep:
+            self._queue.put_nowait(action)
+        note = f"; {dropped} queued line(s) dropped" if dropped else ""
+        self._emit(info_line(f"■ STOP ({STOP_KEY_TEXT}){note}", "class:stop"))
+        try:
+            await self.rov.stop()
+        except ClientError as error:
+            self._emit(error_line(f"#stop! could not be sent: {error}"))
+
+    # -- running --------------------------------------------------------------------------------
+
+    async def run(self) -> None:
+        """Run queued actions until a :class:`Quit`."""
+        try:
+            while True:
+                action = await self._queue.get()
+                if isinstance(action, Quit):
+                    await self._quit()
+                    return
+                await self.execute(action)
+        finally:
+            self.finished.set()
+
+    async def execute(self, action: Action) -> None:
+        """Run one action now and show its outcome; link errors are shown, not raised."""
+        try:
+            if isinstance(action, SendCommand):
+                self._show_replies(await self.rov.send(action.command))
+            elif isinstance(action, SendRaw):
+                self._show_replies(await self.rov.send_raw(action.frame))
+            elif isinstance(action, SetChecksum):
+                await self.rov.send(Command("crcon" if action.enabled else "crcoff"))
+                self._emit(info_line(self._checksum_text(), "class:info"))
+            elif isinstance(action, ShowHelp):
+                lines = overview() if action.name is None else command_help(action.name)
+                for line in lines:
+                    self._emit(info_line(line))
+            elif isinstance(action, ShowStatus):
+                for line in status_lines(self.rov):
+                    self._emit(info_line(line))
+        except (ClientError, TimeoutError, ConnectionError) as error:
+            self._emit(error_line(str(error)))
+
+    async def _quit(self) -> None:
+        state = self.rov.commanded
+        if self.rov.client.closed or state.lock is LockState.LOCKED:
+            return
+        self._emit(info_line(f"leaving: sending #stop! (motors {state.lock_text()})"))
+        try:
+            await self.rov.stop()
+        except ClientError as error:
+            self._emit(error_line(f"#stop! could not be sent: {error}"))
+
+    # -- output ---------------------------------------------------------------------------------
+
+    def _on_sent(self, sent: SentFrame) -> None:
+        for line in sent_lines(sent):
+            self._emit(line)
+
+    def _show_replies(self, replies: tuple[Response, ...]) -> None:
+        algorithm = self.rov.algorithm if self.rov.checksum_enabled else None
+        for reply in replies:
+            self._emit(reply_line(reply, algorithm))
+
+    def _checksum_text(self) -> str:
+        if self.rov.checksum_enabled:
+            return f"  checksum mode on: every frame now carries a {self.rov.algorithm} checksum"
+        return "  checksum mode off"

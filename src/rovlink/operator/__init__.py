@@ -1,0 +1,23 @@
+"""What the operator tools (``rovlink console``, ``rovlink monitor``) share.
+
+* :class:`CommandedState` — the lock, vertical mode and set-points as this tool last sent them:
+  the protocol has no query for them, so the tools say "as last sent", never "is".
+* :class:`TrackedClient` — an asyncio client that records every frame it sends into that state
+  and times its queries into a :class:`LinkHealth`.
+* :func:`reading_text` — a reply in words, ``qd → 123 cm``.
+"""
+
+from rovlink.operator.commanded import CommandedState, LockState
+from rovlink.operator.health import LinkHealth
+from rovlink.operator.readings import reading_text, reply_text
+from rovlink.operator.tracked import SentFrame, TrackedClient
+
+__all__ = [
+    "CommandedState",
+    "LinkHealth",
+    "LockState",
+    "SentFrame",
+    "TrackedClient",
+    "reading_text",
+    "reply_text",
+]

@@ -1,0 +1,146 @@
+"""The robot's state as this tool last commanded it (P7, P9, P11).
+
+The protocol has no query for "locked?" or "which vertical mode?", and commands that set something
+are never acknowledged (P4). So a tool can only know what it sent itself; this module keeps that,
+applying the controller's rules to it — a motion command while locked is dropped, ``#stop!``
+clears the set-points — and words it honestly: "locked (as last sent)".
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from enum import StrEnum
+
+from rovlink.protocol import Command, VerticalMode
+
+__all__ = ["CommandedState", "LockState"]
+
+
+class LockState(StrEnum):
+    """Whether motion is locked, as far as the commands this tool sent tell."""
+
+    UNKNOWN = "unknown"
+    LOCKED = "locked"
+    UNLOCKED = "unlocked"
+
+
+@dataclass(slots=True)
+class CommandedState:
+    """The lock, vertical mode and set-points as last sent; ``None`` where nothing was sent.
+
+    >>> state = CommandedState()
+    >>> state.apply(Command("start"))
+    >>> state.apply(Command("th", (90, 30)))
+    >>> state.lock_text(), state.horizontal_text()
+    ('unlocked (as last sent)', '90° at 30 % (as last sent)')
+    >>> state.apply(Command("stop"))
+    >>> state.apply(Command("mvd", (100,)))
+    'the controller drops mvd while motion is locked (as last sent): send start first'
+    """
+
+    lock: LockState = LockState.UNKNOWN
+    vertical_mode: VerticalMode | None = None
+    #: The depth target sent with ``mvd``; ``None``: none since the last start, stop or mode change.
+    target_depth_cm: int | None = None
+    #: Depth mode was entered while unlocked, so the controller holds the depth it was at.
+    holding_entry_depth: bool = False
+    vertical_thrust_percent: int = 0
+    direction_deg: int = 0
+    power_percent: int = 0
+    #: The last command sent that the controller will have acted on (as far as this tool knows).
+    last_command: Command | None = None
+
+    def apply(self, command: Command) -> str | None:
+        """Record a command just sent; a warning if the controller will drop it, else ``None``."""
+        warning = self._dropped_because(command)
+        if warning is not None:
+            return warning
+        self.last_command = command
+        name = command.name
+        if name == "stop":
+            self.lock = LockState.LOCKED
+            self._clear_set_points()
+        elif name == "start":
+            if self.lock is not LockState.UNLOCKED:
+                self.lock = LockState.UNLOCKED
+                self._clear_set_points()
+        elif name == "mvdirect":
+            self._switch_mode(VerticalMode.DIRECT if command.values[0] else VerticalMode.DEPTH)
+        elif name == "mvs":
+            (self.vertical_thrust_percent,) = command.values
+        elif name == "mvd":
+            (self.target_depth_cm,) = command.values
+            self.holding_entry_depth = False
+        elif name == "th":
+            direction_deg, self.power_percent = command.values
+            self.direction_deg = direction_deg % 360
+        return None
+
+    def _dropped_because(self, command: Command) -> str | None:
+        spec = command.spec
+        if spec.motion and self.lock is LockState.LOCKED:
+            return (f"the controller drops {spec.name} while motion is locked (as last sent): "
+                    "send start first")
+        if spec.mode is not None and self.vertical_mode is not None \
+                and spec.mode is not self.vertical_mode:
+            flag = 1 if spec.mode is VerticalMode.DIRECT else 0
+            return (f"the controller drops {spec.name} in {self.vertical_mode} mode "
+                    f"(as last sent): send mvdirect {flag} first")
+        return None
+
+    def _clear_set_points(self) -> None:
+        self.target_depth_cm = None
+        self.holding_entry_depth = False
+        self.vertical_thrust_percent = 0
+        self.direction_deg = 0
+        self.power_percent = 0
+
+    def _switch_mode(self, mode: VerticalMode) -> None:
+        if mode is self.vertical_mode:
+            return  # the controller changes nothing either
+        self.vertical_mode = mode
+        self.vertical_thrust_percent = 0
+        self.target_depth_cm = None
+        self.holding_entry_depth = mode is VerticalMode.DEPTH and self.lock is LockState.UNLOCKED
+
+    # -- in words -------------------------------------------------------------------------------
+
+    def lock_text(self) -> str:
+        """``locked (as last sent)``, ``unlocked (as last sent)`` or why it is unknown."""
+        if self.lock is LockState.UNKNOWN:
+            return "unknown: no start/stop sent yet (locked after a reset)"
+        return f"{self.lock} (as last sent)"
+
+    def mode_text(self) -> str:
+        """The vertical mode and its set-point as last sent."""
+        mode = self.vertical_mode
+        if mode is None:
+            return "unknown: no mvdirect sent yet (depth mode after a reset)"
+        if mode is VerticalMode.DIRECT:
+            return f"direct (as last sent), thrust {self.vertical_thrust_percent:+d} %"
+        return f"depth (as last sent), {self.target_text()}"
+
+    def short_lock_text(self) -> str:
+        """``locked``, ``unlocked`` or ``lock not sent``, for a line headed "as last sent"."""
+        return "lock not sent" if self.lock is LockState.UNKNOWN else str(self.lock)
+
+    def short_mode_text(self) -> str:
+        """``depth, target 100 cm``, ``direct, thrust +30 %`` or ``mode not sent``."""
+        mode = self.vertical_mode
+        if mode is None:
+            return "mode not sent"
+        if mode is VerticalMode.DIRECT:
+            return f"direct, thrust {self.vertical_thrust_percent:+d} %"
+        return f"depth, {self.target_text()}"
+
+    def target_text(self) -> str:
+        """The depth target as last sent."""
+        if self.target_depth_cm is not None:
+            return f"target {self.target_depth_cm} cm"
+        if self.holding_entry_depth:
+            return "holding its depth on entry"
+        return "no target sent"
+
+    def horizontal_text(self) -> str:
+        """The horizontal set-point as last sent."""
+        return f"{self.direction_deg}° at {self.power_percent} % (as last sent)"
