@@ -10,6 +10,7 @@ and how to type the command at the cursor.
 from __future__ import annotations
 
 import asyncio
+import contextvars
 from collections.abc import Awaitable, Callable, Iterable
 from pathlib import Path
 
@@ -132,7 +133,15 @@ async def run_console(connect: Connector, *, algorithm: str = "crc8",
     ``history_path`` keeps the input history between sessions (``None``: this session only).
     Raises what ``connect`` raises if the connection cannot be opened.
     """
-    engine = ConsoleEngine(emit)
+    # The driver calls back (debug text, stray frames) in a context copied from its reader
+    # thread, which knows nothing of this prompt; print in the console's own context, so that
+    # lines go above the prompt of this app session.
+    console_context = contextvars.copy_context()
+
+    def emit_in_console(line: Line) -> None:
+        console_context.run(emit, line)
+
+    engine = ConsoleEngine(emit_in_console)
     client = await connect(engine.on_event)
     rov = TrackedClient(client, algorithm=algorithm)
     engine.attach(rov)

@@ -1,0 +1,189 @@
+"""The console end to end: keys through prompt_toolkit's pipe input, the screen it prints, and
+the frames that reached the (simulated) controller."""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import io
+from collections.abc import AsyncIterator
+from dataclasses import dataclass
+from pathlib import Path
+
+import pytest
+from prompt_toolkit.application import create_app_session
+from prompt_toolkit.input import PipeInput, create_pipe_input
+from prompt_toolkit.output import create_output
+from typer.testing import CliRunner
+
+import rovlink.aio.client
+from rovlink.cli import app
+from rovlink.client.links import Link
+from rovlink.console.app import run_console
+from tests.operator.rig import RecordingLink, Rig, until
+
+CTRL_A, CTRL_K, CTRL_X, CTRL_D, UP = "\x01", "\x0b", "\x18", "\x04", "\x1b[A"
+CLEAR_LINE = CTRL_A + CTRL_K
+
+
+@dataclass
+class Terminal:
+    """The console running on a pipe: type into it, read what it printed."""
+
+    keys: PipeInput
+    screen: io.StringIO
+    task: asyncio.Task[None]
+
+    def type(self, text: str) -> None:
+        self.keys.send_text(text)
+
+    def shown(self) -> str:
+        return self.screen.getvalue()
+
+    async def wait_shown(self, text: str) -> None:
+        await until(lambda: text in self.shown())
+
+    async def finish(self) -> None:
+        await asyncio.wait_for(self.task, 5)
+
+
+@contextlib.asynccontextmanager
+async def _terminal(rig: Rig, history_path: Path | None) -> AsyncIterator[Terminal]:
+    screen = io.StringIO()
+    with create_pipe_input() as keys, create_app_session(input=keys,
+                                                         output=create_output(screen)):
+        task = asyncio.create_task(run_console(rig.connect, history_path=history_path))
+        terminal = Terminal(keys, screen, task)
+        await terminal.wait_shown("connected to simulated controller")
+        try:
+            yield terminal
+        finally:
+            if not task.done():
+                task.cancel()
+                await asyncio.gather(task, return_exceptions=True)
+
+
+async def test_dive_and_surface_with_replies_debug_errors_and_the_stop_key(
+        tmp_path: Path) -> None:
+    rig = Rig.simulated()
+    async with _terminal(rig, tmp_path / "history") as term:
+        term.type("debug1\r")
+        await term.wait_shown("→ #debug1!")
+        term.type("start\r")
+        await term.wait_shown("⋯ debug: motors unlocked")  # the controller's debug line
+        term.type("mvd 60\r")
+        await term.wait_shown("→ #mvd.60!")
+        rig.port.advance(20.0)  # simulated seconds: the depth PID takes it down
+        term.type("qd\r")
+        await term.wait_shown("qd → ")
+        depth_cm = int(term.shown().split("qd → ")[-1].split()[0])
+        assert 50 <= depth_cm <= 70
+        term.type("mvd 0\r")
+        await term.wait_shown("→ #mvd.0!")
+        rig.port.advance(30.0)
+        term.type("#qd!\r")
+        await term.wait_shown("qd → 0 cm")
+        assert "$qd.0!" in term.shown()
+
+        sent_before = rig.frames()
+        term.type("th 400 25\r")  # refused in place: nothing sent
+        await term.wait_shown("th: direction_deg must be in 0–360, got 400")
+        assert rig.frames() == sent_before
+
+        term.type(CLEAR_LINE + "th 90 3")  # half typed when the stop key is pressed
+        term.type(CTRL_X)
+        await term.wait_shown("■ STOP (Ctrl-X)")
+        await until(lambda: rig.frames()[-1] == "#stop!")
+        term.type("0\r")  # the line was left alone: it goes on to be sent whole
+        await term.wait_shown("→ #th.90.30!")
+        await term.wait_shown("the controller drops th while motion is locked (as last sent)")
+
+        term.type(CTRL_D)
+        await term.finish()
+    assert rig.frames() == [
+        "#crcoff!", "#debug1!", "#start!", "#mvd.60!", "#qd!", "#mvd.0!", "#qd!", "#stop!",
+        "#th.90.30!",
+    ]  # leaving while locked (as last sent) sends nothing more
+
+
+async def test_leak_reply_and_qsa(tmp_path: Path) -> None:
+    rig = Rig.simulated(leak_at_s=1.0)
+    async with _terminal(rig, tmp_path / "history") as term:
+        term.type("q.l\r")
+        await term.wait_shown("q.l → no leak")
+        rig.port.advance(2.0)
+        term.type("qsa\r")
+        await term.wait_shown("q.l → LEAK: the sensor fired since the last reset")
+        for reply in ("qd → ", "qr → ", "qro → ", "qpi → ", "qhe → ", "$q.l.1!"):
+            assert reply in term.shown()
+        term.type("slreset\rq.l\r")
+        await until(lambda: term.shown().count("q.l → no leak") == 2)
+        term.type("quit\r")
+        await term.finish()
+    assert rig.frames()[-1] == "#stop!"  # lock unknown on leaving: made safe
+
+
+async def test_help_and_completion_menu_are_shown(tmp_path: Path) -> None:
+    rig = Rig.simulated()
+    async with _terminal(rig, tmp_path / "history") as term:
+        term.type("help th\r")
+        await term.wait_shown("th <direction_deg 0–360> <power_percent 0–100>")
+        term.type("mvp")  # completion while typing: names with their descriptions
+        await term.wait_shown("vertical (depth) PID derivative gain")
+        term.type(CLEAR_LINE + "th 270 ")
+        await term.wait_shown("[<power_percent 0–100>]: horizontal power, %")  # the toolbar
+        assert "Ctrl-X: STOP" in term.shown()
+        term.type(CLEAR_LINE + CTRL_D)
+        await term.finish()
+    assert rig.frames() == ["#crcoff!", "#stop!"]
+
+
+async def test_history_is_kept_between_sessions(tmp_path: Path) -> None:
+    history_path = tmp_path / "state" / "console_history"
+    first = Rig.simulated()
+    async with _terminal(first, history_path) as term:
+        term.type("qhe\r")
+        await term.wait_shown("qhe → ")
+        term.type(CTRL_D)
+        await term.finish()
+    assert "qhe" in history_path.read_text()
+    second = Rig.simulated()
+    async with _terminal(second, history_path) as term:
+        term.type(UP + "\r")  # the previous session's line
+        await term.wait_shown("qhe → ")
+        term.type(CTRL_D)
+        await term.finish()
+    assert second.frames()[1] == "#qhe!"
+
+
+def test_cli_console_on_sim(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """``rovlink console sim://``: the real URL, history in the user's state directory."""
+    monkeypatch.setenv("XDG_STATE_HOME", str(tmp_path))
+    links: list[RecordingLink] = []
+    open_link = rovlink.aio.client.open_link
+
+    def recording_open_link(endpoint: object) -> Link:
+        link = RecordingLink(open_link(endpoint))  # type: ignore[arg-type]
+        links.append(link)
+        return link
+
+    monkeypatch.setattr(rovlink.aio.client, "open_link", recording_open_link)
+    screen = io.StringIO()
+    with create_pipe_input() as keys, create_app_session(input=keys,
+                                                         output=create_output(screen)):
+        keys.send_text("qd\r" + CTRL_D)
+        result = CliRunner().invoke(app, ["console", "sim://?seed=1"])
+    assert result.exit_code == 0, result.output
+    assert "connected to simulated controller" in screen.getvalue()
+    assert "qd → 0 cm" in screen.getvalue()
+    (link,) = links
+    frames = link.frames()
+    assert (frames[0], frames[-1]) == ("#crcoff!", "#stop!")
+    assert "#qd!" in frames
+    assert "qd" in (tmp_path / "rovlink" / "console_history").read_text()
+
+
+def test_cli_console_refuses_a_bad_url() -> None:
+    result = CliRunner().invoke(app, ["console", "sim://?nosuch=1"])
+    assert result.exit_code == 2
+    assert "unknown sim option 'nosuch'" in result.output

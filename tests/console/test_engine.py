@@ -1,0 +1,105 @@
+"""The console engine against a simulated controller: lines run in order, replies are shown,
+the stop key jumps the queue, leaving sends #stop! unless locked as last sent."""
+
+from __future__ import annotations
+
+import asyncio
+
+from rovlink.aio import AsyncClient
+from rovlink.client import ClientOptions
+from rovlink.console.actions import Quit, SendCommand, SendRaw, SetChecksum, ShowStatus
+from rovlink.console.engine import ConsoleEngine
+from rovlink.console.transcript import Line, plain_text
+from rovlink.operator import TrackedClient
+from rovlink.protocol import Command
+from tests.operator.rig import Rig, SilentController, until
+
+
+class Screen:
+    """Collects the engine's lines as text."""
+
+    def __init__(self) -> None:
+        self.lines: list[str] = []
+
+    def __call__(self, line: Line) -> None:
+        self.lines.append(plain_text(line))
+
+    def text(self) -> str:
+        return "\n".join(self.lines)
+
+
+async def _engine(rig: Rig, **options: object) -> tuple[ConsoleEngine, Screen]:
+    screen = Screen()
+    engine = ConsoleEngine(screen)
+    engine.attach(TrackedClient(await rig.connect(engine.on_event, **options)))
+    return engine, screen
+
+
+async def test_commands_run_in_order_and_replies_are_shown_with_their_frames() -> None:
+    rig = Rig.simulated()
+    engine, screen = await _engine(rig)
+    runner = asyncio.create_task(engine.run())
+    for command in (Command("debug1"), Command("start"), Command("mvd", (40,)), Command("qsa")):
+        engine.submit(SendCommand(command))
+    engine.submit(Quit())
+    await asyncio.wait_for(runner, 5)
+    assert rig.frames()[1:] == ["#debug1!", "#start!", "#mvd.40!", "#qsa!", "#stop!"]
+    text = screen.text()
+    assert "  → #mvd.40!" in text
+    for words in ("qd → 0 cm", "$qd.0!", "q.l → no leak", "$q.l.0!", "qhe → "):
+        assert words in text
+    assert "⋯ debug: target depth 40 cm" in text  # the controller's debug line
+    assert "leaving: sending #stop! (motors unlocked (as last sent))" in text
+    await engine.rov.client.close()
+
+
+async def test_stop_now_jumps_the_queue_and_drops_what_was_not_sent() -> None:
+    silent = SilentController()
+    client = await AsyncClient(silent.link(), ClientOptions(timeout_s=0.3, retries=0,
+                                                            keepalive_s=None)).open()
+    screen = Screen()
+    engine = ConsoleEngine(screen)
+    engine.attach(TrackedClient(client))
+    runner = asyncio.create_task(engine.run())
+    engine.submit(SendCommand(Command("qd")))  # waits for a reply that never comes
+    engine.submit(SendCommand(Command("start")))
+    engine.submit(SendCommand(Command("th", (0, 100))))
+    await until(lambda: b"#qd!" in silent.received)
+    await engine.stop_now()
+    await until(lambda: b"#stop!" in silent.received)
+    engine.submit(Quit())
+    await asyncio.wait_for(runner, 5)
+    assert bytes(silent.received) == b"#crcoff!#qd!#stop!"
+    assert "■ STOP (Ctrl-X); 2 queued line(s) dropped" in screen.text()
+    assert "#qd! got no valid reply" in screen.text()
+    await client.close()
+    silent.close()
+
+
+async def test_checksum_mode_and_raw_frames() -> None:
+    rig = Rig.simulated()
+    engine, screen = await _engine(rig)
+    await engine.execute(SetChecksum(True))
+    await engine.execute(SendCommand(Command("qd")))
+    await engine.execute(SendRaw("#qd!"))  # no checksum: the controller drops it
+    await engine.execute(ShowStatus())
+    assert rig.frames()[1:3] == ["#crcon!", "#qd8C!"]
+    text = screen.text()
+    assert "checksum mode on" in text
+    assert "$qd.0" in text
+    assert "qd → 0 cm" in text
+    assert "  → #qd!   not a command the controller takes as it stands" in text
+    assert text.count("qd → ") == 1
+    assert "checksum:   on (crc8)" in text
+    await engine.rov.client.close()
+
+
+async def test_leaving_while_locked_sends_nothing_more() -> None:
+    rig = Rig.simulated()
+    engine, _ = await _engine(rig)
+    runner = asyncio.create_task(engine.run())
+    engine.submit(SendCommand(Command("stop")))
+    engine.submit(Quit())
+    await asyncio.wait_for(runner, 5)
+    assert rig.frames() == ["#crcoff!", "#stop!"]
+    await engine.rov.client.close()

@@ -1,0 +1,62 @@
+"""TrackedClient: every frame it sends is recorded as sent, replies are timed into the health."""
+
+from __future__ import annotations
+
+import pytest
+
+from rovlink.aio import AsyncClient
+from rovlink.client import ClientOptions, QueryTimeoutError
+from rovlink.operator import SentFrame, TrackedClient
+from rovlink.protocol import Command
+from tests.operator.rig import Rig, SilentController
+
+
+async def test_sent_frames_are_reported_as_written_and_update_the_state() -> None:
+    rig = Rig.simulated()
+    rov = TrackedClient(await rig.connect())
+    sent: list[SentFrame] = []
+    rov.add_sent_listener(sent.append)
+    await rov.send(Command("start"))
+    (reply,) = await rov.send(Command("qd"))
+    await rov.send(Command("crcon"))
+    await rov.send(Command("th", (90, 30)))
+    assert [frame.text for frame in sent] == ["#start!", "#qd!", "#crcon!", "#th.90.30F8!"]
+    assert rig.frames()[1:] == [frame.text for frame in sent]
+    assert reply.name == "qd"
+    assert rov.commanded.lock_text() == "unlocked (as last sent)"
+    assert rov.health.replies == 1
+    assert rov.health.last_reply_s is not None
+    await rov.client.close()
+
+
+async def test_raw_frames_update_the_state_as_the_controller_reads_them() -> None:
+    rig = Rig.simulated()
+    rov = TrackedClient(await rig.connect(checksum=True))
+    sent: list[SentFrame] = []
+    rov.add_sent_listener(sent.append)
+    await rov.send_raw("#start!")  # no checksum in checksum mode: the controller drops it
+    assert sent[-1].command is None
+    assert rov.commanded.lock.value == "unknown"
+    await rov.send_raw("#start3F!")
+    assert sent[-1].command == Command("start")
+    assert rov.commanded.lock_text() == "unlocked (as last sent)"
+    await rov.send_raw("#stop!")  # honoured in either mode (P3)
+    assert sent[-1].command == Command("stop")
+    assert rov.commanded.lock_text() == "locked (as last sent)"
+    replies = await rov.send_raw("#qd8C!")
+    assert [reply.name for reply in replies] == ["qd"]
+    assert rig.frames()[-4:] == ["#start!", "#start3F!", "#stop!", "#qd8C!"]
+    await rov.client.close()
+
+
+async def test_a_silent_link_is_counted_as_failures() -> None:
+    silent = SilentController()
+    client = await AsyncClient(silent.link(), ClientOptions(timeout_s=0.05, retries=0,
+                                                       keepalive_s=None)).open()
+    rov = TrackedClient(client)
+    with pytest.raises(QueryTimeoutError):
+        await rov.sensors()
+    assert rov.health.failures == 1
+    assert rov.health.status == "no reply"
+    await client.close()
+    silent.close()
