@@ -47,7 +47,8 @@ class CommandedState:
     vertical_thrust_percent: int = 0
     direction_deg: int = 0
     power_percent: int = 0
-    #: The last command sent that the controller will have acted on (as far as this tool knows).
+    #: The last setting or motion command sent that the controller will have acted on (as far
+    #: as this tool knows); queries are not kept.
     last_command: Command | None = None
 
     def apply(self, command: Command) -> str | None:
@@ -55,7 +56,8 @@ class CommandedState:
         warning = self._dropped_because(command)
         if warning is not None:
             return warning
-        self.last_command = command
+        if not command.spec.is_query:
+            self.last_command = command
         name = command.name
         if name == "stop":
             self.lock = LockState.LOCKED

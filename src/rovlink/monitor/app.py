@@ -1,0 +1,303 @@
+"""The textual dashboard: live sensors, the state as last sent, link health, a depth chart.
+
+All link I/O runs in one worker: it connects, then polls ``#qsa!`` at the chosen rate through
+the asyncio client, never in a key handler's way. Keys send their frames at once (the driver
+writes without waiting for anything queued), so ``space`` stops the robot even while a poll is
+waiting out its timeout on a silent link; a slow link shows up as link-health figures, not as a
+frozen screen.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import time
+from collections.abc import Awaitable, Callable
+from typing import ClassVar
+
+from rich.console import RenderableType
+from rich.text import Text
+from textual.app import App, ComposeResult
+from textual.binding import Binding, BindingType
+from textual.containers import Horizontal, Vertical
+from textual.widget import Widget
+from textual.widgets import Digits, Footer, Header, Static
+
+from rovlink.aio import AsyncClient
+from rovlink.client import ClientError, ConnectionLostError, QueryTimeoutError
+from rovlink.client.options import StrayCallback
+from rovlink.monitor import controls
+from rovlink.monitor.chart import SAMPLE_MARK, TARGET_MARK, depth_chart
+from rovlink.monitor.panels import (
+    attitude_text,
+    commanded_text,
+    depth_text,
+    leak_text,
+    link_text,
+)
+from rovlink.monitor.readings import DEFAULT_WINDOW_S, Readings
+from rovlink.operator import LockState, SentFrame, TrackedClient
+from rovlink.protocol import BadFrame, Command, Event
+from rovlink.protocol import Text as DebugText
+
+__all__ = ["Connector", "MonitorApp", "Panel"]
+
+#: Opens the connection, given the callback for what the controller sends unasked.
+Connector = Callable[[StrayCallback], Awaitable[AsyncClient]]
+
+#: How often the panels are redrawn between readings (silence grows, link figures change).
+_REDRAW_S = 0.25
+
+
+class Panel(Widget):
+    """A bordered box whose content is drawn for its current size by ``draw(width, height)``."""
+
+    def __init__(self, draw: Callable[[int, int], RenderableType], *, title: str = "",
+                 id: str | None = None, classes: str | None = None) -> None:
+        super().__init__(id=id, classes=classes)
+        self._draw = draw
+        self.border_title = title
+
+    def render(self) -> RenderableType:
+        """The content for the size the layout gave this panel."""
+        return self._draw(self.content_size.width, self.content_size.height)
+
+    def text(self) -> str:
+        """The content as plain text (what a person reads on screen)."""
+        rendered = self.render()
+        return rendered.plain if isinstance(rendered, Text) else str(rendered)
+
+
+class MonitorApp(App[None]):
+    """``rovlink monitor``: connect with ``connect``, poll at ``rate_hz``, drive with keys."""
+
+    TITLE = "rovlink monitor"
+    ENABLE_COMMAND_PALETTE = False
+    CSS = """
+    Screen { layout: vertical; }
+    Screen.leak { border: heavy $error; }
+    #top { height: auto; }
+    Panel, #depth-box { border: round $primary; border-title-align: left; padding: 0 1; }
+    #depth-box { width: 30; height: 8; }
+    #depth-digits { width: auto; }
+    #depth-readout { height: 3; }
+    #attitude { width: 32; height: 8; }
+    #commanded { width: 1fr; height: 8; }
+    #leak { height: 3; border: round $success; content-align: center middle; }
+    #leak.alarm { background: $error; color: $text; border: heavy $warning; text-style: bold; }
+    #link { height: 6; }
+    #chart { height: 1fr; min-height: 8; }
+    """
+    BINDINGS: ClassVar[list[BindingType]] = [
+        Binding("space", "stop", "STOP", key_display="space", priority=True),
+        Binding("s", "start", "start", priority=True),
+        Binding("left", f"turn(-{controls.DIRECTION_STEP_DEG})", "direction",
+                key_display="←→", priority=True),
+        Binding("right", f"turn({controls.DIRECTION_STEP_DEG})", "direction", show=False,
+                priority=True),
+        Binding("up", f"power({controls.POWER_STEP_PERCENT})", "power", key_display="↑↓",
+                priority=True),
+        Binding("down", f"power(-{controls.POWER_STEP_PERCENT})", "power", show=False,
+                priority=True),
+        Binding("pagedown", f"depth({controls.DEPTH_STEP_CM})", "depth target",
+                key_display="PgUp/PgDn", priority=True),
+        Binding("pageup", f"depth(-{controls.DEPTH_STEP_CM})", "depth target", show=False,
+                priority=True),
+        Binding("o", "claw('h+')", "claw", key_display="o/c", priority=True),
+        Binding("c", "claw('h-')", "claw", show=False, priority=True),
+        Binding("r", "reset_leak", "reset leak", priority=True),
+        Binding("q", "quit_safely", "quit", priority=True),
+        Binding("ctrl+q", "quit_safely", "quit", show=False, priority=True),
+        Binding("ctrl+c", "quit_safely", "quit", show=False, priority=True),
+    ]
+
+    def __init__(self, connect: Connector, *, description: str = "", rate_hz: float = 5.0,
+                 algorithm: str = "crc8", window_s: float = DEFAULT_WINDOW_S) -> None:
+        """``description`` names the robot in the title; ``rate_hz`` is the polling rate."""
+        if isinstance(rate_hz, bool) or not isinstance(rate_hz, int | float) or rate_hz <= 0:
+            raise ValueError(f"rate_hz must be a positive number, got {rate_hz!r}")
+        super().__init__()
+        self._connect = connect
+        self._algorithm = algorithm
+        self.rate_hz = rate_hz
+        self.readings = Readings(window_s=window_s)
+        self.rov: TrackedClient | None = None
+        self.sub_title = description
+        self._link_state = "connecting…"
+        self._last_message = ""
+
+    # -- layout ---------------------------------------------------------------------------------
+
+    def compose(self) -> ComposeResult:
+        """Depth, attitude and the state as last sent on top; leak, link and chart below."""
+        yield Header()
+        with Horizontal(id="top"):
+            with Vertical(id="depth-box"):
+                yield Digits("—", id="depth-digits")
+                yield Static(id="depth-readout")
+            yield Panel(self._draw_attitude, title="attitude", id="attitude")
+            yield Panel(self._draw_commanded, title="commanded, as last sent",
+                        id="commanded")
+        yield Panel(lambda width, height: leak_text(self.readings), title="leak", id="leak")
+        yield Panel(self._draw_link, title="link", id="link")
+        yield Panel(self._draw_chart, title="depth over time", id="chart")
+        yield Footer()
+
+    def on_mount(self) -> None:
+        """Start the link worker and the redraw timer."""
+        self.query_one("#depth-box").border_title = "depth, cm"
+        self.run_worker(self._link_loop(), name="link", group="link", exclusive=True)
+        self.set_interval(_REDRAW_S, self._redraw)
+
+    # -- the link -------------------------------------------------------------------------------
+
+    @property
+    def period_s(self) -> float:
+        """Seconds between polls."""
+        return 1.0 / self.rate_hz
+
+    async def _link_loop(self) -> None:
+        try:
+            client = await self._connect(self._on_event)
+        except (ConnectionError, ValueError, OSError) as error:
+            self._link_state = f"could not connect: {error}"
+            self._redraw()
+            return
+        rov = TrackedClient(client, algorithm=self._algorithm)
+        rov.add_sent_listener(self._on_sent)
+        self.rov = rov
+        self._link_state = client.description
+        loop = asyncio.get_running_loop()
+        try:
+            while not client.closed:
+                started_s = loop.time()
+                try:
+                    reading = await rov.sensors()
+                except QueryTimeoutError:
+                    pass  # counted in rov.health, shown on the link panel
+                except ConnectionLostError as error:
+                    self._link_state = f"lost: {error}"
+                    break
+                else:
+                    self.readings.record(reading, time.monotonic())
+                self._redraw()
+                await asyncio.sleep(max(self.period_s - (loop.time() - started_s), 0.0))
+        finally:
+            self._redraw()
+
+    def _on_event(self, event: Event) -> None:
+        if isinstance(event, DebugText):
+            self._last_message = event.text
+        elif isinstance(event, BadFrame):
+            self._last_message = f"dropped reply {event.raw!r}: {event.detail}"
+
+    def _on_sent(self, sent: SentFrame) -> None:
+        if sent.warning is not None:
+            self.notify(sent.warning, title=sent.text, severity="warning")
+
+    # -- drawing --------------------------------------------------------------------------------
+
+    def _redraw(self) -> None:
+        reading = self.readings.latest
+        self.query_one("#depth-digits", Digits).update(
+            "—" if reading is None else str(reading.depth_cm))
+        commanded = self.rov.commanded if self.rov is not None else None
+        if commanded is not None:
+            self.query_one("#depth-readout", Static).update(depth_text(
+                self.readings, commanded, now_s=time.monotonic(), period_s=self.period_s))
+        leak = self.readings.leak
+        leak_panel = self.query_one("#leak", Panel)
+        if leak and not leak_panel.has_class("alarm"):
+            self.bell()
+        leak_panel.set_class(leak, "alarm")
+        self.screen.set_class(leak, "leak")
+        for panel in self.query(Panel):
+            panel.refresh()
+
+    def _draw_attitude(self, width: int, height: int) -> RenderableType:
+        return attitude_text(self.readings, width)
+
+    def _draw_commanded(self, width: int, height: int) -> RenderableType:
+        if self.rov is None:
+            return Text("nothing sent yet", style="dim")
+        text = commanded_text(self.rov.commanded)
+        if self._last_message:
+            text.append(f"\n{'controller':<11}", style="dim")
+            text.append(self._last_message, style="italic yellow")
+        return text
+
+    def _draw_link(self, width: int, height: int) -> RenderableType:
+        if self.rov is None:
+            return Text(self._link_state, style="bold red" if "could not" in self._link_state
+                        else "yellow")
+        text = link_text(self._link_state, self.rov.health, self.rov.client.counters,
+                         self.readings, now_s=time.monotonic(), rate_hz=self.rate_hz)
+        if self.rov.client.closed:
+            text.append("\nlink closed: keys send nothing", style="bold red")
+        return text
+
+    def _draw_chart(self, width: int, height: int) -> RenderableType:
+        target_cm = self.rov.commanded.target_depth_cm if self.rov is not None else None
+        lines = depth_chart(self.readings.history, now_s=time.monotonic(),
+                            window_s=self.readings.window_s, width=width,
+                            height=max(height - 2, 2), target_cm=target_cm)
+        text = Text("\n".join(lines))
+        text.highlight_regex(f"{SAMPLE_MARK}+", "bold cyan")
+        text.highlight_regex(f"{TARGET_MARK}+", "yellow")
+        return text
+
+    # -- keys -----------------------------------------------------------------------------------
+
+    async def _send(self, *commands: Command) -> None:
+        rov = self.rov
+        if rov is None or rov.client.closed:
+            self.notify("not connected: nothing sent", severity="error")
+            return
+        for command in commands:
+            try:
+                await rov.send(command)
+            except ClientError as error:
+                self.notify(str(error), title=str(command), severity="error")
+                return
+        self._redraw()
+
+    async def action_stop(self) -> None:
+        """``#stop!``: all motors off, locked."""
+        await self._send(Command("stop"))
+
+    async def action_start(self) -> None:
+        """``#start!``: unlock."""
+        await self._send(Command("start"))
+
+    async def action_turn(self, step_deg: int) -> None:
+        """``th`` with the direction turned by ``step_deg``."""
+        if self.rov is not None:
+            await self._send(controls.turn(self.rov.commanded, step_deg))
+
+    async def action_power(self, step_percent: int) -> None:
+        """``th`` with the power changed by ``step_percent``."""
+        if self.rov is not None:
+            await self._send(controls.change_power(self.rov.commanded, step_percent))
+
+    async def action_depth(self, step_cm: int) -> None:
+        """``mvd`` with the target moved by ``step_cm`` (after ``mvdirect 0`` if needed)."""
+        if self.rov is not None:
+            reading = self.readings.latest
+            await self._send(*controls.change_depth_target(
+                self.rov.commanded, reading.depth_cm if reading else None, step_cm))
+
+    async def action_claw(self, frame_name: str) -> None:
+        """``#h+!`` or ``#h-!``: one claw pulse."""
+        await self._send(Command(frame_name))
+
+    async def action_reset_leak(self) -> None:
+        """``#slreset!``: clear the leak latch."""
+        await self._send(Command("slreset"))
+
+    async def action_quit_safely(self) -> None:
+        """Leave; ``#stop!`` first unless the motors are locked as last sent."""
+        rov = self.rov
+        if rov is not None and not rov.client.closed:
+            if rov.commanded.lock is not LockState.LOCKED:
+                await self._send(Command("stop"))
+            await rov.client.close()
+        self.exit()
