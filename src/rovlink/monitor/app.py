@@ -10,6 +10,7 @@ frozen screen.
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import time
 from collections.abc import Awaitable, Callable
 from typing import ClassVar
@@ -19,6 +20,7 @@ from rich.text import Text
 from textual.app import App, ComposeResult
 from textual.binding import Binding, BindingType
 from textual.containers import Horizontal, Vertical
+from textual.css.query import NoMatches
 from textual.widget import Widget
 from textual.widgets import Digits, Footer, Header, Static
 
@@ -197,6 +199,10 @@ class MonitorApp(App[None]):
     # -- drawing --------------------------------------------------------------------------------
 
     def _redraw(self) -> None:
+        with contextlib.suppress(NoMatches):  # the app is closing: the widgets are gone
+            self._update_widgets()
+
+    def _update_widgets(self) -> None:
         reading = self.readings.latest
         self.query_one("#depth-digits", Digits).update(
             "—" if reading is None else str(reading.depth_cm))

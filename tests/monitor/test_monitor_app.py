@@ -1,0 +1,178 @@
+"""The monitor end to end through textual's pilot: what it shows and which frames reached the
+(simulated, or silent) controller."""
+
+from __future__ import annotations
+
+import asyncio
+import re
+from collections.abc import Awaitable, Callable
+
+import pytest
+from typer.testing import CliRunner
+
+import rovlink.aio.client
+from rovlink.aio import AsyncClient
+from rovlink.cli import app as cli_app
+from rovlink.cli.monitor import build_app
+from rovlink.client import ClientOptions
+from rovlink.client.links import Link
+from rovlink.client.options import StrayCallback
+from rovlink.monitor.app import MonitorApp
+from tests.monitor.screen import screen_text, shown
+from tests.operator.rig import RecordingLink, Rig, SilentController, until
+
+SIZE = (100, 34)
+
+
+def _commands(rig: Rig) -> list[str]:
+    """The frames sent, polls left out."""
+    return [frame for frame in rig.frames() if frame != "#qsa!"]
+
+
+def _depth_shown(app: MonitorApp) -> int | None:
+    value = shown(app, "#depth-digits")
+    return int(value) if value.isdigit() else None
+
+
+async def test_drive_to_a_depth_and_back_then_stop() -> None:
+    rig = Rig.simulated()
+    app = MonitorApp(rig.connect, description="bench", rate_hz=20)
+    async with app.run_test(size=SIZE) as pilot:
+        await until(lambda: _depth_shown(app) == 0)
+        await pilot.press("s")
+        assert "unlocked (as last sent)" in shown(app, "#commanded")
+        await pilot.press("pagedown", "pagedown", "pagedown")
+        assert _commands(rig)[1:] == ["#start!", "#mvdirect.0!", "#mvd.10!", "#mvd.20!",
+                                      "#mvd.30!"]
+        assert "target 30 cm, as last sent" in shown(app, "#depth-readout")
+        rig.port.advance(20.0)  # simulated seconds: the depth PID takes it down
+        await until(lambda: abs((_depth_shown(app) or 0) - 30) <= 4)
+        await pilot.press("pageup", "pageup", "pageup")
+        rig.port.advance(30.0)
+        await until(lambda: _depth_shown(app) == 0)
+        await pilot.press("right", "up", "up", "left", "down", "o", "c")
+        await pilot.press("space")
+        assert "locked (as last sent)" in shown(app, "#commanded")
+        chart = shown(app, "#chart")
+        assert "•" in chart
+        assert "30 cm" in chart or "50 cm" in chart
+        await pilot.press("q")
+    assert _commands(rig)[6:] == ["#mvd.20!", "#mvd.10!", "#mvd.0!", "#th.15.0!", "#th.15.10!",
+                                  "#th.15.20!", "#th.0.20!", "#th.0.10!", "#h+!", "#h-!",
+                                  "#stop!"]  # q while locked (as last sent): nothing more
+    assert rig.port.controller.locked
+
+
+async def test_leak_alarm_and_reset() -> None:
+    rig = Rig.simulated(leak_at_s=1.0)
+    app = MonitorApp(rig.connect, description="bench", rate_hz=20)
+    async with app.run_test(size=SIZE) as pilot:
+        await until(lambda: "no leak (q.l = 0)" in shown(app, "#leak"))
+        assert not app.query_one("#leak").has_class("alarm")
+        rig.port.advance(2.0)
+        await until(lambda: app.query_one("#leak").has_class("alarm"))
+        assert "██ LEAK ██" in shown(app, "#leak")
+        assert app.screen.has_class("leak")
+        assert "LEAK" in screen_text(app)
+        await pilot.press("r")
+        await until(lambda: not app.query_one("#leak").has_class("alarm"))
+        assert "no leak (q.l = 0)" in shown(app, "#leak")
+        await pilot.press("q")
+    assert "#slreset!" in _commands(rig)
+    assert _commands(rig)[-1] == "#stop!"  # lock unknown on leaving: made safe
+
+
+async def test_a_silent_link_degrades_link_health_while_keys_still_work() -> None:
+    silent = SilentController()
+
+    def connect(on_stray: StrayCallback) -> Awaitable[AsyncClient]:
+        options = ClientOptions(timeout_s=1.0, retries=0, keepalive_s=None, on_stray=on_stray)
+        return AsyncClient(silent.link(), options).open()
+
+    app = MonitorApp(connect, description="silent", rate_hz=10)
+    async with app.run_test(size=SIZE) as pilot:
+        await until(lambda: b"#qsa!" in silent.received)  # a poll is waiting for its reply
+        await pilot.press("space")
+        await until(lambda: silent.received.endswith(b"#stop!"), timeout_s=0.8)
+        assert app.rov is not None
+        assert app.rov.health.failures == 0  # sent while the poll still waited
+        await until(lambda: "no reply" in shown(app, "#link"))
+        link = shown(app, "#link")
+        assert "no reading yet" in link
+        assert re.search(r"timeouts [1-9]", link)
+        await pilot.press("s")
+        await until(lambda: silent.received.endswith(b"#start!"), timeout_s=0.8)
+        assert shown(app, "#depth-digits") == "—"
+        await pilot.press("q")
+        await until(lambda: silent.received.endswith(b"#stop!"))
+    silent.close()
+
+
+async def test_a_failed_connection_is_shown_and_q_still_quits() -> None:
+    async def connect(on_stray: StrayCallback) -> AsyncClient:
+        raise ConnectionRefusedError("nothing listening")
+
+    app = MonitorApp(connect, description="nowhere")
+    async with app.run_test(size=SIZE) as pilot:
+        await until(lambda: "could not connect: nothing listening" in shown(app, "#link"))
+        await pilot.press("space")  # nothing to send to: says so, does not crash
+        await pilot.press("q")
+    assert app.return_code == 0
+
+
+async def test_footer_shows_the_keys() -> None:
+    rig = Rig.simulated()
+    app = MonitorApp(rig.connect, description="bench")
+    async with app.run_test(size=SIZE) as pilot:
+        def footer() -> str:
+            return [line for line in screen_text(app).splitlines() if line.strip()][-1]
+
+        await until(lambda: "q quit" in footer())
+        for words in ("space STOP", "s start", "←→ direction", "↑↓ power",
+                      "PgUp/PgDn depth target", "o/c claw", "r reset leak", "q quit"):
+            assert words in footer()
+        await pilot.press("q")
+
+
+def _record_links(monkeypatch: pytest.MonkeyPatch) -> list[RecordingLink]:
+    links: list[RecordingLink] = []
+    open_link = rovlink.aio.client.open_link
+
+    def recording_open_link(endpoint: object) -> Link:
+        link = RecordingLink(open_link(endpoint))  # type: ignore[arg-type]
+        links.append(link)
+        return link
+
+    monkeypatch.setattr(rovlink.aio.client, "open_link", recording_open_link)
+    return links
+
+
+async def test_monitor_on_sim_url_shows_an_injected_leak(monkeypatch: pytest.MonkeyPatch) -> None:
+    """``rovlink monitor 'sim://?leak_at=…'``: the real URL, the simulator in real time."""
+    links = _record_links(monkeypatch)
+    app = build_app("sim://?leak_at=0.3&seed=1", rate_hz=20)
+    async with app.run_test(size=SIZE) as pilot:
+        await until(lambda: app.query_one("#leak").has_class("alarm"))
+        assert "sim://?leak_at=0.3&seed=1" in screen_text(app)
+        await pilot.press("space")
+        await pilot.press("q")
+    (link,) = links
+    assert "#stop!" in link.frames()
+
+
+def test_cli_monitor_refuses_bad_options() -> None:
+    result = CliRunner().invoke(cli_app, ["monitor", "sim://?nosuch=1"])
+    assert result.exit_code == 2
+    assert "unknown sim option 'nosuch'" in result.output
+    result = CliRunner().invoke(cli_app, ["monitor", "--algorithm", "md5"])
+    assert result.exit_code == 2
+    assert "algorithm must be one of" in result.output
+
+
+def test_rate_must_be_positive() -> None:
+    async def never(on_stray: StrayCallback) -> AsyncClient:
+        raise AssertionError
+
+    connect: Callable[[StrayCallback], Awaitable[AsyncClient]] = never
+    with pytest.raises(ValueError, match="rate_hz"):
+        MonitorApp(connect, rate_hz=0)

@@ -1,0 +1,95 @@
+"""The panels' text: honest about what is known, loud about a leak and a silent link."""
+
+from __future__ import annotations
+
+from rovlink.client import LinkCounters, Sensors
+from rovlink.monitor.panels import (
+    attitude_text,
+    commanded_text,
+    depth_text,
+    leak_text,
+    link_text,
+)
+from rovlink.monitor.readings import Readings
+from rovlink.operator import CommandedState, LinkHealth, LockState
+from rovlink.protocol import Command, VerticalMode
+
+READING = Sensors(depth_cm=57, pressure_raw=612, leak_detected=False, roll_deg=-3, pitch_deg=2,
+                  heading_deg=275)
+
+
+def _readings(*readings: tuple[Sensors, float]) -> Readings:
+    result = Readings(window_s=30.0)
+    for reading, at_s in readings:
+        result.record(reading, at_s)
+    return result
+
+
+def test_depth_readout_says_as_last_sent_and_goes_stale() -> None:
+    readings = _readings((READING, 10.0))
+    commanded = CommandedState(vertical_mode=VerticalMode.DEPTH, target_depth_cm=60)
+    text = depth_text(readings, commanded, now_s=10.1, period_s=0.2).plain
+    assert "target 60 cm, as last sent" in text
+    assert "raw pressure 612" in text
+    assert "stale" not in text
+    stale = depth_text(readings, commanded, now_s=11.0, period_s=0.2).plain
+    assert "stale: last reading 1.0 s ago" in stale
+    assert "no target sent" in depth_text(readings, CommandedState(), now_s=10.1,
+                                          period_s=0.2).plain
+
+
+def test_leak_banner() -> None:
+    assert leak_text(Readings()).plain == "leak: no reading yet"
+    assert leak_text(_readings((READING, 1.0))).plain == "no leak (q.l = 0)"
+    leaking = _readings((Sensors(57, 612, True, 0, 0, 0), 2.0))
+    banner = leak_text(leaking)
+    assert banner.plain.startswith("██ LEAK ██")
+    assert "r resets the latch" in banner.plain
+    assert "red" in str(banner.style)
+
+
+def test_leak_since_is_kept_until_a_clear_reading() -> None:
+    readings = _readings((Sensors(0, 20, True, 0, 0, 0), 1.0), (Sensors(0, 20, True, 0, 0, 0), 2.0))
+    assert readings.leak_since_s == 1.0
+    readings.record(READING, 3.0)
+    assert not readings.leak
+
+
+def test_attitude() -> None:
+    text = attitude_text(_readings((READING, 1.0)), width=40).plain
+    assert "roll         -3°" in text
+    assert "pitch        +2°" in text
+    assert "heading     275°" in text
+    assert "W" in text
+    assert "▲" in text
+    assert attitude_text(Readings(), 40).plain == "waiting for the first reading…"
+
+
+def test_commanded_panel() -> None:
+    state = CommandedState()
+    text = commanded_text(state).plain
+    assert text.count("unknown: none sent") == 2
+    state.apply(Command("start"))
+    state.apply(Command("th", (90, 30)))
+    text = commanded_text(state).plain
+    assert "unlocked (as last sent)" in text
+    assert "90° at 30 %" in text
+    assert "last sent  #th.90.30!" in text
+    assert state.lock is LockState.UNLOCKED
+
+
+def test_link_panel_healthy_and_silent() -> None:
+    health = LinkHealth()
+    health.record_reply(0.0031, now_s=5.0)
+    readings = _readings((READING, 5.0))
+    text = link_text("bench", health, LinkCounters(), readings, now_s=5.5, rate_hz=5).plain
+    assert "bench · polling 5 Hz ·  ok" in text
+    assert "3.1 ms" in text
+    assert "last reading 0.5 s ago" in text
+    for _ in range(3):
+        health.record_failure("no reply", now_s=6.0)
+    counters = LinkCounters(timeouts=9, retries=6, checksum_errors=2)
+    text = link_text("bench", health, counters, readings, now_s=9.0, rate_hz=5).plain
+    assert " no reply " in text
+    assert "last reading 4.0 s ago" in text
+    assert "timeouts 9 · retries 6 · checksum errors 2 · failed polls 3" in text
