@@ -6,11 +6,11 @@ import json
 import sys
 from collections import Counter
 from pathlib import Path
-from typing import BinaryIO
+from typing import Any, BinaryIO
 
 import typer
 
-from rovlink.protocol import ALGORITHMS, Decoder, Event, Frame, Text
+from rovlink.protocol import ALGORITHMS, BadFrame, Decoder, Event, Frame, Message, Text
 
 __all__ = ["event_to_json", "register"]
 
@@ -45,22 +45,23 @@ def _events(stream: BinaryIO, decoder: Decoder) -> list[Event] | None:
     return decoder.feed(chunk)
 
 
-def _count(stats: dict[str, Counter[str]], events: list[Event]) -> None:
+def _count(stats: dict[str, Counter[Any]], events: list[Event]) -> None:
+    events_seen, names, reasons = stats["events"], stats["names"], stats["reasons"]
     for event in events:
-        if isinstance(event, Frame):
-            stats["events"]["frame"] += 1
-            message = event.message
-            stats["names"][message.kind.start_byte.decode() + message.name] += 1
-        elif isinstance(event, Text):
-            stats["events"]["text"] += 1
+        if type(event) is Frame:
+            events_seen["frame"] += 1
+            names[event.message] += 1  # messages are hashable: group them by name at the end
+        elif type(event) is Text:
+            events_seen["text"] += 1
         else:
-            stats["events"]["error"] += 1
-            stats["reasons"][event.reason.value] += 1
+            assert isinstance(event, BadFrame)
+            events_seen["error"] += 1
+            reasons[event.reason.value] += 1
 
 
 def decode_stream(stream: BinaryIO, decoder: Decoder, *, stats_only: bool) -> None:
     """Decode ``stream`` to the end, printing JSON lines (or one summary with ``stats_only``)."""
-    stats: dict[str, Counter[str]] = {"events": Counter(), "reasons": Counter(), "names": Counter()}
+    stats: dict[str, Counter[Any]] = {"events": Counter(), "reasons": Counter(), "names": Counter()}
     write = sys.stdout.write
     while True:
         events = _events(stream, decoder)
@@ -77,6 +78,11 @@ def decode_stream(stream: BinaryIO, decoder: Decoder, *, stats_only: bool) -> No
         if last:
             break
     if stats_only:
+        by_name: Counter[str] = Counter()
+        for message, count in stats["names"].items():
+            assert isinstance(message, Message)
+            by_name[message.kind.start_byte.decode() + message.name] += count
+        stats["names"] = by_name
         summary = {key: dict(sorted(counter.items())) for key, counter in stats.items()}
         write(json.dumps(summary) + "\n")
 

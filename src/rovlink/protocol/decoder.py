@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 from rovlink.protocol.checksum import DEFAULT_ALGORITHM, ChecksumAlgorithm, get_algorithm
 from rovlink.protocol.commands import Kind
-from rovlink.protocol.frames import MAX_FRAME_BYTES, FrameError, Reason, parse_body
+from rovlink.protocol.frames import MAX_FRAME_BYTES, FrameError, Reason, decode_body
 from rovlink.protocol.messages import Message
 
 __all__ = [
@@ -58,9 +58,14 @@ Event = Frame | Text | BadFrame
 _START = re.compile(rb"[#$]")
 # Bytes that end a frame's body: the end "!", a start character, or anything not printable.
 _BODY_STOP = re.compile(rb"[^\x22\x25-\x7e]")
+# A whole frame with nothing odd in it: the common case, taken without the byte-level states.
+_WHOLE_FRAME = re.compile(rb"[#$][\x22\x25-\x7e]{0,%d}!" % (MAX_FRAME_BYTES - 2))
 _LINE_BREAK = re.compile(rb"[\r\n]")
 _KIND_BY_START = {0x23: Kind.COMMAND, 0x24: Kind.RESPONSE}
-_EXACT_MODE_BODIES = {b"crcon": True, b"crcoff": False}
+_MODE_FRAMES = {b"#crcon!": True, b"#crcoff!": False}
+#: Decoded frames remembered per decoder: telemetry repeats itself, and a hit skips the checksum
+#: and the parse. Bounded so that a stream of ever-new frames cannot grow memory.
+_CACHE_ENTRIES = 512
 
 
 class Decoder:
@@ -76,7 +81,7 @@ class Decoder:
     Response(name='qd', values=(123,))
     """
 
-    __slots__ = ("_algorithm", "_frame", "_skipping", "_text", "checksum_enabled")
+    __slots__ = ("_algorithm", "_caches", "_frame", "_skipping", "_text", "checksum_enabled")
 
     def __init__(
         self,
@@ -89,6 +94,8 @@ class Decoder:
         self._frame = b""  # the unfinished frame, start character included
         self._skipping = False  # inside an over-long frame, dropping bytes until it ends
         self._text = b""  # the unfinished text line
+        # One cache per checksum mode: the same bytes decode differently in each.
+        self._caches: tuple[dict[bytes, Event], dict[bytes, Event]] = ({}, {})
 
     @property
     def algorithm(self) -> ChecksumAlgorithm:
@@ -98,10 +105,12 @@ class Decoder:
     @algorithm.setter
     def algorithm(self, algorithm: str | ChecksumAlgorithm) -> None:
         self._algorithm = get_algorithm(algorithm)
+        for cache in self._caches:
+            cache.clear()
 
     @property
     def buffered_bytes(self) -> int:
-        """Bytes of the unfinished frame held until more input arrives (at most 64)."""
+        """Bytes of the unfinished frame held until more input arrives (at most 63)."""
         return len(self._frame)
 
     @property
@@ -114,14 +123,54 @@ class Decoder:
         events: list[Event] = []
         position = 0
         end = len(data)
-        while position < end:
-            if self._frame:
-                position = self._continue_frame(data, position, events)
-            elif self._skipping:
-                position = self._skip_overlong(data, position)
+        if self._frame or self._skipping:
+            position = self._run_states(data, position, end, events, until_idle=True)
+        whole_frames = _WHOLE_FRAME.findall(data, position)
+        if whole_frames:
+            frames_bytes = b"".join(whole_frames)
+            if data.startswith(frames_bytes, position):
+                # Back-to-back frames, as a controller sends them: no gaps to look at.
+                self._begin_frame(events)
+                self._add_frames(whole_frames, events)
+                position += len(frames_bytes)
             else:
-                position = self._read_text(data, position, events)
+                position = self._feed_with_gaps(data, position, events)
+        if position < end:
+            self._run_states(data, position, end, events, until_idle=False)
         return events
+
+    def _add_frames(self, whole_frames: list[bytes], events: list[Event]) -> None:
+        """Decode whole frames known to stand back to back."""
+        append = events.append
+        caches = self._caches
+        for raw in whole_frames:
+            mode = _MODE_FRAMES.get(raw)
+            if mode is not None:
+                self.checksum_enabled = mode
+                append(self._parse(Kind.COMMAND, raw[1:-1], raw))
+                continue
+            cache = caches[self.checksum_enabled]
+            event = cache.get(raw)
+            if event is None:
+                if len(cache) >= _CACHE_ENTRIES:
+                    cache.clear()
+                event = cache[raw] = self._complete(raw)
+            append(event)
+
+    def _feed_with_gaps(self, data: bytes, position: int, events: list[Event]) -> int:
+        """Whole frames with text, noise or broken frames between some of them."""
+        batch: list[bytes] = []
+        for match in _WHOLE_FRAME.finditer(data, position):
+            start, stop = match.span()
+            if start > position:
+                self._add_frames(batch, events)
+                batch = []
+                self._run_states(data, position, start, events, until_idle=False)
+                self._begin_frame(events)
+            batch.append(data[start:stop])
+            position = stop
+        self._add_frames(batch, events)
+        return position
 
     def end(self) -> list[Event]:
         """The events of the end of the stream: any unfinished text, any truncated frame."""
@@ -139,22 +188,38 @@ class Decoder:
         self._text = b""
         self._skipping = False
 
-    # -- states ---------------------------------------------------------------------------
+    # -- the byte-level states, for everything but whole clean frames ---------------------
 
-    def _read_text(self, data: bytes, position: int, events: list[Event]) -> int:
-        match = _START.search(data, position)
-        stop = match.start() if match else len(data)
+    def _run_states(
+        self, data: bytes, position: int, end: int, events: list[Event], *, until_idle: bool
+    ) -> int:
+        """Run the states over ``data[position:end]``; with ``until_idle``, stop once no frame
+        is open, so that the caller can take the rest on the fast path."""
+        while position < end:
+            if self._frame:
+                position = self._continue_frame(data, position, end, events)
+            elif self._skipping:
+                position = self._skip_overlong(data, position, end)
+            elif until_idle:
+                break
+            else:
+                position = self._read_text(data, position, end, events)
+        return position
+
+    def _read_text(self, data: bytes, position: int, end: int, events: list[Event]) -> int:
+        match = _START.search(data, position, end)
+        stop = match.start() if match else end
         if stop > position:
             self._add_text(data[position:stop], events)
         if match is None:
             return stop
-        self._flush_text(events)
+        self._begin_frame(events)
         self._frame = data[stop : stop + 1]
         return stop + 1
 
-    def _continue_frame(self, data: bytes, position: int, events: list[Event]) -> int:
-        match = _BODY_STOP.search(data, position)
-        stop = match.start() if match else len(data)
+    def _continue_frame(self, data: bytes, position: int, end: int, events: list[Event]) -> int:
+        match = _BODY_STOP.search(data, position, end)
+        stop = match.start() if match else end
         room = MAX_FRAME_BYTES - 1 - len(self._frame)  # the end "!" needs one byte too
         if stop - position > room:
             overlong = self._frame + data[position : position + room + 1]
@@ -165,31 +230,42 @@ class Decoder:
             self._skipping = True
             return position + room + 1
         if match is None:
-            self._frame += data[position:]
-            return stop
+            self._frame += data[position:end]
+            return end
         frame = self._frame + data[position:stop]
-        self._frame = b""
         byte = data[stop]
         if byte == 0x21:  # "!"
+            self._frame = b""
             events.append(self._complete(frame + b"!"))
             return stop + 1
         if byte in _KIND_BY_START:
-            events.append(BadFrame(
-                Reason.MALFORMED, frame, "frame interrupted by a new start character"
-            ))
-            return stop  # resynchronise: the start character begins the next frame
+            self._frame = frame
+            self._begin_frame(events)  # the start character abandons this frame ...
+            self._frame = data[stop : stop + 1]  # ... and begins the next
+            return stop + 1
+        self._frame = b""
         events.append(BadFrame(Reason.MALFORMED, frame, f"byte 0x{byte:02x} inside a frame"))
         return stop  # the byte is between frames now: text or a line break
 
-    def _skip_overlong(self, data: bytes, position: int) -> int:
-        match = _BODY_STOP.search(data, position)
+    def _skip_overlong(self, data: bytes, position: int, end: int) -> int:
+        match = _BODY_STOP.search(data, position, end)
         if match is None:
-            return len(data)
+            return end
         self._skipping = False
         stop = match.start()
         return stop + 1 if data[stop] == 0x21 else stop
 
-    # -- helpers --------------------------------------------------------------------------
+    def _begin_frame(self, events: list[Event]) -> None:
+        """A start character arrived: it ends any text line and abandons any open frame (P1)."""
+        if self._frame:
+            events.append(BadFrame(
+                Reason.MALFORMED, self._frame, "frame interrupted by a new start character"
+            ))
+            self._frame = b""
+        self._skipping = False
+        self._flush_text(events)
+
+    # -- text -----------------------------------------------------------------------------
 
     def _add_text(self, chunk: bytes, events: list[Event]) -> None:
         pieces = _LINE_BREAK.split(chunk)
@@ -213,11 +289,13 @@ class Decoder:
         if line:
             events.append(Text(line.decode("utf-8", errors="replace")))
 
+    # -- frames ---------------------------------------------------------------------------
+
     def _complete(self, frame: bytes) -> Event:
         kind = _KIND_BY_START[frame[0]]
         body = frame[1:-1]
-        if kind is Kind.COMMAND and body in _EXACT_MODE_BODIES:
-            self.checksum_enabled = _EXACT_MODE_BODIES[body]
+        if kind is Kind.COMMAND and frame in _MODE_FRAMES:
+            self.checksum_enabled = _MODE_FRAMES[frame]
             return self._parse(kind, body, frame)
         if self.checksum_enabled and not (kind is Kind.COMMAND and body == b"stop"):
             digits = body[-2:]
@@ -233,6 +311,6 @@ class Decoder:
         if not body:
             return BadFrame(Reason.MALFORMED, frame, "empty frame")
         try:
-            return Frame(parse_body(kind, body.decode("ascii")), frame)
+            return Frame(decode_body(kind, body), frame)
         except FrameError as error:
             return BadFrame(error.reason, frame, error.detail)

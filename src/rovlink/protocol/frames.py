@@ -7,16 +7,18 @@ says why it is not one.
 
 from __future__ import annotations
 
+import re
 from enum import StrEnum
 
 from rovlink.protocol.checksum import ChecksumAlgorithm, get_algorithm
 from rovlink.protocol.commands import SPELLINGS, Kind, Spec
-from rovlink.protocol.messages import Command, Message, Response
+from rovlink.protocol.messages import Command, Message, Response, trusted_message
 
 __all__ = [
     "MAX_FRAME_BYTES",
     "FrameError",
     "Reason",
+    "decode_body",
     "encode",
     "parse_body",
 ]
@@ -131,3 +133,54 @@ def parse_body(kind: Kind, body: str) -> Message:
             )
         values.append(value)
     return _MESSAGE_CLASS[kind](spec.name, tuple(values))
+
+
+_FastEntry = tuple[Spec, "re.Pattern[bytes]", type[Message], tuple[tuple[int, int], ...]]
+
+
+def _fast_entries(kind: Kind) -> dict[bytes, list[_FastEntry]]:
+    """Per first name segment, the specs whose remaining name and values one regex matches."""
+    entries: dict[bytes, list[_FastEntry]] = {}
+    for spelling, spec in SPELLINGS[kind].items():
+        head, _, name_rest = spelling.partition(".")
+        parts = [re.escape(name_rest)] if name_rest else []
+        parts += ["([+-]?[0-9]+)" if a.signed else "([0-9]+)" for a in spec.arguments]
+        pattern = re.compile(r"\.".join(parts).encode())
+        bounds = tuple((a.minimum, a.maximum) for a in spec.arguments)
+        entries.setdefault(head.encode(), []).append(
+            (spec, pattern, _MESSAGE_CLASS[kind], bounds)
+        )
+    return entries
+
+
+_FAST = {kind: _fast_entries(kind) for kind in Kind}
+
+
+def decode_body(kind: Kind, body: bytes) -> Message:
+    """As :func:`parse_body`, for the raw bytes of a body: the decoder's fast path.
+
+    Well-formed bodies in the canonical forms are matched by one precompiled regex per command;
+    anything else goes to :func:`parse_body`, which names the exact problem.
+
+    >>> decode_body(Kind.COMMAND, b"th.270.25")
+    Command(name='th', values=(270, 25))
+    """
+    head, dot, rest = body.partition(b".")
+    for spec, pattern, cls, bounds in _FAST[kind].get(head, ()):
+        if not dot:
+            if not bounds and not pattern.pattern:  # a bare name such as "qd" or "stop"
+                return trusted_message(cls, spec, ())
+            continue
+        match = pattern.fullmatch(rest) if pattern.pattern else None
+        if match is None:
+            continue
+        if len(bounds) == 1:  # the common case, without the general loop
+            value = int(match.group(1))
+            minimum, maximum = bounds[0]
+            if minimum <= value <= maximum:
+                return trusted_message(cls, spec, (value,))
+            continue
+        values = tuple(map(int, match.groups()))
+        if all(low <= value <= high for value, (low, high) in zip(values, bounds, strict=True)):
+            return trusted_message(cls, spec, values)
+    return parse_body(kind, body.decode("ascii", errors="replace"))

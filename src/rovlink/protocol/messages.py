@@ -8,6 +8,7 @@ argument and its range.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import TypeVar
 
 from rovlink.protocol.commands import Kind, Spec, UnknownCommandError, lookup
 
@@ -17,6 +18,7 @@ __all__ = [
     "Command",
     "Message",
     "Response",
+    "trusted_message",
 ]
 
 
@@ -107,3 +109,22 @@ class Response(Message):
     """
 
     kind = Kind.RESPONSE
+
+
+M = TypeVar("M", bound=Message)
+_new = object.__new__
+_set_name = Message.__dict__["name"].__set__
+_set_values = Message.__dict__["values"].__set__
+_set_spec = Message.__dict__["spec"].__set__
+
+
+def trusted_message(cls: type[M], spec: Spec, values: tuple[int, ...]) -> M:
+    """A message of already validated values, made without validating them again.
+
+    For decoders on their hot path, which have just checked every value against ``spec``.
+    """
+    message = _new(cls)
+    _set_name(message, spec.name)
+    _set_values(message, values)
+    _set_spec(message, spec)
+    return message
