@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import asyncio
-import threading
 from collections.abc import Callable
 from pathlib import Path
 
@@ -11,29 +10,13 @@ import pytest
 
 import rovlink
 import rovlink.aio
-from rovlink.client import Client, ClientOptions, Sensors
+from rovlink.client import Client, ClientOptions
 from rovlink.client.links import PortLink
 from rovlink.controller import ControllerState
-from rovlink.protocol import Event, Response, Text, VerticalMode
+from rovlink.protocol import Response, VerticalMode
 from rovlink.sim import SimulatedPort, open_port
 from tests.client.conftest import wait_until
-
-
-class DebugLines:
-    """Collects the controller's debug text from ``on_stray`` (called in another thread)."""
-
-    def __init__(self) -> None:
-        self.lines: list[str] = []
-        self._lock = threading.Lock()
-
-    def __call__(self, event: Event) -> None:
-        if isinstance(event, Text):
-            with self._lock:
-                self.lines.append(event.text)
-
-    def seen(self, fragment: str) -> bool:
-        with self._lock:
-            return any(fragment in line for line in self.lines)
+from tests.client.sim_scenario import DebugLines, check_sensors, run_every_method
 
 
 def _port(client: object) -> SimulatedPort:
@@ -52,13 +35,10 @@ def _state_of(client: object) -> Callable[[], ControllerState]:
     return state
 
 
-def _check_sensors(reading: Sensors) -> None:
-    assert 0 <= reading.depth_cm <= 9999
-    assert 0 <= reading.pressure_raw <= 1024
-    assert isinstance(reading.leak_detected, bool)
-    assert -90 <= reading.roll_deg <= 90
-    assert -90 <= reading.pitch_deg <= 90
-    assert 0 <= reading.heading_deg <= 360
+def test_every_method_through_the_controllers_debug_text() -> None:
+    debug = DebugLines()
+    with rovlink.connect("sim://?seed=7", keepalive=None, on_stray=debug) as rov:
+        run_every_method(rov, debug)
 
 
 def test_every_method_of_the_blocking_client() -> None:
@@ -83,11 +63,11 @@ def test_every_method_of_the_blocking_client() -> None:
         rov.move(270, 25)
         assert (state().direction_deg, state().power_percent) == (270, 25)
         rov.claw_open()
-        assert wait_until(lambda: debug.seen("claw opening"))
+        debug.expect("claw opening")
         rov.claw_close()
-        assert wait_until(lambda: debug.seen("claw closing"))
+        debug.expect("claw closing")
         reading = rov.sensors()
-        _check_sensors(reading)
+        check_sensors(reading)
         assert isinstance(rov.depth_cm(), int)
         assert 0 <= rov.pressure_raw() <= 1024
         assert rov.leak_detected() is False
@@ -98,7 +78,7 @@ def test_every_method_of_the_blocking_client() -> None:
         rov.set_depth_scale(900)
         assert (state().depth_zero_raw, state().depth_k) == (30, 900)
         rov.reset_leak()
-        assert wait_until(lambda: debug.seen("leak latch reset"))
+        debug.expect("leak latch reset")
         rov.stop()
         assert state().locked
         assert state().power_percent == 0
@@ -114,12 +94,12 @@ def test_checksum_mode_both_ways_with_the_simulator() -> None:
     with rovlink.connect("sim://?seed=2", keepalive=None, checksum=True) as rov:
         state = _state_of(rov)
         assert state().checksum_enabled
-        _check_sensors(rov.sensors())
+        check_sensors(rov.sensors())
         rov.set_max_pwm(100)  # a checksummed set command the controller accepts
         assert state().max_pwm == 100
         rov.set_checksum(False)
         assert not state().checksum_enabled
-        _check_sensors(rov.sensors())
+        check_sensors(rov.sensors())
         rov.set_checksum(True)
         assert rov.depth_cm() >= 0
         assert rov.counters.checksum_errors == 0
@@ -131,7 +111,7 @@ def test_a_controller_with_another_checksum_algorithm(tmp_path: Path, algorithm:
     config.write_text(f'[controller]\nchecksum_algorithm = "{algorithm}"\n')
     url = f"sim://?config={config}"
     with rovlink.connect(url, keepalive=None, checksum=True, algorithm=algorithm) as rov:
-        _check_sensors(rov.sensors())
+        check_sensors(rov.sensors())
     # Speaking crc8 to it, every checksummed query is dropped: a clear timeout.
     with rovlink.connect(url, keepalive=None, checksum=True, timeout=0.1, retries=1) as rov, \
             pytest.raises(TimeoutError, match="#qd"):
@@ -203,13 +183,13 @@ async def test_every_method_of_the_async_client() -> None:
             rov.pitch_deg(), rov.heading_deg(), rov.sensors(),
         )
         assert results[2] is False
-        _check_sensors(results[6])
+        check_sensors(results[6])
         assert await rov.send_raw("#q.l!") == (Response("q.l", (0,)),)
         await rov.set_checksum(True)
         assert state().checksum_enabled
         readings = await asyncio.gather(*(rov.sensors() for _ in range(100)))
         for reading in readings:
-            _check_sensors(reading)
+            check_sensors(reading)
         await rov.stop()
         assert state().locked
         assert rov.counters.retries == 0
@@ -219,7 +199,7 @@ async def test_async_telemetry_from_the_simulator() -> None:
     async with rovlink.aio.connect("sim://?seed=6", keepalive=None) as rov:
         count = 0
         async for reading in rov.telemetry(None):
-            _check_sensors(reading)
+            check_sensors(reading)
             count += 1
             if count == 200:
                 break

@@ -239,6 +239,8 @@ async def test_send_and_send_raw(fake: FakeController, make_async_client: MakeAs
     assert await client.send(Command("q.l")) == (Response("q.l", (0,)),)
     assert await client.send_raw("#qro!") == (Response("qro", (-1,)),)
     assert await client.send_raw("#nonsense!") == ()
+    # "#nonsense!" is no command: wait for its bytes rather than for a command.
+    assert await _arrived(fake, lambda f: bytes(f.raw).endswith(b"#nonsense!"))
     assert await _sent_after_connect(fake, 2) == b"#q.l!#qro!#nonsense!"
 
 
