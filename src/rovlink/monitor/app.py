@@ -76,7 +76,7 @@ class MonitorApp(App[None]):
     ENABLE_COMMAND_PALETTE = False
     CSS = """
     Screen { layout: vertical; }
-    Screen.leak { border: heavy $error; }
+    Screen.leak Header { background: $error; color: $text; text-style: bold; }
     #top { height: auto; }
     Panel, #depth-box { border: round $primary; border-title-align: left; padding: 0 1; }
     #depth-box { width: 30; height: 8; }
