@@ -187,3 +187,16 @@ def test_cli_console_refuses_a_bad_url() -> None:
     result = CliRunner().invoke(app, ["console", "sim://?nosuch=1"])
     assert result.exit_code == 2
     assert "unknown sim option 'nosuch'" in result.output
+
+
+@pytest.mark.integration
+def test_cli_console_says_when_nothing_listens(tmp_path: Path) -> None:
+    import socket
+
+    with socket.socket() as probe:  # a free port, closed again: nothing listens on it
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
+    result = CliRunner().invoke(app, ["console", f"socket://127.0.0.1:{port}",
+                                      "--history", str(tmp_path / "history")])
+    assert result.exit_code == 1
+    assert "could not connect" in result.output

@@ -60,3 +60,16 @@ async def test_a_silent_link_is_counted_as_failures() -> None:
     assert rov.health.status == "no reply"
     await client.close()
     silent.close()
+
+
+async def test_a_closed_client_sends_and_reports_nothing() -> None:
+    rig = Rig.simulated()
+    rov = TrackedClient(await rig.connect())
+    sent: list[SentFrame] = []
+    rov.add_sent_listener(sent.append)
+    await rov.client.close()
+    for command in (Command("qd"), Command("stop")):
+        with pytest.raises(ConnectionError):
+            await rov.send(command)
+    assert sent == []
+    assert rig.frames() == ["#crcoff!"]

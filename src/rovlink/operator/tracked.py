@@ -93,11 +93,11 @@ class TrackedClient:
         Raises what the driver raises: QueryTimeoutError after the retries, ConnectionLostError.
         """
         data = encode(command, self.algorithm if self.checksum_enabled else None)
-        if not command.spec.is_query:
-            await self.client.send(command)
+        if not command.spec.is_query or self.client.closed:
+            replies = await self.client.send(command)  # a closed client raises here
             self._sent(data, command)
-            return ()
-        self._sent(data, command)
+            return replies
+        self._sent(data, command)  # shown before the reply, which may take a while
         return await self._timed(self.client.send(command))
 
     async def send_raw(self, frame: str | bytes) -> tuple[Response, ...]:
