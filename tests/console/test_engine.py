@@ -65,7 +65,9 @@ async def test_stop_now_jumps_the_queue_and_drops_what_was_not_sent() -> None:
     engine.submit(SendCommand(Command("start")))
     engine.submit(SendCommand(Command("th", (0, 100))))
     await until(lambda: b"#qd!" in silent.received)
+    assert engine.queued == 2
     await engine.stop_now()
+    assert engine.queued == 0
     await until(lambda: b"#stop!" in silent.received)
     engine.submit(Quit())
     await asyncio.wait_for(runner, 5)

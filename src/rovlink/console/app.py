@@ -93,7 +93,7 @@ def _stop_bindings(engine: ConsoleEngine) -> KeyBindings:
     return bindings
 
 
-def _toolbar(rov: TrackedClient) -> StyleAndTextTuples:
+def _toolbar(rov: TrackedClient, queued: int) -> StyleAndTextTuples:
     state = rov.commanded
     lock_style = {LockState.LOCKED: "class:toolbar.locked",
                   LockState.UNLOCKED: "class:toolbar.unlocked"}.get(state.lock, "")
@@ -109,6 +109,7 @@ def _toolbar(rov: TrackedClient) -> StyleAndTextTuples:
         ("class:toolbar.stop", f" {STOP_KEY_TEXT}: STOP "),
         ("", " as last sent: "), (lock_style, state.short_lock_text()),
         ("", f", {state.short_mode_text()} │ {checksum} │ "), (link_style, link),
+        ("class:toolbar.bad", f" │ {queued} line(s) waiting" if queued else ""),
         ("", "\n "),
     ]
     app = get_app_or_none()
@@ -158,7 +159,7 @@ async def run_console(connect: Connector, *, algorithm: str = "crc8",
         validator=ConsoleValidator(),
         validate_while_typing=False,
         key_bindings=_stop_bindings(engine),
-        bottom_toolbar=lambda: _toolbar(rov),
+        bottom_toolbar=lambda: _toolbar(rov, engine.queued),
         refresh_interval=_TOOLBAR_REFRESH_S,
     )
     emit(info_line(f"connected to {client.description}; {STOP_KEY_TEXT} sends #stop! at any "

@@ -87,6 +87,11 @@ class ConsoleEngine:
 
     # -- from the prompt and the driver ---------------------------------------------------------
 
+    @property
+    def queued(self) -> int:
+        """Lines waiting behind the one running."""
+        return self._queue.qsize()
+
     def submit(self, action: Action) -> None:
         """Queue an action behind those already waiting."""
         self._queue.put_nowait(action)
