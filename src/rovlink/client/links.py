@@ -97,7 +97,10 @@ class FdLink:
 
     def write(self, data: bytes) -> None:
         """Write all of ``data``, waiting for room at most :data:`WRITE_TIMEOUT_S` at a time."""
-        view = memoryview(data)
+        written = self.send_some(data)
+        if written == len(data):  # nearly always: a frame fits in the kernel's buffer
+            return
+        view = memoryview(data)[written:]
         while view:
             written = self.send_some(view)
             view = view[written:]
