@@ -97,13 +97,15 @@ class Client:
             target=self._background_loop, name=f"rovlink reader ({link.description})",
             daemon=True,
         )
-        self._background.start()
-        self._background_ident = self._background.ident
+        self._background_ident: int | None = None
         try:
             self._send(operations.checksum(self._options.checksum))
         except BaseException:
-            self.close()
+            self._link.close()
             raise
+        # Started after the first frame, so that an idle link is measured from it.
+        self._background.start()
+        self._background_ident = self._background.ident
 
     # -- the connection -------------------------------------------------------------------------
 

@@ -270,7 +270,11 @@ def _open_serial(endpoint: Endpoint) -> Link:
             write_timeout=WRITE_TIMEOUT_S,
         )
     except (OSError, ValueError) as error:
-        raise ConnectError(f"could not open {endpoint.url}: {error}") from error
+        # pyserial's messages already say "could not open port …".
+        message = str(error) if "could not open" in str(error) else (
+            f"could not open {endpoint.url}: {error}"
+        )
+        raise ConnectError(message) from error
     description = f"{endpoint.target} at {endpoint.baudrate} baud"
     # Only pyserial's own POSIX class is read through its descriptor: wrappers such as spy://
     # log in read() and write(), which reading the descriptor would bypass.
