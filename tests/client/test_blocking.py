@@ -221,6 +221,23 @@ def test_a_failing_callback_does_not_stop_the_reader(
     assert client.depth_cm() == 123
 
 
+def test_a_callback_may_use_the_client(fake: FakeController, make_client: MakeClient) -> None:
+    depths: list[int] = []
+    client: Client | None = None
+
+    def on_stray(event: Event) -> None:
+        if isinstance(event, Text) and client is not None:
+            depths.append(client.depth_cm())  # runs after the reader role is given up
+
+    client = make_client(on_stray=on_stray)
+    fake.send(b"debug: unsolicited line\r\n")  # read by the background reader
+    assert wait_until(lambda: len(depths) == 1)
+    fake.then("debug")  # read by the caller waiting for its own reply
+    assert client.heading_deg() == 275
+    assert wait_until(lambda: len(depths) == 3)
+    assert depths == [123, 123, 123]
+
+
 def test_disconnect_fails_the_pending_query_and_every_later_call(
     fake: FakeController, make_client: MakeClient
 ) -> None:

@@ -149,7 +149,8 @@ class _Dive:
             step = self.begin(index)
             rov.move(direction_deg, plan.power_percent)
             self.watch(plan.leg_s)
-            self.finish(step, detail=f"heading {self.poll().heading_deg}°")
+            reading = self.poll()
+            self.finish(step, detail=f"{reading.depth_cm} cm, heading {reading.heading_deg}°")
         rov.move(0, 0)
 
         step = self.begin(7)

@@ -1,10 +1,16 @@
 """The blocking client: ``rovlink.connect(url)`` and one method per command of the protocol.
 
-One reader thread per connection reads whatever the port has, feeds it to the
-:class:`~rovlink.client.session.Session` (which matches replies to the queue of pending queries)
-and wakes the callers whose queries it settled; it also sends keep-alive queries when the link
-is idle and times out queries nobody waits for. Callers write under a lock, so the queue's order
-is the wire's order and any number of threads may share one client.
+Callers write under a lock, so the queue of pending queries in the
+:class:`~rovlink.client.session.Session` has the wire's order and any number of threads may
+share one client. One thread at a time holds the *reader role*: it reads whatever the port has,
+feeds it to the session (which matches replies to pending queries) and wakes the callers whose
+queries it settled. A caller waiting for a reply takes the role itself when it is free, so a
+reply reaches its caller without a hop through another thread — that hop would cost as much as
+the controller's own turnaround. A background thread holds the role only while no caller has
+been active for a moment: it passes on the controller's debug text and stray frames, sends the
+keep-alive queries of an idle link and notices a lost connection; it steps aside (woken through
+the link) as soon as a caller arrives. Callbacks run after the role is given up, so they may
+use the client.
 """
 
 from __future__ import annotations
@@ -25,7 +31,7 @@ from rovlink.client.sensors import Sensors
 from rovlink.client.session import Outcome, PendingQuery, Session
 from rovlink.client.unsolicited import report
 from rovlink.client.url import parse_url
-from rovlink.protocol import Command, Response
+from rovlink.protocol import Command, Event, Response
 
 __all__ = ["KEEPALIVE_QUERY", "Client", "connect"]
 
@@ -34,8 +40,11 @@ T = TypeVar("T")
 #: The query sent when the link has been idle: any valid frame feeds the controller's watchdog
 #: (P17), and a query also proves the controller is still answering.
 KEEPALIVE_QUERY = Command("qd")
-#: The reader looks around (deadlines, keep-alive, close) at least this often.
+#: The background reader looks around (deadlines, keep-alive, close) at least this often.
 _MAX_READ_WAIT_S = 0.25
+#: The background reader takes the role back once callers have been quiet this long: a program
+#: querying in a loop keeps it, and debug text waits at most this long in the port's buffer.
+_CALLER_GRACE_S = 0.005
 
 
 class Client:
@@ -71,20 +80,32 @@ class Client:
         self._clock = clock
         self._session = Session(algorithm=self._options.algorithm,
                                 timeout_s=self._options.timeout_s)
-        self._state_lock = threading.Lock()  # the session and the lost/closed state
+        # Lock order: the wire lock, then the state lock.
         self._wire_lock = threading.Lock()  # one writer at a time: queue order = wire order
-        self._mode_lock = threading.Lock()  # held by queries; a checksum switch drains them
+        self._state_lock = threading.Lock()  # the session and everything below
+        self._changed = threading.Condition(self._state_lock)  # a query settled, role released
+        # The background reader waits apart, so that callers' notifications do not wake it.
+        self._background_wakeup = threading.Condition(self._state_lock)
         self._lost: ConnectionLostError | None = None
         self._closing = False
-        self._reader = threading.Thread(
-            target=self._read_loop, name=f"rovlink reader ({link.description})", daemon=True
+        self._reader_ident: int | None = None  # the thread holding the reader role
+        self._mode_switcher: int | None = None  # the thread draining queries to switch checksum
+        self._active_callers = 0  # callers with a query on the wire
+        self._waiting_callers = 0  # callers waiting on ``_changed``
+        self._last_caller_at = float("-inf")
+        self._background = threading.Thread(
+            target=self._background_loop, name=f"rovlink reader ({link.description})",
+            daemon=True,
         )
-        self._reader.start()
+        self._background_ident: int | None = None
         try:
             self._send(operations.checksum(self._options.checksum))
         except BaseException:
-            self.close()
+            self._link.close()
             raise
+        # Started after the first frame, so that an idle link is measured from it.
+        self._background.start()
+        self._background_ident = self._background.ident
 
     # -- the connection -------------------------------------------------------------------------
 
@@ -111,15 +132,21 @@ class Client:
             rov = rovlink.connect("sim://")
             rov.close()
         """
-        with self._state_lock:
+        with self._changed:
             if self._closing:
                 return
             self._closing = True
-        self._link.wake()
-        if threading.current_thread() is not self._reader:
-            self._reader.join(timeout=2.0)
-        self._link.close()
+            self._background_wakeup.notify()
         self._connection_lost(ConnectionLostError(f"{self._link.description}: closed"))
+        self._link.wake()
+        if threading.current_thread() is not self._background:
+            self._background.join(timeout=2.0)
+        with self._changed:  # a caller may still be in a read: it stops at the wake-up
+            self._waiting_callers += 1
+            self._changed.wait_for(lambda: self._reader_ident in (None, threading.get_ident()),
+                                   timeout=2.0)
+            self._waiting_callers -= 1
+        self._link.close()
 
     @property
     def closed(self) -> bool:
@@ -192,10 +219,21 @@ class Client:
             rov.set_checksum(True)   # every frame now carries a CRC-8 (or the chosen algorithm)
         """
         command = operations.checksum(enabled)
-        self._check_open()
-        with self._mode_lock:
-            self._drain()
+        me = threading.get_ident()
+        with self._state_lock:
+            while self._mode_switcher is not None:  # another thread is switching: after it
+                self._wait_for_change(None)
+            self._raise_if_lost()
+            self._mode_switcher = me
+            on_the_wire = self._session.pending
+        try:
+            for query in on_the_wire:
+                self._wait(query, owned=False)
             self._send(command)
+        finally:
+            with self._state_lock:
+                self._mode_switcher = None
+                self._notify_callers()
 
     def set_debug(self, enabled: bool) -> None:
         """``#debug1!`` / ``#debug0!``: debug text goes to ``on_stray`` and logging.
@@ -409,13 +447,7 @@ class Client:
         if data in (b"#crcon!", b"#crcoff!"):
             self.set_checksum(data == b"#crcon!")
             return ()
-        self._check_open()
-        with self._mode_lock, self._wire_lock:
-            with self._state_lock:
-                pending = self._session.raw(data, self._clock())
-                if pending is not None:
-                    pending.waiter = threading.Event()
-            self._write(data)
+        pending = self._send_query(lambda now: (data, self._session.raw(data, now)))
         if pending is None:
             return ()
         outcome = self._wait(pending)
@@ -431,6 +463,10 @@ class Client:
         if self._lost is not None:
             raise self._lost_error()
 
+    def _raise_if_lost(self) -> None:
+        if self._lost is not None:
+            raise self._lost_error()
+
     def _lost_error(self) -> ConnectionLostError:
         lost = self._lost
         reason = str(lost) if lost is not None else "closed"
@@ -440,17 +476,25 @@ class Client:
 
     def _connection_lost(self, error: ConnectionLostError) -> None:
         with self._state_lock:
-            if self._lost is not None:
-                return
-            self._lost = error
-            settled = self._session.disconnect()
-        self._wake(settled)
+            self._lose(error)
 
-    @staticmethod
-    def _wake(settled: list[PendingQuery]) -> None:
-        for query in settled:
-            if isinstance(query.waiter, threading.Event):
-                query.waiter.set()
+    def _lose(self, error: ConnectionLostError) -> None:
+        """Settle everything as disconnected (state lock held)."""
+        if self._lost is None:
+            self._lost = error
+            self._session.disconnect()
+            self._changed.notify_all()
+
+    def _notify_callers(self) -> None:
+        """Wake callers waiting for a settled query or the reader role (state lock held)."""
+        if self._waiting_callers:
+            self._changed.notify_all()
+
+    def _wait_for_change(self, timeout_s: float | None) -> None:
+        """Wait for a query to settle or the reader role to be free (state lock held)."""
+        self._waiting_callers += 1
+        self._changed.wait(timeout_s)
+        self._waiting_callers -= 1
 
     def _write(self, data: bytes) -> None:
         """Write under the wire lock; a failure is a lost connection."""
@@ -471,11 +515,14 @@ class Client:
         return query.read(self._request(query.command))
 
     def _request(self, command: Command) -> tuple[Response, ...]:
-        if threading.current_thread() is self._reader:
-            raise RuntimeError("a query from an on_stray callback would wait for itself")
         failures: list[str] = []
+        session = self._session
         for attempt in range(self._options.retries + 1):
-            pending = self._send_query(command, retry=attempt > 0)
+            if attempt:
+                with self._state_lock:
+                    session.counters.retries += 1
+            pending = self._send_query(lambda now: session.query(command, now))
+            assert pending is not None
             outcome = self._wait(pending)
             if outcome is Outcome.ANSWERED:
                 return tuple(pending.responses)
@@ -484,66 +531,132 @@ class Client:
             failures.append(outcome.value)
         raise QueryTimeoutError(command, failures, self._options.timeout_s)
 
-    def _send_query(self, command: Command, *, retry: bool = False,
-                    keepalive: bool = False) -> PendingQuery:
-        self._check_open()
-        with self._mode_lock, self._wire_lock:
+    def _send_query(
+        self, encode: Callable[[float], tuple[bytes, PendingQuery | None]]
+    ) -> PendingQuery | None:
+        """Queue and write a query (``encode`` gives its bytes and queue entry at a time).
+
+        The caller counts as active until :meth:`_wait` returns, so the background reader
+        stays out of its way; if the background reader is reading, it is woken to step aside.
+        """
+        me = threading.get_ident()
+        while True:
+            with self._wire_lock:
+                with self._state_lock:
+                    if self._lost is not None:
+                        raise self._lost_error()
+                    switcher = self._mode_switcher
+                    ready = switcher is None or switcher == me
+                    if ready:
+                        data, pending = encode(self._clock())
+                        if pending is not None:
+                            self._active_callers += 1
+                        background_reading = self._reader_ident == self._background_ident
+                if ready:
+                    try:
+                        self._write(data)  # under the wire lock: the queue's order is the wire's
+                    except ConnectionLostError:
+                        if pending is not None:
+                            self._wait(pending)  # settled already: stops counting as active
+                        raise
+                    break
+            # A checksum switch is draining the queue: wait for it outside the wire lock.
             with self._state_lock:
-                if retry:
-                    self._session.counters.retries += 1
-                data, pending = self._session.query(command, self._clock(), keepalive=keepalive)
-                pending.waiter = threading.Event()
-            self._write(data)
+                while self._mode_switcher not in (None, me):
+                    self._wait_for_change(None)
+        if background_reading:
+            self._link.wake()
         return pending
 
-    def _wait(self, pending: PendingQuery) -> Outcome:
-        """Wait until the attempt settles; time it (and any older ones) out when due."""
-        event = pending.waiter
-        assert isinstance(event, threading.Event)
-        while True:
-            with self._state_lock:
-                if pending.settled:
-                    return pending.outcome
+    def _wait(self, pending: PendingQuery, *, owned: bool = True) -> Outcome:
+        """Wait until the attempt settles, reading the port whenever nobody else is.
+
+        ``owned``: the caller queued ``pending`` (and stops counting as active here).
+        """
+        lock = self._state_lock
+        session = self._session
+        unsolicited: list[Event] = []
+        me = threading.get_ident()
+        lock.acquire()
+        try:
+            while pending.outcome is Outcome.PENDING:
                 now = self._clock()
-                remaining = self._session.deadline(pending) - now
+                remaining = session.deadline(pending) - now
                 if remaining <= 0:
-                    expired = self._session.expire(now)
-                    self._wake(expired)
-                    continue
-            event.wait(remaining)
+                    session.expire(now)
+                    self._notify_callers()
+                elif self._reader_ident is not None:
+                    self._wait_for_change(remaining)
+                else:
+                    self._reader_ident = me
+                    lock.release()
+                    try:
+                        data = self._link.read_available(remaining)
+                        lost = None
+                    except ConnectionLostError as error:
+                        data, lost = b"", error
+                    finally:
+                        lock.acquire()
+                        self._reader_ident = None
+                    if lost is not None:
+                        self._lose(lost)
+                    elif data:
+                        received = session.receive(data, self._clock())
+                        if received.unsolicited:
+                            unsolicited += received.unsolicited
+                    if self._waiting_callers:
+                        self._changed.notify_all()
+            return pending.outcome
+        finally:
+            if owned:
+                self._active_callers -= 1
+                self._last_caller_at = self._clock()
+            lock.release()
+            if unsolicited:
+                report(unsolicited, self._options.on_stray)
 
-    def _drain(self) -> None:
-        """Wait for every query on the wire to settle (callers hold the mode lock)."""
-        with self._state_lock:
-            pending = self._session.pending
-        for query in pending:
-            self._wait(query)
-
-    def _read_loop(self) -> None:
-        while not self._closing:
+    def _background_loop(self) -> None:
+        me = threading.get_ident()
+        lock = self._state_lock
+        while True:
+            with lock:
+                while True:
+                    if self._closing or self._lost is not None:
+                        return
+                    if self._reader_ident is None and not self._active_callers:
+                        quiet_s = self._clock() - self._last_caller_at
+                        if quiet_s >= _CALLER_GRACE_S:
+                            break
+                        self._background_wakeup.wait(_CALLER_GRACE_S - quiet_s)
+                    else:
+                        self._background_wakeup.wait(_MAX_READ_WAIT_S)
+                self._reader_ident = me
+            unsolicited: list[Event] = []
             try:
                 wait_s = self._housekeeping()
                 data = self._link.read_available(wait_s)
+                if data:
+                    with lock:
+                        received = self._session.receive(data, self._clock())
+                        unsolicited = received.unsolicited
             except ConnectionLostError as error:
                 if not self._closing:
                     self._connection_lost(error)
-                return
-            if not data:
-                continue
-            with self._state_lock:
-                received = self._session.receive(data, self._clock())
-            self._wake(received.settled)
-            if received.unsolicited:
-                report(received.unsolicited, self._options.on_stray)
+            finally:
+                with lock:
+                    self._reader_ident = None
+                    self._notify_callers()  # results, or the role, for a waiting caller
+            if unsolicited:
+                report(unsolicited, self._options.on_stray)
 
     def _housekeeping(self) -> float:
         """Time out overdue queries, keep the link alive; how long the reader may block now."""
         now = self._clock()
         with self._state_lock:
-            expired = self._session.expire(now)
+            if self._session.expire(now):
+                self._notify_callers()
             next_deadline = self._session.next_deadline()
             last_sent_at = self._session.last_sent_at
-        self._wake(expired)
         wait_s = _MAX_READ_WAIT_S
         if next_deadline is not None:
             wait_s = min(wait_s, next_deadline - now)
@@ -556,19 +669,12 @@ class Client:
         return max(wait_s, 0.001)
 
     def _send_keepalive(self) -> bool:
-        # A checksum switch holds the mode lock while it drains: it is talking anyway.
-        if not self._mode_lock.acquire(blocking=False):
-            return False
-        try:
-            with self._wire_lock:
-                with self._state_lock:
-                    data, pending = self._session.query(
-                        KEEPALIVE_QUERY, self._clock(), keepalive=True
-                    )
-                    pending.waiter = threading.Event()
-                self._write(data)
-        finally:
-            self._mode_lock.release()
+        with self._wire_lock:
+            with self._state_lock:
+                if self._mode_switcher is not None:
+                    return False  # a checksum switch is talking anyway
+                data, _ = self._session.query(KEEPALIVE_QUERY, self._clock(), keepalive=True)
+            self._write(data)
         return True
 
 

@@ -41,9 +41,17 @@ class LinkCounters:
     bytes_received: int = 0
 
     def copy(self) -> LinkCounters:
-        """An independent snapshot."""
+        """An independent snapshot.
+
+        >>> LinkCounters(timeouts=2).copy().timeouts
+        2
+        """
         return LinkCounters(**self.as_dict())
 
     def as_dict(self) -> dict[str, int]:
-        """The counters by name, in declaration order."""
+        """The counters by name, in declaration order.
+
+        >>> list(LinkCounters().as_dict())[:3]
+        ['frames_sent', 'frames_received', 'replies']
+        """
         return {field.name: getattr(self, field.name) for field in fields(self)}

@@ -97,7 +97,10 @@ class FdLink:
 
     def write(self, data: bytes) -> None:
         """Write all of ``data``, waiting for room at most :data:`WRITE_TIMEOUT_S` at a time."""
-        view = memoryview(data)
+        written = self.send_some(data)
+        if written == len(data):  # nearly always: a frame fits in the kernel's buffer
+            return
+        view = memoryview(data)[written:]
         while view:
             written = self.send_some(view)
             view = view[written:]
@@ -267,7 +270,11 @@ def _open_serial(endpoint: Endpoint) -> Link:
             write_timeout=WRITE_TIMEOUT_S,
         )
     except (OSError, ValueError) as error:
-        raise ConnectError(f"could not open {endpoint.url}: {error}") from error
+        # pyserial's messages already say "could not open port …".
+        message = str(error) if "could not open" in str(error) else (
+            f"could not open {endpoint.url}: {error}"
+        )
+        raise ConnectError(message) from error
     description = f"{endpoint.target} at {endpoint.baudrate} baud"
     # Only pyserial's own POSIX class is read through its descriptor: wrappers such as spy://
     # log in read() and write(), which reading the descriptor would bypass.

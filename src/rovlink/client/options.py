@@ -58,5 +58,9 @@ class ClientOptions:
 
     @property
     def keepalive_enabled(self) -> bool:
-        """Whether idle links get keep-alive queries."""
+        """Whether idle links get keep-alive queries.
+
+        >>> ClientOptions(keepalive_s=None).keepalive_enabled
+        False
+        """
         return bool(self.keepalive_s)

@@ -20,7 +20,6 @@ replies keep coming, and a dead link times everything out ``timeout_s`` after it
 from __future__ import annotations
 
 from collections import deque
-from dataclasses import dataclass, field
 from enum import StrEnum
 
 from rovlink.client.counters import LinkCounters
@@ -48,6 +47,9 @@ _CORRUPT_REASONS = frozenset({
 })
 
 
+_QUERY_BYTES_CACHED = 64
+
+
 class Outcome(StrEnum):
     """What became of one attempt of a query."""
 
@@ -59,22 +61,24 @@ class Outcome(StrEnum):
     DISCONNECTED = "disconnected"
 
 
-@dataclass(eq=False, slots=True)
 class PendingQuery:
     """One query on the wire, waiting for its replies."""
 
-    command: Command
-    sent_at: float
-    keepalive: bool = False
-    responses: list[Response] = field(default_factory=list)
-    outcome: Outcome = Outcome.PENDING
-    #: The client's handle to wake the caller (a ``threading.Event``, an ``asyncio.Future``).
-    waiter: object = None
+    __slots__ = ("command", "expected", "keepalive", "outcome", "responses", "sent_at", "waiter")
 
-    @property
-    def expected(self) -> tuple[str, ...]:
-        """The names of the replies, in order."""
-        return self.command.spec.replies
+    def __init__(self, command: Command, sent_at: float, keepalive: bool = False) -> None:
+        self.command = command
+        self.sent_at = sent_at
+        self.keepalive = keepalive
+        #: The names of the replies, in order.
+        self.expected: tuple[str, ...] = command.spec.replies
+        self.responses: list[Response] = []
+        self.outcome = Outcome.PENDING
+        #: The client's handle to wake the caller (an ``asyncio.Future``), if it needs one.
+        self.waiter: object = None
+
+    def __repr__(self) -> str:
+        return f"PendingQuery({self.command}, {self.outcome.value}, {self.responses})"
 
     @property
     def settled(self) -> bool:
@@ -82,14 +86,16 @@ class PendingQuery:
         return self.outcome is not Outcome.PENDING
 
 
-@dataclass(slots=True)
 class Received:
     """What one chunk of received bytes did."""
 
-    #: Queries answered or failed by it.
-    settled: list[PendingQuery] = field(default_factory=list)
-    #: Everything that answered nothing: debug text, noise, dropped frames, stray replies.
-    unsolicited: list[Event] = field(default_factory=list)
+    __slots__ = ("settled", "unsolicited")
+
+    def __init__(self) -> None:
+        #: Queries answered or failed by it.
+        self.settled: list[PendingQuery] = []
+        #: Everything that answered nothing: debug text, noise, dropped frames, stray replies.
+        self.unsolicited: list[Event] = []
 
 
 class Session:
@@ -115,6 +121,8 @@ class Session:
         self._decoder = Decoder(checksum_enabled=checksum_enabled, algorithm=self._algorithm)
         self._raw_decoder = Decoder(algorithm=self._algorithm)
         self._pending: deque[PendingQuery] = deque()
+        # Queries are few and repeat: their bytes in the current mode, encoded once.
+        self._query_bytes: dict[Command, bytes] = {}
         self.timeout_s = timeout_s
         self.counters = LinkCounters()
         self.last_sent_at = float("-inf")
@@ -168,9 +176,13 @@ class Session:
 
         Write the bytes before anything else is written: the queue's order is the wire's.
         """
-        if not command.spec.is_query:
-            raise ValueError(f"{command} expects no reply: use Session.command")
-        data = encode(command, self._algorithm if self._checksum_enabled else None)
+        data = self._query_bytes.get(command)
+        if data is None:
+            if not command.spec.is_query:
+                raise ValueError(f"{command} expects no reply: use Session.command")
+            data = encode(command, self._algorithm if self._checksum_enabled else None)
+            if len(self._query_bytes) < _QUERY_BYTES_CACHED:
+                self._query_bytes[command] = data
         self._count_sent(data, now)
         pending = PendingQuery(command, now, keepalive)
         self._pending.append(pending)
@@ -247,19 +259,25 @@ class Session:
     def _set_mode(self, enabled: bool) -> None:
         self._checksum_enabled = enabled
         self._decoder.checksum_enabled = enabled
+        self._query_bytes.clear()
 
     def _settle(self, query: PendingQuery, outcome: Outcome) -> None:
-        self._pending.remove(query)
+        pending = self._pending
+        if pending[0] is query:
+            pending.popleft()
+        else:
+            pending.remove(query)
         query.outcome = outcome
 
     def _deliver(self, response: Response, now: float, settled: list[PendingQuery]) -> bool:
         pending = self._pending
         while pending:
             head = pending[0]
-            if head.expected[len(head.responses)] == response.name:
+            responses = head.responses
+            if head.expected[len(responses)] == response.name:
                 self._append(head, response, now, settled)
                 return True
-            if not head.responses:
+            if not responses:
                 break
             # A half-received reply (qsa) broken by a frame that does not belong in it.
             self._settle(head, Outcome.CORRUPT)
