@@ -19,7 +19,7 @@ app = typer.Typer(
 
 # Each module defines ``register(app)``. Heavy imports stay inside the commands, so that
 # ``rovlink decode`` does not pay for the terminal user interfaces.
-_COMMAND_MODULES = ("decode", "reference")
+_COMMAND_MODULES = ("decode", "reference", "sim")
 
 for _name in _COMMAND_MODULES:
     importlib.import_module(f"rovlink.cli.{_name}").register(app)

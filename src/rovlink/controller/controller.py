@@ -1,0 +1,449 @@
+"""The low-level controller (PROTOCOL.md): decoded frames in, thruster duties and replies out.
+
+The controller owns no I/O. Its owner feeds it the received bytes (:meth:`Controller.receive`),
+calls :meth:`Controller.tick` at the configured rate, and passes on what it writes: replies and
+debug lines, through the ``write`` callback or from :meth:`Controller.read_output`. Hardware is
+reached only through :class:`~rovlink.controller.hardware.Hardware`.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Callable
+from dataclasses import dataclass
+
+from rovlink.controller.config import ControllerConfig, LeakAction
+from rovlink.controller.debug_output import debug_line, describe_frame
+from rovlink.controller.hardware import Hardware
+from rovlink.controller.mixer import ThrusterMixer
+from rovlink.controller.pid import DepthPid
+from rovlink.protocol import (
+    BadFrame,
+    Command,
+    Decoder,
+    Frame,
+    Kind,
+    Response,
+    Text,
+    VerticalMode,
+    encode,
+)
+
+__all__ = ["Controller", "ControllerState"]
+
+logger = logging.getLogger(__name__)
+
+_MAX_DEPTH_CM = 9999
+_FULL_UP_PERCENT = 100
+
+
+@dataclass(frozen=True, slots=True)
+class ControllerState:
+    """A snapshot of everything a command can change (for tests and tools)."""
+
+    locked: bool
+    vertical_mode: VerticalMode
+    vertical_thrust_percent: int
+    target_depth_cm: int | None
+    direction_deg: int
+    power_percent: int
+    max_pwm: int
+    gains: tuple[int, int, int]
+    depth_zero_raw: int
+    depth_k: int
+    leak_latched: bool
+    debug_enabled: bool
+    checksum_enabled: bool
+    claw_direction: int
+
+
+class Controller:
+    """The controller of PROTOCOL.md: every P-rule, driven by bytes and a periodic tick.
+
+    A board's main loop (or the simulator) does three things: ``receive(data)`` with every
+    chunk from the serial line, ``tick()`` every ``config.tick_s`` seconds, and send on what
+    the controller writes. Queries are answered inside ``receive``, so a reply is ready as soon
+    as the query's last byte has arrived (P19).
+    """
+
+    def __init__(
+        self,
+        config: ControllerConfig,
+        hardware: Hardware,
+        write: Callable[[bytes], None] | None = None,
+    ) -> None:
+        self.config = config
+        self._hardware = hardware
+        self._output = bytearray()
+        self._write = write if write is not None else self._output.extend
+        self._decoder = Decoder(algorithm=config.checksum_algorithm)
+        self._mixer = ThrusterMixer(config.thrusters, config.max_pwm)
+        self._pid = DepthPid(config.depth_pid)
+        self._idle_duties = [0] * len(config.thrusters)
+        # Read every tick: kept at hand rather than looked up through the config.
+        self._tick_s = config.tick_s
+        self._watchdog_s = config.watchdog_s
+        self._max_depth_cm = config.depth.max_depth_cm
+        self._handlers: dict[str, Callable[[Command], None]] = {
+            "crcon": self._on_checksum_mode,
+            "crcoff": self._on_checksum_mode,
+            "stop": self._on_stop,
+            "start": self._on_start,
+            "debug1": self._on_debug_mode,
+            "debug0": self._on_debug_mode,
+            "mgmp": self._on_max_pwm,
+            "mvpdp": self._on_gain,
+            "mvpdi": self._on_gain,
+            "mvpidd": self._on_gain,
+            "mvdirect": self._on_vertical_mode,
+            "mvs": self._on_vertical_thrust,
+            "mvd": self._on_target_depth,
+            "th": self._on_horizontal,
+            "sdz": self._on_depth_zero,
+            "sdk": self._on_depth_k,
+            "slreset": self._on_leak_reset,
+            "h+": self._on_claw,
+            "h-": self._on_claw,
+        }
+        self.reset()
+
+    # -- public API --------------------------------------------------------------------------
+
+    def reset(self) -> None:
+        """The state after power-on (P3, P5, P7, P9): locked, depth mode, defaults from config."""
+        config = self.config
+        self._decoder.reset()
+        self._decoder.checksum_enabled = False
+        self._debug_enabled = False
+        self._locked = True
+        self._vertical_mode = VerticalMode.DEPTH
+        self._vertical_thrust_percent = 0
+        self._target_depth_cm: int | None = None
+        self._direction_deg = 0
+        self._power_percent = 0
+        self._mixer.max_pwm = config.max_pwm
+        self._mixer.set_horizontal(0, 0)
+        self._pid.set_gains(config.depth_pid.kp, config.depth_pid.ki, config.depth_pid.kd)
+        self._pid.reset()
+        self._zero_raw = config.depth.zero_raw
+        self._k = config.depth.k
+        self._leak_latched = False
+        self._claw_direction = 0
+        self._claw_until_s = 0.0
+        self._depth_limited = False
+        now = self._hardware.clock.now_s()
+        self._last_frame_s = now
+        self._last_tick_s: float | None = None
+        self._depth_cm = self._read_depth_cm()
+        self._duties = list(self._idle_duties)
+        self._hardware.thrusters.set_duties(self._duties)
+        self._hardware.claw.drive(0)
+
+    def receive(self, data: bytes) -> None:
+        """Take received bytes: execute every complete frame in them, answer queries at once."""
+        for event in self._decoder.feed(data):
+            if isinstance(event, Frame):
+                self._frame(event)
+            elif isinstance(event, BadFrame):
+                self._debug(f"dropped {describe_frame(event.raw)}: {event.reason}: {event.detail}")
+            elif isinstance(event, Text):
+                self._debug(f"ignored text between frames: {event.text.strip()[:60]!r}")
+
+    def tick(self) -> None:
+        """One control period: sensors, leak latch, watchdog, claw timer, PID, thruster outputs."""
+        hardware = self._hardware
+        now = hardware.clock.now_s()
+        last = self._last_tick_s
+        dt_s = self._tick_s if last is None else now - last
+        self._last_tick_s = now
+        depth_cm = (hardware.pressure.read_raw() - self._zero_raw) * self._k // 100
+        if depth_cm < 0:
+            depth_cm = 0
+        elif depth_cm > _MAX_DEPTH_CM:
+            depth_cm = _MAX_DEPTH_CM
+        self._depth_cm = depth_cm  # P13, inlined: this runs every tick
+        if hardware.leak.fired_since_last_read():
+            self._leak_fired()
+        if self._claw_direction and now + 1e-9 >= self._claw_until_s:
+            self._claw_direction = 0
+            hardware.claw.drive(0)
+        watchdog_s = self._watchdog_s
+        # The slack keeps float noise in clock readings from costing a whole tick.
+        if not self._locked and watchdog_s and now - self._last_frame_s + 1e-9 >= watchdog_s:
+            self._stop(f"failsafe: no valid frame for {watchdog_s:g} s")
+        if self._locked:
+            duties = self._idle_duties
+        else:
+            duties = self._mixer.duties(self._vertical_output(depth_cm, dt_s))
+        self._duties = duties
+        hardware.thrusters.set_duties(duties)
+
+    def read_output(self) -> bytes:
+        """Take what the controller wrote since the last call (when no ``write`` was given)."""
+        output = bytes(self._output)
+        self._output.clear()
+        return output
+
+    def state(self) -> ControllerState:
+        """A snapshot of the settings and set-points."""
+        return ControllerState(
+            locked=self._locked,
+            vertical_mode=self._vertical_mode,
+            vertical_thrust_percent=self._vertical_thrust_percent,
+            target_depth_cm=self._target_depth_cm,
+            direction_deg=self._direction_deg,
+            power_percent=self._power_percent,
+            max_pwm=self._mixer.max_pwm,
+            gains=(self._pid.kp, self._pid.ki, self._pid.kd),
+            depth_zero_raw=self._zero_raw,
+            depth_k=self._k,
+            leak_latched=self._leak_latched,
+            debug_enabled=self._debug_enabled,
+            checksum_enabled=self._decoder.checksum_enabled,
+            claw_direction=self._claw_direction,
+        )
+
+    @property
+    def locked(self) -> bool:
+        """Whether motion commands are refused and every output is off (P7)."""
+        return self._locked
+
+    @property
+    def depth_cm(self) -> int:
+        """The depth measured at the last tick, cm (P13)."""
+        return self._depth_cm
+
+    @property
+    def duties(self) -> tuple[int, ...]:
+        """The duties applied at the last tick or stop, in layout order."""
+        return tuple(self._duties)
+
+    @property
+    def pid(self) -> DepthPid:
+        """The depth PID (read its state; change gains through frames)."""
+        return self._pid
+
+    # -- frames ------------------------------------------------------------------------------
+
+    def _frame(self, frame: Frame) -> None:
+        message = frame.message
+        if message.kind is not Kind.COMMAND:
+            self._drop(frame, "a reply, not a command")
+            return
+        assert isinstance(message, Command)
+        # Any valid command keeps the link alive (P17), even one dropped below.
+        self._last_frame_s = self._hardware.clock.now_s()
+        spec = message.spec
+        if spec.motion and self._locked:
+            self._drop(frame, "motors are locked; send start first")
+            return
+        if spec.mode is not None and spec.mode is not self._vertical_mode:
+            self._drop(frame, f"needs {spec.mode} mode, the vertical mode is {self._vertical_mode}")
+            return
+        if spec.is_query:
+            self._reply(spec.replies)
+            return
+        self._handlers[spec.name](message)
+
+    def _drop(self, frame: Frame, why: str) -> None:
+        self._debug(f"dropped {describe_frame(frame.raw)}: {why}")
+
+    def _reply(self, names: tuple[str, ...]) -> None:
+        checksum = self._decoder.algorithm if self._decoder.checksum_enabled else None
+        values = self._sensor_values(names)
+        self._write(b"".join(encode(Response(name, (values[name],)), checksum) for name in names))
+
+    def _sensor_values(self, names: tuple[str, ...]) -> dict[str, int]:
+        values: dict[str, int] = {}
+        hardware = self._hardware
+        if "qd" in names or "qr" in names:
+            raw = min(max(hardware.pressure.read_raw(), 0), 1024)
+            values["qr"] = raw
+            values["qd"] = self._depth_from_raw(raw)
+        if "q.l" in names:
+            values["q.l"] = int(self._leak_latched)
+        if "qro" in names or "qpi" in names or "qhe" in names:
+            attitude = hardware.imu.read_attitude()
+            values["qro"] = _attitude_deg(attitude.roll_deg)
+            values["qpi"] = _attitude_deg(attitude.pitch_deg)
+            values["qhe"] = round(attitude.heading_deg) % 360
+        return values
+
+    # -- command handlers --------------------------------------------------------------------
+
+    def _on_checksum_mode(self, command: Command) -> None:
+        # The decoder has already switched on this frame (P3); say so.
+        if self._decoder.checksum_enabled:
+            self._debug(f"checksum mode on ({self._decoder.algorithm.name})")
+        else:
+            self._debug("checksum mode off")
+
+    def _on_stop(self, command: Command) -> None:
+        self._stop("stop command")
+
+    def _on_start(self, command: Command) -> None:
+        if not self._locked:
+            self._debug("start: motors already unlocked, nothing changed")
+            return
+        self._locked = False
+        self._clear_set_points()
+        self._debug("motors unlocked")
+
+    def _on_debug_mode(self, command: Command) -> None:
+        enabled = command.name == "debug1"
+        if enabled == self._debug_enabled:
+            return
+        if not enabled:
+            self._debug("debug output off")
+        self._debug_enabled = enabled
+        if enabled:
+            self._debug("debug output on")
+
+    def _on_max_pwm(self, command: Command) -> None:
+        (max_pwm,) = command.values
+        self._debug(f"max PWM {max_pwm} (was {self._mixer.max_pwm})")
+        self._mixer.max_pwm = max_pwm
+
+    def _on_gain(self, command: Command) -> None:
+        (gain,) = command.values
+        pid = self._pid
+        gains = {"mvpdp": pid.kp, "mvpdi": pid.ki, "mvpidd": pid.kd}
+        label = {"mvpdp": "kp", "mvpdi": "ki", "mvpidd": "kd"}[command.name]
+        self._debug(f"depth PID {label} {gain} (was {gains[command.name]})")
+        gains[command.name] = gain
+        pid.set_gains(gains["mvpdp"], gains["mvpdi"], gains["mvpidd"])
+
+    def _on_vertical_mode(self, command: Command) -> None:
+        mode = VerticalMode.DIRECT if command.values[0] else VerticalMode.DEPTH
+        if mode is self._vertical_mode:
+            self._debug(f"vertical mode already {mode}, nothing changed")
+            return
+        self._vertical_mode = mode
+        self._vertical_thrust_percent = 0
+        self._pid.reset()
+        if mode is VerticalMode.DEPTH and not self._locked:
+            self._target_depth_cm = self._read_depth_cm()
+            self._debug(f"vertical mode depth, holding {self._target_depth_cm} cm")
+        else:
+            self._target_depth_cm = None
+            self._debug(f"vertical mode {mode}, vertical thrust 0")
+
+    def _on_vertical_thrust(self, command: Command) -> None:
+        (self._vertical_thrust_percent,) = command.values
+        self._debug(f"vertical thrust {self._vertical_thrust_percent:+d} %")
+
+    def _on_target_depth(self, command: Command) -> None:
+        (target_cm,) = command.values
+        max_depth_cm = self._max_depth_cm
+        if max_depth_cm and target_cm > max_depth_cm:
+            self._debug(
+                f"dropped target {target_cm} cm: deeper than the maximum depth {max_depth_cm} cm"
+            )
+            return
+        if self._target_depth_cm is None:
+            self._pid.reset()
+        self._target_depth_cm = target_cm
+        self._debug(f"target depth {target_cm} cm")
+
+    def _on_horizontal(self, command: Command) -> None:
+        direction_deg, power_percent = command.values
+        self._direction_deg = direction_deg % 360
+        self._power_percent = power_percent
+        self._mixer.set_horizontal(self._direction_deg, power_percent)
+        self._debug(f"horizontal {self._direction_deg} deg at {power_percent} %")
+
+    def _on_depth_zero(self, command: Command) -> None:
+        (self._zero_raw,) = command.values
+        self._debug(f"depth zero {self._zero_raw}")
+
+    def _on_depth_k(self, command: Command) -> None:
+        (self._k,) = command.values
+        self._debug(f"depth coefficient k {self._k}")
+
+    def _on_leak_reset(self, command: Command) -> None:
+        self._leak_latched = False
+        self._debug("leak latch reset")
+
+    def _on_claw(self, command: Command) -> None:
+        self._claw_direction = 1 if command.name == "h+" else -1
+        pulse_ms = self.config.claw_pulse_ms
+        self._claw_until_s = self._hardware.clock.now_s() + pulse_ms / 1000.0
+        self._hardware.claw.drive(self._claw_direction)
+        action = "opening" if self._claw_direction > 0 else "closing"
+        self._debug(f"claw {action} for {pulse_ms} ms")
+
+    # -- behaviour ---------------------------------------------------------------------------
+
+    def _read_depth_cm(self) -> int:
+        return self._depth_from_raw(self._hardware.pressure.read_raw())
+
+    def _depth_from_raw(self, raw: int) -> int:
+        depth_cm = (raw - self._zero_raw) * self._k // 100
+        return 0 if depth_cm < 0 else min(depth_cm, _MAX_DEPTH_CM)
+
+    def _clear_set_points(self) -> None:
+        self._vertical_thrust_percent = 0
+        self._target_depth_cm = None
+        self._direction_deg = 0
+        self._power_percent = 0
+        self._mixer.set_horizontal(0, 0)
+        self._pid.reset()
+
+    def _stop(self, why: str) -> None:
+        """Every output off at once, set-points cleared, motion locked (P7, P14, P17)."""
+        self._locked = True
+        self._clear_set_points()
+        if self._claw_direction:
+            self._claw_direction = 0
+        self._hardware.claw.drive(0)
+        self._duties = list(self._idle_duties)
+        self._hardware.thrusters.set_duties(self._duties)
+        if why != "stop command":
+            logger.warning("%s: motors stopped and locked", why)
+        self._debug(f"{why}: motors stopped and locked")
+
+    def _leak_fired(self) -> None:
+        if self._leak_latched:
+            return
+        self._leak_latched = True
+        action = self.config.leak_action
+        logger.warning("leak detected, action %s", action)
+        self._debug(f"leak detected, action {action}")
+        if action is LeakAction.STOP:
+            self._stop("leak")
+        elif action is LeakAction.SURFACE:
+            if self._locked:
+                self._debug("leak: motors are locked, not surfacing")
+                return
+            self._vertical_mode = VerticalMode.DIRECT
+            self._vertical_thrust_percent = _FULL_UP_PERCENT
+            self._target_depth_cm = None
+            self._direction_deg = self._power_percent = 0
+            self._mixer.set_horizontal(0, 0)
+            self._pid.reset()
+            self._debug("leak: surfacing, full up thrust in direct mode")
+
+    def _vertical_output(self, depth_cm: int, dt_s: float) -> float:
+        max_depth_cm = self._max_depth_cm
+        limited = 0 < max_depth_cm < depth_cm
+        if limited is not self._depth_limited:
+            self._depth_limited = limited
+            if limited:
+                self._debug(f"past the maximum depth {max_depth_cm} cm: down thrust refused")
+        lower = 0.0 if limited else -100.0
+        if self._vertical_mode is VerticalMode.DIRECT:
+            return max(float(self._vertical_thrust_percent), lower)
+        target_cm = self._target_depth_cm
+        if target_cm is None:
+            return 0.0
+        return self._pid.update(target_cm, depth_cm, dt_s, lower=lower)
+
+    def _debug(self, text: str) -> None:
+        if self._debug_enabled:
+            self._write(debug_line(text))
+
+
+def _attitude_deg(value_deg: float) -> int:
+    """Roll or pitch as the protocol writes it: rounded to nearest, clamped to ±90 (P15)."""
+    rounded = round(value_deg)
+    return -90 if rounded < -90 else min(rounded, 90)

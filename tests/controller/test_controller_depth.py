@@ -1,0 +1,103 @@
+"""P13: depth from the raw reading with sdz/sdk; the maximum-depth safety limit."""
+
+from __future__ import annotations
+
+import pytest
+from controller_rig import Rig, make_rig
+
+from rovlink.controller import ControllerConfig, DepthCalibration
+
+
+@pytest.mark.parametrize(
+    ("raw", "zero", "k", "depth_cm"),
+    [
+        (70, 20, 200, 100),  # the defaults: 2 cm per count
+        (20, 20, 200, 0),
+        (10, 20, 200, 0),  # below the zero: clamped to the surface
+        (21, 20, 150, 1),  # 1.5 cm: floor
+        (1024, 0, 10000, 9999),  # clamped to the range of qd
+        (500, 100, 0, 0),
+        (1024, 1024, 10000, 0),
+    ],
+)
+def test_depth_is_floor_of_raw_minus_zero_times_k_over_100(
+    rig: Rig, raw: int, zero: int, k: int, depth_cm: int
+) -> None:
+    rig.pressure.raw = raw
+    assert rig.send(b"#sdz.%d!#sdk.%d!#qd!" % (zero, k)) == b"$qd.%d!" % depth_cm
+
+
+def test_qr_reports_the_raw_reading(rig: Rig) -> None:
+    rig.pressure.raw = 517
+    assert rig.send(b"#qr!") == b"$qr.517!"
+
+
+def test_sdz_and_sdk_take_effect_at_once_for_qd_and_the_pid(armed_rig: Rig) -> None:
+    armed_rig.pressure.raw = 70
+    armed_rig.send(b"#mvd.100!")
+    armed_rig.tick()
+    assert armed_rig.controller.depth_cm == 100
+    armed_rig.send(b"#sdz.70!")
+    assert armed_rig.send(b"#qd!") == b"$qd.0!"
+    armed_rig.tick()
+    assert armed_rig.controller.depth_cm == 0
+    assert armed_rig.vertical_duties[0] < 0  # now "too shallow": dives
+
+
+def test_the_defaults_come_from_the_configuration() -> None:
+    rig = make_rig(ControllerConfig(depth=DepthCalibration(zero_raw=100, k=1000)))
+    rig.pressure.raw = 110
+    assert rig.send(b"#qd!") == b"$qd.100!"
+    assert rig.controller.state().depth_zero_raw == 100
+
+
+def _limited_rig(max_depth_cm: int = 200) -> Rig:
+    config = ControllerConfig(depth=DepthCalibration(max_depth_cm=max_depth_cm), watchdog_s=0.0)
+    rig = make_rig(config)
+    rig.send(b"#debug1!#start!")
+    rig.controller.read_output()
+    return rig
+
+
+def test_max_depth_is_off_by_default(armed_rig: Rig) -> None:
+    armed_rig.send(b"#mvd.9999!")
+    assert armed_rig.controller.state().target_depth_cm == 9999
+
+
+def test_targets_deeper_than_the_maximum_are_dropped_with_a_line() -> None:
+    rig = _limited_rig()
+    assert rig.send(b"#mvd.200!") == b"debug: target depth 200 cm\r\n"
+    output = rig.send(b"#mvd.201!")
+    assert b"deeper than the maximum depth 200 cm" in output
+    assert rig.controller.state().target_depth_cm == 200
+
+
+def test_past_the_maximum_down_thrust_is_refused_up_thrust_is_not() -> None:
+    rig = _limited_rig()
+    rig.send(b"#mvdirect.1!#mvs.-100!")
+    rig.controller.read_output()
+    rig.set_depth_cm(200)
+    assert rig.tick() == b""
+    assert rig.vertical_duties == (-255, -255)  # at the limit: still allowed
+    rig.set_depth_cm(202)
+    output = rig.tick(10)
+    assert rig.vertical_duties == (0, 0)
+    assert output.count(b"past the maximum depth 200 cm") == 1  # one line, not one a tick
+    rig.send(b"#mvs.+50!")
+    rig.tick()
+    assert rig.vertical_duties == (128, 128)
+    rig.set_depth_cm(190)
+    rig.send(b"#mvs.-100!")
+    rig.tick()
+    assert rig.vertical_duties == (-255, -255)
+
+
+def test_past_the_maximum_the_pid_gives_no_down_thrust() -> None:
+    rig = _limited_rig()
+    rig.send(b"#mvd.200!")
+    rig.set_depth_cm(100)
+    rig.run(30.0)  # winds the integral down (diving)
+    rig.set_depth_cm(202)
+    rig.tick()
+    assert rig.vertical_duties[0] >= 0
+    assert rig.controller.pid.integral_percent >= 0  # anti-windup follows the narrowed range

@@ -1,0 +1,135 @@
+"""``rovlink sim`` as a user runs it: a subprocess, its ready line, signals, options."""
+
+from __future__ import annotations
+
+import os
+import re
+import signal
+import socket
+import subprocess
+import sys
+import time
+from collections.abc import Callable, Iterator
+from pathlib import Path
+
+import pytest
+import serial
+
+pytestmark = pytest.mark.integration
+
+_SRC = str(Path(__file__).resolve().parents[2] / "src")
+_READY = re.compile(r"rovlink sim ready: (?:pty (?P<pty>\S+?))?(?:, )?(?:tcp (?P<tcp>\S+))? ")
+
+
+RunSim = Callable[..., tuple["subprocess.Popen[str]", "re.Match[str]"]]
+
+
+def _command(*arguments: str) -> list[str]:
+    return [sys.executable, "-c", "from rovlink.cli import main; main()", "sim", *arguments]
+
+
+def _environment() -> dict[str, str]:
+    environment = dict(os.environ)
+    environment["PYTHONPATH"] = _SRC + os.pathsep + environment.get("PYTHONPATH", "")
+    return environment
+
+
+@pytest.fixture
+def run_sim() -> Iterator[RunSim]:
+    processes: list[subprocess.Popen[str]] = []
+
+    def start(*arguments: str) -> tuple[subprocess.Popen[str], re.Match[str]]:
+        process = subprocess.Popen(
+            _command(*arguments), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+            env=_environment(),
+        )
+        processes.append(process)
+        assert process.stdout is not None
+        line = process.stdout.readline()
+        match = _READY.match(line)
+        assert match, (line, process.stderr.read() if process.poll() is not None else "")
+        return process, match
+
+    yield start
+    for process in processes:
+        if process.poll() is None:
+            process.kill()
+        process.communicate(timeout=5)
+
+
+def _query(port: serial.Serial, frame: bytes) -> bytes:
+    port.write(frame)
+    reply = b""
+    deadline = time.monotonic() + 5
+    while not reply.endswith(b"!"):
+        assert time.monotonic() < deadline, reply
+        reply += port.read(64)
+    return reply
+
+
+def test_it_prints_a_ready_line_and_stops_cleanly_on_sigterm(run_sim: RunSim) -> None:
+    process, match = run_sim("--pty", "--tcp", "127.0.0.1:0", "--seed", "5")
+    assert match["pty"].startswith("/dev/")
+    with serial.Serial(match["pty"], timeout=0.1) as port:
+        assert _query(port, b"#qd!") == b"$qd.0!"
+    process.send_signal(signal.SIGTERM)
+    _, stderr = process.communicate(timeout=5)
+    assert process.returncode == 0
+    assert "stopped" in stderr
+    assert "Traceback" not in stderr
+
+
+def test_ctrl_c_stops_it_cleanly(run_sim: RunSim) -> None:
+    process, _ = run_sim("--tcp", "0")
+    process.send_signal(signal.SIGINT)
+    _, stderr = process.communicate(timeout=5)
+    assert process.returncode == 0
+    assert "Traceback" not in stderr
+
+
+def test_without_an_endpoint_it_opens_a_pty(run_sim: RunSim) -> None:
+    _, match = run_sim()
+    assert match["pty"]
+    assert not match["tcp"]
+
+
+def test_leak_at_injects_a_pulse(run_sim: RunSim) -> None:
+    _, match = run_sim("--pty", "--leak-at", "0.2", "--seed", "1")
+    with serial.Serial(match["pty"], timeout=0.1) as port:
+        deadline = time.monotonic() + 5
+        while _query(port, b"#q.l!") != b"$q.l.1!":
+            assert time.monotonic() < deadline
+            time.sleep(0.05)
+
+
+def test_config_is_applied(run_sim: RunSim, tmp_path: Path) -> None:
+    config = tmp_path / "robot.toml"
+    config.write_text("[depth]\nzero_raw = 0\n")
+    _, match = run_sim("--pty", "--config", str(config))
+    with serial.Serial(match["pty"], timeout=0.1) as port:
+        assert _query(port, b"#qd!") == b"$qd.40!"  # raw 20 over a zero of 0: 40 cm
+
+
+def test_a_bad_config_is_reported_with_its_key(tmp_path: Path) -> None:
+    config = tmp_path / "robot.toml"
+    config.write_text("[controller]\nmax_pwm = 300\n")
+    result = subprocess.run(
+        _command("--config", str(config)), capture_output=True, text=True, env=_environment(),
+        timeout=30, check=False,
+    )
+    assert result.returncode == 2
+    assert "max_pwm" in result.stderr
+    assert "300" in result.stderr
+
+
+def test_a_busy_tcp_port_is_reported() -> None:
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        port = taken.getsockname()[1]
+        result = subprocess.run(
+            _command("--tcp", f"127.0.0.1:{port}"), capture_output=True, text=True,
+            env=_environment(), timeout=30, check=False,
+        )
+    assert result.returncode == 1
+    assert "cannot listen" in result.stderr

@@ -1,0 +1,191 @@
+"""The simulated controller on a real pseudo-terminal and a real TCP socket."""
+
+from __future__ import annotations
+
+import socket
+import threading
+import time
+from collections.abc import Callable, Iterator
+
+import pytest
+import serial
+
+from rovlink.sim.server import BUSY_MESSAGE, SimServer, parse_tcp_address
+
+pytestmark = pytest.mark.integration
+
+StartServer = Callable[..., SimServer]
+
+
+@pytest.fixture
+def start_server() -> Iterator[StartServer]:
+    running: list[tuple[SimServer, threading.Event, threading.Thread]] = []
+
+    def start(*, pty: bool = True, tcp: bool = True, **options: object) -> SimServer:
+        server = SimServer(seed=1, **options)  # type: ignore[arg-type]
+        if pty:
+            server.open_pty()
+        if tcp:
+            server.listen_tcp("127.0.0.1", 0)
+        stop = threading.Event()
+        thread = threading.Thread(target=server.serve, args=(stop.is_set,), daemon=True)
+        thread.start()
+        running.append((server, stop, thread))
+        return server
+
+    yield start
+    for server, stop, thread in running:
+        stop.set()
+        thread.join(timeout=5)
+        assert not thread.is_alive()
+        server.close()
+
+
+def _read_frames(read: Callable[[], bytes], count: int, timeout_s: float = 5.0) -> bytes:
+    """Read until ``count`` frame ends have arrived."""
+    data = b""
+    deadline = time.monotonic() + timeout_s
+    while data.count(b"!") < count:
+        if time.monotonic() > deadline:
+            pytest.fail(f"timed out with {data!r}")
+        data += read()
+    return data
+
+
+def _open_pty(server: SimServer) -> serial.Serial:
+    assert server.pty_path is not None
+    return serial.Serial(server.pty_path, 115200, timeout=0.05)
+
+
+def _reader(port: serial.Serial) -> Callable[[], bytes]:
+    return lambda: port.read(256)  # waits up to the port's timeout
+
+
+def _connect(server: SimServer) -> socket.socket:
+    assert server.tcp_address is not None
+    connection = socket.create_connection(server.tcp_address, timeout=5)
+    connection.settimeout(0.05)
+    return connection
+
+
+def _recv(connection: socket.socket) -> Callable[[], bytes]:
+    def read() -> bytes:
+        try:
+            return connection.recv(4096)
+        except TimeoutError:
+            return b""
+
+    return read
+
+
+def test_a_query_over_the_pty_gets_its_reply(start_server: StartServer) -> None:
+    server = start_server(tcp=False)
+    with _open_pty(server) as port:
+        port.write(b"#qd!")
+        assert _read_frames(_reader(port), 1) == b"$qd.0!"
+
+
+def test_the_pty_is_raw_no_echo_no_line_translation(start_server: StartServer) -> None:
+    server = start_server(tcp=False)
+    with _open_pty(server) as port:
+        port.write(b"#debug1!\r\n#qx!")
+        data = b""
+        deadline = time.monotonic() + 5
+        while not data.endswith(b"\r\n") or b"unknown" not in data:
+            assert time.monotonic() < deadline, data
+            data += port.read(100)
+        assert data == (
+            b"debug: debug output on\r\n"
+            b"debug: dropped <qx>: unknown: unknown command 'qx'\r\n"
+        )
+
+
+def test_a_query_over_tcp_gets_its_reply(start_server: StartServer) -> None:
+    server = start_server(pty=False)
+    with _connect(server) as connection:
+        connection.sendall(b"#qsa!")
+        reply = _read_frames(_recv(connection), 6)
+        assert reply.startswith(b"$qd.0!$qr.20!$q.l.0!$qro.")
+
+
+def test_a_second_tcp_client_is_told_it_is_busy_and_closed(start_server: StartServer) -> None:
+    server = start_server(pty=False)
+    with _connect(server) as first:
+        first.sendall(b"#qd!")
+        _read_frames(_recv(first), 1)
+        with _connect(server) as second:
+            second.settimeout(5)
+            received = b""
+            while chunk := second.recv(4096):
+                received += chunk
+            assert received == BUSY_MESSAGE
+        first.sendall(b"#qd!")  # the first client is undisturbed
+        assert _read_frames(_recv(first), 1) == b"$qd.0!"
+
+
+def test_after_the_client_leaves_the_next_one_is_served(start_server: StartServer) -> None:
+    server = start_server(pty=False)
+    with _connect(server) as first:
+        first.sendall(b"#qd!")
+        _read_frames(_recv(first), 1)
+    deadline = time.monotonic() + 5
+    while True:  # the server notices the disconnection on its next turn
+        with _connect(server) as second:
+            second.sendall(b"#qd!")
+            reply = b""
+            while time.monotonic() < deadline and not reply.endswith((b"!", b"\n")):
+                reply += _recv(second)()
+            if reply == b"$qd.0!":
+                return
+            assert reply == BUSY_MESSAGE
+        assert time.monotonic() < deadline
+
+
+def test_every_peer_sees_the_controller_output(start_server: StartServer) -> None:
+    server = start_server()
+    with _open_pty(server) as port, _connect(server) as connection:
+        connection.sendall(b"#qr!")
+        assert _read_frames(_recv(connection), 1) == b"$qr.20!"
+        assert _read_frames(_reader(port), 1) == b"$qr.20!"
+
+
+def test_baud_paces_the_byte_stream(start_server: StartServer) -> None:
+    server = start_server(tcp=False, baud=1200)  # 8.3 ms a byte
+    with _open_pty(server) as port:
+        started = time.monotonic()
+        port.write(b"#qsa!")
+        reply = _read_frames(_reader(port), 6)
+        elapsed_s = time.monotonic() - started
+    line_time_s = (len(b"#qsa!") + len(reply)) * 10 / 1200
+    assert elapsed_s >= 0.9 * line_time_s
+    assert elapsed_s < line_time_s + 2.0
+
+
+def test_the_robot_dives_and_holds_one_metre_over_the_pty(start_server: StartServer) -> None:
+    server = start_server(tcp=False, speed=10.0)  # ten simulated seconds a second
+    with _open_pty(server) as port:
+        port.write(b"#start!#mvd.100!")
+        depths = []
+        deadline = time.monotonic() + 20
+        while len(depths) < 12 or not all(95 <= depth <= 105 for depth in depths[-5:]):
+            assert time.monotonic() < deadline, depths
+            time.sleep(0.1)  # one simulated second; the query keeps the watchdog fed
+            port.write(b"#qd!")
+            reply = _read_frames(_reader(port), 1)
+            depths.append(int(reply[4:-1]))
+        assert max(depths) <= 110
+
+
+@pytest.mark.parametrize(
+    ("text", "address"),
+    [("5760", ("127.0.0.1", 5760)), (":5760", ("127.0.0.1", 5760)),
+     ("0.0.0.0:1", ("0.0.0.0", 1)), ("[::1]:80", ("::1", 80))],
+)
+def test_tcp_addresses(text: str, address: tuple[str, int]) -> None:
+    assert parse_tcp_address(text) == address
+
+
+@pytest.mark.parametrize("text", ["", "host:", "host:port", "1:99999"])
+def test_bad_tcp_addresses(text: str) -> None:
+    with pytest.raises(ValueError, match="HOST:PORT"):
+        parse_tcp_address(text)

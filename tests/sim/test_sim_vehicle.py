@@ -1,0 +1,230 @@
+"""The simulated vehicle and its sensors, through the controller where it matters."""
+
+from __future__ import annotations
+
+import itertools
+import math
+import statistics
+from pathlib import Path
+
+import pytest
+
+from rovlink.sim import SimulatedRobot, VehicleParams
+from rovlink.sim.robot import sim_config_reference
+from rovlink.sim.vehicle import thrust_n
+
+
+def _keep_alive(robot: SimulatedRobot, seconds: float) -> None:
+    """Advance, querying every half second as a host would (the watchdog is on)."""
+    for _ in range(round(seconds / 0.5)):
+        robot.advance(0.5)
+        robot.receive(b"#qd!")
+    robot.controller.read_output()
+
+
+def _query(robot: SimulatedRobot, frame: bytes) -> int:
+    robot.controller.read_output()
+    robot.receive(frame)
+    reply = robot.controller.read_output()
+    return int(reply.rstrip(b"!").rsplit(b".", 1)[1])
+
+
+def test_the_idle_robot_floats_at_the_surface() -> None:
+    robot = SimulatedRobot(seed=1)
+    robot.advance(60.0)
+    assert robot.vehicle.depth_m == 0.0
+    assert _query(robot, b"#qd!") == 0
+
+
+def test_released_at_depth_it_rises_at_0_1_to_0_3_m_per_s() -> None:
+    robot = SimulatedRobot(seed=1)
+    robot.vehicle.depth_m = 8.0
+    robot.advance(5.0)  # reach terminal speed
+    assert -0.3 <= robot.vehicle.heave_m_s <= -0.1
+    start = robot.vehicle.depth_m
+    robot.advance(10.0)
+    assert 1.0 <= start - robot.vehicle.depth_m <= 3.0
+
+
+def test_full_vertical_thrust_descends_at_least_0_3_m_per_s() -> None:
+    robot = SimulatedRobot(seed=1)
+    robot.receive(b"#start!#mvdirect.1!#mvs.-100!")
+    _keep_alive(robot, 5.0)
+    assert robot.vehicle.heave_m_s >= 0.3
+    start = robot.vehicle.depth_m
+    _keep_alive(robot, 5.0)
+    assert robot.vehicle.depth_m - start >= 1.5
+
+
+def test_full_up_thrust_at_the_surface_stays_at_the_surface() -> None:
+    robot = SimulatedRobot(seed=1)
+    robot.receive(b"#start!#mvdirect.1!#mvs.+100!")
+    _keep_alive(robot, 5.0)
+    assert robot.vehicle.depth_m == 0.0
+    assert robot.vehicle.heave_m_s == 0.0
+
+
+@pytest.mark.parametrize("depth_m", [0.0, 0.37, 1.0, 2.555, 7.31, 12.0, 19.9])
+def test_qd_reads_true_depth_to_within_2_cm_with_default_calibration(depth_m: float) -> None:
+    robot = SimulatedRobot(seed=3)
+    robot.set_net_buoyancy(0.0)  # hold still
+    robot.vehicle.depth_m = depth_m
+    readings = [_query(robot, b"#qd!") for _ in range(300)]
+    assert all(abs(reading - depth_m * 100) <= 2.0 for reading in readings)
+
+
+def test_the_pressure_reading_is_noisy_between_counts() -> None:
+    robot = SimulatedRobot(seed=3)
+    robot.set_net_buoyancy(0.0)
+    robot.vehicle.depth_m = 2.555  # 147.75 counts above the zero
+    readings = [_query(robot, b"#qr!") for _ in range(300)]
+    assert set(readings) == {20 + 127, 20 + 128}
+
+
+def test_the_pressure_sensor_is_10_bit_and_spans_about_20_m() -> None:
+    robot = SimulatedRobot(seed=1)
+    robot.set_net_buoyancy(0.0)
+    robot.vehicle.depth_m = 19.5
+    assert _query(robot, b"#qr!") < 1023
+    robot.vehicle.depth_m = 30.0
+    assert _query(robot, b"#qr!") == 1023  # the converter saturates
+
+
+def test_heading_is_0_to_359_and_follows_the_vehicle() -> None:
+    robot = SimulatedRobot(seed=1)
+    for true_deg in (0.0, 0.2, 90.0, 359.9, 180.0):
+        robot.vehicle.heading_rad = math.radians(true_deg)
+        readings = [_query(robot, b"#qhe!") for _ in range(50)]
+        assert all(0 <= reading <= 359 for reading in readings)
+        errors = [math.remainder(reading - true_deg, 360) for reading in readings]
+        assert all(abs(error) <= 3 for error in errors)
+
+
+def test_roll_and_pitch_are_small_waves_that_fade_with_depth() -> None:
+    robot = SimulatedRobot(seed=1)
+    rolls = []
+    for _ in range(100):  # 10 s at the surface: two wave periods
+        robot.advance(0.1)
+        rolls.append(robot.imu.read_attitude().roll_deg)
+    assert 1.0 < max(rolls) - min(rolls) < 6.0
+    robot.set_net_buoyancy(0.0)
+    robot.vehicle.depth_m = 10.0
+    deep = []
+    for _ in range(100):
+        robot.advance(0.1)
+        deep.append(robot.imu.read_attitude().roll_deg)
+    assert max(deep) - min(deep) < 2.5  # what is left is sensor noise
+    assert 0.1 < statistics.stdev(deep) < 0.6
+
+
+def test_full_ahead_moves_along_the_heading_without_turning_much() -> None:
+    robot = SimulatedRobot(seed=4)
+    heading = robot.vehicle.heading_rad
+    robot.receive(b"#start!#th.0.100!")
+    _keep_alive(robot, 10.0)
+    vehicle = robot.vehicle
+    assert 0.8 <= vehicle.surge_m_s <= 2.0
+    assert abs(vehicle.sway_m_s) < 0.05
+    travelled = math.atan2(vehicle.east_m, vehicle.north_m)
+    assert abs(math.remainder(travelled - heading, 2 * math.pi)) < math.radians(20)
+
+
+def test_sideways_moves_to_starboard() -> None:
+    robot = SimulatedRobot(seed=4)
+    robot.receive(b"#start!#th.90.100!")
+    _keep_alive(robot, 5.0)
+    # Propellers push harder forward than in reverse, so the vectored frame drifts a little
+    # ahead when it goes sideways, as real ones do.
+    assert robot.vehicle.sway_m_s > 0.5
+    assert abs(robot.vehicle.surge_m_s) < 0.6 * robot.vehicle.sway_m_s
+
+
+def test_the_heading_wanders_slowly_on_its_own() -> None:
+    robot = SimulatedRobot(seed=5)
+    headings = []
+    for _ in range(120):
+        robot.advance(1.0)
+        headings.append(robot.vehicle.heading_rad)
+    steps = [abs(math.remainder(b - a, 2 * math.pi)) for a, b in itertools.pairwise(headings)]
+    assert max(steps) < math.radians(10)  # slow: under 10°/s
+    assert sum(steps) > math.radians(1)  # but it does move
+
+
+def test_a_current_carries_the_idle_vehicle() -> None:
+    robot = SimulatedRobot(seed=1)
+    robot.set_current(0.3, 90.0)  # toward the east
+    robot.advance(60.0)
+    vehicle = robot.vehicle
+    assert vehicle.east_m > 10.0
+    assert abs(vehicle.north_m) < 0.2 * vehicle.east_m
+
+
+def test_changing_buoyancy_makes_it_sink() -> None:
+    robot = SimulatedRobot(seed=1)
+    robot.set_net_buoyancy(-2.0)
+    robot.advance(20.0)
+    assert robot.vehicle.depth_m > 2.0
+
+
+def test_a_leak_pulse_between_ticks_is_latched() -> None:
+    robot = SimulatedRobot(seed=1)
+    robot.advance(1.0)
+    robot.inject_leak(at_s=1.0031, duration_s=0.001)
+    robot.advance(0.02)
+    assert _query(robot, b"#q.l!") == 1
+
+
+def test_scheduled_actions_run_at_their_simulated_time() -> None:
+    robot = SimulatedRobot(seed=1)
+    robot.vehicle.depth_m = 5.0
+    robot.schedule(2.0, lambda: robot.set_net_buoyancy(0.0))
+    robot.advance(1.0)
+    assert robot.vehicle.net_buoyancy_n > 0
+    robot.advance(1.01)
+    assert robot.vehicle.net_buoyancy_n == 0.0
+
+
+def test_claw_pulses_move_the_claw() -> None:
+    robot = SimulatedRobot(seed=1)
+    robot.receive(b"#start!#h+!")
+    robot.advance(0.5)
+    assert robot.claw.opening == pytest.approx(0.05 / 2.0, abs=0.006)
+    robot.receive(b"#h-!")
+    robot.advance(0.5)
+    assert robot.claw.opening == pytest.approx(0.0, abs=0.006)
+
+
+def test_same_seed_same_run_other_seed_other_noise() -> None:
+    def run(seed: int) -> tuple[list[float], bytes]:
+        robot = SimulatedRobot(seed=seed)
+        robot.receive(b"#start!#mvd.150!#th.30.40!")
+        trace = []
+        for _ in range(40):
+            robot.advance(0.25)
+            robot.receive(b"#qsa!")
+            trace.append(robot.vehicle.depth_m)
+        return trace, robot.controller.read_output()
+
+    assert run(7) == run(7)
+    assert run(7)[1] != run(8)[1]
+
+
+def test_the_thruster_curve() -> None:
+    params = VehicleParams()
+    assert thrust_n(0, params) == 0.0
+    assert thrust_n(5, params) == 0.0  # dead band
+    assert thrust_n(255, params) == pytest.approx(2.5 * 9.80665)
+    assert thrust_n(-255, params) == pytest.approx(-2.0 * 9.80665)
+    forward = [thrust_n(duty, params) for duty in range(0, 256)]
+    assert forward == sorted(forward)
+    assert thrust_n(128, params) < 0.5 * thrust_n(255, params)  # more than linear
+
+
+def test_invalid_vehicle_parameters_are_refused() -> None:
+    with pytest.raises(ValueError, match="mass_kg"):
+        VehicleParams(mass_kg=0.0)
+
+
+def test_docs_contain_the_simulator_reference() -> None:
+    docs = Path(__file__).resolve().parents[2] / "docs" / "controller.md"
+    assert sim_config_reference() in docs.read_text(encoding="utf-8")
