@@ -74,6 +74,7 @@ class AsyncClient:
         self._max_in_flight = max_in_flight
         self._mode_settled = asyncio.Event()  # cleared while a checksum switch drains
         self._mode_settled.set()
+        self._settled = asyncio.Event()  # set whenever a query settles (for close)
         self._timer: asyncio.TimerHandle | None = None
         self._keepalive_task: asyncio.Task[None] | None = None
         self._lost: ConnectionLostError | None = None
@@ -111,6 +112,10 @@ class AsyncClient:
     async def close(self) -> None:
         """Release the port; pending and later calls raise ConnectionLostError.
 
+        Queries already on the wire are answered first (for at most ``timeout``): otherwise
+        their replies — of keep-alives, of the polls of a ``telemetry`` loop just left — would
+        greet the next connection to the controller as if they answered its queries.
+
         Example::
 
             await rov.close()
@@ -120,6 +125,7 @@ class AsyncClient:
         self._closed = True
         if self._keepalive_task is not None:
             self._keepalive_task.cancel()
+        await self._drain()
         await self._transport.close()
         self._on_lost(ConnectionLostError(f"{self._link.description}: closed"))
 
@@ -468,8 +474,26 @@ class AsyncClient:
     # -- internals ------------------------------------------------------------------------------
 
     def _check_open(self) -> None:
-        if self._lost is not None:
+        if self._lost is not None or self._closed:
             raise self._lost_error()
+
+    async def _drain(self) -> None:
+        """Wait (at most ``timeout``) for the queries on the wire to settle.
+
+        Their callers' futures are no guide: a caller may have been cancelled (the polls of a
+        ``telemetry`` loop that was left are), while its query is still on the wire.
+        """
+        on_the_wire = self._session.pending
+        deadline = self._loop.time() + self._options.timeout_s
+        while self._lost is None and any(not query.settled for query in on_the_wire):
+            remaining = deadline - self._loop.time()
+            if remaining <= 0:
+                return
+            self._settled.clear()
+            try:
+                await asyncio.wait_for(self._settled.wait(), remaining)
+            except TimeoutError:
+                return
 
     def _lost_error(self) -> ConnectionLostError:
         lost = self._lost
@@ -523,8 +547,9 @@ class AsyncClient:
             raise self._lost_error()
         return outcome
 
-    @staticmethod
-    def _wake(settled: list[PendingQuery]) -> None:
+    def _wake(self, settled: list[PendingQuery]) -> None:
+        if settled:
+            self._settled.set()
         for query in settled:
             waiter = query.waiter
             if isinstance(waiter, asyncio.Future) and not waiter.done():
