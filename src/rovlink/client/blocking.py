@@ -229,7 +229,7 @@ class Client:
         with self._state_lock:
             while self._mode_switcher is not None:  # another thread is switching: after it
                 self._wait_for_change(None)
-            self._raise_if_lost()
+            self._check_open()
             self._mode_switcher = me
             on_the_wire = self._session.pending
         try:
@@ -466,10 +466,6 @@ class Client:
     # -- internals ------------------------------------------------------------------------------
 
     def _check_open(self) -> None:
-        if self._lost is not None:
-            raise self._lost_error()
-
-    def _raise_if_lost(self) -> None:
         if self._lost is not None:
             raise self._lost_error()
 
