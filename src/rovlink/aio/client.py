@@ -202,9 +202,8 @@ class AsyncClient:
             await self._mode_settled.wait()
         self._mode_settled.clear()
         try:
-            waiters = [query.waiter for query in self._session.pending]
-            if waiters:
-                await asyncio.wait([w for w in waiters if isinstance(w, asyncio.Future)])
+            # Each query on the wire is answered, or times out, in the old mode.
+            await self._wait_settled(self._session.pending, None)
             self._send(command)
         finally:
             self._mode_settled.set()
@@ -478,16 +477,20 @@ class AsyncClient:
             raise self._lost_error()
 
     async def _drain(self) -> None:
-        """Wait (at most ``timeout``) for the queries on the wire to settle.
+        """Wait (at most ``timeout``) for the queries on the wire to settle."""
+        await self._wait_settled(self._session.pending, self._options.timeout_s)
+
+    async def _wait_settled(self, queries: tuple[PendingQuery, ...],
+                            timeout_s: float | None) -> None:
+        """Wait until every one of ``queries`` has settled, or ``timeout_s`` has passed.
 
         Their callers' futures are no guide: a caller may have been cancelled (the polls of a
-        ``telemetry`` loop that was left are), while its query is still on the wire.
+        ``telemetry`` loop that was left are) while its query is still on the wire.
         """
-        on_the_wire = self._session.pending
-        deadline = self._loop.time() + self._options.timeout_s
-        while self._lost is None and any(not query.settled for query in on_the_wire):
-            remaining = deadline - self._loop.time()
-            if remaining <= 0:
+        deadline = None if timeout_s is None else self._loop.time() + timeout_s
+        while self._lost is None and any(not query.settled for query in queries):
+            remaining = None if deadline is None else deadline - self._loop.time()
+            if remaining is not None and remaining <= 0:
                 return
             self._settled.clear()
             try:
