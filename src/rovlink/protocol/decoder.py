@@ -165,6 +165,7 @@ class Decoder:
                 self._add_frames(batch, events)
                 batch = []
                 self._run_states(data, position, start, events, until_idle=False)
+            if not batch:  # the first frame of the chunk or after a gap: text may be pending
                 self._begin_frame(events)
             batch.append(data[start:stop])
             position = stop
