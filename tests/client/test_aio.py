@@ -171,7 +171,7 @@ async def test_disconnect_fails_pending_and_later_calls(
 async def test_close_fails_waiting_queries(
     fake: FakeController, make_async_client: MakeAsyncClient
 ) -> None:
-    client = await make_async_client(timeout_s=5.0)
+    client = await make_async_client(timeout_s=0.2)
     fake.then("drop")
     waiting = asyncio.ensure_future(client.depth_cm())
     assert await _arrived(fake, lambda f: "#qd!" in f.frames())
@@ -196,6 +196,20 @@ async def test_telemetry_as_fast_as_possible(
         if len(readings) == 50:
             break
     assert all(reading.heading_deg == 275 for reading in readings)
+
+
+async def test_closing_after_telemetry_lets_the_polls_in_flight_be_answered(
+    fake: FakeController, make_async_client: MakeAsyncClient
+) -> None:
+    client = await make_async_client(max_in_flight=8)
+    count = 0
+    async for _ in client.telemetry(None):
+        count += 1
+        if count == 20:
+            break
+    await client.close()
+    # Every #qsa! on the wire got its reply before the port closed: none is left over.
+    assert client.counters.replies == fake.frames().count("#qsa!") > 20
 
 
 async def test_telemetry_keeps_its_rate(

@@ -1,7 +1,8 @@
 """House rule: every public function and method of the host driver has a docstring with an example.
 
 The public driver is what ``rovlink.client`` and ``rovlink.aio`` export, with the methods and
-properties of the classes among them, and the helpers of ``rovlink send`` and ``rovlink demo``.
+properties of the classes among them, and the public functions of ``rovlink send`` and
+``rovlink demo``.
 """
 
 from __future__ import annotations

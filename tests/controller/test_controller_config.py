@@ -133,3 +133,9 @@ def test_the_reference_lists_every_key_with_its_default() -> None:
 def test_docs_contain_the_current_reference() -> None:
     # docs/controller.md is checked against the code, so its defaults cannot go stale.
     assert config_reference() in DOCS.read_text(encoding="utf-8")
+
+
+def test_the_documented_default_layout_parses_back_to_the_default(tmp_path: Path) -> None:
+    reference = config_reference()
+    layout = reference.split("```toml\n", 1)[1].split("```", 1)[0]
+    assert load_config(_write(tmp_path, layout)).thrusters == DEFAULT_THRUSTERS

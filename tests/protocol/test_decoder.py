@@ -5,7 +5,7 @@ from __future__ import annotations
 import itertools
 
 import pytest
-from hypothesis import given
+from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from rovlink.protocol import (
@@ -46,6 +46,7 @@ def test_round_trip_every_message(message: Message, checksum: bool, algorithm: s
     assert events == [Frame(message, raw)]
 
 
+@settings(max_examples=400)
 @given(noisy_bytes, st.data())
 def test_chunking_never_changes_the_events(data: bytes, draw: st.DataObject) -> None:
     whole = decode_all(data)
@@ -84,6 +85,13 @@ def test_frames_survive_garbage_before_between_and_after(
 def _contains_in_order(received: list[Message], sent: list[Message]) -> bool:
     iterator = iter(received)
     return all(any(r == m for r in iterator) for m in sent)
+
+
+def test_pending_text_ends_at_a_frame_that_opens_a_chunk_with_gaps() -> None:
+    # Text left from one chunk, then a chunk that starts with a frame and has a gap later.
+    chunks = [b"\x00" * 16, b"#!\x00#!"]
+    assert decode_all(b"".join(chunks), chunks) == decode_all(b"".join(chunks))
+    assert isinstance(decode_all(b"".join(chunks), chunks)[0], Text)
 
 
 def test_garbage_between_frames_is_text_one_event_per_line() -> None:

@@ -5,10 +5,12 @@ from __future__ import annotations
 import itertools
 import math
 import statistics
+from pathlib import Path
 
 import pytest
 
 from rovlink.sim import SimulatedRobot, VehicleParams
+from rovlink.sim.robot import sim_config_reference
 from rovlink.sim.vehicle import thrust_n
 
 
@@ -221,3 +223,8 @@ def test_the_thruster_curve() -> None:
 def test_invalid_vehicle_parameters_are_refused() -> None:
     with pytest.raises(ValueError, match="mass_kg"):
         VehicleParams(mass_kg=0.0)
+
+
+def test_docs_contain_the_simulator_reference() -> None:
+    docs = Path(__file__).resolve().parents[2] / "docs" / "controller.md"
+    assert sim_config_reference() in docs.read_text(encoding="utf-8")

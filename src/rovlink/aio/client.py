@@ -74,6 +74,7 @@ class AsyncClient:
         self._max_in_flight = max_in_flight
         self._mode_settled = asyncio.Event()  # cleared while a checksum switch drains
         self._mode_settled.set()
+        self._settled = asyncio.Event()  # set whenever a query settles (for close)
         self._timer: asyncio.TimerHandle | None = None
         self._keepalive_task: asyncio.Task[None] | None = None
         self._lost: ConnectionLostError | None = None
@@ -111,6 +112,10 @@ class AsyncClient:
     async def close(self) -> None:
         """Release the port; pending and later calls raise ConnectionLostError.
 
+        Queries already on the wire are answered first (for at most ``timeout``): otherwise
+        their replies — of keep-alives, of the polls of a ``telemetry`` loop just left — would
+        greet the next connection to the controller as if they answered its queries.
+
         Example::
 
             await rov.close()
@@ -120,6 +125,7 @@ class AsyncClient:
         self._closed = True
         if self._keepalive_task is not None:
             self._keepalive_task.cancel()
+        await self._drain()
         await self._transport.close()
         self._on_lost(ConnectionLostError(f"{self._link.description}: closed"))
 
@@ -196,9 +202,8 @@ class AsyncClient:
             await self._mode_settled.wait()
         self._mode_settled.clear()
         try:
-            waiters = [query.waiter for query in self._session.pending]
-            if waiters:
-                await asyncio.wait([w for w in waiters if isinstance(w, asyncio.Future)])
+            # Each query on the wire is answered, or times out, in the old mode.
+            await self._wait_settled(self._session.pending, None)
             self._send(command)
         finally:
             self._mode_settled.set()
@@ -468,8 +473,30 @@ class AsyncClient:
     # -- internals ------------------------------------------------------------------------------
 
     def _check_open(self) -> None:
-        if self._lost is not None:
+        if self._lost is not None or self._closed:
             raise self._lost_error()
+
+    async def _drain(self) -> None:
+        """Wait (at most ``timeout``) for the queries on the wire to settle."""
+        await self._wait_settled(self._session.pending, self._options.timeout_s)
+
+    async def _wait_settled(self, queries: tuple[PendingQuery, ...],
+                            timeout_s: float | None) -> None:
+        """Wait until every one of ``queries`` has settled, or ``timeout_s`` has passed.
+
+        Their callers' futures are no guide: a caller may have been cancelled (the polls of a
+        ``telemetry`` loop that was left are) while its query is still on the wire.
+        """
+        deadline = None if timeout_s is None else self._loop.time() + timeout_s
+        while self._lost is None and any(not query.settled for query in queries):
+            remaining = None if deadline is None else deadline - self._loop.time()
+            if remaining is not None and remaining <= 0:
+                return
+            self._settled.clear()
+            try:
+                await asyncio.wait_for(self._settled.wait(), remaining)
+            except TimeoutError:
+                return
 
     def _lost_error(self) -> ConnectionLostError:
         lost = self._lost
@@ -523,8 +550,9 @@ class AsyncClient:
             raise self._lost_error()
         return outcome
 
-    @staticmethod
-    def _wake(settled: list[PendingQuery]) -> None:
+    def _wake(self, settled: list[PendingQuery]) -> None:
+        if settled:
+            self._settled.set()
         for query in settled:
             waiter = query.waiter
             if isinstance(waiter, asyncio.Future) and not waiter.done():

@@ -125,7 +125,10 @@ class Client:
         self.close()
 
     def close(self) -> None:
-        """Stop the reader and release the port; pending and later calls raise ConnectionLostError.
+        """Release the port; pending and later calls raise ConnectionLostError.
+
+        Queries already on the wire are answered first (for at most ``timeout``), so that their
+        replies do not greet the next connection as if they answered its queries.
 
         Example::
 
@@ -137,6 +140,9 @@ class Client:
                 return
             self._closing = True
             self._background_wakeup.notify()
+            on_the_wire = self._session.pending
+        for query in on_the_wire:  # answered, or timed out, before the port closes
+            self._wait(query, owned=False)
         self._connection_lost(ConnectionLostError(f"{self._link.description}: closed"))
         self._link.wake()
         if threading.current_thread() is not self._background:
@@ -223,7 +229,7 @@ class Client:
         with self._state_lock:
             while self._mode_switcher is not None:  # another thread is switching: after it
                 self._wait_for_change(None)
-            self._raise_if_lost()
+            self._check_open()
             self._mode_switcher = me
             on_the_wire = self._session.pending
         try:
@@ -463,10 +469,6 @@ class Client:
         if self._lost is not None:
             raise self._lost_error()
 
-    def _raise_if_lost(self) -> None:
-        if self._lost is not None:
-            raise self._lost_error()
-
     def _lost_error(self) -> ConnectionLostError:
         lost = self._lost
         reason = str(lost) if lost is not None else "closed"
@@ -543,7 +545,7 @@ class Client:
         while True:
             with self._wire_lock:
                 with self._state_lock:
-                    if self._lost is not None:
+                    if self._lost is not None or self._closing:
                         raise self._lost_error()
                     switcher = self._mode_switcher
                     ready = switcher is None or switcher == me

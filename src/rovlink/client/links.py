@@ -53,18 +53,26 @@ class Link(Protocol):
 
 
 class FdLink:
-    """Base of links over a file descriptor: ``select`` plus non-blocking reads and writes.
+    """Base of links over a file descriptor: ``poll`` plus non-blocking reads and writes.
 
     The asyncio client uses :meth:`fileno`, :meth:`recv_some` and :meth:`send_some` directly.
+    A socket pair (which ``select`` accepts everywhere) wakes a blocked reader.
     """
 
     description = "fd"
 
     def __init__(self, fd: int) -> None:
         self._fd = fd
-        self._wake_r, self._wake_w = os.pipe()
-        os.set_blocking(self._wake_r, False)
-        os.set_blocking(self._wake_w, False)
+        self._wake_r, self._wake_w = socket.socketpair()
+        self._wake_r.setblocking(False)
+        self._wake_w.setblocking(False)
+        self._wake_fd = self._wake_r.fileno()
+        # A registered poll object costs half of building select's lists on every read.
+        self._poll: select.poll | None = None
+        if hasattr(select, "poll"):
+            self._poll = select.poll()
+            self._poll.register(fd, select.POLLIN)
+            self._poll.register(self._wake_fd, select.POLLIN)
         self._closed = False
 
     def fileno(self) -> int:
@@ -84,14 +92,21 @@ class FdLink:
         """Wait up to ``timeout_s`` for bytes; return all that are waiting (maybe none)."""
         if self._closed:
             raise ConnectionLostError(f"{self.description}: closed")
+        fd = self._fd
         try:
-            ready, _, _ = select.select([self._fd, self._wake_r], [], [], max(timeout_s, 0.0))
+            if self._poll is not None:
+                events = self._poll.poll(max(timeout_s, 0.0) * 1000.0)
+                if len(events) == 1 and events[0][0] == fd:  # the usual case: only the port
+                    return self.recv_some()
+                ready = [ready_fd for ready_fd, _ in events]
+            else:
+                ready, _, _ = select.select([fd, self._wake_fd], [], [], max(timeout_s, 0.0))
         except (OSError, ValueError) as error:
             raise ConnectionLostError(f"{self.description}: {error}") from error
-        if self._wake_r in ready:
-            with contextlib.suppress(BlockingIOError):
-                os.read(self._wake_r, 4096)
-        if self._fd not in ready:
+        if self._wake_fd in ready:
+            with contextlib.suppress(OSError):
+                self._wake_r.recv(4096)
+        if fd not in ready:
             return b""
         return self.recv_some()
 
@@ -117,16 +132,19 @@ class FdLink:
     def wake(self) -> None:
         """Make a ``read_available`` blocked in another thread return now."""
         with contextlib.suppress(OSError):  # a wake-up already pending, or closed
-            os.write(self._wake_w, b"x")
+            self._wake_w.send(b"x")
 
     def close(self) -> None:
         """Close the port and the wake-up pipe (idempotent)."""
         if self._closed:
             return
         self._closed = True
+        if self._poll is not None:
+            with contextlib.suppress(KeyError, ValueError):
+                self._poll.unregister(self._fd)
         self._close_port()
-        os.close(self._wake_r)
-        os.close(self._wake_w)
+        self._wake_r.close()
+        self._wake_w.close()
 
     def _close_port(self) -> None:
         raise NotImplementedError

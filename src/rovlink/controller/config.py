@@ -110,8 +110,8 @@ class DepthPidConfig:
     """
 
     kp: int = field(default=40, metadata=_doc("proportional gain at reset (`mvpdp`), 0–99"))
-    ki: int = field(default=10, metadata=_doc("integral gain at reset (`mvpdi`), 0–99"))
-    kd: int = field(default=30, metadata=_doc("derivative gain at reset (`mvpidd`), 0–99"))
+    ki: int = field(default=30, metadata=_doc("integral gain at reset (`mvpdi`), 0–99"))
+    kd: int = field(default=20, metadata=_doc("derivative gain at reset (`mvpidd`), 0–99"))
     kp_scale: float = field(
         default=0.05, metadata=_doc("% thrust per cm of depth error, per unit of kp")
     )

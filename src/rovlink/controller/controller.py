@@ -60,11 +60,10 @@ class ControllerState:
 class Controller:
     """The controller of PROTOCOL.md: every P-rule, driven by bytes and a periodic tick.
 
-    >>> from rovlink.sim import SimulatedRobot
-    >>> robot = SimulatedRobot(seed=1)
-    >>> robot.controller.receive(b"#qd!")
-    >>> robot.controller.read_output()
-    b'$qd.0!'
+    A board's main loop (or the simulator) does three things: ``receive(data)`` with every
+    chunk from the serial line, ``tick()`` every ``config.tick_s`` seconds, and send on what
+    the controller writes. Queries are answered inside ``receive``, so a reply is ready as soon
+    as the query's last byte has arrived (P19).
     """
 
     def __init__(

@@ -146,8 +146,7 @@ class Decoder:
         for raw in whole_frames:
             mode = _MODE_FRAMES.get(raw)
             if mode is not None:
-                self.checksum_enabled = mode
-                append(self._parse(Kind.COMMAND, raw[1:-1], raw))
+                append(self._complete(raw))
                 continue
             cache = caches[self.checksum_enabled]
             event = cache.get(raw)
@@ -166,6 +165,7 @@ class Decoder:
                 self._add_frames(batch, events)
                 batch = []
                 self._run_states(data, position, start, events, until_idle=False)
+            if not batch:  # the first frame of the chunk or after a gap: text may be pending
                 self._begin_frame(events)
             batch.append(data[start:stop])
             position = stop
@@ -296,8 +296,7 @@ class Decoder:
         body = frame[1:-1]
         if kind is Kind.COMMAND and frame in _MODE_FRAMES:
             self.checksum_enabled = _MODE_FRAMES[frame]
-            return self._parse(kind, body, frame)
-        if self.checksum_enabled and not (kind is Kind.COMMAND and body == b"stop"):
+        elif self.checksum_enabled and not (kind is Kind.COMMAND and body == b"stop"):
             digits = body[-2:]
             body = body[:-2]
             if not body or not self._algorithm.verify(body, digits):
@@ -311,6 +310,15 @@ class Decoder:
         if not body:
             return BadFrame(Reason.MALFORMED, frame, "empty frame")
         try:
-            return Frame(decode_body(kind, body), frame)
+            message = decode_body(kind, body)
         except FrameError as error:
             return BadFrame(error.reason, frame, error.detail)
+        event = _new_frame(Frame)  # made as trusted_message makes messages: the hot path
+        _set_frame_message(event, message)
+        _set_frame_raw(event, frame)
+        return event
+
+
+_new_frame = object.__new__
+_set_frame_message = Frame.__dict__["message"].__set__
+_set_frame_raw = Frame.__dict__["raw"].__set__

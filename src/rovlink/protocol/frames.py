@@ -174,13 +174,16 @@ def decode_body(kind: Kind, body: bytes) -> Message:
         match = pattern.fullmatch(rest) if pattern.pattern else None
         if match is None:
             continue
-        if len(bounds) == 1:  # the common case, without the general loop
+        # One or two values: every command of the table. Spelled out, as this is the hot path.
+        if len(bounds) == 1:
             value = int(match.group(1))
-            minimum, maximum = bounds[0]
+            (minimum, maximum), = bounds
             if minimum <= value <= maximum:
                 return trusted_message(cls, spec, (value,))
-            continue
-        values = tuple(map(int, match.groups()))
-        if all(low <= value <= high for value, (low, high) in zip(values, bounds, strict=True)):
-            return trusted_message(cls, spec, values)
+        elif len(bounds) == 2:
+            first_text, second_text = match.groups()
+            first, second = int(first_text), int(second_text)
+            (first_min, first_max), (second_min, second_max) = bounds
+            if first_min <= first <= first_max and second_min <= second <= second_max:
+                return trusted_message(cls, spec, (first, second))
     return parse_body(kind, body.decode("ascii", errors="replace"))

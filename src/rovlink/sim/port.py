@@ -41,6 +41,8 @@ class SimulatedPort:
         timeout: float | None = None,
     ) -> None:
         self.timeout = timeout
+        #: What pyserial calls the port, for messages.
+        self.name = "sim://"
         self.lock = threading.RLock()
         self._data_ready = threading.Condition(self.lock)
         self._received = bytearray()
@@ -82,6 +84,8 @@ class SimulatedPort:
     def read(self, size: int = 1) -> bytes:
         """Wait up to :attr:`timeout` for at least one byte; return up to ``size`` bytes."""
         self._check_open()
+        if size <= 0:
+            return b""
         deadline = None if self.timeout is None else time.monotonic() + self.timeout
         with self._data_ready:
             while not self._received:

@@ -17,7 +17,12 @@ from pathlib import Path
 from typing import Any
 
 from rovlink.controller import ControllerConfig, Hardware, config_from_mapping
-from rovlink.controller.config import ConfigError, dataclass_from_table, read_toml
+from rovlink.controller.config import (
+    ConfigError,
+    dataclass_from_table,
+    read_toml,
+    table_reference,
+)
 from rovlink.controller.controller import Controller
 from rovlink.sim.devices import (
     SensorParams,
@@ -30,7 +35,14 @@ from rovlink.sim.devices import (
 )
 from rovlink.sim.vehicle import Vehicle, VehicleParams
 
-__all__ = ["DEFAULT_LEAK_PULSE_S", "SimConfig", "SimulatedRobot", "load_sim_config"]
+__all__ = [
+    "DEFAULT_LEAK_PULSE_S",
+    "SimConfig",
+    "SimulatedRobot",
+    "load_sim_config",
+    "sim_config_from_mapping",
+    "sim_config_reference",
+]
 
 #: The length of an injected leak pulse, s.
 DEFAULT_LEAK_PULSE_S = 0.1
@@ -61,6 +73,12 @@ def sim_config_from_mapping(data: Mapping[str, Any], source: str = "config") -> 
 def load_sim_config(path: Path | str) -> SimConfig:
     """Read a simulated robot's TOML file (controller tables, ``[vehicle]``, ``[sensors]``)."""
     return sim_config_from_mapping(read_toml(path), str(path))
+
+
+def sim_config_reference() -> str:
+    """Markdown tables of the simulator's own tables, ``[vehicle]`` and ``[sensors]``."""
+    vehicle = table_reference("[vehicle]", VehicleParams())
+    return vehicle + "\n" + table_reference("[sensors]", SensorParams())
 
 
 class SimulatedRobot:

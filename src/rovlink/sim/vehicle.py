@@ -65,7 +65,7 @@ class VehicleParams:
         default=0.8, metadata=_doc("quadratic yaw drag, N·m per (rad/s)²")
     )
     yaw_linear_drag_n_m_s: float = field(
-        default=0.3, metadata=_doc("linear yaw drag, N·m per rad/s")
+        default=0.5, metadata=_doc("linear yaw drag, N·m per rad/s")
     )
     forward_thrust_kgf: float = field(
         default=2.5, metadata=_doc("one thruster's thrust at full forward duty, kgf")
@@ -86,7 +86,7 @@ class VehicleParams:
         default=0.1, metadata=_doc("thrust lag behind a duty change, s")
     )
     yaw_disturbance_n_m: float = field(
-        default=0.01, metadata=_doc("slow random yaw torque, rms N·m")
+        default=0.002, metadata=_doc("slow random yaw torque, rms N·m")
     )
     yaw_disturbance_period_s: float = field(
         default=20.0, metadata=_doc("correlation time of the yaw torque, s")
@@ -160,8 +160,6 @@ class Vehicle:
     ) -> None:
         self.params = params
         self._random = rng.random
-        self._lag_dt_s = 0.0
-        self._lag = 1.0
         self.time_s = 0.0
         self.depth_m = 0.0
         self.heave_m_s = 0.0  # + down
@@ -200,6 +198,8 @@ class Vehicle:
         self._heave_mass_kg = params.mass_kg + params.added_mass_heave_kg
         self._surge_mass_kg = params.mass_kg + params.added_mass_surge_kg
         self._sway_mass_kg = params.mass_kg + params.added_mass_sway_kg
+        self._dt_s = 0.0
+        self._prepare(0.01)
 
     @property
     def duties(self) -> tuple[int, ...]:
@@ -237,33 +237,59 @@ class Vehicle:
             self._command_sway_n = sway
             self._command_yaw_n_m = torque
 
+    def _prepare(self, dt_s: float) -> None:
+        """Coefficients for steps of ``dt_s``: the step runs 100 000 times a second in fast mode."""
+        params = self.params
+        time_constant = params.thruster_time_constant_s
+        self._lag = 1.0 - math.exp(-dt_s / time_constant) if time_constant > 0 else 1.0
+        heave = dt_s / self._heave_mass_kg
+        surge = dt_s / self._surge_mass_kg
+        sway = dt_s / self._sway_mass_kg
+        yaw = dt_s / params.yaw_inertia_kg_m2
+        self._heave_dt = heave
+        self._heave_quadratic = params.heave_drag_n_s2_m2 * heave
+        self._heave_linear = params.heave_linear_drag_n_s_m * heave
+        self._surge_dt = surge
+        self._surge_quadratic = params.surge_drag_n_s2_m2 * surge
+        self._surge_linear = params.planar_linear_drag_n_s_m * surge
+        self._sway_dt = sway
+        self._sway_quadratic = params.sway_drag_n_s2_m2 * sway
+        self._sway_linear = params.planar_linear_drag_n_s_m * sway
+        self._yaw_dt = yaw
+        self._yaw_quadratic = params.yaw_drag_n_m_s2 * yaw
+        self._yaw_linear = params.yaw_linear_drag_n_m_s * yaw
+        period = params.yaw_disturbance_period_s
+        self._disturbance_decay = dt_s / period
+        # Uniform kicks with the variance of the process's Gaussian ones (variance 1/12 → ×√12):
+        # over many steps only the variance counts.
+        self._disturbance_kick = params.yaw_disturbance_n_m * math.sqrt(24.0 * dt_s / period)
+        self._dt_s = dt_s
+
     def step(self, dt_s: float) -> None:
         """Advance the state by ``dt_s`` seconds."""
-        params = self.params
-        if dt_s != self._lag_dt_s:
-            time_constant = params.thruster_time_constant_s
-            self._lag = 1.0 - math.exp(-dt_s / time_constant) if time_constant > 0 else 1.0
-            self._lag_dt_s = dt_s
+        if dt_s != self._dt_s:
+            self._prepare(dt_s)
         lag = self._lag
-        up_thrust = self.up_thrust_n = (
-            self.up_thrust_n + (self._command_up_n - self.up_thrust_n) * lag
-        )
-        surge_thrust = self.surge_thrust_n = (
-            self.surge_thrust_n + (self._command_surge_n - self.surge_thrust_n) * lag
-        )
-        sway_thrust = self.sway_thrust_n = (
-            self.sway_thrust_n + (self._command_sway_n - self.sway_thrust_n) * lag
-        )
-        yaw_torque = self.yaw_torque_n_m = (
-            self.yaw_torque_n_m + (self._command_yaw_n_m - self.yaw_torque_n_m) * lag
-        )
+        up_thrust = self.up_thrust_n
+        up_thrust += (self._command_up_n - up_thrust) * lag
+        self.up_thrust_n = up_thrust
+        surge_thrust = self.surge_thrust_n
+        surge_thrust += (self._command_surge_n - surge_thrust) * lag
+        self.surge_thrust_n = surge_thrust
+        sway_thrust = self.sway_thrust_n
+        sway_thrust += (self._command_sway_n - sway_thrust) * lag
+        self.sway_thrust_n = sway_thrust
+        yaw_torque = self.yaw_torque_n_m
+        yaw_torque += (self._command_yaw_n_m - yaw_torque) * lag
+        self.yaw_torque_n_m = yaw_torque
 
         # Heave: buoyancy, thrust and drag; the surface is a limit the vehicle floats against.
         speed = self.heave_m_s
-        drag = (
-            params.heave_drag_n_s2_m2 * speed * abs(speed) + params.heave_linear_drag_n_s_m * speed
+        speed -= (
+            (self.net_buoyancy_n + up_thrust) * self._heave_dt
+            + self._heave_quadratic * speed * abs(speed)
+            + self._heave_linear * speed
         )
-        speed += (-self.net_buoyancy_n - up_thrust - drag) / self._heave_mass_kg * dt_s
         depth = self.depth_m + speed * dt_s
         if depth <= 0.0:
             depth = 0.0
@@ -280,26 +306,17 @@ class Vehicle:
         current_east = self.current_east_m_s
         surge = self.surge_m_s
         sway = self.sway_m_s
-        relative_surge = surge - (current_north * cos_h + current_east * sin_h)
-        relative_sway = sway - (current_east * cos_h - current_north * sin_h)
-        linear = params.planar_linear_drag_n_s_m
+        relative = surge - (current_north * cos_h + current_east * sin_h)
         surge += (
-            (
-                surge_thrust
-                - params.surge_drag_n_s2_m2 * relative_surge * abs(relative_surge)
-                - linear * relative_surge
-            )
-            / self._surge_mass_kg
-            * dt_s
+            surge_thrust * self._surge_dt
+            - self._surge_quadratic * relative * abs(relative)
+            - self._surge_linear * relative
         )
+        relative = sway - (current_east * cos_h - current_north * sin_h)
         sway += (
-            (
-                sway_thrust
-                - params.sway_drag_n_s2_m2 * relative_sway * abs(relative_sway)
-                - linear * relative_sway
-            )
-            / self._sway_mass_kg
-            * dt_s
+            sway_thrust * self._sway_dt
+            - self._sway_quadratic * relative * abs(relative)
+            - self._sway_linear * relative
         )
         self.surge_m_s = surge
         self.sway_m_s = sway
@@ -307,23 +324,17 @@ class Vehicle:
         self.east_m += (surge * sin_h + sway * cos_h) * dt_s
 
         # Yaw: a slow random torque (an Ornstein–Uhlenbeck process) makes the heading wander.
-        # Its kicks are uniform with the right variance: over many steps only the variance counts.
-        period = params.yaw_disturbance_period_s
         disturbance = self._yaw_disturbance_n_m
-        disturbance += -disturbance * dt_s / period + params.yaw_disturbance_n_m * math.sqrt(
-            24.0 * dt_s / period
-        ) * (self._random() - 0.5)
+        disturbance += (
+            self._disturbance_kick * (self._random() - 0.5)
+            - disturbance * self._disturbance_decay
+        )
         self._yaw_disturbance_n_m = disturbance
         rate = self.yaw_rate_rad_s
         rate += (
-            (
-                yaw_torque
-                + disturbance
-                - params.yaw_drag_n_m_s2 * rate * abs(rate)
-                - params.yaw_linear_drag_n_m_s * rate
-            )
-            / params.yaw_inertia_kg_m2
-            * dt_s
+            (yaw_torque + disturbance) * self._yaw_dt
+            - self._yaw_quadratic * rate * abs(rate)
+            - self._yaw_linear * rate
         )
         self.yaw_rate_rad_s = rate
         self.heading_rad = (heading + rate * dt_s) % _FULL_TURN_RAD
