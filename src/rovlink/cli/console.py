@@ -9,7 +9,16 @@ from typing import TYPE_CHECKING
 
 import typer
 
-from rovlink.protocol import ALGORITHMS
+from rovlink.cli.link_options import (
+    DEFAULT_URL,
+    AlgorithmOption,
+    BaudrateOption,
+    ChecksumOption,
+    RetriesOption,
+    TimeoutOption,
+    UrlArgument,
+)
+from rovlink.protocol import DEFAULT_ALGORITHM
 
 if TYPE_CHECKING:
     from rovlink.aio import AsyncClient
@@ -22,16 +31,12 @@ def register(app: typer.Typer) -> None:
 
     @app.command()
     def console(  # noqa: PLR0917 - Typer reads the options from the parameters
-        url: str = typer.Argument(
-            "sim://", help="Serial device, pyserial URL (socket://host:port, …) or sim://."
-        ),
-        checksum: bool = typer.Option(False, "--checksum", help="Start in checksum mode."),
-        algorithm: str = typer.Option(
-            "crc8", "--algorithm", help=f"Checksum algorithm: {', '.join(ALGORITHMS)}."
-        ),
-        baudrate: int | None = typer.Option(None, "--baudrate", help="Serial speed (115200)."),
-        timeout_s: float = typer.Option(0.5, "--timeout", help="Seconds per query attempt."),
-        retries: int = typer.Option(2, "--retries", help="Extra attempts of a query."),
+        url: UrlArgument = DEFAULT_URL,
+        checksum: ChecksumOption = False,
+        algorithm: AlgorithmOption = DEFAULT_ALGORITHM,
+        baudrate: BaudrateOption = None,
+        timeout_s: TimeoutOption = 0.5,
+        retries: RetriesOption = 2,
         history: Path | None = typer.Option(
             None, "--history", help="History file (default: in the user's state directory)."
         ),

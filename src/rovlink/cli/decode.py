@@ -10,7 +10,8 @@ from typing import Any, BinaryIO
 
 import typer
 
-from rovlink.protocol import ALGORITHMS, BadFrame, Decoder, Event, Frame, Message, Text
+from rovlink.cli.link_options import AlgorithmOption
+from rovlink.protocol import DEFAULT_ALGORITHM, BadFrame, Decoder, Event, Frame, Message, Text
 
 __all__ = ["event_to_json", "register"]
 
@@ -99,18 +100,12 @@ def register(app: typer.Typer) -> None:
         checksum: bool = typer.Option(
             False, "--checksum", help="Start in checksum mode (as after #crcon!)."
         ),
-        algorithm: str = typer.Option(
-            "crc8", "--algorithm", help=f"Checksum algorithm: {', '.join(ALGORITHMS)}."
-        ),
+        algorithm: AlgorithmOption = DEFAULT_ALGORITHM,
         stats: bool = typer.Option(
             False, "--stats", help="Print one JSON summary of counts instead of the events."
         ),
     ) -> None:
         """Decode a captured byte stream: one JSON object per line per event."""
-        if algorithm not in ALGORITHMS:
-            raise typer.BadParameter(
-                f"{algorithm!r} is not one of {', '.join(ALGORITHMS)}", param_hint="--algorithm"
-            )
         decoder = Decoder(checksum_enabled=checksum, algorithm=algorithm)
         if file is None:
             decode_stream(sys.stdin.buffer, decoder, stats_only=stats)

@@ -18,6 +18,16 @@ from rich.live import Live
 from rich.table import Table
 
 import rovlink
+from rovlink.cli.link_options import (
+    DEFAULT_URL,
+    AlgorithmOption,
+    BaudrateOption,
+    ChecksumOption,
+    RetriesOption,
+    TimeoutOption,
+    UrlArgument,
+)
+from rovlink.protocol import DEFAULT_ALGORITHM
 
 if TYPE_CHECKING:
     from rich.console import RenderableType
@@ -220,7 +230,7 @@ def register(app: typer.Typer) -> None:
 
     @app.command()
     def demo(  # noqa: PLR0917 - Typer reads the options from the parameters
-        url: str = typer.Argument("sim://", help="Where the controller is (default: simulator)."),
+        url: UrlArgument = DEFAULT_URL,
         depth_cm: int = typer.Option(100, "--depth", help="Dive depth, cm.", min=0, max=9999),
         hold_s: float = typer.Option(3.0, "--hold", help="Seconds to hold the depth.", min=0),
         leg_s: float = typer.Option(3.0, "--leg", help="Seconds per side of the square.", min=0),
@@ -230,13 +240,18 @@ def register(app: typer.Typer) -> None:
         reach_timeout_s: float = typer.Option(
             60.0, "--reach-timeout", help="Seconds allowed to reach a depth.", min=0
         ),
-        checksum: bool = typer.Option(False, "--checksum", help="Use checksum mode."),
+        checksum: ChecksumOption = False,
+        algorithm: AlgorithmOption = DEFAULT_ALGORITHM,
+        baudrate: BaudrateOption = None,
+        timeout_s: TimeoutOption = 0.5,
+        retries: RetriesOption = 2,
     ) -> None:
         """A scripted dive: unlock, dive and hold, a square, every sensor, surface, lock."""
         plan = DivePlan(depth_cm=depth_cm, hold_s=hold_s, leg_s=leg_s,
                         power_percent=power_percent, reach_timeout_s=reach_timeout_s)
         try:
-            rov = rovlink.connect(url, checksum=checksum)
+            rov = rovlink.connect(url, checksum=checksum, algorithm=algorithm, baudrate=baudrate,
+                                  timeout=timeout_s, retries=retries)
         except ValueError as error:
             raise typer.BadParameter(str(error), param_hint="URL") from None
         except ConnectionError as error:

@@ -7,7 +7,16 @@ from typing import TYPE_CHECKING
 
 import typer
 
-from rovlink.protocol import ALGORITHMS
+from rovlink.cli.link_options import (
+    DEFAULT_URL,
+    AlgorithmOption,
+    BaudrateOption,
+    ChecksumOption,
+    RetriesOption,
+    TimeoutOption,
+    UrlArgument,
+)
+from rovlink.protocol import DEFAULT_ALGORITHM
 
 if TYPE_CHECKING:
     from rovlink.aio import AsyncClient
@@ -40,18 +49,14 @@ def register(app: typer.Typer) -> None:
 
     @app.command()
     def monitor(  # noqa: PLR0917 - Typer reads the options from the parameters
-        url: str = typer.Argument(
-            "sim://", help="Serial device, pyserial URL (socket://host:port, …) or sim://."
-        ),
+        url: UrlArgument = DEFAULT_URL,
         rate_hz: float = typer.Option(5.0, "--rate", help="Sensor polls per second.", min=0.1,
                                       max=100),
-        checksum: bool = typer.Option(False, "--checksum", help="Use checksum mode."),
-        algorithm: str = typer.Option(
-            "crc8", "--algorithm", help=f"Checksum algorithm: {', '.join(ALGORITHMS)}."
-        ),
-        baudrate: int | None = typer.Option(None, "--baudrate", help="Serial speed (115200)."),
-        timeout_s: float = typer.Option(0.5, "--timeout", help="Seconds per query attempt."),
-        retries: int = typer.Option(2, "--retries", help="Extra attempts of a query."),
+        checksum: ChecksumOption = False,
+        algorithm: AlgorithmOption = DEFAULT_ALGORITHM,
+        baudrate: BaudrateOption = None,
+        timeout_s: TimeoutOption = 0.5,
+        retries: RetriesOption = 2,
     ) -> None:
         """Live depth, attitude, leak alarm, link health and a depth chart; keys drive the robot.
 

@@ -8,8 +8,16 @@ import re
 import typer
 
 import rovlink
+from rovlink.cli.link_options import (
+    AlgorithmOption,
+    BaudrateOption,
+    ChecksumOption,
+    RetriesOption,
+    TimeoutOption,
+    UrlArgument,
+)
 from rovlink.client import ClientError, CommandTextError, parse_command_text
-from rovlink.protocol import ALGORITHMS, Command, Event, Response, Text
+from rovlink.protocol import DEFAULT_ALGORITHM, Command, Event, Response, Text
 
 __all__ = ["describe_reply", "group_words", "register"]
 
@@ -83,19 +91,15 @@ def register(app: typer.Typer) -> None:
     # "mvs -50" unquoted: "-50" is a value, not an option.
     @app.command(context_settings={"ignore_unknown_options": True})
     def send(  # noqa: PLR0917 - Typer reads the options from the parameters
-        url: str = typer.Argument(
-            ..., help="Serial device, pyserial URL (socket://host:port, …) or sim://."
-        ),
+        url: UrlArgument,
         commands: list[str] = typer.Argument(
             ..., help="Commands: 'qd', 'th 270 25', 'mvs -50', or frames such as '#qd!'."
         ),
-        checksum: bool = typer.Option(False, "--checksum", help="Use checksum mode."),
-        algorithm: str = typer.Option(
-            "crc8", "--algorithm", help=f"Checksum algorithm: {', '.join(ALGORITHMS)}."
-        ),
-        baudrate: int | None = typer.Option(None, "--baudrate", help="Serial speed (115200)."),
-        timeout_s: float = typer.Option(0.5, "--timeout", help="Seconds per query attempt."),
-        retries: int = typer.Option(2, "--retries", help="Extra attempts of a query."),
+        checksum: ChecksumOption = False,
+        algorithm: AlgorithmOption = DEFAULT_ALGORITHM,
+        baudrate: BaudrateOption = None,
+        timeout_s: TimeoutOption = 0.5,
+        retries: RetriesOption = 2,
         as_json: bool = typer.Option(
             False, "--json", help="One JSON object per command instead of text."
         ),
