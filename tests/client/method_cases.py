@@ -5,6 +5,7 @@ from __future__ import annotations
 from typing import Any
 
 from rovlink.client import Sensors
+from rovlink.protocol import get_algorithm
 
 #: (method, arguments, frames sent with checksums off)
 SET_CASES: list[tuple[str, tuple[Any, ...], dict[str, Any], list[bytes]]] = [
@@ -47,5 +48,12 @@ CHECKSUM_CASES: list[tuple[str, tuple[Any, ...], bytes]] = [
     ("depth_cm", (), b"#qd8C!"),
     ("hold_depth", (100,), b"#mvd.1004B!"),
     ("move", (270, 25), b"#th.270.25CA!"),
-    ("stop", (), b"#stopA5!"),
+    ("stop", (), b"#stop!"),  # always bare: honoured in either mode (P3)
 ]
+
+
+def checksummed(frame: bytes) -> bytes:
+    """``frame`` as a client sends it in CRC-8 checksum mode: ``#stop!`` stays bare (P3)."""
+    if frame == b"#stop!":
+        return frame
+    return frame[:-1] + get_algorithm("crc8").digits(frame[1:-1]) + b"!"

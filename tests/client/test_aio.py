@@ -14,7 +14,7 @@ import pytest
 from rovlink.aio import AsyncClient, ConnectionLostError, InvalidArgumentError, QueryTimeoutError
 from rovlink.protocol import Command, Event, Response, Text, get_algorithm
 from tests.client.fake_controller import FakeController
-from tests.client.method_cases import QUERY_CASES, SET_CASES
+from tests.client.method_cases import QUERY_CASES, SET_CASES, checksummed
 
 MakeAsyncClient = Callable[..., Awaitable[AsyncClient]]
 
@@ -41,8 +41,7 @@ async def test_set_commands_send_exact_frames(
     client = await make_async_client(checksum=checksum)
     assert await getattr(client, method)(*args, **kwargs) is None
     if checksum:
-        crc8 = get_algorithm("crc8")
-        frames = [f[:-1] + crc8.digits(f[1:-1]) + b"!" for f in frames]
+        frames = [checksummed(f) for f in frames]
     assert await _sent_after_connect(fake, len(frames)) == b"".join(frames)
 
 

@@ -19,7 +19,7 @@ from rovlink.client import (
 from rovlink.protocol import Command, Event, Frame, Response, Text, get_algorithm
 from tests.client.conftest import wait_until
 from tests.client.fake_controller import FakeController
-from tests.client.method_cases import CHECKSUM_CASES, QUERY_CASES, SET_CASES
+from tests.client.method_cases import CHECKSUM_CASES, QUERY_CASES, SET_CASES, checksummed
 
 MakeClient = Callable[..., Client]
 
@@ -62,8 +62,7 @@ def test_set_commands_carry_checksums_in_checksum_mode(
 ) -> None:
     client = make_client(checksum=True)
     getattr(client, method)(*args, **kwargs)
-    crc8 = get_algorithm("crc8")
-    expected = b"".join(f[:-1] + crc8.digits(f[1:-1]) + b"!" for f in frames)
+    expected = b"".join(checksummed(f) for f in frames)
     assert _sent_after_connect(fake, len(frames)) == expected
     assert fake.bad_frames == []  # the fake controller accepted every checksum
 

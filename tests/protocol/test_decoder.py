@@ -21,6 +21,7 @@ from rovlink.protocol import (
     Response,
     Text,
     encode,
+    get_algorithm,
 )
 
 from .strategies import line_noise, messages, noisy_bytes, split_points
@@ -232,3 +233,20 @@ def test_reset_forgets_partial_input_but_keeps_the_mode() -> None:
     assert decoder.buffered_bytes == decoder.buffered_text_bytes == 0
     assert decoder.checksum_enabled
     assert decoder.end() == []
+
+
+@pytest.mark.parametrize("name", ["crcon", "crcoff"])
+def test_a_mode_frame_with_a_checksum_is_not_the_mode_frame(name: str) -> None:
+    # Exact match only (P3): "#crcoff3F!" must neither decode as crcoff nor switch the mode.
+    digits = get_algorithm("crc8").digits(name.encode())
+    decoder = Decoder(checksum_enabled=True)
+    (event,) = decoder.feed(b"#" + name.encode() + digits + b"!")
+    assert isinstance(event, BadFrame)
+    assert event.reason is Reason.MALFORMED
+    assert decoder.checksum_enabled
+
+
+def test_stop_is_the_only_command_honoured_bare() -> None:
+    from rovlink.protocol import COMMANDS
+
+    assert [spec.name for spec in COMMANDS if spec.honoured_bare] == ["stop"]

@@ -159,6 +159,16 @@ class AsyncClient:
         """
         return self._session.checksum_enabled
 
+    def frame_for(self, command: Command) -> bytes:
+        """The bytes this client writes for ``command`` now: checksummed in checksum mode,
+        ``#stop!`` always bare (P3).
+
+        Example::
+
+            rov.frame_for(Command("qd"))  # b"#qd!", or b"#qd8C!" in checksum mode
+        """
+        return self._session.frame_for(command)
+
     @property
     def counters(self) -> LinkCounters:
         """A snapshot of the link's counters.

@@ -158,11 +158,24 @@ class Session:
 
     # -- sending ------------------------------------------------------------------------------
 
+    def frame_for(self, command: Command) -> bytes:
+        """The bytes this side writes for ``command`` in the current checksum mode.
+
+        A command honoured bare (``#stop!``) is always written bare: it then works even when the
+        controller's checksum mode is not the one this side believes (a lost ``#crcon!``, P3).
+
+        Example::
+
+            Session().frame_for(Command("qd"))  # b"#qd!"; b"#qd8C!" in checksum mode
+        """
+        checksummed = self._checksum_enabled and not command.spec.honoured_bare
+        return encode(command, self._algorithm if checksummed else None)
+
     def command(self, command: Command, now: float) -> bytes:
         """The bytes of a command that expects no reply; ``crcon``/``crcoff`` switch the mode."""
         if command.spec.is_query:
             raise ValueError(f"{command} is a query: use Session.query")
-        data = encode(command, self._algorithm if self._checksum_enabled else None)
+        data = self.frame_for(command)
         self._count_sent(data, now)
         if command.name == "crcon":
             self._set_mode(True)
@@ -180,7 +193,7 @@ class Session:
         if data is None:
             if not command.spec.is_query:
                 raise ValueError(f"{command} expects no reply: use Session.command")
-            data = encode(command, self._algorithm if self._checksum_enabled else None)
+            data = self.frame_for(command)
             if len(self._query_bytes) < _QUERY_BYTES_CACHED:
                 self._query_bytes[command] = data
         self._count_sent(data, now)

@@ -22,7 +22,6 @@ from rovlink.protocol import (
     Decoder,
     Frame,
     Response,
-    encode,
 )
 
 __all__ = ["SentCallback", "SentFrame", "TrackedClient"]
@@ -92,7 +91,7 @@ class TrackedClient:
 
         Raises what the driver raises: QueryTimeoutError after the retries, ConnectionLostError.
         """
-        data = encode(command, self.algorithm if self.checksum_enabled else None)
+        data = self.client.frame_for(command)
         if not command.spec.is_query or self.client.closed:
             replies = await self.client.send(command)  # a closed client raises here
             self._sent(data, command)

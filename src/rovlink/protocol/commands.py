@@ -75,6 +75,9 @@ class Spec:
     aliases: tuple[str, ...] = ()
     #: Recognised by exact match before any checksum is stripped and never carries one (P3).
     exact_match: bool = False
+    #: Honoured without a checksum even in checksum mode (P3): it can only make the robot safer,
+    #: so a host sends it bare, and it works whatever mode the controller is in.
+    honoured_bare: bool = False
     #: Dropped while the motors are locked (P7).
     motion: bool = False
     #: The vertical mode the command needs, if any (P9).
@@ -125,7 +128,8 @@ COMMANDS: tuple[Spec, ...] = (
          exact_match=True),
     Spec("crcoff", _C, "turn checksum use off (never carries a checksum)", rules=("P3",),
          exact_match=True),
-    Spec("stop", _C, "switch all motors off and lock their control", rules=("P3", "P7")),
+    Spec("stop", _C, "switch all motors off and lock their control", rules=("P3", "P7"),
+         honoured_bare=True),
     Spec("start", _C, "allow motor control, with neutral set-points", rules=("P7",)),
     Spec("debug1", _C, "debug output on", rules=("P5",)),
     Spec("debug0", _C, "debug output off", rules=("P5",)),

@@ -12,7 +12,7 @@ import re
 from dataclasses import dataclass
 
 from rovlink.protocol.checksum import DEFAULT_ALGORITHM, ChecksumAlgorithm, get_algorithm
-from rovlink.protocol.commands import Kind
+from rovlink.protocol.commands import COMMANDS, Kind
 from rovlink.protocol.frames import MAX_FRAME_BYTES, FrameError, Reason, decode_body
 from rovlink.protocol.messages import Message
 
@@ -63,6 +63,8 @@ _WHOLE_FRAME = re.compile(rb"[#$][\x22\x25-\x7e]{0,%d}!" % (MAX_FRAME_BYTES - 2)
 _LINE_BREAK = re.compile(rb"[\r\n]")
 _KIND_BY_START = {0x23: Kind.COMMAND, 0x24: Kind.RESPONSE}
 _MODE_FRAMES = {b"#crcon!": True, b"#crcoff!": False}
+_EXACT_MATCH_BODIES = frozenset(spec.name.encode() for spec in COMMANDS if spec.exact_match)
+_HONOURED_BARE_BODIES = frozenset(spec.name.encode() for spec in COMMANDS if spec.honoured_bare)
 #: Decoded frames remembered per decoder: telemetry repeats itself, and a hit skips the checksum
 #: and the parse. Bounded so that a stream of ever-new frames cannot grow memory.
 _CACHE_ENTRIES = 512
@@ -296,12 +298,20 @@ class Decoder:
         body = frame[1:-1]
         if kind is Kind.COMMAND and frame in _MODE_FRAMES:
             self.checksum_enabled = _MODE_FRAMES[frame]
-        elif self.checksum_enabled and not (kind is Kind.COMMAND and body == b"stop"):
+        elif self.checksum_enabled and not (
+            kind is Kind.COMMAND and body in _HONOURED_BARE_BODIES
+        ):
             digits = body[-2:]
             body = body[:-2]
             if not body or not self._algorithm.verify(body, digits):
                 return BadFrame(
                     Reason.CHECKSUM, frame, f"missing or wrong {self._algorithm.name} checksum"
+                )
+            if kind is Kind.COMMAND and body in _EXACT_MATCH_BODIES:
+                # "#crcoff3F!" is not "#crcoff!": taking it would report a mode change that the
+                # exact-match rule says did not happen (P3).
+                return BadFrame(
+                    Reason.MALFORMED, frame, f"{body.decode()} never carries a checksum"
                 )
         return self._parse(kind, body, frame)
 
