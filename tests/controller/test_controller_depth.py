@@ -92,6 +92,21 @@ def test_past_the_maximum_down_thrust_is_refused_up_thrust_is_not() -> None:
     assert rig.vertical_duties == (-255, -255)
 
 
+def test_noise_at_the_maximum_does_not_flip_the_limit() -> None:
+    rig = _limited_rig()
+    rig.send(b"#mvdirect.1!#mvs.-100!")
+    rig.controller.read_output()
+    output = b""
+    for depth_cm in (202, 198, 202, 196, 204, 198) * 3:  # noise around the 200 cm limit
+        rig.set_depth_cm(depth_cm)
+        output += rig.tick()
+        assert rig.vertical_duties == (0, 0)  # released only once 5 cm above the limit
+    assert output.count(b"past the maximum depth 200 cm") == 1
+    rig.set_depth_cm(194)
+    rig.tick()
+    assert rig.vertical_duties == (-255, -255)
+
+
 def test_past_the_maximum_the_pid_gives_no_down_thrust() -> None:
     rig = _limited_rig()
     rig.send(b"#mvd.200!")

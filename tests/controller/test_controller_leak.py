@@ -73,11 +73,29 @@ def test_leak_action_surface_never_moves_a_locked_robot() -> None:
     assert rig.send(b"#q.l!") == b"$q.l.1!"
 
 
-def test_the_action_runs_once_per_latch() -> None:
+def test_a_started_robot_is_stopped_again_by_the_next_leak_while_latched() -> None:
     rig = make_rig(leak_action=LeakAction.STOP, watchdog_s=0.0)
     rig.leak.pulse()
     rig.tick()
-    rig.send(b"#start!")  # the operator takes over, the latch still set
+    rig.send(b"#start!#th.0.50!")  # the operator takes over, the latch still set
+    rig.tick(5)
+    assert not rig.controller.locked  # the latch alone does not stop it ...
     rig.leak.pulse()
     rig.tick()
-    assert not rig.controller.locked
+    assert rig.controller.locked  # ... a new leak does
+    assert set(rig.thrusters.duties) == {0}
+
+
+def test_surface_action_is_taken_again_by_the_next_leak_while_latched() -> None:
+    rig = make_rig(leak_action=LeakAction.SURFACE, watchdog_s=0.0)
+    rig.send(b"#start!")
+    rig.leak.pulse()
+    rig.tick()
+    rig.send(b"#mvdirect.0!#mvd.500!#th.90.80!")  # the operator dives again, latch still set
+    rig.tick()
+    assert rig.controller.state().vertical_mode is VerticalMode.DEPTH
+    rig.leak.pulse()
+    rig.tick()
+    state = rig.controller.state()
+    assert (state.vertical_mode, state.vertical_thrust_percent) == (VerticalMode.DIRECT, 100)
+    assert state.power_percent == 0

@@ -68,6 +68,9 @@ def test_qsa_reports_the_leak_latch(rig: Rig) -> None:
         (0.0, b"$qro.+0!"),
         (-0.4, b"$qro.+0!"),
         (0.6, b"$qro.+1!"),
+        (2.5, b"$qro.+3!"),  # halves go up, not to the even neighbour
+        (1.5, b"$qro.+2!"),
+        (-2.5, b"$qro.-2!"),
         (-89.6, b"$qro.-90!"),
         (120.0, b"$qro.+90!"),
         (-95.2, b"$qro.-90!"),

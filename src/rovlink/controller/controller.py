@@ -9,6 +9,7 @@ reached only through :class:`~rovlink.controller.hardware.Hardware`.
 from __future__ import annotations
 
 import logging
+import math
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -35,6 +36,8 @@ logger = logging.getLogger(__name__)
 
 _MAX_DEPTH_CM = 9999
 _FULL_UP_PERCENT = 100
+#: How far above the maximum depth the robot must rise before down thrust is allowed again.
+_MAX_DEPTH_RELEASE_CM = 5
 
 
 @dataclass(frozen=True, slots=True)
@@ -266,7 +269,7 @@ class Controller:
             attitude = hardware.imu.read_attitude()
             values["qro"] = _attitude_deg(attitude.roll_deg)
             values["qpi"] = _attitude_deg(attitude.pitch_deg)
-            values["qhe"] = round(attitude.heading_deg) % 360
+            values["qhe"] = _round_half_up(attitude.heading_deg) % 360
         return values
 
     # -- command handlers --------------------------------------------------------------------
@@ -403,17 +406,29 @@ class Controller:
         self._debug(f"{why}: motors stopped and locked")
 
     def _leak_fired(self) -> None:
-        if self._leak_latched:
-            return
+        """The leak sensor fired since the last tick: latch it and take the leak action (P14).
+
+        The action is taken on every report, not only on the one that set the latch: a robot
+        started again before the latch was reset is stopped (or surfaced) by the next leak.
+        """
+        first = not self._leak_latched
         self._leak_latched = True
         action = self.config.leak_action
-        logger.warning("leak detected, action %s", action)
-        self._debug(f"leak detected, action {action}")
+        if first:
+            logger.warning("leak detected, action %s", action)
+            self._debug(f"leak detected, action {action}")
         if action is LeakAction.STOP:
-            self._stop("leak")
+            if not self._locked:
+                self._stop("leak")
         elif action is LeakAction.SURFACE:
             if self._locked:
-                self._debug("leak: motors are locked, not surfacing")
+                if first:
+                    self._debug("leak: motors are locked, not surfacing")
+                return
+            surfacing = (self._vertical_mode is VerticalMode.DIRECT
+                         and self._vertical_thrust_percent == _FULL_UP_PERCENT
+                         and self._power_percent == 0)
+            if surfacing:
                 return
             self._vertical_mode = VerticalMode.DIRECT
             self._vertical_thrust_percent = _FULL_UP_PERCENT
@@ -425,7 +440,10 @@ class Controller:
 
     def _vertical_output(self, depth_cm: int, dt_s: float) -> float:
         max_depth_cm = self._max_depth_cm
-        limited = 0 < max_depth_cm < depth_cm
+        # Released only a little above the limit: sensor noise at the limit must not flip it
+        # (and its debug line) every tick.
+        release_cm = max_depth_cm - _MAX_DEPTH_RELEASE_CM if self._depth_limited else max_depth_cm
+        limited = max_depth_cm > 0 and depth_cm > release_cm
         if limited is not self._depth_limited:
             self._depth_limited = limited
             if limited:
@@ -445,5 +463,10 @@ class Controller:
 
 def _attitude_deg(value_deg: float) -> int:
     """Roll or pitch as the protocol writes it: rounded to nearest, clamped to ±90 (P15)."""
-    rounded = round(value_deg)
+    rounded = _round_half_up(value_deg)
     return -90 if rounded < -90 else min(rounded, 90)
+
+
+def _round_half_up(value: float) -> int:
+    """To the nearest integer, halves up (Python's round() takes halves to the even one)."""
+    return math.floor(value + 0.5)
