@@ -133,3 +133,40 @@ def test_a_busy_tcp_port_is_reported() -> None:
         )
     assert result.returncode == 1
     assert "cannot listen" in result.stderr
+
+
+def _read_until(port: serial.Serial, wanted: bytes) -> bytes:
+    received = b""
+    deadline = time.monotonic() + 5
+    while wanted not in received:
+        assert time.monotonic() < deadline, received
+        received += port.read(256)
+    return received
+
+
+def test_watchdog_option_turns_the_failsafe_off_for_typing_by_hand(run_sim: RunSim) -> None:
+    # At 100 simulated seconds per wall second, a person "typing" 0.3 s apart leaves the link
+    # silent for 30 simulated seconds: far past the default 2 s failsafe.
+    _, match = run_sim("--pty", "--speed", "100", "--watchdog", "0", "--seed", "1")
+    with serial.Serial(match["pty"], timeout=0.05) as port:
+        port.write(b"#debug1!#start!")
+        _read_until(port, b"motors unlocked")
+        port.write(b"#mvd.100!")
+        _read_until(port, b"target depth 100 cm")
+        silent_until = time.monotonic() + 0.3
+        while time.monotonic() < silent_until:
+            assert b"failsafe" not in port.read(256)
+        deadline = time.monotonic() + 10
+        while True:  # dives and holds 1 m, still unlocked (however slow the machine)
+            reply = _query(port, b"#qd!")
+            assert b"failsafe" not in reply
+            if 90 <= int(reply.split(b"$qd.")[1].rstrip(b"!")) <= 110:
+                break
+            assert time.monotonic() < deadline, reply
+
+
+def test_the_default_watchdog_stops_a_silent_link(run_sim: RunSim) -> None:
+    _, match = run_sim("--pty", "--speed", "100", "--seed", "1")
+    with serial.Serial(match["pty"], timeout=0.05) as port:
+        port.write(b"#debug1!#start!")
+        assert b"failsafe" in _read_until(port, b"failsafe")

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import signal
 import threading
 from pathlib import Path
@@ -11,7 +12,7 @@ from typing import Annotated
 import typer
 
 from rovlink.controller import ConfigError
-from rovlink.sim.robot import load_sim_config
+from rovlink.sim.robot import SimConfig, load_sim_config
 from rovlink.sim.server import SimServer, parse_tcp_address
 
 __all__ = ["register"]
@@ -36,7 +37,8 @@ def register(app: typer.Typer) -> None:
         ] = False,
         baud: Annotated[
             int | None,
-            typer.Option("--baud", min=1, help="Pace the byte stream at this rate, 8N1."),
+            typer.Option("--baud", "--baudrate", min=1,
+                         help="Pace the byte stream at this rate, 8N1."),
         ] = None,
         config: Annotated[
             Path | None,
@@ -62,6 +64,14 @@ def register(app: typer.Typer) -> None:
                 help="Simulated seconds per wall second; 0 runs as fast as the CPU allows.",
             ),
         ] = 1.0,
+        watchdog: Annotated[
+            float | None,
+            typer.Option(
+                "--watchdog", metavar="SECONDS", min=0.0,
+                help="Link-loss failsafe timeout (default from the config, 2 s); 0 turns it "
+                "off, e.g. to type commands by hand.",
+            ),
+        ] = None,
     ) -> None:
         """Serve a simulated controller; open the printed port in any terminal program."""
         address = None
@@ -71,7 +81,12 @@ def register(app: typer.Typer) -> None:
             except ValueError as error:
                 raise typer.BadParameter(str(error), param_hint="--tcp") from None
         try:
-            robot_config = load_sim_config(config) if config is not None else None
+            robot_config = load_sim_config(config) if config is not None else SimConfig()
+            if watchdog is not None:
+                robot_config = dataclasses.replace(
+                    robot_config,
+                    controller=dataclasses.replace(robot_config.controller, watchdog_s=watchdog),
+                )
         except ConfigError as error:
             raise typer.BadParameter(str(error), param_hint="--config") from None
 
