@@ -73,3 +73,18 @@ def test_demo_that_cannot_reach_its_depth_fails(tmp_path: Path) -> None:
                                  "0", "--leg", "0", "--reach-timeout", "0.3"])
     assert result.exit_code == 1
     assert "not completed: dive to 9000 cm" in result.output
+
+
+def test_a_dive_that_misses_its_depth_never_moves_horizontally(tmp_path: Path) -> None:
+    plan = DivePlan(depth_cm=9000, hold_s=0, leg_s=0, reach_timeout_s=0.3)
+    with rovlink.connect(_fast_sim_url(tmp_path), keepalive=None) as rov:
+        progress = run_dive(rov, plan, lambda progress: None)
+        port = rov._link.port  # type: ignore[attr-defined]
+        with port.lock:
+            state = port.controller.state()
+    statuses = [step.status for step in progress.steps]
+    assert statuses[1] == "not reached"
+    assert statuses[2:8] == ["skipped"] * 6  # hold, the square, the readings
+    assert statuses[9] == "done"
+    assert state.locked
+    assert state.power_percent == 0

@@ -58,7 +58,7 @@ class Step:
 
     name: str
     frames: str
-    status: str = "waiting"  # waiting, running, done, not reached
+    status: str = "waiting"  # waiting, running, done, not reached, skipped
     detail: str = ""
     started_at: float | None = None
     finished_at: float | None = None
@@ -125,7 +125,7 @@ class _Dive:
             self.poll()
             time.sleep(min(_POLL_INTERVAL_S, max(deadline - time.monotonic(), 0.0)))
 
-    def reach_depth(self, step: Step, target_cm: int) -> None:
+    def reach_depth(self, step: Step, target_cm: int) -> bool:
         """Read the sensors until the depth is within tolerance a few times running."""
         deadline = time.monotonic() + self.plan.reach_timeout_s
         settled = 0
@@ -134,23 +134,16 @@ class _Dive:
             settled = settled + 1 if abs(depth_cm - target_cm) <= self.plan.tolerance_cm else 0
             if settled >= _SETTLED_READINGS:
                 self.finish(step, detail=f"at {depth_cm} cm")
-                return
+                return True
             if time.monotonic() > deadline:
                 self.finish(step, "not reached",
                             f"{depth_cm} cm after {self.plan.reach_timeout_s:g} s")
-                return
+                return False
             time.sleep(_POLL_INTERVAL_S)
 
-    def run(self) -> DiveProgress:
-        rov, plan = self.rov, self.plan
-        rov.start()
-        self.finish(self.begin(0))
-
-        step = self.begin(1)
-        rov.set_direct_mode(False)
-        rov.hold_depth(plan.depth_cm)
-        self.reach_depth(step, plan.depth_cm)
-
+    def hold_square_and_read(self, plan: DivePlan) -> None:
+        """Hold the depth, move in a square, read every sensor."""
+        rov = self.rov
         step = self.begin(2)
         self.watch(plan.hold_s)
         self.finish(step, detail=f"at {self.poll().depth_cm} cm")
@@ -170,6 +163,21 @@ class _Dive:
             f"pitch {rov.pitch_deg():+d}°, heading {rov.heading_deg()}°"
         )
         self.finish(step, detail=readings)
+
+    def run(self) -> DiveProgress:
+        rov, plan = self.rov, self.plan
+        rov.start()
+        self.finish(self.begin(0))
+
+        step = self.begin(1)
+        rov.set_direct_mode(False)
+        rov.hold_depth(plan.depth_cm)
+        if self.reach_depth(step, plan.depth_cm):
+            self.hold_square_and_read(plan)
+        else:
+            # Never move on at a depth nobody chose: straight to surfacing and locking.
+            for skipped in self.progress.steps[2:8]:
+                self.finish(skipped, "skipped", "the dive depth was not reached")
 
         step = self.begin(8)
         rov.hold_depth(0)
@@ -203,13 +211,13 @@ def _render(progress: DiveProgress, url: str) -> RenderableType:
     steps.add_column("time", justify="right", no_wrap=True)
     steps.add_column("result")
     marks = {"waiting": "[dim]·[/]", "running": "[yellow]…[/]", "done": "[green]✓[/]",
-             "not reached": "[red]✗[/]"}
+             "not reached": "[red]✗[/]", "skipped": "[dim]–[/]"}
     for step in progress.steps:
         elapsed = ""
         if step.started_at is not None:
             end = step.finished_at or time.monotonic()
             elapsed = f"{end - step.started_at:.1f} s"
-        detail = step.detail if step.status != "not reached" else f"not reached: {step.detail}"
+        detail = step.detail if step.status == "done" else f"{step.status}: {step.detail}"
         steps.add_row(f"{step.name}\n[dim]{step.frames}[/]", marks[step.status], elapsed,
                       detail)
     sensors = Table(title="sensors (#qsa!)")
