@@ -62,5 +62,5 @@ def test_decode_stats_counts_events_reasons_and_names() -> None:
     assert summary == {
         "events": {"error": 2, "frame": 3, "text": 1},
         "reasons": {"range": 1, "unknown": 1},
-        "names": {"#qd": 1, "$qd": 2},
+        "names": {"command": {"qd": 1}, "response": {"qd": 2}},
     }

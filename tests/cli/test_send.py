@@ -10,6 +10,7 @@ from typer.testing import CliRunner
 
 from rovlink.cli import app
 from rovlink.cli.send import group_words
+from rovlink.protocol import get_algorithm
 
 runner = CliRunner()
 
@@ -38,9 +39,27 @@ def test_send_json() -> None:
     assert result.exit_code == 0, result.output
     (line,) = result.output.splitlines()
     record = json.loads(line)
-    assert record["command"] == "#qhe!"
+    assert record["command"] == "#qhe" + get_algorithm("crc8").digits(b"qhe").decode() + "!"
     assert record["replies"][0]["name"] == "qhe"
     assert 0 <= record["replies"][0]["values"]["heading_deg"] <= 360
+
+
+def test_raw_frames_are_sent_exactly_as_given() -> None:
+    # In checksum mode a raw frame keeps the checksum it was typed with; a friendly command
+    # gets one; both are shown as they went on the wire.
+    result = runner.invoke(app, ["send", "--checksum", "sim://", "#qd8C!", "qr"])
+    assert result.exit_code == 0, result.output
+    lines = result.output.splitlines()
+    assert lines[0] == "> #qd8C!"
+    assert lines[1].startswith("< $qd.")
+    assert lines[2] == "> #qr" + get_algorithm("crc8").digits(b"qr").decode() + "!"
+    assert lines[3].startswith("< $qr.")
+
+
+def test_a_raw_frame_must_be_a_whole_frame() -> None:
+    result = runner.invoke(app, ["send", "sim://", "#qd"])
+    assert result.exit_code == 2
+    assert "a raw frame is" in _flat(result.output)
 
 
 def test_a_bad_command_is_reported_before_anything_is_sent() -> None:

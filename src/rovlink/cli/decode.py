@@ -6,14 +6,14 @@ import json
 import sys
 from collections import Counter
 from pathlib import Path
-from typing import Any, BinaryIO
+from typing import BinaryIO
 
 import typer
 
 from rovlink.cli.link_options import AlgorithmOption
-from rovlink.protocol import DEFAULT_ALGORITHM, BadFrame, Decoder, Event, Frame, Message, Text
+from rovlink.protocol import DEFAULT_ALGORITHM, BadFrame, Decoder, Event, Frame, Kind, Text
 
-__all__ = ["event_to_json", "register"]
+__all__ = ["StreamStats", "decode_stream", "event_to_json", "register"]
 
 _READ_CHUNK_BYTES = 1 << 16
 
@@ -46,46 +46,57 @@ def _events(stream: BinaryIO, decoder: Decoder) -> list[Event] | None:
     return decoder.feed(chunk)
 
 
-def _count(stats: dict[str, Counter[Any]], events: list[Event]) -> None:
-    events_seen, names, reasons = stats["events"], stats["names"], stats["reasons"]
-    for event in events:
-        if type(event) is Frame:
-            events_seen["frame"] += 1
-            names[event.message] += 1  # messages are hashable: group them by name at the end
-        elif type(event) is Text:
-            events_seen["text"] += 1
-        else:
-            assert isinstance(event, BadFrame)
-            events_seen["error"] += 1
-            reasons[event.reason.value] += 1
+class StreamStats:
+    """Counts of a stream's events: per event kind, per error reason, per frame kind and name."""
+
+    def __init__(self) -> None:
+        self.events: Counter[str] = Counter()
+        self.reasons: Counter[str] = Counter()
+        self.names: dict[Kind, Counter[str]] = {kind: Counter() for kind in Kind}
+
+    def count(self, events: list[Event]) -> None:
+        """Add ``events`` to the counts."""
+        events_seen, names = self.events, self.names
+        for event in events:
+            if type(event) is Frame:
+                events_seen["frame"] += 1
+                message = event.message
+                names[message.kind][message.name] += 1
+            elif type(event) is Text:
+                events_seen["text"] += 1
+            else:
+                assert isinstance(event, BadFrame)
+                events_seen["error"] += 1
+                self.reasons[event.reason.value] += 1
+
+    def summary(self) -> dict[str, object]:
+        """The counts as ``rovlink decode --stats`` prints them."""
+        return {
+            "events": dict(sorted(self.events.items())),
+            "reasons": dict(sorted(self.reasons.items())),
+            "names": {kind.value: dict(sorted(counter.items()))
+                      for kind, counter in self.names.items()},
+        }
 
 
 def decode_stream(stream: BinaryIO, decoder: Decoder, *, stats_only: bool) -> None:
     """Decode ``stream`` to the end, printing JSON lines (or one summary with ``stats_only``)."""
-    stats: dict[str, Counter[Any]] = {"events": Counter(), "reasons": Counter(), "names": Counter()}
+    stats = StreamStats()
     write = sys.stdout.write
     while True:
         events = _events(stream, decoder)
+        last = events is None
         if events is None:
             events = decoder.end()
-            last = True
-        else:
-            last = False
         if stats_only:
-            _count(stats, events)
+            stats.count(events)
         else:
             for event in events:
                 write(json.dumps(event_to_json(event), ensure_ascii=False) + "\n")
         if last:
             break
     if stats_only:
-        by_name: Counter[str] = Counter()
-        for message, count in stats["names"].items():
-            assert isinstance(message, Message)
-            by_name[message.kind.start_byte.decode() + message.name] += count
-        stats["names"] = by_name
-        summary = {key: dict(sorted(counter.items())) for key, counter in stats.items()}
-        write(json.dumps(summary) + "\n")
+        write(json.dumps(stats.summary()) + "\n")
 
 
 def register(app: typer.Typer) -> None:

@@ -68,9 +68,18 @@ def group_words(arguments: list[str]) -> list[str]:
 _NUMBER = re.compile(r"[+-]?\d+")
 
 
-def _parse_all(texts: list[str]) -> list[Command]:
-    commands = []
+def _parse_all(texts: list[str]) -> list[Command | bytes]:
+    """Commands of the table from friendly text, and raw frames (``#…!``) as they are."""
+    commands: list[Command | bytes] = []
     for position, text in enumerate(group_words(texts), start=1):
+        if text.startswith("#"):
+            if not (text.isascii() and text.endswith("!") and len(text) > 2):
+                raise typer.BadParameter(
+                    f"command {position} ({text!r}): a raw frame is '#', a body and '!'",
+                    param_hint="COMMAND",
+                )
+            commands.append(text.encode("ascii"))  # sent exactly as given, checksum and all
+            continue
         try:
             commands.append(parse_command_text(text))
         except CommandTextError as error:
@@ -122,17 +131,22 @@ def register(app: typer.Typer) -> None:
             raise typer.Exit(1) from None
         with client:
             for command in parsed:
+                # What goes on the wire, as it goes: with its checksum in checksum mode.
+                sent = command if isinstance(command, bytes) else client.frame_for(command)
                 try:
-                    replies = client.send(command)
+                    if isinstance(command, bytes):
+                        replies = client.send_raw(command)
+                    else:
+                        replies = client.send(command)
                 except (ClientError, TimeoutError) as error:
                     typer.echo(f"error: {error}", err=True)
                     raise typer.Exit(1) from None
                 if as_json:
                     typer.echo(json.dumps({
-                        "command": str(command),
+                        "command": sent.decode("ascii"),
                         "replies": [_reply_json(reply) for reply in replies],
                     }, ensure_ascii=False))
                 else:
-                    typer.echo(f"> {command}")
+                    typer.echo(f"> {sent.decode('ascii')}")
                     for reply in replies:
                         typer.echo(f"< {describe_reply(reply)}")
