@@ -12,9 +12,9 @@ import rovlink
 import rovlink.aio
 from rovlink.client import Client, ClientOptions
 from rovlink.client.links import PortLink
-from rovlink.controller import ControllerState
+from rovlink.controller import ControllerConfig, ControllerState
 from rovlink.protocol import Response, VerticalMode
-from rovlink.sim import SimulatedPort, open_port
+from rovlink.sim import SimConfig, SimulatedPort, open_port
 from tests.client.conftest import wait_until
 from tests.client.sim_scenario import DebugLines, check_sensors, run_every_method
 
@@ -136,22 +136,30 @@ def test_the_leak_latch_through_the_driver() -> None:
         assert rov.leak_detected() is False
 
 
-@pytest.mark.parametrize("keepalive_s", [0.05, None])
-def test_keepalive_holds_off_the_link_loss_failsafe(tmp_path: Path,
-                                                    keepalive_s: float | None) -> None:
-    config = tmp_path / "controller.toml"
-    config.write_text("[controller]\nwatchdog_s = 0.3\n")
-    with rovlink.connect(f"sim://?config={config}", keepalive=keepalive_s) as rov:
+@pytest.mark.parametrize("keepalive_s", [0.1, None])
+def test_keepalive_holds_off_the_link_loss_failsafe(keepalive_s: float | None) -> None:
+    # Simulated time moves only when the test advances it, and the client's clock reads it, so
+    # the keep-alive interval, the watchdog and the idle time between frames are all counted
+    # in simulated seconds: the outcome does not depend on how busy the machine is.
+    port = SimulatedPort(SimConfig(controller=ControllerConfig(watchdog_s=0.3)), seed=4)
+
+    def simulated_clock() -> float:
+        with port.lock:  # never in the middle of a step: the client sees time between steps
+            return port.robot.time_s
+
+    options = ClientOptions(timeout_s=2.0, keepalive_s=keepalive_s)
+    with Client(PortLink(port, "sim"), options, clock=simulated_clock) as rov:
         state = _state_of(rov)
-        port = _port(rov)
         rov.start()
         rov.move(0, 30)
-        started = port.robot.clock.now_s()
-        # Idle for twice the watchdog (in simulated time).
-        assert wait_until(lambda: port.robot.clock.now_s() - started > 0.6)
+        for step in range(1, 11):  # 1.5 simulated seconds: five times the watchdog
+            port.advance(0.15)  # longer than the keep-alive interval, shorter than the watchdog
+            if keepalive_s:
+                # The idle link's keep-alive is sent, and answered, before time moves on.
+                assert wait_until(lambda count=step: rov.counters.replies >= count, timeout_s=5.0)
         if keepalive_s:
             assert (state().locked, state().power_percent) == (False, 30)
-            assert rov.counters.keepalives > 0
+            assert rov.counters.keepalives == 10
         else:  # the control case: without keep-alives the failsafe stops the robot
             assert (state().locked, state().power_percent) == (True, 0)
 
