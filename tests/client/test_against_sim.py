@@ -15,7 +15,7 @@ from rovlink.client.links import PortLink
 from rovlink.controller import ControllerConfig, ControllerState
 from rovlink.protocol import Response, VerticalMode
 from rovlink.sim import SimConfig, SimulatedPort, open_port
-from tests.client.conftest import wait_until
+from tests.client.conftest import REPLY_TIMEOUT_S, wait_until
 from tests.client.sim_scenario import DebugLines, check_sensors, run_every_method
 
 
@@ -37,13 +37,15 @@ def _state_of(client: object) -> Callable[[], ControllerState]:
 
 def test_every_method_through_the_controllers_debug_text() -> None:
     debug = DebugLines()
-    with rovlink.connect("sim://?seed=7", keepalive=None, on_stray=debug) as rov:
+    with rovlink.connect("sim://?seed=7", keepalive=None, on_stray=debug,
+                         timeout=REPLY_TIMEOUT_S) as rov:
         run_every_method(rov, debug)
 
 
 def test_every_method_of_the_blocking_client() -> None:
     debug = DebugLines()
-    with rovlink.connect("sim://?seed=1", keepalive=None, on_stray=debug) as rov:
+    with rovlink.connect("sim://?seed=1", keepalive=None, on_stray=debug,
+                         timeout=REPLY_TIMEOUT_S) as rov:
         state = _state_of(rov)
         rov.set_debug(True)
         assert state().debug_enabled
@@ -91,7 +93,8 @@ def test_every_method_of_the_blocking_client() -> None:
 
 
 def test_checksum_mode_both_ways_with_the_simulator() -> None:
-    with rovlink.connect("sim://?seed=2", keepalive=None, checksum=True) as rov:
+    with rovlink.connect("sim://?seed=2", keepalive=None, checksum=True,
+                         timeout=REPLY_TIMEOUT_S) as rov:
         state = _state_of(rov)
         assert state().checksum_enabled
         check_sensors(rov.sensors())
@@ -110,7 +113,8 @@ def test_a_controller_with_another_checksum_algorithm(tmp_path: Path, algorithm:
     config = tmp_path / "controller.toml"
     config.write_text(f'[controller]\nchecksum_algorithm = "{algorithm}"\n')
     url = f"sim://?config={config}"
-    with rovlink.connect(url, keepalive=None, checksum=True, algorithm=algorithm) as rov:
+    with rovlink.connect(url, keepalive=None, checksum=True, algorithm=algorithm,
+                         timeout=REPLY_TIMEOUT_S) as rov:
         check_sensors(rov.sensors())
     # Speaking crc8 to it, every checksummed query is dropped: a clear timeout.
     with rovlink.connect(url, keepalive=None, checksum=True, timeout=0.1, retries=1) as rov, \
@@ -122,14 +126,16 @@ def test_a_mode_left_over_from_an_earlier_session_is_reset_on_connect() -> None:
     port = open_port(seed=1)
     with port.lock:  # an earlier host left the controller in checksum mode
         port.controller.receive(b"#crcon!")
-    with Client(PortLink(port, "sim"), ClientOptions(keepalive_s=None)) as rov:
+    options = ClientOptions(keepalive_s=None, timeout_s=REPLY_TIMEOUT_S)
+    with Client(PortLink(port, "sim"), options) as rov:
         # The client sent #crcoff! on connect, so plain queries are answered.
         assert rov.depth_cm() >= 0
         assert not _state_of(rov)().checksum_enabled
 
 
 def test_the_leak_latch_through_the_driver() -> None:
-    with rovlink.connect("sim://?leak_at=0.05&seed=3", keepalive=None) as rov:
+    url = "sim://?leak_at=0.05&seed=3"
+    with rovlink.connect(url, keepalive=None, timeout=REPLY_TIMEOUT_S) as rov:
         assert wait_until(rov.leak_detected, timeout_s=3.0)
         assert rov.sensors().leak_detected
         rov.reset_leak()
@@ -147,7 +153,7 @@ def test_keepalive_holds_off_the_link_loss_failsafe(keepalive_s: float | None) -
         with port.lock:  # never in the middle of a step: the client sees time between steps
             return port.robot.time_s
 
-    options = ClientOptions(timeout_s=2.0, keepalive_s=keepalive_s)
+    options = ClientOptions(timeout_s=REPLY_TIMEOUT_S, keepalive_s=keepalive_s)
     with Client(PortLink(port, "sim"), options, clock=simulated_clock) as rov:
         state = _state_of(rov)
         rov.start()
@@ -165,7 +171,7 @@ def test_keepalive_holds_off_the_link_loss_failsafe(keepalive_s: float | None) -
 
 
 async def test_every_method_of_the_async_client() -> None:
-    async with rovlink.aio.connect("sim://?seed=5", keepalive=None) as rov:
+    async with rovlink.aio.connect("sim://?seed=5", keepalive=None, timeout=REPLY_TIMEOUT_S) as rov:
         state = _state_of(rov)
         await rov.set_debug(True)
         await rov.set_max_pwm(180)
@@ -204,7 +210,7 @@ async def test_every_method_of_the_async_client() -> None:
 
 
 async def test_async_telemetry_from_the_simulator() -> None:
-    async with rovlink.aio.connect("sim://?seed=6", keepalive=None) as rov:
+    async with rovlink.aio.connect("sim://?seed=6", keepalive=None, timeout=REPLY_TIMEOUT_S) as rov:
         count = 0
         async for reading in rov.telemetry(None):
             check_sensors(reading)
