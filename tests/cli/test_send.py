@@ -10,8 +10,11 @@ from typer.testing import CliRunner
 
 from rovlink.cli import app
 from rovlink.cli.send import group_words
+from tests.client.conftest import REPLY_TIMEOUT_S
 
 runner = CliRunner()
+#: ``--timeout`` where replies are expected: long enough for a loaded machine.
+REPLY_TIMEOUT = str(REPLY_TIMEOUT_S)
 
 
 def _flat(output: str) -> str:
@@ -21,7 +24,7 @@ def _flat(output: str) -> str:
 
 def test_send_prints_decoded_replies() -> None:
     result = runner.invoke(app, ["send", "sim://?seed=1", "start", "th", "270", "25", "qsa",
-                                 "mvs -50", "#qd!", "stop"])
+                                 "mvs -50", "#qd!", "stop", "--timeout", REPLY_TIMEOUT])
     assert result.exit_code == 0, result.output
     lines = result.output.splitlines()
     assert lines[:3] == ["> #start!", "> #th.270.25!", "> #qsa!"]
@@ -34,7 +37,8 @@ def test_send_prints_decoded_replies() -> None:
 
 
 def test_send_json() -> None:
-    result = runner.invoke(app, ["send", "sim://", "qhe", "--json", "--checksum"])
+    result = runner.invoke(app, ["send", "sim://", "qhe", "--json", "--checksum",
+                                 "--timeout", REPLY_TIMEOUT])
     assert result.exit_code == 0, result.output
     (line,) = result.output.splitlines()
     record = json.loads(line)

@@ -159,9 +159,10 @@ def test_baud_paces_the_byte_stream(start_server: StartServer) -> None:
         port.write(b"#qsa!")
         reply = _read_frames(_reader(port), 6)
         elapsed_s = time.monotonic() - started
+    # Not faster than the line (a loaded machine only makes it slower); that the rate is exactly
+    # the baud rate's is checked, without a wall clock, in test_sim_pacing.
     line_time_s = (len(b"#qsa!") + len(reply)) * 10 / 1200
     assert elapsed_s >= 0.9 * line_time_s
-    assert elapsed_s < line_time_s + 2.0
 
 
 def test_the_robot_dives_and_holds_one_metre_over_the_pty(start_server: StartServer) -> None:
