@@ -63,6 +63,7 @@ def test_unknown_commands_and_urls() -> None:
     assert "unknown sim option" in _flat(result.output)
 
 
+@pytest.mark.integration
 def test_nothing_listening_is_an_error_exit() -> None:
     result = runner.invoke(app, ["send", "socket://127.0.0.1:1", "qd"])
     assert result.exit_code == 1
