@@ -20,6 +20,9 @@ from tests.client.fake_controller import FakeController
 REPLY_TIMEOUT_S = 2.0
 #: The timeout of queries that are meant to go unanswered: short, so those tests are quick.
 NO_REPLY_TIMEOUT_S = 0.25
+#: How long a test waits for something that is bound to happen: it returns as soon as it does,
+#: so only a failing test waits this out.
+CONDITION_TIMEOUT_S = 5.0
 
 
 class JumpingClock:
@@ -35,7 +38,7 @@ class JumpingClock:
         self._offset_s += seconds
 
 
-def wait_until(predicate: Callable[[], bool], timeout_s: float = 2.0) -> bool:
+def wait_until(predicate: Callable[[], bool], timeout_s: float = CONDITION_TIMEOUT_S) -> bool:
     """Poll a condition that has no notification of its own, until it holds or time runs out."""
     deadline = time.monotonic() + timeout_s
     while not predicate():
@@ -45,7 +48,8 @@ def wait_until(predicate: Callable[[], bool], timeout_s: float = 2.0) -> bool:
     return True
 
 
-async def wait_until_async(predicate: Callable[[], bool], timeout_s: float = 2.0) -> bool:
+async def wait_until_async(predicate: Callable[[], bool],
+                           timeout_s: float = CONDITION_TIMEOUT_S) -> bool:
     """:func:`wait_until` for coroutines: checks between turns of the event loop."""
     loop = asyncio.get_running_loop()
     deadline = loop.time() + timeout_s

@@ -73,7 +73,7 @@ class FakeController:
             self.script.extend(actions)
         return self
 
-    def wait_for(self, predicate: Callable[[FakeController], bool], timeout_s: float = 2.0,
+    def wait_for(self, predicate: Callable[[FakeController], bool], timeout_s: float = 5.0,
                  ) -> bool:
         """Wait until ``predicate(self)`` holds (checked whenever a frame arrives)."""
         with self._condition:

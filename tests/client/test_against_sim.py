@@ -136,7 +136,7 @@ def test_a_mode_left_over_from_an_earlier_session_is_reset_on_connect() -> None:
 def test_the_leak_latch_through_the_driver() -> None:
     url = "sim://?leak_at=0.05&seed=3"
     with rovlink.connect(url, keepalive=None, timeout=REPLY_TIMEOUT_S) as rov:
-        assert wait_until(rov.leak_detected, timeout_s=3.0)
+        assert wait_until(rov.leak_detected)
         assert rov.sensors().leak_detected
         rov.reset_leak()
         assert rov.leak_detected() is False
@@ -162,7 +162,7 @@ def test_keepalive_holds_off_the_link_loss_failsafe(keepalive_s: float | None) -
             port.advance(0.15)  # longer than the keep-alive interval, shorter than the watchdog
             if keepalive_s:
                 # The idle link's keep-alive is sent, and answered, before time moves on.
-                assert wait_until(lambda count=step: rov.counters.replies >= count, timeout_s=5.0)
+                assert wait_until(lambda count=step: rov.counters.replies >= count)
         if keepalive_s:
             assert (state().locked, state().power_percent) == (False, 30)
             assert rov.counters.keepalives == 10
