@@ -49,6 +49,13 @@ class _TcpFake:
         self.fake = FakeController(connection.detach())
         self.accepted.set()
 
+    def connected(self) -> FakeController:
+        """The fake serving the accepted connection. It may answer before this thread has
+        stored it, so wait for that rather than take a reply as proof."""
+        assert self.accepted.wait(5.0)
+        assert self.fake is not None
+        return self.fake
+
     def close(self) -> None:
         self.server.close()
         if self.fake is not None:
@@ -90,9 +97,7 @@ def test_blocking_client_over_tcp(tcp_fake: _TcpFake) -> None:
         assert isinstance(rov._link, SocketLink)
         assert rov.heading_deg() == 275
         assert rov.leak_detected() is False
-        assert tcp_fake.accepted.wait(2.0)
-        assert tcp_fake.fake is not None
-        tcp_fake.fake.close()
+        tcp_fake.connected().close()
         assert wait_until(lambda: rov.closed)
         with pytest.raises(ConnectionLostError, match="closed by the other end"):
             rov.pitch_deg()
@@ -128,8 +133,7 @@ async def test_async_client_over_tcp_and_disconnect(tcp_fake: _TcpFake) -> None:
     rov = await rovlink.aio.connect(f"socket://127.0.0.1:{tcp_fake.port}", keepalive=None,
                                     timeout=REPLY_TIMEOUT_S)
     assert await rov.depth_cm() == 123
-    assert tcp_fake.fake is not None
-    tcp_fake.fake.then("close")
+    tcp_fake.connected().then("close")
     with pytest.raises(ConnectionLostError):
         await rov.depth_cm()
     await rov.close()
