@@ -73,7 +73,7 @@ async def test_stop_now_jumps_the_queue_and_drops_what_was_not_sent() -> None:
     assert engine.queued == 0
     await until(lambda: b"#stop!" in silent.received)
     engine.submit(Quit())
-    await asyncio.wait_for(runner, 5)
+    await asyncio.wait_for(runner, REPLY_TIMEOUT_S + 5)  # the #qd! times out first
     assert bytes(silent.received) == b"#crcoff!#qd!#stop!"
     assert "■ STOP (Ctrl-X); 2 queued line(s) dropped" in screen.text()
     assert "#qd! got no valid reply" in screen.text()
