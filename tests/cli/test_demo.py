@@ -10,6 +10,7 @@ from typer.testing import CliRunner
 import rovlink
 from rovlink.cli import app
 from rovlink.cli.demo import DivePlan, DiveProgress, run_dive
+from tests.client.conftest import REPLY_TIMEOUT_S
 
 runner = CliRunner()
 
@@ -31,7 +32,7 @@ def test_the_dive_reaches_each_depth_and_ends_locked(tmp_path: Path) -> None:
             seen.append(running[0])
 
     plan = DivePlan(depth_cm=60, hold_s=0.1, leg_s=0.1, reach_timeout_s=20)
-    with rovlink.connect(_fast_sim_url(tmp_path), keepalive=None) as rov:
+    with rovlink.connect(_fast_sim_url(tmp_path), keepalive=None, timeout=REPLY_TIMEOUT_S) as rov:
         progress = run_dive(rov, plan, record)
         port = rov._link.port  # type: ignore[attr-defined]
         with port.lock:
@@ -49,7 +50,7 @@ def test_a_failing_dive_still_stops_the_robot(tmp_path: Path) -> None:
         if progress.steps[3].status == "running":
             raise RuntimeError("display failed")
 
-    with rovlink.connect(_fast_sim_url(tmp_path), keepalive=None) as rov:
+    with rovlink.connect(_fast_sim_url(tmp_path), keepalive=None, timeout=REPLY_TIMEOUT_S) as rov:
         with pytest.raises(RuntimeError, match="display failed"):
             run_dive(rov, DivePlan(depth_cm=20, hold_s=0, leg_s=0.1), explode)
         port = rov._link.port  # type: ignore[attr-defined]
@@ -60,8 +61,10 @@ def test_a_failing_dive_still_stops_the_robot(tmp_path: Path) -> None:
 
 
 def test_demo_command(tmp_path: Path) -> None:
+    # "0 timeouts" is checked below: every reply is expected, so the timeout is a long one.
     result = runner.invoke(app, ["demo", _fast_sim_url(tmp_path), "--depth", "50", "--hold",
-                                 "0.1", "--leg", "0.1", "--reach-timeout", "20"])
+                                 "0.1", "--leg", "0.1", "--reach-timeout", "20",
+                                 "--timeout", str(REPLY_TIMEOUT_S)])
     assert result.exit_code == 0, result.output
     for text in ("unlock", "dive to 50 cm", "square: left", "read every sensor", "surface",
                  "lock", "#th.270.30!", "motors off and locked", "0 timeouts"):

@@ -11,8 +11,11 @@ from typer.testing import CliRunner
 from rovlink.cli import app
 from rovlink.cli.send import group_words
 from rovlink.protocol import get_algorithm
+from tests.client.conftest import REPLY_TIMEOUT_S
 
 runner = CliRunner()
+#: ``--timeout`` where replies are expected: long enough for a loaded machine.
+REPLY_TIMEOUT = str(REPLY_TIMEOUT_S)
 
 
 def _flat(output: str) -> str:
@@ -22,7 +25,7 @@ def _flat(output: str) -> str:
 
 def test_send_prints_decoded_replies() -> None:
     result = runner.invoke(app, ["send", "sim://?seed=1", "start", "th", "270", "25", "qsa",
-                                 "mvs -50", "#qd!", "stop"])
+                                 "mvs -50", "#qd!", "stop", "--timeout", REPLY_TIMEOUT])
     assert result.exit_code == 0, result.output
     lines = result.output.splitlines()
     assert lines[:3] == ["> #start!", "> #th.270.25!", "> #qsa!"]
@@ -35,7 +38,8 @@ def test_send_prints_decoded_replies() -> None:
 
 
 def test_send_json() -> None:
-    result = runner.invoke(app, ["send", "sim://", "qhe", "--json", "--checksum"])
+    result = runner.invoke(app, ["send", "sim://", "qhe", "--json", "--checksum",
+                                 "--timeout", REPLY_TIMEOUT])
     assert result.exit_code == 0, result.output
     (line,) = result.output.splitlines()
     record = json.loads(line)
@@ -47,7 +51,9 @@ def test_send_json() -> None:
 def test_raw_frames_are_sent_exactly_as_given() -> None:
     # In checksum mode a raw frame keeps the checksum it was typed with; a friendly command
     # gets one; both are shown as they went on the wire.
-    result = runner.invoke(app, ["send", "--checksum", "sim://", "#qd8C!", "qr"])
+    result = runner.invoke(
+        app, ["send", "--checksum", "--timeout", REPLY_TIMEOUT, "sim://", "#qd8C!", "qr"]
+    )
     assert result.exit_code == 0, result.output
     lines = result.output.splitlines()
     assert lines[0] == "> #qd8C!"
@@ -78,6 +84,7 @@ def test_unknown_commands_and_urls() -> None:
     assert "unknown sim option" in _flat(result.output)
 
 
+@pytest.mark.integration
 def test_nothing_listening_is_an_error_exit() -> None:
     result = runner.invoke(app, ["send", "socket://127.0.0.1:1", "qd"])
     assert result.exit_code == 1

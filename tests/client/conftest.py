@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import asyncio
 import socket
 import time
 from collections.abc import AsyncIterator, Awaitable, Callable, Iterator
@@ -14,17 +15,48 @@ from rovlink.client import Client, ClientOptions
 from rovlink.client.links import SocketLink
 from tests.client.fake_controller import FakeController
 
-# Short enough to keep timeout tests fast, long enough for a loaded machine to answer.
-TEST_TIMEOUT_S = 0.25
+#: The timeout of queries that are meant to be answered: long enough for a reply on a loaded
+#: machine. A passing test never waits it out.
+REPLY_TIMEOUT_S = 2.0
+#: The timeout of queries that are meant to go unanswered: short, so those tests are quick.
+NO_REPLY_TIMEOUT_S = 0.25
+#: How long a test waits for something that is bound to happen: it returns as soon as it does,
+#: so only a failing test waits this out.
+CONDITION_TIMEOUT_S = 5.0
 
 
-def wait_until(predicate: Callable[[], bool], timeout_s: float = 2.0) -> bool:
+class JumpingClock:
+    """``time.monotonic()`` plus the jumps a test makes; read from any thread."""
+
+    def __init__(self) -> None:
+        self._offset_s = 0.0
+
+    def __call__(self) -> float:
+        return time.monotonic() + self._offset_s
+
+    def jump(self, seconds: float) -> None:
+        self._offset_s += seconds
+
+
+def wait_until(predicate: Callable[[], bool], timeout_s: float = CONDITION_TIMEOUT_S) -> bool:
     """Poll a condition that has no notification of its own, until it holds or time runs out."""
     deadline = time.monotonic() + timeout_s
     while not predicate():
         if time.monotonic() > deadline:
             return False
         time.sleep(0.005)
+    return True
+
+
+async def wait_until_async(predicate: Callable[[], bool],
+                           timeout_s: float = CONDITION_TIMEOUT_S) -> bool:
+    """:func:`wait_until` for coroutines: checks between turns of the event loop."""
+    loop = asyncio.get_running_loop()
+    deadline = loop.time() + timeout_s
+    while not predicate():
+        if loop.time() > deadline:
+            return False
+        await asyncio.sleep(0.005)
     return True
 
 
@@ -41,7 +73,7 @@ def fake(fake_pair: tuple[FakeController, socket.socket]) -> FakeController:
 
 
 def _options(overrides: dict[str, Any]) -> ClientOptions:
-    settings: dict[str, Any] = {"timeout_s": TEST_TIMEOUT_S, "keepalive_s": None}
+    settings: dict[str, Any] = {"timeout_s": REPLY_TIMEOUT_S, "keepalive_s": None}
     settings.update(overrides)
     return ClientOptions(**settings)
 
@@ -49,11 +81,29 @@ def _options(overrides: dict[str, Any]) -> ClientOptions:
 @pytest.fixture
 def make_client(fake_pair: tuple[FakeController, socket.socket],
                 ) -> Iterator[Callable[..., Client]]:
-    """Connect a blocking client to the fake: ``make_client(checksum=True, ...)``."""
+    """Connect a blocking client to the fake: ``make_client(checksum=True, ...)``.
+
+    With ``drops_time_out_at_once=True`` the client's clock jumps past the timeout whenever the
+    fake drops a query: the dropped attempt times out at once, whatever the machine's load,
+    while the answered ones keep all of :data:`REPLY_TIMEOUT_S`.
+    """
+    fake, host_end = fake_pair
     clients: list[Client] = []
 
-    def make(**overrides: Any) -> Client:
-        client = Client(SocketLink(fake_pair[1], "socket pair"), _options(overrides))
+    def make(*, drops_time_out_at_once: bool = False, **overrides: Any) -> Client:
+        options = _options(overrides)
+        link = SocketLink(host_end, "socket pair")
+        clock: Callable[[], float] = time.monotonic
+        if drops_time_out_at_once:
+            jumping = JumpingClock()
+
+            def time_out_now() -> None:
+                jumping.jump(options.timeout_s)
+                link.wake()  # a reader blocked on the link looks at the clock again
+
+            fake.on_drop = time_out_now
+            clock = jumping
+        client = Client(link, options, clock=clock)
         clients.append(client)
         return client
 

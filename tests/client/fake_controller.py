@@ -50,6 +50,8 @@ class FakeController:
         self.query_count = 0
         #: When set, ``qd`` answers the query's sequence number (to check reply ordering).
         self.qd_counts_queries = False
+        #: Called (on the fake's thread) whenever a query is dropped.
+        self.on_drop: Callable[[], None] | None = None
         self._condition = threading.Condition()
         self._wake_r, self._wake_w = os.pipe()
         self._stopping = False
@@ -71,7 +73,7 @@ class FakeController:
             self.script.extend(actions)
         return self
 
-    def wait_for(self, predicate: Callable[[FakeController], bool], timeout_s: float = 2.0,
+    def wait_for(self, predicate: Callable[[FakeController], bool], timeout_s: float = 5.0,
                  ) -> bool:
         """Wait until ``predicate(self)`` holds (checked whenever a frame arrives)."""
         with self._condition:
@@ -159,6 +161,8 @@ class FakeController:
     def _answer(self, command: Command, action: str) -> bytes:
         frames = self._reply_frames(command)
         if action == "drop":
+            if self.on_drop is not None:
+                self.on_drop()
             return b""
         self.queries_answered += 1
         if action == "corrupt":

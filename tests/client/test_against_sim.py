@@ -12,10 +12,10 @@ import rovlink
 import rovlink.aio
 from rovlink.client import Client, ClientOptions
 from rovlink.client.links import PortLink
-from rovlink.controller import ControllerState
+from rovlink.controller import ControllerConfig, ControllerState
 from rovlink.protocol import Response, VerticalMode
-from rovlink.sim import SimulatedPort, open_port
-from tests.client.conftest import wait_until
+from rovlink.sim import SimConfig, SimulatedPort, open_port
+from tests.client.conftest import REPLY_TIMEOUT_S, wait_until
 from tests.client.sim_scenario import DebugLines, check_sensors, run_every_method
 
 
@@ -37,13 +37,15 @@ def _state_of(client: object) -> Callable[[], ControllerState]:
 
 def test_every_method_through_the_controllers_debug_text() -> None:
     debug = DebugLines()
-    with rovlink.connect("sim://?seed=7", keepalive=None, on_stray=debug) as rov:
+    with rovlink.connect("sim://?seed=7", keepalive=None, on_stray=debug,
+                         timeout=REPLY_TIMEOUT_S) as rov:
         run_every_method(rov, debug)
 
 
 def test_every_method_of_the_blocking_client() -> None:
     debug = DebugLines()
-    with rovlink.connect("sim://?seed=1", keepalive=None, on_stray=debug) as rov:
+    with rovlink.connect("sim://?seed=1", keepalive=None, on_stray=debug,
+                         timeout=REPLY_TIMEOUT_S) as rov:
         state = _state_of(rov)
         rov.set_debug(True)
         assert state().debug_enabled
@@ -91,7 +93,8 @@ def test_every_method_of_the_blocking_client() -> None:
 
 
 def test_checksum_mode_both_ways_with_the_simulator() -> None:
-    with rovlink.connect("sim://?seed=2", keepalive=None, checksum=True) as rov:
+    with rovlink.connect("sim://?seed=2", keepalive=None, checksum=True,
+                         timeout=REPLY_TIMEOUT_S) as rov:
         state = _state_of(rov)
         assert state().checksum_enabled
         check_sensors(rov.sensors())
@@ -110,7 +113,8 @@ def test_a_controller_with_another_checksum_algorithm(tmp_path: Path, algorithm:
     config = tmp_path / "controller.toml"
     config.write_text(f'[controller]\nchecksum_algorithm = "{algorithm}"\n')
     url = f"sim://?config={config}"
-    with rovlink.connect(url, keepalive=None, checksum=True, algorithm=algorithm) as rov:
+    with rovlink.connect(url, keepalive=None, checksum=True, algorithm=algorithm,
+                         timeout=REPLY_TIMEOUT_S) as rov:
         check_sensors(rov.sensors())
     # Speaking crc8 to it, every checksummed query is dropped: a clear timeout.
     with rovlink.connect(url, keepalive=None, checksum=True, timeout=0.1, retries=1) as rov, \
@@ -122,42 +126,52 @@ def test_a_mode_left_over_from_an_earlier_session_is_reset_on_connect() -> None:
     port = open_port(seed=1)
     with port.lock:  # an earlier host left the controller in checksum mode
         port.controller.receive(b"#crcon!")
-    with Client(PortLink(port, "sim"), ClientOptions(keepalive_s=None)) as rov:
+    options = ClientOptions(keepalive_s=None, timeout_s=REPLY_TIMEOUT_S)
+    with Client(PortLink(port, "sim"), options) as rov:
         # The client sent #crcoff! on connect, so plain queries are answered.
         assert rov.depth_cm() >= 0
         assert not _state_of(rov)().checksum_enabled
 
 
 def test_the_leak_latch_through_the_driver() -> None:
-    with rovlink.connect("sim://?leak_at=0.05&seed=3", keepalive=None) as rov:
-        assert wait_until(rov.leak_detected, timeout_s=3.0)
+    url = "sim://?leak_at=0.05&seed=3"
+    with rovlink.connect(url, keepalive=None, timeout=REPLY_TIMEOUT_S) as rov:
+        assert wait_until(rov.leak_detected)
         assert rov.sensors().leak_detected
         rov.reset_leak()
         assert rov.leak_detected() is False
 
 
-@pytest.mark.parametrize("keepalive_s", [0.05, None])
-def test_keepalive_holds_off_the_link_loss_failsafe(tmp_path: Path,
-                                                    keepalive_s: float | None) -> None:
-    config = tmp_path / "controller.toml"
-    config.write_text("[controller]\nwatchdog_s = 0.3\n")
-    with rovlink.connect(f"sim://?config={config}", keepalive=keepalive_s) as rov:
+@pytest.mark.parametrize("keepalive_s", [0.1, None])
+def test_keepalive_holds_off_the_link_loss_failsafe(keepalive_s: float | None) -> None:
+    # Simulated time moves only when the test advances it, and the client's clock reads it, so
+    # the keep-alive interval, the watchdog and the idle time between frames are all counted
+    # in simulated seconds: the outcome does not depend on how busy the machine is.
+    port = SimulatedPort(SimConfig(controller=ControllerConfig(watchdog_s=0.3)), seed=4)
+
+    def simulated_clock() -> float:
+        with port.lock:  # never in the middle of a step: the client sees time between steps
+            return port.robot.time_s
+
+    options = ClientOptions(timeout_s=REPLY_TIMEOUT_S, keepalive_s=keepalive_s)
+    with Client(PortLink(port, "sim"), options, clock=simulated_clock) as rov:
         state = _state_of(rov)
-        port = _port(rov)
         rov.start()
         rov.move(0, 30)
-        started = port.robot.clock.now_s()
-        # Idle for twice the watchdog (in simulated time).
-        assert wait_until(lambda: port.robot.clock.now_s() - started > 0.6)
+        for step in range(1, 11):  # 1.5 simulated seconds: five times the watchdog
+            port.advance(0.15)  # longer than the keep-alive interval, shorter than the watchdog
+            if keepalive_s:
+                # The idle link's keep-alive is sent, and answered, before time moves on.
+                assert wait_until(lambda count=step: rov.counters.replies >= count)
         if keepalive_s:
             assert (state().locked, state().power_percent) == (False, 30)
-            assert rov.counters.keepalives > 0
+            assert rov.counters.keepalives == 10
         else:  # the control case: without keep-alives the failsafe stops the robot
             assert (state().locked, state().power_percent) == (True, 0)
 
 
 async def test_every_method_of_the_async_client() -> None:
-    async with rovlink.aio.connect("sim://?seed=5", keepalive=None) as rov:
+    async with rovlink.aio.connect("sim://?seed=5", keepalive=None, timeout=REPLY_TIMEOUT_S) as rov:
         state = _state_of(rov)
         await rov.set_debug(True)
         await rov.set_max_pwm(180)
@@ -196,7 +210,7 @@ async def test_every_method_of_the_async_client() -> None:
 
 
 async def test_async_telemetry_from_the_simulator() -> None:
-    async with rovlink.aio.connect("sim://?seed=6", keepalive=None) as rov:
+    async with rovlink.aio.connect("sim://?seed=6", keepalive=None, timeout=REPLY_TIMEOUT_S) as rov:
         count = 0
         async for reading in rov.telemetry(None):
             check_sensors(reading)

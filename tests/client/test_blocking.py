@@ -17,7 +17,7 @@ from rovlink.client import (
     QueryTimeoutError,
 )
 from rovlink.protocol import Command, Event, Frame, Response, Text, get_algorithm
-from tests.client.conftest import wait_until
+from tests.client.conftest import NO_REPLY_TIMEOUT_S, REPLY_TIMEOUT_S, wait_until
 from tests.client.fake_controller import FakeController
 from tests.client.method_cases import CHECKSUM_CASES, QUERY_CASES, SET_CASES, checksummed
 
@@ -97,8 +97,9 @@ def test_other_checksum_algorithms(algorithm: str) -> None:
     from rovlink.client import ClientOptions
     from rovlink.client.links import SocketLink
 
-    with Client(SocketLink(sock, "pair"), ClientOptions(checksum=True, algorithm=algorithm,
-                                                        keepalive_s=None)) as client:
+    options = ClientOptions(checksum=True, algorithm=algorithm, keepalive_s=None,
+                            timeout_s=REPLY_TIMEOUT_S)
+    with Client(SocketLink(sock, "pair"), options) as client:
         assert client.heading_deg() == 275
         expected = b"#qhe" + get_algorithm(algorithm).digits(b"qhe") + b"!"
         assert bytes(fake.raw).endswith(expected)
@@ -135,7 +136,7 @@ def test_set_checksum_switches_the_client_and_the_controller(
 def test_a_query_with_no_reply_times_out_naming_the_query(
     fake: FakeController, make_client: MakeClient
 ) -> None:
-    client = make_client(retries=2)
+    client = make_client(retries=2, timeout_s=NO_REPLY_TIMEOUT_S)
     fake.then("drop", "drop", "drop")
     with pytest.raises(QueryTimeoutError) as caught:
         client.heading_deg()
@@ -150,7 +151,7 @@ def test_a_query_with_no_reply_times_out_naming_the_query(
 
 
 def test_retries_zero_means_one_attempt(fake: FakeController, make_client: MakeClient) -> None:
-    client = make_client(retries=0)
+    client = make_client(retries=0, timeout_s=NO_REPLY_TIMEOUT_S)
     fake.then("drop")
     with pytest.raises(QueryTimeoutError, match="1 attempt: timeout"):
         client.depth_cm()
@@ -162,7 +163,7 @@ def test_retries_zero_means_one_attempt(fake: FakeController, make_client: MakeC
 def test_a_lost_or_corrupt_reply_is_retried(
     fake: FakeController, make_client: MakeClient, action: str, checksum: bool
 ) -> None:
-    client = make_client(checksum=checksum)
+    client = make_client(checksum=checksum, drops_time_out_at_once=True)
     fake.then(action)
     assert client.sensors().heading_deg == 275
     counters = client.counters
@@ -173,7 +174,7 @@ def test_a_lost_or_corrupt_reply_is_retried(
 
 
 def test_set_commands_are_never_repeated(fake: FakeController, make_client: MakeClient) -> None:
-    client = make_client()
+    client = make_client(drops_time_out_at_once=True)
     fake.then("drop")
     client.move(0, 40)
     assert client.depth_cm() == 123  # retried once
@@ -261,9 +262,10 @@ def test_disconnect_while_idle_is_noticed(fake: FakeController, make_client: Mak
 
 def test_close_fails_waiting_queries(fake: FakeController, make_client: MakeClient) -> None:
     # close() gives the query on the wire its timeout to be answered; it is not, and the
-    # caller's retry finds the client closed.
-    client = make_client(timeout_s=0.2)
-    fake.then("drop")
+    # caller's retry finds the client closed. Every attempt is dropped, and there are enough of
+    # them for the caller to be still trying however late close() comes.
+    client = make_client(timeout_s=NO_REPLY_TIMEOUT_S, retries=10)
+    fake.then(*["drop"] * 11)
     errors: list[BaseException] = []
 
     def ask() -> None:
@@ -276,7 +278,8 @@ def test_close_fails_waiting_queries(fake: FakeController, make_client: MakeClie
     thread.start()
     assert fake.wait_for(lambda f: "#qd!" in f.frames())
     client.close()
-    thread.join(2.0)
+    thread.join(5.0)
+    assert not thread.is_alive()
     assert len(errors) == 1
     assert isinstance(errors[0], ConnectionLostError)
     client.close()  # idempotent
@@ -324,7 +327,7 @@ def test_send_any_command_and_raw_frames(fake: FakeController, make_client: Make
 
 def test_many_threads_get_their_own_replies(fake: FakeController, make_client: MakeClient,
                                             ) -> None:
-    client = make_client(timeout_s=2.0)
+    client = make_client()
     queries = [("depth_cm", 123), ("heading_deg", 275), ("roll_deg", -1), ("pitch_deg", 15),
                ("pressure_raw", 530)]
     wrong: list[str] = []
@@ -353,7 +356,7 @@ def test_replies_keep_their_order_under_concurrency(
     fake: FakeController, make_client: MakeClient
 ) -> None:
     fake.qd_counts_queries = True
-    client = make_client(timeout_s=2.0)
+    client = make_client()
     results: list[int] = []
     lock = threading.Lock()
 

@@ -1,33 +1,52 @@
 """House rule: every public function and method of the host driver has a docstring with an example.
 
-The public driver is what ``rovlink.client`` and ``rovlink.aio`` export, with the methods and
-properties of the classes among them, and the public functions of ``rovlink send`` and
-``rovlink demo``.
+The public driver is what ``rovlink.client`` and ``rovlink.aio`` export, what the driver's link,
+transport and stray-event modules export, with the methods and properties of the classes among
+them (inherited ones included), and the public functions of ``rovlink send`` and ``rovlink demo``.
 """
 
 from __future__ import annotations
 
 import inspect
 from collections.abc import Iterator
+from types import ModuleType
 
 import rovlink.aio
+import rovlink.aio.transport
 import rovlink.cli.demo
 import rovlink.cli.send
 import rovlink.client
+import rovlink.client.links
+import rovlink.client.unsolicited
+
+MODULES: tuple[ModuleType, ...] = (
+    rovlink.client, rovlink.aio, rovlink.client.links, rovlink.client.unsolicited,
+    rovlink.aio.transport, rovlink.cli.send, rovlink.cli.demo,
+)
+
+
+def _members(cls: type) -> dict[str, object]:
+    """The class's attributes, with those it inherits from rovlink's own classes."""
+    members: dict[str, object] = {}
+    for klass in cls.__mro__:
+        if klass.__module__.startswith("rovlink."):
+            for name, member in vars(klass).items():
+                members.setdefault(name, member)  # the most derived definition wins
+    return members
 
 
 def _public_functions() -> Iterator[tuple[str, object]]:
     exported = [
-        (f"{package.__name__}.{name}", getattr(package, name))
-        for package in (rovlink.client, rovlink.aio, rovlink.cli.send, rovlink.cli.demo)
-        for name in package.__all__
+        (f"{module.__name__}.{name}", getattr(module, name))
+        for module in MODULES
+        for name in module.__all__
         if name != "register"  # the command line's plumbing
     ]
     for name, value in exported:
         if inspect.isfunction(value):
             yield name, value
         elif inspect.isclass(value) and not issubclass(value, BaseException):
-            for member_name, member in vars(value).items():
+            for member_name, member in _members(value).items():
                 function = member.fget if isinstance(member, property) else member
                 if not inspect.isfunction(function):
                     continue
@@ -41,7 +60,12 @@ def _public_functions() -> Iterator[tuple[str, object]]:
 def test_the_public_api_is_found() -> None:
     names = {name for name, _ in _public_functions()}
     assert {"rovlink.client.connect", "rovlink.aio.connect", "rovlink.client.Client.sensors",
-            "rovlink.aio.AsyncClient.telemetry", "rovlink.client.Client.counters"} <= names
+            "rovlink.aio.AsyncClient.telemetry", "rovlink.client.Client.counters",
+            "rovlink.client.links.PortLink.read_available", "rovlink.client.links.PortLink.port",
+            "rovlink.client.links.SocketLink.read_available",  # inherited from FdLink
+            "rovlink.client.links.SocketLink.recv_some", "rovlink.client.links.open_link",
+            "rovlink.aio.transport.ByteTransport.write", "rovlink.aio.transport.transport_for",
+            "rovlink.client.unsolicited.report"} <= names
 
 
 def test_every_public_function_has_an_example() -> None:

@@ -5,6 +5,10 @@ from __future__ import annotations
 import subprocess
 import sys
 
+import pytest
+
+pytestmark = pytest.mark.integration  # each test starts a Python subprocess
+
 
 def _run(code: str) -> None:
     subprocess.run([sys.executable, "-c", code], check=True, timeout=60)

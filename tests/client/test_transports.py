@@ -15,7 +15,7 @@ import rovlink
 import rovlink.aio
 from rovlink.client import ConnectionLostError, Sensors
 from rovlink.client.links import PortLink, SerialFdLink, SocketLink
-from tests.client.conftest import wait_until
+from tests.client.conftest import REPLY_TIMEOUT_S, wait_until
 from tests.client.fake_controller import FakeController
 
 pytestmark = pytest.mark.integration
@@ -49,6 +49,13 @@ class _TcpFake:
         self.fake = FakeController(connection.detach())
         self.accepted.set()
 
+    def connected(self) -> FakeController:
+        """The fake serving the accepted connection. It may answer before this thread has
+        stored it, so wait for that rather than take a reply as proof."""
+        assert self.accepted.wait(5.0)
+        assert self.fake is not None
+        return self.fake
+
     def close(self) -> None:
         self.server.close()
         if self.fake is not None:
@@ -64,7 +71,7 @@ def tcp_fake() -> Iterator[_TcpFake]:
 
 def test_blocking_client_over_a_pty(pty_fake: tuple[FakeController, str]) -> None:
     fake, path = pty_fake
-    with rovlink.connect(path, keepalive=None, checksum=True) as rov:
+    with rovlink.connect(path, keepalive=None, checksum=True, timeout=REPLY_TIMEOUT_S) as rov:
         assert isinstance(rov._link, SerialFdLink)
         assert rov.sensors() == EXPECTED_SENSORS
         rov.move(270, 25)
@@ -75,7 +82,7 @@ def test_blocking_client_over_a_pty(pty_fake: tuple[FakeController, str]) -> Non
 
 def test_pty_disconnect_is_a_lost_connection(pty_fake: tuple[FakeController, str]) -> None:
     fake, path = pty_fake
-    rov = rovlink.connect(path, keepalive=None, timeout=2.0)
+    rov = rovlink.connect(path, keepalive=None, timeout=REPLY_TIMEOUT_S)
     fake.then("close")
     with pytest.raises(ConnectionLostError):
         rov.depth_cm()
@@ -85,13 +92,12 @@ def test_pty_disconnect_is_a_lost_connection(pty_fake: tuple[FakeController, str
 
 
 def test_blocking_client_over_tcp(tcp_fake: _TcpFake) -> None:
-    with rovlink.connect(f"socket://127.0.0.1:{tcp_fake.port}", keepalive=None) as rov:
+    with rovlink.connect(f"socket://127.0.0.1:{tcp_fake.port}", keepalive=None,
+                         timeout=REPLY_TIMEOUT_S) as rov:
         assert isinstance(rov._link, SocketLink)
         assert rov.heading_deg() == 275
         assert rov.leak_detected() is False
-        assert tcp_fake.accepted.wait(2.0)
-        assert tcp_fake.fake is not None
-        tcp_fake.fake.close()
+        tcp_fake.connected().close()
         assert wait_until(lambda: rov.closed)
         with pytest.raises(ConnectionLostError, match="closed by the other end"):
             rov.pitch_deg()
@@ -99,7 +105,7 @@ def test_blocking_client_over_tcp(tcp_fake: _TcpFake) -> None:
 
 def test_blocking_client_through_pyserials_own_handler(tcp_fake: _TcpFake) -> None:
     url = f"socket://127.0.0.1:{tcp_fake.port}?logging=warning"
-    with rovlink.connect(url, keepalive=None) as rov:
+    with rovlink.connect(url, keepalive=None, timeout=REPLY_TIMEOUT_S) as rov:
         assert isinstance(rov._link, PortLink)
         assert rov.sensors() == EXPECTED_SENSORS
 
@@ -116,7 +122,7 @@ def test_connecting_to_nothing_is_a_connect_error() -> None:
 
 async def test_async_client_over_a_pty(pty_fake: tuple[FakeController, str]) -> None:
     fake, path = pty_fake
-    async with rovlink.aio.connect(path, keepalive=None) as rov:
+    async with rovlink.aio.connect(path, keepalive=None, timeout=REPLY_TIMEOUT_S) as rov:
         results = await asyncio.gather(*(rov.sensors() for _ in range(50)))
         assert results == [EXPECTED_SENSORS] * 50
         await rov.claw_open()
@@ -124,10 +130,10 @@ async def test_async_client_over_a_pty(pty_fake: tuple[FakeController, str]) -> 
 
 
 async def test_async_client_over_tcp_and_disconnect(tcp_fake: _TcpFake) -> None:
-    rov = await rovlink.aio.connect(f"socket://127.0.0.1:{tcp_fake.port}", keepalive=None)
+    rov = await rovlink.aio.connect(f"socket://127.0.0.1:{tcp_fake.port}", keepalive=None,
+                                    timeout=REPLY_TIMEOUT_S)
     assert await rov.depth_cm() == 123
-    assert tcp_fake.fake is not None
-    tcp_fake.fake.then("close")
+    tcp_fake.connected().then("close")
     with pytest.raises(ConnectionLostError):
         await rov.depth_cm()
     await rov.close()
@@ -135,6 +141,6 @@ async def test_async_client_over_tcp_and_disconnect(tcp_fake: _TcpFake) -> None:
 
 async def test_async_client_through_pyserials_own_handler(tcp_fake: _TcpFake) -> None:
     url = f"socket://127.0.0.1:{tcp_fake.port}?logging=warning"
-    async with rovlink.aio.connect(url, keepalive=None) as rov:
+    async with rovlink.aio.connect(url, keepalive=None, timeout=REPLY_TIMEOUT_S) as rov:
         assert await rov.heading_deg() == 275
         assert await rov.roll_deg() == -1

@@ -20,6 +20,7 @@ import rovlink.aio.client
 from rovlink.cli import app
 from rovlink.client.links import Link
 from rovlink.console.app import run_console
+from tests.client.conftest import REPLY_TIMEOUT_S
 from tests.operator.rig import RecordingLink, Rig, until
 
 CTRL_A, CTRL_K, CTRL_X, CTRL_D, UP = "\x01", "\x0b", "\x18", "\x04", "\x1b[A"
@@ -172,7 +173,8 @@ def test_cli_console_on_sim(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> 
     with create_pipe_input() as keys, create_app_session(input=keys,
                                                          output=create_output(screen)):
         keys.send_text("qd\r" + CTRL_D)
-        result = CliRunner().invoke(app, ["console", "sim://?seed=1"])
+        result = CliRunner().invoke(app, ["console", "sim://?seed=1",
+                                          "--timeout", str(REPLY_TIMEOUT_S)])
     assert result.exit_code == 0, result.output
     assert "connected to simulated controller" in screen.getvalue()
     assert "qd → 0 cm" in screen.getvalue()

@@ -12,6 +12,7 @@ from rovlink.console.engine import ConsoleEngine
 from rovlink.console.transcript import Line, plain_text
 from rovlink.operator import TrackedClient
 from rovlink.protocol import Command
+from tests.client.conftest import REPLY_TIMEOUT_S
 from tests.operator.rig import Rig, SilentController, until
 
 
@@ -55,8 +56,10 @@ async def test_commands_run_in_order_and_replies_are_shown_with_their_frames() -
 
 async def test_stop_now_jumps_the_queue_and_drops_what_was_not_sent() -> None:
     silent = SilentController()
-    client = await AsyncClient(silent.link(), ClientOptions(timeout_s=0.3, retries=0,
-                                                            keepalive_s=None)).open()
+    # The #qd! must still be waiting when the stop key comes, however slow the machine: its
+    # timeout is a long one, and the test waits it out at the end.
+    options = ClientOptions(timeout_s=REPLY_TIMEOUT_S, retries=0, keepalive_s=None)
+    client = await AsyncClient(silent.link(), options).open()
     screen = Screen()
     engine = ConsoleEngine(screen)
     engine.attach(TrackedClient(client))
@@ -70,7 +73,7 @@ async def test_stop_now_jumps_the_queue_and_drops_what_was_not_sent() -> None:
     assert engine.queued == 0
     await until(lambda: b"#stop!" in silent.received)
     engine.submit(Quit())
-    await asyncio.wait_for(runner, 5)
+    await asyncio.wait_for(runner, REPLY_TIMEOUT_S + 5)  # the #qd! times out first
     assert bytes(silent.received) == b"#crcoff!#qd!#stop!"
     assert "■ STOP (Ctrl-X); 2 queued line(s) dropped" in screen.text()
     assert "#qd! got no valid reply" in screen.text()

@@ -17,6 +17,7 @@ from rovlink.client import ClientOptions
 from rovlink.client.links import Link
 from rovlink.client.options import StrayCallback
 from rovlink.monitor.app import MonitorApp
+from tests.client.conftest import REPLY_TIMEOUT_S
 from tests.monitor.screen import screen_text, shown
 from tests.operator.rig import RecordingLink, Rig, SilentController, until
 
@@ -85,14 +86,17 @@ async def test_a_silent_link_degrades_link_health_while_keys_still_work() -> Non
     silent = SilentController()
 
     def connect(on_stray: StrayCallback) -> Awaitable[AsyncClient]:
-        options = ClientOptions(timeout_s=1.0, retries=0, keepalive_s=None, on_stray=on_stray)
+        # Long enough for the first poll to be still waiting when space is pressed, however
+        # slow the machine; the test then waits it out to see the link's health degrade.
+        options = ClientOptions(timeout_s=REPLY_TIMEOUT_S, retries=0, keepalive_s=None,
+                                on_stray=on_stray)
         return AsyncClient(silent.link(), options).open()
 
     app = MonitorApp(connect, description="silent", rate_hz=10)
     async with app.run_test(size=SIZE) as pilot:
         await until(lambda: b"#qsa!" in silent.received)  # a poll is waiting for its reply
         await pilot.press("space")
-        await until(lambda: silent.received.endswith(b"#stop!"), timeout_s=0.8)
+        await until(lambda: silent.received.endswith(b"#stop!"))
         assert app.rov is not None
         assert app.rov.health.failures == 0  # sent while the poll still waited
         await until(lambda: "no reply" in shown(app, "#link"))
@@ -100,7 +104,7 @@ async def test_a_silent_link_degrades_link_health_while_keys_still_work() -> Non
         assert "no reading yet" in link
         assert re.search(r"timeouts [1-9]", link)
         await pilot.press("s")
-        await until(lambda: silent.received.endswith(b"#start!"), timeout_s=0.8)
+        await until(lambda: silent.received.endswith(b"#start!"))
         assert shown(app, "#depth-digits") == "—"
         await pilot.press("q")
         await until(lambda: silent.received.endswith(b"#stop!"))

@@ -15,6 +15,7 @@ from rovlink.client.links import Link, PortLink, SocketLink
 from rovlink.client.options import StrayCallback
 from rovlink.controller import ControllerConfig
 from rovlink.sim import SimConfig, SimulatedPort
+from tests.client.conftest import REPLY_TIMEOUT_S
 
 
 class RecordingLink:
@@ -68,7 +69,7 @@ class Rig:
     async def connect(self, on_stray: StrayCallback | None = None,
                       **options: object) -> AsyncClient:
         """An asyncio client on the link (no keep-alives: tests count frames)."""
-        settings: dict[str, object] = {"keepalive_s": None, "timeout_s": 0.5,
+        settings: dict[str, object] = {"keepalive_s": None, "timeout_s": REPLY_TIMEOUT_S,
                                        "on_stray": on_stray}
         settings.update(options)
         client = AsyncClient(self.link, ClientOptions(**settings))  # type: ignore[arg-type]

@@ -91,13 +91,13 @@ def test_close_wakes_a_blocked_reader() -> None:
 
 
 def test_the_realtime_thread_advances_simulated_time() -> None:
+    started_wall = time.monotonic()
     with open_port(seed=1, timeout=0.1) as port:
-        _wait_for(lambda: port.robot.time_s >= 0.2)
-        started_wall = time.monotonic()
-        started_sim = port.robot.time_s
-        _wait_for(lambda: port.robot.time_s >= started_sim + 0.3)
-        # Real time: 0.3 simulated seconds cannot pass in much less than 0.3 wall seconds.
-        assert time.monotonic() - started_wall > 0.2
+        _wait_for(lambda: port.robot.time_s >= 0.3)
+        simulated_s = port.robot.time_s
+        # Real time: a late thread catches up, but the simulation never runs ahead of the wall
+        # clock (a bound measured from the start, which no amount of load can break).
+        assert time.monotonic() - started_wall >= simulated_s
 
 
 def test_fast_mode_runs_far_ahead_of_the_wall_clock() -> None:

@@ -19,7 +19,8 @@ from typing import Protocol
 from rovlink.client.errors import ConnectionLostError
 from rovlink.client.links import FdLink, Link
 
-__all__ = ["ByteTransport", "FdTransport", "ThreadTransport", "transport_for"]
+# FdTransport and ThreadTransport are reached through transport_for, as a ByteTransport.
+__all__ = ["ByteTransport", "transport_for"]
 
 DataCallback = Callable[[bytes], None]
 LostCallback = Callable[[ConnectionLostError], None]
@@ -28,18 +29,43 @@ _THREAD_READ_WAIT_S = 0.25
 
 
 class ByteTransport(Protocol):
-    """Moves bytes between a link and the event loop."""
+    """Moves bytes between a link and the event loop.
+
+    Example::
+
+        transport = transport_for(link, asyncio.get_running_loop())
+        transport.start(on_data=received.extend, on_lost=lost.append)
+        transport.write(b"#qd!")
+        await transport.close()
+    """
 
     def start(self, on_data: DataCallback, on_lost: LostCallback) -> None:
-        """Begin delivering received bytes (and the loss of the link) to the callbacks."""
+        """Begin delivering received bytes (and the loss of the link) to the callbacks.
+
+        Both callbacks run in the event loop's thread.
+
+        Example::
+
+            transport.start(on_data=decoder_input.extend, on_lost=lost.append)
+        """
         ...
 
     def write(self, data: bytes) -> None:
-        """Queue ``data`` for the port without blocking; raise ConnectionLostError if it is gone."""
+        """Queue ``data`` for the port without blocking; raise ConnectionLostError if it is gone.
+
+        Example::
+
+            transport.write(b"#qd!")
+        """
         ...
 
     async def close(self) -> None:
-        """Stop and release the link."""
+        """Stop and release the link.
+
+        Example::
+
+            await transport.close()
+        """
         ...
 
 
@@ -172,7 +198,13 @@ class ThreadTransport:
 
 
 def transport_for(link: Link, loop: asyncio.AbstractEventLoop) -> ByteTransport:
-    """The native transport for ``link``: descriptor-driven when it has one."""
+    """The native transport for ``link``: descriptor-driven when it has one.
+
+    Example::
+
+        link = open_link(parse_url("socket://localhost:5760"))
+        transport = transport_for(link, asyncio.get_running_loop())
+    """
     if isinstance(link, FdLink):
         return FdTransport(link, loop)
     return ThreadTransport(link, loop)

@@ -31,24 +31,51 @@ _READ_BYTES = 65536
 
 
 class Link(Protocol):
-    """A bidirectional byte pipe to the controller."""
+    """A bidirectional byte pipe to the controller.
+
+    Example::
+
+        link = open_link(parse_url("socket://localhost:5760"))
+        client = Client(link)   # the client owns the link from here on
+    """
 
     description: str
 
     def read_available(self, timeout_s: float) -> bytes:
-        """Wait up to about ``timeout_s`` for bytes; return all that are waiting (maybe none)."""
+        """Wait up to about ``timeout_s`` for bytes; return all that are waiting (maybe none).
+
+        Example::
+
+            data = link.read_available(0.1)   # b"" if nothing came
+        """
         ...
 
     def write(self, data: bytes) -> None:
-        """Write all of ``data``."""
+        """Write all of ``data``.
+
+        Example::
+
+            link.write(b"#qd!")
+        """
         ...
 
     def wake(self) -> None:
-        """Make a ``read_available`` blocked in another thread return soon."""
+        """Make a ``read_available`` blocked in another thread return soon.
+
+        Example::
+
+            threading.Thread(target=link.read_available, args=(5.0,)).start()
+            link.wake()   # that read returns now rather than in 5 s
+        """
         ...
 
     def close(self) -> None:
-        """Release the port (idempotent)."""
+        """Release the port (idempotent).
+
+        Example::
+
+            link.close()
+        """
         ...
 
 
@@ -76,20 +103,40 @@ class FdLink:
         self._closed = False
 
     def fileno(self) -> int:
-        """The descriptor to watch for readability."""
+        """The descriptor to watch for readability.
+
+        Example::
+
+            loop.add_reader(link.fileno(), on_readable)
+        """
         return self._fd
 
     # Subclasses read and write without blocking; b"" / 0 mean "nothing now".
     def recv_some(self) -> bytes:
-        """Whatever is waiting now, b"" if nothing; raise ConnectionLostError at end of stream."""
+        """Whatever is waiting now, b"" if nothing; raise ConnectionLostError at end of stream.
+
+        Example::
+
+            data = link.recv_some()   # never blocks
+        """
         raise NotImplementedError
 
     def send_some(self, data: bytes | bytearray | memoryview) -> int:
-        """Write what fits now; the number of bytes written (0 if none fit)."""
+        """Write what fits now; the number of bytes written (0 if none fit).
+
+        Example::
+
+            unsent = data[link.send_some(data):]
+        """
         raise NotImplementedError
 
     def read_available(self, timeout_s: float) -> bytes:
-        """Wait up to ``timeout_s`` for bytes; return all that are waiting (maybe none)."""
+        """Wait up to ``timeout_s`` for bytes; return all that are waiting (maybe none).
+
+        Example::
+
+            data = link.read_available(0.1)   # b"" if nothing came
+        """
         if self._closed:
             raise ConnectionLostError(f"{self.description}: closed")
         fd = self._fd
@@ -111,7 +158,12 @@ class FdLink:
         return self.recv_some()
 
     def write(self, data: bytes) -> None:
-        """Write all of ``data``, waiting for room at most :data:`WRITE_TIMEOUT_S` at a time."""
+        """Write all of ``data``, waiting for room at most :data:`WRITE_TIMEOUT_S` at a time.
+
+        Example::
+
+            link.write(b"#qd!")
+        """
         written = self.send_some(data)
         if written == len(data):  # nearly always: a frame fits in the kernel's buffer
             return
@@ -130,12 +182,23 @@ class FdLink:
                     )
 
     def wake(self) -> None:
-        """Make a ``read_available`` blocked in another thread return now."""
+        """Make a ``read_available`` blocked in another thread return now.
+
+        Example::
+
+            threading.Thread(target=link.read_available, args=(5.0,)).start()
+            link.wake()   # that read returns now rather than in 5 s
+        """
         with contextlib.suppress(OSError):  # a wake-up already pending, or closed
             self._wake_w.send(b"x")
 
     def close(self) -> None:
-        """Close the port and the wake-up pipe (idempotent)."""
+        """Close the port and the wake-up pipe (idempotent).
+
+        Example::
+
+            link.close()
+        """
         if self._closed:
             return
         self._closed = True
@@ -151,7 +214,13 @@ class FdLink:
 
 
 class SerialFdLink(FdLink):
-    """A POSIX serial device or pseudo-terminal opened (and configured) by pyserial."""
+    """A POSIX serial device or pseudo-terminal opened (and configured) by pyserial.
+
+    Example::
+
+        port = serial.Serial("/dev/ttyUSB0", 115200, timeout=0)
+        link = SerialFdLink(port, "/dev/ttyUSB0 at 115200 baud")
+    """
 
     def __init__(self, port: Any, description: str) -> None:
         super().__init__(port.fileno())
@@ -160,7 +229,12 @@ class SerialFdLink(FdLink):
         os.set_blocking(self._fd, False)  # pyserial opens it so; make sure
 
     def recv_some(self) -> bytes:
-        """Whatever is waiting now; raise ConnectionLostError if the device went away."""
+        """Whatever is waiting now; raise ConnectionLostError if the device went away.
+
+        Example::
+
+            data = link.recv_some()   # b"" when nothing is waiting
+        """
         try:
             data = os.read(self._fd, _READ_BYTES)
         except BlockingIOError:
@@ -173,7 +247,12 @@ class SerialFdLink(FdLink):
         return data
 
     def send_some(self, data: bytes | bytearray | memoryview) -> int:
-        """Write what fits now."""
+        """Write what fits now; the number of bytes written (0 if none fit).
+
+        Example::
+
+            unsent = data[link.send_some(data):]
+        """
         try:
             return os.write(self._fd, data)
         except BlockingIOError:
@@ -187,7 +266,13 @@ class SerialFdLink(FdLink):
 
 
 class SocketLink(FdLink):
-    """A TCP connection (``socket://host:port``) with Nagle's algorithm off."""
+    """A TCP connection (``socket://host:port``) with Nagle's algorithm off.
+
+    Example::
+
+        sock = socket.create_connection(("localhost", 5760))
+        link = SocketLink(sock, "tcp localhost:5760")
+    """
 
     def __init__(self, sock: socket.socket, description: str) -> None:
         super().__init__(sock.fileno())
@@ -198,7 +283,12 @@ class SocketLink(FdLink):
             sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
 
     def recv_some(self) -> bytes:
-        """Whatever is waiting now; raise ConnectionLostError when the peer closed."""
+        """Whatever is waiting now; raise ConnectionLostError when the peer closed.
+
+        Example::
+
+            data = link.recv_some()   # b"" when nothing is waiting
+        """
         try:
             data = self._socket.recv(_READ_BYTES)
         except BlockingIOError:
@@ -210,7 +300,12 @@ class SocketLink(FdLink):
         return data
 
     def send_some(self, data: bytes | bytearray | memoryview) -> int:
-        """Write what fits now."""
+        """Write what fits now; the number of bytes written (0 if none fit).
+
+        Example::
+
+            unsent = data[link.send_some(data):]
+        """
         try:
             return self._socket.send(data)
         except BlockingIOError:
@@ -223,7 +318,12 @@ class SocketLink(FdLink):
 
 
 class PortLink:
-    """Any pyserial-like port: ``read``, ``in_waiting``, ``write``, ``close``, ``timeout``."""
+    """Any pyserial-like port: ``read``, ``in_waiting``, ``write``, ``close``, ``timeout``.
+
+    Example::
+
+        link = PortLink(serial.serial_for_url("loop://"), "loopback")
+    """
 
     def __init__(self, port: Any, description: str) -> None:
         self._port = port
@@ -233,11 +333,21 @@ class PortLink:
 
     @property
     def port(self) -> Any:
-        """The wrapped port object."""
+        """The wrapped port object.
+
+        Example::
+
+            print(link.port.name)
+        """
         return self._port
 
     def read_available(self, timeout_s: float) -> bytes:
-        """Wait up to :data:`POLL_INTERVAL_S` (not ``timeout_s``) for bytes; return all waiting."""
+        """Wait up to :data:`POLL_INTERVAL_S` (not ``timeout_s``) for bytes; return all waiting.
+
+        Example::
+
+            data = link.read_available(0.1)   # b"" if nothing came
+        """
         del timeout_s  # changing a pyserial timeout reconfigures the port: poll at a fixed rate
         if self._closed:
             raise ConnectionLostError(f"{self.description}: closed")
@@ -256,7 +366,12 @@ class PortLink:
             raise ConnectionLostError(f"{self.description}: {error}") from error
 
     def write(self, data: bytes) -> None:
-        """Write all of ``data``."""
+        """Write all of ``data``.
+
+        Example::
+
+            link.write(b"#qd!")
+        """
         if self._closed:
             raise ConnectionLostError(f"{self.description}: closed")
         try:
@@ -265,14 +380,24 @@ class PortLink:
             raise ConnectionLostError(f"{self.description}: {error}") from error
 
     def wake(self) -> None:
-        """Interrupt a blocked read where the port supports it; otherwise it returns on its own."""
+        """Interrupt a blocked read where the port supports it; otherwise it returns on its own.
+
+        Example::
+
+            link.wake()   # a read in another thread returns within POLL_INTERVAL_S
+        """
         cancel = getattr(self._port, "cancel_read", None)
         if cancel is not None:
             with contextlib.suppress(Exception):
                 cancel()
 
     def close(self) -> None:
-        """Close the port (idempotent)."""
+        """Close the port (idempotent).
+
+        Example::
+
+            link.close()
+        """
         if not self._closed:
             self._closed = True
             self._port.close()

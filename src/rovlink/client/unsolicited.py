@@ -17,6 +17,11 @@ def report(events: Iterable[Event], callback: StrayCallback | None) -> None:
     """Log each event (debug text at INFO, dropped frames at WARNING) and pass it on.
 
     A callback that raises is logged and otherwise ignored: it must not stop the reader.
+
+    Example::
+
+        received = session.receive(data, now)
+        report(received.unsolicited, options.on_stray)
     """
     for event in events:
         if isinstance(event, Text):
