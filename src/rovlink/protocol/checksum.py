@@ -13,6 +13,7 @@ from dataclasses import dataclass
 __all__ = [
     "ALGORITHMS",
     "DEFAULT_ALGORITHM",
+    "HEX_DIGITS",
     "ChecksumAlgorithm",
     "UnknownAlgorithmError",
     "crc8_smbus",
@@ -33,6 +34,9 @@ def _make_crc8_table(polynomial: int) -> tuple[int, ...]:
 
 
 _CRC8_SMBUS_TABLE = _make_crc8_table(0x07)
+#: The two uppercase hex digits of every byte value, as a checksum is sent: a lookup is cheaper
+#: than formatting on the decoder's hot path.
+HEX_DIGITS: tuple[bytes, ...] = tuple(b"%02X" % value for value in range(256))
 
 
 def crc8_smbus(data: bytes) -> int:
@@ -88,7 +92,11 @@ class ChecksumAlgorithm:
     def verify(self, body: bytes, digits: bytes) -> bool:
         """Whether ``digits`` (either case) is the checksum of ``body``."""
         # Only two hex digits can equal the rendering, so no separate syntax check is needed.
-        return b"%02X" % self.function(body) == digits.upper()
+        value = self.function(body)
+        if not 0 <= value <= 0xFF:  # not one byte: only a foreign function returns that
+            return b"%02X" % value == digits.upper()
+        expected = HEX_DIGITS[value]
+        return digits == expected or digits.upper() == expected
 
 
 ALGORITHMS: dict[str, ChecksumAlgorithm] = {

@@ -61,7 +61,9 @@ _BODY_STOP = re.compile(rb"[^\x22\x25-\x7e]")
 # A whole frame with nothing odd in it: the common case, taken without the byte-level states.
 _WHOLE_FRAME = re.compile(rb"[#$][\x22\x25-\x7e]{0,%d}!" % (MAX_FRAME_BYTES - 2))
 _LINE_BREAK = re.compile(rb"[\r\n]")
-_KIND_BY_START = {0x23: Kind.COMMAND, 0x24: Kind.RESPONSE}
+_START_BYTES = frozenset(b"#$")
+_COMMAND = Kind.COMMAND
+_RESPONSE = Kind.RESPONSE
 _MODE_FRAMES = {b"#crcon!": True, b"#crcoff!": False}
 _EXACT_MATCH_BODIES = frozenset(spec.name.encode() for spec in COMMANDS if spec.exact_match)
 _HONOURED_BARE_BODIES = frozenset(spec.name.encode() for spec in COMMANDS if spec.honoured_bare)
@@ -146,16 +148,14 @@ class Decoder:
         append = events.append
         caches = self._caches
         for raw in whole_frames:
-            mode = _MODE_FRAMES.get(raw)
-            if mode is not None:
-                append(self._complete(raw))
-                continue
             cache = caches[self.checksum_enabled]
             event = cache.get(raw)
             if event is None:
-                if len(cache) >= _CACHE_ENTRIES:
-                    cache.clear()
-                event = cache[raw] = self._complete(raw)
+                event = self._complete(raw)
+                if raw not in _MODE_FRAMES:  # never cached: each one changes the mode (P3)
+                    if len(cache) >= _CACHE_ENTRIES:
+                        cache.clear()
+                    cache[raw] = event
             append(event)
 
     def _feed_with_gaps(self, data: bytes, position: int, events: list[Event]) -> int:
@@ -240,7 +240,7 @@ class Decoder:
             self._frame = b""
             events.append(self._complete(frame + b"!"))
             return stop + 1
-        if byte in _KIND_BY_START:
+        if byte in _START_BYTES:
             self._frame = frame
             self._begin_frame(events)  # the start character abandons this frame ...
             self._frame = data[stop : stop + 1]  # ... and begins the next
@@ -294,30 +294,33 @@ class Decoder:
     # -- frames ---------------------------------------------------------------------------
 
     def _complete(self, frame: bytes) -> Event:
-        kind = _KIND_BY_START[frame[0]]
+        # Spelled out in one method, with no calls that can be avoided: every new frame comes here.
         body = frame[1:-1]
-        if kind is Kind.COMMAND and frame in _MODE_FRAMES:
-            self.checksum_enabled = _MODE_FRAMES[frame]
-        elif self.checksum_enabled and not (
-            kind is Kind.COMMAND and body in _HONOURED_BARE_BODIES
-        ):
-            digits = body[-2:]
-            body = body[:-2]
+        if frame[0] == 0x23:  # "#"
+            kind = _COMMAND
+            mode = _MODE_FRAMES.get(frame)
+            if mode is not None:
+                self.checksum_enabled = mode
+                checked = False
+            else:
+                checked = self.checksum_enabled and body not in _HONOURED_BARE_BODIES
+        else:
+            kind = _RESPONSE
+            checked = self.checksum_enabled
+        if checked:
+            digits = frame[-3:-1]
+            body = frame[1:-3]
             if not body or not self._algorithm.verify(body, digits):
                 return BadFrame(
                     Reason.CHECKSUM, frame, f"missing or wrong {self._algorithm.name} checksum"
                 )
-            if kind is Kind.COMMAND and body in _EXACT_MATCH_BODIES:
+            if kind is _COMMAND and body in _EXACT_MATCH_BODIES:
                 # "#crcoff3F!" is not "#crcoff!": taking it would report a mode change that the
                 # exact-match rule says did not happen (P3).
                 return BadFrame(
                     Reason.MALFORMED, frame, f"{body.decode()} never carries a checksum"
                 )
-        return self._parse(kind, body, frame)
-
-    @staticmethod
-    def _parse(kind: Kind, body: bytes, frame: bytes) -> Event:
-        if not body:
+        elif not body:
             return BadFrame(Reason.MALFORMED, frame, "empty frame")
         try:
             message = decode_body(kind, body)

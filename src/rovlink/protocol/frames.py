@@ -7,7 +7,6 @@ says why it is not one.
 
 from __future__ import annotations
 
-import re
 from enum import StrEnum
 
 from rovlink.protocol.checksum import ChecksumAlgorithm, get_algorithm
@@ -135,55 +134,76 @@ def parse_body(kind: Kind, body: str) -> Message:
     return _MESSAGE_CLASS[kind](spec.name, tuple(values))
 
 
-_FastEntry = tuple[Spec, "re.Pattern[bytes]", type[Message], tuple[tuple[int, int], ...]]
+# What the fast path needs to parse the values of one spelling: its spec, the message class, the
+# rest of its name after the first "." (with its own "."), the value count, and per value whether
+# it is signed and its range.
+_Valued = tuple[Spec, type[Message], bytes, int, bool, int, int, bool, int, int]
 
 
-def _fast_entries(kind: Kind) -> dict[bytes, list[_FastEntry]]:
-    """Per first name segment, the specs whose remaining name and values one regex matches."""
-    entries: dict[bytes, list[_FastEntry]] = {}
+def _fast_tables(kind: Kind) -> tuple[dict[bytes, Spec], dict[bytes, _Valued]]:
+    """The spellings without values by body, and those with one or two values by the first
+    segment of their name (where that segment names one such spelling only)."""
+    bare: dict[bytes, Spec] = {}
+    valued: dict[bytes, list[_Valued]] = {}
+    cls = _MESSAGE_CLASS[kind]
     for spelling, spec in SPELLINGS[kind].items():
-        head, _, name_rest = spelling.partition(".")
-        parts = [re.escape(name_rest)] if name_rest else []
-        parts += ["([+-]?[0-9]+)" if a.signed else "([0-9]+)" for a in spec.arguments]
-        pattern = re.compile(r"\.".join(parts).encode())
-        bounds = tuple((a.minimum, a.maximum) for a in spec.arguments)
-        entries.setdefault(head.encode(), []).append(
-            (spec, pattern, _MESSAGE_CLASS[kind], bounds)
-        )
-    return entries
+        arguments = spec.arguments
+        if not arguments:
+            bare[spelling.encode()] = spec
+        elif len(arguments) <= 2:
+            head, _, name_rest = spelling.partition(".")
+            first, second = arguments[0], arguments[-1]
+            valued.setdefault(head.encode(), []).append((
+                spec, cls, (name_rest + "." if name_rest else "").encode(), len(arguments),
+                first.signed, first.minimum, first.maximum,
+                second.signed, second.minimum, second.maximum,
+            ))
+    return bare, {head: entries[0] for head, entries in valued.items() if len(entries) == 1}
 
 
-_FAST = {kind: _fast_entries(kind) for kind in Kind}
+_FAST = {kind: _fast_tables(kind) for kind in Kind}
+
+
+def _is_number(token: bytes, signed: bool) -> bool:
+    """Whether ``token`` is decimal digits, after a sign if ``signed`` (``bytes.isdigit`` is
+    ASCII only)."""
+    return token.isdigit() or (signed and token[1:].isdigit() and token[0] in b"+-")
 
 
 def decode_body(kind: Kind, body: bytes) -> Message:
     """As :func:`parse_body`, for the raw bytes of a body: the decoder's fast path.
 
-    Well-formed bodies in the canonical forms are matched by one precompiled regex per command;
+    Well-formed bodies in the canonical forms are taken by table lookups and ``bytes.isdigit``;
     anything else goes to :func:`parse_body`, which names the exact problem.
 
     >>> decode_body(Kind.COMMAND, b"th.270.25")
     Command(name='th', values=(270, 25))
     """
+    bare, valued = _FAST[kind]
     head, dot, rest = body.partition(b".")
-    for spec, pattern, cls, bounds in _FAST[kind].get(head, ()):
-        if not dot:
-            if not bounds and not pattern.pattern:  # a bare name such as "qd" or "stop"
-                return trusted_message(cls, spec, ())
-            continue
-        match = pattern.fullmatch(rest) if pattern.pattern else None
-        if match is None:
-            continue
-        # One or two values: every command of the table. Spelled out, as this is the hot path.
-        if len(bounds) == 1:
-            value = int(match.group(1))
-            (minimum, maximum), = bounds
-            if minimum <= value <= maximum:
-                return trusted_message(cls, spec, (value,))
-        elif len(bounds) == 2:
-            first_text, second_text = match.groups()
-            first, second = int(first_text), int(second_text)
-            (first_min, first_max), (second_min, second_max) = bounds
-            if first_min <= first <= first_max and second_min <= second <= second_max:
-                return trusted_message(cls, spec, (first, second))
+    entry = valued.get(head) if dot else None
+    if entry is not None:
+        spec, cls, name_rest, count, signed, minimum, maximum, signed_2, minimum_2, maximum_2 = (
+            entry
+        )
+        if name_rest:  # a name with a "." in it, such as "q.l"
+            if not rest.startswith(name_rest):
+                return parse_body(kind, body.decode("ascii", errors="replace"))
+            rest = rest[len(name_rest) :]
+        # Spelled out for one and two values (every command of the table): the hot path.
+        if count == 1:
+            if rest.isdigit() or (signed and rest[1:].isdigit() and rest[0] in b"+-"):
+                value = int(rest)
+                if minimum <= value <= maximum:
+                    return trusted_message(cls, spec, (value,))
+        else:
+            first_text, _, second_text = rest.partition(b".")
+            if _is_number(first_text, signed) and _is_number(second_text, signed_2):
+                first, second = int(first_text), int(second_text)
+                if minimum <= first <= maximum and minimum_2 <= second <= maximum_2:
+                    return trusted_message(cls, spec, (first, second))
+    else:
+        spec = bare.get(body)
+        if spec is not None:  # a bare name such as "qd", "stop" or "q.l"
+            return trusted_message(_MESSAGE_CLASS[kind], spec, ())
     return parse_body(kind, body.decode("ascii", errors="replace"))
