@@ -12,6 +12,7 @@ from dataclasses import dataclass
 
 __all__ = [
     "ALGORITHMS",
+    "CRC8_SMBUS_TABLE",
     "DEFAULT_ALGORITHM",
     "HEX_DIGITS",
     "ChecksumAlgorithm",
@@ -33,7 +34,8 @@ def _make_crc8_table(polynomial: int) -> tuple[int, ...]:
     return tuple(table)
 
 
-_CRC8_SMBUS_TABLE = _make_crc8_table(0x07)
+#: The CRC-8/SMBUS of every byte value (for callers that run the table loop inline).
+CRC8_SMBUS_TABLE = _make_crc8_table(0x07)
 #: The two uppercase hex digits of every byte value, as a checksum is sent: a lookup is cheaper
 #: than formatting on the decoder's hot path.
 HEX_DIGITS: tuple[bytes, ...] = tuple(b"%02X" % value for value in range(256))
@@ -46,7 +48,7 @@ def crc8_smbus(data: bytes) -> int:
     '0xf4'
     """
     crc = 0
-    table = _CRC8_SMBUS_TABLE
+    table = CRC8_SMBUS_TABLE
     for byte in data:
         crc = table[crc ^ byte]
     return crc

@@ -11,7 +11,14 @@ from __future__ import annotations
 import re
 from dataclasses import dataclass
 
-from rovlink.protocol.checksum import DEFAULT_ALGORITHM, ChecksumAlgorithm, get_algorithm
+from rovlink.protocol.checksum import (
+    CRC8_SMBUS_TABLE,
+    DEFAULT_ALGORITHM,
+    HEX_DIGITS,
+    ChecksumAlgorithm,
+    crc8_smbus,
+    get_algorithm,
+)
 from rovlink.protocol.commands import COMMANDS, Kind
 from rovlink.protocol.frames import MAX_FRAME_BYTES, FrameError, Reason, decode_body
 from rovlink.protocol.messages import Message
@@ -310,7 +317,15 @@ class Decoder:
         if checked:
             digits = frame[-3:-1]
             body = frame[1:-3]
-            if not body or not self._algorithm.verify(body, digits):
+            if self._algorithm.function is crc8_smbus and body:  # the default, inline
+                crc = 0
+                for byte in body:
+                    crc = CRC8_SMBUS_TABLE[crc ^ byte]
+                expected = HEX_DIGITS[crc]
+                verified = digits == expected or digits.upper() == expected
+            else:
+                verified = bool(body) and self._algorithm.verify(body, digits)
+            if not verified:
                 return BadFrame(
                     Reason.CHECKSUM, frame, f"missing or wrong {self._algorithm.name} checksum"
                 )

@@ -203,7 +203,7 @@ def decode_body(kind: Kind, body: bytes) -> Message:
                 if minimum <= first <= maximum and minimum_2 <= second <= maximum_2:
                     return trusted_message(cls, spec, (first, second))
     else:
-        spec = bare.get(body)
-        if spec is not None:  # a bare name such as "qd", "stop" or "q.l"
-            return trusted_message(_MESSAGE_CLASS[kind], spec, ())
+        bare_spec = bare.get(body)
+        if bare_spec is not None:  # a bare name such as "qd", "stop" or "q.l"
+            return trusted_message(_MESSAGE_CLASS[kind], bare_spec, ())
     return parse_body(kind, body.decode("ascii", errors="replace"))
