@@ -73,7 +73,9 @@ _COMMAND = Kind.COMMAND
 _RESPONSE = Kind.RESPONSE
 _MODE_FRAMES = {b"#crcon!": True, b"#crcoff!": False}
 _EXACT_MATCH_BODIES = frozenset(spec.name.encode() for spec in COMMANDS if spec.exact_match)
-_HONOURED_BARE_BODIES = frozenset(spec.name.encode() for spec in COMMANDS if spec.honoured_bare)
+_HONOURED_BARE_FRAMES = frozenset(
+    b"#" + spec.name.encode() + b"!" for spec in COMMANDS if spec.honoured_bare
+)
 #: Decoded frames remembered per decoder: telemetry repeats itself, and a hit skips the checksum
 #: and the parse. Bounded so that a stream of ever-new frames cannot grow memory.
 _CACHE_ENTRIES = 512
@@ -302,7 +304,6 @@ class Decoder:
 
     def _complete(self, frame: bytes) -> Event:
         # Spelled out in one method, with no calls that can be avoided: every new frame comes here.
-        body = frame[1:-1]
         if frame[0] == 0x23:  # "#"
             kind = _COMMAND
             mode = _MODE_FRAMES.get(frame)
@@ -310,7 +311,7 @@ class Decoder:
                 self.checksum_enabled = mode
                 checked = False
             else:
-                checked = self.checksum_enabled and body not in _HONOURED_BARE_BODIES
+                checked = self.checksum_enabled and frame not in _HONOURED_BARE_FRAMES
         else:
             kind = _RESPONSE
             checked = self.checksum_enabled
@@ -335,8 +336,10 @@ class Decoder:
                 return BadFrame(
                     Reason.MALFORMED, frame, f"{body.decode()} never carries a checksum"
                 )
-        elif not body:
-            return BadFrame(Reason.MALFORMED, frame, "empty frame")
+        else:
+            body = frame[1:-1]
+            if not body:
+                return BadFrame(Reason.MALFORMED, frame, "empty frame")
         try:
             message = decode_body(kind, body)
         except FrameError as error:

@@ -164,12 +164,6 @@ def _fast_tables(kind: Kind) -> tuple[dict[bytes, Spec], dict[bytes, _Valued]]:
 _FAST = {kind: _fast_tables(kind) for kind in Kind}
 
 
-def _is_number(token: bytes, signed: bool) -> bool:
-    """Whether ``token`` is decimal digits, after a sign if ``signed`` (``bytes.isdigit`` is
-    ASCII only)."""
-    return token.isdigit() or (signed and token[1:].isdigit() and token[0] in b"+-")
-
-
 def decode_body(kind: Kind, body: bytes) -> Message:
     """As :func:`parse_body`, for the raw bytes of a body: the decoder's fast path.
 
@@ -190,7 +184,8 @@ def decode_body(kind: Kind, body: bytes) -> Message:
             if not rest.startswith(name_rest):
                 return parse_body(kind, body.decode("ascii", errors="replace"))
             rest = rest[len(name_rest) :]
-        # Spelled out for one and two values (every command of the table): the hot path.
+        # Spelled out for one and two values (every command of the table): the hot path. A value
+        # is ASCII digits (bytes.isdigit is ASCII only), after a sign if the argument is signed.
         if count == 1:
             if rest.isdigit() or (signed and rest[1:].isdigit() and rest[0] in b"+-"):
                 value = int(rest)
@@ -198,7 +193,13 @@ def decode_body(kind: Kind, body: bytes) -> Message:
                     return trusted_message(cls, spec, (value,))
         else:
             first_text, _, second_text = rest.partition(b".")
-            if _is_number(first_text, signed) and _is_number(second_text, signed_2):
+            if (
+                first_text.isdigit()
+                or (signed and first_text[1:].isdigit() and first_text[0] in b"+-")
+            ) and (
+                second_text.isdigit()
+                or (signed_2 and second_text[1:].isdigit() and second_text[0] in b"+-")
+            ):
                 first, second = int(first_text), int(second_text)
                 if minimum <= first <= maximum and minimum_2 <= second <= maximum_2:
                     return trusted_message(cls, spec, (first, second))
