@@ -464,7 +464,7 @@ class Client:
         if data in (b"#crcon!", b"#crcoff!"):
             self.set_checksum(data == b"#crcon!")
             return ()
-        pending = self._send_query(lambda now: (data, self._session.raw(data, now)))
+        pending = self._send_query(data)
         if pending is None:
             return ()
         outcome = self._wait(pending)
@@ -529,12 +529,11 @@ class Client:
 
     def _request(self, command: Command) -> tuple[Response, ...]:
         failures: list[str] = []
-        session = self._session
         for attempt in range(self._options.retries + 1):
             if attempt:
                 with self._state_lock:
-                    session.counters.retries += 1
-            pending = self._send_query(lambda now: session.query(command, now))
+                    self._session.counters.retries += 1
+            pending = self._send_query(command)
             assert pending is not None
             outcome = self._wait(pending)
             if outcome is Outcome.ANSWERED:
@@ -544,24 +543,25 @@ class Client:
             failures.append(outcome.value)
         raise QueryTimeoutError(command, failures, self._options.timeout_s)
 
-    def _send_query(
-        self, encode: Callable[[float], tuple[bytes, PendingQuery | None]]
-    ) -> PendingQuery | None:
-        """Queue and write a query (``encode`` gives its bytes and queue entry at a time).
+    def _send_query(self, query: Command | bytes) -> PendingQuery | None:
+        """Queue and write a query: a command, or a raw frame (which may be no query at all).
 
         The caller counts as active until :meth:`_wait` returns, so the background reader
         stays out of its way; if the background reader is reading, it is woken to step aside.
         """
-        me = threading.get_ident()
+        session = self._session
         while True:
             with self._wire_lock:
                 with self._state_lock:
                     if self._lost is not None or self._closing:
                         raise self._lost_error()
                     switcher = self._mode_switcher
-                    ready = switcher is None or switcher == me
+                    ready = switcher is None or switcher == threading.get_ident()
                     if ready:
-                        data, pending = encode(self._clock())
+                        if isinstance(query, Command):
+                            data, pending = session.query(query, self._clock())
+                        else:
+                            data, pending = query, session.raw(query, self._clock())
                         if pending is not None:
                             self._active_callers += 1
                         background_reading = self._reader_ident == self._background_ident
@@ -574,6 +574,7 @@ class Client:
                         raise
                     break
             # A checksum switch is draining the queue: wait for it outside the wire lock.
+            me = threading.get_ident()
             with self._state_lock:
                 while self._mode_switcher not in (None, me):
                     self._wait_for_change(None)
@@ -588,12 +589,13 @@ class Client:
         """
         lock = self._state_lock
         session = self._session
-        unsolicited: list[Event] = []
+        clock = self._clock
+        unsolicited: list[Event] | None = None
         me = threading.get_ident()
         lock.acquire()
         try:
+            now = clock()
             while pending.outcome is Outcome.PENDING:
-                now = self._clock()
                 remaining = session.deadline(pending) - now
                 if remaining <= 0:
                     session.expire(now)
@@ -611,19 +613,24 @@ class Client:
                     finally:
                         lock.acquire()
                         self._reader_ident = None
+                    now = clock()
                     if lost is not None:
                         self._lose(lost)
                     elif data:
-                        received = session.receive(data, self._clock())
+                        received = session.receive(data, now)
                         if received.unsolicited:
+                            if unsolicited is None:
+                                unsolicited = []
                             unsolicited += received.unsolicited
                     if self._waiting_callers:
                         self._changed.notify_all()
+                    continue  # ``now`` is fresh
+                now = clock()
             return pending.outcome
         finally:
             if owned:
                 self._active_callers -= 1
-                self._last_caller_at = self._clock()
+                self._last_caller_at = now
             lock.release()
             if unsolicited:
                 report(unsolicited, self._options.on_stray)
