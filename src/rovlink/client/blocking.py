@@ -98,6 +98,8 @@ class Client:
             daemon=True,
         )
         self._background_ident: int | None = None
+        # Links over a descriptor write without blocking: queries then take a shorter path.
+        self._send_now: Callable[[bytes], int] | None = getattr(link, "send_some", None)
         try:
             self._send(operations.checksum(self._options.checksum))
         except BaseException:
@@ -533,15 +535,63 @@ class Client:
             if attempt:
                 with self._state_lock:
                     self._session.counters.retries += 1
-            pending = self._send_query(command)
-            assert pending is not None
-            outcome = self._wait(pending)
+            pending = self._send_query_holding_state(command) if self._send_now else None
+            if pending is not None:
+                outcome = self._wait(pending, holding_state=True)
+            else:
+                pending = self._send_query(command)
+                assert pending is not None
+                outcome = self._wait(pending)
             if outcome is Outcome.ANSWERED:
                 return tuple(pending.responses)
             if outcome is Outcome.DISCONNECTED:
                 raise self._lost_error()
             failures.append(outcome.value)
         raise QueryTimeoutError(command, failures, self._options.timeout_s)
+
+    def _send_query_holding_state(self, command: Command) -> PendingQuery | None:
+        """Write and queue a query on a link that writes without blocking; return holding the
+        state lock, or None (not holding it) while a checksum switch needs the general path.
+
+        The frame is written first and queued after, both under the state lock (so that no
+        reader can feed its reply to the session before it is queued): the bookkeeping then
+        overlaps the controller's turnaround instead of delaying the frame.
+        """
+        send_now = self._send_now
+        assert send_now is not None
+        lock = self._state_lock
+        session = self._session
+        with self._wire_lock:
+            lock.acquire()
+            try:
+                if self._lost is not None or self._closing:
+                    raise self._lost_error()
+                if self._mode_switcher is not None:
+                    lock.release()
+                    return None
+                data = session.query_bytes(command)
+                try:
+                    written = send_now(data)  # never blocks: the state lock is not held long
+                except ConnectionLostError as error:
+                    self._lose(error)
+                    raise self._lost_error() from error
+            except BaseException:
+                lock.release()
+                raise
+            _, pending = session.query(command, self._clock())
+            self._active_callers += 1
+            background_reading = self._reader_ident == self._background_ident
+            if written < len(data):  # the kernel's buffer is full: wait for room unlocked
+                lock.release()
+                try:
+                    self._write(data[written:])
+                except ConnectionLostError:
+                    self._wait(pending)  # settled already: stops counting as active
+                    raise
+                lock.acquire()
+        if background_reading:
+            self._link.wake()
+        return pending
 
     def _send_query(self, query: Command | bytes) -> PendingQuery | None:
         """Queue and write a query: a command, or a raw frame (which may be no query at all).
@@ -550,6 +600,7 @@ class Client:
         stays out of its way; if the background reader is reading, it is woken to step aside.
         """
         session = self._session
+        pending: PendingQuery | None
         while True:
             with self._wire_lock:
                 with self._state_lock:
@@ -582,17 +633,20 @@ class Client:
             self._link.wake()
         return pending
 
-    def _wait(self, pending: PendingQuery, *, owned: bool = True) -> Outcome:
+    def _wait(self, pending: PendingQuery, *, owned: bool = True,
+              holding_state: bool = False) -> Outcome:
         """Wait until the attempt settles, reading the port whenever nobody else is.
 
-        ``owned``: the caller queued ``pending`` (and stops counting as active here).
+        ``owned``: the caller queued ``pending`` (and stops counting as active here);
+        ``holding_state``: the caller holds the state lock already (released here).
         """
         lock = self._state_lock
         session = self._session
         clock = self._clock
         unsolicited: list[Event] | None = None
         me = threading.get_ident()
-        lock.acquire()
+        if not holding_state:
+            lock.acquire()
         try:
             now = clock()
             while pending.outcome is Outcome.PENDING:

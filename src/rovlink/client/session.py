@@ -190,21 +190,9 @@ class Session:
         """The bytes of a query, and its entry at the back of the queue.
 
         Write the bytes before anything else is written: the queue's order is the wire's.
+        (Or write :meth:`query_bytes` first and queue the query before any reply can be fed.)
         """
-        # The same query object again (a polling loop): no hashing (a dataclass hashes in Python).
-        if command is self._last_query:
-            data = self._last_query_bytes
-        else:
-            cached = self._query_bytes.get(command)
-            if cached is None:
-                if not command.spec.is_query:
-                    raise ValueError(f"{command} expects no reply: use Session.command")
-                cached = self.frame_for(command)
-                if len(self._query_bytes) < _QUERY_BYTES_CACHED:
-                    self._query_bytes[command] = cached
-            data = cached
-            self._last_query = command
-            self._last_query_bytes = data
+        data = self.query_bytes(command)
         counters = self.counters
         counters.frames_sent += 1
         counters.bytes_sent += len(data)
@@ -214,6 +202,27 @@ class Session:
         if keepalive:
             self.counters.keepalives += 1
         return data, pending
+
+    def query_bytes(self, command: Command) -> bytes:
+        """The bytes of a query in the current checksum mode (without queueing it).
+
+        Example::
+
+            Session().query_bytes(Command("qd"))  # b"#qd!"
+        """
+        # The same query object again (a polling loop): no hashing (a dataclass hashes in Python).
+        if command is self._last_query:
+            return self._last_query_bytes
+        data = self._query_bytes.get(command)
+        if data is None:
+            if not command.spec.is_query:
+                raise ValueError(f"{command} expects no reply: use Session.command")
+            data = self.frame_for(command)
+            if len(self._query_bytes) < _QUERY_BYTES_CACHED:
+                self._query_bytes[command] = data
+        self._last_query = command
+        self._last_query_bytes = data
+        return data
 
     def raw(self, frame: bytes, now: float) -> PendingQuery | None:
         """Account for a raw frame sent as it is; a query in it joins the queue.
