@@ -40,6 +40,9 @@ T = TypeVar("T")
 #: The query sent when the link has been idle: any valid frame feeds the controller's watchdog
 #: (P17), and a query also proves the controller is still answering.
 KEEPALIVE_QUERY = Command("qd")
+# Plain names for the members used per query: an enum member costs a descriptor call to look up.
+_PENDING = Outcome.PENDING
+_ANSWERED = Outcome.ANSWERED
 #: The background reader looks around (deadlines, keep-alive, close) at least this often.
 _MAX_READ_WAIT_S = 0.25
 #: The background reader takes the role back once callers have been quiet this long: a program
@@ -542,7 +545,7 @@ class Client:
                 pending = self._send_query(command)
                 assert pending is not None
                 outcome = self._wait(pending)
-            if outcome is Outcome.ANSWERED:
+            if outcome is _ANSWERED:
                 return tuple(pending.responses)
             if outcome is Outcome.DISCONNECTED:
                 raise self._lost_error()
@@ -649,7 +652,7 @@ class Client:
             lock.acquire()
         try:
             now = clock()
-            while pending.outcome is Outcome.PENDING:
+            while pending.outcome is _PENDING:
                 remaining = session.deadline(pending) - now
                 if remaining <= 0:
                     session.expire(now)

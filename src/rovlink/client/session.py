@@ -61,6 +61,11 @@ class Outcome(StrEnum):
     DISCONNECTED = "disconnected"
 
 
+# Plain names for the members used per reply: an enum member costs a descriptor call to look up.
+_PENDING = Outcome.PENDING
+_ANSWERED = Outcome.ANSWERED
+
+
 class PendingQuery:
     """One query on the wire, waiting for its replies."""
 
@@ -73,7 +78,7 @@ class PendingQuery:
         #: The names of the replies, in order.
         self.expected: tuple[str, ...] = command.spec.replies
         self.responses: list[Response] = []
-        self.outcome = Outcome.PENDING
+        self.outcome = _PENDING
         #: The client's handle to wake the caller (an ``asyncio.Future``), if it needs one.
         self.waiter: object = None
 
@@ -83,7 +88,7 @@ class PendingQuery:
     @property
     def settled(self) -> bool:
         """Whether the attempt is over, one way or the other."""
-        return self.outcome is not Outcome.PENDING
+        return self.outcome is not _PENDING
 
 
 class Received:
@@ -270,7 +275,7 @@ class Session:
                             self._last_progress_at = now
                             if len(responses) == len(expected):
                                 pending.popleft()
-                                head.outcome = Outcome.ANSWERED
+                                head.outcome = _ANSWERED
                                 counters.replies += 1
                                 result.settled.append(head)
                             continue
@@ -347,7 +352,7 @@ class Session:
         query.responses.append(response)
         self._last_progress_at = now
         if len(query.responses) == len(query.expected):
-            self._settle(query, Outcome.ANSWERED)
+            self._settle(query, _ANSWERED)
             self.counters.replies += 1
             settled.append(query)
 
