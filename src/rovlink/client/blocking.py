@@ -40,6 +40,9 @@ T = TypeVar("T")
 #: The query sent when the link has been idle: any valid frame feeds the controller's watchdog
 #: (P17), and a query also proves the controller is still answering.
 KEEPALIVE_QUERY = Command("qd")
+# Plain names for the members used per query: an enum member costs a descriptor call to look up.
+_PENDING = Outcome.PENDING
+_ANSWERED = Outcome.ANSWERED
 #: The background reader looks around (deadlines, keep-alive, close) at least this often.
 _MAX_READ_WAIT_S = 0.25
 #: The background reader takes the role back once callers have been quiet this long: a program
@@ -98,6 +101,8 @@ class Client:
             daemon=True,
         )
         self._background_ident: int | None = None
+        # Links over a descriptor write without blocking: queries then take a shorter path.
+        self._send_now: Callable[[bytes], int] | None = getattr(link, "send_some", None)
         try:
             self._send(operations.checksum(self._options.checksum))
         except BaseException:
@@ -464,7 +469,7 @@ class Client:
         if data in (b"#crcon!", b"#crcoff!"):
             self.set_checksum(data == b"#crcon!")
             return ()
-        pending = self._send_query(lambda now: (data, self._session.raw(data, now)))
+        pending = self._send_query(data)
         if pending is None:
             return ()
         outcome = self._wait(pending)
@@ -529,39 +534,88 @@ class Client:
 
     def _request(self, command: Command) -> tuple[Response, ...]:
         failures: list[str] = []
-        session = self._session
         for attempt in range(self._options.retries + 1):
             if attempt:
                 with self._state_lock:
-                    session.counters.retries += 1
-            pending = self._send_query(lambda now: session.query(command, now))
-            assert pending is not None
-            outcome = self._wait(pending)
-            if outcome is Outcome.ANSWERED:
+                    self._session.counters.retries += 1
+            pending = self._send_query_holding_state(command) if self._send_now else None
+            if pending is not None:
+                outcome = self._wait(pending, holding_state=True)
+            else:
+                pending = self._send_query(command)
+                assert pending is not None
+                outcome = self._wait(pending)
+            if outcome is _ANSWERED:
                 return tuple(pending.responses)
             if outcome is Outcome.DISCONNECTED:
                 raise self._lost_error()
             failures.append(outcome.value)
         raise QueryTimeoutError(command, failures, self._options.timeout_s)
 
-    def _send_query(
-        self, encode: Callable[[float], tuple[bytes, PendingQuery | None]]
-    ) -> PendingQuery | None:
-        """Queue and write a query (``encode`` gives its bytes and queue entry at a time).
+    def _send_query_holding_state(self, command: Command) -> PendingQuery | None:
+        """Write and queue a query on a link that writes without blocking; return holding the
+        state lock, or None (not holding it) while a checksum switch needs the general path.
+
+        The frame is written first and queued after, both under the state lock (so that no
+        reader can feed its reply to the session before it is queued): the bookkeeping then
+        overlaps the controller's turnaround instead of delaying the frame.
+        """
+        send_now = self._send_now
+        assert send_now is not None
+        lock = self._state_lock
+        session = self._session
+        with self._wire_lock:
+            lock.acquire()
+            try:
+                if self._lost is not None or self._closing:
+                    raise self._lost_error()
+                if self._mode_switcher is not None:
+                    lock.release()
+                    return None
+                data = session.query_bytes(command)
+                try:
+                    written = send_now(data)  # never blocks: the state lock is not held long
+                except ConnectionLostError as error:
+                    self._lose(error)
+                    raise self._lost_error() from error
+            except BaseException:
+                lock.release()
+                raise
+            _, pending = session.query(command, self._clock())
+            self._active_callers += 1
+            background_reading = self._reader_ident == self._background_ident
+            if written < len(data):  # the kernel's buffer is full: wait for room unlocked
+                lock.release()
+                try:
+                    self._write(data[written:])
+                except ConnectionLostError:
+                    self._wait(pending)  # settled already: stops counting as active
+                    raise
+                lock.acquire()
+        if background_reading:
+            self._link.wake()
+        return pending
+
+    def _send_query(self, query: Command | bytes) -> PendingQuery | None:
+        """Queue and write a query: a command, or a raw frame (which may be no query at all).
 
         The caller counts as active until :meth:`_wait` returns, so the background reader
         stays out of its way; if the background reader is reading, it is woken to step aside.
         """
-        me = threading.get_ident()
+        session = self._session
+        pending: PendingQuery | None
         while True:
             with self._wire_lock:
                 with self._state_lock:
                     if self._lost is not None or self._closing:
                         raise self._lost_error()
                     switcher = self._mode_switcher
-                    ready = switcher is None or switcher == me
+                    ready = switcher is None or switcher == threading.get_ident()
                     if ready:
-                        data, pending = encode(self._clock())
+                        if isinstance(query, Command):
+                            data, pending = session.query(query, self._clock())
+                        else:
+                            data, pending = query, session.raw(query, self._clock())
                         if pending is not None:
                             self._active_callers += 1
                         background_reading = self._reader_ident == self._background_ident
@@ -574,6 +628,7 @@ class Client:
                         raise
                     break
             # A checksum switch is draining the queue: wait for it outside the wire lock.
+            me = threading.get_ident()
             with self._state_lock:
                 while self._mode_switcher not in (None, me):
                     self._wait_for_change(None)
@@ -581,19 +636,23 @@ class Client:
             self._link.wake()
         return pending
 
-    def _wait(self, pending: PendingQuery, *, owned: bool = True) -> Outcome:
+    def _wait(self, pending: PendingQuery, *, owned: bool = True,
+              holding_state: bool = False) -> Outcome:
         """Wait until the attempt settles, reading the port whenever nobody else is.
 
-        ``owned``: the caller queued ``pending`` (and stops counting as active here).
+        ``owned``: the caller queued ``pending`` (and stops counting as active here);
+        ``holding_state``: the caller holds the state lock already (released here).
         """
         lock = self._state_lock
         session = self._session
-        unsolicited: list[Event] = []
+        clock = self._clock
+        unsolicited: list[Event] | None = None
         me = threading.get_ident()
-        lock.acquire()
+        if not holding_state:
+            lock.acquire()
         try:
-            while pending.outcome is Outcome.PENDING:
-                now = self._clock()
+            now = clock()
+            while pending.outcome is _PENDING:
                 remaining = session.deadline(pending) - now
                 if remaining <= 0:
                     session.expire(now)
@@ -611,19 +670,24 @@ class Client:
                     finally:
                         lock.acquire()
                         self._reader_ident = None
+                    now = clock()
                     if lost is not None:
                         self._lose(lost)
                     elif data:
-                        received = session.receive(data, self._clock())
+                        received = session.receive(data, now)
                         if received.unsolicited:
+                            if unsolicited is None:
+                                unsolicited = []
                             unsolicited += received.unsolicited
                     if self._waiting_callers:
                         self._changed.notify_all()
+                    continue  # ``now`` is fresh
+                now = clock()
             return pending.outcome
         finally:
             if owned:
                 self._active_callers -= 1
-                self._last_caller_at = self._clock()
+                self._last_caller_at = now
             lock.release()
             if unsolicited:
                 report(unsolicited, self._options.on_stray)

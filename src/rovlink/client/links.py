@@ -144,10 +144,22 @@ class FdLink:
             if self._poll is not None:
                 events = self._poll.poll(max(timeout_s, 0.0) * 1000.0)
                 if len(events) == 1 and events[0][0] == fd:  # the usual case: only the port
-                    return self.recv_some()
+                    # Read in place, not through recv_some: after a sleep in poll every call
+                    # layer costs cache misses. A descriptor read serves devices and sockets.
+                    try:
+                        data = os.read(fd, _READ_BYTES)
+                    except BlockingIOError:
+                        return b""
+                    except OSError as error:  # as recv_some reports it
+                        raise ConnectionLostError(
+                            f"{self.description}: {error.strerror or error}"
+                        ) from error
+                    return data or self.recv_some()  # the end: the subclass says of what
                 ready = [ready_fd for ready_fd, _ in events]
             else:
                 ready, _, _ = select.select([fd, self._wake_fd], [], [], max(timeout_s, 0.0))
+        except ConnectionLostError:
+            raise
         except (OSError, ValueError) as error:
             raise ConnectionLostError(f"{self.description}: {error}") from error
         if self._wake_fd in ready:

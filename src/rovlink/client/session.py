@@ -61,6 +61,11 @@ class Outcome(StrEnum):
     DISCONNECTED = "disconnected"
 
 
+# Plain names for the members used per reply: an enum member costs a descriptor call to look up.
+_PENDING = Outcome.PENDING
+_ANSWERED = Outcome.ANSWERED
+
+
 class PendingQuery:
     """One query on the wire, waiting for its replies."""
 
@@ -73,7 +78,7 @@ class PendingQuery:
         #: The names of the replies, in order.
         self.expected: tuple[str, ...] = command.spec.replies
         self.responses: list[Response] = []
-        self.outcome = Outcome.PENDING
+        self.outcome = _PENDING
         #: The client's handle to wake the caller (an ``asyncio.Future``), if it needs one.
         self.waiter: object = None
 
@@ -83,7 +88,7 @@ class PendingQuery:
     @property
     def settled(self) -> bool:
         """Whether the attempt is over, one way or the other."""
-        return self.outcome is not Outcome.PENDING
+        return self.outcome is not _PENDING
 
 
 class Received:
@@ -123,6 +128,8 @@ class Session:
         self._pending: deque[PendingQuery] = deque()
         # Queries are few and repeat: their bytes in the current mode, encoded once.
         self._query_bytes: dict[Command, bytes] = {}
+        self._last_query: Command | None = None  # the last query encoded, and its bytes
+        self._last_query_bytes = b""
         self.timeout_s = timeout_s
         self.counters = LinkCounters()
         self.last_sent_at = float("-inf")
@@ -188,7 +195,29 @@ class Session:
         """The bytes of a query, and its entry at the back of the queue.
 
         Write the bytes before anything else is written: the queue's order is the wire's.
+        (Or write :meth:`query_bytes` first and queue the query before any reply can be fed.)
         """
+        data = self.query_bytes(command)
+        counters = self.counters
+        counters.frames_sent += 1
+        counters.bytes_sent += len(data)
+        self.last_sent_at = now
+        pending = PendingQuery(command, now, keepalive)
+        self._pending.append(pending)
+        if keepalive:
+            self.counters.keepalives += 1
+        return data, pending
+
+    def query_bytes(self, command: Command) -> bytes:
+        """The bytes of a query in the current checksum mode (without queueing it).
+
+        Example::
+
+            Session().query_bytes(Command("qd"))  # b"#qd!"
+        """
+        # The same query object again (a polling loop): no hashing (a dataclass hashes in Python).
+        if command is self._last_query:
+            return self._last_query_bytes
         data = self._query_bytes.get(command)
         if data is None:
             if not command.spec.is_query:
@@ -196,12 +225,9 @@ class Session:
             data = self.frame_for(command)
             if len(self._query_bytes) < _QUERY_BYTES_CACHED:
                 self._query_bytes[command] = data
-        self._count_sent(data, now)
-        pending = PendingQuery(command, now, keepalive)
-        self._pending.append(pending)
-        if keepalive:
-            self.counters.keepalives += 1
-        return data, pending
+        self._last_query = command
+        self._last_query_bytes = data
+        return data
 
     def raw(self, frame: bytes, now: float) -> PendingQuery | None:
         """Account for a raw frame sent as it is; a query in it joins the queue.
@@ -230,18 +256,34 @@ class Session:
 
     def receive(self, data: bytes, now: float) -> Received:
         """Decode bytes from the controller; settle the queries they answer or break."""
-        self.counters.bytes_received += len(data)
+        counters = self.counters
+        counters.bytes_received += len(data)
         result = Received()
+        pending = self._pending
         for event in self._decoder.feed(data):
             if isinstance(event, Frame):
                 message = event.message
                 if isinstance(message, Response):
-                    self.counters.frames_received += 1
+                    counters.frames_received += 1
+                    # The usual case inline: the reply the oldest query expects next.
+                    head = pending[0] if pending else None
+                    if head is not None:
+                        responses = head.responses
+                        expected = head.expected
+                        if expected[len(responses)] == message.name:
+                            responses.append(message)
+                            self._last_progress_at = now
+                            if len(responses) == len(expected):
+                                pending.popleft()
+                                head.outcome = _ANSWERED
+                                counters.replies += 1
+                                result.settled.append(head)
+                            continue
                     if self._deliver(message, now, result.settled):
                         continue
-                self.counters.stray_frames += 1
+                counters.stray_frames += 1
             elif isinstance(event, Text):
-                self.counters.text_lines += 1
+                counters.text_lines += 1
             else:
                 self._bad_frame(event, result.settled)
             result.unsolicited.append(event)
@@ -273,6 +315,7 @@ class Session:
         self._checksum_enabled = enabled
         self._decoder.checksum_enabled = enabled
         self._query_bytes.clear()
+        self._last_query = None
 
     def _settle(self, query: PendingQuery, outcome: Outcome) -> None:
         pending = self._pending
@@ -309,7 +352,7 @@ class Session:
         query.responses.append(response)
         self._last_progress_at = now
         if len(query.responses) == len(query.expected):
-            self._settle(query, Outcome.ANSWERED)
+            self._settle(query, _ANSWERED)
             self.counters.replies += 1
             settled.append(query)
 
