@@ -45,6 +45,7 @@ __all__ = [
     "config_reference",
     "dataclass_from_table",
     "load_config",
+    "parameter_doc",
     "read_toml",
     "table_reference",
 ]
@@ -64,9 +65,12 @@ class LeakAction(StrEnum):
     SURFACE = "surface"  # horizontal power 0, full up thrust, stays unlocked
 
 
-def _doc(text: str) -> dict[str, str]:
+def parameter_doc(text: str) -> dict[str, str]:
     """Field metadata: the documentation of a configuration key."""
     return {"doc": text}
+
+
+_doc = parameter_doc  # short, for the many field definitions below
 
 
 def _require(condition: bool, message: str) -> None:

@@ -11,6 +11,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 from rovlink.controller import Attitude
+from rovlink.controller.config import parameter_doc as _doc
 from rovlink.sim.vehicle import Vehicle
 
 __all__ = [
@@ -24,11 +25,6 @@ __all__ = [
 ]
 
 _ADC_MAX = 1023  # 10-bit converter
-
-
-def _doc(text: str) -> dict[str, str]:
-    """Field metadata: the documentation of a parameter."""
-    return {"doc": text}
 
 
 @dataclass(frozen=True, slots=True)

@@ -15,6 +15,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 from rovlink.controller import ThrusterSpec
+from rovlink.controller.config import parameter_doc as _doc
 
 __all__ = ["Vehicle", "VehicleParams", "thrust_n"]
 
@@ -22,11 +23,6 @@ _GRAVITY_M_S2 = 9.80665
 _KGF_N = _GRAVITY_M_S2
 _MAX_DUTY = 255.0
 _FULL_TURN_RAD = 2.0 * math.pi
-
-
-def _doc(text: str) -> dict[str, str]:
-    """Field metadata: the documentation of a parameter."""
-    return {"doc": text}
 
 
 @dataclass(frozen=True, slots=True)
