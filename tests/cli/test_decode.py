@@ -64,3 +64,4 @@ def test_decode_stats_counts_events_reasons_and_names() -> None:
         "reasons": {"range": 1, "unknown": 1},
         "names": {"command": {"qd": 1}, "response": {"qd": 2}},
     }
+

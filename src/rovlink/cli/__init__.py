@@ -7,6 +7,8 @@ import logging
 
 import typer
 
+import rovlink
+
 __all__ = ["app", "main"]
 
 app = typer.Typer(
@@ -25,9 +27,18 @@ for _name in _COMMAND_MODULES:
     importlib.import_module(f"rovlink.cli.{_name}").register(app)
 
 
+def _print_version(value: bool) -> None:
+    if value:
+        typer.echo(f"rovlink {rovlink.__version__}")
+        raise typer.Exit()
+
+
 @app.callback()
 def _root(
     verbose: bool = typer.Option(False, "--verbose", "-v", help="Log debug details to stderr."),
+    version: bool = typer.Option(
+        False, "--version", is_eager=True, callback=_print_version, help="Print the version."
+    ),
 ) -> None:
     logging.basicConfig(
         level=logging.DEBUG if verbose else logging.WARNING,
