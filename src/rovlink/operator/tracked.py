@@ -26,8 +26,6 @@ from rovlink.protocol import (
 
 __all__ = ["SentCallback", "SentFrame", "TrackedClient"]
 
-_STOP_FRAME = b"#stop!"
-
 
 @dataclass(frozen=True, slots=True)
 class SentFrame:
@@ -138,13 +136,13 @@ class TrackedClient:
         return replies
 
     def _as_controller_reads(self, data: bytes) -> Command | None:
-        """The command the controller will take from a raw frame, in the current checksum mode."""
-        if data == _STOP_FRAME:  # honoured in either mode (P3)
-            return Command("stop")
+        """The command the controller will take from a raw frame, in the current checksum mode.
+
+        The decoder applies the protocol's rules, the bare ``#stop!`` of checksum mode included.
+        """
         decoder = Decoder(checksum_enabled=self.checksum_enabled, algorithm=self.algorithm)
         events = decoder.feed(data)
         if len(events) == 1 and isinstance(events[0], Frame) \
                 and isinstance(events[0].message, Command):
-            message = events[0].message
-            return Command(message.name, message.values)
+            return events[0].message
         return None
