@@ -20,7 +20,6 @@ replies keep coming, and a dead link times everything out ``timeout_s`` after it
 from __future__ import annotations
 
 from collections import deque
-from enum import StrEnum
 
 from rovlink.client.counters import LinkCounters
 from rovlink.protocol import (
@@ -38,6 +37,7 @@ from rovlink.protocol import (
     encode,
     get_algorithm,
 )
+from rovlink.protocol.text_enum import StrEnum
 
 __all__ = ["Outcome", "PendingQuery", "Received", "Session"]
 

@@ -11,8 +11,9 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
-from enum import StrEnum
 from urllib.parse import parse_qsl, urlencode
+
+from rovlink.protocol.text_enum import StrEnum
 
 __all__ = ["DEFAULT_BAUDRATE", "SIM_OPTIONS", "Endpoint", "Scheme", "SimOptions", "parse_url"]
 

@@ -23,15 +23,20 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import tomllib
+import sys
 import typing
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from enum import StrEnum
 from pathlib import Path
 from typing import Any, TypeVar
 
 from rovlink.protocol import ALGORITHMS
+from rovlink.protocol.text_enum import StrEnum
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover - the Python 3.10 CI job
+    import tomli as tomllib
 
 __all__ = [
     "DEFAULT_THRUSTERS",

@@ -9,9 +9,9 @@ clears the set-points — and words it honestly: "locked (as last sent)".
 from __future__ import annotations
 
 from dataclasses import dataclass
-from enum import StrEnum
 
 from rovlink.protocol import Command, VerticalMode
+from rovlink.protocol.text_enum import StrEnum
 
 __all__ = ["CommandedState", "LockState"]
 

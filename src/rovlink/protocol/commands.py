@@ -8,7 +8,8 @@ console completion and help, and ``docs/commands.md`` — is derived from :data:
 from __future__ import annotations
 
 from dataclasses import dataclass
-from enum import StrEnum
+
+from rovlink.protocol.text_enum import StrEnum
 
 __all__ = [
     "COMMANDS",

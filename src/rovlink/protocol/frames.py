@@ -7,11 +7,10 @@ says why it is not one.
 
 from __future__ import annotations
 
-from enum import StrEnum
-
 from rovlink.protocol.checksum import ChecksumAlgorithm, get_algorithm
 from rovlink.protocol.commands import SPELLINGS, Kind, Spec
 from rovlink.protocol.messages import Command, Message, Response, trusted_message
+from rovlink.protocol.text_enum import StrEnum
 
 __all__ = [
     "MAX_FRAME_BYTES",
