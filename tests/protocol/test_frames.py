@@ -206,3 +206,12 @@ def test_bad_frames_are_reported_with_their_reason(raw: bytes, reason: Reason) -
 def test_str_of_a_message_is_its_plain_frame() -> None:
     assert str(Command("th", (270, 25))) == "#th.270.25!"
     assert str(Response("q.l", (1,))) == "$q.l.1!"
+
+
+def test_every_setting_has_both_values_in_the_table() -> None:
+    from rovlink.protocol import Setting, setting_command
+
+    for setting in Setting:
+        for value in (True, False):
+            command = setting_command(setting, value)
+            assert command.setting == (setting, value)

@@ -22,6 +22,7 @@ from rovlink.protocol.commands import (
     RESPONSES,
     Argument,
     Kind,
+    Setting,
     Spec,
     UnknownCommandError,
     VerticalMode,
@@ -35,6 +36,7 @@ from rovlink.protocol.messages import (
     Command,
     Message,
     Response,
+    setting_command,
 )
 
 __all__ = [
@@ -58,6 +60,7 @@ __all__ = [
     "Message",
     "Reason",
     "Response",
+    "Setting",
     "Spec",
     "Text",
     "UnknownAlgorithmError",
@@ -67,4 +70,5 @@ __all__ = [
     "get_algorithm",
     "lookup",
     "parse_body",
+    "setting_command",
 ]

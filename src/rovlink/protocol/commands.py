@@ -17,6 +17,7 @@ __all__ = [
     "SPELLINGS",
     "Argument",
     "Kind",
+    "Setting",
     "Spec",
     "UnknownCommandError",
     "VerticalMode",
@@ -43,6 +44,20 @@ class VerticalMode(StrEnum):
     DEPTH = "depth"
 
 
+class Setting(StrEnum):
+    """An on/off state of the controller that commands switch (a toggle pair, or one frame's 0/1).
+
+    Each command's :attr:`Spec.setting` and :attr:`Spec.setting_value` say which state it switches
+    and to what, so that the controller, the client and the tools read the pairs from one place.
+    """
+
+    CHECKSUM = "checksum"  # crcon / crcoff (P3)
+    DEBUG = "debug"  # debug1 / debug0 (P5)
+    LOCKED = "locked"  # stop / start (P7)
+    DIRECT_MODE = "direct_mode"  # mvdirect.1 / mvdirect.0 (P9)
+    CLAW_OPEN = "claw_open"  # h+ / h- (P16): the direction of the claw's next pulse
+
+
 @dataclass(frozen=True, slots=True)
 class Argument:
     """One decimal integer argument of a frame (P6)."""
@@ -52,6 +67,16 @@ class Argument:
     maximum: int
     signed: bool = False
     description: str = ""
+    #: The unit people write after the value (``cm``, ``%``, ``°``), empty for a plain number.
+    unit: str = ""
+
+    def check(self, value: int) -> bool:
+        """Whether ``value`` is in range (P6: out of range is dropped, never clamped).
+
+        >>> Argument("power_percent", 0, 100).check(101)
+        False
+        """
+        return self.minimum <= value <= self.maximum
 
     def range_text(self) -> str:
         """The range as people write it, e.g. ``0–255`` or ``−100…+100``."""
@@ -85,6 +110,10 @@ class Spec:
     mode: VerticalMode | None = None
     #: For a query: the names of the responses it produces, in order (P4, P12).
     replies: tuple[str, ...] = ()
+    #: The on/off state the command switches, if any, and the value it sets (``None``: the value
+    #: is the command's 0/1 argument, as in ``mvdirect``).
+    setting: Setting | None = None
+    setting_value: bool | None = None
 
     @property
     def is_query(self) -> bool:
@@ -105,35 +134,40 @@ class Spec:
 
 
 def _arg(
-    name: str, minimum: int, maximum: int, description: str, *, signed: bool = False
+    name: str, minimum: int, maximum: int, description: str, *, signed: bool = False,
+    unit: str = "",
 ) -> Argument:
-    return Argument(name, minimum, maximum, signed, description)
+    return Argument(name, minimum, maximum, signed, description, unit)
 
 
 _C = Kind.COMMAND
 _R = Kind.RESPONSE
 
-_DEPTH_CM = _arg("depth_cm", 0, 9999, "depth below the surface, cm")
+_DEPTH_CM = _arg("depth_cm", 0, 9999, "depth below the surface, cm", unit="cm")
 _RAW = _arg("raw", 0, 1024, "raw pressure-sensor reading")
 _GAIN = _arg("gain", 0, 99, "PID gain, scaled by the controller's configuration")
 _FLAG = _arg("enabled", 0, 1, "1 on, 0 off")
-_ROLL = _arg("roll_deg", -90, 90, "roll, degrees, + starboard down", signed=True)
-_PITCH = _arg("pitch_deg", -90, 90, "pitch, degrees, + bow up", signed=True)
-_HEADING = _arg("heading_deg", 0, 360, "magnetic heading, degrees")
+_ROLL = _arg("roll_deg", -90, 90, "roll, degrees, + starboard down", signed=True,
+                 unit="°")
+_PITCH = _arg("pitch_deg", -90, 90, "pitch, degrees, + bow up", signed=True, unit="°")
+_HEADING = _arg("heading_deg", 0, 360, "magnetic heading, degrees", unit="°")
 _LEAK = _arg("leak", 0, 1, "1 if the leak sensor fired since the last reset")
 
 _SENSOR_REPLIES = ("qd", "qr", "q.l", "qro", "qpi", "qhe")
 
 COMMANDS: tuple[Spec, ...] = (
     Spec("crcon", _C, "turn checksum use on (never carries a checksum)", rules=("P3",),
-         exact_match=True),
+         exact_match=True, setting=Setting.CHECKSUM, setting_value=True),
     Spec("crcoff", _C, "turn checksum use off (never carries a checksum)", rules=("P3",),
-         exact_match=True),
+         exact_match=True, setting=Setting.CHECKSUM, setting_value=False),
     Spec("stop", _C, "switch all motors off and lock their control", rules=("P3", "P7"),
-         honoured_bare=True),
-    Spec("start", _C, "allow motor control, with neutral set-points", rules=("P7",)),
-    Spec("debug1", _C, "debug output on", rules=("P5",)),
-    Spec("debug0", _C, "debug output off", rules=("P5",)),
+         honoured_bare=True, setting=Setting.LOCKED, setting_value=True),
+    Spec("start", _C, "allow motor control, with neutral set-points", rules=("P7",),
+         setting=Setting.LOCKED, setting_value=False),
+    Spec("debug1", _C, "debug output on", rules=("P5",), setting=Setting.DEBUG,
+         setting_value=True),
+    Spec("debug0", _C, "debug output off", rules=("P5",), setting=Setting.DEBUG,
+         setting_value=False),
     Spec("mgmp", _C, "maximum PWM duty for every thruster", rules=("P8",),
          arguments=(_arg("max_pwm", 0, 255, "PWM duty cap"),)),
     Spec("mvpdp", _C, "vertical (depth) PID proportional gain", rules=("P10",),
@@ -142,17 +176,18 @@ COMMANDS: tuple[Spec, ...] = (
     Spec("mvpidd", _C, "vertical (depth) PID derivative gain", rules=("P10", "P18"),
          arguments=(_GAIN,), aliases=("mvpdd",)),
     Spec("mvdirect", _C, "vertical direct-control mode on (1) or depth mode (0)", rules=("P9",),
-         arguments=(_FLAG,)),
+         arguments=(_FLAG,), setting=Setting.DIRECT_MODE),
     Spec("mvs", _C, "direct mode: vertical thrust, % (+ up, − down)", rules=("P6", "P7", "P9"),
-         arguments=(_arg("thrust_percent", -100, 100, "vertical thrust, + up", signed=True),),
+         arguments=(_arg("thrust_percent", -100, 100, "vertical thrust, + up", signed=True,
+                              unit="%"),),
          motion=True, mode=VerticalMode.DIRECT),
     Spec("mvd", _C, "depth mode: hold this depth, cm from the surface", rules=("P7", "P9"),
-         arguments=(_arg("target_depth_cm", 0, 9999, "target depth, cm"),),
+         arguments=(_arg("target_depth_cm", 0, 9999, "target depth, cm", unit="cm"),),
          motion=True, mode=VerticalMode.DEPTH),
     Spec("th", _C, "horizontal motion: direction (0 ahead, clockwise) and power",
          rules=("P7", "P11"),
-         arguments=(_arg("direction_deg", 0, 360, "degrees clockwise from the bow"),
-                    _arg("power_percent", 0, 100, "horizontal power, %")),
+         arguments=(_arg("direction_deg", 0, 360, "degrees clockwise from the bow", unit="°"),
+                    _arg("power_percent", 0, 100, "horizontal power, %", unit="%")),
          motion=True),
     Spec("qd", _C, "query depth, cm", rules=("P13",), replies=("qd",)),
     Spec("qr", _C, "query the raw pressure-sensor reading", rules=("P13",), replies=("qr",)),
@@ -169,9 +204,9 @@ COMMANDS: tuple[Spec, ...] = (
     Spec("qsa", _C, "query all sensors: six replies qd, qr, q.l, qro, qpi, qhe", rules=("P12",),
          replies=_SENSOR_REPLIES),
     Spec("h+", _C, "claw open: run the claw motor for one pulse", rules=("P7", "P16"),
-         motion=True),
+         motion=True, setting=Setting.CLAW_OPEN, setting_value=True),
     Spec("h-", _C, "claw close: run the claw motor for one pulse", rules=("P7", "P16"),
-         motion=True),
+         motion=True, setting=Setting.CLAW_OPEN, setting_value=False),
 )
 
 RESPONSES: tuple[Spec, ...] = (

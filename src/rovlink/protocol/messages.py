@@ -10,7 +10,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import TypeVar
 
-from rovlink.protocol.commands import Kind, Spec, UnknownCommandError, lookup
+from rovlink.protocol.commands import COMMANDS, Kind, Setting, Spec, UnknownCommandError, lookup
 
 __all__ = [
     "ArgumentCountError",
@@ -18,6 +18,7 @@ __all__ = [
     "Command",
     "Message",
     "Response",
+    "setting_command",
     "trusted_message",
 ]
 
@@ -52,7 +53,7 @@ def _validate(spec: Spec, values: tuple[int, ...]) -> None:
     for index, (argument, value) in enumerate(zip(spec.arguments, values, strict=True)):
         if isinstance(value, bool) or not isinstance(value, int):
             raise TypeError(f"{spec.name}: {argument.name} must be an int, got {value!r}")
-        if not argument.minimum <= value <= argument.maximum:
+        if not argument.check(value):
             raise ArgumentError(spec, index, value)
 
 
@@ -98,6 +99,38 @@ class Command(Message):
     """
 
     kind = Kind.COMMAND
+
+    @property
+    def setting(self) -> tuple[Setting, bool] | None:
+        """The on/off state this command switches and the value it sets, if any.
+
+        >>> Command("mvdirect", (1,)).setting
+        (<Setting.DIRECT_MODE: 'direct_mode'>, True)
+        >>> Command("qd").setting is None
+        True
+        """
+        spec = self.spec
+        if spec.setting is None:
+            return None
+        value = spec.setting_value
+        return spec.setting, bool(self.values[0]) if value is None else value
+
+
+def setting_command(setting: Setting, value: bool) -> Command:
+    """The command that switches ``setting`` to ``value`` (the other half of a toggle pair).
+
+    >>> str(setting_command(Setting.CHECKSUM, False))
+    '#crcoff!'
+    >>> str(setting_command(Setting.DIRECT_MODE, True))
+    '#mvdirect.1!'
+    """
+    for spec in COMMANDS:
+        if spec.setting is setting:
+            if spec.setting_value is None:
+                return Command(spec.name, (int(value),))
+            if spec.setting_value is value:
+                return Command(spec.name)
+    raise ValueError(f"no command sets {setting} to {value}")  # pragma: no cover - table error
 
 
 @dataclass(frozen=True, slots=True)
