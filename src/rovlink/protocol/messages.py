@@ -90,13 +90,17 @@ class Message:
         return self.kind.start_byte.decode() + self.body + "!"
 
 
-@dataclass(frozen=True, slots=True)
+# The subclasses add no fields: an empty ``__slots__`` rather than ``slots=True``, which on
+# Python 3.10 would declare the inherited fields' slots again and shadow the base class's.
+@dataclass(frozen=True)
 class Command(Message):
     """A frame from host to controller, e.g. ``Command("th", (270, 25))`` is ``#th.270.25!``.
 
     >>> str(Command("mvs", (-50,)))
     '#mvs.-50!'
     """
+
+    __slots__ = ()
 
     kind = Kind.COMMAND
 
@@ -133,13 +137,15 @@ def setting_command(setting: Setting, value: bool) -> Command:
     raise ValueError(f"no command sets {setting} to {value}")  # pragma: no cover - table error
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(frozen=True)
 class Response(Message):
     """A frame from controller to host, e.g. ``Response("qro", (-1,))`` is ``$qro.-1!``.
 
     >>> str(Response("qro", (0,)))
     '$qro.+0!'
     """
+
+    __slots__ = ()
 
     kind = Kind.RESPONSE
 
