@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import pytest
 
-from rovlink.client.url import DEFAULT_BAUDRATE, Scheme, SimOptions, parse_url
+from rovlink.client.url import DEFAULT_BAUDRATE, Scheme, parse_url
+from rovlink.sim.url import SimOptions, parse_sim_url
 
 
 @pytest.mark.parametrize(
@@ -39,13 +40,15 @@ def test_baudrate_argument_and_url_must_agree() -> None:
         parse_url("/dev/ttyS0?baudrate=9600", baudrate=115200)
 
 
-def test_sim_options_become_open_port_keywords() -> None:
-    endpoint = parse_url("sim://?leak_at=5&seed=1&realtime=0&config=robot.toml")
-    assert endpoint.scheme is Scheme.SIM
-    assert endpoint.sim_options == SimOptions(
+def test_sim_urls_go_to_the_registered_handler_which_reads_the_options() -> None:
+    url = "sim://?leak_at=5&seed=1&realtime=0&config=robot.toml"
+    endpoint = parse_url(url)
+    assert endpoint.scheme is Scheme.REGISTERED
+    assert (endpoint.handler, endpoint.target) == ("sim", url)
+    assert parse_sim_url(url) == SimOptions(
         seed=1, leak_at_s=5.0, config="robot.toml", realtime=False
     )
-    assert parse_url("sim://").sim_options == SimOptions()
+    assert parse_sim_url("sim://") == SimOptions()
 
 
 @pytest.mark.parametrize(

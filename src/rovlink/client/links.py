@@ -12,12 +12,14 @@ Errors of the underlying port become :class:`~rovlink.client.errors.ConnectionLo
 from __future__ import annotations
 
 import contextlib
+import errno
 import os
 import select
 import socket
 from typing import Any, Protocol
 
 from rovlink.client.errors import ConnectError, ConnectionLostError
+from rovlink.client.schemes import load_handler
 from rovlink.client.url import Endpoint, Scheme
 
 __all__ = ["POLL_INTERVAL_S", "Link", "PortLink", "SerialFdLink", "SocketLink", "open_link"]
@@ -419,17 +421,16 @@ def _open_serial(endpoint: Endpoint) -> Link:
     import serial  # noqa: PLC0415 - pyserial is only needed when a serial port is opened
     from serial import serialposix  # noqa: PLC0415
 
+    # A device is opened exclusively (P22): a second program on the same port would share its
+    # byte stream and steal replies. pyserial's URL handlers have no such notion.
+    exclusive = {"exclusive": True} if endpoint.is_device and os.name == "posix" else {}
     try:
         port = serial.serial_for_url(
             endpoint.target, baudrate=endpoint.baudrate, timeout=POLL_INTERVAL_S,
-            write_timeout=WRITE_TIMEOUT_S,
+            write_timeout=WRITE_TIMEOUT_S, **exclusive,
         )
     except (OSError, ValueError) as error:
-        # pyserial's messages already say "could not open port …".
-        message = str(error) if "could not open" in str(error) else (
-            f"could not open {endpoint.url}: {error}"
-        )
-        raise ConnectError(message) from error
+        raise ConnectError(_open_error(endpoint, error)) from error
     description = f"{endpoint.target} at {endpoint.baudrate} baud"
     # Only pyserial's own POSIX class is read through its descriptor: wrappers such as spy://
     # log in read() and write(), which reading the descriptor would bypass.
@@ -438,26 +439,42 @@ def _open_serial(endpoint: Endpoint) -> Link:
     return PortLink(port, description)
 
 
+def _open_error(endpoint: Endpoint, error: BaseException) -> str:
+    """One line naming the port and what went wrong, in a user's words."""
+    name = endpoint.target
+    text = str(error)
+    errno_value = getattr(error, "errno", None)
+    if "exclusively lock" in text or errno_value == errno.EBUSY:
+        return f"{name} is already open in another program (a port has one host at a time)"
+    if errno_value == errno.ENOTTY or "Inappropriate ioctl" in text:
+        return f"{name}: not a serial port"
+    if errno_value == errno.ENOENT or "No such file" in text:
+        return f"{name}: no such device"
+    if errno_value == errno.EACCES or "Permission denied" in text:
+        return f"{name}: permission denied (is the user in the dialout group?)"
+    reason = getattr(error, "strerror", None) or text
+    return f"could not open {name}: {reason}"
+
+
 def _open_tcp(endpoint: Endpoint) -> Link:
     try:
         sock = socket.create_connection((endpoint.host, endpoint.port), CONNECT_TIMEOUT_S)
     except OSError as error:
-        raise ConnectError(f"could not connect to {endpoint.url}: {error}") from error
+        reason = error.strerror or str(error)
+        raise ConnectError(f"could not connect to {endpoint.url}: {reason}") from error
     return SocketLink(sock, f"tcp {endpoint.target}")
 
 
-def _open_sim(endpoint: Endpoint) -> Link:
+def _open_registered(endpoint: Endpoint) -> Link:
     try:
-        from rovlink.sim import open_port  # noqa: PLC0415 - the simulator loads only for sim://
+        handler = load_handler(endpoint.handler)
     except ImportError as error:
-        raise ConnectError(f"{endpoint.url}: the simulator is not available ({error})") from error
+        raise ConnectError(f"{endpoint.url}: {error}") from error
     try:
-        options = endpoint.sim_options
-        port = open_port(seed=options.seed, leak_at_s=options.leak_at_s, config=options.config,
-                         realtime=options.realtime)
+        port = handler.open_url(endpoint.target)
     except (OSError, ValueError) as error:
-        raise ConnectError(f"could not start {endpoint.url}: {error}") from error
-    return PortLink(port, "simulated controller")
+        raise ConnectError(f"could not open {endpoint.url}: {error}") from error
+    return PortLink(port, getattr(handler, "DESCRIPTION", endpoint.url))
 
 
 def open_link(endpoint: Endpoint) -> Link:
@@ -471,6 +488,6 @@ def open_link(endpoint: Endpoint) -> Link:
     """
     if endpoint.scheme is Scheme.TCP:
         return _open_tcp(endpoint)
-    if endpoint.scheme is Scheme.SIM:
-        return _open_sim(endpoint)
+    if endpoint.scheme is Scheme.REGISTERED:
+        return _open_registered(endpoint)
     return _open_serial(endpoint)

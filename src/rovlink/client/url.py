@@ -4,18 +4,20 @@
   (``loop://``, ``rfc2217://host:port``, ``spy://…``), with ``?baudrate=N`` (default 115200);
 * ``socket://host:port`` — TCP, opened natively with Nagle's algorithm off, so small frames are
   not held back waiting for acknowledgements (pyserial's handler leaves it on);
-* ``sim://`` — a simulated controller in this process; the simulator's options are query
-  parameters: ``sim://?seed=1&leak_at=5&realtime=0&config=vehicle.toml``.
+* a registered scheme (:mod:`rovlink.client.schemes`), such as ``sim://`` — a simulated
+  controller in this process (``sim://?seed=1&leak_at=5&realtime=0&config=vehicle.toml``); its
+  handler checks the URL here, before anything is opened.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass
 from urllib.parse import parse_qsl, urlencode
 
+from rovlink.client.schemes import handler_module, load_handler
 from rovlink.protocol.text_enum import StrEnum
 
-__all__ = ["DEFAULT_BAUDRATE", "SIM_OPTIONS", "Endpoint", "Scheme", "SimOptions", "parse_url"]
+__all__ = ["DEFAULT_BAUDRATE", "Endpoint", "Scheme", "parse_url"]
 
 DEFAULT_BAUDRATE = 115200
 
@@ -25,43 +27,29 @@ class Scheme(StrEnum):
 
     SERIAL = "serial"  # pyserial: a device path or a pyserial URL
     TCP = "tcp"  # socket://host:port, opened natively
-    SIM = "sim"  # the in-process simulated controller
-
-
-#: ``sim://`` query parameters and what they mean.
-SIM_OPTIONS: dict[str, str] = {
-    "seed": "integer seed of the simulator's noise",
-    "leak_at": "seconds after start when the leak sensor fires",
-    "config": "path of a vehicle/controller configuration file (TOML)",
-    "realtime": "1 (default) to run in real time, 0 as fast as possible",
-}
-
-
-@dataclass(frozen=True, slots=True)
-class SimOptions:
-    """The simulator's options from a ``sim://`` URL (keywords of ``rovlink.sim.open_port``)."""
-
-    seed: int | None = None
-    leak_at_s: float | None = None
-    config: str | None = None
-    realtime: bool = True
+    REGISTERED = "registered"  # a scheme of the registry (sim://), opened by its handler
 
 
 @dataclass(frozen=True, slots=True)
 class Endpoint:
     """A parsed connection URL.
 
-    ``target`` is what the opener needs: the pyserial URL or path without ``baudrate``, or
-    ``host:port`` for TCP.
+    ``target`` is what the opener needs: the pyserial URL or path without ``baudrate``,
+    ``host:port`` for TCP, or the whole URL for a registered scheme (named by ``handler``).
     """
 
     url: str
     scheme: Scheme
     target: str
     baudrate: int = DEFAULT_BAUDRATE
-    sim_options: SimOptions = field(default_factory=SimOptions)
     host: str = ""
     port: int = 0
+    handler: str = ""
+
+    @property
+    def is_device(self) -> bool:
+        """Whether the endpoint is a device path (a serial port or pseudo-terminal), not a URL."""
+        return self.scheme is Scheme.SERIAL and "://" not in self.target
 
 
 def _split_query(url: str) -> tuple[str, list[tuple[str, str]]]:
@@ -79,44 +67,12 @@ def _parse_baudrate(url: str, text: str) -> int:
     return int(text)
 
 
-_FLAGS = {"1": True, "true": True, "yes": True, "0": False, "false": False, "no": False}
-
-
-def _parse_sim(url: str, base: str, pairs: list[tuple[str, str]]) -> Endpoint:
-    if base not in ("sim://", "sim:"):
-        raise ValueError(f"{url!r}: sim:// takes no host or path, only ?options")
-    values = dict(pairs)
-    unknown = [name for name in values if name not in SIM_OPTIONS]
-    if unknown:
-        known = ", ".join(SIM_OPTIONS)
-        raise ValueError(f"{url!r}: unknown sim option {unknown[0]!r}; known options: {known}")
-    options = SimOptions()
-    if "seed" in values:
-        try:
-            options = replace(options, seed=int(values["seed"]))
-        except ValueError:
-            raise ValueError(f"{url!r}: seed must be an integer, got {values['seed']!r}") from None
-    if "leak_at" in values:
-        text = values["leak_at"]
-        try:
-            leak_at_s = float(text)
-        except ValueError:
-            leak_at_s = -1.0
-        if not leak_at_s >= 0:
-            raise ValueError(
-                f"{url!r}: leak_at must be a non-negative number of seconds, got {text!r}"
-            )
-        options = replace(options, leak_at_s=leak_at_s)
-    if "realtime" in values:
-        flag = _FLAGS.get(values["realtime"].lower())
-        if flag is None:
-            raise ValueError(f"{url!r}: realtime must be 1 or 0, got {values['realtime']!r}")
-        options = replace(options, realtime=flag)
-    if "config" in values:
-        if not values["config"]:
-            raise ValueError(f"{url!r}: config needs a file path")
-        options = replace(options, config=values["config"])
-    return Endpoint(url, Scheme.SIM, "sim://", sim_options=options)
+def _parse_registered(url: str, scheme: str) -> Endpoint:
+    try:
+        load_handler(scheme).check_url(url)
+    except ImportError as error:
+        raise ValueError(f"{url!r}: {error}") from None
+    return Endpoint(url, Scheme.REGISTERED, url, handler=scheme)
 
 
 def _parse_tcp(url: str, base: str, baudrate: int) -> Endpoint:
@@ -135,15 +91,16 @@ def parse_url(url: str, baudrate: int | None = None) -> Endpoint:
     9600
     >>> parse_url("socket://localhost:5760").port
     5760
-    >>> parse_url("sim://?leak_at=5&seed=1").sim_options
-    SimOptions(seed=1, leak_at_s=5.0, config=None, realtime=True)
+    >>> parse_url("sim://?seed=1").handler
+    'sim'
     """
     if not isinstance(url, str) or not url.strip():
         raise ValueError(f"connection URL must be a non-empty string, got {url!r}")
     url = url.strip()
+    scheme = url.partition(":")[0]
+    if handler_module(scheme) is not None:
+        return _parse_registered(url, scheme)
     base, pairs = _split_query(url)
-    if base.startswith("sim:"):
-        return _parse_sim(url, base, pairs)
     rest = [(name, value) for name, value in pairs if name != "baudrate"]
     from_url = [_parse_baudrate(url, value) for name, value in pairs if name == "baudrate"]
     if len(set(from_url)) > 1:

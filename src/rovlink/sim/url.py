@@ -1,0 +1,108 @@
+"""The ``sim://`` URL: a simulated controller in this process, for the host driver and the tools.
+
+The client finds this module through its registry of URL schemes
+(:mod:`rovlink.client.schemes`), so the host driver never imports the simulator.
+The simulator's options are query parameters: ``sim://?seed=1&leak_at=5&realtime=0&config=f.toml``.
+
+>>> parse_sim_url("sim://?leak_at=5&seed=1")
+SimOptions(seed=1, leak_at_s=5.0, config=None, realtime=True)
+>>> parse_sim_url("sim://?seed=x")
+Traceback (most recent call last):
+...
+ValueError: 'sim://?seed=x': seed must be an integer, got 'x'
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from urllib.parse import parse_qsl
+
+from rovlink.sim.port import SimulatedPort, open_port
+
+__all__ = ["DESCRIPTION", "SIM_OPTIONS", "SimOptions", "check_url", "open_url", "parse_sim_url"]
+
+#: What the client calls a link opened here.
+DESCRIPTION = "simulated controller"
+
+#: ``sim://`` query parameters and what they mean.
+SIM_OPTIONS: dict[str, str] = {
+    "seed": "integer seed of the simulator's noise",
+    "leak_at": "seconds after start when the leak sensor fires",
+    "config": "path of a vehicle/controller configuration file (TOML)",
+    "realtime": "1 (default) to run in real time, 0 as fast as possible",
+}
+
+_FLAGS = {"1": True, "true": True, "yes": True, "0": False, "false": False, "no": False}
+
+
+@dataclass(frozen=True)
+class SimOptions:
+    """The simulator's options from a ``sim://`` URL (keywords of :func:`open_port`)."""
+
+    seed: int | None = None
+    leak_at_s: float | None = None
+    config: str | None = None
+    realtime: bool = True
+
+
+def parse_sim_url(url: str) -> SimOptions:
+    """The options of a ``sim://`` URL; ValueError naming the URL and what is wrong."""
+    base, _, query = url.partition("?")
+    if base not in ("sim://", "sim:"):
+        raise ValueError(f"{url!r}: sim:// takes no host or path, only ?options")
+    try:
+        pairs = parse_qsl(query, keep_blank_values=True, strict_parsing=bool(query))
+    except ValueError:
+        raise ValueError(f"{url!r}: malformed query {query!r}") from None
+    values = dict(pairs)
+    unknown = [name for name in values if name not in SIM_OPTIONS]
+    if unknown:
+        known = ", ".join(SIM_OPTIONS)
+        raise ValueError(f"{url!r}: unknown sim option {unknown[0]!r}; known options: {known}")
+    options = SimOptions()
+    if "seed" in values:
+        try:
+            options = replace(options, seed=int(values["seed"]))
+        except ValueError:
+            raise ValueError(f"{url!r}: seed must be an integer, got {values['seed']!r}") from None
+    if "leak_at" in values:
+        text = values["leak_at"]
+        try:
+            leak_at_s = float(text)
+        except ValueError:
+            leak_at_s = -1.0
+        if not leak_at_s >= 0:
+            raise ValueError(
+                f"{url!r}: leak_at must be a non-negative number of seconds, got {text!r}"
+            )
+        options = replace(options, leak_at_s=leak_at_s)
+    if "realtime" in values:
+        flag = _FLAGS.get(values["realtime"].lower())
+        if flag is None:
+            raise ValueError(f"{url!r}: realtime must be 1 or 0, got {values['realtime']!r}")
+        options = replace(options, realtime=flag)
+    if "config" in values:
+        if not values["config"]:
+            raise ValueError(f"{url!r}: config needs a file path")
+        options = replace(options, config=values["config"])
+    return options
+
+
+def check_url(url: str) -> None:
+    """Raise ValueError if ``url`` is not a valid ``sim://`` URL (the registry's check).
+
+    >>> check_url("sim://?seed=1")
+    """
+    parse_sim_url(url)
+
+
+def open_url(url: str) -> SimulatedPort:
+    """Start a simulated controller for ``url`` and return its port (the registry's opener).
+
+    Example::
+
+        port = open_url("sim://?seed=1&realtime=0")
+    """
+    options = parse_sim_url(url)
+    return open_port(seed=options.seed, leak_at_s=options.leak_at_s, config=options.config,
+                     realtime=options.realtime)
