@@ -10,15 +10,18 @@ import pytest
 from rovlink.aio import AsyncClient
 from rovlink.client import Client, InvalidArgumentError
 from rovlink.client import operations as ops
+from rovlink.client.method_table import METHODS
 from rovlink.protocol import COMMANDS
+
+METHOD_NAMES = sorted([method.name for method in METHODS] + ["send", "send_raw"])
 
 
 def test_the_methods_cover_every_command_of_the_table() -> None:
-    sent = {frame for frames in ops.METHOD_FRAMES.values() for frame in frames}
+    sent = {frame for method in METHODS for frame in method.frames}
     assert sent == {spec.name for spec in COMMANDS}
 
 
-@pytest.mark.parametrize("method", sorted(ops.METHOD_FRAMES))
+@pytest.mark.parametrize("method", METHOD_NAMES)
 def test_both_clients_have_every_method_with_the_same_signature(method: str) -> None:
     blocking = getattr(Client, method)
     asynchronous = getattr(AsyncClient, method)

@@ -17,6 +17,7 @@ from collections.abc import AsyncIterator, Generator
 from types import TracebackType
 from typing import Any, TypeVar
 
+from rovlink.aio.command_methods import AsyncCommandMethods
 from rovlink.aio.transport import ByteTransport, transport_for
 from rovlink.client import operations
 from rovlink.client.blocking import KEEPALIVE_QUERY
@@ -40,7 +41,7 @@ logger = logging.getLogger("rovlink.aio")
 DEFAULT_MAX_IN_FLIGHT = 8
 
 
-class AsyncClient:
+class AsyncClient(AsyncCommandMethods):
     """An asyncio connection to a controller. Make one with :func:`connect`.
 
     Example::
@@ -179,219 +180,7 @@ class AsyncClient:
         """
         return self._session.counters.copy()
 
-    # -- commands -------------------------------------------------------------------------------
-
-    async def stop(self) -> None:
-        """``#stop!``: all motors off and motion locked.
-
-        Example::
-
-            await rov.stop()
-        """
-        self._send(operations.STOP)
-
-    async def start(self) -> None:
-        """``#start!``: unlock motion, with neutral set-points.
-
-        Example::
-
-            await rov.start()
-        """
-        self._send(operations.START)
-
-    async def set_checksum(self, enabled: bool) -> None:
-        """``#crcon!`` / ``#crcoff!``, after the queries on the wire are answered in the old mode.
-
-        Example::
-
-            await rov.set_checksum(True)
-        """
-        command = operations.checksum(enabled)
-        self._check_open()
-        while not self._mode_settled.is_set():
-            await self._mode_settled.wait()
-        self._mode_settled.clear()
-        try:
-            # Each query on the wire is answered, or times out, in the old mode.
-            await self._wait_settled(self._session.pending, None)
-            self._send(command)
-        finally:
-            self._mode_settled.set()
-
-    async def set_debug(self, enabled: bool) -> None:
-        """``#debug1!`` / ``#debug0!``: debug text goes to ``on_stray`` and logging.
-
-        Example::
-
-            await rov.set_debug(True)
-        """
-        self._send(operations.debug(enabled))
-
-    async def set_max_pwm(self, duty: int) -> None:
-        """``#mgmp.N!``: cap every thruster's PWM duty, 0–255.
-
-        Example::
-
-            await rov.set_max_pwm(180)
-        """
-        self._send(operations.max_pwm(duty))
-
-    async def set_depth_pid(self, p: int | None = None, i: int | None = None,
-                            d: int | None = None) -> None:
-        """``#mvpdp.N!``, ``#mvpdi.N!``, ``#mvpidd.N!`` for each gain given (0–99 each).
-
-        Example::
-
-            await rov.set_depth_pid(p=30, d=10)
-        """
-        for command in operations.depth_pid(p, i, d):
-            self._send(command)
-
-    async def set_direct_mode(self, enabled: bool) -> None:
-        """``#mvdirect.1!`` / ``#mvdirect.0!``.
-
-        Example::
-
-            await rov.set_direct_mode(True)
-        """
-        self._send(operations.direct_mode(enabled))
-
-    async def set_vertical_thrust(self, percent: int) -> None:
-        """``#mvs.±N!``: vertical thrust in direct mode, −100…+100 %, + up.
-
-        Example::
-
-            await rov.set_vertical_thrust(-40)
-        """
-        self._send(operations.vertical_thrust(percent))
-
-    async def hold_depth(self, depth_cm: int) -> None:
-        """``#mvd.N!``: in depth mode, hold this depth, 0–9999 cm.
-
-        Example::
-
-            await rov.hold_depth(100)
-        """
-        self._send(operations.hold_depth(depth_cm))
-
-    async def move(self, direction_deg: int, power_percent: int) -> None:
-        """``#th.A.P!``: direction 0–360° clockwise from the bow, power 0–100 %.
-
-        Example::
-
-            await rov.move(90, 30)   # right at 30 %
-        """
-        self._send(operations.move(direction_deg, power_percent))
-
-    async def set_depth_zero(self, raw: int) -> None:
-        """``#sdz.N!``: the raw pressure reading at the surface, 0–1024.
-
-        Example::
-
-            await rov.set_depth_zero(await rov.pressure_raw())
-        """
-        self._send(operations.depth_zero(raw))
-
-    async def set_depth_scale(self, k: int) -> None:
-        """``#sdk.N!``: the depth coefficient k, 0–10000.
-
-        Example::
-
-            await rov.set_depth_scale(1000)
-        """
-        self._send(operations.depth_scale(k))
-
-    async def reset_leak(self) -> None:
-        """``#slreset!``: clear the leak latch.
-
-        Example::
-
-            await rov.reset_leak()
-        """
-        self._send(operations.RESET_LEAK)
-
-    async def claw_open(self) -> None:
-        """``#h+!``: one claw pulse towards open.
-
-        Example::
-
-            await rov.claw_open()
-        """
-        self._send(operations.CLAW_OPEN)
-
-    async def claw_close(self) -> None:
-        """``#h-!``: one claw pulse towards closed.
-
-        Example::
-
-            await rov.claw_close()
-        """
-        self._send(operations.CLAW_CLOSE)
-
-    # -- queries --------------------------------------------------------------------------------
-
-    async def depth_cm(self) -> int:
-        """``#qd!``: depth, cm.
-
-        Example::
-
-            depth = await rov.depth_cm()
-        """
-        return await self._ask(operations.DEPTH_CM)
-
-    async def pressure_raw(self) -> int:
-        """``#qr!``: the raw pressure reading, 0–1024.
-
-        Example::
-
-            raw = await rov.pressure_raw()
-        """
-        return await self._ask(operations.PRESSURE_RAW)
-
-    async def leak_detected(self) -> bool:
-        """``#q.l!``: whether the leak sensor fired since the last reset.
-
-        Example::
-
-            if await rov.leak_detected(): await rov.hold_depth(0)
-        """
-        return await self._ask(operations.LEAK_DETECTED)
-
-    async def roll_deg(self) -> int:
-        """``#qro!``: roll, −90…+90°.
-
-        Example::
-
-            roll = await rov.roll_deg()
-        """
-        return await self._ask(operations.ROLL_DEG)
-
-    async def pitch_deg(self) -> int:
-        """``#qpi!``: pitch, −90…+90°.
-
-        Example::
-
-            pitch = await rov.pitch_deg()
-        """
-        return await self._ask(operations.PITCH_DEG)
-
-    async def heading_deg(self) -> int:
-        """``#qhe!``: magnetic heading, 0–360°.
-
-        Example::
-
-            heading = await rov.heading_deg()
-        """
-        return await self._ask(operations.HEADING_DEG)
-
-    async def sensors(self) -> Sensors:
-        """``#qsa!``: every sensor at once.
-
-        Example::
-
-            reading = await rov.sensors()
-        """
-        return await self._ask(operations.SENSORS)
+    # -- commands: see command_methods (generated) ------------------------------------------
 
     async def telemetry(self, rate_hz: float | None = 10.0) -> AsyncIterator[Sensors]:
         """Poll :meth:`sensors` at ``rate_hz`` (``None``: as fast as the link allows), in order.
@@ -481,6 +270,20 @@ class AsyncClient:
         raise QueryTimeoutError(pending.command, [outcome.value], self._options.timeout_s)
 
     # -- internals ------------------------------------------------------------------------------
+
+    async def _switch_checksum(self, command: Command) -> None:
+        """Send ``#crcon!``/``#crcoff!`` once the queries on the wire are answered in the old
+        mode."""
+        self._check_open()
+        while not self._mode_settled.is_set():
+            await self._mode_settled.wait()
+        self._mode_settled.clear()
+        try:
+            # Each query on the wire is answered, or times out, in the old mode.
+            await self._wait_settled(self._session.pending, None)
+            self._send(command)
+        finally:
+            self._mode_settled.set()
 
     def _check_open(self) -> None:
         if self._lost is not None or self._closed:

@@ -23,11 +23,11 @@ from types import TracebackType
 from typing import TypeVar
 
 from rovlink.client import operations
+from rovlink.client.command_methods import CommandMethods
 from rovlink.client.counters import LinkCounters
 from rovlink.client.errors import ConnectionLostError, QueryTimeoutError
 from rovlink.client.links import Link, open_link
 from rovlink.client.options import ClientOptions, StrayCallback
-from rovlink.client.sensors import Sensors
 from rovlink.client.session import Outcome, PendingQuery, Session
 from rovlink.client.unsolicited import report
 from rovlink.client.url import parse_url
@@ -50,7 +50,7 @@ _MAX_READ_WAIT_S = 0.25
 _CALLER_GRACE_S = 0.005
 
 
-class Client:
+class Client(CommandMethods):
     """A blocking connection to a controller; thread-safe. Make one with :func:`connect`.
 
     Example::
@@ -211,230 +211,7 @@ class Client:
         with self._state_lock:
             return self._session.counters.copy()
 
-    # -- commands -------------------------------------------------------------------------------
-
-    def stop(self) -> None:
-        """``#stop!``: all motors off and motion locked (always honoured, even with a bad checksum).
-
-        Example::
-
-            rov.stop()
-        """
-        self._send(operations.STOP)
-
-    def start(self) -> None:
-        """``#start!``: unlock motion, with neutral set-points.
-
-        Example::
-
-            rov.start()
-        """
-        self._send(operations.START)
-
-    def set_checksum(self, enabled: bool) -> None:
-        """``#crcon!`` / ``#crcoff!``; the client's own encoder and decoder switch with it.
-
-        Queries already on the wire are answered first, in the old mode.
-
-        Example::
-
-            rov.set_checksum(True)   # every frame now carries a CRC-8 (or the chosen algorithm)
-        """
-        command = operations.checksum(enabled)
-        me = threading.get_ident()
-        with self._state_lock:
-            while self._mode_switcher is not None:  # another thread is switching: after it
-                self._wait_for_change(None)
-            self._check_open()
-            self._mode_switcher = me
-            on_the_wire = self._session.pending
-        try:
-            for query in on_the_wire:
-                self._wait(query, owned=False)
-            self._send(command)
-        finally:
-            with self._state_lock:
-                self._mode_switcher = None
-                self._notify_callers()
-
-    def set_debug(self, enabled: bool) -> None:
-        """``#debug1!`` / ``#debug0!``: debug text goes to ``on_stray`` and logging.
-
-        Example::
-
-            rov.set_debug(True)
-        """
-        self._send(operations.debug(enabled))
-
-    def set_max_pwm(self, duty: int) -> None:
-        """``#mgmp.N!``: cap every thruster's PWM duty, 0–255.
-
-        Example::
-
-            rov.set_max_pwm(180)
-        """
-        self._send(operations.max_pwm(duty))
-
-    def set_depth_pid(self, p: int | None = None, i: int | None = None,
-                      d: int | None = None) -> None:
-        """``#mvpdp.N!``, ``#mvpdi.N!``, ``#mvpidd.N!`` for each gain given (0–99 each).
-
-        All gains are checked before any is sent.
-
-        Example::
-
-            rov.set_depth_pid(p=30, d=10)
-        """
-        for command in operations.depth_pid(p, i, d):
-            self._send(command)
-
-    def set_direct_mode(self, enabled: bool) -> None:
-        """``#mvdirect.1!`` (vertical thrust set directly) or ``#mvdirect.0!`` (hold depth).
-
-        Example::
-
-            rov.set_direct_mode(True)
-            rov.set_vertical_thrust(-30)
-        """
-        self._send(operations.direct_mode(enabled))
-
-    def set_vertical_thrust(self, percent: int) -> None:
-        """``#mvs.±N!``: vertical thrust in direct mode, −100…+100 %, + up.
-
-        Example::
-
-            rov.set_vertical_thrust(+50)
-        """
-        self._send(operations.vertical_thrust(percent))
-
-    def hold_depth(self, depth_cm: int) -> None:
-        """``#mvd.N!``: in depth mode, hold this depth, 0–9999 cm below the surface.
-
-        Example::
-
-            rov.hold_depth(100)   # one metre
-        """
-        self._send(operations.hold_depth(depth_cm))
-
-    def move(self, direction_deg: int, power_percent: int) -> None:
-        """``#th.A.P!``: move horizontally, direction 0–360° clockwise from the bow, power 0–100 %.
-
-        Example::
-
-            rov.move(270, 25)   # left at a quarter power
-        """
-        self._send(operations.move(direction_deg, power_percent))
-
-    def set_depth_zero(self, raw: int) -> None:
-        """``#sdz.N!``: the raw pressure reading at the surface, 0–1024.
-
-        Example::
-
-            rov.set_depth_zero(rov.pressure_raw())   # calibrate at the surface
-        """
-        self._send(operations.depth_zero(raw))
-
-    def set_depth_scale(self, k: int) -> None:
-        """``#sdk.N!``: the depth coefficient, depth[m] = (raw − zero) · k / 10000; 0–10000.
-
-        Example::
-
-            rov.set_depth_scale(1000)
-        """
-        self._send(operations.depth_scale(k))
-
-    def reset_leak(self) -> None:
-        """``#slreset!``: clear the leak latch.
-
-        Example::
-
-            rov.reset_leak()
-        """
-        self._send(operations.RESET_LEAK)
-
-    def claw_open(self) -> None:
-        """``#h+!``: run the claw motor one pulse towards open.
-
-        Example::
-
-            rov.claw_open()
-        """
-        self._send(operations.CLAW_OPEN)
-
-    def claw_close(self) -> None:
-        """``#h-!``: run the claw motor one pulse towards closed.
-
-        Example::
-
-            rov.claw_close()
-        """
-        self._send(operations.CLAW_CLOSE)
-
-    # -- queries --------------------------------------------------------------------------------
-
-    def depth_cm(self) -> int:
-        """``#qd!``: depth below the surface, cm.
-
-        Example::
-
-            if rov.depth_cm() > 500: rov.hold_depth(400)
-        """
-        return self._ask(operations.DEPTH_CM)
-
-    def pressure_raw(self) -> int:
-        """``#qr!``: the raw pressure-sensor reading, 0–1024.
-
-        Example::
-
-            zero = rov.pressure_raw()
-        """
-        return self._ask(operations.PRESSURE_RAW)
-
-    def leak_detected(self) -> bool:
-        """``#q.l!``: whether the leak sensor fired since the last :meth:`reset_leak`.
-
-        Example::
-
-            if rov.leak_detected(): rov.hold_depth(0)
-        """
-        return self._ask(operations.LEAK_DETECTED)
-
-    def roll_deg(self) -> int:
-        """``#qro!``: roll, −90…+90°.
-
-        Example::
-
-            print(rov.roll_deg())
-        """
-        return self._ask(operations.ROLL_DEG)
-
-    def pitch_deg(self) -> int:
-        """``#qpi!``: pitch, −90…+90°.
-
-        Example::
-
-            print(rov.pitch_deg())
-        """
-        return self._ask(operations.PITCH_DEG)
-
-    def heading_deg(self) -> int:
-        """``#qhe!``: magnetic heading, 0–360°.
-
-        Example::
-
-            print(rov.heading_deg())
-        """
-        return self._ask(operations.HEADING_DEG)
-
-    def sensors(self) -> Sensors:
-        """``#qsa!``: every sensor at once.
-
-        Example::
-
-            reading = rov.sensors()
-            print(reading.depth_cm, reading.heading_deg, reading.leak_detected)
-        """
-        return self._ask(operations.SENSORS)
+    # -- commands: see command_methods (generated) ------------------------------------------
 
     # -- any command ----------------------------------------------------------------------------
 
@@ -480,6 +257,25 @@ class Client:
         raise QueryTimeoutError(pending.command, [outcome.value], self._options.timeout_s)
 
     # -- internals ------------------------------------------------------------------------------
+
+    def _switch_checksum(self, command: Command) -> None:
+        """Send ``#crcon!``/``#crcoff!`` once the queries on the wire are answered in the old
+        mode."""
+        me = threading.get_ident()
+        with self._state_lock:
+            while self._mode_switcher is not None:  # another thread is switching: after it
+                self._wait_for_change(None)
+            self._check_open()
+            self._mode_switcher = me
+            on_the_wire = self._session.pending
+        try:
+            for query in on_the_wire:
+                self._wait(query, owned=False)
+            self._send(command)
+        finally:
+            with self._state_lock:
+                self._mode_switcher = None
+                self._notify_callers()
 
     def _check_open(self) -> None:
         if self._lost is not None:

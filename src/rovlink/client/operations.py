@@ -2,8 +2,8 @@
 
 The blocking client and the asyncio client are thin: each method validates its arguments here
 (before anything is sent), then sends the resulting commands or asks the resulting
-:class:`Query`. :data:`METHOD_FRAMES` ties every method to the frames of the command table it
-sends; the tests check that together they cover the whole table.
+:class:`Query`. :mod:`rovlink.client.method_table` ties every method to the frames of the command
+table it sends; the tests check that together they cover the whole table.
 """
 
 from __future__ import annotations
@@ -21,7 +21,6 @@ __all__ = [
     "DEPTH_CM",
     "HEADING_DEG",
     "LEAK_DETECTED",
-    "METHOD_FRAMES",
     "PITCH_DEG",
     "PRESSURE_RAW",
     "ROLL_DEG",
@@ -72,34 +71,6 @@ START = Command("start")
 RESET_LEAK = Command("slreset")
 CLAW_OPEN = Command("h+")
 CLAW_CLOSE = Command("h-")
-
-#: Every driver method and the frames it may send (``send_raw`` sends anything).
-METHOD_FRAMES: dict[str, tuple[str, ...]] = {
-    "stop": ("stop",),
-    "start": ("start",),
-    "set_checksum": ("crcon", "crcoff"),
-    "set_debug": ("debug1", "debug0"),
-    "set_max_pwm": ("mgmp",),
-    "set_depth_pid": ("mvpdp", "mvpdi", "mvpidd"),
-    "set_direct_mode": ("mvdirect",),
-    "set_vertical_thrust": ("mvs",),
-    "hold_depth": ("mvd",),
-    "move": ("th",),
-    "depth_cm": ("qd",),
-    "pressure_raw": ("qr",),
-    "set_depth_zero": ("sdz",),
-    "set_depth_scale": ("sdk",),
-    "leak_detected": ("q.l",),
-    "reset_leak": ("slreset",),
-    "roll_deg": ("qro",),
-    "pitch_deg": ("qpi",),
-    "heading_deg": ("qhe",),
-    "sensors": ("qsa",),
-    "claw_open": ("h+",),
-    "claw_close": ("h-",),
-    "send_raw": (),
-}
-
 
 def _integer(method: str, name: str, value: object, argument: Argument, frame: str) -> int:
     if isinstance(value, bool):
