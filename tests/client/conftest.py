@@ -73,7 +73,10 @@ def fake(fake_pair: tuple[FakeController, socket.socket]) -> FakeController:
 
 
 def _options(overrides: dict[str, Any]) -> ClientOptions:
-    settings: dict[str, Any] = {"timeout_s": REPLY_TIMEOUT_S, "keepalive_s": None}
+    # No readiness probe and no motion expiry unless a test asks: the fake answers at once, and
+    # the frames a test expects are then exactly the ones it caused.
+    settings: dict[str, Any] = {"timeout_s": REPLY_TIMEOUT_S, "keepalive_s": None,
+                                "boot_timeout_s": None, "motion_timeout_s": None}
     settings.update(overrides)
     return ClientOptions(**settings)
 

@@ -102,7 +102,10 @@ async def test_a_query_with_no_reply_times_out_after_its_retries(
     assert caught.value.query == Command("qro")
     assert caught.value.failures == ("timeout", "timeout")
     counters = client.counters
-    assert (counters.timeouts, counters.retries) == (2, 1)
+    assert counters.retries == 1
+    # The unanswered fences (P20) time out too.
+    assert counters.timeouts >= 2
+    assert counters.fences >= 1
     assert fake.frames().count("#qro!") == 2
 
 

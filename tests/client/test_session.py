@@ -91,7 +91,10 @@ def test_a_dead_link_times_every_query_out_together() -> None:
     session = Session(timeout_s=0.5)
     queries = [session.query(Command("qd"), now=0.01 * n)[1] for n in range(5)]
     assert session.expire(now=0.55) == queries
-    assert session.next_deadline() is None
+    # Only the fence is left (P20): a query of another name, due to be written now.
+    assert [query.command.name for query in session.pending] == ["qhe"]
+    assert session.take_outbox(now=0.55) == b"#qhe!"
+    assert session.next_deadline() == pytest.approx(1.05)
 
 
 def test_checksum_mode_switches_both_directions() -> None:
@@ -107,8 +110,9 @@ def test_checksum_mode_switches_both_directions() -> None:
 
 def test_raw_frames_are_counted_and_a_raw_query_waits_for_its_reply() -> None:
     session = Session()
-    assert session.raw(b"#bogus!", now=0.0) is None
-    query = session.raw(b"#qd!", now=0.0)
+    assert session.raw(b"#bogus!", now=0.0) == (b"#bogus!", None)
+    data, query = session.raw(b"#qd!", now=0.0)
+    assert data == b"#qd!"
     assert query is not None
     assert query.command == Command("qd")
     assert session.counters.frames_sent == 2

@@ -76,8 +76,10 @@ def test_blocking_client_over_a_pty(pty_fake: tuple[FakeController, str]) -> Non
         assert rov.sensors() == EXPECTED_SENSORS
         rov.move(270, 25)
         assert rov.depth_cm() == 123
-    assert fake.frames() == ["#crcon!", "#qsa!", "#th.270.25!", "#qd!"]
-    assert bytes(fake.raw) == b"#crcon!#qsaB1!#th.270.25CA!#qd8C!"
+    # The readiness probe (P21), then the checksum mode, confirmed by a query.
+    assert fake.frames()[:2] == ["#crcoff!", "#qd!"]
+    assert fake.frames()[-5:] == ["#crcon!", "#qd!", "#qsa!", "#th.270.25!", "#qd!"]
+    assert bytes(fake.raw).endswith(b"#crcon!#qd8C!#qsaB1!#th.270.25CA!#qd8C!")
 
 
 def test_pty_disconnect_is_a_lost_connection(pty_fake: tuple[FakeController, str]) -> None:

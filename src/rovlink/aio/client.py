@@ -20,14 +20,20 @@ from typing import Any, TypeVar
 from rovlink.aio.command_methods import AsyncCommandMethods
 from rovlink.aio.transport import ByteTransport, transport_for
 from rovlink.client import operations
-from rovlink.client.blocking import KEEPALIVE_QUERY
 from rovlink.client.counters import LinkCounters
-from rovlink.client.errors import ConnectionLostError, QueryTimeoutError
+from rovlink.client.errors import ConnectError, ConnectionLostError, QueryTimeoutError
+from rovlink.client.events import EventCallback
 from rovlink.client.links import Link, open_link
-from rovlink.client.options import ClientOptions, StrayCallback
+from rovlink.client.options import (
+    DEFAULT_BOOT_TIMEOUT_S,
+    DEFAULT_MOTION_TIMEOUT_S,
+    ClientOptions,
+    StrayCallback,
+)
+from rovlink.client.readiness import ReadinessProbe
 from rovlink.client.sensors import Sensors
 from rovlink.client.session import Outcome, PendingQuery, Session
-from rovlink.client.unsolicited import report
+from rovlink.client.unsolicited import DropLog, deliver
 from rovlink.client.url import parse_url
 from rovlink.protocol import Command, Response
 
@@ -69,30 +75,73 @@ class AsyncClient(AsyncCommandMethods):
         self._link = link
         self._loop = asyncio.get_running_loop()
         self._transport: ByteTransport = transport_for(link, self._loop)
-        self._session = Session(algorithm=self._options.algorithm,
-                                timeout_s=self._options.timeout_s)
+        options = self._options
+        self._session = Session(algorithm=options.algorithm, timeout_s=options.timeout_s,
+                                keepalive_s=options.keepalive_s,
+                                motion_timeout_s=options.motion_timeout_s,
+                                record_events=options.on_event is not None)
+        self._drops = DropLog()
+        self._probe: ReadinessProbe | None = None  # while waiting for the controller (P21)
+        self._probe_data = asyncio.Event()
         self._in_flight = asyncio.Semaphore(max_in_flight)
         self._max_in_flight = max_in_flight
         self._mode_settled = asyncio.Event()  # cleared while a checksum switch drains
         self._mode_settled.set()
         self._settled = asyncio.Event()  # set whenever a query settles (for close)
         self._timer: asyncio.TimerHandle | None = None
-        self._keepalive_task: asyncio.Task[None] | None = None
         self._lost: ConnectionLostError | None = None
         self._closed = False
 
     async def open(self) -> AsyncClient:
-        """Start reading and put the controller in the asked checksum mode.
+        """Start reading, wait until the controller answers (``boot_timeout``, P21), and put it in
+        the checksum mode asked for.
 
         Example::
 
             rov = await AsyncClient(link).open()
         """
         self._transport.start(self._on_data, self._on_lost)
-        self._send(operations.checksum(self._options.checksum))
-        if self._options.keepalive_enabled:
-            self._keepalive_task = asyncio.create_task(self._keepalive_loop())
+        options = self._options
+        await self._await_ready()
+        self._send(operations.checksum(options.checksum))
+        if options.checksum and options.boot_timeout_s is not None:
+            try:
+                await self._request(Command("qd"))
+            except QueryTimeoutError as error:
+                raise ConnectError(
+                    f"{self._link.description}: the controller answers, but not in checksum "
+                    f"mode with {options.algorithm} (is that its algorithm?): {error}"
+                ) from error
+        self._arm_timer()
         return self
+
+    async def _await_ready(self) -> None:
+        boot_timeout_s = self._options.boot_timeout_s
+        if boot_timeout_s is None:
+            return
+        loop = self._loop
+        probe = self._probe = ReadinessProbe(loop.time(), boot_timeout_s)
+        try:
+            while not probe.done(loop.time()):
+                self._check_open()
+                now = loop.time()
+                if probe.timed_out(now):
+                    raise ConnectError(
+                        f"{self._link.description}: the controller did not answer within "
+                        f"{boot_timeout_s:g} s ({probe.probes_sent} probes; is it powered, and "
+                        f"is this its port and baud rate?)"
+                    )
+                data = probe.bytes_to_send(now)
+                if data:
+                    self._write(data)
+                    self._session.counters.frames_sent += 2
+                    self._session.counters.bytes_sent += len(data)
+                self._probe_data.clear()
+                with contextlib.suppress(TimeoutError, asyncio.TimeoutError):
+                    await asyncio.wait_for(self._probe_data.wait(),
+                                           max(probe.wait_s(loop.time()), 0.001))
+        finally:
+            self._probe = None
 
     # -- the connection -------------------------------------------------------------------------
 
@@ -124,8 +173,6 @@ class AsyncClient(AsyncCommandMethods):
         if self._closed:
             return
         self._closed = True
-        if self._keepalive_task is not None:
-            self._keepalive_task.cancel()
         await self._drain()
         await self._transport.close()
         self._on_lost(ConnectionLostError(f"{self._link.description}: closed"))
@@ -257,11 +304,12 @@ class AsyncClient(AsyncCommandMethods):
             return ()
         self._check_open()
         await self._mode_settled.wait()
-        pending = self._session.raw(data, self._loop.time())
+        data, pending = self._session.raw(data, self._loop.time())
         if pending is not None:
             pending.waiter = self._loop.create_future()
             self._arm_timer()
         self._write(data)
+        self._emit()
         if pending is None:
             return ()
         outcome = await self._outcome(pending)
@@ -327,6 +375,21 @@ class AsyncClient(AsyncCommandMethods):
     def _send(self, command: Command) -> None:
         self._check_open()
         self._write(self._session.command(command, self._loop.time()))
+        self._arm_timer()  # a motion command may now expire
+        self._emit()
+
+    def _emit(self) -> None:
+        """Hand the session's events to ``on_event`` and log its notices."""
+        session = self._session
+        if session.events or session.notices:
+            deliver(session.take_events(), session.take_notices(), self._options.on_event)
+
+    def _flush_due(self) -> None:
+        """Write what the session has due (a fence, a keep-alive, zero thrust)."""
+        data = self._session.take_outbox(self._loop.time())
+        if data:
+            with contextlib.suppress(ConnectionLostError):  # recorded: the waiters see it
+                self._write(data)
 
     async def _ask(self, query: operations.Query[T]) -> T:
         return query.read(await self._request(query.command))
@@ -351,8 +414,11 @@ class AsyncClient(AsyncCommandMethods):
             self._session.counters.retries += 1
         data, pending = self._session.query(command, self._loop.time())
         pending.waiter = self._loop.create_future()
-        self._write(data)
+        if data:  # (nothing while queries are held back, P20)
+            self._write(data)
         self._arm_timer()
+        if self._session.events:
+            self._emit()
         return pending
 
     async def _outcome(self, pending: PendingQuery) -> Outcome:
@@ -372,10 +438,22 @@ class AsyncClient(AsyncCommandMethods):
                 waiter.set_result(query.outcome)
 
     def _on_data(self, data: bytes) -> None:
-        received = self._session.receive(data, self._loop.time())
+        if self._probe is not None:
+            self._probe.receive(data, self._loop.time())
+            self._session.counters.bytes_received += len(data)
+            self._probe_data.set()
+            return
+        session = self._session
+        now = self._loop.time()
+        received = session.receive(data, now)
         self._wake(received.settled)
+        if session.has_outbox:
+            self._flush_due()
+            self._arm_timer()
         if received.unsolicited:
-            report(received.unsolicited, self._options.on_stray)
+            self._drops.report(received.unsolicited, self._options.on_stray, now)
+        if session.events or session.notices:
+            self._emit()
 
     def _on_lost(self, error: ConnectionLostError) -> None:
         if self._lost is not None:
@@ -389,36 +467,29 @@ class AsyncClient(AsyncCommandMethods):
             logger.warning("%s", error)
 
     def _arm_timer(self) -> None:
-        if self._timer is None:
-            deadline = self._session.next_deadline()
-            if deadline is not None:
-                self._timer = self._loop.call_at(deadline, self._on_timer)
+        """Have :meth:`_on_timer` run at the session's next deadline (an earlier one re-arms)."""
+        if self._lost is not None:
+            return
+        deadline = self._session.next_deadline()
+        timer = self._timer
+        if timer is not None:
+            if deadline is not None and timer.when() <= deadline:
+                return
+            timer.cancel()
+            self._timer = None
+        if deadline is not None:
+            self._timer = self._loop.call_at(deadline, self._on_timer)
 
     def _on_timer(self) -> None:
         self._timer = None
-        self._wake(self._session.expire(self._loop.time()))
+        if self._lost is not None:
+            return
+        session = self._session
+        self._wake(session.tick(self._loop.time()))
+        if session.has_outbox:
+            self._flush_due()
+        self._emit()
         self._arm_timer()
-
-    async def _keepalive_loop(self) -> None:
-        keepalive_s = self._options.keepalive_s
-        assert keepalive_s
-        while self._lost is None:
-            idle_s = self._loop.time() - self._session.last_sent_at
-            if idle_s < keepalive_s:
-                await asyncio.sleep(keepalive_s - idle_s)
-                continue
-            if self._mode_settled.is_set():
-                data, pending = self._session.query(
-                    KEEPALIVE_QUERY, self._loop.time(), keepalive=True
-                )
-                pending.waiter = self._loop.create_future()
-                try:
-                    self._write(data)
-                except ConnectionLostError:
-                    return
-                self._arm_timer()
-            else:
-                await self._mode_settled.wait()
 
 
 class _Connecting:
@@ -466,8 +537,12 @@ def connect(
     checksum: bool = False,
     algorithm: str = "crc8",
     keepalive: float | None = 1.0,
+    boot_timeout: float | None = DEFAULT_BOOT_TIMEOUT_S,
+    motion_timeout: float | None = DEFAULT_MOTION_TIMEOUT_S,
     baudrate: int | None = None,
     on_stray: StrayCallback | None = None,
+    on_event: EventCallback | None = None,
+    options: ClientOptions | None = None,
     max_in_flight: int = DEFAULT_MAX_IN_FLIGHT,
 ) -> _Connecting:
     """Connect to a controller for asyncio: ``async with connect(url) as rov`` or ``await``.
@@ -485,7 +560,9 @@ def connect(
 
         asyncio.run(main())
     """
-    options = ClientOptions(timeout, retries, checksum, algorithm, keepalive, on_stray)
+    if options is None:
+        options = ClientOptions(timeout, retries, checksum, algorithm, keepalive, on_stray,
+                                boot_timeout, motion_timeout, on_event)
     if isinstance(max_in_flight, bool) or not isinstance(max_in_flight, int) \
             or max_in_flight < 1:
         raise ValueError(f"max_in_flight must be an integer ≥ 1, got {max_in_flight!r}")

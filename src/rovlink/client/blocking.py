@@ -25,21 +25,27 @@ from typing import TypeVar
 from rovlink.client import operations
 from rovlink.client.command_methods import CommandMethods
 from rovlink.client.counters import LinkCounters
-from rovlink.client.errors import ConnectionLostError, QueryTimeoutError
+from rovlink.client.errors import ConnectError, ConnectionLostError, QueryTimeoutError
+from rovlink.client.events import EventCallback
 from rovlink.client.links import Link, open_link
-from rovlink.client.options import ClientOptions, StrayCallback
-from rovlink.client.session import Outcome, PendingQuery, Session
-from rovlink.client.unsolicited import report
+from rovlink.client.options import (
+    DEFAULT_BOOT_TIMEOUT_S,
+    DEFAULT_MOTION_TIMEOUT_S,
+    ClientOptions,
+    StrayCallback,
+)
+from rovlink.client.readiness import ReadinessProbe
+from rovlink.client.session import KEEPALIVE_QUERY, Outcome, PendingQuery, Session
+from rovlink.client.unsolicited import DropLog, deliver
 from rovlink.client.url import parse_url
 from rovlink.protocol import Command, Event, Response
 
 __all__ = ["KEEPALIVE_QUERY", "Client", "connect"]
 
+_NEVER = float("inf")
+
 T = TypeVar("T")
 
-#: The query sent when the link has been idle: any valid frame feeds the controller's watchdog
-#: (P17), and a query also proves the controller is still answering.
-KEEPALIVE_QUERY = Command("qd")
 # Plain names for the members used per query: an enum member costs a descriptor call to look up.
 _PENDING = Outcome.PENDING
 _ANSWERED = Outcome.ANSWERED
@@ -71,8 +77,8 @@ class Client(CommandMethods):
     ) -> None:
         """Drive the controller on ``link`` (already open; the client closes it).
 
-        Sends ``#crcon!`` or ``#crcoff!`` at once so the controller's checksum mode is the one
-        asked for, whatever an earlier session left behind.
+        Waits until the controller answers (``boot_timeout``, P21), then puts it in the checksum
+        mode asked for, whatever an earlier session or a reset left behind.
 
         Example::
 
@@ -81,8 +87,12 @@ class Client(CommandMethods):
         self._options = options or ClientOptions()
         self._link = link
         self._clock = clock
-        self._session = Session(algorithm=self._options.algorithm,
-                                timeout_s=self._options.timeout_s)
+        options = self._options
+        self._session = Session(algorithm=options.algorithm, timeout_s=options.timeout_s,
+                                keepalive_s=options.keepalive_s,
+                                motion_timeout_s=options.motion_timeout_s,
+                                record_events=options.on_event is not None)
+        self._drops = DropLog()
         # Lock order: the wire lock, then the state lock.
         self._wire_lock = threading.Lock()  # one writer at a time: queue order = wire order
         self._state_lock = threading.Lock()  # the session and everything below
@@ -104,7 +114,10 @@ class Client(CommandMethods):
         # Links over a descriptor write without blocking: queries then take a shorter path.
         self._send_now: Callable[[bytes], int] | None = getattr(link, "send_some", None)
         try:
-            self._send(operations.checksum(self._options.checksum))
+            self._await_ready()
+            self._send(operations.checksum(options.checksum))
+            if options.checksum and options.boot_timeout_s is not None:
+                self._confirm_checksum_mode()
         except BaseException:
             self._link.close()
             raise
@@ -324,6 +337,77 @@ class Client(CommandMethods):
             with self._state_lock:
                 data = self._session.command(command, self._clock())
             self._write(data)
+        self._emit()
+
+    def _await_ready(self) -> None:
+        """P21: probe until the controller answers, then let the line go quiet (see readiness)."""
+        boot_timeout_s = self._options.boot_timeout_s
+        if boot_timeout_s is None:
+            return
+        clock = time.monotonic  # a board boots in real time, whatever clock the session reads
+        probe = ReadinessProbe(clock(), boot_timeout_s)
+        while not probe.done(clock()):
+            now = clock()
+            if probe.timed_out(now):
+                raise ConnectError(
+                    f"{self._link.description}: the controller did not answer within "
+                    f"{boot_timeout_s:g} s ({probe.probes_sent} probes; is it powered, and is "
+                    f"this its port and baud rate?)"
+                )
+            data = probe.bytes_to_send(now)
+            if data:
+                self._link.write(data)
+                with self._state_lock:
+                    self._session.counters.frames_sent += 2
+                    self._session.counters.bytes_sent += len(data)
+            data = self._link.read_available(max(probe.wait_s(clock()), 0.001))
+            if data:
+                probe.receive(data, clock())
+                with self._state_lock:
+                    self._session.counters.bytes_received += len(data)
+
+    def _confirm_checksum_mode(self) -> None:
+        try:
+            self._request(Command("qd"))
+        except QueryTimeoutError as error:
+            raise ConnectError(
+                f"{self._link.description}: the controller answers, but not in checksum mode "
+                f"with {self._options.algorithm} (is that its algorithm?): {error}"
+            ) from error
+
+    def _flush_due(self) -> None:
+        """Write what the session has due (state lock held on entry and on return)."""
+        lock = self._state_lock
+        lock.release()
+        try:
+            with self._wire_lock, lock:
+                data = self._session.take_outbox(self._clock())
+                if data:
+                    try:
+                        written = self._send_now(data) if self._send_now else 0
+                    except ConnectionLostError as error:
+                        self._lose(error)
+                        return
+                    if written < len(data):
+                        lock.release()
+                        try:
+                            self._write(data[written:])
+                        except ConnectionLostError:
+                            pass  # recorded as lost: the waiters see it
+                        finally:
+                            lock.acquire()
+        finally:
+            lock.acquire()
+
+    def _emit(self) -> None:
+        """Hand the session's events to ``on_event`` and log its notices (no lock held)."""
+        session = self._session
+        if session.events is None and not session.notices:
+            return
+        with self._state_lock:
+            events = session.take_events()
+            notices = session.take_notices()
+        deliver(events, notices, self._options.on_event)
 
     def _ask(self, query: operations.Query[T]) -> T:
         return query.read(self._request(query.command))
@@ -368,7 +452,11 @@ class Client(CommandMethods):
                 if self._mode_switcher is not None:
                     lock.release()
                     return None
-                data = session.query_bytes(command)
+                ready = session.fast_query(command, self._clock())
+                if ready is None:  # something due first, or queries held: the general path
+                    lock.release()
+                    return None
+                data, pending = ready
                 try:
                     written = send_now(data)  # never blocks: the state lock is not held long
                 except ConnectionLostError as error:
@@ -377,7 +465,6 @@ class Client(CommandMethods):
             except BaseException:
                 lock.release()
                 raise
-            _, pending = session.query(command, self._clock())
             self._active_callers += 1
             background_reading = self._reader_ident == self._background_ident
             if written < len(data):  # the kernel's buffer is full: wait for room unlocked
@@ -411,13 +498,14 @@ class Client(CommandMethods):
                         if isinstance(query, Command):
                             data, pending = session.query(query, self._clock())
                         else:
-                            data, pending = query, session.raw(query, self._clock())
+                            data, pending = session.raw(query, self._clock())
                         if pending is not None:
                             self._active_callers += 1
                         background_reading = self._reader_ident == self._background_ident
                 if ready:
                     try:
-                        self._write(data)  # under the wire lock: the queue's order is the wire's
+                        if data:  # (nothing while queries are held back, P20)
+                            self._write(data)  # under the wire lock: queue order = wire order
                     except ConnectionLostError:
                         if pending is not None:
                             self._wait(pending)  # settled already: stops counting as active
@@ -450,8 +538,12 @@ class Client(CommandMethods):
             now = clock()
             while pending.outcome is _PENDING:
                 remaining = session.deadline(pending) - now
+                if remaining == _NEVER:  # held back (P20): until the quiet line releases it
+                    remaining = (session.next_deadline() or now + _MAX_READ_WAIT_S) - now
                 if remaining <= 0:
-                    session.expire(now)
+                    session.tick(now)
+                    if session.has_outbox:
+                        self._flush_due()
                     self._notify_callers()
                 elif self._reader_ident is not None:
                     self._wait_for_change(remaining)
@@ -475,6 +567,8 @@ class Client(CommandMethods):
                             if unsolicited is None:
                                 unsolicited = []
                             unsolicited += received.unsolicited
+                        if session.has_outbox:
+                            self._flush_due()
                     if self._waiting_callers:
                         self._changed.notify_all()
                     continue  # ``now`` is fresh
@@ -486,7 +580,8 @@ class Client(CommandMethods):
                 self._last_caller_at = now
             lock.release()
             if unsolicited:
-                report(unsolicited, self._options.on_stray)
+                self._drops.report(unsolicited, self._options.on_stray, now)
+            self._emit()
 
     def _background_loop(self) -> None:
         me = threading.get_ident()
@@ -512,6 +607,8 @@ class Client(CommandMethods):
                     with lock:
                         received = self._session.receive(data, self._clock())
                         unsolicited = received.unsolicited
+                        if self._session.has_outbox:
+                            self._flush_due()
             except ConnectionLostError as error:
                 if not self._closing:
                     self._connection_lost(error)
@@ -520,35 +617,26 @@ class Client(CommandMethods):
                     self._reader_ident = None
                     self._notify_callers()  # results, or the role, for a waiting caller
             if unsolicited:
-                report(unsolicited, self._options.on_stray)
+                self._drops.report(unsolicited, self._options.on_stray, self._clock())
+            self._emit()
 
     def _housekeeping(self) -> float:
-        """Time out overdue queries, keep the link alive; how long the reader may block now."""
+        """Do what the session has due (timeouts, keep-alive, expired motion); how long the
+        reader may block now."""
         now = self._clock()
         with self._state_lock:
-            if self._session.expire(now):
-                self._notify_callers()
-            next_deadline = self._session.next_deadline()
-            last_sent_at = self._session.last_sent_at
+            session = self._session
+            if self._mode_switcher is None or session.pending:
+                # (A checksum switch in progress talks anyway: no keep-alive in its way.)
+                if session.tick(now):
+                    self._notify_callers()
+                if session.has_outbox:
+                    self._flush_due()
+            next_deadline = session.next_deadline()
         wait_s = _MAX_READ_WAIT_S
         if next_deadline is not None:
             wait_s = min(wait_s, next_deadline - now)
-        keepalive_s = self._options.keepalive_s
-        if keepalive_s and self._lost is None:
-            idle_s = now - last_sent_at
-            if idle_s >= keepalive_s and self._send_keepalive():
-                idle_s = 0.0
-            wait_s = min(wait_s, keepalive_s - idle_s)
         return max(wait_s, 0.001)
-
-    def _send_keepalive(self) -> bool:
-        with self._wire_lock:
-            with self._state_lock:
-                if self._mode_switcher is not None:
-                    return False  # a checksum switch is talking anyway
-                data, _ = self._session.query(KEEPALIVE_QUERY, self._clock(), keepalive=True)
-            self._write(data)
-        return True
 
 
 def connect(
@@ -559,8 +647,12 @@ def connect(
     checksum: bool = False,
     algorithm: str = "crc8",
     keepalive: float | None = 1.0,
+    boot_timeout: float | None = DEFAULT_BOOT_TIMEOUT_S,
+    motion_timeout: float | None = DEFAULT_MOTION_TIMEOUT_S,
     baudrate: int | None = None,
     on_stray: StrayCallback | None = None,
+    on_event: EventCallback | None = None,
+    options: ClientOptions | None = None,
 ) -> Client:
     """Connect to a controller and return a blocking :class:`Client` (a context manager).
 
@@ -570,7 +662,12 @@ def connect(
     ``timeout`` (s) per query attempt; ``retries`` more attempts of a query after a timeout or a
     corrupt reply; ``checksum`` and ``algorithm`` (``crc8``, ``xor``, ``sum8``) the mode to put
     the controller in; ``keepalive`` (s) of idle link before a keep-alive query (``None``: never);
-    ``on_stray`` is called (in the reader thread) with debug text and frames nobody asked for.
+    ``boot_timeout`` (s) to wait for the controller to answer after the port opens (a board that
+    resets on open boots for up to 2 s; ``None``: do not wait); ``motion_timeout`` (s) after which
+    a motion command the program did not renew is expired with zero thrust (``None``: never);
+    ``on_stray`` is called (in the reader thread) with debug text and frames nobody asked for, and
+    ``on_event`` with every event of the connection (:mod:`rovlink.client.events`).
+    ``options`` gives all of these at once as a :class:`ClientOptions` instead.
 
     Example::
 
@@ -582,7 +679,9 @@ def connect(
             print(rov.sensors())
             rov.stop()
     """
-    options = ClientOptions(timeout, retries, checksum, algorithm, keepalive, on_stray)
+    if options is None:
+        options = ClientOptions(timeout, retries, checksum, algorithm, keepalive, on_stray,
+                                boot_timeout, motion_timeout, on_event)
     link = open_link(parse_url(url, baudrate))
     try:
         return Client(link, options)

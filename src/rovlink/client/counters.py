@@ -37,6 +37,16 @@ class LinkCounters:
     text_lines: int = 0
     #: Keep-alive queries sent because the link was idle.
     keepalives: int = 0
+    #: Replies that came after their query had failed: discarded, never handed on (P20).
+    late_replies: int = 0
+    #: Fence queries sent to resynchronise after a failed query (P20).
+    fences: int = 0
+    #: Times consecutive timeouts made the session suspect a controller reset (P21).
+    resets_suspected: int = 0
+    #: Times an unrenewed motion command was expired with zero thrust (P23).
+    motion_expiries: int = 0
+    #: Bytes of line noise: dropped frames and text that is not printable (not debug output).
+    noise_bytes: int = 0
     bytes_sent: int = 0
     bytes_received: int = 0
 

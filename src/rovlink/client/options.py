@@ -5,9 +5,21 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass
 
+from rovlink.client.events import EventCallback
 from rovlink.protocol import ALGORITHMS, Event
 
-__all__ = ["ClientOptions", "StrayCallback"]
+__all__ = ["DEFAULT_BOOT_TIMEOUT_S", "DEFAULT_MOTION_TIMEOUT_S", "ClientOptions", "StrayCallback"]
+
+#: How long ``connect`` waits for the controller to answer: an Arduino-class board resets when its
+#: port opens and ignores input for up to 2 s while it boots (P21).
+DEFAULT_BOOT_TIMEOUT_S = 3.0
+#: How long a motion command (``move``, ``set_vertical_thrust``) lasts unless renewed (P23): the
+#: controller's own link-loss watchdog default (P17), so the keep-alive never lets a program that
+#: went silent keep the robot moving longer than the controller itself would.
+DEFAULT_MOTION_TIMEOUT_S = 2.0
+#: Upper bounds that catch a typo (``timeout=1e10``) rather than limit a real use.
+MAX_TIMEOUT_S = 3600.0
+MAX_RETRIES = 100
 
 #: Called with every event that answered no query: debug text, noise, dropped or stray frames.
 StrayCallback = Callable[[Event], None]
@@ -15,14 +27,19 @@ StrayCallback = Callable[[Event], None]
 
 @dataclass(frozen=True, slots=True)
 class ClientOptions:
-    """``timeout_s`` per query attempt, ``retries`` extra attempts of a query, the checksum
-    mode and algorithm to put the controller in, and ``keepalive_s`` of idle link before a
-    keep-alive query (``None`` or 0: never).
+    """The settings of one connection, checked once, shared by both clients and the tools.
+
+    ``timeout_s`` per query attempt, ``retries`` extra attempts of a query, the checksum
+    mode and algorithm to put the controller in, ``keepalive_s`` of idle link before a
+    keep-alive query (``None`` or 0: never), ``boot_timeout_s`` to wait on connect for the
+    controller to answer (``None``: do not wait), ``motion_timeout_s`` after which an unrenewed
+    motion command is expired with zero thrust (``None``: never), ``on_stray`` for what
+    answered no query and ``on_event`` for every event of the connection.
 
     >>> ClientOptions(timeout_s=0).timeout_s
     Traceback (most recent call last):
     ...
-    ValueError: timeout must be a positive number of seconds, got 0
+    ValueError: timeout must be a positive number of seconds up to 3600, got 0
     """
 
     timeout_s: float = 0.5
@@ -31,16 +48,18 @@ class ClientOptions:
     algorithm: str = "crc8"
     keepalive_s: float | None = 1.0
     on_stray: StrayCallback | None = None
+    boot_timeout_s: float | None = DEFAULT_BOOT_TIMEOUT_S
+    motion_timeout_s: float | None = DEFAULT_MOTION_TIMEOUT_S
+    on_event: EventCallback | None = None
 
     def __post_init__(self) -> None:
-        if isinstance(self.timeout_s, bool) or not isinstance(self.timeout_s, int | float) \
-                or not self.timeout_s > 0:
-            raise ValueError(
-                f"timeout must be a positive number of seconds, got {self.timeout_s!r}"
-            )
+        _check_seconds("timeout", self.timeout_s, optional=False)
         if isinstance(self.retries, bool) or not isinstance(self.retries, int) \
-                or self.retries < 0:
-            raise ValueError(f"retries must be an integer ≥ 0, got {self.retries!r}")
+                or not 0 <= self.retries <= MAX_RETRIES:
+            raise ValueError(f"retries must be an integer from 0 to {MAX_RETRIES}, "
+                             f"got {self.retries!r}")
+        _check_seconds("boot_timeout", self.boot_timeout_s, optional=True)
+        _check_seconds("motion_timeout", self.motion_timeout_s, optional=True)
         if not isinstance(self.checksum, bool):
             raise TypeError(f"checksum must be True or False, got {self.checksum!r}")
         if self.algorithm not in ALGORITHMS:
@@ -53,8 +72,10 @@ class ClientOptions:
             raise ValueError(
                 f"keepalive must be a number of seconds ≥ 0 or None, got {keepalive!r}"
             )
-        if self.on_stray is not None and not callable(self.on_stray):
-            raise TypeError(f"on_stray must be callable, got {self.on_stray!r}")
+        for name in ("on_stray", "on_event"):
+            callback = getattr(self, name)
+            if callback is not None and not callable(callback):
+                raise TypeError(f"{name} must be callable, got {callback!r}")
 
     @property
     def keepalive_enabled(self) -> bool:
@@ -64,3 +85,14 @@ class ClientOptions:
         False
         """
         return bool(self.keepalive_s)
+
+
+def _check_seconds(name: str, value: object, *, optional: bool) -> None:
+    """A positive number of seconds up to an hour (or ``None`` where that means "never")."""
+    if value is None and optional:
+        return
+    if isinstance(value, bool) or not isinstance(value, int | float) \
+            or not 0 < value <= MAX_TIMEOUT_S:
+        never = " or None" if optional else ""
+        raise ValueError(f"{name} must be a positive number of seconds up to "
+                         f"{MAX_TIMEOUT_S:g}{never}, got {value!r}")

@@ -1,16 +1,38 @@
-"""The sans-I/O heart of both clients: encode commands, match replies to pending queries.
+"""The sans-I/O heart of both clients: every protocol decision of the host side, without I/O.
 
-A :class:`Session` owns the checksum mode, the decoder of the controller's byte stream, the
-first-in-first-out queue of queries waiting for replies and the counters. It never touches a
-port, a thread or a clock: the blocking and the asyncio clients feed it bytes and the time, write
-the bytes it returns, and wake whoever waits on the queries it settles.
+A :class:`Session` owns the checksum mode, the decoder of the controller's byte stream, the queue
+of queries waiting for replies, the counters, and the host's rules of PROTOCOL.md: matching
+(P4, P12, P20), resynchronisation after a timeout (P20), suspected resets (P21), keep-alive (P17)
+and expiring motion (P23). It never touches a port, a thread or a clock: the drivers feed it bytes
+and the time, write the bytes it hands them, in order, and wake whoever waits on the queries it
+settles. Every rule is therefore tested with byte strings and a fake clock.
 
-Matching (P4, P12): the controller answers queries in the order they arrive, each with the
-replies the command table lists (``qsa``: six). A reply goes to the oldest pending query if it is
-the reply that query expects next. If instead it is the first reply of a later query, the queries
-before that one lost their replies (the controller dropped them) and are settled as ``lost`` at
-once rather than after their timeout. Anything else is stray: a late reply to a query that
-already timed out, or a frame nobody asked for.
+Bytes out. :meth:`Session.query` and :meth:`Session.command` return the bytes to write for a
+command, preceded by anything the session itself has due (a fence, a mode frame, zero thrust):
+its *outbox*. :meth:`Session.tick` (at :meth:`Session.next_deadline`) may fill the outbox too;
+the driver writes :meth:`Session.take_outbox` then. Whoever writes next writes the outbox first,
+so the wire's order is always the queue's.
+
+Matching (P4, P12). The controller answers queries in the order they arrive, each with the replies
+the command table lists (``qsa``: six). A reply goes to the oldest pending query if it is the
+reply that query expects next. If instead it is the first reply of a later query, the queries
+before it lost their replies (the controller dropped them) and are settled as ``lost`` at once.
+
+Late replies and fences (P20). The protocol has no sequence numbers, so after a query times out
+its reply may still come and cannot be told from the reply of a later query of the same name.
+When a query fails that way, the session fails with it every query on the wire that expects a
+reply of one of the same names (``resync``; the caller retries them), marks those names *late*,
+and writes a *fence*: a query of a name that is not late. Until the fence's reply arrives, every
+reply of a late name is a :class:`~rovlink.client.events.LateReply`, counted and discarded; the
+controller answers in order, so nothing sent before the fence can arrive after its reply. When
+every name is late (a ``qsa`` timed out), no fence can be told apart: the session then holds new
+queries back until the line has been quiet for ``timeout_s`` — nothing is sent, so nothing new
+can be confused with what is still on its way.
+
+Resets (P21). After ``reset_after_timeouts`` consecutive timeouts the session suspects the
+controller reset (it comes back with checksum mode off, locked): it re-asserts its checksum mode
+(``#crcon!``/``#crcoff!`` are recognised in either mode) before the fence, and reports
+:class:`~rovlink.client.events.ResetSuspected`.
 
 Timeouts: a query's deadline is ``timeout_s`` after it was sent or after the last reply that
 moved the queue, whichever is later — so a deep pipeline on a slow line is not timed out while
@@ -22,6 +44,18 @@ from __future__ import annotations
 from collections import deque
 
 from rovlink.client.counters import LinkCounters
+from rovlink.client.events import (
+    BytesReceived,
+    BytesSent,
+    ClientEvent,
+    LateReply,
+    ModeChanged,
+    MotionExpired,
+    QueryFailed,
+    ReplyReceived,
+    ResetSuspected,
+    Unsolicited,
+)
 from rovlink.protocol import (
     DEFAULT_ALGORITHM,
     BadFrame,
@@ -33,21 +67,29 @@ from rovlink.protocol import (
     Kind,
     Reason,
     Response,
+    Setting,
     Text,
     encode,
     get_algorithm,
+    setting_command,
 )
 from rovlink.protocol.text_enum import StrEnum
 
-__all__ = ["Outcome", "PendingQuery", "Received", "Session"]
+__all__ = ["FENCE_QUERIES", "KEEPALIVE_QUERY", "Outcome", "PendingQuery", "Received", "Session"]
 
 # A damaged reply (rather than a frame of another kind): the query it belonged to failed.
 _CORRUPT_REASONS = frozenset({
     Reason.CHECKSUM, Reason.MALFORMED, Reason.RANGE, Reason.TOO_LONG, Reason.TRUNCATED,
 })
 
-
 _QUERY_BYTES_CACHED = 64
+
+#: The query sent when the link has been idle: any valid frame feeds the controller's watchdog
+#: (P17), and a query also proves the controller is still answering.
+KEEPALIVE_QUERY = Command("qd")
+#: Fence candidates, in order of preference: single-reply queries.
+FENCE_QUERIES = (Command("qhe"), Command("qd"), Command("qro"), Command("qpi"), Command("qr"),
+                 Command("q.l"))
 
 
 class Outcome(StrEnum):
@@ -58,6 +100,7 @@ class Outcome(StrEnum):
     TIMEOUT = "timeout"  # nothing came in time
     CORRUPT = "corrupt"  # its reply failed the checksum or was malformed
     LOST = "lost"  # the controller answered a later query first
+    RESYNC = "resync"  # on the wire when a query of the same reply name failed (P20)
     DISCONNECTED = "disconnected"
 
 
@@ -67,14 +110,17 @@ _ANSWERED = Outcome.ANSWERED
 
 
 class PendingQuery:
-    """One query on the wire, waiting for its replies."""
+    """One query on the wire (or held back, during a quiet-line resynchronisation)."""
 
-    __slots__ = ("command", "expected", "keepalive", "outcome", "responses", "sent_at", "waiter")
+    __slots__ = ("command", "expected", "internal", "keepalive", "outcome", "responses",
+                 "sent_at", "waiter")
 
     def __init__(self, command: Command, sent_at: float, keepalive: bool = False) -> None:
         self.command = command
         self.sent_at = sent_at
         self.keepalive = keepalive
+        #: Sent by the session itself (a keep-alive or a fence): nobody waits for it.
+        self.internal = keepalive
         #: The names of the replies, in order.
         self.expected: tuple[str, ...] = command.spec.replies
         self.responses: list[Response] = []
@@ -120,6 +166,10 @@ class Session:
         checksum_enabled: bool = False,
         algorithm: str | ChecksumAlgorithm = DEFAULT_ALGORITHM,
         timeout_s: float = 0.5,
+        keepalive_s: float | None = None,
+        motion_timeout_s: float | None = None,
+        reset_after_timeouts: int = 2,
+        record_events: bool = False,
     ) -> None:
         self._algorithm = get_algorithm(algorithm)
         self._checksum_enabled = checksum_enabled
@@ -131,9 +181,29 @@ class Session:
         self._last_query: Command | None = None  # the last query encoded, and its bytes
         self._last_query_bytes = b""
         self.timeout_s = timeout_s
+        self.keepalive_s = keepalive_s or None
+        self.motion_timeout_s = motion_timeout_s or None
+        self.reset_after_timeouts = reset_after_timeouts
         self.counters = LinkCounters()
         self.last_sent_at = float("-inf")
         self._last_progress_at = float("-inf")
+        # Bytes the session has due, and the queries among them, in wire order.
+        self._outbox: list[tuple[bytes, PendingQuery | None, Command | None]] = []
+        # P20: reply names that are late until the fence is answered (or the line is quiet).
+        self._late_names: set[str] = set()
+        self._fence: PendingQuery | None = None
+        self._quiet_until: float | None = None  # holding queries until then (no fence possible)
+        self._held: deque[PendingQuery] = deque()
+        self._consecutive_timeouts = 0
+        # P23: the motion as last sent, and when it was last renewed.
+        self._direction_deg = 0
+        self._power_percent = 0
+        self._vertical_percent = 0
+        self._motion_renewed_at = float("-inf")
+        #: Events since the driver last took them (only while someone subscribes).
+        self.events: list[ClientEvent] | None = [] if record_events else None
+        #: The rare events a driver logs as warnings whether or not anyone subscribes.
+        self.notices: list[ClientEvent] = []
 
     # -- state --------------------------------------------------------------------------------
 
@@ -149,19 +219,38 @@ class Session:
 
     @property
     def pending(self) -> tuple[PendingQuery, ...]:
-        """Queries waiting for replies, oldest first."""
-        return tuple(self._pending)
+        """Queries waiting for replies, oldest first (held ones last)."""
+        return (*self._pending, *self._held)
+
+    @property
+    def resynchronising(self) -> bool:
+        """Whether replies of some names are being discarded as late (P20)."""
+        return bool(self._late_names)
+
+    @property
+    def has_outbox(self) -> bool:
+        """Whether the session has bytes due that the driver should write now."""
+        return bool(self._outbox)
 
     def deadline(self, query: PendingQuery) -> float:
         """When ``query`` times out unless a reply moves the queue before."""
+        if query.outcome is _PENDING and query in self._held:
+            return float("inf")  # not on the wire yet: it cannot time out
         return max(query.sent_at, self._last_progress_at) + self.timeout_s
 
     def next_deadline(self) -> float | None:
-        """The earliest deadline of the pending queries, if any."""
-        if not self._pending:
-            return None
-        # Deadlines share the last-progress term, so the oldest query's is the earliest.
-        return self.deadline(self._pending[0])
+        """When :meth:`tick` has something to do next, if ever."""
+        due: list[float] = []
+        if self._pending:
+            # Deadlines share the last-progress term, so the oldest query's is the earliest.
+            due.append(self.deadline(self._pending[0]))
+        if self._quiet_until is not None:
+            due.append(self._quiet_until)
+        if self.motion_timeout_s and (self._power_percent or self._vertical_percent):
+            due.append(self._motion_renewed_at + self.motion_timeout_s)
+        if self.keepalive_s and self._quiet_until is None:
+            due.append(self.last_sent_at + self.keepalive_s)
+        return min(due) if due else None
 
     # -- sending ------------------------------------------------------------------------------
 
@@ -179,33 +268,52 @@ class Session:
         return encode(command, self._algorithm if checksummed else None)
 
     def command(self, command: Command, now: float) -> bytes:
-        """The bytes of a command that expects no reply; ``crcon``/``crcoff`` switch the mode."""
+        """The bytes to write for a command that expects no reply (after anything due).
+
+        ``crcon``/``crcoff`` switch the session's mode with the controller's.
+        """
         if command.spec.is_query:
             raise ValueError(f"{command} is a query: use Session.query")
-        data = self.frame_for(command)
-        self._count_sent(data, now)
-        if command.name == "crcon":
-            self._set_mode(True)
-        elif command.name == "crcoff":
-            self._set_mode(False)
+        data = self.take_outbox(now) + self._account(command, self.frame_for(command), now)
+        self._track(command, now)
         return data
 
     def query(self, command: Command, now: float, *, keepalive: bool = False,
               ) -> tuple[bytes, PendingQuery]:
-        """The bytes of a query, and its entry at the back of the queue.
+        """The bytes to write for a query (after anything due), and its entry in the queue.
 
         Write the bytes before anything else is written: the queue's order is the wire's.
-        (Or write :meth:`query_bytes` first and queue the query before any reply can be fed.)
+        While a quiet-line resynchronisation holds queries back, the query is queued to be sent
+        later (by :meth:`tick`) and only what is due is returned.
         """
+        pending = PendingQuery(command, now, keepalive)
+        if keepalive:
+            self.counters.keepalives += 1
+        if self._quiet_until is not None:
+            self._held.append(pending)
+            return self.take_outbox(now), pending
+        data = self.take_outbox(now) if self._outbox else b""
+        frame = self.query_bytes(command)
+        self._account(command, frame, now)
+        self._pending.append(pending)
+        return data + frame, pending
+
+    def fast_query(self, command: Command, now: float) -> tuple[bytes, PendingQuery] | None:
+        """:meth:`query` when nothing is due and nothing held (the usual case), else ``None``.
+
+        For drivers that write the bytes the moment they have them.
+        """
+        if self._outbox or self._quiet_until is not None:
+            return None
         data = self.query_bytes(command)
         counters = self.counters
         counters.frames_sent += 1
         counters.bytes_sent += len(data)
         self.last_sent_at = now
-        pending = PendingQuery(command, now, keepalive)
+        if self.events is not None:
+            self.events.append(BytesSent(now, data, command))
+        pending = PendingQuery(command, now)
         self._pending.append(pending)
-        if keepalive:
-            self.counters.keepalives += 1
         return data, pending
 
     def query_bytes(self, command: Command) -> bytes:
@@ -229,28 +337,46 @@ class Session:
         self._last_query_bytes = data
         return data
 
-    def raw(self, frame: bytes, now: float) -> PendingQuery | None:
-        """Account for a raw frame sent as it is; a query in it joins the queue.
+    def raw(self, frame: bytes, now: float) -> tuple[bytes, PendingQuery | None]:
+        """The bytes to write for a raw frame sent as it is (after anything due); a query in it
+        joins the queue.
 
-        The frame is read as the controller will read it, in the current checksum mode.
+        The frame is read as the controller will read it, in the current checksum mode, so that
+        a raw ``#crcon!`` switches the session too and a raw query is matched like any other.
         """
         self._raw_decoder.checksum_enabled = self._checksum_enabled
         self._raw_decoder.reset()
         events = self._raw_decoder.feed(frame)
-        self._count_sent(frame, now)
-        if len(events) != 1 or not isinstance(events[0], Frame):
-            return None
-        message = events[0].message
-        if message.kind is not Kind.COMMAND:
-            return None
-        command = Command(message.name, message.values)
-        if command.name in ("crcon", "crcoff"):
-            self._set_mode(command.name == "crcon")
+        command: Command | None = None
+        if len(events) == 1 and isinstance(events[0], Frame) \
+                and events[0].message.kind is Kind.COMMAND:
+            message = events[0].message
+            command = Command(message.name, message.values)
+        data = self.take_outbox(now) + self._account(command, frame, now)
+        if command is None:
+            return data, None
+        self._track(command, now)
         if not command.spec.is_query:
-            return None
+            return data, None
         pending = PendingQuery(command, now)
         self._pending.append(pending)
-        return pending
+        return data, pending
+
+    def take_outbox(self, now: float) -> bytes:
+        """The bytes the session has due (empty if none), to be written now, before anything else.
+
+        Their queries' deadlines start now.
+        """
+        if not self._outbox:
+            return b""
+        parts = []
+        for data, pending, command in self._outbox:
+            if pending is not None:
+                pending.sent_at = now
+            self._account(command, data, now)
+            parts.append(data)
+        self._outbox.clear()
+        return b"".join(parts)
 
     # -- receiving ----------------------------------------------------------------------------
 
@@ -258,13 +384,21 @@ class Session:
         """Decode bytes from the controller; settle the queries they answer or break."""
         counters = self.counters
         counters.bytes_received += len(data)
+        events = self.events
+        if events is not None:
+            events.append(BytesReceived(now, data))
         result = Received()
         pending = self._pending
+        late_names = self._late_names
         for event in self._decoder.feed(data):
             if isinstance(event, Frame):
                 message = event.message
                 if isinstance(message, Response):
                     counters.frames_received += 1
+                    self._consecutive_timeouts = 0
+                    if late_names and message.name in late_names:
+                        self._late(message, now)
+                        continue
                     # The usual case inline: the reply the oldest query expects next.
                     head = pending[0] if pending else None
                     if head is not None:
@@ -277,45 +411,213 @@ class Session:
                                 pending.popleft()
                                 head.outcome = _ANSWERED
                                 counters.replies += 1
-                                result.settled.append(head)
+                                if head is self._fence:
+                                    self._end_resync()
+                                if events is not None:
+                                    events.append(ReplyReceived(now, head.command,
+                                                                tuple(responses)))
+                                if not head.internal:
+                                    result.settled.append(head)
                             continue
                     if self._deliver(message, now, result.settled):
                         continue
                 counters.stray_frames += 1
             elif isinstance(event, Text):
                 counters.text_lines += 1
+                if not event.text.isprintable():
+                    counters.noise_bytes += len(event.text)
             else:
-                self._bad_frame(event, result.settled)
+                self._bad_frame(event, now, result.settled)
             result.unsolicited.append(event)
+            if events is not None:
+                events.append(Unsolicited(now, event))
         return result
 
+    # -- time ---------------------------------------------------------------------------------
+
+    def tick(self, now: float) -> list[PendingQuery]:
+        """Do what is due at ``now``: time out queries, end a quiet-line wait, expire motion,
+        keep the link alive. Returns the queries settled; afterwards, write :meth:`take_outbox`.
+        """
+        settled = self.expire(now)
+        if self._quiet_until is not None and now >= self._quiet_until:
+            self._end_resync()
+            self._release_held(now)
+        if self.motion_timeout_s and (self._power_percent or self._vertical_percent) \
+                and now - self._motion_renewed_at >= self.motion_timeout_s:
+            self._expire_motion(now)
+        if self.keepalive_s and self._quiet_until is None and not self._outbox \
+                and now - self.last_sent_at >= self.keepalive_s:
+            pending = PendingQuery(KEEPALIVE_QUERY, now, keepalive=True)
+            self.counters.keepalives += 1
+            self._pending.append(pending)
+            self._outbox.append((self.query_bytes(KEEPALIVE_QUERY), pending, KEEPALIVE_QUERY))
+        return settled
+
     def expire(self, now: float) -> list[PendingQuery]:
-        """Settle as timed out every query whose deadline has passed."""
-        expired = [query for query in self._pending if self.deadline(query) <= now]
-        for query in expired:
-            self._settle(query, Outcome.TIMEOUT)
+        """Settle as timed out the query whose deadline has passed, and resynchronise (P20)."""
+        settled: list[PendingQuery] = []
+        while self._pending and self.deadline(self._pending[0]) <= now:
             self.counters.timeouts += 1
-        return expired
+            self._consecutive_timeouts += 1
+            settled += self._fail(self._pending[0], Outcome.TIMEOUT, now)
+            if self._consecutive_timeouts >= self.reset_after_timeouts:
+                self._suspect_reset(now)
+        return settled
 
     def disconnect(self) -> list[PendingQuery]:
         """Settle every pending query as disconnected (the link is gone)."""
-        settled = list(self._pending)
+        settled = [*self._pending, *self._held]
         for query in settled:
-            self._settle(query, Outcome.DISCONNECTED)
-        return settled
+            query.outcome = Outcome.DISCONNECTED
+        self._pending.clear()
+        self._held.clear()
+        self._outbox.clear()
+        return [query for query in settled if not query.internal]
+
+    def begin_resync(self, late_names: set[str], now: float) -> None:
+        """Treat replies of ``late_names`` as late until a fence is answered (P20).
+
+        For a driver that sent queries outside the session (a readiness probe after connect).
+        """
+        self._late_names |= late_names
+        self._start_fence(now)
+
+    def take_events(self) -> list[ClientEvent]:
+        """The events since the last call (empty unless the session records them)."""
+        events = self.events
+        if not events:
+            return []
+        self.events = []
+        return events
+
+    def take_notices(self) -> list[ClientEvent]:
+        """The notices (suspected resets, expired motion) since the last call."""
+        notices = self.notices
+        if not notices:
+            return []
+        self.notices = []
+        return notices
 
     # -- internals ----------------------------------------------------------------------------
 
-    def _count_sent(self, data: bytes, now: float) -> None:
-        self.counters.frames_sent += 1
-        self.counters.bytes_sent += len(data)
-        self.last_sent_at = now
+    def _note(self, event: ClientEvent) -> None:
+        self.notices.append(event)
+        if self.events is not None:
+            self.events.append(event)
 
-    def _set_mode(self, enabled: bool) -> None:
+    def _account(self, command: Command | None, data: bytes, now: float) -> bytes:
+        counters = self.counters
+        counters.frames_sent += 1
+        counters.bytes_sent += len(data)
+        self.last_sent_at = now
+        if self.events is not None:
+            self.events.append(BytesSent(now, data, command))
+        setting = command.setting if command is not None else None
+        if setting is not None and setting[0] is Setting.CHECKSUM:
+            self._set_mode(setting[1], now)
+        return data
+
+    def _set_mode(self, enabled: bool, now: float) -> None:
+        if enabled != self._checksum_enabled and self.events is not None:
+            self.events.append(ModeChanged(now, Setting.CHECKSUM, enabled))
         self._checksum_enabled = enabled
         self._decoder.checksum_enabled = enabled
         self._query_bytes.clear()
         self._last_query = None
+
+    def _track(self, command: Command, now: float) -> None:
+        """Keep the motion as sent, for P23 (``mvd`` holds a depth: it is not relayed thrust)."""
+        name = command.name
+        if name == "th":
+            self._direction_deg, self._power_percent = command.values
+            if self._power_percent:
+                self._motion_renewed_at = now
+        elif name == "mvs":
+            (self._vertical_percent,) = command.values
+            if self._vertical_percent:
+                self._motion_renewed_at = now
+        elif command.setting is not None and command.setting[0] in (Setting.LOCKED,
+                                                                     Setting.DIRECT_MODE):
+            # stop and start clear the set-points; a mode change sets vertical thrust to 0 (P9).
+            if command.setting[0] is Setting.LOCKED:
+                self._power_percent = 0
+            self._vertical_percent = 0
+
+    def _expire_motion(self, now: float) -> None:
+        commands = []
+        if self._power_percent:
+            commands.append(Command("th", (self._direction_deg, 0)))
+        if self._vertical_percent:
+            commands.append(Command("mvs", (0,)))
+        self._power_percent = self._vertical_percent = 0
+        for command in commands:
+            self._outbox.append((self.frame_for(command), None, command))
+        self.counters.motion_expiries += 1
+        self._note(MotionExpired(now, tuple(commands)))
+
+    def _suspect_reset(self, now: float) -> None:
+        """P21: re-assert the checksum mode (before any fence) and report the suspicion."""
+        self.counters.resets_suspected += 1
+        self._note(ResetSuspected(now, self._consecutive_timeouts))
+        self._consecutive_timeouts = 0
+        mode = setting_command(Setting.CHECKSUM, self._checksum_enabled)
+        self._outbox.insert(0, (self.frame_for(mode), None, mode))
+
+    def _fail(self, query: PendingQuery, outcome: Outcome, now: float) -> list[PendingQuery]:
+        """``query`` failed while its reply may still come: fail every query on the wire that
+        expects a reply of the same names, mark those names late, and fence (P20)."""
+        late = set(query.expected[len(query.responses):])
+        failed = [query]
+        query.outcome = outcome
+        for other in self._pending:
+            if other is not query and late.intersection(other.expected[len(other.responses):]):
+                other.outcome = Outcome.RESYNC
+                failed.append(other)
+        for other in failed:
+            late.update(other.expected[len(other.responses):])
+        self._pending = deque(other for other in self._pending if other.outcome is _PENDING)
+        if self._fence is not None and self._fence.outcome is not _PENDING:
+            self._fence = None
+        self._late_names |= late
+        if self.events is not None:
+            for other in failed:
+                self.events.append(QueryFailed(now, other.command, other.outcome.value))
+        self._start_fence(now)
+        return [other for other in failed if not other.internal]
+
+    def _start_fence(self, now: float) -> None:
+        if self._fence is not None or self._quiet_until is not None:
+            return  # a fence is on its way (its reply ends the resynchronisation) or we wait
+        for candidate in FENCE_QUERIES:
+            if candidate.name not in self._late_names:
+                fence = PendingQuery(candidate, now)
+                fence.internal = True
+                self._fence = fence
+                self._pending.append(fence)
+                self._outbox.append((self.query_bytes(candidate), fence, candidate))
+                self.counters.fences += 1
+                return
+        self._quiet_until = now + self.timeout_s
+
+    def _end_resync(self) -> None:
+        self._late_names.clear()
+        self._fence = None
+        self._quiet_until = None
+
+    def _release_held(self, now: float) -> None:
+        while self._held:
+            pending = self._held.popleft()
+            pending.sent_at = now
+            self._pending.append(pending)
+            self._outbox.append((self.query_bytes(pending.command), pending, pending.command))
+
+    def _late(self, response: Response, now: float) -> None:
+        self.counters.late_replies += 1
+        if self._quiet_until is not None:
+            self._quiet_until = now + self.timeout_s  # not quiet yet
+        if self.events is not None:
+            self.events.append(LateReply(now, response))
 
     def _settle(self, query: PendingQuery, outcome: Outcome) -> None:
         pending = self._pending
@@ -324,6 +626,8 @@ class Session:
         else:
             pending.remove(query)
         query.outcome = outcome
+        if query is self._fence:
+            self._fence = None
 
     def _deliver(self, response: Response, now: float, settled: list[PendingQuery]) -> bool:
         pending = self._pending
@@ -337,30 +641,49 @@ class Session:
                 break
             # A half-received reply (qsa) broken by a frame that does not belong in it.
             self._settle(head, Outcome.CORRUPT)
-            settled.append(head)
+            self._report_failure(head, now, settled)
         for index in range(1, len(pending)):
             if pending[index].expected[0] == response.name:
                 for lost in list(pending)[:index]:
                     self._settle(lost, Outcome.LOST)
-                    settled.append(lost)
+                    self._report_failure(lost, now, settled)
                 self._append(pending[0], response, now, settled)
                 return True
         return False
+
+    def _report_failure(self, query: PendingQuery, now: float,
+                        settled: list[PendingQuery]) -> None:
+        if self.events is not None:
+            self.events.append(QueryFailed(now, query.command, query.outcome.value))
+        if not query.internal:
+            settled.append(query)
 
     def _append(self, query: PendingQuery, response: Response, now: float,
                 settled: list[PendingQuery]) -> None:
         query.responses.append(response)
         self._last_progress_at = now
         if len(query.responses) == len(query.expected):
+            is_fence = query is self._fence
             self._settle(query, _ANSWERED)
             self.counters.replies += 1
-            settled.append(query)
+            if is_fence:
+                self._end_resync()
+            if self.events is not None:
+                self.events.append(ReplyReceived(now, query.command, tuple(query.responses)))
+            if not query.internal:
+                settled.append(query)
 
-    def _bad_frame(self, event: BadFrame, settled: list[PendingQuery]) -> None:
+    def _bad_frame(self, event: BadFrame, now: float, settled: list[PendingQuery]) -> None:
         self.counters.bad_frames += 1
+        self.counters.noise_bytes += len(event.raw)
         if event.reason is Reason.CHECKSUM:
             self.counters.checksum_errors += 1
         if event.raw[:1] == b"$" and event.reason in _CORRUPT_REASONS and self._pending:
+            # The head's reply, damaged: nothing more will come for it, but a qsa's remaining
+            # replies may, and they must not be taken for a later query's (P20).
             head = self._pending[0]
-            self._settle(head, Outcome.CORRUPT)
-            settled.append(head)
+            if len(head.expected) - len(head.responses) > 1:
+                settled.extend(self._fail(head, Outcome.CORRUPT, now))
+            else:
+                self._settle(head, Outcome.CORRUPT)
+                self._report_failure(head, now, settled)

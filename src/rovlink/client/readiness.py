@@ -1,0 +1,74 @@
+"""Waiting on connect until the controller answers (P21), without I/O.
+
+An Arduino-class board resets when its serial port opens (DTR) and ignores its input for up to
+2 s while it boots; a frame sent then is lost. So a client does not send its checksum mode once
+and hope: it repeats a *probe* — ``#crcoff!`` (recognised in either mode, P3) and a plain
+``#qd!`` — every ``interval_s`` until a ``$qd`` reply arrives or ``boot_timeout`` runs out. Once
+one does, it reads on until the line has been quiet for ``quiet_s``, so that the replies to
+earlier probes, still on their way, are not taken for the answers to the program's first
+queries. Only then does the client put the controller in the checksum mode asked for.
+
+>>> probe = ReadinessProbe(now=0.0, boot_timeout_s=3.0)
+>>> probe.bytes_to_send(0.0)
+b'#crcoff!#qd!'
+>>> probe.receive(b"$qd.57!", now=0.01)
+>>> probe.answered, probe.done(0.05), probe.done(0.2)
+(True, False, True)
+"""
+
+from __future__ import annotations
+
+from rovlink.protocol import Decoder, Frame, Response
+
+__all__ = ["PROBE_BYTES", "ReadinessProbe"]
+
+#: Checksum mode off (either mode recognises it), then a query any controller answers plainly.
+PROBE_BYTES = b"#crcoff!#qd!"
+
+
+class ReadinessProbe:
+    """The state of one readiness wait: when to probe, whether the controller answered."""
+
+    def __init__(self, now: float, boot_timeout_s: float, *, interval_s: float = 0.25,
+                 quiet_s: float = 0.1) -> None:
+        self.deadline = now + boot_timeout_s
+        self.interval_s = interval_s
+        self.quiet_s = quiet_s
+        self.probes_sent = 0
+        self.answered = False
+        self._next_probe_at = now
+        self._last_data_at = now
+        self._decoder = Decoder()
+
+    def bytes_to_send(self, now: float) -> bytes:
+        """The probe, if one is due at ``now`` (and the controller has not answered yet)."""
+        if self.answered or now < self._next_probe_at:
+            return b""
+        self._next_probe_at = now + self.interval_s
+        self.probes_sent += 1
+        return PROBE_BYTES
+
+    def receive(self, data: bytes, now: float) -> None:
+        """Bytes from the controller: a ``$qd`` reply means it is up."""
+        self._last_data_at = now
+        if self.answered:
+            return
+        for event in self._decoder.feed(data):
+            if isinstance(event, Frame) and isinstance(event.message, Response) \
+                    and event.message.name == "qd":
+                self.answered = True
+                return
+
+    def done(self, now: float) -> bool:
+        """Whether the controller answered and the line has been quiet since."""
+        return self.answered and now - self._last_data_at >= self.quiet_s
+
+    def timed_out(self, now: float) -> bool:
+        """Whether ``boot_timeout`` ran out without an answer."""
+        return not self.answered and now >= self.deadline
+
+    def wait_s(self, now: float) -> float:
+        """How long to wait for bytes before the next step is due."""
+        if self.answered:
+            return max(self._last_data_at + self.quiet_s - now, 0.0)
+        return max(min(self._next_probe_at, self.deadline) - now, 0.0)
