@@ -4,7 +4,13 @@ It decodes the host's frames exactly as a controller would (checksum mode follow
 ``#crcoff!``, bad checksums are dropped), records every byte and frame, and answers each query by
 the next action of its script: ``reply`` (default), ``drop``, ``corrupt`` (a wrong checksum, or a
 mangled frame with checksums off), ``debug`` (debug text around the reply), ``noise`` (line noise
-before the reply), ``close`` (disconnect instead of answering).
+before the reply), ``close`` (disconnect instead of answering), ``late`` (the controller
+stalls for ``late_delay_s``: this reply and every reply due meanwhile go out when it ends, in
+order, as a busy controller would send them).
+
+It can also boot slowly (``boot_s``: input is ignored for that long after it starts, as an
+Arduino-class board ignores it while it boots after the port opened) and :meth:`reset` (back to
+checksum mode off, as after a power cycle, P21).
 """
 
 from __future__ import annotations
@@ -14,6 +20,7 @@ import os
 import select
 import socket
 import threading
+import time
 from collections import deque
 from collections.abc import Callable
 
@@ -36,8 +43,13 @@ class FakeController:
 
     def __init__(self, fd: int, *, algorithm: str = "crc8",
                  values: dict[str, int] | None = None,
-                 on_close: Callable[[], None] | None = None) -> None:
+                 on_close: Callable[[], None] | None = None,
+                 boot_s: float = 0.0, late_delay_s: float = 0.35) -> None:
         self._fd = fd
+        self._booted_at = time.monotonic() + boot_s
+        self.late_delay_s = late_delay_s
+        #: Bytes that arrived while booting, and were lost.
+        self.ignored = bytearray()
         self._on_close = on_close
         self.decoder = Decoder(algorithm=algorithm)
         self.values = dict(DEFAULT_VALUES if values is None else values)
@@ -52,6 +64,9 @@ class FakeController:
         self.qd_counts_queries = False
         #: Called (on the fake's thread) whenever a query is dropped.
         self.on_drop: Callable[[], None] | None = None
+        self.resets = 0
+        self._stalled_until = 0.0
+        self._held = bytearray()
         self._condition = threading.Condition()
         self._wake_r, self._wake_w = os.pipe()
         self._stopping = False
@@ -87,6 +102,18 @@ class FakeController:
     def send(self, data: bytes) -> None:
         """Write unsolicited bytes to the host."""
         os.write(self._fd, data)
+
+    def reset(self) -> None:
+        """Reset as after a power cycle: checksum mode off, input lost while it boots."""
+        with self._condition:
+            self.decoder.checksum_enabled = False
+            self.decoder.reset()
+            self.resets += 1
+
+    def boot(self, boot_s: float) -> None:
+        """Ignore input for ``boot_s`` from now (a reset followed by a boot)."""
+        with self._condition:
+            self._booted_at = time.monotonic() + boot_s
 
     def close(self) -> None:
         """Disconnect: the host sees the end of the stream."""
@@ -127,6 +154,10 @@ class FakeController:
     def _receive(self, data: bytes) -> None:
         replies = bytearray()
         with self._condition:
+            if time.monotonic() < self._booted_at:
+                self.ignored += data
+                self._condition.notify_all()
+                return
             self.raw += data
             for event in self.decoder.feed(data):
                 if isinstance(event, BadFrame):
@@ -142,10 +173,20 @@ class FakeController:
                         self._stopping = True
                         break
                     replies += self._answer(command, action)
+            if replies and self._stalled_until:
+                self._held += replies  # stalled: they go out, in order, when it ends
+                replies = bytearray()
             self._condition.notify_all()
         if replies:
             with contextlib.suppress(OSError):  # the host may have gone already
                 os.write(self._fd, bytes(replies))
+
+    def _end_stall(self) -> None:
+        with self._condition:
+            self._stalled_until = 0.0
+            held, self._held = bytes(self._held), bytearray()
+        with contextlib.suppress(OSError):  # the host may have gone already
+            os.write(self._fd, held)
 
     def _reply_frames(self, command: Command) -> list[bytes]:
         self.query_count += 1
@@ -176,4 +217,9 @@ class FakeController:
             return b"depth pid: p=12 i=1 d=4\r\n" + b"".join(frames) + b"\r\nmode depth\r\n"
         if action == "noise":
             return b"\x00~ noise ~\r\n" + b"".join(frames)
+        if action == "late":
+            self._stalled_until = time.monotonic() + self.late_delay_s
+            timer = threading.Timer(self.late_delay_s, self._end_stall)
+            timer.daemon = True
+            timer.start()
         return b"".join(frames)

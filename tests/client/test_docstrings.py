@@ -65,7 +65,8 @@ def test_the_public_api_is_found() -> None:
             "rovlink.client.links.SocketLink.read_available",  # inherited from FdLink
             "rovlink.client.links.SocketLink.recv_some", "rovlink.client.links.open_link",
             "rovlink.aio.transport.ByteTransport.write", "rovlink.aio.transport.transport_for",
-            "rovlink.client.unsolicited.DropLog.report", "rovlink.client.unsolicited.deliver"} <= names
+            "rovlink.client.unsolicited.DropLog.report",
+            "rovlink.client.unsolicited.deliver"} <= names
 
 
 def test_every_public_function_has_an_example() -> None:

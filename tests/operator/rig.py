@@ -70,6 +70,7 @@ class Rig:
                       **options: object) -> AsyncClient:
         """An asyncio client on the link (no keep-alives: tests count frames)."""
         settings: dict[str, object] = {"keepalive_s": None, "timeout_s": REPLY_TIMEOUT_S,
+                                       "boot_timeout_s": None, "motion_timeout_s": None,
                                        "on_stray": on_stray}
         settings.update(options)
         client = AsyncClient(self.link, ClientOptions(**settings))  # type: ignore[arg-type]

@@ -602,6 +602,7 @@ class Client(CommandMethods):
             unsolicited: list[Event] = []
             try:
                 wait_s = self._housekeeping()
+                self._emit()  # what the housekeeping did, before the read blocks
                 data = self._link.read_available(wait_s)
                 if data:
                     with lock:

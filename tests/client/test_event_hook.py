@@ -1,0 +1,87 @@
+"""The one hook: every byte both ways and every decision of the session, in order."""
+
+from __future__ import annotations
+
+import logging
+import socket
+import subprocess
+import sys
+
+import pytest
+
+from rovlink.client import Client, ClientOptions
+from rovlink.client.events import (
+    BytesReceived,
+    BytesSent,
+    ClientEvent,
+    QueryFailed,
+    ReplyReceived,
+    Unsolicited,
+)
+from rovlink.client.links import SocketLink
+from rovlink.protocol import BadFrame
+from tests.client.fake_controller import FakeController
+
+
+def test_a_subscriber_sees_the_wire_and_the_decisions_in_order(
+    fake_pair: tuple[FakeController, socket.socket],
+) -> None:
+    fake, sock = fake_pair
+    events: list[ClientEvent] = []
+    options = ClientOptions(timeout_s=2.0, keepalive_s=None, boot_timeout_s=None,
+                            motion_timeout_s=None, checksum=True, on_event=events.append)
+    with Client(SocketLink(sock, "pair"), options) as rov:
+        fake.then("corrupt")
+        assert rov.depth_cm() == 123  # the corrupt reply is retried
+        rov.move(90, 10)
+    sent = b"".join(event.data for event in events if isinstance(event, BytesSent))
+    assert sent == bytes(fake.raw)  # every byte written, exactly as on the wire
+    received = [event for event in events if isinstance(event, BytesReceived)]
+    assert b"".join(event.data for event in received).count(b"$qd.") == 2
+    kinds = [type(event).__name__ for event in events]
+    assert kinds.index("QueryFailed") < kinds.index("ReplyReceived")
+    failed = next(event for event in events if isinstance(event, QueryFailed))
+    assert failed.outcome == "corrupt"
+    dropped = [event.event for event in events if isinstance(event, Unsolicited)]
+    assert any(isinstance(event, BadFrame) and event.reason == "checksum" for event in dropped)
+    reply = next(event for event in events if isinstance(event, ReplyReceived))
+    assert reply.responses[0].values == (123,)
+    times = [event.at_s for event in events]
+    assert times == sorted(times)
+    assert {event.direction for event in events} == {"in", "out", "local"}
+
+
+def test_dropped_frames_are_debug_lines_with_a_periodic_warning(
+    fake: FakeController, caplog: pytest.LogCaptureFixture,
+) -> None:
+    from rovlink.client.unsolicited import DropLog
+
+    caplog.set_level(logging.DEBUG, logger="rovlink")
+    log = DropLog(period_s=10.0)
+    bad = BadFrame(b"$qd.1x!", "malformed", "x")
+    for second in range(30):
+        log.report([bad] * 10, None, now=float(second))
+    warnings = [record for record in caplog.records if record.levelno == logging.WARNING]
+    debug = [record for record in caplog.records if record.levelno == logging.DEBUG]
+    assert len(debug) == 300
+    assert len(warnings) == 3  # at 0, 10 and 20 s, each with the count since the last
+    assert "10 received frame(s)" in warnings[0].getMessage()
+    assert "100 received frame(s)" in warnings[1].getMessage()
+
+
+def test_an_unconfigured_program_on_a_noisy_line_prints_nothing() -> None:
+    code = (
+        "import socket, rovlink\n"
+        "from rovlink.client import Client, ClientOptions\n"
+        "from rovlink.client.links import SocketLink\n"
+        "ours, theirs = socket.socketpair()\n"
+        "ours.sendall(b'#bogus!' * 50 + b'\\xff\\x00 noise\\r\\n' + b'$qd.5!')\n"
+        "rov = Client(SocketLink(theirs, 'pair'), ClientOptions(boot_timeout_s=None,"
+        " keepalive_s=None))\n"
+        "print(rov.depth_cm())\n"
+        "rov.close()\n"
+    )
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                            check=True, timeout=60)
+    assert result.stdout.strip() == "5"
+    assert result.stderr == ""

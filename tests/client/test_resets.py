@@ -1,0 +1,101 @@
+"""P21: a controller that boots slowly after its port opens, or resets during a session."""
+
+from __future__ import annotations
+
+import socket
+import time
+from collections.abc import Iterator
+
+import pytest
+
+from rovlink.aio import AsyncClient
+from rovlink.client import Client, ClientOptions
+from rovlink.client.errors import ConnectError
+from rovlink.client.events import ClientEvent, ModeChanged, ResetSuspected
+from rovlink.client.links import SocketLink
+from tests.client.fake_controller import FakeController
+
+BOOT_S = 1.0  # the fake ignores its input this long after it starts, as a booting board does
+
+
+@pytest.fixture
+def booting() -> Iterator[tuple[FakeController, socket.socket]]:
+    fake, sock = FakeController.on_socketpair(boot_s=BOOT_S)
+    yield fake, sock
+    fake.close()
+
+
+def _options(**overrides: object) -> ClientOptions:
+    settings: dict[str, object] = {"timeout_s": 0.25, "keepalive_s": None,
+                                   "motion_timeout_s": None}
+    settings.update(overrides)
+    return ClientOptions(**settings)  # type: ignore[arg-type]
+
+
+def test_the_blocking_client_waits_for_a_booting_controller(
+    booting: tuple[FakeController, socket.socket],
+) -> None:
+    fake, sock = booting
+    started = time.monotonic()
+    with Client(SocketLink(sock, "booting"), _options(checksum=True)) as rov:
+        assert time.monotonic() - started >= BOOT_S * 0.9
+        assert fake.ignored.startswith(b"#crcoff!#qd!")  # probes lost while it booted
+        assert rov.depth_cm() == 123  # in checksum mode: the mode frame was not lost
+        assert fake.decoder.checksum_enabled
+
+
+async def test_the_asyncio_client_waits_for_a_booting_controller(
+    booting: tuple[FakeController, socket.socket],
+) -> None:
+    fake, sock = booting
+    rov = await AsyncClient(SocketLink(sock, "booting"), _options(checksum=True)).open()
+    try:
+        assert fake.ignored.startswith(b"#crcoff!#qd!")
+        assert await rov.depth_cm() == 123
+        assert fake.decoder.checksum_enabled
+    finally:
+        await rov.close()
+
+
+def test_a_controller_that_never_answers_is_a_connect_error(
+    booting: tuple[FakeController, socket.socket],
+) -> None:
+    _, sock = booting
+    with pytest.raises(ConnectError, match=r"did not answer within 0\.3 s"):
+        Client(SocketLink(sock, "silent"), _options(boot_timeout_s=0.3))
+
+
+def test_a_reset_mid_session_is_noticed_and_the_checksum_mode_restored(
+    fake_pair: tuple[FakeController, socket.socket],
+) -> None:
+    fake, sock = fake_pair
+    events: list[ClientEvent] = []
+    with Client(SocketLink(sock, "pair"), _options(checksum=True, retries=3,
+                                                   on_event=events.append)) as rov:
+        assert rov.depth_cm() == 123
+        fake.reset()  # back with checksum mode off: every checksummed frame is now dropped
+        assert rov.heading_deg() == 275  # retried until the mode is re-asserted
+        assert fake.decoder.checksum_enabled
+        assert rov.counters.resets_suspected == 1
+    suspected = [event for event in events if isinstance(event, ResetSuspected)]
+    assert len(suspected) == 1
+    assert suspected[0].consecutive_timeouts >= 2
+    assert any(isinstance(event, ModeChanged) for event in events)
+
+
+async def test_the_asyncio_client_notices_a_reset_too(
+    fake_pair: tuple[FakeController, socket.socket],
+) -> None:
+    fake, sock = fake_pair
+    events: list[ClientEvent] = []
+    rov = await AsyncClient(SocketLink(sock, "pair"), _options(
+        checksum=True, retries=3, boot_timeout_s=None, on_event=events.append)).open()
+    try:
+        assert await rov.depth_cm() == 123
+        fake.reset()
+        assert await rov.heading_deg() == 275
+        assert fake.decoder.checksum_enabled
+        assert rov.counters.resets_suspected == 1
+        assert any(isinstance(event, ResetSuspected) for event in events)
+    finally:
+        await rov.close()
