@@ -234,7 +234,8 @@ def test_debug_lines_about_a_frame_go_to_its_link_failsafe_lines_to_every_link(
             assert time.monotonic() < deadline, (tcp, pty)
             tcp += _recv(connection)()
             pty += port.read(256)
-        assert b"debug output on" in tcp and b"<bogus>" in tcp
+        assert b"debug output on" in tcp
+        assert b"<bogus>" in tcp
         assert pty.startswith(b"debug: failsafe: no valid frame for 0.5 s"), pty
         assert pty.count(b"\r\n") == 1
 
