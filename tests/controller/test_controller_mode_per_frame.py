@@ -60,6 +60,13 @@ def test_debug_on_and_off_in_one_chunk_each_take_effect_where_they_stand() -> No
     assert len(dropped) == 1, output
 
 
+def test_debug_lines_report_each_checksum_mode_change_of_a_chunk_as_it_was() -> None:
+    output = make_rig().send(b"#debug1!#crcon!#crcoff!")
+    assert _debug_lines(output) == [
+        "debug: debug output on", "debug: checksum mode on (crc8)", "debug: checksum mode off"
+    ]
+
+
 @given(st.data())
 def test_per_frame_modes_hold_for_any_chunking(data: st.DataObject) -> None:
     examples = [
