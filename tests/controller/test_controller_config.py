@@ -139,3 +139,46 @@ def test_the_documented_default_layout_parses_back_to_the_default(tmp_path: Path
     reference = config_reference()
     layout = reference.split("```toml\n", 1)[1].split("```", 1)[0]
     assert load_config(_write(tmp_path, layout)).thrusters == DEFAULT_THRUSTERS
+
+
+def _read_error(path: Path) -> str:
+    with pytest.raises(ConfigError) as caught:
+        load_config(path)
+    return str(caught.value)
+
+
+def test_a_binary_file_is_a_config_error_naming_it(tmp_path: Path) -> None:
+    path = tmp_path / "robot.toml"
+    path.write_bytes(bytes(range(256)) * 4)
+    message = _read_error(path)
+    assert str(path) in message
+    assert "not UTF-8 text" in message
+
+
+def test_a_non_utf8_file_is_a_config_error_naming_the_byte_and_line(tmp_path: Path) -> None:
+    path = tmp_path / "robot.toml"
+    path.write_bytes("[controller]\nname = 'Tiefsee-Roboter für 20 m'\n".encode("latin-1"))
+    message = _read_error(path)
+    assert message == f"{path}: not UTF-8 text (byte 0xfc on line 2), so not a TOML file"
+
+
+def test_utf8_text_that_is_not_toml_is_a_config_error(tmp_path: Path) -> None:
+    path = tmp_path / "robot.toml"
+    path.write_bytes(b"\x00\x01binary but valid UTF-8\n")
+    assert "not valid TOML" in _read_error(path)
+
+
+def test_a_directory_is_a_config_error(tmp_path: Path) -> None:
+    message = _read_error(tmp_path)
+    assert message.startswith(f"{tmp_path}: cannot read: ")
+
+
+def test_a_missing_file_is_a_config_error_naming_it(tmp_path: Path) -> None:
+    path = tmp_path / "absent.toml"
+    assert _read_error(path) == f"{path}: cannot read: No such file or directory"
+
+
+def test_a_huge_file_is_refused_without_reading_it_all(tmp_path: Path) -> None:
+    path = tmp_path / "robot.toml"
+    path.write_bytes(b"# comment\n" * 200_000)
+    assert "larger than 1024 KiB" in _read_error(path)

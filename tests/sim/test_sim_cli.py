@@ -170,3 +170,19 @@ def test_the_default_watchdog_stops_a_silent_link(run_sim: RunSim) -> None:
     with serial.Serial(match["pty"], timeout=0.05) as port:
         port.write(b"#debug1!#start!")
         assert b"failsafe" in _read_until(port, b"failsafe")
+
+
+@pytest.mark.parametrize(
+    "content", [bytes(range(256)) * 4, "[controller]\n# für\n".encode("latin-1")],
+    ids=["binary", "latin-1"],
+)
+def test_a_config_that_is_not_utf8_text_is_a_short_error(tmp_path: Path, content: bytes) -> None:
+    config = tmp_path / "robot.toml"
+    config.write_bytes(content)
+    result = subprocess.run(
+        _command("--config", str(config)), capture_output=True, text=True, env=_environment(),
+        timeout=30, check=False,
+    )
+    assert result.returncode == 2
+    assert result.stderr.startswith(f"rovlink sim: {config}: not UTF-8 text (byte 0x")
+    assert result.stderr.count("\n") == 1, result.stderr

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import socket
 import threading
 import time
@@ -12,6 +13,7 @@ import serial
 
 from rovlink.controller import ControllerConfig
 from rovlink.sim import SimConfig
+from rovlink.sim import server as server_module
 from rovlink.sim.server import BUSY_MESSAGE, SimServer, parse_tcp_address
 
 pytestmark = pytest.mark.integration
@@ -111,6 +113,24 @@ def test_a_query_over_tcp_gets_its_reply(start_server: StartServer) -> None:
         assert reply.startswith(b"$qd.0!$qr.20!$q.l.0!$qro.")
 
 
+def test_mode_changes_in_one_write_apply_from_the_next_frame_over_tcp(
+    start_server: StartServer,
+) -> None:
+    server = start_server(pty=False)
+    with _connect(server) as connection:
+        connection.sendall(b"#qd!#crcon!#qd8C!#crcoff!#qd!")
+        assert _read_frames(_recv(connection), 3) == b"$qd.0!$qd.0A2!$qd.0!"
+
+
+def test_mode_changes_in_one_write_apply_from_the_next_frame_over_the_pty(
+    start_server: StartServer,
+) -> None:
+    server = start_server(tcp=False)
+    with _open_pty(server) as port:
+        port.write(b"#crcon!#qd8C!#crcoff!#qd!")
+        assert _read_frames(_reader(port), 2) == b"$qd.0A2!$qd.0!"
+
+
 def test_a_second_tcp_client_is_told_it_is_busy_and_closed(start_server: StartServer) -> None:
     server = start_server(pty=False)
     with _connect(server) as first:
@@ -144,12 +164,80 @@ def test_after_the_client_leaves_the_next_one_is_served(start_server: StartServe
         assert time.monotonic() < deadline
 
 
-def test_every_peer_sees_the_controller_output(start_server: StartServer) -> None:
+def _count_pty_writes(monkeypatch: pytest.MonkeyPatch) -> list[bytes]:
+    """Record every write the server makes to the PTY."""
+    written: list[bytes] = []
+    write = server_module._PtyPeer.write
+
+    def counting_write(peer: server_module._PtyPeer, data: bytes) -> int:
+        written.append(data)
+        return write(peer, data)
+
+    monkeypatch.setattr(server_module._PtyPeer, "write", counting_write)
+    return written
+
+
+def _nothing_readable(path: str) -> bool:
+    """Whether the terminal side of the PTY has no byte waiting."""
+    fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | os.O_NOCTTY)
+    try:
+        os.read(fd, 1)
+    except BlockingIOError:
+        return True
+    finally:
+        os.close(fd)
+    return False
+
+
+def test_tcp_replies_are_not_written_to_an_idle_pty(
+    start_server: StartServer, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    pty_writes = _count_pty_writes(monkeypatch)
+    server = start_server()
+    with _connect(server) as connection:
+        for _ in range(200):
+            connection.sendall(b"#qd!")
+            assert _read_frames(_recv(connection), 1) == b"$qd.0!"
+    assert pty_writes == []
+    assert server.pty_path is not None
+    assert _nothing_readable(server.pty_path)
+
+
+def test_each_link_gets_the_replies_to_its_own_queries_only(
+    start_server: StartServer, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    pty_writes = _count_pty_writes(monkeypatch)
     server = start_server()
     with _open_pty(server) as port, _connect(server) as connection:
-        connection.sendall(b"#qr!")
-        assert _read_frames(_recv(connection), 1) == b"$qr.20!"
-        assert _read_frames(_reader(port), 1) == b"$qr.20!"
+        for _ in range(20):
+            connection.sendall(b"#qr!")
+            assert _read_frames(_recv(connection), 1) == b"$qr.20!"
+        # A byte stream is in order: a TCP reply written to the PTY would come before this one.
+        port.write(b"#qd!")
+        assert _read_frames(_reader(port), 1) == b"$qd.0!"
+        connection.sendall(b"#q.l!")
+        assert _read_frames(_recv(connection), 1) == b"$q.l.0!"
+    assert b"".join(pty_writes) == b"$qd.0!"
+
+
+def test_debug_lines_about_a_frame_go_to_its_link_failsafe_lines_to_every_link(
+    start_server: StartServer,
+) -> None:
+    config = SimConfig(controller=ControllerConfig(watchdog_s=0.5))
+    server = start_server(config, speed=10.0)
+    with _open_pty(server) as port, _connect(server) as connection:
+        connection.sendall(b"#debug1!#start!#bogus!")
+        tcp = b""
+        pty = b""
+        deadline = time.monotonic() + 10
+        while b"failsafe" not in tcp or not pty.endswith(b"\r\n"):
+            assert time.monotonic() < deadline, (tcp, pty)
+            tcp += _recv(connection)()
+            pty += port.read(256)
+        assert b"debug output on" in tcp
+        assert b"<bogus>" in tcp
+        assert pty.startswith(b"debug: failsafe: no valid frame for 0.5 s"), pty
+        assert pty.count(b"\r\n") == 1
 
 
 def test_baud_paces_the_byte_stream(start_server: StartServer) -> None:

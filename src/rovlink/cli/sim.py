@@ -87,8 +87,9 @@ def register(app: typer.Typer) -> None:
                     robot_config,
                     controller=dataclasses.replace(robot_config.controller, watchdog_s=watchdog),
                 )
-        except ConfigError as error:
-            raise typer.BadParameter(str(error), param_hint="--config") from None
+        except ConfigError as error:  # the file's content, not the usage: one line, no box
+            typer.echo(f"rovlink sim: {error}", err=True)
+            raise typer.Exit(2) from None
 
         server = SimServer(robot_config, seed=seed, baud=baud, speed=speed)
         if leak_at is not None:

@@ -58,6 +58,10 @@ __all__ = [
 _T = TypeVar("_T")
 
 
+#: The largest config file read, bytes.
+_MAX_CONFIG_BYTES = 1 << 20
+
+
 class ConfigError(ValueError):
     """A configuration that cannot be used; the message names the file, table and key."""
 
@@ -299,15 +303,36 @@ def dataclass_from_table(
 
 
 def read_toml(path: Path | str) -> dict[str, Any]:
-    """The parsed TOML file, or :class:`ConfigError` naming the file and what is wrong."""
+    """The parsed TOML file, or :class:`ConfigError` naming the file and what is wrong.
+
+    Whatever the file holds (binary data, another encoding, a device that never ends), the
+    error is a :class:`ConfigError`, never a decoding exception.
+    """
     path = Path(path)
     try:
         with path.open("rb") as stream:
-            return tomllib.load(stream)
+            # Bounded: a config file is small, and --config /dev/zero must not eat the memory.
+            data = stream.read(_MAX_CONFIG_BYTES + 1)
     except OSError as error:
         raise ConfigError(f"{path}: cannot read: {error.strerror or error}") from None
+    if len(data) > _MAX_CONFIG_BYTES:
+        raise ConfigError(
+            f"{path}: larger than {_MAX_CONFIG_BYTES // 1024} KiB, not a TOML config file"
+        )
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as error:
+        line = data.count(b"\n", 0, error.start) + 1
+        raise ConfigError(
+            f"{path}: not UTF-8 text (byte 0x{data[error.start]:02x} on line {line}), "
+            "so not a TOML file"
+        ) from None
+    try:
+        return tomllib.loads(text)
     except tomllib.TOMLDecodeError as error:
         raise ConfigError(f"{path}: not valid TOML: {error}") from None
+    except RecursionError:
+        raise ConfigError(f"{path}: not valid TOML: nested too deeply") from None
 
 
 def config_from_mapping(

@@ -19,12 +19,14 @@ from rovlink.controller.hardware import Hardware
 from rovlink.controller.mixer import ThrusterMixer
 from rovlink.controller.pid import DepthPid
 from rovlink.protocol import (
+    COMMANDS,
     BadFrame,
     Command,
     Decoder,
     Frame,
     Kind,
     Response,
+    Setting,
     Text,
     VerticalMode,
     encode,
@@ -87,27 +89,30 @@ class Controller:
         self._tick_s = config.tick_s
         self._watchdog_s = config.watchdog_s
         self._max_depth_cm = config.depth.max_depth_cm
+        # Commands that switch an on/off state are dispatched by the state the command table
+        # says they switch; the others by name.
+        self._setting_handlers: dict[Setting, Callable[[bool], None]] = {
+            Setting.CHECKSUM: self._on_checksum_mode,
+            Setting.DEBUG: self._on_debug_mode,
+            Setting.LOCKED: self._on_locked,
+            Setting.DIRECT_MODE: self._on_direct_mode,
+            Setting.CLAW_OPEN: self._on_claw,
+        }
         self._handlers: dict[str, Callable[[Command], None]] = {
-            "crcon": self._on_checksum_mode,
-            "crcoff": self._on_checksum_mode,
-            "stop": self._on_stop,
-            "start": self._on_start,
-            "debug1": self._on_debug_mode,
-            "debug0": self._on_debug_mode,
             "mgmp": self._on_max_pwm,
             "mvpdp": self._on_gain,
             "mvpdi": self._on_gain,
             "mvpidd": self._on_gain,
-            "mvdirect": self._on_vertical_mode,
             "mvs": self._on_vertical_thrust,
             "mvd": self._on_target_depth,
             "th": self._on_horizontal,
             "sdz": self._on_depth_zero,
             "sdk": self._on_depth_k,
             "slreset": self._on_leak_reset,
-            "h+": self._on_claw,
-            "h-": self._on_claw,
         }
+        for spec in COMMANDS:
+            if spec.setting is not None:
+                self._handlers[spec.name] = self._on_setting
         self.reset()
 
     # -- public API --------------------------------------------------------------------------
@@ -117,6 +122,11 @@ class Controller:
         config = self.config
         self._decoder.reset()
         self._decoder.checksum_enabled = False
+        # The mode replies are encoded in. The decoder switches its own mode as it reads a
+        # mode frame, possibly ahead of frames of the same chunk not yet executed; this one
+        # switches when the mode frame is executed, so a reply never takes a mode set after
+        # its query (P3).
+        self._checksum_enabled = False
         self._debug_enabled = False
         self._locked = True
         self._vertical_mode = VerticalMode.DEPTH
@@ -202,7 +212,7 @@ class Controller:
             depth_k=self._k,
             leak_latched=self._leak_latched,
             debug_enabled=self._debug_enabled,
-            checksum_enabled=self._decoder.checksum_enabled,
+            checksum_enabled=self._checksum_enabled,
             claw_direction=self._claw_direction,
         )
 
@@ -252,7 +262,7 @@ class Controller:
         self._debug(f"dropped {describe_frame(frame.raw)}: {why}")
 
     def _reply(self, names: tuple[str, ...]) -> None:
-        checksum = self._decoder.algorithm if self._decoder.checksum_enabled else None
+        checksum = self._decoder.algorithm if self._checksum_enabled else None
         values = self._sensor_values(names)
         self._write(b"".join(encode(Response(name, (values[name],)), checksum) for name in names))
 
@@ -274,17 +284,23 @@ class Controller:
 
     # -- command handlers --------------------------------------------------------------------
 
-    def _on_checksum_mode(self, command: Command) -> None:
-        # The decoder has already switched on this frame (P3); say so.
-        if self._decoder.checksum_enabled:
+    def _on_setting(self, command: Command) -> None:
+        setting = command.setting
+        assert setting is not None  # only commands with a setting are dispatched here
+        self._setting_handlers[setting[0]](setting[1])
+
+    def _on_checksum_mode(self, enabled: bool) -> None:
+        # The decoder has already switched on this frame (P3); replies switch from here on.
+        self._checksum_enabled = enabled
+        if enabled:
             self._debug(f"checksum mode on ({self._decoder.algorithm.name})")
         else:
             self._debug("checksum mode off")
 
-    def _on_stop(self, command: Command) -> None:
-        self._stop("stop command")
-
-    def _on_start(self, command: Command) -> None:
+    def _on_locked(self, locked: bool) -> None:
+        if locked:
+            self._stop("stop command", commanded=True)
+            return
         if not self._locked:
             self._debug("start: motors already unlocked, nothing changed")
             return
@@ -292,8 +308,7 @@ class Controller:
         self._clear_set_points()
         self._debug("motors unlocked")
 
-    def _on_debug_mode(self, command: Command) -> None:
-        enabled = command.name == "debug1"
+    def _on_debug_mode(self, enabled: bool) -> None:
         if enabled == self._debug_enabled:
             return
         if not enabled:
@@ -316,8 +331,8 @@ class Controller:
         gains[command.name] = gain
         pid.set_gains(gains["mvpdp"], gains["mvpdi"], gains["mvpidd"])
 
-    def _on_vertical_mode(self, command: Command) -> None:
-        mode = VerticalMode.DIRECT if command.values[0] else VerticalMode.DEPTH
+    def _on_direct_mode(self, direct: bool) -> None:
+        mode = VerticalMode.DIRECT if direct else VerticalMode.DEPTH
         if mode is self._vertical_mode:
             self._debug(f"vertical mode already {mode}, nothing changed")
             return
@@ -367,8 +382,8 @@ class Controller:
         self._leak_latched = False
         self._debug("leak latch reset")
 
-    def _on_claw(self, command: Command) -> None:
-        self._claw_direction = 1 if command.name == "h+" else -1
+    def _on_claw(self, opening: bool) -> None:
+        self._claw_direction = 1 if opening else -1
         pulse_ms = self.config.claw_pulse_ms
         self._claw_until_s = self._hardware.clock.now_s() + pulse_ms / 1000.0
         self._hardware.claw.drive(self._claw_direction)
@@ -392,7 +407,7 @@ class Controller:
         self._mixer.set_horizontal(0, 0)
         self._pid.reset()
 
-    def _stop(self, why: str) -> None:
+    def _stop(self, why: str, *, commanded: bool = False) -> None:
         """Every output off at once, set-points cleared, motion locked (P7, P14, P17)."""
         self._locked = True
         self._clear_set_points()
@@ -401,7 +416,7 @@ class Controller:
         self._hardware.claw.drive(0)
         self._duties = list(self._idle_duties)
         self._hardware.thrusters.set_duties(self._duties)
-        if why != "stop command":
+        if not commanded:  # a failsafe: worth a line in the log of the board's owner
             logger.warning("%s: motors stopped and locked", why)
         self._debug(f"{why}: motors stopped and locked")
 

@@ -2,8 +2,13 @@
 
 One thread, one :mod:`selectors` loop: it steps the simulation on its wall-clock schedule, moves
 bytes between the peers and the controller, and paces both directions at the line rate when a
-baud rate is given. Every peer sees the controller's output, as if wired to its TX line; the TCP
-port takes one client at a time, as a serial port does.
+baud rate is given. The TCP port takes one client at a time, as a serial port does.
+
+Both links lead to the one controller, but each is its own wire: what the controller writes while
+it handles bytes from a link (replies, and debug lines about those frames) goes back on that link
+only. What it writes on its own (failsafe and leak lines, from its tick) goes to every link: the
+TCP client if one is connected, and the PTY, which cannot tell whether a terminal program has it
+open. Output that nobody reads is bounded (the oldest is dropped, as a UART overruns).
 """
 
 from __future__ import annotations
@@ -158,6 +163,8 @@ class SimServer:
         self._tcp_peer: _TcpPeer | None = None
         self.pty_path: str | None = None
         self.tcp_address: tuple[str, int] | None = None
+        # The link whose bytes the controller is handling: its output goes back there only.
+        self._replying_to: _Peer | None = None
 
     # -- endpoints ---------------------------------------------------------------------------
 
@@ -216,7 +223,11 @@ class SimServer:
 
     def _from_controller(self, data: bytes) -> None:
         now = time.monotonic()
-        for peer in self._peers:
+        source = self._replying_to
+        if source is not None:
+            source.from_controller.push(data, now)
+            return
+        for peer in self._peers:  # spontaneous output: a failsafe or leak line
             peer.from_controller.push(data, now)
 
     def _pump(self) -> None:
@@ -225,16 +236,20 @@ class SimServer:
         for peer in self._peers:
             data = peer.to_controller.release(now)
             if data:
-                self.robot.receive(data)
+                self._replying_to = peer
+                try:
+                    self.robot.receive(data)
+                finally:
+                    self._replying_to = None
         for peer in list(self._peers):
             data = peer.from_controller.release(now)
-            if data:
-                peer.unsent += data
-                overflow = len(peer.unsent) - _MAX_PENDING_BYTES
-                if overflow > 0:  # nobody reads: drop the oldest, as a UART overruns
-                    del peer.unsent[:overflow]
-            if peer.unsent:
-                self._flush(peer)
+            if not data:
+                continue  # anything still unsent waits for the selector to say it is writable
+            peer.unsent += data
+            overflow = len(peer.unsent) - _MAX_PENDING_BYTES
+            if overflow > 0:  # nobody reads: drop the oldest, as a UART overruns
+                del peer.unsent[:overflow]
+            self._flush(peer)
 
     def _flush(self, peer: _Peer) -> None:
         try:
