@@ -29,7 +29,7 @@ import socket
 import statistics
 import sys
 import time
-from collections.abc import Callable
+from collections.abc import Awaitable, Callable
 from dataclasses import dataclass
 
 import rovlink
@@ -58,12 +58,12 @@ def _timed(queries: int, query: Callable[[], object]) -> Sample:
     return Sample((time.process_time() - cpu) / queries, (time.perf_counter() - wall) / queries)
 
 
-async def _timed_async(queries: int, query: Callable[[], object]) -> Sample:
+async def _timed_async(queries: int, query: Callable[[], Awaitable[object]]) -> Sample:
     for _ in range(WARM_UP_QUERIES):
-        await query()  # type: ignore[misc]
+        await query()
     cpu, wall = time.process_time(), time.perf_counter()
     for _ in range(queries):
-        await query()  # type: ignore[misc]
+        await query()
     return Sample((time.process_time() - cpu) / queries, (time.perf_counter() - wall) / queries)
 
 
