@@ -15,12 +15,19 @@ from rovlink.protocol.checksum import (
     CRC8_SMBUS_TABLE,
     DEFAULT_ALGORITHM,
     HEX_DIGITS,
+    HEX_DIGITS_END,
     ChecksumAlgorithm,
     crc8_smbus,
     get_algorithm,
 )
 from rovlink.protocol.commands import COMMANDS, Kind
-from rovlink.protocol.frames import MAX_FRAME_BYTES, FrameError, Reason, decode_body
+from rovlink.protocol.frames import (
+    FAST_ENTRIES,
+    MAX_FRAME_BYTES,
+    FrameError,
+    Reason,
+    decode_body,
+)
 from rovlink.protocol.messages import Message
 
 __all__ = [
@@ -153,18 +160,69 @@ class Decoder:
         return events
 
     def _add_frames(self, whole_frames: list[bytes], events: list[Event]) -> None:
-        """Decode whole frames known to stand back to back."""
+        """Decode whole frames known to stand back to back.
+
+        Every frame of a stream passes here, so the common case is spelled out inline: a frame
+        seen lately is taken from the cache; a frame with one or two values in their canonical
+        spelling is split by table lookups, its numbers and CRC-8 taken from the tables of
+        numbers already met (:class:`NumberTexts`), and its message built directly. Anything
+        else (a bare name, a mode frame, another algorithm, any doubt) goes to
+        :meth:`_complete`, which names the problem.
+        """
         append = events.append
         caches = self._caches
+        checked = self.checksum_enabled
+        cache = caches[checked]
+        # Another algorithm than CRC-8/SMBUS: the fast path would need its CRC tables.
+        inline = not checked or self._algorithm.function is crc8_smbus
         for raw in whole_frames:
-            cache = caches[self.checksum_enabled]
             event = cache.get(raw)
-            if event is None:
+            if event is not None:
+                append(event)
+                continue
+            message: Message | None = None
+            if inline:
+                parts = raw.split(b".")
+                entry = _FAST_ENTRIES.get(parts[0])
+                if entry is not None:
+                    spec, cls, part_count, name_rest, numbers, last_numbers, last_end, crc = entry
+                    if len(parts) == part_count:
+                        last = last_numbers[parts[-1][:-3]] if checked else last_end[parts[-1]]
+                        if last is None:
+                            pass
+                        elif part_count == 2 or name_rest:  # one value: its message is made
+                            if name_rest and parts[1] != name_rest:
+                                pass
+                            elif not checked or raw.endswith(
+                                _HEX_DIGITS_END[last[1][crc] ^ last[2]]
+                            ):
+                                message = last[3]
+                        else:
+                            first = numbers[parts[1]]
+                            if first is not None and (not checked or raw.endswith(
+                                _HEX_DIGITS_END[
+                                    last[1][_DOT_CRC[first[1][crc] ^ first[2]]] ^ last[2]
+                                ]
+                            )):
+                                message = _new_message(cls)
+                                _set_message_name(message, spec.name)
+                                _set_message_values(message, (first[0], last[0]))
+                                _set_message_spec(message, spec)
+            if message is not None:
+                event = _new_frame(Frame)
+                _set_frame_message(event, message)
+                _set_frame_raw(event, raw)
+            else:
                 event = self._complete(raw)
-                if raw not in _MODE_FRAMES:  # never cached: each one changes the mode (P3)
-                    if len(cache) >= _CACHE_ENTRIES:
-                        cache.clear()
-                    cache[raw] = event
+                if raw in _MODE_FRAMES:  # never cached: each one changes the mode (P3)
+                    append(event)
+                    checked = self.checksum_enabled
+                    cache = caches[checked]
+                    inline = not checked or self._algorithm.function is crc8_smbus
+                    continue
+            if len(cache) >= _CACHE_ENTRIES:
+                cache.clear()
+            cache[raw] = event
             append(event)
 
     def _feed_with_gaps(self, data: bytes, position: int, events: list[Event]) -> int:
@@ -353,3 +411,12 @@ class Decoder:
 _new_frame = object.__new__
 _set_frame_message = Frame.__dict__["message"].__set__
 _set_frame_raw = Frame.__dict__["raw"].__set__
+# Messages of values just checked against their spec are made as trusted_message makes them.
+_new_message = object.__new__
+_set_message_name = Message.__dict__["name"].__set__
+_set_message_values = Message.__dict__["values"].__set__
+_set_message_spec = Message.__dict__["spec"].__set__
+_FAST_ENTRIES = FAST_ENTRIES
+_HEX_DIGITS_END = HEX_DIGITS_END
+#: The CRC-8/SMBUS register after a "." from each state: the dot between two values.
+_DOT_CRC = bytes(CRC8_SMBUS_TABLE[state ^ 0x2E] for state in range(256))
