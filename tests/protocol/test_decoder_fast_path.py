@@ -104,3 +104,18 @@ def test_a_wrong_checksum_on_a_known_value_is_still_dropped() -> None:
     events = _decode([good + bad], checksum=True)
     assert isinstance(events[0], Frame)
     assert not isinstance(events[1], Frame)
+
+
+@settings(max_examples=100)
+@given(
+    st.lists(
+        st.lists(frames(), min_size=1, max_size=90).map(b"".join)
+        | st.sampled_from([b"debug line\r\n", b"\x00noise", b"#broken", b"$qd.", b"!"]),
+        min_size=1, max_size=12,
+    ).map(b"".join),
+    st.booleans(),
+)
+def test_gaps_anywhere_among_many_frames(stream: bytes, checksum: bool) -> None:
+    # More frames than one block of the gap search, with gaps at any place in any block.
+    byte_by_byte = _decode([stream[i : i + 1] for i in range(len(stream))], checksum)
+    assert _decode([stream], checksum) == byte_by_byte

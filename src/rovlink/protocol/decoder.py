@@ -74,6 +74,8 @@ _START = re.compile(rb"[#$]")
 _BODY_STOP = re.compile(rb"[^\x22\x25-\x7e]")
 # A whole frame with nothing odd in it: the common case, taken without the byte-level states.
 _WHOLE_FRAME = re.compile(rb"[#$][\x22\x25-\x7e]{0,%d}!" % (MAX_FRAME_BYTES - 2))
+#: Whole frames with gaps between some of them are checked in blocks of this many.
+_GAP_BLOCK_FRAMES = 64
 _LINE_BREAK = re.compile(rb"[\r\n]")
 _START_BYTES = frozenset(b"#$")
 _COMMAND = Kind.COMMAND
@@ -154,7 +156,7 @@ class Decoder:
                 self._add_frames(whole_frames, events)
                 position += len(frames_bytes)
             else:
-                position = self._feed_with_gaps(data, position, events)
+                position = self._feed_with_gaps(data, position, whole_frames, events)
         if position < end:
             self._run_states(data, position, end, events, until_idle=False)
         return events
@@ -225,21 +227,37 @@ class Decoder:
             cache[raw] = event
             append(event)
 
-    def _feed_with_gaps(self, data: bytes, position: int, events: list[Event]) -> int:
-        """Whole frames with text, noise or broken frames between some of them."""
-        batch: list[bytes] = []
-        for match in _WHOLE_FRAME.finditer(data, position):
-            start, stop = match.span()
-            if start > position:
-                self._add_frames(batch, events)
-                batch = []
+    def _feed_with_gaps(
+        self, data: bytes, position: int, whole_frames: list[bytes], events: list[Event]
+    ) -> int:
+        """The whole frames found from ``position`` on, with text, noise or broken frames
+        between some of them: blocks of frames back to back are taken as they are, and only a
+        block with a gap is walked frame by frame to find it."""
+        run_start = 0  # the first frame of the current run of frames back to back
+        for block_start in range(0, len(whole_frames), _GAP_BLOCK_FRAMES):
+            block = whole_frames[block_start : block_start + _GAP_BLOCK_FRAMES]
+            block_bytes = b"".join(block)
+            if data.startswith(block_bytes, position):
+                position += len(block_bytes)
+                continue
+            for index, raw in enumerate(block, block_start):
+                if data.startswith(raw, position):
+                    position += len(raw)
+                    continue
+                # The first place from here where the frame's bytes stand is where it was found:
+                # the same bytes earlier would have matched there first.
+                start = data.index(raw, position)
+                self._add_run(whole_frames[run_start:index], events)
                 self._run_states(data, position, start, events, until_idle=False)
-            if not batch:  # the first frame of the chunk or after a gap: text may be pending
-                self._begin_frame(events)
-            batch.append(data[start:stop])
-            position = stop
-        self._add_frames(batch, events)
+                run_start = index
+                position = start + len(raw)
+        self._add_run(whole_frames[run_start:], events)
         return position
+
+    def _add_run(self, frames: list[bytes], events: list[Event]) -> None:
+        if frames:
+            self._begin_frame(events)  # the run's first start character ends any text line
+            self._add_frames(frames, events)
 
     def end(self) -> list[Event]:
         """The events of the end of the stream: any unfinished text, any truncated frame."""
