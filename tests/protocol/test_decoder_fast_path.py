@@ -12,6 +12,7 @@ from hypothesis import strategies as st
 
 from rovlink.protocol import Decoder, Event, Frame, Kind, Response, get_algorithm
 from rovlink.protocol.commands import SPELLINGS, Spec
+from rovlink.protocol.frames import FAST_ENTRIES
 
 _SPELLINGS = sorted({
     kind.start_byte + spelling.encode() for kind in Kind for spelling in SPELLINGS[kind]
@@ -119,3 +120,18 @@ def test_gaps_anywhere_among_many_frames(stream: bytes, checksum: bool) -> None:
     # More frames than one block of the gap search, with gaps at any place in any block.
     byte_by_byte = _decode([stream[i : i + 1] for i in range(len(stream))], checksum)
     assert _decode([stream], checksum) == byte_by_byte
+
+
+def test_only_in_range_canonical_numbers_are_remembered() -> None:
+    entry = FAST_ENTRIES[b"$qd"]
+    numbers, ended = entry[5], entry[6]
+    before = len(numbers), len(ended)
+    noise = b"".join(b"$qd.%s!" % text for text in (
+        b"0" * 20 + b"7", b"00123", b"10000", b"-1", b"+5", b"1e3", b"\xff", b"",
+    ))
+    for checksum in (False, True):
+        _decode([noise * 3], checksum)
+    assert (len(numbers), len(ended)) == before
+    _decode([b"$qd.4321!"], checksum=False)
+    assert b"4321" in numbers
+    assert b"4321!" in ended

@@ -226,33 +226,25 @@ class NumberTexts(dict[bytes, "NumberText | None"]):
     """The spellings of one argument's values met so far, text to :data:`NumberText`.
 
     ``numbers[text]`` is ``None`` for a text that is not an in-range value of the argument (the
-    full parser then names the problem). With an ``end`` (``b"!"``), each text ends with it, as the
-    last value of a frame without a checksum does, so that no slice is needed to take it off. With
-    a ``spec`` of one argument, each number holds the message of that value. Only canonical
-    spellings are kept (no leading zeros), so the table never holds more than three entries per
-    value of the argument's range, however long the stream.
+    full parser then names the problem). With a ``spec`` of one argument, each number holds the
+    message of that value. Only canonical spellings are kept (no leading zeros), so the table
+    never holds more than three entries per value of the argument's range (``5``, ``+5``, ``-5``
+    for a signed one), however long the stream: its size is bounded by the command table.
     """
 
-    __slots__ = ("cls", "end", "maximum", "minimum", "signed", "spec")
+    __slots__ = ("cls", "maximum", "minimum", "signed", "spec")
 
     def __init__(
-        self, argument: Argument, end: bytes = b"", spec: Spec | None = None,
-        cls: type[Message] | None = None,
+        self, argument: Argument, spec: Spec | None = None, cls: type[Message] | None = None
     ) -> None:
         super().__init__()
         self.signed = argument.signed
         self.minimum = argument.minimum
         self.maximum = argument.maximum
-        self.end = end
         self.spec = spec
         self.cls = cls
 
     def __missing__(self, text: bytes) -> NumberText | None:
-        end = self.end
-        if end:
-            if not text.endswith(end):
-                return None
-            text = text[: -len(end)]
         digits = text[1:] if self.signed and text[:1] in (b"+", b"-") else text
         if not digits.isdigit() or len(text) >= len(CRC8_SMBUS_SHIFTS):  # ASCII digits only
             return None
@@ -264,7 +256,28 @@ class NumberTexts(dict[bytes, "NumberText | None"]):
             message = trusted_message(self.cls, self.spec, (value,))
         number = (value, CRC8_SMBUS_SHIFTS[len(text)], crc8_smbus(text), message)
         if digits[:1] != b"0" or len(digits) == 1:  # canonical: remembered
-            self[text + end] = number
+            self[text] = number
+        return number
+
+
+class EndedNumberTexts(dict[bytes, "NumberText | None"]):
+    """As :class:`NumberTexts`, for texts followed by the frame's end ``!``: the last value of a
+    frame without a checksum, taken without a slice to cut the end off. Shares its numbers (and
+    their messages) with the plain table."""
+
+    __slots__ = ("numbers",)
+
+    def __init__(self, numbers: NumberTexts) -> None:
+        super().__init__()
+        self.numbers = numbers
+
+    def __missing__(self, text: bytes) -> NumberText | None:
+        if text[-1:] != b"!":
+            return None
+        bare = text[:-1]
+        number = self.numbers[bare]
+        if number is not None and bare in self.numbers:  # canonical: remembered
+            self[text] = number
         return number
 
 
@@ -274,7 +287,7 @@ class NumberTexts(dict[bytes, "NumberText | None"]):
 #: argument; those of the last argument, without and with the end ``!`` after them; and the
 #: CRC-8/SMBUS of the name and its "." (the prefix of every such body).
 FastEntry = tuple[
-    Spec, type[Message], int, bytes, NumberTexts, NumberTexts, NumberTexts, int
+    Spec, type[Message], int, bytes, NumberTexts, NumberTexts, EndedNumberTexts, int
 ]
 
 
@@ -290,11 +303,13 @@ def _fast_table() -> dict[bytes, FastEntry]:
             if "." in name_rest:
                 continue  # no such name today; the full parser takes it
             first, last = arguments[0], arguments[-1]
-            own = spec if len(arguments) == 1 else None
+            last_numbers = (
+                NumberTexts(last, spec, cls) if len(arguments) == 1 else NumberTexts(last)
+            )
             entries.setdefault(kind.start_byte + head.encode(), []).append((
                 spec, cls, 1 + bool(name_rest) + len(arguments), name_rest.encode(),
-                NumberTexts(first), NumberTexts(last, b"", own, cls),
-                NumberTexts(last, b"!", own, cls), crc8_smbus((spelling + ".").encode()),
+                NumberTexts(first), last_numbers, EndedNumberTexts(last_numbers),
+                crc8_smbus((spelling + ".").encode()),
             ))
     # A first segment shared by two spellings is left to the full parser.
     return {head: found[0] for head, found in entries.items() if len(found) == 1}
