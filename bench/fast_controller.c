@@ -2,14 +2,15 @@
  *
  *   cc -O2 -o fast_controller fast_controller.c && ./fast_controller [PORT]
  *
- * Serves one TCP client at a time on 127.0.0.1:PORT (0 or none: any free port) and prints
- * "tcp 127.0.0.1:PORT" once it listens. Answers the queries of PROTOCOL.md (P4, P12: `#qsa!` gets
+ * Serves TCP clients on 127.0.0.1:PORT (0 or none: any free port), each in its own process as
+ * each would have its own controller, and prints "tcp 127.0.0.1:PORT" once it listens. Answers the queries of PROTOCOL.md (P4, P12: `#qsa!` gets
  * the six sensor replies) with `$qd.N!` counting up, follows `#crcon!`/`#crcoff!` (P3, CRC-8/SMBUS
  * both ways, a frame with a wrong checksum is dropped) and ignores every command that sets
  * something. Plain read/write on the socket, TCP_NODELAY, no threads: the benchmarks time the
  * host, not this.
  */
 #include <arpa/inet.h>
+#include <signal.h>
 #include <netinet/in.h>
 #include <netinet/tcp.h>
 #include <stdio.h>
@@ -118,12 +119,16 @@ int main(int argc, char **argv) {
     }
     printf("tcp 127.0.0.1:%u\n", ntohs(address.sin_port));
     fflush(stdout);
+    signal(SIGCHLD, SIG_IGN);  /* no zombies: nobody waits for a connection's process */
     for (;;) {
         int client = accept(server, NULL, NULL);
         if (client < 0) continue;
-        setsockopt(client, IPPROTO_TCP, TCP_NODELAY, &one, sizeof one);
-        checksum_on = 0;  /* a new connection meets a controller just reset (P3: off) */
-        serve(client);
+        if (fork() == 0) {  /* a fresh controller per connection: checksum mode off (P3) */
+            close(server);
+            setsockopt(client, IPPROTO_TCP, TCP_NODELAY, &one, sizeof one);
+            serve(client);
+            _exit(0);
+        }
         close(client);
     }
 }
