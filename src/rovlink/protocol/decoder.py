@@ -189,6 +189,8 @@ class Decoder:
                 if entry is not None:
                     spec, cls, part_count, name_rest, numbers, last_numbers, last_end, crc = entry
                     if len(parts) == part_count:
+                        # A number: (value, zero-shift table of its length, CRC of its text,
+                        # message of a one-value spec); the CRC goes on from the name's.
                         last = last_numbers[parts[-1][:-3]] if checked else last_end[parts[-1]]
                         if last is None:
                             pass
