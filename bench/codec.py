@@ -15,11 +15,22 @@ from __future__ import annotations
 import argparse
 import random
 import time
+from collections import deque
 from collections.abc import Callable
 
 import pynmea2
 
-from rovlink.protocol import COMMANDS, RESPONSES, Command, Decoder, Frame, Kind, Message, Response
+from rovlink.protocol import (
+    COMMANDS,
+    RESPONSES,
+    Command,
+    Decoder,
+    Frame,
+    Kind,
+    Message,
+    Response,
+    lookup,
+)
 from rovlink.protocol import encode as encode_message
 
 CHUNK_BYTES = 4096
@@ -51,6 +62,40 @@ def mixed_messages(count: int, seed: int) -> list[Message]:
     for _ in range(count):
         spec = rng.choice(specs)
         values = tuple(rng.randint(a.minimum, a.maximum) for a in spec.arguments)
+        cls = Command if spec.kind is Kind.COMMAND else Response
+        messages.append(cls(spec.name, values))
+    return messages
+
+
+#: The frames of the "all-new" stream: commands and replies that carry values.
+ALL_NEW_SPECS = (
+    *(("command", name) for name in ("th", "mvd", "mvs", "sdz")),
+    *(("response", name) for name in ("qd", "qr", "qro", "qpi", "qhe")),
+)
+#: No frame of the "all-new" stream repeats within this many frames: twice the decoder's cache of
+#: 512 frames, so that no frame is ever found in it.
+ALL_NEW_WINDOW = 1024
+
+
+def all_new_messages(count: int, seed: int) -> list[Message]:
+    """Commands and replies with values (``th``, ``mvd``, ``mvs``, ``sdz``; ``qd``, ``qr``,
+    ``qro``, ``qpi``, ``qhe``), values drawn at random, no frame repeated within
+    :data:`ALL_NEW_WINDOW` frames."""
+    rng = random.Random(seed)
+    specs = [lookup(name, Kind(kind)) for kind, name in ALL_NEW_SPECS]
+    recent: deque[tuple[str, tuple[int, ...]]] = deque()
+    seen: set[tuple[str, tuple[int, ...]]] = set()
+    messages: list[Message] = []
+    while len(messages) < count:
+        spec = rng.choice(specs)
+        values = tuple(rng.randint(a.minimum, a.maximum) for a in spec.arguments)
+        key = (spec.kind.value + spec.name, values)
+        if key in seen:
+            continue
+        seen.add(key)
+        recent.append(key)
+        if len(recent) > ALL_NEW_WINDOW:
+            seen.discard(recent.popleft())
         cls = Command if spec.kind is Kind.COMMAND else Response
         messages.append(cls(spec.name, values))
     return messages
@@ -139,6 +184,7 @@ def main() -> None:
     sentences = [nmea_sentence(rng.choice(NMEA_BODIES)) for _ in range(args.frames)]
     nmea_bytes = sum(len(s) + 2 for s in sentences)
     streams = {
+        "all-new": all_new_messages(args.frames, seed=4),
         "random": mixed_messages(args.frames, seed=1),
         "telemetry": telemetry_messages(args.frames // 7, seed=3),
     }

@@ -12,9 +12,11 @@ from dataclasses import dataclass
 
 __all__ = [
     "ALGORITHMS",
+    "CRC8_SMBUS_SHIFTS",
     "CRC8_SMBUS_TABLE",
     "DEFAULT_ALGORITHM",
     "HEX_DIGITS",
+    "HEX_DIGITS_END",
     "ChecksumAlgorithm",
     "UnknownAlgorithmError",
     "crc8_smbus",
@@ -39,6 +41,23 @@ CRC8_SMBUS_TABLE = _make_crc8_table(0x07)
 #: The two uppercase hex digits of every byte value, as a checksum is sent: a lookup is cheaper
 #: than formatting on the decoder's hot path.
 HEX_DIGITS: tuple[bytes, ...] = tuple(b"%02X" % value for value in range(256))
+#: The checksum digits and the end character, to check a whole frame's tail with one ``endswith``.
+HEX_DIGITS_END: tuple[bytes, ...] = tuple(digits + b"!" for digits in HEX_DIGITS)
+
+
+def _zero_shift_tables(count: int) -> tuple[bytes, ...]:
+    table = bytes(CRC8_SMBUS_TABLE)
+    shifts = [bytes(range(256))]
+    for _ in range(count):
+        shifts.append(shifts[-1].translate(table))
+    return tuple(shifts)
+
+
+#: ``CRC8_SMBUS_SHIFTS[n][state]`` is the CRC-8/SMBUS register after ``n`` zero bytes from
+#: ``state``. The CRC is linear, so the register after bytes ``b`` from ``state`` is
+#: ``CRC8_SMBUS_SHIFTS[len(b)][state] ^ crc8_smbus(b)``: a decoder that knows the CRC of a piece
+#: (a name, a number) continues across it with one lookup instead of a loop over its bytes.
+CRC8_SMBUS_SHIFTS = _zero_shift_tables(64)
 
 
 def crc8_smbus(data: bytes) -> int:

@@ -15,12 +15,19 @@ from rovlink.protocol.checksum import (
     CRC8_SMBUS_TABLE,
     DEFAULT_ALGORITHM,
     HEX_DIGITS,
+    HEX_DIGITS_END,
     ChecksumAlgorithm,
     crc8_smbus,
     get_algorithm,
 )
 from rovlink.protocol.commands import COMMANDS, Kind
-from rovlink.protocol.frames import MAX_FRAME_BYTES, FrameError, Reason, decode_body
+from rovlink.protocol.frames import (
+    FAST_ENTRIES,
+    MAX_FRAME_BYTES,
+    FrameError,
+    Reason,
+    decode_body,
+)
 from rovlink.protocol.messages import Message
 
 __all__ = [
@@ -67,6 +74,8 @@ _START = re.compile(rb"[#$]")
 _BODY_STOP = re.compile(rb"[^\x22\x25-\x7e]")
 # A whole frame with nothing odd in it: the common case, taken without the byte-level states.
 _WHOLE_FRAME = re.compile(rb"[#$][\x22\x25-\x7e]{0,%d}!" % (MAX_FRAME_BYTES - 2))
+#: Whole frames with gaps between some of them are checked in blocks of this many.
+_GAP_BLOCK_FRAMES = 64
 _LINE_BREAK = re.compile(rb"[\r\n]")
 _START_BYTES = frozenset(b"#$")
 _COMMAND = Kind.COMMAND
@@ -147,41 +156,110 @@ class Decoder:
                 self._add_frames(whole_frames, events)
                 position += len(frames_bytes)
             else:
-                position = self._feed_with_gaps(data, position, events)
+                position = self._feed_with_gaps(data, position, whole_frames, events)
         if position < end:
             self._run_states(data, position, end, events, until_idle=False)
         return events
 
     def _add_frames(self, whole_frames: list[bytes], events: list[Event]) -> None:
-        """Decode whole frames known to stand back to back."""
+        """Decode whole frames known to stand back to back.
+
+        Every frame of a stream passes here, so the common case is spelled out inline: a frame
+        seen lately is taken from the cache; a frame with one or two values in their canonical
+        spelling is split by table lookups, its numbers and CRC-8 taken from the tables of
+        numbers already met (:class:`NumberTexts`), and its message built directly. Anything
+        else (a bare name, a mode frame, another algorithm, any doubt) goes to
+        :meth:`_complete`, which names the problem.
+        """
         append = events.append
         caches = self._caches
+        checked = self.checksum_enabled
+        cache = caches[checked]
+        # Another algorithm than CRC-8/SMBUS: the fast path would need its CRC tables.
+        inline = not checked or self._algorithm.function is crc8_smbus
         for raw in whole_frames:
-            cache = caches[self.checksum_enabled]
             event = cache.get(raw)
-            if event is None:
+            if event is not None:
+                append(event)
+                continue
+            message: Message | None = None
+            if inline:
+                parts = raw.split(b".")
+                entry = _FAST_ENTRIES.get(parts[0])
+                if entry is not None:
+                    spec, cls, part_count, name_rest, numbers, last_numbers, last_end, crc = entry
+                    if len(parts) == part_count:
+                        # A number: (value, zero-shift table of its length, CRC of its text,
+                        # message of a one-value spec); the CRC goes on from the name's.
+                        last = last_numbers[parts[-1][:-3]] if checked else last_end[parts[-1]]
+                        if last is None:
+                            pass
+                        elif part_count == 2 or name_rest:  # one value: its message is made
+                            if name_rest and parts[1] != name_rest:
+                                pass
+                            elif not checked or raw.endswith(
+                                _HEX_DIGITS_END[last[1][crc] ^ last[2]]
+                            ):
+                                message = last[3]
+                        else:
+                            first = numbers[parts[1]]
+                            if first is not None and (not checked or raw.endswith(
+                                _HEX_DIGITS_END[
+                                    last[1][_DOT_CRC[first[1][crc] ^ first[2]]] ^ last[2]
+                                ]
+                            )):
+                                message = _new_message(cls)
+                                _set_message_name(message, spec.name)
+                                _set_message_values(message, (first[0], last[0]))
+                                _set_message_spec(message, spec)
+            if message is not None:
+                event = _new_frame(Frame)
+                _set_frame_message(event, message)
+                _set_frame_raw(event, raw)
+            else:
                 event = self._complete(raw)
-                if raw not in _MODE_FRAMES:  # never cached: each one changes the mode (P3)
-                    if len(cache) >= _CACHE_ENTRIES:
-                        cache.clear()
-                    cache[raw] = event
+                if raw in _MODE_FRAMES:  # never cached: each one changes the mode (P3)
+                    append(event)
+                    checked = self.checksum_enabled
+                    cache = caches[checked]
+                    inline = not checked or self._algorithm.function is crc8_smbus
+                    continue
+            if len(cache) >= _CACHE_ENTRIES:
+                cache.clear()
+            cache[raw] = event
             append(event)
 
-    def _feed_with_gaps(self, data: bytes, position: int, events: list[Event]) -> int:
-        """Whole frames with text, noise or broken frames between some of them."""
-        batch: list[bytes] = []
-        for match in _WHOLE_FRAME.finditer(data, position):
-            start, stop = match.span()
-            if start > position:
-                self._add_frames(batch, events)
-                batch = []
+    def _feed_with_gaps(
+        self, data: bytes, position: int, whole_frames: list[bytes], events: list[Event]
+    ) -> int:
+        """The whole frames found from ``position`` on, with text, noise or broken frames
+        between some of them: blocks of frames back to back are taken as they are, and only a
+        block with a gap is walked frame by frame to find it."""
+        run_start = 0  # the first frame of the current run of frames back to back
+        for block_start in range(0, len(whole_frames), _GAP_BLOCK_FRAMES):
+            block = whole_frames[block_start : block_start + _GAP_BLOCK_FRAMES]
+            block_bytes = b"".join(block)
+            if data.startswith(block_bytes, position):
+                position += len(block_bytes)
+                continue
+            for index, raw in enumerate(block, block_start):
+                if data.startswith(raw, position):
+                    position += len(raw)
+                    continue
+                # The first place from here where the frame's bytes stand is where it was found:
+                # the same bytes earlier would have matched there first.
+                start = data.index(raw, position)
+                self._add_run(whole_frames[run_start:index], events)
                 self._run_states(data, position, start, events, until_idle=False)
-            if not batch:  # the first frame of the chunk or after a gap: text may be pending
-                self._begin_frame(events)
-            batch.append(data[start:stop])
-            position = stop
-        self._add_frames(batch, events)
+                run_start = index
+                position = start + len(raw)
+        self._add_run(whole_frames[run_start:], events)
         return position
+
+    def _add_run(self, frames: list[bytes], events: list[Event]) -> None:
+        if frames:
+            self._begin_frame(events)  # the run's first start character ends any text line
+            self._add_frames(frames, events)
 
     def end(self) -> list[Event]:
         """The events of the end of the stream: any unfinished text, any truncated frame."""
@@ -353,3 +431,12 @@ class Decoder:
 _new_frame = object.__new__
 _set_frame_message = Frame.__dict__["message"].__set__
 _set_frame_raw = Frame.__dict__["raw"].__set__
+# Messages of values just checked against their spec are made as trusted_message makes them.
+_new_message = object.__new__
+_set_message_name = Message.__dict__["name"].__set__
+_set_message_values = Message.__dict__["values"].__set__
+_set_message_spec = Message.__dict__["spec"].__set__
+_FAST_ENTRIES = FAST_ENTRIES
+_HEX_DIGITS_END = HEX_DIGITS_END
+#: The CRC-8/SMBUS register after a "." from each state: the dot between two values.
+_DOT_CRC = bytes(CRC8_SMBUS_TABLE[state ^ 0x2E] for state in range(256))

@@ -7,8 +7,13 @@ says why it is not one.
 
 from __future__ import annotations
 
-from rovlink.protocol.checksum import ChecksumAlgorithm, get_algorithm
-from rovlink.protocol.commands import SPELLINGS, Kind, Spec
+from rovlink.protocol.checksum import (
+    CRC8_SMBUS_SHIFTS,
+    ChecksumAlgorithm,
+    crc8_smbus,
+    get_algorithm,
+)
+from rovlink.protocol.commands import SPELLINGS, Argument, Kind, Spec
 from rovlink.protocol.messages import Command, Message, Response, trusted_message
 from rovlink.protocol.text_enum import StrEnum
 
@@ -207,3 +212,108 @@ def decode_body(kind: Kind, body: bytes) -> Message:
         if bare_spec is not None:  # a bare name such as "qd", "stop" or "q.l"
             return trusted_message(_MESSAGE_CLASS[kind], bare_spec, ())
     return parse_body(kind, body.decode("ascii", errors="replace"))
+
+
+# -- the decoder's table for frames with values ---------------------------------------------------
+
+#: A number as it appears in a frame: its value; for CRC-8/SMBUS, the zero-shift table of its
+#: length and the CRC of its text (see :data:`CRC8_SMBUS_SHIFTS`); and for the value of a command
+#: that takes one, the message it makes (messages are immutable, so one serves every such frame).
+NumberText = tuple[int, bytes, int, "Message | None"]
+
+
+class NumberTexts(dict[bytes, "NumberText | None"]):
+    """The spellings of one argument's values met so far, text to :data:`NumberText`.
+
+    ``numbers[text]`` is ``None`` for a text that is not an in-range value of the argument (the
+    full parser then names the problem). With a ``spec`` of one argument, each number holds the
+    message of that value. Only canonical spellings are kept (no leading zeros), so the table
+    never holds more than three entries per value of the argument's range (``5``, ``+5``, ``-5``
+    for a signed one), however long the stream: its size is bounded by the command table.
+    """
+
+    __slots__ = ("cls", "maximum", "minimum", "signed", "spec")
+
+    def __init__(
+        self, argument: Argument, spec: Spec | None = None, cls: type[Message] | None = None
+    ) -> None:
+        super().__init__()
+        self.signed = argument.signed
+        self.minimum = argument.minimum
+        self.maximum = argument.maximum
+        self.spec = spec
+        self.cls = cls
+
+    def __missing__(self, text: bytes) -> NumberText | None:
+        digits = text[1:] if self.signed and text[:1] in (b"+", b"-") else text
+        if not digits.isdigit() or len(text) >= len(CRC8_SMBUS_SHIFTS):  # ASCII digits only
+            return None
+        value = -int(digits) if text[:1] == b"-" else int(digits)
+        if not self.minimum <= value <= self.maximum:
+            return None
+        message = None
+        if self.spec is not None and self.cls is not None:
+            message = trusted_message(self.cls, self.spec, (value,))
+        number = (value, CRC8_SMBUS_SHIFTS[len(text)], crc8_smbus(text), message)
+        if digits[:1] != b"0" or len(digits) == 1:  # canonical: remembered
+            self[text] = number
+        return number
+
+
+class EndedNumberTexts(dict[bytes, "NumberText | None"]):
+    """As :class:`NumberTexts`, for texts followed by the frame's end ``!``: the last value of a
+    frame without a checksum, taken without a slice to cut the end off. Shares its numbers (and
+    their messages) with the plain table."""
+
+    __slots__ = ("numbers",)
+
+    def __init__(self, numbers: NumberTexts) -> None:
+        super().__init__()
+        self.numbers = numbers
+
+    def __missing__(self, text: bytes) -> NumberText | None:
+        if text[-1:] != b"!":
+            return None
+        bare = text[:-1]
+        number = self.numbers[bare]
+        if number is not None and bare in self.numbers:  # canonical: remembered
+            self[text] = number
+        return number
+
+
+#: What the decoder's fast path needs to take a frame with values, found by the part before the
+#: frame's first "." (``b"#th"``): the spec; the message class; how many parts ``raw.split(b".")``
+#: gives; the rest of the name (``b"l"`` of ``q.l``) or ``b""``; the numbers of the first
+#: argument; those of the last argument, without and with the end ``!`` after them; and the
+#: CRC-8/SMBUS of the name and its "." (the prefix of every such body).
+FastEntry = tuple[
+    Spec, type[Message], int, bytes, NumberTexts, NumberTexts, EndedNumberTexts, int
+]
+
+
+def _fast_table() -> dict[bytes, FastEntry]:
+    entries: dict[bytes, list[FastEntry]] = {}
+    for kind in Kind:
+        cls = _MESSAGE_CLASS[kind]
+        for spelling, spec in SPELLINGS[kind].items():
+            arguments = spec.arguments
+            if not 1 <= len(arguments) <= 2:
+                continue
+            head, _, name_rest = spelling.partition(".")
+            if "." in name_rest:
+                continue  # no such name today; the full parser takes it
+            first, last = arguments[0], arguments[-1]
+            last_numbers = (
+                NumberTexts(last, spec, cls) if len(arguments) == 1 else NumberTexts(last)
+            )
+            entries.setdefault(kind.start_byte + head.encode(), []).append((
+                spec, cls, 1 + bool(name_rest) + len(arguments), name_rest.encode(),
+                NumberTexts(first), last_numbers, EndedNumberTexts(last_numbers),
+                crc8_smbus((spelling + ".").encode()),
+            ))
+    # A first segment shared by two spellings is left to the full parser.
+    return {head: found[0] for head, found in entries.items() if len(found) == 1}
+
+
+#: The frames with one or two values, by the part of the frame before its first ".".
+FAST_ENTRIES = _fast_table()

@@ -1,0 +1,224 @@
+"""Query round trip: the host's CPU time per query through the driver, against raw loops.
+
+    python bench/driver_cpu.py [--rounds 15] [--blocks 8] [--block 250] [--checksum]
+                               [--cpus split|same|any]
+
+Builds and starts ``fast_controller.c`` (a C controller on TCP that answers at once, so that the
+link and the host are timed, not the controller) and times ``#qd!`` → ``$qd.N!`` one query at a
+time, four ways, against the same controller in the same run:
+
+* raw socket: ``sendall(b"#qd!")`` and ``recv`` until the reply's ``!`` — the least Python can do;
+* ``rovlink.connect(url, keepalive=None).depth_cm()``: the blocking driver;
+* raw asyncio streams: ``open_connection``, ``write``, ``readuntil(b"!")``;
+* ``await rovlink.aio.connect(url, keepalive=None).depth_cm()``: the asyncio driver.
+
+The figure that counts is the host process's CPU time per query (``time.process_time``, user +
+system, every thread of this process): an idle machine's wake-up latency, which dominates the
+wall-clock time and varies with the machine, does not hide what the client itself costs. The
+wall-clock time per query is printed beside it. Each client and its raw peer are connected at
+once (the controller serves each connection in its own process) and take turns in blocks of
+``--block`` queries, so that load from elsewhere on the machine hits both alike; a round is
+``--blocks`` turns of each, its ratio the client's CPU time over the peer's, and the median and
+spread (min–max) of the rounds' ratios are printed. Targets: blocking ≤ 1.15× the raw socket,
+asyncio ≤ 1.00× raw asyncio streams.
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import os
+import socket
+import statistics
+import sys
+import time
+from collections.abc import Awaitable, Callable
+from dataclasses import dataclass, field
+
+import rovlink
+import rovlink.aio
+from fast_controller import FastController, NoCompilerError, running_fast_controller
+from rovlink.protocol import Command, encode
+
+WARM_UP_QUERIES = 200
+TARGETS = {"rovlink.connect": 1.15, "rovlink.aio.connect": 1.00}
+PEERS = {"rovlink.connect": "raw socket", "rovlink.aio.connect": "raw asyncio streams"}
+
+
+@dataclass
+class Totals:
+    """One way's CPU and wall-clock seconds and queries, per round."""
+
+    cpu_s: list[float] = field(default_factory=list)
+    wall_s: list[float] = field(default_factory=list)
+    queries: list[int] = field(default_factory=list)
+
+    def start_round(self) -> None:
+        self.cpu_s.append(0.0)
+        self.wall_s.append(0.0)
+        self.queries.append(0)
+
+    def add(self, cpu_s: float, wall_s: float, queries: int) -> None:
+        self.cpu_s[-1] += cpu_s
+        self.wall_s[-1] += wall_s
+        self.queries[-1] += queries
+
+    def per_query(self, which: list[float]) -> list[float]:
+        return [seconds / count for seconds, count in zip(which, self.queries, strict=True)]
+
+
+def _block(totals: Totals, queries: int, query: Callable[[], object]) -> None:
+    cpu, wall = time.process_time(), time.perf_counter()
+    for _ in range(queries):
+        query()
+    totals.add(time.process_time() - cpu, time.perf_counter() - wall, queries)
+
+
+async def _async_block(
+    totals: Totals, queries: int, query: Callable[[], Awaitable[object]]
+) -> None:
+    cpu, wall = time.process_time(), time.perf_counter()
+    for _ in range(queries):
+        await query()
+    totals.add(time.process_time() - cpu, time.perf_counter() - wall, queries)
+
+
+def _raw_socket_query(
+    controller: FastController, query: bytes
+) -> tuple[socket.socket, Callable[[], None]]:
+    sock = socket.create_connection((controller.host, controller.port))
+    sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+    if query != b"#qd!":
+        sock.sendall(b"#crcon!")
+    sendall, recv = sock.sendall, sock.recv
+
+    def round_trip() -> None:
+        sendall(query)
+        reply = recv(4096)
+        while not reply.endswith(b"!"):
+            reply += recv(4096)
+
+    return sock, round_trip
+
+
+def run_blocking(controller: FastController, arguments: argparse.Namespace, query: bytes,
+                 totals: dict[str, Totals]) -> None:
+    """The blocking client and the raw socket, in turns."""
+    sock, raw_query = _raw_socket_query(controller, query)
+    with sock, rovlink.connect(controller.url, keepalive=None, checksum=arguments.checksum) as rov:
+        ways = [(totals["raw socket"], raw_query), (totals["rovlink.connect"], rov.depth_cm)]
+        for _, way_query in ways:
+            for _ in range(WARM_UP_QUERIES):
+                way_query()
+        for _ in range(arguments.rounds):
+            for way_totals, _ in ways:
+                way_totals.start_round()
+            for _ in range(arguments.blocks):
+                for way_totals, way_query in ways:
+                    _block(way_totals, arguments.block, way_query)
+
+
+def run_asyncio(controller: FastController, arguments: argparse.Namespace, query: bytes,
+                totals: dict[str, Totals]) -> None:
+    """The asyncio client and raw asyncio streams, in turns, in one event loop."""
+
+    async def main() -> None:
+        reader, writer = await asyncio.open_connection(controller.host, controller.port)
+        if query != b"#qd!":
+            writer.write(b"#crcon!")
+
+        async def raw_query() -> bytes:
+            writer.write(query)
+            return await reader.readuntil(b"!")
+
+        try:
+            async with rovlink.aio.connect(
+                controller.url, keepalive=None, checksum=arguments.checksum
+            ) as rov:
+                ways: list[tuple[Totals, Callable[[], Awaitable[object]]]] = [
+                    (totals["raw asyncio streams"], raw_query),
+                    (totals["rovlink.aio.connect"], rov.depth_cm),
+                ]
+                for _, way_query in ways:
+                    for _ in range(WARM_UP_QUERIES):
+                        await way_query()
+                for _ in range(arguments.rounds):
+                    for way_totals, _ in ways:
+                        way_totals.start_round()
+                    for _ in range(arguments.blocks):
+                        for way_totals, way_query in ways:
+                            await _async_block(way_totals, arguments.block, way_query)
+        finally:
+            writer.close()
+            await writer.wait_closed()
+
+    asyncio.run(main())
+
+
+def _pin(cpus: str) -> int | None:
+    """Pin this process as ``--cpus`` asks; the CPU for the controller (None: anywhere)."""
+    if cpus == "any" or not hasattr(os, "sched_setaffinity"):
+        return None
+    allowed = sorted(os.sched_getaffinity(0))
+    host_cpu = allowed[0]
+    os.sched_setaffinity(0, {host_cpu})
+    return allowed[1] if cpus == "split" and len(allowed) > 1 else host_cpu
+
+
+def _spread(values: list[float]) -> str:
+    return f"{statistics.median(values):5.2f} ({min(values):.2f}–{max(values):.2f})"
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--rounds", type=int, default=15)
+    parser.add_argument("--blocks", type=int, default=8, help="turns of each way per round")
+    parser.add_argument("--block", type=int, default=250, help="queries per turn")
+    parser.add_argument("--checksum", action="store_true", help="CRC-8 checksum mode on")
+    parser.add_argument(
+        "--cpus", choices=("split", "same", "any"), default="split",
+        help="split (default): this process on one CPU and the controller on another, so every "
+        "reply wakes the host as a serial port's would; same: both on one CPU (no idle "
+        "wake-ups, only the host's own work); any: where the scheduler puts them",
+    )
+    arguments = parser.parse_args()
+    query = encode(Command("qd"), checksum="crc8" if arguments.checksum else None)
+    totals = {name: Totals() for name in (*PEERS.values(), *PEERS)}
+    controller_cpu = _pin(arguments.cpus)
+    try:
+        with running_fast_controller(controller_cpu) as controller:
+            run_blocking(controller, arguments, query, totals)
+            run_asyncio(controller, arguments, query, totals)
+    except NoCompilerError as error:
+        print(f"driver_cpu: {error}", file=sys.stderr)
+        return 2
+
+    print(f"{arguments.rounds} rounds × {arguments.blocks} turns × {arguments.block} queries per "
+          f"way, checksums {'on' if arguments.checksum else 'off'}, CPUs {arguments.cpus}, "
+          f"Python {sys.version.split()[0]}")
+    print(f"{'way':<22}{'CPU µs/query':>14}{'wall µs/query':>15}{'CPU × peer (min–max)':>24}"
+          f"{'wall × peer':>13}")
+    verdicts = []
+    for name in ("raw socket", "rovlink.connect", "raw asyncio streams", "rovlink.aio.connect"):
+        way = totals[name]
+        cpu, wall = way.per_query(way.cpu_s), way.per_query(way.wall_s)
+        cpu_us = statistics.median(cpu) * 1e6
+        line = f"{name:<22}{cpu_us:>14.1f}{statistics.median(wall) * 1e6:>15.1f}"
+        peer_name = PEERS.get(name)
+        if peer_name is not None:
+            peer = totals[peer_name]
+            cpu_ratios = [a / b for a, b in zip(cpu, peer.per_query(peer.cpu_s), strict=True)]
+            wall_ratios = [a / b for a, b in zip(wall, peer.per_query(peer.wall_s), strict=True)]
+            ratio, target = statistics.median(cpu_ratios), TARGETS[name]
+            line += f"{_spread(cpu_ratios):>24}{statistics.median(wall_ratios):>13.2f}"
+            extra_us = cpu_us - statistics.median(peer.per_query(peer.cpu_s)) * 1e6
+            verdict = "met" if ratio <= target else "NOT met"
+            verdicts.append(f"{name}: CPU {ratio:.2f}× {peer_name}, {extra_us:+.1f} µs per query "
+                            f"(target ≤ {target:.2f}×: {verdict})")
+        print(line)
+    print("\n".join(verdicts))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

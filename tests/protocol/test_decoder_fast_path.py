@@ -1,0 +1,139 @@
+"""The decoder's fast path for whole frames gives exactly the events of its byte-level states.
+
+Frames that stand whole in a chunk are taken by table lookups (cached numbers, interned messages,
+CRC-8 continued across known pieces); a frame split across chunks goes through the full parser.
+Fed byte by byte, every frame takes the full parser: the two must always agree.
+"""
+
+from __future__ import annotations
+
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from rovlink.protocol import Decoder, Event, Frame, Kind, Response, get_algorithm
+from rovlink.protocol.commands import SPELLINGS, Spec
+from rovlink.protocol.frames import FAST_ENTRIES
+
+_SPELLINGS = sorted({
+    kind.start_byte + spelling.encode() for kind in Kind for spelling in SPELLINGS[kind]
+})
+_NUMBER_TEXTS = st.one_of(
+    st.integers(0, 100).map(lambda value: b"%d" % value),  # in every unsigned range
+    st.integers(-10_500, 10_500).map(lambda value: b"%d" % value),
+    st.integers(-120, 120).map(lambda value: b"%+d" % value),
+    st.integers(0, 400).map(lambda value: b"00%d" % value),  # leading zeros: valid, not canonical
+    st.sampled_from([b"", b"+", b"-", b"-0", b"+0", b"1a", b"x", b"l", b" 5", b"99999999999"]),
+)
+
+
+_VALUED = sorted(
+    (kind.start_byte + spelling.encode(), spec)
+    for kind in Kind
+    for spelling, spec in SPELLINGS[kind].items()
+    if spec.arguments
+)
+
+
+@st.composite
+def _values(draw: st.DrawFn, spec: Spec) -> list[bytes]:
+    """Mostly the spec's own count of in-range values, canonical or not; sometimes anything."""
+    if draw(st.integers(0, 4)) == 0:
+        return draw(st.lists(_NUMBER_TEXTS, max_size=3))
+    texts = []
+    for argument in spec.arguments:
+        value = draw(st.integers(argument.minimum, argument.maximum))
+        texts.append(draw(st.sampled_from([
+            argument.format(value).encode(), b"%d" % value, b"0%d" % value,
+        ])) if draw(st.integers(0, 5)) else draw(_NUMBER_TEXTS))
+    return texts
+
+
+@st.composite
+def frames(draw: st.DrawFn) -> bytes:
+    """A frame of the table's vocabulary with right, wrong, odd or missing values and checksum."""
+    if draw(st.booleans()):
+        prefix, spec = draw(st.sampled_from(_VALUED))
+        texts = draw(_values(spec))
+    else:
+        prefix = draw(st.sampled_from(_SPELLINGS))
+        texts = draw(st.lists(_NUMBER_TEXTS, max_size=3))
+    body = b".".join([prefix[1:], *texts])
+    tail = draw(st.sampled_from(["none", "upper", "lower", "wrong"]))
+    digits = get_algorithm("crc8").digits(body)
+    if tail == "upper":
+        body += digits
+    elif tail == "lower":
+        body += digits.lower()
+    elif tail == "wrong":
+        body += b"%02X" % ((int(digits, 16) + 1) % 256)
+    return prefix[:1] + body + b"!"
+
+
+streams = st.lists(frames() | st.sampled_from([b"#crcon!", b"#crcoff!"]), max_size=40).map(
+    b"".join
+)
+
+
+def _decode(chunks: list[bytes], checksum: bool) -> list[Event]:
+    decoder = Decoder(checksum_enabled=checksum)
+    events: list[Event] = []
+    for chunk in chunks:
+        events += decoder.feed(chunk)
+    return events + decoder.end()
+
+
+@settings(max_examples=600)
+@given(streams, st.booleans())
+def test_whole_frames_decode_as_the_byte_level_states_do(stream: bytes, checksum: bool) -> None:
+    byte_by_byte = _decode([stream[i : i + 1] for i in range(len(stream))], checksum)
+    whole = _decode([stream], checksum)
+    again = _decode([stream], checksum)  # every number and message now remembered
+    assert whole == byte_by_byte == again
+
+
+def test_a_leading_zero_value_decodes_and_is_not_remembered_as_a_spelling() -> None:
+    events = _decode([b"$qd.0042!$qd.42!"], checksum=False)
+    assert [event.message for event in events if isinstance(event, Frame)] == [
+        Response("qd", (42,)), Response("qd", (42,))
+    ]
+    assert [event.raw for event in events if isinstance(event, Frame)] == [b"$qd.0042!", b"$qd.42!"]
+
+
+def test_a_wrong_checksum_on_a_known_value_is_still_dropped() -> None:
+    good = b"$qd.42" + get_algorithm("crc8").digits(b"qd.42") + b"!"
+    bad = good[:-3] + (b"00" if good[-3:-1] != b"00" else b"01") + b"!"
+    events = _decode([good + bad], checksum=True)
+    assert isinstance(events[0], Frame)
+    assert not isinstance(events[1], Frame)
+
+
+@settings(max_examples=100)
+@given(
+    st.lists(
+        st.lists(frames(), min_size=1, max_size=90).map(b"".join)
+        | st.sampled_from([b"debug line\r\n", b"\x00noise", b"#broken", b"$qd.", b"!"]),
+        min_size=1, max_size=12,
+    ).map(b"".join),
+    st.booleans(),
+)
+def test_gaps_anywhere_among_many_frames(stream: bytes, checksum: bool) -> None:
+    # More frames than one block of the gap search, with gaps at any place in any block.
+    byte_by_byte = _decode([stream[i : i + 1] for i in range(len(stream))], checksum)
+    assert _decode([stream], checksum) == byte_by_byte
+
+
+def test_only_in_range_canonical_numbers_are_remembered() -> None:
+    entry = FAST_ENTRIES[b"$qd"]
+    numbers, ended = entry[5], entry[6]
+    noise = b"".join(b"$qd.%s!" % text for text in (
+        b"0" * 20 + b"7", b"00123", b"010000", b"-1", b"+5", b"1e3", b"\xff", b"",
+    ))
+    for checksum in (False, True):
+        _decode([noise * 3], checksum)
+    # Whatever the stream, a table holds canonical spellings of in-range values only.
+    assert all(text == b"%d" % int(text) and 0 <= int(text) <= 9999 for text in numbers)
+    assert all(text.endswith(b"!") and text[:-1] in numbers for text in ended)
+    assert not {b"00123", b"010000", b"0" * 20 + b"7"} & set(numbers)
+    _decode([b"$qd.4321!"], checksum=False)
+    assert b"4321" in numbers
+    assert b"4321!" in ended
