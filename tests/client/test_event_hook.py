@@ -71,11 +71,16 @@ def test_dropped_frames_are_debug_lines_with_a_periodic_warning(
 
 def test_an_unconfigured_program_on_a_noisy_line_prints_nothing() -> None:
     code = (
-        "import socket, rovlink\n"
+        "import socket, threading, rovlink\n"
         "from rovlink.client import Client, ClientOptions\n"
         "from rovlink.client.links import SocketLink\n"
         "ours, theirs = socket.socketpair()\n"
-        "ours.sendall(b'#bogus!' * 50 + b'\\xff\\x00 noise\\r\\n' + b'$qd.5!')\n"
+        "def controller():\n"
+        "    data = b''\n"
+        "    while b'#qd!' not in data:\n"
+        "        data += ours.recv(100)\n"
+        "    ours.sendall(b'#bogus!' * 50 + b'\\xff\\x00 noise\\r\\n' + b'$qd.5!')\n"
+        "threading.Thread(target=controller, daemon=True).start()\n"
         "rov = Client(SocketLink(theirs, 'pair'), ClientOptions(boot_timeout_s=None,"
         " keepalive_s=None))\n"
         "print(rov.depth_cm())\n"
