@@ -15,13 +15,17 @@ Example::
 from __future__ import annotations
 
 import importlib
-from typing import TYPE_CHECKING, Any
+
+# Not typing's: importing typing costs more than the rest of ``rovlink --version`` together.
+TYPE_CHECKING = False
 
 __version__ = "0.1.0"
 
 __all__ = ["Sensors", "__version__", "connect"]
 
 if TYPE_CHECKING:
+    from typing import Any
+
     from rovlink.client import Sensors, connect
 
 # The driver (and with it pyserial) loads on first use, so that ``import rovlink.protocol``

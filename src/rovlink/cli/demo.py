@@ -264,7 +264,8 @@ def run(args: argparse.Namespace) -> int:
                     power_percent=args.power_percent, reach_timeout_s=args.reach_timeout_s)
     rov = link_options.connect(args, keepalive_s=1.0)
     console = Console()
-    with rov, Live(console=console, refresh_per_second=8) as live:
+    with link_options.closing_unless_interrupted(rov), \
+            Live(console=console, refresh_per_second=8) as live:
         def show(progress: DiveProgress) -> None:
             live.update(_render(progress, args.url))
 

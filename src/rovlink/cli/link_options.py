@@ -9,8 +9,9 @@ setting is an option here and a line in :func:`client_options`.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import math
-from collections.abc import Awaitable, Callable
+from collections.abc import Awaitable, Callable, Iterator
 from typing import TYPE_CHECKING, Any
 
 from rovlink.cli.failure import CommandError, UsageError
@@ -293,6 +294,21 @@ def connect(args: argparse.Namespace, *, keepalive_s: float | None = None,
         raise connection_failure(args.url, error) from None
     except ValueError as error:
         raise UsageError(str(error)) from None
+
+
+@contextlib.contextmanager
+def closing_unless_interrupted(client: Client) -> Iterator[Client]:
+    """Close ``client`` at the end, except after Ctrl-C: closing waits for the replies of the
+    queries on the wire (up to the timeout), and Ctrl-C must end the command at once; the
+    process is ending, and the system releases the port."""
+    try:
+        yield client
+    except KeyboardInterrupt:
+        raise
+    except BaseException:
+        client.close()
+        raise
+    client.close()
 
 
 def connect_async(args: argparse.Namespace) -> Callable[[StrayCallback],

@@ -217,15 +217,14 @@ def run(args: argparse.Namespace) -> int:
     show_bytes = _Printer() if args.raw else None
     client = link_options.connect(args, on_stray=_print_text, show_bytes=show_bytes)
     moved = False
-    try:
-        for item in outgoing:
-            moved = moved or _may_move(item.command)
-            sent, replies = _send_one(client, item)
-            _show(sent, replies, as_json=args.as_json)
-    except KeyboardInterrupt:
-        if moved:
-            _stop_quickly(client)
-        raise
-    finally:
-        client.close()
+    with link_options.closing_unless_interrupted(client):
+        try:
+            for item in outgoing:
+                moved = moved or _may_move(item.command)
+                sent, replies = _send_one(client, item)
+                _show(sent, replies, as_json=args.as_json)
+        except KeyboardInterrupt:
+            if moved:
+                _stop_quickly(client)
+            raise
     return 0
