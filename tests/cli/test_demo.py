@@ -5,6 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
+
 import rovlink
 from rovlink.cli.demo import DivePlan, DiveProgress, run_dive
 from tests.cli.conftest import RunCli

@@ -111,4 +111,5 @@ def test_a_query_without_a_reply_fails_in_one_line(run_cli: RunCli,
                                                    silent: SilentController) -> None:
     result = run_cli("send", silent.url, "qd", "--timeout", "0.05", "--retries", "0")
     assert result.status == 1
-    assert result.err == "rovlink send: #qd! got no valid reply within 0.05 s (1 attempt: timeout)\n"
+    assert result.err == ("rovlink send: #qd! got no valid reply within 0.05 s "
+                          "(1 attempt: timeout)\n")

@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 
 import pytest
+
 from rovlink.cli.send import group_words
 from rovlink.protocol import get_algorithm
 from tests.cli.conftest import RunCli

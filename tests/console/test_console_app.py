@@ -20,7 +20,7 @@ from rovlink.cli import main
 from rovlink.client.links import Link
 from rovlink.console.app import run_console
 from tests.client.conftest import REPLY_TIMEOUT_S
-from tests.operator.rig import RecordingLink, Rig, until
+from tests.piloting.rig import RecordingLink, Rig, until
 
 CTRL_A, CTRL_K, CTRL_X, CTRL_D, UP = "\x01", "\x0b", "\x18", "\x04", "\x1b[A"
 CLEAR_LINE = CTRL_A + CTRL_K

@@ -18,7 +18,7 @@ from rovlink.client.options import StrayCallback
 from rovlink.monitor.app import MonitorApp
 from tests.client.conftest import REPLY_TIMEOUT_S
 from tests.monitor.screen import screen_text, shown
-from tests.operator.rig import RecordingLink, Rig, SilentController, until
+from tests.piloting.rig import RecordingLink, Rig, SilentController, until
 
 SIZE = (100, 34)
 
@@ -60,6 +60,17 @@ async def test_drive_to_a_depth_and_back_then_stop() -> None:
                                   "#th.15.20!", "#th.0.20!", "#th.0.10!", "#h+!", "#h-!",
                                   "#stop!"]  # q while locked (as last sent): nothing more
     assert rig.port.controller.locked
+
+
+async def test_keys_pressed_while_locked_show_as_last_sent() -> None:
+    rig = Rig.simulated()
+    app = MonitorApp(rig.connect, description="bench", rate_hz=20)
+    async with app.run_test(size=SIZE) as pilot:
+        await until(lambda: _depth_shown(app) == 0)
+        await pilot.press("space", "right")
+        await until(lambda: "#th.15.0!" in rig.frames())
+        assert "#th.15.0!  (dropped: locked)" in shown(app, "#commanded")
+        await pilot.press("q")
 
 
 async def test_leak_alarm_and_reset() -> None:

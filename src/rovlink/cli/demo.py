@@ -12,10 +12,11 @@ import sys
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, cast
 
 from rovlink.cli import link_options
 from rovlink.cli.failure import CommandError
+from rovlink.cli.interrupt import GatedClient, run_in_worker
 
 if TYPE_CHECKING:
     from rich.console import RenderableType
@@ -263,6 +264,7 @@ def run(args: argparse.Namespace) -> int:
     plan = DivePlan(depth_cm=args.depth_cm, hold_s=args.hold_s, leg_s=args.leg_s,
                     power_percent=args.power_percent, reach_timeout_s=args.reach_timeout_s)
     rov = link_options.connect(args, keepalive_s=1.0)
+    gate = GatedClient(rov)
     console = Console()
     with link_options.closing_unless_interrupted(rov), \
             Live(console=console, refresh_per_second=8) as live:
@@ -270,7 +272,12 @@ def run(args: argparse.Namespace) -> int:
             live.update(_render(progress, args.url))
 
         try:
-            progress = run_dive(rov, plan, show)
+            progress = run_in_worker(lambda: run_dive(cast("Client", gate), plan, show))
+        except KeyboardInterrupt:
+            live.stop()
+            gate.stop_for_good()
+            print("rovlink demo: sent #stop!", file=sys.stderr, flush=True)
+            raise
         except (TimeoutError, ConnectionError) as error:
             live.stop()
             raise CommandError(f"{error} (the robot was sent #stop!)") from None

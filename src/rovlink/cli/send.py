@@ -14,10 +14,11 @@ import re
 import sys
 import threading
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, cast
 
 from rovlink.cli import link_options
 from rovlink.cli.failure import CommandError, UsageError
+from rovlink.cli.interrupt import GatedClient, run_in_worker
 from rovlink.protocol import Command, Decoder, Event, Frame, Response, Setting, Text
 
 if TYPE_CHECKING:
@@ -201,30 +202,24 @@ def _show(sent: bytes, replies: tuple[Response, ...], *, as_json: bool) -> None:
         print(f"< {describe_reply(reply)}", flush=True)
 
 
-def _stop_quickly(client: Client) -> None:
-    """``#stop!`` on the way out of an interrupted run; nothing more may hold the exit up."""
-    import contextlib  # noqa: PLC0415
-
-    with contextlib.suppress(Exception):
-        client.stop()
-        print(f"> {client.frame_for(Command('stop')).decode('ascii')} (interrupted)",
-              file=sys.stderr, flush=True)
-
-
 def run(args: argparse.Namespace) -> int:
     """Send the commands in order; stop at the first failure."""
     outgoing = plan(args.commands, checksum=args.checksum, algorithm=args.algorithm)
     show_bytes = _Printer() if args.raw else None
     client = link_options.connect(args, on_stray=_print_text, show_bytes=show_bytes)
-    moved = False
+    gate = GatedClient(client)
+
+    def send_all() -> None:
+        for item in outgoing:
+            sent, replies = _send_one(cast("Client", gate), item)
+            _show(sent, replies, as_json=args.as_json)
+
     with link_options.closing_unless_interrupted(client):
         try:
-            for item in outgoing:
-                moved = moved or _may_move(item.command)
-                sent, replies = _send_one(client, item)
-                _show(sent, replies, as_json=args.as_json)
+            run_in_worker(send_all)
         except KeyboardInterrupt:
-            if moved:
-                _stop_quickly(client)
+            if any(_may_move(item.command) for item in outgoing):
+                gate.stop_for_good()
+                print("rovlink send: sent #stop!", file=sys.stderr, flush=True)
             raise
     return 0

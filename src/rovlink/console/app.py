@@ -33,7 +33,7 @@ from rovlink.console.completion import argument_hint, suggestions
 from rovlink.console.engine import ConsoleEngine
 from rovlink.console.help import STOP_KEY_TEXT
 from rovlink.console.transcript import Line, info_line
-from rovlink.operator import LockState, TrackedClient
+from rovlink.piloting import LockState, TrackedClient
 
 __all__ = ["STYLE", "Connector", "ConsoleCompleter", "ConsoleValidator", "run_console"]
 

@@ -31,7 +31,7 @@ from rovlink.console.transcript import (
     reply_line,
     sent_lines,
 )
-from rovlink.operator import LockState, SentFrame, TrackedClient
+from rovlink.piloting import LockState, SentFrame, TrackedClient
 from rovlink.protocol import Command, Event, Response
 
 __all__ = ["ConsoleEngine", "status_lines"]
@@ -61,7 +61,7 @@ def status_lines(rov: TrackedClient) -> list[str]:
 
 
 class ConsoleEngine:
-    """Runs console actions on a :class:`~rovlink.operator.TrackedClient`, in order.
+    """Runs console actions on a :class:`~rovlink.piloting.TrackedClient`, in order.
 
     Make it first (its :meth:`on_event` is the client's ``on_stray``), then :meth:`attach` the
     client, then run :meth:`run` while the prompt :meth:`submit`s lines.

@@ -37,7 +37,7 @@ from rovlink.monitor.panels import (
     link_text,
 )
 from rovlink.monitor.readings import DEFAULT_WINDOW_S, Readings
-from rovlink.operator import LockState, SentFrame, TrackedClient
+from rovlink.piloting import LockState, SentFrame, TrackedClient
 from rovlink.protocol import BadFrame, Command, Event
 from rovlink.protocol import Text as DebugText
 
