@@ -73,6 +73,19 @@ async def test_keys_pressed_while_locked_show_as_last_sent() -> None:
         await pilot.press("q")
 
 
+async def test_leaving_without_q_stops_the_robot_it_moved() -> None:
+    # SIGINT or SIGTERM ends the app without the q key: #stop! is still the last frame.
+    rig = Rig.simulated()
+    app = MonitorApp(rig.connect, description="bench", rate_hz=20)
+    async with app.run_test(size=SIZE) as pilot:
+        await until(lambda: _depth_shown(app) == 0)
+        await pilot.press("s", "up")
+        await until(lambda: "#th.0.10!" in rig.frames())
+        app.exit()
+    assert _commands(rig)[-1] == "#stop!"
+    assert rig.port.controller.locked
+
+
 async def test_leak_alarm_and_reset() -> None:
     rig = Rig.simulated(leak_at_s=1.0)
     app = MonitorApp(rig.connect, description="bench", rate_hz=20)
