@@ -42,7 +42,31 @@ _EXIT_INTERRUPTED = 130  # 128 + SIGINT, as shells report it
 
 
 class _Formatter(argparse.RawDescriptionHelpFormatter):
-    """Descriptions and epilogs keep their line breaks (examples stay one per line)."""
+    """Descriptions and epilogs keep their line breaks (examples stay one per line).
+
+    The width is found as :func:`shutil.get_terminal_size` finds it, without importing shutil
+    (with its compression modules) on every start, help or not.
+    """
+
+    def __init__(self, prog: str, indent_increment: int = 2, max_help_position: int = 24,
+                 width: int | None = None) -> None:
+        if width is None:
+            width = _terminal_columns() - 2
+        super().__init__(prog, indent_increment, max_help_position, width)
+
+
+def _terminal_columns() -> int:
+    import os  # noqa: PLC0415 - already loaded by the interpreter
+
+    try:
+        return int(os.environ["COLUMNS"])
+    except (KeyError, ValueError):
+        pass
+    stdout = sys.__stdout__
+    try:
+        return os.get_terminal_size(stdout.fileno()).columns if stdout is not None else 80
+    except (ValueError, OSError):
+        return 80
 
 
 def _chosen_command(argv: list[str]) -> str | None:
@@ -60,13 +84,17 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="rovlink", description=_DESCRIPTION, epilog=_EPILOG, formatter_class=_Formatter,
     )
+    # Every parser gets the formatter (and the subparsers their prog): argparse makes a
+    # formatter for each argument it adds, and its default one imports shutil.
     parser.add_argument("-v", "--verbose", action="store_true",
                         help="log debug details to stderr")
     parser.add_argument("--version", action="version", version=f"rovlink {rovlink.__version__}")
-    subparsers = parser.add_subparsers(dest="command", title="commands", metavar="COMMAND")
+    subparsers = parser.add_subparsers(dest="command", title="commands", metavar="COMMAND",
+                                       prog="rovlink")
     for name, summary in COMMANDS.items():
         if name != command:
-            subparsers.add_parser(name, help=summary, description=summary)
+            subparsers.add_parser(name, help=summary, description=summary,
+                                  formatter_class=_Formatter)
             continue
         module = importlib.import_module(f"rovlink.cli.{name}")
         doc = (module.__doc__ or summary).strip()

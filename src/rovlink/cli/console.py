@@ -9,7 +9,7 @@ from __future__ import annotations
 import argparse
 
 from rovlink.cli import link_options
-from rovlink.cli.failure import UsageError
+from rovlink.cli.failure import CommandError, UsageError
 
 __all__ = ["EPILOG", "add_arguments", "run"]
 
@@ -31,8 +31,11 @@ def run(args: argparse.Namespace) -> int:
     import asyncio  # noqa: PLC0415 - keep the driver and prompt_toolkit off other commands
     from pathlib import Path  # noqa: PLC0415
 
-    from rovlink.console.app import run_console  # noqa: PLC0415
-    from rovlink.console.history import default_history_path  # noqa: PLC0415
+    try:
+        from rovlink.console.app import run_console  # noqa: PLC0415
+        from rovlink.console.history import default_history_path  # noqa: PLC0415
+    except ImportError as error:
+        raise CommandError(f"needs {error.name}: pip install 'rovlink[console]'") from None
 
     connect = link_options.connect_async(args)
     history = Path(args.history) if args.history else default_history_path()

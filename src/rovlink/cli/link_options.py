@@ -126,9 +126,19 @@ def algorithm_name(text: str) -> str:
     return text
 
 
+class OnOff(argparse.BooleanOptionalAction):
+    """``--flag`` / ``--no-flag``, its help as given: Python 3.10–3.12 would append
+    "(default: False)" to it."""
+
+    def __init__(self, option_strings: list[str], dest: str, default: bool = False,
+                 help: str | None = None) -> None:
+        super().__init__(option_strings, dest, default=default)
+        self.help = help
+
+
 def add_checksum_options(parser: argparse.ArgumentParser, checksum_help: str) -> None:
     """``--checksum/--no-checksum`` and ``--algorithm`` (``decode`` has these alone)."""
-    parser.add_argument("--checksum", action=argparse.BooleanOptionalAction, default=False,
+    parser.add_argument("--checksum", action=OnOff, default=False,
                         help=f"{checksum_help} (default: off)")
     parser.add_argument("--algorithm", type=algorithm_name, default=DEFAULT_ALGORITHM,
                         metavar="NAME",
@@ -144,7 +154,7 @@ def add_link_options(parser: argparse.ArgumentParser, *, url_required: bool = Fa
         parser.add_argument("url", metavar="URL", nargs="?", default=DEFAULT_URL,
                             help=f"{_URL_HELP} (default: %(default)s)")
     group = parser.add_argument_group("link options")
-    group.add_argument("--checksum", action=argparse.BooleanOptionalAction, default=False,
+    group.add_argument("--checksum", action=OnOff, default=False,
                        help="put the controller in checksum mode (default: off)")
     group.add_argument("--algorithm", type=algorithm_name, default=DEFAULT_ALGORITHM,
                        metavar="NAME",

@@ -10,6 +10,7 @@ import argparse
 from typing import TYPE_CHECKING
 
 from rovlink.cli import link_options
+from rovlink.cli.failure import CommandError
 
 if TYPE_CHECKING:
     from rovlink.monitor.app import MonitorApp
@@ -37,7 +38,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def build_app(args: argparse.Namespace) -> MonitorApp:
     """The monitor for the parsed options, connecting when it starts (the options are checked
     now)."""
-    from rovlink.monitor.app import MonitorApp  # noqa: PLC0415 - textual loads only here
+    try:
+        from rovlink.monitor.app import MonitorApp  # noqa: PLC0415 - textual loads only here
+    except ImportError as error:
+        raise CommandError(f"needs {error.name}: pip install 'rovlink[monitor]'") from None
 
     return MonitorApp(link_options.connect_async(args), description=args.url,
                       rate_hz=args.rate_hz, algorithm=args.algorithm)
