@@ -5,9 +5,9 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 from collections import Counter
-from operator import attrgetter
 from typing import BinaryIO
 
 from rovlink.cli.failure import CommandError
@@ -41,22 +41,24 @@ def event_to_json(event: Event) -> dict[str, object]:
 
 
 def _events(stream: BinaryIO, decoder: Decoder) -> list[Event] | None:
-    chunk = stream.read(_READ_CHUNK_BYTES)
+    # read1: whatever is there, up to a megabyte, so that a live pipe is decoded as it comes.
+    read = getattr(stream, "read1", stream.read)
+    chunk = read(_READ_CHUNK_BYTES)
     if not chunk:
         return None
     return decoder.feed(chunk)
 
 
-# C-level keys for counting: the message's class (Command or Response) and name.
-_CLASS_AND_NAME = attrgetter("message.__class__", "message.name")
 _EVENT_NAMES = {Frame: "frame", Text: "text", BadFrame: "error"}
 
 
 class StreamStats:
     """Counts of a stream's events: per event kind, per error reason, per frame kind and name.
 
-    Counted a chunk at a time with :class:`~collections.Counter` over ``map`` (the loops run
-    in C), so that ``decode --stats`` costs little beside the decoder.
+    The decoder hands out one object for every repetition of a frame it has cached, so a
+    chunk's events are counted by identity in C (``Counter`` over ``map(id, …)``) and only
+    the distinct ones are looked at in Python: ``decode --stats`` costs little beside the
+    decoder.
     """
 
     def __init__(self) -> None:
@@ -66,16 +68,18 @@ class StreamStats:
 
     def count(self, events: list[Event]) -> None:
         """Add ``events`` to the counts."""
-        types = Counter(map(type, events))
-        self._types.update(types)
-        if types[BadFrame]:
-            self.reasons.update(event.reason.value for event in events
-                                if isinstance(event, BadFrame))
-        frames = types[Frame]
-        if frames:
-            if frames != len(events):
-                events = [event for event in events if type(event) is Frame]
-            self._names.update(map(_CLASS_AND_NAME, events))
+        identities = list(map(id, events))
+        distinct = dict(zip(identities, events, strict=True))  # alive while ``events`` is
+        types, names = self._types, self._names
+        for identity, count in Counter(identities).items():
+            event = distinct[identity]
+            kind = type(event)
+            types[kind] += count
+            if kind is Frame:
+                message = event.message  # type: ignore[union-attr]
+                names[type(message), message.name] += count
+            elif kind is BadFrame:
+                self.reasons[event.reason.value] += count  # type: ignore[union-attr]
 
     @property
     def events(self) -> dict[str, int]:
@@ -114,6 +118,7 @@ def decode_stream(stream: BinaryIO, decoder: Decoder, *, stats_only: bool) -> No
         else:
             for event in events:
                 write(json.dumps(event_to_json(event), ensure_ascii=False) + "\n")
+            sys.stdout.flush()  # a chunk at a time: a live pipe's events show as they come
         if last:
             break
     if stats_only:
@@ -136,8 +141,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="print one JSON summary of counts instead of the events")
 
 
-def run(args: argparse.Namespace) -> int:
-    """Decode the file (or standard input) to the end."""
+def _run(args: argparse.Namespace) -> int:
     decoder = Decoder(checksum_enabled=args.checksum, algorithm=args.algorithm)
     if args.file == "-":
         decode_stream(sys.stdin.buffer, decoder, stats_only=args.stats)
@@ -152,3 +156,14 @@ def run(args: argparse.Namespace) -> int:
         except IsADirectoryError:
             raise CommandError(f"cannot read {args.file}: Is a directory") from None
     return 0
+
+
+def run(args: argparse.Namespace) -> int:
+    """Decode the file (or standard input) to the end; a reader that stops early (``| head``)
+    is no error."""
+    try:
+        return _run(args)
+    except BrokenPipeError:
+        # Python would report the broken pipe again when it flushes stdout at exit.
+        sys.stdout = open(os.devnull, "w")  # noqa: SIM115 - stays open until exit
+        return 0
