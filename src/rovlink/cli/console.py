@@ -11,7 +11,7 @@ import argparse
 from rovlink.cli import link_options
 from rovlink.cli.failure import CommandError, UsageError
 
-__all__ = ["EPILOG", "add_arguments", "run"]
+__all__ = ["EPILOG"]
 
 EPILOG = """\
 examples:

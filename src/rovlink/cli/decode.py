@@ -14,7 +14,7 @@ from rovlink.cli.failure import CommandError
 from rovlink.cli.link_options import add_checksum_options
 from rovlink.protocol import BadFrame, Decoder, Event, Frame, Kind, Message, Text
 
-__all__ = ["EPILOG", "StreamStats", "add_arguments", "decode_stream", "event_to_json", "run"]
+__all__ = ["EPILOG", "StreamStats", "decode_stream", "event_to_json"]
 
 _READ_CHUNK_BYTES = 1 << 20  # large reads: a system call per megabyte, not per frame
 

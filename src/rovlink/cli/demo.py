@@ -23,7 +23,7 @@ if TYPE_CHECKING:
 
     from rovlink.client import Client, Sensors
 
-__all__ = ["EPILOG", "DivePlan", "Step", "add_arguments", "run", "run_dive"]
+__all__ = ["EPILOG", "DivePlan", "Step", "run_dive"]
 
 EPILOG = """\
 examples:

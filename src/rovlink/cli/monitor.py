@@ -15,7 +15,7 @@ from rovlink.cli.failure import CommandError
 if TYPE_CHECKING:
     from rovlink.monitor.app import MonitorApp
 
-__all__ = ["EPILOG", "add_arguments", "build_app", "run"]
+__all__ = ["EPILOG", "build_app"]
 
 EPILOG = """\
 examples:

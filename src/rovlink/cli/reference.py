@@ -6,7 +6,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-__all__ = ["add_arguments", "run"]
+__all__: list[str] = []
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

@@ -25,7 +25,7 @@ if TYPE_CHECKING:
     from rovlink.client import Client
 
 __all__ = [
-    "EPILOG", "Outgoing", "add_arguments", "describe_reply", "group_words", "plan", "run",
+    "EPILOG", "Outgoing", "describe_reply", "group_words", "plan",
 ]
 
 EPILOG = """\

@@ -11,12 +11,12 @@ from types import FrameType
 from typing import TYPE_CHECKING
 
 from rovlink.cli.failure import CommandError, UsageError
-from rovlink.cli.link_options import positive_int, seconds
+from rovlink.cli.link_options import bounded_float, positive_int, seconds
 
 if TYPE_CHECKING:
     from rovlink.sim.robot import SimConfig
 
-__all__ = ["EPILOG", "add_arguments", "run"]
+__all__ = ["EPILOG"]
 
 EPILOG = """\
 examples:
@@ -32,7 +32,7 @@ def _sim_seconds(text: str) -> float:
 
 
 def _speed(text: str) -> float:
-    return seconds(text, maximum=1e6)
+    return bounded_float(text, 0.0, 1e6)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
