@@ -30,5 +30,5 @@ def test_the_pure_cores_have_examples() -> None:
     # The modules a reader starts from show how they are used, and the examples are checked.
     for name in ("rovlink.protocol", "rovlink.protocol.checksum", "rovlink.protocol.decoder",
                  "rovlink.protocol.frames", "rovlink.client.command_text",
-                 "rovlink.operator.commanded", "rovlink.monitor.compass"):
+                 "rovlink.piloting.commanded", "rovlink.monitor.compass"):
         assert doctest.testmod(importlib.import_module(name)).attempted > 0, name

@@ -8,7 +8,7 @@ import sys
 
 def test_an_unconfigured_program_gets_no_rovlink_log_lines_on_stderr() -> None:
     code = (
-        "import logging, rovlink\n"
+        "import logging, rovlink.client\n"
         "logging.getLogger('rovlink.client').warning('a dropped frame')\n"
     )
     result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
@@ -18,7 +18,7 @@ def test_an_unconfigured_program_gets_no_rovlink_log_lines_on_stderr() -> None:
 
 def test_a_configured_program_gets_the_log_lines() -> None:
     code = (
-        "import logging, rovlink\n"
+        "import logging, rovlink.client\n"
         "logging.basicConfig(format='%(name)s %(message)s')\n"
         "logging.getLogger('rovlink.client').warning('a dropped frame')\n"
     )

@@ -15,19 +15,18 @@ Example::
 from __future__ import annotations
 
 import importlib
-import logging
-from typing import TYPE_CHECKING, Any
+
+# Not typing's: importing typing costs more than the rest of ``rovlink --version`` together.
+TYPE_CHECKING = False
 
 __version__ = "0.1.0"
 
 __all__ = ["Sensors", "__version__", "connect"]
 
 if TYPE_CHECKING:
-    from rovlink.client import Sensors, connect
+    from typing import Any
 
-# A library logs, and the program that uses it decides where that goes: without a handler of
-# its own, Python's last-resort handler would print every warning on the program's stderr.
-logging.getLogger("rovlink").addHandler(logging.NullHandler())
+    from rovlink.client import Sensors, connect
 
 # The driver (and with it pyserial) loads on first use, so that ``import rovlink.protocol``
 # stays dependency-free, as on a small board.

@@ -5,26 +5,24 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from typer.testing import CliRunner
+import pytest
 
-from rovlink.cli import app
-
-runner = CliRunner()
+from tests.cli.conftest import RunCli
 
 
 def _lines(output: str) -> list[dict[str, object]]:
     return [json.loads(line) for line in output.splitlines()]
 
 
-def test_decode_prints_one_json_object_per_event(tmp_path: Path) -> None:
+def test_decode_prints_one_json_object_per_event(tmp_path: Path, run_cli: RunCli) -> None:
     capture = tmp_path / "capture.bin"
     capture.write_bytes(
         b"boot ok\r\n#qd!$qd.123!$qro.-1!$qpi.-.7!#mvs.+100!#th.270.25!$q.l.1!#mvpdd.5!"
         b"#h+!#debug1!#crcon!#dive!#mgmp.300!#qd"
     )
-    result = runner.invoke(app, ["decode", str(capture)])
-    assert result.exit_code == 0, result.output
-    events = _lines(result.output)
+    result = run_cli("decode", str(capture))
+    assert result.status == 0, result.err
+    events = _lines(result.out)
     assert events[0] == {"event": "text", "text": "boot ok"}
     frames = [(e["kind"], e["name"], e["values"]) for e in events if e["event"] == "frame"]
     assert frames == [
@@ -39,26 +37,40 @@ def test_decode_prints_one_json_object_per_event(tmp_path: Path) -> None:
     assert errors == [("checksum", "#dive!"), ("checksum", "#mgmp.300!"), ("truncated", "#qd")]
 
 
-def test_decode_reads_standard_input_and_checksum_options() -> None:
-    result = runner.invoke(app, ["decode", "--checksum"], input=b"#qd8C!#qd!")
-    assert result.exit_code == 0, result.output
-    assert [e["event"] for e in _lines(result.output)] == ["frame", "error"]
-    result = runner.invoke(
-        app, ["decode", "--checksum", "--algorithm", "xor"], input=b"#qd%02X!" % (0x71 ^ 0x64)
-    )
-    assert _lines(result.output)[0]["name"] == "qd"
+@pytest.mark.parametrize("file", [[], ["-"]])
+def test_decode_reads_standard_input_and_checksum_options(run_cli: RunCli,
+                                                          file: list[str]) -> None:
+    result = run_cli("decode", "--checksum", *file, stdin=b"#qd8C!#qd!")
+    assert result.status == 0, result.err
+    assert [e["event"] for e in _lines(result.out)] == ["frame", "error"]
+    result = run_cli("decode", "--checksum", "--algorithm", "xor", *file,
+                     stdin=b"#qd%02X!" % (0x71 ^ 0x64))
+    assert _lines(result.out)[0]["name"] == "qd"
+    result = run_cli("decode", "--no-checksum", *file, stdin=b"#qd!")
+    assert _lines(result.out)[0]["name"] == "qd"
 
 
-def test_decode_rejects_an_unknown_algorithm() -> None:
-    result = runner.invoke(app, ["decode", "--algorithm", "md5"], input=b"")
-    assert result.exit_code != 0
-    assert "md5" in result.output
+def test_decode_rejects_an_unknown_algorithm_naming_the_known_ones(run_cli: RunCli) -> None:
+    result = run_cli("decode", "--algorithm", "md5")
+    assert result.status == 2
+    assert "unknown checksum algorithm 'md5'; known: crc8, sum8, xor" in result.err
 
 
-def test_decode_stats_counts_events_reasons_and_names() -> None:
-    result = runner.invoke(app, ["decode", "--stats"], input=b"#qd!$qd.1!$qd.2!#zz!#mgmp.999!x\n")
-    assert result.exit_code == 0, result.output
-    (summary,) = _lines(result.output)
+def test_unreadable_files_are_one_line_errors(run_cli: RunCli, tmp_path: Path) -> None:
+    missing = tmp_path / "missing.bin"
+    result = run_cli("decode", str(missing))
+    assert (result.status, result.out) == (1, "")
+    assert result.err == f"rovlink decode: cannot read {missing}: No such file or directory\n"
+    result = run_cli("decode", str(tmp_path))
+    assert result.status == 1
+    assert result.err.count("\n") == 1
+    assert str(tmp_path) in result.err
+
+
+def test_decode_stats_counts_events_reasons_and_names(run_cli: RunCli) -> None:
+    result = run_cli("decode", "--stats", stdin=b"#qd!$qd.1!$qd.2!#zz!#mgmp.999!x\n")
+    assert result.status == 0, result.err
+    (summary,) = _lines(result.out)
     assert summary == {
         "events": {"error": 2, "frame": 3, "text": 1},
         "reasons": {"range": 1, "unknown": 1},

@@ -5,14 +5,11 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-from typer.testing import CliRunner
 
 import rovlink
-from rovlink.cli import app
 from rovlink.cli.demo import DivePlan, DiveProgress, run_dive
+from tests.cli.conftest import RunCli
 from tests.client.conftest import REPLY_TIMEOUT_S
-
-runner = CliRunner()
 
 
 def _fast_sim_url(tmp_path: Path) -> str:
@@ -60,22 +57,27 @@ def test_a_failing_dive_still_stops_the_robot(tmp_path: Path) -> None:
     assert state.power_percent == 0
 
 
-def test_demo_command(tmp_path: Path) -> None:
+def test_demo_command(tmp_path: Path, run_cli: RunCli) -> None:
     # "0 timeouts" is checked below: every reply is expected, so the timeout is a long one.
-    result = runner.invoke(app, ["demo", _fast_sim_url(tmp_path), "--depth", "50", "--hold",
-                                 "0.1", "--leg", "0.1", "--reach-timeout", "20",
-                                 "--timeout", str(REPLY_TIMEOUT_S)])
-    assert result.exit_code == 0, result.output
+    result = run_cli("demo", _fast_sim_url(tmp_path), "--depth", "50", "--hold", "0.1",
+                     "--leg", "0.1", "--reach-timeout", "20", "--timeout", str(REPLY_TIMEOUT_S))
+    assert result.status == 0, result.err
     for text in ("unlock", "dive to 50 cm", "square: left", "read every sensor", "surface",
                  "lock", "#th.270.30!", "motors off and locked", "0 timeouts"):
-        assert text in result.output
+        assert text in result.out
 
 
-def test_demo_that_cannot_reach_its_depth_fails(tmp_path: Path) -> None:
-    result = runner.invoke(app, ["demo", _fast_sim_url(tmp_path), "--depth", "9000", "--hold",
-                                 "0", "--leg", "0", "--reach-timeout", "0.3"])
-    assert result.exit_code == 1
-    assert "not completed: dive to 9000 cm" in result.output
+def test_demo_that_cannot_reach_its_depth_fails(tmp_path: Path, run_cli: RunCli) -> None:
+    result = run_cli("demo", _fast_sim_url(tmp_path), "--depth", "9000", "--hold", "0",
+                     "--leg", "0", "--reach-timeout", "0.3")
+    assert result.status == 1
+    assert "not completed: dive to 9000 cm" in result.err
+
+
+def test_demo_options_are_checked(run_cli: RunCli) -> None:
+    result = run_cli("demo", "--power", "150")
+    assert result.status == 2
+    assert "argument --power: 150 is not in 0–100" in result.err
 
 
 def test_a_dive_that_misses_its_depth_never_moves_horizontally(tmp_path: Path) -> None:

@@ -1,23 +1,85 @@
-"""The ``rovlink`` command itself: its version and the list of commands."""
+"""The ``rovlink`` command itself: its version, its help, and what it imports to start."""
 
 from __future__ import annotations
 
-from typer.testing import CliRunner
+import subprocess
+import sys
 
 import rovlink
-from rovlink.cli import app
+from tests.cli.conftest import RunCli
 
-runner = CliRunner()
-
-
-def test_version() -> None:
-    result = runner.invoke(app, ["--version"])
-    assert result.exit_code == 0
-    assert result.output.strip() == f"rovlink {rovlink.__version__}"
+COMMANDS = ("decode", "reference", "sim", "send", "demo", "console", "monitor")
 
 
-def test_help_lists_every_command() -> None:
-    result = runner.invoke(app, ["--help"])
-    assert result.exit_code == 0
-    for name in ("decode", "reference", "sim", "send", "demo", "console", "monitor"):
-        assert f" {name} " in result.output
+def test_version(run_cli: RunCli) -> None:
+    result = run_cli("--version")
+    assert result.status == 0
+    assert result.out.strip() == f"rovlink {rovlink.__version__}"
+
+
+def test_help_lists_every_command(run_cli: RunCli) -> None:
+    result = run_cli("--help")
+    assert result.status == 0
+    for name in COMMANDS:
+        assert f"    {name} " in result.out
+    assert "examples:" in result.out
+
+
+def test_no_arguments_prints_the_help(run_cli: RunCli) -> None:
+    result = run_cli()
+    assert result.status == 0
+    assert result.out.startswith("usage: rovlink")
+    assert "commands:" in result.out
+
+
+def test_every_command_has_a_description_and_option_help(run_cli: RunCli) -> None:
+    for name in COMMANDS:
+        result = run_cli(name, "--help")
+        assert result.status == 0, name
+        assert result.out.startswith(f"usage: rovlink {name}")
+        description = result.out.split("\n\n")[1]
+        assert len(description) > 20, name
+
+
+def test_on_off_flags_take_no_value(run_cli: RunCli) -> None:
+    result = run_cli("send", "--help")
+    assert "--checksum, --no-checksum" in result.out
+    assert "(default: off)" in result.out
+    assert "--timeout SECONDS" in result.out
+    # "true" is not swallowed as the URL: it is an extra argument, a usage error.
+    result = run_cli("demo", "--checksum", "true", "sim://")
+    assert result.status == 2
+    assert "unrecognized arguments: sim://" in result.err
+    assert "could not open" not in result.err
+
+
+def test_unknown_command(run_cli: RunCli) -> None:
+    result = run_cli("fly")
+    assert result.status == 2
+    assert "invalid choice: 'fly'" in result.err
+
+
+def test_version_imports_neither_the_driver_nor_pyserial_nor_rich() -> None:
+    code = (
+        "import sys\n"
+        "from rovlink.cli import main\n"
+        "assert main(['--version']) == 0\n"
+        "heavy = [name for name in sys.modules if name.split('.')[0] in "
+        "('serial', 'rich', 'textual', 'prompt_toolkit')"
+        " or name.startswith('rovlink.client')]\n"
+        "assert not heavy, heavy\n"
+    )
+    subprocess.run([sys.executable, "-c", code], check=True, timeout=30)
+
+
+def test_decode_imports_no_driver() -> None:
+    code = (
+        "import sys\n"
+        "from rovlink.cli import main\n"
+        "sys.argv = ['rovlink', 'decode', '--stats', '-']\n"
+        "assert main(sys.argv[1:]) == 0\n"
+        "heavy = [name for name in sys.modules if name.split('.')[0] in "
+        "('serial', 'rich', 'textual', 'prompt_toolkit') or name.startswith('rovlink.client')]\n"
+        "assert not heavy, heavy\n"
+    )
+    subprocess.run([sys.executable, "-c", code], check=True, timeout=30, input=b"#qd!")

@@ -3,31 +3,23 @@
 from __future__ import annotations
 
 import json
-import re
 
 import pytest
-from typer.testing import CliRunner
 
-from rovlink.cli import app
 from rovlink.cli.send import group_words
 from rovlink.protocol import get_algorithm
+from tests.cli.conftest import RunCli
 from tests.client.conftest import REPLY_TIMEOUT_S
 
-runner = CliRunner()
 #: ``--timeout`` where replies are expected: long enough for a loaded machine.
 REPLY_TIMEOUT = str(REPLY_TIMEOUT_S)
 
 
-def _flat(output: str) -> str:
-    """The output with rich's error panel borders and line wrapping taken out."""
-    return " ".join(re.sub(r"[│╭╮╰╯─]", " ", output).split())
-
-
-def test_send_prints_decoded_replies() -> None:
-    result = runner.invoke(app, ["send", "sim://?seed=1", "start", "th", "270", "25", "qsa",
-                                 "mvs -50", "#qd!", "stop", "--timeout", REPLY_TIMEOUT])
-    assert result.exit_code == 0, result.output
-    lines = result.output.splitlines()
+def test_send_prints_decoded_replies(run_cli: RunCli) -> None:
+    result = run_cli("send", "sim://?seed=1", "start", "th", "270", "25", "qsa",
+                                 "mvs -50", "#qd!", "stop", "--timeout", REPLY_TIMEOUT)
+    assert result.status == 0, result.err
+    lines = result.out.splitlines()
     assert lines[:3] == ["> #start!", "> #th.270.25!", "> #qsa!"]
     replies = [line for line in lines if line.startswith("<")]
     assert [line.split()[1].split(".")[0] for line in replies] == [
@@ -37,58 +29,132 @@ def test_send_prints_decoded_replies() -> None:
     assert lines[-1] == "> #stop!"
 
 
-def test_send_json() -> None:
-    result = runner.invoke(app, ["send", "sim://", "qhe", "--json", "--checksum",
-                                 "--timeout", REPLY_TIMEOUT])
-    assert result.exit_code == 0, result.output
-    (line,) = result.output.splitlines()
+def test_send_json(run_cli: RunCli) -> None:
+    result = run_cli("send", "sim://", "qhe", "--json", "--checksum",
+                                 "--timeout", REPLY_TIMEOUT)
+    assert result.status == 0, result.err
+    (line,) = result.out.splitlines()
     record = json.loads(line)
     assert record["command"] == "#qhe" + get_algorithm("crc8").digits(b"qhe").decode() + "!"
     assert record["replies"][0]["name"] == "qhe"
     assert 0 <= record["replies"][0]["values"]["heading_deg"] <= 360
 
 
-def test_raw_frames_are_sent_exactly_as_given() -> None:
+def test_raw_frames_are_sent_exactly_as_given(run_cli: RunCli) -> None:
     # In checksum mode a raw frame keeps the checksum it was typed with; a friendly command
     # gets one; both are shown as they went on the wire.
-    result = runner.invoke(
-        app, ["send", "--checksum", "--timeout", REPLY_TIMEOUT, "sim://", "#qd8C!", "qr"]
-    )
-    assert result.exit_code == 0, result.output
-    lines = result.output.splitlines()
+    result = run_cli("send", "--checksum", "--timeout", REPLY_TIMEOUT, "sim://", "#qd8C!", "qr")
+    assert result.status == 0, result.err
+    lines = result.out.splitlines()
     assert lines[0] == "> #qd8C!"
     assert lines[1].startswith("< $qd.")
     assert lines[2] == "> #qr" + get_algorithm("crc8").digits(b"qr").decode() + "!"
     assert lines[3].startswith("< $qr.")
 
 
-def test_a_raw_frame_must_be_a_whole_frame() -> None:
-    result = runner.invoke(app, ["send", "sim://", "#qd"])
-    assert result.exit_code == 2
-    assert "a raw frame is" in _flat(result.output)
+def test_a_raw_frame_must_be_a_whole_frame(run_cli: RunCli) -> None:
+    result = run_cli("send", "sim://", "#qd")
+    assert result.status == 2
+    assert "a raw frame is" in result.err
 
 
-def test_a_bad_command_is_reported_before_anything_is_sent() -> None:
-    result = runner.invoke(app, ["send", "sim://", "qd", "th 400 25"])
-    assert result.exit_code == 2
-    assert "direction_deg must be in 0–360, got 400" in _flat(result.output)
-    assert "> #qd!" not in result.output
+def test_a_bad_command_is_reported_before_anything_is_sent(run_cli: RunCli) -> None:
+    result = run_cli("send", "sim://", "qd", "th 400 25")
+    assert result.status == 2
+    assert "direction_deg must be in 0–360, got 400" in result.err
+    assert "> #qd!" not in result.out
 
 
-def test_unknown_commands_and_urls() -> None:
-    result = runner.invoke(app, ["send", "sim://", "thrust 1"])
-    assert result.exit_code == 2
-    assert "did you mean th" in _flat(result.output)
-    result = runner.invoke(app, ["send", "sim://?bogus=1", "qd"])
-    assert result.exit_code == 2
-    assert "unknown sim option" in _flat(result.output)
+def test_unknown_commands_and_urls(run_cli: RunCli) -> None:
+    result = run_cli("send", "sim://", "thrust 1")
+    assert result.status == 2
+    assert "did you mean th" in result.err
+    result = run_cli("send", "sim://?bogus=1", "qd")
+    assert result.status == 2
+    assert "unknown sim option" in result.err
 
 
 @pytest.mark.integration
-def test_nothing_listening_is_an_error_exit() -> None:
-    result = runner.invoke(app, ["send", "socket://127.0.0.1:1", "qd"])
-    assert result.exit_code == 1
-    assert "could not connect" in result.output
+def test_nothing_listening_is_an_error_exit(run_cli: RunCli) -> None:
+    result = run_cli("send", "socket://127.0.0.1:1", "qd")
+    assert result.status == 1
+    assert result.err == "rovlink send: cannot open socket://127.0.0.1:1: Connection refused\n"
+
+
+def test_a_raw_frame_without_its_checksum_gets_it_in_checksum_mode(run_cli: RunCli) -> None:
+    # Regression: '#qd!' in checksum mode printed nothing and exited 0.
+    result = run_cli("send", "--checksum", "--timeout", REPLY_TIMEOUT, "sim://", "#qd!")
+    assert result.status == 0, result.err
+    crc = get_algorithm("crc8").digits(b"qd").decode()
+    lines = result.out.splitlines()
+    assert lines[0] == f"> #qd{crc}!"
+    assert lines[1].startswith("< $qd.")
+
+
+def test_a_raw_frame_the_controller_would_drop_is_refused(run_cli: RunCli) -> None:
+    result = run_cli("send", "--checksum", "sim://", "#qd00!")
+    assert result.status == 2
+    assert "command 1 ('#qd00!'): the controller would drop it" in result.err
+    assert "crc8" in result.err
+    assert result.out == ""
+
+
+def test_raw_shows_the_exact_bytes_both_ways(run_cli: RunCli) -> None:
+    result = run_cli("send", "--raw", "--checksum", "--timeout", REPLY_TIMEOUT, "sim://", "qd")
+    assert result.status == 0, result.err
+    xor = get_algorithm("crc8")
+    lines = result.out.splitlines()
+    assert lines[0] == ">> #crcoff!#qd!"  # the readiness probe (P21)
+    assert ">> #crcon!" in lines
+    assert f">> #qd{xor.digits(b'qd').decode()}!" in lines
+    # (The first replies answer the readiness probe, plainly.)
+    received = [line for line in lines if line.startswith("<< ") and not line.endswith(".0!")
+                and "$qd." in line][-1:]
+    assert received
+    assert received[0].startswith("<< $qd.")
+    body = received[0][4:received[0].index("!") - 2]  # "qd.12" of "<< $qd.12XX!"
+    assert received[0].endswith(xor.digits(body.encode()).decode() + "!")
+
+
+def test_an_unknown_raw_frame_is_refused_before_anything_is_sent(run_cli: RunCli) -> None:
+    result = run_cli("send", "sim://", "qd", "#zz!")
+    assert result.status == 2
+    assert "command 2 ('#zz!'): the controller would drop it" in result.err
+    assert result.out == ""
+
+
+@pytest.mark.parametrize(
+    ("option", "message"),
+    [
+        (["--timeout", "1e10"], "argument --timeout: 1e10 s is more than the maximum, 3600 s"),
+        (["--timeout", "nan"], "argument --timeout: 'nan' is not a number"),
+        (["--timeout", "0"], "argument --timeout: 0 s is less than the minimum, 0.001 s"),
+        (["--retries", "99999999999999999999"],
+         "argument --retries: 99999999999999999999 is not in 0–100"),
+        (["--algorithm", "md5"],
+         "argument --algorithm: unknown checksum algorithm 'md5'; known: crc8, sum8, xor"),
+        (["--baudrate", "fast"], "argument --baudrate: 'fast' is not an integer"),
+    ],
+)
+def test_bad_link_options_are_one_line_usage_errors(run_cli: RunCli, option: list[str],
+                                                    message: str) -> None:
+    result = run_cli("send", *option, "sim://", "qd")
+    assert result.status == 2
+    assert result.err.splitlines()[-1] == f"rovlink send: error: {message}"
+    assert "Traceback" not in result.err
+
+
+def test_a_device_that_is_not_a_serial_port(run_cli: RunCli) -> None:
+    result = run_cli("send", "/dev/null", "qd")
+    assert result.status == 1
+    assert result.err == "rovlink send: /dev/null: not a serial port\n"
+
+
+def test_a_missing_device_is_said_once(run_cli: RunCli) -> None:
+    result = run_cli("send", "/dev/ttyUSB_rovlink_none", "qd")
+    assert result.status == 1
+    assert result.err == ("rovlink send: cannot open /dev/ttyUSB_rovlink_none: "
+                          "No such file or directory\n")
 
 
 @pytest.mark.parametrize(

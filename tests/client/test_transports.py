@@ -116,9 +116,9 @@ def test_connecting_to_nothing_is_a_connect_error() -> None:
     server = socket.create_server(("127.0.0.1", 0))
     port = server.getsockname()[1]
     server.close()
-    with pytest.raises(ConnectionError, match="could not connect"):
+    with pytest.raises(ConnectionError, match="cannot open socket://"):
         rovlink.connect(f"socket://127.0.0.1:{port}")
-    with pytest.raises(ConnectionError, match="no such device"):
+    with pytest.raises(ConnectionError, match="No such file or directory"):
         rovlink.connect("/dev/nonexistent-rovlink-port")
 
 

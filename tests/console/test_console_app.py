@@ -14,14 +14,13 @@ import pytest
 from prompt_toolkit.application import create_app_session
 from prompt_toolkit.input import PipeInput, create_pipe_input
 from prompt_toolkit.output import create_output
-from typer.testing import CliRunner
 
 import rovlink.aio.client
-from rovlink.cli import app
+from rovlink.cli import main
 from rovlink.client.links import Link
 from rovlink.console.app import run_console
 from tests.client.conftest import REPLY_TIMEOUT_S
-from tests.operator.rig import RecordingLink, Rig, until
+from tests.piloting.rig import RecordingLink, Rig, until
 
 CTRL_A, CTRL_K, CTRL_X, CTRL_D, UP = "\x01", "\x0b", "\x18", "\x04", "\x1b[A"
 CLEAR_LINE = CTRL_A + CTRL_K
@@ -173,9 +172,8 @@ def test_cli_console_on_sim(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> 
     with create_pipe_input() as keys, create_app_session(input=keys,
                                                          output=create_output(screen)):
         keys.send_text("qd\r" + CTRL_D)
-        result = CliRunner().invoke(app, ["console", "sim://?seed=1",
-                                          "--timeout", str(REPLY_TIMEOUT_S)])
-    assert result.exit_code == 0, result.output
+        status = main(["console", "sim://?seed=1", "--timeout", str(REPLY_TIMEOUT_S)])
+    assert status == 0
     assert "connected to simulated controller" in screen.getvalue()
     assert "qd → 0 cm" in screen.getvalue()
     (link,) = links
@@ -185,20 +183,42 @@ def test_cli_console_on_sim(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> 
     assert "qd" in (tmp_path / "rovlink" / "console_history").read_text()
 
 
-def test_cli_console_refuses_a_bad_url() -> None:
-    result = CliRunner().invoke(app, ["console", "sim://?nosuch=1"])
-    assert result.exit_code == 2
-    assert "unknown sim option 'nosuch'" in result.output
+def test_cli_console_refuses_a_bad_url(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["console", "sim://?nosuch=1"]) == 2
+    assert "unknown sim option 'nosuch'" in capsys.readouterr().err
 
 
 @pytest.mark.integration
-def test_cli_console_says_when_nothing_listens(tmp_path: Path) -> None:
+def test_cli_console_says_when_nothing_listens(tmp_path: Path,
+                                               capsys: pytest.CaptureFixture[str]) -> None:
     import socket
 
     with socket.socket() as probe:  # a free port, closed again: nothing listens on it
         probe.bind(("127.0.0.1", 0))
         port = probe.getsockname()[1]
-    result = CliRunner().invoke(app, ["console", f"socket://127.0.0.1:{port}",
-                                      "--history", str(tmp_path / "history")])
-    assert result.exit_code == 1
-    assert "could not connect" in result.output
+    status = main(["console", f"socket://127.0.0.1:{port}",
+                   "--history", str(tmp_path / "history")])
+    assert status == 1
+    assert capsys.readouterr().err == (
+        f"rovlink console: cannot open socket://127.0.0.1:{port}: Connection refused\n")
+
+
+async def test_interrupted_console_sends_stop_unless_locked(tmp_path: Path) -> None:
+    # Ctrl-C from outside (SIGINT) cancels the console: the robot it unlocked is stopped.
+    rig = Rig.simulated()
+    async with _terminal(rig, tmp_path / "history") as term:
+        term.type("start\rth 90 30\r")
+        await term.wait_shown("→ #th.90.30!")
+        term.task.cancel()
+        await asyncio.gather(term.task, return_exceptions=True)
+    assert rig.frames()[-1] == "#stop!"
+
+
+async def test_interrupted_console_sends_nothing_more_when_locked(tmp_path: Path) -> None:
+    rig = Rig.simulated()
+    async with _terminal(rig, tmp_path / "history") as term:
+        term.type("stop\r")
+        await term.wait_shown("→ #stop!")
+        term.task.cancel()
+        await asyncio.gather(term.task, return_exceptions=True)
+    assert rig.frames() == ["#crcoff!", "#stop!"]

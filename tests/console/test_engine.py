@@ -10,10 +10,10 @@ from rovlink.client import ClientOptions
 from rovlink.console.actions import Quit, SendCommand, SendRaw, SetChecksum, ShowStatus
 from rovlink.console.engine import ConsoleEngine
 from rovlink.console.transcript import Line, plain_text
-from rovlink.operator import TrackedClient
+from rovlink.piloting import TrackedClient
 from rovlink.protocol import Command
 from tests.client.conftest import REPLY_TIMEOUT_S
-from tests.operator.rig import Rig, SilentController, until
+from tests.piloting.rig import Rig, SilentController, until
 
 
 class Screen:

@@ -9,7 +9,7 @@ from rovlink.console.transcript import (
     reply_line,
     sent_lines,
 )
-from rovlink.operator import SentFrame
+from rovlink.piloting import SentFrame
 from rovlink.protocol import BadFrame, Command, Frame, Reason, Response, Text
 
 

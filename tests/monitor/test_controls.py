@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 
 from rovlink.monitor.controls import change_depth_target, change_power, turn
-from rovlink.operator import CommandedState
+from rovlink.piloting import CommandedState
 from rovlink.protocol import Command, VerticalMode
 
 

@@ -7,11 +7,10 @@ import re
 from collections.abc import Awaitable, Callable
 
 import pytest
-from typer.testing import CliRunner
 
 import rovlink.aio.client
 from rovlink.aio import AsyncClient
-from rovlink.cli import app as cli_app
+from rovlink.cli import build_parser, main
 from rovlink.cli.monitor import build_app
 from rovlink.client import ClientOptions
 from rovlink.client.links import Link
@@ -19,7 +18,7 @@ from rovlink.client.options import StrayCallback
 from rovlink.monitor.app import MonitorApp
 from tests.client.conftest import REPLY_TIMEOUT_S
 from tests.monitor.screen import screen_text, shown
-from tests.operator.rig import RecordingLink, Rig, SilentController, until
+from tests.piloting.rig import RecordingLink, Rig, SilentController, until
 
 SIZE = (100, 34)
 
@@ -60,6 +59,30 @@ async def test_drive_to_a_depth_and_back_then_stop() -> None:
     assert _commands(rig)[6:] == ["#mvd.20!", "#mvd.10!", "#mvd.0!", "#th.15.0!", "#th.15.10!",
                                   "#th.15.20!", "#th.0.20!", "#th.0.10!", "#h+!", "#h-!",
                                   "#stop!"]  # q while locked (as last sent): nothing more
+    assert rig.port.controller.locked
+
+
+async def test_keys_pressed_while_locked_show_as_last_sent() -> None:
+    rig = Rig.simulated()
+    app = MonitorApp(rig.connect, description="bench", rate_hz=20)
+    async with app.run_test(size=SIZE) as pilot:
+        await until(lambda: _depth_shown(app) == 0)
+        await pilot.press("space", "right")
+        await until(lambda: "#th.15.0!" in rig.frames())
+        assert "#th.15.0!  (dropped: locked)" in shown(app, "#commanded")
+        await pilot.press("q")
+
+
+async def test_leaving_without_q_stops_the_robot_it_moved() -> None:
+    # SIGINT or SIGTERM ends the app without the q key: #stop! is still the last frame.
+    rig = Rig.simulated()
+    app = MonitorApp(rig.connect, description="bench", rate_hz=20)
+    async with app.run_test(size=SIZE) as pilot:
+        await until(lambda: _depth_shown(app) == 0)
+        await pilot.press("s", "up")
+        await until(lambda: "#th.0.10!" in rig.frames())
+        app.exit()
+    assert _commands(rig)[-1] == "#stop!"
     assert rig.port.controller.locked
 
 
@@ -154,7 +177,8 @@ def _record_links(monkeypatch: pytest.MonkeyPatch) -> list[RecordingLink]:
 async def test_monitor_on_sim_url_shows_an_injected_leak(monkeypatch: pytest.MonkeyPatch) -> None:
     """``rovlink monitor 'sim://?leak_at=…'``: the real URL, the simulator in real time."""
     links = _record_links(monkeypatch)
-    app = build_app("sim://?leak_at=0.3&seed=1", rate_hz=20)
+    app = build_app(build_parser("monitor").parse_args(
+        ["monitor", "sim://?leak_at=0.3&seed=1", "--rate", "20"]))
     async with app.run_test(size=SIZE) as pilot:
         await until(lambda: app.query_one("#leak").has_class("alarm"))
         assert "sim://?leak_at=0.3&seed=1" in screen_text(app)
@@ -164,13 +188,13 @@ async def test_monitor_on_sim_url_shows_an_injected_leak(monkeypatch: pytest.Mon
     assert "#stop!" in link.frames()
 
 
-def test_cli_monitor_refuses_bad_options() -> None:
-    result = CliRunner().invoke(cli_app, ["monitor", "sim://?nosuch=1"])
-    assert result.exit_code == 2
-    assert "unknown sim option 'nosuch'" in result.output
-    result = CliRunner().invoke(cli_app, ["monitor", "--algorithm", "md5"])
-    assert result.exit_code == 2
-    assert "'md5' is not one of" in result.output
+def test_cli_monitor_refuses_bad_options(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["monitor", "sim://?nosuch=1"]) == 2
+    assert "unknown sim option 'nosuch'" in capsys.readouterr().err
+    assert main(["monitor", "--algorithm", "md5"]) == 2
+    assert "unknown checksum algorithm 'md5'" in capsys.readouterr().err
+    assert main(["monitor", "--rate", "0"]) == 2
+    assert "argument --rate: 0 Hz is less than the minimum, 0.1 Hz" in capsys.readouterr().err
 
 
 def test_rate_must_be_positive() -> None:

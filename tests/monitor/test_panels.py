@@ -11,7 +11,7 @@ from rovlink.monitor.panels import (
     link_text,
 )
 from rovlink.monitor.readings import Readings
-from rovlink.operator import CommandedState, LinkHealth, LockState
+from rovlink.piloting import CommandedState, LinkHealth, LockState
 from rovlink.protocol import Command, VerticalMode
 
 READING = Sensors(depth_cm=57, pressure_raw=612, leak_detected=False, roll_deg=-3, pitch_deg=2,
@@ -76,6 +76,22 @@ def test_commanded_panel() -> None:
     assert "90° at 30 %" in text
     assert "last sent  #th.90.30!" in text
     assert state.lock is LockState.UNLOCKED
+
+
+def test_keys_pressed_while_locked_show_as_last_sent() -> None:
+    # Regression: a motion command the controller drops (locked) was not shown as last sent.
+    state = CommandedState()
+    state.apply(Command("stop"))
+    state.apply(Command("th", (90, 30)))
+    text = commanded_text(state).plain
+    assert "last sent  #th.90.30!  (dropped: locked)" in text
+    assert "0° at 0 %" in text  # the set-point is the one the controller has
+    state.apply(Command("start"))
+    state.apply(Command("mvdirect", (1,)))
+    state.apply(Command("mvd", (50,)))
+    assert "last sent  #mvd.50!  (dropped: direct mode)" in commanded_text(state).plain
+    state.apply(Command("mvs", (20,)))
+    assert commanded_text(state).plain.endswith("last sent  #mvs.+20!")
 
 
 def test_link_panel_healthy_and_silent() -> None:

@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
-import logging
 from collections import deque
 from collections.abc import AsyncIterator, Generator
 from types import TracebackType
@@ -35,12 +34,13 @@ from rovlink.client.sensors import Sensors
 from rovlink.client.session import Outcome, PendingQuery, Session
 from rovlink.client.unsolicited import DropLog, deliver
 from rovlink.client.url import parse_url
+from rovlink.logs import get_logger
 from rovlink.protocol import Command, Response
 
 __all__ = ["DEFAULT_MAX_IN_FLIGHT", "AsyncClient", "connect"]
 
 T = TypeVar("T")
-logger = logging.getLogger("rovlink.aio")
+logger = get_logger("rovlink.aio")
 
 #: Queries on the wire at once: enough to keep a serial line busy, few enough for a small
 #: controller's receive buffer (8 × ``#qsa!`` is 40 bytes).

@@ -1,51 +1,145 @@
-"""The ``rovlink`` command line: one module per command, each adding itself to the Typer app."""
+"""The ``rovlink`` command line: one module per command, imported only when that command runs.
+
+This module imports nothing but :mod:`argparse` and the table of commands below, so that
+``rovlink --version`` and ``rovlink decode`` start about as fast as Python itself. Each command's
+module (``rovlink.cli.<name>``) has ``add_arguments(parser)`` and ``run(args) -> int``; the
+heavy libraries (pyserial, rich, textual, prompt_toolkit, the driver) load inside ``run``.
+"""
 
 from __future__ import annotations
 
+import argparse
 import importlib
-import logging
-
-import typer
+import sys
 
 import rovlink
+from rovlink.cli.failure import CommandError, UsageError
 
-__all__ = ["app", "main"]
+__all__ = ["COMMANDS", "build_parser", "main"]
 
-app = typer.Typer(
-    name="rovlink",
-    help="Drive an underwater robot's low-level controller over its serial command protocol.",
-    no_args_is_help=True,
-    add_completion=False,
-    pretty_exceptions_enable=False,
-)
+#: Every command and its one-line summary, in the order ``rovlink --help`` lists them.
+COMMANDS: dict[str, str] = {
+    "decode": "Decode a captured byte stream: one JSON object per line per event.",
+    "reference": "Print the command reference (Markdown), as in docs/commands.md.",
+    "sim": "Serve a simulated controller on a pseudo-terminal and/or a TCP port.",
+    "send": "Send commands and print the decoded replies.",
+    "demo": "A scripted dive: unlock, dive and hold, a square, every sensor, surface, lock.",
+    "console": "Type commands and see the replies, with completion and history.",
+    "monitor": "A live dashboard of depth, attitude, leak and link; keys drive the robot.",
+}
 
-# Each module defines ``register(app)``. Heavy imports stay inside the commands, so that
-# ``rovlink decode`` does not pay for the terminal user interfaces.
-_COMMAND_MODULES = ("decode", "reference", "sim", "send", "demo", "console", "monitor")
+_DESCRIPTION = "Drive an underwater robot's low-level controller over its serial command protocol."
+_EPILOG = """\
+examples:
+  rovlink sim                          serve a simulated controller on a pseudo-terminal
+  rovlink send sim:// start "th 270 25" qsa stop
+  rovlink monitor /dev/ttyUSB0 --checksum
+  rovlink decode capture.bin --stats
 
-for _name in _COMMAND_MODULES:
-    importlib.import_module(f"rovlink.cli.{_name}").register(app)
+'rovlink COMMAND --help' describes a command and its options."""
+
+_EXIT_INTERRUPTED = 130  # 128 + SIGINT, as shells report it
 
 
-def _print_version(value: bool) -> None:
-    if value:
-        typer.echo(f"rovlink {rovlink.__version__}")
-        raise typer.Exit()
+class _Formatter(argparse.RawDescriptionHelpFormatter):
+    """Descriptions and epilogs keep their line breaks (examples stay one per line).
+
+    The width is found as :func:`shutil.get_terminal_size` finds it, without importing shutil
+    (with its compression modules) on every start, help or not.
+    """
+
+    def __init__(self, prog: str, indent_increment: int = 2, max_help_position: int = 24,
+                 width: int | None = None) -> None:
+        if width is None:
+            width = _terminal_columns() - 2
+        super().__init__(prog, indent_increment, max_help_position, width)
 
 
-@app.callback()
-def _root(
-    verbose: bool = typer.Option(False, "--verbose", "-v", help="Log debug details to stderr."),
-    version: bool = typer.Option(
-        False, "--version", is_eager=True, callback=_print_version, help="Print the version."
-    ),
-) -> None:
-    logging.basicConfig(
-        level=logging.DEBUG if verbose else logging.WARNING,
-        format="%(asctime)s %(name)s %(levelname)s: %(message)s",
+def _terminal_columns() -> int:
+    import os  # noqa: PLC0415 - already loaded by the interpreter
+
+    try:
+        return int(os.environ["COLUMNS"])
+    except (KeyError, ValueError):
+        pass
+    stdout = sys.__stdout__
+    try:
+        return os.get_terminal_size(stdout.fileno()).columns if stdout is not None else 80
+    except (ValueError, OSError):
+        return 80
+
+
+def _chosen_command(argv: list[str]) -> str | None:
+    """The command named in ``argv``: the first word that is not a root option."""
+    for word in argv:
+        if word == "--":
+            return None
+        if not word.startswith("-"):
+            return word if word in COMMANDS else None
+    return None
+
+
+def build_parser(command: str | None = None) -> argparse.ArgumentParser:
+    """The parser of ``rovlink``; only ``command``'s own options are added (its module loads)."""
+    parser = argparse.ArgumentParser(
+        prog="rovlink", description=_DESCRIPTION, epilog=_EPILOG, formatter_class=_Formatter,
     )
+    # Every parser gets the formatter (and the subparsers their prog): argparse makes a
+    # formatter for each argument it adds, and its default one imports shutil.
+    parser.add_argument("-v", "--verbose", action="store_true",
+                        help="log debug details to stderr")
+    parser.add_argument("--version", action="version", version=f"rovlink {rovlink.__version__}")
+    subparsers = parser.add_subparsers(dest="command", title="commands", metavar="COMMAND",
+                                       prog="rovlink")
+    for name, summary in COMMANDS.items():
+        if name != command:
+            subparsers.add_parser(name, help=summary, description=summary,
+                                  formatter_class=_Formatter)
+            continue
+        module = importlib.import_module(f"rovlink.cli.{name}")
+        doc = (module.__doc__ or summary).strip()
+        subparser = subparsers.add_parser(
+            name, help=summary, description=doc, formatter_class=_Formatter,
+            epilog=getattr(module, "EPILOG", None),
+        )
+        module.add_arguments(subparser)
+        subparser.set_defaults(run=module.run, parser=subparser)
+    return parser
 
 
-def main() -> None:
-    """Entry point of the ``rovlink`` console script."""
-    app()
+def main(argv: list[str] | None = None) -> int:
+    """Run the ``rovlink`` command line on ``argv`` and return its exit status.
+
+    0: done; 1: the command failed (the reason is one line on stderr); 2: a usage error;
+    130: interrupted. Called without ``argv`` (as the console script, or ``python -m rovlink``)
+    it reads ``sys.argv`` and exits with that status.
+    """
+    if argv is None:
+        sys.exit(main(sys.argv[1:]))
+    parser = build_parser(_chosen_command(argv))
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as exit_:  # --help, --version and usage errors
+        return exit_.code if isinstance(exit_.code, int) else 2
+    if args.command is None:
+        parser.print_help()
+        return 0
+    if args.verbose:
+        import logging  # noqa: PLC0415 - only when asked for
+
+        logging.basicConfig(level=logging.DEBUG,
+                            format="%(asctime)s %(name)s %(levelname)s: %(message)s")
+    command_parser: argparse.ArgumentParser = args.parser
+    try:
+        status: int = args.run(args)
+    except UsageError as error:
+        command_parser.print_usage(sys.stderr)
+        print(f"{command_parser.prog}: error: {error}", file=sys.stderr)
+        return 2
+    except CommandError as error:
+        print(f"{command_parser.prog}: {error}", file=sys.stderr)
+        return error.exit_status
+    except KeyboardInterrupt:
+        print(f"{command_parser.prog}: interrupted", file=sys.stderr)
+        return _EXIT_INTERRUPTED
+    return status

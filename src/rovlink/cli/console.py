@@ -1,71 +1,48 @@
-"""``rovlink console [URL]``: an interactive console for the robot, on the simulator by default."""
+"""Type commands (qd, th 270 25, mvs -50, #qd!) and see the replies; Ctrl-X stops the robot.
+
+Tab completes names and shows each argument's range; 'help' lists every command; 'quit' or
+Ctrl-D leaves, sending #stop! first unless the robot is locked as last sent.
+"""
 
 from __future__ import annotations
 
-import asyncio
-from collections.abc import Awaitable
-from pathlib import Path
-from typing import TYPE_CHECKING
+import argparse
 
-import typer
+from rovlink.cli import link_options
+from rovlink.cli.failure import CommandError, UsageError
 
-from rovlink.cli.link_options import (
-    DEFAULT_URL,
-    AlgorithmOption,
-    BaudrateOption,
-    ChecksumOption,
-    RetriesOption,
-    TimeoutOption,
-    UrlArgument,
-)
-from rovlink.protocol import DEFAULT_ALGORITHM
+__all__ = ["EPILOG"]
 
-if TYPE_CHECKING:
-    from rovlink.aio import AsyncClient
-
-__all__ = ["register"]
+EPILOG = """\
+examples:
+  rovlink console                      on the simulator
+  rovlink console /dev/ttyUSB0 --checksum --history ~/dive.history"""
 
 
-def register(app: typer.Typer) -> None:
-    """Add ``console`` to the command line."""
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """``console``'s options."""
+    link_options.add_link_options(parser)
+    parser.add_argument("--history", metavar="FILE",
+                        help="history file (default: in the user's state directory)")
 
-    @app.command()
-    def console(  # noqa: PLR0917 - Typer reads the options from the parameters
-        url: UrlArgument = DEFAULT_URL,
-        checksum: ChecksumOption = False,
-        algorithm: AlgorithmOption = DEFAULT_ALGORITHM,
-        baudrate: BaudrateOption = None,
-        timeout_s: TimeoutOption = 0.5,
-        retries: RetriesOption = 2,
-        history: Path | None = typer.Option(
-            None, "--history", help="History file (default: in the user's state directory)."
-        ),
-    ) -> None:
-        """Type commands (qd, th 270 25, mvs -50, #qd!) and see the replies; Ctrl-X stops.
 
-        Tab completes names and shows each argument's range; 'help' lists every command.
-        """
-        import rovlink.aio  # noqa: PLC0415 - keep the driver and prompt_toolkit off other commands
-        from rovlink.client import parse_url  # noqa: PLC0415
-        from rovlink.client.options import StrayCallback  # noqa: PLC0415
+def run(args: argparse.Namespace) -> int:
+    """Run the console until the user leaves."""
+    import asyncio  # noqa: PLC0415 - keep the driver and prompt_toolkit off other commands
+    from pathlib import Path  # noqa: PLC0415
+
+    try:
         from rovlink.console.app import run_console  # noqa: PLC0415
         from rovlink.console.history import default_history_path  # noqa: PLC0415
+    except ImportError as error:
+        raise CommandError(f"needs {error.name}: pip install 'rovlink[console]'") from None
 
-        def connect(on_stray: StrayCallback) -> Awaitable[AsyncClient]:
-            return rovlink.aio.connect(
-                url, timeout=timeout_s, retries=retries, checksum=checksum,
-                algorithm=algorithm, baudrate=baudrate, on_stray=on_stray,
-            )
-
-        try:
-            parse_url(url, baudrate)
-        except ValueError as error:
-            raise typer.BadParameter(str(error), param_hint="URL") from None
-        try:
-            asyncio.run(run_console(connect, algorithm=algorithm,
-                                    history_path=history or default_history_path()))
-        except ValueError as error:
-            raise typer.BadParameter(str(error)) from None
-        except ConnectionError as error:
-            typer.echo(f"error: {error}", err=True)
-            raise typer.Exit(1) from None
+    connect = link_options.connect_async(args)
+    history = Path(args.history) if args.history else default_history_path()
+    try:
+        asyncio.run(run_console(connect, algorithm=args.algorithm, history_path=history))
+    except ValueError as error:
+        raise UsageError(str(error)) from None
+    except (ConnectionError, OSError) as error:
+        raise link_options.connection_failure(args.url, error) from None
+    return 0

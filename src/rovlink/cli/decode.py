@@ -1,21 +1,22 @@
-"""``rovlink decode``: read a captured byte stream and print its events as JSON lines."""
+"""Decode a captured byte stream: one JSON object per line per event (or, with --stats, one
+summary of counts). Errors in the stream are events, never a failure of the command."""
 
 from __future__ import annotations
 
+import argparse
 import json
+import os
 import sys
 from collections import Counter
-from pathlib import Path
 from typing import BinaryIO
 
-import typer
+from rovlink.cli.failure import CommandError
+from rovlink.cli.link_options import add_checksum_options
+from rovlink.protocol import BadFrame, Decoder, Event, Frame, Kind, Message, Text
 
-from rovlink.cli.link_options import AlgorithmOption
-from rovlink.protocol import DEFAULT_ALGORITHM, BadFrame, Decoder, Event, Frame, Kind, Text
+__all__ = ["EPILOG", "StreamStats", "decode_stream", "event_to_json"]
 
-__all__ = ["StreamStats", "decode_stream", "event_to_json", "register"]
-
-_READ_CHUNK_BYTES = 1 << 16
+_READ_CHUNK_BYTES = 1 << 20  # large reads: a system call per megabyte, not per frame
 
 
 def event_to_json(event: Event) -> dict[str, object]:
@@ -40,34 +41,58 @@ def event_to_json(event: Event) -> dict[str, object]:
 
 
 def _events(stream: BinaryIO, decoder: Decoder) -> list[Event] | None:
-    chunk = stream.read(_READ_CHUNK_BYTES)
+    # read1: whatever is there, up to a megabyte, so that a live pipe is decoded as it comes.
+    read = getattr(stream, "read1", stream.read)
+    chunk = read(_READ_CHUNK_BYTES)
     if not chunk:
         return None
     return decoder.feed(chunk)
 
 
+_EVENT_NAMES = {Frame: "frame", Text: "text", BadFrame: "error"}
+
+
 class StreamStats:
-    """Counts of a stream's events: per event kind, per error reason, per frame kind and name."""
+    """Counts of a stream's events: per event kind, per error reason, per frame kind and name.
+
+    The decoder hands out one object for every repetition of a frame it has cached, so a
+    chunk's events are counted by identity in C (``Counter`` over ``map(id, …)``) and only
+    the distinct ones are looked at in Python: ``decode --stats`` costs little beside the
+    decoder.
+    """
 
     def __init__(self) -> None:
-        self.events: Counter[str] = Counter()
+        self._types: Counter[type] = Counter()
+        self._names: Counter[tuple[type[Message], str]] = Counter()
         self.reasons: Counter[str] = Counter()
-        self.names: dict[Kind, Counter[str]] = {kind: Counter() for kind in Kind}
 
     def count(self, events: list[Event]) -> None:
         """Add ``events`` to the counts."""
-        events_seen, names = self.events, self.names
-        for event in events:
-            if type(event) is Frame:
-                events_seen["frame"] += 1
-                message = event.message
-                names[message.kind][message.name] += 1
-            elif type(event) is Text:
-                events_seen["text"] += 1
-            else:
-                assert isinstance(event, BadFrame)
-                events_seen["error"] += 1
-                self.reasons[event.reason.value] += 1
+        identities = list(map(id, events))
+        distinct = dict(zip(identities, events, strict=True))  # alive while ``events`` is
+        types, names = self._types, self._names
+        for identity, count in Counter(identities).items():
+            event = distinct[identity]
+            kind = type(event)
+            types[kind] += count
+            if kind is Frame:
+                message = event.message  # type: ignore[union-attr]
+                names[type(message), message.name] += count
+            elif kind is BadFrame:
+                self.reasons[event.reason.value] += count  # type: ignore[union-attr]
+
+    @property
+    def events(self) -> dict[str, int]:
+        """Events per kind: ``frame``, ``text``, ``error``."""
+        return {_EVENT_NAMES[kind]: count for kind, count in self._types.items() if count}
+
+    @property
+    def names(self) -> dict[Kind, Counter[str]]:
+        """Frames per kind (command, response) and name."""
+        names: dict[Kind, Counter[str]] = {kind: Counter() for kind in Kind}
+        for (message_class, name), count in self._names.items():
+            names[message_class.kind][name] += count
+        return names
 
     def summary(self) -> dict[str, object]:
         """The counts as ``rovlink decode --stats`` prints them."""
@@ -93,33 +118,52 @@ def decode_stream(stream: BinaryIO, decoder: Decoder, *, stats_only: bool) -> No
         else:
             for event in events:
                 write(json.dumps(event_to_json(event), ensure_ascii=False) + "\n")
+            sys.stdout.flush()  # a chunk at a time: a live pipe's events show as they come
         if last:
             break
     if stats_only:
         write(json.dumps(stats.summary()) + "\n")
 
 
-def register(app: typer.Typer) -> None:
-    """Add ``decode`` to the command line."""
+EPILOG = """\
+examples:
+  rovlink decode capture.bin
+  socat -u /dev/ttyUSB0,raw,b115200 - | rovlink decode --checksum
+  rovlink decode --stats --checksum --algorithm xor capture.bin"""
 
-    @app.command()
-    def decode(
-        file: Path | None = typer.Argument(
-            None, help="A capture of the byte stream; standard input when omitted.",
-            exists=True, dir_okay=False, readable=True,
-        ),
-        checksum: bool = typer.Option(
-            False, "--checksum", help="Start in checksum mode (as after #crcon!)."
-        ),
-        algorithm: AlgorithmOption = DEFAULT_ALGORITHM,
-        stats: bool = typer.Option(
-            False, "--stats", help="Print one JSON summary of counts instead of the events."
-        ),
-    ) -> None:
-        """Decode a captured byte stream: one JSON object per line per event."""
-        decoder = Decoder(checksum_enabled=checksum, algorithm=algorithm)
-        if file is None:
-            decode_stream(sys.stdin.buffer, decoder, stats_only=stats)
-        else:
-            with file.open("rb") as stream:
-                decode_stream(stream, decoder, stats_only=stats)
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """``decode``'s arguments."""
+    parser.add_argument("file", metavar="FILE", nargs="?", default="-",
+                        help="a capture of the byte stream; '-' or none: standard input")
+    add_checksum_options(parser, "start in checksum mode, as after #crcon!")
+    parser.add_argument("--stats", action="store_true",
+                        help="print one JSON summary of counts instead of the events")
+
+
+def _run(args: argparse.Namespace) -> int:
+    decoder = Decoder(checksum_enabled=args.checksum, algorithm=args.algorithm)
+    if args.file == "-":
+        decode_stream(sys.stdin.buffer, decoder, stats_only=args.stats)
+        return 0
+    try:
+        stream = open(args.file, "rb")  # noqa: SIM115 - closed below, after the error handling
+    except OSError as error:
+        raise CommandError(f"cannot read {args.file}: {error.strerror}") from None
+    with stream:
+        try:
+            decode_stream(stream, decoder, stats_only=args.stats)
+        except IsADirectoryError:
+            raise CommandError(f"cannot read {args.file}: Is a directory") from None
+    return 0
+
+
+def run(args: argparse.Namespace) -> int:
+    """Decode the file (or standard input) to the end; a reader that stops early (``| head``)
+    is no error."""
+    try:
+        return _run(args)
+    except BrokenPipeError:
+        # Python would report the broken pipe again when it flushes stdout at exit.
+        sys.stdout = open(os.devnull, "w")  # noqa: SIM115 - stays open until exit
+        return 0

@@ -1,4 +1,4 @@
-"""``rovlink demo [URL]``: a scripted dive through the driver, with a live table of its progress.
+"""A scripted dive through the driver, with a live table of its progress.
 
 Unlock, dive to a depth and hold it, move in a square, read every sensor one by one, surface,
 lock. The script is :func:`run_dive` (it knows nothing of the terminal); the command renders its
@@ -7,34 +7,28 @@ progress with rich. Whatever happens — an error, Ctrl-C — the robot is sent 
 
 from __future__ import annotations
 
+import argparse
+import sys
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, cast
 
-import typer
-from rich.console import Console, Group
-from rich.live import Live
-from rich.table import Table
-
-import rovlink
-from rovlink.cli.link_options import (
-    DEFAULT_URL,
-    AlgorithmOption,
-    BaudrateOption,
-    ChecksumOption,
-    RetriesOption,
-    TimeoutOption,
-    UrlArgument,
-)
-from rovlink.protocol import DEFAULT_ALGORITHM
+from rovlink.cli import link_options
+from rovlink.cli.failure import CommandError
+from rovlink.cli.interrupt import GatedClient, run_in_worker
 
 if TYPE_CHECKING:
     from rich.console import RenderableType
 
     from rovlink.client import Client, Sensors
 
-__all__ = ["DivePlan", "Step", "register", "run_dive"]
+__all__ = ["EPILOG", "DivePlan", "Step", "run_dive"]
+
+EPILOG = """\
+examples:
+  rovlink demo                         on the simulator
+  rovlink demo /dev/ttyUSB0 --checksum --depth 50 --hold 10"""
 
 _POLL_INTERVAL_S = 0.2
 _SETTLED_READINGS = 3  # consecutive readings within tolerance that count as "there"
@@ -205,6 +199,9 @@ def run_dive(rov: Client, plan: DivePlan, on_progress: ProgressCallback) -> Dive
 
 
 def _render(progress: DiveProgress, url: str) -> RenderableType:
+    from rich.console import Group  # noqa: PLC0415 - rich loads only for this command
+    from rich.table import Table  # noqa: PLC0415
+
     steps = Table(title=f"rovlink demo — {url}", expand=False)
     steps.add_column("step", no_wrap=True)
     steps.add_column("", no_wrap=True)
@@ -233,55 +230,64 @@ def _render(progress: DiveProgress, url: str) -> RenderableType:
     return Group(steps, sensors)
 
 
-def register(app: typer.Typer) -> None:
-    """Add ``demo`` to the command line."""
+def _percent(text: str) -> int:
+    return link_options.bounded_int(text, 0, 100)
 
-    @app.command()
-    def demo(  # noqa: PLR0917 - Typer reads the options from the parameters
-        url: UrlArgument = DEFAULT_URL,
-        depth_cm: int = typer.Option(100, "--depth", help="Dive depth, cm.", min=0, max=9999),
-        hold_s: float = typer.Option(3.0, "--hold", help="Seconds to hold the depth.", min=0),
-        leg_s: float = typer.Option(3.0, "--leg", help="Seconds per side of the square.", min=0),
-        power_percent: int = typer.Option(
-            30, "--power", help="Horizontal power on the square, %.", min=0, max=100
-        ),
-        reach_timeout_s: float = typer.Option(
-            60.0, "--reach-timeout", help="Seconds allowed to reach a depth.", min=0
-        ),
-        checksum: ChecksumOption = False,
-        algorithm: AlgorithmOption = DEFAULT_ALGORITHM,
-        baudrate: BaudrateOption = None,
-        timeout_s: TimeoutOption = 0.5,
-        retries: RetriesOption = 2,
-    ) -> None:
-        """A scripted dive: unlock, dive and hold, a square, every sensor, surface, lock."""
-        plan = DivePlan(depth_cm=depth_cm, hold_s=hold_s, leg_s=leg_s,
-                        power_percent=power_percent, reach_timeout_s=reach_timeout_s)
+
+def _depth_cm(text: str) -> int:
+    return link_options.bounded_int(text, 0, 9999)
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """``demo``'s options."""
+    link_options.add_link_options(parser)
+    dive = parser.add_argument_group("the dive")
+    dive.add_argument("--depth", dest="depth_cm", type=_depth_cm, default=100, metavar="CM",
+                      help="dive depth, cm, 0–9999 (default: %(default)s)")
+    dive.add_argument("--hold", dest="hold_s", type=link_options.seconds, default=3.0,
+                      metavar="SECONDS", help="time to hold the depth (default: %(default)s)")
+    dive.add_argument("--leg", dest="leg_s", type=link_options.seconds, default=3.0,
+                      metavar="SECONDS", help="time per side of the square (default: %(default)s)")
+    dive.add_argument("--power", dest="power_percent", type=_percent, default=30,
+                      metavar="PERCENT",
+                      help="horizontal power on the square, 0–100 (default: %(default)s)")
+    dive.add_argument("--reach-timeout", dest="reach_timeout_s", type=link_options.seconds,
+                      default=60.0, metavar="SECONDS",
+                      help="time allowed to reach a depth (default: %(default)s)")
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the dive with a live table; exit status 1 unless every step was done."""
+    from rich.console import Console  # noqa: PLC0415
+    from rich.live import Live  # noqa: PLC0415
+
+    plan = DivePlan(depth_cm=args.depth_cm, hold_s=args.hold_s, leg_s=args.leg_s,
+                    power_percent=args.power_percent, reach_timeout_s=args.reach_timeout_s)
+    rov = link_options.connect(args, keepalive_s=1.0)
+    gate = GatedClient(rov)
+    console = Console()
+    with link_options.closing_unless_interrupted(rov), \
+            Live(console=console, refresh_per_second=8) as live:
+        def show(progress: DiveProgress) -> None:
+            live.update(_render(progress, args.url))
+
         try:
-            rov = rovlink.connect(url, checksum=checksum, algorithm=algorithm, baudrate=baudrate,
-                                  timeout=timeout_s, retries=retries)
-        except ValueError as error:
-            raise typer.BadParameter(str(error), param_hint="URL") from None
-        except ConnectionError as error:
-            typer.echo(f"error: {error}", err=True)
-            raise typer.Exit(1) from None
-        console = Console()
-        with rov, Live(console=console, refresh_per_second=8) as live:
-            def show(progress: DiveProgress) -> None:
-                live.update(_render(progress, url))
-
-            try:
-                progress = run_dive(rov, plan, show)
-            except (TimeoutError, ConnectionError) as error:
-                live.stop()
-                typer.echo(f"error: {error} (the robot was sent #stop!)", err=True)
-                raise typer.Exit(1) from None
-        missed = [step.name for step in progress.steps if step.status != "done"]
-        counters = rov.counters
-        console.print(
-            f"\n{counters.frames_sent} frames sent, {counters.replies} replies, "
-            f"{counters.timeouts} timeouts, {counters.retries} retries"
-        )
-        if missed:
-            typer.echo(f"not completed: {', '.join(missed)}", err=True)
-            raise typer.Exit(1)
+            progress = run_in_worker(lambda: run_dive(cast("Client", gate), plan, show))
+        except KeyboardInterrupt:
+            live.stop()
+            gate.stop_for_good()
+            print("rovlink demo: sent #stop!", file=sys.stderr, flush=True)
+            raise
+        except (TimeoutError, ConnectionError) as error:
+            live.stop()
+            raise CommandError(f"{error} (the robot was sent #stop!)") from None
+    missed = [step.name for step in progress.steps if step.status != "done"]
+    counters = rov.counters
+    console.print(
+        f"\n{counters.frames_sent} frames sent, {counters.replies} replies, "
+        f"{counters.timeouts} timeouts, {counters.retries} retries"
+    )
+    if missed:
+        print(f"rovlink demo: not completed: {', '.join(missed)}", file=sys.stderr)
+        return 1
+    return 0

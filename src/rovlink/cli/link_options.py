@@ -1,56 +1,349 @@
-"""The options every command that talks to a controller shares, defined once.
+"""The options of every command that talks to a controller, defined once.
 
-Used as annotations: ``checksum: ChecksumOption = False``.
+:func:`add_link_options` puts them on a command's parser, each checked as it is read (a bad
+value is a one-line usage error naming the option); :func:`client_options` turns them into the
+driver's one settings object, :class:`~rovlink.client.options.ClientOptions`. A new connection
+setting is an option here and a line in :func:`client_options`.
 """
 
 from __future__ import annotations
 
-from typing import Annotated
+import argparse
+import contextlib
+import math
+from collections.abc import Awaitable, Callable, Iterator
+from typing import TYPE_CHECKING
 
-import typer
+from rovlink.cli.failure import CommandError, UsageError
+from rovlink.protocol import ALGORITHMS, DEFAULT_ALGORITHM
 
-from rovlink.protocol import ALGORITHMS
+if TYPE_CHECKING:
+    from rovlink.aio import AsyncClient
+    from rovlink.client import Client, ClientOptions
+    from rovlink.client.links import Link
+    from rovlink.client.options import StrayCallback
 
 __all__ = [
     "DEFAULT_URL",
-    "AlgorithmOption",
-    "BaudrateOption",
-    "ChecksumOption",
-    "RetriesOption",
-    "TimeoutOption",
-    "UrlArgument",
-    "check_algorithm",
+    "MAX_RETRIES",
+    "MAX_TIMEOUT_S",
+    "add_link_options",
+    "algorithm_name",
+    "client_options",
+    "connect",
+    "connect_async",
+    "positive_int",
+    "seconds",
 ]
 
 DEFAULT_URL = "sim://"
+#: The driver's default (kept here as a number: the driver is not imported to show the help).
+DEFAULT_BOOT_TIMEOUT_S = 3.0
+#: Longer than any controller takes to answer; larger values are typing mistakes.
+MAX_TIMEOUT_S = 3600.0
+MIN_TIMEOUT_S = 0.001
+MAX_RETRIES = 100
+_URL_HELP = "serial device, pyserial URL (socket://HOST:PORT, rfc2217://…) or sim:// (simulator)"
 
 
-def check_algorithm(name: str) -> str:
-    """Refuse an unknown checksum algorithm name before anything is opened."""
-    if name not in ALGORITHMS:
-        raise typer.BadParameter(f"{name!r} is not one of {', '.join(sorted(ALGORITHMS))}")
-    return name
+def bounded_float(text: str, minimum: float, maximum: float, unit: str = "") -> float:
+    """A finite number within ``minimum``–``maximum``, for argparse's ``type=``.
+
+    >>> bounded_float("1e10", 0.001, 3600, " s")
+    Traceback (most recent call last):
+    ...
+    argparse.ArgumentTypeError: 1e10 s is more than the maximum, 3600 s
+    """
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number")
+    if value < minimum:
+        raise argparse.ArgumentTypeError(
+            f"{text}{unit} is less than the minimum, {minimum:g}{unit}")
+    if value > maximum:
+        raise argparse.ArgumentTypeError(
+            f"{text}{unit} is more than the maximum, {maximum:g}{unit}")
+    return value
 
 
-UrlArgument = Annotated[
-    str,
-    typer.Argument(
-        help="Serial device, pyserial URL (socket://host:port, …) or sim:// (the simulator)."
-    ),
-]
-ChecksumOption = Annotated[bool, typer.Option("--checksum", help="Use checksum mode.")]
-AlgorithmOption = Annotated[
-    str,
-    typer.Option(
-        "--algorithm",
-        help=f"Checksum algorithm: {', '.join(sorted(ALGORITHMS))}.",
-        callback=check_algorithm,
-    ),
-]
-BaudrateOption = Annotated[
-    int | None, typer.Option("--baudrate", help="Serial speed, baud (default 115200).", min=1)
-]
-TimeoutOption = Annotated[
-    float, typer.Option("--timeout", help="Seconds to wait for a reply, per attempt.", min=0.001)
-]
-RetriesOption = Annotated[int, typer.Option("--retries", help="Extra attempts of a query.", min=0)]
+def seconds(text: str, *, minimum: float = 0.0, maximum: float = MAX_TIMEOUT_S) -> float:
+    """A number of seconds within ``minimum``–``maximum``, for argparse's ``type=``.
+
+    >>> seconds("0.25")
+    0.25
+    """
+    return bounded_float(text, minimum, maximum, " s")
+
+
+def _timeout(text: str) -> float:
+    return seconds(text, minimum=MIN_TIMEOUT_S)
+
+
+def bounded_int(text: str, minimum: int, maximum: int) -> int:
+    """An integer within ``minimum``–``maximum``, for argparse's ``type=``.
+
+    >>> bounded_int("99999999999999999999", 0, 100)
+    Traceback (most recent call last):
+    ...
+    argparse.ArgumentTypeError: 99999999999999999999 is not in 0–100
+    """
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
+    if not minimum <= value <= maximum:
+        raise argparse.ArgumentTypeError(f"{text} is not in {minimum}–{maximum}")
+    return value
+
+
+def _optional_seconds(text: str) -> float | None:
+    """Seconds, where 0 means "not at all" (``None`` to the driver)."""
+    value = seconds(text)
+    return value or None
+
+
+def _retries(text: str) -> int:
+    return bounded_int(text, 0, MAX_RETRIES)
+
+
+def positive_int(text: str) -> int:
+    """An integer ≥ 1, for argparse's ``type=`` (e.g. a baud rate)."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"{text} is not a positive integer")
+    return value
+
+
+def algorithm_name(text: str) -> str:
+    """A known checksum algorithm's name, for argparse's ``type=``.
+
+    >>> algorithm_name("md5")
+    Traceback (most recent call last):
+    ...
+    argparse.ArgumentTypeError: unknown checksum algorithm 'md5'; known: crc8, sum8, xor
+    """
+    if text not in ALGORITHMS:
+        known = ", ".join(sorted(ALGORITHMS))
+        raise argparse.ArgumentTypeError(f"unknown checksum algorithm {text!r}; known: {known}")
+    return text
+
+
+class OnOff(argparse.BooleanOptionalAction):
+    """``--flag`` / ``--no-flag``, its help as given: Python 3.10–3.12 would append
+    "(default: False)" to it."""
+
+    def __init__(self, option_strings: list[str], dest: str, default: bool = False,
+                 help: str | None = None) -> None:
+        super().__init__(option_strings, dest, default=default)
+        self.help = help
+
+
+def add_checksum_options(parser: argparse.ArgumentParser, checksum_help: str) -> None:
+    """``--checksum/--no-checksum`` and ``--algorithm`` (``decode`` has these alone)."""
+    parser.add_argument("--checksum", action=OnOff, default=False,
+                        help=f"{checksum_help} (default: off)")
+    parser.add_argument("--algorithm", type=algorithm_name, default=DEFAULT_ALGORITHM,
+                        metavar="NAME",
+                        help=f"checksum algorithm: {', '.join(sorted(ALGORITHMS))} "
+                        "(default: %(default)s)")
+
+
+def add_link_options(parser: argparse.ArgumentParser, *, url_required: bool = False) -> None:
+    """The URL argument and the connection options, with their checks and defaults."""
+    if url_required:
+        parser.add_argument("url", metavar="URL", help=_URL_HELP)
+    else:
+        parser.add_argument("url", metavar="URL", nargs="?", default=DEFAULT_URL,
+                            help=f"{_URL_HELP} (default: %(default)s)")
+    group = parser.add_argument_group("link options")
+    group.add_argument("--checksum", action=OnOff, default=False,
+                       help="put the controller in checksum mode (default: off)")
+    group.add_argument("--algorithm", type=algorithm_name, default=DEFAULT_ALGORITHM,
+                       metavar="NAME",
+                       help=f"checksum algorithm: {', '.join(sorted(ALGORITHMS))} "
+                       "(default: %(default)s)")
+    group.add_argument("--baudrate", type=positive_int, default=None, metavar="BAUD",
+                       help="serial speed (default: the URL's ?baudrate=, else 115200)")
+    group.add_argument("--timeout", dest="timeout_s", type=_timeout, default=0.5,
+                       metavar="SECONDS",
+                       help=f"wait for a reply, per attempt, {MIN_TIMEOUT_S:g}–{MAX_TIMEOUT_S:g} "
+                       "(default: %(default)s)")
+    group.add_argument("--retries", type=_retries, default=2, metavar="N",
+                       help=f"extra attempts of a query, 0–{MAX_RETRIES} (default: %(default)s)")
+    group.add_argument("--boot-timeout", dest="boot_timeout_s", type=_optional_seconds,
+                       default=DEFAULT_BOOT_TIMEOUT_S, metavar="SECONDS",
+                       help="wait this long on connect for the controller to answer (a board "
+                       "that resets when its port opens boots for up to 2 s); 0: do not wait "
+                       "(default: %(default)s)")
+
+
+def client_options(args: argparse.Namespace, *, keepalive_s: float | None = None,
+                   on_stray: StrayCallback | None = None,
+                   motion_timeout_s: float | None = None) -> ClientOptions:
+    """The driver's settings from the parsed link options: the one place they meet.
+
+    A value the driver refuses is a usage error.
+    """
+    from rovlink.client import ClientOptions  # noqa: PLC0415 - the driver loads when used
+
+    try:
+        return ClientOptions(timeout_s=args.timeout_s, retries=args.retries,
+                             checksum=args.checksum, algorithm=args.algorithm,
+                             keepalive_s=keepalive_s, on_stray=on_stray,
+                             boot_timeout_s=getattr(args, "boot_timeout_s",
+                                                    DEFAULT_BOOT_TIMEOUT_S),
+                             motion_timeout_s=motion_timeout_s)
+    except ValueError as error:
+        raise UsageError(str(error)) from None
+
+
+def check_url(args: argparse.Namespace) -> None:
+    """Refuse a malformed URL before anything is opened (a usage error naming it)."""
+    from rovlink.client import parse_url  # noqa: PLC0415
+
+    try:
+        parse_url(args.url, args.baudrate)
+    except ValueError as error:
+        raise UsageError(f"URL: {error}") from None
+
+
+def connection_failure(url: str, error: BaseException) -> CommandError:
+    """One line for a port that could not be opened: the system's reason, said once.
+
+    >>> str(connection_failure("/dev/null", OSError(25, "Inappropriate ioctl for device")))
+    '/dev/null: not a serial port'
+    >>> str(connection_failure("/dev/ttyUSB9", OSError(2, "[Errno 2] could not open port")))
+    'cannot open /dev/ttyUSB9: No such file or directory'
+    """
+    import errno  # noqa: PLC0415
+    import os  # noqa: PLC0415
+
+    from rovlink.client.errors import ConnectError  # noqa: PLC0415
+
+    if isinstance(error, ConnectError):
+        return CommandError(str(error))  # already one line in a user's words
+    code = None
+    cause: BaseException | None = error
+    while cause is not None:  # the deepest error number: pyserial wraps the system's error
+        if isinstance(cause, OSError) and cause.errno:
+            code = cause.errno
+        elif len(cause.args) == 2 and isinstance(cause.args[0], int):
+            code = cause.args[0]  # termios.error: (errno, message), not an OSError
+        cause = cause.__cause__ or cause.__context__
+    if code == errno.ENOTTY:
+        return CommandError(f"{url}: not a serial port")
+    reason = os.strerror(code) if code else str(error)
+    return CommandError(f"cannot open {url}: {reason}")
+
+
+def _log_warnings() -> None:
+    # The driver logs what the user should know (dropped frames, resets) at WARNING and up;
+    # --verbose has already configured DEBUG, which this leaves alone.
+    import logging  # noqa: PLC0415 - not on the start-up path of decode
+
+    logging.basicConfig(level=logging.WARNING,
+                        format="%(asctime)s %(name)s %(levelname)s: %(message)s")
+
+
+#: Called with ``">>"`` and the bytes written, ``"<<"`` and the bytes read (``send --raw``).
+ShowBytes = Callable[[str, bytes], None]
+
+
+class _ShownLink:
+    """A link that shows every byte it moves, as it moves them."""
+
+    def __init__(self, link: Link, show: ShowBytes) -> None:
+        self._link = link
+        self._show = show
+        self.description = link.description
+
+    def read_available(self, timeout_s: float) -> bytes:
+        data = self._link.read_available(timeout_s)
+        if data:
+            self._show("<<", data)
+        return data
+
+    def write(self, data: bytes) -> None:
+        self._show(">>", data)
+        self._link.write(data)
+
+    def wake(self) -> None:
+        self._link.wake()
+
+    def close(self) -> None:
+        self._link.close()
+
+
+def _connect_showing_bytes(args: argparse.Namespace, options: ClientOptions,
+                           show: ShowBytes) -> Client:
+    from rovlink.client import Client, parse_url  # noqa: PLC0415
+    from rovlink.client.links import open_link  # noqa: PLC0415
+
+    link = _ShownLink(open_link(parse_url(args.url, args.baudrate)), show)
+    try:
+        return Client(link, options)
+    except BaseException:
+        link.close()
+        raise
+
+
+def connect(args: argparse.Namespace, *, keepalive_s: float | None = None,
+            on_stray: StrayCallback | None = None, show_bytes: ShowBytes | None = None) -> Client:
+    """A blocking client on ``args.url`` with the link options; failures are one line.
+
+    ``show_bytes`` sees every byte written and read (the bytes exactly, not frames).
+    """
+    import rovlink.client  # noqa: PLC0415
+
+    options = client_options(args, keepalive_s=keepalive_s, on_stray=on_stray)
+    check_url(args)
+    _log_warnings()
+    try:
+        if show_bytes is not None:
+            return _connect_showing_bytes(args, options, show_bytes)
+        return rovlink.client.connect(args.url, baudrate=args.baudrate, options=options)
+    except (ConnectionError, OSError) as error:
+        raise connection_failure(args.url, error) from None
+    except ValueError as error:
+        raise UsageError(str(error)) from None
+
+
+@contextlib.contextmanager
+def closing_unless_interrupted(client: Client) -> Iterator[Client]:
+    """Close ``client`` at the end, except after Ctrl-C: closing waits for the replies of the
+    queries on the wire (up to the timeout), and Ctrl-C must end the command at once; the
+    process is ending, and the system releases the port."""
+    try:
+        yield client
+    except KeyboardInterrupt:
+        raise
+    except BaseException:
+        client.close()
+        raise
+    client.close()
+
+
+def connect_async(args: argparse.Namespace) -> Callable[[StrayCallback],
+                                                        Awaitable[AsyncClient]]:
+    """A function connecting an asyncio client on ``args.url`` with the link options (the
+    console and monitor call it with their ``on_stray``); the options are checked now."""
+    import rovlink.aio  # noqa: PLC0415
+
+    client_options(args)
+    check_url(args)
+    _log_warnings()
+
+    def connect_with(on_stray: StrayCallback) -> Awaitable[AsyncClient]:
+        # No motion timeout (P23): a person sets a motion here and it holds until they change
+        # it. The keep-alive runs on the tool's own event loop, so a tool that hangs stops
+        # feeding the controller's link-loss watchdog (P17), which then stops the robot.
+        options = client_options(args, keepalive_s=1.0, on_stray=on_stray)
+        return rovlink.aio.connect(args.url, baudrate=args.baudrate, options=options)
+
+    return connect_with

@@ -1,73 +1,53 @@
-"""``rovlink monitor [URL]``: a live terminal dashboard, on the simulator by default."""
+"""Live depth, attitude, leak alarm, link health and a depth chart; keys drive the robot.
+
+space stops, s starts, arrows set direction and power, PgUp/PgDn the depth target, o/c the
+claw, r resets the leak latch, q quits (sending #stop! unless locked as last sent).
+"""
 
 from __future__ import annotations
 
-from collections.abc import Awaitable
+import argparse
 from typing import TYPE_CHECKING
 
-import typer
-
-from rovlink.cli.link_options import (
-    DEFAULT_URL,
-    AlgorithmOption,
-    BaudrateOption,
-    ChecksumOption,
-    RetriesOption,
-    TimeoutOption,
-    UrlArgument,
-)
-from rovlink.protocol import DEFAULT_ALGORITHM
+from rovlink.cli import link_options
+from rovlink.cli.failure import CommandError
 
 if TYPE_CHECKING:
-    from rovlink.aio import AsyncClient
-    from rovlink.client.options import StrayCallback
     from rovlink.monitor.app import MonitorApp
 
-__all__ = ["build_app", "register"]
+__all__ = ["EPILOG", "build_app"]
+
+EPILOG = """\
+examples:
+  rovlink monitor                      on the simulator
+  rovlink monitor 'sim://?leak_at=5'   try a leak
+  rovlink monitor /dev/ttyUSB0 --checksum --rate 10"""
 
 
-def build_app(url: str, *, rate_hz: float = 5.0, checksum: bool = False,
-              algorithm: str = "crc8", baudrate: int | None = None, timeout_s: float = 0.5,
-              retries: int = 2) -> MonitorApp:
-    """The monitor for ``url``, connecting when it starts (the URL is checked now)."""
-    import rovlink.aio  # noqa: PLC0415 - keep the driver and textual off other commands
-    from rovlink.client import ClientOptions, parse_url  # noqa: PLC0415
-    from rovlink.monitor.app import MonitorApp  # noqa: PLC0415
-
-    parse_url(url, baudrate)
-    ClientOptions(timeout_s, retries, checksum, algorithm)  # checks the options now
-
-    def connect(on_stray: StrayCallback) -> Awaitable[AsyncClient]:
-        return rovlink.aio.connect(url, timeout=timeout_s, retries=retries, checksum=checksum,
-                                   algorithm=algorithm, baudrate=baudrate, on_stray=on_stray)
-
-    return MonitorApp(connect, description=url, rate_hz=rate_hz, algorithm=algorithm)
+def _rate_hz(text: str) -> float:
+    return link_options.bounded_float(text, 0.1, 100.0, " Hz")
 
 
-def register(app: typer.Typer) -> None:
-    """Add ``monitor`` to the command line."""
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """``monitor``'s options."""
+    link_options.add_link_options(parser)
+    parser.add_argument("--rate", dest="rate_hz", type=_rate_hz, default=5.0, metavar="HZ",
+                        help="sensor polls per second, 0.1–100 (default: %(default)s)")
 
-    @app.command()
-    def monitor(  # noqa: PLR0917 - Typer reads the options from the parameters
-        url: UrlArgument = DEFAULT_URL,
-        rate_hz: float = typer.Option(5.0, "--rate", help="Sensor polls per second.", min=0.1,
-                                      max=100),
-        checksum: ChecksumOption = False,
-        algorithm: AlgorithmOption = DEFAULT_ALGORITHM,
-        baudrate: BaudrateOption = None,
-        timeout_s: TimeoutOption = 0.5,
-        retries: RetriesOption = 2,
-    ) -> None:
-        """Live depth, attitude, leak alarm, link health and a depth chart; keys drive the robot.
 
-        space stops, s starts, arrows set direction and power, PgUp/PgDn the depth target,
-        o/c the claw, r resets the leak latch, q quits (sending #stop! unless locked).
-        Try a leak: rovlink monitor 'sim://?leak_at=5'
-        """
-        try:
-            monitor_app = build_app(url, rate_hz=rate_hz, checksum=checksum,
-                                    algorithm=algorithm, baudrate=baudrate,
-                                    timeout_s=timeout_s, retries=retries)
-        except ValueError as error:
-            raise typer.BadParameter(str(error)) from None
-        monitor_app.run()
+def build_app(args: argparse.Namespace) -> MonitorApp:
+    """The monitor for the parsed options, connecting when it starts (the options are checked
+    now)."""
+    try:
+        from rovlink.monitor.app import MonitorApp  # noqa: PLC0415 - textual loads only here
+    except ImportError as error:
+        raise CommandError(f"needs {error.name}: pip install 'rovlink[monitor]'") from None
+
+    return MonitorApp(link_options.connect_async(args), description=args.url,
+                      rate_hz=args.rate_hz, algorithm=args.algorithm)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the dashboard until the user quits."""
+    build_app(args).run()
+    return 0

@@ -1,18 +1,21 @@
-"""``rovlink reference``: print the command reference generated from the command table."""
+"""Print the command reference (Markdown) generated from the command table, as in
+docs/commands.md."""
 
 from __future__ import annotations
 
-import typer
+import argparse
+import sys
 
-from rovlink.protocol.reference import command_reference_markdown
-
-__all__ = ["register"]
+__all__: list[str] = []
 
 
-def register(app: typer.Typer) -> None:
-    """Add ``reference`` to the command line."""
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """``reference`` takes no arguments."""
 
-    @app.command()
-    def reference() -> None:
-        """Print the command reference (Markdown), as in docs/commands.md."""
-        typer.echo(command_reference_markdown(), nl=False)
+
+def run(args: argparse.Namespace) -> int:
+    """Print the reference."""
+    from rovlink.protocol.reference import command_reference_markdown  # noqa: PLC0415
+
+    sys.stdout.write(command_reference_markdown())
+    return 0

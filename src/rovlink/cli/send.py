@@ -1,25 +1,39 @@
-"""``rovlink send URL COMMAND...``: send commands through the driver and print the replies."""
+"""Send commands in order and print the decoded replies.
+
+Every command is checked before anything is sent. A raw frame ('#qd!') goes as typed when the
+controller will take it so; in checksum mode a frame typed without its checksum gets it. Any
+failure (no reply, a frame the controller would drop, a lost link) exits with status 1. Ctrl-C
+stops at once, sending #stop! first if a command may have moved the robot.
+"""
 
 from __future__ import annotations
 
+import argparse
 import json
 import re
+import sys
+import threading
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, cast
 
-import typer
+from rovlink.cli import link_options
+from rovlink.cli.failure import CommandError, UsageError
+from rovlink.cli.interrupt import GatedClient, run_in_worker
+from rovlink.protocol import Command, Decoder, Event, Frame, Response, Setting, Text
 
-import rovlink
-from rovlink.cli.link_options import (
-    AlgorithmOption,
-    BaudrateOption,
-    ChecksumOption,
-    RetriesOption,
-    TimeoutOption,
-    UrlArgument,
-)
-from rovlink.client import ClientError, CommandTextError, parse_command_text
-from rovlink.protocol import DEFAULT_ALGORITHM, Command, Event, Response, Text
+if TYPE_CHECKING:
+    from rovlink.client import Client
 
-__all__ = ["describe_reply", "group_words", "register"]
+__all__ = [
+    "EPILOG", "Outgoing", "describe_reply", "group_words", "plan",
+]
+
+EPILOG = """\
+examples:
+  rovlink send sim:// start "th 270 25" qsa stop
+  rovlink send /dev/ttyUSB0 --checksum qd '#qd!'     (the raw frame gets its checksum)
+  rovlink send socket://robot:5760 --json qsa
+  rovlink send sim:// --raw mvs -50 qd              (the exact bytes both ways)"""
 
 
 def describe_reply(response: Response) -> str:
@@ -68,85 +82,144 @@ def group_words(arguments: list[str]) -> list[str]:
 _NUMBER = re.compile(r"[+-]?\d+")
 
 
-def _parse_all(texts: list[str]) -> list[Command | bytes]:
-    """Commands of the table from friendly text, and raw frames (``#…!``) as they are."""
-    commands: list[Command | bytes] = []
+
+@dataclass(frozen=True, slots=True)
+class Outgoing:
+    """One command to send: the command, and the exact frame when it goes as typed."""
+
+    command: Command
+    #: A raw frame sent byte for byte; ``None``: the driver encodes ``command``.
+    raw: bytes | None = None
+
+
+def _decoded_command(frame: bytes, *, checksum: bool, algorithm: str) -> Command | str:
+    """The command the controller takes from ``frame`` in a mode, or why it drops it."""
+    events = Decoder(checksum_enabled=checksum, algorithm=algorithm).feed(frame)
+    if len(events) == 1 and isinstance(events[0], Frame) \
+            and isinstance(events[0].message, Command):
+        return events[0].message
+    event = events[0] if events else None
+    return getattr(event, "detail", None) or "not a command frame"
+
+
+def _raw_outgoing(text: str, *, checksum: bool, algorithm: str) -> Outgoing:
+    """A raw frame as the controller will take it in the checksum mode it will be in."""
+    if not (text.isascii() and text.startswith("#") and text.endswith("!") and len(text) > 2):
+        raise ValueError("a raw frame is '#', a body and '!'")
+    frame = text.encode("ascii")
+    taken = _decoded_command(frame, checksum=checksum, algorithm=algorithm)
+    if isinstance(taken, Command):
+        return Outgoing(taken, frame)
+    if checksum:  # typed without its checksum: the driver adds it
+        bare = _decoded_command(frame, checksum=False, algorithm=algorithm)
+        if isinstance(bare, Command):
+            return Outgoing(bare)
+    raise ValueError(f"the controller would drop it: {taken}")
+
+
+def plan(texts: list[str], *, checksum: bool, algorithm: str) -> list[Outgoing]:
+    """What to send for the command-line words, checked in the checksum mode each will meet.
+
+    >>> [str(item.command) for item in plan(["th", "90", "5", "#qd!"], checksum=False,
+    ...                                          algorithm="crc8")]
+    ['#th.90.5!', '#qd!']
+    """
+    from rovlink.client import CommandTextError, parse_command_text  # noqa: PLC0415
+
+    outgoing: list[Outgoing] = []
     for position, text in enumerate(group_words(texts), start=1):
-        if text.startswith("#"):
-            if not (text.isascii() and text.endswith("!") and len(text) > 2):
-                raise typer.BadParameter(
-                    f"command {position} ({text!r}): a raw frame is '#', a body and '!'",
-                    param_hint="COMMAND",
-                )
-            commands.append(text.encode("ascii"))  # sent exactly as given, checksum and all
-            continue
         try:
-            commands.append(parse_command_text(text))
-        except CommandTextError as error:
-            raise typer.BadParameter(
-                f"command {position} ({text!r}): {error}", param_hint="COMMAND"
-            ) from None
-    return commands
+            if text.startswith("#"):
+                item = _raw_outgoing(text, checksum=checksum, algorithm=algorithm)
+            else:
+                item = Outgoing(parse_command_text(text))
+        except (CommandTextError, ValueError) as error:
+            raise UsageError(f"command {position} ({text!r}): {error}") from None
+        setting = item.command.setting
+        if setting is not None and setting[0] is Setting.CHECKSUM:
+            checksum = setting[1]
+        outgoing.append(item)
+    return outgoing
+
+
+def _may_move(command: Command) -> bool:
+    """Whether the robot may move after ``command`` (so an interrupted run sends #stop!)."""
+    setting = command.setting
+    return command.spec.motion or setting == (Setting.LOCKED, False)
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """``send``'s arguments."""
+    link_options.add_link_options(parser, url_required=True)
+    parser.add_argument("commands", metavar="COMMAND", nargs="+",
+                        help="'qd', 'th 270 25' (or th 270 25 unquoted), 'mvs -50', or a raw "
+                        "frame such as '#qd!'")
+    parser.add_argument("--json", dest="as_json", action="store_true",
+                        help="one JSON object per command instead of text")
+    parser.add_argument("--raw", action="store_true",
+                        help="also show the exact bytes written (>>) and read (<<)")
 
 
 def _print_text(event: Event) -> None:
     if isinstance(event, Text):
-        typer.echo(f"controller: {event.text}", err=True)
+        print(f"controller: {event.text}", file=sys.stderr, flush=True)
 
 
-def register(app: typer.Typer) -> None:
-    """Add ``send`` to the command line."""
+class _Printer:
+    """Prints the bytes of a link as they go, for ``--raw``; threads print whole lines."""
 
-    # "mvs -50" unquoted: "-50" is a value, not an option.
-    @app.command(context_settings={"ignore_unknown_options": True})
-    def send(  # noqa: PLR0917 - Typer reads the options from the parameters
-        url: UrlArgument,
-        commands: list[str] = typer.Argument(
-            ..., help="Commands: 'qd', 'th 270 25', 'mvs -50', or frames such as '#qd!'."
-        ),
-        checksum: ChecksumOption = False,
-        algorithm: AlgorithmOption = DEFAULT_ALGORITHM,
-        baudrate: BaudrateOption = None,
-        timeout_s: TimeoutOption = 0.5,
-        retries: RetriesOption = 2,
-        as_json: bool = typer.Option(
-            False, "--json", help="One JSON object per command instead of text."
-        ),
-    ) -> None:
-        """Send each command in order and print the decoded replies.
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
 
-        Every command is checked before anything is sent. Example:
-        rovlink send sim:// start "th 270 25" qsa stop
-        """
-        parsed = _parse_all(commands)
+    def __call__(self, direction: str, data: bytes) -> None:
+        with self._lock:
+            print(f"{direction} {repr(data)[2:-1]}", flush=True)
+
+
+def _send_one(client: Client, item: Outgoing) -> tuple[bytes, tuple[Response, ...]]:
+    """Send one command; the frame as it went and the replies."""
+    from rovlink.client import ClientError  # noqa: PLC0415
+
+    sent = item.raw if item.raw is not None else client.frame_for(item.command)
+    try:
+        replies = (client.send(item.command) if item.raw is None
+                   else client.send_raw(item.raw))
+    except (ClientError, TimeoutError, ConnectionError) as error:
+        raise CommandError(str(error)) from None
+    if item.command.spec.is_query and not replies:
+        raise CommandError(f"{sent.decode('ascii')}: no reply")
+    return sent, replies
+
+
+def _show(sent: bytes, replies: tuple[Response, ...], *, as_json: bool) -> None:
+    if as_json:
+        print(json.dumps({"command": sent.decode("ascii"),
+                          "replies": [_reply_json(reply) for reply in replies]},
+                         ensure_ascii=False), flush=True)
+        return
+    print(f"> {sent.decode('ascii')}", flush=True)
+    for reply in replies:
+        print(f"< {describe_reply(reply)}", flush=True)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Send the commands in order; stop at the first failure."""
+    outgoing = plan(args.commands, checksum=args.checksum, algorithm=args.algorithm)
+    show_bytes = _Printer() if args.raw else None
+    client = link_options.connect(args, on_stray=_print_text, show_bytes=show_bytes)
+    gate = GatedClient(client)
+
+    def send_all() -> None:
+        for item in outgoing:
+            sent, replies = _send_one(cast("Client", gate), item)
+            _show(sent, replies, as_json=args.as_json)
+
+    with link_options.closing_unless_interrupted(client):
         try:
-            client = rovlink.connect(
-                url, timeout=timeout_s, retries=retries, checksum=checksum,
-                algorithm=algorithm, keepalive=None, baudrate=baudrate, on_stray=_print_text,
-            )
-        except ValueError as error:
-            raise typer.BadParameter(str(error)) from None
-        except ConnectionError as error:
-            typer.echo(f"error: {error}", err=True)
-            raise typer.Exit(1) from None
-        with client:
-            for command in parsed:
-                # What goes on the wire, as it goes: with its checksum in checksum mode.
-                sent = command if isinstance(command, bytes) else client.frame_for(command)
-                try:
-                    if isinstance(command, bytes):
-                        replies = client.send_raw(command)
-                    else:
-                        replies = client.send(command)
-                except (ClientError, TimeoutError) as error:
-                    typer.echo(f"error: {error}", err=True)
-                    raise typer.Exit(1) from None
-                if as_json:
-                    typer.echo(json.dumps({
-                        "command": sent.decode("ascii"),
-                        "replies": [_reply_json(reply) for reply in replies],
-                    }, ensure_ascii=False))
-                else:
-                    typer.echo(f"> {sent.decode('ascii')}")
-                    for reply in replies:
-                        typer.echo(f"< {describe_reply(reply)}")
+            run_in_worker(send_all)
+        except KeyboardInterrupt:
+            if any(_may_move(item.command) for item in outgoing):
+                gate.stop_for_good()
+                print("rovlink send: sent #stop!", file=sys.stderr, flush=True)
+            raise
+    return 0

@@ -1,120 +1,112 @@
-"""``rovlink sim``: a simulated controller on a pseudo-terminal and/or a TCP port."""
+"""Serve a simulated controller on a pseudo-terminal and/or a TCP port: open the printed port
+in any terminal program (picocom, miniterm, socat) or give it to rovlink as a URL."""
 
 from __future__ import annotations
 
-import dataclasses
+import argparse
 import signal
+import sys
 import threading
-from pathlib import Path
 from types import FrameType
-from typing import Annotated
+from typing import TYPE_CHECKING
 
-import typer
+from rovlink.cli.failure import CommandError, InputError, UsageError
+from rovlink.cli.link_options import bounded_float, positive_int, seconds
 
-from rovlink.controller import ConfigError
-from rovlink.sim.robot import SimConfig, load_sim_config
-from rovlink.sim.server import SimServer, parse_tcp_address
+if TYPE_CHECKING:
+    from rovlink.sim.robot import SimConfig
 
-__all__ = ["register"]
+__all__ = ["EPILOG"]
+
+EPILOG = """\
+examples:
+  rovlink sim                          a pseudo-terminal; its path is printed
+  rovlink sim --tcp 5760 --seed 1      TCP on 127.0.0.1:5760, reproducible noise
+  rovlink sim --pty --tcp 0.0.0.0:5760 --baud 9600 --watchdog 0"""
+
+_MAX_SIM_SECONDS = 1e9  # beyond any simulated run
 
 
-def register(app: typer.Typer) -> None:
-    """Add ``sim`` to the command line."""
+def _sim_seconds(text: str) -> float:
+    return seconds(text, maximum=_MAX_SIM_SECONDS)
 
-    @app.command()
-    def sim(
-        *,
-        tcp: Annotated[
-            str | None,
-            typer.Option(
-                "--tcp", metavar="[HOST:]PORT",
-                help="Listen on TCP (host 127.0.0.1 unless given); one client at a time.",
-            ),
-        ] = None,
-        pty: Annotated[
-            bool,
-            typer.Option("--pty", help="Open a pseudo-terminal (the default without --tcp)."),
-        ] = False,
-        baud: Annotated[
-            int | None,
-            typer.Option("--baud", "--baudrate", min=1,
-                         help="Pace the byte stream at this rate, 8N1."),
-        ] = None,
-        config: Annotated[
-            Path | None,
-            typer.Option(
-                "--config", exists=True, dir_okay=False, readable=True,
-                help="TOML file: controller tables, \\[vehicle], \\[sensors].",
-            ),
-        ] = None,
-        leak_at: Annotated[
-            float | None,
-            typer.Option(
-                "--leak-at", metavar="SECONDS", min=0.0,
-                help="Inject a 100 ms leak pulse at this simulated time.",
-            ),
-        ] = None,
-        seed: Annotated[
-            int | None, typer.Option("--seed", help="Seed for reproducible noise.")
-        ] = None,
-        speed: Annotated[
-            float,
-            typer.Option(
-                "--speed", min=0.0,
-                help="Simulated seconds per wall second; 0 runs as fast as the CPU allows.",
-            ),
-        ] = 1.0,
-        watchdog: Annotated[
-            float | None,
-            typer.Option(
-                "--watchdog", metavar="SECONDS", min=0.0,
-                help="Link-loss failsafe timeout (default from the config, 2 s); 0 turns it "
-                "off, e.g. to type commands by hand.",
-            ),
-        ] = None,
-    ) -> None:
-        """Serve a simulated controller; open the printed port in any terminal program."""
-        address = None
-        if tcp is not None:
+
+def _speed(text: str) -> float:
+    return bounded_float(text, 0.0, 1e6)
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """``sim``'s options."""
+    parser.add_argument("--tcp", metavar="[HOST:]PORT",
+                        help="listen on TCP (host 127.0.0.1 unless given); one client at a time")
+    parser.add_argument("--pty", action="store_true",
+                        help="open a pseudo-terminal (the default without --tcp)")
+    parser.add_argument("--baud", "--baudrate", dest="baud", type=positive_int, metavar="BAUD",
+                        help="pace the byte stream at this rate, 8N1 (default: unpaced)")
+    parser.add_argument("--config", metavar="FILE",
+                        help="TOML file: controller tables, [vehicle], [sensors]")
+    parser.add_argument("--leak-at", dest="leak_at", type=_sim_seconds, metavar="SECONDS",
+                        help="inject a 100 ms leak pulse at this simulated time")
+    parser.add_argument("--seed", type=int, help="seed for reproducible noise (default: random)")
+    parser.add_argument("--speed", type=_speed, default=1.0, metavar="FACTOR",
+                        help="simulated seconds per wall second; 0 runs as fast as the CPU "
+                        "allows (default: %(default)s)")
+    parser.add_argument("--watchdog", type=_sim_seconds, metavar="SECONDS",
+                        help="link-loss failsafe timeout (default: from the config, 2 s); 0 "
+                        "turns it off, e.g. to type commands by hand")
+
+
+def _robot_config(args: argparse.Namespace) -> SimConfig:
+    import dataclasses  # noqa: PLC0415
+
+    from rovlink.controller import ConfigError  # noqa: PLC0415
+    from rovlink.sim.robot import SimConfig, load_sim_config  # noqa: PLC0415
+
+    try:
+        robot_config = load_sim_config(args.config) if args.config is not None else SimConfig()
+    except ConfigError as error:  # the file's content, not the command line: no usage text
+        raise InputError(str(error)) from None
+    if args.watchdog is not None:
+        robot_config = dataclasses.replace(
+            robot_config,
+            controller=dataclasses.replace(robot_config.controller, watchdog_s=args.watchdog),
+        )
+    return robot_config
+
+
+def run(args: argparse.Namespace) -> int:
+    """Serve until Ctrl-C or SIGTERM."""
+    from rovlink.sim.server import SimServer, parse_tcp_address  # noqa: PLC0415
+
+    address = None
+    if args.tcp is not None:
+        try:
+            address = parse_tcp_address(args.tcp)
+        except ValueError as error:
+            raise UsageError(f"--tcp: {error}") from None
+    server = SimServer(_robot_config(args), seed=args.seed, baud=args.baud,
+                       speed=args.speed)
+    if args.leak_at is not None:
+        server.robot.inject_leak(at_s=args.leak_at)
+    try:
+        endpoints = []
+        if args.pty or address is None:
+            endpoints.append(f"pty {server.open_pty()}")
+        if address is not None:
             try:
-                address = parse_tcp_address(tcp)
-            except ValueError as error:
-                raise typer.BadParameter(str(error), param_hint="--tcp") from None
-        try:
-            robot_config = load_sim_config(config) if config is not None else SimConfig()
-            if watchdog is not None:
-                robot_config = dataclasses.replace(
-                    robot_config,
-                    controller=dataclasses.replace(robot_config.controller, watchdog_s=watchdog),
-                )
-        except ConfigError as error:  # the file's content, not the usage: one line, no box
-            typer.echo(f"rovlink sim: {error}", err=True)
-            raise typer.Exit(2) from None
-
-        server = SimServer(robot_config, seed=seed, baud=baud, speed=speed)
-        if leak_at is not None:
-            server.robot.inject_leak(at_s=leak_at)
-        try:
-            endpoints = []
-            if pty or address is None:
-                endpoints.append(f"pty {server.open_pty()}")
-            if address is not None:
-                try:
-                    host, port = server.listen_tcp(*address)
-                except OSError as error:
-                    typer.echo(f"rovlink sim: cannot listen on {tcp}: {error.strerror}", err=True)
-                    raise typer.Exit(1) from None
-                endpoints.append(f"tcp {host}:{port}")
-            stop = _stop_on_signals()
-            pacing = f"{baud} baud" if baud else "unpaced"
-            typer.echo(
-                f"rovlink sim ready: {', '.join(endpoints)} "
-                f"(seed {server.robot.seed}, {pacing}); Ctrl-C stops"
-            )
-            server.serve(stop.is_set)
-        finally:
-            server.close()
-        typer.echo("rovlink sim stopped", err=True)
+                host, port = server.listen_tcp(*address)
+            except OSError as error:
+                raise CommandError(f"cannot listen on {args.tcp}: {error.strerror}") from None
+            endpoints.append(f"tcp {host}:{port}")
+        stop = _stop_on_signals()
+        pacing = f"{args.baud} baud" if args.baud else "unpaced"
+        print(f"rovlink sim ready: {', '.join(endpoints)} "
+              f"(seed {server.robot.seed}, {pacing}); Ctrl-C stops", flush=True)
+        server.serve(stop.is_set)
+    finally:
+        server.close()
+    print("rovlink sim stopped", file=sys.stderr)
+    return 0
 
 
 def _stop_on_signals() -> threading.Event:

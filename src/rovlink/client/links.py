@@ -448,12 +448,12 @@ def _open_error(endpoint: Endpoint, error: BaseException) -> str:
         return f"{name} is already open in another program (a port has one host at a time)"
     if errno_value == errno.ENOTTY or "Inappropriate ioctl" in text:
         return f"{name}: not a serial port"
-    if errno_value == errno.ENOENT or "No such file" in text:
-        return f"{name}: no such device"
     if errno_value == errno.EACCES or "Permission denied" in text:
         return f"{name}: permission denied (is the user in the dialout group?)"
     reason = getattr(error, "strerror", None) or text
-    return f"could not open {name}: {reason}"
+    if errno_value == errno.ENOENT or "No such file" in text:
+        reason = os.strerror(errno.ENOENT)
+    return f"cannot open {name}: {reason}"
 
 
 def _open_tcp(endpoint: Endpoint) -> Link:
@@ -461,7 +461,7 @@ def _open_tcp(endpoint: Endpoint) -> Link:
         sock = socket.create_connection((endpoint.host, endpoint.port), CONNECT_TIMEOUT_S)
     except OSError as error:
         reason = error.strerror or str(error)
-        raise ConnectError(f"could not connect to {endpoint.url}: {reason}") from error
+        raise ConnectError(f"cannot open {endpoint.url}: {reason}") from error
     return SocketLink(sock, f"tcp {endpoint.target}")
 
 
@@ -473,7 +473,7 @@ def _open_registered(endpoint: Endpoint) -> Link:
     try:
         port = handler.open_url(endpoint.target)
     except (OSError, ValueError) as error:
-        raise ConnectError(f"could not open {endpoint.url}: {error}") from error
+        raise ConnectError(f"cannot open {endpoint.url}: {error}") from error
     return PortLink(port, getattr(handler, "DESCRIPTION", endpoint.url))
 
 

@@ -9,16 +9,16 @@ controller's debug text is logged at INFO, stray frames at DEBUG.
 
 from __future__ import annotations
 
-import logging
 from collections.abc import Iterable
 
 from rovlink.client.events import ClientEvent, EventCallback, MotionExpired, ResetSuspected
 from rovlink.client.options import StrayCallback
+from rovlink.logs import get_logger
 from rovlink.protocol import BadFrame, Event, Frame, Text
 
 __all__ = ["DROP_WARNING_PERIOD_S", "DropLog", "deliver"]
 
-logger = logging.getLogger("rovlink.client")
+logger = get_logger("rovlink.client")
 
 #: At most one warning about dropped frames this often.
 DROP_WARNING_PERIOD_S = 10.0

@@ -10,6 +10,7 @@ and how to type the command at the cursor.
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import contextvars
 from collections.abc import Awaitable, Callable, Iterable
 from pathlib import Path
@@ -25,13 +26,14 @@ from prompt_toolkit.styles import Style
 from prompt_toolkit.validation import ValidationError, Validator
 
 from rovlink.aio import AsyncClient
+from rovlink.client import ClientError
 from rovlink.client.options import StrayCallback
 from rovlink.console.actions import InputError, Quit, parse_line
 from rovlink.console.completion import argument_hint, suggestions
 from rovlink.console.engine import ConsoleEngine
 from rovlink.console.help import STOP_KEY_TEXT
 from rovlink.console.transcript import Line, info_line
-from rovlink.operator import LockState, TrackedClient
+from rovlink.piloting import LockState, TrackedClient
 
 __all__ = ["STYLE", "Connector", "ConsoleCompleter", "ConsoleValidator", "run_console"]
 
@@ -183,4 +185,18 @@ async def run_console(connect: Connector, *, algorithm: str = "crc8",
     finally:
         if not runner.done():
             runner.cancel()
+        await _stop_unless_locked(rov)
         await client.close()
+
+
+#: How long leaving may wait for ``#stop!`` to be written (it is not acknowledged).
+_STOP_WRITE_TIMEOUT_S = 1.0
+
+
+async def _stop_unless_locked(rov: TrackedClient) -> None:
+    """``#stop!`` on the way out unless the motors are locked as last sent: leaving by
+    ``quit`` has sent it already; leaving by Ctrl-C (SIGINT) or an error has not."""
+    if rov.client.closed or rov.commanded.lock is LockState.LOCKED:
+        return
+    with contextlib.suppress(ClientError, TimeoutError, ConnectionError):
+        await asyncio.wait_for(rov.stop(), _STOP_WRITE_TIMEOUT_S)

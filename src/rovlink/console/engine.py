@@ -9,7 +9,6 @@ has to say goes to ``emit`` as :data:`~rovlink.console.transcript.Line` values.
 from __future__ import annotations
 
 import asyncio
-import logging
 from collections.abc import Callable
 
 from rovlink.client import ClientError
@@ -31,12 +30,13 @@ from rovlink.console.transcript import (
     reply_line,
     sent_lines,
 )
-from rovlink.operator import LockState, SentFrame, TrackedClient
+from rovlink.logs import get_logger
+from rovlink.piloting import LockState, SentFrame, TrackedClient
 from rovlink.protocol import Command, Event, Response
 
 __all__ = ["ConsoleEngine", "status_lines"]
 
-logger = logging.getLogger("rovlink.console")
+logger = get_logger("rovlink.console")
 
 Emit = Callable[[Line], None]
 
@@ -61,7 +61,7 @@ def status_lines(rov: TrackedClient) -> list[str]:
 
 
 class ConsoleEngine:
-    """Runs console actions on a :class:`~rovlink.operator.TrackedClient`, in order.
+    """Runs console actions on a :class:`~rovlink.piloting.TrackedClient`, in order.
 
     Make it first (its :meth:`on_event` is the client's ``on_stray``), then :meth:`attach` the
     client, then run :meth:`run` while the prompt :meth:`submit`s lines.

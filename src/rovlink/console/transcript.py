@@ -7,7 +7,7 @@ without prompt_toolkit, so the words can be tested on their own. Styles are clas
 
 from __future__ import annotations
 
-from rovlink.operator import SentFrame, reply_text
+from rovlink.piloting import SentFrame, reply_text
 from rovlink.protocol import BadFrame, Event, Frame, Response, Text, encode
 
 __all__ = [

@@ -8,7 +8,6 @@ reached only through :class:`~rovlink.controller.hardware.Hardware`.
 
 from __future__ import annotations
 
-import logging
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -18,6 +17,7 @@ from rovlink.controller.debug_output import debug_line, describe_frame
 from rovlink.controller.hardware import Hardware
 from rovlink.controller.mixer import ThrusterMixer
 from rovlink.controller.pid import DepthPid
+from rovlink.logs import get_logger
 from rovlink.protocol import (
     COMMANDS,
     BadFrame,
@@ -34,7 +34,7 @@ from rovlink.protocol import (
 
 __all__ = ["Controller", "ControllerState"]
 
-logger = logging.getLogger(__name__)
+logger = get_logger(__name__)
 
 _MAX_DEPTH_CM = 9999
 _FULL_UP_PERCENT = 100

@@ -37,7 +37,7 @@ from rovlink.monitor.panels import (
     link_text,
 )
 from rovlink.monitor.readings import DEFAULT_WINDOW_S, Readings
-from rovlink.operator import LockState, SentFrame, TrackedClient
+from rovlink.piloting import LockState, SentFrame, TrackedClient
 from rovlink.protocol import BadFrame, Command, Event
 from rovlink.protocol import Text as DebugText
 
@@ -48,6 +48,8 @@ Connector = Callable[[StrayCallback], Awaitable[AsyncClient]]
 
 #: How often the panels are redrawn between readings (silence grows, link figures change).
 _REDRAW_S = 0.25
+#: How long leaving may wait for ``#stop!`` to be written (it is not acknowledged).
+_STOP_WRITE_TIMEOUT_S = 1.0
 
 
 class Panel(Widget):
@@ -184,6 +186,11 @@ class MonitorApp(App[None]):
                 self._redraw()
                 await asyncio.sleep(max(self.period_s - (loop.time() - started_s), 0.0))
         finally:
+            # Leaving any other way than q (SIGINT, SIGTERM, an error) cancels this loop:
+            # the robot this monitor may have moved is stopped on the way out.
+            if not client.closed and rov.commanded.lock is not LockState.LOCKED:
+                with contextlib.suppress(ClientError, TimeoutError, ConnectionError):
+                    await asyncio.wait_for(rov.stop(), _STOP_WRITE_TIMEOUT_S)
             self._redraw()
 
     def _on_event(self, event: Event) -> None:

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from rovlink.operator import CommandedState
+from rovlink.piloting import CommandedState
 from rovlink.protocol import Command, VerticalMode, lookup
 
 __all__ = [

@@ -7,7 +7,8 @@ from rich.text import Text
 from rovlink.client import LinkCounters
 from rovlink.monitor.compass import attitude_bar, heading_tape
 from rovlink.monitor.readings import Readings
-from rovlink.operator import CommandedState, LinkHealth, LockState
+from rovlink.piloting import CommandedState, LinkHealth, LockState
+from rovlink.protocol import Command
 
 __all__ = [
     "STALE_AFTER_POLLS",
@@ -89,6 +90,14 @@ def leak_text(readings: Readings) -> Text:
     return Text("no leak (q.l = 0)", style="green")
 
 
+def _drop_reason(commanded: CommandedState, command: Command) -> str:
+    """Why the controller drops a command, in a few words (the notification says it all);
+    a dropped command changes nothing, so the state now is the state it met."""
+    if command.spec.motion and commanded.lock is LockState.LOCKED:
+        return "locked"
+    return f"{commanded.vertical_mode} mode"
+
+
 def commanded_text(commanded: CommandedState) -> Text:
     """Lock, vertical mode and set-points, as last sent by this monitor (the panel says so)."""
     text = Text()
@@ -100,7 +109,12 @@ def commanded_text(commanded: CommandedState) -> Text:
          else "unknown: none sent")
     _row(text, "horizontal", f"{commanded.direction_deg}° at {commanded.power_percent} %")
     last = commanded.last_command
-    _row(text, "last sent", "—" if last is None else str(last), "dim")
+    if last is None:
+        _row(text, "last sent", "—", "dim")
+    elif commanded.last_dropped_because is not None:
+        _row(text, "last sent", f"{last}  (dropped: {_drop_reason(commanded, last)})", "yellow")
+    else:
+        _row(text, "last sent", str(last), "dim")
     text.rstrip()
     return text
 

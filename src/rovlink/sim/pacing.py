@@ -6,12 +6,13 @@ real time and as fast as possible, and tests need no sleeping.
 
 from __future__ import annotations
 
-import logging
 import math
+
+from rovlink.logs import get_logger
 
 __all__ = ["BITS_PER_BYTE_8N1", "LinePacer", "TickSchedule"]
 
-logger = logging.getLogger(__name__)
+logger = get_logger(__name__)
 
 #: A start bit, eight data bits, no parity, one stop bit.
 BITS_PER_BYTE_8N1 = 10

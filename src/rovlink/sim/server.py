@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import contextlib
 import errno
-import logging
 import os
 import selectors
 import socket
@@ -23,12 +22,13 @@ import time
 import tty
 from collections.abc import Callable
 
+from rovlink.logs import get_logger
 from rovlink.sim.pacing import LinePacer, TickSchedule
 from rovlink.sim.robot import SimConfig, SimulatedRobot
 
 __all__ = ["BUSY_MESSAGE", "SimServer", "parse_tcp_address"]
 
-logger = logging.getLogger(__name__)
+logger = get_logger(__name__)
 
 #: What a second TCP client reads before it is disconnected.
 BUSY_MESSAGE = b"busy: the simulated controller already has a client\r\n"

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from rovlink.operator import reading_text, reply_text
+from rovlink.piloting import reading_text, reply_text
 from rovlink.protocol import RESPONSES, Response
 
 

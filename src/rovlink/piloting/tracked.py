@@ -14,8 +14,8 @@ from dataclasses import dataclass
 from rovlink.aio import AsyncClient
 from rovlink.client.operations import SENSORS, raw_frame
 from rovlink.client.sensors import Sensors
-from rovlink.operator.commanded import CommandedState
-from rovlink.operator.health import LinkHealth
+from rovlink.piloting.commanded import CommandedState
+from rovlink.piloting.health import LinkHealth
 from rovlink.protocol import (
     DEFAULT_ALGORITHM,
     Command,

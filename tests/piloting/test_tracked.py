@@ -6,9 +6,9 @@ import pytest
 
 from rovlink.aio import AsyncClient
 from rovlink.client import ClientOptions, QueryTimeoutError
-from rovlink.operator import SentFrame, TrackedClient
+from rovlink.piloting import SentFrame, TrackedClient
 from rovlink.protocol import Command
-from tests.operator.rig import Rig, SilentController
+from tests.piloting.rig import Rig, SilentController
 
 
 async def test_sent_frames_are_reported_as_written_and_update_the_state() -> None:

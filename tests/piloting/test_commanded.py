@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from rovlink.operator import CommandedState, LockState
+from rovlink.piloting import CommandedState, LockState
 from rovlink.protocol import Command, VerticalMode
 
 
@@ -43,6 +43,10 @@ def test_motion_while_locked_is_reported_as_dropped_and_changes_nothing(command:
     assert warning is not None
     assert command.name in warning
     assert "locked (as last sent)" in warning
+    # Nothing the controller holds changes; the command is still the last one sent.
+    assert state.last_command == command
+    assert state.last_dropped_because == warning
+    state.last_command, state.last_dropped_because = before.last_command, None
     assert state == before
 
 

@@ -1,4 +1,4 @@
-"""What the operator tools (``rovlink console``, ``rovlink monitor``) share.
+"""What the piloting tools (``rovlink console``, ``rovlink monitor``) share.
 
 * :class:`CommandedState` — the lock, vertical mode and set-points as this tool last sent them:
   the protocol has no query for them, so the tools say "as last sent", never "is".
@@ -7,10 +7,10 @@
 * :func:`reading_text` — a reply in words, ``qd → 123 cm``.
 """
 
-from rovlink.operator.commanded import CommandedState, LockState
-from rovlink.operator.health import LinkHealth
-from rovlink.operator.readings import reading_text, reply_text
-from rovlink.operator.tracked import SentFrame, TrackedClient
+from rovlink.piloting.commanded import CommandedState, LockState
+from rovlink.piloting.health import LinkHealth
+from rovlink.piloting.readings import reading_text, reply_text
+from rovlink.piloting.tracked import SentFrame, TrackedClient
 
 __all__ = [
     "CommandedState",

@@ -47,17 +47,28 @@ class CommandedState:
     vertical_thrust_percent: int = 0
     direction_deg: int = 0
     power_percent: int = 0
-    #: The last setting or motion command sent that the controller will have acted on (as far
-    #: as this tool knows); queries are not kept.
+    #: The last setting or motion command sent, also one the controller drops (it was still
+    #: sent: a key pressed while locked shows); queries are not kept.
     last_command: Command | None = None
+    #: Why the controller drops :attr:`last_command` (as last sent); ``None`` if it acts on it.
+    last_dropped_because: str | None = None
 
     def apply(self, command: Command) -> str | None:
-        """Record a command just sent; a warning if the controller will drop it, else ``None``."""
+        """Record a command just sent; a warning if the controller will drop it, else ``None``.
+
+        >>> state = CommandedState()
+        >>> state.apply(Command("stop"))
+        >>> state.apply(Command("th", (90, 30))) is not None
+        True
+        >>> str(state.last_command)
+        '#th.90.30!'
+        """
         warning = self._dropped_because(command)
-        if warning is not None:
-            return warning
         if not command.spec.is_query:
             self.last_command = command
+            self.last_dropped_because = warning
+        if warning is not None:
+            return warning
         name = command.name
         if name == "stop":
             self.lock = LockState.LOCKED

@@ -1,0 +1,88 @@
+"""Ctrl-C ends a command at once, after ``#stop!`` where the robot may have moved.
+
+A KeyboardInterrupt raised in the middle of the driver's code (between taking a lock and
+releasing it) could leave the driver unable to send anything, ``#stop!`` included. So a command
+that drives the robot runs its work in a worker thread (:func:`run_in_worker`) while the main
+thread only waits, where Ctrl-C lands harmlessly; the work talks to the robot through a
+:class:`GatedClient`, which the main thread shuts (:meth:`GatedClient.stop_for_good`) so that
+``#stop!`` is the last frame the command sends.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import threading
+from collections.abc import Callable
+from typing import Any, TypeVar
+
+__all__ = ["GatedClient", "Interrupted", "run_in_worker"]
+
+T = TypeVar("T")
+
+#: How long the main thread waits for a call in progress to finish before it sends ``#stop!``.
+#: A command that moves the robot is only written, never waits so long; a call that takes
+#: longer is a query waiting for its reply, which moves nothing.
+_CALL_IN_PROGRESS_WAIT_S = 0.2
+
+
+class Interrupted(Exception):  # noqa: N818 - a state, not an error
+    """The command was interrupted; its worker stops at its next call to the robot."""
+
+
+class GatedClient:
+    """A client whose calls stop for good after :meth:`stop_for_good` (they raise
+    :class:`Interrupted`); attributes that are not methods pass through."""
+
+    def __init__(self, client: Any) -> None:
+        self._client = client
+        self._lock = threading.Lock()  # held by a call in progress
+        self._shut = False
+
+    def __getattr__(self, name: str) -> Any:
+        attribute = getattr(self._client, name)
+        if not callable(attribute):
+            return attribute
+
+        def call(*args: Any, **kwargs: Any) -> Any:
+            with self._lock:
+                if self._shut:
+                    raise Interrupted
+                return attribute(*args, **kwargs)
+
+        return call
+
+    def stop_for_good(self) -> None:
+        """Shut the gate and send ``#stop!``; no call through the gate sends anything after it.
+
+        Called from the main thread: a call in progress either finishes within a moment (a
+        command, only written) or is a query (which moves nothing) still waiting.
+        """
+        self._shut = True
+        taken = self._lock.acquire(timeout=_CALL_IN_PROGRESS_WAIT_S)
+        try:
+            with contextlib.suppress(Exception):
+                self._client.stop()
+        finally:
+            if taken:
+                self._lock.release()
+
+
+def run_in_worker(work: Callable[[], T]) -> T:
+    """``work()`` in a daemon thread; its result or exception, or KeyboardInterrupt at once
+    when Ctrl-C comes (the worker is left behind: the process is ending)."""
+    outcome: list[T] = []
+    failure: list[BaseException] = []
+
+    def target() -> None:
+        try:
+            outcome.append(work())
+        except BaseException as error:  # re-raised in the main thread
+            failure.append(error)
+
+    worker = threading.Thread(target=target, name="rovlink command", daemon=True)
+    worker.start()
+    while worker.is_alive():
+        worker.join(0.1)  # Ctrl-C interrupts the wait here, never the work
+    if failure:
+        raise failure[0]
+    return outcome[0]

@@ -1,0 +1,38 @@
+"""Running ``rovlink`` in-process: ``run_cli("send", "sim://", "qd")`` → status, stdout, stderr."""
+
+from __future__ import annotations
+
+import io
+import sys
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import pytest
+
+from rovlink.cli import main
+
+
+@dataclass(frozen=True)
+class CliResult:
+    """What a run of the command line returned and printed."""
+
+    status: int
+    out: str
+    err: str
+
+
+RunCli = Callable[..., CliResult]
+
+
+@pytest.fixture
+def run_cli(capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch) -> RunCli:
+    """Run ``rovlink ARGS``; ``stdin=b"…"`` gives its standard input."""
+
+    def run(*argv: str, stdin: bytes = b"") -> CliResult:
+        monkeypatch.setattr(sys, "stdin", io.TextIOWrapper(io.BytesIO(stdin)))
+        capsys.readouterr()
+        status = main(list(argv))
+        captured = capsys.readouterr()
+        return CliResult(status, captured.out, captured.err)
+
+    return run

@@ -1,0 +1,119 @@
+"""Ctrl-C ends a command at once, after ``#stop!`` where the robot may have moved; a query with
+no reply fails. Against a controller that never answers: a TCP listener that only reads."""
+
+from __future__ import annotations
+
+import os
+import signal
+import socket
+import subprocess
+import sys
+import threading
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+
+from tests.cli.conftest import RunCli
+
+pytestmark = pytest.mark.integration
+
+#: Generous: the command should exit in a few milliseconds; a loaded machine is slower.
+EXIT_BOUND_S = 1.5
+WAIT_S = 15.0
+
+
+class SilentController:
+    """Accepts one connection and records what it reads; never answers."""
+
+    def __init__(self) -> None:
+        self._server = socket.create_server(("127.0.0.1", 0))
+        self.port = self._server.getsockname()[1]
+        self.received = b""
+        self._changed = threading.Condition()
+        self._thread = threading.Thread(target=self._serve, daemon=True)
+        self._thread.start()
+
+    @property
+    def url(self) -> str:
+        return f"socket://127.0.0.1:{self.port}"
+
+    def _serve(self) -> None:
+        connection, _ = self._server.accept()
+        with connection:
+            while data := connection.recv(4096):
+                with self._changed:
+                    self.received += data
+                    self._changed.notify_all()
+
+    def wait_for(self, frame: bytes, timeout_s: float = WAIT_S) -> bool:
+        """Whether ``frame`` arrived within ``timeout_s``."""
+        with self._changed:
+            return self._changed.wait_for(lambda: frame in self.received, timeout_s)
+
+    def close(self) -> None:
+        self._server.close()
+
+
+@pytest.fixture
+def silent() -> Iterator[SilentController]:
+    controller = SilentController()
+    yield controller
+    controller.close()
+
+
+def _rovlink(*arguments: str) -> subprocess.Popen[bytes]:
+    source = str(Path(__file__).resolve().parents[2] / "src")
+    environment = {**os.environ, "PYTHONPATH": source}
+    # A silent controller: --boot-timeout 0 lets the command reach its own wait (not the
+    # readiness probe's) before the test interrupts it.
+    arguments = (arguments[0], "--boot-timeout", "0", *arguments[1:])
+    return subprocess.Popen([sys.executable, "-m", "rovlink", *arguments],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=environment)
+
+
+def _interrupt(process: subprocess.Popen[bytes]) -> tuple[float, bytes]:
+    started = time.monotonic()
+    process.send_signal(signal.SIGINT)
+    _, stderr = process.communicate(timeout=WAIT_S)
+    return time.monotonic() - started, stderr
+
+
+def test_ctrl_c_ends_send_waiting_for_a_silent_controller_at_once(
+        silent: SilentController) -> None:
+    process = _rovlink("send", silent.url, "qd", "--timeout", "60")
+    assert silent.wait_for(b"#qd!")
+    elapsed_s, stderr = _interrupt(process)
+    assert process.returncode == 130
+    assert elapsed_s < EXIT_BOUND_S
+    assert stderr.decode().splitlines()[-1] == "rovlink send: interrupted"
+    assert b"#stop!" not in silent.received  # only a query was sent: nothing moved
+
+
+def test_ctrl_c_after_a_motion_command_sends_stop_first(silent: SilentController) -> None:
+    process = _rovlink("send", silent.url, "start", "th 0 30", "qd", "--timeout", "60")
+    assert silent.wait_for(b"#qd!")
+    elapsed_s, _ = _interrupt(process)
+    assert process.returncode == 130
+    assert elapsed_s < EXIT_BOUND_S
+    assert silent.wait_for(b"#stop!")
+    assert silent.received.index(b"#stop!") > silent.received.index(b"#th.0.30!")
+
+
+def test_ctrl_c_ends_the_demo_with_stop(silent: SilentController) -> None:
+    process = _rovlink("demo", silent.url, "--timeout", "60")
+    assert silent.wait_for(b"#qsa!")  # unlocked, diving, polling the sensors
+    elapsed_s, _ = _interrupt(process)
+    assert process.returncode == 130
+    assert elapsed_s < EXIT_BOUND_S
+    assert silent.wait_for(b"#stop!")
+
+
+def test_a_query_without_a_reply_fails_in_one_line(run_cli: RunCli,
+                                                   silent: SilentController) -> None:
+    result = run_cli("send", silent.url, "qd", "--timeout", "0.05", "--retries", "0",
+                     "--boot-timeout", "0")
+    assert result.status == 1
+    assert result.err == ("rovlink send: #qd! got no valid reply within 0.05 s "
+                          "(1 attempt: timeout)\n")
