@@ -161,7 +161,10 @@ def test_keepalive_holds_off_the_link_loss_failsafe(keepalive_s: float | None) -
             port.advance(0.15)  # longer than the keep-alive interval, shorter than the watchdog
             if keepalive_s:
                 # The idle link's keep-alive is sent, and answered, before time moves on.
-                assert wait_until(lambda count=step: rov.counters.replies >= count)
+                def answered(count: int = step) -> bool:
+                    return rov.counters.replies >= count
+
+                assert wait_until(answered)
         if keepalive_s:
             assert (state().locked, state().power_percent) == (False, 30)
             assert rov.counters.keepalives == 10
@@ -196,7 +199,7 @@ async def test_every_method_of_the_async_client() -> None:
             rov.pitch_deg(), rov.heading_deg(), rov.sensors(),
         )
         assert results[2] is False
-        check_sensors(results[6])
+        check_sensors(results[6])  # type: ignore[arg-type]
         assert await rov.send_raw("#q.l!") == (Response("q.l", (0,)),)
         await rov.set_checksum(True)
         assert state().checksum_enabled

@@ -19,7 +19,7 @@ from rovlink.client.events import (
     Unsolicited,
 )
 from rovlink.client.links import SocketLink
-from rovlink.protocol import BadFrame
+from rovlink.protocol import BadFrame, Reason
 from tests.client.fake_controller import FakeController
 
 
@@ -58,7 +58,7 @@ def test_dropped_frames_are_debug_lines_with_a_periodic_warning(
 
     caplog.set_level(logging.DEBUG, logger="rovlink")
     log = DropLog(period_s=10.0)
-    bad = BadFrame(b"$qd.1x!", "malformed", "x")
+    bad = BadFrame(Reason.MALFORMED, b"$qd.1x!", "x")
     for second in range(30):
         log.report([bad] * 10, None, now=float(second))
     warnings = [record for record in caplog.records if record.levelno == logging.WARNING]

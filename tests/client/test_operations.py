@@ -39,7 +39,8 @@ def test_both_clients_have_every_method_with_the_same_signature(method: str) -> 
     [
         (lambda: ops.move(361, 10), "move: direction_deg must be in 0–360 (#th), got 361"),
         (lambda: ops.move(90, -1), "move: power_percent must be in 0–100 (#th), got -1"),
-        (lambda: ops.move(90, 12.5), "move: power_percent must be in 0–100 (#th), got 12.5"),
+        (lambda: ops.move(90, 12.5),  # type: ignore[arg-type]
+         "move: power_percent must be in 0–100 (#th), got 12.5"),
         (lambda: ops.max_pwm(256), "set_max_pwm: duty must be in 0–255 (#mgmp), got 256"),
         (lambda: ops.vertical_thrust(101),
          "set_vertical_thrust: percent must be in -100…+100 (#mvs), got 101"),
@@ -70,9 +71,12 @@ def test_invalid_argument_error_carries_the_details() -> None:
     ("call", "message"),
     [
         (lambda: ops.move(True, 10), "move: direction_deg must be an integer, got True"),
-        (lambda: ops.move("90", 10), "move: direction_deg must be an integer, got '90'"),
-        (lambda: ops.checksum(1), "set_checksum: enabled must be True or False, got 1"),
-        (lambda: ops.direct_mode("yes"), "set_direct_mode: enabled must be True or False"),
+        (lambda: ops.move("90", 10),  # type: ignore[arg-type]
+         "move: direction_deg must be an integer, got '90'"),
+        (lambda: ops.checksum(1),  # type: ignore[arg-type]
+         "set_checksum: enabled must be True or False, got 1"),
+        (lambda: ops.direct_mode("yes"),  # type: ignore[arg-type]
+         "set_direct_mode: enabled must be True or False"),
     ],
 )
 def test_wrong_types_are_type_errors(call: object, message: str) -> None:
@@ -81,5 +85,5 @@ def test_wrong_types_are_type_errors(call: object, message: str) -> None:
 
 
 def test_whole_floats_and_integer_likes_are_accepted() -> None:
-    assert str(ops.move(90.0, 50)) == "#th.90.50!"
+    assert str(ops.move(90.0, 50)) == "#th.90.50!"  # type: ignore[arg-type]
     assert [str(c) for c in ops.depth_pid(i=0)] == ["#mvpdi.0!"]

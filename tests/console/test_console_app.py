@@ -160,7 +160,7 @@ def test_cli_console_on_sim(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> 
     """``rovlink console sim://``: the real URL, history in the user's state directory."""
     monkeypatch.setenv("XDG_STATE_HOME", str(tmp_path))
     links: list[RecordingLink] = []
-    open_link = rovlink.aio.client.open_link
+    open_link = rovlink.aio.client.open_link  # type: ignore[attr-defined]
 
     def recording_open_link(endpoint: object) -> Link:
         link = RecordingLink(open_link(endpoint))  # type: ignore[arg-type]

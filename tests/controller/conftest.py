@@ -3,7 +3,8 @@
 from __future__ import annotations
 
 import pytest
-from controller_rig import Rig, make_rig
+
+from tests.controller.controller_rig import Rig, make_rig
 
 
 @pytest.fixture

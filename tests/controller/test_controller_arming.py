@@ -3,9 +3,9 @@
 from __future__ import annotations
 
 import pytest
-from controller_rig import Rig
 
 from rovlink.protocol import VerticalMode
+from tests.controller.controller_rig import Rig
 
 MOTION = [b"#mvd.100!", b"#th.0.100!", b"#h+!", b"#h-!"]
 

@@ -3,12 +3,12 @@
 from __future__ import annotations
 
 import pytest
-from controller_rig import Rig, make_rig
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from rovlink.controller import ControllerState
 from rovlink.protocol import COMMANDS, Spec
+from tests.controller.controller_rig import Rig, make_rig
 
 
 def _armed_state_rig() -> Rig:

@@ -2,10 +2,9 @@
 
 from __future__ import annotations
 
-from controller_rig import Rig, make_rig
-
 from rovlink.protocol import Response, encode
 from rovlink.protocol.checksum import get_algorithm
+from tests.controller.controller_rig import Rig, make_rig
 
 
 def _with_crc(body: bytes, algorithm: str = "crc8") -> bytes:

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from controller_rig import TICK_S, Rig, make_rig
+from tests.controller.controller_rig import TICK_S, Rig, make_rig
 
 
 def test_h_plus_opens_for_one_pulse(armed_rig: Rig) -> None:

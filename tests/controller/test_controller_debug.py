@@ -3,11 +3,11 @@
 from __future__ import annotations
 
 import pytest
-from controller_rig import Rig, make_rig
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from rovlink.protocol import BadFrame, Decoder, Frame, Text
+from tests.controller.controller_rig import Rig, make_rig
 
 
 def _lines(output: bytes) -> list[bytes]:

@@ -3,9 +3,9 @@
 from __future__ import annotations
 
 import pytest
-from controller_rig import Rig, make_rig
 
 from rovlink.controller import ControllerConfig, DepthCalibration
+from tests.controller.controller_rig import Rig, make_rig
 
 
 @pytest.mark.parametrize(

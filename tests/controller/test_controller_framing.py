@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from controller_rig import Rig
+from tests.controller.controller_rig import Rig
 
 
 def _padded_mvd(total_bytes: int, target_cm: int = 100) -> bytes:

@@ -2,10 +2,9 @@
 
 from __future__ import annotations
 
-from controller_rig import Rig, make_rig
-
 from rovlink.controller import LeakAction
 from rovlink.protocol import VerticalMode
+from tests.controller.controller_rig import Rig, make_rig
 
 
 def test_no_leak_after_reset(rig: Rig) -> None:

@@ -6,11 +6,11 @@ arrived, and a dropped frame is reported only if debug output was on when it arr
 
 from __future__ import annotations
 
-from controller_rig import Rig, make_rig
 from hypothesis import given
 from hypothesis import strategies as st
 
 from rovlink.protocol import Decoder, Frame, Response, Text, encode
+from tests.controller.controller_rig import Rig, make_rig
 
 
 def _feed_in_chunks(rig: Rig, data: bytes, cuts: list[int]) -> bytes:

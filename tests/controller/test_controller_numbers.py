@@ -3,7 +3,8 @@
 from __future__ import annotations
 
 import pytest
-from controller_rig import Rig
+
+from tests.controller.controller_rig import Rig
 
 
 def test_leading_zeros_are_accepted(armed_rig: Rig) -> None:

@@ -3,10 +3,10 @@
 from __future__ import annotations
 
 import pytest
-from controller_rig import Rig
 
 from rovlink.controller import Attitude
 from rovlink.protocol import COMMANDS, Decoder, Frame, Kind, Spec, Text, VerticalMode
+from tests.controller.controller_rig import Rig
 
 
 def _valid_frame(spec: Spec) -> bytes:

@@ -2,10 +2,9 @@
 
 from __future__ import annotations
 
-from controller_rig import Rig, make_rig
-
 from rovlink.controller import ControllerConfig, DepthPidConfig
 from rovlink.protocol import VerticalMode
+from tests.controller.controller_rig import Rig, make_rig
 
 
 def test_depth_mode_after_reset(rig: Rig) -> None:

@@ -3,7 +3,8 @@
 from __future__ import annotations
 
 import pytest
-from controller_rig import TICK_S, Rig, make_rig
+
+from tests.controller.controller_rig import TICK_S, Rig, make_rig
 
 
 def _trip_time_s(rig: Rig, limit_s: float = 10.0) -> float:

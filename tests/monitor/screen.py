@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import io
+from typing import Any
 
 from rich.console import Console
 from textual.app import App
@@ -11,7 +12,7 @@ from textual.widgets import Digits, Static
 from rovlink.monitor.app import Panel
 
 
-def screen_text(app: App[object]) -> str:
+def screen_text(app: App[Any]) -> str:
     """The whole screen as plain text (what ``export_screenshot`` draws, without the SVG)."""
     width, height = app.size
     console = Console(width=width, height=height, file=io.StringIO(), record=True,
@@ -20,7 +21,7 @@ def screen_text(app: App[object]) -> str:
     return console.export_text()
 
 
-def shown(app: App[object], selector: str) -> str:
+def shown(app: App[Any], selector: str) -> str:
     """The text of one widget."""
     widget = app.query_one(selector)
     if isinstance(widget, Panel):

@@ -163,7 +163,7 @@ async def test_footer_shows_the_keys() -> None:
 
 def _record_links(monkeypatch: pytest.MonkeyPatch) -> list[RecordingLink]:
     links: list[RecordingLink] = []
-    open_link = rovlink.aio.client.open_link
+    open_link = rovlink.aio.client.open_link  # type: ignore[attr-defined]
 
     def recording_open_link(endpoint: object) -> Link:
         link = RecordingLink(open_link(endpoint))  # type: ignore[arg-type]

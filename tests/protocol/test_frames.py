@@ -9,6 +9,7 @@ from rovlink.protocol import (
     RESPONSES,
     ArgumentCountError,
     ArgumentError,
+    BadFrame,
     Command,
     Decoder,
     Frame,
@@ -137,7 +138,7 @@ def test_range_edges_decode(name: str, kind: Kind, index: int, value: int, valid
         assert isinstance(event, Frame)
         assert event.message.values[index] == value
     else:
-        assert not isinstance(event, Frame)
+        assert isinstance(event, BadFrame)
         spec = next(s for s in (*COMMANDS, *RESPONSES) if s.name == name and s.kind is kind)
         # An unsigned argument written with "-" is a syntax error, not a range error.
         unsigned_negative = value < 0 and not spec.arguments[index].signed
@@ -198,7 +199,7 @@ def test_caller_errors_are_value_errors_naming_the_problem() -> None:
 )
 def test_bad_frames_are_reported_with_their_reason(raw: bytes, reason: Reason) -> None:
     (event,) = Decoder().feed(raw)
-    assert not isinstance(event, Frame)
+    assert isinstance(event, BadFrame)
     assert event.reason is reason
     assert event.raw == raw
 

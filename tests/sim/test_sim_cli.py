@@ -47,6 +47,7 @@ def run_sim() -> Iterator[RunSim]:
         assert process.stdout is not None
         line = process.stdout.readline()
         match = _READY.match(line)
+        assert process.stderr is not None
         assert match, (line, process.stderr.read() if process.poll() is not None else "")
         return process, match
 

@@ -260,7 +260,7 @@ def test_the_robot_dives_and_holds_one_metre_over_the_pty(start_server: StartSer
     server = start_server(config, tcp=False, speed=10.0)
     with _open_pty(server) as port:
         port.write(b"#start!#mvd.100!")
-        depths = []
+        depths: list[int] = []
         deadline = time.monotonic() + 20
         while len(depths) < 12 or not all(95 <= depth <= 105 for depth in depths[-5:]):
             assert time.monotonic() < deadline, depths

@@ -28,7 +28,7 @@ class DropLog:
     """Logs unsolicited events and passes them on; warns about dropped frames periodically.
 
     >>> log = DropLog()
-    >>> log.report([BadFrame(b"$qd.1x!", "checksum", "")], None, now=0.0)
+    >>> log.report([BadFrame(Reason.CHECKSUM, b"$qd.1x!", "")], None, now=0.0)
     >>> log.dropped_since_warning
     0
     """
