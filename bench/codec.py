@@ -200,15 +200,19 @@ def main() -> None:
 
     nmea_s, nmea_count = best["pynmea2"]
     nmea_rate = nmea_count / nmea_s
-    print(f"{'pynmea2.parse':24} {nmea_rate:>10,.0f} sentences/s "
-          f"{nmea_bytes / nmea_s / 1e6:6.2f} MB/s  (mean {nmea_bytes / nmea_count:.1f} B)")
+    print(
+        f"{'pynmea2.parse':24} {nmea_rate:>10,.0f} sentences/s "
+        f"{nmea_bytes / nmea_s / 1e6:6.2f} MB/s  (mean {nmea_bytes / nmea_count:.1f} B)"
+    )
     for label, (seconds, count) in best.items():
         if label == "pynmea2":
             continue
         rate = count / seconds
-        print(f"{'rovlink ' + label:24} {rate:>10,.0f} frames/s    "
-              f"{sizes[label] / seconds / 1e6:6.2f} MB/s  (mean {sizes[label] / count:.1f} B)  "
-              f"{rate / nmea_rate:5.2f}x pynmea2")
+        print(
+            f"{'rovlink ' + label:24} {rate:>10,.0f} frames/s    "
+            f"{sizes[label] / seconds / 1e6:6.2f} MB/s  (mean {sizes[label] / count:.1f} B)  "
+            f"{rate / nmea_rate:5.2f}x pynmea2"
+        )
 
 
 if __name__ == "__main__":

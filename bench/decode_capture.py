@@ -59,11 +59,15 @@ def session_messages(frames: int, seed: int) -> list[Message]:
     messages: list[Message] = []
     for start in range(0, len(telemetry), 7):
         messages += telemetry[start : start + 7]
-        messages.append(rng.choice([
-            Command("th", (rng.randint(0, 360), rng.randint(0, 100))),
-            Command("mvd", (rng.randint(0, 9999),)),
-            Command("mvs", (rng.randint(-100, 100),)),
-        ]))
+        messages.append(
+            rng.choice(
+                [
+                    Command("th", (rng.randint(0, 360), rng.randint(0, 100))),
+                    Command("mvd", (rng.randint(0, 9999),)),
+                    Command("mvs", (rng.randint(-100, 100),)),
+                ]
+            )
+        )
     return messages[:frames]
 
 
@@ -100,8 +104,12 @@ def timed(command: list[str]) -> tuple[float, float, str]:
     output = subprocess.run(command, check=True, capture_output=True, text=True).stdout
     wall = time.perf_counter() - started
     cpu_after = os.times()
-    cpu = (cpu_after.children_user - cpu_before.children_user
-           + cpu_after.children_system - cpu_before.children_system)
+    cpu = (
+        cpu_after.children_user
+        - cpu_before.children_user
+        + cpu_after.children_system
+        - cpu_before.children_system
+    )
     return wall, cpu, output
 
 
@@ -139,21 +147,30 @@ def main() -> None:
             runs["pynmea2"].append((wall, cpu))
         sizes = {"rovlink": capture.stat().st_size, "pynmea2": nmea_log.stat().st_size}
 
-    print(f"{frames:,} frames / sentences, stream {args.stream}, {args.repeat} runs each, "
-          f"Python {sys.version.split()[0]}")
+    print(
+        f"{frames:,} frames / sentences, stream {args.stream}, {args.repeat} runs each, "
+        f"Python {sys.version.split()[0]}"
+    )
     print(f"{'process':<36}{'best s':>8}{'median s':>10}{'CPU s':>8}{'MB':>7}")
-    labels = {"rovlink": "rovlink decode --stats --checksum",
-              "pynmea2": "pynmea2.parse script, line by line"}
+    labels = {
+        "rovlink": "rovlink decode --stats --checksum",
+        "pynmea2": "pynmea2.parse script, line by line",
+    }
     for name, timings in runs.items():
         walls = [wall for wall, _ in timings]
         cpu = statistics.median(cpu for _, cpu in timings)
-        print(f"{labels[name]:<36}{min(walls):>8.3f}{statistics.median(walls):>10.3f}"
-              f"{cpu:>8.3f}{sizes[name] / 1e6:>7.1f}")
+        print(
+            f"{labels[name]:<36}{min(walls):>8.3f}{statistics.median(walls):>10.3f}"
+            f"{cpu:>8.3f}{sizes[name] / 1e6:>7.1f}"
+        )
     best = min(w for w, _ in runs["pynmea2"]) / min(w for w, _ in runs["rovlink"])
-    median = (statistics.median(w for w, _ in runs["pynmea2"])
-              / statistics.median(w for w, _ in runs["rovlink"]))
-    print(f"rovlink is {best:.2f}x as fast as pynmea2 (best of each), {median:.2f}x (medians); "
-          f"target ≥ {TARGET_RATIO:.1f}x: {'met' if best >= TARGET_RATIO else 'NOT met'}")
+    median = statistics.median(w for w, _ in runs["pynmea2"]) / statistics.median(
+        w for w, _ in runs["rovlink"]
+    )
+    print(
+        f"rovlink is {best:.2f}x as fast as pynmea2 (best of each), {median:.2f}x (medians); "
+        f"target ≥ {TARGET_RATIO:.1f}x: {'met' if best >= TARGET_RATIO else 'NOT met'}"
+    )
 
 
 if __name__ == "__main__":

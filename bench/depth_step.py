@@ -95,13 +95,25 @@ def plot(run: StepRun, path: Path) -> None:
     shown = [i for i, time_s in enumerate(run.times_s) if time_s <= 80.0]
     times = [run.times_s[i] for i in shown]
     figure, axes = plt.subplots(figsize=(8, 4.2), dpi=110)
-    axes.axhspan(TARGET_CM - BAND_CM, TARGET_CM + BAND_CM, color="tab:green", alpha=0.12,
-                 label="±5 cm")
+    axes.axhspan(
+        TARGET_CM - BAND_CM, TARGET_CM + BAND_CM, color="tab:green", alpha=0.12, label="±5 cm"
+    )
     axes.plot(times, [TARGET_CM] * len(times), color="tab:green", linestyle="--", label="target")
-    axes.plot(times, [run.measured_cm[i] for i in shown], color="tab:orange", linewidth=0.6,
-              alpha=0.7, label="measured depth (qd)")
-    axes.plot(times, [run.depths_cm[i] for i in shown], color="tab:blue", linewidth=1.4,
-              label="true depth")
+    axes.plot(
+        times,
+        [run.measured_cm[i] for i in shown],
+        color="tab:orange",
+        linewidth=0.6,
+        alpha=0.7,
+        label="measured depth (qd)",
+    )
+    axes.plot(
+        times,
+        [run.depths_cm[i] for i in shown],
+        color="tab:blue",
+        linewidth=1.4,
+        label="true depth",
+    )
     axes.axvline(run.settle_s, color="grey", linewidth=0.8, linestyle=":")
     axes.set_xlabel("time after #mvd.100! (s)")
     axes.set_ylabel("depth (cm)")
@@ -125,20 +137,29 @@ def main() -> None:
     arguments = parser.parse_args()
 
     runs = [run_step(seed) for seed in range(1, arguments.seeds + 1)]
-    print(f"{'seed':>4} {'overshoot cm':>12} {'settled s':>9} {'RMS cm (settled+60 s)':>22} "
-          f"{'RMS cm (20–80 s)':>17}")
+    print(
+        f"{'seed':>4} {'overshoot cm':>12} {'settled s':>9} {'RMS cm (settled+60 s)':>22} "
+        f"{'RMS cm (20–80 s)':>17}"
+    )
     for run in runs:
-        print(f"{run.seed:>4} {run.overshoot_cm:>12.2f} {run.settle_s:>9.2f} "
-              f"{run.rms_cm(run.settle_s):>22.2f} {run.rms_cm(20.0):>17.2f}")
+        print(
+            f"{run.seed:>4} {run.overshoot_cm:>12.2f} {run.settle_s:>9.2f} "
+            f"{run.rms_cm(run.settle_s):>22.2f} {run.rms_cm(20.0):>17.2f}"
+        )
     worst_overshoot = max(run.overshoot_cm for run in runs)
     worst_settle = max(run.settle_s for run in runs)
     worst_rms = max(max(run.rms_cm(run.settle_s), run.rms_cm(20.0)) for run in runs)
-    print(f"worst of {len(runs)}: overshoot {worst_overshoot:.2f} cm (target ≤ "
-          f"{TARGET_OVERSHOOT_CM:g}), settled {worst_settle:.2f} s (target ≤ {TARGET_SETTLE_S:g}), "
-          f"RMS {worst_rms:.2f} cm (target ≤ {TARGET_RMS_CM:g})")
+    print(
+        f"worst of {len(runs)}: overshoot {worst_overshoot:.2f} cm (target ≤ "
+        f"{TARGET_OVERSHOOT_CM:g}), settled {worst_settle:.2f} s (target ≤ {TARGET_SETTLE_S:g}), "
+        f"RMS {worst_rms:.2f} cm (target ≤ {TARGET_RMS_CM:g})"
+    )
     print(f"median settle {statistics.median(run.settle_s for run in runs):.2f} s")
-    met = (worst_overshoot <= TARGET_OVERSHOOT_CM and worst_settle <= TARGET_SETTLE_S
-           and worst_rms <= TARGET_RMS_CM)
+    met = (
+        worst_overshoot <= TARGET_OVERSHOOT_CM
+        and worst_settle <= TARGET_SETTLE_S
+        and worst_rms <= TARGET_RMS_CM
+    )
     print("targets met" if met else "TARGETS MISSED")
     if arguments.plot:
         plot(runs[0], arguments.plot)

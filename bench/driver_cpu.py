@@ -101,8 +101,12 @@ def _raw_socket_query(
     return sock, round_trip
 
 
-def run_blocking(controller: FastController, arguments: argparse.Namespace, query: bytes,
-                 totals: dict[str, Totals]) -> None:
+def run_blocking(
+    controller: FastController,
+    arguments: argparse.Namespace,
+    query: bytes,
+    totals: dict[str, Totals],
+) -> None:
     """The blocking client and the raw socket, in turns."""
     sock, raw_query = _raw_socket_query(controller, query)
     with sock, rovlink.connect(controller.url, keepalive=None, checksum=arguments.checksum) as rov:
@@ -118,8 +122,12 @@ def run_blocking(controller: FastController, arguments: argparse.Namespace, quer
                     _block(way_totals, arguments.block, way_query)
 
 
-def run_asyncio(controller: FastController, arguments: argparse.Namespace, query: bytes,
-                totals: dict[str, Totals]) -> None:
+def run_asyncio(
+    controller: FastController,
+    arguments: argparse.Namespace,
+    query: bytes,
+    totals: dict[str, Totals],
+) -> None:
     """The asyncio client and raw asyncio streams, in turns, in one event loop."""
 
     async def main() -> None:
@@ -176,7 +184,9 @@ def main() -> int:
     parser.add_argument("--block", type=int, default=250, help="queries per turn")
     parser.add_argument("--checksum", action="store_true", help="CRC-8 checksum mode on")
     parser.add_argument(
-        "--cpus", choices=("split", "same", "any"), default="split",
+        "--cpus",
+        choices=("split", "same", "any"),
+        default="split",
         help="split (default): this process on one CPU and the controller on another, so every "
         "reply wakes the host as a serial port's would; same: both on one CPU (no idle "
         "wake-ups, only the host's own work); any: where the scheduler puts them",
@@ -193,11 +203,15 @@ def main() -> int:
         print(f"driver_cpu: {error}", file=sys.stderr)
         return 2
 
-    print(f"{arguments.rounds} rounds × {arguments.blocks} turns × {arguments.block} queries per "
-          f"way, checksums {'on' if arguments.checksum else 'off'}, CPUs {arguments.cpus}, "
-          f"Python {sys.version.split()[0]}")
-    print(f"{'way':<22}{'CPU µs/query':>14}{'wall µs/query':>15}{'CPU × peer (min–max)':>24}"
-          f"{'wall × peer':>13}")
+    print(
+        f"{arguments.rounds} rounds × {arguments.blocks} turns × {arguments.block} queries per "
+        f"way, checksums {'on' if arguments.checksum else 'off'}, CPUs {arguments.cpus}, "
+        f"Python {sys.version.split()[0]}"
+    )
+    print(
+        f"{'way':<22}{'CPU µs/query':>14}{'wall µs/query':>15}{'CPU × peer (min–max)':>24}"
+        f"{'wall × peer':>13}"
+    )
     verdicts = []
     for name in ("raw socket", "rovlink.connect", "raw asyncio streams", "rovlink.aio.connect"):
         way = totals[name]
@@ -213,8 +227,10 @@ def main() -> int:
             line += f"{_spread(cpu_ratios):>24}{statistics.median(wall_ratios):>13.2f}"
             extra_us = cpu_us - statistics.median(peer.per_query(peer.cpu_s)) * 1e6
             verdict = "met" if ratio <= target else "NOT met"
-            verdicts.append(f"{name}: CPU {ratio:.2f}× {peer_name}, {extra_us:+.1f} µs per query "
-                            f"(target ≤ {target:.2f}×: {verdict})")
+            verdicts.append(
+                f"{name}: CPU {ratio:.2f}× {peer_name}, {extra_us:+.1f} µs per query "
+                f"(target ≤ {target:.2f}×: {verdict})"
+            )
         print(line)
     print("\n".join(verdicts))
     return 0

@@ -31,10 +31,12 @@ from rovlink.client import LinkCounters
 WARM_UP_S = 0.3
 
 
-async def _async_polling(sim: Sim, seconds: float, checksum: bool, baud: int,
-                         max_in_flight: int) -> tuple[int, float, LinkCounters]:
-    async with rovlink.aio.connect(sim.pty_path, checksum=checksum, baudrate=baud,
-                                   max_in_flight=max_in_flight) as rov:
+async def _async_polling(
+    sim: Sim, seconds: float, checksum: bool, baud: int, max_in_flight: int
+) -> tuple[int, float, LinkCounters]:
+    async with rovlink.aio.connect(
+        sim.pty_path, checksum=checksum, baudrate=baud, max_in_flight=max_in_flight
+    ) as rov:
         readings = 0
         started = time.perf_counter()
         measured_from = None
@@ -50,21 +52,32 @@ async def _async_polling(sim: Sim, seconds: float, checksum: bool, baud: int,
                 break
         elapsed = time.perf_counter() - (measured_from or started)
         after = rov.counters
-    delta = LinkCounters(**{name: after.as_dict()[name] - before.as_dict()[name]
-                            for name in after.as_dict()})
+    delta = LinkCounters(
+        **{name: after.as_dict()[name] - before.as_dict()[name] for name in after.as_dict()}
+    )
     return readings, elapsed, delta
 
 
-def pipelined(max_in_flight: int) -> Callable[[Sim, float, bool, int],
-                                              tuple[int, float, LinkCounters]]:
-    def run(sim: Sim, seconds: float, checksum: bool, baud: int,
-            ) -> tuple[int, float, LinkCounters]:
+def pipelined(
+    max_in_flight: int,
+) -> Callable[[Sim, float, bool, int], tuple[int, float, LinkCounters]]:
+    def run(
+        sim: Sim,
+        seconds: float,
+        checksum: bool,
+        baud: int,
+    ) -> tuple[int, float, LinkCounters]:
         return asyncio.run(_async_polling(sim, seconds, checksum, baud, max_in_flight))
+
     return run
 
 
-def blocking(sim: Sim, seconds: float, checksum: bool, baud: int,
-             ) -> tuple[int, float, LinkCounters]:
+def blocking(
+    sim: Sim,
+    seconds: float,
+    checksum: bool,
+    baud: int,
+) -> tuple[int, float, LinkCounters]:
     with rovlink.connect(sim.pty_path, checksum=checksum, baudrate=baud) as rov:
         deadline = time.perf_counter() + WARM_UP_S
         while time.perf_counter() < deadline:
@@ -77,8 +90,9 @@ def blocking(sim: Sim, seconds: float, checksum: bool, baud: int,
             readings += 1
         elapsed = time.perf_counter() - started
         after = rov.counters
-    delta = LinkCounters(**{name: after.as_dict()[name] - before.as_dict()[name]
-                            for name in after.as_dict()})
+    delta = LinkCounters(
+        **{name: after.as_dict()[name] - before.as_dict()[name] for name in after.as_dict()}
+    )
     return readings, elapsed, delta
 
 
@@ -101,23 +115,24 @@ def main() -> None:
             shares: dict[str, list[tuple[float, float, float]]] = {name: [] for name, _ in WAYS}
             for _ in range(arguments.rounds):
                 for name, way in WAYS:
-                    readings, elapsed, counters = way(sim, arguments.seconds, checksum,
-                                                      arguments.baud)
+                    readings, elapsed, counters = way(
+                        sim, arguments.seconds, checksum, arguments.baud
+                    )
                     reply_bytes = counters.bytes_received / max(counters.replies, 1)
                     rate = readings / elapsed
                     bound = line_bytes_per_s / reply_bytes
                     shares[name].append((rate, bound, reply_bytes))
             mode = "checksums on" if checksum else "checksums off"
-            print(f"\n{arguments.baud} baud, {mode}, {arguments.rounds} × {arguments.seconds:g} s"
-                  " (median of the rounds)")
-            print(f"{'way':<28}{'readings/s':>11}{'bound/s':>9}{'bytes/reply':>12}"
-                  f"{'share':>8}")
+            print(
+                f"\n{arguments.baud} baud, {mode}, {arguments.rounds} × {arguments.seconds:g} s"
+                " (median of the rounds)"
+            )
+            print(f"{'way':<28}{'readings/s':>11}{'bound/s':>9}{'bytes/reply':>12}{'share':>8}")
             for name, _ in WAYS:
                 rate = statistics.median(r for r, _, _ in shares[name])
                 bound = statistics.median(b for _, b, _ in shares[name])
                 size = statistics.median(s for _, _, s in shares[name])
-                print(f"{name:<28}{rate:>11.1f}{bound:>9.1f}{size:>12.1f}"
-                      f"{rate / bound:>8.1%}")
+                print(f"{name:<28}{rate:>11.1f}{bound:>9.1f}{size:>12.1f}{rate / bound:>8.1%}")
 
 
 if __name__ == "__main__":

@@ -28,9 +28,10 @@ def running_sim(*options: str) -> Iterator[Sim]:
     program meets, and the host round trip is timed against ``fast_controller.c`` instead.
     """
     process = subprocess.Popen(
-        [sys.executable, "-c", "from rovlink.cli import main; main()", "sim",
-         *options],
-        stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True,
+        [sys.executable, "-c", "from rovlink.cli import main; main()", "sim", *options],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.DEVNULL,
+        text=True,
     )
     try:
         assert process.stdout is not None

@@ -49,7 +49,9 @@ def compile_controller(folder: Path) -> Path:
         )
     executable = folder / "fast_controller"
     result = subprocess.run(
-        [compiler, "-O2", "-o", str(executable), str(SOURCE)], check=False, capture_output=True,
+        [compiler, "-O2", "-o", str(executable), str(SOURCE)],
+        check=False,
+        capture_output=True,
         text=True,
     )
     if result.returncode != 0:

@@ -34,7 +34,7 @@ def serve_echo() -> None:
         select.select([master_fd], [], [])
         data = os.read(master_fd, 4096)
         while data:
-            data = data[os.write(master_fd, data):]
+            data = data[os.write(master_fd, data) :]
 
 
 @contextmanager
@@ -92,9 +92,11 @@ def _drain(fd: int) -> None:
 def _summary(name: str, samples: list[float]) -> str:
     ordered = sorted(samples)
     p99 = ordered[min(len(ordered) - 1, round(0.99 * len(ordered)))]
-    return (f"  {name:<22} median {statistics.median(ordered):6.3f} ms  "
-            f"p90 {ordered[int(0.9 * len(ordered))]:6.3f}  p99 {p99:6.3f}  "
-            f"max {ordered[-1]:6.3f}")
+    return (
+        f"  {name:<22} median {statistics.median(ordered):6.3f} ms  "
+        f"p90 {ordered[int(0.9 * len(ordered))]:6.3f}  p99 {p99:6.3f}  "
+        f"max {ordered[-1]:6.3f}"
+    )
 
 
 def main() -> None:
@@ -107,13 +109,23 @@ def main() -> None:
         serve_echo()
         return
 
-    sim_command = [sys.executable, "-c", "from rovlink.cli import main; main()", "sim", "--pty",
-                   "--seed", "1", *(["--baud", str(arguments.baud)] if arguments.baud else [])]
+    sim_command = [
+        sys.executable,
+        "-c",
+        "from rovlink.cli import main; main()",
+        "sim",
+        "--pty",
+        "--seed",
+        "1",
+        *(["--baud", str(arguments.baud)] if arguments.baud else []),
+    ]
     echo_command = [sys.executable, os.path.abspath(__file__), "--echo-server"]
     samples: dict[str, list[float]] = {"sim #qd!": [], "sim #qsa!": [], "echo (4 bytes)": []}
     first_byte_ms: list[float] = []
-    with _peer(sim_command, r"pty (\S+?)[,\s]") as sim_path, \
-            _peer(echo_command, r"pty (\S+)") as echo_path:
+    with (
+        _peer(sim_command, r"pty (\S+?)[,\s]") as sim_path,
+        _peer(echo_command, r"pty (\S+)") as echo_path,
+    ):
         sim_fd, echo_fd = _open_raw(sim_path), _open_raw(echo_path)
         _drain(sim_fd)
         for index in range(arguments.count):
@@ -133,8 +145,10 @@ def main() -> None:
         os.close(echo_fd)
 
     pacing = f"simulator paced at {arguments.baud} baud" if arguments.baud else "unpaced PTYs"
-    print(f"{arguments.count} round trips each, {pacing}, alternating peers "
-          "(write of the query to the last byte of the reply):")
+    print(
+        f"{arguments.count} round trips each, {pacing}, alternating peers "
+        "(write of the query to the last byte of the reply):"
+    )
     for name, values in samples.items():
         print(_summary(name, values))
     ratio = statistics.median(samples["sim #qd!"]) / statistics.median(samples["echo (4 bytes)"])
@@ -142,9 +156,11 @@ def main() -> None:
     print(f"  median ratio sim #qd! / echo: {ratio:.2f}")
     # P19 counts from the query's arrival to the answer: the first reply byte bounds it from
     # above (it also includes the query's own time on the line).
-    print(f"  first reply byte: median {statistics.median(first_byte_ms):.3f} ms, slowest "
-          f"{worst:.3f} ms; P19 limit {P19_LIMIT_MS:g} ms: "
-          f"{'met' if worst <= P19_LIMIT_MS else 'MISSED'}")
+    print(
+        f"  first reply byte: median {statistics.median(first_byte_ms):.3f} ms, slowest "
+        f"{worst:.3f} ms; P19 limit {P19_LIMIT_MS:g} ms: "
+        f"{'met' if worst <= P19_LIMIT_MS else 'MISSED'}"
+    )
 
 
 if __name__ == "__main__":

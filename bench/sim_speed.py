@@ -69,9 +69,9 @@ def tick_costs_us() -> tuple[float, float]:
     robot.advance(1.0)
     count = 20_000
     tick = min(timeit.repeat(robot.controller.tick, number=count, repeat=5)) / count
-    physics = min(
-        timeit.repeat(lambda: robot.vehicle.step(robot.tick_s), number=count, repeat=5)
-    ) / count
+    physics = (
+        min(timeit.repeat(lambda: robot.vehicle.step(robot.tick_s), number=count, repeat=5)) / count
+    )
     return tick * 1e6, physics * 1e6
 
 
@@ -87,9 +87,11 @@ def main() -> None:
     print(f"simulated {arguments.seconds:g} s at 100 Hz, {arguments.repeat} runs each (median):")
     for name, speeds in (("step loop", loop), ("fast port", port)):
         median = statistics.median(speeds)
-        print(f"  {name:<10} {median:8.0f}× real time  (runs: "
-              f"{', '.join(f'{speed:.0f}' for speed in speeds)}); "
-              f"ratio to the {TARGET_SPEEDUP:g}× target {median / TARGET_SPEEDUP:.2f}")
+        print(
+            f"  {name:<10} {median:8.0f}× real time  (runs: "
+            f"{', '.join(f'{speed:.0f}' for speed in speeds)}); "
+            f"ratio to the {TARGET_SPEEDUP:g}× target {median / TARGET_SPEEDUP:.2f}"
+        )
     print(f"one tick: controller {tick_us:.2f} µs + physics {physics_us:.2f} µs")
 
 

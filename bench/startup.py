@@ -57,8 +57,11 @@ def main() -> None:
         commands = {
             "python -c pass": [sys.executable, "-c", "pass"],
             "rovlink --version": [*rovlink, "--version"],
-            f"rovlink decode (a {CAPTURE_BYTES} B capture)": [*rovlink, "decode",
-                                                              str(capture_path)],
+            f"rovlink decode (a {CAPTURE_BYTES} B capture)": [
+                *rovlink,
+                "decode",
+                str(capture_path),
+            ],
             "rovlink --help": [*rovlink, "--help"],
         }
         for command in commands.values():  # warm the file cache and .pyc files
@@ -68,8 +71,9 @@ def main() -> None:
         rounds = 5
         for _ in range(rounds):
             for name, command in commands.items():
-                best_s[name] = min(best_s[name],
-                                   best_wall_time_s(command, max(args.runs // rounds, 1)))
+                best_s[name] = min(
+                    best_s[name], best_wall_time_s(command, max(args.runs // rounds, 1))
+                )
     print(f"Python {sys.version.split()[0]}, {' '.join(rovlink)}; best of {args.runs} runs")
     baseline_s = best_s["python -c pass"]
     print(f"{'command':<40} {'ms':>7} {'× python -c pass':>17}")

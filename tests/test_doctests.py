@@ -28,7 +28,13 @@ def test_doctests(name: str) -> None:
 
 def test_the_pure_cores_have_examples() -> None:
     # The modules a reader starts from show how they are used, and the examples are checked.
-    for name in ("rovlink.protocol", "rovlink.protocol.checksum", "rovlink.protocol.decoder",
-                 "rovlink.protocol.frames", "rovlink.client.command_text",
-                 "rovlink.piloting.commanded", "rovlink.monitor.compass"):
+    for name in (
+        "rovlink.protocol",
+        "rovlink.protocol.checksum",
+        "rovlink.protocol.decoder",
+        "rovlink.protocol.frames",
+        "rovlink.client.command_text",
+        "rovlink.piloting.commanded",
+        "rovlink.monitor.compass",
+    ):
         assert doctest.testmod(importlib.import_module(name)).attempted > 0, name

@@ -11,8 +11,9 @@ def test_an_unconfigured_program_gets_no_rovlink_log_lines_on_stderr() -> None:
         "import logging, rovlink.client\n"
         "logging.getLogger('rovlink.client').warning('a dropped frame')\n"
     )
-    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                            check=True)
+    result = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, check=True
+    )
     assert result.stderr == ""
 
 
@@ -22,6 +23,7 @@ def test_a_configured_program_gets_the_log_lines() -> None:
         "logging.basicConfig(format='%(name)s %(message)s')\n"
         "logging.getLogger('rovlink.client').warning('a dropped frame')\n"
     )
-    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                            check=True)
+    result = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, check=True
+    )
     assert result.stderr == "rovlink.client a dropped frame\n"

@@ -26,10 +26,17 @@ def test_decode_prints_one_json_object_per_event(tmp_path: Path, run_cli: RunCli
     assert events[0] == {"event": "text", "text": "boot ok"}
     frames = [(e["kind"], e["name"], e["values"]) for e in events if e["event"] == "frame"]
     assert frames == [
-        ("command", "qd", []), ("response", "qd", [123]), ("response", "qro", [-1]),
-        ("response", "qpi", [-7]), ("command", "mvs", [100]), ("command", "th", [270, 25]),
-        ("response", "q.l", [1]), ("command", "mvpidd", [5]), ("command", "h+", []),
-        ("command", "debug1", []), ("command", "crcon", []),
+        ("command", "qd", []),
+        ("response", "qd", [123]),
+        ("response", "qro", [-1]),
+        ("response", "qpi", [-7]),
+        ("command", "mvs", [100]),
+        ("command", "th", [270, 25]),
+        ("response", "q.l", [1]),
+        ("command", "mvpidd", [5]),
+        ("command", "h+", []),
+        ("command", "debug1", []),
+        ("command", "crcon", []),
     ]
     assert events[1]["raw"] == "#qd!"
     errors = [(e["reason"], e["raw"]) for e in events if e["event"] == "error"]
@@ -38,13 +45,13 @@ def test_decode_prints_one_json_object_per_event(tmp_path: Path, run_cli: RunCli
 
 
 @pytest.mark.parametrize("file", [[], ["-"]])
-def test_decode_reads_standard_input_and_checksum_options(run_cli: RunCli,
-                                                          file: list[str]) -> None:
+def test_decode_reads_standard_input_and_checksum_options(run_cli: RunCli, file: list[str]) -> None:
     result = run_cli("decode", "--checksum", *file, stdin=b"#qd8C!#qd!")
     assert result.status == 0, result.err
     assert [e["event"] for e in _lines(result.out)] == ["frame", "error"]
-    result = run_cli("decode", "--checksum", "--algorithm", "xor", *file,
-                     stdin=b"#qd%02X!" % (0x71 ^ 0x64))
+    result = run_cli(
+        "decode", "--checksum", "--algorithm", "xor", *file, stdin=b"#qd%02X!" % (0x71 ^ 0x64)
+    )
     assert _lines(result.out)[0]["name"] == "qd"
     result = run_cli("decode", "--no-checksum", *file, stdin=b"#qd!")
     assert _lines(result.out)[0]["name"] == "qd"
@@ -76,4 +83,3 @@ def test_decode_stats_counts_events_reasons_and_names(run_cli: RunCli) -> None:
         "reasons": {"range": 1, "unknown": 1},
         "names": {"command": {"qd": 1}, "response": {"qd": 2}},
     }
-

@@ -59,17 +59,48 @@ def test_a_failing_dive_still_stops_the_robot(tmp_path: Path) -> None:
 
 def test_demo_command(tmp_path: Path, run_cli: RunCli) -> None:
     # "0 timeouts" is checked below: every reply is expected, so the timeout is a long one.
-    result = run_cli("demo", _fast_sim_url(tmp_path), "--depth", "50", "--hold", "0.1",
-                     "--leg", "0.1", "--reach-timeout", "20", "--timeout", str(REPLY_TIMEOUT_S))
+    result = run_cli(
+        "demo",
+        _fast_sim_url(tmp_path),
+        "--depth",
+        "50",
+        "--hold",
+        "0.1",
+        "--leg",
+        "0.1",
+        "--reach-timeout",
+        "20",
+        "--timeout",
+        str(REPLY_TIMEOUT_S),
+    )
     assert result.status == 0, result.err
-    for text in ("unlock", "dive to 50 cm", "square: left", "read every sensor", "surface",
-                 "lock", "#th.270.30!", "motors off and locked", "0 timeouts"):
+    for text in (
+        "unlock",
+        "dive to 50 cm",
+        "square: left",
+        "read every sensor",
+        "surface",
+        "lock",
+        "#th.270.30!",
+        "motors off and locked",
+        "0 timeouts",
+    ):
         assert text in result.out
 
 
 def test_demo_that_cannot_reach_its_depth_fails(tmp_path: Path, run_cli: RunCli) -> None:
-    result = run_cli("demo", _fast_sim_url(tmp_path), "--depth", "9000", "--hold", "0",
-                     "--leg", "0", "--reach-timeout", "0.3")
+    result = run_cli(
+        "demo",
+        _fast_sim_url(tmp_path),
+        "--depth",
+        "9000",
+        "--hold",
+        "0",
+        "--leg",
+        "0",
+        "--reach-timeout",
+        "0.3",
+    )
     assert result.status == 1
     assert "not completed: dive to 9000 cm" in result.err
 

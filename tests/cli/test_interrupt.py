@@ -69,8 +69,12 @@ def _rovlink(*arguments: str) -> subprocess.Popen[bytes]:
     # A silent controller: --boot-timeout 0 lets the command reach its own wait (not the
     # readiness probe's) before the test interrupts it.
     arguments = (arguments[0], "--boot-timeout", "0", *arguments[1:])
-    return subprocess.Popen([sys.executable, "-m", "rovlink", *arguments],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=environment)
+    return subprocess.Popen(
+        [sys.executable, "-m", "rovlink", *arguments],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        env=environment,
+    )
 
 
 def _interrupt(process: subprocess.Popen[bytes]) -> tuple[float, bytes]:
@@ -80,8 +84,7 @@ def _interrupt(process: subprocess.Popen[bytes]) -> tuple[float, bytes]:
     return time.monotonic() - started, stderr
 
 
-def test_ctrl_c_ends_send_waiting_for_a_silent_controller_at_once(
-        silent: SilentController) -> None:
+def test_ctrl_c_ends_send_waiting_for_a_silent_controller_at_once(silent: SilentController) -> None:
     process = _rovlink("send", silent.url, "qd", "--timeout", "60")
     assert silent.wait_for(b"#qd!")
     elapsed_s, stderr = _interrupt(process)
@@ -110,10 +113,13 @@ def test_ctrl_c_ends_the_demo_with_stop(silent: SilentController) -> None:
     assert silent.wait_for(b"#stop!")
 
 
-def test_a_query_without_a_reply_fails_in_one_line(run_cli: RunCli,
-                                                   silent: SilentController) -> None:
-    result = run_cli("send", silent.url, "qd", "--timeout", "0.05", "--retries", "0",
-                     "--boot-timeout", "0")
+def test_a_query_without_a_reply_fails_in_one_line(
+    run_cli: RunCli, silent: SilentController
+) -> None:
+    result = run_cli(
+        "send", silent.url, "qd", "--timeout", "0.05", "--retries", "0", "--boot-timeout", "0"
+    )
     assert result.status == 1
-    assert result.err == ("rovlink send: #qd! got no valid reply within 0.05 s "
-                          "(1 attempt: timeout)\n")
+    assert result.err == (
+        "rovlink send: #qd! got no valid reply within 0.05 s (1 attempt: timeout)\n"
+    )

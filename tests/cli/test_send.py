@@ -16,22 +16,39 @@ REPLY_TIMEOUT = str(REPLY_TIMEOUT_S)
 
 
 def test_send_prints_decoded_replies(run_cli: RunCli) -> None:
-    result = run_cli("send", "sim://?seed=1", "start", "th", "270", "25", "qsa",
-                                 "mvs -50", "#qd!", "stop", "--timeout", REPLY_TIMEOUT)
+    result = run_cli(
+        "send",
+        "sim://?seed=1",
+        "start",
+        "th",
+        "270",
+        "25",
+        "qsa",
+        "mvs -50",
+        "#qd!",
+        "stop",
+        "--timeout",
+        REPLY_TIMEOUT,
+    )
     assert result.status == 0, result.err
     lines = result.out.splitlines()
     assert lines[:3] == ["> #start!", "> #th.270.25!", "> #qsa!"]
     replies = [line for line in lines if line.startswith("<")]
     assert [line.split()[1].split(".")[0] for line in replies] == [
-        "$qd", "$qr", "$q", "$qro", "$qpi", "$qhe", "$qd",
+        "$qd",
+        "$qr",
+        "$q",
+        "$qro",
+        "$qpi",
+        "$qhe",
+        "$qd",
     ]
     assert "depth_cm=" in replies[0]
     assert lines[-1] == "> #stop!"
 
 
 def test_send_json(run_cli: RunCli) -> None:
-    result = run_cli("send", "sim://", "qhe", "--json", "--checksum",
-                                 "--timeout", REPLY_TIMEOUT)
+    result = run_cli("send", "sim://", "qhe", "--json", "--checksum", "--timeout", REPLY_TIMEOUT)
     assert result.status == 0, result.err
     (line,) = result.out.splitlines()
     record = json.loads(line)
@@ -108,11 +125,14 @@ def test_raw_shows_the_exact_bytes_both_ways(run_cli: RunCli) -> None:
     assert ">> #crcon!" in lines
     assert f">> #qd{xor.digits(b'qd').decode()}!" in lines
     # (The first replies answer the readiness probe, plainly.)
-    received = [line for line in lines if line.startswith("<< ") and not line.endswith(".0!")
-                and "$qd." in line][-1:]
+    received = [
+        line
+        for line in lines
+        if line.startswith("<< ") and not line.endswith(".0!") and "$qd." in line
+    ][-1:]
     assert received
     assert received[0].startswith("<< $qd.")
-    body = received[0][4:received[0].index("!") - 2]  # "qd.12" of "<< $qd.12XX!"
+    body = received[0][4 : received[0].index("!") - 2]  # "qd.12" of "<< $qd.12XX!"
     assert received[0].endswith(xor.digits(body.encode()).decode() + "!")
 
 
@@ -129,15 +149,20 @@ def test_an_unknown_raw_frame_is_refused_before_anything_is_sent(run_cli: RunCli
         (["--timeout", "1e10"], "argument --timeout: 1e10 s is more than the maximum, 3600 s"),
         (["--timeout", "nan"], "argument --timeout: 'nan' is not a number"),
         (["--timeout", "0"], "argument --timeout: 0 s is less than the minimum, 0.001 s"),
-        (["--retries", "99999999999999999999"],
-         "argument --retries: 99999999999999999999 is not in 0–100"),
-        (["--algorithm", "md5"],
-         "argument --algorithm: unknown checksum algorithm 'md5'; known: crc8, sum8, xor"),
+        (
+            ["--retries", "99999999999999999999"],
+            "argument --retries: 99999999999999999999 is not in 0–100",
+        ),
+        (
+            ["--algorithm", "md5"],
+            "argument --algorithm: unknown checksum algorithm 'md5'; known: crc8, sum8, xor",
+        ),
         (["--baudrate", "fast"], "argument --baudrate: 'fast' is not an integer"),
     ],
 )
-def test_bad_link_options_are_one_line_usage_errors(run_cli: RunCli, option: list[str],
-                                                    message: str) -> None:
+def test_bad_link_options_are_one_line_usage_errors(
+    run_cli: RunCli, option: list[str], message: str
+) -> None:
     result = run_cli("send", *option, "sim://", "qd")
     assert result.status == 2
     assert result.err.splitlines()[-1] == f"rovlink send: error: {message}"
@@ -153,8 +178,9 @@ def test_a_device_that_is_not_a_serial_port(run_cli: RunCli) -> None:
 def test_a_missing_device_is_said_once(run_cli: RunCli) -> None:
     result = run_cli("send", "/dev/ttyUSB_rovlink_none", "qd")
     assert result.status == 1
-    assert result.err == ("rovlink send: cannot open /dev/ttyUSB_rovlink_none: "
-                          "No such file or directory\n")
+    assert result.err == (
+        "rovlink send: cannot open /dev/ttyUSB_rovlink_none: No such file or directory\n"
+    )
 
 
 @pytest.mark.parametrize(

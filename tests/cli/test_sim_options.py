@@ -15,7 +15,8 @@ def test_a_binary_config_file_is_named_not_a_traceback(run_cli: RunCli, tmp_path
     result = run_cli("sim", "--config", str(config))
     assert result.status == 2
     assert result.err == (
-        f"rovlink sim: {config}: not UTF-8 text (byte 0xff on line 1), so not a TOML file\n")
+        f"rovlink sim: {config}: not UTF-8 text (byte 0xff on line 1), so not a TOML file\n"
+    )
     assert "Traceback" not in result.err
 
 

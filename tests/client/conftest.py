@@ -48,8 +48,9 @@ def wait_until(predicate: Callable[[], bool], timeout_s: float = CONDITION_TIMEO
     return True
 
 
-async def wait_until_async(predicate: Callable[[], bool],
-                           timeout_s: float = CONDITION_TIMEOUT_S) -> bool:
+async def wait_until_async(
+    predicate: Callable[[], bool], timeout_s: float = CONDITION_TIMEOUT_S
+) -> bool:
     """:func:`wait_until` for coroutines: checks between turns of the event loop."""
     loop = asyncio.get_running_loop()
     deadline = loop.time() + timeout_s
@@ -75,15 +76,20 @@ def fake(fake_pair: tuple[FakeController, socket.socket]) -> FakeController:
 def _options(overrides: dict[str, Any]) -> ClientOptions:
     # No readiness probe and no motion expiry unless a test asks: the fake answers at once, and
     # the frames a test expects are then exactly the ones it caused.
-    settings: dict[str, Any] = {"timeout_s": REPLY_TIMEOUT_S, "keepalive_s": None,
-                                "boot_timeout_s": None, "motion_timeout_s": None}
+    settings: dict[str, Any] = {
+        "timeout_s": REPLY_TIMEOUT_S,
+        "keepalive_s": None,
+        "boot_timeout_s": None,
+        "motion_timeout_s": None,
+    }
     settings.update(overrides)
     return ClientOptions(**settings)
 
 
 @pytest.fixture
-def make_client(fake_pair: tuple[FakeController, socket.socket],
-                ) -> Iterator[Callable[..., Client]]:
+def make_client(
+    fake_pair: tuple[FakeController, socket.socket],
+) -> Iterator[Callable[..., Client]]:
     """Connect a blocking client to the fake: ``make_client(checksum=True, ...)``.
 
     With ``drops_time_out_at_once=True`` the client's clock jumps past the timeout whenever the
@@ -116,14 +122,18 @@ def make_client(fake_pair: tuple[FakeController, socket.socket],
 
 
 @pytest.fixture
-async def make_async_client(fake_pair: tuple[FakeController, socket.socket],
-                            ) -> AsyncIterator[Callable[..., Awaitable[AsyncClient]]]:
+async def make_async_client(
+    fake_pair: tuple[FakeController, socket.socket],
+) -> AsyncIterator[Callable[..., Awaitable[AsyncClient]]]:
     """Connect an asyncio client to the fake: ``await make_async_client(checksum=True)``."""
     clients: list[AsyncClient] = []
 
     async def make(max_in_flight: int = 8, **overrides: Any) -> AsyncClient:
-        client = AsyncClient(SocketLink(fake_pair[1], "socket pair"), _options(overrides),
-                             max_in_flight=max_in_flight)
+        client = AsyncClient(
+            SocketLink(fake_pair[1], "socket pair"),
+            _options(overrides),
+            max_in_flight=max_in_flight,
+        )
         clients.append(client)
         return await client.open()
 

@@ -34,17 +34,28 @@ from rovlink.protocol import (
 )
 
 DEFAULT_VALUES: dict[str, int] = {
-    "qd": 123, "qr": 530, "q.l": 0, "qro": -1, "qpi": 15, "qhe": 275,
+    "qd": 123,
+    "qr": 530,
+    "q.l": 0,
+    "qro": -1,
+    "qpi": 15,
+    "qhe": 275,
 }
 
 
 class FakeController:
     """Answers on ``fd`` from a thread; ``close()`` ends it and closes ``fd``."""
 
-    def __init__(self, fd: int, *, algorithm: str = "crc8",
-                 values: dict[str, int] | None = None,
-                 on_close: Callable[[], None] | None = None,
-                 boot_s: float = 0.0, late_delay_s: float = 0.35) -> None:
+    def __init__(
+        self,
+        fd: int,
+        *,
+        algorithm: str = "crc8",
+        values: dict[str, int] | None = None,
+        on_close: Callable[[], None] | None = None,
+        boot_s: float = 0.0,
+        late_delay_s: float = 0.35,
+    ) -> None:
         self._fd = fd
         self._booted_at = time.monotonic() + boot_s
         self.late_delay_s = late_delay_s
@@ -88,8 +99,11 @@ class FakeController:
             self.script.extend(actions)
         return self
 
-    def wait_for(self, predicate: Callable[[FakeController], bool], timeout_s: float = 5.0,
-                 ) -> bool:
+    def wait_for(
+        self,
+        predicate: Callable[[FakeController], bool],
+        timeout_s: float = 5.0,
+    ) -> bool:
         """Wait until ``predicate(self)`` holds (checked whenever a frame arrives)."""
         with self._condition:
             return self._condition.wait_for(lambda: predicate(self), timeout_s)

@@ -34,7 +34,10 @@ def running_sim(*arguments: str) -> Iterator[SimProcess]:
     environment["PYTHONPATH"] = _SRC + os.pathsep + environment.get("PYTHONPATH", "")
     process = subprocess.Popen(
         [sys.executable, "-c", "from rovlink.cli import main; main()", "sim", *arguments],
-        stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True, env=environment,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.DEVNULL,
+        text=True,
+        env=environment,
     )
     try:
         assert process.stdout is not None

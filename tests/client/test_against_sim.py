@@ -37,15 +37,17 @@ def _state_of(client: object) -> Callable[[], ControllerState]:
 
 def test_every_method_through_the_controllers_debug_text() -> None:
     debug = DebugLines()
-    with rovlink.connect("sim://?seed=7", keepalive=None, on_stray=debug,
-                         timeout=REPLY_TIMEOUT_S) as rov:
+    with rovlink.connect(
+        "sim://?seed=7", keepalive=None, on_stray=debug, timeout=REPLY_TIMEOUT_S
+    ) as rov:
         run_every_method(rov, debug)
 
 
 def test_every_method_of_the_blocking_client() -> None:
     debug = DebugLines()
-    with rovlink.connect("sim://?seed=1", keepalive=None, on_stray=debug,
-                         timeout=REPLY_TIMEOUT_S) as rov:
+    with rovlink.connect(
+        "sim://?seed=1", keepalive=None, on_stray=debug, timeout=REPLY_TIMEOUT_S
+    ) as rov:
         state = _state_of(rov)
         rov.set_debug(True)
         assert state().debug_enabled
@@ -57,7 +59,8 @@ def test_every_method_of_the_blocking_client() -> None:
         rov.set_direct_mode(True)
         rov.set_vertical_thrust(-40)
         assert (state().vertical_mode, state().vertical_thrust_percent) == (
-            VerticalMode.DIRECT, -40,
+            VerticalMode.DIRECT,
+            -40,
         )
         rov.set_direct_mode(False)
         rov.hold_depth(150)
@@ -93,8 +96,9 @@ def test_every_method_of_the_blocking_client() -> None:
 
 
 def test_checksum_mode_both_ways_with_the_simulator() -> None:
-    with rovlink.connect("sim://?seed=2", keepalive=None, checksum=True,
-                         timeout=REPLY_TIMEOUT_S) as rov:
+    with rovlink.connect(
+        "sim://?seed=2", keepalive=None, checksum=True, timeout=REPLY_TIMEOUT_S
+    ) as rov:
         state = _state_of(rov)
         assert state().checksum_enabled
         check_sensors(rov.sensors())
@@ -113,8 +117,9 @@ def test_a_controller_with_another_checksum_algorithm(tmp_path: Path, algorithm:
     config = tmp_path / "controller.toml"
     config.write_text(f'[controller]\nchecksum_algorithm = "{algorithm}"\n')
     url = f"sim://?config={config}"
-    with rovlink.connect(url, keepalive=None, checksum=True, algorithm=algorithm,
-                         timeout=REPLY_TIMEOUT_S) as rov:
+    with rovlink.connect(
+        url, keepalive=None, checksum=True, algorithm=algorithm, timeout=REPLY_TIMEOUT_S
+    ) as rov:
         check_sensors(rov.sensors())
     # Speaking crc8 to it, every checksummed query is dropped: connect says so.
     with pytest.raises(ConnectionError, match="not in checksum mode with crc8"):
@@ -195,8 +200,13 @@ async def test_every_method_of_the_async_client() -> None:
         assert (current.direction_deg, current.power_percent) == (90, 10)
         assert (current.depth_zero_raw, current.depth_k) == (25, 1100)
         results = await asyncio.gather(
-            rov.depth_cm(), rov.pressure_raw(), rov.leak_detected(), rov.roll_deg(),
-            rov.pitch_deg(), rov.heading_deg(), rov.sensors(),
+            rov.depth_cm(),
+            rov.pressure_raw(),
+            rov.leak_detected(),
+            rov.roll_deg(),
+            rov.pitch_deg(),
+            rov.heading_deg(),
+            rov.sensors(),
         )
         assert results[2] is False
         check_sensors(results[6])  # type: ignore[arg-type]

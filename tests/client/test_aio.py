@@ -29,15 +29,20 @@ async def _sent_after_connect(fake: FakeController, count: int) -> bytes:
     raw = bytes(fake.raw)
     for connect_frame in (b"#crcon!", b"#crcoff!"):
         if raw.startswith(connect_frame):
-            return raw[len(connect_frame):]
+            return raw[len(connect_frame) :]
     raise AssertionError(f"no checksum mode frame first: {raw!r}")
 
 
 @pytest.mark.parametrize(("method", "args", "kwargs", "frames"), SET_CASES)
 @pytest.mark.parametrize("checksum", [False, True])
 async def test_set_commands_send_exact_frames(
-    fake: FakeController, make_async_client: MakeAsyncClient, method: str,
-    args: tuple[Any, ...], kwargs: dict[str, Any], frames: list[bytes], checksum: bool,
+    fake: FakeController,
+    make_async_client: MakeAsyncClient,
+    method: str,
+    args: tuple[Any, ...],
+    kwargs: dict[str, Any],
+    frames: list[bytes],
+    checksum: bool,
 ) -> None:
     client = await make_async_client(checksum=checksum)
     assert await getattr(client, method)(*args, **kwargs) is None
@@ -49,8 +54,12 @@ async def test_set_commands_send_exact_frames(
 @pytest.mark.parametrize(("method", "frame", "expected"), QUERY_CASES)
 @pytest.mark.parametrize("checksum", [False, True])
 async def test_queries_send_exact_frames_and_decode_replies(
-    fake: FakeController, make_async_client: MakeAsyncClient, method: str, frame: bytes,
-    expected: Any, checksum: bool,
+    fake: FakeController,
+    make_async_client: MakeAsyncClient,
+    method: str,
+    frame: bytes,
+    expected: Any,
+    checksum: bool,
 ) -> None:
     client = await make_async_client(checksum=checksum)
     assert await getattr(client, method)() == expected
@@ -149,7 +158,8 @@ async def test_checksum_switch_waits_for_queries_in_flight(
 
 
 async def test_debug_text_goes_to_the_callback_and_the_log(
-    fake: FakeController, make_async_client: MakeAsyncClient,
+    fake: FakeController,
+    make_async_client: MakeAsyncClient,
     caplog: pytest.LogCaptureFixture,
 ) -> None:
     seen: list[Event] = []
@@ -262,8 +272,10 @@ async def test_telemetry_rejects_a_bad_rate(make_async_client: MakeAsyncClient) 
             pass
 
 
-async def test_send_and_send_raw(fake: FakeController, make_async_client: MakeAsyncClient,
-                                 ) -> None:
+async def test_send_and_send_raw(
+    fake: FakeController,
+    make_async_client: MakeAsyncClient,
+) -> None:
     client = await make_async_client()
     assert await client.send(Command("q.l")) == (Response("q.l", (0,)),)
     assert await client.send_raw("#qro!") == (Response("qro", (-1,)),)

@@ -30,7 +30,7 @@ def _sent_after_connect(fake: FakeController, count: int) -> bytes:
     raw = bytes(fake.raw)
     for connect_frame in (b"#crcon!", b"#crcoff!"):
         if raw.startswith(connect_frame):
-            return raw[len(connect_frame):]
+            return raw[len(connect_frame) :]
     raise AssertionError(f"no checksum mode frame first: {raw!r}")
 
 
@@ -47,8 +47,12 @@ def test_connect_puts_the_controller_in_the_asked_mode(
 
 @pytest.mark.parametrize(("method", "args", "kwargs", "frames"), SET_CASES)
 def test_set_commands_send_exact_frames(
-    fake: FakeController, make_client: MakeClient, method: str, args: tuple[Any, ...],
-    kwargs: dict[str, Any], frames: list[bytes],
+    fake: FakeController,
+    make_client: MakeClient,
+    method: str,
+    args: tuple[Any, ...],
+    kwargs: dict[str, Any],
+    frames: list[bytes],
 ) -> None:
     client = make_client()
     assert getattr(client, method)(*args, **kwargs) is None
@@ -57,8 +61,12 @@ def test_set_commands_send_exact_frames(
 
 @pytest.mark.parametrize(("method", "args", "kwargs", "frames"), SET_CASES)
 def test_set_commands_carry_checksums_in_checksum_mode(
-    fake: FakeController, make_client: MakeClient, method: str, args: tuple[Any, ...],
-    kwargs: dict[str, Any], frames: list[bytes],
+    fake: FakeController,
+    make_client: MakeClient,
+    method: str,
+    args: tuple[Any, ...],
+    kwargs: dict[str, Any],
+    frames: list[bytes],
 ) -> None:
     client = make_client(checksum=True)
     getattr(client, method)(*args, **kwargs)
@@ -70,7 +78,11 @@ def test_set_commands_carry_checksums_in_checksum_mode(
 @pytest.mark.parametrize(("method", "frame", "expected"), QUERY_CASES)
 @pytest.mark.parametrize("checksum", [False, True])
 def test_queries_send_exact_frames_and_decode_replies(
-    fake: FakeController, make_client: MakeClient, method: str, frame: bytes, expected: Any,
+    fake: FakeController,
+    make_client: MakeClient,
+    method: str,
+    frame: bytes,
+    expected: Any,
     checksum: bool,
 ) -> None:
     client = make_client(checksum=checksum)
@@ -84,8 +96,9 @@ def test_queries_send_exact_frames_and_decode_replies(
 
 
 @pytest.mark.parametrize(("method", "args", "frame"), CHECKSUM_CASES)
-def test_protocol_part_3_vectors(fake: FakeController, make_client: MakeClient, method: str,
-                                 args: tuple[Any, ...], frame: bytes) -> None:
+def test_protocol_part_3_vectors(
+    fake: FakeController, make_client: MakeClient, method: str, args: tuple[Any, ...], frame: bytes
+) -> None:
     client = make_client(checksum=True)
     getattr(client, method)(*args)
     assert _sent_after_connect(fake, 1) == frame
@@ -97,8 +110,9 @@ def test_other_checksum_algorithms(algorithm: str) -> None:
     from rovlink.client import ClientOptions
     from rovlink.client.links import SocketLink
 
-    options = ClientOptions(checksum=True, algorithm=algorithm, keepalive_s=None,
-                            timeout_s=REPLY_TIMEOUT_S)
+    options = ClientOptions(
+        checksum=True, algorithm=algorithm, keepalive_s=None, timeout_s=REPLY_TIMEOUT_S
+    )
     with Client(SocketLink(sock, "pair"), options) as client:
         assert client.heading_deg() == 275
         expected = b"#qhe" + get_algorithm(algorithm).digits(b"qhe") + b"!"
@@ -188,7 +202,9 @@ def test_set_commands_are_never_repeated(fake: FakeController, make_client: Make
 
 @pytest.mark.parametrize("action", ["debug", "noise"])
 def test_debug_text_and_noise_are_skipped_and_reported(
-    fake: FakeController, make_client: MakeClient, action: str,
+    fake: FakeController,
+    make_client: MakeClient,
+    action: str,
     caplog: pytest.LogCaptureFixture,
 ) -> None:
     seen: list[Event] = []
@@ -330,11 +346,18 @@ def test_send_any_command_and_raw_frames(fake: FakeController, make_client: Make
     )
 
 
-def test_many_threads_get_their_own_replies(fake: FakeController, make_client: MakeClient,
-                                            ) -> None:
+def test_many_threads_get_their_own_replies(
+    fake: FakeController,
+    make_client: MakeClient,
+) -> None:
     client = make_client()
-    queries = [("depth_cm", 123), ("heading_deg", 275), ("roll_deg", -1), ("pitch_deg", 15),
-               ("pressure_raw", 530)]
+    queries = [
+        ("depth_cm", 123),
+        ("heading_deg", 275),
+        ("roll_deg", -1),
+        ("pitch_deg", 15),
+        ("pressure_raw", 530),
+    ]
     wrong: list[str] = []
 
     def worker(seed: int) -> None:

@@ -51,13 +51,17 @@ def test_every_command_of_the_table_parses_from_its_usage_with_the_minimum_value
         ("mvs -101", "mvs: thrust_percent must be in -100…+100, got -101", "thrust_percent"),
         ("th 270 x", "th: power_percent must be an integer in 0–100, got 'x'", "power_percent"),
         ("#th.400.25!", "th: direction_deg must be in 0–360, got 400", "direction_deg"),
-        ("th 270", "th takes 2 value(s), got 1: th <direction_deg 0–360> <power_percent 0–100>",
-         None),
+        (
+            "th 270",
+            "th takes 2 value(s), got 1: th <direction_deg 0–360> <power_percent 0–100>",
+            None,
+        ),
         ("qd 5", "qd takes 0 value(s), got 1", None),
     ],
 )
-def test_errors_name_the_argument_and_its_range(text: str, message: str,
-                                               argument: str | None) -> None:
+def test_errors_name_the_argument_and_its_range(
+    text: str, message: str, argument: str | None
+) -> None:
     with pytest.raises(CommandTextError) as caught:
         parse_command_text(text)
     assert message in str(caught.value)

@@ -20,8 +20,13 @@ import rovlink.client.links
 import rovlink.client.unsolicited
 
 MODULES: tuple[ModuleType, ...] = (
-    rovlink.client, rovlink.aio, rovlink.client.links, rovlink.client.unsolicited,
-    rovlink.aio.transport, rovlink.cli.send, rovlink.cli.demo,
+    rovlink.client,
+    rovlink.aio,
+    rovlink.client.links,
+    rovlink.client.unsolicited,
+    rovlink.aio.transport,
+    rovlink.cli.send,
+    rovlink.cli.demo,
 )
 
 
@@ -59,19 +64,28 @@ def _public_functions() -> Iterator[tuple[str, object]]:
 
 def test_the_public_api_is_found() -> None:
     names = {name for name, _ in _public_functions()}
-    assert {"rovlink.client.connect", "rovlink.aio.connect", "rovlink.client.Client.sensors",
-            "rovlink.aio.AsyncClient.telemetry", "rovlink.client.Client.counters",
-            "rovlink.client.links.PortLink.read_available", "rovlink.client.links.PortLink.port",
-            "rovlink.client.links.SocketLink.read_available",  # inherited from FdLink
-            "rovlink.client.links.SocketLink.recv_some", "rovlink.client.links.open_link",
-            "rovlink.aio.transport.ByteTransport.write", "rovlink.aio.transport.transport_for",
-            "rovlink.client.unsolicited.DropLog.report",
-            "rovlink.client.unsolicited.deliver"} <= names
+    assert {
+        "rovlink.client.connect",
+        "rovlink.aio.connect",
+        "rovlink.client.Client.sensors",
+        "rovlink.aio.AsyncClient.telemetry",
+        "rovlink.client.Client.counters",
+        "rovlink.client.links.PortLink.read_available",
+        "rovlink.client.links.PortLink.port",
+        "rovlink.client.links.SocketLink.read_available",  # inherited from FdLink
+        "rovlink.client.links.SocketLink.recv_some",
+        "rovlink.client.links.open_link",
+        "rovlink.aio.transport.ByteTransport.write",
+        "rovlink.aio.transport.transport_for",
+        "rovlink.client.unsolicited.DropLog.report",
+        "rovlink.client.unsolicited.deliver",
+    } <= names
 
 
 def test_every_public_function_has_an_example() -> None:
     missing = [
-        name for name, function in _public_functions()
+        name
+        for name, function in _public_functions()
         if not any(marker in (inspect.getdoc(function) or "") for marker in ("Example", ">>>"))
     ]
     assert missing == []

@@ -28,8 +28,14 @@ def test_a_subscriber_sees_the_wire_and_the_decisions_in_order(
 ) -> None:
     fake, sock = fake_pair
     events: list[ClientEvent] = []
-    options = ClientOptions(timeout_s=2.0, keepalive_s=None, boot_timeout_s=None,
-                            motion_timeout_s=None, checksum=True, on_event=events.append)
+    options = ClientOptions(
+        timeout_s=2.0,
+        keepalive_s=None,
+        boot_timeout_s=None,
+        motion_timeout_s=None,
+        checksum=True,
+        on_event=events.append,
+    )
     with Client(SocketLink(sock, "pair"), options) as rov:
         fake.then("corrupt")
         assert rov.depth_cm() == 123  # the corrupt reply is retried
@@ -52,7 +58,8 @@ def test_a_subscriber_sees_the_wire_and_the_decisions_in_order(
 
 
 def test_dropped_frames_are_debug_lines_with_a_periodic_warning(
-    fake: FakeController, caplog: pytest.LogCaptureFixture,
+    fake: FakeController,
+    caplog: pytest.LogCaptureFixture,
 ) -> None:
     from rovlink.client.unsolicited import DropLog
 
@@ -86,7 +93,8 @@ def test_an_unconfigured_program_on_a_noisy_line_prints_nothing() -> None:
         "print(rov.depth_cm())\n"
         "rov.close()\n"
     )
-    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                            check=True, timeout=60)
+    result = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, check=True, timeout=60
+    )
     assert result.stdout.strip() == "5"
     assert result.stderr == ""

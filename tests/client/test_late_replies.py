@@ -36,8 +36,9 @@ def _check(results: list[int | None], late: list[ClientEvent], late_count: int) 
     assert [event.response.values for event in late if isinstance(event, LateReply)] == [(1,)]
 
 
-def test_the_blocking_client_discards_a_late_reply(fake: FakeController,
-                                                   make_client: MakeClient) -> None:
+def test_the_blocking_client_discards_a_late_reply(
+    fake: FakeController, make_client: MakeClient
+) -> None:
     events: list[ClientEvent] = []
     client = make_client(timeout_s=TIMEOUT_S, retries=0, on_event=events.append)
     fake.qd_counts_queries = True
@@ -84,7 +85,7 @@ def test_session_fence_byte_by_byte_and_whole(chunk: int) -> None:
     assert data == b"#qhe!#qd!"  # the fence goes first
     stream = b"$qd.1!$qhe.90!$qd.3!"
     for start in range(0, len(stream), chunk):
-        session.receive(stream[start:start + chunk], now=0.36)
+        session.receive(stream[start : start + chunk], now=0.36)
     assert second.outcome is Outcome.ANSWERED
     assert second.responses[0].values == (3,)
     assert session.counters.late_replies == 1

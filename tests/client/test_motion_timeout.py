@@ -54,7 +54,9 @@ def test_renewed_zero_or_stopped_motion_never_expires() -> None:
 
 
 def test_a_silent_program_stops_the_robot_through_the_blocking_client(
-    fake: FakeController, make_client: MakeClient, caplog: pytest.LogCaptureFixture,
+    fake: FakeController,
+    make_client: MakeClient,
+    caplog: pytest.LogCaptureFixture,
 ) -> None:
     client = make_client(motion_timeout_s=0.3, keepalive_s=0.1)
     client.start()
@@ -63,13 +65,17 @@ def test_a_silent_program_stops_the_robot_through_the_blocking_client(
     assert fake.wait_for(lambda f: "#th.45.0!" in f.frames())
     assert wait_until(lambda: client.counters.motion_expiries == 1)
     assert fake.frames().count("#th.45.0!") == 1
-    assert wait_until(lambda: any(
-        record.levelno == logging.WARNING and "#th.45.0!" in record.getMessage()
-        for record in caplog.records))
+    assert wait_until(
+        lambda: any(
+            record.levelno == logging.WARNING and "#th.45.0!" in record.getMessage()
+            for record in caplog.records
+        )
+    )
 
 
 async def test_a_silent_program_stops_the_robot_through_the_asyncio_client(
-    fake: FakeController, make_async_client: MakeAsyncClient,
+    fake: FakeController,
+    make_async_client: MakeAsyncClient,
 ) -> None:
     client = await make_async_client(motion_timeout_s=0.3)
     await client.start()

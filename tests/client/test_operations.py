@@ -39,11 +39,15 @@ def test_both_clients_have_every_method_with_the_same_signature(method: str) -> 
     [
         (lambda: ops.move(361, 10), "move: direction_deg must be in 0–360 (#th), got 361"),
         (lambda: ops.move(90, -1), "move: power_percent must be in 0–100 (#th), got -1"),
-        (lambda: ops.move(90, 12.5),  # type: ignore[arg-type]
-         "move: power_percent must be in 0–100 (#th), got 12.5"),
+        (
+            lambda: ops.move(90, 12.5),  # type: ignore[arg-type]
+            "move: power_percent must be in 0–100 (#th), got 12.5",
+        ),
         (lambda: ops.max_pwm(256), "set_max_pwm: duty must be in 0–255 (#mgmp), got 256"),
-        (lambda: ops.vertical_thrust(101),
-         "set_vertical_thrust: percent must be in -100…+100 (#mvs), got 101"),
+        (
+            lambda: ops.vertical_thrust(101),
+            "set_vertical_thrust: percent must be in -100…+100 (#mvs), got 101",
+        ),
         (lambda: ops.hold_depth(10000), "hold_depth: depth_cm must be in 0–9999 (#mvd)"),
         (lambda: ops.depth_zero(1025), "set_depth_zero: raw must be in 0–1024 (#sdz)"),
         (lambda: ops.depth_scale(-1), "set_depth_scale: k must be in 0–10000 (#sdk)"),
@@ -63,7 +67,10 @@ def test_invalid_argument_error_carries_the_details() -> None:
         ops.move(90, 101)
     error = caught.value
     assert (error.method, error.argument, error.value, error.range_text) == (
-        "move", "power_percent", 101, "0–100",
+        "move",
+        "power_percent",
+        101,
+        "0–100",
     )
 
 
@@ -71,12 +78,18 @@ def test_invalid_argument_error_carries_the_details() -> None:
     ("call", "message"),
     [
         (lambda: ops.move(True, 10), "move: direction_deg must be an integer, got True"),
-        (lambda: ops.move("90", 10),  # type: ignore[arg-type]
-         "move: direction_deg must be an integer, got '90'"),
-        (lambda: ops.checksum(1),  # type: ignore[arg-type]
-         "set_checksum: enabled must be True or False, got 1"),
-        (lambda: ops.direct_mode("yes"),  # type: ignore[arg-type]
-         "set_direct_mode: enabled must be True or False"),
+        (
+            lambda: ops.move("90", 10),  # type: ignore[arg-type]
+            "move: direction_deg must be an integer, got '90'",
+        ),
+        (
+            lambda: ops.checksum(1),  # type: ignore[arg-type]
+            "set_checksum: enabled must be True or False, got 1",
+        ),
+        (
+            lambda: ops.direct_mode("yes"),  # type: ignore[arg-type]
+            "set_direct_mode: enabled must be True or False",
+        ),
     ],
 )
 def test_wrong_types_are_type_errors(call: object, message: str) -> None:

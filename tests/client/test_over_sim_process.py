@@ -29,8 +29,9 @@ def test_every_method_over_a_real_transport(transport: str) -> None:
 def test_checksum_mode_from_the_start_over_a_paced_pty() -> None:
     with running_sim("--pty", "--baud", "115200", "--seed", "2") as sim:
         assert sim.pty_path is not None
-        with rovlink.connect(sim.pty_path, checksum=True, baudrate=115200,
-                             timeout=REPLY_TIMEOUT_S) as rov:
+        with rovlink.connect(
+            sim.pty_path, checksum=True, baudrate=115200, timeout=REPLY_TIMEOUT_S
+        ) as rov:
             for _ in range(20):
                 check_sensors(rov.sensors())
             assert rov.counters.checksum_errors == 0

@@ -26,8 +26,7 @@ def booting() -> Iterator[tuple[FakeController, socket.socket]]:
 
 
 def _options(**overrides: object) -> ClientOptions:
-    settings: dict[str, object] = {"timeout_s": 0.25, "keepalive_s": None,
-                                   "motion_timeout_s": None}
+    settings: dict[str, object] = {"timeout_s": 0.25, "keepalive_s": None, "motion_timeout_s": None}
     settings.update(overrides)
     return ClientOptions(**settings)  # type: ignore[arg-type]
 
@@ -70,8 +69,9 @@ def test_a_reset_mid_session_is_noticed_and_the_checksum_mode_restored(
 ) -> None:
     fake, sock = fake_pair
     events: list[ClientEvent] = []
-    with Client(SocketLink(sock, "pair"), _options(checksum=True, retries=3,
-                                                   on_event=events.append)) as rov:
+    with Client(
+        SocketLink(sock, "pair"), _options(checksum=True, retries=3, on_event=events.append)
+    ) as rov:
         assert rov.depth_cm() == 123
         fake.reset()  # back with checksum mode off: every checksummed frame is now dropped
         assert rov.heading_deg() == 275  # retried until the mode is re-asserted
@@ -88,8 +88,10 @@ async def test_the_asyncio_client_notices_a_reset_too(
 ) -> None:
     fake, sock = fake_pair
     events: list[ClientEvent] = []
-    rov = await AsyncClient(SocketLink(sock, "pair"), _options(
-        checksum=True, retries=3, boot_timeout_s=None, on_event=events.append)).open()
+    rov = await AsyncClient(
+        SocketLink(sock, "pair"),
+        _options(checksum=True, retries=3, boot_timeout_s=None, on_event=events.append),
+    ).open()
     try:
         assert await rov.depth_cm() == 123
         fake.reset()

@@ -22,8 +22,9 @@ def test_the_client_does_not_import_the_simulator() -> None:
         "'rovlink.controller')))\n"
         "print(loaded)"
     )
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                         check=True).stdout
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, check=True
+    ).stdout
     assert out.strip() == "[]"
 
 

@@ -94,8 +94,9 @@ def test_pty_disconnect_is_a_lost_connection(pty_fake: tuple[FakeController, str
 
 
 def test_blocking_client_over_tcp(tcp_fake: _TcpFake) -> None:
-    with rovlink.connect(f"socket://127.0.0.1:{tcp_fake.port}", keepalive=None,
-                         timeout=REPLY_TIMEOUT_S) as rov:
+    with rovlink.connect(
+        f"socket://127.0.0.1:{tcp_fake.port}", keepalive=None, timeout=REPLY_TIMEOUT_S
+    ) as rov:
         assert isinstance(rov._link, SocketLink)
         assert rov.heading_deg() == 275
         assert rov.leak_detected() is False
@@ -132,8 +133,9 @@ async def test_async_client_over_a_pty(pty_fake: tuple[FakeController, str]) -> 
 
 
 async def test_async_client_over_tcp_and_disconnect(tcp_fake: _TcpFake) -> None:
-    rov = await rovlink.aio.connect(f"socket://127.0.0.1:{tcp_fake.port}", keepalive=None,
-                                    timeout=REPLY_TIMEOUT_S)
+    rov = await rovlink.aio.connect(
+        f"socket://127.0.0.1:{tcp_fake.port}", keepalive=None, timeout=REPLY_TIMEOUT_S
+    )
     assert await rov.depth_cm() == 123
     tcp_fake.connected().then("close")
     with pytest.raises(ConnectionLostError):

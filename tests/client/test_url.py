@@ -19,8 +19,12 @@ from rovlink.sim.url import SimOptions, parse_sim_url
         ("spy://COM3?file=log.txt", Scheme.SERIAL, "spy://COM3?file=log.txt", DEFAULT_BAUDRATE),
         ("socket://localhost:5760", Scheme.TCP, "localhost:5760", DEFAULT_BAUDRATE),
         # pyserial's own socket options go to pyserial's handler.
-        ("socket://localhost:5760?logging=debug", Scheme.SERIAL,
-         "socket://localhost:5760?logging=debug", DEFAULT_BAUDRATE),
+        (
+            "socket://localhost:5760?logging=debug",
+            Scheme.SERIAL,
+            "socket://localhost:5760?logging=debug",
+            DEFAULT_BAUDRATE,
+        ),
     ],
 )
 def test_serial_and_tcp_urls(url: str, scheme: Scheme, target: str, baudrate: int) -> None:

@@ -18,33 +18,39 @@ from rovlink.console.actions import (
 from rovlink.protocol import Command
 
 
-@pytest.mark.parametrize(("line", "command"), [
-    ("qd", Command("qd")),
-    ("th 270 25", Command("th", (270, 25))),
-    ("mvs -50", Command("mvs", (-50,))),
-    ("mvpidd 11", Command("mvpidd", (11,))),
-    ("h+", Command("h+")),
-    ("#qd!", Command("qd")),
-    ("  #th.270.25!  ", Command("th", (270, 25))),
-    ("q.l", Command("q.l")),
-    ("mvpdd 7", Command("mvpidd", (7,))),
-])
+@pytest.mark.parametrize(
+    ("line", "command"),
+    [
+        ("qd", Command("qd")),
+        ("th 270 25", Command("th", (270, 25))),
+        ("mvs -50", Command("mvs", (-50,))),
+        ("mvpidd 11", Command("mvpidd", (11,))),
+        ("h+", Command("h+")),
+        ("#qd!", Command("qd")),
+        ("  #th.270.25!  ", Command("th", (270, 25))),
+        ("q.l", Command("q.l")),
+        ("mvpdd 7", Command("mvpidd", (7,))),
+    ],
+)
 def test_commands(line: str, command: Command) -> None:
     assert parse_line(line) == SendCommand(command)
 
 
-@pytest.mark.parametrize(("line", "action"), [
-    ("help", ShowHelp()),
-    ("help th", ShowHelp("th")),
-    ("help #mvpdd!", ShowHelp("mvpidd")),
-    ("help raw", ShowHelp("raw")),
-    ("checksum on", SetChecksum(True)),
-    ("checksum off", SetChecksum(False)),
-    ("raw #bogus!", SendRaw("#bogus!")),
-    ("status", ShowStatus()),
-    ("quit", Quit()),
-    ("exit", Quit()),
-])
+@pytest.mark.parametrize(
+    ("line", "action"),
+    [
+        ("help", ShowHelp()),
+        ("help th", ShowHelp("th")),
+        ("help #mvpdd!", ShowHelp("mvpidd")),
+        ("help raw", ShowHelp("raw")),
+        ("checksum on", SetChecksum(True)),
+        ("checksum off", SetChecksum(False)),
+        ("raw #bogus!", SendRaw("#bogus!")),
+        ("status", ShowStatus()),
+        ("quit", Quit()),
+        ("exit", Quit()),
+    ],
+)
 def test_console_words(line: str, action: object) -> None:
     assert parse_line(line) == action
 
@@ -54,36 +60,43 @@ def test_blank_lines_do_nothing() -> None:
     assert parse_line("   ") is None
 
 
-@pytest.mark.parametrize(("line", "culprit", "words"), [
-    ("th 400 25", "400", ["direction_deg", "0–360", "400"]),
-    ("th 270 250", "250", ["power_percent", "0–100", "250"]),
-    ("#th.270.101!", "101", ["power_percent", "0–100"]),
-    ("mvs -101", "-101", ["thrust_percent", "-100…+100"]),
-    ("mvs up", "up", ["thrust_percent", "integer"]),
-    ("mvd.10000", "10000", ["target_depth_cm", "0–9999"]),
-    ("mvpidd 100", "100", ["gain", "0–99"]),
-    ("qd 5", "5", ["qd takes 0"]),
-    ("th 1 2 3", "3", ["th takes 2", "<power_percent 0–100>"]),
-    ("thrust 50", "thrust", ["unknown command 'thrust'", "did you mean", "th"]),
-    ("checksum maybe", "maybe", ["on or off"]),
-    ("help nosuch", "nosuch", ["unknown command"]),
-    ("quit now", "now", ["quit takes nothing"]),
-])
+@pytest.mark.parametrize(
+    ("line", "culprit", "words"),
+    [
+        ("th 400 25", "400", ["direction_deg", "0–360", "400"]),
+        ("th 270 250", "250", ["power_percent", "0–100", "250"]),
+        ("#th.270.101!", "101", ["power_percent", "0–100"]),
+        ("mvs -101", "-101", ["thrust_percent", "-100…+100"]),
+        ("mvs up", "up", ["thrust_percent", "integer"]),
+        ("mvd.10000", "10000", ["target_depth_cm", "0–9999"]),
+        ("mvpidd 100", "100", ["gain", "0–99"]),
+        ("qd 5", "5", ["qd takes 0"]),
+        ("th 1 2 3", "3", ["th takes 2", "<power_percent 0–100>"]),
+        ("thrust 50", "thrust", ["unknown command 'thrust'", "did you mean", "th"]),
+        ("checksum maybe", "maybe", ["on or off"]),
+        ("help nosuch", "nosuch", ["unknown command"]),
+        ("quit now", "now", ["quit takes nothing"]),
+    ],
+)
 def test_errors_name_the_argument_and_range_and_point_at_it(
-        line: str, culprit: str, words: list[str]) -> None:
+    line: str, culprit: str, words: list[str]
+) -> None:
     with pytest.raises(InputError) as caught:
         parse_line(line)
     error = caught.value
-    assert line[error.position:].startswith(culprit)
+    assert line[error.position :].startswith(culprit)
     for word in words:
         assert word in error.message
 
 
-@pytest.mark.parametrize(("line", "position"), [
-    ("th 270", 6),  # a value missing: where it goes
-    ("#qd", 3),  # no end of frame
-    ("raw", 3),
-])
+@pytest.mark.parametrize(
+    ("line", "position"),
+    [
+        ("th 270", 6),  # a value missing: where it goes
+        ("#qd", 3),  # no end of frame
+        ("raw", 3),
+    ],
+)
 def test_errors_about_something_missing_point_at_the_end(line: str, position: int) -> None:
     with pytest.raises(InputError) as caught:
         parse_line(line)

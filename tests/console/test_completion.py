@@ -37,15 +37,19 @@ def test_help_completes_names_and_checksum_on_off() -> None:
     assert [s.text for s in suggestions("checksum of")] == ["off"]
 
 
-@pytest.mark.parametrize(("before", "display"), [
-    ("th ", "<direction_deg 0–360>"),
-    ("th 27", "<direction_deg 0–360>"),
-    ("th 270 ", "<power_percent 0–100>"),
-    ("mvs ", "<thrust_percent -100…+100>"),
-    ("sdk ", "<k 0–10000>"),
-])
+@pytest.mark.parametrize(
+    ("before", "display"),
+    [
+        ("th ", "<direction_deg 0–360>"),
+        ("th 27", "<direction_deg 0–360>"),
+        ("th 270 ", "<power_percent 0–100>"),
+        ("mvs ", "<thrust_percent -100…+100>"),
+        ("sdk ", "<k 0–10000>"),
+    ],
+)
 def test_arguments_get_a_hint_with_their_range_that_inserts_nothing(
-        before: str, display: str) -> None:
+    before: str, display: str
+) -> None:
     (hint,) = suggestions(before)
     assert (hint.text, hint.start, hint.display) == ("", 0, display)
 
@@ -64,8 +68,10 @@ def test_hint_marks_the_argument_being_typed() -> None:
     hint = argument_hint("th 270")
     assert hint is not None
     assert hint.current == 0
-    assert hint.text() == "th [<direction_deg 0–360>] <power_percent 0–100>: " \
-                          "degrees clockwise from the bow"
+    assert (
+        hint.text() == "th [<direction_deg 0–360>] <power_percent 0–100>: "
+        "degrees clockwise from the bow"
+    )
     after = argument_hint("#th.270.")
     assert after is not None
     assert after.current == 1

@@ -50,8 +50,7 @@ class Terminal:
 @contextlib.asynccontextmanager
 async def _terminal(rig: Rig, history_path: Path | None) -> AsyncIterator[Terminal]:
     screen = io.StringIO()
-    with create_pipe_input() as keys, create_app_session(input=keys,
-                                                         output=create_output(screen)):
+    with create_pipe_input() as keys, create_app_session(input=keys, output=create_output(screen)):
         task = asyncio.create_task(run_console(rig.connect, history_path=history_path))
         terminal = Terminal(keys, screen, task)
         await terminal.wait_shown("connected to simulated controller")
@@ -63,8 +62,7 @@ async def _terminal(rig: Rig, history_path: Path | None) -> AsyncIterator[Termin
                 await asyncio.gather(task, return_exceptions=True)
 
 
-async def test_dive_and_surface_with_replies_debug_errors_and_the_stop_key(
-        tmp_path: Path) -> None:
+async def test_dive_and_surface_with_replies_debug_errors_and_the_stop_key(tmp_path: Path) -> None:
     rig = Rig.simulated()
     async with _terminal(rig, tmp_path / "history") as term:
         term.type("debug1\r")
@@ -101,7 +99,14 @@ async def test_dive_and_surface_with_replies_debug_errors_and_the_stop_key(
         term.type(CTRL_D)
         await term.finish()
     assert rig.frames() == [
-        "#crcoff!", "#debug1!", "#start!", "#mvd.60!", "#qd!", "#mvd.0!", "#qd!", "#stop!",
+        "#crcoff!",
+        "#debug1!",
+        "#start!",
+        "#mvd.60!",
+        "#qd!",
+        "#mvd.0!",
+        "#qd!",
+        "#stop!",
         "#th.90.30!",
     ]  # leaving while locked (as last sent) sends nothing more
 
@@ -169,8 +174,7 @@ def test_cli_console_on_sim(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> 
 
     monkeypatch.setattr(rovlink.aio.client, "open_link", recording_open_link)
     screen = io.StringIO()
-    with create_pipe_input() as keys, create_app_session(input=keys,
-                                                         output=create_output(screen)):
+    with create_pipe_input() as keys, create_app_session(input=keys, output=create_output(screen)):
         keys.send_text("qd\r" + CTRL_D)
         status = main(["console", "sim://?seed=1", "--timeout", str(REPLY_TIMEOUT_S)])
     assert status == 0
@@ -189,18 +193,19 @@ def test_cli_console_refuses_a_bad_url(capsys: pytest.CaptureFixture[str]) -> No
 
 
 @pytest.mark.integration
-def test_cli_console_says_when_nothing_listens(tmp_path: Path,
-                                               capsys: pytest.CaptureFixture[str]) -> None:
+def test_cli_console_says_when_nothing_listens(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     import socket
 
     with socket.socket() as probe:  # a free port, closed again: nothing listens on it
         probe.bind(("127.0.0.1", 0))
         port = probe.getsockname()[1]
-    status = main(["console", f"socket://127.0.0.1:{port}",
-                   "--history", str(tmp_path / "history")])
+    status = main(["console", f"socket://127.0.0.1:{port}", "--history", str(tmp_path / "history")])
     assert status == 1
     assert capsys.readouterr().err == (
-        f"rovlink console: cannot open socket://127.0.0.1:{port}: Connection refused\n")
+        f"rovlink console: cannot open socket://127.0.0.1:{port}: Connection refused\n"
+    )
 
 
 async def test_interrupted_console_sends_stop_unless_locked(tmp_path: Path) -> None:

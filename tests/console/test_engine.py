@@ -58,8 +58,13 @@ async def test_stop_now_jumps_the_queue_and_drops_what_was_not_sent() -> None:
     silent = SilentController()
     # The #qd! must still be waiting when the stop key comes, however slow the machine: its
     # timeout is a long one, and the test waits it out at the end.
-    options = ClientOptions(timeout_s=REPLY_TIMEOUT_S, retries=0, keepalive_s=None,
-                            boot_timeout_s=None, motion_timeout_s=None)
+    options = ClientOptions(
+        timeout_s=REPLY_TIMEOUT_S,
+        retries=0,
+        keepalive_s=None,
+        boot_timeout_s=None,
+        motion_timeout_s=None,
+    )
     client = await AsyncClient(silent.link(), options).open()
     screen = Screen()
     engine = ConsoleEngine(screen)

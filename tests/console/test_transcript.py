@@ -41,7 +41,8 @@ def test_sent_frames_and_their_warnings() -> None:
 
 def test_events_from_the_controller_have_their_own_styles() -> None:
     assert event_line(Text("debug: motors unlocked")) == [
-        ("class:debug", "  ⋯ debug: motors unlocked")]
+        ("class:debug", "  ⋯ debug: motors unlocked")
+    ]
     dropped = event_line(BadFrame(Reason.CHECKSUM, b"$qd.1200!", "checksum mismatch"))
     assert dropped[0][0] == "class:warning"
     assert "$qd.1200!" in plain_text(dropped)

@@ -79,8 +79,11 @@ def test_random_bytes_without_a_frame_end_change_nothing(data: bytes) -> None:
 
 
 @settings(max_examples=300, deadline=None)
-@given(st.lists(st.sampled_from([b"#", b"$", b"!", b"q", b"d", b".", b"1", b"-", b"\r", b"x"]),
-                max_size=40).map(b"".join))
+@given(
+    st.lists(
+        st.sampled_from([b"#", b"$", b"!", b"q", b"d", b".", b"1", b"-", b"\r", b"x"]), max_size=40
+    ).map(b"".join)
+)
 def test_random_frame_like_noise_never_raises(data: bytes) -> None:
     rig = make_rig()
     rig.send(data)

@@ -29,7 +29,10 @@ def test_an_empty_file_gives_the_defaults(tmp_path: Path) -> None:
 
 
 def test_every_table_is_read(tmp_path: Path) -> None:
-    config = load_config(_write(tmp_path, """
+    config = load_config(
+        _write(
+            tmp_path,
+            """
 [controller]
 tick_hz = 50
 max_pwm = 200
@@ -61,7 +64,9 @@ y_m = 0.2
 [[thrusters]]
 name = "up"
 vertical = true
-"""))
+""",
+        )
+    )
     assert (config.tick_hz, config.max_pwm, config.watchdog_s) == (50.0, 200, 1.0)
     assert (config.claw_pulse_ms, config.leak_action) == (80, LeakAction.SURFACE)
     assert config.checksum_algorithm == "sum8"
@@ -88,15 +93,15 @@ def test_the_default_layout_is_four_vectored_thrusters_at_45_degrees() -> None:
         ("[controller]\nmax_pwm = 256\n", ["[controller]", "max_pwm", "0–255", "256"]),
         ("[controller]\nmax_pwm = 2.5\n", ["[controller] max_pwm", "int", "float"]),
         ("[controller]\nmax_pwm = true\n", ["max_pwm", "int", "bool"]),
-        ("[controller]\nleak_action = \"sink\"\n", ["leak_action", "none, stop, surface", "sink"]),
-        ("[controller]\nchecksum_algorithm = \"md5\"\n", ["checksum_algorithm", "crc8"]),
+        ('[controller]\nleak_action = "sink"\n', ["leak_action", "none, stop, surface", "sink"]),
+        ('[controller]\nchecksum_algorithm = "md5"\n', ["checksum_algorithm", "crc8"]),
         ("[controller]\nwatchdog_s = -1\n", ["watchdog_s", "≥ 0"]),
         ("[controller]\ntick_hz = 0\n", ["tick_hz"]),
         ("[depth]\nk = 20000\n", ["[depth]", "k must be in 0–10000"]),
         ("[depth_pid]\nkp = 100\n", ["[depth_pid]", "kp must be in 0–99"]),
         ("[depth_pid]\nkd_scale = -1.0\n", ["kd_scale"]),
         ("[[thrusters]]\nangle_deg = 3\n", ["[[thrusters]] #1", "needs a name"]),
-        ("[[thrusters]]\nname = \"a\"\n[[thrusters]]\nname = \"a\"\n", ["names must differ"]),
+        ('[[thrusters]]\nname = "a"\n[[thrusters]]\nname = "a"\n', ["names must differ"]),
         ("thrusters = 3\n", ["array of tables"]),
         ("[controller\n", ["not valid TOML"]),
         ("controller = 1\n", ["[controller] must be a table"]),
@@ -124,9 +129,17 @@ def test_other_tables_can_be_allowed(tmp_path: Path) -> None:
 
 def test_the_reference_lists_every_key_with_its_default() -> None:
     reference = config_reference()
-    for key, default in [("max_pwm", "255"), ("watchdog_s", "2.0"), ("claw_pulse_ms", "50"),
-                         ("leak_action", '"none"'), ("max_depth_cm", "0"), ("kp", "40"),
-                         ("zero_raw", "20"), ("k", "200"), ("angle_deg", "0.0")]:
+    for key, default in [
+        ("max_pwm", "255"),
+        ("watchdog_s", "2.0"),
+        ("claw_pulse_ms", "50"),
+        ("leak_action", '"none"'),
+        ("max_depth_cm", "0"),
+        ("kp", "40"),
+        ("zero_raw", "20"),
+        ("k", "200"),
+        ("angle_deg", "0.0"),
+    ]:
         assert f"| `{key}` | `{default}` |" in reference
 
 

@@ -55,8 +55,20 @@ def test_a_frame_in_the_wrong_mode_gets_a_line(debug_rig: Rig) -> None:
 
 @pytest.mark.parametrize(
     "frame",
-    [b"#mgmp.100!", b"#mvpdp.1!", b"#mvpdi.1!", b"#mvpidd.1!", b"#mvdirect.1!", b"#sdz.10!",
-     b"#sdk.100!", b"#slreset!", b"#crcon!", b"#start!", b"#stop!", b"#debug0!"],
+    [
+        b"#mgmp.100!",
+        b"#mvpdp.1!",
+        b"#mvpdi.1!",
+        b"#mvpidd.1!",
+        b"#mvdirect.1!",
+        b"#sdz.10!",
+        b"#sdk.100!",
+        b"#slreset!",
+        b"#crcon!",
+        b"#start!",
+        b"#stop!",
+        b"#debug0!",
+    ],
 )
 def test_every_change_of_mode_or_setting_gets_a_line(debug_rig: Rig, frame: bytes) -> None:
     assert len(_lines(debug_rig.send(frame))) == 1

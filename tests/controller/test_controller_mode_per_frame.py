@@ -34,6 +34,7 @@ def _debug_lines(output: bytes) -> list[str]:
 
 # -- the examples, whole and one byte at a time ---------------------------------------
 
+
 def test_a_query_before_crcon_in_the_same_chunk_is_answered_plain() -> None:
     assert make_rig().send(b"#qd!#crcon!") == b"$qd.0!"
 
@@ -63,7 +64,9 @@ def test_debug_on_and_off_in_one_chunk_each_take_effect_where_they_stand() -> No
 def test_debug_lines_report_each_checksum_mode_change_of_a_chunk_as_it_was() -> None:
     output = make_rig().send(b"#debug1!#crcon!#crcoff!")
     assert _debug_lines(output) == [
-        "debug: debug output on", "debug: checksum mode on (crc8)", "debug: checksum mode off"
+        "debug: debug output on",
+        "debug: checksum mode on (crc8)",
+        "debug: checksum mode off",
     ]
 
 
@@ -90,8 +93,17 @@ def test_debug_modes_hold_for_any_chunking(data: st.DataObject) -> None:
 # -- any stream: chunked input behaves as if each frame had arrived alone ----------------------
 
 _FRAMES = [
-    b"#qd!", b"#qd8C!", b"#q.l!", b"#crcon!", b"#crcoff!", b"#debug1!", b"#debug0!",
-    b"#bogus!", b"#mgmp.100!", b"#qro!", b"noise\r\n",
+    b"#qd!",
+    b"#qd8C!",
+    b"#q.l!",
+    b"#crcon!",
+    b"#crcoff!",
+    b"#debug1!",
+    b"#debug0!",
+    b"#bogus!",
+    b"#mgmp.100!",
+    b"#qro!",
+    b"noise\r\n",
 ]
 
 
@@ -117,6 +129,8 @@ def test_replies_in_a_mixed_chunk_decode_in_the_mode_they_were_sent_in() -> None
     decoder.checksum_enabled = False
     plain += decoder.feed(output[14:])
     assert [event.message for event in plain + checked if isinstance(event, Frame)] == [
-        Response("qd", (0,)), Response("qd", (0,)), Response("qd", (0,))
+        Response("qd", (0,)),
+        Response("qd", (0,)),
+        Response("qd", (0,)),
     ]
     assert output[6:14] == encode(Response("qd", (0,)), "crc8")

@@ -16,8 +16,18 @@ def test_leading_zeros_are_accepted(armed_rig: Rig) -> None:
 
 @pytest.mark.parametrize(
     "frame",
-    [b"#mgmp.256!", b"#mgmp.-1!", b"#mgmp.+10!", b"#mvpdp.100!", b"#sdz.1025!", b"#sdk.10001!",
-     b"#mvd.10000!", b"#th.361.10!", b"#th.10.101!", b"#mvdirect.2!"],
+    [
+        b"#mgmp.256!",
+        b"#mgmp.-1!",
+        b"#mgmp.+10!",
+        b"#mvpdp.100!",
+        b"#sdz.1025!",
+        b"#sdk.10001!",
+        b"#mvd.10000!",
+        b"#th.361.10!",
+        b"#th.10.101!",
+        b"#mvdirect.2!",
+    ],
 )
 def test_out_of_range_or_wrongly_signed_values_are_dropped_never_clamped(
     armed_rig: Rig, frame: bytes
@@ -29,8 +39,19 @@ def test_out_of_range_or_wrongly_signed_values_are_dropped_never_clamped(
 
 @pytest.mark.parametrize(
     "frame",
-    [b"#mvd.1a!", b"#mvd.!", b"#mvd!", b"#mvd.1.2!", b"#th.10!", b"#mvd. 1!", b"#mvd.0x10!",
-     b"#mvd.1e2!", b"#mvd.--1!", b"#qd.1!", b"#start.1!"],
+    [
+        b"#mvd.1a!",
+        b"#mvd.!",
+        b"#mvd!",
+        b"#mvd.1.2!",
+        b"#th.10!",
+        b"#mvd. 1!",
+        b"#mvd.0x10!",
+        b"#mvd.1e2!",
+        b"#mvd.--1!",
+        b"#qd.1!",
+        b"#start.1!",
+    ],
 )
 def test_malformed_numbers_are_dropped(armed_rig: Rig, frame: bytes) -> None:
     before = armed_rig.controller.state()
@@ -40,8 +61,14 @@ def test_malformed_numbers_are_dropped(armed_rig: Rig, frame: bytes) -> None:
 
 def test_mvs_takes_a_sign_or_a_bare_non_negative_value(armed_rig: Rig) -> None:
     armed_rig.send(b"#mvdirect.1!")
-    for frame, expected in [(b"#mvs.+100!", 100), (b"#mvs.-50!", -50), (b"#mvs.50!", 50),
-                            (b"#mvs.+0!", 0), (b"#mvs.-0!", 0), (b"#mvs.-100!", -100)]:
+    for frame, expected in [
+        (b"#mvs.+100!", 100),
+        (b"#mvs.-50!", -50),
+        (b"#mvs.50!", 50),
+        (b"#mvs.+0!", 0),
+        (b"#mvs.-0!", 0),
+        (b"#mvs.-100!", -100),
+    ]:
         armed_rig.send(frame)
         assert armed_rig.controller.state().vertical_thrust_percent == expected, frame
 

@@ -41,8 +41,13 @@ def test_target_changes_do_not_kick_the_derivative() -> None:
         assert pid.update(target, 300, DT_S) == 0.0
 
 
-@given(st.floats(-1e5, 1e5), st.floats(0, 9999), st.integers(0, 99), st.integers(0, 99),
-       st.integers(0, 99))
+@given(
+    st.floats(-1e5, 1e5),
+    st.floats(0, 9999),
+    st.integers(0, 99),
+    st.integers(0, 99),
+    st.integers(0, 99),
+)
 def test_the_output_stays_within_the_limits(
     target: float, depth: float, kp: int, ki: int, kd: int
 ) -> None:

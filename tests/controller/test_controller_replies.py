@@ -90,8 +90,15 @@ def test_pitch_is_formatted_like_roll(rig: Rig) -> None:
 
 @pytest.mark.parametrize(
     ("heading_deg", "frame"),
-    [(0.0, b"$qhe.0!"), (359.4, b"$qhe.359!"), (359.6, b"$qhe.0!"), (360.0, b"$qhe.0!"),
-     (90.2, b"$qhe.90!"), (-0.4, b"$qhe.0!"), (-1.0, b"$qhe.359!")],
+    [
+        (0.0, b"$qhe.0!"),
+        (359.4, b"$qhe.359!"),
+        (359.6, b"$qhe.0!"),
+        (360.0, b"$qhe.0!"),
+        (90.2, b"$qhe.90!"),
+        (-0.4, b"$qhe.0!"),
+        (-1.0, b"$qhe.359!"),
+    ],
 )
 def test_heading_is_written_0_to_359(rig: Rig, heading_deg: float, frame: bytes) -> None:
     rig.imu.attitude = Attitude(0.0, 0.0, heading_deg)

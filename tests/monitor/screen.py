@@ -15,8 +15,15 @@ from rovlink.monitor.app import Panel
 def screen_text(app: App[Any]) -> str:
     """The whole screen as plain text (what ``export_screenshot`` draws, without the SVG)."""
     width, height = app.size
-    console = Console(width=width, height=height, file=io.StringIO(), record=True,
-                      force_terminal=True, color_system=None, legacy_windows=False)
+    console = Console(
+        width=width,
+        height=height,
+        file=io.StringIO(),
+        record=True,
+        force_terminal=True,
+        color_system=None,
+        legacy_windows=False,
+    )
     console.print(app.screen._compositor.render_update(full=True))
     return console.export_text()
 

@@ -12,8 +12,7 @@ def _plot(lines: list[str]) -> list[str]:
 
 
 def test_samples_fall_in_their_time_column_and_depth_row() -> None:
-    samples = [DepthSample(at_s, depth_cm) for at_s, depth_cm in
-               ((0.0, 0), (5.0, 25), (9.99, 50))]
+    samples = [DepthSample(at_s, depth_cm) for at_s, depth_cm in ((0.0, 0), (5.0, 25), (9.99, 50))]
     lines = depth_chart(samples, now_s=10.0, window_s=10.0, width=18, height=3)
     rows = _plot(lines)
     assert rows[0].index(SAMPLE_MARK) == 0  # oldest, at the surface: top left
@@ -39,8 +38,9 @@ def test_samples_outside_the_window_are_left_out() -> None:
 
 
 def test_the_target_line_and_a_sample_share_a_row() -> None:
-    lines = depth_chart([DepthSample(9.5, 40)], now_s=10.0, window_s=10.0, width=28,
-                        height=6, target_cm=40)
+    lines = depth_chart(
+        [DepthSample(9.5, 40)], now_s=10.0, window_s=10.0, width=28, height=6, target_cm=40
+    )
     (row,) = [row for row in _plot(lines) if TARGET_MARK in row]
     assert row.count(SAMPLE_MARK) == 1
     assert row.count(TARGET_MARK) == 19

@@ -17,18 +17,30 @@ def test_turning_wraps_around_and_keeps_the_power() -> None:
 
 def test_power_stays_in_range() -> None:
     assert change_power(CommandedState(power_percent=5), -10) == Command("th", (0, 0))
-    assert change_power(CommandedState(direction_deg=90, power_percent=100), 10) == \
-        Command("th", (90, 100))
+    assert change_power(CommandedState(direction_deg=90, power_percent=100), 10) == Command(
+        "th", (90, 100)
+    )
 
 
-@pytest.mark.parametrize(("depth_cm", "step_cm", "target_cm"), [
-    (None, 10, 10), (0, -10, 0), (57, 10, 60), (57, -10, 50), (60, 10, 70), (60, -10, 50),
-    (9995, 10, 9999),
-])
+@pytest.mark.parametrize(
+    ("depth_cm", "step_cm", "target_cm"),
+    [
+        (None, 10, 10),
+        (0, -10, 0),
+        (57, 10, 60),
+        (57, -10, 50),
+        (60, 10, 70),
+        (60, -10, 50),
+        (9995, 10, 9999),
+    ],
+)
 def test_the_first_target_is_the_next_step_from_the_depth_now(
-        depth_cm: int | None, step_cm: int, target_cm: int) -> None:
+    depth_cm: int | None, step_cm: int, target_cm: int
+) -> None:
     assert change_depth_target(CommandedState(), depth_cm, step_cm) == [
-        Command("mvdirect", (0,)), Command("mvd", (target_cm,))]
+        Command("mvdirect", (0,)),
+        Command("mvd", (target_cm,)),
+    ]
 
 
 def test_later_steps_move_the_target_as_last_sent() -> None:

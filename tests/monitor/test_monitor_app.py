@@ -41,8 +41,7 @@ async def test_drive_to_a_depth_and_back_then_stop() -> None:
         await pilot.press("s")
         assert "unlocked (as last sent)" in shown(app, "#commanded")
         await pilot.press("pagedown", "pagedown", "pagedown")
-        assert _commands(rig)[1:] == ["#start!", "#mvdirect.0!", "#mvd.10!", "#mvd.20!",
-                                      "#mvd.30!"]
+        assert _commands(rig)[1:] == ["#start!", "#mvdirect.0!", "#mvd.10!", "#mvd.20!", "#mvd.30!"]
         assert "target 30 cm, as last sent" in shown(app, "#depth-readout")
         rig.port.advance(20.0)  # simulated seconds: the depth PID takes it down
         await until(lambda: abs((_depth_shown(app) or 0) - 30) <= 4)
@@ -56,9 +55,19 @@ async def test_drive_to_a_depth_and_back_then_stop() -> None:
         assert "•" in chart
         assert "30 cm" in chart or "50 cm" in chart
         await pilot.press("q")
-    assert _commands(rig)[6:] == ["#mvd.20!", "#mvd.10!", "#mvd.0!", "#th.15.0!", "#th.15.10!",
-                                  "#th.15.20!", "#th.0.20!", "#th.0.10!", "#h+!", "#h-!",
-                                  "#stop!"]  # q while locked (as last sent): nothing more
+    assert _commands(rig)[6:] == [
+        "#mvd.20!",
+        "#mvd.10!",
+        "#mvd.0!",
+        "#th.15.0!",
+        "#th.15.10!",
+        "#th.15.20!",
+        "#th.0.20!",
+        "#th.0.10!",
+        "#h+!",
+        "#h-!",
+        "#stop!",
+    ]  # q while locked (as last sent): nothing more
     assert rig.port.controller.locked
 
 
@@ -111,8 +120,14 @@ async def test_a_silent_link_degrades_link_health_while_keys_still_work() -> Non
     def connect(on_stray: StrayCallback) -> Awaitable[AsyncClient]:
         # Long enough for the first poll to be still waiting when space is pressed, however
         # slow the machine; the test then waits it out to see the link's health degrade.
-        options = ClientOptions(timeout_s=REPLY_TIMEOUT_S, retries=0, keepalive_s=None,
-                                boot_timeout_s=None, motion_timeout_s=None, on_stray=on_stray)
+        options = ClientOptions(
+            timeout_s=REPLY_TIMEOUT_S,
+            retries=0,
+            keepalive_s=None,
+            boot_timeout_s=None,
+            motion_timeout_s=None,
+            on_stray=on_stray,
+        )
         return AsyncClient(silent.link(), options).open()
 
     app = MonitorApp(connect, description="silent", rate_hz=10)
@@ -151,12 +166,21 @@ async def test_footer_shows_the_keys() -> None:
     rig = Rig.simulated()
     app = MonitorApp(rig.connect, description="bench")
     async with app.run_test(size=SIZE) as pilot:
+
         def footer() -> str:
             return [line for line in screen_text(app).splitlines() if line.strip()][-1]
 
         await until(lambda: "q quit" in footer())
-        for words in ("space STOP", "s start", "←→ direction", "↑↓ power",
-                      "PgUp/PgDn depth target", "o/c claw", "r reset leak", "q quit"):
+        for words in (
+            "space STOP",
+            "s start",
+            "←→ direction",
+            "↑↓ power",
+            "PgUp/PgDn depth target",
+            "o/c claw",
+            "r reset leak",
+            "q quit",
+        ):
             assert words in footer()
         await pilot.press("q")
 
@@ -177,8 +201,9 @@ def _record_links(monkeypatch: pytest.MonkeyPatch) -> list[RecordingLink]:
 async def test_monitor_on_sim_url_shows_an_injected_leak(monkeypatch: pytest.MonkeyPatch) -> None:
     """``rovlink monitor 'sim://?leak_at=…'``: the real URL, the simulator in real time."""
     links = _record_links(monkeypatch)
-    app = build_app(build_parser("monitor").parse_args(
-        ["monitor", "sim://?leak_at=0.3&seed=1", "--rate", "20"]))
+    app = build_app(
+        build_parser("monitor").parse_args(["monitor", "sim://?leak_at=0.3&seed=1", "--rate", "20"])
+    )
     async with app.run_test(size=SIZE) as pilot:
         await until(lambda: app.query_one("#leak").has_class("alarm"))
         assert "sim://?leak_at=0.3&seed=1" in screen_text(app)

@@ -14,8 +14,9 @@ from rovlink.monitor.readings import Readings
 from rovlink.piloting import CommandedState, LinkHealth, LockState
 from rovlink.protocol import Command, VerticalMode
 
-READING = Sensors(depth_cm=57, pressure_raw=612, leak_detected=False, roll_deg=-3, pitch_deg=2,
-                  heading_deg=275)
+READING = Sensors(
+    depth_cm=57, pressure_raw=612, leak_detected=False, roll_deg=-3, pitch_deg=2, heading_deg=275
+)
 
 
 def _readings(*readings: tuple[Sensors, float]) -> Readings:
@@ -34,8 +35,9 @@ def test_depth_readout_says_as_last_sent_and_goes_stale() -> None:
     assert "stale" not in text
     stale = depth_text(readings, commanded, now_s=11.0, period_s=0.2).plain
     assert "stale: last reading 1.0 s ago" in stale
-    assert "no target sent" in depth_text(readings, CommandedState(), now_s=10.1,
-                                          period_s=0.2).plain
+    assert (
+        "no target sent" in depth_text(readings, CommandedState(), now_s=10.1, period_s=0.2).plain
+    )
 
 
 def test_leak_banner() -> None:

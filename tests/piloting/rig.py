@@ -66,12 +66,17 @@ class Rig:
             port.robot.inject_leak(at_s=leak_at_s)
         return cls(port, RecordingLink(PortLink(port, "simulated controller")))
 
-    async def connect(self, on_stray: StrayCallback | None = None,
-                      **options: object) -> AsyncClient:
+    async def connect(
+        self, on_stray: StrayCallback | None = None, **options: object
+    ) -> AsyncClient:
         """An asyncio client on the link (no keep-alives: tests count frames)."""
-        settings: dict[str, object] = {"keepalive_s": None, "timeout_s": REPLY_TIMEOUT_S,
-                                       "boot_timeout_s": None, "motion_timeout_s": None,
-                                       "on_stray": on_stray}
+        settings: dict[str, object] = {
+            "keepalive_s": None,
+            "timeout_s": REPLY_TIMEOUT_S,
+            "boot_timeout_s": None,
+            "motion_timeout_s": None,
+            "on_stray": on_stray,
+        }
         settings.update(options)
         client = AsyncClient(self.link, ClientOptions(**settings))  # type: ignore[arg-type]
         self.clients.append(client)

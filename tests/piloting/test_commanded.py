@@ -24,8 +24,9 @@ def test_nothing_sent_is_unknown_and_says_so() -> None:
 
 
 def test_start_unlocks_and_stop_locks_and_clears_set_points() -> None:
-    state = _state(Command("start"), Command("mvdirect", (0,)), Command("mvd", (120,)),
-                   Command("th", (90, 40)))
+    state = _state(
+        Command("start"), Command("mvdirect", (0,)), Command("mvd", (120,)), Command("th", (90, 40))
+    )
     assert state.lock_text() == "unlocked (as last sent)"
     assert (state.target_depth_cm, state.direction_deg, state.power_percent) == (120, 90, 40)
     assert state.mode_text() == "depth (as last sent), target 120 cm"
@@ -34,8 +35,16 @@ def test_start_unlocks_and_stop_locks_and_clears_set_points() -> None:
     assert (state.target_depth_cm, state.direction_deg, state.power_percent) == (None, 0, 0)
 
 
-@pytest.mark.parametrize("command", [Command("mvd", (100,)), Command("th", (0, 50)),
-                                     Command("mvs", (20,)), Command("h+"), Command("h-")])
+@pytest.mark.parametrize(
+    "command",
+    [
+        Command("mvd", (100,)),
+        Command("th", (0, 50)),
+        Command("mvs", (20,)),
+        Command("h+"),
+        Command("h-"),
+    ],
+)
 def test_motion_while_locked_is_reported_as_dropped_and_changes_nothing(command: Command) -> None:
     state = _state(Command("stop"))
     before = CommandedState(**{name: getattr(state, name) for name in state.__slots__})
@@ -76,7 +85,8 @@ def test_start_while_unlocked_changes_nothing_as_the_controller_does() -> None:
 
 
 def test_th_360_is_0_and_settings_leave_the_state_alone() -> None:
-    state = _state(Command("start"), Command("th", (360, 10)), Command("mgmp", (200,)),
-                   Command("qd"))
+    state = _state(
+        Command("start"), Command("th", (360, 10)), Command("mgmp", (200,)), Command("qd")
+    )
     assert state.direction_deg == 0
     assert state.horizontal_text() == "0° at 10 % (as last sent)"

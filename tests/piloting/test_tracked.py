@@ -51,9 +51,10 @@ async def test_raw_frames_update_the_state_as_the_controller_reads_them() -> Non
 
 async def test_a_silent_link_is_counted_as_failures() -> None:
     silent = SilentController()
-    client = await AsyncClient(silent.link(), ClientOptions(timeout_s=0.05, retries=0,
-                                                       keepalive_s=None,
-                                                       boot_timeout_s=None)).open()
+    client = await AsyncClient(
+        silent.link(),
+        ClientOptions(timeout_s=0.05, retries=0, keepalive_s=None, boot_timeout_s=None),
+    ).open()
     rov = TrackedClient(client)
     with pytest.raises(QueryTimeoutError):
         await rov.sensors()

@@ -15,8 +15,23 @@ def _message_for(spec: Spec) -> st.SearchStrategy[Message]:
 
 messages: st.SearchStrategy[Message] = st.one_of([_message_for(s) for s in (*COMMANDS, *RESPONSES)])
 
-_NOISE_TOKENS = [b"#", b"$", b"!", b".", b"q", b"d", b"1", b"\r\n", b" ", b"\x00", b"\xff",
-                 b"#qd!", b"$qd.5!", b"#stop!", b"#qd8C!"]
+_NOISE_TOKENS = [
+    b"#",
+    b"$",
+    b"!",
+    b".",
+    b"q",
+    b"d",
+    b"1",
+    b"\r\n",
+    b" ",
+    b"\x00",
+    b"\xff",
+    b"#qd!",
+    b"$qd.5!",
+    b"#stop!",
+    b"#qd8C!",
+]
 _MODE_FRAMES = [b"#crcon!", b"#crcoff!"]
 
 #: Bytes that look like protocol traffic: frame characters, digits, letters, noise, mode frames.

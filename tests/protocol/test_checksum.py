@@ -31,8 +31,14 @@ def test_crc8_table_matches_bitwise_definition(data: bytes) -> None:
 
 @pytest.mark.parametrize(
     ("body", "digits"),
-    [(b"qd", b"8C"), (b"mvd.100", b"4B"), (b"th.270.25", b"CA"), (b"stop", b"A5"),
-     (b"qd.123", b"13"), (b"qro.-1", b"98")],
+    [
+        (b"qd", b"8C"),
+        (b"mvd.100", b"4B"),
+        (b"th.270.25", b"CA"),
+        (b"stop", b"A5"),
+        (b"qd.123", b"13"),
+        (b"qro.-1", b"98"),
+    ],
 )
 def test_part3_vectors(body: bytes, digits: bytes) -> None:
     crc8 = get_algorithm("crc8")

@@ -180,8 +180,13 @@ def test_crcon_is_recognised_in_checksum_mode_too() -> None:
 
 def test_checksum_mode_drops_missing_and_wrong_checksums() -> None:
     events = decode_all(b"#qd!#qd8D!#qd8c!$qd.12313!$qd.123!", checksum_enabled=True)
-    assert [type(e).__name__ for e in events] == ["BadFrame", "BadFrame", "Frame", "Frame",
-                                                  "BadFrame"]
+    assert [type(e).__name__ for e in events] == [
+        "BadFrame",
+        "BadFrame",
+        "Frame",
+        "Frame",
+        "BadFrame",
+    ]
     assert all(e.reason is Reason.CHECKSUM for e in events if isinstance(e, BadFrame))
     assert frames(events) == [Command("qd"), Response("qd", (123,))]
 
@@ -206,7 +211,11 @@ def test_checksum_off_takes_a_checksummed_frame_as_it_is() -> None:
 def test_mode_followed_within_one_stream() -> None:
     stream = b"#qd!#crcon!#qd!#qd8C!#crcoff!#qd!"
     assert frames(decode_all(stream)) == [
-        Command("qd"), Command("crcon"), Command("qd"), Command("crcoff"), Command("qd")
+        Command("qd"),
+        Command("crcon"),
+        Command("qd"),
+        Command("crcoff"),
+        Command("qd"),
     ]
 
 

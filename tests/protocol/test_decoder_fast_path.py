@@ -14,9 +14,9 @@ from rovlink.protocol import Decoder, Event, Frame, Kind, Response, get_algorith
 from rovlink.protocol.commands import SPELLINGS, Spec
 from rovlink.protocol.frames import FAST_ENTRIES
 
-_SPELLINGS = sorted({
-    kind.start_byte + spelling.encode() for kind in Kind for spelling in SPELLINGS[kind]
-})
+_SPELLINGS = sorted(
+    {kind.start_byte + spelling.encode() for kind in Kind for spelling in SPELLINGS[kind]}
+)
 _NUMBER_TEXTS = st.one_of(
     st.integers(0, 100).map(lambda value: b"%d" % value),  # in every unsigned range
     st.integers(-10_500, 10_500).map(lambda value: b"%d" % value),
@@ -42,9 +42,19 @@ def _values(draw: st.DrawFn, spec: Spec) -> list[bytes]:
     texts = []
     for argument in spec.arguments:
         value = draw(st.integers(argument.minimum, argument.maximum))
-        texts.append(draw(st.sampled_from([
-            argument.format(value).encode(), b"%d" % value, b"0%d" % value,
-        ])) if draw(st.integers(0, 5)) else draw(_NUMBER_TEXTS))
+        texts.append(
+            draw(
+                st.sampled_from(
+                    [
+                        argument.format(value).encode(),
+                        b"%d" % value,
+                        b"0%d" % value,
+                    ]
+                )
+            )
+            if draw(st.integers(0, 5))
+            else draw(_NUMBER_TEXTS)
+        )
     return texts
 
 
@@ -69,9 +79,7 @@ def frames(draw: st.DrawFn) -> bytes:
     return prefix[:1] + body + b"!"
 
 
-streams = st.lists(frames() | st.sampled_from([b"#crcon!", b"#crcoff!"]), max_size=40).map(
-    b"".join
-)
+streams = st.lists(frames() | st.sampled_from([b"#crcon!", b"#crcoff!"]), max_size=40).map(b"".join)
 
 
 def _decode(chunks: list[bytes], checksum: bool) -> list[Event]:
@@ -94,7 +102,8 @@ def test_whole_frames_decode_as_the_byte_level_states_do(stream: bytes, checksum
 def test_a_leading_zero_value_decodes_and_is_not_remembered_as_a_spelling() -> None:
     events = _decode([b"$qd.0042!$qd.42!"], checksum=False)
     assert [event.message for event in events if isinstance(event, Frame)] == [
-        Response("qd", (42,)), Response("qd", (42,))
+        Response("qd", (42,)),
+        Response("qd", (42,)),
     ]
     assert [event.raw for event in events if isinstance(event, Frame)] == [b"$qd.0042!", b"$qd.42!"]
 
@@ -112,7 +121,8 @@ def test_a_wrong_checksum_on_a_known_value_is_still_dropped() -> None:
     st.lists(
         st.lists(frames(), min_size=1, max_size=90).map(b"".join)
         | st.sampled_from([b"debug line\r\n", b"\x00noise", b"#broken", b"$qd.", b"!"]),
-        min_size=1, max_size=12,
+        min_size=1,
+        max_size=12,
     ).map(b"".join),
     st.booleans(),
 )
@@ -125,9 +135,19 @@ def test_gaps_anywhere_among_many_frames(stream: bytes, checksum: bool) -> None:
 def test_only_in_range_canonical_numbers_are_remembered() -> None:
     entry = FAST_ENTRIES[b"$qd"]
     numbers, ended = entry[5], entry[6]
-    noise = b"".join(b"$qd.%s!" % text for text in (
-        b"0" * 20 + b"7", b"00123", b"010000", b"-1", b"+5", b"1e3", b"\xff", b"",
-    ))
+    noise = b"".join(
+        b"$qd.%s!" % text
+        for text in (
+            b"0" * 20 + b"7",
+            b"00123",
+            b"010000",
+            b"-1",
+            b"+5",
+            b"1e3",
+            b"\xff",
+            b"",
+        )
+    )
     for checksum in (False, True):
         _decode([noise * 3], checksum)
     # Whatever the stream, a table holds canonical spellings of in-range values only.

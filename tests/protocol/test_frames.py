@@ -81,8 +81,14 @@ def test_every_seed_frame_encodes_back(raw: bytes, name: str, values: list[int])
 
 @pytest.mark.parametrize(
     ("raw", "values"),
-    [(b"$qro.-.1!", [-1]), (b"$qpi.-.7!", [-7]), (b"$qpi.+.7!", [7]), (b"$qro.15!", [15]),
-     (b"$qro.+0!", [0]), (b"$qro.-0!", [0])],
+    [
+        (b"$qro.-.1!", [-1]),
+        (b"$qpi.-.7!", [-7]),
+        (b"$qpi.+.7!", [7]),
+        (b"$qro.15!", [15]),
+        (b"$qro.+0!", [0]),
+        (b"$qro.-0!", [0]),
+    ],
 )
 def test_attitude_accepts_template_and_unsigned_forms(raw: bytes, values: list[int]) -> None:
     assert list(_decode_one(raw).message.values) == values
@@ -115,8 +121,12 @@ def _edges() -> list[tuple[str, Kind, int, int, bool]]:
     cases = []
     for spec in (*COMMANDS, *RESPONSES):
         for index, argument in enumerate(spec.arguments):
-            for value, valid in ((argument.minimum, True), (argument.maximum, True),
-                                 (argument.minimum - 1, False), (argument.maximum + 1, False)):
+            for value, valid in (
+                (argument.minimum, True),
+                (argument.maximum, True),
+                (argument.minimum - 1, False),
+                (argument.maximum + 1, False),
+            ):
                 cases.append((spec.name, spec.kind, index, value, valid))
     return cases
 
@@ -125,8 +135,10 @@ def _frame_with(name: str, kind: Kind, index: int, value: int) -> bytes:
     spec = next(s for s in (*COMMANDS, *RESPONSES) if s.name == name and s.kind is kind)
     values = [argument.minimum for argument in spec.arguments]
     values[index] = value
-    text = [argument.format(v) if v >= 0 or argument.signed else str(v)
-            for argument, v in zip(spec.arguments, values, strict=True)]
+    text = [
+        argument.format(v) if v >= 0 or argument.signed else str(v)
+        for argument, v in zip(spec.arguments, values, strict=True)
+    ]
     return kind.start_byte + ".".join([name, *text]).encode() + b"!"
 
 

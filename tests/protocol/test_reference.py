@@ -19,8 +19,11 @@ def test_docs_command_reference_is_current() -> None:
 def test_every_command_and_response_is_documented_with_a_decodable_example() -> None:
     text = command_reference_markdown()
     for spec in (*COMMANDS, *RESPONSES):
-        row = next(line for line in text.splitlines() if line.startswith(f"| `{spec.name}` |")
-                   and f"`{spec.template()}`" in line)
+        row = next(
+            line
+            for line in text.splitlines()
+            if line.startswith(f"| `{spec.name}` |") and f"`{spec.template()}`" in line
+        )
         examples = [cell.strip().strip("`") for cell in row.split("|")[5:7]]
         for index, example in enumerate(examples):
             checksum_enabled = index == 1 and not spec.exact_match

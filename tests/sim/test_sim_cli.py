@@ -40,7 +40,10 @@ def run_sim() -> Iterator[RunSim]:
 
     def start(*arguments: str) -> tuple[subprocess.Popen[str], re.Match[str]]:
         process = subprocess.Popen(
-            _command(*arguments), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+            _command(*arguments),
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
             env=_environment(),
         )
         processes.append(process)
@@ -115,8 +118,12 @@ def test_a_bad_config_is_reported_with_its_key(tmp_path: Path) -> None:
     config = tmp_path / "robot.toml"
     config.write_text("[controller]\nmax_pwm = 300\n")
     result = subprocess.run(
-        _command("--config", str(config)), capture_output=True, text=True, env=_environment(),
-        timeout=30, check=False,
+        _command("--config", str(config)),
+        capture_output=True,
+        text=True,
+        env=_environment(),
+        timeout=30,
+        check=False,
     )
     assert result.returncode == 2
     assert "max_pwm" in result.stderr
@@ -129,8 +136,12 @@ def test_a_busy_tcp_port_is_reported() -> None:
         taken.listen()
         port = taken.getsockname()[1]
         result = subprocess.run(
-            _command("--tcp", f"127.0.0.1:{port}"), capture_output=True, text=True,
-            env=_environment(), timeout=30, check=False,
+            _command("--tcp", f"127.0.0.1:{port}"),
+            capture_output=True,
+            text=True,
+            env=_environment(),
+            timeout=30,
+            check=False,
         )
     assert result.returncode == 1
     assert "cannot listen" in result.stderr
@@ -174,15 +185,20 @@ def test_the_default_watchdog_stops_a_silent_link(run_sim: RunSim) -> None:
 
 
 @pytest.mark.parametrize(
-    "content", [bytes(range(256)) * 4, "[controller]\n# für\n".encode("latin-1")],
+    "content",
+    [bytes(range(256)) * 4, "[controller]\n# für\n".encode("latin-1")],
     ids=["binary", "latin-1"],
 )
 def test_a_config_that_is_not_utf8_text_is_a_short_error(tmp_path: Path, content: bytes) -> None:
     config = tmp_path / "robot.toml"
     config.write_bytes(content)
     result = subprocess.run(
-        _command("--config", str(config)), capture_output=True, text=True, env=_environment(),
-        timeout=30, check=False,
+        _command("--config", str(config)),
+        capture_output=True,
+        text=True,
+        env=_environment(),
+        timeout=30,
+        check=False,
     )
     assert result.returncode == 2
     assert result.stderr.startswith(f"rovlink sim: {config}: not UTF-8 text (byte 0x")

@@ -25,8 +25,9 @@ StartServer = Callable[..., SimServer]
 def start_server() -> Iterator[StartServer]:
     running: list[tuple[SimServer, threading.Event, threading.Thread]] = []
 
-    def start(config: SimConfig | None = None, *, pty: bool = True, tcp: bool = True,
-              **options: object) -> SimServer:
+    def start(
+        config: SimConfig | None = None, *, pty: bool = True, tcp: bool = True, **options: object
+    ) -> SimServer:
         server = SimServer(config, seed=1, **options)  # type: ignore[arg-type]
         if pty:
             server.open_pty()
@@ -100,8 +101,7 @@ def test_the_pty_is_raw_no_echo_no_line_translation(start_server: StartServer) -
             assert time.monotonic() < deadline, data
             data += port.read(100)
         assert data == (
-            b"debug: debug output on\r\n"
-            b"debug: dropped <qx>: unknown: unknown command 'qx'\r\n"
+            b"debug: debug output on\r\ndebug: dropped <qx>: unknown: unknown command 'qx'\r\n"
         )
 
 
@@ -273,8 +273,12 @@ def test_the_robot_dives_and_holds_one_metre_over_the_pty(start_server: StartSer
 
 @pytest.mark.parametrize(
     ("text", "address"),
-    [("5760", ("127.0.0.1", 5760)), (":5760", ("127.0.0.1", 5760)),
-     ("0.0.0.0:1", ("0.0.0.0", 1)), ("[::1]:80", ("::1", 80))],
+    [
+        ("5760", ("127.0.0.1", 5760)),
+        (":5760", ("127.0.0.1", 5760)),
+        ("0.0.0.0:1", ("0.0.0.0", 1)),
+        ("[::1]:80", ("::1", 80)),
+    ],
 )
 def test_tcp_addresses(text: str, address: tuple[str, int]) -> None:
     assert parse_tcp_address(text) == address

@@ -59,8 +59,13 @@ class AsyncClient(AsyncCommandMethods):
                 print(reading.depth_cm)
     """
 
-    def __init__(self, link: Link, options: ClientOptions | None = None, *,
-                 max_in_flight: int = DEFAULT_MAX_IN_FLIGHT) -> None:
+    def __init__(
+        self,
+        link: Link,
+        options: ClientOptions | None = None,
+        *,
+        max_in_flight: int = DEFAULT_MAX_IN_FLIGHT,
+    ) -> None:
         """Wrap an open link; call :meth:`open` (``connect`` does) before use.
 
         Example::
@@ -68,18 +73,24 @@ class AsyncClient(AsyncCommandMethods):
             client = AsyncClient(open_link(parse_url("socket://localhost:5760")))
             await client.open()
         """
-        if isinstance(max_in_flight, bool) or not isinstance(max_in_flight, int) \
-                or max_in_flight < 1:
+        if (
+            isinstance(max_in_flight, bool)
+            or not isinstance(max_in_flight, int)
+            or max_in_flight < 1
+        ):
             raise ValueError(f"max_in_flight must be an integer ≥ 1, got {max_in_flight!r}")
         self._options = options or ClientOptions()
         self._link = link
         self._loop = asyncio.get_running_loop()
         self._transport: ByteTransport = transport_for(link, self._loop)
         options = self._options
-        self._session = Session(algorithm=options.algorithm, timeout_s=options.timeout_s,
-                                keepalive_s=options.keepalive_s,
-                                motion_timeout_s=options.motion_timeout_s,
-                                record_events=options.on_event is not None)
+        self._session = Session(
+            algorithm=options.algorithm,
+            timeout_s=options.timeout_s,
+            keepalive_s=options.keepalive_s,
+            motion_timeout_s=options.motion_timeout_s,
+            record_events=options.on_event is not None,
+        )
         self._drops = DropLog()
         self._probe: ReadinessProbe | None = None  # while waiting for the controller (P21)
         self._probe_data = asyncio.Event()
@@ -138,8 +149,9 @@ class AsyncClient(AsyncCommandMethods):
                     self._session.counters.bytes_sent += len(data)
                 self._probe_data.clear()
                 with contextlib.suppress(TimeoutError, asyncio.TimeoutError):
-                    await asyncio.wait_for(self._probe_data.wait(),
-                                           max(probe.wait_s(loop.time()), 0.001))
+                    await asyncio.wait_for(
+                        self._probe_data.wait(), max(probe.wait_s(loop.time()), 0.001)
+                    )
         finally:
             self._probe = None
 
@@ -242,10 +254,12 @@ class AsyncClient(AsyncCommandMethods):
                 if reading.leak_detected:
                     break
         """
-        if rate_hz is not None and (isinstance(rate_hz, bool)
-                                    or not isinstance(rate_hz, int | float) or rate_hz <= 0):
-            raise ValueError(f"telemetry: rate_hz must be a positive number or None, "
-                             f"got {rate_hz!r}")
+        if rate_hz is not None and (
+            isinstance(rate_hz, bool) or not isinstance(rate_hz, int | float) or rate_hz <= 0
+        ):
+            raise ValueError(
+                f"telemetry: rate_hz must be a positive number or None, got {rate_hz!r}"
+            )
         period_s = 1.0 / rate_hz if rate_hz else 0.0
         loop = self._loop
         polls: deque[asyncio.Task[Sensors]] = deque()
@@ -256,8 +270,7 @@ class AsyncClient(AsyncCommandMethods):
                 while len(polls) < self._max_in_flight and now >= next_poll_at:
                     polls.append(loop.create_task(self.sensors()))
                     # After a stall, carry on at the rate rather than catching up in a burst.
-                    next_poll_at = max(next_poll_at + period_s, now - period_s) \
-                        if period_s else now
+                    next_poll_at = max(next_poll_at + period_s, now - period_s) if period_s else now
                 if polls and polls[0].done():
                     poll = polls.popleft()
                     try:
@@ -341,8 +354,9 @@ class AsyncClient(AsyncCommandMethods):
         """Wait (at most ``timeout``) for the queries on the wire to settle."""
         await self._wait_settled(self._session.pending, self._options.timeout_s)
 
-    async def _wait_settled(self, queries: tuple[PendingQuery, ...],
-                            timeout_s: float | None) -> None:
+    async def _wait_settled(
+        self, queries: tuple[PendingQuery, ...], timeout_s: float | None
+    ) -> None:
         """Wait until every one of ``queries`` has settled, or ``timeout_s`` has passed.
 
         Their callers' futures are no guide: a caller may have been cancelled (the polls of a
@@ -495,8 +509,9 @@ class AsyncClient(AsyncCommandMethods):
 class _Connecting:
     """What :func:`connect` returns: ``await`` it, or use it with ``async with``."""
 
-    def __init__(self, url: str, options: ClientOptions, baudrate: int | None,
-                 max_in_flight: int) -> None:
+    def __init__(
+        self, url: str, options: ClientOptions, baudrate: int | None, max_in_flight: int
+    ) -> None:
         self._endpoint = parse_url(url, baudrate)
         self._options = options
         self._max_in_flight = max_in_flight
@@ -561,9 +576,17 @@ def connect(
         asyncio.run(main())
     """
     if options is None:
-        options = ClientOptions(timeout, retries, checksum, algorithm, keepalive, on_stray,
-                                boot_timeout, motion_timeout, on_event)
-    if isinstance(max_in_flight, bool) or not isinstance(max_in_flight, int) \
-            or max_in_flight < 1:
+        options = ClientOptions(
+            timeout,
+            retries,
+            checksum,
+            algorithm,
+            keepalive,
+            on_stray,
+            boot_timeout,
+            motion_timeout,
+            on_event,
+        )
+    if isinstance(max_in_flight, bool) or not isinstance(max_in_flight, int) or max_in_flight < 1:
         raise ValueError(f"max_in_flight must be an integer ≥ 1, got {max_in_flight!r}")
     return _Connecting(url, options, baudrate, max_in_flight)

@@ -155,8 +155,10 @@ class ThreadTransport:
     def start(self, on_data: DataCallback, on_lost: LostCallback) -> None:
         """Start the reading thread."""
         self._thread = threading.Thread(
-            target=self._read_loop, args=(on_data, on_lost),
-            name=f"rovlink aio reader ({self._link.description})", daemon=True,
+            target=self._read_loop,
+            args=(on_data, on_lost),
+            name=f"rovlink aio reader ({self._link.description})",
+            daemon=True,
         )
         self._thread.start()
 
@@ -171,8 +173,9 @@ class ThreadTransport:
             if data:
                 self._call_in_loop(on_data, data)
 
-    def _call_in_loop(self, callback: Callable[[object], None] | Callable[..., None],
-                      argument: object) -> None:
+    def _call_in_loop(
+        self, callback: Callable[[object], None] | Callable[..., None], argument: object
+    ) -> None:
         try:
             self._loop.call_soon_threadsafe(callback, argument)
         except RuntimeError:  # the loop is closed: nobody is listening any more

@@ -48,8 +48,13 @@ class _Formatter(argparse.RawDescriptionHelpFormatter):
     (with its compression modules) on every start, help or not.
     """
 
-    def __init__(self, prog: str, indent_increment: int = 2, max_help_position: int = 24,
-                 width: int | None = None) -> None:
+    def __init__(
+        self,
+        prog: str,
+        indent_increment: int = 2,
+        max_help_position: int = 24,
+        width: int | None = None,
+    ) -> None:
         if width is None:
             width = _terminal_columns() - 2
         super().__init__(prog, indent_increment, max_help_position, width)
@@ -82,24 +87,31 @@ def _chosen_command(argv: list[str]) -> str | None:
 def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     """The parser of ``rovlink``; only ``command``'s own options are added (its module loads)."""
     parser = argparse.ArgumentParser(
-        prog="rovlink", description=_DESCRIPTION, epilog=_EPILOG, formatter_class=_Formatter,
+        prog="rovlink",
+        description=_DESCRIPTION,
+        epilog=_EPILOG,
+        formatter_class=_Formatter,
     )
     # Every parser gets the formatter (and the subparsers their prog): argparse makes a
     # formatter for each argument it adds, and its default one imports shutil.
-    parser.add_argument("-v", "--verbose", action="store_true",
-                        help="log debug details to stderr")
+    parser.add_argument("-v", "--verbose", action="store_true", help="log debug details to stderr")
     parser.add_argument("--version", action="version", version=f"rovlink {rovlink.__version__}")
-    subparsers = parser.add_subparsers(dest="command", title="commands", metavar="COMMAND",
-                                       prog="rovlink")
+    subparsers = parser.add_subparsers(
+        dest="command", title="commands", metavar="COMMAND", prog="rovlink"
+    )
     for name, summary in COMMANDS.items():
         if name != command:
-            subparsers.add_parser(name, help=summary, description=summary,
-                                  formatter_class=_Formatter)
+            subparsers.add_parser(
+                name, help=summary, description=summary, formatter_class=_Formatter
+            )
             continue
         module = importlib.import_module(f"rovlink.cli.{name}")
         doc = (module.__doc__ or summary).strip()
         subparser = subparsers.add_parser(
-            name, help=summary, description=doc, formatter_class=_Formatter,
+            name,
+            help=summary,
+            description=doc,
+            formatter_class=_Formatter,
             epilog=getattr(module, "EPILOG", None),
         )
         module.add_arguments(subparser)
@@ -127,8 +139,9 @@ def main(argv: list[str] | None = None) -> int:
     if args.verbose:
         import logging  # noqa: PLC0415 - only when asked for
 
-        logging.basicConfig(level=logging.DEBUG,
-                            format="%(asctime)s %(name)s %(levelname)s: %(message)s")
+        logging.basicConfig(
+            level=logging.DEBUG, format="%(asctime)s %(name)s %(levelname)s: %(message)s"
+        )
     command_parser: argparse.ArgumentParser = args.parser
     try:
         status: int = args.run(args)

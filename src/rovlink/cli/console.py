@@ -22,8 +22,9 @@ examples:
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """``console``'s options."""
     link_options.add_link_options(parser)
-    parser.add_argument("--history", metavar="FILE",
-                        help="history file (default: in the user's state directory)")
+    parser.add_argument(
+        "--history", metavar="FILE", help="history file (default: in the user's state directory)"
+    )
 
 
 def run(args: argparse.Namespace) -> int:

@@ -99,8 +99,9 @@ class StreamStats:
         return {
             "events": dict(sorted(self.events.items())),
             "reasons": dict(sorted(self.reasons.items())),
-            "names": {kind.value: dict(sorted(counter.items()))
-                      for kind, counter in self.names.items()},
+            "names": {
+                kind.value: dict(sorted(counter.items())) for kind, counter in self.names.items()
+            },
         }
 
 
@@ -134,11 +135,19 @@ examples:
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """``decode``'s arguments."""
-    parser.add_argument("file", metavar="FILE", nargs="?", default="-",
-                        help="a capture of the byte stream; '-' or none: standard input")
+    parser.add_argument(
+        "file",
+        metavar="FILE",
+        nargs="?",
+        default="-",
+        help="a capture of the byte stream; '-' or none: standard input",
+    )
     add_checksum_options(parser, "start in checksum mode, as after #crcon!")
-    parser.add_argument("--stats", action="store_true",
-                        help="print one JSON summary of counts instead of the events")
+    parser.add_argument(
+        "--stats",
+        action="store_true",
+        help="print one JSON summary of counts instead of the events",
+    )
 
 
 def _run(args: argparse.Namespace) -> int:

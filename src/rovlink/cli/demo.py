@@ -130,8 +130,9 @@ class _Dive:
                 self.finish(step, detail=f"at {depth_cm} cm")
                 return True
             if time.monotonic() > deadline:
-                self.finish(step, "not reached",
-                            f"{depth_cm} cm after {self.plan.reach_timeout_s:g} s")
+                self.finish(
+                    step, "not reached", f"{depth_cm} cm after {self.plan.reach_timeout_s:g} s"
+                )
                 return False
             time.sleep(_POLL_INTERVAL_S)
 
@@ -207,25 +208,32 @@ def _render(progress: DiveProgress, url: str) -> RenderableType:
     steps.add_column("", no_wrap=True)
     steps.add_column("time", justify="right", no_wrap=True)
     steps.add_column("result")
-    marks = {"waiting": "[dim]·[/]", "running": "[yellow]…[/]", "done": "[green]✓[/]",
-             "not reached": "[red]✗[/]", "skipped": "[dim]–[/]"}
+    marks = {
+        "waiting": "[dim]·[/]",
+        "running": "[yellow]…[/]",
+        "done": "[green]✓[/]",
+        "not reached": "[red]✗[/]",
+        "skipped": "[dim]–[/]",
+    }
     for step in progress.steps:
         elapsed = ""
         if step.started_at is not None:
             end = step.finished_at or time.monotonic()
             elapsed = f"{end - step.started_at:.1f} s"
         detail = step.detail if step.status == "done" else f"{step.status}: {step.detail}"
-        steps.add_row(f"{step.name}\n[dim]{step.frames}[/]", marks[step.status], elapsed,
-                      detail)
+        steps.add_row(f"{step.name}\n[dim]{step.frames}[/]", marks[step.status], elapsed, detail)
     sensors = Table(title="sensors (#qsa!)")
     for column in ("depth cm", "raw", "leak", "roll °", "pitch °", "heading °"):
         sensors.add_column(column, justify="right")
     reading = progress.latest
     if reading is not None:
         sensors.add_row(
-            str(reading.depth_cm), str(reading.pressure_raw),
+            str(reading.depth_cm),
+            str(reading.pressure_raw),
             "[red]YES[/]" if reading.leak_detected else "no",
-            f"{reading.roll_deg:+d}", f"{reading.pitch_deg:+d}", str(reading.heading_deg),
+            f"{reading.roll_deg:+d}",
+            f"{reading.pitch_deg:+d}",
+            str(reading.heading_deg),
         )
     return Group(steps, sensors)
 
@@ -242,18 +250,46 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     """``demo``'s options."""
     link_options.add_link_options(parser)
     dive = parser.add_argument_group("the dive")
-    dive.add_argument("--depth", dest="depth_cm", type=_depth_cm, default=100, metavar="CM",
-                      help="dive depth, cm, 0–9999 (default: %(default)s)")
-    dive.add_argument("--hold", dest="hold_s", type=link_options.seconds, default=3.0,
-                      metavar="SECONDS", help="time to hold the depth (default: %(default)s)")
-    dive.add_argument("--leg", dest="leg_s", type=link_options.seconds, default=3.0,
-                      metavar="SECONDS", help="time per side of the square (default: %(default)s)")
-    dive.add_argument("--power", dest="power_percent", type=_percent, default=30,
-                      metavar="PERCENT",
-                      help="horizontal power on the square, 0–100 (default: %(default)s)")
-    dive.add_argument("--reach-timeout", dest="reach_timeout_s", type=link_options.seconds,
-                      default=60.0, metavar="SECONDS",
-                      help="time allowed to reach a depth (default: %(default)s)")
+    dive.add_argument(
+        "--depth",
+        dest="depth_cm",
+        type=_depth_cm,
+        default=100,
+        metavar="CM",
+        help="dive depth, cm, 0–9999 (default: %(default)s)",
+    )
+    dive.add_argument(
+        "--hold",
+        dest="hold_s",
+        type=link_options.seconds,
+        default=3.0,
+        metavar="SECONDS",
+        help="time to hold the depth (default: %(default)s)",
+    )
+    dive.add_argument(
+        "--leg",
+        dest="leg_s",
+        type=link_options.seconds,
+        default=3.0,
+        metavar="SECONDS",
+        help="time per side of the square (default: %(default)s)",
+    )
+    dive.add_argument(
+        "--power",
+        dest="power_percent",
+        type=_percent,
+        default=30,
+        metavar="PERCENT",
+        help="horizontal power on the square, 0–100 (default: %(default)s)",
+    )
+    dive.add_argument(
+        "--reach-timeout",
+        dest="reach_timeout_s",
+        type=link_options.seconds,
+        default=60.0,
+        metavar="SECONDS",
+        help="time allowed to reach a depth (default: %(default)s)",
+    )
 
 
 def run(args: argparse.Namespace) -> int:
@@ -261,13 +297,21 @@ def run(args: argparse.Namespace) -> int:
     from rich.console import Console  # noqa: PLC0415
     from rich.live import Live  # noqa: PLC0415
 
-    plan = DivePlan(depth_cm=args.depth_cm, hold_s=args.hold_s, leg_s=args.leg_s,
-                    power_percent=args.power_percent, reach_timeout_s=args.reach_timeout_s)
+    plan = DivePlan(
+        depth_cm=args.depth_cm,
+        hold_s=args.hold_s,
+        leg_s=args.leg_s,
+        power_percent=args.power_percent,
+        reach_timeout_s=args.reach_timeout_s,
+    )
     rov = link_options.connect(args, keepalive_s=1.0)
     gate = GatedClient(rov)
     console = Console()
-    with link_options.closing_unless_interrupted(rov), \
-            Live(console=console, refresh_per_second=8) as live:
+    with (
+        link_options.closing_unless_interrupted(rov),
+        Live(console=console, refresh_per_second=8) as live,
+    ):
+
         def show(progress: DiveProgress) -> None:
             live.update(_render(progress, args.url))
 

@@ -62,10 +62,12 @@ def bounded_float(text: str, minimum: float, maximum: float, unit: str = "") -> 
         raise argparse.ArgumentTypeError(f"{text!r} is not a number")
     if value < minimum:
         raise argparse.ArgumentTypeError(
-            f"{text}{unit} is less than the minimum, {minimum:g}{unit}")
+            f"{text}{unit} is less than the minimum, {minimum:g}{unit}"
+        )
     if value > maximum:
         raise argparse.ArgumentTypeError(
-            f"{text}{unit} is more than the maximum, {maximum:g}{unit}")
+            f"{text}{unit} is more than the maximum, {maximum:g}{unit}"
+        )
     return value
 
 
@@ -138,20 +140,25 @@ class OnOff(argparse.BooleanOptionalAction):
     """``--flag`` / ``--no-flag``, its help as given: Python 3.10–3.12 would append
     "(default: False)" to it."""
 
-    def __init__(self, option_strings: list[str], dest: str, default: bool = False,
-                 help: str | None = None) -> None:
+    def __init__(
+        self, option_strings: list[str], dest: str, default: bool = False, help: str | None = None
+    ) -> None:
         super().__init__(option_strings, dest, default=default)
         self.help = help
 
 
 def add_checksum_options(parser: argparse.ArgumentParser, checksum_help: str) -> None:
     """``--checksum/--no-checksum`` and ``--algorithm`` (``decode`` has these alone)."""
-    parser.add_argument("--checksum", action=OnOff, default=False,
-                        help=f"{checksum_help} (default: off)")
-    parser.add_argument("--algorithm", type=algorithm_name, default=DEFAULT_ALGORITHM,
-                        metavar="NAME",
-                        help=f"checksum algorithm: {', '.join(sorted(ALGORITHMS))} "
-                        "(default: %(default)s)")
+    parser.add_argument(
+        "--checksum", action=OnOff, default=False, help=f"{checksum_help} (default: off)"
+    )
+    parser.add_argument(
+        "--algorithm",
+        type=algorithm_name,
+        default=DEFAULT_ALGORITHM,
+        metavar="NAME",
+        help=f"checksum algorithm: {', '.join(sorted(ALGORITHMS))} (default: %(default)s)",
+    )
 
 
 def add_link_options(parser: argparse.ArgumentParser, *, url_required: bool = False) -> None:
@@ -159,33 +166,69 @@ def add_link_options(parser: argparse.ArgumentParser, *, url_required: bool = Fa
     if url_required:
         parser.add_argument("url", metavar="URL", help=_URL_HELP)
     else:
-        parser.add_argument("url", metavar="URL", nargs="?", default=DEFAULT_URL,
-                            help=f"{_URL_HELP} (default: %(default)s)")
+        parser.add_argument(
+            "url",
+            metavar="URL",
+            nargs="?",
+            default=DEFAULT_URL,
+            help=f"{_URL_HELP} (default: %(default)s)",
+        )
     group = parser.add_argument_group("link options")
-    group.add_argument("--checksum", action=OnOff, default=False,
-                       help="put the controller in checksum mode (default: off)")
-    group.add_argument("--algorithm", type=algorithm_name, default=DEFAULT_ALGORITHM,
-                       metavar="NAME",
-                       help=f"checksum algorithm: {', '.join(sorted(ALGORITHMS))} "
-                       "(default: %(default)s)")
-    group.add_argument("--baudrate", type=positive_int, default=None, metavar="BAUD",
-                       help="serial speed (default: the URL's ?baudrate=, else 115200)")
-    group.add_argument("--timeout", dest="timeout_s", type=_timeout, default=0.5,
-                       metavar="SECONDS",
-                       help=f"wait for a reply, per attempt, {MIN_TIMEOUT_S:g}–{MAX_TIMEOUT_S:g} "
-                       "(default: %(default)s)")
-    group.add_argument("--retries", type=_retries, default=2, metavar="N",
-                       help=f"extra attempts of a query, 0–{MAX_RETRIES} (default: %(default)s)")
-    group.add_argument("--boot-timeout", dest="boot_timeout_s", type=_optional_seconds,
-                       default=DEFAULT_BOOT_TIMEOUT_S, metavar="SECONDS",
-                       help="wait this long on connect for the controller to answer (a board "
-                       "that resets when its port opens boots for up to 2 s); 0: do not wait "
-                       "(default: %(default)s)")
+    group.add_argument(
+        "--checksum",
+        action=OnOff,
+        default=False,
+        help="put the controller in checksum mode (default: off)",
+    )
+    group.add_argument(
+        "--algorithm",
+        type=algorithm_name,
+        default=DEFAULT_ALGORITHM,
+        metavar="NAME",
+        help=f"checksum algorithm: {', '.join(sorted(ALGORITHMS))} (default: %(default)s)",
+    )
+    group.add_argument(
+        "--baudrate",
+        type=positive_int,
+        default=None,
+        metavar="BAUD",
+        help="serial speed (default: the URL's ?baudrate=, else 115200)",
+    )
+    group.add_argument(
+        "--timeout",
+        dest="timeout_s",
+        type=_timeout,
+        default=0.5,
+        metavar="SECONDS",
+        help=f"wait for a reply, per attempt, {MIN_TIMEOUT_S:g}–{MAX_TIMEOUT_S:g} "
+        "(default: %(default)s)",
+    )
+    group.add_argument(
+        "--retries",
+        type=_retries,
+        default=2,
+        metavar="N",
+        help=f"extra attempts of a query, 0–{MAX_RETRIES} (default: %(default)s)",
+    )
+    group.add_argument(
+        "--boot-timeout",
+        dest="boot_timeout_s",
+        type=_optional_seconds,
+        default=DEFAULT_BOOT_TIMEOUT_S,
+        metavar="SECONDS",
+        help="wait this long on connect for the controller to answer (a board "
+        "that resets when its port opens boots for up to 2 s); 0: do not wait "
+        "(default: %(default)s)",
+    )
 
 
-def client_options(args: argparse.Namespace, *, keepalive_s: float | None = None,
-                   on_stray: StrayCallback | None = None,
-                   motion_timeout_s: float | None = None) -> ClientOptions:
+def client_options(
+    args: argparse.Namespace,
+    *,
+    keepalive_s: float | None = None,
+    on_stray: StrayCallback | None = None,
+    motion_timeout_s: float | None = None,
+) -> ClientOptions:
     """The driver's settings from the parsed link options: the one place they meet.
 
     A value the driver refuses is a usage error.
@@ -193,12 +236,16 @@ def client_options(args: argparse.Namespace, *, keepalive_s: float | None = None
     from rovlink.client import ClientOptions  # noqa: PLC0415 - the driver loads when used
 
     try:
-        return ClientOptions(timeout_s=args.timeout_s, retries=args.retries,
-                             checksum=args.checksum, algorithm=args.algorithm,
-                             keepalive_s=keepalive_s, on_stray=on_stray,
-                             boot_timeout_s=getattr(args, "boot_timeout_s",
-                                                    DEFAULT_BOOT_TIMEOUT_S),
-                             motion_timeout_s=motion_timeout_s)
+        return ClientOptions(
+            timeout_s=args.timeout_s,
+            retries=args.retries,
+            checksum=args.checksum,
+            algorithm=args.algorithm,
+            keepalive_s=keepalive_s,
+            on_stray=on_stray,
+            boot_timeout_s=getattr(args, "boot_timeout_s", DEFAULT_BOOT_TIMEOUT_S),
+            motion_timeout_s=motion_timeout_s,
+        )
     except ValueError as error:
         raise UsageError(str(error)) from None
 
@@ -247,8 +294,9 @@ def _log_warnings() -> None:
     # --verbose has already configured DEBUG, which this leaves alone.
     import logging  # noqa: PLC0415 - not on the start-up path of decode
 
-    logging.basicConfig(level=logging.WARNING,
-                        format="%(asctime)s %(name)s %(levelname)s: %(message)s")
+    logging.basicConfig(
+        level=logging.WARNING, format="%(asctime)s %(name)s %(levelname)s: %(message)s"
+    )
 
 
 #: Called with ``">>"`` and the bytes written, ``"<<"`` and the bytes read (``send --raw``).
@@ -280,8 +328,9 @@ class _ShownLink:
         self._link.close()
 
 
-def _connect_showing_bytes(args: argparse.Namespace, options: ClientOptions,
-                           show: ShowBytes) -> Client:
+def _connect_showing_bytes(
+    args: argparse.Namespace, options: ClientOptions, show: ShowBytes
+) -> Client:
     from rovlink.client import Client, parse_url  # noqa: PLC0415
     from rovlink.client.links import open_link  # noqa: PLC0415
 
@@ -293,8 +342,13 @@ def _connect_showing_bytes(args: argparse.Namespace, options: ClientOptions,
         raise
 
 
-def connect(args: argparse.Namespace, *, keepalive_s: float | None = None,
-            on_stray: StrayCallback | None = None, show_bytes: ShowBytes | None = None) -> Client:
+def connect(
+    args: argparse.Namespace,
+    *,
+    keepalive_s: float | None = None,
+    on_stray: StrayCallback | None = None,
+    show_bytes: ShowBytes | None = None,
+) -> Client:
     """A blocking client on ``args.url`` with the link options; failures are one line.
 
     ``show_bytes`` sees every byte written and read (the bytes exactly, not frames).
@@ -329,8 +383,7 @@ def closing_unless_interrupted(client: Client) -> Iterator[Client]:
     client.close()
 
 
-def connect_async(args: argparse.Namespace) -> Callable[[StrayCallback],
-                                                        Awaitable[AsyncClient]]:
+def connect_async(args: argparse.Namespace) -> Callable[[StrayCallback], Awaitable[AsyncClient]]:
     """A function connecting an asyncio client on ``args.url`` with the link options (the
     console and monitor call it with their ``on_stray``); the options are checked now."""
     import rovlink.aio  # noqa: PLC0415

@@ -31,8 +31,14 @@ def _rate_hz(text: str) -> float:
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """``monitor``'s options."""
     link_options.add_link_options(parser)
-    parser.add_argument("--rate", dest="rate_hz", type=_rate_hz, default=5.0, metavar="HZ",
-                        help="sensor polls per second, 0.1–100 (default: %(default)s)")
+    parser.add_argument(
+        "--rate",
+        dest="rate_hz",
+        type=_rate_hz,
+        default=5.0,
+        metavar="HZ",
+        help="sensor polls per second, 0.1–100 (default: %(default)s)",
+    )
 
 
 def build_app(args: argparse.Namespace) -> MonitorApp:
@@ -43,8 +49,12 @@ def build_app(args: argparse.Namespace) -> MonitorApp:
     except ImportError as error:
         raise CommandError(f"needs {error.name}: pip install 'rovlink[monitor]'") from None
 
-    return MonitorApp(link_options.connect_async(args), description=args.url,
-                      rate_hz=args.rate_hz, algorithm=args.algorithm)
+    return MonitorApp(
+        link_options.connect_async(args),
+        description=args.url,
+        rate_hz=args.rate_hz,
+        algorithm=args.algorithm,
+    )
 
 
 def run(args: argparse.Namespace) -> int:

@@ -25,7 +25,11 @@ if TYPE_CHECKING:
     from rovlink.client import Client
 
 __all__ = [
-    "EPILOG", "Outgoing", "describe_reply", "group_words", "plan",
+    "EPILOG",
+    "Outgoing",
+    "describe_reply",
+    "group_words",
+    "plan",
 ]
 
 EPILOG = """\
@@ -53,8 +57,10 @@ def _reply_json(response: Response) -> dict[str, object]:
     return {
         "frame": str(response),
         "name": response.name,
-        "values": {argument.name: value for argument, value
-                   in zip(response.spec.arguments, response.values, strict=True)},
+        "values": {
+            argument.name: value
+            for argument, value in zip(response.spec.arguments, response.values, strict=True)
+        },
     }
 
 
@@ -82,7 +88,6 @@ def group_words(arguments: list[str]) -> list[str]:
 _NUMBER = re.compile(r"[+-]?\d+")
 
 
-
 @dataclass(frozen=True, slots=True)
 class Outgoing:
     """One command to send: the command, and the exact frame when it goes as typed."""
@@ -95,8 +100,7 @@ class Outgoing:
 def _decoded_command(frame: bytes, *, checksum: bool, algorithm: str) -> Command | str:
     """The command the controller takes from ``frame`` in a mode, or why it drops it."""
     events = Decoder(checksum_enabled=checksum, algorithm=algorithm).feed(frame)
-    if len(events) == 1 and isinstance(events[0], Frame) \
-            and isinstance(events[0].message, Command):
+    if len(events) == 1 and isinstance(events[0], Frame) and isinstance(events[0].message, Command):
         return events[0].message
     event = events[0] if events else None
     return getattr(event, "detail", None) or "not a command frame"
@@ -151,13 +155,21 @@ def _may_move(command: Command) -> bool:
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """``send``'s arguments."""
     link_options.add_link_options(parser, url_required=True)
-    parser.add_argument("commands", metavar="COMMAND", nargs="+",
-                        help="'qd', 'th 270 25' (or th 270 25 unquoted), 'mvs -50', or a raw "
-                        "frame such as '#qd!'")
-    parser.add_argument("--json", dest="as_json", action="store_true",
-                        help="one JSON object per command instead of text")
-    parser.add_argument("--raw", action="store_true",
-                        help="also show the exact bytes written (>>) and read (<<)")
+    parser.add_argument(
+        "commands",
+        metavar="COMMAND",
+        nargs="+",
+        help="'qd', 'th 270 25' (or th 270 25 unquoted), 'mvs -50', or a raw frame such as '#qd!'",
+    )
+    parser.add_argument(
+        "--json",
+        dest="as_json",
+        action="store_true",
+        help="one JSON object per command instead of text",
+    )
+    parser.add_argument(
+        "--raw", action="store_true", help="also show the exact bytes written (>>) and read (<<)"
+    )
 
 
 def _print_text(event: Event) -> None:
@@ -182,8 +194,7 @@ def _send_one(client: Client, item: Outgoing) -> tuple[bytes, tuple[Response, ..
 
     sent = item.raw if item.raw is not None else client.frame_for(item.command)
     try:
-        replies = (client.send(item.command) if item.raw is None
-                   else client.send_raw(item.raw))
+        replies = client.send(item.command) if item.raw is None else client.send_raw(item.raw)
     except (ClientError, TimeoutError, ConnectionError) as error:
         raise CommandError(str(error)) from None
     if item.command.spec.is_query and not replies:
@@ -193,9 +204,16 @@ def _send_one(client: Client, item: Outgoing) -> tuple[bytes, tuple[Response, ..
 
 def _show(sent: bytes, replies: tuple[Response, ...], *, as_json: bool) -> None:
     if as_json:
-        print(json.dumps({"command": sent.decode("ascii"),
-                          "replies": [_reply_json(reply) for reply in replies]},
-                         ensure_ascii=False), flush=True)
+        print(
+            json.dumps(
+                {
+                    "command": sent.decode("ascii"),
+                    "replies": [_reply_json(reply) for reply in replies],
+                },
+                ensure_ascii=False,
+            ),
+            flush=True,
+        )
         return
     print(f"> {sent.decode('ascii')}", flush=True)
     for reply in replies:

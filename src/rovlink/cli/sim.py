@@ -37,23 +37,48 @@ def _speed(text: str) -> float:
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """``sim``'s options."""
-    parser.add_argument("--tcp", metavar="[HOST:]PORT",
-                        help="listen on TCP (host 127.0.0.1 unless given); one client at a time")
-    parser.add_argument("--pty", action="store_true",
-                        help="open a pseudo-terminal (the default without --tcp)")
-    parser.add_argument("--baud", "--baudrate", dest="baud", type=positive_int, metavar="BAUD",
-                        help="pace the byte stream at this rate, 8N1 (default: unpaced)")
-    parser.add_argument("--config", metavar="FILE",
-                        help="TOML file: controller tables, [vehicle], [sensors]")
-    parser.add_argument("--leak-at", dest="leak_at", type=_sim_seconds, metavar="SECONDS",
-                        help="inject a 100 ms leak pulse at this simulated time")
+    parser.add_argument(
+        "--tcp",
+        metavar="[HOST:]PORT",
+        help="listen on TCP (host 127.0.0.1 unless given); one client at a time",
+    )
+    parser.add_argument(
+        "--pty", action="store_true", help="open a pseudo-terminal (the default without --tcp)"
+    )
+    parser.add_argument(
+        "--baud",
+        "--baudrate",
+        dest="baud",
+        type=positive_int,
+        metavar="BAUD",
+        help="pace the byte stream at this rate, 8N1 (default: unpaced)",
+    )
+    parser.add_argument(
+        "--config", metavar="FILE", help="TOML file: controller tables, [vehicle], [sensors]"
+    )
+    parser.add_argument(
+        "--leak-at",
+        dest="leak_at",
+        type=_sim_seconds,
+        metavar="SECONDS",
+        help="inject a 100 ms leak pulse at this simulated time",
+    )
     parser.add_argument("--seed", type=int, help="seed for reproducible noise (default: random)")
-    parser.add_argument("--speed", type=_speed, default=1.0, metavar="FACTOR",
-                        help="simulated seconds per wall second; 0 runs as fast as the CPU "
-                        "allows (default: %(default)s)")
-    parser.add_argument("--watchdog", type=_sim_seconds, metavar="SECONDS",
-                        help="link-loss failsafe timeout (default: from the config, 2 s); 0 "
-                        "turns it off, e.g. to type commands by hand")
+    parser.add_argument(
+        "--speed",
+        type=_speed,
+        default=1.0,
+        metavar="FACTOR",
+        help="simulated seconds per wall second; 0 runs as fast as the CPU "
+        "allows (default: %(default)s)",
+    )
+    parser.add_argument(
+        "--watchdog",
+        type=_sim_seconds,
+        metavar="SECONDS",
+        help="link-loss failsafe timeout (default: from the config, 2 s); 0 "
+        "turns it off, e.g. to type commands by hand",
+    )
 
 
 def _robot_config(args: argparse.Namespace) -> SimConfig:
@@ -84,8 +109,7 @@ def run(args: argparse.Namespace) -> int:
             address = parse_tcp_address(args.tcp)
         except ValueError as error:
             raise UsageError(f"--tcp: {error}") from None
-    server = SimServer(_robot_config(args), seed=args.seed, baud=args.baud,
-                       speed=args.speed)
+    server = SimServer(_robot_config(args), seed=args.seed, baud=args.baud, speed=args.speed)
     if args.leak_at is not None:
         server.robot.inject_leak(at_s=args.leak_at)
     try:
@@ -100,8 +124,11 @@ def run(args: argparse.Namespace) -> int:
             endpoints.append(f"tcp {host}:{port}")
         stop = _stop_on_signals()
         pacing = f"{args.baud} baud" if args.baud else "unpaced"
-        print(f"rovlink sim ready: {', '.join(endpoints)} "
-              f"(seed {server.robot.seed}, {pacing}); Ctrl-C stops", flush=True)
+        print(
+            f"rovlink sim ready: {', '.join(endpoints)} "
+            f"(seed {server.robot.seed}, {pacing}); Ctrl-C stops",
+            flush=True,
+        )
         server.serve(stop.is_set)
     finally:
         server.close()

@@ -88,10 +88,13 @@ class Client(CommandMethods):
         self._link = link
         self._clock = clock
         options = self._options
-        self._session = Session(algorithm=options.algorithm, timeout_s=options.timeout_s,
-                                keepalive_s=options.keepalive_s,
-                                motion_timeout_s=options.motion_timeout_s,
-                                record_events=options.on_event is not None)
+        self._session = Session(
+            algorithm=options.algorithm,
+            timeout_s=options.timeout_s,
+            keepalive_s=options.keepalive_s,
+            motion_timeout_s=options.motion_timeout_s,
+            record_events=options.on_event is not None,
+        )
         self._drops = DropLog()
         # Lock order: the wire lock, then the state lock.
         self._wire_lock = threading.Lock()  # one writer at a time: queue order = wire order
@@ -107,7 +110,8 @@ class Client(CommandMethods):
         self._waiting_callers = 0  # callers waiting on ``_changed``
         self._last_caller_at = float("-inf")
         self._background = threading.Thread(
-            target=self._background_loop, name=f"rovlink reader ({link.description})",
+            target=self._background_loop,
+            name=f"rovlink reader ({link.description})",
             daemon=True,
         )
         self._background_ident: int | None = None
@@ -167,8 +171,9 @@ class Client(CommandMethods):
             self._background.join(timeout=2.0)
         with self._changed:  # a caller may still be in a read: it stops at the wake-up
             self._waiting_callers += 1
-            self._changed.wait_for(lambda: self._reader_ident in (None, threading.get_ident()),
-                                   timeout=2.0)
+            self._changed.wait_for(
+                lambda: self._reader_ident in (None, threading.get_ident()), timeout=2.0
+            )
             self._waiting_callers -= 1
         self._link.close()
 
@@ -520,8 +525,9 @@ class Client(CommandMethods):
             self._link.wake()
         return pending
 
-    def _wait(self, pending: PendingQuery, *, owned: bool = True,
-              holding_state: bool = False) -> Outcome:
+    def _wait(
+        self, pending: PendingQuery, *, owned: bool = True, holding_state: bool = False
+    ) -> Outcome:
         """Wait until the attempt settles, reading the port whenever nobody else is.
 
         ``owned``: the caller queued ``pending`` (and stops counting as active here);
@@ -681,8 +687,17 @@ def connect(
             rov.stop()
     """
     if options is None:
-        options = ClientOptions(timeout, retries, checksum, algorithm, keepalive, on_stray,
-                                boot_timeout, motion_timeout, on_event)
+        options = ClientOptions(
+            timeout,
+            retries,
+            checksum,
+            algorithm,
+            keepalive,
+            on_stray,
+            boot_timeout,
+            motion_timeout,
+            on_event,
+        )
     link = open_link(parse_url(url, baudrate))
     try:
         return Client(link, options)

@@ -49,8 +49,10 @@ def usage(name: str) -> str:
     'mvs <thrust_percent -100…+100>'
     """
     spec = _spec(name)
-    parts = [spec.name, *(f"<{argument.name} {argument.range_text()}>"
-                          for argument in spec.arguments)]
+    parts = [
+        spec.name,
+        *(f"<{argument.name} {argument.range_text()}>" for argument in spec.arguments),
+    ]
     return " ".join(parts)
 
 

@@ -31,8 +31,9 @@ class InvalidArgumentError(ValueError):
     'move: power_percent must be in 0–100 (#th), got 150'
     """
 
-    def __init__(self, method: str, argument: str, value: object, range_text: str,
-                 frame_name: str) -> None:
+    def __init__(
+        self, method: str, argument: str, value: object, range_text: str, frame_name: str
+    ) -> None:
         self.method = method
         self.argument = argument
         self.value = value

@@ -134,8 +134,16 @@ class LinkState:
 
 
 ClientEvent = (
-    BytesSent | BytesReceived | ReplyReceived | LateReply | Unsolicited | QueryFailed
-    | ResetSuspected | ModeChanged | MotionExpired | LinkState
+    BytesSent
+    | BytesReceived
+    | ReplyReceived
+    | LateReply
+    | Unsolicited
+    | QueryFailed
+    | ResetSuspected
+    | ModeChanged
+    | MotionExpired
+    | LinkState
 )
 
 #: Called with every event of a connection (see the module's documentation).

@@ -426,8 +426,11 @@ def _open_serial(endpoint: Endpoint) -> Link:
     exclusive = {"exclusive": True} if endpoint.is_device and os.name == "posix" else {}
     try:
         port = serial.serial_for_url(
-            endpoint.target, baudrate=endpoint.baudrate, timeout=POLL_INTERVAL_S,
-            write_timeout=WRITE_TIMEOUT_S, **exclusive,
+            endpoint.target,
+            baudrate=endpoint.baudrate,
+            timeout=POLL_INTERVAL_S,
+            write_timeout=WRITE_TIMEOUT_S,
+            **exclusive,
         )
     except (OSError, ValueError) as error:
         raise ConnectError(_open_error(endpoint, error)) from error

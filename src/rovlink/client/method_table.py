@@ -91,58 +91,157 @@ def _flag(name: str = "enabled") -> tuple[Parameter, ...]:
 
 
 METHODS: tuple[Method, ...] = (
-    Method("stop", ("stop",), "send", "operations.STOP", "rov.stop()",
-           note="Always sent bare, so it is honoured whatever checksum mode the controller is in."),
+    Method(
+        "stop",
+        ("stop",),
+        "send",
+        "operations.STOP",
+        "rov.stop()",
+        note="Always sent bare, so it is honoured whatever checksum mode the controller is in.",
+    ),
     Method("start", ("start",), "send", "operations.START", "rov.start()"),
-    Method("set_checksum", ("crcon", "crcoff"), "switch_checksum", "operations.checksum(enabled)",
-           "rov.set_checksum(True)", _flag(),
-           note="Queries already on the wire are answered first, in the old mode; then the "
-                "client's own encoder and decoder switch with the controller."),
-    Method("set_debug", ("debug1", "debug0"), "send", "operations.debug(enabled)",
-           "rov.set_debug(True)", _flag(),
-           note="The controller's debug text arrives through ``on_event``/``on_stray`` and "
-                "logging."),
-    Method("set_max_pwm", ("mgmp",), "send", "operations.max_pwm(duty)", "rov.set_max_pwm(180)",
-           (Parameter("duty", "int", "mgmp"),)),
-    Method("set_depth_pid", ("mvpdp", "mvpdi", "mvpidd"), "send_each",
-           "operations.depth_pid(p, i, d)", "rov.set_depth_pid(p=30, d=10)",
-           (Parameter("p", "int | None", "mvpdp", default="None"),
+    Method(
+        "set_checksum",
+        ("crcon", "crcoff"),
+        "switch_checksum",
+        "operations.checksum(enabled)",
+        "rov.set_checksum(True)",
+        _flag(),
+        note="Queries already on the wire are answered first, in the old mode; then the "
+        "client's own encoder and decoder switch with the controller.",
+    ),
+    Method(
+        "set_debug",
+        ("debug1", "debug0"),
+        "send",
+        "operations.debug(enabled)",
+        "rov.set_debug(True)",
+        _flag(),
+        note="The controller's debug text arrives through ``on_event``/``on_stray`` and logging.",
+    ),
+    Method(
+        "set_max_pwm",
+        ("mgmp",),
+        "send",
+        "operations.max_pwm(duty)",
+        "rov.set_max_pwm(180)",
+        (Parameter("duty", "int", "mgmp"),),
+    ),
+    Method(
+        "set_depth_pid",
+        ("mvpdp", "mvpdi", "mvpidd"),
+        "send_each",
+        "operations.depth_pid(p, i, d)",
+        "rov.set_depth_pid(p=30, d=10)",
+        (
+            Parameter("p", "int | None", "mvpdp", default="None"),
             Parameter("i", "int | None", "mvpdi", default="None"),
-            Parameter("d", "int | None", "mvpidd", default="None")),
-           note="One frame for each gain given; all are checked before any is sent."),
-    Method("set_direct_mode", ("mvdirect",), "send", "operations.direct_mode(enabled)",
-           "rov.set_direct_mode(True)\nrov.set_vertical_thrust(-30)", _flag()),
-    Method("set_vertical_thrust", ("mvs",), "send", "operations.vertical_thrust(percent)",
-           "rov.set_vertical_thrust(+50)", (Parameter("percent", "int", "mvs"),)),
-    Method("hold_depth", ("mvd",), "send", "operations.hold_depth(depth_cm)",
-           "rov.hold_depth(100)   # one metre", (Parameter("depth_cm", "int", "mvd"),)),
-    Method("move", ("th",), "send", "operations.move(direction_deg, power_percent)",
-           "rov.move(270, 25)   # left at a quarter power",
-           (Parameter("direction_deg", "int", "th", 0),
-            Parameter("power_percent", "int", "th", 1))),
-    Method("set_depth_zero", ("sdz",), "send", "operations.depth_zero(raw)",
-           "rov.set_depth_zero(rov.pressure_raw())   # calibrate at the surface",
-           (Parameter("raw", "int", "sdz"),)),
-    Method("set_depth_scale", ("sdk",), "send", "operations.depth_scale(k)",
-           "rov.set_depth_scale(1000)", (Parameter("k", "int", "sdk"),)),
+            Parameter("d", "int | None", "mvpidd", default="None"),
+        ),
+        note="One frame for each gain given; all are checked before any is sent.",
+    ),
+    Method(
+        "set_direct_mode",
+        ("mvdirect",),
+        "send",
+        "operations.direct_mode(enabled)",
+        "rov.set_direct_mode(True)\nrov.set_vertical_thrust(-30)",
+        _flag(),
+    ),
+    Method(
+        "set_vertical_thrust",
+        ("mvs",),
+        "send",
+        "operations.vertical_thrust(percent)",
+        "rov.set_vertical_thrust(+50)",
+        (Parameter("percent", "int", "mvs"),),
+    ),
+    Method(
+        "hold_depth",
+        ("mvd",),
+        "send",
+        "operations.hold_depth(depth_cm)",
+        "rov.hold_depth(100)   # one metre",
+        (Parameter("depth_cm", "int", "mvd"),),
+    ),
+    Method(
+        "move",
+        ("th",),
+        "send",
+        "operations.move(direction_deg, power_percent)",
+        "rov.move(270, 25)   # left at a quarter power",
+        (Parameter("direction_deg", "int", "th", 0), Parameter("power_percent", "int", "th", 1)),
+    ),
+    Method(
+        "set_depth_zero",
+        ("sdz",),
+        "send",
+        "operations.depth_zero(raw)",
+        "rov.set_depth_zero(rov.pressure_raw())   # calibrate at the surface",
+        (Parameter("raw", "int", "sdz"),),
+    ),
+    Method(
+        "set_depth_scale",
+        ("sdk",),
+        "send",
+        "operations.depth_scale(k)",
+        "rov.set_depth_scale(1000)",
+        (Parameter("k", "int", "sdk"),),
+    ),
     Method("reset_leak", ("slreset",), "send", "operations.RESET_LEAK", "rov.reset_leak()"),
     Method("claw_open", ("h+",), "send", "operations.CLAW_OPEN", "rov.claw_open()"),
     Method("claw_close", ("h-",), "send", "operations.CLAW_CLOSE", "rov.claw_close()"),
-    Method("depth_cm", ("qd",), "ask", "operations.DEPTH_CM",
-           "if rov.depth_cm() > 500: rov.hold_depth(400)", returns="int"),
-    Method("pressure_raw", ("qr",), "ask", "operations.PRESSURE_RAW", "zero = rov.pressure_raw()",
-           returns="int"),
-    Method("leak_detected", ("q.l",), "ask", "operations.LEAK_DETECTED",
-           "if rov.leak_detected(): rov.hold_depth(0)", returns="bool"),
-    Method("roll_deg", ("qro",), "ask", "operations.ROLL_DEG", "print(rov.roll_deg())",
-           returns="int"),
-    Method("pitch_deg", ("qpi",), "ask", "operations.PITCH_DEG", "print(rov.pitch_deg())",
-           returns="int"),
-    Method("heading_deg", ("qhe",), "ask", "operations.HEADING_DEG", "print(rov.heading_deg())",
-           returns="int"),
-    Method("sensors", ("qsa",), "ask", "operations.SENSORS",
-           "reading = rov.sensors()\nprint(reading.depth_cm, reading.heading_deg)",
-           returns="Sensors"),
+    Method(
+        "depth_cm",
+        ("qd",),
+        "ask",
+        "operations.DEPTH_CM",
+        "if rov.depth_cm() > 500: rov.hold_depth(400)",
+        returns="int",
+    ),
+    Method(
+        "pressure_raw",
+        ("qr",),
+        "ask",
+        "operations.PRESSURE_RAW",
+        "zero = rov.pressure_raw()",
+        returns="int",
+    ),
+    Method(
+        "leak_detected",
+        ("q.l",),
+        "ask",
+        "operations.LEAK_DETECTED",
+        "if rov.leak_detected(): rov.hold_depth(0)",
+        returns="bool",
+    ),
+    Method(
+        "roll_deg", ("qro",), "ask", "operations.ROLL_DEG", "print(rov.roll_deg())", returns="int"
+    ),
+    Method(
+        "pitch_deg",
+        ("qpi",),
+        "ask",
+        "operations.PITCH_DEG",
+        "print(rov.pitch_deg())",
+        returns="int",
+    ),
+    Method(
+        "heading_deg",
+        ("qhe",),
+        "ask",
+        "operations.HEADING_DEG",
+        "print(rov.heading_deg())",
+        returns="int",
+    ),
+    Method(
+        "sensors",
+        ("qsa",),
+        "ask",
+        "operations.SENSORS",
+        "reading = rov.sensors()\nprint(reading.depth_cm, reading.heading_deg)",
+        returns="Sensors",
+    ),
 )
 
 _BANNER = (
@@ -165,8 +264,9 @@ def _docstring(method: Method, asynchronous: bool) -> list[str]:
     lines = [f"{_frame_text(spec)}: {spec.description}." for spec in specs]
     if method.parameters:
         lines.append("")
-        lines += [f"``{parameter.name}``: {parameter.meaning()}."
-                  for parameter in method.parameters]
+        lines += [
+            f"``{parameter.name}``: {parameter.meaning()}." for parameter in method.parameters
+        ]
     if method.how == "ask" and len(specs[0].replies) == 1:
         argument = lookup(specs[0].replies[0], Kind.RESPONSE).arguments[0]
         as_bool = " (returned as True or False)" if method.returns == "bool" else ""
@@ -251,8 +351,11 @@ def _render(asynchronous: bool) -> str:
         header = f"    {prefix}def {method.name}(self{method.signature()}) -> {method.returns}:"
         if len(header) > 100:
             joined = ", ".join(parameter.signature() for parameter in method.parameters)
-            out += [f"    {prefix}def {method.name}(", f"        self, {joined}",
-                    f"    ) -> {method.returns}:"]
+            out += [
+                f"    {prefix}def {method.name}(",
+                f"        self, {joined}",
+                f"    ) -> {method.returns}:",
+            ]
         else:
             out.append(header)
         doc = _docstring(method, asynchronous)
@@ -290,8 +393,9 @@ def render_docs() -> str:
         arguments = "; ".join(
             f"`{parameter.name}`: {parameter.meaning()}" for parameter in method.parameters
         )
-        rows.append(f"| `{method.name}({names})` | {frames} | {arguments} | "
-                    f"{_returns_text(method)} |")
+        rows.append(
+            f"| `{method.name}({names})` | {frames} | {arguments} | {_returns_text(method)} |"
+        )
     return "\n".join(rows) + "\n"
 
 

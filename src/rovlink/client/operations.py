@@ -72,6 +72,7 @@ RESET_LEAK = Command("slreset")
 CLAW_OPEN = Command("h+")
 CLAW_CLOSE = Command("h-")
 
+
 def _integer(method: str, name: str, value: object, argument: Argument, frame: str) -> int:
     if isinstance(value, bool):
         raise TypeError(f"{method}: {name} must be an integer, got {value!r}")
@@ -132,8 +133,11 @@ def max_pwm(duty: int) -> Command:
     return _command("set_max_pwm", "mgmp", duty=duty)
 
 
-def depth_pid(p: int | None = None, i: int | None = None, d: int | None = None,
-              ) -> tuple[Command, ...]:
+def depth_pid(
+    p: int | None = None,
+    i: int | None = None,
+    d: int | None = None,
+) -> tuple[Command, ...]:
     """The gain commands for each gain given, all checked before any is sent.
 
     >>> [str(command) for command in depth_pid(p=20, d=5)]
@@ -142,7 +146,8 @@ def depth_pid(p: int | None = None, i: int | None = None, d: int | None = None,
     gains = (("p", p, "mvpdp"), ("i", i, "mvpdi"), ("d", d, "mvpidd"))
     commands = tuple(
         _command("set_depth_pid", frame, **{name: value})
-        for name, value, frame in gains if value is not None
+        for name, value, frame in gains
+        if value is not None
     )
     if not commands:
         raise ValueError("set_depth_pid: give at least one of p, i, d (each 0–99)")

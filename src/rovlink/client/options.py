@@ -54,10 +54,14 @@ class ClientOptions:
 
     def __post_init__(self) -> None:
         _check_seconds("timeout", self.timeout_s, optional=False)
-        if isinstance(self.retries, bool) or not isinstance(self.retries, int) \
-                or not 0 <= self.retries <= MAX_RETRIES:
-            raise ValueError(f"retries must be an integer from 0 to {MAX_RETRIES}, "
-                             f"got {self.retries!r}")
+        if (
+            isinstance(self.retries, bool)
+            or not isinstance(self.retries, int)
+            or not 0 <= self.retries <= MAX_RETRIES
+        ):
+            raise ValueError(
+                f"retries must be an integer from 0 to {MAX_RETRIES}, got {self.retries!r}"
+            )
         _check_seconds("boot_timeout", self.boot_timeout_s, optional=True)
         _check_seconds("motion_timeout", self.motion_timeout_s, optional=True)
         if not isinstance(self.checksum, bool):
@@ -66,9 +70,9 @@ class ClientOptions:
             known = ", ".join(ALGORITHMS)
             raise ValueError(f"algorithm must be one of {known}, got {self.algorithm!r}")
         keepalive = self.keepalive_s
-        if keepalive is not None and (isinstance(keepalive, bool)
-                                      or not isinstance(keepalive, int | float)
-                                      or keepalive < 0):
+        if keepalive is not None and (
+            isinstance(keepalive, bool) or not isinstance(keepalive, int | float) or keepalive < 0
+        ):
             raise ValueError(
                 f"keepalive must be a number of seconds ≥ 0 or None, got {keepalive!r}"
             )
@@ -91,8 +95,13 @@ def _check_seconds(name: str, value: object, *, optional: bool) -> None:
     """A positive number of seconds up to an hour (or ``None`` where that means "never")."""
     if value is None and optional:
         return
-    if isinstance(value, bool) or not isinstance(value, int | float) \
-            or not 0 < value <= MAX_TIMEOUT_S:
+    if (
+        isinstance(value, bool)
+        or not isinstance(value, int | float)
+        or not 0 < value <= MAX_TIMEOUT_S
+    ):
         never = " or None" if optional else ""
-        raise ValueError(f"{name} must be a positive number of seconds up to "
-                         f"{MAX_TIMEOUT_S:g}{never}, got {value!r}")
+        raise ValueError(
+            f"{name} must be a positive number of seconds up to "
+            f"{MAX_TIMEOUT_S:g}{never}, got {value!r}"
+        )

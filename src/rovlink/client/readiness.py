@@ -29,8 +29,9 @@ PROBE_BYTES = b"#crcoff!#qd!"
 class ReadinessProbe:
     """The state of one readiness wait: when to probe, whether the controller answered."""
 
-    def __init__(self, now: float, boot_timeout_s: float, *, interval_s: float = 0.25,
-                 quiet_s: float = 0.1) -> None:
+    def __init__(
+        self, now: float, boot_timeout_s: float, *, interval_s: float = 0.25, quiet_s: float = 0.1
+    ) -> None:
         self.deadline = now + boot_timeout_s
         self.interval_s = interval_s
         self.quiet_s = quiet_s
@@ -54,8 +55,11 @@ class ReadinessProbe:
         if self.answered:
             return
         for event in self._decoder.feed(data):
-            if isinstance(event, Frame) and isinstance(event.message, Response) \
-                    and event.message.name == "qd":
+            if (
+                isinstance(event, Frame)
+                and isinstance(event.message, Response)
+                and event.message.name == "qd"
+            ):
                 self.answered = True
                 return
 

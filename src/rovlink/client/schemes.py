@@ -26,8 +26,13 @@ from __future__ import annotations
 import importlib
 from types import ModuleType
 
-__all__ = ["handler_module", "load_handler", "register_scheme", "registered_schemes",
-           "unregister_scheme"]
+__all__ = [
+    "handler_module",
+    "load_handler",
+    "register_scheme",
+    "registered_schemes",
+    "unregister_scheme",
+]
 
 _HANDLERS: dict[str, str] = {
     "sim": "rovlink.sim.url",
@@ -85,5 +90,6 @@ def load_handler(scheme: str) -> ModuleType:
     try:
         return importlib.import_module(module)
     except ImportError as error:
-        raise ImportError(f"{scheme}:// needs {module}, which cannot be imported: {error}") \
-            from error
+        raise ImportError(
+            f"{scheme}:// needs {module}, which cannot be imported: {error}"
+        ) from error

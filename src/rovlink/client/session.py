@@ -78,9 +78,15 @@ from rovlink.protocol.text_enum import StrEnum
 __all__ = ["FENCE_QUERIES", "KEEPALIVE_QUERY", "Outcome", "PendingQuery", "Received", "Session"]
 
 # A damaged reply (rather than a frame of another kind): the query it belonged to failed.
-_CORRUPT_REASONS = frozenset({
-    Reason.CHECKSUM, Reason.MALFORMED, Reason.RANGE, Reason.TOO_LONG, Reason.TRUNCATED,
-})
+_CORRUPT_REASONS = frozenset(
+    {
+        Reason.CHECKSUM,
+        Reason.MALFORMED,
+        Reason.RANGE,
+        Reason.TOO_LONG,
+        Reason.TRUNCATED,
+    }
+)
 
 _QUERY_BYTES_CACHED = 64
 
@@ -88,8 +94,14 @@ _QUERY_BYTES_CACHED = 64
 #: (P17), and a query also proves the controller is still answering.
 KEEPALIVE_QUERY = Command("qd")
 #: Fence candidates, in order of preference: single-reply queries.
-FENCE_QUERIES = (Command("qhe"), Command("qd"), Command("qro"), Command("qpi"), Command("qr"),
-                 Command("q.l"))
+FENCE_QUERIES = (
+    Command("qhe"),
+    Command("qd"),
+    Command("qro"),
+    Command("qpi"),
+    Command("qr"),
+    Command("q.l"),
+)
 
 
 class Outcome(StrEnum):
@@ -112,8 +124,16 @@ _ANSWERED = Outcome.ANSWERED
 class PendingQuery:
     """One query on the wire (or held back, during a quiet-line resynchronisation)."""
 
-    __slots__ = ("command", "expected", "internal", "keepalive", "outcome", "responses",
-                 "sent_at", "waiter")
+    __slots__ = (
+        "command",
+        "expected",
+        "internal",
+        "keepalive",
+        "outcome",
+        "responses",
+        "sent_at",
+        "waiter",
+    )
 
     def __init__(self, command: Command, sent_at: float, keepalive: bool = False) -> None:
         self.command = command
@@ -278,8 +298,13 @@ class Session:
         self._track(command, now)
         return data
 
-    def query(self, command: Command, now: float, *, keepalive: bool = False,
-              ) -> tuple[bytes, PendingQuery]:
+    def query(
+        self,
+        command: Command,
+        now: float,
+        *,
+        keepalive: bool = False,
+    ) -> tuple[bytes, PendingQuery]:
         """The bytes to write for a query (after anything due), and its entry in the queue.
 
         Write the bytes before anything else is written: the queue's order is the wire's.
@@ -348,8 +373,11 @@ class Session:
         self._raw_decoder.reset()
         events = self._raw_decoder.feed(frame)
         command: Command | None = None
-        if len(events) == 1 and isinstance(events[0], Frame) \
-                and events[0].message.kind is Kind.COMMAND:
+        if (
+            len(events) == 1
+            and isinstance(events[0], Frame)
+            and events[0].message.kind is Kind.COMMAND
+        ):
             message = events[0].message
             command = Command(message.name, message.values)
         data = self.take_outbox(now) + self._account(command, frame, now)
@@ -414,8 +442,9 @@ class Session:
                                 if head is self._fence:
                                     self._end_resync()
                                 if events is not None:
-                                    events.append(ReplyReceived(now, head.command,
-                                                                tuple(responses)))
+                                    events.append(
+                                        ReplyReceived(now, head.command, tuple(responses))
+                                    )
                                 if not head.internal:
                                     result.settled.append(head)
                             continue
@@ -443,11 +472,18 @@ class Session:
         if self._quiet_until is not None and now >= self._quiet_until:
             self._end_resync()
             self._release_held(now)
-        if self.motion_timeout_s and (self._power_percent or self._vertical_percent) \
-                and now - self._motion_renewed_at >= self.motion_timeout_s:
+        if (
+            self.motion_timeout_s
+            and (self._power_percent or self._vertical_percent)
+            and now - self._motion_renewed_at >= self.motion_timeout_s
+        ):
             self._expire_motion(now)
-        if self.keepalive_s and self._quiet_until is None and not self._outbox \
-                and now - self.last_sent_at >= self.keepalive_s:
+        if (
+            self.keepalive_s
+            and self._quiet_until is None
+            and not self._outbox
+            and now - self.last_sent_at >= self.keepalive_s
+        ):
             pending = PendingQuery(KEEPALIVE_QUERY, now, keepalive=True)
             self.counters.keepalives += 1
             self._pending.append(pending)
@@ -537,8 +573,10 @@ class Session:
             (self._vertical_percent,) = command.values
             if self._vertical_percent:
                 self._motion_renewed_at = now
-        elif command.setting is not None and command.setting[0] in (Setting.LOCKED,
-                                                                     Setting.DIRECT_MODE):
+        elif command.setting is not None and command.setting[0] in (
+            Setting.LOCKED,
+            Setting.DIRECT_MODE,
+        ):
             # stop and start clear the set-points; a mode change sets vertical thrust to 0 (P9).
             if command.setting[0] is Setting.LOCKED:
                 self._power_percent = 0
@@ -567,15 +605,15 @@ class Session:
     def _fail(self, query: PendingQuery, outcome: Outcome, now: float) -> list[PendingQuery]:
         """``query`` failed while its reply may still come: fail every query on the wire that
         expects a reply of the same names, mark those names late, and fence (P20)."""
-        late = set(query.expected[len(query.responses):])
+        late = set(query.expected[len(query.responses) :])
         failed = [query]
         query.outcome = outcome
         for other in self._pending:
-            if other is not query and late.intersection(other.expected[len(other.responses):]):
+            if other is not query and late.intersection(other.expected[len(other.responses) :]):
                 other.outcome = Outcome.RESYNC
                 failed.append(other)
         for other in failed:
-            late.update(other.expected[len(other.responses):])
+            late.update(other.expected[len(other.responses) :])
         self._pending = deque(other for other in self._pending if other.outcome is _PENDING)
         if self._fence is not None and self._fence.outcome is not _PENDING:
             self._fence = None
@@ -651,15 +689,15 @@ class Session:
                 return True
         return False
 
-    def _report_failure(self, query: PendingQuery, now: float,
-                        settled: list[PendingQuery]) -> None:
+    def _report_failure(self, query: PendingQuery, now: float, settled: list[PendingQuery]) -> None:
         if self.events is not None:
             self.events.append(QueryFailed(now, query.command, query.outcome.value))
         if not query.internal:
             settled.append(query)
 
-    def _append(self, query: PendingQuery, response: Response, now: float,
-                settled: list[PendingQuery]) -> None:
+    def _append(
+        self, query: PendingQuery, response: Response, now: float, settled: list[PendingQuery]
+    ) -> None:
         query.responses.append(response)
         self._last_progress_at = now
         if len(query.responses) == len(query.expected):

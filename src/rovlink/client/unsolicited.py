@@ -27,6 +27,7 @@ DROP_WARNING_PERIOD_S = 10.0
 class DropLog:
     """Logs unsolicited events and passes them on; warns about dropped frames periodically.
 
+    >>> from rovlink.protocol import BadFrame, Reason
     >>> log = DropLog()
     >>> log.report([BadFrame(Reason.CHECKSUM, b"$qd.1x!", "")], None, now=0.0)
     >>> log.dropped_since_warning
@@ -38,8 +39,7 @@ class DropLog:
         self.dropped_since_warning = 0
         self._last_warning_at = float("-inf")
 
-    def report(self, events: Iterable[Event], callback: StrayCallback | None,
-               now: float) -> None:
+    def report(self, events: Iterable[Event], callback: StrayCallback | None, now: float) -> None:
         """Log each event and pass it to ``callback`` (a callback that raises is logged).
 
         Example::
@@ -61,14 +61,18 @@ class DropLog:
                 except Exception:
                     logger.exception("on_stray callback failed on %r", event)
         if self.dropped_since_warning and now - self._last_warning_at >= self.period_s:
-            logger.warning("%d received frame(s) dropped (bad checksum or malformed) since "
-                           "the last report; see the link counters", self.dropped_since_warning)
+            logger.warning(
+                "%d received frame(s) dropped (bad checksum or malformed) since "
+                "the last report; see the link counters",
+                self.dropped_since_warning,
+            )
             self.dropped_since_warning = 0
             self._last_warning_at = now
 
 
-def deliver(events: Iterable[ClientEvent], notices: Iterable[ClientEvent],
-            callback: EventCallback | None) -> None:
+def deliver(
+    events: Iterable[ClientEvent], notices: Iterable[ClientEvent], callback: EventCallback | None
+) -> None:
     """Log the session's notices and hand every event to ``callback`` (errors are logged).
 
     Example::
@@ -77,9 +81,11 @@ def deliver(events: Iterable[ClientEvent], notices: Iterable[ClientEvent],
     """
     for notice in notices:
         if isinstance(notice, ResetSuspected):
-            logger.warning("controller reset suspected after %d consecutive timeouts: "
-                           "checksum mode re-asserted; the robot is locked after a reset",
-                           notice.consecutive_timeouts)
+            logger.warning(
+                "controller reset suspected after %d consecutive timeouts: "
+                "checksum mode re-asserted; the robot is locked after a reset",
+                notice.consecutive_timeouts,
+            )
         elif isinstance(notice, MotionExpired):
             frames = " ".join(str(command) for command in notice.commands)
             logger.warning("motion not renewed within motion_timeout: sent %s", frames)

@@ -76,12 +76,11 @@ def _parse_registered(url: str, scheme: str) -> Endpoint:
 
 
 def _parse_tcp(url: str, base: str, baudrate: int) -> Endpoint:
-    address = base[len("socket://"):].rstrip("/")
+    address = base[len("socket://") :].rstrip("/")
     host, colon, port_text = address.rpartition(":")
     if not colon or not host or not port_text.isdigit() or not 0 < int(port_text) < 65536:
         raise ValueError(f"{url!r}: expected socket://HOST:PORT with a port in 1–65535")
-    return Endpoint(url, Scheme.TCP, address, baudrate, host=host.strip("[]"),
-                    port=int(port_text))
+    return Endpoint(url, Scheme.TCP, address, baudrate, host=host.strip("[]"), port=int(port_text))
 
 
 def parse_url(url: str, baudrate: int | None = None) -> Endpoint:
@@ -105,8 +104,9 @@ def parse_url(url: str, baudrate: int | None = None) -> Endpoint:
     from_url = [_parse_baudrate(url, value) for name, value in pairs if name == "baudrate"]
     if len(set(from_url)) > 1:
         raise ValueError(f"{url!r}: baudrate given twice with different values")
-    if baudrate is not None and (isinstance(baudrate, bool) or not isinstance(baudrate, int)
-                                 or baudrate <= 0):
+    if baudrate is not None and (
+        isinstance(baudrate, bool) or not isinstance(baudrate, int) or baudrate <= 0
+    ):
         raise ValueError(f"baudrate must be a positive integer, got {baudrate!r}")
     if from_url and baudrate is not None and from_url[0] != baudrate:
         raise ValueError(

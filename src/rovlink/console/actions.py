@@ -149,7 +149,7 @@ def _builtin(line: str, name: str, words: list[re.Match[str]]) -> Action:
             raise InputError("checksum takes on or off", position)
         return SetChecksum(arguments[0] == "on")
     # raw: everything after the word, as typed
-    frame = line[words[0].end():].strip()
+    frame = line[words[0].end() :].strip()
     if not frame:
         raise InputError("raw takes a frame to send, e.g. raw #qd!", len(line))
     if not frame.isascii() or " " in frame:

@@ -40,24 +40,26 @@ __all__ = ["STYLE", "Connector", "ConsoleCompleter", "ConsoleValidator", "run_co
 #: Opens the connection, given the callback for what the controller sends unasked.
 Connector = Callable[[StrayCallback], Awaitable[AsyncClient]]
 
-STYLE = Style.from_dict({
-    "prompt": "bold",
-    "sent": "ansibrightblack",
-    "reply": "ansigreen",
-    "frame": "ansibrightblack",
-    "alarm": "bold ansiwhite bg:ansired",
-    "debug": "italic ansiyellow",
-    "warning": "ansiyellow",
-    "error": "bold ansired",
-    "info": "",
-    "stop": "bold ansiwhite bg:ansired",
-    "bottom-toolbar": "noreverse bg:ansiblack ansiwhite",
-    "toolbar.stop": "bold ansiwhite bg:ansired",
-    "toolbar.locked": "ansigreen",
-    "toolbar.unlocked": "bold ansiyellow",
-    "toolbar.bad": "bold ansired",
-    "toolbar.hint": "ansicyan",
-})
+STYLE = Style.from_dict(
+    {
+        "prompt": "bold",
+        "sent": "ansibrightblack",
+        "reply": "ansigreen",
+        "frame": "ansibrightblack",
+        "alarm": "bold ansiwhite bg:ansired",
+        "debug": "italic ansiyellow",
+        "warning": "ansiyellow",
+        "error": "bold ansired",
+        "info": "",
+        "stop": "bold ansiwhite bg:ansired",
+        "bottom-toolbar": "noreverse bg:ansiblack ansiwhite",
+        "toolbar.stop": "bold ansiwhite bg:ansired",
+        "toolbar.locked": "ansigreen",
+        "toolbar.unlocked": "bold ansiyellow",
+        "toolbar.bad": "bold ansired",
+        "toolbar.hint": "ansicyan",
+    }
+)
 
 _TOOLBAR_REFRESH_S = 0.5
 
@@ -65,12 +67,17 @@ _TOOLBAR_REFRESH_S = 0.5
 class ConsoleCompleter(Completer):
     """Command names, console words, argument values and hints (see ``completion``)."""
 
-    def get_completions(self, document: Document,
-                        complete_event: CompleteEvent) -> Iterable[Completion]:
+    def get_completions(
+        self, document: Document, complete_event: CompleteEvent
+    ) -> Iterable[Completion]:
         """The suggestions for the text before the cursor."""
         for suggestion in suggestions(document.text_before_cursor):
-            yield Completion(suggestion.text, start_position=suggestion.start,
-                             display=suggestion.display, display_meta=suggestion.meta)
+            yield Completion(
+                suggestion.text,
+                start_position=suggestion.start,
+                display=suggestion.display,
+                display_meta=suggestion.meta,
+            )
 
 
 class ConsoleValidator(Validator):
@@ -97,8 +104,10 @@ def _stop_bindings(engine: ConsoleEngine) -> KeyBindings:
 
 def _toolbar(rov: TrackedClient, queued: int) -> StyleAndTextTuples:
     state = rov.commanded
-    lock_style = {LockState.LOCKED: "class:toolbar.locked",
-                  LockState.UNLOCKED: "class:toolbar.unlocked"}.get(state.lock, "")
+    lock_style = {
+        LockState.LOCKED: "class:toolbar.locked",
+        LockState.UNLOCKED: "class:toolbar.unlocked",
+    }.get(state.lock, "")
     health = rov.health
     link = f"link {health.status}"
     if health.last_reply_s is not None:
@@ -109,8 +118,10 @@ def _toolbar(rov: TrackedClient, queued: int) -> StyleAndTextTuples:
     checksum = f"checksum {rov.algorithm}" if rov.checksum_enabled else "checksum off"
     fragments: StyleAndTextTuples = [
         ("class:toolbar.stop", f" {STOP_KEY_TEXT}: STOP "),
-        ("", " as last sent: "), (lock_style, state.short_lock_text()),
-        ("", f", {state.short_mode_text()} │ {checksum} │ "), (link_style, link),
+        ("", " as last sent: "),
+        (lock_style, state.short_lock_text()),
+        ("", f", {state.short_mode_text()} │ {checksum} │ "),
+        (link_style, link),
         ("class:toolbar.bad", f" │ {queued} line(s) waiting" if queued else ""),
         ("", "\n "),
     ]
@@ -119,8 +130,9 @@ def _toolbar(rov: TrackedClient, queued: int) -> StyleAndTextTuples:
     if hint is not None:
         fragments.append(("class:toolbar.hint", hint.text()))
     else:
-        fragments.append(("", "Tab completes · 'help' lists commands · "
-                              "'help th' shows one · Ctrl-D quits"))
+        fragments.append(
+            ("", "Tab completes · 'help' lists commands · 'help th' shows one · Ctrl-D quits")
+        )
     return fragments
 
 
@@ -128,9 +140,13 @@ def _print(line: Line) -> None:
     print_formatted_text(FormattedText(line), style=STYLE)
 
 
-async def run_console(connect: Connector, *, algorithm: str = "crc8",
-                      history_path: Path | None = None,
-                      emit: Callable[[Line], None] = _print) -> None:
+async def run_console(
+    connect: Connector,
+    *,
+    algorithm: str = "crc8",
+    history_path: Path | None = None,
+    emit: Callable[[Line], None] = _print,
+) -> None:
     """Connect and run the console until ``quit`` or Ctrl-D; the client is closed on the way out.
 
     ``history_path`` keeps the input history between sessions (``None``: this session only).
@@ -164,8 +180,13 @@ async def run_console(connect: Connector, *, algorithm: str = "crc8",
         bottom_toolbar=lambda: _toolbar(rov, engine.queued),
         refresh_interval=_TOOLBAR_REFRESH_S,
     )
-    emit(info_line(f"connected to {client.description}; {STOP_KEY_TEXT} sends #stop! at any "
-                   "time; 'help' lists commands", "class:info"))
+    emit(
+        info_line(
+            f"connected to {client.description}; {STOP_KEY_TEXT} sends #stop! at any "
+            "time; 'help' lists commands",
+            "class:info",
+        )
+    )
     runner = asyncio.create_task(engine.run())
     try:
         while not runner.done():

@@ -17,8 +17,7 @@ __all__ = ["Hint", "Suggestion", "argument_hint", "suggestions"]
 
 _WORD = re.compile(r"[^\s,]+")
 _BUILTIN_BY_NAME = {builtin.name: builtin for builtin in BUILTINS}
-_CHECKSUM_WORDS = (("on", "checksum on every frame (#crcon!)"),
-                   ("off", "no checksums (#crcoff!)"))
+_CHECKSUM_WORDS = (("on", "checksum on every frame (#crcon!)"), ("off", "no checksums (#crcoff!)"))
 
 
 @dataclass(frozen=True, slots=True)
@@ -46,8 +45,10 @@ class Hint:
         >>> argument_hint("th 270 ").text()
         'th <direction_deg 0–360> [<power_percent 0–100>]: horizontal power, %'
         """
-        parts = [f"[{part}]" if index == self.current else part
-                 for index, part in enumerate(self.arguments)]
+        parts = [
+            f"[{part}]" if index == self.current else part
+            for index, part in enumerate(self.arguments)
+        ]
         detail = self.description
         return " ".join([self.name, *parts]) + (f": {detail}" if detail else "")
 
@@ -61,8 +62,11 @@ def _name_suggestions(prefix: str, *, frame: bool = False) -> list[Suggestion]:
             text = f"#{name}." if spec.arguments else f"#{name}!"
         found.append(Suggestion(text, -(len(prefix) + frame), text, spec.description))
     if not frame:
-        found += [Suggestion(builtin.name, -len(prefix), builtin.name, builtin.description)
-                  for builtin in BUILTINS if builtin.name.startswith(prefix)]
+        found += [
+            Suggestion(builtin.name, -len(prefix), builtin.name, builtin.description)
+            for builtin in BUILTINS
+            if builtin.name.startswith(prefix)
+        ]
     return found
 
 
@@ -77,21 +81,28 @@ def suggestions(before_cursor: str) -> list[Suggestion]:
     ['<power_percent 0–100>']
     """
     words = _WORD.findall(before_cursor)
-    typing_word = bool(before_cursor) and not before_cursor[-1].isspace() \
-        and before_cursor[-1] != ","
+    typing_word = (
+        bool(before_cursor) and not before_cursor[-1].isspace() and before_cursor[-1] != ","
+    )
     partial = words[-1] if typing_word else ""
     done = words[:-1] if typing_word else words
     if not done:
         if partial.startswith("#"):
-            return _name_suggestions(partial[1:], frame=True) if "." not in partial[1:] \
-                or partial[1:].startswith("q.") else []
+            return (
+                _name_suggestions(partial[1:], frame=True)
+                if "." not in partial[1:] or partial[1:].startswith("q.")
+                else []
+            )
         return _name_suggestions(partial)
     first = done[0]
     if first == "help" and len(done) == 1:
         return _name_suggestions(partial)
     if first == "checksum" and len(done) == 1:
-        return [Suggestion(word, -len(partial), word, meta)
-                for word, meta in _CHECKSUM_WORDS if word.startswith(partial)]
+        return [
+            Suggestion(word, -len(partial), word, meta)
+            for word, meta in _CHECKSUM_WORDS
+            if word.startswith(partial)
+        ]
     spec = _spec(first)
     if spec is None:
         return []
@@ -100,8 +111,11 @@ def suggestions(before_cursor: str) -> list[Suggestion]:
         return []
     argument = spec.arguments[index]
     if (argument.minimum, argument.maximum) == (0, 1):
-        return [Suggestion(value, -len(partial), value, argument.description)
-                for value in ("0", "1") if value.startswith(partial)]
+        return [
+            Suggestion(value, -len(partial), value, argument.description)
+            for value in ("0", "1")
+            if value.startswith(partial)
+        ]
     hint = f"<{argument.name} {argument.range_text()}>"
     return [Suggestion("", 0, hint, argument.description)]
 
@@ -149,9 +163,7 @@ def argument_hint(before_cursor: str) -> Hint | None:
         spec = spec_or_none
         typing_word = not stripped[-1].isspace() and stripped[-1] != ","
         current_index = len(words) - 1 - (1 if typing_word else 0)
-    arguments = tuple(f"<{argument.name} {argument.range_text()}>"
-                      for argument in spec.arguments)
+    arguments = tuple(f"<{argument.name} {argument.range_text()}>" for argument in spec.arguments)
     current = current_index if 0 <= current_index < len(arguments) else None
-    description = spec.arguments[current].description if current is not None \
-        else spec.description
+    description = spec.arguments[current].description if current is not None else spec.description
     return Hint(spec.name, description, arguments, current)

@@ -51,8 +51,10 @@ def command_help(name: str) -> list[str]:
     spec = lookup(name)
     lines = [usage(spec.name), f"  {spec.description}", f"  frame: {spec.template()}"]
     for argument in spec.arguments:
-        lines.append(f"  {argument.name}: {argument.range_text()}"
-                     + (f", {argument.description}" if argument.description else ""))
+        lines.append(
+            f"  {argument.name}: {argument.range_text()}"
+            + (f", {argument.description}" if argument.description else "")
+        )
     if spec.replies:
         replies = ", ".join(f"${reply}" for reply in spec.replies)
         lines.append(f"  replies: {replies}")

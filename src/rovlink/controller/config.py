@@ -395,17 +395,22 @@ def config_reference() -> str:
         + "\n"
         for spec in DEFAULT_THRUSTERS
     )
-    return "\n".join([
-        table_reference("[controller]", defaults),
-        table_reference("[depth]", defaults.depth),
-        table_reference("[depth_pid]", defaults.depth_pid),
-        table_reference("[[thrusters]]", ThrusterSpec(name="required")),
-        "The default layout (a `[[thrusters]]` list replaces it as a whole; the output index of a "
-        "thruster is its place in the list):",
-        "",
-        "```toml",
-        layout + "```",
-    ]) + "\n"
+    return (
+        "\n".join(
+            [
+                table_reference("[controller]", defaults),
+                table_reference("[depth]", defaults.depth),
+                table_reference("[depth_pid]", defaults.depth_pid),
+                table_reference("[[thrusters]]", ThrusterSpec(name="required")),
+                "The default layout (a `[[thrusters]]` list replaces it as a whole; the output "
+                "index of a thruster is its place in the list):",
+                "",
+                "```toml",
+                layout + "```",
+            ]
+        )
+        + "\n"
+    )
 
 
 def _toml_value(value: object) -> str:

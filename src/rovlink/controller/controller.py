@@ -440,9 +440,11 @@ class Controller:
                 if first:
                     self._debug("leak: motors are locked, not surfacing")
                 return
-            surfacing = (self._vertical_mode is VerticalMode.DIRECT
-                         and self._vertical_thrust_percent == _FULL_UP_PERCENT
-                         and self._power_percent == 0)
+            surfacing = (
+                self._vertical_mode is VerticalMode.DIRECT
+                and self._vertical_thrust_percent == _FULL_UP_PERCENT
+                and self._power_percent == 0
+            )
             if surfacing:
                 return
             self._vertical_mode = VerticalMode.DIRECT

@@ -6,11 +6,24 @@ __all__ = ["debug_line", "describe_frame"]
 
 # The three frame characters become look-alikes that are plain text, and the typography of
 # messages (ranges such as "0–255") becomes ASCII for any terminal.
-_SAFE = str.maketrans({
-    "#": "No.", "$": "S", "!": ".", "\r": " ", "\n": " ",
-    "–": "-", "—": "-", "−": "-", "…": "...", "·": "*", "×": "x", "≥": ">=", "≤": "<=",
-    "°": " deg",
-})
+_SAFE = str.maketrans(
+    {
+        "#": "No.",
+        "$": "S",
+        "!": ".",
+        "\r": " ",
+        "\n": " ",
+        "–": "-",
+        "—": "-",
+        "−": "-",
+        "…": "...",
+        "·": "*",
+        "×": "x",
+        "≥": ">=",
+        "≤": "<=",
+        "°": " deg",
+    }
+)
 _PRINTABLE = frozenset(range(0x20, 0x7F))
 
 

@@ -55,8 +55,14 @@ _STOP_WRITE_TIMEOUT_S = 1.0
 class Panel(Widget):
     """A bordered box whose content is drawn for its current size by ``draw(width, height)``."""
 
-    def __init__(self, draw: Callable[[int, int], RenderableType], *, title: str = "",
-                 id: str | None = None, classes: str | None = None) -> None:
+    def __init__(
+        self,
+        draw: Callable[[int, int], RenderableType],
+        *,
+        title: str = "",
+        id: str | None = None,
+        classes: str | None = None,
+    ) -> None:
         super().__init__(id=id, classes=classes)
         self._draw = draw
         self.border_title = title
@@ -94,18 +100,32 @@ class MonitorApp(App[None]):
     BINDINGS: ClassVar[list[BindingType]] = [
         Binding("space", "stop", "STOP", key_display="space", priority=True),
         Binding("s", "start", "start", priority=True),
-        Binding("left", f"turn(-{controls.DIRECTION_STEP_DEG})", "direction",
-                key_display="←→", priority=True),
-        Binding("right", f"turn({controls.DIRECTION_STEP_DEG})", "direction", show=False,
-                priority=True),
-        Binding("up", f"power({controls.POWER_STEP_PERCENT})", "power", key_display="↑↓",
-                priority=True),
-        Binding("down", f"power(-{controls.POWER_STEP_PERCENT})", "power", show=False,
-                priority=True),
-        Binding("pagedown", f"depth({controls.DEPTH_STEP_CM})", "depth target",
-                key_display="PgUp/PgDn", priority=True),
-        Binding("pageup", f"depth(-{controls.DEPTH_STEP_CM})", "depth target", show=False,
-                priority=True),
+        Binding(
+            "left",
+            f"turn(-{controls.DIRECTION_STEP_DEG})",
+            "direction",
+            key_display="←→",
+            priority=True,
+        ),
+        Binding(
+            "right", f"turn({controls.DIRECTION_STEP_DEG})", "direction", show=False, priority=True
+        ),
+        Binding(
+            "up", f"power({controls.POWER_STEP_PERCENT})", "power", key_display="↑↓", priority=True
+        ),
+        Binding(
+            "down", f"power(-{controls.POWER_STEP_PERCENT})", "power", show=False, priority=True
+        ),
+        Binding(
+            "pagedown",
+            f"depth({controls.DEPTH_STEP_CM})",
+            "depth target",
+            key_display="PgUp/PgDn",
+            priority=True,
+        ),
+        Binding(
+            "pageup", f"depth(-{controls.DEPTH_STEP_CM})", "depth target", show=False, priority=True
+        ),
         Binding("o", "claw('h+')", "claw", key_display="o/c", priority=True),
         Binding("c", "claw('h-')", "claw", show=False, priority=True),
         Binding("r", "reset_leak", "reset leak", priority=True),
@@ -114,8 +134,15 @@ class MonitorApp(App[None]):
         Binding("ctrl+c", "quit_safely", "quit", show=False, priority=True),
     ]
 
-    def __init__(self, connect: Connector, *, description: str = "", rate_hz: float = 5.0,
-                 algorithm: str = "crc8", window_s: float = DEFAULT_WINDOW_S) -> None:
+    def __init__(
+        self,
+        connect: Connector,
+        *,
+        description: str = "",
+        rate_hz: float = 5.0,
+        algorithm: str = "crc8",
+        window_s: float = DEFAULT_WINDOW_S,
+    ) -> None:
         """``description`` names the robot in the title; ``rate_hz`` is the polling rate."""
         if isinstance(rate_hz, bool) or not isinstance(rate_hz, int | float) or rate_hz <= 0:
             raise ValueError(f"rate_hz must be a positive number, got {rate_hz!r}")
@@ -139,8 +166,7 @@ class MonitorApp(App[None]):
                 yield Digits("—", id="depth-digits")
                 yield Static(id="depth-readout")
             yield Panel(self._draw_attitude, title="attitude", id="attitude")
-            yield Panel(self._draw_commanded, title="commanded, as last sent",
-                        id="commanded")
+            yield Panel(self._draw_commanded, title="commanded, as last sent", id="commanded")
         yield Panel(lambda width, height: leak_text(self.readings), title="leak", id="leak")
         yield Panel(self._draw_link, title="link", id="link")
         yield Panel(self._draw_chart, title="depth over time", id="chart")
@@ -212,11 +238,13 @@ class MonitorApp(App[None]):
     def _update_widgets(self) -> None:
         reading = self.readings.latest
         self.query_one("#depth-digits", Digits).update(
-            "—" if reading is None else str(reading.depth_cm))
+            "—" if reading is None else str(reading.depth_cm)
+        )
         commanded = self.rov.commanded if self.rov is not None else None
         if commanded is not None:
-            self.query_one("#depth-readout", Static).update(depth_text(
-                self.readings, commanded, now_s=time.monotonic(), period_s=self.period_s))
+            self.query_one("#depth-readout", Static).update(
+                depth_text(self.readings, commanded, now_s=time.monotonic(), period_s=self.period_s)
+            )
         leak = self.readings.leak
         leak_panel = self.query_one("#leak", Panel)
         if leak and not leak_panel.has_class("alarm"):
@@ -240,19 +268,31 @@ class MonitorApp(App[None]):
 
     def _draw_link(self, width: int, height: int) -> RenderableType:
         if self.rov is None:
-            return Text(self._link_state, style="bold red" if "could not" in self._link_state
-                        else "yellow")
-        text = link_text(self._link_state, self.rov.health, self.rov.client.counters,
-                         self.readings, now_s=time.monotonic(), rate_hz=self.rate_hz)
+            return Text(
+                self._link_state, style="bold red" if "could not" in self._link_state else "yellow"
+            )
+        text = link_text(
+            self._link_state,
+            self.rov.health,
+            self.rov.client.counters,
+            self.readings,
+            now_s=time.monotonic(),
+            rate_hz=self.rate_hz,
+        )
         if self.rov.client.closed:
             text.append("\nlink closed: keys send nothing", style="bold red")
         return text
 
     def _draw_chart(self, width: int, height: int) -> RenderableType:
         target_cm = self.rov.commanded.target_depth_cm if self.rov is not None else None
-        lines = depth_chart(self.readings.history, now_s=time.monotonic(),
-                            window_s=self.readings.window_s, width=width,
-                            height=max(height - 2, 2), target_cm=target_cm)
+        lines = depth_chart(
+            self.readings.history,
+            now_s=time.monotonic(),
+            window_s=self.readings.window_s,
+            width=width,
+            height=max(height - 2, 2),
+            target_cm=target_cm,
+        )
         text = Text("\n".join(lines))
         text.highlight_regex(f"{SAMPLE_MARK}+", "bold cyan")
         text.highlight_regex(f"{TARGET_MARK}+", "yellow")
@@ -295,8 +335,11 @@ class MonitorApp(App[None]):
         """``mvd`` with the target moved by ``step_cm`` (after ``mvdirect 0`` if needed)."""
         if self.rov is not None:
             reading = self.readings.latest
-            await self._send(*controls.change_depth_target(
-                self.rov.commanded, reading.depth_cm if reading else None, step_cm))
+            await self._send(
+                *controls.change_depth_target(
+                    self.rov.commanded, reading.depth_cm if reading else None, step_cm
+                )
+            )
 
     async def action_claw(self, frame_name: str) -> None:
         """``#h+!`` or ``#h-!``: one claw pulse."""

@@ -30,8 +30,15 @@ def _nice_ceiling(value_cm: float) -> int:
     raise AssertionError("unreachable")  # pragma: no cover
 
 
-def depth_chart(samples: Iterable[DepthSample], *, now_s: float, window_s: float, width: int,
-                height: int, target_cm: int | None = None) -> list[str]:
+def depth_chart(
+    samples: Iterable[DepthSample],
+    *,
+    now_s: float,
+    window_s: float,
+    width: int,
+    height: int,
+    target_cm: int | None = None,
+) -> list[str]:
     """The last ``window_s`` seconds of depth as ``height`` + 2 lines of ``width`` characters.
 
     Columns are time (now at the right), rows depth (the surface at the top); each sample is a

@@ -29,7 +29,7 @@ def heading_tape(heading_deg: int, width: int, degrees_per_column: int = 5) -> l
             ticks.append("┼")
             name = _POINTS[bearing]
             start = max(column - (len(name) - 1) // 2, 0)
-            labels[start:start + len(name)] = name
+            labels[start : start + len(name)] = name
         elif bearing % 15 == 0:
             ticks.append("|")
         else:

@@ -41,8 +41,7 @@ def change_power(state: CommandedState, step_percent: int) -> Command:
     return Command("th", (state.direction_deg, power))
 
 
-def change_depth_target(state: CommandedState, depth_cm: int | None,
-                        step_cm: int) -> list[Command]:
+def change_depth_target(state: CommandedState, depth_cm: int | None, step_cm: int) -> list[Command]:
     """``mvd`` with the target moved by ``step_cm`` (+ deeper), after ``mvdirect 0`` unless depth
     mode was the last sent. With no target sent yet, the step is from the depth now.
 

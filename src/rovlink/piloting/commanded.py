@@ -92,13 +92,20 @@ class CommandedState:
     def _dropped_because(self, command: Command) -> str | None:
         spec = command.spec
         if spec.motion and self.lock is LockState.LOCKED:
-            return (f"the controller drops {spec.name} while motion is locked (as last sent): "
-                    "send start first")
-        if spec.mode is not None and self.vertical_mode is not None \
-                and spec.mode is not self.vertical_mode:
+            return (
+                f"the controller drops {spec.name} while motion is locked (as last sent): "
+                "send start first"
+            )
+        if (
+            spec.mode is not None
+            and self.vertical_mode is not None
+            and spec.mode is not self.vertical_mode
+        ):
             flag = 1 if spec.mode is VerticalMode.DIRECT else 0
-            return (f"the controller drops {spec.name} in {self.vertical_mode} mode "
-                    f"(as last sent): send mvdirect {flag} first")
+            return (
+                f"the controller drops {spec.name} in {self.vertical_mode} mode "
+                f"(as last sent): send mvdirect {flag} first"
+            )
         return None
 
     def _clear_set_points(self) -> None:

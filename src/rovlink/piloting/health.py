@@ -36,8 +36,9 @@ class LinkHealth:
         """A query answered ``reply_s`` after it was sent."""
         self.last_reply_s = reply_s
         average = self.average_reply_s
-        self.average_reply_s = reply_s if average is None \
-            else average + _AVERAGE_WEIGHT * (reply_s - average)
+        self.average_reply_s = (
+            reply_s if average is None else average + _AVERAGE_WEIGHT * (reply_s - average)
+        )
         self.replies += 1
         self.consecutive_failures = 0
         self.last_reply_at_s = now_s

@@ -33,8 +33,7 @@ def reading_text(response: Response) -> str:
     'LEAK: the sensor fired since the last reset'
     """
     if response.name == "q.l":
-        return "LEAK: the sensor fired since the last reset" if response.values[0] \
-            else "no leak"
+        return "LEAK: the sensor fired since the last reset" if response.values[0] else "no leak"
     if response.name == "qr":
         return f"{response.values[0]} (raw)"
     return ", ".join(

@@ -60,8 +60,13 @@ class TrackedClient:
             print(rov.commanded.lock_text())   # unlocked (as last sent)
     """
 
-    def __init__(self, client: AsyncClient, *, algorithm: str = DEFAULT_ALGORITHM,
-                 clock: Callable[[], float] = time.monotonic) -> None:
+    def __init__(
+        self,
+        client: AsyncClient,
+        *,
+        algorithm: str = DEFAULT_ALGORITHM,
+        clock: Callable[[], float] = time.monotonic,
+    ) -> None:
         self.client = client
         self.algorithm = algorithm
         self.commanded = CommandedState()
@@ -142,7 +147,10 @@ class TrackedClient:
         """
         decoder = Decoder(checksum_enabled=self.checksum_enabled, algorithm=self.algorithm)
         events = decoder.feed(data)
-        if len(events) == 1 and isinstance(events[0], Frame) \
-                and isinstance(events[0].message, Command):
+        if (
+            len(events) == 1
+            and isinstance(events[0], Frame)
+            and isinstance(events[0].message, Command)
+        ):
             return events[0].message
         return None

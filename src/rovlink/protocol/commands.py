@@ -134,7 +134,12 @@ class Spec:
 
 
 def _arg(
-    name: str, minimum: int, maximum: int, description: str, *, signed: bool = False,
+    name: str,
+    minimum: int,
+    maximum: int,
+    description: str,
+    *,
+    signed: bool = False,
     unit: str = "",
 ) -> Argument:
     return Argument(name, minimum, maximum, signed, description, unit)
@@ -147,8 +152,7 @@ _DEPTH_CM = _arg("depth_cm", 0, 9999, "depth below the surface, cm", unit="cm")
 _RAW = _arg("raw", 0, 1024, "raw pressure-sensor reading")
 _GAIN = _arg("gain", 0, 99, "PID gain, scaled by the controller's configuration")
 _FLAG = _arg("enabled", 0, 1, "1 on, 0 off")
-_ROLL = _arg("roll_deg", -90, 90, "roll, degrees, + starboard down", signed=True,
-                 unit="°")
+_ROLL = _arg("roll_deg", -90, 90, "roll, degrees, + starboard down", signed=True, unit="°")
 _PITCH = _arg("pitch_deg", -90, 90, "pitch, degrees, + bow up", signed=True, unit="°")
 _HEADING = _arg("heading_deg", 0, 360, "magnetic heading, degrees", unit="°")
 _LEAK = _arg("leak", 0, 1, "1 if the leak sensor fired since the last reset")
@@ -156,64 +160,165 @@ _LEAK = _arg("leak", 0, 1, "1 if the leak sensor fired since the last reset")
 _SENSOR_REPLIES = ("qd", "qr", "q.l", "qro", "qpi", "qhe")
 
 COMMANDS: tuple[Spec, ...] = (
-    Spec("crcon", _C, "turn checksum use on (never carries a checksum)", rules=("P3",),
-         exact_match=True, setting=Setting.CHECKSUM, setting_value=True),
-    Spec("crcoff", _C, "turn checksum use off (never carries a checksum)", rules=("P3",),
-         exact_match=True, setting=Setting.CHECKSUM, setting_value=False),
-    Spec("stop", _C, "switch all motors off and lock their control", rules=("P3", "P7"),
-         honoured_bare=True, setting=Setting.LOCKED, setting_value=True),
-    Spec("start", _C, "allow motor control, with neutral set-points", rules=("P7",),
-         setting=Setting.LOCKED, setting_value=False),
-    Spec("debug1", _C, "debug output on", rules=("P5",), setting=Setting.DEBUG,
-         setting_value=True),
-    Spec("debug0", _C, "debug output off", rules=("P5",), setting=Setting.DEBUG,
-         setting_value=False),
-    Spec("mgmp", _C, "maximum PWM duty for every thruster", rules=("P8",),
-         arguments=(_arg("max_pwm", 0, 255, "PWM duty cap"),)),
-    Spec("mvpdp", _C, "vertical (depth) PID proportional gain", rules=("P10",),
-         arguments=(_GAIN,)),
+    Spec(
+        "crcon",
+        _C,
+        "turn checksum use on (never carries a checksum)",
+        rules=("P3",),
+        exact_match=True,
+        setting=Setting.CHECKSUM,
+        setting_value=True,
+    ),
+    Spec(
+        "crcoff",
+        _C,
+        "turn checksum use off (never carries a checksum)",
+        rules=("P3",),
+        exact_match=True,
+        setting=Setting.CHECKSUM,
+        setting_value=False,
+    ),
+    Spec(
+        "stop",
+        _C,
+        "switch all motors off and lock their control",
+        rules=("P3", "P7"),
+        honoured_bare=True,
+        setting=Setting.LOCKED,
+        setting_value=True,
+    ),
+    Spec(
+        "start",
+        _C,
+        "allow motor control, with neutral set-points",
+        rules=("P7",),
+        setting=Setting.LOCKED,
+        setting_value=False,
+    ),
+    Spec("debug1", _C, "debug output on", rules=("P5",), setting=Setting.DEBUG, setting_value=True),
+    Spec(
+        "debug0", _C, "debug output off", rules=("P5",), setting=Setting.DEBUG, setting_value=False
+    ),
+    Spec(
+        "mgmp",
+        _C,
+        "maximum PWM duty for every thruster",
+        rules=("P8",),
+        arguments=(_arg("max_pwm", 0, 255, "PWM duty cap"),),
+    ),
+    Spec("mvpdp", _C, "vertical (depth) PID proportional gain", rules=("P10",), arguments=(_GAIN,)),
     Spec("mvpdi", _C, "vertical (depth) PID integral gain", rules=("P10",), arguments=(_GAIN,)),
-    Spec("mvpidd", _C, "vertical (depth) PID derivative gain", rules=("P10", "P18"),
-         arguments=(_GAIN,), aliases=("mvpdd",)),
-    Spec("mvdirect", _C, "vertical direct-control mode on (1) or depth mode (0)", rules=("P9",),
-         arguments=(_FLAG,), setting=Setting.DIRECT_MODE),
-    Spec("mvs", _C, "direct mode: vertical thrust, % (+ up, − down)", rules=("P6", "P7", "P9"),
-         arguments=(_arg("thrust_percent", -100, 100, "vertical thrust, + up", signed=True,
-                              unit="%"),),
-         motion=True, mode=VerticalMode.DIRECT),
-    Spec("mvd", _C, "depth mode: hold this depth, cm from the surface", rules=("P7", "P9"),
-         arguments=(_arg("target_depth_cm", 0, 9999, "target depth, cm", unit="cm"),),
-         motion=True, mode=VerticalMode.DEPTH),
-    Spec("th", _C, "horizontal motion: direction (0 ahead, clockwise) and power",
-         rules=("P7", "P11"),
-         arguments=(_arg("direction_deg", 0, 360, "degrees clockwise from the bow", unit="°"),
-                    _arg("power_percent", 0, 100, "horizontal power, %", unit="%")),
-         motion=True),
+    Spec(
+        "mvpidd",
+        _C,
+        "vertical (depth) PID derivative gain",
+        rules=("P10", "P18"),
+        arguments=(_GAIN,),
+        aliases=("mvpdd",),
+    ),
+    Spec(
+        "mvdirect",
+        _C,
+        "vertical direct-control mode on (1) or depth mode (0)",
+        rules=("P9",),
+        arguments=(_FLAG,),
+        setting=Setting.DIRECT_MODE,
+    ),
+    Spec(
+        "mvs",
+        _C,
+        "direct mode: vertical thrust, % (+ up, − down)",
+        rules=("P6", "P7", "P9"),
+        arguments=(
+            _arg("thrust_percent", -100, 100, "vertical thrust, + up", signed=True, unit="%"),
+        ),
+        motion=True,
+        mode=VerticalMode.DIRECT,
+    ),
+    Spec(
+        "mvd",
+        _C,
+        "depth mode: hold this depth, cm from the surface",
+        rules=("P7", "P9"),
+        arguments=(_arg("target_depth_cm", 0, 9999, "target depth, cm", unit="cm"),),
+        motion=True,
+        mode=VerticalMode.DEPTH,
+    ),
+    Spec(
+        "th",
+        _C,
+        "horizontal motion: direction (0 ahead, clockwise) and power",
+        rules=("P7", "P11"),
+        arguments=(
+            _arg("direction_deg", 0, 360, "degrees clockwise from the bow", unit="°"),
+            _arg("power_percent", 0, 100, "horizontal power, %", unit="%"),
+        ),
+        motion=True,
+    ),
     Spec("qd", _C, "query depth, cm", rules=("P13",), replies=("qd",)),
     Spec("qr", _C, "query the raw pressure-sensor reading", rules=("P13",), replies=("qr",)),
-    Spec("sdz", _C, "set the depth zero: raw reading at the surface", rules=("P13",),
-         arguments=(_arg("zero_raw", 0, 1024, "raw reading at the surface"),)),
-    Spec("sdk", _C, "set the depth coefficient k: depth[m] = (raw − zero) · k / 10000",
-         rules=("P13",), arguments=(_arg("k", 0, 10000, "depth coefficient"),)),
-    Spec("q.l", _C, "query the leak latch (fired since the last reset?)", rules=("P14",),
-         replies=("q.l",)),
+    Spec(
+        "sdz",
+        _C,
+        "set the depth zero: raw reading at the surface",
+        rules=("P13",),
+        arguments=(_arg("zero_raw", 0, 1024, "raw reading at the surface"),),
+    ),
+    Spec(
+        "sdk",
+        _C,
+        "set the depth coefficient k: depth[m] = (raw − zero) · k / 10000",
+        rules=("P13",),
+        arguments=(_arg("k", 0, 10000, "depth coefficient"),),
+    ),
+    Spec(
+        "q.l",
+        _C,
+        "query the leak latch (fired since the last reset?)",
+        rules=("P14",),
+        replies=("q.l",),
+    ),
     Spec("slreset", _C, "reset the leak latch", rules=("P14",)),
     Spec("qro", _C, "query roll, degrees", rules=("P15",), replies=("qro",)),
     Spec("qpi", _C, "query pitch, degrees", rules=("P15",), replies=("qpi",)),
     Spec("qhe", _C, "query magnetic heading, degrees", rules=("P15",), replies=("qhe",)),
-    Spec("qsa", _C, "query all sensors: six replies qd, qr, q.l, qro, qpi, qhe", rules=("P12",),
-         replies=_SENSOR_REPLIES),
-    Spec("h+", _C, "claw open: run the claw motor for one pulse", rules=("P7", "P16"),
-         motion=True, setting=Setting.CLAW_OPEN, setting_value=True),
-    Spec("h-", _C, "claw close: run the claw motor for one pulse", rules=("P7", "P16"),
-         motion=True, setting=Setting.CLAW_OPEN, setting_value=False),
+    Spec(
+        "qsa",
+        _C,
+        "query all sensors: six replies qd, qr, q.l, qro, qpi, qhe",
+        rules=("P12",),
+        replies=_SENSOR_REPLIES,
+    ),
+    Spec(
+        "h+",
+        _C,
+        "claw open: run the claw motor for one pulse",
+        rules=("P7", "P16"),
+        motion=True,
+        setting=Setting.CLAW_OPEN,
+        setting_value=True,
+    ),
+    Spec(
+        "h-",
+        _C,
+        "claw close: run the claw motor for one pulse",
+        rules=("P7", "P16"),
+        motion=True,
+        setting=Setting.CLAW_OPEN,
+        setting_value=False,
+    ),
 )
 
 RESPONSES: tuple[Spec, ...] = (
     Spec("qd", _R, "depth, cm", rules=("P13",), arguments=(_DEPTH_CM,)),
     Spec("qr", _R, "raw pressure-sensor reading", rules=("P13",), arguments=(_RAW,)),
-    Spec("q.l", _R, "leak latch: 1 fired since the last reset, 0 not", rules=("P14",),
-         arguments=(_LEAK,)),
+    Spec(
+        "q.l",
+        _R,
+        "leak latch: 1 fired since the last reset, 0 not",
+        rules=("P14",),
+        arguments=(_LEAK,),
+    ),
     Spec("qro", _R, "roll, degrees", rules=("P15",), arguments=(_ROLL,)),
     Spec("qpi", _R, "pitch, degrees", rules=("P15",), arguments=(_PITCH,)),
     Spec("qhe", _R, "magnetic heading, degrees", rules=("P15",), arguments=(_HEADING,)),
@@ -225,11 +330,7 @@ _BY_KIND: dict[Kind, dict[str, Spec]] = {
 }
 #: Names and aliases as they may appear in a frame, mapped to their spec.
 SPELLINGS: dict[Kind, dict[str, Spec]] = {
-    kind: {
-        spelling: spec
-        for spec in table.values()
-        for spelling in (spec.name, *spec.aliases)
-    }
+    kind: {spelling: spec for spec in table.values() for spelling in (spec.name, *spec.aliases)}
     for kind, table in _BY_KIND.items()
 }
 

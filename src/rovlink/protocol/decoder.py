@@ -203,11 +203,14 @@ class Decoder:
                                 message = last[3]
                         else:
                             first = numbers[parts[1]]
-                            if first is not None and (not checked or raw.endswith(
-                                _HEX_DIGITS_END[
-                                    last[1][_DOT_CRC[first[1][crc] ^ first[2]]] ^ last[2]
-                                ]
-                            )):
+                            if first is not None and (
+                                not checked
+                                or raw.endswith(
+                                    _HEX_DIGITS_END[
+                                        last[1][_DOT_CRC[first[1][crc] ^ first[2]]] ^ last[2]
+                                    ]
+                                )
+                            ):
                                 message = _new_message(cls)
                                 _set_message_name(message, spec.name)
                                 _set_message_values(message, (first[0], last[0]))
@@ -312,9 +315,9 @@ class Decoder:
         room = MAX_FRAME_BYTES - 1 - len(self._frame)  # the end "!" needs one byte too
         if stop - position > room:
             overlong = self._frame + data[position : position + room + 1]
-            events.append(BadFrame(
-                Reason.TOO_LONG, overlong, f"frame longer than {MAX_FRAME_BYTES} bytes"
-            ))
+            events.append(
+                BadFrame(Reason.TOO_LONG, overlong, f"frame longer than {MAX_FRAME_BYTES} bytes")
+            )
             self._frame = b""
             self._skipping = True
             return position + room + 1
@@ -347,9 +350,11 @@ class Decoder:
     def _begin_frame(self, events: list[Event]) -> None:
         """A start character arrived: it ends any text line and abandons any open frame (P1)."""
         if self._frame:
-            events.append(BadFrame(
-                Reason.MALFORMED, self._frame, "frame interrupted by a new start character"
-            ))
+            events.append(
+                BadFrame(
+                    Reason.MALFORMED, self._frame, "frame interrupted by a new start character"
+                )
+            )
             self._frame = b""
         self._skipping = False
         self._flush_text(events)

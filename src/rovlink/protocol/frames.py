@@ -157,11 +157,20 @@ def _fast_tables(kind: Kind) -> tuple[dict[bytes, Spec], dict[bytes, _Valued]]:
         elif len(arguments) <= 2:
             head, _, name_rest = spelling.partition(".")
             first, second = arguments[0], arguments[-1]
-            valued.setdefault(head.encode(), []).append((
-                spec, cls, (name_rest + "." if name_rest else "").encode(), len(arguments),
-                first.signed, first.minimum, first.maximum,
-                second.signed, second.minimum, second.maximum,
-            ))
+            valued.setdefault(head.encode(), []).append(
+                (
+                    spec,
+                    cls,
+                    (name_rest + "." if name_rest else "").encode(),
+                    len(arguments),
+                    first.signed,
+                    first.minimum,
+                    first.maximum,
+                    second.signed,
+                    second.minimum,
+                    second.maximum,
+                )
+            )
     return bare, {head: entries[0] for head, entries in valued.items() if len(entries) == 1}
 
 
@@ -286,9 +295,7 @@ class EndedNumberTexts(dict[bytes, "NumberText | None"]):
 #: gives; the rest of the name (``b"l"`` of ``q.l``) or ``b""``; the numbers of the first
 #: argument; those of the last argument, without and with the end ``!`` after them; and the
 #: CRC-8/SMBUS of the name and its "." (the prefix of every such body).
-FastEntry = tuple[
-    Spec, type[Message], int, bytes, NumberTexts, NumberTexts, EndedNumberTexts, int
-]
+FastEntry = tuple[Spec, type[Message], int, bytes, NumberTexts, NumberTexts, EndedNumberTexts, int]
 
 
 def _fast_table() -> dict[bytes, FastEntry]:
@@ -306,11 +313,18 @@ def _fast_table() -> dict[bytes, FastEntry]:
             last_numbers = (
                 NumberTexts(last, spec, cls) if len(arguments) == 1 else NumberTexts(last)
             )
-            entries.setdefault(kind.start_byte + head.encode(), []).append((
-                spec, cls, 1 + bool(name_rest) + len(arguments), name_rest.encode(),
-                NumberTexts(first), last_numbers, EndedNumberTexts(last_numbers),
-                crc8_smbus((spelling + ".").encode()),
-            ))
+            entries.setdefault(kind.start_byte + head.encode(), []).append(
+                (
+                    spec,
+                    cls,
+                    1 + bool(name_rest) + len(arguments),
+                    name_rest.encode(),
+                    NumberTexts(first),
+                    last_numbers,
+                    EndedNumberTexts(last_numbers),
+                    crc8_smbus((spelling + ".").encode()),
+                )
+            )
     # A first segment shared by two spellings is left to the full parser.
     return {head: found[0] for head, found in entries.items() if len(found) == 1}
 

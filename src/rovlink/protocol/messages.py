@@ -42,9 +42,7 @@ class ArgumentCountError(ValueError):
     def __init__(self, spec: Spec, count: int) -> None:
         self.command = spec.name
         names = ", ".join(argument.name for argument in spec.arguments) or "no arguments"
-        super().__init__(
-            f"{spec.name} takes {len(spec.arguments)} value(s) ({names}), got {count}"
-        )
+        super().__init__(f"{spec.name} takes {len(spec.arguments)} value(s) ({names}), got {count}")
 
 
 def _validate(spec: Spec, values: tuple[int, ...]) -> None:

@@ -27,8 +27,7 @@ def _arguments_text(spec: Spec) -> str:
     if not spec.arguments:
         return "—"
     return "<br>".join(
-        f"`{argument.name}` {argument.range_text()}"
-        + (" (signed)" if argument.signed else "")
+        f"`{argument.name}` {argument.range_text()}" + (" (signed)" if argument.signed else "")
         for argument in spec.arguments
     )
 

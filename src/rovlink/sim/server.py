@@ -274,9 +274,7 @@ class SimServer:
 
     # -- events ------------------------------------------------------------------------------
 
-    def _on_peer_event(
-        self, peer: _Peer
-    ) -> Callable[[selectors.SelectorKey, int], None]:
+    def _on_peer_event(self, peer: _Peer) -> Callable[[selectors.SelectorKey, int], None]:
         def handle(key: selectors.SelectorKey, mask: int) -> None:
             if mask & selectors.EVENT_READ:
                 self._on_readable(peer)

@@ -104,5 +104,9 @@ def open_url(url: str) -> SimulatedPort:
         port = open_url("sim://?seed=1&realtime=0")
     """
     options = parse_sim_url(url)
-    return open_port(seed=options.seed, leak_at_s=options.leak_at_s, config=options.config,
-                     realtime=options.realtime)
+    return open_port(
+        seed=options.seed,
+        leak_at_s=options.leak_at_s,
+        config=options.config,
+        realtime=options.realtime,
+    )

@@ -322,8 +322,7 @@ class Vehicle:
         # Yaw: a slow random torque (an Ornstein–Uhlenbeck process) makes the heading wander.
         disturbance = self._yaw_disturbance_n_m
         disturbance += (
-            self._disturbance_kick * (self._random() - 0.5)
-            - disturbance * self._disturbance_decay
+            self._disturbance_kick * (self._random() - 0.5) - disturbance * self._disturbance_decay
         )
         self._yaw_disturbance_n_m = disturbance
         rate = self.yaw_rate_rad_s
