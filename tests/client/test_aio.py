@@ -105,7 +105,7 @@ async def test_a_query_with_no_reply_times_out_after_its_retries(
     fake: FakeController, make_async_client: MakeAsyncClient
 ) -> None:
     client = await make_async_client(retries=1, timeout_s=NO_REPLY_TIMEOUT_S)
-    fake.then("drop", "drop")
+    fake.then(*["drop"] * 10)  # a silent controller: the fences (P20) go unanswered too
     with pytest.raises(QueryTimeoutError) as caught:
         await client.roll_deg()
     assert caught.value.query == Command("qro")

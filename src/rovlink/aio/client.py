@@ -370,7 +370,7 @@ class AsyncClient(AsyncCommandMethods):
             self._settled.clear()
             try:
                 await asyncio.wait_for(self._settled.wait(), remaining)
-            except TimeoutError:
+            except (TimeoutError, asyncio.TimeoutError):  # the same class from Python 3.11 on
                 return
 
     def _lost_error(self) -> ConnectionLostError:
@@ -401,7 +401,7 @@ class AsyncClient(AsyncCommandMethods):
     def _flush_due(self) -> None:
         """Write what the session has due (a fence, a keep-alive, zero thrust)."""
         data = self._session.take_outbox(self._loop.time())
-        if data:
+        if data and not self._closed:  # nothing new goes out while closing
             with contextlib.suppress(ConnectionLostError):  # recorded: the waiters see it
                 self._write(data)
 

@@ -383,11 +383,14 @@ class Client(CommandMethods):
     def _flush_due(self) -> None:
         """Write what the session has due (state lock held on entry and on return)."""
         lock = self._state_lock
+        if self._closing:  # nothing new goes out while closing (a fence, a mode frame)
+            self._session.take_outbox(self._clock())
+            return
         lock.release()
         try:
             with self._wire_lock, lock:
                 data = self._session.take_outbox(self._clock())
-                if data:
+                if data and not self._closing:
                     try:
                         written = self._send_now(data) if self._send_now else 0
                     except ConnectionLostError as error:
