@@ -116,6 +116,7 @@ class Outcome(StrEnum):
     DISCONNECTED = "disconnected"
 
 
+_NEVER = float("inf")
 # Plain names for the members used per reply: an enum member costs a descriptor call to look up.
 _PENDING = Outcome.PENDING
 _ANSWERED = Outcome.ANSWERED
@@ -260,17 +261,22 @@ class Session:
 
     def next_deadline(self) -> float | None:
         """When :meth:`tick` has something to do next, if ever."""
-        due: list[float] = []
-        if self._pending:
+        # (Called per query by the drivers: no list, no generator.)
+        due = _NEVER
+        pending = self._pending
+        if pending:
             # Deadlines share the last-progress term, so the oldest query's is the earliest.
-            due.append(self.deadline(self._pending[0]))
-        if self._quiet_until is not None:
-            due.append(self._quiet_until)
+            head = pending[0]
+            progress = self._last_progress_at
+            due = (head.sent_at if head.sent_at > progress else progress) + self.timeout_s
+        quiet_until = self._quiet_until
+        if quiet_until is not None and quiet_until < due:
+            due = quiet_until
         if self.motion_timeout_s and (self._power_percent or self._vertical_percent):
-            due.append(self._motion_renewed_at + self.motion_timeout_s)
-        if self.keepalive_s and self._quiet_until is None:
-            due.append(self.last_sent_at + self.keepalive_s)
-        return min(due) if due else None
+            due = min(due, self._motion_renewed_at + self.motion_timeout_s)
+        if self.keepalive_s and quiet_until is None:
+            due = min(due, self.last_sent_at + self.keepalive_s)
+        return None if due == _NEVER else due
 
     # -- sending ------------------------------------------------------------------------------
 
