@@ -80,6 +80,8 @@ class AsyncClient(AsyncCommandMethods):
         ):
             raise ValueError(f"max_in_flight must be an integer ≥ 1, got {max_in_flight!r}")
         self._options = options or ClientOptions()
+        if self._options.reconnect:
+            raise ValueError("reconnect=True is for the blocking client (rovlink.connect) for now")
         self._link = link
         self._loop = asyncio.get_running_loop()
         self._transport: ByteTransport = transport_for(link, self._loop)

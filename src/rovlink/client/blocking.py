@@ -38,11 +38,16 @@ from rovlink.client.readiness import ReadinessProbe
 from rovlink.client.session import KEEPALIVE_QUERY, Outcome, PendingQuery, Session
 from rovlink.client.unsolicited import DropLog, deliver
 from rovlink.client.url import parse_url
-from rovlink.protocol import Command, Event, Response
+from rovlink.logs import get_logger
+from rovlink.protocol import Command, Event, Response, Setting, setting_command
 
 __all__ = ["KEEPALIVE_QUERY", "Client", "connect"]
 
 _NEVER = float("inf")
+#: Reconnection backoff: the first wait, doubled after each failed attempt, up to the last.
+_RECONNECT_FIRST_S = 0.1
+_RECONNECT_MAX_S = 2.0
+logger = get_logger("rovlink.client")
 
 T = TypeVar("T")
 
@@ -74,8 +79,11 @@ class Client(CommandMethods):
         options: ClientOptions | None = None,
         *,
         clock: Callable[[], float] = time.monotonic,
+        reopen: Callable[[], Link] | None = None,
     ) -> None:
         """Drive the controller on ``link`` (already open; the client closes it).
+
+        With ``options.reconnect``, ``reopen`` opens the same port again after the link is lost.
 
         Waits until the controller answers (``boot_timeout``, P21), then puts it in the checksum
         mode asked for, whatever an earlier session or a reset left behind.
@@ -104,6 +112,9 @@ class Client(CommandMethods):
         self._background_wakeup = threading.Condition(self._state_lock)
         self._lost: ConnectionLostError | None = None
         self._closing = False
+        self._reopen = reopen if options.reconnect else None
+        self._reconnecting = False  # the link was lost and is being opened again
+        self._stop_reconnecting = threading.Event()
         self._reader_ident: int | None = None  # the thread holding the reader role
         self._mode_switcher: int | None = None  # the thread draining queries to switch checksum
         self._active_callers = 0  # callers with a query on the wire
@@ -161,7 +172,9 @@ class Client(CommandMethods):
             if self._closing:
                 return
             self._closing = True
+            self._stop_reconnecting.set()
             self._background_wakeup.notify()
+            self._changed.notify_all()
             on_the_wire = self._session.pending
         for query in on_the_wire:  # answered, or timed out, before the port closes
             self._wait(query, owned=False)
@@ -296,12 +309,30 @@ class Client(CommandMethods):
                 self._notify_callers()
 
     def _check_open(self) -> None:
+        if self._reconnecting:
+            self._await_link()
         if self._lost is not None:
             raise self._lost_error()
+
+    def _await_link(self) -> None:
+        """While a lost link is being reopened, wait for it, at most ``timeout``."""
+        timeout_s = self._options.timeout_s
+        deadline = time.monotonic() + timeout_s
+        with self._state_lock:
+            while self._reconnecting and not self._closing:
+                remaining = deadline - time.monotonic()
+                if remaining <= 0:
+                    raise ConnectionLostError(
+                        f"connection lost: {self._link.description}: not reopened within "
+                        f"{timeout_s:g} s (reconnecting)"
+                    )
+                self._wait_for_change(remaining)
 
     def _lost_error(self) -> ConnectionLostError:
         lost = self._lost
         reason = str(lost) if lost is not None else "closed"
+        if lost is None and self._reconnecting and not self._closing:
+            reason = f"{self._link.description}: lost, reconnecting"
         error = ConnectionLostError(f"connection lost: {reason}")
         error.__cause__ = lost
         return error
@@ -311,11 +342,72 @@ class Client(CommandMethods):
             self._lose(error)
 
     def _lose(self, error: ConnectionLostError) -> None:
-        """Settle everything as disconnected (state lock held)."""
-        if self._lost is None:
-            self._lost = error
-            self._session.disconnect()
+        """Settle everything as disconnected (state lock held); reopen the link if asked to."""
+        if self._lost is not None:
+            return
+        if self._reopen is not None and not self._closing:
+            self._session.disconnect()  # what was on the wire fails: its replies are gone
             self._changed.notify_all()
+            self._background_wakeup.notify()
+            if not self._reconnecting:
+                self._reconnecting = True
+                self._session.note_link("lost", f"{error}; reconnecting", self._clock())
+                threading.Thread(
+                    target=self._reconnect_loop,
+                    daemon=True,
+                    name=f"rovlink reconnect ({self._link.description})",
+                ).start()
+            return
+        self._lost = error
+        self._session.disconnect()
+        self._changed.notify_all()
+
+    def _reconnect_loop(self) -> None:
+        """Reopen the port with backoff (0.1 s, doubling to 2 s) until it answers, or close()."""
+        with self._state_lock:  # whoever read the old link has let go of it
+            self._waiting_callers += 1
+            self._changed.wait_for(lambda: self._reader_ident is None, timeout=2.0)
+            self._waiting_callers -= 1
+        with contextlib.suppress(Exception):
+            self._link.close()
+        reopen = self._reopen
+        assert reopen is not None
+        backoff_s = _RECONNECT_FIRST_S
+        attempts = 0
+        while not self._stop_reconnecting.is_set():
+            attempts += 1
+            link: Link | None = None
+            try:
+                link = reopen()
+                self._await_ready(link)
+                with self._wire_lock, self._state_lock:
+                    if self._closing:
+                        link.close()
+                        return
+                    session = self._session
+                    session.reset_link()
+                    mode = setting_command(Setting.CHECKSUM, session.checksum_enabled)
+                    link.write(session.command(mode, self._clock()))
+                    self._link = link
+                    self._send_now = getattr(link, "send_some", None)
+                    self._reconnecting = False
+                    plural = "s" if attempts > 1 else ""
+                    session.note_link(
+                        "reconnected",
+                        f"{link.description} after {attempts} attempt{plural}",
+                        self._clock(),
+                    )
+                    self._changed.notify_all()
+                    self._background_wakeup.notify()
+                break
+            except (OSError, ValueError) as error:  # ConnectError, ConnectionLostError too
+                logger.debug("reconnect attempt %d: %s", attempts, error)
+                if link is not None:
+                    with contextlib.suppress(Exception):
+                        link.close()
+                self._stop_reconnecting.wait(backoff_s)
+                backoff_s = min(backoff_s * 2, _RECONNECT_MAX_S)
+        self._emit()
 
     def _notify_callers(self) -> None:
         """Wake callers waiting for a settled query or the reader role (state lock held)."""
@@ -344,28 +436,29 @@ class Client(CommandMethods):
             self._write(data)
         self._emit()
 
-    def _await_ready(self) -> None:
+    def _await_ready(self, link: Link | None = None) -> None:
         """P21: probe until the controller answers, then let the line go quiet (see readiness)."""
         boot_timeout_s = self._options.boot_timeout_s
         if boot_timeout_s is None:
             return
+        link = link or self._link
         clock = time.monotonic  # a board boots in real time, whatever clock the session reads
         probe = ReadinessProbe(clock(), boot_timeout_s)
         while not probe.done(clock()):
             now = clock()
             if probe.timed_out(now):
                 raise ConnectError(
-                    f"{self._link.description}: the controller did not answer within "
+                    f"{link.description}: the controller did not answer within "
                     f"{boot_timeout_s:g} s ({probe.probes_sent} probes; is it powered, and is "
                     f"this its port and baud rate?)"
                 )
             data = probe.bytes_to_send(now)
             if data:
-                self._link.write(data)
+                link.write(data)
                 with self._state_lock:
                     self._session.counters.frames_sent += 2
                     self._session.counters.bytes_sent += len(data)
-            data = self._link.read_available(max(probe.wait_s(clock()), 0.001))
+            data = link.read_available(max(probe.wait_s(clock()), 0.001))
             if data:
                 probe.receive(data, clock())
                 with self._state_lock:
@@ -423,6 +516,8 @@ class Client(CommandMethods):
     def _request(self, command: Command) -> tuple[Response, ...]:
         failures: list[str] = []
         for attempt in range(self._options.retries + 1):
+            if self._reconnecting:
+                self._await_link()
             if attempt:
                 with self._state_lock:
                     self._session.counters.retries += 1
@@ -600,6 +695,9 @@ class Client(CommandMethods):
                 while True:
                     if self._closing or self._lost is not None:
                         return
+                    if self._reconnecting:  # the reconnecting thread owns the link for now
+                        self._background_wakeup.wait(_MAX_READ_WAIT_S)
+                        continue
                     if self._reader_ident is None and not self._active_callers:
                         quiet_s = self._clock() - self._last_caller_at
                         if quiet_s >= _CALLER_GRACE_S:
@@ -622,6 +720,7 @@ class Client(CommandMethods):
             except ConnectionLostError as error:
                 if not self._closing:
                     self._connection_lost(error)
+                    self._emit()
             finally:
                 with lock:
                     self._reader_ident = None
@@ -662,6 +761,7 @@ def connect(
     baudrate: int | None = None,
     on_stray: StrayCallback | None = None,
     on_event: EventCallback | None = None,
+    reconnect: bool = False,
     options: ClientOptions | None = None,
 ) -> Client:
     """Connect to a controller and return a blocking :class:`Client` (a context manager).
@@ -676,7 +776,10 @@ def connect(
     resets on open boots for up to 2 s; ``None``: do not wait); ``motion_timeout`` (s) after which
     a motion command the program did not renew is expired with zero thrust (``None``: never);
     ``on_stray`` is called (in the reader thread) with debug text and frames nobody asked for, and
-    ``on_event`` with every event of the connection (:mod:`rovlink.client.events`).
+    ``on_event`` with every event of the connection (:mod:`rovlink.client.events`);
+    ``reconnect=True`` reopens a lost port (an adapter unplugged and plugged back) with backoff,
+    waits for the controller again and restores the checksum mode: the calls on the wire when it
+    was lost raise ConnectionLostError, later calls wait for it up to ``timeout``.
     ``options`` gives all of these at once as a :class:`ClientOptions` instead.
 
     Example::
@@ -700,10 +803,12 @@ def connect(
             boot_timeout,
             motion_timeout,
             on_event,
+            reconnect,
         )
-    link = open_link(parse_url(url, baudrate))
+    endpoint = parse_url(url, baudrate)
+    link = open_link(endpoint)
     try:
-        return Client(link, options)
+        return Client(link, options, reopen=lambda: open_link(endpoint))
     except BaseException:
         link.close()
         raise

@@ -34,7 +34,8 @@ class ClientOptions:
     keep-alive query (``None`` or 0: never), ``boot_timeout_s`` to wait on connect for the
     controller to answer (``None``: do not wait), ``motion_timeout_s`` after which an unrenewed
     motion command is expired with zero thrust (``None``: never), ``on_stray`` for what
-    answered no query and ``on_event`` for every event of the connection.
+    answered no query, ``on_event`` for every event of the connection, and ``reconnect`` to
+    reopen a lost link (a serial adapter unplugged and plugged back) with backoff.
 
     >>> ClientOptions(timeout_s=0).timeout_s
     Traceback (most recent call last):
@@ -51,6 +52,7 @@ class ClientOptions:
     boot_timeout_s: float | None = DEFAULT_BOOT_TIMEOUT_S
     motion_timeout_s: float | None = DEFAULT_MOTION_TIMEOUT_S
     on_event: EventCallback | None = None
+    reconnect: bool = False
 
     def __post_init__(self) -> None:
         _check_seconds("timeout", self.timeout_s, optional=False)
@@ -64,6 +66,8 @@ class ClientOptions:
             )
         _check_seconds("boot_timeout", self.boot_timeout_s, optional=True)
         _check_seconds("motion_timeout", self.motion_timeout_s, optional=True)
+        if not isinstance(self.reconnect, bool):
+            raise TypeError(f"reconnect must be True or False, got {self.reconnect!r}")
         if not isinstance(self.checksum, bool):
             raise TypeError(f"checksum must be True or False, got {self.checksum!r}")
         if self.algorithm not in ALGORITHMS:

@@ -49,6 +49,7 @@ from rovlink.client.events import (
     BytesSent,
     ClientEvent,
     LateReply,
+    LinkState,
     ModeChanged,
     MotionExpired,
     QueryFailed,
@@ -516,6 +517,21 @@ class Session:
         self._held.clear()
         self._outbox.clear()
         return [query for query in settled if not query.internal]
+
+    def reset_link(self) -> None:
+        """Start afresh on a reopened link: no partial frame, nothing due, nothing late.
+
+        (The queries of the old link were settled by :meth:`disconnect`.)
+        """
+        self._decoder.reset()
+        self._outbox.clear()
+        self._end_resync()
+        self._consecutive_timeouts = 0
+        self._power_percent = self._vertical_percent = 0  # a reopened board is at rest (P21)
+
+    def note_link(self, state: str, detail: str, now: float) -> None:
+        """Record a change of the link itself (``lost``, ``reconnected``) for the drivers."""
+        self._note(LinkState(now, state, detail))
 
     def begin_resync(self, late_names: set[str], now: float) -> None:
         """Treat replies of ``late_names`` as late until a fence is answered (P20).

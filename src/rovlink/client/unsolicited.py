@@ -9,9 +9,16 @@ controller's debug text is logged at INFO, stray frames at DEBUG.
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Iterable
 
-from rovlink.client.events import ClientEvent, EventCallback, MotionExpired, ResetSuspected
+from rovlink.client.events import (
+    ClientEvent,
+    EventCallback,
+    LinkState,
+    MotionExpired,
+    ResetSuspected,
+)
 from rovlink.client.options import StrayCallback
 from rovlink.logs import get_logger
 from rovlink.protocol import BadFrame, Event, Frame, Text
@@ -89,6 +96,9 @@ def deliver(
         elif isinstance(notice, MotionExpired):
             frames = " ".join(str(command) for command in notice.commands)
             logger.warning("motion not renewed within motion_timeout: sent %s", frames)
+        elif isinstance(notice, LinkState):
+            level = logging.WARNING if notice.state == "lost" else logging.INFO
+            logger.log(level, "link %s: %s", notice.state, notice.detail)
     if callback is None:
         return
     for event in events:

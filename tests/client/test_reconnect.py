@@ -1,0 +1,87 @@
+"""reconnect=True: a lost link (an adapter unplugged and plugged back) is reopened and reused."""
+
+from __future__ import annotations
+
+import socket
+import threading
+from collections.abc import Iterator
+
+import pytest
+
+import rovlink
+from rovlink.client.errors import ConnectionLostError
+from rovlink.client.events import ClientEvent, LinkState
+from tests.client.conftest import wait_until
+from tests.client.fake_controller import FakeController
+
+pytestmark = pytest.mark.integration
+
+
+class Port:
+    """A TCP port where a fake controller answers each connection, as a board does after every
+    power-up; ``refuse`` closes new connections at once (the adapter is still unplugged)."""
+
+    def __init__(self) -> None:
+        self._server = socket.create_server(("127.0.0.1", 0))
+        self.url = f"socket://127.0.0.1:{self._server.getsockname()[1]}"
+        self.fakes: list[FakeController] = []
+        self.refuse = False
+        self._thread = threading.Thread(target=self._accept, daemon=True)
+        self._thread.start()
+
+    def _accept(self) -> None:
+        while True:
+            try:
+                connection, _ = self._server.accept()
+            except OSError:
+                return
+            if self.refuse:
+                connection.close()
+                continue
+            self.fakes.append(FakeController(connection.detach()))
+
+    def close(self) -> None:
+        self._server.close()
+        for fake in self.fakes:
+            fake.close()
+
+
+@pytest.fixture
+def port() -> Iterator[Port]:
+    served = Port()
+    yield served
+    served.close()
+
+
+def test_a_lost_link_is_reopened_and_the_checksum_mode_restored(port: Port) -> None:
+    events: list[ClientEvent] = []
+    with rovlink.connect(
+        port.url, reconnect=True, checksum=True, keepalive=0.1, timeout=2.0, on_event=events.append
+    ) as rov:
+        assert rov.depth_cm() == 123
+        port.refuse = True  # unplugged: the first attempts to reopen fail
+        port.fakes[0].close()
+        assert wait_until(
+            lambda: any(isinstance(event, LinkState) and event.state == "lost" for event in events)
+        )
+        port.refuse = False  # plugged back
+        assert wait_until(lambda: len(port.fakes) == 2)
+        assert rov.heading_deg() == 275  # waits for the reconnection, then goes on
+        assert port.fakes[1].decoder.checksum_enabled  # the mode is the one asked for
+        assert not rov.closed
+    states = [event.state for event in events if isinstance(event, LinkState)]
+    assert states == ["lost", "reconnected"]
+
+
+def test_without_reconnect_a_lost_link_is_final(port: Port) -> None:
+    with rovlink.connect(port.url, keepalive=0.1, timeout=2.0) as rov:
+        assert rov.depth_cm() == 123
+        port.fakes[0].close()
+        assert wait_until(lambda: rov.closed)
+        with pytest.raises(ConnectionLostError):
+            rov.depth_cm()
+
+
+async def test_the_asyncio_client_says_it_does_not_reconnect_yet() -> None:
+    with pytest.raises(ValueError, match="blocking client"):
+        rovlink.aio.AsyncClient(None, rovlink.client.ClientOptions(reconnect=True))  # type: ignore[arg-type]
