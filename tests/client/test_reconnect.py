@@ -9,9 +9,10 @@ from collections.abc import Iterator
 import pytest
 
 import rovlink
+import rovlink.aio
 from rovlink.client.errors import ConnectionLostError
 from rovlink.client.events import ClientEvent, LinkState
-from tests.client.conftest import wait_until
+from tests.client.conftest import wait_until, wait_until_async
 from tests.client.fake_controller import FakeController
 
 pytestmark = pytest.mark.integration
@@ -82,6 +83,16 @@ def test_without_reconnect_a_lost_link_is_final(port: Port) -> None:
             rov.depth_cm()
 
 
-async def test_the_asyncio_client_says_it_does_not_reconnect_yet() -> None:
-    with pytest.raises(ValueError, match="blocking client"):
-        rovlink.aio.AsyncClient(None, rovlink.client.ClientOptions(reconnect=True))  # type: ignore[arg-type]
+async def test_the_asyncio_client_reopens_a_lost_link_too(port: Port) -> None:
+    events: list[ClientEvent] = []
+    async with rovlink.aio.connect(
+        port.url, reconnect=True, checksum=True, timeout=2.0, on_event=events.append
+    ) as rov:
+        assert await rov.depth_cm() == 123
+        port.fakes[0].close()
+        assert await wait_until_async(lambda: len(port.fakes) == 2)
+        assert await rov.heading_deg() == 275  # waits for the reconnection, then goes on
+        assert port.fakes[1].decoder.checksum_enabled
+        assert not rov.closed
+    states = [event.state for event in events if isinstance(event, LinkState)]
+    assert states == ["lost", "reconnected"]

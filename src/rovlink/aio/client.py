@@ -12,7 +12,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 from collections import deque
-from collections.abc import AsyncIterator, Generator
+from collections.abc import AsyncIterator, Callable, Generator
 from types import TracebackType
 from typing import Any, TypeVar
 
@@ -35,13 +35,16 @@ from rovlink.client.session import Outcome, PendingQuery, Session
 from rovlink.client.unsolicited import DropLog, deliver
 from rovlink.client.url import parse_url
 from rovlink.logs import get_logger
-from rovlink.protocol import Command, Response
+from rovlink.protocol import Command, Response, Setting, setting_command
 
 __all__ = ["DEFAULT_MAX_IN_FLIGHT", "AsyncClient", "connect"]
 
 T = TypeVar("T")
 logger = get_logger("rovlink.aio")
 
+#: Reconnection backoff: the first wait, doubled after each failed attempt, up to the last.
+_RECONNECT_FIRST_S = 0.1
+_RECONNECT_MAX_S = 2.0
 #: Queries on the wire at once: enough to keep a serial line busy, few enough for a small
 #: controller's receive buffer (8 × ``#qsa!`` is 40 bytes).
 DEFAULT_MAX_IN_FLIGHT = 8
@@ -65,8 +68,11 @@ class AsyncClient(AsyncCommandMethods):
         options: ClientOptions | None = None,
         *,
         max_in_flight: int = DEFAULT_MAX_IN_FLIGHT,
+        reopen: Callable[[], Link] | None = None,
     ) -> None:
         """Wrap an open link; call :meth:`open` (``connect`` does) before use.
+
+        With ``options.reconnect``, ``reopen`` opens the same port again after the link is lost.
 
         Example::
 
@@ -80,8 +86,6 @@ class AsyncClient(AsyncCommandMethods):
         ):
             raise ValueError(f"max_in_flight must be an integer ≥ 1, got {max_in_flight!r}")
         self._options = options or ClientOptions()
-        if self._options.reconnect:
-            raise ValueError("reconnect=True is for the blocking client (rovlink.connect) for now")
         self._link = link
         self._loop = asyncio.get_running_loop()
         self._transport: ByteTransport = transport_for(link, self._loop)
@@ -104,6 +108,10 @@ class AsyncClient(AsyncCommandMethods):
         self._timer: asyncio.TimerHandle | None = None
         self._lost: ConnectionLostError | None = None
         self._closed = False
+        self._reopen = reopen if self._options.reconnect else None
+        self._link_ready = asyncio.Event()  # cleared while a lost link is being reopened
+        self._link_ready.set()
+        self._reconnector: asyncio.Task[None] | None = None
 
     async def open(self) -> AsyncClient:
         """Start reading, wait until the controller answers (``boot_timeout``, P21), and put it in
@@ -128,7 +136,7 @@ class AsyncClient(AsyncCommandMethods):
         self._arm_timer()
         return self
 
-    async def _await_ready(self) -> None:
+    async def _await_ready(self, *, reconnecting: bool = False) -> None:
         boot_timeout_s = self._options.boot_timeout_s
         if boot_timeout_s is None:
             return
@@ -136,7 +144,8 @@ class AsyncClient(AsyncCommandMethods):
         probe = self._probe = ReadinessProbe(loop.time(), boot_timeout_s)
         try:
             while not probe.done(loop.time()):
-                self._check_open()
+                if self._closed or (self._lost is not None and not reconnecting):
+                    raise self._lost_error()
                 now = loop.time()
                 if probe.timed_out(now):
                     raise ConnectError(
@@ -187,6 +196,8 @@ class AsyncClient(AsyncCommandMethods):
         if self._closed:
             return
         self._closed = True
+        if self._reconnector is not None:
+            self._reconnector.cancel()
         await self._drain()
         await self._transport.close()
         self._on_lost(ConnectionLostError(f"{self._link.description}: closed"))
@@ -351,6 +362,23 @@ class AsyncClient(AsyncCommandMethods):
     def _check_open(self) -> None:
         if self._lost is not None or self._closed:
             raise self._lost_error()
+        if not self._link_ready.is_set():  # a set command is not kept to be sent later
+            raise ConnectionLostError(
+                f"connection lost: {self._link.description}: lost, reconnecting"
+            )
+
+    async def _await_link(self) -> None:
+        """While a lost link is being reopened, wait for it, at most ``timeout``."""
+        if self._link_ready.is_set():
+            return
+        timeout_s = self._options.timeout_s
+        try:
+            await asyncio.wait_for(self._link_ready.wait(), timeout_s)
+        except (TimeoutError, asyncio.TimeoutError):  # the same class from Python 3.11 on
+            raise ConnectionLostError(
+                f"connection lost: {self._link.description}: not reopened within "
+                f"{timeout_s:g} s (reconnecting)"
+            ) from None
 
     async def _drain(self) -> None:
         """Wait (at most ``timeout``) for the queries on the wire to settle."""
@@ -411,6 +439,7 @@ class AsyncClient(AsyncCommandMethods):
         return query.read(await self._request(query.command))
 
     async def _request(self, command: Command) -> tuple[Response, ...]:
+        await self._await_link()
         self._check_open()
         failures: list[str] = []
         async with self._in_flight:
@@ -474,6 +503,17 @@ class AsyncClient(AsyncCommandMethods):
     def _on_lost(self, error: ConnectionLostError) -> None:
         if self._lost is not None:
             return
+        if self._reopen is not None and not self._closed:
+            if self._link_ready.is_set():  # (once per loss)
+                self._link_ready.clear()
+                if self._timer is not None:
+                    self._timer.cancel()
+                    self._timer = None
+                self._wake(self._session.disconnect())  # their replies are gone
+                self._session.note_link("lost", f"{error}; reconnecting", self._loop.time())
+                self._emit()
+                self._reconnector = self._loop.create_task(self._reconnect())
+            return
         self._lost = error
         if self._timer is not None:
             self._timer.cancel()
@@ -481,6 +521,50 @@ class AsyncClient(AsyncCommandMethods):
         self._wake(self._session.disconnect())
         if not self._closed:
             logger.warning("%s", error)
+
+    async def _reconnect(self) -> None:
+        """Reopen the port with backoff (0.1 s, doubling to 2 s) until it answers, or close()."""
+        reopen = self._reopen
+        assert reopen is not None
+        with contextlib.suppress(Exception):
+            await self._transport.close()
+        backoff_s = _RECONNECT_FIRST_S
+        attempts = 0
+        while not self._closed:
+            attempts += 1
+            try:
+                link = await asyncio.to_thread(reopen)
+            except (OSError, ValueError) as error:  # ConnectError is an OSError
+                logger.debug("reconnect attempt %d: %s", attempts, error)
+                await asyncio.sleep(backoff_s)
+                backoff_s = min(backoff_s * 2, _RECONNECT_MAX_S)
+                continue
+            self._link = link
+            self._transport = transport_for(link, self._loop)
+            self._transport.start(self._on_data, self._on_lost)
+            try:
+                await self._await_ready(reconnecting=True)
+            except (OSError, ValueError) as error:
+                logger.debug("reconnect attempt %d: %s", attempts, error)
+                with contextlib.suppress(Exception):
+                    await self._transport.close()
+                await asyncio.sleep(backoff_s)
+                backoff_s = min(backoff_s * 2, _RECONNECT_MAX_S)
+                continue
+            session = self._session
+            session.reset_link()
+            mode = setting_command(Setting.CHECKSUM, session.checksum_enabled)
+            self._write(session.command(mode, self._loop.time()))
+            plural = "s" if attempts > 1 else ""
+            session.note_link(
+                "reconnected",
+                f"{link.description} after {attempts} attempt{plural}",
+                self._loop.time(),
+            )
+            self._link_ready.set()
+            self._arm_timer()
+            self._emit()
+            return
 
     def _arm_timer(self) -> None:
         """Have :meth:`_on_timer` run at the session's next deadline (an earlier one re-arms)."""
@@ -523,7 +607,13 @@ class _Connecting:
         # Opening a port or a TCP connection blocks: keep it off the loop.
         link = await asyncio.to_thread(open_link, self._endpoint)
         try:
-            client = AsyncClient(link, self._options, max_in_flight=self._max_in_flight)
+            endpoint = self._endpoint
+            client = AsyncClient(
+                link,
+                self._options,
+                max_in_flight=self._max_in_flight,
+                reopen=lambda: open_link(endpoint),
+            )
             return await client.open()
         except BaseException:
             link.close()
@@ -559,6 +649,7 @@ def connect(
     baudrate: int | None = None,
     on_stray: StrayCallback | None = None,
     on_event: EventCallback | None = None,
+    reconnect: bool = False,
     options: ClientOptions | None = None,
     max_in_flight: int = DEFAULT_MAX_IN_FLIGHT,
 ) -> _Connecting:
@@ -588,6 +679,7 @@ def connect(
             boot_timeout,
             motion_timeout,
             on_event,
+            reconnect,
         )
     if isinstance(max_in_flight, bool) or not isinstance(max_in_flight, int) or max_in_flight < 1:
         raise ValueError(f"max_in_flight must be an integer ≥ 1, got {max_in_flight!r}")
