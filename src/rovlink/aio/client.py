@@ -36,6 +36,7 @@ from rovlink.client.unsolicited import DropLog, deliver
 from rovlink.client.url import parse_url
 from rovlink.logs import get_logger
 from rovlink.protocol import Command, Response, Setting, setting_command
+from rovlink.protocol.frames import checksum_mode_frame
 
 __all__ = ["DEFAULT_MAX_IN_FLIGHT", "AsyncClient", "connect"]
 
@@ -309,8 +310,9 @@ class AsyncClient(AsyncCommandMethods):
 
             (reply,) = await rov.send(Command("qhe"))
         """
-        if command.name in ("crcon", "crcoff"):
-            await self.set_checksum(command.name == "crcon")
+        setting = command.setting
+        if setting is not None and setting[0] is Setting.CHECKSUM:
+            await self.set_checksum(setting[1])
             return ()
         if command.spec.is_query:
             return await self._request(command)
@@ -325,8 +327,9 @@ class AsyncClient(AsyncCommandMethods):
             replies = await rov.send_raw("#qsa!")
         """
         data = operations.raw_frame(frame)
-        if data in (b"#crcon!", b"#crcoff!"):
-            await self.set_checksum(data == b"#crcon!")
+        mode = checksum_mode_frame(data)
+        if mode is not None:  # a mode frame by exact match, as the controller takes it (P3)
+            await self.set_checksum(mode)
             return ()
         self._check_open()
         await self._mode_settled.wait()

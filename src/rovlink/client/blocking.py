@@ -40,6 +40,7 @@ from rovlink.client.unsolicited import DropLog, deliver
 from rovlink.client.url import parse_url
 from rovlink.logs import get_logger
 from rovlink.protocol import Command, Event, Response, Setting, setting_command
+from rovlink.protocol.frames import checksum_mode_frame
 
 __all__ = ["KEEPALIVE_QUERY", "Client", "connect"]
 
@@ -255,8 +256,9 @@ class Client(CommandMethods):
             rov.send(Command("th", (90, 40)))
             (reply,) = rov.send(Command("qd"))
         """
-        if command.name in ("crcon", "crcoff"):
-            self.set_checksum(command.name == "crcon")
+        setting = command.setting
+        if setting is not None and setting[0] is Setting.CHECKSUM:
+            self.set_checksum(setting[1])
             return ()
         if command.spec.is_query:
             return self._request(command)
@@ -274,8 +276,9 @@ class Client(CommandMethods):
             rov.send_raw(b"#bogus!")   # the controller drops it (see its debug output)
         """
         data = operations.raw_frame(frame)
-        if data in (b"#crcon!", b"#crcoff!"):
-            self.set_checksum(data == b"#crcon!")
+        mode = checksum_mode_frame(data)
+        if mode is not None:  # a mode frame by exact match, as the controller takes it (P3)
+            self.set_checksum(mode)
             return ()
         pending = self._send_query(data)
         if pending is None:

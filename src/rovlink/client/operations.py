@@ -15,7 +15,7 @@ from typing import Generic, TypeVar
 
 from rovlink.client.errors import InvalidArgumentError
 from rovlink.client.sensors import Sensors
-from rovlink.protocol import Argument, Command, Response, lookup
+from rovlink.protocol import Argument, Command, Response, Setting, lookup, setting_command
 
 __all__ = [
     "DEPTH_CM",
@@ -69,8 +69,8 @@ SENSORS: Query[Sensors] = Query(Command("qsa"), Sensors.from_responses)
 STOP = Command("stop")
 START = Command("start")
 RESET_LEAK = Command("slreset")
-CLAW_OPEN = Command("h+")
-CLAW_CLOSE = Command("h-")
+CLAW_OPEN = setting_command(Setting.CLAW_OPEN, True)
+CLAW_CLOSE = setting_command(Setting.CLAW_OPEN, False)
 
 
 def _integer(method: str, name: str, value: object, argument: Argument, frame: str) -> int:
@@ -112,7 +112,7 @@ def checksum(enabled: bool) -> Command:
     >>> str(checksum(True))
     '#crcon!'
     """
-    return Command("crcon" if _enabled("set_checksum", enabled) else "crcoff")
+    return setting_command(Setting.CHECKSUM, _enabled("set_checksum", enabled))
 
 
 def debug(enabled: bool) -> Command:
@@ -121,7 +121,7 @@ def debug(enabled: bool) -> Command:
     >>> str(debug(False))
     '#debug0!'
     """
-    return Command("debug1" if _enabled("set_debug", enabled) else "debug0")
+    return setting_command(Setting.DEBUG, _enabled("set_debug", enabled))
 
 
 def max_pwm(duty: int) -> Command:
@@ -160,7 +160,7 @@ def direct_mode(enabled: bool) -> Command:
     >>> str(direct_mode(True))
     '#mvdirect.1!'
     """
-    return Command("mvdirect", (int(_enabled("set_direct_mode", enabled)),))
+    return setting_command(Setting.DIRECT_MODE, _enabled("set_direct_mode", enabled))
 
 
 def vertical_thrust(percent: int) -> Command:

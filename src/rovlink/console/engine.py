@@ -32,7 +32,7 @@ from rovlink.console.transcript import (
 )
 from rovlink.logs import get_logger
 from rovlink.piloting import LockState, SentFrame, TrackedClient
-from rovlink.protocol import Command, Event, Response
+from rovlink.protocol import Event, Response, Setting, setting_command
 
 __all__ = ["ConsoleEngine", "status_lines"]
 
@@ -141,7 +141,7 @@ class ConsoleEngine:
             elif isinstance(action, SendRaw):
                 self._show_replies(await self.rov.send_raw(action.frame))
             elif isinstance(action, SetChecksum):
-                await self.rov.send(Command("crcon" if action.enabled else "crcoff"))
+                await self.rov.send(setting_command(Setting.CHECKSUM, action.enabled))
                 self._emit(info_line(self._checksum_text(), "class:info"))
             elif isinstance(action, ShowHelp):
                 lines = overview() if action.name is None else command_help(action.name)

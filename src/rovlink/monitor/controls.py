@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from rovlink.piloting import CommandedState
-from rovlink.protocol import Command, VerticalMode, lookup
+from rovlink.protocol import Command, Setting, VerticalMode, lookup, setting_command
 
 __all__ = [
     "DEPTH_STEP_CM",
@@ -52,7 +52,7 @@ def change_depth_target(state: CommandedState, depth_cm: int | None, step_cm: in
         raise ValueError("step_cm must not be 0")
     commands = []
     if state.vertical_mode is not VerticalMode.DEPTH:
-        commands.append(Command("mvdirect", (0,)))
+        commands.append(setting_command(Setting.DIRECT_MODE, False))
     if state.target_depth_cm is not None and state.vertical_mode is VerticalMode.DEPTH:
         target_cm = state.target_depth_cm + step_cm
     else:  # the next point of the step grid beyond the depth now, in the step's direction

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from rovlink.protocol import Command, VerticalMode
+from rovlink.protocol import Command, Setting, VerticalMode
 from rovlink.protocol.text_enum import StrEnum
 
 __all__ = ["CommandedState", "LockState"]
@@ -70,15 +70,16 @@ class CommandedState:
         if warning is not None:
             return warning
         name = command.name
-        if name == "stop":
-            self.lock = LockState.LOCKED
-            self._clear_set_points()
-        elif name == "start":
-            if self.lock is not LockState.UNLOCKED:
+        setting = command.setting
+        if setting is not None and setting[0] is Setting.LOCKED:
+            if setting[1]:  # stop
+                self.lock = LockState.LOCKED
+                self._clear_set_points()
+            elif self.lock is not LockState.UNLOCKED:  # start
                 self.lock = LockState.UNLOCKED
                 self._clear_set_points()
-        elif name == "mvdirect":
-            self._switch_mode(VerticalMode.DIRECT if command.values[0] else VerticalMode.DEPTH)
+        elif setting is not None and setting[0] is Setting.DIRECT_MODE:
+            self._switch_mode(VerticalMode.DIRECT if setting[1] else VerticalMode.DEPTH)
         elif name == "mvs":
             (self.vertical_thrust_percent,) = command.values
         elif name == "mvd":

@@ -22,6 +22,7 @@ from rovlink.protocol.checksum import (
 )
 from rovlink.protocol.commands import COMMANDS, Kind
 from rovlink.protocol.frames import (
+    CHECKSUM_MODE_FRAMES,
     FAST_ENTRIES,
     MAX_FRAME_BYTES,
     FrameError,
@@ -80,7 +81,7 @@ _LINE_BREAK = re.compile(rb"[\r\n]")
 _START_BYTES = frozenset(b"#$")
 _COMMAND = Kind.COMMAND
 _RESPONSE = Kind.RESPONSE
-_MODE_FRAMES = {b"#crcon!": True, b"#crcoff!": False}
+_MODE_FRAMES = CHECKSUM_MODE_FRAMES
 _EXACT_MATCH_BODIES = frozenset(spec.name.encode() for spec in COMMANDS if spec.exact_match)
 _HONOURED_BARE_FRAMES = frozenset(
     b"#" + spec.name.encode() + b"!" for spec in COMMANDS if spec.honoured_bare

@@ -13,14 +13,16 @@ from rovlink.protocol.checksum import (
     crc8_smbus,
     get_algorithm,
 )
-from rovlink.protocol.commands import SPELLINGS, Argument, Kind, Spec
+from rovlink.protocol.commands import COMMANDS, SPELLINGS, Argument, Kind, Setting, Spec
 from rovlink.protocol.messages import Command, Message, Response, trusted_message
 from rovlink.protocol.text_enum import StrEnum
 
 __all__ = [
+    "CHECKSUM_MODE_FRAMES",
     "MAX_FRAME_BYTES",
     "FrameError",
     "Reason",
+    "checksum_mode_frame",
     "decode_body",
     "encode",
     "parse_body",
@@ -28,6 +30,23 @@ __all__ = [
 
 #: The longest whole frame, start and end characters included (P1).
 MAX_FRAME_BYTES = 64
+
+#: The frames that switch the checksum mode, recognised by exact match in either mode (P3), and
+#: the mode each sets: ``{b"#crcon!": True, b"#crcoff!": False}``, from the command table.
+CHECKSUM_MODE_FRAMES: dict[bytes, bool] = {
+    b"#" + spec.name.encode() + b"!": bool(spec.setting_value)
+    for spec in COMMANDS
+    if spec.setting is Setting.CHECKSUM
+}
+
+
+def checksum_mode_frame(data: bytes) -> bool | None:
+    """The checksum mode ``data`` sets if it is exactly a mode frame, else ``None``.
+
+    >>> checksum_mode_frame(b"#crcoff!"), checksum_mode_frame(b"#crcoff9A!")
+    (False, None)
+    """
+    return CHECKSUM_MODE_FRAMES.get(bytes(data))
 
 
 class Reason(StrEnum):
