@@ -22,6 +22,7 @@ __all__ = ["SimulatedPort", "open_port"]
 
 #: Controller output kept for a reader that does not read (as a UART's buffer would overflow).
 _MAX_BUFFERED_BYTES = 1 << 16
+_YIELD_S = 50e-6  # between batches when running faster than real time
 
 
 class SimulatedPort:
@@ -176,7 +177,10 @@ class SimulatedPort:
             if wait_s > 0:
                 self._stopping.wait(wait_s)
             else:
-                time.sleep(0)  # let the host's threads run between batches
+                # Let the host's threads run between batches. A real pause, not sleep(0): on
+                # Python 3.10 sleep(0) returns without sleeping, so this thread took the lock
+                # straight back and a query could wait 100-200 ms for a reply already computed.
+                time.sleep(_YIELD_S)
 
 
 def open_port(
