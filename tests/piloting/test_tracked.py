@@ -75,3 +75,21 @@ async def test_a_closed_client_sends_and_reports_nothing() -> None:
             await rov.send(command)
     assert sent == []
     assert rig.frames() == ["#crcoff!"]
+
+
+async def test_the_sessions_own_zero_thrust_updates_the_state_and_keepalives_do_not_show() -> None:
+    from tests.piloting.rig import until
+
+    rig = Rig.simulated()
+    rov = TrackedClient(await rig.connect(motion_timeout_s=0.3, keepalive_s=0.05))
+    sent: list[SentFrame] = []
+    rov.add_sent_listener(sent.append)
+    await rov.send(Command("start"))
+    await rov.send(Command("th", (90, 40)))
+    assert rov.commanded.power_percent == 40
+    # The program goes silent: the session expires the motion (P23) and the state follows.
+    await until(lambda: rov.commanded.power_percent == 0)
+    assert "#th.90.0!" in [frame.text for frame in sent]
+    assert rig.frames().count("#qd!") >= 1  # the keep-alives went out …
+    assert "#qd!" not in [frame.text for frame in sent]  # … but are not the operator's frames
+    await rov.client.close()

@@ -99,6 +99,7 @@ class AsyncClient(AsyncCommandMethods):
             record_events=options.on_event is not None,
         )
         self._drops = DropLog()
+        self._subscribers: list[EventCallback] = []
         self._probe: ReadinessProbe | None = None  # while waiting for the controller (P21)
         self._probe_data = asyncio.Event()
         self._in_flight = asyncio.Semaphore(max_in_flight)
@@ -425,11 +426,24 @@ class AsyncClient(AsyncCommandMethods):
         self._arm_timer()  # a motion command may now expire
         self._emit()
 
+    def subscribe(self, callback: EventCallback) -> None:
+        """Call ``callback`` with every event from now on, as ``on_event`` is (in the loop).
+
+        Example::
+
+            rov.subscribe(lambda event: print(event.direction, event))
+        """
+        self._subscribers.append(callback)
+        self._session.record_events()
+
     def _emit(self) -> None:
-        """Hand the session's events to ``on_event`` and log its notices."""
+        """Hand the session's events to ``on_event`` and the subscribers, log its notices."""
         session = self._session
         if session.events or session.notices:
-            deliver(session.take_events(), session.take_notices(), self._options.on_event)
+            events = session.take_events()
+            deliver(events, session.take_notices(), self._options.on_event)
+            for subscriber in self._subscribers:
+                deliver(events, (), subscriber)
 
     def _flush_due(self) -> None:
         """Write what the session has due (a fence, a keep-alive, zero thrust)."""

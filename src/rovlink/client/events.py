@@ -40,12 +40,15 @@ __all__ = [
 
 @dataclass(frozen=True, slots=True)
 class BytesSent:
-    """Bytes written to the controller; ``command`` is the command they carry, if one."""
+    """Bytes written to the controller; ``command`` is the command they carry, if one;
+    ``by_session``: the session wrote them itself (a keep-alive, a fence, a mode frame, zero
+    thrust after ``motion_timeout``), not the program."""
 
     direction: ClassVar[str] = "out"
     at_s: float
     data: bytes
     command: Command | None
+    by_session: bool = False
 
 
 @dataclass(frozen=True, slots=True)

@@ -408,7 +408,7 @@ class Session:
         for data, pending, command in self._outbox:
             if pending is not None:
                 pending.sent_at = now
-            self._account(command, data, now)
+            self._account(command, data, now, by_session=True)
             parts.append(data)
         self._outbox.clear()
         return b"".join(parts)
@@ -541,6 +541,11 @@ class Session:
         self._late_names |= late_names
         self._start_fence(now)
 
+    def record_events(self) -> None:
+        """Start recording events (for a subscriber that arrives after the connection)."""
+        if self.events is None:
+            self.events = []
+
     def take_events(self) -> list[ClientEvent]:
         """The events since the last call (empty unless the session records them)."""
         events = self.events
@@ -564,13 +569,15 @@ class Session:
         if self.events is not None:
             self.events.append(event)
 
-    def _account(self, command: Command | None, data: bytes, now: float) -> bytes:
+    def _account(
+        self, command: Command | None, data: bytes, now: float, *, by_session: bool = False
+    ) -> bytes:
         counters = self.counters
         counters.frames_sent += 1
         counters.bytes_sent += len(data)
         self.last_sent_at = now
         if self.events is not None:
-            self.events.append(BytesSent(now, data, command))
+            self.events.append(BytesSent(now, data, command, by_session))
         setting = command.setting if command is not None else None
         if setting is not None and setting[0] is Setting.CHECKSUM:
             self._set_mode(setting[1], now)

@@ -1,8 +1,10 @@
 """An asyncio client that keeps track of what it sent and how its queries fared.
 
 The driver sends frames and matches replies; the operator tools also need to know what was sent
-(for the state "as last sent", and to show the bytes on screen) and how long replies took. The
-driver has no hook for either, so :class:`TrackedClient` wraps it: every frame goes through here.
+(for the state "as last sent", and to show the bytes on screen) and how long replies took. They
+read what was sent from the driver's one hook (``BytesSent`` events, with the command the
+session read in the bytes, raw frames included), so nothing here decodes a frame again; the
+queries sent through :class:`TrackedClient` are timed into its link health.
 """
 
 from __future__ import annotations
@@ -12,17 +14,12 @@ from collections.abc import Awaitable, Callable
 from dataclasses import dataclass
 
 from rovlink.aio import AsyncClient
+from rovlink.client.events import BytesSent, ClientEvent
 from rovlink.client.operations import SENSORS, raw_frame
 from rovlink.client.sensors import Sensors
 from rovlink.piloting.commanded import CommandedState
 from rovlink.piloting.health import LinkHealth
-from rovlink.protocol import (
-    DEFAULT_ALGORITHM,
-    Command,
-    Decoder,
-    Frame,
-    Response,
-)
+from rovlink.protocol import DEFAULT_ALGORITHM, Command, Response
 
 __all__ = ["SentCallback", "SentFrame", "TrackedClient"]
 
@@ -47,10 +44,13 @@ SentCallback = Callable[[SentFrame], None]
 
 
 class TrackedClient:
-    """An :class:`~rovlink.aio.AsyncClient` whose every frame updates :attr:`commanded`.
+    """An :class:`~rovlink.aio.AsyncClient` whose every frame sent updates :attr:`commanded`.
 
-    ``algorithm`` must be the one the client was connected with (it is only used to show the
-    frames as they are written). Queries are timed into :attr:`health`.
+    It subscribes to the client's events: every frame written — by it, by another user of the
+    client, or by the session itself (zero thrust after ``motion_timeout``) — updates the state
+    and reaches the sent listeners; the session's keep-alives and fences do not. ``algorithm``
+    is the one the client was connected with, for the tools to name. Queries sent through it are
+    timed into :attr:`health`.
 
     Example::
 
@@ -73,6 +73,7 @@ class TrackedClient:
         self.health = LinkHealth()
         self._clock = clock
         self._listeners: list[SentCallback] = []
+        client.subscribe(self._on_event)
 
     def add_sent_listener(self, listener: SentCallback) -> None:
         """Call ``listener`` with every frame sent through this client, as it is sent."""
@@ -94,24 +95,11 @@ class TrackedClient:
 
         Raises what the driver raises: QueryTimeoutError after the retries, ConnectionLostError.
         """
-        data = self.client.frame_for(command)
-        if not command.spec.is_query or self.client.closed:
-            replies = await self.client.send(command)  # a closed client raises here
-            self._sent(data, command)
-            return replies
-        self._sent(data, command)  # shown before the reply, which may take a while
         return await self._timed(self.client.send(command))
 
     async def send_raw(self, frame: str | bytes) -> tuple[Response, ...]:
         """Send a frame exactly as given, once (see ``AsyncClient.send_raw``)."""
-        data = raw_frame(frame)
-        command = self._as_controller_reads(data)
-        if command is not None and command.spec.is_query:
-            self._sent(data, command)
-            return await self._timed(self.client.send_raw(data))
-        replies = await self.client.send_raw(data)
-        self._sent(data, command)
-        return replies
+        return await self._timed(self.client.send_raw(raw_frame(frame)))
 
     async def stop(self) -> None:
         """``#stop!``, at once (it does not wait for anything queued before it)."""
@@ -123,9 +111,14 @@ class TrackedClient:
 
     # -- internals ------------------------------------------------------------------------------
 
-    def _sent(self, data: bytes, command: Command | None) -> None:
+    def _on_event(self, event: ClientEvent) -> None:
+        if not isinstance(event, BytesSent):
+            return
+        command = event.command
+        if event.by_session and (command is None or command.spec.is_query):
+            return  # the session's own keep-alives and fences: not the operator's commands
         warning = self.commanded.apply(command) if command is not None else None
-        sent = SentFrame(data, command, warning)
+        sent = SentFrame(event.data, command, warning)
         for listener in self._listeners:
             listener(sent)
 
@@ -136,21 +129,7 @@ class TrackedClient:
         except TimeoutError as error:
             self.health.record_failure(str(error), self._clock())
             raise
-        now_s = self._clock()
-        self.health.record_reply(now_s - started_s, now_s)
+        if replies:  # a query's (a set command has none)
+            now_s = self._clock()
+            self.health.record_reply(now_s - started_s, now_s)
         return replies
-
-    def _as_controller_reads(self, data: bytes) -> Command | None:
-        """The command the controller will take from a raw frame, in the current checksum mode.
-
-        The decoder applies the protocol's rules, the bare ``#stop!`` of checksum mode included.
-        """
-        decoder = Decoder(checksum_enabled=self.checksum_enabled, algorithm=self.algorithm)
-        events = decoder.feed(data)
-        if (
-            len(events) == 1
-            and isinstance(events[0], Frame)
-            and isinstance(events[0].message, Command)
-        ):
-            return events[0].message
-        return None
