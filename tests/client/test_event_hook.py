@@ -98,3 +98,20 @@ def test_an_unconfigured_program_on_a_noisy_line_prints_nothing() -> None:
     )
     assert result.stdout.strip() == "5"
     assert result.stderr == ""
+
+
+def test_a_subscriber_that_comes_later_sees_the_events_from_then_on(
+    fake_pair: tuple[FakeController, socket.socket],
+) -> None:
+    _, sock = fake_pair
+    options = ClientOptions(
+        timeout_s=2.0, keepalive_s=None, boot_timeout_s=None, motion_timeout_s=None
+    )
+    with Client(SocketLink(sock, "pair"), options) as rov:
+        assert rov.depth_cm() == 123
+        events: list[ClientEvent] = []
+        rov.subscribe(events.append)
+        rov.move(0, 20)
+        sent = [event for event in events if isinstance(event, BytesSent)]
+        assert [event.data for event in sent] == [b"#th.0.20!"]
+        assert sent[0].by_session is False

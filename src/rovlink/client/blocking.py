@@ -105,6 +105,7 @@ class Client(CommandMethods):
             record_events=options.on_event is not None,
         )
         self._drops = DropLog()
+        self._subscribers: list[EventCallback] = []
         # Lock order: the wire lock, then the state lock.
         self._wire_lock = threading.Lock()  # one writer at a time: queue order = wire order
         self._state_lock = threading.Lock()  # the session and everything below
@@ -503,15 +504,30 @@ class Client(CommandMethods):
         finally:
             lock.acquire()
 
+    def subscribe(self, callback: EventCallback) -> None:
+        """Call ``callback`` with every event from now on, as ``on_event`` is.
+
+        Example::
+
+            rov.subscribe(lambda event: print(event.direction, event))
+        """
+        with self._state_lock:
+            self._subscribers.append(callback)
+            self._session.record_events()
+
     def _emit(self) -> None:
-        """Hand the session's events to ``on_event`` and log its notices (no lock held)."""
+        """Hand the session's events to ``on_event`` and the subscribers, log its notices (no
+        lock held)."""
         session = self._session
         if session.events is None and not session.notices:
             return
         with self._state_lock:
             events = session.take_events()
             notices = session.take_notices()
+            subscribers = tuple(self._subscribers)
         deliver(events, notices, self._options.on_event)
+        for subscriber in subscribers:
+            deliver(events, (), subscriber)
 
     def _ask(self, query: operations.Query[T]) -> T:
         return query.read(self._request(query.command))
