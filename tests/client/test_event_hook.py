@@ -41,7 +41,8 @@ def test_a_subscriber_sees_the_wire_and_the_decisions_in_order(
         assert rov.depth_cm() == 123  # the corrupt reply is retried
         rov.move(90, 10)
     sent = b"".join(event.data for event in events if isinstance(event, BytesSent))
-    assert sent == bytes(fake.raw)  # every byte written, exactly as on the wire
+    # Every byte written, exactly as the controller received it (once its thread has read all).
+    assert fake.wait_for(lambda controller: bytes(controller.raw) == sent)
     received = [event for event in events if isinstance(event, BytesReceived)]
     assert b"".join(event.data for event in received).count(b"$qd.") == 2
     kinds = [type(event).__name__ for event in events]
