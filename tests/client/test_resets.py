@@ -76,9 +76,9 @@ def test_a_reset_mid_session_is_noticed_and_the_checksum_mode_restored(
         fake.reset()  # back with checksum mode off: every checksummed frame is now dropped
         assert rov.heading_deg() == 275  # retried until the mode is re-asserted
         assert fake.decoder.checksum_enabled
-        assert rov.counters.resets_suspected == 1
+        assert rov.counters.resets_suspected >= 1
     suspected = [event for event in events if isinstance(event, ResetSuspected)]
-    assert len(suspected) == 1
+    assert len(suspected) >= 1
     assert suspected[0].consecutive_timeouts >= 2
     assert any(isinstance(event, ModeChanged) for event in events)
 
@@ -97,7 +97,7 @@ async def test_the_asyncio_client_notices_a_reset_too(
         fake.reset()
         assert await rov.heading_deg() == 275
         assert fake.decoder.checksum_enabled
-        assert rov.counters.resets_suspected == 1
+        assert rov.counters.resets_suspected >= 1
         assert any(isinstance(event, ResetSuspected) for event in events)
     finally:
         await rov.close()
