@@ -25,17 +25,21 @@ from rovlink.client.errors import (
     InvalidArgumentError,
     QueryTimeoutError,
 )
+from rovlink.client.events import ClientEvent, EventCallback
 from rovlink.client.options import ClientOptions
+from rovlink.client.schemes import register_scheme
 from rovlink.client.sensors import Sensors
 from rovlink.client.url import parse_url
 
 __all__ = [
     "Client",
     "ClientError",
+    "ClientEvent",
     "ClientOptions",
     "CommandTextError",
     "ConnectError",
     "ConnectionLostError",
+    "EventCallback",
     "InvalidArgumentError",
     "LinkCounters",
     "QueryTimeoutError",
@@ -43,5 +47,6 @@ __all__ = [
     "connect",
     "parse_command_text",
     "parse_url",
+    "register_scheme",
     "usage",
 ]
