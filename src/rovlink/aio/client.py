@@ -158,8 +158,7 @@ class AsyncClient(AsyncCommandMethods):
                 data = probe.bytes_to_send(now)
                 if data:
                     self._write(data)
-                    self._session.counters.frames_sent += 2
-                    self._session.counters.bytes_sent += len(data)
+                    self._session.count_outside(sent=data)
                 self._probe_data.clear()
                 with contextlib.suppress(TimeoutError, asyncio.TimeoutError):
                     await asyncio.wait_for(
@@ -502,7 +501,7 @@ class AsyncClient(AsyncCommandMethods):
     def _on_data(self, data: bytes) -> None:
         if self._probe is not None:
             self._probe.receive(data, self._loop.time())
-            self._session.counters.bytes_received += len(data)
+            self._session.count_outside(received=data)
             self._probe_data.set()
             return
         session = self._session

@@ -35,14 +35,14 @@ from rovlink.client.options import (
     StrayCallback,
 )
 from rovlink.client.readiness import ReadinessProbe
-from rovlink.client.session import KEEPALIVE_QUERY, Outcome, PendingQuery, Session
+from rovlink.client.session import Outcome, PendingQuery, Session
 from rovlink.client.unsolicited import DropLog, deliver
 from rovlink.client.url import parse_url
 from rovlink.logs import get_logger
 from rovlink.protocol import Command, Event, Response, Setting, setting_command
 from rovlink.protocol.frames import checksum_mode_frame
 
-__all__ = ["KEEPALIVE_QUERY", "Client", "connect"]
+__all__ = ["Client", "connect"]
 
 _NEVER = float("inf")
 #: Reconnection backoff: the first wait, doubled after each failed attempt, up to the last.
@@ -460,13 +460,12 @@ class Client(CommandMethods):
             if data:
                 link.write(data)
                 with self._state_lock:
-                    self._session.counters.frames_sent += 2
-                    self._session.counters.bytes_sent += len(data)
+                    self._session.count_outside(sent=data)
             data = link.read_available(max(probe.wait_s(clock()), 0.001))
             if data:
                 probe.receive(data, clock())
                 with self._state_lock:
-                    self._session.counters.bytes_received += len(data)
+                    self._session.count_outside(received=data)
 
     def _confirm_checksum_mode(self) -> None:
         try:

@@ -85,15 +85,6 @@ class ClientOptions:
             if callback is not None and not callable(callback):
                 raise TypeError(f"{name} must be callable, got {callback!r}")
 
-    @property
-    def keepalive_enabled(self) -> bool:
-        """Whether idle links get keep-alive queries.
-
-        >>> ClientOptions(keepalive_s=None).keepalive_enabled
-        False
-        """
-        return bool(self.keepalive_s)
-
 
 def _check_seconds(name: str, value: object, *, optional: bool) -> None:
     """A positive number of seconds up to an hour (or ``None`` where that means "never")."""

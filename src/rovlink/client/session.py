@@ -305,22 +305,14 @@ class Session:
         self._track(command, now)
         return data
 
-    def query(
-        self,
-        command: Command,
-        now: float,
-        *,
-        keepalive: bool = False,
-    ) -> tuple[bytes, PendingQuery]:
+    def query(self, command: Command, now: float) -> tuple[bytes, PendingQuery]:
         """The bytes to write for a query (after anything due), and its entry in the queue.
 
         Write the bytes before anything else is written: the queue's order is the wire's.
         While a quiet-line resynchronisation holds queries back, the query is queued to be sent
         later (by :meth:`tick`) and only what is due is returned.
         """
-        pending = PendingQuery(command, now, keepalive)
-        if keepalive:
-            self.counters.keepalives += 1
+        pending = PendingQuery(command, now)
         if self._quiet_until is not None:
             self._held.append(pending)
             return self.take_outbox(now), pending
@@ -518,6 +510,14 @@ class Session:
         self._outbox.clear()
         return [query for query in settled if not query.internal]
 
+    def count_outside(self, *, sent: bytes = b"", received: bytes = b"") -> None:
+        """Count bytes a driver moved outside the session (the readiness probe, P21), so that
+        the link counters stay whole."""
+        counters = self.counters
+        counters.frames_sent += sent.count(b"!")
+        counters.bytes_sent += len(sent)
+        counters.bytes_received += len(received)
+
     def reset_link(self) -> None:
         """Start afresh on a reopened link: no partial frame, nothing due, nothing late.
 
@@ -532,14 +532,6 @@ class Session:
     def note_link(self, state: str, detail: str, now: float) -> None:
         """Record a change of the link itself (``lost``, ``reconnected``) for the drivers."""
         self._note(LinkState(now, state, detail))
-
-    def begin_resync(self, late_names: set[str], now: float) -> None:
-        """Treat replies of ``late_names`` as late until a fence is answered (P20).
-
-        For a driver that sent queries outside the session (a readiness probe after connect).
-        """
-        self._late_names |= late_names
-        self._start_fence(now)
 
     def record_events(self) -> None:
         """Start recording events (for a subscriber that arrives after the connection)."""
