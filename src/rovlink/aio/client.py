@@ -158,7 +158,7 @@ class AsyncClient(AsyncCommandMethods):
                 data = probe.bytes_to_send(now)
                 if data:
                     self._write(data)
-                    self._session.count_outside(sent=data)
+                    self._session.count_outside(now, sent=data)
                 self._probe_data.clear()
                 with contextlib.suppress(TimeoutError, asyncio.TimeoutError):
                     await asyncio.wait_for(
@@ -500,8 +500,9 @@ class AsyncClient(AsyncCommandMethods):
 
     def _on_data(self, data: bytes) -> None:
         if self._probe is not None:
-            self._probe.receive(data, self._loop.time())
-            self._session.count_outside(received=data)
+            now = self._loop.time()
+            self._probe.receive(data, now)
+            self._session.count_outside(now, received=data)
             self._probe_data.set()
             return
         session = self._session

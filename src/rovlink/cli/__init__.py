@@ -26,6 +26,9 @@ COMMANDS: dict[str, str] = {
     "demo": "A scripted dive: unlock, dive and hold, a square, every sensor, surface, lock.",
     "console": "Type commands and see the replies, with completion and history.",
     "monitor": "A live dashboard of depth, attitude, leak and link; keys drive the robot.",
+    "record": "Record a link (listening, or as a tap between a program and the controller).",
+    "replay": "Print a recording, or replay its commands to a controller and compare replies.",
+    "plot": "Plot a recorded dive: depth and set-point, thrust, attitude, leak, link events.",
 }
 
 _DESCRIPTION = "Drive an underwater robot's low-level controller over its serial command protocol."
@@ -143,8 +146,14 @@ def main(argv: list[str] | None = None) -> int:
             level=logging.DEBUG, format="%(asctime)s %(name)s %(levelname)s: %(message)s"
         )
     command_parser: argparse.ArgumentParser = args.parser
+    # What a command opens that must outlive its client (a recording) is finished here, last.
+    args.on_exit = []
     try:
-        status: int = args.run(args)
+        try:
+            status: int = args.run(args)
+        finally:
+            for finish in args.on_exit:
+                finish()
     except UsageError as error:
         command_parser.print_usage(sys.stderr)
         print(f"{command_parser.prog}: error: {error}", file=sys.stderr)

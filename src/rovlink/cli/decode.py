@@ -4,11 +4,13 @@ summary of counts). Errors in the stream are events, never a failure of the comm
 from __future__ import annotations
 
 import argparse
+import io
 import json
 import os
 import sys
 from collections import Counter
-from typing import BinaryIO
+from collections.abc import Iterator
+from typing import Any, BinaryIO
 
 from rovlink.cli.failure import CommandError
 from rovlink.cli.link_options import add_checksum_options
@@ -140,7 +142,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         metavar="FILE",
         nargs="?",
         default="-",
-        help="a capture of the byte stream; '-' or none: standard input",
+        help="a capture of the byte stream, or a recording (.mcap, .jsonl: its raw wire); "
+        "'-' or none: standard input",
     )
     add_checksum_options(parser, "start in checksum mode, as after #crcon!")
     parser.add_argument(
@@ -155,6 +158,8 @@ def _run(args: argparse.Namespace) -> int:
     if args.file == "-":
         decode_stream(sys.stdin.buffer, decoder, stats_only=args.stats)
         return 0
+    if args.file.lower().endswith((".mcap", ".jsonl")):
+        return _decode_recording(args, decoder)
     try:
         stream = open(args.file, "rb")  # noqa: SIM115 - closed below, after the error handling
     except OSError as error:
@@ -164,6 +169,54 @@ def _run(args: argparse.Namespace) -> int:
             decode_stream(stream, decoder, stats_only=args.stats)
         except IsADirectoryError:
             raise CommandError(f"cannot read {args.file}: Is a directory") from None
+    return 0
+
+
+class _RecordedWire(io.RawIOBase):
+    """The raw wire of a recording (both directions, in order) as a byte stream."""
+
+    def __init__(self, chunks: Iterator[bytes]) -> None:
+        self._chunks = chunks
+        self._left = b""
+
+    def readable(self) -> bool:
+        return True
+
+    def readinto(self, buffer: Any) -> int:
+        while not self._left:
+            chunk = next(self._chunks, None)
+            if chunk is None:
+                return 0
+            self._left = chunk
+        size = min(len(buffer), len(self._left))
+        buffer[:size] = self._left[:size]
+        self._left = self._left[size:]
+        return size
+
+
+def _decode_recording(args: argparse.Namespace, decoder: Decoder) -> int:
+    """A recording's wire channel, decoded as a capture; damage is reported after it."""
+    from rovlink.recorder import RecordingDamaged, RecordingError, read_entries  # noqa: PLC0415
+    from rovlink.recorder.entries import WireEntry  # noqa: PLC0415
+
+    damage: RecordingDamaged | None = None
+
+    def chunks() -> Iterator[bytes]:
+        nonlocal damage
+        try:
+            for entry in read_entries(args.file):
+                if isinstance(entry, WireEntry):
+                    yield entry.data
+        except RecordingDamaged as error:
+            damage = error
+
+    try:
+        decode_stream(io.BufferedReader(_RecordedWire(chunks())), decoder, stats_only=args.stats)
+    except RecordingError as error:
+        raise CommandError(str(error)) from None
+    if damage is not None:
+        print(f"rovlink decode: {damage}", file=sys.stderr)
+        return 0 if damage.incomplete else 1
     return 0
 
 

@@ -15,6 +15,7 @@ from collections.abc import Awaitable, Callable, Iterator
 from typing import TYPE_CHECKING
 
 from rovlink.cli.failure import CommandError, UsageError
+from rovlink.cli.recording import add_record_options, open_recorder, report_recording
 from rovlink.protocol import ALGORITHMS, DEFAULT_ALGORITHM
 
 if TYPE_CHECKING:
@@ -22,6 +23,7 @@ if TYPE_CHECKING:
     from rovlink.client import Client, ClientOptions
     from rovlink.client.links import Link
     from rovlink.client.options import StrayCallback
+    from rovlink.recorder import Recorder
 
 __all__ = [
     "DEFAULT_URL",
@@ -220,6 +222,7 @@ def add_link_options(parser: argparse.ArgumentParser, *, url_required: bool = Fa
         "that resets when its port opens boots for up to 2 s); 0: do not wait "
         "(default: %(default)s)",
     )
+    add_record_options(parser)
 
 
 def client_options(
@@ -235,6 +238,7 @@ def client_options(
     """
     from rovlink.client import ClientOptions  # noqa: PLC0415 - the driver loads when used
 
+    recorder = session_recorder(args)
     try:
         return ClientOptions(
             timeout_s=args.timeout_s,
@@ -245,9 +249,38 @@ def client_options(
             on_stray=on_stray,
             boot_timeout_s=getattr(args, "boot_timeout_s", DEFAULT_BOOT_TIMEOUT_S),
             motion_timeout_s=motion_timeout_s,
+            on_event=recorder.on_event if recorder is not None else None,
         )
     except ValueError as error:
         raise UsageError(str(error)) from None
+
+
+def session_recorder(args: argparse.Namespace) -> Recorder | None:
+    """The recorder of ``--record FILE`` (``None`` without it), started on first use and
+    finished when the command ends (:func:`rovlink.cli.main` runs ``args.on_exit``)."""
+    if not getattr(args, "record", None):
+        return None
+    recorder: Recorder | None = getattr(args, "recorder", None)
+    if recorder is None:
+        import time  # noqa: PLC0415
+
+        program = f"rovlink {getattr(args, 'command', None) or ''}".strip()
+        recorder = open_recorder(args, args.record, url=args.url, program=program)
+        args.recorder = recorder
+        started_s = time.monotonic()
+
+        def finish() -> None:
+            recorder.close()
+            report_recording(recorder, time.monotonic() - started_s)
+
+        on_exit = getattr(args, "on_exit", None)
+        if on_exit is not None:
+            on_exit.append(finish)
+        else:  # run without main(): finish at exit at the latest
+            import atexit  # noqa: PLC0415
+
+            atexit.register(finish)
+    return recorder
 
 
 def check_url(args: argparse.Namespace) -> None:

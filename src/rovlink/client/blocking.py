@@ -460,12 +460,13 @@ class Client(CommandMethods):
             if data:
                 link.write(data)
                 with self._state_lock:
-                    self._session.count_outside(sent=data)
+                    self._session.count_outside(now, sent=data)
             data = link.read_available(max(probe.wait_s(clock()), 0.001))
             if data:
-                probe.receive(data, clock())
+                received_at = clock()
+                probe.receive(data, received_at)
                 with self._state_lock:
-                    self._session.count_outside(received=data)
+                    self._session.count_outside(received_at, received=data)
 
     def _confirm_checksum_mode(self) -> None:
         try:

@@ -510,13 +510,19 @@ class Session:
         self._outbox.clear()
         return [query for query in settled if not query.internal]
 
-    def count_outside(self, *, sent: bytes = b"", received: bytes = b"") -> None:
+    def count_outside(self, now: float, *, sent: bytes = b"", received: bytes = b"") -> None:
         """Count bytes a driver moved outside the session (the readiness probe, P21), so that
-        the link counters stay whole."""
+        the link counters stay whole and a recording of the wire has every byte."""
         counters = self.counters
         counters.frames_sent += sent.count(b"!")
         counters.bytes_sent += len(sent)
         counters.bytes_received += len(received)
+        events = self.events
+        if events is not None:
+            if sent:
+                events.append(BytesSent(now, sent, None, by_session=True))
+            if received:
+                events.append(BytesReceived(now, received))
 
     def reset_link(self) -> None:
         """Start afresh on a reopened link: no partial frame, nothing due, nothing late.

@@ -1,0 +1,77 @@
+"""Plot a recorded dive: depth against set-point, vertical and horizontal thrust, roll, pitch,
+heading, the leak latch and the link's events on shared time axes (needs the plot extra:
+pip install 'rovlink[plot]')."""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+
+from rovlink.cli.failure import CommandError, UsageError
+
+__all__ = ["EPILOG"]
+
+EPILOG = """\
+examples:
+  rovlink plot dive.mcap -o dive.png
+  rovlink plot dive.csv -o dive.svg
+  rovlink plot dive.mcap --show"""
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """``plot``'s arguments."""
+    parser.add_argument("file", metavar="FILE", help="a recording (.mcap, .jsonl or .csv)")
+    parser.add_argument(
+        "-o", "--output", metavar="IMAGE", help="write the plot here (.png, .svg, .pdf)"
+    )
+    parser.add_argument("--show", action="store_true", help="open a window (needs a display)")
+
+
+def run(args: argparse.Namespace) -> int:
+    """Draw the dive; damage in the file is reported after the plot of what could be read."""
+    if not args.output and not args.show:
+        raise UsageError("say where the plot goes: -o IMAGE, --show, or both")
+    if args.show and not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
+        raise CommandError("--show needs a display (none here): use -o IMAGE")
+    try:
+        import matplotlib  # noqa: PLC0415 - the plot extra, only for this command
+    except ImportError:
+        raise CommandError("plotting needs matplotlib: pip install 'rovlink[plot]'") from None
+    from rovlink.recorder import RecordingDamaged, RecordingError, read_entries  # noqa: PLC0415
+    from rovlink.recorder.plot import FIGURE_SIZE_IN, plot_dive  # noqa: PLC0415
+
+    if not args.show:
+        matplotlib.use("Agg")
+    entries = []
+    damage: RecordingDamaged | None = None
+    try:
+        for entry in read_entries(args.file):
+            entries.append(entry)
+    except RecordingDamaged as error:
+        damage = error
+    except RecordingError as error:
+        raise CommandError(str(error)) from None
+    except ValueError as error:
+        raise UsageError(str(error)) from None
+    if not any(entry.channel == "telemetry" for entry in entries):
+        raise CommandError(f"{args.file} has no telemetry to plot (a raw capture?)")
+    window = None
+    if args.show:
+        import matplotlib.pyplot as pyplot  # noqa: PLC0415
+
+        window = pyplot.figure(figsize=FIGURE_SIZE_IN, layout="constrained")
+    figure = plot_dive(entries, title=os.path.basename(args.file), figure=window)
+    if args.output:
+        try:
+            figure.savefig(args.output)
+        except (OSError, ValueError) as error:
+            reason = error.strerror if isinstance(error, OSError) else str(error)
+            raise CommandError(f"cannot write {args.output}: {reason}") from None
+        print(f"plotted {args.file} to {args.output}", file=sys.stderr)
+    if window is not None:
+        pyplot.show()
+    if damage is not None:
+        print(f"rovlink plot: {damage}", file=sys.stderr)
+        return 0 if damage.incomplete else 1
+    return 0

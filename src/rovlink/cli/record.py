@@ -1,0 +1,116 @@
+"""Record a link to a file without driving it: every byte both ways, the frames, the events and
+the telemetry table. With --tap, a program talks to the controller through rovlink (a TCP port
+or a pseudo-terminal) and both directions are recorded; without it, rovlink only listens (a
+sniffer on a line that another program drives). The format follows the file's suffix: .mcap
+(Foxglove), .jsonl, .csv (telemetry) or .bin (raw wire)."""
+
+from __future__ import annotations
+
+import argparse
+import signal
+import sys
+import threading
+import time
+from types import FrameType
+
+from rovlink.cli.failure import CommandError, UsageError
+from rovlink.cli.link_options import add_checksum_options, positive_int, seconds
+from rovlink.cli.recording import add_rotation_options, open_recorder, report_recording
+
+__all__ = ["EPILOG"]
+
+EPILOG = """\
+examples:
+  rovlink record /dev/ttyUSB0 -o dive.mcap --tap socket://127.0.0.1:5761
+      (then point the pilot's program at socket://127.0.0.1:5761)
+  rovlink record socket://192.168.2.2:5760 -o dive.mcap --tap pty --split 10m
+  rovlink record /dev/ttyUSB1 -o line.bin          a sniffer port: listen only"""
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """``record``'s arguments."""
+    parser.add_argument(
+        "url", metavar="URL", help="the controller's port: /dev/ttyUSB0, socket://…"
+    )
+    parser.add_argument(
+        "-o",
+        "--output",
+        required=True,
+        metavar="FILE",
+        help="the recording (.mcap, .jsonl, .csv, .bin)",
+    )
+    parser.add_argument(
+        "--tap",
+        metavar="ENDPOINT",
+        help="serve the controller to another program through ENDPOINT (socket://HOST:PORT or "
+        "pty) and record both directions; without it, only listen",
+    )
+    parser.add_argument(
+        "--baudrate", type=positive_int, metavar="BAUD", help="serial speed (default 115200)"
+    )
+    parser.add_argument(
+        "--duration", type=seconds, metavar="SECONDS", help="stop after this long (default: Ctrl-C)"
+    )
+    add_checksum_options(parser, "the link starts in checksum mode (to decode its frames)")
+    add_rotation_options(parser)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Record until Ctrl-C, SIGTERM or ``--duration``; the file is finished in every case."""
+    from rovlink.client import parse_url  # noqa: PLC0415 - the driver loads when used
+    from rovlink.client.errors import ConnectionLostError  # noqa: PLC0415
+    from rovlink.client.links import open_link  # noqa: PLC0415
+    from rovlink.recorder.tap import forward, parse_tap  # noqa: PLC0415
+
+    try:
+        endpoint = parse_url(args.url, args.baudrate)
+    except ValueError as error:
+        raise UsageError(f"URL: {error}") from None
+    try:
+        tap = parse_tap(args.tap) if args.tap else None
+    except ValueError as error:
+        raise UsageError(str(error)) from None
+    except OSError as error:
+        raise CommandError(f"cannot serve the tap {args.tap}: {error.strerror}") from None
+    try:
+        link = open_link(endpoint)
+    except (ConnectionError, OSError) as error:
+        if tap is not None:
+            tap.close()
+        from rovlink.cli.link_options import connection_failure  # noqa: PLC0415
+
+        raise connection_failure(args.url, error) from None
+    recorder = open_recorder(args, args.output, url=args.url, program="rovlink record")
+    stopping = threading.Event()
+
+    def stop(signum: int, frame: FrameType | None) -> None:
+        stopping.set()
+
+    previous = signal.signal(signal.SIGTERM, stop)
+    where = f"; program's side: {tap.path}" if tap is not None else " (listening only)"
+    print(f"recording {args.url} to {args.output}{where}; Ctrl-C stops", file=sys.stderr)
+    started_s = time.monotonic()
+    try:
+        if args.duration is not None:
+            timer = threading.Timer(args.duration, stopping.set)
+            timer.daemon = True
+            timer.start()
+        if tap is not None:
+            forward(tap, link, recorder.on_bytes, stopping)
+        else:
+            while not stopping.is_set():
+                data = link.read_available(0.1)
+                if data:
+                    recorder.on_bytes("in", data)
+    except KeyboardInterrupt:
+        pass
+    except ConnectionLostError as error:
+        print(f"rovlink record: {error}; the recording ends here", file=sys.stderr)
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+        link.close()
+        if tap is not None:
+            tap.close()
+        recorder.close()
+    report_recording(recorder, time.monotonic() - started_s)
+    return 1 if recorder.error else 0

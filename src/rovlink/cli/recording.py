@@ -1,0 +1,135 @@
+"""``--record FILE`` and the rotation options, shared by every command that records."""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+from typing import TYPE_CHECKING
+
+from rovlink.cli.failure import CommandError, UsageError
+
+if TYPE_CHECKING:
+    from rovlink.recorder import Recorder
+
+__all__ = [
+    "add_record_options",
+    "add_rotation_options",
+    "byte_size",
+    "duration",
+    "open_recorder",
+    "report_recording",
+]
+
+_SIZE_UNITS = {"": 1, "k": 1000, "m": 1000**2, "g": 1000**3}
+_TIME_UNITS = {"": 1.0, "s": 1.0, "m": 60.0, "h": 3600.0}
+
+
+def byte_size(text: str) -> int:
+    """A size such as ``500k``, ``100M``, ``2G`` or a number of bytes (decimal units).
+
+    >>> byte_size("100M")
+    100000000
+    """
+    number, unit = text[:-1] if text[-1:].isalpha() else text, text[-1:].lower()
+    if not unit.isalpha():
+        unit = ""
+    try:
+        value = float(number) * _SIZE_UNITS[unit]
+    except (KeyError, ValueError):
+        raise argparse.ArgumentTypeError(
+            f"{text!r} is not a size (a number with k, M or G: 100M)"
+        ) from None
+    if value < 4096:
+        raise argparse.ArgumentTypeError(f"{text!r} is too small for a recording file (≥ 4k)")
+    return int(value)
+
+
+def duration(text: str) -> float:
+    """A duration such as ``90``, ``30s``, ``10m`` or ``1h``, in seconds.
+
+    >>> duration("10m")
+    600.0
+    """
+    number, unit = (text[:-1], text[-1:].lower()) if text[-1:].isalpha() else (text, "")
+    try:
+        value = float(number) * _TIME_UNITS[unit]
+    except (KeyError, ValueError):
+        raise argparse.ArgumentTypeError(
+            f"{text!r} is not a duration (seconds, or with s, m or h: 10m)"
+        ) from None
+    if not value >= 1.0:
+        raise argparse.ArgumentTypeError(f"{text!r}: a split must be at least 1 s")
+    return value
+
+
+def add_rotation_options(parser: argparse.ArgumentParser) -> None:
+    """``--max-size`` and ``--split``: start a new file when the current one is that big or old."""
+    group = parser.add_argument_group("recording")
+    group.add_argument(
+        "--max-size",
+        type=byte_size,
+        metavar="SIZE",
+        help="start a new file (dive.001.mcap, …) when this size is reached (e.g. 100M)",
+    )
+    group.add_argument(
+        "--split",
+        type=duration,
+        metavar="DURATION",
+        help="start a new file every DURATION (e.g. 10m, 1h)",
+    )
+
+
+def add_record_options(parser: argparse.ArgumentParser) -> None:
+    """``--record FILE`` and the rotation options, for a command that drives the link."""
+    parser.add_argument(
+        "--record",
+        metavar="FILE",
+        help="record the session: every byte, frame, event and the telemetry "
+        "(.mcap, .jsonl, .csv or .bin by suffix)",
+    )
+    add_rotation_options(parser)
+
+
+def open_recorder(args: argparse.Namespace, path: str, *, url: str, program: str) -> Recorder:
+    """A recorder on ``path`` with the command's options; a failure while recording is printed
+    as one line and never stops the link."""
+    from rovlink.recorder import Recorder, format_of  # noqa: PLC0415 - only when recording
+
+    try:
+        format_of(path)
+    except ValueError as error:
+        raise UsageError(str(error)) from None
+
+    def on_failure(message: str) -> None:
+        print(f"rovlink: {message}; the link goes on", file=sys.stderr)
+
+    try:
+        return Recorder(
+            path,
+            url=url,
+            checksum=bool(getattr(args, "checksum", False)),
+            algorithm=getattr(args, "algorithm", "crc8"),
+            program=program,
+            max_size_bytes=args.max_size,
+            split_s=args.split,
+            on_failure=on_failure,
+        )
+    except OSError as error:
+        raise CommandError(f"cannot record to {path}: {error.strerror}") from None
+
+
+def report_recording(recorder: Recorder, elapsed_s: float) -> None:
+    """One line on stderr: what was recorded where."""
+    sizes = sum(os.path.getsize(path) for path in recorder.paths if os.path.exists(path))
+    files = ", ".join(recorder.paths)
+    lost = (
+        f"; {recorder.dropped} items not recorded (the disk fell behind)"
+        if recorder.dropped
+        else ""
+    )
+    print(
+        f"recorded {recorder.entries_written} entries in {elapsed_s:.1f} s to {files} "
+        f"({sizes / 1000:.1f} kB){lost}",
+        file=sys.stderr,
+    )

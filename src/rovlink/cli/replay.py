@@ -1,0 +1,182 @@
+"""Print a recording as the session it was (frames, replies with their query and round trip,
+events), at once or at its recorded pace; or replay its commands to a controller at their
+recorded times and compare every reply with the recorded one, printing the first differences.
+Exit status with --to: 0 all replies as recorded, 1 some differ."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Iterator
+from typing import TYPE_CHECKING
+
+from rovlink.cli.failure import CommandError, UsageError
+from rovlink.cli.link_options import OnOff, bounded_float, bounded_int
+
+if TYPE_CHECKING:
+    from rovlink.recorder import Entry
+
+__all__ = ["EPILOG"]
+
+EPILOG = """\
+examples:
+  rovlink replay dive.mcap                       the session, line by line
+  rovlink replay dive.mcap --follow --wire       at its pace, with the raw bytes
+  rovlink replay dive.mcap --to 'sim://?seed=1'  resend its commands, compare the replies
+  rovlink replay dive.mcap --to /dev/ttyUSB0 --speed 2 --tolerance 1"""
+
+
+def _speed(text: str) -> float:
+    return bounded_float(text, 0.01, 1000.0)
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """``replay``'s arguments."""
+    parser.add_argument("file", metavar="FILE", help="a recording (.mcap or .jsonl)")
+    parser.add_argument(
+        "--follow", action="store_true", help="print at the recorded pace (see --speed)"
+    )
+    parser.add_argument(
+        "--speed",
+        type=_speed,
+        metavar="FACTOR",
+        help="pace × FACTOR (implies --follow; with --to, the commands' pace)",
+    )
+    parser.add_argument("--wire", action="store_true", help="print the raw bytes too")
+    group = parser.add_argument_group("replaying to a controller")
+    group.add_argument(
+        "--to", metavar="URL", help="send the recorded commands to URL and compare the replies"
+    )
+    group.add_argument(
+        "--checksum",
+        action=OnOff,
+        default=None,
+        help="checksum mode of the replay (default: as recorded)",
+    )
+    group.add_argument(
+        "--tolerance",
+        type=lambda text: bounded_int(text, 0, 10000),
+        default=0,
+        metavar="N",
+        help="values within N of the recorded ones count as the same (default: %(default)s)",
+    )
+    group.add_argument(
+        "--max-differences",
+        type=lambda text: bounded_int(text, 1, 1_000_000),
+        default=10,
+        metavar="N",
+        help="print the first N differences (default: %(default)s)",
+    )
+
+
+class _Damage:
+    """Reads the entries, keeping the damage (if any) to report after the output."""
+
+    def __init__(self) -> None:
+        self.error: Exception | None = None
+
+    def entries(self, path: str) -> Iterator[Entry]:
+        from rovlink.recorder import RecordingDamaged, read_entries  # noqa: PLC0415
+
+        try:
+            yield from read_entries(path)
+        except RecordingDamaged as error:
+            self.error = error
+
+
+def _check_kind(path: str) -> None:
+    from rovlink.recorder import format_of  # noqa: PLC0415
+
+    try:
+        kind = format_of(path)
+    except ValueError as error:
+        raise UsageError(str(error)) from None
+    if kind.suffix == ".bin":
+        raise CommandError(f"{path} is raw wire bytes without times: rovlink decode {path}")
+    if kind.suffix == ".csv":
+        raise CommandError(f"{path} holds only the telemetry table: rovlink plot {path}")
+
+
+def _print_session(args: argparse.Namespace, damage: _Damage) -> None:
+    from rovlink.recorder.playback import paced, session_lines  # noqa: PLC0415
+
+    entries = damage.entries(args.file)
+    if args.follow or args.speed is not None:
+        entries = paced(entries, args.speed or 1.0)
+    write = sys.stdout.write
+    for line in session_lines(entries, wire=args.wire):
+        write(line + "\n")
+        if args.follow or args.speed is not None:
+            sys.stdout.flush()
+
+
+def _replay_to(args: argparse.Namespace, damage: _Damage) -> int:
+    import rovlink  # noqa: PLC0415
+    from rovlink.cli.link_options import connection_failure  # noqa: PLC0415
+    from rovlink.client.errors import QueryTimeoutError  # noqa: PLC0415
+    from rovlink.protocol import Command, Response  # noqa: PLC0415
+    from rovlink.recorder import HeaderEntry  # noqa: PLC0415
+    from rovlink.recorder.comparison import ReplaySummary, replay_steps, run_replay  # noqa: PLC0415
+
+    entries = list(damage.entries(args.file))
+    header = next((entry for entry in entries if isinstance(entry, HeaderEntry)), None)
+    checksum = args.checksum if args.checksum is not None else bool(header and header.checksum)
+    algorithm = header.algorithm if header is not None else "crc8"
+    steps = replay_steps(entries)
+    if not steps:
+        raise CommandError(f"{args.file} has no commands of a program to replay")
+    try:
+        client = rovlink.connect(args.to, checksum=checksum, algorithm=algorithm)
+    except (ConnectionError, OSError) as error:
+        raise connection_failure(args.to, error) from None
+    except ValueError as error:
+        raise UsageError(f"--to: {error}") from None
+
+    def send(command: Command) -> tuple[Response, ...] | None:
+        try:
+            return client.send(command)
+        except QueryTimeoutError:
+            return None
+
+    summary = ReplaySummary()
+    print(f"replaying {len(steps)} commands of {args.file} to {args.to}", file=sys.stderr)
+    with client:
+        for step, _, divergence in run_replay(
+            steps, send, speed=args.speed or 1.0, tolerance=args.tolerance
+        ):
+            summary.commands_sent += 1
+            if not step.expected_count:
+                continue
+            summary.queries_compared += 1
+            if divergence is None:
+                summary.identical += 1
+                continue
+            summary.divergences.append(divergence)
+            if len(summary.divergences) <= args.max_differences:
+                print(divergence)
+    differing = len(summary.divergences)
+    print(
+        f"{summary.commands_sent} commands replayed, {summary.queries_compared} queries "
+        f"compared: {summary.identical} as recorded, {differing} different"
+        + (f" (first {args.max_differences} shown)" if differing > args.max_differences else "")
+    )
+    return 1 if differing else 0
+
+
+def run(args: argparse.Namespace) -> int:
+    """Print or replay the recording; damage in the file is reported after what could be read."""
+    from rovlink.recorder import RecordingError  # noqa: PLC0415
+
+    _check_kind(args.file)
+    damage = _Damage()
+    try:
+        status = _replay_to(args, damage) if args.to else _print_session(args, damage) or 0
+    except RecordingError as error:
+        raise CommandError(str(error)) from None
+    except BrokenPipeError:
+        return 0
+    if damage.error is not None:
+        print(f"rovlink replay: {damage.error}", file=sys.stderr)
+        if not getattr(damage.error, "incomplete", False):
+            return 1
+    return status

@@ -1,0 +1,144 @@
+"""Replaying a recording's commands to a controller and comparing its replies with the recorded
+ones: how a firmware author checks a new build against last week's dive.
+
+The program's own commands are replayed (not the driver's keep-alives, retries and fences: the
+replaying driver makes its own) at their recorded times. Each query's replies are compared value
+by value with the recorded replies, within ``tolerance``.
+"""
+
+from __future__ import annotations
+
+import time
+from collections import deque
+from collections.abc import Callable, Iterable, Iterator
+from dataclasses import dataclass, field
+
+from rovlink.protocol import Command, Response, encode
+from rovlink.recorder.entries import Entry, FrameEntry
+
+__all__ = ["Divergence", "ReplayStep", "ReplaySummary", "replay_steps", "run_replay"]
+
+
+@dataclass
+class ReplayStep:
+    """One command of the program, when it was sent, and (for a query) what it got then:
+    ``None`` if no reply was recorded (the query failed)."""
+
+    t_s: float
+    command: Command
+    recorded: list[Response] | None = None
+    expected_count: int = 0
+
+
+@dataclass(frozen=True)
+class Divergence:
+    """A query whose replies differ from the recorded ones."""
+
+    t_s: float
+    query: str
+    recorded: str
+    replayed: str
+
+    def __str__(self) -> str:
+        return f"{self.t_s:9.3f} s  {self.query}: recorded {self.recorded}, now {self.replayed}"
+
+
+@dataclass
+class ReplaySummary:
+    """What a replay found."""
+
+    commands_sent: int = 0
+    queries_compared: int = 0
+    identical: int = 0
+    divergences: list[Divergence] = field(default_factory=list)
+
+
+def replay_steps(entries: Iterable[Entry]) -> list[ReplayStep]:
+    """The program's commands in a recording, each query with its recorded replies."""
+    steps: list[ReplayStep] = []
+    awaiting: dict[str, deque[ReplayStep]] = {}
+    for entry in entries:
+        if not isinstance(entry, FrameEntry):
+            continue
+        if entry.direction == "out" and entry.kind == "command" and not entry.by_session:
+            command = Command(entry.name, entry.values)
+            step = ReplayStep(entry.t_s, command, expected_count=len(command.spec.replies))
+            steps.append(step)
+            if step.expected_count:
+                awaiting.setdefault(command.name, deque()).append(step)
+        elif entry.direction == "in" and entry.query is not None and not entry.late:
+            queue = awaiting.get(entry.query)
+            if not queue:
+                continue  # answers a query of the driver's own (a keep-alive)
+            step = queue[0]
+            if step.recorded is None:
+                step.recorded = []
+            step.recorded.append(Response(entry.name, entry.values))
+            if len(step.recorded) >= step.expected_count:
+                queue.popleft()
+    return steps
+
+
+def _text(responses: Iterable[Response] | None) -> str:
+    if responses is None:
+        return "no reply"
+    return "".join(encode(response).decode("ascii") for response in responses)
+
+
+def _changes(
+    recorded: list[Response] | None, replayed: tuple[Response, ...] | None
+) -> tuple[str, str]:
+    """The two sides of a difference: the differing replies' values only, when the same
+    replies came; all of them otherwise."""
+    if (
+        recorded is None
+        or replayed is None
+        or [r.name for r in recorded] != [r.name for r in replayed]
+    ):
+        return _text(recorded), _text(replayed)
+    pairs = [(old, new) for old, new in zip(recorded, replayed, strict=True) if old != new]
+    return _text(old for old, _ in pairs), _text(new for _, new in pairs)
+
+
+def _same(
+    recorded: list[Response] | None, replayed: tuple[Response, ...] | None, tolerance: int
+) -> bool:
+    if recorded is None or replayed is None:
+        return recorded is None and replayed is None
+    if [r.name for r in recorded] != [r.name for r in replayed]:
+        return False
+    return all(
+        abs(a - b) <= tolerance
+        for old, new in zip(recorded, replayed, strict=True)
+        for a, b in zip(old.values, new.values, strict=True)
+    )
+
+
+def run_replay(
+    steps: list[ReplayStep],
+    send: Callable[[Command], tuple[Response, ...] | None],
+    *,
+    speed: float = 1.0,
+    tolerance: int = 0,
+    sleep: Callable[[float], None] = time.sleep,
+    clock: Callable[[], float] = time.monotonic,
+) -> Iterator[tuple[ReplayStep, tuple[Response, ...] | None, Divergence | None]]:
+    """Send each step at its recorded time (divided by ``speed``; 0: no waiting) with ``send``
+    (``None`` back: the query got no reply) and yield it with what came back and the
+    divergence, if any."""
+    if not steps:
+        return
+    first_s = steps[0].t_s
+    started_s = clock()
+    for step in steps:
+        if speed > 0:
+            delay_s = started_s + (step.t_s - first_s) / speed - clock()
+            if delay_s > 0:
+                sleep(delay_s)
+        replayed = send(step.command)
+        divergence = None
+        if step.expected_count and not _same(step.recorded, replayed, tolerance):
+            divergence = Divergence(
+                step.t_s - first_s, step.command.name, *_changes(step.recorded, replayed)
+            )
+        yield step, replayed, divergence

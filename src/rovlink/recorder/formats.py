@@ -1,0 +1,97 @@
+"""Recording formats by file suffix, as python-can's loggers: ``.mcap`` (default), ``.jsonl``,
+``.csv`` (the telemetry table), ``.bin`` (the raw wire).
+
+Each format's module loads only when a file of its kind is written or read (``mcap`` is a
+third-party library).
+
+>>> format_of("dive.csv").description
+'telemetry table (CSV)'
+>>> format_of("dive.txt")
+Traceback (most recent call last):
+...
+ValueError: dive.txt: unknown recording format '.txt'; use .mcap, .jsonl, .csv or .bin
+"""
+
+from __future__ import annotations
+
+import importlib
+import os
+from collections.abc import Iterator
+from dataclasses import dataclass
+from typing import cast
+
+from rovlink.recorder.entries import Entry
+from rovlink.recorder.sink import RecordingError, Sink
+
+__all__ = ["FORMATS", "Format", "format_of", "open_sink", "read_entries"]
+
+
+@dataclass(frozen=True)
+class Format:
+    """A recording format: its module, sink class and reader function."""
+
+    suffix: str
+    description: str
+    module: str
+    sink: str
+    reader: str
+    #: Whether the format keeps the session's frames and events (not only one part of it).
+    complete: bool
+
+
+#: The formats, by suffix.
+FORMATS: dict[str, Format] = {
+    ".mcap": Format(
+        ".mcap", "MCAP (Foxglove)", "rovlink.recorder.mcap_format", "McapSink", "read_mcap", True
+    ),
+    ".jsonl": Format(
+        ".jsonl",
+        "JSON lines",
+        "rovlink.recorder.jsonl_format",
+        "JsonLinesSink",
+        "read_jsonl",
+        True,
+    ),
+    ".csv": Format(
+        ".csv",
+        "telemetry table (CSV)",
+        "rovlink.recorder.csv_format",
+        "TelemetryCsvSink",
+        "read_csv",
+        False,
+    ),
+    ".bin": Format(
+        ".bin", "raw wire bytes", "rovlink.recorder.bin_format", "RawWireSink", "read_bin", False
+    ),
+}
+
+
+def format_of(path: str) -> Format:
+    """The format of ``path`` by its suffix; ValueError naming the path if unknown."""
+    suffix = os.path.splitext(path)[1].lower()
+    found = FORMATS.get(suffix)
+    if found is None:
+        known = ", ".join(FORMATS)
+        known = known[: known.rfind(", ")] + " or" + known[known.rfind(",") + 1 :]
+        raise ValueError(f"{path}: unknown recording format {suffix!r}; use {known}")
+    return found
+
+
+def open_sink(path: str) -> Sink:
+    """A sink writing ``path`` in the format of its suffix (OSError if it cannot be created)."""
+    kind = format_of(path)
+    sink_class = getattr(importlib.import_module(kind.module), kind.sink)
+    return cast(Sink, sink_class(path))
+
+
+def read_entries(path: str) -> Iterator[Entry]:
+    """The entries of the recording at ``path`` (:class:`RecordingError` if none can be read;
+    ends with :class:`~rovlink.recorder.sink.RecordingDamaged` at damage)."""
+    try:
+        kind = format_of(path)
+    except ValueError as error:
+        raise RecordingError(str(error)) from None
+    if os.path.isdir(path):
+        raise RecordingError(f"{path}: is a directory")
+    reader = getattr(importlib.import_module(kind.module), kind.reader)
+    return cast(Iterator[Entry], reader(path))

@@ -1,0 +1,121 @@
+"""``.mcap``: the default format, one channel per kind of entry, JSON messages with JSON Schemas.
+
+Foxglove opens it as it is and plots ``/rovlink/telemetry.depth_cm`` with no plugin. The file is
+chunked (zstd) and indexed by the ``mcap`` library. The recorder closes a chunk every second,
+so a recorder killed mid-dive leaves every chunk before its last second readable; the reader
+here reads such a file up to where it stops (the index at the end is missing then, which
+only slows seeking).
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Iterator
+
+from mcap.exceptions import McapError
+from mcap.records import Channel, Message
+from mcap.stream_reader import CRCValidationError, StreamReader
+from mcap.writer import Writer
+
+import rovlink
+from rovlink.recorder.entries import CHANNELS, Entry, EntryError, entry_from_json
+from rovlink.recorder.sink import FileSink, RecordingDamaged, RecordingError
+
+__all__ = ["PROFILE", "TOPIC_PREFIX", "McapSink", "read_mcap"]
+
+#: The MCAP profile (the header names it; the channels are rovlink's own, JSON-encoded).
+PROFILE = "rovlink"
+#: Each channel's topic is this prefix and the channel's name: ``/rovlink/telemetry``.
+TOPIC_PREFIX = "/rovlink/"
+# A record larger than this is damage, not data: no entry of ours comes near it.
+_RECORD_SIZE_LIMIT = 64 << 20
+
+
+class McapSink(FileSink):
+    """Writes entries as MCAP messages."""
+
+    def __init__(self, path: str) -> None:
+        super().__init__(path)
+        self._writer = Writer(self._file)
+        self._writer.start(profile=PROFILE, library=f"rovlink {rovlink.__version__}")
+        self._channel_ids: dict[str, int] = {}
+        for channel, schema in CHANNELS.items():
+            schema_id = self._writer.register_schema(
+                name=schema["title"], encoding="jsonschema", data=json.dumps(schema).encode()
+            )
+            self._channel_ids[channel] = self._writer.register_channel(
+                topic=TOPIC_PREFIX + channel, message_encoding="json", schema_id=schema_id
+            )
+        self._sequence = 0
+
+    def write(self, entry: Entry) -> None:
+        self._sequence += 1
+        self._writer.add_message(
+            channel_id=self._channel_ids[entry.channel],
+            log_time=entry.wall_ns,
+            publish_time=entry.wall_ns,
+            sequence=self._sequence,
+            data=json.dumps(entry.to_json(), separators=(",", ":")).encode(),
+        )
+
+    def flush(self) -> None:
+        self._writer.flush()  # the chunk in progress is closed and written
+        super().flush()
+
+    def close(self) -> None:
+        if not self._file.closed:
+            self._writer.finish()
+            super().close()
+
+
+def read_mcap(path: str) -> Iterator[Entry]:
+    """The entries of a ``.mcap`` recording, in the order they were written."""
+    try:
+        stream = open(path, "rb")  # noqa: SIM115 - closed by the with below
+    except OSError as error:
+        raise RecordingError(f"{path}: {error.strerror}") from None
+    count = 0
+    channels: dict[int, str] = {}
+    with stream:
+        reader = StreamReader(stream, validate_crcs=True, record_size_limit=_RECORD_SIZE_LIMIT)
+        records = iter(reader.records)
+        while True:
+            try:
+                record = next(records, None)
+            except (McapError, CRCValidationError, ValueError, EOFError) as error:
+                if count == 0 and not channels:
+                    raise RecordingError(f"{path}: not an MCAP recording ({error})") from None
+                raise _damage(path, error, count) from None
+            if record is None:
+                return
+            if isinstance(record, Channel):
+                if record.topic.startswith(TOPIC_PREFIX):
+                    channels[record.id] = record.topic[len(TOPIC_PREFIX) :]
+            elif isinstance(record, Message) and record.channel_id in channels:
+                try:
+                    entry = entry_from_json(channels[record.channel_id], json.loads(record.data))
+                except (ValueError, EntryError) as error:
+                    raise RecordingDamaged(
+                        f"{path}: message {count + 1} is damaged ({error}); read {count} "
+                        "entries before it",
+                        entries_read=count,
+                        incomplete=False,
+                    ) from None
+                count += 1
+                yield entry
+
+
+def _damage(path: str, error: Exception, count: int) -> RecordingDamaged:
+    name = type(error).__name__
+    if name == "EndOfFile" or isinstance(error, EOFError):
+        return RecordingDamaged(
+            f"{path}: the recording ends early, without its index (its recorder was stopped "
+            f"abruptly); read {count} entries",
+            entries_read=count,
+            incomplete=True,
+        )
+    return RecordingDamaged(
+        f"{path}: damaged after {count} entries ({name}: {error})",
+        entries_read=count,
+        incomplete=False,
+    )

@@ -1,0 +1,104 @@
+"""Reading a recording back as a person reads it: one line per frame and event, at the
+recorded pace if asked.
+
+>>> from rovlink.recorder.entries import FrameEntry
+>>> describe(FrameEntry(1.25, 0, "in", "response", "qd", (95,), query="qd", round_trip_ms=2.5))
+'in   $qd.95!  (answers qd, 2.5 ms)'
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Iterable, Iterator
+
+from rovlink.protocol import Command, Response, encode
+from rovlink.recorder.entries import (
+    Entry,
+    EventEntry,
+    FrameEntry,
+    HeaderEntry,
+    TelemetryEntry,
+    WireEntry,
+)
+
+__all__ = ["describe", "paced", "session_lines"]
+
+
+def _frame_text(entry: FrameEntry) -> str:
+    message = (
+        Command(entry.name, entry.values)
+        if entry.kind == "command"
+        else Response(entry.name, entry.values)
+    )
+    return encode(message).decode("ascii")
+
+
+def describe(entry: Entry, *, wire: bool = False) -> str | None:
+    """The line of one entry (``None``: not shown; raw bytes only with ``wire``)."""
+    if isinstance(entry, FrameEntry):
+        text = f"{entry.direction:<4} {_frame_text(entry)}"
+        notes = []
+        if entry.by_session:
+            notes.append("by the driver")
+        if entry.query is not None:
+            answer = f"answers {entry.query}"
+            if entry.round_trip_ms is not None:
+                answer += f", {entry.round_trip_ms:g} ms"
+            notes.append(answer)
+        elif entry.direction == "in":
+            notes.append("answers no query")
+        if entry.late:
+            notes.append("late: discarded")
+        return f"{text}  ({', '.join(notes)})" if notes else text
+    if isinstance(entry, EventEntry):
+        parts = [entry.event.replace("_", " ")]
+        if entry.name:
+            parts.append(entry.name)
+        line = "!!   " + " ".join(parts)
+        return f"{line}: {entry.detail}" if entry.detail else line
+    if isinstance(entry, WireEntry):
+        if not wire:
+            return None
+        marker = ">>" if entry.direction == "out" else "<<"
+        return f"{marker}   {entry.data!r}"
+    if isinstance(entry, HeaderEntry):
+        mode = f"checksum {entry.algorithm}" if entry.checksum else "no checksum"
+        return f"--   {entry.program} {entry.version} on {entry.url or '?'} ({mode})"
+    if isinstance(entry, TelemetryEntry):
+        return None
+    return None
+
+
+def paced(
+    entries: Iterable[Entry],
+    speed: float,
+    *,
+    sleep: Callable[[float], None] = time.sleep,
+    clock: Callable[[], float] = time.monotonic,
+) -> Iterator[Entry]:
+    """``entries`` at their recorded pace divided by ``speed`` (a raw capture has no times and
+    passes at once)."""
+    first_s: float | None = None
+    started_s = clock()
+    for entry in entries:
+        if entry.t_s > 0 and not isinstance(entry, HeaderEntry):
+            if first_s is None:
+                first_s = entry.t_s
+            due_s = started_s + (entry.t_s - first_s) / speed
+            delay_s = due_s - clock()
+            if delay_s > 0:
+                sleep(delay_s)
+        yield entry
+
+
+def session_lines(entries: Iterable[Entry], *, wire: bool = False) -> Iterator[str]:
+    """Each shown entry as ``"  12.345 s  <line>"`` from the first entry's time."""
+    first_s: float | None = None
+    for entry in entries:
+        line = describe(entry, wire=wire)
+        if line is None:
+            continue
+        if first_s is None and entry.t_s > 0:
+            first_s = entry.t_s
+        offset_s = entry.t_s - first_s if first_s is not None and entry.t_s > 0 else 0.0
+        yield f"{offset_s:9.3f} s  {line}"

@@ -1,0 +1,124 @@
+"""A dive on shared time axes: depth against set-point, thrust, attitude, heading, and the leak
+and link events, drawn with matplotlib (the ``plot`` extra) from a recording.
+
+Example::
+
+    figure = plot_dive(read_entries("dive.mcap"), title="dive.mcap")
+    figure.savefig("dive.png")
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+from dataclasses import dataclass, field
+from typing import Any
+
+from rovlink.recorder.entries import Entry, EventEntry, TelemetryEntry
+
+__all__ = ["FIGURE_SIZE_IN", "DiveSeries", "collect", "plot_dive"]
+
+#: Events drawn as markers on the link panel, with their label and colour.
+_LINK_MARKERS: dict[str, tuple[str, str]] = {
+    "query_failed": ("query failed", "tab:red"),
+    "bad_frame": ("bad frame", "tab:orange"),
+    "late_reply": ("late reply", "tab:purple"),
+    "reset_suspected": ("reset suspected", "black"),
+    "link": ("link state", "tab:gray"),
+    "motion_expired": ("motion expired", "tab:brown"),
+}
+
+
+@dataclass
+class DiveSeries:
+    """The columns of a recording's telemetry, and its events, against time from its start."""
+
+    time_s: list[float] = field(default_factory=list)
+    columns: dict[str, list[float]] = field(default_factory=dict)
+    events: list[tuple[float, str]] = field(default_factory=list)
+
+
+def collect(entries: Iterable[Entry]) -> DiveSeries:
+    """The telemetry columns and events of ``entries`` (``nan`` where a value is not known)."""
+    series = DiveSeries()
+    first_s: float | None = None
+    for entry in entries:
+        if isinstance(entry, TelemetryEntry):
+            if first_s is None:
+                first_s = entry.t_s
+            series.time_s.append(entry.t_s - first_s)
+            for name, value in entry.values.items():
+                series.columns.setdefault(name, []).append(
+                    float("nan") if value is None else float(value)
+                )
+        elif isinstance(entry, EventEntry) and entry.event in _LINK_MARKERS:
+            if first_s is None:
+                first_s = entry.t_s
+            series.events.append((entry.t_s - first_s, entry.event))
+    return series
+
+
+def _step(axis: Any, series: DiveSeries, column: str, label: str, **style: Any) -> None:
+    values = series.columns.get(column)
+    if values:
+        axis.step(series.time_s, values, where="post", label=label, **style)
+
+
+#: The figure's size in inches at 100 dpi: a PNG of 1200 × 1100 pixels.
+FIGURE_SIZE_IN = (12.0, 11.0)
+
+
+def plot_dive(entries: Iterable[Entry], *, title: str = "", figure: Any = None) -> Any:
+    """A matplotlib figure of the dive in ``entries`` (five panels, one time axis), drawn in
+    ``figure`` if given (a window's, for ``--show``)."""
+    from matplotlib.figure import Figure  # noqa: PLC0415 - the plot extra, only when plotting
+
+    series = collect(entries)
+    if figure is None:
+        figure = Figure(figsize=FIGURE_SIZE_IN, dpi=100, layout="constrained")
+    depth, thrust, attitude, heading, link = figure.subplots(
+        5, 1, sharex=True, height_ratios=[3, 2, 2, 1.5, 1.5]
+    )
+    _step(depth, series, "depth_cm", "depth", color="tab:blue")
+    _step(depth, series, "setpoint_cm", "set-point", color="tab:orange", linestyle="--")
+    depth.invert_yaxis()  # deeper is lower, as a pilot sees it
+    depth.set_ylabel("depth, cm")
+    _step(thrust, series, "vertical_thrust_percent", "vertical (mvs)", color="tab:green")
+    _step(thrust, series, "thrust_power_percent", "horizontal power (th)", color="tab:red")
+    thrust.set_ylabel("thrust, %")
+    direction = thrust.twinx()
+    _step(direction, series, "thrust_direction_deg", "direction (th)", color="tab:gray", alpha=0.6)
+    direction.set_ylabel("direction, °")
+    direction.set_ylim(0, 360)
+    _step(attitude, series, "roll_deg", "roll", color="tab:purple")
+    _step(attitude, series, "pitch_deg", "pitch", color="tab:cyan")
+    attitude.set_ylabel("attitude, °")
+    _step(heading, series, "heading_deg", "heading", color="tab:brown")
+    heading.set_ylabel("heading, °")
+    _step(link, series, "leak", "leak latch", color="tab:red", linewidth=2)
+    _step(link, series, "locked", "locked", color="tab:gray")
+    link.set_ylim(-0.2, 2.2)
+    link.set_yticks([0, 1])
+    link.set_ylabel("state")
+    labelled: set[str] = set()
+    for time_s, event in series.events:
+        label, colour = _LINK_MARKERS[event]
+        link.axvline(
+            time_s,
+            color=colour,
+            linewidth=1,
+            alpha=0.7,
+            label=None if label in labelled else label,
+        )
+        labelled.add(label)
+    link.set_xlabel("time from the first row, s")
+    for axis in (depth, thrust, attitude, heading, link):
+        axis.grid(True, alpha=0.3)
+        handles, labels = axis.get_legend_handles_labels()
+        if axis is thrust:
+            more_handles, more_labels = direction.get_legend_handles_labels()
+            handles, labels = handles + more_handles, labels + more_labels
+        if handles:
+            axis.legend(handles, labels, loc="upper right", fontsize="small")
+    if title:
+        figure.suptitle(title)
+    return figure

@@ -1,0 +1,241 @@
+"""The recorder: takes a session's events on the link's thread at the cost of an append, and
+writes them on its own thread, so that recording never slows or stops the robot's link.
+
+>>> import rovlink, tempfile, os
+>>> path = os.path.join(tempfile.mkdtemp(), "dive.jsonl")
+>>> with Recorder(path, url="sim://") as recorder:
+...     with rovlink.connect("sim://", on_event=recorder.on_event) as rov:
+...         depth = rov.depth_cm()
+>>> recorder.entries_written > 0, recorder.dropped
+(True, 0)
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import threading
+import time
+from collections import deque
+from collections.abc import Callable
+from dataclasses import dataclass
+from types import TracebackType
+
+import rovlink
+from rovlink.client.events import ClientEvent
+from rovlink.recorder.entries import Entry, HeaderEntry
+from rovlink.recorder.formats import format_of, open_sink
+from rovlink.recorder.sink import Sink
+from rovlink.recorder.translate import ClientEventLog, TapLog
+
+__all__ = ["DEFAULT_QUEUE_LIMIT", "Recorder", "TappedBytes", "rotated_path"]
+
+logger = logging.getLogger(__name__)
+
+#: Items the link may hand over before the writer takes them; beyond it items are counted as
+#: dropped rather than stall the link. A saturated 1 Mbaud line fills a tenth of it per second.
+DEFAULT_QUEUE_LIMIT = 100_000
+#: How often the writer takes what the link handed over.
+_DRAIN_INTERVAL_S = 0.05
+#: How often the file is made durable: a power cut loses at most this much.
+FLUSH_INTERVAL_S = 1.0
+
+
+@dataclass(frozen=True, slots=True)
+class TappedBytes:
+    """Bytes seen by a tap or a sniffer going ``direction`` (``out``: to the controller)."""
+
+    at_s: float
+    direction: str
+    data: bytes
+
+
+def rotated_path(path: str, index: int) -> str:
+    """The name of the ``index``-th file of a rotated recording (0: ``path`` itself).
+
+    >>> rotated_path("dives/dive.mcap", 0), rotated_path("dives/dive.mcap", 2)
+    ('dives/dive.mcap', 'dives/dive.002.mcap')
+    """
+    if index == 0:
+        return path
+    stem, suffix = os.path.splitext(path)
+    return f"{stem}.{index:03d}{suffix}"
+
+
+class Recorder:
+    """Records a session to ``path`` (format by suffix: ``.mcap``, ``.jsonl``, ``.csv``,
+    ``.bin``).
+
+    Give :meth:`on_event` to the driver as its event hook (``on_event=`` or ``subscribe``), or
+    feed :meth:`on_bytes` from a tap. ``max_size_bytes`` and ``split_s`` start a new file
+    (``dive.001.mcap``, ...) when the current one reaches that size or age. If the file cannot
+    be written (disk full, permission), the recording stops, ``error`` says why and
+    ``on_failure`` is called with it; the link is never affected.
+
+    The file is created when the recorder is made, so a path that cannot be written is an
+    ``OSError`` at once.
+    """
+
+    def __init__(
+        self,
+        path: str,
+        *,
+        url: str = "",
+        checksum: bool = False,
+        algorithm: str = "crc8",
+        program: str = "rovlink",
+        max_size_bytes: int | None = None,
+        split_s: float | None = None,
+        queue_limit: int = DEFAULT_QUEUE_LIMIT,
+        on_failure: Callable[[str], None] | None = None,
+    ) -> None:
+        format_of(path)  # an unknown suffix is refused before anything is created
+        self.path = path
+        #: Every file written so far, in order.
+        self.paths: list[str] = [path]
+        #: Entries written to the files.
+        self.entries_written = 0
+        #: Items not recorded because the writer fell behind by ``queue_limit``.
+        self.dropped = 0
+        #: Why the recording stopped early, if it did.
+        self.error: str | None = None
+        self._header = (url, checksum, algorithm, program)
+        self._max_size_bytes = max_size_bytes
+        self._split_s = split_s
+        self._queue_limit = queue_limit
+        self._on_failure = on_failure
+        self._queue: deque[tuple[int, ClientEvent | TappedBytes]] = deque()
+        self._accepting = True
+        self._events = ClientEventLog()
+        self._tap = TapLog(checksum=checksum, algorithm=algorithm)
+        self._sink: Sink | None = open_sink(path)
+        self._file_started_s = time.monotonic()
+        self._write_header()
+        self._stopping = threading.Event()
+        self._thread = threading.Thread(target=self._run, name="rovlink-recorder", daemon=True)
+        self._thread.start()
+
+    # -- on the link's thread: an append, nothing else ---------------------------------------
+
+    def on_event(self, event: ClientEvent) -> None:
+        """The driver's event hook: hand ``event`` to the writer."""
+        if self._accepting:
+            queue = self._queue
+            if len(queue) < self._queue_limit:
+                queue.append((time.time_ns(), event))
+            else:
+                self.dropped += 1
+
+    def on_bytes(self, direction: str, data: bytes, at_s: float | None = None) -> None:
+        """Bytes seen by a tap going ``direction`` (``out``: host to controller)."""
+        if self._accepting:
+            queue = self._queue
+            if len(queue) < self._queue_limit:
+                now_s = time.monotonic() if at_s is None else at_s
+                queue.append((time.time_ns(), TappedBytes(now_s, direction, data)))
+            else:
+                self.dropped += 1
+
+    # -- ending ------------------------------------------------------------------------------
+
+    def close(self) -> None:
+        """Write what is left, finish the file (its index) and stop the writer."""
+        self._stopping.set()
+        self._thread.join()
+        self._accepting = False
+
+    def __enter__(self) -> Recorder:
+        return self
+
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        traceback: TracebackType | None,
+    ) -> None:
+        self.close()
+
+    # -- the writer's thread -----------------------------------------------------------------
+
+    def _run(self) -> None:
+        last_flush_s = time.monotonic()
+        try:
+            while not self._stopping.wait(_DRAIN_INTERVAL_S):
+                self._drain()
+                now_s = time.monotonic()
+                if now_s - last_flush_s >= FLUSH_INTERVAL_S:
+                    last_flush_s = now_s
+                    self._flush_or_rotate(now_s)
+            self._drain()
+            if self._sink is not None:
+                self._sink.close()
+                self._sink = None
+        except OSError as error:
+            self._fail(error)
+
+    def _drain(self) -> None:
+        queue = self._queue
+        sink = self._sink
+        if sink is None:
+            queue.clear()
+            return
+        events, tap = self._events, self._tap
+        written = 0
+        while queue:
+            wall_ns, item = queue.popleft()
+            if isinstance(item, TappedBytes):
+                entries = tap.entries(item.at_s, wall_ns, item.direction, item.data)
+            else:
+                entries = events.entries(wall_ns, item)
+            for entry in entries:
+                sink.write(entry)
+            written += len(entries)
+        self.entries_written += written
+
+    def _flush_or_rotate(self, now_s: float) -> None:
+        sink = self._sink
+        if sink is None:
+            return
+        sink.flush()
+        too_big = self._max_size_bytes is not None and sink.size_bytes() >= self._max_size_bytes
+        too_old = self._split_s is not None and now_s - self._file_started_s >= self._split_s
+        if too_big or too_old:
+            sink.close()
+            self._sink = None
+            path = rotated_path(self.path, len(self.paths))
+            self._sink = open_sink(path)
+            self.paths.append(path)
+            self._file_started_s = now_s
+            self._write_header()
+            logger.info("recording continues in %s", path)
+
+    def _write_header(self) -> None:
+        url, checksum, algorithm, program = self._header
+        entry: Entry = HeaderEntry(
+            time.monotonic(),
+            time.time_ns(),
+            url,
+            checksum,
+            algorithm,
+            program,
+            rovlink.__version__,
+        )
+        assert self._sink is not None
+        self._sink.write(entry)
+        self.entries_written += 1
+
+    def _fail(self, error: OSError) -> None:
+        self._accepting = False
+        self._queue.clear()
+        where = self.paths[-1]
+        reason = error.strerror or str(error)
+        self.error = f"recording to {where} stopped: {reason}"
+        logger.error("%s (the link goes on)", self.error)
+        sink, self._sink = self._sink, None
+        if sink is not None:
+            try:
+                sink.close()
+            except OSError:
+                pass  # the file is as good as the disk let it be
+        if self._on_failure is not None:
+            self._on_failure(self.error)

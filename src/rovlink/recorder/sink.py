@@ -1,0 +1,81 @@
+"""What every recording format provides: a sink to write entries and a reader to read them back.
+
+A format is chosen by the file's suffix (:mod:`rovlink.recorder.formats`), as python-can chooses
+its loggers. A sink writes entries in the order given; :meth:`Sink.flush` makes everything
+written so far durable (on disk, through a power cut), which the recorder does every second.
+A reader yields the entries it can read and ends with :class:`RecordingDamaged` if the file is
+cut short or damaged, after everything readable before the damage.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Iterator
+from typing import BinaryIO, Protocol
+
+from rovlink.recorder.entries import Entry
+
+__all__ = ["FileSink", "RecordingDamaged", "RecordingError", "Sink", "Reader"]
+
+
+class RecordingError(Exception):
+    """A recording that cannot be read at all: missing, unreadable, or not a recording."""
+
+
+class RecordingDamaged(RecordingError):
+    """A recording readable up to a point: ``entries_read`` entries came before the damage.
+
+    ``incomplete`` is true when the file merely ends early (its recorder was killed or lost
+    power) rather than holding bytes that are not a recording.
+    """
+
+    def __init__(self, message: str, *, entries_read: int, incomplete: bool) -> None:
+        super().__init__(message)
+        self.entries_read = entries_read
+        self.incomplete = incomplete
+
+
+class Sink(Protocol):
+    """Where a recorder writes entries."""
+
+    def write(self, entry: Entry) -> None:
+        """Add one entry."""
+
+    def flush(self) -> None:
+        """Make everything written so far durable."""
+
+    def close(self) -> None:
+        """Finish the file (its index and summary, where the format has them)."""
+
+    def size_bytes(self) -> int:
+        """The file's size so far (after the last flush)."""
+
+
+class Reader(Protocol):
+    """Reads a recording's entries in order (raises :class:`RecordingError` or ends with
+    :class:`RecordingDamaged`)."""
+
+    def __call__(self, path: str) -> Iterator[Entry]: ...
+
+
+class FileSink:
+    """The file handling every format shares: open, durable flush, size, close."""
+
+    def __init__(self, path: str) -> None:
+        self.path = path
+        self._file: BinaryIO = open(path, "wb")  # noqa: SIM115 - closed by close()
+
+    def flush(self) -> None:
+        """Write the buffers out and ask the system to put them on the disk."""
+        self._file.flush()
+        os.fsync(self._file.fileno())
+
+    def size_bytes(self) -> int:
+        return self._file.tell()
+
+    def close(self) -> None:
+        if not self._file.closed:
+            try:
+                self.flush()
+            finally:
+                self._file.close()

@@ -1,0 +1,157 @@
+"""Crash safety and bad files: a recorder killed with SIGKILL leaves its file readable up to its
+last second; truncated, corrupted and foreign files get a clear error after what is readable;
+a disk that fills up stops the recording, never the link."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+from pathlib import Path
+
+import pytest
+
+import rovlink
+from rovlink.recorder import (
+    Recorder,
+    RecordingDamaged,
+    RecordingError,
+    WireEntry,
+    read_entries,
+    rotated_path,
+)
+from tests.recorder.conftest import MakeRecording
+
+_SRC = str(Path(__file__).resolve().parents[2] / "src")
+
+_FEEDER = textwrap.dedent(
+    """
+    import sys, time
+    from rovlink.recorder import Recorder
+    recorder = Recorder(sys.argv[1], url="tap")
+    while True:
+        now = time.monotonic()
+        recorder.on_bytes("in", b"$qd.123!", at_s=now)
+        print(repr(now), flush=True)
+        time.sleep(0.01)
+    """
+)
+
+
+def _read_all(path: str) -> tuple[list, RecordingDamaged | None]:
+    entries = []
+    try:
+        for entry in read_entries(path):
+            entries.append(entry)
+    except RecordingDamaged as error:
+        return entries, error
+    return entries, None
+
+
+@pytest.mark.integration
+@pytest.mark.parametrize("suffix", [".mcap", ".jsonl"])
+def test_sigkill_leaves_everything_but_the_last_second(tmp_path: Path, suffix: str) -> None:
+    path = str(tmp_path / f"killed{suffix}")
+    environment = {**os.environ, "PYTHONPATH": _SRC}
+    process = subprocess.Popen(
+        [sys.executable, "-c", _FEEDER, path], stdout=subprocess.PIPE, text=True, env=environment
+    )
+    assert process.stdout is not None
+    first = float(process.stdout.readline())
+    last = first
+    while last - first < 3.0:  # three seconds of bytes handed to the recorder
+        last = float(process.stdout.readline())
+    os.kill(process.pid, signal.SIGKILL)
+    process.wait(timeout=10)
+    entries, damage = _read_all(path)
+    if suffix == ".mcap":  # it has an index at its end, which is missing
+        assert damage is not None and damage.incomplete, damage
+        assert "ends early" in str(damage)
+    else:  # JSON lines end at any line: at worst a cut last line
+        assert damage is None or damage.incomplete
+    wire = [entry for entry in entries if isinstance(entry, WireEntry)]
+    assert wire and wire[0].t_s == pytest.approx(first)
+    # Flushed every second: at most the last second (plus a loaded machine's lag) is lost.
+    assert wire[-1].t_s >= last - 2.0
+
+
+def test_a_truncated_mcap_is_read_up_to_the_cut(tmp_path: Path) -> None:
+    path = str(tmp_path / "dive.mcap")
+    with Recorder(path) as recorder:  # several one-second chunks
+        with rovlink.connect("sim://?seed=1", on_event=recorder.on_event) as rov:
+            deadline = time.monotonic() + 3.5
+            while time.monotonic() < deadline:
+                rov.sensors()
+    whole = Path(path).read_bytes()
+    Path(path).write_bytes(whole[: len(whole) // 2])
+    entries, damage = _read_all(path)
+    assert damage is not None and damage.incomplete
+    assert path in str(damage)
+    assert 0 < len(entries) == damage.entries_read < recorder.entries_written
+
+
+def test_a_corrupted_jsonl_line_is_named(make_recording: MakeRecording) -> None:
+    recorder = make_recording("dive.jsonl")
+    lines = Path(recorder.path).read_bytes().splitlines(keepends=True)
+    lines[10] = b'{"channel": "frames", "t_s": "soon"}\n'
+    Path(recorder.path).write_bytes(b"".join(lines))
+    entries, damage = _read_all(recorder.path)
+    assert damage is not None and not damage.incomplete
+    assert "line 11 is damaged" in str(damage) and recorder.path in str(damage)
+    assert len(entries) == 10
+
+
+@pytest.mark.parametrize("name", ["foreign.mcap", "foreign.jsonl", "foreign.csv"])
+def test_a_foreign_file_is_refused_by_name(tmp_path: Path, name: str) -> None:
+    path = tmp_path / name
+    path.write_bytes(b"PK\x03\x04 this is a zip file, not a recording\n")
+    with pytest.raises(RecordingError, match=name) as caught:
+        list(read_entries(str(path)))
+    assert not isinstance(caught.value, RecordingDamaged)
+
+
+def test_a_missing_file_is_named(tmp_path: Path) -> None:
+    with pytest.raises(RecordingError, match="No such file"):
+        list(read_entries(str(tmp_path / "none.mcap")))
+
+
+def test_a_full_disk_stops_the_recording_not_the_link(tmp_path: Path) -> None:
+    path = tmp_path / "full.jsonl"
+    path.symlink_to("/dev/full")  # every write fails: No space left on device
+    failures: list[str] = []
+    recorder = Recorder(str(path), on_failure=failures.append)
+    depths = []
+    with rovlink.connect("sim://?seed=1", on_event=recorder.on_event) as rov:
+        deadline = time.monotonic() + 10.0
+        while not failures and time.monotonic() < deadline:
+            depths.append(rov.depth_cm())
+        depths.extend(rov.depth_cm() for _ in range(20))  # the link goes on after the failure
+    recorder.close()
+    assert failures and "No space left on device" in failures[0]
+    assert recorder.error == failures[0] and str(path) in failures[0]
+    assert len(depths) > 20
+
+
+def test_an_unwritable_path_fails_at_once(tmp_path: Path) -> None:
+    with pytest.raises(OSError):
+        Recorder(str(tmp_path / "no-such-directory" / "dive.mcap"))
+
+
+def test_rotation_by_size_gives_files_that_each_read_alone(tmp_path: Path) -> None:
+    path = str(tmp_path / "long.jsonl")
+    recorder = Recorder(path, max_size_bytes=4096)
+    with rovlink.connect("sim://?seed=1", on_event=recorder.on_event) as rov:
+        deadline = time.monotonic() + 20.0
+        while len(recorder.paths) < 3 and time.monotonic() < deadline:
+            rov.sensors()
+    recorder.close()
+    assert recorder.paths[:3] == [rotated_path(path, index) for index in range(3)]
+    total = 0
+    for part in recorder.paths:
+        entries = list(read_entries(part))
+        assert entries[0].channel == "header"
+        total += len(entries)
+    assert total == recorder.entries_written

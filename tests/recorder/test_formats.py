@@ -1,0 +1,120 @@
+"""Record → read back through each format; the MCAP file as ``mcap``'s own reader sees it; the
+CSV as pandas reads it."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+from mcap.reader import make_reader
+
+from rovlink.protocol import COMMANDS, RESPONSES
+from rovlink.recorder import (
+    EventEntry,
+    FrameEntry,
+    HeaderEntry,
+    TelemetryEntry,
+    WireEntry,
+    format_of,
+    read_entries,
+)
+from rovlink.recorder.entries import CHANNELS, TELEMETRY_FIELDS
+from rovlink.recorder.telemetry import COMMAND_COLUMNS, RESPONSE_COLUMNS
+from tests.recorder.conftest import MakeRecording
+
+
+def _frames(entries: list) -> list[tuple[str, str, tuple[int, ...], str | None]]:
+    return [
+        (entry.direction, entry.name, entry.values, entry.query)
+        for entry in entries
+        if isinstance(entry, FrameEntry)
+    ]
+
+
+def test_mcap_and_jsonl_hold_the_same_session(make_recording: MakeRecording) -> None:
+    mcap_entries = list(read_entries(make_recording("dive.mcap").path))
+    jsonl_entries = list(read_entries(make_recording("dive.jsonl").path))
+    # Two runs of the same program against the same seed: the same frames in the same order.
+    assert _frames(mcap_entries) == _frames(jsonl_entries)
+    frames = _frames(mcap_entries)
+    assert ("out", "start", (), None) in frames
+    assert ("out", "th", (90, 20), None) in frames
+    answers = [frame for frame in frames if frame[0] == "in"]
+    assert answers and all(frame[3] is not None for frame in answers)
+    assert {frame[3] for frame in answers} >= {"qsa", "qd", "q.l"}
+
+
+def test_a_recording_reads_back_exactly_as_written(make_recording: MakeRecording) -> None:
+    recorder = make_recording("dive.jsonl")
+    entries = list(read_entries(recorder.path))
+    assert len(entries) == recorder.entries_written
+    assert isinstance(entries[0], HeaderEntry) and entries[0].url == "sim://?seed=1"
+    # The wire holds every byte both ways, the readiness probe included.
+    sent = b"".join(e.data for e in entries if isinstance(e, WireEntry) and e.direction == "out")
+    received = b"".join(e.data for e in entries if isinstance(e, WireEntry) and e.direction == "in")
+    assert sent.startswith(b"#crcoff!#qd!")
+    assert b"#th.90.20!" in sent and sent.endswith(b"#stop!")
+    assert received.count(b"$qhe.") == 5
+    times = [entry.t_s for entry in entries]
+    assert times == sorted(times)
+    locks = [e.detail for e in entries if isinstance(e, EventEntry) and e.event == "lock"]
+    assert locks == ["unlocked", "locked"]
+    last = [e for e in entries if isinstance(e, TelemetryEntry)][-1].values
+    assert last["setpoint_cm"] == 40 and last["locked"] == 1 and last["leak"] == 0
+    assert last["thrust_power_percent"] == 0  # stop: the thrust the controller applies
+
+
+def test_mcap_is_valid_for_the_mcap_library(make_recording: MakeRecording) -> None:
+    recorder = make_recording("dive.mcap")
+    with open(recorder.path, "rb") as stream:
+        reader = make_reader(stream)
+        summary = reader.get_summary()
+        assert summary is not None and summary.statistics is not None
+        topics = {channel.topic for channel in summary.channels.values()}
+        assert topics == {f"/rovlink/{name}" for name in CHANNELS}
+        schemas = {schema.name: json.loads(schema.data) for schema in summary.schemas.values()}
+        assert {schema.encoding for schema in summary.schemas.values()} == {"jsonschema"}
+        assert set(schemas["rovlink.Telemetry"]["properties"]) >= set(TELEMETRY_FIELDS)
+        assert summary.statistics.message_count == recorder.entries_written
+        assert summary.chunk_indexes  # chunked and indexed
+        counted = sum(1 for _ in reader.iter_messages())
+    assert counted == recorder.entries_written
+
+
+def test_csv_is_the_telemetry_table_pandas_reads(make_recording: MakeRecording) -> None:
+    pandas = pytest.importorskip("pandas", reason="pandas is in the test extra")
+    recorder = make_recording("dive.csv")
+    table = pandas.read_csv(recorder.path)
+    assert list(table.columns) == ["t_s", "wall_time", *TELEMETRY_FIELDS]
+    assert len(table) == sum(
+        isinstance(entry, TelemetryEntry) for entry in read_entries(recorder.path)
+    )
+    assert table["setpoint_cm"].dropna().iloc[-1] == 40
+    assert table["t_s"].is_monotonic_increasing
+    assert pandas.to_datetime(table["wall_time"]).notna().all()
+
+
+def test_bin_is_the_raw_wire_that_decode_reads(
+    make_recording: MakeRecording, tmp_path: Path
+) -> None:
+    bin_recorder = make_recording("dive.bin")
+    raw = Path(bin_recorder.path).read_bytes()
+    assert raw.startswith(b"#crcoff!#qd!") and raw.endswith(b"#stop!")
+    assert raw.count(b"$qd.") == 1 + 5 + 5  # the probe, five qsa, five qd
+
+
+def test_unknown_suffix_is_refused_with_the_known_ones() -> None:
+    with pytest.raises(ValueError, match=r"dive\.txt: unknown recording format '\.txt'"):
+        format_of("dive.txt")
+
+
+def test_telemetry_columns_come_from_the_command_table() -> None:
+    responses = {spec.name: spec for spec in RESPONSES}
+    commands = {spec.name: spec for spec in COMMANDS}
+    for name, columns in RESPONSE_COLUMNS.items():
+        assert len(columns) == len(responses[name].arguments)
+    for name, columns in COMMAND_COLUMNS.items():
+        assert len(columns) == len(commands[name].arguments)
+    used = {c for cs in (*RESPONSE_COLUMNS.values(), *COMMAND_COLUMNS.values()) for c in cs}
+    assert used | {"locked"} == set(TELEMETRY_FIELDS)
