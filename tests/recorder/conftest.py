@@ -31,9 +31,9 @@ def make_recording(tmp_path: Path) -> MakeRecording:
 
     def make(name: str) -> Recorder:
         path = str(tmp_path / name)
-        with Recorder(path, url="sim://?seed=1") as recorder:
-            with rovlink.connect("sim://?seed=1", on_event=recorder.on_event) as rov:
-                drive_a_short_dive(rov)
+        recorder = Recorder(path, url="sim://?seed=1")
+        with recorder, rovlink.connect("sim://?seed=1", on_event=recorder.on_event) as rov:
+            drive_a_short_dive(rov)
         return recorder
 
     return make

@@ -16,8 +16,9 @@ import pytest
 
 import rovlink
 from rovlink.recorder import (
+    Entry,
     Recorder,
-    RecordingDamaged,
+    RecordingDamagedError,
     RecordingError,
     WireEntry,
     read_entries,
@@ -41,12 +42,12 @@ _FEEDER = textwrap.dedent(
 )
 
 
-def _read_all(path: str) -> tuple[list, RecordingDamaged | None]:
-    entries = []
+def _read_all(path: str) -> tuple[list[Entry], RecordingDamagedError | None]:
+    entries: list[Entry] = []
     try:
         for entry in read_entries(path):
             entries.append(entry)
-    except RecordingDamaged as error:
+    except RecordingDamagedError as error:
         return entries, error
     return entries, None
 
@@ -68,27 +69,30 @@ def test_sigkill_leaves_everything_but_the_last_second(tmp_path: Path, suffix: s
     process.wait(timeout=10)
     entries, damage = _read_all(path)
     if suffix == ".mcap":  # it has an index at its end, which is missing
-        assert damage is not None and damage.incomplete, damage
+        assert damage is not None
+        assert damage.incomplete
         assert "ends early" in str(damage)
     else:  # JSON lines end at any line: at worst a cut last line
         assert damage is None or damage.incomplete
     wire = [entry for entry in entries if isinstance(entry, WireEntry)]
-    assert wire and wire[0].t_s == pytest.approx(first)
+    assert wire
+    assert wire[0].t_s == pytest.approx(first)
     # Flushed every second: at most the last second (plus a loaded machine's lag) is lost.
     assert wire[-1].t_s >= last - 2.0
 
 
 def test_a_truncated_mcap_is_read_up_to_the_cut(tmp_path: Path) -> None:
     path = str(tmp_path / "dive.mcap")
-    with Recorder(path) as recorder:  # several one-second chunks
-        with rovlink.connect("sim://?seed=1", on_event=recorder.on_event) as rov:
-            deadline = time.monotonic() + 3.5
-            while time.monotonic() < deadline:
-                rov.sensors()
+    recorder = Recorder(path)  # several one-second chunks
+    with recorder, rovlink.connect("sim://?seed=1", on_event=recorder.on_event) as rov:
+        deadline = time.monotonic() + 3.5
+        while time.monotonic() < deadline:
+            rov.sensors()
     whole = Path(path).read_bytes()
     Path(path).write_bytes(whole[: len(whole) // 2])
     entries, damage = _read_all(path)
-    assert damage is not None and damage.incomplete
+    assert damage is not None
+    assert damage.incomplete
     assert path in str(damage)
     assert 0 < len(entries) == damage.entries_read < recorder.entries_written
 
@@ -99,8 +103,10 @@ def test_a_corrupted_jsonl_line_is_named(make_recording: MakeRecording) -> None:
     lines[10] = b'{"channel": "frames", "t_s": "soon"}\n'
     Path(recorder.path).write_bytes(b"".join(lines))
     entries, damage = _read_all(recorder.path)
-    assert damage is not None and not damage.incomplete
-    assert "line 11 is damaged" in str(damage) and recorder.path in str(damage)
+    assert damage is not None
+    assert not damage.incomplete
+    assert "line 11 is damaged" in str(damage)
+    assert recorder.path in str(damage)
     assert len(entries) == 10
 
 
@@ -110,7 +116,7 @@ def test_a_foreign_file_is_refused_by_name(tmp_path: Path, name: str) -> None:
     path.write_bytes(b"PK\x03\x04 this is a zip file, not a recording\n")
     with pytest.raises(RecordingError, match=name) as caught:
         list(read_entries(str(path)))
-    assert not isinstance(caught.value, RecordingDamaged)
+    assert not isinstance(caught.value, RecordingDamagedError)
 
 
 def test_a_missing_file_is_named(tmp_path: Path) -> None:
@@ -130,13 +136,15 @@ def test_a_full_disk_stops_the_recording_not_the_link(tmp_path: Path) -> None:
             depths.append(rov.depth_cm())
         depths.extend(rov.depth_cm() for _ in range(20))  # the link goes on after the failure
     recorder.close()
-    assert failures and "No space left on device" in failures[0]
-    assert recorder.error == failures[0] and str(path) in failures[0]
+    assert failures
+    assert "No space left on device" in failures[0]
+    assert recorder.error == failures[0]
+    assert str(path) in failures[0]
     assert len(depths) > 20
 
 
 def test_an_unwritable_path_fails_at_once(tmp_path: Path) -> None:
-    with pytest.raises(OSError):
+    with pytest.raises(FileNotFoundError):
         Recorder(str(tmp_path / "no-such-directory" / "dive.mcap"))
 
 

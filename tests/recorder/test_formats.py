@@ -11,6 +11,7 @@ from mcap.reader import make_reader
 
 from rovlink.protocol import COMMANDS, RESPONSES
 from rovlink.recorder import (
+    Entry,
     EventEntry,
     FrameEntry,
     HeaderEntry,
@@ -24,7 +25,7 @@ from rovlink.recorder.telemetry import COMMAND_COLUMNS, RESPONSE_COLUMNS
 from tests.recorder.conftest import MakeRecording
 
 
-def _frames(entries: list) -> list[tuple[str, str, tuple[int, ...], str | None]]:
+def _frames(entries: list[Entry]) -> list[tuple[str, str, tuple[int, ...], str | None]]:
     return [
         (entry.direction, entry.name, entry.values, entry.query)
         for entry in entries
@@ -41,7 +42,8 @@ def test_mcap_and_jsonl_hold_the_same_session(make_recording: MakeRecording) -> 
     assert ("out", "start", (), None) in frames
     assert ("out", "th", (90, 20), None) in frames
     answers = [frame for frame in frames if frame[0] == "in"]
-    assert answers and all(frame[3] is not None for frame in answers)
+    assert answers
+    assert all(frame[3] is not None for frame in answers)
     assert {frame[3] for frame in answers} >= {"qsa", "qd", "q.l"}
 
 
@@ -49,19 +51,23 @@ def test_a_recording_reads_back_exactly_as_written(make_recording: MakeRecording
     recorder = make_recording("dive.jsonl")
     entries = list(read_entries(recorder.path))
     assert len(entries) == recorder.entries_written
-    assert isinstance(entries[0], HeaderEntry) and entries[0].url == "sim://?seed=1"
+    assert isinstance(entries[0], HeaderEntry)
+    assert entries[0].url == "sim://?seed=1"
     # The wire holds every byte both ways, the readiness probe included.
     sent = b"".join(e.data for e in entries if isinstance(e, WireEntry) and e.direction == "out")
     received = b"".join(e.data for e in entries if isinstance(e, WireEntry) and e.direction == "in")
     assert sent.startswith(b"#crcoff!#qd!")
-    assert b"#th.90.20!" in sent and sent.endswith(b"#stop!")
+    assert b"#th.90.20!" in sent
+    assert sent.endswith(b"#stop!")
     assert received.count(b"$qhe.") == 5
     times = [entry.t_s for entry in entries]
     assert times == sorted(times)
     locks = [e.detail for e in entries if isinstance(e, EventEntry) and e.event == "lock"]
     assert locks == ["unlocked", "locked"]
     last = [e for e in entries if isinstance(e, TelemetryEntry)][-1].values
-    assert last["setpoint_cm"] == 40 and last["locked"] == 1 and last["leak"] == 0
+    assert last["setpoint_cm"] == 40
+    assert last["locked"] == 1
+    assert last["leak"] == 0
     assert last["thrust_power_percent"] == 0  # stop: the thrust the controller applies
 
 
@@ -70,7 +76,8 @@ def test_mcap_is_valid_for_the_mcap_library(make_recording: MakeRecording) -> No
     with open(recorder.path, "rb") as stream:
         reader = make_reader(stream)
         summary = reader.get_summary()
-        assert summary is not None and summary.statistics is not None
+        assert summary is not None
+        assert summary.statistics is not None
         topics = {channel.topic for channel in summary.channels.values()}
         assert topics == {f"/rovlink/{name}" for name in CHANNELS}
         schemas = {schema.name: json.loads(schema.data) for schema in summary.schemas.values()}
@@ -100,7 +107,8 @@ def test_bin_is_the_raw_wire_that_decode_reads(
 ) -> None:
     bin_recorder = make_recording("dive.bin")
     raw = Path(bin_recorder.path).read_bytes()
-    assert raw.startswith(b"#crcoff!#qd!") and raw.endswith(b"#stop!")
+    assert raw.startswith(b"#crcoff!#qd!")
+    assert raw.endswith(b"#stop!")
     assert raw.count(b"$qd.") == 1 + 5 + 5  # the probe, five qsa, five qd
 
 

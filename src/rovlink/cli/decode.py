@@ -196,10 +196,10 @@ class _RecordedWire(io.RawIOBase):
 
 def _decode_recording(args: argparse.Namespace, decoder: Decoder) -> int:
     """A recording's wire channel, decoded as a capture; damage is reported after it."""
-    from rovlink.recorder import RecordingDamaged, RecordingError, read_entries  # noqa: PLC0415
+    from rovlink.recorder import RecordingDamagedError, RecordingError, read_entries  # noqa: PLC0415
     from rovlink.recorder.entries import WireEntry  # noqa: PLC0415
 
-    damage: RecordingDamaged | None = None
+    damage: RecordingDamagedError | None = None
 
     def chunks() -> Iterator[bytes]:
         nonlocal damage
@@ -207,7 +207,7 @@ def _decode_recording(args: argparse.Namespace, decoder: Decoder) -> int:
             for entry in read_entries(args.file):
                 if isinstance(entry, WireEntry):
                     yield entry.data
-        except RecordingDamaged as error:
+        except RecordingDamagedError as error:
             damage = error
 
     try:

@@ -38,17 +38,17 @@ def run(args: argparse.Namespace) -> int:
         import matplotlib  # noqa: PLC0415 - the plot extra, only for this command
     except ImportError:
         raise CommandError("plotting needs matplotlib: pip install 'rovlink[plot]'") from None
-    from rovlink.recorder import RecordingDamaged, RecordingError, read_entries  # noqa: PLC0415
+    from rovlink.recorder import RecordingDamagedError, RecordingError, read_entries  # noqa: PLC0415
     from rovlink.recorder.plot import FIGURE_SIZE_IN, plot_dive  # noqa: PLC0415
 
     if not args.show:
         matplotlib.use("Agg")
     entries = []
-    damage: RecordingDamaged | None = None
+    damage: RecordingDamagedError | None = None
     try:
         for entry in read_entries(args.file):
             entries.append(entry)
-    except RecordingDamaged as error:
+    except RecordingDamagedError as error:
         damage = error
     except RecordingError as error:
         raise CommandError(str(error)) from None
@@ -58,7 +58,7 @@ def run(args: argparse.Namespace) -> int:
         raise CommandError(f"{args.file} has no telemetry to plot (a raw capture?)")
     window = None
     if args.show:
-        import matplotlib.pyplot as pyplot  # noqa: PLC0415
+        from matplotlib import pyplot  # noqa: PLC0415
 
         window = pyplot.figure(figsize=FIGURE_SIZE_IN, layout="constrained")
     figure = plot_dive(entries, title=os.path.basename(args.file), figure=window)

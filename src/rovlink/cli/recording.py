@@ -94,7 +94,7 @@ def add_record_options(parser: argparse.ArgumentParser) -> None:
 def open_recorder(args: argparse.Namespace, path: str, *, url: str, program: str) -> Recorder:
     """A recorder on ``path`` with the command's options; a failure while recording is printed
     as one line and never stops the link."""
-    from rovlink.recorder import Recorder, format_of  # noqa: PLC0415 - only when recording
+    from rovlink.recorder import Recorder, RecordingError, format_of  # noqa: PLC0415
 
     try:
         format_of(path)
@@ -117,6 +117,8 @@ def open_recorder(args: argparse.Namespace, path: str, *, url: str, program: str
         )
     except OSError as error:
         raise CommandError(f"cannot record to {path}: {error.strerror}") from None
+    except RecordingError as error:
+        raise CommandError(str(error)) from None
 
 
 def report_recording(recorder: Recorder, elapsed_s: float) -> None:

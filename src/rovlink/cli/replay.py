@@ -76,11 +76,11 @@ class _Damage:
         self.error: Exception | None = None
 
     def entries(self, path: str) -> Iterator[Entry]:
-        from rovlink.recorder import RecordingDamaged, read_entries  # noqa: PLC0415
+        from rovlink.recorder import RecordingDamagedError, read_entries  # noqa: PLC0415
 
         try:
             yield from read_entries(path)
-        except RecordingDamaged as error:
+        except RecordingDamagedError as error:
             self.error = error
 
 
@@ -170,7 +170,11 @@ def run(args: argparse.Namespace) -> int:
     _check_kind(args.file)
     damage = _Damage()
     try:
-        status = _replay_to(args, damage) if args.to else _print_session(args, damage) or 0
+        if args.to:
+            status = _replay_to(args, damage)
+        else:
+            _print_session(args, damage)
+            status = 0
     except RecordingError as error:
         raise CommandError(str(error)) from None
     except BrokenPipeError:

@@ -20,7 +20,7 @@ from rovlink.recorder.entries import (
 )
 from rovlink.recorder.formats import FORMATS, format_of, read_entries
 from rovlink.recorder.recorder import Recorder, rotated_path
-from rovlink.recorder.sink import RecordingDamaged, RecordingError
+from rovlink.recorder.sink import RecordingDamagedError, RecordingError
 
 __all__ = [
     "FORMATS",
@@ -30,7 +30,7 @@ __all__ = [
     "FrameEntry",
     "HeaderEntry",
     "Recorder",
-    "RecordingDamaged",
+    "RecordingDamagedError",
     "RecordingError",
     "TelemetryEntry",
     "WireEntry",

@@ -3,7 +3,7 @@ ones: how a firmware author checks a new build against last week's dive.
 
 The program's own commands are replayed (not the driver's keep-alives, retries and fences: the
 replaying driver makes its own) at their recorded times. Each query's replies are compared value
-by value with the recorded replies, within ``tolerance``.
+by value with the recorded replies, within ``tolerance`` (flags such as the leak latch exactly).
 """
 
 from __future__ import annotations
@@ -107,11 +107,13 @@ def _same(
         return recorded is None and replayed is None
     if [r.name for r in recorded] != [r.name for r in replayed]:
         return False
-    return all(
-        abs(a - b) <= tolerance
-        for old, new in zip(recorded, replayed, strict=True)
-        for a, b in zip(old.values, new.values, strict=True)
-    )
+    for old, new in zip(recorded, replayed, strict=True):
+        for argument, a, b in zip(old.spec.arguments, old.values, new.values, strict=True):
+            # A flag (the leak latch) is on or off: no tolerance makes 0 and 1 the same.
+            allowed = tolerance if argument.maximum - argument.minimum > 1 else 0
+            if abs(a - b) > allowed:
+                return False
+    return True
 
 
 def run_replay(

@@ -13,7 +13,7 @@ from collections.abc import Iterator
 from datetime import datetime, timezone
 
 from rovlink.recorder.entries import TELEMETRY_FIELDS, Entry, TelemetryEntry
-from rovlink.recorder.sink import FileSink, RecordingDamaged, RecordingError
+from rovlink.recorder.sink import FileSink, RecordingDamagedError, RecordingError
 
 __all__ = ["HEADER", "TelemetryCsvSink", "read_csv"]
 
@@ -81,7 +81,7 @@ def read_csv(path: str) -> Iterator[Entry]:
                 }
                 entry = TelemetryEntry(float(row[0]), int(wall.timestamp() * 1e9), values)
             except ValueError as error:
-                raise RecordingDamaged(
+                raise RecordingDamagedError(
                     f"{path}: row {rows.line_num} is damaged or cut short ({error}); "
                     f"read {count} rows before it",
                     entries_read=count,

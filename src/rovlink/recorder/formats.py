@@ -23,7 +23,7 @@ from typing import cast
 from rovlink.recorder.entries import Entry
 from rovlink.recorder.sink import RecordingError, Sink
 
-__all__ = ["FORMATS", "Format", "format_of", "open_sink", "read_entries"]
+__all__ = ["FORMATS", "Format", "MissingLibraryError", "format_of", "open_sink", "read_entries"]
 
 
 @dataclass(frozen=True)
@@ -77,21 +77,35 @@ def format_of(path: str) -> Format:
     return found
 
 
+class MissingLibraryError(RecordingError):
+    """A format whose library is not installed (``.mcap`` needs the ``record`` extra)."""
+
+
+def _module(kind: Format) -> object:
+    try:
+        return importlib.import_module(kind.module)
+    except ModuleNotFoundError as error:
+        raise MissingLibraryError(
+            f"{kind.suffix} recordings need the {error.name} library: pip install 'rovlink[record]'"
+        ) from None
+
+
 def open_sink(path: str) -> Sink:
-    """A sink writing ``path`` in the format of its suffix (OSError if it cannot be created)."""
+    """A sink writing ``path`` in the format of its suffix (OSError if it cannot be created,
+    :class:`MissingLibraryError` if its library is not installed)."""
     kind = format_of(path)
-    sink_class = getattr(importlib.import_module(kind.module), kind.sink)
+    sink_class = getattr(_module(kind), kind.sink)
     return cast(Sink, sink_class(path))
 
 
 def read_entries(path: str) -> Iterator[Entry]:
     """The entries of the recording at ``path`` (:class:`RecordingError` if none can be read;
-    ends with :class:`~rovlink.recorder.sink.RecordingDamaged` at damage)."""
+    ends with :class:`~rovlink.recorder.sink.RecordingDamagedError` at damage)."""
     try:
         kind = format_of(path)
     except ValueError as error:
         raise RecordingError(str(error)) from None
     if os.path.isdir(path):
         raise RecordingError(f"{path}: is a directory")
-    reader = getattr(importlib.import_module(kind.module), kind.reader)
+    reader = getattr(_module(kind), kind.reader)
     return cast(Iterator[Entry], reader(path))

@@ -10,7 +10,7 @@ import json
 from collections.abc import Iterator
 
 from rovlink.recorder.entries import Entry, EntryError, entry_from_json
-from rovlink.recorder.sink import FileSink, RecordingDamaged, RecordingError
+from rovlink.recorder.sink import FileSink, RecordingDamagedError, RecordingError
 
 __all__ = ["JsonLinesSink", "read_jsonl"]
 
@@ -42,13 +42,13 @@ def read_jsonl(path: str) -> Iterator[Entry]:
                 if number == 1:
                     raise RecordingError(f"{path}: not a rovlink JSON-lines recording") from None
                 if not complete:
-                    raise RecordingDamaged(
+                    raise RecordingDamagedError(
                         f"{path}: ends in the middle of line {number} (the recording was cut "
                         f"short); read {count} entries before it",
                         entries_read=count,
                         incomplete=True,
                     ) from None
-                raise RecordingDamaged(
+                raise RecordingDamagedError(
                     f"{path}: line {number} is damaged ({error}); read {count} entries before it",
                     entries_read=count,
                     incomplete=False,

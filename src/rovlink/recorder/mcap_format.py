@@ -19,7 +19,7 @@ from mcap.writer import Writer
 
 import rovlink
 from rovlink.recorder.entries import CHANNELS, Entry, EntryError, entry_from_json
-from rovlink.recorder.sink import FileSink, RecordingDamaged, RecordingError
+from rovlink.recorder.sink import FileSink, RecordingDamagedError, RecordingError
 
 __all__ = ["PROFILE", "TOPIC_PREFIX", "McapSink", "read_mcap"]
 
@@ -59,12 +59,12 @@ class McapSink(FileSink):
         )
 
     def flush(self) -> None:
-        self._writer.flush()  # the chunk in progress is closed and written
+        self._writer.flush()  # type: ignore[no-untyped-call] # the chunk in progress is written
         super().flush()
 
     def close(self) -> None:
         if not self._file.closed:
-            self._writer.finish()
+            self._writer.finish()  # type: ignore[no-untyped-call]
             super().close()
 
 
@@ -95,7 +95,7 @@ def read_mcap(path: str) -> Iterator[Entry]:
                 try:
                     entry = entry_from_json(channels[record.channel_id], json.loads(record.data))
                 except (ValueError, EntryError) as error:
-                    raise RecordingDamaged(
+                    raise RecordingDamagedError(
                         f"{path}: message {count + 1} is damaged ({error}); read {count} "
                         "entries before it",
                         entries_read=count,
@@ -105,16 +105,16 @@ def read_mcap(path: str) -> Iterator[Entry]:
                 yield entry
 
 
-def _damage(path: str, error: Exception, count: int) -> RecordingDamaged:
+def _damage(path: str, error: Exception, count: int) -> RecordingDamagedError:
     name = type(error).__name__
     if name == "EndOfFile" or isinstance(error, EOFError):
-        return RecordingDamaged(
+        return RecordingDamagedError(
             f"{path}: the recording ends early, without its index (its recorder was stopped "
             f"abruptly); read {count} entries",
             entries_read=count,
             incomplete=True,
         )
-    return RecordingDamaged(
+    return RecordingDamagedError(
         f"{path}: damaged after {count} entries ({name}: {error})",
         entries_read=count,
         incomplete=False,

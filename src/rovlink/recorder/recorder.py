@@ -12,6 +12,7 @@ writes them on its own thread, so that recording never slows or stops the robot'
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import os
 import threading
@@ -233,9 +234,7 @@ class Recorder:
         logger.error("%s (the link goes on)", self.error)
         sink, self._sink = self._sink, None
         if sink is not None:
-            try:
+            with contextlib.suppress(OSError):  # the file is as good as the disk let it be
                 sink.close()
-            except OSError:
-                pass  # the file is as good as the disk let it be
         if self._on_failure is not None:
             self._on_failure(self.error)

@@ -3,7 +3,7 @@
 A format is chosen by the file's suffix (:mod:`rovlink.recorder.formats`), as python-can chooses
 its loggers. A sink writes entries in the order given; :meth:`Sink.flush` makes everything
 written so far durable (on disk, through a power cut), which the recorder does every second.
-A reader yields the entries it can read and ends with :class:`RecordingDamaged` if the file is
+A reader yields the entries it can read and ends with :class:`RecordingDamagedError` if the file is
 cut short or damaged, after everything readable before the damage.
 """
 
@@ -15,14 +15,14 @@ from typing import BinaryIO, Protocol
 
 from rovlink.recorder.entries import Entry
 
-__all__ = ["FileSink", "RecordingDamaged", "RecordingError", "Sink", "Reader"]
+__all__ = ["FileSink", "Reader", "RecordingDamagedError", "RecordingError", "Sink"]
 
 
 class RecordingError(Exception):
     """A recording that cannot be read at all: missing, unreadable, or not a recording."""
 
 
-class RecordingDamaged(RecordingError):
+class RecordingDamagedError(RecordingError):
     """A recording readable up to a point: ``entries_read`` entries came before the damage.
 
     ``incomplete`` is true when the file merely ends early (its recorder was killed or lost
@@ -53,7 +53,7 @@ class Sink(Protocol):
 
 class Reader(Protocol):
     """Reads a recording's entries in order (raises :class:`RecordingError` or ends with
-    :class:`RecordingDamaged`)."""
+    :class:`RecordingDamagedError`)."""
 
     def __call__(self, path: str) -> Iterator[Entry]: ...
 

@@ -1,0 +1,199 @@
+"""``rovlink record`` as a tap between a program and a controller, ``--record`` on a driving
+command, ``rovlink replay`` (printing, and resending to a controller), ``rovlink plot`` and
+``rovlink decode`` of a recording."""
+
+from __future__ import annotations
+
+import os
+import signal
+import socket
+import struct
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+import rovlink
+from rovlink.recorder import FrameEntry, Recorder, read_entries
+from tests.cli.conftest import RunCli
+from tests.client.sim_process import running_sim
+
+_SRC = str(Path(__file__).resolve().parents[2] / "src")
+
+
+def _free_port() -> int:
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        return int(probe.getsockname()[1])
+
+
+def _wait_for_port(port: int, timeout_s: float = 20.0) -> None:
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        try:
+            socket.create_connection(("127.0.0.1", port), timeout=0.5).close()
+            return
+        except OSError:
+            time.sleep(0.05)
+    raise AssertionError(f"nothing listens on {port}")
+
+
+@pytest.mark.integration
+def test_record_taps_a_program_and_a_controller(tmp_path: Path) -> None:
+    output = tmp_path / "tapped.mcap"
+    tap_port = _free_port()
+    with running_sim("--tcp", "127.0.0.1:0", "--seed", "1", "--watchdog", "0") as sim:
+        assert sim.tcp_url is not None
+        recorder = subprocess.Popen(
+            [
+                sys.executable,
+                "-c",
+                "from rovlink.cli import main; main()",
+                "record",
+                sim.tcp_url,
+                "-o",
+                str(output),
+                "--tap",
+                f"socket://127.0.0.1:{tap_port}",
+            ],
+            env={**os.environ, "PYTHONPATH": _SRC},
+            stderr=subprocess.PIPE,
+            text=True,
+        )
+        try:
+            _wait_for_port(tap_port)
+            with rovlink.connect(f"socket://127.0.0.1:{tap_port}") as rov:
+                rov.start()
+                rov.hold_depth(30)
+                readings = [rov.sensors() for _ in range(3)]
+                rov.stop()
+        finally:
+            recorder.send_signal(signal.SIGTERM)
+            _, err = recorder.communicate(timeout=20)
+    assert recorder.returncode == 0, err
+    assert "recorded" in err
+    frames = [entry for entry in read_entries(str(output)) if isinstance(entry, FrameEntry)]
+    sent = [frame.name for frame in frames if frame.direction == "out"]
+    assert sent[-5:] == ["qsa", "qsa", "qsa", "stop"][-4:] or "stop" in sent
+    assert {"start", "mvd", "qsa", "stop"} <= set(sent)
+    answers = [frame for frame in frames if frame.direction == "in" and frame.query == "qsa"]
+    assert len(answers) >= 18  # six replies to each qsa, matched by the tap itself
+    recorded_depths = [frame.values[0] for frame in answers if frame.name == "qd"][-3:]
+    assert recorded_depths == [reading.depth_cm for reading in readings]
+
+
+def test_record_option_on_send_records_the_session(run_cli: RunCli, tmp_path: Path) -> None:
+    output = tmp_path / "send.jsonl"
+    result = run_cli("send", "sim://?seed=2", "--record", str(output), "start", "qd", "stop")
+    assert result.status == 0, result.err
+    assert f"to {output}" in result.err
+    names = [(e.direction, e.name) for e in read_entries(str(output)) if isinstance(e, FrameEntry)]
+    assert ("out", "start") in names and ("in", "qd") in names and names[-1] == ("out", "stop")
+
+
+def test_record_option_refuses_an_unknown_format(run_cli: RunCli, tmp_path: Path) -> None:
+    result = run_cli("send", "sim://", "--record", str(tmp_path / "x.txt"), "qd")
+    assert result.status == 2
+    assert "unknown recording format '.txt'" in result.err
+
+
+def _record(path: Path, url: str = "sim://?seed=4") -> None:
+    recorder = Recorder(str(path), url=url)
+    with recorder, rovlink.connect(url, on_event=recorder.on_event) as rov:
+        rov.start()
+        rov.hold_depth(30)
+        for _ in range(8):
+            rov.sensors()
+            time.sleep(0.05)
+        rov.stop()
+
+
+def test_replay_prints_the_session(run_cli: RunCli, tmp_path: Path) -> None:
+    path = tmp_path / "dive.mcap"
+    _record(path)
+    result = run_cli("replay", str(path))
+    assert result.status == 0, result.err
+    lines = result.out.splitlines()
+    assert "rovlink" in lines[0] and "sim://?seed=4" in lines[0]
+    assert any(line.endswith("out  #mvd.30!") for line in lines)
+    assert any("$qd." in line and "(answers qsa, " in line for line in lines)
+    assert any("lock start: unlocked" in line for line in lines)
+    wire = run_cli("replay", str(path), "--wire").out
+    assert ">>   b'#crcoff!#qd!'" in wire
+
+
+def test_replay_into_the_same_simulator_reproduces_the_replies(
+    run_cli: RunCli, tmp_path: Path
+) -> None:
+    path = tmp_path / "dive.mcap"
+    _record(path)
+    # A real-time simulator: a command may land one control tick earlier or later than it
+    # did, which moves a value by a unit or two while the robot moves.
+    result = run_cli("replay", str(path), "--to", "sim://?seed=4", "--tolerance", "3")
+    assert result.status == 0, result.out
+    assert "8 queries compared: 8 as recorded, 0 different" in result.out
+
+
+def test_replay_into_a_changed_controller_shows_what_changed(
+    run_cli: RunCli, tmp_path: Path
+) -> None:
+    path = tmp_path / "dive.mcap"
+    _record(path)
+    result = run_cli("replay", str(path), "--to", "sim://?seed=4&leak_at=0", "--tolerance", "3")
+    assert result.status == 1
+    assert "qsa: recorded $q.l.0!, now $q.l.1!" in result.out
+    assert "different" in result.out
+
+
+def test_replay_reports_damage_after_what_it_read(run_cli: RunCli, tmp_path: Path) -> None:
+    path = tmp_path / "dive.jsonl"
+    _record(path)
+    lines = path.read_bytes().splitlines(keepends=True)
+    path.write_bytes(b"".join(lines[:20]) + b"not json\n" + b"".join(lines[20:]))
+    result = run_cli("replay", str(path))
+    assert result.status == 1
+    assert len(result.out.splitlines()) > 5
+    assert f"{path}: line 21 is damaged" in result.err
+
+
+def test_replay_of_a_foreign_file_is_one_clear_line(run_cli: RunCli, tmp_path: Path) -> None:
+    path = tmp_path / "photo.mcap"
+    path.write_bytes(b"\x89PNG\r\n\x1a\n not a recording")
+    result = run_cli("replay", str(path))
+    assert result.status == 1
+    assert (
+        result.err.strip()
+        == f"rovlink replay: {path}: not an MCAP recording ("
+        + (result.err.strip().split("not an MCAP recording (", 1)[1])
+    )
+
+
+def test_plot_writes_a_png_of_the_expected_size(run_cli: RunCli, tmp_path: Path) -> None:
+    pytest.importorskip("matplotlib", reason="matplotlib is in the test extra (plot)")
+    path = tmp_path / "dive.mcap"
+    _record(path)
+    image = tmp_path / "dive.png"
+    result = run_cli("plot", str(path), "-o", str(image))
+    assert result.status == 0, result.err
+    header = image.read_bytes()[:24]
+    assert header[:8] == b"\x89PNG\r\n\x1a\n"
+    width, height = struct.unpack(">II", header[16:24])
+    assert (width, height) == (1200, 1100)
+
+
+def test_plot_of_a_raw_capture_says_there_is_no_telemetry(run_cli: RunCli, tmp_path: Path) -> None:
+    path = tmp_path / "wire.bin"
+    path.write_bytes(b"#qd!$qd.1!")
+    result = run_cli("plot", str(path), "-o", str(tmp_path / "x.png"))
+    assert result.status == 1
+    assert "has no telemetry to plot" in result.err
+
+
+def test_decode_reads_a_recordings_wire(run_cli: RunCli, tmp_path: Path) -> None:
+    path = tmp_path / "dive.mcap"
+    _record(path)
+    result = run_cli("decode", str(path), "--stats")
+    assert result.status == 0, result.err
+    assert '"qsa": 8' in result.out
