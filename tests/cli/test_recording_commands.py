@@ -90,7 +90,9 @@ def test_record_option_on_send_records_the_session(run_cli: RunCli, tmp_path: Pa
     assert result.status == 0, result.err
     assert f"to {output}" in result.err
     names = [(e.direction, e.name) for e in read_entries(str(output)) if isinstance(e, FrameEntry)]
-    assert ("out", "start") in names and ("in", "qd") in names and names[-1] == ("out", "stop")
+    assert ("out", "start") in names
+    assert ("in", "qd") in names
+    assert names[-1] == ("out", "stop")
 
 
 def test_record_option_refuses_an_unknown_format(run_cli: RunCli, tmp_path: Path) -> None:
@@ -116,7 +118,8 @@ def test_replay_prints_the_session(run_cli: RunCli, tmp_path: Path) -> None:
     result = run_cli("replay", str(path))
     assert result.status == 0, result.err
     lines = result.out.splitlines()
-    assert "rovlink" in lines[0] and "sim://?seed=4" in lines[0]
+    assert "rovlink" in lines[0]
+    assert "sim://?seed=4" in lines[0]
     assert any(line.endswith("out  #mvd.30!") for line in lines)
     assert any("$qd." in line and "(answers qsa, " in line for line in lines)
     assert any("lock start: unlocked" in line for line in lines)
