@@ -2,26 +2,33 @@
 
     python bench/recorder.py [--rounds 7] [--block 300] [--hour-s 3600] [--format .mcap]
 
-1. Round trip: ``depth_cm()`` through the blocking driver against ``fast_controller.c`` (a C
-   controller on TCP that answers at once), recording off and recording on to a temporary
-   ``.mcap``, in alternating blocks so that load from elsewhere hits both alike. Printed: the
-   wall-clock and CPU time per query each way and the ratio on/off (target: ≤ 1.05).
+1. Round trip: ``depth_cm()`` through the blocking driver, recording off and recording on to a
+   temporary ``.mcap``, in alternating blocks so that load from elsewhere hits both alike,
+   against two controllers: ``rovlink sim --tcp`` (the simulated controller in its own process,
+   a realistic round trip) and ``fast_controller.c`` (a C controller that answers at once: the
+   worst case, where nothing but the host's own work is timed). Printed: the wall-clock and CPU
+   time per query each way and the ratio on/off (target: ≤ 1.05).
 2. A saturated 1 Mbaud line: 100 kB/s of reply frames handed to the recorder for ten seconds in
    real time. Printed: items dropped (target 0), the deepest the queue got, the file's size.
-3. An hour of 10 Hz telemetry (``qsa`` every 100 ms, every byte both ways), fed as fast as the
-   writer takes it. Printed: the file's size per format and the process's peak memory at 10 %
-   and at 100 % of the hour (flat: the recorder keeps nothing but its queue).
+3. An hour of 10 Hz telemetry (``qsa`` every 100 ms, every byte both ways, the depth changing
+   at every reply), fed as fast as the writer takes it, each format in a fresh process.
+   Printed: the file's size per format and the process's peak memory at 10 % and at 100 % of
+   the hour (flat: the recorder keeps nothing but its queue).
 """
 
 from __future__ import annotations
 
 import argparse
 import os
+import re
 import resource
 import statistics
+import subprocess
 import sys
 import tempfile
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 
 import rovlink
 from fast_controller import NoCompilerError, running_fast_controller
@@ -32,9 +39,8 @@ from rovlink.recorder import Recorder
 TARGET_RATIO = 1.05
 _QSA = Command("qsa")
 _QSA_BYTES = b"#qsa!"
-_REPLY_BYTES = b"$qd.123!$qr.512!$q.l.0!$qro.-3!$qpi.+2!$qhe.271!"
+_REPLY_BYTES = b"$qr.512!$q.l.0!$qro.-3!$qpi.+2!$qhe.271!"
 _REPLIES = (
-    Response("qd", (123,)),
     Response("qr", (512,)),
     Response("q.l", (0,)),
     Response("qro", (-3,)),
@@ -50,21 +56,40 @@ def _block(rov: rovlink.Client, count: int) -> tuple[float, float]:
     return time.perf_counter() - wall, time.process_time() - cpu
 
 
-def round_trip(rounds: int, block: int, directory: str) -> None:
-    """Part 1: the driver's round trip with recording off and on."""
-    with running_fast_controller() as controller:
-        recorder = Recorder(os.path.join(directory, "round-trip.mcap"), url=controller.url)
-        plain = rovlink.connect(controller.url, keepalive=None)
-        recorded = rovlink.connect(controller.url, keepalive=None, on_event=recorder.on_event)
-        with plain, recorded:
-            _block(plain, 200)
-            _block(recorded, 200)
-            off: list[tuple[float, float]] = []
-            on: list[tuple[float, float]] = []
-            for _ in range(rounds):
-                off.append(_block(plain, block))
-                on.append(_block(recorded, block))
-        recorder.close()
+@contextmanager
+def running_sim_tcp() -> Iterator[str]:
+    """``rovlink sim --tcp`` in its own process; its URL."""
+    process = subprocess.Popen(
+        [sys.executable, "-m", "rovlink", "sim", "--tcp", "127.0.0.1:0", "--watchdog", "0"],
+        stdout=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        assert process.stdout is not None
+        found = re.search(r"tcp ([^\s,]+):(\d+)", process.stdout.readline())
+        assert found, "rovlink sim printed no TCP address"
+        yield f"socket://{found.group(1)}:{found.group(2)}"
+    finally:
+        process.terminate()
+        process.wait()
+
+
+def round_trip(urls: tuple[str, str], label: str, rounds: int, block: int, directory: str) -> None:
+    """Part 1: the driver's round trip with recording off and on (a controller each)."""
+    recorder = Recorder(os.path.join(directory, "round-trip.mcap"), url=urls[1])
+    plain = rovlink.connect(urls[0], keepalive=None, motion_timeout=None)
+    recorded = rovlink.connect(
+        urls[1], keepalive=None, motion_timeout=None, on_event=recorder.on_event
+    )
+    with plain, recorded:
+        _block(plain, 200)
+        _block(recorded, 200)
+        off: list[tuple[float, float]] = []
+        on: list[tuple[float, float]] = []
+        for _ in range(rounds):
+            off.append(_block(plain, block))
+            on.append(_block(recorded, block))
+    recorder.close()
     per_query = 1e6 / block
     wall_off = statistics.median(w for w, _ in off) * per_query
     wall_on = statistics.median(w for w, _ in on) * per_query
@@ -72,8 +97,9 @@ def round_trip(rounds: int, block: int, directory: str) -> None:
     cpu_on = statistics.median(c for _, c in on) * per_query
     ratio = wall_on / wall_off
     verdict = "met" if ratio <= TARGET_RATIO else "NOT met"
-    print(f"round trip, recording off: {wall_off:7.1f} µs wall, {cpu_off:6.1f} µs CPU per query")
-    print(f"round trip, recording on:  {wall_on:7.1f} µs wall, {cpu_on:6.1f} µs CPU per query")
+    print(f"{label}:")
+    print(f"  recording off: {wall_off:7.1f} µs wall, {cpu_off:6.1f} µs CPU per query")
+    print(f"  recording on:  {wall_on:7.1f} µs wall, {cpu_on:6.1f} µs CPU per query")
     print(
         f"  ratio on/off: {ratio:.3f} wall, {cpu_on / cpu_off:.3f} CPU "
         f"(target ≤ {TARGET_RATIO:.2f}: {verdict}; {recorder.dropped} dropped)"
@@ -117,9 +143,13 @@ def hour_of_telemetry(directory: str, hour_s: float, suffix: str) -> None:
     for index in range(1, polls + 1):
         at_s = index * 0.1
         recorder.on_event(BytesSent(at_s, _QSA_BYTES, _QSA))
-        recorder.on_event(BytesReceived(at_s + 0.002, _REPLY_BYTES))
-        recorder.on_event(ReplyReceived(at_s + 0.002, _QSA, _REPLIES))
-        while len(recorder._queue) > 30_000:  # a real link hands over 30 items a second
+        depth_cm = index % 500
+        reply = b"$qd.%d!" % depth_cm + _REPLY_BYTES
+        recorder.on_event(BytesReceived(at_s + 0.002, reply))
+        recorder.on_event(
+            ReplyReceived(at_s + 0.002, _QSA, (Response("qd", (depth_cm,)), *_REPLIES))
+        )
+        while len(recorder._queue) > 1_000:  # a real link hands over 30 items a second
             time.sleep(0.01)
         if index in checkpoints:
             checkpoints[index] = _peak_rss_mb()
@@ -140,16 +170,28 @@ def main() -> int:
     parser.add_argument("--block", type=int, default=300)
     parser.add_argument("--hour-s", type=float, default=3600.0)
     parser.add_argument("--format", action="append", dest="formats")
+    parser.add_argument("--only-hour", action="store_true", help=argparse.SUPPRESS)
     arguments = parser.parse_args()
+    formats = arguments.formats or [".mcap", ".jsonl", ".csv", ".bin"]
     with tempfile.TemporaryDirectory() as directory:
+        if arguments.only_hour:
+            hour_of_telemetry(directory, arguments.hour_s, formats[0])
+            return 0
+        with running_sim_tcp() as first, running_sim_tcp() as second:
+            label = "round trip, rovlink sim --tcp (one process per client)"
+            round_trip((first, second), label, arguments.rounds, 100, directory)
         try:
-            round_trip(arguments.rounds, arguments.block, directory)
+            with running_fast_controller() as controller:
+                label = "round trip, instant C controller"
+                urls = (controller.url, controller.url)  # it serves each connection alike
+                round_trip(urls, label, arguments.rounds, arguments.block, directory)
         except NoCompilerError as error:
             print(f"recorder: {error}", file=sys.stderr)
             return 2
         saturated_line(directory)
-        for suffix in arguments.formats or [".mcap", ".jsonl", ".csv", ".bin"]:
-            hour_of_telemetry(directory, arguments.hour_s, suffix)
+    for suffix in formats:  # each in a fresh process: peak memory is per process
+        command = [sys.executable, __file__, "--only-hour", "--format", suffix]
+        subprocess.run([*command, "--hour-s", str(arguments.hour_s)], check=True)
     return 0
 
 

@@ -4,6 +4,7 @@ CSV as pandas reads it."""
 from __future__ import annotations
 
 import json
+import time
 from pathlib import Path
 
 import pytest
@@ -62,6 +63,11 @@ def test_a_recording_reads_back_exactly_as_written(make_recording: MakeRecording
     assert received.count(b"$qhe.") == 5
     times = [entry.t_s for entry in entries]
     assert times == sorted(times)
+    # The wall clock of each entry is its monotonic time plus the clocks' offset.
+    now_ns = time.time_ns()
+    assert all(now_ns - 60e9 < entry.wall_ns <= now_ns for entry in entries)
+    walls = [entry.wall_ns for entry in entries[1:]]
+    assert walls == sorted(walls)
     locks = [e.detail for e in entries if isinstance(e, EventEntry) and e.event == "lock"]
     assert locks == ["unlocked", "locked"]
     last = [e for e in entries if isinstance(e, TelemetryEntry)][-1].values

@@ -105,7 +105,7 @@ class Recorder:
         self._split_s = split_s
         self._queue_limit = queue_limit
         self._on_failure = on_failure
-        self._queue: deque[tuple[int, ClientEvent | TappedBytes]] = deque()
+        self._queue: deque[ClientEvent | TappedBytes] = deque()
         self._accepting = True
         self._events = ClientEventLog()
         self._tap = TapLog(checksum=checksum, algorithm=algorithm)
@@ -123,17 +123,18 @@ class Recorder:
         if self._accepting:
             queue = self._queue
             if len(queue) < self._queue_limit:
-                queue.append((time.time_ns(), event))
+                queue.append(event)
             else:
                 self.dropped += 1
 
     def on_bytes(self, direction: str, data: bytes, at_s: float | None = None) -> None:
-        """Bytes seen by a tap going ``direction`` (``out``: host to controller)."""
+        """Bytes seen by a tap going ``direction`` (``out``: host to controller), at ``at_s``
+        on :func:`time.monotonic` (default: now)."""
         if self._accepting:
             queue = self._queue
             if len(queue) < self._queue_limit:
                 now_s = time.monotonic() if at_s is None else at_s
-                queue.append((time.time_ns(), TappedBytes(now_s, direction, data)))
+                queue.append(TappedBytes(now_s, direction, data))
             else:
                 self.dropped += 1
 
@@ -182,8 +183,14 @@ class Recorder:
             return
         events, tap = self._events, self._tap
         written = 0
+        # Items carry the driver's monotonic time (``time.monotonic``, which the loop's clock
+        # is too); the wall clock is that plus the clocks' offset, read here rather than per
+        # item on the link's thread. Items wait at most a drain interval, so an adjustment of
+        # the wall clock shifts them by no more than it shifts everything else.
+        offset_ns = time.time_ns() - time.monotonic_ns()
         while queue:
-            wall_ns, item = queue.popleft()
+            item = queue.popleft()
+            wall_ns = int(item.at_s * 1e9) + offset_ns
             if isinstance(item, TappedBytes):
                 entries = tap.entries(item.at_s, wall_ns, item.direction, item.data)
             else:
