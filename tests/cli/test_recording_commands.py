@@ -5,6 +5,7 @@ command, ``rovlink replay`` (printing, and resending to a controller), ``rovlink
 from __future__ import annotations
 
 import os
+import re
 import signal
 import socket
 import struct
@@ -200,3 +201,83 @@ def test_decode_reads_a_recordings_wire(run_cli: RunCli, tmp_path: Path) -> None
     result = run_cli("decode", str(path), "--stats")
     assert result.status == 0, result.err
     assert '"qsa": 8' in result.out
+
+
+@pytest.mark.integration
+def test_record_taps_a_program_through_a_pseudo_terminal(tmp_path: Path) -> None:
+    output = tmp_path / "tapped.jsonl"
+    with running_sim("--tcp", "127.0.0.1:0", "--seed", "1", "--watchdog", "0") as sim:
+        assert sim.tcp_url is not None
+        recorder = subprocess.Popen(
+            [
+                sys.executable,
+                "-c",
+                "from rovlink.cli import main; main()",
+                "record",
+                sim.tcp_url,
+                "-o",
+                str(output),
+                "--tap",
+                "pty",
+            ],
+            env={**os.environ, "PYTHONPATH": _SRC},
+            stderr=subprocess.PIPE,
+            text=True,
+        )
+        try:
+            assert recorder.stderr is not None
+            first_line = recorder.stderr.readline()
+            found = re.search(r"program's side: (\S+);", first_line)
+            assert found, first_line
+            with rovlink.connect(found.group(1)) as rov:
+                depths = [rov.depth_cm() for _ in range(3)]
+                rov.claw_open()
+        finally:
+            recorder.send_signal(signal.SIGTERM)
+            _, err = recorder.communicate(timeout=20)
+    assert recorder.returncode == 0, err
+    entries = list(read_entries(str(output)))
+    frames = [entry for entry in entries if isinstance(entry, FrameEntry)]
+    replies = [frame.values[0] for frame in frames if frame.query == "qd"]
+    assert replies[-3:] == depths
+    assert ("out", "h+") in [(frame.direction, frame.name) for frame in frames]
+
+
+async def test_record_option_on_an_asyncio_tool(tmp_path: Path) -> None:
+    """The console and the monitor connect through ``connect_async``: --record records them."""
+    from rovlink.cli import build_parser, link_options
+
+    output = tmp_path / "console.mcap"
+    args = build_parser("console").parse_args(["console", "sim://?seed=5", "--record", str(output)])
+    args.on_exit = []
+    connect = link_options.connect_async(args)
+    client = await connect(lambda event: None)
+    try:
+        await client.depth_cm()
+        await client.start()
+    finally:
+        await client.close()
+    for finish in args.on_exit:
+        finish()
+    frames = [e for e in read_entries(str(output)) if isinstance(e, FrameEntry)]
+    assert [(f.direction, f.name) for f in frames if not f.by_session][-3:] == [
+        ("out", "qd"),
+        ("in", "qd"),
+        ("out", "start"),
+    ]
+
+
+def test_replay_follows_the_recorded_pace(run_cli: RunCli, tmp_path: Path) -> None:
+    path = tmp_path / "dive.jsonl"
+    _record(path)  # about 0.4 s of queries
+    started = time.monotonic()
+    fast = run_cli("replay", str(path), "--speed", "1000")
+    fast_s = time.monotonic() - started
+    started = time.monotonic()
+    paced = run_cli("replay", str(path), "--follow")
+    paced_s = time.monotonic() - started
+    assert fast.out == paced.out
+    entries = list(read_entries(str(path)))
+    span_s = entries[-1].t_s - entries[1].t_s
+    assert paced_s >= span_s * 0.9  # it waited for the recorded times
+    assert fast_s < paced_s

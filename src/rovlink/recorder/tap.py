@@ -51,6 +51,9 @@ class _PtyMasterLink(FdLink):
         except BlockingIOError:
             return 0
 
+    def _close_port(self) -> None:
+        os.close(self._fd)
+
 
 class PtyEndpoint:
     """A pseudo-terminal for the program: :attr:`path` is what it opens."""
