@@ -188,7 +188,9 @@ class Recorder:
         # item on the link's thread. Items wait at most a drain interval, so an adjustment of
         # the wall clock shifts them by no more than it shifts everything else.
         offset_ns = time.time_ns() - time.monotonic_ns()
-        while queue:
+        # What is there now, not until the queue is empty: a link that fills it as fast as it
+        # drains must not keep the file from being flushed and rotated.
+        for _ in range(len(queue)):
             item = queue.popleft()
             wall_ns = int(item.at_s * 1e9) + offset_ns
             if isinstance(item, TappedBytes):
