@@ -163,3 +163,23 @@ def test_rotation_by_size_gives_files_that_each_read_alone(tmp_path: Path) -> No
         assert entries[0].channel == "header"
         total += len(entries)
     assert total == recorder.entries_written
+
+
+@pytest.mark.parametrize("suffix", [".mcap", ".jsonl", ".csv"])
+def test_any_cut_or_flipped_byte_gives_a_recording_error_or_entries(
+    make_recording: MakeRecording, suffix: str, tmp_path: Path
+) -> None:
+    whole = Path(make_recording(f"dive{suffix}").path).read_bytes()
+    damaged = tmp_path / f"damaged{suffix}"
+    step = max(len(whole) // 150, 1)
+    for offset in range(0, len(whole), step):
+        for data in (
+            whole[:offset],
+            whole[:offset] + bytes([whole[offset] ^ 0x5A]) + whole[offset + 1 :],
+        ):
+            damaged.write_bytes(data)
+            try:
+                for _ in read_entries(str(damaged)):
+                    pass
+            except RecordingError as error:
+                assert str(damaged) in str(error)

@@ -10,11 +10,11 @@ only slows seeking).
 from __future__ import annotations
 
 import json
+import struct
 from collections.abc import Iterator
 
-from mcap.exceptions import McapError
 from mcap.records import Channel, Message
-from mcap.stream_reader import CRCValidationError, StreamReader
+from mcap.stream_reader import StreamReader
 from mcap.writer import Writer
 
 import rovlink
@@ -82,7 +82,9 @@ def read_mcap(path: str) -> Iterator[Entry]:
         while True:
             try:
                 record = next(records, None)
-            except (McapError, CRCValidationError, ValueError, EOFError) as error:
+            # A damaged file can make the library fail anywhere (a decompressor's error, a
+            # short unpack, a bad record length): each is damage at this point of the file.
+            except Exception as error:
                 if count == 0 and not channels:
                     raise RecordingError(f"{path}: not an MCAP recording ({error})") from None
                 raise _damage(path, error, count) from None
@@ -107,7 +109,8 @@ def read_mcap(path: str) -> Iterator[Entry]:
 
 def _damage(path: str, error: Exception, count: int) -> RecordingDamagedError:
     name = type(error).__name__
-    if name == "EndOfFile" or isinstance(error, EOFError):
+    # The reader meets the end of a cut file as its own EndOfFile or as too few bytes to unpack.
+    if name == "EndOfFile" or isinstance(error, EOFError | struct.error):
         return RecordingDamagedError(
             f"{path}: the recording ends early, without its index (its recorder was stopped "
             f"abruptly); read {count} entries",
