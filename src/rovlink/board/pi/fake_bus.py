@@ -89,6 +89,11 @@ class FakeI2cBus:
         self._failures: dict[int, int] = {}
         self._lock = threading.Lock()
 
+    def snapshot(self) -> list[Transaction]:
+        """Every transaction so far (a copy: the bus may be in use in another thread)."""
+        with self._lock:
+            return list(self.transactions)
+
     def fail(self, address: int, count: int) -> None:
         """Fail the next ``count`` transactions with ``address``."""
         with self._lock:
@@ -266,7 +271,7 @@ class FakeAds1115(_Registers):
             ]
             counts = max(-32768, min(32767, round(self.volts / full_scale_v * 32768)))
             return counts.to_bytes(2, "big", signed=True)[:length]
-        return bytes(self.registers[self.pointer * 2 % 4 : self.pointer * 2 % 4 + length])
+        return bytes(self.registers[1:3])[:length]  # the config register
 
     def _store(self, register: int, value: int) -> None:
         # Registers are 16 bits: a write after the pointer is MSB then LSB.
