@@ -229,3 +229,18 @@ def test_a_pressure_sensor_with_a_corrupt_prom_is_refused_at_start() -> None:
     with pytest.raises(BoardStartError, match=r"MS5837-30BA at 0x76 on I²C bus 1: .*CRC-4"):
         open_pi_board(config, bus=bus)
     assert is_neutral(pulses(bus.snapshot()))
+
+
+def test_a_bus_that_does_not_exist_is_named() -> None:
+    config = example_config(i2c={"backend": "smbus2", "bus": 250})
+    with pytest.raises(BoardStartError, match=r"cannot open I²C bus 250 \(/dev/i2c-250\)"):
+        open_pi_board(config)
+
+
+def test_a_missing_pi_extra_is_named(monkeypatch: pytest.MonkeyPatch) -> None:
+    import sys
+
+    monkeypatch.setitem(sys.modules, "smbus2", None)
+    config = example_config(i2c={"backend": "smbus2"})
+    with pytest.raises(BoardStartError, match=r"smbus2 is missing; pip install 'rovlink\[pi\]'"):
+        open_pi_board(config)

@@ -95,9 +95,7 @@ def open_pi_board(config: PiConfig, *, bus: I2cBus | None = None, pin_factory: A
     if bus is None:
         bus = _open_bus(config)
     if pin_factory is None and config.i2c.backend is I2cBackend.FAKE and config.leak.pin >= 0:
-        from gpiozero.pins.mock import MockFactory  # noqa: PLC0415
-
-        pin_factory = MockFactory()
+        pin_factory = _starting("gpiozero's mock pins for the fake board", _mock_pins)
     closers: list[Callable[[], None]] = [bus.close]
     pca = Pca9685(bus, config.pca9685.address, oscillator_hz=config.pca9685.oscillator_hz)
     thrusters = EscThrusters(
@@ -202,12 +200,23 @@ def _open_bus(config: PiConfig) -> I2cBus:
         return fake_bus_for(config, config.i2c.fake_log)
     try:
         return Smbus2Bus(config.i2c.bus)
+    except ModuleNotFoundError as error:
+        raise BoardStartError(
+            f"I²C bus {config.i2c.bus}: the Python package {error.name} is missing; "
+            "pip install 'rovlink[pi]'"
+        ) from None
     except OSError as error:
         raise BoardStartError(
             f"cannot open I²C bus {config.i2c.bus} (/dev/i2c-{config.i2c.bus}): "
             f"{error.strerror or error}; is I²C enabled (raspi-config) and are you in the "
             "i2c group?"
         ) from None
+
+
+def _mock_pins() -> Any:
+    from gpiozero.pins.mock import MockFactory  # noqa: PLC0415
+
+    return MockFactory()
 
 
 def _claw(config: PiConfig, pca: Pca9685) -> MotorClaw | ServoClaw | _NoClaw:
@@ -260,6 +269,10 @@ def _starting(what: str, action: Callable[[], _T]) -> _T:
     """Run a device's start-up; any failure becomes a :class:`BoardStartError` naming it."""
     try:
         return action()
+    except ModuleNotFoundError as error:
+        raise BoardStartError(
+            f"{what}: the Python package {error.name} is missing; pip install 'rovlink[pi]'"
+        ) from None
     except (OSError, RuntimeError, ValueError) as error:
         reason = error.strerror if isinstance(error, OSError) and error.strerror else error
         raise BoardStartError(f"{what}: {reason}") from None
