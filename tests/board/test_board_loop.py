@@ -147,16 +147,27 @@ def test_an_exception_in_the_control_loop_ends_it_at_neutral() -> None:
         assert rig.server.at_rest
 
 
+def test_one_failed_write_to_the_pwm_board_is_retried() -> None:
+    with running(_quick(watchdog_s=0.0)) as rig:
+        rig.send(b"#start!")
+        rig.bus.fail(0x40, 1)
+        rig.send(b"#th.90.50!")
+        assert wait_until(rig.moving_as_commanded), rig.pulses()
+        assert any(t.failed and t.address == 0x40 for t in rig.bus.snapshot())
+        assert not rig.errors
+
+
 def test_an_i2c_error_on_the_pwm_board_ends_the_loop_at_neutral_after_a_retry() -> None:
     with running(_quick(watchdog_s=0.0)) as rig:
         rig.send(b"#start!#th.90.50!")
         assert wait_until(rig.moving_as_commanded)
-        # The next write fails (the stop's), and the first attempt at neutral fails too.
-        rig.bus.fail(0x40, 2)
+        # The stop's write and its retry fail, and so does the first attempt at neutral.
+        rig.bus.fail(0x40, 3)
         rig.send(b"#stop!")
         assert wait_until(lambda: bool(rig.errors))
         assert isinstance(rig.errors[0], OSError)
         assert rig.neutral(), rig.pulses()
+        assert rig.server.at_rest
 
 
 def test_a_stale_pressure_sensor_stops_the_motors_until_it_answers() -> None:
@@ -244,3 +255,23 @@ def test_a_missing_pi_extra_is_named(monkeypatch: pytest.MonkeyPatch) -> None:
     config = example_config(i2c={"backend": "smbus2"})
     with pytest.raises(BoardStartError, match=r"smbus2 is missing; pip install 'rovlink\[pi\]'"):
         open_pi_board(config)
+
+
+def test_the_imu_on_its_own_bus() -> None:
+    config = example_config(imu={"bus": 3})
+    bus = fake_bus_for(config)
+    assert 0x28 not in bus.devices
+    board = open_pi_board(config, bus=bus, pin_factory=_mock_pins())
+    try:
+        imu_sensor = board.sensors[1]
+        assert imu_sensor.name == "IMU BNO055 at 0x28"
+        assert board.hardware.imu.read_attitude().heading_deg == 90.0
+        assert all(t.address != 0x28 for t in bus.snapshot())
+    finally:
+        board.close()
+
+
+def _mock_pins() -> object:
+    from gpiozero.pins.mock import MockFactory
+
+    return MockFactory()

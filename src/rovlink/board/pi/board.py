@@ -80,10 +80,33 @@ def fake_bus_for(config: PiConfig, log_path: str = "") -> FakeI2cBus:
         devices[ads.address] = FakeAds1115(
             ads.min_volts + fraction * (ads.max_volts - ads.min_volts)
         )
-    if config.imu.sensor is ImuKind.BNO055:
+    if config.imu.sensor is ImuKind.BNO055 and not _imu_has_own_bus(config):
         devices[config.imu.address] = FakeBno055()
-    log = open(log_path, "a", encoding="utf-8") if log_path else None  # noqa: SIM115
-    return FakeI2cBus(devices, log)
+    return FakeI2cBus(devices, _fake_log(log_path))
+
+
+def _fake_log(log_path: str) -> Any:
+    # Appended line by line, flushed each time: several fake buses may share one file.
+    return open(log_path, "a", encoding="utf-8") if log_path else None
+
+
+def _imu_has_own_bus(config: PiConfig) -> bool:
+    return config.imu.bus not in (-1, config.i2c.bus)
+
+
+def _open_imu_bus(config: PiConfig, bus: I2cBus) -> I2cBus:
+    """The main bus, or the IMU's own one."""
+    if not _imu_has_own_bus(config):
+        return bus
+    if config.i2c.backend is I2cBackend.FAKE:
+        return FakeI2cBus({config.imu.address: FakeBno055()}, _fake_log(config.i2c.fake_log))
+    try:
+        return Smbus2Bus(config.imu.bus)
+    except OSError as error:
+        raise BoardStartError(
+            f"cannot open the IMU's I²C bus {config.imu.bus} (/dev/i2c-{config.imu.bus}): "
+            f"{error.strerror or error}"
+        ) from None
 
 
 def open_pi_board(config: PiConfig, *, bus: I2cBus | None = None, pin_factory: Any = None) -> Board:
@@ -135,8 +158,11 @@ def open_pi_board(config: PiConfig, *, bus: I2cBus | None = None, pin_factory: A
         imu: Any = _LevelImu()
         if config.imu.sensor is ImuKind.BNO055:
             imu_config = config.imu
+            imu_bus = _open_imu_bus(config, bus)
+            if imu_bus is not bus:
+                closers.append(imu_bus.close)
             bno = Bno055Imu(
-                bus,
+                imu_bus,
                 address=imu_config.address,
                 placement=imu_config.placement,
                 heading_offset_deg=imu_config.heading_offset_deg,
@@ -145,7 +171,8 @@ def open_pi_board(config: PiConfig, *, bus: I2cBus | None = None, pin_factory: A
                 poll_hz=imu_config.poll_hz,
             )
             imu_name = f"IMU BNO055 at {bno.address:#04x}"
-            _starting(f"{imu_name} {where}", bno.start)
+            imu_where = f"on I²C bus {imu_config.bus}" if imu_bus is not bus else where
+            _starting(f"{imu_name} {imu_where}", bno.start)
             imu_sensor = PolledSensor(
                 imu_name, bno, _first_reading(imu_name, bno, clock), stale_after
             )

@@ -296,6 +296,13 @@ class ImuConfig:
     """``[imu]``: the IMU and its mounting."""
 
     sensor: ImuKind = field(default=ImuKind.BNO055, metadata=_doc("`bno055` or `none`"))
+    bus: int = field(
+        default=-1,
+        metadata=_doc(
+            "its own I²C bus number (a BNO055 on a software bus, for its clock stretching); "
+            "-1: [i2c] bus"
+        ),
+    )
     address: int = field(default=0x28, metadata=_doc("I²C address (0x28, or 0x29 by ADR)"))
     placement: str = field(
         default="P1",
@@ -312,6 +319,7 @@ class ImuConfig:
 
     def __post_init__(self) -> None:
         _check_address("address", self.address)
+        _require(-1 <= self.bus <= 255, f"bus must be 0–255 or -1, got {self.bus}")
         _require(
             self.placement in PLACEMENTS,
             f"placement must be one of {', '.join(PLACEMENTS)}, got {self.placement!r}",

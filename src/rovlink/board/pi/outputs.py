@@ -6,8 +6,11 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 from rovlink.board.pi.pca9685 import Pca9685
+from rovlink.logs import get_logger
 
 __all__ = ["EscChannel", "EscThrusters", "MotorClaw", "ServoClaw", "pulse_for_duty"]
+
+logger = get_logger(__name__)
 
 _MAX_DUTY = 255
 
@@ -52,15 +55,24 @@ class EscThrusters:
         return {esc.channel: esc.neutral_us for esc in self._escs}
 
     def set_duties(self, duties: Sequence[int]) -> None:
-        """Apply signed duties, one per thruster of the layout."""
+        """Apply signed duties, one per thruster of the layout.
+
+        A failed write is retried once, every output rewritten (a glitch on a bus next to
+        thruster cables is not a reason to stop); a second failure is raised, and the board loop
+        then ends with the thrusters at neutral.
+        """
         if len(duties) != len(self._escs):
             raise ValueError(f"{len(duties)} duties for {len(self._escs)} thrusters")
-        self._pca.set_pulses_us(
-            {
-                esc.channel: pulse_for_duty(esc, duty)
-                for esc, duty in zip(self._escs, duties, strict=True)
-            }
-        )
+        pulses = {
+            esc.channel: pulse_for_duty(esc, duty)
+            for esc, duty in zip(self._escs, duties, strict=True)
+        }
+        try:
+            self._pca.set_pulses_us(pulses)
+        except OSError as error:
+            logger.warning("PCA9685 write failed (%s); writing every output again", error)
+            self._pca.forget_written()
+            self._pca.set_pulses_us(pulses)
 
     def neutral(self) -> None:
         """Neutral on every ESC, written even if the driver believes it is there already."""
