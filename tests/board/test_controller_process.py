@@ -146,6 +146,7 @@ def test_tcp_on_a_reachable_address_needs_allow_remote(tmp_path: Path) -> None:
         tmp_path, "--config", str(config), "--tcp", "0.0.0.0:0", "--allow-remote"
     ) as controller:
         assert "tcp 0.0.0.0:" in controller.ready_line
+        assert "(REMOTE, NO AUTHENTICATION)" in controller.ready_line
         assert wait_until(lambda: "anyone connected can drive the robot" in controller.stderr())
 
 

@@ -12,13 +12,14 @@ import signal
 import sys
 import threading
 from types import FrameType
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 from rovlink.cli.failure import CommandError, InputError, UsageError
 from rovlink.cli.link_options import positive_int, seconds
 
 if TYPE_CHECKING:
     from rovlink.board.pi.config import PiConfig
+    from rovlink.board.server import BoardServer
 
 __all__ = ["EPILOG"]
 
@@ -34,6 +35,10 @@ docs/hardware.md has the wiring, a complete rov.toml and a systemd unit."""
 _DEFAULT_BAUD = 115200  # P19
 #: rov.toml tables that belong to the board, not to the simulator.
 _BOARD_TABLES = ("i2c", "pca9685", "esc", "claw", "pressure", "imu", "leak", "board")
+
+
+def _watchdog_seconds(text: str) -> float:
+    return seconds(text, maximum=3600.0)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -77,7 +82,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--watchdog",
-        type=lambda text: seconds(text, maximum=3600.0),
+        type=_watchdog_seconds,
         metavar="SECONDS",
         help="link-loss failsafe timeout (default: from the config, 2 s); 0 turns it off",
     )
@@ -159,7 +164,7 @@ def _run_pi(
 
 
 def _open_endpoints(
-    server: Any, args: argparse.Namespace, address: tuple[str, int] | None
+    server: BoardServer, args: argparse.Namespace, address: tuple[str, int] | None
 ) -> list[str]:
     """Open the serial device, the PTY and the TCP listener asked for; their descriptions."""
     endpoints = []
@@ -178,22 +183,25 @@ def _open_endpoints(
             host, port = server.listen_tcp(*address)
         except OSError as error:
             raise CommandError(f"cannot listen on {args.tcp}: {error.strerror}") from None
-        endpoints.append(f"tcp {host}:{port}")
-        if args.allow_remote and not _loopback(host):
-            message = (
-                f"WARNING: listening on {host}:{port} for any computer that reaches it; "
-                "the protocol has no authentication: anyone connected can drive the robot"
-            )
-            import logging  # noqa: PLC0415
-
-            logging.getLogger("rovlink.board").warning(message)
+        endpoints.append(_tcp_endpoint(host, port))
     return endpoints
 
 
-def _loopback(host: str) -> bool:
+def _tcp_endpoint(host: str, port: int) -> str:
+    """``tcp HOST:PORT``, and a warning in the log and in the ready line if it is not loopback."""
+    import logging  # noqa: PLC0415
+
     from rovlink.board.links import is_loopback  # noqa: PLC0415
 
-    return is_loopback(host)
+    if is_loopback(host):
+        return f"tcp {host}:{port}"
+    logging.getLogger("rovlink.board").warning(
+        "listening on %s:%d for any computer that reaches it; the protocol has no "
+        "authentication: anyone connected can drive the robot",
+        host,
+        port,
+    )
+    return f"tcp {host}:{port} (REMOTE, NO AUTHENTICATION)"
 
 
 def _pi_config(args: argparse.Namespace) -> PiConfig:
@@ -248,7 +256,7 @@ def _run_sim(
                 host, port = server.listen_tcp(*address)
             except OSError as error:
                 raise CommandError(f"cannot listen on {args.tcp}: {error.strerror}") from None
-            endpoints.append(f"tcp {host}:{port}")
+            endpoints.append(_tcp_endpoint(host, port))
         print(
             f"rovlink controller ready: board sim, {', '.join(endpoints)}; Ctrl-C stops", flush=True
         )
