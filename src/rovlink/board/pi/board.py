@@ -141,7 +141,7 @@ def open_pi_board(config: PiConfig, *, bus: I2cBus | None = None, pin_factory: A
         )
         started = True
         logger.info(
-            "ESCs armed: neutral pulses on channels %s at %.1f Hz",
+            "thrusters at neutral for ESC arming: pulses on channels %s at %.1f Hz",
             ", ".join(str(channel) for channel in sorted(rest)),
             config.pca9685.frequency_hz,
         )
@@ -157,25 +157,7 @@ def open_pi_board(config: PiConfig, *, bus: I2cBus | None = None, pin_factory: A
         sensors: list[PolledSensor[Any]] = [pressure]
         imu: Any = _LevelImu()
         if config.imu.sensor is ImuKind.BNO055:
-            imu_config = config.imu
-            imu_bus = _open_imu_bus(config, bus)
-            if imu_bus is not bus:
-                closers.append(imu_bus.close)
-            bno = Bno055Imu(
-                imu_bus,
-                address=imu_config.address,
-                placement=imu_config.placement,
-                heading_offset_deg=imu_config.heading_offset_deg,
-                invert_roll=imu_config.invert_roll,
-                invert_pitch=imu_config.invert_pitch,
-                poll_hz=imu_config.poll_hz,
-            )
-            imu_name = f"IMU BNO055 at {bno.address:#04x}"
-            imu_where = f"on I²C bus {imu_config.bus}" if imu_bus is not bus else where
-            _starting(f"{imu_name} {imu_where}", bno.start)
-            imu_sensor = PolledSensor(
-                imu_name, bno, _first_reading(imu_name, bno, clock), stale_after
-            )
+            imu_sensor = _open_bno055(config, bus, closers, clock)
             sensors.append(imu_sensor)
             imu = PolledImu(imu_sensor)
         leak: Any = _NoLeakSensor()
@@ -238,6 +220,31 @@ def _open_bus(config: PiConfig) -> I2cBus:
             f"{error.strerror or error}; is I²C enabled (raspi-config) and are you in the "
             "i2c group?"
         ) from None
+
+
+def _open_bno055(
+    config: PiConfig, bus: I2cBus, closers: list[Callable[[], None]], clock: MonotonicClock
+) -> PolledSensor[Attitude]:
+    """Start the BNO055 (on its own bus if it has one) and take its first reading."""
+    imu = config.imu
+    imu_bus = _open_imu_bus(config, bus)
+    if imu_bus is not bus:
+        closers.append(imu_bus.close)
+    bno = Bno055Imu(
+        imu_bus,
+        address=imu.address,
+        placement=imu.placement,
+        heading_offset_deg=imu.heading_offset_deg,
+        invert_roll=imu.invert_roll,
+        invert_pitch=imu.invert_pitch,
+        poll_hz=imu.poll_hz,
+    )
+    name = f"IMU BNO055 at {bno.address:#04x}"
+    bus_number = imu.bus if imu_bus is not bus else config.i2c.bus
+    _starting(f"{name} on I²C bus {bus_number}", bno.start)
+    return PolledSensor(
+        name, bno, _first_reading(name, bno, clock), config.board.stale_after_failures
+    )
 
 
 def _mock_pins() -> Any:
