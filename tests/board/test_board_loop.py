@@ -275,3 +275,62 @@ def _mock_pins() -> object:
     from gpiozero.pins.mock import MockFactory
 
     return MockFactory()
+
+
+def test_an_analog_transducer_reads_zero_raw_at_the_surface() -> None:
+    config = example_config(
+        imu={"sensor": "none"}, pressure={"sensor": "ads1115", "surface_mbar": 0.0}
+    )
+    board = open_pi_board(config, bus=fake_bus_for(config), pin_factory=_mock_pins())
+    try:
+        assert board.hardware.pressure.read_raw() == config.controller.depth.zero_raw
+        assert board.sensors[0].name == "pressure transducer on ADS1115 at 0x48 AIN0"
+    finally:
+        board.close()
+
+
+def test_a_servo_claw_steps_and_holds() -> None:
+    config = example_config(
+        imu={"sensor": "none"},
+        claw={"kind": "servo", "open_us": 2000.0, "close_us": 1000.0, "step_us": 250.0},
+    )
+    bus = fake_bus_for(config)
+    board = open_pi_board(config, bus=bus, pin_factory=_mock_pins())
+    try:
+        claw = lambda: pulses(bus.snapshot(), [CLAW_CHANNEL])[0]  # noqa: E731
+        assert claw() == pytest.approx(1500.0, abs=COUNT_US)  # the start position
+        board.hardware.claw.drive(1)
+        board.hardware.claw.drive(0)  # the pulse ends: a servo holds
+        assert claw() == pytest.approx(1750.0, abs=COUNT_US)
+        for _ in range(3):
+            board.hardware.claw.drive(1)
+        assert claw() == pytest.approx(2000.0, abs=COUNT_US)  # no further than open
+        board.hardware.claw.drive(-1)
+        assert claw() == pytest.approx(1750.0, abs=COUNT_US)
+        board.make_safe()
+        assert claw() == pytest.approx(1750.0, abs=COUNT_US)
+        assert is_neutral(pulses(bus.snapshot()))
+    finally:
+        board.close()
+
+
+def test_overruns_are_counted_and_logged(caplog: pytest.LogCaptureFixture) -> None:
+    import time
+
+    caplog.set_level("WARNING", logger="rovlink.board")
+    with running(_quick(watchdog_s=0.0)) as rig:
+        sensor = rig.server.board.sensors[0]
+        source = sensor._source
+        slow_polls = [3]
+
+        class Slow:
+            def poll(self, now_s: float) -> int | None:
+                if slow_polls[0]:
+                    slow_polls[0] -= 1
+                    time.sleep(0.025)  # the work of a period takes 2.5 periods
+                return source.poll(now_s)
+
+        sensor._source = Slow()
+        assert wait_until(lambda: rig.server.schedule.overruns >= 3)
+        assert rig.server.schedule.skipped_periods >= 3
+    assert any("control loop overran" in record.message for record in caplog.records)
