@@ -179,3 +179,31 @@ def test_the_same_rov_toml_runs_the_simulator(tmp_path: Path) -> None:
             controller.pty_path, keepalive=None, on_stray=debug, timeout=REPLY_TIMEOUT_S
         ) as rov:
             run_every_method(rov, debug)
+
+
+def _open_as_another_user(device: str) -> str:
+    """Open ``device`` from a shell of another user (nobody, when the tests run as root)."""
+    command = ["/bin/sh", "-c", 'exec 3<>"$0" && echo opened', device]
+    if os.geteuid() == 0:
+        result = subprocess.run(
+            command, capture_output=True, text=True, timeout=30, check=False, user=65534
+        )
+    else:
+        result = subprocess.run(command, capture_output=True, text=True, timeout=30, check=False)
+    return result.stdout + result.stderr
+
+
+def test_no_other_program_opens_the_serial_device_while_the_controller_has_it(
+    tmp_path: Path,
+) -> None:
+    config = make_fake_toml(tmp_path, tmp_path / "i2c.jsonl")
+    master, slave = os.openpty()
+    device = os.ttyname(slave)
+    os.chmod(device, 0o666)  # any user may open it: only the exclusive mode keeps them out
+    try:
+        assert "opened" in _open_as_another_user(device)
+        with running_controller(tmp_path, "--config", str(config), "--port", device):
+            assert "busy" in _open_as_another_user(device).lower()
+    finally:
+        os.close(master)
+        os.close(slave)

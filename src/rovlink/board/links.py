@@ -5,9 +5,12 @@ Each link is a non-blocking file descriptor the board loop watches with :mod:`se
 
 from __future__ import annotations
 
+import contextlib
 import errno
+import fcntl
 import os
 import socket
+import termios
 import tty
 from typing import Any
 
@@ -70,6 +73,10 @@ class SerialLink(Link):
         )
         fd = self._serial.fileno()
         os.set_blocking(fd, False)
+        # pyserial's lock keeps out programs that lock too; TIOCEXCL keeps out every other
+        # opener but root (a forgotten terminal program), until the port is closed.
+        with contextlib.suppress(OSError):
+            fcntl.ioctl(fd, termios.TIOCEXCL)
         super().__init__(f"serial {path}", fd)
 
     def read(self) -> bytes | None:
