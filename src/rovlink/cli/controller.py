@@ -146,9 +146,13 @@ def _run_pi(
             server.serve(stop.is_set)
         except Exception as error:
             logging.getLogger("rovlink.board").exception("the control loop failed")
-            raise CommandError(
-                f"the control loop failed ({type(error).__name__}: {error}); "
+            outcome = (
                 "thrusters set to neutral"
+                if server.at_rest
+                else "NEUTRAL COULD NOT BE SET: cut the thruster power"
+            )
+            raise CommandError(
+                f"the control loop failed ({type(error).__name__}: {error}); {outcome}"
             ) from None
     finally:
         if not server.at_rest:
