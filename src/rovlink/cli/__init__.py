@@ -29,6 +29,7 @@ COMMANDS: dict[str, str] = {
     "record": "Record a link (listening, or as a tap between a program and the controller).",
     "replay": "Print a recording, or replay its commands to a controller and compare replies.",
     "plot": "Plot a recorded dive: depth and set-point, thrust, attitude, leak, link events.",
+    "controller": "Run the controller on a board (pi, or sim) and serve its serial line.",
 }
 
 _DESCRIPTION = "Drive an underwater robot's low-level controller over its serial command protocol."

@@ -191,6 +191,15 @@ class Controller:
         self._duties = duties
         hardware.thrusters.set_duties(duties)
 
+    def failsafe(self, why: str) -> None:
+        """Stop as on `#stop!` for a reason of the board's (a stale sensor): every output off,
+        set-points cleared, locked; logged and, in debug mode, a debug line."""
+        self._stop(why)
+
+    def debug(self, text: str) -> None:
+        """Write a debug line (P5) from the board, if debug output is on."""
+        self._debug(text)
+
     def read_output(self) -> bytes:
         """Take what the controller wrote since the last call (when no ``write`` was given)."""
         output = bytes(self._output)

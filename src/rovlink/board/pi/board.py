@@ -1,0 +1,328 @@
+"""The Raspberry Pi board (or any Linux board with I²C and GPIO): drivers wired per rov.toml.
+
+Start-up order is the safety order: the PCA9685 first, its outputs at neutral before anything
+else (ESC arming), then the sensors, each read once so a wrong address or a dead sensor is
+refused at start, naming the device. If anything fails on the way, the outputs go back to
+neutral and every device opened so far is released.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import time
+from collections.abc import Callable
+from typing import Any, TypeVar
+
+from rovlink.board.board import Board, BoardStartError, MonotonicClock
+from rovlink.board.pi.ads1115 import Ads1115
+from rovlink.board.pi.bno055 import Bno055Imu
+from rovlink.board.pi.config import (
+    ClawKind,
+    I2cBackend,
+    ImuKind,
+    PiConfig,
+    PressureKind,
+)
+from rovlink.board.pi.fake_bus import FakeAds1115, FakeBno055, FakeI2cBus, FakeMs5837, FakePca9685
+from rovlink.board.pi.i2c import I2cBus, Smbus2Bus
+from rovlink.board.pi.leak import GpioLeakSensor
+from rovlink.board.pi.ms5837 import Ms5837
+from rovlink.board.pi.outputs import EscChannel, EscThrusters, MotorClaw, ServoClaw
+from rovlink.board.pi.pca9685 import Pca9685
+from rovlink.board.pi.pressure import AnalogPressure, AnalogTransducer, Ms5837Pressure, RawScale
+from rovlink.board.sensors import (
+    LEVEL,
+    PolledImu,
+    PolledPressure,
+    PolledSensor,
+    SensorSource,
+)
+from rovlink.controller import Attitude, Hardware
+from rovlink.logs import get_logger
+
+__all__ = ["fake_bus_for", "open_pi_board"]
+
+logger = get_logger(__name__)
+
+_T = TypeVar("_T")
+_FIRST_READING_S = 0.5  # how long a sensor has at start to give its first reading
+
+
+class _NoLeakSensor:
+    def fired_since_last_read(self) -> bool:
+        return False
+
+
+class _NoClaw:
+    def drive(self, direction: int) -> None:
+        pass
+
+    def neutral(self) -> None:
+        pass
+
+
+class _LevelImu:
+    def read_attitude(self) -> Attitude:
+        return LEVEL
+
+
+def fake_bus_for(config: PiConfig, log_path: str = "") -> FakeI2cBus:
+    """A fake bus with every device ``config`` names, at its address, at the surface."""
+    devices: dict[int, Any] = {
+        config.pca9685.address: FakePca9685(config.pca9685.oscillator_hz),
+    }
+    pressure = config.pressure
+    if pressure.sensor is PressureKind.MS5837:
+        devices[pressure.ms5837.address] = FakeMs5837.example(pressure.ms5837.model)
+    else:
+        ads = pressure.ads1115
+        fraction = (pressure.surface_mbar - ads.min_mbar) / (ads.max_mbar - ads.min_mbar)
+        devices[ads.address] = FakeAds1115(
+            ads.min_volts + fraction * (ads.max_volts - ads.min_volts)
+        )
+    if config.imu.sensor is ImuKind.BNO055 and not _imu_has_own_bus(config):
+        devices[config.imu.address] = FakeBno055()
+    return FakeI2cBus(devices, _fake_log(log_path))
+
+
+def _fake_log(log_path: str) -> Any:
+    # Appended line by line, flushed each time: several fake buses may share one file.
+    return open(log_path, "a", encoding="utf-8") if log_path else None
+
+
+def _imu_has_own_bus(config: PiConfig) -> bool:
+    return config.imu.bus not in (-1, config.i2c.bus)
+
+
+def _open_imu_bus(config: PiConfig, bus: I2cBus) -> I2cBus:
+    """The main bus, or the IMU's own one."""
+    if not _imu_has_own_bus(config):
+        return bus
+    if config.i2c.backend is I2cBackend.FAKE:
+        return FakeI2cBus({config.imu.address: FakeBno055()}, _fake_log(config.i2c.fake_log))
+    try:
+        return Smbus2Bus(config.imu.bus)
+    except OSError as error:
+        raise BoardStartError(
+            f"cannot open the IMU's I²C bus {config.imu.bus} (/dev/i2c-{config.imu.bus}): "
+            f"{error.strerror or error}"
+        ) from None
+
+
+def open_pi_board(config: PiConfig, *, bus: I2cBus | None = None, pin_factory: Any = None) -> Board:
+    """Open every device of ``config`` and return the board, thrusters at neutral.
+
+    ``bus`` and ``pin_factory`` replace the I²C bus and gpiozero's pin factory (tests); without
+    them they follow ``[i2c] backend``. Raises :class:`BoardStartError`.
+    """
+    if bus is None:
+        bus = _open_bus(config)
+    if pin_factory is None and config.i2c.backend is I2cBackend.FAKE and config.leak.pin >= 0:
+        pin_factory = _starting("gpiozero's mock pins for the fake board", _mock_pins)
+    closers: list[Callable[[], None]] = [bus.close]
+    pca = Pca9685(bus, config.pca9685.address, oscillator_hz=config.pca9685.oscillator_hz)
+    thrusters = EscThrusters(
+        pca,
+        [
+            EscChannel(esc.channel, esc.reversed, esc.min_us, esc.neutral_us, esc.max_us)
+            for esc in config.escs
+        ],
+    )
+    claw = _claw(config, pca)
+    where = f"on I²C bus {config.i2c.bus}"
+    started = False
+    try:
+        rest = thrusters.neutral_pulses_us()
+        if isinstance(claw, MotorClaw | ServoClaw):
+            rest[claw.channel] = claw.rest_pulse_us()
+        _starting(
+            f"PWM board PCA9685 at {pca.address:#04x} {where}",
+            lambda: pca.start(config.pca9685.frequency_hz, rest),
+        )
+        started = True
+        logger.info(
+            "thrusters at neutral for ESC arming: pulses on channels %s at %.1f Hz",
+            ", ".join(str(channel) for channel in sorted(rest)),
+            config.pca9685.frequency_hz,
+        )
+        clock = MonotonicClock()
+        stale_after = config.board.stale_after_failures
+        pressure_name, pressure_source = _pressure_source(config, bus, where)
+        pressure = PolledSensor(
+            pressure_name,
+            pressure_source,
+            _first_reading(pressure_name, pressure_source, clock),
+            stale_after,
+        )
+        sensors: list[PolledSensor[Any]] = [pressure]
+        imu: Any = _LevelImu()
+        if config.imu.sensor is ImuKind.BNO055:
+            imu_sensor = _open_bno055(config, bus, closers, clock)
+            sensors.append(imu_sensor)
+            imu = PolledImu(imu_sensor)
+        leak: Any = _NoLeakSensor()
+        if config.leak.pin >= 0:
+            leak = _starting(
+                f"leak probe on GPIO {config.leak.pin}",
+                lambda: GpioLeakSensor(
+                    config.leak.pin,
+                    active_high=config.leak.active_high,
+                    pull=config.leak.pull,
+                    pin_factory=pin_factory,
+                ),
+            )
+            closers.append(leak.close)
+    except BaseException:
+        if started:
+            with contextlib.suppress(Exception):
+                thrusters.neutral()
+        for release in reversed(closers):
+            with contextlib.suppress(Exception):
+                release()
+        raise
+
+    def make_safe() -> None:
+        thrusters.neutral()
+        claw.neutral()
+
+    def close_all() -> None:
+        for release in reversed(closers):
+            try:
+                release()
+            except Exception:
+                logger.exception("closing the board")
+
+    hardware = Hardware(
+        thrusters=thrusters,
+        pressure=PolledPressure(pressure),
+        imu=imu,
+        leak=leak,
+        claw=claw,
+        clock=clock,
+    )
+    return Board("pi", hardware, make_safe, close_all, tuple(sensors))
+
+
+def _open_bus(config: PiConfig) -> I2cBus:
+    if config.i2c.backend is I2cBackend.FAKE:
+        logger.warning("fake I²C bus: simulated devices, nothing reaches hardware")
+        return fake_bus_for(config, config.i2c.fake_log)
+    try:
+        return Smbus2Bus(config.i2c.bus)
+    except ModuleNotFoundError as error:
+        raise BoardStartError(
+            f"I²C bus {config.i2c.bus}: the Python package {error.name} is missing; "
+            "pip install 'rovlink[pi]'"
+        ) from None
+    except OSError as error:
+        raise BoardStartError(
+            f"cannot open I²C bus {config.i2c.bus} (/dev/i2c-{config.i2c.bus}): "
+            f"{error.strerror or error}; is I²C enabled (raspi-config) and are you in the "
+            "i2c group?"
+        ) from None
+
+
+def _open_bno055(
+    config: PiConfig, bus: I2cBus, closers: list[Callable[[], None]], clock: MonotonicClock
+) -> PolledSensor[Attitude]:
+    """Start the BNO055 (on its own bus if it has one) and take its first reading."""
+    imu = config.imu
+    imu_bus = _open_imu_bus(config, bus)
+    if imu_bus is not bus:
+        closers.append(imu_bus.close)
+    bno = Bno055Imu(
+        imu_bus,
+        address=imu.address,
+        placement=imu.placement,
+        heading_offset_deg=imu.heading_offset_deg,
+        invert_roll=imu.invert_roll,
+        invert_pitch=imu.invert_pitch,
+        poll_hz=imu.poll_hz,
+    )
+    name = f"IMU BNO055 at {bno.address:#04x}"
+    bus_number = imu.bus if imu_bus is not bus else config.i2c.bus
+    _starting(f"{name} on I²C bus {bus_number}", bno.start)
+    return PolledSensor(
+        name, bno, _first_reading(name, bno, clock), config.board.stale_after_failures
+    )
+
+
+def _mock_pins() -> Any:
+    from gpiozero.pins.mock import MockFactory  # noqa: PLC0415
+
+    return MockFactory()
+
+
+def _claw(config: PiConfig, pca: Pca9685) -> MotorClaw | ServoClaw | _NoClaw:
+    claw = config.claw
+    if claw.kind is ClawKind.MOTOR:
+        return MotorClaw(
+            pca,
+            claw.channel,
+            open_us=claw.open_us,
+            close_us=claw.close_us,
+            neutral_us=claw.neutral_us,
+        )
+    if claw.kind is ClawKind.SERVO:
+        return ServoClaw(
+            pca,
+            claw.channel,
+            open_us=claw.open_us,
+            close_us=claw.close_us,
+            start_us=claw.neutral_us,
+            step_us=claw.step_us,
+        )
+    return _NoClaw()
+
+
+def _pressure_source(config: PiConfig, bus: I2cBus, where: str) -> tuple[str, SensorSource[int]]:
+    pressure = config.pressure
+    depth = config.controller.depth
+    scale = RawScale(depth.zero_raw, depth.k, pressure.surface_mbar, pressure.density_kg_m3)
+    if pressure.sensor is PressureKind.MS5837:
+        ms = pressure.ms5837
+        sensor = Ms5837(bus, model=ms.model, address=ms.address, oversampling=ms.oversampling)
+        name = f"pressure sensor MS5837-{ms.model.upper()} at {sensor.address:#04x}"
+        _starting(f"{name} {where}", sensor.start)
+        return name, Ms5837Pressure(sensor, scale)
+    ads = pressure.ads1115
+    adc = Ads1115(
+        bus,
+        address=ads.address,
+        channel=ads.channel,
+        full_scale_v=ads.full_scale_v,
+        data_rate_sps=ads.data_rate_sps,
+    )
+    name = f"pressure transducer on ADS1115 at {adc.address:#04x} AIN{ads.channel}"
+    _starting(f"{name} {where}", adc.start)
+    transducer = AnalogTransducer(ads.min_volts, ads.max_volts, ads.min_mbar, ads.max_mbar)
+    return name, AnalogPressure(adc, transducer, scale)
+
+
+def _starting(what: str, action: Callable[[], _T]) -> _T:
+    """Run a device's start-up; any failure becomes a :class:`BoardStartError` naming it."""
+    try:
+        return action()
+    except ModuleNotFoundError as error:
+        raise BoardStartError(
+            f"{what}: the Python package {error.name} is missing; pip install 'rovlink[pi]'"
+        ) from None
+    except (OSError, RuntimeError, ValueError) as error:
+        reason = error.strerror if isinstance(error, OSError) and error.strerror else error
+        raise BoardStartError(f"{what}: {reason}") from None
+
+
+def _first_reading(name: str, source: SensorSource[_T], clock: MonotonicClock) -> _T:
+    """Poll until the first reading (a conversion or two); :class:`BoardStartError` if none."""
+    deadline_s = clock.now_s() + _FIRST_READING_S
+    error: Exception | None = None
+    while clock.now_s() < deadline_s:
+        try:
+            reading = source.poll(clock.now_s())
+        except OSError as failure:
+            error = failure
+            reading = None
+        if reading is not None:
+            return reading
+        time.sleep(0.002)
+    raise BoardStartError(f"{name}: no reading at start" + (f": {error}" if error else ""))

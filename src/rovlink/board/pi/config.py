@@ -1,0 +1,526 @@
+"""The board's configuration, ``rov.toml``: the controller's tables plus the board's own.
+
+The controller's tables (``[controller]``, ``[depth]``, ``[depth_pid]``, ``[[thrusters]]``) are
+read by :func:`rovlink.controller.config_from_mapping`; this module reads the rest and checks
+the whole: every thruster of the layout has an ESC output, no two outputs share a channel,
+pulses fit the PWM period. A wrong file is refused with the file, the table, the key and the
+reason. ``docs/hardware.md`` has a complete, commented example.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from rovlink.board.pi.ads1115 import DATA_RATES_SPS, FULL_SCALES_V
+from rovlink.board.pi.bno055 import PLACEMENTS
+from rovlink.board.pi.ms5837 import OVERSAMPLING, Ms5837Model
+from rovlink.board.pi.pca9685 import CHANNELS, DEFAULT_OSCILLATOR_HZ, prescale_for
+from rovlink.controller import ControllerConfig, config_from_mapping
+from rovlink.controller.config import (
+    ConfigError,
+    dataclass_from_table,
+    parameter_doc,
+    read_toml,
+    table_reference,
+)
+from rovlink.protocol.text_enum import StrEnum
+
+__all__ = [
+    "Ads1115Config",
+    "BoardConfig",
+    "ClawConfig",
+    "ClawKind",
+    "EscConfig",
+    "I2cBackend",
+    "I2cConfig",
+    "ImuConfig",
+    "ImuKind",
+    "LeakConfig",
+    "Ms5837Config",
+    "Pca9685Config",
+    "PiConfig",
+    "PressureConfig",
+    "PressureKind",
+    "load_pi_config",
+    "pi_config_from_mapping",
+    "pi_config_reference",
+]
+
+_doc = parameter_doc
+_MIN_PULSE_US = 500.0
+_MAX_PULSE_US = 2500.0
+
+
+def _require(condition: bool, message: str) -> None:
+    if not condition:
+        raise ConfigError(message)
+
+
+def _check_address(name: str, address: int) -> None:
+    _require(0x03 <= address <= 0x77, f"{name} must be an I²C address 0x03–0x77, got {address}")
+
+
+def _check_pulses(**pulses_us: float) -> None:
+    for name, value in pulses_us.items():
+        _require(
+            math.isfinite(value) and _MIN_PULSE_US <= value <= _MAX_PULSE_US,
+            f"{name} must be {_MIN_PULSE_US:g}–{_MAX_PULSE_US:g} µs, got {value}",
+        )
+
+
+class I2cBackend(StrEnum):
+    """What carries the I²C transactions."""
+
+    SMBUS2 = "smbus2"  # /dev/i2c-N through smbus2: the real bus
+    FAKE = "fake"  # simulated devices in memory: for tests and a dry run without hardware
+
+
+class ClawKind(StrEnum):
+    """How the claw is driven."""
+
+    NONE = "none"
+    MOTOR = "motor"  # a motor behind an ESC or motor driver: h+/h- run it for claw_pulse_ms
+    SERVO = "servo"  # a positional servo: h+/h- move it one step
+
+
+class PressureKind(StrEnum):
+    """The pressure sensor."""
+
+    MS5837 = "ms5837"
+    ADS1115 = "ads1115"
+
+
+class ImuKind(StrEnum):
+    """The IMU."""
+
+    BNO055 = "bno055"
+    NONE = "none"  # reports level, heading 0
+
+
+@dataclass(frozen=True, slots=True)
+class I2cConfig:
+    """``[i2c]``: the bus every I²C device is on."""
+
+    bus: int = field(default=1, metadata=_doc("bus number: /dev/i2c-N (1 on a Raspberry Pi)"))
+    backend: I2cBackend = field(
+        default=I2cBackend.SMBUS2,
+        metadata=_doc(
+            "`smbus2` (the real bus) or `fake` (simulated devices, for tests and a dry run on "
+            "a desktop: nothing reaches hardware, and the leak pin is gpiozero's mock pin)"
+        ),
+    )
+    fake_log: str = field(
+        default="",
+        metadata=_doc("`fake` only: a file that gets one JSON line per I²C transaction"),
+    )
+
+    def __post_init__(self) -> None:
+        _require(0 <= self.bus <= 255, f"bus must be 0–255, got {self.bus}")
+        _require(
+            not self.fake_log or self.backend is I2cBackend.FAKE,
+            'fake_log is for backend = "fake" only',
+        )
+
+
+@dataclass(frozen=True, slots=True)
+class Pca9685Config:
+    """``[pca9685]``: the PWM board of the ESCs and the claw."""
+
+    address: int = field(default=0x40, metadata=_doc("I²C address (0x40 unless re-strapped)"))
+    frequency_hz: float = field(
+        default=50.0, metadata=_doc("pulse frequency, Hz (50 for ESCs and servos)")
+    )
+    oscillator_hz: float = field(
+        default=DEFAULT_OSCILLATOR_HZ,
+        metadata=_doc(
+            "the chip's oscillator, Hz: nominal 25 MHz, real chips ±5 %; measure a pulse and set "
+            "this so that neutral is 1500 µs"
+        ),
+    )
+
+    def __post_init__(self) -> None:
+        _check_address("address", self.address)
+        _require(
+            math.isfinite(self.oscillator_hz) and 20e6 <= self.oscillator_hz <= 30e6,
+            f"oscillator_hz must be 20e6–30e6, got {self.oscillator_hz}",
+        )
+        try:
+            prescale_for(self.frequency_hz, self.oscillator_hz)
+        except ValueError as error:
+            raise ConfigError(f"frequency_hz: {error}") from None
+
+
+@dataclass(frozen=True, slots=True)
+class EscConfig:
+    """``[esc.<thruster name>]``: one thruster's ESC."""
+
+    channel: int = field(default=-1, metadata=_doc("PCA9685 output 0–15 (required)"))
+    reversed: bool = field(
+        default=False, metadata=_doc("true if + duty must give a pulse below neutral")
+    )
+    min_us: float = field(default=1100.0, metadata=_doc("pulse at full reverse, µs"))
+    neutral_us: float = field(default=1500.0, metadata=_doc("pulse at rest (arms the ESC), µs"))
+    max_us: float = field(default=1900.0, metadata=_doc("pulse at full forward, µs"))
+
+    def __post_init__(self) -> None:
+        _require(0 <= self.channel < CHANNELS, f"channel must be 0–15, got {self.channel}")
+        _check_pulses(min_us=self.min_us, neutral_us=self.neutral_us, max_us=self.max_us)
+        _require(
+            self.min_us < self.neutral_us < self.max_us,
+            f"pulses must rise min_us < neutral_us < max_us, got "
+            f"{self.min_us:g} < {self.neutral_us:g} < {self.max_us:g}",
+        )
+
+
+@dataclass(frozen=True, slots=True)
+class ClawConfig:
+    """``[claw]``: the claw's output."""
+
+    kind: ClawKind = field(default=ClawKind.NONE, metadata=_doc("`none`, `motor` or `servo`"))
+    channel: int = field(default=-1, metadata=_doc("PCA9685 output 0–15"))
+    open_us: float = field(
+        default=1900.0, metadata=_doc("motor: pulse while opening; servo: fully open, µs")
+    )
+    close_us: float = field(
+        default=1100.0, metadata=_doc("motor: pulse while closing; servo: fully closed, µs")
+    )
+    neutral_us: float = field(
+        default=1500.0, metadata=_doc("motor: pulse at rest; servo: position at start, µs")
+    )
+    step_us: float = field(default=100.0, metadata=_doc("servo: travel per `h+`/`h-`, µs"))
+
+    def __post_init__(self) -> None:
+        if self.kind is ClawKind.NONE:
+            return
+        _require(0 <= self.channel < CHANNELS, f"channel must be 0–15, got {self.channel}")
+        _check_pulses(open_us=self.open_us, close_us=self.close_us, neutral_us=self.neutral_us)
+        _require(
+            math.isfinite(self.step_us) and 0 < self.step_us <= 1000,
+            f"step_us must be in (0, 1000], got {self.step_us}",
+        )
+
+
+@dataclass(frozen=True, slots=True)
+class Ms5837Config:
+    """``[pressure.ms5837]``: a Blue Robotics Bar30 (`30ba`) or Bar02 (`02ba`)."""
+
+    model: Ms5837Model = field(default=Ms5837Model.BA30, metadata=_doc("`30ba` or `02ba`"))
+    address: int = field(default=0x76, metadata=_doc("I²C address (fixed at 0x76 on the chip)"))
+    oversampling: int = field(
+        default=4096,
+        metadata=_doc("oversampling ratio: " + ", ".join(map(str, OVERSAMPLING))),
+    )
+
+    def __post_init__(self) -> None:
+        _check_address("address", self.address)
+        _require(
+            self.oversampling in OVERSAMPLING,
+            f"oversampling must be one of {', '.join(map(str, OVERSAMPLING))}, "
+            f"got {self.oversampling}",
+        )
+
+
+@dataclass(frozen=True, slots=True)
+class Ads1115Config:
+    """``[pressure.ads1115]``: an analog transducer on an ADS1115."""
+
+    address: int = field(default=0x48, metadata=_doc("I²C address (0x48–0x4B by the ADDR pin)"))
+    channel: int = field(default=0, metadata=_doc("input AIN0–AIN3"))
+    full_scale_v: float = field(
+        default=6.144, metadata=_doc("range, V: " + ", ".join(map(str, FULL_SCALES_V)))
+    )
+    data_rate_sps: int = field(
+        default=128, metadata=_doc("samples/s: " + ", ".join(map(str, DATA_RATES_SPS)))
+    )
+    min_volts: float = field(default=0.5, metadata=_doc("transducer output at min_mbar, V"))
+    max_volts: float = field(default=4.5, metadata=_doc("transducer output at max_mbar, V"))
+    min_mbar: float = field(default=0.0, metadata=_doc("pressure at min_volts, mbar"))
+    max_mbar: float = field(default=10000.0, metadata=_doc("pressure at max_volts, mbar"))
+
+    def __post_init__(self) -> None:
+        _check_address("address", self.address)
+        _require(0 <= self.channel <= 3, f"channel must be 0–3, got {self.channel}")
+        _require(
+            self.full_scale_v in FULL_SCALES_V,
+            f"full_scale_v must be one of {', '.join(map(str, FULL_SCALES_V))}, "
+            f"got {self.full_scale_v}",
+        )
+        _require(
+            self.data_rate_sps in DATA_RATES_SPS,
+            f"data_rate_sps must be one of {', '.join(map(str, DATA_RATES_SPS))}, "
+            f"got {self.data_rate_sps}",
+        )
+        _require(
+            self.min_volts < self.max_volts and self.min_mbar < self.max_mbar,
+            "min_volts < max_volts and min_mbar < max_mbar are required",
+        )
+
+
+@dataclass(frozen=True, slots=True)
+class PressureConfig:
+    """``[pressure]``: the sensor and how its pressure maps onto the raw scale (P13)."""
+
+    sensor: PressureKind = field(
+        default=PressureKind.MS5837, metadata=_doc("`ms5837` or `ads1115`")
+    )
+    surface_mbar: float = field(
+        default=1013.25,
+        metadata=_doc(
+            "pressure at the surface, mbar: raw reads [depth] zero_raw here (0 for a gauge "
+            "transducer); `sdz` corrects it on the day"
+        ),
+    )
+    density_kg_m3: float = field(
+        default=997.0, metadata=_doc("water density, kg/m³: 997 fresh, 1029 sea")
+    )
+    ms5837: Ms5837Config = field(default_factory=Ms5837Config)
+    ads1115: Ads1115Config = field(default_factory=Ads1115Config)
+
+    def __post_init__(self) -> None:
+        _require(
+            math.isfinite(self.surface_mbar) and 0 <= self.surface_mbar <= 2000,
+            f"surface_mbar must be 0–2000, got {self.surface_mbar}",
+        )
+        _require(
+            math.isfinite(self.density_kg_m3) and 900 <= self.density_kg_m3 <= 1100,
+            f"density_kg_m3 must be 900–1100, got {self.density_kg_m3}",
+        )
+
+
+@dataclass(frozen=True, slots=True)
+class ImuConfig:
+    """``[imu]``: the IMU and its mounting."""
+
+    sensor: ImuKind = field(default=ImuKind.BNO055, metadata=_doc("`bno055` or `none`"))
+    bus: int = field(
+        default=-1,
+        metadata=_doc(
+            "its own I²C bus number (a BNO055 on a software bus, for its clock stretching); "
+            "-1: [i2c] bus"
+        ),
+    )
+    address: int = field(default=0x28, metadata=_doc("I²C address (0x28, or 0x29 by ADR)"))
+    placement: str = field(
+        default="P1",
+        metadata=_doc("mounting, the datasheet's placements P0–P7 (§3.4); P1 is the default"),
+    )
+    heading_offset_deg: float = field(
+        default=0.0, metadata=_doc("added to the heading: the chip's yaw against the bow, °")
+    )
+    invert_roll: bool = field(
+        default=False, metadata=_doc("negate roll so that + is starboard down")
+    )
+    invert_pitch: bool = field(default=False, metadata=_doc("negate pitch so that + is bow up"))
+    poll_hz: float = field(default=20.0, metadata=_doc("reads per second (the chip fuses at 100)"))
+
+    def __post_init__(self) -> None:
+        _check_address("address", self.address)
+        _require(-1 <= self.bus <= 255, f"bus must be 0–255 or -1, got {self.bus}")
+        _require(
+            self.placement in PLACEMENTS,
+            f"placement must be one of {', '.join(PLACEMENTS)}, got {self.placement!r}",
+        )
+        _require(
+            math.isfinite(self.heading_offset_deg) and -360 <= self.heading_offset_deg <= 360,
+            f"heading_offset_deg must be −360…360, got {self.heading_offset_deg}",
+        )
+        _require(
+            math.isfinite(self.poll_hz) and 1 <= self.poll_hz <= 100,
+            f"poll_hz must be 1–100, got {self.poll_hz}",
+        )
+
+
+@dataclass(frozen=True, slots=True)
+class LeakConfig:
+    """``[leak]``: the leak probe's GPIO input (the action is [controller] leak_action)."""
+
+    pin: int = field(default=-1, metadata=_doc("BCM GPIO number; -1: no leak probe"))
+    active_high: bool = field(
+        default=True, metadata=_doc("true if the probe drives the pin high when wet")
+    )
+    pull: str = field(
+        default="down",
+        metadata=_doc("`down`, `up` or `none` (an external resistor); must suit active_high"),
+    )
+
+    def __post_init__(self) -> None:
+        _require(-1 <= self.pin <= 53, f"pin must be a BCM GPIO 0–53 or -1, got {self.pin}")
+        _require(
+            self.pull in ("down", "up", "none"),
+            f"pull must be down, up or none, got {self.pull!r}",
+        )
+        _require(
+            self.pull == "none" or (self.pull == "down") == self.active_high,
+            f"pull = {self.pull!r} makes the pin rest "
+            f"{'low' if self.pull == 'down' else 'high'}: it cannot be active "
+            f"{'high' if self.active_high else 'low'}",
+        )
+
+
+@dataclass(frozen=True, slots=True)
+class BoardConfig:
+    """``[board]``: the board loop."""
+
+    stale_after_failures: int = field(
+        default=5,
+        metadata=_doc(
+            "stop the motors when a sensor fails this many reads in a row (stale-sensor "
+            "failsafe); they may be started again once it answers"
+        ),
+    )
+    overrun_warning_s: float = field(
+        default=10.0, metadata=_doc("log control-loop overruns at most this often, s")
+    )
+
+    def __post_init__(self) -> None:
+        _require(
+            1 <= self.stale_after_failures <= 1000,
+            f"stale_after_failures must be 1–1000, got {self.stale_after_failures}",
+        )
+        _require(
+            math.isfinite(self.overrun_warning_s) and self.overrun_warning_s > 0,
+            f"overrun_warning_s must be > 0, got {self.overrun_warning_s}",
+        )
+
+
+@dataclass(frozen=True, slots=True)
+class PiConfig:
+    """A whole ``rov.toml``: the controller and the board it runs on."""
+
+    controller: ControllerConfig
+    escs: tuple[EscConfig, ...]  # in the order of controller.thrusters
+    i2c: I2cConfig = field(default_factory=I2cConfig)
+    pca9685: Pca9685Config = field(default_factory=Pca9685Config)
+    claw: ClawConfig = field(default_factory=ClawConfig)
+    pressure: PressureConfig = field(default_factory=PressureConfig)
+    imu: ImuConfig = field(default_factory=ImuConfig)
+    leak: LeakConfig = field(default_factory=LeakConfig)
+    board: BoardConfig = field(default_factory=BoardConfig)
+
+
+#: The board's tables, beside the controller's.
+_BOARD_TABLES = ("i2c", "pca9685", "esc", "claw", "pressure", "imu", "leak", "board")
+
+
+def _table(data: Mapping[str, Any], name: str, where: str) -> Mapping[str, Any]:
+    table = data.get(name, {})
+    if not isinstance(table, Mapping):
+        raise ConfigError(f"{where} must be a table, got {type(table).__name__}")
+    return table
+
+
+def pi_config_from_mapping(data: Mapping[str, Any], source: str = "rov.toml") -> PiConfig:
+    """The configuration in parsed TOML ``data``; :class:`ConfigError` names what is wrong."""
+    controller = config_from_mapping(data, source, other_tables=_BOARD_TABLES)
+    escs = _escs(controller, _table(data, "esc", f"{source} [esc]"), source)
+    i2c = dataclass_from_table(I2cConfig, _table(data, "i2c", "[i2c]"), f"{source} [i2c]")
+    pca = dataclass_from_table(
+        Pca9685Config, _table(data, "pca9685", "[pca9685]"), f"{source} [pca9685]"
+    )
+    claw = dataclass_from_table(ClawConfig, _table(data, "claw", "[claw]"), f"{source} [claw]")
+    pressure_table = dict(_table(data, "pressure", f"{source} [pressure]"))
+    ms5837 = dataclass_from_table(
+        Ms5837Config,
+        _table(pressure_table, "ms5837", f"{source} [pressure.ms5837]"),
+        f"{source} [pressure.ms5837]",
+    )
+    ads1115 = dataclass_from_table(
+        Ads1115Config,
+        _table(pressure_table, "ads1115", f"{source} [pressure.ads1115]"),
+        f"{source} [pressure.ads1115]",
+    )
+    pressure_table.pop("ms5837", None)
+    pressure_table.pop("ads1115", None)
+    pressure = dataclass_from_table(
+        PressureConfig, pressure_table, f"{source} [pressure]", ms5837=ms5837, ads1115=ads1115
+    )
+    imu = dataclass_from_table(ImuConfig, _table(data, "imu", "[imu]"), f"{source} [imu]")
+    leak = dataclass_from_table(LeakConfig, _table(data, "leak", "[leak]"), f"{source} [leak]")
+    board = dataclass_from_table(BoardConfig, _table(data, "board", "[board]"), f"{source} [board]")
+    config = PiConfig(controller, escs, i2c, pca, claw, pressure, imu, leak, board)
+    _check_channels(config, source)
+    _check_pulses_fit(config, source)
+    return config
+
+
+def load_pi_config(path: Path | str) -> PiConfig:
+    """Read and check a ``rov.toml``."""
+    return pi_config_from_mapping(read_toml(path), str(path))
+
+
+def _escs(
+    controller: ControllerConfig, tables: Mapping[str, Any], source: str
+) -> tuple[EscConfig, ...]:
+    names = [thruster.name for thruster in controller.thrusters]
+    unknown = sorted(set(tables) - set(names))
+    if unknown:
+        raise ConfigError(
+            f"{source} [esc.{unknown[0]}]: no thruster of that name in the layout; "
+            f"the thrusters are: {', '.join(names)}"
+        )
+    missing = [name for name in names if name not in tables]
+    if missing:
+        raise ConfigError(
+            f"{source} [esc]: thruster {missing[0]!r} has no ESC output; add [esc.{missing[0]}] "
+            "with its channel"
+        )
+    escs = []
+    for name in names:
+        where = f"{source} [esc.{name}]"
+        table = _table(tables, name, where)
+        if "channel" not in table:
+            raise ConfigError(f"{where}: channel is required")
+        escs.append(dataclass_from_table(EscConfig, table, where))
+    return tuple(escs)
+
+
+def _check_channels(config: PiConfig, source: str) -> None:
+    users: dict[int, str] = {}
+    outputs = [
+        (esc.channel, f"[esc.{thruster.name}]")
+        for esc, thruster in zip(config.escs, config.controller.thrusters, strict=True)
+    ]
+    if config.claw.kind is not ClawKind.NONE:
+        outputs.append((config.claw.channel, "[claw]"))
+    for channel, user in outputs:
+        if channel in users:
+            raise ConfigError(
+                f"{source} {user} channel: {channel} is already used by {users[channel]}"
+            )
+        users[channel] = user
+
+
+def _check_pulses_fit(config: PiConfig, source: str) -> None:
+    prescale = prescale_for(config.pca9685.frequency_hz, config.pca9685.oscillator_hz)
+    period_us = 4096 * (prescale + 1) / config.pca9685.oscillator_hz * 1e6
+    longest = max(
+        [esc.max_us for esc in config.escs]
+        + [config.claw.open_us, config.claw.close_us, config.claw.neutral_us]
+    )
+    _require(
+        longest < period_us,
+        f"{source} [pca9685] frequency_hz: a {longest:g} µs pulse does not fit in the "
+        f"{period_us:.0f} µs period of {config.pca9685.frequency_hz:g} Hz",
+    )
+
+
+def pi_config_reference() -> str:
+    """Markdown tables of every board key with its default and meaning."""
+    return "\n".join(
+        [
+            table_reference("[i2c]", I2cConfig()),
+            table_reference("[pca9685]", Pca9685Config()),
+            table_reference("[esc.<thruster name>]", EscConfig(channel=0)),
+            table_reference("[claw]", ClawConfig()),
+            table_reference("[pressure]", PressureConfig()),
+            table_reference("[pressure.ms5837]", Ms5837Config()),
+            table_reference("[pressure.ads1115]", Ads1115Config()),
+            table_reference("[imu]", ImuConfig()),
+            table_reference("[leak]", LeakConfig()),
+            table_reference("[board]", BoardConfig()),
+        ]
+    )

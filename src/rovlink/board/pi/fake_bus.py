@@ -1,0 +1,303 @@
+"""An I²C bus of simulated devices that records every transaction: for tests and dry runs.
+
+``[i2c] backend = "fake"`` in ``rov.toml`` runs the whole board on this bus, so the controller,
+its safety paths and a host program can be exercised on any computer; with ``fake_log`` every
+transaction is also written to a file as one JSON line, which is how tests watch the pulses of a
+``rovlink controller --board pi`` process. The devices answer as the datasheets describe, with
+the datasheets' example values; nothing here reaches hardware.
+"""
+
+from __future__ import annotations
+
+import errno
+import json
+import threading
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import IO, Protocol
+
+from rovlink.board.pi.ms5837 import Ms5837Model, crc4
+
+__all__ = [
+    "MS5837_EXAMPLES",
+    "FakeAds1115",
+    "FakeBno055",
+    "FakeDevice",
+    "FakeI2cBus",
+    "FakeMs5837",
+    "FakePca9685",
+    "Transaction",
+    "ms5837_prom",
+]
+
+
+class FakeDevice(Protocol):
+    """A device on the fake bus, seen at the level of raw transactions."""
+
+    def write(self, data: bytes) -> None:
+        """A write transaction's bytes."""
+        ...
+
+    def read(self, length: int) -> bytes:
+        """A read transaction (after a write, if there was one, as a repeated start)."""
+        ...
+
+
+@dataclass(frozen=True, slots=True)
+class Transaction:
+    """One transaction as a logic analyser would show it."""
+
+    address: int
+    written: bytes
+    read: bytes = b""
+    failed: bool = False
+
+    def to_json(self) -> str:
+        """One JSON line."""
+        return json.dumps(
+            {
+                "address": self.address,
+                "written": self.written.hex(),
+                "read": self.read.hex(),
+                "failed": self.failed,
+            }
+        )
+
+    @classmethod
+    def from_json(cls, line: str) -> Transaction:
+        """A transaction back from :meth:`to_json`."""
+        item = json.loads(line)
+        return cls(
+            item["address"],
+            bytes.fromhex(item["written"]),
+            bytes.fromhex(item["read"]),
+            item["failed"],
+        )
+
+
+class FakeI2cBus:
+    """An :class:`~rovlink.board.pi.i2c.I2cBus` of fake devices, recording every transaction.
+
+    ``fail(address, count)`` makes the next ``count`` transactions with that address fail as a
+    device that stopped answering does (``OSError`` EREMOTEIO).
+    """
+
+    def __init__(self, devices: dict[int, FakeDevice], log: IO[str] | None = None) -> None:
+        self.devices = devices
+        self.transactions: list[Transaction] = []
+        self._log = log
+        self._failures: dict[int, int] = {}
+        self._lock = threading.Lock()
+
+    def snapshot(self) -> list[Transaction]:
+        """Every transaction so far (a copy: the bus may be in use in another thread)."""
+        with self._lock:
+            return list(self.transactions)
+
+    def fail(self, address: int, count: int) -> None:
+        """Fail the next ``count`` transactions with ``address``."""
+        with self._lock:
+            self._failures[address] = count
+
+    def write(self, address: int, data: bytes) -> None:
+        """One write transaction."""
+        self._transact(address, data, 0)
+
+    def read(self, address: int, length: int) -> bytes:
+        """One read transaction."""
+        return self._transact(address, b"", length)
+
+    def write_read(self, address: int, data: bytes, length: int) -> bytes:
+        """A write, a repeated start, a read."""
+        return self._transact(address, data, length)
+
+    def close(self) -> None:
+        """Close the log."""
+        if self._log is not None:
+            self._log.close()
+            self._log = None
+
+    def _transact(self, address: int, data: bytes, length: int) -> bytes:
+        with self._lock:
+            device = self.devices.get(address)
+            failing = self._failures.get(address, 0)
+            if failing:
+                self._failures[address] = failing - 1
+            if device is None or failing:
+                self._record(Transaction(address, bytes(data), failed=True))
+                raise OSError(errno.EREMOTEIO, f"no acknowledge from {address:#04x}")
+            if data or not length:
+                device.write(bytes(data))
+            answer = device.read(length) if length else b""
+            self._record(Transaction(address, bytes(data), answer))
+            return answer
+
+    def _record(self, transaction: Transaction) -> None:
+        self.transactions.append(transaction)
+        if self._log is not None:
+            self._log.write(transaction.to_json() + "\n")
+            self._log.flush()
+
+
+class _Registers:
+    """A register file with an address pointer, as most I²C devices have."""
+
+    def __init__(self, size: int = 256) -> None:
+        self.registers = bytearray(size)
+        self.pointer = 0
+
+    def write(self, data: bytes) -> None:
+        if not data:
+            return
+        self.pointer = data[0]
+        for offset, value in enumerate(data[1:]):
+            self._store((self.pointer + offset) % len(self.registers), value)
+
+    def read(self, length: int) -> bytes:
+        return bytes(
+            self.registers[(self.pointer + offset) % len(self.registers)]
+            for offset in range(length)
+        )
+
+    def _store(self, register: int, value: int) -> None:
+        self.registers[register] = value
+
+
+class FakePca9685(_Registers):
+    """A PCA9685: its registers, and the pulse each output makes."""
+
+    def __init__(self, oscillator_hz: float = 25_000_000.0) -> None:
+        super().__init__()
+        self.oscillator_hz = oscillator_hz
+        self.registers[0x00] = 0x11  # MODE1 after power-on: SLEEP, ALLCALL
+        self.registers[0xFE] = 0x1E  # PRE_SCALE after power-on (200 Hz)
+
+    def _store(self, register: int, value: int) -> None:
+        if register == 0xFE and not self.registers[0x00] & 0x10:
+            return  # PRE_SCALE is written only while asleep (datasheet §7.3.5)
+        if 0xFA <= register <= 0xFD:  # ALL_LED_*: every output at once
+            for channel in range(16):
+                self.registers[0x06 + 4 * channel + register - 0xFA] = value
+        self.registers[register] = value
+
+    @property
+    def sleeping(self) -> bool:
+        """Whether the oscillator is off (no pulses at all)."""
+        return bool(self.registers[0x00] & 0x10)
+
+    @property
+    def prescale(self) -> int:
+        """The PRE_SCALE register."""
+        return self.registers[0xFE]
+
+    def pulse_us(self, channel: int) -> float | None:
+        """The pulse on ``channel``, µs; None while it makes none (off, or asleep)."""
+        base = 0x06 + 4 * channel
+        on = self.registers[base] | (self.registers[base + 1] & 0x0F) << 8
+        off = self.registers[base + 2] | (self.registers[base + 3] & 0x0F) << 8
+        if self.sleeping or self.registers[base + 3] & 0x10:
+            return None
+        period_us = 4096 * (self.prescale + 1) / self.oscillator_hz * 1e6
+        return (off - on) % 4096 * period_us / 4096
+
+
+#: The datasheets' example calibration and conversions: (C1–C6, D1, D2), with the documented
+#: results (first order): 30BA 3999.8 mbar at 19.81 °C, 02BA 1100.02 mbar at 20.00 °C.
+MS5837_EXAMPLES: dict[Ms5837Model, tuple[tuple[int, ...], int, int]] = {
+    Ms5837Model.BA30: ((34982, 36352, 20328, 22354, 26646, 26146), 4958179, 6815414),
+    Ms5837Model.BA02: ((46372, 43981, 29059, 27842, 31553, 28165), 6465444, 8077636),
+}
+_FACTORY_BITS = 0x0A3C  # word 0's low 12 bits: factory data, any value
+
+
+def ms5837_prom(coefficients: Sequence[int], factory_bits: int = _FACTORY_BITS) -> list[int]:
+    """Seven PROM words for C1–C6 with a correct CRC-4 in word 0."""
+    words = [factory_bits & 0x0FFF, *coefficients]
+    words[0] |= crc4(words) << 12
+    return words
+
+
+@dataclass
+class FakeMs5837:
+    """An MS5837: reset, PROM reads, D1/D2 conversions and the ADC read."""
+
+    prom: list[int]
+    d1: int
+    d2: int
+    resets: int = 0
+    _answer: bytes = b""
+    _converted: int = 0
+    conversions: list[int] = field(default_factory=list)
+
+    @classmethod
+    def example(cls, model: Ms5837Model) -> FakeMs5837:
+        """The datasheet's example device."""
+        coefficients, d1, d2 = MS5837_EXAMPLES[model]
+        return cls(ms5837_prom(coefficients), d1, d2)
+
+    def write(self, data: bytes) -> None:
+        command = data[0]
+        if command == 0x1E:
+            self.resets += 1
+        elif 0xA0 <= command <= 0xAE:
+            self._answer = self.prom[(command - 0xA0) // 2].to_bytes(2, "big")
+        elif 0x40 <= command <= 0x4A:
+            self._converted = self.d1
+            self.conversions.append(command)
+        elif 0x50 <= command <= 0x5A:
+            self._converted = self.d2
+            self.conversions.append(command)
+        elif command == 0x00:
+            # A conversion is read once; a repeated read gives 0 (datasheet).
+            self._answer = self._converted.to_bytes(3, "big")
+            self._converted = 0
+
+    def read(self, length: int) -> bytes:
+        return self._answer[:length].ljust(length, b"\x00")
+
+
+class FakeAds1115(_Registers):
+    """An ADS1115 whose input sits at ``volts``."""
+
+    def __init__(self, volts: float) -> None:
+        super().__init__(size=4)
+        self.volts = volts
+
+    def read(self, length: int) -> bytes:
+        if self.pointer == 0x00:
+            config = int.from_bytes(self.registers[1:3], "big")
+            full_scale_v = (6.144, 4.096, 2.048, 1.024, 0.512, 0.256, 0.256, 0.256)[
+                (config >> 9) & 0x7
+            ]
+            counts = max(-32768, min(32767, round(self.volts / full_scale_v * 32768)))
+            return counts.to_bytes(2, "big", signed=True)[:length]
+        return bytes(self.registers[1:3])[:length]  # the config register
+
+    def _store(self, register: int, value: int) -> None:
+        # Registers are 16 bits: a write after the pointer is MSB then LSB.
+        if self.pointer == 0x01:
+            self.registers[1 + (register - 0x01) % 2] = value
+
+
+class FakeBno055(_Registers):
+    """A BNO055 in fusion mode reporting a fixed attitude (heading, roll, pitch in degrees)."""
+
+    def __init__(self, roll_deg: float = 2.0, pitch_deg: float = -1.0, heading_deg: float = 90.0):
+        super().__init__()
+        self.registers[0x00] = 0xA0  # CHIP_ID
+        self.set_attitude(roll_deg, pitch_deg, heading_deg)
+
+    def set_attitude(self, roll_deg: float, pitch_deg: float, heading_deg: float) -> None:
+        """What the Euler registers report (1/16 degree, little-endian)."""
+        for offset, value in enumerate((heading_deg, roll_deg, pitch_deg)):
+            self.registers[0x1A + 2 * offset : 0x1C + 2 * offset] = round(value * 16).to_bytes(
+                2, "little", signed=True
+            )
+
+    def _store(self, register: int, value: int) -> None:
+        if register == 0x3F and value & 0x20:  # SYS_TRIGGER RST_SYS
+            self.registers[0x3D] = 0x00
+            return
+        if 0x1A <= register <= 0x1F:
+            return  # read-only
+        self.registers[register] = value

@@ -1,0 +1,56 @@
+"""The leak probe on a GPIO input through gpiozero, latched on the edge (P14).
+
+gpiozero calls back on the input's edge from its own thread, so a pulse shorter than a control
+period still sets the latch; the controller reads and clears it once per tick.
+"""
+
+from __future__ import annotations
+
+import threading
+from typing import Any
+
+__all__ = ["GpioLeakSensor"]
+
+
+class GpioLeakSensor:
+    """A leak probe on GPIO ``pin`` (BCM numbering); ``active_high`` is wet at 3.3 V."""
+
+    def __init__(
+        self, pin: int, *, active_high: bool = True, pull: str = "down", pin_factory: Any = None
+    ) -> None:
+        from gpiozero import DigitalInputDevice  # noqa: PLC0415 - the pi extra
+
+        self._lock = threading.Lock()
+        self._fired = False
+        if pull not in ("down", "up", "none"):
+            raise ValueError(f"pull must be down, up or none, got {pull!r}")
+        if pull != "none" and (pull == "down") != active_high:
+            # gpiozero takes the active state from the pull: a pull-down input is active high.
+            raise ValueError(
+                f"a pull-{pull} input rests {'low' if pull == 'down' else 'high'}, so it "
+                f"cannot be active {'high' if active_high else 'low'}"
+            )
+        if pull == "none":
+            device = DigitalInputDevice(
+                pin, pull_up=None, active_state=active_high, pin_factory=pin_factory
+            )
+        else:
+            device = DigitalInputDevice(pin, pull_up=pull == "up", pin_factory=pin_factory)
+        device.when_activated = self._on_wet
+        self._device = device
+        self._fired = bool(device.is_active)  # already wet at start
+
+    def _on_wet(self) -> None:
+        with self._lock:
+            self._fired = True
+
+    def fired_since_last_read(self) -> bool:
+        """Whether the probe was wet at any moment since the last call; clears the latch."""
+        with self._lock:
+            fired = self._fired or bool(self._device.is_active)
+            self._fired = False
+        return fired
+
+    def close(self) -> None:
+        """Release the pin."""
+        self._device.close()

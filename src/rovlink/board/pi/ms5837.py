@@ -1,0 +1,211 @@
+"""The TE MS5837 pressure sensor (Blue Robotics Bar30 = MS5837-30BA, Bar02 = MS5837-02BA).
+
+Written from TE's datasheets: reset, the PROM's calibration words and their CRC-4, D1 (pressure)
+and D2 (temperature) conversions, and the first- and second-order compensation, which differ
+between the two models. A conversion takes up to 18 ms, longer than a control period, so the
+driver never waits for one: :meth:`Ms5837.poll` starts a conversion and collects it on a later
+call, alternating D1 and D2, and returns a reading whenever a pair is complete.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import NamedTuple
+
+from rovlink.board.pi.i2c import I2cBus, check_address
+from rovlink.board.sensors import SensorError
+from rovlink.protocol.text_enum import StrEnum
+
+__all__ = [
+    "OVERSAMPLING",
+    "Ms5837",
+    "Ms5837Model",
+    "Ms5837Reading",
+    "compensate",
+    "crc4",
+]
+
+_RESET = 0x1E
+_ADC_READ = 0x00
+_PROM_READ = 0xA0
+_CONVERT_D1 = 0x40
+_CONVERT_D2 = 0x50
+_PROM_WORDS = 7
+_RESET_S = 0.003  # reload of the PROM after a reset: 2.8 ms (datasheet)
+
+#: Oversampling ratio → (command offset, maximum conversion time, s) from the datasheet.
+OVERSAMPLING: dict[int, tuple[int, float]] = {
+    256: (0x0, 0.00060),
+    512: (0x2, 0.00117),
+    1024: (0x4, 0.00228),
+    2048: (0x6, 0.00454),
+    4096: (0x8, 0.00904),
+    8192: (0xA, 0.01808),
+}
+
+
+class Ms5837Model(StrEnum):
+    """The two variants; their compensation formulas differ."""
+
+    BA30 = "30ba"  # 0–30 bar (Bar30)
+    BA02 = "02ba"  # 0–2 bar (Bar02)
+
+
+class Ms5837Reading(NamedTuple):
+    """One compensated reading."""
+
+    pressure_mbar: float
+    temperature_c: float
+
+
+def crc4(words: Sequence[int]) -> int:
+    """The CRC-4 of the PROM (datasheet, "CRC check"): over words 0–6 with word 0's top 4 bits
+    (the CRC itself) cleared and an eighth word of 0.
+
+    >>> crc4([0x0000, 1, 2, 3, 4, 5, 6]) == crc4([0xF000, 1, 2, 3, 4, 5, 6])
+    True
+    """
+    prom = [words[0] & 0x0FFF, *words[1:_PROM_WORDS], 0]
+    remainder = 0
+    for count in range(16):
+        word = prom[count >> 1]
+        remainder ^= word & 0x00FF if count % 2 else word >> 8
+        for _ in range(8):
+            remainder = (remainder << 1) ^ 0x3000 if remainder & 0x8000 else remainder << 1
+            remainder &= 0xFFFF
+    return (remainder >> 12) & 0x000F
+
+
+def compensate(
+    model: Ms5837Model, prom: Sequence[int], d1: int, d2: int, *, second_order: bool = True
+) -> Ms5837Reading:
+    """Pressure and temperature from the raw conversions (datasheet, "Pressure and temperature
+    calculation" and "Second order temperature compensation"); integer arithmetic as there.
+
+    ``prom`` is the seven PROM words (C1–C6 are ``prom[1]``–``prom[6]``).
+    """
+    c1, c2, c3, c4, c5, c6 = prom[1:7]
+    dt = d2 - c5 * 2**8
+    temp = 2000 + dt * c6 // 2**23
+    if model is Ms5837Model.BA30:
+        off = c2 * 2**16 + (c4 * dt) // 2**7
+        sens = c1 * 2**15 + (c3 * dt) // 2**8
+    else:
+        off = c2 * 2**17 + (c4 * dt) // 2**6
+        sens = c1 * 2**16 + (c3 * dt) // 2**7
+    ti = offi = sensi = 0
+    if second_order:
+        ti, offi, sensi = _second_order(model, dt, temp)
+    off -= offi
+    sens -= sensi
+    temperature_c = (temp - ti) / 100.0
+    if model is Ms5837Model.BA30:
+        pressure_mbar = ((d1 * sens // 2**21 - off) // 2**13) / 10.0  # 0.1 mbar steps
+    else:
+        pressure_mbar = ((d1 * sens // 2**21 - off) // 2**15) / 100.0  # 0.01 mbar steps
+    return Ms5837Reading(pressure_mbar, temperature_c)
+
+
+def _second_order(model: Ms5837Model, dt: int, temp: int) -> tuple[int, int, int]:
+    """(Ti, OFFi, SENSi) of the second-order compensation."""
+    if model is Ms5837Model.BA30:
+        if temp < 2000:  # low temperature
+            ti = 3 * dt * dt // 2**33
+            offi = 3 * (temp - 2000) ** 2 // 2
+            sensi = 5 * (temp - 2000) ** 2 // 2**3
+            if temp < -1500:  # very low temperature
+                offi += 7 * (temp + 1500) ** 2
+                sensi += 4 * (temp + 1500) ** 2
+            return ti, offi, sensi
+        return 2 * dt * dt // 2**37, (temp - 2000) ** 2 // 2**4, 0
+    if temp < 2000:
+        return (
+            11 * dt * dt // 2**35,
+            31 * (temp - 2000) ** 2 // 2**3,
+            63 * (temp - 2000) ** 2 // 2**5,
+        )
+    return 0, 0, 0
+
+
+@dataclass
+class _Cycle:
+    """Where the D1/D2 cycle is: the conversion under way and when it is done."""
+
+    converting: int | None = None  # _CONVERT_D1 or _CONVERT_D2
+    ready_s: float = 0.0
+    d1: int | None = None
+
+
+class Ms5837:
+    """One MS5837 on an I²C bus (its address is fixed at 0x76)."""
+
+    def __init__(
+        self,
+        bus: I2cBus,
+        *,
+        model: Ms5837Model = Ms5837Model.BA30,
+        address: int = 0x76,
+        oversampling: int = 4096,
+    ) -> None:
+        if oversampling not in OVERSAMPLING:
+            choices = ", ".join(map(str, OVERSAMPLING))
+            raise ValueError(f"oversampling must be one of {choices}, got {oversampling}")
+        self.bus = bus
+        self.model = model
+        self.address = check_address(address)
+        self._osr_offset, self.conversion_s = OVERSAMPLING[oversampling]
+        self.prom: tuple[int, ...] = ()
+        self._cycle = _Cycle()
+
+    def start(self) -> None:
+        """Reset the sensor and read its calibration; :class:`SensorError` on a bad CRC-4."""
+        self.bus.write(self.address, bytes([_RESET]))
+        time.sleep(_RESET_S)
+        self.prom = self.read_prom()
+        self._cycle = _Cycle()
+
+    def read_prom(self) -> tuple[int, ...]:
+        """The seven PROM words, checked against the CRC-4 in word 0."""
+        words = []
+        for index in range(_PROM_WORDS):
+            data = self.bus.write_read(self.address, bytes([_PROM_READ + 2 * index]), 2)
+            words.append(int.from_bytes(data, "big"))
+        stored = words[0] >> 12
+        computed = crc4(words)
+        if stored != computed:
+            raise SensorError(
+                f"MS5837 at {self.address:#04x}: PROM CRC-4 is {computed:#x}, "
+                f"the PROM says {stored:#x}: calibration data corrupt"
+            )
+        return tuple(words)
+
+    def poll(self, now_s: float) -> Ms5837Reading | None:
+        """Advance the D1/D2 cycle without waiting; a reading when a D1–D2 pair completes."""
+        cycle = self._cycle
+        if cycle.converting is not None and now_s < cycle.ready_s:
+            return None
+        reading = None
+        if cycle.converting is not None:
+            try:
+                value = self._read_adc()
+            except OSError:
+                self._cycle = _Cycle()  # start over with D1
+                raise
+            if cycle.converting == _CONVERT_D1:
+                cycle.d1 = value
+            elif cycle.d1 is not None:
+                reading = compensate(self.model, self.prom, cycle.d1, value)
+        command = _CONVERT_D2 if cycle.converting == _CONVERT_D1 else _CONVERT_D1
+        cycle.converting = None
+        self.bus.write(self.address, bytes([command + self._osr_offset]))
+        cycle.converting = command
+        cycle.ready_s = now_s + self.conversion_s
+        return reading
+
+    def _read_adc(self) -> int:
+        value = int.from_bytes(self.bus.write_read(self.address, bytes([_ADC_READ]), 3), "big")
+        if value == 0:  # the datasheet's answer to a read without a finished conversion
+            raise SensorError(f"MS5837 at {self.address:#04x}: conversion read as 0")
+        return value

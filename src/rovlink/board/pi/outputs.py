@@ -1,0 +1,143 @@
+"""Thrusters and claw as pulses on a PCA9685: the ESC and servo side of the board."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+from rovlink.board.pi.pca9685 import Pca9685
+from rovlink.logs import get_logger
+
+__all__ = ["EscChannel", "EscThrusters", "MotorClaw", "ServoClaw", "pulse_for_duty"]
+
+logger = get_logger(__name__)
+
+_MAX_DUTY = 255
+
+
+@dataclass(frozen=True, slots=True)
+class EscChannel:
+    """One ESC: its PCA9685 channel, direction and pulse range, µs."""
+
+    channel: int
+    reversed: bool = False
+    min_us: float = 1100.0
+    neutral_us: float = 1500.0
+    max_us: float = 1900.0
+
+
+def pulse_for_duty(esc: EscChannel, duty: int) -> float:
+    """The pulse for a signed duty −255…+255: linear from neutral to the end of the range.
+
+    >>> esc = EscChannel(0)
+    >>> pulse_for_duty(esc, 0), pulse_for_duty(esc, 255), pulse_for_duty(esc, -255)
+    (1500.0, 1900.0, 1100.0)
+    >>> pulse_for_duty(EscChannel(0, reversed=True), 51)
+    1420.0
+    """
+    if esc.reversed:
+        duty = -duty
+    duty = max(-_MAX_DUTY, min(_MAX_DUTY, duty))
+    if duty >= 0:
+        return esc.neutral_us + (esc.max_us - esc.neutral_us) * duty / _MAX_DUTY
+    return esc.neutral_us + (esc.neutral_us - esc.min_us) * duty / _MAX_DUTY
+
+
+class EscThrusters:
+    """The controller's thruster outputs (layout order) as ESC pulses on a PCA9685."""
+
+    def __init__(self, pca: Pca9685, escs: Sequence[EscChannel]) -> None:
+        self._pca = pca
+        self._escs = tuple(escs)
+
+    def neutral_pulses_us(self) -> dict[int, float]:
+        """Every ESC's neutral pulse, by channel."""
+        return {esc.channel: esc.neutral_us for esc in self._escs}
+
+    def set_duties(self, duties: Sequence[int]) -> None:
+        """Apply signed duties, one per thruster of the layout.
+
+        A failed write is retried once, every output rewritten (a glitch on a bus next to
+        thruster cables is not a reason to stop); a second failure is raised, and the board loop
+        then ends with the thrusters at neutral.
+        """
+        if len(duties) != len(self._escs):
+            raise ValueError(f"{len(duties)} duties for {len(self._escs)} thrusters")
+        pulses = {
+            esc.channel: pulse_for_duty(esc, duty)
+            for esc, duty in zip(self._escs, duties, strict=True)
+        }
+        try:
+            self._pca.set_pulses_us(pulses)
+        except OSError as error:
+            logger.warning("PCA9685 write failed (%s); writing every output again", error)
+            self._pca.forget_written()
+            self._pca.set_pulses_us(pulses)
+
+    def neutral(self) -> None:
+        """Neutral on every ESC, written even if the driver believes it is there already."""
+        self._pca.forget_written()
+        self._pca.set_pulses_us(self.neutral_pulses_us())
+
+
+class MotorClaw:
+    """A claw driven by a motor behind an ESC or motor driver: a pulse each way, neutral stops."""
+
+    def __init__(
+        self, pca: Pca9685, channel: int, *, open_us: float, close_us: float, neutral_us: float
+    ) -> None:
+        self._pca = pca
+        self.channel = channel
+        self._pulses = {1: open_us, -1: close_us, 0: neutral_us}
+
+    def rest_pulse_us(self) -> float:
+        """The pulse at start and after a stop: the motor stands still."""
+        return self._pulses[0]
+
+    def drive(self, direction: int) -> None:
+        """+1 opens, −1 closes, 0 stops."""
+        self._pca.set_pulses_us({self.channel: self._pulses[direction]})
+
+    def neutral(self) -> None:
+        """Stop the motor."""
+        self.drive(0)
+
+
+class ServoClaw:
+    """A claw on a positional servo: each ``h+``/``h-`` pulse moves it a step; it holds between.
+
+    The controller runs the claw for a fixed pulse (P16), which suits a motor; for a servo the
+    pulse becomes one step of ``step_us`` toward open or closed, and the servo holds its place.
+    """
+
+    def __init__(
+        self,
+        pca: Pca9685,
+        channel: int,
+        *,
+        open_us: float,
+        close_us: float,
+        start_us: float,
+        step_us: float,
+    ) -> None:
+        self._pca = pca
+        self.channel = channel
+        self._low_us, self._high_us = sorted((open_us, close_us))
+        self._open_sign = 1 if open_us >= close_us else -1
+        self._step_us = step_us
+        self.position_us = start_us
+
+    def rest_pulse_us(self) -> float:
+        """The pulse at start: the configured start position."""
+        return self.position_us
+
+    def drive(self, direction: int) -> None:
+        """+1 steps toward open, −1 toward closed, 0 holds."""
+        if direction == 0:
+            return
+        target = self.position_us + direction * self._open_sign * self._step_us
+        self.position_us = min(self._high_us, max(self._low_us, target))
+        self._pca.set_pulses_us({self.channel: self.position_us})
+
+    def neutral(self) -> None:
+        """A servo has no thrust to stop: it holds where it is."""

@@ -1,0 +1,99 @@
+"""Pressure in mbar onto the protocol's raw scale (P13), so `qr`, `sdz`, `sdk` and `qd` keep
+their meaning on a board whose sensor reports pressure rather than ADC counts."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from rovlink.board.pi.ads1115 import Ads1115
+from rovlink.board.pi.ms5837 import Ms5837
+from rovlink.board.sensors import SensorError
+
+__all__ = ["AnalogPressure", "AnalogTransducer", "Ms5837Pressure", "RawScale"]
+
+_GRAVITY_M_S2 = 9.80665
+_PA_PER_MBAR = 100.0
+_RAW_MAX = 1024
+
+
+@dataclass(frozen=True, slots=True)
+class RawScale:
+    """mbar → raw: the surface reads ``zero_raw``, each count is ``100 / k`` cm deeper.
+
+    With the controller's [depth] ``zero_raw`` and ``k``, ``qd`` then reports the depth in cm.
+
+    >>> scale = RawScale(zero_raw=20, k=200, surface_mbar=1013.25, density_kg_m3=1000.0)
+    >>> scale.raw(1013.25), scale.raw(1013.25 + 98.0665)  # the surface, then 1 m down
+    (20, 70)
+    """
+
+    zero_raw: int
+    k: int
+    surface_mbar: float
+    density_kg_m3: float
+
+    def depth_cm(self, pressure_mbar: float) -> float:
+        """The depth of water (of the configured density) that adds this pressure, cm."""
+        pascal = (pressure_mbar - self.surface_mbar) * _PA_PER_MBAR
+        return pascal / (self.density_kg_m3 * _GRAVITY_M_S2) * 100.0
+
+    def raw(self, pressure_mbar: float) -> int:
+        """The raw reading, 0–1024 (clipped, as an ADC clips)."""
+        counts = self.zero_raw + self.depth_cm(pressure_mbar) * 100.0 / self.k
+        return max(0, min(_RAW_MAX, round(counts)))
+
+
+class Ms5837Pressure:
+    """An MS5837 as the board's pressure source (raw scale)."""
+
+    def __init__(self, sensor: Ms5837, scale: RawScale) -> None:
+        self.sensor = sensor
+        self._scale = scale
+        self.last_mbar: float | None = None
+
+    def poll(self, now_s: float) -> int | None:
+        """Advance the sensor's conversions; a raw value when a new reading is complete."""
+        reading = self.sensor.poll(now_s)
+        if reading is None:
+            return None
+        self.last_mbar = reading.pressure_mbar
+        return self._scale.raw(reading.pressure_mbar)
+
+
+@dataclass(frozen=True, slots=True)
+class AnalogTransducer:
+    """A transducer with a linear voltage output: ``min_volts`` at ``min_mbar`` to ``max_volts``
+    at ``max_mbar``. A voltage more than 5 % of the span outside is a fault (a broken wire reads
+    0 V), never a depth."""
+
+    min_volts: float = 0.5
+    max_volts: float = 4.5
+    min_mbar: float = 0.0
+    max_mbar: float = 10000.0
+
+    def mbar(self, volts: float) -> float:
+        """The pressure for an output voltage; :class:`SensorError` outside the range."""
+        span_v = self.max_volts - self.min_volts
+        margin_v = 0.05 * span_v
+        if not self.min_volts - margin_v <= volts <= self.max_volts + margin_v:
+            raise SensorError(
+                f"pressure transducer reads {volts:.3f} V, outside "
+                f"{self.min_volts:g}–{self.max_volts:g} V: disconnected or faulty"
+            )
+        fraction = (volts - self.min_volts) / span_v
+        return self.min_mbar + fraction * (self.max_mbar - self.min_mbar)
+
+
+class AnalogPressure:
+    """An analog transducer on an ADS1115 as the board's pressure source (raw scale)."""
+
+    def __init__(self, adc: Ads1115, transducer: AnalogTransducer, scale: RawScale) -> None:
+        self.adc = adc
+        self._transducer = transducer
+        self._scale = scale
+        self.last_mbar: float | None = None
+
+    def poll(self, now_s: float) -> int:
+        """Read the latest conversion; the raw value."""
+        self.last_mbar = self._transducer.mbar(self.adc.read_volts())
+        return self._scale.raw(self.last_mbar)

@@ -1,0 +1,113 @@
+"""Sensors polled by the board loop, with the stale-sensor failsafe's bookkeeping.
+
+The board loop polls every sensor once per control period, before the controller's tick, and
+the controller reads the values kept here; so a sensor's I/O (an I²C transaction, a conversion
+under way) never happens inside the controller, and a failed read is never an exception in it.
+A failed poll keeps the last good value and counts; after ``stale_after`` failures in a row the
+sensor is *stale*, and the board loop stops the motors until it answers again.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Generic, Protocol, TypeVar
+
+from rovlink.controller import Attitude
+from rovlink.logs import get_logger
+
+__all__ = [
+    "PolledImu",
+    "PolledPressure",
+    "PolledSensor",
+    "SensorError",
+    "SensorSource",
+]
+
+logger = get_logger(__name__)
+
+_T_co = TypeVar("_T_co", covariant=True)
+_T = TypeVar("_T")
+
+
+class SensorError(OSError):
+    """A sensor answered with data that cannot be right (a CRC mismatch, a zero conversion)."""
+
+
+class SensorSource(Protocol[_T_co]):
+    """A sensor's driver seen by the board loop."""
+
+    def poll(self, now_s: float) -> _T_co | None:
+        """Do this period's I/O; a new reading, or None if none is due (a conversion under way).
+
+        Raises :class:`OSError` when the device does not answer or answers nonsense.
+        """
+        ...
+
+
+class PolledSensor(Generic[_T]):
+    """One sensor: its last good value, and how many polls in a row have failed."""
+
+    def __init__(self, name: str, source: SensorSource[_T], initial: _T, stale_after: int) -> None:
+        if stale_after < 1:
+            raise ValueError(f"stale_after must be ≥ 1, got {stale_after}")
+        self.name = name
+        self.value = initial
+        self.stale_after = stale_after
+        self.failures = 0
+        self.total_failures = 0
+        self._source = source
+
+    @property
+    def stale(self) -> bool:
+        """Whether the last ``stale_after`` polls all failed."""
+        return self.failures >= self.stale_after
+
+    def poll(self, now_s: float) -> OSError | None:
+        """Poll the source; the error if it failed (the value is then kept)."""
+        try:
+            reading = self._source.poll(now_s)
+        except OSError as error:
+            self.failures += 1
+            self.total_failures += 1
+            logger.debug("%s: read failed (%d in a row): %s", self.name, self.failures, error)
+            return error
+        if reading is not None:
+            if self.failures:
+                logger.info("%s answers again after %d failures", self.name, self.failures)
+            self.failures = 0
+            self.value = reading
+        return None
+
+
+class PolledPressure:
+    """The controller's :class:`~rovlink.controller.PressureSensor`: the last polled raw value."""
+
+    def __init__(self, sensor: PolledSensor[int]) -> None:
+        self._sensor = sensor
+
+    def read_raw(self) -> int:
+        """The last good reading on the protocol's raw scale, 0–1024."""
+        return self._sensor.value
+
+
+class PolledImu:
+    """The controller's :class:`~rovlink.controller.Imu`: the last polled attitude."""
+
+    def __init__(self, sensor: PolledSensor[Attitude]) -> None:
+        self._sensor = sensor
+
+    def read_attitude(self) -> Attitude:
+        """The last good attitude."""
+        return self._sensor.value
+
+
+#: The attitude a board without an IMU reports: level, heading north.
+LEVEL = Attitude(0.0, 0.0, 0.0)
+
+
+def finite_attitude(roll_deg: float, pitch_deg: float, heading_deg: float) -> Attitude:
+    """An :class:`Attitude`, or :class:`SensorError` if a value is not a finite number."""
+    values = (roll_deg, pitch_deg, heading_deg)
+    if not all(isinstance(value, float | int) and math.isfinite(value) for value in values):
+        raise SensorError(f"IMU returned no attitude: {values}")
+    return Attitude(float(roll_deg), float(pitch_deg), float(heading_deg) % 360.0)

@@ -1,0 +1,295 @@
+"""Run the controller on a board and serve the protocol on its serial line (or a PTY, or TCP).
+
+--board pi drives real hardware as rov.toml describes it (a PCA9685 for the ESCs and the claw,
+an MS5837 or an analog transducer for pressure, a BNO055, a leak probe on a GPIO); --board sim
+is the simulated robot, so one command line serves both. The protocol has no authentication:
+whoever reaches the line drives the robot, so TCP listens on loopback unless --allow-remote."""
+
+from __future__ import annotations
+
+import argparse
+import signal
+import sys
+import threading
+from types import FrameType
+from typing import TYPE_CHECKING
+
+from rovlink.cli.failure import CommandError, InputError, UsageError
+from rovlink.cli.link_options import positive_int, seconds
+
+if TYPE_CHECKING:
+    from rovlink.board.pi.config import PiConfig
+    from rovlink.board.server import BoardServer
+
+__all__ = ["EPILOG"]
+
+EPILOG = """\
+examples:
+  rovlink controller --board pi --config rov.toml --port /dev/serial0
+  rovlink controller --board pi --config rov.toml --pty --tcp 5760
+  rovlink controller --board sim --tcp 5760
+  rovlink controller --board pi --config rov.toml --tcp 0.0.0.0:5760 --allow-remote
+
+docs/hardware.md has the wiring, a complete rov.toml and a systemd unit."""
+
+_DEFAULT_BAUD = 115200  # P19
+#: rov.toml tables that belong to the board, not to the simulator.
+_BOARD_TABLES = ("i2c", "pca9685", "esc", "claw", "pressure", "imu", "leak", "board")
+
+
+def _watchdog_seconds(text: str) -> float:
+    return seconds(text, maximum=3600.0)
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """``controller``'s options."""
+    parser.add_argument(
+        "--board",
+        choices=("pi", "sim"),
+        default="pi",
+        help="pi: real hardware per --config; sim: the simulated robot (default: %(default)s)",
+    )
+    parser.add_argument(
+        "--config",
+        metavar="FILE",
+        help="rov.toml: the controller's tables and the board's (required for --board pi)",
+    )
+    parser.add_argument(
+        "--port", metavar="DEVICE", help="serve on this serial device, e.g. /dev/serial0"
+    )
+    parser.add_argument(
+        "--baud",
+        "--baudrate",
+        dest="baud",
+        type=positive_int,
+        default=_DEFAULT_BAUD,
+        metavar="BAUD",
+        help="the serial device's rate, 8N1 (default: %(default)s)",
+    )
+    parser.add_argument(
+        "--pty", action="store_true", help="serve on a pseudo-terminal (its path is printed)"
+    )
+    parser.add_argument(
+        "--tcp",
+        metavar="[HOST:]PORT",
+        help="listen on TCP, one client at a time (host 127.0.0.1 unless given)",
+    )
+    parser.add_argument(
+        "--allow-remote",
+        action="store_true",
+        help="let --tcp listen on an address other computers reach; the protocol has no "
+        "authentication, so anyone who reaches it drives the robot",
+    )
+    parser.add_argument(
+        "--watchdog",
+        type=_watchdog_seconds,
+        metavar="SECONDS",
+        help="link-loss failsafe timeout (default: from the config, 2 s); 0 turns it off",
+    )
+
+
+def run(args: argparse.Namespace) -> int:
+    """Serve until SIGTERM or Ctrl-C; the thrusters end at neutral however it ends."""
+    address = _tcp_address(args)
+    if args.port is None and not args.pty and address is None:
+        if args.board == "pi":
+            raise UsageError("give --port DEVICE, --pty and/or --tcp [HOST:]PORT to serve on")
+        args.pty = True
+    _configure_logging()
+    stop = _stop_on_signals()
+    if args.board == "sim":
+        return _run_sim(args, address, stop)
+    return _run_pi(args, address, stop)
+
+
+def _tcp_address(args: argparse.Namespace) -> tuple[str, int] | None:
+    if args.tcp is None:
+        return None
+    from rovlink.board.links import is_loopback  # noqa: PLC0415
+    from rovlink.sim.server import parse_tcp_address  # noqa: PLC0415
+
+    try:
+        host, port = parse_tcp_address(args.tcp)
+    except ValueError as error:
+        raise UsageError(f"--tcp: {error}") from None
+    if not is_loopback(host) and not args.allow_remote:
+        raise UsageError(
+            f"--tcp {args.tcp}: {host} is not a loopback address, and the protocol has no "
+            "authentication; add --allow-remote to let other computers drive the robot"
+        )
+    return host, port
+
+
+def _run_pi(
+    args: argparse.Namespace, address: tuple[str, int] | None, stop: threading.Event
+) -> int:
+    import logging  # noqa: PLC0415
+
+    from rovlink.board.board import BoardStartError  # noqa: PLC0415
+    from rovlink.board.pi.board import open_pi_board  # noqa: PLC0415
+    from rovlink.board.server import BoardServer  # noqa: PLC0415
+
+    config = _pi_config(args)
+    try:
+        board = open_pi_board(config)
+    except BoardStartError as error:
+        raise CommandError(str(error)) from None
+    server = BoardServer(config.controller, board, overrun_warning_s=config.board.overrun_warning_s)
+    try:
+        endpoints = _open_endpoints(server, args, address)
+        print(
+            f"rovlink controller ready: board pi, {', '.join(endpoints)}; "
+            "thrusters at neutral; Ctrl-C stops",
+            flush=True,
+        )
+        try:
+            server.serve(stop.is_set)
+        except Exception as error:
+            logging.getLogger("rovlink.board").exception("the control loop failed")
+            outcome = (
+                "thrusters set to neutral"
+                if server.at_rest
+                else "NEUTRAL COULD NOT BE SET: cut the thruster power"
+            )
+            raise CommandError(
+                f"the control loop failed ({type(error).__name__}: {error}); {outcome}"
+            ) from None
+    finally:
+        if not server.at_rest:
+            server.make_safe()
+        server.close()
+    schedule = server.schedule
+    print(
+        f"rovlink controller stopped: thrusters at neutral; {schedule.periods} control periods, "
+        f"{schedule.overruns} overrun(s)",
+        file=sys.stderr,
+    )
+    return 0
+
+
+def _open_endpoints(
+    server: BoardServer, args: argparse.Namespace, address: tuple[str, int] | None
+) -> list[str]:
+    """Open the serial device, the PTY and the TCP listener asked for; their descriptions."""
+    endpoints = []
+    if args.port is not None:
+        import serial  # noqa: PLC0415
+
+        try:
+            server.open_serial(args.port, args.baud)
+        except (serial.SerialException, OSError, ValueError) as error:
+            raise CommandError(f"cannot open {args.port}: {error}") from None
+        endpoints.append(f"serial {args.port} {args.baud} baud")
+    if args.pty:
+        endpoints.append(f"pty {server.open_pty()}")
+    if address is not None:
+        try:
+            host, port = server.listen_tcp(*address)
+        except OSError as error:
+            raise CommandError(f"cannot listen on {args.tcp}: {error.strerror}") from None
+        endpoints.append(_tcp_endpoint(host, port))
+    return endpoints
+
+
+def _tcp_endpoint(host: str, port: int) -> str:
+    """``tcp HOST:PORT``, and a warning in the log and in the ready line if it is not loopback."""
+    import logging  # noqa: PLC0415
+
+    from rovlink.board.links import is_loopback  # noqa: PLC0415
+
+    if is_loopback(host):
+        return f"tcp {host}:{port}"
+    logging.getLogger("rovlink.board").warning(
+        "listening on %s:%d for any computer that reaches it; the protocol has no "
+        "authentication: anyone connected can drive the robot",
+        host,
+        port,
+    )
+    return f"tcp {host}:{port} (REMOTE, NO AUTHENTICATION)"
+
+
+def _pi_config(args: argparse.Namespace) -> PiConfig:
+    import dataclasses  # noqa: PLC0415
+
+    from rovlink.board.pi.config import load_pi_config  # noqa: PLC0415
+    from rovlink.controller import ConfigError  # noqa: PLC0415
+
+    if args.config is None:
+        raise UsageError("--board pi needs --config rov.toml (see docs/hardware.md)")
+    try:
+        config = load_pi_config(args.config)
+    except ConfigError as error:
+        raise InputError(str(error)) from None
+    if args.watchdog is not None:
+        controller = dataclasses.replace(config.controller, watchdog_s=args.watchdog)
+        config = dataclasses.replace(config, controller=controller)
+    return config
+
+
+def _run_sim(
+    args: argparse.Namespace, address: tuple[str, int] | None, stop: threading.Event
+) -> int:
+    import dataclasses  # noqa: PLC0415
+
+    from rovlink.controller import ConfigError  # noqa: PLC0415
+    from rovlink.controller.config import read_toml  # noqa: PLC0415
+    from rovlink.sim.robot import SimConfig, sim_config_from_mapping  # noqa: PLC0415
+    from rovlink.sim.server import SimServer  # noqa: PLC0415
+
+    if args.port is not None:
+        raise UsageError("--port: the simulator serves a pseudo-terminal or TCP; use --pty/--tcp")
+    try:
+        config = SimConfig()
+        if args.config is not None:
+            # A rov.toml serves both: its board tables are for the real robot only.
+            data = read_toml(args.config)
+            tables = {name: table for name, table in data.items() if name not in _BOARD_TABLES}
+            config = sim_config_from_mapping(tables, args.config)
+    except ConfigError as error:
+        raise InputError(str(error)) from None
+    if args.watchdog is not None:
+        controller = dataclasses.replace(config.controller, watchdog_s=args.watchdog)
+        config = dataclasses.replace(config, controller=controller)
+    server = SimServer(config)
+    try:
+        endpoints = []
+        if args.pty:
+            endpoints.append(f"pty {server.open_pty()}")
+        if address is not None:
+            try:
+                host, port = server.listen_tcp(*address)
+            except OSError as error:
+                raise CommandError(f"cannot listen on {args.tcp}: {error.strerror}") from None
+            endpoints.append(_tcp_endpoint(host, port))
+        print(
+            f"rovlink controller ready: board sim, {', '.join(endpoints)}; Ctrl-C stops", flush=True
+        )
+        server.serve(stop.is_set)
+    finally:
+        server.close()
+    print("rovlink controller stopped", file=sys.stderr)
+    return 0
+
+
+def _configure_logging() -> None:
+    """INFO and above to stderr (journald under systemd, which adds its own timestamps)."""
+    import logging  # noqa: PLC0415
+    import os  # noqa: PLC0415
+
+    under_journald = "JOURNAL_STREAM" in os.environ
+    layout = "%(levelname)s %(name)s: %(message)s"
+    logging.basicConfig(
+        level=logging.INFO, format=layout if under_journald else "%(asctime)s " + layout
+    )
+
+
+def _stop_on_signals() -> threading.Event:
+    """An event set by SIGTERM or Ctrl-C; the board loop sees it within 50 ms."""
+    stop = threading.Event()
+
+    def handle(signum: int, frame: FrameType | None) -> None:
+        stop.set()
+
+    signal.signal(signal.SIGINT, handle)
+    signal.signal(signal.SIGTERM, handle)
+    return stop

@@ -1,0 +1,94 @@
+"""The BNO055 through Adafruit's driver on the fake bus, and the leak probe on gpiozero's mock
+pin factory."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+
+import pytest
+
+from rovlink.board.pi.bno055 import Bno055Imu, remap_for_placement
+from rovlink.board.pi.fake_bus import FakeBno055, FakeI2cBus
+from rovlink.board.pi.leak import GpioLeakSensor
+from rovlink.board.sensors import SensorError
+
+
+def _started(imu_args: dict[str, object] | None = None) -> tuple[FakeBno055, FakeI2cBus, Bno055Imu]:
+    fake = FakeBno055(roll_deg=12.5, pitch_deg=-3.0, heading_deg=350.0)
+    bus = FakeI2cBus({0x28: fake})
+    imu = Bno055Imu(bus, **(imu_args or {}))  # type: ignore[arg-type]
+    imu.start()
+    return fake, bus, imu
+
+
+def test_fused_attitude_through_the_maintained_driver() -> None:
+    fake, _bus, imu = _started()
+    assert fake.registers[0x3D] == 0x0C  # NDOF fusion mode, set by Adafruit's driver
+    attitude = imu.poll(0.0)
+    assert attitude is not None
+    assert (attitude.roll_deg, attitude.pitch_deg, attitude.heading_deg) == (12.5, -3.0, 350.0)
+    assert imu.poll(0.01) is None  # 20 Hz: the next read is due at 0.05 s
+    assert imu.poll(0.05) is not None
+
+
+def test_mounting_signs_and_heading_offset() -> None:
+    fake, _, imu = _started(
+        {"placement": "P0", "invert_roll": True, "invert_pitch": True, "heading_offset_deg": 20.0}
+    )
+    # P0 of the datasheet's table 3-5: AXIS_MAP_CONFIG 0x21, AXIS_MAP_SIGN 0x04.
+    assert (fake.registers[0x41], fake.registers[0x42]) == (0x21, 0x04)
+    attitude = imu.poll(0.0)
+    assert attitude is not None
+    assert (attitude.roll_deg, attitude.pitch_deg) == (-12.5, 3.0)
+    assert attitude.heading_deg == pytest.approx(10.0)  # 350 + 20, wrapped
+
+
+def test_every_placement_maps_each_axis_once() -> None:
+    for placement in [f"P{n}" for n in range(8)]:
+        x, y, z, *_ = remap_for_placement(placement)
+        assert sorted((x, y, z)) == [0, 1, 2], placement
+
+
+def test_an_attitude_that_is_not_a_number_is_a_sensor_error() -> None:
+    fake, _, imu = _started()
+    fake.registers[0x3D] = 0x00  # the chip fell back to config mode: the driver gives None
+    with pytest.raises(SensorError, match="no attitude"):
+        imu.poll(0.0)
+
+
+@pytest.fixture
+def mock_factory() -> Iterator[object]:
+    from gpiozero.pins.mock import MockFactory
+
+    factory = MockFactory()
+    yield factory
+    factory.close()
+
+
+def test_a_one_millisecond_leak_pulse_is_latched(mock_factory: object) -> None:
+    leak = GpioLeakSensor(27, active_high=True, pull="down", pin_factory=mock_factory)
+    pin = mock_factory.pin(27)  # type: ignore[attr-defined]
+    assert leak.fired_since_last_read() is False
+    # A pulse of 1 ms: wet, then dry again, both before the controller's next 10 ms tick.
+    pin.drive_high()
+    pin.drive_low()
+    assert leak.fired_since_last_read() is True
+    assert leak.fired_since_last_read() is False  # read once, cleared
+    leak.close()
+
+
+def test_an_active_low_probe_that_stays_wet(mock_factory: object) -> None:
+    leak = GpioLeakSensor(17, active_high=False, pull="up", pin_factory=mock_factory)
+    pin = mock_factory.pin(17)  # type: ignore[attr-defined]
+    assert leak.fired_since_last_read() is False  # the pull-up holds it high: dry
+    pin.drive_low()
+    assert leak.fired_since_last_read() is True
+    assert leak.fired_since_last_read() is True  # still wet: reported again
+    pin.drive_high()
+    assert leak.fired_since_last_read() is False
+    leak.close()
+
+
+def test_a_pull_against_the_polarity_is_refused(mock_factory: object) -> None:
+    with pytest.raises(ValueError, match="pull-down input rests low"):
+        GpioLeakSensor(22, active_high=False, pull="down", pin_factory=mock_factory)

@@ -1,0 +1,336 @@
+"""The board loop with the Pi's drivers on fake buses, served on a real pseudo-terminal.
+
+Every check reads the pulses the PCA9685 makes, rebuilt from the recorded I²C transactions.
+"""
+
+from __future__ import annotations
+
+import os
+import threading
+from collections.abc import Iterator
+from contextlib import contextmanager, suppress
+from dataclasses import dataclass, field
+from typing import Any
+
+import pytest
+
+from rovlink.board.board import BoardStartError
+from rovlink.board.pi.board import fake_bus_for, open_pi_board
+from rovlink.board.pi.config import PiConfig
+from rovlink.board.pi.fake_bus import FakeI2cBus
+from rovlink.board.server import BoardServer
+from tests.board.rig import (
+    CLAW_CHANNEL,
+    COUNT_US,
+    example_config,
+    is_neutral,
+    pulses,
+    wait_until,
+    with_controller,
+)
+
+pytestmark = pytest.mark.integration
+
+#: `#th.90.50!` on the example layout: the horizontal thrusters at ±45° to starboard get
+#: ±0.5 of full thrust, duty ±128 (P8, P11); channels 1, 3 and 5 are reversed in the example.
+TH_90_50_US = [
+    1500 + 400 * 128 / 255,  # front_left, 45°: +128
+    1500 + 400 * 128 / 255,  # front_right, 315°: −128, reversed
+    1500 - 400 * 128 / 255,  # rear_left, 315°: −128
+    1500 - 400 * 128 / 255,  # rear_right, 45°: +128, reversed
+    1500.0,  # vertical_left: depth mode, no target
+    1500.0,  # vertical_right
+]
+
+
+@dataclass
+class Running:
+    server: BoardServer
+    bus: FakeI2cBus
+    fd: int
+    pins: Any
+    errors: list[BaseException] = field(default_factory=list)
+    received: bytearray = field(default_factory=bytearray)
+
+    def send(self, data: bytes) -> None:
+        os.write(self.fd, data)
+
+    def pulses(self) -> list[float | None]:
+        return pulses(self.bus.snapshot())
+
+    def moving_as_commanded(self) -> bool:
+        values = self.pulses()
+        return all(
+            value is not None and abs(value - expected) <= COUNT_US
+            for value, expected in zip(values, TH_90_50_US, strict=True)
+        )
+
+    def neutral(self) -> bool:
+        return is_neutral(self.pulses())
+
+    def saw(self, fragment: bytes) -> bool:
+        with suppress(BlockingIOError):
+            self.received += os.read(self.fd, 4096)
+        return fragment in self.received
+
+
+@contextmanager
+def running(config: PiConfig) -> Iterator[Running]:
+    from gpiozero.pins.mock import MockFactory
+
+    pins = MockFactory()
+    bus = fake_bus_for(config)
+    board = open_pi_board(config, bus=bus, pin_factory=pins)
+    server = BoardServer(config.controller, board)
+    path = server.open_pty()
+    fd = os.open(path, os.O_RDWR | os.O_NOCTTY | os.O_NONBLOCK)
+    stop = threading.Event()
+    rig = Running(server, bus, fd, pins)
+
+    def serve() -> None:
+        try:
+            server.serve(stop.is_set)
+        except BaseException as error:
+            rig.errors.append(error)
+
+    thread = threading.Thread(target=serve, daemon=True)
+    thread.start()
+    try:
+        yield rig
+    finally:
+        stop.set()
+        thread.join(10)
+        os.close(fd)
+        server.close()
+        pins.close()
+
+
+def _quick(**controller: Any) -> PiConfig:
+    """The example without the IMU (its driver's reset takes a second) and ``controller``."""
+    return with_controller(example_config(imu={"sensor": "none"}), **controller)
+
+
+def test_neutral_before_anything_then_the_commanded_pulses_then_neutral_on_stop() -> None:
+    with running(example_config()) as rig:
+        assert rig.neutral()
+        assert pulses(rig.bus.snapshot(), [CLAW_CHANNEL]) == pytest.approx([1500.0], abs=COUNT_US)
+        rig.send(b"#start!#th.90.50!")
+        assert wait_until(rig.moving_as_commanded), rig.pulses()
+        rig.send(b"#qhe!")
+        assert wait_until(lambda: rig.saw(b"$qhe.90!"))  # the fake BNO055's heading
+        rig.send(b"#stop!")
+        assert wait_until(rig.neutral), rig.pulses()
+        assert rig.server.controller.locked
+    assert not rig.errors
+
+
+def test_the_link_loss_watchdog_gives_neutral() -> None:
+    with running(_quick(watchdog_s=0.3)) as rig:
+        rig.send(b"#start!#th.90.50!")
+        assert wait_until(rig.moving_as_commanded)
+        assert wait_until(rig.neutral), rig.pulses()  # nothing more is sent
+        assert rig.server.controller.locked
+
+
+def test_an_exception_in_the_control_loop_ends_it_at_neutral() -> None:
+    with running(_quick(watchdog_s=0.0)) as rig:
+        rig.send(b"#start!#th.90.50!")
+        assert wait_until(rig.moving_as_commanded)
+
+        def broken_tick() -> None:
+            raise RuntimeError("a bug in the control loop")
+
+        rig.server.controller.tick = broken_tick  # type: ignore[method-assign]
+        assert wait_until(lambda: bool(rig.errors))
+        assert isinstance(rig.errors[0], RuntimeError)
+        assert rig.neutral(), rig.pulses()
+        assert rig.server.at_rest
+
+
+def test_one_failed_write_to_the_pwm_board_is_retried() -> None:
+    with running(_quick(watchdog_s=0.0)) as rig:
+        rig.send(b"#start!")
+        rig.bus.fail(0x40, 1)
+        rig.send(b"#th.90.50!")
+        assert wait_until(rig.moving_as_commanded), rig.pulses()
+        assert any(t.failed and t.address == 0x40 for t in rig.bus.snapshot())
+        assert not rig.errors
+
+
+def test_an_i2c_error_on_the_pwm_board_ends_the_loop_at_neutral_after_a_retry() -> None:
+    with running(_quick(watchdog_s=0.0)) as rig:
+        rig.send(b"#start!#th.90.50!")
+        assert wait_until(rig.moving_as_commanded)
+        # The stop's write and its retry fail, and so does the first attempt at neutral.
+        rig.bus.fail(0x40, 3)
+        rig.send(b"#stop!")
+        assert wait_until(lambda: bool(rig.errors))
+        assert isinstance(rig.errors[0], OSError)
+        assert rig.neutral(), rig.pulses()
+        assert rig.server.at_rest
+
+
+def test_a_stale_pressure_sensor_stops_the_motors_until_it_answers() -> None:
+    with running(_quick(watchdog_s=0.0)) as rig:
+        rig.send(b"#debug1!#start!#th.90.50!")
+        assert wait_until(rig.moving_as_commanded)
+        rig.bus.fail(0x76, 10**6)
+        assert wait_until(rig.neutral), rig.pulses()
+        assert rig.server.controller.locked
+        assert wait_until(lambda: rig.saw(b"read failed"))
+        assert wait_until(lambda: rig.saw(b"stale (5 failed reads in a row): motors stopped"))
+        # Started again while the sensor is still dead: stopped again.
+        rig.send(b"#start!#th.90.50!")
+        assert wait_until(lambda: rig.server.controller.locked)
+        assert wait_until(rig.neutral)
+        rig.bus.fail(0x76, 0)
+        assert wait_until(lambda: rig.saw(b"answers again"))
+        rig.send(b"#start!#th.90.50!")
+        assert wait_until(rig.moving_as_commanded), rig.pulses()
+    assert not rig.errors
+
+
+def test_fewer_failures_than_the_limit_do_not_stop_the_motors() -> None:
+    with running(_quick(watchdog_s=0.0)) as rig:
+        rig.send(b"#debug1!#start!#th.90.50!")
+        assert wait_until(rig.moving_as_commanded)
+        rig.bus.fail(0x76, 2)
+        assert wait_until(lambda: rig.saw(b"read failed"))
+        sensor = rig.server.board.sensors[0]
+        assert wait_until(lambda: sensor.total_failures == 2 and sensor.failures == 0)
+        assert not rig.server.controller.locked
+        assert rig.moving_as_commanded()
+
+
+def test_a_leak_pulse_stops_the_motors_with_leak_action_stop() -> None:
+    with running(_quick(watchdog_s=0.0)) as rig:
+        rig.send(b"#start!#th.90.50!")
+        assert wait_until(rig.moving_as_commanded)
+        pin = rig.pins.pin(27)
+        pin.drive_high()
+        pin.drive_low()
+        assert wait_until(rig.neutral), rig.pulses()
+        rig.send(b"#q.l!")
+        assert wait_until(lambda: rig.saw(b"$q.l.1!"))
+
+
+def test_the_claw_motor_runs_for_its_pulse_then_stops() -> None:
+    with running(_quick(watchdog_s=0.0, claw_pulse_ms=200)) as rig:
+        rig.send(b"#start!#h+!")
+        claw = lambda: pulses(rig.bus.snapshot(), [CLAW_CHANNEL])[0]  # noqa: E731
+        assert wait_until(lambda: claw() == pytest.approx(1900.0, abs=COUNT_US))
+        assert wait_until(lambda: claw() == pytest.approx(1500.0, abs=COUNT_US))
+
+
+def test_a_missing_device_is_refused_at_start_naming_it_with_the_outputs_at_neutral() -> None:
+    from gpiozero.pins.mock import MockFactory
+
+    config = example_config()
+    bus = fake_bus_for(config)
+    del bus.devices[0x28]  # no IMU answers
+    with pytest.raises(BoardStartError, match=r"IMU BNO055 at 0x28 on I²C bus 1: .*"):
+        open_pi_board(config, bus=bus, pin_factory=MockFactory())
+    assert is_neutral(pulses(bus.snapshot()))
+
+
+def test_a_pressure_sensor_with_a_corrupt_prom_is_refused_at_start() -> None:
+    config = example_config(imu={"sensor": "none"})
+    bus = fake_bus_for(config)
+    bus.devices[0x76].prom[3] ^= 0x0100  # type: ignore[attr-defined]
+    with pytest.raises(BoardStartError, match=r"MS5837-30BA at 0x76 on I²C bus 1: .*CRC-4"):
+        open_pi_board(config, bus=bus)
+    assert is_neutral(pulses(bus.snapshot()))
+
+
+def test_a_bus_that_does_not_exist_is_named() -> None:
+    config = example_config(i2c={"backend": "smbus2", "bus": 250})
+    with pytest.raises(BoardStartError, match=r"cannot open I²C bus 250 \(/dev/i2c-250\)"):
+        open_pi_board(config)
+
+
+def test_a_missing_pi_extra_is_named(monkeypatch: pytest.MonkeyPatch) -> None:
+    import sys
+
+    monkeypatch.setitem(sys.modules, "smbus2", None)
+    config = example_config(i2c={"backend": "smbus2"})
+    with pytest.raises(BoardStartError, match=r"smbus2 is missing; pip install 'rovlink\[pi\]'"):
+        open_pi_board(config)
+
+
+def test_the_imu_on_its_own_bus() -> None:
+    config = example_config(imu={"bus": 3})
+    bus = fake_bus_for(config)
+    assert 0x28 not in bus.devices
+    board = open_pi_board(config, bus=bus, pin_factory=_mock_pins())
+    try:
+        imu_sensor = board.sensors[1]
+        assert imu_sensor.name == "IMU BNO055 at 0x28"
+        assert board.hardware.imu.read_attitude().heading_deg == 90.0
+        assert all(t.address != 0x28 for t in bus.snapshot())
+    finally:
+        board.close()
+
+
+def _mock_pins() -> object:
+    from gpiozero.pins.mock import MockFactory
+
+    return MockFactory()
+
+
+def test_an_analog_transducer_reads_zero_raw_at_the_surface() -> None:
+    config = example_config(
+        imu={"sensor": "none"}, pressure={"sensor": "ads1115", "surface_mbar": 0.0}
+    )
+    board = open_pi_board(config, bus=fake_bus_for(config), pin_factory=_mock_pins())
+    try:
+        assert board.hardware.pressure.read_raw() == config.controller.depth.zero_raw
+        assert board.sensors[0].name == "pressure transducer on ADS1115 at 0x48 AIN0"
+    finally:
+        board.close()
+
+
+def test_a_servo_claw_steps_and_holds() -> None:
+    config = example_config(
+        imu={"sensor": "none"},
+        claw={"kind": "servo", "open_us": 2000.0, "close_us": 1000.0, "step_us": 250.0},
+    )
+    bus = fake_bus_for(config)
+    board = open_pi_board(config, bus=bus, pin_factory=_mock_pins())
+    try:
+        claw = lambda: pulses(bus.snapshot(), [CLAW_CHANNEL])[0]  # noqa: E731
+        assert claw() == pytest.approx(1500.0, abs=COUNT_US)  # the start position
+        board.hardware.claw.drive(1)
+        board.hardware.claw.drive(0)  # the pulse ends: a servo holds
+        assert claw() == pytest.approx(1750.0, abs=COUNT_US)
+        for _ in range(3):
+            board.hardware.claw.drive(1)
+        assert claw() == pytest.approx(2000.0, abs=COUNT_US)  # no further than open
+        board.hardware.claw.drive(-1)
+        assert claw() == pytest.approx(1750.0, abs=COUNT_US)
+        board.make_safe()
+        assert claw() == pytest.approx(1750.0, abs=COUNT_US)
+        assert is_neutral(pulses(bus.snapshot()))
+    finally:
+        board.close()
+
+
+def test_overruns_are_counted_and_logged(caplog: pytest.LogCaptureFixture) -> None:
+    import time
+
+    caplog.set_level("WARNING", logger="rovlink.board")
+    with running(_quick(watchdog_s=0.0)) as rig:
+        sensor = rig.server.board.sensors[0]
+        source = sensor._source
+        slow_polls = [3]
+
+        class Slow:
+            def poll(self, now_s: float) -> int | None:
+                if slow_polls[0]:
+                    slow_polls[0] -= 1
+                    time.sleep(0.025)  # the work of a period takes 2.5 periods
+                return source.poll(now_s)
+
+        sensor._source = Slow()
+        assert wait_until(lambda: rig.server.schedule.overruns >= 3)
+        assert rig.server.schedule.skipped_periods >= 3
+    assert any("control loop overran" in record.message for record in caplog.records)

@@ -1,0 +1,209 @@
+"""``rovlink controller --board pi`` as a real process on the fake I²C bus, and a host driving
+it over a real pseudo-terminal, a serial device and TCP."""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import re
+import signal
+import subprocess
+import tty
+from pathlib import Path
+
+import pytest
+
+import rovlink
+from tests.board.controller_process import controller_command, environment, running_controller
+from tests.board.rig import COUNT_US, EXAMPLE, is_neutral, pulses, read_log, wait_until
+from tests.board.rig import fake_toml as make_fake_toml
+from tests.client.conftest import REPLY_TIMEOUT_S
+from tests.client.sim_scenario import DebugLines, run_every_method
+
+pytestmark = pytest.mark.integration
+
+_MOVING_US = 1500 + 400 * 128 / 255  # front_left on `#th.90.50!` (see test_board_loop)
+
+
+def _moving(log: Path) -> bool:
+    value = pulses(read_log(log), [0])[0]
+    return value is not None and abs(value - _MOVING_US) <= COUNT_US
+
+
+@pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGINT])
+def test_a_signal_ends_the_process_with_the_thrusters_at_neutral(
+    tmp_path: Path, signum: int
+) -> None:
+    log = tmp_path / "i2c.jsonl"
+    config = make_fake_toml(tmp_path, log, watchdog_s=0.0)
+    with running_controller(tmp_path, "--config", str(config), "--pty") as controller:
+        assert controller.pty_path is not None
+        assert "board pi" in controller.ready_line
+        assert is_neutral(pulses(read_log(log)))  # armed before the ready line
+        with rovlink.connect(controller.pty_path, keepalive=None, timeout=REPLY_TIMEOUT_S) as rov:
+            rov.start()
+            rov.move(90, 50)
+            assert wait_until(lambda: _moving(log))
+            controller.process.send_signal(signum)
+            assert controller.process.wait(10) == 0
+        transactions = read_log(log)
+        assert is_neutral(pulses(transactions))
+        assert "thrusters at neutral" in controller.stderr()
+        assert re.search(
+            r"stopped: thrusters at neutral; \d+ control periods, \d+ overrun", controller.stderr()
+        )
+
+
+def test_the_watchdog_of_a_real_process_gives_neutral(tmp_path: Path) -> None:
+    log = tmp_path / "i2c.jsonl"
+    config = make_fake_toml(tmp_path, log, watchdog_s=0.5)
+    with running_controller(tmp_path, "--config", str(config), "--pty") as controller:
+        assert controller.pty_path is not None
+        with rovlink.connect(controller.pty_path, keepalive=None, timeout=REPLY_TIMEOUT_S) as rov:
+            rov.start()
+            rov.move(90, 50)
+            assert wait_until(lambda: _moving(log))
+            # No keep-alive: the controller's own watchdog stops the thrusters.
+            assert wait_until(lambda: is_neutral(pulses(read_log(log))))
+            assert "failsafe: no valid frame" in controller.stderr()
+
+
+@pytest.mark.parametrize("transport", ["pty", "tcp"])
+def test_the_driver_passes_the_simulators_tests_against_the_pi_board(
+    tmp_path: Path, transport: str
+) -> None:
+    log = tmp_path / "i2c.jsonl"
+    config = make_fake_toml(tmp_path, log)
+    with running_controller(tmp_path, "--config", str(config), "--pty", "--tcp", "0") as controller:
+        url = controller.pty_path if transport == "pty" else controller.tcp_url
+        assert url is not None
+        debug = DebugLines()
+        with rovlink.connect(url, keepalive=None, on_stray=debug, timeout=REPLY_TIMEOUT_S) as rov:
+            run_every_method(rov, debug)
+            sensors = rov.sensors()
+            # The fake Bar02 reads the datasheet's 1100.02 mbar: 86.77 mbar above the surface,
+            # 0.887 m of fresh water, 44 counts of 2 cm above zero_raw 20.
+            assert sensors.pressure_raw == 64
+            assert (sensors.roll_deg, sensors.pitch_deg, sensors.heading_deg) == (2, -1, 90)
+        assert is_neutral(pulses(read_log(log)))  # the scenario ends with stop
+
+
+def test_serving_a_serial_device_exclusively(tmp_path: Path) -> None:
+    log = tmp_path / "i2c.jsonl"
+    config = make_fake_toml(tmp_path, log, watchdog_s=0.0)
+    master, slave = os.openpty()
+    tty.setraw(slave)
+    device = os.ttyname(slave)
+    os.set_blocking(master, False)
+    try:
+        with running_controller(
+            tmp_path, "--config", str(config), "--port", device, "--baud", "115200"
+        ) as controller:
+            assert f"serial {device} 115200 baud" in controller.ready_line
+            os.write(master, b"#qd!")
+            received = bytearray()
+
+            def answered() -> bool:
+                with contextlib.suppress(BlockingIOError):
+                    received.extend(os.read(master, 100))
+                return b"$qd." in received
+
+            assert wait_until(answered)
+            # A second controller on the same device is refused (P22), at neutral.
+            second = subprocess.run(
+                controller_command("--config", str(config), "--port", device),
+                capture_output=True,
+                text=True,
+                env=environment(),
+                timeout=60,
+                check=False,
+            )
+            assert second.returncode == 1
+            assert f"cannot open {device}" in second.stderr
+    finally:
+        os.close(master)
+        os.close(slave)
+
+
+def _run(*arguments: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        controller_command(*arguments),
+        capture_output=True,
+        text=True,
+        env=environment(),
+        timeout=60,
+        check=False,
+    )
+
+
+def test_tcp_on_a_reachable_address_needs_allow_remote(tmp_path: Path) -> None:
+    config = make_fake_toml(tmp_path, tmp_path / "i2c.jsonl")
+    refused = _run("--config", str(config), "--tcp", "0.0.0.0:0")
+    assert refused.returncode == 2
+    assert "0.0.0.0 is not a loopback address" in refused.stderr
+    assert "--allow-remote" in refused.stderr
+    with running_controller(
+        tmp_path, "--config", str(config), "--tcp", "0.0.0.0:0", "--allow-remote"
+    ) as controller:
+        assert "tcp 0.0.0.0:" in controller.ready_line
+        assert "(REMOTE, NO AUTHENTICATION)" in controller.ready_line
+        assert wait_until(lambda: "anyone connected can drive the robot" in controller.stderr())
+
+
+def test_a_wrong_config_is_one_line_naming_the_key(tmp_path: Path) -> None:
+    path = tmp_path / "rov.toml"
+    path.write_text(
+        EXAMPLE.read_text(encoding="utf-8").replace("channel = 3", "channel = 2"), encoding="utf-8"
+    )
+    result = _run("--config", str(path), "--pty")
+    assert result.returncode == 2
+    assert result.stderr.strip().count("\n") == 0
+    assert "[esc.rear_right] channel: 2 is already used by [esc.rear_left]" in result.stderr
+
+
+def test_usage_errors() -> None:
+    assert "--board pi needs --config" in _run("--pty").stderr
+    assert "give --port DEVICE, --pty and/or --tcp" in _run("--config", str(EXAMPLE)).stderr
+    assert (
+        "the simulator serves a pseudo-terminal or TCP"
+        in _run("--board", "sim", "--port", "/dev/null").stderr
+    )
+
+
+def test_the_same_rov_toml_runs_the_simulator(tmp_path: Path) -> None:
+    with running_controller(tmp_path, "--board", "sim", "--config", str(EXAMPLE)) as controller:
+        assert controller.pty_path is not None
+        assert "board sim" in controller.ready_line
+        debug = DebugLines()
+        with rovlink.connect(
+            controller.pty_path, keepalive=None, on_stray=debug, timeout=REPLY_TIMEOUT_S
+        ) as rov:
+            run_every_method(rov, debug)
+
+
+def _open_as_another_user(device: str) -> str:
+    """Open ``device`` from a shell of another user (nobody, when the tests run as root)."""
+    command = ["/bin/sh", "-c", 'exec 3<>"$0" && echo opened', device]
+    if os.geteuid() == 0:
+        result = subprocess.run(
+            command, capture_output=True, text=True, timeout=30, check=False, user=65534
+        )
+    else:
+        result = subprocess.run(command, capture_output=True, text=True, timeout=30, check=False)
+    return result.stdout + result.stderr
+
+
+def test_no_other_program_opens_the_serial_device_while_the_controller_has_it(
+    tmp_path: Path,
+) -> None:
+    config = make_fake_toml(tmp_path, tmp_path / "i2c.jsonl")
+    master, slave = os.openpty()
+    device = os.ttyname(slave)
+    os.chmod(device, 0o666)  # any user may open it: only the exclusive mode keeps them out
+    try:
+        assert "opened" in _open_as_another_user(device)
+        with running_controller(tmp_path, "--config", str(config), "--port", device):
+            assert "busy" in _open_as_another_user(device).lower()
+    finally:
+        os.close(master)
+        os.close(slave)

@@ -1,0 +1,130 @@
+"""The MS5837 driver against the datasheets' example calibration and conversions."""
+
+from __future__ import annotations
+
+import pytest
+
+from rovlink.board.pi.fake_bus import MS5837_EXAMPLES, FakeI2cBus, FakeMs5837, ms5837_prom
+from rovlink.board.pi.ms5837 import Ms5837, Ms5837Model, compensate, crc4
+from rovlink.board.sensors import SensorError
+
+
+def _sensor(model: Ms5837Model, fake: FakeMs5837 | None = None) -> tuple[FakeMs5837, Ms5837]:
+    fake = fake if fake is not None else FakeMs5837.example(model)
+    sensor = Ms5837(FakeI2cBus({0x76: fake}), model=model, oversampling=4096)
+    return fake, sensor
+
+
+@pytest.mark.parametrize(
+    ("model", "pressure_mbar", "temperature_c"),
+    [
+        # The datasheets' examples: MS5837-30BA 3999.8 mbar at 19.81 °C (P = 39998 in 0.1 mbar,
+        # TEMP = 1981 in 0.01 °C); MS5837-02BA 1100.02 mbar at 20.00 °C.
+        (Ms5837Model.BA30, 3999.8, 19.81),
+        (Ms5837Model.BA02, 1100.02, 20.00),
+    ],
+)
+def test_first_order_compensation_gives_the_datasheet_example(
+    model: Ms5837Model, pressure_mbar: float, temperature_c: float
+) -> None:
+    coefficients, d1, d2 = MS5837_EXAMPLES[model]
+    prom = [0, *coefficients]
+    reading = compensate(model, prom, d1, d2, second_order=False)
+    assert reading.pressure_mbar == pytest.approx(pressure_mbar, abs=1e-9)
+    assert reading.temperature_c == pytest.approx(temperature_c, abs=1e-9)
+
+
+def test_the_02ba_second_order_terms_vanish_at_20_degrees() -> None:
+    coefficients, d1, d2 = MS5837_EXAMPLES[Ms5837Model.BA02]
+    prom = [0, *coefficients]
+    first = compensate(Ms5837Model.BA02, prom, d1, d2, second_order=False)
+    assert compensate(Ms5837Model.BA02, prom, d1, d2) == first
+
+
+def test_second_order_compensation_in_cold_water() -> None:
+    # The 30BA example's sensor at about 4 °C: D2 lowered so that TEMP < 2000.
+    coefficients, d1, _ = MS5837_EXAMPLES[Ms5837Model.BA30]
+    c1, c2, c3, c4, c5, c6 = coefficients
+    prom = [0, *coefficients]
+    d2 = 6_300_000
+    dt = d2 - c5 * 256
+    temp = 2000 + dt * c6 // 2**23
+    assert temp < 2000
+    # The datasheet's low-temperature branch, written out.
+    ti = 3 * dt * dt // 2**33
+    offi = 3 * (temp - 2000) ** 2 // 2
+    sensi = 5 * (temp - 2000) ** 2 // 8
+    off = c2 * 2**16 + c4 * dt // 2**7 - offi
+    sens = c1 * 2**15 + c3 * dt // 2**8 - sensi
+    expected_mbar = ((d1 * sens // 2**21 - off) // 2**13) / 10
+    reading = compensate(Ms5837Model.BA30, prom, d1, d2)
+    assert reading.temperature_c == (temp - ti) / 100
+    assert reading.pressure_mbar == expected_mbar
+    assert reading != compensate(Ms5837Model.BA30, prom, d1, d2, second_order=False)
+
+
+def test_start_resets_and_reads_a_prom_whose_crc_checks() -> None:
+    fake, sensor = _sensor(Ms5837Model.BA30)
+    sensor.start()
+    assert fake.resets == 1
+    assert list(sensor.prom) == fake.prom
+    assert sensor.prom[0] >> 12 == crc4(sensor.prom)
+
+
+@pytest.mark.parametrize("word", range(1, 7))
+def test_a_prom_with_a_bad_crc4_is_refused(word: int) -> None:
+    model = Ms5837Model.BA30
+    fake = FakeMs5837.example(model)
+    fake.prom[word] ^= 0x0010  # one bit of one calibration word
+    _, sensor = _sensor(model, fake)
+    with pytest.raises(SensorError, match="CRC-4"):
+        sensor.start()
+
+
+def test_the_crc_ignores_its_own_nibble_and_sees_every_word() -> None:
+    prom = ms5837_prom(MS5837_EXAMPLES[Ms5837Model.BA02][0])
+    assert crc4(prom) == crc4([prom[0] & 0x0FFF, *prom[1:]])
+    values = {
+        crc4([prom[0], *prom[1:index], prom[index] ^ 1, *prom[index + 1 :]])
+        for index in range(1, 7)
+    }
+    assert crc4(prom) not in values
+
+
+def test_conversions_alternate_without_waiting() -> None:
+    fake, sensor = _sensor(Ms5837Model.BA02)
+    sensor.start()
+    bus = sensor.bus
+    assert isinstance(bus, FakeI2cBus)
+    assert sensor.poll(0.0) is None  # D1 started
+    before = len(bus.transactions)
+    assert sensor.poll(0.005) is None  # 5 ms: the 9 ms conversion is under way, no I/O at all
+    assert len(bus.transactions) == before
+    assert sensor.poll(0.010) is None  # D1 read, D2 started
+    reading = sensor.poll(0.020)  # D2 read: a reading; D1 started
+    assert reading is not None
+    assert reading.pressure_mbar == pytest.approx(1100.02)
+    assert fake.conversions == [0x48, 0x58, 0x48]  # OSR 4096: D1 0x48, D2 0x58
+
+
+def test_a_conversion_read_as_zero_is_an_error_and_the_cycle_restarts() -> None:
+    fake, sensor = _sensor(Ms5837Model.BA02)
+    sensor.start()
+    sensor.poll(0.0)
+    fake._converted = 0  # the conversion was lost (the datasheet's answer: 0)
+    with pytest.raises(SensorError, match="read as 0"):
+        sensor.poll(0.010)
+    assert sensor.poll(0.011) is None  # D1 again
+    assert sensor.poll(0.021) is None
+    assert sensor.poll(0.031) is not None
+
+
+def test_an_i2c_failure_surfaces_as_oserror() -> None:
+    _fake, sensor = _sensor(Ms5837Model.BA02)
+    sensor.start()
+    sensor.poll(0.0)
+    bus = sensor.bus
+    assert isinstance(bus, FakeI2cBus)
+    bus.fail(0x76, 1)
+    with pytest.raises(OSError, match="no acknowledge"):
+        sensor.poll(0.010)

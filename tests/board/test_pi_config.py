@@ -1,0 +1,120 @@
+"""rov.toml: the example loads, and a wrong file is refused naming the key and the reason."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from rovlink.board.pi.config import (
+    ClawKind,
+    PressureKind,
+    load_pi_config,
+    pi_config_from_mapping,
+    pi_config_reference,
+)
+from rovlink.board.pi.ms5837 import Ms5837Model
+from rovlink.controller import ConfigError, LeakAction
+from rovlink.controller.config import read_toml
+from tests.board.rig import EXAMPLE
+
+
+def test_the_documented_example_loads() -> None:
+    config = load_pi_config(EXAMPLE)
+    assert [esc.channel for esc in config.escs] == [0, 1, 2, 3, 4, 5]
+    assert [esc.reversed for esc in config.escs] == [False, True, False, True, False, True]
+    assert config.claw.kind is ClawKind.MOTOR
+    assert config.pressure.sensor is PressureKind.MS5837
+    assert config.pressure.ms5837.model is Ms5837Model.BA30
+    assert config.controller.leak_action is LeakAction.STOP
+    assert config.leak.pin == 27
+    assert config.pca9685.address == 0x40
+
+
+def test_the_reference_names_every_board_table() -> None:
+    reference = pi_config_reference()
+    for table in ("[i2c]", "[pca9685]", "[esc.<thruster name>]", "[pressure.ms5837]", "[leak]"):
+        assert table in reference
+
+
+def _load(**changes: object) -> None:
+    data = read_toml(EXAMPLE)
+    for dotted, value in changes.items():
+        *path, key = dotted.split("__")
+        table = data
+        for name in path:
+            table = table.setdefault(name, {})
+        if value is None:
+            del table[key]
+        else:
+            table[key] = value
+    pi_config_from_mapping(data, "rov.toml")
+
+
+@pytest.mark.parametrize(
+    ("changes", "message"),
+    [
+        ({"esc__rear_left": None}, "[esc]: thruster 'rear_left' has no ESC output"),
+        ({"esc__aft": {"channel": 9}}, "[esc.aft]: no thruster of that name in the layout"),
+        ({"esc__rear_left__channel": None}, "[esc.rear_left]: channel is required"),
+        (
+            {"esc__rear_left__channel": 0},
+            "[esc.rear_left] channel: 0 is already used by [esc.front_left]",
+        ),
+        ({"claw__channel": 5}, "[claw] channel: 5 is already used by [esc.vertical_right]"),
+        ({"esc__front_left__channel": 16}, "[esc.front_left]: channel must be 0–15, got 16"),
+        (
+            {"esc__front_left__min_us": 1600.0},
+            "[esc.front_left]: pulses must rise min_us < neutral_us < max_us",
+        ),
+        (
+            {"esc__front_left__max_us": "1900"},
+            "[esc.front_left] max_us must be float, got str '1900'",
+        ),
+        (
+            {"pca9685__frequency_hz": 5.0},
+            "[pca9685]: frequency_hz: PWM frequency must be 24–1526 Hz",
+        ),
+        (
+            {"pca9685__frequency_hz": 600.0},
+            "[pca9685] frequency_hz: a 1900 µs pulse does not fit in the 1638 µs period",
+        ),
+        ({"pca9685__adress": 0x41}, "[pca9685]: unknown key 'adress'"),
+        (
+            {"pca9685__address": 0x80},
+            "[pca9685]: address must be an I²C address 0x03–0x77, got 128",
+        ),
+        (
+            {"pressure__sensor": "bmp280"},
+            "[pressure] sensor must be one of ms5837, ads1115, got 'bmp280'",
+        ),
+        ({"pressure__ms5837__model": "05ba"}, "[pressure.ms5837] model must be one of 30ba, 02ba"),
+        (
+            {"pressure__ms5837__oversampling": 300},
+            "[pressure.ms5837]: oversampling must be one of 256",
+        ),
+        ({"imu__placement": "P9"}, "[imu]: placement must be one of P0, P1"),
+        (
+            {"leak__pull": "up"},
+            "[leak]: pull = 'up' makes the pin rest high: it cannot be active high",
+        ),
+        ({"i2c__fake_log": "x.jsonl"}, '[i2c]: fake_log is for backend = "fake" only'),
+        ({"board__stale_after_failures": 0}, "[board]: stale_after_failures must be 1–1000, got 0"),
+        ({"controller__watchdog_s": -1.0}, "[controller]: watchdog_s must be ≥ 0"),
+        ({"gpio": {"pin": 3}}, "unknown table [gpio]"),
+    ],
+)
+def test_a_wrong_config_is_refused_with_the_key_and_the_reason(
+    changes: dict[str, object], message: str
+) -> None:
+    with pytest.raises(ConfigError) as caught:
+        _load(**changes)
+    assert message in str(caught.value)
+    assert str(caught.value).startswith("rov.toml")
+
+
+def test_a_file_that_is_not_toml(tmp_path: Path) -> None:
+    path = tmp_path / "rov.toml"
+    path.write_text("[pca9685\naddress = 1\n", encoding="utf-8")
+    with pytest.raises(ConfigError, match="not valid TOML"):
+        load_pi_config(path)

@@ -1,0 +1,52 @@
+"""Pressure onto the protocol's raw scale, and the ADS1115 with an analog transducer."""
+
+from __future__ import annotations
+
+import pytest
+
+from rovlink.board.pi.ads1115 import Ads1115, config_word
+from rovlink.board.pi.fake_bus import FakeAds1115, FakeI2cBus
+from rovlink.board.pi.pressure import AnalogPressure, AnalogTransducer, RawScale
+from rovlink.board.sensors import SensorError
+
+
+def test_the_raw_scale_gives_the_controllers_depth_back() -> None:
+    scale = RawScale(zero_raw=20, k=200, surface_mbar=1013.25, density_kg_m3=997.0)
+    # 3 m of fresh water: 3 × 997 × 9.80665 Pa = 293.3 mbar.
+    raw = scale.raw(1013.25 + 3 * 997.0 * 9.80665 / 100)
+    assert raw == 170  # 20 + 300 cm / 2 cm per count
+    # P13 with the same zero and k: (raw − zero) · k / 100 cm.
+    assert (raw - 20) * 200 // 100 == 300
+    assert scale.raw(0.0) == 0  # clipped as an ADC clips
+    assert scale.raw(100_000.0) == 1024
+
+
+def test_ads1115_config_word_follows_the_datasheet() -> None:
+    # OS 0, MUX 100 (AIN0–GND), PGA 001 (±4.096 V), MODE 0 (continuous), DR 100 (128 SPS),
+    # comparator disabled (11).
+    assert config_word(0, 4.096, 128) == 0b0_100_001_0_100_0_0_0_11
+    assert config_word(3, 6.144, 860) >> 12 == 0b111
+
+
+def test_an_analog_transducer_through_the_ads1115() -> None:
+    fake = FakeAds1115(volts=2.5)
+    bus = FakeI2cBus({0x48: fake})
+    adc = Ads1115(bus, full_scale_v=6.144, data_rate_sps=860)
+    adc.start()
+    assert bus.transactions[0].written == bytes(
+        [0x01, *config_word(0, 6.144, 860).to_bytes(2, "big")]
+    )
+    assert adc.read_volts() == pytest.approx(2.5, abs=0.001)
+    transducer = AnalogTransducer(min_volts=0.5, max_volts=4.5, min_mbar=0.0, max_mbar=4000.0)
+    pressure = AnalogPressure(adc, transducer, RawScale(20, 200, 0.0, 1000.0))
+    raw = pressure.poll(0.0)
+    assert pressure.last_mbar == pytest.approx(2000.0, abs=1.0)
+    assert raw == 1024  # 20 m of a gauge transducer: past the raw scale's 0–20 m
+
+
+def test_a_disconnected_transducer_is_a_fault_not_a_depth() -> None:
+    fake = FakeAds1115(volts=0.0)
+    adc = Ads1115(FakeI2cBus({0x48: fake}), data_rate_sps=860)
+    pressure = AnalogPressure(adc, AnalogTransducer(), RawScale(20, 200, 0.0, 1000.0))
+    with pytest.raises(SensorError, match="disconnected or faulty"):
+        pressure.poll(0.0)
