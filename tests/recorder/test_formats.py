@@ -45,8 +45,8 @@ def test_mcap_and_jsonl_hold_the_same_session(make_recording: MakeRecording) -> 
     assert ("out", "th", None) in frames
     answers = [frame for frame in frames if frame[0] == "in"]
     assert answers
-    assert all(frame[3] is not None for frame in answers)
-    assert {frame[3] for frame in answers} >= {"qsa", "qd", "q.l"}
+    assert all(frame[2] is not None for frame in answers)
+    assert {frame[2] for frame in answers} >= {"qsa", "qd", "q.l"}
 
 
 def test_a_recording_reads_back_exactly_as_written(make_recording: MakeRecording) -> None:
