@@ -187,7 +187,10 @@ class TelemetryMessages:
 
     def status_text(self, severity: int, text: str) -> None:
         """STATUSTEXT (cut to the 50 characters it carries)."""
-        self._mav.statustext_send(severity, text[:STATUSTEXT_CHARS].encode("ascii", "replace"))
+        ascii_text = text.replace("–", "-").replace("…", "...").replace("−", "-")
+        self._mav.statustext_send(
+            severity, ascii_text[:STATUSTEXT_CHARS].encode("ascii", "replace")
+        )
 
     def mission_count(self, target_system: int, target_component: int, mission_type: int) -> None:
         """MISSION_COUNT 0: the robot runs no missions."""
