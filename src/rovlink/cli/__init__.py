@@ -27,6 +27,7 @@ COMMANDS: dict[str, str] = {
     "console": "Type commands and see the replies, with completion and history.",
     "monitor": "A live dashboard of depth, attitude, leak and link; keys drive the robot.",
     "mavlink": "Serve the robot as a MAVLink vehicle (QGroundControl, MAVProxy, pymavlink).",
+    "mqtt": "Put the robot on an MQTT broker: telemetry, state and events out, commands in.",
 }
 
 _DESCRIPTION = "Drive an underwater robot's low-level controller over its serial command protocol."
