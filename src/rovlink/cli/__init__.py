@@ -28,6 +28,7 @@ COMMANDS: dict[str, str] = {
     "monitor": "A live dashboard of depth, attitude, leak and link; keys drive the robot.",
     "mavlink": "Serve the robot as a MAVLink vehicle (QGroundControl, MAVProxy, pymavlink).",
     "mqtt": "Put the robot on an MQTT broker: telemetry, state and events out, commands in.",
+    "fleet": "A live table of every robot on an MQTT broker (online, depth, leak, link).",
 }
 
 _DESCRIPTION = "Drive an underwater robot's low-level controller over its serial command protocol."
