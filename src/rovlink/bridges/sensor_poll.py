@@ -46,8 +46,8 @@ class SensorPoller:
     async def run(self) -> None:
         """Poll until cancelled."""
         loop = asyncio.get_running_loop()
+        due_s = loop.time()
         while True:
-            started_s = loop.time()
             try:
                 reading = await self._rov.sensors()
             except QueryTimeoutError as error:
@@ -55,8 +55,15 @@ class SensorPoller:
             else:
                 self.latest = reading
                 self._on_reading(reading)
-            wait_s = 1.0 / self.rate_hz - (loop.time() - started_s)
-            if wait_s > 0:
-                self._rate_changed.clear()
-                with contextlib.suppress(TimeoutError, asyncio.TimeoutError):
-                    await asyncio.wait_for(self._rate_changed.wait(), wait_s)
+            # Keep the cadence (a slow reply does not push every later one back); after a
+            # stall, start again from now rather than catch up in a burst.
+            due_s += 1.0 / self.rate_hz
+            now_s = loop.time()
+            if due_s <= now_s:
+                due_s = now_s
+                continue
+            self._rate_changed.clear()
+            with contextlib.suppress(TimeoutError, asyncio.TimeoutError):
+                await asyncio.wait_for(self._rate_changed.wait(), due_s - now_s)
+            if self._rate_changed.is_set():
+                due_s = loop.time()  # a new rate: from now
