@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import argparse
 import asyncio
+import contextlib
 import os
 import socket
 import statistics
@@ -92,10 +93,8 @@ def start_bridge(link: TimedLink, out: str) -> tuple[asyncio.AbstractEventLoop, 
         holder["loop"] = asyncio.get_running_loop()
         holder["task"] = asyncio.ensure_future(bridge.run())
         ready.set()
-        try:
+        with contextlib.suppress(asyncio.CancelledError):
             await holder["task"]
-        except asyncio.CancelledError:
-            pass
         await client.close()
 
     thread = threading.Thread(target=lambda: asyncio.run(serve()), daemon=True)
