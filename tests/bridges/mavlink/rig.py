@@ -40,6 +40,12 @@ def free_udp_port() -> int:
         return int(probe.getsockname()[1])
 
 
+def free_tcp_port() -> int:
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        return int(probe.getsockname()[1])
+
+
 def wait_for(predicate: Callable[[], bool], timeout_s: float = CONDITION_TIMEOUT_S) -> None:
     deadline = time.monotonic() + timeout_s
     while not predicate():

@@ -12,6 +12,7 @@ from tests.bridges.mavlink.rig import (
     VEHICLE,
     BridgeRig,
     GroundStation,
+    free_tcp_port,
     running_bridge,
     wait_for,
 )
@@ -260,3 +261,19 @@ def test_ending_the_bridge_locks_the_robot():
         finally:
             gcs.close()
     assert "#stop!" in rig.frames_since(mark)
+
+
+def test_a_ground_station_over_tcp():
+    port = free_tcp_port()
+    with running_bridge(endpoint=f"tcpin:127.0.0.1:{port}") as rig:
+        gcs = GroundStation(f"tcp:127.0.0.1:{port}")
+        try:
+            gcs.heartbeat()
+            heartbeat = gcs.receive("HEARTBEAT", condition=lambda m: m.type == SUBMARINE)
+            assert heartbeat.custom_mode == MANUAL
+            gcs.start_heartbeats()
+            mark = len(rig.frames())
+            assert gcs.arm() == ACCEPTED
+            rig.wait_frame("#start!", since=mark)
+        finally:
+            gcs.close()

@@ -21,7 +21,7 @@ def free_tcp_port() -> int:
 class Mosquitto:
     """``mosquitto -c CONFIG``; :meth:`restart` keeps the port and the persisted sessions."""
 
-    def __init__(self, workdir: Path) -> None:
+    def __init__(self, workdir: Path, listener_options: str = "allow_anonymous true\n") -> None:
         executable = shutil.which("mosquitto") or "/usr/sbin/mosquitto"
         self.executable = executable
         self.port = free_tcp_port()
@@ -30,9 +30,7 @@ class Mosquitto:
         # As root, mosquitto would switch to the user "mosquitto", who cannot write here.
         user = "user root\n" if os.geteuid() == 0 else ""
         self.config.write_text(
-            user + f"listener {self.port} 127.0.0.1\n"
-            "allow_anonymous true\n"
-            "persistence true\n"
+            user + f"listener {self.port} 127.0.0.1\n" + listener_options + "persistence true\n"
             f"persistence_location {workdir}/\n"
             f"log_dest file {workdir}/mosquitto.log\n",
             encoding="utf-8",
