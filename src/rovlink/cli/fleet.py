@@ -7,7 +7,6 @@ retained states show robots that are offline too. Read-only: it sends no command
 from __future__ import annotations
 
 import argparse
-import asyncio
 import time
 from typing import TYPE_CHECKING
 
@@ -80,11 +79,15 @@ def run(args: argparse.Namespace) -> int:
         import aiomqtt  # noqa: F401, PLC0415 - the mqtt extra
     except ImportError:
         raise CommandError("needs aiomqtt: pip install 'rovlink[mqtt]'") from None
+    import asyncio  # noqa: PLC0415 - not on the path of --help
+
     asyncio.run(_watch(broker, args.snapshot_s))
     return 0
 
 
 async def _watch(broker: BrokerSettings, snapshot_s: float | None) -> None:
+    import asyncio  # noqa: PLC0415
+
     import aiomqtt  # noqa: PLC0415
     from rich.console import Console  # noqa: PLC0415
     from rich.live import Live  # noqa: PLC0415

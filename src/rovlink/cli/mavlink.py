@@ -9,7 +9,6 @@ locked when the bridge ends.
 from __future__ import annotations
 
 import argparse
-import asyncio
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -92,6 +91,8 @@ def run(args: argparse.Namespace) -> int:
         raise CommandError("needs pymavlink: pip install 'rovlink[mavlink]'") from None
     link_options.client_options(args)
     link_options.check_url(args)
+    import asyncio  # noqa: PLC0415 - not on the path of --help
+
     asyncio.run(_serve(args, ParameterTable(_defaults() | values), bool(values)))
     return 0
 

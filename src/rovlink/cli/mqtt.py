@@ -10,7 +10,6 @@ the ROVLINK_MQTT_PASSWORD environment variable, never from the command line.
 from __future__ import annotations
 
 import argparse
-import asyncio
 import os
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -154,6 +153,8 @@ def run(args: argparse.Namespace) -> int:
         raise CommandError("needs aiomqtt: pip install 'rovlink[mqtt]'") from None
     link_options.client_options(args)
     link_options.check_url(args)
+    import asyncio  # noqa: PLC0415 - not on the path of --help
+
     asyncio.run(_serve(args, broker))
     return 0
 
