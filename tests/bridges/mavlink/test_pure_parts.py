@@ -6,6 +6,7 @@ import math
 
 import pytest
 
+from rovlink.bridges.mavlink.command_handling import Result, handle_command
 from rovlink.bridges.mavlink.failsafe import GCS_TIMEOUT_S, GcsWatchdog
 from rovlink.bridges.mavlink.modes import ButtonFunction, FlightMode
 from rovlink.bridges.mavlink.parameters import (
@@ -212,3 +213,67 @@ def test_vehicle_state_in_mavlink_units():
     assert state.absolute_pressure_hpa(20, 200) == pytest.approx(
         SURFACE_PRESSURE_HPA + WATER_HPA_PER_M
     )
+
+
+# -- commands ----------------------------------------------------------------------------------
+
+
+class _Actions:
+    """Records what the commands asked the vehicle to do."""
+
+    def __init__(self) -> None:
+        self.done: list[str] = []
+
+    async def arm(self) -> Result:
+        self.done.append("arm")
+        return Result.ACCEPTED
+
+    async def disarm(self, reason: str) -> Result:
+        self.done.append("disarm")
+        return Result.ACCEPTED
+
+    async def set_mode(self, mode: FlightMode) -> Result:
+        self.done.append(mode.name)
+        return Result.ACCEPTED
+
+    async def gripper(self, *, close: bool) -> Result:
+        self.done.append("close" if close else "open")
+        return Result.ACCEPTED
+
+    def request_message(self, message_id: int) -> Result:
+        self.done.append(f"request {message_id}")
+        return Result.ACCEPTED
+
+    def set_message_interval(self, message_id: int, interval_us: float) -> Result:
+        self.done.append(f"interval {message_id} {interval_us:g}")
+        return Result.ACCEPTED
+
+
+@pytest.mark.parametrize(
+    ("command", "params", "result", "done"),
+    [
+        (400, [1], Result.ACCEPTED, ["arm"]),
+        (400, [0], Result.ACCEPTED, ["disarm"]),
+        (400, [2], Result.DENIED, []),
+        (176, [1, 2], Result.ACCEPTED, ["ALT_HOLD"]),
+        (176, [1, 0], Result.UNSUPPORTED, []),  # STABILIZE
+        (176, [0, 19], Result.UNSUPPORTED, []),  # not a custom mode
+        (176, [math.nan, 19], Result.DENIED, []),
+        (211, [1, 1], Result.ACCEPTED, ["close"]),
+        (211, [1, 0], Result.ACCEPTED, ["open"]),
+        (211, [1, 5], Result.DENIED, []),
+        (512, [math.inf], Result.DENIED, []),
+        (512, [148], Result.ACCEPTED, ["request 148"]),
+        (520, [1], Result.ACCEPTED, ["request 148"]),
+        (511, [30, 50000], Result.ACCEPTED, ["interval 30 50000"]),
+        (511, [30, math.nan], Result.DENIED, []),
+        (22, [], Result.UNSUPPORTED, []),  # NAV_TAKEOFF
+    ],
+)
+async def test_each_command_gets_a_result_and_odd_values_are_denied(
+    command: int, params: list[float], result: Result, done: list[str]
+):
+    actions = _Actions()
+    padded = [*params, *[0.0] * (7 - len(params))]
+    assert await handle_command(actions, command, padded) is result
+    assert actions.done == done

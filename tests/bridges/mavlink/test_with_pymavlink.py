@@ -277,3 +277,15 @@ def test_a_ground_station_over_tcp():
             rig.wait_frame("#start!", since=mark)
         finally:
             gcs.close()
+
+
+def test_nonsense_values_are_denied_and_the_bridge_serves_on(rig: BridgeRig, gcs: GroundStation):
+    nan = float("nan")
+    assert gcs.command(REQUEST_MESSAGE, nan) == DENIED
+    assert gcs.command(DO_SET_MODE, nan, nan) == DENIED
+    gcs.send("param_set", VEHICLE, 1, b"RL_DEPTH_K", nan, 6)
+    echoed = gcs.receive("PARAM_VALUE", condition=lambda m: m.param_id == "RL_DEPTH_K")
+    assert echoed.param_value == 200
+    gcs.send("param_set", VEHICLE, 1, b"NO_SUCH_PARAM", 1.0, 6)
+    gcs.receive("STATUSTEXT", condition=lambda m: "NO_SUCH_PARAM" in m.text)
+    assert gcs.command(REQUEST_MESSAGE, AUTOPILOT_VERSION_ID) == ACCEPTED  # still serving

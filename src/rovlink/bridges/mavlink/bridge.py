@@ -198,8 +198,18 @@ class MavlinkBridge:
             if target not in (0, self.endpoint.system_id):
                 continue  # for another vehicle on the same link
             handler = self._handlers.get(message.get_type())
-            if handler is not None:
+            if handler is None:
+                continue
+            try:
                 await handler(message)
+            except ConnectionError:
+                raise  # the controller is gone: the bridge ends
+            except Exception:
+                # One odd message must not end the bridge (and with it the ground station's
+                # control): log it and serve the next.
+                logger.exception(
+                    "%s from system %s not handled", message.get_type(), message.get_srcSystem()
+                )
 
     async def _tick(self) -> None:
         while True:

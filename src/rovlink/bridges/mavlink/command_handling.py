@@ -6,6 +6,7 @@ MAV_RESULT_UNSUPPORTED, never ignored.
 
 from __future__ import annotations
 
+import math
 from enum import IntEnum
 from typing import Protocol
 
@@ -63,12 +64,22 @@ class VehicleActions(Protocol):
         """Send a message at an interval (−1: not at all, 0: its default)."""
 
 
+def _whole(value: float) -> int | None:
+    """A parameter that must be a whole number, or ``None`` (NaN, infinite, fractional)."""
+    if not math.isfinite(value) or value != round(value):
+        return None
+    return round(value)
+
+
 async def mode_result(actions: VehicleActions, base_mode: float, custom_mode: float) -> Result:
     """DO_SET_MODE or SET_MODE: a custom mode the bridge serves, else unsupported."""
-    if not int(base_mode) & _CUSTOM_MODE_ENABLED:
+    base, custom = _whole(base_mode), _whole(custom_mode)
+    if base is None or custom is None:
+        return Result.DENIED
+    if not base & _CUSTOM_MODE_ENABLED:
         return Result.UNSUPPORTED
     try:
-        mode = FlightMode(int(custom_mode))
+        mode = FlightMode(custom)
     except ValueError:
         return Result.UNSUPPORTED
     return await actions.set_mode(mode)
@@ -89,10 +100,13 @@ async def handle_command(actions: VehicleActions, command: int, params: list[flo
         if p2 not in (_GRIPPER_RELEASE, _GRIPPER_GRAB):
             return Result.DENIED
         return await actions.gripper(close=p2 == _GRIPPER_GRAB)
-    if command == MAV_CMD.REQUEST_MESSAGE:
-        return actions.request_message(int(p1))
     if command == MAV_CMD.REQUEST_AUTOPILOT_CAPABILITIES:
         return actions.request_message(_AUTOPILOT_VERSION)
-    if command == MAV_CMD.SET_MESSAGE_INTERVAL:
-        return actions.set_message_interval(int(p1), p2)
+    if command in (MAV_CMD.REQUEST_MESSAGE, MAV_CMD.SET_MESSAGE_INTERVAL):
+        message_id = _whole(p1)
+        if message_id is None or (command == MAV_CMD.SET_MESSAGE_INTERVAL and math.isnan(p2)):
+            return Result.DENIED
+        if command == MAV_CMD.REQUEST_MESSAGE:
+            return actions.request_message(message_id)
+        return actions.set_message_interval(message_id, p2)
     return Result.UNSUPPORTED
