@@ -91,6 +91,7 @@ def run(args: argparse.Namespace) -> int:
         raise CommandError("needs pymavlink: pip install 'rovlink[mavlink]'") from None
     link_options.client_options(args)
     link_options.check_url(args)
+    link_options.log_warnings()
     import asyncio  # noqa: PLC0415 - not on the path of --help
 
     asyncio.run(_serve(args, ParameterTable(_defaults() | values), bool(values)))

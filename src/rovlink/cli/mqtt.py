@@ -153,6 +153,7 @@ def run(args: argparse.Namespace) -> int:
         raise CommandError("needs aiomqtt: pip install 'rovlink[mqtt]'") from None
     link_options.client_options(args)
     link_options.check_url(args)
+    link_options.log_warnings()
     import asyncio  # noqa: PLC0415 - not on the path of --help
 
     asyncio.run(_serve(args, broker))

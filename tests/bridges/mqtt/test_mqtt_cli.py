@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from tests.bridges.mqtt.broker import Mosquitto
+from tests.bridges.mqtt.broker import Mosquitto, free_tcp_port
 from tests.bridges.mqtt.rig import subscriber
 from tests.cli.conftest import RunCli
 
@@ -45,10 +45,10 @@ def test_a_password_needs_a_user(
     assert "secret" not in result.err
 
 
-def _bridge_process(broker: Mosquitto, robot: str) -> subprocess.Popen[str]:
+def _bridge_process(broker_url: str, robot: str) -> subprocess.Popen[str]:
     environment = dict(os.environ, PYTHONPATH=_SRC + os.pathsep + os.environ.get("PYTHONPATH", ""))
     return subprocess.Popen(
-        [sys.executable, "-m", "rovlink", "mqtt", "sim://", "--broker", broker.url,
+        [sys.executable, "-m", "rovlink", "mqtt", "sim://", "--broker", broker_url,
          "--robot", robot],
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
@@ -59,7 +59,7 @@ def _bridge_process(broker: Mosquitto, robot: str) -> subprocess.Popen[str]:
 
 @pytest.mark.integration
 async def test_a_killed_bridge_leaves_its_last_will(broker: Mosquitto) -> None:
-    process = _bridge_process(broker, "k1")
+    process = _bridge_process(broker.url, "k1")
     try:
         async with subscriber(broker, "rovlink/k1/state") as watcher:
             await watcher.wait_for("rovlink/k1/state", lambda s: s["online"])
@@ -81,7 +81,7 @@ async def test_a_killed_bridge_leaves_its_last_will(broker: Mosquitto) -> None:
 
 @pytest.mark.integration
 async def test_ctrl_c_ends_the_bridge_offline(broker: Mosquitto) -> None:
-    process = _bridge_process(broker, "i1")
+    process = _bridge_process(broker.url, "i1")
     try:
         async with subscriber(broker, "rovlink/i1/state") as watcher:
             await watcher.wait_for("rovlink/i1/state", lambda s: s["online"])
@@ -90,6 +90,24 @@ async def test_ctrl_c_ends_the_bridge_offline(broker: Mosquitto) -> None:
             assert offline["reason"] == "bridge stopped"
         out, _ = process.communicate(timeout=20)
         assert "rovlink mqtt ready" in out
+        assert process.returncode == 130
+    finally:
+        if process.poll() is None:
+            process.kill()
+            process.communicate()
+
+
+@pytest.mark.integration
+def test_an_unreachable_broker_is_said_and_retried() -> None:
+    nobody_listens = f"mqtt://127.0.0.1:{free_tcp_port()}"
+    process = _bridge_process(nobody_listens, "u1")
+    try:
+        assert process.stderr is not None
+        line = process.stderr.readline()
+        assert "broker mqtt://127.0.0.1" in line
+        assert "retrying in" in line
+        process.send_signal(signal.SIGINT)
+        process.communicate(timeout=20)
         assert process.returncode == 130
     finally:
         if process.poll() is None:
