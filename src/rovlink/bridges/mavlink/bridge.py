@@ -223,7 +223,10 @@ class MavlinkBridge:
             if expired:
                 self._say(_SEVERITY_WARNING, "Failsafe: pilot input stale, thrust zeroed")
             for name in self.schedule.due(now_s):
-                self.messages.send(name)
+                try:
+                    self.messages.send(name)
+                except OSError as error:  # a ground station's socket gone: the next will do
+                    logger.debug("%s not sent: %s", name, error)
             await asyncio.sleep(_TICK_S)
 
     # -- received messages ------------------------------------------------------------------------
