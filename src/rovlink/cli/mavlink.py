@@ -94,7 +94,7 @@ def run(args: argparse.Namespace) -> int:
     link_options.log_warnings()
     import asyncio  # noqa: PLC0415 - not on the path of --help
 
-    asyncio.run(_serve(args, ParameterTable(_defaults() | values), bool(values)))
+    asyncio.run(_serve(args, ParameterTable(_defaults() | values), list(values)))
     return 0
 
 
@@ -114,7 +114,7 @@ def _defaults() -> dict[str, int]:
 
 
 async def _serve(
-    args: argparse.Namespace, parameters: ParameterTable, apply_parameters: bool
+    args: argparse.Namespace, parameters: ParameterTable, send_on_start: list[str]
 ) -> None:
     import rovlink.aio  # noqa: PLC0415
     from rovlink.bridges.mavlink.bridge import MavlinkBridge  # noqa: PLC0415
@@ -136,7 +136,7 @@ async def _serve(
             TrackedClient(client, algorithm=args.algorithm),
             endpoint,
             parameters,
-            apply_parameters=apply_parameters,
+            send_on_start=send_on_start,
         )
         print(
             f"rovlink mavlink ready: {args.url} as MAVLink system {args.system_id} on "

@@ -164,7 +164,10 @@ class BridgeRig:
 
 @contextmanager
 def running_bridge(
-    *, leak_at_s: float | None = None, endpoint: str | None = None
+    *,
+    leak_at_s: float | None = None,
+    endpoint: str | None = None,
+    send_on_start: tuple[str, ...] = (),
 ) -> Iterator[BridgeRig]:
     """A bridge sending to a free UDP port (``rig.gcs_address`` is where a GCS listens)."""
     gcs_port = free_udp_port()
@@ -183,7 +186,7 @@ def running_bridge(
         bridge = MavlinkBridge(TrackedClient(client), MavlinkEndpoint(out), ParameterTable(
             {"RL_DEPTH_P": 40, "RL_DEPTH_I": 30, "RL_DEPTH_D": 20, "RL_MAX_PWM": 255,
              "RL_DEPTH_ZERO": 20, "RL_DEPTH_K": 200}
-        ))  # fmt: skip
+        ), send_on_start=send_on_start)  # fmt: skip
         holder["bridge"] = bridge
         holder["loop"] = asyncio.get_running_loop()
         task = asyncio.ensure_future(bridge.run())

@@ -289,3 +289,11 @@ def test_nonsense_values_are_denied_and_the_bridge_serves_on(rig: BridgeRig, gcs
     gcs.send("param_set", VEHICLE, 1, b"NO_SUCH_PARAM", 1.0, 6)
     gcs.receive("STATUSTEXT", condition=lambda m: "NO_SUCH_PARAM" in m.text)
     assert gcs.command(REQUEST_MESSAGE, AUTOPILOT_VERSION_ID) == ACCEPTED  # still serving
+
+
+def test_parameters_from_a_file_are_sent_on_start_and_only_they():
+    with running_bridge(send_on_start=("RL_DEPTH_P", "RL_MAX_PWM", "BTN3_FUNCTION")) as rig:
+        rig.wait_frame("#mgmp.255!")
+        start = rig.frames()[: rig.frames().index("#mgmp.255!") + 1]
+        assert start[1:] == ["#stop!", "#mvdirect.1!", "#mvpdp.40!", "#mgmp.255!"]
+        assert not [f for f in rig.frames() if f.startswith(("#sdz", "#sdk", "#mvpdi"))]

@@ -9,7 +9,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from typing import Any
 
 from rovlink.bridges.mavlink.command_handling import (
@@ -65,7 +65,7 @@ class MavlinkBridge:
         endpoint: MavlinkEndpoint,
         parameters: ParameterTable | None = None,
         *,
-        apply_parameters: bool = False,
+        send_on_start: Iterable[str] = (),
         clock: Callable[[], float] = time.monotonic,
     ) -> None:
         self.rov = rov
@@ -75,7 +75,7 @@ class MavlinkBridge:
         self.pilot = PilotInput(self.parameters)
         self.watchdog = GcsWatchdog()
         self._clock = clock
-        self._apply_parameters = apply_parameters
+        self._send_on_start = tuple(send_on_start)
         self.schedule = TelemetrySchedule(clock())
         self.messages = TelemetryMessages(endpoint, self.state, rov, self.parameters, clock)
         self.poller = SensorPoller(rov, self._on_reading, rate_hz=self._poll_rate_hz())
@@ -106,9 +106,8 @@ class MavlinkBridge:
         try:
             await self.rov.stop()
             await self.rov.send(Command("mvdirect", (1,)))  # MANUAL, as ArduSub starts
-            if self._apply_parameters:
-                for command in self.parameters.commands():
-                    await self.rov.send(command)
+            for command in self.parameters.commands(self._send_on_start):
+                await self.rov.send(command)
             self.endpoint.start(self._inbox.put_nowait, loop)
             tasks = [
                 asyncio.ensure_future(self.poller.run()),

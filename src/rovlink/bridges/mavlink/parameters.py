@@ -154,11 +154,15 @@ class ParameterTable:
         self._values[name] = checked
         return self.parameter(name).command(checked)
 
-    def commands(self) -> list[Command]:
-        """The commands that put every controller parameter's value into effect."""
+    def commands(self, names: Iterable[str]) -> list[Command]:
+        """The commands that put the values of ``names`` into effect, in table order (the
+        bridge's own parameters need none)."""
+        wanted = set(names)
+        for name in wanted:
+            self.parameter(name)  # ParameterError for a name not in the table
         commands = []
         for name, value in self.items():
-            command = self._by_name[name].command(value)
+            command = self._by_name[name].command(value) if name in wanted else None
             if command is not None:
                 commands.append(command)
         return commands
