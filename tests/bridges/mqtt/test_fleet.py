@@ -88,3 +88,26 @@ async def test_fleet_lists_every_robot_with_the_offline_one(broker: Mosquitto):
     assert " cm" in row["r1"]
     assert "offline" in row["gone"]
     assert "bridge stopped" in row["gone"]
+
+
+def test_the_table_shows_each_robot_in_words():
+    from rich.console import Console
+
+    from rovlink.cli.fleet import fleet_table
+
+    view = FleetView()
+    view.apply("rovlink/a/telemetry", b'{"depth_cm": 120, "leak": true}', 0.0)
+    view.apply("rovlink/b/state", b'{"online": false, "reason": "bridge connection lost"}', 0.0)
+    console = Console(width=160, record=True)
+    console.print(fleet_table(view, now_s=1.0))
+    text = console.export_text()
+    row_a = next(line for line in text.splitlines() if " a " in line)
+    row_b = next(line for line in text.splitlines() if " b " in line)
+    assert "online" in row_a
+    assert "120 cm" in row_a
+    assert "LEAK" in row_a
+    assert "offline" in row_b
+    assert "bridge connection lost" in row_b
+    empty = Console(width=160, record=True)
+    empty.print(fleet_table(FleetView(), now_s=0.0))
+    assert "no robot has published yet" in empty.export_text()
