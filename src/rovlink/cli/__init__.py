@@ -30,6 +30,9 @@ COMMANDS: dict[str, str] = {
     "replay": "Print a recording, or replay its commands to a controller and compare replies.",
     "plot": "Plot a recorded dive: depth and set-point, thrust, attitude, leak, link events.",
     "controller": "Run the controller on a board (pi, or sim) and serve its serial line.",
+    "mavlink": "Serve the robot as a MAVLink vehicle (QGroundControl, MAVProxy, pymavlink).",
+    "mqtt": "Put the robot on an MQTT broker: telemetry, state and events out, commands in.",
+    "fleet": "A live table of every robot on an MQTT broker (online, depth, leak, link).",
 }
 
 _DESCRIPTION = "Drive an underwater robot's low-level controller over its serial command protocol."

@@ -34,6 +34,7 @@ __all__ = [
     "client_options",
     "connect",
     "connect_async",
+    "log_warnings",
     "positive_int",
     "seconds",
 ]
@@ -330,6 +331,12 @@ def _log_warnings() -> None:
     logging.basicConfig(
         level=logging.WARNING, format="%(asctime)s %(name)s %(levelname)s: %(message)s"
     )
+
+
+def log_warnings() -> None:
+    """Show the library's warnings on stderr (a long-running command: dropped frames, suspected
+    resets, a broker that refuses the login)."""
+    _log_warnings()
 
 
 #: Called with ``">>"`` and the bytes written, ``"<<"`` and the bytes read (``send --raw``).

@@ -1,0 +1,368 @@
+"""The MAVLink bridge: a ground station's messages in, the robot's telemetry out, one event loop.
+
+It starts the robot locked in MANUAL (``#stop!``, ``#mvdirect.1!``), serves until cancelled and
+leaves the robot locked (``#stop!``) whatever ends it.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import time
+from collections.abc import Callable, Iterable
+from typing import Any
+
+from rovlink.bridges.mavlink.command_handling import (
+    MAV_CMD,
+    Result,
+    handle_command,
+    mode_result,
+)
+from rovlink.bridges.mavlink.endpoint import MavlinkEndpoint
+from rovlink.bridges.mavlink.failsafe import GcsWatchdog
+from rovlink.bridges.mavlink.modes import ButtonFunction, FlightMode
+from rovlink.bridges.mavlink.parameters import ParameterError, ParameterTable
+from rovlink.bridges.mavlink.pilot_input import PilotInput
+from rovlink.bridges.mavlink.telemetry_messages import TelemetryMessages
+from rovlink.bridges.mavlink.telemetry_schedule import MAX_RATE_HZ, TelemetrySchedule
+from rovlink.bridges.mavlink.vehicle_state import VehicleState
+from rovlink.bridges.sensor_poll import SensorPoller
+from rovlink.client.events import ClientEvent, LinkState, ResetSuspected
+from rovlink.client.sensors import Sensors
+from rovlink.logs import get_logger
+from rovlink.piloting.commanded import LockState
+from rovlink.piloting.tracked import TrackedClient
+from rovlink.protocol import Command
+
+__all__ = ["MavlinkBridge"]
+
+logger = get_logger("rovlink.bridges.mavlink")
+
+#: How often the failsafes are checked and due telemetry is sent, s.
+_TICK_S = 0.02
+#: The sensors are read at least this often, whatever the ground station asks (leak, depth).
+_MIN_POLL_HZ = 2.0
+_GCS_TYPE = 6  # MAV_TYPE_GCS
+_SEVERITY_CRITICAL = 2
+_SEVERITY_WARNING = 4
+_SEVERITY_INFO = 6
+_PARAM_TYPE_INT32 = 6
+
+
+class MavlinkBridge:
+    """Serves the robot behind ``rov`` as a MAVLink vehicle on ``endpoint``.
+
+    Example::
+
+        async with rovlink.aio.connect("sim://") as client:
+            bridge = MavlinkBridge(TrackedClient(client), MavlinkEndpoint("udpout:127.0.0.1:14550"))
+            await bridge.run()
+    """
+
+    def __init__(
+        self,
+        rov: TrackedClient,
+        endpoint: MavlinkEndpoint,
+        parameters: ParameterTable | None = None,
+        *,
+        send_on_start: Iterable[str] = (),
+        clock: Callable[[], float] = time.monotonic,
+    ) -> None:
+        self.rov = rov
+        self.endpoint = endpoint
+        self.parameters = parameters or ParameterTable()
+        self.state = VehicleState()
+        self.pilot = PilotInput(self.parameters)
+        self.watchdog = GcsWatchdog()
+        self._clock = clock
+        self._send_on_start = tuple(send_on_start)
+        self.schedule = TelemetrySchedule(clock())
+        self.messages = TelemetryMessages(endpoint, self.state, rov, self.parameters, clock)
+        self.poller = SensorPoller(rov, self._on_reading, rate_hz=self._poll_rate_hz())
+        self._inbox: asyncio.Queue[Any] = asyncio.Queue()
+        self._background: set[asyncio.Future[None]] = set()
+        self._handlers: dict[str, Callable[[Any], Any]] = {
+            "HEARTBEAT": self._on_heartbeat,
+            "MANUAL_CONTROL": self._on_manual_control,
+            "COMMAND_LONG": self._on_command_long,
+            "COMMAND_INT": self._on_command_int,
+            "SET_MODE": self._on_set_mode,
+            "PARAM_REQUEST_LIST": self._on_param_request_list,
+            "PARAM_REQUEST_READ": self._on_param_request_read,
+            "PARAM_SET": self._on_param_set,
+            "REQUEST_DATA_STREAM": self._on_request_data_stream,
+            "MISSION_REQUEST_LIST": self._on_mission_request_list,
+        }
+        rov.client.subscribe(self._on_client_event)
+
+    @property
+    def armed(self) -> bool:
+        """Unlocked, as last sent."""
+        return self.rov.commanded.lock is LockState.UNLOCKED
+
+    async def run(self) -> None:
+        """Serve until cancelled or the connection to the controller is lost; then ``#stop!``."""
+        loop = asyncio.get_running_loop()
+        try:
+            await self.rov.stop()
+            await self.rov.send(Command("mvdirect", (1,)))  # MANUAL, as ArduSub starts
+            for command in self.parameters.commands(self._send_on_start):
+                await self.rov.send(command)
+            self.endpoint.start(self._inbox.put_nowait, loop)
+            tasks = [
+                asyncio.ensure_future(self.poller.run()),
+                asyncio.ensure_future(self._receive()),
+                asyncio.ensure_future(self._tick()),
+            ]
+            try:
+                done, _ = await asyncio.wait(tasks, return_when=asyncio.FIRST_EXCEPTION)
+                for task in done:
+                    task.result()  # a lost connection ends the bridge with its error
+            finally:
+                for task in tasks:
+                    task.cancel()
+                await asyncio.gather(*tasks, return_exceptions=True)
+        finally:
+            with contextlib.suppress(ConnectionError):
+                await self.rov.stop()
+            self.endpoint.close()
+
+    # -- the vehicle's actions (command_handling.VehicleActions) ---------------------------------
+
+    async def arm(self) -> Result:
+        """``#start!``; in ALT_HOLD the depth of the moment is held."""
+        if self.rov.health.status == "no reply":
+            self._say(_SEVERITY_WARNING, "Arm refused: the controller does not answer")
+            return Result.FAILED
+        await self.rov.send(Command("start"))
+        self.pilot.neutral()
+        self.watchdog.heartbeat(self._clock())  # arming counts as contact
+        await self._hold_current_depth()
+        self._say(_SEVERITY_INFO, "Armed")
+        return Result.ACCEPTED
+
+    async def disarm(self, reason: str) -> Result:
+        """``#stop!``, always."""
+        await self.rov.stop()
+        self.pilot.neutral()
+        logger.warning("stopped: %s", reason)
+        self._say(_SEVERITY_INFO, f"Disarmed: {reason}")
+        return Result.ACCEPTED
+
+    async def set_mode(self, mode: FlightMode) -> Result:
+        """MANUAL: ``#mvdirect.1!``; ALT_HOLD: ``#mvdirect.0!`` holding the current depth."""
+        self.state.mode = mode
+        self.pilot.neutral()
+        await self.rov.send(Command("mvdirect", (int(mode is FlightMode.MANUAL),)))
+        await self._hold_current_depth()
+        return Result.ACCEPTED
+
+    async def gripper(self, *, close: bool) -> Result:
+        """``#h-!`` (close) or ``#h+!`` (open): only when armed (the claw is motion, P7)."""
+        if not self.armed:
+            self._say(_SEVERITY_WARNING, "Gripper refused: arm first")
+            return Result.DENIED
+        await self.rov.send(Command("h-" if close else "h+"))
+        return Result.ACCEPTED
+
+    def request_message(self, message_id: int) -> Result:
+        """Send one message now, if the bridge has it."""
+        name = self._message_name(message_id)
+        if name is None or not self.messages.send(name):
+            return Result.UNSUPPORTED
+        return Result.ACCEPTED
+
+    def set_message_interval(self, message_id: int, interval_us: float) -> Result:
+        """SET_MESSAGE_INTERVAL: −1 off, 0 the default, else every ``interval_us`` µs."""
+        name = self._message_name(message_id)
+        if name is None:
+            return Result.UNSUPPORTED
+        if interval_us < 0:
+            interval_s: float | None = 0.0
+        elif interval_us == 0:
+            interval_s = None
+        else:
+            interval_s = interval_us / 1e6
+        if not self.schedule.set_interval(name, interval_s, self._clock()):
+            return Result.UNSUPPORTED
+        self.poller.set_rate(self._poll_rate_hz())
+        return Result.ACCEPTED
+
+    # -- loops -----------------------------------------------------------------------------------
+
+    async def _receive(self) -> None:
+        while True:
+            message = await self._inbox.get()
+            target = getattr(message, "target_system", 0)
+            if target not in (0, self.endpoint.system_id):
+                continue  # for another vehicle on the same link
+            handler = self._handlers.get(message.get_type())
+            if handler is None:
+                continue
+            try:
+                await handler(message)
+            except ConnectionError:
+                raise  # the controller is gone: the bridge ends
+            except Exception:
+                # One odd message must not end the bridge (and with it the ground station's
+                # control): log it and serve the next.
+                logger.exception(
+                    "%s from system %s not handled", message.get_type(), message.get_srcSystem()
+                )
+
+    async def _tick(self) -> None:
+        while True:
+            now_s = self._clock()
+            if self.watchdog.tripped(now_s, armed=self.armed):
+                await self.disarm("no ground station heartbeat for 3 s")
+                self._say(_SEVERITY_CRITICAL, "Failsafe: GCS heartbeat lost, stopped")
+            expired = self.pilot.expire(now_s)
+            for command in expired:
+                await self.rov.send(command)
+            if expired:
+                self._say(_SEVERITY_WARNING, "Failsafe: pilot input stale, thrust zeroed")
+            for name in self.schedule.due(now_s):
+                try:
+                    self.messages.send(name)
+                except OSError as error:  # a ground station's socket gone: the next will do
+                    logger.debug("%s not sent: %s", name, error)
+            await asyncio.sleep(_TICK_S)
+
+    # -- received messages ------------------------------------------------------------------------
+
+    async def _on_heartbeat(self, message: Any) -> None:
+        if message.type == _GCS_TYPE:
+            self.watchdog.heartbeat(self._clock())
+
+    async def _on_manual_control(self, message: Any) -> None:
+        output = self.pilot.manual_control(
+            message.x,
+            message.y,
+            message.z,
+            message.buttons,
+            mode=self.state.mode,
+            armed=self.armed,
+            now_s=self._clock(),
+        )
+        for command in output.commands:
+            await self.rov.send(command)
+        for function in output.pressed:
+            await self._button(function)
+
+    async def _button(self, function: ButtonFunction) -> None:
+        if function is ButtonFunction.ARM or (
+            function is ButtonFunction.ARM_TOGGLE and not self.armed
+        ):
+            await self.arm()
+        elif function in (ButtonFunction.DISARM, ButtonFunction.ARM_TOGGLE):
+            await self.disarm("disarm button")
+        elif function is ButtonFunction.MODE_MANUAL:
+            await self.set_mode(FlightMode.MANUAL)
+        elif function is ButtonFunction.MODE_DEPTH_HOLD:
+            await self.set_mode(FlightMode.ALT_HOLD)
+
+    async def _on_command_long(self, message: Any) -> None:
+        params = [getattr(message, f"param{n}") for n in range(1, 8)]
+        await self._command(message, message.command, params)
+
+    async def _on_command_int(self, message: Any) -> None:
+        params = [message.param1, message.param2, message.param3, message.param4]
+        params += [float(message.x), float(message.y), message.z]
+        await self._command(message, message.command, params)
+
+    async def _command(self, message: Any, command: int, params: list[float]) -> None:
+        result = await handle_command(self, command, params)
+        self._ack(message, command, result)
+
+    async def _on_set_mode(self, message: Any) -> None:
+        result = await mode_result(self, message.base_mode, message.custom_mode)
+        self._ack(message, MAV_CMD.DO_SET_MODE, result)
+
+    def _ack(self, message: Any, command: int, result: Result) -> None:
+        self.endpoint.mav.command_ack_send(
+            command, int(result), 0, 0, message.get_srcSystem(), message.get_srcComponent()
+        )
+
+    async def _on_param_request_list(self, message: Any) -> None:
+        for name, _ in self.parameters.items():
+            self._param_value(name)
+
+    async def _on_param_request_read(self, message: Any) -> None:
+        names = self.parameters.names()
+        if message.param_index >= 0:
+            if message.param_index < len(names):
+                self._param_value(names[message.param_index])
+            return
+        name = _param_name(message.param_id)
+        if name in names:
+            self._param_value(name)
+
+    async def _on_param_set(self, message: Any) -> None:
+        name = _param_name(message.param_id)
+        try:
+            command = self.parameters.set(name, message.param_value)
+        except ParameterError as error:
+            self._say(_SEVERITY_WARNING, str(error))
+            if name in self.parameters.names():
+                self._param_value(name)  # the value in force: the set did not take
+            return
+        if command is not None:
+            await self.rov.send(command)
+        self._param_value(name)
+
+    def _param_value(self, name: str) -> None:
+        self.endpoint.mav.param_value_send(
+            name.encode("ascii"),
+            float(self.parameters.value(name)),
+            _PARAM_TYPE_INT32,
+            len(self.parameters),
+            self.parameters.index(name),
+        )
+
+    async def _on_request_data_stream(self, message: Any) -> None:
+        rate_hz = float(message.req_message_rate) if message.start_stop else 0.0
+        self.schedule.set_stream(message.req_stream_id, rate_hz, self._clock())
+        self.poller.set_rate(self._poll_rate_hz())
+
+    async def _on_mission_request_list(self, message: Any) -> None:
+        self.messages.mission_count(
+            message.get_srcSystem(), message.get_srcComponent(), message.mission_type
+        )
+
+    # -- internals -------------------------------------------------------------------------------
+
+    def _on_reading(self, sensors: Sensors) -> None:
+        if self.state.update(sensors, self._clock()):
+            self._say(_SEVERITY_CRITICAL, "Leak detected")
+
+    def _on_client_event(self, event: ClientEvent) -> None:
+        lost = isinstance(event, LinkState) and event.state == "lost"
+        if (isinstance(event, ResetSuspected) or lost) and self.armed:
+            # After a reset the controller is locked (P21): say so rather than show it armed.
+            task = asyncio.ensure_future(self._disarm_quietly("the controller may have reset"))
+            self._background.add(task)
+            task.add_done_callback(self._background.discard)
+
+    async def _disarm_quietly(self, reason: str) -> None:
+        with contextlib.suppress(ConnectionError):
+            await self.disarm(reason)
+
+    async def _hold_current_depth(self) -> None:
+        depth_cm = self.state.depth_cm
+        if self.state.mode is FlightMode.ALT_HOLD and self.armed and depth_cm is not None:
+            await self.rov.send(self.pilot.hold(depth_cm))
+
+    def _poll_rate_hz(self) -> float:
+        return min(max(self.schedule.fastest_rate_hz(), _MIN_POLL_HZ), MAX_RATE_HZ)
+
+    def _message_name(self, message_id: int) -> str | None:
+        message_class = self.endpoint.dialect.mavlink_map.get(message_id)
+        return None if message_class is None else str(message_class.msgname)
+
+    def _say(self, severity: int, text: str) -> None:
+        self.messages.status_text(severity, text)
+
+
+def _param_name(param_id: str | bytes) -> str:
+    text = param_id.decode("ascii", "replace") if isinstance(param_id, bytes) else param_id
+    return text.rstrip("\x00")

@@ -1,0 +1,112 @@
+"""MAVLink commands (COMMAND_LONG, COMMAND_INT, SET_MODE) to the vehicle's actions.
+
+Every command gets a COMMAND_ACK; one the protocol cannot carry out is answered
+MAV_RESULT_UNSUPPORTED, never ignored.
+"""
+
+from __future__ import annotations
+
+import math
+from enum import IntEnum
+from typing import Protocol
+
+from rovlink.bridges.mavlink.modes import FlightMode
+
+__all__ = ["MAV_CMD", "Result", "VehicleActions", "handle_command", "mode_result"]
+
+
+class Result(IntEnum):
+    """MAV_RESULT."""
+
+    ACCEPTED = 0
+    TEMPORARILY_REJECTED = 1
+    DENIED = 2
+    UNSUPPORTED = 3
+    FAILED = 4
+
+
+class MAV_CMD(IntEnum):  # noqa: N801 - MAVLink's own name
+    """The MAV_CMD values the bridge carries out."""
+
+    DO_SET_MODE = 176
+    DO_GRIPPER = 211
+    COMPONENT_ARM_DISARM = 400
+    SET_MESSAGE_INTERVAL = 511
+    REQUEST_MESSAGE = 512
+    REQUEST_AUTOPILOT_CAPABILITIES = 520
+
+
+_CUSTOM_MODE_ENABLED = 1  # MAV_MODE_FLAG_CUSTOM_MODE_ENABLED
+_GRIPPER_RELEASE = 0  # GRIPPER_ACTION_RELEASE: open
+_GRIPPER_GRAB = 1  # GRIPPER_ACTION_GRAB: close
+_AUTOPILOT_VERSION = 148  # message id
+
+
+class VehicleActions(Protocol):
+    """What the commands act on (the bridge)."""
+
+    async def arm(self) -> Result:
+        """``#start!``."""
+
+    async def disarm(self, reason: str) -> Result:
+        """``#stop!``: always accepted."""
+
+    async def set_mode(self, mode: FlightMode) -> Result:
+        """Switch the vertical mode."""
+
+    async def gripper(self, *, close: bool) -> Result:
+        """``#h-!`` (close) or ``#h+!`` (open)."""
+
+    def request_message(self, message_id: int) -> Result:
+        """Send one message now."""
+
+    def set_message_interval(self, message_id: int, interval_us: float) -> Result:
+        """Send a message at an interval (−1: not at all, 0: its default)."""
+
+
+def _whole(value: float) -> int | None:
+    """A parameter that must be a whole number, or ``None`` (NaN, infinite, fractional)."""
+    if not math.isfinite(value) or value != round(value):
+        return None
+    return round(value)
+
+
+async def mode_result(actions: VehicleActions, base_mode: float, custom_mode: float) -> Result:
+    """DO_SET_MODE or SET_MODE: a custom mode the bridge serves, else unsupported."""
+    base, custom = _whole(base_mode), _whole(custom_mode)
+    if base is None or custom is None:
+        return Result.DENIED
+    if not base & _CUSTOM_MODE_ENABLED:
+        return Result.UNSUPPORTED
+    try:
+        mode = FlightMode(custom)
+    except ValueError:
+        return Result.UNSUPPORTED
+    return await actions.set_mode(mode)
+
+
+async def handle_command(actions: VehicleActions, command: int, params: list[float]) -> Result:
+    """Carry out MAV_CMD ``command`` with its seven parameters; its MAV_RESULT."""
+    p1, p2 = params[0], params[1]
+    if command == MAV_CMD.COMPONENT_ARM_DISARM:
+        if p1 == 1:
+            return await actions.arm()
+        if p1 == 0:
+            return await actions.disarm("disarmed by the ground station")
+        return Result.DENIED
+    if command == MAV_CMD.DO_SET_MODE:
+        return await mode_result(actions, p1, p2)
+    if command == MAV_CMD.DO_GRIPPER:
+        if p2 not in (_GRIPPER_RELEASE, _GRIPPER_GRAB):
+            return Result.DENIED
+        return await actions.gripper(close=p2 == _GRIPPER_GRAB)
+    if command == MAV_CMD.REQUEST_AUTOPILOT_CAPABILITIES:
+        return actions.request_message(_AUTOPILOT_VERSION)
+    if command in (MAV_CMD.REQUEST_MESSAGE, MAV_CMD.SET_MESSAGE_INTERVAL):
+        message_id = _whole(p1)
+        if message_id is None or (command == MAV_CMD.SET_MESSAGE_INTERVAL and math.isnan(p2)):
+            return Result.DENIED
+        if command == MAV_CMD.REQUEST_MESSAGE:
+            return actions.request_message(message_id)
+        return actions.set_message_interval(message_id, p2)
+    return Result.UNSUPPORTED

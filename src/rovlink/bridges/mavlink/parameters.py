@@ -1,0 +1,212 @@
+"""The parameter table a ground station reads and writes (the MAVLink parameter protocol).
+
+Each controller parameter is one argument of one command of the table: its range comes from
+there, and setting it sends that command. The protocol cannot read a setting back, so a value is
+the one last sent (at start: the controller's configured reset default, or the value from a
+parameter file, which is then sent). ``BTNn_FUNCTION`` are the bridge's own: which ArduSub
+joystick function each button of MANUAL_CONTROL carries out.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass
+
+from rovlink.bridges.mavlink.modes import SUPPORTED_BUTTON_FUNCTIONS, ButtonFunction
+from rovlink.protocol import Command, lookup
+
+__all__ = [
+    "BUTTON_COUNT",
+    "DEFAULT_BUTTON_FUNCTIONS",
+    "Parameter",
+    "ParameterError",
+    "ParameterTable",
+    "button_parameter",
+    "read_parameter_file",
+]
+
+#: MANUAL_CONTROL carries 16 buttons (``buttons``), as ArduSub's BTN0…BTN15_FUNCTION.
+BUTTON_COUNT = 16
+#: ArduSub's defaults for the buttons whose functions the bridge can carry out.
+DEFAULT_BUTTON_FUNCTIONS: Mapping[int, ButtonFunction] = {
+    1: ButtonFunction.MODE_MANUAL,
+    2: ButtonFunction.MODE_DEPTH_HOLD,
+    4: ButtonFunction.DISARM,
+    6: ButtonFunction.ARM,
+}
+
+
+class ParameterError(ValueError):
+    """A parameter name or value the table refuses; the message names both."""
+
+
+@dataclass(frozen=True, slots=True)
+class Parameter:
+    """One parameter: its MAVLink name, what it is, its range and the command that sets it."""
+
+    name: str
+    description: str
+    minimum: int
+    maximum: int
+    #: The command whose only argument this parameter is; ``None``: the bridge's own setting.
+    command_name: str | None = None
+
+    def command(self, value: int) -> Command | None:
+        """The command that puts ``value`` into effect on the controller, if any."""
+        return None if self.command_name is None else Command(self.command_name, (value,))
+
+
+def _from_command(name: str, command_name: str, description: str) -> Parameter:
+    (argument,) = lookup(command_name).arguments
+    return Parameter(name, description, argument.minimum, argument.maximum, command_name)
+
+
+def button_parameter(button: int) -> str:
+    """The parameter name of a button's function.
+
+    >>> button_parameter(3)
+    'BTN3_FUNCTION'
+    """
+    return f"BTN{button}_FUNCTION"
+
+
+_CONTROLLER_PARAMETERS = (
+    _from_command("RL_DEPTH_P", "mvpdp", "depth PID proportional gain"),
+    _from_command("RL_DEPTH_I", "mvpdi", "depth PID integral gain"),
+    _from_command("RL_DEPTH_D", "mvpidd", "depth PID derivative gain"),
+    _from_command("RL_MAX_PWM", "mgmp", "PWM duty cap of every thruster"),
+    _from_command("RL_DEPTH_ZERO", "sdz", "raw pressure reading at the surface"),
+    _from_command("RL_DEPTH_K", "sdk", "depth coefficient: depth[m] = (raw − zero) · k / 10000"),
+)
+_BUTTON_PARAMETERS = tuple(
+    Parameter(
+        button_parameter(button),
+        f"ArduSub joystick function of button {button}",
+        0,
+        max(SUPPORTED_BUTTON_FUNCTIONS),
+    )
+    for button in range(BUTTON_COUNT)
+)
+
+
+class ParameterTable:
+    """The parameters in a fixed order (a ground station asks by index too) and their values.
+
+    >>> table = ParameterTable({"RL_DEPTH_P": 40})
+    >>> table.value("RL_DEPTH_P")
+    40
+    >>> str(table.set("RL_DEPTH_P", 35.0))
+    '#mvpdp.35!'
+    >>> try:
+    ...     table.set("RL_DEPTH_P", 120)
+    ... except ParameterError as error:
+    ...     print(error)
+    RL_DEPTH_P must be an integer in 0–99, got 120
+    """
+
+    def __init__(self, values: Mapping[str, int] | None = None) -> None:
+        self.parameters: tuple[Parameter, ...] = _CONTROLLER_PARAMETERS + _BUTTON_PARAMETERS
+        self._by_name = {parameter.name: parameter for parameter in self.parameters}
+        self._values: dict[str, int] = {parameter.name: 0 for parameter in self.parameters}
+        for button, function in DEFAULT_BUTTON_FUNCTIONS.items():
+            self._values[button_parameter(button)] = int(function)
+        for name, value in (values or {}).items():
+            self._values[name] = self._checked(name, value)
+
+    def __len__(self) -> int:
+        return len(self.parameters)
+
+    def names(self) -> list[str]:
+        """Every parameter name, in index order."""
+        return [parameter.name for parameter in self.parameters]
+
+    def index(self, name: str) -> int:
+        """The index of ``name`` (``ParameterError`` if there is no such parameter)."""
+        return self.parameters.index(self.parameter(name))
+
+    def parameter(self, name: str) -> Parameter:
+        """The parameter called ``name``."""
+        try:
+            return self._by_name[name]
+        except KeyError:
+            raise ParameterError(f"no parameter {name!r}") from None
+
+    def value(self, name: str) -> int:
+        """The value of ``name`` as last set."""
+        self.parameter(name)
+        return self._values[name]
+
+    def items(self) -> Iterable[tuple[str, int]]:
+        """``(name, value)`` in index order."""
+        return ((parameter.name, self._values[parameter.name]) for parameter in self.parameters)
+
+    def button_function(self, button: int) -> ButtonFunction:
+        """The function button ``button`` carries out."""
+        return ButtonFunction(self._values[button_parameter(button)])
+
+    def set(self, name: str, value: float) -> Command | None:
+        """Set ``name`` to ``value``; the command to send for it (``None``: the bridge's own).
+
+        Nothing changes when the value is refused (``ParameterError`` says why).
+        """
+        checked = self._checked(name, value)
+        self._values[name] = checked
+        return self.parameter(name).command(checked)
+
+    def commands(self, names: Iterable[str]) -> list[Command]:
+        """The commands that put the values of ``names`` into effect, in table order (the
+        bridge's own parameters need none)."""
+        wanted = set(names)
+        for name in wanted:
+            self.parameter(name)  # ParameterError for a name not in the table
+        commands = []
+        for name, value in self.items():
+            command = self._by_name[name].command(value) if name in wanted else None
+            if command is not None:
+                commands.append(command)
+        return commands
+
+    def _checked(self, name: str, value: float) -> int:
+        parameter = self.parameter(name)
+        range_text = f"{parameter.minimum}–{parameter.maximum}"
+        if (
+            not math.isfinite(value)
+            or value != round(value)
+            or not parameter.minimum <= value <= parameter.maximum
+        ):
+            shown = int(value) if math.isfinite(value) and value == round(value) else value
+            raise ParameterError(f"{name} must be an integer in {range_text}, got {shown}")
+        integer = round(value)
+        if name.startswith("BTN") and integer not in SUPPORTED_BUTTON_FUNCTIONS:
+            supported = ", ".join(f"{int(f)} {f.name.lower()}" for f in ButtonFunction)
+            raise ParameterError(f"{name}: function {integer} is not supported; use {supported}")
+        return integer
+
+
+def read_parameter_file(text: str, source: str) -> dict[str, int]:
+    """Parameters from a ground station's parameter file: ``NAME VALUE`` (or ``NAME,VALUE``)
+    per line, ``#`` comments. Errors name the file and line; every value is checked.
+    """
+    table = ParameterTable()
+    values: dict[str, int] = {}
+    for number, line in enumerate(text.splitlines(), start=1):
+        content = line.split("#", 1)[0].strip()
+        if not content:
+            continue
+        fields = content.replace(",", " ").split()
+        if len(fields) != 2:
+            raise ParameterError(f"{source}:{number}: expected NAME VALUE, got {line.strip()!r}")
+        name, text_value = fields
+        try:
+            value = float(text_value)
+        except ValueError:
+            raise ParameterError(
+                f"{source}:{number}: {name}: not a number: {text_value!r}"
+            ) from None
+        try:
+            table.set(name, value)
+        except ParameterError as error:
+            raise ParameterError(f"{source}:{number}: {error}") from None
+        values[name] = table.value(name)
+    return values

@@ -1,0 +1,195 @@
+"""MANUAL_CONTROL (a ground station's joystick) to the commands of the protocol.
+
+x (forward) and y (right), −1000…1000, become ``#th.A.P!``: the direction the stick points,
+clockwise from the bow, and the stick's deflection as power. z, 0…1000 with 500 neutral, is
+vertical thrust (``#mvs!``) in MANUAL and moves the held depth (``#mvd!``) in ALT_HOLD. r (yaw)
+is ignored: the protocol has no yaw command. Buttons carry out their ``BTNn_FUNCTION`` once per
+press. Only changes are sent, so a joystick at 50 Hz does not fill the serial line.
+
+Input that stops coming for :data:`INPUT_STALE_S` (P23) is expired with zero thrust.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from rovlink.bridges.mavlink.modes import ButtonFunction, FlightMode
+from rovlink.bridges.mavlink.parameters import BUTTON_COUNT, ParameterTable
+from rovlink.protocol import Command, lookup
+
+__all__ = [
+    "AXIS_UNUSED",
+    "INPUT_STALE_S",
+    "MAX_CLIMB_CM_S",
+    "PilotInput",
+    "PilotOutput",
+    "horizontal",
+    "vertical_thrust_percent",
+]
+
+#: MANUAL_CONTROL's value for an axis the ground station does not use.
+AXIS_UNUSED = 32767
+#: MANUAL_CONTROL older than this is stale: motion expires (PROTOCOL.md P23).
+INPUT_STALE_S = 1.0
+#: ALT_HOLD: how fast a full throttle stick moves the held depth, cm/s.
+MAX_CLIMB_CM_S = 50.0
+#: ALT_HOLD: throttle within this of neutral (of 500) leaves the held depth alone.
+_THROTTLE_DEADBAND = 50
+#: Longest gap between inputs that moves the held depth (a gap is not a held stick).
+_MAX_STEP_S = 0.2
+_NEUTRAL_Z = 500
+_DEPTH_RANGE = lookup("mvd").arguments[0]
+_THRUST_RANGE = lookup("mvs").arguments[0]
+_POWER_RANGE = lookup("th").arguments[1]
+
+
+def _axis(value: int, unused: int = 0) -> int:
+    return unused if value == AXIS_UNUSED else value
+
+
+def horizontal(x: int, y: int) -> tuple[int, int]:
+    """Direction (clockwise from the bow, 0–359°) and power (%) of the stick at x, y.
+
+    >>> horizontal(1000, 0), horizontal(0, 500), horizontal(-1000, 0), horizontal(0, -250)
+    ((0, 100), (90, 50), (180, 100), (270, 25))
+    """
+    power = min(_POWER_RANGE.maximum, round(math.hypot(x, y) / 10))
+    direction = round(math.degrees(math.atan2(y, x))) % 360
+    return direction, power
+
+
+def vertical_thrust_percent(z: int) -> int:
+    """Vertical thrust for throttle z (0…1000, 500 neutral), + up.
+
+    >>> vertical_thrust_percent(500), vertical_thrust_percent(1000), vertical_thrust_percent(250)
+    (0, 100, -50)
+    """
+    thrust = round((z - _NEUTRAL_Z) / 5)
+    return max(_THRUST_RANGE.minimum, min(_THRUST_RANGE.maximum, thrust))
+
+
+@dataclass(frozen=True, slots=True)
+class PilotOutput:
+    """What one MANUAL_CONTROL asks for: commands to send and button functions pressed."""
+
+    commands: tuple[Command, ...] = ()
+    pressed: tuple[ButtonFunction, ...] = ()
+
+
+class PilotInput:
+    """The pilot's stick and buttons, turned into commands (changes only) and expired when stale.
+
+    >>> from rovlink.bridges.mavlink.parameters import ParameterTable
+    >>> pilot = PilotInput(ParameterTable())
+    >>> out = pilot.manual_control(1000, 0, 600, 0, mode=FlightMode.MANUAL, armed=True, now_s=0.0)
+    >>> [str(command) for command in out.commands]
+    ['#th.0.100!', '#mvs.+20!']
+    >>> [str(command) for command in pilot.expire(now_s=1.5)]
+    ['#th.0.0!', '#mvs.+0!']
+    """
+
+    def __init__(self, parameters: ParameterTable, *, stale_after_s: float = INPUT_STALE_S) -> None:
+        self._parameters = parameters
+        self.stale_after_s = stale_after_s
+        self.last_input_at_s: float | None = None
+        self._buttons = 0
+        self._direction_deg = 0
+        self._power_percent = 0
+        self._thrust_percent = 0
+        self._target_depth_cm: float | None = None
+        self._sent_depth_cm: int | None = None
+
+    @property
+    def moving(self) -> bool:
+        """Whether the last commands sent asked for thrust."""
+        return self._power_percent != 0 or self._thrust_percent != 0
+
+    @property
+    def target_depth_cm(self) -> int | None:
+        """ALT_HOLD: the depth held, as last sent."""
+        return self._sent_depth_cm
+
+    def neutral(self) -> None:
+        """The controller's set-points are neutral now (after start, stop or a mode change)."""
+        self._power_percent = 0
+        self._thrust_percent = 0
+        self._target_depth_cm = None
+        self._sent_depth_cm = None
+
+    def hold(self, depth_cm: int) -> Command:
+        """ALT_HOLD from now on holds ``depth_cm``: the command that says so."""
+        depth = max(_DEPTH_RANGE.minimum, min(_DEPTH_RANGE.maximum, depth_cm))
+        self._target_depth_cm = float(depth)
+        self._sent_depth_cm = depth
+        return Command("mvd", (depth,))
+
+    def manual_control(
+        self,
+        x: int,
+        y: int,
+        z: int,
+        buttons: int,
+        *,
+        mode: FlightMode,
+        armed: bool,
+        now_s: float,
+    ) -> PilotOutput:
+        """Take one MANUAL_CONTROL; the commands that carry out what changed."""
+        previous_at_s = self.last_input_at_s
+        self.last_input_at_s = now_s
+        pressed = self._pressed(buttons)
+        if not armed:  # the controller drops motion while locked (P7): nothing to send
+            return PilotOutput((), pressed)
+        commands: list[Command] = []
+        direction, power = horizontal(_axis(x), _axis(y))
+        if power == 0:
+            direction = self._direction_deg  # zero power keeps the last direction, as the session
+        if (direction, power) != (self._direction_deg, self._power_percent) and (
+            power or self._power_percent
+        ):
+            commands.append(Command("th", (direction, power)))
+            self._direction_deg, self._power_percent = direction, power
+        throttle = _axis(z, _NEUTRAL_Z)
+        if mode is FlightMode.MANUAL:
+            thrust = vertical_thrust_percent(throttle)
+            if thrust != self._thrust_percent:
+                commands.append(Command("mvs", (thrust,)))
+                self._thrust_percent = thrust
+        elif self._target_depth_cm is not None and previous_at_s is not None:
+            step_s = min(max(now_s - previous_at_s, 0.0), _MAX_STEP_S)
+            offset = throttle - _NEUTRAL_Z
+            if abs(offset) > _THROTTLE_DEADBAND:
+                climb_cm_s = offset / _NEUTRAL_Z * MAX_CLIMB_CM_S
+                self._target_depth_cm = max(
+                    float(_DEPTH_RANGE.minimum),
+                    min(float(_DEPTH_RANGE.maximum), self._target_depth_cm - climb_cm_s * step_s),
+                )
+                depth = round(self._target_depth_cm)
+                if depth != self._sent_depth_cm:
+                    commands.append(Command("mvd", (depth,)))
+                    self._sent_depth_cm = depth
+        return PilotOutput(tuple(commands), pressed)
+
+    def expire(self, now_s: float) -> tuple[Command, ...]:
+        """Zero thrust if the input went stale while it asked for thrust (once), else nothing."""
+        if self.last_input_at_s is None or now_s - self.last_input_at_s < self.stale_after_s:
+            return ()
+        commands = []
+        if self._power_percent:
+            commands.append(Command("th", (self._direction_deg, 0)))
+            self._power_percent = 0
+        if self._thrust_percent:
+            commands.append(Command("mvs", (0,)))
+            self._thrust_percent = 0
+        return tuple(commands)
+
+    def _pressed(self, buttons: int) -> tuple[ButtonFunction, ...]:
+        rising = buttons & ~self._buttons
+        self._buttons = buttons
+        return tuple(
+            function
+            for button in range(BUTTON_COUNT)
+            if rising & (1 << button)
+            and (function := self._parameters.button_function(button)) is not ButtonFunction.NONE
+        )

@@ -1,0 +1,197 @@
+"""The telemetry messages, filled from the vehicle state and sent through pymavlink."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+import rovlink
+from rovlink.bridges.mavlink.endpoint import MavlinkEndpoint
+from rovlink.bridges.mavlink.parameters import ParameterTable
+from rovlink.bridges.mavlink.vehicle_state import VehicleState
+from rovlink.piloting.commanded import LockState
+from rovlink.piloting.tracked import TrackedClient
+
+__all__ = ["TelemetryMessages", "version_number"]
+
+_UNKNOWN_VOLTAGE_MV = 65535  # SYS_STATUS: no battery monitor
+_UNKNOWN = -1
+#: STATUSTEXT carries at most 50 characters.
+STATUSTEXT_CHARS = 50
+
+
+def version_number(version: str) -> int:
+    """A version as AUTOPILOT_VERSION's ``flight_sw_version``: major, minor, patch, type bytes.
+
+    >>> hex(version_number("1.4.2"))
+    '0x10402ff'
+    """
+    numbers = [int(part) for part in version.split(".")[:3] if part.isdigit()]
+    major, minor, patch = ([*numbers, 0, 0, 0])[:3]
+    return (major & 0xFF) << 24 | (minor & 0xFF) << 16 | (patch & 0xFF) << 8 | 0xFF
+
+
+class TelemetryMessages:
+    """Sends each telemetry message by name (``send("ATTITUDE")``) and the ones asked for once."""
+
+    def __init__(
+        self,
+        endpoint: MavlinkEndpoint,
+        state: VehicleState,
+        rov: TrackedClient,
+        parameters: ParameterTable,
+        clock: Callable[[], float],
+    ) -> None:
+        self._endpoint = endpoint
+        self._state = state
+        self._rov = rov
+        self._parameters = parameters
+        self._clock = clock
+        self._started_s = clock()
+        self._senders: dict[str, Callable[[], None]] = {
+            "HEARTBEAT": self.heartbeat,
+            "SYS_STATUS": self.sys_status,
+            "ATTITUDE": self.attitude,
+            "VFR_HUD": self.vfr_hud,
+            "GLOBAL_POSITION_INT": self.global_position_int,
+            "SCALED_PRESSURE2": self.scaled_pressure2,
+            "AUTOPILOT_VERSION": self.autopilot_version,
+        }
+
+    def names(self) -> list[str]:
+        """Every message this can send."""
+        return list(self._senders)
+
+    def send(self, name: str) -> bool:
+        """Send ``name`` now; ``False`` if it is not one of :meth:`names`."""
+        sender = self._senders.get(name)
+        if sender is None:
+            return False
+        sender()
+        return True
+
+    # -- the messages --------------------------------------------------------------------------
+
+    @property
+    def _mav(self) -> Any:
+        return self._endpoint.mav
+
+    @property
+    def _dialect(self) -> Any:
+        return self._endpoint.dialect
+
+    def _boot_ms(self) -> int:
+        return int((self._clock() - self._started_s) * 1000) & 0xFFFFFFFF
+
+    @property
+    def armed(self) -> bool:
+        """Unlocked, as last sent."""
+        return self._rov.commanded.lock is LockState.UNLOCKED
+
+    def link_ok(self) -> bool:
+        """Whether the controller answers (its queries are not failing)."""
+        return self._rov.health.status in {"ok", "waiting"}
+
+    def heartbeat(self) -> None:
+        """HEARTBEAT: a submarine on ArduPilot, its custom mode, armed = unlocked."""
+        d = self._dialect
+        base_mode = d.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED | d.MAV_MODE_FLAG_MANUAL_INPUT_ENABLED
+        if self.armed:
+            base_mode |= d.MAV_MODE_FLAG_SAFETY_ARMED
+        if self._state.leak or not self.link_ok():
+            status = d.MAV_STATE_CRITICAL
+        elif self.armed:
+            status = d.MAV_STATE_ACTIVE
+        else:
+            status = d.MAV_STATE_STANDBY
+        self._mav.heartbeat_send(
+            d.MAV_TYPE_SUBMARINE,
+            d.MAV_AUTOPILOT_ARDUPILOTMEGA,
+            base_mode,
+            int(self._state.mode),
+            status,
+        )
+
+    def sys_status(self) -> None:
+        """SYS_STATUS: the sensors behind ``qsa``, healthy while the controller answers."""
+        d = self._dialect
+        sensors = (
+            d.MAV_SYS_STATUS_SENSOR_3D_GYRO
+            | d.MAV_SYS_STATUS_SENSOR_3D_MAG
+            | d.MAV_SYS_STATUS_SENSOR_ABSOLUTE_PRESSURE
+            | d.MAV_SYS_STATUS_SENSOR_MOTOR_OUTPUTS
+        )
+        enabled = sensors if self.armed else sensors & ~d.MAV_SYS_STATUS_SENSOR_MOTOR_OUTPUTS
+        healthy = sensors if self.link_ok() and self._state.sensors is not None else 0
+        health = self._rov.health
+        attempts = health.replies + health.failures
+        drop_rate = round(10000 * health.failures / attempts) if attempts else 0
+        errors = min(self._rov.client.counters.bad_frames, 0xFFFF)
+        self._mav.sys_status_send(
+            sensors, enabled, healthy, 0, _UNKNOWN_VOLTAGE_MV, _UNKNOWN, _UNKNOWN,
+            drop_rate, errors, 0, 0, 0, 0,
+        )  # fmt: skip
+
+    def attitude(self) -> None:
+        """ATTITUDE: roll, pitch (``qro``, ``qpi``) and yaw (``qhe``); no rates."""
+        roll, pitch, yaw = self._state.attitude_rad()
+        self._mav.attitude_send(self._boot_ms(), roll, pitch, yaw, 0.0, 0.0, 0.0)
+
+    def vfr_hud(self) -> None:
+        """VFR_HUD: heading, altitude = −depth, climb, throttle = vertical thrust as last sent."""
+        commanded = self._rov.commanded
+        throttle = abs(commanded.vertical_thrust_percent)
+        self._mav.vfr_hud_send(
+            0.0,
+            0.0,
+            self._state.heading_deg(),
+            throttle,
+            self._state.altitude_m(),
+            self._state.climb_cm_s / 100.0,
+        )
+
+    def global_position_int(self) -> None:
+        """GLOBAL_POSITION_INT: no position fix (lat, lon 0); altitudes = −depth, mm."""
+        altitude_mm = round(self._state.altitude_m() * 1000)
+        self._mav.global_position_int_send(
+            self._boot_ms(),
+            0,
+            0,
+            altitude_mm,
+            altitude_mm,
+            0,
+            0,
+            round(-self._state.climb_cm_s),  # vz: + down, cm/s
+            self._state.heading_deg() * 100,
+        )
+
+    def scaled_pressure2(self) -> None:
+        """SCALED_PRESSURE2 (ArduSub's depth sensor): from ``qr`` and the depth calibration."""
+        pressure_hpa = self._state.absolute_pressure_hpa(
+            self._parameters.value("RL_DEPTH_ZERO"), self._parameters.value("RL_DEPTH_K")
+        )
+        self._mav.scaled_pressure2_send(self._boot_ms(), pressure_hpa, 0.0, 0)
+
+    def autopilot_version(self) -> None:
+        """AUTOPILOT_VERSION: MAVLink 2, float parameters, COMMAND_INT; rovlink's version."""
+        d = self._dialect
+        capabilities = (
+            d.MAV_PROTOCOL_CAPABILITY_MAVLINK2
+            | d.MAV_PROTOCOL_CAPABILITY_PARAM_FLOAT
+            | d.MAV_PROTOCOL_CAPABILITY_COMMAND_INT
+        )
+        self._mav.autopilot_version_send(
+            capabilities, version_number(rovlink.__version__), 0, 0, 0,
+            [0] * 8, [0] * 8, [0] * 8, 0, 0, 0,
+        )  # fmt: skip
+
+    def status_text(self, severity: int, text: str) -> None:
+        """STATUSTEXT (cut to the 50 characters it carries)."""
+        ascii_text = text.replace("–", "-").replace("…", "...").replace("−", "-")
+        self._mav.statustext_send(
+            severity, ascii_text[:STATUSTEXT_CHARS].encode("ascii", "replace")
+        )
+
+    def mission_count(self, target_system: int, target_component: int, mission_type: int) -> None:
+        """MISSION_COUNT 0: the robot runs no missions."""
+        self._mav.mission_count_send(target_system, target_component, 0, mission_type)

@@ -1,0 +1,300 @@
+"""The MQTT bridge: one robot's telemetry, state and events on a broker; commands from it.
+
+QoS and what survives a broker outage:
+
+* ``telemetry``: QoS 0, at most once. Readings taken while the broker is away are dropped;
+  ``seq`` shows the gap.
+* ``state``: QoS 1, retained, published on every change and every few seconds, and again on
+  each reconnect: a subscriber always gets the latest state, never a stale one.
+* ``events``: QoS 1, at least once. Events that happen while the broker is away are kept (up
+  to 1000) and published, in order, when it is back.
+* ``cmd``: QoS 1 with a clean session: a command published while the bridge is away is not kept
+  for later (a late ``th 90 100`` is not what anyone wants); the sender gets no reply.
+* the last will: retained ``{"online": false}`` on ``state`` when the bridge vanishes.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import time
+from collections.abc import Callable
+from typing import Any
+
+from rovlink.bridges.mqtt.broker import BrokerSettings
+from rovlink.bridges.mqtt.commands import CommandPolicy
+from rovlink.bridges.mqtt.outbox import Outbox
+from rovlink.bridges.mqtt.payloads import (
+    CommandRequest,
+    PayloadError,
+    encode,
+    event_payload,
+    offline_state,
+    read_request,
+    reply_payload,
+    state_payload,
+    telemetry_payload,
+)
+from rovlink.bridges.mqtt.topics import Topics
+from rovlink.bridges.sensor_poll import SensorPoller
+from rovlink.client.errors import QueryTimeoutError
+from rovlink.client.events import ClientEvent, LinkState, MotionExpired, ResetSuspected
+from rovlink.client.sensors import Sensors
+from rovlink.logs import get_logger
+from rovlink.piloting.tracked import TrackedClient
+
+__all__ = ["MqttBridge"]
+
+logger = get_logger("rovlink.bridges.mqtt")
+
+_QOS_TELEMETRY = 0
+_QOS_RELIABLE = 1
+#: The retained state is refreshed at least this often (its ``at`` and link silence).
+_STATE_REFRESH_S = 2.0
+#: Reconnection backoff: first wait, doubled up to the last.
+_RECONNECT_FIRST_S = 0.2
+_RECONNECT_MAX_S = 5.0
+#: Telemetry waiting for the broker beyond this is dropped (QoS 0 promises no more).
+_TELEMETRY_BACKLOG = 64
+_KEEPALIVE_S = 10
+
+
+class MqttBridge:
+    """Bridges the robot behind ``rov`` to the broker as ``rovlink/ROBOT_ID/…``.
+
+    Example::
+
+        async with rovlink.aio.connect("sim://") as client:
+            bridge = MqttBridge(TrackedClient(client), BrokerSettings("localhost"), "rov-1")
+            await bridge.run()
+    """
+
+    def __init__(
+        self,
+        rov: TrackedClient,
+        broker: BrokerSettings,
+        robot_id: str,
+        *,
+        rate_hz: float = 5.0,
+        allow_commands: bool = False,
+        wall_clock: Callable[[], float] = time.time,
+    ) -> None:
+        self.rov = rov
+        self.broker = broker
+        self.topics = Topics(robot_id)
+        self.robot_id = robot_id
+        self.policy = CommandPolicy(allow_commands=allow_commands)
+        self.outbox = Outbox()
+        self.connected = asyncio.Event()
+        self.sequence = 0
+        self._wall_clock = wall_clock
+        self._latest: Sensors | None = None
+        self._telemetry: asyncio.Queue[bytes] = asyncio.Queue(_TELEMETRY_BACKLOG)
+        self._wake_publisher = asyncio.Event()
+        self._last_state: dict[str, Any] | None = None
+        self._last_state_at_s = 0.0
+        self.poller = SensorPoller(rov, self._on_reading, rate_hz=rate_hz)
+        rov.client.subscribe(self._on_client_event)
+        rov.add_sent_listener(lambda _sent: self._wake_publisher.set())
+
+    async def run(self) -> None:
+        """Serve until cancelled (or the controller's connection is lost); the robot is sent
+        ``#stop!`` and the state is marked offline at the end."""
+        poller = asyncio.ensure_future(self.poller.run())
+        broker = asyncio.ensure_future(self._stay_connected())
+        try:
+            done, _ = await asyncio.wait([poller, broker], return_when=asyncio.FIRST_EXCEPTION)
+            for task in done:
+                task.result()
+        finally:
+            for task in (poller, broker):
+                task.cancel()
+            await asyncio.gather(poller, broker, return_exceptions=True)
+            with contextlib.suppress(ConnectionError):
+                await self.rov.stop()
+
+    # -- the broker connection ---------------------------------------------------------------
+
+    async def _stay_connected(self) -> None:
+        import aiomqtt  # noqa: PLC0415 - the mqtt extra loads only here
+
+        wait_s = _RECONNECT_FIRST_S
+        while True:
+            try:
+                async with self._client(aiomqtt) as mqtt:
+                    wait_s = _RECONNECT_FIRST_S
+                    logger.info("connected to %s", self.broker.describe())
+                    await self._serve(mqtt)
+            except aiomqtt.MqttError as error:
+                self.connected.clear()
+                logger.warning(
+                    "broker %s: %s; retrying in %g s", self.broker.describe(), error, wait_s
+                )
+                await asyncio.sleep(wait_s)
+                wait_s = min(wait_s * 2, _RECONNECT_MAX_S)
+            except asyncio.CancelledError:
+                self.connected.clear()
+                raise
+
+    def _client(self, aiomqtt: Any) -> Any:
+        broker = self.broker
+        tls_params = None
+        if broker.tls:
+            tls_params = aiomqtt.TLSParameters(
+                ca_certs=None if broker.ca_file is None else str(broker.ca_file),
+                certfile=None if broker.cert_file is None else str(broker.cert_file),
+                keyfile=None if broker.key_file is None else str(broker.key_file),
+            )
+        will = aiomqtt.Will(
+            self.topics.state,
+            encode(offline_state(self.robot_id, "bridge connection lost")),
+            qos=_QOS_RELIABLE,
+            retain=True,
+        )
+        return aiomqtt.Client(
+            broker.host,
+            broker.port,
+            username=broker.username,
+            password=broker.password,
+            identifier=f"rovlink-bridge-{self.robot_id}",
+            protocol=aiomqtt.ProtocolVersion.V5,
+            will=will,
+            keepalive=_KEEPALIVE_S,
+            tls_params=tls_params,
+            tls_insecure=broker.insecure if broker.tls else None,
+            timeout=5.0,
+        )
+
+    async def _serve(self, mqtt: Any) -> None:
+        await mqtt.subscribe(self.topics.command, qos=_QOS_RELIABLE)
+        self._last_state = None  # publish it afresh: the broker may have restarted
+        self.connected.set()
+        tasks = [
+            asyncio.ensure_future(self._receive(mqtt)),
+            asyncio.ensure_future(self._publish(mqtt)),
+        ]
+        try:
+            done, _ = await asyncio.wait(tasks, return_when=asyncio.FIRST_COMPLETED)
+            for task in done:
+                task.result()  # the broker went away: MqttError
+        except asyncio.CancelledError:
+            # A clean exit: say so on the retained state (the last will covers the rest).
+            offline = encode(offline_state(self.robot_id, "bridge stopped"))
+            with contextlib.suppress(Exception):
+                await asyncio.wait_for(
+                    mqtt.publish(self.topics.state, offline, qos=_QOS_RELIABLE, retain=True), 2.0
+                )
+            raise
+        finally:
+            self.connected.clear()
+            for task in tasks:
+                task.cancel()
+            await asyncio.gather(*tasks, return_exceptions=True)
+
+    async def _receive(self, mqtt: Any) -> None:
+        async for message in mqtt.messages:
+            await self._on_command(mqtt, message)
+
+    async def _publish(self, mqtt: Any) -> None:
+        loop = asyncio.get_running_loop()
+        while True:
+            await self._publish_state(mqtt, loop.time())
+            while (kept := self.outbox.peek()) is not None:
+                await mqtt.publish(kept[0], kept[1], qos=_QOS_RELIABLE)
+                self.outbox.done()
+            while not self._telemetry.empty():
+                await mqtt.publish(self.topics.telemetry, self._telemetry.get_nowait(), qos=0)
+            self._wake_publisher.clear()
+            with contextlib.suppress(TimeoutError, asyncio.TimeoutError):
+                await asyncio.wait_for(self._wake_publisher.wait(), _STATE_REFRESH_S / 2)
+
+    async def _publish_state(self, mqtt: Any, now_s: float) -> None:
+        state = state_payload(
+            self.robot_id,
+            self.rov.commanded,
+            self.rov.health,
+            depth_cm=None if self._latest is None else self._latest.depth_cm,
+            leak=self._latest is not None and self._latest.leak_detected,
+            commands_allowed=self.policy.allow_commands,
+            at_s=self._wall_clock(),
+            now_s=self.rov.now_s(),
+        )
+        comparable = {k: v for k, v in state.items() if k not in ("at", "link")}
+        comparable["link_status"] = state["link"]["status"]
+        if comparable == self._last_state and now_s - self._last_state_at_s < _STATE_REFRESH_S:
+            return
+        await mqtt.publish(self.topics.state, encode(state), qos=_QOS_RELIABLE, retain=True)
+        self._last_state = comparable
+        self._last_state_at_s = now_s
+
+    # -- commands ------------------------------------------------------------------------------
+
+    async def _on_command(self, mqtt: Any, message: Any) -> None:
+        request: CommandRequest | None = None
+        payload = message.payload if isinstance(message.payload, bytes) else b""
+        try:
+            request = read_request(payload)
+            command = self.policy.check(request.text)
+        except (PayloadError, ValueError) as error:
+            await self._reply(
+                mqtt, message, reply_payload(self.robot_id, request, error=str(error))
+            )
+            return
+        try:
+            replies = await self.rov.send(command)
+        except QueryTimeoutError as error:
+            answer = reply_payload(self.robot_id, request, frame=str(command), error=str(error))
+        else:
+            answer = reply_payload(self.robot_id, request, frame=str(command), replies=replies)
+        await self._reply(mqtt, message, answer)
+
+    async def _reply(self, mqtt: Any, message: Any, answer: dict[str, Any]) -> None:
+        from paho.mqtt.packettypes import PacketTypes  # noqa: PLC0415
+        from paho.mqtt.properties import Properties  # noqa: PLC0415
+
+        topic = self.topics.command_reply
+        properties = None
+        asked = getattr(message, "properties", None)
+        response_topic = getattr(asked, "ResponseTopic", None)
+        if isinstance(response_topic, str) and response_topic:
+            topic = response_topic
+            correlation = getattr(asked, "CorrelationData", None)
+            if correlation is not None:
+                properties = Properties(PacketTypes.PUBLISH)  # type: ignore[no-untyped-call]
+                properties.CorrelationData = correlation
+        await mqtt.publish(topic, encode(answer), qos=_QOS_RELIABLE, properties=properties)
+
+    # -- what the robot does -------------------------------------------------------------------
+
+    def _on_reading(self, sensors: Sensors) -> None:
+        previous = self._latest
+        self._latest = sensors
+        if sensors.leak_detected and (previous is None or not previous.leak_detected):
+            self._event("leak", "the leak sensor fired")
+        self.sequence += 1
+        if self.connected.is_set():
+            payload = encode(
+                telemetry_payload(self.robot_id, sensors, self.sequence, self._wall_clock())
+            )
+            with contextlib.suppress(asyncio.QueueFull):
+                self._telemetry.put_nowait(payload)
+        self._wake_publisher.set()
+
+    def _on_client_event(self, event: ClientEvent) -> None:
+        if isinstance(event, MotionExpired):
+            frames = " ".join(str(command) for command in event.commands)
+            self._event("failsafe", f"motion not renewed: zero thrust sent ({frames})")
+        elif isinstance(event, ResetSuspected):
+            self._event(
+                "reset_suspected",
+                f"{event.consecutive_timeouts} queries timed out: the controller may have reset "
+                "(it is locked after a reset)",
+            )
+        elif isinstance(event, LinkState):
+            self._event("link", f"{event.state} {event.detail}".strip())
+
+    def _event(self, name: str, detail: str) -> None:
+        logger.info("event %s: %s", name, detail)
+        payload = event_payload(self.robot_id, name, detail, self._wall_clock())
+        self.outbox.put(self.topics.events, encode(payload))
+        self._wake_publisher.set()

@@ -1,0 +1,115 @@
+"""Every robot on a broker, from the bridges' topics: what ``rovlink fleet`` shows.
+
+Fed with each message of ``rovlink/+/state``, ``telemetry`` and ``events``; a payload that is
+not a bridge's JSON is counted and ignored (any program may publish under ``rovlink/``).
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from typing import Any
+
+from rovlink.bridges.mqtt.topics import robot_of
+
+__all__ = ["SILENT_AFTER_S", "FleetView", "RobotRow"]
+
+#: An online robot whose bridge has said nothing for this long is shown as silent.
+SILENT_AFTER_S = 10.0
+
+
+@dataclass(slots=True)
+class RobotRow:
+    """One robot as the broker tells it."""
+
+    robot: str
+    online: bool | None = None
+    offline_reason: str | None = None
+    depth_cm: int | None = None
+    leak: bool = False
+    link: str | None = None
+    lock: str | None = None
+    mode: str | None = None
+    last_event: str | None = None
+    last_heard_s: float | None = None
+
+    def presence(self, now_s: float) -> str:
+        """``online``, ``silent`` (online, but quiet too long), ``offline`` or ``unknown``."""
+        if self.online is None:
+            return "unknown"
+        if not self.online:
+            return "offline"
+        if self.last_heard_s is not None and now_s - self.last_heard_s > SILENT_AFTER_S:
+            return "silent"
+        return "online"
+
+
+class FleetView:
+    """The robots seen so far, updated message by message.
+
+    >>> view = FleetView()
+    >>> view.apply("rovlink/rov-1/state", b'{"online": true, "lock": "locked"}', now_s=0.0)
+    True
+    >>> view.apply("rovlink/rov-1/telemetry", b'{"depth_cm": 120, "leak": false}', now_s=0.1)
+    True
+    >>> row = view.rows()[0]
+    >>> row.robot, row.presence(now_s=1.0), row.depth_cm, row.lock
+    ('rov-1', 'online', 120, 'locked')
+    """
+
+    def __init__(self) -> None:
+        self._robots: dict[str, RobotRow] = {}
+        #: Messages under ``rovlink/`` that were not a bridge's JSON.
+        self.ignored = 0
+
+    def rows(self) -> list[RobotRow]:
+        """Every robot, by id."""
+        return [self._robots[robot] for robot in sorted(self._robots)]
+
+    def apply(self, topic: str, payload: bytes, now_s: float) -> bool:
+        """Take one message; whether it was a bridge's."""
+        where = robot_of(topic)
+        if where is None:
+            self.ignored += 1
+            return False
+        robot, what = where
+        try:
+            data = json.loads(payload)
+        except (UnicodeDecodeError, json.JSONDecodeError):
+            data = None
+        if not isinstance(data, dict) or what not in ("state", "telemetry", "events"):
+            self.ignored += 1
+            return False
+        row = self._robots.setdefault(robot, RobotRow(robot))
+        row.last_heard_s = now_s
+        if what == "state":
+            self._state(row, data)
+        elif what == "telemetry":
+            row.depth_cm = _integer(data.get("depth_cm"), row.depth_cm)
+            row.leak = bool(data.get("leak", row.leak))
+            if row.online is None:
+                row.online = True
+        else:
+            row.last_event = f"{data.get('event', '?')}: {data.get('detail', '')}".strip()
+            if data.get("event") == "leak":
+                row.leak = True
+        return True
+
+    @staticmethod
+    def _state(row: RobotRow, data: dict[str, Any]) -> None:
+        row.online = bool(data.get("online"))
+        if not row.online:
+            row.offline_reason = str(data.get("reason", ""))
+            return
+        row.offline_reason = None
+        row.depth_cm = _integer(data.get("depth_cm"), row.depth_cm)
+        row.leak = bool(data.get("leak", row.leak))
+        row.lock = data.get("lock") if isinstance(data.get("lock"), str) else row.lock
+        row.mode = data.get("mode") if isinstance(data.get("mode"), str) else row.mode
+        link = data.get("link")
+        if isinstance(link, dict) and isinstance(link.get("status"), str):
+            row.link = link["status"]
+
+
+def _integer(value: object, default: int | None) -> int | None:
+    return value if isinstance(value, int) and not isinstance(value, bool) else default

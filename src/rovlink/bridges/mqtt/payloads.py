@@ -1,0 +1,181 @@
+"""What each topic carries, as JSON, and how a command request is read.
+
+Every payload is a JSON object with ``robot`` and ``at`` (Unix time, s). A command request is
+either plain text in the console's words (``th 90 30``) or a JSON object
+``{"command": "th 90 30", "id": "anything"}``; the reply echoes ``id``.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from typing import Any
+
+from rovlink.client.sensors import Sensors
+from rovlink.piloting.commanded import CommandedState
+from rovlink.piloting.health import LinkHealth
+from rovlink.protocol import Response
+
+__all__ = [
+    "MAX_REQUEST_BYTES",
+    "CommandRequest",
+    "PayloadError",
+    "encode",
+    "event_payload",
+    "offline_state",
+    "read_request",
+    "reply_payload",
+    "state_payload",
+    "telemetry_payload",
+]
+
+#: A command is a few words; anything longer is refused unread.
+MAX_REQUEST_BYTES = 512
+
+
+class PayloadError(ValueError):
+    """A command payload that cannot be read; the message says what was wrong."""
+
+
+@dataclass(frozen=True, slots=True)
+class CommandRequest:
+    """A command as asked for on the command topic."""
+
+    text: str
+    request_id: str | int | None = None
+
+
+def encode(payload: dict[str, Any]) -> bytes:
+    """Compact JSON, UTF-8."""
+    return json.dumps(payload, separators=(",", ":"), ensure_ascii=False).encode("utf-8")
+
+
+def telemetry_payload(robot: str, sensors: Sensors, sequence: int, at_s: float) -> dict[str, Any]:
+    """One reading of every sensor; ``seq`` counts readings, so a subscriber sees gaps."""
+    return {
+        "robot": robot,
+        "at": round(at_s, 3),
+        "seq": sequence,
+        "depth_cm": sensors.depth_cm,
+        "pressure_raw": sensors.pressure_raw,
+        "leak": sensors.leak_detected,
+        "roll_deg": sensors.roll_deg,
+        "pitch_deg": sensors.pitch_deg,
+        "heading_deg": sensors.heading_deg,
+    }
+
+
+def state_payload(
+    robot: str,
+    commanded: CommandedState,
+    health: LinkHealth,
+    *,
+    depth_cm: int | None,
+    leak: bool,
+    commands_allowed: bool,
+    at_s: float,
+    now_s: float,
+) -> dict[str, Any]:
+    """The retained state: online, the lock, mode and set-points as last sent, link health."""
+    silent_s = health.silent_s(now_s)
+    return {
+        "robot": robot,
+        "at": round(at_s, 3),
+        "online": True,
+        "lock": str(commanded.lock),
+        "mode": None if commanded.vertical_mode is None else str(commanded.vertical_mode),
+        "target_depth_cm": commanded.target_depth_cm,
+        "vertical_thrust_percent": commanded.vertical_thrust_percent,
+        "direction_deg": commanded.direction_deg,
+        "power_percent": commanded.power_percent,
+        "depth_cm": depth_cm,
+        "leak": leak,
+        "commands_allowed": commands_allowed,
+        "link": {
+            "status": health.status,
+            "average_reply_ms": None
+            if health.average_reply_s is None
+            else round(health.average_reply_s * 1000, 1),
+            "failures": health.failures,
+            "silent_s": None if silent_s is None else round(silent_s, 1),
+        },
+    }
+
+
+def offline_state(robot: str, reason: str) -> dict[str, Any]:
+    """The retained state of a robot whose bridge is gone (the last will, or a clean exit)."""
+    return {"robot": robot, "online": False, "reason": reason}
+
+
+def event_payload(robot: str, event: str, detail: str, at_s: float) -> dict[str, Any]:
+    """An event: ``leak``, ``failsafe``, ``reset_suspected``, ``link``, ``motion_expired``."""
+    return {"robot": robot, "at": round(at_s, 3), "event": event, "detail": detail}
+
+
+def reply_payload(
+    robot: str,
+    request: CommandRequest | None,
+    *,
+    frame: str | None = None,
+    replies: tuple[Response, ...] = (),
+    error: str | None = None,
+) -> dict[str, Any]:
+    """The answer to a command: ``ok``, the frame sent and any replies, or the error."""
+    payload: dict[str, Any] = {"robot": robot, "ok": error is None}
+    if request is not None:
+        payload["command"] = request.text
+        if request.request_id is not None:
+            payload["id"] = request.request_id
+    if frame is not None:
+        payload["frame"] = frame
+    if replies:
+        payload["replies"] = [
+            {
+                "name": reply.name,
+                "values": {
+                    argument.name: value
+                    for argument, value in zip(reply.spec.arguments, reply.values, strict=True)
+                },
+            }
+            for reply in replies
+        ]
+    if error is not None:
+        payload["error"] = error
+    return payload
+
+
+def read_request(payload: bytes) -> CommandRequest:
+    """The command in a payload of the command topic (``PayloadError`` if there is none).
+
+    >>> read_request(b"th 90 30"), read_request(b'{"command": "stop", "id": 7}')
+    (CommandRequest(text='th 90 30', request_id=None), CommandRequest(text='stop', request_id=7))
+    >>> read_request(b'{"cmd": "stop"}')
+    Traceback (most recent call last):
+    ...
+    rovlink.bridges.mqtt.payloads.PayloadError: a JSON request needs "command", a string
+    """
+    if len(payload) > MAX_REQUEST_BYTES:
+        raise PayloadError(f"payload of {len(payload)} bytes; a command is at most 512")
+    try:
+        text = payload.decode("utf-8").strip()
+    except UnicodeDecodeError:
+        raise PayloadError("payload is not UTF-8 text") from None
+    if not text:
+        raise PayloadError("empty payload; send a command such as 'stop' or 'th 90 30'")
+    if not text.startswith("{"):
+        return CommandRequest(text)
+    try:
+        request = json.loads(text)
+    except json.JSONDecodeError as error:
+        raise PayloadError(f"payload is not valid JSON: {error.msg} at {error.pos}") from None
+    if not isinstance(request, dict):
+        raise PayloadError("a JSON request must be an object")
+    command = request.get("command")
+    if not isinstance(command, str) or not command.strip():
+        raise PayloadError('a JSON request needs "command", a string')
+    request_id = request.get("id")
+    if request_id is not None and (
+        isinstance(request_id, bool) or not isinstance(request_id, (str, int))
+    ):
+        raise PayloadError('"id" must be a string or an integer')
+    return CommandRequest(command.strip(), request_id)

@@ -1,0 +1,69 @@
+"""Polling every sensor at a rate that may change while it runs, for the bridges."""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+from collections.abc import Callable
+
+from rovlink.client.errors import QueryTimeoutError
+from rovlink.client.sensors import Sensors
+from rovlink.logs import get_logger
+from rovlink.piloting.tracked import TrackedClient
+
+__all__ = ["SensorPoller"]
+
+logger = get_logger("rovlink.bridges")
+
+
+class SensorPoller:
+    """Reads ``#qsa!`` at :attr:`rate_hz` and hands every reading to ``on_reading``.
+
+    A reading that times out is logged and counted in the client's link health (the bridges
+    publish that health); a lost connection ends :meth:`run` with ``ConnectionLostError``.
+    """
+
+    def __init__(
+        self,
+        rov: TrackedClient,
+        on_reading: Callable[[Sensors], None],
+        *,
+        rate_hz: float = 5.0,
+    ) -> None:
+        self._rov = rov
+        self._on_reading = on_reading
+        self.rate_hz = rate_hz
+        self.latest: Sensors | None = None
+        self._rate_changed = asyncio.Event()
+
+    def set_rate(self, rate_hz: float) -> None:
+        """Poll at ``rate_hz`` from the next reading on (a faster rate takes effect at once)."""
+        if rate_hz <= 0:
+            raise ValueError(f"poll rate must be > 0 Hz, got {rate_hz}")
+        self.rate_hz = rate_hz
+        self._rate_changed.set()
+
+    async def run(self) -> None:
+        """Poll until cancelled."""
+        loop = asyncio.get_running_loop()
+        due_s = loop.time()
+        while True:
+            try:
+                reading = await self._rov.sensors()
+            except QueryTimeoutError as error:
+                logger.warning("sensor poll failed: %s", error)
+            else:
+                self.latest = reading
+                self._on_reading(reading)
+            # Keep the cadence (a slow reply does not push every later one back); after a
+            # stall, start again from now rather than catch up in a burst.
+            due_s += 1.0 / self.rate_hz
+            now_s = loop.time()
+            if due_s <= now_s:
+                due_s = now_s
+                continue
+            self._rate_changed.clear()
+            with contextlib.suppress(TimeoutError, asyncio.TimeoutError):
+                await asyncio.wait_for(self._rate_changed.wait(), due_s - now_s)
+            if self._rate_changed.is_set():
+                due_s = loop.time()  # a new rate: from now

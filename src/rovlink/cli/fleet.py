@@ -1,0 +1,141 @@
+"""A live table of every robot on an MQTT broker: online, depth, leak, lock, link health.
+
+It listens to what ``rovlink mqtt`` bridges publish (rovlink/+/state, telemetry, events); the
+retained states show robots that are offline too. Read-only: it sends no command.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from typing import TYPE_CHECKING
+
+from rovlink.cli import link_options
+from rovlink.cli.failure import CommandError
+from rovlink.cli.mqtt import add_broker_options, broker_settings
+
+if TYPE_CHECKING:
+    from rich.table import Table
+
+    from rovlink.bridges.mqtt.broker import BrokerSettings
+    from rovlink.bridges.mqtt.fleet_view import FleetView
+
+__all__ = ["EPILOG", "fleet_table"]
+
+EPILOG = """\
+examples:
+  rovlink fleet --broker mqtt://localhost
+  rovlink fleet --broker mqtts://fleet.example --username ops --cafile fleet-ca.pem
+  rovlink fleet --broker mqtt://localhost --snapshot 2      print once after 2 s, then exit"""
+
+_TOPICS = ("rovlink/+/state", "rovlink/+/telemetry", "rovlink/+/events")
+_REFRESH_HZ = 4
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """``fleet``'s options."""
+    add_broker_options(parser)
+    parser.add_argument(
+        "--snapshot",
+        dest="snapshot_s",
+        type=lambda text: link_options.bounded_float(text, 0.1, 60.0, " s"),
+        default=None,
+        metavar="SECONDS",
+        help="listen this long, print the table once and exit (default: a live table)",
+    )
+
+
+def fleet_table(view: FleetView, now_s: float) -> Table:
+    """The table of robots as the view has them now."""
+    from rich.table import Table  # noqa: PLC0415
+
+    table = Table(title="rovlink fleet", expand=False)
+    for column in ("robot", "presence", "depth", "leak", "lock", "mode", "link", "last event"):
+        table.add_column(column)
+    for row in view.rows():
+        presence = row.presence(now_s)
+        style = {"online": "green", "silent": "yellow", "offline": "red"}.get(presence, "")
+        table.add_row(
+            row.robot,
+            f"[{style}]{presence}[/]" if style else presence,
+            "—" if row.depth_cm is None else f"{row.depth_cm} cm",
+            "[bold red]LEAK[/]" if row.leak else "dry",
+            row.lock or "—",
+            row.mode or "—",
+            row.link or "—",
+            row.offline_reason
+            if presence == "offline" and row.offline_reason
+            else row.last_event or "",
+        )
+    if not view.rows():
+        table.caption = "no robot has published yet"
+    return table
+
+
+def run(args: argparse.Namespace) -> int:
+    """Show the table until Ctrl-C (or once, with ``--snapshot``)."""
+    broker = broker_settings(args)
+    try:
+        import aiomqtt  # noqa: F401, PLC0415 - the mqtt extra
+    except ImportError:
+        raise CommandError("needs aiomqtt: pip install 'rovlink[mqtt]'") from None
+    import asyncio  # noqa: PLC0415 - not on the path of --help
+
+    asyncio.run(_watch(broker, args.snapshot_s))
+    return 0
+
+
+async def _watch(broker: BrokerSettings, snapshot_s: float | None) -> None:
+    import asyncio  # noqa: PLC0415
+
+    import aiomqtt  # noqa: PLC0415
+    from rich.console import Console  # noqa: PLC0415
+    from rich.live import Live  # noqa: PLC0415
+
+    from rovlink.bridges.mqtt.fleet_view import FleetView  # noqa: PLC0415
+
+    view = FleetView()
+    console = Console()
+    tls_params = (
+        aiomqtt.TLSParameters(
+            ca_certs=None if broker.ca_file is None else str(broker.ca_file),
+            certfile=None if broker.cert_file is None else str(broker.cert_file),
+            keyfile=None if broker.key_file is None else str(broker.key_file),
+        )
+        if broker.tls
+        else None
+    )
+    try:
+        async with aiomqtt.Client(
+            broker.host,
+            broker.port,
+            username=broker.username,
+            password=broker.password,
+            tls_params=tls_params,
+            tls_insecure=broker.insecure if broker.tls else None,
+            timeout=5.0,
+        ) as mqtt:
+            for topic in _TOPICS:
+                await mqtt.subscribe(topic, qos=1)
+
+            async def collect() -> None:
+                async for message in mqtt.messages:
+                    payload = message.payload if isinstance(message.payload, bytes) else b""
+                    view.apply(message.topic.value, payload, time.monotonic())
+
+            collector = asyncio.ensure_future(collect())
+            try:
+                if snapshot_s is not None:
+                    await asyncio.sleep(snapshot_s)
+                    console.print(fleet_table(view, time.monotonic()))
+                    return
+                with Live(console=console, refresh_per_second=_REFRESH_HZ) as live:
+                    while not collector.done():
+                        live.update(fleet_table(view, time.monotonic()))
+                        await asyncio.sleep(1 / _REFRESH_HZ)
+                collector.result()
+            finally:
+                collector.cancel()
+                await asyncio.gather(collector, return_exceptions=True)
+    except aiomqtt.MqttError as error:
+        raise CommandError(f"broker {broker.describe()}: {error}") from None

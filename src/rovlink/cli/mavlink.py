@@ -1,0 +1,149 @@
+"""Serve the robot as an ArduSub-like MAVLink vehicle for QGroundControl, MAVProxy or pymavlink.
+
+Telemetry out (HEARTBEAT, SYS_STATUS, ATTITUDE, VFR_HUD, GLOBAL_POSITION_INT, SCALED_PRESSURE2),
+parameters, arming, MANUAL/ALT_HOLD and the joystick in. No ground-station heartbeat for 3 s
+while armed stops the robot; joystick input stale for 1 s zeroes its thrust. The robot is left
+locked when the bridge ends.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from rovlink.cli import link_options
+from rovlink.cli.failure import CommandError, InputError, UsageError
+
+if TYPE_CHECKING:
+    from rovlink.bridges.mavlink.parameters import ParameterTable
+
+__all__ = ["EPILOG"]
+
+EPILOG = """\
+examples:
+  rovlink mavlink sim://                                  QGroundControl on this machine
+  rovlink mavlink /dev/ttyUSB0 --out udpout:192.168.2.1:14550
+  rovlink mavlink sim:// --out udpin:0.0.0.0:14550        wait for a ground station
+  rovlink mavlink sim:// --out tcpin:127.0.0.1:5760 --params robot.param"""
+
+
+def _system_id(text: str) -> int:
+    return link_options.bounded_int(text, 1, 255)
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """``mavlink``'s options."""
+    link_options.add_link_options(parser)
+    group = parser.add_argument_group("MAVLink options")
+    group.add_argument(
+        "--out",
+        default="udpout:127.0.0.1:14550",
+        metavar="ENDPOINT",
+        help="udpout:HOST:PORT (send to a ground station; QGroundControl listens on "
+        "14550), udpin:HOST:PORT, tcpin:HOST:PORT or tcp:HOST:PORT (default: %(default)s)",
+    )
+    group.add_argument(
+        "--system-id",
+        type=_system_id,
+        default=1,
+        metavar="N",
+        help="the vehicle's MAVLink system id, 1–255 (default: %(default)s)",
+    )
+    group.add_argument(
+        "--params",
+        type=Path,
+        default=None,
+        metavar="FILE",
+        help="parameter file (NAME VALUE per line, as ground stations save them): sent to "
+        "the controller on start",
+    )
+
+
+def run(args: argparse.Namespace) -> int:
+    """Serve until Ctrl-C or until the controller's connection is lost."""
+    try:
+        from rovlink.bridges.mavlink.endpoint import check_address  # noqa: PLC0415
+        from rovlink.bridges.mavlink.parameters import (  # noqa: PLC0415
+            ParameterError,
+            ParameterTable,
+            read_parameter_file,
+        )
+    except ImportError as error:  # pragma: no cover - the package is part of rovlink
+        raise CommandError(str(error)) from None
+    try:
+        check_address(args.out)
+    except ValueError as error:
+        raise UsageError(str(error)) from None
+    values: dict[str, int] = {}
+    if args.params is not None:
+        try:
+            text = args.params.read_text(encoding="utf-8")
+        except (OSError, UnicodeDecodeError) as error:
+            raise InputError(f"{args.params}: cannot read: {error}") from None
+        try:
+            values = read_parameter_file(text, str(args.params))
+        except ParameterError as error:
+            raise InputError(str(error)) from None
+    try:
+        import pymavlink  # noqa: F401, PLC0415 - the mavlink extra
+    except ImportError:
+        raise CommandError("needs pymavlink: pip install 'rovlink[mavlink]'") from None
+    link_options.client_options(args)
+    link_options.check_url(args)
+    link_options.log_warnings()
+    import asyncio  # noqa: PLC0415 - not on the path of --help
+
+    asyncio.run(_serve(args, ParameterTable(_defaults() | values), list(values)))
+    return 0
+
+
+def _defaults() -> dict[str, int]:
+    """The rovlink controller's reset values: what the table shows until something is set."""
+    from rovlink.controller.config import ControllerConfig  # noqa: PLC0415
+
+    config = ControllerConfig()
+    return {
+        "RL_DEPTH_P": config.depth_pid.kp,
+        "RL_DEPTH_I": config.depth_pid.ki,
+        "RL_DEPTH_D": config.depth_pid.kd,
+        "RL_MAX_PWM": config.max_pwm,
+        "RL_DEPTH_ZERO": config.depth.zero_raw,
+        "RL_DEPTH_K": config.depth.k,
+    }
+
+
+async def _serve(
+    args: argparse.Namespace, parameters: ParameterTable, send_on_start: list[str]
+) -> None:
+    import rovlink.aio  # noqa: PLC0415
+    from rovlink.bridges.mavlink.bridge import MavlinkBridge  # noqa: PLC0415
+    from rovlink.bridges.mavlink.endpoint import MavlinkEndpoint  # noqa: PLC0415
+    from rovlink.client.errors import ConnectionLostError  # noqa: PLC0415
+    from rovlink.piloting.tracked import TrackedClient  # noqa: PLC0415
+
+    options = link_options.client_options(args, keepalive_s=1.0)
+    try:
+        client = await rovlink.aio.connect(args.url, baudrate=args.baudrate, options=options)
+    except (ConnectionError, OSError) as error:
+        raise link_options.connection_failure(args.url, error) from None
+    async with client:
+        try:
+            endpoint = MavlinkEndpoint(args.out, system_id=args.system_id)
+        except OSError as error:
+            raise CommandError(f"cannot open {args.out}: {error.strerror or error}") from None
+        bridge = MavlinkBridge(
+            TrackedClient(client, algorithm=args.algorithm),
+            endpoint,
+            parameters,
+            send_on_start=send_on_start,
+        )
+        print(
+            f"rovlink mavlink ready: {args.url} as MAVLink system {args.system_id} on "
+            f"{args.out}; Ctrl-C stops",
+            flush=True,
+        )
+        try:
+            await bridge.run()
+        except ConnectionLostError as error:
+            raise CommandError(f"{args.url}: {error}") from None

@@ -1,0 +1,193 @@
+"""Put one robot on an MQTT broker: telemetry, retained state and events out, commands in.
+
+Topics: rovlink/ID/telemetry (JSON readings, QoS 0), rovlink/ID/state (retained; the last will
+marks the robot offline), rovlink/ID/events (QoS 1), rovlink/ID/cmd (commands in the console's
+words; replies on rovlink/ID/cmd/reply or the request's MQTT 5 response topic). Commands other
+than stop are refused unless --allow-commands. The password is read from --password-file or
+the ROVLINK_MQTT_PASSWORD environment variable, never from the command line.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from rovlink.cli import link_options
+from rovlink.cli.failure import CommandError, InputError, UsageError
+
+if TYPE_CHECKING:
+    from rovlink.bridges.mqtt.broker import BrokerSettings
+
+__all__ = ["EPILOG", "PASSWORD_VARIABLE", "add_broker_options", "broker_settings"]
+
+PASSWORD_VARIABLE = "ROVLINK_MQTT_PASSWORD"
+
+EPILOG = """\
+examples:
+  rovlink mqtt sim:// --broker mqtt://localhost --robot rov-1
+  rovlink mqtt /dev/ttyUSB0 --broker mqtts://fleet.example:8883 --robot rov-7 \\
+      --username rov-7 --password-file ~/.rov7-password --cafile fleet-ca.pem --allow-commands
+  mosquitto_pub -t rovlink/rov-1/cmd -m 'th 90 30'       (with --allow-commands)
+  mosquitto_sub -t 'rovlink/+/state' -v"""
+
+
+def _rate_hz(text: str) -> float:
+    return link_options.bounded_float(text, 0.1, 50.0, " Hz")
+
+
+def _optional_seconds(text: str) -> float | None:
+    value = link_options.seconds(text, maximum=60.0)
+    return None if value == 0 else value
+
+
+def add_broker_options(parser: argparse.ArgumentParser) -> None:
+    """The broker's address, credentials and TLS (``mqtt`` and ``fleet`` share them)."""
+    group = parser.add_argument_group("broker options")
+    group.add_argument(
+        "--broker",
+        required=True,
+        metavar="URL",
+        help="mqtt://HOST[:PORT] (1883) or mqtts://HOST[:PORT] (TLS, 8883)",
+    )
+    group.add_argument("--username", default=None, metavar="NAME", help="broker user name")
+    group.add_argument(
+        "--password-file",
+        type=Path,
+        default=None,
+        metavar="FILE",
+        help=f"a file holding the broker password (or set {PASSWORD_VARIABLE})",
+    )
+    group.add_argument(
+        "--cafile", type=Path, default=None, metavar="FILE", help="TLS: CA certificates to trust"
+    )
+    group.add_argument(
+        "--certfile", type=Path, default=None, metavar="FILE", help="TLS: client certificate"
+    )
+    group.add_argument("--keyfile", type=Path, default=None, metavar="FILE", help="TLS: client key")
+    group.add_argument(
+        "--tls-insecure",
+        action="store_true",
+        help="TLS: accept a certificate that does not name the host (test brokers only)",
+    )
+
+
+def broker_settings(args: argparse.Namespace) -> BrokerSettings:
+    """The broker settings from the options; every problem is one line."""
+    from rovlink.bridges.mqtt.broker import BrokerSettings, parse_broker_url  # noqa: PLC0415
+
+    try:
+        host, port, tls = parse_broker_url(args.broker)
+    except ValueError as error:
+        raise UsageError(str(error)) from None
+    password = os.environ.get(PASSWORD_VARIABLE)
+    if args.password_file is not None:
+        try:
+            password = args.password_file.read_text(encoding="utf-8").strip()
+        except (OSError, UnicodeDecodeError) as error:
+            raise InputError(f"{args.password_file}: cannot read: {error}") from None
+    if password is not None and args.username is None:
+        raise UsageError("a password needs --username")
+    tls_files = [args.cafile, args.certfile, args.keyfile]
+    if not tls and (any(tls_files) or args.tls_insecure):
+        raise UsageError("TLS options need an mqtts:// broker")
+    for path in tls_files:
+        if path is not None and not path.is_file():
+            raise InputError(f"{path}: no such file")
+    return BrokerSettings(
+        host,
+        port,
+        tls,
+        args.username,
+        password,
+        args.cafile,
+        args.certfile,
+        args.keyfile,
+        args.tls_insecure,
+    )
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """``mqtt``'s options."""
+    link_options.add_link_options(parser)
+    add_broker_options(parser)
+    group = parser.add_argument_group("bridge options")
+    group.add_argument("--robot", required=True, metavar="ID", help="the robot's id: rovlink/ID/…")
+    group.add_argument(
+        "--rate",
+        dest="rate_hz",
+        type=_rate_hz,
+        default=5.0,
+        metavar="HZ",
+        help="telemetry readings per second, 0.1–50 (default: %(default)s)",
+    )
+    group.add_argument(
+        "--allow-commands",
+        action="store_true",
+        help="act on every command of rovlink/ID/cmd (without it only stop is accepted)",
+    )
+    group.add_argument(
+        "--motion-timeout",
+        dest="motion_timeout_s",
+        type=_optional_seconds,
+        default=2.0,
+        metavar="SECONDS",
+        help="zero thrust when th/mvs is not renewed for this long, 0–60; 0: never "
+        "(default: %(default)s)",
+    )
+
+
+def run(args: argparse.Namespace) -> int:
+    """Serve until Ctrl-C or until the controller's connection is lost."""
+    from rovlink.bridges.mqtt.topics import check_robot_id  # noqa: PLC0415
+
+    try:
+        check_robot_id(args.robot)
+    except ValueError as error:
+        raise UsageError(str(error)) from None
+    broker = broker_settings(args)
+    try:
+        import aiomqtt  # noqa: F401, PLC0415 - the mqtt extra
+    except ImportError:
+        raise CommandError("needs aiomqtt: pip install 'rovlink[mqtt]'") from None
+    link_options.client_options(args)
+    link_options.check_url(args)
+    link_options.log_warnings()
+    import asyncio  # noqa: PLC0415 - not on the path of --help
+
+    asyncio.run(_serve(args, broker))
+    return 0
+
+
+async def _serve(args: argparse.Namespace, broker: BrokerSettings) -> None:
+    import rovlink.aio  # noqa: PLC0415
+    from rovlink.bridges.mqtt.bridge import MqttBridge  # noqa: PLC0415
+    from rovlink.client.errors import ConnectionLostError  # noqa: PLC0415
+    from rovlink.piloting.tracked import TrackedClient  # noqa: PLC0415
+
+    options = link_options.client_options(
+        args, keepalive_s=1.0, motion_timeout_s=args.motion_timeout_s
+    )
+    try:
+        client = await rovlink.aio.connect(args.url, baudrate=args.baudrate, options=options)
+    except (ConnectionError, OSError) as error:
+        raise link_options.connection_failure(args.url, error) from None
+    async with client:
+        bridge = MqttBridge(
+            TrackedClient(client, algorithm=args.algorithm),
+            broker,
+            args.robot,
+            rate_hz=args.rate_hz,
+            allow_commands=args.allow_commands,
+        )
+        commands = "commands allowed" if args.allow_commands else "only stop accepted"
+        print(
+            f"rovlink mqtt ready: {args.url} as rovlink/{args.robot} on {broker.describe()} "
+            f"({commands}); Ctrl-C stops",
+            flush=True,
+        )
+        try:
+            await bridge.run()
+        except ConnectionLostError as error:
+            raise CommandError(f"{args.url}: {error}") from None

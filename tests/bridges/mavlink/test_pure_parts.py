@@ -1,0 +1,275 @@
+"""The MAVLink bridge's decisions, without sockets: parameters, joystick, failsafe, rates, units."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from rovlink.bridges.mavlink.command_handling import Result, handle_command
+from rovlink.bridges.mavlink.failsafe import GCS_TIMEOUT_S, GcsWatchdog
+from rovlink.bridges.mavlink.modes import ButtonFunction, FlightMode
+from rovlink.bridges.mavlink.parameters import (
+    ParameterError,
+    ParameterTable,
+    read_parameter_file,
+)
+from rovlink.bridges.mavlink.pilot_input import (
+    AXIS_UNUSED,
+    INPUT_STALE_S,
+    PilotInput,
+    horizontal,
+    vertical_thrust_percent,
+)
+from rovlink.bridges.mavlink.telemetry_schedule import MAX_RATE_HZ, TelemetrySchedule
+from rovlink.bridges.mavlink.vehicle_state import (
+    SURFACE_PRESSURE_HPA,
+    WATER_HPA_PER_M,
+    VehicleState,
+)
+from rovlink.client.sensors import Sensors
+from rovlink.protocol import lookup
+
+# -- parameters ------------------------------------------------------------------------------
+
+
+def test_parameter_ranges_come_from_the_command_table():
+    table = ParameterTable()
+    for parameter in table.parameters:
+        if parameter.command_name is not None:
+            (argument,) = lookup(parameter.command_name).arguments
+            assert (parameter.minimum, parameter.maximum) == (argument.minimum, argument.maximum)
+    assert str(table.set("RL_MAX_PWM", 200)) == "#mgmp.200!"
+    assert str(table.set("RL_DEPTH_D", 7)) == "#mvpidd.7!"
+    assert str(table.set("RL_DEPTH_K", 10000)) == "#sdk.10000!"
+
+
+@pytest.mark.parametrize(
+    ("name", "value", "message"),
+    [
+        ("RL_DEPTH_P", 100, "RL_DEPTH_P must be an integer in 0–99, got 100"),
+        ("RL_DEPTH_P", 1.5, "RL_DEPTH_P must be an integer in 0–99, got 1.5"),
+        ("RL_DEPTH_P", math.nan, "RL_DEPTH_P must be an integer in 0–99, got nan"),
+        ("RL_MAX_PWM", -1, "RL_MAX_PWM must be an integer in 0–255, got -1"),
+        ("NO_SUCH", 1, "no parameter 'NO_SUCH'"),
+    ],
+)
+def test_a_refused_value_changes_nothing(name: str, value: float, message: str):
+    table = ParameterTable({"RL_DEPTH_P": 40, "RL_MAX_PWM": 255})
+    with pytest.raises(ParameterError) as caught:
+        table.set(name, value)
+    assert str(caught.value) == message
+    assert table.value("RL_DEPTH_P") == 40
+    assert table.value("RL_MAX_PWM") == 255
+
+
+def test_button_functions_default_to_ardusub_and_refuse_what_cannot_be_done():
+    table = ParameterTable()
+    assert table.button_function(6) is ButtonFunction.ARM
+    assert table.button_function(0) is ButtonFunction.NONE
+    assert table.set("BTN0_FUNCTION", 7) is None  # the bridge's own: no frame
+    assert table.button_function(0) is ButtonFunction.MODE_DEPTH_HOLD
+    with pytest.raises(ParameterError, match="function 6 is not supported"):
+        table.set("BTN0_FUNCTION", 6)  # STABILIZE: no attitude control
+
+
+def test_a_parameter_file_is_read_and_checked_with_line_numbers():
+    values = read_parameter_file("# saved\nRL_DEPTH_P 33\nRL_MAX_PWM,200.0\n\n", "robot.param")
+    assert values == {"RL_DEPTH_P": 33, "RL_MAX_PWM": 200}
+    # Only what the file sets is sent: a calibration it does not mention is left alone.
+    assert [str(c) for c in ParameterTable(values).commands(values)] == ["#mvpdp.33!", "#mgmp.200!"]
+    with pytest.raises(ParameterError, match=r"robot.param:2: RL_DEPTH_I must be .* got 500"):
+        read_parameter_file("RL_DEPTH_P 1\nRL_DEPTH_I 500\n", "robot.param")
+    with pytest.raises(ParameterError, match=r"robot.param:1: RL_DEPTH_P: not a number: 'x'"):
+        read_parameter_file("RL_DEPTH_P x\n", "robot.param")
+    with pytest.raises(ParameterError, match=r"robot.param:1: expected NAME VALUE"):
+        read_parameter_file("RL_DEPTH_P\n", "robot.param")
+
+
+# -- the joystick ------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    ("x", "y", "expected"),
+    [(1000, 0, (0, 100)), (0, 1000, (90, 100)), (-500, 0, (180, 50)), (707, -707, (315, 100))],
+)
+def test_the_stick_is_a_direction_and_a_power(x: int, y: int, expected: tuple[int, int]):
+    assert horizontal(x, y) == expected
+
+
+def test_throttle_is_clamped_vertical_thrust():
+    assert vertical_thrust_percent(0) == -100
+    assert vertical_thrust_percent(1000) == 100
+    assert vertical_thrust_percent(510) == 2
+
+
+def _drive(pilot: PilotInput, x: int, y: int, z: int, now_s: float, **kwargs: object) -> list[str]:
+    settings: dict[str, object] = {"mode": FlightMode.MANUAL, "armed": True, "buttons": 0}
+    settings.update(kwargs)
+    output = pilot.manual_control(x, y, z, now_s=now_s, **settings)  # type: ignore[arg-type]
+    return [str(command) for command in output.commands]
+
+
+def test_only_changes_are_sent_and_yaw_never():
+    pilot = PilotInput(ParameterTable())
+    assert _drive(pilot, 0, 500, 500, 0.0) == ["#th.90.50!"]
+    assert _drive(pilot, 0, 500, 500, 0.02) == []
+    assert _drive(pilot, 0, 0, 500, 0.04) == ["#th.90.0!"]
+    assert _drive(pilot, 0, 0, 500, 0.06) == []  # still zero: nothing
+    assert _drive(pilot, AXIS_UNUSED, AXIS_UNUSED, AXIS_UNUSED, 0.08) == []
+
+
+def test_nothing_is_sent_while_disarmed_but_buttons_still_count():
+    pilot = PilotInput(ParameterTable())
+    output = pilot.manual_control(
+        1000, 0, 1000, 1 << 6, mode=FlightMode.MANUAL, armed=False, now_s=0.0
+    )
+    assert output.commands == ()
+    assert output.pressed == (ButtonFunction.ARM,)
+    held = pilot.manual_control(0, 0, 500, 1 << 6, mode=FlightMode.MANUAL, armed=False, now_s=0.1)
+    assert held.pressed == ()  # once per press, not per message
+
+
+def test_stale_input_expires_once_after_one_second():
+    pilot = PilotInput(ParameterTable())
+    _drive(pilot, 1000, 0, 1000, 0.0)
+    assert pilot.expire(INPUT_STALE_S - 0.01) == ()
+    assert [str(c) for c in pilot.expire(INPUT_STALE_S)] == ["#th.0.0!", "#mvs.+0!"]
+    assert pilot.expire(INPUT_STALE_S + 1) == ()
+    assert _drive(pilot, 1000, 0, 1000, 5.0) == ["#th.0.100!", "#mvs.+100!"]  # input back
+
+
+def test_alt_hold_moves_the_target_with_the_throttle():
+    pilot = PilotInput(ParameterTable())
+    assert str(pilot.hold(100)) == "#mvd.100!"
+    sent = []
+    for step in range(11):  # full throttle up for 1 s at 10 Hz: 50 cm shallower
+        sent += _drive(pilot, 0, 0, 1000, step * 0.1, mode=FlightMode.ALT_HOLD)
+    assert sent[-1] == "#mvd.50!"
+    assert not [frame for frame in sent if frame.startswith("#mvs")]
+    assert _drive(pilot, 0, 0, 520, 1.2, mode=FlightMode.ALT_HOLD) == []  # inside the deadband
+
+
+# -- the ground-station failsafe ---------------------------------------------------------------
+
+
+def test_the_gcs_watchdog_trips_at_three_seconds_only_while_armed():
+    watchdog = GcsWatchdog()
+    watchdog.heartbeat(10.0)
+    assert not watchdog.tripped(10.0 + GCS_TIMEOUT_S - 0.001, armed=True)
+    assert not watchdog.tripped(20.0, armed=False)
+    assert watchdog.tripped(10.0 + GCS_TIMEOUT_S, armed=True)
+    assert not watchdog.tripped(30.0, armed=True)  # once per silence
+    watchdog.heartbeat(31.0)
+    assert watchdog.tripped(34.0, armed=True)
+
+
+def test_armed_without_any_heartbeat_trips_at_once():
+    assert GcsWatchdog().tripped(0.0, armed=True)
+
+
+# -- telemetry rates ---------------------------------------------------------------------------
+
+
+def test_rates_follow_streams_and_intervals_within_bounds():
+    schedule = TelemetrySchedule(now_s=0.0)
+    schedule.set_stream(10, 50.0, now_s=0.0)  # EXTRA1 → ATTITUDE
+    assert schedule.rates_hz["ATTITUDE"] == MAX_RATE_HZ
+    schedule.set_stream(0, 0.0, now_s=0.0)  # every stream off
+    assert schedule.rates_hz["HEARTBEAT"] == 1.0  # never
+    assert schedule.rates_hz["SYS_STATUS"] == 0.0
+    assert not schedule.set_interval("HEARTBEAT", 0.01, now_s=0.0)
+    assert not schedule.set_interval("BATTERY_STATUS", 1.0, now_s=0.0)
+    assert schedule.set_interval("VFR_HUD", None, now_s=0.0)  # back to the default
+    assert schedule.rates_hz["VFR_HUD"] == 4.0
+
+
+def test_a_stalled_schedule_does_not_burst():
+    schedule = TelemetrySchedule(now_s=0.0)
+    schedule.due(0.0)
+    assert "HEARTBEAT" in schedule.due(5.0)  # five periods late: sent once
+    assert "HEARTBEAT" not in schedule.due(5.01)
+    assert "HEARTBEAT" in schedule.due(6.0)
+
+
+# -- units -------------------------------------------------------------------------------------
+
+
+def test_vehicle_state_in_mavlink_units():
+    state = VehicleState()
+    assert not state.update(Sensors(0, 20, False, 0, 0, 0), now_s=0.0)
+    assert state.update(Sensors(100, 70, True, 10, -5, 350), now_s=1.0)  # the leak, once
+    assert not state.update(Sensors(100, 70, True, 10, -5, 350), now_s=2.0)
+    assert state.altitude_m() == -1.0
+    roll, pitch, yaw = state.attitude_rad()
+    assert (round(math.degrees(roll)), round(math.degrees(pitch))) == (10, -5)
+    assert round(math.degrees(yaw)) == -10
+    assert state.climb_cm_s < 0  # it went down
+    # (70 − 20) · 200 / 10000 = 1 m of water
+    assert state.absolute_pressure_hpa(20, 200) == pytest.approx(
+        SURFACE_PRESSURE_HPA + WATER_HPA_PER_M
+    )
+
+
+# -- commands ----------------------------------------------------------------------------------
+
+
+class _Actions:
+    """Records what the commands asked the vehicle to do."""
+
+    def __init__(self) -> None:
+        self.done: list[str] = []
+
+    async def arm(self) -> Result:
+        self.done.append("arm")
+        return Result.ACCEPTED
+
+    async def disarm(self, reason: str) -> Result:
+        self.done.append("disarm")
+        return Result.ACCEPTED
+
+    async def set_mode(self, mode: FlightMode) -> Result:
+        self.done.append(mode.name)
+        return Result.ACCEPTED
+
+    async def gripper(self, *, close: bool) -> Result:
+        self.done.append("close" if close else "open")
+        return Result.ACCEPTED
+
+    def request_message(self, message_id: int) -> Result:
+        self.done.append(f"request {message_id}")
+        return Result.ACCEPTED
+
+    def set_message_interval(self, message_id: int, interval_us: float) -> Result:
+        self.done.append(f"interval {message_id} {interval_us:g}")
+        return Result.ACCEPTED
+
+
+@pytest.mark.parametrize(
+    ("command", "params", "result", "done"),
+    [
+        (400, [1], Result.ACCEPTED, ["arm"]),
+        (400, [0], Result.ACCEPTED, ["disarm"]),
+        (400, [2], Result.DENIED, []),
+        (176, [1, 2], Result.ACCEPTED, ["ALT_HOLD"]),
+        (176, [1, 0], Result.UNSUPPORTED, []),  # STABILIZE
+        (176, [0, 19], Result.UNSUPPORTED, []),  # not a custom mode
+        (176, [math.nan, 19], Result.DENIED, []),
+        (211, [1, 1], Result.ACCEPTED, ["close"]),
+        (211, [1, 0], Result.ACCEPTED, ["open"]),
+        (211, [1, 5], Result.DENIED, []),
+        (512, [math.inf], Result.DENIED, []),
+        (512, [148], Result.ACCEPTED, ["request 148"]),
+        (520, [1], Result.ACCEPTED, ["request 148"]),
+        (511, [30, 50000], Result.ACCEPTED, ["interval 30 50000"]),
+        (511, [30, math.nan], Result.DENIED, []),
+        (22, [], Result.UNSUPPORTED, []),  # NAV_TAKEOFF
+    ],
+)
+async def test_each_command_gets_a_result_and_odd_values_are_denied(
+    command: int, params: list[float], result: Result, done: list[str]
+):
+    actions = _Actions()
+    padded = [*params, *[0.0] * (7 - len(params))]
+    assert await handle_command(actions, command, padded) is result
+    assert actions.done == done

@@ -1,0 +1,116 @@
+"""MAVProxy, run headless as a real ground station, flies the bridge: parameters, arming, modes."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import threading
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+
+from tests.bridges.mavlink.rig import BridgeRig, running_bridge, wait_for
+
+pytestmark = pytest.mark.integration
+
+MAVPROXY = Path(sys.executable).parent / "mavproxy.py"
+
+
+class MavProxy:
+    """``mavproxy.py`` with the modules a ground station needs, typed at over a pipe."""
+
+    def __init__(self, master: str, workdir: Path) -> None:
+        self.process = subprocess.Popen(
+            [
+                sys.executable,
+                str(MAVPROXY),
+                f"--master={master}",
+                "--no-state",
+                "--default-modules=cmdlong,mode,arm,param,link",
+            ],
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.STDOUT,
+            text=True,
+            cwd=workdir,
+        )
+        self.lines: list[str] = []
+        self._reader = threading.Thread(target=self._read, daemon=True)
+        self._reader.start()
+
+    def _read(self) -> None:
+        assert self.process.stdout is not None
+        for line in self.process.stdout:
+            self.lines.append(line.rstrip())
+
+    def wait_output(self, text: str, since: int = 0) -> str:
+        wait_for(lambda: any(text in line for line in self.lines[since:]), timeout_s=20.0)
+        return next(line for line in self.lines[since:] if text in line)
+
+    def type(self, command: str) -> int:
+        """Type a command; the output line index from which its answer appears."""
+        mark = len(self.lines)
+        assert self.process.stdin is not None
+        self.process.stdin.write(command + "\n")
+        self.process.stdin.flush()
+        return mark
+
+    def close(self) -> None:
+        if self.process.poll() is None:
+            self.process.terminate()
+        try:
+            self.process.communicate(timeout=10)
+        except subprocess.TimeoutExpired:
+            self.process.kill()
+            self.process.communicate()
+
+
+@pytest.fixture
+def mavproxy_rig(tmp_path: Path) -> Iterator[tuple[BridgeRig, MavProxy]]:
+    if not MAVPROXY.exists():
+        pytest.skip("needs MAVProxy: pip install --no-deps MAVProxy")
+    with running_bridge() as rig:
+        proxy = MavProxy(rig.gcs_address, tmp_path)
+        try:
+            proxy.wait_output("online system 1")
+            yield rig, proxy
+        finally:
+            proxy.close()
+
+
+def test_mavproxy_lists_and_sets_parameters(mavproxy_rig: tuple[BridgeRig, MavProxy]) -> None:
+    rig, proxy = mavproxy_rig
+    proxy.wait_output("Received 22 parameters")
+    line = proxy.wait_output("RL_DEPTH_P", proxy.type("param show RL_DEPTH_P"))
+    assert line.split()[-1] == "40.0"
+    mark = len(rig.frames())
+    proxy.type("param set RL_DEPTH_I 12")
+    rig.wait_frame("#mvpdi.12!", since=mark)
+    wait_for(lambda: rig.bridge.parameters.value("RL_DEPTH_I") == 12)
+
+
+def test_mavproxy_arms_switches_modes_and_disarms(mavproxy_rig: tuple[BridgeRig, MavProxy]) -> None:
+    rig, proxy = mavproxy_rig
+    mark = len(rig.frames())
+    proxy.wait_output("COMPONENT_ARM_DISARM: ACCEPTED", proxy.type("arm throttle"))
+    rig.wait_frame("#start!", since=mark)
+    proxy.wait_output("DO_SET_MODE: ACCEPTED", proxy.type("mode ALT_HOLD"))
+    rig.wait_frame("#mvdirect.0!", since=mark)
+    proxy.wait_output("Mode ALT_HOLD")
+    proxy.wait_output("DO_SET_MODE: UNSUPPORTED", proxy.type("mode STABILIZE"))
+    proxy.wait_output("COMPONENT_ARM_DISARM: ACCEPTED", proxy.type("disarm"))
+    rig.wait_frame("#stop!", since=mark)
+
+
+def test_mavproxy_going_away_while_armed_stops_the_robot(
+    mavproxy_rig: tuple[BridgeRig, MavProxy],
+) -> None:
+    rig, proxy = mavproxy_rig
+    proxy.wait_output("COMPONENT_ARM_DISARM: ACCEPTED", proxy.type("arm throttle"))
+    mark = len(rig.frames())
+    proxy.close()  # the ground station dies: its heartbeats stop
+    gone_s = time.monotonic()
+    rig.wait_frame("#stop!", since=mark)
+    assert time.monotonic() - gone_s >= 2.0  # the failsafe's 3 s, less the last beat's age

@@ -1,0 +1,299 @@
+"""The MAVLink bridge against pymavlink as a ground station, over real UDP, on the simulator:
+what reaches the serial line is read from a recording link."""
+
+from __future__ import annotations
+
+import time
+
+import pytest
+
+from rovlink.bridges.mavlink.parameters import ParameterTable
+from tests.bridges.mavlink.rig import (
+    VEHICLE,
+    BridgeRig,
+    GroundStation,
+    free_tcp_port,
+    running_bridge,
+    wait_for,
+)
+
+pytestmark = pytest.mark.integration
+
+SUBMARINE = 12
+ARDUPILOTMEGA = 3
+MANUAL, ALT_HOLD, STABILIZE = 19, 2, 0
+ARMED_FLAG = 128
+ACCEPTED, DENIED, UNSUPPORTED = 0, 2, 3
+ARM_DISARM, DO_SET_MODE, DO_GRIPPER = 400, 176, 211
+SET_MESSAGE_INTERVAL, REQUEST_MESSAGE = 511, 512
+NAV_TAKEOFF = 22
+ATTITUDE_ID, AUTOPILOT_VERSION_ID = 30, 148
+
+
+def _armed(gcs: GroundStation) -> bool:
+    heartbeat = gcs.receive_new("HEARTBEAT", condition=lambda m: m.type == SUBMARINE)
+    return bool(heartbeat.base_mode & ARMED_FLAG)
+
+
+def test_a_ground_station_sees_a_disarmed_submarine_in_manual(rig: BridgeRig, gcs: GroundStation):
+    heartbeat = gcs.receive("HEARTBEAT", condition=lambda m: m.type == SUBMARINE)
+    assert heartbeat.autopilot == ARDUPILOTMEGA
+    assert heartbeat.custom_mode == MANUAL
+    assert not heartbeat.base_mode & ARMED_FLAG
+    assert heartbeat.get_srcSystem() == VEHICLE
+    # The bridge started the robot locked, in direct (MANUAL) mode.
+    assert rig.frames()[1:3] == ["#stop!", "#mvdirect.1!"]  # after the checksum mode
+
+
+def test_autopilot_version_on_request_and_an_empty_mission(gcs: GroundStation):
+    assert gcs.command(REQUEST_MESSAGE, AUTOPILOT_VERSION_ID) == ACCEPTED
+    version = gcs.receive("AUTOPILOT_VERSION")
+    assert version.capabilities & 8192  # MAV_PROTOCOL_CAPABILITY_MAVLINK2
+    gcs.send("mission_request_list", VEHICLE, 1, 0)
+    assert gcs.receive("MISSION_COUNT").count == 0
+
+
+def test_telemetry_carries_the_sensors(rig: BridgeRig, gcs: GroundStation):
+    wait_for(lambda: rig.bridge.state.sensors is not None)
+    gcs.receive("VFR_HUD")  # (perhaps sent before the first reading)
+    attitude = gcs.receive("ATTITUDE")
+    hud = gcs.receive("VFR_HUD")
+    position = gcs.receive("GLOBAL_POSITION_INT")
+    pressure = gcs.receive("SCALED_PRESSURE2")
+    sensors = rig.bridge.state.sensors
+    assert sensors is not None
+    assert hud.heading in {(sensors.heading_deg + d) % 360 for d in (-2, -1, 0, 1, 2)}
+    assert abs(attitude.yaw) <= 3.1416
+    assert position.relative_alt <= 0  # altitude is −depth
+    assert pressure.press_abs >= 1013.0
+    gcs.receive("SYS_STATUS")
+
+
+def test_the_parameter_list_and_a_gain_set_on_the_wire(rig: BridgeRig, gcs: GroundStation):
+    gcs.send("param_request_list", VEHICLE, 1)
+    table = ParameterTable()
+    received: dict[str, float] = {}
+    while len(received) < len(table):
+        value = gcs.receive("PARAM_VALUE")
+        assert value.param_count == len(table)
+        received[value.param_id] = value.param_value
+    assert received["RL_DEPTH_P"] == 40
+    assert received["BTN6_FUNCTION"] == 3  # ArduSub's default: arm
+
+    mark = len(rig.frames())
+    gcs.send("param_set", VEHICLE, 1, b"RL_DEPTH_P", 33.0, 6)
+    echoed = gcs.receive("PARAM_VALUE", condition=lambda m: m.param_id == "RL_DEPTH_P")
+    assert echoed.param_value == 33
+    rig.wait_frame("#mvpdp.33!", since=mark)
+
+
+def test_a_refused_parameter_keeps_its_value_and_sends_nothing(rig: BridgeRig, gcs: GroundStation):
+    mark = len(rig.frames())
+    gcs.send("param_set", VEHICLE, 1, b"RL_DEPTH_P", 120.0, 6)
+    echoed = gcs.receive("PARAM_VALUE", condition=lambda m: m.param_id == "RL_DEPTH_P")
+    assert echoed.param_value == 40
+    text = gcs.receive("STATUSTEXT", condition=lambda m: "RL_DEPTH_P" in m.text)
+    assert "120" in text.text  # what was refused, named
+    assert not [f for f in rig.frames_since(mark) if f.startswith("#mvp")]
+
+
+def test_arm_then_the_joystick_drives_and_yaw_is_ignored(rig: BridgeRig, gcs: GroundStation):
+    gcs.start_heartbeats()
+    mark = len(rig.frames())
+    assert gcs.arm() == ACCEPTED
+    rig.wait_frame("#start!", since=mark)
+    wait_for(lambda: _armed(gcs))
+
+    gcs.send("manual_control", VEHICLE, 0, 1000, 1000, 0, 0)  # right, full up
+    rig.wait_frame("#th.90.100!", since=mark)
+    rig.wait_frame("#mvs.+100!", since=mark)
+    moved = len(rig.frames())
+    gcs.send("manual_control", VEHICLE, 0, 1000, 1000, 800, 0)  # the same, plus yaw
+    gcs.send("manual_control", VEHICLE, 0, 1000, 500, 0, 0)  # vertical neutral: a marker
+    rig.wait_frame("#mvs.+0!", since=moved)
+    motion = [f for f in rig.frames_since(moved) if f.startswith(("#th", "#mvs"))]
+    assert motion == ["#mvs.+0!"]  # yaw sent nothing
+
+    assert gcs.command(ARM_DISARM, 0) == ACCEPTED
+    rig.wait_frame("#stop!", since=moved)
+
+
+def test_heartbeat_loss_while_armed_stops_the_robot(rig: BridgeRig, gcs: GroundStation):
+    gcs.start_heartbeats()
+    assert gcs.arm() == ACCEPTED
+    gcs.send("manual_control", VEHICLE, 1000, 0, 500, 0, 0)
+    rig.wait_frame("#th.0.100!")
+    mark = len(rig.frames())
+    gcs.stop_heartbeats()
+    silent_from_s = time.monotonic()
+    rig.wait_frame("#stop!", since=mark)
+    assert time.monotonic() - silent_from_s >= 2.5  # not before the 3 s (less the last beat)
+    gcs.receive("STATUSTEXT", condition=lambda m: "heartbeat" in m.text.lower())
+    assert not _armed(gcs)
+
+
+def test_no_stop_while_the_ground_station_beats(rig: BridgeRig, gcs: GroundStation):
+    gcs.start_heartbeats()
+    assert gcs.arm() == ACCEPTED
+    mark = len(rig.frames())
+    deadline = time.monotonic() + 4.5  # longer than the failsafe's 3 s
+    while time.monotonic() < deadline:
+        gcs.send("manual_control", VEHICLE, 1000, 0, 500, 0, 0)
+        time.sleep(0.05)
+    assert "#stop!" not in rig.frames_since(mark)
+    assert _armed(gcs)
+
+
+def test_stale_joystick_input_zeroes_the_thrust_but_stays_armed(rig: BridgeRig, gcs: GroundStation):
+    gcs.start_heartbeats()
+    assert gcs.arm() == ACCEPTED
+    mark = len(rig.frames())
+    gcs.send("manual_control", VEHICLE, 0, -1000, 250, 0, 0)  # left, down at half
+    rig.wait_frame("#th.270.100!", since=mark)
+    rig.wait_frame("#mvs.-50!", since=mark)
+    last_input_s = time.monotonic()
+    rig.wait_frame("#th.270.0!", since=mark)
+    assert time.monotonic() - last_input_s >= 0.9
+    rig.wait_frame("#mvs.+0!", since=mark)
+    assert "#stop!" not in rig.frames_since(mark)
+    gcs.receive("STATUSTEXT", condition=lambda m: "stale" in m.text)
+
+
+def test_alt_hold_holds_the_current_depth_and_the_stick_moves_it(
+    rig: BridgeRig, gcs: GroundStation
+):
+    gcs.start_heartbeats()
+    assert gcs.arm() == ACCEPTED
+    mark = len(rig.frames())
+    assert gcs.set_mode(ALT_HOLD) == ACCEPTED
+    rig.wait_frame("#mvdirect.0!", since=mark)
+    held = next(f for f in _wait_prefix(rig, "#mvd.", mark))
+    depth_cm = int(held[len("#mvd.") : -1])
+    heartbeat = gcs.receive_new(
+        "HEARTBEAT", condition=lambda m: m.type == SUBMARINE and m.custom_mode == ALT_HOLD
+    )
+    assert heartbeat.base_mode & ARMED_FLAG
+    # Throttle down (z below 500) for a while moves the target deeper.
+    for _ in range(20):
+        gcs.send("manual_control", VEHICLE, 0, 0, 0, 0, 0)
+        time.sleep(0.05)
+    targets = [int(f[len("#mvd.") : -1]) for f in rig.frames_since(mark) if f.startswith("#mvd.")]
+    assert max(targets) > depth_cm
+    assert not [f for f in rig.frames_since(mark) if f.startswith("#mvs")]  # no thrust in depth
+    assert gcs.set_mode(MANUAL) == ACCEPTED
+    rig.wait_frame("#mvdirect.1!", since=mark)
+
+
+def _wait_prefix(rig: BridgeRig, prefix: str, since: int) -> list[str]:
+    wait_for(lambda: any(f.startswith(prefix) for f in rig.frames_since(since)))
+    return [f for f in rig.frames_since(since) if f.startswith(prefix)]
+
+
+def test_unsupported_modes_and_commands_are_answered_unsupported(
+    rig: BridgeRig, gcs: GroundStation
+):
+    mark = len(rig.frames())
+    assert gcs.set_mode(STABILIZE) == UNSUPPORTED
+    assert gcs.command(NAV_TAKEOFF) == UNSUPPORTED
+    assert all(f in {"#qsa!", "#qd!"} for f in rig.frames_since(mark))  # polls only
+
+
+def test_the_gripper_needs_arming(rig: BridgeRig, gcs: GroundStation):
+    assert gcs.command(DO_GRIPPER, 1, 1) == DENIED
+    gcs.start_heartbeats()
+    assert gcs.arm() == ACCEPTED
+    mark = len(rig.frames())
+    assert gcs.command(DO_GRIPPER, 1, 1) == ACCEPTED
+    rig.wait_frame("#h-!", since=mark)
+    assert gcs.command(DO_GRIPPER, 1, 0) == ACCEPTED
+    rig.wait_frame("#h+!", since=mark)
+
+
+def test_a_button_arms_with_ardusubs_default_mapping(rig: BridgeRig, gcs: GroundStation):
+    gcs.start_heartbeats()
+    mark = len(rig.frames())
+    gcs.send("manual_control", VEHICLE, 0, 0, 500, 0, 1 << 6)  # BTN6: arm
+    rig.wait_frame("#start!", since=mark)
+    gcs.send("manual_control", VEHICLE, 0, 0, 500, 0, 0)
+    gcs.send("manual_control", VEHICLE, 0, 0, 500, 0, 1 << 4)  # BTN4: disarm
+    rig.wait_frame("#stop!", since=mark)
+
+
+def test_message_interval_raises_a_rate(rig: BridgeRig, gcs: GroundStation):
+    assert gcs.command(SET_MESSAGE_INTERVAL, ATTITUDE_ID, 50_000) == ACCEPTED  # 20 Hz
+    gcs.receive("ATTITUDE")
+    started_s = time.monotonic()
+    count = 0
+    while count < 15:
+        gcs.receive("ATTITUDE")
+        count += 1
+    # 15 at the default 4 Hz would take 3.75 s.
+    assert time.monotonic() - started_s < 2.5
+    assert rig.bridge.poller.rate_hz >= 20
+
+
+def test_disarm_is_accepted_even_when_not_armed(rig: BridgeRig, gcs: GroundStation):
+    mark = len(rig.frames())
+    assert gcs.command(ARM_DISARM, 0) == ACCEPTED
+    rig.wait_frame("#stop!", since=mark)
+
+
+def test_a_leak_is_a_critical_statustext():
+    with running_bridge(leak_at_s=0.5) as rig:
+        gcs = GroundStation(rig.gcs_address)
+        try:
+            text = gcs.receive("STATUSTEXT", condition=lambda m: "Leak" in m.text)
+            assert text.severity == 2  # MAV_SEVERITY_CRITICAL
+            heartbeat = gcs.receive_new("HEARTBEAT", condition=lambda m: m.type == SUBMARINE)
+            assert heartbeat.system_status == 5  # MAV_STATE_CRITICAL
+        finally:
+            gcs.close()
+
+
+def test_ending_the_bridge_locks_the_robot():
+    with running_bridge() as rig:
+        gcs = GroundStation(rig.gcs_address)
+        try:
+            gcs.receive("HEARTBEAT", condition=lambda m: m.type == SUBMARINE)
+            gcs.start_heartbeats()
+            assert gcs.arm() == ACCEPTED
+            mark = len(rig.frames())
+        finally:
+            gcs.close()
+    assert "#stop!" in rig.frames_since(mark)
+
+
+def test_a_ground_station_over_tcp():
+    port = free_tcp_port()
+    with running_bridge(endpoint=f"tcpin:127.0.0.1:{port}") as rig:
+        gcs = GroundStation(f"tcp:127.0.0.1:{port}")
+        try:
+            gcs.heartbeat()
+            heartbeat = gcs.receive("HEARTBEAT", condition=lambda m: m.type == SUBMARINE)
+            assert heartbeat.custom_mode == MANUAL
+            gcs.start_heartbeats()
+            mark = len(rig.frames())
+            assert gcs.arm() == ACCEPTED
+            rig.wait_frame("#start!", since=mark)
+        finally:
+            gcs.close()
+
+
+def test_nonsense_values_are_denied_and_the_bridge_serves_on(rig: BridgeRig, gcs: GroundStation):
+    nan = float("nan")
+    assert gcs.command(REQUEST_MESSAGE, nan) == DENIED
+    assert gcs.command(DO_SET_MODE, nan, nan) == DENIED
+    gcs.send("param_set", VEHICLE, 1, b"RL_DEPTH_K", nan, 6)
+    echoed = gcs.receive("PARAM_VALUE", condition=lambda m: m.param_id == "RL_DEPTH_K")
+    assert echoed.param_value == 200
+    gcs.send("param_set", VEHICLE, 1, b"NO_SUCH_PARAM", 1.0, 6)
+    gcs.receive("STATUSTEXT", condition=lambda m: "NO_SUCH_PARAM" in m.text)
+    assert gcs.command(REQUEST_MESSAGE, AUTOPILOT_VERSION_ID) == ACCEPTED  # still serving
+
+
+def test_parameters_from_a_file_are_sent_on_start_and_only_they():
+    with running_bridge(send_on_start=("RL_DEPTH_P", "RL_MAX_PWM", "BTN3_FUNCTION")) as rig:
+        rig.wait_frame("#mgmp.255!")
+        start = rig.frames()[: rig.frames().index("#mgmp.255!") + 1]
+        assert start[1:] == ["#stop!", "#mvdirect.1!", "#mvpdp.40!", "#mgmp.255!"]
+        assert not [f for f in rig.frames() if f.startswith(("#sdz", "#sdk", "#mvpdi"))]

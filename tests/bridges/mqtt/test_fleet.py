@@ -1,0 +1,113 @@
+"""``rovlink fleet``: the view of every robot, and the command against a real broker."""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import os
+import sys
+from pathlib import Path
+
+import pytest
+
+from rovlink.bridges.mqtt.fleet_view import SILENT_AFTER_S, FleetView
+from tests.bridges.mqtt.broker import Mosquitto
+from tests.bridges.mqtt.rig import bridged_robot, subscriber
+
+_SRC = str(Path(__file__).resolve().parents[3] / "src")
+
+
+def test_the_view_follows_state_telemetry_and_events():
+    view = FleetView()
+    view.apply(
+        "rovlink/a/state", b'{"online": true, "lock": "unlocked", "link": {"status": "ok"}}', 0.0
+    )
+    view.apply("rovlink/a/telemetry", b'{"depth_cm": 250, "leak": false}', 0.5)
+    view.apply("rovlink/a/events", b'{"event": "leak", "detail": "the leak sensor fired"}', 1.0)
+    view.apply("rovlink/b/state", b'{"online": false, "reason": "bridge connection lost"}', 1.0)
+    a, b = view.rows()
+    assert (a.robot, a.depth_cm, a.leak, a.lock, a.link) == ("a", 250, True, "unlocked", "ok")
+    assert a.last_event == "leak: the leak sensor fired"
+    assert a.presence(1.0 + SILENT_AFTER_S + 0.1) == "silent"
+    assert (b.presence(1.0), b.offline_reason) == ("offline", "bridge connection lost")
+
+
+@pytest.mark.parametrize(
+    ("topic", "payload"),
+    [
+        ("rovlink/a/state", b"\xff"),
+        ("rovlink/a/state", b"[1, 2]"),
+        ("rovlink/a/cmd", b'{"command": "stop"}'),
+        ("other/a/state", b'{"online": true}'),
+        ("rovlink/a", b'{"online": true}'),
+    ],
+)
+def test_what_is_not_a_bridges_message_is_ignored(topic: str, payload: bytes):
+    view = FleetView()
+    assert not view.apply(topic, payload, 0.0)
+    assert view.rows() == []
+    assert view.ignored == 1
+
+
+def test_strange_values_do_not_break_a_row():
+    view = FleetView()
+    view.apply("rovlink/a/telemetry", b'{"depth_cm": "deep", "leak": 0}', 0.0)
+    view.apply("rovlink/a/state", b'{"online": true, "lock": 5, "link": "ok"}', 0.0)
+    (row,) = view.rows()
+    assert (row.depth_cm, row.lock, row.link, row.presence(0.0)) == (None, None, None, "online")
+
+
+@pytest.mark.integration
+async def test_fleet_lists_every_robot_with_the_offline_one(broker: Mosquitto):
+    async with contextlib.AsyncExitStack() as stack:
+        for robot in ("r1", "r2"):
+            await stack.enter_async_context(bridged_robot(broker, robot))
+        async with subscriber(broker, "rovlink/gone/state") as watcher:
+            async with bridged_robot(broker, "gone"):
+                await watcher.wait_for("rovlink/gone/state", lambda s: s["online"])
+            await watcher.wait_for("rovlink/gone/state", lambda s: not s["online"])
+        environment = dict(
+            os.environ,
+            PYTHONPATH=_SRC + os.pathsep + os.environ.get("PYTHONPATH", ""),
+            COLUMNS="160",
+        )
+        process = await asyncio.create_subprocess_exec(
+            sys.executable, "-m", "rovlink", "fleet", "--broker", broker.url, "--snapshot", "1.5",
+            stdout=asyncio.subprocess.PIPE,
+            stderr=asyncio.subprocess.PIPE,
+            env=environment,
+        )  # fmt: skip
+        out, err = await asyncio.wait_for(process.communicate(), 30)
+    assert process.returncode == 0, err.decode()
+    lines = out.decode().splitlines()
+    row = {
+        name: next(line for line in lines if f" {name} " in line) for name in ("r1", "r2", "gone")
+    }
+    assert "online" in row["r1"]
+    assert "online" in row["r2"]
+    assert " cm" in row["r1"]
+    assert "offline" in row["gone"]
+    assert "bridge stopped" in row["gone"]
+
+
+def test_the_table_shows_each_robot_in_words():
+    from rich.console import Console
+
+    from rovlink.cli.fleet import fleet_table
+
+    view = FleetView()
+    view.apply("rovlink/a/telemetry", b'{"depth_cm": 120, "leak": true}', 0.0)
+    view.apply("rovlink/b/state", b'{"online": false, "reason": "bridge connection lost"}', 0.0)
+    console = Console(width=160, record=True)
+    console.print(fleet_table(view, now_s=1.0))
+    text = console.export_text()
+    row_a = next(line for line in text.splitlines() if " a " in line)
+    row_b = next(line for line in text.splitlines() if " b " in line)
+    assert "online" in row_a
+    assert "120 cm" in row_a
+    assert "LEAK" in row_a
+    assert "offline" in row_b
+    assert "bridge connection lost" in row_b
+    empty = Console(width=160, record=True)
+    empty.print(fleet_table(FleetView(), now_s=0.0))
+    assert "no robot has published yet" in empty.export_text()

@@ -1,0 +1,162 @@
+"""The MQTT bridge against a real mosquitto: three robots, commands, bad payloads, restarts."""
+
+from __future__ import annotations
+
+import contextlib
+
+import aiomqtt
+import pytest
+from paho.mqtt.packettypes import PacketTypes
+from paho.mqtt.properties import Properties
+
+from tests.bridges.mqtt.broker import Mosquitto
+from tests.bridges.mqtt.rig import bridged_robot, subscriber, until
+
+pytestmark = pytest.mark.integration
+
+
+async def test_a_subscriber_sees_three_robots_and_a_command_reaches_only_its_robot(
+    broker: Mosquitto,
+):
+    async with contextlib.AsyncExitStack() as stack:
+        robots = [
+            await stack.enter_async_context(bridged_robot(broker, f"r{n}")) for n in (1, 2, 3)
+        ]
+        watcher = await stack.enter_async_context(
+            subscriber(broker, "rovlink/+/telemetry", "rovlink/+/state", "rovlink/r2/cmd/reply")
+        )
+        for robot in robots:
+            reading = await watcher.wait_for(f"rovlink/{robot.robot_id}/telemetry")
+            assert reading["robot"] == robot.robot_id
+            assert set(reading) >= {"depth_cm", "leak", "heading_deg", "seq", "at"}
+            state = await watcher.wait_for(f"rovlink/{robot.robot_id}/state")
+            assert state["online"] is True
+
+        before = {robot.robot_id: len(robot.motion_and_lock_frames()) for robot in robots}
+        assert (await watcher.command("r2", "start"))["ok"]
+        reply = await watcher.command("r2", "th 90 30")
+        assert reply == {"robot": "r2", "ok": True, "command": "th 90 30", "frame": "#th.90.30!"}
+        await until(lambda: "#th.90.30!" in robots[1].frames())
+        assert robots[1].motion_and_lock_frames()[before["r2"] :] == ["#start!", "#th.90.30!"]
+        for other in (robots[0], robots[2]):
+            assert other.motion_and_lock_frames()[before[other.robot_id] :] == []
+        unlocked = await watcher.wait_for(
+            "rovlink/r2/state", lambda s: s.get("lock") == "unlocked" and s["power_percent"] == 30
+        )
+        assert unlocked["direction_deg"] == 90
+
+
+async def test_queries_answer_with_named_values(broker: Mosquitto):
+    async with bridged_robot(broker, "q1"), subscriber(broker, "rovlink/q1/cmd/reply") as watcher:
+        reply = await watcher.command("q1", '{"command": "qd", "id": "depth-1"}')
+        assert reply["ok"]
+        assert reply["id"] == "depth-1"
+        assert reply["replies"][0]["name"] == "qd"
+        assert isinstance(reply["replies"][0]["values"]["depth_cm"], int)
+
+
+@pytest.mark.parametrize(
+    ("payload", "error"),
+    [
+        (b"\xff\xfe", "payload is not UTF-8 text"),
+        (b"{not json", "payload is not valid JSON"),
+        (b'{"cmd": "th 90 30"}', 'a JSON request needs "command"'),
+        (b"th 400 30", "th: direction_deg must be in 0–360, got 400"),
+        (b"thrust 1", "unknown command 'thrust'"),
+        (b"", "empty payload"),
+        (b"crcon", "owns the checksum and debug modes"),
+        (b"x" * 600, "a command is at most 512"),
+    ],
+)
+async def test_malformed_payloads_get_an_error_and_send_nothing(
+    broker: Mosquitto, payload: bytes, error: str
+):
+    async with (
+        bridged_robot(broker, "m1") as robot,
+        subscriber(broker, "rovlink/m1/cmd/reply") as watcher,
+    ):
+        before = len(robot.motion_and_lock_frames())
+        reply = await watcher.command("m1", payload)
+        assert reply["ok"] is False
+        assert error in reply["error"]
+        assert robot.motion_and_lock_frames()[before:] == []
+        assert (await watcher.command("m1", "stop"))["ok"]  # still serving
+        await until(lambda: robot.motion_and_lock_frames()[before:] == ["#stop!"])
+
+
+async def test_without_allow_commands_only_stop_is_accepted(broker: Mosquitto):
+    async with (
+        bridged_robot(broker, "s1", allow_commands=False) as robot,
+        subscriber(broker, "rovlink/s1/cmd/reply", "rovlink/s1/state") as watcher,
+    ):
+        before = len(robot.motion_and_lock_frames())
+        refused = await watcher.command("s1", "start")
+        assert refused["ok"] is False
+        assert "--allow-commands" in refused["error"]
+        assert robot.motion_and_lock_frames()[before:] == []
+        assert (await watcher.command("s1", "stop"))["frame"] == "#stop!"
+        await until(lambda: robot.motion_and_lock_frames()[before:] == ["#stop!"])
+        state = await watcher.wait_for("rovlink/s1/state")
+        assert state["commands_allowed"] is False
+
+
+async def test_an_mqtt5_response_topic_and_correlation_data_are_honoured(broker: Mosquitto):
+    async with bridged_robot(broker, "c1"), subscriber(broker, "answers/me") as watcher:
+        properties = Properties(PacketTypes.PUBLISH)
+        properties.ResponseTopic = "answers/me"
+        properties.CorrelationData = b"42"
+        # The watcher's client speaks MQTT 3.1.1; a v5 client publishes the request.
+        async with aiomqtt.Client(
+            "127.0.0.1", broker.port, protocol=aiomqtt.ProtocolVersion.V5
+        ) as asker:
+            await asker.publish("rovlink/c1/cmd", b"qhe", qos=1, properties=properties)
+        reply = await watcher.wait_for("answers/me")
+        assert reply["ok"]
+        assert reply["replies"][0]["name"] == "qhe"
+
+
+async def test_stale_motion_is_expired_and_reported_as_a_failsafe_event(broker: Mosquitto):
+    async with (
+        bridged_robot(broker, "f1", motion_timeout_s=0.3) as robot,
+        subscriber(broker, "rovlink/f1/events", "rovlink/f1/cmd/reply") as watcher,
+    ):
+        await watcher.command("f1", "start")
+        await watcher.command("f1", "th 180 40")
+        event = await watcher.wait_for("rovlink/f1/events", lambda e: e["event"] == "failsafe")
+        assert "#th.180.0!" in event["detail"]
+        assert "#th.180.0!" in robot.frames()
+
+
+async def test_a_clean_exit_marks_the_robot_offline_and_locks_it(broker: Mosquitto):
+    async with subscriber(broker, "rovlink/e1/state") as watcher:
+        async with bridged_robot(broker, "e1") as robot:
+            await watcher.wait_for("rovlink/e1/state", lambda s: s["online"])
+        offline = await watcher.wait_for("rovlink/e1/state", lambda s: not s["online"])
+        assert offline["reason"] == "bridge stopped"
+        assert robot.frames()[-1] == "#stop!"
+
+
+async def test_broker_restart_reconnects_and_keeps_events(broker: Mosquitto):
+    async with bridged_robot(broker, "b1", leak_at_s=3.0) as robot:
+        # A subscriber with a persistent session: the broker keeps its QoS 1 messages.
+        async with subscriber(
+            broker, "rovlink/b1/events", "rovlink/b1/telemetry", identifier="watcher", clean=False
+        ) as watcher:
+            await watcher.wait_for("rovlink/b1/telemetry")
+        broker.stop()
+        await until(lambda: not robot.bridge.connected.is_set())
+        # The leak fires while the broker is away; the event waits in the outbox.
+        await until(lambda: len(robot.bridge.outbox) > 0)
+        seq_at_outage = robot.bridge.sequence
+        broker.start()
+        await until(robot.bridge.connected.is_set)
+        async with subscriber(
+            broker, "rovlink/b1/events", "rovlink/b1/telemetry", identifier="watcher", clean=False
+        ) as watcher:
+            event = await watcher.wait_for("rovlink/b1/events", lambda e: e["event"] == "leak")
+            assert event["robot"] == "b1"
+            resumed = await watcher.wait_for(
+                "rovlink/b1/telemetry", lambda t: t["seq"] > seq_at_outage
+            )
+            assert resumed["leak"] is True
+        assert len(robot.bridge.outbox) == 0
