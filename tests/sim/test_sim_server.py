@@ -12,8 +12,8 @@ import pytest
 import serial
 
 from rovlink.controller import ControllerConfig
+from rovlink.controller import lines as lines_module
 from rovlink.sim import SimConfig
-from rovlink.sim import server as server_module
 from rovlink.sim.server import BUSY_MESSAGE, SimServer, parse_tcp_address
 
 pytestmark = pytest.mark.integration
@@ -167,13 +167,13 @@ def test_after_the_client_leaves_the_next_one_is_served(start_server: StartServe
 def _count_pty_writes(monkeypatch: pytest.MonkeyPatch) -> list[bytes]:
     """Record every write the server makes to the PTY."""
     written: list[bytes] = []
-    write = server_module._PtyPeer.write
+    write = lines_module.PtyLine.write
 
-    def counting_write(peer: server_module._PtyPeer, data: bytes) -> int:
+    def counting_write(line: lines_module.PtyLine, data: bytes) -> int:
         written.append(data)
-        return write(peer, data)
+        return write(line, data)
 
-    monkeypatch.setattr(server_module._PtyPeer, "write", counting_write)
+    monkeypatch.setattr(lines_module.PtyLine, "write", counting_write)
     return written
 
 

@@ -12,16 +12,13 @@ on its own (failsafe and leak lines) goes to every link. Output nobody reads is 
 
 from __future__ import annotations
 
-import contextlib
-import selectors
-import socket
 from collections.abc import Callable
 
 from rovlink.board.board import Board
-from rovlink.board.links import Link, PtyLink, SerialLink, TcpLink
 from rovlink.board.schedule import FixedRateSchedule
 from rovlink.controller import ControllerConfig
 from rovlink.controller.controller import Controller
+from rovlink.controller.lines import Line, Lines
 from rovlink.logs import get_logger
 
 __all__ = ["BUSY_MESSAGE", "BoardServer"]
@@ -30,7 +27,6 @@ logger = get_logger(__name__)
 
 #: What a second TCP client reads before it is disconnected.
 BUSY_MESSAGE = b"busy: the controller already has a client\r\n"
-_MAX_PENDING_BYTES = 1 << 16
 _MAX_WAIT_S = 0.05  # a stop request is seen at least this often
 _SAFE_ATTEMPTS = 3
 
@@ -52,47 +48,35 @@ class BoardServer:
         self._overrun_warning_s = overrun_warning_s
         self._overruns_reported = 0
         self._next_overrun_report_s = 0.0
-        self._selector = selectors.SelectSelector()
-        self._links: list[Link] = []
-        self._listener: socket.socket | None = None
-        self._tcp_link: TcpLink | None = None
-        self._replying_to: Link | None = None
+        self._lines = Lines(self._on_bytes, busy_message=BUSY_MESSAGE)
+        self._replying_to: Line | None = None
         self._stale: set[str] = set()
         #: Whether the thrusters are known to be at neutral (the board opens them so).
         self.at_rest = True
-        self.pty_path: str | None = None
-        self.tcp_address: tuple[str, int] | None = None
 
     # -- endpoints ---------------------------------------------------------------------------
 
+    @property
+    def pty_path(self) -> str | None:
+        """The pseudo-terminal's path, once opened."""
+        return self._lines.pty_path
+
+    @property
+    def tcp_address(self) -> tuple[str, int] | None:
+        """The bound TCP (host, port), once listening."""
+        return self._lines.tcp_address
+
     def open_serial(self, path: str, baud: int) -> None:
         """Serve on a serial device (opened exclusively)."""
-        self._add_link(SerialLink(path, baud))
+        self._lines.open_serial(path, baud)
 
     def open_pty(self) -> str:
         """Serve on a new pseudo-terminal; its path."""
-        link = PtyLink()
-        self._add_link(link)
-        self.pty_path = link.path
-        return link.path
+        return self._lines.open_pty()
 
     def listen_tcp(self, host: str, port: int) -> tuple[str, int]:
         """Listen on TCP (one client at a time); the bound address."""
-        family = socket.AF_INET6 if ":" in host else socket.AF_INET
-        listener = socket.socket(family, socket.SOCK_STREAM)
-        listener.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-        try:
-            listener.bind((host, port))
-            listener.listen(2)
-        except OSError:
-            listener.close()
-            raise
-        listener.setblocking(False)
-        self._listener = listener
-        self._selector.register(listener, selectors.EVENT_READ, self._on_connection)
-        bound = listener.getsockname()
-        self.tcp_address = (bound[0], bound[1])
-        return self.tcp_address
+        return self._lines.listen_tcp(host, port)
 
     # -- the loop ----------------------------------------------------------------------------
 
@@ -109,9 +93,7 @@ class BoardServer:
                     self._control_period(started_s)
                     if schedule.finished(started_s, clock.now_s()):
                         self._report_overruns()
-                wait_s = min(schedule.seconds_until_due(clock.now_s()), _MAX_WAIT_S)
-                for key, mask in self._selector.select(wait_s):
-                    key.data(key, mask)
+                self._lines.wait(min(schedule.seconds_until_due(clock.now_s()), _MAX_WAIT_S))
         finally:
             self.make_safe()
 
@@ -129,14 +111,8 @@ class BoardServer:
         logger.critical("THRUSTERS MAY STILL RUN: neutral could not be set; cut the power")
 
     def close(self) -> None:
-        """Close every link and release the board."""
-        for link in list(self._links):
-            self._remove_link(link)
-        if self._listener is not None:
-            self._selector.unregister(self._listener)
-            self._listener.close()
-            self._listener = None
-        self._selector.close()
+        """Close every line and release the board."""
+        self._lines.close()
         self.board.close()
 
     # -- one control period ------------------------------------------------------------------
@@ -183,75 +159,14 @@ class BoardServer:
     # -- bytes -------------------------------------------------------------------------------
 
     def _from_controller(self, data: bytes) -> None:
-        targets = [self._replying_to] if self._replying_to is not None else self._links
-        for link in list(targets):
-            link.unsent += data
-            overflow = len(link.unsent) - _MAX_PENDING_BYTES
-            if overflow > 0:  # nobody reads: drop the oldest, as a UART overruns
-                del link.unsent[:overflow]
-            self._flush(link)
+        lines = self._lines
+        targets = [self._replying_to] if self._replying_to is not None else lines.lines
+        for line in list(targets):
+            lines.send(line, data)
 
-    def _flush(self, link: Link) -> None:
-        if link not in self._links:
-            return
-        try:
-            written = link.write(bytes(link.unsent))
-        except OSError as error:
-            logger.info("%s: write failed (%s), disconnecting", link.name, error)
-            self._remove_link(link)
-            return
-        del link.unsent[:written]
-        events = selectors.EVENT_READ | (selectors.EVENT_WRITE if link.unsent else 0)
-        self._selector.modify(link.fd, events, self._on_link_event(link))
-
-    def _on_link_event(self, link: Link) -> Callable[[selectors.SelectorKey, int], None]:
-        def handle(key: selectors.SelectorKey, mask: int) -> None:
-            if mask & selectors.EVENT_READ:
-                self._on_readable(link)
-            if mask & selectors.EVENT_WRITE and link in self._links:
-                self._flush(link)
-
-        return handle
-
-    def _on_readable(self, link: Link) -> None:
-        data = link.read()
-        if data is None:
-            return
-        if not data:
-            logger.info("%s disconnected", link.name)
-            self._remove_link(link)
-            return
-        self._replying_to = link
+    def _on_bytes(self, line: Line, data: bytes) -> None:
+        self._replying_to = line
         try:
             self.controller.receive(data)
         finally:
             self._replying_to = None
-
-    def _on_connection(self, key: selectors.SelectorKey, mask: int) -> None:
-        assert self._listener is not None
-        try:
-            connection, address = self._listener.accept()
-        except BlockingIOError:
-            return
-        if self._tcp_link is not None:
-            logger.info("refused %s:%s: busy", address[0], address[1])
-            with contextlib.suppress(OSError):
-                connection.setblocking(False)
-                connection.send(BUSY_MESSAGE)
-            connection.close()
-            return
-        link = TcpLink(connection)
-        self._tcp_link = link
-        self._add_link(link)
-        logger.info("%s connected", link.name)
-
-    def _add_link(self, link: Link) -> None:
-        self._links.append(link)
-        self._selector.register(link.fd, selectors.EVENT_READ, self._on_link_event(link))
-
-    def _remove_link(self, link: Link) -> None:
-        self._links.remove(link)
-        self._selector.unregister(link.fd)
-        link.close()
-        if link is self._tcp_link:
-            self._tcp_link = None

@@ -105,8 +105,7 @@ def run(args: argparse.Namespace) -> int:
 def _tcp_address(args: argparse.Namespace) -> tuple[str, int] | None:
     if args.tcp is None:
         return None
-    from rovlink.board.links import is_loopback  # noqa: PLC0415
-    from rovlink.sim.server import parse_tcp_address  # noqa: PLC0415
+    from rovlink.controller.lines import is_loopback, parse_tcp_address  # noqa: PLC0415
 
     try:
         host, port = parse_tcp_address(args.tcp)
@@ -195,7 +194,7 @@ def _tcp_endpoint(host: str, port: int) -> str:
     """``tcp HOST:PORT``, and a warning in the log and in the ready line if it is not loopback."""
     import logging  # noqa: PLC0415
 
-    from rovlink.board.links import is_loopback  # noqa: PLC0415
+    from rovlink.controller.lines import is_loopback  # noqa: PLC0415
 
     if is_loopback(host):
         return f"tcp {host}:{port}"

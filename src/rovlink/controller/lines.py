@@ -1,0 +1,341 @@
+"""The controller's serial lines as the operating system gives them: a serial device, a
+pseudo-terminal and TCP clients (one at a time, as a serial port has one host), watched by one
+:mod:`selectors` loop.
+
+Both servers of the controller stand on this: the simulator (``rovlink sim``) and a real board
+(``rovlink controller``). Each line is a non-blocking file descriptor with the bytes the kernel
+has not taken yet; output that nobody reads is bounded (the oldest is dropped, as a UART
+overruns). What a server does with the bytes it reads is its own (``on_bytes``).
+
+>>> parse_tcp_address("5760"), parse_tcp_address("0.0.0.0:5760")
+(('127.0.0.1', 5760), ('0.0.0.0', 5760))
+>>> is_loopback("127.0.0.1"), is_loopback("0.0.0.0")
+(True, False)
+"""
+
+from __future__ import annotations
+
+import contextlib
+import errno
+import fcntl
+import os
+import selectors
+import socket
+import termios
+import tty
+from collections.abc import Callable
+from typing import Any
+
+from rovlink.logs import get_logger
+
+__all__ = [
+    "Line",
+    "Lines",
+    "PtyLine",
+    "SerialDeviceLine",
+    "TcpLine",
+    "is_loopback",
+    "parse_tcp_address",
+]
+
+logger = get_logger(__name__)
+
+_READ_BYTES = 4096
+#: Output kept for a line that does not read it, bytes.
+MAX_PENDING_BYTES = 1 << 16
+
+
+def parse_tcp_address(text: str, default_host: str = "127.0.0.1") -> tuple[str, int]:
+    """``HOST:PORT``, ``:PORT`` or ``PORT`` (``[::1]:PORT`` for IPv6) as (host, port)."""
+    host, _, port_text = text.rpartition(":")
+    host = host.strip("[]") or default_host
+    if not port_text.isdigit() or not 0 <= int(port_text) <= 65535:
+        raise ValueError(f"{text!r} is not HOST:PORT with a port 0–65535")
+    return host, int(port_text)
+
+
+def is_loopback(host: str) -> bool:
+    """Whether ``host`` is a loopback address (only this computer can connect)."""
+    import ipaddress  # noqa: PLC0415
+
+    if host == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(host).is_loopback
+    except ValueError:
+        return False
+
+
+class Line:
+    """One end of a serial line: a file descriptor, and bytes the kernel has not taken yet."""
+
+    def __init__(self, name: str, fd: int) -> None:
+        self.name = name
+        self.fd = fd
+        self.unsent = bytearray()
+
+    def read(self) -> bytes | None:
+        """Bytes from the peer; b"" when it has gone; None when there is nothing after all."""
+        try:
+            return os.read(self.fd, _READ_BYTES) or b""
+        except BlockingIOError:
+            return None
+
+    def write(self, data: bytes) -> int:
+        """Write what the kernel takes without blocking; how many bytes it took."""
+        try:
+            return os.write(self.fd, data)
+        except BlockingIOError:
+            return 0
+
+    def close(self) -> None:
+        """Release the descriptor."""
+        os.close(self.fd)
+
+
+def _read_terminal(fd: int) -> bytes | None:
+    """A terminal's bytes; never b"": programs open and close a terminal, it stays."""
+    try:
+        return os.read(fd, _READ_BYTES) or None
+    except BlockingIOError:
+        return None
+    except OSError as error:
+        if error.errno == errno.EIO:  # no program has the other side open: nothing to read
+            return None
+        raise
+
+
+class SerialDeviceLine(Line):
+    """A serial device (a board's UART, a USB adapter), opened exclusively (P22) at ``baud``."""
+
+    def __init__(self, path: str, baud: int) -> None:
+        import serial  # noqa: PLC0415 - pyserial, loaded when a serial device is used
+
+        self._serial: Any = serial.Serial(
+            path, baud, timeout=0, write_timeout=0, exclusive=True, rtscts=False, dsrdtr=False
+        )
+        fd = self._serial.fileno()
+        os.set_blocking(fd, False)
+        # pyserial's lock keeps out programs that lock too; TIOCEXCL keeps out every other
+        # opener but root (a forgotten terminal program), until the port is closed.
+        with contextlib.suppress(OSError):
+            fcntl.ioctl(fd, termios.TIOCEXCL)
+        super().__init__(f"serial {path}", fd)
+
+    def read(self) -> bytes | None:
+        """Bytes from the line; a serial line never "goes away", so never b""."""
+        return _read_terminal(self.fd)
+
+    def close(self) -> None:
+        """Close the port (and release its lock)."""
+        self._serial.close()
+
+
+class PtyLine(Line):
+    """A pseudo-terminal for a program on the same computer; :attr:`path` is what it opens."""
+
+    def __init__(self) -> None:
+        master_fd, slave_fd = os.openpty()
+        # Raw mode on the terminal side: no echo, no line editing, no CR/LF translation, so the
+        # program that opens it sees exactly the controller's bytes.
+        tty.setraw(slave_fd)
+        os.set_blocking(master_fd, False)
+        super().__init__("pty", master_fd)
+        # Kept open so the pseudo-terminal lives on while terminal programs come and go.
+        self._slave_fd = slave_fd
+        self.path = os.ttyname(slave_fd)
+
+    def read(self) -> bytes | None:
+        """Bytes from the terminal side; never b"" (programs come and go)."""
+        return _read_terminal(self.fd)
+
+    def close(self) -> None:
+        """Close both sides."""
+        os.close(self.fd)
+        os.close(self._slave_fd)
+
+
+class TcpLine(Line):
+    """One TCP client, with Nagle's algorithm off (a frame leaves at once)."""
+
+    def __init__(self, connection: socket.socket) -> None:
+        connection.setblocking(False)
+        connection.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+        peer = connection.getpeername()
+        super().__init__(f"tcp client {peer[0]}:{peer[1]}", connection.fileno())
+        self.connection = connection
+
+    def read(self) -> bytes | None:
+        """Bytes from the client; b"" when it has gone."""
+        try:
+            return self.connection.recv(_READ_BYTES)
+        except BlockingIOError:
+            return None
+        except OSError:
+            return b""
+
+    def write(self, data: bytes) -> int:
+        """Send what the socket takes."""
+        try:
+            return self.connection.send(data)
+        except BlockingIOError:
+            return 0
+
+    def close(self) -> None:
+        """Close the connection."""
+        self.connection.close()
+
+
+class Lines:
+    """The lines a controller is served on, and the one selector that watches them.
+
+    ``on_bytes(line, data)`` gets what each line reads; ``on_open`` and ``on_close`` see lines
+    come (a TCP client connecting) and go. A second TCP client reads ``busy_message`` and is
+    disconnected.
+    """
+
+    def __init__(
+        self,
+        on_bytes: Callable[[Line, bytes], None],
+        *,
+        busy_message: bytes,
+        on_open: Callable[[Line], None] | None = None,
+        on_close: Callable[[Line], None] | None = None,
+    ) -> None:
+        self._on_bytes = on_bytes
+        self._on_open = on_open
+        self._on_close = on_close
+        self._busy_message = busy_message
+        # select(2) takes microsecond timeouts where epoll and poll round up to whole
+        # milliseconds: pacing at 115200 baud needs a wake-up every 87 µs. A handful of
+        # descriptors is all a controller ever watches.
+        self._selector = selectors.SelectSelector()
+        #: The open lines, in the order they opened.
+        self.lines: list[Line] = []
+        self._listener: socket.socket | None = None
+        self._tcp_line: TcpLine | None = None
+        self.pty_path: str | None = None
+        self.tcp_address: tuple[str, int] | None = None
+
+    # -- endpoints ---------------------------------------------------------------------------
+
+    def open_serial(self, path: str, baud: int) -> None:
+        """Serve on a serial device (opened exclusively)."""
+        self._add(SerialDeviceLine(path, baud))
+
+    def open_pty(self) -> str:
+        """Serve on a new pseudo-terminal; the path a program opens."""
+        line = PtyLine()
+        self._add(line)
+        self.pty_path = line.path
+        return line.path
+
+    def listen_tcp(self, host: str = "127.0.0.1", port: int = 0) -> tuple[str, int]:
+        """Listen on TCP, one client at a time; the bound (host, port) (port 0: a free one)."""
+        family = socket.AF_INET6 if ":" in host else socket.AF_INET
+        listener = socket.socket(family, socket.SOCK_STREAM)
+        listener.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        try:
+            listener.bind((host, port))
+            listener.listen(2)
+        except OSError:
+            listener.close()
+            raise
+        listener.setblocking(False)
+        self._listener = listener
+        self._selector.register(listener, selectors.EVENT_READ, self._on_connection)
+        bound = listener.getsockname()
+        self.tcp_address = (bound[0], bound[1])
+        return self.tcp_address
+
+    # -- moving bytes ------------------------------------------------------------------------
+
+    def wait(self, timeout_s: float) -> None:
+        """Wait up to ``timeout_s`` for the lines, and handle what they have."""
+        for key, mask in self._selector.select(timeout_s):
+            key.data(key, mask)
+
+    def send(self, line: Line, data: bytes) -> None:
+        """Write ``data`` to ``line``: now, what the kernel takes; the rest when it can."""
+        if line not in self.lines:
+            return
+        line.unsent += data
+        overflow = len(line.unsent) - MAX_PENDING_BYTES
+        if overflow > 0:  # nobody reads: drop the oldest, as a UART overruns
+            del line.unsent[:overflow]
+        self._flush(line)
+
+    def close(self) -> None:
+        """Close every line and the listener."""
+        for line in list(self.lines):
+            self._remove(line)
+        if self._listener is not None:
+            self._selector.unregister(self._listener)
+            self._listener.close()
+            self._listener = None
+        self._selector.close()
+
+    # -- events ------------------------------------------------------------------------------
+
+    def _flush(self, line: Line) -> None:
+        try:
+            written = line.write(bytes(line.unsent))
+        except OSError as error:
+            logger.info("%s: write failed (%s), disconnecting", line.name, error)
+            self._remove(line)
+            return
+        del line.unsent[:written]
+        events = selectors.EVENT_READ | (selectors.EVENT_WRITE if line.unsent else 0)
+        self._selector.modify(line.fd, events, self._on_line_event(line))
+
+    def _on_line_event(self, line: Line) -> Callable[[selectors.SelectorKey, int], None]:
+        def handle(key: selectors.SelectorKey, mask: int) -> None:
+            if mask & selectors.EVENT_READ:
+                self._on_readable(line)
+            if mask & selectors.EVENT_WRITE and line in self.lines:
+                self._flush(line)
+
+        return handle
+
+    def _on_readable(self, line: Line) -> None:
+        data = line.read()
+        if data is None:
+            return
+        if not data:
+            logger.info("%s disconnected", line.name)
+            self._remove(line)
+            return
+        self._on_bytes(line, data)
+
+    def _on_connection(self, key: selectors.SelectorKey, mask: int) -> None:
+        assert self._listener is not None
+        try:
+            connection, address = self._listener.accept()
+        except BlockingIOError:
+            return
+        if self._tcp_line is not None:
+            logger.info("refused %s:%s: busy", address[0], address[1])
+            with contextlib.suppress(OSError):
+                connection.setblocking(False)
+                connection.send(self._busy_message)
+            connection.close()
+            return
+        line = TcpLine(connection)
+        self._tcp_line = line
+        self._add(line)
+        logger.info("%s connected", line.name)
+
+    def _add(self, line: Line) -> None:
+        self.lines.append(line)
+        self._selector.register(line.fd, selectors.EVENT_READ, self._on_line_event(line))
+        if self._on_open is not None:
+            self._on_open(line)
+
+    def _remove(self, line: Line) -> None:
+        self.lines.remove(line)
+        self._selector.unregister(line.fd)
+        line.close()
+        if line is self._tcp_line:
+            self._tcp_line = None
+        if self._on_close is not None:
+            self._on_close(line)
