@@ -41,28 +41,33 @@ def _wait_for_port(port: int, timeout_s: float = 20.0) -> None:
     raise AssertionError(f"nothing listens on {port}")
 
 
+def _start_recording(url: str, output: Path, tap: str) -> subprocess.Popen[str]:
+    """``rovlink record URL -o OUTPUT --tap TAP`` as a process; its stderr is a pipe."""
+    return subprocess.Popen(
+        [
+            sys.executable,
+            "-c",
+            "from rovlink.cli import main; main()",
+            "record",
+            url,
+            "-o",
+            str(output),
+            "--tap",
+            tap,
+        ],
+        env={**os.environ, "PYTHONPATH": _SRC},
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+
+
 @pytest.mark.integration
 def test_record_taps_a_program_and_a_controller(tmp_path: Path) -> None:
     output = tmp_path / "tapped.mcap"
     tap_port = _free_port()
     with running_sim("--tcp", "127.0.0.1:0", "--seed", "1", "--watchdog", "0") as sim:
         assert sim.tcp_url is not None
-        recorder = subprocess.Popen(
-            [
-                sys.executable,
-                "-c",
-                "from rovlink.cli import main; main()",
-                "record",
-                sim.tcp_url,
-                "-o",
-                str(output),
-                "--tap",
-                f"socket://127.0.0.1:{tap_port}",
-            ],
-            env={**os.environ, "PYTHONPATH": _SRC},
-            stderr=subprocess.PIPE,
-            text=True,
-        )
+        recorder = _start_recording(sim.tcp_url, output, f"socket://127.0.0.1:{tap_port}")
         try:
             _wait_for_port(tap_port)
             with rovlink.connect(f"socket://127.0.0.1:{tap_port}") as rov:
@@ -208,22 +213,7 @@ def test_record_taps_a_program_through_a_pseudo_terminal(tmp_path: Path) -> None
     output = tmp_path / "tapped.jsonl"
     with running_sim("--tcp", "127.0.0.1:0", "--seed", "1", "--watchdog", "0") as sim:
         assert sim.tcp_url is not None
-        recorder = subprocess.Popen(
-            [
-                sys.executable,
-                "-c",
-                "from rovlink.cli import main; main()",
-                "record",
-                sim.tcp_url,
-                "-o",
-                str(output),
-                "--tap",
-                "pty",
-            ],
-            env={**os.environ, "PYTHONPATH": _SRC},
-            stderr=subprocess.PIPE,
-            text=True,
-        )
+        recorder = _start_recording(sim.tcp_url, output, "pty")
         try:
             assert recorder.stderr is not None
             first_line = recorder.stderr.readline()
