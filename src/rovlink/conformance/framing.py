@@ -8,7 +8,8 @@ from __future__ import annotations
 import random
 
 from rovlink.conformance.registry import CheckContext, check
-from rovlink.protocol import COMMANDS, MAX_FRAME_BYTES, Command
+from rovlink.conformance.replies import expect_depth, first_value
+from rovlink.protocol import COMMANDS, MAX_FRAME_BYTES, Command, lookup
 
 __all__: list[str] = []
 
@@ -38,11 +39,19 @@ def _garbage(ctx: CheckContext) -> None:
 
 @check("overlong-frame-dropped", ("P1",), "a frame over 64 bytes is discarded whole")
 def _overlong(ctx: CheckContext) -> None:
-    # A body of leading zeros would make a valid #mgmp frame if the limit were not applied,
-    # and a query name padded past the limit must not be answered.
     padding = b"0" * MAX_FRAME_BYTES
     ctx.expect_no_frames(b"#qd" + padding + b"!", f"a frame over {MAX_FRAME_BYTES} bytes")
     ctx.expect_no_frames(b"#" + b"q" * (4 * MAX_FRAME_BYTES) + b"!", "a very long frame")
+    # A parser without the limit would take this #sdz (its value padded with leading zeros) and
+    # move the depth zero above the raw reading: the depth would read 0.
+    zero, k = 0, 100
+    ctx.tell(ctx.frame(Command("sdz", (zero,))) + ctx.frame(Command("sdk", (k,))))
+    raw = first_value(ctx.ask(ctx.frame(Command("qr"))), "qr")
+    zero_arg = lookup("sdz").arguments[0]
+    value = str(min(raw + 50, zero_arg.maximum)).encode()
+    overlong = b"#sdz." + value.rjust(MAX_FRAME_BYTES, b"0") + b"!"
+    ctx.expect_no_frames(overlong, "an over-long #sdz")
+    expect_depth(ctx, zero, k, "after an over-long #sdz! that must be discarded")
     _still_answers(ctx, "after over-long frames")
 
 

@@ -12,31 +12,35 @@ import time
 
 from rovlink.conformance.registry import CheckAbortedError, CheckContext, CheckFailedError, check
 from rovlink.conformance.replies import first_value
-from rovlink.protocol import Command
+from rovlink.protocol import Command, lookup
 
 __all__ = ["MOTION_WATCH_S"]
 
 #: How long a motion check watches the depth, s.
 MOTION_WATCH_S = 3.0
-#: Depth change that counts as moving, cm (a couple of pressure counts).
-_MOVED_CM = 5
+#: Rise of the raw pressure reading that counts as moving deeper, counts (beyond sensor noise).
+_MOVED_COUNTS = 3
 _POLL_S = 0.1
 #: How long the vehicle may coast on after #stop!, s.
 _COAST_S = 1.5
 
 
 def _sample(ctx: CheckContext, checksum: bool) -> int:
-    """The depth; abort with ``#stop!`` on a leak or a lost reply."""
+    """The raw pressure reading; abort with ``#stop!`` on a leak or a lost reply.
+
+    The raw reading, not the depth: the calibration checks leave ``sdz``/``sdk`` at test values,
+    and the raw reading grows with depth whatever they are (P13).
+    """
     exchange = ctx.ask(
-        ctx.frame(Command("qd"), checksum=checksum) + ctx.frame(Command("q.l"), checksum=checksum),
+        ctx.frame(Command("qr"), checksum=checksum) + ctx.frame(Command("q.l"), checksum=checksum),
         2,
     )
     names = [frame.message.name for frame in exchange.valid_frames]
-    if names != ["qd", "q.l"]:
+    if names != ["qr", "q.l"]:
         _abort(ctx, f"the controller stopped answering queries (got {exchange.received!r})")
     if first_value(exchange, "q.l"):
         _abort(ctx, "the leak sensor fired")
-    return first_value(exchange, "qd")
+    return first_value(exchange, "qr")
 
 
 def _abort(ctx: CheckContext, why: str) -> None:
@@ -45,7 +49,7 @@ def _abort(ctx: CheckContext, why: str) -> None:
 
 
 def _watch(ctx: CheckContext, checksum: bool, seconds: float = MOTION_WATCH_S) -> tuple[int, int]:
-    """The depth now and the deepest seen over ``seconds``."""
+    """The raw pressure now and the highest seen over ``seconds``."""
     start = _sample(ctx, checksum)
     deepest = start
     deadline = time.monotonic() + seconds
@@ -57,8 +61,12 @@ def _watch(ctx: CheckContext, checksum: bool, seconds: float = MOTION_WATCH_S) -
 
 def _down(ctx: CheckContext, checksum: bool) -> bytes:
     frame = ctx.frame
-    return frame(Command("mvdirect", (1,)), checksum=checksum) + frame(
-        Command("mvs", (-ctx.options.motion_percent,)), checksum=checksum
+    # The PWM cap at its top (the set-* checks leave it at 0): the power is the thrust's %.
+    full_pwm = lookup("mgmp").arguments[0].maximum
+    return (
+        frame(Command("mgmp", (full_pwm,)), checksum=checksum)
+        + frame(Command("mvdirect", (1,)), checksum=checksum)
+        + frame(Command("mvs", (-ctx.options.motion_percent,)), checksum=checksum)
     )
 
 
@@ -72,27 +80,27 @@ def _locked(ctx: CheckContext) -> None:
     ctx.tell(ctx.frame(Command("stop")) + _down(ctx, checksum=False))
     start, deepest = _watch(ctx, checksum=False)
     ctx.tell(ctx.frame(Command("stop")))
-    if deepest - start >= _MOVED_CM:
-        raise CheckFailedError(f"locked, yet the depth went from {start} to {deepest} cm")
+    if deepest - start >= _MOVED_COUNTS:
+        raise CheckFailedError(f"locked, yet the raw pressure went from {start} to {deepest}")
 
 
 def _dive_then_stop(ctx: CheckContext, checksum: bool) -> None:
     frame = ctx.frame
     ctx.tell(frame(Command("start"), checksum=checksum) + _down(ctx, checksum))
     start, deepest = _watch(ctx, checksum)
-    if deepest - start < _MOVED_CM:
+    if deepest - start < _MOVED_COUNTS:
         ctx.tell(b"#stop!")
         raise CheckFailedError(
-            f"unlocked with {ctx.options.motion_percent} % down thrust, the depth went only "
-            f"from {start} to {deepest} cm in {MOTION_WATCH_S:g} s (is the vehicle in water?)"
+            f"unlocked with {ctx.options.motion_percent} % down thrust, the pressure went only "
+            f"from raw {start} to {deepest} in {MOTION_WATCH_S:g} s (is the vehicle in water?)"
         )
     ctx.tell(b"#stop!")  # bare, in either mode (P3)
     ctx.tell(_down(ctx, checksum))  # dropped while locked
     _watch(ctx, checksum, _COAST_S)  # the vehicle coasts on a little after its thrust stops
     stopped, deepest_after = _watch(ctx, checksum)
-    if deepest_after - stopped >= _MOVED_CM:
+    if deepest_after - stopped >= _MOVED_COUNTS:
         raise CheckFailedError(
-            f"after #stop! the depth went on from {stopped} to {deepest_after} cm: "
+            f"after #stop! the raw pressure went on from {stopped} to {deepest_after}: "
             "the motors were not stopped and locked"
         )
 

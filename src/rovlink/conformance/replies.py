@@ -12,7 +12,7 @@ from rovlink.conformance.registry import CheckContext, CheckFailedError, check
 from rovlink.conformance.wire import Exchange
 from rovlink.protocol import COMMANDS, Command, Frame, Kind, Spec, encode, lookup
 
-__all__ = ["QUERIES", "check_canonical"]
+__all__ = ["QUERIES", "check_canonical", "expect_depth", "first_value"]
 
 #: Every query of the command table.
 QUERIES: tuple[Spec, ...] = tuple(spec for spec in COMMANDS if spec.is_query)
@@ -69,12 +69,17 @@ def _burst(ctx: CheckContext) -> None:
 def _reply_time(ctx: CheckContext) -> None:
     frame = ctx.frame(Command("qd"))
     times_s: list[float] = []
+    slowest: Exchange | None = None
     for _ in range(ctx.options.timed_queries):
         exchange = ctx.wire.send(frame, frames=1, timeout_s=ctx.options.reply_timeout_s, linger_s=0)
         if exchange.reply_s is None:
             ctx.exchanges.append(exchange)
             raise CheckFailedError("a #qd! got no reply")
         times_s.append(exchange.reply_s)
+        if slowest is None or exchange.reply_s > (slowest.reply_s or 0.0):
+            slowest = exchange
+    if slowest is not None:
+        ctx.exchanges.append(slowest)  # the evidence: the slowest exchange
     times_s.sort()
     p90_s = times_s[math.ceil(0.9 * len(times_s)) - 1]
     limit_s = ctx.options.reply_limit_s
@@ -92,3 +97,22 @@ def first_value(exchange: Exchange, name: str) -> int:
         if isinstance(frame, Frame) and frame.message.name == name:
             return frame.message.values[0]
     raise CheckFailedError(f"no ${name} reply")
+
+
+def _expected_depth_cm(raw: int, zero: int, k: int) -> int:
+    """P13: clamp(floor((raw − zero) · k / 100), 0, maximum of qd)."""
+    maximum = lookup("qd", Kind.RESPONSE).arguments[0].maximum
+    return min(max(((raw - zero) * k) // 100, 0), maximum)
+
+
+def expect_depth(ctx: CheckContext, zero: int, k: int, why: str) -> None:
+    """Fail unless the depth in ``$qsa`` follows P13 from its raw reading for ``zero`` and ``k``."""
+    exchange = ctx.expect_reply(ctx.frame(Command("qsa")), lookup("qsa").replies)
+    depth, raw = first_value(exchange, "qd"), first_value(exchange, "qr")
+    # A controller may read its sensor once per reply: allow the raw reading one count of drift.
+    allowed = {_expected_depth_cm(reading, zero, k) for reading in (raw - 1, raw, raw + 1)}
+    expected = _expected_depth_cm(raw, zero, k)
+    if depth not in allowed:
+        raise CheckFailedError(
+            f"{why}: with sdz {zero}, sdk {k} and raw {raw}, qd should be {expected}, got {depth}"
+        )

@@ -8,9 +8,9 @@ these settings until it is reset; the summary says so.
 
 from __future__ import annotations
 
-from rovlink.conformance.registry import CheckContext, CheckFailedError, check
-from rovlink.conformance.replies import first_value
-from rovlink.protocol import COMMANDS, Command, Kind, Setting, Spec, lookup
+from rovlink.conformance.registry import CheckContext, check
+from rovlink.conformance.replies import expect_depth, first_value
+from rovlink.protocol import COMMANDS, Command, Setting, Spec, lookup
 
 __all__ = ["SETTERS"]
 
@@ -53,24 +53,6 @@ def _start_stop(ctx: CheckContext) -> None:
     ctx.expect_reply(ctx.frame(Command("qd")), ("qd",), "after #stop!")
 
 
-def _expected_depth_cm(raw: int, zero: int, k: int) -> int:
-    """P13: clamp(floor((raw − zero) · k / 100), 0, maximum of qd)."""
-    maximum = lookup("qd", Kind.RESPONSE).arguments[0].maximum
-    return min(max(((raw - zero) * k) // 100, 0), maximum)
-
-
-def _depth_matches(ctx: CheckContext, zero: int, k: int, why: str) -> None:
-    exchange = ctx.expect_reply(ctx.frame(Command("qsa")), lookup("qsa").replies)
-    depth, raw = first_value(exchange, "qd"), first_value(exchange, "qr")
-    # A controller may read its sensor once per reply: allow the raw reading one count of drift.
-    allowed = {_expected_depth_cm(reading, zero, k) for reading in (raw - 1, raw, raw + 1)}
-    expected = _expected_depth_cm(raw, zero, k)
-    if depth not in allowed:
-        raise CheckFailedError(
-            f"{why}: with sdz {zero}, sdk {k} and raw {raw}, qd should be {expected}, got {depth}"
-        )
-
-
 @check(
     "calibration-applies",
     ("P13", "P12"),
@@ -80,7 +62,7 @@ def _calibration(ctx: CheckContext) -> None:
     raw = first_value(ctx.expect_reply(ctx.frame(Command("qr")), ("qr",)), "qr")
     for zero, k in ((0, 100), (max(raw - 3, 0), 10000), (min(raw + 50, 1024), 500)):
         ctx.tell(ctx.frame(Command("sdz", (zero,))) + ctx.frame(Command("sdk", (k,))))
-        _depth_matches(ctx, zero, k, "sdz and sdk take effect at once")
+        expect_depth(ctx, zero, k, "sdz and sdk take effect at once")
 
 
 @check(
@@ -95,4 +77,4 @@ def _calibration_range(ctx: CheckContext) -> None:
     ctx.tell(ctx.frame(Command("sdz", (zero,))) + ctx.frame(Command("sdk", (k,))))
     too_big = f"#sdz.{zero_arg.maximum + 1}!#sdk.{k_arg.maximum + 1}!".encode()
     ctx.expect_no_frames(too_big, "out-of-range settings are dropped")
-    _depth_matches(ctx, zero, k, "after out-of-range #sdz! and #sdk!")
+    expect_depth(ctx, zero, k, "after out-of-range #sdz! and #sdk!")

@@ -1,0 +1,118 @@
+"""``rovlink check`` against the simulator: every check passes; the table, JUnit and exit status."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import time
+from pathlib import Path
+from xml.etree import ElementTree
+
+import pytest
+
+from rovlink.cli import main
+from rovlink.client.links import open_link
+from rovlink.client.url import parse_url
+from rovlink.conformance import (
+    CHECKS,
+    Outcome,
+    Report,
+    SuiteOptions,
+    junit_xml,
+    run_checks,
+    select_checks,
+)
+from rovlink.conformance.results import CheckResult
+from rovlink.conformance.wire import Exchange
+from rovlink.protocol import COMMANDS
+
+
+def test_every_command_of_the_table_has_a_check() -> None:
+    names = {check.name for check in CHECKS}
+    for spec in COMMANDS:
+        if spec.is_query:
+            assert f"query-{spec.name}" in names
+        elif spec.name in ("crcon", "crcoff"):
+            assert "checksum-mode-frames-exact" in names
+        elif spec.name in ("start", "stop"):
+            assert "start-stop-silent" in names
+        else:
+            assert f"set-{spec.name}" in names
+
+
+@pytest.mark.integration
+def test_the_simulator_passes_every_check_with_motion_within_limits() -> None:
+    link = open_link(parse_url("sim://?seed=3"))
+    started = time.monotonic()
+    try:
+        report = run_checks(link, "sim://", SuiteOptions(motion=True))
+    finally:
+        link.close()
+    assert [(r.name, r.message) for r in report.failures] == []
+    assert len(report.results) == len(CHECKS)
+    assert report.count(Outcome.PASSED) == len(CHECKS)
+    assert time.monotonic() - started < 120
+
+
+def test_select_checks_by_prefix_and_unknown_name() -> None:
+    chosen = select_checks(["checksum-"])
+    assert chosen
+    assert all(check.name.startswith("checksum-") for check in chosen)
+    assert all(not check.motion for check in select_checks())
+    with pytest.raises(ValueError, match="no check is named 'nope'"):
+        select_checks(["nope"])
+
+
+def test_junit_has_a_case_per_check_and_the_evidence_of_failures() -> None:
+    evidence = (Exchange(sent=b"#qd!", received=b"$qd.007!"),)
+    report = Report(
+        "fake",
+        [
+            CheckResult("query-qd", ("P6",), "d", Outcome.FAILED, "not canonical", 0.1, evidence),
+            CheckResult("query-qr", ("P4",), "d", Outcome.PASSED),
+            CheckResult("motion-stop-halts", ("P7",), "d", Outcome.SKIPPED, "needs --motion"),
+        ],
+    )
+    suite = ElementTree.fromstring(junit_xml(report))
+    assert suite.get("tests") == "3"
+    assert suite.get("failures") == "1"
+    assert suite.get("skipped") == "1"
+    (failure,) = suite.iter("failure")
+    assert failure.get("message") == "not canonical"
+    assert "b'$qd.007!'" in (failure.text or "")
+
+
+@pytest.mark.integration
+def test_cli_exit_status_table_and_junit(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    junit = tmp_path / "check.xml"
+    status = main(["check", "sim://?seed=2", "--only", "query-", "--junit", str(junit)])
+    out = capsys.readouterr().out
+    assert status == 0
+    assert "query-qsa" in out
+    assert "checks passed" in out
+    cases = list(ElementTree.parse(junit).getroot().iter("testcase"))
+    assert len(cases) == len(select_checks(["query-"]))
+
+
+def test_cli_list_and_usage_errors(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["check", "--list"]) == 0
+    assert "motion-stop-halts (--motion)" in capsys.readouterr().out
+    assert main(["check"]) == 2
+    assert "URL is required" in capsys.readouterr().err
+    assert main(["check", "sim://", "--only", "nope"]) == 2
+
+
+@pytest.mark.integration
+def test_cli_motion_without_terminal_needs_yes() -> None:
+    result = subprocess.run(
+        [sys.executable, "-m", "rovlink", "check", "sim://", "--motion"],
+        capture_output=True,
+        text=True,
+        stdin=subprocess.DEVNULL,
+        timeout=60,
+        check=False,
+    )
+    assert result.returncode == 2
+    assert "--motion needs --yes" in result.stderr

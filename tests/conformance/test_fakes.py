@@ -1,0 +1,54 @@
+"""Each deliberately broken controller is caught by the check named for its fault."""
+
+from __future__ import annotations
+
+import pytest
+
+from rovlink.client.links import PortLink
+from rovlink.conformance import Outcome, SuiteOptions, run_checks, select_checks
+from tests.conformance.fakes import FAULTS, NO_FAULT, FaultyController
+
+_FAST = [name for name, check in FAULTS.items() if not check.startswith("motion-")]
+
+
+@pytest.mark.parametrize("fault", _FAST)
+def test_each_fault_is_caught_by_its_check(fault: str) -> None:
+    expected = FAULTS[fault]
+    link = PortLink(FaultyController(fault), fault)
+    try:
+        report = run_checks(link, fault, SuiteOptions(), select_checks([expected]))
+    finally:
+        link.close()
+    results = {result.name: result for result in report.results}
+    assert results[expected].outcome is Outcome.FAILED, results[expected]
+    assert results[expected].evidence  # the bytes that show it
+    assert not report.passed
+
+
+@pytest.mark.integration
+def test_bare_stop_ignored_in_checksum_mode_is_caught_by_the_motion_check() -> None:
+    link = PortLink(FaultyController("stop-needs-checksum"), "stop-needs-checksum")
+    checks = select_checks(["motion-"], motion=True)
+    try:
+        report = run_checks(link, "fake", SuiteOptions(motion=True), checks)
+    finally:
+        link.close()
+    outcomes = {result.name: result.outcome for result in report.results}
+    assert outcomes["motion-stop-halts"] is Outcome.PASSED  # plain #stop! still works
+    assert outcomes["motion-bare-stop-in-checksum-mode"] is Outcome.FAILED
+
+
+def test_every_fault_names_a_real_check() -> None:
+    names = {check.name for check in select_checks(motion=True)}
+    assert set(FAULTS.values()) <= names
+
+
+@pytest.mark.integration
+def test_the_wrapper_without_a_fault_passes_every_check() -> None:
+    link = PortLink(FaultyController(NO_FAULT), NO_FAULT)
+    try:
+        report = run_checks(link, NO_FAULT)
+    finally:
+        link.close()
+    assert [result.name for result in report.failures] == []
+    assert len(report.results) == len(select_checks())
