@@ -21,6 +21,7 @@ import time
 from dataclasses import dataclass, field
 
 from rovlink.client import Client, ClientOptions, QueryTimeoutError
+from rovlink.client.events import ReplyReceived
 from rovlink.client.links import PortLink
 from rovlink.faults import FaultPort, FaultSettings
 from rovlink.protocol import Command, Frame
@@ -47,6 +48,8 @@ class Run:
     corrupted_executed: int = 0
     examples: list[str] = field(default_factory=list)
     bits_flipped: int = 0
+    replies_accepted: int = 0
+    corrupted_replies_accepted: int = 0
 
 
 def _workload(rng: random.Random) -> Command:
@@ -71,9 +74,31 @@ def run_once(ber: float, checksum: bool, seed: int, rounds: int, retries: int) -
         dispatch(frame)
 
     controller._frame = watched  # type: ignore[method-assign]
+    # Every reply value the controller wrote: a reply the host accepts that is not among them
+    # was damaged on the way and taken for a good one.
+    written: set[tuple[str, tuple[int, ...]]] = set()
+    read_sensors = controller._sensor_values
+
+    def recorded(names: tuple[str, ...]) -> dict[str, int]:
+        values = read_sensors(names)
+        written.update((name, (value,)) for name, value in values.items())
+        return values
+
+    controller._sensor_values = recorded  # type: ignore[method-assign]
+    accepted: list[tuple[str, tuple[int, ...]]] = []
+
+    def on_event(event: object) -> None:
+        if isinstance(event, ReplyReceived):
+            accepted.extend((reply.name, reply.values) for reply in event.responses)
+
     port = FaultPort(PortLink(sim, "sim"), FaultSettings(ber=ber, seed=seed))
     options = ClientOptions(
-        timeout_s=0.05, retries=retries, checksum=checksum, keepalive_s=None, boot_timeout_s=2.0
+        timeout_s=0.05,
+        retries=retries,
+        checksum=checksum,
+        keepalive_s=None,
+        boot_timeout_s=2.0,
+        on_event=on_event,
     )
     rng = random.Random(seed)
     sent: collections.Counter[Command] = collections.Counter()
@@ -103,6 +128,8 @@ def run_once(ber: float, checksum: bool, seed: int, rounds: int, retries: int) -
     finally:
         client.close()
     result.bits_flipped = sum(c.bits_flipped for c in port.counters.values())
+    result.replies_accepted = len(accepted)
+    result.corrupted_replies_accepted = sum(reply not in written for reply in accepted)
     for command in executed:
         # Queries are not counted: a damaged query is answered under its own name (and the host
         # takes no reply of another name for it); the mode frames are the session's own.
@@ -157,6 +184,12 @@ def main() -> None:
         print(
             f"  corrupted commands executed  {corrupted} of {commands} sent "
             f"({corrupted / commands:.3%})"
+        )
+        replies = sum(r.replies_accepted for r in runs)
+        bad_replies = sum(r.corrupted_replies_accepted for r in runs)
+        print(
+            f"  corrupted replies taken for good  {bad_replies} of {replies} "
+            f"({bad_replies / max(replies, 1):.3%})"
         )
         print(f"  bits flipped          {sum(r.bits_flipped for r in runs)}")
         examples = [example for r in runs for example in r.examples][:6]
