@@ -31,10 +31,10 @@ PRESETS: dict[str, VehicleParams] = {
         net_buoyancy_n=1.0,
         heave_drag_n_s2_m2=25.0,
         heave_linear_drag_n_s_m=1.0,
-        wave_heave_n=3.0,
+        wave_heave_n=0.5,
     ),
     # The default vehicle, with heave waves.
-    "standard": dataclasses.replace(_STANDARD, wave_heave_n=4.0),
+    "standard": dataclasses.replace(_STANDARD, wave_heave_n=0.75),
     # A heavy work-class hull: five times the mass of the light one, more buoyant, more drag.
     "heavy": dataclasses.replace(
         _STANDARD,
@@ -43,7 +43,7 @@ PRESETS: dict[str, VehicleParams] = {
         net_buoyancy_n=4.0,
         heave_drag_n_s2_m2=120.0,
         heave_linear_drag_n_s_m=4.0,
-        wave_heave_n=8.0,
+        wave_heave_n=1.5,
     ),
 }
 
