@@ -116,3 +116,10 @@ def test_cli_motion_without_terminal_needs_yes() -> None:
     )
     assert result.returncode == 2
     assert "--motion needs --yes" in result.stderr
+
+
+def test_docs_list_every_check() -> None:
+    from rovlink.conformance import checks_markdown
+
+    docs = Path(__file__).resolve().parents[2] / "docs" / "builders.md"
+    assert checks_markdown() in docs.read_text(encoding="utf-8")

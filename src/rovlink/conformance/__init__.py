@@ -15,7 +15,7 @@ Example::
 """
 
 from rovlink.conformance.junit import junit_xml, write_junit
-from rovlink.conformance.registry import CHECKS, Check, SuiteOptions
+from rovlink.conformance.registry import CHECKS, Check, SuiteOptions, checks_markdown
 from rovlink.conformance.results import CheckResult, Outcome, Report
 from rovlink.conformance.runner import PreflightError, run_checks, select_checks
 
@@ -27,6 +27,7 @@ __all__ = [
     "PreflightError",
     "Report",
     "SuiteOptions",
+    "checks_markdown",
     "junit_xml",
     "run_checks",
     "select_checks",

@@ -22,6 +22,7 @@ __all__ = [
     "CheckSkippedError",
     "SuiteOptions",
     "check",
+    "checks_markdown",
 ]
 
 
@@ -162,3 +163,15 @@ def check(
         return function
 
     return register
+
+
+def checks_markdown() -> str:
+    """Every check as a Markdown table (name, rules, what it shows), as ``docs/builders.md``
+    lists them."""
+    from rovlink.conformance import runner  # noqa: PLC0415 - registers every module's checks
+
+    lines = ["| check | rules | what it shows |", "|---|---|---|"]
+    for item in runner.select_checks(motion=True):
+        name = f"`{item.name}`" + (" (`--motion`)" if item.motion else "")
+        lines.append(f"| {name} | {' '.join(item.rules)} | {item.description} |")
+    return "\n".join(lines) + "\n"
