@@ -123,3 +123,48 @@ def test_docs_list_every_check() -> None:
 
     docs = Path(__file__).resolve().parents[2] / "docs" / "builders.md"
     assert checks_markdown() in docs.read_text(encoding="utf-8")
+
+
+@pytest.mark.integration
+def test_a_leak_during_a_motion_check_stops_the_robot_and_aborts_the_run() -> None:
+    from rovlink.client.links import PortLink
+    from rovlink.sim.port import open_port
+
+    port = open_port(seed=6, timeout=0.05)
+    with port.lock:
+        port.robot.inject_leak(at_s=port.robot.time_s + 2.0)
+    link = PortLink(port, "sim")
+    try:
+        checks = select_checks(["motion-stop-halts", "motion-bare-stop"], motion=True)
+        report = run_checks(link, "sim", SuiteOptions(motion=True), checks)
+        (result,) = report.results  # the run stops at the abort
+        assert result.outcome is Outcome.ABORTED
+        assert "leak" in result.message
+        with port.lock:
+            assert port.controller.locked
+            assert all(duty == 0 for duty in port.vehicle.duties)
+    finally:
+        link.close()
+
+
+def test_preflight_refuses_a_silent_port_and_a_latched_leak() -> None:
+    from rovlink.client.links import PortLink
+    from rovlink.conformance import PreflightError
+    from rovlink.sim.port import open_port
+
+    echo = open_link(parse_url("loop://"))  # echoes commands back: no reply among them
+    try:
+        with pytest.raises(PreflightError, match=r"did not answer #q\.l! within 0\.5 s"):
+            run_checks(echo, "loop://", SuiteOptions(boot_timeout_s=0.5))
+    finally:
+        echo.close()
+    port = open_port(seed=1, timeout=0.05)
+    with port.lock:
+        port.robot.inject_leak()
+    port.advance(0.1)
+    link = PortLink(port, "sim")
+    try:
+        with pytest.raises(PreflightError, match="leak latch is set"):
+            run_checks(link, "sim")
+    finally:
+        link.close()

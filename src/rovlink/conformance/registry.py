@@ -56,6 +56,8 @@ class SuiteOptions:
     motion_percent: int = 30
     #: Seed of the random bytes the noise checks send.
     seed: int = 1
+    #: How long to wait for a booting controller's first answer, s (P21).
+    boot_timeout_s: float = 3.0
 
 
 @dataclass

@@ -20,7 +20,7 @@ from rovlink.conformance.registry import (
 from rovlink.conformance.results import CheckResult, Outcome, Report
 from rovlink.conformance.wire import Wire
 from rovlink.logs import get_logger
-from rovlink.protocol import Command
+from rovlink.protocol import Command, Response
 
 __all__ = ["PreflightError", "run_checks", "select_checks"]
 
@@ -84,19 +84,32 @@ def run_checks(
 
 
 def _preflight(wire: Wire, options: SuiteOptions) -> None:
+    """Wait for the controller to answer ``#q.l!`` (a board may boot for up to 2 s after its
+    port opens, P21), and refuse to go on if its leak latch is set."""
     context = CheckContext(wire, options)
-    context.restore()
-    exchange = wire.send(
-        context.frame(Command("q.l")),
-        frames=1,
-        timeout_s=max(options.reply_timeout_s, 1.0),
-        linger_s=0.02,
-    )
-    values = [frame.message.values for frame in exchange.valid_frames]
-    if not values:
-        raise PreflightError(
-            f"the controller does not answer #q.l! (received {exchange.received!r})"
+    deadline = time.monotonic() + options.boot_timeout_s
+    received = b""
+    while True:
+        context.restore()
+        exchange = wire.send(
+            context.frame(Command("q.l")),
+            frames=1,
+            timeout_s=options.reply_timeout_s,
+            linger_s=0.02,
         )
+        values = [
+            frame.message.values
+            for frame in exchange.valid_frames
+            if isinstance(frame.message, Response) and frame.message.name == "q.l"
+        ]
+        if values:
+            break
+        received += exchange.received
+        if time.monotonic() >= deadline:
+            raise PreflightError(
+                f"the controller did not answer #q.l! within {options.boot_timeout_s:g} s "
+                f"(received {received[-200:]!r})"
+            )
     if values[0] == (1,):
         raise PreflightError(
             "the leak latch is set: inspect the vehicle, then send #slreset! before checking"

@@ -12,8 +12,9 @@
 
 Every fault applies to both directions, each with its own random stream.
 
->>> parse_fault_url("fault://?inner=sim://&ber=1e-3&seed=7").ber
-0.001
+>>> inner, settings = parse_fault_url("fault://?inner=sim://&ber=1e-3&seed=7")
+>>> inner, settings.ber, settings.seed
+('sim://', 0.001, 7)
 >>> parse_fault_url("fault://?ber=1e-3")
 Traceback (most recent call last):
 ...
