@@ -5,7 +5,7 @@ The client finds this module through its registry of URL schemes
 The simulator's options are query parameters: ``sim://?seed=1&leak_at=5&realtime=0&config=f.toml``.
 
 >>> parse_sim_url("sim://?leak_at=5&seed=1")
-SimOptions(seed=1, leak_at_s=5.0, config=None, realtime=True)
+SimOptions(seed=1, leak_at_s=5.0, config=None, realtime=True, preset=None)
 >>> parse_sim_url("sim://?seed=x")
 Traceback (most recent call last):
 ...
