@@ -7,12 +7,15 @@ conformance check that must catch it.
 
 from __future__ import annotations
 
+import dataclasses
 import re
 import threading
 import time
 
 from rovlink.protocol import COMMANDS, get_algorithm
+from rovlink.controller import ControllerConfig
 from rovlink.sim.port import SimulatedPort, open_port
+from rovlink.sim.robot import SimConfig
 
 __all__ = ["FAULTS", "NO_FAULT", "FaultyController"]
 
@@ -31,7 +34,12 @@ class FaultyController:
         if fault not in FAULTS and fault != NO_FAULT:
             raise ValueError(f"unknown fault {fault!r}")
         self.fault = fault
-        self._inner: SimulatedPort = open_port(seed=seed, timeout=0)
+        if fault == "no-watchdog":  # a firmware without the link-loss failsafe (P17)
+            config = SimConfig(controller=dataclasses.replace(ControllerConfig(), watchdog_s=0.0))
+            self._inner = SimulatedPort(config, seed=seed, timeout=0)
+            self._inner.start()
+        else:
+            self._inner = open_port(seed=seed, timeout=0)
         self.timeout: float | None = None
         self.name = f"faulty controller ({fault})"
         self._lock = threading.Condition()
@@ -106,6 +114,8 @@ class FaultyController:
             data = self._without_resync(data)
         if fault == "stop-needs-checksum" and self._checksum:
             data = data.replace(b"#stop!", b"")
+        if fault == "direct-mode-only":
+            data = data.replace(b"#mvdirect.0!", b"#mvdirect.1!")
         if fault == "debug-stuck-on":
             data = data.replace(b"#debug0!", b"")
         if fault == "clamps-out-of-range":
@@ -194,4 +204,6 @@ FAULTS: dict[str, str] = {
     "case-insensitive": "unknown-and-malformed-dropped",
     "clamps-out-of-range": "calibration-out-of-range-not-clamped",
     "stop-needs-checksum": "motion-bare-stop-in-checksum-mode",
+    "direct-mode-only": "motion-mode-gating",
+    "no-watchdog": "motion-link-loss-failsafe",
 }

@@ -25,17 +25,38 @@ def test_each_fault_is_caught_by_its_check(fault: str) -> None:
     assert not report.passed
 
 
+_MOTION = [name for name, check in FAULTS.items() if check.startswith("motion-")]
+
+
 @pytest.mark.integration
-def test_bare_stop_ignored_in_checksum_mode_is_caught_by_the_motion_check() -> None:
-    link = PortLink(FaultyController("stop-needs-checksum"), "stop-needs-checksum")
-    checks = select_checks(["motion-"], motion=True)
+@pytest.mark.parametrize("fault", _MOTION)
+def test_each_motion_fault_is_caught_by_its_motion_check(fault: str) -> None:
+    expected = FAULTS[fault]
+    link = PortLink(FaultyController(fault), fault)
     try:
-        report = run_checks(link, "fake", SuiteOptions(motion=True), checks)
+        report = run_checks(
+            link, fault, SuiteOptions(motion=True), select_checks([expected], motion=True)
+        )
     finally:
         link.close()
-    outcomes = {result.name: result.outcome for result in report.results}
-    assert outcomes["motion-stop-halts"] is Outcome.PASSED  # plain #stop! still works
-    assert outcomes["motion-bare-stop-in-checksum-mode"] is Outcome.FAILED
+    (result,) = report.results
+    assert result.name == expected
+    assert result.outcome is Outcome.FAILED, result
+
+
+@pytest.mark.integration
+def test_a_plain_stop_still_works_on_the_controller_that_needs_a_checksummed_one() -> None:
+    link = PortLink(FaultyController("stop-needs-checksum"), "stop-needs-checksum")
+    try:
+        report = run_checks(
+            link,
+            "fake",
+            SuiteOptions(motion=True),
+            select_checks(["motion-stop-halts"], motion=True),
+        )
+    finally:
+        link.close()
+    assert [result.outcome for result in report.results] == [Outcome.PASSED]
 
 
 def test_every_fault_names_a_real_check() -> None:

@@ -66,6 +66,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         metavar="PERCENT",
         help="vertical thrust of the motion checks, %% (default: %(default)s)",
     )
+    parser.add_argument(
+        "--watchdog",
+        type=lambda text: seconds(text, minimum=0.1, maximum=60.0),
+        default=2.0,
+        metavar="SECONDS",
+        help="the controller's link-loss watchdog, for the failsafe check (default: 2)",
+    )
     parser.add_argument("--yes", action="store_true", help="do not ask before motion checks")
     parser.add_argument("--seed", type=int, default=1, help="seed of the noise sent (default: 1)")
 
@@ -100,6 +107,7 @@ def run(args: argparse.Namespace) -> int:
         reply_timeout_s=args.timeout,
         motion=args.motion,
         motion_percent=args.motion_power,
+        watchdog_s=args.watchdog,
         seed=args.seed,
     )
     try:

@@ -23,6 +23,8 @@ _MOVED_COUNTS = 3
 _POLL_S = 0.1
 #: How long the vehicle may coast on after #stop!, s.
 _COAST_S = 1.5
+#: Silence beyond the watchdog's time before the failsafe must have acted, s.
+_WATCHDOG_MARGIN_S = 0.5
 
 
 def _sample(ctx: CheckContext, checksum: bool) -> int:
@@ -125,3 +127,49 @@ def _bare_stop(ctx: CheckContext) -> None:
     ctx.tell(ctx.frame(Command("crcon")))
     ctx.wire.replies_checksummed = True
     _dive_then_stop(ctx, checksum=True)
+
+
+@check(
+    "motion-mode-gating",
+    ("P9",),
+    "in depth mode, direct-mode thrust (mvs) is dropped: the vehicle does not dive",
+    motion=True,
+)
+def _mode_gating(ctx: CheckContext) -> None:
+    frame = ctx.frame
+    full_pwm = lookup("mgmp").arguments[0].maximum
+    ctx.tell(
+        frame(Command("mgmp", (full_pwm,)))
+        + frame(Command("start"))
+        + frame(Command("mvdirect", (0,)))
+        + frame(Command("mvs", (-ctx.options.motion_percent,)))
+    )
+    start, deepest = _watch(ctx, checksum=False)
+    ctx.tell(b"#stop!")
+    if deepest - start >= _MOVED_COUNTS:
+        raise CheckFailedError(
+            f"in depth mode #mvs! was obeyed: the raw pressure went from {start} to {deepest}"
+        )
+
+
+@check(
+    "motion-link-loss-failsafe",
+    ("P17",),
+    "unlocked and diving, no valid frame for the watchdog's time stops and locks the motors",
+    motion=True,
+)
+def _watchdog(ctx: CheckContext) -> None:
+    ctx.tell(ctx.frame(Command("start")) + _down(ctx, checksum=False))
+    # Silence on the line: nothing at all, not even a query, for longer than the watchdog.
+    silent_until = time.monotonic() + ctx.options.watchdog_s + _WATCHDOG_MARGIN_S
+    while time.monotonic() < silent_until:
+        ctx.wire.drain(0.05, limit_s=0.1)
+    ctx.tell(_down(ctx, checksum=False))  # dropped if the failsafe locked the motors
+    _watch(ctx, False, _COAST_S)
+    stopped, deepest = _watch(ctx, checksum=False)
+    ctx.tell(b"#stop!")
+    if deepest - stopped >= _MOVED_COUNTS:
+        raise CheckFailedError(
+            f"after {ctx.options.watchdog_s:g} s without a frame the vehicle still dived (raw "
+            f"{stopped} to {deepest}): the link-loss failsafe did not stop and lock the motors"
+        )

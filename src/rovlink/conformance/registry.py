@@ -54,6 +54,8 @@ class SuiteOptions:
     #: Whether motion checks may run, and the thrust they use, %.
     motion: bool = False
     motion_percent: int = 30
+    #: The controller's link-loss watchdog (P17), s; the failsafe check waits a little longer.
+    watchdog_s: float = 2.0
     #: Seed of the random bytes the noise checks send.
     seed: int = 1
     #: How long to wait for a booting controller's first answer, s (P21).
