@@ -12,8 +12,8 @@ import re
 import threading
 import time
 
-from rovlink.protocol import COMMANDS, get_algorithm
 from rovlink.controller import ControllerConfig
+from rovlink.protocol import COMMANDS, get_algorithm
 from rovlink.sim.port import SimulatedPort, open_port
 from rovlink.sim.robot import SimConfig
 
