@@ -108,6 +108,7 @@ def run(args: argparse.Namespace) -> int:
         motion=args.motion,
         motion_percent=args.motion_power,
         watchdog_s=args.watchdog,
+        baudrate=endpoint.baudrate if endpoint.is_device else None,
         seed=args.seed,
     )
     try:

@@ -49,6 +49,10 @@ class SuiteOptions:
     silence_s: float = 0.12
     #: The reply time the protocol allows (P19), s.
     reply_limit_s: float = 0.005
+    #: The serial line's rate, if the link is a serial line (8N1: 10 bits a byte): the time the
+    #: query's and the reply's bytes spend on the wire is added to the allowance, as P19 counts
+    #: from the query's arrival. None for links without a line rate (TCP, in-process).
+    baudrate: int | None = None
     #: Queries timed for the reply-time check.
     timed_queries: int = 40
     #: Whether motion checks may run, and the thrust they use, %.
