@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import subprocess
 import sys
-import time
 from pathlib import Path
 from xml.etree import ElementTree
 
@@ -41,9 +40,8 @@ def test_every_command_of_the_table_has_a_check() -> None:
 
 
 @pytest.mark.integration
-def test_the_simulator_passes_every_check_with_motion_within_limits() -> None:
+def test_the_simulator_passes_every_check_with_motion() -> None:
     link = open_link(parse_url("sim://?seed=3"))
-    started = time.monotonic()
     try:
         report = run_checks(link, "sim://", SuiteOptions(motion=True))
     finally:
@@ -51,7 +49,6 @@ def test_the_simulator_passes_every_check_with_motion_within_limits() -> None:
     assert [(r.name, r.message) for r in report.failures] == []
     assert len(report.results) == len(CHECKS)
     assert report.count(Outcome.PASSED) == len(CHECKS)
-    assert time.monotonic() - started < 120
 
 
 def test_select_checks_by_prefix_and_unknown_name() -> None:
