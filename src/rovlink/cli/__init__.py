@@ -33,6 +33,10 @@ COMMANDS: dict[str, str] = {
     "mavlink": "Serve the robot as a MAVLink vehicle (QGroundControl, MAVProxy, pymavlink).",
     "mqtt": "Put the robot on an MQTT broker: telemetry, state and events out, commands in.",
     "fleet": "A live table of every robot on an MQTT broker (online, depth, leak, link).",
+    "check": "Check that a controller conforms to the protocol (pass/fail table, JUnit XML).",
+    "fault": "A proxy that injects seeded bit errors, losses and delays into a controller's link.",
+    "tune": "Depth-PID autotune: relay experiment, stated rule, gains on 0-99, verification.",
+    "calibrate": "Two-point depth calibration: sdz and sdk from the surface and a known depth.",
 }
 
 _DESCRIPTION = "Drive an underwater robot's low-level controller over its serial command protocol."

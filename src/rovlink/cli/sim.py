@@ -63,6 +63,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         metavar="SECONDS",
         help="inject a 100 ms leak pulse at this simulated time",
     )
+    parser.add_argument(
+        "--preset",
+        choices=("light", "standard", "heavy"),
+        help="a simulated vehicle of rovlink.sim.presets (heave waves on) in place of [vehicle]",
+    )
     parser.add_argument("--seed", type=int, help="seed for reproducible noise (default: random)")
     parser.add_argument(
         "--speed",
@@ -91,6 +96,10 @@ def _robot_config(args: argparse.Namespace) -> SimConfig:
         robot_config = load_sim_config(args.config) if args.config is not None else SimConfig()
     except ConfigError as error:  # the file's content, not the command line: no usage text
         raise InputError(str(error)) from None
+    if getattr(args, "preset", None) is not None:
+        from rovlink.sim.presets import preset_config  # noqa: PLC0415
+
+        robot_config = preset_config(args.preset, robot_config)
     if args.watchdog is not None:
         robot_config = dataclasses.replace(
             robot_config,

@@ -36,6 +36,7 @@ __all__ = [
 
 _HANDLERS: dict[str, str] = {
     "sim": "rovlink.sim.url",
+    "fault": "rovlink.faults.url",
 }
 
 

@@ -191,15 +191,21 @@ def open_port(
     realtime: bool = True,
     manual: bool = False,
     timeout: float | None = None,
+    preset: str | None = None,
 ) -> SimulatedPort:
     """Open a simulated controller as a serial port (see :class:`SimulatedPort`).
 
     ``leak_at_s`` injects a 100 ms leak pulse at that simulated time; ``config`` is a TOML file
-    (controller tables plus ``[vehicle]`` and ``[sensors]``). ``realtime=False`` runs the
+    (controller tables plus ``[vehicle]`` and ``[sensors]``); ``preset`` a vehicle of
+    :mod:`rovlink.sim.presets` in place of the file's. ``realtime=False`` runs the
     simulation as fast as the CPU allows; ``manual=True`` runs no thread at all: simulated time
     then moves only through :meth:`SimulatedPort.advance`.
     """
     robot_config = load_sim_config(config) if config is not None else None
+    if preset is not None:  # the preset's vehicle, the file's controller and sensors
+        from rovlink.sim.presets import preset_config  # noqa: PLC0415
+
+        robot_config = preset_config(preset, robot_config)
     port = SimulatedPort(robot_config, seed=seed, timeout=timeout)
     if leak_at_s is not None:
         port.robot.inject_leak(at_s=leak_at_s)

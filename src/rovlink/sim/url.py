@@ -5,7 +5,7 @@ The client finds this module through its registry of URL schemes
 The simulator's options are query parameters: ``sim://?seed=1&leak_at=5&realtime=0&config=f.toml``.
 
 >>> parse_sim_url("sim://?leak_at=5&seed=1")
-SimOptions(seed=1, leak_at_s=5.0, config=None, realtime=True)
+SimOptions(seed=1, leak_at_s=5.0, config=None, realtime=True, preset=None)
 >>> parse_sim_url("sim://?seed=x")
 Traceback (most recent call last):
 ...
@@ -30,6 +30,7 @@ SIM_OPTIONS: dict[str, str] = {
     "leak_at": "seconds after start when the leak sensor fires",
     "config": "path of a vehicle/controller configuration file (TOML)",
     "realtime": "1 (default) to run in real time, 0 as fast as possible",
+    "preset": "a vehicle preset: light, standard or heavy (see rovlink.sim.presets)",
 }
 
 _FLAGS = {"1": True, "true": True, "yes": True, "0": False, "false": False, "no": False}
@@ -43,6 +44,7 @@ class SimOptions:
     leak_at_s: float | None = None
     config: str | None = None
     realtime: bool = True
+    preset: str | None = None
 
 
 def parse_sim_url(url: str) -> SimOptions:
@@ -81,6 +83,13 @@ def parse_sim_url(url: str) -> SimOptions:
         if flag is None:
             raise ValueError(f"{url!r}: realtime must be 1 or 0, got {values['realtime']!r}")
         options = replace(options, realtime=flag)
+    if "preset" in values:
+        from rovlink.sim.presets import PRESETS  # noqa: PLC0415 - only for this option
+
+        if values["preset"] not in PRESETS:
+            known = ", ".join(sorted(PRESETS))
+            raise ValueError(f"{url!r}: unknown preset {values['preset']!r}; known: {known}")
+        options = replace(options, preset=values["preset"])
     if "config" in values:
         if not values["config"]:
             raise ValueError(f"{url!r}: config needs a file path")
@@ -109,4 +118,5 @@ def open_url(url: str) -> SimulatedPort:
         leak_at_s=options.leak_at_s,
         config=options.config,
         realtime=options.realtime,
+        preset=options.preset,
     )

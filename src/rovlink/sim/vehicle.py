@@ -23,6 +23,8 @@ _GRAVITY_M_S2 = 9.80665
 _KGF_N = _GRAVITY_M_S2
 _MAX_DUTY = 255.0
 _FULL_TURN_RAD = 2.0 * math.pi
+#: The periods of the three heave swells, as multiples of the wave period.
+_SWELL_PERIOD_FACTORS = (0.8, 1.0, 1.3)
 
 
 @dataclass(frozen=True, slots=True)
@@ -97,6 +99,13 @@ class VehicleParams:
     wave_decay_depth_m: float = field(
         default=2.0, metadata=_doc("depth over which wave motion falls by e, m")
     )
+    wave_heave_n: float = field(
+        default=0.0,
+        metadata=_doc(
+            "surface waves pushing the hull up and down: force amplitude at the surface, N "
+            "(0: none); fades with depth as the wave motion does, seeded"
+        ),
+    )
     roll_trim_deg: float = field(default=0.0, metadata=_doc("static roll, degrees"))
     pitch_trim_deg: float = field(default=0.0, metadata=_doc("static pitch, degrees"))
 
@@ -113,6 +122,8 @@ class VehicleParams:
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
                 raise ValueError(f"{name} must be > 0, got {value}")
+        if not (math.isfinite(self.wave_heave_n) and self.wave_heave_n >= 0):
+            raise ValueError(f"wave_heave_n must be ≥ 0, got {self.wave_heave_n}")
         if not 0 <= self.thruster_deadband < 1:
             raise ValueError(f"thruster_deadband must be in [0, 1), got {self.thruster_deadband}")
 
@@ -170,6 +181,20 @@ class Vehicle:
         self.current_east_m_s = 0.0
         self._yaw_disturbance_n_m = 0.0
         self._wave_phase_rad = rng.uniform(0.0, 2.0 * math.pi)
+        # Heave waves: three swells around the wave period with seeded phases, together as
+        # strong (rms) as one wave of the configured amplitude. Drawn only when on, so that the
+        # random streams of a vehicle without them stay as they were.
+        self._heave_waves: tuple[tuple[float, float, float], ...] = ()
+        if params.wave_heave_n > 0:
+            weight = params.wave_heave_n / math.sqrt(3.0)
+            self._heave_waves = tuple(
+                (
+                    weight,
+                    2.0 * math.pi / (params.wave_period_s * factor),
+                    rng.uniform(0.0, 2.0 * math.pi),
+                )
+                for factor in _SWELL_PERIOD_FACTORS
+            )
         vertical = [i for i, spec in enumerate(thrusters) if spec.vertical]
         horizontal = [i for i, spec in enumerate(thrusters) if not spec.vertical]
         self._pick_vertical = _picker(vertical)
@@ -279,10 +304,14 @@ class Vehicle:
         yaw_torque += (self._command_yaw_n_m - yaw_torque) * lag
         self.yaw_torque_n_m = yaw_torque
 
-        # Heave: buoyancy, thrust and drag; the surface is a limit the vehicle floats against.
+        # Heave: buoyancy, thrust, waves and drag; the surface is a limit the vehicle floats
+        # against.
         speed = self.heave_m_s
+        up_force = self.net_buoyancy_n + up_thrust
+        if self._heave_waves:
+            up_force += self.heave_wave_n()
         speed -= (
-            (self.net_buoyancy_n + up_thrust) * self._heave_dt
+            up_force * self._heave_dt
             + self._heave_quadratic * speed * abs(speed)
             + self._heave_linear * speed
         )
@@ -334,6 +363,16 @@ class Vehicle:
         self.yaw_rate_rad_s = rate
         self.heading_rad = (heading + rate * dt_s) % _FULL_TURN_RAD
         self.time_s += dt_s
+
+    def heave_wave_n(self) -> float:
+        """The waves' vertical force on the hull now, N (+ up), fading with depth."""
+        if not self._heave_waves:
+            return 0.0
+        time_s = self.time_s
+        total = sum(
+            weight * math.sin(rate * time_s + phase) for weight, rate, phase in self._heave_waves
+        )
+        return total * math.exp(-self.depth_m / self.params.wave_decay_depth_m)
 
     def roll_pitch_deg(self) -> tuple[float, float]:
         """True roll and pitch: the trim plus wave motion that fades with depth."""

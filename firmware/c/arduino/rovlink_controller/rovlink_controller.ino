@@ -1,0 +1,174 @@
+/* A starting point for an Arduino controller on the rovlink protocol.
+ *
+ * Copy rovlink_proto.h, rovlink_proto.c, rovlink_commands.h and rovlink_commands.c from
+ * firmware/c/ into this sketch's folder (the Arduino IDE compiles the .c files beside the .ino).
+ * The protocol layer does the framing, checksums, the motor lock and the vertical mode; this
+ * sketch does the board: the pins below, the ESC outputs, the sensors and the failsafes.
+ *
+ * Pins (change them to your board): two vertical and four horizontal ESCs on servo pins, the
+ * pressure sensor on A0 (10-bit), the leak probe on pin 2 (LOW = wet), the claw's H-bridge on
+ * pins 7/8. The ESCs take 1000-2000 us pulses, 1500 us stopped.
+ */
+#include <Servo.h>
+
+extern "C" {
+#include "rovlink_proto.h"
+}
+
+static const uint8_t VERTICAL_PINS[2] = {3, 5};
+static const uint8_t HORIZONTAL_PINS[4] = {6, 9, 10, 11}; /* front left, front right, rear left, rear right */
+static const uint8_t PRESSURE_PIN = A0;
+static const uint8_t LEAK_PIN = 2;
+static const uint8_t CLAW_OPEN_PIN = 7;
+static const uint8_t CLAW_CLOSE_PIN = 8;
+static const unsigned long TICK_MS = 10;
+static const unsigned long WATCHDOG_MS = 2000; /* P17 */
+static const unsigned long CLAW_PULSE_MS = 50; /* P16 */
+
+static Servo vertical[2];
+static Servo horizontal[4];
+static rl_link link;
+
+static struct {
+    int vertical_percent;      /* direct mode thrust, + up */
+    bool holding;              /* depth mode with a target */
+    int target_cm;
+    int direction_deg, power_percent;
+    int max_pwm;
+    int kp, ki, kd;
+    float integral, speed_cm_s, last_depth_cm;
+    int zero_raw, k;
+    volatile bool leak_latched;
+    uint32_t frames_seen;
+    unsigned long last_frame_ms, claw_until_ms;
+} robot = {0, false, 0, 0, 0, 255, 40, 30, 20, 0, 0, 0, 20, 200, false, 0, 0, 0};
+
+static void write_serial(void *, const char *data, size_t length) {
+    Serial.write(reinterpret_cast<const uint8_t *>(data), length);
+}
+
+static int raw_pressure() { return analogRead(PRESSURE_PIN); }
+
+static int depth_cm() {
+    long depth = (long)(raw_pressure() - robot.zero_raw) * robot.k / 100; /* P13 */
+    return depth < 0 ? 0 : depth > 9999 ? 9999 : (int)depth;
+}
+
+/* Thrust in % (+ forward / up) to an ESC pulse, scaled by the PWM cap (P8). */
+static void drive(Servo &esc, float percent) {
+    float duty = percent / 100.0f * robot.max_pwm / 255.0f;
+    esc.writeMicroseconds(1500 + (int)(duty * 500.0f));
+}
+
+static void all_stop() {
+    robot.vertical_percent = 0;
+    robot.holding = false;
+    robot.direction_deg = robot.power_percent = 0;
+    robot.integral = 0;
+    for (Servo &esc : vertical) drive(esc, 0);
+    for (Servo &esc : horizontal) drive(esc, 0);
+    digitalWrite(CLAW_OPEN_PIN, LOW);
+    digitalWrite(CLAW_CLOSE_PIN, LOW);
+}
+
+static void on_command(void *, rl_command_id command, const int32_t *values) {
+    switch (command) {
+    case RL_CMD_STOP: case RL_CMD_START: all_stop(); break;
+    case RL_CMD_MVDIRECT:
+        all_stop();
+        if (!values[0] && !link.locked) { robot.holding = true; robot.target_cm = depth_cm(); }
+        break;
+    case RL_CMD_MVS: robot.vertical_percent = values[0]; break;
+    case RL_CMD_MVD: robot.holding = true; robot.target_cm = values[0]; break;
+    case RL_CMD_TH: robot.direction_deg = values[0]; robot.power_percent = values[1]; break;
+    case RL_CMD_MGMP: robot.max_pwm = values[0]; break;
+    case RL_CMD_MVPDP: robot.kp = values[0]; break;
+    case RL_CMD_MVPDI: robot.ki = values[0]; break;
+    case RL_CMD_MVPIDD: robot.kd = values[0]; break;
+    case RL_CMD_SDZ: robot.zero_raw = values[0]; break;
+    case RL_CMD_SDK: robot.k = values[0]; break;
+    case RL_CMD_SLRESET: robot.leak_latched = false; break;
+    case RL_CMD_H_OPEN: case RL_CMD_H_CLOSE:
+        digitalWrite(CLAW_OPEN_PIN, command == RL_CMD_H_OPEN ? HIGH : LOW);
+        digitalWrite(CLAW_CLOSE_PIN, command == RL_CMD_H_CLOSE ? HIGH : LOW);
+        robot.claw_until_ms = millis() + CLAW_PULSE_MS;
+        break;
+    default: break;
+    }
+}
+
+static int32_t on_reply(void *, rl_reply_id reply) {
+    switch (reply) {
+    case RL_REPLY_QD: return depth_cm();
+    case RL_REPLY_QR: return raw_pressure();
+    case RL_REPLY_Q_L: return robot.leak_latched;
+    case RL_REPLY_QRO: return 0;   /* read your IMU here: degrees, -90..+90 */
+    case RL_REPLY_QPI: return 0;
+    case RL_REPLY_QHE: return 0;   /* 0..359 */
+    default: return 0;
+    }
+}
+
+static void leak_fired() { robot.leak_latched = true; } /* latched however short (P14) */
+
+static const rl_app app = {write_serial, on_command, on_reply};
+
+void setup() {
+    Serial.begin(115200); /* P19 */
+    for (uint8_t i = 0; i < 2; i++) vertical[i].attach(VERTICAL_PINS[i]);
+    for (uint8_t i = 0; i < 4; i++) horizontal[i].attach(HORIZONTAL_PINS[i]);
+    pinMode(LEAK_PIN, INPUT_PULLUP);
+    pinMode(CLAW_OPEN_PIN, OUTPUT);
+    pinMode(CLAW_CLOSE_PIN, OUTPUT);
+    attachInterrupt(digitalPinToInterrupt(LEAK_PIN), leak_fired, FALLING);
+    all_stop();
+    rl_init(&link, &app, nullptr, RL_CRC8);
+}
+
+void loop() {
+    static unsigned long next_tick_ms = 0;
+    uint8_t buffer[32];
+    size_t count = 0;
+    while (Serial.available() && count < sizeof buffer) buffer[count++] = (uint8_t)Serial.read();
+    if (count) rl_feed(&link, buffer, count); /* replies go out before this returns (P19) */
+
+    unsigned long now = millis();
+    if ((long)(now - next_tick_ms) < 0) return;
+    next_tick_ms = now + TICK_MS;
+    if (link.valid_frames != robot.frames_seen) {
+        robot.frames_seen = link.valid_frames;
+        robot.last_frame_ms = now;
+    } else if (!link.locked && now - robot.last_frame_ms > WATCHDOG_MS) {
+        rl_lock(&link, "no valid frame for 2 s: motors stopped and locked"); /* P17 */
+        all_stop();
+    }
+    if (robot.claw_until_ms && (long)(now - robot.claw_until_ms) >= 0) {
+        robot.claw_until_ms = 0;
+        digitalWrite(CLAW_OPEN_PIN, LOW);
+        digitalWrite(CLAW_CLOSE_PIN, LOW);
+    }
+    if (link.locked) return;
+
+    /* Vertical: direct thrust, or the depth PID (P9, P10). */
+    float up = robot.vertical_percent;
+    if (robot.holding) {
+        float depth = depth_cm();
+        float error = depth - robot.target_cm; /* too deep: positive: thrust up */
+        float dt = TICK_MS / 1000.0f;
+        robot.speed_cm_s += ((depth - robot.last_depth_cm) / dt - robot.speed_cm_s) * dt / 0.5f;
+        robot.last_depth_cm = depth;
+        robot.integral = constrain(robot.integral + robot.ki * 0.005f * error * dt, -100, 100);
+        up = constrain(robot.kp * 0.05f * error + robot.integral + robot.kd * 0.1f * robot.speed_cm_s,
+                       -100, 100);
+    }
+    for (Servo &esc : vertical) drive(esc, up);
+
+    /* Horizontal: four thrusters at 45 degrees (P11), normalised to 100 %. */
+    float angle = robot.direction_deg * PI / 180.0f;
+    float surge = cos(angle) * robot.power_percent, sway = sin(angle) * robot.power_percent;
+    float outputs[4] = {surge + sway, surge - sway, surge - sway, surge + sway};
+    float largest = 0;
+    for (float value : outputs) if (fabsf(value) > largest) largest = fabsf(value);
+    float scale = largest > robot.power_percent && largest > 0 ? robot.power_percent / largest : 1;
+    for (uint8_t i = 0; i < 4; i++) drive(horizontal[i], outputs[i] * scale);
+}

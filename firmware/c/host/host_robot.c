@@ -1,0 +1,265 @@
+/* The C reference on a host: the protocol layer over a tiny simulated robot on a pseudo-terminal.
+ *
+ *   gcc -std=c99 -Wall -Wextra -Werror -pedantic -O2 -I.. -o rovlink-host \
+ *       host_robot.c ../rovlink_proto.c ../rovlink_commands.c -lm
+ *   ./rovlink-host            prints "rovlink-c ready: pty /dev/pts/N"; then
+ *   rovlink check /dev/pts/N
+ *
+ * The robot: heave with buoyancy, thrust and drag, a 10-bit pressure sensor, wave roll and
+ * pitch, a turning compass, a leak latch, a depth PID, the link-loss watchdog of P17. Enough for
+ * every check of `rovlink check`, motion checks included; it is not the Python simulator.
+ */
+#define _XOPEN_SOURCE 600
+#define _POSIX_C_SOURCE 200809L
+
+#include <errno.h>
+#include <fcntl.h>
+#include <math.h>
+#include <poll.h>
+#include <signal.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <termios.h>
+#include <time.h>
+#include <unistd.h>
+
+#include "rovlink_proto.h"
+
+#define TICK_S 0.01
+#define WATCHDOG_S 2.0
+#define PI 3.14159265358979
+
+typedef struct {
+    rl_link link;
+    int fd;
+    double time_s;
+    /* physics */
+    double depth_m, heave_m_s, up_thrust_n;
+    /* controller state */
+    double vertical_percent;
+    int holding, target_cm;
+    int direction_deg, power_percent, max_pwm;
+    int kp, ki, kd;
+    double integral, last_depth_cm, speed_cm_s;
+    int zero_raw, k;
+    int leak_latched;
+    double leak_at_s;
+    uint32_t frames_seen;
+    double last_frame_s;
+    int claw;
+    double claw_until_s;
+} robot;
+
+static volatile sig_atomic_t stopping = 0;
+
+static void on_signal(int signum) {
+    (void)signum;
+    stopping = 1;
+}
+
+static void write_all(void *context, const char *data, size_t length) {
+    robot *r = (robot *)context;
+    while (length) {
+        ssize_t written = write(r->fd, data, length);
+        if (written < 0) {
+            if (errno == EINTR || errno == EAGAIN) continue;
+            return;
+        }
+        data += written;
+        length -= (size_t)written;
+    }
+}
+
+static int raw_reading(const robot *r) {
+    long raw = lround(20.0 + r->depth_m * 50.0);
+    return raw < 0 ? 0 : raw > 1023 ? 1023 : (int)raw;
+}
+
+static int depth_cm(const robot *r) {
+    long depth = (long)floor((double)(raw_reading(r) - r->zero_raw) * r->k / 100.0);
+    return depth < 0 ? 0 : depth > 9999 ? 9999 : (int)depth;
+}
+
+static void neutral(robot *r) {
+    r->vertical_percent = 0.0;
+    r->holding = 0;
+    r->direction_deg = r->power_percent = 0;
+    r->integral = 0.0;
+    r->claw = 0;
+}
+
+static void on_command(void *context, rl_command_id command, const int32_t *values) {
+    robot *r = (robot *)context;
+    switch (command) {
+    case RL_CMD_STOP:
+    case RL_CMD_START:
+        neutral(r);
+        break;
+    case RL_CMD_MVDIRECT:
+        neutral(r);
+        if (!values[0] && !r->link.locked) { /* depth mode while unlocked: hold here (P9) */
+            r->holding = 1;
+            r->target_cm = depth_cm(r);
+        }
+        break;
+    case RL_CMD_MVS: r->vertical_percent = values[0]; break;
+    case RL_CMD_MVD:
+        r->holding = 1;
+        r->target_cm = (int)values[0];
+        break;
+    case RL_CMD_TH:
+        r->direction_deg = (int)values[0];
+        r->power_percent = (int)values[1];
+        break;
+    case RL_CMD_MGMP: r->max_pwm = (int)values[0]; break;
+    case RL_CMD_MVPDP: r->kp = (int)values[0]; break;
+    case RL_CMD_MVPDI: r->ki = (int)values[0]; break;
+    case RL_CMD_MVPIDD: r->kd = (int)values[0]; break;
+    case RL_CMD_SDZ: r->zero_raw = (int)values[0]; break;
+    case RL_CMD_SDK: r->k = (int)values[0]; break;
+    case RL_CMD_SLRESET: r->leak_latched = 0; break;
+    case RL_CMD_H_OPEN:
+    case RL_CMD_H_CLOSE:
+        r->claw = command == RL_CMD_H_OPEN ? 1 : -1;
+        r->claw_until_s = r->time_s + 0.05;
+        break;
+    default: break;
+    }
+}
+
+static int attitude_deg(double value) {
+    long rounded = lround(value);
+    return rounded < -90 ? -90 : rounded > 90 ? 90 : (int)rounded;
+}
+
+static int32_t on_reply(void *context, rl_reply_id reply) {
+    robot *r = (robot *)context;
+    double fade = exp(-r->depth_m / 2.0);
+    double phase = 2.0 * PI * r->time_s / 5.0;
+    switch (reply) {
+    case RL_REPLY_QD: return depth_cm(r);
+    case RL_REPLY_QR: return raw_reading(r);
+    case RL_REPLY_Q_L: return r->leak_latched;
+    case RL_REPLY_QRO: return attitude_deg(2.0 * fade * sin(phase));
+    case RL_REPLY_QPI: return attitude_deg(1.0 * fade * sin(phase + 1.3));
+    case RL_REPLY_QHE: return (int32_t)((long)(r->time_s * 3.0) % 360);
+    default: return 0;
+    }
+}
+
+static void tick(robot *r) {
+    double thrust_percent = r->vertical_percent;
+    double net_n, depth;
+    r->time_s += TICK_S;
+    if (r->leak_at_s >= 0 && r->time_s >= r->leak_at_s && !r->leak_latched) {
+        r->leak_latched = 1;
+        rl_debug(&r->link, "leak detected");
+    }
+    if (r->link.valid_frames != r->frames_seen) {
+        r->frames_seen = r->link.valid_frames;
+        r->last_frame_s = r->time_s;
+    } else if (!r->link.locked && r->time_s - r->last_frame_s > WATCHDOG_S) {
+        rl_lock(&r->link, "no valid frame for 2 s: motors stopped and locked");
+        neutral(r);
+    }
+    if (r->claw && r->time_s >= r->claw_until_s) r->claw = 0;
+    depth = depth_cm(r);
+    if (r->link.locked) {
+        thrust_percent = 0.0;
+    } else if (r->holding) { /* depth PID, derivative on the measured speed (P10) */
+        double error = depth - r->target_cm;
+        r->speed_cm_s += ((depth - r->last_depth_cm) / TICK_S - r->speed_cm_s) * TICK_S / 0.5;
+        r->integral += r->ki * 0.005 * error * TICK_S;
+        if (r->integral > 100) r->integral = 100;
+        if (r->integral < -100) r->integral = -100;
+        thrust_percent = r->kp * 0.05 * error + r->integral + r->kd * 0.1 * r->speed_cm_s;
+        if (thrust_percent > 100) thrust_percent = 100;
+        if (thrust_percent < -100) thrust_percent = -100;
+    }
+    r->last_depth_cm = depth;
+    /* Two vertical thrusters of 2.5 kgf, the PWM cap, lag, buoyancy, drag; + up. */
+    r->up_thrust_n += (thrust_percent / 100.0 * r->max_pwm / 255.0 * 49.0 - r->up_thrust_n) * 0.1;
+    net_n = 2.0 + r->up_thrust_n;
+    r->heave_m_s -= (net_n + 50.0 * r->heave_m_s * fabs(r->heave_m_s)) * TICK_S / 20.0;
+    r->depth_m += r->heave_m_s * TICK_S;
+    if (r->depth_m < 0) {
+        r->depth_m = 0;
+        if (r->heave_m_s < 0) r->heave_m_s = 0;
+    }
+}
+
+static int open_pty(char *path, size_t size, int *slave) {
+    struct termios settings;
+    int master = posix_openpt(O_RDWR | O_NOCTTY);
+    if (master < 0 || grantpt(master) || unlockpt(master)) return -1;
+    strncpy(path, ptsname(master), size - 1);
+    path[size - 1] = '\0';
+    /* The terminal side raw: no echo, no line editing, no CR/LF translation. */
+    *slave = open(path, O_RDWR | O_NOCTTY);
+    if (*slave < 0 || tcgetattr(*slave, &settings)) return -1;
+    settings.c_iflag &= ~(tcflag_t)(IGNBRK | BRKINT | PARMRK | ISTRIP | INLCR | IGNCR | ICRNL | IXON);
+    settings.c_oflag &= ~(tcflag_t)OPOST;
+    settings.c_lflag &= ~(tcflag_t)(ECHO | ECHONL | ICANON | ISIG | IEXTEN);
+    settings.c_cflag &= ~(tcflag_t)(CSIZE | PARENB);
+    settings.c_cflag |= CS8;
+    if (tcsetattr(*slave, TCSANOW, &settings)) return -1;
+    return master;
+}
+
+static double now_s(void) {
+    struct timespec now;
+    clock_gettime(CLOCK_MONOTONIC, &now);
+    return (double)now.tv_sec + (double)now.tv_nsec / 1e9;
+}
+
+int main(int argc, char **argv) {
+    static const rl_app app = {write_all, on_command, on_reply};
+    static robot r;
+    char path[128];
+    int slave = -1, i;
+    double next_tick_s;
+    memset(&r, 0, sizeof r);
+    r.max_pwm = 255;
+    r.kp = 40;
+    r.ki = 30;
+    r.kd = 20;
+    r.zero_raw = 20;
+    r.k = 200;
+    r.leak_at_s = -1.0;
+    for (i = 1; i + 1 < argc; i += 2) {
+        if (strcmp(argv[i], "--leak-at") == 0) r.leak_at_s = atof(argv[i + 1]);
+    }
+    r.fd = open_pty(path, sizeof path, &slave);
+    if (r.fd < 0) {
+        perror("rovlink-c: cannot open a pseudo-terminal");
+        return 1;
+    }
+    rl_init(&r.link, &app, &r, RL_CRC8);
+    signal(SIGINT, on_signal);
+    signal(SIGTERM, on_signal);
+    printf("rovlink-c ready: pty %s (link %u bytes of RAM)\n", path, (unsigned)sizeof r.link);
+    fflush(stdout);
+    next_tick_s = now_s();
+    while (!stopping) {
+        struct pollfd watch;
+        double wait_s = next_tick_s - now_s();
+        int ready;
+        watch.fd = r.fd;
+        watch.events = POLLIN;
+        watch.revents = 0;
+        ready = poll(&watch, 1, wait_s > 0 ? (int)(wait_s * 1000.0) + 1 : 0);
+        if (ready > 0 && (watch.revents & POLLIN)) {
+            uint8_t buffer[256];
+            ssize_t count = read(r.fd, buffer, sizeof buffer);
+            if (count > 0) rl_feed(&r.link, buffer, (size_t)count);
+        }
+        while (now_s() >= next_tick_s) {
+            tick(&r);
+            next_tick_s += TICK_S;
+        }
+    }
+    close(slave);
+    close(r.fd);
+    return 0;
+}

@@ -1,0 +1,50 @@
+/* Replay a byte stream through the protocol layer and print what it did, for comparing it with
+ * the Python controller (tests/firmware/test_differential.py).
+ *
+ *   replay CHUNK < stream     one line per command dispatched ("C <id> <values...>") and per
+ *                             reply frame written ("R <frame>"); debug lines are not printed
+ *
+ * The sensor values are fixed: qd 123, qr 530, q.l 0, qro -1, qpi 3, qhe 275.
+ */
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "rovlink_proto.h"
+
+static void on_write(void *context, const char *data, size_t length) {
+    (void)context;
+    if (length && data[0] == '$') printf("R %.*s\n", (int)length, data);
+}
+
+static void on_command(void *context, rl_command_id command, const int32_t *values) {
+    rl_command_spec spec;
+    uint8_t i;
+    (void)context;
+    memcpy(&spec, &rl_command_specs[command], sizeof spec);
+    printf("C %d", (int)command);
+    for (i = 0; i < spec.argument_count; i++) printf(" %ld", (long)values[i]);
+    printf("\n");
+}
+
+static int32_t on_reply(void *context, rl_reply_id reply) {
+    static const int32_t values[RL_REPLY_COUNT] = {123, 530, 0, -1, 3, 275};
+    (void)context;
+    return values[reply];
+}
+
+int main(int argc, char **argv) {
+    static const rl_app app = {on_write, on_command, on_reply};
+    static uint8_t stream[1 << 20];
+    rl_link link;
+    size_t length = fread(stream, 1, sizeof stream, stdin), position = 0;
+    size_t chunk = argc > 1 ? (size_t)strtoul(argv[1], NULL, 10) : 1;
+    if (chunk == 0) chunk = 1;
+    rl_init(&link, &app, NULL, RL_CRC8);
+    while (position < length) {
+        size_t size = length - position < chunk ? length - position : chunk;
+        rl_feed(&link, stream + position, size);
+        position += size;
+    }
+    return 0;
+}

@@ -1,0 +1,348 @@
+/* rovlink C99 reference: the controller's protocol layer. See rovlink_proto.h. */
+#include "rovlink_proto.h"
+
+#include <string.h>
+
+#define RL_BODY_BYTES (RL_MAX_FRAME_BYTES - 2)
+#define RL_REPLY_BYTES 24
+#define RL_DEBUG_BYTES 96
+
+static const char hex_digits[] = "0123456789ABCDEF";
+
+/* Copy a table entry out of flash (AVR) or plain memory. */
+static void rom_copy(void *out, const void *rom, size_t size) {
+#if defined(__AVR__)
+    memcpy_P(out, rom, size);
+#else
+    memcpy(out, rom, size);
+#endif
+}
+
+uint8_t rl_checksum(rl_algorithm algorithm, const char *body, size_t length) {
+    uint8_t value = 0;
+    size_t i;
+    for (i = 0; i < length; i++) {
+        uint8_t byte = (uint8_t)body[i];
+        if (algorithm == RL_XOR) {
+            value ^= byte;
+        } else if (algorithm == RL_SUM8) {
+            value = (uint8_t)(value + byte);
+        } else { /* CRC-8/SMBUS: poly 0x07, init 0, no reflection (P2) */
+            int bit;
+            value ^= byte;
+            for (bit = 0; bit < 8; bit++) {
+                value = (value & 0x80u) ? (uint8_t)((value << 1) ^ 0x07u) : (uint8_t)(value << 1);
+            }
+        }
+    }
+    return value;
+}
+
+static int hex_value(char c) {
+    if (c >= '0' && c <= '9') return c - '0';
+    if (c >= 'A' && c <= 'F') return c - 'A' + 10;
+    if (c >= 'a' && c <= 'f') return c - 'a' + 10; /* receivers accept lowercase (P2) */
+    return -1;
+}
+
+static void write_bytes(rl_link *link, const char *data, size_t length) {
+    link->app->write(link->context, data, length);
+}
+
+void rl_debug(rl_link *link, const char *text) {
+    char line[RL_DEBUG_BYTES];
+    size_t length = 0;
+    static const char prefix[] = "debug: ";
+    if (!link->debug_on) return;
+    memcpy(line, prefix, sizeof prefix - 1);
+    length = sizeof prefix - 1;
+    while (*text && length < sizeof line - 2) {
+        char c = *text++;
+        /* Nothing in a debug line may look like a frame (P5). */
+        line[length++] = (c == '#' || c == '$' || c == '!' || c < 0x20 || c > 0x7e) ? '?' : c;
+    }
+    line[length++] = '\r';
+    line[length++] = '\n';
+    write_bytes(link, line, length);
+}
+
+/* "dropped <body>: why" as a debug line. */
+static void drop(rl_link *link, const char *why) {
+    char text[RL_DEBUG_BYTES - 10];
+    size_t length = 0, body, i;
+    if (!link->debug_on) return;
+    memcpy(text, "dropped <", 9);
+    length = 9;
+    body = link->length < 24 ? link->length : 24;
+    for (i = 0; i < body; i++) text[length++] = link->buffer[i];
+    if (body < link->length) {
+        memcpy(text + length, "...", 3);
+        length += 3;
+    }
+    text[length++] = '>';
+    text[length++] = ':';
+    text[length++] = ' ';
+    for (i = 0; why[i] && length < sizeof text - 1; i++) text[length++] = why[i];
+    text[length] = '\0';
+    rl_debug(link, text);
+}
+
+void rl_init(rl_link *link, const rl_app *app, void *context, rl_algorithm algorithm) {
+    memset(link, 0, sizeof *link);
+    link->app = app;
+    link->context = context;
+    link->algorithm = (uint8_t)algorithm;
+    link->locked = 1;
+}
+
+void rl_lock(rl_link *link, const char *why) {
+    link->locked = 1;
+    rl_debug(link, why);
+}
+
+size_t rl_format_reply(const rl_link *link, rl_reply_id reply, int32_t value, char *out) {
+    rl_reply_spec spec;
+    size_t length = 0, name_length, body_start = 1;
+    char digits[12];
+    int count = 0;
+    uint32_t magnitude;
+    rom_copy(&spec, &rl_reply_specs[reply], sizeof spec);
+    out[length++] = '$';
+    name_length = strlen(spec.name);
+    memcpy(out + length, spec.name, name_length);
+    length += name_length;
+    out[length++] = '.';
+    /* No leading zeros; a sign on signed values, zero as +0 (P6, P15). */
+    if (spec.argument.is_signed) out[length++] = value < 0 ? '-' : '+';
+    magnitude = value < 0 ? (uint32_t)(-(value + 1)) + 1u : (uint32_t)value;
+    do {
+        digits[count++] = (char)('0' + magnitude % 10u);
+        magnitude /= 10u;
+    } while (magnitude);
+    while (count) out[length++] = digits[--count];
+    if (link->checksum_on) {
+        uint8_t sum = rl_checksum((rl_algorithm)link->algorithm, out + body_start,
+                                  length - body_start);
+        out[length++] = hex_digits[sum >> 4];
+        out[length++] = hex_digits[sum & 0x0f];
+    }
+    out[length++] = '!';
+    return length;
+}
+
+/* The spelling the body (or its part before a '.') names: the longest match first (q.l). */
+static int find_command(const char *body, size_t length, size_t *name_length) {
+    size_t cut = length;
+    for (;;) {
+        size_t i;
+        for (i = 0; i < RL_SPELLING_COUNT; i++) {
+            rl_spelling spelling;
+            rom_copy(&spelling, &rl_spellings[i], sizeof spelling);
+            if (strlen(spelling.name) == cut && memcmp(spelling.name, body, cut) == 0) {
+                *name_length = cut;
+                return spelling.command;
+            }
+        }
+        while (cut > 0 && body[--cut] != '.') {
+        }
+        if (cut == 0) return -1;
+    }
+}
+
+/* A decimal integer (P6): leading zeros accepted, a sign only where signed. */
+static int parse_number(const char *text, size_t length, int is_signed, int32_t *value) {
+    size_t i = 0;
+    int negative = 0;
+    int32_t result = 0;
+    if (is_signed && length && (text[0] == '+' || text[0] == '-')) {
+        negative = text[0] == '-';
+        i = 1;
+    }
+    if (i == length) return 0;
+    for (; i < length; i++) {
+        if (text[i] < '0' || text[i] > '9') return 0;
+        if (result < 100000) result = result * 10 + (text[i] - '0'); /* beyond every range */
+    }
+    *value = negative ? -result : result;
+    return 1;
+}
+
+static void reply(rl_link *link, const rl_command_spec *spec) {
+    uint8_t i;
+    for (i = 0; i < spec->reply_count; i++) {
+        char out[RL_REPLY_BYTES];
+        rl_reply_id id = (rl_reply_id)spec->replies[i];
+        size_t length = rl_format_reply(link, id, link->app->reply_value(link->context, id), out);
+        write_bytes(link, out, length);
+    }
+}
+
+/* Switch the layer's own state for a setting; 0 if the command goes no further. */
+static int apply_setting(rl_link *link, const rl_command_spec *spec, const int32_t *values) {
+    uint8_t on = spec->setting_value == RL_FROM_ARGUMENT ? (uint8_t)(values[0] != 0)
+                                                         : spec->setting_value;
+    switch (spec->setting) {
+    case RL_SETTING_CHECKSUM:
+        link->checksum_on = on; /* from the next frame on, both directions (P3) */
+        rl_debug(link, on ? "checksum mode on" : "checksum mode off");
+        return 0;
+    case RL_SETTING_DEBUG:
+        if (!on) rl_debug(link, "debug output off");
+        link->debug_on = on;
+        if (on) rl_debug(link, "debug output on");
+        return 0;
+    case RL_SETTING_LOCKED:
+        link->locked = on;
+        rl_debug(link, on ? "stop: motors stopped and locked" : "motors unlocked");
+        return 1;
+    case RL_SETTING_DIRECT_MODE:
+        link->direct_mode = on;
+        rl_debug(link, on ? "vertical mode direct" : "vertical mode depth");
+        return 1;
+    default:
+        return 1;
+    }
+}
+
+static int parse_arguments(const char *text, size_t length, const rl_command_spec *spec,
+                           int32_t *values, const char **why) {
+    size_t start = 0, i;
+    uint8_t count = 0;
+    for (i = 0; i <= length; i++) {
+        if (i < length && text[i] != '.') continue;
+        if (count == spec->argument_count) {
+            *why = "too many arguments";
+            return 0;
+        }
+        if (!parse_number(text + start, i - start, spec->arguments[count].is_signed,
+                          &values[count])) {
+            *why = "not a number";
+            return 0;
+        }
+        if (values[count] < spec->arguments[count].minimum ||
+            values[count] > spec->arguments[count].maximum) {
+            *why = "out of range"; /* dropped, never clamped (P6) */
+            return 0;
+        }
+        count++;
+        start = i + 1;
+    }
+    if (count != spec->argument_count) {
+        *why = "too few arguments";
+        return 0;
+    }
+    return 1;
+}
+
+static void handle_frame(rl_link *link) {
+    const char *body = link->buffer;
+    size_t length = link->length;
+    size_t name_length = 0;
+    int found;
+    rl_command_spec spec;
+    int32_t values[RL_MAX_ARGUMENTS] = {0};
+    const char *why = "";
+
+    if (link->start != '#') {
+        drop(link, "a reply, not a command");
+        return;
+    }
+    found = find_command(body, length, &name_length);
+    if (found >= 0) rom_copy(&spec, &rl_command_specs[found], sizeof spec);
+    /* Mode frames by exact match, in either mode, before any checksum is stripped (P3). */
+    if (found >= 0 && name_length == length && (spec.flags & RL_EXACT_MATCH)) {
+        link->valid_frames++;
+        apply_setting(link, &spec, values);
+        return;
+    }
+    if (link->checksum_on && !(found >= 0 && name_length == length &&
+                               (spec.flags & RL_HONOURED_BARE))) {
+        int high, low;
+        if (length < 3) {
+            drop(link, "missing or wrong checksum");
+            return;
+        }
+        high = hex_value(body[length - 2]);
+        low = hex_value(body[length - 1]);
+        if (high < 0 || low < 0 ||
+            rl_checksum((rl_algorithm)link->algorithm, body, length - 2) !=
+                (uint8_t)(high * 16 + low)) {
+            drop(link, "missing or wrong checksum");
+            return;
+        }
+        length -= 2;
+        found = find_command(body, length, &name_length);
+        if (found >= 0) rom_copy(&spec, &rl_command_specs[found], sizeof spec);
+    }
+    if (found < 0) {
+        drop(link, "unknown command");
+        return;
+    }
+    if (spec.flags & RL_EXACT_MATCH) {
+        drop(link, "crcon and crcoff never carry a checksum");
+        return;
+    }
+    if (spec.argument_count == 0 && name_length != length) {
+        drop(link, "takes no argument");
+        return;
+    }
+    if (spec.argument_count > 0) {
+        if (name_length == length || body[name_length] != '.') {
+            drop(link, "needs arguments");
+            return;
+        }
+        if (!parse_arguments(body + name_length + 1, length - name_length - 1, &spec, values,
+                             &why)) {
+            drop(link, why);
+            return;
+        }
+    }
+    link->valid_frames++; /* any valid command keeps the link alive (P17), even one dropped */
+    if ((spec.flags & RL_MOTION) && link->locked) {
+        drop(link, "motors are locked; send start first");
+        return;
+    }
+    if (((spec.flags & RL_NEEDS_DIRECT) && !link->direct_mode) ||
+        ((spec.flags & RL_NEEDS_DEPTH) && link->direct_mode)) {
+        drop(link, "not in this vertical mode");
+        return;
+    }
+    if (spec.reply_count) {
+        reply(link, &spec);
+        return;
+    }
+    if (apply_setting(link, &spec, values)) {
+        link->app->command(link->context, (rl_command_id)found, values);
+    }
+}
+
+void rl_feed(rl_link *link, const uint8_t *data, size_t length) {
+    size_t i;
+    for (i = 0; i < length; i++) {
+        uint8_t byte = data[i];
+        if (byte == '#' || byte == '$') {
+            if (link->in_frame) drop(link, "a new frame started before its end");
+            link->in_frame = 1;
+            link->too_long = 0;
+            link->length = 0;
+            link->start = byte;
+        } else if (!link->in_frame) {
+            /* between frames: line breaks, spaces, noise (P1) */
+        } else if (byte == '!') {
+            link->in_frame = 0;
+            if (link->too_long) {
+                link->length = RL_BODY_BYTES;
+                drop(link, "longer than 64 bytes");
+            } else {
+                handle_frame(link);
+            }
+        } else if (byte < 0x21 || byte > 0x7e) {
+            link->in_frame = 0;
+            drop(link, "a byte outside 0x21-0x7E");
+        } else if (link->length < RL_BODY_BYTES) {
+            link->buffer[link->length++] = (char)byte;
+        } else {
+            link->too_long = 1;
+        }
+    }
+}

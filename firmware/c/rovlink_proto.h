@@ -1,0 +1,73 @@
+/* rovlink C99 reference: the controller's protocol layer (PROTOCOL.md P1-P7, P9, P12, P15).
+ *
+ * Bytes in (rl_feed), commands out (the app's callbacks), replies and debug lines out (the app's
+ * write callback). No malloc, no stdio, fixed buffers: one rl_link is about 80 bytes of RAM and
+ * the command table lives in flash on AVR. The names, ranges and flags of every command come
+ * from rovlink_commands.{h,c}, generated from the Python command table.
+ *
+ *   rl_link link;
+ *   rl_init(&link, &app, &robot, RL_CRC8);
+ *   for (;;) { n = uart_read(buf); rl_feed(&link, buf, n); robot_tick(&robot); }
+ *
+ * The layer keeps the states the protocol itself gates on: the checksum mode (P3, switched per
+ * frame in both directions), debug output (P5), the motor lock (P7) and the vertical mode (P9).
+ * Everything else (outputs, the PID, the watchdog of P17, the leak action) is the app's.
+ */
+#ifndef ROVLINK_PROTO_H
+#define ROVLINK_PROTO_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "rovlink_commands.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef enum { RL_CRC8, RL_XOR, RL_SUM8 } rl_algorithm;
+
+typedef struct {
+    /* Write bytes to the serial line (replies, debug lines). */
+    void (*write)(void *context, const char *data, size_t length);
+    /* A command that passed every check and is not a query. stop, start, mvdirect, h+ and h-
+     * come here too, after the layer has switched its own state. values[] holds the arguments. */
+    void (*command)(void *context, rl_command_id command, const int32_t *values);
+    /* The current value of one reply (a sensor), within the reply's range. */
+    int32_t (*reply_value)(void *context, rl_reply_id reply);
+} rl_app;
+
+typedef struct {
+    const rl_app *app;
+    void *context;
+    uint8_t algorithm;
+    uint8_t checksum_on;   /* P3: off after reset */
+    uint8_t debug_on;      /* P5: off after reset */
+    uint8_t locked;        /* P7: locked after reset */
+    uint8_t direct_mode;   /* P9: depth mode after reset */
+    uint8_t in_frame;      /* inside a frame: start seen, end not yet */
+    uint8_t too_long;      /* the frame outgrew the buffer: it is dropped at its end */
+    uint8_t start;         /* '#' or '$' */
+    uint8_t length;        /* bytes of body (and checksum) in buffer */
+    char buffer[RL_MAX_FRAME_BYTES - 2];
+    uint32_t valid_frames; /* count of valid commands: the app's link-loss watchdog reads it */
+} rl_link;
+
+/* The state after reset: locked, depth mode, checksum and debug off. */
+void rl_init(rl_link *link, const rl_app *app, void *context, rl_algorithm algorithm);
+/* Handle received bytes, any chunking. Replies are written before this returns (P19). */
+void rl_feed(rl_link *link, const uint8_t *data, size_t length);
+/* Lock the motors as #stop! does (for the app's failsafes); the app zeroes its outputs. */
+void rl_lock(rl_link *link, const char *why);
+/* Write a debug line if debug is on; '#', '$' and '!' become '?' (P5). */
+void rl_debug(rl_link *link, const char *text);
+/* The checksum of body[0..length) as the algorithm defines it. */
+uint8_t rl_checksum(rl_algorithm algorithm, const char *body, size_t length);
+/* Format the reply frame for one value into out (at least 24 bytes); returns its length. */
+size_t rl_format_reply(const rl_link *link, rl_reply_id reply, int32_t value, char *out);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* ROVLINK_PROTO_H */

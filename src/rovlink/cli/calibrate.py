@@ -1,0 +1,136 @@
+"""Calibrate the depth sensor from two points: the raw pressure at the surface and at a known
+depth give the depth zero (sdz) and coefficient (sdk). Each reading is the mean of several
+#qr! queries. The values are shown before they are sent; --dry-run sends nothing. The two
+readings must be far enough apart and the result within the command table's ranges."""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import sys
+from typing import TYPE_CHECKING
+
+from rovlink.cli import link_options
+from rovlink.cli.failure import CommandError, UsageError
+from rovlink.cli.link_options import bounded_float, bounded_int
+
+if TYPE_CHECKING:
+    from rovlink.client import Client
+    from rovlink.tuning.calibration import Calibration
+
+__all__ = ["EPILOG"]
+
+EPILOG = """\
+examples:
+  rovlink calibrate /dev/ttyUSB0 --depth 200            asks you to place the vehicle twice
+  rovlink calibrate sim:// --surface-raw 20 --depth-raw 120 --depth 200 --dry-run"""
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """``calibrate``'s options."""
+    link_options.add_link_options(parser, url_required=True)
+    group = parser.add_argument_group("calibration")
+    group.add_argument(
+        "--depth",
+        type=lambda text: bounded_int(text, 1, 9999),
+        required=True,
+        metavar="CM",
+        help="the known depth of the second point, cm (to the pressure sensor)",
+    )
+    group.add_argument(
+        "--surface-raw",
+        type=lambda text: bounded_float(text, 0, 1024),
+        metavar="RAW",
+        help="the surface reading, if already known (else it is measured)",
+    )
+    group.add_argument(
+        "--depth-raw",
+        type=lambda text: bounded_float(text, 0, 1024),
+        metavar="RAW",
+        help="the reading at the known depth, if already known (else it is measured)",
+    )
+    group.add_argument(
+        "--samples",
+        type=lambda text: bounded_int(text, 1, 1000),
+        default=20,
+        help="#qr! readings averaged per point (default 20)",
+    )
+    group.add_argument(
+        "--min-counts",
+        type=lambda text: bounded_float(text, 1, 1024),
+        default=10,
+        help="the least difference of the two readings, counts (default 10)",
+    )
+    group.add_argument("--dry-run", action="store_true", help="show the values, send nothing")
+    group.add_argument("--yes", action="store_true", help="send without asking")
+
+
+def run(args: argparse.Namespace) -> int:
+    """Measure (or take) both points, compute, show, and send unless --dry-run."""
+    from rovlink.tuning.calibration import CalibrationError, two_point  # noqa: PLC0415
+
+    measuring = args.surface_raw is None or args.depth_raw is None
+    if measuring and not sys.stdin.isatty():
+        raise UsageError(
+            "measuring needs a terminal to ask on; give --surface-raw and --depth-raw instead"
+        )
+    if not measuring and args.dry_run:  # nothing to read and nothing to send
+        try:
+            result = two_point(args.surface_raw, args.depth_raw, args.depth, args.min_counts)
+        except CalibrationError as error:
+            raise CommandError(str(error)) from None
+        _show(result, args.depth_raw)
+        print("dry run: nothing sent")
+        return 0
+    client = link_options.connect(args)
+    try:
+        surface = args.surface_raw
+        if surface is None:
+            _ask("Hold the vehicle with its pressure sensor at the surface, then press Enter")
+            surface = _mean_raw(client, args.samples)
+            print(f"surface: raw {surface:.2f}")
+        at_depth = args.depth_raw
+        if at_depth is None:
+            _ask(f"Lower the pressure sensor to {args.depth} cm, then press Enter")
+            at_depth = _mean_raw(client, args.samples)
+            print(f"at {args.depth} cm: raw {at_depth:.2f}")
+        try:
+            result = two_point(surface, at_depth, args.depth, args.min_counts)
+        except CalibrationError as error:
+            raise CommandError(str(error)) from None
+        _show(result, at_depth)
+        if args.dry_run:
+            print("dry run: nothing sent")
+            return 0
+        if not args.yes and sys.stdin.isatty() and not _confirm():
+            print("not sent")
+            return 1
+        client.set_depth_zero(result.zero_raw)
+        client.set_depth_scale(result.k)
+        print(f"sent #sdz.{result.zero_raw}! #sdk.{result.k}!; depth now {client.depth_cm()} cm")
+    finally:
+        client.close()
+    return 0
+
+
+def _show(result: Calibration, at_depth: float) -> None:
+    print(
+        f"sdz {result.zero_raw}, sdk {result.k} ({result.cm_per_count:.2f} cm per count; "
+        f"raw {at_depth:.1f} reads as {result.depth_for(at_depth)} cm)"
+    )
+
+
+def _ask(prompt: str) -> None:
+    input(f"{prompt}: ")
+
+
+def _confirm() -> bool:
+    return input("Send these values? [y/N] ").strip().lower() in ("y", "yes")
+
+
+def _mean_raw(client: Client, samples: int) -> float:
+    readings = [client.pressure_raw() for _ in range(samples)]
+    spread = max(readings) - min(readings)
+    if spread > 5:  # the vehicle was moving, or the sensor is noisy: worth knowing
+        print(f"  note: the readings spread over {spread} counts", file=sys.stderr)
+    return statistics.fmean(readings)

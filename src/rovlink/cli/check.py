@@ -1,0 +1,188 @@
+"""Check that a controller conforms to the protocol: every command and every decision a host can
+observe, each a named check. Prints a pass/fail table with the bytes that show each failure, and
+exits with status 1 if any check failed.
+
+The run writes settings it cannot read back (max PWM, PID gains, sdz, sdk, all at their lowest
+or test values): reset the controller afterwards. Motion checks drive the vertical thrusters at
+low power and run only with --motion (after a prompt, unless --yes); a leak or a lost link sends
+#stop! and aborts."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from typing import TYPE_CHECKING
+
+from rovlink.cli.failure import CommandError, UsageError
+from rovlink.cli.link_options import algorithm_name, bounded_int, seconds
+
+if TYPE_CHECKING:
+    from rovlink.conformance import Check, CheckResult, Report
+
+__all__ = ["EPILOG"]
+
+EPILOG = """\
+examples:
+  rovlink check sim://                          the simulator: everything passes
+  rovlink check /dev/ttyUSB0 --junit check.xml  for a firmware CI
+  rovlink check /dev/ttyACM0 --motion --yes     the motion checks too, no prompt
+  rovlink check --list                          every check and the rules it covers"""
+
+_MAX_MOTION_PERCENT = 50
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """``check``'s options."""
+    parser.add_argument("url", nargs="?", help="the controller's port or URL")
+    parser.add_argument("--list", action="store_true", help="list the checks and exit")
+    parser.add_argument(
+        "--only",
+        action="append",
+        metavar="NAME",
+        default=[],
+        help="run only checks whose name starts with NAME (repeatable)",
+    )
+    parser.add_argument("--junit", metavar="FILE", help="also write the results as JUnit XML")
+    parser.add_argument(
+        "--algorithm",
+        type=algorithm_name,
+        default="crc8",
+        help="the controller's checksum algorithm (default: %(default)s)",
+    )
+    parser.add_argument(
+        "--timeout",
+        type=lambda text: seconds(text, minimum=0.01, maximum=10.0),
+        default=0.25,
+        metavar="SECONDS",
+        help="how long to wait for a reply before calling it missing (default: %(default)s)",
+    )
+    parser.add_argument(
+        "--motion", action="store_true", help="also run the motion checks (the thrusters turn)"
+    )
+    parser.add_argument(
+        "--motion-power",
+        type=lambda text: bounded_int(text, 5, _MAX_MOTION_PERCENT),
+        default=30,
+        metavar="PERCENT",
+        help="vertical thrust of the motion checks, %% (default: %(default)s)",
+    )
+    parser.add_argument(
+        "--watchdog",
+        type=lambda text: seconds(text, minimum=0.1, maximum=60.0),
+        default=2.0,
+        metavar="SECONDS",
+        help="the controller's link-loss watchdog, for the failsafe check (default: 2)",
+    )
+    parser.add_argument("--yes", action="store_true", help="do not ask before motion checks")
+    parser.add_argument("--seed", type=int, default=1, help="seed of the noise sent (default: 1)")
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the suite and print the table; 1 if any check failed."""
+    from rovlink.client.errors import ConnectError  # noqa: PLC0415
+    from rovlink.client.links import open_link  # noqa: PLC0415
+    from rovlink.client.url import parse_url  # noqa: PLC0415
+    from rovlink.conformance import (  # noqa: PLC0415
+        PreflightError,
+        SuiteOptions,
+        run_checks,
+        select_checks,
+        write_junit,
+    )
+
+    if args.list:
+        _print_list(select_checks(motion=True))
+        return 0
+    if args.url is None:
+        raise UsageError("the controller's URL is required (or --list)")
+    try:
+        checks = select_checks(args.only, motion=args.motion)
+        endpoint = parse_url(args.url)
+    except ValueError as error:
+        raise UsageError(str(error)) from None
+    if args.motion and not args.yes and not _confirm_motion(args.motion_power):
+        raise CommandError("motion checks not confirmed; nothing was sent")
+    options = SuiteOptions(
+        algorithm=args.algorithm,
+        reply_timeout_s=args.timeout,
+        motion=args.motion,
+        motion_percent=args.motion_power,
+        watchdog_s=args.watchdog,
+        baudrate=endpoint.baudrate if endpoint.is_device else None,
+        seed=args.seed,
+    )
+    try:
+        link = open_link(endpoint)
+    except ConnectError as error:
+        raise CommandError(str(error)) from None
+    try:
+        report = run_checks(link, args.url, options, checks, on_result=_progress)
+    except PreflightError as error:
+        raise CommandError(f"{args.url}: {error}") from None
+    finally:
+        link.close()
+    _print_report(report)
+    if args.junit:
+        try:
+            write_junit(report, args.junit)
+        except OSError as error:
+            raise CommandError(f"cannot write {args.junit}: {error.strerror}") from None
+    return 0 if report.passed else 1
+
+
+def _confirm_motion(percent: int) -> bool:
+    if not sys.stdin.isatty():
+        raise UsageError("--motion needs --yes when there is no terminal to ask on")
+    print(
+        f"The motion checks unlock the motors and drive the vertical thrusters at {percent} % "
+        "down for a few seconds. The vehicle must be in water and free to move.",
+        file=sys.stderr,
+    )
+    answer = input("Type yes to go on: ")
+    return answer.strip().lower() == "yes"
+
+
+def _progress(result: CheckResult) -> None:
+    print(f"  {result.outcome.value:5} {result.name}", file=sys.stderr, flush=True)
+
+
+def _print_list(checks: list[Check]) -> None:
+    from rich.console import Console  # noqa: PLC0415
+    from rich.table import Table  # noqa: PLC0415
+
+    table = Table("check", "rules", "what it shows", box=None)
+    for item in checks:
+        label = item.name + (" (--motion)" if item.motion else "")
+        table.add_row(label, " ".join(item.rules), item.description)
+    Console().print(table)
+
+
+def _print_report(report: Report) -> None:
+    from rich.console import Console  # noqa: PLC0415
+    from rich.markup import escape  # noqa: PLC0415
+    from rich.table import Table  # noqa: PLC0415
+
+    from rovlink.conformance.junit import evidence_text  # noqa: PLC0415
+
+    console = Console()
+    table = Table("result", "check", "rules", "ms", box=None)
+    colours = {"pass": "green", "fail": "red", "abort": "red", "skip": "yellow"}
+    for result in report.results:
+        value = result.outcome.value
+        table.add_row(
+            f"[{colours[value]}]{value}[/]",
+            result.name,
+            " ".join(result.rules),
+            f"{result.duration_s * 1000:.0f}",
+        )
+    console.print(table)
+    for result in report.failures:
+        console.print(
+            f"\n[red]{result.outcome.value}[/] [bold]{result.name}[/]: {escape(result.message)}"
+        )
+        console.print(escape(evidence_text(result.evidence, 4)), highlight=False)
+    passed = len(report.results) - len(report.failures)
+    console.print(
+        f"\n{report.target}: {passed} of {len(report.results)} checks passed "
+        f"in {report.duration_s:.1f} s"
+    )

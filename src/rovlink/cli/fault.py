@@ -1,0 +1,115 @@
+"""Put a fault-injecting proxy in front of a controller: programs in any language connect to the
+TCP port and see the controller through seeded bit errors, losses, duplicates and delays. The
+same faults are available to rovlink's own tools as a fault:// URL. When a client disconnects,
+and when the proxy stops, the controller gets #stop!."""
+
+from __future__ import annotations
+
+import argparse
+import signal
+import sys
+import threading
+from collections.abc import Callable
+from types import FrameType
+
+from rovlink.cli.failure import CommandError, UsageError
+from rovlink.cli.link_options import bounded_float
+
+__all__ = ["EPILOG"]
+
+EPILOG = """\
+examples:
+  rovlink fault --listen socket://127.0.0.1:5761 --to /dev/ttyUSB0 --ber 1e-3 --seed 1
+  rovlink fault --listen socket://127.0.0.1:5761 --to sim:// --drop 0.01 --delay-ms 5
+  rovlink check 'fault://?inner=sim://&ber=1e-4&seed=3'     the same faults as a URL"""
+
+
+def _probability(maximum: float) -> Callable[[str], float]:
+    return lambda text: bounded_float(text, 0.0, maximum)
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """``fault``'s options."""
+    parser.add_argument(
+        "--listen", required=True, metavar="socket://HOST:PORT", help="where programs connect"
+    )
+    parser.add_argument("--to", required=True, metavar="URL", help="the controller's port or URL")
+    parser.add_argument("--ber", type=_probability(0.5), default=0.0, help="bit error rate")
+    parser.add_argument("--drop", type=_probability(1.0), default=0.0, help="byte loss rate")
+    parser.add_argument("--dup", type=_probability(1.0), default=0.0, help="byte duplicate rate")
+    parser.add_argument(
+        "--delay-ms",
+        type=lambda text: bounded_float(text, 0.0, 10_000.0, " ms"),
+        default=0.0,
+        help="delay of every chunk, ms",
+    )
+    parser.add_argument(
+        "--jitter-ms",
+        type=lambda text: bounded_float(text, 0.0, 10_000.0, " ms"),
+        default=0.0,
+        help="random extra or less delay, up to this, ms (at most --delay-ms)",
+    )
+    parser.add_argument("--seed", type=int, default=0, help="seed of the faults (default: 0)")
+
+
+def run(args: argparse.Namespace) -> int:
+    """Serve until Ctrl-C or SIGTERM; print what the faults did."""
+    from rovlink.client.errors import ConnectError  # noqa: PLC0415
+    from rovlink.client.links import open_link  # noqa: PLC0415
+    from rovlink.client.url import Scheme, parse_url  # noqa: PLC0415
+    from rovlink.faults import FaultPort, FaultSettings  # noqa: PLC0415
+    from rovlink.faults.proxy import FaultProxy  # noqa: PLC0415
+
+    try:
+        listen = parse_url(args.listen)
+        target = parse_url(args.to)
+        settings = FaultSettings(
+            ber=args.ber,
+            drop=args.drop,
+            dup=args.dup,
+            delay_ms=args.delay_ms,
+            jitter_ms=args.jitter_ms,
+            seed=args.seed,
+        )
+    except ValueError as error:
+        raise UsageError(str(error)) from None
+    if listen.scheme is not Scheme.TCP:
+        raise UsageError(f"--listen: expected socket://HOST:PORT, got {args.listen!r}")
+    try:
+        link = open_link(target)
+    except ConnectError as error:
+        raise CommandError(str(error)) from None
+    port = FaultPort(link, settings, name=f"fault proxy to {link.description}")
+    try:
+        try:
+            proxy = FaultProxy(port, listen.host, listen.port)
+        except OSError as error:
+            raise CommandError(f"cannot listen on {args.listen}: {error.strerror}") from None
+        stop = _stop_on_signals()
+        host, tcp_port = proxy.address
+        print(
+            f"rovlink fault ready: socket://{host}:{tcp_port} -> {link.description} "
+            f"(ber {settings.ber:g}, drop {settings.drop:g}, dup {settings.dup:g}, "
+            f"delay {settings.delay_ms:g}±{settings.jitter_ms:g} ms, seed {settings.seed}); "
+            "Ctrl-C stops",
+            flush=True,
+        )
+        proxy.serve(stop.is_set)
+    finally:
+        port.close()
+    for direction, counters in port.counters.items():
+        print(f"{direction.replace('_', ' ')}: {counters.summary()}", file=sys.stderr)
+    if proxy.lost is not None:
+        raise CommandError(f"the controller's link was lost: {proxy.lost}")
+    return 0
+
+
+def _stop_on_signals() -> threading.Event:
+    stop = threading.Event()
+
+    def handle(signum: int, frame: FrameType | None) -> None:
+        stop.set()
+
+    signal.signal(signal.SIGINT, handle)
+    signal.signal(signal.SIGTERM, handle)
+    return stop

@@ -1,0 +1,254 @@
+"""Tune the depth PID: a relay experiment in direct mode around a target depth (inside safe
+limits) measures the ultimate gain and period; a stated rule turns them into gains on the
+protocol's 0-99 scale; a depth step with those gains verifies them (overshoot, settling time,
+RMS). --apply leaves the gains set; without it the gains given by --restore are sent back.
+A leak, a depth past the limits or a lost link sends #stop! and aborts."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from typing import TYPE_CHECKING
+
+from rovlink.cli import link_options
+from rovlink.cli.failure import CommandError, UsageError
+from rovlink.cli.link_options import bounded_int
+
+if TYPE_CHECKING:
+    from rovlink.tuning import ProtocolGains, TuneResult
+
+__all__ = ["EPILOG", "parse_triple"]
+
+EPILOG = """\
+examples:
+  rovlink tune sim://?preset=heavy --yes --plot tune.png
+  rovlink tune /dev/ttyUSB0 --depth 150 --min-depth 50 --max-depth 300 --apply
+  rovlink tune socket://robot:5760 --rule zn-no-overshoot --relay-power 20"""
+
+#: The targets of the verification (docs/builders.md).
+TARGET_OVERSHOOT_CM = 5.0
+TARGET_SETTLE_S = 10.0
+TARGET_RMS_CM = 2.0
+
+
+def parse_triple(text: str) -> tuple[float, float, float]:
+    """``A,B,C`` as three numbers, for argparse's ``type=``.
+
+    >>> parse_triple("40,30,20")
+    (40.0, 30.0, 20.0)
+    """
+    parts = text.split(",")
+    try:
+        values = tuple(float(part) for part in parts)
+    except ValueError:
+        values = ()
+    if len(values) != 3 or any(value < 0 for value in values):
+        raise argparse.ArgumentTypeError(f"expected three numbers ≥ 0 as A,B,C, got {text!r}")
+    return values[0], values[1], values[2]
+
+
+def _depth(text: str) -> int:
+    return bounded_int(text, 0, 9999)
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """``tune``'s options."""
+    link_options.add_link_options(parser, url_required=True)
+    group = parser.add_argument_group("experiment")
+    group.add_argument("--depth", type=_depth, default=100, help="target depth, cm (default 100)")
+    group.add_argument("--min-depth", type=_depth, default=20, help="shallowest allowed, cm")
+    group.add_argument("--max-depth", type=_depth, default=300, help="deepest allowed, cm")
+    group.add_argument(
+        "--relay-power",
+        type=lambda text: bounded_int(text, 5, 60),
+        default=30,
+        metavar="PERCENT",
+        help="relay amplitude, %% vertical thrust (default 30)",
+    )
+    group.add_argument(
+        "--hysteresis",
+        type=lambda text: bounded_int(text, 1, 50),
+        default=3,
+        metavar="CM",
+        help="relay hysteresis, cm: above the sensor's noise (default 3)",
+    )
+    group.add_argument("--rule", default="heave-poles", help="tuning rule (see --list-rules)")
+    group.add_argument("--list-rules", action="store_true", help="list the rules and exit")
+    group.add_argument(
+        "--scales",
+        type=parse_triple,
+        metavar="KP,KI,KD",
+        help="the controller's gain scales ([depth_pid] kp_scale,ki_scale,kd_scale); "
+        "default: the reference controller's",
+    )
+    group.add_argument(
+        "--restore",
+        type=parse_triple,
+        metavar="KP,KI,KD",
+        help="gains to send back after the verification without --apply "
+        "(default: the reference controller's reset gains)",
+    )
+    group.add_argument(
+        "--step-from", type=_depth, help="depth the verification steps from (default: 1 m up)"
+    )
+    group.add_argument("--no-verify", action="store_true", help="skip the verification step")
+    group.add_argument("--apply", action="store_true", help="leave the tuned gains set")
+    group.add_argument("--plot", metavar="FILE", help="plot the relay and the step (matplotlib)")
+    group.add_argument("--yes", action="store_true", help="do not ask before the motors run")
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the autotune; 1 if the verification misses a target."""
+    from rovlink.controller.config import DepthPidConfig  # noqa: PLC0415
+    from rovlink.tuning import (  # noqa: PLC0415
+        RULES,
+        DepthLimits,
+        GainScales,
+        Plant,
+        ProtocolGains,
+        RelaySettings,
+        StepSettings,
+        TuneAbortedError,
+        autotune,
+    )
+
+    if args.list_rules:
+        for name, rule in RULES.items():
+            print(f"{name:18} {rule.description}")
+        return 0
+    if args.rule not in RULES:
+        raise UsageError(f"--rule: unknown rule {args.rule!r}; known: {', '.join(RULES)}")
+    rule = RULES[args.rule]
+    try:
+        limits = DepthLimits(args.min_depth, args.max_depth)
+    except ValueError as error:
+        raise UsageError(str(error)) from None
+    if not args.min_depth < args.depth < args.max_depth:
+        raise UsageError(f"--depth {args.depth} must lie between the limits")
+    defaults = DepthPidConfig()
+    scales = GainScales(*(args.scales or (defaults.kp_scale, defaults.ki_scale, defaults.kd_scale)))
+    kp, ki, kd = args.restore or (defaults.kp, defaults.ki, defaults.kd)
+    restore = ProtocolGains(int(kp), int(ki), int(kd))
+    step_from = args.step_from if args.step_from is not None else max(args.depth - 100, 0)
+    step = None if args.no_verify else StepSettings(from_cm=step_from, to_cm=args.depth)
+    if not args.yes and not _confirm(args):
+        raise CommandError("not confirmed; nothing was sent")
+    client = link_options.connect(args)
+    try:
+        plant = Plant(client, limits)
+        relay = RelaySettings(
+            target_cm=args.depth,
+            amplitude_percent=args.relay_power,
+            hysteresis_cm=args.hysteresis,
+        )
+        try:
+            result = autotune(plant, relay, rule, scales, step)
+        except TuneAbortedError as error:
+            raise CommandError(f"aborted: {error}") from None
+        gains = result.gains
+        final = gains if args.apply else restore
+        client.set_depth_pid(final.kp, final.ki, final.kd)
+    finally:
+        client.close()
+    _print(result, args.apply, final)
+    if args.plot:
+        _plot(result, args.plot)
+    met = result.step is None or _meets_targets(result)
+    return 0 if met else 1
+
+
+def _confirm(args: argparse.Namespace) -> bool:
+    if not sys.stdin.isatty():
+        raise UsageError("tune runs the motors: --yes is needed when there is no terminal")
+    print(
+        f"The autotune unlocks the motors and drives the vertical thrusters at up to "
+        f"{args.relay_power} % around {args.depth} cm (limits {args.min_depth}–{args.max_depth} "
+        "cm). The vehicle must be in water and free to move.",
+        file=sys.stderr,
+    )
+    return input("Type yes to go on: ").strip().lower() == "yes"
+
+
+def _meets_targets(result: TuneResult) -> bool:
+    assert result.step is not None
+    metrics = result.step.measured
+    return (
+        metrics.overshoot_cm <= TARGET_OVERSHOOT_CM
+        and metrics.settling_s <= TARGET_SETTLE_S
+        and metrics.rms_cm <= TARGET_RMS_CM
+    )
+
+
+def _print(result: TuneResult, applied: bool, final: ProtocolGains) -> None:
+    relay = result.relay
+    physical = result.physical
+    gains = result.gains
+    print(
+        f"relay:  ultimate gain Ku {relay.ultimate_gain:.3f} %/cm, ultimate period Tu "
+        f"{relay.ultimate_period_s:.2f} s (amplitude {relay.amplitude_cm:.1f} cm, "
+        f"trim {relay.bias_percent:+.1f} %)"
+    )
+    print(f"rule:   {result.rule.name}: {result.rule.description}")
+    print(
+        f"gains:  Kp {physical.kp:.3f} %/cm, Ki {physical.ki:.4f} %/(cm·s), "
+        f"Kd {physical.kd:.3f} %/(cm/s) -> mvpdp {gains.kp}, mvpdi {gains.ki}, "
+        f"mvpidd {gains.kd}"
+        + (f" ({', '.join(gains.saturated)} held at the range's end)" if gains.saturated else "")
+    )
+    if result.step is not None:
+        metrics = result.step.measured
+        settings = result.step.settings
+        print(
+            f"verify: step {settings.from_cm} -> {settings.to_cm} cm (measured depth): "
+            f"overshoot {metrics.overshoot_cm:.1f} cm (target ≤ {TARGET_OVERSHOOT_CM:g}), "
+            f"within ±{settings.band_cm:g} cm after {metrics.settling_s:.1f} s "
+            f"(target ≤ {TARGET_SETTLE_S:g}), RMS {metrics.rms_cm:.2f} cm over the minute after "
+            f"(target ≤ {TARGET_RMS_CM:g})"
+        )
+    sent = f"mvpdp {final.kp}, mvpdi {final.ki}, mvpidd {final.kd}"
+    state = "applied" if applied else f"not applied; sent back {sent}"
+    print(f"gains {state}; motors locked")
+
+
+def _plot(result: TuneResult, path: str) -> None:
+    try:
+        import matplotlib  # noqa: PLC0415
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt  # noqa: PLC0415
+    except ImportError:
+        raise CommandError("--plot needs matplotlib: pip install 'rovlink[plot]'") from None
+    rows = 2 if result.step is not None else 1
+    figure, axes = plt.subplots(rows, 1, figsize=(8, 3.2 * rows), squeeze=False)
+    relay = result.relay
+    top = axes[0][0]
+    top.plot(relay.times_s, relay.depths_cm, label="depth (qd), cm")
+    thrust = top.twinx()
+    thrust.plot(relay.times_s, relay.outputs_percent, color="tab:orange", alpha=0.7)
+    thrust.set_ylabel("relay thrust, % (+ up)", color="tab:orange")
+    top.set_title(f"relay: Ku {relay.ultimate_gain:.2f} %/cm, Tu {relay.ultimate_period_s:.2f} s")
+    top.set_xlabel("s")
+    top.set_ylabel("depth (qd), cm")
+    top.invert_yaxis()
+    if result.step is not None:
+        step = result.step
+        bottom = axes[1][0]
+        bottom.plot(step.times_s, step.depths_cm, label="depth (qd), cm")
+        if step.true_depths_cm:
+            bottom.plot(step.times_s, step.true_depths_cm, label="true depth, cm")
+        target = step.settings.to_cm
+        band = step.settings.band_cm
+        bottom.axhspan(target - band, target + band, alpha=0.2, label=f"±{band:g} cm")
+        bottom.set_title(
+            f"verification: gains {result.gains.kp} {result.gains.ki} {result.gains.kd}"
+        )
+        bottom.set_xlabel("s after the step")
+        bottom.invert_yaxis()
+        bottom.legend(loc="best")
+    figure.tight_layout()
+    try:
+        figure.savefig(path)
+    except OSError as error:
+        raise CommandError(f"cannot write {path}: {error.strerror}") from None
+    finally:
+        plt.close(figure)

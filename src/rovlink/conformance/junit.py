@@ -1,0 +1,58 @@
+"""JUnit XML for a firmware CI: one test case per check, failures with their evidence bytes."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from xml.etree import ElementTree
+
+from rovlink.conformance.results import Outcome, Report
+from rovlink.conformance.wire import Exchange
+
+__all__ = ["evidence_text", "junit_xml", "write_junit"]
+
+
+def evidence_text(evidence: tuple[Exchange, ...], limit: int = 8) -> str:
+    """The exchanges as lines ``sent: b'…'`` / ``received: b'…'`` (the last ``limit``)."""
+    lines = []
+    for exchange in evidence[-limit:]:
+        lines.append(f"sent:     {exchange.sent!r}")
+        lines.append(f"received: {exchange.received!r}")
+    return "\n".join(lines)
+
+
+def junit_xml(report: Report, suite_name: str = "rovlink check") -> bytes:
+    """The report as a JUnit XML document."""
+    suite = ElementTree.Element(
+        "testsuite",
+        name=suite_name,
+        tests=str(len(report.results)),
+        failures=str(report.count(Outcome.FAILED)),
+        errors=str(report.count(Outcome.ABORTED)),
+        skipped=str(report.count(Outcome.SKIPPED)),
+        time=f"{report.duration_s:.3f}",
+    )
+    ElementTree.SubElement(
+        ElementTree.SubElement(suite, "properties"), "property", name="target", value=report.target
+    )
+    for result in report.results:
+        case = ElementTree.SubElement(
+            suite,
+            "testcase",
+            classname="rovlink.check." + "_".join(result.rules),
+            name=result.name,
+            time=f"{result.duration_s:.3f}",
+        )
+        if result.outcome is Outcome.SKIPPED:
+            ElementTree.SubElement(case, "skipped", message=result.message)
+        elif result.failed:
+            tag = "failure" if result.outcome is Outcome.FAILED else "error"
+            element = ElementTree.SubElement(case, tag, message=result.message)
+            element.text = evidence_text(result.evidence)
+    ElementTree.indent(suite)
+    document: bytes = ElementTree.tostring(suite, encoding="utf-8", xml_declaration=True)
+    return document
+
+
+def write_junit(report: Report, path: Path | str) -> None:
+    """Write :func:`junit_xml` to ``path``."""
+    Path(path).write_bytes(junit_xml(report) + b"\n")

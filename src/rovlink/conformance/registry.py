@@ -1,0 +1,185 @@
+"""The checks of the conformance suite: each a named function of a :class:`CheckContext`.
+
+A check module declares its checks with :func:`check`; :data:`CHECKS` lists them in the order
+they run. A check passes by returning, fails by raising :class:`CheckFailedError` with what was
+expected; the runner attaches the exchanges it made as evidence.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+from rovlink.conformance.wire import Exchange, Wire
+from rovlink.protocol import BadFrame, Command, Frame, encode, get_algorithm
+
+__all__ = [
+    "CHECKS",
+    "Check",
+    "CheckAbortedError",
+    "CheckContext",
+    "CheckFailedError",
+    "CheckSkippedError",
+    "SuiteOptions",
+    "check",
+    "checks_markdown",
+]
+
+
+class CheckFailedError(AssertionError):
+    """The controller did not behave as the protocol says; the message says what was expected."""
+
+
+class CheckSkippedError(Exception):
+    """The check cannot run here (e.g. motion not allowed); the message says why."""
+
+
+class CheckAbortedError(Exception):
+    """The run must stop at once (a leak, a lost link); ``#stop!`` has been sent."""
+
+
+@dataclass(frozen=True)
+class SuiteOptions:
+    """How the suite talks to the controller."""
+
+    algorithm: str = "crc8"
+    #: How long to wait for a reply before calling it missing, s (the link's latency included).
+    reply_timeout_s: float = 0.25
+    #: How long the line must stay quiet after a frame that must not be answered, s.
+    silence_s: float = 0.12
+    #: The reply time the protocol allows (P19), s.
+    reply_limit_s: float = 0.005
+    #: The serial line's rate, if the link is a serial line (8N1: 10 bits a byte): the time the
+    #: query's and the reply's bytes spend on the wire is added to the allowance, as P19 counts
+    #: from the query's arrival. None for links without a line rate (TCP, in-process).
+    baudrate: int | None = None
+    #: Queries timed for the reply-time check.
+    timed_queries: int = 40
+    #: Whether motion checks may run, and the thrust they use, %.
+    motion: bool = False
+    motion_percent: int = 30
+    #: The controller's link-loss watchdog (P17), s; the failsafe check waits a little longer.
+    watchdog_s: float = 2.0
+    #: Seed of the random bytes the noise checks send.
+    seed: int = 1
+    #: How long to wait for a booting controller's first answer, s (P21).
+    boot_timeout_s: float = 3.0
+
+
+@dataclass
+class CheckContext:
+    """What a check works with: the wire, the options and the exchanges of this check."""
+
+    wire: Wire
+    options: SuiteOptions
+    exchanges: list[Exchange] = field(default_factory=list)
+
+    # -- frames ------------------------------------------------------------------------------
+
+    def frame(self, command: Command, *, checksum: bool = False) -> bytes:
+        """The bytes of ``command``, checksummed with the suite's algorithm if asked."""
+        return encode(command, self.options.algorithm if checksum else None)
+
+    def with_checksum(self, body: bytes) -> bytes:
+        """``#body`` plus the checksum of ``body`` (for bodies the table would refuse)."""
+        return b"#" + body + get_algorithm(self.options.algorithm).digits(body) + b"!"
+
+    # -- exchanges ---------------------------------------------------------------------------
+
+    def ask(self, data: bytes, frames: int = 1) -> Exchange:
+        """Send ``data`` and wait for ``frames`` reply frames (and a moment for extra ones)."""
+        exchange = self.wire.send(
+            data, frames=frames, timeout_s=self.options.reply_timeout_s, linger_s=0.02
+        )
+        self.exchanges.append(exchange)
+        return exchange
+
+    def tell(self, data: bytes) -> Exchange:
+        """Send ``data`` that must be answered by no frame, and wait out the silence."""
+        exchange = self.wire.send(
+            data, frames=0, timeout_s=self.options.silence_s, linger_s=self.options.silence_s
+        )
+        self.exchanges.append(exchange)
+        return exchange
+
+    def expect_no_frames(self, data: bytes, why: str) -> Exchange:
+        """Send ``data``; fail if any frame comes back."""
+        exchange = self.tell(data)
+        if exchange.frames:
+            raw = b"".join(frame.raw for frame in exchange.frames)
+            raise CheckFailedError(f"{why}, but the controller answered {raw!r}")
+        return exchange
+
+    def expect_reply(self, data: bytes, names: tuple[str, ...], why: str = "") -> Exchange:
+        """Send ``data``; fail unless exactly the frames ``names`` come back, valid, in order."""
+        exchange = self.ask(data, len(names))
+        frames = exchange.frames
+        got = tuple(frame.message.name if isinstance(frame, Frame) else "?" for frame in frames)
+        context = f" ({why})" if why else ""
+        if not frames:
+            raise CheckFailedError(
+                f"expected {_names(names)}{context}; no reply within "
+                f"{self.options.reply_timeout_s * 1000:.0f} ms"
+            )
+        for frame in frames:
+            if isinstance(frame, BadFrame):
+                raise CheckFailedError(
+                    f"expected {_names(names)}{context}; got an invalid frame {frame.raw!r}: "
+                    f"{frame.detail}"
+                )
+        if got != names:
+            raise CheckFailedError(f"expected {_names(names)}{context}; got {_names(got)}")
+        return exchange
+
+    def restore(self) -> None:
+        """Back to the state after reset as far as a host can: checksum and debug off, locked,
+        depth mode; whatever is still arriving is read and discarded."""
+        wire = self.wire
+        wire.send(b"#crcoff!#stop!#debug0!#mvdirect.0!", timeout_s=0.3, linger_s=0.05)
+        wire.replies_checksummed = False
+        wire.drain(0.05)
+
+
+def _names(names: tuple[str, ...]) -> str:
+    return " ".join(f"${name}" for name in names) or "nothing"
+
+
+@dataclass(frozen=True)
+class Check:
+    """One conformance check: a stable name, the rules of PROTOCOL.md it covers, what it does."""
+
+    name: str
+    rules: tuple[str, ...]
+    description: str
+    run: Callable[[CheckContext], None]
+    motion: bool = False
+
+
+#: Every check, in the order they run (the modules register theirs on import).
+CHECKS: list[Check] = []
+
+
+def check(
+    name: str, rules: tuple[str, ...], description: str, *, motion: bool = False
+) -> Callable[[Callable[[CheckContext], None]], Callable[[CheckContext], None]]:
+    """Register the decorated function as a check."""
+
+    def register(function: Callable[[CheckContext], None]) -> Callable[[CheckContext], None]:
+        if any(existing.name == name for existing in CHECKS):
+            raise ValueError(f"two checks named {name!r}")
+        CHECKS.append(Check(name, rules, description, function, motion))
+        return function
+
+    return register
+
+
+def checks_markdown() -> str:
+    """Every check as a Markdown table (name, rules, what it shows), as ``docs/builders.md``
+    lists them."""
+    from rovlink.conformance import runner  # noqa: PLC0415 - registers every module's checks
+
+    lines = ["| check | rules | what it shows |", "|---|---|---|"]
+    for item in runner.select_checks(motion=True):
+        name = f"`{item.name}`" + (" (`--motion`)" if item.motion else "")
+        lines.append(f"| {name} | {' '.join(item.rules)} | {item.description} |")
+    return "\n".join(lines) + "\n"

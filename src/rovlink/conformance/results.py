@@ -1,0 +1,60 @@
+"""The outcome of a conformance run: one result per check, with the bytes that show a failure."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from rovlink.conformance.wire import Exchange
+from rovlink.protocol.text_enum import StrEnum
+
+__all__ = ["CheckResult", "Outcome", "Report"]
+
+
+class Outcome(StrEnum):
+    """How a check ended."""
+
+    PASSED = "pass"
+    FAILED = "fail"
+    SKIPPED = "skip"
+    ABORTED = "abort"
+
+
+@dataclass(frozen=True)
+class CheckResult:
+    """One check's outcome, its message and the exchanges it made (the evidence)."""
+
+    name: str
+    rules: tuple[str, ...]
+    description: str
+    outcome: Outcome
+    message: str = ""
+    duration_s: float = 0.0
+    evidence: tuple[Exchange, ...] = ()
+
+    @property
+    def failed(self) -> bool:
+        """Whether the check counts against the controller."""
+        return self.outcome in (Outcome.FAILED, Outcome.ABORTED)
+
+
+@dataclass
+class Report:
+    """Every result of a run, in order, and what the run wrote that outlives it."""
+
+    target: str
+    results: list[CheckResult] = field(default_factory=list)
+    duration_s: float = 0.0
+
+    @property
+    def failures(self) -> list[CheckResult]:
+        """The checks that failed or aborted the run."""
+        return [result for result in self.results if result.failed]
+
+    @property
+    def passed(self) -> bool:
+        """Whether no check failed."""
+        return not self.failures
+
+    def count(self, outcome: Outcome) -> int:
+        """How many checks ended so."""
+        return sum(result.outcome is outcome for result in self.results)

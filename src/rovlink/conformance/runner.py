@@ -1,0 +1,145 @@
+"""Run the checks against one controller and collect a :class:`Report`."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Sequence
+
+from rovlink.client.errors import ConnectionLostError
+from rovlink.client.links import Link
+from rovlink.conformance import checksums, debug, framing, motion, replies, sets
+from rovlink.conformance.registry import (
+    CHECKS,
+    Check,
+    CheckAbortedError,
+    CheckContext,
+    CheckFailedError,
+    CheckSkippedError,
+    SuiteOptions,
+)
+from rovlink.conformance.results import CheckResult, Outcome, Report
+from rovlink.conformance.wire import Wire
+from rovlink.logs import get_logger
+from rovlink.protocol import Command, Response
+
+__all__ = ["PreflightError", "run_checks", "select_checks"]
+
+logger = get_logger(__name__)
+
+# The modules register their checks when imported; this is the order they run in.
+_MODULES = (replies, framing, sets, checksums, debug, motion)
+
+
+class PreflightError(Exception):
+    """The controller cannot be checked as it is (no answer, a leak latched)."""
+
+
+def select_checks(names: Sequence[str] = (), *, motion: bool = False) -> list[Check]:
+    """The checks to run: all (motion ones only with ``motion``), or those named/prefixed."""
+    # Motion checks last: the others leave the vehicle locked and still.
+    ordered = [item for item in CHECKS if not item.motion] + [c for c in CHECKS if c.motion]
+    chosen = [item for item in ordered if motion or not item.motion]
+    if not names:
+        return chosen
+    unknown = [name for name in names if not any(c.name.startswith(name) for c in CHECKS)]
+    if unknown:
+        raise ValueError(f"no check is named {unknown[0]!r} (see --list)")
+    return [item for item in chosen if any(item.name.startswith(name) for name in names)]
+
+
+def run_checks(
+    link: Link,
+    target: str,
+    options: SuiteOptions | None = None,
+    checks: Sequence[Check] | None = None,
+    on_result: Callable[[CheckResult], None] | None = None,
+) -> Report:
+    """Run ``checks`` (default: every check the options allow) over ``link``.
+
+    Before the first check the controller must answer ``#q.l!`` with no leak latched. Between
+    checks it is put back in checksum and debug mode off, locked, depth mode. The run ends with
+    ``#stop!``, whatever happened.
+    """
+    options = options or SuiteOptions()
+    wire = Wire(link, algorithm=options.algorithm)
+    selected = list(checks) if checks is not None else select_checks(motion=options.motion)
+    report = Report(target)
+    started = time.monotonic()
+    try:
+        _preflight(wire, options)
+        for item in selected:
+            result = _run_one(item, wire, options)
+            report.results.append(result)
+            if on_result is not None:
+                on_result(result)
+            if result.outcome is Outcome.ABORTED:
+                break
+    finally:
+        try:
+            link.write(b"#crcoff!#stop!#debug0!")
+        except ConnectionLostError:
+            logger.warning("could not send the final #stop!: the link is lost")
+        report.duration_s = time.monotonic() - started
+    return report
+
+
+def _preflight(wire: Wire, options: SuiteOptions) -> None:
+    """Wait for the controller to answer ``#q.l!`` (a board may boot for up to 2 s after its
+    port opens, P21), and refuse to go on if its leak latch is set."""
+    context = CheckContext(wire, options)
+    deadline = time.monotonic() + options.boot_timeout_s
+    received = b""
+    while True:
+        context.restore()
+        exchange = wire.send(
+            context.frame(Command("q.l")),
+            frames=1,
+            timeout_s=options.reply_timeout_s,
+            linger_s=0.02,
+        )
+        values = [
+            frame.message.values
+            for frame in exchange.valid_frames
+            if isinstance(frame.message, Response) and frame.message.name == "q.l"
+        ]
+        if values:
+            break
+        received += exchange.received
+        if time.monotonic() >= deadline:
+            raise PreflightError(
+                f"the controller did not answer #q.l! within {options.boot_timeout_s:g} s "
+                f"(received {received[-200:]!r})"
+            )
+    if values[0] == (1,):
+        raise PreflightError(
+            "the leak latch is set: inspect the vehicle, then send #slreset! before checking"
+        )
+
+
+def _run_one(item: Check, wire: Wire, options: SuiteOptions) -> CheckResult:
+    context = CheckContext(wire, options)
+    started = time.monotonic()
+    outcome, message = Outcome.PASSED, ""
+    try:
+        context.restore()
+        if item.motion and not options.motion:
+            raise CheckSkippedError("motion checks need --motion")
+        item.run(context)
+    except CheckFailedError as failure:
+        outcome, message = Outcome.FAILED, str(failure)
+    except CheckSkippedError as skip:
+        outcome, message = Outcome.SKIPPED, str(skip)
+    except CheckAbortedError as abort:
+        outcome, message = Outcome.ABORTED, str(abort)
+    except ConnectionLostError as error:
+        outcome, message = Outcome.ABORTED, f"link lost: {error}"
+    logger.debug("%s: %s %s", item.name, outcome, message)
+    return CheckResult(
+        name=item.name,
+        rules=item.rules,
+        description=item.description,
+        outcome=outcome,
+        message=message,
+        duration_s=time.monotonic() - started,
+        evidence=tuple(context.exchanges),
+    )

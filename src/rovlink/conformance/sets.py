@@ -1,0 +1,80 @@
+"""Checks of the commands that set something (P4, P7, P13): no reply, and calibration that acts.
+
+Every command of the table that is not a query gets a check that it is answered by no frame.
+The values sent are each argument's minimum: the cautious end (no PWM, no gain, no thrust).
+Motion commands are sent while the motors are locked, so they move nothing. The controller keeps
+these settings until it is reset; the summary says so.
+"""
+
+from __future__ import annotations
+
+from rovlink.conformance.registry import CheckContext, check
+from rovlink.conformance.replies import expect_depth, first_value
+from rovlink.protocol import COMMANDS, Command, Setting, Spec, lookup
+
+__all__ = ["SETTERS"]
+
+#: Commands that set something, apart from the checksum mode frames (their own checks) and
+#: ``start`` (checked with ``stop`` right after it, so the motors are never left unlocked).
+SETTERS: tuple[Spec, ...] = tuple(
+    spec
+    for spec in COMMANDS
+    if not spec.is_query
+    and spec.setting is not Setting.CHECKSUM
+    and spec.setting is not Setting.LOCKED
+)
+
+
+def _setter_check(spec: Spec) -> None:
+    def run(ctx: CheckContext) -> None:
+        ctx.tell(ctx.frame(Command("stop")))
+        command = Command(spec.name, tuple(argument.minimum for argument in spec.arguments))
+        ctx.expect_no_frames(ctx.frame(command), f"{command} sets something: no reply (P4)")
+        ctx.expect_reply(ctx.frame(Command("qd")), ("qd",), f"after {command}")
+
+    check(
+        f"set-{spec.name}",
+        ("P4", *spec.rules),
+        f"{spec.template()} is answered by no frame",
+    )(run)
+
+
+for _spec in SETTERS:
+    _setter_check(_spec)
+
+
+@check("start-stop-silent", ("P4", "P7"), "#start! and #stop! are answered by no frame")
+def _start_stop(ctx: CheckContext) -> None:
+    ctx.expect_no_frames(
+        ctx.frame(Command("start")) + ctx.frame(Command("stop")),
+        "start and stop set something: no reply (P4)",
+    )
+    ctx.expect_no_frames(ctx.frame(Command("stop")), "a second #stop! is answered by nothing")
+    ctx.expect_reply(ctx.frame(Command("qd")), ("qd",), "after #stop!")
+
+
+@check(
+    "calibration-applies",
+    ("P13", "P12"),
+    "after #sdz! and #sdk! the depth in $qsa follows (raw − zero) · k / 100, clamped",
+)
+def _calibration(ctx: CheckContext) -> None:
+    raw = first_value(ctx.expect_reply(ctx.frame(Command("qr")), ("qr",)), "qr")
+    for zero, k in ((0, 100), (max(raw - 3, 0), 10000), (min(raw + 50, 1024), 500)):
+        ctx.tell(ctx.frame(Command("sdz", (zero,))) + ctx.frame(Command("sdk", (k,))))
+        expect_depth(ctx, zero, k, "sdz and sdk take effect at once")
+
+
+@check(
+    "calibration-out-of-range-not-clamped",
+    ("P6", "P13"),
+    "#sdz! and #sdk! just out of range are dropped, not clamped: the depth keeps its calibration",
+)
+def _calibration_range(ctx: CheckContext) -> None:
+    zero_arg = lookup("sdz").arguments[0]
+    k_arg = lookup("sdk").arguments[0]
+    zero, k = 0, 100
+    ctx.tell(ctx.frame(Command("sdz", (zero,))) + ctx.frame(Command("sdk", (k,))))
+    too_big = f"#sdz.{zero_arg.maximum + 1}!#sdk.{k_arg.maximum + 1}!".encode()
+    ctx.expect_no_frames(too_big, "out-of-range settings are dropped")
+    expect_depth(ctx, zero, k, "after out-of-range #sdz! and #sdk!")

@@ -1,0 +1,113 @@
+"""The vehicle as the tuner sees it: depth and leak in, vertical commands out, a clock, limits.
+
+Every sample reads the depth and the leak latch and checks the safe limits; a leak, a depth
+outside the limits or a lost link sends ``#stop!`` and raises :class:`TuneAbortedError`.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+
+from rovlink.client import Client, ClientError
+
+__all__ = ["DepthLimits", "Plant", "TuneAbortedError"]
+
+
+class TuneAbortedError(Exception):
+    """The experiment stopped for safety; ``#stop!`` has been sent. The message says why."""
+
+
+@dataclass(frozen=True)
+class DepthLimits:
+    """The depths the vehicle must stay between during tuning, cm."""
+
+    min_cm: int
+    max_cm: int
+
+    def __post_init__(self) -> None:
+        if not 0 <= self.min_cm < self.max_cm:
+            raise ValueError(
+                f"depth limits must satisfy 0 ≤ min < max, got {self.min_cm}–{self.max_cm} cm"
+            )
+
+
+class Plant:
+    """The robot through a client, sampled on ``clock`` and paced by ``sleep``.
+
+    For a real robot both are the wall clock's; for a simulated robot stepped by hand they are
+    the simulation's, so an experiment of minutes runs in seconds and reproduces exactly. A
+    simulation can also give ``truth``, the true depth in cm, for the verification's figures.
+    """
+
+    def __init__(
+        self,
+        client: Client,
+        limits: DepthLimits,
+        *,
+        clock: Callable[[], float] = time.monotonic,
+        sleep: Callable[[float], None] = time.sleep,
+        truth: Callable[[], float] | None = None,
+    ) -> None:
+        self.client = client
+        self.limits = limits
+        self._clock = clock
+        self._sleep = sleep
+        self._truth = truth
+        self._stopped = False
+
+    def now_s(self) -> float:
+        """The plant's clock, s."""
+        return self._clock()
+
+    def true_depth_cm(self) -> float | None:
+        """The true depth where the plant knows it (a simulation, through ``truth``), else None."""
+        return self._truth() if self._truth is not None else None
+
+    def wait(self, seconds: float) -> None:
+        """Let ``seconds`` pass."""
+        self._sleep(seconds)
+
+    def sample(self, *, enforce_min: bool = True) -> int:
+        """The depth, cm, after checking the leak latch and the limits."""
+        try:
+            sensors = self.client.sensors()
+        except (ClientError, ConnectionError) as error:
+            self.abort(f"the link failed: {error}")
+        if sensors.leak_detected:
+            self.abort("the leak sensor fired")
+        depth = sensors.depth_cm
+        if depth > self.limits.max_cm:
+            self.abort(f"depth {depth} cm is past the limit of {self.limits.max_cm} cm")
+        if enforce_min and depth < self.limits.min_cm:
+            self.abort(f"depth {depth} cm is above the limit of {self.limits.min_cm} cm")
+        return depth
+
+    def vertical_thrust(self, percent: int) -> None:
+        """Direct-mode vertical thrust, % (+ up)."""
+        self._guarded(lambda: self.client.set_vertical_thrust(percent))
+
+    def send(self, action: Callable[[], None]) -> None:
+        """Run a client call; a failure aborts."""
+        self._guarded(action)
+
+    def stop(self) -> None:
+        """``#stop!``, at most once per experiment, whatever state the link is in."""
+        if self._stopped:
+            return
+        self._stopped = True
+        with contextlib.suppress(ClientError, ConnectionError):  # the link is gone: nothing to do
+            self.client.stop()
+
+    def abort(self, why: str) -> None:
+        """Stop the robot and raise :class:`TuneAbortedError`."""
+        self.stop()
+        raise TuneAbortedError(f"{why}: #stop! sent")
+
+    def _guarded(self, action: Callable[[], None]) -> None:
+        try:
+            action()
+        except (ClientError, ConnectionError) as error:
+            self.abort(f"the link failed: {error}")

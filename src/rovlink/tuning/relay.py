@@ -1,0 +1,111 @@
+"""The relay experiment (Åström–Hägglund) in direct mode: the ultimate gain and period.
+
+The host drives vertical thrust as a relay with hysteresis around the target depth: full
+relay amplitude up while the vehicle is deeper than the target plus the hysteresis, down while
+it is shallower than the target minus it. The loop settles into a limit cycle whose amplitude
+``a`` and period give the ultimate gain ``Ku = 4 h / (π √(a² − ε²))`` and the ultimate period
+``Tu``. A buoyant vehicle spends longer diving than rising; the relay's bias is moved each cycle
+until both halves last as long (the thrust that holds the vehicle still, its trim).
+"""
+
+from __future__ import annotations
+
+import math
+import statistics
+from dataclasses import dataclass, field
+
+from rovlink.tuning.plant import Plant
+
+__all__ = ["RelayResult", "RelaySettings", "run_relay"]
+
+
+@dataclass(frozen=True)
+class RelaySettings:
+    """How the relay runs."""
+
+    target_cm: int = 100
+    amplitude_percent: int = 30
+    hysteresis_cm: int = 3
+    sample_s: float = 0.05
+    warmup_cycles: int = 2
+    measured_cycles: int = 4
+    timeout_s: float = 120.0
+
+
+@dataclass
+class RelayResult:
+    """The limit cycle and what it says about the plant."""
+
+    ultimate_gain: float  # % thrust per cm
+    ultimate_period_s: float
+    amplitude_cm: float
+    bias_percent: float
+    times_s: list[float] = field(default_factory=list)
+    depths_cm: list[int] = field(default_factory=list)
+    outputs_percent: list[int] = field(default_factory=list)
+
+
+def run_relay(plant: Plant, settings: RelaySettings) -> RelayResult:
+    """Run the experiment (the robot unlocked, in direct mode) and measure the limit cycle."""
+    h = settings.amplitude_percent
+    epsilon = settings.hysteresis_cm
+    target = settings.target_cm
+    bias = 0.0
+    up = False  # start by diving toward the target
+    output = _clamp(round(bias - h))
+    plant.vertical_thrust(output)
+    start_s = plant.now_s()
+    switch_times: list[float] = []  # the moments the relay switched up
+    cycle_extremes: list[tuple[float, float]] = []
+    phase_start_s = start_s
+    up_s = down_s = 0.0
+    low = high = None
+    result = RelayResult(0.0, 0.0, 0.0, 0.0)
+    while True:
+        now = plant.now_s()
+        if now - start_s > settings.timeout_s:
+            plant.abort(f"no steady oscillation within {settings.timeout_s:g} s")
+        # The shallow limit holds once the vehicle has been down to the target.
+        depth = plant.sample(enforce_min=bool(switch_times))
+        result.times_s.append(now - start_s)
+        result.depths_cm.append(depth)
+        result.outputs_percent.append(output)
+        low = depth if low is None else min(low, depth)
+        high = depth if high is None else max(high, depth)
+        if not up and depth > target + epsilon:
+            down_s = now - phase_start_s
+            up, phase_start_s = True, now
+            if switch_times:
+                cycle_extremes.append((low, high))
+                # Balance the halves: a longer dive than rise needs more down bias.
+                bias += h * (up_s - down_s) / (up_s + down_s) * 0.5
+            low = high = depth
+            switch_times.append(now)
+        elif up and depth < target - epsilon:
+            up_s = now - phase_start_s
+            up, phase_start_s = False, now
+        new_output = _clamp(round(bias + h if up else bias - h))
+        if new_output != output:
+            output = new_output
+            plant.vertical_thrust(output)
+        cycles = len(switch_times) - 1
+        if cycles >= settings.warmup_cycles + settings.measured_cycles:
+            break
+        plant.wait(settings.sample_s)
+    measured = settings.measured_cycles
+    periods = [
+        b - a
+        for a, b in zip(switch_times[-measured - 1 : -1], switch_times[-measured:], strict=True)
+    ]
+    amplitudes = [(hi - lo) / 2.0 for lo, hi in cycle_extremes[-measured:]]
+    amplitude = statistics.mean(amplitudes)
+    effective = math.sqrt(max(amplitude**2 - epsilon**2, (amplitude / 4.0) ** 2))
+    result.ultimate_gain = 4.0 * h / (math.pi * effective)
+    result.ultimate_period_s = statistics.mean(periods)
+    result.amplitude_cm = amplitude
+    result.bias_percent = bias
+    return result
+
+
+def _clamp(percent: int) -> int:
+    return max(-100, min(100, percent))

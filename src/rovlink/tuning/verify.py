@@ -1,0 +1,105 @@
+"""The verification step: a depth step with the tuned gains, measured as the host sees it."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+from rovlink.tuning.plant import Plant
+from rovlink.tuning.rules import ProtocolGains
+
+__all__ = ["StepMetrics", "StepResult", "StepSettings", "run_step", "step_metrics"]
+
+
+@dataclass(frozen=True)
+class StepSettings:
+    """The step: from ``from_cm`` (held ``hold_s`` first) to ``to_cm``, watched ``watch_s``."""
+
+    from_cm: int = 0
+    to_cm: int = 100
+    hold_s: float = 10.0
+    watch_s: float = 70.0
+    sample_s: float = 0.05
+    band_cm: float = 3.0
+    settle_by_s: float = 10.0
+
+
+@dataclass(frozen=True)
+class StepMetrics:
+    """Overshoot, settling time and RMS error of a step response."""
+
+    overshoot_cm: float
+    settling_s: float
+    rms_cm: float
+
+
+def step_metrics(
+    times_s: Sequence[float], depths_cm: Sequence[float], settings: StepSettings
+) -> StepMetrics:
+    """The metrics of a recorded step: overshoot past the target, the time from which the depth
+    stays within ``band_cm``, and the RMS error from ``settle_by_s`` to the end."""
+    direction = 1 if settings.to_cm >= settings.from_cm else -1
+    overshoot = max(0.0, *(direction * (depth - settings.to_cm) for depth in depths_cm))
+    settling = 0.0
+    squares = []
+    for time_s, depth in zip(times_s, depths_cm, strict=True):
+        error = depth - settings.to_cm
+        if abs(error) > settings.band_cm:
+            settling = time_s
+        if time_s >= settings.settle_by_s:
+            squares.append(error * error)
+    rms = math.sqrt(sum(squares) / len(squares)) if squares else math.nan
+    return StepMetrics(float(overshoot), settling, rms)
+
+
+@dataclass
+class StepResult:
+    """The recorded step: the depth as the host measured it (``qd``) and, when the plant can
+    tell (a simulation), the true depth."""
+
+    settings: StepSettings
+    times_s: list[float] = field(default_factory=list)
+    depths_cm: list[int] = field(default_factory=list)
+    true_depths_cm: list[float] = field(default_factory=list)
+
+    @property
+    def measured(self) -> StepMetrics:
+        """The metrics of the measured depth."""
+        return step_metrics(self.times_s, self.depths_cm, self.settings)
+
+    @property
+    def true(self) -> StepMetrics | None:
+        """The metrics of the true depth, if known."""
+        if not self.true_depths_cm:
+            return None
+        return step_metrics(self.times_s, self.true_depths_cm, self.settings)
+
+
+def run_step(plant: Plant, gains: ProtocolGains, settings: StepSettings) -> StepResult:
+    """Hold ``from_cm`` in depth mode with ``gains``, step to ``to_cm`` and record the depth."""
+    client = plant.client
+    plant.send(lambda: client.set_direct_mode(False))
+    plant.send(lambda: client.set_depth_pid(gains.kp, gains.ki, gains.kd))
+    plant.send(lambda: client.hold_depth(settings.from_cm))
+    _watch(plant, settings.hold_s, settings.sample_s)
+    plant.send(lambda: client.hold_depth(settings.to_cm))
+    result = StepResult(settings)
+    start_s = plant.now_s()
+    while True:
+        elapsed = plant.now_s() - start_s
+        if elapsed > settings.watch_s:
+            return result
+        result.times_s.append(elapsed)
+        result.depths_cm.append(plant.sample(enforce_min=False))
+        truth = plant.true_depth_cm()
+        if truth is not None:
+            result.true_depths_cm.append(truth)
+        plant.wait(settings.sample_s)
+
+
+def _watch(plant: Plant, seconds: float, sample_s: float) -> None:
+    end_s = plant.now_s() + seconds
+    while plant.now_s() < end_s:
+        plant.sample(enforce_min=False)
+        plant.wait(sample_s)

@@ -1,0 +1,209 @@
+"""Deliberately broken controllers: the simulated one with one fault each, behind a port.
+
+Each fault rewrites the bytes going into the simulated controller or coming out of it, the way a
+firmware with that bug would behave on the wire. :data:`FAULTS` maps each fault's name to the
+conformance check that must catch it.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import re
+import threading
+import time
+
+from rovlink.controller import ControllerConfig
+from rovlink.protocol import COMMANDS, get_algorithm
+from rovlink.sim.port import SimulatedPort, open_port
+from rovlink.sim.robot import SimConfig
+
+__all__ = ["FAULTS", "NO_FAULT", "FaultyController"]
+
+#: The wrapper without a fault: it must pass every check (so the faults alone fail them).
+NO_FAULT = "none"
+
+_CRC8 = get_algorithm("crc8")
+_SETTERS = tuple(spec.name.encode() for spec in COMMANDS if not spec.is_query)
+_FRAME = re.compile(rb"#([^#$!]*)!")
+
+
+class FaultyController:
+    """A pyserial-like port to the simulated controller, with one named fault."""
+
+    def __init__(self, fault: str, *, seed: int = 1) -> None:
+        if fault not in FAULTS and fault != NO_FAULT:
+            raise ValueError(f"unknown fault {fault!r}")
+        self.fault = fault
+        if fault == "no-watchdog":  # a firmware without the link-loss failsafe (P17)
+            config = SimConfig(controller=dataclasses.replace(ControllerConfig(), watchdog_s=0.0))
+            self._inner = SimulatedPort(config, seed=seed, timeout=0)
+            self._inner.start()
+        else:
+            self._inner = open_port(seed=seed, timeout=0)
+        self.timeout: float | None = None
+        self.name = f"faulty controller ({fault})"
+        self._lock = threading.Condition()
+        self._output = bytearray()
+        self._release_at = 0.0
+        self._checksum = False  # the mode as the faulty firmware tracks it
+        self._frame_open = False  # no-resync: inside a frame that a start character spoilt
+        self._spoilt = False
+
+    # -- the pyserial subset -------------------------------------------------------------------
+
+    @property
+    def is_open(self) -> bool:
+        return self._inner.is_open
+
+    @property
+    def in_waiting(self) -> int:
+        self._pull()
+        return len(self._output) if time.monotonic() >= self._release_at else 0
+
+    def write(self, data: bytes) -> int:
+        with self._lock:
+            before = self._checksum
+            incoming = self._incoming(bytes(data))
+            self._inner.write(incoming)
+            reply = self._inner.read(self._inner.in_waiting)
+            self._deliver(self._outgoing(reply, data, before))
+        return len(data)
+
+    def read(self, size: int = 1) -> bytes:
+        deadline = time.monotonic() + (self.timeout or 0.0)
+        while True:
+            self._pull()
+            with self._lock:
+                if self._output and time.monotonic() >= self._release_at:
+                    data = bytes(self._output[:size])
+                    del self._output[:size]
+                    return data
+            if time.monotonic() >= deadline:
+                return b""
+            time.sleep(0.0005)
+
+    def close(self) -> None:
+        self._inner.close()
+
+    # -- the faults ----------------------------------------------------------------------------
+
+    def _pull(self) -> None:
+        with self._lock:
+            spontaneous = (
+                self._inner.read(self._inner.in_waiting) if self._inner.in_waiting else b""
+            )
+            if spontaneous:
+                self._deliver(self._outgoing(spontaneous, b"", self._checksum))
+
+    def _deliver(self, data: bytes) -> None:
+        if not data:
+            return
+        if self.fault == "slow-replies":
+            self._release_at = time.monotonic() + 0.015
+        self._output += data
+
+    def _incoming(self, data: bytes) -> bytes:
+        fault = self.fault
+        if fault == "mode-reaches-back":
+            for mode in (b"#crcon!", b"#crcoff!"):
+                if mode in data:
+                    data = mode + data.replace(mode, b"")
+        if fault == "case-insensitive":
+            data = data.lower()
+        if fault == "no-resync":
+            data = self._without_resync(data)
+        if fault == "stop-needs-checksum" and self._checksum:
+            data = data.replace(b"#stop!", b"")
+        if fault == "direct-mode-only":
+            data = data.replace(b"#mvdirect.0!", b"#mvdirect.1!")
+        if fault == "debug-stuck-on":
+            data = data.replace(b"#debug0!", b"")
+        if fault == "clamps-out-of-range":
+            data = re.sub(rb"#sdz\.(\d{4,})!", lambda m: b"#sdz.%d!" % min(int(m[1]), 1024), data)
+            data = re.sub(rb"#sdk\.(\d{5,})!", lambda m: b"#sdk.%d!" % min(int(m[1]), 10000), data)
+        if fault == "no-length-limit":
+            data = re.sub(rb"#sdz\.0{20,}(\d+)!", rb"#sdz.\1!", data)
+        if fault == "ignores-checksum-value" and self._checksum:
+            data = _FRAME.sub(_recomputed, data)
+        for frame in _FRAME.findall(data):
+            if frame == b"crcon":
+                self._checksum = True
+            elif frame == b"crcoff":
+                self._checksum = False
+        return data
+
+    def _outgoing(self, reply: bytes, sent: bytes, checksum: bool) -> bytes:
+        fault = self.fault
+        if fault == "acks-sets":
+            acks = sum(1 for body in _FRAME.findall(sent) if body.split(b".")[0] in _SETTERS)
+            reply += b"$ok!" * acks
+        if fault == "qsa-wrong-order":
+            reply = re.sub(rb"(\$qd\.[^!]*!)(\$qr\.[^!]*!)", rb"\2\1", reply)
+        if fault == "leading-zeros":
+            reply = re.sub(rb"\$qd\.(\d+)!", rb"$qd.0\1!", reply)
+        if fault == "unsigned-attitude":
+            reply = re.sub(rb"\$qro\.[+-](\d+)!", rb"$qro.\1!", reply)
+        if fault == "extra-reply":
+            reply = re.sub(rb"(\$qd\.[^!]*!)", rb"\1\1", reply)
+        if fault == "plain-replies-in-checksum-mode" and checksum:
+            reply = re.sub(rb"\$([^!$]*)[0-9A-F]{2}!", rb"$\1!", reply)
+        if fault == "debug-frame-characters":
+            reply = reply.replace(b"<", b"#")
+        if fault == "no-debug-lines":
+            reply = re.sub(rb"debug: [^\r]*\r\n", b"", reply)
+        return reply
+
+    def _without_resync(self, data: bytes) -> bytes:
+        out = bytearray()
+        frame = bytearray()
+        for byte in data:
+            if self._frame_open:
+                frame.append(byte)
+                if byte == ord("#"):
+                    self._spoilt = True
+                elif byte == ord("!"):
+                    if not self._spoilt:
+                        out += frame
+                    self._frame_open = self._spoilt = False
+                    frame.clear()
+            elif byte == ord("#"):
+                self._frame_open = True
+                frame = bytearray(b"#")
+            else:
+                out.append(byte)
+        if self._frame_open and not self._spoilt:
+            out += frame  # an unfinished frame goes on in the next chunk
+            self._frame_open = False
+        return bytes(out)
+
+
+def _recomputed(match: re.Match[bytes]) -> bytes:
+    body = match[1]
+    if body in (b"crcon", b"crcoff") or len(body) < 3:
+        return match[0]
+    stripped = body[:-2]
+    return b"#" + stripped + _CRC8.digits(stripped) + b"!"
+
+
+#: Each fault and the check that catches it.
+FAULTS: dict[str, str] = {
+    "acks-sets": "set-mgmp",
+    "qsa-wrong-order": "query-qsa",
+    "leading-zeros": "query-qd",
+    "unsigned-attitude": "query-qro",
+    "extra-reply": "query-qd",
+    "slow-replies": "reply-time",
+    "ignores-checksum-value": "checksum-bad-dropped",
+    "mode-reaches-back": "checksum-on-per-frame",
+    "plain-replies-in-checksum-mode": "checksum-replies",
+    "debug-frame-characters": "debug-text-clean",
+    "no-debug-lines": "debug-text-clean",
+    "debug-stuck-on": "debug-off-silent",
+    "no-length-limit": "overlong-frame-dropped",
+    "no-resync": "resync-on-start",
+    "case-insensitive": "unknown-and-malformed-dropped",
+    "clamps-out-of-range": "calibration-out-of-range-not-clamped",
+    "stop-needs-checksum": "motion-bare-stop-in-checksum-mode",
+    "direct-mode-only": "motion-mode-gating",
+    "no-watchdog": "motion-link-loss-failsafe",
+}

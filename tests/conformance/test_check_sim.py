@@ -1,0 +1,167 @@
+"""``rovlink check`` against the simulator: every check passes; the table, JUnit and exit status."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+from xml.etree import ElementTree
+
+import pytest
+
+from rovlink.cli import main
+from rovlink.client.links import open_link
+from rovlink.client.url import parse_url
+from rovlink.conformance import (
+    CHECKS,
+    Outcome,
+    Report,
+    SuiteOptions,
+    junit_xml,
+    run_checks,
+    select_checks,
+)
+from rovlink.conformance.results import CheckResult
+from rovlink.conformance.wire import Exchange
+from rovlink.protocol import COMMANDS
+
+
+def test_every_command_of_the_table_has_a_check() -> None:
+    names = {check.name for check in CHECKS}
+    for spec in COMMANDS:
+        if spec.is_query:
+            assert f"query-{spec.name}" in names
+        elif spec.name in ("crcon", "crcoff"):
+            assert "checksum-mode-frames-exact" in names
+        elif spec.name in ("start", "stop"):
+            assert "start-stop-silent" in names
+        else:
+            assert f"set-{spec.name}" in names
+
+
+@pytest.mark.integration
+def test_the_simulator_passes_every_check_with_motion() -> None:
+    link = open_link(parse_url("sim://?seed=3"))
+    try:
+        report = run_checks(link, "sim://", SuiteOptions(motion=True))
+    finally:
+        link.close()
+    assert [(r.name, r.message) for r in report.failures] == []
+    assert len(report.results) == len(CHECKS)
+    assert report.count(Outcome.PASSED) == len(CHECKS)
+
+
+def test_select_checks_by_prefix_and_unknown_name() -> None:
+    chosen = select_checks(["checksum-"])
+    assert chosen
+    assert all(check.name.startswith("checksum-") for check in chosen)
+    assert all(not check.motion for check in select_checks())
+    with pytest.raises(ValueError, match="no check is named 'nope'"):
+        select_checks(["nope"])
+
+
+def test_junit_has_a_case_per_check_and_the_evidence_of_failures() -> None:
+    evidence = (Exchange(sent=b"#qd!", received=b"$qd.007!"),)
+    report = Report(
+        "fake",
+        [
+            CheckResult("query-qd", ("P6",), "d", Outcome.FAILED, "not canonical", 0.1, evidence),
+            CheckResult("query-qr", ("P4",), "d", Outcome.PASSED),
+            CheckResult("motion-stop-halts", ("P7",), "d", Outcome.SKIPPED, "needs --motion"),
+        ],
+    )
+    suite = ElementTree.fromstring(junit_xml(report))
+    assert suite.get("tests") == "3"
+    assert suite.get("failures") == "1"
+    assert suite.get("skipped") == "1"
+    (failure,) = suite.iter("failure")
+    assert failure.get("message") == "not canonical"
+    assert "b'$qd.007!'" in (failure.text or "")
+
+
+@pytest.mark.integration
+def test_cli_exit_status_table_and_junit(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    junit = tmp_path / "check.xml"
+    status = main(["check", "sim://?seed=2", "--only", "query-", "--junit", str(junit)])
+    out = capsys.readouterr().out
+    assert status == 0
+    assert "query-qsa" in out
+    assert "checks passed" in out
+    cases = list(ElementTree.parse(junit).getroot().iter("testcase"))
+    assert len(cases) == len(select_checks(["query-"]))
+
+
+def test_cli_list_and_usage_errors(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["check", "--list"]) == 0
+    assert "motion-stop-halts (--motion)" in capsys.readouterr().out
+    assert main(["check"]) == 2
+    assert "URL is required" in capsys.readouterr().err
+    assert main(["check", "sim://", "--only", "nope"]) == 2
+
+
+@pytest.mark.integration
+def test_cli_motion_without_terminal_needs_yes() -> None:
+    result = subprocess.run(
+        [sys.executable, "-m", "rovlink", "check", "sim://", "--motion"],
+        capture_output=True,
+        text=True,
+        stdin=subprocess.DEVNULL,
+        timeout=60,
+        check=False,
+    )
+    assert result.returncode == 2
+    assert "--motion needs --yes" in result.stderr
+
+
+def test_docs_list_every_check() -> None:
+    from rovlink.conformance import checks_markdown
+
+    docs = Path(__file__).resolve().parents[2] / "docs" / "builders.md"
+    assert checks_markdown() in docs.read_text(encoding="utf-8")
+
+
+@pytest.mark.integration
+def test_a_leak_during_a_motion_check_stops_the_robot_and_aborts_the_run() -> None:
+    from rovlink.client.links import PortLink
+    from rovlink.sim.port import open_port
+
+    port = open_port(seed=6, timeout=0.05)
+    with port.lock:
+        port.robot.inject_leak(at_s=port.robot.time_s + 2.0)
+    link = PortLink(port, "sim")
+    try:
+        checks = select_checks(["motion-stop-halts", "motion-bare-stop"], motion=True)
+        report = run_checks(link, "sim", SuiteOptions(motion=True), checks)
+        (result,) = report.results  # the run stops at the abort
+        assert result.outcome is Outcome.ABORTED
+        assert "leak" in result.message
+        with port.lock:
+            assert port.controller.locked
+            assert all(duty == 0 for duty in port.vehicle.duties)
+    finally:
+        link.close()
+
+
+def test_preflight_refuses_a_silent_port_and_a_latched_leak() -> None:
+    from rovlink.client.links import PortLink
+    from rovlink.conformance import PreflightError
+    from rovlink.sim.port import open_port
+
+    echo = open_link(parse_url("loop://"))  # echoes commands back: no reply among them
+    try:
+        with pytest.raises(PreflightError, match=r"did not answer #q\.l! within 0\.5 s"):
+            run_checks(echo, "loop://", SuiteOptions(boot_timeout_s=0.5))
+    finally:
+        echo.close()
+    port = open_port(seed=1, timeout=0.05)
+    with port.lock:
+        port.robot.inject_leak()
+    port.advance(0.1)
+    link = PortLink(port, "sim")
+    try:
+        with pytest.raises(PreflightError, match="leak latch is set"):
+            run_checks(link, "sim")
+    finally:
+        link.close()

@@ -1,0 +1,86 @@
+"""Each deliberately broken controller is caught by the check named for its fault."""
+
+from __future__ import annotations
+
+import pytest
+
+from rovlink.client.links import PortLink
+from rovlink.conformance import Outcome, SuiteOptions, run_checks, select_checks
+from tests.conformance.fakes import FAULTS, NO_FAULT, FaultyController
+
+_FAST = [name for name, check in FAULTS.items() if not check.startswith("motion-")]
+
+
+@pytest.mark.parametrize("fault", _FAST)
+def test_each_fault_is_caught_by_its_check(fault: str) -> None:
+    expected = FAULTS[fault]
+    link = PortLink(FaultyController(fault), fault)
+    try:
+        report = run_checks(link, fault, SuiteOptions(), select_checks([expected]))
+    finally:
+        link.close()
+    results = {result.name: result for result in report.results}
+    assert results[expected].outcome is Outcome.FAILED, results[expected]
+    assert results[expected].evidence  # the bytes that show it
+    assert not report.passed
+
+
+_MOTION = [name for name, check in FAULTS.items() if check.startswith("motion-")]
+
+
+@pytest.mark.integration
+@pytest.mark.parametrize("fault", _MOTION)
+def test_each_motion_fault_is_caught_by_its_motion_check(fault: str) -> None:
+    expected = FAULTS[fault]
+    link = PortLink(FaultyController(fault), fault)
+    try:
+        report = run_checks(
+            link, fault, SuiteOptions(motion=True), select_checks([expected], motion=True)
+        )
+    finally:
+        link.close()
+    (result,) = report.results
+    assert result.name == expected
+    assert result.outcome is Outcome.FAILED, result
+
+
+@pytest.mark.integration
+def test_a_plain_stop_still_works_on_the_controller_that_needs_a_checksummed_one() -> None:
+    link = PortLink(FaultyController("stop-needs-checksum"), "stop-needs-checksum")
+    try:
+        report = run_checks(
+            link,
+            "fake",
+            SuiteOptions(motion=True),
+            select_checks(["motion-stop-halts"], motion=True),
+        )
+    finally:
+        link.close()
+    assert [result.outcome for result in report.results] == [Outcome.PASSED]
+
+
+def test_every_fault_names_a_real_check() -> None:
+    names = {check.name for check in select_checks(motion=True)}
+    assert set(FAULTS.values()) <= names
+
+
+@pytest.mark.integration
+def test_the_wrapper_without_a_fault_passes_every_check() -> None:
+    link = PortLink(FaultyController(NO_FAULT), NO_FAULT)
+    try:
+        report = run_checks(link, NO_FAULT)
+    finally:
+        link.close()
+    assert [result.name for result in report.failures] == []
+    assert len(report.results) == len(select_checks())
+
+
+def test_reply_time_allows_for_the_bytes_on_a_slow_line() -> None:
+    # 15 ms late is too slow on a fast link, but at 9600 baud the query and its reply spend
+    # about 12 ms on the wire, which P19 does not count (it counts from the query's arrival).
+    link = PortLink(FaultyController("slow-replies"), "slow")
+    try:
+        report = run_checks(link, "slow", SuiteOptions(baudrate=9600), select_checks(["reply-"]))
+    finally:
+        link.close()
+    assert [result.outcome for result in report.results] == [Outcome.PASSED]

@@ -1,0 +1,142 @@
+"""``fault://`` under the driver and ``rovlink fault`` as a proxy, with real sockets."""
+
+from __future__ import annotations
+
+import socket
+import subprocess
+import sys
+import time
+
+import pytest
+
+import rovlink
+from rovlink.client import ClientOptions, ConnectError
+from rovlink.client.links import PortLink
+from rovlink.faults import FaultPort, FaultSettings
+from rovlink.sim.port import open_port
+
+
+def test_driver_opens_fault_urls_and_checksums_keep_replies_right() -> None:
+    url = "fault://?inner=sim%3A%2F%2F%3Fseed%3D1&ber=1e-3&delay_ms=2&jitter_ms=1&seed=4"
+    with rovlink.connect(url, checksum=True, timeout=0.2, retries=6) as rov:
+        depths = [rov.depth_cm() for _ in range(100)]
+        counters = rov.counters
+    assert all(0 <= depth <= 9999 for depth in depths)
+    assert counters.replies >= 100
+
+
+def test_bad_fault_url_is_a_clear_error() -> None:
+    with pytest.raises(ValueError, match="inner URL"):
+        rovlink.connect("fault://?inner=sim://?seed=x")
+    with pytest.raises(ConnectError, match=r"inner link.*nope"):
+        rovlink.connect("fault://?inner=nope://x")
+    with pytest.raises(ValueError, match="inner=URL is required"):
+        rovlink.connect("fault://?ber=0.1")
+
+
+def test_delays_keep_order_and_hold_bytes_back() -> None:
+    sim = open_port(seed=1, timeout=0.05)
+    port = FaultPort(PortLink(sim, "sim"), FaultSettings(delay_ms=30, jitter_ms=10, seed=2))
+    port.timeout = 1.0
+    try:
+        started = time.monotonic()
+        for _ in range(20):
+            port.write(b"#qd!")
+        received = b""
+        while received.count(b"!") < 20:
+            received += port.read(4096)
+        assert time.monotonic() - started >= 0.02  # nothing came before the shortest delay
+        assert received.count(b"$qd.") == 20
+        assert port.counters["to_controller"].chunks_delayed == 20
+    finally:
+        port.close()
+
+
+def test_a_dead_inner_link_is_reported() -> None:
+    sim = open_port(seed=1, timeout=0.05)
+    port = FaultPort(PortLink(sim, "sim"), FaultSettings(seed=1))
+    sim.close()
+    port.timeout = 0.5
+    deadline = time.monotonic() + 5
+    while port.is_open and time.monotonic() < deadline:
+        time.sleep(0.01)
+    assert not port.is_open
+    with pytest.raises(ConnectionError, match="closed"):
+        port.write(b"#qd!")
+    port.close()
+
+
+def _free_port() -> int:
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        return int(probe.getsockname()[1])
+
+
+def _wait_for_line(process: subprocess.Popen[str], text: str) -> str:
+    assert process.stdout is not None
+    line = process.stdout.readline()
+    assert text in line, line
+    return line
+
+
+@pytest.mark.integration
+def test_proxy_serves_any_client_and_stops_the_robot_when_it_goes() -> None:
+    sim_port = _free_port()
+    proxy_port = _free_port()
+    sim = subprocess.Popen(
+        [sys.executable, "-m", "rovlink", "sim", "--tcp", str(sim_port), "--watchdog", "0"],
+        stdout=subprocess.PIPE,
+        text=True,
+    )
+    proxy = None
+    try:
+        _wait_for_line(sim, "ready")
+        proxy = subprocess.Popen(
+            [
+                sys.executable,
+                "-m",
+                "rovlink",
+                "fault",
+                "--listen",
+                f"socket://127.0.0.1:{proxy_port}",
+                "--to",
+                f"socket://127.0.0.1:{sim_port}",
+                "--ber",
+                "1e-4",
+                "--seed",
+                "3",
+            ],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
+        _wait_for_line(proxy, "ready")
+        options = ClientOptions(checksum=True, timeout_s=0.3, retries=5, motion_timeout_s=None)
+        url = f"socket://127.0.0.1:{proxy_port}"
+        rov = rovlink.connect(url, options=options)
+        rov.start()
+        rov.set_direct_mode(True)
+        rov.set_vertical_thrust(-40)
+        assert rov.depth_cm() >= 0
+        rov.close()  # the client goes without a #stop!: the proxy must send one
+        # Connect again through the proxy and see the motors locked: the thrust is refused.
+        deadline = time.monotonic() + 10
+        while True:
+            try:
+                rov = rovlink.connect(url, options=options)
+                break
+            except ConnectError:
+                assert time.monotonic() < deadline
+                time.sleep(0.05)
+        first = rov.depth_cm()
+        time.sleep(1.0)
+        assert rov.depth_cm() <= first + 4, "the robot kept diving after its client left"
+        rov.close()
+    finally:
+        if proxy is not None:
+            proxy.terminate()
+            _, err = proxy.communicate(timeout=10)
+            assert "to controller:" in err
+            assert "bits flipped" in err
+        sim.terminate()
+        sim.wait(timeout=10)

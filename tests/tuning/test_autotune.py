@@ -1,0 +1,105 @@
+"""The autotune on three simulated vehicles: the targets, the rule's arithmetic, the aborts."""
+
+from __future__ import annotations
+
+import pytest
+
+from rovlink.tuning import (
+    RULES,
+    DepthLimits,
+    PhysicalGains,
+    RelaySettings,
+    StepSettings,
+    TuneAbortedError,
+    autotune,
+    physical_gains,
+)
+from rovlink.tuning.verify import step_metrics
+from tests.tuning.conftest import SCALES, simulated_plant
+
+TARGET_OVERSHOOT_CM = 5.0
+TARGET_SETTLE_S = 10.0
+TARGET_RMS_CM = 2.0
+
+
+@pytest.mark.parametrize("preset", ["light", "standard", "heavy"])
+def test_tuned_gains_meet_the_targets_on_every_vehicle_and_seed(preset: str) -> None:
+    for seed in range(1, 6):
+        with simulated_plant(preset, seed) as (plant, port):
+            result = autotune(
+                plant,
+                RelaySettings(target_cm=100),
+                RULES["heave-poles"],
+                SCALES,
+                StepSettings(from_cm=0, to_cm=100),
+            )
+            assert port.controller.locked  # #stop! at the end
+        assert result.step is not None
+        true = result.step.true
+        assert true is not None
+        label = f"{preset} seed {seed}: {result.gains}"
+        assert true.overshoot_cm <= TARGET_OVERSHOOT_CM, label
+        assert true.settling_s <= TARGET_SETTLE_S, label
+        assert true.rms_cm <= TARGET_RMS_CM, label
+
+
+def test_default_gains_miss_the_settling_target_on_the_heavy_vehicle() -> None:
+    from rovlink.tuning import ProtocolGains, run_step
+
+    with simulated_plant("heavy", 1) as (plant, _):
+        plant.client.start()
+        step = run_step(plant, ProtocolGains(40, 30, 20), StepSettings(from_cm=0, to_cm=100))
+        plant.stop()
+    assert step.true is not None
+    assert step.true.settling_s > TARGET_SETTLE_S  # what the autotune is for
+
+
+def test_the_relay_finds_a_longer_period_on_a_heavier_hull() -> None:
+    periods = {}
+    for preset in ("light", "heavy"):
+        with simulated_plant(preset, 2) as (plant, _):
+            result = autotune(plant, RelaySettings(), RULES["heave-poles"], SCALES, None)
+        periods[preset] = result.relay.ultimate_period_s
+        assert result.relay.bias_percent < 0  # buoyant: the trim pushes down
+    assert periods["heavy"] > 1.5 * periods["light"]
+
+
+def test_rules_arithmetic() -> None:
+    assert physical_gains(2.0, 4.0, RULES["zn-classic"]) == PhysicalGains(1.2, 0.6, 0.6)
+    heave = physical_gains(2.0, 2.0 * 3.141592653589793, RULES["heave-poles"])
+    # b = 1 / 2 (cm/s² per %): Kp = 1.7² / b, Kd = 2 · 1 · 1.7 / b
+    assert heave.kp == pytest.approx(2 * 1.7**2)
+    assert heave.kd == pytest.approx(2 * 2 * 1.7)
+    gains = PhysicalGains(10.0, 0.0, 1.0).to_protocol(SCALES)
+    assert (gains.kp, gains.saturated) == (99, ("kp",))
+
+
+def test_step_metrics() -> None:
+    settings = StepSettings(from_cm=0, to_cm=100, settle_by_s=1.0)
+    metrics = step_metrics([0.0, 0.5, 1.0, 1.5], [0.0, 104.0, 101.0, 99.0], settings)
+    assert metrics.overshoot_cm == 4.0
+    assert metrics.settling_s == 0.5
+    assert metrics.rms_cm == pytest.approx(((1 + 1) / 2) ** 0.5)
+
+
+def test_a_leak_aborts_with_stop() -> None:
+    with simulated_plant("standard", 3) as (plant, port):
+        port.robot.inject_leak(at_s=5.0)
+        with pytest.raises(TuneAbortedError, match="leak"):
+            autotune(plant, RelaySettings(), RULES["heave-poles"], SCALES, None)
+        assert port.controller.locked
+        assert port.vehicle.duties == (0,) * len(port.vehicle.duties)
+
+
+def test_the_depth_limit_aborts_with_stop() -> None:
+    with simulated_plant("light", 3, DepthLimits(0, 104)) as (plant, port):
+        with pytest.raises(TuneAbortedError, match="past the limit of 104 cm"):
+            autotune(plant, RelaySettings(target_cm=100), RULES["heave-poles"], SCALES, None)
+        assert port.controller.locked
+
+
+def test_a_lost_link_aborts() -> None:
+    with simulated_plant("standard", 4) as (plant, port):
+        port.robot.schedule(3.0, port.close)
+        with pytest.raises(TuneAbortedError, match="link failed"):
+            autotune(plant, RelaySettings(), RULES["heave-poles"], SCALES, None)
