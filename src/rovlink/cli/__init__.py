@@ -26,6 +26,7 @@ COMMANDS: dict[str, str] = {
     "demo": "A scripted dive: unlock, dive and hold, a square, every sensor, surface, lock.",
     "console": "Type commands and see the replies, with completion and history.",
     "monitor": "A live dashboard of depth, attitude, leak and link; keys drive the robot.",
+    "web": "Serve the web ground station: gauges, charts, gamepad, STOP, in the browser.",
 }
 
 _DESCRIPTION = "Drive an underwater robot's low-level controller over its serial command protocol."
