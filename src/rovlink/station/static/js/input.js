@@ -99,6 +99,9 @@ export class InputDevices {
     const standard = pads.filter((pad) => pad.mapping === "standard");
     if (standard.length === 1) return { kind: "gamepad", pad: standard[0], label: standard[0].id };
     if (pads.length === 0) return { kind: null, label: "no gamepad: connect one or choose the keyboard" };
+    if (standard.length === 0) {
+      return { kind: null, label: "no gamepad with the standard mapping: choose a device" };
+    }
     return { kind: null, label: "several gamepads: choose one" };
   }
 
