@@ -158,15 +158,18 @@ def _input(data: dict[str, Any]) -> InputMessage:
     source = data.get("source", "gamepad")
     if source not in _INPUT_SOURCES:
         raise MessageError(f"input: 'source' must be gamepad or keyboard, got {source!r:.40}")
+    direction_deg = _field(data, "input", "direction_deg", int)
+    power_percent = _field(data, "input", "power_percent", int)
+    vertical_percent = _field(data, "input", "vertical_percent", int)
     pad_timestamp_ms = None
     if source == "gamepad":
         pad_timestamp_ms = float(_field(data, "input", "pad_timestamp_ms", float))
     try:
         pilot = PilotInput(
             deadman=deadman,
-            direction_deg=_field(data, "input", "direction_deg", int),
-            power_percent=_field(data, "input", "power_percent", int),
-            vertical_percent=_field(data, "input", "vertical_percent", int),
+            direction_deg=direction_deg,
+            power_percent=power_percent,
+            vertical_percent=vertical_percent,
             pad_timestamp_ms=pad_timestamp_ms,
         )
     except ValueError as error:

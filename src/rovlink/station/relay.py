@@ -64,13 +64,14 @@ class PilotInput:
     pad_timestamp_ms: float | None = None
 
     def __post_init__(self) -> None:
-        for argument, value in (
-            (_DIRECTION, self.direction_deg),
-            (_POWER, self.power_percent),
-            (_THRUST, self.vertical_percent),
+        for name, argument in (
+            ("direction_deg", _DIRECTION),
+            ("power_percent", _POWER),
+            ("vertical_percent", _THRUST),
         ):
+            value = getattr(self, name)
             if not argument.check(value):
-                raise ValueError(f"{argument.name} must be in {argument.range_text()}, got {value}")
+                raise ValueError(f"{name} must be in {argument.range_text()}, got {value}")
 
 
 class ThrustRelay:
