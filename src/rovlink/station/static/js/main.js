@@ -9,7 +9,9 @@ import { drawAttitude, drawDepth, drawHeading, drawThrust } from "./instruments.
 import { ACTIONS, AXES, loadMapping, resetMapping, saveMapping } from "./mapping.js";
 
 const $ = (id) => document.getElementById(id);
-const station = { id: null, pilotId: null, limits: null, telemetry: null, leakSilenced: false };
+const station = {
+  id: null, pilotId: null, limits: null, telemetry: null, leakSilenced: false, telemetryCount: 0,
+};
 let mapping = loadMapping();
 const alarm = new AlarmSound();
 const charts = new Charts($("depth-chart"), $("attitude-chart"));
@@ -54,6 +56,7 @@ function onMessage(message) {
       showTelemetry(message.telemetry);
       break;
     case "telemetry":
+      station.telemetryCount += 1;
       showTelemetry(message);
       if (message.sensors) {
         const s = message.sensors;
