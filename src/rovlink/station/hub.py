@@ -26,7 +26,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
-from rovlink.aio import ClientError, ConnectionLostError
+from rovlink.aio import ClientError
 from rovlink.client.events import (
     ClientEvent,
     LinkState,
@@ -154,6 +154,9 @@ class Station:
         except ClientError as error:
             peer.put({"type": "error", "message": f"the robot's link: {error}"})
             self.log("warning", f"sending failed: {error}")
+        except Exception:  # a bug must not take the page's connection down with it
+            logger.exception("the station failed on a message from %s", peer.label)
+            peer.put({"type": "error", "message": "the station failed on this message (logged)"})
 
     # -- running --------------------------------------------------------------------------------
 
@@ -285,11 +288,8 @@ class Station:
         next_s = loop.time()
         while True:
             try:
-                reading = await self.tracked.sensors()
-            except ConnectionLostError as error:
-                self._poll_failed(str(error))
-                reading = None
-            except ClientError as error:
+                reading: Sensors | None = await self.tracked.sensors()
+            except ClientError as error:  # a timeout, or the link lost (and being reopened)
                 self._poll_failed(str(error))
                 reading = None
             if reading is not None:

@@ -17,7 +17,7 @@ import uvicorn
 
 from rovlink.aio import AsyncClient
 from rovlink.piloting import TrackedClient
-from rovlink.station.access import Access, is_loopback
+from rovlink.station.access import Access
 from rovlink.station.app import build_app
 from rovlink.station.hub import Station
 from rovlink.station.messages import MAX_MESSAGE_BYTES
@@ -117,8 +117,3 @@ async def serve(
             listener.close()
     finally:
         await client.close()
-
-
-def needs_token(host: str) -> bool:
-    """Whether serving on ``host`` reaches beyond this computer (then a token is required)."""
-    return not is_loopback(host)
