@@ -65,6 +65,13 @@ def set_pad(page: Page, *, axes: list[float] | None = None, **buttons: bool) -> 
     )
 
 
+def screenshot(page: Page, name: str) -> None:
+    """With ROVLINK_SCREENSHOTS=1, the page as it is now, for docs/station.md."""
+    if os.environ.get("ROVLINK_SCREENSHOTS") == "1":
+        SCREENSHOTS.mkdir(parents=True, exist_ok=True)
+        page.screenshot(path=str(SCREENSHOTS / f"{name}.png"), full_page=True)
+
+
 def unlock_and_arm(page: Page, line: ControllerLine) -> None:
     mark = line.mark()
     set_pad(page, unlock=True)
@@ -83,6 +90,17 @@ def test_stick_right_with_the_dead_man_drives_and_release_stops(browser, station
     set_pad(page, axes=[1, 0, 0, 0], deadman=True)
     line.wait_for("#th.90.100!", after=mark)
     page.wait_for_function("window.rovlinkStation.station.telemetry.relay.status === 'flying'")
+    if os.environ.get("ROVLINK_SCREENSHOTS") == "1":  # a dive with some history on the charts
+        page.fill("#target-depth", "60")
+        page.press("#target-depth", "Enter")
+        set_pad(page, axes=[0.5, -0.6, 0, 0], deadman=True)
+        page.wait_for_function(
+            "window.rovlinkStation.station.telemetry.sensors.depth_cm >= 55", timeout=60_000
+        )
+        screenshot(page, "pilot")
+        mark = line.mark()
+        set_pad(page, axes=[1, 0, 0, 0], deadman=True)
+        line.wait_for("#th.90.100!", after=mark)
     mark = line.mark()
     set_pad(page, deadman=False)
     line.wait_for("#th.90.0!", after=mark, timeout_s=CUT_WITHIN_S * 2)
@@ -157,9 +175,7 @@ def test_a_leak_shows_the_alarm_and_reset_sends_slreset(browser, station, line):
         "[...document.querySelectorAll('#log li.alarm')]"
         ".some(li => li.textContent.includes('LEAK'))"
     )
-    if os.environ.get("ROVLINK_SCREENSHOTS") == "1":
-        SCREENSHOTS.mkdir(parents=True, exist_ok=True)
-        page.screenshot(path=str(SCREENSHOTS / "leak.png"))
+    screenshot(page, "leak")
     mark = line.mark()
     page.click("#leak-reset")
     line.wait_for("#slreset!", after=mark)
@@ -190,12 +206,19 @@ def test_a_second_browser_cannot_command(browser, station, line):
         dialog.accept()
 
     watcher.once("dialog", confirm)
+    taken = line.mark()
     watcher.click("#take-control")
     watcher.wait_for_selector("#control.pilot")
     pilot.wait_for_function(
         "document.getElementById('control-status').textContent.startsWith('watching')"
     )
     assert "has control. Take it?" in asked[0]
+    # The unlock button the watcher held all along is no press: nothing was sent for it.
+    set_pad(watcher, deadman=False, unlock=False)
+    watcher.click("#claw-close")  # a fence
+    line.wait_for("#h-!", after=taken)
+    assert "#start!" not in line.frames(taken)
+    screenshot(pilot, "watcher")
     pilot.context.close()
     watcher.context.close()
 

@@ -108,21 +108,23 @@ export class InputDevices {
   poll() {
     const device = this.active();
     if (device.label !== this.status) { this.status = device.label; this.onChange(); }
-    if (document.hidden || !this.isPilot()) {
+    const flying = !document.hidden && this.isPilot();
+    // Button presses are edges: a button already held when this page became the pilot (or
+    // came back into view) does nothing until it is released and pressed again.
+    const mapping = this.mapping();
+    for (const action of BUTTON_ACTIONS) {
+      const down = device.kind === "gamepad" && pressed(device.pad, mapping.buttons[action]);
+      if (flying && down && !this.previousButtons[action]) this.act(action);
+      this.previousButtons[action] = down;
+    }
+    if (!flying) {
       this.lastSent = null;
-      this.previousButtons = {};
       return;
     }
     let input = null;
     if (device.kind === "gamepad") {
-      const mapping = this.mapping();
       input = { ...padInput(device.pad, mapping), pad_timestamp_ms: device.pad.timestamp,
         source: "gamepad" };
-      for (const action of BUTTON_ACTIONS) {
-        const down = pressed(device.pad, mapping.buttons[action]);
-        if (down && !this.previousButtons[action]) this.act(action);
-        this.previousButtons[action] = down;
-      }
     } else if (device.kind === "keyboard") {
       input = { ...this.keyboard.input(), source: "keyboard" };
     } else if (this.lastSent && this.lastSent.deadman) {

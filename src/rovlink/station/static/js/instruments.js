@@ -108,14 +108,16 @@ export function drawDepth(canvas, depthCm, targetCm) {
     ctx.strokeStyle = TARGET; ctx.lineWidth = 2; ctx.setLineDash([5, 3]);
     ctx.beginPath(); ctx.moveTo(36, y(targetCm)); ctx.lineTo(w - 4, y(targetCm)); ctx.stroke();
     ctx.setLineDash([]); ctx.fillStyle = TARGET; ctx.textAlign = "left";
-    ctx.fillText(`⌖ ${targetCm}`, 74, y(targetCm) - 4);
+    const crowded = depthCm !== null && depthCm !== undefined && Math.abs(y(targetCm) - y(depthCm)) < 16;
+    ctx.fillText(`target ${targetCm}`, 72, y(targetCm) + (crowded && targetCm > depthCm ? 14 : -5));
   }
   if (depthCm !== null && depthCm !== undefined) {
     ctx.fillStyle = ACCENT;
     ctx.beginPath(); ctx.moveTo(72, y(depthCm)); ctx.lineTo(84, y(depthCm) - 7);
     ctx.lineTo(84, y(depthCm) + 7); ctx.fill();
     ctx.fillStyle = WHITE; ctx.textAlign = "left"; ctx.font = "bold 12px sans-serif";
-    ctx.fillText(String(depthCm), 86, y(depthCm) + 4);
+    ctx.fillText(String(depthCm), 86, y(depthCm) + (targetCm !== null && targetCm !== undefined
+      && Math.abs(y(targetCm) - y(depthCm)) < 16 && targetCm <= depthCm ? 14 : 4));
   }
 }
 

@@ -105,7 +105,8 @@ function showTelemetry(t) {
   station.telemetry = t;
   if (t.pilot_id !== station.pilotId) setControl(t.pilot_id, t.pilot_label);
   const s = t.sensors, c = t.commanded;
-  const target = c.vertical_mode === "depth" ? c.target_depth_cm : null;
+  // Depth mode is the mode after a reset: a target sent without mvdirect is held.
+  const target = c.vertical_mode !== "direct" ? c.target_depth_cm : null;
   drawAttitude($("attitude"), s?.roll_deg, s?.pitch_deg);
   drawHeading($("heading"), s?.heading_deg);
   drawDepth($("depth-gauge"), s?.depth_cm, target);
@@ -118,10 +119,12 @@ function showTelemetry(t) {
   const lock = $("lock-state");
   lock.className = c.lock;
   text("lock-state", c.lock === "unknown" ? "not sent yet (locked after a reset)" : c.lock);
-  const mode = c.vertical_mode === "direct" ? `direct, thrust ${c.vertical_thrust_percent >= 0 ? "+" : ""}${c.vertical_thrust_percent} %`
-    : c.vertical_mode === "depth" ? `depth, ${c.target_depth_cm !== null ? `target ${c.target_depth_cm} cm`
-      : c.holding_entry_depth ? "holding its depth on entry" : "no target sent"}`
-      : "not sent yet (depth mode after a reset)";
+  const targetText = c.target_depth_cm !== null ? `target ${c.target_depth_cm} cm`
+    : c.holding_entry_depth ? "holding its depth on entry" : "no target sent";
+  const mode = c.vertical_mode === "direct"
+    ? `direct, thrust ${c.vertical_thrust_percent >= 0 ? "+" : ""}${c.vertical_thrust_percent} %`
+    : c.vertical_mode === "depth" ? `depth, ${targetText}`
+      : `depth (the mode after a reset; mvdirect not sent), ${targetText}`;
   text("mode-state", mode);
   text("horizontal-state", `${c.direction_deg}° at ${c.power_percent} %`);
   const relay = $("relay-state");
