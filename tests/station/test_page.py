@@ -152,6 +152,22 @@ def test_closing_the_tab_zeroes_the_thrust_within_500_ms(browser, station, line)
     assert zero.at_s - closed_s < CUT_WITHIN_S
 
 
+def test_unplugging_the_pad_zeroes_the_thrust(browser, station, line):
+    page = open_page(browser, station)
+    take_control(page)
+    unlock_and_arm(page, line)
+    mark = line.mark()
+    set_pad(page, axes=[0, 1, 0, 0], deadman=True)
+    line.wait_for("#th.180.100!", after=mark)
+    mark = line.mark()
+    unplugged_s = time.monotonic()
+    page.evaluate("fakePads.disconnect(0)")
+    zero = line.wait_for("#th.180.0!", after=mark)
+    assert zero.at_s - unplugged_s < CUT_WITHIN_S
+    page.wait_for_selector("#device-status:has-text('no gamepad')")
+    page.context.close()
+
+
 def test_the_stop_button_and_the_stop_keys_send_stop(browser, station, line):
     page = open_page(browser, station, pad=False)
     for press in (
