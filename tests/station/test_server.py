@@ -366,3 +366,15 @@ async def test_ctrl_c_sends_stop_on_the_way_out(line):
         served.process.send_signal(signal.SIGINT)
         await asyncio.to_thread(line.wait_for, "#stop!", after=mark)
         assert await asyncio.to_thread(served.process.wait, 10) == 0
+
+
+async def test_a_lost_robot_link_is_shown_and_disarms_the_relay(station, line):
+    page = await pilot(station)
+    await fly(page, line)
+    line.close()  # the robot's end goes away (a USB adapter unplugged)
+    alarm = await page.next("log", lambda m: m["text"].startswith("link lost"))
+    assert alarm["level"] == "alarm"
+    reading = await page.next("telemetry", lambda m: not m["link"]["connected"], timeout_s=10)
+    assert reading["relay"]["armed"] is False
+    assert "link was lost" in reading["relay"]["status"]
+    await page.close()

@@ -121,6 +121,8 @@ class Station:
         self._failures_unlogged = 0
         self._failure_logged_s = -_FAILURE_LOG_EVERY_S
         self._leak = False
+        #: The driver's word on the link (LinkState): down while a lost port is being reopened.
+        self._link_up = True
         tracked.client.subscribe(self._on_client_event)
         tracked.add_sent_listener(self._on_sent)
 
@@ -370,7 +372,7 @@ class Station:
         counters = client.counters
         return {
             "description": self.description,
-            "connected": not client.closed,
+            "connected": self._link_up and not client.closed,
             "status": health.status,
             "round_trip_ms": None if health.last_reply_s is None else health.last_reply_s * 1e3,
             "average_round_trip_ms": None
@@ -422,8 +424,16 @@ class Station:
             self.log("warning", f"the driver expired a motion nobody renewed: {frames}")
         elif isinstance(event, LinkState):
             detail = f": {event.detail}" if event.detail else ""
-            level = "alarm" if event.state == "lost" else "info"
-            self.log(level, f"link {event.state}{detail}")
+            if event.state == "lost":
+                # Nothing can be sent now; the controller's own failsafe (P17) stops the robot.
+                # Disarmed, the relay sends nothing when the link is back until the pilot
+                # releases and presses the dead-man again.
+                self._link_up = False
+                self.relay.cut("the robot's link was lost")
+                self.log("alarm", f"link lost{detail}")
+            else:
+                self._link_up = True
+                self.log("info", f"link {event.state}{detail}")
         elif isinstance(event, Unsolicited) and isinstance(event.event, Text):
             self.log("info", f"controller: {event.event.text}")
         elif isinstance(event, QueryFailed):
