@@ -93,6 +93,7 @@ def run(args: argparse.Namespace) -> int:
         reconnect=True,
     )
     link_options.check_url(args)
+    link_options._log_warnings()  # cuts, leaks and lost links also reach the terminal
 
     async def connect() -> rovlink.aio.AsyncClient:
         try:

@@ -163,7 +163,8 @@ class Station:
     # -- running --------------------------------------------------------------------------------
 
     async def run(self) -> None:
-        """Poll the sensors and run the watchdog until cancelled."""
+        """Poll the sensors and run the watchdog until cancelled (or until one of them fails,
+        which the caller must treat as the end of the station)."""
         tasks = [asyncio.ensure_future(self._poll()), asyncio.ensure_future(self._watch())]
         try:
             await asyncio.gather(*tasks)
@@ -274,11 +275,12 @@ class Station:
         while True:
             await asyncio.sleep(WATCHDOG_PERIOD_S)
             try:
+                moving = self.relay.moving
                 commands = self.relay.check(self._clock())
                 if commands:
                     reason = self.relay.cut_reason or "stale input"
                     await self._send_all(commands)
-                    self.log("warning", f"thrust to zero: {reason}")
+                    self.log("warning", f"{'thrust to zero' if moving else 'disarmed'}: {reason}")
             except ClientError as error:
                 self.log("alarm", f"zero thrust could not be sent: {error}")
             except Exception:  # the watchdog must outlive any bug in what it calls
@@ -294,10 +296,13 @@ class Station:
             except ClientError as error:  # a timeout, or the link lost (and being reopened)
                 self._poll_failed(str(error))
                 reading = None
-            if reading is not None:
-                self._reading(reading)
-            else:
-                self._broadcast(self._telemetry(None))
+            try:
+                if reading is not None:
+                    self._reading(reading)
+                else:
+                    self._broadcast(self._telemetry(None))
+            except Exception:  # the pages miss one reading; the polls (P17's food) go on
+                logger.exception("the station failed on a reading")
             next_s = max(next_s + period_s, loop.time())
             await asyncio.sleep(next_s - loop.time())
 

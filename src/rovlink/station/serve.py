@@ -8,7 +8,7 @@ one-line error before anything listens.
 from __future__ import annotations
 
 import asyncio
-import contextlib
+import logging
 import socket
 from collections.abc import Awaitable, Callable
 from dataclasses import dataclass
@@ -23,6 +23,8 @@ from rovlink.station.hub import Station
 from rovlink.station.messages import MAX_MESSAGE_BYTES
 
 __all__ = ["ServeOptions", "bind", "page_urls", "serve"]
+
+logger = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True, slots=True)
@@ -102,6 +104,9 @@ async def serve(
         )
         server = uvicorn.Server(config)
         running = asyncio.ensure_future(station.run())
+        # Without its watchdog the station must not go on serving: it shuts down (and sends
+        # #stop! on the way out).
+        running.add_done_callback(lambda _: setattr(server, "should_exit", True))
         try:
             serving = asyncio.ensure_future(server.serve(sockets=[listener]))
             while not server.started and not serving.done():
@@ -111,8 +116,12 @@ async def serve(
             await serving
         finally:
             running.cancel()
-            with contextlib.suppress(asyncio.CancelledError):
+            try:
                 await running
+            except asyncio.CancelledError:
+                pass
+            except Exception:
+                logger.exception("the station's polling or watchdog failed; shutting down")
             await station.shutdown()
             listener.close()
     finally:
