@@ -28,7 +28,7 @@ if not os.path.exists(CHROMIUM):
 FAKE_GAMEPAD = (Path(__file__).parent / "fake_gamepad.js").read_text(encoding="utf-8")
 SCREENSHOTS = Path(__file__).resolve().parents[2] / "docs" / "station"
 CUT_WITHIN_S = 0.5
-DEADMAN, UNLOCK, STOP_BUTTON = 4, 0, 1
+DEADMAN, UNLOCK, STOP_BUTTON, CLAW_OPEN, CLAW_CLOSE, MODE = 4, 0, 1, 2, 3, 9
 
 Page = Any
 
@@ -104,6 +104,27 @@ def test_stick_right_with_the_dead_man_drives_and_release_stops(browser, station
     mark = line.mark()
     set_pad(page, deadman=False)
     line.wait_for("#th.90.0!", after=mark, timeout_s=CUT_WITHIN_S * 2)
+    page.context.close()
+
+
+def test_pad_buttons_claw_mode_and_the_vertical_stick(browser, station, line):
+    page = open_page(browser, station)
+    take_control(page)
+    unlock_and_arm(page, line)
+    for button, frame in (("claw_open", "#h+!"), ("claw_close", "#h-!"), ("mode", "#mvdirect.1!")):
+        mark = line.mark()
+        set_pad(page, **{button: True})
+        line.wait_for(frame, after=mark)
+        set_pad(page, **{button: False})
+    page.wait_for_function(
+        "window.rovlinkStation.station.telemetry.commanded.vertical_mode === 'direct'"
+    )
+    mark = line.mark()
+    set_pad(page, axes=[0, 0, 0, -1], deadman=True)  # right stick up: + is up
+    line.wait_for("#mvs.+100!", after=mark)
+    mark = line.mark()
+    set_pad(page, deadman=False)
+    line.wait_for("#mvs.+0!", after=mark)
     page.context.close()
 
 

@@ -181,6 +181,12 @@ async def test_a_hidden_page_zeroes_the_thrust(station, line):
     mark = line.mark()
     await page.send({"type": "visibility", "hidden": True})
     await asyncio.to_thread(line.wait_for, "#th.90.0!", after=mark, timeout_s=CUT_WITHIN_S)
+    await page.send(RELEASED)  # a hidden page's input is refused, however it arrives
+    assert "hidden page" in (await page.next("error"))["message"]
+    await page.send({"type": "visibility", "hidden": False})
+    await page.send(RELEASED)
+    await page.send(held(pad_ms=9.0))
+    await asyncio.to_thread(line.wait_for, "#th.90.60!", after=mark)
     await page.close()
 
 

@@ -204,6 +204,8 @@ class Station:
                 await self._cut(f"the pilot's page ({peer.label}) was hidden")
         elif isinstance(message, InputMessage):
             self._require_pilot(peer, "fly")
+            if peer.hidden:
+                raise MessageError("input from a hidden page is ignored: show the page to fly")
             peer.input_source = message.source
             depth = self.latest.depth_cm if self.latest is not None else None
             await self._send_all(self.relay.update(message.pilot, self._clock(), depth_cm=depth))
