@@ -58,11 +58,18 @@ def take_control(page: Page) -> None:
     page.wait_for_selector("#control.pilot")
 
 
-def set_pad(page: Page, *, axes: list[float] | None = None, **buttons: bool) -> float:
-    numbered = {str(globals()[name.upper()]): down for name, down in buttons.items()}
-    return float(
-        page.evaluate("([axes, buttons]) => fakePads.set(0, {axes, buttons})", [axes, numbered])
-    )
+def set_pad(
+    page: Page,
+    *,
+    axes: list[float] | None = None,
+    buttons: dict[str, bool] | None = None,
+    **named: bool,
+) -> float:
+    """Set the fake pad's axes and buttons (by name: ``deadman=True``, ``claw_open=False``)."""
+    pressed = {**(buttons or {}), **named}
+    numbered = {str(globals()[name.upper()]): down for name, down in pressed.items()}
+    script = "([axes, buttons]) => fakePads.set(0, {axes, buttons})"
+    return float(page.evaluate(script, [axes, numbered]))
 
 
 def screenshot(page: Page, name: str) -> None:
@@ -113,9 +120,9 @@ def test_pad_buttons_claw_mode_and_the_vertical_stick(browser, station, line):
     unlock_and_arm(page, line)
     for button, frame in (("claw_open", "#h+!"), ("claw_close", "#h-!"), ("mode", "#mvdirect.1!")):
         mark = line.mark()
-        set_pad(page, **{button: True})
+        set_pad(page, buttons={button: True})
         line.wait_for(frame, after=mark)
-        set_pad(page, **{button: False})
+        set_pad(page, buttons={button: False})
     page.wait_for_function(
         "window.rovlinkStation.station.telemetry.commanded.vertical_mode === 'direct'"
     )
