@@ -10,6 +10,10 @@ to every page, and cuts the thrust the previous pilot was commanding; only the p
 and commands reach the robot. ``stop`` is honoured from any page: it can only make the robot
 safer. Losing the pilot — its WebSocket dropped, its page hidden — zeroes the thrust at once.
 
+A new pilot action — a recording's start and stop, say — is a message type in
+:mod:`rovlink.station.messages` and a branch of :meth:`Station._act`, refused like the others for
+a page that is not the pilot.
+
 Each page has an outbox that the WebSocket endpoint drains; a page too slow to take its
 messages misses readings (they are dropped, never queued without bound), not the others.
 """
