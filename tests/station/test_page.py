@@ -196,6 +196,25 @@ def test_unplugging_the_pad_zeroes_the_thrust(browser, station, line):
     page.context.close()
 
 
+def test_a_page_whose_socket_drops_reconnects_as_a_watcher(browser, station, line):
+    page = open_page(browser, station)
+    take_control(page)
+    unlock_and_arm(page, line)
+    mark = line.mark()
+    set_pad(page, axes=[1, 0, 0, 0], deadman=True)
+    line.wait_for("#th.90.100!", after=mark)
+    page.wait_for_function("window.rovlinkStation.charts.columns[0].length > 3")
+    mark = line.mark()
+    page.evaluate("window.rovlinkStation.connection.socket.close()")
+    line.wait_for("#th.90.0!", after=mark, timeout_s=CUT_WITHIN_S * 2)
+    page.wait_for_function("window.rovlinkStation.station.id === 'p2'")  # the new hello
+    page.wait_for_selector("#control-status:has-text('nobody has control')")
+    times = page.evaluate("window.rovlinkStation.charts.columns[0]")
+    assert times == sorted(set(times))  # the history once, in order
+    assert "#th.90.100!" not in line.frames(mark)  # the held pad does not fly a watcher
+    page.context.close()
+
+
 def test_the_stop_button_and_the_stop_keys_send_stop(browser, station, line):
     page = open_page(browser, station, pad=False)
     for press in (

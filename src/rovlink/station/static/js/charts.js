@@ -39,6 +39,11 @@ export class Charts {
     setInterval(() => this.redraw(), 250);
   }
 
+  clear() {
+    this.columns.forEach((column) => { column.length = 0; });
+    this.dirty = true;
+  }
+
   add(row) {
     row.forEach((value, i) => this.columns[i].push(value));
     const oldest = row[0] - WINDOW_S;

@@ -50,6 +50,7 @@ function onMessage(message) {
       $("link-description").textContent = `· ${message.description} · you are ${message.label}`;
       $("log").replaceChildren();
       message.log.forEach(addLog);
+      charts.clear();  // a reconnected page gets the whole history again
       message.history.forEach((row) => charts.add(row));
       buildSettings(message.limits);
       setControl(message.pilot_id, message.pilot_label);
@@ -348,4 +349,4 @@ addEventListener("pagehide", () => connection.close());
 renderMapping();
 renderDevices();
 connection.open();
-window.rovlinkStation = { station, devices, connection };
+window.rovlinkStation = { station, devices, connection, charts };
