@@ -29,13 +29,14 @@ logger = logging.getLogger(__name__)
 
 @dataclass(frozen=True, slots=True)
 class ServeOptions:
-    """Where and how to serve: address, port (0: any free one), token, poll rate."""
+    """Where and how to serve: address, port (0: any free one), token (``None``: none, on
+    loopback only), sensor polls a second, and the link's checksum algorithm (to name it)."""
 
-    host: str = "127.0.0.1"
-    port: int = 8600
-    token: str | None = None
-    rate_hz: float = 10.0
-    algorithm: str = "crc8"
+    host: str
+    port: int
+    token: str | None
+    rate_hz: float
+    algorithm: str
 
 
 def bind(host: str, port: int) -> socket.socket:
