@@ -51,10 +51,8 @@ class ControllerLine:
     """A simulated robot served on TCP in a thread; every frame that reaches its controller is
     recorded with the time it arrived. ``wait_for`` waits on a condition, with a timeout."""
 
-    def __init__(self, *, seed: int = 1, watchdog_s: float | None = None) -> None:
+    def __init__(self, *, seed: int = 1) -> None:
         self.server = SimServer(seed=seed)
-        if watchdog_s is not None:
-            self.server.robot.controller._watchdog_s = watchdog_s
         host, port = self.server.listen_tcp()
         self.url = f"socket://{host}:{port}"
         self.received: list[Received] = []
