@@ -99,7 +99,7 @@ class ControllerLine:
         ]
 
     def wait_for(
-        self, wanted: Callable[[str], bool] | str, *, after: int = 0, timeout_s: float = 5.0
+        self, wanted: Callable[[str], bool] | str, *, after: int = 0, timeout_s: float = 10.0
     ) -> Received:
         """The first frame after index ``after`` that matches; AssertionError after the timeout."""
         matches = wanted if callable(wanted) else (lambda text: text == wanted)

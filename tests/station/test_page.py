@@ -293,13 +293,15 @@ def test_keyboard_flying_with_shift_as_the_dead_man(browser, station, line):
     page.click("#unlock")
     line.wait_for("#start!")
     page.wait_for_function("window.rovlinkStation.station.telemetry.commanded.lock === 'unlocked'")
-    page.locator("body").click(position={"x": 5, "y": 300})
+    page.wait_for_function(
+        "window.rovlinkStation.station.telemetry.relay.status.startsWith('armed')"
+    )
     mark = line.mark()
     page.keyboard.down("d")  # no dead-man: nothing
-    page.keyboard.down("Shift")
-    page.keyboard.up("Shift")
+    page.wait_for_function("window.rovlinkStation.devices.lastInput?.power_percent === 40")
     page.keyboard.down("Shift")
     line.wait_for("#th.90.40!", after=mark)
+    assert line.frames(mark, commands_only=True) == ["#th.90.40!"]
     mark = line.mark()
     page.keyboard.up("Shift")
     line.wait_for("#th.90.0!", after=mark)
