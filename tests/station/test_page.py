@@ -239,6 +239,10 @@ def test_a_leak_shows_the_alarm_and_reset_sends_slreset(browser, station, line):
         ".some(li => li.textContent.includes('LEAK'))"
     )
     screenshot(page, "leak")
+    assert page.evaluate("window.rovlinkStation.alarm.playing")  # the beep, every second
+    page.click("#leak-silence")
+    assert not page.evaluate("window.rovlinkStation.alarm.playing")
+    assert page.is_visible("#leak-alarm")  # silenced, still shown: the latch is still set
     mark = line.mark()
     page.click("#leak-reset")
     line.wait_for("#slreset!", after=mark)

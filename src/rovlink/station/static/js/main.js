@@ -349,4 +349,4 @@ addEventListener("pagehide", () => connection.close());
 renderMapping();
 renderDevices();
 connection.open();
-window.rovlinkStation = { station, devices, connection, charts };
+window.rovlinkStation = { station, devices, connection, charts, alarm };
