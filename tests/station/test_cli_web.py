@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import socket
+import subprocess
+import sys
 
 import pytest
 
@@ -40,3 +42,23 @@ def test_the_port_and_rate_are_checked(capsys):
 def test_help_names_the_station(argv, capsys):
     assert main(argv) == 0
     assert "web" in capsys.readouterr().out
+
+
+@pytest.mark.integration
+def test_the_help_loads_no_web_library():
+    script = "import sys\nfrom rovlink.cli import main\nmain(['web', '--help'])\n"
+    check = (
+        "import atexit, sys\n"
+        "atexit.register(lambda: print(sorted(m for m in sys.modules if m.split('.')[0] in "
+        "('starlette', 'uvicorn', 'websockets', 'serial') or m.startswith('rovlink.station'))"
+        ", file=sys.stderr))\n"
+    )
+    result = subprocess.run(
+        [sys.executable, "-c", check + script],
+        check=False,
+        capture_output=True,
+        text=True,
+        timeout=30,
+    )
+    assert result.returncode == 0
+    assert result.stderr.strip().splitlines()[-1] == "[]"
