@@ -66,7 +66,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Serve until Ctrl-C; the robot is sent zero thrust and ``#stop!`` on the way out."""
+    """Serve until Ctrl-C; the robot is sent ``#stop!`` on the way out (unless locked as last
+    sent)."""
     try:
         import asyncio  # noqa: PLC0415
 

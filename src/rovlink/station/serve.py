@@ -81,8 +81,8 @@ async def serve(
 ) -> None:
     """Connect, then serve until SIGINT/SIGTERM; ``ready`` gets the page's URLs once listening.
 
-    On the way out the thrust goes to zero and ``#stop!`` is sent unless the robot is locked
-    as last sent; then the link is closed.
+    On the way out the relay is disarmed and ``#stop!`` (every output to zero, the motors
+    locked) is sent unless the robot is locked as last sent; then the link is closed.
     """
     access = Access(bind_host=options.host, port=options.port, token=options.token)
     client = await connect()
