@@ -364,12 +364,13 @@ async def test_a_killed_station_leaves_the_robot_to_its_own_failsafe(line):
         assert line.server.robot.controller.state().power_percent == 0
 
 
-async def test_ctrl_c_sends_stop_on_the_way_out(line):
+@pytest.mark.parametrize("how", [signal.SIGINT, signal.SIGTERM])
+async def test_ctrl_c_or_terminate_sends_stop_on_the_way_out(line, how):
     with running_station(line.url) as served:
         page = await pilot(served)
         await fly(page, line)
         mark = line.mark()
-        served.process.send_signal(signal.SIGINT)
+        served.process.send_signal(how)
         await asyncio.to_thread(line.wait_for, "#stop!", after=mark)
         assert await asyncio.to_thread(served.process.wait, 10) == 0
 
