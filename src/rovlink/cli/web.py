@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import sys
 
 from rovlink.cli import link_options
 from rovlink.cli.failure import CommandError, UsageError
@@ -114,6 +113,4 @@ def run(args: argparse.Namespace) -> int:
         asyncio.run(serve(connect, options, description=args.url, ready=ready))
     except OSError as error:
         raise CommandError(f"cannot serve on {args.host}:{args.port}: {error.strerror}") from None
-    except KeyboardInterrupt:
-        print("rovlink web: stopped", file=sys.stderr)
     return 0

@@ -8,9 +8,11 @@ one-line error before anything listens.
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import logging
+import signal
 import socket
-from collections.abc import Awaitable, Callable
+from collections.abc import Awaitable, Callable, Generator
 from dataclasses import dataclass
 
 import uvicorn
@@ -37,6 +39,26 @@ class ServeOptions:
     token: str | None
     rate_hz: float
     algorithm: str
+
+
+class _Server(uvicorn.Server):
+    """uvicorn's server, except that SIGINT and SIGTERM only end the serving: uvicorn would raise
+    the signal again as soon as it stops, and SIGTERM's default action would end the process
+    before the station has sent ``#stop!`` and closed the link."""
+
+    @contextlib.contextmanager
+    def capture_signals(self) -> Generator[None, None, None]:
+        loop = asyncio.get_running_loop()
+        for number in _ENDING_SIGNALS:
+            loop.add_signal_handler(number, self.handle_exit, number, None)
+        try:
+            yield
+        finally:
+            for number in _ENDING_SIGNALS:
+                loop.remove_signal_handler(number)
+
+
+_ENDING_SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
 
 def bind(host: str, port: int) -> socket.socket:
@@ -103,7 +125,7 @@ async def serve(
             ws_ping_timeout=5.0,
             timeout_graceful_shutdown=1,
         )
-        server = uvicorn.Server(config)
+        server = _Server(config)
         running = asyncio.ensure_future(station.run())
         # Without its watchdog the station must not go on serving: it shuts down (and sends
         # #stop! on the way out).
