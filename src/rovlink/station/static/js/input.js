@@ -67,7 +67,10 @@ export class InputDevices {
   }
 
   pads() {
-    const pads = navigator.getGamepads ? Array.from(navigator.getGamepads()) : [];
+    let pads = [];
+    try {
+      pads = navigator.getGamepads ? Array.from(navigator.getGamepads()) : [];
+    } catch { /* refused outside a secure context: no pads */ }
     return pads.filter((pad) => pad && pad.connected);
   }
 
@@ -98,6 +101,10 @@ export class InputDevices {
     }
     const standard = pads.filter((pad) => pad.mapping === "standard");
     if (standard.length === 1) return { kind: "gamepad", pad: standard[0], label: standard[0].id };
+    if (pads.length === 0 && !window.isSecureContext) {
+      // Some browsers show gamepads only to secure pages: https, or http on this computer.
+      return { kind: null, label: "no gamepad (this browser may hide them from http pages of other computers: use an SSH tunnel)" };
+    }
     if (pads.length === 0) return { kind: null, label: "no gamepad: connect one or choose the keyboard" };
     if (standard.length === 0) {
       return { kind: null, label: "no gamepad with the standard mapping: choose a device" };
