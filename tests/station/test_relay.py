@@ -6,7 +6,13 @@ import pytest
 
 from rovlink.piloting import CommandedState
 from rovlink.protocol import Command
-from rovlink.station.relay import RENEW_S, STALE_INPUT_S, PilotInput, ThrustRelay
+from rovlink.station.relay import (
+    MIN_MOTION_INTERVAL_S,
+    RENEW_S,
+    STALE_INPUT_S,
+    PilotInput,
+    ThrustRelay,
+)
 
 
 class Wire:
@@ -143,3 +149,42 @@ def test_locked_as_last_sent_relays_nothing():
 def test_input_out_of_the_command_tables_range_is_refused(field, value):
     with pytest.raises(ValueError, match=field):
         PilotInput(True, **{field: value})
+
+
+def test_changes_closer_than_the_interval_are_held_and_the_latest_wins():
+    wire = Wire()
+    wire.armed_and_flying()  # #th.90.50! at 0.01
+    assert wire.update(PilotInput(True, 92, 50, 0, 2.0), 0.015) == []
+    assert wire.update(PilotInput(True, 94, 50, 0, 3.0), 0.02) == []
+    assert wire.relay.due_s == pytest.approx(0.01 + MIN_MOTION_INTERVAL_S)
+    assert wire.send(wire.relay.flush(0.025)) == []  # not yet
+    assert wire.send(wire.relay.flush(0.031)) == ["#th.94.50!"]
+    assert wire.relay.due_s is None
+
+
+def test_zero_thrust_is_never_held_back():
+    wire = Wire()
+    wire.armed_and_flying()
+    assert wire.update(PilotInput(True, 90, 0, 0, 2.0), 0.012) == ["#th.90.0!"]
+    wire.armed_and_flying()
+    assert wire.update(PilotInput(False, 90, 50, 0, 2.0), 0.012) == ["#th.90.0!"]
+    assert wire.relay.due_s is None
+
+
+def test_a_held_change_is_dropped_when_the_input_goes_stale_or_is_released():
+    wire = Wire()
+    wire.armed_and_flying()
+    assert wire.update(PilotInput(True, 92, 50, 0, 2.0), 0.015) == []
+    assert wire.update(PilotInput(False, 92, 50, 0, 3.0), 0.016) == ["#th.90.0!"]
+    assert wire.send(wire.relay.flush(1.0)) == []
+    wire.update(PilotInput(True, 90, 50, 0, 4.0), 0.02)
+    assert wire.update(PilotInput(True, 96, 50, 0, 5.0), 0.025) == []
+    assert wire.check(0.026 + STALE_INPUT_S) == ["#th.90.0!", "#mvs.+0!"]
+    assert wire.send(wire.relay.flush(1.0)) == []
+
+
+def test_the_watchdog_round_also_sends_what_is_due():
+    wire = Wire()
+    wire.armed_and_flying()
+    assert wire.update(PilotInput(True, 92, 50, 0, 2.0), 0.015) == []
+    assert wire.check(0.05) == ["#th.92.50!"]

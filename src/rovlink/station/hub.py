@@ -125,6 +125,8 @@ class Station:
         self._failures_unlogged = 0
         self._failure_logged_s = -_FAILURE_LOG_EVERY_S
         self._leak = False
+        self._flush_timer: asyncio.TimerHandle | None = None
+        self._sending: set[asyncio.Future[None]] = set()
         #: The driver's word on the link (LinkState): down while a lost port is being reopened.
         self._link_up = True
         tracked.client.subscribe(self._on_client_event)
@@ -213,6 +215,7 @@ class Station:
             peer.input_source = message.source
             depth = self.latest.depth_cm if self.latest is not None else None
             await self._send_all(self.relay.update(message.pilot, self._clock(), depth_cm=depth))
+            self._schedule_flush()
         elif isinstance(message, CommandRequest):
             if message.command.name == "stop":
                 await self._stop(peer)
@@ -270,6 +273,31 @@ class Station:
         if moving:
             self.log("warning", f"thrust to zero: {reason}")
 
+    def _schedule_flush(self) -> None:
+        """A change the relay held back (``min_interval_s``) goes out when it is due, not at
+        the next watchdog round."""
+        due_s = self.relay.due_s
+        if due_s is None or self._flush_timer is not None:
+            return
+        loop = asyncio.get_running_loop()
+        self._flush_timer = loop.call_later(max(0.0, due_s - self._clock()), self._flush_due)
+
+    def _flush_due(self) -> None:
+        self._flush_timer = None
+        commands = self.relay.flush(self._clock())
+        if not commands:
+            self._schedule_flush()  # not due yet (the timer fired early), or nothing held
+            return
+        task = asyncio.ensure_future(self._send_held(commands))
+        self._sending.add(task)
+        task.add_done_callback(self._sending.discard)
+
+    async def _send_held(self, commands: list[Command]) -> None:
+        try:
+            await self._send_all(commands)
+        except ClientError as error:
+            self.log("warning", f"sending failed: {error}")
+
     async def _send_all(self, commands: list[Command]) -> None:
         for command in commands:
             await self.tracked.send(command)
@@ -281,11 +309,11 @@ class Station:
         while True:
             await asyncio.sleep(WATCHDOG_PERIOD_S)
             try:
-                moving = self.relay.moving
-                commands = self.relay.check(self._clock())
-                if commands:
+                moving, armed = self.relay.moving, self.relay.armed
+                commands = self.relay.check(self._clock())  # a cut, or a held change now due
+                await self._send_all(commands)
+                if armed and not self.relay.armed:
                     reason = self.relay.cut_reason or "stale input"
-                    await self._send_all(commands)
                     self.log("warning", f"{'thrust to zero' if moving else 'disarmed'}: {reason}")
             except ClientError as error:
                 self.log("alarm", f"zero thrust could not be sent: {error}")

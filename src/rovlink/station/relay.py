@@ -23,6 +23,7 @@ from rovlink.protocol import Command, VerticalMode, lookup
 
 __all__ = [
     "DEPTH_NUDGE_CM_PER_S",
+    "MIN_MOTION_INTERVAL_S",
     "RENEW_S",
     "STALE_INPUT_S",
     "PilotInput",
@@ -35,6 +36,10 @@ STALE_INPUT_S = 0.3
 #: A non-zero motion is sent again this often while the input is fresh: the driver's own
 #: ``motion_timeout`` (a second line of defence) expires a motion that was not renewed.
 RENEW_S = 0.5
+#: Non-zero motion frames go out at most this often (a stick that moves all the time would
+#: otherwise send one per poll of the page, more than a slow serial line carries); the latest
+#: input wins. Zero thrust is never held back.
+MIN_MOTION_INTERVAL_S = 0.02
 #: How fast a full deflection of the vertical stick moves the depth target in depth mode.
 DEPTH_NUDGE_CM_PER_S = 30.0
 #: Longest interval a nudge integrates over (a late message does not jump the target).
@@ -95,11 +100,13 @@ class ThrustRelay:
         *,
         stale_input_s: float = STALE_INPUT_S,
         renew_s: float = RENEW_S,
+        min_interval_s: float = MIN_MOTION_INTERVAL_S,
         depth_nudge_cm_per_s: float = DEPTH_NUDGE_CM_PER_S,
     ) -> None:
         self.commanded = commanded
         self.stale_input_s = stale_input_s
         self.renew_s = renew_s
+        self.min_interval_s = min_interval_s
         self.depth_nudge_cm_per_s = depth_nudge_cm_per_s
         #: The dead-man was seen released since the last cut: pressing it may move the robot.
         self.armed = False
@@ -111,6 +118,8 @@ class ThrustRelay:
         self._motion_sent_at_s: float | None = None
         self._nudge_at_s: float | None = None
         self._target_cm: float | None = None
+        #: An input whose thrust was held back by ``min_interval_s``, for :meth:`flush`.
+        self._pending: PilotInput | None = None
 
     # -- what the page sends -------------------------------------------------------------------
 
@@ -132,6 +141,7 @@ class ThrustRelay:
         if not pilot.deadman:
             self._nudge_at_s = None
             self._target_cm = None
+            self._pending = None
             self.armed = True
             self.cut_reason = None
             return self._zero_commands()
@@ -145,12 +155,34 @@ class ThrustRelay:
 
     def check(self, now_s: float) -> list[Command]:
         """The watchdog, called by the server every few tens of milliseconds: zero thrust when
-        the pilot's input went stale while the dead-man was held."""
+        the pilot's input went stale while the dead-man was held (else what :meth:`flush`
+        has due)."""
         pilot = self._last_input
         if pilot is None or not pilot.deadman or not self.armed:
             return []
         stale = self._stale_because(now_s)
-        return self.cut(stale) if stale is not None else []
+        return self.cut(stale) if stale is not None else self.flush(now_s)
+
+    @property
+    def due_s(self) -> float | None:
+        """When an input held back by ``min_interval_s`` may go out; ``None``: nothing held."""
+        if self._pending is None or self._motion_sent_at_s is None:
+            return None
+        return self._motion_sent_at_s + self.min_interval_s
+
+    def flush(self, now_s: float) -> list[Command]:
+        """The thrust of the input held back by ``min_interval_s``, once it is due."""
+        pilot = self._pending
+        due_s = self.due_s
+        if pilot is None or due_s is None or now_s < due_s:
+            return []
+        if not self.armed or self._stale_because(now_s) is not None:
+            self._pending = None
+            return []  # the watchdog's business
+        if self.commanded.lock is LockState.LOCKED:
+            self._pending = None
+            return []
+        return self._thrust_commands(pilot, now_s)
 
     def cut(self, reason: str) -> list[Command]:
         """Stop relaying (the pilot left, hid the page, lost control, pressed STOP...): the zero
@@ -159,6 +191,7 @@ class ThrustRelay:
         self.cut_reason = reason
         self._nudge_at_s = None
         self._target_cm = None
+        self._pending = None
         return self._zero_commands(always=True)
 
     def disarm(self) -> None:
@@ -166,6 +199,7 @@ class ThrustRelay:
         self.armed = False
         self.cut_reason = "no input yet"
         self._last_input = None
+        self._pending = None
         self._nudge_at_s = None
         self._target_cm = None
 
@@ -220,9 +254,21 @@ class ThrustRelay:
     def _motion_commands(
         self, pilot: PilotInput, now_s: float, depth_cm: int | None
     ) -> list[Command]:
-        commanded = self.commanded
-        if commanded.lock is LockState.LOCKED:
+        if self.commanded.lock is LockState.LOCKED:
+            self._pending = None
             return []  # the controller would drop them (P7): nothing to relay until start
+        commands = self._thrust_commands(pilot, now_s)
+        if self.commanded.vertical_mode is not VerticalMode.DIRECT:
+            nudge = self._nudge(pilot, now_s, depth_cm)
+            if nudge is not None:
+                commands.append(nudge)
+        return commands
+
+    def _thrust_commands(self, pilot: PilotInput, now_s: float) -> list[Command]:
+        """``th`` and ``mvs`` for the pilot's input. A change to zero goes at once; any other
+        change at most every ``min_interval_s``, the latest input winning (held in
+        :attr:`_pending` until :meth:`flush`)."""
+        commanded = self.commanded
         renew = (
             self.moving
             and self._motion_sent_at_s is not None
@@ -237,17 +283,22 @@ class ThrustRelay:
                 commands.append(Command("th", (pilot.direction_deg % 360, pilot.power_percent)))
         elif commanded.power_percent > 0:
             commands.append(Command("th", (commanded.direction_deg, 0)))
-        mode = commanded.vertical_mode
-        if mode is VerticalMode.DIRECT:
-            if pilot.vertical_percent != commanded.vertical_thrust_percent or (
-                renew and pilot.vertical_percent != 0
-            ):
-                commands.append(Command("mvs", (pilot.vertical_percent,)))
-        elif mode is VerticalMode.DEPTH or mode is None:
-            nudge = self._nudge(pilot, now_s, depth_cm)
-            if nudge is not None:
-                commands.append(nudge)
-        if any(command.name in ("th", "mvs") for command in commands):
+        if commanded.vertical_mode is VerticalMode.DIRECT and (
+            pilot.vertical_percent != commanded.vertical_thrust_percent
+            or (renew and pilot.vertical_percent != 0)
+        ):
+            commands.append(Command("mvs", (pilot.vertical_percent,)))
+        zeroes = [command for command in commands if _is_zero(command)]
+        sent_at_s = self._motion_sent_at_s
+        if (
+            len(zeroes) < len(commands)
+            and sent_at_s is not None
+            and now_s - sent_at_s < self.min_interval_s
+        ):
+            self._pending = pilot
+            return zeroes
+        self._pending = None
+        if len(zeroes) < len(commands):
             self._motion_sent_at_s = now_s
         return commands
 
@@ -271,3 +322,8 @@ class ThrustRelay:
         if target == self.commanded.target_depth_cm:
             return None
         return Command("mvd", (target,))
+
+
+def _is_zero(command: Command) -> bool:
+    """``#th.A.0!`` or ``#mvs.+0!``: a frame that only takes thrust away."""
+    return command.values[-1] == 0
