@@ -8,9 +8,11 @@ controller; ``rovlink web`` runs as a subprocess on it, as a pilot runs it.
 
 1. Gamepad to wire. A fake gamepad (``tests/station/fake_gamepad.js``) is injected in a real
    chromium page; with the dead-man held, the stick is moved ``--changes`` times to a new
-   direction, each time waiting for ``#th.D.100!`` to reach the controller. The time runs from
-   just before the page's pad is changed (so it includes the page's poll, its WebSocket
-   message, the server's relay and the driver) to the frame's arrival. In the same run, one
+   direction, each time waiting for ``#th.D.100!`` to reach the controller, and 25 ms more
+   (the relay sends non-zero motion at most every 20 ms; the changes are then also made back
+   to back, to show that interval). The time runs from just before the page's pad is changed
+   (so it includes the page's poll, its WebSocket message, the server's relay and the driver)
+   to the frame's arrival. In the same run, one
    after the other, the same changes are sent by a WebSocket client with no browser (the
    server's and driver's share) and by the asyncio driver alone (``move()``, the floor).
    Target: p99 ≤ 50 ms.
@@ -60,6 +62,10 @@ CHROMIUM_ARGS = [
 ]
 TARGET_P99_MS = 50.0
 TARGET_CPU_PERCENT = 10.0
+#: Between one change's frame and the next change: longer than the relay's 20 ms between
+#: non-zero motion frames, so that a change's own latency is measured. Back to back, each
+#: change also waits out that interval (a stick in constant motion).
+SPACING_S = 0.025
 _URL = re.compile(r"http://\S+?/(?=[ ;]|$)")
 
 
@@ -167,7 +173,12 @@ def summary(name: str, values_ms: list[float]) -> str:
 
 
 def measure_latency(robot: RecordedRobot, url: str, changes: int) -> dict[str, list[float]]:
-    results: dict[str, list[float]] = {"browser": [], "websocket": [], "driver": []}
+    results: dict[str, list[float]] = {
+        "browser": [],
+        "browser, back to back": [],
+        "websocket": [],
+        "driver": [],
+    }
     ws_url = "ws" + url[len("http") :] + "ws"
     with sync_playwright() as playwright:
         browser = playwright.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
@@ -182,12 +193,14 @@ def measure_latency(robot: RecordedRobot, url: str, changes: int) -> dict[str, l
         robot.wait_for("#start!")
         page.evaluate("fakePads.set(0, {buttons: {4: true}})")  # the dead-man, held throughout
         page.wait_for_function("window.rovlinkStation.station.telemetry.relay.status === 'flying'")
-        for direction_deg in directions(changes):
-            axes, frame = axes_for(direction_deg)
-            robot.forget(frame)
-            started = time.monotonic()
-            page.evaluate("(axes) => fakePads.set(0, {axes})", axes)
-            results["browser"].append((robot.wait_for(frame) - started) * 1e3)
+        for name, spacing_s in (("browser", SPACING_S), ("browser, back to back", 0.0)):
+            for direction_deg in directions(changes):
+                axes, frame = axes_for(direction_deg)
+                robot.forget(frame)
+                time.sleep(spacing_s)
+                started = time.monotonic()
+                page.evaluate("(axes) => fakePads.set(0, {axes})", axes)
+                results[name].append((robot.wait_for(frame) - started) * 1e3)
         page.evaluate("fakePads.set(0, {buttons: {4: false}})")
         page.click("#release-control")
         time.sleep(0.3)
@@ -217,6 +230,7 @@ def measure_latency(robot: RecordedRobot, url: str, changes: int) -> dict[str, l
                 _, frame = axes_for(direction_deg)
                 shown = int(frame.split(".")[1])
                 robot.forget(frame)
+                time.sleep(SPACING_S)
                 started = time.monotonic()
                 send_input(True, shown, 100)
                 results["websocket"].append((robot.wait_for(frame) - started) * 1e3)
@@ -281,6 +295,7 @@ def main() -> None:
         results["driver"] = asyncio.run(driver_latency(robot, args.changes))
         print(f"gamepad to wire, {args.changes} changes each (robot: {robot.url})")
         print(summary("browser → server → wire", results["browser"]))
+        print(summary("the same, back to back", results["browser, back to back"]))
         print(summary("websocket client → server → wire", results["websocket"]))
         print(summary("driver move() → wire", results["driver"]))
         browser_p99 = percentile(results["browser"], 0.99)
