@@ -37,6 +37,7 @@ COMMANDS: dict[str, str] = {
     "fault": "A proxy that injects seeded bit errors, losses and delays into a controller's link.",
     "tune": "Depth-PID autotune: relay experiment, stated rule, gains on 0-99, verification.",
     "calibrate": "Two-point depth calibration: sdz and sdk from the surface and a known depth.",
+    "web": "Serve the web ground station: gauges, charts, gamepad, STOP, in the browser.",
 }
 
 _DESCRIPTION = "Drive an underwater robot's low-level controller over its serial command protocol."

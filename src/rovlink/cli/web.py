@@ -1,0 +1,116 @@
+"""Serve the web ground station: a pilot's screen with gauges, charts, a gamepad and a STOP
+button, in any browser on this computer (or, with --host and a token, on the network)."""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+
+from rovlink.cli import link_options
+from rovlink.cli.failure import CommandError, UsageError
+
+__all__ = ["EPILOG", "add_arguments", "run"]
+
+EPILOG = """\
+examples:
+  rovlink web                              the simulator, at http://127.0.0.1:8600/
+  rovlink web /dev/ttyUSB0 --checksum      a robot on a serial port
+  rovlink web --host 0.0.0.0               on the network: a token URL is printed
+  rovlink web --host 0.0.0.0 --token "$ROV_TOKEN"
+
+The page: hold LB (the dead-man) and move the left stick to drive; release it and the thrust
+goes to zero. Space or Esc is STOP."""
+
+#: Without ``--port``.
+DEFAULT_PORT = 8600
+#: How long to wait for the driver on Ctrl-C before giving up on ``#stop!``.
+_MOTION_BACKSTOP_S = 1.0
+
+
+def _port(text: str) -> int:
+    return link_options.bounded_int(text, 0, 65535)
+
+
+def _rate_hz(text: str) -> float:
+    return link_options.bounded_float(text, 0.5, 50.0, " Hz")
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """``web``'s options."""
+    link_options.add_link_options(parser)
+    group = parser.add_argument_group("station options")
+    group.add_argument(
+        "--host",
+        default="127.0.0.1",
+        help="address to serve on; beyond loopback a token is required (default: %(default)s)",
+    )
+    group.add_argument(
+        "--port",
+        type=_port,
+        default=DEFAULT_PORT,
+        help="TCP port, 0 for any free one (default: %(default)s)",
+    )
+    group.add_argument(
+        "--token",
+        help="the token pages must present (default: generated when --host is not loopback)",
+    )
+    group.add_argument(
+        "--rate",
+        dest="rate_hz",
+        type=_rate_hz,
+        default=10.0,
+        metavar="HZ",
+        help="sensor polls per second, 0.5–50 (default: %(default)s)",
+    )
+
+
+def run(args: argparse.Namespace) -> int:
+    """Serve until Ctrl-C; the robot is sent ``#stop!`` on the way out (unless locked as last
+    sent)."""
+    try:
+        import asyncio  # noqa: PLC0415
+
+        from rovlink.station import access as station_access  # noqa: PLC0415
+        from rovlink.station.serve import ServeOptions, serve  # noqa: PLC0415
+    except ImportError as error:
+        raise CommandError(f"needs {error.name}: pip install 'rovlink[web]'") from None
+    import rovlink.aio  # noqa: PLC0415
+
+    token = args.token
+    if token is None and not station_access.is_loopback(args.host):
+        token = station_access.generate_token()
+    if token is not None and len(token) < 8:
+        raise UsageError("--token must be at least 8 characters")
+    options = ServeOptions(
+        host=args.host, port=args.port, token=token, rate_hz=args.rate_hz, algorithm=args.algorithm
+    )
+    # The relay renews a held motion twice a second; the driver expires one not renewed within a
+    # second (a second line of defence behind the station's own 300 ms watchdog). The
+    # keep-alive runs on the station's event loop: a hung station stops feeding the
+    # controller's link-loss failsafe (P17), which then stops the robot.
+    client_options = dataclasses.replace(
+        link_options.client_options(args, keepalive_s=1.0, motion_timeout_s=_MOTION_BACKSTOP_S),
+        reconnect=True,
+    )
+    link_options.check_url(args)
+    link_options._log_warnings()  # cuts, leaks and lost links also reach the terminal
+
+    async def connect() -> rovlink.aio.AsyncClient:
+        try:
+            return await rovlink.aio.connect(
+                args.url, baudrate=args.baudrate, options=client_options
+            )
+        except (ConnectionError, OSError) as error:
+            raise link_options.connection_failure(args.url, error) from None
+
+    def ready(urls: list[str]) -> None:
+        print(
+            f"rovlink web ready: {args.url} at " + " or ".join(urls) + "; Ctrl-C stops",
+            flush=True,
+        )
+
+    try:
+        asyncio.run(serve(connect, options, description=args.url, ready=ready))
+    except OSError as error:
+        raise CommandError(f"cannot serve on {args.host}:{args.port}: {error.strerror}") from None
+    return 0

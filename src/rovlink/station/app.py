@@ -1,0 +1,125 @@
+"""The Starlette application: the pilot's page, its static assets and the ``/ws`` WebSocket.
+
+Every request passes :class:`AccessGuard` first (:mod:`rovlink.station.access`); the page and
+its assets are files of this package (no network needed: the robot's laptop is often offline).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import logging
+from importlib import resources
+from typing import Any
+
+from starlette.applications import Starlette
+from starlette.responses import HTMLResponse, PlainTextResponse, RedirectResponse, Response
+from starlette.routing import Mount, Route, WebSocketRoute
+from starlette.staticfiles import StaticFiles
+from starlette.types import ASGIApp, Receive, Scope, Send
+from starlette.websockets import WebSocket, WebSocketDisconnect
+
+from rovlink.station.access import Access
+from rovlink.station.hub import Station
+
+__all__ = ["STATIC_DIRECTORY", "AccessGuard", "build_app"]
+
+logger = logging.getLogger(__name__)
+
+#: The page's files, shipped in the package.
+STATIC_DIRECTORY = str(resources.files("rovlink.station") / "static")
+
+#: The page must not be cached across versions of the station (its script names do not change).
+_NO_STORE = {"Cache-Control": "no-store"}
+_SECURITY_HEADERS = {
+    "Content-Security-Policy": (
+        "default-src 'self'; connect-src 'self'; img-src 'self' data:; "
+        "style-src 'self' 'unsafe-inline'; frame-ancestors 'none'"
+    ),
+    "X-Content-Type-Options": "nosniff",
+    "Referrer-Policy": "no-referrer",
+}
+
+
+class AccessGuard:
+    """ASGI middleware: a request the :class:`Access` rules refuse never reaches the app."""
+
+    def __init__(self, app: ASGIApp, access: Access) -> None:
+        self.app = app
+        self.access = access
+
+    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
+        kind = scope["type"]
+        if kind not in ("http", "websocket"):
+            await self.app(scope, receive, send)
+            return
+        query = scope.get("query_string", b"").decode("latin-1")
+        verdict = self.access.check(scope["headers"], query, websocket=kind == "websocket")
+        if not verdict.allowed:
+            logger.warning("refused %s %s: %s", kind, scope.get("path"), verdict.reason)
+            if kind == "websocket":
+                await send({"type": "websocket.close", "code": 1008, "reason": verdict.reason})
+                return
+            response: Response = PlainTextResponse(
+                f"rovlink web: {verdict.reason}\n", status_code=403, headers=_NO_STORE
+            )
+            await response(scope, receive, send)
+            return
+        if verdict.token_in_url and kind == "http":
+            # Keep the token in a cookie for this port and take it out of the address bar.
+            response = RedirectResponse(scope.get("path", "/"), status_code=303)
+            response.set_cookie(
+                self.access.cookie_name, self.access.token or "", httponly=True, samesite="strict"
+            )
+            await response(scope, receive, send)
+            return
+        await self.app(scope, receive, send)
+
+
+def build_app(station: Station, access: Access) -> ASGIApp:
+    """The station's ASGI application for ``station``, behind ``access``'s checks."""
+    index_html = (resources.files("rovlink.station") / "static" / "index.html").read_text(
+        encoding="utf-8"
+    )
+
+    async def index(request: Any) -> Response:
+        del request
+        return HTMLResponse(index_html, headers={**_NO_STORE, **_SECURITY_HEADERS})
+
+    async def socket(websocket: WebSocket) -> None:
+        await _serve_page(station, websocket)
+
+    app = Starlette(
+        routes=[
+            Route("/", index),
+            Mount("/static", StaticFiles(directory=STATIC_DIRECTORY), name="static"),
+            WebSocketRoute("/ws", socket),
+        ]
+    )
+    return AccessGuard(app, access)
+
+
+async def _serve_page(station: Station, websocket: WebSocket) -> None:
+    """One page's WebSocket: its messages to the station, the station's to it."""
+
+    await websocket.accept()
+    client = websocket.client
+    peer = station.join(client.host if client is not None else "unknown")
+
+    async def write() -> None:
+        while True:
+            message = await peer.outbox.get()
+            await websocket.send_text(json.dumps(message, separators=(",", ":")))
+
+    writer = asyncio.ensure_future(write())
+    try:
+        while True:
+            message = await websocket.receive()
+            if message["type"] == "websocket.disconnect":
+                break
+            await station.handle(peer, message.get("text", message.get("bytes")))
+    except WebSocketDisconnect:
+        pass
+    finally:
+        writer.cancel()
+        await station.leave(peer)

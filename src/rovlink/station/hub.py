@@ -1,0 +1,483 @@
+"""One robot link shared by every browser: telemetry, health, the event log, the pilot.
+
+The :class:`Station` owns the tracked asyncio client. It polls the sensors at a steady rate and
+sends every browser the reading, the state as last sent, the link's health and who flies; it
+runs the relay's watchdog on its own timer, whatever the pages do; and it acts on the messages
+the pages send (:mod:`rovlink.station.messages`).
+
+One page at a time is the pilot. Taking control is explicit (``take_control``), is announced
+to every page, and cuts the thrust the previous pilot was commanding; only the pilot's input
+and commands reach the robot. ``stop`` is honoured from any page: it can only make the robot
+safer. Losing the pilot — its WebSocket dropped, its page hidden — zeroes the thrust at once.
+
+A new pilot action — a recording's start and stop, say — is a message type in
+:mod:`rovlink.station.messages` and a branch of :meth:`Station._act`, refused like the others for
+a page that is not the pilot.
+
+Each page has an outbox that the WebSocket endpoint drains; a page too slow to take its
+messages misses readings (they are dropped, never queued without bound), not the others.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import itertools
+import logging
+import time
+from collections import deque
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+from rovlink.aio import ClientError
+from rovlink.client.events import (
+    ClientEvent,
+    LinkState,
+    MotionExpired,
+    QueryFailed,
+    ResetSuspected,
+    Unsolicited,
+)
+from rovlink.client.sensors import Sensors
+from rovlink.piloting import LockState, SentFrame, TrackedClient
+from rovlink.protocol import Command, Text
+from rovlink.station.limits import command_limits
+from rovlink.station.messages import (
+    CommandRequest,
+    ControlRequest,
+    InputMessage,
+    MessageError,
+    PageMessage,
+    StopRequest,
+    VisibilityMessage,
+    parse_message,
+)
+from rovlink.station.relay import STALE_INPUT_S, ThrustRelay
+
+__all__ = ["DEFAULT_RATE_HZ", "WATCHDOG_PERIOD_S", "Peer", "Station"]
+
+logger = logging.getLogger(__name__)
+
+DEFAULT_RATE_HZ = 10.0
+#: How often the relay's watchdog runs: with the 300 ms staleness limit, a stale input is cut
+#: within 350 ms, well inside the 500 ms the pilot is promised.
+WATCHDOG_PERIOD_S = 0.05
+#: The pilot's page re-sends its input this often while the dead-man is held.
+INPUT_RESEND_S = 0.05
+#: How much chart history a page that opens late is sent.
+HISTORY_S = 300.0
+#: Event-log entries kept for a page that opens late.
+LOG_ENTRIES = 200
+#: Messages a page may have waiting before newer ones are dropped for it.
+OUTBOX_SIZE = 256
+#: Failed polls are logged at most this often (a dead link fails ten a second).
+_FAILURE_LOG_EVERY_S = 2.0
+
+
+@dataclass(eq=False)
+class Peer:
+    """One connected page: its id, a label people read, and its outbox of messages."""
+
+    id: str
+    label: str
+    outbox: asyncio.Queue[dict[str, Any]] = field(
+        default_factory=lambda: asyncio.Queue(OUTBOX_SIZE)
+    )
+    hidden: bool = False
+    input_source: str | None = None
+    dropped_messages: int = 0
+
+    def put(self, message: dict[str, Any]) -> None:
+        """Queue ``message`` for the page; dropped if the page is too far behind."""
+        try:
+            self.outbox.put_nowait(message)
+        except asyncio.QueueFull:
+            self.dropped_messages += 1
+
+
+class Station:
+    """The robot link, the relay and the connected pages (see the module's documentation).
+
+    ``description`` names the robot's link on the page. Run :meth:`run` as a task while serving.
+    """
+
+    def __init__(
+        self,
+        tracked: TrackedClient,
+        *,
+        description: str,
+        rate_hz: float = DEFAULT_RATE_HZ,
+        clock: Callable[[], float] = time.monotonic,
+    ) -> None:
+        self.tracked = tracked
+        self.description = description
+        self.rate_hz = rate_hz
+        self.relay = ThrustRelay(tracked.commanded)
+        self.peers: dict[str, Peer] = {}
+        self.pilot: Peer | None = None
+        self.latest: Sensors | None = None
+        self._clock = clock
+        self._started_s = clock()
+        self._ids = itertools.count(1)
+        self._history: deque[list[float | None]] = deque(maxlen=int(HISTORY_S * rate_hz))
+        self._log: deque[dict[str, Any]] = deque(maxlen=LOG_ENTRIES)
+        self._failures_unlogged = 0
+        self._failure_logged_s = -_FAILURE_LOG_EVERY_S
+        self._leak = False
+        self._flush_timer: asyncio.TimerHandle | None = None
+        self._sending: set[asyncio.Future[None]] = set()
+        #: The driver's word on the link (LinkState): down while a lost port is being reopened.
+        self._link_up = True
+        tracked.client.subscribe(self._on_client_event)
+        tracked.add_sent_listener(self._on_sent)
+
+    # -- the pages ------------------------------------------------------------------------------
+
+    def join(self, address: str) -> Peer:
+        """A page connected from ``address``: it gets its ``hello`` (everything to draw)."""
+        number = next(self._ids)
+        peer = Peer(id=f"p{number}", label=f"browser {number} ({address})")
+        self.peers[peer.id] = peer
+        peer.put(self._hello(peer))
+        self.log("info", f"{peer.label} connected")
+        return peer
+
+    async def leave(self, peer: Peer) -> None:
+        """A page's WebSocket closed (or dropped): if it was the pilot, thrust goes to zero."""
+        self.peers.pop(peer.id, None)
+        if self.pilot is peer:
+            self.pilot = None
+            await self._cut(f"the pilot's page ({peer.label}) disconnected")
+            self._announce_control(f"{peer.label} disconnected; nobody has control")
+        self.log("info", f"{peer.label} disconnected")
+
+    async def handle(self, peer: Peer, text: str | bytes | None) -> None:
+        """One message from ``peer``; a refused one gets an ``error`` back and sends nothing."""
+        try:
+            message = parse_message(text)
+            await self._act(peer, message)
+        except MessageError as error:
+            peer.put({"type": "error", "message": str(error)})
+        except ClientError as error:
+            peer.put({"type": "error", "message": f"the robot's link: {error}"})
+            self.log("warning", f"sending failed: {error}")
+        except Exception:  # a bug must not take the page's connection down with it
+            logger.exception("the station failed on a message from %s", peer.label)
+            peer.put({"type": "error", "message": "the station failed on this message (logged)"})
+
+    # -- running --------------------------------------------------------------------------------
+
+    async def run(self) -> None:
+        """Poll the sensors and run the watchdog until cancelled (or until one of them fails,
+        which the caller must treat as the end of the station)."""
+        tasks = [asyncio.ensure_future(self._poll()), asyncio.ensure_future(self._watch())]
+        try:
+            await asyncio.gather(*tasks)
+        finally:
+            for task in tasks:
+                task.cancel()
+            await asyncio.gather(*tasks, return_exceptions=True)
+
+    async def shutdown(self) -> None:
+        """The station is closing: thrust to zero and, unless locked as last sent, ``#stop!``."""
+        self.relay.cut("the station is closing")
+        if self.tracked.commanded.lock is not LockState.LOCKED and not self.tracked.client.closed:
+            with contextlib.suppress(ClientError):
+                await self.tracked.stop()
+
+    def log(self, level: str, text: str) -> None:
+        """Add to the event log every page shows (``info``, ``warning`` or ``alarm``)."""
+        entry = {"type": "log", "at_s": round(self.now_s(), 3), "level": level, "text": text}
+        self._log.append(entry)
+        logger.log(logging.WARNING if level != "info" else logging.INFO, "%s", text)
+        self._broadcast(entry)
+
+    def now_s(self) -> float:
+        """Seconds since the station started (the pages' time axis)."""
+        return self._clock() - self._started_s
+
+    # -- acting on messages ---------------------------------------------------------------------
+
+    async def _act(self, peer: Peer, message: PageMessage) -> None:
+        if isinstance(message, StopRequest):
+            await self._stop(peer)
+        elif isinstance(message, ControlRequest):
+            await (self._take_control(peer) if message.take else self._release_control(peer))
+        elif isinstance(message, VisibilityMessage):
+            peer.hidden = message.hidden
+            if message.hidden and self.pilot is peer:
+                await self._cut(f"the pilot's page ({peer.label}) was hidden")
+        elif isinstance(message, InputMessage):
+            self._require_pilot(peer, "fly")
+            if peer.hidden:
+                raise MessageError("input from a hidden page is ignored: show the page to fly")
+            peer.input_source = message.source
+            depth = self.latest.depth_cm if self.latest is not None else None
+            await self._send_all(self.relay.update(message.pilot, self._clock(), depth_cm=depth))
+            self._schedule_flush()
+        elif isinstance(message, CommandRequest):
+            if message.command.name == "stop":
+                await self._stop(peer)
+                return
+            self._require_pilot(peer, "send commands")
+            await self.tracked.send(message.command)
+            self.log("info", f"{peer.label}: {message.command}")
+
+    def _require_pilot(self, peer: Peer, what: str) -> None:
+        if self.pilot is not peer:
+            holder = self.pilot.label if self.pilot is not None else "nobody"
+            raise MessageError(
+                f"only the pilot may {what}; {holder} has control (take control first)"
+            )
+
+    async def _stop(self, peer: Peer) -> None:
+        self.relay.cut(f"STOP from {peer.label}")
+        await self.tracked.stop()
+        self.log("warning", f"STOP from {peer.label}")
+
+    async def _take_control(self, peer: Peer) -> None:
+        previous = self.pilot
+        if previous is peer:
+            return
+        if previous is not None:
+            await self._cut(f"{peer.label} took control from {previous.label}")
+        else:
+            self.relay.disarm()
+        self.pilot = peer
+        taken = f" from {previous.label}" if previous is not None else ""
+        self._announce_control(f"{peer.label} took control{taken}")
+
+    async def _release_control(self, peer: Peer) -> None:
+        if self.pilot is not peer:
+            return
+        self.pilot = None
+        await self._cut(f"{peer.label} released control")
+        self._announce_control(f"{peer.label} released control; nobody has control")
+
+    def _announce_control(self, text: str) -> None:
+        self.log("info", text)
+        self._broadcast({"type": "control", **self._control_state(), "text": text})
+
+    def _control_state(self) -> dict[str, Any]:
+        pilot = self.pilot
+        return {
+            "pilot_id": pilot.id if pilot is not None else None,
+            "pilot_label": pilot.label if pilot is not None else None,
+        }
+
+    async def _cut(self, reason: str) -> None:
+        """Zero thrust now (the relay disarms) and say why."""
+        moving = self.relay.moving
+        await self._send_all(self.relay.cut(reason))
+        if moving:
+            self.log("warning", f"thrust to zero: {reason}")
+
+    def _schedule_flush(self) -> None:
+        """A change the relay held back (``min_interval_s``) goes out when it is due, not at
+        the next watchdog round."""
+        due_s = self.relay.due_s
+        if due_s is None or self._flush_timer is not None:
+            return
+        loop = asyncio.get_running_loop()
+        self._flush_timer = loop.call_later(max(0.0, due_s - self._clock()), self._flush_due)
+
+    def _flush_due(self) -> None:
+        self._flush_timer = None
+        commands = self.relay.flush(self._clock())
+        if not commands:
+            self._schedule_flush()  # not due yet (the timer fired early), or nothing held
+            return
+        task = asyncio.ensure_future(self._send_held(commands))
+        self._sending.add(task)
+        task.add_done_callback(self._sending.discard)
+
+    async def _send_held(self, commands: list[Command]) -> None:
+        try:
+            await self._send_all(commands)
+        except ClientError as error:
+            self.log("warning", f"sending failed: {error}")
+
+    async def _send_all(self, commands: list[Command]) -> None:
+        for command in commands:
+            await self.tracked.send(command)
+
+    # -- the loops ------------------------------------------------------------------------------
+
+    async def _watch(self) -> None:
+        """The watchdog: the page's input must stay fresh while the dead-man is held."""
+        while True:
+            await asyncio.sleep(WATCHDOG_PERIOD_S)
+            try:
+                moving, armed = self.relay.moving, self.relay.armed
+                commands = self.relay.check(self._clock())  # a cut, or a held change now due
+                await self._send_all(commands)
+                if armed and not self.relay.armed:
+                    reason = self.relay.cut_reason or "stale input"
+                    self.log("warning", f"{'thrust to zero' if moving else 'disarmed'}: {reason}")
+            except ClientError as error:
+                self.log("alarm", f"zero thrust could not be sent: {error}")
+            except Exception:  # the watchdog must outlive any bug in what it calls
+                logger.exception("the station's watchdog failed once; it goes on")
+
+    async def _poll(self) -> None:
+        period_s = 1.0 / self.rate_hz
+        loop = asyncio.get_running_loop()
+        next_s = loop.time()
+        while True:
+            try:
+                reading: Sensors | None = await self.tracked.sensors()
+            except ClientError as error:  # a timeout, or the link lost (and being reopened)
+                self._poll_failed(str(error))
+                reading = None
+            try:
+                if reading is not None:
+                    self._reading(reading)
+                else:
+                    self._broadcast(self._telemetry(None))
+            except Exception:  # the pages miss one reading; the polls (P17's food) go on
+                logger.exception("the station failed on a reading")
+            next_s = max(next_s + period_s, loop.time())
+            await asyncio.sleep(next_s - loop.time())
+
+    def _poll_failed(self, error: str) -> None:
+        self._failures_unlogged += 1
+        now = self._clock()
+        if now - self._failure_logged_s >= _FAILURE_LOG_EVERY_S:
+            count = self._failures_unlogged
+            more = f" ({count} polls failed since the last note)" if count > 1 else ""
+            self.log("warning", f"sensor poll failed: {error}{more}")
+            self._failure_logged_s = now
+            self._failures_unlogged = 0
+
+    def _reading(self, reading: Sensors) -> None:
+        self.latest = reading
+        if reading.leak_detected and not self._leak:
+            self.log("alarm", "LEAK: the leak sensor fired (latched until reset)")
+        elif self._leak and not reading.leak_detected:
+            self.log("info", "leak latch clear")
+        self._leak = reading.leak_detected
+        message = self._telemetry(reading)
+        self._history.append(
+            [
+                message["t"],
+                reading.depth_cm,
+                self.tracked.commanded.target_depth_cm,
+                reading.roll_deg,
+                reading.pitch_deg,
+                reading.heading_deg,
+            ]
+        )
+        self._broadcast(message)
+
+    # -- what the pages are sent ----------------------------------------------------------------
+
+    def _telemetry(self, reading: Sensors | None) -> dict[str, Any]:
+        commanded = self.tracked.commanded
+        relay = self.relay
+        return {
+            "type": "telemetry",
+            "t": round(self.now_s(), 3),
+            "sensors": None
+            if reading is None
+            else {
+                "depth_cm": reading.depth_cm,
+                "pressure_raw": reading.pressure_raw,
+                "leak": reading.leak_detected,
+                "roll_deg": reading.roll_deg,
+                "pitch_deg": reading.pitch_deg,
+                "heading_deg": reading.heading_deg,
+            },
+            "commanded": {
+                "lock": str(commanded.lock),
+                "vertical_mode": None
+                if commanded.vertical_mode is None
+                else str(commanded.vertical_mode),
+                "target_depth_cm": commanded.target_depth_cm,
+                "holding_entry_depth": commanded.holding_entry_depth,
+                "vertical_thrust_percent": commanded.vertical_thrust_percent,
+                "direction_deg": commanded.direction_deg,
+                "power_percent": commanded.power_percent,
+            },
+            "relay": {"armed": relay.armed, "moving": relay.moving, "status": relay.status},
+            "link": self._link_health(),
+            **self._control_state(),
+            "pilot_input": self.pilot.input_source if self.pilot is not None else None,
+        }
+
+    def _link_health(self) -> dict[str, Any]:
+        client = self.tracked.client
+        health = self.tracked.health
+        counters = client.counters
+        return {
+            "description": self.description,
+            "connected": self._link_up and not client.closed,
+            "status": health.status,
+            "round_trip_ms": None if health.last_reply_s is None else health.last_reply_s * 1e3,
+            "average_round_trip_ms": None
+            if health.average_reply_s is None
+            else health.average_reply_s * 1e3,
+            "timeouts": counters.timeouts,
+            "retries": counters.retries,
+            "checksum_errors": counters.checksum_errors,
+            "bad_frames": counters.bad_frames,
+            "late_replies": counters.late_replies,
+            "resets_suspected": counters.resets_suspected,
+            "motion_expiries": counters.motion_expiries,
+            "frames_sent": counters.frames_sent,
+            "frames_received": counters.frames_received,
+            "checksum": client.checksum_enabled,
+        }
+
+    def _hello(self, peer: Peer) -> dict[str, Any]:
+        return {
+            "type": "hello",
+            "id": peer.id,
+            "label": peer.label,
+            "description": self.description,
+            "rate_hz": self.rate_hz,
+            "limits": command_limits(),
+            "stale_input_ms": STALE_INPUT_S * 1e3,
+            "input_resend_ms": INPUT_RESEND_S * 1e3,
+            "history": list(self._history),
+            "log": list(self._log),
+            "telemetry": self._telemetry(self.latest),
+            **self._control_state(),
+        }
+
+    def _broadcast(self, message: dict[str, Any]) -> None:
+        for peer in self.peers.values():
+            peer.put(message)
+
+    # -- what the driver reports ----------------------------------------------------------------
+
+    def _on_client_event(self, event: ClientEvent) -> None:
+        if isinstance(event, ResetSuspected):
+            self.log(
+                "warning",
+                f"the controller may have reset ({event.consecutive_timeouts} timeouts in a row):"
+                " it is locked now; start again to fly",
+            )
+        elif isinstance(event, MotionExpired):
+            frames = " ".join(str(command) for command in event.commands)
+            self.log("warning", f"the driver expired a motion nobody renewed: {frames}")
+        elif isinstance(event, LinkState):
+            detail = f": {event.detail}" if event.detail else ""
+            if event.state == "lost":
+                # Nothing can be sent now; the controller's own failsafe (P17) stops the robot.
+                # Disarmed, the relay sends nothing when the link is back until the pilot
+                # releases and presses the dead-man again.
+                self._link_up = False
+                self.relay.cut("the robot's link was lost")
+                self.log("alarm", f"link lost{detail}")
+            else:
+                self._link_up = True
+                self.log("info", f"link {event.state}{detail}")
+        elif isinstance(event, Unsolicited) and isinstance(event.event, Text):
+            self.log("info", f"controller: {event.event.text}")
+        elif isinstance(event, QueryFailed):
+            pass  # counted in the link health; the poll loop notes failures at a bounded rate
+
+    def _on_sent(self, sent: SentFrame) -> None:
+        if sent.warning is not None:
+            self.log("warning", f"{sent.text}: {sent.warning}")

@@ -1,0 +1,201 @@
+"""What a browser may send over ``/ws``, checked before anything acts on it.
+
+Every message is a JSON object with a ``type``. Anything else — not JSON, not an object, an
+unknown type, a missing or mistyped field, a value out of the command table's range, a command
+a page may not send — is a :class:`MessageError` whose text names what was wrong; the server
+answers it with an ``error`` message and sends nothing to the robot.
+
+>>> parse_message('{"type": "command", "name": "mvd", "values": [150]}')
+CommandRequest(command=Command(name='mvd', values=(150,)))
+>>> parse_message('{"type": "command", "name": "th", "values": [90, 40]}')
+Traceback (most recent call last):
+...
+rovlink.station.messages.MessageError: command: 'th' cannot be sent as a command; ...
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass
+from typing import Any
+
+from rovlink.protocol import ArgumentError, Command, UnknownCommandError, lookup
+from rovlink.station.relay import PilotInput
+
+__all__ = [
+    "MAX_MESSAGE_BYTES",
+    "PAGE_COMMANDS",
+    "CommandRequest",
+    "ControlRequest",
+    "InputMessage",
+    "MessageError",
+    "StopRequest",
+    "VisibilityMessage",
+    "parse_message",
+]
+
+#: Larger messages are refused unread (the largest real one is a few hundred bytes).
+MAX_MESSAGE_BYTES = 4096
+
+#: The commands a pilot's page may send as such. Motion (``th``, ``mvs``) comes only from the
+#: pilot's input through the relay and its watchdog; the checksum and debug modes belong to the
+#: link; queries are the server's.
+PAGE_COMMANDS: tuple[str, ...] = (
+    "start",
+    "stop",
+    "mvdirect",
+    "mvd",
+    "h+",
+    "h-",
+    "slreset",
+    "mgmp",
+    "mvpdp",
+    "mvpdi",
+    "mvpidd",
+    "sdz",
+    "sdk",
+)
+
+
+class MessageError(ValueError):
+    """A message the server refuses; the text says what was wrong, for the page to show."""
+
+
+@dataclass(frozen=True, slots=True)
+class ControlRequest:
+    """``take_control`` or ``release_control``."""
+
+    take: bool
+
+
+@dataclass(frozen=True, slots=True)
+class StopRequest:
+    """``stop``: ``#stop!`` now (any page may send it: it only makes the robot safer)."""
+
+
+@dataclass(frozen=True, slots=True)
+class InputMessage:
+    """``input``: the pilot's controls (see :class:`~rovlink.station.relay.PilotInput`)."""
+
+    pilot: PilotInput
+    #: What produced it, ``gamepad`` or ``keyboard``: shown to the others.
+    source: str
+
+
+@dataclass(frozen=True, slots=True)
+class VisibilityMessage:
+    """``visibility``: the page was hidden (another tab, minimised) or shown again."""
+
+    hidden: bool
+
+
+@dataclass(frozen=True, slots=True)
+class CommandRequest:
+    """``command``: one frame of :data:`PAGE_COMMANDS`, its values checked by the table."""
+
+    command: Command
+
+
+PageMessage = ControlRequest | StopRequest | InputMessage | VisibilityMessage | CommandRequest
+
+_INPUT_SOURCES = ("gamepad", "keyboard")
+
+
+def _refuse_constant(name: str) -> Any:
+    raise MessageError(f"not JSON: {name} is not a number JSON allows")
+
+
+def parse_message(text: str | bytes | None) -> PageMessage:
+    """The message in ``text``, checked; MessageError naming what was wrong."""
+    if not isinstance(text, str):
+        raise MessageError("messages are JSON text, not binary")
+    if len(text) > MAX_MESSAGE_BYTES:
+        raise MessageError(f"message of {len(text)} characters; the limit is {MAX_MESSAGE_BYTES}")
+    try:
+        data = json.loads(text, parse_constant=_refuse_constant)
+    except RecursionError:
+        raise MessageError("not JSON: nested too deeply") from None
+    except json.JSONDecodeError as error:
+        raise MessageError(f"not JSON: {error.msg} at character {error.pos}") from None
+    if not isinstance(data, dict):
+        raise MessageError(f"a message is a JSON object with a type, not {type(data).__name__}")
+    kind = data.get("type")
+    if not isinstance(kind, str):
+        raise MessageError("a message needs a 'type' (a string)")
+    if kind in ("take_control", "release_control"):
+        return ControlRequest(take=kind == "take_control")
+    if kind == "stop":
+        return StopRequest()
+    if kind == "input":
+        return _input(data)
+    if kind == "visibility":
+        return VisibilityMessage(_field(data, kind, "hidden", bool))
+    if kind == "command":
+        return _command(data)
+    known = "take_control, release_control, stop, input, visibility, command"
+    raise MessageError(f"unknown message type {kind[:40]!r}; known: {known}")
+
+
+def _field(data: dict[str, Any], kind: str, name: str, wanted: type) -> Any:
+    value = data.get(name)
+    if wanted is int:
+        ok = isinstance(value, int) and not isinstance(value, bool)
+    elif wanted is float:
+        ok = isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value)
+    else:
+        ok = isinstance(value, wanted)
+    if not ok:
+        raise MessageError(f"{kind}: '{name}' must be {_TYPE_WORDS[wanted]}, got {value!r:.40}")
+    return value
+
+
+_TYPE_WORDS = {bool: "true or false", int: "an integer", float: "a number", str: "a string"}
+
+
+def _input(data: dict[str, Any]) -> InputMessage:
+    deadman = _field(data, "input", "deadman", bool)
+    source = data.get("source", "gamepad")
+    if source not in _INPUT_SOURCES:
+        raise MessageError(f"input: 'source' must be gamepad or keyboard, got {source!r:.40}")
+    direction_deg = _field(data, "input", "direction_deg", int)
+    power_percent = _field(data, "input", "power_percent", int)
+    vertical_percent = _field(data, "input", "vertical_percent", int)
+    pad_timestamp_ms = None
+    if source == "gamepad":
+        pad_timestamp_ms = float(_field(data, "input", "pad_timestamp_ms", float))
+    try:
+        pilot = PilotInput(
+            deadman=deadman,
+            direction_deg=direction_deg,
+            power_percent=power_percent,
+            vertical_percent=vertical_percent,
+            pad_timestamp_ms=pad_timestamp_ms,
+        )
+    except ValueError as error:
+        raise MessageError(f"input: {error}") from None
+    return InputMessage(pilot, source)
+
+
+def _command(data: dict[str, Any]) -> CommandRequest:
+    name = _field(data, "command", "name", str)
+    if name not in PAGE_COMMANDS:
+        try:
+            lookup(name)
+        except UnknownCommandError:
+            raise MessageError(f"command: unknown command {name[:40]!r}") from None
+        raise MessageError(
+            f"command: {name!r} cannot be sent as a command; a page may send "
+            + ", ".join(PAGE_COMMANDS)
+            + " (motion comes from the pilot's input)"
+        )
+    values = data.get("values", [])
+    if not isinstance(values, list) or not all(
+        isinstance(value, int) and not isinstance(value, bool) for value in values
+    ):
+        raise MessageError(f"command {name}: 'values' must be a list of integers")
+    try:
+        command = Command(name, tuple(values))
+    except (ArgumentError, ValueError) as error:
+        raise MessageError(f"command: {error}") from None
+    return CommandRequest(command)

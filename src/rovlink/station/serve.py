@@ -1,0 +1,151 @@
+"""Serve the station: connect to the robot, bind the address, run uvicorn until told to stop.
+
+The socket is bound here (not by uvicorn) so that ``--port 0`` can pick a free port and the
+URL printed is the one that works; the robot is connected first, so a wrong serial port is a
+one-line error before anything listens.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import logging
+import signal
+import socket
+from collections.abc import Awaitable, Callable, Generator
+from dataclasses import dataclass
+
+import uvicorn
+
+from rovlink.aio import AsyncClient
+from rovlink.piloting import TrackedClient
+from rovlink.station.access import Access
+from rovlink.station.app import build_app
+from rovlink.station.hub import Station
+from rovlink.station.messages import MAX_MESSAGE_BYTES
+
+__all__ = ["ServeOptions", "bind", "page_urls", "serve"]
+
+logger = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True, slots=True)
+class ServeOptions:
+    """Where and how to serve: address, port (0: any free one), token (``None``: none, on
+    loopback only), sensor polls a second, and the link's checksum algorithm (to name it)."""
+
+    host: str
+    port: int
+    token: str | None
+    rate_hz: float
+    algorithm: str
+
+
+class _Server(uvicorn.Server):
+    """uvicorn's server, except that SIGINT and SIGTERM only end the serving: uvicorn would raise
+    the signal again as soon as it stops, and SIGTERM's default action would end the process
+    before the station has sent ``#stop!`` and closed the link."""
+
+    @contextlib.contextmanager
+    def capture_signals(self) -> Generator[None, None, None]:
+        loop = asyncio.get_running_loop()
+        for number in _ENDING_SIGNALS:
+            loop.add_signal_handler(number, self.handle_exit, number, None)
+        try:
+            yield
+        finally:
+            for number in _ENDING_SIGNALS:
+                loop.remove_signal_handler(number)
+
+
+_ENDING_SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+
+def bind(host: str, port: int) -> socket.socket:
+    """A listening TCP socket on ``host``:``port`` (OSError if taken or not ours)."""
+    family = socket.AF_INET6 if ":" in host else socket.AF_INET
+    listener = socket.socket(family, socket.SOCK_STREAM)
+    try:
+        listener.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        listener.bind((host, port))
+        listener.listen(64)
+    except OSError:
+        listener.close()
+        raise
+    listener.setblocking(False)
+    return listener
+
+
+def page_urls(host: str, port: int, token: str | None) -> list[str]:
+    """The URLs to open the page at: the token in the query, as Jupyter prints them.
+
+    >>> page_urls("127.0.0.1", 8600, None)
+    ['http://127.0.0.1:8600/']
+    >>> page_urls("0.0.0.0", 8600, "abc")[1]
+    'http://127.0.0.1:8600/?token=abc'
+    """
+    suffix = f"?token={token}" if token is not None else ""
+    shown = f"[{host}]" if ":" in host else host
+    if host in ("0.0.0.0", "::"):
+        return [
+            f"http://{socket.gethostname()}:{port}/{suffix}",
+            f"http://127.0.0.1:{port}/{suffix}",
+        ]
+    return [f"http://{shown}:{port}/{suffix}"]
+
+
+async def serve(
+    connect: Callable[[], Awaitable[AsyncClient]],
+    options: ServeOptions,
+    *,
+    description: str,
+    ready: Callable[[list[str]], None],
+) -> None:
+    """Connect, then serve until SIGINT/SIGTERM; ``ready`` gets the page's URLs once listening.
+
+    On the way out the relay is disarmed and ``#stop!`` (every output to zero, the motors
+    locked) is sent unless the robot is locked as last sent; then the link is closed.
+    """
+    access = Access(bind_host=options.host, port=options.port, token=options.token)
+    client = await connect()
+    try:
+        listener = bind(options.host, options.port)
+        port = listener.getsockname()[1]
+        if port != options.port:  # port 0: the cookie's name follows the real port
+            access = Access(bind_host=options.host, port=port, token=options.token)
+        tracked = TrackedClient(client, algorithm=options.algorithm)
+        station = Station(tracked, description=description, rate_hz=options.rate_hz)
+        config = uvicorn.Config(
+            build_app(station, access),
+            log_level="warning",
+            lifespan="off",
+            ws="websockets-sansio",
+            ws_max_size=MAX_MESSAGE_BYTES * 4,
+            ws_ping_interval=5.0,
+            ws_ping_timeout=5.0,
+            timeout_graceful_shutdown=1,
+        )
+        server = _Server(config)
+        running = asyncio.ensure_future(station.run())
+        # Without its watchdog the station must not go on serving: it shuts down (and sends
+        # #stop! on the way out).
+        running.add_done_callback(lambda _: setattr(server, "should_exit", True))
+        try:
+            serving = asyncio.ensure_future(server.serve(sockets=[listener]))
+            while not server.started and not serving.done():
+                await asyncio.sleep(0.01)
+            if server.started:
+                ready(page_urls(options.host, port, options.token))
+            await serving
+        finally:
+            running.cancel()
+            try:
+                await running
+            except asyncio.CancelledError:
+                pass
+            except Exception:
+                logger.exception("the station's polling or watchdog failed; shutting down")
+            await station.shutdown()
+            listener.close()
+    finally:
+        await client.close()

@@ -1,0 +1,152 @@
+// The pilot's input devices: gamepads (the browser Gamepad API) and the keyboard.
+//
+// Nothing is picked silently: the pad in use is the one the pilot chose, or — when no choice
+// is saved — the one pad with the standard mapping when exactly one is connected. Pads on the
+// ignore list (a headset, a keyboard that reports as a pad) are never used. Every few
+// milliseconds the chosen device is read; the input goes to the server when it changes and,
+// while the dead-man is held, at a steady rate, so the server's watchdog sees a frozen page
+// or pad at once.
+
+import { padInput, pressed } from "./mapping.js";
+
+const CHOICE_KEY = "rovlink.device";
+const IGNORE_KEY = "rovlink.ignored-pads";
+const POLL_MS = 10;
+const BUTTON_ACTIONS = ["unlock", "stop", "claw_open", "claw_close", "mode"];
+
+function loadJson(key, fallback) {
+  try { return JSON.parse(localStorage.getItem(key)) ?? fallback; } catch { return fallback; }
+}
+
+export class Keyboard {
+  constructor() {
+    this.down = new Set();
+    this.powerPercent = 40;
+    addEventListener("keydown", (event) => { this.down.add(event.code); });
+    addEventListener("keyup", (event) => { this.down.delete(event.code); });
+    addEventListener("blur", () => this.down.clear());
+  }
+
+  has(...codes) { return codes.some((code) => this.down.has(code)); }
+
+  input() {
+    const ahead = (this.has("KeyW", "ArrowUp") ? 1 : 0) - (this.has("KeyS", "ArrowDown") ? 1 : 0);
+    const right = (this.has("KeyD", "ArrowRight") ? 1 : 0) - (this.has("KeyA", "ArrowLeft") ? 1 : 0);
+    const up = (this.has("KeyR") ? 1 : 0) - (this.has("KeyF") ? 1 : 0);
+    const moving = ahead !== 0 || right !== 0;
+    return {
+      deadman: this.has("ShiftLeft", "ShiftRight"),
+      direction_deg: moving ? Math.round((Math.atan2(right, ahead) * 180) / Math.PI + 360) % 360 : 0,
+      power_percent: moving ? this.powerPercent : 0,
+      vertical_percent: up * Math.min(100, this.powerPercent),
+    };
+  }
+}
+
+export class InputDevices {
+  // send(message) sends to the server; act(name) runs a button's action; isPilot() says
+  // whether this page flies; mapping() the current pad mapping.
+  constructor({ send, act, isPilot, mapping, onChange }) {
+    this.send = send;
+    this.act = act;
+    this.isPilot = isPilot;
+    this.mapping = mapping;
+    this.onChange = onChange;
+    this.keyboard = new Keyboard();
+    this.choice = loadJson(CHOICE_KEY, null);      // {kind: "gamepad", id} | {kind: "keyboard"}
+    this.ignored = new Set(loadJson(IGNORE_KEY, []));
+    this.lastSent = null;
+    this.lastSentAt = 0;
+    this.resendMs = 50;
+    this.previousButtons = {};
+    this.status = "";
+    this.lastInput = null;
+    addEventListener("gamepadconnected", () => this.onChange());
+    addEventListener("gamepaddisconnected", () => this.onChange());
+    setInterval(() => this.poll(), POLL_MS);
+  }
+
+  pads() {
+    let pads = [];
+    try {
+      pads = navigator.getGamepads ? Array.from(navigator.getGamepads()) : [];
+    } catch { /* refused outside a secure context: no pads */ }
+    return pads.filter((pad) => pad && pad.connected);
+  }
+
+  usablePads() { return this.pads().filter((pad) => !this.ignored.has(pad.id)); }
+
+  choose(choice) {
+    this.choice = choice;
+    if (choice) localStorage.setItem(CHOICE_KEY, JSON.stringify(choice));
+    else localStorage.removeItem(CHOICE_KEY);
+    this.onChange();
+  }
+
+  setIgnored(id, ignored) {
+    if (ignored) this.ignored.add(id); else this.ignored.delete(id);
+    localStorage.setItem(IGNORE_KEY, JSON.stringify([...this.ignored]));
+    this.onChange();
+  }
+
+  // The device in use: {kind, pad?, label} or {kind: null, label: why none}.
+  active() {
+    const pads = this.usablePads();
+    const choice = this.choice;
+    if (choice && choice.kind === "keyboard") return { kind: "keyboard", label: "keyboard" };
+    if (choice && choice.kind === "gamepad") {
+      const pad = pads.find((candidate) => candidate.id === choice.id);
+      if (pad) return { kind: "gamepad", pad, label: pad.id };
+      return { kind: null, label: "the chosen gamepad is not connected" };
+    }
+    const standard = pads.filter((pad) => pad.mapping === "standard");
+    if (standard.length === 1) return { kind: "gamepad", pad: standard[0], label: standard[0].id };
+    if (pads.length === 0 && !window.isSecureContext) {
+      // Some browsers show gamepads only to secure pages: https, or http on this computer.
+      return { kind: null, label: "no gamepad (this browser may hide them from http pages of other computers: use an SSH tunnel)" };
+    }
+    if (pads.length === 0) return { kind: null, label: "no gamepad: connect one or choose the keyboard" };
+    if (standard.length === 0) {
+      return { kind: null, label: "no gamepad with the standard mapping: choose a device" };
+    }
+    return { kind: null, label: "several gamepads: choose one" };
+  }
+
+  poll() {
+    const device = this.active();
+    if (device.label !== this.status) { this.status = device.label; this.onChange(); }
+    const flying = !document.hidden && this.isPilot();
+    // Button presses are edges: a button already held when this page became the pilot (or
+    // came back into view) does nothing until it is released and pressed again.
+    const mapping = this.mapping();
+    for (const action of BUTTON_ACTIONS) {
+      const down = device.kind === "gamepad" && pressed(device.pad, mapping.buttons[action]);
+      if (flying && down && !this.previousButtons[action]) this.act(action);
+      this.previousButtons[action] = down;
+    }
+    if (!flying) {
+      this.lastSent = null;
+      return;
+    }
+    let input = null;
+    if (device.kind === "gamepad") {
+      input = { ...padInput(device.pad, mapping), pad_timestamp_ms: device.pad.timestamp,
+        source: "gamepad" };
+    } else if (device.kind === "keyboard") {
+      input = { ...this.keyboard.input(), source: "keyboard" };
+    } else if (this.lastSent && this.lastSent.deadman) {
+      input = { ...this.lastSent, deadman: false, power_percent: 0, vertical_percent: 0 };
+    }
+    this.lastInput = input;
+    if (input === null) return;
+    const now = performance.now();
+    const changed = !this.lastSent || ["deadman", "direction_deg", "power_percent",
+      "vertical_percent", "source"].some((key) => input[key] !== this.lastSent[key]);
+    if (changed || (input.deadman && now - this.lastSentAt >= this.resendMs)) {
+      if (this.send({ type: "input", ...input })) {
+        this.lastSent = input;
+        this.lastSentAt = now;
+      }
+    }
+  }
+}

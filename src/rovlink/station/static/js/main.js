@@ -1,0 +1,352 @@
+// The pilot's screen: wires the connection, the instruments, the charts, the panels and the
+// input devices together. The server decides; this page shows and asks.
+
+import { AlarmSound } from "./alarm.js";
+import { Charts } from "./charts.js";
+import { Connection } from "./connection.js";
+import { InputDevices } from "./input.js";
+import { drawAttitude, drawDepth, drawHeading, drawThrust } from "./instruments.js";
+import { ACTIONS, AXES, loadMapping, resetMapping, saveMapping } from "./mapping.js";
+
+const $ = (id) => document.getElementById(id);
+const station = {
+  id: null, pilotId: null, limits: null, telemetry: null, leakSilenced: false, telemetryCount: 0,
+};
+let mapping = loadMapping();
+const alarm = new AlarmSound();
+const charts = new Charts($("depth-chart"), $("attitude-chart"));
+const connection = new Connection(onMessage, onConnectionState);
+
+const isPilot = () => station.id !== null && station.pilotId === station.id && connection.isOpen;
+const send = (message) => connection.send(message);
+const command = (name, values = []) => send({ type: "command", name, values });
+const stop = () => send({ type: "stop" });
+
+const devices = new InputDevices({
+  send,
+  act: (action) => {
+    if (action === "stop") stop();
+    else if (action === "unlock") command("start");
+    else if (action === "claw_open") command("h+");
+    else if (action === "claw_close") command("h-");
+    else if (action === "mode") {
+      const mode = station.telemetry?.commanded?.vertical_mode;
+      command("mvdirect", [mode === "direct" ? 0 : 1]);
+    }
+  },
+  isPilot,
+  mapping: () => mapping,
+  onChange: () => renderDevices(),
+});
+
+// -- messages from the station -----------------------------------------------------------------
+
+function onMessage(message) {
+  switch (message.type) {
+    case "hello":
+      station.id = message.id;
+      station.limits = message.limits;
+      devices.resendMs = message.input_resend_ms;
+      $("link-description").textContent = `· ${message.description} · you are ${message.label}`;
+      $("log").replaceChildren();
+      message.log.forEach(addLog);
+      charts.clear();  // a reconnected page gets the whole history again
+      message.history.forEach((row) => charts.add(row));
+      buildSettings(message.limits);
+      setControl(message.pilot_id, message.pilot_label);
+      showTelemetry(message.telemetry);
+      break;
+    case "telemetry":
+      station.telemetryCount += 1;
+      showTelemetry(message);
+      if (message.sensors) {
+        const s = message.sensors;
+        charts.add([message.t, s.depth_cm, message.commanded.target_depth_cm, s.roll_deg,
+          s.pitch_deg, s.heading_deg]);
+      }
+      break;
+    case "control":
+      setControl(message.pilot_id, message.pilot_label);
+      toast(message.text);
+      break;
+    case "log":
+      addLog(message);
+      break;
+    case "error":
+      toast(message.message);
+      break;
+  }
+}
+
+function onConnectionState(state) {
+  const badge = $("connection");
+  badge.className = "badge " + (state === "open" ? "ok" : "bad");
+  badge.textContent = state === "open" ? "station connected" : state === "connecting"
+    ? "connecting…" : "station connection lost: reconnecting";
+  if (state !== "open") setControl(null, null);
+}
+
+// -- showing the state ---------------------------------------------------------------------------
+
+function setControl(pilotId, pilotLabel) {
+  station.pilotId = pilotId;
+  const mine = pilotId !== null && pilotId === station.id;
+  $("control").classList.toggle("pilot", mine);
+  document.body.classList.toggle("watching", !mine);
+  $("control-status").textContent = mine ? "you are the pilot"
+    : pilotId ? `watching: ${pilotLabel} has control` : "watching: nobody has control";
+  $("take-control").hidden = mine;
+  $("release-control").hidden = !mine;
+}
+
+function text(id, value) { const el = $(id); if (el.textContent !== value) el.textContent = value; }
+
+function showTelemetry(t) {
+  if (!t) return;
+  station.telemetry = t;
+  if (t.pilot_id !== station.pilotId) setControl(t.pilot_id, t.pilot_label);
+  const s = t.sensors, c = t.commanded;
+  // Depth mode is the mode after a reset: a target sent without mvdirect is held.
+  const target = c.vertical_mode !== "direct" ? c.target_depth_cm : null;
+  drawAttitude($("attitude"), s?.roll_deg, s?.pitch_deg);
+  drawHeading($("heading"), s?.heading_deg);
+  drawDepth($("depth-gauge"), s?.depth_cm, target);
+  drawThrust($("thrust"), c, devices.lastInput);
+  text("roll-value", s ? `${s.roll_deg}°` : "–");
+  text("pitch-value", s ? `${s.pitch_deg}°` : "–");
+  text("heading-value", s ? `${s.heading_deg}°` : "–");
+  text("depth-value", s ? `${s.depth_cm} cm` : "–");
+  text("thrust-value", `${c.direction_deg}° at ${c.power_percent} %`);
+  const lock = $("lock-state");
+  lock.className = c.lock;
+  text("lock-state", c.lock === "unknown" ? "not sent yet (locked after a reset)" : c.lock);
+  const targetText = c.target_depth_cm !== null ? `target ${c.target_depth_cm} cm`
+    : c.holding_entry_depth ? "holding its depth on entry" : "no target sent";
+  const mode = c.vertical_mode === "direct"
+    ? `direct, thrust ${c.vertical_thrust_percent >= 0 ? "+" : ""}${c.vertical_thrust_percent} %`
+    : c.vertical_mode === "depth" ? `depth, ${targetText}`
+      : `depth (the mode after a reset; mvdirect not sent), ${targetText}`;
+  text("mode-state", mode);
+  text("horizontal-state", `${c.direction_deg}° at ${c.power_percent} %`);
+  const relay = $("relay-state");
+  relay.className = t.relay.status === "flying" ? "flying" : "";
+  text("relay-state", t.relay.status);
+  text("flight-status", isPilot() && !t.relay.armed ? t.relay.status : "");
+  showLink(t.link);
+  showLeak(Boolean(s && s.leak));
+}
+
+const LINK_ROWS = [
+  ["status", (l) => (l.connected ? l.status : "disconnected"), (l) => !l.connected || l.status !== "ok"],
+  ["round trip", (l) => (l.round_trip_ms === null ? "–" : `${l.round_trip_ms.toFixed(1)} ms (avg ${l.average_round_trip_ms.toFixed(1)})`)],
+  ["timeouts", (l) => String(l.timeouts), (l) => l.timeouts > 0],
+  ["retries", (l) => String(l.retries)],
+  ["checksum errors", (l) => String(l.checksum_errors), (l) => l.checksum_errors > 0],
+  ["late replies", (l) => String(l.late_replies), (l) => l.late_replies > 0],
+  ["suspected resets", (l) => String(l.resets_suspected), (l) => l.resets_suspected > 0],
+  ["motion expiries", (l) => String(l.motion_expiries)],
+  ["frames out / in", (l) => `${l.frames_sent} / ${l.frames_received}`],
+  ["checksum mode", (l) => (l.checksum ? "on" : "off")],
+];
+
+function showLink(link) {
+  const body = $("link-health").tBodies[0];
+  if (body.rows.length !== LINK_ROWS.length) {
+    body.replaceChildren(...LINK_ROWS.map(([name]) => {
+      const row = document.createElement("tr");
+      row.innerHTML = "<td></td><td></td>";
+      row.cells[0].textContent = name;
+      return row;
+    }));
+  }
+  LINK_ROWS.forEach(([, value, bad], i) => {
+    const cell = body.rows[i].cells[1];
+    const shown = value(link);
+    if (cell.textContent !== shown) cell.textContent = shown;
+    cell.classList.toggle("bad", Boolean(bad && bad(link)));
+  });
+  const badge = $("connection");
+  if (connection.isOpen) {
+    badge.className = "badge " + (link.connected && link.status === "ok" ? "ok" : "warn");
+    badge.textContent = link.connected ? `robot link ${link.status}` : "robot link lost";
+  }
+}
+
+function showLeak(leak) {
+  $("leak-alarm").hidden = !leak;
+  if (!leak) station.leakSilenced = false;
+  if (leak && !station.leakSilenced) alarm.start(); else alarm.stop();
+}
+
+function addLog(entry) {
+  const item = document.createElement("li");
+  item.className = entry.level;
+  const time = document.createElement("time");
+  time.textContent = entry.at_s.toFixed(1).padStart(7);
+  item.append(time, entry.text);
+  const log = $("log");
+  log.prepend(item);
+  while (log.children.length > 300) log.lastChild.remove();
+}
+
+let toastTimer = null;
+function toast(message) {
+  const el = $("toast");
+  el.textContent = message;
+  el.hidden = false;
+  clearTimeout(toastTimer);
+  toastTimer = setTimeout(() => { el.hidden = true; }, 4000);
+}
+
+// -- settings from the command table ---------------------------------------------------------
+
+const SETTINGS = [["mvpdp", "depth PID: P"], ["mvpdi", "depth PID: I"], ["mvpidd", "depth PID: D"],
+  ["mgmp", "max PWM"], ["sdz", "depth zero (raw at the surface)"], ["sdk", "depth coefficient k"]];
+
+function buildSettings(limits) {
+  const rows = $("settings-rows");
+  rows.replaceChildren();
+  for (const [name, label] of SETTINGS) {
+    const argument = limits[name].arguments[0];
+    const row = document.createElement("form");
+    row.className = "setting-row";
+    row.innerHTML = `<span class="name"></span><input type="number" required step="1">
+      <span class="muted"></span><button type="submit">Send</button>`;
+    row.querySelector(".name").textContent = `${label} (#${name})`;
+    const input = row.querySelector("input");
+    Object.assign(input, { min: argument.min, max: argument.max, name, id: `setting-${name}` });
+    row.querySelector(".muted").textContent = `${argument.min}–${argument.max} ${argument.unit}`;
+    row.addEventListener("submit", (event) => {
+      event.preventDefault();
+      command(name, [Number(input.value)]);
+    });
+    rows.append(row);
+  }
+  const target = limits.mvd.arguments[0];
+  Object.assign($("target-depth"), { min: target.min, max: target.max });
+}
+
+// -- input devices and mapping ---------------------------------------------------------------
+
+function renderDevices() {
+  const active = devices.active();
+  const badge = $("device-status");
+  badge.textContent = active.kind ? `input: ${active.label}` : active.label;
+  badge.className = "badge " + (active.kind ? "ok" : "warn");
+  const select = $("device-select");
+  const pads = devices.pads();
+  const options = [["auto", "automatic (the one standard pad)"], ["keyboard", "keyboard"],
+    ...pads.filter((pad) => !devices.ignored.has(pad.id)).map((pad) => [`pad:${pad.id}`, `gamepad: ${pad.id}`])];
+  const choice = devices.choice;
+  const chosen = !choice ? "auto" : choice.kind === "keyboard" ? "keyboard" : `pad:${choice.id}`;
+  if (choice && choice.kind === "gamepad" && !options.some(([value]) => value === chosen)) {
+    options.push([chosen, `gamepad: ${choice.id} (not connected)`]);
+  }
+  select.replaceChildren(...options.map(([value, label]) => new Option(label, value, false, value === chosen)));
+  const list = $("pad-list");
+  list.replaceChildren(...pads.map((pad) => {
+    const row = document.createElement("div");
+    const box = document.createElement("input");
+    box.type = "checkbox";
+    box.checked = devices.ignored.has(pad.id);
+    box.addEventListener("change", () => devices.setIgnored(pad.id, box.checked));
+    const label = document.createElement("label");
+    label.append(box, ` ignore ${pad.id} (${pad.mapping || "non-standard"} mapping)`);
+    row.append(label);
+    return row;
+  }));
+}
+
+$("device-select").addEventListener("change", (event) => {
+  const value = event.target.value;
+  devices.choose(value === "auto" ? null : value === "keyboard" ? { kind: "keyboard" }
+    : { kind: "gamepad", id: value.slice(4) });
+});
+
+function renderMapping() {
+  const editor = $("mapping-editor");
+  const table = document.createElement("table");
+  const rows = [];
+  for (const [name, label] of Object.entries(AXES)) {
+    const axis = mapping.axes[name];
+    rows.push(`<tr><td>${label}</td><td>axis <input type="number" min="0" max="15" data-axis="${name}" value="${axis.index}"></td>
+      <td><label><input type="checkbox" data-invert="${name}" ${axis.invert ? "checked" : ""}> invert</label></td></tr>`);
+  }
+  for (const [name, label] of Object.entries(ACTIONS)) {
+    rows.push(`<tr><td>${label}</td><td>button <input type="number" min="0" max="31" data-button="${name}" value="${mapping.buttons[name]}"></td>
+      <td><button type="button" data-learn="${name}">learn</button></td></tr>`);
+  }
+  table.innerHTML = rows.join("");
+  const reset = document.createElement("button");
+  reset.type = "button";
+  reset.textContent = "default mapping";
+  reset.addEventListener("click", () => { mapping = resetMapping(); renderMapping(); });
+  editor.replaceChildren(table, reset);
+  table.addEventListener("change", (event) => {
+    const el = event.target;
+    if (el.dataset.axis) mapping.axes[el.dataset.axis].index = Number(el.value);
+    if (el.dataset.invert) mapping.axes[el.dataset.invert].invert = el.checked;
+    if (el.dataset.button) mapping.buttons[el.dataset.button] = Number(el.value);
+    saveMapping(mapping);
+  });
+  table.addEventListener("click", (event) => {
+    const name = event.target.dataset?.learn;
+    if (!name) return;
+    const pad = devices.active().pad;
+    if (!pad) { toast("choose a gamepad first"); return; }
+    event.target.textContent = "press a button…";
+    const before = pad.buttons.map((b) => b.pressed);
+    const started = performance.now();
+    const wait = setInterval(() => {
+      const now = devices.active().pad;
+      const index = now ? now.buttons.findIndex((b, i) => b.pressed && !before[i]) : -1;
+      if (index >= 0 || performance.now() - started > 5000) {
+        clearInterval(wait);
+        if (index >= 0) { mapping.buttons[name] = index; saveMapping(mapping); }
+        renderMapping();
+      }
+    }, 20);
+  });
+}
+
+// -- buttons and keys -------------------------------------------------------------------------
+
+$("stop").addEventListener("click", stop);
+$("take-control").addEventListener("click", () => {
+  const holder = station.telemetry?.pilot_label;
+  if (station.pilotId && !confirm(`${holder} has control. Take it? Their thrust goes to zero.`)) return;
+  send({ type: "take_control" });
+});
+$("release-control").addEventListener("click", () => send({ type: "release_control" }));
+$("unlock").addEventListener("click", () => command("start"));
+$("mode-depth").addEventListener("click", () => command("mvdirect", [0]));
+$("mode-direct").addEventListener("click", () => command("mvdirect", [1]));
+$("claw-open").addEventListener("click", () => command("h+"));
+$("claw-close").addEventListener("click", () => command("h-"));
+$("target-form").addEventListener("submit", (event) => {
+  event.preventDefault();
+  command("mvd", [Number($("target-depth").value)]);
+});
+$("leak-reset").addEventListener("click", () => command("slreset"));
+$("leak-silence").addEventListener("click", () => { station.leakSilenced = true; alarm.stop(); });
+$("keyboard-power").addEventListener("input", (event) => {
+  devices.keyboard.powerPercent = Number(event.target.value);
+  $("keyboard-power-value").textContent = `${event.target.value} %`;
+});
+
+// Space and Esc stop the robot from anywhere on the page, before anything else sees the key.
+addEventListener("keydown", (event) => {
+  if (event.code === "Space" || event.code === "Escape") {
+    event.preventDefault();
+    event.stopPropagation();
+    if (!event.repeat) stop();
+  }
+}, { capture: true });
+
+document.addEventListener("visibilitychange", () => send({ type: "visibility", hidden: document.hidden }));
+addEventListener("pagehide", () => connection.close());
+
+renderMapping();
+renderDevices();
+connection.open();
+window.rovlinkStation = { station, devices, connection, charts, alarm };

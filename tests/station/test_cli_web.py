@@ -1,0 +1,64 @@
+"""``rovlink web``'s command line: one-line errors before anything is served."""
+
+from __future__ import annotations
+
+import socket
+import subprocess
+import sys
+
+import pytest
+
+from rovlink.cli import main
+
+
+def test_a_short_token_is_a_usage_error(capsys):
+    assert main(["web", "--host", "0.0.0.0", "--token", "short"]) == 2
+    assert "--token must be at least 8 characters" in capsys.readouterr().err
+
+
+def test_a_bad_url_is_a_usage_error(capsys):
+    assert main(["web", "sim://?speed=3"]) == 2
+    assert "unknown sim option 'speed'" in capsys.readouterr().err
+
+
+def test_a_taken_port_is_one_line(capsys):
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen(1)
+        port = taken.getsockname()[1]
+        assert main(["web", "sim://", "--port", str(port)]) == 1
+    error = capsys.readouterr().err.strip()
+    assert error == f"rovlink web: cannot serve on 127.0.0.1:{port}: Address already in use"
+
+
+def test_the_port_and_rate_are_checked(capsys):
+    assert main(["web", "--port", "70000"]) == 2
+    assert "70000 is not in 0–65535" in capsys.readouterr().err
+    assert main(["web", "--rate", "0"]) == 2
+    assert "less than the minimum" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("argv", [["--help"], ["web", "--help"]])
+def test_help_names_the_station(argv, capsys):
+    assert main(argv) == 0
+    assert "web" in capsys.readouterr().out
+
+
+@pytest.mark.integration
+def test_the_help_loads_no_web_library():
+    script = "import sys\nfrom rovlink.cli import main\nmain(['web', '--help'])\n"
+    check = (
+        "import atexit, sys\n"
+        "atexit.register(lambda: print(sorted(m for m in sys.modules if m.split('.')[0] in "
+        "('starlette', 'uvicorn', 'websockets', 'serial') or m.startswith('rovlink.station'))"
+        ", file=sys.stderr))\n"
+    )
+    result = subprocess.run(
+        [sys.executable, "-c", check + script],
+        check=False,
+        capture_output=True,
+        text=True,
+        timeout=30,
+    )
+    assert result.returncode == 0
+    assert result.stderr.strip().splitlines()[-1] == "[]"

@@ -1,0 +1,349 @@
+"""The pilot's page in a real browser (Debian's chromium through Playwright) against
+``rovlink web`` and a simulated robot; a fake gamepad is injected before the page loads. Every
+assertion is on the frames that reach the simulated controller, or on what the page shows."""
+
+from __future__ import annotations
+
+import os
+import time
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from tests.station.rig import CHROMIUM, CHROMIUM_ARGS, ControllerLine, StationProcess
+
+pytestmark = pytest.mark.integration
+
+playwright_api = pytest.importorskip(
+    "playwright.sync_api", reason="playwright is not installed: pip install -e '.[test]'"
+)
+if not os.path.exists(CHROMIUM):
+    pytest.skip(
+        "chromium is not installed: apt-get install chromium (CI installs it)",
+        allow_module_level=True,
+    )
+
+FAKE_GAMEPAD = (Path(__file__).parent / "fake_gamepad.js").read_text(encoding="utf-8")
+SCREENSHOTS = Path(__file__).resolve().parents[2] / "docs" / "station"
+CUT_WITHIN_S = 0.5
+DEADMAN, UNLOCK, STOP_BUTTON, CLAW_OPEN, CLAW_CLOSE, MODE = 4, 0, 1, 2, 3, 9
+
+Page = Any
+
+
+@pytest.fixture(scope="module")
+def browser() -> Iterator[Any]:
+    with playwright_api.sync_playwright() as playwright:
+        launched = playwright.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
+        yield launched
+        launched.close()
+
+
+def open_page(browser: Any, station: StationProcess, *, pad: bool = True) -> Page:
+    # bypass_csp: the page forbids eval, which wait_for_function("...") uses.
+    context = browser.new_context(viewport={"width": 1400, "height": 1000}, bypass_csp=True)
+    context.add_init_script(FAKE_GAMEPAD)
+    page = context.new_page()
+    page.goto(station.url)
+    page.wait_for_function("window.rovlinkStation && window.rovlinkStation.station.id !== null")
+    if pad:
+        page.evaluate("fakePads.connect()")
+    return page
+
+
+def take_control(page: Page) -> None:
+    page.click("#take-control")
+    page.wait_for_selector("#control.pilot")
+
+
+def set_pad(
+    page: Page,
+    *,
+    axes: list[float] | None = None,
+    buttons: dict[str, bool] | None = None,
+    **named: bool,
+) -> float:
+    """Set the fake pad's axes and buttons (by name: ``deadman=True``, ``claw_open=False``)."""
+    pressed = {**(buttons or {}), **named}
+    numbered = {str(globals()[name.upper()]): down for name, down in pressed.items()}
+    script = "([axes, buttons]) => fakePads.set(0, {axes, buttons})"
+    return float(page.evaluate(script, [axes, numbered]))
+
+
+def screenshot(page: Page, name: str) -> None:
+    """With ROVLINK_SCREENSHOTS=1, the page as it is now, for docs/station.md."""
+    if os.environ.get("ROVLINK_SCREENSHOTS") == "1":
+        SCREENSHOTS.mkdir(parents=True, exist_ok=True)
+        page.screenshot(path=str(SCREENSHOTS / f"{name}.png"), full_page=True)
+
+
+def unlock_and_arm(page: Page, line: ControllerLine) -> None:
+    mark = line.mark()
+    set_pad(page, unlock=True)
+    line.wait_for("#start!", after=mark)
+    set_pad(page, unlock=False)
+    page.wait_for_function(
+        "window.rovlinkStation.station.telemetry.relay.status.startsWith('armed')"
+    )
+
+
+def test_stick_right_with_the_dead_man_drives_and_release_stops(browser, station, line):
+    page = open_page(browser, station)
+    take_control(page)
+    unlock_and_arm(page, line)
+    mark = line.mark()
+    set_pad(page, axes=[1, 0, 0, 0], deadman=True)
+    line.wait_for("#th.90.100!", after=mark)
+    page.wait_for_function("window.rovlinkStation.station.telemetry.relay.status === 'flying'")
+    if os.environ.get("ROVLINK_SCREENSHOTS") == "1":  # a dive with some history on the charts
+        page.fill("#target-depth", "60")
+        page.press("#target-depth", "Enter")
+        set_pad(page, axes=[0.5, -0.6, 0, 0], deadman=True)
+        page.wait_for_function(
+            "window.rovlinkStation.station.telemetry.sensors.depth_cm >= 55", timeout=60_000
+        )
+        screenshot(page, "pilot")
+        mark = line.mark()
+        set_pad(page, axes=[1, 0, 0, 0], deadman=True)
+        line.wait_for("#th.90.100!", after=mark)
+    mark = line.mark()
+    set_pad(page, deadman=False)
+    line.wait_for("#th.90.0!", after=mark, timeout_s=CUT_WITHIN_S * 2)
+    page.context.close()
+
+
+def test_pad_buttons_claw_mode_and_the_vertical_stick(browser, station, line):
+    page = open_page(browser, station)
+    take_control(page)
+    unlock_and_arm(page, line)
+    for button, frame in (("claw_open", "#h+!"), ("claw_close", "#h-!"), ("mode", "#mvdirect.1!")):
+        mark = line.mark()
+        set_pad(page, buttons={button: True})
+        line.wait_for(frame, after=mark)
+        set_pad(page, buttons={button: False})
+    page.wait_for_function(
+        "window.rovlinkStation.station.telemetry.commanded.vertical_mode === 'direct'"
+    )
+    mark = line.mark()
+    set_pad(page, axes=[0, 0, 0, -1], deadman=True)  # right stick up: + is up
+    line.wait_for("#mvs.+100!", after=mark)
+    mark = line.mark()
+    set_pad(page, deadman=False)
+    line.wait_for("#mvs.+0!", after=mark)
+    page.context.close()
+
+
+def test_no_thrust_without_the_dead_man(browser, station, line):
+    page = open_page(browser, station)
+    take_control(page)
+    unlock_and_arm(page, line)
+    mark = line.mark()
+    set_pad(page, axes=[0, -1, 0, 0])  # full ahead, dead-man not held
+    page.wait_for_function("window.rovlinkStation.devices.lastInput?.power_percent === 100")
+    set_pad(page, axes=[0, -1, 0, 0], stop_button=True)  # a fence: STOP reaches the robot
+    line.wait_for("#stop!", after=mark)
+    assert not [frame for frame in line.frames(mark) if frame.startswith("#th.0.")]
+    page.context.close()
+
+
+def test_a_frozen_pad_zeroes_the_thrust_within_500_ms(browser, station, line):
+    page = open_page(browser, station)
+    take_control(page)
+    unlock_and_arm(page, line)
+    mark = line.mark()
+    set_pad(page, axes=[0, -1, 0, 0], deadman=True)
+    line.wait_for("#th.0.100!", after=mark)
+    mark = line.mark()
+    page.evaluate("fakePads.freeze(0)")
+    frozen_s = time.monotonic()
+    zero = line.wait_for("#th.0.0!", after=mark)
+    assert zero.at_s - frozen_s < CUT_WITHIN_S
+    page.wait_for_function(
+        "window.rovlinkStation.station.telemetry.relay.status.includes('gamepad reported nothing')"
+    )
+    page.context.close()
+
+
+def test_closing_the_tab_zeroes_the_thrust_within_500_ms(browser, station, line):
+    page = open_page(browser, station)
+    take_control(page)
+    unlock_and_arm(page, line)
+    mark = line.mark()
+    set_pad(page, axes=[-1, 0, 0, 0], deadman=True)
+    line.wait_for("#th.270.100!", after=mark)
+    mark = line.mark()
+    closed_s = time.monotonic()
+    page.close()
+    zero = line.wait_for("#th.270.0!", after=mark)
+    assert zero.at_s - closed_s < CUT_WITHIN_S
+
+
+def test_unplugging_the_pad_zeroes_the_thrust(browser, station, line):
+    page = open_page(browser, station)
+    take_control(page)
+    unlock_and_arm(page, line)
+    mark = line.mark()
+    set_pad(page, axes=[0, 1, 0, 0], deadman=True)
+    line.wait_for("#th.180.100!", after=mark)
+    mark = line.mark()
+    unplugged_s = time.monotonic()
+    page.evaluate("fakePads.disconnect(0)")
+    zero = line.wait_for("#th.180.0!", after=mark)
+    assert zero.at_s - unplugged_s < CUT_WITHIN_S
+    page.wait_for_selector("#device-status:has-text('no gamepad')")
+    page.context.close()
+
+
+def test_a_page_whose_socket_drops_reconnects_as_a_watcher(browser, station, line):
+    page = open_page(browser, station)
+    take_control(page)
+    unlock_and_arm(page, line)
+    mark = line.mark()
+    set_pad(page, axes=[1, 0, 0, 0], deadman=True)
+    line.wait_for("#th.90.100!", after=mark)
+    page.wait_for_function("window.rovlinkStation.charts.columns[0].length > 3")
+    mark = line.mark()
+    page.evaluate("window.rovlinkStation.connection.socket.close()")
+    line.wait_for("#th.90.0!", after=mark, timeout_s=CUT_WITHIN_S * 2)
+    page.wait_for_function("window.rovlinkStation.station.id === 'p2'")  # the new hello
+    page.wait_for_selector("#control-status:has-text('nobody has control')")
+    times = page.evaluate("window.rovlinkStation.charts.columns[0]")
+    assert times == sorted(set(times))  # the history once, in order
+    assert "#th.90.100!" not in line.frames(mark)  # the held pad does not fly a watcher
+    page.context.close()
+
+
+def test_the_stop_button_and_the_stop_keys_send_stop(browser, station, line):
+    page = open_page(browser, station, pad=False)
+    for press in (
+        lambda: page.click("#stop"),
+        lambda: page.keyboard.press("Space"),
+        lambda: page.keyboard.press("Escape"),
+    ):
+        mark = line.mark()
+        press()
+        line.wait_for("#stop!", after=mark)
+    page.context.close()
+
+
+def test_a_leak_shows_the_alarm_and_reset_sends_slreset(browser, station, line):
+    page = open_page(browser, station, pad=False)
+    take_control(page)
+    assert page.is_hidden("#leak-alarm")
+    line.server.robot.inject_leak()
+    page.wait_for_selector("#leak-alarm", state="visible")
+    page.wait_for_function(
+        "[...document.querySelectorAll('#log li.alarm')]"
+        ".some(li => li.textContent.includes('LEAK'))"
+    )
+    screenshot(page, "leak")
+    assert page.evaluate("window.rovlinkStation.alarm.playing")  # the beep, every second
+    page.click("#leak-silence")
+    assert not page.evaluate("window.rovlinkStation.alarm.playing")
+    assert page.is_visible("#leak-alarm")  # silenced, still shown: the latch is still set
+    mark = line.mark()
+    page.click("#leak-reset")
+    line.wait_for("#slreset!", after=mark)
+    page.wait_for_selector("#leak-alarm", state="hidden")
+    page.context.close()
+
+
+def test_a_second_browser_cannot_command(browser, station, line):
+    pilot = open_page(browser, station)
+    take_control(pilot)
+    watcher = open_page(browser, station)
+    watcher.wait_for_function(
+        "document.getElementById('control-status').textContent.includes('has control')"
+    )
+    mark = line.mark()
+    set_pad(watcher, axes=[1, 0, 0, 0], deadman=True, unlock=True)
+    watcher.click("#claw-open", force=True)  # shown disabled; forced, the server still refuses
+    watcher.evaluate("window.rovlinkStation.connection.send({type: 'command', name: 'start'})")
+    watcher.wait_for_selector("#toast:has-text('only the pilot')")
+    set_pad(pilot, unlock=True)  # a fence from the pilot
+    line.wait_for("#start!", after=mark)
+    assert line.frames(mark, commands_only=True) == ["#start!"]
+    # Taking control is explicit (the watcher confirms it) and both see it.
+    asked: list[str] = []
+
+    def confirm(dialog: Any) -> None:
+        asked.append(dialog.message)
+        dialog.accept()
+
+    watcher.once("dialog", confirm)
+    taken = line.mark()
+    watcher.click("#take-control")
+    watcher.wait_for_selector("#control.pilot")
+    pilot.wait_for_function(
+        "document.getElementById('control-status').textContent.startsWith('watching')"
+    )
+    assert "has control. Take it?" in asked[0]
+    # The unlock button the watcher held all along is no press: nothing was sent for it.
+    set_pad(watcher, deadman=False, unlock=False)
+    watcher.click("#claw-close")  # a fence
+    line.wait_for("#h-!", after=taken)
+    assert "#start!" not in line.frames(taken)
+    screenshot(pilot, "watcher")
+    pilot.context.close()
+    watcher.context.close()
+
+
+def test_keyboard_flying_with_shift_as_the_dead_man(browser, station, line):
+    page = open_page(browser, station, pad=False)
+    take_control(page)
+    page.select_option("#device-select", "keyboard")
+    page.click("#unlock")
+    line.wait_for("#start!")
+    page.wait_for_function("window.rovlinkStation.station.telemetry.commanded.lock === 'unlocked'")
+    page.wait_for_function(
+        "window.rovlinkStation.station.telemetry.relay.status.startsWith('armed')"
+    )
+    mark = line.mark()
+    page.keyboard.down("d")  # no dead-man: nothing
+    page.wait_for_function("window.rovlinkStation.devices.lastInput?.power_percent === 40")
+    page.keyboard.down("Shift")
+    line.wait_for("#th.90.40!", after=mark)
+    assert line.frames(mark, commands_only=True) == ["#th.90.40!"]
+    mark = line.mark()
+    page.keyboard.up("Shift")
+    line.wait_for("#th.90.0!", after=mark)
+    page.keyboard.up("d")
+    page.context.close()
+
+
+def test_no_silent_pick_of_the_input_device(browser, station, line):
+    page = open_page(browser, station, pad=False)
+    take_control(page)
+    page.evaluate("fakePads.connect('USB headset buttons', '')")
+    page.wait_for_selector("#device-status:has-text('no gamepad with the standard mapping')")
+    page.evaluate("fakePads.connect('Pad A (STANDARD GAMEPAD)')")
+    page.wait_for_selector("#device-status:has-text('Pad A')")
+    page.evaluate("fakePads.connect('Pad B (STANDARD GAMEPAD)')")
+    page.wait_for_selector("#device-status:has-text('several gamepads: choose one')")
+    page.select_option("#device-select", "pad:Pad B (STANDARD GAMEPAD)")
+    page.wait_for_selector("#device-status:has-text('Pad B')")
+    page.reload()  # the choice is kept
+    page.wait_for_function("window.rovlinkStation && window.rovlinkStation.station.id !== null")
+    page.evaluate("fakePads.connect('Pad A (STANDARD GAMEPAD)')")
+    page.wait_for_selector("#device-status:has-text('not connected')")
+    page.context.close()
+
+
+def test_settings_send_values_within_the_command_table(browser, station, line):
+    page = open_page(browser, station, pad=False)
+    take_control(page)
+    page.click("#settings-panel summary")
+    assert page.get_attribute("#setting-mgmp", "max") == "255"
+    mark = line.mark()
+    page.fill("#setting-mgmp", "200")
+    page.press("#setting-mgmp", "Enter")
+    line.wait_for("#mgmp.200!", after=mark)
+    page.fill("#setting-mvpdp", "120")  # beyond 0–99: the browser refuses to submit it
+    page.press("#setting-mvpdp", "Enter")
+    page.fill("#target-depth", "150")
+    page.press("#target-depth", "Enter")
+    line.wait_for("#mvd.150!", after=mark)
+    assert not [frame for frame in line.frames(mark) if frame.startswith("#mvpdp")]
+    page.context.close()

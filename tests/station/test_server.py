@@ -1,0 +1,387 @@
+"""The station's server over real sockets: ``rovlink web`` in a subprocess, a simulated robot on
+TCP recording what reaches its controller, and WebSocket clients that speak as pages do."""
+
+from __future__ import annotations
+
+import asyncio
+import os
+import signal
+import time
+import urllib.error
+import urllib.request
+from typing import Any
+
+import pytest
+from websockets.exceptions import InvalidStatus
+
+from rovlink.protocol import lookup
+from tests.station.page_socket import PageSocket
+from tests.station.rig import ControllerLine, StationProcess, running_station
+
+pytestmark = pytest.mark.integration
+
+#: The pilot is promised zero thrust within this long of a stale pad, a dropped socket...
+CUT_WITHIN_S = 0.5
+
+
+async def pilot(station: StationProcess) -> PageSocket:
+    page = await PageSocket.open(station.ws_url)
+    await page.send({"type": "take_control"})
+    await page.next("control", lambda m: m["pilot_id"] == page.id)
+    return page
+
+
+def held(direction_deg: int = 90, power_percent: int = 60, pad_ms: float = 0.0) -> dict[str, Any]:
+    return {
+        "type": "input",
+        "deadman": True,
+        "direction_deg": direction_deg,
+        "power_percent": power_percent,
+        "vertical_percent": 0,
+        "pad_timestamp_ms": pad_ms,
+    }
+
+
+RELEASED = {
+    "type": "input",
+    "deadman": False,
+    "direction_deg": 0,
+    "power_percent": 0,
+    "vertical_percent": 0,
+    "pad_timestamp_ms": 0.0,
+}
+
+
+async def fly(page: PageSocket, line: ControllerLine, direction_deg: int = 90) -> None:
+    """Unlock, arm (dead-man released) and hold the stick until ``#th.D.60!`` reaches the robot."""
+    mark = line.mark()
+    await page.send({"type": "command", "name": "start"})
+    await asyncio.to_thread(line.wait_for, "#start!", after=mark)
+    await page.send(RELEASED)
+    await page.send(held(direction_deg, pad_ms=1.0))
+    await asyncio.to_thread(line.wait_for, f"#th.{direction_deg}.60!", after=mark)
+
+
+async def keep_pad_alive(page: PageSocket, stop: asyncio.Event, direction_deg: int = 90) -> None:
+    """The page's steady re-send while the dead-man is held, the pad reporting each time."""
+    pad_ms = 2.0
+    while not stop.is_set():
+        await page.send(held(direction_deg, pad_ms=pad_ms))
+        pad_ms += 50
+        await asyncio.sleep(0.05)
+
+
+async def test_hello_carries_the_command_table_limits_and_readings_follow(station):
+    page = await PageSocket.open(station.ws_url)
+    assert (
+        page.hello["limits"]["mgmp"]["arguments"][0]["max"] == lookup("mgmp").arguments[0].maximum
+    )
+    assert page.hello["pilot_id"] is None
+    reading = await page.next("telemetry", lambda m: m["sensors"] is not None)
+    assert set(reading["sensors"]) == {
+        "depth_cm",
+        "pressure_raw",
+        "leak",
+        "roll_deg",
+        "pitch_deg",
+        "heading_deg",
+    }
+    assert reading["link"]["status"] == "ok"
+    await page.close()
+
+
+async def test_the_stick_with_the_dead_man_moves_and_releasing_it_zeroes(station, line):
+    page = await pilot(station)
+    await fly(page, line)
+    mark = line.mark()
+    await page.send(RELEASED)
+    await asyncio.to_thread(line.wait_for, "#th.90.0!", after=mark)
+    await page.close()
+
+
+async def test_the_dead_man_must_be_released_first(station, line):
+    page = await pilot(station)
+    mark = line.mark()
+    await page.send({"type": "command", "name": "start"})
+    await page.send(held(pad_ms=1.0))  # held since before this pilot took control
+    await page.send({"type": "command", "name": "h+"})  # a fence: everything before it is in
+    await asyncio.to_thread(line.wait_for, "#h+!", after=mark)
+    assert "#th.90.60!" not in line.frames(mark)
+    reading = await page.next("telemetry")
+    assert reading["relay"]["status"] == "release the dead-man to arm"
+    await page.close()
+
+
+async def test_a_dropped_websocket_zeroes_the_thrust_within_500_ms(station, line):
+    page = await pilot(station)
+    await fly(page, line)
+    mark = line.mark()
+    dropped_s = time.monotonic()
+    page.connection.transport.abort()  # no closing handshake: as a cable pulled
+    zero = await asyncio.to_thread(line.wait_for, "#th.90.0!", after=mark)
+    assert zero.at_s - dropped_s < CUT_WITHIN_S
+
+
+async def test_a_silent_page_is_cut_after_300_ms_within_500_ms(station, line):
+    page = await pilot(station)
+    await fly(page, line)
+    mark = line.mark()
+    last_input_s = time.monotonic()  # nothing more is sent: the page froze
+    zero = await asyncio.to_thread(line.wait_for, "#th.90.0!", after=mark)
+    assert 0.25 < zero.at_s - last_input_s < CUT_WITHIN_S
+    log = await page.next("log", lambda m: "no input from the page" in m["text"])
+    assert log["level"] == "warning"
+    await page.close()
+
+
+async def test_a_frozen_pad_is_cut_though_the_page_keeps_sending(station, line):
+    page = await pilot(station)
+    await fly(page, line)
+    mark = line.mark()
+    frozen_s = time.monotonic()
+    stop = asyncio.Event()
+
+    async def frozen() -> None:  # the same pad timestamp, again and again
+        while not stop.is_set():
+            await page.send(held(pad_ms=1.0))
+            await asyncio.sleep(0.05)
+
+    sender = asyncio.ensure_future(frozen())
+    try:
+        zero = await asyncio.to_thread(line.wait_for, "#th.90.0!", after=mark)
+    finally:
+        stop.set()
+        await sender
+    assert zero.at_s - frozen_s < CUT_WITHIN_S
+    await page.close()
+
+
+async def test_a_live_pad_keeps_flying_and_the_motion_is_renewed(station, line):
+    page = await pilot(station)
+    await fly(page, line)
+    mark = line.mark()
+    stop = asyncio.Event()
+    sender = asyncio.ensure_future(keep_pad_alive(page, stop))
+    try:
+        renewed = await asyncio.to_thread(line.wait_for, "#th.90.60!", after=mark, timeout_s=3)
+        second = await asyncio.to_thread(
+            line.wait_for, "#th.90.60!", after=line.received.index(renewed) + 1, timeout_s=3
+        )
+    finally:
+        stop.set()
+        await sender
+    assert second.at_s > renewed.at_s
+    assert "#th.90.0!" not in line.frames(mark)
+    await page.close()
+
+
+async def test_a_hidden_page_zeroes_the_thrust(station, line):
+    page = await pilot(station)
+    await fly(page, line)
+    mark = line.mark()
+    await page.send({"type": "visibility", "hidden": True})
+    await asyncio.to_thread(line.wait_for, "#th.90.0!", after=mark, timeout_s=CUT_WITHIN_S)
+    await page.send(RELEASED)  # a hidden page's input is refused, however it arrives
+    assert "hidden page" in (await page.next("error"))["message"]
+    await page.send({"type": "visibility", "hidden": False})
+    await page.send(RELEASED)
+    await page.send(held(pad_ms=9.0))
+    await asyncio.to_thread(line.wait_for, "#th.90.60!", after=mark)
+    await page.close()
+
+
+async def test_a_second_page_cannot_command_and_taking_control_is_shown_to_both(station, line):
+    first = await pilot(station)
+    second = await PageSocket.open(station.ws_url)
+    assert second.hello["pilot_id"] == first.id
+    mark = line.mark()
+    await second.send({"type": "command", "name": "start"})
+    error = await second.next("error")
+    assert "only the pilot" in error["message"]
+    await second.send(RELEASED)
+    await second.send(held())
+    await second.next("error")
+    await first.send({"type": "command", "name": "h-"})  # a fence
+    await asyncio.to_thread(line.wait_for, "#h-!", after=mark)
+    assert line.frames(mark, commands_only=True) == ["#h-!"]
+
+    await fly(first, line)
+    mark = line.mark()
+    await second.send({"type": "take_control"})
+    for page in (first, second):
+        control = await page.next("control", lambda m: m["pilot_id"] == second.id)
+        assert "took control from" in control["text"]
+    await asyncio.to_thread(line.wait_for, "#th.90.0!", after=mark, timeout_s=CUT_WITHIN_S)
+    await first.send(held(pad_ms=5.0))
+    assert "only the pilot" in (await first.next("error"))["message"]
+    await first.close()
+    await second.close()
+
+
+async def test_stop_works_from_any_page(station, line):
+    first = await pilot(station)
+    await fly(first, line)
+    watcher = await PageSocket.open(station.ws_url)
+    mark = line.mark()
+    await watcher.send({"type": "stop"})
+    await asyncio.to_thread(line.wait_for, "#stop!", after=mark)
+    await asyncio.to_thread(line.wait_until, lambda: line.controller_locked)
+    await first.close()
+    await watcher.close()
+
+
+HOSTILE: list[str | bytes] = [
+    b"\x00\x01binary",
+    "not json",
+    "[1, 2, 3]",
+    '"a string"',
+    "{}",
+    '{"type": 7}',
+    '{"type": "fly-away"}',
+    '{"type": "command", "name": "th", "values": [90, 100]}',
+    '{"type": "command", "name": "mvs", "values": [100]}',
+    '{"type": "command", "name": "crcon"}',
+    '{"type": "command", "name": "qd"}',
+    '{"type": "command", "name": "mgmp", "values": [256]}',
+    '{"type": "command", "name": "mgmp", "values": ["255"]}',
+    '{"type": "command", "name": "mgmp", "values": [true]}',
+    '{"type": "command", "name": "mvd"}',
+    '{"type": "command", "name": "nope"}',
+    '{"type": "input", "deadman": true, "direction_deg": 400, "power_percent": 50,'
+    ' "vertical_percent": 0, "pad_timestamp_ms": 1}',
+    '{"type": "input", "deadman": true, "direction_deg": 90, "power_percent": 1e400,'
+    ' "vertical_percent": 0, "pad_timestamp_ms": 1}',
+    '{"type": "input", "deadman": "yes", "direction_deg": 90, "power_percent": 50,'
+    ' "vertical_percent": 0, "pad_timestamp_ms": 1}',
+    '{"type": "input", "deadman": true, "direction_deg": 90, "power_percent": 50,'
+    ' "vertical_percent": 0, "pad_timestamp_ms": NaN}',
+    '{"type": "input", "deadman": true, "direction_deg": 90, "power_percent": 50,'
+    ' "vertical_percent": 0, "source": "mind-control"}',
+    '{"type": "visibility", "hidden": "maybe"}',
+    "[" * 5000 + "]" * 5000,
+    '{"type": "stop", "padding": "' + "x" * 5000 + '"}',
+]
+
+
+async def test_hostile_messages_get_an_error_and_never_a_frame(station, line):
+    page = await pilot(station)
+    mark = line.mark()
+    await page.send({"type": "command", "name": "start"})
+    await page.send(RELEASED)
+    await asyncio.to_thread(line.wait_for, "#start!", after=mark)
+    mark = line.mark()
+    for message in HOSTILE:
+        await page.send(message)
+        error = await page.next("error")
+        assert error["message"]
+    await page.send({"type": "command", "name": "h+"})  # a fence, and the server is still there
+    await asyncio.to_thread(line.wait_for, "#h+!", after=mark)
+    assert line.frames(mark, commands_only=True) == ["#h+!"]
+    await page.close()
+
+
+async def test_an_oversized_websocket_message_closes_that_socket_only(station, line):
+    page = await pilot(station)
+    await page.send("x" * 100_000)
+    await asyncio.wait_for(page.connection.wait_closed(), 5)
+    other = await PageSocket.open(station.ws_url)
+    assert other.hello["pilot_id"] is None  # the pilot's socket went: nobody flies
+    await other.close()
+
+
+async def test_another_origin_and_another_host_are_refused(station):
+    with pytest.raises(InvalidStatus) as refused:
+        await PageSocket.open(station.ws_url, origin="http://evil.example")
+    assert refused.value.response.status_code == 403
+    request = urllib.request.Request(station.base, headers={"Host": "rebound.example:80"})
+    with pytest.raises(urllib.error.HTTPError) as http:
+        await asyncio.to_thread(urllib.request.urlopen, request, timeout=5)
+    assert http.value.code == 403
+    same = await PageSocket.open(station.ws_url, origin=station.base.rstrip("/"))
+    await same.close()
+
+
+async def test_beyond_loopback_the_token_is_required(line):
+    with running_station(line.url, "--host", "0.0.0.0") as served:
+        assert "?token=" in served.url
+        token = served.url.split("?token=")[1]
+
+        def get(url: str, **headers: str) -> int:
+            request = urllib.request.Request(url, headers=headers)
+            try:
+                with urllib.request.urlopen(request, timeout=5) as response:
+                    return int(response.status)
+            except urllib.error.HTTPError as error:
+                return error.code
+
+        assert await asyncio.to_thread(get, served.base) == 403
+        assert await asyncio.to_thread(get, served.base + "static/js/main.js") == 403
+        assert await asyncio.to_thread(get, served.base + "?token=wrong-token") == 403
+        cookie = f"rovlink-station-{served.base.rsplit(':', 1)[1].strip('/')}={token}"
+        assert await asyncio.to_thread(get, served.base, Cookie=cookie) == 200
+        mark = line.mark()
+        for url in (served.ws_url, served.ws_url + "?token=wrong-token"):
+            with pytest.raises(InvalidStatus):
+                await PageSocket.open(url)
+        page = await PageSocket.open(served.ws_url + f"?token={token}")
+        await page.send({"type": "take_control"})
+        await page.send({"type": "command", "name": "h+"})
+        await asyncio.to_thread(line.wait_for, "#h+!", after=mark)
+        assert line.frames(mark, commands_only=True) == ["#h+!"]
+        await page.close()
+
+
+async def test_the_page_redirects_a_token_url_into_a_cookie(line):
+    with running_station(line.url, "--host", "0.0.0.0", "--token", "a-long-enough-token") as served:
+
+        class Stay(urllib.request.HTTPRedirectHandler):
+            def redirect_request(self, *args, **kwargs):
+                return None
+
+        opener = urllib.request.build_opener(Stay)
+        with pytest.raises(urllib.error.HTTPError) as redirect:
+            await asyncio.to_thread(opener.open, served.url, timeout=5)
+        assert redirect.value.code == 303
+        assert redirect.value.headers["Location"] == "/"
+        cookie = redirect.value.headers["Set-Cookie"]
+        assert "a-long-enough-token" in cookie
+        assert "httponly" in cookie.lower()
+        assert "samesite=strict" in cookie.lower()
+
+
+async def test_a_killed_station_leaves_the_robot_to_its_own_failsafe(line):
+    with running_station(line.url) as served:
+        page = await pilot(served)
+        await fly(page, line)
+        stop = asyncio.Event()
+        sender = asyncio.ensure_future(keep_pad_alive(page, stop))
+        os.kill(served.process.pid, signal.SIGKILL)
+        served.process.wait(timeout=5)
+        stop.set()
+        await sender
+        # Nothing feeds the controller's link-loss watchdog (P17, 2 s): it stops the robot.
+        await asyncio.to_thread(line.wait_until, lambda: line.controller_locked, 4.0)
+        assert line.server.robot.controller.state().power_percent == 0
+
+
+@pytest.mark.parametrize("how", [signal.SIGINT, signal.SIGTERM])
+async def test_ctrl_c_or_terminate_sends_stop_on_the_way_out(line, how):
+    with running_station(line.url) as served:
+        page = await pilot(served)
+        await fly(page, line)
+        mark = line.mark()
+        served.process.send_signal(how)
+        await asyncio.to_thread(line.wait_for, "#stop!", after=mark)
+        assert await asyncio.to_thread(served.process.wait, 10) == 0
+
+
+async def test_a_lost_robot_link_is_shown_and_disarms_the_relay(station, line):
+    page = await pilot(station)
+    await fly(page, line)
+    line.close()  # the robot's end goes away (a USB adapter unplugged)
+    alarm = await page.next("log", lambda m: m["text"].startswith("link lost"))
+    assert alarm["level"] == "alarm"
+    reading = await page.next("telemetry", lambda m: not m["link"]["connected"], timeout_s=10)
+    assert reading["relay"]["armed"] is False
+    assert "link was lost" in reading["relay"]["status"]
+    await page.close()
