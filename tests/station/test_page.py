@@ -347,3 +347,33 @@ def test_settings_send_values_within_the_command_table(browser, station, line):
     line.wait_for("#mvd.150!", after=mark)
     assert not [frame for frame in line.frames(mark) if frame.startswith("#mvpdp")]
     page.context.close()
+
+
+def test_the_record_button_records_and_the_page_downloads(browser, line, tmp_path):
+    from rovlink.recorder import FrameEntry, read_entries
+    from tests.station.rig import running_station
+
+    with running_station(line.url, "--recordings", str(tmp_path)) as served:
+        page = open_page(browser, served, pad=False)
+        assert page.is_disabled("#record")  # a watcher cannot record
+        take_control(page)
+        page.click("#record")
+        page.wait_for_selector("#recording.active")
+        assert page.text_content("#record") == "■ Stop recording"
+        mark = line.mark()
+        page.click("#unlock")
+        line.wait_for("#start!", after=mark)
+        page.click("#record")
+        page.wait_for_selector("#recording:not(.active)")
+        page.click("#recordings summary")
+        with page.expect_download() as download_info:
+            page.click("#recordings-list a")
+        downloaded = tmp_path / "from-the-page.mcap"
+        download_info.value.save_as(downloaded)
+        page.context.close()
+    sent = [
+        entry.name
+        for entry in read_entries(str(downloaded))
+        if isinstance(entry, FrameEntry) and entry.direction == "out"
+    ]
+    assert "start" in sent

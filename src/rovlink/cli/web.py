@@ -55,6 +55,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="the token pages must present (default: generated when --host is not loopback)",
     )
     group.add_argument(
+        "--recordings",
+        metavar="DIR",
+        default=".",
+        help="where the page's record button writes its recordings, which the page can "
+        "download (default: the current directory)",
+    )
+    group.add_argument(
         "--rate",
         dest="rate_hz",
         type=_rate_hz,
@@ -74,6 +81,8 @@ def run(args: argparse.Namespace) -> int:
         from rovlink.station.serve import ServeOptions, serve  # noqa: PLC0415
     except ImportError as error:
         raise CommandError(f"needs {error.name}: pip install 'rovlink[web]'") from None
+    from pathlib import Path  # noqa: PLC0415
+
     import rovlink.aio  # noqa: PLC0415
 
     token = args.token
@@ -82,7 +91,12 @@ def run(args: argparse.Namespace) -> int:
     if token is not None and len(token) < 8:
         raise UsageError("--token must be at least 8 characters")
     options = ServeOptions(
-        host=args.host, port=args.port, token=token, rate_hz=args.rate_hz, algorithm=args.algorithm
+        host=args.host,
+        port=args.port,
+        token=token,
+        rate_hz=args.rate_hz,
+        algorithm=args.algorithm,
+        recordings_dir=Path(args.recordings),  # made when the first recording starts
     )
     # The relay renews a held motion twice a second; the driver expires one not renewed within a
     # second (a second line of defence behind the station's own 300 ms watchdog). The

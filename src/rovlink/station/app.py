@@ -13,7 +13,13 @@ from importlib import resources
 from typing import Any
 
 from starlette.applications import Starlette
-from starlette.responses import HTMLResponse, PlainTextResponse, RedirectResponse, Response
+from starlette.responses import (
+    FileResponse,
+    HTMLResponse,
+    PlainTextResponse,
+    RedirectResponse,
+    Response,
+)
 from starlette.routing import Mount, Route, WebSocketRoute
 from starlette.staticfiles import StaticFiles
 from starlette.types import ASGIApp, Receive, Scope, Send
@@ -89,10 +95,23 @@ def build_app(station: Station, access: Access) -> ASGIApp:
     async def socket(websocket: WebSocket) -> None:
         await _serve_page(station, websocket)
 
+    async def recording(request: Any) -> Response:
+        # Only a finished recording of this station, by its name: never a path from the page.
+        name = request.path_params["name"]
+        path = station.recordings.file(name) if station.recordings is not None else None
+        if path is None:
+            return PlainTextResponse(
+                f"rovlink web: no finished recording called {name!r}\n", status_code=404
+            )
+        return FileResponse(
+            path, media_type="application/octet-stream", filename=name, headers=_NO_STORE
+        )
+
     app = Starlette(
         routes=[
             Route("/", index),
             Mount("/static", StaticFiles(directory=STATIC_DIRECTORY), name="static"),
+            Route("/recordings/{name}", recording),
             WebSocketRoute("/ws", socket),
         ]
     )

@@ -10,9 +10,10 @@ to every page, and cuts the thrust the previous pilot was commanding; only the p
 and commands reach the robot. ``stop`` is honoured from any page: it can only make the robot
 safer. Losing the pilot — its WebSocket dropped, its page hidden — zeroes the thrust at once.
 
-A new pilot action — a recording's start and stop, say — is a message type in
-:mod:`rovlink.station.messages` and a branch of :meth:`Station._act`, refused like the others for
-a page that is not the pilot.
+A pilot action is a message type in :mod:`rovlink.station.messages` and a branch of
+:meth:`Station._act`, refused like the others for a page that is not the pilot: the record
+button's start and stop are one (:mod:`rovlink.station.recording`); every page sees the
+recording's state and may download the finished ones.
 
 Each page has an outbox that the WebSocket endpoint drains; a page too slow to take its
 messages misses readings (they are dropped, never queued without bound), not the others.
@@ -49,10 +50,12 @@ from rovlink.station.messages import (
     InputMessage,
     MessageError,
     PageMessage,
+    RecordRequest,
     StopRequest,
     VisibilityMessage,
     parse_message,
 )
+from rovlink.station.recording import RecordingError, StationRecordings
 from rovlink.station.relay import STALE_INPUT_S, ThrustRelay
 
 __all__ = ["DEFAULT_RATE_HZ", "WATCHDOG_PERIOD_S", "Peer", "Station"]
@@ -109,8 +112,11 @@ class Station:
         description: str,
         rate_hz: float = DEFAULT_RATE_HZ,
         clock: Callable[[], float] = time.monotonic,
+        recordings: StationRecordings | None = None,
     ) -> None:
         self.tracked = tracked
+        #: The record button's recordings (``None``: the button is off).
+        self.recordings = recordings
         self.description = description
         self.rate_hz = rate_hz
         self.relay = ThrustRelay(tracked.commanded)
@@ -129,7 +135,11 @@ class Station:
         self._sending: set[asyncio.Future[None]] = set()
         #: The driver's word on the link (LinkState): down while a lost port is being reopened.
         self._link_up = True
+        self._recording_told_s = 0.0
+        self._failure_told: str | None = None
         tracked.client.subscribe(self._on_client_event)
+        if recordings is not None:
+            tracked.client.subscribe(recordings.on_event)
         tracked.add_sent_listener(self._on_sent)
 
     # -- the pages ------------------------------------------------------------------------------
@@ -180,11 +190,15 @@ class Station:
             await asyncio.gather(*tasks, return_exceptions=True)
 
     async def shutdown(self) -> None:
-        """The station is closing: thrust to zero and, unless locked as last sent, ``#stop!``."""
+        """The station is closing: thrust to zero and, unless locked as last sent, ``#stop!``;
+        then a running recording is finished (its last frame the ``#stop!``)."""
         self.relay.cut("the station is closing")
         if self.tracked.commanded.lock is not LockState.LOCKED and not self.tracked.client.closed:
             with contextlib.suppress(ClientError):
                 await self.tracked.stop()
+        if self.recordings is not None and self.recordings.active:
+            finished = await self.recordings.stop()
+            logger.info("recording %s finished (%d bytes)", finished.path, finished.size_bytes)
 
     def log(self, level: str, text: str) -> None:
         """Add to the event log every page shows (``info``, ``warning`` or ``alarm``)."""
@@ -223,6 +237,28 @@ class Station:
             self._require_pilot(peer, "send commands")
             await self.tracked.send(message.command)
             self.log("info", f"{peer.label}: {message.command}")
+        elif isinstance(message, RecordRequest):
+            self._require_pilot(peer, "start or stop a recording")
+            await self._record(peer, start=message.start)
+
+    async def _record(self, peer: Peer, *, start: bool) -> None:
+        recordings = self.recordings
+        if recordings is None:
+            raise MessageError("this station records nothing (rovlink web --recordings DIR)")
+        try:
+            if start:
+                name = recordings.start(peer.label)
+                self.log("info", f"{peer.label} started recording to {name}")
+            else:
+                finished = await recordings.stop()
+                self.log(
+                    "info",
+                    f"{peer.label} stopped recording: {finished.name}, "
+                    f"{finished.size_bytes / 1000:.1f} kB, {finished.duration_s:g} s",
+                )
+        except RecordingError as error:
+            raise MessageError(str(error)) from None
+        self._broadcast(recordings.state())
 
     def _require_pilot(self, peer: Peer, what: str) -> None:
         if self.pilot is not peer:
@@ -337,8 +373,20 @@ class Station:
                     self._broadcast(self._telemetry(None))
             except Exception:  # the pages miss one reading; the polls (P17's food) go on
                 logger.exception("the station failed on a reading")
+            self._tell_recording(loop.time())
             next_s = max(next_s + period_s, loop.time())
             await asyncio.sleep(next_s - loop.time())
+
+    def _tell_recording(self, now_s: float) -> None:
+        """Once a second while recording, the pages get its state (its time, a failure)."""
+        recordings = self.recordings
+        if recordings is None or not recordings.active or now_s < self._recording_told_s + 1.0:
+            return
+        self._recording_told_s = now_s
+        if recordings.failure is not None and recordings.failure != self._failure_told:
+            self._failure_told = recordings.failure
+            self.log("alarm", recordings.failure)
+        self._broadcast(recordings.state())
 
     def _poll_failed(self, error: str) -> None:
         self._failures_unlogged += 1
@@ -442,6 +490,7 @@ class Station:
             "history": list(self._history),
             "log": list(self._log),
             "telemetry": self._telemetry(self.latest),
+            "recording": self.recordings.state() if self.recordings is not None else None,
             **self._control_state(),
         }
 

@@ -30,6 +30,7 @@ __all__ = [
     "ControlRequest",
     "InputMessage",
     "MessageError",
+    "RecordRequest",
     "StopRequest",
     "VisibilityMessage",
     "parse_message",
@@ -97,7 +98,16 @@ class CommandRequest:
     command: Command
 
 
-PageMessage = ControlRequest | StopRequest | InputMessage | VisibilityMessage | CommandRequest
+@dataclass(frozen=True, slots=True)
+class RecordRequest:
+    """``record_start`` or ``record_stop``: the pilot's record button."""
+
+    start: bool
+
+
+PageMessage = (
+    ControlRequest | StopRequest | InputMessage | VisibilityMessage | CommandRequest | RecordRequest
+)
 
 _INPUT_SOURCES = ("gamepad", "keyboard")
 
@@ -133,7 +143,11 @@ def parse_message(text: str | bytes | None) -> PageMessage:
         return VisibilityMessage(_field(data, kind, "hidden", bool))
     if kind == "command":
         return _command(data)
-    known = "take_control, release_control, stop, input, visibility, command"
+    if kind in ("record_start", "record_stop"):
+        return RecordRequest(start=kind == "record_start")
+    known = (
+        "take_control, release_control, stop, input, visibility, command, record_start, record_stop"
+    )
     raise MessageError(f"unknown message type {kind[:40]!r}; known: {known}")
 
 

@@ -14,6 +14,7 @@ import signal
 import socket
 from collections.abc import Awaitable, Callable, Generator
 from dataclasses import dataclass
+from pathlib import Path
 
 import uvicorn
 
@@ -23,6 +24,7 @@ from rovlink.station.access import Access
 from rovlink.station.app import build_app
 from rovlink.station.hub import Station
 from rovlink.station.messages import MAX_MESSAGE_BYTES
+from rovlink.station.recording import StationRecordings
 
 __all__ = ["ServeOptions", "bind", "page_urls", "serve"]
 
@@ -32,13 +34,15 @@ logger = logging.getLogger(__name__)
 @dataclass(frozen=True, slots=True)
 class ServeOptions:
     """Where and how to serve: address, port (0: any free one), token (``None``: none, on
-    loopback only), sensor polls a second, and the link's checksum algorithm (to name it)."""
+    loopback only), sensor polls a second, the link's checksum algorithm (to name it), and the
+    directory of the record button's recordings (``None``: no record button)."""
 
     host: str
     port: int
     token: str | None
     rate_hz: float
     algorithm: str
+    recordings_dir: Path | None = None
 
 
 class _Server(uvicorn.Server):
@@ -114,7 +118,17 @@ async def serve(
         if port != options.port:  # port 0: the cookie's name follows the real port
             access = Access(bind_host=options.host, port=port, token=options.token)
         tracked = TrackedClient(client, algorithm=options.algorithm)
-        station = Station(tracked, description=description, rate_hz=options.rate_hz)
+        recordings = None
+        if options.recordings_dir is not None:
+            recordings = StationRecordings(
+                options.recordings_dir,
+                url=description,
+                checksum=client.checksum_enabled,
+                algorithm=options.algorithm,
+            )
+        station = Station(
+            tracked, description=description, rate_hz=options.rate_hz, recordings=recordings
+        )
         config = uvicorn.Config(
             build_app(station, access),
             log_level="warning",

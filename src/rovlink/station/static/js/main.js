@@ -41,6 +41,33 @@ const devices = new InputDevices({
 
 // -- messages from the station -----------------------------------------------------------------
 
+// The record button: the pilot starts and stops a recording on the server; every page sees it
+// and can download the finished ones.
+function showRecording(state) {
+  const box = $("recording");
+  box.hidden = state === null || state === undefined;
+  if (box.hidden) return;
+  station.recording = state;
+  box.classList.toggle("active", state.active);
+  $("record").textContent = state.active ? "■ Stop recording" : "● Record";
+  $("record").disabled = !isPilot();
+  let status = "";
+  if (state.active) status = `${state.file} · ${Math.round(state.elapsed_s ?? 0)} s`;
+  if (state.failure) status = state.failure;
+  $("recording-status").textContent = status;
+  const items = state.finished.map((item) => {
+    const link = document.createElement("a");
+    link.href = `/recordings/${encodeURIComponent(item.name)}`;
+    link.download = item.name;
+    link.textContent = `${item.name} (${(item.size_bytes / 1000).toFixed(1)} kB, ${item.duration_s} s)`;
+    const entry = document.createElement("li");
+    entry.append(link);
+    return entry;
+  });
+  $("recordings-list").replaceChildren(...items);
+  $("recordings").hidden = items.length === 0;
+}
+
 function onMessage(message) {
   switch (message.type) {
     case "hello":
@@ -55,6 +82,10 @@ function onMessage(message) {
       buildSettings(message.limits);
       setControl(message.pilot_id, message.pilot_label);
       showTelemetry(message.telemetry);
+      showRecording(message.recording);
+      break;
+    case "recording":
+      showRecording(message);
       break;
     case "telemetry":
       station.telemetryCount += 1;
@@ -97,6 +128,7 @@ function setControl(pilotId, pilotLabel) {
     : pilotId ? `watching: ${pilotLabel} has control` : "watching: nobody has control";
   $("take-control").hidden = mine;
   $("release-control").hidden = !mine;
+  $("record").disabled = !mine;  // only the pilot starts and stops a recording
 }
 
 function text(id, value) { const el = $(id); if (el.textContent !== value) el.textContent = value; }
@@ -318,6 +350,9 @@ $("take-control").addEventListener("click", () => {
   send({ type: "take_control" });
 });
 $("release-control").addEventListener("click", () => send({ type: "release_control" }));
+$("record").addEventListener("click", () => {
+  send({ type: station.recording?.active ? "record_stop" : "record_start" });
+});
 $("unlock").addEventListener("click", () => command("start"));
 $("mode-depth").addEventListener("click", () => command("mvdirect", [0]));
 $("mode-direct").addEventListener("click", () => command("mvdirect", [1]));
