@@ -185,3 +185,26 @@ def test_any_cut_or_flipped_byte_gives_a_recording_error_or_entries(
             except RecordingError as error:
                 errors.append(error)
             assert all(str(damaged) in str(error) for error in errors)
+
+
+def test_a_failing_writer_stops_the_recording_not_the_link(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from rovlink.recorder import translate
+
+    def broken(self: object, wall_ns: int, event: object) -> list[object]:
+        raise RuntimeError("a bug in the writer")
+
+    monkeypatch.setattr(translate.ClientEventLog, "entries", broken)
+    failures: list[str] = []
+    recorder = Recorder(str(tmp_path / "dive.jsonl"), on_failure=failures.append)
+    with rovlink.connect("sim://?seed=1", on_event=recorder.on_event) as rov:
+        deadline = time.monotonic() + 10.0
+        while not failures and time.monotonic() < deadline:
+            rov.depth_cm()
+        depths = [rov.depth_cm() for _ in range(5)]  # the link goes on
+    recorder.close()
+    assert failures == [
+        f"recording to {tmp_path / 'dive.jsonl'} stopped: the recorder failed (logged)"
+    ]
+    assert len(depths) == 5

@@ -173,7 +173,10 @@ class Recorder:
                 self._sink.close()
                 self._sink = None
         except OSError as error:
-            self._fail(error)
+            self._fail(error.strerror or str(error))
+        except Exception:  # a bug in the writer must stop the recording, never the link
+            logger.exception("the recorder's writer failed")
+            self._fail("the recorder failed (logged)")
 
     def _drain(self) -> None:
         queue = self._queue
@@ -234,16 +237,15 @@ class Recorder:
         self._sink.write(entry)
         self.entries_written += 1
 
-    def _fail(self, error: OSError) -> None:
+    def _fail(self, reason: str) -> None:
         self._accepting = False
         self._queue.clear()
         where = self.paths[-1]
-        reason = error.strerror or str(error)
         self.error = f"recording to {where} stopped: {reason}"
         logger.error("%s (the link goes on)", self.error)
         sink, self._sink = self._sink, None
         if sink is not None:
-            with contextlib.suppress(OSError):  # the file is as good as the disk let it be
+            with contextlib.suppress(Exception):  # the file is as good as the disk let it be
                 sink.close()
         if self._on_failure is not None:
             self._on_failure(self.error)
