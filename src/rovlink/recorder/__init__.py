@@ -1,9 +1,13 @@
 """The flight recorder: every byte, frame, event and telemetry row of a session, to a file.
 
->>> from rovlink.recorder import Recorder, read_entries   # doctest: +SKIP
->>> with Recorder("dive.mcap", url="sim://") as recorder:          # doctest: +SKIP
-...     with rovlink.connect("sim://", on_event=recorder.on_event) as rov:
-...         rov.depth_cm()
+Example::
+
+    from rovlink.recorder import Recorder, read_entries
+
+    with Recorder("dive.mcap", url="sim://") as recorder:
+        with rovlink.connect("sim://", on_event=recorder.on_event) as rov:
+            rov.depth_cm()
+    entries = list(read_entries("dive.mcap"))
 
 Formats by suffix (:mod:`rovlink.recorder.formats`), the entries of each channel
 (:mod:`rovlink.recorder.entries`), reading back with :func:`read_entries`.

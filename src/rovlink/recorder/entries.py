@@ -242,11 +242,6 @@ def _fields(
     return fields
 
 
-def json_schema(channel: str) -> dict[str, Any]:
-    """The JSON Schema of a channel's messages (MCAP stores it; Foxglove reads it)."""
-    return CHANNELS[channel]
-
-
 _STRING = {"type": "string"}
 _NULLABLE_INT = {"type": ["integer", "null"]}
 

@@ -35,14 +35,12 @@ class Format:
     module: str
     sink: str
     reader: str
-    #: Whether the format keeps the session's frames and events (not only one part of it).
-    complete: bool
 
 
 #: The formats, by suffix.
 FORMATS: dict[str, Format] = {
     ".mcap": Format(
-        ".mcap", "MCAP (Foxglove)", "rovlink.recorder.mcap_format", "McapSink", "read_mcap", True
+        ".mcap", "MCAP (Foxglove)", "rovlink.recorder.mcap_format", "McapSink", "read_mcap"
     ),
     ".jsonl": Format(
         ".jsonl",
@@ -50,7 +48,6 @@ FORMATS: dict[str, Format] = {
         "rovlink.recorder.jsonl_format",
         "JsonLinesSink",
         "read_jsonl",
-        True,
     ),
     ".csv": Format(
         ".csv",
@@ -58,10 +55,9 @@ FORMATS: dict[str, Format] = {
         "rovlink.recorder.csv_format",
         "TelemetryCsvSink",
         "read_csv",
-        False,
     ),
     ".bin": Format(
-        ".bin", "raw wire bytes", "rovlink.recorder.bin_format", "RawWireSink", "read_bin", False
+        ".bin", "raw wire bytes", "rovlink.recorder.bin_format", "RawWireSink", "read_bin"
     ),
 }
 

@@ -10,12 +10,11 @@ cut short or damaged, after everything readable before the damage.
 from __future__ import annotations
 
 import os
-from collections.abc import Iterator
 from typing import BinaryIO, Protocol
 
 from rovlink.recorder.entries import Entry
 
-__all__ = ["FileSink", "Reader", "RecordingDamagedError", "RecordingError", "Sink"]
+__all__ = ["FileSink", "RecordingDamagedError", "RecordingError", "Sink"]
 
 
 class RecordingError(Exception):
@@ -49,13 +48,6 @@ class Sink(Protocol):
 
     def size_bytes(self) -> int:
         """The file's size so far (after the last flush)."""
-
-
-class Reader(Protocol):
-    """Reads a recording's entries in order (raises :class:`RecordingError` or ends with
-    :class:`RecordingDamagedError`)."""
-
-    def __call__(self, path: str) -> Iterator[Entry]: ...
 
 
 class FileSink:
