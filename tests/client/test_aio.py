@@ -226,11 +226,13 @@ async def test_closing_after_telemetry_lets_the_polls_in_flight_be_answered(
     count = 0
     async for _ in client.telemetry(None):
         count += 1
-        if count == 20:
+        # Stop while polls are in flight (after 20 readings; a loaded machine may first let
+        # the pipeline drain for a moment).
+        if count >= 20 and fake.frames().count("#qsa!") > count:
             break
     await client.close()
     # Every #qsa! on the wire got its reply before the port closed: none is left over.
-    assert client.counters.replies == fake.frames().count("#qsa!") > 20
+    assert client.counters.replies == fake.frames().count("#qsa!") > count
 
 
 async def test_telemetry_keeps_its_rate(

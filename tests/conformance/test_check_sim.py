@@ -40,6 +40,7 @@ def test_every_command_of_the_table_has_a_check() -> None:
 
 
 @pytest.mark.integration
+@pytest.mark.slow
 def test_the_simulator_passes_every_check_with_motion() -> None:
     link = open_link(parse_url("sim://?seed=3"))
     try:

@@ -65,6 +65,7 @@ def test_every_fault_names_a_real_check() -> None:
 
 
 @pytest.mark.integration
+@pytest.mark.slow
 def test_the_wrapper_without_a_fault_passes_every_check() -> None:
     link = PortLink(FaultyController(NO_FAULT), NO_FAULT)
     try:

@@ -71,6 +71,7 @@ def _serve(binary: Path) -> Iterator[str]:
 
 
 @pytest.mark.integration
+@pytest.mark.slow
 def test_rovlink_check_passes_against_the_c_reference_with_motion(host_binary: Path) -> None:
     for pty in _serve(host_binary):
         link = open_link(parse_url(pty))
@@ -83,6 +84,7 @@ def test_rovlink_check_passes_against_the_c_reference_with_motion(host_binary: P
 
 
 @pytest.mark.integration
+@pytest.mark.slow
 def test_rovlink_check_passes_against_the_sanitized_build(sanitized_binary: Path) -> None:
     for pty in _serve(sanitized_binary):
         link = open_link(parse_url(pty))

@@ -37,6 +37,7 @@ def test_motors_need_yes_without_a_terminal(
 
 
 @pytest.mark.integration
+@pytest.mark.slow
 def test_relay_on_the_light_vehicle_in_real_time(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
