@@ -2,17 +2,15 @@
 
 from __future__ import annotations
 
-import os
 import re
-import selectors
 import subprocess
-import sys
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
-_SRC = str(Path(__file__).resolve().parents[2] / "src")
+from tests.rovlink_process import rovlink_command, rovlink_environment, running_rovlink
+
 _PTY = re.compile(r"\bpty ([^\s,;]+)")
 _TCP = re.compile(r"\btcp ([^\s,;]+):(\d+)")
 _READY_TIMEOUT_S = 30.0
@@ -34,34 +32,23 @@ class ControllerProcess:
 
 def controller_command(*arguments: str) -> list[str]:
     """The command line of ``rovlink controller ARGUMENTS`` with this checkout's sources."""
-    return [sys.executable, "-c", "from rovlink.cli import main; main()", "controller", *arguments]
+    return rovlink_command("controller", *arguments)
 
 
 def environment() -> dict[str, str]:
-    env = dict(os.environ)
-    env["PYTHONPATH"] = _SRC + os.pathsep + env.get("PYTHONPATH", "")
-    return env
+    return rovlink_environment()
 
 
 @contextmanager
 def running_controller(tmp_path: Path, *arguments: str) -> Iterator[ControllerProcess]:
     """Start ``rovlink controller ARGUMENTS``, wait for its ready line, stop it afterwards."""
     stderr_path = tmp_path / "controller.stderr"
-    with stderr_path.open("w", encoding="utf-8") as stderr:
-        process = subprocess.Popen(
-            controller_command(*arguments),
-            stdout=subprocess.PIPE,
-            stderr=stderr,
-            text=True,
-            env=environment(),
-        )
-    try:
-        assert process.stdout is not None
-        with selectors.DefaultSelector() as selector:
-            selector.register(process.stdout, selectors.EVENT_READ)
-            if not selector.select(_READY_TIMEOUT_S):
-                raise AssertionError("rovlink controller printed no ready line")
-        line = process.stdout.readline()
+    with (
+        stderr_path.open("w", encoding="utf-8") as stderr,
+        running_rovlink(
+            "controller", *arguments, ready_timeout_s=_READY_TIMEOUT_S, stderr=stderr
+        ) as (process, line),
+    ):
         assert "ready" in line, (
             f"unexpected first line: {line!r}; stderr: {stderr_path.read_text(encoding='utf-8')}"
         )
@@ -74,11 +61,3 @@ def running_controller(tmp_path: Path, *arguments: str) -> Iterator[ControllerPr
             pty.group(1) if pty else None,
             f"socket://{tcp.group(1)}:{tcp.group(2)}" if tcp else None,
         )
-    finally:
-        if process.poll() is None:
-            process.terminate()
-        try:
-            process.communicate(timeout=10)
-        except subprocess.TimeoutExpired:
-            process.kill()
-            process.communicate()

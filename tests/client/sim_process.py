@@ -2,17 +2,14 @@
 
 from __future__ import annotations
 
-import os
 import re
-import selectors
 import subprocess
-import sys
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
-from pathlib import Path
 
-_SRC = str(Path(__file__).resolve().parents[2] / "src")
+from tests.rovlink_process import running_rovlink
+
 _PTY = re.compile(r"\bpty ([^\s,]+)")
 _TCP = re.compile(r"\btcp ([^\s,]+):(\d+)")
 _READY_TIMEOUT_S = 20.0
@@ -30,22 +27,7 @@ class SimProcess:
 @contextmanager
 def running_sim(*arguments: str) -> Iterator[SimProcess]:
     """Start ``rovlink sim ARGUMENTS``, wait for its ready line, stop it afterwards."""
-    environment = dict(os.environ)
-    environment["PYTHONPATH"] = _SRC + os.pathsep + environment.get("PYTHONPATH", "")
-    process = subprocess.Popen(
-        [sys.executable, "-c", "from rovlink.cli import main; main()", "sim", *arguments],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.DEVNULL,
-        text=True,
-        env=environment,
-    )
-    try:
-        assert process.stdout is not None
-        with selectors.DefaultSelector() as selector:
-            selector.register(process.stdout, selectors.EVENT_READ)
-            if not selector.select(_READY_TIMEOUT_S):
-                raise AssertionError("rovlink sim printed no ready line")
-        line = process.stdout.readline()
+    with running_rovlink("sim", *arguments, ready_timeout_s=_READY_TIMEOUT_S) as (process, line):
         assert "ready" in line, f"unexpected first line from rovlink sim: {line!r}"
         pty = _PTY.search(line)
         tcp = _TCP.search(line)
@@ -54,11 +36,3 @@ def running_sim(*arguments: str) -> Iterator[SimProcess]:
             pty.group(1) if pty else None,
             f"socket://{tcp.group(1)}:{tcp.group(2)}" if tcp else None,
         )
-    finally:
-        if process.poll() is None:
-            process.terminate()
-        try:
-            process.communicate(timeout=5)
-        except subprocess.TimeoutExpired:
-            process.kill()
-            process.communicate()

@@ -3,23 +3,19 @@ and ``rovlink web`` in a subprocess, as a user runs it."""
 
 from __future__ import annotations
 
-import os
 import re
-import selectors
 import shutil
 import subprocess
-import sys
 import threading
 import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
-from pathlib import Path
 
 from rovlink.protocol import Command, Decoder, Frame
 from rovlink.sim.server import SimServer
+from tests.rovlink_process import running_rovlink
 
-_SRC = str(Path(__file__).resolve().parents[2] / "src")
 _URL = re.compile(r"http://\S+?/(?:\?token=[\w-]+)?(?=[ ;]|$)")
 _READY_TIMEOUT_S = 30.0
 #: Debian's chromium, which the browser tests drive.
@@ -158,41 +154,17 @@ class StationProcess:
 @contextmanager
 def running_station(robot_url: str, *arguments: str) -> Iterator[StationProcess]:
     """Start ``rovlink web ROBOT_URL --port 0 ARGUMENTS``, wait for its ready line, stop it."""
-    environment = dict(os.environ)
-    environment["PYTHONPATH"] = _SRC + os.pathsep + environment.get("PYTHONPATH", "")
-    process = subprocess.Popen(
-        [
-            sys.executable,
-            "-c",
-            "from rovlink.cli import main; main()",
-            "web",
-            robot_url,
-            "--port",
-            "0",
-            *arguments,
-        ],
-        stdout=subprocess.PIPE,
+    with running_rovlink(
+        "web",
+        robot_url,
+        "--port",
+        "0",
+        *arguments,
+        ready_timeout_s=_READY_TIMEOUT_S,
         stderr=subprocess.PIPE,
-        text=True,
-        env=environment,
-    )
-    try:
-        assert process.stdout is not None
-        with selectors.DefaultSelector() as selector:
-            selector.register(process.stdout, selectors.EVENT_READ)
-            if not selector.select(_READY_TIMEOUT_S):
-                raise AssertionError("rovlink web printed no ready line")
-        line = process.stdout.readline()
+    ) as (process, line):
         urls = _URL.findall(line)
         if "ready" not in line or not urls:
             _, errors = process.communicate(timeout=5)
             raise AssertionError(f"unexpected output from rovlink web: {line!r} {errors!r}")
         yield StationProcess(process, urls[-1])
-    finally:
-        if process.poll() is None:
-            process.terminate()
-        try:
-            process.communicate(timeout=10)
-        except subprocess.TimeoutExpired:
-            process.kill()
-            process.communicate()
