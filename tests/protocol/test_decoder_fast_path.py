@@ -157,3 +157,36 @@ def test_only_in_range_canonical_numbers_are_remembered() -> None:
     _decode([b"$qd.4321!"], checksum=False)
     assert b"4321" in numbers
     assert b"4321!" in ended
+
+
+@settings(max_examples=300)
+@given(
+    st.lists(
+        frames() | st.sampled_from([b"#crcon!", b"#crcoff!", b"debug\r\n", b"$qd.", b"12!"]),
+        max_size=30,
+    ),
+    st.booleans(),
+)
+def test_chunks_that_are_one_frame_each_decode_as_bytes_do(
+    pieces: list[bytes], checksum: bool
+) -> None:
+    # A driver reads a reply as it arrives: a chunk is then often exactly one frame, which the
+    # decoder takes from its cache without scanning. Twice over, so that the second pass hits.
+    twice = b"".join(pieces) * 2
+    byte_by_byte = _decode([twice[i : i + 1] for i in range(len(twice))], checksum)
+    assert _decode(pieces + pieces, checksum) == byte_by_byte
+
+
+def test_lookup_answers_only_whole_frames_met_lately_with_nothing_buffered() -> None:
+    decoder = Decoder()
+    assert decoder.lookup(b"$qd.5!") is None  # never decoded
+    (event,) = decoder.feed(b"$qd.5!")
+    assert decoder.lookup(b"$qd.5!") is event
+    decoder.feed(b"$qd.")  # half a frame waits for its end
+    assert decoder.lookup(b"$qd.5!") is None
+    decoder.feed(b"6!")
+    decoder.feed(b"boot")  # an unfinished text line
+    assert decoder.lookup(b"$qd.5!") is None
+    decoder.checksum_enabled = True  # the other mode's cache
+    decoder.feed(b"\r\n")
+    assert decoder.lookup(b"$qd.5!") is None

@@ -507,6 +507,11 @@ class AsyncClient(AsyncCommandMethods):
             return
         session = self._session
         now = self._loop.time()
+        taken = session.take_reply(data, now)  # the usual case: one whole reply
+        if taken is not None:
+            if not taken.internal:
+                self._wake([taken])
+            return
         received = session.receive(data, now)
         self._wake(received.settled)
         if session.has_outbox:

@@ -55,6 +55,7 @@ T = TypeVar("T")
 # Plain names for the members used per query: an enum member costs a descriptor call to look up.
 _PENDING = Outcome.PENDING
 _ANSWERED = Outcome.ANSWERED
+_get_ident = threading.get_ident
 #: The background reader looks around (deadlines, keep-alive, close) at least this often.
 _MAX_READ_WAIT_S = 0.25
 #: The background reader takes the role back once callers have been quiet this long: a program
@@ -130,6 +131,11 @@ class Client(CommandMethods):
         self._background_ident: int | None = None
         # Links over a descriptor write without blocking: queries then take a shorter path.
         self._send_now: Callable[[bytes], int] | None = getattr(link, "send_some", None)
+        # A caller waiting for its reply reads with this: links that can sleep in the read
+        # itself offer ``read_reply`` (only the background reader needs waking up).
+        self._read_reply: Callable[[float], bytes] = getattr(
+            link, "read_reply", link.read_available
+        )
         try:
             self._await_ready()
             self._send(operations.checksum(options.checksum))
@@ -262,7 +268,7 @@ class Client(CommandMethods):
             self.set_checksum(setting[1])
             return ()
         if command.spec.is_query:
-            return self._request(command)
+            return tuple(self._request(command))
         self._send(command)
         return ()
 
@@ -394,6 +400,7 @@ class Client(CommandMethods):
                     link.write(session.command(mode, self._clock()))
                     self._link = link
                     self._send_now = getattr(link, "send_some", None)
+                    self._read_reply = getattr(link, "read_reply", link.read_available)
                     self._reconnecting = False
                     plural = "s" if attempts > 1 else ""
                     session.note_link(
@@ -532,9 +539,79 @@ class Client(CommandMethods):
     def _ask(self, query: operations.Query[T]) -> T:
         return query.read(self._request(query.command))
 
-    def _request(self, command: Command) -> tuple[Response, ...]:
+    def _request(self, command: Command) -> list[Response]:
+        """Send a query until it is answered (retries); its replies, in the pending query's own
+        list (no copy: nothing changes it once answered).
+
+        The first attempt's usual case is spelled out here, as it is what a polling program
+        does all day: a link that writes without blocking, nobody else reading the port, and
+        the reply arriving whole in one read. Anything else goes on in :meth:`_wait` and
+        :meth:`_attempts`.
+        """
+        if self._send_now is None or self._reconnecting:
+            return self._attempts(command)
+        pending = self._send_query_holding_state(command)
+        if pending is None:
+            return self._attempts(command)
+        if self._reader_ident is not None:  # another thread reads: it hands the reply over
+            outcome = self._wait(pending, holding_state=True)
+        else:
+            lock = self._state_lock
+            session = self._session
+            self._reader_ident = _get_ident()
+            lock.release()
+            try:
+                data = self._read_reply(session.timeout_s)  # (sent just now: all the timeout)
+            except ConnectionLostError as error:
+                lock.acquire()
+                self._reader_ident = None
+                self._lose(error)
+                outcome = self._wait(pending, holding_state=True)
+            except BaseException:  # (Ctrl-C): the query times out in the session
+                with lock:
+                    self._reader_ident = None
+                    self._active_callers -= 1
+                    self._notify_callers()
+                raise
+            else:
+                lock.acquire()
+                self._reader_ident = None
+                now = self._clock()
+                taken = session.take_reply(data, now)
+                if taken is pending:  # the reply, whole, and no more
+                    if self._waiting_callers:
+                        self._changed.notify_all()
+                    self._active_callers -= 1
+                    self._last_caller_at = now
+                    lock.release()
+                    if session.notices:
+                        self._emit()
+                    return pending.responses
+                # An earlier caller's reply (taken), or part of the reply, or more than it
+                # (text, noise, another caller's reply).
+                unsolicited = (
+                    [] if taken is not None or not data else session.receive(data, now).unsolicited
+                )
+                if session.has_outbox:
+                    self._flush_due()
+                self._notify_callers()
+                outcome = self._wait(pending, holding_state=True)
+                if unsolicited:
+                    self._drops.report(unsolicited, self._options.on_stray, now)
+        if outcome is _ANSWERED:
+            return pending.responses
+        return self._attempts(command, outcome)
+
+    def _attempts(self, command: Command, first: Outcome | None = None) -> list[Response]:
+        """The attempts of a query (after the ``first``, if it was made and failed), each
+        waited for by :meth:`_wait`; its replies, or QueryTimeoutError."""
         failures: list[str] = []
-        for attempt in range(self._options.retries + 1):
+        retries = self._options.retries
+        if first is not None:
+            if first is Outcome.DISCONNECTED:
+                raise self._lost_error()
+            failures.append(first.value)
+        for attempt in range(len(failures), retries + 1):
             if self._reconnecting:
                 self._await_link()
             if attempt:
@@ -548,7 +625,7 @@ class Client(CommandMethods):
                 assert pending is not None
                 outcome = self._wait(pending)
             if outcome is _ANSWERED:
-                return tuple(pending.responses)
+                return pending.responses
             if outcome is Outcome.DISCONNECTED:
                 raise self._lost_error()
             failures.append(outcome.value)
@@ -674,7 +751,7 @@ class Client(CommandMethods):
                     self._reader_ident = me
                     lock.release()
                     try:
-                        data = self._link.read_available(remaining)
+                        data = self._read_reply(remaining)
                         lost = None
                     except ConnectionLostError as error:
                         data, lost = b"", error

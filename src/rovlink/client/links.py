@@ -16,6 +16,7 @@ import errno
 import os
 import select
 import socket
+import struct
 from typing import Any, Protocol
 
 from rovlink.client.errors import ConnectError, ConnectionLostError
@@ -30,6 +31,10 @@ POLL_INTERVAL_S = 0.05
 WRITE_TIMEOUT_S = 2.0
 CONNECT_TIMEOUT_S = 5.0
 _READ_BYTES = 65536
+#: How late a caller asleep in :meth:`SocketLink.read_reply` may notice its deadline: the receive
+#: timeout is reset only when it is off by more, so that most queries reuse the last one.
+_RECEIVE_TIMEOUT_SLACK_S = 0.002
+_TIMEVAL = struct.Struct("@ll")  # struct timeval, as SO_RCVTIMEO takes it
 
 
 class Link(Protocol):
@@ -292,9 +297,16 @@ class SocketLink(FdLink):
         super().__init__(sock.fileno())
         self._socket = sock
         self.description = description
-        sock.setblocking(False)
         if sock.family in (socket.AF_INET, socket.AF_INET6):
             sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+        # Where every call can say "do not block" (MSG_DONTWAIT), the descriptor stays blocking
+        # and a caller waiting for its reply sleeps in ``recv`` itself, with the kernel's receive
+        # timeout as its deadline: no ``poll`` before each read (see :meth:`read_reply`).
+        self._dont_wait = getattr(socket, "MSG_DONTWAIT", 0)
+        sock.setblocking(bool(self._dont_wait))
+        self._receive_timeout_s = 0.0  # SO_RCVTIMEO as last set; 0: never set (blocks forever)
+        if not self._dont_wait:
+            self.read_reply = self.read_available  # type: ignore[method-assign]
 
     def recv_some(self) -> bytes:
         """Whatever is waiting now; raise ConnectionLostError when the peer closed.
@@ -304,13 +316,50 @@ class SocketLink(FdLink):
             data = link.recv_some()   # b"" when nothing is waiting
         """
         try:
-            data = self._socket.recv(_READ_BYTES)
+            data = self._socket.recv(_READ_BYTES, self._dont_wait)
         except BlockingIOError:
             return b""
         except OSError as error:
             raise ConnectionLostError(f"{self.description}: {error.strerror or error}") from error
         if not data:
             raise ConnectionLostError(f"{self.description}: closed by the other end")
+        return data
+
+    def read_reply(self, timeout_s: float) -> bytes:
+        """Wait up to about ``timeout_s`` for bytes, asleep in ``recv``; all that are waiting.
+
+        For a caller waiting for its own reply, which nobody else needs to wake: the wait ends
+        with the reply or the deadline (up to :data:`_RECEIVE_TIMEOUT_SLACK_S` late), or when
+        the other end closes. Half the system calls of :meth:`read_available`.
+
+        Example::
+
+            link.send_some(b"#qd!")
+            data = link.read_reply(0.5)   # b"$qd.12!", or b"" after 0.5 s of silence
+        """
+        if timeout_s < _RECEIVE_TIMEOUT_SLACK_S or self._closed:  # (SO_RCVTIMEO 0: forever)
+            return self.read_available(timeout_s)
+        if not timeout_s <= self._receive_timeout_s <= timeout_s + _RECEIVE_TIMEOUT_SLACK_S:
+            # Set rarely: a query's first read asks for about the same timeout as the last.
+            timeout_s += _RECEIVE_TIMEOUT_SLACK_S / 2
+            seconds = int(timeout_s)
+            self._socket.setsockopt(
+                socket.SOL_SOCKET,
+                socket.SO_RCVTIMEO,
+                _TIMEVAL.pack(seconds, int((timeout_s - seconds) * 1e6)),
+            )
+            self._receive_timeout_s = timeout_s
+        try:
+            data = self._socket.recv(_READ_BYTES)
+        except BlockingIOError:  # the receive timeout passed
+            return b""
+        except OSError as error:
+            if self._closed:
+                raise ConnectionLostError(f"{self.description}: closed") from error
+            raise ConnectionLostError(f"{self.description}: {error.strerror or error}") from error
+        if not data:  # the other end closed, or close() shut the socket down to wake us
+            closer = "" if self._closed else " by the other end"
+            raise ConnectionLostError(f"{self.description}: closed{closer}")
         return data
 
     def send_some(self, data: bytes | bytearray | memoryview) -> int:
@@ -321,13 +370,15 @@ class SocketLink(FdLink):
             unsent = data[link.send_some(data):]
         """
         try:
-            return self._socket.send(data)
+            return self._socket.send(data, self._dont_wait)
         except BlockingIOError:
             return 0
         except OSError as error:
             raise ConnectionLostError(f"{self.description}: {error.strerror or error}") from error
 
     def _close_port(self) -> None:
+        with contextlib.suppress(OSError):  # wakes a read asleep in recv (read_reply)
+            self._socket.shutdown(socket.SHUT_RDWR)
         self._socket.close()
 
 

@@ -329,7 +329,8 @@ class Session:
         """
         if self._outbox or self._quiet_until is not None:
             return None
-        data = self.query_bytes(command)
+        # (query_bytes's own shortcut, without the call: a polling loop's query again)
+        data = self._last_query_bytes if command is self._last_query else self.query_bytes(command)
         counters = self.counters
         counters.frames_sent += 1
         counters.bytes_sent += len(data)
@@ -460,6 +461,48 @@ class Session:
             if events is not None:
                 events.append(Unsolicited(now, event))
         return result
+
+    def take_reply(self, data: bytes, now: float) -> PendingQuery | None:
+        """:meth:`receive` for the usual case of a driver reading a reply as it arrives:
+        ``data`` is exactly the one reply frame that completes the oldest query on the wire,
+        and nothing else is going on (no resynchronisation, no events to record). Settles that
+        query and returns it; or does nothing and returns ``None`` (then :meth:`receive` the
+        bytes).
+
+        >>> session = Session()
+        >>> _, query = session.query(Command("qd"), now=0.0)
+        >>> session.take_reply(b"$qd.7!", now=0.001) is None   # not decoded yet: receive it
+        True
+        >>> session.receive(b"$qd.7!", now=0.001).settled == [query]
+        True
+        >>> _, query = session.query(Command("qd"), now=0.002)
+        >>> session.take_reply(b"$qd.7!", now=0.003) is query, query.responses
+        (True, [Response(name='qd', values=(7,))])
+        """
+        pending = self._pending
+        if self.events is not None or self._late_names or not pending:
+            return None
+        query = pending[0]
+        expected = query.expected
+        if len(expected) != 1 or query.responses:
+            return None
+        event = self._decoder.lookup(data)
+        if type(event) is not Frame:  # (None, or a cached error or text)
+            return None
+        message = event.message
+        if type(message) is not Response or message.name != expected[0]:
+            return None
+        # What receive does for this frame, in the same order.
+        counters = self.counters
+        counters.bytes_received += len(data)
+        counters.frames_received += 1
+        self._consecutive_timeouts = 0
+        query.responses.append(message)
+        self._last_progress_at = now
+        pending.popleft()
+        query.outcome = _ANSWERED
+        counters.replies += 1
+        return query
 
     # -- time ---------------------------------------------------------------------------------
 

@@ -141,8 +141,29 @@ class Decoder:
         """Bytes of the unfinished text line held until more input arrives."""
         return len(self._text)
 
+    def lookup(self, data: bytes) -> Event | None:
+        """The event of a chunk that is one whole frame decoded lately, if ``data`` is one and
+        nothing is buffered: what :meth:`feed` would return for it alone, without decoding.
+        ``None`` otherwise (then :meth:`feed` it).
+
+        >>> decoder = Decoder()
+        >>> decoder.lookup(b"$qd.5!") is None   # not met yet
+        True
+        >>> decoder.feed(b"$qd.5!")[0] is decoder.lookup(b"$qd.5!")
+        True
+        """
+        if self._frame or self._skipping or self._text:
+            return None
+        return self._caches[self.checksum_enabled].get(data)
+
     def feed(self, data: bytes) -> list[Event]:
         """Decode another chunk of the stream; return the events it completes."""
+        if not (self._frame or self._skipping or self._text):
+            # A chunk that is one whole frame seen lately (a reply read as it arrives): no
+            # scanning. Mode frames are never cached, so this cannot skip a mode change.
+            event = self._caches[self.checksum_enabled].get(data)
+            if event is not None:
+                return [event]
         events: list[Event] = []
         position = 0
         end = len(data)

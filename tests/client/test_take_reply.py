@@ -1,0 +1,115 @@
+"""``Session.take_reply``, the drivers' shortcut for a reply read whole, does exactly what
+``Session.receive`` does with the same bytes, or nothing at all."""
+
+from __future__ import annotations
+
+from hypothesis import event, given, settings
+from hypothesis import strategies as st
+
+from rovlink.client.session import Outcome, PendingQuery, Session
+from rovlink.protocol import Command
+
+_QUERIES = [Command("qd"), Command("qhe"), Command("qsa")]
+_CHUNKS = [
+    b"$qd.7!",
+    b"$qd.8!",
+    b"$qhe.90!",
+    b"$qd.120!$qr.530!$q.l.0!$qro.-1!$qpi.+3!$qhe.275!",
+    b"$qd.12!debug\r\n",
+    b"$qd.",
+    b"9!",
+    b"$qr.5!",
+    b"noise\x00\r\n",
+    b"",
+]
+_REPLIES = {"qd": b"$qd.7!", "qhe": b"$qhe.90!"}
+# Steps: send a query, read a chunk (with take_reply first on one session), let time pass.
+_STEPS = st.lists(
+    st.one_of(
+        st.tuples(st.just("query"), st.sampled_from(_QUERIES)),
+        st.tuples(st.just("read"), st.sampled_from(_CHUNKS)),
+        st.tuples(st.just("read"), st.just(None)),  # the reply the oldest query expects
+        st.tuples(st.just("wait"), st.sampled_from([0.1, 0.1, 0.1, 0.6])),  # 0.6: a timeout
+    ),
+    max_size=40,
+)
+
+
+def _state(session: Session, queries: list[PendingQuery]) -> object:
+    return (
+        session.counters.as_dict(),
+        [(query.outcome, query.responses) for query in queries],
+        [(query.command, query.outcome) for query in session.pending],
+        session.resynchronising,
+        session.next_deadline(),
+        len(session.notices),
+        None if session.events is None else len(session.events),
+    )
+
+
+@settings(max_examples=500)
+@given(_STEPS, st.sampled_from([False, False, False, True]))  # (events: it never takes)
+def test_take_reply_is_receive_or_nothing(steps: list[tuple[str, object]], events: bool) -> None:
+    shortcut, reference = Session(record_events=events), Session(record_events=events)
+    shortcut_queries: list[PendingQuery] = []
+    reference_queries: list[PendingQuery] = []
+    for session in (shortcut, reference):  # frames decoded before: the shortcut may take them
+        session.receive(b"$qd.7!$qd.8!$qhe.90!$qr.5!", now=0.0)
+    replies_taken = 0
+    now = 0.0
+    for action, argument in steps:
+        now += 0.001
+        if action == "query":
+            assert isinstance(argument, Command)
+            shortcut_queries.append(shortcut.query(argument, now)[1])
+            reference_queries.append(reference.query(argument, now)[1])
+        elif action == "read":
+            chunk = argument
+            if chunk is None:
+                name = reference.pending[0].command.name if reference.pending else "qd"
+                chunk = _REPLIES.get(name, b"$qd.7!")
+            assert isinstance(chunk, bytes)
+            before = _state(shortcut, shortcut_queries)
+            oldest = shortcut.pending[0] if shortcut.pending else None
+            taken = shortcut.take_reply(chunk, now)
+            if taken is not None:
+                assert taken is oldest
+                assert taken.outcome is Outcome.ANSWERED
+                replies_taken += 1
+            else:
+                assert _state(shortcut, shortcut_queries) == before  # nothing done
+                shortcut.receive(chunk, now)
+            reference.receive(chunk, now)
+        else:
+            assert isinstance(argument, float)
+            now += argument
+            shortcut.tick(now)
+            reference.tick(now)
+        assert _state(shortcut, shortcut_queries) == _state(reference, reference_queries)
+    event(f"replies taken: {min(replies_taken, 3)}{'+' if replies_taken >= 3 else ''}")
+
+
+def test_take_reply_settles_a_polling_loops_reply_once_it_is_known() -> None:
+    session = Session()
+    session.query(Command("qd"), now=0.0)
+    assert session.take_reply(b"$qd.3!", now=0.001) is None  # never decoded: receive it
+    session.receive(b"$qd.3!", now=0.001)
+    _, second = session.query(Command("qd"), now=0.002)
+    assert session.take_reply(b"$qd.3!", now=0.003) is second
+    assert second.responses[0].values == (3,)
+    assert session.pending == ()
+    assert session.counters.replies == 2
+    assert session.counters.bytes_received == 12
+
+
+def test_take_reply_leaves_a_six_reply_query_and_a_wrong_name_to_receive() -> None:
+    session = Session()
+    session.receive(b"$qd.3!$qhe.9!", now=0.0)  # both known to the decoder now
+    _, sensors = session.query(Command("qsa"), now=0.001)
+    assert session.take_reply(b"$qd.3!", now=0.002) is None
+    assert sensors.responses == []
+    session.receive(b"$qd.3!$qr.1!$q.l.0!$qro.0!$qpi.0!$qhe.9!", now=0.003)
+    _, heading = session.query(Command("qhe"), now=0.004)
+    assert session.take_reply(b"$qd.3!", now=0.005) is None  # not its reply
+    assert heading.responses == []
+    assert session.take_reply(b"$qhe.9!", now=0.006) is heading
