@@ -83,3 +83,25 @@ def test_decode_imports_no_driver() -> None:
         "assert not heavy, heavy\n"
     )
     subprocess.run([sys.executable, "-c", code], check=True, timeout=30, input=b"#qd!")
+
+
+def test_decode_imports_no_module_it_does_not_need() -> None:
+    # Each of these costs as much as the rest of decode's start-up together: dataclasses
+    # (with inspect and ast) and typing. Those the interpreter loaded itself (a .pth file
+    # may) are not the command's.
+    code = (
+        "import sys\n"
+        "before = set(sys.modules)\n"
+        "from rovlink.cli import main\n"
+        "assert main(['decode', '-']) == 0\n"
+        "loaded = [name for name in ('dataclasses', 'inspect', 'ast', 'typing', 'contextlib')"
+        " if name in sys.modules and name not in before]\n"
+        "assert not loaded, loaded\n"
+    )
+    subprocess.run(
+        [sys.executable, "-c", code],
+        check=True,
+        timeout=30,
+        input=b"boot\r\n#qsa!$qd.57!$qr.134!#crcon!#qd8C!",
+        stdout=subprocess.DEVNULL,
+    )
