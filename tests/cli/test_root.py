@@ -5,6 +5,8 @@ from __future__ import annotations
 import subprocess
 import sys
 
+import pytest
+
 import rovlink
 from tests.cli.conftest import RunCli
 
@@ -17,8 +19,11 @@ def test_version(run_cli: RunCli) -> None:
     assert result.out.strip() == f"rovlink {rovlink.__version__}"
 
 
-def test_help_lists_every_command(run_cli: RunCli) -> None:
-    result = run_cli("--help")
+# The help asked for before a command's name lists every command too (main builds only the named
+# command's parser when the name comes first).
+@pytest.mark.parametrize("words", [("--help",), ("--help", "decode"), ("-v", "-h", "send")])
+def test_help_lists_every_command(run_cli: RunCli, words: tuple[str, ...]) -> None:
+    result = run_cli(*words)
     assert result.status == 0
     for name in COMMANDS:
         assert f"    {name} " in result.out
