@@ -5,6 +5,8 @@ from __future__ import annotations
 import subprocess
 import sys
 
+import pytest
+
 import rovlink
 from tests.cli.conftest import RunCli
 
@@ -17,8 +19,11 @@ def test_version(run_cli: RunCli) -> None:
     assert result.out.strip() == f"rovlink {rovlink.__version__}"
 
 
-def test_help_lists_every_command(run_cli: RunCli) -> None:
-    result = run_cli("--help")
+# The help asked for before a command's name lists every command too (main builds only the named
+# command's parser when the name comes first).
+@pytest.mark.parametrize("words", [("--help",), ("--help", "decode"), ("-v", "-h", "send")])
+def test_help_lists_every_command(run_cli: RunCli, words: tuple[str, ...]) -> None:
+    result = run_cli(*words)
     assert result.status == 0
     for name in COMMANDS:
         assert f"    {name} " in result.out
@@ -83,3 +88,25 @@ def test_decode_imports_no_driver() -> None:
         "assert not heavy, heavy\n"
     )
     subprocess.run([sys.executable, "-c", code], check=True, timeout=30, input=b"#qd!")
+
+
+def test_decode_imports_no_module_it_does_not_need() -> None:
+    # Each of these costs as much as the rest of decode's start-up together: dataclasses
+    # (with inspect and ast) and typing. Those the interpreter loaded itself (a .pth file
+    # may) are not the command's.
+    code = (
+        "import sys\n"
+        "before = set(sys.modules)\n"
+        "from rovlink.cli import main\n"
+        "assert main(['decode', '-']) == 0\n"
+        "loaded = [name for name in ('dataclasses', 'inspect', 'ast', 'typing', 'contextlib')"
+        " if name in sys.modules and name not in before]\n"
+        "assert not loaded, loaded\n"
+    )
+    subprocess.run(
+        [sys.executable, "-c", code],
+        check=True,
+        timeout=30,
+        input=b"boot\r\n#qsa!$qd.57!$qr.134!#crcon!#qd8C!",
+        stdout=subprocess.DEVNULL,
+    )

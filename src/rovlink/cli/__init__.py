@@ -96,8 +96,13 @@ def _chosen_command(argv: list[str]) -> str | None:
     return None
 
 
-def build_parser(command: str | None = None) -> argparse.ArgumentParser:
-    """The parser of ``rovlink``; only ``command``'s own options are added (its module loads)."""
+def build_parser(command: str | None = None, *, others: bool = True) -> argparse.ArgumentParser:
+    """The parser of ``rovlink``; only ``command``'s own options are added (its module loads).
+
+    ``others=False`` leaves the other commands out altogether (a parser each costs more than
+    the rest of the parse): for a command line whose first word is ``command``, where every
+    later word is the command's and no help lists the commands.
+    """
     parser = argparse.ArgumentParser(
         prog="rovlink",
         description=_DESCRIPTION,
@@ -113,6 +118,8 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     )
     for name, summary in COMMANDS.items():
         if name != command:
+            if not others:
+                continue
             subparsers.add_parser(
                 name, help=summary, description=summary, formatter_class=_Formatter
             )
@@ -140,7 +147,8 @@ def main(argv: list[str] | None = None) -> int:
     """
     if argv is None:
         sys.exit(main(sys.argv[1:]))
-    parser = build_parser(_chosen_command(argv))
+    command = _chosen_command(argv)
+    parser = build_parser(command, others=command is None or argv[0] != command)
     try:
         args = parser.parse_args(argv)
     except SystemExit as exit_:  # --help, --version and usage errors

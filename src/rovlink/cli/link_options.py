@@ -9,21 +9,25 @@ setting is an option here and a line in :func:`client_options`.
 from __future__ import annotations
 
 import argparse
-import contextlib
-import math
-from collections.abc import Awaitable, Callable, Iterator
-from typing import TYPE_CHECKING
 
 from rovlink.cli.failure import CommandError, UsageError
-from rovlink.cli.recording import add_record_options, open_recorder, report_recording
 from rovlink.protocol import ALGORITHMS, DEFAULT_ALGORITHM
 
+# Not typing's: ``rovlink decode`` imports this module, and typing costs a fifth of its start-up.
+TYPE_CHECKING = False
+
 if TYPE_CHECKING:
+    from collections.abc import Awaitable, Callable
+    from types import TracebackType
+
     from rovlink.aio import AsyncClient
     from rovlink.client import Client, ClientOptions
     from rovlink.client.links import Link
     from rovlink.client.options import StrayCallback
     from rovlink.recorder import Recorder
+
+    #: Called with ``">>"`` and the bytes written, ``"<<"`` and the bytes read (``send --raw``).
+    ShowBytes = Callable[[str, bytes], None]
 
 __all__ = [
     "DEFAULT_URL",
@@ -57,6 +61,8 @@ def bounded_float(text: str, minimum: float, maximum: float, unit: str = "") -> 
     ...
     argparse.ArgumentTypeError: 1e10 s is more than the maximum, 3600 s
     """
+    import math  # noqa: PLC0415 - not on the start-up path of decode, which has no such option
+
     try:
         value = float(text)
     except ValueError:
@@ -223,6 +229,8 @@ def add_link_options(parser: argparse.ArgumentParser, *, url_required: bool = Fa
         "that resets when its port opens boots for up to 2 s); 0: do not wait "
         "(default: %(default)s)",
     )
+    from rovlink.cli.recording import add_record_options  # noqa: PLC0415 - as open_recorder
+
     add_record_options(parser)
 
 
@@ -264,6 +272,8 @@ def session_recorder(args: argparse.Namespace) -> Recorder | None:
     recorder: Recorder | None = getattr(args, "recorder", None)
     if recorder is None:
         import time  # noqa: PLC0415
+
+        from rovlink.cli.recording import open_recorder, report_recording  # noqa: PLC0415
 
         program = f"rovlink {getattr(args, 'command', None) or ''}".strip()
         recorder = open_recorder(args, args.record, url=args.url, program=program)
@@ -339,10 +349,6 @@ def log_warnings() -> None:
     _log_warnings()
 
 
-#: Called with ``">>"`` and the bytes written, ``"<<"`` and the bytes read (``send --raw``).
-ShowBytes = Callable[[str, bytes], None]
-
-
 class _ShownLink:
     """A link that shows every byte it moves, as it moves them."""
 
@@ -408,19 +414,29 @@ def connect(
         raise UsageError(str(error)) from None
 
 
-@contextlib.contextmanager
-def closing_unless_interrupted(client: Client) -> Iterator[Client]:
+class _ClosingUnlessInterrupted:
+    # A class rather than contextlib.contextmanager: contextlib is not imported at start-up.
+    def __init__(self, client: Client) -> None:
+        self._client = client
+
+    def __enter__(self) -> Client:
+        return self._client
+
+    def __exit__(
+        self,
+        kind: type[BaseException] | None,
+        error: BaseException | None,
+        traceback: TracebackType | None,
+    ) -> None:
+        if not isinstance(error, KeyboardInterrupt):
+            self._client.close()
+
+
+def closing_unless_interrupted(client: Client) -> _ClosingUnlessInterrupted:
     """Close ``client`` at the end, except after Ctrl-C: closing waits for the replies of the
     queries on the wire (up to the timeout), and Ctrl-C must end the command at once; the
     process is ending, and the system releases the port."""
-    try:
-        yield client
-    except KeyboardInterrupt:
-        raise
-    except BaseException:
-        client.close()
-        raise
-    client.close()
+    return _ClosingUnlessInterrupted(client)
 
 
 def connect_async(args: argparse.Namespace) -> Callable[[StrayCallback], Awaitable[AsyncClient]]:

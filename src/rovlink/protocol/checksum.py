@@ -7,8 +7,13 @@ to one byte, sent as two hex digits.
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from dataclasses import dataclass
+from rovlink.protocol.frozen import frozen
+
+# Not typing's: the protocol core is on the start-up path of ``rovlink decode``.
+TYPE_CHECKING = False
+
+if TYPE_CHECKING:
+    from collections.abc import Callable
 
 __all__ = [
     "ALGORITHMS",
@@ -94,13 +99,22 @@ def sum8(data: bytes) -> int:
     return sum(data) & 0xFF
 
 
-@dataclass(frozen=True, slots=True)
+@frozen
 class ChecksumAlgorithm:
     """A named checksum function with its two-hex-digit rendering."""
+
+    __slots__ = ("description", "function", "name")
+    __match_args__ = ("name", "function", "description")
 
     name: str
     function: Callable[[bytes], int]
     description: str
+
+    def __init__(self, name: str, function: Callable[[bytes], int], description: str) -> None:
+        _set = object.__setattr__
+        _set(self, "name", name)
+        _set(self, "function", function)
+        _set(self, "description", description)
 
     def digits(self, body: bytes) -> bytes:
         """The two uppercase hex digits that follow ``body`` in a frame.

@@ -7,8 +7,7 @@ console completion and help, and ``docs/commands.md`` — is derived from :data:
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
+from rovlink.protocol.frozen import frozen
 from rovlink.protocol.text_enum import StrEnum
 
 __all__ = [
@@ -58,17 +57,37 @@ class Setting(StrEnum):
     CLAW_OPEN = "claw_open"  # h+ / h- (P16): the direction of the claw's next pulse
 
 
-@dataclass(frozen=True, slots=True)
+@frozen
 class Argument:
     """One decimal integer argument of a frame (P6)."""
+
+    __slots__ = ("description", "maximum", "minimum", "name", "signed", "unit")
+    __match_args__ = ("name", "minimum", "maximum", "signed", "description", "unit")
 
     name: str
     minimum: int
     maximum: int
-    signed: bool = False
-    description: str = ""
+    signed: bool
+    description: str
     #: The unit people write after the value (``cm``, ``%``, ``°``), empty for a plain number.
-    unit: str = ""
+    unit: str
+
+    def __init__(  # noqa: PLR0917 - positional, as the table writes arguments
+        self,
+        name: str,
+        minimum: int,
+        maximum: int,
+        signed: bool = False,
+        description: str = "",
+        unit: str = "",
+    ) -> None:
+        _set = object.__setattr__
+        _set(self, "name", name)
+        _set(self, "minimum", minimum)
+        _set(self, "maximum", maximum)
+        _set(self, "signed", signed)
+        _set(self, "description", description)
+        _set(self, "unit", unit)
 
     def check(self, value: int) -> bool:
         """Whether ``value`` is in range (P6: out of range is dropped, never clamped).
@@ -89,31 +108,93 @@ class Argument:
         return f"{value:+d}" if self.signed else str(value)
 
 
-@dataclass(frozen=True, slots=True)
+@frozen
 class Spec:
     """Everything the project knows about one frame name."""
+
+    __slots__ = (
+        "aliases",
+        "arguments",
+        "description",
+        "exact_match",
+        "honoured_bare",
+        "kind",
+        "mode",
+        "motion",
+        "name",
+        "replies",
+        "rules",
+        "setting",
+        "setting_value",
+    )
+    __match_args__ = (
+        "name",
+        "kind",
+        "description",
+        "arguments",
+        "rules",
+        "aliases",
+        "exact_match",
+        "honoured_bare",
+        "motion",
+        "mode",
+        "replies",
+        "setting",
+        "setting_value",
+    )
 
     name: str
     kind: Kind
     description: str
-    arguments: tuple[Argument, ...] = ()
-    rules: tuple[str, ...] = ()
-    aliases: tuple[str, ...] = ()
+    arguments: tuple[Argument, ...]
+    rules: tuple[str, ...]
+    aliases: tuple[str, ...]
     #: Recognised by exact match before any checksum is stripped and never carries one (P3).
-    exact_match: bool = False
+    exact_match: bool
     #: Honoured without a checksum even in checksum mode (P3): it can only make the robot safer,
     #: so a host sends it bare, and it works whatever mode the controller is in.
-    honoured_bare: bool = False
+    honoured_bare: bool
     #: Dropped while the motors are locked (P7).
-    motion: bool = False
+    motion: bool
     #: The vertical mode the command needs, if any (P9).
-    mode: VerticalMode | None = None
+    mode: VerticalMode | None
     #: For a query: the names of the responses it produces, in order (P4, P12).
-    replies: tuple[str, ...] = ()
+    replies: tuple[str, ...]
     #: The on/off state the command switches, if any, and the value it sets (``None``: the value
     #: is the command's 0/1 argument, as in ``mvdirect``).
-    setting: Setting | None = None
-    setting_value: bool | None = None
+    setting: Setting | None
+    setting_value: bool | None
+
+    def __init__(  # noqa: PLR0917 - positional, as the table writes its specs
+        self,
+        name: str,
+        kind: Kind,
+        description: str,
+        arguments: tuple[Argument, ...] = (),
+        rules: tuple[str, ...] = (),
+        aliases: tuple[str, ...] = (),
+        exact_match: bool = False,
+        honoured_bare: bool = False,
+        motion: bool = False,
+        mode: VerticalMode | None = None,
+        replies: tuple[str, ...] = (),
+        setting: Setting | None = None,
+        setting_value: bool | None = None,
+    ) -> None:
+        _set = object.__setattr__
+        _set(self, "name", name)
+        _set(self, "kind", kind)
+        _set(self, "description", description)
+        _set(self, "arguments", arguments)
+        _set(self, "rules", rules)
+        _set(self, "aliases", aliases)
+        _set(self, "exact_match", exact_match)
+        _set(self, "honoured_bare", honoured_bare)
+        _set(self, "motion", motion)
+        _set(self, "mode", mode)
+        _set(self, "replies", replies)
+        _set(self, "setting", setting)
+        _set(self, "setting_value", setting_value)
 
     @property
     def is_query(self) -> bool:

@@ -9,7 +9,6 @@ input, keeps at most one partial frame (at most :data:`MAX_FRAME_BYTES`) and one
 from __future__ import annotations
 
 import re
-from dataclasses import dataclass
 
 from rovlink.protocol.checksum import (
     CRC8_SMBUS_TABLE,
@@ -29,6 +28,7 @@ from rovlink.protocol.frames import (
     Reason,
     decode_body,
 )
+from rovlink.protocol.frozen import frozen
 from rovlink.protocol.messages import Message
 
 __all__ = [
@@ -44,28 +44,50 @@ __all__ = [
 MAX_TEXT_BYTES = 256
 
 
-@dataclass(frozen=True, slots=True)
+@frozen
 class Frame:
     """A valid frame and the message in it."""
+
+    __slots__ = ("message", "raw")
+    __match_args__ = ("message", "raw")
 
     message: Message
     raw: bytes
 
+    def __init__(self, message: Message, raw: bytes) -> None:
+        _set_frame_message(self, message)
+        _set_frame_raw(self, raw)
 
-@dataclass(frozen=True, slots=True)
+
+@frozen
 class Text:
     """One non-blank line of bytes between frames: debug output or line noise (never a frame)."""
 
+    __slots__ = ("text",)
+    __match_args__ = ("text",)
+
     text: str
 
+    def __init__(self, text: str) -> None:
+        object.__setattr__(self, "text", text)
 
-@dataclass(frozen=True, slots=True)
+
+@frozen
 class BadFrame:
     """A frame that was dropped, why (:class:`Reason`), and its raw bytes."""
+
+    __slots__ = ("detail", "raw", "reason")
+    __match_args__ = ("reason", "raw", "detail")
 
     reason: Reason
     raw: bytes
     detail: str
+
+    def __init__(self, reason: Reason, raw: bytes, detail: str) -> None:
+        _set = object.__setattr__
+        _set(self, "reason", reason)
+        _set(self, "raw", raw)
+        _set(self, "detail", detail)
 
 
 Event = Frame | Text | BadFrame

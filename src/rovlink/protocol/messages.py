@@ -7,10 +7,16 @@ argument and its range.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-from typing import TypeVar
-
 from rovlink.protocol.commands import COMMANDS, Kind, Setting, Spec, UnknownCommandError, lookup
+from rovlink.protocol.frozen import frozen
+
+# Not typing's: the protocol core is on the start-up path of ``rovlink decode``.
+TYPE_CHECKING = False
+
+if TYPE_CHECKING:
+    from typing import TypeVar
+
+    M = TypeVar("M", bound="Message")
 
 __all__ = [
     "ArgumentCountError",
@@ -55,29 +61,33 @@ def _validate(spec: Spec, values: tuple[int, ...]) -> None:
             raise ArgumentError(spec, index, value)
 
 
-@dataclass(frozen=True, slots=True)
+@frozen
 class Message:
     """Base of :class:`Command` and :class:`Response`: a frame name and its integer values.
 
-    ``name`` is the canonical spelling (``mvpidd`` also for the alias ``mvpdd``).
+    ``name`` is the canonical spelling (``mvpidd`` also for the alias ``mvpdd``). ``spec``, the
+    name's entry in the command table, is derived from it: it is neither shown nor compared.
     """
 
+    __slots__ = ("name", "spec", "values")
+    __match_args__ = ("name", "values")
+
     name: str
-    values: tuple[int, ...] = ()
-    spec: Spec = field(init=False, repr=False, compare=False)
+    values: tuple[int, ...]
+    spec: Spec
 
     kind = Kind.COMMAND
 
-    def __post_init__(self) -> None:
+    def __init__(self, name: str, values: tuple[int, ...] = ()) -> None:
         try:
-            spec = lookup(self.name, self.kind)
+            spec = lookup(name, self.kind)
         except UnknownCommandError:
-            raise UnknownCommandError(f"unknown {self.kind.value} {self.name!r}") from None
-        values = tuple(self.values)
+            raise UnknownCommandError(f"unknown {self.kind.value} {name!r}") from None
+        values = tuple(values)
         _validate(spec, values)
-        object.__setattr__(self, "values", values)
-        object.__setattr__(self, "name", spec.name)
-        object.__setattr__(self, "spec", spec)
+        _set_name(self, spec.name)
+        _set_values(self, values)
+        _set_spec(self, spec)
 
     @property
     def body(self) -> str:
@@ -88,9 +98,15 @@ class Message:
         return self.kind.start_byte.decode() + self.body + "!"
 
 
-# The subclasses add no fields: an empty ``__slots__`` rather than ``slots=True``, which on
-# Python 3.10 would declare the inherited fields' slots again and shadow the base class's.
-@dataclass(frozen=True)
+# The slots' own setters: the frozen class refuses assignment, and these are quicker than
+# ``object.__setattr__`` for the decoders' hot path (:func:`trusted_message`).
+_set_name = Message.__dict__["name"].__set__
+_set_values = Message.__dict__["values"].__set__
+_set_spec = Message.__dict__["spec"].__set__
+
+
+# The subclasses add no fields (an empty ``__slots__``: no slot of the base's declared again, which
+# would shadow it) and share the base's methods, which show and compare the class too.
 class Command(Message):
     """A frame from host to controller, e.g. ``Command("th", (270, 25))`` is ``#th.270.25!``.
 
@@ -135,7 +151,6 @@ def setting_command(setting: Setting, value: bool) -> Command:
     raise ValueError(f"no command sets {setting} to {value}")  # pragma: no cover - table error
 
 
-@dataclass(frozen=True)
 class Response(Message):
     """A frame from controller to host, e.g. ``Response("qro", (-1,))`` is ``$qro.-1!``.
 
@@ -148,11 +163,7 @@ class Response(Message):
     kind = Kind.RESPONSE
 
 
-M = TypeVar("M", bound=Message)
 _new = object.__new__
-_set_name = Message.__dict__["name"].__set__
-_set_values = Message.__dict__["values"].__set__
-_set_spec = Message.__dict__["spec"].__set__
 
 
 def trusted_message(cls: type[M], spec: Spec, values: tuple[int, ...]) -> M:
