@@ -51,6 +51,10 @@ _RECONNECT_MAX_S = 2.0
 DEFAULT_MAX_IN_FLIGHT = 8
 
 
+# A plain name for the member tested per query: an enum member costs a descriptor call.
+_ANSWERED = Outcome.ANSWERED
+
+
 class AsyncClient(AsyncCommandMethods):
     """An asyncio connection to a controller. Make one with :func:`connect`.
 
@@ -315,7 +319,7 @@ class AsyncClient(AsyncCommandMethods):
             await self.set_checksum(setting[1])
             return ()
         if command.spec.is_query:
-            return await self._request(command)
+            return tuple(await self._request(command))
         self._send(command)
         return ()
 
@@ -341,7 +345,9 @@ class AsyncClient(AsyncCommandMethods):
         self._emit()
         if pending is None:
             return ()
-        outcome = await self._outcome(pending)
+        outcome: Outcome = await pending.waiter  # type: ignore[misc]
+        if outcome is Outcome.DISCONNECTED:
+            raise self._lost_error()
         if outcome is Outcome.ANSWERED:
             return tuple(pending.responses)
         raise QueryTimeoutError(pending.command, [outcome.value], self._options.timeout_s)
@@ -454,41 +460,41 @@ class AsyncClient(AsyncCommandMethods):
     async def _ask(self, query: operations.Query[T]) -> T:
         return query.read(await self._request(query.command))
 
-    async def _request(self, command: Command) -> tuple[Response, ...]:
+    async def _request(self, command: Command) -> list[Response]:
+        """Send a query until it is answered (retries); its replies, in the pending query's own
+        list (no copy: nothing changes it once answered)."""
         await self._await_link()
         self._check_open()
         failures: list[str] = []
         async with self._in_flight:
             for attempt in range(self._options.retries + 1):
-                pending = await self._send_query(command, retry=attempt > 0)
-                outcome = await self._outcome(pending)
-                if outcome is Outcome.ANSWERED:
-                    return tuple(pending.responses)
+                if attempt or not self._mode_settled.is_set():  # (checked above for the first)
+                    await self._mode_settled.wait()
+                    self._check_open()
+                session = self._session
+                now = self._loop.time()
+                if attempt:
+                    session.counters.retries += 1
+                # The usual case (nothing due or held) without the general path's bookkeeping.
+                ready = session.fast_query(command, now) or session.query(command, now)
+                data, pending = ready
+                waiter = pending.waiter = self._loop.create_future()
+                if data:  # (nothing while queries are held back, P20)
+                    self._write(data)
+                # Time out at the latest at this query's deadline; a timer armed for earlier
+                # already does (it re-arms when it fires).
+                timer = self._timer
+                if timer is None or timer.when() > now + session.timeout_s or session.has_outbox:
+                    self._arm_timer()
+                if session.events:
+                    self._emit()
+                outcome: Outcome = await waiter
+                if outcome is _ANSWERED:
+                    return pending.responses
+                if outcome is Outcome.DISCONNECTED:
+                    raise self._lost_error()
                 failures.append(outcome.value)
         raise QueryTimeoutError(command, failures, self._options.timeout_s)
-
-    async def _send_query(self, command: Command, *, retry: bool) -> PendingQuery:
-        if not self._mode_settled.is_set():
-            await self._mode_settled.wait()
-        self._check_open()
-        if retry:
-            self._session.counters.retries += 1
-        data, pending = self._session.query(command, self._loop.time())
-        pending.waiter = self._loop.create_future()
-        if data:  # (nothing while queries are held back, P20)
-            self._write(data)
-        self._arm_timer()
-        if self._session.events:
-            self._emit()
-        return pending
-
-    async def _outcome(self, pending: PendingQuery) -> Outcome:
-        waiter = pending.waiter
-        assert isinstance(waiter, asyncio.Future)
-        outcome: Outcome = await waiter
-        if outcome is Outcome.DISCONNECTED:
-            raise self._lost_error()
-        return outcome
 
     def _wake(self, settled: list[PendingQuery]) -> None:
         if settled:
@@ -509,8 +515,10 @@ class AsyncClient(AsyncCommandMethods):
         now = self._loop.time()
         taken = session.take_reply(data, now)  # the usual case: one whole reply
         if taken is not None:
-            if not taken.internal:
-                self._wake([taken])
+            waiter = taken.waiter  # (none for the session's own queries)
+            if isinstance(waiter, asyncio.Future) and not waiter.done():
+                waiter.set_result(_ANSWERED)
+            self._settled.set()
             return
         received = session.receive(data, now)
         self._wake(received.settled)
