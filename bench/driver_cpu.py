@@ -10,7 +10,11 @@ time, four ways, against the same controller in the same run:
 * raw socket: ``sendall(b"#qd!")`` and ``recv`` until the reply's ``!`` — the least Python can do;
 * ``rovlink.connect(url, keepalive=None).depth_cm()``: the blocking driver;
 * raw asyncio streams: ``open_connection``, ``write``, ``readuntil(b"!")``;
-* ``await rovlink.aio.connect(url, keepalive=None).depth_cm()``: the asyncio driver.
+* ``await rovlink.aio.connect(url, keepalive=None).depth_cm()``: the asyncio driver;
+
+and, as a reference without a target, the raw socket loop plus the session's own per-query
+bookkeeping (``Session.fast_query`` and ``Session.take_reply``, the drivers' shortest path):
+what any client that matches replies to queries as P20 asks costs at least.
 
 The figure that counts is the host process's CPU time per query (``time.process_time``, user +
 system, every thread of this process): an idle machine's wake-up latency, which dominates the
@@ -38,11 +42,14 @@ from dataclasses import dataclass, field
 import rovlink
 import rovlink.aio
 from fast_controller import FastController, NoCompilerError, running_fast_controller
+from rovlink.client.session import Session
 from rovlink.protocol import Command, encode
 
 WARM_UP_QUERIES = 200
 TARGETS = {"rovlink.connect": 1.15, "rovlink.aio.connect": 1.00}
 PEERS = {"rovlink.connect": "raw socket", "rovlink.aio.connect": "raw asyncio streams"}
+#: The raw socket loop plus the session's per-query bookkeeping alone (see its function).
+SESSION_FLOOR = "raw + session only"
 
 
 @dataclass
@@ -85,20 +92,40 @@ async def _async_block(
 
 def _raw_socket_query(
     controller: FastController, query: bytes
-) -> tuple[socket.socket, Callable[[], None]]:
+) -> tuple[socket.socket, Callable[[], bytes]]:
     sock = socket.create_connection((controller.host, controller.port))
     sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
     if query != b"#qd!":
         sock.sendall(b"#crcon!")
     sendall, recv = sock.sendall, sock.recv
 
-    def round_trip() -> None:
+    def round_trip() -> bytes:
         sendall(query)
         reply = recv(4096)
         while not reply.endswith(b"!"):
             reply += recv(4096)
+        return reply
 
     return sock, round_trip
+
+
+def _with_session_bookkeeping(
+    raw_query: Callable[[], bytes], checksum: bool
+) -> Callable[[], None]:
+    """The raw loop plus what any client keeping P20's matching must do per query, and no more:
+    queue the query in a :class:`~rovlink.client.session.Session` and settle it with the reply
+    the raw loop read (``fast_query`` and ``receive_reply``, the drivers' shortest path). A
+    floor for the clients."""
+    session = Session(checksum_enabled=checksum)
+    command = Command("qd")
+    fast_query, receive_reply, clock = session.fast_query, session.receive_reply, time.monotonic
+
+    def round_trip() -> None:
+        reply = raw_query()
+        fast_query(command, clock())
+        receive_reply(reply, clock())
+
+    return round_trip
 
 
 def run_blocking(
@@ -110,7 +137,11 @@ def run_blocking(
     """The blocking client and the raw socket, in turns."""
     sock, raw_query = _raw_socket_query(controller, query)
     with sock, rovlink.connect(controller.url, keepalive=None, checksum=arguments.checksum) as rov:
-        ways = [(totals["raw socket"], raw_query), (totals["rovlink.connect"], rov.depth_cm)]
+        ways = [
+            (totals["raw socket"], raw_query),
+            (totals["rovlink.connect"], rov.depth_cm),
+            (totals[SESSION_FLOOR], _with_session_bookkeeping(raw_query, arguments.checksum)),
+        ]
         for _, way_query in ways:
             for _ in range(WARM_UP_QUERIES):
                 way_query()
@@ -193,7 +224,7 @@ def main() -> int:
     )
     arguments = parser.parse_args()
     query = encode(Command("qd"), checksum="crc8" if arguments.checksum else None)
-    totals = {name: Totals() for name in (*PEERS.values(), *PEERS)}
+    totals = {name: Totals() for name in (*PEERS.values(), *PEERS, SESSION_FLOOR)}
     controller_cpu = _pin(arguments.cpus)
     try:
         with running_fast_controller(controller_cpu) as controller:
@@ -213,13 +244,23 @@ def main() -> int:
         f"{'wall × peer':>13}"
     )
     verdicts = []
-    for name in ("raw socket", "rovlink.connect", "raw asyncio streams", "rovlink.aio.connect"):
+    for name in (
+        "raw socket",
+        SESSION_FLOOR,
+        "rovlink.connect",
+        "raw asyncio streams",
+        "rovlink.aio.connect",
+    ):
         way = totals[name]
         cpu, wall = way.per_query(way.cpu_s), way.per_query(way.wall_s)
         cpu_us = statistics.median(cpu) * 1e6
         line = f"{name:<22}{cpu_us:>14.1f}{statistics.median(wall) * 1e6:>15.1f}"
         peer_name = PEERS.get(name)
-        if peer_name is not None:
+        if name == SESSION_FLOOR:  # a reference, with no target of its own
+            peer = totals["raw socket"]
+            cpu_ratios = [a / b for a, b in zip(cpu, peer.per_query(peer.cpu_s), strict=True)]
+            line += f"{_spread(cpu_ratios):>24}"
+        elif peer_name is not None:
             peer = totals[peer_name]
             cpu_ratios = [a / b for a, b in zip(cpu, peer.per_query(peer.cpu_s), strict=True)]
             wall_ratios = [a / b for a, b in zip(wall, peer.per_query(peer.wall_s), strict=True)]

@@ -1,13 +1,13 @@
-"""``Session.take_reply``, the drivers' shortcut for a reply read whole, does exactly what
-``Session.receive`` does with the same bytes, or nothing at all."""
+"""``Session.receive_reply``, with its shortcut for a reply read whole, does exactly what
+``Session.receive`` does with the same bytes."""
 
 from __future__ import annotations
 
 from hypothesis import event, given, settings
 from hypothesis import strategies as st
 
-from rovlink.client.session import Outcome, PendingQuery, Session
-from rovlink.protocol import Command
+from rovlink.client.session import Outcome, PendingQuery, Received, Session
+from rovlink.protocol import Command, Frame, Response
 
 _QUERIES = [Command("qd"), Command("qhe"), Command("qsa")]
 _CHUNKS = [
@@ -23,7 +23,7 @@ _CHUNKS = [
     b"",
 ]
 _REPLIES = {"qd": b"$qd.7!", "qhe": b"$qhe.90!"}
-# Steps: send a query, read a chunk (with take_reply first on one session), let time pass.
+# Steps: send a query, read a chunk (with receive_reply on one session), let time pass.
 _STEPS = st.lists(
     st.one_of(
         st.tuples(st.just("query"), st.sampled_from(_QUERIES)),
@@ -49,12 +49,10 @@ def _state(session: Session, queries: list[PendingQuery]) -> object:
 
 @settings(max_examples=500)
 @given(_STEPS, st.sampled_from([False, False, False, True]))  # (events: it never takes)
-def test_take_reply_is_receive_or_nothing(steps: list[tuple[str, object]], events: bool) -> None:
+def test_receive_reply_is_receive(steps: list[tuple[str, object]], events: bool) -> None:
     shortcut, reference = Session(record_events=events), Session(record_events=events)
     shortcut_queries: list[PendingQuery] = []
     reference_queries: list[PendingQuery] = []
-    for session in (shortcut, reference):  # frames decoded before: the shortcut may take them
-        session.receive(b"$qd.7!$qd.8!$qhe.90!$qr.5!", now=0.0)
     replies_taken = 0
     now = 0.0
     for action, argument in steps:
@@ -69,16 +67,12 @@ def test_take_reply_is_receive_or_nothing(steps: list[tuple[str, object]], event
                 name = reference.pending[0].command.name if reference.pending else "qd"
                 chunk = _REPLIES.get(name, b"$qd.7!")
             assert isinstance(chunk, bytes)
-            before = _state(shortcut, shortcut_queries)
             oldest = shortcut.pending[0] if shortcut.pending else None
-            taken = shortcut.take_reply(chunk, now)
-            if taken is not None:
-                assert taken is oldest
-                assert taken.outcome is Outcome.ANSWERED
+            result = shortcut.receive_reply(chunk, now)
+            if isinstance(result, PendingQuery):
+                assert result is oldest
+                assert result.outcome is Outcome.ANSWERED
                 replies_taken += 1
-            else:
-                assert _state(shortcut, shortcut_queries) == before  # nothing done
-                shortcut.receive(chunk, now)
             reference.receive(chunk, now)
         else:
             assert isinstance(argument, float)
@@ -89,27 +83,27 @@ def test_take_reply_is_receive_or_nothing(steps: list[tuple[str, object]], event
     event(f"replies taken: {min(replies_taken, 3)}{'+' if replies_taken >= 3 else ''}")
 
 
-def test_take_reply_settles_a_polling_loops_reply_once_it_is_known() -> None:
+def test_receive_reply_settles_a_polling_loops_replies() -> None:
     session = Session()
-    session.query(Command("qd"), now=0.0)
-    assert session.take_reply(b"$qd.3!", now=0.001) is None  # never decoded: receive it
-    session.receive(b"$qd.3!", now=0.001)
-    _, second = session.query(Command("qd"), now=0.002)
-    assert session.take_reply(b"$qd.3!", now=0.003) is second
-    assert second.responses[0].values == (3,)
+    for depth_cm in (3, 3, 4):  # new and repeated values alike
+        _, query = session.query(Command("qd"), now=0.0)
+        assert session.receive_reply(b"$qd.%d!" % depth_cm, now=0.001) is query
+        assert query.responses[0].values == (depth_cm,)
     assert session.pending == ()
-    assert session.counters.replies == 2
-    assert session.counters.bytes_received == 12
+    assert session.counters.replies == 3
+    assert session.counters.bytes_received == 18
 
 
-def test_take_reply_leaves_a_six_reply_query_and_a_wrong_name_to_receive() -> None:
+def test_receive_reply_leaves_a_six_reply_query_and_a_wrong_name_to_receive() -> None:
     session = Session()
-    session.receive(b"$qd.3!$qhe.9!", now=0.0)  # both known to the decoder now
     _, sensors = session.query(Command("qsa"), now=0.001)
-    assert session.take_reply(b"$qd.3!", now=0.002) is None
-    assert sensors.responses == []
-    session.receive(b"$qd.3!$qr.1!$q.l.0!$qro.0!$qpi.0!$qhe.9!", now=0.003)
+    received = session.receive_reply(b"$qd.3!", now=0.002)
+    assert isinstance(received, Received)
+    assert received.settled == []
+    assert sensors.responses == [Response("qd", (3,))]
+    session.receive(b"$qr.1!$q.l.0!$qro.0!$qpi.0!$qhe.9!", now=0.003)
     _, heading = session.query(Command("qhe"), now=0.004)
-    assert session.take_reply(b"$qd.3!", now=0.005) is None  # not its reply
-    assert heading.responses == []
-    assert session.take_reply(b"$qhe.9!", now=0.006) is heading
+    received = session.receive_reply(b"$qd.3!", now=0.005)  # not its reply: a stray frame
+    assert isinstance(received, Received)
+    assert [event.raw for event in received.unsolicited if isinstance(event, Frame)] == [b"$qd.3!"]
+    assert session.receive_reply(b"$qhe.9!", now=0.006) is heading

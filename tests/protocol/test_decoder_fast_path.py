@@ -177,16 +177,30 @@ def test_chunks_that_are_one_frame_each_decode_as_bytes_do(
     assert _decode(pieces + pieces, checksum) == byte_by_byte
 
 
-def test_lookup_answers_only_whole_frames_met_lately_with_nothing_buffered() -> None:
+def test_feed_frame_takes_only_one_whole_frame_with_nothing_buffered() -> None:
     decoder = Decoder()
-    assert decoder.lookup(b"$qd.5!") is None  # never decoded
     (event,) = decoder.feed(b"$qd.5!")
-    assert decoder.lookup(b"$qd.5!") is event
+    assert decoder.feed_frame(b"$qd.5!") is event  # from the cache
+    fresh = decoder.feed_frame(b"$qd.6!")
+    assert isinstance(fresh, Frame)
+    assert fresh.message == Response("qd", (6,))
+    for chunk in (b"$qd.5!$qd.6!", b"$qd.5", b"boot\r\n", b"$qd.5!\r\n", b""):
+        assert decoder.feed_frame(chunk) is None  # left unread
     decoder.feed(b"$qd.")  # half a frame waits for its end
-    assert decoder.lookup(b"$qd.5!") is None
-    decoder.feed(b"6!")
-    decoder.feed(b"boot")  # an unfinished text line
-    assert decoder.lookup(b"$qd.5!") is None
-    decoder.checksum_enabled = True  # the other mode's cache
-    decoder.feed(b"\r\n")
-    assert decoder.lookup(b"$qd.5!") is None
+    assert decoder.feed_frame(b"$qd.5!") is None
+    assert decoder.feed(b"6!") == [fresh]
+    assert decoder.feed_frame(b"#crcon!") is not None  # a mode frame switches the mode
+    assert decoder.checksum_enabled
+
+
+@settings(max_examples=300)
+@given(st.lists(frames() | st.sampled_from([b"#crcon!", b"#crcoff!"]), max_size=30))
+def test_feed_frame_decodes_as_feed_does(pieces: list[bytes]) -> None:
+    one_by_one, fed = Decoder(), Decoder()
+    for piece in pieces * 2:
+        expected = fed.feed(piece)
+        event = one_by_one.feed_frame(piece)
+        if event is None:  # not a whole frame to the decoder: left unread, so feed it
+            assert one_by_one.feed(piece) == expected
+        else:
+            assert [event] == expected

@@ -513,14 +513,13 @@ class AsyncClient(AsyncCommandMethods):
             return
         session = self._session
         now = self._loop.time()
-        taken = session.take_reply(data, now)  # the usual case: one whole reply
-        if taken is not None:
-            waiter = taken.waiter  # (none for the session's own queries)
+        received = session.receive_reply(data, now)
+        if isinstance(received, PendingQuery):  # the usual case: one whole reply, its query
+            waiter = received.waiter  # (none for the session's own queries)
             if isinstance(waiter, asyncio.Future) and not waiter.done():
                 waiter.set_result(_ANSWERED)
             self._settled.set()
             return
-        received = session.receive(data, now)
         self._wake(received.settled)
         if session.has_outbox:
             self._flush_due()

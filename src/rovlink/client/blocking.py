@@ -35,7 +35,7 @@ from rovlink.client.options import (
     StrayCallback,
 )
 from rovlink.client.readiness import ReadinessProbe
-from rovlink.client.session import Outcome, PendingQuery, Session
+from rovlink.client.session import Outcome, PendingQuery, Received, Session
 from rovlink.client.unsolicited import DropLog, deliver
 from rovlink.client.url import parse_url
 from rovlink.logs import get_logger
@@ -577,8 +577,8 @@ class Client(CommandMethods):
                 lock.acquire()
                 self._reader_ident = None
                 now = self._clock()
-                taken = session.take_reply(data, now)
-                if taken is pending:  # the reply, whole, and no more
+                received = session.receive_reply(data, now) if data else None
+                if received is pending:  # the reply, whole, and no more
                     if self._waiting_callers:
                         self._changed.notify_all()
                     self._active_callers -= 1
@@ -587,11 +587,9 @@ class Client(CommandMethods):
                     if session.notices:
                         self._emit()
                     return pending.responses
-                # An earlier caller's reply (taken), or part of the reply, or more than it
-                # (text, noise, another caller's reply).
-                unsolicited = (
-                    [] if taken is not None or not data else session.receive(data, now).unsolicited
-                )
+                # Part of the reply, or more than it (text, noise, another caller's reply), or
+                # only an earlier caller's reply, or nothing.
+                unsolicited = received.unsolicited if isinstance(received, Received) else []
                 if session.has_outbox:
                     self._flush_due()
                 self._notify_callers()

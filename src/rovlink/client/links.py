@@ -305,8 +305,27 @@ class SocketLink(FdLink):
         self._dont_wait = getattr(socket, "MSG_DONTWAIT", 0)
         sock.setblocking(bool(self._dont_wait))
         self._receive_timeout_s = 0.0  # SO_RCVTIMEO as last set; 0: never set (blocks forever)
+        self._reply_timeout_s = -1.0  # the last timeout read_reply was asked for and could keep
         if not self._dont_wait:
             self.read_reply = self.read_available  # type: ignore[method-assign]
+
+    def _set_receive_timeout(self, timeout_s: float) -> bool:
+        """Make ``recv`` give up after about ``timeout_s`` (at most the slack later); False if
+        the kernel's timer cannot time that (too short: ``read_available`` polls instead)."""
+        if timeout_s < _RECEIVE_TIMEOUT_SLACK_S or self._closed:  # (SO_RCVTIMEO 0: forever)
+            return False
+        if not timeout_s <= self._receive_timeout_s <= timeout_s + _RECEIVE_TIMEOUT_SLACK_S:
+            # Set rarely: a later read of a query asks for a little less than the first.
+            receive_timeout_s = timeout_s + _RECEIVE_TIMEOUT_SLACK_S / 2
+            seconds = int(receive_timeout_s)
+            self._socket.setsockopt(
+                socket.SOL_SOCKET,
+                socket.SO_RCVTIMEO,
+                _TIMEVAL.pack(seconds, int((receive_timeout_s - seconds) * 1e6)),
+            )
+            self._receive_timeout_s = receive_timeout_s
+        self._reply_timeout_s = timeout_s
+        return True
 
     def recv_some(self) -> bytes:
         """Whatever is waiting now; raise ConnectionLostError when the peer closed.
@@ -337,18 +356,9 @@ class SocketLink(FdLink):
             link.send_some(b"#qd!")
             data = link.read_reply(0.5)   # b"$qd.12!", or b"" after 0.5 s of silence
         """
-        if timeout_s < _RECEIVE_TIMEOUT_SLACK_S or self._closed:  # (SO_RCVTIMEO 0: forever)
+        # (A query's first read asks for the session's timeout, the same float every time.)
+        if timeout_s != self._reply_timeout_s and not self._set_receive_timeout(timeout_s):
             return self.read_available(timeout_s)
-        if not timeout_s <= self._receive_timeout_s <= timeout_s + _RECEIVE_TIMEOUT_SLACK_S:
-            # Set rarely: a query's first read asks for about the same timeout as the last.
-            timeout_s += _RECEIVE_TIMEOUT_SLACK_S / 2
-            seconds = int(timeout_s)
-            self._socket.setsockopt(
-                socket.SOL_SOCKET,
-                socket.SO_RCVTIMEO,
-                _TIMEVAL.pack(seconds, int((timeout_s - seconds) * 1e6)),
-            )
-            self._receive_timeout_s = timeout_s
         try:
             data = self._socket.recv(_READ_BYTES)
         except BlockingIOError:  # the receive timeout passed

@@ -410,6 +410,10 @@ class Session:
 
     def receive(self, data: bytes, now: float) -> Received:
         """Decode bytes from the controller; settle the queries they answer or break."""
+        return self._receive_events(self._decoder.feed(data), data, now)
+
+    def _receive_events(self, decoded: list[Event], data: bytes, now: float) -> Received:
+        """:meth:`receive` once ``data`` is decoded (into ``decoded``)."""
         counters = self.counters
         counters.bytes_received += len(data)
         events = self.events
@@ -418,7 +422,7 @@ class Session:
         result = Received()
         pending = self._pending
         late_names = self._late_names
-        for event in self._decoder.feed(data):
+        for event in decoded:
             if isinstance(event, Frame):
                 message = event.message
                 if isinstance(message, Response):
@@ -462,37 +466,36 @@ class Session:
                 events.append(Unsolicited(now, event))
         return result
 
-    def take_reply(self, data: bytes, now: float) -> PendingQuery | None:
-        """:meth:`receive` for the usual case of a driver reading a reply as it arrives:
-        ``data`` is exactly the one reply frame that completes the oldest query on the wire,
-        and nothing else is going on (no resynchronisation, no events to record). Settles that
-        query and returns it; or does nothing and returns ``None`` (then :meth:`receive` the
-        bytes).
+    def receive_reply(self, data: bytes, now: float) -> PendingQuery | Received:
+        """:meth:`receive`, with a shortcut for a driver's usual case: ``data``, read as it
+        arrived, is exactly the one reply frame that completes the oldest query on the wire,
+        and nothing else is going on (no resynchronisation, no events to record). Then that
+        query is settled and returned; anything else is received as :meth:`receive` does, and
+        its result returned.
 
         >>> session = Session()
         >>> _, query = session.query(Command("qd"), now=0.0)
-        >>> session.take_reply(b"$qd.7!", now=0.001) is None   # not decoded yet: receive it
-        True
-        >>> session.receive(b"$qd.7!", now=0.001).settled == [query]
-        True
-        >>> _, query = session.query(Command("qd"), now=0.002)
-        >>> session.take_reply(b"$qd.7!", now=0.003) is query, query.responses
+        >>> session.receive_reply(b"$qd.7!", now=0.001) is query, query.responses
         (True, [Response(name='qd', values=(7,))])
+        >>> _, query = session.query(Command("qd"), now=0.002)
+        >>> session.receive_reply(b"boot\\r\\n$qd.8!", now=0.003).settled == [query]
+        True
         """
         pending = self._pending
         if self.events is not None or self._late_names or not pending:
-            return None
+            return self.receive(data, now)
         query = pending[0]
         expected = query.expected
         if len(expected) != 1 or query.responses:
-            return None
-        event = self._decoder.lookup(data)
-        if type(event) is not Frame:  # (None, or a cached error or text)
-            return None
-        message = event.message
-        if type(message) is not Response or message.name != expected[0]:
-            return None
-        # What receive does for this frame, in the same order.
+            return self.receive(data, now)
+        event = self._decoder.feed_frame(data)
+        if event is None:  # not one whole frame: nothing read yet
+            return self.receive(data, now)
+        if type(event) is not Frame or (
+            type(message := event.message) is not Response or message.name != expected[0]
+        ):
+            return self._receive_events([event], data, now)
+        # What _receive_events does for this frame, in the same order.
         counters = self.counters
         counters.bytes_received += len(data)
         counters.frames_received += 1

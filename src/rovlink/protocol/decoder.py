@@ -163,20 +163,27 @@ class Decoder:
         """Bytes of the unfinished text line held until more input arrives."""
         return len(self._text)
 
-    def lookup(self, data: bytes) -> Event | None:
-        """The event of a chunk that is one whole frame decoded lately, if ``data`` is one and
-        nothing is buffered: what :meth:`feed` would return for it alone, without decoding.
-        ``None`` otherwise (then :meth:`feed` it).
+    def feed_frame(self, data: bytes) -> Event | None:
+        """:meth:`feed` for a chunk that is exactly one whole frame, with nothing buffered (a
+        reply read as it arrives): its one event, from the cache or decoded. ``None`` for any
+        other chunk, which is then left unread: :meth:`feed` it.
 
         >>> decoder = Decoder()
-        >>> decoder.lookup(b"$qd.5!") is None   # not met yet
-        True
-        >>> decoder.feed(b"$qd.5!")[0] is decoder.lookup(b"$qd.5!")
+        >>> decoder.feed_frame(b"$qd.5!")
+        Frame(message=Response(name='qd', values=(5,)), raw=b'$qd.5!')
+        >>> decoder.feed_frame(b"$qd.5!$qd.6!") is None   # two frames: feed() them
         True
         """
         if self._frame or self._skipping or self._text:
             return None
-        return self._caches[self.checksum_enabled].get(data)
+        event = self._caches[self.checksum_enabled].get(data)
+        if event is not None:
+            return event
+        if _WHOLE_FRAME.fullmatch(data) is None:
+            return None
+        events: list[Event] = []
+        self._add_frames([data], events)
+        return events[0]
 
     def feed(self, data: bytes) -> list[Event]:
         """Decode another chunk of the stream; return the events it completes."""
