@@ -176,9 +176,21 @@ class Decoder:
         """
         if self._frame or self._skipping or self._text:
             return None
-        event = self._caches[self.checksum_enabled].get(data)
+        checked = self.checksum_enabled
+        cache = self._caches[checked]
+        event = cache.get(data)
         if event is not None:
             return event
+        if not checked or self._algorithm.function is crc8_smbus:
+            message = _canonical_message(data, checked)
+            if message is not None:  # (then the chunk is one whole frame: no scanning)
+                event = _new_frame(Frame)
+                _set_frame_message(event, message)
+                _set_frame_raw(event, data)
+                if len(cache) >= _CACHE_ENTRIES:
+                    cache.clear()
+                cache[data] = event
+                return event
         if _WHOLE_FRAME.fullmatch(data) is None:
             return None
         events: list[Event] = []
@@ -233,39 +245,7 @@ class Decoder:
             if event is not None:
                 append(event)
                 continue
-            message: Message | None = None
-            if inline:
-                parts = raw.split(b".")
-                entry = _FAST_ENTRIES.get(parts[0])
-                if entry is not None:
-                    spec, cls, part_count, name_rest, numbers, last_numbers, last_end, crc = entry
-                    if len(parts) == part_count:
-                        # A number: (value, zero-shift table of its length, CRC of its text,
-                        # message of a one-value spec); the CRC goes on from the name's.
-                        last = last_numbers[parts[-1][:-3]] if checked else last_end[parts[-1]]
-                        if last is None:
-                            pass
-                        elif part_count == 2 or name_rest:  # one value: its message is made
-                            if name_rest and parts[1] != name_rest:
-                                pass
-                            elif not checked or raw.endswith(
-                                _HEX_DIGITS_END[last[1][crc] ^ last[2]]
-                            ):
-                                message = last[3]
-                        else:
-                            first = numbers[parts[1]]
-                            if first is not None and (
-                                not checked
-                                or raw.endswith(
-                                    _HEX_DIGITS_END[
-                                        last[1][_DOT_CRC[first[1][crc] ^ first[2]]] ^ last[2]
-                                    ]
-                                )
-                            ):
-                                message = _new_message(cls)
-                                _set_message_name(message, spec.name)
-                                _set_message_values(message, (first[0], last[0]))
-                                _set_message_spec(message, spec)
+            message = _canonical_message(raw, checked) if inline else None
             if message is not None:
                 event = _new_frame(Frame)
                 _set_frame_message(event, message)
@@ -496,3 +476,43 @@ _FAST_ENTRIES = FAST_ENTRIES
 _HEX_DIGITS_END = HEX_DIGITS_END
 #: The CRC-8/SMBUS register after a "." from each state: the dot between two values.
 _DOT_CRC = bytes(CRC8_SMBUS_TABLE[state ^ 0x2E] for state in range(256))
+
+
+def _canonical_message(raw: bytes, checked: bool) -> Message | None:
+    """The message of a whole frame in its canonical spelling, with in-range values that the
+    tables of numbers already met hold (:class:`NumberTexts`), by table lookups alone; ``None``
+    for anything else, which the full parser then reads and names the problem of. With
+    ``checked``, the frame's CRC-8/SMBUS is checked, continued across the known pieces.
+
+    Only a frame that stands whole gets a message: every piece between the start character
+    and the ``!`` is matched exactly, so a chunk of anything else is never taken for a frame.
+    """
+    message: Message | None = None
+    parts = raw.split(b".")
+    entry = _FAST_ENTRIES.get(parts[0])
+    if entry is not None:
+        spec, cls, part_count, name_rest, numbers, last_numbers, last_end, crc = entry
+        if len(parts) == part_count:
+            # A number: (value, zero-shift table of its length, CRC of its text,
+            # message of a one-value spec); the CRC goes on from the name's.
+            last = last_numbers[parts[-1][:-3]] if checked else last_end[parts[-1]]
+            if last is None:
+                pass
+            elif part_count == 2 or name_rest:  # one value: its message is made
+                if name_rest and parts[1] != name_rest:
+                    pass
+                elif not checked or raw.endswith(_HEX_DIGITS_END[last[1][crc] ^ last[2]]):
+                    message = last[3]
+            else:
+                first = numbers[parts[1]]
+                if first is not None and (
+                    not checked
+                    or raw.endswith(
+                        _HEX_DIGITS_END[last[1][_DOT_CRC[first[1][crc] ^ first[2]]] ^ last[2]]
+                    )
+                ):
+                    message = _new_message(cls)
+                    _set_message_name(message, spec.name)
+                    _set_message_values(message, (first[0], last[0]))
+                    _set_message_spec(message, spec)
+    return message
