@@ -13,7 +13,7 @@ time, four ways, against the same controller in the same run:
 * ``await rovlink.aio.connect(url, keepalive=None).depth_cm()``: the asyncio driver;
 
 and, as a reference without a target, the raw socket loop plus the session's own per-query
-bookkeeping (``Session.fast_query`` and ``Session.take_reply``, the drivers' shortest path):
+bookkeeping (``Session.fast_query`` and ``Session.receive_reply``, the drivers' shortest path):
 what any client that matches replies to queries as P20 asks costs at least.
 
 The figure that counts is the host process's CPU time per query (``time.process_time``, user +
@@ -109,9 +109,7 @@ def _raw_socket_query(
     return sock, round_trip
 
 
-def _with_session_bookkeeping(
-    raw_query: Callable[[], bytes], checksum: bool
-) -> Callable[[], None]:
+def _with_session_bookkeeping(raw_query: Callable[[], bytes], checksum: bool) -> Callable[[], None]:
     """The raw loop plus what any client keeping P20's matching must do per query, and no more:
     queue the query in a :class:`~rovlink.client.session.Session` and settle it with the reply
     the raw loop read (``fast_query`` and ``receive_reply``, the drivers' shortest path). A
