@@ -48,12 +48,12 @@ def _state(session: Session, queries: list[PendingQuery]) -> object:
 
 
 @settings(max_examples=500)
-@given(_STEPS, st.sampled_from([False, False, False, True]))  # (events: it never takes)
+@given(_STEPS, st.sampled_from([False, False, False, True]))  # (events: never the shortcut)
 def test_receive_reply_is_receive(steps: list[tuple[str, object]], events: bool) -> None:
     shortcut, reference = Session(record_events=events), Session(record_events=events)
     shortcut_queries: list[PendingQuery] = []
     reference_queries: list[PendingQuery] = []
-    replies_taken = 0
+    shortcut_replies = 0
     now = 0.0
     for action, argument in steps:
         now += 0.001
@@ -72,7 +72,7 @@ def test_receive_reply_is_receive(steps: list[tuple[str, object]], events: bool)
             if isinstance(result, PendingQuery):
                 assert result is oldest
                 assert result.outcome is Outcome.ANSWERED
-                replies_taken += 1
+                shortcut_replies += 1
             reference.receive(chunk, now)
         else:
             assert isinstance(argument, float)
@@ -80,7 +80,9 @@ def test_receive_reply_is_receive(steps: list[tuple[str, object]], events: bool)
             shortcut.tick(now)
             reference.tick(now)
         assert _state(shortcut, shortcut_queries) == _state(reference, reference_queries)
-    event(f"replies taken: {min(replies_taken, 3)}{'+' if replies_taken >= 3 else ''}")
+    event(
+        f"replies by the shortcut: {min(shortcut_replies, 3)}{'+' if shortcut_replies >= 3 else ''}"
+    )
 
 
 def test_receive_reply_settles_a_polling_loops_replies() -> None:
