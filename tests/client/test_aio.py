@@ -5,6 +5,7 @@ from __future__ import annotations
 import asyncio
 import logging
 import random
+import socket
 import time
 from collections.abc import Awaitable, Callable
 from typing import Any
@@ -12,8 +13,15 @@ from typing import Any
 import pytest
 
 from rovlink.aio import AsyncClient, ConnectionLostError, InvalidArgumentError, QueryTimeoutError
+from rovlink.client import ClientOptions
+from rovlink.client.links import SocketLink
 from rovlink.protocol import Command, Event, Response, Text, get_algorithm
-from tests.client.conftest import NO_REPLY_TIMEOUT_S, wait_until_async
+from tests.client.conftest import (
+    CONDITION_TIMEOUT_S,
+    NO_REPLY_TIMEOUT_S,
+    REPLY_TIMEOUT_S,
+    wait_until_async,
+)
 from tests.client.fake_controller import FakeController
 from tests.client.method_cases import QUERY_CASES, SET_CASES, checksummed
 
@@ -312,3 +320,90 @@ async def test_bad_options_are_rejected_before_connecting() -> None:
         rovlink.aio.connect("sim://", timeout=-1)
     with pytest.raises(ValueError, match="unknown sim option"):
         rovlink.aio.connect("sim://?bogus=1")
+
+
+async def test_a_query_queued_behind_max_in_flight_fails_when_the_tcp_link_is_lost() -> None:
+    """A caller waiting for a free slot (max_in_flight) while the TCP link is lost fails with
+    ConnectionLostError once it has the slot, instead of queueing its query on the dead link,
+    where nothing would ever settle it (a write to a peer that has closed still succeeds)."""
+    server = socket.create_server(("127.0.0.1", 0))
+    host_end = socket.create_connection(server.getsockname())
+    controller_end, _ = server.accept()
+    server.close()
+    fake = FakeController(controller_end.detach())
+    options = ClientOptions(
+        timeout_s=REPLY_TIMEOUT_S,
+        retries=0,
+        keepalive_s=None,
+        boot_timeout_s=None,
+        motion_timeout_s=None,
+    )
+    client = await AsyncClient(SocketLink(host_end, "tcp"), options, max_in_flight=1).open()
+    try:
+        fake.then("drop")  # the first query stays on the wire, holding the only slot
+        first = asyncio.ensure_future(client.depth_cm())
+        assert await asyncio.to_thread(fake.wait_for, lambda f: "#qd!" in f.frames())
+        second = asyncio.ensure_future(client.heading_deg())  # waits for the slot
+        for _ in range(5):
+            await asyncio.sleep(0)
+        assert not second.done()
+        fake.close()  # the controller goes away (FIN)
+        with pytest.raises(ConnectionLostError):
+            await first
+        try:
+            await asyncio.wait_for(second, 3.0)  # settles at once when the bug is fixed
+        except ConnectionLostError:
+            pass  # as it should: the link is gone
+        except (TimeoutError, asyncio.TimeoutError):
+            pending = [str(query.command) for query in client._session.pending]
+            pytest.fail(f"the queued query never settled after the link was lost: {pending}")
+        assert client._session.pending == ()
+    finally:
+        await client.close()
+        fake.close()
+
+
+async def test_a_query_queued_behind_max_in_flight_is_not_left_in_the_session_on_reconnect() -> (
+    None
+):
+    """With reconnect=True, a caller that waited for a slot while the link was lost leaves no
+    query in the session's queue: none takes a reply meant for a query on the new link, and no
+    retry or timeout is counted that nothing on the wire caused."""
+    fakes: list[FakeController] = []
+
+    def open_pair() -> SocketLink:
+        fake, host_end = FakeController.on_socketpair()
+        fakes.append(fake)
+        return SocketLink(host_end, f"socket pair {len(fakes)}")
+
+    options = ClientOptions(
+        timeout_s=0.5,
+        retries=2,
+        keepalive_s=None,
+        boot_timeout_s=None,
+        motion_timeout_s=None,
+        reconnect=True,
+    )
+    client = await AsyncClient(open_pair(), options, max_in_flight=1, reopen=open_pair).open()
+    try:
+        fakes[0].then("drop")
+        first = asyncio.ensure_future(client.depth_cm())
+        assert await asyncio.to_thread(fakes[0].wait_for, lambda f: "#qd!" in f.frames())
+        second = asyncio.ensure_future(client.heading_deg())  # waits for the slot
+        for _ in range(5):
+            await asyncio.sleep(0)
+        assert not second.done()
+        fakes[0].close()  # unplugged
+        for future in (first, second):
+            with pytest.raises(ConnectionLostError):
+                await future
+        stale = [str(query.command) for query in client._session.pending]
+        assert stale == [], "a query that no caller waits for is queued for the new link"
+        await asyncio.wait_for(client._link_ready.wait(), CONDITION_TIMEOUT_S)
+        assert await client.heading_deg() == 275
+        assert client.counters.timeouts == 0
+        assert client.counters.retries == 0
+    finally:
+        await client.close()
+        for fake in fakes:
+            fake.close()

@@ -109,3 +109,20 @@ def test_receive_reply_leaves_a_six_reply_query_and_a_wrong_name_to_receive() ->
     assert isinstance(received, Received)
     assert [event.raw for event in received.unsolicited if isinstance(event, Frame)] == [b"$qd.3!"]
     assert session.receive_reply(b"$qhe.9!", now=0.006) is heading
+
+
+def _overlong_reply() -> bytes:
+    return b"$qd." + b"0" * 60 + b"12!"  # 67 bytes, P1
+
+
+def test_receive_reply_does_not_answer_a_query_with_an_overlong_frame() -> None:
+    """The shortcut gives an overlong reply the outcome receive gives it (dropped, P1), with
+    the same counters."""
+    frame = _overlong_reply()
+    shortcut, reference = Session(), Session()
+    _, taken = shortcut.query(Command("qd"), now=0.0)
+    _, received = reference.query(Command("qd"), now=0.0)
+    shortcut.receive_reply(frame, now=0.001)
+    reference.receive(frame, now=0.001)
+    assert (taken.outcome, taken.responses) == (received.outcome, received.responses)
+    assert shortcut.counters.as_dict() == reference.counters.as_dict()

@@ -7,12 +7,13 @@ Fed byte by byte, every frame takes the full parser: the two must always agree.
 
 from __future__ import annotations
 
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from rovlink.protocol import Decoder, Event, Frame, Kind, Response, get_algorithm
 from rovlink.protocol.commands import SPELLINGS, Spec
-from rovlink.protocol.frames import FAST_ENTRIES
+from rovlink.protocol.frames import FAST_ENTRIES, MAX_FRAME_BYTES
 
 _SPELLINGS = sorted(
     {kind.start_byte + spelling.encode() for kind in Kind for spelling in SPELLINGS[kind]}
@@ -204,3 +205,28 @@ def test_feed_frame_decodes_as_feed_does(pieces: list[bytes]) -> None:
             assert one_by_one.feed(piece) == expected
         else:
             assert [event] == expected
+
+
+def _overlong_reply(checked: bool) -> bytes:
+    """A qd reply of 67 bytes: in range, canonical apart from its leading zeros (P6)."""
+    if checked:
+        body = b"qd." + b"0" * 58 + b"12"
+        frame = b"$" + body + get_algorithm("crc8").digits(body) + b"!"
+    else:
+        frame = b"$qd." + b"0" * 60 + b"12!"
+    assert len(frame) > MAX_FRAME_BYTES
+    return frame
+
+
+@pytest.mark.parametrize("checked", [False, True])
+def test_feed_frame_drops_a_frame_longer_than_64_bytes_as_feed_does(checked: bool) -> None:
+    """A frame longer than MAX_FRAME_BYTES whose pieces are all valid (leading zeros) is
+    dropped by feed_frame as feed drops it (P1), and is not cached for feed either."""
+    frame = _overlong_reply(checked)
+    expected = Decoder(checksum_enabled=checked).feed(frame)
+    assert not any(isinstance(event, Frame) for event in expected)  # TOO_LONG (P1)
+
+    decoder = Decoder(checksum_enabled=checked)
+    event = decoder.feed_frame(frame)
+    assert event is None or [event] == expected
+    assert decoder.feed(frame) == expected  # and the cache is not poisoned for feed()

@@ -468,9 +468,11 @@ class AsyncClient(AsyncCommandMethods):
         failures: list[str] = []
         async with self._in_flight:
             for attempt in range(self._options.retries + 1):
-                if attempt or not self._mode_settled.is_set():  # (checked above for the first)
+                if not self._mode_settled.is_set():
                     await self._mode_settled.wait()
-                    self._check_open()
+                # Every attempt, and after any wait for a slot or a mode switch: the link may
+                # have been lost meanwhile, and a query queued on a lost link is never settled.
+                self._check_open()
                 session = self._session
                 now = self._loop.time()
                 if attempt:

@@ -575,24 +575,37 @@ class Client(CommandMethods):
                 raise
             else:
                 lock.acquire()
-                self._reader_ident = None
-                now = self._clock()
-                received = session.receive_reply(data, now) if data else None
-                if received is pending:  # the reply, whole, and no more
-                    if self._waiting_callers:
-                        self._changed.notify_all()
-                    self._active_callers -= 1
-                    self._last_caller_at = now
+                active = True  # this caller still counts among the active ones
+                try:
+                    self._reader_ident = None
+                    now = self._clock()
+                    received = session.receive_reply(data, now) if data else None
+                    if received is pending:  # the reply, whole, and no more
+                        if self._waiting_callers:
+                            self._changed.notify_all()
+                        self._active_callers -= 1
+                        active = False
+                        self._last_caller_at = now
+                    else:
+                        # Part of the reply, or more than it (text, noise, another caller's
+                        # reply), or only an earlier caller's reply, or nothing.
+                        unsolicited = (
+                            received.unsolicited if isinstance(received, Received) else []
+                        )
+                        if session.has_outbox:
+                            self._flush_due()
+                        self._notify_callers()
+                except BaseException:  # (Ctrl-C): the lock and the count given up, as _wait does
+                    if active:
+                        self._active_callers -= 1
+                        self._notify_callers()
+                    lock.release()
+                    raise
+                if not active:
                     lock.release()
                     if session.notices:
                         self._emit()
                     return pending.responses
-                # Part of the reply, or more than it (text, noise, another caller's reply), or
-                # only an earlier caller's reply, or nothing.
-                unsolicited = received.unsolicited if isinstance(received, Received) else []
-                if session.has_outbox:
-                    self._flush_due()
-                self._notify_callers()
                 outcome = self._wait(pending, holding_state=True)
                 if unsolicited:
                     self._drops.report(unsolicited, self._options.on_stray, now)

@@ -174,8 +174,8 @@ class Decoder:
         >>> decoder.feed_frame(b"$qd.5!$qd.6!") is None   # two frames: feed() them
         True
         """
-        if self._frame or self._skipping or self._text:
-            return None
+        if self._frame or self._skipping or self._text or len(data) > MAX_FRAME_BYTES:
+            return None  # (an overlong frame is dropped by feed, P1)
         checked = self.checksum_enabled
         cache = self._caches[checked]
         event = cache.get(data)
