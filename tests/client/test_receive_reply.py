@@ -3,11 +3,13 @@
 
 from __future__ import annotations
 
+import re
+
 from hypothesis import event, given, settings
 from hypothesis import strategies as st
 
 from rovlink.client.session import Outcome, PendingQuery, Received, Session
-from rovlink.protocol import Command, Frame, Response
+from rovlink.protocol import ALGORITHMS, Command, Frame, Response, get_algorithm
 
 _QUERIES = [Command("qd"), Command("qhe"), Command("qsa")]
 _CHUNKS = [
@@ -29,6 +31,13 @@ _STEPS = st.lists(
         st.tuples(st.just("query"), st.sampled_from(_QUERIES)),
         st.tuples(st.just("read"), st.sampled_from(_CHUNKS)),
         st.tuples(st.just("read"), st.just(None)),  # the reply the oldest query expects
+        # Read as they are, in any mode: no checksum, a wrong one, a lower-case one, too long.
+        st.tuples(
+            st.just("read as sent"),
+            st.sampled_from(
+                [b"$qd.7!", b"$qd.700!", b"$qd.7F3!", b"$qhe.90b5!", b"$qd." + b"0" * 60 + b"7!"]
+            ),
+        ),
         st.tuples(st.just("wait"), st.sampled_from([0.1, 0.1, 0.1, 0.6])),  # 0.6: a timeout
     ),
     max_size=40,
@@ -47,10 +56,36 @@ def _state(session: Session, queries: list[PendingQuery]) -> object:
     )
 
 
+def _checksummed(chunk: bytes, algorithm: str) -> bytes:
+    """``chunk`` with every whole frame in it checksummed by ``algorithm``: the same stream as
+    a controller in checksum mode sends it (text, noise and a split frame left as they are)."""
+    return re.sub(
+        rb"\$([^$!]*)!",
+        lambda match: b"$" + match[1] + get_algorithm(algorithm).digits(match[1]) + b"!",
+        chunk,
+    )
+
+
+#: Checksum mode off, or on with each algorithm; chunks with a wrong checksum are added for it.
+_MODES = st.sampled_from([None, None, *sorted(ALGORITHMS)])
+
+
 @settings(max_examples=500)
-@given(_STEPS, st.sampled_from([False, False, False, True]))  # (events: never the shortcut)
-def test_receive_reply_is_receive(steps: list[tuple[str, object]], events: bool) -> None:
-    shortcut, reference = Session(record_events=events), Session(record_events=events)
+@given(_STEPS, st.sampled_from([False, False, False, True]), _MODES)  # (events: never shortcut)
+def test_receive_reply_is_receive(
+    steps: list[tuple[str, object]], events: bool, algorithm: str | None
+) -> None:
+    def session() -> Session:
+        return Session(
+            record_events=events,
+            checksum_enabled=algorithm is not None,
+            algorithm=algorithm or "crc8",
+        )
+
+    def wire(chunk: bytes) -> bytes:
+        return chunk if algorithm is None else _checksummed(chunk, algorithm)
+
+    shortcut, reference = session(), session()
     shortcut_queries: list[PendingQuery] = []
     reference_queries: list[PendingQuery] = []
     shortcut_replies = 0
@@ -61,12 +96,14 @@ def test_receive_reply_is_receive(steps: list[tuple[str, object]], events: bool)
             assert isinstance(argument, Command)
             shortcut_queries.append(shortcut.query(argument, now)[1])
             reference_queries.append(reference.query(argument, now)[1])
-        elif action == "read":
+        elif action in ("read", "read as sent"):
             chunk = argument
             if chunk is None:
                 name = reference.pending[0].command.name if reference.pending else "qd"
                 chunk = _REPLIES.get(name, b"$qd.7!")
             assert isinstance(chunk, bytes)
+            if action == "read":
+                chunk = wire(chunk)
             oldest = shortcut.pending[0] if shortcut.pending else None
             result = shortcut.receive_reply(chunk, now)
             if isinstance(result, PendingQuery):
@@ -80,6 +117,7 @@ def test_receive_reply_is_receive(steps: list[tuple[str, object]], events: bool)
             shortcut.tick(now)
             reference.tick(now)
         assert _state(shortcut, shortcut_queries) == _state(reference, reference_queries)
+    event(f"checksums: {algorithm or 'off'}")
     event(
         f"replies by the shortcut: {min(shortcut_replies, 3)}{'+' if shortcut_replies >= 3 else ''}"
     )
