@@ -178,33 +178,49 @@ def test_chunks_that_are_one_frame_each_decode_as_bytes_do(
     assert _decode(pieces + pieces, checksum) == byte_by_byte
 
 
-def test_feed_frame_takes_only_one_whole_frame_with_nothing_buffered() -> None:
+def test_frame_message_reads_only_one_whole_frame_of_values_with_nothing_buffered() -> None:
     decoder = Decoder()
     (event,) = decoder.feed(b"$qd.5!")
-    assert decoder.feed_frame(b"$qd.5!") is event  # from the cache
-    fresh = decoder.feed_frame(b"$qd.6!")
-    assert isinstance(fresh, Frame)
-    assert fresh.message == Response("qd", (6,))
-    for chunk in (b"$qd.5!$qd.6!", b"$qd.5", b"boot\r\n", b"$qd.5!\r\n", b""):
-        assert decoder.feed_frame(chunk) is None  # left unread
+    assert isinstance(event, Frame)
+    assert decoder.frame_message(b"$qd.5!") is event.message  # from the cache
+    assert decoder.frame_message(b"$qd.6!") == Response("qd", (6,))  # by table lookups
+    for chunk in (
+        b"$qd.5!$qd.6!",  # two frames
+        b"$qd.5",  # half a frame
+        b"boot\r\n",
+        b"$qd.5!\r\n",
+        b"",
+        b"$qd.10000!",  # out of range: feed() names the problem
+        b"#crcon!",  # a mode frame: feed() switches the mode
+        b"$qsa!",  # no values
+    ):
+        assert decoder.frame_message(chunk) is None, chunk  # left unread
+    assert not decoder.checksum_enabled
     decoder.feed(b"$qd.")  # half a frame waits for its end
-    assert decoder.feed_frame(b"$qd.5!") is None
-    assert decoder.feed(b"6!") == [fresh]
-    assert decoder.feed_frame(b"#crcon!") is not None  # a mode frame switches the mode
-    assert decoder.checksum_enabled
+    assert decoder.frame_message(b"$qd.5!") is None
+    assert decoder.feed(b"6!") == [Frame(Response("qd", (6,)), b"$qd.6!")]
+
+
+def test_frame_message_leaves_other_algorithms_to_feed() -> None:
+    frame = b"$qd.5" + get_algorithm("xor").digits(b"qd.5") + b"!"
+    decoder = Decoder(checksum_enabled=True, algorithm="xor")
+    assert decoder.frame_message(frame) is None
+    assert decoder.feed(frame) == [Frame(Response("qd", (5,)), frame)]
 
 
 @settings(max_examples=300)
 @given(st.lists(frames() | st.sampled_from([b"#crcon!", b"#crcoff!"]), max_size=30))
-def test_feed_frame_decodes_as_feed_does(pieces: list[bytes]) -> None:
+def test_frame_message_decodes_as_feed_does(pieces: list[bytes]) -> None:
+    """Where frame_message reads a chunk, feed gives exactly that frame; where it does not,
+    the chunk is left unread (the decoder's state unchanged) and feed reads it as ever."""
     one_by_one, fed = Decoder(), Decoder()
     for piece in pieces * 2:
         expected = fed.feed(piece)
-        event = one_by_one.feed_frame(piece)
-        if event is None:  # not a whole frame to the decoder: left unread, so feed it
+        message = one_by_one.frame_message(piece)
+        if message is None:
             assert one_by_one.feed(piece) == expected
         else:
-            assert [event] == expected
+            assert [Frame(message, piece)] == expected
 
 
 def _overlong_reply(checked: bool) -> bytes:
@@ -219,14 +235,12 @@ def _overlong_reply(checked: bool) -> bytes:
 
 
 @pytest.mark.parametrize("checked", [False, True])
-def test_feed_frame_drops_a_frame_longer_than_64_bytes_as_feed_does(checked: bool) -> None:
-    """A frame longer than MAX_FRAME_BYTES whose pieces are all valid (leading zeros) is
-    dropped by feed_frame as feed drops it (P1), and is not cached for feed either."""
+def test_frame_message_leaves_a_frame_longer_than_64_bytes_to_feed(checked: bool) -> None:
+    """A frame longer than MAX_FRAME_BYTES whose pieces are all valid (leading zeros) is not
+    read by frame_message: feed drops it (P1)."""
     frame = _overlong_reply(checked)
     expected = Decoder(checksum_enabled=checked).feed(frame)
     assert not any(isinstance(event, Frame) for event in expected)  # TOO_LONG (P1)
-
     decoder = Decoder(checksum_enabled=checked)
-    event = decoder.feed_frame(frame)
-    assert event is None or [event] == expected
-    assert decoder.feed(frame) == expected  # and the cache is not poisoned for feed()
+    assert decoder.frame_message(frame) is None
+    assert decoder.feed(frame) == expected

@@ -488,13 +488,11 @@ class Session:
         expected = query.expected
         if len(expected) != 1 or query.responses:
             return self.receive(data, now)
-        event = self._decoder.feed_frame(data)
-        if event is None:  # not one whole frame: nothing read yet
+        message = self._decoder.frame_message(data)
+        if message is None:  # not one whole frame of values: nothing read yet
             return self.receive(data, now)
-        if type(event) is not Frame or (
-            type(message := event.message) is not Response or message.name != expected[0]
-        ):
-            return self._receive_events([event], data, now)
+        if type(message) is not Response or message.name != expected[0]:
+            return self._receive_events([Frame(message, data)], data, now)
         # What _receive_events does for this frame, in the same order.
         counters = self.counters
         counters.bytes_received += len(data)

@@ -163,39 +163,30 @@ class Decoder:
         """Bytes of the unfinished text line held until more input arrives."""
         return len(self._text)
 
-    def feed_frame(self, data: bytes) -> Event | None:
-        """:meth:`feed` for a chunk that is exactly one whole frame, with nothing buffered (a
-        reply read as it arrives): its one event, from the cache or decoded. ``None`` for any
-        other chunk, which is then left unread: :meth:`feed` it.
+    def frame_message(self, data: bytes) -> Message | None:
+        """The message of a chunk that is exactly one whole frame carrying values (a reply read
+        as it arrives), with nothing buffered: from the cache of frames, or by table lookups
+        alone, without making an event. ``None`` for any other chunk, and for anything the
+        tables do not hold, which is then left unread: :meth:`feed` it (it decodes, or names
+        the problem).
 
         >>> decoder = Decoder()
-        >>> decoder.feed_frame(b"$qd.5!")
-        Frame(message=Response(name='qd', values=(5,)), raw=b'$qd.5!')
-        >>> decoder.feed_frame(b"$qd.5!$qd.6!") is None   # two frames: feed() them
+        >>> decoder.frame_message(b"$qd.5!")
+        Response(name='qd', values=(5,))
+        >>> decoder.frame_message(b"$qd.5!$qd.6!") is None   # two frames: feed() them
         True
         """
         if self._frame or self._skipping or self._text or len(data) > MAX_FRAME_BYTES:
             return None  # (an overlong frame is dropped by feed, P1)
         checked = self.checksum_enabled
-        cache = self._caches[checked]
-        event = cache.get(data)
-        if event is not None:
-            return event
-        if not checked or self._algorithm.function is crc8_smbus:
-            message = _canonical_message(data, checked)
-            if message is not None:  # (then the chunk is one whole frame: no scanning)
-                event = _new_frame(Frame)
-                _set_frame_message(event, message)
-                _set_frame_raw(event, data)
-                if len(cache) >= _CACHE_ENTRIES:
-                    cache.clear()
-                cache[data] = event
-                return event
-        if _WHOLE_FRAME.fullmatch(data) is None:
-            return None
-        events: list[Event] = []
-        self._add_frames([data], events)
-        return events[0]
+        event = self._caches[checked].get(data)
+        if type(event) is Frame:
+            return event.message
+        if event is not None or (checked and self._algorithm.function is not crc8_smbus):
+            return None  # (what the cache holds of a bad frame; another algorithm's tables)
+        # A canonical frame with values: its message is the decoder's (shared by value for a
+        # one-value frame), so neither a Frame nor a cache entry is needed to answer a query.
+        return _canonical_message(data, checked)
 
     def feed(self, data: bytes) -> list[Event]:
         """Decode another chunk of the stream; return the events it completes."""
