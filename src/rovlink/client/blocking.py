@@ -589,9 +589,7 @@ class Client(CommandMethods):
                     else:
                         # Part of the reply, or more than it (text, noise, another caller's
                         # reply), or only an earlier caller's reply, or nothing.
-                        unsolicited = (
-                            received.unsolicited if isinstance(received, Received) else []
-                        )
+                        unsolicited = received.unsolicited if isinstance(received, Received) else []
                         if session.has_outbox:
                             self._flush_due()
                         self._notify_callers()
