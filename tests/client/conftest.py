@@ -73,9 +73,10 @@ def fake(fake_pair: tuple[FakeController, socket.socket]) -> FakeController:
     return fake_pair[0]
 
 
-def _options(overrides: dict[str, Any]) -> ClientOptions:
-    # No readiness probe and no motion expiry unless a test asks: the fake answers at once, and
-    # the frames a test expects are then exactly the ones it caused.
+def client_options(**overrides: Any) -> ClientOptions:
+    """The tests' connection settings: no readiness probe, no keep-alive and no motion expiry
+    unless a test asks (the fake answers at once, and the frames a test expects are then
+    exactly the ones it caused), with ``overrides``."""
     settings: dict[str, Any] = {
         "timeout_s": REPLY_TIMEOUT_S,
         "keepalive_s": None,
@@ -100,7 +101,7 @@ def make_client(
     clients: list[Client] = []
 
     def make(*, drops_time_out_at_once: bool = False, **overrides: Any) -> Client:
-        options = _options(overrides)
+        options = client_options(**overrides)
         link = SocketLink(host_end, "socket pair")
         clock: Callable[[], float] = time.monotonic
         if drops_time_out_at_once:
@@ -131,7 +132,7 @@ async def make_async_client(
     async def make(max_in_flight: int = 8, **overrides: Any) -> AsyncClient:
         client = AsyncClient(
             SocketLink(fake_pair[1], "socket pair"),
-            _options(overrides),
+            client_options(**overrides),
             max_in_flight=max_in_flight,
         )
         clients.append(client)

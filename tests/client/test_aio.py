@@ -13,13 +13,12 @@ from typing import Any
 import pytest
 
 from rovlink.aio import AsyncClient, ConnectionLostError, InvalidArgumentError, QueryTimeoutError
-from rovlink.client import ClientOptions
 from rovlink.client.links import SocketLink
 from rovlink.protocol import Command, Event, Response, Text, get_algorithm
 from tests.client.conftest import (
     CONDITION_TIMEOUT_S,
     NO_REPLY_TIMEOUT_S,
-    REPLY_TIMEOUT_S,
+    client_options,
     wait_until_async,
 )
 from tests.client.fake_controller import FakeController
@@ -331,13 +330,7 @@ async def test_a_query_queued_behind_max_in_flight_fails_when_the_tcp_link_is_lo
     controller_end, _ = server.accept()
     server.close()
     fake = FakeController(controller_end.detach())
-    options = ClientOptions(
-        timeout_s=REPLY_TIMEOUT_S,
-        retries=0,
-        keepalive_s=None,
-        boot_timeout_s=None,
-        motion_timeout_s=None,
-    )
+    options = client_options(retries=0)
     client = await AsyncClient(SocketLink(host_end, "tcp"), options, max_in_flight=1).open()
     try:
         fake.then("drop")  # the first query stays on the wire, holding the only slot
@@ -376,14 +369,7 @@ async def test_a_query_queued_behind_max_in_flight_is_not_left_in_the_session_on
         fakes.append(fake)
         return SocketLink(host_end, f"socket pair {len(fakes)}")
 
-    options = ClientOptions(
-        timeout_s=0.5,
-        retries=2,
-        keepalive_s=None,
-        boot_timeout_s=None,
-        motion_timeout_s=None,
-        reconnect=True,
-    )
+    options = client_options(timeout_s=0.5, retries=2, reconnect=True)
     client = await AsyncClient(open_pair(), options, max_in_flight=1, reopen=open_pair).open()
     try:
         fakes[0].then("drop")
