@@ -113,19 +113,28 @@ def _raw_socket_query(
     return sock, round_trip
 
 
-def _with_session_bookkeeping(raw_query: Callable[[], bytes], checksum: bool) -> Callable[[], None]:
-    """The raw loop plus what any client keeping P20's matching must do per query, and no more:
-    queue the query in a :class:`~rovlink.client.session.Session` and settle it with the reply
-    the raw loop read (``fast_query`` and ``receive_reply``, the drivers' shortest path). A
-    floor for the clients."""
+def _session_bookkeeping(checksum: bool) -> Callable[[bytes], None]:
+    """What any client keeping P20's matching must do per query, and no more: queue the query
+    in a :class:`~rovlink.client.session.Session` and settle it with its reply (``fast_query``
+    and ``receive_reply``, the drivers' shortest path)."""
     session = Session(checksum_enabled=checksum)
     command = Command("qd")
     fast_query, receive_reply, clock = session.fast_query, session.receive_reply, time.monotonic
 
-    def round_trip() -> None:
-        reply = raw_query()
+    def settle(reply: bytes) -> None:
         fast_query(command, clock())
         receive_reply(reply, clock())
+
+    return settle
+
+
+def _with_session_bookkeeping(raw_query: Callable[[], bytes], checksum: bool) -> Callable[[], None]:
+    """The raw loop plus the session's bookkeeping of the reply it read: a floor for the
+    clients."""
+    settle = _session_bookkeeping(checksum)
+
+    def round_trip() -> None:
+        settle(raw_query())
 
     return round_trip
 
@@ -134,20 +143,16 @@ def session_bookkeeping_hot_us(checksum: bool, queries: int = 50_000) -> float:
     """CPU µs per query of the floor's session bookkeeping alone, in a tight loop with no I/O:
     what it costs with warm caches, to set beside what it adds after each wake-up in the run.
     The replies count up as the fast controller's do, so each is a frame not seen before."""
-    session = Session(checksum_enabled=checksum)
-    command = Command("qd")
+    settle = _session_bookkeeping(checksum)
     replies = [
         encode(Response("qd", (count % 10_000,)), checksum="crc8" if checksum else None)
         for count in range(queries)
     ]
-    fast_query, receive_reply, clock = session.fast_query, session.receive_reply, time.monotonic
     for reply in replies[:10_000]:  # the number tables filled, as in the run after its warm-up
-        fast_query(command, clock())
-        receive_reply(reply, clock())
+        settle(reply)
     started = time.process_time()
     for reply in replies:
-        fast_query(command, clock())
-        receive_reply(reply, clock())
+        settle(reply)
     return (time.process_time() - started) / queries * 1e6
 
 
