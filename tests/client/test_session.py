@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from rovlink.client.session import Outcome, Session
+from rovlink.client.session import FENCE_QUERIES, Outcome, Session
 from rovlink.protocol import Command, Text
 
 QSA_REPLY = b"$qd.120!$qr.530!$q.l.0!$qro.-1!$qpi.+3!$qhe.275!"
@@ -131,3 +131,59 @@ def test_commands_and_queries_are_not_interchangeable() -> None:
         session.command(Command("qd"), now=0.0)
     with pytest.raises(ValueError, match="expects no reply"):
         session.query(Command("stop"), now=0.0)
+
+
+def test_an_abandoned_query_is_fenced_so_its_reply_goes_to_no_later_query() -> None:
+    session = Session()
+    _, abandoned = session.query(Command("qd"), now=0.0)
+    assert session.abandon(abandoned, now=0.01) == []
+    assert abandoned.outcome is Outcome.ABANDONED
+    assert session.resynchronising
+    data, later = session.query(Command("qd"), now=0.02)
+    assert data == b"#qhe!#qd!"  # the fence first (P20)
+    session.receive(b"$qd.1!$qhe.90!$qd.2!", now=0.03)
+    assert later.responses[0].values == (2,)
+    assert session.counters.late_replies == 1
+    assert not session.resynchronising
+
+
+def test_abandoning_fails_the_queries_of_the_same_name_on_the_wire_with_it() -> None:
+    session = Session()
+    _, first = session.query(Command("qd"), now=0.0)
+    _, second = session.query(Command("qd"), now=0.0)
+    _, heading = session.query(Command("qhe"), now=0.0)
+    assert session.abandon(first, now=0.01) == [second]
+    assert second.outcome is Outcome.RESYNC
+    assert heading.outcome is Outcome.PENDING
+
+
+def test_abandoning_a_settled_or_held_query_sends_nothing() -> None:
+    session = Session()
+    _, answered = session.query(Command("qd"), now=0.0)
+    session.receive(b"$qd.1!", now=0.01)
+    assert session.abandon(answered, now=0.02) == []
+    assert answered.outcome is Outcome.ANSWERED
+    assert not session.resynchronising
+    # A quiet-line wait (every fence name late) holds new queries back: one abandoned there
+    # never reaches the wire.
+    session = Session(timeout_s=0.5)
+    for fence in FENCE_QUERIES:
+        session.query(fence, now=0.0)
+    session.expire(now=0.5)
+    _, held = session.query(Command("qd"), now=0.6)
+    assert session.pending == (held,)
+    session.abandon(held, now=0.7)
+    assert held.outcome is Outcome.ABANDONED
+    assert not session.pending
+    assert session.tick(now=1.1) == []
+    assert session.take_outbox(now=1.1) == b""
+
+
+def test_a_fence_not_yet_written_is_not_on_the_wire() -> None:
+    session = Session()
+    _, query = session.query(Command("qd"), now=0.0)
+    session.abandon(query, now=0.01)
+    (fence,) = session.pending
+    assert not session.on_the_wire
+    session.take_outbox(now=0.02)
+    assert session.on_the_wire == (fence,)

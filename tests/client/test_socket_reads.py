@@ -3,7 +3,6 @@ it gets the reply, gives up at its deadline, and is woken by the other end or by
 
 from __future__ import annotations
 
-import contextlib
 import socket
 import threading
 import time
@@ -12,13 +11,9 @@ from pathlib import Path
 
 import pytest
 
-from rovlink.client import ConnectionLostError, QueryTimeoutError
-from rovlink.client.blocking import Client
+from rovlink.client import ConnectionLostError
 from rovlink.client.links import SocketLink
-from rovlink.client.options import ClientOptions
-from rovlink.client.session import PendingQuery, Received
 from tests.client.conftest import CONDITION_TIMEOUT_S, wait_until
-from tests.client.fake_controller import FakeController
 
 pytestmark = pytest.mark.integration
 
@@ -95,75 +90,3 @@ def test_the_descriptor_blocks_but_no_other_call_does(
         sent += written
     assert sent > 0
     assert link.read_available(0.01) == b""
-
-
-def test_ctrl_c_in_a_callers_read_leaves_the_client_usable() -> None:
-    fake, sock = FakeController.on_socketpair()
-    link = SocketLink(sock, "socket pair")
-    with Client(link, ClientOptions(keepalive_s=None, timeout_s=0.3, retries=0)) as client:
-        assert client.depth_cm() == 123
-        real_read = link.read_reply
-        interrupted = threading.Event()
-
-        def read_then_interrupt(timeout_s: float) -> bytes:
-            if not interrupted.is_set():
-                interrupted.set()
-                raise KeyboardInterrupt
-            return real_read(timeout_s)
-
-        link.read_reply = read_then_interrupt  # type: ignore[method-assign]
-        client._read_reply = read_then_interrupt
-        with pytest.raises(KeyboardInterrupt):
-            client.depth_cm()
-        assert client._reader_ident is None
-        assert client._active_callers == 0
-        # The interrupted query's reply is late now; the next query gets its own.
-        assert wait_until(lambda: not client._session.pending)
-        assert client.depth_cm() == 123
-    fake.close()
-
-
-def test_ctrl_c_while_the_reply_is_settled_inline_releases_the_state_lock() -> None:
-    """Ctrl-C while the first attempt settles its reply (a signal handler can run there as
-    anywhere in the main thread) releases the state lock and stops counting the caller as
-    active: later calls, the background reader and close() go on."""
-    fake, sock = FakeController.on_socketpair()
-    link = SocketLink(sock, "socket pair")
-    client = Client(
-        link, ClientOptions(keepalive_s=None, timeout_s=0.5, retries=0, boot_timeout_s=None)
-    )
-    lock = client._state_lock
-    try:
-        assert client.depth_cm() == 123
-        session = client._session
-        real_receive_reply = session.receive_reply
-        interrupted = threading.Event()
-
-        def interrupt_once(data: bytes, now: float) -> PendingQuery | Received:
-            if not interrupted.is_set():
-                interrupted.set()
-                raise KeyboardInterrupt  # as if Ctrl-C landed while the reply is decoded
-            return real_receive_reply(data, now)
-
-        session.receive_reply = interrupt_once  # type: ignore[method-assign]
-        with pytest.raises(KeyboardInterrupt):
-            client.depth_cm()
-        acquired = lock.acquire(timeout=CONDITION_TIMEOUT_S)
-        if acquired:
-            stuck_reader = client._reader_ident not in (None, client._background_ident)
-            lock.release()
-        else:
-            lock.release()  # (held by nobody alive: let the client close)
-            client._reader_ident = None
-        assert acquired, "the state lock stayed held after Ctrl-C: the client is deadlocked"
-        assert not stuck_reader
-        assert wait_until(lambda: client._active_callers == 0)
-        # The bytes the interrupted caller had read went with it, so the next reply answers
-        # the interrupted query (the oldest, P20) and the query after it may time out; then the
-        # client goes on as before.
-        with contextlib.suppress(QueryTimeoutError):
-            client.depth_cm()
-        assert client.depth_cm() == 123
-    finally:
-        client.close()
-        fake.close()

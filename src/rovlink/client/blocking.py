@@ -183,7 +183,7 @@ class Client(CommandMethods):
             self._stop_reconnecting.set()
             self._background_wakeup.notify()
             self._changed.notify_all()
-            on_the_wire = self._session.pending
+            on_the_wire = self._session.on_the_wire  # (nothing new is written now)
         for query in on_the_wire:  # answered, or timed out, before the port closes
             self._wait(query, owned=False)
         self._connection_lost(ConnectionLostError(f"{self._link.description}: closed"))
@@ -308,6 +308,8 @@ class Client(CommandMethods):
                 self._wait_for_change(None)
             self._check_open()
             self._mode_switcher = me
+            if self._session.has_outbox:  # (a fence due): out in the old mode, and waited for
+                self._flush_due()
             on_the_wire = self._session.pending
         try:
             for query in on_the_wire:
@@ -419,6 +421,16 @@ class Client(CommandMethods):
                 self._stop_reconnecting.wait(backoff_s)
                 backoff_s = min(backoff_s * 2, _RECONNECT_MAX_S)
         self._emit()
+
+    def _abandon(self, pending: PendingQuery) -> None:
+        """Give up the query of a caller that was interrupted (state lock held): it may be
+        on the wire, or its reply may have gone with the caller, so the session fences (P20)
+        and no later query takes a reply meant for it."""
+        if self._session.abandon(pending, self._clock()):
+            self._notify_callers()  # (queries resynchronised with it: their callers retry)
+        # The fence goes out with the next query, or from the background reader once no caller
+        # is active: not from here, which may run under the wire lock that writing takes.
+        self._background_wakeup.notify()
 
     def _notify_callers(self) -> None:
         """Wake callers waiting for a settled query or the reader role (state lock held)."""
@@ -567,10 +579,11 @@ class Client(CommandMethods):
                 self._reader_ident = None
                 self._lose(error)
                 outcome = self._wait(pending, holding_state=True)
-            except BaseException:  # (Ctrl-C): the query times out in the session
+            except BaseException:  # (Ctrl-C): its reply, if it comes, is late
                 with lock:
                     self._reader_ident = None
                     self._active_callers -= 1
+                    self._abandon(pending)
                     self._notify_callers()
                 raise
             else:
@@ -596,6 +609,7 @@ class Client(CommandMethods):
                 except BaseException:  # (Ctrl-C): the lock and the count given up, as _wait does
                     if active:
                         self._active_callers -= 1
+                        self._abandon(pending)  # (its reply may have gone with the caller)
                         self._notify_callers()
                     lock.release()
                     raise
@@ -652,6 +666,7 @@ class Client(CommandMethods):
         assert send_now is not None
         lock = self._state_lock
         session = self._session
+        pending: PendingQuery | None = None
         with self._wire_lock:
             lock.acquire()
             try:
@@ -671,6 +686,8 @@ class Client(CommandMethods):
                     self._lose(error)
                     raise self._lost_error() from error
             except BaseException:
+                if pending is not None:  # (a Ctrl-C: whether the frame left is not known)
+                    self._abandon(pending)
                 lock.release()
                 raise
             self._active_callers += 1
@@ -681,6 +698,12 @@ class Client(CommandMethods):
                     self._write(data[written:])
                 except ConnectionLostError:
                     self._wait(pending)  # settled already: stops counting as active
+                    raise
+                except BaseException:  # (a Ctrl-C half-way through the frame)
+                    with lock:
+                        self._active_callers -= 1
+                        self._abandon(pending)
+                        self._notify_callers()
                     raise
                 lock.acquire()
         if background_reading:
@@ -717,6 +740,13 @@ class Client(CommandMethods):
                     except ConnectionLostError:
                         if pending is not None:
                             self._wait(pending)  # settled already: stops counting as active
+                        raise
+                    except BaseException:  # (a Ctrl-C, maybe half-way through the frame)
+                        if pending is not None:
+                            with self._state_lock:
+                                self._active_callers -= 1
+                                self._abandon(pending)
+                                self._notify_callers()
                         raise
                     break
             # A checksum switch is draining the queue: wait for it outside the wire lock.
@@ -783,6 +813,10 @@ class Client(CommandMethods):
                     continue  # ``now`` is fresh
                 now = clock()
             return pending.outcome
+        except BaseException:  # (a Ctrl-C: bytes it had read may have gone with it)
+            if owned:
+                self._abandon(pending)
+            raise
         finally:
             if owned:
                 self._active_callers -= 1

@@ -115,6 +115,7 @@ class Outcome(StrEnum):
     LOST = "lost"  # the controller answered a later query first
     RESYNC = "resync"  # on the wire when a query of the same reply name failed (P20)
     DISCONNECTED = "disconnected"
+    ABANDONED = "abandoned"  # its caller gave up (Ctrl-C) before its reply was settled
 
 
 _NEVER = float("inf")
@@ -248,6 +249,13 @@ class Session:
     def resynchronising(self) -> bool:
         """Whether replies of some names are being discarded as late (P20)."""
         return bool(self._late_names)
+
+    @property
+    def on_the_wire(self) -> tuple[PendingQuery, ...]:
+        """The queries written and waiting for replies, oldest first: :attr:`pending`, less
+        those held back and those still due in the outbox (a fence not yet written)."""
+        unwritten = {id(entry[1]) for entry in self._outbox}
+        return tuple(query for query in self._pending if id(query) not in unwritten)
 
     @property
     def has_outbox(self) -> bool:
@@ -543,6 +551,29 @@ class Session:
             if self._consecutive_timeouts >= self.reset_after_timeouts:
                 self._suspect_reset(now)
         return settled
+
+    def abandon(self, query: PendingQuery, now: float) -> list[PendingQuery]:
+        """Give up a query whose caller has gone (a Ctrl-C) before its reply was settled.
+
+        Whether its frame reached the wire, or its reply was read and went with the caller, is
+        not known: it fails as abandoned and the session resynchronises (P20), so that no later
+        query takes a reply meant for it. A query held back (not on the wire) is only dropped.
+        Returns the other queries settled with it (resynchronised), for their callers.
+
+        >>> session = Session()
+        >>> _, query = session.query(Command("qd"), now=0.0)
+        >>> session.abandon(query, now=0.1), query.outcome.value, session.resynchronising
+        ([], 'abandoned', True)
+        """
+        if query.outcome is not _PENDING:
+            return []
+        if query in self._held:
+            self._held.remove(query)
+            query.outcome = Outcome.ABANDONED
+            return []
+        if query not in self._pending:
+            return []
+        return [other for other in self._fail(query, Outcome.ABANDONED, now) if other is not query]
 
     def disconnect(self) -> list[PendingQuery]:
         """Settle every pending query as disconnected (the link is gone)."""
