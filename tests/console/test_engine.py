@@ -6,13 +6,12 @@ from __future__ import annotations
 import asyncio
 
 from rovlink.aio import AsyncClient
-from rovlink.client import ClientOptions
 from rovlink.console.actions import Quit, SendCommand, SendRaw, SetChecksum, ShowStatus
 from rovlink.console.engine import ConsoleEngine
 from rovlink.console.transcript import Line, plain_text
 from rovlink.piloting import TrackedClient
 from rovlink.protocol import Command
-from tests.client.conftest import REPLY_TIMEOUT_S
+from tests.client.conftest import REPLY_TIMEOUT_S, client_options
 from tests.piloting.rig import Rig, SilentController, until
 
 
@@ -58,13 +57,7 @@ async def test_stop_now_jumps_the_queue_and_drops_what_was_not_sent() -> None:
     silent = SilentController()
     # The #qd! must still be waiting when the stop key comes, however slow the machine: its
     # timeout is a long one, and the test waits it out at the end.
-    options = ClientOptions(
-        timeout_s=REPLY_TIMEOUT_S,
-        retries=0,
-        keepalive_s=None,
-        boot_timeout_s=None,
-        motion_timeout_s=None,
-    )
+    options = client_options(timeout_s=REPLY_TIMEOUT_S, retries=0)
     client = await AsyncClient(silent.link(), options).open()
     screen = Screen()
     engine = ConsoleEngine(screen)

@@ -12,11 +12,10 @@ import rovlink.aio.client
 from rovlink.aio import AsyncClient
 from rovlink.cli import build_parser, main
 from rovlink.cli.monitor import build_app
-from rovlink.client import ClientOptions
 from rovlink.client.links import Link
 from rovlink.client.options import StrayCallback
 from rovlink.monitor.app import MonitorApp
-from tests.client.conftest import REPLY_TIMEOUT_S
+from tests.client.conftest import REPLY_TIMEOUT_S, client_options
 from tests.monitor.screen import screen_text, shown
 from tests.piloting.rig import RecordingLink, Rig, SilentController, until
 
@@ -120,14 +119,7 @@ async def test_a_silent_link_degrades_link_health_while_keys_still_work() -> Non
     def connect(on_stray: StrayCallback) -> Awaitable[AsyncClient]:
         # Long enough for the first poll to be still waiting when space is pressed, however
         # slow the machine; the test then waits it out to see the link's health degrade.
-        options = ClientOptions(
-            timeout_s=REPLY_TIMEOUT_S,
-            retries=0,
-            keepalive_s=None,
-            boot_timeout_s=None,
-            motion_timeout_s=None,
-            on_stray=on_stray,
-        )
+        options = client_options(timeout_s=REPLY_TIMEOUT_S, retries=0, on_stray=on_stray)
         return AsyncClient(silent.link(), options).open()
 
     app = MonitorApp(connect, description="silent", rate_hz=10)
