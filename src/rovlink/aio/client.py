@@ -118,6 +118,9 @@ class AsyncClient(AsyncCommandMethods):
         self._link_ready = asyncio.Event()  # cleared while a lost link is being reopened
         self._link_ready.set()
         self._reconnector: asyncio.Task[None] | None = None
+        # Why the reopened link failed before it was ready (it fails that attempt).
+        self._attempt_lost: ConnectionLostError | None = None
+        self._released = asyncio.Event()  # set once close() has released the port
 
     async def open(self) -> AsyncClient:
         """Start reading, wait until the controller answers (``boot_timeout``, P21), and put it in
@@ -129,16 +132,24 @@ class AsyncClient(AsyncCommandMethods):
         """
         self._transport.start(self._on_data, self._on_lost)
         options = self._options
-        await self._await_ready()
-        self._send(operations.checksum(options.checksum))
-        if options.checksum and options.boot_timeout_s is not None:
-            try:
-                await self._request(Command("qd"))
-            except QueryTimeoutError as error:
-                raise ConnectError(
-                    f"{self._link.description}: the controller answers, but not in checksum "
-                    f"mode with {options.algorithm} (is that its algorithm?): {error}"
-                ) from error
+        try:
+            await self._await_ready()
+            self._send(operations.checksum(options.checksum))
+            if options.checksum and options.boot_timeout_s is not None:
+                try:
+                    await self._request(Command("qd"))
+                except QueryTimeoutError as error:
+                    raise ConnectError(
+                        f"{self._link.description}: the controller answers, but not in "
+                        f"checksum mode with {options.algorithm} (is that its algorithm?): {error}"
+                    ) from error
+        except BaseException:
+            # A failed or cancelled open leaves nothing behind: the loop would go on watching a
+            # descriptor the caller then closes, and the next port opened under that number
+            # would never be read (and a timer would fire into a dead client).
+            self._closed = True
+            await self._release("open failed")
+            raise
         self._arm_timer()
         return self
 
@@ -152,6 +163,8 @@ class AsyncClient(AsyncCommandMethods):
             while not probe.done(loop.time()):
                 if self._closed or (self._lost is not None and not reconnecting):
                     raise self._lost_error()
+                if reconnecting and self._attempt_lost is not None:
+                    raise self._attempt_lost
                 now = loop.time()
                 if probe.timed_out(now):
                     raise ConnectError(
@@ -199,13 +212,26 @@ class AsyncClient(AsyncCommandMethods):
             await rov.close()
         """
         if self._closed:
+            await self._released.wait()  # a close() under way: return once it is done
             return
         self._closed = True
+        self._link_ready.set()  # callers waiting for a reconnection fail now, as closed
         if self._reconnector is not None:
             self._reconnector.cancel()
-        await self._drain()
-        await self._transport.close()
-        self._on_lost(ConnectionLostError(f"{self._link.description}: closed"))
+        try:
+            await self._drain()
+        finally:
+            # Also when the drain is cancelled (asyncio.timeout, a TaskGroup): otherwise the port
+            # and the timer would outlive the client, and a second close() would do nothing.
+            await self._release("closed")
+
+    async def _release(self, why: str) -> None:
+        """Settle every query, stop the timer and close the port (once ``_closed`` is set)."""
+        try:
+            self._on_lost(ConnectionLostError(f"{self._link.description}: {why}"))
+            await self._transport.close()
+        finally:
+            self._released.set()
 
     @property
     def closed(self) -> bool:
@@ -336,7 +362,9 @@ class AsyncClient(AsyncCommandMethods):
             await self.set_checksum(mode)
             return ()
         self._check_open()
-        await self._mode_settled.wait()
+        while not self._mode_settled.is_set():  # (another switch may start as one ends)
+            await self._mode_settled.wait()
+        self._check_open()  # the link may have gone meanwhile: nothing would settle the query
         data, pending = self._session.raw(data, self._loop.time())
         if pending is not None:
             pending.waiter = self._loop.create_future()
@@ -468,7 +496,8 @@ class AsyncClient(AsyncCommandMethods):
         failures: list[str] = []
         async with self._in_flight:
             for attempt in range(self._options.retries + 1):
-                if not self._mode_settled.is_set():
+                # A loop: the switch that ends may wake another switch before this query.
+                while not self._mode_settled.is_set():
                     await self._mode_settled.wait()
                 # Every attempt, and after any wait for a slot or a mode switch: the link may
                 # have been lost meanwhile, and a query queued on a lost link is never settled.
@@ -535,15 +564,18 @@ class AsyncClient(AsyncCommandMethods):
         if self._lost is not None:
             return
         if self._reopen is not None and not self._closed:
-            if self._link_ready.is_set():  # (once per loss)
-                self._link_ready.clear()
-                if self._timer is not None:
-                    self._timer.cancel()
-                    self._timer = None
-                self._wake(self._session.disconnect())  # their replies are gone
-                self._session.note_link("lost", f"{error}; reconnecting", self._loop.time())
-                self._emit()
-                self._reconnector = self._loop.create_task(self._reconnect())
+            if not self._link_ready.is_set():  # the reopened link, before it was ready
+                self._attempt_lost = error
+                self._probe_data.set()  # (the readiness wait gives up now)
+                return
+            self._link_ready.clear()  # (once per loss)
+            if self._timer is not None:
+                self._timer.cancel()
+                self._timer = None
+            self._wake(self._session.disconnect())  # their replies are gone
+            self._session.note_link("lost", f"{error}; reconnecting", self._loop.time())
+            self._emit()
+            self._reconnector = self._loop.create_task(self._reconnect())
             return
         self._lost = error
         if self._timer is not None:
@@ -563,29 +595,39 @@ class AsyncClient(AsyncCommandMethods):
         attempts = 0
         while not self._closed:
             attempts += 1
+            opening = self._loop.run_in_executor(None, reopen)
             try:
-                link = await asyncio.to_thread(reopen)
+                # Shielded: when close() cancels this, the port being opened is closed once open.
+                link = await asyncio.shield(opening)
             except (OSError, ValueError) as error:  # ConnectError is an OSError
                 logger.debug("reconnect attempt %d: %s", attempts, error)
                 await asyncio.sleep(backoff_s)
                 backoff_s = min(backoff_s * 2, _RECONNECT_MAX_S)
                 continue
+            except asyncio.CancelledError:
+                opening.add_done_callback(_close_opened)
+                raise
             self._link = link
+            self._attempt_lost = None
             self._transport = transport_for(link, self._loop)
             self._transport.start(self._on_data, self._on_lost)
+            session = self._session
             try:
                 await self._await_ready(reconnecting=True)
-            except (OSError, ValueError) as error:
+                session.reset_link()
+                mode = setting_command(Setting.CHECKSUM, session.checksum_enabled)
+                self._write(session.command(mode, self._loop.time()))
+                # A link lost while it was being readied (reported, or found by that write) is
+                # a failed attempt, not a connection: nothing else would ever notice it.
+                if self._attempt_lost is not None:
+                    raise self._attempt_lost
+            except (OSError, ValueError) as error:  # ConnectionLostError is an OSError
                 logger.debug("reconnect attempt %d: %s", attempts, error)
                 with contextlib.suppress(Exception):
                     await self._transport.close()
                 await asyncio.sleep(backoff_s)
                 backoff_s = min(backoff_s * 2, _RECONNECT_MAX_S)
                 continue
-            session = self._session
-            session.reset_link()
-            mode = setting_command(Setting.CHECKSUM, session.checksum_enabled)
-            self._write(session.command(mode, self._loop.time()))
             plural = "s" if attempts > 1 else ""
             session.note_link(
                 "reconnected",
@@ -621,6 +663,12 @@ class AsyncClient(AsyncCommandMethods):
             self._flush_due()
         self._emit()
         self._arm_timer()
+
+
+def _close_opened(opening: asyncio.Future[Link]) -> None:
+    """Close a link whose reopening finished after the reconnection was given up."""
+    if not opening.cancelled() and opening.exception() is None:
+        opening.result().close()
 
 
 class _Connecting:

@@ -195,9 +195,11 @@ class ThreadTransport:
         self._closing = True
         self._link.wake()
         thread, self._thread = self._thread, None
-        if thread is not None:
-            await asyncio.to_thread(thread.join, 2.0)
-        self._link.close()
+        try:
+            if thread is not None:
+                await asyncio.to_thread(thread.join, 2.0)
+        finally:  # also when cancelled: a second close() returns at once
+            self._link.close()
 
 
 def transport_for(link: Link, loop: asyncio.AbstractEventLoop) -> ByteTransport:
