@@ -118,6 +118,9 @@ class Client(CommandMethods):
         self._reopen = reopen if options.reconnect else None
         self._reconnecting = False  # the link was lost and is being opened again
         self._stop_reconnecting = threading.Event()
+        self._reconnector: threading.Thread | None = None
+        self._closer: threading.Thread | None = None  # the thread in the first close()
+        self._released = threading.Event()  # set when that close() has released the port
         self._reader_ident: int | None = None  # the thread holding the reader role
         self._mode_switcher: int | None = None  # the thread draining queries to switch checksum
         self._active_callers = 0  # callers with a query on the wire
@@ -176,27 +179,41 @@ class Client(CommandMethods):
             rov = rovlink.connect("sim://")
             rov.close()
         """
+        current = threading.current_thread()
         with self._changed:
             if self._closing:
-                return
-            self._closing = True
-            self._stop_reconnecting.set()
-            self._background_wakeup.notify()
-            self._changed.notify_all()
-            on_the_wire = self._session.on_the_wire  # (nothing new is written now)
-        for query in on_the_wire:  # answered, or timed out, before the port closes
-            self._wait(query, owned=False)
-        self._connection_lost(ConnectionLostError(f"{self._link.description}: closed"))
-        self._link.wake()
-        if threading.current_thread() is not self._background:
-            self._background.join(timeout=2.0)
-        with self._changed:  # a caller may still be in a read: it stops at the wake-up
-            self._waiting_callers += 1
-            self._changed.wait_for(
-                lambda: self._reader_ident in (None, threading.get_ident()), timeout=2.0
-            )
-            self._waiting_callers -= 1
-        self._link.close()
+                closer = self._closer
+            else:
+                closer = None
+                self._closer = current
+                self._closing = True
+                self._stop_reconnecting.set()
+                self._background_wakeup.notify()
+                self._changed.notify_all()
+                on_the_wire = self._session.on_the_wire  # (nothing new is written now)
+        if closer is not None:
+            # Closed once the port is released, whoever closes it (P22: the program may open
+            # it again) — unless this thread is one the first close() waits for.
+            if current not in (closer, self._background, self._reconnector):
+                self._released.wait()
+            return
+        try:
+            for query in on_the_wire:  # answered, or timed out, before the port closes
+                self._wait(query, owned=False)
+            self._connection_lost(ConnectionLostError(f"{self._link.description}: closed"))
+            self._link.wake()
+            for thread in (self._background, self._reconnector):
+                if thread is not None and thread is not current and thread.ident is not None:
+                    thread.join(timeout=2.0)  # (the reconnecting thread may hold a new port)
+            with self._changed:  # a caller may still be in a read: it stops at the wake-up
+                self._waiting_callers += 1
+                self._changed.wait_for(
+                    lambda: self._reader_ident in (None, threading.get_ident()), timeout=2.0
+                )
+                self._waiting_callers -= 1
+            self._link.close()
+        finally:
+            self._released.set()
 
     @property
     def closed(self) -> bool:
@@ -306,14 +323,28 @@ class Client(CommandMethods):
         with self._state_lock:
             while self._mode_switcher is not None:  # another thread is switching: after it
                 self._wait_for_change(None)
-            self._check_open()
             self._mode_switcher = me
-            if self._session.has_outbox:  # (a fence due): out in the old mode, and waited for
-                self._flush_due()
-            on_the_wire = self._session.pending
         try:
-            for query in on_the_wire:
-                self._wait(query, owned=False)
+            # Until nothing is on the wire: a query that times out meanwhile sends a fence (P20)
+            # in the old mode, whose reply must come in that mode too. A line that answered
+            # nothing in a round after the first is not waited for any longer.
+            options = self._options
+            give_up_at = time.monotonic() + options.timeout_s * (options.retries + 2)
+            rounds = 0
+            while True:
+                self._check_open()  # (not under the state lock: a reconnection waits on it)
+                with self._state_lock:
+                    if self._closing:
+                        raise self._lost_error()
+                    if self._session.has_outbox:  # (a fence due): out in the old mode
+                        self._flush_due()
+                    on_the_wire = self._session.pending
+                if not on_the_wire or time.monotonic() >= give_up_at:
+                    break
+                outcomes = [self._wait(query, owned=False) for query in on_the_wire]
+                rounds += 1
+                if rounds > 1 and _ANSWERED not in outcomes:
+                    break
             self._send(command)
         finally:
             with self._state_lock:
@@ -364,11 +395,12 @@ class Client(CommandMethods):
             if not self._reconnecting:
                 self._reconnecting = True
                 self._session.note_link("lost", f"{error}; reconnecting", self._clock())
-                threading.Thread(
+                self._reconnector = threading.Thread(
                     target=self._reconnect_loop,
                     daemon=True,
                     name=f"rovlink reconnect ({self._link.description})",
-                ).start()
+                )
+                self._reconnector.start()
             return
         self._lost = error
         self._session.disconnect()
@@ -468,6 +500,8 @@ class Client(CommandMethods):
         clock = time.monotonic  # a board boots in real time, whatever clock the session reads
         probe = ReadinessProbe(clock(), boot_timeout_s)
         while not probe.done(clock()):
+            if self._stop_reconnecting.is_set():  # (close() during a reconnection)
+                raise ConnectError(f"{link.description}: closed while reconnecting")
             now = clock()
             if probe.timed_out(now):
                 raise ConnectError(
@@ -827,46 +861,85 @@ class Client(CommandMethods):
             self._emit()
 
     def _background_loop(self) -> None:
-        me = threading.get_ident()
         lock = self._state_lock
+        session = self._session
         while True:
             with lock:
-                while True:
-                    if self._closing or self._lost is not None:
-                        return
-                    if self._reconnecting:  # the reconnecting thread owns the link for now
-                        self._background_wakeup.wait(_MAX_READ_WAIT_S)
-                        continue
-                    if self._reader_ident is None and not self._active_callers:
-                        quiet_s = self._clock() - self._last_caller_at
-                        if quiet_s >= _CALLER_GRACE_S:
-                            break
-                        self._background_wakeup.wait(_CALLER_GRACE_S - quiet_s)
-                    else:
-                        self._background_wakeup.wait(_MAX_READ_WAIT_S)
-                self._reader_ident = me
+                turn = self._next_turn()
+            if turn is None:
+                return
             unsolicited: list[Event] = []
-            try:
-                wait_s = self._housekeeping()
-                self._emit()  # what the housekeeping did, before the read blocks
-                data = self._link.read_available(wait_s)
-                if data:
+            if turn:
+                try:
+                    wait_s = self._housekeeping()
+                    # What the housekeeping did is reported first, once the role is given up:
+                    # a callback may query, and its reply is read by whoever holds the role.
+                    if not (session.events or session.notices):
+                        data = self._link.read_available(wait_s)
+                        if data:
+                            with lock:
+                                received = session.receive(data, self._clock())
+                                unsolicited = received.unsolicited
+                                if session.has_outbox:
+                                    self._flush_due()
+                except ConnectionLostError as error:
+                    if not self._closing:
+                        self._connection_lost(error)
+                finally:
                     with lock:
-                        received = self._session.receive(data, self._clock())
-                        unsolicited = received.unsolicited
-                        if self._session.has_outbox:
-                            self._flush_due()
-            except ConnectionLostError as error:
-                if not self._closing:
-                    self._connection_lost(error)
-                    self._emit()
-            finally:
-                with lock:
-                    self._reader_ident = None
-                    self._notify_callers()  # results, or the role, for a waiting caller
+                        self._reader_ident = None
+                        self._notify_callers()  # results, or the role, for a waiting caller
             if unsolicited:
                 self._drops.report(unsolicited, self._options.on_stray, self._clock())
             self._emit()
+
+    def _next_turn(self) -> bool | None:
+        """Wait (state lock held) for the background reader's next turn: True once it holds the
+        reader role, False when it did something due beside busy callers (to be reported), None
+        once the client is closed or lost."""
+        while True:
+            if self._closing or self._lost is not None:
+                return None
+            if self._reconnecting:  # the reconnecting thread owns the link for now
+                self._background_wakeup.wait(_MAX_READ_WAIT_S)
+            elif self._reader_ident is None and not self._active_callers:
+                quiet_s = self._clock() - self._last_caller_at
+                if quiet_s >= _CALLER_GRACE_S:
+                    self._reader_ident = threading.get_ident()
+                    return True
+                self._background_wakeup.wait(_CALLER_GRACE_S - quiet_s)
+            else:
+                wait_s = self._tick_beside_callers()
+                if wait_s is None:
+                    return False
+                self._background_wakeup.wait(wait_s)
+
+    def _tick_beside_callers(self) -> float | None:
+        """While callers hold the reader role (state lock held), do what the session has due
+        besides their replies: a thread polling without a pause must not keep an unrenewed
+        motion going (P23), nor a long wait for a reply starve the keep-alive (P17). None if
+        there is something to report, else how long to wait before looking again.
+
+        An overdue query is left to its callers for a moment: they time it out themselves
+        (a reply may be in the port's buffer while its reader is being scheduled).
+        """
+        session = self._session
+        now = self._clock()
+        due = session.next_deadline()
+        if due is None:
+            return _MAX_READ_WAIT_S
+        if due > now:
+            return min(due - now, _MAX_READ_WAIT_S)
+        pending = session.pending
+        if self._mode_switcher is not None and not pending:
+            return _MAX_READ_WAIT_S  # (the switch sends its mode frame next: nothing before it)
+        if pending and 0 <= now - session.deadline(pending[0]) < _CALLER_GRACE_S:
+            return _CALLER_GRACE_S
+        if session.tick(now):
+            self._notify_callers()
+        if session.has_outbox:
+            self._flush_due()
+        return None if session.events or session.notices else _CALLER_GRACE_S
 
     def _housekeeping(self) -> float:
         """Do what the session has due (timeouts, keep-alive, expired motion); how long the
