@@ -18,7 +18,7 @@ import pytest
 from rovlink.client.blocking import Client
 from rovlink.client.links import SocketLink
 from rovlink.client.session import Outcome, PendingQuery
-from tests.client.conftest import CONDITION_TIMEOUT_S, client_options
+from tests.client.conftest import CONDITION_TIMEOUT_S, client_options, wait_until
 from tests.client.fake_controller import FakeController
 
 pytestmark = pytest.mark.integration
@@ -28,15 +28,33 @@ Result = TypeVar("Result")
 
 @pytest.fixture
 def counting() -> Iterator[tuple[FakeController, Client]]:
-    """A client of a fake controller whose ``$qd.N!`` numbers the queries it received."""
+    """A client of a fake controller whose ``$qd.N!`` numbers the queries it received, with
+    the background reader kept from reading (see :func:`_keep_the_background_reader_out`)."""
     fake, sock = FakeController.on_socketpair()
     fake.qd_counts_queries = True
     client = Client(SocketLink(sock, "socket pair"), client_options(retries=0))
     try:
+        _keep_the_background_reader_out(client)
         yield fake, client
     finally:
+        with client._state_lock:
+            client._active_callers -= _PHANTOM_CALLERS
         client.close()
         fake.close()
+
+
+#: The caller that never leaves (see :func:`_keep_the_background_reader_out`).
+_PHANTOM_CALLERS = 1
+
+
+def _keep_the_background_reader_out(client: Client) -> None:
+    """Count a caller that never leaves, so that the background reader never takes the port:
+    every step of a query then runs in the test's thread, where the interrupt is raised (a
+    reply read by the background reader would settle the query before the step is reached)."""
+    with client._state_lock:
+        client._active_callers += _PHANTOM_CALLERS
+    client._link.wake()  # (a read already under way ends now, and is not taken up again)
+    assert wait_until(lambda: client._reader_ident is None)
 
 
 def _interrupt_once(real: Callable[..., Result]) -> Callable[..., Result]:
@@ -58,7 +76,7 @@ def _the_next_query_gets_its_own_reply(fake: FakeController, client: Client) -> 
     assert depth == fake.query_count  # the last query the controller answered is this one
     assert client.counters.timeouts == 0
     assert client._reader_ident is None
-    assert client._active_callers == 0
+    assert client._active_callers == _PHANTOM_CALLERS
     acquired = client._state_lock.acquire(timeout=CONDITION_TIMEOUT_S)
     assert acquired, "the state lock stayed held after Ctrl-C: the client is deadlocked"
     client._state_lock.release()
@@ -154,6 +172,7 @@ def test_close_after_ctrl_c_does_not_wait_for_a_fence_it_never_wrote() -> None:
     the fence's whole timeout, as if it had been sent)."""
     fake, sock = FakeController.on_socketpair()
     client = Client(SocketLink(sock, "socket pair"), client_options(retries=0, timeout_s=60.0))
+    _keep_the_background_reader_out(client)  # (which would write the fence, given time)
     try:
         assert client._send_now is not None
         client._send_now = _interrupt_once(client._send_now)
@@ -164,6 +183,8 @@ def test_close_after_ctrl_c_does_not_wait_for_a_fence_it_never_wrote() -> None:
         closer.join(CONDITION_TIMEOUT_S)
         assert not closer.is_alive(), "close() waits for a fence that was never written"
     finally:
+        with client._state_lock:
+            client._active_callers -= _PHANTOM_CALLERS
         client.close()
         fake.close()
 
