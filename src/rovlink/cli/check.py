@@ -14,7 +14,7 @@ import sys
 from typing import TYPE_CHECKING
 
 from rovlink.cli.failure import CommandError, UsageError
-from rovlink.cli.link_options import algorithm_name, bounded_int, seconds
+from rovlink.cli.link_options import algorithm_name, bounded_int, file_name, seconds
 
 if TYPE_CHECKING:
     from rovlink.conformance import Check, CheckResult, Report
@@ -42,7 +42,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=[],
         help="run only checks whose name starts with NAME (repeatable)",
     )
-    parser.add_argument("--junit", metavar="FILE", help="also write the results as JUnit XML")
+    parser.add_argument(
+        "--junit", type=file_name, metavar="FILE", help="also write the results as JUnit XML"
+    )
     parser.add_argument(
         "--algorithm",
         type=algorithm_name,

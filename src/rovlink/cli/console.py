@@ -7,9 +7,13 @@ Ctrl-D leaves, sending #stop! first unless the robot is locked as last sent.
 from __future__ import annotations
 
 import argparse
+from typing import TYPE_CHECKING
 
 from rovlink.cli import link_options
 from rovlink.cli.failure import CommandError, UsageError
+
+if TYPE_CHECKING:
+    from pathlib import Path
 
 __all__ = ["EPILOG"]
 
@@ -23,8 +27,22 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     """``console``'s options."""
     link_options.add_link_options(parser)
     parser.add_argument(
-        "--history", metavar="FILE", help="history file (default: in the user's state directory)"
+        "--history",
+        type=link_options.file_name,
+        metavar="FILE",
+        help="history file (default: in the user's state directory)",
     )
+
+
+def _check_history(path: Path) -> None:
+    """Open the history file for appending now: prompt_toolkit writes it from its own thread,
+    where a failure is a traceback and a console that hangs."""
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        with path.open("ab"):
+            pass
+    except OSError as error:
+        raise CommandError(f"cannot keep the history in {path}: {error.strerror}") from None
 
 
 def run(args: argparse.Namespace) -> int:
@@ -40,6 +58,7 @@ def run(args: argparse.Namespace) -> int:
 
     connect = link_options.connect_async(args)
     history = Path(args.history) if args.history else default_history_path()
+    _check_history(history)
     try:
         asyncio.run(run_console(connect, algorithm=args.algorithm, history_path=history))
     except ValueError as error:

@@ -15,7 +15,7 @@ from types import FrameType
 from typing import TYPE_CHECKING
 
 from rovlink.cli.failure import CommandError, InputError, UsageError
-from rovlink.cli.link_options import positive_int, seconds
+from rovlink.cli.link_options import baud_rate, file_name, seconds
 
 if TYPE_CHECKING:
     from rovlink.board.pi.config import PiConfig
@@ -51,17 +51,21 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--config",
+        type=file_name,
         metavar="FILE",
         help="rov.toml: the controller's tables and the board's (required for --board pi)",
     )
     parser.add_argument(
-        "--port", metavar="DEVICE", help="serve on this serial device, e.g. /dev/serial0"
+        "--port",
+        type=file_name,
+        metavar="DEVICE",
+        help="serve on this serial device, e.g. /dev/serial0",
     )
     parser.add_argument(
         "--baud",
         "--baudrate",
         dest="baud",
-        type=positive_int,
+        type=baud_rate,
         default=_DEFAULT_BAUD,
         metavar="BAUD",
         help="the serial device's rate, 8N1 (default: %(default)s)",

@@ -51,10 +51,20 @@ def event_to_json(event: Event) -> dict[str, object]:
     }
 
 
+class _ReadError(Exception):
+    """Reading the input failed (a directory, a device error): not a failure to write stdout."""
+
+    def __init__(self, error: OSError) -> None:
+        super().__init__(error.strerror or str(error))
+
+
 def _events(stream: BinaryIO, decoder: Decoder) -> list[Event] | None:
     # read1: whatever is there, up to a chunk, so that a live pipe is decoded as it comes.
     read = getattr(stream, "read1", stream.read)
-    chunk = read(_READ_CHUNK_BYTES)
+    try:
+        chunk = read(_READ_CHUNK_BYTES)
+    except OSError as error:
+        raise _ReadError(error) from None
     if not chunk:
         return None
     return decoder.feed(chunk)
@@ -162,7 +172,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def _run(args: argparse.Namespace) -> int:
     decoder = Decoder(checksum_enabled=args.checksum, algorithm=args.algorithm)
     if args.file == "-":
-        decode_stream(sys.stdin.buffer, decoder, stats_only=args.stats)
+        try:
+            decode_stream(sys.stdin.buffer, decoder, stats_only=args.stats)
+        except _ReadError as error:
+            raise CommandError(f"cannot read standard input: {error}") from None
         return 0
     if args.file.lower().endswith((".mcap", ".jsonl")):
         return _decode_recording(args, decoder)
@@ -173,8 +186,8 @@ def _run(args: argparse.Namespace) -> int:
     with stream:
         try:
             decode_stream(stream, decoder, stats_only=args.stats)
-        except IsADirectoryError:
-            raise CommandError(f"cannot read {args.file}: Is a directory") from None
+        except _ReadError as error:  # a directory, a device error
+            raise CommandError(f"cannot read {args.file}: {error}") from None
     return 0
 
 

@@ -60,9 +60,19 @@ def run(args: argparse.Namespace) -> int:
     from rovlink.faults import FaultPort, FaultSettings  # noqa: PLC0415
     from rovlink.faults.proxy import FaultProxy  # noqa: PLC0415
 
+    # Each URL's error names its option: both are URLs, and either may be the wrong one.
+    endpoints = []
+    for option, url in (("--listen", args.listen), ("--to", args.to)):
+        try:
+            endpoints.append(parse_url(url))
+        except ValueError as error:
+            raise UsageError(f"{option}: {error}") from None
+    listen, target = endpoints
+    if args.jitter_ms > args.delay_ms:
+        raise UsageError(
+            f"--jitter-ms {args.jitter_ms:g} is more than --delay-ms {args.delay_ms:g}"
+        )
     try:
-        listen = parse_url(args.listen)
-        target = parse_url(args.to)
         settings = FaultSettings(
             ber=args.ber,
             drop=args.drop,

@@ -35,9 +35,11 @@ __all__ = [
     "MAX_TIMEOUT_S",
     "add_link_options",
     "algorithm_name",
+    "baud_rate",
     "client_options",
     "connect",
     "connect_async",
+    "file_name",
     "log_warnings",
     "positive_int",
     "seconds",
@@ -50,6 +52,8 @@ DEFAULT_BOOT_TIMEOUT_S = 3.0
 MAX_TIMEOUT_S = 3600.0
 MIN_TIMEOUT_S = 0.001
 MAX_RETRIES = 100
+#: The fastest USB-serial bridges run at 12 Mbaud; beyond, pyserial overflows a C int.
+MAX_BAUDRATE = 12_000_000
 _URL_HELP = "serial device, pyserial URL (socket://HOST:PORT, rfc2217://…) or sim:// (simulator)"
 
 
@@ -131,6 +135,34 @@ def positive_int(text: str) -> int:
     return value
 
 
+def baud_rate(text: str) -> int:
+    """A serial speed, 1 to :data:`MAX_BAUDRATE`, for argparse's ``type=``.
+
+    >>> baud_rate("99999999999999999999")
+    Traceback (most recent call last):
+    ...
+    argparse.ArgumentTypeError: 99999999999999999999 is more than the maximum, 12000000 baud
+    """
+    value = positive_int(text)
+    if value > MAX_BAUDRATE:
+        raise argparse.ArgumentTypeError(f"{text} is more than the maximum, {MAX_BAUDRATE} baud")
+    return value
+
+
+def file_name(text: str) -> str:
+    """A file (or directory) name, for argparse's ``type=``: never empty, which would otherwise
+    read as "not given" or as the current directory.
+
+    >>> file_name("")
+    Traceback (most recent call last):
+    ...
+    argparse.ArgumentTypeError: an empty file name
+    """
+    if not text:
+        raise argparse.ArgumentTypeError("an empty file name")
+    return text
+
+
 def algorithm_name(text: str) -> str:
     """A known checksum algorithm's name, for argparse's ``type=``.
 
@@ -198,7 +230,7 @@ def add_link_options(parser: argparse.ArgumentParser, *, url_required: bool = Fa
     )
     group.add_argument(
         "--baudrate",
-        type=positive_int,
+        type=baud_rate,
         default=None,
         metavar="BAUD",
         help="serial speed (default: the URL's ?baudrate=, else 115200)",

@@ -32,6 +32,10 @@ def _system_id(text: str) -> int:
     return link_options.bounded_int(text, 1, 255)
 
 
+def _path(text: str) -> Path:
+    return Path(link_options.file_name(text))  # Path("") would be the current directory
+
+
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """``mavlink``'s options."""
     link_options.add_link_options(parser)
@@ -52,7 +56,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     group.add_argument(
         "--params",
-        type=Path,
+        type=_path,
         default=None,
         metavar="FILE",
         help="parameter file (NAME VALUE per line, as ground stations save them): sent to "

@@ -42,6 +42,10 @@ def _optional_seconds(text: str) -> float | None:
     return None if value == 0 else value
 
 
+def _path(text: str) -> Path:
+    return Path(link_options.file_name(text))  # Path("") would be the current directory
+
+
 def add_broker_options(parser: argparse.ArgumentParser) -> None:
     """The broker's address, credentials and TLS (``mqtt`` and ``fleet`` share them)."""
     group = parser.add_argument_group("broker options")
@@ -54,18 +58,20 @@ def add_broker_options(parser: argparse.ArgumentParser) -> None:
     group.add_argument("--username", default=None, metavar="NAME", help="broker user name")
     group.add_argument(
         "--password-file",
-        type=Path,
+        type=_path,
         default=None,
         metavar="FILE",
         help=f"a file holding the broker password (or set {PASSWORD_VARIABLE})",
     )
     group.add_argument(
-        "--cafile", type=Path, default=None, metavar="FILE", help="TLS: CA certificates to trust"
+        "--cafile", type=_path, default=None, metavar="FILE", help="TLS: CA certificates to trust"
     )
     group.add_argument(
-        "--certfile", type=Path, default=None, metavar="FILE", help="TLS: client certificate"
+        "--certfile", type=_path, default=None, metavar="FILE", help="TLS: client certificate"
     )
-    group.add_argument("--keyfile", type=Path, default=None, metavar="FILE", help="TLS: client key")
+    group.add_argument(
+        "--keyfile", type=_path, default=None, metavar="FILE", help="TLS: client key"
+    )
     group.add_argument(
         "--tls-insecure",
         action="store_true",
@@ -95,6 +101,8 @@ def broker_settings(args: argparse.Namespace) -> BrokerSettings:
     for path in tls_files:
         if path is not None and not path.is_file():
             raise InputError(f"{path}: no such file")
+    if tls:
+        _check_tls_files(args)
     return BrokerSettings(
         host,
         port,
@@ -106,6 +114,26 @@ def broker_settings(args: argparse.Namespace) -> BrokerSettings:
         args.keyfile,
         args.tls_insecure,
     )
+
+
+def _check_tls_files(args: argparse.Namespace) -> None:
+    """Load the TLS files now: a bad one is named here, not reported by every reconnection
+    (the bridge retries for ever) as an error of the broker's."""
+    import ssl  # noqa: PLC0415
+
+    context = ssl.create_default_context()
+    try:
+        option, path = "--cafile", args.cafile
+        if path is not None:
+            context.load_verify_locations(cafile=path)
+        option, path = "--certfile", args.certfile
+        if path is not None:
+            context.load_cert_chain(path, args.keyfile)
+    except ssl.SSLError as error:
+        what = "PEM certificates" if option == "--cafile" else "a PEM certificate and key"
+        raise InputError(f"{option} {path}: not {what} ({error.reason or error})") from None
+    except OSError as error:
+        raise InputError(f"{option} {path}: cannot read: {error.strerror}") from None
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

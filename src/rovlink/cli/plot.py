@@ -9,6 +9,7 @@ import os
 import sys
 
 from rovlink.cli.failure import CommandError, UsageError
+from rovlink.cli.link_options import file_name
 
 __all__ = ["EPILOG"]
 
@@ -23,7 +24,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     """``plot``'s arguments."""
     parser.add_argument("file", metavar="FILE", help="a recording (.mcap, .jsonl or .csv)")
     parser.add_argument(
-        "-o", "--output", metavar="IMAGE", help="write the plot here (.png, .svg, .pdf)"
+        "-o",
+        "--output",
+        type=file_name,
+        metavar="IMAGE",
+        help="write the plot here (.png, .svg, .pdf)",
     )
     parser.add_argument("--show", action="store_true", help="open a window (needs a display)")
 
@@ -41,6 +46,8 @@ def run(args: argparse.Namespace) -> int:
     from rovlink.recorder import RecordingDamagedError, RecordingError, read_entries  # noqa: PLC0415
     from rovlink.recorder.plot import FIGURE_SIZE_IN, plot_dive  # noqa: PLC0415
 
+    if args.output:
+        _check_image_suffix(args.output)
     if not args.show:
         matplotlib.use("Agg")
     entries = []
@@ -75,3 +82,16 @@ def run(args: argparse.Namespace) -> int:
         print(f"rovlink plot: {damage}", file=sys.stderr)
         return 0 if damage.incomplete else 1
     return 0
+
+
+def _check_image_suffix(path: str) -> None:
+    """Refuse an output without an image suffix: matplotlib would add ``.png`` to the name and
+    write a file other than the one named (or, after ``dir/``, a hidden ``dir/.png``)."""
+    from matplotlib.backend_bases import FigureCanvasBase  # noqa: PLC0415
+
+    formats = FigureCanvasBase.get_supported_filetypes()
+    if os.path.splitext(path)[1].lower().lstrip(".") not in formats:
+        common = [name for name in ("png", "svg", "pdf") if name in formats]
+        others = sorted(set(formats) - set(common))
+        known = ", ".join(f".{name}" for name in common + others)
+        raise UsageError(f"-o {path}: name the image format by its suffix: {known}")

@@ -14,7 +14,7 @@ import time
 from types import FrameType
 
 from rovlink.cli.failure import CommandError, UsageError
-from rovlink.cli.link_options import add_checksum_options, positive_int, seconds
+from rovlink.cli.link_options import add_checksum_options, baud_rate, file_name, seconds
 from rovlink.cli.recording import add_rotation_options, open_recorder, report_recording
 
 __all__ = ["EPILOG"]
@@ -36,6 +36,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "-o",
         "--output",
         required=True,
+        type=file_name,
         metavar="FILE",
         help="the recording (.mcap, .jsonl, .csv, .bin)",
     )
@@ -46,7 +47,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "pty) and record both directions; without it, only listen",
     )
     parser.add_argument(
-        "--baudrate", type=positive_int, metavar="BAUD", help="serial speed (default 115200)"
+        "--baudrate", type=baud_rate, metavar="BAUD", help="serial speed (default 115200)"
     )
     parser.add_argument(
         "--duration", type=seconds, metavar="SECONDS", help="stop after this long (default: Ctrl-C)"
@@ -67,7 +68,7 @@ def run(args: argparse.Namespace) -> int:
     except ValueError as error:
         raise UsageError(f"URL: {error}") from None
     try:
-        tap = parse_tap(args.tap) if args.tap else None
+        tap = parse_tap(args.tap) if args.tap is not None else None  # '' is refused there
     except ValueError as error:
         raise UsageError(str(error)) from None
     except OSError as error:

@@ -3,11 +3,13 @@
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import sys
 from typing import TYPE_CHECKING
 
 from rovlink.cli.failure import CommandError, UsageError
+from rovlink.cli.link_options import file_name
 
 if TYPE_CHECKING:
     from rovlink.recorder import Recorder
@@ -36,6 +38,8 @@ def byte_size(text: str) -> int:
         unit = ""
     try:
         value = float(number) * _SIZE_UNITS[unit]
+        if not math.isfinite(value):  # 1e400, inf: no file is that big, and int() would fail
+            raise ValueError(text)
     except (KeyError, ValueError):
         raise argparse.ArgumentTypeError(
             f"{text!r} is not a size (a number with k, M or G: 100M)"
@@ -84,6 +88,7 @@ def add_record_options(parser: argparse.ArgumentParser) -> None:
     """``--record FILE`` and the rotation options, for a command that drives the link."""
     parser.add_argument(
         "--record",
+        type=file_name,
         metavar="FILE",
         help="record the session: every byte, frame, event and the telemetry "
         "(.mcap, .jsonl, .csv or .bin by suffix)",

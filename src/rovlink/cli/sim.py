@@ -11,7 +11,7 @@ from types import FrameType
 from typing import TYPE_CHECKING
 
 from rovlink.cli.failure import CommandError, InputError, UsageError
-from rovlink.cli.link_options import bounded_float, positive_int, seconds
+from rovlink.cli.link_options import baud_rate, bounded_float, file_name, seconds
 
 if TYPE_CHECKING:
     from rovlink.sim.robot import SimConfig
@@ -49,12 +49,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--baud",
         "--baudrate",
         dest="baud",
-        type=positive_int,
+        type=baud_rate,
         metavar="BAUD",
         help="pace the byte stream at this rate, 8N1 (default: unpaced)",
     )
     parser.add_argument(
-        "--config", metavar="FILE", help="TOML file: controller tables, [vehicle], [sensors]"
+        "--config",
+        type=file_name,
+        metavar="FILE",
+        help="TOML file: controller tables, [vehicle], [sensors]",
     )
     parser.add_argument(
         "--leak-at",

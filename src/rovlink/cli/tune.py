@@ -7,6 +7,7 @@ A leak, a depth past the limits or a lost link sends #stop! and aborts."""
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 from typing import TYPE_CHECKING
 
@@ -32,7 +33,7 @@ TARGET_RMS_CM = 2.0
 
 
 def parse_triple(text: str) -> tuple[float, float, float]:
-    """``A,B,C`` as three numbers, for argparse's ``type=``.
+    """``A,B,C`` as three finite numbers ≥ 0, for argparse's ``type=``.
 
     >>> parse_triple("40,30,20")
     (40.0, 30.0, 20.0)
@@ -42,8 +43,29 @@ def parse_triple(text: str) -> tuple[float, float, float]:
         values = tuple(float(part) for part in parts)
     except ValueError:
         values = ()
-    if len(values) != 3 or any(value < 0 for value in values):
+    if len(values) != 3 or not all(math.isfinite(value) and value >= 0 for value in values):
         raise argparse.ArgumentTypeError(f"expected three numbers ≥ 0 as A,B,C, got {text!r}")
+    return values[0], values[1], values[2]
+
+
+def _scales(text: str) -> tuple[float, float, float]:
+    """``--scales``: each gain is divided by its scale, so none may be 0 (or infinite)."""
+    try:
+        values = parse_triple(text)
+    except argparse.ArgumentTypeError:
+        values = (0.0, 0.0, 0.0)
+    if not all(value > 0 for value in values):
+        raise argparse.ArgumentTypeError(f"expected three numbers > 0 as KP,KI,KD, got {text!r}")
+    return values
+
+
+def _gains(text: str) -> tuple[int, int, int]:
+    """``--restore``: gains as the protocol sends them, checked before the motors run rather
+    than refused by the driver after the whole experiment."""
+    parts = text.split(",")
+    values = tuple(int(part) for part in parts if part.strip().isdigit())
+    if len(parts) != 3 or len(values) != 3 or not all(value <= 99 for value in values):
+        raise argparse.ArgumentTypeError(f"expected three integers 0–99 as KP,KI,KD, got {text!r}")
     return values[0], values[1], values[2]
 
 
@@ -76,14 +98,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     group.add_argument("--list-rules", action="store_true", help="list the rules and exit")
     group.add_argument(
         "--scales",
-        type=parse_triple,
+        type=_scales,
         metavar="KP,KI,KD",
         help="the controller's gain scales ([depth_pid] kp_scale,ki_scale,kd_scale); "
         "default: the reference controller's",
     )
     group.add_argument(
         "--restore",
-        type=parse_triple,
+        type=_gains,
         metavar="KP,KI,KD",
         help="gains to send back after the verification without --apply "
         "(default: the reference controller's reset gains)",
@@ -93,7 +115,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     group.add_argument("--no-verify", action="store_true", help="skip the verification step")
     group.add_argument("--apply", action="store_true", help="leave the tuned gains set")
-    group.add_argument("--plot", metavar="FILE", help="plot the relay and the step (matplotlib)")
+    group.add_argument(
+        "--plot",
+        type=link_options.file_name,
+        metavar="FILE",
+        help="plot the relay and the step (matplotlib)",
+    )
     group.add_argument("--yes", action="store_true", help="do not ask before the motors run")
 
 
@@ -128,7 +155,7 @@ def run(args: argparse.Namespace) -> int:
     defaults = DepthPidConfig()
     scales = GainScales(*(args.scales or (defaults.kp_scale, defaults.ki_scale, defaults.kd_scale)))
     kp, ki, kd = args.restore or (defaults.kp, defaults.ki, defaults.kd)
-    restore = ProtocolGains(int(kp), int(ki), int(kd))
+    restore = ProtocolGains(kp, ki, kd)
     step_from = args.step_from if args.step_from is not None else max(args.depth - 100, 0)
     step = None if args.no_verify else StepSettings(from_cm=step_from, to_cm=args.depth)
     if not args.yes and not _confirm(args):

@@ -31,6 +31,13 @@ def _port(text: str) -> int:
     return link_options.bounded_int(text, 0, 65535)
 
 
+def _host(text: str) -> str:
+    # uvicorn would take "" as every interface, and print a URL without a host.
+    if not text.strip():
+        raise argparse.ArgumentTypeError("an empty address")
+    return text
+
+
 def _rate_hz(text: str) -> float:
     return link_options.bounded_float(text, 0.5, 50.0, " Hz")
 
@@ -41,6 +48,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     group = parser.add_argument_group("station options")
     group.add_argument(
         "--host",
+        type=_host,
         default="127.0.0.1",
         help="address to serve on; beyond loopback a token is required (default: %(default)s)",
     )
@@ -56,6 +64,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     group.add_argument(
         "--recordings",
+        type=link_options.file_name,
         metavar="DIR",
         default=".",
         help="where the page's record button writes its recordings, which the page can "
@@ -85,6 +94,9 @@ def run(args: argparse.Namespace) -> int:
 
     import rovlink.aio  # noqa: PLC0415
 
+    recordings = Path(args.recordings)
+    if recordings.exists() and not recordings.is_dir():  # else refused only at the first recording
+        raise UsageError(f"--recordings {args.recordings}: not a directory")
     token = args.token
     if token is None and not station_access.is_loopback(args.host):
         token = station_access.generate_token()
@@ -96,7 +108,7 @@ def run(args: argparse.Namespace) -> int:
         token=token,
         rate_hz=args.rate_hz,
         algorithm=args.algorithm,
-        recordings_dir=Path(args.recordings),  # made when the first recording starts
+        recordings_dir=recordings,  # made when the first recording starts
     )
     # The relay renews a held motion twice a second; the driver expires one not renewed within a
     # second (a second line of defence behind the station's own 300 ms watchdog). The

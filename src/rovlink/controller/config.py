@@ -298,7 +298,7 @@ def dataclass_from_table(
         values[key] = _convert(value, fields[key], f"{where} {key}")
     try:
         return cls(**values)
-    except ConfigError as error:
+    except ValueError as error:  # ConfigError, or a plain ValueError of a class such as the sim's
         raise ConfigError(f"{where}: {error}") from None
 
 

@@ -68,9 +68,26 @@ def read_csv(path: str) -> Iterator[Entry]:
     count = 0
     with stream:
         rows = csv.reader(stream)
-        if next(rows, None) != list(HEADER):
+        try:
+            header = next(rows, None)
+        except UnicodeDecodeError:
+            raise RecordingError(
+                f"{path}: not UTF-8 text, so not a rovlink telemetry CSV"
+            ) from None
+        if header != list(HEADER):
             raise RecordingError(f"{path}: not a rovlink telemetry CSV (its header differs)")
-        for row in rows:
+        while True:
+            try:
+                row = next(rows, None)
+            except UnicodeDecodeError:
+                raise RecordingDamagedError(
+                    f"{path}: not UTF-8 text after row {rows.line_num}; "
+                    f"read {count} rows before it",
+                    entries_read=count,
+                    incomplete=False,
+                ) from None
+            if row is None:
+                break
             try:
                 if len(row) != len(HEADER):
                     raise ValueError(f"{len(row)} columns, not {len(HEADER)}")

@@ -55,3 +55,5 @@ def read_jsonl(path: str) -> Iterator[Entry]:
                 ) from None
             count += 1
             yield entry
+    if count == 0:  # a recording starts with its header: an empty file is none
+        raise RecordingError(f"{path}: empty, not a rovlink JSON-lines recording")

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import asyncio
 import os
+import socket
 import threading
 from collections.abc import Callable
 from typing import Any
@@ -54,6 +55,11 @@ class MavlinkEndpoint:
 
     def __init__(self, address: str, *, system_id: int = 1) -> None:
         check_address(address)
+        scheme, host, port = address.split(":")
+        if scheme == "udpout":
+            # pymavlink resolves an output's host only when it sends, and drops the error:
+            # a name that does not resolve would be a bridge sending nowhere, silently.
+            socket.getaddrinfo(host, int(port), type=socket.SOCK_DGRAM)
         # MAVLink 2 (pymavlink reads this when it loads a dialect): signatures aside, every
         # field of every message, and extensions such as SYS_STATUS's extended sensors.
         os.environ["MAVLINK20"] = "1"

@@ -50,7 +50,11 @@ def parse_broker_url(url: str) -> tuple[str, int, bool]:
     if parts.username or parts.password:
         raise ValueError(f"broker {url!r}: give the user with --username, not in the URL")
     try:
-        port = parts.port or _DEFAULT_PORTS[parts.scheme]
+        port = parts.port
     except ValueError:
-        raise ValueError(f"broker {url!r}: the port must be 1–65535") from None
+        port = 0
+    if port is None:
+        port = _DEFAULT_PORTS[parts.scheme]
+    elif port == 0:  # not "the default": a broker cannot be reached on port 0
+        raise ValueError(f"broker {url!r}: the port must be 1–65535")
     return parts.hostname, port, parts.scheme == "mqtts"
