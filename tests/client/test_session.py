@@ -40,15 +40,76 @@ def test_a_reply_to_a_later_query_settles_the_earlier_ones_as_lost() -> None:
     assert heading.outcome is Outcome.ANSWERED
 
 
-def test_a_broken_qsa_reply_is_corrupt_and_the_frame_goes_on_to_the_next_query() -> None:
+def test_a_qsa_reply_cut_short_is_corrupt_and_the_frame_goes_on_to_the_next_query() -> None:
+    session = Session()
+    _, sensors = session.query(Command("qsa"), now=0.0)
+    _, depth = session.query(Command("qd"), now=0.0)
+    # qsa got two replies, then a frame it does not expect any more: the next query's, so the
+    # rest of qsa will not come (the controller answers in order).
+    received = session.receive(b"$qd.1!$qr.2!$qd.3!", now=0.01)
+    assert sensors.outcome is Outcome.CORRUPT
+    assert depth.outcome is Outcome.ANSWERED
+    assert depth.responses[0].values == (3,)
+    assert received.settled == [sensors, depth]
+    assert not session.resynchronising
+
+
+def test_a_qsa_reply_with_a_gap_answers_no_later_query() -> None:
+    """A frame that the half-answered qsa still expects, after a gap, is most likely its own
+    (one frame lost on the line), though it may be a later query's: it goes to neither, and
+    the rest of qsa's reply, still on its way, is discarded as late (P20)."""
     session = Session()
     _, sensors = session.query(Command("qsa"), now=0.0)
     _, roll = session.query(Command("qro"), now=0.0)
-    # qsa got two replies, then the answer to the next query: the rest of qsa never came.
-    received = session.receive(b"$qd.1!$qr.2!$qro.+5!", now=0.01)
+    received = session.receive(b"$qd.1!$qr.2!$qro.+5!$qpi.+1!$qhe.90!", now=0.01)
     assert sensors.outcome is Outcome.CORRUPT
-    assert roll.outcome is Outcome.ANSWERED
+    assert roll.outcome is Outcome.RESYNC  # its caller retries it
     assert received.settled == [sensors, roll]
+    assert session.counters.late_replies == 3
+    assert session.counters.stray_frames == 0
+
+
+def test_a_dropped_reply_before_qsa_queries_hands_none_of_their_replies_to_a_later_query() -> None:
+    """On the wire ``qd`` (its reply dropped), ``qsa``, ``qsa``, ``qhe``, ``qd``. The first
+    qsa's ``$qd`` is taken by the ``qd`` before it (P20 cannot tell); its ``$qr`` then shows the
+    first qsa lost its start, so the qsa replies that follow answer nobody: before, its
+    ``$qhe`` settled both qsa as lost, and the second qsa's ``$qd`` answered the last ``qd``,
+    sent after it."""
+    session = Session(timeout_s=0.5)
+    queries = [
+        session.query(Command(name), now=0.0)[1] for name in ("qd", "qsa", "qsa", "qhe", "qd")
+    ]
+    qsa = b"$qd.%d!$qr.530!$q.l.0!$qro.-1!$qpi.+15!$qhe.275!"
+    session.receive(qsa % 2 + qsa % 3 + b"$qhe.275!$qd.5!", now=0.01)
+    assert [query.outcome for query in queries] == [
+        Outcome.ANSWERED,
+        Outcome.CORRUPT,
+        Outcome.RESYNC,
+        Outcome.RESYNC,
+        Outcome.RESYNC,
+    ]
+    assert queries[0].responses[0].values == (2,)
+    # Every fence name is late: new queries wait for a quiet line (P20), and then go out.
+    _, later = session.query(Command("qd"), now=0.02)
+    assert session.take_outbox(now=0.02) == b""
+    assert session.tick(now=0.6) == []
+    assert session.take_outbox(now=0.6) == b"#qd!"
+    session.receive(b"$qd.6!", now=0.61)
+    assert later.responses[0].values == (6,)
+
+
+def test_a_fence_that_fails_is_followed_by_another() -> None:
+    session = Session(timeout_s=0.5)
+    session.query(Command("qd"), now=0.0)
+    session.expire(now=0.5)  # qd late: the fence qhe goes out
+    assert session.take_outbox(now=0.5) == b"#qhe!"
+    session.receive(b"$qhe.9000!", now=0.51)  # the fence's reply, damaged (out of range)
+    # Another fence goes out at once: the late name does not wait for another timeout.
+    assert session.take_outbox(now=0.51) == b"#qhe!"
+    _, later = session.query(Command("qd"), now=0.52)
+    session.receive(b"$qd.1!$qhe.90!$qd.2!", now=0.53)  # a late qd, the fence, the new qd
+    assert later.responses[0].values == (2,)
+    assert session.counters.late_replies == 1
 
 
 def test_a_bad_checksum_makes_the_oldest_query_corrupt() -> None:

@@ -770,25 +770,48 @@ class Session:
             self._fence = None
 
     def _deliver(self, response: Response, now: float, settled: list[PendingQuery]) -> bool:
+        """Give ``response``, which is not the next reply the oldest query expects, to the query
+        it answers (P20); False if it answers none (a stray).
+
+        The controller answers in order, so the queries on the wire before the one it answers
+        will get no reply (``lost``). A ``qsa``'s six replies share their names with the single
+        queries, so a reply that some query on the wire expects after another of its replies is
+        ambiguous: it may be that query's, whose earlier reply was lost (or taken by an earlier
+        single query), or a later query's. It goes to neither: that query fails and its names
+        are fenced, so that the rest of its reply, still on its way, answers nobody.
+        """
         pending = self._pending
+        name = response.name
         while pending:
             head = pending[0]
             responses = head.responses
-            if head.expected[len(responses)] == response.name:
-                self._append(head, response, now, settled)
-                return True
             if not responses:
                 break
-            # A half-received reply (qsa) broken by a frame that does not belong in it.
+            expected = head.expected
+            if expected[len(responses)] == name:
+                self._append(head, response, now, settled)
+                return True
+            if name in expected[len(responses) + 1 :]:
+                # The head's own later reply, one before it lost: the rest may still come.
+                settled.extend(self._fail(head, Outcome.CORRUPT, now))
+                self._late(response, now)
+                return True
+            # A half-received reply (qsa) cut short by a later query's: no more of it will come.
             self._settle(head, Outcome.CORRUPT)
             self._report_failure(head, now, settled)
-        for index in range(1, len(pending)):
-            if pending[index].expected[0] == response.name:
-                for lost in list(pending)[:index]:
-                    self._settle(lost, Outcome.LOST)
-                    self._report_failure(lost, now, settled)
-                self._append(pending[0], response, now, settled)
-                return True
+        for index, query in enumerate(pending):
+            expected = query.expected
+            if name not in expected:
+                continue
+            for lost in list(pending)[:index]:
+                self._settle(lost, Outcome.LOST)
+                self._report_failure(lost, now, settled)
+            if expected[0] == name:
+                self._append(query, response, now, settled)
+            else:
+                settled.extend(self._fail(query, Outcome.CORRUPT, now))
+                self._late(response, now)
+            return True
         return False
 
     def _report_failure(self, query: PendingQuery, now: float, settled: list[PendingQuery]) -> None:
@@ -796,6 +819,10 @@ class Session:
             self.events.append(QueryFailed(now, query.command, query.outcome.value))
         if not query.internal:
             settled.append(query)
+        elif self._late_names and self._fence is None:
+            # The fence itself failed (its reply damaged, or a later one first): another one,
+            # or the late names would stay late until a query of theirs timed out.
+            self._start_fence(now)
 
     def _append(
         self, query: PendingQuery, response: Response, now: float, settled: list[PendingQuery]
