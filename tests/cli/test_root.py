@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 
@@ -110,3 +111,35 @@ def test_decode_imports_no_module_it_does_not_need() -> None:
         input=b"boot\r\n#qsa!$qd.57!$qr.134!#crcon!#qd8C!",
         stdout=subprocess.DEVNULL,
     )
+
+
+def test_output_to_a_full_device_is_a_one_line_error() -> None:
+    with open("/dev/full", "wb") as full:
+        result = subprocess.run(
+            [sys.executable, "-m", "rovlink", "reference"],
+            stdout=full,
+            stderr=subprocess.PIPE,
+            text=True,
+            check=False,
+            timeout=60,
+        )
+    assert result.returncode == 1
+    assert result.stderr == "rovlink reference: cannot write the output: No space left on device\n"
+
+
+def test_output_to_a_closed_pipe_ends_quietly() -> None:
+    """``rovlink reference | head -0``: the reader is gone before the first write."""
+    read_end, write_end = os.pipe()
+    os.close(read_end)
+    try:
+        result = subprocess.run(
+            [sys.executable, "-m", "rovlink", "reference"],
+            stdout=write_end,
+            stderr=subprocess.PIPE,
+            text=True,
+            check=False,
+            timeout=60,
+        )
+    finally:
+        os.close(write_end)
+    assert (result.returncode, result.stderr) == (0, "")

@@ -9,7 +9,9 @@ heavy libraries (pyserial, rich, textual, prompt_toolkit, the driver) load insid
 from __future__ import annotations
 
 import argparse
+import errno
 import importlib
+import os
 import sys
 
 import rovlink
@@ -51,6 +53,9 @@ examples:
 'rovlink COMMAND --help' describes a command and its options."""
 
 _EXIT_INTERRUPTED = 130  # 128 + SIGINT, as shells report it
+#: Errors of a write that no command can do anything about (a full disk, a dead device): the
+#: output given to the command line (``> /dev/full``) or a file it writes.
+_OUTPUT_ERRNOS = frozenset({errno.ENOSPC, errno.EFBIG, errno.EIO, errno.EDQUOT})
 
 
 class _Formatter(argparse.RawDescriptionHelpFormatter):
@@ -181,4 +186,14 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print(f"{command_parser.prog}: interrupted", file=sys.stderr)
         return _EXIT_INTERRUPTED
+    except BrokenPipeError:
+        # The reader of the output stopped early (``| head``): no error, as for any filter.
+        # (Python would report the broken pipe again when it flushes stdout at exit.)
+        sys.stdout = open(os.devnull, "w")  # noqa: SIM115 - stays open until exit
+        return 0
+    except OSError as error:
+        if error.filename is not None or error.errno not in _OUTPUT_ERRNOS:
+            raise
+        print(f"{command_parser.prog}: cannot write the output: {error.strerror}", file=sys.stderr)
+        return 1
     return status

@@ -52,8 +52,6 @@ DEFAULT_BOOT_TIMEOUT_S = 3.0
 MAX_TIMEOUT_S = 3600.0
 MIN_TIMEOUT_S = 0.001
 MAX_RETRIES = 100
-#: The fastest USB-serial bridges run at 12 Mbaud; beyond, pyserial overflows a C int.
-MAX_BAUDRATE = 12_000_000
 _URL_HELP = "serial device, pyserial URL (socket://HOST:PORT, rfc2217://…) or sim:// (simulator)"
 
 
@@ -136,13 +134,15 @@ def positive_int(text: str) -> int:
 
 
 def baud_rate(text: str) -> int:
-    """A serial speed, 1 to :data:`MAX_BAUDRATE`, for argparse's ``type=``.
+    """A serial speed, 1 to :data:`rovlink.client.url.MAX_BAUDRATE`, for argparse's ``type=``.
 
     >>> baud_rate("99999999999999999999")
     Traceback (most recent call last):
     ...
     argparse.ArgumentTypeError: 99999999999999999999 is more than the maximum, 12000000 baud
     """
+    from rovlink.client.url import MAX_BAUDRATE  # noqa: PLC0415 - the client: not at start-up
+
     value = positive_int(text)
     if value > MAX_BAUDRATE:
         raise argparse.ArgumentTypeError(f"{text} is more than the maximum, {MAX_BAUDRATE} baud")

@@ -20,6 +20,8 @@ from rovlink.protocol.text_enum import StrEnum
 __all__ = ["DEFAULT_BAUDRATE", "Endpoint", "Scheme", "parse_url"]
 
 DEFAULT_BAUDRATE = 115200
+#: The fastest USB-serial bridges run at 12 Mbaud; beyond, pyserial overflows a C int.
+MAX_BAUDRATE = 12_000_000
 
 
 class Scheme(StrEnum):
@@ -62,8 +64,8 @@ def _split_query(url: str) -> tuple[str, list[tuple[str, str]]]:
 
 
 def _parse_baudrate(url: str, text: str) -> int:
-    if not text.isdigit() or int(text) <= 0:
-        raise ValueError(f"{url!r}: baudrate must be a positive integer, got {text!r}")
+    if not text.isdigit() or not 0 < int(text) <= MAX_BAUDRATE:
+        raise ValueError(f"{url!r}: baudrate must be an integer in 1–{MAX_BAUDRATE}, got {text!r}")
     return int(text)
 
 
@@ -105,9 +107,11 @@ def parse_url(url: str, baudrate: int | None = None) -> Endpoint:
     if len(set(from_url)) > 1:
         raise ValueError(f"{url!r}: baudrate given twice with different values")
     if baudrate is not None and (
-        isinstance(baudrate, bool) or not isinstance(baudrate, int) or baudrate <= 0
+        isinstance(baudrate, bool)
+        or not isinstance(baudrate, int)
+        or not 0 < baudrate <= MAX_BAUDRATE
     ):
-        raise ValueError(f"baudrate must be a positive integer, got {baudrate!r}")
+        raise ValueError(f"baudrate must be an integer in 1–{MAX_BAUDRATE}, got {baudrate!r}")
     if from_url and baudrate is not None and from_url[0] != baudrate:
         raise ValueError(
             f"{url!r}: baudrate={baudrate} disagrees with the URL's baudrate={from_url[0]}"
