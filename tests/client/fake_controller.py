@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import re
 import select
 import socket
 import threading
@@ -32,6 +33,9 @@ from rovlink.protocol import (
     Response,
     encode,
 )
+
+#: A chunk cut after each frame's ``!``, and what follows the last one.
+_FRAMES_AND_REST = re.compile(rb"[^!]*!|[^!]+$")
 
 DEFAULT_VALUES: dict[str, int] = {
     "qd": 123,
@@ -166,6 +170,12 @@ class FakeController:
                 self._on_close()
 
     def _receive(self, data: bytes) -> None:
+        # Frame by frame, as a controller takes them: a mode change (#crcon!) then applies from
+        # the next frame however the host's bytes were chunked (P3).
+        for piece in _FRAMES_AND_REST.findall(data):
+            self._receive_piece(piece)
+
+    def _receive_piece(self, data: bytes) -> None:
         replies = bytearray()
         with self._condition:
             if time.monotonic() < self._booted_at:

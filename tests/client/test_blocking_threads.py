@@ -7,7 +7,6 @@ joined with a bound, and a test that finds a thread still blocked fails rather t
 
 from __future__ import annotations
 
-import re
 import socket
 import threading
 import time
@@ -26,16 +25,6 @@ from tests.client.test_reconnect import Port
 pytestmark = pytest.mark.integration
 
 MakeClient = Callable[..., Client]
-
-
-class FrameByFrameController(FakeController):
-    """The fake, taking each frame as it comes: a mode change then applies from the next frame
-    however the host's bytes were chunked (P3). (The fake decodes a whole chunk before it
-    answers, so in ``#qhe!#crcon!`` read at once it answers ``qhe`` with a checksum.)"""
-
-    def _receive(self, data: bytes) -> None:
-        for frame in re.findall(rb"[^!]*!|[^!]+$", data):
-            super()._receive(frame)
 
 
 def _run(target: Callable[[], object]) -> tuple[threading.Thread, list[object]]:
@@ -370,20 +359,19 @@ def test_set_checksum_while_reconnecting(port: Port) -> None:
 
 
 @pytest.fixture
-def frame_by_frame() -> Iterator[tuple[FrameByFrameController, socket.socket]]:
-    ours, host_end = socket.socketpair()
-    fake = FrameByFrameController(ours.detach())
+def fake_and_host_end() -> Iterator[tuple[FakeController, socket.socket]]:
+    fake, host_end = FakeController.on_socketpair()
     yield fake, host_end
     fake.close()
 
 
 def test_set_checksum_waits_for_the_fence_of_a_query_that_timed_out(
-    frame_by_frame: tuple[FrameByFrameController, socket.socket],
+    fake_and_host_end: tuple[FakeController, socket.socket],
 ) -> None:
     # A query on the wire when set_checksum() began timed out, and its fence went out in the
     # old mode; the switch did not wait for the fence's reply, which then failed its checksum
     # and left the name late: the next query's own reply was discarded and it timed out.
-    fake, host_end = frame_by_frame
+    fake, host_end = fake_and_host_end
     fake.late_delay_s = 0.2
     client = Client(
         SocketLink(host_end, "socket pair"),
@@ -421,9 +409,9 @@ def test_set_checksum_on_a_silent_line_waits_for_one_fence_at_most(
 
 
 def test_checksum_switches_while_threads_query(
-    frame_by_frame: tuple[FrameByFrameController, socket.socket],
+    fake_and_host_end: tuple[FakeController, socket.socket],
 ) -> None:
-    fake, host_end = frame_by_frame
+    fake, host_end = fake_and_host_end
     fake.qd_counts_queries = True
     client = Client(
         SocketLink(host_end, "socket pair"),
