@@ -21,7 +21,7 @@ import pytest
 
 import rovlink.aio
 from rovlink.aio import AsyncClient, ConnectionLostError, QueryTimeoutError, Sensors
-from rovlink.client.events import BytesSent, ClientEvent, ReplyReceived
+from rovlink.client.events import BytesReceived, BytesSent, ClientEvent, ReplyReceived
 from rovlink.client.links import PortLink, SocketLink
 from rovlink.protocol import Response, encode, get_algorithm
 from tests.client.conftest import (
@@ -115,6 +115,36 @@ async def test_cancelled_while_awaiting_its_reply(
     # Its reply ($qd.1!) is still on its way: the next query must get $qd.2!, not it.
     assert await asyncio.wait_for(client.depth_cm(), CONDITION_TIMEOUT_S) == 2
     await _assert_usable(fake, client, 2)
+    await client.close()
+
+
+async def test_a_cancelled_query_keeps_its_slot_until_its_reply_comes(
+    pair: tuple[FakeController, socket.socket], loop_errors: list[dict[str, Any]]
+) -> None:
+    """Its frame is on the wire whether its caller waits or not: the line never carries more
+    than ``max_in_flight`` queries (before, the slot was given back at once, and the next
+    query went out while the cancelled one was still unanswered)."""
+    fake, sock = pair
+    fake.late_delay_s = 0.3
+    events: list[ClientEvent] = []
+    client = await _client(sock, max_in_flight=1, on_event=events.append)
+    fake.then("late")
+    with pytest.raises(Timeouts):
+        await asyncio.wait_for(client.depth_cm(), 0.05)
+    assert client._in_flight.locked()
+    assert await asyncio.wait_for(client.depth_cm(), CONDITION_TIMEOUT_S) == 2
+    wire = [
+        (event.direction, event.data)
+        for event in events
+        if isinstance(event, (BytesSent, BytesReceived))
+    ]
+    assert wire[-4:] == [  # (after the checksum mode frame of the connection)
+        ("out", b"#qd!"),
+        ("in", b"$qd.1!"),
+        ("out", b"#qd!"),
+        ("in", b"$qd.2!"),
+    ]
+    await _assert_usable(fake, client, 1)
     await client.close()
 
 

@@ -494,7 +494,10 @@ class AsyncClient(AsyncCommandMethods):
         await self._await_link()
         self._check_open()
         failures: list[str] = []
-        async with self._in_flight:
+        in_flight = self._in_flight
+        await in_flight.acquire()
+        slot_handed_over = False
+        try:
             for attempt in range(self._options.retries + 1):
                 # A loop: the switch that ends may wake another switch before this query.
                 while not self._mode_settled.is_set():
@@ -519,13 +522,30 @@ class AsyncClient(AsyncCommandMethods):
                     self._arm_timer()
                 if session.events:
                     self._emit()
-                outcome: Outcome = await waiter
+                try:
+                    outcome: Outcome = await waiter
+                except asyncio.CancelledError:
+                    if not pending.settled:  # on the wire, or held back to be sent
+                        self._hold_slot_until_settled(pending)
+                        slot_handed_over = True
+                    raise
                 if outcome is _ANSWERED:
                     return pending.responses
                 if outcome is Outcome.DISCONNECTED:
                     raise self._lost_error()
                 failures.append(outcome.value)
+        finally:
+            if not slot_handed_over:
+                in_flight.release()
         raise QueryTimeoutError(command, failures, self._options.timeout_s)
+
+    def _hold_slot_until_settled(self, pending: PendingQuery) -> None:
+        """Keep the ``max_in_flight`` slot of a query whose caller was cancelled until the query
+        settles (its reply, a timeout, the link lost): its frame is on the wire all the same,
+        and the line must not carry more queries than ``max_in_flight``."""
+        orphan: asyncio.Future[Outcome] = self._loop.create_future()
+        orphan.add_done_callback(lambda _: self._in_flight.release())
+        pending.waiter = orphan
 
     def _wake(self, settled: list[PendingQuery]) -> None:
         if settled:
