@@ -13,7 +13,7 @@ import pytest
 from rovlink.aio import AsyncClient
 from rovlink.client import Client, ClientOptions
 from rovlink.client.links import SocketLink
-from tests.client.fake_controller import FakeController
+from tests.client.fake_controller import FakeController, FakeControllerServer
 
 #: The timeout of queries that are meant to be answered: long enough for a reply on a loaded
 #: machine. A passing test never waits it out.
@@ -141,3 +141,11 @@ async def make_async_client(
     yield make
     for client in clients:
         await client.close()
+
+
+@pytest.fixture
+def port() -> Iterator[FakeControllerServer]:
+    """A TCP port where a fake controller answers each connection (see the class)."""
+    served = FakeControllerServer()
+    yield served
+    served.close()

@@ -247,3 +247,45 @@ class FakeController:
             timer.daemon = True
             timer.start()
         return b"".join(frames)
+
+
+class FakeControllerServer:
+    """A TCP port on 127.0.0.1 where a fake controller answers each connection, as a board does
+    after every power-up (``fakes``, in the order of the connections).
+
+    ``boot_s``: how long each controller ignores its input after the connection (a board
+    booting), ``first_boot_s`` the first one's if it differs; ``refuse``: close new connections
+    at once (the adapter is still unplugged); ``ended[i]`` is set once the i-th controller's
+    connection is closed.
+    """
+
+    def __init__(self, boot_s: float = 0.0, *, first_boot_s: float | None = None) -> None:
+        self._server = socket.create_server(("127.0.0.1", 0))
+        self.url = f"socket://127.0.0.1:{self._server.getsockname()[1]}"
+        self.boot_s = boot_s
+        self.first_boot_s = boot_s if first_boot_s is None else first_boot_s
+        self.fakes: list[FakeController] = []
+        self.ended: list[threading.Event] = []
+        self.refuse = False
+        threading.Thread(target=self._accept, name="fake controller server", daemon=True).start()
+
+    def _accept(self) -> None:
+        while True:
+            try:
+                connection, _ = self._server.accept()
+            except OSError:
+                return
+            if self.refuse:
+                connection.close()
+                continue
+            ended = threading.Event()
+            self.ended.append(ended)
+            boot_s = self.boot_s if self.fakes else self.first_boot_s
+            self.fakes.append(
+                FakeController(connection.detach(), boot_s=boot_s, on_close=ended.set)
+            )
+
+    def close(self) -> None:
+        self._server.close()
+        for fake in self.fakes:
+            fake.close()

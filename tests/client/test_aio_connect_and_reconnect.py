@@ -22,48 +22,26 @@ from tests.client.conftest import (
     client_options,
     wait_until_async,
 )
-from tests.client.fake_controller import FakeController
+from tests.client.fake_controller import FakeController, FakeControllerServer
 
 pytestmark = pytest.mark.integration
 
 
-class Server:
-    """A TCP port where each connection gets a fake controller that boots for ``boot_s``."""
-
-    def __init__(self, boot_s: float = 0.0) -> None:
-        self._server = socket.create_server(("127.0.0.1", 0))
-        self.url = f"socket://127.0.0.1:{self._server.getsockname()[1]}"
-        self.boot_s = boot_s
-        self.fakes: list[FakeController] = []
-        threading.Thread(target=self._accept, daemon=True).start()
-
-    def _accept(self) -> None:
-        while True:
-            try:
-                connection, _ = self._server.accept()
-            except OSError:
-                return
-            self.fakes.append(FakeController(connection.detach(), boot_s=self.boot_s))
-
-    def close(self) -> None:
-        self._server.close()
-        for fake in self.fakes:
-            fake.close()
-
-
 @pytest.fixture
-def servers() -> Iterator[list[Server]]:
-    made: list[Server] = []
+def servers() -> Iterator[list[FakeControllerServer]]:
+    made: list[FakeControllerServer] = []
     yield made
     for server in made:
         server.close()
 
 
-async def test_a_failed_connect_leaves_the_next_connect_working(servers: list[Server]) -> None:
+async def test_a_failed_connect_leaves_the_next_connect_working(
+    servers: list[FakeControllerServer],
+) -> None:
     """Before the fix a connect that timed out waiting for the controller (or was cancelled)
     closed its socket but left the loop watching the descriptor: the next connection, given
     the same descriptor number, was never read and failed as "did not answer"."""
-    booting, ready = Server(boot_s=30.0), Server()
+    booting, ready = FakeControllerServer(boot_s=30.0), FakeControllerServer()
     servers += [booting, ready]
     with pytest.raises(ConnectError, match="did not answer"):
         await rovlink.aio.connect(booting.url, boot_timeout=0.3)

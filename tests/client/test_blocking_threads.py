@@ -19,8 +19,7 @@ from rovlink.client import Client, ConnectionLostError, QueryTimeoutError
 from rovlink.client.events import BytesSent, ClientEvent, LinkState, MotionExpired
 from rovlink.client.links import SocketLink
 from tests.client.conftest import CONDITION_TIMEOUT_S, client_options, wait_until
-from tests.client.fake_controller import FakeController
-from tests.client.test_reconnect import Port
+from tests.client.fake_controller import FakeController, FakeControllerServer
 
 pytestmark = pytest.mark.integration
 
@@ -265,14 +264,7 @@ def test_a_lost_link_ends_every_call_in_flight(
     assert client.closed
 
 
-@pytest.fixture
-def port() -> Iterator[Port]:
-    served = Port()
-    yield served
-    served.close()
-
-
-def test_a_lost_link_mid_calls_with_reconnect(port: Port) -> None:
+def test_a_lost_link_mid_calls_with_reconnect(port: FakeControllerServer) -> None:
     rov = rovlink.connect(port.url, reconnect=True, timeout=2.0, keepalive=None, boot_timeout=2.0)
     try:
         assert rov.depth_cm() == 123
@@ -292,33 +284,10 @@ def test_a_lost_link_mid_calls_with_reconnect(port: Port) -> None:
         rov.close()
 
 
-class BootingPort(Port):
-    """A :class:`Port` whose controllers after the first boot for ``boot_s`` (ignoring input),
-    and which tells when a connection's far end was closed."""
-
-    def __init__(self, boot_s: float) -> None:
-        self.boot_s = boot_s
-        self.ended: list[threading.Event] = []
-        super().__init__()
-
-    def _accept(self) -> None:
-        while True:
-            try:
-                connection, _ = self._server.accept()
-            except OSError:
-                return
-            ended = threading.Event()
-            self.ended.append(ended)
-            boot_s = self.boot_s if self.fakes else 0.0
-            self.fakes.append(
-                FakeController(connection.detach(), boot_s=boot_s, on_close=ended.set)
-            )
-
-
 def test_close_while_reconnecting_releases_the_port() -> None:
     # The reconnecting thread was waiting for the reopened controller to boot: close()
     # returned while it kept the new port open (for up to boot_timeout).
-    port = BootingPort(boot_s=30.0)
+    port = FakeControllerServer(boot_s=30.0, first_boot_s=0.0)
     try:
         rov = rovlink.connect(port.url, reconnect=True, timeout=0.5, keepalive=None)
         assert rov.depth_cm() == 123
@@ -330,7 +299,7 @@ def test_close_while_reconnecting_releases_the_port() -> None:
         port.close()
 
 
-def test_set_checksum_while_reconnecting(port: Port) -> None:
+def test_set_checksum_while_reconnecting(port: FakeControllerServer) -> None:
     # set_checksum() waited for the reconnection while holding the state lock, which the
     # reconnecting thread needs: the whole client hung for good.
     rov = rovlink.connect(port.url, reconnect=True, timeout=2.0, keepalive=None, boot_timeout=2.0)
@@ -564,7 +533,7 @@ def test_threads_with_qsa_on_a_line_that_drops_corrupts_and_delays(
     _assert_idle(client)
 
 
-def test_link_state_events_reach_a_subscriber_that_queries(port: Port) -> None:
+def test_link_state_events_reach_a_subscriber_that_queries(port: FakeControllerServer) -> None:
     """A subscriber that queries on ``lost`` waits for the reconnection, as any caller does."""
     rov = rovlink.connect(port.url, reconnect=True, timeout=2.0, keepalive=0.1, boot_timeout=2.0)
     depths: list[object] = []

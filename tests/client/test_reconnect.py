@@ -2,10 +2,6 @@
 
 from __future__ import annotations
 
-import socket
-import threading
-from collections.abc import Iterator
-
 import pytest
 
 import rovlink
@@ -13,48 +9,12 @@ import rovlink.aio
 from rovlink.client.errors import ConnectionLostError
 from rovlink.client.events import ClientEvent, LinkState
 from tests.client.conftest import wait_until, wait_until_async
-from tests.client.fake_controller import FakeController
+from tests.client.fake_controller import FakeControllerServer
 
 pytestmark = pytest.mark.integration
 
 
-class Port:
-    """A TCP port where a fake controller answers each connection, as a board does after every
-    power-up; ``refuse`` closes new connections at once (the adapter is still unplugged)."""
-
-    def __init__(self) -> None:
-        self._server = socket.create_server(("127.0.0.1", 0))
-        self.url = f"socket://127.0.0.1:{self._server.getsockname()[1]}"
-        self.fakes: list[FakeController] = []
-        self.refuse = False
-        self._thread = threading.Thread(target=self._accept, daemon=True)
-        self._thread.start()
-
-    def _accept(self) -> None:
-        while True:
-            try:
-                connection, _ = self._server.accept()
-            except OSError:
-                return
-            if self.refuse:
-                connection.close()
-                continue
-            self.fakes.append(FakeController(connection.detach()))
-
-    def close(self) -> None:
-        self._server.close()
-        for fake in self.fakes:
-            fake.close()
-
-
-@pytest.fixture
-def port() -> Iterator[Port]:
-    served = Port()
-    yield served
-    served.close()
-
-
-def test_a_lost_link_is_reopened_and_the_checksum_mode_restored(port: Port) -> None:
+def test_a_lost_link_is_reopened_and_the_checksum_mode_restored(port: FakeControllerServer) -> None:
     events: list[ClientEvent] = []
     with rovlink.connect(
         port.url, reconnect=True, checksum=True, keepalive=0.1, timeout=2.0, on_event=events.append
@@ -74,7 +34,7 @@ def test_a_lost_link_is_reopened_and_the_checksum_mode_restored(port: Port) -> N
     assert states == ["lost", "reconnected"]
 
 
-def test_without_reconnect_a_lost_link_is_final(port: Port) -> None:
+def test_without_reconnect_a_lost_link_is_final(port: FakeControllerServer) -> None:
     with rovlink.connect(port.url, keepalive=0.1, timeout=2.0) as rov:
         assert rov.depth_cm() == 123
         port.fakes[0].close()
@@ -83,7 +43,7 @@ def test_without_reconnect_a_lost_link_is_final(port: Port) -> None:
             rov.depth_cm()
 
 
-async def test_the_asyncio_client_reopens_a_lost_link_too(port: Port) -> None:
+async def test_the_asyncio_client_reopens_a_lost_link_too(port: FakeControllerServer) -> None:
     events: list[ClientEvent] = []
     async with rovlink.aio.connect(
         port.url, reconnect=True, checksum=True, timeout=2.0, on_event=events.append
