@@ -6,14 +6,19 @@ commanded thrust has hung; the host's motion timeout is what stops the robot the
 
 from __future__ import annotations
 
+import asyncio
+import contextlib
 import logging
+import threading
+from collections.abc import Callable
 
 import pytest
 
+from rovlink.client.errors import ConnectionLostError, QueryTimeoutError
 from rovlink.client.events import MotionExpired
 from rovlink.client.session import Session
 from rovlink.protocol import Command
-from tests.client.conftest import wait_until, wait_until_async
+from tests.client.conftest import CONDITION_TIMEOUT_S, wait_until, wait_until_async
 from tests.client.fake_controller import FakeController
 from tests.client.test_aio import MakeAsyncClient
 from tests.client.test_blocking import MakeClient
@@ -35,6 +40,16 @@ def test_unrenewed_motion_expires_with_zero_thrust_in_the_session() -> None:
     assert [str(command) for command in expired[0].commands] == ["#th.90.0!", "#mvs.+0!"]
     session.tick(now=5.0)  # nothing moves any more: nothing more to expire
     assert session.take_outbox(now=5.0) == b""
+
+
+def test_a_closing_driver_is_given_only_the_zero_thrust_of_what_is_due() -> None:
+    session = Session(motion_timeout_s=1.0, timeout_s=0.5, keepalive_s=0.2)
+    session.command(Command("th", (90, 40)), now=0.0)
+    session.query(Command("qd"), now=0.0)
+    session.tick(now=1.0)  # the query timed out (a fence due), the motion expired, keep-alive
+    assert session.take_outbox_when_closing(now=1.0) == b"#th.90.0!"
+    assert not session.has_outbox
+    assert session.counters.motion_expiries == 1
 
 
 def test_renewed_zero_or_stopped_motion_never_expires() -> None:
@@ -83,3 +98,49 @@ async def test_a_silent_program_stops_the_robot_through_the_asyncio_client(
     await client.set_vertical_thrust(-40)
     assert await wait_until_async(lambda: "#mvs.+0!" in fake.frames())
     assert client.counters.motion_expiries == 1
+
+
+def test_motion_that_expires_while_the_blocking_client_closes_is_still_zeroed(
+    fake: FakeController, make_client: MakeClient
+) -> None:
+    """close() waits (up to the timeout) for a query on the wire; a motion that expires in that
+    wait is zeroed all the same, as it would be without the close (before, nothing was written
+    while closing, and only the controller's own failsafe stopped the robot, 2 s after)."""
+    client = make_client(motion_timeout_s=0.5)
+    client.start()
+    client.move(45, 60)
+    fake.then("drop")
+    asker = threading.Thread(target=_ignore_timeout(client.depth_cm), daemon=True)
+    asker.start()
+    assert fake.wait_for(lambda f: "#qd!" in f.frames())
+    assert client.counters.motion_expiries == 0
+    closer = threading.Thread(target=client.close, daemon=True)
+    closer.start()
+    assert fake.wait_for(lambda f: "#th.45.0!" in f.frames())
+    closer.join(CONDITION_TIMEOUT_S)
+    asker.join(CONDITION_TIMEOUT_S)
+    assert fake.frames().count("#th.45.0!") == 1
+
+
+async def test_motion_that_expires_while_the_asyncio_client_closes_is_still_zeroed(
+    fake: FakeController, make_async_client: MakeAsyncClient
+) -> None:
+    client = await make_async_client(motion_timeout_s=0.5)
+    await client.start()
+    await client.move(45, 60)
+    fake.then("drop")
+    asker = asyncio.ensure_future(client.depth_cm())
+    assert await asyncio.to_thread(fake.wait_for, lambda f: "#qd!" in f.frames())
+    assert client.counters.motion_expiries == 0
+    await client.close()  # waits for the dropped query's timeout
+    assert "#th.45.0!" in fake.frames()
+    with pytest.raises((QueryTimeoutError, ConnectionLostError)):
+        await asyncio.wait_for(asker, CONDITION_TIMEOUT_S)
+
+
+def _ignore_timeout(query: Callable[[], object]) -> Callable[[], None]:
+    def run() -> None:
+        with contextlib.suppress(QueryTimeoutError, ConnectionLostError):
+            query()
+
+    return run

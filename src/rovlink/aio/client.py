@@ -479,9 +479,12 @@ class AsyncClient(AsyncCommandMethods):
                 deliver(events, (), subscriber)
 
     def _flush_due(self) -> None:
-        """Write what the session has due (a fence, a keep-alive, zero thrust)."""
-        data = self._session.take_outbox(self._loop.time())
-        if data and not self._closed:  # nothing new goes out while closing
+        """Write what the session has due (a fence, a keep-alive, zero thrust); while closing,
+        only zero thrust (P23)."""
+        session = self._session
+        take = session.take_outbox_when_closing if self._closed else session.take_outbox
+        data = take(self._loop.time())
+        if data and self._lost is None:
             with contextlib.suppress(ConnectionLostError):  # recorded: the waiters see it
                 self._write(data)
 

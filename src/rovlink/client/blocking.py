@@ -533,14 +533,14 @@ class Client(CommandMethods):
     def _flush_due(self) -> None:
         """Write what the session has due (state lock held on entry and on return)."""
         lock = self._state_lock
-        if self._closing:  # nothing new goes out while closing (a fence, a mode frame)
-            self._session.take_outbox(self._clock())
-            return
         lock.release()
         try:
             with self._wire_lock, lock:
-                data = self._session.take_outbox(self._clock())
-                if data and not self._closing:
+                # While closing only zero thrust goes out (P23): no fence, no mode frame.
+                session = self._session
+                take = session.take_outbox_when_closing if self._closing else session.take_outbox
+                data = take(self._clock())
+                if data and self._lost is None:
                     try:
                         written = self._send_now(data) if self._send_now else 0
                     except ConnectionLostError as error:

@@ -124,6 +124,10 @@ _PENDING = Outcome.PENDING
 _ANSWERED = Outcome.ANSWERED
 
 
+def _is_motion_command(command: Command | None) -> bool:
+    return command is not None and command.spec.motion and not command.spec.is_query
+
+
 class PendingQuery:
     """One query on the wire (or held back, during a quiet-line resynchronisation)."""
 
@@ -413,6 +417,18 @@ class Session:
             parts.append(data)
         self._outbox.clear()
         return b"".join(parts)
+
+    def take_outbox_when_closing(self, now: float) -> bytes:
+        """:meth:`take_outbox` for a driver that is closing: only the zero thrust of an expired
+        motion (P23) is to be written, so that the robot stops as it would without the close.
+        A fence, a keep-alive or a mode frame would start what nobody follows any more: they
+        are dropped (their queries settle when the driver disconnects).
+        """
+        stops = [entry for entry in self._outbox if _is_motion_command(entry[2])]
+        self._outbox.clear()
+        return b"".join(
+            self._account(command, data, now, by_session=True) for data, _, command in stops
+        )
 
     # -- receiving ----------------------------------------------------------------------------
 
