@@ -104,12 +104,48 @@ def test_a_fence_that_fails_is_followed_by_another() -> None:
     session.expire(now=0.5)  # qd late: the fence qhe goes out
     assert session.take_outbox(now=0.5) == b"#qhe!"
     session.receive(b"$qhe.9000!", now=0.51)  # the fence's reply, damaged (out of range)
-    # Another fence goes out at once: the late name does not wait for another timeout.
-    assert session.take_outbox(now=0.51) == b"#qhe!"
+    # Another fence goes out at once: the late name does not wait for another timeout. The
+    # damaged reply may have been a late one, and the fence's own still to come: qhe is late too.
+    assert session.take_outbox(now=0.51) == b"#qro!"
     _, later = session.query(Command("qd"), now=0.52)
-    session.receive(b"$qd.1!$qhe.90!$qd.2!", now=0.53)  # a late qd, the fence, the new qd
+    # A late qd, the first fence's qhe (late), the new fence's reply, the new qd.
+    session.receive(b"$qd.1!$qhe.90!$qro.+5!$qd.2!", now=0.53)
     assert later.responses[0].values == (2,)
-    assert session.counters.late_replies == 1
+    assert session.counters.late_replies == 2
+
+
+def test_damaged_late_replies_are_not_taken_for_the_replies_of_queries_on_the_wire() -> None:
+    # While resynchronising a damaged reply may be a late one: the oldest query's own reply may
+    # still come, and must not answer the next query of its name (a stale value, P20).
+    session = Session(timeout_s=0.5)
+    session.query(Command("qd"), now=0.0)
+    session.query(Command("qd"), now=0.0)
+    session.expire(now=0.5)  # both qd late: the fence qhe goes out
+    data, first = session.query(Command("qr"), now=0.5)
+    assert data == b"#qhe!#qr!"
+    _, second = session.query(Command("qr"), now=0.5)
+    # The two late qd arrive damaged, the fence's reply is dropped, then the two qr replies.
+    received = session.receive(b"$qd.x!$qd.y!$qr.1!$qr.2!", now=0.51)
+    assert Outcome.ANSWERED not in (first.outcome, second.outcome)  # (they are retried)
+    assert set(received.settled) == {first, second}
+    assert session.take_outbox(now=0.51) == b"#qro!"  # a fence after them both
+
+
+def test_a_query_abandoned_after_the_fence_went_out_is_fenced_again() -> None:
+    # The fence answers for what was written before it; an abandoned query written after it
+    # needs another fence, or its reply answers the next query of its name (stale, P20).
+    session = Session(timeout_s=0.5)
+    _, depth = session.query(Command("qd"), now=0.0)
+    session.abandon(depth, now=0.01)  # the fence qhe is due
+    data, roll = session.query(Command("qro"), now=0.02)
+    assert data == b"#qhe!#qro!"
+    session.abandon(roll, now=0.03)
+    data, later = session.query(Command("qro"), now=0.04)
+    assert data == b"#qhe!#qro!"  # another fence, after the abandoned qro
+    # A late qd, the first fence's qhe, the abandoned qro (late), the new fence's, the new qro.
+    session.receive(b"$qd.1!$qhe.2!$qro.-5!$qhe.3!$qro.+7!", now=0.05)
+    assert later.outcome is Outcome.ANSWERED
+    assert later.responses[0].values == (7,)
 
 
 def test_a_bad_checksum_makes_the_oldest_query_corrupt() -> None:

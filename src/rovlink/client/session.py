@@ -732,9 +732,22 @@ class Session:
                 failed.append(other)
         for other in failed:
             late.update(other.expected[len(other.responses) :])
+        fence = self._fence
+        if fence is not None:
+            if fence.outcome is not _PENDING:
+                self._fence = None
+            else:
+                # A fence covers only what was written before it: a failed query written after
+                # it (abandoned) has its reply after the fence's, so another fence must follow.
+                # The old one stays a plain query of the session's.
+                after_fence = False
+                for other in self._pending:
+                    if other is fence:
+                        after_fence = True
+                    elif after_fence and other.outcome is not _PENDING:
+                        self._fence = None
+                        break
         self._pending = deque(other for other in self._pending if other.outcome is _PENDING)
-        if self._fence is not None and self._fence.outcome is not _PENDING:
-            self._fence = None
         self._late_names |= late
         if self.events is not None:
             for other in failed:
@@ -863,9 +876,11 @@ class Session:
             self.counters.checksum_errors += 1
         if event.raw[:1] == b"$" and event.reason in _CORRUPT_REASONS and self._pending:
             # The head's reply, damaged: nothing more will come for it, but a qsa's remaining
-            # replies may, and they must not be taken for a later query's (P20).
+            # replies may, and they must not be taken for a later query's (P20). While
+            # resynchronising it may instead be a late reply, and the head's own still to come:
+            # the head's names are fenced too.
             head = self._pending[0]
-            if len(head.expected) - len(head.responses) > 1:
+            if len(head.expected) - len(head.responses) > 1 or self._late_names:
                 settled.extend(self._fail(head, Outcome.CORRUPT, now))
             else:
                 self._settle(head, Outcome.CORRUPT)
