@@ -6,7 +6,6 @@ from __future__ import annotations
 import argparse
 import io
 import json
-import os
 import sys
 from collections import Counter
 from itertools import compress, repeat
@@ -169,7 +168,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
 
 
-def _run(args: argparse.Namespace) -> int:
+def run(args: argparse.Namespace) -> int:
+    """Decode the file (or standard input) to the end (a reader that stops early, ``| head``,
+    is no error: see ``rovlink.cli.main``)."""
     decoder = Decoder(checksum_enabled=args.checksum, algorithm=args.algorithm)
     if args.file == "-":
         try:
@@ -237,14 +238,3 @@ def _decode_recording(args: argparse.Namespace, decoder: Decoder) -> int:
         print(f"rovlink decode: {damage}", file=sys.stderr)
         return 0 if damage.incomplete else 1
     return 0
-
-
-def run(args: argparse.Namespace) -> int:
-    """Decode the file (or standard input) to the end; a reader that stops early (``| head``)
-    is no error."""
-    try:
-        return _run(args)
-    except BrokenPipeError:
-        # Python would report the broken pipe again when it flushes stdout at exit.
-        sys.stdout = open(os.devnull, "w")  # noqa: SIM115 - stays open until exit
-        return 0

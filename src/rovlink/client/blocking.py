@@ -464,6 +464,13 @@ class Client(CommandMethods):
         # is active: not from here, which may run under the wire lock that writing takes.
         self._background_wakeup.notify()
 
+    def _interrupted_caller_leaves(self, pending: PendingQuery) -> None:
+        """An interrupted caller stops counting as active, its query abandoned, and the waiting
+        callers are told (state lock held)."""
+        self._active_callers -= 1
+        self._abandon(pending)
+        self._notify_callers()
+
     def _notify_callers(self) -> None:
         """Wake callers waiting for a settled query or the reader role (state lock held)."""
         if self._waiting_callers:
@@ -616,9 +623,7 @@ class Client(CommandMethods):
             except BaseException:  # (Ctrl-C): its reply, if it comes, is late
                 with lock:
                     self._reader_ident = None
-                    self._active_callers -= 1
-                    self._abandon(pending)
-                    self._notify_callers()
+                    self._interrupted_caller_leaves(pending)
                 raise
             else:
                 lock.acquire()
@@ -641,10 +646,8 @@ class Client(CommandMethods):
                             self._flush_due()
                         self._notify_callers()
                 except BaseException:  # (Ctrl-C): the lock and the count given up, as _wait does
-                    if active:
-                        self._active_callers -= 1
-                        self._abandon(pending)  # (its reply may have gone with the caller)
-                        self._notify_callers()
+                    if active:  # (its reply may have gone with the caller)
+                        self._interrupted_caller_leaves(pending)
                     lock.release()
                     raise
                 if not active:
@@ -735,9 +738,7 @@ class Client(CommandMethods):
                     raise
                 except BaseException:  # (a Ctrl-C half-way through the frame)
                     with lock:
-                        self._active_callers -= 1
-                        self._abandon(pending)
-                        self._notify_callers()
+                        self._interrupted_caller_leaves(pending)
                     raise
                 lock.acquire()
         if background_reading:
@@ -778,9 +779,7 @@ class Client(CommandMethods):
                     except BaseException:  # (a Ctrl-C, maybe half-way through the frame)
                         if pending is not None:
                             with self._state_lock:
-                                self._active_callers -= 1
-                                self._abandon(pending)
-                                self._notify_callers()
+                                self._interrupted_caller_leaves(pending)
                         raise
                     break
             # A checksum switch is draining the queue: wait for it outside the wire lock.
