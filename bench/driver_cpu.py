@@ -98,10 +98,11 @@ async def _async_block(
     totals.add(time.process_time() - cpu, time.perf_counter() - wall, queries)
 
 
-def _raw_socket_query(
-    controller: FastController, query: bytes
+def raw_socket_query(
+    host: str, port: int, query: bytes
 ) -> tuple[socket.socket, Callable[[], bytes]]:
-    sock = socket.create_connection((controller.host, controller.port))
+    """A connected socket, and the least Python can do for one query on it."""
+    sock = socket.create_connection((host, port))
     sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
     if query != b"#qd!":
         sock.sendall(b"#crcon!")
@@ -132,7 +133,7 @@ def _session_bookkeeping(checksum: bool) -> Callable[[bytes], None]:
     return settle
 
 
-def _with_session_bookkeeping(raw_query: Callable[[], bytes], checksum: bool) -> Callable[[], None]:
+def with_session_bookkeeping(raw_query: Callable[[], bytes], checksum: bool) -> Callable[[], None]:
     """The raw loop plus the session's bookkeeping of the reply it read: a floor for the
     clients."""
     settle = _session_bookkeeping(checksum)
@@ -192,12 +193,12 @@ def run_blocking(
     totals: dict[str, Totals],
 ) -> None:
     """The blocking client and the raw socket, in turns."""
-    sock, raw_query = _raw_socket_query(controller, query)
+    sock, raw_query = raw_socket_query(controller.host, controller.port, query)
     with sock, rovlink.connect(controller.url, keepalive=None, checksum=arguments.checksum) as rov:
         ways = [
             (totals["raw socket"], raw_query),
             (totals["rovlink.connect"], rov.depth_cm),
-            (totals[SESSION_FLOOR], _with_session_bookkeeping(raw_query, arguments.checksum)),
+            (totals[SESSION_FLOOR], with_session_bookkeeping(raw_query, arguments.checksum)),
         ]
         for _, way_query in ways:
             for _ in range(WARM_UP_QUERIES):
