@@ -136,6 +136,16 @@ async def test_a_clean_exit_marks_the_robot_offline_and_locks_it(broker: Mosquit
         assert robot.frames()[-1] == "#stop!"
 
 
+async def test_the_robot_is_locked_before_the_bridge_serves(broker: Mosquitto):
+    async with (
+        subscriber(broker, "rovlink/l1/state") as watcher,
+        bridged_robot(broker, "l1") as robot,
+    ):
+        first = await watcher.wait_for("rovlink/l1/state", lambda s: s["online"])
+        assert first["lock"] == "locked"  # known from the first state on, not "unknown"
+        assert robot.motion_and_lock_frames()[:1] == ["#stop!"]
+
+
 async def test_broker_restart_reconnects_and_keeps_events(broker: Mosquitto):
     async with bridged_robot(broker, "b1", leak_at_s=3.0) as robot:
         # A subscriber with a persistent session: the broker keeps its QoS 1 messages.

@@ -99,7 +99,9 @@ class MqttBridge:
 
     async def run(self) -> None:
         """Serve until cancelled (or the controller's connection is lost); the robot is sent
-        ``#stop!`` and the state is marked offline at the end."""
+        ``#stop!`` at the start, so that its state is known (locked) before anyone commands it,
+        and at the end, when the state is marked offline."""
+        await self.rov.stop()
         poller = asyncio.ensure_future(self.poller.run())
         broker = asyncio.ensure_future(self._stay_connected())
         try:
