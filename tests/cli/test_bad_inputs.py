@@ -232,3 +232,39 @@ def test_web_recordings_must_be_a_directory(run_cli: RunCli, tmp_path: Path) -> 
     assert result.err.splitlines()[-1] == (
         f"rovlink web: error: --recordings {not_a_directory}: not a directory"
     )
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["mavlink", "sim://", "--params", "{missing}"],
+        [
+            *["mqtt", "sim://", "--broker", "mqtt://127.0.0.1:1", "--robot", "rov-1"],
+            *["--username", "u", "--password-file", "{missing}"],
+        ],
+    ],
+)
+@pytest.mark.timeout(_HANG_TIMEOUT_S)
+def test_a_missing_input_file_is_named_once_with_the_system_reason(
+    run_cli: RunCli, tmp_path: Path, argv: list[str]
+) -> None:
+    # Regression: "cannot read: [Errno 2] No such file or directory: '…'" (the path twice).
+    missing = tmp_path / "missing"
+    result = run_cli(*(word.format(missing=missing) for word in argv))
+    assert result.status == 2
+    assert result.err == f"rovlink {argv[0]}: {missing}: cannot read: No such file or directory\n"
+
+
+def test_an_input_file_that_is_not_text(run_cli: RunCli, tmp_path: Path) -> None:
+    params = tmp_path / "robot.param"
+    params.write_bytes(b"\xff RL_MAX_PWM 90\n")
+    result = run_cli("mavlink", "sim://", "--params", str(params))
+    assert result.status == 2
+    assert result.err == f"rovlink mavlink: {params}: not UTF-8 text\n"
+
+
+def test_a_directory_as_the_port_is_said_once(run_cli: RunCli, tmp_path: Path) -> None:
+    # Regression: pyserial's own text came through: "could not open port …: [Errno 21] …".
+    result = run_cli("send", str(tmp_path), "qd")
+    assert result.status == 1
+    assert result.err == f"rovlink send: cannot open {tmp_path}: Is a directory\n"

@@ -13,7 +13,7 @@ import argparse
 import sys
 from typing import TYPE_CHECKING
 
-from rovlink.cli.failure import CommandError, UsageError
+from rovlink.cli.failure import CommandError, UsageError, reason
 from rovlink.cli.link_options import algorithm_name, bounded_int, file_name, seconds
 
 if TYPE_CHECKING:
@@ -128,7 +128,7 @@ def run(args: argparse.Namespace) -> int:
         try:
             write_junit(report, args.junit)
         except OSError as error:
-            raise CommandError(f"cannot write {args.junit}: {error.strerror}") from None
+            raise CommandError(f"cannot write {args.junit}: {reason(error)}") from None
     return 0 if report.passed else 1
 
 

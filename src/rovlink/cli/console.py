@@ -10,7 +10,7 @@ import argparse
 from typing import TYPE_CHECKING
 
 from rovlink.cli import link_options
-from rovlink.cli.failure import CommandError, UsageError
+from rovlink.cli.failure import CommandError, UsageError, reason
 
 if TYPE_CHECKING:
     from pathlib import Path
@@ -42,7 +42,7 @@ def _check_history(path: Path) -> None:
         with path.open("ab"):
             pass
     except OSError as error:
-        raise CommandError(f"cannot keep the history in {path}: {error.strerror}") from None
+        raise CommandError(f"cannot keep the history in {path}: {reason(error)}") from None
 
 
 def run(args: argparse.Namespace) -> int:

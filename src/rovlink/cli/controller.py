@@ -14,7 +14,7 @@ import threading
 from types import FrameType
 from typing import TYPE_CHECKING
 
-from rovlink.cli.failure import CommandError, InputError, UsageError
+from rovlink.cli.failure import CommandError, InputError, UsageError, reason
 from rovlink.cli.link_options import baud_rate, file_name, seconds
 
 if TYPE_CHECKING:
@@ -189,7 +189,7 @@ def _open_endpoints(
         try:
             host, port = server.listen_tcp(*address)
         except OSError as error:
-            raise CommandError(f"cannot listen on {args.tcp}: {error.strerror}") from None
+            raise CommandError(f"cannot listen on {args.tcp}: {reason(error)}") from None
         endpoints.append(_tcp_endpoint(host, port))
     return endpoints
 
@@ -262,7 +262,7 @@ def _run_sim(
             try:
                 host, port = server.listen_tcp(*address)
             except OSError as error:
-                raise CommandError(f"cannot listen on {args.tcp}: {error.strerror}") from None
+                raise CommandError(f"cannot listen on {args.tcp}: {reason(error)}") from None
             endpoints.append(_tcp_endpoint(host, port))
         print(
             f"rovlink controller ready: board sim, {', '.join(endpoints)}; Ctrl-C stops", flush=True

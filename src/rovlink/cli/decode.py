@@ -11,7 +11,7 @@ from collections import Counter
 from itertools import compress, repeat
 from operator import attrgetter, is_
 
-from rovlink.cli.failure import CommandError
+from rovlink.cli.failure import CommandError, reason
 from rovlink.cli.link_options import add_checksum_options
 from rovlink.protocol import BadFrame, Decoder, Event, Frame, Kind, Message, Text
 
@@ -54,7 +54,7 @@ class _ReadError(Exception):
     """Reading the input failed (a directory, a device error): not a failure to write stdout."""
 
     def __init__(self, error: OSError) -> None:
-        super().__init__(error.strerror or str(error))
+        super().__init__(reason(error))
 
 
 def _events(stream: BinaryIO, decoder: Decoder) -> list[Event] | None:
@@ -183,7 +183,7 @@ def run(args: argparse.Namespace) -> int:
     try:
         stream = open(args.file, "rb")  # noqa: SIM115 - closed below, after the error handling
     except OSError as error:
-        raise CommandError(f"cannot read {args.file}: {error.strerror}") from None
+        raise CommandError(f"cannot read {args.file}: {reason(error)}") from None
     with stream:
         try:
             decode_stream(stream, decoder, stats_only=args.stats)

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-__all__ = ["CommandError", "InputError", "UsageError"]
+__all__ = ["CommandError", "InputError", "UsageError", "error_number", "reason", "unreadable"]
 
 
 class UsageError(Exception):
@@ -31,3 +31,47 @@ class InputError(CommandError):
     """
 
     exit_status = 2
+
+
+def reason(error: BaseException) -> str:
+    """Why a file, port or socket operation failed, in the system's words alone: the message
+    around it names the file once, so not ``str(error)`` with its "[Errno N]" and file name.
+
+    The deepest error number is used: pyserial and the driver wrap the system's error in
+    their own, whose text repeats it.
+
+    >>> reason(FileNotFoundError(2, "No such file or directory", "/x"))
+    'No such file or directory'
+    >>> reason(OSError(21, "could not open port /tmp: [Errno 21] Is a directory: '/tmp'"))
+    'Is a directory'
+    """
+    code = error_number(error)
+    if code is not None and code > 0:  # (socket.gaierror's are negative: not the system's)
+        import os  # noqa: PLC0415 - loaded by the interpreter anyway; kept off the start-up path
+
+        return os.strerror(code)
+    return getattr(error, "strerror", None) or str(error)
+
+
+def error_number(error: BaseException) -> int | None:
+    """The error number of the innermost error in ``error``'s chain that has one."""
+    code = None
+    cause: BaseException | None = error
+    while cause is not None:
+        if isinstance(cause, OSError) and cause.errno:
+            code = cause.errno
+        elif len(cause.args) == 2 and isinstance(cause.args[0], int):
+            code = cause.args[0]  # termios.error: (errno, message), not an OSError
+        cause = cause.__cause__ or cause.__context__
+    return code
+
+
+def unreadable(path: object, error: OSError | UnicodeDecodeError) -> InputError:
+    """A text file given to the command that cannot be read, in one line naming it once.
+
+    >>> str(unreadable("/x.param", FileNotFoundError(2, "No such file or directory", "/x")))
+    '/x.param: cannot read: No such file or directory'
+    """
+    if isinstance(error, UnicodeDecodeError):
+        return InputError(f"{path}: not UTF-8 text")
+    return InputError(f"{path}: cannot read: {reason(error)}")

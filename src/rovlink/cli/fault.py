@@ -12,7 +12,7 @@ import threading
 from collections.abc import Callable
 from types import FrameType
 
-from rovlink.cli.failure import CommandError, UsageError
+from rovlink.cli.failure import CommandError, UsageError, reason
 from rovlink.cli.link_options import bounded_float
 
 __all__ = ["EPILOG"]
@@ -94,7 +94,7 @@ def run(args: argparse.Namespace) -> int:
         try:
             proxy = FaultProxy(port, listen.host, listen.port)
         except OSError as error:
-            raise CommandError(f"cannot listen on {args.listen}: {error.strerror}") from None
+            raise CommandError(f"cannot listen on {args.listen}: {reason(error)}") from None
         stop = _stop_on_signals()
         host, tcp_port = proxy.address
         print(

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import argparse
 
-from rovlink.cli.failure import CommandError, UsageError
+from rovlink.cli.failure import CommandError, UsageError, error_number, reason
 from rovlink.protocol import ALGORITHMS, DEFAULT_ALGORITHM
 
 # Not typing's: ``rovlink decode`` imports this module, and typing costs a fifth of its start-up.
@@ -345,24 +345,15 @@ def connection_failure(url: str, error: BaseException) -> CommandError:
     'cannot open /dev/ttyUSB9: No such file or directory'
     """
     import errno  # noqa: PLC0415
-    import os  # noqa: PLC0415
 
     from rovlink.client.errors import ConnectError  # noqa: PLC0415
 
-    if isinstance(error, ConnectError):
+    # The driver's words, unless they pass on pyserial's raw text ("[Errno 21] …: '/tmp'").
+    if isinstance(error, ConnectError) and "[Errno" not in str(error):
         return CommandError(str(error))  # already one line in a user's words
-    code = None
-    cause: BaseException | None = error
-    while cause is not None:  # the deepest error number: pyserial wraps the system's error
-        if isinstance(cause, OSError) and cause.errno:
-            code = cause.errno
-        elif len(cause.args) == 2 and isinstance(cause.args[0], int):
-            code = cause.args[0]  # termios.error: (errno, message), not an OSError
-        cause = cause.__cause__ or cause.__context__
-    if code == errno.ENOTTY:
+    if error_number(error) == errno.ENOTTY:
         return CommandError(f"{url}: not a serial port")
-    reason = os.strerror(code) if code else str(error)
-    return CommandError(f"cannot open {url}: {reason}")
+    return CommandError(f"cannot open {url}: {reason(error)}")
 
 
 def _log_warnings() -> None:

@@ -13,7 +13,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from rovlink.cli import link_options
-from rovlink.cli.failure import CommandError, InputError, UsageError
+from rovlink.cli.failure import CommandError, InputError, UsageError, reason, unreadable
 
 if TYPE_CHECKING:
     from rovlink.bridges.mavlink.parameters import ParameterTable
@@ -84,7 +84,7 @@ def run(args: argparse.Namespace) -> int:
         try:
             text = args.params.read_text(encoding="utf-8")
         except (OSError, UnicodeDecodeError) as error:
-            raise InputError(f"{args.params}: cannot read: {error}") from None
+            raise unreadable(args.params, error) from None
         try:
             values = read_parameter_file(text, str(args.params))
         except ParameterError as error:
@@ -135,7 +135,7 @@ async def _serve(
         try:
             endpoint = MavlinkEndpoint(args.out, system_id=args.system_id)
         except OSError as error:
-            raise CommandError(f"cannot open {args.out}: {error.strerror or error}") from None
+            raise CommandError(f"cannot open {args.out}: {reason(error)}") from None
         bridge = MavlinkBridge(
             TrackedClient(client, algorithm=args.algorithm),
             endpoint,

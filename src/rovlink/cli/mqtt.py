@@ -15,7 +15,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from rovlink.cli import link_options
-from rovlink.cli.failure import CommandError, InputError, UsageError
+from rovlink.cli.failure import CommandError, InputError, UsageError, reason, unreadable
 
 if TYPE_CHECKING:
     from rovlink.bridges.mqtt.broker import BrokerSettings
@@ -92,7 +92,7 @@ def broker_settings(args: argparse.Namespace) -> BrokerSettings:
         try:
             password = args.password_file.read_text(encoding="utf-8").strip()
         except (OSError, UnicodeDecodeError) as error:
-            raise InputError(f"{args.password_file}: cannot read: {error}") from None
+            raise unreadable(args.password_file, error) from None
     if password is not None and args.username is None:
         raise UsageError("a password needs --username")
     tls_files = [args.cafile, args.certfile, args.keyfile]
@@ -133,7 +133,7 @@ def _check_tls_files(args: argparse.Namespace) -> None:
         what = "PEM certificates" if option == "--cafile" else "a PEM certificate and key"
         raise InputError(f"{option} {path}: not {what} ({error.reason or error})") from None
     except OSError as error:
-        raise InputError(f"{option} {path}: cannot read: {error.strerror}") from None
+        raise InputError(f"{option} {path}: cannot read: {reason(error)}") from None
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

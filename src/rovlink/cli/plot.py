@@ -8,7 +8,7 @@ import argparse
 import os
 import sys
 
-from rovlink.cli.failure import CommandError, UsageError
+from rovlink.cli.failure import CommandError, UsageError, reason
 from rovlink.cli.link_options import file_name
 
 __all__ = ["EPILOG"]
@@ -73,8 +73,7 @@ def run(args: argparse.Namespace) -> int:
         try:
             figure.savefig(args.output)
         except (OSError, ValueError) as error:
-            reason = error.strerror if isinstance(error, OSError) else str(error)
-            raise CommandError(f"cannot write {args.output}: {reason}") from None
+            raise CommandError(f"cannot write {args.output}: {reason(error)}") from None
         print(f"plotted {args.file} to {args.output}", file=sys.stderr)
     if window is not None:
         pyplot.show()

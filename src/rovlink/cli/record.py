@@ -13,7 +13,7 @@ import threading
 import time
 from types import FrameType
 
-from rovlink.cli.failure import CommandError, UsageError
+from rovlink.cli.failure import CommandError, UsageError, reason
 from rovlink.cli.link_options import add_checksum_options, baud_rate, file_name, seconds
 from rovlink.cli.recording import add_rotation_options, open_recorder, report_recording
 
@@ -72,7 +72,7 @@ def run(args: argparse.Namespace) -> int:
     except ValueError as error:
         raise UsageError(str(error)) from None
     except OSError as error:
-        raise CommandError(f"cannot serve the tap {args.tap}: {error.strerror}") from None
+        raise CommandError(f"cannot serve the tap {args.tap}: {reason(error)}") from None
     try:
         link = open_link(endpoint)
     except (ConnectionError, OSError) as error:

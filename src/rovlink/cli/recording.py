@@ -8,7 +8,7 @@ import os
 import sys
 from typing import TYPE_CHECKING
 
-from rovlink.cli.failure import CommandError, UsageError
+from rovlink.cli.failure import CommandError, UsageError, reason
 from rovlink.cli.link_options import file_name
 
 if TYPE_CHECKING:
@@ -121,7 +121,7 @@ def open_recorder(args: argparse.Namespace, path: str, *, url: str, program: str
             on_failure=on_failure,
         )
     except OSError as error:
-        raise CommandError(f"cannot record to {path}: {error.strerror}") from None
+        raise CommandError(f"cannot record to {path}: {reason(error)}") from None
     except RecordingError as error:
         raise CommandError(str(error)) from None
 

@@ -10,7 +10,7 @@ import threading
 from types import FrameType
 from typing import TYPE_CHECKING
 
-from rovlink.cli.failure import CommandError, InputError, UsageError
+from rovlink.cli.failure import CommandError, InputError, UsageError, reason
 from rovlink.cli.link_options import baud_rate, bounded_float, file_name, seconds
 
 if TYPE_CHECKING:
@@ -132,7 +132,7 @@ def run(args: argparse.Namespace) -> int:
             try:
                 host, port = server.listen_tcp(*address)
             except OSError as error:
-                raise CommandError(f"cannot listen on {args.tcp}: {error.strerror}") from None
+                raise CommandError(f"cannot listen on {args.tcp}: {reason(error)}") from None
             endpoints.append(f"tcp {host}:{port}")
         stop = _stop_on_signals()
         pacing = f"{args.baud} baud" if args.baud else "unpaced"

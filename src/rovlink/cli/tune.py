@@ -12,7 +12,7 @@ import sys
 from typing import TYPE_CHECKING
 
 from rovlink.cli import link_options
-from rovlink.cli.failure import CommandError, UsageError
+from rovlink.cli.failure import CommandError, UsageError, reason
 from rovlink.cli.link_options import bounded_int
 
 if TYPE_CHECKING:
@@ -276,6 +276,6 @@ def _plot(result: TuneResult, path: str) -> None:
     try:
         figure.savefig(path)
     except OSError as error:
-        raise CommandError(f"cannot write {path}: {error.strerror}") from None
+        raise CommandError(f"cannot write {path}: {reason(error)}") from None
     finally:
         plt.close(figure)

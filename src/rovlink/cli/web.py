@@ -7,7 +7,7 @@ import argparse
 import dataclasses
 
 from rovlink.cli import link_options
-from rovlink.cli.failure import CommandError, UsageError
+from rovlink.cli.failure import CommandError, UsageError, reason
 
 __all__ = ["EPILOG", "add_arguments", "run"]
 
@@ -138,5 +138,5 @@ def run(args: argparse.Namespace) -> int:
     try:
         asyncio.run(serve(connect, options, description=args.url, ready=ready))
     except OSError as error:
-        raise CommandError(f"cannot serve on {args.host}:{args.port}: {error.strerror}") from None
+        raise CommandError(f"cannot serve on {args.host}:{args.port}: {reason(error)}") from None
     return 0
