@@ -181,6 +181,18 @@ def test_a_history_file_that_cannot_be_written(run_cli: RunCli, tmp_path: Path) 
 
 
 @pytest.mark.timeout(_HANG_TIMEOUT_S)
+def test_a_history_file_in_a_missing_directory(run_cli: RunCli, tmp_path: Path) -> None:
+    # Regression: the missing directories were made, as for the default history file.
+    history = tmp_path / "missing" / "dir" / "history"
+    result = run_cli("console", "sim://", "--history", str(history), stdin=b"quit\n")
+    assert result.status == 1
+    assert result.err == (
+        f"rovlink console: cannot keep the history in {history}: No such file or directory\n"
+    )
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.timeout(_HANG_TIMEOUT_S)
 def test_monitor_on_a_port_that_cannot_be_opened(
     run_cli: RunCli, monkeypatch: pytest.MonkeyPatch
 ) -> None:

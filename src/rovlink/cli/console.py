@@ -34,11 +34,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
 
 
-def _check_history(path: Path) -> None:
+def _check_history(path: Path, *, make_directory: bool) -> None:
     """Open the history file for appending now: prompt_toolkit writes it from its own thread,
-    where a failure is a traceback and a console that hangs."""
+    where a failure is a traceback and a console that hangs.
+
+    Only the default file's directory is made: a missing directory in a name the user typed
+    is a typing mistake, refused as ``--record`` refuses it.
+    """
     try:
-        path.parent.mkdir(parents=True, exist_ok=True)
+        if make_directory:
+            path.parent.mkdir(parents=True, exist_ok=True)
         with path.open("ab"):
             pass
     except OSError as error:
@@ -58,7 +63,7 @@ def run(args: argparse.Namespace) -> int:
 
     connect = link_options.connect_async(args)
     history = Path(args.history) if args.history else default_history_path()
-    _check_history(history)
+    _check_history(history, make_directory=not args.history)
     try:
         asyncio.run(run_console(connect, algorithm=args.algorithm, history_path=history))
     except ValueError as error:
