@@ -3,6 +3,10 @@
 from __future__ import annotations
 
 import json
+import socket
+import threading
+from collections.abc import Iterator
+from pathlib import Path
 
 import pytest
 
@@ -194,3 +198,49 @@ def test_a_missing_device_is_said_once(run_cli: RunCli) -> None:
 )
 def test_word_grouping(words: list[str], texts: list[str]) -> None:
     assert group_words(words) == texts
+
+
+class NoisyController:
+    """Accepts one connection; answers ``#qd!`` after a line of terminal escapes and a bell."""
+
+    NOISE = b"\x1b[31mRED\x07\r\n"
+
+    def __init__(self) -> None:
+        self._server = socket.create_server(("127.0.0.1", 0))
+        self.url = f"socket://127.0.0.1:{self._server.getsockname()[1]}"
+        threading.Thread(target=self._serve, daemon=True).start()
+
+    def _serve(self) -> None:
+        connection, _ = self._server.accept()
+        with connection:
+            received = b""
+            while data := connection.recv(4096):
+                received += data
+                while b"#qd!" in received:
+                    _, _, received = received.partition(b"#qd!")
+                    connection.sendall(self.NOISE + b"$qd.5!\r\n")
+
+    def close(self) -> None:
+        self._server.close()
+
+
+@pytest.fixture
+def noisy() -> Iterator[NoisyController]:
+    controller = NoisyController()
+    yield controller
+    controller.close()
+
+
+def test_controller_text_is_printed_with_its_control_characters_escaped(
+    run_cli: RunCli, noisy: NoisyController, tmp_path: Path
+) -> None:
+    # Regression: "controller: ^[[31mRED^G": line noise could drive the user's terminal.
+    recording = tmp_path / "noisy.jsonl"
+    result = run_cli("send", noisy.url, "qd", "--boot-timeout", "0", "--record", str(recording))
+    assert result.status == 0, result.err
+    assert "controller: \\x1b[31mRED\\x07\n" in result.err
+    assert "\x1b" not in result.err + result.out
+    replayed = run_cli("replay", str(recording))
+    assert replayed.status == 0, replayed.err
+    assert "text: \\x1b[31mRED\\x07\n" in replayed.out
+    assert "\x1b" not in replayed.out

@@ -50,3 +50,11 @@ def test_events_from_the_controller_have_their_own_styles() -> None:
     stray = event_line(Frame(Response("qd", (5,)), b"$qd.5!"))
     assert "$qd.5!" in plain_text(stray)
     assert plain_text(error_line("no reply")) == "  ✗ no reply"
+
+
+def test_control_characters_from_the_controller_are_shown_not_sent_to_the_terminal() -> None:
+    # Regression: line noise such as an escape sequence or a bell reached the terminal as is.
+    text = plain_text(event_line(Text("\x1b[31mRED\x07\tend")))
+    assert text == "  ⋯ \\x1b[31mRED\\x07\tend"
+    dropped = plain_text(event_line(BadFrame(Reason.MALFORMED, b"$q\x1b]0;x\x07!", "malformed")))
+    assert "$q\\x1b]0;x\\x07!" in dropped

@@ -15,6 +15,7 @@ from rovlink.cli.monitor import build_app
 from rovlink.client.links import Link
 from rovlink.client.options import StrayCallback
 from rovlink.monitor.app import MonitorApp
+from rovlink.protocol import Text as DebugText
 from tests.client.conftest import REPLY_TIMEOUT_S, client_options
 from tests.monitor.screen import screen_text, shown
 from tests.piloting.rig import RecordingLink, Rig, SilentController, until
@@ -78,6 +79,24 @@ async def test_keys_pressed_while_locked_show_as_last_sent() -> None:
         await pilot.press("space", "right")
         await until(lambda: "#th.15.0!" in rig.frames())
         assert "#th.15.0!  (dropped: locked)" in shown(app, "#commanded")
+        await pilot.press("q")
+
+
+async def test_controller_text_shows_its_control_characters_escaped() -> None:
+    # Regression: an escape sequence in a controller line reached the terminal as is.
+    rig = Rig.simulated()
+    strays: list[StrayCallback] = []
+
+    async def connect(on_stray: StrayCallback) -> AsyncClient:
+        strays.append(on_stray)
+        return await rig.connect(on_stray)
+
+    app = MonitorApp(connect, description="bench", rate_hz=20)
+    async with app.run_test(size=SIZE) as pilot:
+        await until(lambda: _depth_shown(app) == 0)
+        strays[0](DebugText("\x1b[31mRED\x07"))
+        await until(lambda: "\\x1b[31mRED\\x07" in shown(app, "#commanded"))
+        assert "\x1b" not in shown(app, "#commanded")
         await pilot.press("q")
 
 

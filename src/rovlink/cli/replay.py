@@ -98,6 +98,7 @@ def _check_kind(path: str) -> None:
 
 
 def _print_session(args: argparse.Namespace, damage: _Damage) -> None:
+    from rovlink.console.visible import visible  # noqa: PLC0415 - only when a session is printed
     from rovlink.recorder.playback import paced, session_lines  # noqa: PLC0415
 
     entries = damage.entries(args.file)
@@ -105,7 +106,7 @@ def _print_session(args: argparse.Namespace, damage: _Damage) -> None:
         entries = paced(entries, args.speed or 1.0)
     write = sys.stdout.write
     for line in session_lines(entries, wire=args.wire):
-        write(line + "\n")
+        write(visible(line) + "\n")  # a recorded controller line may hold escapes
         if args.follow or args.speed is not None:
             sys.stdout.flush()
 

@@ -19,6 +19,7 @@ from typing import TYPE_CHECKING, cast
 from rovlink.cli import link_options
 from rovlink.cli.failure import CommandError, UsageError
 from rovlink.cli.interrupt import GatedClient, run_in_worker
+from rovlink.console.visible import visible
 from rovlink.protocol import Command, Decoder, Event, Frame, Response, Setting, Text
 
 if TYPE_CHECKING:
@@ -174,7 +175,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def _print_text(event: Event) -> None:
     if isinstance(event, Text):
-        print(f"controller: {event.text}", file=sys.stderr, flush=True)
+        print(f"controller: {visible(event.text)}", file=sys.stderr, flush=True)
 
 
 class _Printer:

@@ -7,6 +7,7 @@ without prompt_toolkit, so the words can be tested on their own. Styles are clas
 
 from __future__ import annotations
 
+from rovlink.console.visible import visible
 from rovlink.piloting import SentFrame, reply_text
 from rovlink.protocol import BadFrame, Event, Frame, Response, Text, encode
 
@@ -69,8 +70,8 @@ def event_line(event: Event) -> Line:
     '  ⋯ debug: target depth 100 cm'
     """
     if isinstance(event, Text):
-        return [("class:debug", f"  ⋯ {event.text}")]
-    raw = event.raw.decode("ascii", errors="backslashreplace")
+        return [("class:debug", f"  ⋯ {visible(event.text)}")]
+    raw = visible(event.raw.decode("ascii", errors="backslashreplace"))
     if isinstance(event, BadFrame):
         return [("class:warning", f"  dropped from the controller: {raw} ({event.detail})")]
     assert isinstance(event, Frame)

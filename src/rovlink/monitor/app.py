@@ -27,6 +27,7 @@ from textual.widgets import Digits, Footer, Header, Static
 from rovlink.aio import AsyncClient
 from rovlink.client import ClientError, ConnectionLostError, QueryTimeoutError
 from rovlink.client.options import StrayCallback
+from rovlink.console.visible import visible
 from rovlink.monitor import controls
 from rovlink.monitor.chart import SAMPLE_MARK, TARGET_MARK, depth_chart
 from rovlink.monitor.panels import (
@@ -221,7 +222,7 @@ class MonitorApp(App[None]):
 
     def _on_event(self, event: Event) -> None:
         if isinstance(event, DebugText):
-            self._last_message = event.text
+            self._last_message = visible(event.text)
         elif isinstance(event, BadFrame):
             self._last_message = f"dropped reply {event.raw!r}: {event.detail}"
 
