@@ -3,7 +3,6 @@ non-zero exit status, never a traceback, never silent success."""
 
 from __future__ import annotations
 
-import functools
 from pathlib import Path
 
 import pytest
@@ -196,13 +195,24 @@ def test_a_history_file_in_a_missing_directory(run_cli: RunCli, tmp_path: Path) 
 def test_monitor_on_a_port_that_cannot_be_opened(
     run_cli: RunCli, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    # Regression: the dashboard showed "could not connect" and stayed, whatever the URL.
-    monkeypatch.setattr(MonitorApp, "run", functools.partialmethod(MonitorApp.run, headless=True))
+    # Regression: the dashboard showed "could not connect" and stayed, whatever the URL; then
+    # it was drawn whole and taken down before the error: the port is opened first now.
+    started: list[str] = []
+
+    def start(self: MonitorApp, *args: object, **kwargs: object) -> None:
+        started.append("dashboard")
+
+    async def start_async(self: MonitorApp, *args: object, **kwargs: object) -> None:
+        start(self)
+
+    monkeypatch.setattr(MonitorApp, "run", start)
+    monkeypatch.setattr(MonitorApp, "run_async", start_async)
     result = run_cli("monitor", "/dev/ttyUSB_rovlink_none")
     assert result.status == 1
     assert result.err == (
         "rovlink monitor: cannot open /dev/ttyUSB_rovlink_none: No such file or directory\n"
     )
+    assert started == []
 
 
 @pytest.mark.integration

@@ -7,6 +7,7 @@ import re
 from collections.abc import Awaitable, Callable
 
 import pytest
+from textual.pilot import Pilot
 
 import rovlink.aio.client
 from rovlink.aio import AsyncClient
@@ -222,6 +223,21 @@ async def test_monitor_on_sim_url_shows_an_injected_leak(monkeypatch: pytest.Mon
         await pilot.press("q")
     (link,) = links
     assert "#stop!" in link.frames()
+
+
+def test_cli_monitor_connects_then_runs_the_dashboard(monkeypatch: pytest.MonkeyPatch) -> None:
+    # The command opens the port before the dashboard starts, and hands it the client.
+    run_async = MonitorApp.run_async
+
+    async def headless(self: MonitorApp, **options: object) -> None:
+        async def drive(pilot: Pilot[object]) -> None:
+            await until(lambda: self.readings.latest is not None)
+            await pilot.press("q")
+
+        await run_async(self, headless=True, size=SIZE, auto_pilot=drive)
+
+    monkeypatch.setattr(MonitorApp, "run_async", headless)
+    assert main(["monitor", "sim://?seed=1", "--rate", "20"]) == 0
 
 
 def test_cli_monitor_refuses_bad_options(capsys: pytest.CaptureFixture[str]) -> None:

@@ -16,6 +16,7 @@ if TYPE_CHECKING:
     from rovlink.aio import AsyncClient
     from rovlink.client.options import StrayCallback
     from rovlink.monitor.app import MonitorApp
+    from rovlink.protocol import Event
 
 __all__ = ["EPILOG", "build_app"]
 
@@ -45,45 +46,83 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def build_app(args: argparse.Namespace) -> MonitorApp:
     """The monitor for the parsed options, connecting when it starts (the options are checked
-    now)."""
-    return _build(args)[0]
+    now); a port that cannot be opened ends it."""
+    monitor_app = _monitor_app_class()
+    connect = link_options.connect_async(args)
+
+    async def connect_or_leave(on_stray: StrayCallback) -> AsyncClient:
+        # The dashboard would show "could not connect" and wait for ever.
+        try:
+            return await connect(on_stray)
+        except (ConnectionError, ValueError, OSError):
+            app.exit(return_code=1)
+            raise
+
+    app = monitor_app(
+        connect_or_leave, description=args.url, rate_hz=args.rate_hz, algorithm=args.algorithm
+    )
+    return app
 
 
-def _build(args: argparse.Namespace) -> tuple[MonitorApp, list[Exception]]:
-    """The monitor, and where the reason lands if its port cannot be opened."""
+def _monitor_app_class() -> type[MonitorApp]:
     try:
         from rovlink.monitor.app import MonitorApp  # noqa: PLC0415 - textual loads only here
     except ImportError as error:
         raise CommandError(f"needs {error.name}: pip install 'rovlink[monitor]'") from None
+    return MonitorApp
 
+
+class _StrayRelay:
+    """The ``on_stray`` of a client opened before its dashboard: what the controller sends
+    before the dashboard listens is kept for it."""
+
+    def __init__(self) -> None:
+        self._target: StrayCallback | None = None
+        self._early: list[Event] = []
+
+    def __call__(self, event: Event) -> None:
+        if self._target is None:
+            self._early.append(event)
+        else:
+            self._target(event)
+
+    def forward_to(self, target: StrayCallback) -> None:
+        self._target = target
+        for event in self._early:
+            target(event)
+        self._early.clear()
+
+
+async def _connect_then_show(args: argparse.Namespace) -> None:
+    # The port is opened first, as by every other command: one that is busy or missing is one
+    # line on stderr, not a dashboard drawn and taken down again.
+    monitor_app = _monitor_app_class()
     connect = link_options.connect_async(args)
-    failures: list[Exception] = []
+    relay = _StrayRelay()
+    try:
+        client = await connect(relay)
+    except ValueError as error:
+        raise UsageError(str(error)) from None
+    except (ConnectionError, OSError) as error:
+        raise link_options.connection_failure(args.url, error) from None
 
-    async def connect_or_leave(on_stray: StrayCallback) -> AsyncClient:
-        # A port that cannot be opened ends the command: the dashboard would show "could not
-        # connect" and wait for ever.
-        try:
-            return await connect(on_stray)
-        except (ConnectionError, ValueError, OSError) as error:
-            failures.append(error)
-            app.exit(return_code=1)
-            raise
+    async def connected(on_stray: StrayCallback) -> AsyncClient:
+        relay.forward_to(on_stray)
+        return client
 
-    app = MonitorApp(
-        connect_or_leave,
-        description=args.url,
-        rate_hz=args.rate_hz,
-        algorithm=args.algorithm,
+    app = monitor_app(
+        connected, description=args.url, rate_hz=args.rate_hz, algorithm=args.algorithm
     )
-    return app, failures
+    try:
+        await app.run_async()
+    finally:
+        if not client.closed:
+            await client.close()
 
 
 def run(args: argparse.Namespace) -> int:
-    """Run the dashboard until the user quits."""
-    app, failures = _build(args)
-    app.run()
-    for failure in failures:
-        if isinstance(failure, ValueError):
-            raise UsageError(str(failure))
-        raise link_options.connection_failure(args.url, failure)
+    """Connect, then run the dashboard until the user quits."""
+    import asyncio  # noqa: PLC0415 - not on the path of --help
+
+    asyncio.run(_connect_then_show(args))
     return 0
