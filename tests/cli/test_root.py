@@ -3,12 +3,14 @@
 from __future__ import annotations
 
 import os
+import re
 import subprocess
 import sys
 
 import pytest
 
 import rovlink
+from rovlink.cli import COMMANDS as ALL_COMMANDS
 from tests.cli.conftest import RunCli
 
 COMMANDS = ("decode", "reference", "sim", "send", "demo", "console", "monitor")
@@ -45,6 +47,15 @@ def test_every_command_has_a_description_and_option_help(run_cli: RunCli) -> Non
         assert result.out.startswith(f"usage: rovlink {name}")
         description = result.out.split("\n\n")[1]
         assert len(description) > 20, name
+
+
+@pytest.mark.parametrize("name", [None, *ALL_COMMANDS])
+def test_help_is_plain_text_without_markup(run_cli: RunCli, name: str | None) -> None:
+    # Regression: descriptions came from docstrings with their Sphinx markup (:func:`…`, ``…``).
+    result = run_cli(*([name] if name else []), "--help")
+    assert result.status == 0
+    assert "`" not in result.out
+    assert not re.search(r":[a-z]+:", result.out.replace("examples:", ""))
 
 
 def test_on_off_flags_take_no_value(run_cli: RunCli) -> None:

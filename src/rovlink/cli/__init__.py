@@ -17,7 +17,7 @@ import sys
 import rovlink
 from rovlink.cli.failure import CommandError, UsageError
 
-__all__ = ["COMMANDS", "build_parser", "main"]
+__all__ = ["COMMANDS", "build_parser", "main", "plain_text"]
 
 #: Every command and its one-line summary, in the order ``rovlink --help`` lists them.
 COMMANDS: dict[str, str] = {
@@ -75,6 +75,35 @@ class _Formatter(argparse.RawDescriptionHelpFormatter):
         if width is None:
             width = _terminal_columns() - 2
         super().__init__(prog, indent_increment, max_help_position, width)
+
+    # Descriptions are the commands' module docstrings, written for Sphinx as well: their
+    # markup is turned into plain text as help is printed (only then: decode starts fast).
+    def _fill_text(self, text: str, width: int, indent: str) -> str:
+        return super()._fill_text(plain_text(text), width, indent)
+
+    def _split_lines(self, text: str, width: int) -> list[str]:
+        return super()._split_lines(plain_text(text), width)
+
+
+def plain_text(text: str) -> str:
+    """Help text without reStructuredText markup: roles give their target's name, literals
+    are quoted as the help quotes commands.
+
+    >>> plain_text("The script is :func:`run_dive`; see :class:`~rovlink.aio.AsyncClient`.")
+    'The script is run_dive(); see AsyncClient.'
+    >>> plain_text("It reads what ``rovlink mqtt`` publishes.")
+    "It reads what 'rovlink mqtt' publishes."
+    """
+    import re  # noqa: PLC0415 - only as help is printed (argparse has loaded it anyway)
+
+    def role(match: re.Match[str]) -> str:
+        target = match["target"]
+        name = target.rsplit(".", 1)[-1] if target.startswith("~") else target
+        return name + ("()" if match["role"] in {"func", "meth"} else "")
+
+    text = re.sub(r":(?:py:)?(?P<role>[a-z]+):`(?P<target>[^`]+)`", role, text)
+    text = re.sub(r"``([^`]+)``", r"'\1'", text)
+    return re.sub(r"`([^`]+)`", r"\1", text)
 
 
 def _terminal_columns() -> int:
