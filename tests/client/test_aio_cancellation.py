@@ -548,7 +548,7 @@ async def test_event_hooks_that_raise_or_use_the_client(
     client.subscribe(reentrant)
     client.subscribe(raising)
     fake.then("corrupt")
-    assert await client.depth_cm() == 2  # the corrupt reply (1) is retried
+    assert await client.depth_cm() == 3  # the corrupt reply (1) is retried after a fence (2)
     assert await wait_until_async(lambda: len(spawned) == 3 and all(f.done() for f in spawned))
     assert [future.result() for future in spawned] == [275, 275, 275]
     assert any("on_event callback failed" in record.getMessage() for record in caplog.records)

@@ -284,3 +284,93 @@ def test_a_fence_not_yet_written_is_not_on_the_wire() -> None:
     assert not session.on_the_wire
     session.take_outbox(now=0.02)
     assert session.on_the_wire == (fence,)
+
+
+def test_a_fragment_cut_short_right_before_the_reply_is_noise_not_the_reply() -> None:
+    # Noise that begins with a "$" and is cut short by the reply's own "$": the controller
+    # answers a query once, so the whole frame is the reply (before, the query failed as corrupt
+    # and its good reply was dropped as a stray).
+    session = Session()
+    _, query = session.query(Command("qd"), now=0.0)
+    received = session.receive(b"$qd.1$qd.37!", now=0.01)
+    assert received.settled == [query]
+    assert query.outcome is Outcome.ANSWERED
+    assert query.responses[0].values == (37,)
+    assert session.counters.bad_frames == 1  # the fragment, counted as noise
+    assert not session.resynchronising
+
+
+@pytest.mark.parametrize(
+    ("data", "why"),
+    [
+        (b"$qd.1x!$qd.37!", "a whole damaged frame is the reply, damaged"),
+        (b"$qd.1$qhe.5!", "followed by a reply of another name"),
+        (b"$qd.1", "nothing after it yet"),
+    ],
+)
+def test_a_damaged_reply_still_fails_the_query_when_it_may_be_the_reply(
+    data: bytes, why: str
+) -> None:
+    session = Session()
+    _, query = session.query(Command("qd"), now=0.0)
+    session.receive(data, now=0.01)
+    if data == b"$qd.1":
+        session.receive(b"$", now=0.02)  # the fragment ends where the next frame starts
+    assert query.outcome is Outcome.CORRUPT, why
+
+
+def test_a_fragment_before_a_reply_another_query_also_expects_answers_neither() -> None:
+    # Two qd on the wire. The fragment may be the first one's reply cut short, and the whole
+    # frame the second one's; or noise, and the whole frame the first one's, which must not go
+    # to the second (a value read before it was sent, P20). Both are retried after a fence.
+    session = Session()
+    _, first = session.query(Command("qd"), now=0.0)
+    _, second = session.query(Command("qd"), now=0.0)
+    received = session.receive(b"$qd.1$qd.37!", now=0.01)
+    assert received.settled == [first, second]
+    assert (first.outcome, second.outcome) == (Outcome.CORRUPT, Outcome.RESYNC)
+    assert session.counters.late_replies == 1
+    assert session.take_outbox(now=0.01) == b"#qhe!"
+
+
+def test_the_reply_after_a_damaged_frame_goes_to_no_later_query() -> None:
+    # A damaged frame taken for the oldest query's reply may have been noise: its own reply
+    # can still come, after the caller has sent the query again (P20).
+    session = Session()
+    _, first = session.query(Command("qd"), now=0.0)
+    session.receive(b"$qd.1x!", now=0.01)  # damaged: the query fails, the caller retries
+    assert first.outcome is Outcome.CORRUPT
+    _, retry = session.query(Command("qd"), now=0.02)
+    session.receive(b"$qd.5!", now=0.03)  # the first one's reply after all
+    assert retry.outcome is Outcome.PENDING
+    assert session.counters.late_replies == 1
+    session.receive(b"$qhe.90!$qd.6!", now=0.04)  # the fence's reply, then the retry's
+    assert retry.responses[0].values == (6,)
+
+
+def test_a_silent_line_is_one_suspected_reset_until_a_reply_comes() -> None:
+    session = Session(timeout_s=0.5)
+    written = []
+    now = 0.0
+    for _ in range(12):  # nothing answers: queries and fences time out one after another
+        if not session.pending:
+            session.query(Command("qd"), now=now)
+        now += 0.5
+        session.tick(now)
+        written.append(session.take_outbox(now))
+    assert session.counters.timeouts >= 10
+    assert sum(data.startswith(b"#crcoff!") for data in written) >= 4  # re-asserted each time
+    assert session.counters.resets_suspected == 1
+    # The controller answers what is on the wire, then falls silent again: another reset.
+    replies = {"qd": b"$qd.5!", "qhe": b"$qhe.5!", "qro": b"$qro.+5!", "qpi": b"$qpi.+5!"}
+    replies |= {"qr": b"$qr.5!", "q.l": b"$q.l.0!"}
+    answered = session.pending
+    session.receive(b"".join(replies[query.command.name] for query in answered), now=now)
+    assert answered
+    assert all(query.outcome is Outcome.ANSWERED for query in answered)
+    for _ in range(4):
+        if not session.pending:
+            session.query(Command("qd"), now=now)
+        now += 0.5
+        session.tick(now)
+    assert session.counters.resets_suspected == 2

@@ -3,16 +3,18 @@ for the protocol's inherent ambiguity, and it never gets stuck.
 
 A model controller answers the query frames it receives in order, each reply frame with a value
 never used before, so that every reply the session hands a query can be traced to the query frame
-it was produced for. The line may drop a query frame, and drop, damage (checksum) or delay a
-reply frame; delays keep the order (one serial line). Callers send single queries and ``qsa``,
-abandon queries (Ctrl-C) and wait, on a simulated clock; the link may be lost and reopened.
+it was produced for. The line may drop a query frame, and drop, damage (checksum), cut short or
+delay a reply frame, or put noise that begins with a ``$`` right before one; delays keep the
+order (one serial line). Callers send single queries and ``qsa``, abandon queries (Ctrl-C) and
+wait, on a simulated clock; the link may be lost and reopened.
 
 What must hold (P20):
 
 * A query is never answered with a reply produced for a query frame written *before* its own (a
   stale value: a late reply, or another query's).
 * It may get a reply produced for a query frame written *after* its own only if its own reply of
-  that name did not reach it: lost on the line (a dropped query frame, a dropped or damaged reply),
+  that name did not reach it: lost on the line (a dropped query frame, a dropped, damaged or cut
+  reply),
   discarded as late (a fence whose reply was lost took a later reply of its name for its own and
   ended the resynchronisation early), or taken by an earlier query whose own reply missed it so.
   That is the inherent ambiguity of P20 (a ``qd`` whose reply was dropped takes the ``$qd`` of a
@@ -38,7 +40,7 @@ TIMEOUT_S = 1.0
 USER_QUERIES = ("qd", "qr", "qro", "qpi", "qhe", "qsa")
 _VALUE_BASE = {"qd": 0, "qr": 0, "qro": -90, "qpi": -90, "qhe": 0}
 _VALUE_COUNT = {"qd": 10_000, "qr": 1025, "qro": 181, "qpi": 181, "qhe": 361}
-_FATES = ("ok", "ok", "ok", "ok", "drop", "corrupt", "slow")
+_FATES = ("ok", "ok", "ok", "ok", "drop", "corrupt", "cut", "noise", "slow")
 
 
 @dataclass
@@ -98,12 +100,16 @@ class _Model:
                 self.produced[(name, response.values)] = _Sent(wire, now)
                 frame = encode(response, "crc8")
                 fate = self.fate()
-                if fate in ("drop", "corrupt"):
+                if fate in ("drop", "corrupt", "cut"):
                     self.lost.add((wire, name))
                 if fate == "drop":
                     continue
                 if fate == "corrupt":  # a wrong checksum: the host's decoder drops the frame
                     frame = frame[:-2] + (b"0" if frame[-2:-1] != b"0" else b"1") + b"!"
+                elif fate == "cut":  # its end lost: a fragment, cut short by the next "$"
+                    frame = frame[:-3]
+                elif fate == "noise":  # noise that begins with a "$", right before the reply
+                    frame = b"$" + frame[1:4] + frame
                 delay = 0.6 * TIMEOUT_S if fate == "slow" else 0.001
                 arrival = max(now + delay, self.line[-1][0] if self.line else now)
                 self.line.append((arrival, frame, (wire, name)))

@@ -222,6 +222,8 @@ class Session:
         self._quiet_until: float | None = None  # holding queries until then (no fence possible)
         self._held: deque[PendingQuery] = deque()
         self._consecutive_timeouts = 0
+        # P21: when a suspected reset was last reported; reported again only after a reply.
+        self._reset_reported_at: float | None = None
         # P23: the motion as last sent, and when it was last renewed.
         self._direction_deg = 0
         self._power_percent = 0
@@ -446,7 +448,7 @@ class Session:
         result = Received()
         pending = self._pending
         late_names = self._late_names
-        for event in decoded:
+        for index, event in enumerate(decoded):
             if isinstance(event, Frame):
                 message = event.message
                 if isinstance(message, Response):
@@ -484,7 +486,8 @@ class Session:
                 if not event.text.isprintable():
                     counters.noise_bytes += len(event.text)
             else:
-                self._bad_frame(event, now, result.settled)
+                following = decoded[index + 1] if index + 1 < len(decoded) else None
+                self._bad_frame(event, following, now, result.settled)
             result.unsolicited.append(event)
             if events is not None:
                 events.append(Unsolicited(now, event))
@@ -624,6 +627,7 @@ class Session:
         self._outbox.clear()
         self._end_resync()
         self._consecutive_timeouts = 0
+        self._reset_reported_at = None
         self._power_percent = self._vertical_percent = 0  # a reopened board is at rest (P21)
 
     def note_link(self, state: str, detail: str, now: float) -> None:
@@ -713,9 +717,14 @@ class Session:
         self._note(MotionExpired(now, tuple(commands)))
 
     def _suspect_reset(self, now: float) -> None:
-        """P21: re-assert the checksum mode (before any fence) and report the suspicion."""
-        self.counters.resets_suspected += 1
-        self._note(ResetSuspected(now, self._consecutive_timeouts))
+        """P21: re-assert the checksum mode (before any fence) and report the suspicion, once
+        until a reply comes: a board still booting loses the first re-assertion, so it is
+        repeated, but a silent line is one suspected reset, not one per pair of timeouts."""
+        reported_at = self._reset_reported_at
+        if reported_at is None or self._last_progress_at > reported_at:
+            self._reset_reported_at = now
+            self.counters.resets_suspected += 1
+            self._note(ResetSuspected(now, self._consecutive_timeouts))
         self._consecutive_timeouts = 0
         mode = setting_command(Setting.CHECKSUM, self._checksum_enabled)
         self._outbox.insert(0, (self.frame_for(mode), None, mode))
@@ -853,6 +862,28 @@ class Session:
             # or the late names would stay late until a query of theirs timed out.
             self._start_fence(now)
 
+    def _is_noise_before_reply(self, event: BadFrame, following: Event | None) -> bool:
+        """Whether a damaged frame is line noise rather than the oldest query's reply: a
+        fragment cut short by a start character (no ``!``), followed at once by the whole
+        reply that query expects next, which no other query on the wire expects and which
+        cannot be late (no resynchronisation). The controller answers a query once, so the
+        whole reply is the query's, and the fragment before it was noise that began with a
+        ``$``; taking the fragment for the reply would throw the good reply away as a stray.
+        """
+        if event.raw.endswith(b"!") or self._late_names or type(following) is not Frame:
+            return False
+        message = following.message
+        if type(message) is not Response:
+            return False
+        name = message.name
+        head, *others = self._pending
+        remaining = head.expected[len(head.responses) :]
+        return (
+            remaining[0] == name
+            and name not in remaining[1:]
+            and not any(name in other.expected[len(other.responses) :] for other in others)
+        )
+
     def _append(
         self, query: PendingQuery, response: Response, now: float, settled: list[PendingQuery]
     ) -> None:
@@ -869,19 +900,22 @@ class Session:
             if not query.internal:
                 settled.append(query)
 
-    def _bad_frame(self, event: BadFrame, now: float, settled: list[PendingQuery]) -> None:
+    def _bad_frame(
+        self, event: BadFrame, following: Event | None, now: float, settled: list[PendingQuery]
+    ) -> None:
+        """A damaged frame (``following``: the event decoded right after it, if any)."""
         self.counters.bad_frames += 1
         self.counters.noise_bytes += len(event.raw)
         if event.reason is Reason.CHECKSUM:
             self.counters.checksum_errors += 1
-        if event.raw[:1] == b"$" and event.reason in _CORRUPT_REASONS and self._pending:
-            # The head's reply, damaged: nothing more will come for it, but a qsa's remaining
-            # replies may, and they must not be taken for a later query's (P20). While
-            # resynchronising it may instead be a late reply, and the head's own still to come:
-            # the head's names are fenced too.
-            head = self._pending[0]
-            if len(head.expected) - len(head.responses) > 1 or self._late_names:
-                settled.extend(self._fail(head, Outcome.CORRUPT, now))
-            else:
-                self._settle(head, Outcome.CORRUPT)
-                self._report_failure(head, now, settled)
+        if (
+            event.raw[:1] == b"$"
+            and event.reason in _CORRUPT_REASONS
+            and self._pending
+            and not self._is_noise_before_reply(event, following)
+        ):
+            # Most likely the head's reply, damaged; but it may be noise that began with a "$"
+            # (or, while resynchronising, a late reply), and the head's own reply still to
+            # come, as may a qsa's remaining replies. None of them may be taken for a later
+            # query's (P20): the head fails and its names are fenced.
+            settled.extend(self._fail(self._pending[0], Outcome.CORRUPT, now))
