@@ -494,7 +494,8 @@ class AsyncClient(AsyncCommandMethods):
     async def _request(self, command: Command) -> list[Response]:
         """Send a query until it is answered (retries); its replies, in the pending query's own
         list (no copy: nothing changes it once answered)."""
-        await self._await_link()
+        if not self._link_ready.is_set():
+            await self._await_link()
         self._check_open()
         failures: list[str] = []
         in_flight = self._in_flight
