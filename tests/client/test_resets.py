@@ -10,7 +10,7 @@ import pytest
 
 from rovlink.aio import AsyncClient
 from rovlink.client import Client, ClientOptions
-from rovlink.client.errors import ConnectError
+from rovlink.client.errors import ConnectError, ConnectionLostError
 from rovlink.client.events import ClientEvent, ModeChanged, ResetSuspected
 from rovlink.client.links import SocketLink
 from tests.client.fake_controller import FakeController
@@ -60,8 +60,37 @@ def test_a_controller_that_never_answers_is_a_connect_error(
     booting: tuple[FakeController, socket.socket],
 ) -> None:
     _, sock = booting
-    with pytest.raises(ConnectError, match=r"did not answer within 0\.3 s"):
+    with pytest.raises(ConnectError, match=r"did not answer within 0\.3 s") as raised:
         Client(SocketLink(sock, "silent"), _options(boot_timeout_s=0.3))
+    assert "is this its address?" in str(raised.value)  # (no baud rate on a socket)
+    assert "said" not in str(raised.value)
+
+
+def _saying(text: bytes, *, then_close: bool) -> tuple[socket.socket, socket.socket]:
+    """A controller end that sends ``text`` and answers nothing (then closes, if asked)."""
+    ours, theirs = socket.socketpair()
+    theirs.sendall(text)
+    if then_close:
+        theirs.shutdown(socket.SHUT_WR)
+    return ours, theirs
+
+
+@pytest.mark.parametrize("then_close", [False, True])
+def test_what_a_controller_said_instead_of_answering_is_in_the_error(then_close: bool) -> None:
+    ours, theirs = _saying(
+        b"busy: the controller already has a client\x07\r\n", then_close=then_close
+    )
+    with theirs, pytest.raises(ConnectionError) as raised:
+        Client(SocketLink(ours, "refusing"), _options(boot_timeout_s=0.5))
+    assert str(raised.value).endswith('; it said: "busy: the controller already has a client\\x07"')
+    assert isinstance(raised.value, ConnectionLostError if then_close else ConnectError)
+
+
+@pytest.mark.parametrize("then_close", [False, True])
+async def test_the_asyncio_client_says_what_the_controller_said_too(then_close: bool) -> None:
+    ours, theirs = _saying(b"boot: no sensors\r\n", then_close=then_close)
+    with theirs, pytest.raises(ConnectionError, match=r'; it said: "boot: no sensors"$'):
+        await AsyncClient(SocketLink(ours, "refusing"), _options(boot_timeout_s=0.5)).open()
 
 
 def test_a_reset_mid_session_is_noticed_and_the_checksum_mode_restored(

@@ -146,6 +146,25 @@ def test_a_second_tcp_client_is_told_it_is_busy_and_closed(start_server: StartSe
         assert _read_frames(_recv(first), 1) == b"$qd.0!"
 
 
+def test_a_second_client_that_writes_at_once_still_reads_why_it_was_refused(
+    start_server: StartServer,
+) -> None:
+    # A client's first probe is usually on its way before the server refuses it: closing a
+    # socket with unread input resets the connection, and the reset can discard "busy".
+    server = start_server(pty=False)
+    with _connect(server) as first:
+        first.sendall(b"#qd!")
+        _read_frames(_recv(first), 1)
+        for _ in range(5):
+            with _connect(server) as second:
+                second.sendall(b"#crcoff!#qd!" * 100)
+                second.settimeout(5)
+                received = b""
+                while chunk := second.recv(4096):  # (a reset raises ConnectionResetError)
+                    received += chunk
+                assert received == BUSY_MESSAGE
+
+
 def test_after_the_client_leaves_the_next_one_is_served(start_server: StartServer) -> None:
     server = start_server(pty=False)
     with _connect(server) as first:

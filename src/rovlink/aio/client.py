@@ -22,7 +22,7 @@ from rovlink.client import operations
 from rovlink.client.counters import LinkCounters
 from rovlink.client.errors import ConnectError, ConnectionLostError, QueryTimeoutError
 from rovlink.client.events import EventCallback
-from rovlink.client.links import Link, open_link
+from rovlink.client.links import Link, SocketLink, open_link
 from rovlink.client.options import (
     DEFAULT_BOOT_TIMEOUT_S,
     DEFAULT_MOTION_TIMEOUT_S,
@@ -162,15 +162,16 @@ class AsyncClient(AsyncCommandMethods):
         try:
             while not probe.done(loop.time()):
                 if self._closed or (self._lost is not None and not reconnecting):
-                    raise self._lost_error()
+                    error = self._lost_error()
+                    if probe.what_it_said:  # (a server that refuses says why first)
+                        raise ConnectionLostError(f"{error}{probe.what_it_said}") from error
+                    raise error
                 if reconnecting and self._attempt_lost is not None:
                     raise self._attempt_lost
                 now = loop.time()
                 if probe.timed_out(now):
-                    raise ConnectError(
-                        f"{self._link.description}: the controller did not answer within "
-                        f"{boot_timeout_s:g} s ({probe.probes_sent} probes; is it powered, and "
-                        f"is this its port and baud rate?)"
+                    raise probe.no_answer(
+                        self._link.description, network=isinstance(self._link, SocketLink)
                     )
                 data = probe.bytes_to_send(now)
                 if data:

@@ -98,7 +98,7 @@ def _check_kind(path: str) -> None:
 
 
 def _print_session(args: argparse.Namespace, damage: _Damage) -> None:
-    from rovlink.console.visible import visible  # noqa: PLC0415 - only when a session is printed
+    from rovlink.protocol.visible import visible  # noqa: PLC0415 - only when a session is printed
     from rovlink.recorder.playback import paced, session_lines  # noqa: PLC0415
 
     entries = damage.entries(args.file)

@@ -19,8 +19,8 @@ from typing import TYPE_CHECKING, cast
 from rovlink.cli import link_options
 from rovlink.cli.failure import CommandError, UsageError
 from rovlink.cli.interrupt import GatedClient, run_in_worker
-from rovlink.console.visible import visible
 from rovlink.protocol import Command, Decoder, Event, Frame, Response, Setting, Text
+from rovlink.protocol.visible import visible
 
 if TYPE_CHECKING:
     from rovlink.client import Client

@@ -27,7 +27,7 @@ from rovlink.client.command_methods import CommandMethods
 from rovlink.client.counters import LinkCounters
 from rovlink.client.errors import ConnectError, ConnectionLostError, QueryTimeoutError
 from rovlink.client.events import EventCallback
-from rovlink.client.links import Link, open_link
+from rovlink.client.links import Link, SocketLink, open_link
 from rovlink.client.options import (
     DEFAULT_BOOT_TIMEOUT_S,
     DEFAULT_MOTION_TIMEOUT_S,
@@ -511,17 +511,18 @@ class Client(CommandMethods):
                 raise ConnectError(f"{link.description}: closed while reconnecting")
             now = clock()
             if probe.timed_out(now):
-                raise ConnectError(
-                    f"{link.description}: the controller did not answer within "
-                    f"{boot_timeout_s:g} s ({probe.probes_sent} probes; is it powered, and is "
-                    f"this its port and baud rate?)"
-                )
-            data = probe.bytes_to_send(now)
-            if data:
-                link.write(data)
-                with self._state_lock:
-                    self._session.count_outside(now, sent=data)
-            data = link.read_available(max(probe.wait_s(clock()), 0.001))
+                raise probe.no_answer(link.description, network=isinstance(link, SocketLink))
+            try:
+                data = probe.bytes_to_send(now)
+                if data:
+                    link.write(data)
+                    with self._state_lock:
+                        self._session.count_outside(now, sent=data)
+                data = link.read_available(max(probe.wait_s(clock()), 0.001))
+            except ConnectionLostError as error:  # (a server that refuses says why first)
+                if not probe.what_it_said:
+                    raise
+                raise ConnectionLostError(f"{error}{probe.what_it_said}") from error
             if data:
                 received_at = clock()
                 probe.receive(data, received_at)

@@ -18,7 +18,9 @@ b'#crcoff!#qd!'
 
 from __future__ import annotations
 
-from rovlink.protocol import Decoder, Frame, Response
+from rovlink.client.errors import ConnectError
+from rovlink.protocol import Decoder, Frame, Response, Text
+from rovlink.protocol.visible import visible
 
 __all__ = ["PROBE_BYTES", "ReadinessProbe"]
 
@@ -32,11 +34,14 @@ class ReadinessProbe:
     def __init__(
         self, now: float, boot_timeout_s: float, *, interval_s: float = 0.25, quiet_s: float = 0.1
     ) -> None:
+        self.boot_timeout_s = boot_timeout_s
         self.deadline = now + boot_timeout_s
         self.interval_s = interval_s
         self.quiet_s = quiet_s
         self.probes_sent = 0
         self.answered = False
+        #: The controller's last line of text while it was probed (a boot banner, "busy", …).
+        self.last_text: str | None = None
         self._next_probe_at = now
         self._last_data_at = now
         self._decoder = Decoder()
@@ -55,7 +60,9 @@ class ReadinessProbe:
         if self.answered:
             return
         for event in self._decoder.feed(data):
-            if (
+            if isinstance(event, Text):
+                self.last_text = event.text.strip() or self.last_text
+            elif (
                 isinstance(event, Frame)
                 and isinstance(event.message, Response)
                 and event.message.name == "qd"
@@ -76,3 +83,20 @@ class ReadinessProbe:
         if self.answered:
             return max(self._last_data_at + self.quiet_s - now, 0.0)
         return max(min(self._next_probe_at, self.deadline) - now, 0.0)
+
+    @property
+    def what_it_said(self) -> str:
+        """``; it said: "…"`` with the controller's last line of text, for an error message;
+        empty if it said nothing."""
+        if self.last_text is None:
+            return ""
+        return f'; it said: "{visible(self.last_text)}"'
+
+    def no_answer(self, description: str, *, network: bool) -> ConnectError:
+        """The error for a controller that did not answer within ``boot_timeout``; ``network``:
+        the link is a network connection (no baud rate to get wrong)."""
+        where = "this its address" if network else "this its port and baud rate"
+        return ConnectError(
+            f"{description}: the controller did not answer within {self.boot_timeout_s:g} s "
+            f"({self.probes_sent} probes; is it powered, and is {where}?){self.what_it_said}"
+        )

@@ -7,9 +7,9 @@ without prompt_toolkit, so the words can be tested on their own. Styles are clas
 
 from __future__ import annotations
 
-from rovlink.console.visible import visible
 from rovlink.piloting import SentFrame, reply_text
 from rovlink.protocol import BadFrame, Event, Frame, Response, Text, encode
+from rovlink.protocol.visible import visible
 
 __all__ = [
     "Line",

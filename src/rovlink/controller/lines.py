@@ -22,6 +22,7 @@ import os
 import selectors
 import socket
 import termios
+import time
 import tty
 from collections.abc import Callable
 from typing import Any
@@ -194,6 +195,9 @@ class Lines:
     disconnected.
     """
 
+    #: How long a refused client may take to close its end before it is cut off.
+    REFUSED_LINGER_S = 2.0
+
     def __init__(
         self,
         on_bytes: Callable[[Line, bytes], None],
@@ -214,6 +218,8 @@ class Lines:
         self.lines: list[Line] = []
         self._listener: socket.socket | None = None
         self._tcp_line: TcpLine | None = None
+        #: Refused clients, until they close their end (or the deadline): their monotonic deadline.
+        self._refused: dict[socket.socket, float] = {}
         self.pty_path: str | None = None
         self.tcp_address: tuple[str, int] | None = None
 
@@ -254,6 +260,11 @@ class Lines:
         """Wait up to ``timeout_s`` for the lines, and handle what they have."""
         for key, mask in self._selector.select(timeout_s):
             key.data(key, mask)
+        if self._refused:
+            now = time.monotonic()
+            for connection, deadline in list(self._refused.items()):
+                if now >= deadline:
+                    self._drop_refused(connection)
 
     def send(self, line: Line, data: bytes) -> None:
         """Write ``data`` to ``line``: now, what the kernel takes; the rest when it can."""
@@ -269,6 +280,8 @@ class Lines:
         """Close every line and the listener."""
         for line in list(self.lines):
             self._remove(line)
+        for connection in list(self._refused):
+            self._drop_refused(connection)
         if self._listener is not None:
             self._selector.unregister(self._listener)
             self._listener.close()
@@ -287,6 +300,37 @@ class Lines:
         del line.unsent[:written]
         events = selectors.EVENT_READ | (selectors.EVENT_WRITE if line.unsent else 0)
         self._selector.modify(line.fd, events, self._on_line_event(line))
+
+    def _refuse(self, connection: socket.socket) -> None:
+        """Say busy, end the sending side, and read what the client sends until it closes: a
+        socket closed with unread input is reset, and the reset can discard the message before
+        the client reads it."""
+        try:
+            connection.setblocking(False)
+            connection.send(self._busy_message)
+            connection.shutdown(socket.SHUT_WR)
+        except OSError:
+            connection.close()
+            return
+        self._refused[connection] = time.monotonic() + self.REFUSED_LINGER_S
+        self._selector.register(connection, selectors.EVENT_READ, self._on_refused_readable)
+
+    def _on_refused_readable(self, key: selectors.SelectorKey, mask: int) -> None:
+        connection = key.fileobj
+        assert isinstance(connection, socket.socket)
+        try:
+            if connection.recv(4096):
+                return  # (the client's probes: read and dropped)
+        except BlockingIOError:
+            return
+        except OSError:
+            pass
+        self._drop_refused(connection)
+
+    def _drop_refused(self, connection: socket.socket) -> None:
+        del self._refused[connection]
+        self._selector.unregister(connection)
+        connection.close()
 
     def _on_line_event(self, line: Line) -> Callable[[selectors.SelectorKey, int], None]:
         def handle(key: selectors.SelectorKey, mask: int) -> None:
@@ -315,10 +359,7 @@ class Lines:
             return
         if self._tcp_line is not None:
             logger.info("refused %s:%s: busy", address[0], address[1])
-            with contextlib.suppress(OSError):
-                connection.setblocking(False)
-                connection.send(self._busy_message)
-            connection.close()
+            self._refuse(connection)
             return
         line = TcpLine(connection)
         self._tcp_line = line

@@ -27,7 +27,6 @@ from textual.widgets import Digits, Footer, Header, Static
 from rovlink.aio import AsyncClient
 from rovlink.client import ClientError, ConnectionLostError, QueryTimeoutError
 from rovlink.client.options import StrayCallback
-from rovlink.console.visible import visible
 from rovlink.monitor import controls
 from rovlink.monitor.chart import SAMPLE_MARK, TARGET_MARK, depth_chart
 from rovlink.monitor.panels import (
@@ -41,6 +40,7 @@ from rovlink.monitor.readings import DEFAULT_WINDOW_S, Readings
 from rovlink.piloting import LockState, SentFrame, TrackedClient
 from rovlink.protocol import BadFrame, Command, Event
 from rovlink.protocol import Text as DebugText
+from rovlink.protocol.visible import visible
 
 __all__ = ["Connector", "MonitorApp", "Panel"]
 

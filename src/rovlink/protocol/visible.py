@@ -1,8 +1,8 @@
 """Text from the controller made safe to print: its control characters shown, not obeyed.
 
 A controller's debug lines and line noise reach the user's terminal (``send``, the console, the
-monitor); an escape sequence or a bell among them would recolour, move or retitle that terminal.
-Imports nothing: ``rovlink send`` loads it.
+monitor, the client's errors); an escape sequence or a bell among them would recolour, move or
+retitle that terminal. Imports nothing: ``rovlink send`` loads it.
 """
 
 from __future__ import annotations
