@@ -1,7 +1,8 @@
 """The ``rovlink`` command line: one module per command, imported only when that command runs.
 
-This module imports nothing but :mod:`argparse` and the table of commands below, so that
-``rovlink --version`` and ``rovlink decode`` start about as fast as Python itself. Each command's
+This module imports only the standard library's start-up modules (:mod:`argparse`, :mod:`os`,
+:mod:`sys`, …), the package's version and its error types, and holds the table of commands
+below, so that ``rovlink --version`` and ``rovlink decode`` start about as fast as Python itself. Each command's
 module (``rovlink.cli.<name>``) has ``add_arguments(parser)`` and ``run(args) -> int``; the
 heavy libraries (pyserial, rich, textual, prompt_toolkit, the driver) load inside ``run``.
 """
