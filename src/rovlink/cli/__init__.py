@@ -2,9 +2,10 @@
 
 This module imports only the standard library's start-up modules (:mod:`argparse`, :mod:`os`,
 :mod:`sys`, …), the package's version and its error types, and holds the table of commands
-below, so that ``rovlink --version`` and ``rovlink decode`` start about as fast as Python itself. Each command's
-module (``rovlink.cli.<name>``) has ``add_arguments(parser)`` and ``run(args) -> int``; the
-heavy libraries (pyserial, rich, textual, prompt_toolkit, the driver) load inside ``run``.
+below, so that ``rovlink --version`` and ``rovlink decode`` start about as fast as Python
+itself. Each command's module (``rovlink.cli.<name>``) has ``add_arguments(parser)`` and
+``run(args) -> int``; the heavy libraries (pyserial, rich, textual, prompt_toolkit, the driver)
+load inside ``run``.
 """
 
 from __future__ import annotations
