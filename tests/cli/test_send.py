@@ -61,6 +61,18 @@ def test_send_json(run_cli: RunCli) -> None:
     assert 0 <= record["replies"][0]["values"]["heading_deg"] <= 360
 
 
+def test_replies_are_shown_as_they_came_with_their_checksums(run_cli: RunCli) -> None:
+    # Before, a reply was shown without the checksum it came with ('$qd.0!' for '$qd.0A2!').
+    arguments = ("sim://", "--checksum", "--timeout", REPLY_TIMEOUT)
+    result = run_cli("send", *arguments, "qd", "crcoff", "qd")
+    assert result.status == 0, result.err
+    crc = get_algorithm("crc8").digits(b"qd.0").decode()
+    assert result.out.splitlines()[1] == f"< $qd.0{crc}!  depth_cm=0"
+    assert result.out.splitlines()[-1] == "< $qd.0!  depth_cm=0"  # checksums off by then
+    result = run_cli("send", *arguments, "--json", "qd")
+    assert json.loads(result.out)["replies"][0]["frame"] == f"$qd.0{crc}!"
+
+
 def test_raw_frames_are_sent_exactly_as_given(run_cli: RunCli) -> None:
     # In checksum mode a raw frame keeps the checksum it was typed with; a friendly command
     # gets one; both are shown as they went on the wire.

@@ -19,7 +19,7 @@ from typing import TYPE_CHECKING, cast
 from rovlink.cli import link_options
 from rovlink.cli.failure import CommandError, UsageError
 from rovlink.cli.interrupt import GatedClient, run_in_worker
-from rovlink.protocol import Command, Decoder, Event, Frame, Response, Setting, Text
+from rovlink.protocol import Command, Decoder, Event, Frame, Response, Setting, Text, encode
 from rovlink.protocol.visible import visible
 
 if TYPE_CHECKING:
@@ -41,8 +41,9 @@ examples:
   rovlink send sim:// --raw mvs -50 qd              (the exact bytes both ways)"""
 
 
-def describe_reply(response: Response) -> str:
-    """A reply with its values named from the command table, e.g. ``$qd.123!  depth_cm=123``.
+def describe_reply(response: Response, frame: str | None = None) -> str:
+    """A reply with its values named from the command table, e.g. ``$qd.123!  depth_cm=123``;
+    ``frame``: the reply's frame as it came (with its checksum), if not the plain one.
 
     >>> describe_reply(Response("qro", (-1,)))
     '$qro.-1!  roll_deg=-1'
@@ -51,12 +52,13 @@ def describe_reply(response: Response) -> str:
         f"{argument.name}={value}"
         for argument, value in zip(response.spec.arguments, response.values, strict=True)
     )
-    return f"{response}  {fields}" if fields else str(response)
+    frame = frame or str(response)
+    return f"{frame}  {fields}" if fields else frame
 
 
-def _reply_json(response: Response) -> dict[str, object]:
+def _reply_json(response: Response, frame: str) -> dict[str, object]:
     return {
-        "frame": str(response),
+        "frame": frame,
         "name": response.name,
         "values": {
             argument.name: value
@@ -203,13 +205,18 @@ def _send_one(client: Client, item: Outgoing) -> tuple[bytes, tuple[Response, ..
     return sent, replies
 
 
-def _show(sent: bytes, replies: tuple[Response, ...], *, as_json: bool) -> None:
+def _show(
+    sent: bytes, replies: tuple[Response, ...], checksum: str | None, *, as_json: bool
+) -> None:
+    """Print a command and its replies, each frame as it went on the wire (``checksum``: the
+    algorithm of the replies' checksums, None when off)."""
+    frames = [encode(reply, checksum).decode("ascii") for reply in replies]
     if as_json:
         print(
             json.dumps(
                 {
                     "command": sent.decode("ascii"),
-                    "replies": [_reply_json(reply) for reply in replies],
+                    "replies": [_reply_json(r, f) for r, f in zip(replies, frames, strict=True)],
                 },
                 ensure_ascii=False,
             ),
@@ -217,8 +224,8 @@ def _show(sent: bytes, replies: tuple[Response, ...], *, as_json: bool) -> None:
         )
         return
     print(f"> {sent.decode('ascii')}", flush=True)
-    for reply in replies:
-        print(f"< {describe_reply(reply)}", flush=True)
+    for reply, frame in zip(replies, frames, strict=True):
+        print(f"< {describe_reply(reply, frame)}", flush=True)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -231,7 +238,8 @@ def run(args: argparse.Namespace) -> int:
     def send_all() -> None:
         for item in outgoing:
             sent, replies = _send_one(cast("Client", gate), item)
-            _show(sent, replies, as_json=args.as_json)
+            checksum = args.algorithm if client.checksum_enabled else None
+            _show(sent, replies, checksum, as_json=args.as_json)
 
     with link_options.closing_unless_interrupted(client):
         try:
