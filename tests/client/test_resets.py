@@ -130,3 +130,9 @@ async def test_the_asyncio_client_notices_a_reset_too(
         assert any(isinstance(event, ResetSuspected) for event in events)
     finally:
         await rov.close()
+
+
+def test_a_last_line_without_its_line_end_is_said_too() -> None:
+    ours, theirs = _saying(b"busy", then_close=True)
+    with theirs, pytest.raises(ConnectionLostError, match=r'; it said: "busy"$'):
+        Client(SocketLink(ours, "refusing"), _options(boot_timeout_s=0.5))

@@ -374,3 +374,21 @@ def test_a_silent_line_is_one_suspected_reset_until_a_reply_comes() -> None:
         now += 0.5
         session.tick(now)
     assert session.counters.resets_suspected == 2
+
+
+def test_a_reply_at_the_clock_reading_of_a_reset_report_ends_that_silence() -> None:
+    # A coarse clock (15.6 ms on some systems) reads the same for the report and the fence's
+    # reply; the next silence must still be reported.
+    session = Session(timeout_s=0.5)
+    session.query(Command("qd"), now=0.0)
+    session.tick(0.5)  # the qd times out: fence qhe
+    session.tick(1.0)  # the fence times out: a reset suspected, fence qro
+    assert session.counters.resets_suspected == 1
+    session.receive(b"$qro.+1!", now=1.0)  # answered at the same clock reading
+    now = 1.0
+    for _ in range(4):
+        if not session.pending:
+            session.query(Command("qd"), now=now)
+        now += 0.5
+        session.tick(now)
+    assert session.counters.resets_suspected == 2

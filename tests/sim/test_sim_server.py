@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import os
 import socket
 import threading
@@ -13,6 +14,7 @@ import serial
 
 from rovlink.controller import ControllerConfig
 from rovlink.controller import lines as lines_module
+from rovlink.controller.lines import Lines
 from rovlink.sim import SimConfig
 from rovlink.sim.server import BUSY_MESSAGE, SimServer, parse_tcp_address
 
@@ -163,6 +165,25 @@ def test_a_second_client_that_writes_at_once_still_reads_why_it_was_refused(
                 while chunk := second.recv(4096):  # (a reset raises ConnectionResetError)
                     received += chunk
                 assert received == BUSY_MESSAGE
+
+
+def test_refused_clients_that_stay_connected_are_not_kept_without_bound(
+    start_server: StartServer,
+) -> None:
+    # Each refused client is kept until it closes (or for a while), so that it reads "busy";
+    # a flood of them must not run the server's selector out of descriptors.
+    server = start_server(pty=False)
+    extra = Lines.MAX_REFUSED + 12
+    with _connect(server) as first, contextlib.ExitStack() as stack:
+        first.sendall(b"#qd!")
+        _read_frames(_recv(first), 1)
+        for _ in range(extra):
+            second = stack.enter_context(_connect(server))
+            second.settimeout(5)
+            assert second.recv(4096) == BUSY_MESSAGE  # (all of it: one small write)
+        assert len(server._lines._refused) <= Lines.MAX_REFUSED
+        first.sendall(b"#qd!")  # the client being served is undisturbed
+        assert _read_frames(_recv(first), 1) == b"$qd.0!"
 
 
 def test_after_the_client_leaves_the_next_one_is_served(start_server: StartServer) -> None:

@@ -163,8 +163,10 @@ class AsyncClient(AsyncCommandMethods):
             while not probe.done(loop.time()):
                 if self._closed or (self._lost is not None and not reconnecting):
                     error = self._lost_error()
-                    if probe.what_it_said:  # (a server that refuses says why first)
-                        raise ConnectionLostError(f"{error}{probe.what_it_said}") from error
+                    if self._lost is not None:  # (a server that refuses says why first)
+                        probe.closed()
+                        if probe.what_it_said:
+                            raise ConnectionLostError(f"{error}{probe.what_it_said}") from error
                     raise error
                 if reconnecting and self._attempt_lost is not None:
                     raise self._attempt_lost

@@ -520,6 +520,7 @@ class Client(CommandMethods):
                         self._session.count_outside(now, sent=data)
                 data = link.read_available(max(probe.wait_s(clock()), 0.001))
             except ConnectionLostError as error:  # (a server that refuses says why first)
+                probe.closed()
                 if not probe.what_it_said:
                     raise
                 raise ConnectionLostError(f"{error}{probe.what_it_said}") from error

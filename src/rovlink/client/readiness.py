@@ -19,7 +19,7 @@ b'#crcoff!#qd!'
 from __future__ import annotations
 
 from rovlink.client.errors import ConnectError
-from rovlink.protocol import Decoder, Frame, Response, Text
+from rovlink.protocol import Decoder, Event, Frame, Response, Text
 from rovlink.protocol.visible import visible
 
 __all__ = ["PROBE_BYTES", "ReadinessProbe"]
@@ -59,7 +59,14 @@ class ReadinessProbe:
         self._last_data_at = now
         if self.answered:
             return
-        for event in self._decoder.feed(data):
+        self._take(self._decoder.feed(data))
+
+    def closed(self) -> None:
+        """The link closed: a last line of text without its line end still counts as said."""
+        self._take(self._decoder.end())
+
+    def _take(self, events: list[Event]) -> None:
+        for event in events:
             if isinstance(event, Text):
                 self.last_text = event.text.strip() or self.last_text
             elif (

@@ -32,7 +32,8 @@ can be confused with what is still on its way.
 Resets (P21). After ``reset_after_timeouts`` consecutive timeouts the session suspects the
 controller reset (it comes back with checksum mode off, locked): it re-asserts its checksum mode
 (``#crcon!``/``#crcoff!`` are recognised in either mode) before the fence, and reports
-:class:`~rovlink.client.events.ResetSuspected`.
+:class:`~rovlink.client.events.ResetSuspected`: once until a reply comes, though the mode is
+re-asserted after every ``reset_after_timeouts`` timeouts (a board still booting loses some).
 
 Timeouts: a query's deadline is ``timeout_s`` after it was sent or after the last reply that
 moved the queue, whichever is later — so a deep pipeline on a slow line is not timed out while
@@ -721,7 +722,9 @@ class Session:
         until a reply comes: a board still booting loses the first re-assertion, so it is
         repeated, but a silent line is one suspected reset, not one per pair of timeouts."""
         reported_at = self._reset_reported_at
-        if reported_at is None or self._last_progress_at > reported_at:
+        # (>=: a reply read at the very clock reading of the report came after it, as a
+        # report is made at a deadline, which is after the last reply.)
+        if reported_at is None or self._last_progress_at >= reported_at:
             self._reset_reported_at = now
             self.counters.resets_suspected += 1
             self._note(ResetSuspected(now, self._consecutive_timeouts))
@@ -864,11 +867,12 @@ class Session:
 
     def _is_noise_before_reply(self, event: BadFrame, following: Event | None) -> bool:
         """Whether a damaged frame is line noise rather than the oldest query's reply: a
-        fragment cut short by a start character (no ``!``), followed at once by the whole
-        reply that query expects next, which no other query on the wire expects and which
-        cannot be late (no resynchronisation). The controller answers a query once, so the
-        whole reply is the query's, and the fragment before it was noise that began with a
-        ``$``; taking the fragment for the reply would throw the good reply away as a stray.
+        fragment that never ended with ``!`` (cut short by a start character, a line end or
+        noise, or overlong), followed at once by the whole reply that query expects next,
+        which no other query on the wire expects and which cannot be late (no
+        resynchronisation). The controller answers a query once, so the whole reply is the
+        query's, and the fragment before it was noise that began with a ``$``; taking the
+        fragment for the reply would throw the good reply away as a stray.
         """
         if event.raw.endswith(b"!") or self._late_names or type(following) is not Frame:
             return False

@@ -197,6 +197,9 @@ class Lines:
 
     #: How long a refused client may take to close its end before it is cut off.
     REFUSED_LINGER_S = 2.0
+    #: Refused clients kept so at once; more are cut off at once (a flood of connections must
+    #: not run the selector out of descriptors, which would stop the line that is served).
+    MAX_REFUSED = 8
 
     def __init__(
         self,
@@ -310,6 +313,9 @@ class Lines:
             connection.send(self._busy_message)
             connection.shutdown(socket.SHUT_WR)
         except OSError:
+            connection.close()
+            return
+        if len(self._refused) >= self.MAX_REFUSED:
             connection.close()
             return
         self._refused[connection] = time.monotonic() + self.REFUSED_LINGER_S
