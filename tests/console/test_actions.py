@@ -101,3 +101,27 @@ def test_errors_about_something_missing_point_at_the_end(line: str, position: in
     with pytest.raises(InputError) as caught:
         parse_line(line)
     assert caught.value.position == position
+
+
+@pytest.mark.parametrize(
+    ("line", "command"),
+    [
+        ("#th.270.25CA!", Command("th", (270, 25))),  # (25CA is not read as a value)
+        ("#qd8C!", Command("qd")),
+        ("  #mvd.1004B!", Command("mvd", (100,))),
+        ("#th.270.25!", Command("th", (270, 25))),  # typed without: the console adds it
+    ],
+)
+def test_in_checksum_mode_a_frame_typed_with_its_checksum_is_taken(
+    line: str, command: Command
+) -> None:
+    assert parse_line(line, checksum="crc8") == SendCommand(command)
+
+
+def test_a_frame_with_a_wrong_checksum_says_so_and_points_at_it() -> None:
+    with pytest.raises(InputError) as raised:
+        parse_line("#th.270.25CB!", checksum="crc8")
+    assert raised.value.message == "missing or wrong crc8 checksum"
+    assert raised.value.position == len("#th.270.25")
+    with pytest.raises(InputError, match="not a number"):  # checksum mode off: a bad value
+        parse_line("#th.270.25CA!")

@@ -111,6 +111,20 @@ async def test_dive_and_surface_with_replies_debug_errors_and_the_stop_key(tmp_p
     ]  # leaving while locked (as last sent) sends nothing more
 
 
+async def test_in_checksum_mode_a_frame_typed_with_its_checksum_is_sent(tmp_path: Path) -> None:
+    rig = Rig.simulated()
+    async with _terminal(rig, tmp_path / "history") as term:
+        term.type("checksum on\r")
+        await term.wait_shown("checksum mode on")
+        term.type("#qd8C!\r")  # as copied from a log: before, "unknown command 'qd8C'"
+        await term.wait_shown("qd → 0 cm")
+        term.type("#qd8D!\r")  # a wrong checksum is refused in place
+        await term.wait_shown("missing or wrong crc8 checksum")
+        term.type(CLEAR_LINE + "quit\r")
+        await term.finish()
+    assert rig.frames()[:3] == ["#crcoff!", "#crcon!", "#qd8C!"]
+
+
 async def test_leak_reply_and_qsa(tmp_path: Path) -> None:
     rig = Rig.simulated(leak_at_s=1.0)
     async with _terminal(rig, tmp_path / "history") as term:

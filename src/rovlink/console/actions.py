@@ -10,7 +10,7 @@ import re
 from dataclasses import dataclass
 
 from rovlink.client import CommandTextError, parse_command_text, usage
-from rovlink.protocol import Command, lookup
+from rovlink.protocol import BadFrame, Command, Decoder, Frame, Reason, lookup
 
 __all__ = [
     "BUILTINS",
@@ -99,8 +99,9 @@ class InputError(ValueError):
         self.position = position
 
 
-def parse_line(line: str) -> Action | None:
-    """The action a console line asks for; ``None`` for a blank line.
+def parse_line(line: str, checksum: str | None = None) -> Action | None:
+    """The action a console line asks for; ``None`` for a blank line. ``checksum``: the
+    algorithm while checksum mode is on, so that a frame typed with its checksum is taken.
 
     >>> parse_line("th 270 25")
     SendCommand(command=Command(name='th', values=(270, 25)))
@@ -121,7 +122,30 @@ def parse_line(line: str) -> Action | None:
     try:
         return SendCommand(parse_command_text(line))
     except CommandTextError as error:
+        if checksum is not None:
+            command = _checksummed_frame(line, checksum)
+            if command is not None:
+                return SendCommand(command)
         raise InputError(str(error), _error_position(line, error)) from None
+
+
+def _checksummed_frame(line: str, algorithm: str) -> Command | None:
+    """The command of a frame typed with its checksum (``#qd8C!``), as the controller reads it
+    in checksum mode; ``None`` if the line is not such a frame. A frame with a wrong checksum
+    is an error that says so."""
+    stripped = line.strip()
+    if not (stripped.startswith("#") and stripped.endswith("!") and stripped.isascii()):
+        return None
+    events = Decoder(checksum_enabled=True, algorithm=algorithm).feed(stripped.encode("ascii"))
+    if len(events) != 1:
+        return None
+    event = events[0]
+    if isinstance(event, BadFrame) and event.reason is Reason.CHECKSUM:
+        # (a body the parser took for values, e.g. 25CA, is what a wrong checksum looks like)
+        raise InputError(f"{event.detail}", line.index(stripped) + len(stripped) - 3)
+    if isinstance(event, Frame) and isinstance(event.message, Command):
+        return event.message
+    return None
 
 
 def _builtin(line: str, name: str, words: list[re.Match[str]]) -> Action:

@@ -81,12 +81,17 @@ class ConsoleCompleter(Completer):
 
 
 class ConsoleValidator(Validator):
-    """Refuses a line that is not valid input, with the cursor on the culprit."""
+    """Refuses a line that is not valid input, with the cursor on the culprit; ``checksum``
+    gives the algorithm while checksum mode is on (frames typed with their checksum are taken).
+    """
+
+    def __init__(self, checksum: Callable[[], str | None] = lambda: None) -> None:
+        self._checksum = checksum
 
     def validate(self, document: Document) -> None:
         """Raise ValidationError naming what is wrong, e.g. which argument and its range."""
         try:
-            parse_line(document.text)
+            parse_line(document.text, self._checksum())
         except InputError as error:
             raise ValidationError(cursor_position=error.position, message=error.message) from None
 
@@ -164,6 +169,10 @@ async def run_console(
     client = await connect(engine.on_event)
     rov = TrackedClient(client, algorithm=algorithm)
     engine.attach(rov)
+
+    def checksum() -> str | None:  # (a frame typed with its checksum is taken in that mode)
+        return rov.algorithm if rov.checksum_enabled else None
+
     history: History = InMemoryHistory()
     if history_path is not None:
         history_path.parent.mkdir(parents=True, exist_ok=True)
@@ -174,7 +183,7 @@ async def run_console(
         history=history,
         completer=ConsoleCompleter(),
         complete_while_typing=True,
-        validator=ConsoleValidator(),
+        validator=ConsoleValidator(checksum),
         validate_while_typing=False,
         key_bindings=_stop_bindings(engine),
         bottom_toolbar=lambda: _toolbar(rov, engine.queued),
@@ -197,7 +206,7 @@ async def run_console(
                 break
             except KeyboardInterrupt:  # Ctrl-C: drop the line, keep going
                 continue
-            action = parse_line(text)
+            action = parse_line(text, checksum())
             if action is not None:
                 engine.submit(action)
             if isinstance(action, Quit):
