@@ -519,11 +519,8 @@ class Client(CommandMethods):
                     with self._state_lock:
                         self._session.count_outside(now, sent=data)
                 data = link.read_available(max(probe.wait_s(clock()), 0.001))
-            except ConnectionLostError as error:  # (a server that refuses says why first)
-                probe.closed()
-                if not probe.what_it_said:
-                    raise
-                raise ConnectionLostError(f"{error}{probe.what_it_said}") from error
+            except ConnectionLostError as error:
+                raise probe.lost(error)  # noqa: B904 - it sets its own cause
             if data:
                 received_at = clock()
                 probe.receive(data, received_at)

@@ -18,7 +18,7 @@ b'#crcoff!#qd!'
 
 from __future__ import annotations
 
-from rovlink.client.errors import ConnectError
+from rovlink.client.errors import ConnectError, ConnectionLostError
 from rovlink.protocol import Decoder, Event, Frame, Response, Text
 from rovlink.protocol.visible import visible
 
@@ -61,9 +61,16 @@ class ReadinessProbe:
             return
         self._take(self._decoder.feed(data))
 
-    def closed(self) -> None:
-        """The link closed: a last line of text without its line end still counts as said."""
+    def lost(self, error: ConnectionLostError) -> ConnectionLostError:
+        """``error``, the link lost while probing, with what the controller said before (a
+        server that refuses a client says why, then closes); a last line of text without its
+        line end counts too."""
         self._take(self._decoder.end())
+        if self.last_text is None:
+            return error
+        explained = ConnectionLostError(f"{error}{self.what_it_said}")
+        explained.__cause__ = error
+        return explained
 
     def _take(self, events: list[Event]) -> None:
         for event in events:
