@@ -208,8 +208,9 @@ def _send_one(client: Client, item: Outgoing) -> tuple[bytes, tuple[Response, ..
 def _show(
     sent: bytes, replies: tuple[Response, ...], checksum: str | None, *, as_json: bool
 ) -> None:
-    """Print a command and its replies, each frame as it went on the wire (``checksum``: the
-    algorithm of the replies' checksums, None when off)."""
+    """Print a command and its replies, each reply's frame as the controller sends it, with the
+    checksum of the mode in force (``checksum``: its algorithm, None when off); ``--raw`` shows
+    the bytes themselves."""
     frames = [encode(reply, checksum).decode("ascii") for reply in replies]
     if as_json:
         print(
