@@ -163,11 +163,7 @@ class AsyncClient(AsyncCommandMethods):
             while not probe.done(loop.time()):
                 if self._closed or (self._lost is not None and not reconnecting):
                     error = self._lost_error()
-                    if self._lost is not None:  # (a server that refuses says why first)
-                        probe.closed()
-                        if probe.what_it_said:
-                            raise ConnectionLostError(f"{error}{probe.what_it_said}") from error
-                    raise error
+                    raise probe.lost(error) if self._lost is not None else error
                 if reconnecting and self._attempt_lost is not None:
                     raise self._attempt_lost
                 now = loop.time()
