@@ -62,6 +62,7 @@ def test_sim_urls_go_to_the_registered_handler_which_reads_the_options() -> None
         ("sim://?speed=2", "unknown sim option 'speed'"),
         ("sim://?seed=x", "seed must be an integer"),
         ("sim://?leak_at=-1", "leak_at must be a non-negative"),
+        ("sim://?leak_at=inf", "leak_at must be a non-negative number of seconds"),
         ("sim://?realtime=maybe", "realtime must be 1 or 0"),
         ("sim://host", "no host or path"),
         ("/dev/ttyUSB0?baudrate=fast", "baudrate must be an integer in 1–12000000"),

@@ -59,6 +59,8 @@ def test_select_checks_by_prefix_and_unknown_name() -> None:
     assert all(not check.motion for check in select_checks())
     with pytest.raises(ValueError, match="no check is named 'nope'"):
         select_checks(["nope"])
+    with pytest.raises(ValueError, match="an empty check name"):  # (it named every check)
+        select_checks(["checksum-", ""])
 
 
 def test_junit_has_a_case_per_check_and_the_evidence_of_failures() -> None:

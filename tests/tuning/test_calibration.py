@@ -29,6 +29,7 @@ def test_two_point_arithmetic() -> None:
         (20, 1100, 100, "outside the sensor's range"),
         (20, 31, 9999, "outside sdk's range"),
         (20, 80, 0, "must be > 0 cm"),
+        (0, 1000, 2, "k would round to 0"),  # (sdk 0: every depth would read 0)
     ],
 )
 def test_two_point_refuses_what_cannot_calibrate(

@@ -41,6 +41,8 @@ def select_checks(names: Sequence[str] = (), *, motion: bool = False) -> list[Ch
     chosen = [item for item in ordered if motion or not item.motion]
     if not names:
         return chosen
+    if not all(names):  # ("" is a prefix of every name: it would run them all)
+        raise ValueError("an empty check name: name a check or the start of one (see --list)")
     unknown = [name for name in names if not any(c.name.startswith(name) for c in CHECKS)]
     if unknown:
         raise ValueError(f"no check is named {unknown[0]!r} (see --list)")

@@ -14,6 +14,7 @@ ValueError: 'sim://?seed=x': seed must be an integer, got 'x'
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, replace
 from urllib.parse import parse_qsl
 
@@ -73,7 +74,7 @@ def parse_sim_url(url: str) -> SimOptions:
             leak_at_s = float(text)
         except ValueError:
             leak_at_s = -1.0
-        if not leak_at_s >= 0:
+        if not 0 <= leak_at_s < math.inf:
             raise ValueError(
                 f"{url!r}: leak_at must be a non-negative number of seconds, got {text!r}"
             )

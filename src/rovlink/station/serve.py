@@ -15,6 +15,7 @@ import socket
 from collections.abc import Awaitable, Callable, Generator
 from dataclasses import dataclass
 from pathlib import Path
+from urllib.parse import quote
 
 import uvicorn
 
@@ -87,8 +88,10 @@ def page_urls(host: str, port: int, token: str | None) -> list[str]:
     ['http://127.0.0.1:8600/']
     >>> page_urls("0.0.0.0", 8600, "abc")[1]
     'http://127.0.0.1:8600/?token=abc'
+    >>> page_urls("127.0.0.1", 8600, "a b&c")  # a token the user chose, quoted for the URL
+    ['http://127.0.0.1:8600/?token=a%20b%26c']
     """
-    suffix = f"?token={token}" if token is not None else ""
+    suffix = f"?token={quote(token, safe='')}" if token is not None else ""
     shown = f"[{host}]" if ":" in host else host
     if host in ("0.0.0.0", "::"):
         return [

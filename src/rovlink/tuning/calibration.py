@@ -68,6 +68,11 @@ def two_point(
         )
     zero = round(surface_raw)
     k = round(depth_cm * 100 / counts)
+    if k == 0:  # (sdk 0 is in range, but then every depth reads 0)
+        raise CalibrationError(
+            f"k would round to 0: {depth_cm} cm over {counts:g} counts is finer than sdk can "
+            "say (k is in hundredths of a cm per count)"
+        )
     if not k_arg.check(k):
         raise CalibrationError(
             f"k would be {k}, outside sdk's range {k_arg.range_text()}: "
