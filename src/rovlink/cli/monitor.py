@@ -15,7 +15,7 @@ from rovlink.cli.failure import CommandError, UsageError
 if TYPE_CHECKING:
     from rovlink.aio import AsyncClient
     from rovlink.client.options import StrayCallback
-    from rovlink.monitor.app import MonitorApp
+    from rovlink.monitor.app import Connector, MonitorApp
     from rovlink.protocol import Event
 
 __all__ = ["EPILOG", "build_app"]
@@ -44,24 +44,18 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
 
 
-def build_app(args: argparse.Namespace) -> MonitorApp:
-    """The monitor for the parsed options, connecting when it starts (the options are checked
-    now); a port that cannot be opened ends it."""
-    monitor_app = _monitor_app_class()
-    connect = link_options.connect_async(args)
-
-    async def connect_or_leave(on_stray: StrayCallback) -> AsyncClient:
-        # The dashboard would show "could not connect" and wait for ever.
-        try:
-            return await connect(on_stray)
-        except (ConnectionError, ValueError, OSError):
-            app.exit(return_code=1)
-            raise
-
-    app = monitor_app(
-        connect_or_leave, description=args.url, rate_hz=args.rate_hz, algorithm=args.algorithm
+def build_app(
+    args: argparse.Namespace,
+    connector: Connector | None = None,
+) -> MonitorApp:
+    """The monitor for the parsed options, with ``connector`` giving it its client (default:
+    it connects when it starts; the options are checked now)."""
+    return _monitor_app_class()(
+        connector or link_options.connect_async(args),
+        description=args.url,
+        rate_hz=args.rate_hz,
+        algorithm=args.algorithm,
     )
-    return app
 
 
 def _monitor_app_class() -> type[MonitorApp]:
@@ -96,7 +90,7 @@ class _StrayRelay:
 async def _connect_then_show(args: argparse.Namespace) -> None:
     # The port is opened first, as by every other command: one that is busy or missing is one
     # line on stderr, not a dashboard drawn and taken down again.
-    monitor_app = _monitor_app_class()
+    _monitor_app_class()  # (a missing extra is said before the port is opened)
     connect = link_options.connect_async(args)
     relay = _StrayRelay()
     try:
@@ -110,11 +104,8 @@ async def _connect_then_show(args: argparse.Namespace) -> None:
         relay.forward_to(on_stray)
         return client
 
-    app = monitor_app(
-        connected, description=args.url, rate_hz=args.rate_hz, algorithm=args.algorithm
-    )
     try:
-        await app.run_async()
+        await build_app(args, connected).run_async()
     finally:
         if not client.closed:
             await client.close()
