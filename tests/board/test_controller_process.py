@@ -19,6 +19,7 @@ from tests.board.rig import COUNT_US, EXAMPLE, is_neutral, pulses, read_log, wai
 from tests.board.rig import fake_toml as make_fake_toml
 from tests.client.conftest import REPLY_TIMEOUT_S
 from tests.client.sim_scenario import DebugLines, run_every_method
+from tests.terminals import open_as_another_user
 
 pytestmark = pytest.mark.integration
 
@@ -181,18 +182,6 @@ def test_the_same_rov_toml_runs_the_simulator(tmp_path: Path) -> None:
             run_every_method(rov, debug)
 
 
-def _open_as_another_user(device: str) -> str:
-    """Open ``device`` from a shell of another user (nobody, when the tests run as root)."""
-    command = ["/bin/sh", "-c", 'exec 3<>"$0" && echo opened', device]
-    if os.geteuid() == 0:
-        result = subprocess.run(
-            command, capture_output=True, text=True, timeout=30, check=False, user=65534
-        )
-    else:
-        result = subprocess.run(command, capture_output=True, text=True, timeout=30, check=False)
-    return result.stdout + result.stderr
-
-
 def test_no_other_program_opens_the_serial_device_while_the_controller_has_it(
     tmp_path: Path,
 ) -> None:
@@ -201,9 +190,9 @@ def test_no_other_program_opens_the_serial_device_while_the_controller_has_it(
     device = os.ttyname(slave)
     os.chmod(device, 0o666)  # any user may open it: only the exclusive mode keeps them out
     try:
-        assert "opened" in _open_as_another_user(device)
+        assert "opened" in open_as_another_user(device)
         with running_controller(tmp_path, "--config", str(config), "--port", device):
-            assert "busy" in _open_as_another_user(device).lower()
+            assert "busy" in open_as_another_user(device).lower()
     finally:
         os.close(master)
         os.close(slave)

@@ -13,10 +13,12 @@ from __future__ import annotations
 
 import contextlib
 import errno
+import logging
 import os
 import select
 import socket
 import struct
+import sys
 from typing import Any, Protocol
 
 from rovlink.client.errors import ConnectError, ConnectionLostError
@@ -35,6 +37,14 @@ _READ_BYTES = 65536
 #: timeout is reset only when it is off by more, so that most queries reuse the last one.
 _RECEIVE_TIMEOUT_SLACK_S = 0.002
 _TIMEVAL = struct.Struct("@ll")  # struct timeval, as SO_RCVTIMEO takes it
+#: Device numbers of Unix98 pseudo-terminals' terminal sides (Linux's devices.txt).
+_PSEUDO_TERMINAL_MAJORS = range(136, 144)
+
+if sys.platform != "win32":
+    import fcntl
+    import termios
+
+logger = logging.getLogger(__name__)
 
 
 class Link(Protocol):
@@ -241,11 +251,13 @@ class SerialFdLink(FdLink):
         link = SerialFdLink(port, "/dev/ttyUSB0 at 115200 baud")
     """
 
-    def __init__(self, port: Any, description: str) -> None:
+    def __init__(self, port: Any, description: str, *, exclusive: bool = False) -> None:
         super().__init__(port.fileno())
         self._port = port
         self.description = description
         os.set_blocking(self._fd, False)  # pyserial opens it so; make sure
+        #: Whether the terminal's own exclusive mode was set (see :func:`_set_exclusive_mode`).
+        self.exclusive_mode = exclusive and _set_exclusive_mode(self._fd)
 
     def recv_some(self) -> bytes:
         """Whatever is waiting now; raise ConnectionLostError if the device went away.
@@ -280,8 +292,41 @@ class SerialFdLink(FdLink):
             raise ConnectionLostError(f"{self.description}: {error.strerror or error}") from error
 
     def _close_port(self) -> None:
+        if self.exclusive_mode:
+            # Cleared before closing: the mode belongs to the terminal, not to this descriptor,
+            # and outlives it while anything else (a root process) still has the port open.
+            with contextlib.suppress(OSError):
+                fcntl.ioctl(self._fd, termios.TIOCNXCL)
         with contextlib.suppress(OSError):
             self._port.close()
+
+
+def _is_pseudo_terminal(fd: int) -> bool:
+    """Whether ``fd`` is the terminal side of a Unix98 pseudo-terminal (``/dev/pts/N``)."""
+    try:
+        return os.major(os.fstat(fd).st_rdev) in _PSEUDO_TERMINAL_MAJORS
+    except OSError:
+        return False
+
+
+def _set_exclusive_mode(fd: int) -> bool:
+    """Set the terminal's exclusive mode (``TIOCEXCL``); whether it was set.
+
+    pyserial's ``exclusive`` lock (``flock``) keeps out programs that take the same lock;
+    exclusive mode makes the kernel refuse every other opener but root (a forgotten ``screen``
+    or ``cat``) with "Device or resource busy", until the mode is cleared or the port's last
+    descriptor closes. A pseudo-terminal is left out: the program serving it (``rovlink sim``)
+    keeps its terminal side open, so the mode would outlive a host that crashed and lock out
+    every later one but root's until the simulator restarts.
+    """
+    if _is_pseudo_terminal(fd):
+        return False
+    try:
+        fcntl.ioctl(fd, termios.TIOCEXCL)
+    except OSError as error:  # (not a terminal after all: the flock still holds)
+        logger.debug("exclusive mode not set on descriptor %d: %s", fd, error)
+        return False
+    return True
 
 
 class SocketLink(FdLink):
@@ -499,7 +544,7 @@ def _open_serial(endpoint: Endpoint) -> Link:
     # Only pyserial's own POSIX class is read through its descriptor: wrappers such as spy://
     # log in read() and write(), which reading the descriptor would bypass.
     if type(port) is serialposix.Serial:
-        return SerialFdLink(port, description)
+        return SerialFdLink(port, description, exclusive=bool(exclusive))
     return PortLink(port, description)
 
 
