@@ -83,3 +83,16 @@ def test_decode_stats_counts_events_reasons_and_names(run_cli: RunCli) -> None:
         "reasons": {"range": 1, "unknown": 1},
         "names": {"command": {"qd": 1}, "response": {"qd": 2}},
     }
+
+
+def test_decode_escapes_del_and_c1_controls_as_json_does_c0(run_cli: RunCli) -> None:
+    # Line noise with DEL, an ESC, and a C1 CSI (U+009B, which some terminals obey): none
+    # reaches the terminal raw, and the line reads back exactly.
+    result = run_cli("decode", stdin=b"a\x7fb\x1b[2Jc\xc2\x9b31md\r\n#q\x9bd!")
+    assert result.status == 0, result.err
+    assert all(ch.isprintable() for ch in result.out.replace("\n", ""))
+    assert "\\u007f" in result.out
+    assert "\\u009b" in result.out
+    events = _lines(result.out)
+    assert events[0] == {"event": "text", "text": "a\x7fb\x1b[2Jc\x9b31md"}
+    assert [(e["event"], e.get("raw")) for e in events[1:]] == [("error", "#q"), ("text", None)]

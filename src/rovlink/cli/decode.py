@@ -6,6 +6,7 @@ from __future__ import annotations
 import argparse
 import io
 import json
+import re
 import sys
 from collections import Counter
 from itertools import compress, repeat
@@ -23,6 +24,16 @@ if TYPE_CHECKING:
     from typing import Any, BinaryIO
 
 __all__ = ["EPILOG", "StreamStats", "decode_stream", "event_to_json"]
+
+# json escapes C0 controls but passes DEL and C1 (0x9b is a one-character CSI to some
+# terminals): escaped too, so that line noise in a capture cannot drive the reader's terminal.
+# (re is loaded by json already: no start-up cost.)
+_DEL_AND_C1 = re.compile("[\x7f-\x9f]")
+
+
+def _json_escape(match: re.Match[str]) -> str:
+    return f"\\u{ord(match.group()):04x}"
+
 
 # A pipe's capacity: a live pipe never has more waiting, and a file decodes faster in chunks
 # that stay in the processor's caches than in megabytes.
@@ -135,7 +146,8 @@ def decode_stream(stream: BinaryIO, decoder: Decoder, *, stats_only: bool) -> No
             stats.count(events)
         else:
             for event in events:
-                write(json.dumps(event_to_json(event), ensure_ascii=False) + "\n")
+                line = json.dumps(event_to_json(event), ensure_ascii=False)
+                write(_DEL_AND_C1.sub(_json_escape, line) + "\n")
             sys.stdout.flush()  # a chunk at a time: a live pipe's events show as they come
         if last:
             break
