@@ -1,7 +1,7 @@
 """Query round trip: the host's CPU time per query through the driver, against raw loops.
 
     python bench/driver_cpu.py [--rounds 15] [--blocks 8] [--block 250] [--checksum]
-                               [--cpus split|same|any]
+                               [--cpus split|same|any] [--poll-idle]
 
 Builds and starts ``fast_controller.c`` (a C controller on TCP that answers at once, so that the
 link and the host are timed, not the controller) and times ``#qd!`` → ``$qd.N!`` one query at a
@@ -12,9 +12,11 @@ time, four ways, against the same controller in the same run:
 * raw asyncio streams: ``open_connection``, ``write``, ``readuntil(b"!")``;
 * ``await rovlink.aio.connect(url, keepalive=None).depth_cm()``: the asyncio driver;
 
-and, as a reference without a target, the raw socket loop plus the session's own per-query
+and, as references without a target, the raw socket loop plus the session's own per-query
 bookkeeping (``Session.fast_query`` and ``Session.receive_reply``, the drivers' shortest path):
-what any client that matches replies to queries as P20 asks costs at least.
+what any client that matches replies to queries as P20 asks costs at least with this session;
+and the raw socket loop plus the least a thread-safe client can keep per query at all (a lock
+taken around queueing the query and around settling it, a queue, the value read by ``int``).
 The same bookkeeping is then timed alone in a tight loop with no I/O, and both figures printed:
 how much more the same Python code costs when it runs after each wait for a reply, with the
 caches cold, than with them warm. That factor is the machine's, and it sets how far any client
@@ -27,21 +29,31 @@ wall-clock time per query is printed beside it. Each client and its raw peer are
 once (the controller serves each connection in its own process) and take turns in blocks of
 ``--block`` queries, so that load from elsewhere on the machine hits both alike; a round is
 ``--blocks`` turns of each, its ratio the client's CPU time over the peer's, and the median and
-spread (min–max) of the rounds' ratios are printed. Targets: blocking ≤ 1.15× the raw socket,
-asyncio ≤ 1.00× raw asyncio streams.
+spread (min–max) of the rounds' ratios are printed. Each turn starts with a different way, so
+that no way always runs right after the same other one: the first queries after a switch of
+connection cost more, and a fixed order put up to 8 % of that on one way. Targets: blocking
+≤ 1.15× the raw socket, asyncio ≤ 1.00× raw asyncio streams.
+
+``--poll-idle`` keeps the CPUs from halting while idle for the run (it holds
+``/dev/cpu_dma_latency`` at 0, as ``cyclictest`` does; root only): on a virtual machine every
+halt hands the CPU back to the host, and the caches with it.
 """
 
 from __future__ import annotations
 
 import argparse
 import asyncio
+import contextlib
 import os
 import socket
 import statistics
 import sys
+import threading
 import time
-from collections.abc import Awaitable, Callable
+from collections import deque
+from collections.abc import Awaitable, Callable, Iterator, Sequence
 from dataclasses import dataclass, field
+from typing import TypeVar
 
 import rovlink
 import rovlink.aio
@@ -49,11 +61,15 @@ from fast_controller import FastController, NoCompilerError, running_fast_contro
 from rovlink.client.session import Session
 from rovlink.protocol import Command, Response, encode
 
+T = TypeVar("T")
+
 WARM_UP_QUERIES = 200
 TARGETS = {"rovlink.connect": 1.15, "rovlink.aio.connect": 1.00}
 PEERS = {"rovlink.connect": "raw socket", "rovlink.aio.connect": "raw asyncio streams"}
 #: The raw socket loop plus the session's per-query bookkeeping alone (see its function).
 SESSION_FLOOR = "raw + session only"
+#: The raw socket loop plus the least a thread-safe client keeps per query (see its function).
+LEAST_CLIENT = "raw + lock, queue, int"
 #: Memory written before each timed call of the bookkeeping (session_bookkeeping_swept_us):
 #: about a second-level cache's size, and below and above the reach of a second-level TLB of
 #: 2,048 entries of 4 KiB pages (8 MiB).
@@ -80,6 +96,30 @@ class Totals:
 
     def per_query(self, which: list[float]) -> list[float]:
         return [seconds / count for seconds, count in zip(which, self.queries, strict=True)]
+
+
+def _turns(ways: Sequence[T], count: int) -> Iterator[T]:
+    """``count`` turns of every way, each turn starting with the next way (see the module's
+    docstring)."""
+    for turn in range(count):
+        start = turn % len(ways)
+        yield from ways[start:]
+        yield from ways[:start]
+
+
+@contextlib.contextmanager
+def _idle_polling(wanted: bool) -> Iterator[None]:
+    """While open, CPUs poll instead of halting when idle, if ``wanted`` (PM QoS: a latency
+    of 0 µs asked through ``/dev/cpu_dma_latency``, undone when the file is closed)."""
+    if not wanted:
+        yield
+        return
+    descriptor = os.open("/dev/cpu_dma_latency", os.O_WRONLY)
+    try:
+        os.write(descriptor, (0).to_bytes(4, sys.byteorder))
+        yield
+    finally:
+        os.close(descriptor)
 
 
 def _block(totals: Totals, queries: int, query: Callable[[], object]) -> None:
@@ -144,6 +184,29 @@ def with_session_bookkeeping(raw_query: Callable[[], bytes], checksum: bool) -> 
     return round_trip
 
 
+def with_least_client(raw_query: Callable[[], bytes], checksum: bool) -> Callable[[], int]:
+    """The raw loop plus the least a client that many threads may call keeps per query: the
+    query queued and taken off under a lock, and the reply's value read by ``int``. No check
+    of the frame beyond its name (nor of its checksum), no counters: a floor below any real
+    client's, of any design."""
+    lock = threading.Lock()
+    on_the_wire: deque[object] = deque()
+    prefix = b"$qd."
+    tail = 3 if checksum else 1  # (two hex digits of CRC-8, and the "!")
+
+    def round_trip() -> int:
+        with lock:
+            on_the_wire.append(round_trip)
+        reply = raw_query()
+        with lock:
+            on_the_wire.popleft()
+        if not reply.startswith(prefix):
+            raise ValueError(f"not a depth reply: {reply!r}")
+        return int(reply[len(prefix) : len(reply) - tail])
+
+    return round_trip
+
+
 def session_bookkeeping_hot_us(checksum: bool, queries: int = 50_000) -> float:
     """CPU µs per query of the floor's session bookkeeping alone, in a tight loop with no I/O:
     what it costs with warm caches, to set beside what it adds after each wake-up in the run.
@@ -199,6 +262,7 @@ def run_blocking(
             (totals["raw socket"], raw_query),
             (totals["rovlink.connect"], rov.depth_cm),
             (totals[SESSION_FLOOR], with_session_bookkeeping(raw_query, arguments.checksum)),
+            (totals[LEAST_CLIENT], with_least_client(raw_query, arguments.checksum)),
         ]
         for _, way_query in ways:
             for _ in range(WARM_UP_QUERIES):
@@ -206,9 +270,8 @@ def run_blocking(
         for _ in range(arguments.rounds):
             for way_totals, _ in ways:
                 way_totals.start_round()
-            for _ in range(arguments.blocks):
-                for way_totals, way_query in ways:
-                    _block(way_totals, arguments.block, way_query)
+            for way_totals, way_query in _turns(ways, arguments.blocks):
+                _block(way_totals, arguments.block, way_query)
 
 
 def run_asyncio(
@@ -242,9 +305,8 @@ def run_asyncio(
                 for _ in range(arguments.rounds):
                     for way_totals, _ in ways:
                         way_totals.start_round()
-                    for _ in range(arguments.blocks):
-                        for way_totals, way_query in ways:
-                            await _async_block(way_totals, arguments.block, way_query)
+                    for way_totals, way_query in _turns(ways, arguments.blocks):
+                        await _async_block(way_totals, arguments.block, way_query)
         finally:
             writer.close()
             await writer.wait_closed()
@@ -280,22 +342,33 @@ def main() -> int:
         "reply wakes the host as a serial port's would; same: both on one CPU (no idle "
         "wake-ups, only the host's own work); any: where the scheduler puts them",
     )
+    parser.add_argument(
+        "--poll-idle",
+        action="store_true",
+        help="keep the CPUs from halting when idle during the run (root only)",
+    )
     arguments = parser.parse_args()
     query = encode(Command("qd"), checksum="crc8" if arguments.checksum else None)
-    totals = {name: Totals() for name in (*PEERS.values(), *PEERS, SESSION_FLOOR)}
+    totals = {name: Totals() for name in (*PEERS.values(), *PEERS, SESSION_FLOOR, LEAST_CLIENT)}
     controller_cpu = _pin(arguments.cpus)
     try:
-        with running_fast_controller(controller_cpu) as controller:
+        with (
+            _idle_polling(arguments.poll_idle),
+            running_fast_controller(controller_cpu) as controller,
+        ):
             run_blocking(controller, arguments, query, totals)
             run_asyncio(controller, arguments, query, totals)
     except NoCompilerError as error:
         print(f"driver_cpu: {error}", file=sys.stderr)
         return 2
+    except PermissionError as error:
+        print(f"driver_cpu: --poll-idle needs root: {error}", file=sys.stderr)
+        return 2
 
     print(
         f"{arguments.rounds} rounds × {arguments.blocks} turns × {arguments.block} queries per "
-        f"way, checksums {'on' if arguments.checksum else 'off'}, CPUs {arguments.cpus}, "
-        f"Python {sys.version.split()[0]}"
+        f"way, checksums {'on' if arguments.checksum else 'off'}, CPUs {arguments.cpus}"
+        f"{', idle CPUs polling' if arguments.poll_idle else ''}, Python {sys.version.split()[0]}"
     )
     print(
         f"{'way':<22}{'CPU µs/query':>14}{'wall µs/query':>15}{'CPU × peer (min–max)':>24}"
@@ -305,6 +378,7 @@ def main() -> int:
     for name in (
         "raw socket",
         SESSION_FLOOR,
+        LEAST_CLIENT,
         "rovlink.connect",
         "raw asyncio streams",
         "rovlink.aio.connect",
@@ -314,7 +388,7 @@ def main() -> int:
         cpu_us = statistics.median(cpu) * 1e6
         line = f"{name:<22}{cpu_us:>14.1f}{statistics.median(wall) * 1e6:>15.1f}"
         peer_name = PEERS.get(name)
-        if name == SESSION_FLOOR:  # a reference, with no target of its own
+        if name in (SESSION_FLOOR, LEAST_CLIENT):  # a reference, with no target of its own
             peer = totals["raw socket"]
             cpu_ratios = [a / b for a, b in zip(cpu, peer.per_query(peer.cpu_s), strict=True)]
             line += f"{_spread(cpu_ratios):>24}"

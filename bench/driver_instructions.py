@@ -2,10 +2,11 @@
 
     python bench/driver_instructions.py [--queries 2000] [--checksum] [--ways NAME ...]
 
-The same ways as ``bench/driver_cpu.py`` (raw socket, raw + session only, ``rovlink.connect``,
-raw asyncio streams, ``rovlink.aio.connect``), each run ``#qd!`` → ``$qd.N!`` against
-``fast_controller.c`` in a process of its own under ``valgrind --tool=callgrind``, which counts
-the instructions the process executes (its own and its libraries', not the kernel's).
+The same ways as ``bench/driver_cpu.py`` (raw socket, raw + session only, raw + lock, queue,
+int, ``rovlink.connect``, raw asyncio streams, ``rovlink.aio.connect``), each run ``#qd!`` →
+``$qd.N!`` against ``fast_controller.c`` in a process of its own under ``valgrind
+--tool=callgrind``, which counts the instructions the process executes (its own and its
+libraries', not the kernel's).
 
 CPU time per query (``driver_cpu.py``) is the figure with a target, but on a shared virtual
 machine it moves by ±10 % from run to run, and more for asyncio: too much to tell whether a
@@ -36,7 +37,14 @@ from collections.abc import Awaitable, Callable
 
 import rovlink
 import rovlink.aio
-from driver_cpu import PEERS, SESSION_FLOOR, raw_socket_query, with_session_bookkeeping
+from driver_cpu import (
+    LEAST_CLIENT,
+    PEERS,
+    SESSION_FLOOR,
+    raw_socket_query,
+    with_least_client,
+    with_session_bookkeeping,
+)
 from fast_controller import NoCompilerError, running_fast_controller
 from rovlink.protocol import Command, encode
 
@@ -44,6 +52,7 @@ WARM_UP_QUERIES = 10_200
 WAYS = (
     "raw socket",
     SESSION_FLOOR,
+    LEAST_CLIENT,
     "rovlink.connect",
     "raw asyncio streams",
     "rovlink.aio.connect",
@@ -59,12 +68,16 @@ def run_way(way: str, url: str, queries: int, checksum: bool) -> None:
     """Make ``queries`` queries one way (in the process valgrind counts)."""
     host, port = url.removeprefix("socket://").rsplit(":", 1)
     query = encode(Command("qd"), checksum="crc8" if checksum else None)
-    if way in ("raw socket", SESSION_FLOOR):
-        sock, round_trip = raw_socket_query(host, int(port), query)
+    if way in ("raw socket", SESSION_FLOOR, LEAST_CLIENT):
+        sock, raw_round_trip = raw_socket_query(host, int(port), query)
+        round_trip: Callable[[], object] = raw_round_trip
+        if way == SESSION_FLOOR:
+            round_trip = with_session_bookkeeping(raw_round_trip, checksum)
+        elif way == LEAST_CLIENT:
+            round_trip = with_least_client(raw_round_trip, checksum)
         with sock:
-            loop = with_session_bookkeeping(round_trip, checksum) if way != "raw socket" else None
             for _ in range(queries):
-                (loop or round_trip)()
+                round_trip()
     elif way == "rovlink.connect":
         with rovlink.connect(url, keepalive=None, checksum=checksum) as rov:
             for _ in range(queries):
@@ -157,7 +170,7 @@ def main() -> int:
         f"{'on' if arguments.checksum else 'off'}, Python {sys.version.split()[0]}"
     )
     print(f"{'way':<22}{'instructions/query':>20}{'× peer':>9}{'more per query':>16}")
-    peers = {**PEERS, SESSION_FLOOR: "raw socket"}
+    peers = {**PEERS, SESSION_FLOOR: "raw socket", LEAST_CLIENT: "raw socket"}
     for way, count in per_query.items():
         line = f"{way:<22}{count:>20,.0f}"
         peer = per_query.get(peers.get(way, ""))
