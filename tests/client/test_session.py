@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from rovlink.client.session import FENCE_QUERIES, Outcome, Session
+from rovlink.client.session import FENCE_QUERIES, Outcome, PendingQuery, Session
 from rovlink.protocol import Command, Text
 
 QSA_REPLY = b"$qd.120!$qr.530!$q.l.0!$qro.-1!$qpi.+3!$qhe.275!"
@@ -300,23 +300,61 @@ def test_a_fragment_cut_short_right_before_the_reply_is_noise_not_the_reply() ->
     assert not session.resynchronising
 
 
+_FRAGMENT_THEN_REPLY = b"$qd.1$qd.37!"
+
+
+@pytest.mark.parametrize("cut", range(1, len(_FRAGMENT_THEN_REPLY)))
+def test_a_fragment_cut_short_by_a_reply_split_across_reads_is_noise_too(cut: int) -> None:
+    # A serial port's reads split frames anywhere; when the read ends right after the "$" that
+    # cuts the fragment short, the frame that "$" begins decides once it is whole (before, the
+    # query failed and was retried after a fence).
+    session = Session()
+    _, query = session.query(Command("qd"), now=0.0)
+    first = session.receive_reply(_FRAGMENT_THEN_REPLY[:cut], now=0.01)
+    assert not query.settled
+    assert not isinstance(first, PendingQuery)
+    assert not first.settled
+    second = session.receive_reply(_FRAGMENT_THEN_REPLY[cut:], now=0.02)
+    settled = [second] if isinstance(second, PendingQuery) else second.settled
+    assert settled == [query]
+    assert query.outcome is Outcome.ANSWERED
+    assert query.responses[0].values == (37,)
+    assert session.counters.bad_frames == 1
+    assert not session.resynchronising
+
+
 @pytest.mark.parametrize(
-    ("data", "why"),
+    ("reads", "why"),
     [
-        (b"$qd.1x!$qd.37!", "a whole damaged frame is the reply, damaged"),
-        (b"$qd.1$qhe.5!", "followed by a reply of another name"),
-        (b"$qd.1", "nothing after it yet"),
+        ((b"$qd.1x!$qd.37!",), "a whole damaged frame is the reply, damaged"),
+        ((b"$qd.1$qhe.5!",), "followed by a reply of another name"),
+        ((b"$qd.1", b"$", b"qhe.5!"), "followed, reads later, by a reply of another name"),
+        ((b"$qd.1$", b"boot\r\n"), "followed by a line of text"),
     ],
 )
 def test_a_damaged_reply_still_fails_the_query_when_it_may_be_the_reply(
-    data: bytes, why: str
+    reads: tuple[bytes, ...], why: str
 ) -> None:
     session = Session()
     _, query = session.query(Command("qd"), now=0.0)
-    session.receive(data, now=0.01)
-    if data == b"$qd.1":
-        session.receive(b"$", now=0.02)  # the fragment ends where the next frame starts
+    for data in reads:
+        session.receive(data, now=0.01)
     assert query.outcome is Outcome.CORRUPT, why
+
+
+def test_a_fragment_undecided_when_its_query_times_out_decides_nothing_more() -> None:
+    # The frame after it is still incomplete at the deadline: the query times out and its name
+    # is fenced, so when that frame completes it is late, never the retry's reply (P20).
+    session = Session(timeout_s=0.5)
+    _, query = session.query(Command("qd"), now=0.0)
+    session.receive(b"$qd.1$qd.", now=0.01)
+    assert session.tick(now=0.6) == [query]
+    assert query.outcome is Outcome.TIMEOUT
+    _, retry = session.query(Command("qd"), now=0.6)
+    received = session.receive(b"37!", now=0.61)
+    assert not received.settled
+    assert retry.outcome is Outcome.PENDING
+    assert session.counters.late_replies == 1
 
 
 def test_a_fragment_before_a_reply_another_query_also_expects_answers_neither() -> None:

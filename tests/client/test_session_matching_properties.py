@@ -5,8 +5,9 @@ A model controller answers the query frames it receives in order, each reply fra
 never used before, so that every reply the session hands a query can be traced to the query frame
 it was produced for. The line may drop a query frame, and drop, damage (checksum), cut short or
 delay a reply frame, or put noise that begins with a ``$`` right before one; delays keep the
-order (one serial line). Callers send single queries and ``qsa``, abandon queries (Ctrl-C) and
-wait, on a simulated clock; the link may be lost and reopened.
+order (one serial line), and the host's reads may end anywhere, even inside a frame. Callers
+send single queries and ``qsa``, abandon queries (Ctrl-C) and wait, on a simulated clock; the
+link may be lost and reopened.
 
 What must hold (P20):
 
@@ -200,6 +201,13 @@ class _Harness:
                         self.model.arrived.add(reply)
                     if self.model.data.draw(st.booleans()):
                         break  # one frame at a time, or all that have arrived
+                # Or in two reads cut anywhere, as a serial port's reads are.
+                cut = self.model.data.draw(st.integers(0, len(chunk) - 1) | st.just(0))
+                if cut:
+                    self.receive(chunk[:cut])
+                    self.flush()
+                    self.check()
+                    chunk = chunk[cut:]
                 self.receive(chunk)
             else:
                 # A real clock is past a deadline when a timer fires: without the nudge,

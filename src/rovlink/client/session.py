@@ -222,6 +222,9 @@ class Session:
         self._fence: PendingQuery | None = None
         self._quiet_until: float | None = None  # holding queries until then (no fence possible)
         self._held: deque[PendingQuery] = deque()
+        # A fragment decoded at the end of a read, and the oldest query then (see _bad_frame).
+        self._fragment: BadFrame | None = None
+        self._fragment_head: PendingQuery | None = None
         self._consecutive_timeouts = 0
         # P21: when a suspected reset was last reported; reported again only after a reply.
         self._reset_reported_at: float | None = None
@@ -447,6 +450,8 @@ class Session:
         if events is not None:
             events.append(BytesReceived(now, data))
         result = Received()
+        if self._fragment is not None and decoded:
+            self._decide_fragment(decoded[0], now, result.settled)
         pending = self._pending
         late_names = self._late_names
         for index, event in enumerate(decoded):
@@ -625,6 +630,7 @@ class Session:
         (The queries of the old link were settled by :meth:`disconnect`.)
         """
         self._decoder.reset()
+        self._fragment = self._fragment_head = None
         self._outbox.clear()
         self._end_resync()
         self._consecutive_timeouts = 0
@@ -912,14 +918,29 @@ class Session:
         self.counters.noise_bytes += len(event.raw)
         if event.reason is Reason.CHECKSUM:
             self.counters.checksum_errors += 1
-        if (
-            event.raw[:1] == b"$"
-            and event.reason in _CORRUPT_REASONS
-            and self._pending
-            and not self._is_noise_before_reply(event, following)
-        ):
+        if event.raw[:1] != b"$" or event.reason not in _CORRUPT_REASONS or not self._pending:
+            return
+        if following is None and self._decoder.buffered_bytes and not event.raw.endswith(b"!"):
+            # A fragment cut short by the start of a frame whose rest is still on its way
+            # (a serial port's reads split frames anywhere): that frame decides, as it would
+            # have in the same read (_is_noise_before_reply), when it is whole.
+            self._fragment = event
+            self._fragment_head = self._pending[0]
+            return
+        if not self._is_noise_before_reply(event, following):
             # Most likely the head's reply, damaged; but it may be noise that began with a "$"
             # (or, while resynchronising, a late reply), and the head's own reply still to
             # come, as may a qsa's remaining replies. None of them may be taken for a later
             # query's (P20): the head fails and its names are fenced.
             settled.extend(self._fail(self._pending[0], Outcome.CORRUPT, now))
+
+    def _decide_fragment(self, first: Event, now: float, settled: list[PendingQuery]) -> None:
+        """Decide on a fragment left undecided by the last read (:meth:`_bad_frame`), now that
+        ``first``, the event after it, is decoded; dropped if the query it followed is no
+        longer the oldest on the wire (settled meanwhile: timed out, abandoned, lost)."""
+        fragment, head = self._fragment, self._fragment_head
+        self._fragment = self._fragment_head = None
+        if fragment is None or not self._pending or self._pending[0] is not head:
+            return
+        if not self._is_noise_before_reply(fragment, first):
+            settled.extend(self._fail(head, Outcome.CORRUPT, now))
