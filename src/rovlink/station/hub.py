@@ -309,6 +309,12 @@ class Station:
         if moving:
             self.log("warning", f"thrust to zero: {reason}")
 
+    def _log_cut(self, *, moving: bool, was_armed: bool) -> None:
+        """Say why, when the relay cut (disarmed) since ``was_armed`` and ``moving`` were read."""
+        if was_armed and not self.relay.armed:
+            reason = self.relay.cut_reason or "stale input"
+            self.log("warning", f"{'thrust to zero' if moving else 'disarmed'}: {reason}")
+
     def _schedule_flush(self) -> None:
         """A change the relay held back (``min_interval_s``) goes out when it is due, not at
         the next watchdog round."""
@@ -320,19 +326,34 @@ class Station:
 
     def _flush_due(self) -> None:
         self._flush_timer = None
-        commands = self.relay.flush(self._clock())
-        if not commands:
-            self._schedule_flush()  # not due yet (the timer fired early), or nothing held
+        due_s = self.relay.due_s
+        if due_s is None:
+            return  # nothing held any more (sent with a newer input, or cut)
+        if due_s > self._clock():
+            self._schedule_flush()  # the timer fired early
             return
-        task = asyncio.ensure_future(self._send_held(commands))
+        task = asyncio.ensure_future(self._send_held())
         self._sending.add(task)
         task.add_done_callback(self._sending.discard)
 
-    async def _send_held(self, commands: list[Command]) -> None:
+    async def _send_held(self) -> None:
+        """Send the change the relay held back. It is taken from the relay here, not when the
+        timer fired, and each frame is checked before it goes: a cut handled in between (the
+        pilot left, another page took control) must not be followed by the old motion."""
         try:
-            await self._send_all(commands)
+            commands = self.relay.flush(self._clock()) if self._may_relay() else []
+            for command in commands:
+                if not self._may_relay():
+                    return
+                await self.tracked.send(command)
         except ClientError as error:
             self.log("warning", f"sending failed: {error}")
+        self._schedule_flush()  # a newer input held back meanwhile
+
+    def _may_relay(self) -> bool:
+        """Whether the pilot's motion may go out now: a pilot, on a shown page, relay armed."""
+        pilot = self.pilot
+        return pilot is not None and not pilot.hidden and self.relay.armed
 
     async def _send_all(self, commands: list[Command]) -> None:
         for command in commands:
@@ -348,9 +369,7 @@ class Station:
                 moving, armed = self.relay.moving, self.relay.armed
                 commands = self.relay.check(self._clock())  # a cut, or a held change now due
                 await self._send_all(commands)
-                if armed and not self.relay.armed:
-                    reason = self.relay.cut_reason or "stale input"
-                    self.log("warning", f"{'thrust to zero' if moving else 'disarmed'}: {reason}")
+                self._log_cut(moving=moving, was_armed=armed)
             except ClientError as error:
                 self.log("alarm", f"zero thrust could not be sent: {error}")
             except Exception:  # the watchdog must outlive any bug in what it calls

@@ -1,0 +1,135 @@
+"""The station's hub in-process, on the simulated robot and a simulated clock: the orderings a
+socket test cannot force (a held frame's timer against a cut) and what the event log says."""
+
+from __future__ import annotations
+
+import asyncio
+import json
+from collections.abc import AsyncIterator
+from dataclasses import dataclass, field
+from typing import Any
+
+import pytest
+
+import rovlink.aio
+from rovlink.client.events import BytesSent, ClientEvent
+from rovlink.piloting import TrackedClient
+from rovlink.station.hub import Peer, Station
+
+
+@dataclass
+class Clock:
+    """The station's clock, moved by hand."""
+
+    now_s: float = 100.0
+
+    def __call__(self) -> float:
+        return self.now_s
+
+
+@dataclass
+class Hub:
+    """A station on ``sim://`` with every frame it writes (keep-alives and polls left out)."""
+
+    station: Station
+    clock: Clock
+    sent: list[str] = field(default_factory=list)
+
+    def on_event(self, event: ClientEvent) -> None:
+        if isinstance(event, BytesSent) and not event.data.startswith(b"#q"):
+            self.sent.append(event.data.decode())
+
+    async def send(self, peer: Peer, message: dict[str, Any]) -> None:
+        await self.station.handle(peer, json.dumps(message))
+
+    async def pilot(self) -> Peer:
+        peer = self.station.join("test")
+        await self.send(peer, {"type": "take_control"})
+        assert self.station.pilot is peer
+        return peer
+
+    async def settled(self) -> None:
+        """Every frame task the station started has run."""
+        while self.station._sending:
+            await asyncio.gather(*self.station._sending)
+
+    def warnings(self) -> list[str]:
+        return [
+            entry["text"] for entry in self.station._log if entry["level"] in ("warning", "alarm")
+        ]
+
+
+@pytest.fixture
+async def hub() -> AsyncIterator[Hub]:
+    client = await rovlink.aio.connect("sim://")
+    clock = Clock()
+    station = Station(TrackedClient(client, algorithm="crc8"), description="sim://", clock=clock)
+    made = Hub(station, clock)
+    client.subscribe(made.on_event)
+    try:
+        yield made
+    finally:
+        await client.close()
+
+
+def keys(deadman: bool, direction_deg: int = 90, power_percent: int = 0) -> dict[str, Any]:
+    return {
+        "type": "input",
+        "deadman": deadman,
+        "direction_deg": direction_deg,
+        "power_percent": power_percent,
+        "vertical_percent": 0,
+        "source": "keyboard",
+    }
+
+
+def pad(deadman: bool, pad_ms: float, power_percent: int = 50) -> dict[str, Any]:
+    return {**keys(deadman, 45, power_percent), "source": "gamepad", "pad_timestamp_ms": pad_ms}
+
+
+def thrust(frames: list[str]) -> list[str]:
+    return [frame for frame in frames if frame.startswith("#th.")]
+
+
+async def held_back(hub: Hub) -> Peer:
+    """A pilot flying at 40 % whose change to 80 % the relay holds back (``min_interval_s``);
+    the flush timer is cancelled, so the test fires it when it wants."""
+    peer = await hub.pilot()
+    await hub.send(peer, {"type": "command", "name": "start"})
+    await hub.send(peer, keys(False))
+    await hub.send(peer, keys(True, power_percent=40))
+    hub.clock.now_s += 0.005
+    await hub.send(peer, keys(True, power_percent=80))
+    timer = hub.station._flush_timer
+    assert timer is not None
+    assert hub.station.relay.due_s is not None
+    timer.cancel()
+    hub.station._flush_timer = None
+    hub.clock.now_s += 0.05  # the held change is due
+    hub.sent.clear()
+    return peer
+
+
+async def test_a_held_frame_whose_timer_fired_does_not_follow_the_pilots_leaving(hub):
+    peer = await held_back(hub)
+    hub.station._flush_due()  # the timer's callback: the flush task is created ...
+    await hub.station.leave(peer)  # ... and the page's disconnect is handled before it runs
+    await hub.settled()
+    assert thrust(hub.sent) == ["#th.90.0!"]  # the cut, and nothing after it
+    assert hub.station.tracked.commanded.power_percent == 0
+
+
+async def test_a_held_frame_whose_timer_fired_does_not_follow_a_take_over(hub):
+    await held_back(hub)
+    hub.station._flush_due()
+    await hub.send(hub.station.join("other"), {"type": "take_control"})
+    await hub.settled()
+    assert thrust(hub.sent) == ["#th.90.0!"]  # the cut, and nothing after it
+    assert hub.station.tracked.commanded.power_percent == 0
+
+
+async def test_a_held_frame_goes_out_when_due(hub):
+    await held_back(hub)
+    hub.station._flush_due()
+    await hub.settled()
+    assert hub.sent == ["#th.90.80!"]
