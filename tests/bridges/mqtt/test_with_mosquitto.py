@@ -170,3 +170,59 @@ async def test_broker_restart_reconnects_and_keeps_events(broker: Mosquitto):
             )
             assert resumed["leak"] is True
         assert len(robot.bridge.outbox) == 0
+
+
+async def _ask_with_response_topic(broker: Mosquitto, command: bytes, response_topic: str) -> None:
+    """Publish ``command`` as an MQTT 5 request whose replies should go to ``response_topic``."""
+    properties = Properties(PacketTypes.PUBLISH)
+    properties.ResponseTopic = response_topic
+    properties.CorrelationData = b"7"
+    async with aiomqtt.Client(
+        "127.0.0.1", broker.port, protocol=aiomqtt.ProtocolVersion.V5
+    ) as asker:
+        await asker.publish("rovlink/w1/cmd", command, qos=1, properties=properties)
+
+
+async def test_a_response_topic_with_a_wildcard_is_refused_and_the_command_still_handled(
+    broker: Mosquitto, caplog: pytest.LogCaptureFixture
+):
+    caplog.set_level("WARNING", logger="rovlink.bridges.mqtt")
+    async with (
+        bridged_robot(broker, "w1", allow_commands=False) as robot,
+        subscriber(broker, "answers/#", "rovlink/w1/cmd/reply", "rovlink/w1/state") as watcher,
+    ):
+        before = len(robot.motion_and_lock_frames())
+        await _ask_with_response_topic(broker, b"start", "answers/+/b")  # refused as usual
+        await _ask_with_response_topic(broker, b"stop", "answers/#")  # sent as usual
+        await until(lambda: robot.motion_and_lock_frames()[before:] == ["#stop!"])
+        await until(lambda: len(caplog.records) >= 2)
+        # Still serving, and the refused response topics got nothing (replies are in order).
+        assert (await watcher.command("w1", "stop"))["ok"]
+        assert not robot.task.done()
+        assert [topic for topic, _ in watcher.received if topic.startswith("answers/")] == []
+        assert len(watcher.on("rovlink/w1/cmd/reply")) == 1
+        assert all("response topic" in record.getMessage() for record in caplog.records)
+        assert watcher.on("rovlink/w1/state")[-1]["online"] is True
+
+
+async def test_an_unexpected_error_ends_the_bridge_offline_and_stopped(
+    broker: Mosquitto, monkeypatch: pytest.MonkeyPatch
+):
+    def broken(payload: bytes) -> None:
+        raise RuntimeError("injected fault")
+
+    monkeypatch.setattr("rovlink.bridges.mqtt.bridge.read_request", broken)
+    async with (
+        bridged_robot(broker, "x1") as robot,
+        subscriber(broker, "rovlink/x1/state") as watcher,
+    ):
+        await watcher.wait_for("rovlink/x1/state", lambda s: s["online"])
+        await watcher.client.publish("rovlink/x1/cmd", b"stop", qos=1)
+        await until(robot.task.done)
+        assert isinstance(robot.task.exception(), RuntimeError)
+        offline = await watcher.wait_for("rovlink/x1/state", lambda s: not s["online"])
+        assert offline["reason"] == "bridge failed: RuntimeError: injected fault"
+        assert robot.frames()[-1] == "#stop!"
+    # Retained: the fleet learns it later too.
+    async with subscriber(broker, "rovlink/x1/state") as late:
+        assert (await late.wait_for("rovlink/x1/state"))["online"] is False

@@ -35,7 +35,7 @@ from rovlink.bridges.mqtt.payloads import (
     state_payload,
     telemetry_payload,
 )
-from rovlink.bridges.mqtt.topics import Topics
+from rovlink.bridges.mqtt.topics import Topics, publish_topic_problem
 from rovlink.bridges.sensor_poll import SensorPoller
 from rovlink.client.errors import QueryTimeoutError
 from rovlink.client.events import ClientEvent, LinkState, MotionExpired, ResetSuspected
@@ -57,6 +57,8 @@ _RECONNECT_MAX_S = 5.0
 #: Telemetry waiting for the broker beyond this is dropped (QoS 0 promises no more).
 _TELEMETRY_BACKLOG = 64
 _KEEPALIVE_S = 10
+#: The offline state at the end is given up after this (the last will covers a lost broker).
+_FAREWELL_S = 2.0
 
 
 class MqttBridge:
@@ -93,6 +95,8 @@ class MqttBridge:
         self._wake_publisher = asyncio.Event()
         self._last_state: dict[str, Any] | None = None
         self._last_state_at_s = 0.0
+        #: Why the bridge is ending (the offline state's reason), once it is.
+        self._ending: str | None = None
         self.poller = SensorPoller(rov, self._on_reading, rate_hz=rate_hz)
         rov.client.subscribe(self._on_client_event)
         rov.add_sent_listener(lambda _sent: self._wake_publisher.set())
@@ -108,6 +112,9 @@ class MqttBridge:
             done, _ = await asyncio.wait([poller, broker], return_when=asyncio.FIRST_EXCEPTION)
             for task in done:
                 task.result()
+        except Exception as error:
+            self._end_reason(error)  # before the broker task is cancelled: it says this reason
+            raise
         finally:
             for task in (poller, broker):
                 task.cancel()
@@ -126,7 +133,15 @@ class MqttBridge:
                 async with self._client(aiomqtt) as mqtt:
                     wait_s = _RECONNECT_FIRST_S
                     logger.info("connected to %s", self.broker.describe())
-                    await self._serve(mqtt)
+                    try:
+                        await self._serve(mqtt)
+                    except aiomqtt.MqttError:
+                        raise  # the broker is gone: nothing can be said (the last will does)
+                    except BaseException as error:
+                        # Whatever ends the bridge, the retained state must not stay online:
+                        # the clean disconnect that follows discards the last will.
+                        await self._say_offline(mqtt, self._end_reason(error))
+                        raise
             except aiomqtt.MqttError as error:
                 self.connected.clear()
                 logger.warning(
@@ -178,15 +193,7 @@ class MqttBridge:
         try:
             done, _ = await asyncio.wait(tasks, return_when=asyncio.FIRST_COMPLETED)
             for task in done:
-                task.result()  # the broker went away: MqttError
-        except asyncio.CancelledError:
-            # A clean exit: say so on the retained state (the last will covers the rest).
-            offline = encode(offline_state(self.robot_id, "bridge stopped"))
-            with contextlib.suppress(Exception):
-                await asyncio.wait_for(
-                    mqtt.publish(self.topics.state, offline, qos=_QOS_RELIABLE, retain=True), 2.0
-                )
-            raise
+                task.result()  # the broker went away (MqttError), or a fault
         finally:
             self.connected.clear()
             for task in tasks:
@@ -229,6 +236,28 @@ class MqttBridge:
         self._last_state = comparable
         self._last_state_at_s = now_s
 
+    async def _say_offline(self, mqtt: Any, reason: str) -> None:
+        """Publish the retained offline state, within :data:`_FAREWELL_S` (the broker may be
+        slow or gone: the last will covers that)."""
+        offline = encode(offline_state(self.robot_id, reason))
+        try:
+            await asyncio.wait_for(
+                mqtt.publish(self.topics.state, offline, qos=_QOS_RELIABLE, retain=True),
+                _FAREWELL_S,
+            )
+        except Exception as error:  # ending anyway; the last will may say it
+            logger.warning("could not publish the offline state: %s", error)
+
+    def _end_reason(self, error: BaseException) -> str:
+        """Why the bridge ends, for the offline state: the first reason given is kept (the
+        error that ended one task is followed by the cancellation of the other)."""
+        if self._ending is None:
+            if isinstance(error, asyncio.CancelledError):
+                self._ending = "bridge stopped"
+            else:
+                self._ending = f"bridge failed: {type(error).__name__}: {error}"
+        return self._ending
+
     # -- commands ------------------------------------------------------------------------------
 
     async def _on_command(self, mqtt: Any, message: Any) -> None:
@@ -259,6 +288,16 @@ class MqttBridge:
         asked = getattr(message, "properties", None)
         response_topic = getattr(asked, "ResponseTopic", None)
         if isinstance(response_topic, str) and response_topic:
+            problem = publish_topic_problem(response_topic)
+            if problem is not None:
+                # Whoever asked chose it; publishing would raise and end the bridge.
+                logger.warning(
+                    "command %r: no reply sent: its response topic %r %s",
+                    answer.get("command"),
+                    response_topic,
+                    problem,
+                )
+                return
             topic = response_topic
             correlation = getattr(asked, "CorrelationData", None)
             if correlation is not None:

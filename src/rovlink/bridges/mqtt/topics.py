@@ -6,11 +6,13 @@ from __future__ import annotations
 import re
 from dataclasses import dataclass
 
-__all__ = ["ROOT", "Topics", "check_robot_id", "robot_of"]
+__all__ = ["ROOT", "Topics", "check_robot_id", "publish_topic_problem", "robot_of"]
 
 #: Every topic of the bridges is under this.
 ROOT = "rovlink"
 _ROBOT_ID = re.compile(r"[A-Za-z0-9_.-]{1,64}")
+#: MQTT's limit on a topic name, in UTF-8 bytes.
+_MAX_TOPIC_BYTES = 65535
 
 
 def check_robot_id(robot_id: str) -> str:
@@ -29,6 +31,32 @@ def check_robot_id(robot_id: str) -> str:
             "(it is a topic level)"
         )
     return robot_id
+
+
+def publish_topic_problem(topic: str) -> str | None:
+    """Why ``topic`` cannot be published to (a wildcard, empty, too long), or ``None``.
+
+    A request's response topic comes from whoever sent it; the MQTT client refuses to publish
+    to a bad one with an exception, so it is checked first.
+
+    >>> publish_topic_problem("answers/me") is None
+    True
+    >>> publish_topic_problem("answers/+/me")
+    "contains the wildcard '+'"
+    """
+    if not topic:
+        return "is empty"
+    for character in ("+", "#", "\0"):
+        if character in topic:
+            what = "the null character" if character == "\0" else f"the wildcard {character!r}"
+            return f"contains {what}"
+    try:
+        size_bytes = len(topic.encode("utf-8"))
+    except UnicodeEncodeError:
+        return "is not valid UTF-8"
+    if size_bytes > _MAX_TOPIC_BYTES:
+        return f"is {size_bytes} bytes long; a topic is at most {_MAX_TOPIC_BYTES}"
+    return None
 
 
 def robot_of(topic: str) -> tuple[str, str] | None:
