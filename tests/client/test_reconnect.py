@@ -56,3 +56,46 @@ async def test_the_asyncio_client_reopens_a_lost_link_too(port: FakeControllerSe
         assert not rov.closed
     states = [event.state for event in events if isinstance(event, LinkState)]
     assert states == ["lost", "reconnected"]
+
+
+def _after_readiness_probe(frames: list[str]) -> list[str]:
+    """The frames a client sent on a reopened link once the controller answered its probe."""
+    assert frames[:2] == ["#crcoff!", "#qd!"]
+    return frames[2:]
+
+
+def test_motion_is_zeroed_first_on_a_reopened_link(port: FakeControllerServer) -> None:
+    # Only the link dropped: the controller may still drive the last thrust, and the queries
+    # that follow would feed its watchdog (P17). Zero thrust goes first on the new link.
+    with rovlink.connect(port.url, reconnect=True, keepalive=None, timeout=2.0) as rov:
+        rov.start()
+        rov.move(90, 50)
+        rov.set_vertical_thrust(-30)
+        port.fakes[0].close()
+        assert wait_until(lambda: len(port.fakes) == 2)
+        assert rov.depth_cm() == 123
+        after_probe = _after_readiness_probe(port.fakes[1].frames())
+        assert after_probe[:2] == ["#th.90.0!", "#mvs.+0!"]
+
+
+def test_a_link_reopened_at_rest_gets_no_zero_thrust(port: FakeControllerServer) -> None:
+    with rovlink.connect(port.url, reconnect=True, keepalive=None, timeout=2.0) as rov:
+        rov.start()
+        rov.move(90, 50)
+        rov.move(90, 0)
+        port.fakes[0].close()
+        assert wait_until(lambda: len(port.fakes) == 2)
+        assert rov.depth_cm() == 123
+        assert not any(frame.startswith(("#th", "#mvs")) for frame in port.fakes[1].frames())
+
+
+async def test_the_asyncio_client_zeroes_motion_first_on_a_reopened_link(
+    port: FakeControllerServer,
+) -> None:
+    async with rovlink.aio.connect(port.url, reconnect=True, keepalive=None, timeout=2.0) as rov:
+        await rov.start()
+        await rov.move(270, 40)
+        port.fakes[0].close()
+        assert await wait_until_async(lambda: len(port.fakes) == 2)
+        assert await rov.depth_cm() == 123
+        assert _after_readiness_probe(port.fakes[1].frames())[0] == "#th.270.0!"

@@ -625,8 +625,13 @@ class Session:
                 events.append(BytesReceived(now, received))
 
     def reset_link(self) -> None:
-        """Start afresh on a reopened link: no partial frame, nothing due, nothing late.
+        """Start afresh on a reopened link: no partial frame, nothing late, and nothing due but
+        zero thrust, if the motion last sent was not (write :meth:`take_outbox` first).
 
+        A board that reset is at rest (P21), but a link that dropped and came back (a TCP
+        connection, a loose cable) may find the controller still driving the thrust last sent,
+        and the queries that follow would feed its link-loss watchdog (P17): the motion a
+        program or a pilot commanded before the loss is never resumed unasked.
         (The queries of the old link were settled by :meth:`disconnect`.)
         """
         self._decoder.reset()
@@ -635,7 +640,9 @@ class Session:
         self._end_resync()
         self._consecutive_timeouts = 0
         self._reset_reported_at = None
-        self._power_percent = self._vertical_percent = 0  # a reopened board is at rest (P21)
+        for command in self._zeroing_commands():
+            self._outbox.append((self.frame_for(command), None, command))
+        self._power_percent = self._vertical_percent = 0
 
     def note_link(self, state: str, detail: str, now: float) -> None:
         """Record a change of the link itself (``lost``, ``reconnected``) for the drivers."""
@@ -711,12 +718,17 @@ class Session:
                 self._power_percent = 0
             self._vertical_percent = 0
 
-    def _expire_motion(self, now: float) -> None:
+    def _zeroing_commands(self) -> list[Command]:
+        """The commands that bring the motion as last sent to rest (none if it is)."""
         commands = []
         if self._power_percent:
             commands.append(Command("th", (self._direction_deg, 0)))
         if self._vertical_percent:
             commands.append(Command("mvs", (0,)))
+        return commands
+
+    def _expire_motion(self, now: float) -> None:
+        commands = self._zeroing_commands()
         self._power_percent = self._vertical_percent = 0
         for command in commands:
             self._outbox.append((self.frame_for(command), None, command))
