@@ -1,7 +1,8 @@
 """Put a fault-injecting proxy in front of a controller: programs in any language connect to the
 TCP port and see the controller through seeded bit errors, losses, duplicates and delays. The
-same faults are available to rovlink's own tools as a fault:// URL. When a client disconnects,
-and when the proxy stops, the controller gets #stop!."""
+same faults are available to rovlink's own tools as a fault:// URL. One client at a time: a
+second one is told it is busy and disconnected. When a client disconnects, and when the proxy
+stops, the controller gets #stop!."""
 
 from __future__ import annotations
 

@@ -1,33 +1,51 @@
 """``rovlink fault``: a TCP port in front of any link, with faults, for programs in any language.
 
 The proxy opens the controller's link once (a serial port that resets its board on opening is
-opened one time only) and serves one TCP client at a time. A client that disconnects leaves the
-robot stopped: the proxy sends ``#stop!`` to the controller, undamaged, and again on exit.
+opened one time only) and serves one TCP client at a time, as a serial port would. A second
+client that connects meanwhile reads :data:`BUSY_MESSAGE` and is disconnected at once: nothing
+it sends ever reaches the controller (a queued client's commands would run long after it sent
+them, right after the safety ``#stop!``). A client that disconnects leaves the robot stopped:
+the proxy sends ``#stop!`` to the controller, undamaged, and again on exit.
 """
 
 from __future__ import annotations
 
 import contextlib
+import selectors
 import socket
 import threading
+import time
 from collections.abc import Callable
 
 from rovlink.client.errors import ConnectionLostError
 from rovlink.faults.port import FaultPort
 from rovlink.logs import get_logger
 
-__all__ = ["STOP_FRAME", "FaultProxy"]
+__all__ = ["BUSY_MESSAGE", "STOP_FRAME", "FaultProxy"]
 
 logger = get_logger(__name__)
 
 #: Sent to the controller when a client goes and when the proxy stops: a bare #stop! is honoured
 #: in either checksum mode (P3).
 STOP_FRAME = b"#stop!"
+#: What a client reads when another one is being served (a text line, as the simulator's).
+BUSY_MESSAGE = b"busy: the fault proxy already has a client\r\n"
 _POLL_S = 0.05
+_BACKLOG = 8
 
 
 class FaultProxy:
-    """Serve ``port`` (a :class:`FaultPort`) on a TCP listener, one client at a time."""
+    """Serve ``port`` (a :class:`FaultPort`) on a TCP listener, one client at a time.
+
+    A client that connects while another is served reads :data:`BUSY_MESSAGE` and is
+    disconnected; what it sent is read and dropped.
+    """
+
+    #: How long a refused client may take to close its end before it is cut off.
+    REFUSED_LINGER_S = 2.0
+    #: Refused clients kept so at once; more are cut off at once (a flood of connections must
+    #: not run the proxy out of descriptors).
+    MAX_REFUSED = 8
 
     def __init__(self, port: FaultPort, host: str, tcp_port: int) -> None:
         self.port = port
@@ -36,17 +54,27 @@ class FaultProxy:
         listener.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
         try:
             listener.bind((host, tcp_port))
-            listener.listen(1)
+            # A backlog so that a second client is accepted, and refused, at once: with
+            # listen(1) the kernel queued it, its commands and all, until the first one left.
+            listener.listen(_BACKLOG)
         except OSError:
             listener.close()
             raise
-        listener.settimeout(_POLL_S)
+        listener.setblocking(False)
         self._listener = listener
         bound = listener.getsockname()
         self.address: tuple[str, int] = (bound[0], bound[1])
+        # Only the thread in serve() uses the selector: the listener and refused clients.
+        self._selector = selectors.DefaultSelector()
+        self._selector.register(listener, selectors.EVENT_READ, None)
+        #: Refused clients, until they close their end: their monotonic deadline.
+        self._refused: dict[socket.socket, float] = {}
         self._client: socket.socket | None = None
         self._client_lock = threading.Lock()
+        #: The thread serving the current client; alive until its #stop! is sent.
+        self._session: threading.Thread | None = None
         self.clients_served = 0
+        self.clients_refused = 0
         self.lost: str | None = None
 
     def serve(self, should_stop: Callable[[], bool]) -> None:
@@ -56,45 +84,119 @@ class FaultProxy:
         pump.start()
         try:
             while not should_stop() and self.lost is None:
-                try:
-                    connection, address = self._listener.accept()
-                except TimeoutError:
-                    continue
-                except OSError:  # pragma: no cover - the listener closed under us
-                    break
-                logger.info("client %s:%s connected", address[0], address[1])
-                self.clients_served += 1
-                self._serve_client(connection, should_stop)
-                logger.info("client %s:%s gone: #stop! sent", address[0], address[1])
+                for key, _ in self._selector.select(_POLL_S):
+                    if key.fileobj is self._listener:
+                        self._on_connection(should_stop)
+                    else:
+                        assert isinstance(key.fileobj, socket.socket)
+                        self._on_refused_readable(key.fileobj)
+                self._expire_refused(time.monotonic())
         finally:
+            if self._session is not None:
+                self._session.join()  # (it ends on should_stop() or a lost link, as this loop)
+            for connection in list(self._refused):
+                self._drop_refused(connection)
             self._stop_robot()
+            self._selector.close()
             self._listener.close()
 
-    def _serve_client(self, connection: socket.socket, should_stop: Callable[[], bool]) -> None:
+    # -- clients -----------------------------------------------------------------------------
+
+    def _on_connection(self, should_stop: Callable[[], bool]) -> None:
+        try:
+            connection, address = self._listener.accept()
+        except (BlockingIOError, InterruptedError):
+            return
+        # Busy until the session's thread has sent its #stop!: a client that connected before
+        # then is refused, never served after the stop with what it sent meanwhile.
+        if self._session is not None and self._session.is_alive():
+            logger.info("refused %s:%s: busy", address[0], address[1])
+            self.clients_refused += 1
+            self._refuse(connection)
+            return
+        logger.info("client %s:%s connected", address[0], address[1])
+        self.clients_served += 1
+        self._session = threading.Thread(
+            target=self._serve_client,
+            args=(connection, address, should_stop),
+            name="fault proxy client",
+            daemon=True,
+        )
+        self._session.start()
+
+    def _refuse(self, connection: socket.socket) -> None:
+        """Say busy, end the sending side, and read what the client sends until it closes: a
+        socket closed with unread input is reset, and the reset can discard the message before
+        the client reads it."""
+        try:
+            connection.setblocking(False)
+            connection.send(BUSY_MESSAGE)
+            connection.shutdown(socket.SHUT_WR)
+        except OSError:
+            connection.close()
+            return
+        if len(self._refused) >= self.MAX_REFUSED:
+            connection.close()
+            return
+        self._refused[connection] = time.monotonic() + self.REFUSED_LINGER_S
+        self._selector.register(connection, selectors.EVENT_READ, None)
+
+    def _on_refused_readable(self, connection: socket.socket) -> None:
+        try:
+            if connection.recv(4096):
+                return  # (the refused client's commands: read and dropped, never forwarded)
+        except BlockingIOError:
+            return
+        except OSError:
+            pass
+        self._drop_refused(connection)
+
+    def _expire_refused(self, now_s: float) -> None:
+        for connection, deadline_s in list(self._refused.items()):
+            if now_s >= deadline_s:
+                self._drop_refused(connection)
+
+    def _drop_refused(self, connection: socket.socket) -> None:
+        del self._refused[connection]
+        self._selector.unregister(connection)
+        connection.close()
+
+    def _serve_client(
+        self,
+        connection: socket.socket,
+        address: tuple[str, int],
+        should_stop: Callable[[], bool],
+    ) -> None:
         connection.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
         connection.settimeout(_POLL_S)
         with self._client_lock:
             self._client = connection
         try:
-            while not should_stop() and self.lost is None:
-                try:
-                    data = connection.recv(4096)
-                except TimeoutError:
-                    continue
-                except OSError:
-                    break
-                if not data:
-                    break
-                try:
-                    self.port.write(data)
-                except ConnectionLostError as error:
-                    self.lost = str(error)
-                    break
+            self._client_to_controller(connection, should_stop)
         finally:
             with self._client_lock:
                 self._client = None
             connection.close()
             self._stop_robot()
+            logger.info("client %s:%s gone: #stop! sent", address[0], address[1])
+
+    def _client_to_controller(
+        self, connection: socket.socket, should_stop: Callable[[], bool]
+    ) -> None:
+        while not should_stop() and self.lost is None:
+            try:
+                data = connection.recv(4096)
+            except TimeoutError:
+                continue
+            except OSError:
+                return
+            if not data:
+                return
+            try:
+                self.port.write(data)
+            except ConnectionLostError as error:
+                self.lost = str(error)
+                return
 
     def _controller_to_client(self, should_stop: Callable[[], bool]) -> None:
         while not should_stop() and self.lost is None:

@@ -1,0 +1,126 @@
+"""``FaultProxy`` in process, in front of a recording controller, with real sockets."""
+
+from __future__ import annotations
+
+import socket
+import threading
+import time
+from collections.abc import Callable, Iterator
+
+import pytest
+
+from rovlink.client.links import open_link
+from rovlink.client.url import parse_url
+from rovlink.faults import FaultPort, FaultSettings
+from rovlink.faults.proxy import BUSY_MESSAGE, FaultProxy
+
+pytestmark = pytest.mark.integration
+
+_TIMEOUT_S = 5.0
+
+
+class RecordingController:
+    """A TCP 'controller' that keeps every byte it is sent, in order."""
+
+    def __init__(self) -> None:
+        self._listener = socket.create_server(("127.0.0.1", 0))
+        self.address: tuple[str, int] = self._listener.getsockname()[:2]
+        self._received = bytearray()
+        self._lock = threading.Lock()
+        self._thread = threading.Thread(target=self._run, daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        connection, _ = self._listener.accept()
+        with connection:
+            while data := connection.recv(4096):
+                with self._lock:
+                    self._received += data
+
+    @property
+    def received(self) -> bytes:
+        with self._lock:
+            return bytes(self._received)
+
+    def wait_for(self, expected: bytes) -> bytes:
+        """What it was sent, once that ends with ``expected`` (fails after a timeout)."""
+        return _wait_until(lambda: self.received, lambda got: got.endswith(expected))
+
+    def close(self) -> None:
+        self._listener.close()
+
+
+def _wait_until(get: Callable[[], bytes], done: Callable[[bytes], bool]) -> bytes:
+    deadline = time.monotonic() + _TIMEOUT_S
+    while not done(value := get()):
+        assert time.monotonic() < deadline, f"timed out; so far {value!r}"
+        time.sleep(0.01)
+    return value
+
+
+@pytest.fixture
+def proxied() -> Iterator[tuple[RecordingController, tuple[str, int]]]:
+    """A proxy with no faults in front of a recording controller; its address."""
+    controller = RecordingController()
+    host, port = controller.address
+    fault_port = FaultPort(open_link(parse_url(f"socket://{host}:{port}")), FaultSettings())
+    proxy = FaultProxy(fault_port, "127.0.0.1", 0)
+    stop = threading.Event()
+    serving = threading.Thread(target=proxy.serve, args=(stop.is_set,), daemon=True)
+    serving.start()
+    try:
+        yield controller, proxy.address
+    finally:
+        stop.set()
+        serving.join(timeout=_TIMEOUT_S)
+        fault_port.close()
+        controller.close()
+
+
+def _read_to_end(connection: socket.socket) -> bytes:
+    connection.settimeout(_TIMEOUT_S)
+    received = b""
+    while chunk := connection.recv(4096):  # (a timeout raises: the client was kept waiting)
+        received += chunk
+    return received
+
+
+def test_a_second_client_is_told_it_is_busy_and_its_commands_never_reach_the_controller(
+    proxied: tuple[RecordingController, tuple[str, int]],
+) -> None:
+    # Before: listen(1) queued the second client; once the first left, its stale #start! and
+    # #th.0.100! ran right after the proxy's safety #stop!.
+    controller, address = proxied
+    with socket.create_connection(address) as first:
+        first.sendall(b"#debug1!")
+        controller.wait_for(b"#debug1!")
+        with socket.create_connection(address) as second:
+            second.sendall(b"#start!#th.0.100!")
+            assert _read_to_end(second) == BUSY_MESSAGE
+        first.sendall(b"#qd!")  # the first client is undisturbed
+        controller.wait_for(b"#qd!")
+    controller.wait_for(b"#stop!")
+    # The next client, after the first has gone, is served: only its own bytes go through.
+    with socket.create_connection(address) as third:
+        third.sendall(b"#qr!")
+        assert controller.wait_for(b"#qr!") == b"#debug1!#qd!#stop!#qr!"
+
+
+def test_a_flood_of_refused_clients_is_bounded_and_the_served_one_is_undisturbed(
+    proxied: tuple[RecordingController, tuple[str, int]],
+) -> None:
+    controller, address = proxied
+    with socket.create_connection(address) as first:
+        first.sendall(b"#qd!")
+        controller.wait_for(b"#qd!")
+        others = [socket.create_connection(address) for _ in range(FaultProxy.MAX_REFUSED + 4)]
+        try:
+            for other in others:
+                other.sendall(b"#start!")
+                other.settimeout(_TIMEOUT_S)
+                assert other.recv(4096) == BUSY_MESSAGE
+        finally:
+            for other in others:
+                other.close()
+        first.sendall(b"#qr!")
+        assert controller.wait_for(b"#qr!") == b"#qd!#qr!"
