@@ -133,3 +133,17 @@ async def test_a_held_frame_goes_out_when_due(hub):
     hub.station._flush_due()
     await hub.settled()
     assert hub.sent == ["#th.90.80!"]
+
+
+async def test_a_frozen_pad_seen_on_an_input_message_is_logged(hub):
+    peer = await hub.pilot()
+    await hub.send(peer, {"type": "command", "name": "start"})
+    await hub.send(peer, pad(False, 1.0))
+    await hub.send(peer, pad(True, 2.0))
+    assert hub.station.relay.moving
+    hub.sent.clear()
+    for _ in range(8):  # the page keeps sending, the pad's timestamp stands still
+        hub.clock.now_s += 0.05
+        await hub.send(peer, pad(True, 2.0))
+    assert hub.sent[0] == "#th.45.0!"
+    assert hub.warnings() == ["thrust to zero: the gamepad reported nothing for 300 ms"]

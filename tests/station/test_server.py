@@ -153,6 +153,8 @@ async def test_a_frozen_pad_is_cut_though_the_page_keeps_sending(station, line):
         stop.set()
         await sender
     assert zero.at_s - frozen_s < CUT_WITHIN_S
+    log = await page.next("log", lambda m: "thrust to zero" in m["text"])
+    assert "the gamepad reported nothing" in log["text"]
     await page.close()
 
 

@@ -228,7 +228,9 @@ class Station:
                 raise MessageError("input from a hidden page is ignored: show the page to fly")
             peer.input_source = message.source
             depth = self.latest.depth_cm if self.latest is not None else None
+            moving, armed = self.relay.moving, self.relay.armed
             await self._send_all(self.relay.update(message.pilot, self._clock(), depth_cm=depth))
+            self._log_cut(moving=moving, was_armed=armed)  # a frozen pad is often seen here
             self._schedule_flush()
         elif isinstance(message, CommandRequest):
             if message.command.name == "stop":
