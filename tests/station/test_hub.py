@@ -147,3 +147,13 @@ async def test_a_frozen_pad_seen_on_an_input_message_is_logged(hub):
         await hub.send(peer, pad(True, 2.0))
     assert hub.sent[0] == "#th.45.0!"
     assert hub.warnings() == ["thrust to zero: the gamepad reported nothing for 300 ms"]
+
+
+async def test_a_cut_after_stop_sends_zero_thrust_without_a_warning(hub):
+    peer = await hub.pilot()
+    await hub.send(peer, {"type": "command", "name": "start"})
+    await hub.send(peer, {"type": "stop"})
+    hub.sent.clear()
+    await hub.station.leave(peer)  # the pilot's page closed while the robot is locked
+    assert hub.sent == ["#th.0.0!"]  # no mode sent: depth mode, no mvs
+    assert hub.warnings() == [f"STOP from {peer.label}"]

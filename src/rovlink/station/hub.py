@@ -56,7 +56,7 @@ from rovlink.station.messages import (
     parse_message,
 )
 from rovlink.station.recording import RecordingError, StationRecordings
-from rovlink.station.relay import STALE_INPUT_S, ThrustRelay
+from rovlink.station.relay import STALE_INPUT_S, ThrustRelay, is_zero_thrust
 
 __all__ = ["DEFAULT_RATE_HZ", "WATCHDOG_PERIOD_S", "Peer", "Station"]
 
@@ -549,5 +549,16 @@ class Station:
             pass  # counted in the link health; the poll loop notes failures at a bounded rate
 
     def _on_sent(self, sent: SentFrame) -> None:
-        if sent.warning is not None:
-            self.log("warning", f"{sent.text}: {sent.warning}")
+        if sent.warning is None or self._zero_to_locked(sent):
+            return
+        self.log("warning", f"{sent.text}: {sent.warning}")
+
+    def _zero_to_locked(self, sent: SentFrame) -> bool:
+        """Zero thrust sent while locked as last sent (a cut after STOP): the controller drops
+        it, and it holds zero anyway, so there is nothing to warn about."""
+        command = sent.command
+        return (
+            command is not None
+            and is_zero_thrust(command)
+            and self.tracked.commanded.lock is LockState.LOCKED
+        )

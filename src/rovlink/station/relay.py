@@ -28,6 +28,7 @@ __all__ = [
     "STALE_INPUT_S",
     "PilotInput",
     "ThrustRelay",
+    "is_zero_thrust",
 ]
 
 #: Input older than this is stale: no message from the page, or a gamepad that stopped
@@ -186,7 +187,11 @@ class ThrustRelay:
 
     def cut(self, reason: str) -> list[Command]:
         """Stop relaying (the pilot left, hid the page, lost control, pressed STOP...): the zero
-        thrust frames to send; the dead-man must be released and pressed again."""
+        thrust frames to send; the dead-man must be released and pressed again.
+
+        They are returned while locked as last sent too: harmless if the controller drops
+        them, and they cover a lock the controller never got.
+        """
         self.armed = False
         self.cut_reason = reason
         self._nudge_at_s = None
@@ -238,14 +243,17 @@ class ThrustRelay:
 
     def _zero_commands(self, *, always: bool = False) -> list[Command]:
         """Zero horizontal power (keeping the direction) and, in direct mode, zero vertical
-        thrust; with ``always``, also when the state as last sent says it is already zero."""
+        thrust; with ``always``, also when the state as last sent says it is already zero.
+
+        Direct mode is the one as last sent: with no mode sent yet the controller is in depth
+        mode, its mode after a reset (P9), where it drops ``mvs`` and its PID holds the depth.
+        """
         commanded = self.commanded
         commands: list[Command] = []
         if always or commanded.power_percent > 0:
             commands.append(Command("th", (commanded.direction_deg, 0)))
-        direct = commanded.vertical_mode is VerticalMode.DIRECT
-        if (always and commanded.vertical_mode is not VerticalMode.DEPTH) or (
-            direct and commanded.vertical_thrust_percent != 0
+        if commanded.vertical_mode is VerticalMode.DIRECT and (
+            always or commanded.vertical_thrust_percent != 0
         ):
             commands.append(Command("mvs", (0,)))
         self._motion_sent_at_s = None
@@ -288,7 +296,7 @@ class ThrustRelay:
             or (renew and pilot.vertical_percent != 0)
         ):
             commands.append(Command("mvs", (pilot.vertical_percent,)))
-        zeroes = [command for command in commands if _is_zero(command)]
+        zeroes = [command for command in commands if is_zero_thrust(command)]
         sent_at_s = self._motion_sent_at_s
         if (
             len(zeroes) < len(commands)
@@ -324,6 +332,6 @@ class ThrustRelay:
         return Command("mvd", (target,))
 
 
-def _is_zero(command: Command) -> bool:
+def is_zero_thrust(command: Command) -> bool:
     """``#th.A.0!`` or ``#mvs.+0!``: a frame that only takes thrust away."""
-    return command.values[-1] == 0
+    return command.name in ("th", "mvs") and command.values[-1] == 0
