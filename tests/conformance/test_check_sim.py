@@ -63,6 +63,37 @@ def test_select_checks_by_prefix_and_unknown_name() -> None:
         select_checks(["checksum-", ""])
 
 
+def test_a_name_of_motion_checks_only_needs_motion() -> None:
+    # Before, the name was looked up among all checks, then the motion ones were filtered out:
+    # a run of no checks, which passed.
+    with pytest.raises(ValueError, match=r"'motion-link' names only motion checks.*--motion"):
+        select_checks(["motion-link"])
+    with pytest.raises(ValueError, match="'motion-' names only motion checks"):
+        select_checks(["query-qd", "motion-"])
+    assert [check.name for check in select_checks(["motion-link"], motion=True)] == [
+        "motion-link-loss-failsafe"
+    ]
+
+
+def test_a_run_of_no_checks_does_not_pass() -> None:
+    assert not Report("nothing").passed
+    skipped = CheckResult("motion-stop-halts", ("P7",), "d", Outcome.SKIPPED, "needs --motion")
+    assert not Report("only skipped", [skipped]).passed
+    link = open_link(parse_url("sim://?seed=2"))
+    try:
+        assert not run_checks(link, "sim://", SuiteOptions(), checks=[]).passed
+    finally:
+        link.close()
+
+
+def test_cli_only_motion_checks_without_motion_is_a_usage_error(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    assert main(["check", "sim://", "--only", "motion-link"]) == 2
+    err = capsys.readouterr().err
+    assert "'motion-link' names only motion checks: they run only with --motion" in err
+
+
 def test_junit_has_a_case_per_check_and_the_evidence_of_failures() -> None:
     evidence = (Exchange(sent=b"#qd!", received=b"$qd.007!"),)
     report = Report(

@@ -164,6 +164,7 @@ def _print_report(report: Report) -> None:
     from rich.markup import escape  # noqa: PLC0415
     from rich.table import Table  # noqa: PLC0415
 
+    from rovlink.conformance import Outcome  # noqa: PLC0415
     from rovlink.conformance.junit import evidence_text  # noqa: PLC0415
 
     console = Console()
@@ -183,7 +184,7 @@ def _print_report(report: Report) -> None:
             f"\n[red]{result.outcome.value}[/] [bold]{result.name}[/]: {escape(result.message)}"
         )
         console.print(escape(evidence_text(result.evidence, 4)), highlight=False)
-    passed = len(report.results) - len(report.failures)
+    passed = report.count(Outcome.PASSED)
     console.print(
         f"\n{report.target}: {passed} of {len(report.results)} checks passed "
         f"in {report.duration_s:.1f} s"

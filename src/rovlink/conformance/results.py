@@ -52,8 +52,8 @@ class Report:
 
     @property
     def passed(self) -> bool:
-        """Whether no check failed."""
-        return not self.failures
+        """Whether no check failed and at least one passed: a run of no checks proves nothing."""
+        return not self.failures and self.count(Outcome.PASSED) > 0
 
     def count(self, outcome: Outcome) -> int:
         """How many checks ended so."""

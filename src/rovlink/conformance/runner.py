@@ -35,7 +35,11 @@ class PreflightError(Exception):
 
 
 def select_checks(names: Sequence[str] = (), *, motion: bool = False) -> list[Check]:
-    """The checks to run: all (motion ones only with ``motion``), or those named/prefixed."""
+    """The checks to run: all (motion ones only with ``motion``), or those named/prefixed.
+
+    Raises ValueError for a name that selects nothing that may run: no check, or only motion
+    checks without ``motion`` (dropping them silently left a run of no checks that passed).
+    """
     # Motion checks last: the others leave the vehicle locked and still.
     ordered = [item for item in CHECKS if not item.motion] + [c for c in CHECKS if c.motion]
     chosen = [item for item in ordered if motion or not item.motion]
@@ -43,10 +47,18 @@ def select_checks(names: Sequence[str] = (), *, motion: bool = False) -> list[Ch
         return chosen
     if not all(names):  # ("" is a prefix of every name: it would run them all)
         raise ValueError("an empty check name: name a check or the start of one (see --list)")
-    unknown = [name for name in names if not any(c.name.startswith(name) for c in CHECKS)]
-    if unknown:
-        raise ValueError(f"no check is named {unknown[0]!r} (see --list)")
+    for name in names:
+        _check_name_selects(name, chosen)
     return [item for item in chosen if any(item.name.startswith(name) for name in names)]
+
+
+def _check_name_selects(name: str, allowed: Sequence[Check]) -> None:
+    """Raise ValueError unless ``name`` starts the name of a check in ``allowed``."""
+    if any(item.name.startswith(name) for item in allowed):
+        return
+    if any(item.name.startswith(name) for item in CHECKS):
+        raise ValueError(f"{name!r} names only motion checks: they run only with --motion")
+    raise ValueError(f"no check is named {name!r} (see --list)")
 
 
 def run_checks(
