@@ -9,6 +9,7 @@ import pytest
 from paho.mqtt.packettypes import PacketTypes
 from paho.mqtt.properties import Properties
 
+from rovlink.client.errors import ConnectionLostError
 from tests.bridges.mqtt.broker import Mosquitto
 from tests.bridges.mqtt.rig import bridged_robot, subscriber, until
 
@@ -226,3 +227,21 @@ async def test_an_unexpected_error_ends_the_bridge_offline_and_stopped(
     # Retained: the fleet learns it later too.
     async with subscriber(broker, "rovlink/x1/state") as late:
         assert (await late.wait_for("rovlink/x1/state"))["online"] is False
+
+
+async def test_a_lost_controller_is_said_as_such_not_as_a_stop(broker: Mosquitto):
+    async with (
+        subscriber(broker, "rovlink/n1/state", "rovlink/n1/events") as watcher,
+        bridged_robot(broker, "n1") as robot,
+    ):
+        await watcher.wait_for("rovlink/n1/state", lambda s: s["online"])
+        robot.port.close()  # the controller is gone, as a killed simulator or a pulled cable
+        await until(robot.task.done)
+        assert isinstance(robot.task.exception(), ConnectionLostError)
+        event = await watcher.wait_for("rovlink/n1/events", lambda e: e["event"] == "link")
+        assert event["detail"].startswith("lost ")
+        offline = await watcher.wait_for("rovlink/n1/state", lambda s: not s["online"])
+        assert offline["reason"].startswith("controller link lost: ")
+        assert "simulated n1" in offline["reason"]
+        # Said once: the goodbye waits for the event the publisher was sending, not resends it.
+        assert [e["event"] for e in watcher.on("rovlink/n1/events")] == ["link"]

@@ -10,7 +10,9 @@ QoS and what survives a broker outage:
   to 1000) and published, in order, when it is back.
 * ``cmd``: QoS 1 with a clean session: a command published while the bridge is away is not kept
   for later (a late ``th 90 100`` is not what anyone wants); the sender gets no reply.
-* the last will: retained ``{"online": false}`` on ``state`` when the bridge vanishes.
+* the last will: retained ``{"online": false}`` on ``state`` when the bridge vanishes. A bridge
+  that ends on its own says why instead: ``bridge stopped``, ``controller link lost: …`` (after a
+  ``link`` event) or ``bridge failed: …``.
 """
 
 from __future__ import annotations
@@ -37,7 +39,7 @@ from rovlink.bridges.mqtt.payloads import (
 )
 from rovlink.bridges.mqtt.topics import Topics, publish_topic_problem
 from rovlink.bridges.sensor_poll import SensorPoller
-from rovlink.client.errors import QueryTimeoutError
+from rovlink.client.errors import ConnectionLostError, QueryTimeoutError
 from rovlink.client.events import ClientEvent, LinkState, MotionExpired, ResetSuspected
 from rovlink.client.sensors import Sensors
 from rovlink.logs import get_logger
@@ -97,6 +99,9 @@ class MqttBridge:
         self._last_state_at_s = 0.0
         #: Why the bridge is ending (the offline state's reason), once it is.
         self._ending: str | None = None
+        self._link_lost_reported = False
+        #: The kept event being published (see :meth:`_publish_kept_events`).
+        self._event_publish: asyncio.Future[None] | None = None
         self.poller = SensorPoller(rov, self._on_reading, rate_hz=rate_hz)
         rov.client.subscribe(self._on_client_event)
         rov.add_sent_listener(lambda _sent: self._wake_publisher.set())
@@ -140,7 +145,7 @@ class MqttBridge:
                     except BaseException as error:
                         # Whatever ends the bridge, the retained state must not stay online:
                         # the clean disconnect that follows discards the last will.
-                        await self._say_offline(mqtt, self._end_reason(error))
+                        await self._say_goodbye(mqtt, self._end_reason(error))
                         raise
             except aiomqtt.MqttError as error:
                 self.connected.clear()
@@ -183,6 +188,8 @@ class MqttBridge:
         )
 
     async def _serve(self, mqtt: Any) -> None:
+        if self._event_publish is not None:
+            self._event_publish.cancel()  # on the connection before: that event is sent again
         await mqtt.subscribe(self.topics.command, qos=_QOS_RELIABLE)
         self._last_state = None  # publish it afresh: the broker may have restarted
         self.connected.set()
@@ -208,9 +215,7 @@ class MqttBridge:
         loop = asyncio.get_running_loop()
         while True:
             await self._publish_state(mqtt, loop.time())
-            while (kept := self.outbox.peek()) is not None:
-                await mqtt.publish(kept[0], kept[1], qos=_QOS_RELIABLE)
-                self.outbox.done()
+            await self._publish_kept_events(mqtt)
             while not self._telemetry.empty():
                 await mqtt.publish(self.topics.telemetry, self._telemetry.get_nowait(), qos=0)
             self._wake_publisher.clear()
@@ -236,15 +241,31 @@ class MqttBridge:
         self._last_state = comparable
         self._last_state_at_s = now_s
 
-    async def _say_offline(self, mqtt: Any, reason: str) -> None:
-        """Publish the retained offline state, within :data:`_FAREWELL_S` (the broker may be
-        slow or gone: the last will covers that)."""
+    async def _publish_kept_events(self, mqtt: Any) -> None:
+        """Publish the kept events, oldest first. Each publish goes on when its caller is
+        cancelled, so that the goodbye that follows waits for it rather than sending it twice."""
+        while (kept := self.outbox.peek()) is not None:
+            publish = self._event_publish
+            if publish is None or publish.done():
+                publish = asyncio.ensure_future(self._publish_event(mqtt, *kept))
+                self._event_publish = publish
+            await asyncio.shield(publish)
+
+    async def _publish_event(self, mqtt: Any, topic: str, payload: bytes) -> None:
+        await mqtt.publish(topic, payload, qos=_QOS_RELIABLE)
+        self.outbox.done()
+
+    async def _say_goodbye(self, mqtt: Any, reason: str) -> None:
+        """Publish the kept events (the last may say why), then the retained offline state,
+        within :data:`_FAREWELL_S` (the broker may be slow or gone: the last will covers that)."""
         offline = encode(offline_state(self.robot_id, reason))
+
+        async def goodbye() -> None:
+            await self._publish_kept_events(mqtt)
+            await mqtt.publish(self.topics.state, offline, qos=_QOS_RELIABLE, retain=True)
+
         try:
-            await asyncio.wait_for(
-                mqtt.publish(self.topics.state, offline, qos=_QOS_RELIABLE, retain=True),
-                _FAREWELL_S,
-            )
+            await asyncio.wait_for(goodbye(), _FAREWELL_S)
         except Exception as error:  # ending anyway; the last will may say it
             logger.warning("could not publish the offline state: %s", error)
 
@@ -254,6 +275,10 @@ class MqttBridge:
         if self._ending is None:
             if isinstance(error, asyncio.CancelledError):
                 self._ending = "bridge stopped"
+            elif isinstance(error, ConnectionLostError):
+                self._ending = f"controller link lost: {error}"
+                if not self._link_lost_reported:  # the driver says so only when it reconnects
+                    self._event("link", f"lost {error}")
             else:
                 self._ending = f"bridge failed: {type(error).__name__}: {error}"
         return self._ending
@@ -332,6 +357,7 @@ class MqttBridge:
                 "(it is locked after a reset)",
             )
         elif isinstance(event, LinkState):
+            self._link_lost_reported = event.state == "lost"
             self._event("link", f"{event.state} {event.detail}".strip())
 
     def _event(self, name: str, detail: str) -> None:
