@@ -181,7 +181,11 @@ def running_bridge(
     holder: dict[str, Any] = {}
 
     async def serve() -> None:
-        options = ClientOptions(keepalive_s=1.0, timeout_s=2.0, boot_timeout_s=None)
+        # No driver motion timeout, as ``rovlink mavlink``: the bridge expires motion itself (P23),
+        # and a test must see the bridge's zero thrust, not the driver's.
+        options = ClientOptions(
+            keepalive_s=1.0, timeout_s=2.0, boot_timeout_s=None, motion_timeout_s=None
+        )
         client = await AsyncClient(link, options).open()
         bridge = MavlinkBridge(TrackedClient(client), MavlinkEndpoint(out), ParameterTable(
             {"RL_DEPTH_P": 40, "RL_DEPTH_I": 30, "RL_DEPTH_D": 20, "RL_MAX_PWM": 255,

@@ -28,7 +28,8 @@ from rovlink.bridges.mavlink.vehicle_state import (
     VehicleState,
 )
 from rovlink.client.sensors import Sensors
-from rovlink.protocol import lookup
+from rovlink.piloting.commanded import CommandedState
+from rovlink.protocol import Command, lookup
 
 # -- parameters ------------------------------------------------------------------------------
 
@@ -137,6 +138,41 @@ def test_stale_input_expires_once_after_one_second():
     assert [str(c) for c in pilot.expire(INPUT_STALE_S)] == ["#th.0.0!", "#mvs.+0!"]
     assert pilot.expire(INPUT_STALE_S + 1) == ()
     assert _drive(pilot, 1000, 0, 1000, 5.0) == ["#th.0.100!", "#mvs.+100!"]  # input back
+
+
+def _sent(state: CommandedState, pilot: PilotInput, *frames: Command) -> None:
+    """Frames sent: the state as last sent follows them, and the pilot input follows it."""
+    for frame in frames:
+        state.apply(frame)
+        pilot.sync(state)
+
+
+@pytest.mark.parametrize(
+    "repeated", [Command("start"), Command("mvdirect", (1,))], ids=["start", "mvdirect"]
+)
+def test_a_repeated_start_or_mode_keeps_the_thrust_to_zero(repeated: Command):
+    # The controller keeps its set-points across a #start! while unlocked and a #mvdirect to
+    # the mode it is in (P7, P9, P11): the stale input and a centred stick must still zero them.
+    state, pilot = CommandedState(), PilotInput(ParameterTable())
+    _sent(state, pilot, Command("stop"), Command("mvdirect", (1,)), Command("start"))
+    driven = pilot.manual_control(1000, 0, 0, 0, mode=FlightMode.MANUAL, armed=True, now_s=0.0)
+    _sent(state, pilot, *driven.commands)
+    _sent(state, pilot, repeated)
+    assert [str(c) for c in pilot.expire(INPUT_STALE_S)] == ["#th.0.0!", "#mvs.+0!"]
+    _sent(state, pilot, Command("th", (0, 100)), Command("mvs", (-100,)))
+    _sent(state, pilot, repeated)
+    assert _drive(pilot, 0, 0, 500, 2.0) == ["#th.0.0!", "#mvs.+0!"]  # the stick centred
+
+
+def test_stop_and_a_mode_change_zero_what_the_controller_zeroes():
+    state, pilot = CommandedState(), PilotInput(ParameterTable())
+    _sent(state, pilot, Command("mvdirect", (1,)), Command("start"))
+    driven = pilot.manual_control(0, 500, 800, 0, mode=FlightMode.MANUAL, armed=True, now_s=0.0)
+    _sent(state, pilot, *driven.commands)  # #th.90.50!, #mvs.+60!
+    _sent(state, pilot, Command("mvdirect", (0,)))  # vertical thrust 0, horizontal kept (P9)
+    assert [str(c) for c in pilot.expire(INPUT_STALE_S)] == ["#th.90.0!"]
+    _sent(state, pilot, Command("th", (90, 50)), Command("stop"))  # everything 0 (P7)
+    assert pilot.expire(INPUT_STALE_S + 5) == ()
 
 
 def test_alt_hold_moves_the_target_with_the_throttle():

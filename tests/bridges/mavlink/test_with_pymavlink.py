@@ -297,3 +297,43 @@ def test_parameters_from_a_file_are_sent_on_start_and_only_they():
         start = rig.frames()[: rig.frames().index("#mgmp.255!") + 1]
         assert start[1:] == ["#stop!", "#mvdirect.1!", "#mvpdp.40!", "#mgmp.255!"]
         assert not [f for f in rig.frames() if f.startswith(("#sdz", "#sdk", "#mvpdi"))]
+
+
+def _change_mode_or_re_arm(gcs: GroundStation, change: str) -> None:
+    """What reset the bridge's idea of the thrust, though the controller keeps it (P7, P9, P11)."""
+    if change == "mode command":
+        assert gcs.set_mode(MANUAL) == ACCEPTED  # MANUAL again: #mvdirect.1! changes nothing
+    elif change == "SET_MODE":
+        gcs.send("set_mode", VEHICLE, 1, MANUAL)
+        gcs.receive("COMMAND_ACK", condition=lambda m: m.command == DO_SET_MODE)
+    elif change == "mode button":
+        gcs.send("manual_control", VEHICLE, 1000, 0, 0, 0, 1 << 1)  # BTN1: MANUAL
+    elif change == "re-arm":
+        assert gcs.arm() == ACCEPTED  # #start! while unlocked changes nothing
+    else:  # "depth hold": vertical thrust 0 (the controller's), horizontal kept
+        assert gcs.set_mode(ALT_HOLD) == ACCEPTED
+
+
+@pytest.mark.parametrize("then", ["input stops", "stick centred"])
+@pytest.mark.parametrize(
+    "change", ["mode command", "SET_MODE", "mode button", "re-arm", "depth hold"]
+)
+def test_thrust_kept_across_a_mode_change_or_re_arm_is_still_zeroed(
+    rig: BridgeRig, gcs: GroundStation, change: str, then: str
+):
+    gcs.start_heartbeats()
+    assert gcs.arm() == ACCEPTED
+    mark = len(rig.frames())
+    gcs.send("manual_control", VEHICLE, 1000, 0, 0, 0, 0)  # full ahead, full down
+    rig.wait_frame("#th.0.100!", since=mark)
+    rig.wait_frame("#mvs.-100!", since=mark)
+    _change_mode_or_re_arm(gcs, change)
+    done = {"re-arm": "#start!", "depth hold": "#mvdirect.0!"}.get(change, "#mvdirect.1!")
+    rig.wait_frame(done, since=mark)
+    changed = len(rig.frames())
+    expected = ["#th.0.0!"] if change == "depth hold" else ["#th.0.0!", "#mvs.+0!"]
+    if then == "stick centred":
+        gcs.send("manual_control", VEHICLE, 0, 0, 500, 0, 0)
+    for frame in expected:
+        rig.wait_frame(frame, since=changed)  # before: nothing, and the robot drove on
+    assert "#stop!" not in rig.frames_since(mark)

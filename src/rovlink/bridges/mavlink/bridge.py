@@ -94,6 +94,9 @@ class MavlinkBridge:
             "MISSION_REQUEST_LIST": self._on_mission_request_list,
         }
         rov.client.subscribe(self._on_client_event)
+        # What the pilot input measures changes and staleness against: the set-points as the
+        # controller has them after each frame (whoever sent it), not what the bridge expects.
+        rov.add_sent_listener(lambda _sent: self.pilot.sync(rov.commanded))
 
     @property
     def armed(self) -> bool:
@@ -135,7 +138,6 @@ class MavlinkBridge:
             self._say(_SEVERITY_WARNING, "Arm refused: the controller does not answer")
             return Result.FAILED
         await self.rov.send(Command("start"))
-        self.pilot.neutral()
         self.watchdog.heartbeat(self._clock())  # arming counts as contact
         await self._hold_current_depth()
         self._say(_SEVERITY_INFO, "Armed")
@@ -144,7 +146,6 @@ class MavlinkBridge:
     async def disarm(self, reason: str) -> Result:
         """``#stop!``, always."""
         await self.rov.stop()
-        self.pilot.neutral()
         logger.warning("stopped: %s", reason)
         self._say(_SEVERITY_INFO, f"Disarmed: {reason}")
         return Result.ACCEPTED
@@ -152,7 +153,6 @@ class MavlinkBridge:
     async def set_mode(self, mode: FlightMode) -> Result:
         """MANUAL: ``#mvdirect.1!``; ALT_HOLD: ``#mvdirect.0!`` holding the current depth."""
         self.state.mode = mode
-        self.pilot.neutral()
         await self.rov.send(Command("mvdirect", (int(mode is FlightMode.MANUAL),)))
         await self._hold_current_depth()
         return Result.ACCEPTED

@@ -7,6 +7,11 @@ is ignored: the protocol has no yaw command. Buttons carry out their ``BTNn_FUNC
 press. Only changes are sent, so a joystick at 50 Hz does not fill the serial line.
 
 Input that stops coming for :data:`INPUT_STALE_S` (P23) is expired with zero thrust.
+
+What "changed" and "zero" are measured against is the set-points as last sent to the controller
+(:meth:`PilotInput.sync`), never a guess: the controller keeps its thrust across a repeated
+``#start!`` or ``#mvdirect`` (P7, P9, P11), so a bridge that took those as neutral would never
+zero thrust the robot still has.
 """
 
 from __future__ import annotations
@@ -16,6 +21,7 @@ from dataclasses import dataclass
 
 from rovlink.bridges.mavlink.modes import ButtonFunction, FlightMode
 from rovlink.bridges.mavlink.parameters import BUTTON_COUNT, ParameterTable
+from rovlink.piloting.commanded import CommandedState
 from rovlink.protocol import Command, lookup
 
 __all__ = [
@@ -110,12 +116,20 @@ class PilotInput:
         """ALT_HOLD: the depth held, as last sent."""
         return self._sent_depth_cm
 
-    def neutral(self) -> None:
-        """The controller's set-points are neutral now (after start, stop or a mode change)."""
-        self._power_percent = 0
-        self._thrust_percent = 0
-        self._target_depth_cm = None
-        self._sent_depth_cm = None
+    def sync(self, sent: CommandedState) -> None:
+        """Adopt the set-points as last sent to the controller, its rules applied (after every
+        frame sent: ``#stop!`` clears them, a repeated ``#start!`` or ``#mvdirect`` keeps them).
+
+        The stick's changes, a centred stick and stale input are then measured against the thrust
+        the controller really has.
+        """
+        self._direction_deg = sent.direction_deg
+        self._power_percent = sent.power_percent
+        self._thrust_percent = sent.vertical_thrust_percent
+        if sent.target_depth_cm != self._sent_depth_cm:  # same: keep the stick's fraction of a cm
+            self._sent_depth_cm = sent.target_depth_cm
+            depth = sent.target_depth_cm
+            self._target_depth_cm = None if depth is None else float(depth)
 
     def hold(self, depth_cm: int) -> Command:
         """ALT_HOLD from now on holds ``depth_cm``: the command that says so."""
