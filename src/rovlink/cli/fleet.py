@@ -16,6 +16,7 @@ from rovlink.cli.mqtt import add_broker_options, broker_settings
 
 if TYPE_CHECKING:
     from rich.table import Table
+    from rich.text import Text
 
     from rovlink.bridges.mqtt.broker import BrokerSettings
     from rovlink.bridges.mqtt.fleet_view import FleetView
@@ -30,6 +31,7 @@ examples:
 
 _TOPICS = ("rovlink/+/state", "rovlink/+/telemetry", "rovlink/+/events")
 _REFRESH_HZ = 4
+_PRESENCE_STYLES = {"online": "green", "silent": "yellow", "offline": "red", "malformed": "magenta"}
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -46,7 +48,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def fleet_table(view: FleetView, now_s: float) -> Table:
-    """The table of robots as the view has them now."""
+    """The table of robots as the view has them now.
+
+    Every cell is a :class:`~rich.text.Text`: what came from the broker (any program may publish
+    under ``rovlink/``) is shown as it is, never read as markup or obeyed as terminal codes.
+    """
     from rich.table import Table  # noqa: PLC0415
 
     table = Table(title="rovlink fleet", expand=False)
@@ -54,22 +60,34 @@ def fleet_table(view: FleetView, now_s: float) -> Table:
         table.add_column(column)
     for row in view.rows():
         presence = row.presence(now_s)
-        style = {"online": "green", "silent": "yellow", "offline": "red"}.get(presence, "")
+        if presence == "offline" and row.offline_reason:
+            note = row.offline_reason
+        elif presence == "malformed":
+            note = f"state not understood: {row.state_problem}"
+        else:
+            note = row.last_event or ""
         table.add_row(
-            row.robot,
-            f"[{style}]{presence}[/]" if style else presence,
-            "—" if row.depth_cm is None else f"{row.depth_cm} cm",
-            "[bold red]LEAK[/]" if row.leak else "dry",
-            row.lock or "—",
-            row.mode or "—",
-            row.link or "—",
-            row.offline_reason
-            if presence == "offline" and row.offline_reason
-            else row.last_event or "",
+            _cell(row.robot),
+            _cell(presence, _PRESENCE_STYLES.get(presence, "")),
+            _cell("—" if row.depth_cm is None else f"{row.depth_cm} cm"),
+            _cell("LEAK", "bold red") if row.leak else _cell("dry"),
+            _cell(row.lock or "—"),
+            _cell(row.mode or "—"),
+            _cell(row.link or "—"),
+            _cell(note),
         )
     if not view.rows():
         table.caption = "no robot has published yet"
     return table
+
+
+def _cell(text: str, style: str = "") -> Text:
+    """``text`` as it is: not markup, and its control characters shown, not obeyed."""
+    from rich.text import Text  # noqa: PLC0415
+
+    from rovlink.protocol.visible import visible  # noqa: PLC0415
+
+    return Text(visible(text), style=style)
 
 
 def run(args: argparse.Namespace) -> int:

@@ -49,6 +49,28 @@ def test_what_is_not_a_bridges_message_is_ignored(topic: str, payload: bytes):
     assert view.ignored == 1
 
 
+@pytest.mark.parametrize(
+    "payload",
+    [
+        b'{"online": "false", "reason": "a string"}',
+        b'{"online": 1}',
+        b'{"online": null}',
+        b'{"reason": "no online at all"}',
+    ],
+)
+def test_a_state_whose_online_is_not_true_or_false_is_shown_malformed(payload: bytes):
+    view = FleetView()
+    view.apply("rovlink/a/state", b'{"online": true}', 0.0)
+    view.apply("rovlink/a/state", payload, 0.1)
+    view.apply("rovlink/a/telemetry", b'{"depth_cm": 120, "leak": false}', 0.2)
+    (row,) = view.rows()
+    assert row.presence(0.3) == "malformed"
+    assert row.state_problem is not None
+    assert '"online"' in row.state_problem
+    view.apply("rovlink/a/state", b'{"online": false, "reason": "bridge stopped"}', 0.4)
+    assert row.presence(0.5) == "offline"
+
+
 def test_strange_values_do_not_break_a_row():
     view = FleetView()
     view.apply("rovlink/a/telemetry", b'{"depth_cm": "deep", "leak": 0}', 0.0)
@@ -111,3 +133,59 @@ def test_the_table_shows_each_robot_in_words():
     empty = Console(width=160, record=True)
     empty.print(fleet_table(FleetView(), now_s=0.0))
     assert "no robot has published yet" in empty.export_text()
+
+
+def test_text_from_the_broker_is_shown_as_text_never_as_markup_or_terminal_codes():
+    from rich.console import Console
+
+    from rovlink.cli.fleet import fleet_table
+
+    view = FleetView()
+    view.apply(
+        "rovlink/[b]x/state", b'{"online": true, "lock": "[red]", "link": {"status": "[/]"}}', 0
+    )
+    view.apply("rovlink/[b]x/events", b'{"event": "[/b]", "detail": "\\u001b[2J"}', 0)
+    view.apply("rovlink/j2/state", b'{"online": false, "reason": "[/]"}', 0)
+    view.apply("rovlink/j3/state", b'{"online": "false", "reason": "[bold]x"}', 0)
+    console = Console(width=160, record=True)
+    console.print(fleet_table(view, now_s=1.0))
+    lines = console.export_text().splitlines()
+    row_x = next(line for line in lines if " [b]x " in line)
+    assert "[red]" in row_x
+    assert "[/]" in row_x
+    assert "[/b]: \\x1b[2J" in row_x
+    assert "\x1b" not in console.export_text()
+    assert "[/]" in next(line for line in lines if " j2 " in line)
+    assert "malformed" in next(line for line in lines if " j3 " in line)
+
+
+@pytest.mark.integration
+async def test_fleet_prints_markup_like_retained_states_as_they_are(broker: Mosquitto):
+    from paho.mqtt import publish
+
+    retained = {
+        "rovlink/j2/state": '{"online": false, "reason": "[/]"}',
+        "rovlink/j3/state": '{"online": "false", "reason": "[bold]x"}',
+    }
+    for topic, payload in retained.items():
+        await asyncio.to_thread(
+            publish.single, topic, payload, qos=1, retain=True, port=broker.port
+        )
+    environment = dict(
+        os.environ, PYTHONPATH=_SRC + os.pathsep + os.environ.get("PYTHONPATH", ""), COLUMNS="160"
+    )
+    process = await asyncio.create_subprocess_exec(
+        sys.executable, "-m", "rovlink", "fleet", "--broker", broker.url, "--snapshot", "1",
+        stdout=asyncio.subprocess.PIPE,
+        stderr=asyncio.subprocess.PIPE,
+        env=environment,
+    )  # fmt: skip
+    out, err = await asyncio.wait_for(process.communicate(), 30)
+    assert process.returncode == 0, err.decode()
+    lines = out.decode().splitlines()
+    j2 = next(line for line in lines if " j2 " in line)
+    assert "offline" in j2
+    assert "[/]" in j2
+    j3 = next(line for line in lines if " j3 " in line)
+    assert "malformed" in j3
+    assert " online " not in j3  # (the problem quotes "online")

@@ -1,7 +1,8 @@
 """Every robot on a broker, from the bridges' topics: what ``rovlink fleet`` shows.
 
 Fed with each message of ``rovlink/+/state``, ``telemetry`` and ``events``; a payload that is
-not a bridge's JSON is counted and ignored (any program may publish under ``rovlink/``).
+not a bridge's JSON is counted and ignored (any program may publish under ``rovlink/``). Every
+text here comes from the broker: whoever shows it must show it as text, not obey it.
 """
 
 from __future__ import annotations
@@ -32,9 +33,14 @@ class RobotRow:
     mode: str | None = None
     last_event: str | None = None
     last_heard_s: float | None = None
+    #: What is wrong with the last state, if it is not a bridge's (its presence is not guessed).
+    state_problem: str | None = None
 
     def presence(self, now_s: float) -> str:
-        """``online``, ``silent`` (online, but quiet too long), ``offline`` or ``unknown``."""
+        """``online``, ``silent`` (online, but quiet too long), ``offline``, ``malformed`` (the
+        last state did not say) or ``unknown``."""
+        if self.state_problem is not None:
+            return "malformed"
         if self.online is None:
             return "unknown"
         if not self.online:
@@ -97,9 +103,15 @@ class FleetView:
 
     @staticmethod
     def _state(row: RobotRow, data: dict[str, Any]) -> None:
-        row.online = bool(data.get("online"))
-        if not row.online:
-            row.offline_reason = str(data.get("reason", ""))
+        online = data.get("online")
+        if not isinstance(online, bool):  # "false" is not false: show it, do not guess
+            row.state_problem = f'"online" is {json.dumps(online)}, not true or false'
+            return
+        row.state_problem = None
+        row.online = online
+        if not online:
+            reason = data.get("reason", "")
+            row.offline_reason = reason if isinstance(reason, str) else json.dumps(reason)
             return
         row.offline_reason = None
         row.depth_cm = _integer(data.get("depth_cm"), row.depth_cm)
