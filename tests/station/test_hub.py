@@ -4,9 +4,13 @@ socket test cannot force (a held frame's timer against a cut) and what the event
 from __future__ import annotations
 
 import asyncio
+import contextlib
+import errno
 import json
-from collections.abc import AsyncIterator
+import threading
+from collections.abc import AsyncIterator, Callable
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 import pytest
@@ -14,7 +18,11 @@ import pytest
 import rovlink.aio
 from rovlink.client.events import BytesSent, ClientEvent
 from rovlink.piloting import TrackedClient
+from rovlink.recorder.entries import Entry
+from rovlink.recorder.formats import open_sink
+from rovlink.recorder.sink import Sink
 from rovlink.station.hub import Peer, Station
+from rovlink.station.recording import StationRecordings
 
 
 @dataclass
@@ -59,17 +67,36 @@ class Hub:
         ]
 
 
-@pytest.fixture
-async def hub() -> AsyncIterator[Hub]:
+@contextlib.asynccontextmanager
+async def station_on_sim(recordings_in: Path | None = None) -> AsyncIterator[Hub]:
+    """A station on ``sim://``; with ``recordings_in``, its record button writes there."""
     client = await rovlink.aio.connect("sim://")
     clock = Clock()
-    station = Station(TrackedClient(client, algorithm="crc8"), description="sim://", clock=clock)
+    recordings = (
+        None
+        if recordings_in is None
+        else StationRecordings(
+            recordings_in, url="sim://", checksum=False, algorithm="crc8", clock=clock
+        )
+    )
+    station = Station(
+        TrackedClient(client, algorithm="crc8"),
+        description="sim://",
+        clock=clock,
+        recordings=recordings,
+    )
     made = Hub(station, clock)
     client.subscribe(made.on_event)
     try:
         yield made
     finally:
         await client.close()
+
+
+@pytest.fixture
+async def hub() -> AsyncIterator[Hub]:
+    async with station_on_sim() as made:
+        yield made
 
 
 def keys(deadman: bool, direction_deg: int = 90, power_percent: int = 0) -> dict[str, Any]:
@@ -157,3 +184,84 @@ async def test_a_cut_after_stop_sends_zero_thrust_without_a_warning(hub):
     await hub.station.leave(peer)  # the pilot's page closed while the robot is locked
     assert hub.sent == ["#th.0.0!"]  # no mode sent: depth mode, no mvs
     assert hub.warnings() == [f"STOP from {peer.label}"]
+
+
+class FillingDisk:
+    """Sinks that fail as a full disk does (ENOSPC) once :attr:`full` is set."""
+
+    def __init__(self) -> None:
+        self.full = threading.Event()
+
+    def sink(self, real: Sink) -> Sink:
+        disk = self
+
+        class Filling:
+            def write(self, entry: Entry) -> None:
+                disk.check()
+                real.write(entry)
+
+            def flush(self) -> None:
+                disk.check()
+                real.flush()
+
+            def close(self) -> None:
+                real.close()
+
+            def size_bytes(self) -> int:
+                return real.size_bytes()
+
+        return Filling()
+
+    def check(self) -> None:
+        if self.full.is_set():
+            raise OSError(errno.ENOSPC, "No space left on device")
+
+
+async def until(condition: Callable[[], bool], timeout_s: float = 5.0) -> None:
+    """Wait for ``condition`` between turns of the event loop; fail after ``timeout_s``."""
+    deadline_s = asyncio.get_running_loop().time() + timeout_s
+    while not condition():
+        assert asyncio.get_running_loop().time() < deadline_s, "condition not met in time"
+        await asyncio.sleep(0.01)
+
+
+async def test_a_recording_that_fills_the_disk_ends_at_once_with_its_true_length(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+):
+    disk = FillingDisk()
+    monkeypatch.setattr(
+        "rovlink.recorder.recorder.open_sink", lambda path: disk.sink(open_sink(path))
+    )
+    async with station_on_sim(tmp_path) as hub:
+        recordings = hub.station.recordings
+        assert recordings is not None
+        peer = await hub.pilot()
+        await hub.send(peer, {"type": "record_start"})
+        assert recordings.active
+        hub.clock.now_s += 4.0
+        disk.full.set()
+        await hub.send(peer, {"type": "command", "name": "h+"})  # something to write
+        await until(lambda: not recordings.active)
+        hub.clock.now_s += 4.0  # the pilot notices later: the recording ended at 4 s
+        state = recordings.state()
+        assert state["active"] is False
+        assert state["elapsed_s"] is None
+        assert "No space left on device" in state["failure"]
+        assert [(item["duration_s"], item["failed"]) for item in state["finished"]] == [(4.0, True)]
+        assert any("No space left" in text for text in hub.warnings())  # the alarm, at once
+        told = [m for m in drain(peer) if m["type"] == "recording"]
+        assert told[-1]["active"] is False
+
+        await hub.send(peer, {"type": "record_stop"})
+        assert "not recording" in [m for m in drain(peer) if m["type"] == "error"][-1]["message"]
+        disk.full.clear()
+        await hub.send(peer, {"type": "record_start"})
+        assert recordings.state()["failure"] is None  # a new recording: the old failure goes
+        await hub.send(peer, {"type": "record_stop"})
+
+
+def drain(peer: Peer) -> list[dict[str, Any]]:
+    messages = []
+    while not peer.outbox.empty():
+        messages.append(peer.outbox.get_nowait())
+    return messages

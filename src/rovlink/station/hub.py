@@ -136,10 +136,10 @@ class Station:
         #: The driver's word on the link (LinkState): down while a lost port is being reopened.
         self._link_up = True
         self._recording_told_s = 0.0
-        self._failure_told: str | None = None
         tracked.client.subscribe(self._on_client_event)
         if recordings is not None:
             tracked.client.subscribe(recordings.on_event)
+            recordings.add_failure_listener(self._recording_failed)
         tracked.add_sent_listener(self._on_sent)
 
     # -- the pages ------------------------------------------------------------------------------
@@ -258,6 +258,8 @@ class Station:
                     f"{peer.label} stopped recording: {finished.name}, "
                     f"{finished.size_bytes / 1000:.1f} kB, {finished.duration_s:g} s",
                 )
+                if finished.failed and recordings.failure is not None:
+                    self.log("alarm", recordings.failure)  # it failed as it was being stopped
         except RecordingError as error:
             raise MessageError(str(error)) from None
         self._broadcast(recordings.state())
@@ -404,10 +406,13 @@ class Station:
         if recordings is None or not recordings.active or now_s < self._recording_told_s + 1.0:
             return
         self._recording_told_s = now_s
-        if recordings.failure is not None and recordings.failure != self._failure_told:
-            self._failure_told = recordings.failure
-            self.log("alarm", recordings.failure)
         self._broadcast(recordings.state())
+
+    def _recording_failed(self, reason: str) -> None:
+        """The recording stopped by itself (a full disk): every page is told at once."""
+        self.log("alarm", reason)
+        if self.recordings is not None:
+            self._broadcast(self.recordings.state())
 
     def _poll_failed(self, error: str) -> None:
         self._failures_unlogged += 1

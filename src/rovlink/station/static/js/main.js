@@ -59,7 +59,8 @@ function showRecording(state) {
     const link = document.createElement("a");
     link.href = `/recordings/${encodeURIComponent(item.name)}`;
     link.download = item.name;
-    link.textContent = `${item.name} (${(item.size_bytes / 1000).toFixed(1)} kB, ${item.duration_s} s)`;
+    const failed = item.failed ? ", stopped early" : "";
+    link.textContent = `${item.name} (${(item.size_bytes / 1000).toFixed(1)} kB, ${item.duration_s} s${failed})`;
     const entry = document.createElement("li");
     entry.append(link);
     return entry;
