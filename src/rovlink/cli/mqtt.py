@@ -98,6 +98,9 @@ def broker_settings(args: argparse.Namespace) -> BrokerSettings:
     tls_files = [args.cafile, args.certfile, args.keyfile]
     if not tls and (any(tls_files) or args.tls_insecure):
         raise UsageError("TLS options need an mqtts:// broker")
+    if args.keyfile is not None and args.certfile is None:
+        # A key alone would be dropped unused, and the broker would see no client certificate.
+        raise UsageError("--keyfile needs --certfile (the client certificate it is the key of)")
     for path in tls_files:
         if path is not None and not path.is_file():
             raise InputError(f"{path}: no such file")

@@ -24,6 +24,10 @@ _SRC = str(Path(__file__).resolve().parents[3] / "src")
         (["--broker", "mqtt://h", "--robot", "a/b"], "robot id 'a/b'"),
         (["--broker", "mqtt://h", "--robot", "r", "--tls-insecure"], "need an mqtts:// broker"),
         (["--broker", "mqtts://h", "--robot", "r", "--cafile", "/nonexistent.pem"], "no such file"),
+        (
+            ["--broker", "mqtts://h", "--robot", "r", "--keyfile", "/nonexistent.pem"],
+            "--keyfile needs --certfile",
+        ),
     ],
 )
 def test_bad_options_are_one_line_before_anything_opens(
@@ -43,6 +47,18 @@ def test_a_password_needs_a_user(
     assert result.status == 2
     assert "a password needs --username" in result.err
     assert "secret" not in result.err
+
+
+def test_a_key_without_its_certificate_is_a_usage_error_not_ignored(
+    run_cli: RunCli, tmp_path: Path
+) -> None:
+    key = tmp_path / "client.key"
+    key.write_text("-----BEGIN PRIVATE KEY-----\n", encoding="utf-8")
+    nobody_listens = f"mqtts://127.0.0.1:{free_tcp_port()}"
+    result = run_cli("fleet", "--broker", nobody_listens, "--keyfile", str(key), "--snapshot", "1")
+    assert result.status == 2
+    assert "--keyfile needs --certfile" in result.err
+    assert result.out == ""
 
 
 def _bridge_process(broker_url: str, robot: str) -> subprocess.Popen[str]:
