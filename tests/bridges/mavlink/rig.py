@@ -120,6 +120,10 @@ class GroundStation:
             del self._backlog[:-_BACKLOG]
         raise AssertionError(f"no {kind} within {timeout_s} s")
 
+    def kept(self, kind: str) -> list[Any]:
+        """The messages of ``kind`` received so far that no receive() took."""
+        return [kept for kept in self._backlog if kept.get_type() == kind]
+
     def receive_new(self, kind: str, condition: Callable[[Any], bool] | None = None) -> Any:
         """The next message of ``kind`` received from now on (none kept from before)."""
         self._backlog = [kept for kept in self._backlog if kept.get_type() != kind]

@@ -7,6 +7,7 @@ import math
 import pytest
 
 from rovlink.bridges.mavlink.command_handling import Result, handle_command
+from rovlink.bridges.mavlink.endpoint import is_addressed_to
 from rovlink.bridges.mavlink.failsafe import GCS_TIMEOUT_S, GcsWatchdog
 from rovlink.bridges.mavlink.modes import ButtonFunction, FlightMode
 from rovlink.bridges.mavlink.parameters import (
@@ -309,3 +310,24 @@ async def test_each_command_gets_a_result_and_odd_values_are_denied(
     padded = [*params, *[0.0] * (7 - len(params))]
     assert await handle_command(actions, command, padded) is result
     assert actions.done == done
+
+
+# -- addressing --------------------------------------------------------------------------------
+
+
+def test_mavlink_addressing_broadcasts_systems_and_components():
+    from pymavlink.dialects.v20 import ardupilotmega as dialect
+
+    def for_us(message: object) -> bool:
+        return is_addressed_to(message, system_id=1, component_id=1)
+
+    assert for_us(dialect.MAVLink_heartbeat_message(6, 8, 0, 0, 0, 3))  # no target: everyone's
+    assert for_us(dialect.MAVLink_manual_control_message(0, 0, 0, 500, 0, 0))
+    assert for_us(dialect.MAVLink_manual_control_message(1, 0, 0, 500, 0, 0))
+    assert not for_us(dialect.MAVLink_manual_control_message(2, 0, 0, 500, 0, 0))
+    for system, component, expected in [(1, 1, True), (1, 0, True), (0, 0, True),
+                                        (2, 1, False), (1, 100, False)]:  # fmt: skip
+        command = dialect.MAVLink_command_long_message(
+            system, component, 400, 0, 0, 0, 0, 0, 0, 0, 0
+        )
+        assert for_us(command) is expected, (system, component)

@@ -337,3 +337,36 @@ def test_thrust_kept_across_a_mode_change_or_re_arm_is_still_zeroed(
     for frame in expected:
         rig.wait_frame(frame, since=changed)  # before: nothing, and the robot drove on
     assert "#stop!" not in rig.frames_since(mark)
+
+
+def _served_since(gcs: GroundStation) -> None:
+    """Wait until what was sent before has been handled: messages are served in order."""
+    gcs.send("command_long", VEHICLE, 0, REQUEST_MESSAGE, 0, AUTOPILOT_VERSION_ID, *[0.0] * 6)
+    gcs.receive("COMMAND_ACK", condition=lambda m: m.command == REQUEST_MESSAGE)  # component 0
+
+
+def test_the_joystick_of_another_system_does_not_drive_this_one(rig: BridgeRig, gcs: GroundStation):
+    gcs.start_heartbeats()
+    assert gcs.arm() == ACCEPTED
+    mark = len(rig.frames())
+    gcs.send("manual_control", 2, 0, 1000, 1000, 0, 0)  # for system 2: right, full up
+    _served_since(gcs)
+    assert not [f for f in rig.frames_since(mark) if f.startswith(("#th", "#mvs"))]
+    gcs.send("manual_control", 0, 0, 1000, 1000, 0, 0)  # a broadcast drives
+    rig.wait_frame("#th.90.100!", since=mark)
+
+
+def test_messages_for_another_component_of_this_system_are_ignored(
+    rig: BridgeRig, gcs: GroundStation
+):
+    gcs.start_heartbeats()
+    assert gcs.arm() == ACCEPTED
+    mark = len(rig.frames())
+    camera = 100
+    gcs.send("command_long", VEHICLE, camera, ARM_DISARM, 0, *[0.0] * 7)  # disarm the camera
+    gcs.send("param_set", VEHICLE, camera, b"RL_DEPTH_P", 33.0, 6)
+    _served_since(gcs)
+    assert not [f for f in rig.frames_since(mark) if f.startswith(("#stop", "#mvpdp"))]
+    assert rig.bridge.parameters.value("RL_DEPTH_P") == 40
+    assert not [ack for ack in gcs.kept("COMMAND_ACK") if ack.command == ARM_DISARM]
+    assert _armed(gcs)

@@ -193,9 +193,8 @@ class MavlinkBridge:
     async def _receive(self) -> None:
         while True:
             message = await self._inbox.get()
-            target = getattr(message, "target_system", 0)
-            if target not in (0, self.endpoint.system_id):
-                continue  # for another vehicle on the same link
+            if not self.endpoint.is_for_me(message):
+                continue  # for another vehicle, or another component of this one
             handler = self._handlers.get(message.get_type())
             if handler is None:
                 continue

@@ -16,7 +16,7 @@ from typing import Any
 
 from rovlink.logs import get_logger
 
-__all__ = ["SCHEMES", "MavlinkEndpoint", "check_address"]
+__all__ = ["SCHEMES", "MavlinkEndpoint", "check_address", "is_addressed_to"]
 
 logger = get_logger("rovlink.bridges.mavlink")
 
@@ -28,6 +28,9 @@ SCHEMES = {
     "tcp": "connect to a ground station's TCP server there",
 }
 _READ_TIMEOUT_S = 0.2  # how soon the reader thread notices it should stop
+#: Messages whose target system field is not ``target_system`` (MANUAL_CONTROL's is ``target``).
+_TARGET_SYSTEM_FIELD = {"MANUAL_CONTROL": "target"}
+_BROADCAST = 0
 
 
 def check_address(address: str) -> None:
@@ -48,6 +51,21 @@ def check_address(address: str) -> None:
     port = parts[2]
     if not port.isdigit() or not 1 <= int(port) <= 65535:
         raise ValueError(f"MAVLink endpoint {address!r}: port must be 1–65535, got {port!r}")
+
+
+def is_addressed_to(message: Any, system_id: int, component_id: int) -> bool:
+    """Whether ``message`` is for component ``component_id`` of system ``system_id``, by
+    MAVLink's addressing: a target of 0 is a broadcast, a message without target fields is for
+    everyone, and one for another component of this system is not this component's.
+    """
+    fields = message.get_fieldnames()
+    system_field = _TARGET_SYSTEM_FIELD.get(message.get_type(), "target_system")
+    if system_field in fields and getattr(message, system_field) not in (_BROADCAST, system_id):
+        return False
+    return "target_component" not in fields or message.target_component in (
+        _BROADCAST,
+        component_id,
+    )
 
 
 class MavlinkEndpoint:
@@ -78,6 +96,10 @@ class MavlinkEndpoint:
         self.dialect: Any = mavutil.mavlink
         self._stopping = threading.Event()
         self._reader: threading.Thread | None = None
+
+    def is_for_me(self, message: Any) -> bool:
+        """Whether a received message is addressed to this vehicle's autopilot component."""
+        return is_addressed_to(message, self.system_id, self.component_id)
 
     @property
     def mav(self) -> Any:
