@@ -94,6 +94,26 @@ def test_cli_only_motion_checks_without_motion_is_a_usage_error(
     assert "'motion-link' names only motion checks: they run only with --motion" in err
 
 
+@pytest.mark.parametrize(
+    ("junit", "why"),
+    [
+        ("missing/check.xml", "no such directory"),
+        ("a-file/check.xml", "not a directory"),
+        (".", "is a directory"),
+    ],
+)
+def test_cli_refuses_a_junit_path_it_cannot_write_before_running(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], junit: str, why: str
+) -> None:
+    # Before, the whole suite ran first (45 s with --motion), then the write failed.
+    (tmp_path / "a-file").write_text("", encoding="utf-8")
+    path = tmp_path / junit
+    assert main(["check", "sim://", "--only", "query-qd", "--junit", str(path)]) == 2
+    err = capsys.readouterr().err
+    assert f"--junit {path}: {why}" in err
+    assert "query-qd" not in err  # (no check ran: its progress line is missing)
+
+
 def test_junit_has_a_case_per_check_and_the_evidence_of_failures() -> None:
     evidence = (Exchange(sent=b"#qd!", received=b"$qd.007!"),)
     report = Report(

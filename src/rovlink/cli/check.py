@@ -10,7 +10,9 @@ low power and run only with --motion (after a prompt, unless --yes); a leak or a
 from __future__ import annotations
 
 import argparse
+import os
 import sys
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 from rovlink.cli.failure import CommandError, UsageError, reason
@@ -102,6 +104,8 @@ def run(args: argparse.Namespace) -> int:
         endpoint = parse_url(args.url)
     except ValueError as error:
         raise UsageError(str(error)) from None
+    if args.junit:
+        _check_output_path("--junit", args.junit)
     if args.motion and not args.yes and not _confirm_motion(args.motion_power):
         raise CommandError("motion checks not confirmed; nothing was sent")
     options = SuiteOptions(
@@ -130,6 +134,21 @@ def run(args: argparse.Namespace) -> int:
         except OSError as error:
             raise CommandError(f"cannot write {args.junit}: {reason(error)}") from None
     return 0 if report.passed else 1
+
+
+def _check_output_path(option: str, path: str) -> None:
+    """Refuse an output file that cannot be written before the run, not after it (a run with
+    --motion takes most of a minute): its directory must exist and be writable."""
+    target = Path(path)
+    directory = target.parent
+    if target.is_dir():
+        raise UsageError(f"{option} {path}: is a directory")
+    if not directory.exists():
+        raise UsageError(f"{option} {path}: no such directory: {directory}")
+    if not directory.is_dir():
+        raise UsageError(f"{option} {path}: not a directory: {directory}")
+    if not os.access(target if target.exists() else directory, os.W_OK):
+        raise UsageError(f"{option} {path}: not writable")
 
 
 def _confirm_motion(percent: int) -> bool:
