@@ -55,8 +55,10 @@ class TelemetryCsvSink(FileSink):
 
     def close(self) -> None:
         if not self._file.closed:
-            self.flush()
-            self._text.close()
+            try:
+                self.flush()
+            finally:  # closed even when the disk is full
+                self._text.close()
 
 
 def read_csv(path: str) -> Iterator[Entry]:

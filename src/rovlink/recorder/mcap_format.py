@@ -64,8 +64,10 @@ class McapSink(FileSink):
 
     def close(self) -> None:
         if not self._file.closed:
-            self._writer.finish()  # type: ignore[no-untyped-call]
-            super().close()
+            try:
+                self._writer.finish()  # type: ignore[no-untyped-call]
+            finally:  # a full disk fails the index: the file is closed all the same
+                super().close()
 
 
 def read_mcap(path: str) -> Iterator[Entry]:
