@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 import socket
 import threading
 from collections.abc import Iterator
@@ -11,6 +12,7 @@ from pathlib import Path
 import pytest
 
 from rovlink.cli.send import group_words
+from rovlink.client import CommandTextError, parse_command_text
 from rovlink.protocol import get_algorithm
 from tests.cli.conftest import RunCli
 from tests.client.conftest import REPLY_TIMEOUT_S
@@ -206,10 +208,51 @@ def test_a_missing_device_is_said_once(run_cli: RunCli) -> None:
         (["th", "270", "25", "qd"], ["th 270 25", "qd"]),
         (["mvs", "-50", "mvs", "+20"], ["mvs -50", "mvs +20"]),
         (["#th.1.2!", "3"], ["#th.1.2!", "3"]),
+        # A word that is not a number stays with the command that wants a value (before, it
+        # was split off, and the error said "takes 1 value(s), got 0").
+        (["mvd", "abc"], ["mvd abc"]),
+        (["mvd", "1e3", "qd"], ["mvd 1e3", "qd"]),
+        (["th", "90", "x"], ["th 90 x"]),
+        (["th", "x", "90", "qd"], ["th x 90", "qd"]),
+        (["th", "90", "50", "x"], ["th 90 50", "x"]),  # (th has its values: x starts the next one)
+        (["mvd", "qd"], ["mvd", "qd"]),  # (a command's name is never taken as a value)
+        (["th", "1", "2", "3"], ["th 1 2 3"]),  # (too many numbers: said so by th)
     ],
 )
 def test_word_grouping(words: list[str], texts: list[str]) -> None:
     assert group_words(words) == texts
+
+
+@pytest.mark.parametrize(
+    ("words", "position", "text", "message"),
+    [
+        (["mvd", "abc"], 1, "mvd abc", "target_depth_cm must be an integer in 0–9999, got 'abc'"),
+        (
+            ["qd", "mvd", "1e3"],
+            2,
+            "mvd 1e3",
+            "target_depth_cm must be an integer in 0–9999, got '1e3'",
+        ),
+        (["th", "90", "x"], 1, "th 90 x", "power_percent must be an integer in 0–100, got 'x'"),
+        (
+            ["th", "9.5", "10"],
+            1,
+            "th 9.5 10",
+            "direction_deg must be an integer in 0–360, got '9.5'",
+        ),
+    ],
+)
+def test_a_value_that_is_not_a_number_is_named_with_its_argument(
+    run_cli: RunCli, words: list[str], position: int, text: str, message: str
+) -> None:
+    result = run_cli("send", "sim://", *words)
+    assert result.status == 2
+    name = text.split(maxsplit=1)[0]
+    assert f"command {position} ({text!r}): {name}: {message}" in result.err
+    assert result.out == ""
+    # The console, which reads its line with the same parser, says the same.
+    with pytest.raises(CommandTextError, match=re.escape(f"{name}: {message}")):
+        parse_command_text(text)
 
 
 class NoisyController:

@@ -19,7 +19,18 @@ from typing import TYPE_CHECKING, cast
 from rovlink.cli import link_options
 from rovlink.cli.failure import CommandError, UsageError
 from rovlink.cli.interrupt import GatedClient, run_in_worker
-from rovlink.protocol import Command, Decoder, Event, Frame, Response, Setting, Text, encode
+from rovlink.protocol import (
+    Command,
+    Decoder,
+    Event,
+    Frame,
+    Response,
+    Setting,
+    Text,
+    UnknownCommandError,
+    encode,
+    lookup,
+)
 from rovlink.protocol.visible import visible
 
 if TYPE_CHECKING:
@@ -69,26 +80,54 @@ def _reply_json(response: Response, frame: str) -> dict[str, object]:
 
 def group_words(arguments: list[str]) -> list[str]:
     """Command texts from the command line: a quoted command stays whole; unquoted words
-    group as a name followed by its numbers, so ``th 270 25 qd`` is two commands.
+    group as a name followed by its values, so ``th 270 25 qd`` is two commands.
+
+    A name takes the words after it while they are numbers, and also, up to its count of
+    values, words that are not a command's name: ``mvd abc`` stays one command, so that its
+    error names the word that is not a number and the value it was meant for.
 
     >>> group_words(["th", "270", "25", "qd", "mvs -50", "#qsa!"])
     ['th 270 25', 'qd', 'mvs -50', '#qsa!']
+    >>> group_words(["mvd", "abc", "th", "90", "x"])
+    ['mvd abc', 'th 90 x']
     """
     groups: list[list[str]] = []
     open_group = False
+    values_wanted = 0  # values the open group's command takes that it does not have yet
     for argument in arguments:
         if " " in argument.strip() or argument.startswith("#"):
             groups.append([argument])
             open_group = False
-        elif open_group and _NUMBER.fullmatch(argument):
+        elif open_group and (
+            _NUMBER.fullmatch(argument) or (values_wanted > 0 and not _is_name(argument))
+        ):
             groups[-1].append(argument)
+            values_wanted -= 1
         else:
             groups.append([argument])
             open_group = True
+            values_wanted = _value_count(argument)
     return [" ".join(group) for group in groups]
 
 
 _NUMBER = re.compile(r"[+-]?\d+")
+
+
+def _is_name(word: str) -> bool:
+    """Whether ``word`` is a command's name or alias (it starts the next command)."""
+    try:
+        lookup(word)
+    except UnknownCommandError:
+        return False
+    return True
+
+
+def _value_count(word: str) -> int:
+    """How many values the command named ``word`` takes; 0 for a word that names none."""
+    try:
+        return len(lookup(word).arguments)
+    except UnknownCommandError:
+        return 0
 
 
 @dataclass(frozen=True, slots=True)
