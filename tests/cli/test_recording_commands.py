@@ -271,3 +271,16 @@ def test_replay_follows_the_recorded_pace(run_cli: RunCli, tmp_path: Path) -> No
     span_s = entries[-1].t_s - entries[1].t_s
     assert paced_s >= span_s * 0.9  # it waited for the recorded times
     assert fast_s < paced_s
+
+
+@pytest.mark.parametrize(
+    ("typed", "minimum"),
+    [("4k", "4096 bytes (4.096k)"), ("4000", "4096 bytes"), ("0.001M", "4096 bytes (0.004096M)")],
+)
+def test_a_max_size_too_small_states_the_minimum_exactly(
+    run_cli: RunCli, tmp_path: Path, typed: str, minimum: str
+) -> None:
+    result = run_cli("demo", "sim://", "--record", str(tmp_path / "ms.mcap"), "--max-size", typed)
+    assert result.status == 2
+    assert f"{typed!r} is too small for a recording file: at least {minimum}" in result.err
+    assert not (tmp_path / "ms.mcap").exists()

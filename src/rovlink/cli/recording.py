@@ -24,6 +24,8 @@ __all__ = [
 ]
 
 _SIZE_UNITS = {"": 1, "k": 1000, "m": 1000**2, "g": 1000**3}
+#: The smallest ``--max-size``: a file must hold its header and a chunk or two.
+MIN_FILE_BYTES = 4096
 _TIME_UNITS = {"": 1.0, "s": 1.0, "m": 60.0, "h": 3600.0}
 
 
@@ -44,9 +46,24 @@ def byte_size(text: str) -> int:
         raise argparse.ArgumentTypeError(
             f"{text!r} is not a size (a number with k, M or G: 100M)"
         ) from None
-    if value < 4096:
-        raise argparse.ArgumentTypeError(f"{text!r} is too small for a recording file (≥ 4k)")
+    if value < MIN_FILE_BYTES:
+        raise argparse.ArgumentTypeError(
+            f"{text!r} is too small for a recording file: at least "
+            f"{_in_unit(MIN_FILE_BYTES, text[-1:] if unit else '')}"
+        )
     return int(value)
+
+
+def _in_unit(size_bytes: int, unit: str) -> str:
+    """``size_bytes`` exactly, and in the decimal ``unit`` as typed (``k``, ``M``...).
+
+    >>> _in_unit(4096, "k"), _in_unit(4096, "")
+    ('4096 bytes (4.096k)', '4096 bytes')
+    """
+    exact = f"{size_bytes} bytes"
+    if not unit:
+        return exact
+    return f"{exact} ({size_bytes / _SIZE_UNITS[unit.lower()]:.10g}{unit})"
 
 
 def duration(text: str) -> float:
