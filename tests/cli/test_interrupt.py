@@ -3,6 +3,8 @@ no reply fails. Against a controller that never answers: a TCP listener that onl
 
 from __future__ import annotations
 
+import contextlib
+import json
 import os
 import signal
 import socket
@@ -77,11 +79,18 @@ def _rovlink(*arguments: str) -> subprocess.Popen[bytes]:
     )
 
 
-def _interrupt(process: subprocess.Popen[bytes]) -> tuple[float, bytes]:
+def _interrupt(
+    process: subprocess.Popen[bytes], how: signal.Signals = signal.SIGINT
+) -> tuple[float, bytes]:
     started = time.monotonic()
-    process.send_signal(signal.SIGINT)
+    process.send_signal(how)
     _, stderr = process.communicate(timeout=WAIT_S)
     return time.monotonic() - started, stderr
+
+
+#: Ctrl-C, and what ends a program otherwise: kill and service managers (SIGTERM), a closed
+#: terminal or SSH session (SIGHUP). Each ends a command as Ctrl-C does.
+ENDING_SIGNALS = [signal.SIGINT, signal.SIGTERM, signal.SIGHUP]
 
 
 def test_ctrl_c_ends_send_waiting_for_a_silent_controller_at_once(silent: SilentController) -> None:
@@ -94,23 +103,114 @@ def test_ctrl_c_ends_send_waiting_for_a_silent_controller_at_once(silent: Silent
     assert b"#stop!" not in silent.received  # only a query was sent: nothing moved
 
 
-def test_ctrl_c_after_a_motion_command_sends_stop_first(silent: SilentController) -> None:
+@pytest.mark.parametrize("how", ENDING_SIGNALS, ids=lambda how: how.name)
+def test_a_signal_after_a_motion_command_sends_stop_first(
+    silent: SilentController, how: signal.Signals
+) -> None:
     process = _rovlink("send", silent.url, "start", "th 0 30", "qd", "--timeout", "60")
     assert silent.wait_for(b"#qd!")
-    elapsed_s, _ = _interrupt(process)
+    elapsed_s, stderr = _interrupt(process, how)
     assert process.returncode == 130
     assert elapsed_s < EXIT_BOUND_S
+    assert stderr.decode().splitlines()[-1] == "rovlink send: interrupted"
     assert silent.wait_for(b"#stop!")
     assert silent.received.index(b"#stop!") > silent.received.index(b"#th.0.30!")
 
 
-def test_ctrl_c_ends_the_demo_with_stop(silent: SilentController) -> None:
-    process = _rovlink("demo", silent.url, "--timeout", "60")
+@pytest.mark.parametrize("how", ENDING_SIGNALS, ids=lambda how: how.name)
+def test_a_signal_ends_the_demo_with_stop_and_its_recording_finished(
+    silent: SilentController, how: signal.Signals, tmp_path: Path
+) -> None:
+    recording = tmp_path / "dive.jsonl"
+    process = _rovlink("demo", silent.url, "--timeout", "60", "--record", str(recording))
     assert silent.wait_for(b"#qsa!")  # unlocked, diving, polling the sensors
-    elapsed_s, _ = _interrupt(process)
+    elapsed_s, stderr = _interrupt(process, how)
     assert process.returncode == 130
     assert elapsed_s < EXIT_BOUND_S
     assert silent.wait_for(b"#stop!")
+    assert "recorded" in stderr.decode()  # the summary line of a finished recording
+    entries = [json.loads(line) for line in recording.read_text(encoding="utf-8").splitlines()]
+    sent = [
+        entry["name"]
+        for entry in entries
+        if entry["channel"] == "frames" and entry["direction"] == "out"
+    ]
+    assert sent[-1] == "stop"
+
+
+class Terminal:
+    """A command on a pseudo-terminal of its own, as a user runs it; what it shows is drained
+    (a full terminal would block it) and kept."""
+
+    def __init__(self, *arguments: str) -> None:
+        self._master, slave = os.openpty()
+        source = str(Path(__file__).resolve().parents[2] / "src")
+        environment = {**os.environ, "PYTHONPATH": source, "TERM": "xterm-256color"}
+        environment.pop("NO_COLOR", None)
+        self.process = subprocess.Popen(
+            [sys.executable, "-m", "rovlink", *arguments],
+            stdin=slave,
+            stdout=slave,
+            stderr=subprocess.PIPE,
+            env=environment,
+            start_new_session=True,  # its own terminal, as a login has
+        )
+        os.close(slave)
+        self.shown = bytearray()
+        self._reader = threading.Thread(target=self._drain, daemon=True)
+        self._reader.start()
+
+    def _drain(self) -> None:
+        with contextlib.suppress(OSError):
+            while data := os.read(self._master, 4096):
+                self.shown += data
+
+    def type(self, text: str) -> None:
+        os.write(self._master, text.encode())
+
+    def close(self) -> None:
+        if self.process.poll() is None:
+            self.process.kill()
+        self.process.communicate(timeout=WAIT_S)
+        os.close(self._master)
+
+
+@pytest.mark.parametrize("how", ENDING_SIGNALS, ids=lambda how: how.name)
+def test_a_signal_ends_the_console_with_stop(silent: SilentController, how: signal.Signals) -> None:
+    # kill -INT is no Ctrl-C key (the terminal is in raw mode, the key only drops the line):
+    # it, kill and a closed terminal end the console, #stop! first.
+    # (Leaving waits for the queries on the wire, up to --timeout: a short one.)
+    terminal = Terminal("console", silent.url, "--boot-timeout", "0", "--timeout", "0.2")
+    try:
+        assert silent.wait_for(b"#crcoff!")
+        terminal.type("start\r")
+        assert silent.wait_for(b"#start!")
+        terminal.type("th 0 50\r")
+        assert silent.wait_for(b"#th.0.50!")
+        elapsed_s, stderr = _interrupt(terminal.process, how)
+        assert terminal.process.returncode == 130, stderr
+        assert elapsed_s < EXIT_BOUND_S
+        assert silent.wait_for(b"#stop!")
+        assert silent.received.index(b"#stop!") > silent.received.index(b"#th.0.50!")
+    finally:
+        terminal.close()
+
+
+@pytest.mark.parametrize("how", [signal.SIGTERM, signal.SIGHUP], ids=lambda how: how.name)
+def test_a_signal_ends_the_monitor_with_stop(silent: SilentController, how: signal.Signals) -> None:
+    terminal = Terminal("monitor", silent.url, "--boot-timeout", "0", "--timeout", "0.2")
+    try:
+        assert silent.wait_for(b"#qsa!")  # the dashboard polls
+        terminal.type("s")
+        assert silent.wait_for(b"#start!")
+        terminal.type("\x1b[A")  # up: thrust ahead
+        assert silent.wait_for(b"#th.0.")
+        _, stderr = _interrupt(terminal.process, how)
+        assert terminal.process.returncode in (0, 130), stderr
+        assert silent.wait_for(b"#stop!")
+        assert silent.received.rindex(b"#stop!") > silent.received.index(b"#th.0.")
+    finally:
+        terminal.close()
 
 
 def test_a_query_without_a_reply_fails_in_one_line(

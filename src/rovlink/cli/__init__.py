@@ -19,6 +19,13 @@ import sys
 import rovlink
 from rovlink.cli.failure import CommandError, UsageError
 
+# Not typing's: start-up is a measured figure.
+TYPE_CHECKING = False
+
+if TYPE_CHECKING:
+    from collections.abc import Callable
+    from typing import Any
+
 __all__ = ["COMMANDS", "build_parser", "main", "plain_text"]
 
 #: Every command and its one-line summary, in the order ``rovlink --help`` lists them.
@@ -174,6 +181,38 @@ def build_parser(command: str | None = None, *, others: bool = True) -> argparse
     return parser
 
 
+def _take_termination_as_ctrl_c() -> Callable[[], None]:
+    """Have SIGTERM and SIGHUP (a service stopped, ``kill``, a terminal or an SSH session
+    closed) end the command as Ctrl-C does: after ``#stop!`` where it may have moved the robot,
+    with its recording finished; returns what puts the previous handlers back. Commands that
+    serve (``sim``, ``controller``, ``record``, ``web``, ``fault``) put their own handlers over
+    these. A signal ignored on entry (``nohup``) stays ignored."""
+    import signal  # noqa: PLC0415 - not on the path of --help and --version
+
+    def as_ctrl_c(signum: int, frame: object) -> None:
+        # Raised as SIGINT, so that whoever handles Ctrl-C handles it: asyncio cancels its main
+        # task, the console and the dashboard leave, a blocking command's main thread is
+        # interrupted. Where SIGINT is ignored (a background job), as Ctrl-C's default.
+        if signal.getsignal(signal.SIGINT) in (signal.SIG_IGN, signal.SIG_DFL, None):
+            raise KeyboardInterrupt
+        signal.raise_signal(signal.SIGINT)
+
+    previous: dict[int, Any] = {}
+    try:
+        for name in ("SIGTERM", "SIGHUP"):
+            number = getattr(signal, name, None)  # (no SIGHUP on Windows)
+            if number is not None and signal.getsignal(number) is signal.SIG_DFL:
+                previous[number] = signal.signal(number, as_ctrl_c)
+    except ValueError:  # not the main thread (main() called by a program's thread)
+        pass
+
+    def restore() -> None:
+        for number, handler in previous.items():
+            signal.signal(number, handler)
+
+    return restore
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run the ``rovlink`` command line on ``argv`` and return its exit status.
 
@@ -202,9 +241,11 @@ def main(argv: list[str] | None = None) -> int:
     # What a command opens that must outlive its client (a recording) is finished here, last.
     args.on_exit = []
     try:
+        restore_signals = _take_termination_as_ctrl_c()
         try:
             status: int = args.run(args)
         finally:
+            restore_signals()
             for finish in args.on_exit:
                 finish()
     except UsageError as error:

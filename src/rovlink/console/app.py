@@ -96,6 +96,11 @@ class ConsoleValidator(Validator):
             raise ValidationError(cursor_position=error.position, message=error.message) from None
 
 
+class _EndedBySignal(Exception):  # noqa: N818 - a way of leaving, not an error
+    """SIGINT from outside (``kill -INT``; SIGTERM and SIGHUP arrive as it): leave the console.
+    The Ctrl-C key, read as a key in the terminal's raw mode, only drops the line typed."""
+
+
 def _stop_bindings(engine: ConsoleEngine) -> KeyBindings:
     bindings = KeyBindings()
 
@@ -103,6 +108,11 @@ def _stop_bindings(engine: ConsoleEngine) -> KeyBindings:
     @bindings.add("c-x", eager=True)
     async def _stop(event: KeyPressEvent) -> None:
         await engine.stop_now()
+
+    # (Over the prompt's own binding, which takes the signal for the Ctrl-C key.)
+    @bindings.add("<sigint>")
+    def _leave(event: KeyPressEvent) -> None:
+        event.app.exit(exception=_EndedBySignal())
 
     return bindings
 
@@ -204,8 +214,10 @@ async def run_console(
             except EOFError:  # Ctrl-D
                 engine.submit(Quit())
                 break
-            except KeyboardInterrupt:  # Ctrl-C: drop the line, keep going
+            except KeyboardInterrupt:  # the Ctrl-C key: drop the line, keep going
                 continue
+            except _EndedBySignal:
+                raise KeyboardInterrupt from None  # (after the finally: #stop!, then closed)
             action = parse_line(text, checksum())
             if action is not None:
                 engine.submit(action)
