@@ -12,7 +12,7 @@ import subprocess
 import sys
 import threading
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import pytest
@@ -51,8 +51,12 @@ class SilentController:
 
     def wait_for(self, frame: bytes, timeout_s: float = WAIT_S) -> bool:
         """Whether ``frame`` arrived within ``timeout_s``."""
+        return self.wait_until(lambda received: frame in received, timeout_s)
+
+    def wait_until(self, holds: Callable[[bytes], bool], timeout_s: float = WAIT_S) -> bool:
+        """Whether what arrived made ``holds`` true within ``timeout_s``."""
         with self._changed:
-            return self._changed.wait_for(lambda: frame in self.received, timeout_s)
+            return self._changed.wait_for(lambda: holds(self.received), timeout_s)
 
     def close(self) -> None:
         self._server.close()
@@ -223,3 +227,25 @@ def test_a_query_without_a_reply_fails_in_one_line(
     assert result.err == (
         "rovlink send: #qd! got no valid reply within 0.05 s (1 attempt: timeout)\n"
     )
+
+
+@pytest.mark.parametrize("how", [signal.SIGTERM, signal.SIGHUP], ids=lambda how: how.name)
+@pytest.mark.parametrize(
+    "bridge",
+    [
+        ("mavlink", "--out", "udpout:127.0.0.1:9"),  # (nobody listens: the bridge sends on)
+        ("mqtt", "--broker", "mqtt://127.0.0.1:9", "--robot", "r1"),  # (retried meanwhile)
+    ],
+    ids=lambda bridge: bridge[0],
+)
+def test_a_signal_ends_a_bridge_with_its_final_stop(
+    silent: SilentController, how: signal.Signals, bridge: tuple[str, ...]
+) -> None:
+    command, *options = bridge
+    process = _rovlink(command, silent.url, *options)
+    assert silent.wait_for(b"#qsa!")  # past the #stop! it sends on start, polling
+    stops_before = silent.received.count(b"#stop!")
+    _, stderr = _interrupt(process, how)
+    assert process.returncode == 130, stderr
+    assert stderr.decode().splitlines()[-1] == f"rovlink {command}: interrupted"
+    assert silent.wait_until(lambda received: received.count(b"#stop!") > stops_before)
