@@ -208,6 +208,25 @@ def test_decode_reads_a_recordings_wire(run_cli: RunCli, tmp_path: Path) -> None
     assert '"qsa": 8' in result.out
 
 
+def test_decode_of_a_telemetry_csv_points_to_plot(run_cli: RunCli, tmp_path: Path) -> None:
+    path = tmp_path / "dive.csv"
+    _record(path)
+    result = run_cli("decode", str(path))
+    assert result.status == 1
+    assert result.out == ""
+    assert f"{path} holds only the telemetry table, not the wire: rovlink plot {path}" in (
+        result.err
+    )
+
+
+def test_decode_of_a_capture_named_csv_decodes_it(run_cli: RunCli, tmp_path: Path) -> None:
+    path = tmp_path / "capture.csv"
+    path.write_bytes(b"#qd!$qd.1!")
+    result = run_cli("decode", str(path), "--stats")
+    assert result.status == 0, result.err
+    assert '"frame": 2' in result.out
+
+
 @pytest.mark.integration
 def test_record_taps_a_program_through_a_pseudo_terminal(tmp_path: Path) -> None:
     output = tmp_path / "tapped.jsonl"

@@ -192,6 +192,10 @@ def run(args: argparse.Namespace) -> int:
         return 0
     if args.file.lower().endswith((".mcap", ".jsonl")):
         return _decode_recording(args, decoder)
+    if args.file.lower().endswith(".csv") and _is_telemetry_table(args.file):
+        raise CommandError(
+            f"{args.file} holds only the telemetry table, not the wire: rovlink plot {args.file}"
+        )
     try:
         stream = open(args.file, "rb")  # noqa: SIM115 - closed below, after the error handling
     except OSError as error:
@@ -202,6 +206,19 @@ def run(args: argparse.Namespace) -> int:
         except _ReadError as error:  # a directory, a device error
             raise CommandError(f"cannot read {args.file}: {error}") from None
     return 0
+
+
+def _is_telemetry_table(path: str) -> bool:
+    """Whether ``path`` starts with the header of a recording's telemetry CSV (any other
+    ``.csv`` is decoded as a capture: some save theirs under that name)."""
+    from rovlink.recorder.csv_format import HEADER  # noqa: PLC0415
+
+    try:
+        with open(path, "rb") as stream:
+            first_line = stream.readline(4096)
+    except OSError:
+        return False  # said by the capture's own open, with the reason
+    return first_line.rstrip(b"\r\n") == ",".join(HEADER).encode()
 
 
 class _RecordedWire(io.RawIOBase):
