@@ -147,10 +147,23 @@ class GroundStation:
         self.connection.close()
 
 
+class SilenceableLink(RecordingLink):
+    """A recording link whose controller can be made silent (``silent.set()``): what it writes
+    is lost, as a stopped or hung controller's would be; what the host writes still reaches it."""
+
+    def __init__(self, inner: PortLink) -> None:
+        super().__init__(inner)
+        self.silent = threading.Event()
+
+    def read_available(self, timeout_s: float) -> bytes:
+        data = self.inner.read_available(timeout_s)
+        return b"" if self.silent.is_set() else data
+
+
 @dataclass
 class BridgeRig:
     port: SimulatedPort
-    link: RecordingLink
+    link: SilenceableLink
     bridge: MavlinkBridge
     gcs_address: str
 
@@ -172,6 +185,7 @@ def running_bridge(
     leak_at_s: float | None = None,
     endpoint: str | None = None,
     send_on_start: tuple[str, ...] = (),
+    timeout_s: float = 2.0,
 ) -> Iterator[BridgeRig]:
     """A bridge sending to a free UDP port (``rig.gcs_address`` is where a GCS listens)."""
     gcs_port = free_udp_port()
@@ -180,7 +194,7 @@ def running_bridge(
     if leak_at_s is not None:
         port.robot.inject_leak(at_s=leak_at_s)
     port.start(realtime=True)
-    link = RecordingLink(PortLink(port, "simulated controller"))
+    link = SilenceableLink(PortLink(port, "simulated controller"))
     ready = threading.Event()
     holder: dict[str, Any] = {}
 
@@ -188,7 +202,7 @@ def running_bridge(
         # No driver motion timeout, as ``rovlink mavlink``: the bridge expires motion itself (P23),
         # and a test must see the bridge's zero thrust, not the driver's.
         options = ClientOptions(
-            keepalive_s=1.0, timeout_s=2.0, boot_timeout_s=None, motion_timeout_s=None
+            keepalive_s=1.0, timeout_s=timeout_s, boot_timeout_s=None, motion_timeout_s=None
         )
         client = await AsyncClient(link, options).open()
         bridge = MavlinkBridge(TrackedClient(client), MavlinkEndpoint(out), ParameterTable(

@@ -23,7 +23,8 @@ SUBMARINE = 12
 ARDUPILOTMEGA = 3
 MANUAL, ALT_HOLD, STABILIZE = 19, 2, 0
 ARMED_FLAG = 128
-ACCEPTED, DENIED, UNSUPPORTED = 0, 2, 3
+ACCEPTED, DENIED, UNSUPPORTED, FAILED = 0, 2, 3, 4
+STANDBY, CRITICAL = 3, 5  # MAV_STATE
 ARM_DISARM, DO_SET_MODE, DO_GRIPPER = 400, 176, 211
 SET_MESSAGE_INTERVAL, REQUEST_MESSAGE = 511, 512
 NAV_TAKEOFF = 22
@@ -370,3 +371,28 @@ def test_messages_for_another_component_of_this_system_are_ignored(
     assert rig.bridge.parameters.value("RL_DEPTH_P") == 40
     assert not [ack for ack in gcs.kept("COMMAND_ACK") if ack.command == ARM_DISARM]
     assert _armed(gcs)
+
+
+def test_arming_fails_while_the_controller_does_not_answer():
+    with running_bridge(timeout_s=0.5) as rig:  # the command line's reply timeout
+        gcs = GroundStation(rig.gcs_address)
+        try:
+            gcs.start_heartbeats()
+            wait_for(lambda: rig.bridge.rov.health.status == "ok")
+            rig.link.silent.set()
+            gcs.receive_new(  # a poll failed: before, arming still went through
+                "HEARTBEAT", condition=lambda m: m.type == SUBMARINE and m.system_status == CRITICAL
+            )
+            mark = len(rig.frames())
+            assert gcs.arm() == FAILED
+            assert "#start!" not in rig.frames_since(mark)
+            gcs.receive("STATUSTEXT", condition=lambda m: "Arm refused" in m.text)
+
+            rig.link.silent.clear()
+            gcs.receive_new(
+                "HEARTBEAT", condition=lambda m: m.type == SUBMARINE and m.system_status == STANDBY
+            )
+            assert gcs.arm() == ACCEPTED
+            rig.wait_frame("#start!", since=mark)
+        finally:
+            gcs.close()

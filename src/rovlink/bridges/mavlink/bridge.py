@@ -133,8 +133,11 @@ class MavlinkBridge:
     # -- the vehicle's actions (command_handling.VehicleActions) ---------------------------------
 
     async def arm(self) -> Result:
-        """``#start!``; in ALT_HOLD the depth of the moment is held."""
-        if self.rov.health.status == "no reply":
+        """``#start!``; in ALT_HOLD the depth of the moment is held.
+
+        Refused (FAILED) while the controller's queries fail, as HEARTBEAT shows it CRITICAL.
+        """
+        if not self.messages.link_ok():
             self._say(_SEVERITY_WARNING, "Arm refused: the controller does not answer")
             return Result.FAILED
         await self.rov.send(Command("start"))
