@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import struct
 
 import pytest
 
@@ -22,6 +23,7 @@ from rovlink.bridges.mavlink.pilot_input import (
     horizontal,
     vertical_thrust_percent,
 )
+from rovlink.bridges.mavlink.telemetry_messages import STATUSTEXT_CHARS, statustext_chunks
 from rovlink.bridges.mavlink.telemetry_schedule import MAX_RATE_HZ, TelemetrySchedule
 from rovlink.bridges.mavlink.vehicle_state import (
     SURFACE_PRESSURE_HPA,
@@ -31,6 +33,9 @@ from rovlink.bridges.mavlink.vehicle_state import (
 from rovlink.client.sensors import Sensors
 from rovlink.piloting.commanded import CommandedState
 from rovlink.protocol import Command, lookup
+
+#: 1e30 as PARAM_SET carries it (a float32): 1.0000000150474662e+30.
+FLOAT32_1E30 = struct.unpack("<f", struct.pack("<f", 1e30))[0]
 
 # -- parameters ------------------------------------------------------------------------------
 
@@ -53,6 +58,10 @@ def test_parameter_ranges_come_from_the_command_table():
         ("RL_DEPTH_P", 1.5, "RL_DEPTH_P must be an integer in 0–99, got 1.5"),
         ("RL_DEPTH_P", math.nan, "RL_DEPTH_P must be an integer in 0–99, got nan"),
         ("RL_MAX_PWM", -1, "RL_MAX_PWM must be an integer in 0–255, got -1"),
+        # Huge whole floats are not written as their 31 digits (cut to "got 10" on the air).
+        ("RL_DEPTH_ZERO", 1e30, "RL_DEPTH_ZERO must be an integer in 0–1024, got 1e+30"),
+        ("RL_DEPTH_ZERO", FLOAT32_1E30, "RL_DEPTH_ZERO must be an integer in 0–1024, got 1e+30"),
+        ("RL_DEPTH_P", -math.inf, "RL_DEPTH_P must be an integer in 0–99, got -inf"),
         ("NO_SUCH", 1, "no parameter 'NO_SUCH'"),
     ],
 )
@@ -227,6 +236,18 @@ def test_a_stalled_schedule_does_not_burst():
     assert "HEARTBEAT" in schedule.due(5.0)  # five periods late: sent once
     assert "HEARTBEAT" not in schedule.due(5.01)
     assert "HEARTBEAT" in schedule.due(6.0)
+
+
+# -- STATUSTEXT ----------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("length", [0, 49, 50, 51, 100, 120])
+def test_statustext_chunks_carry_the_whole_text_and_end_short(length: int):
+    text = "".join(chr(ord("a") + n % 26) for n in range(length))
+    chunks = statustext_chunks(text)
+    assert b"".join(chunks).decode() == text
+    assert all(len(chunk) == STATUSTEXT_CHARS for chunk in chunks[:-1])
+    assert len(chunks[-1]) < STATUSTEXT_CHARS  # a NUL on the air: the last chunk
 
 
 # -- units -------------------------------------------------------------------------------------

@@ -4,6 +4,8 @@ what reaches the serial line is read from a recording link."""
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
+from typing import Any
 
 import pytest
 
@@ -396,3 +398,26 @@ def test_arming_fails_while_the_controller_does_not_answer():
             rig.wait_frame("#start!", since=mark)
         finally:
             gcs.close()
+
+
+def _long_statustext(gcs: GroundStation, first: Callable[[Any], bool]) -> str:
+    """A STATUSTEXT joined from its chunks (MAVLink 2 ``id``, ``chunk_seq``), as a GCS does."""
+    head = gcs.receive("STATUSTEXT", condition=first)
+    chunks = [head]
+    while head.id != 0 and len(chunks[-1].text) == 50:  # a shorter chunk is the last
+        chunks.append(
+            gcs.receive(
+                "STATUSTEXT",
+                condition=lambda m: m.id == head.id and m.chunk_seq == len(chunks),
+            )
+        )
+    return "".join(chunk.text for chunk in chunks)
+
+
+def test_a_long_refusal_comes_whole_in_chunks_naming_the_value(rig: BridgeRig, gcs: GroundStation):
+    gcs.send("param_set", VEHICLE, 1, b"RL_DEPTH_ZERO", 1e30, 6)
+    text = _long_statustext(gcs, lambda m: m.text.startswith("RL_DEPTH_ZERO"))
+    assert text == "RL_DEPTH_ZERO must be an integer in 0-1024, got 1e+30"
+    gcs.send("param_set", VEHICLE, 1, b"RL_DEPTH_P", 120.0, 6)  # a short one: one message, id 0
+    short = gcs.receive("STATUSTEXT", condition=lambda m: m.text.startswith("RL_DEPTH_P"))
+    assert (short.text, short.id) == ("RL_DEPTH_P must be an integer in 0-99, got 120", 0)

@@ -10,6 +10,7 @@ joystick function each button of MANUAL_CONTROL carries out.
 from __future__ import annotations
 
 import math
+import struct
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 
@@ -23,6 +24,7 @@ __all__ = [
     "ParameterError",
     "ParameterTable",
     "button_parameter",
+    "number_text",
     "read_parameter_file",
 ]
 
@@ -35,6 +37,42 @@ DEFAULT_BUTTON_FUNCTIONS: Mapping[int, ButtonFunction] = {
     4: ButtonFunction.DISARM,
     6: ButtonFunction.ARM,
 }
+
+
+#: Whole numbers below this are written in full; beyond it a float's digits are not all exact.
+_EXACT_INTEGER_LIMIT = 2**53
+_MOST_DIGITS = 17  # enough for any double
+
+
+def _as_float32(value: float) -> float | None:
+    """``value`` rounded to a float32 (PARAM_SET's type), or ``None`` beyond its range."""
+    try:
+        return float(struct.unpack("<f", struct.pack("<f", value))[0])
+    except OverflowError:
+        return None
+
+
+def number_text(value: float) -> str:
+    """A refused value, whole and short: what the ground station typed, never a cut.
+
+    A float32 from PARAM_SET is written with the fewest digits that give it back, as typed.
+
+    >>> number_text(120.0), number_text(1.5), number_text(float("nan")), number_text(-1e400)
+    ('120', '1.5', 'nan', '-inf')
+    >>> number_text(_as_float32(1e30)), number_text(_as_float32(0.1)), number_text(1e30)
+    ('1e+30', '0.1', '1e+30')
+    """
+    if not math.isfinite(value):
+        return str(value)
+    if value == round(value) and abs(value) < _EXACT_INTEGER_LIMIT:
+        return str(int(value))
+    single = _as_float32(value) == value
+    for digits in range(1, _MOST_DIGITS + 1):
+        text = f"{value:.{digits}g}"
+        parsed = float(text)
+        if parsed == value or (single and _as_float32(parsed) == value):
+            return text
+    return repr(value)  # (not reached: 17 digits give any double back)
 
 
 class ParameterError(ValueError):
@@ -175,7 +213,7 @@ class ParameterTable:
             or value != round(value)
             or not parameter.minimum <= value <= parameter.maximum
         ):
-            shown = int(value) if math.isfinite(value) and value == round(value) else value
+            shown = number_text(value)
             raise ParameterError(f"{name} must be an integer in {range_text}, got {shown}")
         integer = round(value)
         if name.startswith("BTN") and integer not in SUPPORTED_BUTTON_FUNCTIONS:

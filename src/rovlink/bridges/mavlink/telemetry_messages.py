@@ -12,12 +12,32 @@ from rovlink.bridges.mavlink.vehicle_state import VehicleState
 from rovlink.piloting.commanded import LockState
 from rovlink.piloting.tracked import TrackedClient
 
-__all__ = ["TelemetryMessages", "version_number"]
+__all__ = ["STATUSTEXT_CHARS", "TelemetryMessages", "statustext_chunks", "version_number"]
 
 _UNKNOWN_VOLTAGE_MV = 65535  # SYS_STATUS: no battery monitor
 _UNKNOWN = -1
-#: STATUSTEXT carries at most 50 characters.
+#: STATUSTEXT carries at most 50 characters; a longer text is sent in chunks (MAVLink 2).
 STATUSTEXT_CHARS = 50
+_LAST_STATUSTEXT_ID = 0xFFFF  # ``id`` is a uint16; 0 means "a text of one chunk"
+
+
+def statustext_chunks(text: str) -> list[bytes]:
+    """``text`` in ASCII as STATUSTEXT chunks: 50 characters each, the last one shorter, since
+    a NUL in a chunk is what marks it the last (an empty one follows a text of 50, 100… chars).
+
+    >>> statustext_chunks("Armed")
+    [b'Armed']
+    >>> [len(chunk) for chunk in statustext_chunks("x" * 120)], statustext_chunks("y" * 50)[1:]
+    ([50, 50, 20], [b''])
+    """
+    ascii_text = text.replace("–", "-").replace("…", "...").replace("−", "-")
+    data = ascii_text.encode("ascii", "replace")
+    if len(data) < STATUSTEXT_CHARS:
+        return [data]
+    return [
+        data[start : start + STATUSTEXT_CHARS]
+        for start in range(0, len(data) + 1, STATUSTEXT_CHARS)
+    ]
 
 
 def version_number(version: str) -> int:
@@ -48,6 +68,7 @@ class TelemetryMessages:
         self._parameters = parameters
         self._clock = clock
         self._started_s = clock()
+        self._statustext_id = 0
         self._senders: dict[str, Callable[[], None]] = {
             "HEARTBEAT": self.heartbeat,
             "SYS_STATUS": self.sys_status,
@@ -186,11 +207,15 @@ class TelemetryMessages:
         )  # fmt: skip
 
     def status_text(self, severity: int, text: str) -> None:
-        """STATUSTEXT (cut to the 50 characters it carries)."""
-        ascii_text = text.replace("–", "-").replace("…", "...").replace("−", "-")
-        self._mav.statustext_send(
-            severity, ascii_text[:STATUSTEXT_CHARS].encode("ascii", "replace")
-        )
+        """STATUSTEXT; a text longer than one carries goes in chunks with a common ``id``, as
+        MAVLink 2 has it (a ground station joins them; none is cut)."""
+        chunks = statustext_chunks(text)
+        if len(chunks) == 1:
+            self._mav.statustext_send(severity, chunks[0])
+            return
+        self._statustext_id = self._statustext_id % _LAST_STATUSTEXT_ID + 1  # 1…65535
+        for sequence, chunk in enumerate(chunks):
+            self._mav.statustext_send(severity, chunk, self._statustext_id, sequence)
 
     def mission_count(self, target_system: int, target_component: int, mission_type: int) -> None:
         """MISSION_COUNT 0: the robot runs no missions."""
