@@ -303,3 +303,23 @@ def test_a_max_size_too_small_states_the_minimum_exactly(
     assert result.status == 2
     assert f"{typed!r} is too small for a recording file: at least {minimum}" in result.err
     assert not (tmp_path / "ms.mcap").exists()
+
+
+def _held_in(path: Path) -> int:
+    """What ``path`` holds, counted as its format counts: messages, lines, rows, bytes."""
+    if path.suffix == ".bin":
+        return len(path.read_bytes())
+    return len(list(read_entries(str(path))))
+
+
+@pytest.mark.parametrize(
+    ("suffix", "unit"),
+    [(".mcap", "messages"), (".jsonl", "lines"), (".csv", "rows"), (".bin", "bytes")],
+)
+def test_the_summary_counts_what_the_file_holds_in_its_own_terms(
+    run_cli: RunCli, tmp_path: Path, suffix: str, unit: str
+) -> None:
+    path = tmp_path / f"send{suffix}"
+    result = run_cli("send", "sim://?seed=2", "--record", str(path), "start", "qsa", "qd", "stop")
+    assert result.status == 0, result.err
+    assert f"recorded {_held_in(path)} {unit} in " in result.err

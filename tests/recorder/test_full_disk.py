@@ -3,16 +3,22 @@ from ``close`` and still closes its file: no descriptor is left to a long-runnin
 
 from __future__ import annotations
 
+import errno
 import os
+import threading
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import pytest
 
+import rovlink
+from rovlink.recorder import Recorder, read_entries
 from rovlink.recorder.entries import TELEMETRY_FIELDS, Entry, HeaderEntry, TelemetryEntry
 from rovlink.recorder.formats import open_sink
+from rovlink.recorder.sink import Sink
 
-pytestmark = pytest.mark.skipif(not os.path.exists("/dev/full"), reason="no /dev/full here")
+_NO_DEV_FULL = pytest.mark.skipif(not os.path.exists("/dev/full"), reason="no /dev/full here")
 
 #: Far more than the file's buffer, so that the disk is reached before close.
 _ENTRIES = 400
@@ -36,6 +42,7 @@ def _descriptors_to(device: str) -> list[str]:
     return found
 
 
+@_NO_DEV_FULL
 @pytest.mark.parametrize("suffix", [".mcap", ".jsonl", ".csv", ".bin"])
 def test_a_sink_on_a_full_disk_closes_its_file(tmp_path: Path, suffix: str) -> None:
     path = tmp_path / f"dive{suffix}"
@@ -51,3 +58,68 @@ def test_a_sink_on_a_full_disk_closes_its_file(tmp_path: Path, suffix: str) -> N
         sink.close()
     assert _descriptors_to("/dev/full") == before
     sink.close()  # once closed, closing again does nothing
+
+
+class _FillingSink:
+    """A real sink whose flushes and close fail as on a full disk once ``full`` is set (the
+    bytes it buffered never reach the file)."""
+
+    def __init__(self, real: Sink, full: threading.Event) -> None:
+        self.real = real
+        self.unit = real.unit
+        self._full = full
+
+    def _check(self) -> None:
+        if self._full.is_set():
+            raise OSError(errno.ENOSPC, "No space left on device")
+
+    def write(self, entry: Entry) -> None:
+        self.real.write(entry)
+
+    def flush(self) -> None:
+        self._check()
+        self.real.flush()
+
+    def close(self) -> None:
+        self._check()
+        self.real.close()
+
+    def size_bytes(self) -> int:
+        return self.real.size_bytes()
+
+    def held(self) -> int:
+        return self.real.held()
+
+
+def _until(condition: Callable[[], bool], timeout_s: float = 10.0) -> None:
+    deadline_s = time.monotonic() + timeout_s
+    while not condition():
+        assert time.monotonic() < deadline_s, "condition not met in time"
+        time.sleep(0.01)
+
+
+def test_after_a_full_disk_a_recorder_counts_only_what_was_made_durable(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    full = threading.Event()
+    sinks: list[_FillingSink] = []
+
+    def filling(path: str) -> Sink:
+        sinks.append(_FillingSink(open_sink(path), full))
+        return sinks[-1]
+
+    monkeypatch.setattr("rovlink.recorder.recorder.open_sink", filling)
+    path = tmp_path / "dive.jsonl"
+    recorder = Recorder(str(path), url="sim://")
+    with rovlink.connect("sim://", on_event=recorder.on_event) as rov:
+        rov.depth_cm()
+        _until(lambda: recorder.held() > 0)  # the writer's first flush: made durable
+        durable = recorder.held()
+        full.set()
+        rov.depth_cm()  # more entries, which the disk will not take
+        _until(lambda: recorder.error is not None)
+    recorder.close()
+    assert recorder.entries_written > durable
+    assert recorder.held() == durable
+    sinks[-1].real.close()  # what the disk took before it filled up
+    assert len(list(read_entries(str(path)))) >= durable

@@ -196,6 +196,8 @@ class FillingDisk:
         disk = self
 
         class Filling:
+            unit = real.unit
+
             def write(self, entry: Entry) -> None:
                 disk.check()
                 real.write(entry)
@@ -209,6 +211,9 @@ class FillingDisk:
 
             def size_bytes(self) -> int:
                 return real.size_bytes()
+
+            def held(self) -> int:
+                return real.held()
 
         return Filling()
 

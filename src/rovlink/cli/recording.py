@@ -144,7 +144,12 @@ def open_recorder(args: argparse.Namespace, path: str, *, url: str, program: str
 
 
 def report_recording(recorder: Recorder, elapsed_s: float) -> None:
-    """One line on stderr: what was recorded where."""
+    """One line on stderr: what was recorded where, counted as the format holds it (an MCAP
+    file's messages, a CSV's rows, a raw capture's bytes); after a failure, what was made
+    durable before it."""
+    held = recorder.held()
+    unit = recorder.held_unit[:-1] if held == 1 else recorder.held_unit
+    at_least = "at least " if recorder.error is not None else ""  # more may have reached it
     sizes = sum(os.path.getsize(path) for path in recorder.paths if os.path.exists(path))
     files = ", ".join(recorder.paths)
     lost = (
@@ -153,7 +158,7 @@ def report_recording(recorder: Recorder, elapsed_s: float) -> None:
         else ""
     )
     print(
-        f"recorded {recorder.entries_written} entries in {elapsed_s:.1f} s to {files} "
+        f"recorded {at_least}{held} {unit} in {elapsed_s:.1f} s to {files} "
         f"({sizes / 1000:.1f} kB){lost}",
         file=sys.stderr,
     )

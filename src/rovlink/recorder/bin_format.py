@@ -19,9 +19,12 @@ _READ_BYTES = 1 << 16
 class RawWireSink(FileSink):
     """Writes the wire entries' bytes and nothing else."""
 
+    unit = "bytes"
+
     def write(self, entry: Entry) -> None:
         if isinstance(entry, WireEntry):
             self._file.write(entry.data)
+            self._written += len(entry.data)
 
 
 def read_bin(path: str) -> Iterator[Entry]:

@@ -26,7 +26,9 @@ def _wall_time(wall_ns: int) -> str:
 
 
 class TelemetryCsvSink(FileSink):
-    """Writes the telemetry entries as CSV rows."""
+    """Writes the telemetry entries as CSV rows (the header line not counted)."""
+
+    unit = "rows"
 
     def __init__(self, path: str) -> None:
         super().__init__(path)
@@ -44,6 +46,7 @@ class TelemetryCsvSink(FileSink):
                     *("" if values[name] is None else values[name] for name in TELEMETRY_FIELDS),
                 ]
             )
+            self._written += 1
 
     def flush(self) -> None:
         self._text.flush()

@@ -18,9 +18,12 @@ __all__ = ["JsonLinesSink", "read_jsonl"]
 class JsonLinesSink(FileSink):
     """Writes entries as JSON lines."""
 
+    unit = "lines"
+
     def write(self, entry: Entry) -> None:
         line = json.dumps({"channel": entry.channel, **entry.to_json()}, separators=(",", ":"))
         self._file.write(line.encode() + b"\n")
+        self._written += 1
 
 
 def read_jsonl(path: str) -> Iterator[Entry]:

@@ -34,6 +34,8 @@ _RECORD_SIZE_LIMIT = 64 << 20
 class McapSink(FileSink):
     """Writes entries as MCAP messages."""
 
+    unit = "messages"
+
     def __init__(self, path: str) -> None:
         super().__init__(path)
         self._writer = Writer(self._file)
@@ -57,6 +59,7 @@ class McapSink(FileSink):
             sequence=self._sequence,
             data=json.dumps(entry.to_json(), separators=(",", ":")).encode(),
         )
+        self._written += 1
 
     def flush(self) -> None:
         self._writer.flush()  # type: ignore[no-untyped-call] # the chunk in progress is written
@@ -66,6 +69,9 @@ class McapSink(FileSink):
         if not self._file.closed:
             try:
                 self._writer.finish()  # type: ignore[no-untyped-call]
+            except BaseException:
+                self._written = self._durable  # the messages since the last flush: not whole
+                raise
             finally:  # a full disk fails the index: the file is closed all the same
                 super().close()
 

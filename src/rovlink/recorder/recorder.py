@@ -96,6 +96,8 @@ class Recorder:
         self.paths: list[str] = [path]
         #: Entries written to the files.
         self.entries_written = 0
+        #: What the files hold for sure, in :attr:`held_unit` (see :meth:`held`).
+        self._held_before = 0
         #: Items not recorded because the writer fell behind by ``queue_limit``.
         self.dropped = 0
         #: Why the recording stopped early, if it did.
@@ -110,6 +112,9 @@ class Recorder:
         self._events = ClientEventLog()
         self._tap = TapLog(checksum=checksum, algorithm=algorithm)
         self._sink: Sink | None = open_sink(path)
+        #: The format's own unit of what its files hold: ``messages``, ``lines``, ``rows``,
+        #: ``bytes``.
+        self.held_unit = self._sink.unit
         self._file_started_s = time.monotonic()
         self._write_header()
         self._stopping = threading.Event()
@@ -137,6 +142,13 @@ class Recorder:
                 queue.append(TappedBytes(now_s, direction, data))
             else:
                 self.dropped += 1
+
+    def held(self) -> int:
+        """What the files hold, in the format's own :attr:`held_unit` (an MCAP file's
+        messages, a CSV's rows, a raw capture's bytes): everything, once closed; after a
+        failure, only what a flush made durable before it."""
+        sink = self._sink
+        return self._held_before + (sink.held() if sink is not None else 0)
 
     # -- ending ------------------------------------------------------------------------------
 
@@ -170,8 +182,7 @@ class Recorder:
                     self._flush_or_rotate(now_s)
             self._drain()
             if self._sink is not None:
-                self._sink.close()
-                self._sink = None
+                self._close_sink(self._sink)
         except OSError as error:
             self._fail(error.strerror or str(error))
         except Exception:  # a bug in the writer must stop the recording, never the link
@@ -213,14 +224,20 @@ class Recorder:
         too_big = self._max_size_bytes is not None and sink.size_bytes() >= self._max_size_bytes
         too_old = self._split_s is not None and now_s - self._file_started_s >= self._split_s
         if too_big or too_old:
-            sink.close()
-            self._sink = None
+            self._close_sink(sink)
             path = rotated_path(self.path, len(self.paths))
             self._sink = open_sink(path)
             self.paths.append(path)
             self._file_started_s = now_s
             self._write_header()
             logger.info("recording continues in %s", path)
+
+    def _close_sink(self, sink: Sink) -> None:
+        """Close the current file; what it holds is counted in :meth:`held` (a close that
+        raises leaves it current, for :meth:`_fail`)."""
+        sink.close()
+        self._held_before += sink.held()
+        self._sink = None
 
     def _write_header(self) -> None:
         url, checksum, algorithm, program = self._header
@@ -243,9 +260,11 @@ class Recorder:
         where = self.paths[-1]
         self.error = f"recording to {where} stopped: {reason}"
         logger.error("%s (the link goes on)", self.error)
-        sink, self._sink = self._sink, None
+        sink = self._sink
         if sink is not None:
             with contextlib.suppress(Exception):  # the file is as good as the disk let it be
-                sink.close()
+                self._close_sink(sink)
+            self._held_before += sink.held() if self._sink is not None else 0
+            self._sink = None
         if self._on_failure is not None:
             self._on_failure(self.error)

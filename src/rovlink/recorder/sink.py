@@ -37,6 +37,10 @@ class RecordingDamagedError(RecordingError):
 class Sink(Protocol):
     """Where a recorder writes entries."""
 
+    #: What the file holds, in the format's own terms: ``messages``, ``lines``, ``rows``,
+    #: ``bytes``.
+    unit: str
+
     def write(self, entry: Entry) -> None:
         """Add one entry."""
 
@@ -49,18 +53,34 @@ class Sink(Protocol):
     def size_bytes(self) -> int:
         """The file's size so far (after the last flush)."""
 
+    def held(self) -> int:
+        """How many :attr:`unit` the file holds for sure: those written before the last
+        :meth:`flush` (or :meth:`close`) that succeeded."""
+
 
 class FileSink:
-    """The file handling every format shares: open, durable flush, size, close."""
+    """The file handling every format shares: open, durable flush, size, close.
+
+    A format's :meth:`write` adds what it wrote, in its :attr:`unit`, to :attr:`_written`.
+    """
+
+    unit = "entries"
 
     def __init__(self, path: str) -> None:
         self.path = path
         self._file: BinaryIO = open(path, "wb")  # noqa: SIM115 - closed by close()
+        self._written = 0
+        self._durable = 0
 
     def flush(self) -> None:
         """Write the buffers out and ask the system to put them on the disk."""
+        written = self._written
         self._file.flush()
         os.fsync(self._file.fileno())
+        self._durable = written
+
+    def held(self) -> int:
+        return self._durable
 
     def size_bytes(self) -> int:
         return self._file.tell()
