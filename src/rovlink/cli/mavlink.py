@@ -59,8 +59,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         type=_path,
         default=None,
         metavar="FILE",
-        help="parameter file (NAME VALUE per line, as ground stations save them): sent to "
-        "the controller on start",
+        help="parameter file as ground stations save them (MAVProxy's NAME VALUE lines or "
+        "QGroundControl's tab-separated ones): its values are sent to the controller on start",
     )
 
 

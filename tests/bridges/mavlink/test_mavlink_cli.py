@@ -37,6 +37,21 @@ def test_a_bad_parameter_file_is_one_line_naming_the_line(run_cli: RunCli, tmp_p
     assert "none.param: cannot read" in missing.err
 
 
+def test_a_qgroundcontrol_parameter_file_is_read(run_cli: RunCli, tmp_path: Path) -> None:
+    # The first lines are taken (before, line 1 was refused): the error is the one on line 4.
+    params = tmp_path / "robot.params"
+    params.write_text(
+        "# Onboard parameters for Vehicle 1\n1\t1\tRL_DEPTH_P\t33\t6\n"
+        "1\t1\tRL_MAX_PWM\t200\t6\n1\t1\tRL_DEPTH_I\t500\t6\n",
+        encoding="utf-8",
+    )
+    result = run_cli("mavlink", "sim://", "--params", str(params))
+    assert result.status == 2
+    assert result.err.strip().endswith(
+        "robot.params:4: RL_DEPTH_I must be an integer in 0–99, got 500"
+    )
+
+
 @pytest.mark.integration
 def test_the_command_serves_a_ground_station_and_ends_on_ctrl_c(tmp_path: Path) -> None:
     port = free_udp_port()

@@ -97,6 +97,45 @@ def test_a_parameter_file_is_read_and_checked_with_line_numbers():
         read_parameter_file("RL_DEPTH_P\n", "robot.param")
 
 
+#: A parameter file as QGroundControl saves it (its header, tab-separated columns).
+QGC_FILE = """\
+# Onboard parameters for Vehicle 1
+#
+# Stack: ArduPilot
+# Vehicle: Sub
+#
+# Vehicle-Id Component-Id Name Value Type
+1\t1\tBTN3_FUNCTION\t7\t6
+1\t1\tRL_DEPTH_P\t33\t6
+1\t1\tRL_MAX_PWM\t200.000000000000000000\t9
+"""
+#: As MAVProxy's ``param save`` writes it.
+MAVPROXY_FILE = "BTN3_FUNCTION    7.000000\nRL_DEPTH_P       33.000000\nRL_MAX_PWM  200  # capped\n"
+
+
+@pytest.mark.parametrize("text", [QGC_FILE, MAVPROXY_FILE], ids=["QGroundControl", "MAVProxy"])
+def test_parameter_files_as_ground_stations_save_them(text: str):
+    values = read_parameter_file(text, "robot.params")
+    assert values == {"BTN3_FUNCTION": 7, "RL_DEPTH_P": 33, "RL_MAX_PWM": 200}
+
+
+@pytest.mark.parametrize(
+    ("line", "message"),
+    [
+        ("1\t1\tRL_DEPTH_P\t150\t6", "RL_DEPTH_P must be an integer in 0–99, got 150"),
+        ("1\t100\tRL_DEPTH_P\t33\t6", "component id must be 1 (the autopilot's"),
+        ("x\t1\tRL_DEPTH_P\t33\t6", "vehicle id must be an integer in 1–255, got 'x'"),
+        ("1\t1\tRL_DEPTH_P\t33\t11", "type must be an integer in 1–10, got '11'"),
+        ("1\t1\tRL_DEPTH_P\tx\t6", "RL_DEPTH_P: not a number: 'x'"),
+        ("1\t1\tRL_DEPTH_P\t33", "expected NAME VALUE (MAVProxy, Mission Planner: NAME,VALUE) or"),
+    ],
+)
+def test_a_bad_qgroundcontrol_line_is_named_with_its_number(line: str, message: str):
+    with pytest.raises(ParameterError) as caught:
+        read_parameter_file(f"# header\n1\t1\tRL_DEPTH_I\t5\t6\n{line}\n", "robot.params")
+    assert str(caught.value).startswith(f"robot.params:3: {message}")
+
+
 # -- the joystick ------------------------------------------------------------------------------
 
 

@@ -222,9 +222,27 @@ class ParameterTable:
         return integer
 
 
+#: QGroundControl's columns: vehicle id, component id, name, value, MAV_PARAM_TYPE.
+_QGC_COLUMNS = 5
+_AUTOPILOT_COMPONENT = 1
+_PARAM_TYPES = range(1, 11)  # MAV_PARAM_TYPE_UINT8 … MAV_PARAM_TYPE_REAL64
+_FORMS = (
+    "expected NAME VALUE (MAVProxy, Mission Planner: NAME,VALUE) or "
+    "VEHICLE COMPONENT NAME VALUE TYPE (QGroundControl)"
+)
+
+
 def read_parameter_file(text: str, source: str) -> dict[str, int]:
-    """Parameters from a ground station's parameter file: ``NAME VALUE`` (or ``NAME,VALUE``)
-    per line, ``#`` comments. Errors name the file and line; every value is checked.
+    """Parameters from a ground station's parameter file, in the forms they save:
+
+    - MAVProxy ``NAME VALUE`` (Mission Planner ``NAME,VALUE``) per line;
+    - QGroundControl ``VEHICLE<TAB>COMPONENT<TAB>NAME<TAB>VALUE<TAB>TYPE`` per line, the
+      autopilot's (component 1) parameters.
+
+    ``#`` starts a comment. Errors name the file and line; every value is checked.
+
+    >>> read_parameter_file("# QGroundControl\\n1\\t1\\tRL_DEPTH_P\\t33\\t6", "q.params")
+    {'RL_DEPTH_P': 33}
     """
     table = ParameterTable()
     values: dict[str, int] = {}
@@ -232,19 +250,38 @@ def read_parameter_file(text: str, source: str) -> dict[str, int]:
         content = line.split("#", 1)[0].strip()
         if not content:
             continue
-        fields = content.replace(",", " ").split()
-        if len(fields) != 2:
-            raise ParameterError(f"{source}:{number}: expected NAME VALUE, got {line.strip()!r}")
-        name, text_value = fields
         try:
-            value = float(text_value)
-        except ValueError:
-            raise ParameterError(
-                f"{source}:{number}: {name}: not a number: {text_value!r}"
-            ) from None
-        try:
+            name, value = _name_and_value(content)
             table.set(name, value)
         except ParameterError as error:
             raise ParameterError(f"{source}:{number}: {error}") from None
         values[name] = table.value(name)
     return values
+
+
+def _name_and_value(content: str) -> tuple[str, float]:
+    """The name and value of one line of a parameter file, in either form."""
+    fields = content.replace(",", " ").split()
+    if len(fields) == _QGC_COLUMNS:
+        vehicle, component, name, text_value, param_type = fields
+        _check_column("vehicle id", vehicle, range(1, 256))
+        _check_column("component id", component, range(_AUTOPILOT_COMPONENT, 2))
+        _check_column("type", param_type, _PARAM_TYPES)
+    elif len(fields) == 2:
+        name, text_value = fields
+    else:
+        raise ParameterError(f"{_FORMS}, got {content!r}")
+    try:
+        return name, float(text_value)
+    except ValueError:
+        raise ParameterError(f"{name}: not a number: {text_value!r}") from None
+
+
+def _check_column(label: str, text: str, allowed: range) -> None:
+    if not text.isdigit() or int(text) not in allowed:
+        expected = (
+            f"{allowed.start} (the autopilot's: the bridge has no other)"
+            if label == "component id"
+            else f"an integer in {allowed.start}–{allowed.stop - 1}"
+        )
+        raise ParameterError(f"{label} must be {expected}, got {text!r}")
