@@ -100,26 +100,48 @@ void rl_lock(rl_link *link, const char *why) {
     rl_debug(link, why);
 }
 
+/* A decimal number at out (at most 12 bytes): no leading zeros; with_sign: always a sign, zero as
+ * +0 (P6, P15), else a '-' on negative values only. Returns its length. */
+static size_t format_number(char *out, int32_t value, int with_sign) {
+    char digits[12];
+    int count = 0;
+    size_t length = 0;
+    uint32_t magnitude = value < 0 ? (uint32_t)(-(value + 1)) + 1u : (uint32_t)value;
+    if (value < 0) {
+        out[length++] = '-';
+    } else if (with_sign) {
+        out[length++] = '+';
+    }
+    do {
+        digits[count++] = (char)('0' + magnitude % 10u);
+        magnitude /= 10u;
+    } while (magnitude);
+    while (count) out[length++] = digits[--count];
+    return length;
+}
+
+void rl_debug_number(rl_link *link, const char *before, int32_t value, int with_sign,
+                     const char *after) {
+    char text[RL_DEBUG_BYTES - 10];
+    size_t length = 0, i;
+    if (!link->debug_on) return;
+    for (i = 0; before[i] && length < sizeof text - 13; i++) text[length++] = before[i];
+    length += format_number(text + length, value, with_sign);
+    for (i = 0; after[i] && length < sizeof text - 1; i++) text[length++] = after[i];
+    text[length] = '\0';
+    rl_debug(link, text);
+}
+
 size_t rl_format_reply(const rl_link *link, rl_reply_id reply, int32_t value, char *out) {
     rl_reply_spec spec;
     size_t length = 0, name_length, body_start = 1;
-    char digits[12];
-    int count = 0;
-    uint32_t magnitude;
     rom_copy(&spec, &rl_reply_specs[reply], sizeof spec);
     out[length++] = '$';
     name_length = strlen(spec.name);
     memcpy(out + length, spec.name, name_length);
     length += name_length;
     out[length++] = '.';
-    /* No leading zeros; a sign on signed values, zero as +0 (P6, P15). */
-    if (spec.argument.is_signed) out[length++] = value < 0 ? '-' : '+';
-    magnitude = value < 0 ? (uint32_t)(-(value + 1)) + 1u : (uint32_t)value;
-    do {
-        digits[count++] = (char)('0' + magnitude % 10u);
-        magnitude /= 10u;
-    } while (magnitude);
-    while (count) out[length++] = digits[--count];
+    length += format_number(out + length, value, spec.argument.is_signed);
     if (link->checksum_on) {
         uint8_t sum = rl_checksum((rl_algorithm)link->algorithm, out + body_start,
                                   length - body_start);
@@ -177,27 +199,53 @@ static void reply(rl_link *link, const rl_command_spec *spec) {
     }
 }
 
-/* Switch the layer's own state for a setting; 0 if the command goes no further. */
+static const char *const algorithm_lines[] = {"checksum mode on (crc8)", "checksum mode on (xor)",
+                                               "checksum mode on (sum8)"};
+
+/* Switch the layer's own state for a setting and write its debug line (P5); 0 if the command
+ * goes no further: a mode frame, or a start or mvdirect that changes nothing (the app is told
+ * only of changes, so that a repeated #start! keeps the set-points, P11). */
 static int apply_setting(rl_link *link, const rl_command_spec *spec, const int32_t *values) {
     uint8_t on = spec->setting_value == RL_FROM_ARGUMENT ? (uint8_t)(values[0] != 0)
                                                          : spec->setting_value;
     switch (spec->setting) {
     case RL_SETTING_CHECKSUM:
         link->checksum_on = on; /* from the next frame on, both directions (P3) */
-        rl_debug(link, on ? "checksum mode on" : "checksum mode off");
+        rl_debug(link, on ? algorithm_lines[link->algorithm] : "checksum mode off");
         return 0;
     case RL_SETTING_DEBUG:
+        if (on == link->debug_on) return 0;
         if (!on) rl_debug(link, "debug output off");
         link->debug_on = on;
         if (on) rl_debug(link, "debug output on");
         return 0;
     case RL_SETTING_LOCKED:
-        link->locked = on;
-        rl_debug(link, on ? "stop: motors stopped and locked" : "motors unlocked");
+        if (on) {
+            link->locked = 1;
+            rl_debug(link, "stop command: motors stopped and locked");
+            return 1;
+        }
+        if (!link->locked) {
+            rl_debug(link, "start: motors already unlocked, nothing changed");
+            return 0;
+        }
+        link->locked = 0;
+        rl_debug(link, "motors unlocked");
         return 1;
     case RL_SETTING_DIRECT_MODE:
+        if (on == link->direct_mode) {
+            rl_debug(link, on ? "vertical mode already direct, nothing changed"
+                              : "vertical mode already depth, nothing changed");
+            return 0;
+        }
         link->direct_mode = on;
-        rl_debug(link, on ? "vertical mode direct" : "vertical mode depth");
+        if (!on && !link->locked) { /* the app holds the current depth (P9) */
+            rl_debug_number(link, "vertical mode depth, holding ",
+                            link->app->reply_value(link->context, RL_REPLY_QD), 0, " cm");
+        } else {
+            rl_debug(link, on ? "vertical mode direct, vertical thrust 0"
+                              : "vertical mode depth, vertical thrust 0");
+        }
         return 1;
     default:
         return 1;

@@ -31,7 +31,10 @@ typedef struct {
     /* Write bytes to the serial line (replies, debug lines). */
     void (*write)(void *context, const char *data, size_t length);
     /* A command that passed every check and is not a query. stop, start, mvdirect, h+ and h-
-     * come here too, after the layer has switched its own state. values[] holds the arguments. */
+     * come here too, after the layer has switched its own state (start only when it unlocks,
+     * mvdirect only when it changes the mode). values[] holds the arguments. P5: the layer
+     * writes the debug lines of stop, start and mvdirect; for every other command the app
+     * writes one (rl_debug, rl_debug_number) saying what changed. */
     void (*command)(void *context, rl_command_id command, const int32_t *values);
     /* The current value of one reply (a sensor), within the reply's range. */
     int32_t (*reply_value)(void *context, rl_reply_id reply);
@@ -61,6 +64,10 @@ void rl_feed(rl_link *link, const uint8_t *data, size_t length);
 void rl_lock(rl_link *link, const char *why);
 /* Write a debug line if debug is on; '#', '$' and '!' become '?' (P5). */
 void rl_debug(rl_link *link, const char *text);
+/* The debug line before, value, after (a sign on positive values too if with_sign), without
+ * stdio: rl_debug_number(link, "max PWM ", 200, 0, "") writes "debug: max PWM 200". */
+void rl_debug_number(rl_link *link, const char *before, int32_t value, int with_sign,
+                     const char *after);
 /* The checksum of body[0..length) as the algorithm defines it. */
 uint8_t rl_checksum(rl_algorithm algorithm, const char *body, size_t length);
 /* Format the reply frame for one value into out (at least 24 bytes); returns its length. */

@@ -25,6 +25,11 @@ NO_FAULT = "none"
 _CRC8 = get_algorithm("crc8")
 _SETTERS = tuple(spec.name.encode() for spec in COMMANDS if not spec.is_query)
 _FRAME = re.compile(rb"#([^#$!]*)!")
+#: The debug lines of settings the C reference left out before it was fixed: all but those
+#: of dropped frames, the checksum and debug modes, the lock and the vertical mode.
+_SETTING_LINE = re.compile(
+    rb"debug: (?!dropped|checksum mode|debug output|motors|stop|vertical mode)[^\r]*\r\n"
+)
 
 
 class FaultyController:
@@ -151,6 +156,8 @@ class FaultyController:
             reply = reply.replace(b"<", b"#")
         if fault == "no-debug-lines":
             reply = re.sub(rb"debug: [^\r]*\r\n", b"", reply)
+        if fault == "no-setting-debug-lines":
+            reply = _SETTING_LINE.sub(b"", reply)
         return reply
 
     def _without_resync(self, data: bytes) -> bytes:
@@ -198,6 +205,7 @@ FAULTS: dict[str, str] = {
     "plain-replies-in-checksum-mode": "checksum-replies",
     "debug-frame-characters": "debug-text-clean",
     "no-debug-lines": "debug-text-clean",
+    "no-setting-debug-lines": "debug-setting-lines",
     "debug-stuck-on": "debug-off-silent",
     "no-length-limit": "overlong-frame-dropped",
     "no-resync": "resync-on-start",

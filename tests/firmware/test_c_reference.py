@@ -5,15 +5,18 @@ from __future__ import annotations
 
 import shutil
 import subprocess
-from collections.abc import Iterator
+import time
+from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 
 import pytest
 
-from rovlink.client.links import open_link
+from rovlink.client.links import Link, open_link
 from rovlink.client.url import parse_url
 from rovlink.conformance import CHECKS, SuiteOptions, run_checks, select_checks
-from rovlink.protocol import c_table
+from rovlink.controller import Attitude, ControllerConfig, Hardware
+from rovlink.controller.controller import Controller
+from rovlink.protocol import Decoder, Frame, c_table
 
 FIRMWARE = Path(__file__).resolve().parents[2] / "firmware" / "c"
 STRICT = ["-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic"]
@@ -107,3 +110,98 @@ def test_fuzz_run_of_the_parser_under_sanitizers(tmp_path: Path) -> None:
         assert ": ok" in result.stdout
         commands = int(result.stdout.split(" commands")[0].rsplit(" ", 1)[1])
         assert commands > 1000  # the streams reach the dispatch, not only the parser
+
+
+#: Every kind of setting change in debug mode, and the repeats that change nothing (P5, P11).
+_SETTINGS_STREAM = (
+    b"#debug1!#debug1!#mvdirect.1!#start!#th.90.40!#mvdirect.0!#mvd.100!#mvdirect.0!"
+    b"#mvdirect.1!#mvs.+10!#th.360.100!#start!#mgmp.255!#mvpdp.99!#mvpdd.6!#mvpdi.0!"
+    b"#sdz.20!#sdk.200!#slreset!#h+!#h-!#stop!#stop!#crcon!#crcoff!#debug0!"
+)
+
+
+class _AtTheSurface:
+    """Hardware as the C host's robot is at start: at the surface (raw 20), still."""
+
+    def now_s(self) -> float:
+        return 0.0
+
+    def set_duties(self, duties: Sequence[int]) -> None:
+        pass
+
+    def read_raw(self) -> int:
+        return 20
+
+    def read_attitude(self) -> Attitude:
+        return Attitude(0.0, 0.0, 0.0)
+
+    def fired_since_last_read(self) -> bool:
+        return False
+
+    def drive(self, direction: int) -> None:
+        pass
+
+
+def _python_debug_lines(stream: bytes) -> list[str]:
+    still = _AtTheSurface()
+    hardware = Hardware(
+        thrusters=still, pressure=still, imu=still, leak=still, claw=still, clock=still
+    )
+    controller = Controller(ControllerConfig(), hardware)
+    controller.receive(stream)
+    return controller.read_output().decode("ascii").splitlines()
+
+
+def _read_until(link: Link, done: Callable[[bytes], bool], timeout_s: float = 5.0) -> bytes:
+    received = b""
+    deadline = time.monotonic() + timeout_s
+    while not done(received):
+        assert time.monotonic() < deadline, f"timed out; so far {received!r}"
+        received += link.read_available(0.05)
+    return received
+
+
+@pytest.mark.integration
+def test_the_c_reference_writes_the_python_controllers_debug_line_for_every_setting(
+    host_binary: Path,
+) -> None:
+    # Before: no line for mvd, mvs, th, mgmp, the gains, sdz, sdk, slreset, h+ and h- (P5).
+    expected = _python_debug_lines(_SETTINGS_STREAM)
+    assert "debug: max PWM 255 (was 255)" in expected
+    for pty in _serve(host_binary):
+        link = open_link(parse_url(pty))
+        try:
+            link.write(_SETTINGS_STREAM)
+            received = _read_until(link, lambda got: b"debug output off\r\n" in got)
+        finally:
+            link.close()
+        assert received.decode("ascii").splitlines() == expected
+
+
+def _depth_cm(link: Link) -> int:
+    link.write(b"#qd!")
+    received = _read_until(link, lambda got: b"!" in got)
+    (frame,) = [event for event in Decoder().feed(received) if isinstance(event, Frame)]
+    return int(frame.message.values[0])
+
+
+def _wait_for_depth(link: Link, deeper_than_cm: int, timeout_s: float = 5.0) -> int:
+    deadline = time.monotonic() + timeout_s
+    while (depth := _depth_cm(link)) <= deeper_than_cm:
+        assert time.monotonic() < deadline, f"still at {depth} cm, not below {deeper_than_cm}"
+    return depth
+
+
+@pytest.mark.integration
+def test_a_repeated_start_keeps_the_set_points_of_the_c_reference(host_binary: Path) -> None:
+    # Before: every #start! (and every #mvdirect!) cleared the set-points: a dive stopped.
+    for pty in _serve(host_binary):
+        link = open_link(parse_url(pty))
+        try:
+            link.write(b"#start!#mvdirect.1!#mvs.-50!")
+            depth = _wait_for_depth(link, 20)
+            link.write(b"#start!#mvdirect.1!")  # (both change nothing: P11, a no-op start)
+            _wait_for_depth(link, depth + 80)  # (a stopped dive coasts some 20 cm, not 80)
+        finally:
+            link.write(b"#stop!")
+            link.close()

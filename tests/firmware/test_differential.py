@@ -18,7 +18,7 @@ import pytest
 
 from rovlink.controller import Attitude, ControllerConfig, Hardware
 from rovlink.controller.controller import Controller
-from rovlink.protocol import COMMANDS, Command, Decoder, Frame, Setting, encode
+from rovlink.protocol import COMMANDS, Command, Decoder, Frame, Setting, VerticalMode, encode
 
 FIRMWARE = Path(__file__).resolve().parents[2] / "firmware" / "c"
 GCC = shutil.which("gcc")
@@ -63,6 +63,9 @@ def _python_decisions(stream: bytes, chunk: int) -> list[str]:
             continue
 
         def recorded(command: Command, handler: Callable[[Command], None] = handler) -> None:
+            if not _changes_something(controller, command):
+                handler(command)  # (the C layer answers it itself: the app is not told)
+                return
             index = next(i for i, spec in enumerate(COMMANDS) if spec is command.spec)
             lines.append(" ".join(["C", str(index), *(str(v) for v in command.values)]))
             handler(command)
@@ -79,6 +82,17 @@ def _python_decisions(stream: bytes, chunk: int) -> list[str]:
     for start in range(0, len(stream), chunk):
         controller.receive(stream[start : start + chunk])
     return lines
+
+
+def _changes_something(controller: Controller, command: Command) -> bool:
+    """False for a #start! while unlocked and an #mvdirect! to the mode in force: the Python
+    controller writes "nothing changed"; the C layer does the same and tells the app nothing."""
+    setting = command.setting
+    if setting == (Setting.LOCKED, False):
+        return controller.locked
+    if setting is not None and setting[0] is Setting.DIRECT_MODE:
+        return setting[1] != (controller.state().vertical_mode is VerticalMode.DIRECT)
+    return True
 
 
 def _c_decisions(binary: Path, stream: bytes, chunk: int) -> list[str]:

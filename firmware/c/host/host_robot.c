@@ -17,6 +17,7 @@
 #include <math.h>
 #include <poll.h>
 #include <signal.h>
+#include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -28,6 +29,7 @@
 
 #define TICK_S 0.01
 #define WATCHDOG_S 2.0
+#define CLAW_PULSE_S 0.05
 #define PI 3.14159265358979
 
 typedef struct {
@@ -81,48 +83,90 @@ static int depth_cm(const robot *r) {
     return depth < 0 ? 0 : depth > 9999 ? 9999 : (int)depth;
 }
 
-static void neutral(robot *r) {
+/* The motion set-points cleared, as #start! leaves them (P7). */
+static void clear_set_points(robot *r) {
     r->vertical_percent = 0.0;
     r->holding = 0;
     r->direction_deg = r->power_percent = 0;
     r->integral = 0.0;
+}
+
+/* Every output off, as #stop! and the failsafe leave them (P7, P17). */
+static void neutral(robot *r) {
+    clear_set_points(r);
     r->claw = 0;
 }
 
+/* A debug line (P5) with printf formatting: the host has stdio, the layer does not need it. */
+static void debug_line(robot *r, const char *format, ...) {
+    char text[80];
+    va_list values;
+    va_start(values, format);
+    vsnprintf(text, sizeof text, format, values);
+    va_end(values);
+    rl_debug(&r->link, text);
+}
+
+/* A depth PID gain: its line names the gain and its old value, as the Python controller's. */
+static void set_gain(robot *r, int *gain, const char *label, int32_t value) {
+    debug_line(r, "depth PID %s %ld (was %d)", label, (long)value, *gain);
+    *gain = (int)value;
+}
+
+/* The layer has checked the command and switched its own states (lock, vertical mode); this
+ * is the robot's side, with a debug line for every setting it changes (P5). Set-points persist
+ * until changed (P11): only stop and an unlocking start clear them. */
 static void on_command(void *context, rl_command_id command, const int32_t *values) {
     robot *r = (robot *)context;
     switch (command) {
-    case RL_CMD_STOP:
-    case RL_CMD_START:
-        neutral(r);
+    case RL_CMD_STOP: neutral(r); break;
+    case RL_CMD_START: clear_set_points(r); break; /* only sent when it unlocks */
+    case RL_CMD_MVDIRECT: /* only sent when the mode changes */
+        r->vertical_percent = 0.0;
+        r->integral = 0.0;
+        r->holding = !values[0] && !r->link.locked; /* depth mode while unlocked: hold (P9) */
+        if (r->holding) r->target_cm = depth_cm(r);
         break;
-    case RL_CMD_MVDIRECT:
-        neutral(r);
-        if (!values[0] && !r->link.locked) { /* depth mode while unlocked: hold here (P9) */
-            r->holding = 1;
-            r->target_cm = depth_cm(r);
-        }
+    case RL_CMD_MVS:
+        r->vertical_percent = values[0];
+        debug_line(r, "vertical thrust %+ld %%", (long)values[0]);
         break;
-    case RL_CMD_MVS: r->vertical_percent = values[0]; break;
     case RL_CMD_MVD:
+        if (!r->holding) r->integral = 0.0; /* a new target after none: the PID starts afresh */
         r->holding = 1;
         r->target_cm = (int)values[0];
+        debug_line(r, "target depth %ld cm", (long)values[0]);
         break;
     case RL_CMD_TH:
-        r->direction_deg = (int)values[0];
+        r->direction_deg = (int)(values[0] % 360);
         r->power_percent = (int)values[1];
+        debug_line(r, "horizontal %d deg at %d %%", r->direction_deg, r->power_percent);
         break;
-    case RL_CMD_MGMP: r->max_pwm = (int)values[0]; break;
-    case RL_CMD_MVPDP: r->kp = (int)values[0]; break;
-    case RL_CMD_MVPDI: r->ki = (int)values[0]; break;
-    case RL_CMD_MVPIDD: r->kd = (int)values[0]; break;
-    case RL_CMD_SDZ: r->zero_raw = (int)values[0]; break;
-    case RL_CMD_SDK: r->k = (int)values[0]; break;
-    case RL_CMD_SLRESET: r->leak_latched = 0; break;
+    case RL_CMD_MGMP:
+        debug_line(r, "max PWM %ld (was %d)", (long)values[0], r->max_pwm);
+        r->max_pwm = (int)values[0];
+        break;
+    case RL_CMD_MVPDP: set_gain(r, &r->kp, "kp", values[0]); break;
+    case RL_CMD_MVPDI: set_gain(r, &r->ki, "ki", values[0]); break;
+    case RL_CMD_MVPIDD: set_gain(r, &r->kd, "kd", values[0]); break;
+    case RL_CMD_SDZ:
+        r->zero_raw = (int)values[0];
+        debug_line(r, "depth zero %d", r->zero_raw);
+        break;
+    case RL_CMD_SDK:
+        r->k = (int)values[0];
+        debug_line(r, "depth coefficient k %d", r->k);
+        break;
+    case RL_CMD_SLRESET:
+        r->leak_latched = 0;
+        rl_debug(&r->link, "leak latch reset");
+        break;
     case RL_CMD_H_OPEN:
     case RL_CMD_H_CLOSE:
         r->claw = command == RL_CMD_H_OPEN ? 1 : -1;
-        r->claw_until_s = r->time_s + 0.05;
+        r->claw_until_s = r->time_s + CLAW_PULSE_S;
+        debug_line(r, "claw %s for %d ms", r->claw > 0 ? "opening" : "closing",
+                   (int)lround(CLAW_PULSE_S * 1000.0));
         break;
     default: break;
     }
@@ -154,13 +198,13 @@ static void tick(robot *r) {
     r->time_s += TICK_S;
     if (r->leak_at_s >= 0 && r->time_s >= r->leak_at_s && !r->leak_latched) {
         r->leak_latched = 1;
-        rl_debug(&r->link, "leak detected");
+        rl_debug(&r->link, "leak detected, action none");
     }
     if (r->link.valid_frames != r->frames_seen) {
         r->frames_seen = r->link.valid_frames;
         r->last_frame_s = r->time_s;
     } else if (!r->link.locked && r->time_s - r->last_frame_s > WATCHDOG_S) {
-        rl_lock(&r->link, "no valid frame for 2 s: motors stopped and locked");
+        rl_lock(&r->link, "failsafe: no valid frame for 2 s: motors stopped and locked");
         neutral(r);
     }
     if (r->claw && r->time_s >= r->claw_until_s) r->claw = 0;

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from rovlink.conformance.registry import CheckContext, CheckFailedError, check
 from rovlink.conformance.wire import Exchange
-from rovlink.protocol import MAX_FRAME_BYTES, Command, Setting, setting_command
+from rovlink.protocol import MAX_FRAME_BYTES, Command, Setting, encode, lookup, setting_command
 
 __all__: list[str] = []
 
@@ -70,3 +70,45 @@ def _per_frame(ctx: CheckContext) -> None:
             "the frame dropped before debug was on must not be reported"
         )
     ctx.expect_reply(ctx.frame(Command("qd")), ("qd",), "debug on")
+
+
+#: Settings with a value, each set to one value and then to another (its minimum, the cautious
+#: end, as the set- checks leave it): the second is a change whatever the first found.
+_VALUE_SETTINGS = ("mgmp", "mvpdp", "mvpdi", "mvpidd", "sdz", "sdk")
+
+
+def _first_values() -> bytes:
+    """Each value setting at its minimum + 1, so that setting the minimum next is a change."""
+    return b"".join(
+        encode(Command(name, (lookup(name).arguments[0].minimum + 1,))) for name in _VALUE_SETTINGS
+    )
+
+
+def _setting_changes() -> list[Command]:
+    """Frames sent in turn after :func:`_first_values`, each a change that must get a line.
+    None moves anything: the mode switches happen locked, and th is sent at 0 % power."""
+    return [
+        *(Command(name, (lookup(name).arguments[0].minimum,)) for name in _VALUE_SETTINGS),
+        setting_command(Setting.DIRECT_MODE, True),
+        setting_command(Setting.DIRECT_MODE, False),
+        setting_command(Setting.LOCKED, False),
+        Command("th", (90, 0)),
+        setting_command(Setting.LOCKED, True),
+    ]
+
+
+@check(
+    "debug-setting-lines",
+    ("P5",),
+    "with debug on, each change of a setting or mode gets a debug line: mgmp, the PID gains, "
+    "sdz, sdk, mvdirect, start, th (at 0 % power) and stop",
+)
+def _setting_lines(ctx: CheckContext) -> None:
+    ctx.tell(ctx.frame(_DEBUG_ON) + _first_values())
+    for change in _setting_changes():
+        exchange = ctx.expect_no_frames(ctx.frame(change), f"{change} sets something")
+        if _lines(exchange) < 1:
+            raise CheckFailedError(
+                f"{change} changed a setting with debug on, but no debug line came "
+                "(P5: a line for every change of mode or setting)"
+            )

@@ -71,27 +71,59 @@ static void all_stop() {
     digitalWrite(CLAW_CLOSE_PIN, LOW);
 }
 
+/* The motion set-points cleared, as #start! leaves them (P7); the outputs follow next tick. */
+static void clear_set_points() {
+    robot.vertical_percent = 0;
+    robot.holding = false;
+    robot.direction_deg = robot.power_percent = 0;
+    robot.integral = 0;
+}
+
+/* The layer has switched the lock and the vertical mode (start comes only when it unlocks,
+ * mvdirect only when the mode changes) and writes their debug lines; every other setting gets
+ * its line here (P5). Set-points persist until changed (P11). */
 static void on_command(void *, rl_command_id command, const int32_t *values) {
     switch (command) {
-    case RL_CMD_STOP: case RL_CMD_START: all_stop(); break;
+    case RL_CMD_STOP: all_stop(); break;
+    case RL_CMD_START: clear_set_points(); break;
     case RL_CMD_MVDIRECT:
-        all_stop();
-        if (!values[0] && !link.locked) { robot.holding = true; robot.target_cm = depth_cm(); }
+        robot.vertical_percent = 0;
+        robot.integral = 0;
+        robot.holding = !values[0] && !link.locked; /* depth mode while unlocked: hold (P9) */
+        if (robot.holding) robot.target_cm = depth_cm();
         break;
-    case RL_CMD_MVS: robot.vertical_percent = values[0]; break;
-    case RL_CMD_MVD: robot.holding = true; robot.target_cm = values[0]; break;
-    case RL_CMD_TH: robot.direction_deg = values[0]; robot.power_percent = values[1]; break;
-    case RL_CMD_MGMP: robot.max_pwm = values[0]; break;
-    case RL_CMD_MVPDP: robot.kp = values[0]; break;
-    case RL_CMD_MVPDI: robot.ki = values[0]; break;
-    case RL_CMD_MVPIDD: robot.kd = values[0]; break;
-    case RL_CMD_SDZ: robot.zero_raw = values[0]; break;
-    case RL_CMD_SDK: robot.k = values[0]; break;
-    case RL_CMD_SLRESET: robot.leak_latched = false; break;
+    case RL_CMD_MVS:
+        robot.vertical_percent = values[0];
+        rl_debug_number(&link, "vertical thrust ", values[0], 1, " %");
+        break;
+    case RL_CMD_MVD:
+        if (!robot.holding) robot.integral = 0;
+        robot.holding = true;
+        robot.target_cm = values[0];
+        rl_debug_number(&link, "target depth ", values[0], 0, " cm");
+        break;
+    case RL_CMD_TH:
+        robot.direction_deg = values[0] % 360;
+        robot.power_percent = values[1];
+        rl_debug_number(&link, "horizontal direction ", robot.direction_deg, 0, " deg");
+        rl_debug_number(&link, "horizontal power ", values[1], 0, " %");
+        break;
+    case RL_CMD_MGMP:
+        robot.max_pwm = values[0];
+        rl_debug_number(&link, "max PWM ", values[0], 0, "");
+        break;
+    case RL_CMD_MVPDP: robot.kp = values[0]; rl_debug_number(&link, "depth PID kp ", values[0], 0, ""); break;
+    case RL_CMD_MVPDI: robot.ki = values[0]; rl_debug_number(&link, "depth PID ki ", values[0], 0, ""); break;
+    case RL_CMD_MVPIDD: robot.kd = values[0]; rl_debug_number(&link, "depth PID kd ", values[0], 0, ""); break;
+    case RL_CMD_SDZ: robot.zero_raw = values[0]; rl_debug_number(&link, "depth zero ", values[0], 0, ""); break;
+    case RL_CMD_SDK: robot.k = values[0]; rl_debug_number(&link, "depth coefficient k ", values[0], 0, ""); break;
+    case RL_CMD_SLRESET: robot.leak_latched = false; rl_debug(&link, "leak latch reset"); break;
     case RL_CMD_H_OPEN: case RL_CMD_H_CLOSE:
         digitalWrite(CLAW_OPEN_PIN, command == RL_CMD_H_OPEN ? HIGH : LOW);
         digitalWrite(CLAW_CLOSE_PIN, command == RL_CMD_H_CLOSE ? HIGH : LOW);
         robot.claw_until_ms = millis() + CLAW_PULSE_MS;
+        rl_debug_number(&link, command == RL_CMD_H_OPEN ? "claw opening for " : "claw closing for ",
+                        (int32_t)CLAW_PULSE_MS, 0, " ms");
         break;
     default: break;
     }
@@ -139,7 +171,7 @@ void loop() {
         robot.frames_seen = link.valid_frames;
         robot.last_frame_ms = now;
     } else if (!link.locked && now - robot.last_frame_ms > WATCHDOG_MS) {
-        rl_lock(&link, "no valid frame for 2 s: motors stopped and locked"); /* P17 */
+        rl_lock(&link, "failsafe: no valid frame for 2 s: motors stopped and locked"); /* P17 */
         all_stop();
     }
     if (robot.claw_until_ms && (long)(now - robot.claw_until_ms) >= 0) {
