@@ -6,6 +6,7 @@ from __future__ import annotations
 import asyncio
 import os
 import signal
+import socket
 import time
 import urllib.error
 import urllib.request
@@ -387,3 +388,21 @@ async def test_a_lost_robot_link_is_shown_and_disarms_the_relay(station, line):
     assert reading["relay"]["armed"] is False
     assert "link was lost" in reading["relay"]["status"]
     await page.close()
+
+
+def _ipv6_loopback() -> bool:
+    try:
+        with socket.socket(socket.AF_INET6) as probe:
+            probe.bind(("::1", 0))
+    except OSError:
+        return False
+    return True
+
+
+@pytest.mark.skipif(not _ipv6_loopback(), reason="no IPv6 loopback here")
+async def test_an_ipv6_host_in_brackets_is_served(line):
+    with running_station(line.url, "--host", "[::1]") as served:
+        assert served.base.startswith("http://[::1]:")
+        page = await PageSocket.open(served.ws_url)
+        assert page.hello["pilot_id"] is None
+        await page.close()

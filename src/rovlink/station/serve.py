@@ -67,18 +67,29 @@ _ENDING_SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
 
 def bind(host: str, port: int) -> socket.socket:
-    """A listening TCP socket on ``host``:``port`` (OSError if taken or not ours)."""
-    family = socket.AF_INET6 if ":" in host else socket.AF_INET
+    """A listening TCP socket on ``host``:``port`` (OSError if taken or not ours); an IPv6
+    address may come in brackets, as in a URL (``[::1]``)."""
+    address = _unbracketed(host)
+    family = socket.AF_INET6 if ":" in address else socket.AF_INET
     listener = socket.socket(family, socket.SOCK_STREAM)
     try:
         listener.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-        listener.bind((host, port))
+        listener.bind((address, port))
         listener.listen(64)
     except OSError:
         listener.close()
         raise
     listener.setblocking(False)
     return listener
+
+
+def _unbracketed(host: str) -> str:
+    """``::1`` from ``[::1]``; any other host as it is.
+
+    >>> _unbracketed("[::1]"), _unbracketed("::1"), _unbracketed("localhost")
+    ('::1', '::1', 'localhost')
+    """
+    return host[1:-1] if host.startswith("[") and host.endswith("]") else host
 
 
 def page_urls(host: str, port: int, token: str | None) -> list[str]:
@@ -90,7 +101,10 @@ def page_urls(host: str, port: int, token: str | None) -> list[str]:
     'http://127.0.0.1:8600/?token=abc'
     >>> page_urls("127.0.0.1", 8600, "a b&c")  # a token the user chose, quoted for the URL
     ['http://127.0.0.1:8600/?token=a%20b%26c']
+    >>> page_urls("[::1]", 8600, None), page_urls("::1", 8600, None)
+    (['http://[::1]:8600/'], ['http://[::1]:8600/'])
     """
+    host = _unbracketed(host)
     suffix = f"?token={quote(token, safe='')}" if token is not None else ""
     shown = f"[{host}]" if ":" in host else host
     if host in ("0.0.0.0", "::"):
