@@ -6,6 +6,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import io
+import logging
 from collections.abc import AsyncIterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -241,3 +242,18 @@ async def test_interrupted_console_sends_nothing_more_when_locked(tmp_path: Path
         term.task.cancel()
         await asyncio.gather(term.task, return_exceptions=True)
     assert rig.frames() == ["#crcoff!", "#stop!"]
+
+
+async def test_the_library_s_warnings_are_printed_above_the_prompt(tmp_path: Path) -> None:
+    # Written to stderr, a warning (a lost link, a suspected reset) would land in the middle
+    # of the line being typed; the console prints it as one of its own lines instead.
+    library_logger = logging.getLogger("rovlink")
+    handlers_before = list(library_logger.handlers)
+    rig = Rig.simulated()
+    async with _terminal(rig, tmp_path / "history") as term:
+        logging.getLogger("rovlink.client").warning("controller reset suspected\x1b[2J")
+        await term.wait_shown("! controller reset suspected\\x1b[2J")
+        term.type("quit\r")
+        await asyncio.wait_for(term.task, 5.0)
+    assert library_logger.handlers == handlers_before
+    assert library_logger.propagate

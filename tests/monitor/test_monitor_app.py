@@ -3,8 +3,10 @@
 
 from __future__ import annotations
 
+import logging
 import re
 from collections.abc import Awaitable, Callable
+from typing import Any
 
 import pytest
 from textual.pilot import Pilot
@@ -256,3 +258,33 @@ def test_rate_must_be_positive() -> None:
     connect: Callable[[StrayCallback], Awaitable[AsyncClient]] = never
     with pytest.raises(ValueError, match="rate_hz"):
         MonitorApp(connect, rate_hz=0)
+
+
+async def test_a_lost_link_shows_as_lost_and_its_warning_as_a_notification() -> None:
+    # The port closes between two polls (an adapter unplugged, a simulator ended): the link
+    # panel says so, not "ok"; the library's warnings are notifications, not text written
+    # over the dashboard's screen.
+    rig = Rig.simulated()
+    app = MonitorApp(rig.connect, description="bench", rate_hz=2)
+    notified: list[str] = []
+    notify = app.notify
+
+    def recording_notify(message: str, **options: Any) -> None:
+        notified.append(message)
+        notify(message, **options)
+
+    app.notify = recording_notify  # type: ignore[method-assign]
+    library_logger = logging.getLogger("rovlink")
+    handlers_before = list(library_logger.handlers)
+    async with app.run_test(size=SIZE) as pilot:
+        await until(lambda: _depth_shown(app) == 0)
+        rig.port.close()
+        await until(lambda: "lost: " in shown(app, "#link"))  # (said by the next poll)
+        link = shown(app, "#link")
+        assert "link closed: keys send nothing" in link
+        assert " ok " not in link
+        logging.getLogger("rovlink.client").warning("a warning while the dashboard runs")
+        assert "a warning while the dashboard runs" in notified
+        await pilot.press("q")
+    assert library_logger.handlers == handlers_before  # to stderr again, once it is gone
+    assert library_logger.propagate

@@ -33,7 +33,9 @@ from rovlink.console.completion import argument_hint, suggestions
 from rovlink.console.engine import ConsoleEngine
 from rovlink.console.help import STOP_KEY_TEXT
 from rovlink.console.transcript import Line, info_line
+from rovlink.logs import WarningsShownBy
 from rovlink.piloting import LockState, TrackedClient
+from rovlink.protocol.visible import visible
 
 __all__ = ["STYLE", "Connector", "ConsoleCompleter", "ConsoleValidator", "run_console"]
 
@@ -175,6 +177,25 @@ async def run_console(
     def emit_in_console(line: Line) -> None:
         console_context.run(emit, line)
 
+    # Written to stderr, the library's warnings (a lost link, a suspected reset) would land in
+    # the middle of the prompt: they are printed above it as the console's own lines.
+    def show_warning(message: str, level: int) -> None:
+        emit_in_console(info_line(f"  ! {visible(message)}", "class:warning"))
+
+    warnings = WarningsShownBy(show_warning)
+    warnings.attach()
+    try:
+        await _run_connected(connect, emit_in_console, algorithm, history_path)
+    finally:
+        warnings.detach()
+
+
+async def _run_connected(
+    connect: Connector,
+    emit_in_console: Callable[[Line], None],
+    algorithm: str,
+    history_path: Path | None,
+) -> None:
     engine = ConsoleEngine(emit_in_console)
     client = await connect(engine.on_event)
     rov = TrackedClient(client, algorithm=algorithm)
@@ -199,7 +220,7 @@ async def run_console(
         bottom_toolbar=lambda: _toolbar(rov, engine.queued),
         refresh_interval=_TOOLBAR_REFRESH_S,
     )
-    emit(
+    emit_in_console(
         info_line(
             f"connected to {client.description}; {STOP_KEY_TEXT} sends #stop! at any "
             "time; 'help' lists commands",

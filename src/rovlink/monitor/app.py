@@ -11,9 +11,10 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import logging
 import time
 from collections.abc import Awaitable, Callable
-from typing import ClassVar
+from typing import ClassVar, Literal
 
 from rich.console import RenderableType
 from rich.text import Text
@@ -27,6 +28,7 @@ from textual.widgets import Digits, Footer, Header, Static
 from rovlink.aio import AsyncClient
 from rovlink.client import ClientError, ConnectionLostError, QueryTimeoutError
 from rovlink.client.options import StrayCallback
+from rovlink.logs import WarningsShownBy
 from rovlink.monitor import controls
 from rovlink.monitor.chart import SAMPLE_MARK, TARGET_MARK, depth_chart
 from rovlink.monitor.panels import (
@@ -156,6 +158,8 @@ class MonitorApp(App[None]):
         self.sub_title = description
         self._link_state = "connecting…"
         self._last_message = ""
+        # Written to stderr, the library's warnings would land over the dashboard's screen.
+        self._warnings = WarningsShownBy(self._notify_warning)
 
     # -- layout ---------------------------------------------------------------------------------
 
@@ -174,10 +178,23 @@ class MonitorApp(App[None]):
         yield Footer()
 
     def on_mount(self) -> None:
-        """Start the link worker and the redraw timer."""
+        """Start the link worker and the redraw timer; show the library's warnings as
+        notifications while the dashboard owns the terminal."""
         self.query_one("#depth-box").border_title = "depth, cm"
+        self._warnings.attach()
         self.run_worker(self._link_loop(), name="link", group="link", exclusive=True)
         self.set_interval(_REDRAW_S, self._redraw)
+
+    def on_unmount(self) -> None:
+        """Warnings go where they went before (stderr) once the dashboard is gone."""
+        self._warnings.detach()
+
+    def _notify_warning(self, message: str, level: int) -> None:
+        severity: Literal["warning", "error"] = "error" if level >= logging.ERROR else "warning"
+        try:  # (a warning may be logged on another thread: the client's reader)
+            self.call_from_thread(self.notify, visible(message), severity=severity)
+        except RuntimeError:  # on the app's own thread, where call_from_thread refuses
+            self.notify(visible(message), severity=severity)
 
     # -- the link -------------------------------------------------------------------------------
 
@@ -199,7 +216,8 @@ class MonitorApp(App[None]):
         self._link_state = client.description
         loop = asyncio.get_running_loop()
         try:
-            while not client.closed:
+            # Until a poll says the link is gone and why (a closed client raises at once).
+            while True:
                 started_s = loop.time()
                 try:
                     reading = await rov.sensors()
@@ -280,8 +298,8 @@ class MonitorApp(App[None]):
             now_s=time.monotonic(),
             rate_hz=self.rate_hz,
         )
-        if self.rov.client.closed:
-            text.append("\nlink closed: keys send nothing", style="bold red")
+        if self.rov.client.closed:  # (in the panel's four rows, instead of the health)
+            return Text(f"{self._link_state}\nlink closed: keys send nothing", style="bold red")
         return text
 
     def _draw_chart(self, width: int, height: int) -> RenderableType:
