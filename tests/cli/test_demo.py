@@ -124,3 +124,11 @@ def test_a_dive_that_misses_its_depth_never_moves_horizontally(tmp_path: Path) -
     assert statuses[9] == "done"
     assert state.locked
     assert state.power_percent == 0
+
+
+def test_a_bad_url_leaves_no_recording(run_cli: RunCli, tmp_path: Path) -> None:
+    recording = tmp_path / "badurl.mcap"
+    result = run_cli("demo", "sim://?speed=3", "--record", str(recording))
+    assert result.status == 2
+    assert "unknown sim option 'speed'" in result.err
+    assert not recording.exists()

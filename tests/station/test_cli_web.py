@@ -21,6 +21,13 @@ def test_a_bad_url_is_a_usage_error(capsys):
     assert "unknown sim option 'speed'" in capsys.readouterr().err
 
 
+def test_a_bad_url_leaves_no_recording(capsys, tmp_path):
+    recording = tmp_path / "badurl.mcap"
+    assert main(["web", "sim://?speed=3", "--record", str(recording)]) == 2
+    assert "unknown sim option 'speed'" in capsys.readouterr().err
+    assert not recording.exists()
+
+
 def test_a_taken_port_is_one_line(capsys):
     with socket.socket() as taken:
         taken.bind(("127.0.0.1", 0))
