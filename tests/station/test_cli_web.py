@@ -2,13 +2,15 @@
 
 from __future__ import annotations
 
+import argparse
 import socket
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 
-from rovlink.cli import main
+from rovlink.cli import main, web
 
 
 def test_a_short_token_is_a_usage_error(capsys):
@@ -69,3 +71,18 @@ def test_the_help_loads_no_web_library():
     )
     assert result.returncode == 0
     assert result.stderr.strip().splitlines()[-1] == "[]"
+
+
+def test_every_option_is_in_the_docs_options_table():
+    parser = argparse.ArgumentParser()
+    web.add_arguments(parser)
+    options = {
+        option
+        for action in parser._actions
+        for option in action.option_strings
+        if option.startswith("--") and option not in ("--help", "--no-checksum")
+    }
+    docs = (Path(__file__).resolve().parents[2] / "docs" / "station.md").read_text()
+    table = [line for line in docs.splitlines() if line.startswith("| `")]
+    documented = {word.strip("`,") for line in table for word in line.split("|")[1].split()}
+    assert options - documented == set()
