@@ -144,3 +144,29 @@ def _ignore_timeout(query: Callable[[], object]) -> Callable[[], None]:
             query()
 
     return run
+
+
+@pytest.mark.parametrize(
+    "kept_by",
+    [
+        [Command("start")],  # already unlocked: nothing changes (P7)
+        [Command("mvdirect", (1,))],  # the mode it is in: nothing changes (P9)
+        [Command("mvdirect", (0,))],  # a change: vertical thrust 0, horizontal kept (P9, P11)
+    ],
+    ids=["start-again", "same-mode", "mode-change"],
+)
+def test_thrust_the_controller_keeps_across_a_command_still_expires(
+    kept_by: list[Command],
+) -> None:
+    session = Session(motion_timeout_s=1.0)
+    session.command(Command("start"), now=0.0)
+    session.command(Command("mvdirect", (1,)), now=0.0)
+    session.command(Command("th", (90, 40)), now=0.0)
+    session.command(Command("mvs", (30,)), now=0.0)
+    for command in kept_by:
+        session.command(command, now=0.5)
+    session.tick(now=1.0)
+    expired = session.take_outbox(now=1.0)
+    assert expired.startswith(b"#th.90.0!")
+    changes_mode = kept_by == [Command("mvdirect", (0,))]
+    assert (b"#mvs.+0!" in expired) is not changes_mode

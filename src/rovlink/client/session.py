@@ -228,7 +228,9 @@ class Session:
         self._consecutive_timeouts = 0
         # P21: when a suspected reset was last reported; reported again only after a reply.
         self._reset_reported_at: float | None = None
-        # P23: the motion as last sent, and when it was last renewed.
+        # P23: the motion as last sent, and when it was last renewed; the vertical mode as
+        # last sent (None: not known, as on a link reopened to a board that may have reset).
+        self._direct_mode: bool | None = None
         self._direction_deg = 0
         self._power_percent = 0
         self._vertical_percent = 0
@@ -643,6 +645,7 @@ class Session:
         for command in self._zeroing_commands():
             self._outbox.append((self.frame_for(command), None, command))
         self._power_percent = self._vertical_percent = 0
+        self._direct_mode = None
 
     def note_link(self, state: str, detail: str, now: float) -> None:
         """Record a change of the link itself (``lost``, ``reconnected``) for the drivers."""
@@ -709,14 +712,18 @@ class Session:
             (self._vertical_percent,) = command.values
             if self._vertical_percent:
                 self._motion_renewed_at = now
-        elif command.setting is not None and command.setting[0] in (
-            Setting.LOCKED,
-            Setting.DIRECT_MODE,
-        ):
-            # stop and start clear the set-points; a mode change sets vertical thrust to 0 (P9).
-            if command.setting[0] is Setting.LOCKED:
-                self._power_percent = 0
-            self._vertical_percent = 0
+        elif command.setting is not None:
+            # Cleared only where the controller surely clears it: a belief of thrust it no
+            # longer has costs a needless zero; a belief of none where it has some would let it
+            # drive on. So not on #start! (while unlocked it changes nothing, P7) nor on
+            # #mvdirect to the mode it is in, or to an unknown one (P9).
+            setting, value = command.setting
+            if setting is Setting.LOCKED and value:  # stop: every set-point cleared (P7)
+                self._power_percent = self._vertical_percent = 0
+            elif setting is Setting.DIRECT_MODE:
+                if self._direct_mode is not None and value != self._direct_mode:
+                    self._vertical_percent = 0  # a change of mode sets it to 0 (P9)
+                self._direct_mode = value
 
     def _zeroing_commands(self) -> list[Command]:
         """The commands that bring the motion as last sent to rest (none if it is)."""
