@@ -3,9 +3,9 @@
 from __future__ import annotations
 
 import asyncio
-import contextlib
 from collections.abc import Callable
 
+from rovlink.bridges.wakeup import wait_for_event
 from rovlink.client.errors import QueryTimeoutError
 from rovlink.client.sensors import Sensors
 from rovlink.logs import get_logger
@@ -63,7 +63,6 @@ class SensorPoller:
                 due_s = now_s
                 continue
             self._rate_changed.clear()
-            with contextlib.suppress(TimeoutError, asyncio.TimeoutError):
-                await asyncio.wait_for(self._rate_changed.wait(), due_s - now_s)
+            await wait_for_event(self._rate_changed, due_s - now_s)
             if self._rate_changed.is_set():
                 due_s = loop.time()  # a new rate: from now

@@ -39,6 +39,7 @@ from rovlink.bridges.mqtt.payloads import (
 )
 from rovlink.bridges.mqtt.topics import Topics, publish_topic_problem
 from rovlink.bridges.sensor_poll import SensorPoller
+from rovlink.bridges.wakeup import wait_for_event
 from rovlink.client.errors import ConnectionLostError, QueryTimeoutError
 from rovlink.client.events import ClientEvent, LinkState, MotionExpired, ResetSuspected
 from rovlink.client.sensors import Sensors
@@ -219,7 +220,7 @@ class MqttBridge:
             while not self._telemetry.empty():
                 await mqtt.publish(self.topics.telemetry, self._telemetry.get_nowait(), qos=0)
             self._wake_publisher.clear()
-            await _wait_for_event(self._wake_publisher, _STATE_REFRESH_S / 2)
+            await wait_for_event(self._wake_publisher, _STATE_REFRESH_S / 2)
 
     async def _publish_state(self, mqtt: Any, now_s: float) -> None:
         state = state_payload(
@@ -364,17 +365,3 @@ class MqttBridge:
         payload = event_payload(self.robot_id, name, detail, self._wall_clock())
         self.outbox.put(self.topics.events, encode(payload))
         self._wake_publisher.set()
-
-
-async def _wait_for_event(event: asyncio.Event, timeout_s: float) -> None:
-    """Wait until ``event`` is set, at most ``timeout_s``.
-
-    Not ``asyncio.wait_for``: on Python 3.10 a cancellation that comes as the event is set is
-    swallowed (bpo-37658), and the publisher, woken by the event that ends the bridge, would run
-    on for ever.
-    """
-    waiter = asyncio.ensure_future(event.wait())
-    try:
-        await asyncio.wait({waiter}, timeout=timeout_s)
-    finally:
-        waiter.cancel()
