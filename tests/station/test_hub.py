@@ -182,8 +182,8 @@ async def test_a_cut_after_stop_sends_zero_thrust_without_a_warning(hub):
     await hub.send(peer, {"type": "stop"})
     hub.sent.clear()
     await hub.station.leave(peer)  # the pilot's page closed while the robot is locked
-    assert hub.sent == ["#th.0.0!"]  # no mode sent: depth mode, no mvs
-    assert hub.warnings() == [f"STOP from {peer.label}"]
+    assert hub.sent == ["#th.0.0!", "#mvs.+0!"]  # (no mode sent: vertical zeroed too)
+    assert hub.warnings() == [f"STOP from {peer.label}"]  # no "dropped while locked" warnings
 
 
 class FillingDisk:

@@ -76,7 +76,7 @@ def test_a_silent_page_is_cut_after_the_staleness_limit():
     wire = Wire()
     wire.armed_and_flying()
     assert wire.check(0.01 + STALE_INPUT_S) == []
-    assert wire.check(0.02 + STALE_INPUT_S) == ["#th.90.0!"]
+    assert wire.check(0.02 + STALE_INPUT_S) == ["#th.90.0!", "#mvs.+0!"]
     assert "no input from the page" in wire.relay.status
     assert wire.check(1.0) == []  # once
     # Input again with the dead-man still held does not resume: it must be released first.
@@ -115,11 +115,18 @@ def test_a_cut_sends_zero_even_if_the_state_says_zero_and_disarms():
     assert not wire.relay.armed
 
 
-@pytest.mark.parametrize("mode", [[], [Command("mvdirect", (0,))]], ids=["no mode sent", "depth"])
-def test_a_cut_sends_no_mvs_in_depth_mode_the_mode_after_a_reset(mode):
+def test_a_cut_sends_no_mvs_in_depth_mode_as_last_sent():
     wire = Wire()
-    wire.send([Command("start"), *mode])
+    wire.send([Command("start"), Command("mvdirect", (0,))])
     assert wire.send(wire.relay.cut("the pilot left")) == ["#th.0.0!"]
+
+
+def test_a_cut_with_no_mode_sent_yet_zeroes_vertical_thrust_too():
+    # Another program may have left the controller in direct mode with vertical thrust; in
+    # depth mode it drops the mvs, harmlessly.
+    wire = Wire()
+    wire.send([Command("start")])
+    assert wire.send(wire.relay.cut("the pilot left")) == ["#th.0.0!", "#mvs.+0!"]
 
 
 def test_direct_mode_relays_vertical_thrust_and_zeroes_it():
@@ -186,7 +193,7 @@ def test_a_held_change_is_dropped_when_the_input_goes_stale_or_is_released():
     assert wire.send(wire.relay.flush(1.0)) == []
     wire.update(PilotInput(True, 90, 50, 0, 4.0), 0.02)
     assert wire.update(PilotInput(True, 96, 50, 0, 5.0), 0.025) == []
-    assert wire.check(0.026 + STALE_INPUT_S) == ["#th.90.0!"]
+    assert wire.check(0.026 + STALE_INPUT_S) == ["#th.90.0!", "#mvs.+0!"]
     assert wire.send(wire.relay.flush(1.0)) == []
 
 

@@ -245,15 +245,17 @@ class ThrustRelay:
         """Zero horizontal power (keeping the direction) and, in direct mode, zero vertical
         thrust; with ``always``, also when the state as last sent says it is already zero.
 
-        Direct mode is the one as last sent: with no mode sent yet the controller is in depth
-        mode, its mode after a reset (P9), where it drops ``mvs`` and its PID holds the depth.
+        The mode is the one as last sent. With no mode sent yet, a cut (``always``) zeroes the
+        vertical thrust too: the controller may be in direct mode, left there by another
+        program, and in depth mode it drops ``mvs`` while its PID holds the depth (P9).
         """
         commanded = self.commanded
         commands: list[Command] = []
         if always or commanded.power_percent > 0:
             commands.append(Command("th", (commanded.direction_deg, 0)))
-        if commanded.vertical_mode is VerticalMode.DIRECT and (
-            always or commanded.vertical_thrust_percent != 0
+        direct = commanded.vertical_mode is VerticalMode.DIRECT
+        if (always and commanded.vertical_mode is not VerticalMode.DEPTH) or (
+            direct and commanded.vertical_thrust_percent != 0
         ):
             commands.append(Command("mvs", (0,)))
         self._motion_sent_at_s = None
