@@ -323,3 +323,25 @@ def test_the_summary_counts_what_the_file_holds_in_its_own_terms(
     result = run_cli("send", "sim://?seed=2", "--record", str(path), "start", "qsa", "qd", "stop")
     assert result.status == 0, result.err
     assert f"recorded {_held_in(path)} {unit} in " in result.err
+
+
+@pytest.mark.parametrize(
+    "command",
+    [
+        ("send", "qd"),
+        ("console",),
+        ("monitor",),
+        ("mavlink",),
+        ("mqtt", "--broker", "mqtt://127.0.0.1:9", "--robot", "r1"),
+    ],
+    ids=lambda command: command[0],
+)
+def test_a_malformed_url_leaves_no_recording(
+    run_cli: RunCli, tmp_path: Path, command: tuple[str, ...]
+) -> None:
+    recording = tmp_path / "badurl.jsonl"
+    name, *rest = command
+    result = run_cli(name, "sim://?speed=3", *rest, "--record", str(recording))
+    assert result.status == 2
+    assert "unknown sim option 'speed'" in result.err
+    assert not recording.exists()

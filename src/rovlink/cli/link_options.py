@@ -424,8 +424,8 @@ def connect(
     """
     import rovlink.client  # noqa: PLC0415
 
+    check_url(args)  # (before client_options() opens --record's file)
     options = client_options(args, keepalive_s=keepalive_s, on_stray=on_stray)
-    check_url(args)
     _log_warnings()
     try:
         if show_bytes is not None:
@@ -467,8 +467,8 @@ def connect_async(args: argparse.Namespace) -> Callable[[StrayCallback], Awaitab
     console and monitor call it with their ``on_stray``); the options are checked now."""
     import rovlink.aio  # noqa: PLC0415
 
+    check_url(args)  # (before client_options() opens --record's file)
     client_options(args)
-    check_url(args)
     _log_warnings()
 
     def connect_with(on_stray: StrayCallback) -> Awaitable[AsyncClient]:
