@@ -9,6 +9,7 @@ from collections.abc import Callable, Iterator
 
 import pytest
 
+from rovlink.busy_tcp import RefusedClients
 from rovlink.client.links import open_link
 from rovlink.client.url import parse_url
 from rovlink.faults import FaultPort, FaultSettings
@@ -113,7 +114,7 @@ def test_a_flood_of_refused_clients_is_bounded_and_the_served_one_is_undisturbed
     with socket.create_connection(address) as first:
         first.sendall(b"#qd!")
         controller.wait_for(b"#qd!")
-        others = [socket.create_connection(address) for _ in range(FaultProxy.MAX_REFUSED + 4)]
+        others = [socket.create_connection(address) for _ in range(RefusedClients.MAX_KEPT + 4)]
         try:
             for other in others:
                 other.sendall(b"#start!")

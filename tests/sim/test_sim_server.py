@@ -12,9 +12,9 @@ from collections.abc import Callable, Iterator
 import pytest
 import serial
 
+from rovlink.busy_tcp import RefusedClients
 from rovlink.controller import ControllerConfig
 from rovlink.controller import lines as lines_module
-from rovlink.controller.lines import Lines
 from rovlink.sim import SimConfig
 from rovlink.sim.server import BUSY_MESSAGE, SimServer, parse_tcp_address
 
@@ -173,7 +173,7 @@ def test_refused_clients_that_stay_connected_are_not_kept_without_bound(
     # Each refused client is kept until it closes (or for a while), so that it reads "busy";
     # a flood of them must not run the server's selector out of descriptors.
     server = start_server(pty=False)
-    extra = Lines.MAX_REFUSED + 12
+    extra = RefusedClients.MAX_KEPT + 12
     with _connect(server) as first, contextlib.ExitStack() as stack:
         first.sendall(b"#qd!")
         _read_frames(_recv(first), 1)
@@ -181,7 +181,7 @@ def test_refused_clients_that_stay_connected_are_not_kept_without_bound(
             second = stack.enter_context(_connect(server))
             second.settimeout(5)
             assert second.recv(4096) == BUSY_MESSAGE  # (all of it: one small write)
-        assert len(server._lines._refused) <= Lines.MAX_REFUSED
+        assert len(server._lines._refused) <= RefusedClients.MAX_KEPT
         first.sendall(b"#qd!")  # the client being served is undisturbed
         assert _read_frames(_recv(first), 1) == b"$qd.0!"
 

@@ -27,6 +27,7 @@ import tty
 from collections.abc import Callable
 from typing import Any
 
+from rovlink.busy_tcp import RefusedClients
 from rovlink.logs import get_logger
 
 __all__ = [
@@ -195,12 +196,6 @@ class Lines:
     disconnected.
     """
 
-    #: How long a refused client may take to close its end before it is cut off.
-    REFUSED_LINGER_S = 2.0
-    #: Refused clients kept so at once; more are cut off at once (a flood of connections must
-    #: not run the selector out of descriptors, which would stop the line that is served).
-    MAX_REFUSED = 8
-
     def __init__(
         self,
         on_bytes: Callable[[Line, bytes], None],
@@ -212,7 +207,6 @@ class Lines:
         self._on_bytes = on_bytes
         self._on_open = on_open
         self._on_close = on_close
-        self._busy_message = busy_message
         # select(2) takes microsecond timeouts where epoll and poll round up to whole
         # milliseconds: pacing at 115200 baud needs a wake-up every 87 µs. A handful of
         # descriptors is all a controller ever watches.
@@ -221,8 +215,7 @@ class Lines:
         self.lines: list[Line] = []
         self._listener: socket.socket | None = None
         self._tcp_line: TcpLine | None = None
-        #: Refused clients, until they close their end (or the deadline): their monotonic deadline.
-        self._refused: dict[socket.socket, float] = {}
+        self._refused = RefusedClients(self._selector, busy_message, data=self._on_refused_readable)
         self.pty_path: str | None = None
         self.tcp_address: tuple[str, int] | None = None
 
@@ -264,10 +257,7 @@ class Lines:
         for key, mask in self._selector.select(timeout_s):
             key.data(key, mask)
         if self._refused:
-            now = time.monotonic()
-            for connection, deadline in list(self._refused.items()):
-                if now >= deadline:
-                    self._drop_refused(connection)
+            self._refused.expire(time.monotonic())
 
     def send(self, line: Line, data: bytes) -> None:
         """Write ``data`` to ``line``: now, what the kernel takes; the rest when it can."""
@@ -283,8 +273,7 @@ class Lines:
         """Close every line and the listener."""
         for line in list(self.lines):
             self._remove(line)
-        for connection in list(self._refused):
-            self._drop_refused(connection)
+        self._refused.close()
         if self._listener is not None:
             self._selector.unregister(self._listener)
             self._listener.close()
@@ -304,39 +293,10 @@ class Lines:
         events = selectors.EVENT_READ | (selectors.EVENT_WRITE if line.unsent else 0)
         self._selector.modify(line.fd, events, self._on_line_event(line))
 
-    def _refuse(self, connection: socket.socket) -> None:
-        """Say busy, end the sending side, and read what the client sends until it closes: a
-        socket closed with unread input is reset, and the reset can discard the message before
-        the client reads it."""
-        try:
-            connection.setblocking(False)
-            connection.send(self._busy_message)
-            connection.shutdown(socket.SHUT_WR)
-        except OSError:
-            connection.close()
-            return
-        if len(self._refused) >= self.MAX_REFUSED:
-            connection.close()
-            return
-        self._refused[connection] = time.monotonic() + self.REFUSED_LINGER_S
-        self._selector.register(connection, selectors.EVENT_READ, self._on_refused_readable)
-
     def _on_refused_readable(self, key: selectors.SelectorKey, mask: int) -> None:
         connection = key.fileobj
         assert isinstance(connection, socket.socket)
-        try:
-            if connection.recv(4096):
-                return  # (the client's probes: read and dropped)
-        except BlockingIOError:
-            return
-        except OSError:
-            pass
-        self._drop_refused(connection)
-
-    def _drop_refused(self, connection: socket.socket) -> None:
-        del self._refused[connection]
-        self._selector.unregister(connection)
-        connection.close()
+        self._refused.on_readable(connection)
 
     def _on_line_event(self, line: Line) -> Callable[[selectors.SelectorKey, int], None]:
         def handle(key: selectors.SelectorKey, mask: int) -> None:
@@ -365,7 +325,7 @@ class Lines:
             return
         if self._tcp_line is not None:
             logger.info("refused %s:%s: busy", address[0], address[1])
-            self._refuse(connection)
+            self._refused.refuse(connection)
             return
         line = TcpLine(connection)
         self._tcp_line = line

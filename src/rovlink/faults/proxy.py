@@ -17,6 +17,7 @@ import threading
 import time
 from collections.abc import Callable
 
+from rovlink.busy_tcp import RefusedClients
 from rovlink.client.errors import ConnectionLostError
 from rovlink.faults.port import FaultPort
 from rovlink.logs import get_logger
@@ -41,12 +42,6 @@ class FaultProxy:
     disconnected; what it sent is read and dropped.
     """
 
-    #: How long a refused client may take to close its end before it is cut off.
-    REFUSED_LINGER_S = 2.0
-    #: Refused clients kept so at once; more are cut off at once (a flood of connections must
-    #: not run the proxy out of descriptors).
-    MAX_REFUSED = 8
-
     def __init__(self, port: FaultPort, host: str, tcp_port: int) -> None:
         self.port = port
         family = socket.AF_INET6 if ":" in host else socket.AF_INET
@@ -67,8 +62,7 @@ class FaultProxy:
         # Only the thread in serve() uses the selector: the listener and refused clients.
         self._selector = selectors.DefaultSelector()
         self._selector.register(listener, selectors.EVENT_READ, None)
-        #: Refused clients, until they close their end: their monotonic deadline.
-        self._refused: dict[socket.socket, float] = {}
+        self._refused = RefusedClients(self._selector, BUSY_MESSAGE)
         self._client: socket.socket | None = None
         self._client_lock = threading.Lock()
         #: The thread serving the current client; alive until its #stop! is sent.
@@ -89,13 +83,12 @@ class FaultProxy:
                         self._on_connection(should_stop)
                     else:
                         assert isinstance(key.fileobj, socket.socket)
-                        self._on_refused_readable(key.fileobj)
-                self._expire_refused(time.monotonic())
+                        self._refused.on_readable(key.fileobj)
+                self._refused.expire(time.monotonic())
         finally:
             if self._session is not None:
                 self._session.join()  # (it ends on should_stop() or a lost link, as this loop)
-            for connection in list(self._refused):
-                self._drop_refused(connection)
+            self._refused.close()
             self._stop_robot()
             self._selector.close()
             self._listener.close()
@@ -112,7 +105,7 @@ class FaultProxy:
         if self._session is not None and self._session.is_alive():
             logger.info("refused %s:%s: busy", address[0], address[1])
             self.clients_refused += 1
-            self._refuse(connection)
+            self._refused.refuse(connection)
             return
         logger.info("client %s:%s connected", address[0], address[1])
         self.clients_served += 1
@@ -123,43 +116,6 @@ class FaultProxy:
             daemon=True,
         )
         self._session.start()
-
-    def _refuse(self, connection: socket.socket) -> None:
-        """Say busy, end the sending side, and read what the client sends until it closes: a
-        socket closed with unread input is reset, and the reset can discard the message before
-        the client reads it."""
-        try:
-            connection.setblocking(False)
-            connection.send(BUSY_MESSAGE)
-            connection.shutdown(socket.SHUT_WR)
-        except OSError:
-            connection.close()
-            return
-        if len(self._refused) >= self.MAX_REFUSED:
-            connection.close()
-            return
-        self._refused[connection] = time.monotonic() + self.REFUSED_LINGER_S
-        self._selector.register(connection, selectors.EVENT_READ, None)
-
-    def _on_refused_readable(self, connection: socket.socket) -> None:
-        try:
-            if connection.recv(4096):
-                return  # (the refused client's commands: read and dropped, never forwarded)
-        except BlockingIOError:
-            return
-        except OSError:
-            pass
-        self._drop_refused(connection)
-
-    def _expire_refused(self, now_s: float) -> None:
-        for connection, deadline_s in list(self._refused.items()):
-            if now_s >= deadline_s:
-                self._drop_refused(connection)
-
-    def _drop_refused(self, connection: socket.socket) -> None:
-        del self._refused[connection]
-        self._selector.unregister(connection)
-        connection.close()
 
     def _serve_client(
         self,
