@@ -181,6 +181,15 @@ def build_parser(command: str | None = None, *, others: bool = True) -> argparse
     return parser
 
 
+#: Commands that never talk to a robot: the default end on SIGTERM suits them, and ``decode``
+#: keeps its start-up (the signal module costs it a millisecond).
+_NO_ROBOT = frozenset({"decode", "reference", "plot"})
+
+
+def _nothing() -> None:
+    pass
+
+
 def _take_termination_as_ctrl_c() -> Callable[[], None]:
     """Have SIGTERM and SIGHUP (a service stopped, ``kill``, a terminal or an SSH session
     closed) end the command as Ctrl-C does: after ``#stop!`` where it may have moved the robot,
@@ -241,7 +250,9 @@ def main(argv: list[str] | None = None) -> int:
     # What a command opens that must outlive its client (a recording) is finished here, last.
     args.on_exit = []
     try:
-        restore_signals = _take_termination_as_ctrl_c()
+        restore_signals = (
+            _take_termination_as_ctrl_c() if args.command not in _NO_ROBOT else _nothing
+        )
         try:
             status: int = args.run(args)
         finally:
