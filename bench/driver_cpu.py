@@ -70,6 +70,15 @@ PEERS = {"rovlink.connect": "raw socket", "rovlink.aio.connect": "raw asyncio st
 SESSION_FLOOR = "raw + session only"
 #: The raw socket loop plus the least a thread-safe client keeps per query (see its function).
 LEAST_CLIENT = "raw + lock, queue, int"
+#: Every way, in the order the results are printed.
+WAYS = (
+    "raw socket",
+    SESSION_FLOOR,
+    LEAST_CLIENT,
+    "rovlink.connect",
+    "raw asyncio streams",
+    "rovlink.aio.connect",
+)
 #: Memory written before each timed call of the bookkeeping (session_bookkeeping_swept_us):
 #: about a second-level cache's size, and below and above the reach of a second-level TLB of
 #: 2,048 entries of 4 KiB pages (8 MiB).
@@ -349,7 +358,7 @@ def main() -> int:
     )
     arguments = parser.parse_args()
     query = encode(Command("qd"), checksum="crc8" if arguments.checksum else None)
-    totals = {name: Totals() for name in (*PEERS.values(), *PEERS, SESSION_FLOOR, LEAST_CLIENT)}
+    totals = {name: Totals() for name in WAYS}
     controller_cpu = _pin(arguments.cpus)
     try:
         with (
@@ -375,14 +384,7 @@ def main() -> int:
         f"{'wall × peer':>13}"
     )
     verdicts = []
-    for name in (
-        "raw socket",
-        SESSION_FLOOR,
-        LEAST_CLIENT,
-        "rovlink.connect",
-        "raw asyncio streams",
-        "rovlink.aio.connect",
-    ):
+    for name in WAYS:
         way = totals[name]
         cpu, wall = way.per_query(way.cpu_s), way.per_query(way.wall_s)
         cpu_us = statistics.median(cpu) * 1e6

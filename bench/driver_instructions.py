@@ -41,6 +41,7 @@ from driver_cpu import (
     LEAST_CLIENT,
     PEERS,
     SESSION_FLOOR,
+    WAYS,
     raw_socket_query,
     with_least_client,
     with_session_bookkeeping,
@@ -49,14 +50,6 @@ from fast_controller import NoCompilerError, running_fast_controller
 from rovlink.protocol import Command, encode
 
 WARM_UP_QUERIES = 10_200
-WAYS = (
-    "raw socket",
-    SESSION_FLOOR,
-    LEAST_CLIENT,
-    "rovlink.connect",
-    "raw asyncio streams",
-    "rovlink.aio.connect",
-)
 _COLLECTED = re.compile(r"Collected : (\d+)")
 
 
