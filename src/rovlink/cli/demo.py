@@ -304,7 +304,6 @@ def run(args: argparse.Namespace) -> int:
         power_percent=args.power_percent,
         reach_timeout_s=args.reach_timeout_s,
     )
-    link_options.check_url(args)  # before --record creates its file
     rov = link_options.connect(args, keepalive_s=1.0)
     gate = GatedClient(rov)
     console = Console()

@@ -307,6 +307,7 @@ def session_recorder(args: argparse.Namespace) -> Recorder | None:
 
         from rovlink.cli.recording import open_recorder, report_recording  # noqa: PLC0415
 
+        check_url(args)  # a malformed URL is refused before its recording's file is made
         program = f"rovlink {getattr(args, 'command', None) or ''}".strip()
         recorder = open_recorder(args, args.record, url=args.url, program=program)
         args.recorder = recorder
@@ -424,7 +425,7 @@ def connect(
     """
     import rovlink.client  # noqa: PLC0415
 
-    check_url(args)  # (before client_options() opens --record's file)
+    check_url(args)
     options = client_options(args, keepalive_s=keepalive_s, on_stray=on_stray)
     _log_warnings()
     try:
@@ -467,7 +468,7 @@ def connect_async(args: argparse.Namespace) -> Callable[[StrayCallback], Awaitab
     console and monitor call it with their ``on_stray``); the options are checked now."""
     import rovlink.aio  # noqa: PLC0415
 
-    check_url(args)  # (before client_options() opens --record's file)
+    check_url(args)
     client_options(args)
     _log_warnings()
 

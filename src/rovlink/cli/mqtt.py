@@ -182,7 +182,7 @@ def run(args: argparse.Namespace) -> int:
         import aiomqtt  # noqa: F401, PLC0415 - the mqtt extra
     except ImportError:
         raise CommandError("needs aiomqtt: pip install 'rovlink[mqtt]'") from None
-    link_options.check_url(args)  # (before client_options() opens --record's file)
+    link_options.check_url(args)
     link_options.client_options(args)
     link_options.log_warnings()
     import asyncio  # noqa: PLC0415 - not on the path of --help

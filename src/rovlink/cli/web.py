@@ -114,7 +114,7 @@ def run(args: argparse.Namespace) -> int:
     # second (a second line of defence behind the station's own 300 ms watchdog). The
     # keep-alive runs on the station's event loop: a hung station stops feeding the
     # controller's link-loss failsafe (P17), which then stops the robot.
-    link_options.check_url(args)  # before client_options() opens --record's file
+    link_options.check_url(args)
     client_options = dataclasses.replace(
         link_options.client_options(args, keepalive_s=1.0, motion_timeout_s=_MOTION_BACKSTOP_S),
         reconnect=True,
