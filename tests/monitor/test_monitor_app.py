@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import logging
 import re
+import threading
 from collections.abc import Awaitable, Callable
 from typing import Any
 
@@ -288,3 +289,27 @@ async def test_a_lost_link_shows_as_lost_and_its_warning_as_a_notification() -> 
         await pilot.press("q")
     assert library_logger.handlers == handlers_before  # to stderr again, once it is gone
     assert library_logger.propagate
+
+
+async def test_a_warning_from_another_thread_never_waits_for_the_dashboard() -> None:
+    # The simulated controller of sim:// logs on its own thread while the dashboard's loop may
+    # be waiting for that very thread: the warning is queued for the loop, never waited for.
+    rig = Rig.simulated()
+    app = MonitorApp(rig.connect, description="bench", rate_hz=2)
+    notified: list[str] = []
+    notify = app.notify
+
+    def recording_notify(message: str, **options: Any) -> None:
+        notified.append(message)
+        notify(message, **options)
+
+    app.notify = recording_notify  # type: ignore[method-assign]
+    async with app.run_test(size=SIZE) as pilot:
+        logging_thread = threading.Thread(
+            target=lambda: logging.getLogger("rovlink.sim").warning("leak detected")
+        )
+        logging_thread.start()
+        logging_thread.join(timeout=2.0)  # (the loop is blocked here, as it can be)
+        assert not logging_thread.is_alive()
+        await until(lambda: "leak detected" in notified)
+        await pilot.press("q")

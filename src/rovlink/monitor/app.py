@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import functools
 import logging
 import time
 from collections.abc import Awaitable, Callable
@@ -160,6 +161,7 @@ class MonitorApp(App[None]):
         self._last_message = ""
         # Written to stderr, the library's warnings would land over the dashboard's screen.
         self._warnings = WarningsShownBy(self._notify_warning)
+        self._warnings_loop: asyncio.AbstractEventLoop | None = None
 
     # -- layout ---------------------------------------------------------------------------------
 
@@ -181,6 +183,7 @@ class MonitorApp(App[None]):
         """Start the link worker and the redraw timer; show the library's warnings as
         notifications while the dashboard owns the terminal."""
         self.query_one("#depth-box").border_title = "depth, cm"
+        self._warnings_loop = asyncio.get_running_loop()
         self._warnings.attach()
         self.run_worker(self._link_loop(), name="link", group="link", exclusive=True)
         self.set_interval(_REDRAW_S, self._redraw)
@@ -191,10 +194,18 @@ class MonitorApp(App[None]):
 
     def _notify_warning(self, message: str, level: int) -> None:
         severity: Literal["warning", "error"] = "error" if level >= logging.ERROR else "warning"
-        try:  # (a warning may be logged on another thread: the client's reader)
-            self.call_from_thread(self.notify, visible(message), severity=severity)
-        except RuntimeError:  # on the app's own thread, where call_from_thread refuses
-            self.notify(visible(message), severity=severity)
+        show = functools.partial(self.notify, visible(message), severity=severity)
+        loop = self._warnings_loop
+        try:
+            on_loop = asyncio.get_running_loop() is loop
+        except RuntimeError:  # no loop on this thread
+            on_loop = False
+        if on_loop or loop is None:
+            show()
+        else:
+            # Queued, never waited for: the thread that logs (the client's reader, the
+            # simulated controller of sim://) may hold what the event loop is waiting for.
+            loop.call_soon_threadsafe(show)
 
     # -- the link -------------------------------------------------------------------------------
 
