@@ -83,6 +83,10 @@ class FakeController:
         self._stalled_until = 0.0
         self._held = bytearray()
         self._condition = threading.Condition()
+        # Held from deciding what to write until it is written, by the reading thread and by
+        # the end of a stall alike: replies leave in the order they were due, as a real
+        # controller's do (else a reply due after a stall could overtake the held ones).
+        self._write_order = threading.Lock()
         self._wake_r, self._wake_w = os.pipe()
         self._stopping = False
         self._thread = threading.Thread(target=self._run, name="fake controller", daemon=True)
@@ -176,6 +180,10 @@ class FakeController:
             self._receive_piece(piece)
 
     def _receive_piece(self, data: bytes) -> None:
+        with self._write_order:
+            self._answer_piece(data)
+
+    def _answer_piece(self, data: bytes) -> None:
         replies = bytearray()
         with self._condition:
             if time.monotonic() < self._booted_at:
@@ -206,11 +214,12 @@ class FakeController:
                 os.write(self._fd, bytes(replies))
 
     def _end_stall(self) -> None:
-        with self._condition:
-            self._stalled_until = 0.0
-            held, self._held = bytes(self._held), bytearray()
-        with contextlib.suppress(OSError):  # the host may have gone already
-            os.write(self._fd, held)
+        with self._write_order:
+            with self._condition:
+                self._stalled_until = 0.0
+                held, self._held = bytes(self._held), bytearray()
+            with contextlib.suppress(OSError):  # the host may have gone already
+                os.write(self._fd, held)
 
     def _reply_frames(self, command: Command) -> list[bytes]:
         self.query_count += 1
