@@ -74,7 +74,7 @@ async def _assert_usable(fake: FakeController, client: AsyncClient, max_in_fligh
     """Nothing is left in flight, every slot is free, and the next query gets its own reply."""
     assert await wait_until_async(lambda: client._session.pending == ())
     assert not client._session.resynchronising
-    assert client._in_flight._value == max_in_flight, "a max_in_flight slot was lost"
+    assert client._in_flight.free == max_in_flight, "a max_in_flight slot was lost"
     depth = await asyncio.wait_for(client.depth_cm(), CONDITION_TIMEOUT_S)
     assert depth == fake.query_count, "the reply to an earlier query was taken for this one"
 
@@ -131,7 +131,7 @@ async def test_a_cancelled_query_keeps_its_slot_until_its_reply_comes(
     fake.then("late")
     with pytest.raises(Timeouts):
         await asyncio.wait_for(client.depth_cm(), 0.05)
-    assert client._in_flight.locked()
+    assert client._in_flight.free == 0
     assert await asyncio.wait_for(client.depth_cm(), CONDITION_TIMEOUT_S) == 2
     wire = [
         (event.direction, event.data)

@@ -11,12 +11,14 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import math
 from collections import deque
 from collections.abc import AsyncIterator, Callable, Generator
 from types import TracebackType
 from typing import Any, TypeVar
 
 from rovlink.aio.command_methods import AsyncCommandMethods
+from rovlink.aio.slots import InFlightSlots
 from rovlink.aio.transport import ByteTransport, transport_for
 from rovlink.client import operations
 from rovlink.client.counters import LinkCounters
@@ -53,6 +55,7 @@ DEFAULT_MAX_IN_FLIGHT = 8
 
 # A plain name for the member tested per query: an enum member costs a descriptor call.
 _ANSWERED = Outcome.ANSWERED
+_Future = asyncio.Future  # (a global: no attribute lookup per reply)
 
 
 class AsyncClient(AsyncCommandMethods):
@@ -106,17 +109,21 @@ class AsyncClient(AsyncCommandMethods):
         self._subscribers: list[EventCallback] = []
         self._probe: ReadinessProbe | None = None  # while waiting for the controller (P21)
         self._probe_data = asyncio.Event()
-        self._in_flight = asyncio.Semaphore(max_in_flight)
+        self._in_flight = InFlightSlots(max_in_flight)
         self._max_in_flight = max_in_flight
         self._mode_settled = asyncio.Event()  # cleared while a checksum switch drains
         self._mode_settled.set()
-        self._settled = asyncio.Event()  # set whenever a query settles (for close)
+        self._switching_mode = False  # (not self._mode_settled.is_set(), without a call)
+        self._settled = asyncio.Event()  # set whenever a query settles, while watched
+        self._settles_watched = 0  # how many wait on self._settled (close, a mode switch)
         self._timer: asyncio.TimerHandle | None = None
+        self._timer_at = math.inf  # when self._timer fires (without calling its when())
         self._lost: ConnectionLostError | None = None
         self._closed = False
         self._reopen = reopen if self._options.reconnect else None
         self._link_ready = asyncio.Event()  # cleared while a lost link is being reopened
         self._link_ready.set()
+        self._link_down = False  # (not self._link_ready.is_set(), without a call)
         self._reconnector: asyncio.Task[None] | None = None
         # Why the reopened link failed before it was ready (it fails that attempt).
         self._attempt_lost: ConnectionLostError | None = None
@@ -215,6 +222,7 @@ class AsyncClient(AsyncCommandMethods):
             return
         self._closed = True
         self._link_ready.set()  # callers waiting for a reconnection fail now, as closed
+        self._link_down = False
         if self._reconnector is not None:
             self._reconnector.cancel()
         try:
@@ -388,12 +396,14 @@ class AsyncClient(AsyncCommandMethods):
         while not self._mode_settled.is_set():
             await self._mode_settled.wait()
         self._mode_settled.clear()
+        self._switching_mode = True
         try:
             # Each query on the wire is answered, or times out, in the old mode.
             await self._wait_settled(self._session.pending, None)
             self._send(command)
         finally:
             self._mode_settled.set()
+            self._switching_mode = False
 
     def _check_open(self) -> None:
         if self._lost is not None or self._closed:
@@ -434,10 +444,13 @@ class AsyncClient(AsyncCommandMethods):
             if remaining is not None and remaining <= 0:
                 return
             self._settled.clear()
+            self._settles_watched += 1
             try:
                 await asyncio.wait_for(self._settled.wait(), remaining)
             except (TimeoutError, asyncio.TimeoutError):  # the same class from Python 3.11 on
                 return
+            finally:
+                self._settles_watched -= 1
 
     def _lost_error(self) -> ConnectionLostError:
         lost = self._lost
@@ -487,27 +500,35 @@ class AsyncClient(AsyncCommandMethods):
             with contextlib.suppress(ConnectionLostError):  # recorded: the waiters see it
                 self._write(data)
 
-    async def _ask(self, query: operations.Query[T]) -> T:
-        return query.read(await self._request(query.command))
-
     async def _request(self, command: Command) -> list[Response]:
-        """Send a query until it is answered (retries); its replies, in the pending query's own
-        list (no copy: nothing changes it once answered)."""
-        if not self._link_ready.is_set():
+        """Send a query until it is answered (retries); its replies."""
+        return await self._ask(operations.Query(command, list))
+
+    async def _ask(self, query: operations.Query[T]) -> T:
+        """Send a query until it is answered (retries); its replies, read by ``query.read``.
+
+        One coroutine for the whole query: every layer of coroutines costs a polling loop.
+        """
+        if self._link_down:
             await self._await_link()
-        self._check_open()
+        command = query.command
         failures: list[str] = []
-        in_flight = self._in_flight
-        await in_flight.acquire()
+        slots = self._in_flight
+        if slots.free:  # the usual case, without a coroutine
+            slots.free -= 1
+        else:
+            self._check_open()  # (no wait for a slot on a link already gone)
+            await slots.take()
         slot_handed_over = False
         try:
             for attempt in range(self._options.retries + 1):
                 # A loop: the switch that ends may wake another switch before this query.
-                while not self._mode_settled.is_set():
+                while self._switching_mode:
                     await self._mode_settled.wait()
                 # Every attempt, and after any wait for a slot or a mode switch: the link may
                 # have been lost meanwhile, and a query queued on a lost link is never settled.
-                self._check_open()
+                if self._lost is not None or self._closed or self._link_down:
+                    self._check_open()
                 session = self._session
                 now = self._loop.time()
                 if attempt:
@@ -517,11 +538,14 @@ class AsyncClient(AsyncCommandMethods):
                 data, pending = ready
                 waiter = pending.waiter = self._loop.create_future()
                 if data:  # (nothing while queries are held back, P20)
-                    self._write(data)
+                    try:
+                        self._transport.write(data)
+                    except ConnectionLostError as error:  # (as _write, without the call)
+                        self._on_lost(error)
+                        raise self._lost_error() from error
                 # Time out at the latest at this query's deadline; a timer armed for earlier
                 # already does (it re-arms when it fires).
-                timer = self._timer
-                if timer is None or timer.when() > now + session.timeout_s or session.has_outbox:
+                if self._timer_at > now + session.timeout_s or session.has_outbox:
                     self._arm_timer()
                 if session.events:
                     self._emit()
@@ -533,13 +557,13 @@ class AsyncClient(AsyncCommandMethods):
                         slot_handed_over = True
                     raise
                 if outcome is _ANSWERED:
-                    return pending.responses
+                    return query.read(pending.responses)
                 if outcome is Outcome.DISCONNECTED:
                     raise self._lost_error()
                 failures.append(outcome.value)
         finally:
             if not slot_handed_over:
-                in_flight.release()
+                slots.release()
         raise QueryTimeoutError(command, failures, self._options.timeout_s)
 
     def _hold_slot_until_settled(self, pending: PendingQuery) -> None:
@@ -570,9 +594,10 @@ class AsyncClient(AsyncCommandMethods):
         received = session.receive_reply(data, now)
         if isinstance(received, PendingQuery):  # the usual case: one whole reply, its query
             waiter = received.waiter  # (none for the session's own queries)
-            if isinstance(waiter, asyncio.Future) and not waiter.done():
+            if isinstance(waiter, _Future) and not waiter.done():
                 waiter.set_result(_ANSWERED)
-            self._settled.set()
+            if self._settles_watched:
+                self._settled.set()
             return
         self._wake(received.settled)
         if session.has_outbox:
@@ -592,18 +617,15 @@ class AsyncClient(AsyncCommandMethods):
                 self._probe_data.set()  # (the readiness wait gives up now)
                 return
             self._link_ready.clear()  # (once per loss)
-            if self._timer is not None:
-                self._timer.cancel()
-                self._timer = None
+            self._link_down = True
+            self._cancel_timer()
             self._wake(self._session.disconnect())  # their replies are gone
             self._session.note_link("lost", f"{error}; reconnecting", self._loop.time())
             self._emit()
             self._reconnector = self._loop.create_task(self._reconnect())
             return
         self._lost = error
-        if self._timer is not None:
-            self._timer.cancel()
-            self._timer = None
+        self._cancel_timer()
         self._wake(self._session.disconnect())
         if not self._closed:
             logger.warning("%s", error)
@@ -658,6 +680,7 @@ class AsyncClient(AsyncCommandMethods):
                 self._loop.time(),
             )
             self._link_ready.set()
+            self._link_down = False
             self._arm_timer()
             self._emit()
             return
@@ -667,17 +690,23 @@ class AsyncClient(AsyncCommandMethods):
         if self._lost is not None:
             return
         deadline = self._session.next_deadline()
-        timer = self._timer
-        if timer is not None:
-            if deadline is not None and timer.when() <= deadline:
+        if self._timer is not None:
+            if deadline is not None and self._timer_at <= deadline:
                 return
-            timer.cancel()
-            self._timer = None
+            self._cancel_timer()
         if deadline is not None:
             self._timer = self._loop.call_at(deadline, self._on_timer)
+            self._timer_at = deadline
+
+    def _cancel_timer(self) -> None:
+        if self._timer is not None:
+            self._timer.cancel()
+            self._timer = None
+            self._timer_at = math.inf
 
     def _on_timer(self) -> None:
         self._timer = None
+        self._timer_at = math.inf
         if self._lost is not None:
             return
         session = self._session
