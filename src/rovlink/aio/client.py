@@ -12,6 +12,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import math
+import time
 from collections import deque
 from collections.abc import AsyncIterator, Callable, Generator
 from types import TracebackType
@@ -96,6 +97,7 @@ class AsyncClient(AsyncCommandMethods):
         self._options = options or ClientOptions()
         self._link = link
         self._loop = asyncio.get_running_loop()
+        self._clock = _loop_clock(self._loop)
         self._transport: ByteTransport = transport_for(link, self._loop)
         options = self._options
         self._session = Session(
@@ -372,7 +374,7 @@ class AsyncClient(AsyncCommandMethods):
         while not self._mode_settled.is_set():  # (another switch may start as one ends)
             await self._mode_settled.wait()
         self._check_open()  # the link may have gone meanwhile: nothing would settle the query
-        data, pending = self._session.raw(data, self._loop.time())
+        data, pending = self._session.raw(data, self._clock())
         if pending is not None:
             pending.waiter = self._loop.create_future()
             self._arm_timer()
@@ -438,9 +440,9 @@ class AsyncClient(AsyncCommandMethods):
         Their callers' futures are no guide: a caller may have been cancelled (the polls of a
         ``telemetry`` loop that was left are) while its query is still on the wire.
         """
-        deadline = None if timeout_s is None else self._loop.time() + timeout_s
+        deadline = None if timeout_s is None else self._clock() + timeout_s
         while self._lost is None and any(not query.settled for query in queries):
-            remaining = None if deadline is None else deadline - self._loop.time()
+            remaining = None if deadline is None else deadline - self._clock()
             if remaining is not None and remaining <= 0:
                 return
             self._settled.clear()
@@ -467,7 +469,7 @@ class AsyncClient(AsyncCommandMethods):
 
     def _send(self, command: Command) -> None:
         self._check_open()
-        self._write(self._session.command(command, self._loop.time()))
+        self._write(self._session.command(command, self._clock()))
         self._arm_timer()  # a motion command may now expire
         self._emit()
 
@@ -495,7 +497,7 @@ class AsyncClient(AsyncCommandMethods):
         only zero thrust (P23)."""
         session = self._session
         take = session.take_outbox_when_closing if self._closed else session.take_outbox
-        data = take(self._loop.time())
+        data = take(self._clock())
         if data and self._lost is None:
             with contextlib.suppress(ConnectionLostError):  # recorded: the waiters see it
                 self._write(data)
@@ -530,7 +532,7 @@ class AsyncClient(AsyncCommandMethods):
                 if self._lost is not None or self._closed or self._link_down:
                     self._check_open()
                 session = self._session
-                now = self._loop.time()
+                now = self._clock()
                 if attempt:
                     session.counters.retries += 1
                 # The usual case (nothing due or held) without the general path's bookkeeping.
@@ -584,13 +586,13 @@ class AsyncClient(AsyncCommandMethods):
 
     def _on_data(self, data: bytes) -> None:
         if self._probe is not None:
-            now = self._loop.time()
+            now = self._clock()
             self._probe.receive(data, now)
             self._session.count_outside(now, received=data)
             self._probe_data.set()
             return
         session = self._session
-        now = self._loop.time()
+        now = self._clock()
         received = session.receive_reply(data, now)
         if isinstance(received, PendingQuery):  # the usual case: one whole reply, its query
             waiter = received.waiter  # (none for the session's own queries)
@@ -620,7 +622,7 @@ class AsyncClient(AsyncCommandMethods):
             self._link_down = True
             self._cancel_timer()
             self._wake(self._session.disconnect())  # their replies are gone
-            self._session.note_link("lost", f"{error}; reconnecting", self._loop.time())
+            self._session.note_link("lost", f"{error}; reconnecting", self._clock())
             self._emit()
             self._reconnector = self._loop.create_task(self._reconnect())
             return
@@ -661,7 +663,7 @@ class AsyncClient(AsyncCommandMethods):
                 await self._await_ready(reconnecting=True)
                 session.reset_link()
                 mode = setting_command(Setting.CHECKSUM, session.checksum_enabled)
-                self._write(session.command(mode, self._loop.time()))
+                self._write(session.command(mode, self._clock()))
                 # A link lost while it was being readied (reported, or found by that write) is
                 # a failed attempt, not a connection: nothing else would ever notice it.
                 if self._attempt_lost is not None:
@@ -677,7 +679,7 @@ class AsyncClient(AsyncCommandMethods):
             session.note_link(
                 "reconnected",
                 f"{link.description} after {attempts} attempt{plural}",
-                self._loop.time(),
+                self._clock(),
             )
             self._link_ready.set()
             self._link_down = False
@@ -710,11 +712,20 @@ class AsyncClient(AsyncCommandMethods):
         if self._lost is not None:
             return
         session = self._session
-        self._wake(session.tick(self._loop.time()))
+        self._wake(session.tick(self._clock()))
         if session.has_outbox:
             self._flush_due()
         self._emit()
         self._arm_timer()
+
+
+def _loop_clock(loop: asyncio.AbstractEventLoop) -> Callable[[], float]:
+    """``loop.time``, or the clock it reads when it is asyncio's own (``time.monotonic``):
+    read twice a query, and a Python method around a C function costs a call."""
+    method = getattr(loop.time, "__func__", None)
+    if method is asyncio.BaseEventLoop.time:
+        return time.monotonic
+    return loop.time
 
 
 def _close_opened(opening: asyncio.Future[Link]) -> None:
