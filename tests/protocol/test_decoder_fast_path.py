@@ -11,7 +11,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from rovlink.protocol import Decoder, Event, Frame, Kind, Response, get_algorithm
+from rovlink.protocol import Decoder, Event, Frame, Kind, Response, encode, get_algorithm
 from rovlink.protocol.commands import SPELLINGS, Spec
 from rovlink.protocol.frames import FAST_ENTRIES, MAX_FRAME_BYTES
 
@@ -68,6 +68,11 @@ def frames(draw: st.DrawFn) -> bytes:
     else:
         prefix = draw(st.sampled_from(_SPELLINGS))
         texts = draw(st.lists(_NUMBER_TEXTS, max_size=3))
+    return _framed(draw, prefix, texts)
+
+
+def _framed(draw: st.DrawFn, prefix: bytes, texts: list[bytes]) -> bytes:
+    """The frame of ``prefix`` (start byte and name) and ``texts`` with any kind of tail."""
     body = b".".join([prefix[1:], *texts])
     tail = draw(st.sampled_from(["none", "upper", "lower", "wrong"]))
     digits = get_algorithm("crc8").digits(body)
@@ -244,3 +249,63 @@ def test_frame_message_leaves_a_frame_longer_than_64_bytes_to_feed(checked: bool
     decoder = Decoder(checksum_enabled=checked)
     assert decoder.frame_message(frame) is None
     assert decoder.feed(frame) == expected
+
+
+_REPLY_NAMES = sorted(
+    spec.name for spec in SPELLINGS[Kind.RESPONSE].values() if len(spec.arguments) == 1
+)
+
+
+@st.composite
+def _replies_of(draw: st.DrawFn, name: str) -> bytes:
+    """A reply of ``name`` with right, wrong, odd or missing values and checksum."""
+    spec = SPELLINGS[Kind.RESPONSE][name]
+    return _framed(draw, b"$" + name.encode(), draw(_values(spec)))
+
+
+@settings(max_examples=400)
+@given(st.data(), st.sampled_from(_REPLY_NAMES), st.booleans())
+def test_reply_message_reads_a_reply_as_feed_does(
+    data: st.DataObject, name: str, checksum: bool
+) -> None:
+    """Where reply_message reads a chunk, it is one frame of that reply that feed decodes to
+    that very message; where it does not, the chunk is left unread and feed reads it as ever."""
+    pieces = data.draw(
+        st.lists(
+            _replies_of(name) | frames() | st.sampled_from([b"#crcon!", b"#crcoff!"]),
+            max_size=30,
+        )
+    )
+    one_by_one, fed = Decoder(checksum_enabled=checksum), Decoder(checksum_enabled=checksum)
+    for piece in pieces * 2:
+        expected = fed.feed(piece)
+        message = one_by_one.reply_message(piece, name)
+        if message is None:
+            assert one_by_one.feed(piece) == expected
+        else:
+            assert message.name == name
+            assert [Frame(message, piece)] == expected
+
+
+@pytest.mark.parametrize("checked", [False, True])
+def test_reply_message_reads_every_one_value_reply_and_no_other_name(checked: bool) -> None:
+    algorithm = "crc8" if checked else None
+    for name in _REPLY_NAMES:
+        decoder = Decoder(checksum_enabled=checked)
+        reply = encode(Response(name, (1,)), algorithm)
+        assert decoder.reply_message(reply, name) == Response(name, (1,))
+        others = [other for other in _REPLY_NAMES if other != name]
+        assert all(decoder.reply_message(reply, other) is None for other in others)
+
+
+def test_reply_message_leaves_the_rest_to_feed() -> None:
+    decoder = Decoder()
+    assert decoder.reply_message(b"$qd.5!$qd.6!", "qd") is None  # two frames
+    assert decoder.reply_message(b"$qsa!", "qsa") is None  # no value
+    assert decoder.reply_message(_overlong_reply(False), "qd") is None  # P1
+    checked = Decoder(checksum_enabled=True, algorithm="xor")
+    assert (
+        checked.reply_message(b"$qd.5" + get_algorithm("xor").digits(b"qd.5") + b"!", "qd") is None
+    )
+    assert decoder.feed(b"$qd.") == []
+    assert decoder.reply_message(b"5!", "qd") is None  # a frame begun in an earlier chunk

@@ -523,11 +523,14 @@ class Session:
         expected = query.expected
         if len(expected) != 1 or query.responses:
             return self.receive(data, now)
-        message = self._decoder.frame_message(data)
-        if message is None:  # not one whole frame of values: nothing read yet
-            return self.receive(data, now)
-        if type(message) is not Response or message.name != expected[0]:
-            return self._receive_events([Frame(message, data)], data, now)
+        decoder = self._decoder
+        message = decoder.reply_message(data, expected[0])
+        if message is None:  # not that reply, whole, or one reply_message leaves to the rest
+            message = decoder.frame_message(data)
+            if message is None:  # not one whole frame of values: nothing read yet
+                return self.receive(data, now)
+            if type(message) is not Response or message.name != expected[0]:
+                return self._receive_events([Frame(message, data)], data, now)
         # What _receive_events does for this frame, in the same order.
         counters = self.counters
         counters.bytes_received += len(data)

@@ -24,7 +24,9 @@ from rovlink.protocol.frames import (
     CHECKSUM_MODE_FRAMES,
     FAST_ENTRIES,
     MAX_FRAME_BYTES,
+    EndedNumberTexts,
     FrameError,
+    NumberTexts,
     Reason,
     decode_body,
 )
@@ -187,6 +189,36 @@ class Decoder:
         # A canonical frame with values: its message is the decoder's (shared by value for a
         # one-value frame), so neither a Frame nor a cache entry is needed to answer a query.
         return _canonical_message(data, checked)
+
+    def reply_message(self, data: bytes, name: str) -> Message | None:
+        """:meth:`frame_message` for a chunk expected to be one whole one-value reply of
+        ``name`` (the reply a polling loop's query waits for): its message, or ``None`` for
+        anything else, when :meth:`frame_message` may still take it. Cheaper than
+        :meth:`frame_message` for a reply of a new value: it knows where the value starts.
+
+        >>> decoder = Decoder()
+        >>> decoder.reply_message(b"$qd.5!", "qd")
+        Response(name='qd', values=(5,))
+        >>> decoder.reply_message(b"$qr.5!", "qd") is None
+        True
+        """
+        if self._frame or self._skipping or self._text or len(data) > MAX_FRAME_BYTES:
+            return None
+        reader = _REPLY_READERS.get(name)
+        if reader is None:
+            return None
+        head, numbers, ended_numbers, crc = reader
+        if not data.startswith(head):
+            return None
+        if not self.checksum_enabled:
+            number = ended_numbers[data[len(head) :]]
+            return None if number is None else number[3]
+        if self._algorithm.function is not crc8_smbus:
+            return None
+        number = numbers[data[len(head) : len(data) - 3]]  # (two hex digits and the "!" after)
+        if number is None or not data.endswith(_HEX_DIGITS_END[number[1][crc] ^ number[2]]):
+            return None
+        return number[3]
 
     def feed(self, data: bytes) -> list[Event]:
         """Decode another chunk of the stream; return the events it completes."""
@@ -467,6 +499,26 @@ _FAST_ENTRIES = FAST_ENTRIES
 _HEX_DIGITS_END = HEX_DIGITS_END
 #: The CRC-8/SMBUS register after a "." from each state: the dot between two values.
 _DOT_CRC = bytes(CRC8_SMBUS_TABLE[state ^ 0x2E] for state in range(256))
+
+
+def _reply_readers() -> dict[str, tuple[bytes, NumberTexts, EndedNumberTexts, int]]:
+    """For each one-value reply, what :meth:`Decoder.reply_message` needs: the frame's start up
+    to its value (``b"$qd."``), the value's numbers without and with the end ``!``, and the
+    CRC-8/SMBUS of the name and its ".". Taken from the fast path's own tables, so that both
+    paths read a frame alike and share its messages."""
+    readers = {}
+    for head, entry in _FAST_ENTRIES.items():
+        spec, _, _, name_rest, _, last_numbers, last_end, crc = entry
+        start = head + b"." + (name_rest + b"." if name_rest else b"")
+        if spec.kind is not Kind.RESPONSE or len(spec.arguments) != 1:
+            continue
+        if start[1:-1] != spec.name.encode():
+            continue  # another spelling of the name: a reply is written in its own
+        readers[spec.name] = (start, last_numbers, last_end, crc)
+    return readers
+
+
+_REPLY_READERS = _reply_readers()
 
 
 def _canonical_message(raw: bytes, checked: bool) -> Message | None:
