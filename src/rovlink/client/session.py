@@ -524,19 +524,20 @@ class Session:
         if len(expected) != 1 or query.responses:
             return self.receive(data, now)
         decoder = self._decoder
-        message = decoder.reply_message(data, expected[0])
-        if message is None:  # not that reply, whole, or one reply_message leaves to the rest
+        reply = decoder.reply_message(data, expected[0])
+        if reply is None:  # not that reply, whole, or one reply_message leaves to the rest
             message = decoder.frame_message(data)
             if message is None:  # not one whole frame of values: nothing read yet
                 return self.receive(data, now)
             if type(message) is not Response or message.name != expected[0]:
                 return self._receive_events([Frame(message, data)], data, now)
+            reply = message
         # What _receive_events does for this frame, in the same order.
         counters = self.counters
         counters.bytes_received += len(data)
         counters.frames_received += 1
         self._consecutive_timeouts = 0
-        query.responses.append(message)
+        query.responses.append(reply)
         self._last_progress_at = now
         pending.popleft()
         query.outcome = _ANSWERED

@@ -31,7 +31,7 @@ from rovlink.protocol.frames import (
     decode_body,
 )
 from rovlink.protocol.frozen import frozen
-from rovlink.protocol.messages import Message
+from rovlink.protocol.messages import Message, Response
 
 __all__ = [
     "MAX_TEXT_BYTES",
@@ -190,7 +190,7 @@ class Decoder:
         # one-value frame), so neither a Frame nor a cache entry is needed to answer a query.
         return _canonical_message(data, checked)
 
-    def reply_message(self, data: bytes, name: str) -> Message | None:
+    def reply_message(self, data: bytes, name: str) -> Response | None:
         """:meth:`frame_message` for a chunk expected to be one whole one-value reply of
         ``name`` (the reply a polling loop's query waits for): its message, or ``None`` for
         anything else, when :meth:`frame_message` may still take it. Cheaper than
@@ -212,13 +212,13 @@ class Decoder:
             return None
         if not self.checksum_enabled:
             number = ended_numbers[data[len(head) :]]
-            return None if number is None else number[3]
+            return None if number is None else number[3]  # type: ignore[return-value]  # (as below)
         if self._algorithm.function is not crc8_smbus:
             return None
         number = numbers[data[len(head) : len(data) - 3]]  # (two hex digits and the "!" after)
         if number is None or not data.endswith(_HEX_DIGITS_END[number[1][crc] ^ number[2]]):
             return None
-        return number[3]
+        return number[3]  # type: ignore[return-value]  # (a reply's table holds Responses)
 
     def feed(self, data: bytes) -> list[Event]:
         """Decode another chunk of the stream; return the events it completes."""
