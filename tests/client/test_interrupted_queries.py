@@ -17,7 +17,8 @@ import pytest
 
 from rovlink.client.blocking import Client
 from rovlink.client.links import SocketLink
-from rovlink.client.session import Outcome, PendingQuery
+from rovlink.client.session import Outcome, PendingQuery, Session
+from rovlink.protocol import Command
 from tests.client.conftest import CONDITION_TIMEOUT_S, client_options, wait_until
 from tests.client.fake_controller import FakeController
 
@@ -106,12 +107,12 @@ def test_ctrl_c_while_the_reply_is_awaited(counting: tuple[FakeController, Clien
 
 
 def test_ctrl_c_after_the_reply_was_read_before_it_was_settled(
-    counting: tuple[FakeController, Client],
+    counting: tuple[FakeController, Client], monkeypatch: pytest.MonkeyPatch
 ) -> None:
     fake, client = counting
     assert client.depth_cm() == 1
-    session = client._session
-    session.receive_reply = _interrupt_once(session.receive_reply)  # type: ignore[method-assign]
+    # (On the class: a Session has slots. The fake controller's own decoder is no Session.)
+    monkeypatch.setattr(Session, "receive_reply", _interrupt_once(Session.receive_reply))
     with pytest.raises(KeyboardInterrupt):
         client.depth_cm()
     # The reply went with the interrupted caller: before the fix the next reply answered the
@@ -120,33 +121,32 @@ def test_ctrl_c_after_the_reply_was_read_before_it_was_settled(
 
 
 def test_ctrl_c_in_the_general_path_after_the_reply_was_read(
-    counting: tuple[FakeController, Client],
+    counting: tuple[FakeController, Client], monkeypatch: pytest.MonkeyPatch
 ) -> None:
     fake, client = counting
     assert client.depth_cm() == 1
     client._send_now = None  # (a link that may block on writing: every query waits in _wait)
-    session = client._session
-    session.receive = _interrupt_once(session.receive)  # type: ignore[method-assign]
+    monkeypatch.setattr(Session, "receive", _interrupt_once(Session.receive))
     with pytest.raises(KeyboardInterrupt):
         client.depth_cm()
     _the_next_query_gets_its_own_reply(fake, client)
 
 
 def test_the_interrupted_query_is_settled_as_abandoned(
-    counting: tuple[FakeController, Client],
+    counting: tuple[FakeController, Client], monkeypatch: pytest.MonkeyPatch
 ) -> None:
     _, client = counting
     session = client._session
     queued: list[PendingQuery] = []
-    real_fast_query = session.fast_query
+    real_fast_query = Session.fast_query
 
-    def remember(*arguments: object) -> object:
-        ready = real_fast_query(*arguments)  # type: ignore[arg-type]
+    def remember(self: Session, command: Command, now: float) -> tuple[bytes, PendingQuery] | None:
+        ready = real_fast_query(self, command, now)
         if ready is not None:
             queued.append(ready[1])
         return ready
 
-    session.fast_query = remember  # type: ignore[assignment, method-assign]
+    monkeypatch.setattr(Session, "fast_query", remember)
     client._read_reply = _interrupt_once(client._read_reply)
     with pytest.raises(KeyboardInterrupt):
         client.depth_cm()

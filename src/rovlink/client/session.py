@@ -183,6 +183,42 @@ class Session:
     [Response(name='qd', values=(42,))]
     """
 
+    # Slots: the hot path reads and writes these per query, and an instance of more than 30
+    # attributes loses the interpreter's fast attribute access.
+    __slots__ = (
+        "_algorithm",
+        "_checksum_enabled",
+        "_consecutive_timeouts",
+        "_decoder",
+        "_direct_mode",
+        "_direction_deg",
+        "_fence",
+        "_fragment",
+        "_fragment_head",
+        "_held",
+        "_last_progress_at",
+        "_last_query",
+        "_last_query_bytes",
+        "_late_names",
+        "_motion_renewed_at",
+        "_outbox",
+        "_pending",
+        "_power_percent",
+        "_query_bytes",
+        "_quiet_until",
+        "_raw_decoder",
+        "_reset_reported_at",
+        "_vertical_percent",
+        "counters",
+        "events",
+        "keepalive_s",
+        "last_sent_at",
+        "motion_timeout_s",
+        "notices",
+        "reset_after_timeouts",
+        "timeout_s",
+    )
+
     def __init__(
         self,
         *,
