@@ -546,8 +546,9 @@ class AsyncClient(AsyncCommandMethods):
                         self._on_lost(error)
                         raise self._lost_error() from error
                 # Time out at the latest at this query's deadline; a timer armed for earlier
-                # already does (it re-arms when it fires).
-                if self._timer_at > now + session.timeout_s or session.has_outbox:
+                # already does (it re-arms when it fires). (Nothing is due now: the session's
+                # query took it, to be written before the query.)
+                if self._timer_at > now + session.timeout_s:
                     self._arm_timer()
                 if session.events:
                     self._emit()
@@ -564,8 +565,12 @@ class AsyncClient(AsyncCommandMethods):
                     raise self._lost_error()
                 failures.append(outcome.value)
         finally:
-            if not slot_handed_over:
+            if slot_handed_over:
+                pass
+            elif slots.waiters:
                 slots.release()
+            else:  # (release's usual case, without the call)
+                slots.free += 1
         raise QueryTimeoutError(command, failures, self._options.timeout_s)
 
     def _hold_slot_until_settled(self, pending: PendingQuery) -> None:

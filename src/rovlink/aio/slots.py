@@ -32,7 +32,8 @@ class InFlightSlots:
 
     def __init__(self, count: int) -> None:
         self.free = count
-        self._waiters: deque[asyncio.Future[None]] = deque()
+        #: Those waiting for a slot, oldest first (none while ``free`` is non-zero).
+        self.waiters: deque[asyncio.Future[None]] = deque()
 
     async def take(self) -> None:
         """Wait for a slot and hold it (take ``free`` directly when it is non-zero)."""
@@ -40,19 +41,19 @@ class InFlightSlots:
             self.free -= 1
             return
         waiter: asyncio.Future[None] = asyncio.get_running_loop().create_future()
-        self._waiters.append(waiter)
+        self.waiters.append(waiter)
         try:
             await waiter
         except asyncio.CancelledError:
             if waiter.done() and not waiter.cancelled():
                 self.release()  # handed a slot just before the cancellation: pass it on
-            elif waiter in self._waiters:  # (a release may have dropped it already)
-                self._waiters.remove(waiter)
+            elif waiter in self.waiters:  # (a release may have dropped it already)
+                self.waiters.remove(waiter)
             raise
 
     def release(self) -> None:
         """Give a slot back: to the oldest waiter, or to ``free``."""
-        waiters = self._waiters
+        waiters = self.waiters
         while waiters:
             waiter = waiters.popleft()
             if not waiter.done():
