@@ -21,6 +21,7 @@ from typing import Any, TypeVar
 from rovlink.aio.command_methods import AsyncCommandMethods
 from rovlink.aio.slots import InFlightSlots
 from rovlink.aio.transport import ByteTransport, transport_for
+from rovlink.aio.wakeup import wait_for_event
 from rovlink.client import operations
 from rovlink.client.counters import LinkCounters
 from rovlink.client.errors import ConnectError, ConnectionLostError, QueryTimeoutError
@@ -185,10 +186,7 @@ class AsyncClient(AsyncCommandMethods):
                     self._write(data)
                     self._session.count_outside(now, sent=data)
                 self._probe_data.clear()
-                with contextlib.suppress(TimeoutError, asyncio.TimeoutError):
-                    await asyncio.wait_for(
-                        self._probe_data.wait(), max(probe.wait_s(loop.time()), 0.001)
-                    )
+                await wait_for_event(self._probe_data, max(probe.wait_s(loop.time()), 0.001))
         finally:
             self._probe = None
 
@@ -420,13 +418,12 @@ class AsyncClient(AsyncCommandMethods):
         if self._link_ready.is_set():
             return
         timeout_s = self._options.timeout_s
-        try:
-            await asyncio.wait_for(self._link_ready.wait(), timeout_s)
-        except (TimeoutError, asyncio.TimeoutError):  # the same class from Python 3.11 on
+        await wait_for_event(self._link_ready, timeout_s)
+        if not self._link_ready.is_set():
             raise ConnectionLostError(
                 f"connection lost: {self._link.description}: not reopened within "
                 f"{timeout_s:g} s (reconnecting)"
-            ) from None
+            )
 
     async def _drain(self) -> None:
         """Wait (at most ``timeout``) for the queries on the wire to settle."""
@@ -448,9 +445,7 @@ class AsyncClient(AsyncCommandMethods):
             self._settled.clear()
             self._settles_watched += 1
             try:
-                await asyncio.wait_for(self._settled.wait(), remaining)
-            except (TimeoutError, asyncio.TimeoutError):  # the same class from Python 3.11 on
-                return
+                await wait_for_event(self._settled, remaining)  # (then looks again)
             finally:
                 self._settles_watched -= 1
 
@@ -526,6 +521,7 @@ class AsyncClient(AsyncCommandMethods):
             for attempt in range(self._options.retries + 1):
                 # A loop: the switch that ends may wake another switch before this query.
                 while self._switching_mode:
+                    self._check_open()  # (closed meanwhile: no wait for the switch to end)
                     await self._mode_settled.wait()
                 # Every attempt, and after any wait for a slot or a mode switch: the link may
                 # have been lost meanwhile, and a query queued on a lost link is never settled.
@@ -582,7 +578,10 @@ class AsyncClient(AsyncCommandMethods):
         pending.waiter = orphan
 
     def _wake(self, settled: list[PendingQuery]) -> None:
-        if settled:
+        # A watcher (close, a checksum switch) is woken by whatever the session did, as the
+        # session's own queries (a keep-alive, a fence) settle without being listed; it looks
+        # at its queries again.
+        if settled or self._settles_watched:
             self._settled.set()
         for query in settled:
             waiter = query.waiter

@@ -5,7 +5,7 @@ from __future__ import annotations
 import asyncio
 from collections.abc import Callable
 
-from rovlink.bridges.wakeup import wait_for_event
+from rovlink.aio.wakeup import wait_for_event
 from rovlink.client.errors import QueryTimeoutError
 from rovlink.client.sensors import Sensors
 from rovlink.logs import get_logger

@@ -23,6 +23,7 @@ import time
 from collections.abc import Callable
 from typing import Any
 
+from rovlink.aio.wakeup import wait_for_event
 from rovlink.bridges.mqtt.broker import BrokerSettings
 from rovlink.bridges.mqtt.commands import CommandPolicy
 from rovlink.bridges.mqtt.outbox import Outbox
@@ -39,7 +40,6 @@ from rovlink.bridges.mqtt.payloads import (
 )
 from rovlink.bridges.mqtt.topics import Topics, publish_topic_problem
 from rovlink.bridges.sensor_poll import SensorPoller
-from rovlink.bridges.wakeup import wait_for_event
 from rovlink.client.errors import ConnectionLostError, QueryTimeoutError
 from rovlink.client.events import ClientEvent, LinkState, MotionExpired, ResetSuspected
 from rovlink.client.sensors import Sensors
