@@ -117,7 +117,7 @@ class AsyncClient(AsyncCommandMethods):
         self._mode_settled = asyncio.Event()  # cleared while a checksum switch drains
         self._mode_settled.set()
         self._switching_mode = False  # (not self._mode_settled.is_set(), without a call)
-        self._settled = asyncio.Event()  # set whenever a query settles, while watched
+        self._settled = asyncio.Event()  # set when the session settles anything, while watched
         self._settles_watched = 0  # how many wait on self._settled (close, a mode switch)
         self._timer: asyncio.TimerHandle | None = None
         self._timer_at = math.inf  # when self._timer fires (without calling its when())
@@ -408,7 +408,7 @@ class AsyncClient(AsyncCommandMethods):
     def _check_open(self) -> None:
         if self._lost is not None or self._closed:
             raise self._lost_error()
-        if not self._link_ready.is_set():  # a set command is not kept to be sent later
+        if self._link_down:  # a set command is not kept to be sent later
             raise ConnectionLostError(
                 f"connection lost: {self._link.description}: lost, reconnecting"
             )
@@ -580,12 +580,12 @@ class AsyncClient(AsyncCommandMethods):
     def _wake(self, settled: list[PendingQuery]) -> None:
         # A watcher (close, a checksum switch) is woken by whatever the session did, as the
         # session's own queries (a keep-alive, a fence) settle without being listed; it looks
-        # at its queries again.
-        if settled or self._settles_watched:
+        # at its queries again. (Nobody else waits on the event.)
+        if self._settles_watched:
             self._settled.set()
         for query in settled:
             waiter = query.waiter
-            if isinstance(waiter, asyncio.Future) and not waiter.done():
+            if isinstance(waiter, _Future) and not waiter.done():
                 waiter.set_result(query.outcome)
 
     def _on_data(self, data: bytes) -> None:
