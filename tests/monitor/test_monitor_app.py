@@ -261,12 +261,8 @@ def test_rate_must_be_positive() -> None:
         MonitorApp(connect, rate_hz=0)
 
 
-async def test_a_lost_link_shows_as_lost_and_its_warning_as_a_notification() -> None:
-    # The port closes between two polls (an adapter unplugged, a simulator ended): the link
-    # panel says so, not "ok"; the library's warnings are notifications, not text written
-    # over the dashboard's screen.
-    rig = Rig.simulated()
-    app = MonitorApp(rig.connect, description="bench", rate_hz=2)
+def _record_notifications(app: MonitorApp) -> list[str]:
+    """The messages ``app`` notifies from now on (and shows, as ever)."""
     notified: list[str] = []
     notify = app.notify
 
@@ -275,6 +271,16 @@ async def test_a_lost_link_shows_as_lost_and_its_warning_as_a_notification() -> 
         notify(message, **options)
 
     app.notify = recording_notify  # type: ignore[method-assign]
+    return notified
+
+
+async def test_a_lost_link_shows_as_lost_and_its_warning_as_a_notification() -> None:
+    # The port closes between two polls (an adapter unplugged, a simulator ended): the link
+    # panel says so, not "ok"; the library's warnings are notifications, not text written
+    # over the dashboard's screen.
+    rig = Rig.simulated()
+    app = MonitorApp(rig.connect, description="bench", rate_hz=2)
+    notified = _record_notifications(app)
     library_logger = logging.getLogger("rovlink")
     handlers_before = list(library_logger.handlers)
     async with app.run_test(size=SIZE) as pilot:
@@ -296,14 +302,7 @@ async def test_a_warning_from_another_thread_never_waits_for_the_dashboard() -> 
     # be waiting for that very thread: the warning is queued for the loop, never waited for.
     rig = Rig.simulated()
     app = MonitorApp(rig.connect, description="bench", rate_hz=2)
-    notified: list[str] = []
-    notify = app.notify
-
-    def recording_notify(message: str, **options: Any) -> None:
-        notified.append(message)
-        notify(message, **options)
-
-    app.notify = recording_notify  # type: ignore[method-assign]
+    notified = _record_notifications(app)
     async with app.run_test(size=SIZE) as pilot:
         logging_thread = threading.Thread(
             target=lambda: logging.getLogger("rovlink.sim").warning("leak detected")
