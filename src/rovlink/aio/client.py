@@ -544,8 +544,8 @@ class AsyncClient(AsyncCommandMethods):
                 # Time out at the latest at this query's deadline; a timer armed for earlier
                 # already does (it re-arms when it fires). (Nothing is due now: the session's
                 # query took it, to be written before the query.)
-                if self._timer_at > now + session.timeout_s:
-                    self._arm_timer()
+                if self._timer is None or self._timer_at > now + session.timeout_s:
+                    self._arm_timer()  # (no timer whatever _timer_at says: never left unarmed)
                 if session.events:
                     self._emit()
                 try:
