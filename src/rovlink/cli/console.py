@@ -52,8 +52,9 @@ def _check_history(path: Path, *, make_directory: bool) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Run the console until the user leaves."""
-    import asyncio  # noqa: PLC0415 - keep the driver and prompt_toolkit off other commands
     from pathlib import Path  # noqa: PLC0415
+
+    from rovlink.cli.async_run import run_async  # noqa: PLC0415 - keep asyncio off other commands
 
     try:
         from rovlink.console.app import run_console  # noqa: PLC0415
@@ -65,7 +66,7 @@ def run(args: argparse.Namespace) -> int:
     history = Path(args.history) if args.history else default_history_path()
     _check_history(history, make_directory=not args.history)
     try:
-        asyncio.run(run_console(connect, algorithm=args.algorithm, history_path=history))
+        run_async(run_console(connect, algorithm=args.algorithm, history_path=history))
     except ValueError as error:
         raise UsageError(str(error)) from None
     except (ConnectionError, OSError) as error:

@@ -97,9 +97,9 @@ def run(args: argparse.Namespace) -> int:
         import aiomqtt  # noqa: F401, PLC0415 - the mqtt extra
     except ImportError:
         raise CommandError("needs aiomqtt: pip install 'rovlink[mqtt]'") from None
-    import asyncio  # noqa: PLC0415 - not on the path of --help
+    from rovlink.cli.async_run import run_async  # noqa: PLC0415 - not on the path of --help
 
-    asyncio.run(_watch(broker, args.snapshot_s))
+    run_async(_watch(broker, args.snapshot_s))
     return 0
 
 

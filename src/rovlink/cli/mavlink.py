@@ -96,9 +96,9 @@ def run(args: argparse.Namespace) -> int:
     link_options.check_url(args)
     link_options.client_options(args)
     link_options.log_warnings()
-    import asyncio  # noqa: PLC0415 - not on the path of --help
+    from rovlink.cli.async_run import run_async  # noqa: PLC0415 - not on the path of --help
 
-    asyncio.run(_serve(args, ParameterTable(_defaults() | values), list(values)))
+    run_async(_serve(args, ParameterTable(_defaults() | values), list(values)))
     return 0
 
 

@@ -113,7 +113,7 @@ async def _connect_then_show(args: argparse.Namespace) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Connect, then run the dashboard until the user quits."""
-    import asyncio  # noqa: PLC0415 - not on the path of --help
+    from rovlink.cli.async_run import run_async  # noqa: PLC0415 - not on the path of --help
 
-    asyncio.run(_connect_then_show(args))
+    run_async(_connect_then_show(args))
     return 0

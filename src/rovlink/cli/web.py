@@ -84,8 +84,7 @@ def run(args: argparse.Namespace) -> int:
     """Serve until Ctrl-C; the robot is sent ``#stop!`` on the way out (unless locked as last
     sent)."""
     try:
-        import asyncio  # noqa: PLC0415
-
+        from rovlink.cli.async_run import run_async  # noqa: PLC0415
         from rovlink.station import access as station_access  # noqa: PLC0415
         from rovlink.station.serve import ServeOptions, serve  # noqa: PLC0415
     except ImportError as error:
@@ -136,7 +135,7 @@ def run(args: argparse.Namespace) -> int:
         )
 
     try:
-        asyncio.run(serve(connect, options, description=args.url, ready=ready))
+        run_async(serve(connect, options, description=args.url, ready=ready))
     except OSError as error:
         raise CommandError(f"cannot serve on {args.host}:{args.port}: {reason(error)}") from None
     return 0

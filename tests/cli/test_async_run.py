@@ -1,0 +1,86 @@
+"""Ctrl-C cancels an asyncio command, wherever it lands, on every supported Python.
+
+Each case runs in a process of its own (a signal handler is process-wide) on an event loop that
+raises SIGINT at the worst moment the test can choose: while a future wakes the task awaiting
+it. Python 3.10's ``asyncio.run`` raised KeyboardInterrupt there; the waiting task was never
+woken, and the run's shutdown waited for it for ever.
+"""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import pytest
+
+#: The script's own wait is milliseconds; this bounds a hang.
+PROCESS_TIMEOUT_S = 30.0
+
+SCRIPT = textwrap.dedent(
+    """
+    import asyncio
+    import signal
+    import sys
+
+    from rovlink.cli import async_run
+
+    class InterruptedWhileWaking(asyncio.SelectorEventLoop):
+        armed = False
+
+        def call_soon(self, callback, *args, context=None):
+            # A future schedules its done-callbacks (a task's wake-up) as call_soon(cb, future).
+            if self.armed and args and isinstance(args[0], asyncio.Future):
+                self.armed = False
+                signal.raise_signal(signal.SIGINT)
+            return super().call_soon(callback, *args, context=context)
+
+    class Policy(asyncio.DefaultEventLoopPolicy):
+        _loop_factory = InterruptedWhileWaking
+
+    asyncio.set_event_loop_policy(Policy())
+    ended = []
+
+    async def sleeper(future):
+        try:
+            await future
+            await asyncio.sleep(60)
+        finally:
+            ended.append("sleeper")
+
+    async def main():
+        loop = asyncio.get_running_loop()
+        future = loop.create_future()
+        task = asyncio.ensure_future(sleeper(future))
+        await asyncio.sleep(0)  # the sleeper awaits the future
+        try:
+            loop.armed = True
+            future.set_result(None)  # Ctrl-C comes as it wakes the sleeper
+            await asyncio.sleep(60)
+        finally:
+            await asyncio.sleep(0)  # a command's way out awaits (#stop!, a close)
+            ended.append("main")
+
+    try:
+        getattr(async_run, sys.argv[1])(main())
+    except KeyboardInterrupt:
+        print("interrupted", *sorted(ended))
+    """
+)
+
+
+@pytest.mark.parametrize("runner", ["run_async", "run_cancelled_by_ctrl_c"])
+def test_ctrl_c_while_a_future_wakes_a_task_cancels_the_command_cleanly(runner: str) -> None:
+    source = str(Path(__file__).resolve().parents[2] / "src")
+    completed = subprocess.run(
+        [sys.executable, "-c", SCRIPT, runner],
+        capture_output=True,
+        text=True,
+        timeout=PROCESS_TIMEOUT_S,
+        env={"PYTHONPATH": source, "PATH": ""},
+        check=False,
+    )
+    assert completed.returncode == 0, completed.stderr
+    # Both ways out ran to their end: the main task's, after an await, and the woken task's.
+    assert completed.stdout.splitlines() == ["interrupted main sleeper"], completed.stderr
