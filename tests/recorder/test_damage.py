@@ -148,7 +148,11 @@ def test_an_unwritable_path_fails_at_once(tmp_path: Path) -> None:
         Recorder(str(tmp_path / "no-such-directory" / "dive.mcap"))
 
 
-def test_rotation_by_size_gives_files_that_each_read_alone(tmp_path: Path) -> None:
+def test_rotation_by_size_gives_files_that_each_read_alone(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # Rotation is looked at on each flush: every 50 ms, not each second, fills three files soon.
+    monkeypatch.setattr("rovlink.recorder.recorder.FLUSH_INTERVAL_S", 0.05)
     path = str(tmp_path / "long.jsonl")
     recorder = Recorder(path, max_size_bytes=4096)
     with rovlink.connect("sim://?seed=1", on_event=recorder.on_event) as rov:
