@@ -325,17 +325,18 @@ def test_the_summary_counts_what_the_file_holds_in_its_own_terms(
     assert f"recorded {_held_in(path)} {unit} in " in result.err
 
 
-@pytest.mark.parametrize(
-    "command",
-    [
-        ("send", "qd"),
-        ("console",),
-        ("monitor",),
-        ("mavlink",),
-        ("mqtt", "--broker", "mqtt://127.0.0.1:9", "--robot", "r1"),
-    ],
-    ids=lambda command: command[0],
-)
+#: Every command that takes ``--record FILE`` for the link it drives, with what else it needs.
+RECORDING_COMMANDS = [
+    ("send", "qd"),
+    ("demo",),
+    ("console",),
+    ("monitor",),
+    ("mavlink",),
+    ("mqtt", "--broker", "mqtt://127.0.0.1:9", "--robot", "r1"),
+]
+
+
+@pytest.mark.parametrize("command", RECORDING_COMMANDS, ids=lambda command: command[0])
 def test_a_malformed_url_leaves_no_recording(
     run_cli: RunCli, tmp_path: Path, command: tuple[str, ...]
 ) -> None:
@@ -344,4 +345,19 @@ def test_a_malformed_url_leaves_no_recording(
     result = run_cli(name, "sim://?speed=3", *rest, "--record", str(recording))
     assert result.status == 2
     assert "unknown sim option 'speed'" in result.err
+    assert not recording.exists()
+
+
+@pytest.mark.parametrize("command", RECORDING_COMMANDS, ids=lambda command: command[0])
+def test_a_link_that_does_not_open_leaves_no_recording(
+    run_cli: RunCli, tmp_path: Path, command: tuple[str, ...]
+) -> None:
+    recording = tmp_path / "refused.jsonl"
+    name, *rest = command
+    url = f"socket://127.0.0.1:{_free_port()}"  # nobody listens: the connection is refused
+    result = run_cli(name, url, *rest, "--record", str(recording))
+    assert result.status == 1, result.err
+    assert f"cannot open {url}" in result.err
+    assert f"nothing was recorded; {recording} not kept" in result.err
+    assert "recorded 1" not in result.err  # no summary of a recording of nothing
     assert not recording.exists()

@@ -305,7 +305,11 @@ def session_recorder(args: argparse.Namespace) -> Recorder | None:
     if recorder is None:
         import time  # noqa: PLC0415
 
-        from rovlink.cli.recording import open_recorder, report_recording  # noqa: PLC0415
+        from rovlink.cli.recording import (  # noqa: PLC0415
+            discard_empty_recording,
+            open_recorder,
+            report_recording,
+        )
 
         check_url(args)  # a malformed URL is refused before its recording's file is made
         program = f"rovlink {getattr(args, 'command', None) or ''}".strip()
@@ -315,7 +319,10 @@ def session_recorder(args: argparse.Namespace) -> Recorder | None:
 
         def finish() -> None:
             recorder.close()
-            report_recording(recorder, time.monotonic() - started_s)
+            if recorder.entries_written == 1 and recorder.error is None:  # the header alone
+                discard_empty_recording(recorder)  # (the link did not open)
+            else:
+                report_recording(recorder, time.monotonic() - started_s)
 
         on_exit = getattr(args, "on_exit", None)
         if on_exit is not None:

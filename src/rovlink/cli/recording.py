@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import math
 import os
 import sys
@@ -18,6 +19,7 @@ __all__ = [
     "add_record_options",
     "add_rotation_options",
     "byte_size",
+    "discard_empty_recording",
     "duration",
     "open_recorder",
     "report_recording",
@@ -162,3 +164,14 @@ def report_recording(recorder: Recorder, elapsed_s: float) -> None:
         f"({sizes / 1000:.1f} kB){lost}",
         file=sys.stderr,
     )
+
+
+def discard_empty_recording(recorder: Recorder) -> None:
+    """Remove the files of a recording that holds its header alone (a link that did not open,
+    or one that carried nothing), and say so in one line: a file that looks like a recording
+    of a session that never took place is not left behind."""
+    for path in recorder.paths:
+        with contextlib.suppress(FileNotFoundError):
+            os.remove(path)
+    files = ", ".join(recorder.paths)
+    print(f"rovlink: nothing was recorded; {files} not kept", file=sys.stderr)
