@@ -400,6 +400,25 @@ def test_arming_fails_while_the_controller_does_not_answer():
             gcs.close()
 
 
+def test_arming_fails_as_soon_as_the_controller_goes_silent():
+    # Before any poll has failed: the pre-arm query finds the silence (before, the bridge armed
+    # a controller that had stopped answering until a poll timed out, 1.5-2 s later).
+    with running_bridge(timeout_s=2.0) as rig:
+        gcs = GroundStation(rig.gcs_address)
+        try:
+            gcs.start_heartbeats()
+            wait_for(lambda: rig.bridge.rov.health.status == "ok")
+            gcs.receive_new("HEARTBEAT")  # the ground station knows where the vehicle is
+            rig.link.silent.set()
+            mark = len(rig.frames())
+            assert gcs.arm() == FAILED
+            assert "#start!" not in rig.frames_since(mark)
+            assert "#qd!" in rig.frames_since(mark)  # the pre-arm query
+            gcs.receive("STATUSTEXT", condition=lambda m: "Arm refused" in m.text)
+        finally:
+            gcs.close()
+
+
 def _long_statustext(gcs: GroundStation, first: Callable[[Any], bool]) -> str:
     """A STATUSTEXT joined from its chunks (MAVLink 2 ``id``, ``chunk_seq``), as a GCS does."""
     head = gcs.receive("STATUSTEXT", condition=first)

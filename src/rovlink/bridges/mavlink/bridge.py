@@ -27,6 +27,7 @@ from rovlink.bridges.mavlink.telemetry_messages import TelemetryMessages
 from rovlink.bridges.mavlink.telemetry_schedule import MAX_RATE_HZ, TelemetrySchedule
 from rovlink.bridges.mavlink.vehicle_state import VehicleState
 from rovlink.bridges.sensor_poll import SensorPoller
+from rovlink.client.errors import QueryTimeoutError
 from rovlink.client.events import ClientEvent, LinkState, ResetSuspected
 from rovlink.client.sensors import Sensors
 from rovlink.logs import get_logger
@@ -43,6 +44,9 @@ _TICK_S = 0.02
 #: The sensors are read at least this often, whatever the ground station asks (leak, depth).
 _MIN_POLL_HZ = 2.0
 _GCS_TYPE = 6  # MAV_TYPE_GCS
+#: How long arming waits for the controller to answer its pre-arm query: a controller that
+#: answers does so in milliseconds; the ground station waits for its COMMAND_ACK about as long.
+_PRE_ARM_QUERY_S = 1.0
 _SEVERITY_CRITICAL = 2
 _SEVERITY_WARNING = 4
 _SEVERITY_INFO = 6
@@ -135,9 +139,11 @@ class MavlinkBridge:
     async def arm(self) -> Result:
         """``#start!``; in ALT_HOLD the depth of the moment is held.
 
-        Refused (FAILED) while the controller's queries fail, as HEARTBEAT shows it CRITICAL.
+        Refused (FAILED) while the controller's queries fail, as HEARTBEAT shows it CRITICAL,
+        and when it does not answer a query of its own (a pre-arm check, as ArduSub's): a
+        controller that has just gone silent fails a poll only a reply timeout or more later.
         """
-        if not self.messages.link_ok():
+        if not self.messages.link_ok() or not await self._controller_answers():
             self._say(_SEVERITY_WARNING, "Arm refused: the controller does not answer")
             return Result.FAILED
         await self.rov.send(Command("start"))
@@ -145,6 +151,14 @@ class MavlinkBridge:
         await self._hold_current_depth()
         self._say(_SEVERITY_INFO, "Armed")
         return Result.ACCEPTED
+
+    async def _controller_answers(self) -> bool:
+        """Whether the controller answers a depth query now, within :data:`_PRE_ARM_QUERY_S`."""
+        try:
+            await asyncio.wait_for(self.rov.send(Command("qd")), _PRE_ARM_QUERY_S)
+        except (QueryTimeoutError, asyncio.TimeoutError):
+            return False
+        return True
 
     async def disarm(self, reason: str) -> Result:
         """``#stop!``, always."""
