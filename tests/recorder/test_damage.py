@@ -81,11 +81,15 @@ def test_sigkill_leaves_everything_but_the_last_second(tmp_path: Path, suffix: s
     assert wire[-1].t_s >= last - 2.0
 
 
-def test_a_truncated_mcap_is_read_up_to_the_cut(tmp_path: Path) -> None:
+def test_a_truncated_mcap_is_read_up_to_the_cut(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # A chunk is closed on each flush: every 100 ms here, not each second.
+    monkeypatch.setattr("rovlink.recorder.recorder.FLUSH_INTERVAL_S", 0.1)
     path = str(tmp_path / "dive.mcap")
-    recorder = Recorder(path)  # several one-second chunks
+    recorder = Recorder(path)  # several chunks
     with recorder, rovlink.connect("sim://?seed=1", on_event=recorder.on_event) as rov:
-        deadline = time.monotonic() + 3.5
+        deadline = time.monotonic() + 0.5
         while time.monotonic() < deadline:
             rov.sensors()
     whole = Path(path).read_bytes()
