@@ -123,6 +123,8 @@ class FaultyController:
             data = data.replace(b"#mvdirect.0!", b"#mvdirect.1!")
         if fault == "debug-stuck-on":
             data = data.replace(b"#debug0!", b"")
+        if fault == "no-checksum-mode":  # a firmware that never had one: #crcon! is unknown
+            data = data.replace(b"#crcon!", b"")
         if fault == "clamps-out-of-range":
             data = re.sub(rb"#sdz\.(\d{4,})!", lambda m: b"#sdz.%d!" % min(int(m[1]), 1024), data)
             data = re.sub(rb"#sdk\.(\d{5,})!", lambda m: b"#sdk.%d!" % min(int(m[1]), 10000), data)
@@ -203,6 +205,7 @@ FAULTS: dict[str, str] = {
     "ignores-checksum-value": "checksum-bad-dropped",
     "mode-reaches-back": "checksum-on-per-frame",
     "plain-replies-in-checksum-mode": "checksum-replies",
+    "no-checksum-mode": "checksum-replies",
     "debug-frame-characters": "debug-text-clean",
     "no-debug-lines": "debug-text-clean",
     "no-setting-debug-lines": "debug-setting-lines",

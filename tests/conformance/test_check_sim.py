@@ -219,3 +219,15 @@ def test_preflight_refuses_a_silent_port_and_a_latched_leak() -> None:
             run_checks(link, "sim")
     finally:
         link.close()
+
+
+def test_cli_says_which_algorithm_the_controller_answers_with(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    status = main(["check", "sim://", "--only", "checksum-replies", "--algorithm", "xor"])
+    out = " ".join(capsys.readouterr().out.split())  # (the table's console wraps long lines)
+    assert status == 1
+    assert (
+        "hint: the checksum checks got no reply with xor, but the controller answers #qd "
+        "checksummed with crc8: run with --algorithm crc8"
+    ) in out

@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 
 from rovlink.client.links import PortLink
-from rovlink.conformance import Outcome, SuiteOptions, run_checks, select_checks
+from rovlink.conformance import Outcome, Report, SuiteOptions, run_checks, select_checks
 from tests.conformance.fakes import FAULTS, NO_FAULT, FaultyController
 
 _FAST = [name for name, check in FAULTS.items() if not check.startswith("motion-")]
@@ -86,3 +86,46 @@ def test_reply_time_allows_for_the_bytes_on_a_slow_line() -> None:
     finally:
         link.close()
     assert [result.outcome for result in report.results] == [Outcome.PASSED]
+
+
+def _checksum_run(link: PortLink, algorithm: str) -> Report:
+    try:
+        return run_checks(
+            link, "fake", SuiteOptions(algorithm=algorithm), select_checks(["checksum-replies"])
+        )
+    finally:
+        link.close()
+
+
+@pytest.mark.parametrize("given", ["xor", "sum8"])
+def test_a_run_with_another_algorithm_than_the_controllers_names_the_controllers(
+    given: str,
+) -> None:
+    # The simulated controller checksums with crc8: every checksummed frame of the run is
+    # dropped, which alone reads as a controller without a checksum mode.
+    report = _checksum_run(PortLink(FaultyController(NO_FAULT), NO_FAULT), given)
+    assert "no reply" in report.failures[0].message
+    assert report.hint == (
+        f"the checksum checks got no reply with {given}, but the controller answers #qd "
+        "checksummed with crc8: run with --algorithm crc8"
+    )
+
+
+def test_a_controller_without_a_checksum_mode_is_told_apart_from_a_wrong_algorithm() -> None:
+    report = _checksum_run(
+        PortLink(FaultyController("no-checksum-mode"), "no-checksum-mode"), "crc8"
+    )
+    assert report.hint == (
+        "the checksum checks got no reply with crc8, nor does the controller answer #qd "
+        "checksummed with sum8 or xor: has it a checksum mode (P3)?"
+    )
+
+
+def test_no_hint_when_the_checksum_checks_pass_or_fail_otherwise() -> None:
+    passing = _checksum_run(PortLink(FaultyController(NO_FAULT), NO_FAULT), "crc8")
+    assert passing.passed
+    assert passing.hint is None
+    plain = "plain-replies-in-checksum-mode"  # fails with a reply, not for want of one
+    failing = _checksum_run(PortLink(FaultyController(plain), plain), "crc8")
+    assert not failing.passed
+    assert failing.hint is None

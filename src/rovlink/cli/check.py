@@ -203,6 +203,8 @@ def _print_report(report: Report) -> None:
             f"\n[red]{result.outcome.value}[/] [bold]{result.name}[/]: {escape(result.message)}"
         )
         console.print(escape(evidence_text(result.evidence, 4)), highlight=False)
+    if report.hint is not None:
+        console.print(f"\n[yellow]hint[/]: {escape(report.hint)}")
     passed = report.count(Outcome.PASSED)
     console.print(
         f"\n{report.target}: {passed} of {len(report.results)} checks passed "

@@ -44,6 +44,9 @@ class Report:
     target: str
     results: list[CheckResult] = field(default_factory=list)
     duration_s: float = 0.0
+    #: What the failures suggest beyond themselves (the controller's checksum algorithm), if
+    #: anything.
+    hint: str | None = None
 
     @property
     def failures(self) -> list[CheckResult]:

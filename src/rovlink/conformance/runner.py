@@ -8,6 +8,7 @@ from collections.abc import Callable, Sequence
 from rovlink.client.errors import ConnectionLostError
 from rovlink.client.links import Link
 from rovlink.conformance import checksums, debug, framing, motion, replies, sets
+from rovlink.conformance.algorithm_probe import algorithm_hint
 from rovlink.conformance.registry import (
     CHECKS,
     Check,
@@ -88,6 +89,8 @@ def run_checks(
                 on_result(result)
             if result.outcome is Outcome.ABORTED:
                 break
+        else:
+            report.hint = algorithm_hint(link, options, report)
     finally:
         try:
             link.write(b"#crcoff!#stop!#debug0!")
