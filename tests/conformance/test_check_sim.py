@@ -231,3 +231,15 @@ def test_cli_says_which_algorithm_the_controller_answers_with(
         "hint: the checksum checks got no reply with xor, but the controller answers #qd "
         "checksummed with crc8: run with --algorithm crc8"
     ) in out
+
+
+def test_junit_carries_the_hint() -> None:
+    report = Report("fake", hint="run with --algorithm crc8")
+    root = ElementTree.fromstring(junit_xml(report))
+    hints = [p.get("value") for p in root.iter("property") if p.get("name") == "hint"]
+    assert hints == ["run with --algorithm crc8"]
+    assert not [
+        p
+        for p in ElementTree.fromstring(junit_xml(Report("fake"))).iter("property")
+        if p.get("name") == "hint"
+    ]

@@ -31,9 +31,10 @@ def junit_xml(report: Report, suite_name: str = "rovlink check") -> bytes:
         skipped=str(report.count(Outcome.SKIPPED)),
         time=f"{report.duration_s:.3f}",
     )
-    ElementTree.SubElement(
-        ElementTree.SubElement(suite, "properties"), "property", name="target", value=report.target
-    )
+    properties = ElementTree.SubElement(suite, "properties")
+    ElementTree.SubElement(properties, "property", name="target", value=report.target)
+    if report.hint is not None:  # (what the failures suggest: the controller's algorithm)
+        ElementTree.SubElement(properties, "property", name="hint", value=report.hint)
     for result in report.results:
         case = ElementTree.SubElement(
             suite,
