@@ -203,3 +203,24 @@ def test_a_config_that_is_not_utf8_text_is_a_short_error(tmp_path: Path, content
     assert result.returncode == 2
     assert result.stderr.startswith(f"rovlink sim: {config}: not UTF-8 text (byte 0x")
     assert result.stderr.count("\n") == 1, result.stderr
+
+
+def test_a_pty_and_a_tcp_client_at_once_each_get_their_replies(run_sim: RunSim) -> None:
+    # Half a frame on the PTY, a whole one on TCP, then the PTY's rest: before, the two lines
+    # shared one decoder, and the PTY's query was lost to the TCP client's frame.
+    _, match = run_sim("--pty", "--tcp", "127.0.0.1:0", "--seed", "5")
+    host, port = match["tcp"].rsplit(":", 1)
+    with (
+        serial.Serial(match["pty"], timeout=0.1) as pty,
+        socket.create_connection((host, int(port)), timeout=5) as tcp,
+    ):
+        assert _query(pty, b"#qd!") == b"$qd.0!"  # (both lines open and answered)
+        pty.write(b"#q")
+        pty.flush()
+        time.sleep(0.05)  # (only so that the half frame comes first, as it did when it failed)
+        tcp.sendall(b"#qr!")
+        reply = b""
+        while not reply.endswith(b"!"):
+            reply += tcp.recv(64)
+        assert reply == b"$qr.20!"
+        assert _query(pty, b"d!") == b"$qd.0!"

@@ -8,7 +8,7 @@ import shutil
 import subprocess
 import threading
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Hashable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 
@@ -57,14 +57,14 @@ class ControllerLine:
         robot = self.server.robot
         deliver = robot.receive
 
-        def receive(data: bytes) -> None:
+        def receive(data: bytes, line: Hashable = None) -> None:
             now = time.monotonic()
             frames = [
                 Received(now, event.message)
                 for event in self._decoder.feed(data)
                 if isinstance(event, Frame) and isinstance(event.message, Command)
             ]
-            deliver(data)
+            deliver(data, line)
             if frames:
                 with self._changed:
                     self.received.extend(frames)

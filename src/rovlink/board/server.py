@@ -48,7 +48,11 @@ class BoardServer:
         self._overrun_warning_s = overrun_warning_s
         self._overruns_reported = 0
         self._next_overrun_report_s = 0.0
-        self._lines = Lines(self._on_bytes, busy_message=BUSY_MESSAGE)
+        self._lines = Lines(
+            self._on_bytes,
+            busy_message=BUSY_MESSAGE,
+            on_close=self.controller.forget_line,
+        )
         self._replying_to: Line | None = None
         self._stale: set[str] = set()
         #: Whether the thrusters are known to be at neutral (the board opens them so).
@@ -167,6 +171,6 @@ class BoardServer:
     def _on_bytes(self, line: Line, data: bytes) -> None:
         self._replying_to = line
         try:
-            self.controller.receive(data)
+            self.controller.receive(data, line)
         finally:
             self._replying_to = None

@@ -9,7 +9,7 @@ reached only through :class:`~rovlink.controller.hardware.Hardware`.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Hashable
 from dataclasses import dataclass
 
 from rovlink.controller.config import ControllerConfig, LeakAction
@@ -30,6 +30,7 @@ from rovlink.protocol import (
     Text,
     VerticalMode,
     encode,
+    get_algorithm,
 )
 
 __all__ = ["Controller", "ControllerState"]
@@ -81,7 +82,13 @@ class Controller:
         self._hardware = hardware
         self._output = bytearray()
         self._write = write if write is not None else self._output.extend
-        self._decoder = Decoder(algorithm=config.checksum_algorithm)
+        self._algorithm = get_algorithm(config.checksum_algorithm)
+        # One decoder for each line the controller is served on (a PTY and a TCP client at
+        # once): half a frame on one line must not be spoilt by bytes from another. The
+        # checksum mode is the controller's, and a decoder switches its own as it reads a mode
+        # frame (P3), so the others are switched when that frame is executed.
+        self._decoders: dict[Hashable, Decoder] = {}
+        self._reading: Decoder | None = None
         self._mixer = ThrusterMixer(config.thrusters, config.max_pwm)
         self._pid = DepthPid(config.depth_pid)
         self._idle_duties = [0] * len(config.thrusters)
@@ -120,8 +127,9 @@ class Controller:
     def reset(self) -> None:
         """The state after power-on (P3, P5, P7, P9): locked, depth mode, defaults from config."""
         config = self.config
-        self._decoder.reset()
-        self._decoder.checksum_enabled = False
+        for decoder in self._decoders.values():
+            decoder.reset()
+            decoder.checksum_enabled = False
         # The mode replies are encoded in. The decoder switches its own mode as it reads a
         # mode frame, possibly ahead of frames of the same chunk not yet executed; this one
         # switches when the mode frame is executed, so a reply never takes a mode set after
@@ -152,15 +160,30 @@ class Controller:
         self._hardware.thrusters.set_duties(self._duties)
         self._hardware.claw.drive(0)
 
-    def receive(self, data: bytes) -> None:
-        """Take received bytes: execute every complete frame in them, answer queries at once."""
-        for event in self._decoder.feed(data):
-            if isinstance(event, Frame):
-                self._frame(event)
-            elif isinstance(event, BadFrame):
-                self._debug(f"dropped {describe_frame(event.raw)}: {event.reason}: {event.detail}")
-            elif isinstance(event, Text):
-                self._debug(f"ignored text between frames: {event.text.strip()[:60]!r}")
+    def receive(self, data: bytes, line: Hashable = None) -> None:
+        """Take bytes received on ``line`` (any key naming it; one line: leave it out):
+        execute every complete frame in them, answer queries at once."""
+        decoder = self._decoders.get(line)
+        if decoder is None:
+            decoder = self._decoders[line] = Decoder(algorithm=self._algorithm)
+            decoder.checksum_enabled = self._checksum_enabled
+        self._reading = decoder
+        try:
+            for event in decoder.feed(data):
+                if isinstance(event, Frame):
+                    self._frame(event)
+                elif isinstance(event, BadFrame):
+                    self._debug(
+                        f"dropped {describe_frame(event.raw)}: {event.reason}: {event.detail}"
+                    )
+                elif isinstance(event, Text):
+                    self._debug(f"ignored text between frames: {event.text.strip()[:60]!r}")
+        finally:
+            self._reading = None
+
+    def forget_line(self, line: Hashable) -> None:
+        """``line`` is gone: what it left of a frame is dropped."""
+        self._decoders.pop(line, None)
 
     def tick(self) -> None:
         """One control period: sensors, leak latch, watchdog, claw timer, PID, thruster outputs."""
@@ -271,7 +294,7 @@ class Controller:
         self._debug(f"dropped {describe_frame(frame.raw)}: {why}")
 
     def _reply(self, names: tuple[str, ...]) -> None:
-        checksum = self._decoder.algorithm if self._checksum_enabled else None
+        checksum = self._algorithm if self._checksum_enabled else None
         values = self._sensor_values(names)
         self._write(b"".join(encode(Response(name, (values[name],)), checksum) for name in names))
 
@@ -299,10 +322,14 @@ class Controller:
         self._setting_handlers[setting[0]](setting[1])
 
     def _on_checksum_mode(self, enabled: bool) -> None:
-        # The decoder has already switched on this frame (P3); replies switch from here on.
+        # The line's decoder has already switched on this frame (P3), and may have read past
+        # it; the other lines' switch now, and replies from here on.
         self._checksum_enabled = enabled
+        for decoder in self._decoders.values():
+            if decoder is not self._reading:
+                decoder.checksum_enabled = enabled
         if enabled:
-            self._debug(f"checksum mode on ({self._decoder.algorithm.name})")
+            self._debug(f"checksum mode on ({self._algorithm.name})")
         else:
             self._debug("checksum mode off")
 

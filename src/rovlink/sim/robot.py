@@ -11,7 +11,7 @@ import heapq
 import itertools
 import math
 import random
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Hashable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -128,9 +128,10 @@ class SimulatedRobot:
         """Simulated seconds since the start."""
         return self.clock.now_s()
 
-    def receive(self, data: bytes) -> None:
-        """Bytes from the host, handled at the current simulated time."""
-        self.controller.receive(data)
+    def receive(self, data: bytes, line: Hashable = None) -> None:
+        """Bytes from the host on ``line`` (see :meth:`Controller.receive`), handled at the
+        current simulated time."""
+        self.controller.receive(data, line)
 
     def step(self) -> None:
         """Advance one control period."""

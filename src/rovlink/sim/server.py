@@ -114,6 +114,7 @@ class SimServer:
 
     def _on_close(self, line: Line) -> None:
         del self._pacers[line]
+        self.robot.controller.forget_line(line)
 
     def _on_bytes(self, line: Line, data: bytes) -> None:
         self._pacers[line].to_controller.push(data, time.monotonic())
@@ -136,7 +137,7 @@ class SimServer:
             if data:
                 self._replying_to = line
                 try:
-                    self.robot.receive(data)
+                    self.robot.receive(data, line)
                 finally:
                     self._replying_to = None
         for line, pacers in list(self._pacers.items()):
