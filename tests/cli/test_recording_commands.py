@@ -17,6 +17,7 @@ from pathlib import Path
 import pytest
 
 import rovlink
+from rovlink.cli.recording import recorded_nothing
 from rovlink.recorder import FrameEntry, Recorder, read_entries
 from tests.cli.conftest import RunCli
 from tests.client.sim_process import running_sim
@@ -361,3 +362,24 @@ def test_a_link_that_does_not_open_leaves_no_recording(
     assert f"nothing was recorded; {recording} not kept" in result.err
     assert "recorded 1" not in result.err  # no summary of a recording of nothing
     assert not recording.exists()
+
+
+def test_a_rotated_recording_of_headers_alone_counts_as_nothing_recorded(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # Each file of a rotation starts with its own header: a link that failed slowly under
+    # --split left several header-only files, which were reported as a recording.
+    monkeypatch.setattr("rovlink.recorder.recorder.FLUSH_INTERVAL_S", 0.05)  # (rotation's pace)
+    idle = Recorder(str(tmp_path / "idle.jsonl"), split_s=0.05)
+    deadline = time.monotonic() + 10.0
+    while len(idle.paths) < 3 and time.monotonic() < deadline:
+        time.sleep(0.01)  # (polling the recorder's own rotation, bounded)
+    idle.close()
+    assert len(idle.paths) >= 3
+    assert recorded_nothing(idle)
+
+    busy = Recorder(str(tmp_path / "busy.jsonl"))
+    with rovlink.connect("sim://", on_event=busy.on_event) as rov:
+        rov.depth_cm()
+    busy.close()
+    assert not recorded_nothing(busy)

@@ -308,6 +308,7 @@ def session_recorder(args: argparse.Namespace) -> Recorder | None:
         from rovlink.cli.recording import (  # noqa: PLC0415
             discard_empty_recording,
             open_recorder,
+            recorded_nothing,
             report_recording,
         )
 
@@ -319,8 +320,8 @@ def session_recorder(args: argparse.Namespace) -> Recorder | None:
 
         def finish() -> None:
             recorder.close()
-            if recorder.entries_written == 1 and recorder.error is None:  # the header alone
-                discard_empty_recording(recorder)  # (the link did not open)
+            if recorded_nothing(recorder):  # (the link did not open, or carried nothing)
+                discard_empty_recording(recorder)
             else:
                 report_recording(recorder, time.monotonic() - started_s)
 

@@ -22,6 +22,7 @@ __all__ = [
     "discard_empty_recording",
     "duration",
     "open_recorder",
+    "recorded_nothing",
     "report_recording",
 ]
 
@@ -164,6 +165,12 @@ def report_recording(recorder: Recorder, elapsed_s: float) -> None:
         f"({sizes / 1000:.1f} kB){lost}",
         file=sys.stderr,
     )
+
+
+def recorded_nothing(recorder: Recorder) -> bool:
+    """Whether the closed ``recorder``'s files hold their headers alone (each file of a rotation
+    has its own), written without a failure."""
+    return recorder.entries_written == len(recorder.paths) and recorder.error is None
 
 
 def discard_empty_recording(recorder: Recorder) -> None:

@@ -403,7 +403,7 @@ def test_arming_fails_while_the_controller_does_not_answer():
 def test_arming_fails_as_soon_as_the_controller_goes_silent():
     # Before any poll has failed: the pre-arm query finds the silence (before, the bridge armed
     # a controller that had stopped answering until a poll timed out, 1.5-2 s later).
-    with running_bridge(timeout_s=2.0) as rig:
+    with running_bridge(timeout_s=0.5) as rig:  # the command line's reply timeout
         gcs = GroundStation(rig.gcs_address)
         try:
             gcs.start_heartbeats()

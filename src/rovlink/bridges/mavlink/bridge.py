@@ -44,9 +44,6 @@ _TICK_S = 0.02
 #: The sensors are read at least this often, whatever the ground station asks (leak, depth).
 _MIN_POLL_HZ = 2.0
 _GCS_TYPE = 6  # MAV_TYPE_GCS
-#: How long arming waits for the controller to answer its pre-arm query: a controller that
-#: answers does so in milliseconds; the ground station waits for its COMMAND_ACK about as long.
-_PRE_ARM_QUERY_S = 1.0
 _SEVERITY_CRITICAL = 2
 _SEVERITY_WARNING = 4
 _SEVERITY_INFO = 6
@@ -153,10 +150,11 @@ class MavlinkBridge:
         return Result.ACCEPTED
 
     async def _controller_answers(self) -> bool:
-        """Whether the controller answers a depth query now, within :data:`_PRE_ARM_QUERY_S`."""
+        """Whether the controller answers a depth query now, within the link's reply timeout
+        and retries (as any query: a slow link's ``--timeout`` holds for it too)."""
         try:
-            await asyncio.wait_for(self.rov.send(Command("qd")), _PRE_ARM_QUERY_S)
-        except (QueryTimeoutError, asyncio.TimeoutError):
+            await self.rov.send(Command("qd"))
+        except QueryTimeoutError:
             return False
         return True
 
