@@ -24,7 +24,14 @@ SCRIPT = textwrap.dedent(
     import signal
     import sys
 
-    from rovlink.cli import async_run
+    from rovlink.cli import _take_termination_as_ctrl_c, async_run
+
+    runner, scenario = sys.argv[1:]
+    SIGNAL = signal.SIGINT
+    if scenario == "sigterm-in-a-background-job":
+        signal.signal(signal.SIGINT, signal.SIG_IGN)  # as a shell starts a job with &
+        _take_termination_as_ctrl_c()  # as the command line does
+        SIGNAL = signal.SIGTERM
 
     class InterruptedWhileWaking(asyncio.SelectorEventLoop):
         armed = False
@@ -33,7 +40,7 @@ SCRIPT = textwrap.dedent(
             # A future schedules its done-callbacks (a task's wake-up) as call_soon(cb, future).
             if self.armed and args and isinstance(args[0], asyncio.Future):
                 self.armed = False
-                signal.raise_signal(signal.SIGINT)
+                signal.raise_signal(SIGNAL)
             return super().call_soon(callback, *args, context=context)
 
     class Policy(asyncio.DefaultEventLoopPolicy):
@@ -51,30 +58,35 @@ SCRIPT = textwrap.dedent(
 
     async def main():
         loop = asyncio.get_running_loop()
+        if scenario == "ctrl-c-in-the-last-step":
+            ended.append("main")
+            signal.raise_signal(SIGNAL)  # and the task ends without another await
+            return
         future = loop.create_future()
         task = asyncio.ensure_future(sleeper(future))
         await asyncio.sleep(0)  # the sleeper awaits the future
         try:
             loop.armed = True
-            future.set_result(None)  # Ctrl-C comes as it wakes the sleeper
+            future.set_result(None)  # the signal comes as it wakes the sleeper
             await asyncio.sleep(60)
         finally:
             await asyncio.sleep(0)  # a command's way out awaits (#stop!, a close)
             ended.append("main")
 
     try:
-        getattr(async_run, sys.argv[1])(main())
+        getattr(async_run, runner)(main())
     except KeyboardInterrupt:
         print("interrupted", *sorted(ended))
+    else:
+        print("not interrupted", *sorted(ended))
     """
 )
 
 
-@pytest.mark.parametrize("runner", ["run_async", "run_cancelled_by_ctrl_c"])
-def test_ctrl_c_while_a_future_wakes_a_task_cancels_the_command_cleanly(runner: str) -> None:
+def _run(runner: str, scenario: str) -> list[str]:
     source = str(Path(__file__).resolve().parents[2] / "src")
     completed = subprocess.run(
-        [sys.executable, "-c", SCRIPT, runner],
+        [sys.executable, "-c", SCRIPT, runner, scenario],
         capture_output=True,
         text=True,
         timeout=PROCESS_TIMEOUT_S,
@@ -82,5 +94,22 @@ def test_ctrl_c_while_a_future_wakes_a_task_cancels_the_command_cleanly(runner: 
         check=False,
     )
     assert completed.returncode == 0, completed.stderr
+    return completed.stdout.splitlines()
+
+
+@pytest.mark.parametrize("runner", ["run_async", "run_cancelled_by_ctrl_c"])
+def test_ctrl_c_while_a_future_wakes_a_task_cancels_the_command_cleanly(runner: str) -> None:
     # Both ways out ran to their end: the main task's, after an await, and the woken task's.
-    assert completed.stdout.splitlines() == ["interrupted main sleeper"], completed.stderr
+    assert _run(runner, "ctrl-c-while-waking") == ["interrupted main sleeper"]
+
+
+def test_sigterm_to_a_background_job_cancels_the_command_cleanly() -> None:
+    # A background job ignores SIGINT: SIGTERM (or SIGHUP) must cancel the command itself
+    # rather than raise KeyboardInterrupt inside the event loop (before, it hung there).
+    assert _run("run_async", "sigterm-in-a-background-job") == ["interrupted main sleeper"]
+
+
+@pytest.mark.parametrize("runner", ["run_async", "run_cancelled_by_ctrl_c"])
+def test_ctrl_c_as_the_command_takes_its_last_step_still_interrupts(runner: str) -> None:
+    # Too late to cancel the task, not too late to say the command was interrupted (exit 130).
+    assert _run(runner, "ctrl-c-in-the-last-step") == ["interrupted main"]

@@ -195,7 +195,8 @@ def _take_termination_as_ctrl_c() -> Callable[[], None]:
     closed) end the command as Ctrl-C does: after ``#stop!`` where it may have moved the robot,
     with its recording finished; returns what puts the previous handlers back. Commands that
     serve (``sim``, ``controller``, ``record``, ``web``, ``fault``) put their own handlers over
-    these. A signal ignored on entry (``nohup``) stays ignored."""
+    these, and asyncio commands take them on their event loop (``cli/async_run.py``). A signal
+    ignored on entry (``nohup``) stays ignored."""
     import signal  # noqa: PLC0415 - not on the path of --help and --version
 
     def as_ctrl_c(signum: int, frame: object) -> None:

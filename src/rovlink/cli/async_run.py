@@ -8,6 +8,10 @@ Python 3.11's ``asyncio.run`` takes Ctrl-C as a cancellation of the main task: t
 too: landing while a future wakes the task that awaits it, it leaves that task asleep for ever,
 and the run's shutdown, which waits for every task to end, never returns. On 3.10 this module
 does what 3.11 does.
+
+SIGTERM and SIGHUP cancel the main task from the event loop on every Python, whatever SIGINT's
+handler: in a background job SIGINT is ignored, and the command line's own handler for them
+would then raise KeyboardInterrupt wherever the interpreter is, as 3.10's Ctrl-C did.
 """
 
 from __future__ import annotations
@@ -33,8 +37,47 @@ def run_async(main: Coroutine[Any, Any, T]) -> T:
         run_async(_serve(args, broker))
     """
     if sys.version_info >= (3, 11):
-        return asyncio.run(main)
-    return run_cancelled_by_ctrl_c(main)
+        return asyncio.run(ended_by_termination(main))
+    return run_cancelled_by_ctrl_c(ended_by_termination(main))
+
+
+async def ended_by_termination(main: Coroutine[Any, Any, T]) -> T:
+    """Await ``main``, cancelled by the first SIGTERM or SIGHUP (each a callback of the event
+    loop, which runs between its callbacks, never inside one); ``KeyboardInterrupt`` when it
+    has ended so. A signal ignored on entry (``nohup``) stays ignored; the handlers before are
+    put back after. Where the loop cannot watch signals (Windows), ``main`` alone."""
+    loop = asyncio.get_running_loop()
+    task = asyncio.current_task()
+    assert task is not None  # (a coroutine run by asyncio.run is a task's)
+    terminated = False
+
+    def terminate() -> None:
+        nonlocal terminated
+        if not terminated:  # (a second one must not cut the way out short)
+            terminated = True
+            task.cancel()
+
+    previous: dict[int, Any] = {}
+    for name in ("SIGTERM", "SIGHUP"):
+        number = getattr(signal, name, None)  # (no SIGHUP on Windows)
+        if number is None or signal.getsignal(number) is signal.SIG_IGN:
+            continue
+        handler = signal.getsignal(number)
+        try:
+            loop.add_signal_handler(number, terminate)
+        except (NotImplementedError, RuntimeError, ValueError):  # Windows; not the main thread
+            continue
+        previous[number] = handler
+    try:
+        return await main
+    except asyncio.CancelledError:
+        if terminated:
+            raise KeyboardInterrupt from None
+        raise
+    finally:
+        for number, handler in previous.items():
+            loop.remove_signal_handler(number)  # (which leaves SIG_DFL)
+            signal.signal(number, handler)
 
 
 def run_cancelled_by_ctrl_c(main: Coroutine[Any, Any, T]) -> T:
@@ -49,7 +92,7 @@ def run_cancelled_by_ctrl_c(main: Coroutine[Any, Any, T]) -> T:
         def on_ctrl_c(signum: int, frame: object) -> None:
             nonlocal interrupts
             interrupts += 1
-            if interrupts > 1:
+            if interrupts > 1 or task.done():  # (done: nothing left to cancel, as 3.11)
                 raise KeyboardInterrupt
             # The loop cancels the task on its next turn. The handler runs between any two
             # bytecodes of this thread, the loop's own included, so it only queues (a deque's
@@ -63,7 +106,10 @@ def run_cancelled_by_ctrl_c(main: Coroutine[Any, Any, T]) -> T:
         if installed:
             signal.signal(signal.SIGINT, on_ctrl_c)
         try:
-            return loop.run_until_complete(task)
+            result = loop.run_until_complete(task)
+            if interrupts:  # it came as the task took its last step: too late to cancel it
+                raise KeyboardInterrupt
+            return result
         except asyncio.CancelledError:
             if interrupts:
                 raise KeyboardInterrupt from None
