@@ -69,7 +69,11 @@ def silent() -> Iterator[SilentController]:
     controller.close()
 
 
-def _rovlink(*arguments: str) -> subprocess.Popen[bytes]:
+def _ignore_ctrl_c() -> None:
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # as a shell starts a background job (&)
+
+
+def _rovlink(*arguments: str, background: bool = False) -> subprocess.Popen[bytes]:
     source = str(Path(__file__).resolve().parents[2] / "src")
     environment = {**os.environ, "PYTHONPATH": source}
     # A silent controller: --boot-timeout 0 lets the command reach its own wait (not the
@@ -80,6 +84,7 @@ def _rovlink(*arguments: str) -> subprocess.Popen[bytes]:
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         env=environment,
+        preexec_fn=_ignore_ctrl_c if background else None,  # noqa: PLW1509 - no threads yet
     )
 
 
@@ -248,4 +253,18 @@ def test_a_signal_ends_a_bridge_with_its_final_stop(
     _, stderr = _interrupt(process, how)
     assert process.returncode == 130, stderr
     assert stderr.decode().splitlines()[-1] == f"rovlink {command}: interrupted"
+    assert silent.wait_until(lambda received: received.count(b"#stop!") > stops_before)
+
+
+@pytest.mark.parametrize("how", [signal.SIGTERM, signal.SIGHUP], ids=lambda how: how.name)
+def test_a_signal_ends_a_background_bridge_with_its_final_stop(
+    silent: SilentController, how: signal.Signals
+) -> None:
+    # A background job ignores SIGINT, so SIGTERM cannot be taken as Ctrl-C there.
+    process = _rovlink("mavlink", silent.url, "--out", "udpout:127.0.0.1:9", background=True)
+    assert silent.wait_for(b"#qsa!")
+    stops_before = silent.received.count(b"#stop!")
+    _, stderr = _interrupt(process, how)
+    assert process.returncode == 130, stderr
+    assert stderr.decode().splitlines()[-1] == "rovlink mavlink: interrupted"
     assert silent.wait_until(lambda received: received.count(b"#stop!") > stops_before)
