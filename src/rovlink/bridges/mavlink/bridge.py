@@ -140,23 +140,24 @@ class MavlinkBridge:
         and when it does not answer a query of its own (a pre-arm check, as ArduSub's): a
         controller that has just gone silent fails a poll only a reply timeout or more later.
         """
-        if not self.messages.link_ok() or not await self._controller_answers():
+        depth_cm = await self._depth_now_cm() if self.messages.link_ok() else None
+        if depth_cm is None:
             self._say(_SEVERITY_WARNING, "Arm refused: the controller does not answer")
             return Result.FAILED
         await self.rov.send(Command("start"))
         self.watchdog.heartbeat(self._clock())  # arming counts as contact
-        await self._hold_current_depth()
+        await self._hold_current_depth(depth_cm)
         self._say(_SEVERITY_INFO, "Armed")
         return Result.ACCEPTED
 
-    async def _controller_answers(self) -> bool:
-        """Whether the controller answers a depth query now, within the link's reply timeout
-        and retries (as any query: a slow link's ``--timeout`` holds for it too)."""
+    async def _depth_now_cm(self) -> int | None:
+        """The depth the controller answers now (``None``: no reply within the link's reply
+        timeout and retries, as any query: a slow link's ``--timeout`` holds for it too)."""
         try:
-            await self.rov.send(Command("qd"))
+            (reply,) = await self.rov.send(Command("qd"))
         except QueryTimeoutError:
-            return False
-        return True
+            return None
+        return reply.values[0]
 
     async def disarm(self, reason: str) -> Result:
         """``#stop!``, always."""
@@ -361,8 +362,10 @@ class MavlinkBridge:
         with contextlib.suppress(ConnectionError):
             await self.disarm(reason)
 
-    async def _hold_current_depth(self) -> None:
-        depth_cm = self.state.depth_cm
+    async def _hold_current_depth(self, depth_cm: int | None = None) -> None:
+        """In ALT_HOLD, armed: hold ``depth_cm`` (default: the last polled depth)."""
+        if depth_cm is None:
+            depth_cm = self.state.depth_cm
         if self.state.mode is FlightMode.ALT_HOLD and self.armed and depth_cm is not None:
             await self.rov.send(self.pilot.hold(depth_cm))
 
