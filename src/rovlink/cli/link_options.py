@@ -365,20 +365,16 @@ def connection_failure(url: str, error: BaseException) -> CommandError:
     return CommandError(f"cannot open {url}: {reason(error)}")
 
 
-def _log_warnings() -> None:
-    # The driver logs what the user should know (dropped frames, resets) at WARNING and up;
-    # --verbose has already configured DEBUG, which this leaves alone.
+def log_warnings() -> None:
+    """Show the library's warnings on stderr (a long-running command: dropped frames, suspected
+    resets, a broker that refuses the login)."""
+    # The driver logs what the user should know at WARNING and up; --verbose has already
+    # configured DEBUG, which this leaves alone.
     import logging  # noqa: PLC0415 - not on the start-up path of decode
 
     logging.basicConfig(
         level=logging.WARNING, format="%(asctime)s %(name)s %(levelname)s: %(message)s"
     )
-
-
-def log_warnings() -> None:
-    """Show the library's warnings on stderr (a long-running command: dropped frames, suspected
-    resets, a broker that refuses the login)."""
-    _log_warnings()
 
 
 class _ShownLink:
@@ -435,7 +431,7 @@ def connect(
 
     check_url(args)
     options = client_options(args, keepalive_s=keepalive_s, on_stray=on_stray)
-    _log_warnings()
+    log_warnings()
     try:
         if show_bytes is not None:
             return _connect_showing_bytes(args, options, show_bytes)
@@ -478,7 +474,7 @@ def connect_async(args: argparse.Namespace) -> Callable[[StrayCallback], Awaitab
 
     check_url(args)
     client_options(args)
-    _log_warnings()
+    log_warnings()
 
     def connect_with(on_stray: StrayCallback) -> Awaitable[AsyncClient]:
         # No motion timeout (P23): a person sets a motion here and it holds until they change

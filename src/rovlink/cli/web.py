@@ -118,7 +118,7 @@ def run(args: argparse.Namespace) -> int:
         link_options.client_options(args, keepalive_s=1.0, motion_timeout_s=_MOTION_BACKSTOP_S),
         reconnect=True,
     )
-    link_options._log_warnings()  # cuts, leaks and lost links also reach the terminal
+    link_options.log_warnings()  # cuts, leaks and lost links also reach the terminal
 
     async def connect() -> rovlink.aio.AsyncClient:
         try:
