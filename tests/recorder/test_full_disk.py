@@ -123,3 +123,29 @@ def test_after_a_full_disk_a_recorder_counts_only_what_was_made_durable(
     assert recorder.held() == durable
     sinks[-1].real.close()  # what the disk took before it filled up
     assert len(list(read_entries(str(path)))) >= durable
+
+
+@pytest.mark.parametrize("told", [True, False], ids=["on_failure", "no callback"])
+def test_a_full_disk_is_reported_once(
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    caplog: pytest.LogCaptureFixture,
+    told: bool,
+) -> None:
+    # The command line prints its own line from on_failure: the log's ERROR line came too.
+    full = threading.Event()
+    monkeypatch.setattr(
+        "rovlink.recorder.recorder.open_sink", lambda path: _FillingSink(open_sink(path), full)
+    )
+    reports: list[str] = []
+    recorder = Recorder(
+        str(tmp_path / "dive.jsonl"), url="sim://", on_failure=reports.append if told else None
+    )
+    with rovlink.connect("sim://", on_event=recorder.on_event) as rov:
+        full.set()
+        rov.depth_cm()
+        _until(lambda: recorder.error is not None)
+    recorder.close()
+    logged = [r for r in caplog.records if r.name == "rovlink.recorder.recorder"]
+    assert reports == ([recorder.error] if told else [])
+    assert [r.levelname for r in logged if r.levelname == "ERROR"] == ([] if told else ["ERROR"])

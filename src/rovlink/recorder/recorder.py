@@ -71,7 +71,8 @@ class Recorder:
     feed :meth:`on_bytes` from a tap. ``max_size_bytes`` and ``split_s`` start a new file
     (``dive.001.mcap``, ...) when the current one reaches that size or age. If the file cannot
     be written (disk full, permission), the recording stops, ``error`` says why and
-    ``on_failure`` is called with it; the link is never affected.
+    ``on_failure`` is called with it (without one, it is logged at ERROR); the link is never
+    affected.
 
     The file is created when the recorder is made, so a path that cannot be written is an
     ``OSError`` at once.
@@ -259,7 +260,8 @@ class Recorder:
         self._queue.clear()
         where = self.paths[-1]
         self.error = f"recording to {where} stopped: {reason}"
-        logger.error("%s (the link goes on)", self.error)
+        if self._on_failure is None:  # (else reported once, by whoever asked to be told)
+            logger.error("%s (the link goes on)", self.error)
         sink = self._sink
         if sink is not None:
             with contextlib.suppress(Exception):  # the file is as good as the disk let it be

@@ -18,10 +18,13 @@ from pathlib import Path
 from typing import Any
 
 from rovlink.client.events import ClientEvent
+from rovlink.logs import get_logger
 from rovlink.recorder import Recorder
 from rovlink.recorder import RecordingError as RecorderError
 
 __all__ = ["FinishedRecording", "RecordingError", "StationRecordings"]
+
+logger = get_logger(__name__)
 
 
 class RecordingError(Exception):
@@ -101,6 +104,7 @@ class StationRecordings:
         loop = asyncio.get_running_loop()
 
         def failed(reason: str) -> None:  # on the writer's thread
+            logger.error("%s (the link goes on)", reason)  # (the terminal's line)
             self._failed_at_s = self._clock()
             loop.call_soon_threadsafe(self._end_failed, str(path), reason)
 
