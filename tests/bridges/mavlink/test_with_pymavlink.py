@@ -4,7 +4,8 @@ what reaches the serial line is read from a recording link."""
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from typing import Any
 
 import pytest
@@ -375,34 +376,9 @@ def test_messages_for_another_component_of_this_system_are_ignored(
     assert _armed(gcs)
 
 
-def test_arming_fails_while_the_controller_does_not_answer():
-    with running_bridge(timeout_s=0.5) as rig:  # the command line's reply timeout
-        gcs = GroundStation(rig.gcs_address)
-        try:
-            gcs.start_heartbeats()
-            wait_for(lambda: rig.bridge.rov.health.status == "ok")
-            rig.link.silent.set()
-            gcs.receive_new(  # a poll failed: before, arming still went through
-                "HEARTBEAT", condition=lambda m: m.type == SUBMARINE and m.system_status == CRITICAL
-            )
-            mark = len(rig.frames())
-            assert gcs.arm() == FAILED
-            assert "#start!" not in rig.frames_since(mark)
-            gcs.receive("STATUSTEXT", condition=lambda m: "Arm refused" in m.text)
-
-            rig.link.silent.clear()
-            gcs.receive_new(
-                "HEARTBEAT", condition=lambda m: m.type == SUBMARINE and m.system_status == STANDBY
-            )
-            assert gcs.arm() == ACCEPTED
-            rig.wait_frame("#start!", since=mark)
-        finally:
-            gcs.close()
-
-
-def test_arming_fails_as_soon_as_the_controller_goes_silent():
-    # Before any poll has failed: the pre-arm query finds the silence (before, the bridge armed
-    # a controller that had stopped answering until a poll timed out, 1.5-2 s later).
+@contextmanager
+def _silenced_controller() -> Iterator[tuple[BridgeRig, GroundStation]]:
+    """A bridge whose controller answered, then fell silent just now; a ground station on it."""
     with running_bridge(timeout_s=0.5) as rig:  # the command line's reply timeout
         gcs = GroundStation(rig.gcs_address)
         try:
@@ -410,13 +386,38 @@ def test_arming_fails_as_soon_as_the_controller_goes_silent():
             wait_for(lambda: rig.bridge.rov.health.status == "ok")
             gcs.receive_new("HEARTBEAT")  # the ground station knows where the vehicle is
             rig.link.silent.set()
-            mark = len(rig.frames())
-            assert gcs.arm() == FAILED
-            assert "#start!" not in rig.frames_since(mark)
-            assert "#qd!" in rig.frames_since(mark)  # the pre-arm query
-            gcs.receive("STATUSTEXT", condition=lambda m: "Arm refused" in m.text)
+            yield rig, gcs
         finally:
             gcs.close()
+
+
+def test_arming_fails_while_the_controller_does_not_answer():
+    with _silenced_controller() as (rig, gcs):
+        gcs.receive_new(  # a poll failed: before, arming still went through
+            "HEARTBEAT", condition=lambda m: m.type == SUBMARINE and m.system_status == CRITICAL
+        )
+        mark = len(rig.frames())
+        assert gcs.arm() == FAILED
+        assert "#start!" not in rig.frames_since(mark)
+        gcs.receive("STATUSTEXT", condition=lambda m: "Arm refused" in m.text)
+
+        rig.link.silent.clear()
+        gcs.receive_new(
+            "HEARTBEAT", condition=lambda m: m.type == SUBMARINE and m.system_status == STANDBY
+        )
+        assert gcs.arm() == ACCEPTED
+        rig.wait_frame("#start!", since=mark)
+
+
+def test_arming_fails_as_soon_as_the_controller_goes_silent():
+    # Before any poll has failed: the pre-arm query finds the silence (before, the bridge armed
+    # a controller that had stopped answering until a poll timed out, 1.5-2 s later).
+    with _silenced_controller() as (rig, gcs):
+        mark = len(rig.frames())
+        assert gcs.arm() == FAILED
+        assert "#start!" not in rig.frames_since(mark)
+        assert "#qd!" in rig.frames_since(mark)  # the pre-arm query
+        gcs.receive("STATUSTEXT", condition=lambda m: "Arm refused" in m.text)
 
 
 def _long_statustext(gcs: GroundStation, first: Callable[[Any], bool]) -> str:
