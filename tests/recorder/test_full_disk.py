@@ -3,6 +3,7 @@ from ``close`` and still closes its file: no descriptor is left to a long-runnin
 
 from __future__ import annotations
 
+import argparse
 import errno
 import os
 import threading
@@ -13,6 +14,8 @@ from pathlib import Path
 import pytest
 
 import rovlink
+from rovlink.cli.recording import open_recorder
+from rovlink.logs import WarningsShownBy
 from rovlink.recorder import Recorder, read_entries
 from rovlink.recorder.entries import TELEMETRY_FIELDS, Entry, HeaderEntry, TelemetryEntry
 from rovlink.recorder.formats import open_sink
@@ -149,3 +152,29 @@ def test_a_full_disk_is_reported_once(
     logged = [r for r in caplog.records if r.name == "rovlink.recorder.recorder"]
     assert reports == ([recorder.error] if told else [])
     assert [r.levelname for r in logged if r.levelname == "ERROR"] == ([] if told else ["ERROR"])
+
+
+def test_the_command_lines_recording_that_stops_is_shown_with_the_librarys_warnings(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # The dashboard and the console hold the terminal and show the library's warnings on it; a
+    # line the command printed to stderr instead was never seen there.
+    full = threading.Event()
+    monkeypatch.setattr(
+        "rovlink.recorder.recorder.open_sink", lambda path: _FillingSink(open_sink(path), full)
+    )
+    shown: list[str] = []
+    warnings = WarningsShownBy(lambda message, level: shown.append(message))
+    warnings.attach()
+    try:
+        args = argparse.Namespace(max_size=None, split=None, checksum=False, algorithm="crc8")
+        path = str(tmp_path / "dive.jsonl")
+        recorder = open_recorder(args, path, url="sim://", program="rovlink monitor")
+        with rovlink.connect("sim://", on_event=recorder.on_event) as rov:
+            full.set()
+            rov.depth_cm()
+            _until(lambda: recorder.error is not None)
+        recorder.close()
+    finally:
+        warnings.detach()
+    assert shown == [f"{recorder.error} (the link goes on)"]

@@ -81,6 +81,9 @@ def run(args: argparse.Namespace) -> int:
         from rovlink.cli.link_options import connection_failure  # noqa: PLC0415
 
         raise connection_failure(args.url, error) from None
+    from rovlink.cli.link_options import log_warnings  # noqa: PLC0415
+
+    log_warnings()  # (a recording that stops, a lost link: on stderr)
     recorder = open_recorder(args, args.output, url=args.url, program="rovlink record")
     stopping = threading.Event()
 

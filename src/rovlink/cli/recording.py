@@ -117,17 +117,15 @@ def add_record_options(parser: argparse.ArgumentParser) -> None:
 
 
 def open_recorder(args: argparse.Namespace, path: str, *, url: str, program: str) -> Recorder:
-    """A recorder on ``path`` with the command's options; a failure while recording is printed
-    as one line and never stops the link."""
+    """A recorder on ``path`` with the command's options. A failure while recording never stops
+    the link; the recorder logs it, and the command shows it where it shows the library's
+    warnings (on stderr; in the dashboard and the console, which hold the terminal)."""
     from rovlink.recorder import Recorder, RecordingError, format_of  # noqa: PLC0415
 
     try:
         format_of(path)
     except ValueError as error:
         raise UsageError(str(error)) from None
-
-    def on_failure(message: str) -> None:
-        print(f"rovlink: {message}; the link goes on", file=sys.stderr)
 
     try:
         return Recorder(
@@ -138,7 +136,6 @@ def open_recorder(args: argparse.Namespace, path: str, *, url: str, program: str
             program=program,
             max_size_bytes=args.max_size,
             split_s=args.split,
-            on_failure=on_failure,
         )
     except OSError as error:
         raise CommandError(f"cannot record to {path}: {reason(error)}") from None
