@@ -37,7 +37,7 @@ import subprocess
 import sys
 import threading
 import time
-from collections.abc import Iterator
+from collections.abc import Hashable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -81,9 +81,9 @@ class RecordedRobot:
         decoder = Decoder()
         deliver = self.server.robot.receive
 
-        def receive(data: bytes) -> None:
+        def receive(data: bytes, line: Hashable = None) -> None:
             now = time.monotonic()
-            deliver(data)
+            deliver(data, line)
             frames = [
                 str(event.message)
                 for event in decoder.feed(data)
