@@ -25,6 +25,8 @@ NO_FAULT = "none"
 _CRC8 = get_algorithm("crc8")
 _SETTERS = tuple(spec.name.encode() for spec in COMMANDS if not spec.is_query)
 _FRAME = re.compile(rb"#([^#$!]*)!")
+#: A frame whose checksum has a lowercase hex letter (P2 allows it).
+_LOWERCASE_CHECKSUM = re.compile(rb"#[^#!]*(?:[a-f][0-9a-f]|[0-9][a-f])!")
 #: The debug lines of settings the C reference left out before it was fixed: all but those
 #: of dropped frames, the checksum and debug modes, the lock and the vertical mode.
 _SETTING_LINE = re.compile(
@@ -125,6 +127,10 @@ class FaultyController:
             data = data.replace(b"#debug0!", b"")
         if fault == "no-checksum-mode":  # a firmware that never had one: #crcon! is unknown
             data = data.replace(b"#crcon!", b"")
+        if fault == "uppercase-checksums-only" and self._checksum:
+            data = _LOWERCASE_CHECKSUM.sub(
+                lambda match: match[0] if match[0] == b"#crcoff!" else b"", data
+            )
         if fault == "clamps-out-of-range":
             data = re.sub(rb"#sdz\.(\d{4,})!", lambda m: b"#sdz.%d!" % min(int(m[1]), 1024), data)
             data = re.sub(rb"#sdk\.(\d{5,})!", lambda m: b"#sdk.%d!" % min(int(m[1]), 10000), data)
@@ -206,6 +212,7 @@ FAULTS: dict[str, str] = {
     "mode-reaches-back": "checksum-on-per-frame",
     "plain-replies-in-checksum-mode": "checksum-replies",
     "no-checksum-mode": "checksum-replies",
+    "uppercase-checksums-only": "checksum-lowercase-accepted",
     "debug-frame-characters": "debug-text-clean",
     "no-debug-lines": "debug-text-clean",
     "no-setting-debug-lines": "debug-setting-lines",

@@ -121,6 +121,20 @@ def test_a_controller_without_a_checksum_mode_is_told_apart_from_a_wrong_algorit
     )
 
 
+def test_no_hint_when_the_controller_answers_with_the_runs_algorithm() -> None:
+    # Its only fault is refusing lowercase checksums: "no reply" there is that, not the algorithm.
+    fault = "uppercase-checksums-only"
+    link = PortLink(FaultyController(fault), fault)
+    try:
+        report = run_checks(
+            link, "fake", SuiteOptions(), select_checks(["checksum-lowercase-accepted"])
+        )
+    finally:
+        link.close()
+    assert "no reply" in report.failures[0].message
+    assert report.hint is None
+
+
 def test_no_hint_when_the_checksum_checks_pass_or_fail_otherwise() -> None:
     passing = _checksum_run(PortLink(FaultyController(NO_FAULT), NO_FAULT), "crc8")
     assert passing.passed

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import dataclasses
 
+from rovlink.client.errors import ConnectionLostError
 from rovlink.client.links import Link
 from rovlink.conformance.registry import CheckContext, SuiteOptions
 from rovlink.conformance.results import Report
@@ -34,12 +35,17 @@ def algorithm_hint(link: Link, options: SuiteOptions, report: Report) -> str | N
     ):
         return None
     others = [name for name in sorted(ALGORITHMS) if name != options.algorithm]
-    for name in others:
-        if _answers_with(link, dataclasses.replace(options, algorithm=name)):
-            return (
-                f"the checksum checks got no reply with {options.algorithm}, but the controller "
-                f"answers #qd checksummed with {name}: run with --algorithm {name}"
-            )
+    try:
+        if _answers_with(link, options):
+            return None  # it answers with the suite's algorithm: the failures say what is wrong
+        for name in others:
+            if _answers_with(link, dataclasses.replace(options, algorithm=name)):
+                return (
+                    f"the checksum checks got no reply with {options.algorithm}, but the "
+                    f"controller answers #qd checksummed with {name}: run with --algorithm {name}"
+                )
+    except ConnectionLostError:
+        return None  # (the run's end says the link is lost)
     return (
         f"the checksum checks got no reply with {options.algorithm}, nor does the controller "
         f"answer #qd checksummed with {' or '.join(others)}: has it a checksum mode (P3)?"
