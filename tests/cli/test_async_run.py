@@ -58,6 +58,14 @@ SCRIPT = textwrap.dedent(
 
     async def main():
         loop = asyncio.get_running_loop()
+        if scenario == "sigterm-on-the-way-out":
+            loop.call_soon(signal.raise_signal, signal.SIGINT)
+            try:
+                await asyncio.sleep(60)
+            finally:
+                signal.raise_signal(signal.SIGTERM)  # a terminal closed as the command ends
+                await asyncio.sleep(0.05)  # the way out awaits (#stop!)
+                ended.append("main")
         if scenario == "ctrl-c-in-the-last-step":
             ended.append("main")
             signal.raise_signal(SIGNAL)  # and the task ends without another await
@@ -113,3 +121,8 @@ def test_sigterm_to_a_background_job_cancels_the_command_cleanly() -> None:
 def test_ctrl_c_as_the_command_takes_its_last_step_still_interrupts(runner: str) -> None:
     # Too late to cancel the task, not too late to say the command was interrupted (exit 130).
     assert _run(runner, "ctrl-c-in-the-last-step") == ["interrupted main"]
+
+
+def test_sigterm_on_the_way_out_of_a_ctrl_c_does_not_cut_it_short() -> None:
+    # Before, the second cancellation came in the middle of the way out: no #stop!.
+    assert _run("run_async", "sigterm-on-the-way-out") == ["interrupted main"]

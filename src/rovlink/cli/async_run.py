@@ -12,6 +12,10 @@ does what 3.11 does.
 SIGTERM and SIGHUP cancel the main task from the event loop on every Python, whatever SIGINT's
 handler: in a background job SIGINT is ignored, and the command line's own handler for them
 would then raise KeyboardInterrupt wherever the interpreter is, as 3.10's Ctrl-C did.
+
+Once a signal has cancelled the main task, SIGTERM and SIGHUP change nothing: a terminal closed
+or a service stopped while the command is on its way out must not cut its ``#stop!`` short. A
+second Ctrl-C is the user's own, and interrupts at once.
 """
 
 from __future__ import annotations
@@ -36,12 +40,26 @@ def run_async(main: Coroutine[Any, Any, T]) -> T:
 
         run_async(_serve(args, broker))
     """
+    ending = Ending()
     if sys.version_info >= (3, 11):
-        return asyncio.run(ended_by_termination(main))
-    return run_cancelled_by_ctrl_c(ended_by_termination(main))
+        return asyncio.run(ended_by_termination(main, ending))
+    return run_cancelled_by_ctrl_c(ended_by_termination(main, ending), ending)
 
 
-async def ended_by_termination(main: Coroutine[Any, Any, T]) -> T:
+class Ending:
+    """Whether a signal has cancelled the command's main task (shared by the handlers)."""
+
+    def __init__(self) -> None:
+        self.cancelled = False
+
+    def seen_on(self, task: asyncio.Task[Any]) -> bool:
+        """Whether ``task`` is being cancelled already: by a signal handled here, or (3.11
+        and later) by ``asyncio.run``'s own handling of Ctrl-C."""
+        cancelling = getattr(task, "cancelling", None)  # (3.11 and later)
+        return self.cancelled or (cancelling is not None and cancelling() > 0)
+
+
+async def ended_by_termination(main: Coroutine[Any, Any, T], ending: Ending | None = None) -> T:
     """Await ``main``, cancelled by the first SIGTERM or SIGHUP (each a callback of the event
     loop, which runs between its callbacks, never inside one); ``KeyboardInterrupt`` when it
     has ended so. A signal ignored on entry (``nohup``) stays ignored; the handlers before are
@@ -49,13 +67,15 @@ async def ended_by_termination(main: Coroutine[Any, Any, T]) -> T:
     loop = asyncio.get_running_loop()
     task = asyncio.current_task()
     assert task is not None  # (a coroutine run by asyncio.run is a task's)
+    shared = ending if ending is not None else Ending()
     terminated = False
 
     def terminate() -> None:
         nonlocal terminated
-        if not terminated:  # (a second one must not cut the way out short)
-            terminated = True
-            task.cancel()
+        if shared.seen_on(task):  # (on its way out already: not cut short)
+            return
+        shared.cancelled = terminated = True
+        task.cancel()
 
     previous: dict[int, Any] = {}
     for name in ("SIGTERM", "SIGHUP"):
@@ -80,9 +100,10 @@ async def ended_by_termination(main: Coroutine[Any, Any, T]) -> T:
             signal.signal(number, handler)
 
 
-def run_cancelled_by_ctrl_c(main: Coroutine[Any, Any, T]) -> T:
+def run_cancelled_by_ctrl_c(main: Coroutine[Any, Any, T], ending: Ending | None = None) -> T:
     """``asyncio.run`` with Python 3.11's handling of Ctrl-C, on any Python (the tests run it on
-    the newest too). What :func:`run_async` uses on 3.10."""
+    the newest too); a Ctrl-C that cancels the task is noted in ``ending``. What
+    :func:`run_async` uses on 3.10."""
     loop = asyncio.new_event_loop()
     try:
         asyncio.set_event_loop(loop)
@@ -92,8 +113,10 @@ def run_cancelled_by_ctrl_c(main: Coroutine[Any, Any, T]) -> T:
         def on_ctrl_c(signum: int, frame: object) -> None:
             nonlocal interrupts
             interrupts += 1
-            if interrupts > 1 or task.done():  # (done: nothing left to cancel, as 3.11)
+            if interrupts > 1:
                 raise KeyboardInterrupt
+            if ending is not None:
+                ending.cancelled = True
             # The loop cancels the task on its next turn. The handler runs between any two
             # bytecodes of this thread, the loop's own included, so it only queues (a deque's
             # append, and a byte to the loop's self-pipe, which also wakes a select()).
@@ -107,7 +130,7 @@ def run_cancelled_by_ctrl_c(main: Coroutine[Any, Any, T]) -> T:
             signal.signal(signal.SIGINT, on_ctrl_c)
         try:
             result = loop.run_until_complete(task)
-            if interrupts:  # it came as the task took its last step: too late to cancel it
+            if interrupts:  # it came as the task took its last step, or after: too late
                 raise KeyboardInterrupt
             return result
         except asyncio.CancelledError:
