@@ -54,6 +54,7 @@ class _Server(uvicorn.Server):
     @contextlib.contextmanager
     def capture_signals(self) -> Generator[None, None, None]:
         loop = asyncio.get_running_loop()
+        previous = {number: signal.getsignal(number) for number in _ENDING_SIGNALS}
         for number in _ENDING_SIGNALS:
             loop.add_signal_handler(number, self.handle_exit, number, None)
         try:
@@ -61,6 +62,10 @@ class _Server(uvicorn.Server):
         finally:
             for number in _ENDING_SIGNALS:
                 loop.remove_signal_handler(number)
+                # remove_signal_handler leaves SIGTERM at its default action, which would end
+                # the process before the station has stopped the robot: what was there before.
+                if previous[number] is not None:  # (None: not set from Python)
+                    signal.signal(number, previous[number])
 
 
 _ENDING_SIGNALS = (signal.SIGINT, signal.SIGTERM)
