@@ -59,30 +59,29 @@ class Ending:
         return self.cancelled or (cancelling is not None and cancelling() > 0)
 
 
-async def ended_by_termination(main: Coroutine[Any, Any, T], ending: Ending | None = None) -> T:
+async def ended_by_termination(main: Coroutine[Any, Any, T], ending: Ending) -> T:
     """Await ``main``, cancelled by the first SIGTERM or SIGHUP (each a callback of the event
-    loop, which runs between its callbacks, never inside one); ``KeyboardInterrupt`` when it
-    has ended so. A signal ignored on entry (``nohup``) stays ignored; the handlers before are
-    put back after. Where the loop cannot watch signals (Windows), ``main`` alone."""
+    loop, which runs between its callbacks, never inside one); ``KeyboardInterrupt`` when a
+    signal has cancelled it. A signal ignored on entry (``nohup``) stays ignored; the handlers
+    before are put back after. Where the loop cannot watch signals (Windows), ``main`` alone."""
     loop = asyncio.get_running_loop()
     task = asyncio.current_task()
     assert task is not None  # (a coroutine run by asyncio.run is a task's)
-    shared = ending if ending is not None else Ending()
-    terminated = False
 
     def terminate() -> None:
-        nonlocal terminated
-        if shared.seen_on(task):  # (on its way out already: not cut short)
+        if ending.seen_on(task):  # (on its way out already: not cut short)
             return
-        shared.cancelled = terminated = True
+        ending.cancelled = True
         task.cancel()
 
     previous: dict[int, Any] = {}
     for name in ("SIGTERM", "SIGHUP"):
         number = getattr(signal, name, None)  # (no SIGHUP on Windows)
-        if number is None or signal.getsignal(number) is signal.SIG_IGN:
+        if number is None:
             continue
         handler = signal.getsignal(number)
+        if handler is signal.SIG_IGN:
+            continue
         try:
             loop.add_signal_handler(number, terminate)
         except (NotImplementedError, RuntimeError, ValueError):  # Windows; not the main thread
@@ -91,7 +90,7 @@ async def ended_by_termination(main: Coroutine[Any, Any, T], ending: Ending | No
     try:
         return await main
     except asyncio.CancelledError:
-        if terminated:
+        if ending.cancelled:  # (by SIGTERM, SIGHUP, or on 3.10 Ctrl-C: KeyboardInterrupt all)
             raise KeyboardInterrupt from None
         raise
     finally:

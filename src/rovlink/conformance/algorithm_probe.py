@@ -12,7 +12,7 @@ import dataclasses
 
 from rovlink.client.errors import ConnectionLostError
 from rovlink.client.links import Link
-from rovlink.conformance.registry import CheckContext, SuiteOptions
+from rovlink.conformance.registry import NO_REPLY, CheckContext, SuiteOptions
 from rovlink.conformance.results import Report
 from rovlink.conformance.wire import Wire
 from rovlink.protocol import ALGORITHMS, Command, Response, Setting, setting_command
@@ -21,8 +21,6 @@ __all__ = ["algorithm_hint"]
 
 #: The checks of the checksum mode: their names start so.
 _CHECKSUM_CHECKS = "checksum-"
-#: How the registry words a reply that did not come.
-_NO_REPLY = "no reply within"
 
 
 def algorithm_hint(link: Link, options: SuiteOptions, report: Report) -> str | None:
@@ -30,7 +28,7 @@ def algorithm_hint(link: Link, options: SuiteOptions, report: Report) -> str | N
     answers a checksummed ``#qd`` with, or that none of the known ones got a reply either.
     ``None`` when no checksum check failed for want of a reply (nothing is sent then)."""
     if not any(
-        result.name.startswith(_CHECKSUM_CHECKS) and _NO_REPLY in result.message
+        result.name.startswith(_CHECKSUM_CHECKS) and NO_REPLY in result.message
         for result in report.failures
     ):
         return None

@@ -15,6 +15,7 @@ from rovlink.protocol import BadFrame, Command, Frame, encode, get_algorithm
 
 __all__ = [
     "CHECKS",
+    "NO_REPLY",
     "Check",
     "CheckAbortedError",
     "CheckContext",
@@ -36,6 +37,10 @@ class CheckSkippedError(Exception):
 
 class CheckAbortedError(Exception):
     """The run must stop at once (a leak, a lost link); ``#stop!`` has been sent."""
+
+
+#: How a failure words a reply that did not come (the algorithm probe looks for it).
+NO_REPLY = "no reply within"
 
 
 @dataclass(frozen=True)
@@ -118,7 +123,7 @@ class CheckContext:
         context = f" ({why})" if why else ""
         if not frames:
             raise CheckFailedError(
-                f"expected {_names(names)}{context}; no reply within "
+                f"expected {_names(names)}{context}; {NO_REPLY} "
                 f"{self.options.reply_timeout_s * 1000:.0f} ms"
             )
         for frame in frames:
