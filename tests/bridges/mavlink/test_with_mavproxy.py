@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import subprocess
 import sys
 import threading
@@ -58,13 +59,22 @@ class MavProxy:
         return mark
 
     def close(self) -> None:
+        assert self.process.stdin is not None
+        assert self.process.stdout is not None
+        with contextlib.suppress(BrokenPipeError):
+            self.process.stdin.close()  # (it ends on its input's end; SIGTERM alone is slow)
         if self.process.poll() is None:
             self.process.terminate()
         try:
-            self.process.communicate(timeout=10)
+            self.process.wait(timeout=10)
         except subprocess.TimeoutExpired:
             self.process.kill()
-            self.process.communicate()
+            self.process.wait()
+        # Its output is read to the end by the reader thread alone: communicate() read the
+        # same pipe and closed it under the reader thread, which then failed.
+        self._reader.join(timeout=10)
+        if not self._reader.is_alive():
+            self.process.stdout.close()
 
 
 @pytest.fixture
