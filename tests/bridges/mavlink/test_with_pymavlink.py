@@ -313,7 +313,7 @@ def _change_mode_or_re_arm(gcs: GroundStation, change: str) -> None:
     elif change == "mode button":
         gcs.send("manual_control", VEHICLE, 1000, 0, 0, 0, 1 << 1)  # BTN1: MANUAL
     elif change == "re-arm":
-        assert gcs.arm() == ACCEPTED  # #start! while unlocked changes nothing
+        assert gcs.arm() == ACCEPTED  # armed already: nothing is sent
     else:  # "depth hold": vertical thrust 0 (the controller's), horizontal kept
         assert gcs.set_mode(ALT_HOLD) == ACCEPTED
 
@@ -332,8 +332,8 @@ def test_thrust_kept_across_a_mode_change_or_re_arm_is_still_zeroed(
     rig.wait_frame("#th.0.100!", since=mark)
     rig.wait_frame("#mvs.-100!", since=mark)
     _change_mode_or_re_arm(gcs, change)
-    done = {"re-arm": "#start!", "depth hold": "#mvdirect.0!"}.get(change, "#mvdirect.1!")
-    rig.wait_frame(done, since=mark)
+    if change != "re-arm":
+        rig.wait_frame("#mvdirect.0!" if change == "depth hold" else "#mvdirect.1!", since=mark)
     changed = len(rig.frames())
     expected = ["#th.0.0!"] if change == "depth hold" else ["#th.0.0!", "#mvs.+0!"]
     if then == "stick centred":
@@ -418,6 +418,25 @@ def test_arming_fails_as_soon_as_the_controller_goes_silent():
         assert "#start!" not in rig.frames_since(mark)
         assert "#qd!" in rig.frames_since(mark)  # the pre-arm query
         gcs.receive("STATUSTEXT", condition=lambda m: "Arm refused" in m.text)
+
+
+def test_arming_an_armed_vehicle_asks_nothing_and_holds_up_no_disarm():
+    # Before, a second ARM sent a pre-arm query and, from a controller whose replies no longer
+    # came back, waited a reply timeout and its retries before the disarm after it was read.
+    with _silenced_controller() as (rig, gcs):
+        rig.link.silent.clear()
+        assert gcs.arm() == ACCEPTED
+        rig.link.silent.set()
+        mark = len(rig.frames())
+        gcs.send("command_long", VEHICLE, 1, ARM_DISARM, 0, 1.0, *[0.0] * 6)  # ARM again
+        gcs.send("command_long", VEHICLE, 1, ARM_DISARM, 0, 0.0, *[0.0] * 6)  # DISARM
+        acks = [gcs.receive("COMMAND_ACK", condition=lambda m: m.command == ARM_DISARM)]
+        acks.append(gcs.receive("COMMAND_ACK", condition=lambda m: m.command == ARM_DISARM))
+        assert [ack.result for ack in acks] == [ACCEPTED, ACCEPTED]
+        sent = rig.frames_since(mark)
+        assert "#stop!" in sent
+        assert "#qd!" not in sent[: sent.index("#stop!")]
+        assert "#start!" not in sent
 
 
 def _long_statustext(gcs: GroundStation, first: Callable[[Any], bool]) -> str:

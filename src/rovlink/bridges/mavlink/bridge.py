@@ -139,7 +139,13 @@ class MavlinkBridge:
         Refused (FAILED) while the controller's queries fail, as HEARTBEAT shows it CRITICAL,
         and when it does not answer a query of its own (a pre-arm check, as ArduSub's): a
         controller that has just gone silent fails a poll only a reply timeout or more later.
+        An armed vehicle's ARM is accepted at once and changes nothing, as ArduSub's: no
+        pre-arm query holds up the messages after it (a disarm) while the robot may move, and
+        the depth held in ALT_HOLD stays the one set.
         """
+        if self.armed:
+            self.watchdog.heartbeat(self._clock())  # (contact all the same)
+            return Result.ACCEPTED
         depth_cm = await self._depth_now_cm() if self.messages.link_ok() else None
         if depth_cm is None:
             self._say(_SEVERITY_WARNING, "Arm refused: the controller does not answer")
