@@ -367,13 +367,20 @@ async def test_a_killed_station_leaves_the_robot_to_its_own_failsafe(line):
         assert line.server.robot.controller.state().power_percent == 0
 
 
-@pytest.mark.parametrize("how", [signal.SIGINT, signal.SIGTERM])
-async def test_ctrl_c_or_terminate_sends_stop_on_the_way_out(line, how):
+@pytest.mark.parametrize(
+    "signals",
+    [[signal.SIGINT], [signal.SIGTERM], [signal.SIGHUP], [signal.SIGINT, signal.SIGHUP]],
+    ids=lambda signals: "-then-".join(how.name for how in signals),
+)
+async def test_ctrl_c_terminate_or_a_closed_terminal_sends_stop_on_the_way_out(line, signals):
+    # (Ctrl-C, then the terminal closed while the station shuts down gracefully, waiting for
+    # the open page: before, SIGHUP cancelled that shutdown, and the exit status said 130.)
     with running_station(line.url) as served:
         page = await pilot(served)
         await fly(page, line)
         mark = line.mark()
-        served.process.send_signal(how)
+        for how in signals:
+            served.process.send_signal(how)
         await asyncio.to_thread(line.wait_for, "#stop!", after=mark)
         assert await asyncio.to_thread(served.process.wait, 10) == 0
 

@@ -47,9 +47,9 @@ class ServeOptions:
 
 
 class _Server(uvicorn.Server):
-    """uvicorn's server, except that SIGINT and SIGTERM only end the serving: uvicorn would raise
-    the signal again as soon as it stops, and SIGTERM's default action would end the process
-    before the station has sent ``#stop!`` and closed the link."""
+    """uvicorn's server, except that SIGINT, SIGTERM and SIGHUP only end the serving: uvicorn
+    would raise the signal again as soon as it stops, and SIGTERM's default action would end the
+    process before the station has sent ``#stop!`` and closed the link."""
 
     @contextlib.contextmanager
     def capture_signals(self) -> Generator[None, None, None]:
@@ -68,7 +68,11 @@ class _Server(uvicorn.Server):
                     signal.signal(number, previous[number])
 
 
-_ENDING_SIGNALS = (signal.SIGINT, signal.SIGTERM)
+#: What ends the serving gracefully. SIGHUP (a closed terminal) too: left to the command line's
+#: own handler, it cancelled the station mid-way through a graceful shutdown.
+_ENDING_SIGNALS = tuple(
+    getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, name)
+)
 
 
 def bind(host: str, port: int) -> socket.socket:
@@ -127,7 +131,8 @@ async def serve(
     description: str,
     ready: Callable[[list[str]], None],
 ) -> None:
-    """Connect, then serve until SIGINT/SIGTERM; ``ready`` gets the page's URLs once listening.
+    """Connect, then serve until SIGINT, SIGTERM or SIGHUP; ``ready`` gets the page's URLs
+    once listening.
 
     On the way out the relay is disarmed and ``#stop!`` (every output to zero, the motors
     locked) is sent unless the robot is locked as last sent; then the link is closed.
