@@ -59,6 +59,7 @@ class FakeController:
         on_close: Callable[[], None] | None = None,
         boot_s: float = 0.0,
         late_delay_s: float = 0.35,
+        checksum: bool = False,
     ) -> None:
         self._fd = fd
         self._booted_at = time.monotonic() + boot_s
@@ -67,6 +68,7 @@ class FakeController:
         self.ignored = bytearray()
         self._on_close = on_close
         self.decoder = Decoder(algorithm=algorithm)
+        self.decoder.checksum_enabled = checksum  # (on from the start: a controller running on)
         self.values = dict(DEFAULT_VALUES if values is None else values)
         self.script: deque[str] = deque()
         self.raw = bytearray()
@@ -264,8 +266,9 @@ class FakeControllerServer:
 
     ``boot_s``: how long each controller ignores its input after the connection (a board
     booting), ``first_boot_s`` the first one's if it differs; ``refuse``: close new connections
-    at once (the adapter is still unplugged); ``ended[i]`` is set once the i-th controller's
-    connection is closed.
+    at once (the adapter is still unplugged); ``checksum_on_accept``: new connections find the
+    controller in checksum mode (only the link dropped: the board ran on); ``ended[i]`` is set
+    once the i-th controller's connection is closed.
     """
 
     def __init__(self, boot_s: float = 0.0, *, first_boot_s: float | None = None) -> None:
@@ -276,6 +279,7 @@ class FakeControllerServer:
         self.fakes: list[FakeController] = []
         self.ended: list[threading.Event] = []
         self.refuse = False
+        self.checksum_on_accept = False
         threading.Thread(target=self._accept, name="fake controller server", daemon=True).start()
 
     def _accept(self) -> None:
@@ -291,7 +295,12 @@ class FakeControllerServer:
             self.ended.append(ended)
             boot_s = self.boot_s if self.fakes else self.first_boot_s
             self.fakes.append(
-                FakeController(connection.detach(), boot_s=boot_s, on_close=ended.set)
+                FakeController(
+                    connection.detach(),
+                    boot_s=boot_s,
+                    on_close=ended.set,
+                    checksum=self.checksum_on_accept,
+                )
             )
 
     def close(self) -> None:

@@ -11,7 +11,7 @@ from rovlink.aio import AsyncClient
 from rovlink.client import Client, InvalidArgumentError
 from rovlink.client import operations as ops
 from rovlink.client.method_table import METHODS
-from rovlink.protocol import COMMANDS
+from rovlink.protocol import COMMANDS, Command
 
 METHOD_NAMES = sorted([method.name for method in METHODS] + ["send", "send_raw"])
 
@@ -41,7 +41,7 @@ def test_both_clients_have_every_method_with_the_same_signature(method: str) -> 
         (lambda: ops.move(90, -1), "move: power_percent must be in 0–100 (#th), got -1"),
         (
             lambda: ops.move(90, 12.5),  # type: ignore[arg-type]
-            "move: power_percent must be in 0–100 (#th), got 12.5",
+            "move: power_percent must be a whole number in 0–100 (#th), got 12.5",
         ),
         (lambda: ops.max_pwm(256), "set_max_pwm: duty must be in 0–255 (#mgmp), got 256"),
         (
@@ -100,3 +100,10 @@ def test_wrong_types_are_type_errors(call: object, message: str) -> None:
 def test_whole_floats_and_integer_likes_are_accepted() -> None:
     assert str(ops.move(90.0, 50)) == "#th.90.50!"  # type: ignore[arg-type]
     assert [str(c) for c in ops.depth_pid(i=0)] == ["#mvpdi.0!"]
+
+
+def test_a_value_in_range_but_not_whole_is_told_so() -> None:
+    # (Before: "direction_deg must be in 0–360 (#th), got 1.5", which 1.5 is.)
+    with pytest.raises(InvalidArgumentError, match=r"must be a whole number in 0–360 \(#th\)"):
+        ops.move(1.5, 10)  # type: ignore[arg-type]
+    assert ops.move(90.0, 10) == Command("th", (90, 10))  # type: ignore[arg-type]

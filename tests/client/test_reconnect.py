@@ -60,13 +60,15 @@ async def test_the_asyncio_client_reopens_a_lost_link_too(port: FakeControllerSe
 
 def _after_readiness_probe(frames: list[str]) -> list[str]:
     """The frames a client sent on a reopened link once the controller answered its probe."""
-    assert frames[:2] == ["#crcoff!", "#qd!"]
-    return frames[2:]
+    start = frames.index("#crcoff!")
+    assert frames[start : start + 2] == ["#crcoff!", "#qd!"]
+    return frames[start + 2 :]
 
 
 def test_motion_is_zeroed_first_on_a_reopened_link(port: FakeControllerServer) -> None:
-    # Only the link dropped: the controller may still drive the last thrust, and the queries
-    # that follow would feed its watchdog (P17). Zero thrust goes first on the new link.
+    # Only the link dropped: the controller may still drive the last thrust, and the probes
+    # and queries that follow would feed its watchdog (P17). Zero thrust goes first on the new
+    # link, before the probe (before, only after it), and again once the mode is restored.
     with rovlink.connect(port.url, reconnect=True, keepalive=None, timeout=2.0) as rov:
         rov.start()
         rov.move(90, 50)
@@ -74,8 +76,42 @@ def test_motion_is_zeroed_first_on_a_reopened_link(port: FakeControllerServer) -
         port.fakes[0].close()
         assert wait_until(lambda: len(port.fakes) == 2)
         assert rov.depth_cm() == 123
-        after_probe = _after_readiness_probe(port.fakes[1].frames())
-        assert after_probe[:2] == ["#th.90.0!", "#mvs.+0!"]
+        frames = port.fakes[1].frames()
+        assert frames[:4] == ["#th.90.0!", "#mvs.+0!", "#crcoff!", "#qd!"]
+        assert _after_readiness_probe(frames)[:3] == ["#crcoff!", "#th.90.0!", "#mvs.+0!"]
+
+
+def test_a_slow_controller_gets_zero_thrust_before_any_probe(port: FakeControllerServer) -> None:
+    # The reopened link's controller does not take its input at once (a serial bridge that
+    # restarts): the probes, every 0.25 s, would keep its watchdog fed while it drives on.
+    port.boot_s = 0.6
+    with rovlink.connect(port.url, reconnect=True, keepalive=None, timeout=2.0) as rov:
+        rov.start()
+        rov.move(45, 50)
+        port.fakes[0].close()
+        assert wait_until(lambda: len(port.fakes) == 2)
+        assert rov.depth_cm() == 123
+        assert bytes(port.fakes[1].ignored).startswith(b"#th.45.0!#crcoff!#qd!")
+
+
+def test_zero_thrust_reaches_a_controller_still_in_checksum_mode(
+    port: FakeControllerServer,
+) -> None:
+    # Before, the zero thrust went out checksummed after the probe's #crcoff! had put the
+    # controller in plain mode, and before #crcon!: the controller dropped it.
+    with rovlink.connect(
+        port.url, reconnect=True, checksum=True, keepalive=None, timeout=2.0
+    ) as rov:
+        rov.start()
+        rov.move(90, 50)
+        port.checksum_on_accept = True  # only the link drops: the board runs on
+        port.fakes[0].close()
+        assert wait_until(lambda: len(port.fakes) == 2)
+        assert rov.depth_cm() == 123
+        frames = port.fakes[1].frames()
+        assert frames[0] == "#th.90.0!"  # taken in checksum mode, before the probe
+        assert _after_readiness_probe(frames)[:2] == ["#crcon!", "#th.90.0!"]
+        assert not port.fakes[1].bad_frames
 
 
 def test_a_link_reopened_at_rest_gets_no_zero_thrust(port: FakeControllerServer) -> None:
@@ -98,4 +134,41 @@ async def test_the_asyncio_client_zeroes_motion_first_on_a_reopened_link(
         port.fakes[0].close()
         assert await wait_until_async(lambda: len(port.fakes) == 2)
         assert await rov.depth_cm() == 123
-        assert _after_readiness_probe(port.fakes[1].frames())[0] == "#th.270.0!"
+        frames = port.fakes[1].frames()
+        assert frames[:3] == ["#th.270.0!", "#crcoff!", "#qd!"]
+        assert _after_readiness_probe(frames)[:2] == ["#crcoff!", "#th.270.0!"]
+
+
+async def test_the_asyncio_client_zeroes_motion_for_a_controller_in_checksum_mode(
+    port: FakeControllerServer,
+) -> None:
+    async with rovlink.aio.connect(
+        port.url, reconnect=True, checksum=True, keepalive=None, timeout=2.0
+    ) as rov:
+        await rov.start()
+        await rov.move(270, 40)
+        port.checksum_on_accept = True
+        port.fakes[0].close()
+        assert await wait_until_async(lambda: len(port.fakes) == 2)
+        assert await rov.depth_cm() == 123
+        frames = port.fakes[1].frames()
+        assert frames[0] == "#th.270.0!"
+        assert _after_readiness_probe(frames)[:2] == ["#crcon!", "#th.270.0!"]
+        assert not port.fakes[1].bad_frames
+
+
+@pytest.mark.parametrize("client", ["blocking", "asyncio"])
+async def test_a_query_cut_by_the_loss_names_the_link_being_reopened(
+    port: FakeControllerServer, client: str
+) -> None:
+    # (Before, the asyncio client said only "connection lost: closed".)
+    if client == "blocking":
+        with rovlink.connect(port.url, reconnect=True, keepalive=None, timeout=2.0) as rov:
+            port.fakes[0].then("close")
+            with pytest.raises(ConnectionLostError, match=r"127\.0\.0\.1.*lost, reconnecting"):
+                rov.depth_cm()
+        return
+    async with rovlink.aio.connect(port.url, reconnect=True, keepalive=None, timeout=2.0) as arov:
+        port.fakes[0].then("close")
+        with pytest.raises(ConnectionLostError, match=r"127\.0\.0\.1.*lost, reconnecting"):
+            await arov.depth_cm()

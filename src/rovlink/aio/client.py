@@ -39,7 +39,7 @@ from rovlink.client.session import Outcome, PendingQuery, Session
 from rovlink.client.unsolicited import DropLog, deliver
 from rovlink.client.url import parse_url
 from rovlink.logs import get_logger
-from rovlink.protocol import Command, Response, Setting, setting_command
+from rovlink.protocol import Command, Response, Setting
 from rovlink.protocol.frames import checksum_mode_frame
 
 __all__ = ["DEFAULT_MAX_IN_FLIGHT", "AsyncClient", "connect"]
@@ -357,7 +357,8 @@ class AsyncClient(AsyncCommandMethods):
         return ()
 
     async def send_raw(self, frame: str | bytes) -> tuple[Response, ...]:
-        """Send a frame exactly as given, once; a query returns its replies.
+        """Send a frame exactly as given, once; a query returns its replies. One command frame
+        at a time (ValueError for more); text or broken frames around it go as they are.
 
         Example::
 
@@ -451,7 +452,10 @@ class AsyncClient(AsyncCommandMethods):
 
     def _lost_error(self) -> ConnectionLostError:
         lost = self._lost
-        error = ConnectionLostError(f"connection lost: {lost if lost is not None else 'closed'}")
+        reason = str(lost) if lost is not None else "closed"
+        if lost is None and self._link_down and not self._closed:
+            reason = f"{self._link.description}: lost, reconnecting"
+        error = ConnectionLostError(f"connection lost: {reason}")
         error.__cause__ = lost
         return error
 
@@ -664,10 +668,13 @@ class AsyncClient(AsyncCommandMethods):
             self._transport.start(self._on_data, self._on_lost)
             session = self._session
             try:
+                rest = session.rest_frames()
+                if rest:  # first, before any probe feeds the controller's watchdog (P17)
+                    self._write(rest)
+                    session.count_outside(self._clock(), sent=rest)
                 await self._await_ready(reconnecting=True)
                 session.reset_link()
-                mode = setting_command(Setting.CHECKSUM, session.checksum_enabled)
-                self._write(session.command(mode, self._clock()))
+                self._write(session.take_outbox(self._clock()))  # the mode, zero thrust
                 # A link lost while it was being readied (reported, or found by that write) is
                 # a failed attempt, not a connection: nothing else would ever notice it.
                 if self._attempt_lost is not None:

@@ -39,7 +39,7 @@ from rovlink.client.session import Outcome, PendingQuery, Received, Session
 from rovlink.client.unsolicited import DropLog, deliver
 from rovlink.client.url import parse_url
 from rovlink.logs import get_logger
-from rovlink.protocol import Command, Event, Response, Setting, setting_command
+from rovlink.protocol import Command, Event, Response, Setting
 from rovlink.protocol.frames import checksum_mode_frame
 
 __all__ = ["Client", "connect"]
@@ -292,7 +292,9 @@ class Client(CommandMethods):
     def send_raw(self, frame: str | bytes) -> tuple[Response, ...]:
         """Send a frame exactly as given, once; if it is a query, wait for and return its replies.
 
-        For experiments: the frame is not checked or given a checksum, and is not retried.
+        For experiments: the frame is not checked or given a checksum, and is not retried. One
+        command frame at a time (ValueError for more: their motion and replies would go
+        untracked); text or broken frames around it go as they are.
 
         Example::
 
@@ -306,6 +308,7 @@ class Client(CommandMethods):
             return ()
         pending = self._send_query(data)
         if pending is None:
+            self._emit()  # (what was sent, as a command's is: no wait reports it later)
             return ()
         outcome = self._wait(pending)
         if outcome is Outcome.ANSWERED:
@@ -423,6 +426,12 @@ class Client(CommandMethods):
             link: Link | None = None
             try:
                 link = reopen()
+                with self._state_lock:
+                    rest = self._session.rest_frames()
+                if rest:  # first, before any probe feeds the controller's watchdog (P17)
+                    link.write(rest)
+                    with self._state_lock:
+                        self._session.count_outside(self._clock(), sent=rest)
                 self._await_ready(link)
                 with self._wire_lock, self._state_lock:
                     if self._closing:
@@ -430,8 +439,7 @@ class Client(CommandMethods):
                         return
                     session = self._session
                     session.reset_link()
-                    mode = setting_command(Setting.CHECKSUM, session.checksum_enabled)
-                    link.write(session.command(mode, self._clock()))
+                    link.write(session.take_outbox(self._clock()))  # the mode, zero thrust
                     self._link = link
                     self._send_now = getattr(link, "send_some", None)
                     self._read_reply = getattr(link, "read_reply", link.read_available)

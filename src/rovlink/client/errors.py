@@ -29,6 +29,8 @@ class InvalidArgumentError(ValueError):
 
     >>> str(InvalidArgumentError("move", "power_percent", 150, "0–100", "th"))
     'move: power_percent must be in 0–100 (#th), got 150'
+    >>> str(InvalidArgumentError("move", "direction_deg", 1.5, "0–360", "th"))
+    'move: direction_deg must be a whole number in 0–360 (#th), got 1.5'
     """
 
     def __init__(
@@ -38,8 +40,10 @@ class InvalidArgumentError(ValueError):
         self.argument = argument
         self.value = value
         self.range_text = range_text
+        # (A value in range but not whole, 1.5 degrees, is told so, not that it is out of range.)
+        whole = "a whole number " if isinstance(value, float) and not value.is_integer() else ""
         super().__init__(
-            f"{method}: {argument} must be in {range_text} (#{frame_name}), got {value!r}"
+            f"{method}: {argument} must be {whole}in {range_text} (#{frame_name}), got {value!r}"
         )
 
 

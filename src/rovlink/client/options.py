@@ -20,6 +20,9 @@ DEFAULT_MOTION_TIMEOUT_S = 2.0
 #: Upper bounds that catch a typo (``timeout=1e10``) rather than limit a real use.
 MAX_TIMEOUT_S = 3600.0
 MAX_RETRIES = 100
+#: A keep-alive more often than this is a flood of queries, not a keep-alive (the controller's
+#: link-loss watchdog waits 2 s by default, P17).
+MIN_KEEPALIVE_S = 0.01
 
 #: Called with every event that answered no query: debug text, noise, dropped or stray frames.
 StrayCallback = Callable[[Event], None]
@@ -75,10 +78,13 @@ class ClientOptions:
             raise ValueError(f"algorithm must be one of {known}, got {self.algorithm!r}")
         keepalive = self.keepalive_s
         if keepalive is not None and (
-            isinstance(keepalive, bool) or not isinstance(keepalive, int | float) or keepalive < 0
+            isinstance(keepalive, bool)
+            or not isinstance(keepalive, int | float)
+            or not (keepalive == 0 or MIN_KEEPALIVE_S <= keepalive <= MAX_TIMEOUT_S)
         ):
             raise ValueError(
-                f"keepalive must be a number of seconds ≥ 0 or None, got {keepalive!r}"
+                f"keepalive must be seconds from {MIN_KEEPALIVE_S:g} to {MAX_TIMEOUT_S:g}, or 0 "
+                f"or None for never, got {keepalive!r}"
             )
         for name in ("on_stray", "on_event"):
             callback = getattr(self, name)

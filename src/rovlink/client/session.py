@@ -76,6 +76,7 @@ from rovlink.protocol import (
     setting_command,
 )
 from rovlink.protocol.text_enum import StrEnum
+from rovlink.protocol.visible import visible
 
 __all__ = ["FENCE_QUERIES", "KEEPALIVE_QUERY", "Outcome", "PendingQuery", "Received", "Session"]
 
@@ -415,22 +416,26 @@ class Session:
 
     def raw(self, frame: bytes, now: float) -> tuple[bytes, PendingQuery | None]:
         """The bytes to write for a raw frame sent as it is (after anything due); a query in it
-        joins the queue.
+        joins the queue. Text or broken frames around it go as they are; more than one command
+        frame is a ValueError (nothing is sent).
 
         The frame is read as the controller will read it, in the current checksum mode, so that
         a raw ``#crcon!`` switches the session too and a raw query is matched like any other.
         """
         self._raw_decoder.checksum_enabled = self._checksum_enabled
         self._raw_decoder.reset()
-        events = self._raw_decoder.feed(frame)
-        command: Command | None = None
-        if (
-            len(events) == 1
-            and isinstance(events[0], Frame)
-            and events[0].message.kind is Kind.COMMAND
-        ):
-            message = events[0].message
-            command = Command(message.name, message.values)
+        commands = [
+            Command(event.message.name, event.message.values)
+            for event in self._raw_decoder.feed(frame)
+            if isinstance(event, Frame) and event.message.kind is Kind.COMMAND
+        ]
+        if len(commands) > 1:  # (the motion and the replies of all of them would go untracked)
+            listed = ", ".join(str(command) for command in commands)
+            raise ValueError(
+                f"send_raw sends one frame at a time: '{visible(frame.decode('latin-1'))}' holds "
+                f"{len(commands)} commands ({listed}); send each on its own"
+            )
+        command = commands[0] if commands else None
         data = self.take_outbox(now) + self._account(command, frame, now)
         if command is None:
             return data, None
@@ -662,15 +667,32 @@ class Session:
             if received:
                 events.append(BytesReceived(now, received))
 
-    def reset_link(self) -> None:
-        """Start afresh on a reopened link: no partial frame, nothing late, and nothing due but
-        zero thrust, if the motion last sent was not (write :meth:`take_outbox` first).
+    def rest_frames(self) -> bytes:
+        """Zero thrust for the motion as last sent, in the current checksum mode (empty if it is
+        at rest): what a reopened link carries first, before its readiness probe (P21).
 
         A board that reset is at rest (P21), but a link that dropped and came back (a TCP
         connection, a loose cable) may find the controller still driving the thrust last sent,
-        and the queries that follow would feed its link-loss watchdog (P17): the motion a
-        program or a pilot commanded before the loss is never resumed unasked.
-        (The queries of the old link were settled by :meth:`disconnect`.)
+        in the mode it was in, and every probe would feed its link-loss watchdog (P17). The
+        motion stays as last sent: a reopened link that fails gets these again on the next
+        one, until :meth:`reset_link`.
+
+        >>> session = Session()
+        >>> _ = session.command(Command("th", (90, 40)), now=0.0)
+        >>> session.rest_frames()
+        b'#th.90.0!'
+        """
+        return b"".join(self.frame_for(command) for command in self._zeroing_commands())
+
+    def reset_link(self) -> None:
+        """Start afresh on a reopened link that answered: no partial frame, nothing late, and
+        nothing due but the checksum mode, then zero thrust if the motion last sent was not at
+        rest (write :meth:`take_outbox` next).
+
+        The mode comes first: the readiness probe left the controller in plain mode (P21), in
+        which a checksummed frame is dropped. The motion a program or a pilot commanded before
+        the loss is never resumed unasked. (The queries of the old link were settled by
+        :meth:`disconnect`.)
         """
         self._decoder.reset()
         self._fragment = self._fragment_head = None
@@ -678,6 +700,8 @@ class Session:
         self._end_resync()
         self._consecutive_timeouts = 0
         self._reset_reported_at = None
+        mode = setting_command(Setting.CHECKSUM, self._checksum_enabled)
+        self._outbox.append((self.frame_for(mode), None, mode))
         for command in self._zeroing_commands():
             self._outbox.append((self.frame_for(command), None, command))
         self._power_percent = self._vertical_percent = 0

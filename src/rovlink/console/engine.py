@@ -139,7 +139,12 @@ class ConsoleEngine:
             if isinstance(action, SendCommand):
                 self._show_replies(await self.rov.send(action.command))
             elif isinstance(action, SendRaw):
-                self._show_replies(await self.rov.send_raw(action.frame))
+                try:
+                    replies = await self.rov.send_raw(action.frame)
+                except ValueError as error:  # (more than one frame: nothing was sent)
+                    self._emit(error_line(str(error)))
+                    return
+                self._show_replies(replies)
             elif isinstance(action, SetChecksum):
                 await self.rov.send(setting_command(Setting.CHECKSUM, action.enabled))
                 self._emit(info_line(self._checksum_text(), "class:info"))

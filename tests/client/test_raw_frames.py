@@ -1,0 +1,70 @@
+"""``send_raw``: a frame exactly as given, its motion and its replies tracked like any other."""
+
+from __future__ import annotations
+
+import pytest
+
+from rovlink.client.events import BytesSent, ClientEvent
+from rovlink.client.session import Session
+from rovlink.protocol import Command
+from tests.client.conftest import wait_until_async
+from tests.client.fake_controller import FakeController
+from tests.client.test_aio import MakeAsyncClient
+from tests.client.test_blocking import MakeClient
+
+#: Two command frames in one raw chunk: before, neither was tracked (a motion that never
+#: expired, P23) and the replies of queries among them were counted as stray.
+TWO_FRAMES = [b"#start!#th.90.60!", b"#qd!#qr!", b"#qd!#th.90.60!"]
+
+
+@pytest.mark.parametrize("chunk", TWO_FRAMES)
+def test_the_blocking_client_sends_one_raw_frame_at_a_time(
+    fake: FakeController, make_client: MakeClient, chunk: bytes
+) -> None:
+    client = make_client()
+    with pytest.raises(ValueError, match=r"holds 2 commands .*; send each on its own"):
+        client.send_raw(chunk)
+    assert client.send_raw("#qd!") == client.send(Command("qd"))  # nothing of it was sent
+    assert fake.wait_for(lambda f: len(f.commands) == 3)
+    assert fake.frames()[1:] == ["#qd!", "#qd!"]
+
+
+@pytest.mark.parametrize("chunk", TWO_FRAMES)
+async def test_the_asyncio_client_sends_one_raw_frame_at_a_time(
+    fake: FakeController, make_async_client: MakeAsyncClient, chunk: bytes
+) -> None:
+    client = await make_async_client()
+    with pytest.raises(ValueError, match=r"holds 2 commands .*; send each on its own"):
+        await client.send_raw(chunk)
+    assert await client.send_raw("#qd!") == await client.send(Command("qd"))
+    assert fake.frames()[1:] == ["#qd!", "#qd!"]
+
+
+def test_a_raw_motion_frame_among_noise_still_expires() -> None:
+    session = Session(motion_timeout_s=1.0)
+    data, pending = session.raw(b"\r\nxx#th.90.60!", now=0.0)
+    assert (data, pending) == (b"\r\nxx#th.90.60!", None)
+    session.tick(now=1.0)
+    assert session.take_outbox(now=1.0) == b"#th.90.0!"
+
+
+def test_a_raw_set_command_is_reported_at_once(
+    fake: FakeController, make_client: MakeClient
+) -> None:
+    # (Before, its BytesSent waited for the background reader or the next call.)
+    client = make_client()
+    events: list[ClientEvent] = []
+    client.subscribe(events.append)
+    client.send_raw(b"#mgmp.5!")
+    assert [event.data for event in events if isinstance(event, BytesSent)] == [b"#mgmp.5!"]
+
+
+async def test_the_asyncio_client_reports_a_raw_set_command_too(
+    fake: FakeController, make_async_client: MakeAsyncClient
+) -> None:
+    client = await make_async_client()
+    events: list[ClientEvent] = []
+    client.subscribe(events.append)
+    await client.send_raw(b"#mgmp.5!")
+    assert [event.data for event in events if isinstance(event, BytesSent)] == [b"#mgmp.5!"]
+    assert await wait_until_async(lambda: "#mgmp.5!" in fake.frames())
