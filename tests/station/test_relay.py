@@ -64,6 +64,15 @@ def test_only_changes_go_on_the_wire():
     assert wire.update(PilotInput(True, 95, 0, 0, 4.0), 0.15) == ["#th.95.0!"]
 
 
+def test_a_heading_of_360_is_the_heading_of_0():
+    # (Before, 360 never equalled the 0 sent for it: every input sent #th.0.40! again.)
+    wire = Wire()
+    wire.armed_and_flying(direction_deg=0, power_percent=40)
+    assert wire.update(PilotInput(True, 360, 40, 0, 2.0), 0.05) == []
+    assert wire.update(PilotInput(True, 360, 40, 0, 3.0), 0.1) == []
+    assert wire.update(PilotInput(True, 360, 60, 0, 4.0), 0.15) == ["#th.0.60!"]
+
+
 def test_releasing_the_dead_man_zeroes_at_once():
     wire = Wire()
     wire.armed_and_flying()

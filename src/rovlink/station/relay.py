@@ -286,11 +286,12 @@ class ThrustRelay:
         )
         commands: list[Command] = []
         if pilot.power_percent > 0:
-            if renew or (pilot.direction_deg, pilot.power_percent) != (
+            direction_deg = pilot.direction_deg % 360  # (360 ≡ 0, P11: the same heading)
+            if renew or (direction_deg, pilot.power_percent) != (
                 commanded.direction_deg,
                 commanded.power_percent,
             ):
-                commands.append(Command("th", (pilot.direction_deg % 360, pilot.power_percent)))
+                commands.append(Command("th", (direction_deg, pilot.power_percent)))
         elif commanded.power_percent > 0:
             commands.append(Command("th", (commanded.direction_deg, 0)))
         if commanded.vertical_mode is VerticalMode.DIRECT and (

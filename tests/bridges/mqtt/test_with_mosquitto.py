@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import contextlib
+import json
 
 import aiomqtt
 import pytest
@@ -245,3 +246,53 @@ async def test_a_lost_controller_is_said_as_such_not_as_a_stop(broker: Mosquitto
         assert "simulated n1" in offline["reason"]
         # Said once: the goodbye waits for the event the publisher was sending, not resends it.
         assert [e["event"] for e in watcher.on("rovlink/n1/events")] == ["link"]
+
+
+async def test_a_retained_command_is_never_carried_out_again_after_a_reconnection(
+    broker: Mosquitto,
+):
+    # Before, the broker handed the retained `th 90 100` to the bridge on every connection:
+    # after a broker restart it drove the unlocked robot at full power.
+    async with bridged_robot(broker, "k1") as robot:
+        async with subscriber(broker, "rovlink/k1/cmd/reply") as watcher:
+            assert (await watcher.command("k1", "stop"))["ok"]
+            await watcher.client.publish("rovlink/k1/cmd", b"th 90 100", qos=1, retain=True)
+            assert (await watcher.command("k1", "start"))["ok"]  # the robot is unlocked now
+            assert robot.frames().count("#th.90.100!") == 1  # (live: sent while locked)
+        broker.restart()  # (the broker keeps its retained messages)
+        await until(lambda: not robot.bridge.connected.is_set())
+        await until(robot.bridge.connected.is_set)
+        async with subscriber(broker, "rovlink/k1/cmd/reply") as watcher:
+            assert (await watcher.command("k1", "qd"))["ok"]  # served in order: after it
+        assert robot.frames().count("#th.90.100!") == 1
+
+
+async def test_a_retained_command_is_not_carried_out_on_connecting(broker: Mosquitto):
+    async with subscriber(broker, "rovlink/k2/cmd/reply") as watcher:
+        await watcher.client.publish("rovlink/k2/cmd", b"th 90 100", qos=1, retain=True)
+        async with bridged_robot(broker, "k2") as robot:
+            assert (await watcher.command("k2", "qd"))["ok"]
+            assert "#th.90.100!" not in robot.frames()
+
+
+async def test_a_command_flagged_retained_is_refused_with_the_reason(broker: Mosquitto):
+    # (Should a broker ignore MQTT 5's retain handling.)
+    published: list[tuple[str, bytes]] = []
+
+    class RecordingBroker:
+        async def publish(self, topic: str, payload: bytes, **_: object) -> None:
+            published.append((topic, payload))
+
+    class RetainedMessage:
+        payload = b"th 90 100"
+        retain = True
+        properties = None
+
+    async with bridged_robot(broker, "z1") as robot:
+        await robot.bridge._on_command(RecordingBroker(), RetainedMessage())
+        [(topic, payload)] = published
+        assert topic == "rovlink/z1/cmd/reply"
+        reply = json.loads(payload)
+        assert reply["ok"] is False
+        assert "a retained command is not carried out" in reply["error"]
+        assert "#th.90.100!" not in robot.frames()

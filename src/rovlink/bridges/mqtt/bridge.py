@@ -52,6 +52,10 @@ logger = get_logger("rovlink.bridges.mqtt")
 
 _QOS_TELEMETRY = 0
 _QOS_RELIABLE = 1
+_RETAINED_REFUSED = (
+    "a retained command is not carried out (the broker would give it again on every "
+    "reconnection): publish commands without retain"
+)
 #: The retained state is refreshed at least this often (its ``at`` and link silence).
 _STATE_REFRESH_S = 2.0
 #: Reconnection backoff: first wait, doubled up to the last.
@@ -191,7 +195,16 @@ class MqttBridge:
     async def _serve(self, mqtt: Any) -> None:
         if self._event_publish is not None:
             self._event_publish.cancel()  # on the connection before: that event is sent again
-        await mqtt.subscribe(self.topics.command, qos=_QOS_RELIABLE)
+        from paho.mqtt.subscribeoptions import SubscribeOptions  # noqa: PLC0415
+
+        # No retained command (MQTT 5's retain handling 2): the broker would hand it over on
+        # every (re)connection, a `th 90 100` published minutes or a broker restart ago.
+        await mqtt.subscribe(
+            self.topics.command,
+            options=SubscribeOptions(
+                qos=_QOS_RELIABLE, retainHandling=SubscribeOptions.RETAIN_DO_NOT_SEND
+            ),
+        )
         self._last_state = None  # publish it afresh: the broker may have restarted
         self.connected.set()
         tasks = [
@@ -290,6 +303,8 @@ class MqttBridge:
         payload = message.payload if isinstance(message.payload, bytes) else b""
         try:
             request = read_request(payload)
+            if getattr(message, "retain", False):  # (a broker that ignored the retain handling)
+                raise PayloadError(_RETAINED_REFUSED)
             command = self.policy.check(request.text)
         except (PayloadError, ValueError) as error:
             await self._reply(
