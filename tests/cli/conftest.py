@@ -4,12 +4,13 @@ from __future__ import annotations
 
 import io
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 
 import pytest
 
 from rovlink.cli import main
+from tests.cli.silent_controller import SilentController
 
 
 @dataclass(frozen=True)
@@ -36,3 +37,11 @@ def run_cli(capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch)
         return CliResult(status, captured.out, captured.err)
 
     return run
+
+
+@pytest.fixture
+def silent() -> Iterator[SilentController]:
+    """A controller that never answers (it records what it reads)."""
+    controller = SilentController()
+    yield controller
+    controller.close()

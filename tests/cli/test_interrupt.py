@@ -7,66 +7,21 @@ import contextlib
 import json
 import os
 import signal
-import socket
 import subprocess
 import sys
 import threading
 import time
-from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import pytest
 
 from tests.cli.conftest import RunCli
+from tests.cli.silent_controller import WAIT_S, SilentController
 
 pytestmark = pytest.mark.integration
 
 #: Generous: the command should exit in a few milliseconds; a loaded machine is slower.
 EXIT_BOUND_S = 1.5
-WAIT_S = 15.0
-
-
-class SilentController:
-    """Accepts one connection and records what it reads; never answers."""
-
-    def __init__(self) -> None:
-        self._server = socket.create_server(("127.0.0.1", 0))
-        self.port = self._server.getsockname()[1]
-        self.received = b""
-        self._changed = threading.Condition()
-        self._thread = threading.Thread(target=self._serve, daemon=True)
-        self._thread.start()
-
-    @property
-    def url(self) -> str:
-        return f"socket://127.0.0.1:{self.port}"
-
-    def _serve(self) -> None:
-        connection, _ = self._server.accept()
-        with connection:
-            while data := connection.recv(4096):
-                with self._changed:
-                    self.received += data
-                    self._changed.notify_all()
-
-    def wait_for(self, frame: bytes, timeout_s: float = WAIT_S) -> bool:
-        """Whether ``frame`` arrived within ``timeout_s``."""
-        return self.wait_until(lambda received: frame in received, timeout_s)
-
-    def wait_until(self, holds: Callable[[bytes], bool], timeout_s: float = WAIT_S) -> bool:
-        """Whether what arrived made ``holds`` true within ``timeout_s``."""
-        with self._changed:
-            return self._changed.wait_for(lambda: holds(self.received), timeout_s)
-
-    def close(self) -> None:
-        self._server.close()
-
-
-@pytest.fixture
-def silent() -> Iterator[SilentController]:
-    controller = SilentController()
-    yield controller
-    controller.close()
 
 
 def _ignore_ctrl_c() -> None:

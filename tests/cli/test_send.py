@@ -15,6 +15,7 @@ from rovlink.cli.send import group_words
 from rovlink.client import CommandTextError, parse_command_text
 from rovlink.protocol import get_algorithm
 from tests.cli.conftest import RunCli
+from tests.cli.silent_controller import SilentController
 from tests.client.conftest import REPLY_TIMEOUT_S
 
 #: ``--timeout`` where replies are expected: long enough for a loaded machine.
@@ -299,3 +300,24 @@ def test_controller_text_is_printed_with_its_control_characters_escaped(
     assert replayed.status == 0, replayed.err
     assert "text: \\x1b[31mRED\\x07\n" in replayed.out
     assert "\x1b" not in replayed.out
+
+
+@pytest.mark.parametrize(
+    ("line", "stopped"),
+    [(["start", "th 270 25", "qsa", "stop"], True), (["qd", "start"], False)],
+    ids=["after motion", "before any"],
+)
+def test_a_failed_query_after_motion_ends_the_line_with_stop(
+    run_cli: RunCli, silent: SilentController, line: list[str], stopped: bool
+) -> None:
+    # Before, the line ended at the failed #qsa! and the robot was left at 25 % thrust: its
+    # own `stop` was never sent.
+    link = ["--boot-timeout", "0", "--timeout", "0.05", "--retries", "0"]
+    result = run_cli("send", silent.url, *link, *line)
+    assert result.status == 1
+    if stopped:
+        assert "(the robot was sent #stop!)" in result.err
+        assert silent.wait_until(lambda received: received.endswith(b"#qsa!#stop!"))
+    else:
+        assert "#stop!" not in result.err
+        assert b"#start!" not in silent.received  # the rest of the line is not sent

@@ -110,3 +110,19 @@ async def test_leaving_while_locked_sends_nothing_more() -> None:
     await asyncio.wait_for(runner, 5)
     assert rig.frames() == ["#crcoff!", "#stop!"]
     await engine.rov.client.close()
+
+
+async def test_a_raw_line_of_two_frames_is_refused_and_leaving_still_stops() -> None:
+    # Before, `raw #start!#th.0.50!` went out untracked: the status said locked, and `quit`
+    # after an earlier `stop` sent no #stop! to the robot driving at 50 %.
+    rig = Rig.simulated()
+    engine, screen = await _engine(rig)
+    runner = asyncio.create_task(engine.run())
+    engine.submit(SendCommand(Command("stop")))
+    engine.submit(SendRaw("#start!#th.0.50!"))
+    engine.submit(SendRaw("#start!"))
+    engine.submit(Quit())
+    await asyncio.wait_for(runner, 5)
+    assert "holds 2 commands (#start!, #th.0.50!); send each on its own" in screen.text()
+    assert rig.frames()[1:] == ["#stop!", "#start!", "#stop!"]
+    await engine.rov.client.close()

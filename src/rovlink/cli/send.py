@@ -269,14 +269,18 @@ def _show(
 
 
 def run(args: argparse.Namespace) -> int:
-    """Send the commands in order; stop at the first failure."""
+    """Send the commands in order; stop at the first failure (with ``#stop!`` once a command
+    that may move the robot was sent)."""
     outgoing = plan(args.commands, checksum=args.checksum, algorithm=args.algorithm)
     show_bytes = _Printer() if args.raw else None
     client = link_options.connect(args, on_stray=_print_text, show_bytes=show_bytes)
     gate = GatedClient(client)
+    may_have_moved = False  # once a command that may move the robot has been sent (or tried)
 
     def send_all() -> None:
+        nonlocal may_have_moved
         for item in outgoing:
+            may_have_moved = may_have_moved or _may_move(item.command)
             sent, replies = _send_one(cast("Client", gate), item)
             checksum = args.algorithm if client.checksum_enabled else None
             _show(sent, replies, checksum, as_json=args.as_json)
@@ -289,4 +293,21 @@ def run(args: argparse.Namespace) -> int:
                 gate.stop_for_good()
                 print("rovlink send: sent #stop!", file=sys.stderr, flush=True)
             raise
+        except CommandError as error:
+            # The rest of the line, a `stop` of the user's own among it, is not sent: a robot
+            # the line set moving is not left so.
+            if not may_have_moved:
+                raise
+            raise CommandError(f"{error} ({_stopped_after_failure(client)})") from None
     return 0
+
+
+def _stopped_after_failure(client: Client) -> str:
+    """Send ``#stop!`` after a failed command; what became of it, for the error message."""
+    from rovlink.client import ClientError  # noqa: PLC0415
+
+    try:
+        client.stop()
+    except (ClientError, TimeoutError, ConnectionError) as error:
+        return f"#stop! could not be sent: {error}"
+    return "the robot was sent #stop!"
