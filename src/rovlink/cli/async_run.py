@@ -88,11 +88,17 @@ async def ended_by_termination(main: Coroutine[Any, Any, T], ending: Ending) -> 
             continue
         previous[number] = handler
     try:
-        return await main
+        result = await main
     except asyncio.CancelledError:
         if ending.cancelled:  # (by SIGTERM, SIGHUP, or on 3.10 Ctrl-C: KeyboardInterrupt all)
             raise KeyboardInterrupt from None
         raise
+    else:
+        # Ended by a signal all the same: a framework (textual) took the cancellation as a
+        # request to leave, and returned. The exit status says interrupted, as for any command.
+        if ending.seen_on(task):
+            raise KeyboardInterrupt
+        return result
     finally:
         for number, handler in previous.items():
             loop.remove_signal_handler(number)  # (which leaves SIG_DFL)
