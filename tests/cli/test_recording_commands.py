@@ -359,7 +359,7 @@ def test_a_link_that_does_not_open_leaves_no_recording(
     result = run_cli(name, url, *rest, "--record", str(recording))
     assert result.status == 1, result.err
     assert f"cannot open {url}" in result.err
-    assert f"nothing was recorded; {recording} not kept" in result.err
+    assert f"rovlink {name}: nothing was recorded; {recording} not kept" in result.err
     assert "recorded 1" not in result.err  # no summary of a recording of nothing
     assert not recording.exists()
 

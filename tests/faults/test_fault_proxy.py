@@ -125,3 +125,24 @@ def test_a_flood_of_refused_clients_is_bounded_and_the_served_one_is_undisturbed
                 other.close()
         first.sendall(b"#qr!")
         assert controller.wait_for(b"#qr!") == b"#qd!#qr!"
+
+
+def test_serve_returns_with_nothing_left_reading_the_port() -> None:
+    # Before, the thread moving the controller's bytes could still be reading when serve()
+    # returned: it found the port closed by its caller, and `rovlink fault` ended by Ctrl-C
+    # or SIGTERM then reported a lost link, with status 1, about one time in three.
+    controller = RecordingController()
+    host, port = controller.address
+    fault_port = FaultPort(open_link(parse_url(f"socket://{host}:{port}")), FaultSettings())
+    proxy = FaultProxy(fault_port, "127.0.0.1", 0)
+    stop = threading.Event()
+    serving = threading.Thread(target=proxy.serve, args=(stop.is_set,), daemon=True)
+    serving.start()
+    stop.set()
+    serving.join(timeout=_TIMEOUT_S)
+    assert not serving.is_alive()
+    assert not [t for t in threading.enumerate() if t.name == "fault proxy pump" and t.is_alive()]
+    fault_port.close()
+    assert proxy.lost is None
+    assert controller.wait_for(b"#stop!")
+    controller.close()

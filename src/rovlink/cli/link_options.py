@@ -321,7 +321,7 @@ def session_recorder(args: argparse.Namespace) -> Recorder | None:
         def finish() -> None:
             recorder.close()
             if recorded_nothing(recorder):  # (the link did not open, or carried nothing)
-                discard_empty_recording(recorder)
+                discard_empty_recording(recorder, program)
             else:
                 report_recording(recorder, time.monotonic() - started_s)
 

@@ -170,12 +170,12 @@ def recorded_nothing(recorder: Recorder) -> bool:
     return recorder.entries_written == len(recorder.paths) and recorder.error is None
 
 
-def discard_empty_recording(recorder: Recorder) -> None:
+def discard_empty_recording(recorder: Recorder, program: str) -> None:
     """Remove the files of a recording that holds its header alone (a link that did not open,
-    or one that carried nothing), and say so in one line: a file that looks like a recording
-    of a session that never took place is not left behind."""
+    or one that carried nothing), and say so in one line as ``program`` (``rovlink send``): a
+    file that looks like a recording of a session that never took place is not left behind."""
     for path in recorder.paths:
         with contextlib.suppress(FileNotFoundError):
             os.remove(path)
     files = ", ".join(recorder.paths)
-    print(f"rovlink: nothing was recorded; {files} not kept", file=sys.stderr)
+    print(f"{program}: nothing was recorded; {files} not kept", file=sys.stderr)

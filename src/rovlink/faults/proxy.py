@@ -32,6 +32,8 @@ STOP_FRAME = b"#stop!"
 #: What a client reads when another one is being served (a text line, as the simulator's).
 BUSY_MESSAGE = b"busy: the fault proxy already has a client\r\n"
 _POLL_S = 0.05
+#: How long serve() waits for its pump thread to see the end (a few of its reads).
+_PUMP_JOIN_S = 2.0
 _BACKLOG = 8
 
 
@@ -74,7 +76,12 @@ class FaultProxy:
     def serve(self, should_stop: Callable[[], bool]) -> None:
         """Accept clients and move bytes until ``should_stop()`` or the controller's link dies."""
         self.port.timeout = _POLL_S
-        pump = threading.Thread(target=self._controller_to_client, args=(should_stop,), daemon=True)
+        pump = threading.Thread(
+            target=self._controller_to_client,
+            args=(should_stop,),
+            name="fault proxy pump",
+            daemon=True,
+        )
         pump.start()
         try:
             while not should_stop() and self.lost is None:
@@ -88,6 +95,9 @@ class FaultProxy:
         finally:
             if self._session is not None:
                 self._session.join()  # (it ends on should_stop() or a lost link, as this loop)
+            # The pump too (it reads every _POLL_S): left reading, it would find the port
+            # closed by the caller and report a clean exit as a lost link.
+            pump.join(_PUMP_JOIN_S)
             self._refused.close()
             self._stop_robot()
             self._selector.close()
