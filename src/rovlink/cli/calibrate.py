@@ -119,11 +119,13 @@ def _show(result: Calibration, at_depth: float) -> None:
 
 
 def _ask(prompt: str) -> None:
-    input(f"{prompt}: ")
+    """Wait for Enter; the end of the input stops the calibration before anything is sent."""
+    if link_options.ask(f"{prompt}: ") is None:
+        raise CommandError("the input ended at the prompt: nothing was sent")
 
 
 def _confirm() -> bool:
-    return input("Send these values? [y/N] ").strip().lower() in ("y", "yes")
+    return link_options.confirmed("Send these values? [y/N] ", accept=("y", "yes"))
 
 
 def _send(client: Client, result: Calibration) -> None:

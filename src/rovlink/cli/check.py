@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from rovlink.cli.failure import CommandError, UsageError, reason
-from rovlink.cli.link_options import algorithm_name, bounded_int, file_name, seconds
+from rovlink.cli.link_options import algorithm_name, bounded_int, confirmed, file_name, seconds
 
 if TYPE_CHECKING:
     from rovlink.conformance import Check, CheckResult, Report
@@ -159,8 +159,7 @@ def _confirm_motion(percent: int) -> bool:
         "down for a few seconds. The vehicle must be in water and free to move.",
         file=sys.stderr,
     )
-    answer = input("Type yes to go on: ")
-    return answer.strip().lower() == "yes"
+    return confirmed("Type yes to go on: ")
 
 
 def _progress(result: CheckResult) -> None:

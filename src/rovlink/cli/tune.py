@@ -193,7 +193,7 @@ def _confirm(args: argparse.Namespace) -> bool:
         "cm). The vehicle must be in water and free to move.",
         file=sys.stderr,
     )
-    return input("Type yes to go on: ").strip().lower() == "yes"
+    return link_options.confirmed("Type yes to go on: ")
 
 
 def _meets_targets(result: TuneResult) -> bool:
