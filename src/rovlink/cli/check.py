@@ -106,7 +106,10 @@ def run(args: argparse.Namespace) -> int:
         raise UsageError(str(error)) from None
     if args.junit:
         _check_output_path("--junit", args.junit)
-    if args.motion and not args.yes and not _confirm_motion(args.motion_power):
+    # Asked only when a check that runs moves the robot: --motion with --only query-… moves
+    # nothing, and needs neither an answer nor --yes.
+    moves = any(check.motion for check in checks)
+    if moves and not args.yes and not _confirm_motion(args.motion_power):
         raise CommandError("motion checks not confirmed; nothing was sent")
     options = SuiteOptions(
         algorithm=args.algorithm,
