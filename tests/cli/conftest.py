@@ -25,12 +25,21 @@ class CliResult:
 RunCli = Callable[..., CliResult]
 
 
+class _TerminalInput(io.TextIOWrapper):
+    """Standard input that says it is a terminal, so that a command asks on it."""
+
+    def isatty(self) -> bool:
+        return True
+
+
 @pytest.fixture
 def run_cli(capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch) -> RunCli:
-    """Run ``rovlink ARGS``; ``stdin=b"…"`` gives its standard input."""
+    """Run ``rovlink ARGS``; ``stdin=b"…"`` gives its standard input, ``tty=True`` makes that
+    input a terminal (the prompts ask, and its end is Ctrl-D)."""
 
-    def run(*argv: str, stdin: bytes = b"") -> CliResult:
-        monkeypatch.setattr(sys, "stdin", io.TextIOWrapper(io.BytesIO(stdin)))
+    def run(*argv: str, stdin: bytes = b"", tty: bool = False) -> CliResult:
+        kind = _TerminalInput if tty else io.TextIOWrapper
+        monkeypatch.setattr(sys, "stdin", kind(io.BytesIO(stdin)))
         capsys.readouterr()
         status = main(list(argv))
         captured = capsys.readouterr()

@@ -62,6 +62,18 @@ _HANG_TIMEOUT_S = 30
             "argument --restore: expected three integers 0–99 as KP,KI,KD, got '1.5,1,1'",
         ),
         (
+            ["tune", "sim://", "--yes", "--depth", "300"],
+            "--depth 300 must lie strictly between --min-depth 20 and --max-depth 300",
+        ),
+        (
+            ["tune", "sim://", "--yes", "--depth", "0"],
+            "--depth 0 must lie strictly between --min-depth 20 and --max-depth 300",
+        ),
+        (
+            ["tune", "sim://", "--yes", "--depth", "50", "--min-depth", "50"],
+            "--depth 50 must lie strictly between --min-depth 50 and --max-depth 300",
+        ),
+        (
             ["tune", "sim://", "--yes", "--scales", "0,0.1,0.1"],
             "argument --scales: expected three numbers > 0 as KP,KI,KD, got '0,0.1,0.1'",
         ),

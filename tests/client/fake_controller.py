@@ -23,7 +23,7 @@ import socket
 import threading
 import time
 from collections import deque
-from collections.abc import Callable
+from collections.abc import Callable, Iterable, Sequence
 
 from rovlink.protocol import (
     BadFrame,
@@ -60,6 +60,7 @@ class FakeController:
         boot_s: float = 0.0,
         late_delay_s: float = 0.35,
         checksum: bool = False,
+        script: Iterable[str] = (),
     ) -> None:
         self._fd = fd
         self._booted_at = time.monotonic() + boot_s
@@ -70,7 +71,9 @@ class FakeController:
         self.decoder = Decoder(algorithm=algorithm)
         self.decoder.checksum_enabled = checksum  # (on from the start: a controller running on)
         self.values = dict(DEFAULT_VALUES if values is None else values)
-        self.script: deque[str] = deque()
+        #: The actions for the next queries (see :meth:`then`); ``script`` is there before the
+        #: first byte is read.
+        self.script: deque[str] = deque(script)
         self.raw = bytearray()
         self.commands: list[Command] = []
         self.bad_frames: list[BadFrame] = []
@@ -265,17 +268,26 @@ class FakeControllerServer:
     after every power-up (``fakes``, in the order of the connections).
 
     ``boot_s``: how long each controller ignores its input after the connection (a board
-    booting), ``first_boot_s`` the first one's if it differs; ``refuse``: close new connections
-    at once (the adapter is still unplugged); ``checksum_on_accept``: new connections find the
-    controller in checksum mode (only the link dropped: the board ran on); ``ended[i]`` is set
-    once the i-th controller's connection is closed.
+    booting), ``first_boot_s`` the first one's if it differs; ``script``: each controller's
+    actions for its first queries (:meth:`FakeController.then`), in place before the
+    connection's first byte; ``refuse``: close new connections at once (the adapter is still
+    unplugged); ``checksum_on_accept``: new connections find the controller in checksum mode
+    (only the link dropped: the board ran on); ``ended[i]`` is set once the i-th controller's
+    connection is closed.
     """
 
-    def __init__(self, boot_s: float = 0.0, *, first_boot_s: float | None = None) -> None:
+    def __init__(
+        self,
+        boot_s: float = 0.0,
+        *,
+        first_boot_s: float | None = None,
+        script: Sequence[str] = (),
+    ) -> None:
         self._server = socket.create_server(("127.0.0.1", 0))
         self.url = f"socket://127.0.0.1:{self._server.getsockname()[1]}"
         self.boot_s = boot_s
         self.first_boot_s = boot_s if first_boot_s is None else first_boot_s
+        self.script = tuple(script)
         self.fakes: list[FakeController] = []
         self.ended: list[threading.Event] = []
         self.refuse = False
@@ -300,6 +312,7 @@ class FakeControllerServer:
                     boot_s=boot_s,
                     on_close=ended.set,
                     checksum=self.checksum_on_accept,
+                    script=self.script,
                 )
             )
 

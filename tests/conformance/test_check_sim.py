@@ -169,6 +169,17 @@ def test_cli_motion_without_terminal_needs_yes() -> None:
     assert "--motion needs --yes" in result.stderr
 
 
+def test_cli_motion_asks_only_when_a_selected_check_moves(
+    capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # Regression: --motion with only non-motion checks selected still needed --yes (status 2).
+    monkeypatch.setattr("sys.stdin.isatty", lambda: False)
+    assert main(["check", "sim://?seed=2", "--motion", "--only", "query-qd"]) == 0
+    assert "query-qd" in capsys.readouterr().out
+    assert main(["check", "sim://", "--motion", "--only", "query-qd", "--only", "motion-stop"]) == 2
+    assert "--motion needs --yes" in capsys.readouterr().err
+
+
 def test_docs_list_every_check() -> None:
     from rovlink.conformance import checks_markdown
 

@@ -17,9 +17,19 @@ def test_list_rules_and_usage_errors(capsys: pytest.CaptureFixture[str]) -> None
     assert main(["tune", "sim://", "--rule", "magic", "--yes"]) == 2
     assert "unknown rule 'magic'" in capsys.readouterr().err
     assert main(["tune", "sim://", "--depth", "500", "--max-depth", "300", "--yes"]) == 2
-    assert "must lie between the limits" in capsys.readouterr().err
+    assert "--depth 500 must lie strictly between --min-depth 20 and --max-depth 300" in (
+        capsys.readouterr().err
+    )
     assert main(["tune", "sim://", "--min-depth", "300", "--max-depth", "200", "--yes"]) == 2
     assert "0 ≤ min < max" in capsys.readouterr().err
+
+
+def test_help_shows_the_depth_limits_defaults(capsys: pytest.CaptureFixture[str]) -> None:
+    # Regression: the limits a --depth is refused for were in neither the error nor the help.
+    assert main(["tune", "--help"]) == 0
+    help_text = " ".join(capsys.readouterr().out.split())  # (however argparse wrapped it)
+    assert "--min-depth MIN_DEPTH shallowest allowed, cm (default 20)" in help_text
+    assert "--max-depth MAX_DEPTH deepest allowed, cm (default 300)" in help_text
 
 
 def test_parse_triple() -> None:

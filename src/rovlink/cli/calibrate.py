@@ -87,12 +87,12 @@ def run(args: argparse.Namespace) -> int:
         surface = args.surface_raw
         if surface is None:
             _ask("Hold the vehicle with its pressure sensor at the surface, then press Enter")
-            surface = _mean_raw(client, args.samples)
+            surface = _mean_raw(client, args.samples, "the surface")
             print(f"surface: raw {surface:.2f}")
         at_depth = args.depth_raw
         if at_depth is None:
             _ask(f"Lower the pressure sensor to {args.depth} cm, then press Enter")
-            at_depth = _mean_raw(client, args.samples)
+            at_depth = _mean_raw(client, args.samples, f"at {args.depth} cm")
             print(f"at {args.depth} cm: raw {at_depth:.2f}")
         try:
             result = two_point(surface, at_depth, args.depth, args.min_counts)
@@ -105,9 +105,7 @@ def run(args: argparse.Namespace) -> int:
         if not args.yes and sys.stdin.isatty() and not _confirm():
             print("not sent")
             return 1
-        client.set_depth_zero(result.zero_raw)
-        client.set_depth_scale(result.k)
-        print(f"sent #sdz.{result.zero_raw}! #sdk.{result.k}!; depth now {client.depth_cm()} cm")
+        _send(client, result)
     finally:
         client.close()
     return 0
@@ -121,15 +119,50 @@ def _show(result: Calibration, at_depth: float) -> None:
 
 
 def _ask(prompt: str) -> None:
-    input(f"{prompt}: ")
+    """Wait for Enter; the end of the input stops the calibration before anything is sent."""
+    if link_options.ask(f"{prompt}: ") is None:
+        raise CommandError("the input ended at the prompt: nothing was sent")
 
 
 def _confirm() -> bool:
-    return input("Send these values? [y/N] ").strip().lower() in ("y", "yes")
+    return link_options.confirmed("Send these values? [y/N] ", accept=("y", "yes"))
 
 
-def _mean_raw(client: Client, samples: int) -> float:
-    readings = [client.pressure_raw() for _ in range(samples)]
+def _send(client: Client, result: Calibration) -> None:
+    """Send sdz, then sdk, then read the depth they give. A link that fails on the way is one
+    line saying which values went: after sdz alone the controller is half calibrated."""
+    from rovlink.client import ClientError  # noqa: PLC0415 - the driver loads when used
+
+    zero, scale = f"#sdz.{result.zero_raw}!", f"#sdk.{result.k}!"
+    sent: list[str] = []
+    try:
+        client.set_depth_zero(result.zero_raw)
+        sent.append(zero)
+        client.set_depth_scale(result.k)
+        sent.append(scale)
+        depth_cm = client.depth_cm()
+    except (ClientError, TimeoutError, ConnectionError) as error:
+        if not sent:
+            raise CommandError(f"{error}; nothing was sent") from None
+        if sent == [zero]:
+            raise CommandError(
+                f"sent {zero} but not {scale}: {error}; the depth zero is new and its scale "
+                "old: calibrate again"
+            ) from None
+        raise CommandError(
+            f"sent {zero} {scale}, but reading the depth back failed: {error}"
+        ) from None
+    print(f"sent {zero} {scale}; depth now {depth_cm} cm")
+
+
+def _mean_raw(client: Client, samples: int, point: str) -> float:
+    """The mean of ``samples`` raw readings; a link failure names the ``point`` measured."""
+    from rovlink.client import ClientError  # noqa: PLC0415 - the driver loads when used
+
+    try:
+        readings = [client.pressure_raw() for _ in range(samples)]
+    except (ClientError, TimeoutError, ConnectionError) as error:
+        raise CommandError(f"measuring {point}: {error}; nothing was sent") from None
     spread = max(readings) - min(readings)
     if spread > 5:  # the vehicle was moving, or the sensor is noisy: worth knowing
         print(f"  note: the readings spread over {spread} counts", file=sys.stderr)

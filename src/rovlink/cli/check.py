@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from rovlink.cli.failure import CommandError, UsageError, reason
-from rovlink.cli.link_options import algorithm_name, bounded_int, file_name, seconds
+from rovlink.cli.link_options import algorithm_name, bounded_int, confirmed, file_name, seconds
 
 if TYPE_CHECKING:
     from rovlink.conformance import Check, CheckResult, Report
@@ -106,7 +106,10 @@ def run(args: argparse.Namespace) -> int:
         raise UsageError(str(error)) from None
     if args.junit:
         _check_output_path("--junit", args.junit)
-    if args.motion and not args.yes and not _confirm_motion(args.motion_power):
+    # Asked only when a check that runs moves the robot: --motion with --only query-… moves
+    # nothing, and needs neither an answer nor --yes.
+    moves = any(check.motion for check in checks)
+    if moves and not args.yes and not _confirm_motion(args.motion_power):
         raise CommandError("motion checks not confirmed; nothing was sent")
     options = SuiteOptions(
         algorithm=args.algorithm,
@@ -159,8 +162,7 @@ def _confirm_motion(percent: int) -> bool:
         "down for a few seconds. The vehicle must be in water and free to move.",
         file=sys.stderr,
     )
-    answer = input("Type yes to go on: ")
-    return answer.strip().lower() == "yes"
+    return confirmed("Type yes to go on: ")
 
 
 def _progress(result: CheckResult) -> None:

@@ -3,7 +3,8 @@
 :func:`add_link_options` puts them on a command's parser, each checked as it is read (a bad
 value is a one-line usage error naming the option); :func:`client_options` turns them into the
 driver's one settings object, :class:`~rovlink.client.options.ClientOptions`. A new connection
-setting is an option here and a line in :func:`client_options`.
+setting is an option here and a line in :func:`client_options`. :func:`ask` and
+:func:`confirmed` are the questions such commands put before they act (``--yes`` skips them).
 """
 
 from __future__ import annotations
@@ -35,8 +36,10 @@ __all__ = [
     "MAX_TIMEOUT_S",
     "add_link_options",
     "algorithm_name",
+    "ask",
     "baud_rate",
     "client_options",
+    "confirmed",
     "connect",
     "connect_async",
     "file_name",
@@ -363,6 +366,23 @@ def connection_failure(url: str, error: BaseException) -> CommandError:
     if error_number(error) == errno.ENOTTY:
         return CommandError(f"{url}: not a serial port")
     return CommandError(f"cannot open {url}: {reason(error)}")
+
+
+def ask(prompt: str) -> str | None:
+    """The line typed after ``prompt``, or None when the input ends there (Ctrl-D): the
+    command takes that as a no, never as a traceback."""
+    try:
+        return input(prompt)
+    except EOFError:
+        print()  # the prompt's line ends here, not in the message that follows
+        return None
+
+
+def confirmed(prompt: str, *, accept: tuple[str, ...] = ("yes",)) -> bool:
+    """Whether the answer to ``prompt`` is one of ``accept`` (in any case, with spaces around);
+    the end of the input is a no."""
+    answer = ask(prompt)
+    return answer is not None and answer.strip().lower() in accept
 
 
 def log_warnings() -> None:

@@ -77,9 +77,18 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     """``tune``'s options."""
     link_options.add_link_options(parser, url_required=True)
     group = parser.add_argument_group("experiment")
-    group.add_argument("--depth", type=_depth, default=100, help="target depth, cm (default 100)")
-    group.add_argument("--min-depth", type=_depth, default=20, help="shallowest allowed, cm")
-    group.add_argument("--max-depth", type=_depth, default=300, help="deepest allowed, cm")
+    group.add_argument(
+        "--depth",
+        type=_depth,
+        default=100,
+        help="target depth, cm, strictly between --min-depth and --max-depth (default %(default)s)",
+    )
+    group.add_argument(
+        "--min-depth", type=_depth, default=20, help="shallowest allowed, cm (default %(default)s)"
+    )
+    group.add_argument(
+        "--max-depth", type=_depth, default=300, help="deepest allowed, cm (default %(default)s)"
+    )
     group.add_argument(
         "--relay-power",
         type=lambda text: bounded_int(text, 5, 60),
@@ -150,8 +159,12 @@ def run(args: argparse.Namespace) -> int:
         limits = DepthLimits(args.min_depth, args.max_depth)
     except ValueError as error:
         raise UsageError(str(error)) from None
+    # Strictly: the relay swings around the target, and the plant aborts past either limit.
     if not args.min_depth < args.depth < args.max_depth:
-        raise UsageError(f"--depth {args.depth} must lie between the limits")
+        raise UsageError(
+            f"--depth {args.depth} must lie strictly between --min-depth {args.min_depth} "
+            f"and --max-depth {args.max_depth}"
+        )
     defaults = DepthPidConfig()
     scales = GainScales(*(args.scales or (defaults.kp_scale, defaults.ki_scale, defaults.kd_scale)))
     kp, ki, kd = args.restore or (defaults.kp, defaults.ki, defaults.kd)
@@ -193,7 +206,7 @@ def _confirm(args: argparse.Namespace) -> bool:
         "cm). The vehicle must be in water and free to move.",
         file=sys.stderr,
     )
-    return input("Type yes to go on: ").strip().lower() == "yes"
+    return link_options.confirmed("Type yes to go on: ")
 
 
 def _meets_targets(result: TuneResult) -> bool:

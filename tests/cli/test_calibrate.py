@@ -1,0 +1,89 @@
+"""``rovlink calibrate`` on a link that fails: one line saying what failed and what was sent."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+
+import pytest
+
+from rovlink.client import ConnectionLostError
+from tests.cli.conftest import RunCli
+from tests.client.conftest import CONDITION_TIMEOUT_S, NO_REPLY_TIMEOUT_S, wait_until
+from tests.client.fake_controller import FakeControllerServer
+
+#: No readiness probe (the fake answers at once) and no retries: the script's one dropped
+#: reply is a query that times out.
+_LINK = ("--boot-timeout", "0", "--retries", "0", "--timeout", str(NO_REPLY_TIMEOUT_S))
+_KNOWN_POINTS = ("--depth", "100", "--surface-raw", "20", "--depth-raw", "120")
+
+
+@pytest.fixture
+def deaf_controller() -> Iterator[FakeControllerServer]:
+    """A controller that takes every command and leaves its first query unanswered."""
+    served = FakeControllerServer(script=["drop"])
+    yield served
+    served.close()
+
+
+def _calibration_sent(server: FakeControllerServer) -> list[str]:
+    """The #sdz and #sdk frames the controller got, once the command has closed its connection
+    (so every frame it sent has arrived)."""
+    assert wait_until(lambda: len(server.fakes) == 1)
+    assert server.ended[0].wait(CONDITION_TIMEOUT_S)
+    return [frame for frame in server.fakes[0].frames() if frame.startswith(("#sdz", "#sdk"))]
+
+
+def test_a_depth_read_back_that_times_out_says_both_values_were_sent(
+    run_cli: RunCli, deaf_controller: FakeControllerServer
+) -> None:
+    # Regression: a QueryTimeoutError traceback, after #sdz and #sdk had gone.
+    result = run_cli("calibrate", deaf_controller.url, *_KNOWN_POINTS, "--yes", *_LINK)
+    assert result.status == 1
+    assert "Traceback" not in result.err
+    assert result.err.splitlines()[-1] == (
+        "rovlink calibrate: sent #sdz.20! #sdk.100!, but reading the depth back failed: "
+        f"#qd! got no valid reply within {NO_REPLY_TIMEOUT_S:g} s (1 attempt: timeout)"
+    )
+    assert _calibration_sent(deaf_controller) == ["#sdz.20!", "#sdk.100!"]
+
+
+def test_a_measurement_that_times_out_sends_nothing(
+    run_cli: RunCli, deaf_controller: FakeControllerServer
+) -> None:
+    # Regression: a QueryTimeoutError traceback from _mean_raw.
+    result = run_cli(
+        "calibrate",
+        deaf_controller.url,
+        "--depth",
+        "100",
+        "--samples",
+        "1",
+        *_LINK,
+        stdin=b"\n",
+        tty=True,
+    )
+    assert result.status == 1
+    assert "Traceback" not in result.err
+    assert result.err.splitlines()[-1] == (
+        "rovlink calibrate: measuring the surface: #qr! got no valid reply within "
+        f"{NO_REPLY_TIMEOUT_S:g} s (1 attempt: timeout); nothing was sent"
+    )
+    assert _calibration_sent(deaf_controller) == []
+
+
+def test_a_link_lost_between_the_two_values_says_which_one_went(
+    run_cli: RunCli, deaf_controller: FakeControllerServer, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # The controller is left half calibrated: the user must know it.
+    def lose_the_link(self: object, k: int) -> None:
+        raise ConnectionLostError("the link to the controller was lost")
+
+    monkeypatch.setattr("rovlink.client.Client.set_depth_scale", lose_the_link)
+    result = run_cli("calibrate", deaf_controller.url, *_KNOWN_POINTS, "--yes", *_LINK)
+    assert result.status == 1
+    assert "Traceback" not in result.err
+    assert result.err.splitlines()[-1] == (
+        "rovlink calibrate: sent #sdz.20! but not #sdk.100!: the link to the controller was "
+        "lost; the depth zero is new and its scale old: calibrate again"
+    )
+    assert _calibration_sent(deaf_controller) == ["#sdz.20!"]

@@ -1,0 +1,42 @@
+"""The questions commands ask before they act: the end of the input (Ctrl-D) is a no."""
+
+from __future__ import annotations
+
+import pytest
+
+from tests.cli.conftest import RunCli
+
+_CALIBRATE_KNOWN_POINTS = ["--depth", "200", "--surface-raw", "20", "--depth-raw", "120"]
+
+
+@pytest.mark.parametrize(
+    ("argv", "no"),
+    [
+        pytest.param(["calibrate", "sim://", *_CALIBRATE_KNOWN_POINTS], b"n\n", id="calibrate"),
+        pytest.param(["check", "sim://", "--motion", "--only", "motion-stop"], b"no\n", id="check"),
+        pytest.param(["tune", "sim://"], b"no\n", id="tune"),
+    ],
+)
+def test_the_end_of_the_input_at_a_confirmation_is_a_no(
+    run_cli: RunCli, argv: list[str], no: bytes
+) -> None:
+    # Regression: an EOFError traceback.
+    declined = run_cli(*argv, stdin=no, tty=True)
+    ended = run_cli(*argv, stdin=b"", tty=True)
+    assert "Traceback" not in ended.err
+    assert ended.status == declined.status != 0
+    assert ended.err == declined.err
+    # The same words, the prompt's line ended before them.
+    assert ended.out.split() == declined.out.split()
+    assert ended.out.endswith(("] \nnot sent\n", "on: \n"))
+
+
+@pytest.mark.parametrize("answers", [b"", b"\n"], ids=["at the surface", "at the depth"])
+def test_the_end_of_the_input_while_calibrating_stops_there(
+    run_cli: RunCli, answers: bytes
+) -> None:
+    # Regression: an EOFError traceback from the "press Enter" prompts.
+    result = run_cli("calibrate", "sim://", "--depth", "200", stdin=answers, tty=True)
+    assert "Traceback" not in result.err
+    assert result.status == 1
+    assert result.err == "rovlink calibrate: the input ended at the prompt: nothing was sent\n"
