@@ -18,7 +18,8 @@ import pytest
 
 import rovlink
 from rovlink.cli.recording import recorded_nothing
-from rovlink.recorder import FrameEntry, Recorder, read_entries
+from rovlink.recorder import Entry, FrameEntry, HeaderEntry, Recorder, read_entries
+from rovlink.recorder.formats import open_sink
 from tests.cli.conftest import RunCli
 from tests.client.sim_process import running_sim
 
@@ -166,6 +167,35 @@ def test_replay_reports_damage_after_what_it_read(run_cli: RunCli, tmp_path: Pat
     assert result.status == 1
     assert len(result.out.splitlines()) > 5
     assert f"{path}: line 21 is damaged" in result.err
+
+
+def _write(path: Path, *entries: Entry) -> None:
+    sink = open_sink(str(path))
+    for entry in entries:
+        sink.write(entry)
+    sink.close()
+
+
+@pytest.mark.parametrize("to", [(), ("--to", "sim://?seed=1")], ids=["printed", "resent"])
+@pytest.mark.parametrize(
+    "frame",
+    [
+        FrameEntry(2.0, 2, "out", "command", "nosuch", ()),
+        FrameEntry(2.0, 2, "out", "command", "th", (999, 5)),
+        FrameEntry(2.0, 2, "out", "command", "th", ()),
+        FrameEntry(2.0, 2, "in", "response", "zz", (), query="qd"),
+    ],
+    ids=["unknown-command", "out-of-range", "too-few-values", "unknown-response"],
+)
+def test_replay_of_a_frame_the_protocol_refuses_names_the_damage(
+    run_cli: RunCli, tmp_path: Path, to: tuple[str, ...], frame: FrameEntry
+) -> None:
+    path = tmp_path / "damaged.jsonl"
+    _write(path, HeaderEntry(1.0, 1, "sim://?seed=1", False, "crc8", "test", "0"), frame)
+    result = run_cli("replay", str(path), *to)
+    assert result.status == 1
+    assert f"{path}: line 2 is damaged (frame entry: " in result.err
+    assert len(result.err.splitlines()) == 1
 
 
 def test_replay_of_a_foreign_file_is_one_clear_line(run_cli: RunCli, tmp_path: Path) -> None:

@@ -17,6 +17,8 @@ import pytest
 import rovlink
 from rovlink.recorder import (
     Entry,
+    FrameEntry,
+    HeaderEntry,
     Recorder,
     RecordingDamagedError,
     RecordingError,
@@ -24,6 +26,7 @@ from rovlink.recorder import (
     read_entries,
     rotated_path,
 )
+from rovlink.recorder.formats import open_sink
 from tests.recorder.conftest import MakeRecording
 
 _SRC = str(Path(__file__).resolve().parents[2] / "src")
@@ -112,6 +115,42 @@ def test_a_corrupted_jsonl_line_is_named(make_recording: MakeRecording) -> None:
     assert "line 11 is damaged" in str(damage)
     assert recorder.path in str(damage)
     assert len(entries) == 10
+
+
+@pytest.mark.parametrize("suffix", [".mcap", ".jsonl"])
+@pytest.mark.parametrize(
+    ("direction", "kind", "name", "values", "reason"),
+    [
+        ("out", "command", "nosuch", (), "unknown command 'nosuch'"),
+        ("out", "command", "th", (999, 5), "th: direction_deg must be in 0–360, got 999"),
+        ("out", "command", "th", (), "th takes 2 value(s)"),
+        ("in", "response", "zz", (), "unknown response 'zz'"),
+        ("in", "command", "qd", (), "a 'command' going 'in'"),
+    ],
+    ids=["unknown-command", "out-of-range", "too-few-values", "unknown-response", "command-in"],
+)
+def test_a_frame_the_command_table_refuses_is_named_as_damage(
+    tmp_path: Path,
+    suffix: str,
+    direction: str,
+    kind: str,
+    name: str,
+    values: tuple[int, ...],
+    reason: str,
+) -> None:
+    # Every reader's consumer (replay, its --to, plot, decode) builds protocol messages from the
+    # frames it reads: one the command table refuses is damage, not a crash there.
+    path = str(tmp_path / f"refused{suffix}")
+    sink = open_sink(path)
+    sink.write(HeaderEntry(1.0, 1, "sim://", False, "crc8", "test", "0"))
+    sink.write(FrameEntry(2.0, 2, direction, kind, name, values))
+    sink.close()
+    entries, damage = _read_all(path)
+    assert damage is not None
+    assert not damage.incomplete
+    assert f"is damaged (frame entry: {reason}" in str(damage)
+    assert path in str(damage)
+    assert len(entries) == 1
 
 
 @pytest.mark.parametrize("name", ["foreign.mcap", "foreign.jsonl", "foreign.csv"])

@@ -125,6 +125,8 @@ def _replay_to(args: argparse.Namespace, damage: _Damage) -> int:
     algorithm = header.algorithm if header is not None else "crc8"
     steps = replay_steps(entries)
     if not steps:
+        if damage.error is not None:  # the damage, not the file, is why there is nothing
+            raise CommandError(f"{damage.error}; nothing before it to replay")
         raise CommandError(f"{args.file} has no commands of a program to replay")
     try:
         client = rovlink.connect(args.to, checksum=checksum, algorithm=algorithm)

@@ -24,6 +24,8 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
+from rovlink.protocol import Command, Response
+
 __all__ = [
     "CHANNELS",
     "TELEMETRY_FIELDS",
@@ -137,7 +139,25 @@ class FrameEntry:
         if not isinstance(values, list) or not all(isinstance(v, int) for v in values):
             raise EntryError(f"frame entry's values must be a list of integers, got {values!r}")
         fields["values"] = tuple(values)
-        return cls(**fields)
+        entry = cls(**fields)
+        _check_frame(entry)
+        return entry
+
+
+def _check_frame(entry: FrameEntry) -> None:
+    """Refuse a frame that no controller takes or sends: the recorder writes only frames of the
+    command table, so anything else is damage, named here rather than where it is printed or
+    resent."""
+    if (entry.direction, entry.kind) not in (("out", "command"), ("in", "response")):
+        raise EntryError(
+            f"frame entry: a {entry.kind!r} going {entry.direction!r} (a command goes out, "
+            "a response comes in)"
+        )
+    message = Command if entry.kind == "command" else Response
+    try:
+        message(entry.name, entry.values)
+    except (ValueError, TypeError) as error:  # an unknown name, a wrong count or range, a bool
+        raise EntryError(f"frame entry: {error}") from None
 
 
 @dataclass(frozen=True, slots=True)
