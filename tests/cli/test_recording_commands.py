@@ -18,7 +18,14 @@ import pytest
 
 import rovlink
 from rovlink.cli.recording import recorded_nothing
-from rovlink.recorder import Entry, FrameEntry, HeaderEntry, Recorder, read_entries
+from rovlink.recorder import (
+    Entry,
+    EventEntry,
+    FrameEntry,
+    HeaderEntry,
+    Recorder,
+    read_entries,
+)
 from rovlink.recorder.formats import open_sink
 from tests.cli.conftest import RunCli
 from tests.client.sim_process import running_sim
@@ -196,6 +203,24 @@ def test_replay_of_a_frame_the_protocol_refuses_names_the_damage(
     assert result.status == 1
     assert f"{path}: line 2 is damaged (frame entry: " in result.err
     assert len(result.err.splitlines()) == 1
+
+
+@pytest.mark.parametrize(
+    "entry",
+    [
+        FrameEntry(2.0, 2, "in", "response", "qd", (5,), query="qd", round_trip_ms="x"),  # type: ignore[arg-type]
+        EventEntry(2.0, 2, 5, "start"),  # type: ignore[arg-type]
+    ],
+    ids=["round-trip", "event"],
+)
+def test_replay_of_a_value_of_another_type_names_the_damage(
+    run_cli: RunCli, tmp_path: Path, entry: Entry
+) -> None:
+    path = tmp_path / "mistyped.jsonl"
+    _write(path, HeaderEntry(1.0, 1, "sim://?seed=1", False, "crc8", "test", "0"), entry)
+    result = run_cli("replay", str(path))
+    assert result.status == 1
+    assert f"{path}: line 2 is damaged ({entry.channel} entry: " in result.err
 
 
 def test_replay_of_a_foreign_file_is_one_clear_line(run_cli: RunCli, tmp_path: Path) -> None:

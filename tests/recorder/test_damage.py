@@ -4,6 +4,7 @@ a disk that fills up stops the recording, never the link."""
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import signal
 import subprocess
@@ -17,6 +18,7 @@ import pytest
 import rovlink
 from rovlink.recorder import (
     Entry,
+    EventEntry,
     FrameEntry,
     HeaderEntry,
     Recorder,
@@ -150,6 +152,38 @@ def test_a_frame_the_command_table_refuses_is_named_as_damage(
     assert not damage.incomplete
     assert f"is damaged (frame entry: {reason}" in str(damage)
     assert path in str(damage)
+    assert len(entries) == 1
+
+
+_REPLY = FrameEntry(2.0, 2, "in", "response", "qd", (5,), query="qd", round_trip_ms=1.5)
+
+
+@pytest.mark.parametrize("suffix", [".mcap", ".jsonl"])
+@pytest.mark.parametrize(
+    ("entry", "field", "value", "reason"),
+    [
+        (_REPLY, "round_trip_ms", "x", "frames entry: round_trip_ms must be a number or null"),
+        (_REPLY, "direction", "up", "frames entry: direction must be one of 'out', 'in'"),
+        (_REPLY, "late", 0, "frames entry: late must be a boolean, got 0"),
+        (EventEntry(2.0, 2, "lock", "start"), "event", 5, "events entry: event must be a string"),
+        (WireEntry(2.0, 2, "out", b"#qd!"), "by_session", 1, "wire entry: by_session must be a"),
+    ],
+    ids=["round-trip", "direction", "late", "event", "by-session"],
+)
+def test_a_value_of_another_type_than_its_schema_is_named_as_damage(
+    tmp_path: Path, suffix: str, entry: Entry, field: str, value: object, reason: str
+) -> None:
+    # The readers checked the clocks and the values alone: a round trip of "x" or an event
+    # named 5 ended the tools printing them with a traceback.
+    path = str(tmp_path / f"mistyped{suffix}")
+    sink = open_sink(path)
+    sink.write(HeaderEntry(1.0, 1, "sim://", False, "crc8", "test", "0"))
+    sink.write(dataclasses.replace(entry, **{field: value}))  # type: ignore[arg-type]
+    sink.close()
+    entries, damage = _read_all(path)
+    assert damage is not None
+    assert not damage.incomplete
+    assert f"is damaged ({reason}" in str(damage)
     assert len(entries) == 1
 
 

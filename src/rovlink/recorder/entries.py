@@ -241,9 +241,40 @@ def entry_from_json(channel: str, data: Mapping[str, Any]) -> Entry:
     if kind is None:
         raise EntryError(f"unknown channel {channel!r}")
     try:
+        _check_types(channel, data)
         return kind.from_json(data)
     except TypeError as error:
         raise EntryError(f"{channel} entry of the wrong shape: {error}") from None
+
+
+# The JSON Schema types of CHANNELS: what each is in Python, and its name in an error.
+_JSON_TYPES: dict[str, tuple[tuple[type, ...], str]] = {
+    "string": ((str,), "a string"),
+    "boolean": ((bool,), "a boolean"),
+    "integer": ((int,), "an integer"),
+    "number": ((int, float), "a number"),
+    "null": ((type(None),), "null"),
+    "array": ((list,), "a list"),
+}
+
+
+def _check_types(channel: str, data: Mapping[str, Any]) -> None:
+    """Refuse a value of another type than the channel's JSON Schema gives it (or, with an
+    ``enum``, another value): the tools that print, plot and resend an entry take its values to
+    be what the schema says. An absent field is left to the entry's defaults and own checks."""
+    for name, schema in CHANNELS[channel]["properties"].items():
+        if name not in data:
+            continue
+        value = data[name]
+        types = schema["type"] if isinstance(schema["type"], list) else [schema["type"]]
+        allowed = tuple(python for each in types for python in _JSON_TYPES[each][0])
+        # JSON's true and false are no numbers, though Python's bool is an int.
+        if (isinstance(value, bool) and "boolean" not in types) or not isinstance(value, allowed):
+            expected = " or ".join(_JSON_TYPES[each][1] for each in types)
+            raise EntryError(f"{channel} entry: {name} must be {expected}, got {value!r}")
+        if "enum" in schema and value not in schema["enum"]:
+            expected = ", ".join(repr(choice) for choice in schema["enum"])
+            raise EntryError(f"{channel} entry: {name} must be one of {expected}, got {value!r}")
 
 
 def _fields(
