@@ -256,6 +256,24 @@ def test_plot_of_a_raw_capture_says_there_is_no_telemetry(run_cli: RunCli, tmp_p
     assert "has no telemetry to plot" in result.err
 
 
+def test_plot_of_a_recording_damaged_before_its_telemetry_names_the_damage(
+    run_cli: RunCli, tmp_path: Path
+) -> None:
+    pytest.importorskip("matplotlib", reason="matplotlib is in the test extra (plot)")
+    path = tmp_path / "dive.jsonl"
+    _write(path, HeaderEntry(1.0, 1, "sim://?seed=1", False, "crc8", "test", "0"))
+    with path.open("ab") as damaged:
+        damaged.write(b'{"channel":"telemetry","t_s":"x","wall_ns":1}\n')
+    image = tmp_path / "x.png"
+    result = run_cli("plot", str(path), "-o", str(image))
+    assert result.status == 1
+    assert result.err == (
+        f"rovlink plot: {path}: line 2 is damaged (telemetry entry: t_s must be a number, "
+        "got 'x'); read 1 entries before it; no telemetry before it to plot\n"
+    )
+    assert not image.exists()
+
+
 def test_decode_reads_a_recordings_wire(run_cli: RunCli, tmp_path: Path) -> None:
     path = tmp_path / "dive.mcap"
     _record(path)
