@@ -4,6 +4,7 @@ command, ``rovlink replay`` (printing, and resending to a controller), ``rovlink
 
 from __future__ import annotations
 
+import io
 import os
 import re
 import signal
@@ -13,11 +14,14 @@ import subprocess
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
 import pytest
 
 import rovlink
 from rovlink.cli.recording import recorded_nothing
+from rovlink.client import Client
+from rovlink.client.events import BytesSent, ClientEvent
 from rovlink.recorder import (
     Entry,
     EventEntry,
@@ -152,6 +156,76 @@ def test_replay_into_the_same_simulator_reproduces_the_replies(
     result = run_cli("replay", str(path), "--to", "sim://?seed=4", "--tolerance", "3")
     assert result.status == 0, result.out
     assert "8 queries compared: 8 as recorded, 0 different" in result.out
+
+
+def _commands_sent_on_connect(monkeypatch: pytest.MonkeyPatch) -> list[str]:
+    """The names of the commands the next clients of ``rovlink.connect`` send (their sessions'
+    own keep-alives and fences left out), as they are sent."""
+    sent: list[str] = []
+    connect = rovlink.connect
+
+    def note(event: ClientEvent) -> None:
+        if isinstance(event, BytesSent) and event.command and not event.by_session:
+            sent.append(event.command.name)
+
+    def connect_noting(url: str, **options: Any) -> Client:
+        return connect(url, on_event=note, **options)
+
+    monkeypatch.setattr(rovlink, "connect", connect_noting)
+    return sent
+
+
+@pytest.mark.parametrize(
+    ("recorded", "stopped"),
+    [
+        (["start", "th 0 50", "qd"], True),  # cut mid-dive: a --split part, a killed recorder
+        (["th 0 50", "qd"], True),  # motion with the lock as the controller had it
+        (["start", "th 0 50", "qd", "stop"], False),  # it stopped the robot itself
+        (["qd"], False),  # queries move nothing
+    ],
+    ids=["unlocked", "lock-unknown", "ended-with-stop", "queries-only"],
+)
+def test_replay_to_a_controller_never_leaves_the_robot_moving(
+    run_cli: RunCli,
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    recorded: list[str],
+    stopped: bool,
+) -> None:
+    path = tmp_path / "dive.jsonl"
+    assert run_cli("send", "sim://?seed=1", "--record", str(path), *recorded).status == 0
+    sent = _commands_sent_on_connect(monkeypatch)
+    result = run_cli("replay", str(path), "--to", "sim://?seed=1")
+    assert result.status == 0, result.err
+    replayed = [text.split()[0] for text in recorded]
+    if stopped:
+        assert sent[-len(recorded) - 1 :] == [*replayed, "stop"]
+        assert "rovlink replay: sent #stop!" in result.err
+    else:
+        assert sent[-len(recorded) :] == replayed
+        assert "#stop!" not in result.err
+
+
+class _ClosedOutput(io.StringIO):
+    """Standard output whose reader has gone (``rovlink replay … | head -1`` after one line)."""
+
+    def write(self, text: str) -> int:
+        raise BrokenPipeError(32, "Broken pipe")
+
+
+def test_replay_to_a_controller_ends_with_stop_when_its_output_fails(
+    run_cli: RunCli, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    path = tmp_path / "dive.jsonl"
+    recorded = run_cli("send", "sim://?seed=1&leak_at=0", "--record", str(path), "start", "q.l")
+    assert recorded.status == 0
+    sent = _commands_sent_on_connect(monkeypatch)
+    monkeypatch.setattr(sys, "stdout", _ClosedOutput())
+    # No leak now: the difference is printed, and the printing fails.
+    result = run_cli("replay", str(path), "--to", "sim://?seed=1")
+    assert result.status == 0  # as any filter whose reader stopped early
+    assert sent[-3:] == ["start", "q.l", "stop"]
+    assert "rovlink replay: sent #stop!" in result.err
 
 
 def test_replay_into_a_changed_controller_shows_what_changed(
