@@ -1,5 +1,6 @@
 """Ctrl-C ends a command at once, after ``#stop!`` where the robot may have moved; a query with
-no reply fails. Against a controller that never answers: a TCP listener that only reads."""
+no reply fails. Against a controller that never answers: a TCP listener that only reads (or,
+for a command that waits for the controller on connect, one that answers ``#qd!`` alone)."""
 
 from __future__ import annotations
 
@@ -11,10 +12,13 @@ import subprocess
 import sys
 import threading
 import time
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
 
+from rovlink.recorder import FrameEntry, HeaderEntry
+from rovlink.recorder.formats import open_sink
 from tests.cli.conftest import RunCli
 from tests.cli.silent_controller import WAIT_S, SilentController
 
@@ -24,16 +28,51 @@ pytestmark = pytest.mark.integration
 EXIT_BOUND_S = 1.5
 
 
+class DepthAnsweringController(SilentController):
+    """Answers each ``#qd!`` (the readiness probe, the keep-alive, a query) with ``$qd.0!``, so
+    that a command connects with its default readiness wait; never answers anything else.
+    With ``hang_up_after``, closes the connection once that frame has arrived."""
+
+    def __init__(self, hang_up_after: bytes | None = None) -> None:
+        self._hang_up_after = hang_up_after
+        super().__init__()
+
+    def _serve(self) -> None:
+        connection, _ = self._server.accept()
+        with connection:
+            while data := connection.recv(4096):
+                with self._changed:
+                    asked = self.received.count(b"#qd!")
+                    self.received += data
+                    self._changed.notify_all()
+                    # Counted over everything received: a frame split between reads counts too.
+                    answers = self.received.count(b"#qd!") - asked
+                    hang_up = self._hang_up_after is not None and self._hang_up_after in data
+                connection.sendall(b"$qd.0!" * answers)
+                if hang_up:
+                    return
+
+
+@pytest.fixture
+def answering() -> Iterator[DepthAnsweringController]:
+    controller = DepthAnsweringController()
+    yield controller
+    controller.close()
+
+
 def _ignore_ctrl_c() -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # as a shell starts a background job (&)
 
 
-def _rovlink(*arguments: str, background: bool = False) -> subprocess.Popen[bytes]:
+def _rovlink(
+    *arguments: str, background: bool = False, silent_controller: bool = True
+) -> subprocess.Popen[bytes]:
     source = str(Path(__file__).resolve().parents[2] / "src")
     environment = {**os.environ, "PYTHONPATH": source}
-    # A silent controller: --boot-timeout 0 lets the command reach its own wait (not the
-    # readiness probe's) before the test interrupts it.
-    arguments = (arguments[0], "--boot-timeout", "0", *arguments[1:])
+    if silent_controller:
+        # --boot-timeout 0 lets the command reach its own wait (not the readiness probe's)
+        # before the test interrupts it.
+        arguments = (arguments[0], "--boot-timeout", "0", *arguments[1:])
     return subprocess.Popen(
         [sys.executable, "-m", "rovlink", *arguments],
         stdout=subprocess.PIPE,
@@ -100,6 +139,55 @@ def test_a_signal_ends_the_demo_with_stop_and_its_recording_finished(
         if entry["channel"] == "frames" and entry["direction"] == "out"
     ]
     assert sent[-1] == "stop"
+
+
+def _write_cut_dive(path: Path, *, query_at_s: float) -> None:
+    """A recording of ``start``, ``th 0 50`` and, ``query_at_s`` later, ``qd``, without its
+    end (a ``--split`` part, a killed recorder): it leaves the robot unlocked and moving."""
+    sink = open_sink(str(path))
+    sink.write(HeaderEntry(1.0, 1, "socket://", False, "crc8", "test", "0"))
+    sink.write(FrameEntry(2.0, 2, "out", "command", "start", ()))
+    sink.write(FrameEntry(2.1, 3, "out", "command", "th", (0, 50)))
+    sink.write(FrameEntry(2.1 + query_at_s, 4, "out", "command", "qd", ()))
+    sink.close()
+
+
+@pytest.mark.parametrize("how", ENDING_SIGNALS, ids=lambda how: how.name)
+def test_a_signal_ends_a_replay_to_a_controller_with_stop(
+    answering: DepthAnsweringController, how: signal.Signals, tmp_path: Path
+) -> None:
+    recording = tmp_path / "cut.jsonl"
+    _write_cut_dive(recording, query_at_s=60.0)  # the replay waits for its time
+    process = _rovlink("replay", str(recording), "--to", answering.url, silent_controller=False)
+    assert answering.wait_for(b"#th.0.50!")
+    elapsed_s, stderr = _interrupt(process, how)
+    assert process.returncode == 130, stderr
+    assert elapsed_s < EXIT_BOUND_S
+    assert stderr.decode().splitlines()[-2:] == [
+        "rovlink replay: sent #stop!",
+        "rovlink replay: interrupted",
+    ]
+    assert answering.wait_for(b"#stop!")
+    assert answering.received.index(b"#stop!") > answering.received.index(b"#th.0.50!")
+
+
+def test_a_replay_whose_controller_hangs_up_fails_in_one_line(
+    run_cli: RunCli, tmp_path: Path
+) -> None:
+    recording = tmp_path / "cut.jsonl"
+    _write_cut_dive(recording, query_at_s=0.2)
+    controller = DepthAnsweringController(hang_up_after=b"#th.0.50!")
+    try:
+        result = run_cli("replay", str(recording), "--to", controller.url)
+    finally:
+        controller.close()
+    assert result.status == 1
+    lines = result.err.splitlines()
+    assert lines[0].startswith("replaying 3 commands of")
+    # The robot may move on: said so (its controller's link-loss watchdog stops it).
+    assert lines[1].startswith("rovlink replay: could not send #stop!: ")
+    assert lines[2].startswith(f"rovlink replay: {controller.url}: ")
+    assert len(lines) == 3
 
 
 class Terminal:

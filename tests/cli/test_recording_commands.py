@@ -4,6 +4,7 @@ command, ``rovlink replay`` (printing, and resending to a controller), ``rovlink
 
 from __future__ import annotations
 
+import io
 import os
 import re
 import signal
@@ -13,12 +14,23 @@ import subprocess
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
 import pytest
 
 import rovlink
 from rovlink.cli.recording import recorded_nothing
-from rovlink.recorder import FrameEntry, Recorder, read_entries
+from rovlink.client import Client
+from rovlink.client.events import BytesSent, ClientEvent
+from rovlink.recorder import (
+    Entry,
+    EventEntry,
+    FrameEntry,
+    HeaderEntry,
+    Recorder,
+    read_entries,
+)
+from rovlink.recorder.formats import open_sink
 from tests.cli.conftest import RunCli
 from tests.client.sim_process import running_sim
 
@@ -146,6 +158,76 @@ def test_replay_into_the_same_simulator_reproduces_the_replies(
     assert "8 queries compared: 8 as recorded, 0 different" in result.out
 
 
+def _commands_sent_on_connect(monkeypatch: pytest.MonkeyPatch) -> list[str]:
+    """The names of the commands the next clients of ``rovlink.connect`` send (their sessions'
+    own keep-alives and fences left out), as they are sent."""
+    sent: list[str] = []
+    connect = rovlink.connect
+
+    def note(event: ClientEvent) -> None:
+        if isinstance(event, BytesSent) and event.command and not event.by_session:
+            sent.append(event.command.name)
+
+    def connect_noting(url: str, **options: Any) -> Client:
+        return connect(url, on_event=note, **options)
+
+    monkeypatch.setattr(rovlink, "connect", connect_noting)
+    return sent
+
+
+@pytest.mark.parametrize(
+    ("recorded", "stopped"),
+    [
+        (["start", "th 0 50", "qd"], True),  # cut mid-dive: a --split part, a killed recorder
+        (["th 0 50", "qd"], True),  # motion with the lock as the controller had it
+        (["start", "th 0 50", "qd", "stop"], False),  # it stopped the robot itself
+        (["qd"], False),  # queries move nothing
+    ],
+    ids=["unlocked", "lock-unknown", "ended-with-stop", "queries-only"],
+)
+def test_replay_to_a_controller_never_leaves_the_robot_moving(
+    run_cli: RunCli,
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    recorded: list[str],
+    stopped: bool,
+) -> None:
+    path = tmp_path / "dive.jsonl"
+    assert run_cli("send", "sim://?seed=1", "--record", str(path), *recorded).status == 0
+    sent = _commands_sent_on_connect(monkeypatch)
+    result = run_cli("replay", str(path), "--to", "sim://?seed=1")
+    assert result.status == 0, result.err
+    replayed = [text.split()[0] for text in recorded]
+    if stopped:
+        assert sent[-len(recorded) - 1 :] == [*replayed, "stop"]
+        assert "rovlink replay: sent #stop!" in result.err
+    else:
+        assert sent[-len(recorded) :] == replayed
+        assert "#stop!" not in result.err
+
+
+class _ClosedOutput(io.StringIO):
+    """Standard output whose reader has gone (``rovlink replay … | head -1`` after one line)."""
+
+    def write(self, text: str) -> int:
+        raise BrokenPipeError(32, "Broken pipe")
+
+
+def test_replay_to_a_controller_ends_with_stop_when_its_output_fails(
+    run_cli: RunCli, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    path = tmp_path / "dive.jsonl"
+    recorded = run_cli("send", "sim://?seed=1&leak_at=0", "--record", str(path), "start", "q.l")
+    assert recorded.status == 0
+    sent = _commands_sent_on_connect(monkeypatch)
+    monkeypatch.setattr(sys, "stdout", _ClosedOutput())
+    # No leak now: the difference is printed, and the printing fails.
+    result = run_cli("replay", str(path), "--to", "sim://?seed=1")
+    assert result.status == 0  # as any filter whose reader stopped early
+    assert sent[-3:] == ["start", "q.l", "stop"]
+    assert "rovlink replay: sent #stop!" in result.err
+
+
 def test_replay_into_a_changed_controller_shows_what_changed(
     run_cli: RunCli, tmp_path: Path
 ) -> None:
@@ -166,6 +248,53 @@ def test_replay_reports_damage_after_what_it_read(run_cli: RunCli, tmp_path: Pat
     assert result.status == 1
     assert len(result.out.splitlines()) > 5
     assert f"{path}: line 21 is damaged" in result.err
+
+
+def _write(path: Path, *entries: Entry) -> None:
+    sink = open_sink(str(path))
+    for entry in entries:
+        sink.write(entry)
+    sink.close()
+
+
+@pytest.mark.parametrize("to", [(), ("--to", "sim://?seed=1")], ids=["printed", "resent"])
+@pytest.mark.parametrize(
+    "frame",
+    [
+        FrameEntry(2.0, 2, "out", "command", "nosuch", ()),
+        FrameEntry(2.0, 2, "out", "command", "th", (999, 5)),
+        FrameEntry(2.0, 2, "out", "command", "th", ()),
+        FrameEntry(2.0, 2, "in", "response", "zz", (), query="qd"),
+    ],
+    ids=["unknown-command", "out-of-range", "too-few-values", "unknown-response"],
+)
+def test_replay_of_a_frame_the_protocol_refuses_names_the_damage(
+    run_cli: RunCli, tmp_path: Path, to: tuple[str, ...], frame: FrameEntry
+) -> None:
+    path = tmp_path / "damaged.jsonl"
+    _write(path, HeaderEntry(1.0, 1, "sim://?seed=1", False, "crc8", "test", "0"), frame)
+    result = run_cli("replay", str(path), *to)
+    assert result.status == 1
+    assert f"{path}: line 2 is damaged (frame entry: " in result.err
+    assert len(result.err.splitlines()) == 1
+
+
+@pytest.mark.parametrize(
+    "entry",
+    [
+        FrameEntry(2.0, 2, "in", "response", "qd", (5,), query="qd", round_trip_ms="x"),  # type: ignore[arg-type]
+        EventEntry(2.0, 2, 5, "start"),  # type: ignore[arg-type]
+    ],
+    ids=["round-trip", "event"],
+)
+def test_replay_of_a_value_of_another_type_names_the_damage(
+    run_cli: RunCli, tmp_path: Path, entry: Entry
+) -> None:
+    path = tmp_path / "mistyped.jsonl"
+    _write(path, HeaderEntry(1.0, 1, "sim://?seed=1", False, "crc8", "test", "0"), entry)
+    result = run_cli("replay", str(path))
+    assert result.status == 1
+    assert f"{path}: line 2 is damaged ({entry.channel} entry: " in result.err
 
 
 def test_replay_of_a_foreign_file_is_one_clear_line(run_cli: RunCli, tmp_path: Path) -> None:
@@ -199,6 +328,24 @@ def test_plot_of_a_raw_capture_says_there_is_no_telemetry(run_cli: RunCli, tmp_p
     result = run_cli("plot", str(path), "-o", str(tmp_path / "x.png"))
     assert result.status == 1
     assert "has no telemetry to plot" in result.err
+
+
+def test_plot_of_a_recording_damaged_before_its_telemetry_names_the_damage(
+    run_cli: RunCli, tmp_path: Path
+) -> None:
+    pytest.importorskip("matplotlib", reason="matplotlib is in the test extra (plot)")
+    path = tmp_path / "dive.jsonl"
+    _write(path, HeaderEntry(1.0, 1, "sim://?seed=1", False, "crc8", "test", "0"))
+    with path.open("ab") as damaged:
+        damaged.write(b'{"channel":"telemetry","t_s":"x","wall_ns":1}\n')
+    image = tmp_path / "x.png"
+    result = run_cli("plot", str(path), "-o", str(image))
+    assert result.status == 1
+    assert result.err == (
+        f"rovlink plot: {path}: line 2 is damaged (telemetry entry: t_s must be a number, "
+        "got 'x'); read 1 entries before it; no telemetry before it to plot\n"
+    )
+    assert not image.exists()
 
 
 def test_decode_reads_a_recordings_wire(run_cli: RunCli, tmp_path: Path) -> None:

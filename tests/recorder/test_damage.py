@@ -4,6 +4,7 @@ a disk that fills up stops the recording, never the link."""
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import signal
 import subprocess
@@ -17,6 +18,9 @@ import pytest
 import rovlink
 from rovlink.recorder import (
     Entry,
+    EventEntry,
+    FrameEntry,
+    HeaderEntry,
     Recorder,
     RecordingDamagedError,
     RecordingError,
@@ -24,6 +28,7 @@ from rovlink.recorder import (
     read_entries,
     rotated_path,
 )
+from rovlink.recorder.formats import open_sink
 from tests.recorder.conftest import MakeRecording
 
 _SRC = str(Path(__file__).resolve().parents[2] / "src")
@@ -112,6 +117,74 @@ def test_a_corrupted_jsonl_line_is_named(make_recording: MakeRecording) -> None:
     assert "line 11 is damaged" in str(damage)
     assert recorder.path in str(damage)
     assert len(entries) == 10
+
+
+@pytest.mark.parametrize("suffix", [".mcap", ".jsonl"])
+@pytest.mark.parametrize(
+    ("direction", "kind", "name", "values", "reason"),
+    [
+        ("out", "command", "nosuch", (), "unknown command 'nosuch'"),
+        ("out", "command", "th", (999, 5), "th: direction_deg must be in 0–360, got 999"),
+        ("out", "command", "th", (), "th takes 2 value(s)"),
+        ("in", "response", "zz", (), "unknown response 'zz'"),
+        ("in", "command", "qd", (), "a 'command' going 'in'"),
+    ],
+    ids=["unknown-command", "out-of-range", "too-few-values", "unknown-response", "command-in"],
+)
+def test_a_frame_the_command_table_refuses_is_named_as_damage(
+    tmp_path: Path,
+    suffix: str,
+    direction: str,
+    kind: str,
+    name: str,
+    values: tuple[int, ...],
+    reason: str,
+) -> None:
+    # Every reader's consumer (replay, its --to, plot, decode) builds protocol messages from the
+    # frames it reads: one the command table refuses is damage, not a crash there.
+    path = str(tmp_path / f"refused{suffix}")
+    sink = open_sink(path)
+    sink.write(HeaderEntry(1.0, 1, "sim://", False, "crc8", "test", "0"))
+    sink.write(FrameEntry(2.0, 2, direction, kind, name, values))
+    sink.close()
+    entries, damage = _read_all(path)
+    assert damage is not None
+    assert not damage.incomplete
+    assert f"is damaged (frame entry: {reason}" in str(damage)
+    assert path in str(damage)
+    assert len(entries) == 1
+
+
+_REPLY = FrameEntry(2.0, 2, "in", "response", "qd", (5,), query="qd", round_trip_ms=1.5)
+
+
+@pytest.mark.parametrize("suffix", [".mcap", ".jsonl"])
+@pytest.mark.parametrize(
+    ("entry", "field", "value", "reason"),
+    [
+        (_REPLY, "round_trip_ms", "x", "frames entry: round_trip_ms must be a number or null"),
+        (_REPLY, "direction", "up", "frames entry: direction must be one of 'out', 'in'"),
+        (_REPLY, "late", 0, "frames entry: late must be a boolean, got 0"),
+        (EventEntry(2.0, 2, "lock", "start"), "event", 5, "events entry: event must be a string"),
+        (WireEntry(2.0, 2, "out", b"#qd!"), "by_session", 1, "wire entry: by_session must be a"),
+    ],
+    ids=["round-trip", "direction", "late", "event", "by-session"],
+)
+def test_a_value_of_another_type_than_its_schema_is_named_as_damage(
+    tmp_path: Path, suffix: str, entry: Entry, field: str, value: object, reason: str
+) -> None:
+    # The readers checked the clocks and the values alone: a round trip of "x" or an event
+    # named 5 ended the tools printing them with a traceback.
+    path = str(tmp_path / f"mistyped{suffix}")
+    sink = open_sink(path)
+    sink.write(HeaderEntry(1.0, 1, "sim://", False, "crc8", "test", "0"))
+    sink.write(dataclasses.replace(entry, **{field: value}))  # type: ignore[arg-type]
+    sink.close()
+    entries, damage = _read_all(path)
+    assert damage is not None
+    assert not damage.incomplete
+    assert f"is damaged ({reason}" in str(damage)
+    assert len(entries) == 1
 
 
 @pytest.mark.parametrize("name", ["foreign.mcap", "foreign.jsonl", "foreign.csv"])

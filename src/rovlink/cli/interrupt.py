@@ -13,9 +13,14 @@ from __future__ import annotations
 import contextlib
 import threading
 from collections.abc import Callable
-from typing import Any, TypeVar
+from typing import TYPE_CHECKING, Any, TypeVar
 
-__all__ = ["GatedClient", "Interrupted", "run_in_worker"]
+from rovlink.protocol import Setting
+
+if TYPE_CHECKING:
+    from rovlink.protocol import Command
+
+__all__ = ["GatedClient", "Interrupted", "may_move", "run_in_worker"]
 
 T = TypeVar("T")
 
@@ -23,6 +28,18 @@ T = TypeVar("T")
 #: A command that moves the robot is only written, never waits so long; a call that takes
 #: longer is a query waiting for its reply, which moves nothing.
 _CALL_IN_PROGRESS_WAIT_S = 0.2
+
+
+def may_move(command: Command) -> bool:
+    """Whether the robot may move after ``command`` (so a command that sent it ends with
+    ``#stop!``): a motion command, or ``start``.
+
+    >>> from rovlink.protocol import Command
+    >>> may_move(Command("start")), may_move(Command("th", (90, 30))), may_move(Command("qd"))
+    (True, True, False)
+    """
+    setting = command.setting
+    return command.spec.motion or setting == (Setting.LOCKED, False)
 
 
 class Interrupted(Exception):  # noqa: N818 - a state, not an error

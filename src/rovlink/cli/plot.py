@@ -62,6 +62,8 @@ def run(args: argparse.Namespace) -> int:
     except ValueError as error:
         raise UsageError(str(error)) from None
     if not any(entry.channel == "telemetry" for entry in entries):
+        if damage is not None:  # the damage, not the kind of file, is why there is none
+            raise CommandError(f"{damage}; no telemetry before it to plot")
         raise CommandError(f"{args.file} has no telemetry to plot (a raw capture?)")
     window = None
     if args.show:

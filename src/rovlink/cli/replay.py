@@ -1,19 +1,23 @@
 """Print a recording as the session it was (frames, replies with their query and round trip,
 events), at once or at its recorded pace; or replay its commands to a controller at their
 recorded times and compare every reply with the recorded one, printing the first differences.
-Exit status with --to: 0 all replies as recorded, 1 some differ."""
+Exit status with --to: 0 all replies as recorded, 1 some differ. However a replay to a controller
+ends (its end, an error, Ctrl-C), #stop! is sent if its commands may have left the robot moving."""
 
 from __future__ import annotations
 
 import argparse
 import sys
 from collections.abc import Iterator
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, cast
 
 from rovlink.cli.failure import CommandError, UsageError
 from rovlink.cli.link_options import OnOff, bounded_float, bounded_int
 
 if TYPE_CHECKING:
+    from rovlink.client import Client
+    from rovlink.piloting.commanded import CommandedState
+    from rovlink.protocol import Command, Response
     from rovlink.recorder import Entry
 
 __all__ = ["EPILOG"]
@@ -113,9 +117,13 @@ def _print_session(args: argparse.Namespace, damage: _Damage) -> None:
 
 def _replay_to(args: argparse.Namespace, damage: _Damage) -> int:
     import rovlink  # noqa: PLC0415
-    from rovlink.cli.link_options import connection_failure  # noqa: PLC0415
-    from rovlink.client.errors import QueryTimeoutError  # noqa: PLC0415
-    from rovlink.protocol import Command, Response  # noqa: PLC0415
+    from rovlink.cli.interrupt import GatedClient, may_move, run_in_worker  # noqa: PLC0415
+    from rovlink.cli.link_options import (  # noqa: PLC0415
+        closing_unless_interrupted,
+        connection_failure,
+    )
+    from rovlink.client.errors import ClientError, QueryTimeoutError  # noqa: PLC0415
+    from rovlink.piloting.commanded import CommandedState  # noqa: PLC0415
     from rovlink.recorder import HeaderEntry  # noqa: PLC0415
     from rovlink.recorder.comparison import ReplaySummary, replay_steps, run_replay  # noqa: PLC0415
 
@@ -125,6 +133,8 @@ def _replay_to(args: argparse.Namespace, damage: _Damage) -> int:
     algorithm = header.algorithm if header is not None else "crc8"
     steps = replay_steps(entries)
     if not steps:
+        if damage.error is not None:  # the damage, not the file, is why there is nothing
+            raise CommandError(f"{damage.error}; nothing before it to replay")
         raise CommandError(f"{args.file} has no commands of a program to replay")
     try:
         client = rovlink.connect(args.to, checksum=checksum, algorithm=algorithm)
@@ -132,16 +142,24 @@ def _replay_to(args: argparse.Namespace, damage: _Damage) -> int:
         raise connection_failure(args.to, error) from None
     except ValueError as error:
         raise UsageError(f"--to: {error}") from None
+    gate = GatedClient(client)
+    # What the replayed commands left the robot in, as last sent: a recording cut mid-dive (a
+    # --split part, a killed recorder) ends unlocked, and the replay must not leave it so.
+    commanded = CommandedState()
+    sent: list[Command] = []
 
     def send(command: Command) -> tuple[Response, ...] | None:
+        sent.append(command)  # before it goes: a query that times out was written all the same
+        commanded.apply(command)
         try:
-            return client.send(command)
+            return cast("Client", gate).send(command)
         except QueryTimeoutError:
             return None
+        except (ClientError, ConnectionError) as error:
+            raise CommandError(f"{args.to}: {error}") from None
 
-    summary = ReplaySummary()
-    print(f"replaying {len(steps)} commands of {args.file} to {args.to}", file=sys.stderr)
-    with client:
+    def replay() -> ReplaySummary:
+        summary = ReplaySummary()
         for step, _, divergence in run_replay(
             steps, send, speed=args.speed or 1.0, tolerance=args.tolerance
         ):
@@ -155,6 +173,23 @@ def _replay_to(args: argparse.Namespace, damage: _Damage) -> int:
             summary.divergences.append(divergence)
             if len(summary.divergences) <= args.max_differences:
                 print(divergence)
+        return summary
+
+    print(f"replaying {len(steps)} commands of {args.file} to {args.to}", file=sys.stderr)
+    with closing_unless_interrupted(client):
+        try:
+            summary = run_in_worker(replay)
+        except KeyboardInterrupt:
+            # The worker may be in the middle of a command: the gate makes #stop! the last
+            # frame, sent as `rovlink send` does when any of its commands may move the robot.
+            if any(may_move(step.command) for step in steps):
+                gate.stop_for_good()
+                print("rovlink replay: sent #stop!", file=sys.stderr, flush=True)
+            raise
+        except Exception:  # a lost link, a closed output: the worker has ended
+            _stop_if_left_moving(client, commanded, sent)
+            raise
+        _stop_if_left_moving(client, commanded, sent)
     differing = len(summary.divergences)
     print(
         f"{summary.commands_sent} commands replayed, {summary.queries_compared} queries "
@@ -162,6 +197,28 @@ def _replay_to(args: argparse.Namespace, damage: _Damage) -> int:
         + (f" (first {args.max_differences} shown)" if differing > args.max_differences else "")
     )
     return 1 if differing else 0
+
+
+def _stop_if_left_moving(client: Client, commanded: CommandedState, sent: list[Command]) -> None:
+    """Send ``#stop!`` and say so if the replayed commands may have left the robot moving: one
+    of them may move it (``start``, a motion command) and the lock as last sent is not ``stop``.
+    A link that is gone is said to be (the controller's link-loss watchdog stops it then)."""
+    from rovlink.cli.interrupt import may_move  # noqa: PLC0415
+    from rovlink.client.errors import ClientError  # noqa: PLC0415
+    from rovlink.piloting.commanded import LockState  # noqa: PLC0415
+
+    if commanded.lock is LockState.LOCKED or not any(may_move(command) for command in sent):
+        return
+    try:
+        client.stop()
+    except (ClientError, ConnectionError, TimeoutError) as error:
+        print(f"rovlink replay: could not send #stop!: {error}", file=sys.stderr, flush=True)
+        return
+    print(
+        "rovlink replay: sent #stop! (the replayed commands may have left the robot moving)",
+        file=sys.stderr,
+        flush=True,
+    )
 
 
 def run(args: argparse.Namespace) -> int:

@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING, cast
 
 from rovlink.cli import link_options
 from rovlink.cli.failure import CommandError, UsageError
-from rovlink.cli.interrupt import GatedClient, run_in_worker
+from rovlink.cli.interrupt import GatedClient, may_move, run_in_worker
 from rovlink.protocol import (
     Command,
     Decoder,
@@ -188,12 +188,6 @@ def plan(texts: list[str], *, checksum: bool, algorithm: str) -> list[Outgoing]:
     return outgoing
 
 
-def _may_move(command: Command) -> bool:
-    """Whether the robot may move after ``command`` (so an interrupted run sends #stop!)."""
-    setting = command.setting
-    return command.spec.motion or setting == (Setting.LOCKED, False)
-
-
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """``send``'s arguments."""
     link_options.add_link_options(parser, url_required=True)
@@ -280,7 +274,7 @@ def run(args: argparse.Namespace) -> int:
     def send_all() -> None:
         nonlocal may_have_moved
         for item in outgoing:
-            may_have_moved = may_have_moved or _may_move(item.command)
+            may_have_moved = may_have_moved or may_move(item.command)
             sent, replies = _send_one(cast("Client", gate), item)
             checksum = args.algorithm if client.checksum_enabled else None
             _show(sent, replies, checksum, as_json=args.as_json)
@@ -289,7 +283,7 @@ def run(args: argparse.Namespace) -> int:
         try:
             run_in_worker(send_all)
         except KeyboardInterrupt:
-            if any(_may_move(item.command) for item in outgoing):
+            if any(may_move(item.command) for item in outgoing):
                 gate.stop_for_good()
                 print("rovlink send: sent #stop!", file=sys.stderr, flush=True)
             raise

@@ -24,6 +24,8 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
+from rovlink.protocol import Command, Response
+
 __all__ = [
     "CHANNELS",
     "TELEMETRY_FIELDS",
@@ -137,7 +139,25 @@ class FrameEntry:
         if not isinstance(values, list) or not all(isinstance(v, int) for v in values):
             raise EntryError(f"frame entry's values must be a list of integers, got {values!r}")
         fields["values"] = tuple(values)
-        return cls(**fields)
+        entry = cls(**fields)
+        _check_frame(entry)
+        return entry
+
+
+def _check_frame(entry: FrameEntry) -> None:
+    """Refuse a frame that no controller takes or sends: the recorder writes only frames of the
+    command table, so anything else is damage, named here rather than where it is printed or
+    resent."""
+    if (entry.direction, entry.kind) not in (("out", "command"), ("in", "response")):
+        raise EntryError(
+            f"frame entry: a {entry.kind!r} going {entry.direction!r} (a command goes out, "
+            "a response comes in)"
+        )
+    message = Command if entry.kind == "command" else Response
+    try:
+        message(entry.name, entry.values)
+    except (ValueError, TypeError) as error:  # an unknown name, a wrong count or range, a bool
+        raise EntryError(f"frame entry: {error}") from None
 
 
 @dataclass(frozen=True, slots=True)
@@ -221,9 +241,40 @@ def entry_from_json(channel: str, data: Mapping[str, Any]) -> Entry:
     if kind is None:
         raise EntryError(f"unknown channel {channel!r}")
     try:
+        _check_types(channel, data)
         return kind.from_json(data)
     except TypeError as error:
         raise EntryError(f"{channel} entry of the wrong shape: {error}") from None
+
+
+# The JSON Schema types of CHANNELS: what each is in Python, and its name in an error.
+_JSON_TYPES: dict[str, tuple[tuple[type, ...], str]] = {
+    "string": ((str,), "a string"),
+    "boolean": ((bool,), "a boolean"),
+    "integer": ((int,), "an integer"),
+    "number": ((int, float), "a number"),
+    "null": ((type(None),), "null"),
+    "array": ((list,), "a list"),
+}
+
+
+def _check_types(channel: str, data: Mapping[str, Any]) -> None:
+    """Refuse a value of another type than the channel's JSON Schema gives it (or, with an
+    ``enum``, another value): the tools that print, plot and resend an entry take its values to
+    be what the schema says. An absent field is left to the entry's defaults and own checks."""
+    for name, schema in CHANNELS[channel]["properties"].items():
+        if name not in data:
+            continue
+        value = data[name]
+        types = schema["type"] if isinstance(schema["type"], list) else [schema["type"]]
+        allowed = tuple(python for each in types for python in _JSON_TYPES[each][0])
+        # JSON's true and false are no numbers, though Python's bool is an int.
+        if (isinstance(value, bool) and "boolean" not in types) or not isinstance(value, allowed):
+            expected = " or ".join(_JSON_TYPES[each][1] for each in types)
+            raise EntryError(f"{channel} entry: {name} must be {expected}, got {value!r}")
+        if "enum" in schema and value not in schema["enum"]:
+            expected = ", ".join(repr(choice) for choice in schema["enum"])
+            raise EntryError(f"{channel} entry: {name} must be one of {expected}, got {value!r}")
 
 
 def _fields(
