@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
+from types import SimpleNamespace
 
 import pytest
 
@@ -60,3 +61,24 @@ def test_relay_on_the_light_vehicle_in_real_time(
     assert "ultimate gain Ku" in out
     assert "sent back mvpdp 40, mvpdi 30, mvpidd 20" in out
     assert plot.stat().st_size > 10_000
+
+
+def test_gains_that_cannot_be_sent_at_the_end_are_one_line(
+    capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # Before, a link lost just as the gains were sent back ended in a traceback.
+    from rovlink.client import Client, ConnectionLostError
+    from rovlink.tuning import ProtocolGains
+
+    tuned = SimpleNamespace(gains=ProtocolGains(55, 20, 10))
+    monkeypatch.setattr("rovlink.tuning.autotune", lambda *_: tuned)
+
+    def link_lost(*_: object) -> None:
+        raise ConnectionLostError("connection lost: closed by the other end")
+
+    monkeypatch.setattr(Client, "set_depth_pid", link_lost)
+    assert main(["tune", "sim://", "--yes", "--no-verify", "--apply"]) == 1
+    assert capsys.readouterr().err == (
+        "rovlink tune: the experiment ended, but #mvpdp/#mvpdi/#mvpdd (55, 20, 10) could not be "
+        "sent: connection lost: closed by the other end\n"
+    )

@@ -135,6 +135,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Run the autotune; 1 if the verification misses a target."""
+    from rovlink.client import ClientError  # noqa: PLC0415
     from rovlink.controller.config import DepthPidConfig  # noqa: PLC0415
     from rovlink.tuning import (  # noqa: PLC0415
         RULES,
@@ -187,7 +188,13 @@ def run(args: argparse.Namespace) -> int:
             raise CommandError(f"aborted: {error}") from None
         gains = result.gains
         final = gains if args.apply else restore
-        client.set_depth_pid(final.kp, final.ki, final.kd)
+        try:
+            client.set_depth_pid(final.kp, final.ki, final.kd)
+        except (ClientError, ConnectionError) as error:  # (the experiment's #stop! went)
+            raise CommandError(
+                f"the experiment ended, but #mvpdp/#mvpdi/#mvpdd ({final.kp}, {final.ki}, "
+                f"{final.kd}) could not be sent: {error}"
+            ) from None
     finally:
         client.close()
     _print(result, args.apply, final)
