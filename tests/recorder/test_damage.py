@@ -5,6 +5,7 @@ a disk that fills up stops the recording, never the link."""
 from __future__ import annotations
 
 import dataclasses
+import math
 import os
 import signal
 import subprocess
@@ -167,8 +168,9 @@ _REPLY = FrameEntry(2.0, 2, "in", "response", "qd", (5,), query="qd", round_trip
         (_REPLY, "late", 0, "frames entry: late must be a boolean, got 0"),
         (EventEntry(2.0, 2, "lock", "start"), "event", 5, "events entry: event must be a string"),
         (WireEntry(2.0, 2, "out", b"#qd!"), "by_session", 1, "wire entry: by_session must be a"),
+        (WireEntry(2.0, 2, "out", b"#qd!"), "t_s", math.inf, "wire entry: t_s must be a finite"),
     ],
-    ids=["round-trip", "direction", "late", "event", "by-session"],
+    ids=["round-trip", "direction", "late", "event", "by-session", "infinite time"],
 )
 def test_a_value_of_another_type_than_its_schema_is_named_as_damage(
     tmp_path: Path, suffix: str, entry: Entry, field: str, value: object, reason: str

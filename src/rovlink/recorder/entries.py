@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import base64
 import dataclasses
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any, ClassVar
@@ -285,8 +286,9 @@ def _fields(
     names = {field.name for field in dataclasses.fields(cls)} - set(extra or ())
     fields = {name: data[name] for name in names if name in data}
     t_s, wall_ns = fields.get("t_s"), fields.get("wall_ns")
-    if isinstance(t_s, bool) or not isinstance(t_s, int | float):
-        raise EntryError(f"{cls.channel} entry: t_s must be a number, got {t_s!r}")
+    if isinstance(t_s, bool) or not isinstance(t_s, int | float) or not math.isfinite(t_s):
+        # (1e400 reads as infinity: a replay would wait for it for ever)
+        raise EntryError(f"{cls.channel} entry: t_s must be a finite number, got {t_s!r}")
     if isinstance(wall_ns, bool) or not isinstance(wall_ns, int):
         raise EntryError(f"{cls.channel} entry: wall_ns must be an integer, got {wall_ns!r}")
     fields["t_s"] = float(t_s)
