@@ -5,6 +5,8 @@ from __future__ import annotations
 import json
 import re
 import socket
+import subprocess
+import sys
 import threading
 from collections.abc import Iterator
 from pathlib import Path
@@ -16,7 +18,8 @@ from rovlink.client import CommandTextError, parse_command_text
 from rovlink.protocol import get_algorithm
 from tests.cli.conftest import RunCli
 from tests.cli.silent_controller import SilentController
-from tests.client.conftest import REPLY_TIMEOUT_S
+from tests.client.conftest import REPLY_TIMEOUT_S, wait_until
+from tests.client.fake_controller import FakeControllerServer
 
 #: ``--timeout`` where replies are expected: long enough for a loaded machine.
 REPLY_TIMEOUT = str(REPLY_TIMEOUT_S)
@@ -316,8 +319,30 @@ def test_a_failed_query_after_motion_ends_the_line_with_stop(
     result = run_cli("send", silent.url, *link, *line)
     assert result.status == 1
     if stopped:
-        assert "(the robot was sent #stop!)" in result.err
+        assert "(sent #stop!)" in result.err
         assert silent.wait_until(lambda received: received.endswith(b"#qsa!#stop!"))
     else:
         assert "#stop!" not in result.err
         assert b"#start!" not in silent.received  # the rest of the line is not sent
+
+
+def test_an_output_closed_after_motion_still_ends_the_line_with_stop() -> None:
+    # `send URL start "th 270 25" qd … stop | head -1`: before, the closed output ended the
+    # line quietly, status 0, and the robot drove on at 25 % (its own `stop` never sent).
+    port = FakeControllerServer(script=("reply", "late"))  # (the probe's #qd!, then the line's)
+    try:
+        line = ["start", "th 270 25", "qd", "qd", "stop"]
+        process = subprocess.Popen(
+            [sys.executable, "-m", "rovlink", "send", port.url, *line],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+        )
+        assert process.stdout is not None
+        assert process.stdout.readline() == b"> #start!\n"
+        process.stdout.close()  # as `head -1` does, while the #qd! waits for its late reply
+        _, stderr = process.communicate(timeout=15)
+        assert "rovlink send: sent #stop!" in stderr.decode(), stderr
+        assert wait_until(lambda: port.fakes[0].frames()[-1:] == ["#stop!"])
+        assert port.fakes[0].frames().count("#stop!") == 1
+    finally:
+        port.close()

@@ -6,6 +6,7 @@ import socket
 import threading
 import time
 from collections.abc import Callable, Iterator
+from typing import TypeVar
 
 import pytest
 
@@ -18,6 +19,7 @@ from rovlink.faults.proxy import BUSY_MESSAGE, FaultProxy
 pytestmark = pytest.mark.integration
 
 _TIMEOUT_S = 5.0
+T = TypeVar("T")
 
 
 class RecordingController:
@@ -51,7 +53,7 @@ class RecordingController:
         self._listener.close()
 
 
-def _wait_until(get: Callable[[], bytes], done: Callable[[bytes], bool]) -> bytes:
+def _wait_until(get: Callable[[], T], done: Callable[[T], bool]) -> T:
     deadline = time.monotonic() + _TIMEOUT_S
     while not done(value := get()):
         assert time.monotonic() < deadline, f"timed out; so far {value!r}"
@@ -136,12 +138,15 @@ def test_serve_returns_with_nothing_left_reading_the_port() -> None:
     fault_port = FaultPort(open_link(parse_url(f"socket://{host}:{port}")), FaultSettings())
     proxy = FaultProxy(fault_port, "127.0.0.1", 0)
     stop = threading.Event()
+    before = set(threading.enumerate())
     serving = threading.Thread(target=proxy.serve, args=(stop.is_set,), daemon=True)
     serving.start()
+    # Once serve() has its threads (its own and the pump, which then waits on the port):
+    _wait_until(lambda: len(set(threading.enumerate()) - before), lambda started: started >= 2)
     stop.set()
     serving.join(timeout=_TIMEOUT_S)
     assert not serving.is_alive()
-    assert not [t for t in threading.enumerate() if t.name == "fault proxy pump" and t.is_alive()]
+    assert set(threading.enumerate()) <= before  # every thread serve() started has ended
     fault_port.close()
     assert proxy.lost is None
     assert controller.wait_for(b"#stop!")

@@ -68,17 +68,22 @@ def test_gains_that_cannot_be_sent_at_the_end_are_one_line(
 ) -> None:
     # Before, a link lost just as the gains were sent back ended in a traceback.
     from rovlink.client import Client, ConnectionLostError
+    from rovlink.protocol import Command
     from rovlink.tuning import ProtocolGains
 
     tuned = SimpleNamespace(gains=ProtocolGains(55, 20, 10))
     monkeypatch.setattr("rovlink.tuning.autotune", lambda *_: tuned)
+    send = Client.send
 
-    def link_lost(*_: object) -> None:
-        raise ConnectionLostError("connection lost: closed by the other end")
+    def lost_after_the_first_gain(client: Client, command: Command) -> object:
+        if command.name != "mvpdp":
+            raise ConnectionLostError("connection lost: closed by the other end")
+        return send(client, command)
 
-    monkeypatch.setattr(Client, "set_depth_pid", link_lost)
+    monkeypatch.setattr(Client, "send", lost_after_the_first_gain)
     assert main(["tune", "sim://", "--yes", "--no-verify", "--apply"]) == 1
     assert capsys.readouterr().err == (
-        "rovlink tune: the experiment ended, but #mvpdp/#mvpdi/#mvpdd (55, 20, 10) could not be "
-        "sent: connection lost: closed by the other end\n"
+        "rovlink tune: the experiment ended, but #mvpdi.20! could not be sent (only "
+        "#mvpdp.55! went; the depth PID is not as asked: tune again or set it): connection "
+        "lost: closed by the other end\n"
     )

@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING, cast
 
 from rovlink.cli import link_options
 from rovlink.cli.failure import CommandError
-from rovlink.cli.interrupt import GatedClient, run_in_worker
+from rovlink.cli.interrupt import GatedClient, run_in_worker, say_stopped
 
 if TYPE_CHECKING:
     from rich.console import RenderableType
@@ -319,8 +319,7 @@ def run(args: argparse.Namespace) -> int:
             progress = run_in_worker(lambda: run_dive(cast("Client", gate), plan, show))
         except KeyboardInterrupt:
             live.stop()
-            gate.stop_for_good()
-            print("rovlink demo: sent #stop!", file=sys.stderr, flush=True)
+            say_stopped("rovlink demo", gate.stop_for_good())
             raise
         except (TimeoutError, ConnectionError) as error:
             live.stop()

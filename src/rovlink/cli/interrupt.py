@@ -11,6 +11,7 @@ thread only waits, where Ctrl-C lands harmlessly; the work talks to the robot th
 from __future__ import annotations
 
 import contextlib
+import sys
 import threading
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any, TypeVar
@@ -20,7 +21,7 @@ from rovlink.protocol import Setting
 if TYPE_CHECKING:
     from rovlink.protocol import Command
 
-__all__ = ["GatedClient", "Interrupted", "may_move", "run_in_worker"]
+__all__ = ["GatedClient", "Interrupted", "may_move", "run_in_worker", "say_stopped", "send_stop"]
 
 T = TypeVar("T")
 
@@ -68,8 +69,9 @@ class GatedClient:
 
         return call
 
-    def stop_for_good(self) -> None:
+    def stop_for_good(self) -> str:
         """Shut the gate and send ``#stop!``; no call through the gate sends anything after it.
+        What became of the ``#stop!``, as :func:`send_stop` says it.
 
         Called from the main thread: a call in progress either finishes within a moment (a
         command, only written) or is a query (which moves nothing) still waiting.
@@ -77,11 +79,30 @@ class GatedClient:
         self._shut = True
         taken = self._lock.acquire(timeout=_CALL_IN_PROGRESS_WAIT_S)
         try:
-            with contextlib.suppress(Exception):
-                self._client.stop()
+            return send_stop(self._client)
         finally:
             if taken:
                 self._lock.release()
+
+
+def send_stop(client: Any) -> str:
+    """Send ``#stop!`` to end a command that may have set the robot moving (interrupted,
+    failed, its output closed); what became of it, for the command's line on stderr:
+    ``sent #stop!`` or ``could not send #stop!: <why>`` (a link that is gone: the controller's
+    link-loss watchdog stops the robot then)."""
+    from rovlink.client.errors import ClientError  # noqa: PLC0415 - the driver loads when used
+
+    try:
+        client.stop()
+    except (ClientError, ConnectionError, TimeoutError) as error:
+        return f"could not send #stop!: {error}"
+    return "sent #stop!"
+
+
+def say_stopped(program: str, outcome: str, why: str = "") -> None:
+    """``rovlink send: sent #stop!`` (with `` (why)``) on stderr, which may be closed too."""
+    with contextlib.suppress(OSError):
+        print(f"{program}: {outcome}{f' ({why})' if why else ''}", file=sys.stderr, flush=True)
 
 
 def run_in_worker(work: Callable[[], T]) -> T:

@@ -117,7 +117,7 @@ def _print_session(args: argparse.Namespace, damage: _Damage) -> None:
 
 def _replay_to(args: argparse.Namespace, damage: _Damage) -> int:
     import rovlink  # noqa: PLC0415
-    from rovlink.cli.interrupt import GatedClient, may_move, run_in_worker  # noqa: PLC0415
+    from rovlink.cli.interrupt import GatedClient, may_move, run_in_worker, say_stopped  # noqa: PLC0415
     from rovlink.cli.link_options import (  # noqa: PLC0415
         closing_unless_interrupted,
         connection_failure,
@@ -183,8 +183,7 @@ def _replay_to(args: argparse.Namespace, damage: _Damage) -> int:
             # The worker may be in the middle of a command: the gate makes #stop! the last
             # frame, sent as `rovlink send` does when any of its commands may move the robot.
             if any(may_move(step.command) for step in steps):
-                gate.stop_for_good()
-                print("rovlink replay: sent #stop!", file=sys.stderr, flush=True)
+                say_stopped("rovlink replay", gate.stop_for_good())
             raise
         except Exception:  # a lost link, a closed output: the worker has ended
             _stop_if_left_moving(client, commanded, sent)
@@ -203,21 +202,15 @@ def _stop_if_left_moving(client: Client, commanded: CommandedState, sent: list[C
     """Send ``#stop!`` and say so if the replayed commands may have left the robot moving: one
     of them may move it (``start``, a motion command) and the lock as last sent is not ``stop``.
     A link that is gone is said to be (the controller's link-loss watchdog stops it then)."""
-    from rovlink.cli.interrupt import may_move  # noqa: PLC0415
-    from rovlink.client.errors import ClientError  # noqa: PLC0415
+    from rovlink.cli.interrupt import may_move, say_stopped, send_stop  # noqa: PLC0415
     from rovlink.piloting.commanded import LockState  # noqa: PLC0415
 
     if commanded.lock is LockState.LOCKED or not any(may_move(command) for command in sent):
         return
-    try:
-        client.stop()
-    except (ClientError, ConnectionError, TimeoutError) as error:
-        print(f"rovlink replay: could not send #stop!: {error}", file=sys.stderr, flush=True)
-        return
-    print(
-        "rovlink replay: sent #stop! (the replayed commands may have left the robot moving)",
-        file=sys.stderr,
-        flush=True,
+    say_stopped(
+        "rovlink replay",
+        send_stop(client),
+        "the replayed commands may have left the robot moving",
     )
 
 

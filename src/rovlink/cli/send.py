@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING, cast
 
 from rovlink.cli import link_options
 from rovlink.cli.failure import CommandError, UsageError
-from rovlink.cli.interrupt import GatedClient, may_move, run_in_worker
+from rovlink.cli.interrupt import GatedClient, may_move, run_in_worker, say_stopped, send_stop
 from rovlink.protocol import (
     Command,
     Decoder,
@@ -284,24 +284,16 @@ def run(args: argparse.Namespace) -> int:
             run_in_worker(send_all)
         except KeyboardInterrupt:
             if any(may_move(item.command) for item in outgoing):
-                gate.stop_for_good()
-                print("rovlink send: sent #stop!", file=sys.stderr, flush=True)
+                say_stopped("rovlink send", gate.stop_for_good())
             raise
-        except CommandError as error:
+        except Exception as error:  # a failed command, a lost link, a closed output (| head)
             # The rest of the line, a `stop` of the user's own among it, is not sent: a robot
             # the line set moving is not left so.
             if not may_have_moved:
                 raise
-            raise CommandError(f"{error} ({_stopped_after_failure(client)})") from None
+            outcome = send_stop(client)
+            if isinstance(error, CommandError):
+                raise CommandError(f"{error} ({outcome})") from None
+            say_stopped("rovlink send", outcome)
+            raise
     return 0
-
-
-def _stopped_after_failure(client: Client) -> str:
-    """Send ``#stop!`` after a failed command; what became of it, for the error message."""
-    from rovlink.client import ClientError  # noqa: PLC0415
-
-    try:
-        client.stop()
-    except (ClientError, TimeoutError, ConnectionError) as error:
-        return f"#stop! could not be sent: {error}"
-    return "the robot was sent #stop!"

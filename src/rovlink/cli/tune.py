@@ -16,6 +16,7 @@ from rovlink.cli.failure import CommandError, UsageError, reason
 from rovlink.cli.link_options import bounded_int
 
 if TYPE_CHECKING:
+    from rovlink.client import Client
     from rovlink.tuning import ProtocolGains, TuneResult
 
 __all__ = ["EPILOG", "parse_triple"]
@@ -135,7 +136,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Run the autotune; 1 if the verification misses a target."""
-    from rovlink.client import ClientError  # noqa: PLC0415
     from rovlink.controller.config import DepthPidConfig  # noqa: PLC0415
     from rovlink.tuning import (  # noqa: PLC0415
         RULES,
@@ -188,13 +188,7 @@ def run(args: argparse.Namespace) -> int:
             raise CommandError(f"aborted: {error}") from None
         gains = result.gains
         final = gains if args.apply else restore
-        try:
-            client.set_depth_pid(final.kp, final.ki, final.kd)
-        except (ClientError, ConnectionError) as error:  # (the experiment's #stop! went)
-            raise CommandError(
-                f"the experiment ended, but #mvpdp/#mvpdi/#mvpdd ({final.kp}, {final.ki}, "
-                f"{final.kd}) could not be sent: {error}"
-            ) from None
+        _send_gains(client, final)
     finally:
         client.close()
     _print(result, args.apply, final)
@@ -202,6 +196,24 @@ def run(args: argparse.Namespace) -> int:
         _plot(result, args.plot)
     met = result.step is None or _meets_targets(result)
     return 0 if met else 1
+
+
+def _send_gains(client: Client, gains: ProtocolGains) -> None:
+    """Send the gains to leave set, one frame at a time: a link lost on the way is one line
+    saying which went (the experiment's own ``#stop!`` has gone before)."""
+    from rovlink.client import ClientError, operations  # noqa: PLC0415
+
+    sent: list[str] = []
+    for command in operations.depth_pid(gains.kp, gains.ki, gains.kd):
+        try:
+            client.send(command)
+        except (ClientError, ConnectionError) as error:
+            went = f"only {' '.join(sent)} went" if sent else "none went"
+            raise CommandError(
+                f"the experiment ended, but {command} could not be sent ({went}; the depth "
+                f"PID is not as asked: tune again or set it): {error}"
+            ) from None
+        sent.append(str(command))
 
 
 def _confirm(args: argparse.Namespace) -> bool:

@@ -198,11 +198,15 @@ class MqttBridge:
         from paho.mqtt.subscribeoptions import SubscribeOptions  # noqa: PLC0415
 
         # No retained command (MQTT 5's retain handling 2): the broker would hand it over on
-        # every (re)connection, a `th 90 100` published minutes or a broker restart ago.
+        # every (re)connection, a `th 90 100` published minutes or a broker restart ago. And a
+        # live one keeps its flag (retain as published), to be refused: carried out once, it
+        # would stay stored on the broker for the next connection of a bridge without this.
         await mqtt.subscribe(
             self.topics.command,
             options=SubscribeOptions(
-                qos=_QOS_RELIABLE, retainHandling=SubscribeOptions.RETAIN_DO_NOT_SEND
+                qos=_QOS_RELIABLE,
+                retainAsPublished=True,
+                retainHandling=SubscribeOptions.RETAIN_DO_NOT_SEND,
             ),
         )
         self._last_state = None  # publish it afresh: the broker may have restarted
@@ -303,7 +307,7 @@ class MqttBridge:
         payload = message.payload if isinstance(message.payload, bytes) else b""
         try:
             request = read_request(payload)
-            if getattr(message, "retain", False):  # (a broker that ignored the retain handling)
+            if getattr(message, "retain", False):
                 raise PayloadError(_RETAINED_REFUSED)
             command = self.policy.check(request.text)
         except (PayloadError, ValueError) as error:
