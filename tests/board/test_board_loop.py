@@ -170,6 +170,22 @@ def test_an_i2c_error_on_the_pwm_board_ends_the_loop_at_neutral_after_a_retry() 
         assert rig.server.at_rest
 
 
+def test_a_failed_write_to_the_moving_claw_does_not_hold_up_the_stop() -> None:
+    # Before, the stop wrote the claw's rest first, without a retry: one I²C error on it ended
+    # the stop (and the loop) before the thrusters were set to neutral.
+    with running(_quick(watchdog_s=0.0, claw_pulse_ms=5000)) as rig:
+        rig.send(b"#start!#th.90.50!#h+!")
+        claw = lambda: pulses(rig.bus.snapshot(), [CLAW_CHANNEL])[0]  # noqa: E731
+        at_rest = lambda: claw() == pytest.approx(1500.0, abs=COUNT_US)  # noqa: E731
+        assert wait_until(lambda: rig.moving_as_commanded() and not at_rest())
+        rig.bus.fail(0x40, 1)
+        rig.send(b"#stop!")
+        assert wait_until(lambda: rig.neutral() and at_rest()), rig.pulses()
+        assert rig.server.controller.locked
+        assert any(t.failed and t.address == 0x40 for t in rig.bus.snapshot())
+    assert not rig.errors
+
+
 def test_a_stale_pressure_sensor_stops_the_motors_until_it_answers() -> None:
     with running(_quick(watchdog_s=0.0)) as rig:
         rig.send(b"#debug1!#start!#th.90.50!")

@@ -116,3 +116,21 @@ def test_past_the_maximum_the_pid_gives_no_down_thrust() -> None:
     rig.tick()
     assert rig.vertical_duties[0] >= 0
     assert rig.controller.pid.integral_percent >= 0  # anti-windup follows the narrowed range
+
+
+def test_a_saturated_depth_reading_is_pushed_no_deeper() -> None:
+    # Before, #mvd.2500! with the reading stuck at raw 1024 (2008 cm at the defaults) drove
+    # down for ever: the PID saw a depth short of its target that never changed.
+    rig = make_rig(ControllerConfig(watchdog_s=0.0))
+    rig.send(b"#debug1!#start!#mvd.2500!")
+    rig.controller.read_output()
+    rig.pressure.raw = 1000
+    rig.tick()
+    assert rig.vertical_duties[0] < 0  # short of the target, readable: dives
+    rig.pressure.raw = 1024
+    output = rig.tick(10)
+    assert rig.vertical_duties == (0, 0)
+    assert output.count(b"depth reading saturated at raw 1024") == 1  # once, not a tick
+    rig.send(b"#mvd.100!")  # a target above: up thrust is given
+    rig.tick()
+    assert rig.vertical_duties[0] > 0

@@ -41,6 +41,9 @@ _MAX_DEPTH_CM = 9999
 _FULL_UP_PERCENT = 100
 #: How far above the maximum depth the robot must rise before down thrust is allowed again.
 _MAX_DEPTH_RELEASE_CM = 5
+#: The pressure sensor's largest raw reading (P13's `qr` range): a reading there is "at least
+#: this deep", which a depth hold must not push deeper on.
+_RAW_MAX = 1024
 
 
 @dataclass(frozen=True, slots=True)
@@ -152,6 +155,7 @@ class Controller:
         self._claw_direction = 0
         self._claw_until_s = 0.0
         self._depth_limited = False
+        self._depth_saturated = False  # the last reading at _RAW_MAX
         now = self._hardware.clock.now_s()
         self._last_frame_s = now
         self._last_tick_s: float | None = None
@@ -192,12 +196,20 @@ class Controller:
         last = self._last_tick_s
         dt_s = self._tick_s if last is None else now - last
         self._last_tick_s = now
-        depth_cm = (hardware.pressure.read_raw() - self._zero_raw) * self._k // 100
+        raw = hardware.pressure.read_raw()
+        depth_cm = (raw - self._zero_raw) * self._k // 100
         if depth_cm < 0:
             depth_cm = 0
         elif depth_cm > _MAX_DEPTH_CM:
             depth_cm = _MAX_DEPTH_CM
         self._depth_cm = depth_cm  # P13, inlined: this runs every tick
+        saturated = raw >= _RAW_MAX
+        if saturated is not self._depth_saturated:
+            self._depth_saturated = saturated
+            if saturated:
+                self._debug(
+                    f"depth reading saturated at raw {_RAW_MAX}: a depth hold goes no deeper"
+                )
         if hardware.leak.fired_since_last_read():
             self._leak_fired()
         if self._claw_direction and now + 1e-9 >= self._claw_until_s:
@@ -447,11 +459,13 @@ class Controller:
         """Every output off at once, set-points cleared, motion locked (P7, P14, P17)."""
         self._locked = True
         self._clear_set_points()
+        self._duties = list(self._idle_duties)
+        # The thrusters first: an output that fails to stop (an I²C error on the claw's
+        # write) must not leave them driving.
+        self._hardware.thrusters.set_duties(self._duties)
         if self._claw_direction:
             self._claw_direction = 0
         self._hardware.claw.drive(0)
-        self._duties = list(self._idle_duties)
-        self._hardware.thrusters.set_duties(self._duties)
         if not commanded:  # a failsafe: worth a line in the log of the board's owner
             logger.warning("%s: motors stopped and locked", why)
         self._debug(f"{why}: motors stopped and locked")
@@ -507,6 +521,8 @@ class Controller:
         target_cm = self._target_depth_cm
         if target_cm is None:
             return 0.0
+        if self._depth_saturated:  # (a target below the sensor's span: pushed for ever)
+            lower = 0.0
         return self._pid.update(target_cm, depth_cm, dt_s, lower=lower)
 
     def _debug(self, text: str) -> None:

@@ -43,6 +43,18 @@ def pulse_for_duty(esc: EscChannel, duty: int) -> float:
     return esc.neutral_us + (esc.neutral_us - esc.min_us) * duty / _MAX_DUTY
 
 
+def _write_retried_once(pca: Pca9685, pulses: dict[int, float]) -> None:
+    """Write ``pulses``; a failed write is tried once more with each of them written again (a
+    glitch on a bus next to thruster cables is not a reason to stop); a second failure is
+    raised, and the board loop then ends with the outputs at neutral."""
+    try:
+        pca.set_pulses_us(pulses)
+    except OSError as error:
+        logger.warning("PCA9685 write failed (%s); writing the outputs again", error)
+        pca.forget_written()
+        pca.set_pulses_us(pulses)
+
+
 class EscThrusters:
     """The controller's thruster outputs (layout order) as ESC pulses on a PCA9685."""
 
@@ -55,24 +67,15 @@ class EscThrusters:
         return {esc.channel: esc.neutral_us for esc in self._escs}
 
     def set_duties(self, duties: Sequence[int]) -> None:
-        """Apply signed duties, one per thruster of the layout.
-
-        A failed write is retried once, every output rewritten (a glitch on a bus next to
-        thruster cables is not a reason to stop); a second failure is raised, and the board loop
-        then ends with the thrusters at neutral.
-        """
+        """Apply signed duties, one per thruster of the layout (a failed write is retried
+        once)."""
         if len(duties) != len(self._escs):
             raise ValueError(f"{len(duties)} duties for {len(self._escs)} thrusters")
         pulses = {
             esc.channel: pulse_for_duty(esc, duty)
             for esc, duty in zip(self._escs, duties, strict=True)
         }
-        try:
-            self._pca.set_pulses_us(pulses)
-        except OSError as error:
-            logger.warning("PCA9685 write failed (%s); writing every output again", error)
-            self._pca.forget_written()
-            self._pca.set_pulses_us(pulses)
+        _write_retried_once(self._pca, pulses)
 
     def neutral(self) -> None:
         """Neutral on every ESC, written even if the driver believes it is there already."""
@@ -95,8 +98,8 @@ class MotorClaw:
         return self._pulses[0]
 
     def drive(self, direction: int) -> None:
-        """+1 opens, −1 closes, 0 stops."""
-        self._pca.set_pulses_us({self.channel: self._pulses[direction]})
+        """+1 opens, −1 closes, 0 stops; a failed write is retried once, as the thrusters'."""
+        _write_retried_once(self._pca, {self.channel: self._pulses[direction]})
 
     def neutral(self) -> None:
         """Stop the motor."""
@@ -137,7 +140,7 @@ class ServoClaw:
             return
         target = self.position_us + direction * self._open_sign * self._step_us
         self.position_us = min(self._high_us, max(self._low_us, target))
-        self._pca.set_pulses_us({self.channel: self.position_us})
+        _write_retried_once(self._pca, {self.channel: self.position_us})
 
     def neutral(self) -> None:
         """A servo has no thrust to stop: it holds where it is."""
