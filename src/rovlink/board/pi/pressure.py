@@ -18,7 +18,7 @@ _RAW_MAX = 1024
 
 @dataclass(frozen=True, slots=True)
 class RawScale:
-    """mbar → raw: the surface reads ``zero_raw``, each count is ``100 / k`` cm deeper.
+    """mbar → raw: the surface reads ``zero_raw``, each count is ``k / 100`` cm deeper.
 
     With the controller's [depth] ``zero_raw`` and ``k``, ``qd`` then reports the depth in cm.
 
