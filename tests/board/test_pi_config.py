@@ -101,6 +101,11 @@ def _load(**changes: object) -> None:
         ({"i2c__fake_log": "x.jsonl"}, '[i2c]: fake_log is for backend = "fake" only'),
         ({"board__stale_after_failures": 0}, "[board]: stale_after_failures must be 1–1000, got 0"),
         ({"controller__watchdog_s": -1.0}, "[controller]: watchdog_s must be ≥ 0"),
+        (
+            {"depth__k": 0},
+            "[depth]: k must be in 1–10000 on a Pi board (a raw count is k / 100 cm of water), "
+            "got 0",
+        ),
         ({"gpio": {"pin": 3}}, "unknown table [gpio]"),
     ],
 )

@@ -19,6 +19,7 @@ from rovlink.board.pi.ads1115 import DATA_RATES_SPS, FULL_SCALES_V
 from rovlink.board.pi.bno055 import PLACEMENTS
 from rovlink.board.pi.ms5837 import OVERSAMPLING, Ms5837Model
 from rovlink.board.pi.pca9685 import CHANNELS, DEFAULT_OSCILLATOR_HZ, prescale_for
+from rovlink.board.pi.pressure import MIN_SCALE_K
 from rovlink.controller import ControllerConfig, config_from_mapping
 from rovlink.controller.config import (
     ConfigError,
@@ -444,6 +445,7 @@ def pi_config_from_mapping(data: Mapping[str, Any], source: str = "rov.toml") ->
     config = PiConfig(controller, escs, i2c, pca, claw, pressure, imu, leak, board)
     _check_channels(config, source)
     _check_pulses_fit(config, source)
+    _check_depth_scale(config, source)
     return config
 
 
@@ -505,6 +507,17 @@ def _check_pulses_fit(config: PiConfig, source: str) -> None:
         longest < period_us,
         f"{source} [pca9685] frequency_hz: a {longest:g} µs pulse does not fit in the "
         f"{period_us:.0f} µs period of {config.pca9685.frequency_hz:g} Hz",
+    )
+
+
+def _check_depth_scale(config: PiConfig, source: str) -> None:
+    """The board maps pressure onto raw counts of k / 100 cm: k = 0, which the controller's
+    [depth] and `sdk` accept, gives it no scale to map onto."""
+    k = config.controller.depth.k
+    _require(
+        k >= MIN_SCALE_K,
+        f"{source} [depth]: k must be in {MIN_SCALE_K}–10000 on a Pi board "
+        f"(a raw count is k / 100 cm of water), got {k}",
     )
 
 

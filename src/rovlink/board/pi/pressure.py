@@ -9,11 +9,13 @@ from rovlink.board.pi.ads1115 import Ads1115
 from rovlink.board.pi.ms5837 import Ms5837
 from rovlink.board.sensors import SensorError
 
-__all__ = ["AnalogPressure", "AnalogTransducer", "Ms5837Pressure", "RawScale"]
+__all__ = ["MIN_SCALE_K", "AnalogPressure", "AnalogTransducer", "Ms5837Pressure", "RawScale"]
 
 _GRAVITY_M_S2 = 9.80665
 _PA_PER_MBAR = 100.0
 _RAW_MAX = 1024
+#: The smallest ``k`` the board can map pressure onto (the protocol's ``sdk`` allows 0).
+MIN_SCALE_K = 1
 
 
 @dataclass(frozen=True, slots=True)
@@ -31,6 +33,14 @@ class RawScale:
     k: int
     surface_mbar: float
     density_kg_m3: float
+
+    def __post_init__(self) -> None:
+        # k = 0 is a valid `sdk` (every depth reads 0), but no pressure maps onto a scale of
+        # 0 cm per count: refused here rather than a ZeroDivisionError at the first reading.
+        if self.k < MIN_SCALE_K:
+            raise ValueError(
+                f"raw scale: k must be ≥ {MIN_SCALE_K} (k / 100 cm a count), got {self.k}"
+            )
 
     def depth_cm(self, pressure_mbar: float) -> float:
         """The depth of water (of the configured density) that adds this pressure, cm."""
