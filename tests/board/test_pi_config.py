@@ -93,6 +93,10 @@ def _load(**changes: object) -> None:
             {"pressure__ms5837__oversampling": 300},
             "[pressure.ms5837]: oversampling must be one of 256",
         ),
+        (
+            {"pressure__ads1115__full_scale_v": 4.096, "pressure__ads1115__max_volts": 4.5},
+            "[pressure.ads1115]: max_volts must be at most full_scale_v (4.096 V), got 4.5",
+        ),
         ({"imu__placement": "P9"}, "[imu]: placement must be one of P0, P1"),
         (
             {"leak__pull": "up"},

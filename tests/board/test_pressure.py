@@ -59,6 +59,28 @@ def test_sdk_0_zeroes_the_controllers_depth_and_leaves_the_boards_raw_scale() ->
         board.close()
 
 
+@pytest.mark.parametrize("ads1115_table", ["the example's", "the defaults"])
+def test_a_transducer_wired_as_documented_reads_its_pressure(ads1115_table: str) -> None:
+    """docs/hardware.md: a 0.5–4.5 V transducer (0–10 bar) through 10 kΩ over 20 kΩ, so the
+    ADS1115 on 3.3 V sees 0.33–3.0 V; rov.toml's [pressure.ads1115] as given must read it."""
+    pressure: dict[str, object] = {"sensor": "ads1115", "surface_mbar": 0.0}
+    if ads1115_table == "the defaults":
+        pressure["ads1115"] = {}
+    config = example_config(imu={"sensor": "none"}, leak={"pin": -1}, pressure=pressure)
+    bus = fake_bus_for(config)
+    adc = bus.devices[config.pressure.ads1115.address]
+    assert isinstance(adc, FakeAds1115)
+    board = open_pi_board(config, bus=bus)
+    try:
+        three_metres_mbar = 3 * 997.0 * 9.80665 / 100
+        transducer_volts = 0.5 + 4.0 * three_metres_mbar / 10000.0
+        adc.volts = transducer_volts * 20 / (10 + 20)
+        assert board.sensors[0].poll(0.0) is None
+        assert board.hardware.pressure.read_raw() == 170  # 20 + 300 cm at 2 cm a count
+    finally:
+        board.close()
+
+
 def test_ads1115_config_word_follows_the_datasheet() -> None:
     # OS 0, MUX 100 (AIN0–GND), PGA 001 (±4.096 V), MODE 0 (continuous), DR 100 (128 SPS),
     # comparator disabled (11).

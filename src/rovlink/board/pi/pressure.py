@@ -73,11 +73,12 @@ class Ms5837Pressure:
 @dataclass(frozen=True, slots=True)
 class AnalogTransducer:
     """A transducer with a linear voltage output: ``min_volts`` at ``min_mbar`` to ``max_volts``
-    at ``max_mbar``. A voltage more than 5 % of the span outside is a fault (a broken wire reads
-    0 V), never a depth."""
+    at ``max_mbar``, as the ADC sees them. A voltage more than 5 % of the span outside is a fault
+    (a broken wire reads 0 V), never a depth. The defaults are a 0.5–4.5 V transducer through
+    the wiring guide's divider (× 2/3), as rov.toml's."""
 
-    min_volts: float = 0.5
-    max_volts: float = 4.5
+    min_volts: float = 0.3333
+    max_volts: float = 3.0
     min_mbar: float = 0.0
     max_mbar: float = 10000.0
 
