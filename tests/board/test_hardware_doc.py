@@ -1,5 +1,5 @@
-"""docs/hardware.md: its C checksum passes the protocol's test vectors, and its reference of the
-board's keys is the one the code generates."""
+"""docs/hardware.md: its C checksum passes the protocol's test vectors, its reference of the
+board's keys is the one the code generates, and its depth steps are the raw scale's."""
 
 from __future__ import annotations
 
@@ -11,10 +11,13 @@ from pathlib import Path
 import pytest
 
 from rovlink.board.pi.config import pi_config_reference
+from rovlink.board.pi.pressure import RawScale
 from rovlink.protocol.checksum import ALGORITHMS
 
 DOC = Path(__file__).resolve().parents[2] / "docs" / "hardware.md"
 _VECTOR = re.compile(r"^\| `([^`]+)` \| ([0-9A-F]{2}) \| `([#$][^`]+!)` \|$", re.MULTILINE)
+#: "k = 1000 spans 100 m in 10 cm steps", "k 200) the raw scale spans 20 m in 2 cm steps".
+_DEPTH_SCALE = re.compile(r"\bk =? ?(\d+)\D{0,20}?spans (\d+) m in (\d+) cm steps")
 
 
 def _vectors() -> list[tuple[str, str, str]]:
@@ -25,6 +28,26 @@ def _vectors() -> list[tuple[str, str, str]]:
 
 def test_the_reference_of_the_boards_keys_is_current() -> None:
     assert pi_config_reference() in DOC.read_text(encoding="utf-8")
+
+
+def _raw_at(scale: RawScale, depth_cm: float) -> int:
+    """The raw reading ``depth_cm`` of water below the surface."""
+    return scale.raw(scale.surface_mbar + depth_cm * scale.density_kg_m3 * 9.80665 / 10_000)
+
+
+def test_the_depth_steps_in_the_doc_are_the_raw_scales() -> None:
+    """Each raw count is k / 100 cm (P13): the doc's and RawScale's sentences say what it does."""
+    text = " ".join(DOC.read_text(encoding="utf-8").split())
+    statements = _DEPTH_SCALE.findall(text)
+    assert statements
+    for k, span_m, step_cm in ((int(k), int(m), int(cm)) for k, m, cm in statements):
+        scale = RawScale(zero_raw=20, k=k, surface_mbar=1013.25, density_kg_m3=997.0)
+        for counts in (1, 2, 3):
+            assert _raw_at(scale, counts * step_cm) == 20 + counts, (k, step_cm)
+            assert _raw_at(scale, (counts + 0.4) * step_cm) == 20 + counts, (k, step_cm)
+        assert _raw_at(scale, span_m * 99) < 1024 <= _raw_at(scale, span_m * 101), (k, span_m)
+    assert "each count is `k / 100` cm" in text
+    assert "each count is ``k / 100`` cm" in (RawScale.__doc__ or "")
 
 
 def test_the_vectors_in_the_doc_are_the_protocols() -> None:

@@ -4,15 +4,60 @@ from __future__ import annotations
 
 import pytest
 
-from rovlink.board.pi.fake_bus import MS5837_EXAMPLES, FakeI2cBus, FakeMs5837, ms5837_prom
-from rovlink.board.pi.ms5837 import Ms5837, Ms5837Model, compensate, crc4
+from rovlink.board.pi.fake_bus import (
+    MS5837_EXAMPLES,
+    FakeDevice,
+    FakeI2cBus,
+    FakeMs5837,
+    ms5837_prom,
+)
+from rovlink.board.pi.ms5837 import Ms5837, Ms5837Model, Ms5837Reading, compensate, crc4
 from rovlink.board.sensors import SensorError
 
 
-def _sensor(model: Ms5837Model, fake: FakeMs5837 | None = None) -> tuple[FakeMs5837, Ms5837]:
+class _TimedBus(FakeI2cBus):
+    """The fake bus on a fake clock (its :meth:`now_s`): each transaction takes
+    ``transaction_s``, and ``started_s`` notes when each began (one per transaction)."""
+
+    def __init__(self, devices: dict[int, FakeDevice], transaction_s: float = 0.0) -> None:
+        super().__init__(devices)
+        self.time_s = 0.0
+        self.transaction_s = transaction_s
+        self.started_s: list[float] = []
+
+    def now_s(self) -> float:
+        return self.time_s
+
+    def write(self, address: int, data: bytes) -> None:
+        self._elapse()
+        super().write(address, data)
+
+    def read(self, address: int, length: int) -> bytes:
+        self._elapse()
+        return super().read(address, length)
+
+    def write_read(self, address: int, data: bytes, length: int) -> bytes:
+        self._elapse()
+        return super().write_read(address, data, length)
+
+    def _elapse(self) -> None:
+        self.started_s.append(self.time_s)
+        self.time_s += self.transaction_s
+
+
+def _sensor(
+    model: Ms5837Model, fake: FakeMs5837 | None = None, *, transaction_s: float = 0.0
+) -> tuple[FakeMs5837, Ms5837, _TimedBus]:
     fake = fake if fake is not None else FakeMs5837.example(model)
-    sensor = Ms5837(FakeI2cBus({0x76: fake}), model=model, oversampling=4096)
-    return fake, sensor
+    bus = _TimedBus({0x76: fake}, transaction_s)
+    sensor = Ms5837(bus, model=model, oversampling=4096, clock=bus)
+    return fake, sensor, bus
+
+
+def _poll_at(sensor: Ms5837, bus: _TimedBus, now_s: float) -> Ms5837Reading | None:
+    """A period that starts at ``now_s`` (or when the bus is free, if later) polls the sensor."""
+    bus.time_s = max(bus.time_s, now_s)
+    return sensor.poll(bus.time_s)
 
 
 @pytest.mark.parametrize(
@@ -64,7 +109,7 @@ def test_second_order_compensation_in_cold_water() -> None:
 
 
 def test_start_resets_and_reads_a_prom_whose_crc_checks() -> None:
-    fake, sensor = _sensor(Ms5837Model.BA30)
+    fake, sensor, _bus = _sensor(Ms5837Model.BA30)
     sensor.start()
     assert fake.resets == 1
     assert list(sensor.prom) == fake.prom
@@ -76,7 +121,7 @@ def test_a_prom_with_a_bad_crc4_is_refused(word: int) -> None:
     model = Ms5837Model.BA30
     fake = FakeMs5837.example(model)
     fake.prom[word] ^= 0x0010  # one bit of one calibration word
-    _, sensor = _sensor(model, fake)
+    _, sensor, _bus = _sensor(model, fake)
     with pytest.raises(SensorError, match="CRC-4"):
         sensor.start()
 
@@ -92,39 +137,53 @@ def test_the_crc_ignores_its_own_nibble_and_sees_every_word() -> None:
 
 
 def test_conversions_alternate_without_waiting() -> None:
-    fake, sensor = _sensor(Ms5837Model.BA02)
+    fake, sensor, bus = _sensor(Ms5837Model.BA02)
     sensor.start()
-    bus = sensor.bus
-    assert isinstance(bus, FakeI2cBus)
-    assert sensor.poll(0.0) is None  # D1 started
+    assert _poll_at(sensor, bus, 0.0) is None  # D1 started
     before = len(bus.transactions)
-    assert sensor.poll(0.005) is None  # 5 ms: the 9 ms conversion is under way, no I/O at all
+    assert _poll_at(sensor, bus, 0.005) is None  # 5 ms: the 9 ms conversion is under way, no I/O
     assert len(bus.transactions) == before
-    assert sensor.poll(0.010) is None  # D1 read, D2 started
-    reading = sensor.poll(0.020)  # D2 read: a reading; D1 started
+    assert _poll_at(sensor, bus, 0.010) is None  # D1 read, D2 started
+    reading = _poll_at(sensor, bus, 0.020)  # D2 read: a reading; D1 started
     assert reading is not None
     assert reading.pressure_mbar == pytest.approx(1100.02)
     assert fake.conversions == [0x48, 0x58, 0x48]  # OSR 4096: D1 0x48, D2 0x58
 
 
-def test_a_conversion_read_as_zero_is_an_error_and_the_cycle_restarts() -> None:
-    fake, sensor = _sensor(Ms5837Model.BA02)
+def test_the_read_waits_a_whole_conversion_after_the_convert_commands_write() -> None:
+    # A slow bus (a device stretching the clock, a long transfer before): each transaction takes
+    # 4 ms. Counted from the period's start, the conversion would be read 5 ms after its command
+    # went, mid-conversion: the datasheet's 0, which spoils it.
+    _fake, sensor, bus = _sensor(Ms5837Model.BA02, transaction_s=0.004)
     sensor.start()
-    sensor.poll(0.0)
+    first = len(bus.transactions)
+    readings = [_poll_at(sensor, bus, period * 0.001) for period in range(1, 200)]
+    assert sum(reading is not None for reading in readings) >= 3
+    converted_s: float | None = None  # when the last convert command's write ended
+    for transaction, started_s in zip(bus.transactions[first:], bus.started_s[first:], strict=True):
+        if transaction.written[0] in (0x48, 0x58):  # convert D1, D2 at OSR 4096
+            converted_s = started_s + bus.transaction_s
+        elif transaction.written == b"\x00":  # the ADC read
+            assert converted_s is not None
+            assert started_s >= converted_s + sensor.conversion_s, (started_s, converted_s)
+
+
+def test_a_conversion_read_as_zero_is_an_error_and_the_cycle_restarts() -> None:
+    fake, sensor, bus = _sensor(Ms5837Model.BA02)
+    sensor.start()
+    _poll_at(sensor, bus, 0.0)
     fake._converted = 0  # the conversion was lost (the datasheet's answer: 0)
     with pytest.raises(SensorError, match="read as 0"):
-        sensor.poll(0.010)
-    assert sensor.poll(0.011) is None  # D1 again
-    assert sensor.poll(0.021) is None
-    assert sensor.poll(0.031) is not None
+        _poll_at(sensor, bus, 0.010)
+    assert _poll_at(sensor, bus, 0.011) is None  # D1 again
+    assert _poll_at(sensor, bus, 0.021) is None
+    assert _poll_at(sensor, bus, 0.031) is not None
 
 
 def test_an_i2c_failure_surfaces_as_oserror() -> None:
-    _fake, sensor = _sensor(Ms5837Model.BA02)
+    _fake, sensor, bus = _sensor(Ms5837Model.BA02)
     sensor.start()
-    sensor.poll(0.0)
-    bus = sensor.bus
-    assert isinstance(bus, FakeI2cBus)
+    _poll_at(sensor, bus, 0.0)
     bus.fail(0x76, 1)
     with pytest.raises(OSError, match="no acknowledge"):
-        sensor.poll(0.010)
+        _poll_at(sensor, bus, 0.010)

@@ -93,6 +93,10 @@ def _load(**changes: object) -> None:
             {"pressure__ms5837__oversampling": 300},
             "[pressure.ms5837]: oversampling must be one of 256",
         ),
+        (
+            {"pressure__ads1115__full_scale_v": 4.096, "pressure__ads1115__max_volts": 4.5},
+            "[pressure.ads1115]: max_volts must be at most full_scale_v (4.096 V), got 4.5",
+        ),
         ({"imu__placement": "P9"}, "[imu]: placement must be one of P0, P1"),
         (
             {"leak__pull": "up"},
@@ -101,6 +105,11 @@ def _load(**changes: object) -> None:
         ({"i2c__fake_log": "x.jsonl"}, '[i2c]: fake_log is for backend = "fake" only'),
         ({"board__stale_after_failures": 0}, "[board]: stale_after_failures must be 1–1000, got 0"),
         ({"controller__watchdog_s": -1.0}, "[controller]: watchdog_s must be ≥ 0"),
+        (
+            {"depth__k": 0},
+            "[depth]: k must be in 1–10000 on a Pi board (a raw count is k / 100 cm of water), "
+            "got 0",
+        ),
         ({"gpio": {"pin": 3}}, "unknown table [gpio]"),
     ],
 )

@@ -5,9 +5,12 @@ from __future__ import annotations
 import pytest
 
 from rovlink.board.pi.ads1115 import Ads1115, config_word
+from rovlink.board.pi.board import fake_bus_for, open_pi_board
 from rovlink.board.pi.fake_bus import FakeAds1115, FakeI2cBus
 from rovlink.board.pi.pressure import AnalogPressure, AnalogTransducer, RawScale
 from rovlink.board.sensors import SensorError
+from rovlink.controller import Controller
+from tests.board.rig import example_config
 
 
 def test_the_raw_scale_gives_the_controllers_depth_back() -> None:
@@ -19,6 +22,63 @@ def test_the_raw_scale_gives_the_controllers_depth_back() -> None:
     assert (raw - 20) * 200 // 100 == 300
     assert scale.raw(0.0) == 0  # clipped as an ADC clips
     assert scale.raw(100_000.0) == 1024
+
+
+def test_a_raw_scale_of_k_0_is_refused_not_a_division_by_zero() -> None:
+    with pytest.raises(ValueError, match="raw scale: k must be ≥ 1"):
+        RawScale(zero_raw=20, k=0, surface_mbar=1013.25, density_kg_m3=997.0)
+
+
+def test_sdk_0_zeroes_the_controllers_depth_and_leaves_the_boards_raw_scale() -> None:
+    """The protocol allows `#sdk.0!`: the controller multiplies by k, so every depth reads 0;
+    the board's raw scale keeps rov.toml's k, so nothing divides by 0 and `qr` still reads."""
+    config = example_config(
+        imu={"sensor": "none"},
+        leak={"pin": -1},
+        pressure={"sensor": "ads1115", "surface_mbar": 0.0},
+    )
+    ads = config.pressure.ads1115
+    bus = fake_bus_for(config)
+    adc = bus.devices[ads.address]
+    assert isinstance(adc, FakeAds1115)
+    board = open_pi_board(config, bus=bus)
+    try:
+        controller = Controller(config.controller, board.hardware)
+        one_metre_mbar = 997.0 * 9.80665 / 100
+        fraction = (one_metre_mbar - ads.min_mbar) / (ads.max_mbar - ads.min_mbar)
+        adc.volts = ads.min_volts + fraction * (ads.max_volts - ads.min_volts)
+        assert board.sensors[0].poll(0.0) is None
+        controller.receive(b"#qr!#qd!")
+        assert controller.read_output() == b"$qr.70!$qd.100!"  # 1 m, 2 cm a count
+        controller.receive(b"#sdk.0!")
+        assert board.sensors[0].poll(0.01) is None
+        controller.tick()
+        controller.receive(b"#qr!#qd!")
+        assert controller.read_output() == b"$qr.70!$qd.0!"
+    finally:
+        board.close()
+
+
+@pytest.mark.parametrize("ads1115_table", ["the example's", "the defaults"])
+def test_a_transducer_wired_as_documented_reads_its_pressure(ads1115_table: str) -> None:
+    """docs/hardware.md: a 0.5–4.5 V transducer (0–10 bar) through 10 kΩ over 20 kΩ, so the
+    ADS1115 on 3.3 V sees 0.33–3.0 V; rov.toml's [pressure.ads1115] as given must read it."""
+    pressure: dict[str, object] = {"sensor": "ads1115", "surface_mbar": 0.0}
+    if ads1115_table == "the defaults":
+        pressure["ads1115"] = {}
+    config = example_config(imu={"sensor": "none"}, leak={"pin": -1}, pressure=pressure)
+    bus = fake_bus_for(config)
+    adc = bus.devices[config.pressure.ads1115.address]
+    assert isinstance(adc, FakeAds1115)
+    board = open_pi_board(config, bus=bus)
+    try:
+        three_metres_mbar = 3 * 997.0 * 9.80665 / 100
+        transducer_volts = 0.5 + 4.0 * three_metres_mbar / 10000.0
+        adc.volts = transducer_volts * 20 / (10 + 20)
+        assert board.sensors[0].poll(0.0) is None
+        assert board.hardware.pressure.read_raw() == 170  # 20 + 300 cm at 2 cm a count
+    finally:
+        board.close()
 
 
 def test_ads1115_config_word_follows_the_datasheet() -> None:

@@ -147,7 +147,7 @@ def open_pi_board(config: PiConfig, *, bus: I2cBus | None = None, pin_factory: A
         )
         clock = MonotonicClock()
         stale_after = config.board.stale_after_failures
-        pressure_name, pressure_source = _pressure_source(config, bus, where)
+        pressure_name, pressure_source = _pressure_source(config, bus, where, clock)
         pressure = PolledSensor(
             pressure_name,
             pressure_source,
@@ -275,13 +275,17 @@ def _claw(config: PiConfig, pca: Pca9685) -> MotorClaw | ServoClaw | _NoClaw:
     return _NoClaw()
 
 
-def _pressure_source(config: PiConfig, bus: I2cBus, where: str) -> tuple[str, SensorSource[int]]:
+def _pressure_source(
+    config: PiConfig, bus: I2cBus, where: str, clock: MonotonicClock
+) -> tuple[str, SensorSource[int]]:
     pressure = config.pressure
     depth = config.controller.depth
     scale = RawScale(depth.zero_raw, depth.k, pressure.surface_mbar, pressure.density_kg_m3)
     if pressure.sensor is PressureKind.MS5837:
         ms = pressure.ms5837
-        sensor = Ms5837(bus, model=ms.model, address=ms.address, oversampling=ms.oversampling)
+        sensor = Ms5837(
+            bus, model=ms.model, address=ms.address, oversampling=ms.oversampling, clock=clock
+        )
         name = f"pressure sensor MS5837-{ms.model.upper()} at {sensor.address:#04x}"
         _starting(f"{name} {where}", sensor.start)
         return name, Ms5837Pressure(sensor, scale)

@@ -19,6 +19,7 @@ from rovlink.board.pi.ads1115 import DATA_RATES_SPS, FULL_SCALES_V
 from rovlink.board.pi.bno055 import PLACEMENTS
 from rovlink.board.pi.ms5837 import OVERSAMPLING, Ms5837Model
 from rovlink.board.pi.pca9685 import CHANNELS, DEFAULT_OSCILLATOR_HZ, prescale_for
+from rovlink.board.pi.pressure import MIN_SCALE_K
 from rovlink.controller import ControllerConfig, config_from_mapping
 from rovlink.controller.config import (
     ConfigError,
@@ -231,13 +232,24 @@ class Ads1115Config:
     address: int = field(default=0x48, metadata=_doc("I²C address (0x48–0x4B by the ADDR pin)"))
     channel: int = field(default=0, metadata=_doc("input AIN0–AIN3"))
     full_scale_v: float = field(
-        default=6.144, metadata=_doc("range, V: " + ", ".join(map(str, FULL_SCALES_V)))
+        default=4.096, metadata=_doc("range, V: " + ", ".join(map(str, FULL_SCALES_V)))
     )
     data_rate_sps: int = field(
         default=128, metadata=_doc("samples/s: " + ", ".join(map(str, DATA_RATES_SPS)))
     )
-    min_volts: float = field(default=0.5, metadata=_doc("transducer output at min_mbar, V"))
-    max_volts: float = field(default=4.5, metadata=_doc("transducer output at max_mbar, V"))
+    # The defaults are a 0.5–4.5 V transducer through the wiring guide's divider (10 kΩ over
+    # 20 kΩ, × 2/3): the ADS1115 on 3.3 V sees 0.3333–3.0 V.
+    min_volts: float = field(
+        default=0.3333,
+        metadata=_doc("ADC input at min_mbar, V: the transducer's output after the divider"),
+    )
+    max_volts: float = field(
+        default=3.0,
+        metadata=_doc(
+            "ADC input at max_mbar, V: the transducer's output after the divider; at most "
+            "full_scale_v"
+        ),
+    )
     min_mbar: float = field(default=0.0, metadata=_doc("pressure at min_volts, mbar"))
     max_mbar: float = field(default=10000.0, metadata=_doc("pressure at max_volts, mbar"))
 
@@ -257,6 +269,12 @@ class Ads1115Config:
         _require(
             self.min_volts < self.max_volts and self.min_mbar < self.max_mbar,
             "min_volts < max_volts and min_mbar < max_mbar are required",
+        )
+        # Above its full scale the ADC clips: every deeper pressure would read as max_volts.
+        _require(
+            self.max_volts <= self.full_scale_v,
+            f"max_volts must be at most full_scale_v ({self.full_scale_v:g} V), "
+            f"got {self.max_volts:g}",
         )
 
 
@@ -444,6 +462,7 @@ def pi_config_from_mapping(data: Mapping[str, Any], source: str = "rov.toml") ->
     config = PiConfig(controller, escs, i2c, pca, claw, pressure, imu, leak, board)
     _check_channels(config, source)
     _check_pulses_fit(config, source)
+    _check_depth_scale(config, source)
     return config
 
 
@@ -505,6 +524,17 @@ def _check_pulses_fit(config: PiConfig, source: str) -> None:
         longest < period_us,
         f"{source} [pca9685] frequency_hz: a {longest:g} µs pulse does not fit in the "
         f"{period_us:.0f} µs period of {config.pca9685.frequency_hz:g} Hz",
+    )
+
+
+def _check_depth_scale(config: PiConfig, source: str) -> None:
+    """The board maps pressure onto raw counts of k / 100 cm: k = 0, which the controller's
+    [depth] and `sdk` accept, gives it no scale to map onto."""
+    k = config.controller.depth.k
+    _require(
+        k >= MIN_SCALE_K,
+        f"{source} [depth]: k must be in {MIN_SCALE_K}–10000 on a Pi board "
+        f"(a raw count is k / 100 cm of water), got {k}",
     )
 
 

@@ -14,8 +14,10 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import NamedTuple
 
+from rovlink.board.board import MonotonicClock
 from rovlink.board.pi.i2c import I2cBus, check_address
 from rovlink.board.sensors import SensorError
+from rovlink.controller import Clock
 from rovlink.protocol.text_enum import StrEnum
 
 __all__ = [
@@ -139,7 +141,12 @@ class _Cycle:
 
 
 class Ms5837:
-    """One MS5837 on an I²C bus (its address is fixed at 0x76)."""
+    """One MS5837 on an I²C bus (its address is fixed at 0x76).
+
+    ``clock`` (default :func:`time.monotonic`, the board's) must be the clock of the ``now_s``
+    given to :meth:`poll`: it is read after each convert command's write, where the conversion
+    starts.
+    """
 
     def __init__(
         self,
@@ -148,6 +155,7 @@ class Ms5837:
         model: Ms5837Model = Ms5837Model.BA30,
         address: int = 0x76,
         oversampling: int = 4096,
+        clock: Clock | None = None,
     ) -> None:
         if oversampling not in OVERSAMPLING:
             choices = ", ".join(map(str, OVERSAMPLING))
@@ -156,6 +164,7 @@ class Ms5837:
         self.model = model
         self.address = check_address(address)
         self._osr_offset, self.conversion_s = OVERSAMPLING[oversampling]
+        self._clock: Clock = clock if clock is not None else MonotonicClock()
         self.prom: tuple[int, ...] = ()
         self._cycle = _Cycle()
 
@@ -201,7 +210,9 @@ class Ms5837:
         cycle.converting = None
         self.bus.write(self.address, bytes([command + self._osr_offset]))
         cycle.converting = command
-        cycle.ready_s = now_s + self.conversion_s
+        # From the write's end, not the period's start: the write (and this period's reads
+        # before it) may take milliseconds, and a read before the conversion ends gives 0.
+        cycle.ready_s = self._clock.now_s() + self.conversion_s
         return reading
 
     def _read_adc(self) -> int:

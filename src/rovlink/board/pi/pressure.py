@@ -9,16 +9,18 @@ from rovlink.board.pi.ads1115 import Ads1115
 from rovlink.board.pi.ms5837 import Ms5837
 from rovlink.board.sensors import SensorError
 
-__all__ = ["AnalogPressure", "AnalogTransducer", "Ms5837Pressure", "RawScale"]
+__all__ = ["MIN_SCALE_K", "AnalogPressure", "AnalogTransducer", "Ms5837Pressure", "RawScale"]
 
 _GRAVITY_M_S2 = 9.80665
 _PA_PER_MBAR = 100.0
 _RAW_MAX = 1024
+#: The smallest ``k`` the board can map pressure onto (the protocol's ``sdk`` allows 0).
+MIN_SCALE_K = 1
 
 
 @dataclass(frozen=True, slots=True)
 class RawScale:
-    """mbar → raw: the surface reads ``zero_raw``, each count is ``100 / k`` cm deeper.
+    """mbar → raw: the surface reads ``zero_raw``, each count is ``k / 100`` cm deeper.
 
     With the controller's [depth] ``zero_raw`` and ``k``, ``qd`` then reports the depth in cm.
 
@@ -31,6 +33,14 @@ class RawScale:
     k: int
     surface_mbar: float
     density_kg_m3: float
+
+    def __post_init__(self) -> None:
+        # k = 0 is a valid `sdk` (every depth reads 0), but no pressure maps onto a scale of
+        # 0 cm per count: refused here rather than a ZeroDivisionError at the first reading.
+        if self.k < MIN_SCALE_K:
+            raise ValueError(
+                f"raw scale: k must be ≥ {MIN_SCALE_K} (k / 100 cm a count), got {self.k}"
+            )
 
     def depth_cm(self, pressure_mbar: float) -> float:
         """The depth of water (of the configured density) that adds this pressure, cm."""
@@ -63,11 +73,12 @@ class Ms5837Pressure:
 @dataclass(frozen=True, slots=True)
 class AnalogTransducer:
     """A transducer with a linear voltage output: ``min_volts`` at ``min_mbar`` to ``max_volts``
-    at ``max_mbar``. A voltage more than 5 % of the span outside is a fault (a broken wire reads
-    0 V), never a depth."""
+    at ``max_mbar``, as the ADC sees them. A voltage more than 5 % of the span outside is a fault
+    (a broken wire reads 0 V), never a depth. The defaults are a 0.5–4.5 V transducer through
+    the wiring guide's divider (× 2/3), as rov.toml's."""
 
-    min_volts: float = 0.5
-    max_volts: float = 4.5
+    min_volts: float = 0.3333
+    max_volts: float = 3.0
     min_mbar: float = 0.0
     max_mbar: float = 10000.0
 
