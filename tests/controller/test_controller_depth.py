@@ -134,3 +134,19 @@ def test_a_saturated_depth_reading_is_pushed_no_deeper() -> None:
     rig.send(b"#mvd.100!")  # a target above: up thrust is given
     rig.tick()
     assert rig.vertical_duties[0] > 0
+
+
+def test_a_depth_scale_of_0_gets_no_down_thrust_from_the_depth_hold() -> None:
+    # #sdk.0! is in the protocol's range (P13): every depth then reads 0, and before, a depth
+    # hold dived at full thrust with no end (a maximum depth could never trip either).
+    rig = make_rig(ControllerConfig(depth=DepthCalibration(max_depth_cm=500), watchdog_s=0.0))
+    rig.send(b"#debug1!#start!")
+    rig.pressure.raw = 170
+    output = rig.send(b"#sdk.0!#mvd.300!")
+    assert b"depth coefficient k 0: depth reads 0; a depth hold goes no deeper" in output
+    assert rig.send(b"#qd!").endswith(b"$qd.0!")
+    rig.tick(10)
+    assert rig.vertical_duties == (0, 0)
+    rig.send(b"#mvdirect.1!#mvs.-50!")  # direct mode is the pilot's
+    rig.tick()
+    assert rig.vertical_duties[0] < 0

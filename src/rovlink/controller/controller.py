@@ -424,7 +424,10 @@ class Controller:
 
     def _on_depth_k(self, command: Command) -> None:
         (self._k,) = command.values
-        self._debug(f"depth coefficient k {self._k}")
+        if self._k:
+            self._debug(f"depth coefficient k {self._k}")
+        else:
+            self._debug("depth coefficient k 0: depth reads 0; a depth hold goes no deeper")
 
     def _on_leak_reset(self, command: Command) -> None:
         self._leak_latched = False
@@ -521,7 +524,9 @@ class Controller:
         target_cm = self._target_depth_cm
         if target_cm is None:
             return 0.0
-        if self._depth_saturated:  # (a target below the sensor's span: pushed for ever)
+        if self._depth_saturated or not self._k:
+            # The depth is not measured (a reading at its top, or k 0: every depth reads 0):
+            # a target below what it shows would be pushed for ever.
             lower = 0.0
         return self._pid.update(target_cm, depth_cm, dt_s, lower=lower)
 
