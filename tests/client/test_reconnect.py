@@ -172,3 +172,53 @@ async def test_a_query_cut_by_the_loss_names_the_link_being_reopened(
         port.fakes[0].then("close")
         with pytest.raises(ConnectionLostError, match=r"127\.0\.0\.1.*lost, reconnecting"):
             await arov.depth_cm()
+
+
+def _lost(events: list[ClientEvent]) -> bool:
+    return any(isinstance(event, LinkState) and event.state == "lost" for event in events)
+
+
+def test_a_stop_while_the_link_is_down_is_the_reopened_links_first_frame(
+    port: FakeControllerServer,
+) -> None:
+    # Before, stop() waited `timeout` for the link and raised ConnectionLostError: the program's
+    # #stop! was never sent, and the reopened link got zero thrust with the motors unlocked.
+    events: list[ClientEvent] = []
+    with rovlink.connect(
+        port.url, reconnect=True, keepalive=None, timeout=2.0, on_event=events.append
+    ) as rov:
+        rov.start()
+        rov.move(90, 50)
+        port.refuse = True  # unplugged
+        port.fakes[0].close()
+        assert wait_until(lambda: _lost(events))
+        rov.stop()
+        port.refuse = False  # plugged back
+        assert wait_until(lambda: len(port.fakes) == 2)
+        assert rov.depth_cm() == 123
+        frames = port.fakes[1].frames()
+        assert frames[:3] == ["#stop!", "#crcoff!", "#qd!"]  # in place of zero thrust
+        assert _after_readiness_probe(frames)[:2] == ["#crcoff!", "#stop!"]
+        assert "#th.90.0!" not in frames
+
+
+async def test_the_asyncio_client_keeps_a_stop_for_the_reopened_link_too(
+    port: FakeControllerServer,
+) -> None:
+    # Before, stop() raised ConnectionLostError at once while the link was being reopened.
+    events: list[ClientEvent] = []
+    async with rovlink.aio.connect(
+        port.url, reconnect=True, keepalive=None, timeout=2.0, on_event=events.append
+    ) as rov:
+        await rov.start()
+        await rov.move(270, 40)
+        port.refuse = True
+        port.fakes[0].close()
+        assert await wait_until_async(lambda: _lost(events))
+        await rov.stop()
+        port.refuse = False
+        assert await wait_until_async(lambda: len(port.fakes) == 2)
+        assert await rov.depth_cm() == 123
+        frames = port.fakes[1].frames()
+        assert frames[:3] == ["#stop!", "#crcoff!", "#qd!"]
+        assert _after_readiness_probe(frames)[:2] == ["#crcoff!", "#stop!"]

@@ -467,6 +467,14 @@ class AsyncClient(AsyncCommandMethods):
             raise self._lost_error() from error
 
     def _send(self, command: Command) -> None:
+        if self._link_down and command == operations.STOP and not self._closed:
+            # Not an error: late, a stop is still wanted; a link that never comes back leaves
+            # the controller's own link-loss failsafe to stop the robot (P17).
+            self._session.stop_when_reopened()
+            logger.info(
+                "#stop! asked for while %s is down: its first frame", self._link.description
+            )
+            return
         self._check_open()
         self._write(self._session.command(command, self._clock()))
         self._arm_timer()  # a motion command may now expire

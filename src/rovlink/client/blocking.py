@@ -499,12 +499,24 @@ class Client(CommandMethods):
             raise self._lost_error() from error
 
     def _send(self, command: Command) -> None:
+        if command == operations.STOP and self._reconnecting:
+            with self._state_lock:
+                if self._reconnecting and not self._closing:  # (still: checked under the lock)
+                    self._stop_when_reopened()
+                    return
         self._check_open()
         with self._wire_lock:
             with self._state_lock:
                 data = self._session.command(command, self._clock())
             self._write(data)
         self._emit()
+
+    def _stop_when_reopened(self) -> None:
+        """``stop()`` while the link is being reopened: the reopened link's first frame. Not
+        an error: late, a stop is still wanted (and a link that never comes back leaves the
+        controller's own link-loss failsafe to stop the robot, P17)."""
+        self._session.stop_when_reopened()
+        logger.info("#stop! asked for while %s is down: its first frame", self._link.description)
 
     def _await_ready(self, link: Link | None = None) -> None:
         """P21: probe until the controller answers, then let the line go quiet (see readiness)."""

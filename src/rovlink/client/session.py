@@ -96,6 +96,7 @@ _QUERY_BYTES_CACHED = 64
 #: The query sent when the link has been idle: any valid frame feeds the controller's watchdog
 #: (P17), and a query also proves the controller is still answering.
 KEEPALIVE_QUERY = Command("qd")
+_STOP = Command("stop")
 #: Fence candidates, in order of preference: single-reply queries.
 FENCE_QUERIES = (
     Command("qhe"),
@@ -209,6 +210,7 @@ class Session:
         "_quiet_until",
         "_raw_decoder",
         "_reset_reported_at",
+        "_stop_on_reopen",
         "_vertical_percent",
         "counters",
         "events",
@@ -260,6 +262,8 @@ class Session:
         self._consecutive_timeouts = 0
         # P21: when a suspected reset was last reported; reported again only after a reply.
         self._reset_reported_at: float | None = None
+        #: A #stop! asked for while the link was down: the reopened link's first frame.
+        self._stop_on_reopen = False
         # P23: the motion as last sent, and when it was last renewed; the vertical mode as
         # last sent (None: not known, as on a link reopened to a board that may have reset).
         self._direct_mode: bool | None = None
@@ -681,8 +685,17 @@ class Session:
         >>> _ = session.command(Command("th", (90, 40)), now=0.0)
         >>> session.rest_frames()
         b'#th.90.0!'
+        >>> session.stop_when_reopened()
+        >>> session.rest_frames()
+        b'#stop!'
         """
-        return b"".join(self.frame_for(command) for command in self._zeroing_commands())
+        return b"".join(self.frame_for(command) for command in self._rest_commands())
+
+    def stop_when_reopened(self) -> None:
+        """A ``#stop!`` asked for while the link is down: it is the first frame on the reopened
+        link (in place of zero thrust: it clears every set-point, P7), before any probe. Late, a
+        stop is still wanted, and it comes before anything the program sends afterwards."""
+        self._stop_on_reopen = True
 
     def reset_link(self) -> None:
         """Start afresh on a reopened link that answered: no partial frame, nothing late, and
@@ -702,8 +715,9 @@ class Session:
         self._reset_reported_at = None
         mode = setting_command(Setting.CHECKSUM, self._checksum_enabled)
         self._outbox.append((self.frame_for(mode), None, mode))
-        for command in self._zeroing_commands():
+        for command in self._rest_commands():
             self._outbox.append((self.frame_for(command), None, command))
+        self._stop_on_reopen = False
         self._power_percent = self._vertical_percent = 0
         self._direct_mode = None
 
@@ -784,6 +798,11 @@ class Session:
                 if self._direct_mode is not None and value != self._direct_mode:
                     self._vertical_percent = 0  # a change of mode sets it to 0 (P9)
                 self._direct_mode = value
+
+    def _rest_commands(self) -> list[Command]:
+        """What a reopened link carries first: a ``#stop!`` asked for while it was down, else
+        zero thrust for the motion as last sent (none if it is at rest)."""
+        return [_STOP] if self._stop_on_reopen else self._zeroing_commands()
 
     def _zeroing_commands(self) -> list[Command]:
         """The commands that bring the motion as last sent to rest (none if it is)."""
