@@ -21,7 +21,11 @@ __all__ = [
 
 
 class ClientError(Exception):
-    """Base of the errors about the link to the controller."""
+    """Base of the errors about the link to the controller.
+
+    >>> issubclass(QueryTimeoutError, ClientError), issubclass(ConnectError, ClientError)
+    (True, True)
+    """
 
 
 class InvalidArgumentError(ValueError):
@@ -75,8 +79,24 @@ class ConnectionLostError(ClientError, ConnectionError):
     """The link is gone (adapter unplugged, socket closed, or ``close()`` called).
 
     Raised by the call that was waiting when it happened and by every later call.
+
+    >>> import rovlink
+    >>> rov = rovlink.connect("sim://")
+    >>> rov.close()
+    >>> rov.depth_cm()
+    Traceback (most recent call last):
+    ...
+    rovlink.client.errors.ConnectionLostError: connection lost: simulated controller: closed
     """
 
 
 class ConnectError(ClientError, ConnectionError):
-    """The URL could not be opened (no such device, port in use, nothing listening)."""
+    """The URL could not be opened (no such device, port in use, nothing listening), or the
+    controller closed the link before it answered.
+
+    >>> import rovlink
+    >>> rovlink.connect("/dev/no-such-port")
+    Traceback (most recent call last):
+    ...
+    rovlink.client.errors.ConnectError: cannot open /dev/no-such-port: ...
+    """

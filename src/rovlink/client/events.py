@@ -149,5 +149,8 @@ ClientEvent = (
     | LinkState
 )
 
-#: Called with every event of a connection (see the module's documentation).
+#: Called with every event of a connection (see the module's documentation): by the blocking
+#: client from the thread that read or wrote, by the asyncio client in its event loop.
+#: ``events: list[ClientEvent] = []``, then
+#: ``rovlink.connect(url, on_event=events.append)`` keeps them all.
 EventCallback = Callable[[ClientEvent], None]

@@ -61,14 +61,12 @@ class ReadinessProbe:
             return
         self._take(self._decoder.feed(data))
 
-    def lost(self, error: ConnectionLostError) -> ConnectionLostError:
-        """``error``, the link lost while probing, with what the controller said before (a
-        server that refuses a client says why, then closes); a last line of text without its
-        line end counts too."""
+    def lost(self, error: ConnectionLostError) -> ConnectError:
+        """``error``, the link lost while probing, as a failure to connect, with what the
+        controller said before (a server that refuses a client says why, then closes); a last
+        line of text without its line end counts too."""
         self._take(self._decoder.end())
-        if self.last_text is None:
-            return error
-        explained = ConnectionLostError(f"{error}{self.what_it_said}")
+        explained = ConnectError(f"{error}{self.what_it_said}")
         explained.__cause__ = error
         return explained
 

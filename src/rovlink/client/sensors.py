@@ -30,7 +30,14 @@ class Sensors:
 
     @classmethod
     def from_responses(cls, responses: Sequence[Response]) -> Sensors:
-        """Build from the replies of ``#qsa!`` (any order; each of the six exactly once)."""
+        """Build from the replies of ``#qsa!`` (any order; each of the six exactly once).
+
+        >>> from rovlink.protocol import Response
+        >>> values = {"qd": 120, "qr": 612, "q.l": 0, "qro": -2, "qpi": 1, "qhe": 275}
+        >>> replies = [Response(name, (value,)) for name, value in values.items()]
+        >>> Sensors.from_responses(replies).depth_cm
+        120
+        """
         values = {response.name: response.values[0] for response in responses}
         if len(values) != len(responses) or set(values) != set(_REPLY_NAMES):
             names = ", ".join(response.name for response in responses)
