@@ -171,8 +171,11 @@ class FakeController:
                     break
                 self._receive(data)
         finally:
-            with contextlib.suppress(OSError):
-                os.close(self._fd)
+            # Under the write-order lock, and marked closed: a stall's timer that ends later
+            # must not write into whatever descriptor reuses the number (the next test's).
+            with self._write_order, contextlib.suppress(OSError):
+                fd, self._fd = self._fd, -1
+                os.close(fd)
             with self._condition:
                 self._condition.notify_all()
             if self._on_close is not None:
@@ -223,8 +226,9 @@ class FakeController:
             with self._condition:
                 self._stalled_until = 0.0
                 held, self._held = bytes(self._held), bytearray()
-            with contextlib.suppress(OSError):  # the host may have gone already
-                os.write(self._fd, held)
+            if self._fd >= 0:  # (closed meanwhile)
+                with contextlib.suppress(OSError):  # the host may have gone already
+                    os.write(self._fd, held)
 
     def _reply_frames(self, command: Command) -> list[bytes]:
         self.query_count += 1

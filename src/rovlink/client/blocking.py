@@ -113,6 +113,11 @@ class Client(CommandMethods):
         self._changed = threading.Condition(self._state_lock)  # a query settled, role released
         # The background reader waits apart, so that callers' notifications do not wake it.
         self._background_wakeup = threading.Condition(self._state_lock)
+        # Events are delivered by one thread at a time, in order (see _emit).
+        self._delivered = threading.Condition(self._state_lock)
+        self._deliverer: int | None = None
+        self._events_taken = 0  # events and notices taken from the session to be delivered
+        self._events_delivered = 0  # ... and handed to every callback
         self._lost: ConnectionLostError | None = None
         self._closing = False
         self._reopen = reopen if options.reconnect else None
@@ -198,20 +203,22 @@ class Client(CommandMethods):
                 self._released.wait()
             return
         try:
-            for query in on_the_wire:  # answered, or timed out, before the port closes
-                self._wait(query, owned=False)
-            self._connection_lost(ConnectionLostError(f"{self._link.description}: closed"))
-            self._link.wake()
-            for thread in (self._background, self._reconnector):
-                if thread is not None and thread is not current and thread.ident is not None:
-                    thread.join(timeout=2.0)  # (the reconnecting thread may hold a new port)
-            with self._changed:  # a caller may still be in a read: it stops at the wake-up
-                self._waiting_callers += 1
-                self._changed.wait_for(
-                    lambda: self._reader_ident in (None, threading.get_ident()), timeout=2.0
-                )
-                self._waiting_callers -= 1
-            self._link.close()
+            try:
+                for query in on_the_wire:  # answered, or timed out, before the port closes
+                    self._wait(query, owned=False)
+            finally:  # (a Ctrl-C in that wait still releases the port: P22, a next open)
+                self._connection_lost(ConnectionLostError(f"{self._link.description}: closed"))
+                self._link.wake()
+                for thread in (self._background, self._reconnector):
+                    if thread is not None and thread is not current and thread.ident is not None:
+                        thread.join(timeout=2.0)  # (the reconnecting thread may hold a new port)
+                with self._changed:  # a caller may still be in a read: it stops at the wake-up
+                    self._waiting_callers += 1
+                    self._changed.wait_for(
+                        lambda: self._reader_ident in (None, threading.get_ident()), timeout=2.0
+                    )
+                    self._waiting_callers -= 1
+                self._link.close()
         finally:
             self._released.set()
 
@@ -507,8 +514,18 @@ class Client(CommandMethods):
         self._check_open()
         with self._wire_lock:
             with self._state_lock:
+                if self._closing and command != operations.STOP:  # (another thread closes)
+                    raise self._lost_error()
+                motion_before = self._session.motion_as_sent()
                 data = self._session.command(command, self._clock())
-            self._write(data)
+            try:
+                self._write(data)
+            except ConnectionLostError:
+                raise
+            except BaseException:  # (a Ctrl-C in a blocked write): it may not have gone
+                with self._state_lock:
+                    self._session.write_interrupted(motion_before)
+                raise
         self._emit()
 
     def _stop_when_reopened(self) -> None:
@@ -596,17 +613,53 @@ class Client(CommandMethods):
 
     def _emit(self) -> None:
         """Hand the session's events to ``on_event`` and the subscribers, log its notices (no
-        lock held)."""
+        lock held).
+
+        One thread delivers at a time, in the order the events happened, and goes on with what
+        other threads add meanwhile: threads that each delivered their own overtook each other
+        (a recording of the wire came out scrambled) and ran the hook at once. A thread whose
+        events another is delivering waits until they are delivered, so that its call returns
+        once the hook has seen them, unless it is that thread (a callback calling the client:
+        its events follow when the callback returns).
+        """
         session = self._session
         if session.events is None and not session.notices:
             return
+        me = _get_ident()
         with self._state_lock:
-            events = session.take_events()
-            notices = session.take_notices()
-            subscribers = tuple(self._subscribers)
-        deliver(events, notices, self._options.on_event)
-        for subscriber in subscribers:
-            deliver(events, (), subscriber)
+            deliverer = self._deliverer
+            if deliverer is not None:
+                if deliverer != me:
+                    pending = len(session.events or ()) + len(session.notices)
+                    target = self._events_taken + pending
+                    while self._deliverer is not None and self._events_delivered < target:
+                        self._delivered.wait()
+                return
+            self._deliverer = me
+        try:
+            while True:
+                with self._state_lock:
+                    events = session.take_events()
+                    notices = session.take_notices()
+                    if not (events or notices):
+                        self._deliverer = None
+                        self._delivered.notify_all()
+                        return
+                    self._events_taken += len(events) + len(notices)
+                    subscribers = tuple(self._subscribers)
+                deliver(events, notices, self._options.on_event)
+                for subscriber in subscribers:
+                    deliver(events, (), subscriber)
+                with self._state_lock:
+                    self._events_delivered += len(events) + len(notices)
+                    self._delivered.notify_all()
+        except BaseException:  # (a Ctrl-C in a callback): another thread may deliver now
+            with self._state_lock:
+                if self._deliverer == me:
+                    self._deliverer = None
+                    self._events_delivered = self._events_taken  # (what it held is gone)
+                    self._delivered.notify_all()
+            raise
 
     def _ask(self, query: operations.Query[T]) -> T:
         return query.read(self._request(query.command))
@@ -723,6 +776,7 @@ class Client(CommandMethods):
         lock = self._state_lock
         session = self._session
         pending: PendingQuery | None = None
+        lost: ConnectionLostError | None = None
         # (acquire and release spelled out: half the cost of a ``with`` block on 3.13)
         wire_lock = self._wire_lock
         wire_lock.acquire()
@@ -755,16 +809,19 @@ class Client(CommandMethods):
                 lock.release()
                 try:
                     self._write(data[written:])
-                except ConnectionLostError:
-                    self._wait(pending)  # settled already: stops counting as active
-                    raise
+                except ConnectionLostError as error:
+                    lost = error  # (waited for below, once the wire lock is let go)
                 except BaseException:  # (a Ctrl-C half-way through the frame)
                     with lock:
                         self._interrupted_caller_leaves(pending)
                     raise
-                lock.acquire()
+                else:
+                    lock.acquire()
         finally:
             wire_lock.release()
+        if lost is not None:
+            self._wait(pending)  # settled already: stops counting as active, reports
+            raise lost
         if background_reading:
             self._link.wake()
         return pending
@@ -777,6 +834,7 @@ class Client(CommandMethods):
         """
         session = self._session
         pending: PendingQuery | None
+        lost: ConnectionLostError | None = None
         while True:
             with self._wire_lock:
                 with self._state_lock:
@@ -796,10 +854,8 @@ class Client(CommandMethods):
                     try:
                         if data:  # (nothing while queries are held back, P20)
                             self._write(data)  # under the wire lock: queue order = wire order
-                    except ConnectionLostError:
-                        if pending is not None:
-                            self._wait(pending)  # settled already: stops counting as active
-                        raise
+                    except ConnectionLostError as error:
+                        lost = error  # (waited for below, once the wire lock is let go)
                     except BaseException:  # (a Ctrl-C, maybe half-way through the frame)
                         if pending is not None:
                             with self._state_lock:
@@ -811,6 +867,10 @@ class Client(CommandMethods):
             with self._state_lock:
                 while self._mode_switcher not in (None, me):
                     self._wait_for_change(None)
+        if lost is not None:
+            if pending is not None:
+                self._wait(pending)  # settled already: stops counting as active, reports
+            raise lost
         if background_reading:
             self._link.wake()
         return pending

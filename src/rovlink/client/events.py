@@ -149,8 +149,9 @@ ClientEvent = (
     | LinkState
 )
 
-#: Called with every event of a connection (see the module's documentation): by the blocking
-#: client from the thread that read or wrote, by the asyncio client in its event loop.
+#: Called with every event of a connection (see the module's documentation), in order and one
+#: at a time: by the blocking client from one of the program's threads or its reader thread, by
+#: the asyncio client in its event loop.
 #: ``events: list[ClientEvent] = []``, then
 #: ``rovlink.connect(url, on_event=events.append)`` keeps them all.
 EventCallback = Callable[[ClientEvent], None]

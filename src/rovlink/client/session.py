@@ -361,6 +361,23 @@ class Session:
         self._track(command, now)
         return data
 
+    def motion_as_sent(self) -> tuple[int, int, int]:
+        """The motion as last sent: direction, horizontal and vertical thrust (for
+        :meth:`write_interrupted`)."""
+        return self._direction_deg, self._power_percent, self._vertical_percent
+
+    def write_interrupted(self, before: tuple[int, int, int]) -> None:
+        """The write of the last command was interrupted (a Ctrl-C), so it may or may not have
+        reached the controller: a thrust that it would have cleared is kept as sent (``before``,
+        from :meth:`motion_as_sent`), so that an expiry (P23) or a reopened link still zeroes
+        what the controller may have. Believing it zero let the keep-alive feed a robot that
+        drove on."""
+        direction_deg, power_percent, vertical_percent = before
+        if power_percent and not self._power_percent:
+            self._direction_deg, self._power_percent = direction_deg, power_percent
+        if vertical_percent and not self._vertical_percent:
+            self._vertical_percent = vertical_percent
+
     def query(self, command: Command, now: float) -> tuple[bytes, PendingQuery]:
         """The bytes to write for a query (after anything due), and its entry in the queue.
 

@@ -65,7 +65,7 @@ class DropLog:
             if callback is not None:
                 try:
                     callback(event)
-                except Exception:
+                except (Exception, SystemExit):  # (SystemExit too: it ends a reader thread)
                     logger.exception("on_stray callback failed on %r", event)
         if self.dropped_since_warning and now - self._last_warning_at >= self.period_s:
             logger.warning(
@@ -104,5 +104,5 @@ def deliver(
     for event in events:
         try:
             callback(event)
-        except Exception:
+        except (Exception, SystemExit):  # (SystemExit too: it ends a reader thread)
             logger.exception("on_event callback failed on %r", event)

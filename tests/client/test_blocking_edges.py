@@ -1,0 +1,167 @@
+"""The blocking client where a program's threads, signals and callbacks meet it at awkward
+moments: a Ctrl-C in a write or in ``close()``, a command racing ``close()``, a callback that
+calls ``sys.exit``, several threads whose events the hook must see in the order they happened.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import re
+import sys
+import threading
+import time
+from collections.abc import Callable
+
+import pytest
+
+from rovlink.client.blocking import Client
+from rovlink.client.errors import ConnectionLostError
+from rovlink.client.events import BytesReceived, BytesSent, ClientEvent, ReplyReceived
+from rovlink.client.links import SocketLink
+from tests.client.conftest import client_options, wait_until
+from tests.client.fake_controller import FakeController
+
+pytestmark = pytest.mark.integration
+
+
+def test_a_ctrl_c_in_the_write_of_zero_thrust_leaves_the_thrust_to_expire(
+    make_client: Callable[..., Client], fake: FakeController
+) -> None:
+    rov = make_client(motion_timeout_s=0.3)
+    rov.start()
+    rov.move(90, 60)
+    link = rov._link
+    real_write = link.write
+
+    def interrupted(data: bytes) -> None:  # a Ctrl-C while the write blocks: nothing went
+        link.write = real_write  # type: ignore[method-assign]
+        raise KeyboardInterrupt
+
+    link.write = interrupted  # type: ignore[method-assign]
+    with pytest.raises(KeyboardInterrupt):
+        rov.move(90, 0)
+    # The controller may still have 60 %: the client zeroes it when the motion expires (P23)
+    # instead of believing it zero, while the keep-alive fed a robot that drove on.
+    assert fake.wait_for(lambda f: "#th.90.0!" in f.frames())
+    assert fake.frames().count("#th.90.60!") == 1
+    assert rov.counters.motion_expiries == 1
+
+
+def test_a_command_while_another_thread_closes_is_refused_but_a_stop_is_not(
+    make_client: Callable[..., Client], fake: FakeController
+) -> None:
+    fake.late_delay_s = 0.5
+    fake.then("late")  # the next reply comes 0.5 s late: close() waits for it
+    rov = make_client(timeout_s=1.0)
+    rov.start()
+    querying = threading.Thread(target=rov.depth_cm)
+    querying.start()
+    assert fake.wait_for(lambda f: "#qd!" in f.frames())
+    closing = threading.Thread(target=rov.close)
+    closing.start()
+    assert wait_until(lambda: rov.closed)
+    with pytest.raises(ConnectionLostError, match="closed"):
+        rov.move(0, 60)
+    rov.stop()  # (a stop still goes while the port is open: it can only help)
+    closing.join()
+    querying.join()
+    assert "#th.0.60!" not in fake.frames()
+    assert fake.frames()[-1] == "#stop!"
+
+
+def _query_until_closed(rov: Client) -> None:
+    with contextlib.suppress(ConnectionLostError):
+        rov.depth_cm()
+
+
+def test_a_ctrl_c_while_close_waits_for_a_reply_still_releases_the_port(
+    make_client: Callable[..., Client], fake: FakeController
+) -> None:
+    fake.late_delay_s = 0.5
+    fake.then("late")
+    rov = make_client(timeout_s=1.0)
+    querying = threading.Thread(target=_query_until_closed, args=(rov,))
+    querying.start()
+    assert fake.wait_for(lambda f: "#qd!" in f.frames())
+    real_wait = rov._wait
+
+    def interrupted_wait(*args: object, **kwargs: bool) -> object:
+        if kwargs.get("owned") is False:  # close()'s wait for the query on the wire
+            raise KeyboardInterrupt
+        return real_wait(*args, **kwargs)  # type: ignore[arg-type]
+
+    rov._wait = interrupted_wait  # type: ignore[method-assign,assignment]
+    with pytest.raises(KeyboardInterrupt):
+        rov.close()
+    querying.join()
+    assert rov._link._closed  # type: ignore[attr-defined]  # (P22: the port can be opened again)
+    rov.close()  # (returns: the port is released)
+    assert not [t for t in threading.enumerate() if t.name.startswith("rovlink") and t.is_alive()]
+
+
+def test_a_callback_calling_sys_exit_is_logged_and_the_client_goes_on(
+    fake_pair: tuple[FakeController, object], caplog: pytest.LogCaptureFixture
+) -> None:
+    fake, sock = fake_pair
+
+    def leave(event: ClientEvent) -> None:
+        if isinstance(event, ReplyReceived):
+            sys.exit("a hook that ends the program on a bad reading")
+
+    rov = Client(
+        SocketLink(sock, "pair"),  # type: ignore[arg-type]
+        client_options(keepalive_s=0.05, motion_timeout_s=0.3, on_event=leave),
+    )
+    try:
+        assert rov.depth_cm() == 123  # in the caller's thread: not raised out of the query
+        rov.start()
+        rov.move(0, 50)
+        # In the background reader's thread it ended the thread: no keep-alive, no expiry.
+        assert fake.wait_for(lambda f: "#th.0.0!" in f.frames())
+        keepalives = rov.counters.keepalives
+        assert wait_until(lambda: rov.counters.keepalives >= keepalives + 2)
+        assert rov._background.is_alive()
+    finally:
+        rov.close()
+    assert "on_event callback failed" in caplog.text
+
+
+def test_threads_events_reach_the_hook_in_wire_order_one_at_a_time(
+    make_client: Callable[..., Client], fake: FakeController
+) -> None:
+    events: list[ClientEvent] = []
+    inside = threading.Lock()
+    overlapping: list[ClientEvent] = []
+
+    def hook(event: ClientEvent) -> None:
+        if not inside.acquire(blocking=False):
+            overlapping.append(event)
+            return
+        try:
+            events.append(event)
+            time.sleep(0)  # a hook doing a little work (a log line) lets other threads run
+        finally:
+            inside.release()
+
+    fake.qd_counts_queries = True
+    rov = make_client(on_event=hook)
+
+    def poll() -> None:
+        for _ in range(200):
+            rov.depth_cm()
+
+    threads = [threading.Thread(target=poll) for _ in range(4)]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join()
+    assert not overlapping
+    times = [event.at_s for event in events]
+    assert times == sorted(times)
+    sent = b"".join(event.data for event in events if isinstance(event, BytesSent))
+    assert sent == bytes(fake.raw)  # the bytes sent, in the order the controller read them
+    replies = b"".join(event.data for event in events if isinstance(event, BytesReceived))
+    numbers = [int(number) for number in re.findall(rb"\$qd\.(\d+)!", replies)]
+    assert numbers == list(range(1, 801))  # the controller numbers its replies
+    answered = [event for event in events if isinstance(event, ReplyReceived)]
+    assert len(answered) == 800
