@@ -14,20 +14,24 @@ import gc
 import random
 import socket
 import sys
+import threading
 from collections.abc import AsyncIterator, Awaitable, Callable, Coroutine, Iterator
 from typing import Any
 
 import pytest
 
 import rovlink.aio
+import rovlink.aio.client
 from rovlink.aio import AsyncClient, ConnectionLostError, QueryTimeoutError, Sensors
 from rovlink.client.events import BytesReceived, BytesSent, ClientEvent, ReplyReceived
-from rovlink.client.links import PortLink, SocketLink
+from rovlink.client.links import Link, PortLink, SocketLink
+from rovlink.client.url import Endpoint
 from rovlink.protocol import Response, encode, get_algorithm
 from tests.client.conftest import (
     CONDITION_TIMEOUT_S,
     NO_REPLY_TIMEOUT_S,
     client_options,
+    wait_until,
     wait_until_async,
 )
 from tests.client.fake_controller import FakeController
@@ -555,3 +559,61 @@ async def test_event_hooks_that_raise_or_use_the_client(
     await _assert_usable(fake, client, 8)
     await client.close()
     assert any(isinstance(event, ReplyReceived) for event in seen)
+
+
+async def test_leaving_by_an_error_delivers_the_stop_behind_a_full_send_buffer() -> None:
+    # A controller slow to read (a busy serial-to-network bridge): the client's writes pile
+    # up in its buffer, and the #stop! sent on leaving by an error is the last of them. Closing
+    # dropped the buffer, #stop! with it.
+    host_end, controller_end = socket.socketpair()
+    host_end.setsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF, 4096)
+    controller_end.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
+    rov = await AsyncClient(SocketLink(host_end, "slow reader"), client_options()).open()
+    received = bytearray()
+
+    def read_once_closing() -> None:  # the controller catches up only as the client closes
+        wait_until(lambda: rov.closed)
+        with controller_end:
+            while chunk := controller_end.recv(65536):
+                received.extend(chunk)
+
+    reader = threading.Thread(target=read_once_closing)
+    reader.start()
+
+    async def stream_set_points_then_fail() -> None:
+        async with rov:
+            await rov.start()
+            for index in range(1000):
+                await rov.move(index % 360, 40)
+            assert rov._transport._buffer  # type: ignore[attr-defined]  # (really behind)
+            raise RuntimeError("the program fails")
+
+    with pytest.raises(RuntimeError, match="the program fails"):
+        await stream_set_points_then_fail()
+    await asyncio.to_thread(reader.join, CONDITION_TIMEOUT_S)
+    assert received.endswith(b"#stop!")
+    assert received.count(b"#th.") == 1000
+
+
+async def test_a_cancelled_connect_leaves_no_port_open(monkeypatch: pytest.MonkeyPatch) -> None:
+    def simulators() -> int:
+        return sum(thread.name.startswith("rovlink-sim") for thread in threading.enumerate())
+
+    opened, cancelled = threading.Event(), threading.Event()
+    real_open_link = rovlink.aio.client.open_link  # type: ignore[attr-defined]
+
+    def open_link_slowly(endpoint: Endpoint) -> Link:  # cancelled while the port opens
+        link = real_open_link(endpoint)
+        opened.set()
+        cancelled.wait(CONDITION_TIMEOUT_S)
+        return link
+
+    monkeypatch.setattr(rovlink.aio.client, "open_link", open_link_slowly)
+    before = simulators()
+    connecting = asyncio.ensure_future(rovlink.aio.connect("sim://"))
+    assert await asyncio.to_thread(opened.wait, CONDITION_TIMEOUT_S)
+    connecting.cancel()
+    cancelled.set()
+    with pytest.raises(asyncio.CancelledError):
+        await connecting
+    assert await wait_until_async(lambda: simulators() == before)

@@ -765,8 +765,15 @@ class _Connecting:
         self._client: AsyncClient | None = None
 
     async def _open(self) -> AsyncClient:
-        # Opening a port or a TCP connection blocks: keep it off the loop.
-        link = await asyncio.to_thread(open_link, self._endpoint)
+        # Opening a port or a TCP connection blocks: keep it off the loop. Shielded, as a
+        # reconnection's: a cancelled connect closes the port once it is open (else the port,
+        # or the simulator's thread, outlived the cancelled task).
+        opening = asyncio.get_running_loop().run_in_executor(None, open_link, self._endpoint)
+        try:
+            link = await asyncio.shield(opening)
+        except asyncio.CancelledError:
+            opening.add_done_callback(_close_opened)
+            raise
         try:
             endpoint = self._endpoint
             client = AsyncClient(

@@ -12,6 +12,7 @@ to the loop; everything else — matching, timeouts, retries — still runs in t
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import threading
 from collections.abc import Callable
 from typing import Protocol
@@ -26,6 +27,9 @@ DataCallback = Callable[[bytes], None]
 LostCallback = Callable[[ConnectionLostError], None]
 
 _THREAD_READ_WAIT_S = 0.25
+#: How long closing waits for what is still buffered to be written (a ``#stop!`` may be last):
+#: the controller's own link-loss failsafe (P17) takes over after its watchdog, 2 s by default.
+CLOSE_FLUSH_S = 2.0
 
 
 class ByteTransport(Protocol):
@@ -80,6 +84,8 @@ class FdTransport:
         self._on_data: DataCallback | None = None
         self._on_lost: LostCallback | None = None
         self._closed = False
+        self._failed = False
+        self._drained: asyncio.Future[None] | None = None  # set when closing waits for it
 
     def start(self, on_data: DataCallback, on_lost: LostCallback) -> None:
         """Watch the descriptor for input."""
@@ -121,8 +127,15 @@ class FdTransport:
         del self._buffer[:written]
         if not self._buffer:
             self._loop.remove_writer(self._fd)
+            self._settle_drained()
+
+    def _settle_drained(self) -> None:
+        if self._drained is not None and not self._drained.done():
+            self._drained.set_result(None)
 
     def _fail(self, error: ConnectionLostError) -> None:
+        self._failed = True
+        self._settle_drained()
         if self._closed:
             return
         self._stop_watching()
@@ -134,12 +147,21 @@ class FdTransport:
         self._loop.remove_writer(self._fd)
 
     async def close(self) -> None:
-        """Stop watching and close the link."""
+        """Write what is still buffered (for at most :data:`CLOSE_FLUSH_S`), stop watching and
+        close the link: a client leaving by an error sends ``#stop!`` just before it closes,
+        and a controller slow to read had it dropped with the buffer."""
         if self._closed:
             return
-        self._closed = True
-        self._stop_watching()
-        self._link.close()
+        self._loop.remove_reader(self._fd)  # (nobody reads replies any more)
+        try:
+            if self._buffer and not self._failed:
+                self._drained = self._loop.create_future()
+                with contextlib.suppress(asyncio.TimeoutError):
+                    await asyncio.wait_for(asyncio.shield(self._drained), CLOSE_FLUSH_S)
+        finally:  # (cancelled too: the port is released)
+            self._closed = True
+            self._stop_watching()
+            self._link.close()
 
 
 class ThreadTransport:
