@@ -5,11 +5,14 @@ for a command that waits for the controller on connect, one that answers ``#qd!`
 from __future__ import annotations
 
 import contextlib
+import fcntl
 import json
 import os
+import select
 import signal
 import subprocess
 import sys
+import termios
 import threading
 import time
 from collections.abc import Iterator
@@ -190,11 +193,34 @@ def test_a_replay_whose_controller_hangs_up_fails_in_one_line(
     assert len(lines) == 3
 
 
+def test_a_demo_whose_link_is_lost_says_stop_could_not_be_sent(run_cli: RunCli) -> None:
+    # The controller hangs up at the first sensor poll: nothing more can be sent, and the
+    # demo says so (it claimed "the robot was sent #stop!").
+    controller = DepthAnsweringController(hang_up_after=b"#qsa!")
+    try:
+        result = run_cli("demo", controller.url, "--timeout", "5")
+    finally:
+        controller.close()
+    assert result.status == 1
+    lines = result.err.splitlines()
+    assert lines[-2].startswith("rovlink demo: could not send #stop!: ")
+    assert lines[-1].startswith("rovlink demo: ")
+    assert "sent #stop!" not in lines[-1]
+
+
+def _own_terminal() -> None:
+    """In the child: a session of its own with the pseudo-terminal (its standard input) as its
+    controlling terminal, as a login shell has, so that closing the terminal hangs it up."""
+    os.setsid()
+    fcntl.ioctl(0, termios.TIOCSCTTY, 0)
+
+
 class Terminal:
     """A command on a pseudo-terminal of its own, as a user runs it; what it shows is drained
-    (a full terminal would block it) and kept."""
+    (a full terminal would block it) and kept. :meth:`hang_up` closes the terminal, as closing
+    its window does: the command gets SIGHUP and its terminal fails every write."""
 
-    def __init__(self, *arguments: str) -> None:
+    def __init__(self, *arguments: str, stderr_on_terminal: bool = False) -> None:
         self._master, slave = os.openpty()
         source = str(Path(__file__).resolve().parents[2] / "src")
         environment = {**os.environ, "PYTHONPATH": source, "TERM": "xterm-256color"}
@@ -203,28 +229,46 @@ class Terminal:
             [sys.executable, "-m", "rovlink", *arguments],
             stdin=slave,
             stdout=slave,
-            stderr=subprocess.PIPE,
+            stderr=slave if stderr_on_terminal else subprocess.PIPE,
             env=environment,
-            start_new_session=True,  # its own terminal, as a login has
+            preexec_fn=_own_terminal,  # noqa: PLW1509 - no threads yet
         )
         os.close(slave)
         self.shown = bytearray()
+        self._wake_r, self._wake_w = os.pipe()
         self._reader = threading.Thread(target=self._drain, daemon=True)
         self._reader.start()
 
     def _drain(self) -> None:
         with contextlib.suppress(OSError):
-            while data := os.read(self._master, 4096):
+            while True:
+                ready, _, _ = select.select([self._master, self._wake_r], [], [])
+                if self._wake_r in ready:
+                    return
+                data = os.read(self._master, 4096)
+                if not data:
+                    return
                 self.shown += data
 
     def type(self, text: str) -> None:
         os.write(self._master, text.encode())
 
+    def hang_up(self) -> None:
+        """Close the terminal: the last descriptor of its master side goes."""
+        os.write(self._wake_w, b"x")
+        self._reader.join(WAIT_S)
+        assert not self._reader.is_alive()
+        if self._master >= 0:
+            os.close(self._master)
+            self._master = -1
+
     def close(self) -> None:
         if self.process.poll() is None:
             self.process.kill()
         self.process.communicate(timeout=WAIT_S)
-        os.close(self._master)
+        self.hang_up()
+        os.close(self._wake_r)
+        os.close(self._wake_w)
 
 
 @pytest.mark.parametrize("how", ENDING_SIGNALS, ids=lambda how: how.name)
@@ -259,6 +303,66 @@ def test_a_signal_ends_the_monitor_with_stop(silent: SilentController, how: sign
         assert silent.wait_for(b"#th.0.")
         _, stderr = _interrupt(terminal.process, how)
         assert terminal.process.returncode == 130, stderr  # (before: 0, as after `q`)
+        assert silent.wait_for(b"#stop!")
+        assert silent.received.rindex(b"#stop!") > silent.received.index(b"#th.0.")
+    finally:
+        terminal.close()
+
+
+def _end_of(terminal: Terminal) -> str:
+    """What the command said on stderr once it has ended (within WAIT_S)."""
+    _, stderr = terminal.process.communicate(timeout=WAIT_S)
+    return stderr.decode()
+
+
+def test_closing_the_terminal_ends_the_demo_with_stop(silent: SilentController) -> None:
+    # The live table cannot be taken down on a closed terminal: #stop! goes first all the same.
+    terminal = Terminal("demo", silent.url, "--boot-timeout", "0", "--timeout", "60")
+    try:
+        assert silent.wait_for(b"#qsa!")  # unlocked, diving, polling the sensors
+        terminal.hang_up()
+        stderr = _end_of(terminal)
+        assert terminal.process.returncode == 130, stderr
+        assert silent.wait_for(b"#stop!")
+        assert stderr.splitlines()[-2:] == [
+            "rovlink demo: sent #stop!",
+            "rovlink demo: interrupted",
+        ]
+    finally:
+        terminal.close()
+
+
+def test_closing_the_terminal_ends_the_console_as_interrupted(silent: SilentController) -> None:
+    terminal = Terminal("console", silent.url, "--boot-timeout", "0", "--timeout", "0.2")
+    try:
+        assert silent.wait_for(b"#crcoff!")
+        terminal.type("start\r")
+        assert silent.wait_for(b"#start!")
+        terminal.type("th 0 50\r")
+        assert silent.wait_for(b"#th.0.50!")
+        terminal.hang_up()
+        stderr = _end_of(terminal)
+        assert terminal.process.returncode == 130, stderr
+        assert stderr.splitlines()[-1] == "rovlink console: interrupted"
+        assert silent.wait_for(b"#stop!")
+        assert silent.received.index(b"#stop!") > silent.received.index(b"#th.0.50!")
+    finally:
+        terminal.close()
+
+
+def test_closing_the_terminal_ends_the_monitor_with_stop(silent: SilentController) -> None:
+    # The dashboard draws on stderr: that is the terminal too, as a user runs it.
+    terminal = Terminal(
+        "monitor", silent.url, "--boot-timeout", "0", "--timeout", "0.2", stderr_on_terminal=True
+    )
+    try:
+        assert silent.wait_for(b"#qsa!")
+        terminal.type("s")
+        assert silent.wait_for(b"#start!")
+        terminal.type("\x1b[A")  # up: thrust ahead
+        assert silent.wait_for(b"#th.0.")
+        terminal.hang_up()
+        assert terminal.process.wait(timeout=WAIT_S) == 130  # (was 1: "cannot write")
         assert silent.wait_for(b"#stop!")
         assert silent.received.rindex(b"#stop!") > silent.received.index(b"#th.0.")
     finally:

@@ -126,3 +126,29 @@ async def test_a_raw_line_of_two_frames_is_refused_and_leaving_still_stops() -> 
     assert "holds 2 commands (#start!, #th.0.50!); send each on its own" in screen.text()
     assert rig.frames()[1:] == ["#stop!", "#start!", "#stop!"]
     await engine.rov.client.close()
+
+
+async def test_a_start_split_over_two_raw_lines_is_stopped_on_leaving() -> None:
+    rig = Rig.simulated()
+    engine, _ = await _engine(rig)
+    runner = asyncio.create_task(engine.run())
+    engine.submit(SendCommand(Command("stop")))
+    engine.submit(SendRaw("#sta"))
+    engine.submit(SendRaw("rt!"))
+    engine.submit(Quit())
+    await asyncio.wait_for(runner, 5)
+    assert rig.frames()[-1] == "#stop!"
+    assert rig.frames().count("#stop!") == 2  # (the one typed, and the one on leaving)
+    await engine.rov.client.close()
+
+
+async def test_status_says_the_link_is_lost() -> None:
+    rig = Rig.simulated()
+    engine, screen = await _engine(rig)
+    rig.port.close()
+    await until(lambda: engine.rov.client.closed)  # (said by the next read of the port)
+    await engine.execute(ShowStatus())
+    (link,) = [line for line in screen.lines if line.startswith("link:")]
+    assert "link lost" in link
+    assert "waiting" not in link
+    await engine.rov.client.close()

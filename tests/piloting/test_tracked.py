@@ -6,6 +6,7 @@ import pytest
 
 from rovlink.aio import AsyncClient
 from rovlink.client import ClientOptions, QueryTimeoutError
+from rovlink.client.events import BytesSent
 from rovlink.piloting import SentFrame, TrackedClient
 from rovlink.protocol import Command
 from tests.piloting.rig import Rig, SilentController
@@ -92,4 +93,35 @@ async def test_the_sessions_own_zero_thrust_updates_the_state_and_keepalives_do_
     assert "#th.90.0!" in [frame.text for frame in sent]
     assert rig.frames().count("#qd!") >= 1  # the keep-alives went out …
     assert "#qd!" not in [frame.text for frame in sent]  # … but are not the operator's frames
+    await rov.client.close()
+
+
+async def test_a_command_split_over_raw_writes_leaves_the_lock_unknown() -> None:
+    # "raw #sta" then "raw rt!" is #start! to the controller: the lock is not known any more.
+    rig = Rig.simulated()
+    rov = TrackedClient(await rig.connect())
+    await rov.send(Command("stop"))
+    assert rov.commanded.lock_text() == "locked (as last sent)"
+    await rov.send_raw("#sta")
+    await rov.send_raw("rt!")
+    assert rov.commanded.lock.value == "unknown"
+    assert rov.commanded.lock_text() == "unknown: after a raw write whose effect is not known"
+    await rov.send(Command("stop"))
+    assert rov.commanded.lock_text() == "locked (as last sent)"
+    await rov.client.close()
+
+
+async def test_the_drivers_own_frames_are_not_last_sent() -> None:
+    # The session re-asserts #crcoff! after timeouts (P21): the pilot's #th.0.10! stays last.
+    rig = Rig.simulated()
+    rov = TrackedClient(await rig.connect())
+    sent: list[SentFrame] = []
+    rov.add_sent_listener(sent.append)
+    await rov.send(Command("start"))
+    await rov.send(Command("th", (0, 10)))
+    rov._on_event(BytesSent(0.0, b"#crcoff!", Command("crcoff"), by_session=True))
+    rov._on_event(BytesSent(0.0, b"#th.0.0!", Command("th", (0, 0)), by_session=True))
+    assert str(rov.commanded.last_command) == "#th.0.10!"
+    assert rov.commanded.power_percent == 0  # (what the driver's zero thrust did, all the same)
+    assert [frame.text for frame in sent][-2:] == ["#crcoff!", "#th.0.0!"]  # (shown as sent)
     await rov.client.close()

@@ -270,6 +270,25 @@ class AsyncClient(AsyncCommandMethods):
         """
         return self._session.checksum_enabled
 
+    def emergency_stop(self) -> bool:
+        """Write ``#stop!`` to the port now, from any thread, without the event loop: for a
+        program that is ending while its loop may be blocked (a dashboard whose terminal hung
+        up). The session does not see the frame (no event, not counted); a frame the loop was
+        writing may be cut by it, and the controller resynchronises on ``#`` (P1), so the
+        ``#stop!`` still arrives whole. Whether it was written (not on a closed link).
+
+        Example::
+
+            threading.Thread(target=rov.emergency_stop).start()
+        """
+        if self._closed or self._lost is not None:
+            return False
+        try:
+            self._link.write(self._session.frame_for(operations.STOP))
+        except (ConnectionError, OSError):
+            return False
+        return True
+
     def frame_for(self, command: Command) -> bytes:
         """The bytes this client writes for ``command`` now: checksummed in checksum mode,
         ``#stop!`` always bare (P3).

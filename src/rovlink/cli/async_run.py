@@ -21,13 +21,16 @@ second Ctrl-C is the user's own, and interrupts at once.
 from __future__ import annotations
 
 import asyncio
+import contextlib
+import os
 import signal
 import sys
 import threading
-from collections.abc import Coroutine
+from collections.abc import Callable, Coroutine
+from types import TracebackType
 from typing import Any, TypeVar
 
-__all__ = ["run_async"]
+__all__ = ["StopOnTermination", "run_async"]
 
 T = TypeVar("T")
 
@@ -173,3 +176,88 @@ def _cancel_remaining_tasks(loop: asyncio.AbstractEventLoop) -> None:
                     "task": task,
                 }
             )
+
+
+#: How long a command may take to leave after a terminating signal once its ``#stop!`` is out.
+LEAVE_BOUND_S = 3.0
+#: What the process exits with when it has to be ended without its event loop (130: interrupted).
+_EXIT_INTERRUPTED = 130
+_TERMINATING = frozenset(
+    getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, name)
+)
+
+
+class StopOnTermination:
+    """While in effect, SIGINT, SIGTERM and SIGHUP call ``emergency_stop`` at once in a thread
+    of their own, and end the process ``LEAVE_BOUND_S`` later if it has not ended by then.
+
+    For a command whose event loop may block: textual writes to the terminal through a thread
+    and a bounded queue, and on a closed terminal that thread dies or stalls, so the loop
+    blocks in ``queue.put`` for ever, before the handler that would cancel the command (a
+    callback of that loop) can run. Python runs its signal handlers in the main thread only,
+    which is the one blocked; the signal-wakeup descriptor is written by whichever thread the
+    signal lands on, so it is taken here and read by a thread of ours, which hands every byte on
+    to the loop's own descriptor (the loop's handlers still run, when it can run them).
+    Entered in the main thread, inside the running loop (after :func:`run_async` set up its
+    handlers). Example::
+
+        with StopOnTermination(client.emergency_stop, "rovlink monitor"):
+            await app.run_async()
+    """
+
+    def __init__(
+        self, emergency_stop: Callable[[], object], program: str, bound_s: float = LEAVE_BOUND_S
+    ) -> None:
+        self._emergency_stop = emergency_stop
+        self._program = program
+        self._bound_s = bound_s
+        self._left = threading.Event()
+        self._read_fd = -1
+        self._write_fd = -1
+        self._previous_fd = -1
+        self._thread: threading.Thread | None = None
+
+    def __enter__(self) -> StopOnTermination:
+        if threading.current_thread() is not threading.main_thread():
+            return self  # (set_wakeup_fd is the main thread's; a program's thread: no net)
+        self._read_fd, self._write_fd = os.pipe()
+        os.set_blocking(self._write_fd, False)  # (the C handler must never block)
+        self._previous_fd = signal.set_wakeup_fd(self._write_fd)
+        self._thread = threading.Thread(target=self._watch, name="rovlink stop", daemon=True)
+        self._thread.start()
+        return self
+
+    def __exit__(
+        self,
+        kind: type[BaseException] | None,
+        error: BaseException | None,
+        traceback: TracebackType | None,
+    ) -> None:
+        self._left.set()  # (a forced exit counting down is called off)
+        if self._thread is None:
+            return
+        signal.set_wakeup_fd(self._previous_fd)
+        os.close(self._write_fd)  # the thread reads the end of the pipe, and returns
+
+    def _watch(self) -> None:
+        stopped = False
+        try:
+            while data := os.read(self._read_fd, 64):
+                if self._previous_fd >= 0:  # the loop sees its signals as before
+                    with contextlib.suppress(OSError):
+                        os.write(self._previous_fd, data)
+                if stopped or not _TERMINATING.intersection(data):
+                    continue
+                stopped = True
+                self._emergency_stop()
+                threading.Thread(target=self._end_if_stuck, daemon=True).start()
+        finally:
+            os.close(self._read_fd)
+
+    def _end_if_stuck(self) -> None:
+        if self._left.wait(self._bound_s):
+            return
+        # The command could not leave (its loop is blocked): #stop! is out, so end it here.
+        with contextlib.suppress(OSError, ValueError):
+            os.write(2, f"{self._program}: interrupted\n".encode())
+        os._exit(_EXIT_INTERRUPTED)

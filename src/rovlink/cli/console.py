@@ -7,6 +7,7 @@ Ctrl-D leaves, sending #stop! first unless the robot is locked as last sent.
 from __future__ import annotations
 
 import argparse
+import errno
 from typing import TYPE_CHECKING
 
 from rovlink.cli import link_options
@@ -14,6 +15,9 @@ from rovlink.cli.failure import CommandError, UsageError, reason
 
 if TYPE_CHECKING:
     from pathlib import Path
+
+    from rovlink.aio import AsyncClient
+    from rovlink.client.options import StrayCallback
 
 __all__ = ["EPILOG"]
 
@@ -62,13 +66,34 @@ def run(args: argparse.Namespace) -> int:
     except ImportError as error:
         raise CommandError(f"needs {error.name}: pip install 'rovlink[console]'") from None
 
-    connect = link_options.connect_async(args)
+    open_link = link_options.connect_async(args)
+
+    async def connect(on_stray: StrayCallback) -> AsyncClient:
+        # Only a failure here is one to open the port: an OSError later is the terminal's.
+        try:
+            return await open_link(on_stray)
+        except (ConnectionError, OSError) as error:
+            raise _ConnectError(error) from None
+
     history = Path(args.history) if args.history else default_history_path()
     _check_history(history, make_directory=not args.history)
     try:
         run_async(run_console(connect, algorithm=args.algorithm, history_path=history))
     except ValueError as error:
         raise UsageError(str(error)) from None
-    except (ConnectionError, OSError) as error:
-        raise link_options.connection_failure(args.url, error) from None
+    except _ConnectError as failed:
+        raise link_options.connection_failure(args.url, failed.error) from None
+    except OSError as error:
+        if error.errno != errno.EIO:
+            raise
+        # The terminal hung up (its window closed): #stop! went on the way out, as for Ctrl-C.
+        raise KeyboardInterrupt from None
     return 0
+
+
+class _ConnectError(Exception):
+    """The port could not be opened (``error`` says why)."""
+
+    def __init__(self, error: OSError) -> None:
+        super().__init__(str(error))
+        self.error = error

@@ -8,6 +8,7 @@ progress with rich. Whatever happens — an error, Ctrl-C — the robot is sent 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import sys
 import time
 from collections.abc import Callable
@@ -16,10 +17,11 @@ from typing import TYPE_CHECKING, cast
 
 from rovlink.cli import link_options
 from rovlink.cli.failure import CommandError
-from rovlink.cli.interrupt import GatedClient, run_in_worker, say_stopped
+from rovlink.cli.interrupt import GatedClient, run_in_worker, say_stopped, send_stop
 
 if TYPE_CHECKING:
     from rich.console import RenderableType
+    from rich.live import Live
 
     from rovlink.client import Client, Sensors
 
@@ -292,6 +294,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
 
 
+def _take_down(live: Live) -> None:
+    """Stop the live table; a closed terminal (its window gone) is no reason to stop leaving."""
+    with contextlib.suppress(OSError):
+        live.stop()
+
+
 def run(args: argparse.Namespace) -> int:
     """Run the dive with a live table; exit status 1 unless every step was done."""
     from rich.console import Console  # noqa: PLC0415
@@ -318,12 +326,16 @@ def run(args: argparse.Namespace) -> int:
         try:
             progress = run_in_worker(lambda: run_dive(cast("Client", gate), plan, show))
         except KeyboardInterrupt:
-            live.stop()
-            say_stopped("rovlink demo", gate.stop_for_good())
+            # #stop! first: taking the table down writes to a terminal that may be closed.
+            outcome = gate.stop_for_good()
+            _take_down(live)
+            say_stopped("rovlink demo", outcome)
             raise
         except (TimeoutError, ConnectionError) as error:
-            live.stop()
-            raise CommandError(f"{error} (the robot was sent #stop!)") from None
+            outcome = send_stop(rov)  # (again if the dive's end sent it: said as it went)
+            _take_down(live)
+            say_stopped("rovlink demo", outcome)
+            raise CommandError(str(error)) from None
     missed = [step.name for step in progress.steps if step.status != "done"]
     counters = rov.counters
     console.print(

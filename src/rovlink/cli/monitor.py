@@ -7,6 +7,7 @@ claw, r resets the leak latch, q quits (sending #stop! unless locked as last sen
 from __future__ import annotations
 
 import argparse
+import errno
 from typing import TYPE_CHECKING
 
 from rovlink.cli import link_options
@@ -88,6 +89,8 @@ class _StrayRelay:
 
 
 async def _connect_then_show(args: argparse.Namespace) -> None:
+    from rovlink.cli.async_run import StopOnTermination  # noqa: PLC0415 - as run_async
+
     # The port is opened first, as by every other command: one that is busy or missing is one
     # line on stderr, not a dashboard drawn and taken down again.
     _monitor_app_class()  # (a missing extra is said before the port is opened)
@@ -104,16 +107,24 @@ async def _connect_then_show(args: argparse.Namespace) -> None:
         relay.forward_to(on_stray)
         return client
 
-    try:
-        await build_app(args, connected).run_async()
-    finally:
-        if not client.closed:
-            await client.close()
+    # A closed terminal can block textual, and so this loop, for ever: a signal then stops the
+    # robot and ends the process without it (see StopOnTermination).
+    with StopOnTermination(client.emergency_stop, "rovlink monitor"):
+        try:
+            await build_app(args, connected).run_async()
+        finally:
+            if not client.closed:
+                await client.close()
 
 
 def run(args: argparse.Namespace) -> int:
     """Connect, then run the dashboard until the user quits."""
     from rovlink.cli.async_run import run_async  # noqa: PLC0415 - not on the path of --help
 
-    run_async(_connect_then_show(args))
+    try:
+        run_async(_connect_then_show(args))
+    except OSError as error:
+        if error.errno != errno.EIO:
+            raise
+        raise KeyboardInterrupt from None  # its terminal hung up: ended as by Ctrl-C
     return 0

@@ -48,12 +48,13 @@ def status_lines(rov: TrackedClient) -> list[str]:
     counters = rov.client.counters
     reply = "—" if health.last_reply_s is None else f"{health.last_reply_s * 1000:.1f} ms"
     mode = f"on ({rov.algorithm})" if rov.checksum_enabled else "off"
+    link = "link lost" if rov.client.closed else health.status  # (as the toolbar says)
     return [
         f"motors:     {state.lock_text()}",
         f"vertical:   {state.mode_text()}",
         f"horizontal: {state.horizontal_text()}",
         f"checksum:   {mode}",
-        f"link:       {rov.client.description}, {health.status}, last reply {reply}",
+        f"link:       {rov.client.description}, {link}, last reply {reply}",
         f"            {counters.frames_sent} frames sent, {counters.replies} replies, "
         f"{counters.timeouts} timeouts, {counters.retries} retries, "
         f"{counters.checksum_errors} checksum errors",

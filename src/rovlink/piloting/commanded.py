@@ -53,7 +53,15 @@ class CommandedState:
     #: Why the controller drops :attr:`last_command` (as last sent); ``None`` if it acts on it.
     last_dropped_because: str | None = None
 
-    def apply(self, command: Command) -> str | None:
+    #: Why the lock is unknown although start or stop was sent (a raw write); ``None`` if not.
+    lock_unknown_because: str | None = None
+
+    def forget_lock(self, why: str) -> None:
+        """The lock can no longer be told from what was sent (``why``): leaving then stops."""
+        self.lock = LockState.UNKNOWN
+        self.lock_unknown_because = why
+
+    def apply(self, command: Command, *, own: bool = True) -> str | None:
         """Record a command just sent; a warning if the controller will drop it, else ``None``.
 
         >>> state = CommandedState()
@@ -64,7 +72,7 @@ class CommandedState:
         '#th.90.30!'
         """
         warning = self._dropped_because(command)
-        if not command.spec.is_query:
+        if own and not command.spec.is_query:  # (the driver's own frames are not "last sent")
             self.last_command = command
             self.last_dropped_because = warning
         if warning is not None:
@@ -72,6 +80,7 @@ class CommandedState:
         name = command.name
         setting = command.setting
         if setting is not None and setting[0] is Setting.LOCKED:
+            self.lock_unknown_because = None
             if setting[1]:  # stop
                 self.lock = LockState.LOCKED
                 self._clear_set_points()
@@ -129,6 +138,8 @@ class CommandedState:
     def lock_text(self) -> str:
         """``locked (as last sent)``, ``unlocked (as last sent)`` or why it is unknown."""
         if self.lock is LockState.UNKNOWN:
+            if self.lock_unknown_because is not None:
+                return f"unknown: after {self.lock_unknown_because}"
             return "unknown: no start/stop sent yet (locked after a reset)"
         return f"{self.lock} (as last sent)"
 

@@ -115,10 +115,22 @@ class TrackedClient:
         if not isinstance(event, BytesSent):
             return
         command = event.command
-        if event.by_session and (command is None or command.spec.is_query):
-            return  # the session's own keep-alives and fences: not the operator's commands
+        if event.by_session:
+            # The driver's own frames: keep-alives and fences are left out; the others (#crcoff!
+            # re-asserted, zero thrust after motion_timeout) change the state and are shown as
+            # sent, but "last sent" stays the operator's.
+            if command is None or command.spec.is_query:
+                return
+            self._tell(SentFrame(event.data, command, self.commanded.apply(command, own=False)))
+            return
+        if command is None or not _one_whole_frame(event.data):
+            # A raw write whose effect is unknown: a partial frame may complete one already in
+            # the controller's buffer (raw #sta, then raw rt! is #start!).
+            self.commanded.forget_lock("a raw write whose effect is not known")
         warning = self.commanded.apply(command) if command is not None else None
-        sent = SentFrame(event.data, command, warning)
+        self._tell(SentFrame(event.data, command, warning))
+
+    def _tell(self, sent: SentFrame) -> None:
         for listener in self._listeners:
             listener(sent)
 
@@ -133,3 +145,14 @@ class TrackedClient:
             now_s = self._clock()
             self.health.record_reply(now_s - started_s, now_s)
         return replies
+
+
+def _one_whole_frame(data: bytes) -> bool:
+    """Whether ``data`` is one command frame and nothing else (spaces around it aside)."""
+    frame = data.strip()
+    return (
+        frame.startswith(b"#")
+        and frame.endswith(b"!")
+        and frame.count(b"#") == 1
+        and (frame.count(b"!") == 1)
+    )
