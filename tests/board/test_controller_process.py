@@ -31,9 +31,9 @@ def _moving(log: Path) -> bool:
     return value is not None and abs(value - _MOVING_US) <= COUNT_US
 
 
-@pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGINT])
+@pytest.mark.parametrize(("signum", "status"), [(signal.SIGTERM, 0), (signal.SIGINT, 130)])
 def test_a_signal_ends_the_process_with_the_thrusters_at_neutral(
-    tmp_path: Path, signum: int
+    tmp_path: Path, signum: int, status: int
 ) -> None:
     log = tmp_path / "i2c.jsonl"
     config = make_fake_toml(tmp_path, log, watchdog_s=0.0)
@@ -46,7 +46,7 @@ def test_a_signal_ends_the_process_with_the_thrusters_at_neutral(
             rov.move(90, 50)
             assert wait_until(lambda: _moving(log))
             controller.process.send_signal(signum)
-            assert controller.process.wait(10) == 0
+            assert controller.process.wait(10) == status  # (Ctrl-C: 130, as every command)
         transactions = read_log(log)
         assert is_neutral(pulses(transactions))
         assert "thrusters at neutral" in controller.stderr()

@@ -5,6 +5,7 @@ command, ``rovlink replay`` (printing, and resending to a controller), ``rovlink
 from __future__ import annotations
 
 import io
+import json
 import os
 import re
 import signal
@@ -12,6 +13,7 @@ import socket
 import struct
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 from typing import Any
@@ -22,12 +24,14 @@ import rovlink
 from rovlink.cli.recording import recorded_nothing
 from rovlink.client import Client
 from rovlink.client.events import BytesSent, ClientEvent
+from rovlink.protocol import Command, Response, encode
 from rovlink.recorder import (
     Entry,
     EventEntry,
     FrameEntry,
     HeaderEntry,
     Recorder,
+    WireEntry,
     read_entries,
 )
 from rovlink.recorder.formats import open_sink
@@ -41,17 +45,6 @@ def _free_port() -> int:
     with socket.socket() as probe:
         probe.bind(("127.0.0.1", 0))
         return int(probe.getsockname()[1])
-
-
-def _wait_for_port(port: int, timeout_s: float = 20.0) -> None:
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        try:
-            socket.create_connection(("127.0.0.1", port), timeout=0.5).close()
-            return
-        except OSError:
-            time.sleep(0.05)
-    raise AssertionError(f"nothing listens on {port}")
 
 
 def _start_recording(url: str, output: Path, tap: str) -> subprocess.Popen[str]:
@@ -82,7 +75,10 @@ def test_record_taps_a_program_and_a_controller(tmp_path: Path) -> None:
         assert sim.tcp_url is not None
         recorder = _start_recording(sim.tcp_url, output, f"socket://127.0.0.1:{tap_port}")
         try:
-            _wait_for_port(tap_port)
+            # Its first line says it is ready (a probe's connection would be the tap's one
+            # program until the tap saw it leave, and the next one told it is busy).
+            assert recorder.stderr is not None
+            assert f"program's side: socket://127.0.0.1:{tap_port}" in recorder.stderr.readline()
             with rovlink.connect(f"socket://127.0.0.1:{tap_port}") as rov:
                 rov.start()
                 rov.hold_depth(30)
@@ -530,3 +526,148 @@ def test_a_rotated_recording_of_headers_alone_counts_as_nothing_recorded(
         rov.depth_cm()
     busy.close()
     assert not recorded_nothing(busy)
+
+
+@pytest.mark.integration
+def test_record_on_a_busy_link_fails_says_why_and_keeps_no_file(
+    run_cli: RunCli, tmp_path: Path
+) -> None:
+    output = tmp_path / "busy.mcap"
+    with running_sim("--tcp", "127.0.0.1:0") as sim:
+        assert sim.tcp_url is not None
+        host, port = sim.tcp_url.removeprefix("socket://").rsplit(":", 1)
+        with socket.create_connection((host, int(port)), timeout=20) as first:
+            first.sendall(b"#qd!")  # served, once it answers: the simulator is now busy
+            assert first.recv(64).startswith(b"$qd.")
+            result = run_cli("record", sim.tcp_url, "-o", str(output), "--duration", "60")
+    assert result.status == 1, result.err
+    assert 'it said: "busy: the simulated controller already has a client"' in result.err
+    assert f"nothing was recorded; {output} not kept" in result.err
+    assert not output.exists()
+
+
+class _ClosingController:
+    """A TCP 'controller' that answers once and then closes the connection."""
+
+    def __init__(self, said: bytes) -> None:
+        self._listener = socket.create_server(("127.0.0.1", 0))
+        self.url = f"socket://127.0.0.1:{self._listener.getsockname()[1]}"
+        self._said = said
+        self._thread = threading.Thread(target=self._serve, daemon=True)
+        self._thread.start()
+
+    def _serve(self) -> None:
+        connection, _ = self._listener.accept()
+        with connection:
+            connection.sendall(self._said)
+
+    def close(self) -> None:
+        self._thread.join(20)
+        self._listener.close()
+
+
+@pytest.mark.integration
+def test_record_of_a_link_lost_mid_recording_keeps_the_file_and_fails(
+    run_cli: RunCli, tmp_path: Path
+) -> None:
+    output = tmp_path / "lost.jsonl"
+    controller = _ClosingController(b"#qd!$qd.5!")
+    try:
+        result = run_cli("record", controller.url, "-o", str(output), "--duration", "60")
+    finally:
+        controller.close()
+    assert result.status == 1, result.err
+    assert "closed by the other end; the recording ends here" in result.err
+    frames = [(e.kind, e.name) for e in read_entries(str(output)) if isinstance(e, FrameEntry)]
+    assert frames == [("command", "qd"), ("response", "qd")]
+
+
+def test_decode_of_a_recording_starts_in_its_headers_mode(run_cli: RunCli, tmp_path: Path) -> None:
+    path = tmp_path / "checked.jsonl"
+    wire = encode(Command("qd"), "crc8") + encode(Response("qd", (5,)), "crc8")
+    _write(
+        path,
+        HeaderEntry(1.0, 1, "sim://", True, "crc8", "test", "0"),
+        WireEntry(2.0, 2, "in", wire),
+    )
+    result = run_cli("decode", str(path), "--stats")
+    assert result.status == 0, result.err
+    assert json.loads(result.out)["events"] == {"frame": 2}
+    # Said on the command line, the mode is the one asked for.
+    forced = run_cli("decode", str(path), "--stats", "--no-checksum")
+    assert json.loads(forced.out)["events"] == {"error": 2}
+
+
+def test_each_rotated_file_records_the_mode_in_force_as_it_starts(
+    run_cli: RunCli, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setattr("rovlink.recorder.recorder.FLUSH_INTERVAL_S", 0.05)  # (rotation's pace)
+    recorder = Recorder(str(tmp_path / "tap.jsonl"), split_s=0.05)
+    recorder.on_bytes("out", b"#crcon!")
+    deadline = time.monotonic() + 10.0
+    while len(recorder.paths) < 2 and time.monotonic() < deadline:
+        time.sleep(0.01)  # (polling the recorder's own rotation, bounded)
+    checked = encode(Command("qd"), "crc8") + encode(Response("qd", (7,)), "crc8")
+    recorder.on_bytes("out", checked[:6])
+    recorder.on_bytes("in", checked[6:])
+    recorder.close()
+    assert len(recorder.paths) >= 2
+    headers = [next(iter(read_entries(path))) for path in recorder.paths]
+    assert [header.checksum for header in headers if isinstance(header, HeaderEntry)] == [
+        False,
+        *[True] * (len(recorder.paths) - 1),
+    ]
+    result = run_cli("decode", recorder.paths[-1], "--stats")
+    assert json.loads(result.out)["events"] == {"frame": 2}
+
+
+@pytest.mark.parametrize("cut_bytes", [0, 8, 40], ids=lambda n: f"{n}-bytes")
+@pytest.mark.parametrize("command", ["replay", "decode"])
+def test_an_mcap_cut_before_its_first_entry_ends_early_without_an_error(
+    run_cli: RunCli, tmp_path: Path, cut_bytes: int, command: str
+) -> None:
+    # A recorder killed in its first second leaves an empty file, or one cut after its start.
+    whole = tmp_path / "whole.mcap"
+    _record(whole)
+    path = tmp_path / "killed.mcap"
+    path.write_bytes(whole.read_bytes()[:cut_bytes])
+    result = run_cli(command, str(path))
+    assert result.status == 0, result.err
+    assert result.err.startswith(f"rovlink {command}: {path}: ")
+    assert "read 0 entries" in result.err
+    assert "()" not in result.err
+
+
+def test_a_foreign_file_named_mcap_says_what_it_is_not_with_a_reason(
+    run_cli: RunCli, tmp_path: Path
+) -> None:
+    path = tmp_path / "notes.mcap"
+    path.write_bytes(b"hello")
+    result = run_cli("replay", str(path))
+    assert result.status == 1
+    assert f"{path}: not an MCAP recording (" in result.err
+    assert "()" not in result.err
+
+
+@pytest.mark.integration
+@pytest.mark.parametrize(
+    ("how", "status"), [(signal.SIGINT, 130), (signal.SIGTERM, 0), (signal.SIGHUP, 0)]
+)
+def test_record_ends_on_ctrl_c_with_130_and_on_a_service_stop_with_0(
+    tmp_path: Path, how: signal.Signals, status: int
+) -> None:
+    output = tmp_path / "tapped.jsonl"
+    with running_sim("--tcp", "127.0.0.1:0", "--seed", "1") as sim:
+        assert sim.tcp_url is not None
+        recorder = _start_recording(sim.tcp_url, output, "pty")
+        try:
+            assert recorder.stderr is not None
+            found = re.search(r"program's side: (\S+);", recorder.stderr.readline())
+            assert found
+            with rovlink.connect(found.group(1)) as rov:
+                rov.depth_cm()
+        finally:
+            recorder.send_signal(how)
+            _, err = recorder.communicate(timeout=20)
+    assert recorder.returncode == status, err
+    assert "recorded" in err  # the file finished either way

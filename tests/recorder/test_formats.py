@@ -71,8 +71,10 @@ def test_a_recording_reads_back_exactly_as_written(make_recording: MakeRecording
     assert walls == sorted(walls)
     locks = [e.detail for e in entries if isinstance(e, EventEntry) and e.event == "lock"]
     assert locks == ["unlocked", "locked"]
-    last = [e for e in entries if isinstance(e, TelemetryEntry)][-1].values
-    assert last["setpoint_cm"] == 40
+    rows = [e.values for e in entries if isinstance(e, TelemetryEntry)]
+    assert 40 in [row["setpoint_cm"] for row in rows]
+    last = rows[-1]
+    assert last["setpoint_cm"] is None  # stop clears the depth target (P7)
     assert last["locked"] == 1
     assert last["leak"] == 0
     assert last["thrust_power_percent"] == 0  # stop: the thrust the controller applies

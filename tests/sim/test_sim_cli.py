@@ -83,11 +83,19 @@ def test_it_prints_a_ready_line_and_stops_cleanly_on_sigterm(run_sim: RunSim) ->
     assert "Traceback" not in stderr
 
 
-def test_ctrl_c_stops_it_cleanly(run_sim: RunSim) -> None:
+@pytest.mark.parametrize(
+    ("how", "status"), [(signal.SIGINT, 130), (signal.SIGTERM, 0), (signal.SIGHUP, 0)]
+)
+def test_ctrl_c_stops_it_cleanly_with_130_and_a_service_stop_with_0(
+    run_sim: RunSim, how: signal.Signals, status: int
+) -> None:
+    # Ctrl-C ends every command with 130, as shells expect; SIGTERM and SIGHUP are how a
+    # service manager stops a service, whose normal end is status 0.
     process, _ = run_sim("--tcp", "0")
-    process.send_signal(signal.SIGINT)
+    process.send_signal(how)
     _, stderr = process.communicate(timeout=5)
-    assert process.returncode == 0
+    assert process.returncode == status, stderr
+    assert "stopped" in stderr
     assert "Traceback" not in stderr
 
 

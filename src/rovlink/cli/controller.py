@@ -8,13 +8,12 @@ whoever reaches the line drives the robot, so TCP listens on loopback unless --a
 from __future__ import annotations
 
 import argparse
-import signal
 import sys
 import threading
-from types import FrameType
 from typing import TYPE_CHECKING
 
 from rovlink.cli.failure import CommandError, InputError, UsageError, reason
+from rovlink.cli.interrupt import ServingSignals
 from rovlink.cli.link_options import baud_rate, file_name, seconds
 
 if TYPE_CHECKING:
@@ -100,10 +99,16 @@ def run(args: argparse.Namespace) -> int:
             raise UsageError("give --port DEVICE, --pty and/or --tcp [HOST:]PORT to serve on")
         args.pty = True
     _configure_logging()
-    stop = _stop_on_signals()
-    if args.board == "sim":
-        return _run_sim(args, address, stop)
-    return _run_pi(args, address, stop)
+    signals = ServingSignals()
+    try:
+        if args.board == "sim":
+            status = _run_sim(args, address, signals.stopping)
+        else:
+            status = _run_pi(args, address, signals.stopping)
+    finally:
+        signals.restore()
+    signals.finish()  # (Ctrl-C: status 130; SIGTERM, SIGHUP: a service stopped, 0)
+    return status
 
 
 def _tcp_address(args: argparse.Namespace) -> tuple[str, int] | None:
@@ -284,15 +289,3 @@ def _configure_logging() -> None:
     logging.basicConfig(
         level=logging.INFO, format=layout if under_journald else "%(asctime)s " + layout
     )
-
-
-def _stop_on_signals() -> threading.Event:
-    """An event set by SIGTERM or Ctrl-C; the board loop sees it within 50 ms."""
-    stop = threading.Event()
-
-    def handle(signum: int, frame: FrameType | None) -> None:
-        stop.set()
-
-    signal.signal(signal.SIGINT, handle)
-    signal.signal(signal.SIGTERM, handle)
-    return stop

@@ -172,7 +172,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="a capture of the byte stream, or a recording (.mcap, .jsonl: its raw wire); "
         "'-' or none: standard input",
     )
-    add_checksum_options(parser, "start in checksum mode, as after #crcon!")
+    add_checksum_options(
+        parser, "start in checksum mode, as after #crcon! (a recording: as its header says)"
+    )
+    # Not given: a recording starts in the mode its header records, a capture with it off.
+    parser.set_defaults(checksum=None)
     parser.add_argument(
         "--stats",
         action="store_true",
@@ -183,7 +187,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     """Decode the file (or standard input) to the end (a reader that stops early, ``| head``,
     is no error: see ``rovlink.cli.main``)."""
-    decoder = Decoder(checksum_enabled=args.checksum, algorithm=args.algorithm)
+    decoder = Decoder(checksum_enabled=bool(args.checksum), algorithm=args.algorithm)
     if args.file == "-":
         try:
             decode_stream(sys.stdin.buffer, decoder, stats_only=args.stats)
@@ -246,7 +250,7 @@ class _RecordedWire(io.RawIOBase):
 def _decode_recording(args: argparse.Namespace, decoder: Decoder) -> int:
     """A recording's wire channel, decoded as a capture; damage is reported after it."""
     from rovlink.recorder import RecordingDamagedError, RecordingError, read_entries  # noqa: PLC0415
-    from rovlink.recorder.entries import WireEntry  # noqa: PLC0415
+    from rovlink.recorder.entries import HeaderEntry, WireEntry  # noqa: PLC0415
 
     damage: RecordingDamagedError | None = None
 
@@ -256,6 +260,14 @@ def _decode_recording(args: argparse.Namespace, decoder: Decoder) -> int:
             for entry in read_entries(args.file):
                 if isinstance(entry, WireEntry):
                     yield entry.data
+                elif isinstance(entry, HeaderEntry) and args.checksum is None:
+                    # The mode the link was in as this file starts (each file of a rotation
+                    # records its own), unless --checksum/--no-checksum says otherwise.
+                    decoder.checksum_enabled = entry.checksum
+                    try:
+                        decoder.algorithm = entry.algorithm
+                    except ValueError as error:  # (a header damaged, or from a newer version)
+                        raise CommandError(f"{args.file}: the header's {error}") from None
         except RecordingDamagedError as error:
             damage = error
 

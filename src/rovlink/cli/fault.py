@@ -7,13 +7,11 @@ stops, the controller gets #stop!."""
 from __future__ import annotations
 
 import argparse
-import signal
 import sys
-import threading
 from collections.abc import Callable
-from types import FrameType
 
 from rovlink.cli.failure import CommandError, UsageError, reason
+from rovlink.cli.interrupt import ServingSignals
 from rovlink.cli.link_options import bounded_float
 
 __all__ = ["EPILOG"]
@@ -91,12 +89,13 @@ def run(args: argparse.Namespace) -> int:
     except ConnectError as error:
         raise CommandError(str(error)) from None
     port = FaultPort(link, settings, name=f"fault proxy to {link.description}")
+    signals: ServingSignals | None = None
     try:
         try:
             proxy = FaultProxy(port, listen.host, listen.port)
         except OSError as error:
             raise CommandError(f"cannot listen on {args.listen}: {reason(error)}") from None
-        stop = _stop_on_signals()
+        signals = ServingSignals()
         host, tcp_port = proxy.address
         print(
             f"rovlink fault ready: socket://{host}:{tcp_port} -> {link.description} "
@@ -105,22 +104,15 @@ def run(args: argparse.Namespace) -> int:
             "Ctrl-C stops",
             flush=True,
         )
-        proxy.serve(stop.is_set)
+        proxy.serve(signals.stopping.is_set)
     finally:
         port.close()
+        if signals is not None:
+            signals.restore()
     for direction, counters in port.counters.items():
         print(f"{direction.replace('_', ' ')}: {counters.summary()}", file=sys.stderr)
     if proxy.lost is not None:
         raise CommandError(f"the controller's link was lost: {proxy.lost}")
+    if signals is not None:
+        signals.finish()  # (Ctrl-C: status 130; SIGTERM, SIGHUP: a service stopped, 0)
     return 0
-
-
-def _stop_on_signals() -> threading.Event:
-    stop = threading.Event()
-
-    def handle(signum: int, frame: FrameType | None) -> None:
-        stop.set()
-
-    signal.signal(signal.SIGINT, handle)
-    signal.signal(signal.SIGTERM, handle)
-    return stop

@@ -11,9 +11,11 @@ thread only waits, where Ctrl-C lands harmlessly; the work talks to the robot th
 from __future__ import annotations
 
 import contextlib
+import signal
 import sys
 import threading
 from collections.abc import Callable
+from types import FrameType
 from typing import TYPE_CHECKING, Any, TypeVar
 
 from rovlink.protocol import Setting
@@ -21,7 +23,15 @@ from rovlink.protocol import Setting
 if TYPE_CHECKING:
     from rovlink.protocol import Command
 
-__all__ = ["GatedClient", "Interrupted", "may_move", "run_in_worker", "say_stopped", "send_stop"]
+__all__ = [
+    "GatedClient",
+    "Interrupted",
+    "ServingSignals",
+    "may_move",
+    "run_in_worker",
+    "say_stopped",
+    "send_stop",
+]
 
 T = TypeVar("T")
 
@@ -124,3 +134,50 @@ def run_in_worker(work: Callable[[], T]) -> T:
     if failure:
         raise failure[0]
     return outcome[0]
+
+
+class ServingSignals:
+    """How a serving command (``sim``, ``controller``, ``record``, ``fault``) is ended: Ctrl-C,
+    SIGTERM and SIGHUP set :attr:`stopping`, and its loop ends cleanly (a file finished, a
+    ``#stop!`` sent). Then :meth:`finish` raises KeyboardInterrupt if it was Ctrl-C, so that
+    the status is 130 as for every command; SIGTERM and SIGHUP, a service manager's way of
+    stopping a service, end it with its own status (0). A signal ignored on entry (``nohup``,
+    SIGINT in a background job) stays ignored.
+
+    Example::
+
+        signals = ServingSignals()
+        try:
+            server.serve(signals.stopping.is_set)
+        finally:
+            signals.restore()
+        signals.finish()
+    """
+
+    def __init__(self) -> None:
+        self.stopping = threading.Event()
+        #: Whether Ctrl-C (SIGINT) ended the command.
+        self.interrupted = False
+        self._previous: dict[int, Any] = {}
+        for name in ("SIGINT", "SIGTERM", "SIGHUP"):
+            number = getattr(signal, name, None)  # (no SIGHUP on Windows)
+            if number is None or signal.getsignal(number) is signal.SIG_IGN:
+                continue
+            self._previous[number] = signal.signal(number, self._handle)
+
+    def _handle(self, signum: int, frame: FrameType | None) -> None:
+        if signum == signal.SIGINT:
+            self.interrupted = True
+        self.stopping.set()
+
+    def restore(self) -> None:
+        """Put the handlers before back."""
+        for number, handler in self._previous.items():
+            signal.signal(number, handler)
+        self._previous.clear()
+
+    def finish(self) -> None:
+        """Restore the handlers; KeyboardInterrupt (status 130) if Ctrl-C ended the command."""
+        self.restore()
+        if self.interrupted:
+            raise KeyboardInterrupt

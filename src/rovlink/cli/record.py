@@ -7,15 +7,19 @@ sniffer on a line that another program drives). The format follows the file's su
 from __future__ import annotations
 
 import argparse
-import signal
 import sys
 import threading
 import time
-from types import FrameType
 
 from rovlink.cli.failure import CommandError, UsageError, reason
 from rovlink.cli.link_options import add_checksum_options, baud_rate, file_name, seconds
-from rovlink.cli.recording import add_rotation_options, open_recorder, report_recording
+from rovlink.cli.recording import (
+    add_rotation_options,
+    discard_empty_recording,
+    open_recorder,
+    recorded_nothing,
+    report_recording,
+)
 
 __all__ = ["EPILOG"]
 
@@ -57,7 +61,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Record until Ctrl-C, SIGTERM or ``--duration``; the file is finished in every case."""
+    """Record until Ctrl-C, SIGTERM, SIGHUP or ``--duration``; the file is finished in every
+    case. A link lost before any frame came (a controller that is busy, a connection closed at
+    once) did not open: status 1, and no file is kept. A link lost later ends the recording
+    with status 1 (as ``rovlink send`` ends on a lost link), the file kept."""
+    from rovlink.cli.interrupt import ServingSignals  # noqa: PLC0415
     from rovlink.client import parse_url  # noqa: PLC0415 - the driver loads when used
     from rovlink.client.errors import ConnectionLostError  # noqa: PLC0415
     from rovlink.client.links import open_link  # noqa: PLC0415
@@ -85,36 +93,75 @@ def run(args: argparse.Namespace) -> int:
 
     log_warnings()  # (a recording that stops, a lost link: on stderr)
     recorder = open_recorder(args, args.output, url=args.url, program="rovlink record")
-    stopping = threading.Event()
+    signals = ServingSignals()
+    stopping = signals.stopping
+    heard = _FirstWords()
 
-    def stop(signum: int, frame: FrameType | None) -> None:
-        stopping.set()
+    def record(direction: str, data: bytes, *, by_session: bool = False) -> None:
+        heard.add(data)
+        recorder.on_bytes(direction, data, by_session=by_session)
 
-    previous = signal.signal(signal.SIGTERM, stop)
     where = f"; program's side: {tap.path}" if tap is not None else " (listening only)"
     print(f"recording {args.url} to {args.output}{where}; Ctrl-C stops", file=sys.stderr)
     started_s = time.monotonic()
+    lost: str | None = None
     try:
         if args.duration is not None:
             timer = threading.Timer(args.duration, stopping.set)
             timer.daemon = True
             timer.start()
         if tap is not None:
-            forward(tap, link, recorder.on_bytes, stopping)
+            forward(tap, link, record, stopping, checksum=args.checksum, algorithm=args.algorithm)
         else:
             while not stopping.is_set():
                 data = link.read_available(0.1)
                 if data:
-                    recorder.on_bytes("in", data)
-    except KeyboardInterrupt:
-        pass
+                    record("in", data)
     except ConnectionLostError as error:
-        print(f"rovlink record: {error}; the recording ends here", file=sys.stderr)
+        lost = str(error)
     finally:
-        signal.signal(signal.SIGTERM, previous)
+        signals.restore()
         link.close()
         if tap is not None:
             tap.close()
         recorder.close()
-    report_recording(recorder, time.monotonic() - started_s)
+    if lost is not None and not heard.frame:
+        # Nothing but text came (a busy controller says so, then closes): not a recording.
+        discard_empty_recording(recorder, "rovlink record")
+        raise CommandError(f"{args.url}: {lost} before any frame came{heard.said()}")
+    if recorded_nothing(recorder):
+        discard_empty_recording(recorder, "rovlink record")
+    else:
+        report_recording(recorder, time.monotonic() - started_s)
+    if lost is not None:
+        raise CommandError(f"{lost}; the recording ends here")
+    signals.finish()  # (Ctrl-C: status 130)
     return 1 if recorder.error else 0
+
+
+class _FirstWords:
+    """Whether a frame has come on the link yet, and the text that came before one (what a
+    controller that turns us away says: "busy: ..."), kept up to a bound."""
+
+    _LIMIT_BYTES = 4096
+
+    def __init__(self) -> None:
+        self.frame = False
+        self._text = bytearray()
+
+    def add(self, data: bytes) -> None:
+        if self.frame:
+            return
+        if b"!" in data:  # (the end of a frame; text never holds one, P5)
+            self.frame = True
+            self._text.clear()
+        elif len(self._text) < self._LIMIT_BYTES:
+            self._text += data[: self._LIMIT_BYTES - len(self._text)]
+
+    def said(self) -> str:
+        """``; it said: "<the last line>"``, or nothing if no text came."""
+        from rovlink.protocol.visible import visible  # noqa: PLC0415
+
+        lines = [line.strip() for line in bytes(self._text).decode("latin-1").splitlines()]
+        lines = [line for line in lines if line]
+        return f'; it said: "{visible(lines[-1])}"' if lines else ""

@@ -4,13 +4,11 @@ in any terminal program (picocom, miniterm, socat) or give it to rovlink as a UR
 from __future__ import annotations
 
 import argparse
-import signal
 import sys
-import threading
-from types import FrameType
 from typing import TYPE_CHECKING
 
 from rovlink.cli.failure import CommandError, InputError, UsageError, reason
+from rovlink.cli.interrupt import ServingSignals
 from rovlink.cli.link_options import baud_rate, bounded_float, file_name, seconds
 
 if TYPE_CHECKING:
@@ -124,6 +122,7 @@ def run(args: argparse.Namespace) -> int:
     server = SimServer(_robot_config(args), seed=args.seed, baud=args.baud, speed=args.speed)
     if args.leak_at is not None:
         server.robot.inject_leak(at_s=args.leak_at)
+    signals: ServingSignals | None = None
     try:
         endpoints = []
         if args.pty or address is None:
@@ -134,27 +133,19 @@ def run(args: argparse.Namespace) -> int:
             except OSError as error:
                 raise CommandError(f"cannot listen on {args.tcp}: {reason(error)}") from None
             endpoints.append(f"tcp {host}:{port}")
-        stop = _stop_on_signals()
+        signals = ServingSignals()
         pacing = f"{args.baud} baud" if args.baud else "unpaced"
         print(
             f"rovlink sim ready: {', '.join(endpoints)} "
             f"(seed {server.robot.seed}, {pacing}); Ctrl-C stops",
             flush=True,
         )
-        server.serve(stop.is_set)
+        server.serve(signals.stopping.is_set)
     finally:
         server.close()
+        if signals is not None:
+            signals.restore()
     print("rovlink sim stopped", file=sys.stderr)
+    if signals is not None:
+        signals.finish()  # (Ctrl-C: status 130; SIGTERM, SIGHUP: a service stopped, 0)
     return 0
-
-
-def _stop_on_signals() -> threading.Event:
-    """An event set by Ctrl-C or SIGTERM; the server loop sees it within 50 ms."""
-    stop = threading.Event()
-
-    def handle(signum: int, frame: FrameType | None) -> None:
-        stop.set()
-
-    signal.signal(signal.SIGINT, handle)
-    signal.signal(signal.SIGTERM, handle)
-    return stop

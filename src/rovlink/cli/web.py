@@ -135,7 +135,9 @@ def run(args: argparse.Namespace) -> int:
         )
 
     try:
-        run_async(serve(connect, options, description=args.url, ready=ready))
+        interrupted = run_async(serve(connect, options, description=args.url, ready=ready))
     except OSError as error:
         raise CommandError(f"cannot serve on {args.host}:{args.port}: {reason(error)}") from None
+    if interrupted:  # Ctrl-C: status 130, as every command; SIGTERM, SIGHUP: a service stopped
+        raise KeyboardInterrupt
     return 0

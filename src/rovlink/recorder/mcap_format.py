@@ -27,6 +27,8 @@ __all__ = ["PROFILE", "TOPIC_PREFIX", "McapSink", "read_mcap"]
 PROFILE = "rovlink"
 #: Each channel's topic is this prefix and the channel's name: ``/rovlink/telemetry``.
 TOPIC_PREFIX = "/rovlink/"
+#: How every MCAP file starts.
+_MAGIC = b"\x89MCAP0\r\n"
 # A record larger than this is damage, not data: no entry of ours comes near it.
 _RECORD_SIZE_LIMIT = 64 << 20
 
@@ -85,6 +87,8 @@ def read_mcap(path: str) -> Iterator[Entry]:
     count = 0
     channels: dict[int, str] = {}
     with stream:
+        head = stream.read(len(_MAGIC))
+        stream.seek(0)
         reader = StreamReader(stream, validate_crcs=True, record_size_limit=_RECORD_SIZE_LIMIT)
         records = iter(reader.records)
         while True:
@@ -93,8 +97,18 @@ def read_mcap(path: str) -> Iterator[Entry]:
             # A damaged file can make the library fail anywhere (a decompressor's error, a
             # short unpack, a bad record length): each is damage at this point of the file.
             except Exception as error:
-                if count == 0 and not channels:
-                    raise RecordingError(f"{path}: not an MCAP recording ({error})") from None
+                if count == 0 and not channels and not _MAGIC.startswith(head):
+                    detail = str(error) or type(error).__name__
+                    raise RecordingError(f"{path}: not an MCAP recording ({detail})") from None
+                # (An empty file, or one cut after its first bytes, is a recorder killed before
+                # its first second: a recording that ends early, as any other.)
+                if not head:
+                    raise RecordingDamagedError(
+                        f"{path}: empty: its recorder was stopped before its first second "
+                        "was written; read 0 entries",
+                        entries_read=0,
+                        incomplete=True,
+                    ) from None
                 raise _damage(path, error, count) from None
             if record is None:
                 return
@@ -125,8 +139,9 @@ def _damage(path: str, error: Exception, count: int) -> RecordingDamagedError:
             entries_read=count,
             incomplete=True,
         )
+    detail = f"{name}: {error}" if str(error) else name
     return RecordingDamagedError(
-        f"{path}: damaged after {count} entries ({name}: {error})",
+        f"{path}: damaged after {count} entries ({detail})",
         entries_read=count,
         incomplete=False,
     )

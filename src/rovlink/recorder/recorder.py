@@ -49,6 +49,8 @@ class TappedBytes:
     at_s: float
     direction: str
     data: bytes
+    #: Written by the tap itself (its ``#stop!`` when a program leaves), not by the program.
+    by_session: bool = False
 
 
 def rotated_path(path: str, index: int) -> str:
@@ -110,8 +112,9 @@ class Recorder:
         self._on_failure = on_failure
         self._queue: deque[ClientEvent | TappedBytes] = deque()
         self._accepting = True
-        self._events = ClientEventLog()
+        self._events = ClientEventLog(checksum=checksum)
         self._tap = TapLog(checksum=checksum, algorithm=algorithm)
+        self._tapped = False  # fed by a tap (on_bytes) rather than the driver's events
         self._sink: Sink | None = open_sink(path)
         #: The format's own unit of what its files hold: ``messages``, ``lines``, ``rows``,
         #: ``bytes``.
@@ -133,14 +136,16 @@ class Recorder:
             else:
                 self.dropped += 1
 
-    def on_bytes(self, direction: str, data: bytes, at_s: float | None = None) -> None:
+    def on_bytes(
+        self, direction: str, data: bytes, at_s: float | None = None, *, by_session: bool = False
+    ) -> None:
         """Bytes seen by a tap going ``direction`` (``out``: host to controller), at ``at_s``
-        on :func:`time.monotonic` (default: now)."""
+        on :func:`time.monotonic` (default: now); ``by_session``: written by the tap itself."""
         if self._accepting:
             queue = self._queue
             if len(queue) < self._queue_limit:
                 now_s = time.monotonic() if at_s is None else at_s
-                queue.append(TappedBytes(now_s, direction, data))
+                queue.append(TappedBytes(now_s, direction, data, by_session))
             else:
                 self.dropped += 1
 
@@ -209,7 +214,10 @@ class Recorder:
             item = queue.popleft()
             wall_ns = int(item.at_s * 1e9) + offset_ns
             if isinstance(item, TappedBytes):
-                entries = tap.entries(item.at_s, wall_ns, item.direction, item.data)
+                self._tapped = True
+                entries = tap.entries(
+                    item.at_s, wall_ns, item.direction, item.data, item.by_session
+                )
             else:
                 entries = events.entries(wall_ns, item)
             for entry in entries:
@@ -241,7 +249,9 @@ class Recorder:
         self._sink = None
 
     def _write_header(self) -> None:
-        url, checksum, algorithm, program = self._header
+        url, _, algorithm, program = self._header
+        # The mode in force as this file starts (a file of a rotation is read on its own).
+        checksum = (self._tap if self._tapped else self._events).log.checksum
         entry: Entry = HeaderEntry(
             time.monotonic(),
             time.time_ns(),

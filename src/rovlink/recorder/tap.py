@@ -3,8 +3,13 @@ recorded (``rovlink record URL --tap socket://127.0.0.1:5761`` or ``--tap pty``)
 
 The program connects to the tap's TCP port, or opens its pseudo-terminal, as if it were the
 controller's port; the tap forwards every byte unchanged to the controller at ``URL`` and every
-reply back, handing each chunk to the recorder on the way. One program at a time: when it
-disconnects, the next may connect. Without ``--tap``, ``rovlink record URL`` listens only
+reply back, handing each chunk to the recorder on the way. One program at a time, as on a serial
+port: a second one that connects to the TCP port meanwhile reads :data:`BUSY_MESSAGE` and is
+disconnected at once, and nothing it sent reaches the controller (queued, its commands would run
+after the first program left, with nobody connected). When a program whose commands may have
+moved the robot (``start``, a motion command, with no ``stop`` after them) disconnects, or the
+tap ends while it is connected, the tap sends ``#stop!`` to the controller, as ``rovlink fault``
+does; then the next program may connect. Without ``--tap``, ``rovlink record URL`` listens only
 (a sniffer on a line that another program drives, through a Y-cable or a port mirror).
 """
 
@@ -14,20 +19,57 @@ import contextlib
 import errno
 import logging
 import os
+import selectors
 import socket
 import threading
+import time
 import tty
-from collections.abc import Callable
+from typing import Protocol
 
+from rovlink.busy_tcp import RefusedClients
 from rovlink.client.errors import ConnectionLostError
 from rovlink.client.links import FdLink, Link, SocketLink
+from rovlink.protocol import Command, Decoder, Frame, Setting
 
-__all__ = ["PtyEndpoint", "TcpEndpoint", "forward", "parse_tap"]
+__all__ = ["BUSY_MESSAGE", "STOP_FRAME", "PtyEndpoint", "TcpEndpoint", "forward", "parse_tap"]
 
 logger = logging.getLogger(__name__)
 
 _POLL_S = 0.1
-Record = Callable[[str, bytes], None]
+#: What a second program reads on the tap's TCP port (a text line, as the simulator's).
+BUSY_MESSAGE = b"busy: the recording tap already has a program\r\n"
+#: Sent when a program that may have set the robot moving leaves: a bare #stop! is honoured in
+#: either checksum mode (P3).
+STOP_FRAME = b"#stop!"
+_BACKLOG = 8
+
+
+class Record(Protocol):
+    """Where the tap hands each chunk: ``direction`` (``out``: to the controller), the bytes,
+    and whether the tap wrote them itself (its ``#stop!``)."""
+
+    def __call__(self, direction: str, data: bytes, *, by_session: bool = False) -> None: ...
+
+
+class _MayMove:
+    """Whether a program's commands may have left the robot moving: a motion command or
+    ``start`` since its last ``stop`` (the command table's motion flag and lock setting)."""
+
+    def __init__(self, *, checksum: bool, algorithm: str) -> None:
+        # The program's own frames set the mode its later frames are read in (P3).
+        self._decoder = Decoder(checksum_enabled=checksum, algorithm=algorithm)
+        self.moved = False
+
+    def feed(self, data: bytes) -> None:
+        for event in self._decoder.feed(data):
+            if not isinstance(event, Frame) or not isinstance(event.message, Command):
+                continue  # (a frame the controller drops moves nothing)
+            command = event.message
+            setting = command.setting
+            if setting is not None and setting[0] is Setting.LOCKED:
+                self.moved = not setting[1]
+            elif command.spec.motion:
+                self.moved = True
 
 
 class _PtyMasterLink(FdLink):
@@ -78,30 +120,92 @@ class PtyEndpoint:
 
 
 class TcpEndpoint:
-    """A TCP port for the program, one connection at a time."""
+    """A TCP port for the program, one connection at a time.
+
+    A thread of its own accepts every connection as it comes: the first waits for
+    :meth:`accept`, and any other while that program is served (until :meth:`release`) reads
+    :data:`BUSY_MESSAGE` and is disconnected, what it sent read and dropped.
+    """
 
     def __init__(self, host: str, port: int) -> None:
-        self._server = socket.create_server((host, port))
-        self._server.settimeout(_POLL_S)
+        self._server = socket.create_server((host, port), backlog=_BACKLOG)
+        self._server.setblocking(False)
         host, port = self._server.getsockname()[:2]
         self.path = f"socket://{host}:{port}"
+        #: Programs turned away because another was served.
+        self.refused = 0
+        self._selector = selectors.DefaultSelector()
+        self._selector.register(self._server, selectors.EVENT_READ, None)
+        self._refused = RefusedClients(self._selector, BUSY_MESSAGE)
+        self._ready = threading.Condition()
+        self._waiting: socket.socket | None = None  # accepted, not yet taken by accept()
+        self._busy = False  # a program is waiting or served
+        self._closing = threading.Event()
+        self._thread = threading.Thread(target=self._listen, name="rovlink-tap-listen", daemon=True)
+        self._thread.start()
 
     def accept(self, stopping: threading.Event) -> Link | None:
         """Wait for the next program (``None`` once ``stopping`` is set)."""
-        while not stopping.is_set():
-            try:
-                connection, peer = self._server.accept()
-            except TimeoutError:
-                continue
-            except OSError as error:  # closed under us
-                logger.debug("tap server: %s", error)
-                return None
-            logger.info("tap: %s:%s connected", *peer[:2])
-            return SocketLink(connection, f"tcp {peer[0]}:{peer[1]}")
-        return None
+        with self._ready:
+            while self._waiting is None:
+                if stopping.is_set() or self._closing.is_set():
+                    return None
+                self._ready.wait(_POLL_S)
+            connection, self._waiting = self._waiting, None
+        peer = connection.getpeername()
+        logger.info("tap: %s:%s connected", *peer[:2])
+        return SocketLink(connection, f"tcp {peer[0]}:{peer[1]}")
+
+    @property
+    def serving(self) -> bool:
+        """Whether a program has connected and not yet been released (others are refused)."""
+        with self._ready:
+            return self._busy
+
+    def release(self) -> None:
+        """The program served has gone (and its ``#stop!`` is sent): the next may connect."""
+        with self._ready:
+            self._busy = False
 
     def close(self) -> None:
+        self._closing.set()
+        self._thread.join()
+        with self._ready:
+            if self._waiting is not None:
+                self._waiting.close()
+                self._waiting = None
+        self._refused.close()
+        self._selector.close()
         self._server.close()
+
+    def _listen(self) -> None:
+        while not self._closing.is_set():
+            for key, _ in self._selector.select(_POLL_S):
+                if key.fileobj is self._server:
+                    self._on_connection()
+                else:
+                    assert isinstance(key.fileobj, socket.socket)
+                    self._refused.on_readable(key.fileobj)
+            self._refused.expire(time.monotonic())
+
+    def _on_connection(self) -> None:
+        try:
+            connection, peer = self._server.accept()
+        except (BlockingIOError, InterruptedError):
+            return
+        except OSError as error:
+            logger.debug("tap server: %s", error)
+            return
+        with self._ready:
+            if not self._busy:
+                self._busy = True
+                connection.setblocking(True)
+                self._waiting = connection
+                self._ready.notify()
+                return
+        logger.info("tap: refused %s:%s: busy", *peer[:2])
+        self.refused += 1
+        self._refused.refuse(connection)
 
 
 def parse_tap(text: str) -> PtyEndpoint | TcpEndpoint:
@@ -124,28 +228,46 @@ def forward(
     controller: Link,
     record: Record,
     stopping: threading.Event,
+    *,
+    checksum: bool = False,
+    algorithm: str = "crc8",
 ) -> None:
     """Forward bytes both ways until ``stopping`` is set or the controller's link is lost,
-    calling ``record(direction, data)`` for each chunk before passing it on."""
+    calling ``record(direction, data)`` for each chunk before passing it on. ``checksum`` and
+    ``algorithm``: the mode the link starts in, to read the program's frames."""
     program: list[Link | None] = [None]
+
+    def stop_robot() -> None:
+        try:
+            controller.write(STOP_FRAME)
+        except ConnectionLostError:
+            logger.warning("tap: could not send #stop!: the controller's link is lost")
+            return
+        record("out", STOP_FRAME, by_session=True)
+        logger.info("tap: #stop! sent (the program may have left the robot moving)")
 
     def to_controller() -> None:
         while not stopping.is_set():
             side = program[0] = endpoint.accept(stopping)
             if side is None:
                 return
+            motion = _MayMove(checksum=checksum, algorithm=algorithm)
             try:
                 while not stopping.is_set():
                     data = side.read_available(_POLL_S)
                     if data:
                         record("out", data)
                         controller.write(data)
+                        motion.feed(data)
             except ConnectionLostError:
                 logger.info("tap: the program disconnected")
             finally:
                 program[0] = None
+                if motion.moved:  # a robot left moving by a program that is gone is stopped
+                    stop_robot()
                 if isinstance(endpoint, TcpEndpoint):
                     side.close()
+                    endpoint.release()
 
     thread = threading.Thread(target=to_controller, name="rovlink-tap", daemon=True)
     thread.start()

@@ -4,7 +4,7 @@ Replies update the sensor columns; commands update the set-point, mode, lock and
 columns. Each column is keyed by a frame and an argument of the command table, so a renamed
 argument fails the test that checks the keys rather than silently emptying a column.
 
->>> from rovlink.protocol import Command, Response
+>>> from rovlink.protocol import COMMANDS, Command, Response, Setting, Spec, VerticalMode
 >>> state = TelemetryState()
 >>> state.observe_command(Command("mvd", (120,)))
 True
@@ -18,7 +18,7 @@ from __future__ import annotations
 
 from collections.abc import Iterable
 
-from rovlink.protocol import Command, Response
+from rovlink.protocol import COMMANDS, Command, Response, Setting, Spec, VerticalMode
 from rovlink.recorder.entries import TELEMETRY_FIELDS
 
 __all__ = ["COMMAND_COLUMNS", "RESPONSE_COLUMNS", "TelemetryState"]
@@ -41,9 +41,23 @@ COMMAND_COLUMNS: dict[str, tuple[str, ...]] = {
     "mvdirect": ("vertical_direct",),
 }
 
-# ``start`` unlocks with neutral set-points and ``stop`` locks with the motors off (P7): the
-# thrust columns follow, so a plot never shows thrust the controller is not applying.
-_NEUTRAL = {"vertical_thrust_percent": 0, "thrust_power_percent": 0}
+
+def _columns(specs: Iterable[Spec]) -> tuple[str, ...]:
+    return tuple(column for spec in specs for column in COMMAND_COLUMNS.get(spec.name, ()))
+
+
+#: The columns of the motion commands (P7: ``stop`` and ``start`` clear them), and of the
+#: commands of each vertical mode (P9: a change of mode resets them), from the command table.
+_MOTION_COLUMNS = _columns(spec for spec in COMMANDS if spec.motion)
+_MODE_COLUMNS = {
+    mode: _columns(spec for spec in COMMANDS if spec.mode is mode) for mode in VerticalMode
+}
+#: A cleared set-point is 0, but for a target, which is then none (P7: "no depth target").
+_NO_TARGET = frozenset(_MODE_COLUMNS[VerticalMode.DEPTH])
+
+
+def _cleared(column: str) -> int | None:
+    return None if column in _NO_TARGET else 0
 
 
 class TelemetryState:
@@ -61,17 +75,34 @@ class TelemetryState:
 
     def observe_command(self, command: Command) -> bool:
         """Take a command's effect; whether any column changed."""
-        name = command.name
-        if name == "start":
-            return self._set([("locked", 0), *_NEUTRAL.items()])
-        if name == "stop":
-            return self._set([("locked", 1), *_NEUTRAL.items()])
-        columns = COMMAND_COLUMNS.get(name)
+        setting = command.setting
+        if setting is not None and setting[0] is Setting.LOCKED:
+            # ``stop`` locks with every set-point cleared, ``start`` unlocks with them neutral.
+            cleared = [(column, _cleared(column)) for column in _MOTION_COLUMNS]
+            return self._set([("locked", int(setting[1])), *cleared])
+        if setting is not None and setting[0] is Setting.DIRECT_MODE:
+            return self._change_mode(setting[1])
+        columns = COMMAND_COLUMNS.get(command.name)
         if columns is None:
             return False
         return self._set(zip(columns, command.values, strict=False))
 
-    def _set(self, pairs: Iterable[tuple[str, int]]) -> bool:
+    def _change_mode(self, direct: bool) -> bool:
+        """``mvdirect``: a change of vertical mode ends the set-points of the mode left and
+        starts the new one's afresh (P9): direct mode at 0 thrust, depth mode holding the depth
+        now if unlocked (the last known), else with no target. The same mode changes nothing."""
+        values = self.values
+        if values["vertical_direct"] == int(direct):
+            return False
+        entered = VerticalMode.DIRECT if direct else VerticalMode.DEPTH
+        pairs: list[tuple[str, int | None]] = [("vertical_direct", int(direct))]
+        for mode, columns in _MODE_COLUMNS.items():
+            for column in columns:
+                holds = mode is entered is VerticalMode.DEPTH and values["locked"] == 0
+                pairs.append((column, values["depth_cm"] if holds else _cleared(column)))
+        return self._set(pairs)
+
+    def _set(self, pairs: Iterable[tuple[str, int | None]]) -> bool:
         values = self.values
         changed = False
         for column, value in pairs:

@@ -10,6 +10,7 @@ sniffer, decoding them itself, since no driver of ours is in the middle.
 from __future__ import annotations
 
 from collections import deque
+from dataclasses import dataclass
 
 from rovlink.client.events import (
     BytesReceived,
@@ -32,6 +33,7 @@ from rovlink.protocol import (
     Frame,
     Kind,
     Response,
+    Setting,
     Text,
 )
 from rovlink.recorder.entries import (
@@ -53,8 +55,10 @@ _MAX_AWAITED = 64
 class SessionLog:
     """The entries of a session, made one happening at a time."""
 
-    def __init__(self) -> None:
+    def __init__(self, *, checksum: bool = False) -> None:
         self.telemetry = TelemetryState()
+        #: The checksum mode the next command is taken in, as the commands seen set it (P3).
+        self.checksum = checksum
         self._sent_at: dict[str, deque[float]] = {}
         self._leak: int | None = None
 
@@ -74,6 +78,9 @@ class SessionLog:
         if command.spec.is_query:
             awaited = self._sent_at.setdefault(command.name, deque(maxlen=_MAX_AWAITED))
             awaited.append(t_s)
+        setting = command.setting
+        if setting is not None and setting[0] is Setting.CHECKSUM:
+            self.checksum = setting[1]
         was_locked = self.telemetry.values["locked"]
         if self.telemetry.observe_command(command):
             locked = self.telemetry.values["locked"]
@@ -156,8 +163,8 @@ class SessionLog:
 class ClientEventLog:
     """Entries from the host driver's events (:mod:`rovlink.client.events`)."""
 
-    def __init__(self) -> None:
-        self.log = SessionLog()
+    def __init__(self, *, checksum: bool = False) -> None:
+        self.log = SessionLog(checksum=checksum)
 
     def entries(self, wall_ns: int, event: ClientEvent) -> list[Entry]:
         """The entries of one event, seen at ``wall_ns``."""
@@ -195,54 +202,118 @@ class ClientEventLog:
         return out
 
 
+@dataclass(slots=True)
+class _Awaited:
+    """A query sent and the names of the replies it still awaits, oldest first."""
+
+    query: str
+    names: deque[str]
+    #: The checksum mode in force when the controller took the query: its replies' mode (P3).
+    checksum: bool
+
+
 class TapLog:
     """Entries from bytes seen in each direction, decoded here.
 
     Replies are matched to the oldest query still awaiting a reply of their name, the way the
-    controller answers (in order, P4; ``qsa``'s six in their order, P12). The reply decoder
-    follows the checksum mode that the host's frames set (P3).
+    controller answers (in order, P4; ``qsa``'s six in their order, P12). Each reply is decoded
+    in the checksum mode that was in force when its query was taken (P3: a mode change takes
+    effect from the next frame, however the bytes were chunked). A sniffer's bytes (all ``in``)
+    hold both directions: a frame that starts with ``#`` is a command, recorded as one.
     """
 
     def __init__(self, *, checksum: bool = False, algorithm: str = "crc8") -> None:
-        self.log = SessionLog()
+        self.log = SessionLog(checksum=checksum)
         self._out = Decoder(checksum_enabled=checksum, algorithm=algorithm)
         self._in = Decoder(checksum_enabled=checksum, algorithm=algorithm)
-        # Each query sent and the names of the replies it still awaits, oldest first.
-        self._awaited: deque[tuple[str, deque[str]]] = deque(maxlen=_MAX_AWAITED)
+        self._awaited: deque[_Awaited] = deque(maxlen=_MAX_AWAITED)
+        # The start byte of the frame the ``in`` stream is inside (b"": between frames).
+        self._in_start = b""
 
-    def entries(self, t_s: float, wall_ns: int, direction: str, data: bytes) -> list[Entry]:
-        """The entries of ``data`` seen going ``direction`` (``out``: to the controller)."""
-        log = self.log
-        out: list[Entry] = [log.wire(t_s, wall_ns, direction, data)]
+    def entries(
+        self, t_s: float, wall_ns: int, direction: str, data: bytes, by_session: bool = False
+    ) -> list[Entry]:
+        """The entries of ``data`` seen going ``direction`` (``out``: to the controller);
+        ``by_session``: written by the tap itself."""
+        out: list[Entry] = [self.log.wire(t_s, wall_ns, direction, data, by_session)]
         if direction == "out":
-            for event in self._out.feed(data):
-                if isinstance(event, Frame) and event.message.kind is Kind.COMMAND:
-                    command = Command(event.message.name, event.message.values)
-                    log.command(t_s, wall_ns, command, False, out)
-                    if command.spec.replies:
-                        self._awaited.append((command.name, deque(command.spec.replies)))
-                else:
-                    log.decoded(t_s, wall_ns, event, out)
-            self._in.checksum_enabled = self._out.checksum_enabled
+            self._take(self._out.feed(data), t_s, wall_ns, by_session, out)
             return out
-        for event in self._in.feed(data):
-            query = self._answered(event)
-            if query is None or not isinstance(event, Frame):
-                log.decoded(t_s, wall_ns, event, out)
-                continue
-            response = Response(event.message.name, event.message.values)
-            log.replies(t_s, wall_ns, query, (response,), out)
+        decoder = self._in
+        if b"#" not in data and self._in_start != b"#" and self._one_reply_mode():
+            # Replies alone, all in one mode (the usual case): the chunk in one go.
+            decoder.checksum_enabled = self._reply_mode()
+            self._in_start = _start_after(data, self._in_start)
+            self._take(decoder.feed(data), t_s, wall_ns, False, out)
+            return out
+        # Frame by frame: each is read in its own mode, known only once the one before it has
+        # been matched to its query.
+        for piece in _frame_pieces(data):
+            start = _start_after(piece, self._in_start, ended=False)
+            decoder.checksum_enabled = self.log.checksum if start == b"#" else self._reply_mode()
+            self._in_start = _start_after(piece, self._in_start)
+            self._take(decoder.feed(piece), t_s, wall_ns, False, out)
         return out
 
-    def _answered(self, event: Event) -> str | None:
+    def _reply_mode(self) -> bool:
+        """The mode of the next reply: its query's, else (a reply to nothing) the current."""
+        return self._awaited[0].checksum if self._awaited else self.log.checksum
+
+    def _one_reply_mode(self) -> bool:
+        mode = self.log.checksum
+        return all(awaited.checksum == mode for awaited in self._awaited)
+
+    def _take(
+        self, events: list[Event], t_s: float, wall_ns: int, by_session: bool, out: list[Entry]
+    ) -> None:
+        log = self.log
+        for event in events:
+            if isinstance(event, Frame):
+                message = event.message
+                if message.kind is Kind.COMMAND:
+                    command = Command(message.name, message.values)
+                    if command.spec.replies:  # (in the mode before the command's own change)
+                        self._awaited.append(
+                            _Awaited(command.name, deque(command.spec.replies), log.checksum)
+                        )
+                    log.command(t_s, wall_ns, command, by_session, out)
+                    continue
+                query = self._answered(event)
+                if query is not None:
+                    response = Response(message.name, message.values)
+                    log.replies(t_s, wall_ns, query, (response,), out)
+                    continue
+            log.decoded(t_s, wall_ns, event, out)
+
+    def _answered(self, event: Frame) -> str | None:
         """The query that ``event`` answers, taken off the awaited list; ``None`` if none."""
-        if not isinstance(event, Frame) or event.message.kind is not Kind.RESPONSE:
-            return None
         name = event.message.name
-        for index, (query, names) in enumerate(self._awaited):
-            if names[0] == name:
-                names.popleft()
-                if not names:
+        for index, awaited in enumerate(self._awaited):
+            if awaited.names[0] == name:
+                awaited.names.popleft()
+                if not awaited.names:
                     del self._awaited[index]
-                return query
+                return awaited.query
         return None
+
+
+def _frame_pieces(data: bytes) -> list[bytes]:
+    """``data`` cut after each ``!``: each piece ends a frame, but for the last."""
+    parts = data.split(b"!")
+    pieces = [part + b"!" for part in parts[:-1]]
+    if parts[-1]:
+        pieces.append(parts[-1])
+    return pieces
+
+
+def _start_after(data: bytes, before: bytes, *, ended: bool = True) -> bytes:
+    """The start byte of the frame ``data`` leaves the stream inside (``ended=False``: of the
+    frame its last ``!`` ends); ``before``: the one it started inside."""
+    bang = data.rfind(b"!")
+    tail = data[bang + 1 :] if ended or bang < 0 else data[:bang]
+    found = max(tail.rfind(b"#"), tail.rfind(b"$"))
+    if found >= 0:
+        return tail[found : found + 1]
+    if ended and b"!" in data:
+        return b""
+    return before

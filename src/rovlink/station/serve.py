@@ -15,6 +15,7 @@ import socket
 from collections.abc import Awaitable, Callable, Generator
 from dataclasses import dataclass
 from pathlib import Path
+from types import FrameType
 from urllib.parse import quote
 
 import uvicorn
@@ -49,7 +50,15 @@ class ServeOptions:
 class _Server(uvicorn.Server):
     """uvicorn's server, except that SIGINT, SIGTERM and SIGHUP only end the serving: uvicorn
     would raise the signal again as soon as it stops, and SIGTERM's default action would end the
-    process before the station has sent ``#stop!`` and closed the link."""
+    process before the station has sent ``#stop!`` and closed the link. :attr:`interrupted`:
+    whether the signal that ended it was Ctrl-C (the command's status is then 130)."""
+
+    interrupted = False
+
+    def handle_exit(self, sig: int, frame: FrameType | None) -> None:
+        if not self.should_exit and sig == signal.SIGINT:
+            self.interrupted = True
+        super().handle_exit(sig, frame)
 
     @contextlib.contextmanager
     def capture_signals(self) -> Generator[None, None, None]:
@@ -130,9 +139,9 @@ async def serve(
     *,
     description: str,
     ready: Callable[[list[str]], None],
-) -> None:
+) -> bool:
     """Connect, then serve until SIGINT, SIGTERM or SIGHUP; ``ready`` gets the page's URLs
-    once listening.
+    once listening. Whether Ctrl-C (SIGINT) ended it.
 
     On the way out the relay is disarmed and ``#stop!`` (every output to zero, the motors
     locked) is sent unless the robot is locked as last sent; then the link is closed.
@@ -190,3 +199,4 @@ async def serve(
             listener.close()
     finally:
         await client.close()
+    return server.interrupted

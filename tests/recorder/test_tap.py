@@ -1,0 +1,130 @@
+"""The recording tap (``rovlink record URL --tap socket://…``) over real TCP sockets: one program
+at a time, and the robot stopped when a program that may have moved it leaves."""
+
+from __future__ import annotations
+
+import socket
+import threading
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+
+import pytest
+
+from rovlink.client import parse_url
+from rovlink.client.links import open_link
+from rovlink.recorder.tap import BUSY_MESSAGE, STOP_FRAME, TcpEndpoint, forward
+from tests.client.conftest import wait_until
+from tests.faults.test_fault_proxy import RecordingController
+
+pytestmark = pytest.mark.integration
+
+_TIMEOUT_S = 10.0
+
+
+@dataclass
+class _Chunks:
+    """What the tap handed to the recorder, in order."""
+
+    chunks: list[tuple[str, bytes, bool]] = field(default_factory=list)
+    lock: threading.Lock = field(default_factory=threading.Lock)
+
+    def __call__(self, direction: str, data: bytes, *, by_session: bool = False) -> None:
+        with self.lock:
+            self.chunks.append((direction, data, by_session))
+
+
+@dataclass
+class _Tap:
+    controller: RecordingController
+    address: tuple[str, int]
+    recorded: _Chunks
+    endpoint: TcpEndpoint
+
+    def program_gone(self) -> None:
+        """Wait until the tap has seen its program leave (the next is then served)."""
+        assert wait_until(lambda: not self.endpoint.serving, _TIMEOUT_S)
+
+
+@pytest.fixture
+def tap() -> Iterator[_Tap]:
+    """A tap on a free TCP port in front of a controller that keeps every byte it is sent."""
+    controller = RecordingController()
+    host, port = controller.address
+    link = open_link(parse_url(f"socket://{host}:{port}"))
+    endpoint = TcpEndpoint("127.0.0.1", 0)
+    recorded = _Chunks()
+    stopping = threading.Event()
+    forwarding = threading.Thread(
+        target=forward, args=(endpoint, link, recorded, stopping), daemon=True
+    )
+    forwarding.start()
+    tcp_host, tcp_port = endpoint.path.removeprefix("socket://").rsplit(":", 1)
+    try:
+        yield _Tap(controller, (tcp_host, int(tcp_port)), recorded, endpoint)
+    finally:
+        stopping.set()
+        forwarding.join(_TIMEOUT_S)
+        endpoint.close()
+        link.close()
+        controller.close()
+
+
+def _program(address: tuple[str, int]) -> socket.socket:
+    connection = socket.create_connection(address, timeout=_TIMEOUT_S)
+    connection.settimeout(_TIMEOUT_S)
+    return connection
+
+
+def _read_to_end(connection: socket.socket) -> bytes:
+    data = b""
+    while chunk := connection.recv(4096):
+        data += chunk
+    return data
+
+
+def test_a_second_program_is_told_busy_and_nothing_it_sends_reaches_the_controller(
+    tap: _Tap,
+) -> None:
+    first = _program(tap.address)
+    first.sendall(b"#qd!")
+    assert tap.controller.wait_for(b"#qd!") == b"#qd!"
+    second = _program(tap.address)
+    second.sendall(b"#start!#th.0.100!")
+    # At once, while the first is still connected: one line, then the end of the connection.
+    assert _read_to_end(second) == BUSY_MESSAGE
+    second.close()
+    first.close()
+    tap.program_gone()
+    # The next program after the first has gone is served; the refused one's bytes never came.
+    third = _program(tap.address)
+    third.sendall(b"#qr!")
+    assert tap.controller.wait_for(b"#qr!") == b"#qd!#qr!"
+    third.close()
+
+
+def test_a_program_that_leaves_the_robot_moving_is_followed_by_stop(tap: _Tap) -> None:
+    mover = _program(tap.address)
+    mover.sendall(b"#start!#th.90.50!")
+    tap.controller.wait_for(b"#th.90.50!")
+    mover.close()
+    assert tap.controller.wait_for(STOP_FRAME) == b"#start!#th.90.50!" + STOP_FRAME
+    assert wait_until(lambda: ("out", STOP_FRAME, True) in tap.recorded.chunks, _TIMEOUT_S)
+
+
+def test_a_program_that_stopped_the_robot_or_only_asked_is_not_followed_by_stop(
+    tap: _Tap,
+) -> None:
+    stopped = _program(tap.address)
+    stopped.sendall(b"#start!#th.90.50!#stop!")
+    tap.controller.wait_for(b"#stop!")
+    stopped.close()
+    tap.program_gone()
+    asker = _program(tap.address)  # (served once the one before has gone)
+    asker.sendall(b"#qd!")
+    tap.controller.wait_for(b"#qd!")
+    asker.close()
+    tap.program_gone()
+    last = _program(tap.address)
+    last.sendall(b"#qr!")
+    assert tap.controller.wait_for(b"#qr!") == b"#start!#th.90.50!#stop!#qd!#qr!"
+    last.close()

@@ -1,0 +1,77 @@
+"""Bytes seen by a tap or a sniffer, turned into entries: replies read in their query's checksum
+mode, and a sniffer's commands recorded as commands."""
+
+from __future__ import annotations
+
+from rovlink.protocol import Command, Response, encode
+from rovlink.recorder.entries import Entry, EventEntry, FrameEntry, TelemetryEntry
+from rovlink.recorder.translate import TapLog
+
+
+def _feed(log: TapLog, *chunks: tuple[str, bytes]) -> list[Entry]:
+    entries: list[Entry] = []
+    for at_s, (direction, data) in enumerate(chunks):
+        entries += log.entries(float(at_s), at_s, direction, data)
+    return entries
+
+
+def _problems(entries: list[Entry]) -> list[EventEntry]:
+    return [
+        e for e in entries if isinstance(e, EventEntry) and e.event in {"bad_frame", "stray_frame"}
+    ]
+
+
+def _replies(entries: list[Entry]) -> list[tuple[str | None, str, tuple[int, ...]]]:
+    return [
+        (e.query, e.name, e.values)
+        for e in entries
+        if isinstance(e, FrameEntry) and e.kind == "response"
+    ]
+
+
+def _checked(response: Response) -> bytes:
+    return encode(response, "crc8")
+
+
+def test_each_reply_is_read_in_the_mode_in_force_when_its_query_was_taken() -> None:
+    # P3: in `#qd!#crcon!` the qd reply is plain; in `#qd8C!#crcoff!` it carries a checksum.
+    entries = _feed(
+        TapLog(),
+        ("out", b"#qd!#crcon!"),
+        ("in", encode(Response("qd", (5,)))),
+        ("out", encode(Command("qd"), "crc8") + b"#crcoff!"),
+        ("in", _checked(Response("qd", (6,)))),
+    )
+    assert _problems(entries) == []
+    assert _replies(entries) == [("qd", "qd", (5,)), ("qd", "qd", (6,))]
+
+
+def test_replies_of_two_modes_in_one_chunk_are_each_read_in_their_own() -> None:
+    plain, checked = encode(Response("qd", (5,))), _checked(Response("qr", (7,)))
+    entries = _feed(
+        TapLog(),
+        ("out", b"#qd!#crcon!" + encode(Command("qr"), "crc8")),
+        ("in", plain[:3]),  # (a frame cut between chunks keeps its mode)
+        ("in", plain[3:] + checked),
+    )
+    assert _problems(entries) == []
+    assert _replies(entries) == [("qd", "qd", (5,)), ("qr", "qr", (7,))]
+
+
+def test_a_sniffers_commands_are_recorded_as_commands() -> None:
+    # Listening only, every byte is "in": the frames' # and $ still tell commands from replies.
+    entries = _feed(
+        TapLog(),
+        ("in", b"#start!#qd!$qd.12!#crcon!"),
+        ("in", encode(Command("qd"), "crc8") + _checked(Response("qd", (13,)))),
+        ("in", b"#stop!"),
+    )
+    assert _problems(entries) == []
+    commands = [e.name for e in entries if isinstance(e, FrameEntry) and e.kind == "command"]
+    assert commands == ["start", "qd", "crcon", "qd", "stop"]
+    assert _replies(entries) == [("qd", "qd", (12,)), ("qd", "qd", (13,))]
+    locks = [e.detail for e in entries if isinstance(e, EventEntry) and e.event == "lock"]
+    assert locks == ["unlocked", "locked"]
+    last = [e for e in entries if isinstance(e, TelemetryEntry)][-1]
+    assert last.values["locked"] == 1
+    assert last.values["depth_cm"] == 13
