@@ -117,6 +117,40 @@ async def test_leaving_without_q_stops_the_robot_it_moved() -> None:
     assert rig.port.controller.locked
 
 
+class FakeClock:
+    """Monotonic seconds that move only when a test moves them."""
+
+    def __init__(self, now_s: float = 1000.0) -> None:
+        self.now_s = now_s
+
+    def __call__(self) -> float:
+        return self.now_s
+
+
+READING_BOXES = ("#depth-box", "#attitude", "#leak")
+
+
+async def test_every_reading_shown_is_marked_stale_when_the_link_is_cut() -> None:
+    # Regression: only the depth box said "stale"; the depth figure, roll, pitch, heading, the
+    # compass and a green "no leak (q.l = 0)" went on looking live.
+    rig = Rig.simulated()
+    clock = FakeClock()
+    app = MonitorApp(rig.connect, description="bench", rate_hz=20, clock=clock)
+    async with app.run_test(size=SIZE) as pilot:
+        await until(lambda: "no leak (q.l = 0)" in shown(app, "#leak"))
+        assert not app.query(".-stale")
+        rig.port.close()
+        await until(lambda: "lost: " in shown(app, "#link"))  # no reading will come now
+        clock.now_s += 6.5
+        await until(lambda: app.query_one("#attitude").has_class("-stale"))
+        for box in READING_BOXES:
+            assert app.query_one(box).has_class("-stale"), box
+            assert app.query_one(box).border_subtitle == "stale: 6.5 s old", box
+        await until(lambda: screen_text(app).count("stale: 6.5 s old") == 3)
+        assert shown(app, "#leak") == "leak unknown: the last reading said no leak (q.l = 0)"
+        await pilot.press("q")
+
+
 async def test_leak_alarm_and_reset() -> None:
     rig = Rig.simulated(leak_at_s=1.0)
     app = MonitorApp(rig.connect, description="bench", rate_hz=20)

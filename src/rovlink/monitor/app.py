@@ -38,6 +38,7 @@ from rovlink.monitor.panels import (
     depth_text,
     leak_text,
     link_text,
+    stale_text,
 )
 from rovlink.monitor.readings import DEFAULT_WINDOW_S, Readings
 from rovlink.piloting import LockState, SentFrame, TrackedClient
@@ -54,6 +55,8 @@ Connector = Callable[[StrayCallback], Awaitable[AsyncClient]]
 _REDRAW_S = 0.25
 #: How long leaving may wait for ``#stop!`` to be written (it is not acknowledged).
 _STOP_WRITE_TIMEOUT_S = 1.0
+#: The boxes that show a sensor reading: each is marked when the reading is stale.
+_READING_BOXES = ("#depth-box", "#attitude", "#leak")
 
 
 class Panel(Widget):
@@ -97,6 +100,11 @@ class MonitorApp(App[None]):
     #attitude { width: 32; height: 8; }
     #commanded { width: 1fr; height: 8; }
     #leak { height: 3; border: round $success; content-align: center middle; }
+    /* A stale reading keeps its box, dimmed, with its age on the bottom border. */
+    #depth-box.-stale, #attitude.-stale, #leak.-stale {
+        border: round $warning; border-subtitle-color: $warning; border-subtitle-style: bold;
+    }
+    #depth-box.-stale #depth-digits { color: $text-muted; }
     #leak.alarm { background: $error; color: $text; border: heavy $warning; text-style: bold; }
     #link { height: 6; }
     #chart { height: 1fr; min-height: 8; }
@@ -146,12 +154,16 @@ class MonitorApp(App[None]):
         rate_hz: float = 5.0,
         algorithm: str = "crc8",
         window_s: float = DEFAULT_WINDOW_S,
+        clock: Callable[[], float] = time.monotonic,
     ) -> None:
-        """``description`` names the robot in the title; ``rate_hz`` is the polling rate."""
+        """``description`` names the robot in the title; ``rate_hz`` is the polling rate;
+        ``clock`` (monotonic seconds) times the readings, so a test can make them old."""
         if isinstance(rate_hz, bool) or not isinstance(rate_hz, int | float) or rate_hz <= 0:
             raise ValueError(f"rate_hz must be a positive number, got {rate_hz!r}")
         super().__init__()
         self._connect = connect
+        self._clock = clock
+        self._stale = False
         self._algorithm = algorithm
         self.rate_hz = rate_hz
         self.readings = Readings(window_s=window_s)
@@ -174,7 +186,11 @@ class MonitorApp(App[None]):
                 yield Static(id="depth-readout")
             yield Panel(self._draw_attitude, title="attitude", id="attitude")
             yield Panel(self._draw_commanded, title="commanded, as last sent", id="commanded")
-        yield Panel(lambda width, height: leak_text(self.readings), title="leak", id="leak")
+        yield Panel(
+            lambda width, height: leak_text(self.readings, stale=self._stale),
+            title="leak",
+            id="leak",
+        )
         yield Panel(self._draw_link, title="link", id="link")
         yield Panel(self._draw_chart, title="depth over time", id="chart")
         yield Footer()
@@ -238,7 +254,7 @@ class MonitorApp(App[None]):
                     self._link_state = f"lost: {error}"
                     break
                 else:
-                    self.readings.record(reading, time.monotonic())
+                    self.readings.record(reading, self._clock())
                 self._redraw()
                 await asyncio.sleep(max(self.period_s - (loop.time() - started_s), 0.0))
         finally:
@@ -267,13 +283,20 @@ class MonitorApp(App[None]):
 
     def _update_widgets(self) -> None:
         reading = self.readings.latest
+        # Every box that shows the reading says it is old in the same words, not the depth alone.
+        stale = stale_text(self.readings, now_s=self._clock(), period_s=self.period_s)
+        self._stale = stale is not None
+        for selector in _READING_BOXES:
+            box = self.query_one(selector)
+            box.set_class(self._stale, "-stale")
+            box.border_subtitle = stale or ""
         self.query_one("#depth-digits", Digits).update(
             "—" if reading is None else str(reading.depth_cm)
         )
         commanded = self.rov.commanded if self.rov is not None else None
         if commanded is not None:
             self.query_one("#depth-readout", Static).update(
-                depth_text(self.readings, commanded, now_s=time.monotonic(), period_s=self.period_s)
+                depth_text(self.readings, commanded, stale=self._stale)
             )
         leak = self.readings.leak
         leak_panel = self.query_one("#leak", Panel)
@@ -285,7 +308,7 @@ class MonitorApp(App[None]):
             panel.refresh()
 
     def _draw_attitude(self, width: int, height: int) -> RenderableType:
-        return attitude_text(self.readings, width)
+        return attitude_text(self.readings, width, stale=self._stale)
 
     def _draw_commanded(self, width: int, height: int) -> RenderableType:
         if self.rov is None:
@@ -306,7 +329,7 @@ class MonitorApp(App[None]):
             self.rov.health,
             self.rov.client.counters,
             self.readings,
-            now_s=time.monotonic(),
+            now_s=self._clock(),
             rate_hz=self.rate_hz,
         )
         if self.rov.client.closed:  # (in the panel's four rows, instead of the health)
@@ -317,7 +340,7 @@ class MonitorApp(App[None]):
         target_cm = self.rov.commanded.target_depth_cm if self.rov is not None else None
         lines = depth_chart(
             self.readings.history,
-            now_s=time.monotonic(),
+            now_s=self._clock(),
             window_s=self.readings.window_s,
             width=width,
             height=max(height - 2, 2),
