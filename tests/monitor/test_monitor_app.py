@@ -223,14 +223,55 @@ async def test_footer_shows_the_keys() -> None:
         for words in (
             "space STOP",
             "s start",
-            "←→ direction",
+            "←→ turn",
             "↑↓ power",
-            "PgUp/PgDn depth target",
+            "PgUp/PgDn depth",
             "o/c claw",
             "r reset leak",
             "q quit",
         ):
             assert words in footer()
+        await pilot.press("q")
+
+
+async def test_the_classic_80_by_24_terminal_shows_every_essential_row_and_the_quit_key() -> None:
+    # Regression: at 80×24 the "commanded" box was 14 columns wide ("motors unlocked (as last
+    # sent)" over three lines, "horizontal" and "last sent" cut off), the screen scrolled, and
+    # the footer ended before "q quit".
+    rig = Rig.simulated()
+    app = MonitorApp(rig.connect, description="bench", rate_hz=20)
+    async with app.run_test(size=(80, 24)) as pilot:
+        await until(lambda: _depth_shown(app) == 0)
+        await pilot.press("s")
+        await until(lambda: "motors     unlocked (as last sent)" in screen_text(app))
+        await pilot.press("space", "right")
+        await until(lambda: "#th.15.0!" in rig.frames())
+        await until(lambda: "last sent  #th.15.0!  (dropped: locked)" in screen_text(app))
+        lines = screen_text(app).splitlines()
+        assert len(lines) == 24
+        assert lines[-1].rstrip().endswith("q quit")
+        screen = "\n".join(lines)
+        for row in (
+            "motors     locked (as last sent)",
+            "vertical   unknown: none sent",
+            "horizontal 0° at 0 %",
+            "raw pressure",
+            "roll ",
+            "pitch ",
+            "heading ",
+            "▲",
+            "no leak (q.l = 0)",
+            "link       simulated controller · polling 20 Hz",
+            "reply time ",
+            "silence    last reading",
+            "errors     timeouts 0 · retries 0 · checksum errors 0 · failed polls 0",
+        ):
+            assert row in screen, row
+        assert app.screen.virtual_size.height <= 24  # nothing below the fold to scroll to
+        await pilot.resize_terminal(120, 40)  # wider: three boxes in a row, and the chart
+        await until(lambda: "depth over time" in screen_text(app))
+        assert "depth, cm" in screen_text(app).splitlines()[1]
+        assert "commanded, as last sent" in screen_text(app).splitlines()[1]
         await pilot.press("q")
 
 
