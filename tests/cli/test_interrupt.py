@@ -309,6 +309,25 @@ def test_a_signal_ends_the_monitor_with_stop(silent: SilentController, how: sign
         terminal.close()
 
 
+def test_the_ctrl_c_key_quits_the_monitor_as_q_does(silent: SilentController) -> None:
+    # In the dashboard's raw terminal Ctrl-C is a key, not SIGINT: #stop! then status 0, as
+    # after q (a SIGINT ends it with 130: above). docs/tools.md says so.
+    terminal = Terminal("monitor", silent.url, "--boot-timeout", "0", "--timeout", "0.2")
+    try:
+        assert silent.wait_for(b"#qsa!")
+        terminal.type("s")
+        assert silent.wait_for(b"#start!")
+        terminal.type("\x1b[A")  # up: thrust ahead
+        assert silent.wait_for(b"#th.0.")
+        terminal.type("\x03")
+        _, stderr = terminal.process.communicate(timeout=WAIT_S)
+        assert terminal.process.returncode == 0, stderr
+        assert silent.wait_for(b"#stop!")
+        assert silent.received.rindex(b"#stop!") > silent.received.index(b"#th.0.")
+    finally:
+        terminal.close()
+
+
 def _end_of(terminal: Terminal) -> str:
     """What the command said on stderr once it has ended (within WAIT_S)."""
     _, stderr = terminal.process.communicate(timeout=WAIT_S)

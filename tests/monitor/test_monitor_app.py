@@ -117,6 +117,40 @@ async def test_leaving_without_q_stops_the_robot_it_moved() -> None:
     assert rig.port.controller.locked
 
 
+class FakeClock:
+    """Monotonic seconds that move only when a test moves them."""
+
+    def __init__(self, now_s: float = 1000.0) -> None:
+        self.now_s = now_s
+
+    def __call__(self) -> float:
+        return self.now_s
+
+
+READING_BOXES = ("#depth-box", "#attitude", "#leak")
+
+
+async def test_every_reading_shown_is_marked_stale_when_the_link_is_cut() -> None:
+    # Regression: only the depth box said "stale"; the depth figure, roll, pitch, heading, the
+    # compass and a green "no leak (q.l = 0)" went on looking live.
+    rig = Rig.simulated()
+    clock = FakeClock()
+    app = MonitorApp(rig.connect, description="bench", rate_hz=20, clock=clock)
+    async with app.run_test(size=SIZE) as pilot:
+        await until(lambda: "no leak (q.l = 0)" in shown(app, "#leak"))
+        assert not app.query(".-stale")
+        rig.port.close()
+        await until(lambda: "lost: " in shown(app, "#link"))  # no reading will come now
+        clock.now_s += 6.5
+        await until(lambda: app.query_one("#attitude").has_class("-stale"))
+        for box in READING_BOXES:
+            assert app.query_one(box).has_class("-stale"), box
+            assert app.query_one(box).border_subtitle == "stale: 6.5 s old", box
+        await until(lambda: screen_text(app).count("stale: 6.5 s old") == 3)
+        assert shown(app, "#leak") == "leak unknown: the last reading said no leak (q.l = 0)"
+        await pilot.press("q")
+
+
 async def test_leak_alarm_and_reset() -> None:
     rig = Rig.simulated(leak_at_s=1.0)
     app = MonitorApp(rig.connect, description="bench", rate_hz=20)
@@ -189,14 +223,55 @@ async def test_footer_shows_the_keys() -> None:
         for words in (
             "space STOP",
             "s start",
-            "←→ direction",
+            "←→ turn",
             "↑↓ power",
-            "PgUp/PgDn depth target",
+            "PgUp/PgDn depth",
             "o/c claw",
             "r reset leak",
             "q quit",
         ):
             assert words in footer()
+        await pilot.press("q")
+
+
+async def test_the_classic_80_by_24_terminal_shows_every_essential_row_and_the_quit_key() -> None:
+    # Regression: at 80×24 the "commanded" box was 14 columns wide ("motors unlocked (as last
+    # sent)" over three lines, "horizontal" and "last sent" cut off), the screen scrolled, and
+    # the footer ended before "q quit".
+    rig = Rig.simulated()
+    app = MonitorApp(rig.connect, description="bench", rate_hz=20)
+    async with app.run_test(size=(80, 24)) as pilot:
+        await until(lambda: _depth_shown(app) == 0)
+        await pilot.press("s")
+        await until(lambda: "motors     unlocked (as last sent)" in screen_text(app))
+        await pilot.press("space", "right")
+        await until(lambda: "#th.15.0!" in rig.frames())
+        await until(lambda: "last sent  #th.15.0!  (dropped: locked)" in screen_text(app))
+        lines = screen_text(app).splitlines()
+        assert len(lines) == 24
+        assert lines[-1].rstrip().endswith("q quit")
+        screen = "\n".join(lines)
+        for row in (
+            "motors     locked (as last sent)",
+            "vertical   unknown: none sent",
+            "horizontal 0° at 0 %",
+            "raw pressure",
+            "roll ",
+            "pitch ",
+            "heading ",
+            "▲",
+            "no leak (q.l = 0)",
+            "link       simulated controller · polling 20 Hz",
+            "reply time ",
+            "silence    last reading",
+            "errors     timeouts 0 · retries 0 · checksum errors 0 · failed polls 0",
+        ):
+            assert row in screen, row
+        assert app.screen.virtual_size.height <= 24  # nothing below the fold to scroll to
+        await pilot.resize_terminal(120, 40)  # wider: three boxes in a row, and the chart
+        await until(lambda: "depth over time" in screen_text(app))
+        assert "depth, cm" in screen_text(app).splitlines()[1]
+        assert "commanded, as last sent" in screen_text(app).splitlines()[1]
         await pilot.press("q")
 
 

@@ -9,6 +9,7 @@ from rovlink.monitor.panels import (
     depth_text,
     leak_text,
     link_text,
+    stale_text,
 )
 from rovlink.monitor.readings import Readings
 from rovlink.piloting import CommandedState, LinkHealth, LockState
@@ -26,18 +27,40 @@ def _readings(*readings: tuple[Sensors, float]) -> Readings:
     return result
 
 
-def test_depth_readout_says_as_last_sent_and_goes_stale() -> None:
+def test_depth_readout_says_as_last_sent() -> None:
     readings = _readings((READING, 10.0))
     commanded = CommandedState(vertical_mode=VerticalMode.DEPTH, target_depth_cm=60)
-    text = depth_text(readings, commanded, now_s=10.1, period_s=0.2).plain
+    text = depth_text(readings, commanded).plain
     assert "target 60 cm, as last sent" in text
     assert "raw pressure 612" in text
-    assert "stale" not in text
-    stale = depth_text(readings, commanded, now_s=11.0, period_s=0.2).plain
-    assert "stale: last reading 1.0 s ago" in stale
-    assert (
-        "no target sent" in depth_text(readings, CommandedState(), now_s=10.1, period_s=0.2).plain
-    )
+    assert "no target sent" in depth_text(readings, CommandedState()).plain
+
+
+def test_a_reading_goes_stale_after_three_polling_periods() -> None:
+    readings = _readings((READING, 10.0))
+    assert stale_text(readings, now_s=10.6, period_s=0.2) is None
+    assert stale_text(readings, now_s=11.0, period_s=0.2) == "stale: 1.0 s old"
+    assert stale_text(Readings(), now_s=11.0, period_s=0.2) is None
+
+
+def test_stale_values_are_dimmed_and_a_stale_all_clear_is_no_all_clear() -> None:
+    # Regression: only the depth box said a reading was old; roll, pitch, heading, the compass
+    # and a green "no leak" went on looking live.
+    readings = _readings((READING, 1.0))
+    attitude = attitude_text(readings, 40, stale=True)
+    assert "heading     275°" in attitude.plain
+    assert not [span for span in attitude.spans if "cyan" in str(span.style)]
+    assert "bold" not in str(attitude.spans)
+    assert "dim" in str(attitude.style)
+    leak = leak_text(readings, stale=True)
+    assert "no leak" in leak.plain
+    assert leak.plain.startswith("leak unknown")
+    assert "green" not in str(leak.style)
+    depth = depth_text(readings, CommandedState(), stale=True)
+    assert "raw pressure 612" in depth.plain
+    assert "bold" not in str(depth.spans)
+    leaking = _readings((Sensors(57, 612, True, 0, 0, 0), 2.0))
+    assert leak_text(leaking, stale=True).plain.startswith("██ LEAK ██")  # the latch holds
 
 
 def test_leak_banner() -> None:

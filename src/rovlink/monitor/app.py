@@ -19,9 +19,10 @@ from typing import ClassVar, Literal
 
 from rich.console import RenderableType
 from rich.text import Text
+from textual import events
 from textual.app import App, ComposeResult
 from textual.binding import Binding, BindingType
-from textual.containers import Horizontal, Vertical
+from textual.containers import Container, Vertical
 from textual.css.query import NoMatches
 from textual.widget import Widget
 from textual.widgets import Digits, Footer, Header, Static
@@ -38,6 +39,7 @@ from rovlink.monitor.panels import (
     depth_text,
     leak_text,
     link_text,
+    stale_text,
 )
 from rovlink.monitor.readings import DEFAULT_WINDOW_S, Readings
 from rovlink.piloting import LockState, SentFrame, TrackedClient
@@ -45,7 +47,7 @@ from rovlink.protocol import BadFrame, Command, Event
 from rovlink.protocol import Text as DebugText
 from rovlink.protocol.visible import visible
 
-__all__ = ["Connector", "MonitorApp", "Panel"]
+__all__ = ["Connector", "MonitorApp", "Panel", "ShownIfRoom"]
 
 #: Opens the connection, given the callback for what the controller sends unasked.
 Connector = Callable[[StrayCallback], Awaitable[AsyncClient]]
@@ -54,6 +56,13 @@ Connector = Callable[[StrayCallback], Awaitable[AsyncClient]]
 _REDRAW_S = 0.25
 #: How long leaving may wait for ``#stop!`` to be written (it is not acknowledged).
 _STOP_WRITE_TIMEOUT_S = 1.0
+#: Below this many columns, the top boxes go in two rows of two and the footer is compact.
+NARROW_BELOW_COLUMNS = 100
+#: Rows the chart's box needs to draw something: its border, two rows of plot, the axis and the
+#: time labels.
+_CHART_MIN_ROWS = 6
+#: The boxes that show a sensor reading: each is marked when the reading is stale.
+_READING_BOXES = ("#depth-box", "#attitude", "#leak")
 
 
 class Panel(Widget):
@@ -81,6 +90,24 @@ class Panel(Widget):
         return rendered.plain if isinstance(rendered, Text) else str(rendered)
 
 
+class ShownIfRoom(Vertical):
+    """A container that shows its content only while it is at least ``min_height`` rows high.
+
+    A bordered box is never less than its border: given no room, it would push the screen into
+    scrolling. This container can shrink to nothing, and hides its content when too short to
+    show it (it gets its own size after each layout, its content or not).
+    """
+
+    def __init__(self, *children: Widget, min_height: int, id: str | None = None) -> None:
+        super().__init__(*children, id=id)
+        self._min_height = min_height
+
+    def on_resize(self, event: events.Resize) -> None:
+        """Show the content if it fits."""
+        for child in self.children:
+            child.display = event.size.height >= self._min_height
+
+
 class MonitorApp(App[None]):
     """``rovlink monitor``: connect with ``connect``, poll at ``rate_hz``, drive with keys."""
 
@@ -89,17 +116,33 @@ class MonitorApp(App[None]):
     CSS = """
     Screen { layout: vertical; }
     Screen.leak Header { background: $error; color: $text; text-style: bold; }
-    #top { height: auto; }
+    /* Depth, attitude and the state as last sent side by side, the leak banner under them. */
+    #top {
+        layout: grid; grid-size: 3 2; grid-columns: 30 32 1fr; grid-rows: 8 3; height: auto;
+    }
+    #top > * { width: 100%; height: 100%; }
+    #leak { column-span: 3; }
+    /* Narrower, there is no room for three boxes in a row ("motors unlocked (as last sent)"
+       wrapped over three lines of the third): two rows of two, the state as last sent
+       under the depth, in the wider column, and the leak beside it. */
+    Screen.-narrow #top { grid-size: 2 2; grid-columns: 1fr 34; grid-rows: 8 8; }
+    Screen.-narrow #leak { column-span: 1; }
     Panel, #depth-box { border: round $primary; border-title-align: left; padding: 0 1; }
-    #depth-box { width: 30; height: 8; }
     #depth-digits { width: auto; }
     #depth-readout { height: 3; }
-    #attitude { width: 32; height: 8; }
-    #commanded { width: 1fr; height: 8; }
-    #leak { height: 3; border: round $success; content-align: center middle; }
+    #leak { border: round $success; content-align: center middle; }
+    /* A stale reading keeps its box, dimmed, with its age on the bottom border. */
+    #depth-box.-stale, #attitude.-stale, #leak.-stale {
+        border: round $warning; border-subtitle-color: $warning; border-subtitle-style: bold;
+    }
+    #depth-box.-stale #depth-digits { color: $text-muted; }
     #leak.alarm { background: $error; color: $text; border: heavy $warning; text-style: bold; }
     #link { height: 6; }
-    #chart { height: 1fr; min-height: 8; }
+    /* The chart has what the link leaves (at 80×24, nothing: see ShownIfRoom). With no room
+       left, 1fr is still one row: clipped here, not a screen that scrolls by one row. */
+    #lower { height: 1fr; min-height: 6; overflow: hidden; }
+    #chart-room { height: 1fr; min-height: 0; }
+    #chart { height: 1fr; }
     """
     BINDINGS: ClassVar[list[BindingType]] = [
         Binding("space", "stop", "STOP", key_display="space", priority=True),
@@ -107,13 +150,11 @@ class MonitorApp(App[None]):
         Binding(
             "left",
             f"turn(-{controls.DIRECTION_STEP_DEG})",
-            "direction",
+            "turn",
             key_display="←→",
             priority=True,
         ),
-        Binding(
-            "right", f"turn({controls.DIRECTION_STEP_DEG})", "direction", show=False, priority=True
-        ),
+        Binding("right", f"turn({controls.DIRECTION_STEP_DEG})", "turn", show=False, priority=True),
         Binding(
             "up", f"power({controls.POWER_STEP_PERCENT})", "power", key_display="↑↓", priority=True
         ),
@@ -123,13 +164,11 @@ class MonitorApp(App[None]):
         Binding(
             "pagedown",
             f"depth({controls.DEPTH_STEP_CM})",
-            "depth target",
+            "depth",
             key_display="PgUp/PgDn",
             priority=True,
         ),
-        Binding(
-            "pageup", f"depth(-{controls.DEPTH_STEP_CM})", "depth target", show=False, priority=True
-        ),
+        Binding("pageup", f"depth(-{controls.DEPTH_STEP_CM})", "depth", show=False, priority=True),
         Binding("o", "claw('h+')", "claw", key_display="o/c", priority=True),
         Binding("c", "claw('h-')", "claw", show=False, priority=True),
         Binding("r", "reset_leak", "reset leak", priority=True),
@@ -146,12 +185,16 @@ class MonitorApp(App[None]):
         rate_hz: float = 5.0,
         algorithm: str = "crc8",
         window_s: float = DEFAULT_WINDOW_S,
+        clock: Callable[[], float] = time.monotonic,
     ) -> None:
-        """``description`` names the robot in the title; ``rate_hz`` is the polling rate."""
+        """``description`` names the robot in the title; ``rate_hz`` is the polling rate;
+        ``clock`` (monotonic seconds) times the readings, so a test can make them old."""
         if isinstance(rate_hz, bool) or not isinstance(rate_hz, int | float) or rate_hz <= 0:
             raise ValueError(f"rate_hz must be a positive number, got {rate_hz!r}")
         super().__init__()
         self._connect = connect
+        self._clock = clock
+        self._stale = False
         self._algorithm = algorithm
         self.rate_hz = rate_hz
         self.readings = Readings(window_s=window_s)
@@ -168,25 +211,43 @@ class MonitorApp(App[None]):
     def compose(self) -> ComposeResult:
         """Depth, attitude and the state as last sent on top; leak, link and chart below."""
         yield Header()
-        with Horizontal(id="top"):
+        with Container(id="top"):
             with Vertical(id="depth-box"):
                 yield Digits("—", id="depth-digits")
                 yield Static(id="depth-readout")
             yield Panel(self._draw_attitude, title="attitude", id="attitude")
             yield Panel(self._draw_commanded, title="commanded, as last sent", id="commanded")
-        yield Panel(lambda width, height: leak_text(self.readings), title="leak", id="leak")
-        yield Panel(self._draw_link, title="link", id="link")
-        yield Panel(self._draw_chart, title="depth over time", id="chart")
+            yield Panel(
+                lambda width, height: leak_text(self.readings, stale=self._stale),
+                title="leak",
+                id="leak",
+            )
+        with Vertical(id="lower"):
+            yield Panel(self._draw_link, title="link", id="link")
+            with ShownIfRoom(min_height=_CHART_MIN_ROWS, id="chart-room"):
+                yield Panel(self._draw_chart, title="depth over time", id="chart")
         yield Footer()
 
     def on_mount(self) -> None:
         """Start the link worker and the redraw timer; show the library's warnings as
         notifications while the dashboard owns the terminal."""
         self.query_one("#depth-box").border_title = "depth, cm"
+        self._fit_width(self.size.width)
         self._warnings_loop = asyncio.get_running_loop()
         self._warnings.attach()
         self.run_worker(self._link_loop(), name="link", group="link", exclusive=True)
         self.set_interval(_REDRAW_S, self._redraw)
+
+    def on_resize(self, event: events.Resize) -> None:
+        """Lay the boxes out for the terminal's new width."""
+        self._fit_width(event.size.width)
+
+    def _fit_width(self, width: int) -> None:
+        narrow = width < NARROW_BELOW_COLUMNS
+        self.screen.set_class(narrow, "-narrow")
+        with contextlib.suppress(NoMatches):
+            # Compact, the keys fit in 80 columns, "q quit" last among them.
+            self.query_one(Footer).compact = narrow
 
     def on_unmount(self) -> None:
         """Warnings go where they went before (stderr) once the dashboard is gone."""
@@ -238,7 +299,7 @@ class MonitorApp(App[None]):
                     self._link_state = f"lost: {error}"
                     break
                 else:
-                    self.readings.record(reading, time.monotonic())
+                    self.readings.record(reading, self._clock())
                 self._redraw()
                 await asyncio.sleep(max(self.period_s - (loop.time() - started_s), 0.0))
         finally:
@@ -267,13 +328,20 @@ class MonitorApp(App[None]):
 
     def _update_widgets(self) -> None:
         reading = self.readings.latest
+        # Every box that shows the reading says it is old in the same words, not the depth alone.
+        stale = stale_text(self.readings, now_s=self._clock(), period_s=self.period_s)
+        self._stale = stale is not None
+        for selector in _READING_BOXES:
+            box = self.query_one(selector)
+            box.set_class(self._stale, "-stale")
+            box.border_subtitle = stale or ""
         self.query_one("#depth-digits", Digits).update(
             "—" if reading is None else str(reading.depth_cm)
         )
         commanded = self.rov.commanded if self.rov is not None else None
         if commanded is not None:
             self.query_one("#depth-readout", Static).update(
-                depth_text(self.readings, commanded, now_s=time.monotonic(), period_s=self.period_s)
+                depth_text(self.readings, commanded, stale=self._stale)
             )
         leak = self.readings.leak
         leak_panel = self.query_one("#leak", Panel)
@@ -285,7 +353,7 @@ class MonitorApp(App[None]):
             panel.refresh()
 
     def _draw_attitude(self, width: int, height: int) -> RenderableType:
-        return attitude_text(self.readings, width)
+        return attitude_text(self.readings, width, stale=self._stale)
 
     def _draw_commanded(self, width: int, height: int) -> RenderableType:
         if self.rov is None:
@@ -306,7 +374,7 @@ class MonitorApp(App[None]):
             self.rov.health,
             self.rov.client.counters,
             self.readings,
-            now_s=time.monotonic(),
+            now_s=self._clock(),
             rate_hz=self.rate_hz,
         )
         if self.rov.client.closed:  # (in the panel's four rows, instead of the health)
@@ -317,7 +385,7 @@ class MonitorApp(App[None]):
         target_cm = self.rov.commanded.target_depth_cm if self.rov is not None else None
         lines = depth_chart(
             self.readings.history,
-            now_s=time.monotonic(),
+            now_s=self._clock(),
             window_s=self.readings.window_s,
             width=width,
             height=max(height - 2, 2),

@@ -17,6 +17,7 @@ __all__ = [
     "depth_text",
     "leak_text",
     "link_text",
+    "stale_text",
 ]
 
 #: A reading older than this many polling periods is shown as stale.
@@ -39,15 +40,27 @@ def _row(text: Text, label: str, value: str | Text, style: str = "") -> None:
     text.append("\n")
 
 
-def _stale(readings: Readings, now_s: float, period_s: float) -> bool:
+def stale_text(readings: Readings, *, now_s: float, period_s: float) -> str | None:
+    """What marks every reading shown once the latest is older than ``STALE_AFTER_POLLS``
+    polling periods; ``None`` while it is fresh (or before the first).
+
+    >>> from rovlink.client import Sensors
+    >>> readings = Readings()
+    >>> readings.record(Sensors(120, 530, False, -1, 3, 275), at_s=5.0)
+    >>> stale_text(readings, now_s=5.5, period_s=0.2) is None
+    True
+    >>> stale_text(readings, now_s=11.5, period_s=0.2)
+    'stale: 6.5 s old'
+    """
     age_s = readings.age_s(now_s)
-    return age_s is not None and age_s > STALE_AFTER_POLLS * period_s
+    if age_s is None or age_s <= STALE_AFTER_POLLS * period_s:
+        return None
+    return f"stale: {age_s:.1f} s old"
 
 
-def depth_text(
-    readings: Readings, commanded: CommandedState, *, now_s: float, period_s: float
-) -> Text:
-    """Target (as last sent) and raw pressure under the big depth figure."""
+def depth_text(readings: Readings, commanded: CommandedState, *, stale: bool = False) -> Text:
+    """Target (as last sent) and raw pressure under the big depth figure; a ``stale`` reading
+    is dimmed (the box says how old it is)."""
     text = Text()
     reading = readings.latest
     if commanded.target_depth_cm is not None:
@@ -57,45 +70,49 @@ def depth_text(
     else:
         text.append("no target sent\n", style="dim")
     text.append("raw pressure ")
-    text.append("—" if reading is None else f"{reading.pressure_raw}", style="bold")
-    text.append("\n")
-    if _stale(readings, now_s, period_s):
-        text.append(f"stale: last reading {readings.age_s(now_s):.1f} s ago", style="bold yellow")
-    text.rstrip()
+    text.append("—" if reading is None else f"{reading.pressure_raw}", style=_value_style(stale))
     return text
 
 
-def attitude_text(readings: Readings, width: int) -> Text:
-    """Roll and pitch with their bars, heading with a compass tape."""
-    text = Text()
+def _value_style(stale: bool, live: str = "bold") -> str:
+    # A stale value is still shown (the last known), but never in the look of a live one.
+    return "dim" if stale else live
+
+
+def attitude_text(readings: Readings, width: int, *, stale: bool = False) -> Text:
+    """Roll and pitch with their bars, heading with a compass tape; all dimmed when ``stale``
+    (the panel says how old the reading is)."""
+    text = Text(style=_value_style(stale, ""))
     reading = readings.latest
     if reading is None:
         text.append("waiting for the first reading…", style="dim")
         return text
+    bar_style = _value_style(stale, "cyan")
     bar_width = max(min(width - 20, 31), 9)
     _row(
         text,
         "roll",
         Text(f"{reading.roll_deg:+4d}°  ").append(
-            attitude_bar(reading.roll_deg, bar_width), style="cyan"
+            attitude_bar(reading.roll_deg, bar_width), style=bar_style
         ),
     )
     _row(
         text,
         "pitch",
         Text(f"{reading.pitch_deg:+4d}°  ").append(
-            attitude_bar(reading.pitch_deg, bar_width), style="cyan"
+            attitude_bar(reading.pitch_deg, bar_width), style=bar_style
         ),
     )
-    _row(text, "heading", f"{reading.heading_deg:4d}°", "bold")
+    _row(text, "heading", f"{reading.heading_deg:4d}°", _value_style(stale))
     for line in heading_tape(reading.heading_deg, max(width, 9)):
-        text.append(line + "\n", style="cyan")
+        text.append(line + "\n", style=bar_style)
     text.rstrip()
     return text
 
 
-def leak_text(readings: Readings) -> Text:
-    """The leak alarm, or the all-clear (or nothing known yet)."""
+def leak_text(readings: Readings, *, stale: bool = False) -> Text:
+    """The leak alarm, or the all-clear (or nothing known yet). A leak stays an alarm however
+    old its reading (the latch holds until reset); a stale all-clear is no all-clear."""
     if readings.latest is None:
         return Text("leak: no reading yet", style="dim")
     if readings.leak:
@@ -104,6 +121,8 @@ def leak_text(readings: Readings) -> Text:
             "  ·  r resets the latch",
             style="bold white on red",
         )
+    if stale:
+        return Text("leak unknown: the last reading said no leak (q.l = 0)", style="bold yellow")
     return Text("no leak (q.l = 0)", style="green")
 
 
