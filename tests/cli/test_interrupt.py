@@ -292,15 +292,20 @@ def test_a_signal_ends_the_console_with_stop(silent: SilentController, how: sign
         terminal.close()
 
 
+def _drive_ahead_in_the_monitor(terminal: Terminal, silent: SilentController) -> None:
+    """Once the dashboard polls: unlock (``s``) and thrust ahead (up), as a pilot does."""
+    assert silent.wait_for(b"#qsa!")
+    terminal.type("s")
+    assert silent.wait_for(b"#start!")
+    terminal.type("\x1b[A")
+    assert silent.wait_for(b"#th.0.")
+
+
 @pytest.mark.parametrize("how", ENDING_SIGNALS, ids=lambda how: how.name)
 def test_a_signal_ends_the_monitor_with_stop(silent: SilentController, how: signal.Signals) -> None:
     terminal = Terminal("monitor", silent.url, "--boot-timeout", "0", "--timeout", "0.2")
     try:
-        assert silent.wait_for(b"#qsa!")  # the dashboard polls
-        terminal.type("s")
-        assert silent.wait_for(b"#start!")
-        terminal.type("\x1b[A")  # up: thrust ahead
-        assert silent.wait_for(b"#th.0.")
+        _drive_ahead_in_the_monitor(terminal, silent)
         _, stderr = _interrupt(terminal.process, how)
         assert terminal.process.returncode == 130, stderr  # (before: 0, as after `q`)
         assert silent.wait_for(b"#stop!")
@@ -314,11 +319,7 @@ def test_the_ctrl_c_key_quits_the_monitor_as_q_does(silent: SilentController) ->
     # after q (a SIGINT ends it with 130: above). docs/tools.md says so.
     terminal = Terminal("monitor", silent.url, "--boot-timeout", "0", "--timeout", "0.2")
     try:
-        assert silent.wait_for(b"#qsa!")
-        terminal.type("s")
-        assert silent.wait_for(b"#start!")
-        terminal.type("\x1b[A")  # up: thrust ahead
-        assert silent.wait_for(b"#th.0.")
+        _drive_ahead_in_the_monitor(terminal, silent)
         terminal.type("\x03")
         _, stderr = terminal.process.communicate(timeout=WAIT_S)
         assert terminal.process.returncode == 0, stderr
@@ -375,11 +376,7 @@ def test_closing_the_terminal_ends_the_monitor_with_stop(silent: SilentControlle
         "monitor", silent.url, "--boot-timeout", "0", "--timeout", "0.2", stderr_on_terminal=True
     )
     try:
-        assert silent.wait_for(b"#qsa!")
-        terminal.type("s")
-        assert silent.wait_for(b"#start!")
-        terminal.type("\x1b[A")  # up: thrust ahead
-        assert silent.wait_for(b"#th.0.")
+        _drive_ahead_in_the_monitor(terminal, silent)
         terminal.hang_up()
         assert terminal.process.wait(timeout=WAIT_S) == 130  # (was 1: "cannot write")
         assert silent.wait_for(b"#stop!")
