@@ -55,6 +55,20 @@ class FaultyController:
         self._checksum = False  # the mode as the faulty firmware tracks it
         self._frame_open = False  # no-resync: inside a frame that a start character spoilt
         self._spoilt = False
+        # stop-keeps-set-points: the lock and the last direct-mode thrust, as that firmware
+        # tracks them (its #stop! locks without clearing them).
+        self._unlocked = False
+        self._direct = False
+        self._thrust: bytes | None = None
+        self._zero: int | None = None  # the calibration sent (depth-off-by-one-count, -rounded)
+        self._k: int | None = None
+        if fault == "watchdog-fed-by-noise":  # its own failsafe: fed by any byte at all
+            config = SimConfig(controller=dataclasses.replace(ControllerConfig(), watchdog_s=0.0))
+            self._inner.close()
+            self._inner = SimulatedPort(config, seed=seed, timeout=0)
+            self._inner.start()
+            self._last_byte_s = time.monotonic()
+            threading.Thread(target=self._noise_fed_watchdog, daemon=True).start()
 
     # -- the pyserial subset -------------------------------------------------------------------
 
@@ -109,8 +123,63 @@ class FaultyController:
             self._release_at = time.monotonic() + 0.015
         self._output += data
 
+    def _noise_fed_watchdog(self) -> None:
+        while self._inner.is_open:
+            time.sleep(0.05)
+            with self._lock:
+                if self._unlocked and time.monotonic() - self._last_byte_s > _WATCHDOG_S:
+                    self._inner.write(b"#stop!")
+                    self._unlocked = False
+
+    def _track_lock(self, data: bytes) -> bytes:
+        """The lock and thrust as the faulty firmware keeps them; a #start! after #stop!
+        brings the last thrust back (stop-keeps-set-points)."""
+        out = bytearray()
+        position = 0
+        for match in _FRAME.finditer(data):
+            out += data[position : match.end()]
+            position = match.end()
+            body = match[1]
+            if self._checksum and body not in (b"crcon", b"crcoff", b"stop") and len(body) > 2:
+                body = body[:-2]
+            if body == b"stop":
+                self._unlocked = False
+            elif body == b"start":
+                resumes = self.fault == "stop-keeps-set-points" and self._direct
+                if resumes and self._thrust and not self._unlocked:
+                    out += _frame(b"mvdirect.1", self._checksum)
+                    out += _frame(b"mvs." + self._thrust, self._checksum)
+                self._unlocked = True
+            elif body.startswith(b"mvdirect."):
+                self._direct = body.endswith(b"1")
+            elif body.startswith(b"mvs.") and self._unlocked and self._direct:
+                self._thrust = body[4:]
+        out += data[position:]
+        return bytes(out)
+
     def _incoming(self, data: bytes) -> bytes:
         fault = self.fault
+        if fault == "watchdog-fed-by-noise":
+            self._last_byte_s = time.monotonic()
+        for name, value in re.findall(rb"#(sdz|sdk)\.(\d{1,5})!", data):
+            if name == b"sdz" and int(value) <= 1024:
+                self._zero = int(value)
+            elif name == b"sdk" and int(value) <= 10000:
+                self._k = int(value)
+        if fault in ("stop-keeps-set-points", "watchdog-fed-by-noise"):
+            data = self._track_lock(data)
+        if fault == "mvd-enters-depth-mode":  # takes mvd in direct mode, switching mode
+            data = re.sub(rb"#mvd\.(\d+)!", rb"#mvdirect.0!#mvd.\1!", data)
+        if fault == "clamps-motion-out-of-range":
+            data = _clamped(data)
+        if fault == "short-buffer":  # a 20-byte line buffer: longer frames are lost
+            data = re.sub(rb"#[^#$!]{19,}!", b"", data)
+        if fault == "mode-per-chunk":  # the checksum mode is switched after the whole chunk
+            switch = re.search(rb"#crco(?:n|ff)!", data)
+            if switch:
+                rest = data[switch.end() :].replace(b"#stop!", b"\x00STOP")
+                rest = _FRAME.sub(b"", rest).replace(b"\x00STOP", b"#stop!")
+                data = data[: switch.end()] + rest
         if fault == "mode-reaches-back":
             for mode in (b"#crcon!", b"#crcoff!"):
                 if mode in data:
@@ -166,7 +235,20 @@ class FaultyController:
             reply = re.sub(rb"debug: [^\r]*\r\n", b"", reply)
         if fault == "no-setting-debug-lines":
             reply = _SETTING_LINE.sub(b"", reply)
+        if fault in ("depth-off-by-one-count", "depth-rounded") and not checksum:
+            reply = re.sub(rb"\$qd\.(\d+)!\$qr\.(\d+)!", self._wrong_depth, reply)
         return reply
+
+    def _wrong_depth(self, match: re.Match[bytes]) -> bytes:
+        """P13's depth one raw count off, or rounded instead of floored."""
+        raw = int(match[2])
+        if self._zero is None or self._k is None:
+            return match[0]
+        if self.fault == "depth-off-by-one-count":
+            depth = (raw - self._zero - 1) * self._k // 100
+        else:
+            depth = round((raw - self._zero) * self._k / 100)
+        return b"$qd.%d!$qr.%d!" % (min(max(depth, 0), 9999), raw)
 
     def _without_resync(self, data: bytes) -> bytes:
         out = bytearray()
@@ -190,6 +272,33 @@ class FaultyController:
             out += frame  # an unfinished frame goes on in the next chunk
             self._frame_open = False
         return bytes(out)
+
+
+#: The watchdog of the watchdog-fed-by-noise firmware, s.
+_WATCHDOG_S = 2.0
+#: The ranges a clamping firmware forces motion and PWM arguments into.
+_CLAMP_RANGES: dict[bytes, tuple[int, int]] = {
+    b"mgmp": (0, 255),
+    b"mvs": (-100, 100),
+    b"mvd": (0, 9999),
+}
+
+
+def _frame(body: bytes, checksum: bool) -> bytes:
+    return b"#" + body + (_CRC8.digits(body) if checksum else b"") + b"!"
+
+
+def _clamped(data: bytes) -> bytes:
+    """Out-of-range mgmp, mvs and mvd set to the nearest end of their range (P6 forbids it)."""
+
+    def clamp(match: re.Match[bytes]) -> bytes:
+        name, value = match[1], int(match[2])
+        low, high = _CLAMP_RANGES[name]
+        clamped = min(max(value, low), high)
+        text = b"%+d" % clamped if name == b"mvs" else b"%d" % clamped
+        return b"#" + name + b"." + text + b"!"
+
+    return re.sub(rb"#(mgmp|mvs|mvd)\.([-+]?\d+)!", clamp, data)
 
 
 def _recomputed(match: re.Match[bytes]) -> bytes:
@@ -224,4 +333,12 @@ FAULTS: dict[str, str] = {
     "stop-needs-checksum": "motion-bare-stop-in-checksum-mode",
     "direct-mode-only": "motion-mode-gating",
     "no-watchdog": "motion-link-loss-failsafe",
+    "watchdog-fed-by-noise": "motion-link-loss-failsafe",
+    "stop-keeps-set-points": "motion-stop-halts",
+    "mvd-enters-depth-mode": "motion-mode-gating",
+    "clamps-motion-out-of-range": "motion-out-of-range-not-clamped",
+    "short-buffer": "longest-frame-accepted",
+    "mode-per-chunk": "checksum-on-next-frame",
+    "depth-off-by-one-count": "calibration-applies",
+    "depth-rounded": "calibration-applies",
 }

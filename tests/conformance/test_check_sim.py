@@ -254,3 +254,21 @@ def test_junit_carries_the_hint() -> None:
         for p in ElementTree.fromstring(junit_xml(Report("fake"))).iter("property")
         if p.get("name") == "hint"
     ]
+
+
+def test_cli_summary_says_the_motion_checks_were_not_run(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    # Before, "50 of 50 checks passed" left out that #stop! and the failsafe went unchecked.
+    from rovlink.cli.check import _motion_checks, _print_report
+
+    motion = sum(check.motion for check in CHECKS)
+    assert _motion_checks(None) == motion
+    assert _motion_checks(["query-"]) == 0
+    passed = CheckResult("query-qd", ("P4",), "d", Outcome.PASSED)
+    _print_report(Report("sim://", [passed]), motion_not_run=motion)
+    out = " ".join(capsys.readouterr().out.split())
+    assert f"1 of 1 checks passed in 0.0 s; {motion} motion checks (#stop!, the link-loss " in out
+    assert "failsafe) not run: add --motion" in out
+    assert main(["check", "sim://?seed=2", "--only", "start-stop-silent"]) == 0
+    assert "motion checks" not in capsys.readouterr().out  # (the selection has none)

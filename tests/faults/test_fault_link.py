@@ -10,6 +10,7 @@ import time
 import pytest
 
 import rovlink
+from rovlink.cli import main
 from rovlink.client import ClientOptions, ConnectError, ConnectionLostError
 from rovlink.client.links import PortLink
 from rovlink.faults import FaultPort, FaultSettings
@@ -141,3 +142,14 @@ def test_proxy_serves_any_client_and_stops_the_robot_when_it_goes() -> None:
             assert "bits flipped" in err
         sim.terminate()
         sim.wait(timeout=10)
+
+
+def test_fault_refuses_a_non_loopback_listen_address_without_allow_remote(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    # Before, it listened on 0.0.0.0 without a word, where rovlink controller refuses it.
+    argv = ["fault", "--listen", "socket://0.0.0.0:5761", "--to", "sim://"]
+    assert main(argv) == 2
+    error = capsys.readouterr().err.strip().splitlines()[-1]
+    assert "0.0.0.0 is not a loopback address" in error
+    assert "--allow-remote" in error

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import socket
 import threading
 import time
@@ -64,9 +65,16 @@ def _wait_until(get: Callable[[], T], done: Callable[[T], bool]) -> T:
 @pytest.fixture
 def proxied() -> Iterator[tuple[RecordingController, tuple[str, int]]]:
     """A proxy with no faults in front of a recording controller; its address."""
+    with _proxy(FaultSettings()) as served:
+        yield served
+
+
+@contextlib.contextmanager
+def _proxy(settings: FaultSettings) -> Iterator[tuple[RecordingController, tuple[str, int]]]:
+    """A proxy with ``settings`` in front of a recording controller; its address."""
     controller = RecordingController()
     host, port = controller.address
-    fault_port = FaultPort(open_link(parse_url(f"socket://{host}:{port}")), FaultSettings())
+    fault_port = FaultPort(open_link(parse_url(f"socket://{host}:{port}")), settings)
     proxy = FaultProxy(fault_port, "127.0.0.1", 0)
     stop = threading.Event()
     serving = threading.Thread(target=proxy.serve, args=(stop.is_set,), daemon=True)
@@ -107,6 +115,19 @@ def test_a_second_client_is_told_it_is_busy_and_its_commands_never_reach_the_con
     with socket.create_connection(address) as third:
         third.sendall(b"#qr!")
         assert controller.wait_for(b"#qr!") == b"#debug1!#qd!#stop!#qr!"
+
+
+def test_a_departed_clients_delayed_bytes_never_follow_its_stop() -> None:
+    # Before, the #stop! went out at once while the client's delayed chunks were still queued:
+    # they reached the controller after it, and its #start!#mvs.-50! dived again.
+    with _proxy(FaultSettings(delay_ms=300)) as (controller, address):
+        with socket.create_connection(address) as first:
+            first.sendall(b"#start!#mvdirect.1!#mvs.-50!")
+        controller.wait_for(b"#stop!")
+        # The next client's bytes queue behind anything left (a serial line never reorders).
+        with socket.create_connection(address) as second:
+            second.sendall(b"#qr!")
+            assert controller.wait_for(b"#qr!") == b"#stop!#qr!"
 
 
 def test_a_flood_of_refused_clients_is_bounded_and_the_served_one_is_undisturbed(

@@ -87,3 +87,43 @@ def test_gains_that_cannot_be_sent_at_the_end_are_one_line(
         "#mvpdp.55! went; the depth PID is not as asked: tune again or set it): connection "
         "lost: closed by the other end\n"
     )
+
+
+@pytest.mark.parametrize(
+    ("argv", "error"),
+    [
+        (
+            ["--step-from", "500"],
+            "--step-from 500 must lie between --min-depth 20 and --max-depth 300",
+        ),
+        (
+            ["--step-from", "10"],
+            "--step-from 10 must lie between --min-depth 20 and --max-depth 300",
+        ),
+        (["--step-from", "100"], "--step-from 100 is --depth: the step would not move"),
+    ],
+)
+def test_a_step_outside_the_limits_is_refused_before_anything_is_sent(
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+    argv: list[str],
+    error: str,
+) -> None:
+    # Before, --step-from 500 with --max-depth 300 was taken, and the step drove past the limit.
+    from rovlink.cli import link_options
+
+    def refuse(args: argparse.Namespace) -> None:
+        raise AssertionError("connected")
+
+    monkeypatch.setattr(link_options, "connect", refuse)
+    assert main(["tune", "sim://", "--yes", *argv]) == 2
+    assert capsys.readouterr().err.strip().splitlines()[-1] == f"rovlink tune: error: {error}"
+
+
+def test_the_default_step_starts_no_shallower_than_min_depth() -> None:
+    # Before, the step from 1 m above a 100 cm target started at 0 cm, above --min-depth 20.
+    from rovlink.cli.tune import _step_from
+
+    limits = {"min_depth": 20, "max_depth": 300, "step_from": None}
+    assert _step_from(argparse.Namespace(depth=100, **limits)) == 20
+    assert _step_from(argparse.Namespace(depth=250, **limits)) == 150

@@ -130,7 +130,7 @@ def run(args: argparse.Namespace) -> int:
         raise CommandError(f"{args.url}: {error}") from None
     finally:
         link.close()
-    _print_report(report)
+    _print_report(report, motion_not_run=0 if args.motion else _motion_checks(args.only))
     if args.junit:
         try:
             write_junit(report, args.junit)
@@ -180,7 +180,14 @@ def _print_list(checks: list[Check]) -> None:
     Console().print(table)
 
 
-def _print_report(report: Report) -> None:
+def _motion_checks(names: list[str] | None) -> int:
+    """How many motion checks the selection would have run with --motion."""
+    from rovlink.conformance import select_checks  # noqa: PLC0415
+
+    return sum(item.motion for item in select_checks(names or (), motion=True))
+
+
+def _print_report(report: Report, *, motion_not_run: int = 0) -> None:
     from rich.console import Console  # noqa: PLC0415
     from rich.markup import escape  # noqa: PLC0415
     from rich.table import Table  # noqa: PLC0415
@@ -211,4 +218,10 @@ def _print_report(report: Report) -> None:
     console.print(
         f"\n{report.target}: {passed} of {len(report.results)} checks passed "
         f"in {report.duration_s:.1f} s"
+        + (
+            f"; {motion_not_run} motion checks (#stop!, the link-loss failsafe) not run: "
+            "add --motion"
+            if motion_not_run
+            else ""
+        )
     )

@@ -49,6 +49,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="random extra or less delay, up to this, ms (at most --delay-ms)",
     )
     parser.add_argument("--seed", type=int, default=0, help="seed of the faults (default: 0)")
+    parser.add_argument(
+        "--allow-remote",
+        action="store_true",
+        help="let --listen use an address other computers reach; the protocol has no "
+        "authentication, so anyone who reaches it drives the robot",
+    )
 
 
 def run(args: argparse.Namespace) -> int:
@@ -84,6 +90,14 @@ def run(args: argparse.Namespace) -> int:
         raise UsageError(str(error)) from None
     if listen.scheme is not Scheme.TCP:
         raise UsageError(f"--listen: expected socket://HOST:PORT, got {args.listen!r}")
+    # As rovlink controller: whoever reaches the port drives the robot, unauthenticated.
+    from rovlink.controller.lines import is_loopback  # noqa: PLC0415
+
+    if not is_loopback(listen.host) and not args.allow_remote:
+        raise UsageError(
+            f"--listen {args.listen}: {listen.host} is not a loopback address, and the protocol "
+            "has no authentication; add --allow-remote to let other computers drive the robot"
+        )
     try:
         link = open_link(target)
     except ConnectError as error:

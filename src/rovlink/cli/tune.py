@@ -121,7 +121,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "(default: the reference controller's reset gains)",
     )
     group.add_argument(
-        "--step-from", type=_depth, help="depth the verification steps from (default: 1 m up)"
+        "--step-from",
+        type=_depth,
+        help="depth the verification steps from, within the limits (default: 1 m up, not above "
+        "--min-depth)",
     )
     group.add_argument("--no-verify", action="store_true", help="skip the verification step")
     group.add_argument("--apply", action="store_true", help="leave the tuned gains set")
@@ -170,8 +173,7 @@ def run(args: argparse.Namespace) -> int:
     scales = GainScales(*(args.scales or (defaults.kp_scale, defaults.ki_scale, defaults.kd_scale)))
     kp, ki, kd = args.restore or (defaults.kp, defaults.ki, defaults.kd)
     restore = ProtocolGains(kp, ki, kd)
-    step_from = args.step_from if args.step_from is not None else max(args.depth - 100, 0)
-    step = None if args.no_verify else StepSettings(from_cm=step_from, to_cm=args.depth)
+    step = None if args.no_verify else StepSettings(from_cm=_step_from(args), to_cm=args.depth)
     if not args.yes and not _confirm(args):
         raise CommandError("not confirmed; nothing was sent")
     client = link_options.connect(args)
@@ -196,6 +198,21 @@ def run(args: argparse.Namespace) -> int:
         _plot(result, args.plot)
     met = result.step is None or _meets_targets(result)
     return 0 if met else 1
+
+
+def _step_from(args: argparse.Namespace) -> int:
+    """The depth the verification steps from: given, or 1 m above the target but not above
+    --min-depth; refused outside the limits before anything is sent, as the step drives there."""
+    if args.step_from is None:
+        return max(int(args.depth) - 100, int(args.min_depth))
+    if not args.min_depth <= args.step_from <= args.max_depth:
+        raise UsageError(
+            f"--step-from {args.step_from} must lie between --min-depth {args.min_depth} "
+            f"and --max-depth {args.max_depth}"
+        )
+    if args.step_from == args.depth:
+        raise UsageError(f"--step-from {args.step_from} is --depth: the step would not move")
+    return int(args.step_from)
 
 
 def _send_gains(client: Client, gains: ProtocolGains) -> None:

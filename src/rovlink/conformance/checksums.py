@@ -99,6 +99,31 @@ def _off_per_frame(ctx: CheckContext) -> None:
 
 
 @check(
+    "checksum-on-next-frame",
+    ("P3",),
+    "in #crcon!#qd<CS>! sent in one write the query is taken and answered with a checksum",
+)
+def _on_next_frame(ctx: CheckContext) -> None:
+    ctx.wire.replies_checksummed = True
+    exchange = ctx.ask(ctx.frame(_CRCON) + ctx.frame(_QD, checksum=True))
+    _expect_one(exchange, "qd", "a checksummed $qd: the mode acts from the next frame")
+    check_canonical(ctx, exchange)
+
+
+@check(
+    "checksum-off-next-frame",
+    ("P3",),
+    "in checksum mode, in #crcoff!#qd! sent in one write the query is taken and answered plain",
+)
+def _off_next_frame(ctx: CheckContext) -> None:
+    _checksum_on(ctx)
+    ctx.wire.replies_checksummed = False
+    exchange = ctx.ask(ctx.frame(_CRCOFF) + ctx.frame(_QD))
+    _expect_one(exchange, "qd", "a plain $qd: the mode acts from the next frame")
+    check_canonical(ctx, exchange)
+
+
+@check(
     "checksum-off-plain",
     ("P3",),
     "with checksum mode off a frame with checksum digits is an unknown command",

@@ -57,16 +57,21 @@ def _overlong(ctx: CheckContext) -> None:
 
 @check(
     "longest-frame-accepted",
-    ("P1", "P6"),
-    "a frame of exactly 64 bytes (a query padded with a leading-zero argument) is not cut",
+    ("P1", "P6", "P13"),
+    "a frame of exactly 64 bytes (#sdz! with its value padded by leading zeros) is taken: "
+    "the depth follows the new zero",
 )
 def _longest(ctx: CheckContext) -> None:
-    # The longest query with an argument is not in the table, so use a set command whose
-    # effect nothing observes and check that the next query is still framed correctly.
-    body = b"mvdirect." + b"0" * (MAX_FRAME_BYTES - 2 - len(b"mvdirect."))
-    frame = b"#" + body + b"!"
+    zero, k = 0, 100
+    ctx.tell(ctx.frame(Command("sdz", (zero,))) + ctx.frame(Command("sdk", (k,))))
+    raw = first_value(ctx.ask(ctx.frame(Command("qr"))), "qr")
+    # A zero above the raw reading makes the depth read 0, where the zero of 0 read raw.
+    padded_zero = min(raw + 50, lookup("sdz").arguments[0].maximum)
+    head = b"#sdz."
+    frame = head + str(padded_zero).encode().rjust(MAX_FRAME_BYTES - len(head) - 1, b"0") + b"!"
     assert len(frame) == MAX_FRAME_BYTES
-    ctx.expect_no_frames(frame, "a set command of 64 bytes is answered by nothing")
+    ctx.expect_no_frames(frame, "a #sdz! of 64 bytes is answered by nothing")
+    expect_depth(ctx, padded_zero, k, "after a #sdz! of exactly 64 bytes, which must be taken")
     _still_answers(ctx, "after a 64-byte frame")
 
 

@@ -8,6 +8,7 @@ unanswered, sends ``#stop!`` and aborts the run.
 
 from __future__ import annotations
 
+import itertools
 import time
 
 from rovlink.conformance.registry import CheckAbortedError, CheckContext, CheckFailedError, check
@@ -25,6 +26,16 @@ _POLL_S = 0.1
 _COAST_S = 1.5
 #: Silence beyond the watchdog's time before the failsafe must have acted, s.
 _WATCHDOG_MARGIN_S = 0.5
+#: What the failsafe check sends instead of silence: no valid frame among them (P1, P6).
+_NOT_FRAMES = (
+    b"\r\n  noise \x00\xff 123 \r\n",
+    b"#bogus!",
+    b"#q\x01d!",
+    b"#mgmp.999!",
+    b"$qd.1!",
+    b"#" + b"q" * 80 + b"!",
+    b"#qd",  # unfinished, then abandoned by the next start character
+)
 
 
 def _sample(ctx: CheckContext, checksum: bool) -> int:
@@ -86,7 +97,7 @@ def _locked(ctx: CheckContext) -> None:
         raise CheckFailedError(f"locked, yet the raw pressure went from {start} to {deepest}")
 
 
-def _dive_then_stop(ctx: CheckContext, checksum: bool) -> None:
+def _dive_then_stop(ctx: CheckContext, checksum: bool, *, then_start: bool = False) -> None:
     frame = ctx.frame
     ctx.tell(frame(Command("start"), checksum=checksum) + _down(ctx, checksum))
     start, deepest = _watch(ctx, checksum)
@@ -105,16 +116,34 @@ def _dive_then_stop(ctx: CheckContext, checksum: bool) -> None:
             f"after #stop! the raw pressure went on from {stopped} to {deepest_after}: "
             "the motors were not stopped and locked"
         )
+    if then_start:
+        _start_is_neutral(ctx, checksum)
+
+
+def _start_is_neutral(ctx: CheckContext, checksum: bool) -> None:
+    """A bare ``#start!`` after the stop must not bring the dive back: ``#stop!`` cleared the
+    set-points, and ``#start!`` unlocks with neutral ones (P7)."""
+    ctx.tell(ctx.frame(Command("start"), checksum=checksum))
+    try:
+        start, deepest = _watch(ctx, checksum)
+    finally:
+        ctx.tell(b"#stop!")
+    if deepest - start >= _MOVED_COUNTS:
+        raise CheckFailedError(
+            f"#start! alone after #stop! dived again (raw {start} to {deepest}): #stop! must "
+            "clear the motion set-points and #start! unlock with neutral ones"
+        )
 
 
 @check(
     "motion-stop-halts",
     ("P7",),
-    "unlocked, down thrust dives; #stop! stops the motors and locks them",
+    "unlocked, down thrust dives; #stop! stops the motors and locks them, and clears the "
+    "set-points: a #start! alone after it does not dive again",
     motion=True,
 )
 def _stop_halts(ctx: CheckContext) -> None:
-    _dive_then_stop(ctx, checksum=False)
+    _dive_then_stop(ctx, checksum=False, then_start=True)
 
 
 @check(
@@ -129,40 +158,106 @@ def _bare_stop(ctx: CheckContext) -> None:
     _dive_then_stop(ctx, checksum=True)
 
 
+def _capped_pwm(ctx: CheckContext) -> int:
+    """The PWM cap that makes full thrust ``motion_percent`` (a depth target far below drives
+    the PID to its limit; the cap keeps that dive as gentle as the others)."""
+    full_pwm = lookup("mgmp").arguments[0].maximum
+    return max(round(full_pwm * ctx.options.motion_percent / 100), 1)
+
+
+def _depth_far_below(ctx: CheckContext) -> bytes:
+    """A proportional gain and a calibration under which ``#mvd.<max>!`` is far below the
+    vehicle: obeyed, it dives (the set- checks leave the gains at 0, the calibration checks
+    the depth anywhere)."""
+    frame = ctx.frame
+    return (
+        frame(Command("sdz", (0,)))
+        + frame(Command("sdk", (1,)))  # the depth reads raw / 100: at most about 10 cm
+        + frame(Command("mvpdp", (50,)))
+        + frame(Command("mgmp", (_capped_pwm(ctx),)))
+    )
+
+
+def _expect_no_dive(ctx: CheckContext, data: bytes, what: str) -> None:
+    ctx.tell(data)
+    try:
+        start, deepest = _watch(ctx, checksum=False)
+    finally:
+        ctx.tell(b"#stop!")
+    if deepest - start >= _MOVED_COUNTS:
+        raise CheckFailedError(f"{what}: the raw pressure went from {start} to {deepest}")
+
+
 @check(
     "motion-mode-gating",
-    ("P9",),
-    "in depth mode, direct-mode thrust (mvs) is dropped: the vehicle does not dive",
+    ("P9", "P6"),
+    "in depth mode mvs is dropped, in direct mode mvd is dropped: the vehicle does not dive "
+    "(nor for mvs.-101 and mvd.10000, out of range: dropped, not clamped)",
     motion=True,
 )
 def _mode_gating(ctx: CheckContext) -> None:
     frame = ctx.frame
-    full_pwm = lookup("mgmp").arguments[0].maximum
-    ctx.tell(
-        frame(Command("mgmp", (full_pwm,)))
+    deepest_cm = lookup("mvd").arguments[0].maximum
+    # Every dive below is at most motion_percent: full thrust under the capped PWM. Depth mode
+    # holds the depth it is entered at; an out-of-range target clamped to the deepest would dive.
+    _expect_no_dive(
+        ctx,
+        _depth_far_below(ctx)
         + frame(Command("start"))
         + frame(Command("mvdirect", (0,)))
-        + frame(Command("mvs", (-ctx.options.motion_percent,)))
+        + frame(Command("mvs", (lookup("mvs").arguments[0].minimum,)))  # -100 % of the cap
+        + b"#mvd.%d!" % (deepest_cm + 1),
+        "in depth mode #mvs! or the out-of-range #mvd! was obeyed",
     )
-    start, deepest = _watch(ctx, checksum=False)
-    ctx.tell(b"#stop!")
-    if deepest - start >= _MOVED_COUNTS:
-        raise CheckFailedError(
-            f"in depth mode #mvs! was obeyed: the raw pressure went from {start} to {deepest}"
-        )
+    # Direct mode with no thrust: a target far below, if taken (P9: dropped), would dive; so
+    # would an out-of-range thrust clamped to -100 %.
+    _expect_no_dive(
+        ctx,
+        _depth_far_below(ctx)
+        + frame(Command("start"))
+        + frame(Command("mvdirect", (1,)))
+        + frame(Command("mvd", (deepest_cm,)))
+        + b"#mvs.-101!",
+        "in direct mode #mvd! or the out-of-range #mvs.-101! was obeyed",
+    )
+
+
+@check(
+    "motion-out-of-range-not-clamped",
+    ("P6", "P8"),
+    "with the PWM cap at 0 and down thrust set, an out-of-range #mgmp.256! is dropped, not "
+    "clamped to 255: the vehicle does not dive",
+    motion=True,
+)
+def _pwm_not_clamped(ctx: CheckContext) -> None:
+    frame = ctx.frame
+    maximum = lookup("mgmp").arguments[0].maximum
+    _expect_no_dive(
+        ctx,
+        frame(Command("mgmp", (0,)))
+        + frame(Command("start"))
+        + frame(Command("mvdirect", (1,)))
+        + frame(Command("mvs", (-ctx.options.motion_percent,)))
+        + b"#mgmp.%d!" % (maximum + 1),
+        f"#mgmp.{maximum + 1}! was clamped, not dropped",
+    )
 
 
 @check(
     "motion-link-loss-failsafe",
     ("P17",),
-    "unlocked and diving, no valid frame for the watchdog's time stops and locks the motors",
+    "unlocked and diving, no valid frame for the watchdog's time (only noise, text and dropped "
+    "frames) stops and locks the motors",
     motion=True,
 )
 def _watchdog(ctx: CheckContext) -> None:
     ctx.tell(ctx.frame(Command("start")) + _down(ctx, checksum=False))
-    # Silence on the line: nothing at all, not even a query, for longer than the watchdog.
+    # No valid frame for longer than the watchdog, but bytes all the time: noise, text and
+    # frames every controller drops. Only valid frames may feed the failsafe (P17).
     silent_until = time.monotonic() + ctx.options.watchdog_s + _WATCHDOG_MARGIN_S
+    junk = iter(itertools.cycle(_NOT_FRAMES))
     while time.monotonic() < silent_until:
+        ctx.wire.link.write(next(junk))
         ctx.wire.drain(0.05, limit_s=0.1)
     ctx.tell(_down(ctx, checksum=False))  # dropped if the failsafe locked the motors
     _watch(ctx, False, _COAST_S)

@@ -114,13 +114,13 @@ def _expected_depth_cm(raw: int, zero: int, k: int) -> int:
 
 
 def expect_depth(ctx: CheckContext, zero: int, k: int, why: str) -> None:
-    """Fail unless the depth in ``$qsa`` follows P13 from its raw reading for ``zero`` and ``k``."""
+    """Fail unless the depth in ``$qsa`` follows P13 exactly from the raw reading of the same
+    reply, for ``zero`` and ``k``."""
     exchange = ctx.expect_reply(ctx.frame(Command("qsa")), lookup("qsa").replies)
     depth, raw = first_value(exchange, "qd"), first_value(exchange, "qr")
-    # A controller may read its sensor once per reply: allow the raw reading one count of drift.
-    allowed = {_expected_depth_cm(reading, zero, k) for reading in (raw - 1, raw, raw + 1)}
     expected = _expected_depth_cm(raw, zero, k)
-    if depth not in allowed:
+    if depth != expected:
         raise CheckFailedError(
-            f"{why}: with sdz {zero}, sdk {k} and raw {raw}, qd should be {expected}, got {depth}"
+            f"{why}: with sdz {zero}, sdk {k} and raw {raw} in the same $qsa, qd should be "
+            f"floor(({raw} − {zero}) · {k} / 100) = {expected} (P13), got {depth}"
         )

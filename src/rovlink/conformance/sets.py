@@ -39,6 +39,9 @@ def _setter_check(spec: Spec) -> None:
     )(run)
 
 
+#: Replies read per calibration (the raw reading moves with sensor noise between them).
+_SAMPLES = 4
+
 for _spec in SETTERS:
     _setter_check(_spec)
 
@@ -56,13 +59,18 @@ def _start_stop(ctx: CheckContext) -> None:
 @check(
     "calibration-applies",
     ("P13", "P12"),
-    "after #sdz! and #sdk! the depth in $qsa follows (raw − zero) · k / 100, clamped",
+    "after #sdz! and #sdk! the depth in $qsa is floor((raw − zero) · k / 100), clamped, exactly "
+    "from the raw of the same reply (k 175 tells floor from rounding)",
 )
 def _calibration(ctx: CheckContext) -> None:
     raw = first_value(ctx.expect_reply(ctx.frame(Command("qr")), ("qr",)), "qr")
-    for zero, k in ((0, 100), (max(raw - 3, 0), 10000), (min(raw + 50, 1024), 500)):
+    # k 175: (raw − zero) · 1.75 has a fraction of .25, .5 or .75 three times in four, so a
+    # controller that rounds is caught over the samples; the 1024 clamps at 0 and 9999.
+    cases = ((0, 100), (max(raw - 5, 0), 175), (max(raw - 3, 0), 10000), (min(raw + 50, 1024), 500))
+    for zero, k in cases:
         ctx.tell(ctx.frame(Command("sdz", (zero,))) + ctx.frame(Command("sdk", (k,))))
-        expect_depth(ctx, zero, k, "sdz and sdk take effect at once")
+        for _ in range(_SAMPLES):
+            expect_depth(ctx, zero, k, "sdz and sdk take effect at once")
 
 
 @check(

@@ -156,8 +156,21 @@ class FaultPort:
             logger.info("%s %s: %s", self.name, direction, counters.summary())
 
     def send_clean(self, data: bytes) -> None:
-        """Write ``data`` to the inner link at once, without faults (a proxy's last ``#stop!``)."""
+        """Write ``data`` to the inner link at once, without faults (a proxy's last ``#stop!``).
+
+        The host's bytes still waiting for their delay are discarded first: sent after it, a
+        departed client's queued ``#mvs`` would make the robot move again after its ``#stop!``.
+        """
+        # The write lock first, as the writer takes it: a chunk it already took goes out
+        # before ``data``, and nothing it has not taken goes out at all.
         with self._write_lock:
+            with self._lock:
+                discarded = sum(len(chunk) for _, chunk in self._down_delay.chunks)
+                self._down_delay.chunks.clear()
+            if discarded:
+                logger.info(
+                    "%s: %d delayed bytes to the controller discarded", self.name, discarded
+                )
             self._inner.write(data)
 
     # -- internals ---------------------------------------------------------------------------
@@ -202,16 +215,19 @@ class FaultPort:
             with self._lock:
                 while self._open:
                     now = time.monotonic()
-                    data = self._down_delay.pop_due(now)
-                    if data:
-                        break
                     due = self._down_delay.next_due_s()
+                    if due is not None and due <= now:
+                        break
                     self._lock.wait(None if due is None else max(due - now, 0.0))
                 else:
                     return
             try:
+                # Taken under the write lock, so that send_clean() can discard it until then.
                 with self._write_lock:
-                    self._inner.write(data)
+                    with self._lock:
+                        data = self._down_delay.pop_due(time.monotonic())
+                    if data:
+                        self._inner.write(data)
             except ConnectionLostError as error:
                 with self._lock:
                     self._lost = str(error)
