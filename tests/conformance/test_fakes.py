@@ -28,6 +28,8 @@ def test_each_fault_is_caught_by_its_check(fault: str) -> None:
 _MOTION = [name for name, check in FAULTS.items() if check.startswith("motion-")]
 
 
+# Real-time motion (each watches the depth for seconds): on the newest Python only, as slow.
+@pytest.mark.slow
 @pytest.mark.integration
 @pytest.mark.parametrize("fault", _MOTION)
 def test_each_motion_fault_is_caught_by_its_motion_check(fault: str) -> None:
@@ -44,6 +46,7 @@ def test_each_motion_fault_is_caught_by_its_motion_check(fault: str) -> None:
     assert result.outcome is Outcome.FAILED, result
 
 
+@pytest.mark.slow
 @pytest.mark.integration
 def test_a_plain_stop_still_works_on_the_controller_that_needs_a_checksummed_one() -> None:
     link = PortLink(FaultyController("stop-needs-checksum"), "stop-needs-checksum")
