@@ -18,7 +18,7 @@ from rovlink.client.blocking import Client
 from rovlink.client.errors import ConnectionLostError
 from rovlink.client.events import BytesReceived, BytesSent, ClientEvent, ReplyReceived
 from rovlink.client.links import SocketLink
-from tests.client.conftest import client_options, wait_until
+from tests.client.conftest import CONDITION_TIMEOUT_S, client_options, wait_until
 from tests.client.fake_controller import FakeController
 
 pytestmark = pytest.mark.integration
@@ -165,3 +165,37 @@ def test_threads_events_reach_the_hook_in_wire_order_one_at_a_time(
     assert numbers == list(range(1, 801))  # the controller numbers its replies
     answered = [event for event in events if isinstance(event, ReplyReceived)]
     assert len(answered) == 800
+
+
+def test_a_callback_that_queries_while_another_thread_switches_checksum_does_not_deadlock(
+    make_client: Callable[..., Client],
+) -> None:
+    # The switching thread must not wait for the callback to see its events: the callback's
+    # query waits for the switch to end (before: both waited for ever, reader thread included).
+    switching: list[threading.Thread] = []
+    switched = threading.Event()
+    in_callback = threading.Event()
+    answered: list[int] = []
+
+    def query_during_the_switch(event: ClientEvent) -> None:
+        elsewhere = switching and threading.current_thread() is not switching[0]
+        if elsewhere and not in_callback.is_set():
+            in_callback.set()
+            # Once the switch holds its role (and, before, waited here), or is over.
+            assert wait_until(lambda: rov._mode_switcher is not None or switched.is_set())
+            answered.append(rov.depth_cm())
+
+    def switch() -> None:
+        rov.set_checksum(True)
+        switched.set()
+
+    rov = make_client(on_event=query_during_the_switch)
+    switcher = threading.Thread(target=switch, daemon=True)
+    switching.append(switcher)
+    querying = threading.Thread(target=rov.depth_cm, daemon=True)
+    querying.start()
+    assert in_callback.wait(CONDITION_TIMEOUT_S)
+    switcher.start()
+    assert switched.wait(CONDITION_TIMEOUT_S)
+    assert wait_until(lambda: answered == [123])  # (the callback may run in the reader thread)
+    assert rov.checksum_enabled

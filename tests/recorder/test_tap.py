@@ -3,8 +3,11 @@ at a time, and the robot stopped when a program that may have moved it leaves.""
 
 from __future__ import annotations
 
+import contextlib
 import socket
+import struct
 import threading
+import time
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 
@@ -12,6 +15,7 @@ import pytest
 
 from rovlink.client import parse_url
 from rovlink.client.links import open_link
+from rovlink.protocol import Command, encode
 from rovlink.recorder.tap import BUSY_MESSAGE, STOP_FRAME, TcpEndpoint, forward
 from tests.client.conftest import wait_until
 from tests.faults.test_fault_proxy import RecordingController
@@ -128,3 +132,44 @@ def test_a_program_that_stopped_the_robot_or_only_asked_is_not_followed_by_stop(
     last.sendall(b"#qr!")
     assert tap.controller.wait_for(b"#qr!") == b"#start!#th.90.50!#stop!#qd!#qr!"
     last.close()
+
+
+def test_a_program_in_the_checksum_mode_an_earlier_one_left_is_still_stopped(tap: _Tap) -> None:
+    # The controller keeps the mode a program left it in (P3), and so must the tap's reading of
+    # the next program's frames: read plain, its checksummed #start! was noise, and no #stop!.
+    switcher = _program(tap.address)
+    switcher.sendall(b"#crcon!")
+    tap.controller.wait_for(b"#crcon!")
+    switcher.close()
+    tap.program_gone()
+    mover = _program(tap.address)
+    moving = encode(Command("start"), "crc8") + encode(Command("th", (90, 40)), "crc8")
+    mover.sendall(moving)
+    tap.controller.wait_for(moving)
+    mover.close()
+    assert tap.controller.wait_for(STOP_FRAME).endswith(moving + STOP_FRAME)
+
+
+def test_a_program_that_resets_its_connection_at_once_leaves_the_tap_free(tap: _Tap) -> None:
+    # Accepted, then reset before the tap took it up: the tap stayed busy for good (its peer's
+    # address could no longer be read), and every later program was told so.
+    resetting = _program(tap.address)
+    resetting.setsockopt(socket.SOL_SOCKET, socket.SO_LINGER, struct.pack("ii", 1, 0))
+    resetting.close()
+    deadline = time.monotonic() + _TIMEOUT_S
+    while True:  # (a program that came while the reset one was served is told busy: again)
+        program = _program(tap.address)
+        program.sendall(b"#qd!")
+        program.settimeout(0.05)
+        refused = False
+        while not tap.controller.received.endswith(b"#qd!"):
+            with contextlib.suppress(TimeoutError):
+                refused = program.recv(len(BUSY_MESSAGE)) == BUSY_MESSAGE
+            if refused:
+                break
+            assert time.monotonic() < deadline, "the program's frame never reached the controller"
+        program.close()
+        if not refused:
+            break
+        assert time.monotonic() < deadline, "every program was told the tap is busy"
+        tap.program_gone()

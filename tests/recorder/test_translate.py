@@ -75,3 +75,18 @@ def test_a_sniffers_commands_are_recorded_as_commands() -> None:
     last = [e for e in entries if isinstance(e, TelemetryEntry)][-1]
     assert last.values["locked"] == 1
     assert last.values["depth_cm"] == 13
+
+
+def test_a_query_never_answered_does_not_set_the_mode_of_the_replies_after_it() -> None:
+    # A probe sent while the board booted is never answered: read in its (plain) mode, every
+    # checksummed reply after #crcon! was a bad frame, until 64 newer queries pushed it out.
+    entries = _feed(
+        TapLog(),
+        ("out", b"#qd!"),  # never answered
+        ("out", b"#crcon!" + encode(Command("qr"), "crc8")),
+        ("in", _checked(Response("qr", (512,)))),
+        ("out", encode(Command("qr"), "crc8")),
+        ("in", _checked(Response("qr", (513,)))),
+    )
+    assert _problems(entries) == []
+    assert _replies(entries) == [("qr", "qr", (512,)), ("qr", "qr", (513,))]

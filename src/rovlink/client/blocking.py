@@ -61,6 +61,8 @@ _MAX_READ_WAIT_S = 0.25
 #: The background reader takes the role back once callers have been quiet this long: a program
 #: querying in a loop keeps it, and debug text waits at most this long in the port's buffer.
 _CALLER_GRACE_S = 0.005
+#: How long a call waits for another thread to deliver its events to the hook (see _emit).
+_DELIVERY_WAIT_S = 1.0
 
 
 class Client(CommandMethods):
@@ -618,9 +620,10 @@ class Client(CommandMethods):
         One thread delivers at a time, in the order the events happened, and goes on with what
         other threads add meanwhile: threads that each delivered their own overtook each other
         (a recording of the wire came out scrambled) and ran the hook at once. A thread whose
-        events another is delivering waits until they are delivered, so that its call returns
-        once the hook has seen them, unless it is that thread (a callback calling the client:
-        its events follow when the callback returns).
+        events another is delivering waits until they are delivered (at most
+        ``_DELIVERY_WAIT_S``), so that its call returns once the hook has seen them, unless it is
+        that thread (a callback calling the client: its events follow when the callback
+        returns).
         """
         session = self._session
         if session.events is None and not session.notices:
@@ -629,11 +632,18 @@ class Client(CommandMethods):
         with self._state_lock:
             deliverer = self._deliverer
             if deliverer is not None:
-                if deliverer != me:
+                # The wait is a courtesy, never needed for order: not while this thread holds
+                # the checksum switch (the deliverer's callback may query, which waits for the
+                # switch) or closes (it may close too), and bounded whatever a callback does.
+                if me not in (deliverer, self._mode_switcher) and not self._closing:
                     pending = len(session.events or ()) + len(session.notices)
                     target = self._events_taken + pending
+                    give_up_at = time.monotonic() + _DELIVERY_WAIT_S
                     while self._deliverer is not None and self._events_delivered < target:
-                        self._delivered.wait()
+                        remaining_s = give_up_at - time.monotonic()
+                        if remaining_s <= 0:
+                            break
+                        self._delivered.wait(remaining_s)
                 return
             self._deliverer = me
         try:

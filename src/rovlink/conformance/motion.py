@@ -26,13 +26,13 @@ _POLL_S = 0.1
 _COAST_S = 1.5
 #: Silence beyond the watchdog's time before the failsafe must have acted, s.
 _WATCHDOG_MARGIN_S = 0.5
-#: What the failsafe check sends instead of silence: no valid frame among them (P1, P6).
+#: What the failsafe check sends instead of silence: nothing that P1 lets be a frame at all, so
+#: that no reading of P17's "valid frame" counts it (a well-formed unknown command or a reply
+#: might be read as valid by some controllers; noise, a frame with a control byte, one longer
+#: than 64 bytes and an unfinished one cannot).
 _NOT_FRAMES = (
     b"\r\n  noise \x00\xff 123 \r\n",
-    b"#bogus!",
     b"#q\x01d!",
-    b"#mgmp.999!",
-    b"$qd.1!",
     b"#" + b"q" * 80 + b"!",
     b"#qd",  # unfinished, then abandoned by the next start character
 )
@@ -246,14 +246,14 @@ def _pwm_not_clamped(ctx: CheckContext) -> None:
 @check(
     "motion-link-loss-failsafe",
     ("P17",),
-    "unlocked and diving, no valid frame for the watchdog's time (only noise, text and dropped "
-    "frames) stops and locks the motors",
+    "unlocked and diving, no valid frame for the watchdog's time (only noise and broken frames: "
+    "a control byte, over 64 bytes, unfinished) stops and locks the motors",
     motion=True,
 )
 def _watchdog(ctx: CheckContext) -> None:
     ctx.tell(ctx.frame(Command("start")) + _down(ctx, checksum=False))
-    # No valid frame for longer than the watchdog, but bytes all the time: noise, text and
-    # frames every controller drops. Only valid frames may feed the failsafe (P17).
+    # No valid frame for longer than the watchdog, but bytes all the time: noise and frames
+    # P1 discards. Only valid frames may feed the failsafe (P17).
     silent_until = time.monotonic() + ctx.options.watchdog_s + _WATCHDOG_MARGIN_S
     junk = iter(itertools.cycle(_NOT_FRAMES))
     while time.monotonic() < silent_until:

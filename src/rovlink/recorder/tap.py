@@ -60,6 +60,13 @@ class _MayMove:
         self._decoder = Decoder(checksum_enabled=checksum, algorithm=algorithm)
         self.moved = False
 
+    def next_program(self) -> None:
+        """A new program connected: nothing it moved yet. The checksum mode stays as the last
+        program left it, as the controller's does (P3): reset, the next program's checksummed
+        frames were read as noise, and a program that left the robot moving got no ``#stop!``."""
+        self._decoder.reset()
+        self.moved = False
+
     def feed(self, data: bytes) -> None:
         for event in self._decoder.feed(data):
             if not isinstance(event, Frame) or not isinstance(event.message, Command):
@@ -138,7 +145,8 @@ class TcpEndpoint:
         self._selector.register(self._server, selectors.EVENT_READ, None)
         self._refused = RefusedClients(self._selector, BUSY_MESSAGE)
         self._ready = threading.Condition()
-        self._waiting: socket.socket | None = None  # accepted, not yet taken by accept()
+        # Accepted, with its peer's address, not yet taken by accept().
+        self._waiting: tuple[socket.socket, tuple[str, int]] | None = None
         self._busy = False  # a program is waiting or served
         self._closing = threading.Event()
         self._thread = threading.Thread(target=self._listen, name="rovlink-tap-listen", daemon=True)
@@ -151,8 +159,7 @@ class TcpEndpoint:
                 if stopping.is_set() or self._closing.is_set():
                     return None
                 self._ready.wait(_POLL_S)
-            connection, self._waiting = self._waiting, None
-        peer = connection.getpeername()
+            (connection, peer), self._waiting = self._waiting, None
         logger.info("tap: %s:%s connected", *peer[:2])
         return SocketLink(connection, f"tcp {peer[0]}:{peer[1]}")
 
@@ -172,7 +179,7 @@ class TcpEndpoint:
         self._thread.join()
         with self._ready:
             if self._waiting is not None:
-                self._waiting.close()
+                self._waiting[0].close()
                 self._waiting = None
         self._refused.close()
         self._selector.close()
@@ -200,7 +207,9 @@ class TcpEndpoint:
             if not self._busy:
                 self._busy = True
                 connection.setblocking(True)
-                self._waiting = connection
+                # (The peer as accept() gave it: getpeername() fails once the program has reset
+                # the connection, and the tap stayed busy for good.)
+                self._waiting = (connection, peer)
                 self._ready.notify()
                 return
         logger.info("tap: refused %s:%s: busy", *peer[:2])
@@ -246,12 +255,14 @@ def forward(
         record("out", STOP_FRAME, by_session=True)
         logger.info("tap: #stop! sent (the program may have left the robot moving)")
 
+    motion = _MayMove(checksum=checksum, algorithm=algorithm)
+
     def to_controller() -> None:
         while not stopping.is_set():
             side = program[0] = endpoint.accept(stopping)
             if side is None:
                 return
-            motion = _MayMove(checksum=checksum, algorithm=algorithm)
+            motion.next_program()
             try:
                 while not stopping.is_set():
                     data = side.read_available(_POLL_S)

@@ -267,7 +267,8 @@ class TapLog:
         self, events: list[Event], t_s: float, wall_ns: int, by_session: bool, out: list[Entry]
     ) -> None:
         log = self.log
-        for event in events:
+        for decoded in events:
+            event = self._in_the_other_mode(decoded) if isinstance(decoded, BadFrame) else decoded
             if isinstance(event, Frame):
                 message = event.message
                 if message.kind is Kind.COMMAND:
@@ -285,14 +286,36 @@ class TapLog:
                     continue
             log.decoded(t_s, wall_ns, event, out)
 
+    def _in_the_other_mode(self, event: BadFrame) -> Event:
+        """A reply that failed in the mode of the oldest awaited query, read again in the other
+        mode if a query awaits it in that one: the oldest may never be answered (a probe sent
+        while the board booted, a query lost to noise), and read in its mode every reply after
+        a mode change was taken for a bad frame."""
+        raw = event.raw
+        if not raw.startswith(b"$") or not self._awaited:
+            return event
+        mode = not self._awaited[0].checksum
+        decoder = Decoder(checksum_enabled=mode, algorithm=self._in.algorithm)
+        decoded = decoder.feed(raw)
+        if len(decoded) != 1 or not isinstance(decoded[0], Frame):
+            return event
+        name = decoded[0].message.name
+        awaits = any(a.checksum is mode and a.names[0] == name for a in self._awaited)
+        return decoded[0] if awaits else event
+
     def _answered(self, event: Frame) -> str | None:
-        """The query that ``event`` answers, taken off the awaited list; ``None`` if none."""
+        """The query that ``event`` answers, taken off the awaited list; ``None`` if none.
+
+        The controller answers in order (P4): the queries before the one answered will never
+        be, and are let go."""
         name = event.message.name
         for index, awaited in enumerate(self._awaited):
             if awaited.names[0] == name:
                 awaited.names.popleft()
+                for _ in range(index):
+                    self._awaited.popleft()
                 if not awaited.names:
-                    del self._awaited[index]
+                    self._awaited.popleft()
                 return awaited.query
         return None
 
