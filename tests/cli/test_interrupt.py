@@ -370,6 +370,29 @@ def test_closing_the_terminal_ends_the_console_as_interrupted(silent: SilentCont
         terminal.close()
 
 
+@pytest.mark.parametrize("command", ["console", "demo"])
+def test_a_closed_terminal_that_was_stderr_too_still_ends_with_130(
+    silent: SilentController, command: str
+) -> None:
+    # As a user runs them, stderr is the terminal: its last line cannot be written once it is
+    # closed, and that write's error made the status 1.
+    terminal = Terminal(
+        command, silent.url, "--boot-timeout", "0", "--timeout", "60", stderr_on_terminal=True
+    )
+    try:
+        if command == "console":
+            assert silent.wait_for(b"#crcoff!")
+            terminal.type("start\r")
+            assert silent.wait_for(b"#start!")
+        else:
+            assert silent.wait_for(b"#qsa!")  # unlocked, diving, polling the sensors
+        terminal.hang_up()
+        assert terminal.process.wait(timeout=WAIT_S) == 130
+        assert silent.wait_for(b"#stop!")
+    finally:
+        terminal.close()
+
+
 def test_closing_the_terminal_ends_the_monitor_with_stop(silent: SilentController) -> None:
     # The dashboard draws on stderr: that is the terminal too, as a user runs it.
     terminal = Terminal(

@@ -265,10 +265,10 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{command_parser.prog}: error: {error}", file=sys.stderr)
         return 2
     except CommandError as error:
-        print(f"{command_parser.prog}: {error}", file=sys.stderr)
+        _say(f"{command_parser.prog}: {error}")
         return error.exit_status
     except KeyboardInterrupt:
-        print(f"{command_parser.prog}: interrupted", file=sys.stderr)
+        _say(f"{command_parser.prog}: interrupted")
         return _EXIT_INTERRUPTED
     except BrokenPipeError:
         # The reader of the output stopped early (``| head``): no error, as for any filter.
@@ -281,3 +281,12 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{command_parser.prog}: cannot write the output: {error.strerror}", file=sys.stderr)
         return 1
     return status
+
+
+def _say(line: str) -> None:
+    """A last line on stderr, if it can still be written: after a closed terminal (SIGHUP) it
+    cannot, and the error of that write made the status 1 instead of the command's."""
+    try:  # noqa: SIM105 - contextlib is not imported at start-up
+        print(line, file=sys.stderr)
+    except OSError:
+        pass

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import logging
 import os
 import signal
 import sys
@@ -31,6 +32,8 @@ from types import TracebackType
 from typing import Any, TypeVar
 
 __all__ = ["StopOnTermination", "run_async"]
+
+logger = logging.getLogger(__name__)
 
 T = TypeVar("T")
 
@@ -249,8 +252,11 @@ class StopOnTermination:
                 if stopped or not _TERMINATING.intersection(data):
                     continue
                 stopped = True
-                self._emergency_stop()
                 threading.Thread(target=self._end_if_stuck, daemon=True).start()
+                try:
+                    self._emergency_stop()
+                except Exception:  # (the signals must still reach the loop, the exit armed)
+                    logger.exception("%s: #stop! could not be written at once", self._program)
         finally:
             os.close(self._read_fd)
 

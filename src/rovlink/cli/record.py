@@ -120,11 +120,12 @@ def run(args: argparse.Namespace) -> int:
     except ConnectionLostError as error:
         lost = str(error)
     finally:
-        signals.restore()
         link.close()
         if tap is not None:
             tap.close()
         recorder.close()
+        # (Only now: a second signal, taken as Ctrl-C after this, must not cut the file short.)
+        signals.restore()
     if lost is not None and not heard.frame:
         # Nothing but text came (a busy controller says so, then closes): not a recording.
         discard_empty_recording(recorder, "rovlink record")

@@ -74,18 +74,35 @@ class TelemetryState:
         return self._set(zip(columns, response.values, strict=False))
 
     def observe_command(self, command: Command) -> bool:
-        """Take a command's effect; whether any column changed."""
+        """Take a command's effect, as the controller takes it; whether any column changed."""
         setting = command.setting
+        values = self.values
         if setting is not None and setting[0] is Setting.LOCKED:
+            if not setting[1] and values["locked"] == 0:
+                return False  # ``start`` while unlocked changes nothing (P7)
             # ``stop`` locks with every set-point cleared, ``start`` unlocks with them neutral.
             cleared = [(column, _cleared(column)) for column in _MOTION_COLUMNS]
             return self._set([("locked", int(setting[1])), *cleared])
         if setting is not None and setting[0] is Setting.DIRECT_MODE:
             return self._change_mode(setting[1])
         columns = COMMAND_COLUMNS.get(command.name)
-        if columns is None:
+        if columns is None or self._dropped(command):
             return False
         return self._set(zip(columns, command.values, strict=False))
+
+    def _dropped(self, command: Command) -> bool:
+        """Whether the controller drops ``command`` in the state known: a motion command while
+        locked (P7), one of the other vertical mode (P9). An unknown state drops nothing."""
+        spec = command.spec
+        values = self.values
+        if spec.motion and values["locked"] == 1:
+            return True
+        direct = values["vertical_direct"]
+        return (
+            spec.mode is not None
+            and direct is not None
+            and ((spec.mode is VerticalMode.DIRECT) != bool(direct))
+        )
 
     def _change_mode(self, direct: bool) -> bool:
         """``mvdirect``: a change of vertical mode ends the set-points of the mode left and
