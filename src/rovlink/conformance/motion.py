@@ -61,12 +61,17 @@ def _abort(ctx: CheckContext, why: str) -> None:
     raise CheckAbortedError(f"{why}: #stop! sent, run aborted")
 
 
-def _watch(ctx: CheckContext, checksum: bool, seconds: float = MOTION_WATCH_S) -> tuple[int, int]:
-    """The raw pressure now and the highest seen over ``seconds``."""
+def _watch(
+    ctx: CheckContext, checksum: bool, seconds: float = MOTION_WATCH_S, *, coast: bool = False
+) -> tuple[int, int]:
+    """The raw pressure now and the highest seen over ``seconds``, or until the vehicle has
+    moved deeper (by ``_MOVED_COUNTS``): whether a check wanted a dive or none, a dive seen
+    decides it, and only "no dive" needs the whole watch. ``coast``: the whole time, whatever
+    is seen (the vehicle settling after its thrust stopped)."""
     start = _sample(ctx, checksum)
     deepest = start
     deadline = time.monotonic() + seconds
-    while time.monotonic() < deadline:
+    while time.monotonic() < deadline and (coast or deepest - start < _MOVED_COUNTS):
         time.sleep(_POLL_S)
         deepest = max(deepest, _sample(ctx, checksum))
     return start, deepest
@@ -109,7 +114,9 @@ def _dive_then_stop(ctx: CheckContext, checksum: bool, *, then_start: bool = Fal
         )
     ctx.tell(b"#stop!")  # bare, in either mode (P3)
     ctx.tell(_down(ctx, checksum))  # dropped while locked
-    _watch(ctx, checksum, _COAST_S)  # the vehicle coasts on a little after its thrust stops
+    _watch(
+        ctx, checksum, _COAST_S, coast=True
+    )  # the vehicle coasts on a little after its thrust stops
     stopped, deepest_after = _watch(ctx, checksum)
     if deepest_after - stopped >= _MOVED_COUNTS:
         raise CheckFailedError(
@@ -260,7 +267,7 @@ def _watchdog(ctx: CheckContext) -> None:
         ctx.wire.link.write(next(junk))
         ctx.wire.drain(0.05, limit_s=0.1)
     ctx.tell(_down(ctx, checksum=False))  # dropped if the failsafe locked the motors
-    _watch(ctx, False, _COAST_S)
+    _watch(ctx, False, _COAST_S, coast=True)
     stopped, deepest = _watch(ctx, checksum=False)
     ctx.tell(b"#stop!")
     if deepest - stopped >= _MOVED_COUNTS:
