@@ -271,6 +271,15 @@ class Terminal:
         os.close(self._wake_w)
 
 
+def _drive_ahead_in_the_console(terminal: Terminal, silent: SilentController) -> None:
+    """Once the console is connected: unlock and thrust ahead at 50 %, as a pilot types it."""
+    assert silent.wait_for(b"#crcoff!")
+    terminal.type("start\r")
+    assert silent.wait_for(b"#start!")
+    terminal.type("th 0 50\r")
+    assert silent.wait_for(b"#th.0.50!")
+
+
 @pytest.mark.parametrize("how", ENDING_SIGNALS, ids=lambda how: how.name)
 def test_a_signal_ends_the_console_with_stop(silent: SilentController, how: signal.Signals) -> None:
     # kill -INT is no Ctrl-C key (the terminal is in raw mode, the key only drops the line):
@@ -278,11 +287,7 @@ def test_a_signal_ends_the_console_with_stop(silent: SilentController, how: sign
     # (Leaving waits for the queries on the wire, up to --timeout: a short one.)
     terminal = Terminal("console", silent.url, "--boot-timeout", "0", "--timeout", "0.2")
     try:
-        assert silent.wait_for(b"#crcoff!")
-        terminal.type("start\r")
-        assert silent.wait_for(b"#start!")
-        terminal.type("th 0 50\r")
-        assert silent.wait_for(b"#th.0.50!")
+        _drive_ahead_in_the_console(terminal, silent)
         elapsed_s, stderr = _interrupt(terminal.process, how)
         assert terminal.process.returncode == 130, stderr
         assert elapsed_s < EXIT_BOUND_S
@@ -355,11 +360,7 @@ def test_closing_the_terminal_ends_the_demo_with_stop(silent: SilentController) 
 def test_closing_the_terminal_ends_the_console_as_interrupted(silent: SilentController) -> None:
     terminal = Terminal("console", silent.url, "--boot-timeout", "0", "--timeout", "0.2")
     try:
-        assert silent.wait_for(b"#crcoff!")
-        terminal.type("start\r")
-        assert silent.wait_for(b"#start!")
-        terminal.type("th 0 50\r")
-        assert silent.wait_for(b"#th.0.50!")
+        _drive_ahead_in_the_console(terminal, silent)
         terminal.hang_up()
         stderr = _end_of(terminal)
         assert terminal.process.returncode == 130, stderr
