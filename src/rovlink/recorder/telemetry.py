@@ -4,7 +4,7 @@ Replies update the sensor columns; commands update the set-point, mode, lock and
 columns. Each column is keyed by a frame and an argument of the command table, so a renamed
 argument fails the test that checks the keys rather than silently emptying a column.
 
->>> from rovlink.protocol import COMMANDS, Command, Response, Setting, Spec, VerticalMode
+>>> from rovlink.protocol import Command, Response
 >>> state = TelemetryState()
 >>> state.observe_command(Command("mvd", (120,)))
 True
