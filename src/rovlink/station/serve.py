@@ -56,7 +56,10 @@ class _Server(uvicorn.Server):
     interrupted = False
 
     def handle_exit(self, sig: int, frame: FrameType | None) -> None:
-        if not self.should_exit and sig == signal.SIGINT:
+        # Any Ctrl-C counts, also one after another ending signal: the kernel hands pending
+        # signals over lowest number first, so a Ctrl-C and a closed terminal at once arrive
+        # as SIGHUP then SIGINT, and the status depended on that race.
+        if sig == signal.SIGINT:
             self.interrupted = True
         super().handle_exit(sig, frame)
 
