@@ -44,7 +44,7 @@ def _run(target: Callable[[], object]) -> tuple[threading.Thread, list[object]]:
 def _assert_idle(client: Client) -> None:
     """Nobody holds the reader role or counts as active, and the state lock is free."""
     assert wait_until(lambda: client._reader_ident in (None, client._background_ident))
-    assert wait_until(lambda: client._active_callers == 0)
+    assert wait_until(lambda: not client._callers)
     assert client._state_lock.acquire(timeout=CONDITION_TIMEOUT_S), "state lock held"
     client._state_lock.release()
 

@@ -56,6 +56,13 @@ T = TypeVar("T")
 _PENDING = Outcome.PENDING
 _ANSWERED = Outcome.ANSWERED
 _get_ident = threading.get_ident
+
+
+def _owns(lock: threading.RLock) -> bool:
+    """Whether this thread holds ``lock`` (the owner check ``threading.Condition`` uses)."""
+    return bool(lock._is_owned())  # type: ignore[attr-defined]
+
+
 #: The background reader looks around (deadlines, keep-alive, close) at least this often.
 _MAX_READ_WAIT_S = 0.25
 #: The background reader takes the role back once callers have been quiet this long: a program
@@ -109,9 +116,11 @@ class Client(CommandMethods):
         )
         self._drops = DropLog()
         self._subscribers: list[EventCallback] = []
-        # Lock order: the wire lock, then the state lock.
-        self._wire_lock = threading.Lock()  # one writer at a time: queue order = wire order
-        self._state_lock = threading.Lock()  # the session and everything below
+        # Lock order: the wire lock, then the state lock. Re-entrant locks, as they know their
+        # owner: a call that an exception ends gives back what its thread still holds (see
+        # _recover_after_error).
+        self._wire_lock = threading.RLock()  # one writer at a time: queue order = wire order
+        self._state_lock = threading.RLock()  # the session and everything below
         self._changed = threading.Condition(self._state_lock)  # a query settled, role released
         # The background reader waits apart, so that callers' notifications do not wake it.
         self._background_wakeup = threading.Condition(self._state_lock)
@@ -130,7 +139,8 @@ class Client(CommandMethods):
         self._released = threading.Event()  # set when that close() has released the port
         self._reader_ident: int | None = None  # the thread holding the reader role
         self._mode_switcher: int | None = None  # the thread draining queries to switch checksum
-        self._active_callers = 0  # callers with a query on the wire
+        # Callers with a query on the wire, by thread (a thread has one at a time).
+        self._callers: dict[int, PendingQuery | None] = {}
         self._waiting_callers = 0  # callers waiting on ``_changed``
         self._last_caller_at = float("-inf")
         self._background = threading.Thread(
@@ -209,6 +219,7 @@ class Client(CommandMethods):
                 for query in on_the_wire:  # answered, or timed out, before the port closes
                     self._wait(query, owned=False)
             finally:  # (a Ctrl-C in that wait still releases the port: P22, a next open)
+                self._recover_after_error()  # (nothing, unless that wait was interrupted)
                 self._connection_lost(ConnectionLostError(f"{self._link.description}: closed"))
                 self._link.wake()
                 for thread in (self._background, self._reconnector):
@@ -315,11 +326,15 @@ class Client(CommandMethods):
         if mode is not None:  # a mode frame by exact match, as the controller takes it (P3)
             self.set_checksum(mode)
             return ()
-        pending = self._send_query(data)
-        if pending is None:
-            self._emit()  # (what was sent, as a command's is: no wait reports it later)
-            return ()
-        outcome = self._wait(pending)
+        try:
+            pending = self._send_query(data)
+            if pending is None:
+                self._emit()  # (what was sent, as a command's is: no wait reports it later)
+                return ()
+            outcome = self._wait(pending)
+        except BaseException:
+            self._recover_after_error()
+            raise
         if outcome is Outcome.ANSWERED:
             return tuple(pending.responses)
         if outcome is Outcome.DISCONNECTED:
@@ -331,7 +346,13 @@ class Client(CommandMethods):
     def _switch_checksum(self, command: Command) -> None:
         """Send ``#crcon!``/``#crcoff!`` once the queries on the wire are answered in the old
         mode."""
-        me = threading.get_ident()
+        try:
+            self._switch_checksum_as(_get_ident(), command)
+        except BaseException:
+            self._recover_after_error()
+            raise
+
+    def _switch_checksum_as(self, me: int, command: Command) -> None:
         with self._state_lock:
             while self._mode_switcher is not None:  # another thread is switching: after it
                 self._wait_for_change(None)
@@ -481,12 +502,44 @@ class Client(CommandMethods):
         # is active: not from here, which may run under the wire lock that writing takes.
         self._background_wakeup.notify()
 
-    def _interrupted_caller_leaves(self, pending: PendingQuery) -> None:
-        """An interrupted caller stops counting as active, its query abandoned, and the waiting
-        callers are told (state lock held)."""
-        self._active_callers -= 1
-        self._abandon(pending)
-        self._notify_callers()
+    def _recover_after_error(self) -> None:
+        """Put back what this thread held when an exception ended its call (no lock needed on
+        entry; none held on return).
+
+        A Ctrl-C lands between any two bytecodes of the main thread: right after a lock was
+        taken (the per-query path takes its locks by hand, which costs half a ``with`` block),
+        while a lock is awaited, between taking the reader role and the code that gives it
+        back. Rather than guard each of those steps, every call that takes them ends through
+        here on an exception, and what its thread holds is known from outside: the locks
+        (re-entrant, so they know their owner), the reader role, the mode switch, the delivery
+        of events, and its query on the wire, abandoned (P20: the session fences, and no later
+        query takes a reply meant for it). Otherwise the next call, ``stop()`` first, would wait
+        for a lock forever.
+        """
+        me = _get_ident()
+        lock = self._state_lock
+        lock.acquire()  # (once more, if this thread still holds it)
+        try:
+            if self._reader_ident == me:
+                self._reader_ident = None
+                self._background_wakeup.notify()
+            if self._mode_switcher == me:
+                self._mode_switcher = None
+            if self._deliverer == me:
+                self._deliverer = None
+                self._events_delivered = self._events_taken  # (what it held is gone)
+                self._delivered.notify_all()
+            if me in self._callers:
+                pending = self._callers.pop(me)
+                self._last_caller_at = self._clock()
+                if pending is not None and pending.outcome is _PENDING:
+                    self._abandon(pending)
+            self._changed.notify_all()
+        finally:
+            while _owns(lock):
+                lock.release()
+            while _owns(self._wire_lock):
+                self._wire_lock.release()
 
     def _notify_callers(self) -> None:
         """Wake callers waiting for a settled query or the reader role (state lock held)."""
@@ -496,8 +549,10 @@ class Client(CommandMethods):
     def _wait_for_change(self, timeout_s: float | None) -> None:
         """Wait for a query to settle or the reader role to be free (state lock held)."""
         self._waiting_callers += 1
-        self._changed.wait(timeout_s)
-        self._waiting_callers -= 1
+        try:
+            self._changed.wait(timeout_s)
+        finally:  # (a Ctrl-C in the wait)
+            self._waiting_callers -= 1
 
     def _write(self, data: bytes) -> None:
         """Write under the wire lock; a failure is a lost connection."""
@@ -681,68 +736,59 @@ class Client(CommandMethods):
         The first attempt's usual case is spelled out here, as it is what a polling program
         does all day: a link that writes without blocking, nobody else reading the port, and
         the reply arriving whole in one read. Anything else goes on in :meth:`_wait` and
-        :meth:`_attempts`.
+        :meth:`_attempts`. Whatever exception ends the call, :meth:`_recover_after_error`
+        puts back what the thread held.
         """
-        if self._send_now is None or self._reconnecting:
-            return self._attempts(command)
-        pending = self._send_query_holding_state(command)
-        if pending is None:
-            return self._attempts(command)
-        if self._reader_ident is not None:  # another thread reads: it hands the reply over
-            outcome = self._wait(pending, holding_state=True)
-        else:
-            lock = self._state_lock
-            session = self._session
-            self._reader_ident = _get_ident()
-            lock.release()
-            try:
-                data = self._read_reply(session.timeout_s)  # (sent just now: all the timeout)
-            except ConnectionLostError as error:
-                lock.acquire()
-                self._reader_ident = None
-                self._lose(error)
+        try:
+            if self._send_now is None or self._reconnecting:
+                return self._attempts(command)
+            me = _get_ident()
+            pending = self._send_query_holding_state(command, me)
+            if pending is None:
+                return self._attempts(command)
+            if self._reader_ident is not None:  # another thread reads: it hands the reply over
                 outcome = self._wait(pending, holding_state=True)
-            except BaseException:  # (Ctrl-C): its reply, if it comes, is late
-                with lock:
-                    self._reader_ident = None
-                    self._interrupted_caller_leaves(pending)
-                raise
             else:
-                lock.acquire()
-                active = True  # this caller still counts among the active ones
+                lock = self._state_lock
+                session = self._session
+                self._reader_ident = me
+                lock.release()
                 try:
+                    data = self._read_reply(session.timeout_s)  # (sent just now: all the timeout)
+                except ConnectionLostError as error:
+                    lock.acquire()
+                    self._reader_ident = None
+                    self._lose(error)
+                    outcome = self._wait(pending, holding_state=True)
+                else:
+                    lock.acquire()
                     self._reader_ident = None
                     now = self._clock()
                     received = session.receive_reply(data, now) if data else None
                     if received is pending:  # the reply, whole, and no more
                         if self._waiting_callers:
                             self._changed.notify_all()
-                        self._active_callers -= 1
-                        active = False
+                        del self._callers[me]
                         self._last_caller_at = now
-                    else:
-                        # Part of the reply, or more than it (text, noise, another caller's
-                        # reply), or only an earlier caller's reply, or nothing.
-                        unsolicited = received.unsolicited if isinstance(received, Received) else []
-                        if session.has_outbox:
-                            self._flush_due()
-                        self._notify_callers()
-                except BaseException:  # (Ctrl-C): the lock and the count given up, as _wait does
-                    if active:  # (its reply may have gone with the caller)
-                        self._interrupted_caller_leaves(pending)
-                    lock.release()
-                    raise
-                if not active:
-                    lock.release()
-                    if session.notices:
-                        self._emit()
-                    return pending.responses
-                outcome = self._wait(pending, holding_state=True)
-                if unsolicited:
-                    self._drops.report(unsolicited, self._options.on_stray, now)
-        if outcome is _ANSWERED:
-            return pending.responses
-        return self._attempts(command, outcome)
+                        lock.release()
+                        if session.notices:
+                            self._emit()
+                        return pending.responses
+                    # Part of the reply, or more than it (text, noise, another caller's reply),
+                    # or only an earlier caller's reply, or nothing.
+                    unsolicited = received.unsolicited if isinstance(received, Received) else []
+                    if session.has_outbox:
+                        self._flush_due()
+                    self._notify_callers()
+                    outcome = self._wait(pending, holding_state=True)
+                    if unsolicited:
+                        self._drops.report(unsolicited, self._options.on_stray, now)
+            if outcome is _ANSWERED:
+                return pending.responses
+            return self._attempts(command, outcome)
+        except BaseException:
+            self._recover_after_error()
+            raise
 
     def _attempts(self, command: Command, first: Outcome | None = None) -> list[Response]:
         """The attempts of a query (after the ``first``, if it was made and failed), each
@@ -753,13 +799,14 @@ class Client(CommandMethods):
             if first is Outcome.DISCONNECTED:
                 raise self._lost_error()
             failures.append(first.value)
+        me = _get_ident()
         for attempt in range(len(failures), retries + 1):
             if self._reconnecting:
                 self._await_link()
             if attempt:
                 with self._state_lock:
                     self._session.counters.retries += 1
-            pending = self._send_query_holding_state(command) if self._send_now else None
+            pending = self._send_query_holding_state(command, me) if self._send_now else None
             if pending is not None:
                 outcome = self._wait(pending, holding_state=True)
             else:
@@ -773,9 +820,10 @@ class Client(CommandMethods):
             failures.append(outcome.value)
         raise QueryTimeoutError(command, failures, self._options.timeout_s)
 
-    def _send_query_holding_state(self, command: Command) -> PendingQuery | None:
-        """Write and queue a query on a link that writes without blocking; return holding the
-        state lock, or None (not holding it) while a checksum switch needs the general path.
+    def _send_query_holding_state(self, command: Command, me: int) -> PendingQuery | None:
+        """Write and queue a query of thread ``me`` on a link that writes without blocking;
+        return holding the state lock, or None (not holding it) while a checksum switch needs
+        the general path. An exception leaves the locks to :meth:`_recover_after_error`.
 
         The frame is written first and queued after, both under the state lock (so that no
         reader can feed its reply to the session before it is queued): the bookkeeping then
@@ -784,51 +832,39 @@ class Client(CommandMethods):
         send_now = self._send_now
         assert send_now is not None
         lock = self._state_lock
-        session = self._session
-        pending: PendingQuery | None = None
         lost: ConnectionLostError | None = None
         # (acquire and release spelled out: half the cost of a ``with`` block on 3.13)
         wire_lock = self._wire_lock
         wire_lock.acquire()
-        try:
-            lock.acquire()
-            try:
-                if self._lost is not None or self._closing:
-                    raise self._lost_error()
-                if self._mode_switcher is not None:
-                    lock.release()
-                    return None
-                ready = session.fast_query(command, self._clock())
-                if ready is None:  # something due first, or queries held: the general path
-                    lock.release()
-                    return None
-                data, pending = ready
-                try:
-                    written = send_now(data)  # never blocks: the state lock is not held long
-                except ConnectionLostError as error:
-                    self._lose(error)
-                    raise self._lost_error() from error
-            except BaseException:
-                if pending is not None:  # (a Ctrl-C: whether the frame left is not known)
-                    self._abandon(pending)
-                lock.release()
-                raise
-            self._active_callers += 1
-            background_reading = self._reader_ident == self._background_ident
-            if written < len(data):  # the kernel's buffer is full: wait for room unlocked
-                lock.release()
-                try:
-                    self._write(data[written:])
-                except ConnectionLostError as error:
-                    lost = error  # (waited for below, once the wire lock is let go)
-                except BaseException:  # (a Ctrl-C half-way through the frame)
-                    with lock:
-                        self._interrupted_caller_leaves(pending)
-                    raise
-                else:
-                    lock.acquire()
-        finally:
+        lock.acquire()
+        if self._lost is not None or self._closing:
+            raise self._lost_error()
+        if self._mode_switcher is not None:
+            lock.release()
             wire_lock.release()
+            return None
+        ready = self._session.fast_query(command, self._clock())
+        if ready is None:  # something due first, or queries held: the general path
+            lock.release()
+            wire_lock.release()
+            return None
+        data, pending = ready
+        self._callers[me] = pending
+        try:
+            written = send_now(data)  # never blocks: the state lock is not held long
+        except ConnectionLostError as error:
+            self._lose(error)
+            raise self._lost_error() from error
+        background_reading = self._reader_ident == self._background_ident
+        if written < len(data):  # the kernel's buffer is full: wait for room unlocked
+            lock.release()
+            try:
+                self._write(data[written:])
+            except ConnectionLostError as error:
+                lost = error  # (waited for below, once the wire lock is let go)
+            else:
+                lock.acquire()
+        wire_lock.release()
         if lost is not None:
             self._wait(pending)  # settled already: stops counting as active, reports
             raise lost
@@ -841,24 +877,26 @@ class Client(CommandMethods):
 
         The caller counts as active until :meth:`_wait` returns, so the background reader
         stays out of its way; if the background reader is reading, it is woken to step aside.
+        An exception leaves the query to :meth:`_recover_after_error`.
         """
         session = self._session
         pending: PendingQuery | None
         lost: ConnectionLostError | None = None
+        me = _get_ident()
         while True:
             with self._wire_lock:
                 with self._state_lock:
                     if self._lost is not None or self._closing:
                         raise self._lost_error()
                     switcher = self._mode_switcher
-                    ready = switcher is None or switcher == threading.get_ident()
+                    ready = switcher is None or switcher == me
                     if ready:
                         if isinstance(query, Command):
                             data, pending = session.query(query, self._clock())
                         else:
                             data, pending = session.raw(query, self._clock())
                         if pending is not None:
-                            self._active_callers += 1
+                            self._callers[me] = pending
                         background_reading = self._reader_ident == self._background_ident
                 if ready:
                     try:
@@ -866,14 +904,8 @@ class Client(CommandMethods):
                             self._write(data)  # under the wire lock: queue order = wire order
                     except ConnectionLostError as error:
                         lost = error  # (waited for below, once the wire lock is let go)
-                    except BaseException:  # (a Ctrl-C, maybe half-way through the frame)
-                        if pending is not None:
-                            with self._state_lock:
-                                self._interrupted_caller_leaves(pending)
-                        raise
                     break
             # A checksum switch is draining the queue: wait for it outside the wire lock.
-            me = threading.get_ident()
             with self._state_lock:
                 while self._mode_switcher not in (None, me):
                     self._wait_for_change(None)
@@ -891,67 +923,62 @@ class Client(CommandMethods):
         """Wait until the attempt settles, reading the port whenever nobody else is.
 
         ``owned``: the caller queued ``pending`` (and stops counting as active here);
-        ``holding_state``: the caller holds the state lock already (released here).
+        ``holding_state``: the caller holds the state lock already (released here). An
+        exception leaves the locks, the reader role and the query to
+        :meth:`_recover_after_error`.
         """
         lock = self._state_lock
         session = self._session
         clock = self._clock
         unsolicited: list[Event] | None = None
-        me = threading.get_ident()
+        me = _get_ident()
         if not holding_state:
             lock.acquire()
-        try:
-            now = clock()
-            while pending.outcome is _PENDING:
-                remaining = session.deadline(pending) - now
-                if remaining == _NEVER:  # held back (P20): until the quiet line releases it
-                    remaining = (session.next_deadline() or now + _MAX_READ_WAIT_S) - now
-                if remaining <= 0:
-                    session.tick(now)
+        now = clock()
+        while pending.outcome is _PENDING:
+            remaining = session.deadline(pending) - now
+            if remaining == _NEVER:  # held back (P20): until the quiet line releases it
+                remaining = (session.next_deadline() or now + _MAX_READ_WAIT_S) - now
+            if remaining <= 0:
+                session.tick(now)
+                if session.has_outbox:
+                    self._flush_due()
+                self._notify_callers()
+            elif self._reader_ident is not None:
+                self._wait_for_change(remaining)
+            else:
+                self._reader_ident = me
+                lock.release()
+                try:
+                    data = self._read_reply(remaining)
+                    lost = None
+                except ConnectionLostError as error:
+                    data, lost = b"", error
+                lock.acquire()
+                self._reader_ident = None
+                now = clock()
+                if lost is not None:
+                    self._lose(lost)
+                elif data:
+                    received = session.receive(data, now)
+                    if received.unsolicited:
+                        if unsolicited is None:
+                            unsolicited = []
+                        unsolicited += received.unsolicited
                     if session.has_outbox:
                         self._flush_due()
-                    self._notify_callers()
-                elif self._reader_ident is not None:
-                    self._wait_for_change(remaining)
-                else:
-                    self._reader_ident = me
-                    lock.release()
-                    try:
-                        data = self._read_reply(remaining)
-                        lost = None
-                    except ConnectionLostError as error:
-                        data, lost = b"", error
-                    finally:
-                        lock.acquire()
-                        self._reader_ident = None
-                    now = clock()
-                    if lost is not None:
-                        self._lose(lost)
-                    elif data:
-                        received = session.receive(data, now)
-                        if received.unsolicited:
-                            if unsolicited is None:
-                                unsolicited = []
-                            unsolicited += received.unsolicited
-                        if session.has_outbox:
-                            self._flush_due()
-                    if self._waiting_callers:
-                        self._changed.notify_all()
-                    continue  # ``now`` is fresh
-                now = clock()
-            return pending.outcome
-        except BaseException:  # (a Ctrl-C: bytes it had read may have gone with it)
-            if owned:
-                self._abandon(pending)
-            raise
-        finally:
-            if owned:
-                self._active_callers -= 1
-                self._last_caller_at = now
-            lock.release()
-            if unsolicited:
-                self._drops.report(unsolicited, self._options.on_stray, now)
-            self._emit()
+                if self._waiting_callers:
+                    self._changed.notify_all()
+                continue  # ``now`` is fresh
+            now = clock()
+        if owned:
+            del self._callers[me]
+            self._last_caller_at = now
+        lock.release()
+        if unsolicited:
+            self._drops.report(unsolicited, self._options.on_stray, now)
+        self._emit()
+        return pending.outcome
 
     def _background_loop(self) -> None:
         lock = self._state_lock
@@ -995,7 +1022,7 @@ class Client(CommandMethods):
                 return None
             if self._reconnecting:  # the reconnecting thread owns the link for now
                 self._background_wakeup.wait(_MAX_READ_WAIT_S)
-            elif self._reader_ident is None and not self._active_callers:
+            elif self._reader_ident is None and not self._callers:
                 quiet_s = self._clock() - self._last_caller_at
                 if quiet_s >= _CALLER_GRACE_S:
                     self._reader_ident = threading.get_ident()
