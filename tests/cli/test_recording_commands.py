@@ -598,6 +598,32 @@ def test_decode_of_a_recording_starts_in_its_headers_mode(run_cli: RunCli, tmp_p
     assert json.loads(forced.out)["events"] == {"error": 2}
 
 
+def test_decode_of_a_recording_reads_each_reply_in_its_querys_mode(
+    run_cli: RunCli, tmp_path: Path
+) -> None:
+    # P3: the qd sent just before #crcon! is answered plain, after the mode frame went out.
+    path = tmp_path / "switch.jsonl"
+    checked_query = encode(Command("qd"), "crc8")
+    _write(
+        path,
+        HeaderEntry(1.0, 1, "sim://", False, "crc8", "test", "0"),
+        WireEntry(2.0, 2, "out", b"#qd!#crcon!" + checked_query),
+        WireEntry(3.0, 3, "in", encode(Response("qd", (5,))) + b"$qd.6"),
+        WireEntry(4.0, 4, "in", encode(Response("qd", (6,)), "crc8")[5:]),
+    )
+    result = run_cli("decode", str(path))
+    assert result.status == 0, result.err
+    shown = [json.loads(line) for line in result.out.splitlines()]
+    assert [(e["direction"], e["event"], e["name"], e.get("query")) for e in shown] == [
+        ("out", "frame", "qd", None),
+        ("out", "frame", "crcon", None),
+        ("out", "frame", "qd", None),
+        ("in", "frame", "qd", "qd"),
+        ("in", "frame", "qd", "qd"),
+    ]
+    assert [e["values"] for e in shown if e["direction"] == "in"] == [[5], [6]]
+
+
 def test_each_rotated_file_records_the_mode_in_force_as_it_starts(
     run_cli: RunCli, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:

@@ -4,7 +4,6 @@ summary of counts). Errors in the stream are events, never a failure of the comm
 from __future__ import annotations
 
 import argparse
-import io
 import json
 import re
 import sys
@@ -20,8 +19,7 @@ from rovlink.protocol import BadFrame, Decoder, Event, Frame, Kind, Message, Tex
 TYPE_CHECKING = False
 
 if TYPE_CHECKING:
-    from collections.abc import Iterator
-    from typing import Any, BinaryIO
+    from typing import BinaryIO
 
 __all__ = ["EPILOG", "StreamStats", "decode_stream", "event_to_json"]
 
@@ -133,10 +131,15 @@ class StreamStats:
         }
 
 
+def _write_json(shown: dict[str, object]) -> None:
+    """One JSON object per line, with DEL and C1 controls escaped (a terminal may act on them)."""
+    line = json.dumps(shown, ensure_ascii=False)
+    sys.stdout.write(_DEL_AND_C1.sub(_json_escape, line) + "\n")
+
+
 def decode_stream(stream: BinaryIO, decoder: Decoder, *, stats_only: bool) -> None:
     """Decode ``stream`` to the end, printing JSON lines (or one summary with ``stats_only``)."""
     stats = StreamStats()
-    write = sys.stdout.write
     while True:
         events = _events(stream, decoder)
         last = events is None
@@ -146,13 +149,12 @@ def decode_stream(stream: BinaryIO, decoder: Decoder, *, stats_only: bool) -> No
             stats.count(events)
         else:
             for event in events:
-                line = json.dumps(event_to_json(event), ensure_ascii=False)
-                write(_DEL_AND_C1.sub(_json_escape, line) + "\n")
+                _write_json(event_to_json(event))
             sys.stdout.flush()  # a chunk at a time: a live pipe's events show as they come
         if last:
             break
     if stats_only:
-        write(json.dumps(stats.summary()) + "\n")
+        _write_json(stats.summary())
 
 
 EPILOG = """\
@@ -195,7 +197,7 @@ def run(args: argparse.Namespace) -> int:
             raise CommandError(f"cannot read standard input: {error}") from None
         return 0
     if args.file.lower().endswith((".mcap", ".jsonl")):
-        return _decode_recording(args, decoder)
+        return _decode_recording(args)
     if args.file.lower().endswith(".csv") and _is_telemetry_table(args.file):
         raise CommandError(
             f"{args.file} holds only the telemetry table, not the wire: rovlink plot {args.file}"
@@ -225,56 +227,49 @@ def _is_telemetry_table(path: str) -> bool:
     return first_line.rstrip(b"\r\n") == ",".join(HEADER).encode()
 
 
-class _RecordedWire(io.RawIOBase):
-    """The raw wire of a recording (both directions, in order) as a byte stream."""
-
-    def __init__(self, chunks: Iterator[bytes]) -> None:
-        self._chunks = chunks
-        self._left = b""
-
-    def readable(self) -> bool:
-        return True
-
-    def readinto(self, buffer: Any) -> int:
-        while not self._left:
-            chunk = next(self._chunks, None)
-            if chunk is None:
-                return 0
-            self._left = chunk
-        size = min(len(buffer), len(self._left))
-        buffer[:size] = self._left[:size]
-        self._left = self._left[size:]
-        return size
-
-
-def _decode_recording(args: argparse.Namespace, decoder: Decoder) -> int:
-    """A recording's wire channel, decoded as a capture; damage is reported after it."""
+def _decode_recording(args: argparse.Namespace) -> int:
+    """A recording's wire channel, each direction decoded as its end reads it (a reply in
+    its query's checksum mode, P3); damage is reported after it."""
     from rovlink.recorder import RecordingDamagedError, RecordingError, read_entries  # noqa: PLC0415
     from rovlink.recorder.entries import HeaderEntry, WireEntry  # noqa: PLC0415
+    from rovlink.recorder.link_decoding import LinkDecoder  # noqa: PLC0415
 
+    link = LinkDecoder(checksum=bool(args.checksum), algorithm=args.algorithm)
+    stats = StreamStats()
     damage: RecordingDamagedError | None = None
 
-    def chunks() -> Iterator[bytes]:
-        nonlocal damage
+    def show(direction: str, decoded: list[tuple[Event, str | None]]) -> None:
+        events = [event for event, _ in decoded]
+        if args.stats:
+            stats.count(events)
+            return
+        for event, query in decoded:
+            shown: dict[str, object] = {"direction": direction, **event_to_json(event)}
+            if query is not None:
+                shown["query"] = query
+            _write_json(shown)
+        sys.stdout.flush()
+
+    try:
         try:
             for entry in read_entries(args.file):
                 if isinstance(entry, WireEntry):
-                    yield entry.data
+                    show(entry.direction, link.feed(entry.direction, entry.data))
                 elif isinstance(entry, HeaderEntry) and args.checksum is None:
                     # The mode the link was in as this file starts (each file of a rotation
                     # records its own), unless --checksum/--no-checksum says otherwise.
-                    decoder.checksum_enabled = entry.checksum
                     try:
-                        decoder.algorithm = entry.algorithm
+                        link.set_mode(entry.checksum, entry.algorithm)
                     except ValueError as error:  # (a header damaged, or from a newer version)
                         raise CommandError(f"{args.file}: the header's {error}") from None
         except RecordingDamagedError as error:
             damage = error
-
-    try:
-        decode_stream(io.BufferedReader(_RecordedWire(chunks())), decoder, stats_only=args.stats)
     except RecordingError as error:
         raise CommandError(str(error)) from None
+    for direction, event in link.end():
+        show(direction, [(event, None)])
+    if args.stats:
+        _write_json(stats.summary())
     if damage is not None:
         print(f"rovlink decode: {damage}", file=sys.stderr)
         return 0 if damage.incomplete else 1

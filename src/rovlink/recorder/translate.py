@@ -10,7 +10,6 @@ sniffer, decoding them itself, since no driver of ours is in the middle.
 from __future__ import annotations
 
 from collections import deque
-from dataclasses import dataclass
 
 from rovlink.client.events import (
     BytesReceived,
@@ -28,7 +27,6 @@ from rovlink.client.events import (
 from rovlink.protocol import (
     BadFrame,
     Command,
-    Decoder,
     Event,
     Frame,
     Kind,
@@ -43,6 +41,7 @@ from rovlink.recorder.entries import (
     TelemetryEntry,
     WireEntry,
 )
+from rovlink.recorder.link_decoding import LinkDecoder
 from rovlink.recorder.telemetry import TelemetryState
 
 __all__ = ["ClientEventLog", "SessionLog", "TapLog"]
@@ -202,141 +201,31 @@ class ClientEventLog:
         return out
 
 
-@dataclass(slots=True)
-class _Awaited:
-    """A query sent and the names of the replies it still awaits, oldest first."""
-
-    query: str
-    names: deque[str]
-    #: The checksum mode in force when the controller took the query: its replies' mode (P3).
-    checksum: bool
-
-
 class TapLog:
-    """Entries from bytes seen in each direction, decoded here.
-
-    Replies are matched to the oldest query still awaiting a reply of their name, the way the
-    controller answers (in order, P4; ``qsa``'s six in their order, P12). Each reply is decoded
-    in the checksum mode that was in force when its query was taken (P3: a mode change takes
-    effect from the next frame, however the bytes were chunked). A sniffer's bytes (all ``in``)
-    hold both directions: a frame that starts with ``#`` is a command, recorded as one.
-    """
+    """Entries from bytes seen in each direction, decoded here (see :class:`LinkDecoder`:
+    each reply in its query's checksum mode, a sniffer's commands as commands)."""
 
     def __init__(self, *, checksum: bool = False, algorithm: str = "crc8") -> None:
         self.log = SessionLog(checksum=checksum)
-        self._out = Decoder(checksum_enabled=checksum, algorithm=algorithm)
-        self._in = Decoder(checksum_enabled=checksum, algorithm=algorithm)
-        self._awaited: deque[_Awaited] = deque(maxlen=_MAX_AWAITED)
-        # The start byte of the frame the ``in`` stream is inside (b"": between frames).
-        self._in_start = b""
+        self._link = LinkDecoder(checksum=checksum, algorithm=algorithm)
 
     def entries(
         self, t_s: float, wall_ns: int, direction: str, data: bytes, by_session: bool = False
     ) -> list[Entry]:
         """The entries of ``data`` seen going ``direction`` (``out``: to the controller);
         ``by_session``: written by the tap itself."""
-        out: list[Entry] = [self.log.wire(t_s, wall_ns, direction, data, by_session)]
-        if direction == "out":
-            self._take(self._out.feed(data), t_s, wall_ns, by_session, out)
-            return out
-        decoder = self._in
-        if b"#" not in data and self._in_start != b"#" and self._one_reply_mode():
-            # Replies alone, all in one mode (the usual case): the chunk in one go.
-            decoder.checksum_enabled = self._reply_mode()
-            self._in_start = _start_after(data, self._in_start)
-            self._take(decoder.feed(data), t_s, wall_ns, False, out)
-            return out
-        # Frame by frame: each is read in its own mode, known only once the one before it has
-        # been matched to its query.
-        for piece in _frame_pieces(data):
-            start = _start_after(piece, self._in_start, ended=False)
-            decoder.checksum_enabled = self.log.checksum if start == b"#" else self._reply_mode()
-            self._in_start = _start_after(piece, self._in_start)
-            self._take(decoder.feed(piece), t_s, wall_ns, False, out)
-        return out
-
-    def _reply_mode(self) -> bool:
-        """The mode of the next reply: its query's, else (a reply to nothing) the current."""
-        return self._awaited[0].checksum if self._awaited else self.log.checksum
-
-    def _one_reply_mode(self) -> bool:
-        mode = self.log.checksum
-        return all(awaited.checksum == mode for awaited in self._awaited)
-
-    def _take(
-        self, events: list[Event], t_s: float, wall_ns: int, by_session: bool, out: list[Entry]
-    ) -> None:
         log = self.log
-        for decoded in events:
-            event = self._in_the_other_mode(decoded) if isinstance(decoded, BadFrame) else decoded
+        out: list[Entry] = [log.wire(t_s, wall_ns, direction, data, by_session)]
+        for event, query in self._link.feed(direction, data):
             if isinstance(event, Frame):
                 message = event.message
                 if message.kind is Kind.COMMAND:
                     command = Command(message.name, message.values)
-                    if command.spec.replies:  # (in the mode before the command's own change)
-                        self._awaited.append(
-                            _Awaited(command.name, deque(command.spec.replies), log.checksum)
-                        )
-                    log.command(t_s, wall_ns, command, by_session, out)
+                    log.command(t_s, wall_ns, command, by_session and direction == "out", out)
                     continue
-                query = self._answered(event)
                 if query is not None:
                     response = Response(message.name, message.values)
                     log.replies(t_s, wall_ns, query, (response,), out)
                     continue
             log.decoded(t_s, wall_ns, event, out)
-
-    def _in_the_other_mode(self, event: BadFrame) -> Event:
-        """A reply that failed in the mode of the oldest awaited query, read again in the other
-        mode if a query awaits it in that one: the oldest may never be answered (a probe sent
-        while the board booted, a query lost to noise), and read in its mode every reply after
-        a mode change was taken for a bad frame."""
-        raw = event.raw
-        if not raw.startswith(b"$") or not self._awaited:
-            return event
-        mode = not self._awaited[0].checksum
-        decoder = Decoder(checksum_enabled=mode, algorithm=self._in.algorithm)
-        decoded = decoder.feed(raw)
-        if len(decoded) != 1 or not isinstance(decoded[0], Frame):
-            return event
-        name = decoded[0].message.name
-        awaits = any(a.checksum is mode and a.names[0] == name for a in self._awaited)
-        return decoded[0] if awaits else event
-
-    def _answered(self, event: Frame) -> str | None:
-        """The query that ``event`` answers, taken off the awaited list; ``None`` if none.
-
-        The controller answers in order (P4): the queries before the one answered will never
-        be, and are let go."""
-        name = event.message.name
-        for index, awaited in enumerate(self._awaited):
-            if awaited.names[0] == name:
-                awaited.names.popleft()
-                for _ in range(index):
-                    self._awaited.popleft()
-                if not awaited.names:
-                    self._awaited.popleft()
-                return awaited.query
-        return None
-
-
-def _frame_pieces(data: bytes) -> list[bytes]:
-    """``data`` cut after each ``!``: each piece ends a frame, but for the last."""
-    parts = data.split(b"!")
-    pieces = [part + b"!" for part in parts[:-1]]
-    if parts[-1]:
-        pieces.append(parts[-1])
-    return pieces
-
-
-def _start_after(data: bytes, before: bytes, *, ended: bool = True) -> bytes:
-    """The start byte of the frame ``data`` leaves the stream inside (``ended=False``: of the
-    frame its last ``!`` ends); ``before``: the one it started inside."""
-    bang = data.rfind(b"!")
-    tail = data[bang + 1 :] if ended or bang < 0 else data[:bang]
-    found = max(tail.rfind(b"#"), tail.rfind(b"$"))
-    if found >= 0:
-        return tail[found : found + 1]
-    if ended and b"!" in data:
-        return b""
-    return before
+        return out
