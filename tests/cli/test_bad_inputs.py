@@ -168,17 +168,24 @@ def test_a_telemetry_csv_that_is_not_text(run_cli: RunCli, tmp_path: Path) -> No
     assert result.err == f"rovlink plot: {table}: not UTF-8 text, so not a rovlink telemetry CSV\n"
 
 
-@pytest.mark.parametrize("command", [["replay"], ["decode"], ["plot", "-o", "dive.png"]])
-def test_an_empty_recording_is_not_a_recording(
-    run_cli: RunCli, tmp_path: Path, command: list[str]
+@pytest.mark.parametrize("suffix", [".jsonl", ".mcap"])
+@pytest.mark.parametrize(
+    ("command", "status"), [(["replay"], 0), (["decode"], 0), (["plot", "-o", "dive.png"], 1)]
+)
+def test_an_empty_recording_says_its_recorder_stopped_before_writing(
+    run_cli: RunCli, tmp_path: Path, suffix: str, command: list[str], status: int
 ) -> None:
-    # Regression: an empty .jsonl printed nothing and exited 0, as if it held a session.
-    recording = tmp_path / "dive.jsonl"
+    # A recorder killed in its first second leaves an empty file, whatever its format: read
+    # as a recording that ends early with nothing in it (an empty .jsonl was "not a
+    # recording", status 1, while an empty .mcap ended early). Never silent: an empty .jsonl
+    # once printed nothing and exited 0, as if it held a session.
+    recording = tmp_path / f"dive{suffix}"
     recording.write_bytes(b"")
     result = run_cli(command[0], str(recording), *command[1:])
-    assert result.status == 1
-    assert result.err == (
-        f"rovlink {command[0]}: {recording}: empty, not a rovlink JSON-lines recording\n"
+    assert result.status == status, result.err
+    assert result.err.startswith(
+        f"rovlink {command[0]}: {recording}: empty: its recorder was stopped before its first "
+        "second was written; read 0 entries"
     )
 
 

@@ -58,5 +58,5 @@ def read_jsonl(path: str) -> Iterator[Entry]:
                 ) from None
             count += 1
             yield entry
-    if count == 0:  # a recording starts with its header: an empty file is none
-        raise RecordingError(f"{path}: empty, not a rovlink JSON-lines recording")
+    if count == 0:  # (an empty file: nothing of it was written, as an empty .mcap)
+        raise RecordingDamagedError.empty(path)

@@ -103,12 +103,7 @@ def read_mcap(path: str) -> Iterator[Entry]:
                 # (An empty file, or one cut after its first bytes, is a recorder killed before
                 # its first second: a recording that ends early, as any other.)
                 if not head:
-                    raise RecordingDamagedError(
-                        f"{path}: empty: its recorder was stopped before its first second "
-                        "was written; read 0 entries",
-                        entries_read=0,
-                        incomplete=True,
-                    ) from None
+                    raise RecordingDamagedError.empty(path) from None
                 raise _damage(path, error, count) from None
             if record is None:
                 return

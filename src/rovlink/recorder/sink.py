@@ -33,6 +33,17 @@ class RecordingDamagedError(RecordingError):
         self.entries_read = entries_read
         self.incomplete = incomplete
 
+    @classmethod
+    def empty(cls, path: str) -> RecordingDamagedError:
+        """An empty file of a recording's format: a recorder killed before its first second
+        was written (a recording that ends early, as any other)."""
+        return cls(
+            f"{path}: empty: its recorder was stopped before its first second was written; "
+            "read 0 entries",
+            entries_read=0,
+            incomplete=True,
+        )
+
 
 class Sink(Protocol):
     """Where a recorder writes entries."""
