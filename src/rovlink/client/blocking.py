@@ -353,6 +353,7 @@ class Client(CommandMethods):
             raise
 
     def _switch_checksum_as(self, me: int, command: Command) -> None:
+        """:meth:`_switch_checksum` for thread ``me``, which holds the switch meanwhile."""
         with self._state_lock:
             while self._mode_switcher is not None:  # another thread is switching: after it
                 self._wait_for_change(None)
