@@ -1,5 +1,6 @@
-"""The recording tap (``rovlink record URL --tap socket://…``) over real TCP sockets: one program
-at a time, and the robot stopped when a program that may have moved it leaves."""
+"""The recording tap (``rovlink record URL --tap socket://…`` or ``--tap pty``) over real TCP
+sockets and pseudo-terminals: one program at a time, and the robot stopped when a program that
+may have moved it leaves."""
 
 from __future__ import annotations
 
@@ -12,11 +13,12 @@ from collections.abc import Iterator
 from dataclasses import dataclass, field
 
 import pytest
+import serial
 
 from rovlink.client import parse_url
 from rovlink.client.links import open_link
 from rovlink.protocol import Command, encode
-from rovlink.recorder.tap import BUSY_MESSAGE, STOP_FRAME, TcpEndpoint, forward
+from rovlink.recorder.tap import BUSY_MESSAGE, STOP_FRAME, PtyEndpoint, TcpEndpoint, forward
 from tests.client.conftest import wait_until
 from tests.faults.test_fault_proxy import RecordingController
 
@@ -173,3 +175,61 @@ def test_a_program_that_resets_its_connection_at_once_leaves_the_tap_free(tap: _
             break
         assert time.monotonic() < deadline, "every program was told the tap is busy"
         tap.program_gone()
+
+
+@dataclass
+class _PtyTap:
+    controller: RecordingController
+    recorded: _Chunks
+    endpoint: PtyEndpoint
+
+
+@pytest.fixture
+def pty_tap() -> Iterator[_PtyTap]:
+    """A tap on a pseudo-terminal in front of a controller that keeps every byte it is sent."""
+    controller = RecordingController()
+    host, port = controller.address
+    link = open_link(parse_url(f"socket://{host}:{port}"))
+    endpoint = PtyEndpoint()
+    recorded = _Chunks()
+    stopping = threading.Event()
+    forwarding = threading.Thread(
+        target=forward, args=(endpoint, link, recorded, stopping), daemon=True
+    )
+    forwarding.start()
+    try:
+        yield _PtyTap(controller, recorded, endpoint)
+    finally:
+        stopping.set()
+        forwarding.join(_TIMEOUT_S)
+        endpoint.close()
+        link.close()
+        controller.close()
+
+
+def test_a_program_that_closes_the_terminal_leaving_the_robot_moving_is_followed_by_stop(
+    pty_tap: _PtyTap,
+) -> None:
+    # A pseudo-terminal has no connection to end: before, the #stop! came only when the tap
+    # stopped, however long after the program had gone.
+    with serial.Serial(pty_tap.endpoint.path, timeout=_TIMEOUT_S) as program:
+        program.write(b"#start!#th.90.50!")
+        program.flush()
+    assert pty_tap.controller.wait_for(STOP_FRAME) == b"#start!#th.90.50!" + STOP_FRAME
+    assert wait_until(lambda: ("out", STOP_FRAME, True) in pty_tap.recorded.chunks, _TIMEOUT_S)
+
+
+def test_a_program_that_stopped_the_robot_before_closing_the_terminal_is_not_followed_by_stop(
+    pty_tap: _PtyTap,
+) -> None:
+    with serial.Serial(pty_tap.endpoint.path, timeout=_TIMEOUT_S) as program:
+        program.write(b"#start!#th.90.50!#stop!")
+        program.flush()
+        pty_tap.controller.wait_for(b"#stop!")
+    with serial.Serial(pty_tap.endpoint.path, timeout=_TIMEOUT_S) as mover:
+        mover.write(b"#start!#mvs.+10!")
+        mover.flush()
+    # The next program is served as the first was, and followed by a #stop! of its own.
+    assert pty_tap.controller.wait_for(b"#mvs.+10!" + STOP_FRAME) == (
+        b"#start!#th.90.50!#stop!#start!#mvs.+10!" + STOP_FRAME
+    )

@@ -7,20 +7,24 @@ reply back, handing each chunk to the recorder on the way. One program at a time
 port: a second one that connects to the TCP port meanwhile reads :data:`BUSY_MESSAGE` and is
 disconnected at once, and nothing it sent reaches the controller (queued, its commands would run
 after the first program left, with nobody connected). When a program whose commands may have
-moved the robot (``start``, a motion command, with no ``stop`` after them) disconnects, or the
-tap ends while it is connected, the tap sends ``#stop!`` to the controller, as ``rovlink fault``
-does; then the next program may connect. Without ``--tap``, ``rovlink record URL`` listens only
-(a sniffer on a line that another program drives, through a Y-cable or a port mirror).
+moved the robot (``start``, a motion command, with no ``stop`` after them) disconnects (closes
+the pseudo-terminal), or the tap ends while it is connected, the tap sends ``#stop!`` to the
+controller, as ``rovlink fault`` does; then the next program may connect. Without ``--tap``,
+``rovlink record URL`` listens only (a sniffer on a line that another program drives, through a
+Y-cable or a port mirror).
 """
 
 from __future__ import annotations
 
 import contextlib
+import ctypes
 import errno
 import logging
 import os
 import selectors
 import socket
+import struct
+import termios
 import threading
 import time
 import tty
@@ -36,6 +40,8 @@ __all__ = ["BUSY_MESSAGE", "STOP_FRAME", "PtyEndpoint", "TcpEndpoint", "forward"
 logger = logging.getLogger(__name__)
 
 _POLL_S = 0.1
+#: How long a program's last bytes may take through a pseudo-terminal once it has closed it.
+_PTY_DRAIN_S = 0.05
 #: What a second program reads on the tap's TCP port (a text line, as the simulator's).
 BUSY_MESSAGE = b"busy: the recording tap already has a program\r\n"
 #: Sent when a program that may have set the robot moving leaves: a bare #stop! is honoured in
@@ -104,6 +110,70 @@ class _PtyMasterLink(FdLink):
         os.close(self._fd)
 
 
+class _TerminalOpeners:
+    """Who has the pseudo-terminal at ``path`` open, from the kernel's notice of each open and
+    each last close of it (inotify, Linux): a pseudo-terminal has no connection to end, and the
+    tap's own handle keeps it from hanging up. Where inotify is missing, nothing is seen.
+    """
+
+    _IN_CLOSE_WRITE = 0x08
+    _IN_CLOSE_NOWRITE = 0x10
+    _IN_OPEN = 0x20
+    _EVENT = struct.Struct("iIII")  # wd, mask, cookie, len (then len bytes of name)
+
+    def __init__(self, path: str) -> None:
+        #: How many times the terminal is open, but for the tap's own handle.
+        self.open_count = 0
+        #: Whether a program has opened it since :attr:`opened` was last cleared.
+        self.opened = False
+        #: Whether every program that had it open closed it, since this was last cleared (even
+        #: if another has opened it since: the one that left may have left the robot moving).
+        self.all_closed = False
+        self._fd = -1
+        try:
+            libc = ctypes.CDLL(None, use_errno=True)
+            fd = libc.inotify_init1(os.O_NONBLOCK | os.O_CLOEXEC)
+        except (OSError, AttributeError):  # (not Linux)
+            logger.info("tap: no inotify here: a program leaving %s goes unseen", path)
+            return
+        mask = self._IN_OPEN | self._IN_CLOSE_WRITE | self._IN_CLOSE_NOWRITE
+        if fd < 0 or libc.inotify_add_watch(fd, os.fsencode(path), mask) < 0:
+            logger.info("tap: cannot watch %s: %s", path, os.strerror(ctypes.get_errno()))
+            if fd >= 0:
+                os.close(fd)
+            return
+        self._fd = fd
+
+    @property
+    def watching(self) -> bool:
+        """Whether opens and closes are seen here."""
+        return self._fd >= 0
+
+    def read_notices(self) -> None:
+        """Take in the notices that came since the last call."""
+        if self._fd < 0:
+            return
+        try:
+            data = os.read(self._fd, 4096)
+        except BlockingIOError:
+            return
+        offset = 0
+        while offset < len(data):
+            _, mask, _, name_length = self._EVENT.unpack_from(data, offset)
+            offset += self._EVENT.size + name_length
+            if mask & self._IN_OPEN:
+                self.open_count += 1
+                self.opened = True
+            elif mask & (self._IN_CLOSE_WRITE | self._IN_CLOSE_NOWRITE):
+                self.open_count = max(self.open_count - 1, 0)
+                self.all_closed |= self.open_count == 0
+
+    def close(self) -> None:
+        if self._fd >= 0:
+            os.close(self._fd)
+            self._fd = -1
+
+
 class PtyEndpoint:
     """A pseudo-terminal for the program: :attr:`path` is what it opens."""
 
@@ -116,12 +186,34 @@ class PtyEndpoint:
         self._slave = slave
         self.path = os.ttyname(slave)
         self.link: Link = _PtyMasterLink(master)
+        self._openers = _TerminalOpeners(self.path)
 
     def accept(self, stopping: threading.Event) -> Link | None:
-        """The program's side (always there for a terminal)."""
+        """The program's side, once a program has the terminal open (at once where opens
+        are not seen); ``None`` once ``stopping`` is set."""
+        openers = self._openers
+        while openers.watching and not stopping.is_set():
+            openers.read_notices()
+            if openers.opened or openers.open_count:  # (it may have closed it already)
+                openers.opened = False
+                break
+            stopping.wait(_POLL_S)
         return None if stopping.is_set() else self.link
 
+    def program_left(self) -> bool:
+        """Whether the program has closed the terminal since the last call (every handle on it
+        but the tap's own). What the controller sent it meanwhile is dropped, so that the next
+        program does not read replies to queries it never sent."""
+        openers = self._openers
+        openers.read_notices()
+        if not openers.all_closed:
+            return False
+        openers.all_closed = False
+        termios.tcflush(self._slave, termios.TCIFLUSH)
+        return True
+
     def close(self) -> None:
+        self._openers.close()
         self.link.close()
         os.close(self._slave)
 
@@ -257,6 +349,11 @@ def forward(
 
     motion = _MayMove(checksum=checksum, algorithm=algorithm)
 
+    def pass_on(data: bytes) -> None:
+        record("out", data)
+        controller.write(data)
+        motion.feed(data)
+
     def to_controller() -> None:
         while not stopping.is_set():
             side = program[0] = endpoint.accept(stopping)
@@ -267,9 +364,13 @@ def forward(
                 while not stopping.is_set():
                     data = side.read_available(_POLL_S)
                     if data:
-                        record("out", data)
-                        controller.write(data)
-                        motion.feed(data)
+                        pass_on(data)
+                    elif isinstance(endpoint, PtyEndpoint) and endpoint.program_left():
+                        # Its last bytes may still be on their way through the terminal.
+                        while data := side.read_available(_PTY_DRAIN_S):
+                            pass_on(data)
+                        logger.info("tap: the program closed %s", endpoint.path)
+                        break
             except ConnectionLostError:
                 logger.info("tap: the program disconnected")
             finally:
