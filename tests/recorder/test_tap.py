@@ -51,28 +51,38 @@ class _Tap:
         assert wait_until(lambda: not self.endpoint.serving, _TIMEOUT_S)
 
 
-@pytest.fixture
-def tap() -> Iterator[_Tap]:
-    """A tap on a free TCP port in front of a controller that keeps every byte it is sent."""
+@contextlib.contextmanager
+def _forwarding(
+    endpoint: TcpEndpoint | PtyEndpoint,
+) -> Iterator[tuple[RecordingController, _Chunks]]:
+    """The tap forwarding between ``endpoint`` and a controller that keeps every byte it is
+    sent; what it recorded."""
     controller = RecordingController()
     host, port = controller.address
     link = open_link(parse_url(f"socket://{host}:{port}"))
-    endpoint = TcpEndpoint("127.0.0.1", 0)
     recorded = _Chunks()
     stopping = threading.Event()
     forwarding = threading.Thread(
         target=forward, args=(endpoint, link, recorded, stopping), daemon=True
     )
     forwarding.start()
-    tcp_host, tcp_port = endpoint.path.removeprefix("socket://").rsplit(":", 1)
     try:
-        yield _Tap(controller, (tcp_host, int(tcp_port)), recorded, endpoint)
+        yield controller, recorded
     finally:
         stopping.set()
         forwarding.join(_TIMEOUT_S)
         endpoint.close()
         link.close()
         controller.close()
+
+
+@pytest.fixture
+def tap() -> Iterator[_Tap]:
+    """A tap on a free TCP port in front of a controller that keeps every byte it is sent."""
+    endpoint = TcpEndpoint("127.0.0.1", 0)
+    with _forwarding(endpoint) as (controller, recorded):
+        tcp_host, tcp_port = endpoint.path.removeprefix("socket://").rsplit(":", 1)
+        yield _Tap(controller, (tcp_host, int(tcp_port)), recorded, endpoint)
 
 
 def _program(address: tuple[str, int]) -> socket.socket:
@@ -187,24 +197,9 @@ class _PtyTap:
 @pytest.fixture
 def pty_tap() -> Iterator[_PtyTap]:
     """A tap on a pseudo-terminal in front of a controller that keeps every byte it is sent."""
-    controller = RecordingController()
-    host, port = controller.address
-    link = open_link(parse_url(f"socket://{host}:{port}"))
     endpoint = PtyEndpoint()
-    recorded = _Chunks()
-    stopping = threading.Event()
-    forwarding = threading.Thread(
-        target=forward, args=(endpoint, link, recorded, stopping), daemon=True
-    )
-    forwarding.start()
-    try:
+    with _forwarding(endpoint) as (controller, recorded):
         yield _PtyTap(controller, recorded, endpoint)
-    finally:
-        stopping.set()
-        forwarding.join(_TIMEOUT_S)
-        endpoint.close()
-        link.close()
-        controller.close()
 
 
 def test_a_program_that_closes_the_terminal_leaving_the_robot_moving_is_followed_by_stop(
