@@ -90,6 +90,19 @@ def test_the_pressure_sensor_is_10_bit_and_spans_about_20_m() -> None:
     assert _query(robot, b"#qr!") == 1023  # the converter saturates
 
 
+def test_a_depth_target_past_the_sensors_span_stops_where_the_reading_saturates() -> None:
+    # The converter saturates at 1023 (2006 cm); before, the depth hold pushed on for a target
+    # beyond that for ever: 200 m down after four minutes.
+    robot = SimulatedRobot(seed=2)
+    robot.receive(b"#start!#mvd.2500!")
+    depths = []
+    for _ in range(60):
+        _keep_alive(robot, 2.0)
+        depths.append(robot.vehicle.depth_m)
+    assert min(depths[20:]) >= 19.0
+    assert max(depths) <= 21.0
+
+
 def test_heading_is_0_to_359_and_follows_the_vehicle() -> None:
     robot = SimulatedRobot(seed=1)
     for true_deg in (0.0, 0.2, 90.0, 359.9, 180.0):
