@@ -31,7 +31,9 @@ def _moving(log: Path) -> bool:
     return value is not None and abs(value - _MOVING_US) <= COUNT_US
 
 
-@pytest.mark.parametrize(("signum", "status"), [(signal.SIGTERM, 0), (signal.SIGINT, 130)])
+@pytest.mark.parametrize(
+    ("signum", "status"), [(signal.SIGTERM, 0), (signal.SIGINT, 130), (signal.SIGHUP, 0)]
+)
 def test_a_signal_ends_the_process_with_the_thrusters_at_neutral(
     tmp_path: Path, signum: int, status: int
 ) -> None:

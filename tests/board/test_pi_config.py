@@ -111,6 +111,14 @@ def _load(**changes: object) -> None:
             "got 0",
         ),
         ({"gpio": {"pin": 3}}, "unknown table [gpio]"),
+        # A table written as a value: before, the six board tables' messages left the file out.
+        ({"i2c": 1}, "rov.toml [i2c] must be a table, got int"),
+        ({"pca9685": "0x40"}, "rov.toml [pca9685] must be a table, got str"),
+        ({"claw": 8}, "rov.toml [claw] must be a table, got int"),
+        ({"imu": "bno055"}, "rov.toml [imu] must be a table, got str"),
+        ({"leak": 27}, "rov.toml [leak] must be a table, got int"),
+        ({"board": True}, "rov.toml [board] must be a table, got bool"),
+        ({"thrusters": []}, "rov.toml [[thrusters]]: the layout is empty"),
     ],
 )
 def test_a_wrong_config_is_refused_with_the_key_and_the_reason(

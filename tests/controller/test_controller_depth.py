@@ -136,6 +136,29 @@ def test_a_saturated_depth_reading_is_pushed_no_deeper() -> None:
     assert rig.vertical_duties[0] > 0
 
 
+def test_the_top_of_a_10_bit_converter_is_saturated_too() -> None:
+    # A 10-bit converter (the simulator's, an Arduino's) tops out at 1023, not at qr's 1024:
+    # before, the guard waited for 1024, and #mvd.2500! on the simulated robot dived for ever
+    # with the depth stuck at 2006 cm.
+    rig = make_rig(ControllerConfig(watchdog_s=0.0))
+    rig.send(b"#debug1!#start!#mvd.2500!")
+    rig.controller.read_output()
+    rig.pressure.raw = 1023
+    output = rig.tick()
+    assert rig.vertical_duties == (0, 0)
+    assert b"depth reading saturated at raw 1023" in output
+    # Noise at the top does not flip the hold (nor its debug line) ...
+    for raw in (1022, 1023, 1021, 1023, 1022):
+        rig.pressure.raw = raw
+        output += rig.tick()
+        assert rig.vertical_duties == (0, 0)
+    assert output.count(b"saturated") == 1
+    # ... a reading clearly below the top dives again.
+    rig.pressure.raw = 1020
+    rig.tick()
+    assert rig.vertical_duties[0] < 0
+
+
 def test_a_depth_scale_of_0_gets_no_down_thrust_from_the_depth_hold() -> None:
     # #sdk.0! is in the protocol's range (P13): every depth then reads 0, and before, a depth
     # hold dived at full thrust with no end (a maximum depth could never trip either).

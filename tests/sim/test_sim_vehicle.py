@@ -9,8 +9,9 @@ from pathlib import Path
 
 import pytest
 
+from rovlink.controller import ConfigError
 from rovlink.sim import SimulatedRobot, VehicleParams
-from rovlink.sim.robot import sim_config_reference
+from rovlink.sim.robot import sim_config_from_mapping, sim_config_reference
 from rovlink.sim.vehicle import thrust_n
 
 
@@ -88,6 +89,19 @@ def test_the_pressure_sensor_is_10_bit_and_spans_about_20_m() -> None:
     assert _query(robot, b"#qr!") < 1023
     robot.vehicle.depth_m = 30.0
     assert _query(robot, b"#qr!") == 1023  # the converter saturates
+
+
+def test_a_depth_target_past_the_sensors_span_stops_where_the_reading_saturates() -> None:
+    # The converter saturates at 1023 (2006 cm); before, the depth hold pushed on for a target
+    # beyond that for ever: 200 m down after four minutes.
+    robot = SimulatedRobot(seed=2)
+    robot.receive(b"#start!#mvd.2500!")
+    depths = []
+    for _ in range(60):
+        _keep_alive(robot, 2.0)
+        depths.append(robot.vehicle.depth_m)
+    assert min(depths[20:]) >= 19.0
+    assert max(depths) <= 21.0
 
 
 def test_heading_is_0_to_359_and_follows_the_vehicle() -> None:
@@ -223,6 +237,77 @@ def test_the_thruster_curve() -> None:
 def test_invalid_vehicle_parameters_are_refused() -> None:
     with pytest.raises(ValueError, match="mass_kg"):
         VehicleParams(mass_kg=0.0)
+
+
+@pytest.mark.parametrize(
+    ("table", "key", "value", "why"),
+    [
+        # Before, each of these ran until the first reading and then ended the simulator with a
+        # traceback (NaN or infinity in the depth), or divided by zero at start.
+        ("vehicle", "net_buoyancy_n", math.nan, "must be a finite number, got nan"),
+        ("vehicle", "wave_roll_deg", math.inf, "must be a finite number, got inf"),
+        ("vehicle", "roll_trim_deg", math.nan, "must be a finite number"),
+        ("vehicle", "yaw_disturbance_n_m", math.inf, "must be a finite number"),
+        ("vehicle", "thruster_time_constant_s", -0.1, "must be ≥ 0"),
+        ("vehicle", "added_mass_heave_kg", -12.0, "must be ≥ 0"),  # a mass of 0 in heave
+        ("vehicle", "heave_drag_n_s2_m2", -50.0, "must be ≥ 0"),
+        ("vehicle", "thruster_curve_linear", 5.0, r"must be in \[0, 1\]"),
+        ("sensors", "pressure_zero_raw", math.nan, "must be a finite number"),
+        ("sensors", "heading_noise_deg", math.inf, "must be a finite number"),
+        ("sensors", "pressure_noise_counts", -1.0, "must be ≥ 0"),
+        ("sensors", "claw_travel_s", math.inf, "must be a finite number"),
+    ],
+)
+def test_nonsense_in_the_vehicle_or_sensors_table_is_refused_naming_the_key(
+    table: str, key: str, value: float, why: str
+) -> None:
+    with pytest.raises(ConfigError, match=rf"^sim\.toml \[{table}\]: {key} {why}"):
+        sim_config_from_mapping({table: {key: value}}, "sim.toml")
+
+
+@pytest.mark.parametrize("tick_hz", [1.0, 2.0, 10.0])
+def test_the_physics_does_not_depend_on_the_controllers_rate(tick_hz: float) -> None:
+    # The vehicle steps at most 10 ms at a time: before, at 1 Hz full down thrust bounced
+    # between the surface and 1.9 m, and at 2 Hz it sank a third faster than at 100 Hz.
+    config = sim_config_from_mapping({"controller": {"tick_hz": tick_hz, "watchdog_s": 0.0}})
+    robot = SimulatedRobot(config, seed=1)
+    robot.receive(b"#start!#mvdirect.1!#mvs.-100!")
+    reference = SimulatedRobot(sim_config_from_mapping({"controller": {"watchdog_s": 0.0}}), seed=1)
+    reference.receive(b"#start!#mvdirect.1!#mvs.-100!")
+    robot.advance(4.0)
+    reference.advance(4.0)
+    depths = []
+    for _ in range(6):
+        robot.advance(1.0)
+        reference.advance(1.0)
+        depths.append(robot.vehicle.depth_m)
+        assert robot.vehicle.heave_m_s == pytest.approx(reference.vehicle.heave_m_s, rel=0.02)
+    assert depths == sorted(depths)  # down and down, never back at the surface
+
+
+def test_a_heavy_drag_gives_a_slow_steady_descent() -> None:
+    # Drag is taken at the end of each step: before, a drag this strong made the speed flip
+    # sign every step, and the vehicle full down stayed at the surface.
+    config = sim_config_from_mapping(
+        {"controller": {"watchdog_s": 0.0}, "vehicle": {"heave_drag_n_s2_m2": 1e6}}
+    )
+    robot = SimulatedRobot(config, seed=1)
+    robot.receive(b"#start!#mvdirect.1!#mvs.-100!")
+    robot.advance(5.0)
+    speeds = []
+    for _ in range(100):
+        robot.advance(0.05)
+        speeds.append(robot.vehicle.heave_m_s)
+    # The terminal speed: the net downward force (full reverse thrust less the buoyancy) over
+    # the drag, as √(F / drag).
+    terminal = math.sqrt((2 * 2.0 * 9.80665 - 2.0) / 1e6)
+    assert all(speed == pytest.approx(terminal, rel=0.05) for speed in speeds)
+
+
+def test_duties_beyond_full_are_full_thrust() -> None:
+    robot = SimulatedRobot(seed=1)
+    robot.vehicle.set_duties([0, 0, 0, 0, -400, -400])  # an ESC saturates; no KeyError
+    assert robot.vehicle.duties == (0, 0, 0, 0, -255, -255)
 
 
 def test_docs_contain_the_simulator_reference() -> None:

@@ -354,6 +354,10 @@ def config_from_mapping(
         tables = data["thrusters"]
         if not isinstance(tables, list):
             raise ConfigError(f"{source}: thrusters must be an array of tables [[thrusters]]")
+        if not tables:
+            raise ConfigError(
+                f"{source} [[thrusters]]: the layout is empty: one table for each thruster"
+            )
         thrusters = tuple(
             dataclass_from_table(ThrusterSpec, table, f"{source} [[thrusters]] #{index + 1}")
             for index, table in enumerate(tables)

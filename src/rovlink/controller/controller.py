@@ -41,9 +41,14 @@ _MAX_DEPTH_CM = 9999
 _FULL_UP_PERCENT = 100
 #: How far above the maximum depth the robot must rise before down thrust is allowed again.
 _MAX_DEPTH_RELEASE_CM = 5
-#: The pressure sensor's largest raw reading (P13's `qr` range): a reading there is "at least
-#: this deep", which a depth hold must not push deeper on.
-_RAW_MAX = 1024
+#: A raw reading at the top of the pressure sensor's range is "at least this deep", which a depth
+#: hold must not push deeper on. The top is 1023 on a 10-bit converter (an Arduino's, the
+#: simulator's) and 1024 on P13's `qr` scale (a board that maps pressure onto it clips there):
+#: either is the top.
+_RAW_SATURATED = 1023
+#: How far below the top a saturated reading must come before down thrust is allowed again, raw
+#: counts: a reading that noise flips at the top must not flip the hold (and its debug line).
+_SATURATION_RELEASE_COUNTS = 3
 
 
 @dataclass(frozen=True, slots=True)
@@ -155,7 +160,7 @@ class Controller:
         self._claw_direction = 0
         self._claw_until_s = 0.0
         self._depth_limited = False
-        self._depth_saturated = False  # the last reading at _RAW_MAX
+        self._depth_saturated = False  # the last reading at the top of the range
         now = self._hardware.clock.now_s()
         self._last_frame_s = now
         self._last_tick_s: float | None = None
@@ -203,13 +208,14 @@ class Controller:
         elif depth_cm > _MAX_DEPTH_CM:
             depth_cm = _MAX_DEPTH_CM
         self._depth_cm = depth_cm  # P13, inlined: this runs every tick
-        saturated = raw >= _RAW_MAX
+        if self._depth_saturated:
+            saturated = raw > _RAW_SATURATED - _SATURATION_RELEASE_COUNTS
+        else:
+            saturated = raw >= _RAW_SATURATED
         if saturated is not self._depth_saturated:
             self._depth_saturated = saturated
             if saturated:
-                self._debug(
-                    f"depth reading saturated at raw {_RAW_MAX}: a depth hold goes no deeper"
-                )
+                self._debug(f"depth reading saturated at raw {raw}: a depth hold goes no deeper")
         if hardware.leak.fired_since_last_read():
             self._leak_fired()
         if self._claw_direction and now + 1e-9 >= self._claw_until_s:

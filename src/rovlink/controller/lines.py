@@ -45,6 +45,12 @@ logger = get_logger(__name__)
 _READ_BYTES = 4096
 #: Output kept for a line that does not read it, bytes.
 MAX_PENDING_BYTES = 1 << 16
+#: Empty reads in a row, each after select(2) said the device was readable, that mean a serial
+#: device has gone (a USB adapter unplugged, the other end of a pseudo-terminal closed): its
+#: descriptor then stays readable for good, and the loop would spin on it.
+_HANGUP_EMPTY_READS = 3
+#: How often a serial device that went away is opened again, s.
+SERIAL_REOPEN_S = 1.0
 
 
 def parse_tcp_address(text: str, default_host: str = "127.0.0.1") -> tuple[str, int]:
@@ -113,6 +119,9 @@ class SerialDeviceLine(Line):
     def __init__(self, path: str, baud: int) -> None:
         import serial  # noqa: PLC0415 - pyserial, loaded when a serial device is used
 
+        self.path = path
+        self.baud = baud
+        self._empty_reads = 0
         self._serial: Any = serial.Serial(
             path, baud, timeout=0, write_timeout=0, exclusive=True, rtscts=False, dsrdtr=False
         )
@@ -125,8 +134,21 @@ class SerialDeviceLine(Line):
         super().__init__(f"serial {path}", fd)
 
     def read(self) -> bytes | None:
-        """Bytes from the line; a serial line never "goes away", so never b""."""
-        return _read_terminal(self.fd)
+        """Bytes from the line; b"" once the device has gone (hung up: it reads as empty, or
+        fails with EIO, every time select(2) says it is readable)."""
+        try:
+            data = os.read(self.fd, _READ_BYTES)
+        except BlockingIOError:
+            return None
+        except OSError as error:
+            if error.errno in (errno.EIO, errno.ENXIO, errno.ENODEV):
+                return b""
+            raise
+        if data:
+            self._empty_reads = 0
+            return data
+        self._empty_reads += 1
+        return b"" if self._empty_reads >= _HANGUP_EMPTY_READS else None
 
     def close(self) -> None:
         """Close the port (and release its lock)."""
@@ -218,6 +240,8 @@ class Lines:
         self._refused = RefusedClients(self._selector, busy_message, data=self._on_refused_readable)
         self.pty_path: str | None = None
         self.tcp_address: tuple[str, int] | None = None
+        # Serial devices that went away, (path, baud), and when each is next opened again.
+        self._gone_serial: dict[tuple[str, int], float] = {}
 
     # -- endpoints ---------------------------------------------------------------------------
 
@@ -254,10 +278,14 @@ class Lines:
 
     def wait(self, timeout_s: float) -> None:
         """Wait up to ``timeout_s`` for the lines, and handle what they have."""
+        if self._gone_serial:
+            timeout_s = min(timeout_s, max(0.0, min(self._gone_serial.values()) - time.monotonic()))
         for key, mask in self._selector.select(timeout_s):
             key.data(key, mask)
         if self._refused:
             self._refused.expire(time.monotonic())
+        if self._gone_serial:
+            self._reopen_serial(time.monotonic())
 
     def send(self, line: Line, data: bytes) -> None:
         """Write ``data`` to ``line``: now, what the kernel takes; the rest when it can."""
@@ -271,6 +299,7 @@ class Lines:
 
     def close(self) -> None:
         """Close every line and the listener."""
+        self._gone_serial.clear()
         for line in list(self.lines):
             self._remove(line)
         self._refused.close()
@@ -312,10 +341,35 @@ class Lines:
         if data is None:
             return
         if not data:
-            logger.info("%s disconnected", line.name)
+            if isinstance(line, SerialDeviceLine):
+                logger.warning(
+                    "%s went away (unplugged or hung up); opening it again every %g s",
+                    line.name,
+                    SERIAL_REOPEN_S,
+                )
+                self._gone_serial[(line.path, line.baud)] = time.monotonic() + SERIAL_REOPEN_S
+            else:
+                logger.info("%s disconnected", line.name)
             self._remove(line)
             return
         self._on_bytes(line, data)
+
+    def _reopen_serial(self, now_s: float) -> None:
+        """Open again each serial device that went away and is due another try."""
+        import serial  # noqa: PLC0415 - only serial devices get here
+
+        for (path, baud), due_s in list(self._gone_serial.items()):
+            if now_s < due_s:
+                continue
+            try:
+                line = SerialDeviceLine(path, baud)
+            except (serial.SerialException, OSError, ValueError) as error:
+                logger.debug("serial %s: not back yet (%s)", path, error)
+                self._gone_serial[(path, baud)] = now_s + SERIAL_REOPEN_S
+                continue
+            del self._gone_serial[(path, baud)]
+            self._add(line)
+            logger.warning("%s is back", line.name)
 
     def _on_connection(self, key: selectors.SelectorKey, mask: int) -> None:
         assert self._listener is not None

@@ -8,7 +8,7 @@ from __future__ import annotations
 import math
 import random
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 
 from rovlink.controller import Attitude
 from rovlink.controller.config import parameter_doc as _doc
@@ -54,7 +54,15 @@ class SensorParams:
     )
 
     def __post_init__(self) -> None:
-        if not (math.isfinite(self.pressure_counts_per_m) and self.pressure_counts_per_m > 0):
+        for item in fields(self):
+            value = getattr(self, item.name)
+            if not math.isfinite(value):
+                raise ValueError(f"{item.name} must be a finite number, got {value}")
+        for name in ("pressure_noise_counts", "attitude_noise_deg", "heading_noise_deg"):
+            value = getattr(self, name)
+            if value < 0:
+                raise ValueError(f"{name} must be ≥ 0, got {value}")
+        if not self.pressure_counts_per_m > 0:
             raise ValueError(f"pressure_counts_per_m must be > 0, got {self.pressure_counts_per_m}")
         if not self.claw_travel_s > 0:
             raise ValueError(f"claw_travel_s must be > 0, got {self.claw_travel_s}")

@@ -2,8 +2,9 @@
 
 Coordinates: depth ``depth_m`` positive down from the surface; the planar position is north/east
 in metres; body axes are x forward (surge), y starboard (sway); heading is clockwise from north.
-Time advances in fixed steps (semi-implicit Euler), so a run is a pure function of its inputs and
-its seed.
+Time advances in fixed steps of at most 10 ms whatever the controller's rate (semi-implicit Euler,
+the drag taken at the end of each step so that no drag or step makes it oscillate), so a run is
+a pure function of its inputs and its seed.
 """
 
 from __future__ import annotations
@@ -12,12 +13,12 @@ import math
 import operator
 import random
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 
 from rovlink.controller import ThrusterSpec
 from rovlink.controller.config import parameter_doc as _doc
 
-__all__ = ["Vehicle", "VehicleParams", "thrust_n"]
+__all__ = ["MAX_STEP_S", "Vehicle", "VehicleParams", "thrust_n"]
 
 _GRAVITY_M_S2 = 9.80665
 _KGF_N = _GRAVITY_M_S2
@@ -25,6 +26,29 @@ _MAX_DUTY = 255.0
 _FULL_TURN_RAD = 2.0 * math.pi
 #: The periods of the three heave swells, as multiples of the wave period.
 _SWELL_PERIOD_FACTORS = (0.8, 1.0, 1.3)
+#: The longest step the equations of motion take: a longer one (a controller configured below
+#: 100 Hz) is taken in equal steps no longer than this. The explicit drag terms are stable only
+#: for short steps: at 1 Hz the vehicle under full down thrust bounced between the surface and
+#: 1.9 m, and at 2 Hz it sank a third faster than at 100 Hz.
+MAX_STEP_S = 0.01
+#: Fields that must be ≥ 0 (masses added by the water, drags, a lag, a noise level).
+_NON_NEGATIVE = (
+    "added_mass_heave_kg",
+    "added_mass_surge_kg",
+    "added_mass_sway_kg",
+    "heave_drag_n_s2_m2",
+    "heave_linear_drag_n_s_m",
+    "surge_drag_n_s2_m2",
+    "sway_drag_n_s2_m2",
+    "planar_linear_drag_n_s_m",
+    "yaw_drag_n_m_s2",
+    "yaw_linear_drag_n_m_s",
+    "thruster_time_constant_s",
+    "yaw_disturbance_n_m",
+    "wave_roll_deg",
+    "wave_pitch_deg",
+    "wave_heave_n",
+)
 
 
 @dataclass(frozen=True, slots=True)
@@ -110,6 +134,20 @@ class VehicleParams:
     pitch_trim_deg: float = field(default=0.0, metadata=_doc("static pitch, degrees"))
 
     def __post_init__(self) -> None:
+        # Every value is a number of the physics: NaN or infinity anywhere ends up in the depth,
+        # and the simulated pressure sensor then failed mid-run with a traceback.
+        for item in fields(self):
+            value = getattr(self, item.name)
+            if not math.isfinite(value):
+                raise ValueError(f"{item.name} must be a finite number, got {value}")
+        for name in _NON_NEGATIVE:
+            value = getattr(self, name)
+            if value < 0:
+                raise ValueError(f"{name} must be ≥ 0, got {value}")
+        if not 0 <= self.thruster_curve_linear <= 1:
+            raise ValueError(
+                f"thruster_curve_linear must be in [0, 1], got {self.thruster_curve_linear}"
+            )
         for name in (
             "mass_kg",
             "wave_period_s",
@@ -122,8 +160,6 @@ class VehicleParams:
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
                 raise ValueError(f"{name} must be > 0, got {value}")
-        if not (math.isfinite(self.wave_heave_n) and self.wave_heave_n >= 0):
-            raise ValueError(f"wave_heave_n must be ≥ 0, got {self.wave_heave_n}")
         if not 0 <= self.thruster_deadband < 1:
             raise ValueError(f"thruster_deadband must be in [0, 1), got {self.thruster_deadband}")
 
@@ -237,6 +273,9 @@ class Vehicle:
         new = tuple(duties)
         if new == self._duties:
             return
+        if new and (max(new) > _MAX_DUTY or min(new) < -_MAX_DUTY):
+            # Beyond what an ESC takes: it saturates at full thrust.
+            new = tuple(int(max(-_MAX_DUTY, min(_MAX_DUTY, duty))) for duty in new)
         self._duties = new
         table = self._thrust_table
         up = 0.0
@@ -280,15 +319,20 @@ class Vehicle:
         self._yaw_quadratic = params.yaw_drag_n_m_s2 * yaw
         self._yaw_linear = params.yaw_linear_drag_n_m_s * yaw
         period = params.yaw_disturbance_period_s
-        self._disturbance_decay = dt_s / period
+        self._disturbance_decay = -math.expm1(-dt_s / period)  # dt / period, and stable
         # Uniform kicks with the variance of the process's Gaussian ones (variance 1/12 → ×√12):
         # over many steps only the variance counts.
         self._disturbance_kick = params.yaw_disturbance_n_m * math.sqrt(24.0 * dt_s / period)
         self._dt_s = dt_s
 
     def step(self, dt_s: float) -> None:
-        """Advance the state by ``dt_s`` seconds."""
+        """Advance the state by ``dt_s`` seconds (in steps of at most :data:`MAX_STEP_S`)."""
         if dt_s != self._dt_s:
+            if dt_s > MAX_STEP_S:
+                steps = math.ceil(dt_s / MAX_STEP_S - 1e-9)
+                for _ in range(steps):
+                    self.step(dt_s / steps)
+                return
             self._prepare(dt_s)
         lag = self._lag
         up_thrust = self.up_thrust_n
@@ -310,10 +354,11 @@ class Vehicle:
         up_force = self.net_buoyancy_n + up_thrust
         if self._heave_waves:
             up_force += self.heave_wave_n()
-        speed -= (
-            up_force * self._heave_dt
-            + self._heave_quadratic * speed * abs(speed)
-            + self._heave_linear * speed
+        # Drag is taken at the end of the step (linearised implicit Euler): stable for any drag
+        # and step, where the explicit form oscillated and blew up once drag × speed × step
+        # outgrew the mass. The terminal speed is the same.
+        speed = (speed - up_force * self._heave_dt) / (
+            1.0 + self._heave_quadratic * abs(speed) + self._heave_linear
         )
         depth = self.depth_m + speed * dt_s
         if depth <= 0.0:
@@ -331,17 +376,15 @@ class Vehicle:
         current_east = self.current_east_m_s
         surge = self.surge_m_s
         sway = self.sway_m_s
-        relative = surge - (current_north * cos_h + current_east * sin_h)
-        surge += (
-            surge_thrust * self._surge_dt
-            - self._surge_quadratic * relative * abs(relative)
-            - self._surge_linear * relative
+        flow = current_north * cos_h + current_east * sin_h
+        relative = surge - flow
+        surge = flow + (relative + surge_thrust * self._surge_dt) / (
+            1.0 + self._surge_quadratic * abs(relative) + self._surge_linear
         )
-        relative = sway - (current_east * cos_h - current_north * sin_h)
-        sway += (
-            sway_thrust * self._sway_dt
-            - self._sway_quadratic * relative * abs(relative)
-            - self._sway_linear * relative
+        flow = current_east * cos_h - current_north * sin_h
+        relative = sway - flow
+        sway = flow + (relative + sway_thrust * self._sway_dt) / (
+            1.0 + self._sway_quadratic * abs(relative) + self._sway_linear
         )
         self.surge_m_s = surge
         self.sway_m_s = sway
@@ -355,10 +398,8 @@ class Vehicle:
         )
         self._yaw_disturbance_n_m = disturbance
         rate = self.yaw_rate_rad_s
-        rate += (
-            (yaw_torque + disturbance) * self._yaw_dt
-            - self._yaw_quadratic * rate * abs(rate)
-            - self._yaw_linear * rate
+        rate = (rate + (yaw_torque + disturbance) * self._yaw_dt) / (
+            1.0 + self._yaw_quadratic * abs(rate) + self._yaw_linear
         )
         self.yaw_rate_rad_s = rate
         self.heading_rad = (heading + rate * dt_s) % _FULL_TURN_RAD

@@ -435,11 +435,13 @@ def pi_config_from_mapping(data: Mapping[str, Any], source: str = "rov.toml") ->
     """The configuration in parsed TOML ``data``; :class:`ConfigError` names what is wrong."""
     controller = config_from_mapping(data, source, other_tables=_BOARD_TABLES)
     escs = _escs(controller, _table(data, "esc", f"{source} [esc]"), source)
-    i2c = dataclass_from_table(I2cConfig, _table(data, "i2c", "[i2c]"), f"{source} [i2c]")
+    i2c = dataclass_from_table(I2cConfig, _table(data, "i2c", f"{source} [i2c]"), f"{source} [i2c]")
     pca = dataclass_from_table(
-        Pca9685Config, _table(data, "pca9685", "[pca9685]"), f"{source} [pca9685]"
+        Pca9685Config, _table(data, "pca9685", f"{source} [pca9685]"), f"{source} [pca9685]"
     )
-    claw = dataclass_from_table(ClawConfig, _table(data, "claw", "[claw]"), f"{source} [claw]")
+    claw = dataclass_from_table(
+        ClawConfig, _table(data, "claw", f"{source} [claw]"), f"{source} [claw]"
+    )
     pressure_table = dict(_table(data, "pressure", f"{source} [pressure]"))
     ms5837 = dataclass_from_table(
         Ms5837Config,
@@ -456,9 +458,13 @@ def pi_config_from_mapping(data: Mapping[str, Any], source: str = "rov.toml") ->
     pressure = dataclass_from_table(
         PressureConfig, pressure_table, f"{source} [pressure]", ms5837=ms5837, ads1115=ads1115
     )
-    imu = dataclass_from_table(ImuConfig, _table(data, "imu", "[imu]"), f"{source} [imu]")
-    leak = dataclass_from_table(LeakConfig, _table(data, "leak", "[leak]"), f"{source} [leak]")
-    board = dataclass_from_table(BoardConfig, _table(data, "board", "[board]"), f"{source} [board]")
+    imu = dataclass_from_table(ImuConfig, _table(data, "imu", f"{source} [imu]"), f"{source} [imu]")
+    leak = dataclass_from_table(
+        LeakConfig, _table(data, "leak", f"{source} [leak]"), f"{source} [leak]"
+    )
+    board = dataclass_from_table(
+        BoardConfig, _table(data, "board", f"{source} [board]"), f"{source} [board]"
+    )
     config = PiConfig(controller, escs, i2c, pca, claw, pressure, imu, leak, board)
     _check_channels(config, source)
     _check_pulses_fit(config, source)
