@@ -274,8 +274,9 @@ class FakeControllerServer:
     ``boot_s``: how long each controller ignores its input after the connection (a board
     booting), ``first_boot_s`` the first one's if it differs; ``script``: each controller's
     actions for its first queries (:meth:`FakeController.then`), in place before the
-    connection's first byte; ``refuse``: close new connections at once (the adapter is still
-    unplugged); ``checksum_on_accept``: new connections find the controller in checksum mode
+    connection's first byte; ``refuse``: nobody listens on the port (the adapter is still
+    unplugged: a connection is refused, and one the kernel had completed but not handed over is
+    reset); ``checksum_on_accept``: new connections find the controller in checksum mode
     (only the link dropped: the board ran on); ``ended[i]`` is set once the i-th controller's
     connection is closed.
     """
@@ -288,25 +289,52 @@ class FakeControllerServer:
         script: Sequence[str] = (),
     ) -> None:
         self._server = socket.create_server(("127.0.0.1", 0))
-        self.url = f"socket://127.0.0.1:{self._server.getsockname()[1]}"
+        self._port = self._server.getsockname()[1]
+        self.url = f"socket://127.0.0.1:{self._port}"
+        self._closed = False
         self.boot_s = boot_s
         self.first_boot_s = boot_s if first_boot_s is None else first_boot_s
         self.script = tuple(script)
         self.fakes: list[FakeController] = []
         self.ended: list[threading.Event] = []
-        self.refuse = False
+        self._refuse = False
         self.checksum_on_accept = False
-        threading.Thread(target=self._accept, name="fake controller server", daemon=True).start()
+        self._listen(self._server)
 
-    def _accept(self) -> None:
+    @property
+    def refuse(self) -> bool:
+        return self._refuse
+
+    @refuse.setter
+    def refuse(self, refuse: bool) -> None:
+        # No listener at all, rather than one that closes what it accepts: a connection made
+        # while refusing but accepted after would otherwise be served (a test's "reopened
+        # link" then began with frames written before it was meant to be plugged back).
+        if refuse == self._refuse or self._closed:
+            return
+        self._refuse = refuse
+        if refuse:
+            # (shutdown first: it wakes the accept() under way, which closing would leave
+            # holding the port)
+            with contextlib.suppress(OSError):
+                self._server.shutdown(socket.SHUT_RDWR)
+            self._server.close()
+        else:
+            self._server = socket.create_server(("127.0.0.1", self._port))
+            self._listen(self._server)
+
+    def _listen(self, server: socket.socket) -> None:
+        thread = threading.Thread(
+            target=self._accept, args=(server,), name="fake controller server", daemon=True
+        )
+        thread.start()
+
+    def _accept(self, server: socket.socket) -> None:
         while True:
             try:
-                connection, _ = self._server.accept()
+                connection, _ = server.accept()
             except OSError:
                 return
-            if self.refuse:
-                connection.close()
-                continue
             ended = threading.Event()
             self.ended.append(ended)
             boot_s = self.boot_s if self.fakes else self.first_boot_s
@@ -321,6 +349,7 @@ class FakeControllerServer:
             )
 
     def close(self) -> None:
+        self._closed = True
         self._server.close()
         for fake in self.fakes:
             fake.close()
