@@ -283,6 +283,38 @@ def test_a_ground_station_over_tcp():
             gcs.close()
 
 
+def test_tcp_ground_stations_come_and_go_and_the_next_one_is_served():
+    # pymavlink swaps a TCP socket when a write finds the peer gone; a read at the same time
+    # once killed the reader thread, and the bridge heard no ground station again.
+    port = free_tcp_port()
+    with running_bridge(endpoint=f"tcpin:127.0.0.1:{port}"):
+        for _ in range(6):
+            gcs = GroundStation(f"tcp:127.0.0.1:{port}")
+            try:
+                gcs.heartbeat()
+                gcs.receive("HEARTBEAT", condition=lambda m: m.type == SUBMARINE)
+                assert gcs.command(REQUEST_MESSAGE, AUTOPILOT_VERSION_ID) == ACCEPTED
+            finally:
+                gcs.close()
+            time.sleep(1.5)  # telemetry meets the closed socket meanwhile
+
+
+def test_the_bridge_dials_a_restarted_tcp_ground_station_again():
+    port = free_tcp_port()
+    server = GroundStation(f"tcpin:127.0.0.1:{port}")
+    try:
+        with running_bridge(endpoint=f"tcp:127.0.0.1:{port}"):
+            for _ in range(2):
+                server.receive("HEARTBEAT", condition=lambda m: m.type == SUBMARINE)
+                server.send("command_long", VEHICLE, 1, REQUEST_MESSAGE, 0, AUTOPILOT_VERSION_ID,
+                            0, 0, 0, 0, 0, 0)  # fmt: skip
+                assert server.receive("COMMAND_ACK").result == ACCEPTED
+                server.close()  # the ground station restarts
+                server = GroundStation(f"tcpin:127.0.0.1:{port}")
+    finally:
+        server.close()
+
+
 def test_nonsense_values_are_denied_and_the_bridge_serves_on(rig: BridgeRig, gcs: GroundStation):
     nan = float("nan")
     assert gcs.command(REQUEST_MESSAGE, nan) == DENIED
