@@ -57,9 +57,9 @@ def wait_for(predicate: Callable[[], bool], timeout_s: float = CONDITION_TIMEOUT
 class GroundStation:
     """pymavlink as a ground station: sends under a lock (a heartbeat thread shares it)."""
 
-    def __init__(self, address: str) -> None:
+    def __init__(self, address: str, system: int = 255) -> None:
         self.connection: Any = mavutil.mavlink_connection(
-            address, source_system=255, source_component=190, dialect="ardupilotmega"
+            address, source_system=system, source_component=190, dialect="ardupilotmega"
         )
         self._lock = threading.Lock()
         self._backlog: list[Any] = []

@@ -16,6 +16,7 @@ from tests.bridges.mavlink.rig import (
     BridgeRig,
     GroundStation,
     free_tcp_port,
+    free_udp_port,
     running_bridge,
     wait_for,
 )
@@ -390,6 +391,43 @@ def test_the_joystick_of_another_system_does_not_drive_this_one(rig: BridgeRig, 
     assert not [f for f in rig.frames_since(mark) if f.startswith(("#th", "#mvs"))]
     gcs.send("manual_control", 0, 0, 1000, 1000, 0, 0)  # a broadcast drives
     rig.wait_frame("#th.90.100!", since=mark)
+
+
+def test_only_the_pilots_ground_station_flies_and_keeps_the_vehicle_armed():
+    # Two ground stations: the pilot's (system 255, SYSID_MYGCS) and a second one whose idle
+    # joystick sends a centred stick. The second's input once took turns with the pilot's at
+    # the thrust (full ahead, zero, full ahead, … at the joysticks' rate), and its heartbeat
+    # kept the vehicle armed after the pilot's ground station had gone.
+    port = free_udp_port()
+    with running_bridge(endpoint=f"udpin:127.0.0.1:{port}") as rig:
+        pilot = GroundStation(f"udpout:127.0.0.1:{port}")
+        watcher = GroundStation(f"udpout:127.0.0.1:{port}", system=254)
+        try:
+            pilot.heartbeat()
+            pilot.receive("HEARTBEAT", condition=lambda m: m.type == SUBMARINE)
+            assert pilot.arm() == ACCEPTED
+            pilot.start_heartbeats()
+            mark = len(rig.frames())
+            pilot.send("manual_control", VEHICLE, 1000, 0, 500, 0, 0)
+            rig.wait_frame("#th.0.100!", since=mark)
+            for _ in range(20):
+                watcher.send("manual_control", VEHICLE, 0, 0, 500, 0, 0)
+                watcher.heartbeat()
+                pilot.send("manual_control", VEHICLE, 1000, 0, 500, 0, 0)
+                time.sleep(0.05)
+            assert [f for f in rig.frames_since(mark) if f.startswith("#th")] == ["#th.0.100!"]
+            assert rig.bridge.armed
+
+            pilot.stop_heartbeats()  # the pilot's ground station goes; the other one beats on
+            gone = len(rig.frames())
+            deadline = time.monotonic() + 6.0
+            while "#stop!" not in rig.frames_since(gone) and time.monotonic() < deadline:
+                watcher.heartbeat()
+                time.sleep(0.2)
+            assert "#stop!" in rig.frames_since(gone)
+        finally:
+            pilot.close()
+            watcher.close()
 
 
 def test_messages_for_another_component_of_this_system_are_ignored(

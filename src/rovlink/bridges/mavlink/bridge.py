@@ -21,7 +21,7 @@ from rovlink.bridges.mavlink.command_handling import (
 from rovlink.bridges.mavlink.endpoint import MavlinkEndpoint
 from rovlink.bridges.mavlink.failsafe import GcsWatchdog
 from rovlink.bridges.mavlink.modes import ButtonFunction, FlightMode
-from rovlink.bridges.mavlink.parameters import ParameterError, ParameterTable
+from rovlink.bridges.mavlink.parameters import PILOT_SYSTEM, ParameterError, ParameterTable
 from rovlink.bridges.mavlink.pilot_input import PilotInput
 from rovlink.bridges.mavlink.telemetry_messages import TelemetryMessages
 from rovlink.bridges.mavlink.telemetry_schedule import MAX_RATE_HZ, TelemetrySchedule
@@ -81,6 +81,8 @@ class MavlinkBridge:
         self.messages = TelemetryMessages(endpoint, self.state, rov, self.parameters, clock)
         self.poller = SensorPoller(rov, self._on_reading, rate_hz=self._poll_rate_hz())
         self._inbox: asyncio.Queue[Any] = asyncio.Queue()
+        #: Systems whose joystick was ignored (not SYSID_MYGCS), each said once.
+        self._ignored_pilots: set[int] = set()
         self._background: set[asyncio.Future[None]] = set()
         self._handlers: dict[str, Callable[[Any], Any]] = {
             "HEARTBEAT": self._on_heartbeat,
@@ -235,8 +237,9 @@ class MavlinkBridge:
         while True:
             now_s = self._clock()
             if self.watchdog.tripped(now_s, armed=self.armed):
-                await self.disarm("no ground station heartbeat for 3 s")
-                self._say(_SEVERITY_CRITICAL, "Failsafe: GCS heartbeat lost, stopped")
+                pilot = self.parameters.pilot_system
+                await self.disarm(f"no heartbeat from ground station {pilot} for 3 s")
+                self._say(_SEVERITY_CRITICAL, f"Failsafe: GCS {pilot} heartbeat lost, stopped")
             expired = self.pilot.expire(now_s)
             for command in expired:
                 await self.rov.send(command)
@@ -252,10 +255,24 @@ class MavlinkBridge:
     # -- received messages ------------------------------------------------------------------------
 
     async def _on_heartbeat(self, message: Any) -> None:
-        if message.type == _GCS_TYPE:
+        # Only the pilot's ground station (SYSID_MYGCS), as ArduSub: a second one watching
+        # must not keep the vehicle armed after the pilot's has gone.
+        if message.type == _GCS_TYPE and message.get_srcSystem() == self.parameters.pilot_system:
             self.watchdog.heartbeat(self._clock())
 
     async def _on_manual_control(self, message: Any) -> None:
+        source = message.get_srcSystem()
+        if source != self.parameters.pilot_system:
+            # Two joysticks would take turns at the thrust, message by message (as ArduSub,
+            # only SYSID_MYGCS flies); said once per ground station, so that its pilot knows.
+            if source not in self._ignored_pilots:
+                self._ignored_pilots.add(source)
+                self._say(
+                    _SEVERITY_WARNING,
+                    f"Joystick of GCS {source} ignored: SYSID_MYGCS is "
+                    f"{self.parameters.pilot_system}",
+                )
+            return
         output = self.pilot.manual_control(
             message.x,
             message.y,
@@ -329,6 +346,8 @@ class MavlinkBridge:
             return
         if command is not None:
             await self.rov.send(command)
+        if name == PILOT_SYSTEM:
+            self._ignored_pilots.clear()  # (a joystick still ignored is said again)
         self._param_value(name)
 
     def _param_value(self, name: str) -> None:
