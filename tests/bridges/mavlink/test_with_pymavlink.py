@@ -11,6 +11,7 @@ from typing import Any
 import pytest
 
 from rovlink.bridges.mavlink.parameters import ParameterTable
+from rovlink.protocol import VerticalMode
 from tests.bridges.mavlink.rig import (
     VEHICLE,
     BridgeRig,
@@ -530,3 +531,24 @@ def test_a_long_refusal_comes_whole_in_chunks_naming_the_value(rig: BridgeRig, g
     gcs.send("param_set", VEHICLE, 1, b"RL_DEPTH_P", 120.0, 6)  # a short one: one message, id 0
     short = gcs.receive("STATUSTEXT", condition=lambda m: m.text.startswith("RL_DEPTH_P"))
     assert (short.text, short.id) == ("RL_DEPTH_P must be an integer in 0-99, got 120", 0)
+
+
+def test_after_a_controller_reset_the_parameters_and_the_mode_are_sent_again():
+    # A reset brings the controller back with its configured defaults, in depth mode (P21, P9):
+    # a maximum PWM of 100 became 255 again unseen, and MANUAL's throttle (#mvs) was dropped.
+    with _silenced_controller() as (rig, gcs):
+        rig.link.silent.clear()
+        controller = rig.port.robot.controller
+        gcs.send("param_set", VEHICLE, 1, b"RL_MAX_PWM", 100.0, 6)
+        wait_for(lambda: controller.state().max_pwm == 100)
+        assert gcs.arm() == ACCEPTED
+        rig.link.silent.set()  # the controller resets: silent while it boots
+        controller.reset()
+        gcs.receive("STATUSTEXT", condition=lambda m: "may have reset" in m.text)
+        rig.link.silent.clear()
+        gcs.receive("STATUSTEXT", condition=lambda m: "sent again" in m.text)
+        state = controller.state()
+        assert (state.max_pwm, state.vertical_mode) == (100, VerticalMode.DIRECT)
+        assert gcs.arm() == ACCEPTED
+        gcs.send("manual_control", VEHICLE, 0, 0, 1000, 0, 0)  # full up, in MANUAL
+        wait_for(lambda: controller.state().vertical_thrust_percent == 100)

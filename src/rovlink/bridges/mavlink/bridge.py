@@ -9,9 +9,10 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import time
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Coroutine, Iterable
 from typing import Any
 
+from rovlink.bridges.kept_settings import KeptSettings
 from rovlink.bridges.mavlink.command_handling import (
     MAV_CMD,
     Result,
@@ -96,6 +97,9 @@ class MavlinkBridge:
             "REQUEST_DATA_STREAM": self._on_request_data_stream,
             "MISSION_REQUEST_LIST": self._on_mission_request_list,
         }
+        #: The gains, calibration and mode as last sent: sent again after a suspected reset.
+        self.kept = KeptSettings()
+        self.kept.follow(rov)
         rov.client.subscribe(self._on_client_event)
         # What the pilot input measures changes and staleness against: the set-points as the
         # controller has them after each frame (whoever sent it), not what the bridge expects.
@@ -152,6 +156,7 @@ class MavlinkBridge:
         if depth_cm is None:
             self._say(_SEVERITY_WARNING, "Arm refused: the controller does not answer")
             return Result.FAILED
+        await self._restore_settings()  # (after a reset: not armed before the settings are in)
         await self.rov.send(Command("start"))
         self.watchdog.heartbeat(self._clock())  # arming counts as contact
         await self._hold_current_depth(depth_cm)
@@ -374,18 +379,37 @@ class MavlinkBridge:
     def _on_reading(self, sensors: Sensors) -> None:
         if self.state.update(sensors, self._clock()):
             self._say(_SEVERITY_CRITICAL, "Leak detected")
+        if self.kept.pending:  # the controller answers again after a suspected reset
+            self._in_background(self._restore_settings())
 
     def _on_client_event(self, event: ClientEvent) -> None:
+        if isinstance(event, ResetSuspected):
+            self.kept.reset_suspected()
         lost = isinstance(event, LinkState) and event.state == "lost"
         if (isinstance(event, ResetSuspected) or lost) and self.armed:
             # After a reset the controller is locked (P21): say so rather than show it armed.
-            task = asyncio.ensure_future(self._disarm_quietly("the controller may have reset"))
-            self._background.add(task)
-            task.add_done_callback(self._background.discard)
+            self._in_background(self._disarm_quietly("the controller may have reset"))
+
+    def _in_background(self, work: Coroutine[Any, Any, None]) -> None:
+        task = asyncio.ensure_future(work)
+        self._background.add(task)
+        task.add_done_callback(self._background.discard)
 
     async def _disarm_quietly(self, reason: str) -> None:
         with contextlib.suppress(ConnectionError):
             await self.disarm(reason)
+
+    async def _restore_settings(self) -> None:
+        """After a suspected reset, the parameters and the mode as last sent, sent again: the
+        controller came back with its configured defaults, in depth mode (P21, P9)."""
+        try:
+            commands = await self.kept.restore(self.rov)
+        except ConnectionError:
+            return  # the bridge ends
+        if commands:
+            frames = " ".join(str(command) for command in commands)
+            logger.warning("the controller may have reset: sent again %s", frames)
+            self._say(_SEVERITY_WARNING, "Controller reset? Parameters and mode sent again")
 
     async def _hold_current_depth(self, depth_cm: int | None = None) -> None:
         """In ALT_HOLD, armed: hold ``depth_cm`` (default: the last polled depth)."""

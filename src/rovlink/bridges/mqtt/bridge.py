@@ -20,10 +20,11 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Coroutine
 from typing import Any
 
 from rovlink.aio.wakeup import wait_for_event
+from rovlink.bridges.kept_settings import KeptSettings
 from rovlink.bridges.mqtt.broker import BrokerSettings
 from rovlink.bridges.mqtt.commands import CommandPolicy
 from rovlink.bridges.mqtt.outbox import Outbox
@@ -44,7 +45,9 @@ from rovlink.client.errors import ConnectionLostError, QueryTimeoutError
 from rovlink.client.events import ClientEvent, LinkState, MotionExpired, ResetSuspected
 from rovlink.client.sensors import Sensors
 from rovlink.logs import get_logger
+from rovlink.piloting.commanded import LockState
 from rovlink.piloting.tracked import TrackedClient
+from rovlink.protocol import Command
 
 __all__ = ["MqttBridge"]
 
@@ -55,6 +58,10 @@ _QOS_RELIABLE = 1
 _RETAINED_REFUSED = (
     "a retained command is not carried out (the broker would give it again on every "
     "reconnection): publish commands without retain"
+)
+_RETAINED_STOP = (
+    "published retained: carried out, as stop always is, but publish commands without retain "
+    "(clear this one with an empty retained message)"
 )
 #: The retained state is refreshed at least this often (its ``at`` and link silence).
 _STATE_REFRESH_S = 2.0
@@ -108,6 +115,10 @@ class MqttBridge:
         #: The kept event being published (see :meth:`_publish_kept_events`).
         self._event_publish: asyncio.Future[None] | None = None
         self.poller = SensorPoller(rov, self._on_reading, rate_hz=rate_hz)
+        #: The settings and vertical mode as last sent: sent again after a suspected reset.
+        self.kept = KeptSettings()
+        self.kept.follow(rov)
+        self._background: set[asyncio.Future[None]] = set()
         rov.client.subscribe(self._on_client_event)
         rov.add_sent_listener(lambda _sent: self._wake_publisher.set())
 
@@ -126,9 +137,10 @@ class MqttBridge:
             self._end_reason(error)  # before the broker task is cancelled: it says this reason
             raise
         finally:
-            for task in (poller, broker):
-                task.cancel()
-            await asyncio.gather(poller, broker, return_exceptions=True)
+            tasks: list[asyncio.Future[None]] = [poller, broker, *self._background]
+            for running in tasks:
+                running.cancel()
+            await asyncio.gather(*tasks, return_exceptions=True)
             with contextlib.suppress(ConnectionError):
                 await self.rov.stop()
 
@@ -221,8 +233,8 @@ class MqttBridge:
                 task.result()  # the broker went away (MqttError), or a fault
         finally:
             self.connected.clear()
-            for task in tasks:
-                task.cancel()
+            for running in tasks:
+                running.cancel()
             await asyncio.gather(*tasks, return_exceptions=True)
 
     async def _receive(self, mqtt: Any) -> None:
@@ -305,23 +317,42 @@ class MqttBridge:
     async def _on_command(self, mqtt: Any, message: Any) -> None:
         request: CommandRequest | None = None
         payload = message.payload if isinstance(message.payload, bytes) else b""
+        retained = bool(getattr(message, "retain", False))
+        if retained and not payload:
+            return  # a retained command being cleared (an empty retained message): not one
+        warning = None
         try:
             request = read_request(payload)
-            if getattr(message, "retain", False):
-                raise PayloadError(_RETAINED_REFUSED)
             command = self.policy.check(request.text)
+            if retained:
+                if command.name != "stop":
+                    raise PayloadError(_RETAINED_REFUSED)
+                # Stop can only make the robot safer (P3): carried out however it came.
+                warning = _RETAINED_STOP
         except (PayloadError, ValueError) as error:
             await self._reply(
                 mqtt, message, reply_payload(self.robot_id, request, error=str(error))
             )
             return
         try:
+            await self._restore_settings()  # (after a reset: before what may build on them)
             replies = await self.rov.send(command)
         except QueryTimeoutError as error:
             answer = reply_payload(self.robot_id, request, frame=str(command), error=str(error))
         else:
-            answer = reply_payload(self.robot_id, request, frame=str(command), replies=replies)
+            warning = warning or self._dropped_because(command)
+            answer = reply_payload(
+                self.robot_id, request, frame=str(command), replies=replies, warning=warning
+            )
         await self._reply(mqtt, message, answer)
+
+    def _dropped_because(self, command: Command) -> str | None:
+        """Why the controller drops ``command`` just sent (locked, the other vertical mode), as
+        far as the state as last sent tells; ``None`` if it acts on it."""
+        commanded = self.rov.commanded
+        if command.spec.is_query or commanded.last_command != command:
+            return None
+        return commanded.last_dropped_because
 
     async def _reply(self, mqtt: Any, message: Any, answer: dict[str, Any]) -> None:
         from paho.mqtt.packettypes import PacketTypes  # noqa: PLC0415
@@ -356,6 +387,8 @@ class MqttBridge:
         self._latest = sensors
         if sensors.leak_detected and (previous is None or not previous.leak_detected):
             self._event("leak", "the leak sensor fired")
+        if self.kept.pending:  # the controller answers again after a suspected reset
+            self._in_background(self._restore_settings())
         self.sequence += 1
         if self.connected.is_set():
             payload = encode(
@@ -370,14 +403,40 @@ class MqttBridge:
             frames = " ".join(str(command) for command in event.commands)
             self._event("failsafe", f"motion not renewed: zero thrust sent ({frames})")
         elif isinstance(event, ResetSuspected):
-            self._event(
-                "reset_suspected",
+            self.kept.reset_suspected()
+            detail = (
                 f"{event.consecutive_timeouts} queries timed out: the controller may have reset "
-                "(it is locked after a reset)",
+                "(it is locked after a reset)"
             )
+            if self.rov.commanded.lock is LockState.UNLOCKED:
+                # The state says the lock as last sent: #stop! makes it say what a reset did
+                # (P21), rather than "unlocked" for a robot that no longer moves.
+                self._in_background(self._stop_quietly())
+                detail += "; #stop! sent"
+            self._event("reset_suspected", detail)
         elif isinstance(event, LinkState):
             self._link_lost_reported = event.state == "lost"
             self._event("link", f"{event.state} {event.detail}".strip())
+
+    def _in_background(self, work: Coroutine[Any, Any, None]) -> None:
+        task = asyncio.ensure_future(work)
+        self._background.add(task)
+        task.add_done_callback(self._background.discard)
+
+    async def _stop_quietly(self) -> None:
+        with contextlib.suppress(ConnectionError):
+            await self.rov.stop()
+
+    async def _restore_settings(self) -> None:
+        """After a suspected reset, the settings and the vertical mode as last sent, sent again:
+        the controller came back with its configured defaults, in depth mode (P21, P9)."""
+        try:
+            commands = await self.kept.restore(self.rov)
+        except ConnectionError:
+            return  # the bridge ends
+        if commands:
+            frames = " ".join(str(command) for command in commands)
+            self._event("reset_suspected", f"the controller answers again: sent again {frames}")
 
     def _event(self, name: str, detail: str) -> None:
         logger.info("event %s: %s", name, detail)
