@@ -193,7 +193,7 @@ def run(args: argparse.Namespace) -> int:
 
 async def _serve(args: argparse.Namespace, broker: BrokerSettings) -> None:
     import rovlink.aio  # noqa: PLC0415
-    from rovlink.bridges.mqtt.bridge import MqttBridge  # noqa: PLC0415
+    from rovlink.bridges.mqtt.bridge import BridgeReplacedError, MqttBridge  # noqa: PLC0415
     from rovlink.client.errors import ConnectionLostError  # noqa: PLC0415
     from rovlink.piloting.tracked import TrackedClient  # noqa: PLC0415
 
@@ -222,3 +222,5 @@ async def _serve(args: argparse.Namespace, broker: BrokerSettings) -> None:
             await bridge.run()
         except ConnectionLostError as error:
             raise CommandError(f"{args.url}: {error}") from None
+        except BridgeReplacedError as error:
+            raise CommandError(str(error)) from None

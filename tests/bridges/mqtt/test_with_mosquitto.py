@@ -2,14 +2,17 @@
 
 from __future__ import annotations
 
+import asyncio
 import contextlib
 import json
+import logging
 
 import aiomqtt
 import pytest
 from paho.mqtt.packettypes import PacketTypes
 from paho.mqtt.properties import Properties
 
+from rovlink.bridges.mqtt.bridge import _taken_over
 from rovlink.client.errors import ConnectionLostError
 from tests.bridges.mqtt.broker import Mosquitto
 from tests.bridges.mqtt.rig import bridged_robot, subscriber, until
@@ -366,3 +369,43 @@ async def test_after_a_controller_reset_the_state_says_locked_and_the_settings_r
         assert (await watcher.command("r1", "start"))["ok"]
         assert "warning" not in await watcher.command("r1", "mvs 60")
         await until(lambda: controller.state().vertical_thrust_percent == 60)
+
+
+async def test_two_bridges_with_one_robot_id_are_named_and_do_not_flap_at_full_speed(
+    broker: Mosquitto, caplog: pytest.LogCaptureFixture
+):
+    # The broker gives a client id to its newest connection; each bridge took it back within
+    # 0.2 s, for ever (the retained state flipped online and offline five times a second), and
+    # the log said only "Disconnected during message iteration".
+    caplog.set_level(logging.WARNING, logger="rovlink.bridges.mqtt")
+    async with bridged_robot(broker, "twin"), bridged_robot(broker, "twin"):
+        await until(lambda: "is a second bridge running with --robot twin?" in caplog.text)
+        waits = [
+            float(record.getMessage().rsplit("retrying in ", 1)[1].split()[0])
+            for record in caplog.records
+            if "retrying in" in record.getMessage()
+        ]
+        assert max(waits) >= 0.8  # backing off, not back at 0.2 s after every connection
+
+
+def test_a_session_taken_over_is_told_by_the_brokers_reason():
+    # Brokers that say why they end a connection (MQTT 5 reason 0x8E) end the replaced bridge.
+    from aiomqtt import MqttCodeError
+    from paho.mqtt.reasoncodes import ReasonCode
+
+    loop = asyncio.new_event_loop()
+    try:
+
+        def ended_with(code: int | None) -> object:
+            disconnected: asyncio.Future[None] = loop.create_future()
+            if code is not None:
+                reason = ReasonCode(PacketTypes.DISCONNECT, identifier=code)
+                disconnected.set_exception(MqttCodeError(reason, "Unexpected disconnection"))
+            return type("Client", (), {"_disconnected": disconnected})()
+
+        assert _taken_over(ended_with(0x8E))
+        assert not _taken_over(ended_with(0x80))  # unspecified (mosquitto 2.0.11 says nothing)
+        assert not _taken_over(ended_with(None))
+        assert not _taken_over(object())
+    finally:
+        loop.close()

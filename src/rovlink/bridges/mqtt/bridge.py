@@ -49,7 +49,7 @@ from rovlink.piloting.commanded import LockState
 from rovlink.piloting.tracked import TrackedClient
 from rovlink.protocol import Command
 
-__all__ = ["MqttBridge"]
+__all__ = ["BridgeReplacedError", "MqttBridge"]
 
 logger = get_logger("rovlink.bridges.mqtt")
 
@@ -73,6 +73,17 @@ _TELEMETRY_BACKLOG = 64
 _KEEPALIVE_S = 10
 #: The offline state at the end is given up after this (the last will covers a lost broker).
 _FAREWELL_S = 2.0
+#: MQTT 5's DISCONNECT reason: another client connected with this one's client id.
+_SESSION_TAKEN_OVER = 0x8E
+#: A connection that lasted this long resets the reconnection backoff, s.
+_STABLE_CONNECTION_S = 10.0
+#: Connections in a row ended this soon that make the bridge say a second one may be running.
+_SHORT_LIVED_WARNING = 3
+
+
+class BridgeReplacedError(Exception):
+    """Another client connected with this bridge's client id (a second bridge for the robot id)
+    and the broker handed it this bridge's session: this one ends rather than take it back."""
 
 
 class MqttBridge:
@@ -149,15 +160,27 @@ class MqttBridge:
     async def _stay_connected(self) -> None:
         import aiomqtt  # noqa: PLC0415 - the mqtt extra loads only here
 
+        loop = asyncio.get_running_loop()
         wait_s = _RECONNECT_FIRST_S
+        short_lived = 0  # connections in a row that the broker ended soon after they began
         while True:
+            connected_at_s: float | None = None
             try:
                 async with self._client(aiomqtt) as mqtt:
-                    wait_s = _RECONNECT_FIRST_S
+                    connected_at_s = loop.time()
                     logger.info("connected to %s", self.broker.describe())
                     try:
                         await self._serve(mqtt)
                     except aiomqtt.MqttError:
+                        if _taken_over(mqtt):
+                            # Taking it back would take turns with the other for ever, five
+                            # times a second, the retained state flipping online and offline.
+                            raise BridgeReplacedError(
+                                f"another client connected to {self.broker.describe()} as "
+                                f"rovlink-bridge-{self.robot_id} and took this bridge's session "
+                                f"over: is a second bridge running with --robot "
+                                f"{self.robot_id}? Each robot needs its own id"
+                            ) from None
                         raise  # the broker is gone: nothing can be said (the last will does)
                     except BaseException as error:
                         # Whatever ends the bridge, the retained state must not stay online:
@@ -166,9 +189,27 @@ class MqttBridge:
                         raise
             except aiomqtt.MqttError as error:
                 self.connected.clear()
+                if connected_at_s is not None:
+                    # The backoff starts again only after a connection that held: one ended at
+                    # once, again and again, is no broker restart.
+                    if loop.time() - connected_at_s >= _STABLE_CONNECTION_S:
+                        wait_s, short_lived = _RECONNECT_FIRST_S, 0
+                    else:
+                        short_lived += 1
                 logger.warning(
                     "broker %s: %s; retrying in %g s", self.broker.describe(), error, wait_s
                 )
+                if short_lived >= _SHORT_LIVED_WARNING:
+                    logger.error(
+                        "broker %s ended this bridge's connection %d times in a row soon after "
+                        "it began: is a second bridge running with --robot %s? (The broker "
+                        "hands the MQTT client id rovlink-bridge-%s to the newest connection, "
+                        "and the two take turns.) Each robot needs its own id",
+                        self.broker.describe(),
+                        short_lived,
+                        self.robot_id,
+                        self.robot_id,
+                    )
                 await asyncio.sleep(wait_s)
                 wait_s = min(wait_s * 2, _RECONNECT_MAX_S)
             except asyncio.CancelledError:
@@ -443,3 +484,15 @@ class MqttBridge:
         payload = event_payload(self.robot_id, name, detail, self._wall_clock())
         self.outbox.put(self.topics.events, encode(payload))
         self._wake_publisher.set()
+
+
+def _taken_over(mqtt: Any) -> bool:
+    """Whether the broker ended ``mqtt``'s connection because another client took its session
+    (aiomqtt keeps the broker's DISCONNECT reason in its ``_disconnected`` future)."""
+    disconnected = getattr(mqtt, "_disconnected", None)
+    if not isinstance(disconnected, asyncio.Future) or not disconnected.done():
+        return False
+    if disconnected.cancelled() or disconnected.exception() is None:
+        return False
+    reason = getattr(disconnected.exception(), "rc", None)
+    return getattr(reason, "value", reason) == _SESSION_TAKEN_OVER
