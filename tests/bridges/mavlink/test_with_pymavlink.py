@@ -186,6 +186,11 @@ def test_alt_hold_holds_the_current_depth_and_the_stick_moves_it(
     targets = [int(f[len("#mvd.") : -1]) for f in rig.frames_since(mark) if f.startswith("#mvd.")]
     assert max(targets) > depth_cm
     assert not [f for f in rig.frames_since(mark) if f.startswith("#mvs")]  # no thrust in depth
+    # ALT_HOLD asked again (a retry, the depth-hold button) keeps the target the stick set; it
+    # once went back to the depth of the moment, which the robot had not reached yet.
+    moved = len(rig.frames())
+    assert gcs.set_mode(ALT_HOLD) == ACCEPTED
+    assert not [f for f in rig.frames_since(moved) if f.startswith("#mvd.")]
     assert gcs.set_mode(MANUAL) == ACCEPTED
     rig.wait_frame("#mvdirect.1!", since=mark)
 

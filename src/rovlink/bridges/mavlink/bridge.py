@@ -180,10 +180,16 @@ class MavlinkBridge:
         return Result.ACCEPTED
 
     async def set_mode(self, mode: FlightMode) -> Result:
-        """MANUAL: ``#mvdirect.1!``; ALT_HOLD: ``#mvdirect.0!`` holding the current depth."""
+        """MANUAL: ``#mvdirect.1!``; ALT_HOLD: ``#mvdirect.0!`` holding the current depth.
+
+        The mode in force asked again (a ground station's retry, a depth-hold button pressed in
+        depth hold) keeps the depth held, as ArduSub: the stick may have moved it since.
+        """
+        entering = mode is not self.state.mode
         self.state.mode = mode
         await self.rov.send(Command("mvdirect", (int(mode is FlightMode.MANUAL),)))
-        await self._hold_current_depth()
+        if entering:
+            await self._hold_current_depth()
         return Result.ACCEPTED
 
     async def gripper(self, *, close: bool) -> Result:
