@@ -30,7 +30,7 @@ logger = get_logger("rovlink.bridges.mavlink")
 #: The endpoint forms served, as pymavlink and MAVProxy write them.
 SCHEMES = {
     "udpout": "send to a ground station listening there (QGroundControl: udpout:127.0.0.1:14550)",
-    "udpin": "listen for a ground station there, answer whoever sent last",
+    "udpin": "listen for ground stations there, send to every one that has sent something",
     "tcpin": "listen for one ground station's TCP connection there",
     "tcp": "connect to a ground station's TCP server there",
 }
