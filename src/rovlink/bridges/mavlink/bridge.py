@@ -27,12 +27,11 @@ from rovlink.bridges.mavlink.pilot_input import PilotInput
 from rovlink.bridges.mavlink.telemetry_messages import TelemetryMessages
 from rovlink.bridges.mavlink.telemetry_schedule import MAX_RATE_HZ, TelemetrySchedule
 from rovlink.bridges.mavlink.vehicle_state import VehicleState
-from rovlink.bridges.sensor_poll import SensorPoller
+from rovlink.bridges.sensor_poll import SensorPoller, reopening
 from rovlink.client.errors import QueryTimeoutError
 from rovlink.client.events import ClientEvent, LinkState, ResetSuspected
 from rovlink.client.sensors import Sensors
 from rovlink.logs import get_logger
-from rovlink.piloting.commanded import LockState
 from rovlink.piloting.tracked import TrackedClient
 from rovlink.protocol import Command
 
@@ -107,11 +106,14 @@ class MavlinkBridge:
 
     @property
     def armed(self) -> bool:
-        """Unlocked, as last sent."""
-        return self.rov.commanded.lock is LockState.UNLOCKED
+        """Unlocked, as last sent, on a link that is open (while it is reopened, the ``#stop!``
+        sent on losing it waits to be its first frame)."""
+        return self.messages.armed
 
     async def run(self) -> None:
-        """Serve until cancelled or the connection to the controller is lost; then ``#stop!``."""
+        """Serve until cancelled or the connection to the controller is lost for good; then
+        ``#stop!``. A link that a client with ``reconnect`` reopens is served through: the
+        vehicle is disarmed while it is down, and commands meanwhile are refused for now."""
         loop = asyncio.get_running_loop()
         try:
             await self.rov.stop()
@@ -186,8 +188,8 @@ class MavlinkBridge:
         depth hold) keeps the depth held, as ArduSub: the stick may have moved it since.
         """
         entering = mode is not self.state.mode
-        self.state.mode = mode
         await self.rov.send(Command("mvdirect", (int(mode is FlightMode.MANUAL),)))
+        self.state.mode = mode  # (once sent: a link being reopened refuses it)
         if entering:
             await self._hold_current_depth()
         return Result.ACCEPTED
@@ -235,8 +237,10 @@ class MavlinkBridge:
                 continue
             try:
                 await handler(message)
-            except ConnectionError:
-                raise  # the controller is gone: the bridge ends
+            except ConnectionError as error:
+                if not reopening(self.rov, error):
+                    raise  # the controller is gone for good: the bridge ends
+                logger.debug("%s not carried out: %s", message.get_type(), error)
             except Exception:
                 # One odd message must not end the bridge (and with it the ground station's
                 # control): log it and serve the next.
@@ -252,8 +256,13 @@ class MavlinkBridge:
                 await self.disarm(f"no heartbeat from ground station {pilot} for 3 s")
                 self._say(_SEVERITY_CRITICAL, f"Failsafe: GCS {pilot} heartbeat lost, stopped")
             expired = self.pilot.expire(now_s)
-            for command in expired:
-                await self.rov.send(command)
+            try:
+                for command in expired:
+                    await self.rov.send(command)
+            except ConnectionError as error:
+                if not reopening(self.rov, error):
+                    raise
+                # The reopened link's first frames are zero thrust (the driver's own).
             if expired:
                 self._say(_SEVERITY_WARNING, "Failsafe: pilot input stale, thrust zeroed")
             for name in self.schedule.due(now_s):
@@ -320,12 +329,25 @@ class MavlinkBridge:
         await self._command(message, message.command, params)
 
     async def _command(self, message: Any, command: int, params: list[float]) -> None:
-        result = await handle_command(self, command, params)
+        result = await self._while_link_down(handle_command(self, command, params))
         self._ack(message, command, result)
 
     async def _on_set_mode(self, message: Any) -> None:
-        result = await mode_result(self, message.base_mode, message.custom_mode)
+        result = await self._while_link_down(
+            mode_result(self, message.base_mode, message.custom_mode)
+        )
         self._ack(message, MAV_CMD.DO_SET_MODE, result)
+
+    async def _while_link_down(self, action: Coroutine[Any, Any, Result]) -> Result:
+        """``action``'s result; TEMPORARILY_REJECTED if the controller link is being reopened
+        (MAVLink's "valid, but not now: retry later"), with a STATUSTEXT."""
+        try:
+            return await action
+        except ConnectionError as error:
+            if not reopening(self.rov, error):
+                raise
+            self._say(_SEVERITY_WARNING, "Not now: the controller link is down")
+            return Result.TEMPORARILY_REJECTED
 
     def _ack(self, message: Any, command: int, result: Result) -> None:
         self.endpoint.mav.command_ack_send(
@@ -348,6 +370,7 @@ class MavlinkBridge:
 
     async def _on_param_set(self, message: Any) -> None:
         name = _param_name(message.param_id)
+        before = self.parameters.value(name) if name in self.parameters.names() else None
         try:
             command = self.parameters.set(name, message.param_value)
         except ParameterError as error:
@@ -356,7 +379,15 @@ class MavlinkBridge:
                 self._param_value(name)  # the value in force: the set did not take
             return
         if command is not None:
-            await self.rov.send(command)
+            try:
+                await self.rov.send(command)
+            except ConnectionError as error:
+                if not reopening(self.rov, error) or before is None:
+                    raise
+                self.parameters.set(name, before)  # not sent: the value in force stays
+                self._say(_SEVERITY_WARNING, f"{name} not set: the controller link is down")
+                self._param_value(name)
+                return
         if name == PILOT_SYSTEM:
             self._ignored_pilots.clear()  # (a joystick still ignored is said again)
         self._param_value(name)
@@ -389,12 +420,22 @@ class MavlinkBridge:
             self._in_background(self._restore_settings())
 
     def _on_client_event(self, event: ClientEvent) -> None:
-        if isinstance(event, ResetSuspected):
-            self.kept.reset_suspected()
         lost = isinstance(event, LinkState) and event.state == "lost"
         if (isinstance(event, ResetSuspected) or lost) and self.armed:
             # After a reset the controller is locked (P21): say so rather than show it armed.
-            self._in_background(self._disarm_quietly("the controller may have reset"))
+            # (On a link being reopened, the #stop! waits to be its first frame.)
+            reason = "the controller link was lost" if lost else "the controller may have reset"
+            self._in_background(self._disarm_quietly(reason))
+        if isinstance(event, LinkState):
+            self.messages.link_up = not lost
+            if lost:
+                self._say(_SEVERITY_CRITICAL, "Controller link lost: reopening it")
+            else:
+                self._say(_SEVERITY_INFO, "Controller link back")
+        if isinstance(event, ResetSuspected) or (isinstance(event, LinkState) and not lost):
+            # A reset, or a board that a reopened port may have reset (an Arduino's DTR line):
+            # its settings are sent again once it answers.
+            self.kept.reset_suspected()
 
     def _in_background(self, work: Coroutine[Any, Any, None]) -> None:
         task = asyncio.ensure_future(work)

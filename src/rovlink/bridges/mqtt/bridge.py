@@ -40,7 +40,7 @@ from rovlink.bridges.mqtt.payloads import (
     telemetry_payload,
 )
 from rovlink.bridges.mqtt.topics import Topics, publish_topic_problem
-from rovlink.bridges.sensor_poll import SensorPoller
+from rovlink.bridges.sensor_poll import SensorPoller, reopening
 from rovlink.client.errors import ConnectionLostError, QueryTimeoutError
 from rovlink.client.events import ClientEvent, LinkState, MotionExpired, ResetSuspected
 from rovlink.client.sensors import Sensors
@@ -123,6 +123,8 @@ class MqttBridge:
         #: Why the bridge is ending (the offline state's reason), once it is.
         self._ending: str | None = None
         self._link_lost_reported = False
+        #: The controller's link is lost and being reopened (a client with ``reconnect``).
+        self._link_down = False
         #: The kept event being published (see :meth:`_publish_kept_events`).
         self._event_publish: asyncio.Future[None] | None = None
         self.poller = SensorPoller(rov, self._on_reading, rate_hz=rate_hz)
@@ -134,7 +136,9 @@ class MqttBridge:
         rov.add_sent_listener(lambda _sent: self._wake_publisher.set())
 
     async def run(self) -> None:
-        """Serve until cancelled (or the controller's connection is lost); the robot is sent
+        """Serve until cancelled (or the controller's connection is lost for good: a link that a
+        client with ``reconnect`` reopens is served through, commands refused meanwhile); the
+        robot is sent
         ``#stop!`` at the start, so that its state is known (locked) before anyone commands it,
         and at the end, when the state is marked offline."""
         await self.rov.stop()
@@ -303,6 +307,8 @@ class MqttBridge:
             at_s=self._wall_clock(),
             now_s=self.rov.now_s(),
         )
+        if self._link_down:
+            state["link"]["status"] = "lost"  # (being reopened)
         comparable = {k: v for k, v in state.items() if k not in ("at", "link")}
         comparable["link_status"] = state["link"]["status"]
         if comparable == self._last_state and now_s - self._last_state_at_s < _STATE_REFRESH_S:
@@ -380,6 +386,12 @@ class MqttBridge:
             replies = await self.rov.send(command)
         except QueryTimeoutError as error:
             answer = reply_payload(self.robot_id, request, frame=str(command), error=str(error))
+        except ConnectionError as error:
+            if not reopening(self.rov, error):
+                raise  # the controller is gone for good: the bridge ends
+            answer = reply_payload(
+                self.robot_id, request, error=f"not sent: the controller link is down ({error})"
+            )
         else:
             warning = warning or self._dropped_because(command)
             answer = reply_payload(
@@ -456,7 +468,14 @@ class MqttBridge:
                 detail += "; #stop! sent"
             self._event("reset_suspected", detail)
         elif isinstance(event, LinkState):
-            self._link_lost_reported = event.state == "lost"
+            lost = event.state == "lost"
+            if lost and self.rov.commanded.lock is LockState.UNLOCKED:
+                # The robot's own watchdog stops it (P17) unless the link is soon back: #stop!
+                # is then the reopened link's first frame, and the state says locked.
+                self._in_background(self._stop_quietly())
+            if not lost:  # a board that the reopened port may have reset (an Arduino's DTR)
+                self.kept.reset_suspected()
+            self._link_lost_reported = self._link_down = lost
             self._event("link", f"{event.state} {event.detail}".strip())
 
     def _in_background(self, work: Coroutine[Any, Any, None]) -> None:
