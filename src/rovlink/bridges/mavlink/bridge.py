@@ -426,13 +426,14 @@ class MavlinkBridge:
             # (On a link being reopened, the #stop! waits to be its first frame.)
             reason = "the controller link was lost" if lost else "the controller may have reset"
             self._in_background(self._disarm_quietly(reason))
-        if isinstance(event, LinkState):
-            self.messages.link_up = not lost
-            if lost:
-                self._say(_SEVERITY_CRITICAL, "Controller link lost: reopening it")
-            else:
-                self._say(_SEVERITY_INFO, "Controller link back")
-        if isinstance(event, ResetSuspected) or (isinstance(event, LinkState) and not lost):
+        back = isinstance(event, LinkState) and event.state == "reconnected"
+        if lost:
+            self.messages.link_up = False
+            self._say(_SEVERITY_CRITICAL, "Controller link lost: reopening it")
+        elif back:
+            self.messages.link_up = True
+            self._say(_SEVERITY_INFO, "Controller link back")
+        if isinstance(event, ResetSuspected) or back:
             # A reset, or a board that a reopened port may have reset (an Arduino's DTR line):
             # its settings are sent again once it answers.
             self.kept.reset_suspected()

@@ -473,7 +473,7 @@ class MqttBridge:
                 # The robot's own watchdog stops it (P17) unless the link is soon back: #stop!
                 # is then the reopened link's first frame, and the state says locked.
                 self._in_background(self._stop_quietly())
-            if not lost:  # a board that the reopened port may have reset (an Arduino's DTR)
+            if event.state == "reconnected":  # a board the reopened port may have reset (DTR)
                 self.kept.reset_suspected()
             self._link_lost_reported = self._link_down = lost
             self._event("link", f"{event.state} {event.detail}".strip())
