@@ -81,8 +81,12 @@ class KeptSettings:
                 return ()
             self.pending = False
             commands = self.commands()
-            for command in commands:
-                await rov.send(command)
+            try:
+                for command in commands:
+                    await rov.send(command)
+            except BaseException:
+                self.pending = True  # (the link went again: all of them, next time)
+                raise
             return commands
 
     def _on_sent(self, sent: SentFrame) -> None:

@@ -453,7 +453,7 @@ class MavlinkBridge:
         try:
             commands = await self.kept.restore(self.rov)
         except ConnectionError:
-            return  # the bridge ends
+            return  # the link went again (they are sent once it is back), or for good
         if commands:
             frames = " ".join(str(command) for command in commands)
             logger.warning("the controller may have reset: sent again %s", frames)

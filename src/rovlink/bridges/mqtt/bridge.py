@@ -138,9 +138,8 @@ class MqttBridge:
     async def run(self) -> None:
         """Serve until cancelled (or the controller's connection is lost for good: a link that a
         client with ``reconnect`` reopens is served through, commands refused meanwhile); the
-        robot is sent
-        ``#stop!`` at the start, so that its state is known (locked) before anyone commands it,
-        and at the end, when the state is marked offline."""
+        robot is sent ``#stop!`` at the start, so that its state is known (locked) before anyone
+        commands it, and at the end, when the state is marked offline."""
         await self.rov.stop()
         poller = asyncio.ensure_future(self.poller.run())
         broker = asyncio.ensure_future(self._stay_connected())
@@ -493,7 +492,7 @@ class MqttBridge:
         try:
             commands = await self.kept.restore(self.rov)
         except ConnectionError:
-            return  # the bridge ends
+            return  # the link went again (they are sent once it is back), or for good
         if commands:
             frames = " ".join(str(command) for command in commands)
             self._event("reset_suspected", f"the controller answers again: sent again {frames}")
