@@ -48,6 +48,20 @@ class RecordingLink:
         return [frame + "!" for frame in text.split("!") if frame]
 
 
+class SilenceableLink(RecordingLink):
+    """A recording link whose controller can be made silent (``silent.set()``): what it writes
+    is lost, as a stopped, hung or rebooting controller's would be; what the host writes still
+    reaches it."""
+
+    def __init__(self, inner: Link) -> None:
+        super().__init__(inner)
+        self.silent = threading.Event()
+
+    def read_available(self, timeout_s: float) -> bytes:
+        data = self.inner.read_available(timeout_s)
+        return b"" if self.silent.is_set() else data
+
+
 @dataclass
 class Rig:
     """A simulated controller stepped by hand (``port.advance``) and the recording link to it."""

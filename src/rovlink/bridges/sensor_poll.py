@@ -6,21 +6,28 @@ import asyncio
 from collections.abc import Callable
 
 from rovlink.aio.wakeup import wait_for_event
-from rovlink.client.errors import QueryTimeoutError
+from rovlink.client.errors import ConnectionLostError, QueryTimeoutError
 from rovlink.client.sensors import Sensors
 from rovlink.logs import get_logger
 from rovlink.piloting.tracked import TrackedClient
 
-__all__ = ["SensorPoller"]
+__all__ = ["SensorPoller", "reopening"]
 
 logger = get_logger("rovlink.bridges")
+
+
+def reopening(rov: TrackedClient, error: BaseException) -> bool:
+    """Whether ``error`` is the controller link being reopened (a client with ``reconnect``):
+    a bridge carries on, rather than end as when the connection is lost for good or closed."""
+    return isinstance(error, ConnectionError) and not rov.client.closed
 
 
 class SensorPoller:
     """Reads ``#qsa!`` at :attr:`rate_hz` and hands every reading to ``on_reading``.
 
     A reading that times out is logged and counted in the client's link health (the bridges
-    publish that health); a lost connection ends :meth:`run` with ``ConnectionLostError``.
+    publish that health). A link being reopened (a client with ``reconnect``) skips readings
+    until it is back; a connection lost for good ends :meth:`run` with ``ConnectionLostError``.
     """
 
     def __init__(
@@ -52,6 +59,10 @@ class SensorPoller:
                 reading = await self._rov.sensors()
             except QueryTimeoutError as error:
                 logger.warning("sensor poll failed: %s", error)
+            except ConnectionLostError as error:
+                if not reopening(self._rov, error):
+                    raise
+                logger.debug("sensor poll skipped: %s", error)  # (the client says it is lost)
             else:
                 self.latest = reading
                 self._on_reading(reading)

@@ -9,6 +9,7 @@ locked when the bridge ends.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -65,7 +66,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Serve until Ctrl-C or until the controller's connection is lost."""
+    """Serve until Ctrl-C; a controller link that drops is reopened."""
     try:
         from rovlink.bridges.mavlink.endpoint import check_address  # noqa: PLC0415
         from rovlink.bridges.mavlink.parameters import (  # noqa: PLC0415
@@ -126,7 +127,11 @@ async def _serve(
     from rovlink.client.errors import ConnectionLostError  # noqa: PLC0415
     from rovlink.piloting.tracked import TrackedClient  # noqa: PLC0415
 
-    options = link_options.client_options(args, keepalive_s=1.0)
+    # A link that drops (a USB adapter unplugged, a serial server restarting) is reopened: the
+    # ground station keeps its vehicle, disarmed while the link is down.
+    options = dataclasses.replace(
+        link_options.client_options(args, keepalive_s=1.0), reconnect=True
+    )
     try:
         client = await rovlink.aio.connect(args.url, baudrate=args.baudrate, options=options)
     except (ConnectionError, OSError) as error:

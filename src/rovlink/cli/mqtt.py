@@ -10,6 +10,7 @@ the ROVLINK_MQTT_PASSWORD environment variable, never from the command line.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import os
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -170,7 +171,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Serve until Ctrl-C or until the controller's connection is lost."""
+    """Serve until Ctrl-C; a controller link that drops is reopened."""
     from rovlink.bridges.mqtt.topics import check_robot_id  # noqa: PLC0415
 
     try:
@@ -193,12 +194,15 @@ def run(args: argparse.Namespace) -> int:
 
 async def _serve(args: argparse.Namespace, broker: BrokerSettings) -> None:
     import rovlink.aio  # noqa: PLC0415
-    from rovlink.bridges.mqtt.bridge import MqttBridge  # noqa: PLC0415
+    from rovlink.bridges.mqtt.bridge import BridgeReplacedError, MqttBridge  # noqa: PLC0415
     from rovlink.client.errors import ConnectionLostError  # noqa: PLC0415
     from rovlink.piloting.tracked import TrackedClient  # noqa: PLC0415
 
-    options = link_options.client_options(
-        args, keepalive_s=1.0, motion_timeout_s=args.motion_timeout_s
+    # A link that drops (a USB adapter unplugged, a serial server restarting) is reopened: the
+    # robot stays on the broker, locked while the link is down.
+    options = dataclasses.replace(
+        link_options.client_options(args, keepalive_s=1.0, motion_timeout_s=args.motion_timeout_s),
+        reconnect=True,
     )
     try:
         client = await rovlink.aio.connect(args.url, baudrate=args.baudrate, options=options)
@@ -222,3 +226,5 @@ async def _serve(args: argparse.Namespace, broker: BrokerSettings) -> None:
             await bridge.run()
         except ConnectionLostError as error:
             raise CommandError(f"{args.url}: {error}") from None
+        except BridgeReplacedError as error:
+            raise CommandError(str(error)) from None

@@ -22,7 +22,7 @@ from rovlink.client.links import PortLink
 from rovlink.controller import ControllerConfig
 from rovlink.piloting.tracked import TrackedClient
 from rovlink.sim import SimConfig, SimulatedPort
-from tests.piloting.rig import RecordingLink
+from tests.piloting.rig import SilenceableLink
 
 os.environ["MAVLINK20"] = "1"
 from pymavlink import mavutil
@@ -57,9 +57,9 @@ def wait_for(predicate: Callable[[], bool], timeout_s: float = CONDITION_TIMEOUT
 class GroundStation:
     """pymavlink as a ground station: sends under a lock (a heartbeat thread shares it)."""
 
-    def __init__(self, address: str) -> None:
+    def __init__(self, address: str, system: int = 255) -> None:
         self.connection: Any = mavutil.mavlink_connection(
-            address, source_system=255, source_component=190, dialect="ardupilotmega"
+            address, source_system=system, source_component=190, dialect="ardupilotmega"
         )
         self._lock = threading.Lock()
         self._backlog: list[Any] = []
@@ -145,19 +145,6 @@ class GroundStation:
     def close(self) -> None:
         self.stop_heartbeats()
         self.connection.close()
-
-
-class SilenceableLink(RecordingLink):
-    """A recording link whose controller can be made silent (``silent.set()``): what it writes
-    is lost, as a stopped or hung controller's would be; what the host writes still reaches it."""
-
-    def __init__(self, inner: PortLink) -> None:
-        super().__init__(inner)
-        self.silent = threading.Event()
-
-    def read_available(self, timeout_s: float) -> bytes:
-        data = self.inner.read_available(timeout_s)
-        return b"" if self.silent.is_set() else data
 
 
 @dataclass

@@ -84,6 +84,15 @@ def test_button_functions_default_to_ardusub_and_refuse_what_cannot_be_done():
         table.set("BTN0_FUNCTION", 6)  # STABILIZE: no attitude control
 
 
+def test_the_pilots_ground_station_is_ardusubs_sysid_mygcs():
+    table = ParameterTable()
+    assert table.pilot_system == 255  # QGroundControl's, MAVProxy's and pymavlink's own
+    assert table.set("SYSID_MYGCS", 200) is None  # the bridge's own: no frame
+    assert table.pilot_system == 200
+    with pytest.raises(ParameterError, match="SYSID_MYGCS must be an integer in 1–255, got 0"):
+        table.set("SYSID_MYGCS", 0)
+
+
 def test_a_parameter_file_is_read_and_checked_with_line_numbers():
     values = read_parameter_file("# saved\nRL_DEPTH_P 33\nRL_MAX_PWM,200.0\n\n", "robot.param")
     assert values == {"RL_DEPTH_P": 33, "RL_MAX_PWM": 200}

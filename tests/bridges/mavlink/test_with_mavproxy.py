@@ -92,7 +92,7 @@ def mavproxy_rig(tmp_path: Path) -> Iterator[tuple[BridgeRig, MavProxy]]:
 
 def test_mavproxy_lists_and_sets_parameters(mavproxy_rig: tuple[BridgeRig, MavProxy]) -> None:
     rig, proxy = mavproxy_rig
-    proxy.wait_output("Received 22 parameters")
+    proxy.wait_output("Received 23 parameters")
     line = proxy.wait_output("RL_DEPTH_P", proxy.type("param show RL_DEPTH_P"))
     assert line.split()[-1] == "40.0"
     mark = len(rig.frames())

@@ -11,11 +11,13 @@ from typing import Any
 import pytest
 
 from rovlink.bridges.mavlink.parameters import ParameterTable
+from rovlink.protocol import VerticalMode
 from tests.bridges.mavlink.rig import (
     VEHICLE,
     BridgeRig,
     GroundStation,
     free_tcp_port,
+    free_udp_port,
     running_bridge,
     wait_for,
 )
@@ -184,6 +186,11 @@ def test_alt_hold_holds_the_current_depth_and_the_stick_moves_it(
     targets = [int(f[len("#mvd.") : -1]) for f in rig.frames_since(mark) if f.startswith("#mvd.")]
     assert max(targets) > depth_cm
     assert not [f for f in rig.frames_since(mark) if f.startswith("#mvs")]  # no thrust in depth
+    # ALT_HOLD asked again (a retry, the depth-hold button) keeps the target the stick set; it
+    # once went back to the depth of the moment, which the robot had not reached yet.
+    moved = len(rig.frames())
+    assert gcs.set_mode(ALT_HOLD) == ACCEPTED
+    assert not [f for f in rig.frames_since(moved) if f.startswith("#mvd.")]
     assert gcs.set_mode(MANUAL) == ACCEPTED
     rig.wait_frame("#mvdirect.1!", since=mark)
 
@@ -283,6 +290,38 @@ def test_a_ground_station_over_tcp():
             gcs.close()
 
 
+def test_tcp_ground_stations_come_and_go_and_the_next_one_is_served():
+    # pymavlink swaps a TCP socket when a write finds the peer gone; a read at the same time
+    # once killed the reader thread, and the bridge heard no ground station again.
+    port = free_tcp_port()
+    with running_bridge(endpoint=f"tcpin:127.0.0.1:{port}"):
+        for _ in range(6):
+            gcs = GroundStation(f"tcp:127.0.0.1:{port}")
+            try:
+                gcs.heartbeat()
+                gcs.receive("HEARTBEAT", condition=lambda m: m.type == SUBMARINE)
+                assert gcs.command(REQUEST_MESSAGE, AUTOPILOT_VERSION_ID) == ACCEPTED
+            finally:
+                gcs.close()
+            time.sleep(1.5)  # telemetry meets the closed socket meanwhile
+
+
+def test_the_bridge_dials_a_restarted_tcp_ground_station_again():
+    port = free_tcp_port()
+    server = GroundStation(f"tcpin:127.0.0.1:{port}")
+    try:
+        with running_bridge(endpoint=f"tcp:127.0.0.1:{port}"):
+            for _ in range(2):
+                server.receive("HEARTBEAT", condition=lambda m: m.type == SUBMARINE)
+                server.send("command_long", VEHICLE, 1, REQUEST_MESSAGE, 0, AUTOPILOT_VERSION_ID,
+                            0, 0, 0, 0, 0, 0)  # fmt: skip
+                assert server.receive("COMMAND_ACK").result == ACCEPTED
+                server.close()  # the ground station restarts
+                server = GroundStation(f"tcpin:127.0.0.1:{port}")
+    finally:
+        server.close()
+
+
 def test_nonsense_values_are_denied_and_the_bridge_serves_on(rig: BridgeRig, gcs: GroundStation):
     nan = float("nan")
     assert gcs.command(REQUEST_MESSAGE, nan) == DENIED
@@ -358,6 +397,43 @@ def test_the_joystick_of_another_system_does_not_drive_this_one(rig: BridgeRig, 
     assert not [f for f in rig.frames_since(mark) if f.startswith(("#th", "#mvs"))]
     gcs.send("manual_control", 0, 0, 1000, 1000, 0, 0)  # a broadcast drives
     rig.wait_frame("#th.90.100!", since=mark)
+
+
+def test_only_the_pilots_ground_station_flies_and_keeps_the_vehicle_armed():
+    # Two ground stations: the pilot's (system 255, SYSID_MYGCS) and a second one whose idle
+    # joystick sends a centred stick. The second's input once took turns with the pilot's at
+    # the thrust (full ahead, zero, full ahead, … at the joysticks' rate), and its heartbeat
+    # kept the vehicle armed after the pilot's ground station had gone.
+    port = free_udp_port()
+    with running_bridge(endpoint=f"udpin:127.0.0.1:{port}") as rig:
+        pilot = GroundStation(f"udpout:127.0.0.1:{port}")
+        watcher = GroundStation(f"udpout:127.0.0.1:{port}", system=254)
+        try:
+            pilot.heartbeat()
+            pilot.receive("HEARTBEAT", condition=lambda m: m.type == SUBMARINE)
+            assert pilot.arm() == ACCEPTED
+            pilot.start_heartbeats()
+            mark = len(rig.frames())
+            pilot.send("manual_control", VEHICLE, 1000, 0, 500, 0, 0)
+            rig.wait_frame("#th.0.100!", since=mark)
+            for _ in range(20):
+                watcher.send("manual_control", VEHICLE, 0, 0, 500, 0, 0)
+                watcher.heartbeat()
+                pilot.send("manual_control", VEHICLE, 1000, 0, 500, 0, 0)
+                time.sleep(0.05)
+            assert [f for f in rig.frames_since(mark) if f.startswith("#th")] == ["#th.0.100!"]
+            assert rig.bridge.armed
+
+            pilot.stop_heartbeats()  # the pilot's ground station goes; the other one beats on
+            gone = len(rig.frames())
+            deadline = time.monotonic() + 6.0
+            while "#stop!" not in rig.frames_since(gone) and time.monotonic() < deadline:
+                watcher.heartbeat()
+                time.sleep(0.2)
+            assert "#stop!" in rig.frames_since(gone)
+        finally:
+            pilot.close()
+            watcher.close()
 
 
 def test_messages_for_another_component_of_this_system_are_ignored(
@@ -460,3 +536,24 @@ def test_a_long_refusal_comes_whole_in_chunks_naming_the_value(rig: BridgeRig, g
     gcs.send("param_set", VEHICLE, 1, b"RL_DEPTH_P", 120.0, 6)  # a short one: one message, id 0
     short = gcs.receive("STATUSTEXT", condition=lambda m: m.text.startswith("RL_DEPTH_P"))
     assert (short.text, short.id) == ("RL_DEPTH_P must be an integer in 0-99, got 120", 0)
+
+
+def test_after_a_controller_reset_the_parameters_and_the_mode_are_sent_again():
+    # A reset brings the controller back with its configured defaults, in depth mode (P21, P9):
+    # a maximum PWM of 100 became 255 again unseen, and MANUAL's throttle (#mvs) was dropped.
+    with _silenced_controller() as (rig, gcs):
+        rig.link.silent.clear()
+        controller = rig.port.robot.controller
+        gcs.send("param_set", VEHICLE, 1, b"RL_MAX_PWM", 100.0, 6)
+        wait_for(lambda: controller.state().max_pwm == 100)
+        assert gcs.arm() == ACCEPTED
+        rig.link.silent.set()  # the controller resets: silent while it boots
+        controller.reset()
+        gcs.receive("STATUSTEXT", condition=lambda m: "may have reset" in m.text)
+        rig.link.silent.clear()
+        gcs.receive("STATUSTEXT", condition=lambda m: "sent again" in m.text)
+        state = controller.state()
+        assert (state.max_pwm, state.vertical_mode) == (100, VerticalMode.DIRECT)
+        assert gcs.arm() == ACCEPTED
+        gcs.send("manual_control", VEHICLE, 0, 0, 1000, 0, 0)  # full up, in MANUAL
+        wait_for(lambda: controller.state().vertical_thrust_percent == 100)

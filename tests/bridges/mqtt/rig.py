@@ -19,7 +19,7 @@ from rovlink.client.links import PortLink
 from rovlink.piloting.tracked import TrackedClient
 from rovlink.sim import SimConfig, SimulatedPort
 from tests.bridges.mqtt.broker import Mosquitto
-from tests.piloting.rig import RecordingLink
+from tests.piloting.rig import SilenceableLink
 
 CONDITION_TIMEOUT_S = 15.0
 
@@ -28,7 +28,7 @@ CONDITION_TIMEOUT_S = 15.0
 class BridgedRobot:
     robot_id: str
     port: SimulatedPort
-    link: RecordingLink
+    link: SilenceableLink
     bridge: MqttBridge
     task: asyncio.Future[None]
 
@@ -49,14 +49,15 @@ async def bridged_robot(
     rate_hz: float = 10.0,
     motion_timeout_s: float | None = None,
     leak_at_s: float | None = None,
+    timeout_s: float = 2.0,
 ) -> AsyncIterator[BridgedRobot]:
     port = SimulatedPort(SimConfig(), seed=1)
     if leak_at_s is not None:
         port.robot.inject_leak(at_s=leak_at_s)
     port.start(realtime=True)
-    link = RecordingLink(PortLink(port, f"simulated {robot_id}"))
+    link = SilenceableLink(PortLink(port, f"simulated {robot_id}"))
     options = ClientOptions(
-        keepalive_s=1.0, timeout_s=2.0, boot_timeout_s=None, motion_timeout_s=motion_timeout_s
+        keepalive_s=1.0, timeout_s=timeout_s, boot_timeout_s=None, motion_timeout_s=motion_timeout_s
     )
     client = await AsyncClient(link, options).open()
     bridge = MqttBridge(

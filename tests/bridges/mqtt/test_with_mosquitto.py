@@ -2,14 +2,17 @@
 
 from __future__ import annotations
 
+import asyncio
 import contextlib
 import json
+import logging
 
 import aiomqtt
 import pytest
 from paho.mqtt.packettypes import PacketTypes
 from paho.mqtt.properties import Properties
 
+from rovlink.bridges.mqtt.bridge import _taken_over
 from rovlink.client.errors import ConnectionLostError
 from tests.bridges.mqtt.broker import Mosquitto
 from tests.bridges.mqtt.rig import bridged_robot, subscriber, until
@@ -300,3 +303,109 @@ async def test_a_command_flagged_retained_is_refused_with_the_reason(broker: Mos
         assert reply["ok"] is False
         assert "a retained command is not carried out" in reply["error"]
         assert "#th.90.100!" not in robot.frames()
+
+
+async def test_a_stop_published_retained_is_still_carried_out(broker: Mosquitto):
+    # "stop is always accepted": a panicking `mosquitto_pub -r … -m stop` was refused as retained
+    # and the robot drove on. Clearing the retained message afterwards is no command.
+    async with (
+        bridged_robot(broker, "s9") as robot,
+        subscriber(broker, "rovlink/s9/cmd/reply") as watcher,
+    ):
+        assert (await watcher.command("s9", "start"))["ok"]
+        assert (await watcher.command("s9", "th 90 50"))["ok"]
+        await until(lambda: robot.port.robot.controller.state().power_percent == 50)
+        replies = watcher.on("rovlink/s9/cmd/reply")
+        before = len(replies)
+        await watcher.client.publish("rovlink/s9/cmd", b"stop", qos=1, retain=True)
+        await until(lambda: len(watcher.on("rovlink/s9/cmd/reply")) > before)
+        reply = watcher.on("rovlink/s9/cmd/reply")[before]
+        assert reply["ok"] is True
+        assert "publish commands without retain" in reply["warning"]
+        assert robot.port.robot.controller.state().locked
+        await watcher.client.publish("rovlink/s9/cmd", b"", qos=1, retain=True)  # cleared
+        assert (await watcher.command("s9", "qd"))["ok"]  # the next reply is the query's
+        assert len(watcher.on("rovlink/s9/cmd/reply")) == before + 2
+
+
+async def test_a_command_the_controller_drops_is_answered_with_why(broker: Mosquitto):
+    async with (
+        bridged_robot(broker, "w1") as robot,
+        subscriber(broker, "rovlink/w1/cmd/reply") as watcher,
+    ):
+        reply = await watcher.command("w1", "th 90 30")  # the bridge started the robot locked
+        assert reply["ok"] is True  # written, as asked
+        assert "drops th while motion is locked" in reply["warning"]
+        assert (await watcher.command("w1", "mvdirect 0"))["ok"]
+        assert (await watcher.command("w1", "start"))["ok"]
+        assert "drops mvs in depth mode" in (await watcher.command("w1", "mvs 50"))["warning"]
+        assert "warning" not in await watcher.command("w1", "mvd 100")
+        assert robot.port.robot.controller.state().target_depth_cm == 100
+
+
+async def test_after_a_controller_reset_the_state_says_locked_and_the_settings_return(
+    broker: Mosquitto,
+):
+    # A reset locks the robot and brings back the configured defaults in depth mode (P21, P9):
+    # the retained state went on saying "unlocked", a max PWM of 100 was 255 again unseen, and
+    # `mvs` was dropped.
+    async with (
+        bridged_robot(broker, "r1", timeout_s=0.5) as robot,
+        subscriber(broker, "rovlink/r1/cmd/reply", "rovlink/r1/events") as watcher,
+    ):
+        for command in ("mgmp 100", "mvdirect 1", "start", "th 0 40"):
+            assert (await watcher.command("r1", command))["ok"]
+        controller = robot.port.robot.controller
+        robot.link.silent.set()  # the controller resets: silent while it boots
+        controller.reset()
+        event = await watcher.wait_for("rovlink/r1/events", lambda e: "#stop!" in e["detail"])
+        assert event["event"] == "reset_suspected"
+        assert robot.bridge.rov.commanded.lock_text() == "locked (as last sent)"
+        robot.link.silent.clear()
+        event = await watcher.wait_for("rovlink/r1/events", lambda e: "sent again" in e["detail"])
+        assert event["detail"].endswith("sent again #mgmp.100! #mvdirect.1!")
+        state = controller.state()
+        assert (state.max_pwm, state.vertical_mode.value) == (100, "direct")
+        assert (await watcher.command("r1", "start"))["ok"]
+        assert "warning" not in await watcher.command("r1", "mvs 60")
+        await until(lambda: controller.state().vertical_thrust_percent == 60)
+
+
+async def test_two_bridges_with_one_robot_id_are_named_and_do_not_flap_at_full_speed(
+    broker: Mosquitto, caplog: pytest.LogCaptureFixture
+):
+    # The broker gives a client id to its newest connection; each bridge took it back within
+    # 0.2 s, for ever (the retained state flipped online and offline five times a second), and
+    # the log said only "Disconnected during message iteration".
+    caplog.set_level(logging.WARNING, logger="rovlink.bridges.mqtt")
+    async with bridged_robot(broker, "twin"), bridged_robot(broker, "twin"):
+        await until(lambda: "is a second bridge running with --robot twin?" in caplog.text)
+        waits = [
+            float(record.getMessage().rsplit("retrying in ", 1)[1].split()[0])
+            for record in caplog.records
+            if "retrying in" in record.getMessage()
+        ]
+        assert max(waits) >= 0.8  # backing off, not back at 0.2 s after every connection
+
+
+def test_a_session_taken_over_is_told_by_the_brokers_reason():
+    # Brokers that say why they end a connection (MQTT 5 reason 0x8E) end the replaced bridge.
+    from aiomqtt import MqttCodeError
+    from paho.mqtt.reasoncodes import ReasonCode
+
+    loop = asyncio.new_event_loop()
+    try:
+
+        def ended_with(code: int | None) -> object:
+            disconnected: asyncio.Future[None] = loop.create_future()
+            if code is not None:
+                reason = ReasonCode(PacketTypes.DISCONNECT, identifier=code)
+                disconnected.set_exception(MqttCodeError(reason, "Unexpected disconnection"))
+            return type("Client", (), {"_disconnected": disconnected})()
+
+        assert _taken_over(ended_with(0x8E))
+        assert not _taken_over(ended_with(0x80))  # unspecified (mosquitto 2.0.11 says nothing)
+        assert not _taken_over(ended_with(None))
+        assert not _taken_over(object())
+    finally:
+        loop.close()

@@ -9,9 +9,10 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import time
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Coroutine, Iterable
 from typing import Any
 
+from rovlink.bridges.kept_settings import KeptSettings
 from rovlink.bridges.mavlink.command_handling import (
     MAV_CMD,
     Result,
@@ -21,17 +22,16 @@ from rovlink.bridges.mavlink.command_handling import (
 from rovlink.bridges.mavlink.endpoint import MavlinkEndpoint
 from rovlink.bridges.mavlink.failsafe import GcsWatchdog
 from rovlink.bridges.mavlink.modes import ButtonFunction, FlightMode
-from rovlink.bridges.mavlink.parameters import ParameterError, ParameterTable
+from rovlink.bridges.mavlink.parameters import PILOT_SYSTEM, ParameterError, ParameterTable
 from rovlink.bridges.mavlink.pilot_input import PilotInput
 from rovlink.bridges.mavlink.telemetry_messages import TelemetryMessages
 from rovlink.bridges.mavlink.telemetry_schedule import MAX_RATE_HZ, TelemetrySchedule
 from rovlink.bridges.mavlink.vehicle_state import VehicleState
-from rovlink.bridges.sensor_poll import SensorPoller
+from rovlink.bridges.sensor_poll import SensorPoller, reopening
 from rovlink.client.errors import QueryTimeoutError
 from rovlink.client.events import ClientEvent, LinkState, ResetSuspected
 from rovlink.client.sensors import Sensors
 from rovlink.logs import get_logger
-from rovlink.piloting.commanded import LockState
 from rovlink.piloting.tracked import TrackedClient
 from rovlink.protocol import Command
 
@@ -81,6 +81,8 @@ class MavlinkBridge:
         self.messages = TelemetryMessages(endpoint, self.state, rov, self.parameters, clock)
         self.poller = SensorPoller(rov, self._on_reading, rate_hz=self._poll_rate_hz())
         self._inbox: asyncio.Queue[Any] = asyncio.Queue()
+        #: Systems whose joystick was ignored (not SYSID_MYGCS), each said once.
+        self._ignored_pilots: set[int] = set()
         self._background: set[asyncio.Future[None]] = set()
         self._handlers: dict[str, Callable[[Any], Any]] = {
             "HEARTBEAT": self._on_heartbeat,
@@ -94,6 +96,9 @@ class MavlinkBridge:
             "REQUEST_DATA_STREAM": self._on_request_data_stream,
             "MISSION_REQUEST_LIST": self._on_mission_request_list,
         }
+        #: The gains, calibration and mode as last sent: sent again after a suspected reset.
+        self.kept = KeptSettings()
+        self.kept.follow(rov)
         rov.client.subscribe(self._on_client_event)
         # What the pilot input measures changes and staleness against: the set-points as the
         # controller has them after each frame (whoever sent it), not what the bridge expects.
@@ -101,11 +106,14 @@ class MavlinkBridge:
 
     @property
     def armed(self) -> bool:
-        """Unlocked, as last sent."""
-        return self.rov.commanded.lock is LockState.UNLOCKED
+        """Unlocked, as last sent, on a link that is open (while it is reopened, the ``#stop!``
+        sent on losing it waits to be its first frame)."""
+        return self.messages.armed
 
     async def run(self) -> None:
-        """Serve until cancelled or the connection to the controller is lost; then ``#stop!``."""
+        """Serve until cancelled or the connection to the controller is lost for good; then
+        ``#stop!``. A link that a client with ``reconnect`` reopens is served through: the
+        vehicle is disarmed while it is down, and commands meanwhile are refused for now."""
         loop = asyncio.get_running_loop()
         try:
             await self.rov.stop()
@@ -150,6 +158,7 @@ class MavlinkBridge:
         if depth_cm is None:
             self._say(_SEVERITY_WARNING, "Arm refused: the controller does not answer")
             return Result.FAILED
+        await self._restore_settings()  # (after a reset: not armed before the settings are in)
         await self.rov.send(Command("start"))
         self.watchdog.heartbeat(self._clock())  # arming counts as contact
         await self._hold_current_depth(depth_cm)
@@ -173,10 +182,16 @@ class MavlinkBridge:
         return Result.ACCEPTED
 
     async def set_mode(self, mode: FlightMode) -> Result:
-        """MANUAL: ``#mvdirect.1!``; ALT_HOLD: ``#mvdirect.0!`` holding the current depth."""
-        self.state.mode = mode
+        """MANUAL: ``#mvdirect.1!``; ALT_HOLD: ``#mvdirect.0!`` holding the current depth.
+
+        The mode in force asked again (a ground station's retry, a depth-hold button pressed in
+        depth hold) keeps the depth held, as ArduSub: the stick may have moved it since.
+        """
+        entering = mode is not self.state.mode
         await self.rov.send(Command("mvdirect", (int(mode is FlightMode.MANUAL),)))
-        await self._hold_current_depth()
+        self.state.mode = mode  # (once sent: a link being reopened refuses it)
+        if entering:
+            await self._hold_current_depth()
         return Result.ACCEPTED
 
     async def gripper(self, *, close: bool) -> Result:
@@ -222,8 +237,10 @@ class MavlinkBridge:
                 continue
             try:
                 await handler(message)
-            except ConnectionError:
-                raise  # the controller is gone: the bridge ends
+            except ConnectionError as error:
+                if not reopening(self.rov, error):
+                    raise  # the controller is gone for good: the bridge ends
+                logger.debug("%s not carried out: %s", message.get_type(), error)
             except Exception:
                 # One odd message must not end the bridge (and with it the ground station's
                 # control): log it and serve the next.
@@ -235,11 +252,17 @@ class MavlinkBridge:
         while True:
             now_s = self._clock()
             if self.watchdog.tripped(now_s, armed=self.armed):
-                await self.disarm("no ground station heartbeat for 3 s")
-                self._say(_SEVERITY_CRITICAL, "Failsafe: GCS heartbeat lost, stopped")
+                pilot = self.parameters.pilot_system
+                await self.disarm(f"no heartbeat from ground station {pilot} for 3 s")
+                self._say(_SEVERITY_CRITICAL, f"Failsafe: GCS {pilot} heartbeat lost, stopped")
             expired = self.pilot.expire(now_s)
-            for command in expired:
-                await self.rov.send(command)
+            try:
+                for command in expired:
+                    await self.rov.send(command)
+            except ConnectionError as error:
+                if not reopening(self.rov, error):
+                    raise
+                # The reopened link's first frames are zero thrust (the driver's own).
             if expired:
                 self._say(_SEVERITY_WARNING, "Failsafe: pilot input stale, thrust zeroed")
             for name in self.schedule.due(now_s):
@@ -252,10 +275,24 @@ class MavlinkBridge:
     # -- received messages ------------------------------------------------------------------------
 
     async def _on_heartbeat(self, message: Any) -> None:
-        if message.type == _GCS_TYPE:
+        # Only the pilot's ground station (SYSID_MYGCS), as ArduSub: a second one watching
+        # must not keep the vehicle armed after the pilot's has gone.
+        if message.type == _GCS_TYPE and message.get_srcSystem() == self.parameters.pilot_system:
             self.watchdog.heartbeat(self._clock())
 
     async def _on_manual_control(self, message: Any) -> None:
+        source = message.get_srcSystem()
+        if source != self.parameters.pilot_system:
+            # Two joysticks would take turns at the thrust, message by message (as ArduSub,
+            # only SYSID_MYGCS flies); said once per ground station, so that its pilot knows.
+            if source not in self._ignored_pilots:
+                self._ignored_pilots.add(source)
+                self._say(
+                    _SEVERITY_WARNING,
+                    f"Joystick of GCS {source} ignored: SYSID_MYGCS is "
+                    f"{self.parameters.pilot_system}",
+                )
+            return
         output = self.pilot.manual_control(
             message.x,
             message.y,
@@ -292,12 +329,25 @@ class MavlinkBridge:
         await self._command(message, message.command, params)
 
     async def _command(self, message: Any, command: int, params: list[float]) -> None:
-        result = await handle_command(self, command, params)
+        result = await self._while_link_down(handle_command(self, command, params))
         self._ack(message, command, result)
 
     async def _on_set_mode(self, message: Any) -> None:
-        result = await mode_result(self, message.base_mode, message.custom_mode)
+        result = await self._while_link_down(
+            mode_result(self, message.base_mode, message.custom_mode)
+        )
         self._ack(message, MAV_CMD.DO_SET_MODE, result)
+
+    async def _while_link_down(self, action: Coroutine[Any, Any, Result]) -> Result:
+        """``action``'s result; TEMPORARILY_REJECTED if the controller link is being reopened
+        (MAVLink's "valid, but not now: retry later"), with a STATUSTEXT."""
+        try:
+            return await action
+        except ConnectionError as error:
+            if not reopening(self.rov, error):
+                raise
+            self._say(_SEVERITY_WARNING, "Not now: the controller link is down")
+            return Result.TEMPORARILY_REJECTED
 
     def _ack(self, message: Any, command: int, result: Result) -> None:
         self.endpoint.mav.command_ack_send(
@@ -320,6 +370,7 @@ class MavlinkBridge:
 
     async def _on_param_set(self, message: Any) -> None:
         name = _param_name(message.param_id)
+        before = self.parameters.value(name) if name in self.parameters.names() else None
         try:
             command = self.parameters.set(name, message.param_value)
         except ParameterError as error:
@@ -328,7 +379,17 @@ class MavlinkBridge:
                 self._param_value(name)  # the value in force: the set did not take
             return
         if command is not None:
-            await self.rov.send(command)
+            try:
+                await self.rov.send(command)
+            except ConnectionError as error:
+                if not reopening(self.rov, error) or before is None:
+                    raise
+                self.parameters.set(name, before)  # not sent: the value in force stays
+                self._say(_SEVERITY_WARNING, f"{name} not set: the controller link is down")
+                self._param_value(name)
+                return
+        if name == PILOT_SYSTEM:
+            self._ignored_pilots.clear()  # (a joystick still ignored is said again)
         self._param_value(name)
 
     def _param_value(self, name: str) -> None:
@@ -355,18 +416,48 @@ class MavlinkBridge:
     def _on_reading(self, sensors: Sensors) -> None:
         if self.state.update(sensors, self._clock()):
             self._say(_SEVERITY_CRITICAL, "Leak detected")
+        if self.kept.pending:  # the controller answers again after a suspected reset
+            self._in_background(self._restore_settings())
 
     def _on_client_event(self, event: ClientEvent) -> None:
         lost = isinstance(event, LinkState) and event.state == "lost"
         if (isinstance(event, ResetSuspected) or lost) and self.armed:
             # After a reset the controller is locked (P21): say so rather than show it armed.
-            task = asyncio.ensure_future(self._disarm_quietly("the controller may have reset"))
-            self._background.add(task)
-            task.add_done_callback(self._background.discard)
+            # (On a link being reopened, the #stop! waits to be its first frame.)
+            reason = "the controller link was lost" if lost else "the controller may have reset"
+            self._in_background(self._disarm_quietly(reason))
+        back = isinstance(event, LinkState) and event.state == "reconnected"
+        if lost:
+            self.messages.link_up = False
+            self._say(_SEVERITY_CRITICAL, "Controller link lost: reopening it")
+        elif back:
+            self.messages.link_up = True
+            self._say(_SEVERITY_INFO, "Controller link back")
+        if isinstance(event, ResetSuspected) or back:
+            # A reset, or a board that a reopened port may have reset (an Arduino's DTR line):
+            # its settings are sent again once it answers.
+            self.kept.reset_suspected()
+
+    def _in_background(self, work: Coroutine[Any, Any, None]) -> None:
+        task = asyncio.ensure_future(work)
+        self._background.add(task)
+        task.add_done_callback(self._background.discard)
 
     async def _disarm_quietly(self, reason: str) -> None:
         with contextlib.suppress(ConnectionError):
             await self.disarm(reason)
+
+    async def _restore_settings(self) -> None:
+        """After a suspected reset, the parameters and the mode as last sent, sent again: the
+        controller came back with its configured defaults, in depth mode (P21, P9)."""
+        try:
+            commands = await self.kept.restore(self.rov)
+        except ConnectionError:
+            return  # the link went again (they are sent once it is back), or for good
+        if commands:
+            frames = " ".join(str(command) for command in commands)
+            logger.warning("the controller may have reset: sent again %s", frames)
+            self._say(_SEVERITY_WARNING, "Controller reset? Parameters and mode sent again")
 
     async def _hold_current_depth(self, depth_cm: int | None = None) -> None:
         """In ALT_HOLD, armed: hold ``depth_cm`` (default: the last polled depth)."""

@@ -3,12 +3,19 @@ messages reach the event loop.
 
 pymavlink's connections block, so one reader thread waits on the socket and hands each message
 to the loop; everything is sent from the loop. Nothing here packs bytes: pymavlink does.
+
+Ground stations come and go, and the endpoint outlives them. pymavlink's TCP connections swap
+their socket when a peer goes (a write that fails closes it), so reading and writing never run at
+once: the reader waits for data outside the lock and reads under it. A TCP ground station that
+closes its end is let go (``tcpin``: the next one is accepted; ``tcp``: it is dialled again),
+where pymavlink would read an ended stream for ever.
 """
 
 from __future__ import annotations
 
 import asyncio
 import os
+import select
 import socket
 import threading
 from collections.abc import Callable
@@ -23,11 +30,13 @@ logger = get_logger("rovlink.bridges.mavlink")
 #: The endpoint forms served, as pymavlink and MAVProxy write them.
 SCHEMES = {
     "udpout": "send to a ground station listening there (QGroundControl: udpout:127.0.0.1:14550)",
-    "udpin": "listen for a ground station there, answer whoever sent last",
+    "udpin": "listen for ground stations there, send to every one that has sent something",
     "tcpin": "listen for one ground station's TCP connection there",
     "tcp": "connect to a ground station's TCP server there",
 }
 _READ_TIMEOUT_S = 0.2  # how soon the reader thread notices it should stop
+#: ``tcp``: how often a ground station's TCP server that went away is dialled again, s.
+_REDIAL_S = 1.0
 #: Messages whose target system field is not ``target_system`` (MANUAL_CONTROL's is ``target``).
 _TARGET_SYSTEM_FIELD = {"MANUAL_CONTROL": "target"}
 _BROADCAST = 0
@@ -94,8 +103,23 @@ class MavlinkEndpoint:
         )
         #: The dialect module (message classes and constants).
         self.dialect: Any = mavutil.mavlink
+        self.scheme = scheme
         self._stopping = threading.Event()
         self._reader: threading.Thread | None = None
+        # Sends (from the loop) and reads (from the reader thread) one at a time: pymavlink
+        # closes and replaces a TCP socket in either when its peer has gone.
+        self._lock = threading.Lock()
+        send = self._connection.write
+
+        def write(data: bytes) -> None:
+            with self._lock:
+                send(data)
+
+        self._connection.write = write
+        if scheme == "tcp":
+            # pymavlink would only print that the server went away (to the bridge's output),
+            # and keep the dead socket; the reader dials again instead.
+            self._connection.handle_disconnect = self._connection.handle_eof = self._hang_up
 
     def is_for_me(self, message: Any) -> bool:
         """Whether a received message is addressed to this vehicle's autopilot component."""
@@ -111,25 +135,93 @@ class MavlinkEndpoint:
 
         def read() -> None:
             while not self._stopping.is_set():
-                try:
-                    message = self._connection.recv_match(blocking=True, timeout=_READ_TIMEOUT_S)
-                except OSError as error:  # a TCP peer that went away: wait for the next one
-                    logger.debug("MAVLink receive: %s", error)
-                    self._stopping.wait(_READ_TIMEOUT_S)
-                    continue
-                if message is None or message.get_type() == "BAD_DATA":
-                    continue
-                try:
-                    loop.call_soon_threadsafe(on_message, message)
-                except RuntimeError:  # the loop closed
-                    return
+                for message in self._receive():
+                    try:
+                        loop.call_soon_threadsafe(on_message, message)
+                    except RuntimeError:  # the loop closed
+                        return
 
         self._reader = threading.Thread(target=read, name="rovlink-mavlink-reader", daemon=True)
         self._reader.start()
+
+    def _receive(self) -> list[Any]:
+        """The messages that arrive within the read timeout (none if nothing does)."""
+        connection = self._connection
+        if self.scheme == "tcp" and connection.port is None:
+            self._redial()
+            return []
+        try:
+            ready, _, _ = select.select([connection.fd], [], [], _READ_TIMEOUT_S)
+        except (OSError, ValueError):  # the socket was closed under us: the next one will do
+            self._stopping.wait(_READ_TIMEOUT_S)
+            return []
+        if not ready:
+            return []
+        messages = []
+        with self._lock:
+            try:
+                while (message := connection.recv_match(blocking=False)) is not None:
+                    if message.get_type() != "BAD_DATA":
+                        messages.append(message)
+            except Exception as error:  # pymavlink on a socket that just went away (it may
+                logger.debug("MAVLink receive: %s", error)  # raise more than OSError)
+            self._let_go_of_an_ended_peer()
+        return messages
+
+    def _let_go_of_an_ended_peer(self) -> None:
+        """A TCP ground station that closed its end: close ours (pymavlink reads it for ever)."""
+        if self.scheme not in ("tcp", "tcpin"):
+            return
+        connection = self._connection
+        port = connection.port
+        if port is None:
+            return
+        try:
+            ended = port.recv(1, socket.MSG_PEEK) == b""
+        except BlockingIOError:
+            return  # open, nothing to read
+        except OSError:
+            ended = True
+        if not ended:
+            return
+        logger.info("MAVLink: the ground station at %s closed the connection", self.address)
+        port.close()
+        connection.port = None
+        if self.scheme == "tcpin":
+            connection.fd = connection.listen.fileno()  # accept the next one
+
+    def _hang_up(self) -> None:
+        """``tcp``: the ground station's server went away (called by pymavlink under the lock)."""
+        port = self._connection.port
+        if port is not None:
+            logger.info("MAVLink: the ground station at %s closed the connection", self.address)
+            port.close()
+            self._connection.port = None
+
+    def _redial(self) -> None:
+        """``tcp``: connect to the ground station's server again (outside the lock: sends go
+        nowhere meanwhile, as pymavlink's do while its socket is closed)."""
+        if self._stopping.wait(_REDIAL_S):
+            return
+        connection = self._connection
+        try:
+            port = socket.create_connection(connection.destination_addr, timeout=_REDIAL_S)
+        except OSError as error:
+            logger.debug("MAVLink: %s: %s", self.address, error)
+            return
+        port.setblocking(False)
+        port.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+        with self._lock:
+            connection.port = port
+            connection.fd = port.fileno()
+        logger.info("MAVLink: connected to the ground station at %s again", self.address)
 
     def close(self) -> None:
         """Stop reading and close the socket."""
         self._stopping.set()
         if self._reader is not None:
             self._reader.join(timeout=2.0)
-        self._connection.close()
+        with self._lock:
+            if self.scheme == "tcp" and self._connection.port is None:
+                return  # (pymavlink's close would fail on the socket it has not got)
+            self._connection.close()

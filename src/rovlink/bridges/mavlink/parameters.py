@@ -3,8 +3,9 @@
 Each controller parameter is one argument of one command of the table: its range comes from
 there, and setting it sends that command. The protocol cannot read a setting back, so a value is
 the one last sent (at start: the controller's configured reset default, or the value from a
-parameter file, which is then sent). ``BTNn_FUNCTION`` are the bridge's own: which ArduSub
-joystick function each button of MANUAL_CONTROL carries out.
+parameter file, which is then sent). ``SYSID_MYGCS`` and ``BTNn_FUNCTION`` are the bridge's own:
+the ground station that flies the vehicle, as ArduSub's, and which ArduSub joystick function each
+button of MANUAL_CONTROL carries out.
 """
 
 from __future__ import annotations
@@ -20,6 +21,8 @@ from rovlink.protocol import Command, lookup
 __all__ = [
     "BUTTON_COUNT",
     "DEFAULT_BUTTON_FUNCTIONS",
+    "DEFAULT_PILOT_SYSTEM",
+    "PILOT_SYSTEM",
     "Parameter",
     "ParameterError",
     "ParameterTable",
@@ -37,6 +40,10 @@ DEFAULT_BUTTON_FUNCTIONS: Mapping[int, ButtonFunction] = {
     4: ButtonFunction.DISARM,
     6: ButtonFunction.ARM,
 }
+#: ArduSub's parameter naming the ground station whose joystick and heartbeat count.
+PILOT_SYSTEM = "SYSID_MYGCS"
+#: Its default, ArduSub's: the system id that QGroundControl, MAVProxy and pymavlink use.
+DEFAULT_PILOT_SYSTEM = 255
 
 
 #: Whole numbers below this are written in full; beyond it a float's digits are not all exact.
@@ -117,6 +124,12 @@ _CONTROLLER_PARAMETERS = (
     _from_command("RL_DEPTH_ZERO", "sdz", "raw pressure reading at the surface"),
     _from_command("RL_DEPTH_K", "sdk", "depth coefficient: depth[m] = (raw − zero) · k / 10000"),
 )
+_PILOT_PARAMETER = Parameter(
+    PILOT_SYSTEM,
+    "the ground station that flies the vehicle: only its MANUAL_CONTROL and HEARTBEAT count",
+    1,
+    255,
+)
 _BUTTON_PARAMETERS = tuple(
     Parameter(
         button_parameter(button),
@@ -144,9 +157,14 @@ class ParameterTable:
     """
 
     def __init__(self, values: Mapping[str, int] | None = None) -> None:
-        self.parameters: tuple[Parameter, ...] = _CONTROLLER_PARAMETERS + _BUTTON_PARAMETERS
+        self.parameters: tuple[Parameter, ...] = (
+            *_CONTROLLER_PARAMETERS,
+            _PILOT_PARAMETER,
+            *_BUTTON_PARAMETERS,
+        )
         self._by_name = {parameter.name: parameter for parameter in self.parameters}
         self._values: dict[str, int] = {parameter.name: 0 for parameter in self.parameters}
+        self._values[PILOT_SYSTEM] = DEFAULT_PILOT_SYSTEM
         for button, function in DEFAULT_BUTTON_FUNCTIONS.items():
             self._values[button_parameter(button)] = int(function)
         for name, value in (values or {}).items():
@@ -178,6 +196,11 @@ class ParameterTable:
     def items(self) -> Iterable[tuple[str, int]]:
         """``(name, value)`` in index order."""
         return ((parameter.name, self._values[parameter.name]) for parameter in self.parameters)
+
+    @property
+    def pilot_system(self) -> int:
+        """The system id of the ground station that flies the vehicle (``SYSID_MYGCS``)."""
+        return self._values[PILOT_SYSTEM]
 
     def button_function(self, button: int) -> ButtonFunction:
         """The function button ``button`` carries out."""

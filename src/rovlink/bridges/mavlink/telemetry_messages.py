@@ -69,6 +69,8 @@ class TelemetryMessages:
         self._clock = clock
         self._started_s = clock()
         self._statustext_id = 0
+        #: False while the controller's link is lost and being reopened (the bridge says so).
+        self.link_up = True
         self._senders: dict[str, Callable[[], None]] = {
             "HEARTBEAT": self.heartbeat,
             "SYS_STATUS": self.sys_status,
@@ -106,12 +108,13 @@ class TelemetryMessages:
 
     @property
     def armed(self) -> bool:
-        """Unlocked, as last sent."""
-        return self._rov.commanded.lock is LockState.UNLOCKED
+        """Unlocked, as last sent, on a link that is open (the bridge stops a robot whose link
+        was lost: the ``#stop!`` is the reopened link's first frame)."""
+        return self.link_up and self._rov.commanded.lock is LockState.UNLOCKED
 
     def link_ok(self) -> bool:
-        """Whether the controller answers (its queries are not failing)."""
-        return self._rov.health.status in {"ok", "waiting"}
+        """Whether the controller answers (its queries are not failing, its link is open)."""
+        return self.link_up and self._rov.health.status in {"ok", "waiting"}
 
     def heartbeat(self) -> None:
         """HEARTBEAT: a submarine on ArduPilot, its custom mode, armed = unlocked."""

@@ -20,10 +20,11 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Coroutine
 from typing import Any
 
 from rovlink.aio.wakeup import wait_for_event
+from rovlink.bridges.kept_settings import KeptSettings
 from rovlink.bridges.mqtt.broker import BrokerSettings
 from rovlink.bridges.mqtt.commands import CommandPolicy
 from rovlink.bridges.mqtt.outbox import Outbox
@@ -39,14 +40,16 @@ from rovlink.bridges.mqtt.payloads import (
     telemetry_payload,
 )
 from rovlink.bridges.mqtt.topics import Topics, publish_topic_problem
-from rovlink.bridges.sensor_poll import SensorPoller
+from rovlink.bridges.sensor_poll import SensorPoller, reopening
 from rovlink.client.errors import ConnectionLostError, QueryTimeoutError
 from rovlink.client.events import ClientEvent, LinkState, MotionExpired, ResetSuspected
 from rovlink.client.sensors import Sensors
 from rovlink.logs import get_logger
+from rovlink.piloting.commanded import LockState
 from rovlink.piloting.tracked import TrackedClient
+from rovlink.protocol import Command
 
-__all__ = ["MqttBridge"]
+__all__ = ["BridgeReplacedError", "MqttBridge"]
 
 logger = get_logger("rovlink.bridges.mqtt")
 
@@ -55,6 +58,10 @@ _QOS_RELIABLE = 1
 _RETAINED_REFUSED = (
     "a retained command is not carried out (the broker would give it again on every "
     "reconnection): publish commands without retain"
+)
+_RETAINED_STOP = (
+    "published retained: carried out, as stop always is, but publish commands without retain "
+    "(clear this one with an empty retained message)"
 )
 #: The retained state is refreshed at least this often (its ``at`` and link silence).
 _STATE_REFRESH_S = 2.0
@@ -66,6 +73,17 @@ _TELEMETRY_BACKLOG = 64
 _KEEPALIVE_S = 10
 #: The offline state at the end is given up after this (the last will covers a lost broker).
 _FAREWELL_S = 2.0
+#: MQTT 5's DISCONNECT reason: another client connected with this one's client id.
+_SESSION_TAKEN_OVER = 0x8E
+#: A connection that lasted this long resets the reconnection backoff, s.
+_STABLE_CONNECTION_S = 10.0
+#: Connections in a row ended this soon that make the bridge say a second one may be running.
+_SHORT_LIVED_WARNING = 3
+
+
+class BridgeReplacedError(Exception):
+    """Another client connected with this bridge's client id (a second bridge for the robot id)
+    and the broker handed it this bridge's session: this one ends rather than take it back."""
 
 
 class MqttBridge:
@@ -105,16 +123,23 @@ class MqttBridge:
         #: Why the bridge is ending (the offline state's reason), once it is.
         self._ending: str | None = None
         self._link_lost_reported = False
+        #: The controller's link is lost and being reopened (a client with ``reconnect``).
+        self._link_down = False
         #: The kept event being published (see :meth:`_publish_kept_events`).
         self._event_publish: asyncio.Future[None] | None = None
         self.poller = SensorPoller(rov, self._on_reading, rate_hz=rate_hz)
+        #: The settings and vertical mode as last sent: sent again after a suspected reset.
+        self.kept = KeptSettings()
+        self.kept.follow(rov)
+        self._background: set[asyncio.Future[None]] = set()
         rov.client.subscribe(self._on_client_event)
         rov.add_sent_listener(lambda _sent: self._wake_publisher.set())
 
     async def run(self) -> None:
-        """Serve until cancelled (or the controller's connection is lost); the robot is sent
-        ``#stop!`` at the start, so that its state is known (locked) before anyone commands it,
-        and at the end, when the state is marked offline."""
+        """Serve until cancelled (or the controller's connection is lost for good: a link that a
+        client with ``reconnect`` reopens is served through, commands refused meanwhile); the
+        robot is sent ``#stop!`` at the start, so that its state is known (locked) before anyone
+        commands it, and at the end, when the state is marked offline."""
         await self.rov.stop()
         poller = asyncio.ensure_future(self.poller.run())
         broker = asyncio.ensure_future(self._stay_connected())
@@ -126,9 +151,10 @@ class MqttBridge:
             self._end_reason(error)  # before the broker task is cancelled: it says this reason
             raise
         finally:
-            for task in (poller, broker):
-                task.cancel()
-            await asyncio.gather(poller, broker, return_exceptions=True)
+            tasks: list[asyncio.Future[None]] = [poller, broker, *self._background]
+            for running in tasks:
+                running.cancel()
+            await asyncio.gather(*tasks, return_exceptions=True)
             with contextlib.suppress(ConnectionError):
                 await self.rov.stop()
 
@@ -137,15 +163,27 @@ class MqttBridge:
     async def _stay_connected(self) -> None:
         import aiomqtt  # noqa: PLC0415 - the mqtt extra loads only here
 
+        loop = asyncio.get_running_loop()
         wait_s = _RECONNECT_FIRST_S
+        short_lived = 0  # connections in a row that the broker ended soon after they began
         while True:
+            connected_at_s: float | None = None
             try:
                 async with self._client(aiomqtt) as mqtt:
-                    wait_s = _RECONNECT_FIRST_S
+                    connected_at_s = loop.time()
                     logger.info("connected to %s", self.broker.describe())
                     try:
                         await self._serve(mqtt)
                     except aiomqtt.MqttError:
+                        if _taken_over(mqtt):
+                            # Taking it back would take turns with the other for ever, five
+                            # times a second, the retained state flipping online and offline.
+                            raise BridgeReplacedError(
+                                f"another client connected to {self.broker.describe()} as "
+                                f"rovlink-bridge-{self.robot_id} and took this bridge's session "
+                                f"over: is a second bridge running with --robot "
+                                f"{self.robot_id}? Each robot needs its own id"
+                            ) from None
                         raise  # the broker is gone: nothing can be said (the last will does)
                     except BaseException as error:
                         # Whatever ends the bridge, the retained state must not stay online:
@@ -154,9 +192,27 @@ class MqttBridge:
                         raise
             except aiomqtt.MqttError as error:
                 self.connected.clear()
+                if connected_at_s is not None:
+                    # The backoff starts again only after a connection that held: one ended at
+                    # once, again and again, is no broker restart.
+                    if loop.time() - connected_at_s >= _STABLE_CONNECTION_S:
+                        wait_s, short_lived = _RECONNECT_FIRST_S, 0
+                    else:
+                        short_lived += 1
                 logger.warning(
                     "broker %s: %s; retrying in %g s", self.broker.describe(), error, wait_s
                 )
+                if short_lived >= _SHORT_LIVED_WARNING:
+                    logger.error(
+                        "broker %s ended this bridge's connection %d times in a row soon after "
+                        "it began: is a second bridge running with --robot %s? (The broker "
+                        "hands the MQTT client id rovlink-bridge-%s to the newest connection, "
+                        "and the two take turns.) Each robot needs its own id",
+                        self.broker.describe(),
+                        short_lived,
+                        self.robot_id,
+                        self.robot_id,
+                    )
                 await asyncio.sleep(wait_s)
                 wait_s = min(wait_s * 2, _RECONNECT_MAX_S)
             except asyncio.CancelledError:
@@ -221,8 +277,8 @@ class MqttBridge:
                 task.result()  # the broker went away (MqttError), or a fault
         finally:
             self.connected.clear()
-            for task in tasks:
-                task.cancel()
+            for running in tasks:
+                running.cancel()
             await asyncio.gather(*tasks, return_exceptions=True)
 
     async def _receive(self, mqtt: Any) -> None:
@@ -250,6 +306,8 @@ class MqttBridge:
             at_s=self._wall_clock(),
             now_s=self.rov.now_s(),
         )
+        if self._link_down:
+            state["link"]["status"] = "lost"  # (being reopened)
         comparable = {k: v for k, v in state.items() if k not in ("at", "link")}
         comparable["link_status"] = state["link"]["status"]
         if comparable == self._last_state and now_s - self._last_state_at_s < _STATE_REFRESH_S:
@@ -305,23 +363,48 @@ class MqttBridge:
     async def _on_command(self, mqtt: Any, message: Any) -> None:
         request: CommandRequest | None = None
         payload = message.payload if isinstance(message.payload, bytes) else b""
+        retained = bool(getattr(message, "retain", False))
+        if retained and not payload:
+            return  # a retained command being cleared (an empty retained message): not one
+        warning = None
         try:
             request = read_request(payload)
-            if getattr(message, "retain", False):
-                raise PayloadError(_RETAINED_REFUSED)
             command = self.policy.check(request.text)
+            if retained:
+                if command.name != "stop":
+                    raise PayloadError(_RETAINED_REFUSED)
+                # Stop can only make the robot safer (P3): carried out however it came.
+                warning = _RETAINED_STOP
         except (PayloadError, ValueError) as error:
             await self._reply(
                 mqtt, message, reply_payload(self.robot_id, request, error=str(error))
             )
             return
         try:
+            await self._restore_settings()  # (after a reset: before what may build on them)
             replies = await self.rov.send(command)
         except QueryTimeoutError as error:
             answer = reply_payload(self.robot_id, request, frame=str(command), error=str(error))
+        except ConnectionError as error:
+            if not reopening(self.rov, error):
+                raise  # the controller is gone for good: the bridge ends
+            answer = reply_payload(
+                self.robot_id, request, error=f"not sent: the controller link is down ({error})"
+            )
         else:
-            answer = reply_payload(self.robot_id, request, frame=str(command), replies=replies)
+            warning = warning or self._dropped_because(command)
+            answer = reply_payload(
+                self.robot_id, request, frame=str(command), replies=replies, warning=warning
+            )
         await self._reply(mqtt, message, answer)
+
+    def _dropped_because(self, command: Command) -> str | None:
+        """Why the controller drops ``command`` just sent (locked, the other vertical mode), as
+        far as the state as last sent tells; ``None`` if it acts on it."""
+        commanded = self.rov.commanded
+        if command.spec.is_query or commanded.last_command != command:
+            return None
+        return commanded.last_dropped_because
 
     async def _reply(self, mqtt: Any, message: Any, answer: dict[str, Any]) -> None:
         from paho.mqtt.packettypes import PacketTypes  # noqa: PLC0415
@@ -356,6 +439,8 @@ class MqttBridge:
         self._latest = sensors
         if sensors.leak_detected and (previous is None or not previous.leak_detected):
             self._event("leak", "the leak sensor fired")
+        if self.kept.pending:  # the controller answers again after a suspected reset
+            self._in_background(self._restore_settings())
         self.sequence += 1
         if self.connected.is_set():
             payload = encode(
@@ -370,17 +455,62 @@ class MqttBridge:
             frames = " ".join(str(command) for command in event.commands)
             self._event("failsafe", f"motion not renewed: zero thrust sent ({frames})")
         elif isinstance(event, ResetSuspected):
-            self._event(
-                "reset_suspected",
+            self.kept.reset_suspected()
+            detail = (
                 f"{event.consecutive_timeouts} queries timed out: the controller may have reset "
-                "(it is locked after a reset)",
+                "(it is locked after a reset)"
             )
+            if self.rov.commanded.lock is LockState.UNLOCKED:
+                # The state says the lock as last sent: #stop! makes it say what a reset did
+                # (P21), rather than "unlocked" for a robot that no longer moves.
+                self._in_background(self._stop_quietly())
+                detail += "; #stop! sent"
+            self._event("reset_suspected", detail)
         elif isinstance(event, LinkState):
-            self._link_lost_reported = event.state == "lost"
+            lost = event.state == "lost"
+            if lost and self.rov.commanded.lock is LockState.UNLOCKED:
+                # The robot's own watchdog stops it (P17) unless the link is soon back: #stop!
+                # is then the reopened link's first frame, and the state says locked.
+                self._in_background(self._stop_quietly())
+            if event.state == "reconnected":  # a board the reopened port may have reset (DTR)
+                self.kept.reset_suspected()
+            self._link_lost_reported = self._link_down = lost
             self._event("link", f"{event.state} {event.detail}".strip())
+
+    def _in_background(self, work: Coroutine[Any, Any, None]) -> None:
+        task = asyncio.ensure_future(work)
+        self._background.add(task)
+        task.add_done_callback(self._background.discard)
+
+    async def _stop_quietly(self) -> None:
+        with contextlib.suppress(ConnectionError):
+            await self.rov.stop()
+
+    async def _restore_settings(self) -> None:
+        """After a suspected reset, the settings and the vertical mode as last sent, sent again:
+        the controller came back with its configured defaults, in depth mode (P21, P9)."""
+        try:
+            commands = await self.kept.restore(self.rov)
+        except ConnectionError:
+            return  # the link went again (they are sent once it is back), or for good
+        if commands:
+            frames = " ".join(str(command) for command in commands)
+            self._event("reset_suspected", f"the controller answers again: sent again {frames}")
 
     def _event(self, name: str, detail: str) -> None:
         logger.info("event %s: %s", name, detail)
         payload = event_payload(self.robot_id, name, detail, self._wall_clock())
         self.outbox.put(self.topics.events, encode(payload))
         self._wake_publisher.set()
+
+
+def _taken_over(mqtt: Any) -> bool:
+    """Whether the broker ended ``mqtt``'s connection because another client took its session
+    (aiomqtt keeps the broker's DISCONNECT reason in its ``_disconnected`` future)."""
+    disconnected = getattr(mqtt, "_disconnected", None)
+    if not isinstance(disconnected, asyncio.Future) or not disconnected.done():
+        return False
+    if disconnected.cancelled() or disconnected.exception() is None:
+        return False
+    reason = getattr(disconnected.exception(), "rc", None)
+    return getattr(reason, "value", reason) == _SESSION_TAKEN_OVER

@@ -119,8 +119,11 @@ def reply_payload(
     frame: str | None = None,
     replies: tuple[Response, ...] = (),
     error: str | None = None,
+    warning: str | None = None,
 ) -> dict[str, Any]:
-    """The answer to a command: ``ok``, the frame sent and any replies, or the error."""
+    """The answer to a command: ``ok``, the frame sent and any replies, or the error; and a
+    warning when the frame went out but the controller drops it (locked, the other vertical
+    mode), as far as the state as last sent tells."""
     payload: dict[str, Any] = {"robot": robot, "ok": error is None}
     if request is not None:
         payload["command"] = request.text
@@ -141,6 +144,8 @@ def reply_payload(
         ]
     if error is not None:
         payload["error"] = error
+    if warning is not None:
+        payload["warning"] = warning
     return payload
 
 
