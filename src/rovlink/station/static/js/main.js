@@ -150,8 +150,17 @@ function onConnectionState(state) {
 // The station's heartbeat comes every second whatever the robot does; a reading every poll.
 // Silence from either is shown: a network that stops without closing the socket leaves the
 // last values on screen, and they must not pass for live ones.
+let freshnessCheckedAt = performance.now();
 function showFreshness() {
   const now = performance.now();
+  // Silence counts only while this page runs: a tab the browser froze or throttled (hidden)
+  // must not take the messages waiting for it as missing, and reconnect, when it wakes.
+  const asleep = now - freshnessCheckedAt - 250;
+  freshnessCheckedAt = now;
+  if (asleep > 1000) {
+    if (station.heardAt !== null) station.heardAt += asleep;
+    if (station.readingAt !== null) station.readingAt += asleep;
+  }
   let stale = "";
   let old = false;
   if (!connection.isOpen) {
