@@ -505,3 +505,21 @@ def test_a_page_that_hears_nothing_for_10_s_reconnects(browser, station, line):
     page.wait_for_selector("#stale-banner", state="hidden")
     assert "no longer the pilot" in page.text_content("#flight-status")
     page.context.close()
+
+
+def test_learning_a_button_fires_nothing(browser, station, line):
+    page = open_page(browser, station)  # a watcher setting up its pad while another flies
+    page.wait_for_function("window.rovlinkStation.devices.buttonsOf !== null")
+    mark = line.mark()
+    page.click("[data-learn='claw_open']")
+    set_pad(page, stop_button=True)  # B, STOP by default: learnt as claw open, no STOP
+    page.wait_for_function(
+        "JSON.parse(localStorage.getItem('rovlink.mapping') || '{}').buttons?.claw_open === 1"
+    )
+    time.sleep(0.1)
+    set_pad(page, stop_button=False)
+    page.click("#stop")  # a fence
+    line.wait_for("#stop!", after=mark)
+    assert line.frames(mark, commands_only=True) == ["#stop!"]
+    page.click("#mapping-editor button:text('default mapping')")
+    page.context.close()

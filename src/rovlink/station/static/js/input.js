@@ -76,6 +76,7 @@ export class InputDevices {
     this.resendMs = 50;
     this.previousButtons = {};
     this.buttonsOf = null;  // the pad previousButtons were read from
+    this.learning = false;  // a button of the mapping is being learnt
     this.status = "";
     this.lastInput = null;
     addEventListener("gamepadconnected", () => this.onChange());
@@ -147,7 +148,10 @@ export class InputDevices {
       && this.buttonsOf.id === pad.id && this.buttonsOf.index === pad.index;
     for (const action of BUTTON_ACTIONS) {
       const down = pad !== null && pressed(pad, mapping.buttons[action]);
-      const allowed = action === "stop" ? shown : flying;
+      // While a button is being learnt its press is the answer, not an action: only the
+      // pilot's STOP still acts (a watcher learning its pad must not stop another's flight).
+      const allowed = action === "stop" ? shown && (flying || !this.learning)
+        : flying && !this.learning;
       if (allowed && samePad && down && !this.previousButtons[action]) this.act(action);
       this.previousButtons[action] = down;
     }

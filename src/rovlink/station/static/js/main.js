@@ -419,11 +419,15 @@ function renderMapping() {
     event.target.textContent = "press a button…";
     const before = pad.buttons.map((b) => b.pressed);
     const started = performance.now();
+    devices.learning = true;
     const wait = setInterval(() => {
       const now = devices.active().pad;
       const index = now ? now.buttons.findIndex((b, i) => b.pressed && !before[i]) : -1;
       if (index >= 0 || performance.now() - started > 5000) {
         clearInterval(wait);
+        // The button still held fires nothing: the pad's next reading is taken as a first one.
+        devices.learning = false;
+        devices.buttonsOf = null;
         if (index >= 0) { mapping.buttons[name] = index; saveMapping(mapping); }
         renderMapping();
       }
