@@ -134,7 +134,8 @@ function onConnectionState(state) {
   badge.className = "badge " + (state === "open" ? "ok" : "bad");
   badge.textContent = state === "open" ? "station connected" : state === "connecting"
     ? "connecting…" : "station connection lost: reconnecting";
-  station.heardAt = null;
+  // An open socket counts as word from the station: one that then says nothing is silent.
+  station.heardAt = state === "open" ? performance.now() : null;
   station.readingAt = null;
   if (state === "open") {
     // The station takes a new page as shown: one opened in a background tab says otherwise.
