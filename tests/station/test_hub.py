@@ -314,9 +314,16 @@ async def test_a_failed_poll_leaves_no_reading_current_and_a_gap_in_the_charts(h
 async def test_a_reopened_link_forgets_the_lock_as_last_sent(hub):
     peer = await hub.pilot()
     await hub.send(peer, {"type": "command", "name": "start"})
+    await hub.send(peer, {"type": "command", "name": "mvdirect", "values": [1]})
+    await hub.send(peer, keys(False))
+    await hub.send(peer, {**keys(True, power_percent=60), "vertical_percent": 30})
+    commanded = hub.station.tracked.commanded
+    assert (commanded.power_percent, commanded.vertical_thrust_percent) == (60, 30)
     hub.station._on_client_event(LinkState(at_s=1.0, state="lost", detail="unplugged"))
     hub.station._on_client_event(LinkState(at_s=2.0, state="reconnected", detail="ttyUSB0"))
-    commanded = hub.station.tracked.commanded
+    # The driver's first frames on the reopened link were zero thrust: at rest as last sent
+    # (before, "90° at 60 %" stayed on every page as last sent until the pilot let go).
+    assert (commanded.power_percent, commanded.vertical_thrust_percent) == (0, 0)
     assert commanded.lock is LockState.UNKNOWN  # the controller may be another boot: locked
     assert "reopened" in hub.station._telemetry(None)["commanded"]["lock_unknown_because"]
     assert "unlock (#start!) to fly again" in hub.warnings()[-1]

@@ -47,7 +47,7 @@ from rovlink.client.events import (
 )
 from rovlink.client.sensors import Sensors
 from rovlink.piloting import LockState, SentFrame, TrackedClient
-from rovlink.protocol import Command, Text
+from rovlink.protocol import Command, Text, VerticalMode
 from rovlink.station.limits import command_limits
 from rovlink.station.messages import (
     CommandRequest,
@@ -623,9 +623,7 @@ class Station:
             else:
                 self._link_up = True
                 if event.state == "reconnected":
-                    # A reopened serial port resets many boards (DTR), and a controller that
-                    # came back may be another boot: it is locked, whatever was last sent.
-                    self.tracked.commanded.forget_lock(_REOPENED)
+                    self._reopened()
                     self.log(
                         "warning",
                         f"link reconnected{detail}: the controller may have reset or stopped"
@@ -637,6 +635,20 @@ class Station:
             self.log("info", f"controller: {event.event.text}")
         elif isinstance(event, QueryFailed):
             pass  # counted in the link health; the poll loop notes failures at a bounded rate
+
+    def _reopened(self) -> None:
+        """The robot's link was reopened: what was last sent no longer says what the robot is
+        doing. The driver's first frames on it took the motion to rest (zero thrust, before its
+        readiness probe), but they reach the tracked state only as bytes, so the motion as last
+        sent is put at rest here. A reopened serial port resets many boards (DTR), and a
+        controller that came back may be another boot, or stopped by its failsafe (P17): the
+        lock is no longer known."""
+        commanded = self.tracked.commanded
+        if commanded.power_percent:
+            commanded.apply(Command("th", (commanded.direction_deg, 0)), own=False)
+        if commanded.vertical_mode is VerticalMode.DIRECT and commanded.vertical_thrust_percent:
+            commanded.apply(Command("mvs", (0,)), own=False)
+        commanded.forget_lock(_REOPENED)
 
     def _on_sent(self, sent: SentFrame) -> None:
         if sent.warning is None or self._zero_to_locked(sent):
