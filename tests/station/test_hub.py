@@ -6,6 +6,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import errno
+import itertools
 import json
 import threading
 from collections.abc import AsyncIterator, Callable
@@ -16,12 +17,12 @@ from typing import Any
 import pytest
 
 import rovlink.aio
-from rovlink.client.events import BytesSent, ClientEvent
-from rovlink.piloting import TrackedClient
+from rovlink.client.events import BytesSent, ClientEvent, LinkState
+from rovlink.piloting import LockState, TrackedClient
 from rovlink.recorder.entries import Entry
 from rovlink.recorder.formats import open_sink
 from rovlink.recorder.sink import Sink
-from rovlink.station.hub import Peer, Station
+from rovlink.station.hub import MESSAGE_BURST, MESSAGES_PER_S, Peer, Station
 from rovlink.station.recording import StationRecordings
 
 
@@ -270,3 +271,82 @@ def drain(peer: Peer) -> list[dict[str, Any]]:
     while not peer.outbox.empty():
         messages.append(peer.outbox.get_nowait())
     return messages
+
+
+async def test_a_page_that_floods_is_told_to_go_and_a_steady_one_never(hub):
+    flooder = hub.station.join("flooder")
+    steady = await hub.pilot()
+    answers = [await hub.station.handle(flooder, "not json") for _ in range(int(MESSAGE_BURST))]
+    assert all(answers)  # a burst, as a network that stalled delivers, is taken
+    assert await hub.station.handle(flooder, '{"type": "stop"}') is False
+    assert f"{flooder.label} sent more than" in hub.warnings()[-1]
+    assert hub.sent == []  # the message over the allowance was not acted on
+    for _ in range(3 * int(MESSAGES_PER_S)):  # three seconds at the allowance, and more
+        hub.clock.now_s += 1 / MESSAGES_PER_S
+        assert await hub.station.handle(steady, json.dumps(keys(False)))
+
+
+async def test_every_page_gets_a_heartbeat_whatever_the_polls_do(
+    hub, monkeypatch: pytest.MonkeyPatch
+):
+    monkeypatch.setattr("rovlink.station.hub.HEARTBEAT_S", 0.01)
+    peer = hub.station.join("page")
+    drain(peer)
+    beating = asyncio.ensure_future(hub.station._beat())
+    try:
+        await until(lambda: any(m["type"] == "heartbeat" for m in drain(peer)))
+    finally:
+        beating.cancel()
+    assert hub.station._hello(peer)["heartbeat_ms"] == 10.0  # the page knows what to expect
+
+
+async def test_a_failed_poll_leaves_no_reading_current_and_a_gap_in_the_charts(hub):
+    hub.station._reading(await hub.station.tracked.sensors())
+    assert hub.station.latest is not None
+    hub.station._no_reading()
+    assert hub.station.latest is None  # a page opened now does not get the old reading
+    peer = hub.station.join("late")
+    hello = drain(peer)[0]
+    assert hello["telemetry"]["sensors"] is None
+    assert [row[1] for row in hello["history"]][-1] is None  # the charts break the line there
+
+
+async def test_a_reopened_link_forgets_the_lock_as_last_sent(hub):
+    peer = await hub.pilot()
+    await hub.send(peer, {"type": "command", "name": "start"})
+    await hub.send(peer, {"type": "command", "name": "mvdirect", "values": [1]})
+    await hub.send(peer, keys(False))
+    await hub.send(peer, {**keys(True, power_percent=60), "vertical_percent": 30})
+    commanded = hub.station.tracked.commanded
+    assert (commanded.power_percent, commanded.vertical_thrust_percent) == (60, 30)
+    hub.station._on_client_event(LinkState(at_s=1.0, state="lost", detail="unplugged"))
+    hub.station._on_client_event(LinkState(at_s=2.0, state="reconnected", detail="ttyUSB0"))
+    # The driver's first frames on the reopened link were zero thrust: at rest as last sent
+    # (before, "90° at 60 %" stayed on every page as last sent until the pilot let go).
+    assert (commanded.power_percent, commanded.vertical_thrust_percent) == (0, 0)
+    assert commanded.lock is LockState.UNKNOWN  # the controller may be another boot: locked
+    assert "reopened" in hub.station._telemetry(None)["commanded"]["lock_unknown_because"]
+    assert "unlock (#start!) to fly again" in hub.warnings()[-1]
+
+
+async def test_a_late_poll_is_not_followed_by_another_at_once(hub, monkeypatch: pytest.MonkeyPatch):
+    # (Before, the poll after a late one went at once: two readings in the same millisecond,
+    # one time twice in the charts; a flaky page test caught it.)
+    read_at: list[float] = []
+    read = hub.station.tracked.sensors
+
+    async def slow_second_reply() -> Any:
+        if len(read_at) == 1:
+            await asyncio.sleep(0.25)  # a slow reply: the next poll is due already
+        reading = await read()
+        read_at.append(asyncio.get_running_loop().time())
+        return reading
+
+    monkeypatch.setattr(hub.station.tracked, "sensors", slow_second_reply)
+    polling = asyncio.ensure_future(hub.station._poll())
+    try:
+        await until(lambda: len(read_at) >= 4)
+    finally:
+        polling.cancel()
+    gaps = [later - earlier for earlier, later in itertools.pairwise(read_at)]
+    assert min(gaps) > 0.5 / hub.station.rate_hz, gaps

@@ -5,6 +5,7 @@ assertion is on the frames that reach the simulated controller, or on what the p
 from __future__ import annotations
 
 import os
+import signal
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -209,6 +210,9 @@ def test_a_page_whose_socket_drops_reconnects_as_a_watcher(browser, station, lin
     line.wait_for("#th.90.0!", after=mark, timeout_s=CUT_WITHIN_S * 2)
     page.wait_for_function("window.rovlinkStation.station.id === 'p2'")  # the new hello
     page.wait_for_selector("#control-status:has-text('nobody has control')")
+    assert "no longer the pilot: the connection to the station dropped" in page.text_content(
+        "#flight-status"
+    )
     times = page.evaluate("window.rovlinkStation.charts.columns[0]")
     assert times == sorted(set(times))  # the history once, in order
     assert "#th.90.100!" not in line.frames(mark)  # the held pad does not fly a watcher
@@ -360,6 +364,8 @@ def test_the_record_button_records_and_the_page_downloads(browser, line, tmp_pat
         page.click("#record")
         page.wait_for_selector("#recording.active")
         assert page.text_content("#record") == "■ Stop recording"
+        # Every page sees who started it (docs/station.md); before, only the file and time.
+        page.wait_for_selector("#recording-status:has-text('by browser 1')")
         mark = line.mark()
         page.click("#unlock")
         line.wait_for("#start!", after=mark)
@@ -377,3 +383,143 @@ def test_the_record_button_records_and_the_page_downloads(browser, line, tmp_pat
         if isinstance(entry, FrameEntry) and entry.direction == "out"
     ]
     assert "start" in sent
+
+
+def test_a_locked_robot_never_shows_flying(browser, station, line):
+    page = open_page(browser, station)
+    take_control(page)
+    unlock_and_arm(page, line)
+    mark = line.mark()
+    set_pad(page, axes=[1, 0, 0, 0], deadman=True)
+    line.wait_for("#th.90.100!", after=mark)
+    mark = line.mark()
+    page.click("#stop")
+    line.wait_for("#stop!", after=mark)
+    set_pad(page, axes=[1, 0, 0, 0], deadman=False)  # released and held again: armed, locked
+    page.wait_for_function(
+        "window.rovlinkStation.station.telemetry.relay.status.startsWith('motors locked')"
+    )
+    set_pad(page, axes=[1, 0, 0, 0], deadman=True)
+    time.sleep(0.3)  # (before, the relay row read "flying" in green beside "motors: locked")
+    assert page.text_content("#relay-state") == "motors locked: unlock (#start!) to fly"
+    assert page.get_attribute("#relay-state", "class") != "flying"
+    assert "unlock (#start!)" in page.text_content("#flight-status")
+    assert not [frame for frame in line.frames(mark) if frame.startswith("#th.90.1")]
+    page.context.close()
+
+
+def test_a_silent_station_is_shown_as_such_not_as_live(browser, station, line):
+    page = open_page(browser, station, pad=False)
+    page.wait_for_selector("#stale-banner", state="hidden")
+    os.kill(station.process.pid, signal.SIGSTOP)  # a network that went quiet, seen from here
+    try:
+        page.wait_for_selector("#stale-banner:has-text('no word from the station')", timeout=5000)
+        assert page.evaluate("document.body.classList.contains('stale')")
+        assert page.text_content("#connection") == "station silent"
+    finally:
+        os.kill(station.process.pid, signal.SIGCONT)
+    page.wait_for_selector("#stale-banner", state="hidden")
+    assert not page.evaluate("document.body.classList.contains('stale')")
+    page.context.close()
+
+
+def test_readings_that_stop_are_shown_as_missing(browser, station, line):
+    page = open_page(browser, station, pad=False)
+    page.wait_for_function("window.rovlinkStation.charts.columns[1].length > 3")
+    line.close()  # the robot's end goes away: polls fail, the last reading is not current
+    page.wait_for_selector("#stale-banner:has-text('no reading from the robot')", timeout=10_000)
+    page.wait_for_selector("#depth-value:text-is('–')")  # once a poll has failed
+    # A gap in the charts, not a line drawn across it.
+    page.wait_for_function("window.rovlinkStation.charts.columns[1].includes(null)")
+    page.context.close()
+
+
+def test_stop_on_the_pad_of_a_page_that_lost_control_still_stops(browser, station, line):
+    first = open_page(browser, station)
+    take_control(first)
+    unlock_and_arm(first, line)
+    mark = line.mark()
+    set_pad(first, axes=[1, 0, 0, 0], deadman=True)
+    line.wait_for("#th.90.100!", after=mark)
+    second = open_page(browser, station, pad=False)
+    second.once("dialog", lambda dialog: dialog.accept())
+    second.click("#take-control")
+    first.wait_for_selector("#flight-status:has-text('you are no longer the pilot')")
+    mark = line.mark()
+    set_pad(first, stop_button=True)  # (before, a pad's STOP did nothing once control was lost)
+    line.wait_for("#stop!", after=mark)
+    set_pad(first, stop_button=False)
+    # A pad first seen with STOP held (the press that shows a pad to a page) sends nothing.
+    second.evaluate("fakePads.connect(); fakePads.set(0, {buttons: {1: true}})")
+    second.wait_for_function("window.rovlinkStation.devices.buttonsOf?.index === 0")
+    second.wait_for_function("window.rovlinkStation.devices.previousButtons.stop === true")
+    mark = line.mark()
+    second.click("#claw-close")  # a fence
+    line.wait_for("#h-!", after=mark)
+    assert line.frames(mark, commands_only=True) == ["#h-!"]
+    first.context.close()
+    second.context.close()
+
+
+def test_keys_typed_in_a_field_do_not_fly(browser, station, line):
+    page = open_page(browser, station, pad=False)
+    take_control(page)
+    page.select_option("#device-select", "keyboard")
+    page.click("#unlock")
+    line.wait_for("#start!")
+    page.wait_for_function(
+        "window.rovlinkStation.station.telemetry.relay.status.startsWith('armed')"
+    )
+    page.fill("#target-depth", "150")
+    page.wait_for_selector("#device-status:has-text('paused while typing')")
+    mark = line.mark()
+    page.keyboard.down("Shift")  # Shift with the arrows selects text in the field
+    page.keyboard.press("ArrowLeft")
+    page.keyboard.down("ArrowLeft")
+    time.sleep(0.3)
+    page.keyboard.up("ArrowLeft")
+    page.keyboard.up("Shift")
+    page.press("#target-depth", "Enter")  # a fence
+    line.wait_for("#mvd.150!", after=mark)
+    assert line.frames(mark, commands_only=True) == ["#mvd.150!"]  # (before: #th.270.40!)
+    page.click("#flight-status")  # out of the field: the keys fly again
+    page.wait_for_selector("#device-status:text-is('input: keyboard')")
+    page.keyboard.down("Shift")
+    page.keyboard.down("d")
+    line.wait_for("#th.90.40!", after=mark)
+    page.keyboard.up("d")
+    page.keyboard.up("Shift")
+    page.context.close()
+
+
+@pytest.mark.slow
+def test_a_page_that_hears_nothing_for_10_s_reconnects(browser, station, line):
+    page = open_page(browser, station, pad=False)
+    take_control(page)
+    os.kill(station.process.pid, signal.SIGSTOP)
+    try:
+        time.sleep(11)  # past the page's 10 s: it gives the silent socket up
+    finally:
+        os.kill(station.process.pid, signal.SIGCONT)
+    page.wait_for_function("window.rovlinkStation.station.id === 'p2'")
+    page.wait_for_selector("#stale-banner", state="hidden")
+    assert "no longer the pilot" in page.text_content("#flight-status")
+    page.context.close()
+
+
+def test_learning_a_button_fires_nothing(browser, station, line):
+    page = open_page(browser, station)  # a watcher setting up its pad while another flies
+    page.wait_for_function("window.rovlinkStation.devices.buttonsOf !== null")
+    mark = line.mark()
+    page.click("[data-learn='claw_open']")
+    set_pad(page, stop_button=True)  # B, STOP by default: learnt as claw open, no STOP
+    page.wait_for_function(
+        "JSON.parse(localStorage.getItem('rovlink.mapping') || '{}').buttons?.claw_open === 1"
+    )
+    time.sleep(0.1)
+    set_pad(page, stop_button=False)
+    page.click("#stop")  # a fence
+    line.wait_for("#stop!", after=mark)
+    assert line.frames(mark, commands_only=True) == ["#stop!"]
+    page.click("#mapping-editor button:text('default mapping')")
+    page.context.close()

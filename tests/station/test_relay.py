@@ -7,9 +7,11 @@ import pytest
 from rovlink.piloting import CommandedState
 from rovlink.protocol import Command
 from rovlink.station.relay import (
+    LOCKED_STATUS,
     MIN_MOTION_INTERVAL_S,
     RENEW_S,
     STALE_INPUT_S,
+    UNKNOWN_LOCK_STATUS,
     PilotInput,
     ThrustRelay,
 )
@@ -159,11 +161,24 @@ def test_depth_mode_nudges_the_target_from_the_depth_read():
     assert wire.state.target_depth_cm == pytest.approx(130, abs=2)
 
 
-def test_locked_as_last_sent_relays_nothing():
+def test_locked_as_last_sent_relays_nothing_and_says_so():
     wire = Wire()
     wire.send([Command("stop")])
     wire.update(RELEASED, 0.0)
+    assert wire.relay.status == LOCKED_STATUS
     assert wire.update(PilotInput(True, 90, 50, 0, 1.0), 0.05) == []
+    # (Before, the stick held after STOP read "flying", in green, beside "motors: locked".)
+    assert wire.relay.status == LOCKED_STATUS
+    wire.send([Command("start")])
+    assert wire.update(PilotInput(True, 90, 50, 0, 2.0), 0.1) == ["#th.90.50!"]
+    assert wire.relay.status == "flying"
+
+
+def test_flying_with_the_lock_unknown_says_that_the_motors_may_be_locked():
+    wire = Wire()  # nothing sent yet: a controller after a reset is locked
+    wire.update(RELEASED, 0.0)
+    assert wire.update(PilotInput(True, 90, 50, 0, 1.0), 0.05) == ["#th.90.50!"]
+    assert wire.relay.status == UNKNOWN_LOCK_STATUS
 
 
 @pytest.mark.parametrize(

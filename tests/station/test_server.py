@@ -4,6 +4,7 @@ TCP recording what reaches its controller, and WebSocket clients that speak as p
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import os
 import signal
 import socket
@@ -13,7 +14,7 @@ import urllib.request
 from typing import Any
 
 import pytest
-from websockets.exceptions import InvalidStatus
+from websockets.exceptions import ConnectionClosed, InvalidStatus
 
 from rovlink.protocol import lookup
 from tests.station.page_socket import PageSocket
@@ -88,6 +89,7 @@ async def test_hello_carries_the_command_table_limits_and_readings_follow(statio
         "heading_deg",
     }
     assert reading["link"]["status"] == "ok"
+    await page.next("heartbeat", timeout_s=3)  # every second, whatever the polls do
     await page.close()
 
 
@@ -280,6 +282,36 @@ async def test_hostile_messages_get_an_error_and_never_a_frame(station, line):
     await page.send({"type": "command", "name": "h+"})  # a fence, and the server is still there
     await asyncio.to_thread(line.wait_for, "#h+!", after=mark)
     assert line.frames(mark, commands_only=True) == ["#h+!"]
+    await page.close()
+
+
+def _flood(url: str, message: str, count: int) -> None:
+    """Send ``message`` ``count`` times as fast as a socket takes them (until it is closed)."""
+    from websockets.sync.client import connect
+
+    with connect(url, close_timeout=0.5) as flooder, contextlib.suppress(ConnectionClosed):
+        for _ in range(count):
+            flooder.send(message)
+
+
+async def test_a_flooding_page_is_closed_and_the_pilot_flies_on(station, line):
+    # (Before, a page's queued messages were handled without a pause: a watcher sending
+    # garbage held up the pilot's input long enough for the watchdog to cut it, and the
+    # polls dropped to one or two a second.)
+    page = await pilot(station)
+    await fly(page, line)
+    mark = line.mark()
+    stop = asyncio.Event()
+    sender = asyncio.ensure_future(keep_pad_alive(page, stop))
+    try:
+        await asyncio.to_thread(_flood, station.ws_url, "not json", 20_000)
+        closed = await page.next("log", lambda m: "sent more than" in m["text"])
+        await asyncio.sleep(0.5)  # the pilot flies on
+    finally:
+        stop.set()
+        await sender
+    assert "connection is closed" in closed["text"]
+    assert not [frame for frame in line.frames(mark) if frame.startswith("#th.90.0")]
     await page.close()
 
 

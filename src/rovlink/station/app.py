@@ -136,7 +136,13 @@ async def _serve_page(station: Station, websocket: WebSocket) -> None:
             message = await websocket.receive()
             if message["type"] == "websocket.disconnect":
                 break
-            await station.handle(peer, message.get("text", message.get("bytes")))
+            if not await station.handle(peer, message.get("text", message.get("bytes"))):
+                await websocket.close(code=1008, reason="too many messages")
+                break
+            # Messages already received are handed over without a pause: without this one, a
+            # page that floods the station would hold the event loop, and with it the polls,
+            # the watchdog and every other page, for as long as it keeps sending.
+            await asyncio.sleep(0)
     except WebSocketDisconnect:
         pass
     finally:

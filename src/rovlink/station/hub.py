@@ -16,7 +16,12 @@ button's start and stop are one (:mod:`rovlink.station.recording`); every page s
 recording's state and may download the finished ones.
 
 Each page has an outbox that the WebSocket endpoint drains; a page too slow to take its
-messages misses readings (they are dropped, never queued without bound), not the others.
+messages misses readings (they are dropped, never queued without bound), not the others. Every
+page also gets a ``heartbeat`` each second, whatever the robot's link does, so that a page can
+tell a silent station (a network gone quiet without closing the socket) from a slow robot. A
+page that sends more messages than any page would (:data:`MESSAGES_PER_S`, after a burst of
+:data:`MESSAGE_BURST`) is told to go: :meth:`Station.handle` returns ``False`` and the
+WebSocket endpoint closes it.
 """
 
 from __future__ import annotations
@@ -42,7 +47,7 @@ from rovlink.client.events import (
 )
 from rovlink.client.sensors import Sensors
 from rovlink.piloting import LockState, SentFrame, TrackedClient
-from rovlink.protocol import Command, Text
+from rovlink.protocol import Command, Text, VerticalMode
 from rovlink.station.limits import command_limits
 from rovlink.station.messages import (
     CommandRequest,
@@ -58,7 +63,15 @@ from rovlink.station.messages import (
 from rovlink.station.recording import RecordingError, StationRecordings
 from rovlink.station.relay import STALE_INPUT_S, ThrustRelay, is_zero_thrust
 
-__all__ = ["DEFAULT_RATE_HZ", "WATCHDOG_PERIOD_S", "Peer", "Station"]
+__all__ = [
+    "DEFAULT_RATE_HZ",
+    "HEARTBEAT_S",
+    "MESSAGES_PER_S",
+    "MESSAGE_BURST",
+    "WATCHDOG_PERIOD_S",
+    "Peer",
+    "Station",
+]
 
 logger = logging.getLogger(__name__)
 
@@ -76,6 +89,16 @@ LOG_ENTRIES = 200
 OUTBOX_SIZE = 256
 #: Failed polls are logged at most this often (a dead link fails ten a second).
 _FAILURE_LOG_EVERY_S = 2.0
+#: Every page gets a heartbeat this often, from a task of its own: a page that hears nothing
+#: for a few of them knows that what it shows is old (the polls may take longer: a timeout).
+HEARTBEAT_S = 1.0
+#: A page's messages: this many a second on average, after a burst of :data:`MESSAGE_BURST`
+#: (a page polls its input every 10 ms and sends on a change: 100 a second at most; a network
+#: that stalled for seconds delivers what it held at once). More closes that page's socket.
+MESSAGES_PER_S = 200.0
+MESSAGE_BURST = 1000.0
+#: Why the lock as last sent is no longer known once the robot's link is reopened.
+_REOPENED = "the link was reopened (the controller may have reset)"
 
 
 @dataclass(eq=False)
@@ -90,6 +113,19 @@ class Peer:
     hidden: bool = False
     input_source: str | None = None
     dropped_messages: int = 0
+    #: The page's message allowance (a token bucket, see :data:`MESSAGES_PER_S`) and when it
+    #: was last topped up (``None``: not yet).
+    allowance: float = MESSAGE_BURST
+    allowance_at_s: float | None = None
+
+    def spend(self, now_s: float) -> bool:
+        """One message arrived at ``now_s``: whether the page is within its allowance."""
+        if self.allowance_at_s is not None:
+            earned = (now_s - self.allowance_at_s) * MESSAGES_PER_S
+            self.allowance = min(MESSAGE_BURST, self.allowance + max(0.0, earned))
+        self.allowance_at_s = now_s
+        self.allowance -= 1.0
+        return self.allowance >= 0.0
 
     def put(self, message: dict[str, Any]) -> None:
         """Queue ``message`` for the page; dropped if the page is too far behind."""
@@ -162,8 +198,19 @@ class Station:
             self._announce_control(f"{peer.label} disconnected; nobody has control")
         self.log("info", f"{peer.label} disconnected")
 
-    async def handle(self, peer: Peer, text: str | bytes | None) -> None:
-        """One message from ``peer``; a refused one gets an ``error`` back and sends nothing."""
+    async def handle(self, peer: Peer, text: str | bytes | None) -> bool:
+        """One message from ``peer``; a refused one gets an ``error`` back and sends nothing.
+
+        ``False``: the page sent more messages than any page would (a flood, a runaway
+        script), this one is not acted on, and its connection must be closed.
+        """
+        if not peer.spend(self._clock()):
+            self.log(
+                "warning",
+                f"{peer.label} sent more than {MESSAGES_PER_S:.0f} messages a second: "
+                "its connection is closed",
+            )
+            return False
         try:
             message = parse_message(text)
             await self._act(peer, message)
@@ -175,13 +222,18 @@ class Station:
         except Exception:  # a bug must not take the page's connection down with it
             logger.exception("the station failed on a message from %s", peer.label)
             peer.put({"type": "error", "message": "the station failed on this message (logged)"})
+        return True
 
     # -- running --------------------------------------------------------------------------------
 
     async def run(self) -> None:
         """Poll the sensors and run the watchdog until cancelled (or until one of them fails,
         which the caller must treat as the end of the station)."""
-        tasks = [asyncio.ensure_future(self._poll()), asyncio.ensure_future(self._watch())]
+        tasks = [
+            asyncio.ensure_future(self._poll()),
+            asyncio.ensure_future(self._watch()),
+            asyncio.ensure_future(self._beat()),
+        ]
         try:
             await asyncio.gather(*tasks)
         finally:
@@ -379,6 +431,12 @@ class Station:
             except Exception:  # the watchdog must outlive any bug in what it calls
                 logger.exception("the station's watchdog failed once; it goes on")
 
+    async def _beat(self) -> None:
+        """The heartbeat every page gets, whatever the polls do (see :data:`HEARTBEAT_S`)."""
+        while True:
+            await asyncio.sleep(HEARTBEAT_S)
+            self._broadcast({"type": "heartbeat", "t": round(self.now_s(), 3)})
+
     async def _poll(self) -> None:
         period_s = 1.0 / self.rate_hz
         loop = asyncio.get_running_loop()
@@ -393,11 +451,17 @@ class Station:
                 if reading is not None:
                     self._reading(reading)
                 else:
-                    self._broadcast(self._telemetry(None))
+                    self._no_reading()
             except Exception:  # the pages miss one reading; the polls (P17's food) go on
                 logger.exception("the station failed on a reading")
-            self._tell_recording(loop.time())
-            next_s = max(next_s + period_s, loop.time())
+            now_s = loop.time()
+            self._tell_recording(now_s)
+            next_s += period_s
+            if next_s <= now_s:
+                # Late (a slow reply, a busy moment): the next poll a period from now. Going at
+                # once put two readings in the same millisecond (one time twice in the charts)
+                # and, on a link slower than the rate, left no room between polls for motion.
+                next_s = now_s + period_s
             await asyncio.sleep(next_s - loop.time())
 
     def _tell_recording(self, now_s: float) -> None:
@@ -423,6 +487,15 @@ class Station:
             self.log("warning", f"sensor poll failed: {error}{more}")
             self._failure_logged_s = now
             self._failures_unlogged = 0
+
+    def _no_reading(self) -> None:
+        """A poll failed: no reading is current any more (a page opened now shows none, and
+        a depth nudge does not start from an old depth); the charts get a gap."""
+        self.latest = None
+        message = self._telemetry(None)
+        commanded = self.tracked.commanded
+        self._history.append([message["t"], None, commanded.target_depth_cm, None, None, None])
+        self._broadcast(message)
 
     def _reading(self, reading: Sensors) -> None:
         self.latest = reading
@@ -464,6 +537,7 @@ class Station:
             },
             "commanded": {
                 "lock": str(commanded.lock),
+                "lock_unknown_because": commanded.lock_unknown_because,
                 "vertical_mode": None
                 if commanded.vertical_mode is None
                 else str(commanded.vertical_mode),
@@ -510,6 +584,7 @@ class Station:
             "label": peer.label,
             "description": self.description,
             "rate_hz": self.rate_hz,
+            "heartbeat_ms": HEARTBEAT_S * 1e3,
             "limits": command_limits(),
             "stale_input_ms": STALE_INPUT_S * 1e3,
             "input_resend_ms": INPUT_RESEND_S * 1e3,
@@ -547,11 +622,33 @@ class Station:
                 self.log("alarm", f"link lost{detail}")
             else:
                 self._link_up = True
+                if event.state == "reconnected":
+                    self._reopened()
+                    self.log(
+                        "warning",
+                        f"link reconnected{detail}: the controller may have reset or stopped"
+                        " on its own failsafe; unlock (#start!) to fly again",
+                    )
+                    return
                 self.log("info", f"link {event.state}{detail}")
         elif isinstance(event, Unsolicited) and isinstance(event.event, Text):
             self.log("info", f"controller: {event.event.text}")
         elif isinstance(event, QueryFailed):
             pass  # counted in the link health; the poll loop notes failures at a bounded rate
+
+    def _reopened(self) -> None:
+        """The robot's link was reopened: what was last sent no longer says what the robot is
+        doing. The driver's first frames on it took the motion to rest (zero thrust, before its
+        readiness probe), but they reach the tracked state only as bytes, so the motion as last
+        sent is put at rest here. A reopened serial port resets many boards (DTR), and a
+        controller that came back may be another boot, or stopped by its failsafe (P17): the
+        lock is no longer known."""
+        commanded = self.tracked.commanded
+        if commanded.power_percent:
+            commanded.apply(Command("th", (commanded.direction_deg, 0)), own=False)
+        if commanded.vertical_mode is VerticalMode.DIRECT and commanded.vertical_thrust_percent:
+            commanded.apply(Command("mvs", (0,)), own=False)
+        commanded.forget_lock(_REOPENED)
 
     def _on_sent(self, sent: SentFrame) -> None:
         if sent.warning is None or self._zero_to_locked(sent):

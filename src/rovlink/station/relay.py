@@ -23,9 +23,11 @@ from rovlink.protocol import Command, VerticalMode, lookup
 
 __all__ = [
     "DEPTH_NUDGE_CM_PER_S",
+    "LOCKED_STATUS",
     "MIN_MOTION_INTERVAL_S",
     "RENEW_S",
     "STALE_INPUT_S",
+    "UNKNOWN_LOCK_STATUS",
     "PilotInput",
     "ThrustRelay",
     "is_zero_thrust",
@@ -43,6 +45,13 @@ RENEW_S = 0.5
 MIN_MOTION_INTERVAL_S = 0.02
 #: How fast a full deflection of the vertical stick moves the depth target in depth mode.
 DEPTH_NUDGE_CM_PER_S = 30.0
+#: The relay's status while locked as last sent: armed or not, nothing moves until ``#start!``.
+LOCKED_STATUS = "motors locked: unlock (#start!) to fly"
+#: Flying while the lock is not known (nothing sent yet, or the link was reopened): the frames
+#: go out, and a controller that is locked drops them.
+UNKNOWN_LOCK_STATUS = (
+    "flying, if the motors are unlocked (the lock is not known: unlock with #start!)"
+)
 #: Longest interval a nudge integrates over (a late message does not jump the target).
 _MAX_NUDGE_STEP_S = 0.1
 
@@ -219,15 +228,31 @@ class ThrustRelay:
 
     @property
     def status(self) -> str:
-        """The relay's state in words: ``flying``, ``armed``, or why nothing moves."""
+        """The relay's state in words: ``flying``, ``armed``, or why nothing moves.
+
+        Locked as last sent (after STOP), nothing is relayed however the stick is held, and
+        the status says so rather than ``flying``:
+
+        >>> state = CommandedState()
+        >>> relay = ThrustRelay(state)
+        >>> state.apply(Command("stop"))
+        >>> _ = relay.update(PilotInput(deadman=False), now_s=0.0)
+        >>> relay.update(PilotInput(True, 90, 40), now_s=0.05), relay.status
+        ([], 'motors locked: unlock (#start!) to fly')
+        """
         if not self.armed:
             return (
                 "release the dead-man to arm"
                 if self.cut_reason in (None, "no input yet")
                 else f"cut: {self.cut_reason}; release the dead-man to arm"
             )
+        lock = self.commanded.lock
+        if lock is LockState.LOCKED:
+            return LOCKED_STATUS
         pilot = self._last_input
-        return "flying" if pilot is not None and pilot.deadman else "armed (dead-man released)"
+        if pilot is None or not pilot.deadman:
+            return "armed (dead-man released)"
+        return "flying" if lock is LockState.UNLOCKED else UNKNOWN_LOCK_STATUS
 
     # -- internals ------------------------------------------------------------------------------
 

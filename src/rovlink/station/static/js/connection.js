@@ -33,6 +33,27 @@ export class Connection {
 
   get isOpen() { return this.socket !== null && this.socket.readyState === WebSocket.OPEN; }
 
+  // The station went silent on an open socket (a network that stopped without closing it):
+  // give that socket up, without waiting for its closing handshake, and open a new one.
+  reconnect() {
+    const socket = this.socket;
+    if (this.closedForGood) return;
+    this.socket = null;
+    if (socket) {
+      try { socket.close(); } catch { /* already closing */ }
+    }
+    this.onState("closed");
+    this.open();
+  }
+
+  // A page brought back from the back/forward cache: its socket was closed when it was left.
+  resume() {
+    if (!this.closedForGood) return;
+    this.closedForGood = false;
+    this.retryMs = 500;
+    if (!this.socket) this.open();
+  }
+
   send(message) {
     if (!this.isOpen) return false;
     this.socket.send(JSON.stringify(message));

@@ -6,6 +6,9 @@
 // milliseconds the chosen device is read; the input goes to the server when it changes and,
 // while the dead-man is held, at a steady rate, so the server's watchdog sees a frozen page
 // or pad at once.
+//
+// Pad buttons fire on a press, not while held. STOP fires from any page that is shown, pilot
+// or not, as the STOP button on the screen does; the other buttons only for the pilot.
 
 import { padInput, pressed } from "./mapping.js";
 
@@ -13,6 +16,15 @@ const CHOICE_KEY = "rovlink.device";
 const IGNORE_KEY = "rovlink.ignored-pads";
 const POLL_MS = 10;
 const BUTTON_ACTIONS = ["unlock", "stop", "claw_open", "claw_close", "mode"];
+
+// A key pressed in a field the pilot types in (the depth target, a setting) is not a flying
+// key: Shift with the arrows selects text there.
+function typingIn(target) {
+  if (!(target instanceof Element)) return false;
+  if (target.isContentEditable || target.tagName === "TEXTAREA" || target.tagName === "SELECT") return true;
+  return target.tagName === "INPUT"
+    && !["button", "submit", "reset", "checkbox", "radio"].includes(target.type);
+}
 
 function loadJson(key, fallback) {
   try { return JSON.parse(localStorage.getItem(key)) ?? fallback; } catch { return fallback; }
@@ -22,9 +34,13 @@ export class Keyboard {
   constructor() {
     this.down = new Set();
     this.powerPercent = 40;
-    addEventListener("keydown", (event) => { this.down.add(event.code); });
+    addEventListener("keydown", (event) => {
+      if (!typingIn(event.target)) this.down.add(event.code);
+    });
     addEventListener("keyup", (event) => { this.down.delete(event.code); });
     addEventListener("blur", () => this.down.clear());
+    // Moving into a field lets go of every key held: the dead-man too.
+    addEventListener("focusin", (event) => { if (typingIn(event.target)) this.down.clear(); });
   }
 
   has(...codes) { return codes.some((code) => this.down.has(code)); }
@@ -59,6 +75,8 @@ export class InputDevices {
     this.lastSentAt = 0;
     this.resendMs = 50;
     this.previousButtons = {};
+    this.buttonsOf = null;  // the pad previousButtons were read from
+    this.learning = false;  // a button of the mapping is being learnt
     this.status = "";
     this.lastInput = null;
     addEventListener("gamepadconnected", () => this.onChange());
@@ -93,7 +111,11 @@ export class InputDevices {
   active() {
     const pads = this.usablePads();
     const choice = this.choice;
-    if (choice && choice.kind === "keyboard") return { kind: "keyboard", label: "keyboard" };
+    if (choice && choice.kind === "keyboard") {
+      const label = typingIn(document.activeElement)
+        ? "keyboard (paused while typing in a field: click the page to fly)" : "keyboard";
+      return { kind: "keyboard", label };
+    }
     if (choice && choice.kind === "gamepad") {
       const pad = pads.find((candidate) => candidate.id === choice.id);
       if (pad) return { kind: "gamepad", pad, label: pad.id };
@@ -115,17 +137,28 @@ export class InputDevices {
   poll() {
     const device = this.active();
     if (device.label !== this.status) { this.status = device.label; this.onChange(); }
-    const flying = !document.hidden && this.isPilot();
+    const shown = !document.hidden;
+    const flying = shown && this.isPilot();
     // Button presses are edges: a button already held when this page became the pilot (or
-    // came back into view) does nothing until it is released and pressed again.
+    // came back into view, or the pad was first seen: the press that shows a pad to the page)
+    // does nothing until it is released and pressed again.
     const mapping = this.mapping();
+    const pad = device.kind === "gamepad" ? device.pad : null;
+    const samePad = pad !== null && this.buttonsOf !== null
+      && this.buttonsOf.id === pad.id && this.buttonsOf.index === pad.index;
     for (const action of BUTTON_ACTIONS) {
-      const down = device.kind === "gamepad" && pressed(device.pad, mapping.buttons[action]);
-      if (flying && down && !this.previousButtons[action]) this.act(action);
+      const down = pad !== null && pressed(pad, mapping.buttons[action]);
+      // While a button is being learnt its press is the answer, not an action: only the
+      // pilot's STOP still acts (a watcher learning its pad must not stop another's flight).
+      const allowed = action === "stop" ? shown && (flying || !this.learning)
+        : flying && !this.learning;
+      if (allowed && samePad && down && !this.previousButtons[action]) this.act(action);
       this.previousButtons[action] = down;
     }
+    this.buttonsOf = pad === null ? null : { id: pad.id, index: pad.index };
     if (!flying) {
       this.lastSent = null;
+      this.lastInput = null;  // the stick is drawn only while it flies
       return;
     }
     let input = null;

@@ -11,7 +11,17 @@ import { ACTIONS, AXES, loadMapping, resetMapping, saveMapping } from "./mapping
 const $ = (id) => document.getElementById(id);
 const station = {
   id: null, pilotId: null, limits: null, telemetry: null, leakSilenced: false, telemetryCount: 0,
+  rateHz: 10, heartbeatMs: 1000,
+  // When the station last said anything, and when the last reading of the robot came
+  // (performance.now()); null: not since this socket opened.
+  heardAt: null, readingAt: null,
+  // Why this page is no longer the pilot, shown until it takes control again.
+  lostControl: null,
 };
+// No word from the station (not even its heartbeat) for this long: the socket is given up and
+// a new one opened. By then the station has dropped the old one too (serve.py pings every 5 s
+// and gives up 5 s later), so the page does not come back as a second copy of itself.
+const SILENT_RECONNECT_MS = 10000;
 let mapping = loadMapping();
 const alarm = new AlarmSound();
 const charts = new Charts($("depth-chart"), $("attitude-chart"));
@@ -52,7 +62,9 @@ function showRecording(state) {
   $("record").textContent = state.active ? "■ Stop recording" : "● Record";
   $("record").disabled = !isPilot();
   let status = "";
-  if (state.active) status = `${state.file} · ${Math.round(state.elapsed_s ?? 0)} s`;
+  if (state.active) {
+    status = `${state.file} · ${Math.round(state.elapsed_s ?? 0)} s · by ${state.started_by}`;
+  }
   if (state.failure) status = state.failure;
   $("recording-status").textContent = status;
   const items = state.finished.map((item) => {
@@ -70,10 +82,14 @@ function showRecording(state) {
 }
 
 function onMessage(message) {
+  station.heardAt = performance.now();
   switch (message.type) {
     case "hello":
       station.id = message.id;
       station.limits = message.limits;
+      station.rateHz = message.rate_hz;
+      station.heartbeatMs = message.heartbeat_ms ?? 1000;
+      if (message.telemetry?.sensors) station.readingAt = station.heardAt;
       devices.resendMs = message.input_resend_ms;
       $("link-description").textContent = `· ${message.description} · you are ${message.label}`;
       $("log").replaceChildren();
@@ -88,17 +104,20 @@ function onMessage(message) {
     case "recording":
       showRecording(message);
       break;
-    case "telemetry":
+    case "telemetry": {
       station.telemetryCount += 1;
+      const s = message.sensors;
+      if (s) station.readingAt = station.heardAt;
       showTelemetry(message);
-      if (message.sensors) {
-        const s = message.sensors;
-        charts.add([message.t, s.depth_cm, message.commanded.target_depth_cm, s.roll_deg,
-          s.pitch_deg, s.heading_deg]);
-      }
+      // A failed poll is a gap in the charts, not a line drawn across it.
+      charts.add([message.t, s ? s.depth_cm : null, message.commanded.target_depth_cm,
+        s ? s.roll_deg : null, s ? s.pitch_deg : null, s ? s.heading_deg : null]);
+      break;
+    }
+    case "heartbeat":
       break;
     case "control":
-      setControl(message.pilot_id, message.pilot_label);
+      setControl(message.pilot_id, message.pilot_label, message.text);
       toast(message.text);
       break;
     case "log":
@@ -115,14 +134,73 @@ function onConnectionState(state) {
   badge.className = "badge " + (state === "open" ? "ok" : "bad");
   badge.textContent = state === "open" ? "station connected" : state === "connecting"
     ? "connecting…" : "station connection lost: reconnecting";
-  if (state !== "open") setControl(null, null);
+  // An open socket counts as word from the station: one that then says nothing is silent.
+  station.heardAt = state === "open" ? performance.now() : null;
+  station.readingAt = null;
+  if (state === "open") {
+    // The station takes a new page as shown: one opened in a background tab says otherwise.
+    if (document.hidden) send({ type: "visibility", hidden: true });
+  } else {
+    setControl(null, null, "the connection to the station dropped");
+  }
+  showFreshness();
 }
+
+// -- what is shown is old ------------------------------------------------------------------------
+
+// The station's heartbeat comes every second whatever the robot does; a reading every poll.
+// Silence from either is shown: a network that stops without closing the socket leaves the
+// last values on screen, and they must not pass for live ones.
+let freshnessCheckedAt = performance.now();
+function showFreshness() {
+  const now = performance.now();
+  // Silence counts only while this page runs: a tab the browser froze or throttled (hidden)
+  // must not take the messages waiting for it as missing, and reconnect, when it wakes.
+  const asleep = now - freshnessCheckedAt - 250;
+  freshnessCheckedAt = now;
+  if (asleep > 1000) {
+    if (station.heardAt !== null) station.heardAt += asleep;
+    if (station.readingAt !== null) station.readingAt += asleep;
+  }
+  let stale = "";
+  let old = false;
+  if (!connection.isOpen) {
+    stale = "not connected to the station: everything shown is old";
+    old = true;
+  } else if (station.heardAt !== null && now - station.heardAt > 2.5 * station.heartbeatMs) {
+    const silent = (now - station.heardAt) / 1000;
+    stale = `no word from the station for ${silent.toFixed(0)} s (the network?): everything shown is old`;
+    old = true;
+    if (now - station.heardAt > SILENT_RECONNECT_MS) connection.reconnect();
+  } else if (station.readingAt === null
+    || now - station.readingAt > Math.max(1000, 3000 / station.rateHz)) {
+    const since = station.readingAt === null ? ""
+      : ` for ${((now - station.readingAt) / 1000).toFixed(1)} s`;
+    stale = `no reading from the robot${since}`;
+  }
+  document.body.classList.toggle("stale", old);
+  document.body.classList.toggle("stale-readings", stale !== "");
+  text("stale-banner", stale);
+  $("stale-banner").hidden = stale === "";
+  if (old) {
+    const badge = $("connection");
+    badge.className = "badge bad";
+    if (connection.isOpen) badge.textContent = "station silent";
+  }
+}
+setInterval(showFreshness, 250);
 
 // -- showing the state ---------------------------------------------------------------------------
 
-function setControl(pilotId, pilotLabel) {
+function setControl(pilotId, pilotLabel, why = null) {
+  const wasMine = station.pilotId !== null && station.pilotId === station.id;
   station.pilotId = pilotId;
   const mine = pilotId !== null && pilotId === station.id;
+  if (wasMine && !mine && !station.releasing) {
+    station.lostControl = `you are no longer the pilot: ${why ?? "control changed"}`;
+  }
+  if (mine || station.releasing) station.lostControl = null;
+  if (!mine) station.releasing = false;
   $("control").classList.toggle("pilot", mine);
   document.body.classList.toggle("watching", !mine);
   $("control-status").textContent = mine ? "you are the pilot"
@@ -130,6 +208,15 @@ function setControl(pilotId, pilotLabel) {
   $("take-control").hidden = mine;
   $("release-control").hidden = !mine;
   $("record").disabled = !mine;  // only the pilot starts and stops a recording
+  showFlightStatus();
+}
+
+// The banner under the top bar: the pilot is told why nothing moves; a page that lost control,
+// why it did (until it takes control again).
+function showFlightStatus() {
+  const status = station.telemetry?.relay?.status ?? "";
+  const why = status === "flying" || status.startsWith("armed") ? "" : status;
+  text("flight-status", isPilot() ? why : station.lostControl ?? "");
 }
 
 function text(id, value) { const el = $(id); if (el.textContent !== value) el.textContent = value; }
@@ -152,7 +239,8 @@ function showTelemetry(t) {
   text("thrust-value", `${c.direction_deg}° at ${c.power_percent} %`);
   const lock = $("lock-state");
   lock.className = c.lock;
-  text("lock-state", c.lock === "unknown" ? "not sent yet (locked after a reset)" : c.lock);
+  text("lock-state", c.lock !== "unknown" ? c.lock : c.lock_unknown_because
+    ? `unknown: after ${c.lock_unknown_because}` : "not sent yet (locked after a reset)");
   const targetText = c.target_depth_cm !== null ? `target ${c.target_depth_cm} cm`
     : c.holding_entry_depth ? "holding its depth on entry" : "no target sent";
   const mode = c.vertical_mode === "direct"
@@ -164,7 +252,7 @@ function showTelemetry(t) {
   const relay = $("relay-state");
   relay.className = t.relay.status === "flying" ? "flying" : "";
   text("relay-state", t.relay.status);
-  text("flight-status", isPilot() && !t.relay.armed ? t.relay.status : "");
+  showFlightStatus();
   showLink(t.link);
   showLeak(Boolean(s && s.leak));
 }
@@ -290,7 +378,9 @@ function renderDevices() {
   }));
 }
 
+// Keys pressed in a field do not fly (input.js): a choice made, the keys go back to flying.
 $("device-select").addEventListener("change", (event) => {
+  event.target.blur();
   const value = event.target.value;
   devices.choose(value === "auto" ? null : value === "keyboard" ? { kind: "keyboard" }
     : { kind: "gamepad", id: value.slice(4) });
@@ -330,11 +420,15 @@ function renderMapping() {
     event.target.textContent = "press a button…";
     const before = pad.buttons.map((b) => b.pressed);
     const started = performance.now();
+    devices.learning = true;
     const wait = setInterval(() => {
       const now = devices.active().pad;
       const index = now ? now.buttons.findIndex((b, i) => b.pressed && !before[i]) : -1;
       if (index >= 0 || performance.now() - started > 5000) {
         clearInterval(wait);
+        // The button still held fires nothing: the pad's next reading is taken as a first one.
+        devices.learning = false;
+        devices.buttonsOf = null;
         if (index >= 0) { mapping.buttons[name] = index; saveMapping(mapping); }
         renderMapping();
       }
@@ -350,7 +444,10 @@ $("take-control").addEventListener("click", () => {
   if (station.pilotId && !confirm(`${holder} has control. Take it? Their thrust goes to zero.`)) return;
   send({ type: "take_control" });
 });
-$("release-control").addEventListener("click", () => send({ type: "release_control" }));
+$("release-control").addEventListener("click", () => {
+  station.releasing = true;  // (no "you are no longer the pilot" for letting go oneself)
+  send({ type: "release_control" });
+});
 $("record").addEventListener("click", () => {
   send({ type: station.recording?.active ? "record_stop" : "record_start" });
 });
@@ -369,6 +466,7 @@ $("keyboard-power").addEventListener("input", (event) => {
   devices.keyboard.powerPercent = Number(event.target.value);
   $("keyboard-power-value").textContent = `${event.target.value} %`;
 });
+$("keyboard-power").addEventListener("change", (event) => event.target.blur());
 
 // Space and Esc stop the robot from anywhere on the page, before anything else sees the key.
 addEventListener("keydown", (event) => {
@@ -381,6 +479,7 @@ addEventListener("keydown", (event) => {
 
 document.addEventListener("visibilitychange", () => send({ type: "visibility", hidden: document.hidden }));
 addEventListener("pagehide", () => connection.close());
+addEventListener("pageshow", (event) => { if (event.persisted) connection.resume(); });
 
 renderMapping();
 renderDevices();
