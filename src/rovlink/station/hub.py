@@ -638,11 +638,11 @@ class Station:
 
     def _reopened(self) -> None:
         """The robot's link was reopened: what was last sent no longer says what the robot is
-        doing. The driver's first frames on it took the motion to rest (zero thrust, before its
-        readiness probe), but they reach the tracked state only as bytes, so the motion as last
-        sent is put at rest here. A reopened serial port resets many boards (DTR), and a
-        controller that came back may be another boot, or stopped by its failsafe (P17): the
-        lock is no longer known."""
+        doing. The driver took the motion to rest on it (zero thrust before its readiness probe,
+        seen here only as bytes, and again once the controller answered, before this notice);
+        the motion as last sent is put at rest here whatever the driver wrote. A reopened serial
+        port resets many boards (DTR), and a controller that came back may be another boot, or
+        stopped by its failsafe (P17): the lock is no longer known."""
         commanded = self.tracked.commanded
         if commanded.power_percent:
             commanded.apply(Command("th", (commanded.direction_deg, 0)), own=False)
