@@ -18,7 +18,12 @@ import rovlink
 from rovlink.client import Client, ConnectionLostError, QueryTimeoutError
 from rovlink.client.events import BytesSent, ClientEvent, LinkState, MotionExpired
 from rovlink.client.links import SocketLink
-from tests.client.conftest import CONDITION_TIMEOUT_S, client_options, wait_until
+from tests.client.conftest import (
+    CONDITION_TIMEOUT_S,
+    NO_REPLY_TIMEOUT_S,
+    client_options,
+    wait_until,
+)
 from tests.client.fake_controller import FakeController, FakeControllerServer
 
 pytestmark = pytest.mark.integration
@@ -496,7 +501,8 @@ def test_threads_with_qsa_on_a_line_that_drops_corrupts_and_delays(
             for _ in range(400)
         ]
     )
-    client = make_client(timeout_s=0.5, retries=2)
+    # (Short timeouts: the drops are waited out, and the late replies come 0.1 s late.)
+    client = make_client(timeout_s=NO_REPLY_TIMEOUT_S, retries=2)
     wrong: list[str] = []
     depths: list[int] = []
     lock = threading.Lock()

@@ -290,6 +290,7 @@ def test_a_ground_station_over_tcp():
             gcs.close()
 
 
+@pytest.mark.slow  # (six ground stations in turn: the race needed that many to show)
 def test_tcp_ground_stations_come_and_go_and_the_next_one_is_served():
     # pymavlink swaps a TCP socket when a write finds the peer gone; a read at the same time
     # once killed the reader thread, and the bridge heard no ground station again.
