@@ -89,6 +89,15 @@ class KeptSettings:
                 raise
             return commands
 
+    async def restore_in_background(self, rov: TrackedClient) -> str | None:
+        """:meth:`restore` for a bridge's own task: the frames sent again, as text; ``None``
+        if none were due, or if the link went again (they are sent once it is back)."""
+        try:
+            commands = await self.restore(rov)
+        except ConnectionError:
+            return None
+        return " ".join(str(command) for command in commands) or None
+
     def _on_sent(self, sent: SentFrame) -> None:
         if sent.command is not None and sent.warning is None:
             self.keep(sent.command)

@@ -450,12 +450,8 @@ class MavlinkBridge:
     async def _restore_settings(self) -> None:
         """After a suspected reset, the parameters and the mode as last sent, sent again: the
         controller came back with its configured defaults, in depth mode (P21, P9)."""
-        try:
-            commands = await self.kept.restore(self.rov)
-        except ConnectionError:
-            return  # the link went again (they are sent once it is back), or for good
-        if commands:
-            frames = " ".join(str(command) for command in commands)
+        frames = await self.kept.restore_in_background(self.rov)
+        if frames:
             logger.warning("the controller may have reset: sent again %s", frames)
             self._say(_SEVERITY_WARNING, "Controller reset? Parameters and mode sent again")
 

@@ -489,12 +489,8 @@ class MqttBridge:
     async def _restore_settings(self) -> None:
         """After a suspected reset, the settings and the vertical mode as last sent, sent again:
         the controller came back with its configured defaults, in depth mode (P21, P9)."""
-        try:
-            commands = await self.kept.restore(self.rov)
-        except ConnectionError:
-            return  # the link went again (they are sent once it is back), or for good
-        if commands:
-            frames = " ".join(str(command) for command in commands)
+        frames = await self.kept.restore_in_background(self.rov)
+        if frames:
             self._event("reset_suspected", f"the controller answers again: sent again {frames}")
 
     def _event(self, name: str, detail: str) -> None:
