@@ -294,16 +294,22 @@ def test_a_second_browser_cannot_command(browser, station, line):
     watcher.context.close()
 
 
-def test_keyboard_flying_with_shift_as_the_dead_man(browser, station, line):
+def _flying_by_keyboard(browser, station, line):
+    """A pilot's page on the keyboard, the robot unlocked and the relay armed."""
     page = open_page(browser, station, pad=False)
     take_control(page)
     page.select_option("#device-select", "keyboard")
     page.click("#unlock")
     line.wait_for("#start!")
-    page.wait_for_function("window.rovlinkStation.station.telemetry.commanded.lock === 'unlocked'")
     page.wait_for_function(
         "window.rovlinkStation.station.telemetry.relay.status.startsWith('armed')"
     )
+    return page
+
+
+def test_keyboard_flying_with_shift_as_the_dead_man(browser, station, line):
+    page = _flying_by_keyboard(browser, station, line)
+    page.wait_for_function("window.rovlinkStation.station.telemetry.commanded.lock === 'unlocked'")
     mark = line.mark()
     page.keyboard.down("d")  # no dead-man: nothing
     page.wait_for_function("window.rovlinkStation.devices.lastInput?.power_percent === 40")
@@ -462,14 +468,7 @@ def test_stop_on_the_pad_of_a_page_that_lost_control_still_stops(browser, statio
 
 
 def test_keys_typed_in_a_field_do_not_fly(browser, station, line):
-    page = open_page(browser, station, pad=False)
-    take_control(page)
-    page.select_option("#device-select", "keyboard")
-    page.click("#unlock")
-    line.wait_for("#start!")
-    page.wait_for_function(
-        "window.rovlinkStation.station.telemetry.relay.status.startsWith('armed')"
-    )
+    page = _flying_by_keyboard(browser, station, line)
     page.fill("#target-depth", "150")
     page.wait_for_selector("#device-status:has-text('paused while typing')")
     mark = line.mark()

@@ -11,6 +11,7 @@ import socket
 import time
 import urllib.error
 import urllib.request
+from collections.abc import AsyncIterator
 from typing import Any
 
 import pytest
@@ -64,13 +65,25 @@ async def fly(page: PageSocket, line: ControllerLine, direction_deg: int = 90) -
     await asyncio.to_thread(line.wait_for, f"#th.{direction_deg}.60!", after=mark)
 
 
-async def keep_pad_alive(page: PageSocket, stop: asyncio.Event, direction_deg: int = 90) -> None:
-    """The page's steady re-send while the dead-man is held, the pad reporting each time."""
+async def _keep_pad_alive(page: PageSocket, stop: asyncio.Event, direction_deg: int) -> None:
     pad_ms = 2.0
     while not stop.is_set():
         await page.send(held(direction_deg, pad_ms=pad_ms))
         pad_ms += 50
         await asyncio.sleep(0.05)
+
+
+@contextlib.asynccontextmanager
+async def pad_kept_alive(page: PageSocket, direction_deg: int = 90) -> AsyncIterator[None]:
+    """For the block's time, the page's steady re-send while the dead-man is held, the pad
+    reporting each time."""
+    stop = asyncio.Event()
+    sender = asyncio.ensure_future(_keep_pad_alive(page, stop, direction_deg))
+    try:
+        yield
+    finally:
+        stop.set()
+        await sender
 
 
 async def test_hello_carries_the_command_table_limits_and_readings_follow(station):
@@ -165,16 +178,11 @@ async def test_a_live_pad_keeps_flying_and_the_motion_is_renewed(station, line):
     page = await pilot(station)
     await fly(page, line)
     mark = line.mark()
-    stop = asyncio.Event()
-    sender = asyncio.ensure_future(keep_pad_alive(page, stop))
-    try:
+    async with pad_kept_alive(page):
         renewed = await asyncio.to_thread(line.wait_for, "#th.90.60!", after=mark, timeout_s=3)
         second = await asyncio.to_thread(
             line.wait_for, "#th.90.60!", after=line.received.index(renewed) + 1, timeout_s=3
         )
-    finally:
-        stop.set()
-        await sender
     assert second.at_s > renewed.at_s
     assert "#th.90.0!" not in line.frames(mark)
     await page.close()
@@ -301,15 +309,10 @@ async def test_a_flooding_page_is_closed_and_the_pilot_flies_on(station, line):
     page = await pilot(station)
     await fly(page, line)
     mark = line.mark()
-    stop = asyncio.Event()
-    sender = asyncio.ensure_future(keep_pad_alive(page, stop))
-    try:
+    async with pad_kept_alive(page):
         await asyncio.to_thread(_flood, station.ws_url, "not json", 20_000)
         closed = await page.next("log", lambda m: "sent more than" in m["text"])
         await asyncio.sleep(0.5)  # the pilot flies on
-    finally:
-        stop.set()
-        await sender
     assert "connection is closed" in closed["text"]
     assert not [frame for frame in line.frames(mark) if frame.startswith("#th.90.0")]
     await page.close()
@@ -388,12 +391,9 @@ async def test_a_killed_station_leaves_the_robot_to_its_own_failsafe(line):
     with running_station(line.url) as served:
         page = await pilot(served)
         await fly(page, line)
-        stop = asyncio.Event()
-        sender = asyncio.ensure_future(keep_pad_alive(page, stop))
-        os.kill(served.process.pid, signal.SIGKILL)
-        served.process.wait(timeout=5)
-        stop.set()
-        await sender
+        async with pad_kept_alive(page):
+            os.kill(served.process.pid, signal.SIGKILL)
+            served.process.wait(timeout=5)
         # Nothing feeds the controller's link-loss watchdog (P17, 2 s): it stops the robot.
         await asyncio.to_thread(line.wait_until, lambda: line.controller_locked, 4.0)
         assert line.server.robot.controller.state().power_percent == 0
