@@ -18,6 +18,7 @@ from rovlink.client.events import ClientEvent, LinkState
 from rovlink.client.links import Link, SocketLink
 from tests.client.conftest import (
     CONDITION_TIMEOUT_S,
+    NO_REPLY_TIMEOUT_S,
     REPLY_TIMEOUT_S,
     client_options,
     wait_until_async,
@@ -59,7 +60,11 @@ async def test_an_open_that_fails_stops_watching_the_port(how: str) -> None:
     fd = sock.fileno()
     client = AsyncClient(
         SocketLink(sock, "socket pair"),
-        client_options(boot_timeout_s=0.3 if how != "cancelled" else 10.0, checksum=True),
+        client_options(
+            boot_timeout_s=0.3 if how != "cancelled" else 10.0,
+            checksum=True,
+            timeout_s=NO_REPLY_TIMEOUT_S,  # (the wrong algorithm's replies never match)
+        ),
     )
     try:
         if how == "cancelled":
