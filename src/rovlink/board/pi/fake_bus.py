@@ -163,18 +163,60 @@ class _Registers:
         self.registers[register] = value
 
 
+#: The PCA9685's registers after power-on (datasheet §7.3, table 4): MODE1 SLEEP and ALLCALL
+#: (auto-increment off), MODE2 OUTDRV, the sub-addresses and ALLCALL address, every output's
+#: LEDn_OFF_H with its full-off bit, PRE_SCALE 0x1E (200 Hz); every other register 0.
+_PCA9685_POWER_ON: dict[int, int] = {
+    0x00: 0x11,
+    0x01: 0x04,
+    0x02: 0xE2,
+    0x03: 0xE4,
+    0x04: 0xE8,
+    0x05: 0xE0,
+    **{0x09 + 4 * channel: 0x10 for channel in range(16)},
+    0xFD: 0x10,
+    0xFE: 0x1E,
+}
+
+
 class FakePca9685(_Registers):
-    """A PCA9685: its registers, and the pulse each output makes."""
+    """A PCA9685: its registers, and the pulse each output makes.
+
+    :meth:`power_on_reset` puts the registers back as after power-on, as a supply dip (a
+    brown-out) does on a real chip: asleep, outputs off, the prescale and mode at their defaults.
+    """
 
     def __init__(self, oscillator_hz: float = 25_000_000.0) -> None:
         super().__init__()
         self.oscillator_hz = oscillator_hz
-        self.registers[0x00] = 0x11  # MODE1 after power-on: SLEEP, ALLCALL
-        self.registers[0xFE] = 0x1E  # PRE_SCALE after power-on (200 Hz)
+        self.power_on_resets = 0
+        self._load_power_on_values()
+
+    def power_on_reset(self) -> None:
+        """Every register back to its power-on value (a brown-out, or the supply cycled)."""
+        self.power_on_resets += 1
+        self._load_power_on_values()
+
+    def _load_power_on_values(self) -> None:
+        values = bytearray(len(self.registers))
+        for register, value in _PCA9685_POWER_ON.items():
+            values[register] = value
+        self.registers[:] = values  # at once: the board loop's thread may be writing
+
+    def write(self, data: bytes) -> None:
+        if len(data) > 2 and not self.registers[0x00] & 0x20:
+            # Auto-increment off (as after power-on): every byte lands in the same register.
+            self.pointer = data[0]
+            for value in data[1:]:
+                self._store(self.pointer, value)
+            return
+        super().write(data)
 
     def _store(self, register: int, value: int) -> None:
         if register == 0xFE and not self.registers[0x00] & 0x10:
             return  # PRE_SCALE is written only while asleep (datasheet §7.3.5)
+        if register == 0x00:
+            value &= 0x7F  # RESTART: writing 1 clears it (it reads 1 only after a sleep)
         if 0xFA <= register <= 0xFD:  # ALL_LED_*: every output at once
             for channel in range(16):
                 self.registers[0x06 + 4 * channel + register - 0xFA] = value
