@@ -6,11 +6,11 @@ import pytest
 
 from rovlink.board.pi.ads1115 import Ads1115, config_word
 from rovlink.board.pi.board import fake_bus_for, open_pi_board
-from rovlink.board.pi.fake_bus import FakeAds1115, FakeI2cBus
+from rovlink.board.pi.fake_bus import FakeAds1115, FakeI2cBus, FakeMs5837
 from rovlink.board.pi.pressure import AnalogPressure, AnalogTransducer, RawScale
 from rovlink.board.sensors import SensorError
 from rovlink.controller import Controller
-from tests.board.rig import example_config
+from tests.board.rig import example_config, wait_until
 
 
 def test_the_raw_scale_gives_the_controllers_depth_back() -> None:
@@ -110,3 +110,46 @@ def test_a_disconnected_transducer_is_a_fault_not_a_depth() -> None:
     pressure = AnalogPressure(adc, AnalogTransducer(), RawScale(20, 200, 0.0, 1000.0))
     with pytest.raises(SensorError, match="disconnected or faulty"):
         pressure.poll(0.0)
+
+
+def _mbar_at(depth_m: float, surface_mbar: float = 1013.25, density_kg_m3: float = 997.0) -> float:
+    """The absolute pressure ``depth_m`` below the surface."""
+    return surface_mbar + depth_m * density_kg_m3 * 9.80665 / 100
+
+
+@pytest.mark.parametrize("model", ["30ba", "02ba"])
+@pytest.mark.parametrize("temperature_c", [20.0, 4.0])
+def test_the_depth_of_the_fake_ms5837_through_the_board_and_the_controller(
+    model: str, temperature_c: float
+) -> None:
+    """From the MS5837's raw conversions to `qd`: the surface reads 0 cm at zero_raw, 2.5 m
+    reads 250 cm at 20 + 125 counts of 2 cm (the example's [depth] zero 20, k 200)."""
+    config = example_config(
+        imu={"sensor": "none"}, leak={"pin": -1}, pressure={"ms5837": {"model": model}}
+    )
+    bus = fake_bus_for(config)
+    fake = bus.devices[0x76]
+    assert isinstance(fake, FakeMs5837)
+    board = open_pi_board(config, bus=bus)
+    try:
+        controller = Controller(config.controller, board.hardware)
+        sensor = board.sensors[0]
+        clock = board.hardware.clock
+
+        def reads(raw: int) -> bool:
+            sensor.poll(clock.now_s())
+            return board.hardware.pressure.read_raw() == raw
+
+        # The fake sits at the surface of rov.toml, 20 °C: a dry run's depth is 0.
+        controller.receive(b"#qr!#qd!")
+        assert controller.read_output() == b"$qr.20!$qd.0!"
+        fake.set_reading(_mbar_at(2.5), temperature_c)
+        assert wait_until(lambda: reads(145), timeout_s=2.0)
+        controller.receive(b"#qr!#qd!")
+        assert controller.read_output() == b"$qr.145!$qd.250!"
+        fake.set_reading(_mbar_at(0.0), temperature_c)
+        assert wait_until(lambda: reads(20), timeout_s=2.0)
+        controller.receive(b"#qd!")
+        assert controller.read_output() == b"$qd.0!"
+    finally:
+        board.close()

@@ -47,6 +47,7 @@ logger = get_logger(__name__)
 
 _T = TypeVar("_T")
 _FIRST_READING_S = 0.5  # how long a sensor has at start to give its first reading
+_FAKE_WATER_C = 20.0  # the fake pressure sensor's temperature
 
 
 class _NoLeakSensor:
@@ -74,7 +75,9 @@ def fake_bus_for(config: PiConfig, log_path: str = "") -> FakeI2cBus:
     }
     pressure = config.pressure
     if pressure.sensor is PressureKind.MS5837:
-        devices[pressure.ms5837.address] = FakeMs5837.example(pressure.ms5837.model)
+        devices[pressure.ms5837.address] = FakeMs5837.reading(
+            pressure.ms5837.model, pressure.surface_mbar, _FAKE_WATER_C
+        )
     else:
         ads = pressure.ads1115
         fraction = (pressure.surface_mbar - ads.min_mbar) / (ads.max_mbar - ads.min_mbar)

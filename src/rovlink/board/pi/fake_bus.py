@@ -3,20 +3,22 @@
 ``[i2c] backend = "fake"`` in ``rov.toml`` runs the whole board on this bus, so the controller,
 its safety paths and a host program can be exercised on any computer; with ``fake_log`` every
 transaction is also written to a file as one JSON line, which is how tests watch the pulses of a
-``rovlink controller --board pi`` process. The devices answer as the datasheets describe, with
-the datasheets' example values; nothing here reaches hardware.
+``rovlink controller --board pi`` process. The devices answer as the datasheets describe (the
+sensors' calibration is the datasheets' example; a test sets what they read); nothing here
+reaches hardware.
 """
 
 from __future__ import annotations
 
 import errno
 import json
+import math
 import threading
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import IO, Protocol
 
-from rovlink.board.pi.ms5837 import Ms5837Model, crc4
+from rovlink.board.pi.ms5837 import Ms5837Model, compensate, crc4
 
 __all__ = [
     "MS5837_EXAMPLES",
@@ -27,6 +29,7 @@ __all__ = [
     "FakeMs5837",
     "FakePca9685",
     "Transaction",
+    "ms5837_conversions",
     "ms5837_prom",
 ]
 
@@ -259,13 +262,73 @@ def ms5837_prom(coefficients: Sequence[int], factory_bits: int = _FACTORY_BITS) 
     return words
 
 
+_ADC_MAX = 2**24 - 1  # the conversions are 24-bit
+
+
+def ms5837_conversions(
+    model: Ms5837Model, prom: Sequence[int], pressure_mbar: float, temperature_c: float
+) -> tuple[int, int]:
+    """The D1 and D2 that :func:`~rovlink.board.pi.ms5837.compensate` (second order included)
+    turns into the reading nearest ``pressure_mbar`` and ``temperature_c``: the datasheet's
+    calculation run backwards by bisection, D2 first (the temperature depends on D2 alone), then
+    D1 (the pressure rises with D1 at a given temperature).
+
+    :class:`ValueError` names a value no 24-bit conversion reaches with this calibration.
+
+    >>> prom = ms5837_prom(MS5837_EXAMPLES[Ms5837Model.BA30][0])
+    >>> d1, d2 = ms5837_conversions(Ms5837Model.BA30, prom, 1257.68, 4.0)  # 2.5 m, cold
+    >>> compensate(Ms5837Model.BA30, prom, d1, d2)
+    Ms5837Reading(pressure_mbar=1257.7, temperature_c=4.0)
+    """
+    name = f"MS5837-{model.upper()}"
+    if not (math.isfinite(pressure_mbar) and math.isfinite(temperature_c)):
+        raise ValueError(
+            f"{name}: a reading must be finite, got {pressure_mbar} mbar, {temperature_c} °C"
+        )
+    d2 = _nearest(
+        lambda value: compensate(model, prom, 0, value).temperature_c,
+        temperature_c,
+        f"{name}: {temperature_c:g} °C",
+    )
+    d1 = _nearest(
+        lambda value: compensate(model, prom, value, d2).pressure_mbar,
+        pressure_mbar,
+        f"{name}: {pressure_mbar:g} mbar at {temperature_c:g} °C",
+    )
+    return d1, d2
+
+
+def _nearest(output: Callable[[int], float], target: float, what: str) -> int:
+    """The conversion 1…2²⁴−1 whose ``output`` (non-decreasing) is nearest ``target``."""
+    low, high = 1, _ADC_MAX
+    lowest, highest = output(low), output(high)
+    if not lowest <= target <= highest:
+        raise ValueError(
+            f"{what} is out of the sensor's reach: its conversions give {lowest:g}–{highest:g}"
+        )
+    while low < high:  # the first conversion whose output reaches the target
+        middle = (low + high) // 2
+        if output(middle) < target:
+            low = middle + 1
+        else:
+            high = middle
+    if low > 1 and target - output(low - 1) <= output(low) - target:
+        return low - 1
+    return low
+
+
 @dataclass
 class FakeMs5837:
-    """An MS5837: reset, PROM reads, D1/D2 conversions and the ADC read."""
+    """An MS5837: reset, PROM reads, D1/D2 conversions and the ADC read.
+
+    It converts ``d1`` and ``d2``: the datasheet's example values (:meth:`example`, about 30 m
+    of water for the 30BA), or those of a reading set with :meth:`set_reading`.
+    """
 
     prom: list[int]
     d1: int
     d2: int
+    model: Ms5837Model = Ms5837Model.BA30
     resets: int = 0
     _answer: bytes = b""
     _converted: int = 0
@@ -273,9 +336,25 @@ class FakeMs5837:
 
     @classmethod
     def example(cls, model: Ms5837Model) -> FakeMs5837:
-        """The datasheet's example device."""
+        """The datasheet's example device, converting the datasheet's example values."""
         coefficients, d1, d2 = MS5837_EXAMPLES[model]
-        return cls(ms5837_prom(coefficients), d1, d2)
+        return cls(ms5837_prom(coefficients), d1, d2, model)
+
+    @classmethod
+    def reading(
+        cls, model: Ms5837Model, pressure_mbar: float, temperature_c: float = 20.0
+    ) -> FakeMs5837:
+        """The datasheet's example calibration, reading ``pressure_mbar`` at ``temperature_c``
+        (to the sensor's resolution: 0.1 mbar for the 30BA, 0.01 mbar for the 02BA)."""
+        fake = cls.example(model)
+        fake.set_reading(pressure_mbar, temperature_c)
+        return fake
+
+    def set_reading(self, pressure_mbar: float, temperature_c: float = 20.0) -> None:
+        """Convert to this reading from the next conversion on; :class:`ValueError` if the
+        sensor cannot reach it."""
+        d1, d2 = ms5837_conversions(self.model, self.prom, pressure_mbar, temperature_c)
+        self.d1, self.d2 = d1, d2
 
     def write(self, data: bytes) -> None:
         command = data[0]
