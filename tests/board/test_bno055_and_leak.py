@@ -8,9 +8,12 @@ from collections.abc import Iterator
 import pytest
 
 from rovlink.board.pi.bno055 import Bno055Imu, remap_for_placement
+from rovlink.board.pi.board import fake_bus_for, open_pi_board
 from rovlink.board.pi.fake_bus import FakeBno055, FakeI2cBus
 from rovlink.board.pi.leak import GpioLeakSensor
 from rovlink.board.sensors import SensorError
+from rovlink.controller import Controller
+from tests.board.rig import example_config
 
 
 def _started(imu_args: dict[str, object] | None = None) -> tuple[FakeBno055, FakeI2cBus, Bno055Imu]:
@@ -92,3 +95,33 @@ def test_an_active_low_probe_that_stays_wet(mock_factory: object) -> None:
 def test_a_pull_against_the_polarity_is_refused(mock_factory: object) -> None:
     with pytest.raises(ValueError, match="pull-down input rests low"):
         GpioLeakSensor(22, active_high=False, pull="down", pin_factory=mock_factory)
+
+
+def test_attitude_ties_from_the_bno055_to_the_replies() -> None:
+    """P15: whole degrees rounded to nearest; it leaves a tie open. The chip's 1/16° steps reach
+    the controller exactly, and a tie (x.5°) goes up, toward +∞, as docs/hardware.md says."""
+    config = example_config(leak={"pin": -1})
+    bus = fake_bus_for(config)
+    bno = bus.devices[0x28]
+    assert isinstance(bno, FakeBno055)
+    board = open_pi_board(config, bus=bus)
+    try:
+        controller = Controller(config.controller, board.hardware)
+        imu = board.sensors[1]
+        start_s = board.hardware.clock.now_s()
+        cases = [
+            ((2.5, -2.5, 359.5), b"$qro.+3!$qpi.-2!$qhe.0!"),
+            ((-0.5, 0.5, 0.5), b"$qro.+0!$qpi.+1!$qhe.1!"),
+            ((89.5, -90.5, 179.5), b"$qro.+90!$qpi.-90!$qhe.180!"),
+            # One of the chip's steps either side of a tie.
+            ((2.4375, -2.5625, 359.4375), b"$qro.+2!$qpi.-3!$qhe.359!"),
+            ((2.5625, -2.4375, 0.5625), b"$qro.+3!$qpi.-2!$qhe.1!"),
+        ]
+        for number, ((roll_deg, pitch_deg, heading_deg), replies) in enumerate(cases, 1):
+            bno.set_attitude(roll_deg, pitch_deg, heading_deg)
+            assert imu.poll(start_s + number) is None  # read without an error
+            assert imu.value == (roll_deg, pitch_deg, heading_deg)  # exactly, no rounding yet
+            controller.receive(b"#qro!#qpi!#qhe!")
+            assert controller.read_output() == replies, (roll_deg, pitch_deg, heading_deg)
+    finally:
+        board.close()
