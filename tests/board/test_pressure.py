@@ -4,13 +4,15 @@ from __future__ import annotations
 
 import pytest
 
+from rovlink.board.board import BoardStartError
 from rovlink.board.pi.ads1115 import Ads1115, config_word
 from rovlink.board.pi.board import fake_bus_for, open_pi_board
 from rovlink.board.pi.fake_bus import FakeAds1115, FakeI2cBus, FakeMs5837
+from rovlink.board.pi.ms5837 import Ms5837Model
 from rovlink.board.pi.pressure import AnalogPressure, AnalogTransducer, RawScale
 from rovlink.board.sensors import SensorError
 from rovlink.controller import Controller
-from tests.board.rig import example_config, wait_until
+from tests.board.rig import example_config, is_neutral, pulses, wait_until
 
 
 def test_the_raw_scale_gives_the_controllers_depth_back() -> None:
@@ -151,5 +153,45 @@ def test_the_depth_of_the_fake_ms5837_through_the_board_and_the_controller(
         assert wait_until(lambda: reads(20), timeout_s=2.0)
         controller.receive(b"#qd!")
         assert controller.read_output() == b"$qd.0!"
+    finally:
+        board.close()
+
+
+def test_a_bar30_configured_as_a_bar02_is_refused_at_start_not_read_as_the_surface() -> None:
+    """The PROM cannot tell the models apart, and the 02BA's compensation makes a 30BA's
+    1013 mbar about 51 mbar: raw 0, `qd` 0 at any depth, a depth hold pushing down for ever.
+    No air or water is below 300 mbar, so such a reading is a fault, never a depth."""
+    config = example_config(
+        imu={"sensor": "none"}, leak={"pin": -1}, pressure={"ms5837": {"model": "02ba"}}
+    )
+    bus = fake_bus_for(config)
+    bus.devices[0x76] = FakeMs5837.reading(Ms5837Model.BA30, 1013.25)
+    with pytest.raises(
+        BoardStartError,
+        match=r"MS5837-02BA at 0x76: no reading at start: it reads 50\.\d+ mbar, below any "
+        r"air or water \(300 mbar\): is \[pressure\.ms5837\] model right\? "
+        r"\(30ba: Bar30, 02ba: Bar02\)",
+    ):
+        open_pi_board(config, bus=bus)
+    assert is_neutral(pulses(bus.snapshot()))
+
+
+def test_an_implausible_pressure_while_running_is_a_failed_read() -> None:
+    config = example_config(imu={"sensor": "none"}, leak={"pin": -1})
+    bus = fake_bus_for(config)
+    fake = bus.devices[0x76]
+    assert isinstance(fake, FakeMs5837)
+    board = open_pi_board(config, bus=bus)
+    try:
+        sensor = board.sensors[0]
+        clock = board.hardware.clock
+        fake.set_reading(250.0)
+        assert wait_until(
+            lambda: isinstance(sensor.poll(clock.now_s()), SensorError), timeout_s=2.0
+        )
+        assert sensor.value == config.controller.depth.zero_raw  # the last good value
+        fake.set_reading(_mbar_at(1.0))
+        assert wait_until(lambda: (sensor.poll(clock.now_s()), sensor.value)[1] == 70, 2.0)
+        assert sensor.failures == 0
     finally:
         board.close()
