@@ -55,8 +55,36 @@ def test_every_placement_maps_each_axis_once() -> None:
 def test_an_attitude_that_is_not_a_number_is_a_sensor_error() -> None:
     fake, _, imu = _started()
     fake.registers[0x3D] = 0x00  # the chip fell back to config mode: the driver gives None
-    with pytest.raises(SensorError, match="no attitude"):
+    with pytest.raises(SensorError, match="BNO055 at 0x28: out of fusion mode"):
         imu.poll(0.0)
+
+
+def test_a_bno055_reset_is_put_back_into_fusion_with_its_placement() -> None:
+    """A reset (a supply dip, the chip's own watchdog) brings the chip back in config mode with
+    the default axis map: no attitude, for ever, and the stale-IMU failsafe would keep the motors
+    stopped until the controller is restarted."""
+    fake, bus, imu = _started({"placement": "P0", "invert_roll": True})
+    assert imu.poll(0.0) is not None
+    fake.power_on_reset()
+    with pytest.raises(SensorError, match=r"out of fusion mode \(reset\?\): fusion mode and"):
+        imu.poll(0.05)
+    assert fake.registers[0x3D] == 0x0C  # NDOF again
+    assert (fake.registers[0x41], fake.registers[0x42]) == (0x21, 0x04)  # P0 again
+    attitude = imu.poll(0.1)
+    assert attitude is not None
+    assert (attitude.roll_deg, attitude.pitch_deg, attitude.heading_deg) == (-12.5, -3.0, 350.0)
+    assert imu.fusion_restarts == 1
+    # A chip that falls out again at once is put back at most once a second: a failing chip
+    # must not cost the control loop 60 ms of mode changes every poll.
+    fake.power_on_reset()
+    before = len(bus.transactions)
+    with pytest.raises(SensorError, match=r"out of fusion mode$"):
+        imu.poll(0.2)
+    assert all(not t.written or len(t.written) == 1 for t in bus.transactions[before:])  # reads
+    with pytest.raises(SensorError, match="set again"):
+        imu.poll(1.2)
+    assert imu.poll(1.3) is not None
+    assert imu.fusion_restarts == 2
 
 
 @pytest.fixture

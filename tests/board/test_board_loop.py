@@ -18,7 +18,7 @@ import pytest
 from rovlink.board.board import BoardStartError
 from rovlink.board.pi.board import fake_bus_for, open_pi_board
 from rovlink.board.pi.config import PiConfig
-from rovlink.board.pi.fake_bus import FakeI2cBus, FakePca9685
+from rovlink.board.pi.fake_bus import FakeBno055, FakeI2cBus, FakePca9685
 from rovlink.board.server import BoardServer
 from tests.board.rig import (
     CLAW_CHANNEL,
@@ -427,3 +427,21 @@ def test_the_pwm_board_check_can_be_turned_off() -> None:
         assert board.checks == ()
     finally:
         board.close()
+
+
+def test_an_imu_reset_is_repaired_before_it_goes_stale() -> None:
+    with running(with_controller(example_config(), watchdog_s=0.0)) as rig:
+        bno = rig.bus.devices[0x28]
+        assert isinstance(bno, FakeBno055)
+        rig.send(b"#debug1!#start!#th.90.50!")
+        assert wait_until(rig.moving_as_commanded)
+        bno.power_on_reset()
+        assert wait_until(lambda: rig.saw(b"out of fusion mode (reset?)"))
+        imu = rig.server.board.sensors[1]
+        assert wait_until(lambda: imu.total_failures >= 1 and imu.failures == 0)
+        assert not rig.server.controller.locked  # one failed read: not stale
+        assert rig.moving_as_commanded()
+        rig.received.clear()
+        rig.send(b"#qhe!")
+        assert wait_until(lambda: rig.saw(b"$qhe.90!"))
+    assert not rig.errors

@@ -401,12 +401,26 @@ class FakeAds1115(_Registers):
 
 
 class FakeBno055(_Registers):
-    """A BNO055 in fusion mode reporting a fixed attitude (heading, roll, pitch in degrees)."""
+    """A BNO055 reporting a fixed attitude (heading, roll, pitch in degrees) once a driver has
+    put it in a fusion mode; :meth:`power_on_reset` puts it back in config mode with the default
+    axis map, as a supply dip or a reset of its own does."""
 
     def __init__(self, roll_deg: float = 2.0, pitch_deg: float = -1.0, heading_deg: float = 90.0):
         super().__init__()
         self.registers[0x00] = 0xA0  # CHIP_ID
+        self.power_on_resets = 0
+        self._load_power_on_values()
         self.set_attitude(roll_deg, pitch_deg, heading_deg)
+
+    def power_on_reset(self) -> None:
+        """Config mode (no fusion) and placement P1's axis map, as after power-on."""
+        self.power_on_resets += 1
+        self._load_power_on_values()
+
+    def _load_power_on_values(self) -> None:
+        self.registers[0x3D] = 0x00  # OPR_MODE: config
+        self.registers[0x41] = 0x24  # AXIS_MAP_CONFIG: P1
+        self.registers[0x42] = 0x00  # AXIS_MAP_SIGN: P1
 
     def set_attitude(self, roll_deg: float, pitch_deg: float, heading_deg: float) -> None:
         """What the Euler registers report (1/16 degree, little-endian)."""
@@ -417,7 +431,7 @@ class FakeBno055(_Registers):
 
     def _store(self, register: int, value: int) -> None:
         if register == 0x3F and value & 0x20:  # SYS_TRIGGER RST_SYS
-            self.registers[0x3D] = 0x00
+            self._load_power_on_values()
             return
         if 0x1A <= register <= 0x1F:
             return  # read-only
