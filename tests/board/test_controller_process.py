@@ -53,7 +53,9 @@ def test_a_signal_ends_the_process_with_the_thrusters_at_neutral(
         assert is_neutral(pulses(transactions))
         assert "thrusters at neutral" in controller.stderr()
         assert re.search(
-            r"stopped: thrusters at neutral; \d+ control periods, \d+ overrun", controller.stderr()
+            r"stopped: thrusters at neutral; \d+ control periods, \d+ overrun\(s\), "
+            r"0 device fault\(s\)",
+            controller.stderr(),
         )
 
 
