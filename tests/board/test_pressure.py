@@ -109,6 +109,7 @@ def test_an_analog_transducer_through_the_ads1115() -> None:
 def test_a_disconnected_transducer_is_a_fault_not_a_depth() -> None:
     fake = FakeAds1115(volts=0.0)
     adc = Ads1115(FakeI2cBus({0x48: fake}), data_rate_sps=860)
+    adc.start()
     pressure = AnalogPressure(adc, AnalogTransducer(), RawScale(20, 200, 0.0, 1000.0))
     with pytest.raises(SensorError, match="disconnected or faulty"):
         pressure.poll(0.0)
@@ -195,3 +196,28 @@ def test_an_implausible_pressure_while_running_is_a_failed_read() -> None:
         assert sensor.failures == 0
     finally:
         board.close()
+
+
+def test_an_ads1115_reset_by_a_supply_dip_is_started_again() -> None:
+    """After a reset the converter is powered down and reads 0 V: a fault for ever, and the
+    stale-sensor failsafe would keep the motors stopped until the controller is restarted."""
+    fake = FakeAds1115(volts=2.5)
+    bus = FakeI2cBus({0x48: fake})
+    adc = Ads1115(bus, full_scale_v=6.144, data_rate_sps=860)
+    adc.start()
+    transducer = AnalogTransducer(min_volts=0.5, max_volts=4.5, min_mbar=0.0, max_mbar=4000.0)
+    pressure = AnalogPressure(adc, transducer, RawScale(20, 200, 0.0, 1000.0))
+    assert pressure.poll(0.0) == 1024
+    fake.power_on_reset()
+    with pytest.raises(SensorError, match=r"ADS1115 at 0x48 was reset \(config 0x8583\)"):
+        pressure.poll(0.01)
+    assert bus.transactions[-1].written == bytes(
+        [0x01, *config_word(0, 6.144, 860).to_bytes(2, "big")]
+    )
+    assert pressure.poll(0.02) == 1024
+    # A transducer that is really disconnected is not taken for a reset: no write.
+    fake.volts = 0.0
+    before = len(bus.transactions)
+    with pytest.raises(SensorError, match="disconnected or faulty"):
+        pressure.poll(0.03)
+    assert all(len(t.written) == 1 for t in bus.transactions[before:])

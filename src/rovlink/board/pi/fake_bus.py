@@ -377,16 +377,37 @@ class FakeMs5837:
         return self._answer[:length].ljust(length, b"\x00")
 
 
+#: The ADS1115's config register after power-on: single-shot, powered down, AIN0–AIN1, ±2.048 V.
+_ADS1115_POWER_ON_CONFIG = 0x8583
+_ADS1115_SINGLE_SHOT = 0x0100
+
+
 class FakeAds1115(_Registers):
-    """An ADS1115 whose input sits at ``volts``."""
+    """An ADS1115 whose input sits at ``volts``, converting continuously once a driver says so.
+
+    :meth:`power_on_reset` puts it back as after power-on (a supply dip): powered down, its
+    conversion register 0.
+    """
 
     def __init__(self, volts: float) -> None:
         super().__init__(size=4)
         self.volts = volts
+        self.power_on_resets = 0
+        self._load_power_on_values()
+
+    def power_on_reset(self) -> None:
+        """The config register back to its power-on value (no conversions), as a dip does."""
+        self.power_on_resets += 1
+        self._load_power_on_values()
+
+    def _load_power_on_values(self) -> None:
+        self.registers[1:3] = _ADS1115_POWER_ON_CONFIG.to_bytes(2, "big")
 
     def read(self, length: int) -> bytes:
         if self.pointer == 0x00:
             config = int.from_bytes(self.registers[1:3], "big")
+            if config & _ADS1115_SINGLE_SHOT:
+                return bytes(length)  # powered down: the conversion register keeps its 0
             full_scale_v = (6.144, 4.096, 2.048, 1.024, 0.512, 0.256, 0.256, 0.256)[
                 (config >> 9) & 0x7
             ]

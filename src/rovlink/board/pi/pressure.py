@@ -127,6 +127,17 @@ class AnalogPressure:
         self.last_mbar: float | None = None
 
     def poll(self, now_s: float) -> int:
-        """Read the latest conversion; the raw value."""
-        self.last_mbar = self._transducer.mbar(self.adc.read_volts())
+        """Read the latest conversion; the raw value.
+
+        A voltage out of the transducer's range may be a converter reset by a supply dip
+        (powered down, reading 0 V for ever): its configuration is then read back and, if
+        lost, written again; the reading still fails, and the next conversion counts.
+        """
+        try:
+            self.last_mbar = self._transducer.mbar(self.adc.read_volts())
+        except SensorError:
+            reset = self.adc.restart_if_reset()
+            if reset is not None:
+                raise SensorError(f"{reset}: continuous conversions started again") from None
+            raise
         return self._scale.raw(self.last_mbar)
