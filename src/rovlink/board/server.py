@@ -144,7 +144,8 @@ class BoardServer:
             elif sensor.name in self._stale:
                 self._stale.discard(sensor.name)
                 controller.debug(f"{sensor.name} answers again")
-        # After the sensors: an MS5837 conversion started above is timed from its command.
+        # After the sensors: run before, a check's reads would delay an MS5837's convert
+        # command, and with it the read a period later.
         for check in self.board.checks:
             if check.is_due(now_s):
                 self._check_device(check, now_s)
