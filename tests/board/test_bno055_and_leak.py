@@ -153,3 +153,30 @@ def test_attitude_ties_from_the_bno055_to_the_replies() -> None:
             assert controller.read_output() == replies, (roll_deg, pitch_deg, heading_deg)
     finally:
         board.close()
+
+
+def test_a_leak_pulse_while_the_probe_starts_is_latched(
+    mock_factory: object, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A pulse between the edge callback's start and the driver's first look at the pin: the
+    callback latches it, and the look at a dry pin must not clear it (P14: however short the
+    pulse)."""
+    import gpiozero
+
+    class PulsedOnFirstLook(gpiozero.DigitalInputDevice):  # type: ignore[misc]
+        looked = False
+
+        @property
+        def is_active(self) -> bool:
+            if self.when_activated is not None and not PulsedOnFirstLook.looked:
+                PulsedOnFirstLook.looked = True
+                pin = mock_factory.pin(27)  # type: ignore[attr-defined]
+                pin.drive_high()
+                pin.drive_low()
+            return bool(super().is_active)
+
+    monkeypatch.setattr(gpiozero, "DigitalInputDevice", PulsedOnFirstLook)
+    leak = GpioLeakSensor(27, active_high=True, pull="down", pin_factory=mock_factory)
+    assert PulsedOnFirstLook.looked
+    assert leak.fired_since_last_read() is True
+    leak.close()
