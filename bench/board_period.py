@@ -3,10 +3,11 @@
     PYTHONPATH=src python bench/board_period.py [--periods 5000] [--repeat 3]
 
 Runs the board loop's control period (poll the MS5837 and the BNO055, the stale-sensor check,
-the controller's tick, the PCA9685 writes) on the fake I²C bus of ``examples/rov.toml``, while
-holding a depth and moving (``#start!#mvd.100!#th.30.60!``), so that the depth PID changes the
-vertical thrusters' pulses every period. The simulated robot's step (the same controller's tick
-plus the physics) is measured in the same run as the peer, and the ratio printed.
+the PCA9685 read-back when due, the controller's tick, the PCA9685 writes) on the fake I²C bus
+of ``examples/rov.toml``, while holding a depth and moving (``#start!#mvd.100!#th.30.60!``), so
+that the depth PID changes the vertical thrusters' pulses every period. The simulated robot's
+step (the same controller's tick plus the physics) is measured in the same run as the peer, and
+the ratio printed.
 
 The fake bus costs little CPU; a real one costs bus time. From the transactions recorded, the
 bench also prints the bytes on the bus per period and the time they take at 100 kHz and

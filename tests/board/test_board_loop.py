@@ -5,6 +5,7 @@ Every check reads the pulses the PCA9685 makes, rebuilt from the recorded I²C t
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import threading
 from collections.abc import Iterator
@@ -17,11 +18,12 @@ import pytest
 from rovlink.board.board import BoardStartError
 from rovlink.board.pi.board import fake_bus_for, open_pi_board
 from rovlink.board.pi.config import PiConfig
-from rovlink.board.pi.fake_bus import FakeI2cBus
+from rovlink.board.pi.fake_bus import FakeBno055, FakeI2cBus, FakePca9685
 from rovlink.board.server import BoardServer
 from tests.board.rig import (
     CLAW_CHANNEL,
     COUNT_US,
+    THRUSTER_CHANNELS,
     example_config,
     is_neutral,
     pulses,
@@ -350,3 +352,96 @@ def test_overruns_are_counted_and_logged(caplog: pytest.LogCaptureFixture) -> No
         assert wait_until(lambda: rig.server.schedule.overruns >= 3)
         assert rig.server.schedule.skipped_periods >= 3
     assert any("control loop overran" in record.message for record in caplog.records)
+
+
+def _chip_pulses(rig: Running) -> list[float | None]:
+    """The pulses the fake PCA9685 makes now (a reset is not in the transactions' replay)."""
+    chip = rig.bus.devices[0x40]
+    assert isinstance(chip, FakePca9685)
+    return [chip.pulse_us(channel) for channel in THRUSTER_CHANNELS]
+
+
+def test_a_pwm_board_reset_is_found_reported_restarted_at_neutral_and_locks() -> None:
+    with running(_quick(watchdog_s=0.0)) as rig:
+        chip = rig.bus.devices[0x40]
+        assert isinstance(chip, FakePca9685)
+        rig.send(b"#debug1!#start!#th.90.50!")
+        assert wait_until(rig.moving_as_commanded), rig.pulses()
+        chip.power_on_reset()  # a supply dip: asleep, every output off
+        assert wait_until(lambda: rig.server.controller.locked)
+        assert is_neutral(_chip_pulses(rig)), _chip_pulses(rig)
+        assert not chip.sleeping
+        assert rig.server.device_faults == 1
+        assert wait_until(lambda: rig.saw(b"failsafe: PWM board PCA9685 at 0x40 was reset"))
+        assert wait_until(lambda: rig.saw(b"motors stopped and locked"))
+        # Motion is refused until a host starts the motors again; then it is as commanded.
+        rig.send(b"#th.90.50!#qd!")
+        assert wait_until(lambda: rig.saw(b"$qd."))
+        assert is_neutral(_chip_pulses(rig))
+        rig.send(b"#start!#th.90.50!")
+        assert wait_until(rig.moving_as_commanded), rig.pulses()
+        assert rig.server.device_faults == 1
+    assert not rig.errors
+
+
+def test_a_pwm_board_reset_while_locked_is_reported_and_repaired() -> None:
+    with running(_quick(watchdog_s=0.0)) as rig:
+        chip = rig.bus.devices[0x40]
+        assert isinstance(chip, FakePca9685)
+        rig.send(b"#debug1!")
+        chip.power_on_reset()
+        assert wait_until(lambda: rig.server.device_faults == 1)
+        assert wait_until(lambda: not chip.sleeping and is_neutral(_chip_pulses(rig)))
+        assert wait_until(lambda: rig.saw(b"started again, outputs at neutral"))
+        assert rig.server.controller.locked
+    assert not rig.errors
+
+
+def test_a_pwm_board_that_fails_its_check_does_not_end_the_loop(
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    caplog.set_level("INFO", logger="rovlink.board")
+    with running(_quick(watchdog_s=0.0)) as rig:
+        # Locked and still: the only transactions with the chip are the checks' reads.
+        rig.bus.fail(0x40, 3)
+        assert wait_until(lambda: sum(t.failed for t in rig.bus.snapshot()) == 3)
+        assert wait_until(
+            lambda: any("answers its check again" in r.getMessage() for r in caplog.records)
+        )
+        rig.send(b"#start!#th.90.50!")
+        assert wait_until(rig.moving_as_commanded), rig.pulses()
+        assert rig.server.device_faults == 0
+    assert not rig.errors
+    messages = [record.getMessage() for record in caplog.records]
+    # Logged once for the three failures in a row, not once a check.
+    assert sum("PCA9685 at 0x40: check failed" in message for message in messages) == 1
+
+
+def test_the_pwm_board_check_can_be_turned_off() -> None:
+    config = _quick()
+    config = dataclasses.replace(
+        config, pca9685=dataclasses.replace(config.pca9685, check_interval_s=0.0)
+    )
+    board = open_pi_board(config, bus=fake_bus_for(config), pin_factory=_mock_pins())
+    try:
+        assert board.checks == ()
+    finally:
+        board.close()
+
+
+def test_an_imu_reset_is_repaired_before_it_goes_stale() -> None:
+    with running(with_controller(example_config(), watchdog_s=0.0)) as rig:
+        bno = rig.bus.devices[0x28]
+        assert isinstance(bno, FakeBno055)
+        rig.send(b"#debug1!#start!#th.90.50!")
+        assert wait_until(rig.moving_as_commanded)
+        bno.power_on_reset()
+        assert wait_until(lambda: rig.saw(b"out of fusion mode (reset?)"))
+        imu = rig.server.board.sensors[1]
+        assert wait_until(lambda: imu.total_failures >= 1 and imu.failures == 0)
+        assert not rig.server.controller.locked  # one failed read: not stale
+        assert rig.moving_as_commanded()
+        rig.received.clear()
+        rig.send(b"#qhe!")
+        assert wait_until(lambda: rig.saw(b"$qhe.90!"))
+    assert not rig.errors

@@ -53,7 +53,9 @@ def test_a_signal_ends_the_process_with_the_thrusters_at_neutral(
         assert is_neutral(pulses(transactions))
         assert "thrusters at neutral" in controller.stderr()
         assert re.search(
-            r"stopped: thrusters at neutral; \d+ control periods, \d+ overrun", controller.stderr()
+            r"stopped: thrusters at neutral; \d+ control periods, \d+ overrun\(s\), "
+            r"0 device fault\(s\)",
+            controller.stderr(),
         )
 
 
@@ -84,9 +86,8 @@ def test_the_driver_passes_the_simulators_tests_against_the_pi_board(
         with rovlink.connect(url, keepalive=None, on_stray=debug, timeout=REPLY_TIMEOUT_S) as rov:
             run_every_method(rov, debug)
             sensors = rov.sensors()
-            # The fake Bar02 reads the datasheet's 1100.02 mbar: 86.77 mbar above the surface,
-            # 0.887 m of fresh water, 44 counts of 2 cm above zero_raw 20.
-            assert sensors.pressure_raw == 64
+            # The fake Bar02 sits at rov.toml's surface_mbar: zero_raw.
+            assert sensors.pressure_raw == 20
             assert (sensors.roll_deg, sensors.pitch_deg, sensors.heading_deg) == (2, -1, 90)
         assert is_neutral(pulses(read_log(log)))  # the scenario ends with stop
 

@@ -187,3 +187,48 @@ def test_an_i2c_failure_surfaces_as_oserror() -> None:
     bus.fail(0x76, 1)
     with pytest.raises(OSError, match="no acknowledge"):
         _poll_at(sensor, bus, 0.010)
+
+
+#: The sensor's steps: 0.1 mbar (30BA) or 0.01 mbar (02BA), and 0.01 °C.
+_RESOLUTION_MBAR = {Ms5837Model.BA30: 0.1, Ms5837Model.BA02: 0.01}
+
+
+@pytest.mark.parametrize("model", list(Ms5837Model))
+@pytest.mark.parametrize(
+    ("pressure_mbar", "temperature_c"),
+    [
+        (1013.25, 20.0),  # the surface
+        (1257.68, 4.0),  # 2.5 m of fresh water, cold: the second-order terms
+        (1100.0, 25.0),  # warm: the 30BA's high-temperature second order
+        (800.0, -20.0),  # the 30BA's very-low-temperature branch
+        (1999.99, 60.0),
+    ],
+)
+def test_a_reading_set_on_the_fake_is_what_the_compensation_gives_back(
+    model: Ms5837Model, pressure_mbar: float, temperature_c: float
+) -> None:
+    fake = FakeMs5837.reading(model, pressure_mbar, temperature_c)
+    reading = compensate(model, fake.prom, fake.d1, fake.d2)
+    assert abs(reading.pressure_mbar - pressure_mbar) <= _RESOLUTION_MBAR[model] / 2 + 1e-9
+    assert abs(reading.temperature_c - temperature_c) <= 0.005 + 1e-9
+
+
+def test_the_fake_reads_the_datasheet_example_until_a_reading_is_set() -> None:
+    fake, sensor, bus = _sensor(Ms5837Model.BA30)
+    sensor.start()
+    readings = [_poll_at(sensor, bus, period * 0.010) for period in range(3)]
+    assert readings[2] == (3999.8, 19.81)  # the datasheet's example, second order: 19.81 °C
+    fake.set_reading(1013.25, 15.0)
+    readings = [_poll_at(sensor, bus, period * 0.010) for period in range(3, 7)]
+    assert readings[-1] is not None
+    assert readings[-1].pressure_mbar == pytest.approx(1013.25, abs=0.05)
+    assert readings[-1].temperature_c == pytest.approx(15.0, abs=0.005)
+
+
+def test_a_reading_out_of_the_sensors_reach_is_refused_naming_it() -> None:
+    fake = FakeMs5837.example(Ms5837Model.BA02)
+    with pytest.raises(ValueError, match=r"MS5837-02BA: 40000 mbar at 20 °C is out of the"):
+        fake.set_reading(40_000.0)
+    with pytest.raises(ValueError, match="must be finite"):
+        fake.set_reading(float("nan"))
+    assert (fake.d1, fake.d2) == MS5837_EXAMPLES[Ms5837Model.BA02][1:]

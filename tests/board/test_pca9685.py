@@ -7,6 +7,7 @@ import pytest
 from rovlink.board.pi.fake_bus import FakeI2cBus, FakePca9685
 from rovlink.board.pi.outputs import EscChannel, EscThrusters, pulse_for_duty
 from rovlink.board.pi.pca9685 import Pca9685, prescale_for
+from rovlink.board.pi.pca9685_watch import Pca9685ResetWatch
 from tests.board.rig import COUNT_US
 
 
@@ -104,3 +105,126 @@ def test_neutral_is_written_even_when_the_driver_believes_it_is_there() -> None:
     value = fake.pulse_us(0)
     assert value is not None
     assert abs(value - 1500.0) <= COUNT_US / 2
+
+
+def test_a_chip_reset_by_a_supply_dip_makes_no_pulses_and_acknowledges_every_write() -> None:
+    """What the read-back is for: after a reset the writes still succeed, and nothing runs."""
+    _bus, fake, pca = _chip()
+    pca.start(50.0, {0: 1500.0, 1: 1500.0})
+    fake.power_on_reset()
+    pca.forget_written()
+    pca.set_pulses_us({0: 1700.0, 1: 1700.0})  # no error
+    assert fake.sleeping
+    assert fake.pulse_us(0) is None
+    assert fake.pulse_us(1) is None
+
+
+def test_reading_back_finds_a_reset_and_says_what_differs() -> None:
+    bus, fake, pca = _chip()
+    pca.start(50.0, {0: 1500.0})
+    before = len(bus.transactions)
+    assert pca.reset_found() is None
+    reads = bus.transactions[before:]
+    # Two one-byte register reads, MODE1 and PRE_SCALE, and nothing written to the chip.
+    assert [(t.written, len(t.read)) for t in reads] == [(b"\x00", 1), (b"\xfe", 1)]
+    fake.power_on_reset()
+    found = pca.reset_found()
+    assert found == (
+        "MODE1 reads 0x11, not 0x20, PRE_SCALE reads 0x1e, not 0x79 (asleep: no pulses)"
+    )
+
+
+def test_a_chip_at_200_hz_is_found_reset_by_its_mode_alone() -> None:
+    # 200 Hz is the power-on prescale (0x1E): only MODE1 tells a reset chip from a started one.
+    _bus, fake, pca = _chip()
+    pca.start(200.0, {0: 1500.0})
+    assert pca.reset_found() is None
+    fake.power_on_reset()
+    assert pca.reset_found() == "MODE1 reads 0x11, not 0x20 (asleep: no pulses)"
+
+
+def _watch(interval_s: float = 0.1) -> tuple[FakeI2cBus, FakePca9685, Pca9685, Pca9685ResetWatch]:
+    bus, fake, pca = _chip()
+    thrusters = EscThrusters(pca, [EscChannel(0), EscChannel(1, reversed=True)])
+    pca.start(50.0, thrusters.neutral_pulses_us())
+    return bus, fake, pca, Pca9685ResetWatch(pca, thrusters.neutral_pulses_us, interval_s)
+
+
+def _period(watch: Pca9685ResetWatch, now_s: float) -> str | None:
+    """A control period at ``now_s``, as the board loop runs a check: only when it is due."""
+    return watch.check(now_s) if watch.is_due(now_s) else None
+
+
+def test_the_watch_reads_back_at_most_once_an_interval() -> None:
+    bus, _fake, _pca, watch = _watch(interval_s=0.1)
+    before = len(bus.transactions)
+    # One second of a 100 Hz control loop: ten checks of two reads, not a hundred.
+    assert all(_period(watch, period * 0.01) is None for period in range(100))
+    reads = bus.transactions[before:]
+    assert len(reads) == 2 * 10
+    assert all(len(t.read) == 1 and t.written in (b"\x00", b"\xfe") for t in reads)
+
+
+def test_a_reset_is_reported_counted_and_the_chip_started_again_at_neutral() -> None:
+    _bus, fake, pca, watch = _watch()
+    assert _period(watch, 0.0) is None
+    EscThrusters(pca, [EscChannel(0), EscChannel(1, reversed=True)]).set_duties([200, 200])
+    fake.power_on_reset()
+    assert _period(watch, 0.05) is None  # not due yet: the ESCs are without pulses until 0.1 s
+    fault = _period(watch, 0.1)
+    assert fault is not None
+    assert fault.startswith("PWM board PCA9685 at 0x40 was reset (MODE1 reads 0x11")
+    assert fault.endswith("started again, outputs at neutral")
+    assert watch.resets == 1
+    assert fake.power_on_resets == 1
+    assert not fake.sleeping
+    assert fake.prescale == 121
+    for channel in (0, 1):  # neutral, not the thrust the chip made before its reset
+        value = fake.pulse_us(channel)
+        assert value is not None
+        assert abs(value - 1500.0) <= COUNT_US / 2
+    assert fake.pulse_us(2) is None
+    assert _period(watch, 0.2) is None
+    assert watch.resets == 1
+
+
+def test_a_read_back_the_chip_does_not_answer_is_an_oserror_and_checked_again() -> None:
+    bus, fake, _pca, watch = _watch()
+    bus.fail(0x40, 1)
+    with pytest.raises(OSError, match="no acknowledge"):
+        _period(watch, 0.0)
+    fake.power_on_reset()
+    assert _period(watch, 0.1) is not None
+    assert watch.resets == 1
+
+
+def test_a_restart_that_fails_is_tried_again_and_the_reset_counted_once() -> None:
+    bus, fake, _pca, watch = _watch()
+    fake.power_on_reset()
+    # The read-back succeeds (two reads), then the first write of the restart fails.
+    real_write = bus.write
+    failures = [1]
+
+    def failing_write(address: int, data: bytes) -> None:
+        if failures[0]:
+            failures[0] -= 1
+            raise OSError(121, "Remote I/O error")
+        real_write(address, data)
+
+    bus.write = failing_write  # type: ignore[method-assign]
+    fault = _period(watch, 0.0)
+    assert fault is not None
+    assert "starting it again failed ([Errno 121] Remote I/O error), tried again in 0.1 s" in fault
+    assert fake.sleeping
+    fault = _period(watch, 0.1)
+    assert fault is not None
+    assert fault.endswith("started again, outputs at neutral")
+    assert not fake.sleeping
+    assert watch.resets == 1
+
+
+@pytest.mark.parametrize("interval_s", [0.0, -1.0, float("nan")])
+def test_a_watch_interval_that_is_not_positive_is_refused(interval_s: float) -> None:
+    _bus, _fake, pca = _chip()
+    with pytest.raises(ValueError, match="interval_s must be > 0"):
+        Pca9685ResetWatch(pca, dict, interval_s)

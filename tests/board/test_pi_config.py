@@ -29,6 +29,7 @@ def test_the_documented_example_loads() -> None:
     assert config.controller.leak_action is LeakAction.STOP
     assert config.leak.pin == 27
     assert config.pca9685.address == 0x40
+    assert config.pca9685.check_interval_s == 0.1
 
 
 def test_the_reference_names_every_board_table() -> None:
@@ -80,6 +81,10 @@ def _load(**changes: object) -> None:
             "[pca9685] frequency_hz: a 1900 µs pulse does not fit in the 1638 µs period",
         ),
         ({"pca9685__adress": 0x41}, "[pca9685]: unknown key 'adress'"),
+        (
+            {"pca9685__check_interval_s": 0.001},
+            "[pca9685]: check_interval_s must be 0 (never) or 0.01–60, got 0.001",
+        ),
         (
             {"pca9685__address": 0x80},
             "[pca9685]: address must be an I²C address 0x03–0x77, got 128",

@@ -4,13 +4,15 @@ from __future__ import annotations
 
 import pytest
 
+from rovlink.board.board import BoardStartError
 from rovlink.board.pi.ads1115 import Ads1115, config_word
 from rovlink.board.pi.board import fake_bus_for, open_pi_board
-from rovlink.board.pi.fake_bus import FakeAds1115, FakeI2cBus
+from rovlink.board.pi.fake_bus import FakeAds1115, FakeI2cBus, FakeMs5837
+from rovlink.board.pi.ms5837 import Ms5837Model
 from rovlink.board.pi.pressure import AnalogPressure, AnalogTransducer, RawScale
 from rovlink.board.sensors import SensorError
 from rovlink.controller import Controller
-from tests.board.rig import example_config
+from tests.board.rig import example_config, is_neutral, pulses, wait_until
 
 
 def test_the_raw_scale_gives_the_controllers_depth_back() -> None:
@@ -107,6 +109,115 @@ def test_an_analog_transducer_through_the_ads1115() -> None:
 def test_a_disconnected_transducer_is_a_fault_not_a_depth() -> None:
     fake = FakeAds1115(volts=0.0)
     adc = Ads1115(FakeI2cBus({0x48: fake}), data_rate_sps=860)
+    adc.start()
     pressure = AnalogPressure(adc, AnalogTransducer(), RawScale(20, 200, 0.0, 1000.0))
     with pytest.raises(SensorError, match="disconnected or faulty"):
         pressure.poll(0.0)
+
+
+def _mbar_at(depth_m: float, surface_mbar: float = 1013.25, density_kg_m3: float = 997.0) -> float:
+    """The absolute pressure ``depth_m`` below the surface."""
+    return surface_mbar + depth_m * density_kg_m3 * 9.80665 / 100
+
+
+@pytest.mark.parametrize("model", ["30ba", "02ba"])
+@pytest.mark.parametrize("temperature_c", [20.0, 4.0])
+def test_the_depth_of_the_fake_ms5837_through_the_board_and_the_controller(
+    model: str, temperature_c: float
+) -> None:
+    """From the MS5837's raw conversions to `qd`: the surface reads 0 cm at zero_raw, 2.5 m
+    reads 250 cm at 20 + 125 counts of 2 cm (the example's [depth] zero 20, k 200)."""
+    config = example_config(
+        imu={"sensor": "none"}, leak={"pin": -1}, pressure={"ms5837": {"model": model}}
+    )
+    bus = fake_bus_for(config)
+    fake = bus.devices[0x76]
+    assert isinstance(fake, FakeMs5837)
+    board = open_pi_board(config, bus=bus)
+    try:
+        controller = Controller(config.controller, board.hardware)
+        sensor = board.sensors[0]
+        clock = board.hardware.clock
+
+        def reads(raw: int) -> bool:
+            sensor.poll(clock.now_s())
+            return board.hardware.pressure.read_raw() == raw
+
+        # The fake sits at the surface of rov.toml, 20 °C: a dry run's depth is 0.
+        controller.receive(b"#qr!#qd!")
+        assert controller.read_output() == b"$qr.20!$qd.0!"
+        fake.set_reading(_mbar_at(2.5), temperature_c)
+        assert wait_until(lambda: reads(145), timeout_s=2.0)
+        controller.receive(b"#qr!#qd!")
+        assert controller.read_output() == b"$qr.145!$qd.250!"
+        fake.set_reading(_mbar_at(0.0), temperature_c)
+        assert wait_until(lambda: reads(20), timeout_s=2.0)
+        controller.receive(b"#qd!")
+        assert controller.read_output() == b"$qd.0!"
+    finally:
+        board.close()
+
+
+def test_a_bar30_configured_as_a_bar02_is_refused_at_start_not_read_as_the_surface() -> None:
+    """The PROM cannot tell the models apart, and the 02BA's compensation makes a 30BA's
+    1013 mbar about 51 mbar: raw 0, `qd` 0 at any depth, a depth hold pushing down for ever.
+    No air or water is below 300 mbar, so such a reading is a fault, never a depth."""
+    config = example_config(
+        imu={"sensor": "none"}, leak={"pin": -1}, pressure={"ms5837": {"model": "02ba"}}
+    )
+    bus = fake_bus_for(config)
+    bus.devices[0x76] = FakeMs5837.reading(Ms5837Model.BA30, 1013.25)
+    with pytest.raises(
+        BoardStartError,
+        match=r"MS5837-02BA at 0x76: no reading at start: it reads 50\.\d+ mbar, below any "
+        r"air or water \(300 mbar\): is \[pressure\.ms5837\] model right\? "
+        r"\(30ba: Bar30, 02ba: Bar02\)",
+    ):
+        open_pi_board(config, bus=bus)
+    assert is_neutral(pulses(bus.snapshot()))
+
+
+def test_an_implausible_pressure_while_running_is_a_failed_read() -> None:
+    config = example_config(imu={"sensor": "none"}, leak={"pin": -1})
+    bus = fake_bus_for(config)
+    fake = bus.devices[0x76]
+    assert isinstance(fake, FakeMs5837)
+    board = open_pi_board(config, bus=bus)
+    try:
+        sensor = board.sensors[0]
+        clock = board.hardware.clock
+        fake.set_reading(250.0)
+        assert wait_until(
+            lambda: isinstance(sensor.poll(clock.now_s()), SensorError), timeout_s=2.0
+        )
+        assert sensor.value == config.controller.depth.zero_raw  # the last good value
+        fake.set_reading(_mbar_at(1.0))
+        assert wait_until(lambda: (sensor.poll(clock.now_s()), sensor.value)[1] == 70, 2.0)
+        assert sensor.failures == 0
+    finally:
+        board.close()
+
+
+def test_an_ads1115_reset_by_a_supply_dip_is_started_again() -> None:
+    """After a reset the converter is powered down and reads 0 V: a fault for ever, and the
+    stale-sensor failsafe would keep the motors stopped until the controller is restarted."""
+    fake = FakeAds1115(volts=2.5)
+    bus = FakeI2cBus({0x48: fake})
+    adc = Ads1115(bus, full_scale_v=6.144, data_rate_sps=860)
+    adc.start()
+    transducer = AnalogTransducer(min_volts=0.5, max_volts=4.5, min_mbar=0.0, max_mbar=4000.0)
+    pressure = AnalogPressure(adc, transducer, RawScale(20, 200, 0.0, 1000.0))
+    assert pressure.poll(0.0) == 1024
+    fake.power_on_reset()
+    with pytest.raises(SensorError, match=r"ADS1115 at 0x48 was reset \(config 0x8583\)"):
+        pressure.poll(0.01)
+    assert bus.transactions[-1].written == bytes(
+        [0x01, *config_word(0, 6.144, 860).to_bytes(2, "big")]
+    )
+    assert pressure.poll(0.02) == 1024
+    # A transducer that is really disconnected is not taken for a reset: no write.
+    fake.volts = 0.0
+    before = len(bus.transactions)
+    with pytest.raises(SensorError, match="disconnected or faulty"):
+        pressure.poll(0.03)
+    assert all(len(t.written) == 1 for t in bus.transactions[before:])

@@ -5,12 +5,12 @@ from __future__ import annotations
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Protocol
 
 from rovlink.board.sensors import PolledSensor
 from rovlink.controller import Hardware
 
-__all__ = ["Board", "BoardStartError", "MonotonicClock"]
+__all__ = ["Board", "BoardStartError", "DeviceCheck", "MonotonicClock"]
 
 
 class BoardStartError(Exception):
@@ -25,13 +25,36 @@ class MonotonicClock:
         return time.monotonic()
 
 
+class DeviceCheck(Protocol):
+    """An output device the board loop checks every control period (a PWM chip that may have
+    reset behind the driver's back), repairing what it finds."""
+
+    @property
+    def name(self) -> str:
+        """The device, as log lines and debug lines name it."""
+        ...
+
+    def is_due(self, now_s: float) -> bool:
+        """Whether a check is due (checks cost bus time: they run at a rate of their own)."""
+        ...
+
+    def check(self, now_s: float) -> str | None:
+        """Check the device now; a fault found and what was done about it (the outputs are at
+        neutral then), or None.
+
+        Raises :class:`OSError` when the device does not answer the check.
+        """
+        ...
+
+
 @dataclass
 class Board:
     """An opened board, its outputs already at rest.
 
     ``make_safe`` puts every thrust output at neutral, written to the device even if it is
     believed to be there already, and raises if it cannot; ``close`` releases the devices
-    (leaving the outputs as they are: at neutral, after ``make_safe``).
+    (leaving the outputs as they are: at neutral, after ``make_safe``). ``checks`` run every
+    control period; a fault they find stops and locks the controller.
     """
 
     name: str
@@ -39,3 +62,4 @@ class Board:
     make_safe: Callable[[], None]
     close: Callable[[], None]
     sensors: Sequence[PolledSensor[Any]] = field(default_factory=tuple)
+    checks: Sequence[DeviceCheck] = field(default_factory=tuple)

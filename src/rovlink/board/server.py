@@ -1,7 +1,8 @@
 """The board loop: the controller on a real board, serving its serial lines.
 
 One thread and one :mod:`selectors` loop. Every control period, at a fixed rate: poll the
-sensors, apply the stale-sensor failsafe, tick the controller (which sets the thrusters). In
+sensors, apply the stale-sensor failsafe, run the board's device checks (a fault found stops and
+locks the controller), tick the controller (which sets the thrusters). In
 between, move bytes between the links and the controller. Whatever ends the loop (a stop
 request on SIGTERM or Ctrl-C, an exception anywhere in it), the ``finally`` puts every thruster
 at neutral before anything else happens.
@@ -14,7 +15,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
-from rovlink.board.board import Board
+from rovlink.board.board import Board, DeviceCheck
 from rovlink.board.schedule import FixedRateSchedule
 from rovlink.controller import ControllerConfig
 from rovlink.controller.controller import Controller
@@ -55,6 +56,9 @@ class BoardServer:
         )
         self._replying_to: Line | None = None
         self._stale: set[str] = set()
+        self._unanswered_checks: set[str] = set()
+        #: Faults the board's device checks found (a PWM chip reset by a supply dip).
+        self.device_faults = 0
         #: Whether the thrusters are known to be at neutral (the board opens them so).
         self.at_rest = True
 
@@ -140,7 +144,38 @@ class BoardServer:
             elif sensor.name in self._stale:
                 self._stale.discard(sensor.name)
                 controller.debug(f"{sensor.name} answers again")
+        # After the sensors: run before, a check's reads would delay an MS5837's convert
+        # command, and with it the read a period later.
+        for check in self.board.checks:
+            if check.is_due(now_s):
+                self._check_device(check, now_s)
         controller.tick()
+
+    def _check_device(self, check: DeviceCheck, now_s: float) -> None:
+        """Run one device check. A fault is an error in the log and a failsafe: whatever the
+        device lost, the robot moves again only when a host starts it again. A check the
+        device does not answer is logged once and tried again; it never ends the loop (the
+        device's next write, if it fails too, does)."""
+        controller = self.controller
+        try:
+            fault = check.check(now_s)
+        except OSError as error:
+            if check.name not in self._unanswered_checks:
+                self._unanswered_checks.add(check.name)
+                logger.warning("%s: check failed: %s", check.name, error)
+                controller.debug(f"{check.name}: check failed: {error}")
+            return
+        if check.name in self._unanswered_checks:
+            self._unanswered_checks.discard(check.name)
+            logger.info("%s answers its check again", check.name)
+        if fault is None:
+            return
+        self.device_faults += 1
+        logger.error("%s", fault)
+        if controller.locked:
+            controller.debug(fault)
+        else:
+            controller.failsafe(f"failsafe: {fault}")
 
     def _report_overruns(self) -> None:
         schedule = self.schedule

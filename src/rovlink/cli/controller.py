@@ -169,7 +169,7 @@ def _run_pi(
     schedule = server.schedule
     print(
         f"rovlink controller stopped: thrusters at neutral; {schedule.periods} control periods, "
-        f"{schedule.overruns} overrun(s)",
+        f"{schedule.overruns} overrun(s), {server.device_faults} device fault(s)",
         file=sys.stderr,
     )
     return 0

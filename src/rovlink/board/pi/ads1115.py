@@ -19,6 +19,7 @@ FULL_SCALES_V: dict[float, int] = {6.144: 0, 4.096: 1, 2.048: 2, 1.024: 3, 0.512
 #: Samples per second → DR bits.
 DATA_RATES_SPS: dict[int, int] = {8: 0, 16: 1, 32: 2, 64: 3, 128: 4, 250: 5, 475: 6, 860: 7}
 _COMPARATOR_OFF = 0b11
+_OS = 0x8000  # read: whether a conversion is under way; not part of the settings
 _SINGLE_ENDED_MUX = 0b100  # AINx against GND: 0b100 + x
 
 
@@ -61,8 +62,22 @@ class Ads1115:
 
     def start(self) -> None:
         """Start continuous conversions; return once the first one is done."""
-        self.bus.write(self.address, bytes([_CONFIG, *self._config.to_bytes(2, "big")]))
+        self._write_config()
         time.sleep(self._first_conversion_s)
+
+    def restart_if_reset(self) -> str | None:
+        """Read the config register back; if it is not what :meth:`start` wrote (a supply dip
+        reset the chip: powered down, its conversion register 0), write it again without
+        waiting and say what was found. None if the chip is as configured."""
+        data = self.bus.write_read(self.address, bytes([_CONFIG]), 2)
+        found = int.from_bytes(data, "big")
+        if found & ~_OS == self._config:
+            return None
+        self._write_config()
+        return f"ADS1115 at {self.address:#04x} was reset (config {found:#06x})"
+
+    def _write_config(self) -> None:
+        self.bus.write(self.address, bytes([_CONFIG, *self._config.to_bytes(2, "big")]))
 
     def read_volts(self) -> float:
         """The latest conversion, V."""

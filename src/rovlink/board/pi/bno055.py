@@ -8,13 +8,20 @@ mounting (datasheet §3.4, placements P0–P7) and the signs and heading offset 
 from __future__ import annotations
 
 import time
-from typing import Any
+from typing import Any, NoReturn
 
 from rovlink.board.pi.i2c import BusioAdapter, I2cBus, check_address
-from rovlink.board.sensors import finite_attitude
+from rovlink.board.sensors import SensorError, finite_attitude
 from rovlink.controller import Attitude
+from rovlink.logs import get_logger
 
 __all__ = ["PLACEMENTS", "Bno055Imu", "remap_for_placement"]
+
+logger = get_logger(__name__)
+
+#: How often a chip out of fusion mode is put back (each time takes about 60 ms of mode
+#: changes, which the datasheet's switching times impose).
+_FUSION_RESTART_INTERVAL_S = 1.0
 
 #: Datasheet table 3-5: placement → (AXIS_MAP_CONFIG, AXIS_MAP_SIGN).
 PLACEMENTS: dict[str, tuple[int, int]] = {
@@ -70,7 +77,10 @@ class Bno055Imu:
         self._pitch_sign = -1.0 if invert_pitch else 1.0
         self._interval_s = 1.0 / poll_hz
         self._next_s = 0.0
+        self._next_fusion_restart_s = 0.0
         self._sensor: Any = None
+        #: How often the chip was found out of fusion mode and put back.
+        self.fusion_restarts = 0
 
     def start(self) -> None:
         """Reset the chip into fusion mode (about a second) and apply the placement."""
@@ -82,6 +92,27 @@ class Bno055Imu:
         self._sensor = sensor
         time.sleep(0.02)
 
+    def _out_of_fusion(self, now_s: float) -> NoReturn:
+        """The chip is in config mode: it was reset (a supply dip, its own watchdog) and lost
+        its mode and axis map. Put both back (at most once a ``_FUSION_RESTART_INTERVAL_S``),
+        then raise: this poll has no attitude."""
+        name = f"BNO055 at {self.address:#04x}"
+        if now_s < self._next_fusion_restart_s:
+            raise SensorError(f"{name}: out of fusion mode")
+        self._next_fusion_restart_s = now_s + _FUSION_RESTART_INTERVAL_S
+        import adafruit_bno055  # noqa: PLC0415 - the pi extra, needed on the board only
+
+        self.fusion_restarts += 1
+        logger.warning("%s out of fusion mode (reset?): setting fusion mode again", name)
+        sensor = self._sensor
+        if self.placement != "P1":
+            sensor.axis_remap = remap_for_placement(self.placement)
+        sensor.mode = adafruit_bno055.NDOF_MODE
+        raise SensorError(
+            f"{name}: out of fusion mode (reset?): fusion mode and placement {self.placement} "
+            "set again; its calibration starts over"
+        )
+
     def poll(self, now_s: float) -> Attitude | None:
         """A new attitude if one is due."""
         if now_s < self._next_s:
@@ -90,7 +121,7 @@ class Bno055Imu:
         # The driver's order is heading, roll, pitch; None while fusion is not running.
         heading, roll, pitch = self._sensor.euler
         if roll is None or pitch is None or heading is None:
-            return finite_attitude(float("nan"), float("nan"), float("nan"))
+            self._out_of_fusion(now_s)
         return finite_attitude(
             self._roll_sign * roll,
             self._pitch_sign * pitch,

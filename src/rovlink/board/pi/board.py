@@ -29,6 +29,7 @@ from rovlink.board.pi.leak import GpioLeakSensor
 from rovlink.board.pi.ms5837 import Ms5837
 from rovlink.board.pi.outputs import EscChannel, EscThrusters, MotorClaw, ServoClaw
 from rovlink.board.pi.pca9685 import Pca9685
+from rovlink.board.pi.pca9685_watch import Pca9685ResetWatch
 from rovlink.board.pi.pressure import AnalogPressure, AnalogTransducer, Ms5837Pressure, RawScale
 from rovlink.board.sensors import (
     LEVEL,
@@ -46,6 +47,7 @@ logger = get_logger(__name__)
 
 _T = TypeVar("_T")
 _FIRST_READING_S = 0.5  # how long a sensor has at start to give its first reading
+_FAKE_WATER_C = 20.0  # the fake pressure sensor's temperature
 
 
 class _NoLeakSensor:
@@ -73,7 +75,9 @@ def fake_bus_for(config: PiConfig, log_path: str = "") -> FakeI2cBus:
     }
     pressure = config.pressure
     if pressure.sensor is PressureKind.MS5837:
-        devices[pressure.ms5837.address] = FakeMs5837.example(pressure.ms5837.model)
+        devices[pressure.ms5837.address] = FakeMs5837.reading(
+            pressure.ms5837.model, pressure.surface_mbar, _FAKE_WATER_C
+        )
     else:
         ads = pressure.ads1115
         fraction = (pressure.surface_mbar - ads.min_mbar) / (ads.max_mbar - ads.min_mbar)
@@ -131,10 +135,15 @@ def open_pi_board(config: PiConfig, *, bus: I2cBus | None = None, pin_factory: A
     claw = _claw(config, pca)
     where = f"on I²C bus {config.i2c.bus}"
     started = False
-    try:
+
+    def rest_pulses_us() -> dict[int, float]:
         rest = thrusters.neutral_pulses_us()
         if isinstance(claw, MotorClaw | ServoClaw):
             rest[claw.channel] = claw.rest_pulse_us()
+        return rest
+
+    try:
+        rest = rest_pulses_us()
         _starting(
             f"PWM board PCA9685 at {pca.address:#04x} {where}",
             lambda: pca.start(config.pca9685.frequency_hz, rest),
@@ -200,7 +209,10 @@ def open_pi_board(config: PiConfig, *, bus: I2cBus | None = None, pin_factory: A
         claw=claw,
         clock=clock,
     )
-    return Board("pi", hardware, make_safe, close_all, tuple(sensors))
+    checks = []
+    if config.pca9685.check_interval_s > 0:
+        checks.append(Pca9685ResetWatch(pca, rest_pulses_us, config.pca9685.check_interval_s))
+    return Board("pi", hardware, make_safe, close_all, tuple(sensors), tuple(checks))
 
 
 def _open_bus(config: PiConfig) -> I2cBus:

@@ -142,9 +142,22 @@ class Pca9685Config:
             "this so that neutral is 1500 µs"
         ),
     )
+    check_interval_s: float = field(
+        default=0.1,
+        metadata=_doc(
+            "read MODE1 and PRE_SCALE back this often to find a chip reset by a supply dip "
+            "(two one-byte reads); a reset found is started again at neutral and stops and "
+            "locks the motors; 0: never"
+        ),
+    )
 
     def __post_init__(self) -> None:
         _check_address("address", self.address)
+        _require(
+            self.check_interval_s == 0
+            or (math.isfinite(self.check_interval_s) and 0.01 <= self.check_interval_s <= 60),
+            f"check_interval_s must be 0 (never) or 0.01–60, got {self.check_interval_s}",
+        )
         _require(
             math.isfinite(self.oscillator_hz) and 20e6 <= self.oscillator_hz <= 30e6,
             f"oscillator_hz must be 20e6–30e6, got {self.oscillator_hz}",

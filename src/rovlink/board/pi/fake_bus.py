@@ -3,20 +3,22 @@
 ``[i2c] backend = "fake"`` in ``rov.toml`` runs the whole board on this bus, so the controller,
 its safety paths and a host program can be exercised on any computer; with ``fake_log`` every
 transaction is also written to a file as one JSON line, which is how tests watch the pulses of a
-``rovlink controller --board pi`` process. The devices answer as the datasheets describe, with
-the datasheets' example values; nothing here reaches hardware.
+``rovlink controller --board pi`` process. The devices answer as the datasheets describe (the
+sensors' calibration is the datasheets' example; a test sets what they read); nothing here
+reaches hardware.
 """
 
 from __future__ import annotations
 
 import errno
 import json
+import math
 import threading
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import IO, Protocol
 
-from rovlink.board.pi.ms5837 import Ms5837Model, crc4
+from rovlink.board.pi.ms5837 import Ms5837Model, compensate, crc4
 
 __all__ = [
     "MS5837_EXAMPLES",
@@ -27,6 +29,7 @@ __all__ = [
     "FakeMs5837",
     "FakePca9685",
     "Transaction",
+    "ms5837_conversions",
     "ms5837_prom",
 ]
 
@@ -163,18 +166,60 @@ class _Registers:
         self.registers[register] = value
 
 
+#: The PCA9685's registers after power-on (datasheet §7.3, table 4): MODE1 SLEEP and ALLCALL
+#: (auto-increment off), MODE2 OUTDRV, the sub-addresses and ALLCALL address, every output's
+#: LEDn_OFF_H with its full-off bit, PRE_SCALE 0x1E (200 Hz); every other register 0.
+_PCA9685_POWER_ON: dict[int, int] = {
+    0x00: 0x11,
+    0x01: 0x04,
+    0x02: 0xE2,
+    0x03: 0xE4,
+    0x04: 0xE8,
+    0x05: 0xE0,
+    **{0x09 + 4 * channel: 0x10 for channel in range(16)},
+    0xFD: 0x10,
+    0xFE: 0x1E,
+}
+
+
 class FakePca9685(_Registers):
-    """A PCA9685: its registers, and the pulse each output makes."""
+    """A PCA9685: its registers, and the pulse each output makes.
+
+    :meth:`power_on_reset` puts the registers back as after power-on, as a supply dip (a
+    brown-out) does on a real chip: asleep, outputs off, the prescale and mode at their defaults.
+    """
 
     def __init__(self, oscillator_hz: float = 25_000_000.0) -> None:
         super().__init__()
         self.oscillator_hz = oscillator_hz
-        self.registers[0x00] = 0x11  # MODE1 after power-on: SLEEP, ALLCALL
-        self.registers[0xFE] = 0x1E  # PRE_SCALE after power-on (200 Hz)
+        self.power_on_resets = 0
+        self._load_power_on_values()
+
+    def power_on_reset(self) -> None:
+        """Every register back to its power-on value (a brown-out, or the supply cycled)."""
+        self.power_on_resets += 1
+        self._load_power_on_values()
+
+    def _load_power_on_values(self) -> None:
+        values = bytearray(len(self.registers))
+        for register, value in _PCA9685_POWER_ON.items():
+            values[register] = value
+        self.registers[:] = values  # at once: the board loop's thread may be writing
+
+    def write(self, data: bytes) -> None:
+        if len(data) > 2 and not self.registers[0x00] & 0x20:
+            # Auto-increment off (as after power-on): every byte lands in the same register.
+            self.pointer = data[0]
+            for value in data[1:]:
+                self._store(self.pointer, value)
+            return
+        super().write(data)
 
     def _store(self, register: int, value: int) -> None:
         if register == 0xFE and not self.registers[0x00] & 0x10:
             return  # PRE_SCALE is written only while asleep (datasheet §7.3.5)
+        if register == 0x00:
+            value &= 0x7F  # RESTART: writing 1 clears it (it reads 1 only after a sleep)
         if 0xFA <= register <= 0xFD:  # ALL_LED_*: every output at once
             for channel in range(16):
                 self.registers[0x06 + 4 * channel + register - 0xFA] = value
@@ -217,13 +262,73 @@ def ms5837_prom(coefficients: Sequence[int], factory_bits: int = _FACTORY_BITS) 
     return words
 
 
+_ADC_MAX = 2**24 - 1  # the conversions are 24-bit
+
+
+def ms5837_conversions(
+    model: Ms5837Model, prom: Sequence[int], pressure_mbar: float, temperature_c: float
+) -> tuple[int, int]:
+    """The D1 and D2 that :func:`~rovlink.board.pi.ms5837.compensate` (second order included)
+    turns into the reading nearest ``pressure_mbar`` and ``temperature_c``: the datasheet's
+    calculation run backwards by bisection, D2 first (the temperature depends on D2 alone), then
+    D1 (the pressure rises with D1 at a given temperature).
+
+    :class:`ValueError` names a value no 24-bit conversion reaches with this calibration.
+
+    >>> prom = ms5837_prom(MS5837_EXAMPLES[Ms5837Model.BA30][0])
+    >>> d1, d2 = ms5837_conversions(Ms5837Model.BA30, prom, 1257.68, 4.0)  # 2.5 m, cold
+    >>> compensate(Ms5837Model.BA30, prom, d1, d2)
+    Ms5837Reading(pressure_mbar=1257.7, temperature_c=4.0)
+    """
+    name = f"MS5837-{model.upper()}"
+    if not (math.isfinite(pressure_mbar) and math.isfinite(temperature_c)):
+        raise ValueError(
+            f"{name}: a reading must be finite, got {pressure_mbar} mbar, {temperature_c} °C"
+        )
+    d2 = _nearest(
+        lambda value: compensate(model, prom, 0, value).temperature_c,
+        temperature_c,
+        f"{name}: {temperature_c:g} °C",
+    )
+    d1 = _nearest(
+        lambda value: compensate(model, prom, value, d2).pressure_mbar,
+        pressure_mbar,
+        f"{name}: {pressure_mbar:g} mbar at {temperature_c:g} °C",
+    )
+    return d1, d2
+
+
+def _nearest(output: Callable[[int], float], target: float, what: str) -> int:
+    """The conversion 1…2²⁴−1 whose ``output`` (non-decreasing) is nearest ``target``."""
+    low, high = 1, _ADC_MAX
+    lowest, highest = output(low), output(high)
+    if not lowest <= target <= highest:
+        raise ValueError(
+            f"{what} is out of the sensor's reach: its conversions give {lowest:g}–{highest:g}"
+        )
+    while low < high:  # the first conversion whose output reaches the target
+        middle = (low + high) // 2
+        if output(middle) < target:
+            low = middle + 1
+        else:
+            high = middle
+    if low > 1 and target - output(low - 1) <= output(low) - target:
+        return low - 1
+    return low
+
+
 @dataclass
 class FakeMs5837:
-    """An MS5837: reset, PROM reads, D1/D2 conversions and the ADC read."""
+    """An MS5837: reset, PROM reads, D1/D2 conversions and the ADC read.
+
+    It converts ``d1`` and ``d2``: the datasheet's example values (:meth:`example`, about 30 m
+    of water for the 30BA), or those of a reading set with :meth:`set_reading`.
+    """
 
     prom: list[int]
     d1: int
     d2: int
+    model: Ms5837Model = Ms5837Model.BA30
     resets: int = 0
     _answer: bytes = b""
     _converted: int = 0
@@ -231,9 +336,25 @@ class FakeMs5837:
 
     @classmethod
     def example(cls, model: Ms5837Model) -> FakeMs5837:
-        """The datasheet's example device."""
+        """The datasheet's example device, converting the datasheet's example values."""
         coefficients, d1, d2 = MS5837_EXAMPLES[model]
-        return cls(ms5837_prom(coefficients), d1, d2)
+        return cls(ms5837_prom(coefficients), d1, d2, model)
+
+    @classmethod
+    def reading(
+        cls, model: Ms5837Model, pressure_mbar: float, temperature_c: float = 20.0
+    ) -> FakeMs5837:
+        """The datasheet's example calibration, reading ``pressure_mbar`` at ``temperature_c``
+        (to the sensor's resolution: 0.1 mbar for the 30BA, 0.01 mbar for the 02BA)."""
+        fake = cls.example(model)
+        fake.set_reading(pressure_mbar, temperature_c)
+        return fake
+
+    def set_reading(self, pressure_mbar: float, temperature_c: float = 20.0) -> None:
+        """Convert to this reading from the next conversion on; :class:`ValueError` if the
+        sensor cannot reach it."""
+        d1, d2 = ms5837_conversions(self.model, self.prom, pressure_mbar, temperature_c)
+        self.d1, self.d2 = d1, d2
 
     def write(self, data: bytes) -> None:
         command = data[0]
@@ -256,16 +377,37 @@ class FakeMs5837:
         return self._answer[:length].ljust(length, b"\x00")
 
 
+#: The ADS1115's config register after power-on: single-shot, powered down, AIN0–AIN1, ±2.048 V.
+_ADS1115_POWER_ON_CONFIG = 0x8583
+_ADS1115_SINGLE_SHOT = 0x0100
+
+
 class FakeAds1115(_Registers):
-    """An ADS1115 whose input sits at ``volts``."""
+    """An ADS1115 whose input sits at ``volts``, converting continuously once a driver says so.
+
+    :meth:`power_on_reset` puts it back as after power-on (a supply dip): powered down, its
+    conversion register 0.
+    """
 
     def __init__(self, volts: float) -> None:
         super().__init__(size=4)
         self.volts = volts
+        self.power_on_resets = 0
+        self._load_power_on_values()
+
+    def power_on_reset(self) -> None:
+        """The config register back to its power-on value (no conversions), as a dip does."""
+        self.power_on_resets += 1
+        self._load_power_on_values()
+
+    def _load_power_on_values(self) -> None:
+        self.registers[1:3] = _ADS1115_POWER_ON_CONFIG.to_bytes(2, "big")
 
     def read(self, length: int) -> bytes:
         if self.pointer == 0x00:
             config = int.from_bytes(self.registers[1:3], "big")
+            if config & _ADS1115_SINGLE_SHOT:
+                return bytes(length)  # powered down: the conversion register keeps its 0
             full_scale_v = (6.144, 4.096, 2.048, 1.024, 0.512, 0.256, 0.256, 0.256)[
                 (config >> 9) & 0x7
             ]
@@ -280,12 +422,26 @@ class FakeAds1115(_Registers):
 
 
 class FakeBno055(_Registers):
-    """A BNO055 in fusion mode reporting a fixed attitude (heading, roll, pitch in degrees)."""
+    """A BNO055 reporting a fixed attitude (heading, roll, pitch in degrees) once a driver has
+    put it in a fusion mode; :meth:`power_on_reset` puts it back in config mode with the default
+    axis map, as a supply dip or a reset of its own does."""
 
     def __init__(self, roll_deg: float = 2.0, pitch_deg: float = -1.0, heading_deg: float = 90.0):
         super().__init__()
         self.registers[0x00] = 0xA0  # CHIP_ID
+        self.power_on_resets = 0
+        self._load_power_on_values()
         self.set_attitude(roll_deg, pitch_deg, heading_deg)
+
+    def power_on_reset(self) -> None:
+        """Config mode (no fusion) and placement P1's axis map, as after power-on."""
+        self.power_on_resets += 1
+        self._load_power_on_values()
+
+    def _load_power_on_values(self) -> None:
+        self.registers[0x3D] = 0x00  # OPR_MODE: config
+        self.registers[0x41] = 0x24  # AXIS_MAP_CONFIG: P1
+        self.registers[0x42] = 0x00  # AXIS_MAP_SIGN: P1
 
     def set_attitude(self, roll_deg: float, pitch_deg: float, heading_deg: float) -> None:
         """What the Euler registers report (1/16 degree, little-endian)."""
@@ -296,7 +452,7 @@ class FakeBno055(_Registers):
 
     def _store(self, register: int, value: int) -> None:
         if register == 0x3F and value & 0x20:  # SYS_TRIGGER RST_SYS
-            self.registers[0x3D] = 0x00
+            self._load_power_on_values()
             return
         if 0x1A <= register <= 0x1F:
             return  # read-only

@@ -38,7 +38,9 @@ class GpioLeakSensor:
             device = DigitalInputDevice(pin, pull_up=pull == "up", pin_factory=pin_factory)
         device.when_activated = self._on_wet
         self._device = device
-        self._fired = bool(device.is_active)  # already wet at start
+        wet = bool(device.is_active)  # already wet at start
+        with self._lock:  # kept if the callback latched a pulse since it was set
+            self._fired = self._fired or wet
 
     def _on_wet(self) -> None:
         with self._lock:

@@ -36,6 +36,8 @@ SLEEP = 0x10
 OUTDRV_TOTEM_POLE = 0x04
 # LEDn_OFF_H bit 4: the output is fully off.
 _FULL_OFF = 0x10
+#: MODE1 while the outputs run (RESTART aside): awake, auto-increment on, ALLCALL off.
+_MODE1_RUNNING = AUTO_INCREMENT
 #: The oscillator needs 500 µs to start after SLEEP is cleared (datasheet §7.3.1.1).
 _OSCILLATOR_START_S = 0.0005
 _MIN_PRESCALE = 3  # the chip clamps lower values to 3
@@ -68,6 +70,7 @@ class Pca9685:
         self.address = check_address(address)
         self.oscillator_hz = oscillator_hz
         self.prescale: int | None = None
+        self.frequency_hz: float | None = None
         self._counts: dict[int, int] = {}
 
     @property
@@ -100,12 +103,40 @@ class Pca9685:
         write(address, bytes([ALL_LED_ON_L, 0, 0, 0, _FULL_OFF]))
         write(address, bytes([PRE_SCALE, prescale]))
         self.prescale = prescale
+        self.frequency_hz = frequency_hz
         self._counts.clear()
         self.set_pulses_us(pulses_us)
         write(address, bytes([MODE2, OUTDRV_TOTEM_POLE]))
-        write(address, bytes([MODE1, AUTO_INCREMENT]))
+        write(address, bytes([MODE1, _MODE1_RUNNING]))
         time.sleep(_OSCILLATOR_START_S)
-        write(address, bytes([MODE1, RESTART | AUTO_INCREMENT]))
+        write(address, bytes([MODE1, RESTART | _MODE1_RUNNING]))
+
+    def reset_found(self) -> str | None:
+        """Read MODE1 and PRE_SCALE back (two one-byte register reads); what differs from what
+        :meth:`start` wrote, or None if both are as written.
+
+        A chip that lost its supply for a moment (a brown-out) comes back as after power-on:
+        asleep, auto-increment off, every output off, the prescale at 200 Hz. Its writes are
+        still acknowledged, so only reading back shows it. RESTART is not compared: the chip
+        sets it on its own after a sleep with outputs running, and it says nothing of the
+        pulses. Raises :class:`OSError` when the chip does not answer.
+        """
+        if self.prescale is None:
+            raise RuntimeError("the PCA9685 has not been started")
+        mode1 = self._read_register(MODE1)
+        prescale = self._read_register(PRE_SCALE)
+        differences = []
+        if mode1 & ~RESTART != _MODE1_RUNNING:
+            differences.append(f"MODE1 reads {mode1:#04x}, not {_MODE1_RUNNING:#04x}")
+        if prescale != self.prescale:
+            differences.append(f"PRE_SCALE reads {prescale:#04x}, not {self.prescale:#04x}")
+        if not differences:
+            return None
+        asleep = " (asleep: no pulses)" if mode1 & SLEEP else ""
+        return ", ".join(differences) + asleep
+
+    def _read_register(self, register: int) -> int:
+        return self.bus.write_read(self.address, bytes([register]), 1)[0]
 
     def set_pulses_us(self, pulses_us: Mapping[int, float]) -> None:
         """Set the pulse width of some outputs; only changed outputs are written.

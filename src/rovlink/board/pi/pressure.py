@@ -9,7 +9,14 @@ from rovlink.board.pi.ads1115 import Ads1115
 from rovlink.board.pi.ms5837 import Ms5837
 from rovlink.board.sensors import SensorError
 
-__all__ = ["MIN_SCALE_K", "AnalogPressure", "AnalogTransducer", "Ms5837Pressure", "RawScale"]
+__all__ = [
+    "LEAST_PLAUSIBLE_MBAR",
+    "MIN_SCALE_K",
+    "AnalogPressure",
+    "AnalogTransducer",
+    "Ms5837Pressure",
+    "RawScale",
+]
 
 _GRAVITY_M_S2 = 9.80665
 _PA_PER_MBAR = 100.0
@@ -53,8 +60,17 @@ class RawScale:
         return max(0, min(_RAW_MAX, round(counts)))
 
 
+#: Less than the air on the highest summit: no reading of a sensor in air or water.
+LEAST_PLAUSIBLE_MBAR = 300.0
+
+
 class Ms5837Pressure:
-    """An MS5837 as the board's pressure source (raw scale)."""
+    """An MS5837 as the board's pressure source (raw scale).
+
+    A reading below :data:`LEAST_PLAUSIBLE_MBAR` is a :class:`SensorError`, never a depth: the
+    PROM does not say which model the sensor is, and a Bar30 computed as a Bar02 reads about a
+    twentieth of its pressure, which the raw scale would clip to the surface at any depth.
+    """
 
     def __init__(self, sensor: Ms5837, scale: RawScale) -> None:
         self.sensor = sensor
@@ -66,6 +82,12 @@ class Ms5837Pressure:
         reading = self.sensor.poll(now_s)
         if reading is None:
             return None
+        if reading.pressure_mbar < LEAST_PLAUSIBLE_MBAR:
+            raise SensorError(
+                f"it reads {reading.pressure_mbar:g} mbar, below any air or water "
+                f"({LEAST_PLAUSIBLE_MBAR:g} mbar): is [pressure.ms5837] model right? "
+                "(30ba: Bar30, 02ba: Bar02)"
+            )
         self.last_mbar = reading.pressure_mbar
         return self._scale.raw(reading.pressure_mbar)
 
@@ -105,6 +127,17 @@ class AnalogPressure:
         self.last_mbar: float | None = None
 
     def poll(self, now_s: float) -> int:
-        """Read the latest conversion; the raw value."""
-        self.last_mbar = self._transducer.mbar(self.adc.read_volts())
+        """Read the latest conversion; the raw value.
+
+        A voltage out of the transducer's range may be a converter reset by a supply dip
+        (powered down, reading 0 V for ever): its configuration is then read back and, if
+        lost, written again; the reading still fails, and the next conversion counts.
+        """
+        try:
+            self.last_mbar = self._transducer.mbar(self.adc.read_volts())
+        except SensorError:
+            reset = self.adc.restart_if_reset()
+            if reset is not None:
+                raise SensorError(f"{reset}: continuous conversions started again") from None
+            raise
         return self._scale.raw(self.last_mbar)
