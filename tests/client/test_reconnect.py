@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import asyncio
+
 import pytest
 
 import rovlink
@@ -9,7 +11,7 @@ import rovlink.aio
 from rovlink.client.errors import ConnectionLostError
 from rovlink.client.events import ClientEvent, LinkState
 from tests.client.conftest import wait_until, wait_until_async
-from tests.client.fake_controller import FakeControllerServer
+from tests.client.fake_controller import FakeController, FakeControllerServer
 
 pytestmark = pytest.mark.integration
 
@@ -222,3 +224,60 @@ async def test_the_asyncio_client_keeps_a_stop_for_the_reopened_link_too(
         frames = port.fakes[1].frames()
         assert frames[:3] == ["#stop!", "#crcoff!", "#qd!"]
         assert _after_readiness_probe(frames)[:2] == ["#crcoff!", "#stop!"]
+
+
+def _probed(fake: FakeController) -> bool:
+    return "#qd!" in fake.frames()
+
+
+def _stopped(fake: FakeController) -> bool:
+    return "#stop!" in fake.frames()
+
+
+def test_a_stop_during_the_reopened_links_readiness_probe_goes_out_at_once(
+    port: FakeControllerServer,
+) -> None:
+    # Before, the #stop! waited for the probe's answer: a controller slow to answer (a busy
+    # board, a slow bridge) drove on meanwhile, the probes feeding its watchdog (P17).
+    with rovlink.connect(port.url, reconnect=True, keepalive=None, timeout=2.0) as rov:
+        rov.start()
+        rov.move(90, 50)
+        port.script = ("hold",)  # the reopened link's controller holds its first answer
+        port.fakes[0].close()
+        assert wait_until(lambda: len(port.fakes) == 2)
+        reopened = port.fakes[1]
+        assert reopened.wait_for(_probed)  # the probe is out, its answer held
+        rov.stop()
+        assert reopened.wait_for(_stopped), f"no #stop! while probing: {reopened.frames()}"
+        reopened.release()  # the probe is answered (only now): the link is ready
+        assert rov.depth_cm() == 123
+        frames = reopened.frames()
+        assert frames[:3] == ["#th.90.0!", "#crcoff!", "#qd!"]
+        stop = frames.index("#stop!")
+        assert set(frames[3:stop]) <= {"#crcoff!", "#qd!"}  # probes only before it
+        # Again once the controller answered (a board still booting loses its input, P21),
+        # with the mode, before the program's query.
+        assert frames[-3:] == ["#crcoff!", "#stop!", "#qd!"]
+
+
+async def test_the_asyncio_client_sends_a_stop_during_the_readiness_probe_at_once(
+    port: FakeControllerServer,
+) -> None:
+    async with rovlink.aio.connect(port.url, reconnect=True, keepalive=None, timeout=2.0) as rov:
+        await rov.start()
+        await rov.move(270, 40)
+        port.script = ("hold",)
+        port.fakes[0].close()
+        assert await wait_until_async(lambda: len(port.fakes) == 2)
+        reopened = port.fakes[1]
+        assert await asyncio.to_thread(reopened.wait_for, _probed)
+        await rov.stop()
+        stopped = await asyncio.to_thread(reopened.wait_for, _stopped)
+        assert stopped, f"no #stop! while probing: {reopened.frames()}"
+        reopened.release()
+        assert await rov.depth_cm() == 123
+        frames = reopened.frames()
+        assert frames[:3] == ["#th.270.0!", "#crcoff!", "#qd!"]
+        stop = frames.index("#stop!")
+        assert set(frames[3:stop]) <= {"#crcoff!", "#qd!"}
+        assert frames[-3:] == ["#crcoff!", "#stop!", "#qd!"]
