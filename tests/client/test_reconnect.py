@@ -3,14 +3,24 @@
 from __future__ import annotations
 
 import asyncio
+import threading
 
 import pytest
 
 import rovlink
 import rovlink.aio
+from rovlink.aio import AsyncClient
+from rovlink.client import Client
 from rovlink.client.errors import ConnectionLostError
 from rovlink.client.events import ClientEvent, LinkState
-from tests.client.conftest import wait_until, wait_until_async
+from rovlink.client.links import Link, SocketLink
+from rovlink.client.readiness import PROBE_BYTES
+from tests.client.conftest import (
+    CONDITION_TIMEOUT_S,
+    client_options,
+    wait_until,
+    wait_until_async,
+)
 from tests.client.fake_controller import FakeController, FakeControllerServer
 
 pytestmark = pytest.mark.integration
@@ -281,3 +291,81 @@ async def test_the_asyncio_client_sends_a_stop_during_the_readiness_probe_at_onc
         stop = frames.index("#stop!")
         assert set(frames[3:stop]) <= {"#crcoff!", "#qd!"}
         assert frames[-3:] == ["#crcoff!", "#stop!", "#qd!"]
+
+
+class _LostWhenReady(SocketLink):
+    """A reopened link unplugged right as the controller answered its readiness probe: the
+    write that follows the probe (the checksum mode, then zero thrust or a stop) fails."""
+
+    def send_some(self, data: bytes | bytearray | memoryview) -> int:
+        if bytes(data).startswith(b"#crcoff!") and bytes(data) != PROBE_BYTES:
+            raise ConnectionLostError(f"{self.description}: unplugged")
+        return super().send_some(data)
+
+
+@pytest.mark.parametrize("what", ["zero thrust", "stop"])
+@pytest.mark.parametrize("client", ["blocking", "asyncio"])
+async def test_a_reopened_link_lost_as_it_became_ready_leaves_the_next_one_its_first_frames(
+    client: str, what: str
+) -> None:
+    # Before, the first reopened link's readying took the motion to rest and the stop as done
+    # although they never left: the next link began with the probe, no zero thrust or #stop!.
+    fakes: list[FakeController] = []
+    plugged_back = threading.Event()
+
+    def reopen() -> Link:
+        plugged_back.wait(CONDITION_TIMEOUT_S)  # (the test's stop() comes while it is down)
+        fake, host_end = FakeController.on_socketpair()
+        fakes.append(fake)
+        if len(fakes) == 2:  # the first reopened link
+            return _LostWhenReady(host_end, "socket pair, unplugged again")
+        return SocketLink(host_end, "socket pair")
+
+    first, host_end = FakeController.on_socketpair()
+    fakes.append(first)
+    events: list[ClientEvent] = []
+    options = client_options(reconnect=True, boot_timeout_s=2.0, on_event=events.append)
+
+    def reconnected() -> bool:
+        return any(isinstance(e, LinkState) and e.state == "reconnected" for e in events)
+
+    expected = "#stop!" if what == "stop" else "#th.90.0!"
+    try:
+        if client == "blocking":
+            rov = Client(SocketLink(host_end, "socket pair"), options, reopen=reopen)
+            try:
+                rov.start()
+                rov.move(90, 50)
+                first.close()
+                assert wait_until(lambda: _lost(events))
+                if what == "stop":
+                    rov.stop()
+                plugged_back.set()
+                assert wait_until(reconnected)
+                assert rov.depth_cm() == 123
+            finally:
+                rov.close()
+        else:
+            arov = await AsyncClient(
+                SocketLink(host_end, "socket pair"), options, reopen=reopen
+            ).open()
+            try:
+                await arov.start()
+                await arov.move(90, 50)
+                first.close()
+                assert await wait_until_async(lambda: _lost(events))
+                if what == "stop":
+                    await arov.stop()
+                plugged_back.set()
+                assert await wait_until_async(reconnected)
+                assert await arov.depth_cm() == 123
+            finally:
+                await arov.close()
+        assert len(fakes) == 3
+        assert fakes[1].frames()[0] == expected
+        assert fakes[2].frames()[:3] == [expected, "#crcoff!", "#qd!"]  # again, first
+        assert _after_readiness_probe(fakes[2].frames())[:2] == ["#crcoff!", expected]
+    finally:
+        plugged_back.set()
+        for fake in fakes:
+            fake.close()

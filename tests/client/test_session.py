@@ -448,3 +448,10 @@ def test_a_stop_while_a_reopened_link_is_readied_is_written_at_once_and_again_wh
     assert session.motion_as_sent() == (90, 0, 0)
     session.reset_link()  # the controller answered: mode, then the stop once more
     assert session.take_outbox(now=4.0) == b"#crcoff!#stop!"
+    session.reopen_failed()  # ... but that write failed: the next link carries it first again
+    assert session.link_reopened() == b"#stop!"
+    session.reset_link()
+    assert session.take_outbox(now=5.0) == b"#crcoff!#stop!"
+    session.link_ready()  # written: done
+    assert session.rest_frames() == b""
+    assert session.stop_while_reconnecting(now=6.0) == b""  # (no link being readied)

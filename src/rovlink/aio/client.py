@@ -719,6 +719,7 @@ class AsyncClient(AsyncCommandMethods):
                 # a failed attempt, not a connection: nothing else would ever notice it.
                 if self._attempt_lost is not None:
                     raise self._attempt_lost
+                session.link_ready()  # (not before: a failed attempt leaves them to the next)
             except (OSError, ValueError) as error:  # ConnectionLostError is an OSError
                 logger.debug("reconnect attempt %d: %s", attempts, error)
                 session.reopen_failed()

@@ -479,6 +479,7 @@ class Client(CommandMethods):
                     session = self._session
                     session.reset_link()
                     link.write(session.take_outbox(self._clock()))  # the mode, zero thrust
+                    session.link_ready()  # (not before: a failed write leaves them to the next)
                     self._link = link
                     self._send_now = getattr(link, "send_some", None)
                     self._read_reply = getattr(link, "read_reply", link.read_available)

@@ -699,7 +699,7 @@ class Session:
         connection, a loose cable) may find the controller still driving the thrust last sent,
         in the mode it was in, and every probe would feed its link-loss watchdog (P17). The
         motion stays as last sent: a reopened link that fails gets these again on the next
-        one, until :meth:`reset_link`.
+        one, until :meth:`link_ready`.
 
         >>> session = Session()
         >>> _ = session.command(Command("th", (90, 40)), now=0.0)
@@ -715,7 +715,7 @@ class Session:
     def link_reopened(self) -> bytes:
         """A lost link is open again and being readied (its readiness probe, P21): the bytes it
         carries first (:meth:`rest_frames`, to be written before the probe). Until
-        :meth:`reset_link` or :meth:`reopen_failed`, :meth:`stop_while_reconnecting` returns a
+        :meth:`link_ready` or :meth:`reopen_failed`, :meth:`stop_while_reconnecting` returns a
         ``#stop!`` to write on it at once."""
         self._readying = True
         return self.rest_frames()
@@ -753,7 +753,7 @@ class Session:
     def reset_link(self) -> None:
         """Start afresh on a reopened link that answered: no partial frame, nothing late, and
         nothing due but the checksum mode, then zero thrust if the motion last sent was not at
-        rest (write :meth:`take_outbox` next).
+        rest (write :meth:`take_outbox` next, then call :meth:`link_ready`).
 
         The mode comes first: the readiness probe left the controller in plain mode (P21), in
         which a checksummed frame is dropped. The motion a program or a pilot commanded before
@@ -770,6 +770,12 @@ class Session:
         self._outbox.append((self.frame_for(mode), None, mode))
         for command in self._rest_commands():
             self._outbox.append((self.frame_for(command), None, command))
+
+    def link_ready(self) -> None:
+        """The reopened link is the connection's now: :meth:`reset_link`'s bytes were written
+        on it. Only now are a stop asked for while it was down, and the motion as last sent,
+        taken as done: a link that fails on that write (:meth:`reopen_failed`) leaves the next
+        one to carry them first again."""
         self._stop_on_reopen = self._readying = False
         self._power_percent = self._vertical_percent = 0
         self._direct_mode = None
