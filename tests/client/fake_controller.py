@@ -10,8 +10,10 @@ order, as a busy controller would send them), ``hold`` (the same stall, until th
 :meth:`FakeController.release`: a controller slow to answer for as long as a test needs).
 
 It can also boot slowly (``boot_s``: input is ignored for that long after it starts, as an
-Arduino-class board ignores it while it boots after the port opened) and :meth:`reset` (back to
-checksum mode off, as after a power cycle, P21).
+Arduino-class board ignores it while it boots after the port opened), answer over a slow line
+(``latency_s``: every reply goes out that long after its query, in order, as through a
+serial-to-network bridge on a slow network) and :meth:`reset` (back to checksum mode off, as
+after a power cycle, P21).
 """
 
 from __future__ import annotations
@@ -63,8 +65,10 @@ class FakeController:
         late_delay_s: float = 0.35,
         checksum: bool = False,
         script: Iterable[str] = (),
+        latency_s: float = 0.0,
     ) -> None:
         self._fd = fd
+        self.latency_s = latency_s
         self._booted_at = time.monotonic() + boot_s
         self.late_delay_s = late_delay_s
         #: Bytes that arrived while booting, and were lost.
@@ -223,9 +227,19 @@ class FakeController:
                 self._held += replies  # stalled: they go out, in order, when it ends
                 replies = bytearray()
             self._condition.notify_all()
-        if replies:
+        if replies and self.latency_s:
+            timer = threading.Timer(self.latency_s, self._write_later, args=(bytes(replies),))
+            timer.daemon = True
+            timer.start()
+        elif replies:
             with contextlib.suppress(OSError):  # the host may have gone already
                 os.write(self._fd, bytes(replies))
+
+    def _write_later(self, replies: bytes) -> None:
+        with self._write_order:
+            if self._fd >= 0:  # (closed meanwhile)
+                with contextlib.suppress(OSError):
+                    os.write(self._fd, replies)
 
     def _end_stall(self) -> None:
         with self._write_order:
