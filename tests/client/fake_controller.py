@@ -6,16 +6,20 @@ the next action of its script: ``reply`` (default), ``drop``, ``corrupt`` (a wro
 mangled frame with checksums off), ``debug`` (debug text around the reply), ``noise`` (line noise
 before the reply), ``close`` (disconnect instead of answering), ``late`` (the controller
 stalls for ``late_delay_s``: this reply and every reply due meanwhile go out when it ends, in
-order, as a busy controller would send them).
+order, as a busy controller would send them), ``hold`` (the same stall, until the test calls
+:meth:`FakeController.release`: a controller slow to answer for as long as a test needs).
 
 It can also boot slowly (``boot_s``: input is ignored for that long after it starts, as an
-Arduino-class board ignores it while it boots after the port opened) and :meth:`reset` (back to
-checksum mode off, as after a power cycle, P21).
+Arduino-class board ignores it while it boots after the port opened), answer over a slow line
+(``latency_s``: every reply goes out that long after its query, in order, as through a
+serial-to-network bridge on a slow network) and :meth:`reset` (back to checksum mode off, as
+after a power cycle, P21).
 """
 
 from __future__ import annotations
 
 import contextlib
+import math
 import os
 import re
 import select
@@ -61,8 +65,10 @@ class FakeController:
         late_delay_s: float = 0.35,
         checksum: bool = False,
         script: Iterable[str] = (),
+        latency_s: float = 0.0,
     ) -> None:
         self._fd = fd
+        self.latency_s = latency_s
         self._booted_at = time.monotonic() + boot_s
         self.late_delay_s = late_delay_s
         #: Bytes that arrived while booting, and were lost.
@@ -142,6 +148,10 @@ class FakeController:
         with self._condition:
             self._booted_at = time.monotonic() + boot_s
 
+    def release(self) -> None:
+        """End a stall begun by a ``hold`` action: the replies held go out, in order."""
+        self._end_stall()
+
     def close(self) -> None:
         """Disconnect: the host sees the end of the stream."""
         with self._condition:
@@ -217,9 +227,19 @@ class FakeController:
                 self._held += replies  # stalled: they go out, in order, when it ends
                 replies = bytearray()
             self._condition.notify_all()
-        if replies:
+        if replies and self.latency_s:
+            timer = threading.Timer(self.latency_s, self._write_later, args=(bytes(replies),))
+            timer.daemon = True
+            timer.start()
+        elif replies:
             with contextlib.suppress(OSError):  # the host may have gone already
                 os.write(self._fd, bytes(replies))
+
+    def _write_later(self, replies: bytes) -> None:
+        with self._write_order:
+            if self._fd >= 0:  # (closed meanwhile)
+                with contextlib.suppress(OSError):
+                    os.write(self._fd, replies)
 
     def _end_stall(self) -> None:
         with self._write_order:
@@ -259,6 +279,8 @@ class FakeController:
             return b"depth pid: p=12 i=1 d=4\r\n" + b"".join(frames) + b"\r\nmode depth\r\n"
         if action == "noise":
             return b"\x00~ noise ~\r\n" + b"".join(frames)
+        if action == "hold":
+            self._stalled_until = math.inf  # until release()
         if action == "late":
             self._stalled_until = time.monotonic() + self.late_delay_s
             timer = threading.Timer(self.late_delay_s, self._end_stall)

@@ -2,14 +2,26 @@
 
 from __future__ import annotations
 
+import asyncio
+import threading
+
 import pytest
 
 import rovlink
 import rovlink.aio
+from rovlink.aio import AsyncClient
+from rovlink.client import Client
 from rovlink.client.errors import ConnectionLostError
 from rovlink.client.events import ClientEvent, LinkState
-from tests.client.conftest import wait_until, wait_until_async
-from tests.client.fake_controller import FakeControllerServer
+from rovlink.client.links import Link, SocketLink
+from rovlink.client.readiness import PROBE_BYTES
+from tests.client.conftest import (
+    CONDITION_TIMEOUT_S,
+    client_options,
+    wait_until,
+    wait_until_async,
+)
+from tests.client.fake_controller import FakeController, FakeControllerServer
 
 pytestmark = pytest.mark.integration
 
@@ -222,3 +234,138 @@ async def test_the_asyncio_client_keeps_a_stop_for_the_reopened_link_too(
         frames = port.fakes[1].frames()
         assert frames[:3] == ["#stop!", "#crcoff!", "#qd!"]
         assert _after_readiness_probe(frames)[:2] == ["#crcoff!", "#stop!"]
+
+
+def _probed(fake: FakeController) -> bool:
+    return "#qd!" in fake.frames()
+
+
+def _stopped(fake: FakeController) -> bool:
+    return "#stop!" in fake.frames()
+
+
+def test_a_stop_during_the_reopened_links_readiness_probe_goes_out_at_once(
+    port: FakeControllerServer,
+) -> None:
+    # Before, the #stop! waited for the probe's answer: a controller slow to answer (a busy
+    # board, a slow bridge) drove on meanwhile, the probes feeding its watchdog (P17).
+    with rovlink.connect(port.url, reconnect=True, keepalive=None, timeout=2.0) as rov:
+        rov.start()
+        rov.move(90, 50)
+        port.script = ("hold",)  # the reopened link's controller holds its first answer
+        port.fakes[0].close()
+        assert wait_until(lambda: len(port.fakes) == 2)
+        reopened = port.fakes[1]
+        assert reopened.wait_for(_probed)  # the probe is out, its answer held
+        rov.stop()
+        assert reopened.wait_for(_stopped), f"no #stop! while probing: {reopened.frames()}"
+        reopened.release()  # the probe is answered (only now): the link is ready
+        assert rov.depth_cm() == 123
+        frames = reopened.frames()
+        assert frames[:3] == ["#th.90.0!", "#crcoff!", "#qd!"]
+        stop = frames.index("#stop!")
+        assert set(frames[3:stop]) <= {"#crcoff!", "#qd!"}  # probes only before it
+        # Again once the controller answered (a board still booting loses its input, P21),
+        # with the mode, before the program's query.
+        assert frames[-3:] == ["#crcoff!", "#stop!", "#qd!"]
+
+
+async def test_the_asyncio_client_sends_a_stop_during_the_readiness_probe_at_once(
+    port: FakeControllerServer,
+) -> None:
+    async with rovlink.aio.connect(port.url, reconnect=True, keepalive=None, timeout=2.0) as rov:
+        await rov.start()
+        await rov.move(270, 40)
+        port.script = ("hold",)
+        port.fakes[0].close()
+        assert await wait_until_async(lambda: len(port.fakes) == 2)
+        reopened = port.fakes[1]
+        assert await asyncio.to_thread(reopened.wait_for, _probed)
+        await rov.stop()
+        stopped = await asyncio.to_thread(reopened.wait_for, _stopped)
+        assert stopped, f"no #stop! while probing: {reopened.frames()}"
+        reopened.release()
+        assert await rov.depth_cm() == 123
+        frames = reopened.frames()
+        assert frames[:3] == ["#th.270.0!", "#crcoff!", "#qd!"]
+        stop = frames.index("#stop!")
+        assert set(frames[3:stop]) <= {"#crcoff!", "#qd!"}
+        assert frames[-3:] == ["#crcoff!", "#stop!", "#qd!"]
+
+
+class _LostWhenReady(SocketLink):
+    """A reopened link unplugged right as the controller answered its readiness probe: the
+    write that follows the probe (the checksum mode, then zero thrust or a stop) fails."""
+
+    def send_some(self, data: bytes | bytearray | memoryview) -> int:
+        if bytes(data).startswith(b"#crcoff!") and bytes(data) != PROBE_BYTES:
+            raise ConnectionLostError(f"{self.description}: unplugged")
+        return super().send_some(data)
+
+
+@pytest.mark.parametrize("what", ["zero thrust", "stop"])
+@pytest.mark.parametrize("client", ["blocking", "asyncio"])
+async def test_a_reopened_link_lost_as_it_became_ready_leaves_the_next_one_its_first_frames(
+    client: str, what: str
+) -> None:
+    # Before, the first reopened link's readying took the motion to rest and the stop as done
+    # although they never left: the next link began with the probe, no zero thrust or #stop!.
+    fakes: list[FakeController] = []
+    plugged_back = threading.Event()
+
+    def reopen() -> Link:
+        plugged_back.wait(CONDITION_TIMEOUT_S)  # (the test's stop() comes while it is down)
+        fake, host_end = FakeController.on_socketpair()
+        fakes.append(fake)
+        if len(fakes) == 2:  # the first reopened link
+            return _LostWhenReady(host_end, "socket pair, unplugged again")
+        return SocketLink(host_end, "socket pair")
+
+    first, host_end = FakeController.on_socketpair()
+    fakes.append(first)
+    events: list[ClientEvent] = []
+    options = client_options(reconnect=True, boot_timeout_s=2.0, on_event=events.append)
+
+    def reconnected() -> bool:
+        return any(isinstance(e, LinkState) and e.state == "reconnected" for e in events)
+
+    expected = "#stop!" if what == "stop" else "#th.90.0!"
+    try:
+        if client == "blocking":
+            rov = Client(SocketLink(host_end, "socket pair"), options, reopen=reopen)
+            try:
+                rov.start()
+                rov.move(90, 50)
+                first.close()
+                assert wait_until(lambda: _lost(events))
+                if what == "stop":
+                    rov.stop()
+                plugged_back.set()
+                assert wait_until(reconnected)
+                assert rov.depth_cm() == 123
+            finally:
+                rov.close()
+        else:
+            arov = await AsyncClient(
+                SocketLink(host_end, "socket pair"), options, reopen=reopen
+            ).open()
+            try:
+                await arov.start()
+                await arov.move(90, 50)
+                first.close()
+                assert await wait_until_async(lambda: _lost(events))
+                if what == "stop":
+                    await arov.stop()
+                plugged_back.set()
+                assert await wait_until_async(reconnected)
+                assert await arov.depth_cm() == 123
+            finally:
+                await arov.close()
+        assert len(fakes) == 3
+        assert fakes[1].frames()[0] == expected
+        assert fakes[2].frames()[:3] == [expected, "#crcoff!", "#qd!"]  # again, first
+        assert _after_readiness_probe(fakes[2].frames())[:2] == ["#crcoff!", expected]
+    finally:
+        plugged_back.set()
+        for fake in fakes:
+            fake.close()

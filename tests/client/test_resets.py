@@ -150,3 +150,34 @@ async def test_the_asyncio_client_fails_to_connect_on_a_closed_link_too() -> Non
     ours, theirs = _saying(b"", then_close=True)
     with theirs, pytest.raises(ConnectError, match=r"closed by the other end$"):
         await AsyncClient(SocketLink(ours, "refusing"), _options(boot_timeout_s=0.5)).open()
+
+
+#: A line slower than the probe's interval (0.25 s): each probe's reply comes after the next
+#: probe went out, and the replies come that far apart.
+SLOW_LINE_S = 0.3
+
+
+@pytest.mark.parametrize("client", ["blocking", "asyncio"])
+async def test_a_probes_reply_on_a_slow_line_answers_no_query_of_the_program(client: str) -> None:
+    # Before, the client took the line for quiet 0.1 s after the first probe's reply, and the
+    # second probe's reply, 0.25 s later, answered the program's first #qd!: a value from before
+    # it was asked (P20).
+    fake, sock = FakeController.on_socketpair(latency_s=SLOW_LINE_S)
+    fake.qd_counts_queries = True  # each $qd carries the number of its #qd! on the line
+    options = _options(timeout_s=2.0, boot_timeout_s=3.0)
+    try:
+        if client == "blocking":
+            with Client(SocketLink(sock, "slow socket pair"), options) as rov:
+                probes = fake.query_count
+                assert probes >= 2  # (else the line was not slow enough to show anything)
+                assert rov.depth_cm() == probes + 1  # its own reply
+        else:
+            arov = await AsyncClient(SocketLink(sock, "slow socket pair"), options).open()
+            try:
+                probes = fake.query_count
+                assert probes >= 2
+                assert await arov.depth_cm() == probes + 1
+            finally:
+                await arov.close()
+    finally:
+        fake.close()

@@ -430,3 +430,28 @@ def test_a_reply_at_the_clock_reading_of_a_reset_report_ends_that_silence() -> N
         now += 0.5
         session.tick(now)
     assert session.counters.resets_suspected == 2
+
+
+def test_a_stop_while_a_reopened_link_is_readied_is_written_at_once_and_again_when_ready() -> None:
+    session = Session()
+    session.command(Command("th", (90, 40)), now=0.0)
+    session.disconnect()  # the link is lost: a stop waits for the next one
+    assert session.stop_while_reconnecting(now=1.0) == b""
+    assert session.link_reopened() == b"#stop!"  # its first frame, before the probe
+    session.reopen_failed()  # that one failed before it was ready
+    assert session.stop_while_reconnecting(now=2.0) == b""
+    assert session.link_reopened() == b"#stop!"
+    sent = session.counters.frames_sent
+    # While the probe waits for its answer: at once, counted, and the motion at rest.
+    assert session.stop_while_reconnecting(now=3.0) == b"#stop!"
+    assert session.counters.frames_sent == sent + 1
+    assert session.motion_as_sent() == (90, 0, 0)
+    session.reset_link()  # the controller answered: mode, then the stop once more
+    assert session.take_outbox(now=4.0) == b"#crcoff!#stop!"
+    session.reopen_failed()  # ... but that write failed: the next link carries it first again
+    assert session.link_reopened() == b"#stop!"
+    session.reset_link()
+    assert session.take_outbox(now=5.0) == b"#crcoff!#stop!"
+    session.link_ready()  # written: done
+    assert session.rest_frames() == b""
+    assert session.stop_while_reconnecting(now=6.0) == b""  # (no link being readied)

@@ -172,6 +172,12 @@ class FaultyController:
             data = re.sub(rb"#mvd\.(\d+)!", rb"#mvdirect.0!#mvd.\1!", data)
         if fault == "clamps-motion-out-of-range":
             data = _clamped(data)
+        if fault == "clamps-gains-out-of-range":  # #mvpdp.100! taken as #mvpdp.99!
+            data = re.sub(
+                rb"#(mvpdp|mvpdi|mvpidd)\.(\d+)!",
+                lambda m: b"#%s.%d!" % (m[1], min(int(m[2]), 99)),
+                data,
+            )
         if fault == "short-buffer":  # a 20-byte line buffer: longer frames are lost
             data = re.sub(rb"#[^#$!]{19,}!", b"", data)
         if fault == "mode-per-chunk":  # the checksum mode is switched after the whole chunk
@@ -337,6 +343,7 @@ FAULTS: dict[str, str] = {
     "stop-keeps-set-points": "motion-stop-halts",
     "mvd-enters-depth-mode": "motion-mode-gating",
     "clamps-motion-out-of-range": "motion-out-of-range-not-clamped",
+    "clamps-gains-out-of-range": "motion-gains-out-of-range-not-clamped",
     "short-buffer": "longest-frame-accepted",
     "mode-per-chunk": "checksum-on-next-frame",
     "depth-off-by-one-count": "calibration-applies",

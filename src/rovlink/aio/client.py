@@ -487,16 +487,29 @@ class AsyncClient(AsyncCommandMethods):
 
     def _send(self, command: Command) -> None:
         if self._link_down and command == operations.STOP and not self._closed:
-            # Not an error: late, a stop is still wanted; a link that never comes back leaves
-            # the controller's own link-loss failsafe to stop the robot (P17).
-            self._session.stop_when_reopened()
-            logger.info(
-                "#stop! asked for while %s is down: its first frame", self._link.description
-            )
+            self._stop_while_reconnecting()
             return
         self._check_open()
         self._write(self._session.command(command, self._clock()))
         self._arm_timer()  # a motion command may now expire
+        self._emit()
+
+    def _stop_while_reconnecting(self) -> None:
+        """``stop()`` while the link is being reopened. Not an error: late, a stop is still
+        wanted (a link that never comes back leaves the controller's own link-loss failsafe to
+        stop the robot, P17). On a reopened link being readied it goes out at once, not after
+        the probe's answer (see :meth:`Session.stop_while_reconnecting`); with no link open, it
+        is the next one's first frame."""
+        data = self._session.stop_while_reconnecting(self._clock())
+        if not data:
+            logger.info(
+                "#stop! asked for while %s is down: its first frame", self._link.description
+            )
+        else:
+            try:
+                self._transport.write(data)  # the reopened link's
+            except ConnectionLostError as error:  # the attempt fails: kept for the next link
+                self._on_lost(error)
         self._emit()
 
     def subscribe(self, callback: EventCallback) -> None:
@@ -695,7 +708,7 @@ class AsyncClient(AsyncCommandMethods):
             self._transport.start(self._on_data, self._on_lost)
             session = self._session
             try:
-                rest = session.rest_frames()
+                rest = session.link_reopened()  # (a stop() from now on is written at once)
                 if rest:  # first, before any probe feeds the controller's watchdog (P17)
                     self._write(rest)
                     session.count_outside(self._clock(), sent=rest)
@@ -706,8 +719,10 @@ class AsyncClient(AsyncCommandMethods):
                 # a failed attempt, not a connection: nothing else would ever notice it.
                 if self._attempt_lost is not None:
                     raise self._attempt_lost
+                session.link_ready()  # (not before: a failed attempt leaves them to the next)
             except (OSError, ValueError) as error:  # ConnectionLostError is an OSError
                 logger.debug("reconnect attempt %d: %s", attempts, error)
+                session.reopen_failed()
                 with contextlib.suppress(Exception):
                     await self._transport.close()
                 await asyncio.sleep(backoff_s)

@@ -133,6 +133,8 @@ class Client(CommandMethods):
         self._closing = False
         self._reopen = reopen if options.reconnect else None
         self._reconnecting = False  # the link was lost and is being opened again
+        # The reopened link while it is being readied (P21): a stop() is written on it at once.
+        self._readied_link: Link | None = None
         self._stop_reconnecting = threading.Event()
         self._reconnector: threading.Thread | None = None
         self._closer: threading.Thread | None = None  # the thread in the first close()
@@ -457,20 +459,27 @@ class Client(CommandMethods):
             link: Link | None = None
             try:
                 link = reopen()
-                with self._state_lock:
-                    rest = self._session.rest_frames()
-                if rest:  # first, before any probe feeds the controller's watchdog (P17)
-                    link.write(rest)
+                # Under the wire lock, as every write on it until it is ready: a stop() from
+                # another thread goes on it at once (see _send).
+                with self._wire_lock:
                     with self._state_lock:
-                        self._session.count_outside(self._clock(), sent=rest)
+                        rest = self._session.link_reopened()
+                        self._readied_link = link
+                    if rest:  # first, before any probe feeds the controller's watchdog (P17)
+                        link.write(rest)
+                        with self._state_lock:
+                            self._session.count_outside(self._clock(), sent=rest)
                 self._await_ready(link)
                 with self._wire_lock, self._state_lock:
+                    self._readied_link = None
                     if self._closing:
+                        self._session.reopen_failed()
                         link.close()
                         return
                     session = self._session
                     session.reset_link()
                     link.write(session.take_outbox(self._clock()))  # the mode, zero thrust
+                    session.link_ready()  # (not before: a failed write leaves them to the next)
                     self._link = link
                     self._send_now = getattr(link, "send_some", None)
                     self._read_reply = getattr(link, "read_reply", link.read_available)
@@ -487,8 +496,12 @@ class Client(CommandMethods):
             except (OSError, ValueError) as error:  # ConnectError, ConnectionLostError too
                 logger.debug("reconnect attempt %d: %s", attempts, error)
                 if link is not None:
-                    with contextlib.suppress(Exception):
-                        link.close()
+                    with self._wire_lock:  # (no stop() is writing on it)
+                        with self._state_lock:
+                            self._session.reopen_failed()
+                            self._readied_link = None
+                        with contextlib.suppress(Exception):
+                            link.close()
                 self._stop_reconnecting.wait(backoff_s)
                 backoff_s = min(backoff_s * 2, _RECONNECT_MAX_S)
         self._emit()
@@ -564,11 +577,8 @@ class Client(CommandMethods):
             raise self._lost_error() from error
 
     def _send(self, command: Command) -> None:
-        if command == operations.STOP and self._reconnecting:
-            with self._state_lock:
-                if self._reconnecting and not self._closing:  # (still: checked under the lock)
-                    self._stop_when_reopened()
-                    return
+        if command == operations.STOP and self._reconnecting and self._stop_while_reconnecting():
+            return
         self._check_open()
         with self._wire_lock:
             with self._state_lock:
@@ -586,12 +596,30 @@ class Client(CommandMethods):
                 raise
         self._emit()
 
-    def _stop_when_reopened(self) -> None:
-        """``stop()`` while the link is being reopened: the reopened link's first frame. Not
-        an error: late, a stop is still wanted (and a link that never comes back leaves the
-        controller's own link-loss failsafe to stop the robot, P17)."""
-        self._session.stop_when_reopened()
-        logger.info("#stop! asked for while %s is down: its first frame", self._link.description)
+    def _stop_while_reconnecting(self) -> bool:
+        """``stop()`` while the link is being reopened; False if it no longer is (the usual path
+        sends it). Not an error: late, a stop is still wanted (and a link that never comes back
+        leaves the controller's own link-loss failsafe to stop the robot, P17). On a reopened
+        link being readied it goes out at once, not after the probe's answer (see
+        :meth:`Session.stop_while_reconnecting`); with no link open, it is the next one's first
+        frame."""
+        with self._wire_lock:
+            with self._state_lock:
+                if not self._reconnecting or self._closing:  # (checked again under the lock)
+                    return False
+                data = self._session.stop_while_reconnecting(self._clock())
+                link = self._readied_link
+            if link is None:
+                logger.info(
+                    "#stop! asked for while %s is down: its first frame", self._link.description
+                )
+            else:
+                try:
+                    link.write(data)
+                except ConnectionLostError as error:  # the attempt fails: kept for the next
+                    logger.debug("#stop! on the reopened link: %s", error)
+        self._emit()
+        return True
 
     def _await_ready(self, link: Link | None = None) -> None:
         """P21: probe until the controller answers, then let the line go quiet (see readiness)."""
@@ -610,7 +638,8 @@ class Client(CommandMethods):
             try:
                 data = probe.bytes_to_send(now)
                 if data:
-                    link.write(data)
+                    with self._wire_lock:  # (a stop() may write on a reopened link meanwhile)
+                        link.write(data)
                     with self._state_lock:
                         self._session.count_outside(now, sent=data)
                 data = link.read_available(max(probe.wait_s(clock()), 0.001))

@@ -6,7 +6,10 @@ and hope: it repeats a *probe* — ``#crcoff!`` (recognised in either mode, P3) 
 ``#qd!`` — every ``interval_s`` until a ``$qd`` reply arrives or ``boot_timeout`` runs out. Once
 one does, it reads on until the line has been quiet for ``quiet_s``, so that the replies to
 earlier probes, still on their way, are not taken for the answers to the program's first
-queries. Only then does the client put the controller in the checksum mode asked for.
+queries. After more than one probe the quiet must last ``interval_s`` longer: on a line slower
+than the interval (a network bridge on a slow network) the replies of the later probes follow
+the first one an interval apart. Only then does the client put the controller in the checksum
+mode asked for.
 
 >>> probe = ReadinessProbe(now=0.0, boot_timeout_s=3.0)
 >>> probe.bytes_to_send(0.0)
@@ -82,9 +85,15 @@ class ReadinessProbe:
                 self.answered = True
                 return
 
+    @property
+    def _quiet_needed_s(self) -> float:
+        """How long the line must be quiet after the answer: a lone probe's reply is the only
+        one; after several, the next may be an interval behind the last."""
+        return self.quiet_s if self.probes_sent <= 1 else self.interval_s + self.quiet_s
+
     def done(self, now: float) -> bool:
         """Whether the controller answered and the line has been quiet since."""
-        return self.answered and now - self._last_data_at >= self.quiet_s
+        return self.answered and now - self._last_data_at >= self._quiet_needed_s
 
     def timed_out(self, now: float) -> bool:
         """Whether ``boot_timeout`` ran out without an answer."""
@@ -93,7 +102,7 @@ class ReadinessProbe:
     def wait_s(self, now: float) -> float:
         """How long to wait for bytes before the next step is due."""
         if self.answered:
-            return max(self._last_data_at + self.quiet_s - now, 0.0)
+            return max(self._last_data_at + self._quiet_needed_s - now, 0.0)
         return max(min(self._next_probe_at, self.deadline) - now, 0.0)
 
     @property

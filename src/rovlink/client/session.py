@@ -209,6 +209,7 @@ class Session:
         "_query_bytes",
         "_quiet_until",
         "_raw_decoder",
+        "_readying",
         "_reset_reported_at",
         "_stop_on_reopen",
         "_vertical_percent",
@@ -264,6 +265,8 @@ class Session:
         self._reset_reported_at: float | None = None
         #: A #stop! asked for while the link was down: the reopened link's first frame.
         self._stop_on_reopen = False
+        #: A reopened link is open and being readied (P21): a #stop! goes on it at once.
+        self._readying = False
         # P23: the motion as last sent, and when it was last renewed; the vertical mode as
         # last sent (None: not known, as on a link reopened to a board that may have reset).
         self._direct_mode: bool | None = None
@@ -696,28 +699,61 @@ class Session:
         connection, a loose cable) may find the controller still driving the thrust last sent,
         in the mode it was in, and every probe would feed its link-loss watchdog (P17). The
         motion stays as last sent: a reopened link that fails gets these again on the next
-        one, until :meth:`reset_link`.
+        one, until :meth:`link_ready`.
 
         >>> session = Session()
         >>> _ = session.command(Command("th", (90, 40)), now=0.0)
         >>> session.rest_frames()
         b'#th.90.0!'
-        >>> session.stop_when_reopened()
+        >>> session.stop_while_reconnecting(now=1.0)  # no link open: kept for the next one
+        b''
         >>> session.rest_frames()
         b'#stop!'
         """
         return b"".join(self.frame_for(command) for command in self._rest_commands())
 
-    def stop_when_reopened(self) -> None:
-        """A ``#stop!`` asked for while the link is down: it is the first frame on the reopened
-        link (in place of zero thrust: it clears every set-point, P7), before any probe. Late, a
-        stop is still wanted, and it comes before anything the program sends afterwards."""
+    def link_reopened(self) -> bytes:
+        """A lost link is open again and being readied (its readiness probe, P21): the bytes it
+        carries first (:meth:`rest_frames`, to be written before the probe). Until
+        :meth:`link_ready` or :meth:`reopen_failed`, :meth:`stop_while_reconnecting` returns a
+        ``#stop!`` to write on it at once."""
+        self._readying = True
+        return self.rest_frames()
+
+    def reopen_failed(self) -> None:
+        """The reopened link failed before it was ready: it is closed, and a ``#stop!`` asked
+        for from now on waits for the next one."""
+        self._readying = False
+
+    def stop_while_reconnecting(self, now: float) -> bytes:
+        """``#stop!`` asked for while the link is being reopened: the bytes to write now.
+
+        While the reopened link is being readied (:meth:`link_reopened`), the ``#stop!`` to
+        write on it at once: the controller may be driving the thrust last sent while it
+        answers the probe slowly, and the stop has no reply to confuse the probe's. While no
+        link is open, nothing: the stop is the reopened link's first frame (in place of zero
+        thrust: it clears every set-point, P7). Either way it is sent once more when the link
+        is ready (:meth:`reset_link`), before anything the program sends afterwards: a board
+        still booting loses its input (P21).
+
+        >>> session = Session()
+        >>> _ = session.command(Command("th", (90, 40)), now=0.0)
+        >>> session.link_reopened()
+        b'#th.90.0!'
+        >>> session.stop_while_reconnecting(now=1.0)
+        b'#stop!'
+        """
         self._stop_on_reopen = True
+        if not self._readying:
+            return b""
+        data = self._account(_STOP, self.frame_for(_STOP), now)
+        self._track(_STOP, now)
+        return data
 
     def reset_link(self) -> None:
         """Start afresh on a reopened link that answered: no partial frame, nothing late, and
         nothing due but the checksum mode, then zero thrust if the motion last sent was not at
-        rest (write :meth:`take_outbox` next).
+        rest (write :meth:`take_outbox` next, then call :meth:`link_ready`).
 
         The mode comes first: the readiness probe left the controller in plain mode (P21), in
         which a checksummed frame is dropped. The motion a program or a pilot commanded before
@@ -734,7 +770,13 @@ class Session:
         self._outbox.append((self.frame_for(mode), None, mode))
         for command in self._rest_commands():
             self._outbox.append((self.frame_for(command), None, command))
-        self._stop_on_reopen = False
+
+    def link_ready(self) -> None:
+        """The reopened link is the connection's now: :meth:`reset_link`'s bytes were written
+        on it. Only now are a stop asked for while it was down, and the motion as last sent,
+        taken as done: a link that fails on that write (:meth:`reopen_failed`) leaves the next
+        one to carry them first again."""
+        self._stop_on_reopen = self._readying = False
         self._power_percent = self._vertical_percent = 0
         self._direct_mode = None
 

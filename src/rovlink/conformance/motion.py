@@ -250,6 +250,48 @@ def _pwm_not_clamped(ctx: CheckContext) -> None:
     )
 
 
+#: The depth PID's gains (P10): no query reads them back, so only a dive shows one clamped.
+_GAINS = ("mvpdp", "mvpdi", "mvpidd")
+
+
+@check(
+    "motion-gains-out-of-range-not-clamped",
+    ("P6", "P10"),
+    "in depth mode, every PID gain at 0 and a target far below, #mvpdp.100! #mvpdi.100! "
+    "#mvpidd.100! are dropped, not clamped to 99: the vehicle does not dive (#mvpdp.99! then does)",
+    motion=True,
+)
+def _gains_not_clamped(ctx: CheckContext) -> None:
+    # With every gain at 0 the PID drives nothing, however far the target; a proportional or
+    # integral gain clamped to its maximum drives the dive at once. (A derivative gain on
+    # measurement, P10, acts only while the depth changes: a vehicle at rest cannot show it.)
+    frame = ctx.frame
+    top = lookup(_GAINS[0]).arguments[0].maximum
+    depth_hold = (
+        _depth_far_below(ctx)
+        + b"".join(frame(Command(name, (0,))) for name in _GAINS)
+        + frame(Command("mvdirect", (0,)))
+        + frame(Command("start"))
+        + frame(Command("mvd", (lookup("mvd").arguments[0].maximum,)))
+    )
+    too_high = b"".join(b"#%s.%d!" % (name.encode(), top + 1) for name in _GAINS)
+    _expect_no_dive(
+        ctx, depth_hold + too_high, f"a PID gain out of range ({too_high.decode()}) was clamped"
+    )
+    # The same set-up with the gain in range dives: the watch above could have seen it.
+    ctx.tell(depth_hold + frame(Command(_GAINS[0], (top,))))
+    try:
+        start, deepest = _watch(ctx, checksum=False)
+    finally:
+        ctx.tell(b"#stop!")
+    if deepest - start < _MOVED_COUNTS:
+        raise CheckFailedError(
+            f"with #{_GAINS[0]}.{top}! in range the depth hold did not dive either (raw {start} "
+            f"to {deepest} in {MOTION_WATCH_S:g} s), so a clamped gain could not be seen (is the "
+            "vehicle in water?)"
+        )
+
+
 @check(
     "motion-link-loss-failsafe",
     ("P17",),
