@@ -63,6 +63,11 @@ _RETAINED_STOP = (
     "published retained: carried out, as stop always is, but publish commands without retain "
     "(clear this one with an empty retained message)"
 )
+_STOP_KEPT_FOR_THE_LINK = (
+    "not sent yet: the controller link is down; #stop! goes out as the reopened link's first "
+    "frame (a link event says when it is back), and meanwhile the controller's own link-loss "
+    "watchdog stops the robot"
+)
 #: The retained state is refreshed at least this often (its ``at`` and link silence).
 _STATE_REFRESH_S = 2.0
 #: Reconnection backoff: first wait, doubled up to the last.
@@ -379,6 +384,15 @@ class MqttBridge:
             await self._reply(
                 mqtt, message, reply_payload(self.robot_id, request, error=str(error))
             )
+            return
+        if command.name == "stop" and self._link_down:
+            # The driver keeps it to be the reopened link's first frame: it is not written, so
+            # the asker is not told it was (as "ok" would say).
+            await self.rov.send(command)
+            answer = reply_payload(
+                self.robot_id, request, error=_STOP_KEPT_FOR_THE_LINK, warning=warning
+            )
+            await self._reply(mqtt, message, answer)
             return
         try:
             await self._restore_settings()  # (after a reset: before what may build on them)
