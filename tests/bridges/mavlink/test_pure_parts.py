@@ -296,6 +296,18 @@ def test_alt_hold_moves_the_target_with_the_throttle():
     assert _drive(pilot, 0, 0, 520, 1.2, mode=FlightMode.ALT_HOLD) == []  # inside the deadband
 
 
+@pytest.mark.parametrize("z", [-1000, 2000, -32768])
+def test_a_throttle_beyond_its_range_moves_the_held_depth_no_faster_than_full(z: int):
+    # MAVLink's common z is −1000…1000; ArduSub's throttle 0…1000. A z of −1000 in ALT_HOLD once
+    # moved the held depth at 150 cm/s, three times the full stick's 50.
+    pilot = PilotInput(ParameterTable())
+    pilot.hold(500)
+    sent = []
+    for step in range(11):  # 1 s at 10 Hz
+        sent += _drive(pilot, 0, 0, z, step * 0.1, mode=FlightMode.ALT_HOLD)
+    assert sent[-1] == ("#mvd.550!" if z < 0 else "#mvd.450!")
+
+
 # -- the ground-station failsafe ---------------------------------------------------------------
 
 

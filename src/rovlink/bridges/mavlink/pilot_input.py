@@ -48,6 +48,7 @@ _THROTTLE_DEADBAND = 50
 #: Longest gap between inputs that moves the held depth (a gap is not a held stick).
 _MAX_STEP_S = 0.2
 _NEUTRAL_Z = 500
+_FULL_Z = 1000
 _DEPTH_RANGE = lookup("mvd").arguments[0]
 _THRUST_RANGE = lookup("mvs").arguments[0]
 _POWER_RANGE = lookup("th").arguments[1]
@@ -178,7 +179,8 @@ class PilotInput:
         ):
             commands.append(Command("th", (direction, power)))
             self._direction_deg, self._power_percent = direction, power
-        throttle = _axis(z, _NEUTRAL_Z)
+        # ArduSub's 0…1000 (MAVLink's common range is −1000…1000): beyond it, full throttle.
+        throttle = max(0, min(_FULL_Z, _axis(z, _NEUTRAL_Z)))
         if mode is FlightMode.MANUAL:
             thrust = vertical_thrust_percent(throttle)
             if thrust != self._thrust_percent:
