@@ -71,6 +71,7 @@ async def test_queries_answer_with_named_values(broker: Mosquitto):
         (b"", "empty payload"),
         (b"crcon", "owns the checksum and debug modes"),
         (b"x" * 600, "a command is at most 512"),
+        (b'{"command": "start", "id": 1.5}', '"id" must be a string or an integer, got 1.5'),
     ],
 )
 async def test_malformed_payloads_get_an_error_and_send_nothing(
@@ -103,6 +104,21 @@ async def test_without_allow_commands_only_stop_is_accepted(broker: Mosquitto):
         await until(lambda: robot.motion_and_lock_frames()[before:] == ["#stop!"])
         state = await watcher.wait_for("rovlink/s1/state")
         assert state["commands_allowed"] is False
+
+
+@pytest.mark.parametrize("request_id", ["1.5", '{"n": 1}'])
+async def test_a_stop_with_a_bad_id_still_stops_the_robot(broker: Mosquitto, request_id: str):
+    # Before, the id's error refused the stop: the robot drove on.
+    async with (
+        bridged_robot(broker, "i1", allow_commands=False) as robot,
+        subscriber(broker, "rovlink/i1/cmd/reply") as watcher,
+    ):
+        before = len(robot.motion_and_lock_frames())
+        reply = await watcher.command("i1", f'{{"command": "stop", "id": {request_id}}}')
+        assert (reply["ok"], reply["frame"]) == (True, "#stop!")
+        assert "id" not in reply
+        assert f'"id" must be a string or an integer, got {request_id}' in reply["warning"]
+        await until(lambda: robot.motion_and_lock_frames()[before:] == ["#stop!"])
 
 
 async def test_an_mqtt5_response_topic_and_correlation_data_are_honoured(broker: Mosquitto):

@@ -371,20 +371,25 @@ class MqttBridge:
         retained = bool(getattr(message, "retain", False))
         if retained and not payload:
             return  # a retained command being cleared (an empty retained message): not one
-        warning = None
+        warnings = []
         try:
             request = read_request(payload)
             command = self.policy.check(request.text)
+            # Stop can only make the robot safer (P3): carried out however it came.
+            if request.id_problem is not None:
+                if command.name != "stop":
+                    raise PayloadError(request.id_problem)
+                warnings.append(f"{request.id_problem}: carried out, as stop always is")
             if retained:
                 if command.name != "stop":
                     raise PayloadError(_RETAINED_REFUSED)
-                # Stop can only make the robot safer (P3): carried out however it came.
-                warning = _RETAINED_STOP
+                warnings.append(_RETAINED_STOP)
         except (PayloadError, ValueError) as error:
             await self._reply(
                 mqtt, message, reply_payload(self.robot_id, request, error=str(error))
             )
             return
+        warning = "; ".join(warnings) or None
         if command.name == "stop" and self._link_down:
             # The driver keeps it to be the reopened link's first frame: it is not written, so
             # the asker is not told it was (as "ok" would say).
