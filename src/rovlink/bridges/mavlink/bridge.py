@@ -178,10 +178,14 @@ class MavlinkBridge:
         return reply.values[0]
 
     async def disarm(self, reason: str) -> Result:
-        """``#stop!``, always."""
+        """``#stop!``, always (while the controller link is being reopened, the driver keeps it
+        to be the reopened link's first frame: the STATUSTEXT says so, not that it was sent)."""
         await self.rov.stop()
         logger.warning("stopped: %s", reason)
-        self._say(_SEVERITY_INFO, f"Disarmed: {reason}")
+        if self.messages.link_up:
+            self._say(_SEVERITY_INFO, f"Disarmed: {reason}")
+        else:
+            self._say(_SEVERITY_WARNING, "Disarmed; link down: #stop! sent when it is back")
         return Result.ACCEPTED
 
     async def set_mode(self, mode: FlightMode) -> Result:
