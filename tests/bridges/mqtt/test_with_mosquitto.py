@@ -312,7 +312,7 @@ async def test_a_command_flagged_retained_is_refused_with_the_reason(broker: Mos
         properties = None
 
     async with bridged_robot(broker, "z1") as robot:
-        await robot.bridge._on_command(RecordingBroker(), RetainedMessage())
+        assert await robot.bridge._read_command(RecordingBroker(), RetainedMessage()) is None
         [(topic, payload)] = published
         assert topic == "rovlink/z1/cmd/reply"
         reply = json.loads(payload)
@@ -425,3 +425,26 @@ def test_a_session_taken_over_is_told_by_the_brokers_reason():
         assert not _taken_over(object())
     finally:
         loop.close()
+
+
+async def test_a_stop_is_not_held_up_by_a_query_the_controller_does_not_answer(broker: Mosquitto):
+    # Commands were carried out one at a time: a stop published after a query waited for that
+    # query's reply timeout and retries (here 3 × 0.3 s) before #stop! was written.
+    async with (
+        bridged_robot(broker, "h1", timeout_s=0.3) as robot,
+        subscriber(broker, "rovlink/h1/cmd/reply") as watcher,
+    ):
+        assert (await watcher.command("h1", "start"))["ok"]
+        robot.link.silent.set()  # the controller stops answering
+        before = len(robot.motion_and_lock_frames())
+        for text in ('{"command": "qd", "id": "q"}', "th 90 30", '{"command": "stop", "id": "s"}'):
+            await watcher.client.publish("rovlink/h1/cmd", text, qos=1)
+        replies = await watcher.wait_for("rovlink/h1/cmd/reply", lambda r: r.get("id") == "s")
+        assert replies["frame"] == "#stop!"
+        await until(lambda: len(watcher.on("rovlink/h1/cmd/reply")) == 4)
+        answered = [r.get("id", r.get("command")) for r in watcher.on("rovlink/h1/cmd/reply")]
+        assert answered[1:] == ["s", "th 90 30", "q"]  # the stop first; the query when it ends
+        late = next(r for r in watcher.on("rovlink/h1/cmd/reply") if r["command"] == "th 90 30")
+        assert late["ok"] is False
+        assert "a stop published after it" in late["error"]
+        assert robot.motion_and_lock_frames()[before:] == ["#stop!"]  # the th never went out
