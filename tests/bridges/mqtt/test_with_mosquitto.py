@@ -437,14 +437,15 @@ async def test_a_stop_is_not_held_up_by_a_query_the_controller_does_not_answer(b
         assert (await watcher.command("h1", "start"))["ok"]
         robot.link.silent.set()  # the controller stops answering
         before = len(robot.motion_and_lock_frames())
-        for text in ('{"command": "qd", "id": "q"}', "th 90 30", '{"command": "stop", "id": "s"}'):
+        for text in ("qd", "th 90 30", "mgmp 100", "start", "stop"):
             await watcher.client.publish("rovlink/h1/cmd", text, qos=1)
-        replies = await watcher.wait_for("rovlink/h1/cmd/reply", lambda r: r.get("id") == "s")
-        assert replies["frame"] == "#stop!"
-        await until(lambda: len(watcher.on("rovlink/h1/cmd/reply")) == 4)
-        answered = [r.get("id", r.get("command")) for r in watcher.on("rovlink/h1/cmd/reply")]
-        assert answered[1:] == ["s", "th 90 30", "q"]  # the stop first; the query when it ends
-        late = next(r for r in watcher.on("rovlink/h1/cmd/reply") if r["command"] == "th 90 30")
-        assert late["ok"] is False
-        assert "a stop published after it" in late["error"]
-        assert robot.motion_and_lock_frames()[before:] == ["#stop!"]  # the th never went out
+        await until(lambda: len(watcher.on("rovlink/h1/cmd/reply")) == 6)
+        replies = watcher.on("rovlink/h1/cmd/reply")[1:]
+        # The stop first; the motion and the unlock that came before it are not sent; the query
+        # when it ends, then the setting, in their order.
+        assert [r["command"] for r in replies] == ["stop", "th 90 30", "start", "qd", "mgmp 100"]
+        assert [r["ok"] for r in replies] == [True, False, False, False, True]
+        assert "a stop published after it" in replies[1]["error"]
+        sent = robot.motion_and_lock_frames()[before:]
+        assert sent[:2] == ["#stop!", "#mgmp.100!"]
+        assert not [frame for frame in sent if frame.startswith(("#th", "#start"))]

@@ -27,7 +27,7 @@ from typing import Any
 from rovlink.aio.wakeup import wait_for_event
 from rovlink.bridges.kept_settings import KeptSettings
 from rovlink.bridges.mqtt.broker import BrokerSettings
-from rovlink.bridges.mqtt.commands import CommandPolicy
+from rovlink.bridges.mqtt.commands import CommandPolicy, could_move
 from rovlink.bridges.mqtt.outbox import Outbox
 from rovlink.bridges.mqtt.payloads import (
     CommandRequest,
@@ -96,7 +96,8 @@ class _Asked:
     request: CommandRequest
     command: Command
     warning: str | None
-    #: How many stops the bridge had carried out when it came: one more, and it is not sent.
+    #: How many stops the bridge had carried out when it came: one more, and a command that could
+    #: move the robot is not sent.
     stops_before: int
 
 
@@ -306,8 +307,9 @@ class MqttBridge:
 
     async def _receive(self, mqtt: Any, queue: asyncio.Queue[_Asked]) -> None:
         """Commands in the order they came, one at a time (a query waits for its reply), but a
-        ``stop`` at once: it must not wait for a query the controller does not answer, and the
-        commands that came before it and are not yet sent are not sent after it."""
+        ``stop`` at once: it must not wait for a query the controller does not answer. What came
+        before it and is not yet sent is not to unlock or move the robot after it: those
+        commands are dropped (answered so); the others (settings, queries) follow in order."""
         async for message in mqtt.messages:
             asked = await self._read_command(mqtt, message)
             if asked is None:
@@ -316,10 +318,14 @@ class MqttBridge:
                 queue.put_nowait(asked)
                 continue
             self._stops += 1
-            overtaken = [queue.get_nowait() for _ in range(queue.qsize())]
+            waiting = [queue.get_nowait() for _ in range(queue.qsize())]
+            for kept in waiting:
+                if not could_move(kept.command):
+                    queue.put_nowait(kept)
             await self._carry_out(mqtt, asked)
-            for waiting in overtaken:
-                await self._answer(mqtt, waiting, error=_OVERTAKEN_BY_STOP)
+            for overtaken in waiting:
+                if could_move(overtaken.command):
+                    await self._answer(mqtt, overtaken, error=_OVERTAKEN_BY_STOP)
 
     async def _carry_out_in_order(self, mqtt: Any, queue: asyncio.Queue[_Asked]) -> None:
         while True:
@@ -440,7 +446,7 @@ class MqttBridge:
                 return
         else:
             await self._restore_settings()  # (after a reset: before what may build on them)
-            if asked.stops_before != self._stops:  # a stop came meanwhile
+            if could_move(command) and asked.stops_before != self._stops:  # a stop came since
                 await self._answer(mqtt, asked, error=_OVERTAKEN_BY_STOP)
                 return
         try:
