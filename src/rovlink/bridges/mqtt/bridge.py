@@ -10,6 +10,7 @@ QoS and what survives a broker outage:
   to 1000) and published, in order, when it is back.
 * ``cmd``: QoS 1 with a clean session: a command published while the bridge is away is not kept
   for later (a late ``th 90 100`` is not what anyone wants); the sender gets no reply.
+  Commands are carried out in order, one at a time; a ``stop`` at once, ahead of the rest.
 * the last will: retained ``{"online": false}`` on ``state`` when the bridge vanishes. A bridge
   that ends on its own says why instead: ``bridge stopped``, ``controller link lost: …`` (after a
   ``link`` event) or ``bridge failed: …``.
