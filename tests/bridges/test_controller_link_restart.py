@@ -92,6 +92,15 @@ def test_the_mavlink_bridge_serves_on_when_the_controller_link_comes_back() -> N
             assert not down.base_mode & armed_flag
             assert down.system_status == critical
             assert gcs.arm() in (1, 4)  # TEMPORARILY_REJECTED or FAILED: not now
+
+            # A disarm is carried out (#stop! waits to be the reopened link's first frame); it
+            # once said "Disarmed: disarmed by the ground station", as if #stop! had been sent.
+            def disarmed(message: Any) -> bool:
+                return bool(message.text.startswith("Disarmed"))
+
+            gcs.receive("STATUSTEXT", condition=disarmed)  # the bridge's own, on losing the link
+            assert gcs.command(400, 0) == 0
+            assert "link down" in gcs.receive("STATUSTEXT", condition=disarmed).text
             robot.start()  # and comes back, to a controller that was reset
             gcs.receive("STATUSTEXT", condition=lambda m: "link back" in m.text, timeout_s=20.0)
             wait_until(lambda: robot.state().max_pwm == 100, 10.0, "RL_MAX_PWM sent again")

@@ -20,9 +20,11 @@ from rovlink.bridges.mavlink.pilot_input import (
     AXIS_UNUSED,
     INPUT_STALE_S,
     PilotInput,
+    all_buttons,
     horizontal,
     vertical_thrust_percent,
 )
+from rovlink.bridges.mavlink.rc_override import CHANNEL_NO_CHANGE, RcOverride
 from rovlink.bridges.mavlink.telemetry_messages import STATUSTEXT_CHARS, statustext_chunks
 from rovlink.bridges.mavlink.telemetry_schedule import MAX_RATE_HZ, TelemetrySchedule
 from rovlink.bridges.mavlink.vehicle_state import (
@@ -189,6 +191,56 @@ def test_nothing_is_sent_while_disarmed_but_buttons_still_count():
     assert held.pressed == ()  # once per press, not per message
 
 
+def _pressed(pilot: PilotInput, buttons: int | None, now_s: float) -> tuple[ButtonFunction, ...]:
+    output = pilot.manual_control(
+        0, 0, 500, buttons, mode=FlightMode.MANUAL, armed=False, now_s=now_s
+    )
+    return output.pressed
+
+
+def test_buttons_16_to_31_carry_out_their_functions_and_none_by_default():
+    table = ParameterTable()
+    assert table.value("BTN16_FUNCTION") == table.value("BTN31_FUNCTION") == 0
+    table.set("BTN16_FUNCTION", int(ButtonFunction.ARM))
+    table.set("BTN31_FUNCTION", int(ButtonFunction.DISARM))
+    pilot = PilotInput(table)
+    assert _pressed(pilot, all_buttons(0, 1), 0.0) == (ButtonFunction.ARM,)
+    both = _pressed(pilot, all_buttons(0, 1 | 1 << 15), 0.1)
+    assert both == (ButtonFunction.DISARM,)  # 16 still held: once per press
+    assert all_buttons(0xFFFF, 0xFFFF) == 0xFFFF_FFFF
+
+
+def test_input_without_buttons_leaves_the_held_ones_as_they_were():
+    pilot = PilotInput(ParameterTable())
+    assert _pressed(pilot, 1 << 6, 0.0) == (ButtonFunction.ARM,)
+    assert _pressed(pilot, None, 0.1) == ()
+    assert _pressed(pilot, 1 << 6, 0.2) == ()  # still held: no new press
+
+
+@pytest.mark.parametrize(
+    ("pulse_us", "deflection"),
+    [(1100, -1000), (1300, -500), (1500, 0), (1700, 500), (1900, 1000), (900, -1000), (2100, 1000)],
+)
+def test_rc_pulses_become_the_stick(pulse_us: int, deflection: int):
+    rc = RcOverride(stale_after_s=INPUT_STALE_S)
+    x, y, z = rc.update([1500, 1500, pulse_us, 1500, pulse_us, pulse_us, 1500, 1500], now_s=0.0)
+    assert (x, y) == (deflection, deflection)
+    assert z == (deflection + 1000) // 2
+    assert vertical_thrust_percent(z) == deflection // 10
+
+
+def test_rc_release_is_neutral_and_no_change_keeps_the_channel():
+    rc = RcOverride(stale_after_s=INPUT_STALE_S)
+    assert rc.update([1900, 1100, 1900, 1900, 1900, 1900, 0, 0], now_s=0.0) == (1000, 1000, 1000)
+    keep = [CHANNEL_NO_CHANGE] * 8
+    assert rc.update(keep, now_s=0.1) == (1000, 1000, 1000)
+    assert rc.update([*keep[:4], 0, *keep[5:]], now_s=0.2) == (0, 1000, 1000)  # 5 released
+    assert rc.update([0] * 8, now_s=0.3) == (0, 0, 500)
+    rc.update([1500, 1500, 1900, 1500, 1900, 1900, 0, 0], now_s=0.4)
+    assert rc.update(keep, now_s=0.4 + INPUT_STALE_S - 0.01) == (1000, 1000, 1000)
+    assert rc.update(keep, now_s=0.4 + 2 * INPUT_STALE_S) == (0, 0, 500)  # stale: released
+
+
 def test_stale_input_expires_once_after_one_second():
     pilot = PilotInput(ParameterTable())
     _drive(pilot, 1000, 0, 1000, 0.0)
@@ -242,6 +294,18 @@ def test_alt_hold_moves_the_target_with_the_throttle():
     assert sent[-1] == "#mvd.50!"
     assert not [frame for frame in sent if frame.startswith("#mvs")]
     assert _drive(pilot, 0, 0, 520, 1.2, mode=FlightMode.ALT_HOLD) == []  # inside the deadband
+
+
+@pytest.mark.parametrize("z", [-1000, 2000, -32768])
+def test_a_throttle_beyond_its_range_moves_the_held_depth_no_faster_than_full(z: int):
+    # MAVLink's common z is −1000…1000; ArduSub's throttle 0…1000. A z of −1000 in ALT_HOLD once
+    # moved the held depth at 150 cm/s, three times the full stick's 50.
+    pilot = PilotInput(ParameterTable())
+    pilot.hold(500)
+    sent = []
+    for step in range(11):  # 1 s at 10 Hz
+        sent += _drive(pilot, 0, 0, z, step * 0.1, mode=FlightMode.ALT_HOLD)
+    assert sent[-1] == ("#mvd.550!" if z < 0 else "#mvd.450!")
 
 
 # -- the ground-station failsafe ---------------------------------------------------------------

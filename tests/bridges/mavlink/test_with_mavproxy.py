@@ -29,7 +29,7 @@ class MavProxy:
                 str(MAVPROXY),
                 f"--master={master}",
                 "--no-state",
-                "--default-modules=cmdlong,mode,arm,param,link",
+                "--default-modules=cmdlong,mode,arm,param,link,rc",
             ],
             stdin=subprocess.PIPE,
             stdout=subprocess.PIPE,
@@ -92,7 +92,7 @@ def mavproxy_rig(tmp_path: Path) -> Iterator[tuple[BridgeRig, MavProxy]]:
 
 def test_mavproxy_lists_and_sets_parameters(mavproxy_rig: tuple[BridgeRig, MavProxy]) -> None:
     rig, proxy = mavproxy_rig
-    proxy.wait_output("Received 23 parameters")
+    proxy.wait_output("Received 39 parameters")
     line = proxy.wait_output("RL_DEPTH_P", proxy.type("param show RL_DEPTH_P"))
     assert line.split()[-1] == "40.0"
     mark = len(rig.frames())
@@ -124,3 +124,20 @@ def test_mavproxy_going_away_while_armed_stops_the_robot(
     gone_s = time.monotonic()
     rig.wait_frame("#stop!", since=mark)
     assert time.monotonic() - gone_s >= 2.0  # the failsafe's 3 s, less the last beat's age
+
+
+def test_mavproxy_flies_with_rc_overrides(mavproxy_rig: tuple[BridgeRig, MavProxy]) -> None:
+    rig, proxy = mavproxy_rig
+    mark = len(rig.frames())
+    proxy.type("rc 3 1600")  # disarmed: nothing moves (P7)
+    proxy.wait_output("COMPONENT_ARM_DISARM: ACCEPTED", proxy.type("arm throttle"))
+    rig.wait_frame("#mvs.+25!", since=mark)  # the throttle held by the override, now armed
+    sent = rig.frames_since(mark)
+    assert sent.index("#start!") < sent.index("#mvs.+25!")
+    proxy.type("rc 5 1400")  # forward channel: astern at a quarter
+    rig.wait_frame("#th.180.25!", since=mark)
+    proxy.type("rc 3 0")  # released: neutral
+    rig.wait_frame("#mvs.+0!", since=mark)
+    proxy.type("rc clear")
+    rig.wait_frame("#th.180.0!", since=mark)
+    assert "#stop!" not in rig.frames_since(mark)

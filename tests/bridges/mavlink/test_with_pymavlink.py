@@ -558,3 +558,93 @@ def test_after_a_controller_reset_the_parameters_and_the_mode_are_sent_again():
         assert gcs.arm() == ACCEPTED
         gcs.send("manual_control", VEHICLE, 0, 0, 1000, 0, 0)  # full up, in MANUAL
         wait_for(lambda: controller.state().vertical_thrust_percent == 100)
+
+
+NO_CHANGE = 65535
+
+
+def _rc(gcs: GroundStation, *channels: int, target: int = VEHICLE) -> None:
+    """RC_CHANNELS_OVERRIDE of channels 1… (the rest released), as MAVProxy's ``rc`` sends it."""
+    padded = [*channels, *[0] * (18 - len(channels))]
+    gcs.send("rc_channels_override", target, 1, *padded)
+
+
+def _motion(rig: BridgeRig, since: int) -> list[str]:
+    return [f for f in rig.frames_since(since) if f.startswith(("#th", "#mvs", "#mvd."))]
+
+
+def test_rc_override_flies_ardusubs_channels_and_a_release_is_neutral(
+    rig: BridgeRig, gcs: GroundStation
+):
+    gcs.start_heartbeats()
+    assert gcs.arm() == ACCEPTED
+    mark = len(rig.frames())
+    # Pitch, roll and yaw (1, 2, 4) have no command; throttle 3 up a quarter, forward 5 full.
+    _rc(gcs, 1900, 1100, 1600, 1900, 1900, 1500)
+    rig.wait_frame("#mvs.+25!", since=mark)
+    rig.wait_frame("#th.0.100!", since=mark)
+    moved = len(rig.frames())
+    _rc(gcs, NO_CHANGE, NO_CHANGE, NO_CHANGE, NO_CHANGE, NO_CHANGE, 1100)  # lateral full left
+    rig.wait_frame("#th.315.100!", since=moved)  # forward kept: UINT16_MAX is no change
+    _rc(gcs, NO_CHANGE, NO_CHANGE, 0, NO_CHANGE, 0, 0)  # all three released
+    rig.wait_frame("#mvs.+0!", since=moved)
+    rig.wait_frame("#th.315.0!", since=moved)
+    assert _motion(rig, mark) == [
+        "#th.0.100!",
+        "#mvs.+25!",
+        "#th.315.100!",
+        "#th.315.0!",
+        "#mvs.+0!",
+    ]
+
+
+def test_rc_override_is_only_the_pilots_and_only_when_armed(rig: BridgeRig, gcs: GroundStation):
+    gcs.start_heartbeats()
+    mark = len(rig.frames())
+    _rc(gcs, 1500, 1500, 1900, 1500, 1900)  # disarmed: the controller would drop it (P7)
+    _served_since(gcs)
+    assert _motion(rig, mark) == []
+    assert gcs.arm() == ACCEPTED
+    armed = len(rig.frames())
+    gcs.connection.mav.srcSystem = 254  # a second ground station (not SYSID_MYGCS)
+    try:
+        _rc(gcs, 1500, 1500, 1900, 1500, 1900)
+    finally:
+        gcs.connection.mav.srcSystem = 255
+    gcs.receive("STATUSTEXT", condition=lambda m: "GCS 254 ignored" in m.text)
+    _served_since(gcs)
+    assert _motion(rig, armed) == []
+
+
+def test_rc_override_that_stops_coming_is_zeroed_as_a_stale_joystick(
+    rig: BridgeRig, gcs: GroundStation
+):
+    gcs.start_heartbeats()
+    assert gcs.arm() == ACCEPTED
+    mark = len(rig.frames())
+    _rc(gcs, 1500, 1500, 1100, 1500, 1500, 1900)  # right, full down
+    rig.wait_frame("#th.90.100!", since=mark)
+    rig.wait_frame("#mvs.-100!", since=mark)
+    last_input_s = time.monotonic()
+    rig.wait_frame("#th.90.0!", since=mark)
+    assert time.monotonic() - last_input_s >= 0.9
+    rig.wait_frame("#mvs.+0!", since=mark)
+    assert "#stop!" not in rig.frames_since(mark)
+    # Input that resumes after the silence starts from neutral: a channel left unchanged is not
+    # the stale value of before.
+    resumed = len(rig.frames())
+    _rc(gcs, *[NO_CHANGE] * 5, 1700)
+    rig.wait_frame("#th.90.50!", since=resumed)
+    assert "#mvs.-100!" not in rig.frames_since(resumed)
+
+
+def test_buttons_16_to_31_come_in_buttons2(rig: BridgeRig, gcs: GroundStation):
+    gcs.start_heartbeats()
+    gcs.send("param_set", VEHICLE, 1, b"BTN16_FUNCTION", 3.0, 6)  # arm
+    gcs.send("param_set", VEHICLE, 1, b"BTN31_FUNCTION", 4.0, 6)  # disarm
+    gcs.receive("PARAM_VALUE", condition=lambda m: m.param_id == "BTN31_FUNCTION")
+    mark = len(rig.frames())
+    gcs.send("manual_control", VEHICLE, 0, 0, 500, 0, 0, 1)  # buttons2 bit 0: button 16
+    rig.wait_frame("#start!", since=mark)
+    gcs.send("manual_control", VEHICLE, 0, 0, 500, 0, 0, 1 << 15)  # button 31
+    rig.wait_frame("#stop!", since=mark)

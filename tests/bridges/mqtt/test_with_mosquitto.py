@@ -71,6 +71,7 @@ async def test_queries_answer_with_named_values(broker: Mosquitto):
         (b"", "empty payload"),
         (b"crcon", "owns the checksum and debug modes"),
         (b"x" * 600, "a command is at most 512"),
+        (b'{"command": "start", "id": 1.5}', '"id" must be a string or an integer, got 1.5'),
     ],
 )
 async def test_malformed_payloads_get_an_error_and_send_nothing(
@@ -103,6 +104,21 @@ async def test_without_allow_commands_only_stop_is_accepted(broker: Mosquitto):
         await until(lambda: robot.motion_and_lock_frames()[before:] == ["#stop!"])
         state = await watcher.wait_for("rovlink/s1/state")
         assert state["commands_allowed"] is False
+
+
+@pytest.mark.parametrize("request_id", ["1.5", '{"n": 1}'])
+async def test_a_stop_with_a_bad_id_still_stops_the_robot(broker: Mosquitto, request_id: str):
+    # Before, the id's error refused the stop: the robot drove on.
+    async with (
+        bridged_robot(broker, "i1", allow_commands=False) as robot,
+        subscriber(broker, "rovlink/i1/cmd/reply") as watcher,
+    ):
+        before = len(robot.motion_and_lock_frames())
+        reply = await watcher.command("i1", f'{{"command": "stop", "id": {request_id}}}')
+        assert (reply["ok"], reply["frame"]) == (True, "#stop!")
+        assert "id" not in reply
+        assert f'"id" must be a string or an integer, got {request_id}' in reply["warning"]
+        await until(lambda: robot.motion_and_lock_frames()[before:] == ["#stop!"])
 
 
 async def test_an_mqtt5_response_topic_and_correlation_data_are_honoured(broker: Mosquitto):
@@ -296,7 +312,7 @@ async def test_a_command_flagged_retained_is_refused_with_the_reason(broker: Mos
         properties = None
 
     async with bridged_robot(broker, "z1") as robot:
-        await robot.bridge._on_command(RecordingBroker(), RetainedMessage())
+        assert await robot.bridge._read_command(RecordingBroker(), RetainedMessage()) is None
         [(topic, payload)] = published
         assert topic == "rovlink/z1/cmd/reply"
         reply = json.loads(payload)
@@ -409,3 +425,27 @@ def test_a_session_taken_over_is_told_by_the_brokers_reason():
         assert not _taken_over(object())
     finally:
         loop.close()
+
+
+async def test_a_stop_is_not_held_up_by_a_query_the_controller_does_not_answer(broker: Mosquitto):
+    # Commands were carried out one at a time: a stop published after a query waited for that
+    # query's reply timeout and retries (here 3 × 0.3 s) before #stop! was written.
+    async with (
+        bridged_robot(broker, "h1", timeout_s=0.3) as robot,
+        subscriber(broker, "rovlink/h1/cmd/reply") as watcher,
+    ):
+        assert (await watcher.command("h1", "start"))["ok"]
+        robot.link.silent.set()  # the controller stops answering
+        before = len(robot.motion_and_lock_frames())
+        for text in ("qd", "th 90 30", "mgmp 100", "start", "stop"):
+            await watcher.client.publish("rovlink/h1/cmd", text, qos=1)
+        await until(lambda: len(watcher.on("rovlink/h1/cmd/reply")) == 6)
+        replies = watcher.on("rovlink/h1/cmd/reply")[1:]
+        # The stop first; the motion and the unlock that came before it are not sent; the query
+        # when it ends, then the setting, in their order.
+        assert [r["command"] for r in replies] == ["stop", "th 90 30", "start", "qd", "mgmp 100"]
+        assert [r["ok"] for r in replies] == [True, False, False, False, True]
+        assert "a stop published after it" in replies[1]["error"]
+        sent = robot.motion_and_lock_frames()[before:]
+        assert sent[:2] == ["#stop!", "#mgmp.100!"]
+        assert not [frame for frame in sent if frame.startswith(("#th", "#start"))]

@@ -23,7 +23,8 @@ from rovlink.bridges.mavlink.endpoint import MavlinkEndpoint
 from rovlink.bridges.mavlink.failsafe import GcsWatchdog
 from rovlink.bridges.mavlink.modes import ButtonFunction, FlightMode
 from rovlink.bridges.mavlink.parameters import PILOT_SYSTEM, ParameterError, ParameterTable
-from rovlink.bridges.mavlink.pilot_input import PilotInput
+from rovlink.bridges.mavlink.pilot_input import PilotInput, all_buttons
+from rovlink.bridges.mavlink.rc_override import RcOverride
 from rovlink.bridges.mavlink.telemetry_messages import TelemetryMessages
 from rovlink.bridges.mavlink.telemetry_schedule import MAX_RATE_HZ, TelemetrySchedule
 from rovlink.bridges.mavlink.vehicle_state import VehicleState
@@ -74,6 +75,7 @@ class MavlinkBridge:
         self.parameters = parameters or ParameterTable()
         self.state = VehicleState()
         self.pilot = PilotInput(self.parameters)
+        self.rc_override = RcOverride(self.pilot.stale_after_s)
         self.watchdog = GcsWatchdog()
         self._clock = clock
         self._send_on_start = tuple(send_on_start)
@@ -87,6 +89,7 @@ class MavlinkBridge:
         self._handlers: dict[str, Callable[[Any], Any]] = {
             "HEARTBEAT": self._on_heartbeat,
             "MANUAL_CONTROL": self._on_manual_control,
+            "RC_CHANNELS_OVERRIDE": self._on_rc_channels_override,
             "COMMAND_LONG": self._on_command_long,
             "COMMAND_INT": self._on_command_int,
             "SET_MODE": self._on_set_mode,
@@ -175,10 +178,14 @@ class MavlinkBridge:
         return reply.values[0]
 
     async def disarm(self, reason: str) -> Result:
-        """``#stop!``, always."""
+        """``#stop!``, always (while the controller link is being reopened, the driver keeps it
+        to be the reopened link's first frame: the STATUSTEXT says so, not that it was sent)."""
         await self.rov.stop()
         logger.warning("stopped: %s", reason)
-        self._say(_SEVERITY_INFO, f"Disarmed: {reason}")
+        if self.messages.link_up:
+            self._say(_SEVERITY_INFO, f"Disarmed: {reason}")
+        else:
+            self._say(_SEVERITY_WARNING, "Disarmed; link down: #stop! sent when it is back")
         return Result.ACCEPTED
 
     async def set_mode(self, mode: FlightMode) -> Result:
@@ -280,27 +287,38 @@ class MavlinkBridge:
         if message.type == _GCS_TYPE and message.get_srcSystem() == self.parameters.pilot_system:
             self.watchdog.heartbeat(self._clock())
 
-    async def _on_manual_control(self, message: Any) -> None:
+    def _from_pilot(self, message: Any) -> bool:
+        """Whether pilot input comes from the pilot's ground station (``SYSID_MYGCS``)."""
         source = message.get_srcSystem()
-        if source != self.parameters.pilot_system:
-            # Two joysticks would take turns at the thrust, message by message (as ArduSub,
-            # only SYSID_MYGCS flies); said once per ground station, so that its pilot knows.
-            if source not in self._ignored_pilots:
-                self._ignored_pilots.add(source)
-                self._say(
-                    _SEVERITY_WARNING,
-                    f"Joystick of GCS {source} ignored: SYSID_MYGCS is "
-                    f"{self.parameters.pilot_system}",
-                )
+        if source == self.parameters.pilot_system:
+            return True
+        # Two joysticks would take turns at the thrust, message by message (as ArduSub, only
+        # SYSID_MYGCS flies); said once per ground station, so that its pilot knows.
+        if source not in self._ignored_pilots:
+            self._ignored_pilots.add(source)
+            self._say(
+                _SEVERITY_WARNING,
+                f"Joystick of GCS {source} ignored: SYSID_MYGCS is {self.parameters.pilot_system}",
+            )
+        return False
+
+    async def _on_manual_control(self, message: Any) -> None:
+        if not self._from_pilot(message):
             return
+        buttons = all_buttons(message.buttons, getattr(message, "buttons2", 0))  # (MAVLink 1: none)
+        await self._fly(message.x, message.y, message.z, buttons)
+
+    async def _on_rc_channels_override(self, message: Any) -> None:
+        if not self._from_pilot(message):
+            return
+        channels = [getattr(message, f"chan{n}_raw") for n in range(1, 9)]
+        x, y, z = self.rc_override.update(channels, self._clock())
+        await self._fly(x, y, z, None)
+
+    async def _fly(self, x: int, y: int, z: int, buttons: int | None) -> None:
+        """The pilot's stick (and buttons, ``None``: none in this input) to the robot."""
         output = self.pilot.manual_control(
-            message.x,
-            message.y,
-            message.z,
-            message.buttons,
-            mode=self.state.mode,
-            armed=self.armed,
-            now_s=self._clock(),
+            x, y, z, buttons, mode=self.state.mode, armed=self.armed, now_s=self._clock()
         )
         for command in output.commands:
             await self.rov.send(command)

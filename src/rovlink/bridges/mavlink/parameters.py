@@ -31,8 +31,9 @@ __all__ = [
     "read_parameter_file",
 ]
 
-#: MANUAL_CONTROL carries 16 buttons (``buttons``), as ArduSub's BTN0…BTN15_FUNCTION.
-BUTTON_COUNT = 16
+#: MANUAL_CONTROL carries 32 buttons (``buttons`` 0–15, the extension ``buttons2`` 16–31), as
+#: ArduSub's BTN0…BTN31_FUNCTION.
+BUTTON_COUNT = 32
 #: ArduSub's defaults for the buttons whose functions the bridge can carry out.
 DEFAULT_BUTTON_FUNCTIONS: Mapping[int, ButtonFunction] = {
     1: ButtonFunction.MODE_MANUAL,

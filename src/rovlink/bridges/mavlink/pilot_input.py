@@ -3,8 +3,10 @@
 x (forward) and y (right), −1000…1000, become ``#th.A.P!``: the direction the stick points,
 clockwise from the bow, and the stick's deflection as power. z, 0…1000 with 500 neutral, is
 vertical thrust (``#mvs!``) in MANUAL and moves the held depth (``#mvd!``) in ALT_HOLD. r (yaw)
-is ignored: the protocol has no yaw command. Buttons carry out their ``BTNn_FUNCTION`` once per
-press. Only changes are sent, so a joystick at 50 Hz does not fill the serial line.
+is ignored: the protocol has no yaw command. Buttons 0–15 (``buttons``) and 16–31 (the extension
+``buttons2``) carry out their ``BTNn_FUNCTION`` once per press. RC_CHANNELS_OVERRIDE's channels
+(:mod:`rc_override`) drive the same stick, without buttons. Only changes are sent, so a joystick
+at 50 Hz does not fill the serial line.
 
 Input that stops coming for :data:`INPUT_STALE_S` (P23) is expired with zero thrust.
 
@@ -30,6 +32,7 @@ __all__ = [
     "MAX_CLIMB_CM_S",
     "PilotInput",
     "PilotOutput",
+    "all_buttons",
     "horizontal",
     "vertical_thrust_percent",
 ]
@@ -45,6 +48,7 @@ _THROTTLE_DEADBAND = 50
 #: Longest gap between inputs that moves the held depth (a gap is not a held stick).
 _MAX_STEP_S = 0.2
 _NEUTRAL_Z = 500
+_FULL_Z = 1000
 _DEPTH_RANGE = lookup("mvd").arguments[0]
 _THRUST_RANGE = lookup("mvs").arguments[0]
 _POWER_RANGE = lookup("th").arguments[1]
@@ -52,6 +56,15 @@ _POWER_RANGE = lookup("th").arguments[1]
 
 def _axis(value: int, unused: int = 0) -> int:
     return unused if value == AXIS_UNUSED else value
+
+
+def all_buttons(buttons: int, buttons2: int) -> int:
+    """MANUAL_CONTROL's 32 buttons as one bit field: ``buttons`` 0–15, ``buttons2`` 16–31.
+
+    >>> all_buttons(1 << 6, 1) == 1 << 6 | 1 << 16
+    True
+    """
+    return (buttons & 0xFFFF) | (buttons2 & 0xFFFF) << 16
 
 
 def horizontal(x: int, y: int) -> tuple[int, int]:
@@ -143,16 +156,18 @@ class PilotInput:
         x: int,
         y: int,
         z: int,
-        buttons: int,
+        buttons: int | None,
         *,
         mode: FlightMode,
         armed: bool,
         now_s: float,
     ) -> PilotOutput:
-        """Take one MANUAL_CONTROL; the commands that carry out what changed."""
+        """Take one MANUAL_CONTROL (``buttons`` 0–31 as :func:`all_buttons` joins them; ``None``
+        for input without buttons, an RC override: they stay as they were); the commands that
+        carry out what changed."""
         previous_at_s = self.last_input_at_s
         self.last_input_at_s = now_s
-        pressed = self._pressed(buttons)
+        pressed = () if buttons is None else self._pressed(buttons)
         if not armed:  # the controller drops motion while locked (P7): nothing to send
             return PilotOutput((), pressed)
         commands: list[Command] = []
@@ -164,7 +179,8 @@ class PilotInput:
         ):
             commands.append(Command("th", (direction, power)))
             self._direction_deg, self._power_percent = direction, power
-        throttle = _axis(z, _NEUTRAL_Z)
+        # ArduSub's 0…1000 (MAVLink's common range is −1000…1000): beyond it, full throttle.
+        throttle = max(0, min(_FULL_Z, _axis(z, _NEUTRAL_Z)))
         if mode is FlightMode.MANUAL:
             thrust = vertical_thrust_percent(throttle)
             if thrust != self._thrust_percent:

@@ -10,6 +10,7 @@ QoS and what survives a broker outage:
   to 1000) and published, in order, when it is back.
 * ``cmd``: QoS 1 with a clean session: a command published while the bridge is away is not kept
   for later (a late ``th 90 100`` is not what anyone wants); the sender gets no reply.
+  Commands are carried out in order, one at a time; a ``stop`` at once, ahead of the rest.
 * the last will: retained ``{"online": false}`` on ``state`` when the bridge vanishes. A bridge
   that ends on its own says why instead: ``bridge stopped``, ``controller link lost: …`` (after a
   ``link`` event) or ``bridge failed: …``.
@@ -21,12 +22,13 @@ import asyncio
 import contextlib
 import time
 from collections.abc import Callable, Coroutine
+from dataclasses import dataclass
 from typing import Any
 
 from rovlink.aio.wakeup import wait_for_event
 from rovlink.bridges.kept_settings import KeptSettings
 from rovlink.bridges.mqtt.broker import BrokerSettings
-from rovlink.bridges.mqtt.commands import CommandPolicy
+from rovlink.bridges.mqtt.commands import CommandPolicy, could_move
 from rovlink.bridges.mqtt.outbox import Outbox
 from rovlink.bridges.mqtt.payloads import (
     CommandRequest,
@@ -47,7 +49,7 @@ from rovlink.client.sensors import Sensors
 from rovlink.logs import get_logger
 from rovlink.piloting.commanded import LockState
 from rovlink.piloting.tracked import TrackedClient
-from rovlink.protocol import Command
+from rovlink.protocol import Command, Response
 
 __all__ = ["BridgeReplacedError", "MqttBridge"]
 
@@ -63,6 +65,12 @@ _RETAINED_STOP = (
     "published retained: carried out, as stop always is, but publish commands without retain "
     "(clear this one with an empty retained message)"
 )
+_STOP_KEPT_FOR_THE_LINK = (
+    "not sent yet: the controller link is down; #stop! goes out as the reopened link's first "
+    "frame (a link event says when it is back), and meanwhile the controller's own link-loss "
+    "watchdog stops the robot"
+)
+_OVERTAKEN_BY_STOP = "not sent: a stop published after it was carried out first"
 #: The retained state is refreshed at least this often (its ``at`` and link silence).
 _STATE_REFRESH_S = 2.0
 #: Reconnection backoff: first wait, doubled up to the last.
@@ -79,6 +87,19 @@ _SESSION_TAKEN_OVER = 0x8E
 _STABLE_CONNECTION_S = 10.0
 #: Connections in a row ended this soon that make the bridge say a second one may be running.
 _SHORT_LIVED_WARNING = 3
+
+
+@dataclass(frozen=True, slots=True)
+class _Asked:
+    """A command from the broker, checked, waiting to be carried out."""
+
+    message: Any
+    request: CommandRequest
+    command: Command
+    warning: str | None
+    #: How many stops the bridge had carried out when it came: one more, and a command that could
+    #: move the robot is not sent.
+    stops_before: int
 
 
 class BridgeReplacedError(Exception):
@@ -125,6 +146,8 @@ class MqttBridge:
         self._link_lost_reported = False
         #: The controller's link is lost and being reopened (a client with ``reconnect``).
         self._link_down = False
+        #: Stops from the broker carried out so far (a stop overtakes what came before it).
+        self._stops = 0
         #: The kept event being published (see :meth:`_publish_kept_events`).
         self._event_publish: asyncio.Future[None] | None = None
         self.poller = SensorPoller(rov, self._on_reading, rate_hz=rate_hz)
@@ -267,8 +290,10 @@ class MqttBridge:
         )
         self._last_state = None  # publish it afresh: the broker may have restarted
         self.connected.set()
+        queue: asyncio.Queue[_Asked] = asyncio.Queue()
         tasks = [
-            asyncio.ensure_future(self._receive(mqtt)),
+            asyncio.ensure_future(self._receive(mqtt, queue)),
+            asyncio.ensure_future(self._carry_out_in_order(mqtt, queue)),
             asyncio.ensure_future(self._publish(mqtt)),
         ]
         try:
@@ -281,9 +306,31 @@ class MqttBridge:
                 running.cancel()
             await asyncio.gather(*tasks, return_exceptions=True)
 
-    async def _receive(self, mqtt: Any) -> None:
+    async def _receive(self, mqtt: Any, queue: asyncio.Queue[_Asked]) -> None:
+        """Commands in the order they came, one at a time (a query waits for its reply), but a
+        ``stop`` at once: it must not wait for a query the controller does not answer. What came
+        before it and is not yet sent is not to unlock or move the robot after it: those
+        commands are dropped (answered so); the others (settings, queries) follow in order."""
         async for message in mqtt.messages:
-            await self._on_command(mqtt, message)
+            asked = await self._read_command(mqtt, message)
+            if asked is None:
+                continue
+            if asked.command.name != "stop":
+                queue.put_nowait(asked)
+                continue
+            self._stops += 1
+            waiting = [queue.get_nowait() for _ in range(queue.qsize())]
+            for kept in waiting:
+                if not could_move(kept.command):
+                    queue.put_nowait(kept)
+            await self._carry_out(mqtt, asked)
+            for overtaken in waiting:
+                if could_move(overtaken.command):
+                    await self._answer(mqtt, overtaken, error=_OVERTAKEN_BY_STOP)
+
+    async def _carry_out_in_order(self, mqtt: Any, queue: asyncio.Queue[_Asked]) -> None:
+        while True:
+            await self._carry_out(mqtt, await queue.get())
 
     async def _publish(self, mqtt: Any) -> None:
         loop = asyncio.get_running_loop()
@@ -360,43 +407,82 @@ class MqttBridge:
 
     # -- commands ------------------------------------------------------------------------------
 
-    async def _on_command(self, mqtt: Any, message: Any) -> None:
+    async def _read_command(self, mqtt: Any, message: Any) -> _Asked | None:
+        """The command a message asks for, if it may be carried out; else the reply saying why
+        is sent (``None``)."""
         request: CommandRequest | None = None
         payload = message.payload if isinstance(message.payload, bytes) else b""
         retained = bool(getattr(message, "retain", False))
         if retained and not payload:
-            return  # a retained command being cleared (an empty retained message): not one
-        warning = None
+            return None  # a retained command being cleared (an empty retained message): not one
+        warnings = []
         try:
             request = read_request(payload)
             command = self.policy.check(request.text)
+            # Stop can only make the robot safer (P3): carried out however it came.
+            if request.id_problem is not None:
+                if command.name != "stop":
+                    raise PayloadError(request.id_problem)
+                warnings.append(f"{request.id_problem}: carried out, as stop always is")
             if retained:
                 if command.name != "stop":
                     raise PayloadError(_RETAINED_REFUSED)
-                # Stop can only make the robot safer (P3): carried out however it came.
-                warning = _RETAINED_STOP
+                warnings.append(_RETAINED_STOP)
         except (PayloadError, ValueError) as error:
             await self._reply(
                 mqtt, message, reply_payload(self.robot_id, request, error=str(error))
             )
-            return
-        try:
+            return None
+        return _Asked(message, request, command, "; ".join(warnings) or None, self._stops)
+
+    async def _carry_out(self, mqtt: Any, asked: _Asked) -> None:
+        """Send the command asked for and answer with what became of it."""
+        command, warning = asked.command, asked.warning
+        if command.name == "stop":
+            if self._link_down:
+                # The driver keeps it to be the reopened link's first frame: it is not written,
+                # so the asker is not told it was (as "ok" would say).
+                await self.rov.send(command)
+                await self._answer(mqtt, asked, error=_STOP_KEPT_FOR_THE_LINK)
+                return
+        else:
             await self._restore_settings()  # (after a reset: before what may build on them)
+            if could_move(command) and asked.stops_before != self._stops:  # a stop came since
+                await self._answer(mqtt, asked, error=_OVERTAKEN_BY_STOP)
+                return
+        try:
             replies = await self.rov.send(command)
         except QueryTimeoutError as error:
-            answer = reply_payload(self.robot_id, request, frame=str(command), error=str(error))
+            await self._answer(mqtt, asked, frame=str(command), error=str(error))
         except ConnectionError as error:
             if not reopening(self.rov, error):
                 raise  # the controller is gone for good: the bridge ends
-            answer = reply_payload(
-                self.robot_id, request, error=f"not sent: the controller link is down ({error})"
+            await self._answer(
+                mqtt, asked, error=f"not sent: the controller link is down ({error})"
             )
         else:
             warning = warning or self._dropped_because(command)
-            answer = reply_payload(
-                self.robot_id, request, frame=str(command), replies=replies, warning=warning
-            )
-        await self._reply(mqtt, message, answer)
+            await self._answer(mqtt, asked, frame=str(command), replies=replies, warning=warning)
+
+    async def _answer(
+        self,
+        mqtt: Any,
+        asked: _Asked,
+        *,
+        frame: str | None = None,
+        replies: tuple[Response, ...] = (),
+        error: str | None = None,
+        warning: str | None = None,
+    ) -> None:
+        answer = reply_payload(
+            self.robot_id,
+            asked.request,
+            frame=frame,
+            replies=replies,
+            error=error,
+            warning=warning or asked.warning,
+        )
+        await self._reply(mqtt, asked.message, answer)
 
     def _dropped_because(self, command: Command) -> str | None:
         """Why the controller drops ``command`` just sent (locked, the other vertical mode), as

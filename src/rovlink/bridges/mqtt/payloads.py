@@ -43,6 +43,9 @@ class CommandRequest:
 
     text: str
     request_id: str | int | None = None
+    #: What is wrong with the request's ``id`` (then ``None``): the command is refused, but a
+    #: ``stop`` is carried out all the same.
+    id_problem: str | None = None
 
 
 def encode(payload: dict[str, Any]) -> bytes:
@@ -152,12 +155,14 @@ def reply_payload(
 def read_request(payload: bytes) -> CommandRequest:
     """The command in a payload of the command topic (``PayloadError`` if there is none).
 
-    >>> read_request(b"th 90 30"), read_request(b'{"command": "stop", "id": 7}')
-    (CommandRequest(text='th 90 30', request_id=None), CommandRequest(text='stop', request_id=7))
+    >>> read_request(b"th 90 30").text, read_request(b'{"command": "stop", "id": 7}').request_id
+    ('th 90 30', 7)
     >>> read_request(b'{"cmd": "stop"}')
     Traceback (most recent call last):
     ...
     rovlink.bridges.mqtt.payloads.PayloadError: a JSON request needs "command", a string
+    >>> read_request(b'{"command": "stop", "id": 1.5}').id_problem
+    '"id" must be a string or an integer, got 1.5'
     """
     if len(payload) > MAX_REQUEST_BYTES:
         raise PayloadError(f"payload of {len(payload)} bytes; a command is at most 512")
@@ -182,5 +187,7 @@ def read_request(payload: bytes) -> CommandRequest:
     if request_id is not None and (
         isinstance(request_id, bool) or not isinstance(request_id, (str, int))
     ):
-        raise PayloadError('"id" must be a string or an integer')
+        # Not raised here: a stop with a bad id must still stop the robot.
+        problem = f'"id" must be a string or an integer, got {json.dumps(request_id)}'
+        return CommandRequest(command.strip(), None, problem)
     return CommandRequest(command.strip(), request_id)
