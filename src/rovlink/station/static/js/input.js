@@ -21,7 +21,7 @@ const BUTTON_ACTIONS = ["unlock", "stop", "claw_open", "claw_close", "mode"];
 // key: Shift with the arrows selects text there.
 function typingIn(target) {
   if (!(target instanceof Element)) return false;
-  if (target.isContentEditable || target.tagName === "TEXTAREA" || target.tagName === "SELECT") return true;
+  if (target.isContentEditable || target.tagName === "TEXTAREA") return true;
   return target.tagName === "INPUT"
     && !["button", "submit", "reset", "checkbox", "radio"].includes(target.type);
 }
