@@ -597,4 +597,15 @@ def test_learning_a_button_fires_nothing(browser, station, line):
     line.wait_for("#stop!", after=mark)
     assert line.frames(mark, commands_only=True) == ["#stop!"]
     page.click("#mapping-editor button:text('default mapping')")
+    # A number the pad cannot have is refused, named, and the button kept: before, STOP was
+    # mapped to button 40 (or, left empty, to 0: unlock) and B stopped nothing.
+    for typed in ("40", "1.5", ""):
+        page.fill("[data-button='stop']", typed)
+        page.press("[data-button='stop']", "Enter")
+        mark = line.mark()
+        set_pad(page, stop_button=True)
+        line.wait_for("#stop!", after=mark, timeout_s=1.0)
+        set_pad(page, stop_button=False)
+        page.wait_for_selector("#toast:has-text('STOP (#stop!): a button number 0–31')")
+        assert page.input_value("[data-button='stop']") == "1"
     page.context.close()

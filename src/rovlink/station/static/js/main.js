@@ -435,9 +435,22 @@ function renderMapping() {
   editor.replaceChildren(table, reset);
   table.addEventListener("change", (event) => {
     const el = event.target;
-    if (el.dataset.axis) mapping.axes[el.dataset.axis].index = Number(el.value);
     if (el.dataset.invert) mapping.axes[el.dataset.invert].invert = el.checked;
-    if (el.dataset.button) mapping.buttons[el.dataset.button] = Number(el.value);
+    if (el.dataset.axis || el.dataset.button) {
+      // A number the pad cannot have is refused and the old one kept: Number("") is 0 and a
+      // button 40 never reads pressed, which would leave the pad's STOP doing nothing.
+      const value = Number(el.value);
+      const kept = el.dataset.axis ? mapping.axes[el.dataset.axis].index : mapping.buttons[el.dataset.button];
+      if (el.value.trim() === "" || !Number.isInteger(value) || value < Number(el.min) || value > Number(el.max)) {
+        const label = el.dataset.axis ? AXES[el.dataset.axis] : ACTIONS[el.dataset.button];
+        const kind = el.dataset.axis ? "an axis" : "a button";
+        toast(`${label}: ${kind} number ${el.min}–${el.max}, not "${el.value}"; kept ${kept}`);
+        el.value = String(kept);
+        return;
+      }
+      if (el.dataset.axis) mapping.axes[el.dataset.axis].index = value;
+      else mapping.buttons[el.dataset.button] = value;
+    }
     saveMapping(mapping);
   });
   table.addEventListener("click", (event) => {
