@@ -143,7 +143,21 @@ def test_no_thrust_without_the_dead_man(browser, station, line):
     mark = line.mark()
     set_pad(page, axes=[0, -1, 0, 0])  # full ahead, dead-man not held
     page.wait_for_function("window.rovlinkStation.devices.lastInput?.power_percent === 100")
-    set_pad(page, axes=[0, -1, 0, 0], stop_button=True)  # a fence: STOP reaches the robot
+    # Nor the dead-man pressed as the answer to *learn* ("that press does nothing else"), while
+    # learning or held on after it (before, it flew at once).
+    page.click("[data-learn='claw_open']")
+    set_pad(page, axes=[0, -1, 0, 0], deadman=True)
+    page.wait_for_function(
+        "JSON.parse(localStorage.getItem('rovlink.mapping') || '{}').buttons?.claw_open === 4"
+    )
+    page.wait_for_function(  # the page polled the held dead-man after learning
+        "!window.rovlinkStation.devices.learning"
+        " && window.rovlinkStation.devices.lastInput?.deadman === false",
+        timeout=2000,
+    )
+    set_pad(
+        page, axes=[0, -1, 0, 0], deadman=True, stop_button=True
+    )  # a fence: STOP reaches the robot
     line.wait_for("#stop!", after=mark)
     assert not [frame for frame in line.frames(mark) if frame.startswith("#th.0.")]
     page.context.close()
