@@ -257,6 +257,18 @@ def stop_key_reaches_the_robot(page: Page, line: ControllerLine, key: str, where
     line.wait_until(lambda: line.frames(mark, commands_only=True) == ["#stop!"], timeout_s=0.2)
 
 
+# STOP on screen, nothing over it (its centre and corners), and no sideways scroll.
+STOP_REACHABLE = """() => {
+  const box = document.getElementById('stop').getBoundingClientRect();
+  const points = [[(box.left + box.right) / 2, (box.top + box.bottom) / 2],
+    [box.left + 4, box.top + 4], [box.right - 4, box.top + 4],
+    [box.left + 4, box.bottom - 4], [box.right - 4, box.bottom - 4]];
+  return box.left >= 0 && box.right <= innerWidth && box.top >= 0
+    && points.every(([x, y]) => document.elementFromPoint(x, y)?.id === 'stop')
+    && document.documentElement.scrollWidth <= innerWidth;
+}"""
+
+
 # Everything on the page that can hold the keyboard's focus; a <select> is also clicked open.
 FOCUSABLE = "button:not([disabled]), summary, a[href], input, select, textarea, [tabindex]"
 VISIBLE = "els => els.map((el, i) => [i, el.offsetParent !== null, el.outerHTML.slice(0, 70)])"
@@ -302,14 +314,7 @@ def test_no_control_on_the_page_keeps_the_stop_keys(browser, station, line):
         page.set_viewport_size({"width": width, "height": 700})
         page.mouse.wheel(0, 2000)
         page.wait_for_function("scrollY > 0")
-        reachable = """() => {
-          const box = document.getElementById('stop').getBoundingClientRect();
-          const x = (box.left + box.right) / 2, y = (box.top + box.bottom) / 2;
-          return box.left >= 0 && box.right <= innerWidth && box.top >= 0
-            && document.elementFromPoint(x, y)?.id === 'stop'
-            && document.documentElement.scrollWidth <= innerWidth;
-        }"""
-        assert page.evaluate(reachable), f"STOP not fully on screen {width} px wide"
+        assert page.evaluate(STOP_REACHABLE), f"STOP not fully on screen {width} px wide"
     page.context.close()
 
 
@@ -469,6 +474,7 @@ def test_the_record_button_records_and_the_page_downloads(browser, line, tmp_pat
         page.click("#record")
         page.wait_for_selector("#recording:not(.active)")
         page.click("#recordings summary")
+        assert page.evaluate(STOP_REACHABLE)  # (before, the open list lay over it)
         with page.expect_download() as download_info:
             page.click("#recordings-list a")
         downloaded = tmp_path / "from-the-page.mcap"
