@@ -370,6 +370,10 @@ def test_a_second_browser_cannot_command(browser, station, line):
     assert line.frames(mark, commands_only=True) == ["#start!"]
     # Taking control is explicit (the watcher is asked, on the page) and both see it.
     watcher.click("#take-control")
+    watcher.click("#take-control-no")  # asked, and cancelled: nothing changes
+    watcher.wait_for_selector("#take-control-question", state="hidden")
+    assert watcher.is_visible("#take-control")
+    watcher.click("#take-control")
     watcher.wait_for_selector("#take-control-question:has-text('Take control from browser 1')")
     # The question is no browser dialog, which would stop the page: the STOP keys still work.
     for key in ("Space", "Escape"):
