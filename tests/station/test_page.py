@@ -143,7 +143,21 @@ def test_no_thrust_without_the_dead_man(browser, station, line):
     mark = line.mark()
     set_pad(page, axes=[0, -1, 0, 0])  # full ahead, dead-man not held
     page.wait_for_function("window.rovlinkStation.devices.lastInput?.power_percent === 100")
-    set_pad(page, axes=[0, -1, 0, 0], stop_button=True)  # a fence: STOP reaches the robot
+    # Nor the dead-man pressed as the answer to *learn* ("that press does nothing else"), while
+    # learning or held on after it (before, it flew at once).
+    page.click("[data-learn='claw_open']")
+    set_pad(page, axes=[0, -1, 0, 0], deadman=True)
+    page.wait_for_function(
+        "JSON.parse(localStorage.getItem('rovlink.mapping') || '{}').buttons?.claw_open === 4"
+    )
+    page.wait_for_function(  # the page polled the held dead-man after learning
+        "!window.rovlinkStation.devices.learning"
+        " && window.rovlinkStation.devices.lastInput?.deadman === false",
+        timeout=2000,
+    )
+    set_pad(
+        page, axes=[0, -1, 0, 0], deadman=True, stop_button=True
+    )  # a fence: STOP reaches the robot
     line.wait_for("#stop!", after=mark)
     assert not [frame for frame in line.frames(mark) if frame.startswith("#th.0.")]
     page.context.close()
@@ -219,6 +233,91 @@ def test_a_page_whose_socket_drops_reconnects_as_a_watcher(browser, station, lin
     page.context.close()
 
 
+def choose_device(page: Page, value: str) -> None:
+    """Choose the input device (``keyboard``, ``auto``, ``pad:ID``) under *Input device*."""
+    page.click(f"#device-choice button[data-device='{value}']")
+    page.wait_for_selector(f"#device-choice button[data-device='{value}'][aria-pressed='true']")
+
+
+def take_control_from_another(page: Page) -> None:
+    """Take control while another page has it: the page asks first, and is answered yes."""
+    page.click("#take-control")
+    page.click("#take-control-yes")
+    page.wait_for_selector("#control.pilot")
+
+
+def stop_key_reaches_the_robot(page: Page, line: ControllerLine, key: str, where: str) -> None:
+    mark = line.mark()
+    page.keyboard.press(key)
+    try:
+        line.wait_for("#stop!", after=mark, timeout_s=1.0)
+    except AssertionError:
+        raise AssertionError(f"{key} with {where} did not stop the robot") from None
+    # Only the STOP: the key did nothing else (no click on a focused button).
+    line.wait_until(lambda: line.frames(mark, commands_only=True) == ["#stop!"], timeout_s=0.2)
+
+
+# STOP on screen, nothing over it (its centre and corners), and no sideways scroll.
+STOP_REACHABLE = """() => {
+  const box = document.getElementById('stop').getBoundingClientRect();
+  const points = [[(box.left + box.right) / 2, (box.top + box.bottom) / 2],
+    [box.left + 4, box.top + 4], [box.right - 4, box.top + 4],
+    [box.left + 4, box.bottom - 4], [box.right - 4, box.bottom - 4]];
+  return box.left >= 0 && box.right <= innerWidth && box.top >= 0
+    && points.every(([x, y]) => document.elementFromPoint(x, y)?.id === 'stop')
+    && document.documentElement.scrollWidth <= innerWidth;
+}"""
+
+
+# Everything on the page that can hold the keyboard's focus; a <select> is also clicked open.
+FOCUSABLE = "button:not([disabled]), summary, a[href], input, select, textarea, [tabindex]"
+VISIBLE = "els => els.map((el, i) => [i, el.offsetParent !== null, el.outerHTML.slice(0, 70)])"
+FOCUS = "([selector, index]) => document.querySelectorAll(selector)[index].focus()"
+PAGE_STATE = """() => ({
+  pilot: document.getElementById('control').classList.contains('pilot'),
+  recording: document.getElementById('recording').classList.contains('active'),
+  open: [...document.querySelectorAll('details')].map(d => d.open),
+  ticked: [...document.querySelectorAll('input[type=checkbox]')].map(c => c.checked),
+  values: [...document.querySelectorAll('input, select')].map(i => i.value),
+  device: localStorage.getItem('rovlink.device'),
+})"""
+
+
+def test_no_control_on_the_page_keeps_the_stop_keys(browser, station, line):
+    page = open_page(browser, station)
+    take_control(page)
+    page.click("#settings-panel summary")  # its fields shown too
+    page.wait_for_selector("#setting-mgmp", state="visible")
+    before = page.evaluate(PAGE_STATE)
+    controls = page.locator(FOCUSABLE)
+    checked = 0
+    for index, visible, where in controls.evaluate_all(VISIBLE):
+        if not visible or where.startswith('<button id="stop"'):
+            continue
+        # Space activates buttons, boxes and summaries; Esc closes dropdowns and clears fields.
+        typed_in = where.startswith(("<select", "<input", "<textarea"))
+        for key in ("Space", "Escape") if typed_in else ("Space",):
+            if where.startswith("<select"):
+                controls.nth(index).click()  # its dropdown opened
+            else:
+                page.evaluate(FOCUS, [FOCUSABLE, index])
+            stop_key_reaches_the_robot(page, line, key, where)
+        checked += 1
+    assert checked > 20  # (the panels' controls were all there)
+    assert page.evaluate(PAGE_STATE) == before  # no key clicked, ticked, opened or chose
+    # No field offers the browser's autocomplete list, which takes Esc while open.
+    assert page.evaluate(
+        "[...document.querySelectorAll('input[type=number]')].every(i => i.autocomplete === 'off')"
+    )
+    # STOP stays on screen, clear of anything over it, on a narrow window scrolled down.
+    for width in (1024, 800):
+        page.set_viewport_size({"width": width, "height": 700})
+        page.mouse.wheel(0, 2000)
+        page.wait_for_function("scrollY > 0")
+        assert page.evaluate(STOP_REACHABLE), f"STOP not fully on screen {width} px wide"
+    page.context.close()
+
+
 def test_the_stop_button_and_the_stop_keys_send_stop(browser, station, line):
     page = open_page(browser, station, pad=False)
     for press in (
@@ -269,21 +368,22 @@ def test_a_second_browser_cannot_command(browser, station, line):
     set_pad(pilot, unlock=True)  # a fence from the pilot
     line.wait_for("#start!", after=mark)
     assert line.frames(mark, commands_only=True) == ["#start!"]
-    # Taking control is explicit (the watcher confirms it) and both see it.
-    asked: list[str] = []
-
-    def confirm(dialog: Any) -> None:
-        asked.append(dialog.message)
-        dialog.accept()
-
-    watcher.once("dialog", confirm)
-    taken = line.mark()
+    # Taking control is explicit (the watcher is asked, on the page) and both see it.
     watcher.click("#take-control")
+    watcher.click("#take-control-no")  # asked, and cancelled: nothing changes
+    watcher.wait_for_selector("#take-control-question", state="hidden")
+    assert watcher.is_visible("#take-control")
+    watcher.click("#take-control")
+    watcher.wait_for_selector("#take-control-question:has-text('Take control from browser 1')")
+    # The question is no browser dialog, which would stop the page: the STOP keys still work.
+    for key in ("Space", "Escape"):
+        stop_key_reaches_the_robot(watcher, line, key, "the take-control question shown")
+    taken = line.mark()
+    watcher.click("#take-control-yes")
     watcher.wait_for_selector("#control.pilot")
     pilot.wait_for_function(
         "document.getElementById('control-status').textContent.startsWith('watching')"
     )
-    assert "has control. Take it?" in asked[0]
     # The unlock button the watcher held all along is no press: nothing was sent for it.
     set_pad(watcher, deadman=False, unlock=False)
     watcher.click("#claw-close")  # a fence
@@ -298,7 +398,7 @@ def _flying_by_keyboard(browser, station, line):
     """A pilot's page on the keyboard, the robot unlocked and the relay armed."""
     page = open_page(browser, station, pad=False)
     take_control(page)
-    page.select_option("#device-select", "keyboard")
+    choose_device(page, "keyboard")
     page.click("#unlock")
     line.wait_for("#start!")
     page.wait_for_function(
@@ -332,7 +432,7 @@ def test_no_silent_pick_of_the_input_device(browser, station, line):
     page.wait_for_selector("#device-status:has-text('Pad A')")
     page.evaluate("fakePads.connect('Pad B (STANDARD GAMEPAD)')")
     page.wait_for_selector("#device-status:has-text('several gamepads: choose one')")
-    page.select_option("#device-select", "pad:Pad B (STANDARD GAMEPAD)")
+    choose_device(page, "pad:Pad B (STANDARD GAMEPAD)")
     page.wait_for_selector("#device-status:has-text('Pad B')")
     page.reload()  # the choice is kept
     page.wait_for_function("window.rovlinkStation && window.rovlinkStation.station.id !== null")
@@ -378,6 +478,7 @@ def test_the_record_button_records_and_the_page_downloads(browser, line, tmp_pat
         page.click("#record")
         page.wait_for_selector("#recording:not(.active)")
         page.click("#recordings summary")
+        assert page.evaluate(STOP_REACHABLE)  # (before, the open list lay over it)
         with page.expect_download() as download_info:
             page.click("#recordings-list a")
         downloaded = tmp_path / "from-the-page.mcap"
@@ -448,8 +549,7 @@ def test_stop_on_the_pad_of_a_page_that_lost_control_still_stops(browser, statio
     set_pad(first, axes=[1, 0, 0, 0], deadman=True)
     line.wait_for("#th.90.100!", after=mark)
     second = open_page(browser, station, pad=False)
-    second.once("dialog", lambda dialog: dialog.accept())
-    second.click("#take-control")
+    take_control_from_another(second)
     first.wait_for_selector("#flight-status:has-text('you are no longer the pilot')")
     mark = line.mark()
     set_pad(first, stop_button=True)  # (before, a pad's STOP did nothing once control was lost)
@@ -521,4 +621,15 @@ def test_learning_a_button_fires_nothing(browser, station, line):
     line.wait_for("#stop!", after=mark)
     assert line.frames(mark, commands_only=True) == ["#stop!"]
     page.click("#mapping-editor button:text('default mapping')")
+    # A number the pad cannot have is refused, named, and the button kept: before, STOP was
+    # mapped to button 40 (or, left empty, to 0: unlock) and B stopped nothing.
+    for typed in ("40", "1.5", ""):
+        page.fill("[data-button='stop']", typed)
+        page.press("[data-button='stop']", "Enter")
+        mark = line.mark()
+        set_pad(page, stop_button=True)
+        line.wait_for("#stop!", after=mark, timeout_s=1.0)
+        set_pad(page, stop_button=False)
+        page.wait_for_selector("#toast:has-text('STOP (#stop!): a button number 0–31')")
+        assert page.input_value("[data-button='stop']") == "1"
     page.context.close()

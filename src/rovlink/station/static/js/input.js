@@ -21,7 +21,7 @@ const BUTTON_ACTIONS = ["unlock", "stop", "claw_open", "claw_close", "mode"];
 // key: Shift with the arrows selects text there.
 function typingIn(target) {
   if (!(target instanceof Element)) return false;
-  if (target.isContentEditable || target.tagName === "TEXTAREA" || target.tagName === "SELECT") return true;
+  if (target.isContentEditable || target.tagName === "TEXTAREA") return true;
   return target.tagName === "INPUT"
     && !["button", "submit", "reset", "checkbox", "radio"].includes(target.type);
 }
@@ -77,6 +77,7 @@ export class InputDevices {
     this.previousButtons = {};
     this.buttonsOf = null;  // the pad previousButtons were read from
     this.learning = false;  // a button of the mapping is being learnt
+    this.deadmanHeldOff = false;  // since learning: until the dead-man reads released
     this.status = "";
     this.lastInput = null;
     addEventListener("gamepadconnected", () => this.onChange());
@@ -165,6 +166,13 @@ export class InputDevices {
     if (device.kind === "gamepad") {
       input = { ...padInput(device.pad, mapping), pad_timestamp_ms: device.pad.timestamp,
         source: "gamepad" };
+      // The press being learnt is the answer, not the dead-man: it moves nothing, and nor does
+      // it held on after (the button learnt may be the dead-man's) until it is let go.
+      if (this.learning) this.deadmanHeldOff = true;
+      if (this.deadmanHeldOff) {
+        if (!this.learning && !input.deadman) this.deadmanHeldOff = false;
+        input.deadman = false;
+      }
     } else if (device.kind === "keyboard") {
       input = { ...this.keyboard.input(), source: "keyboard" };
     } else if (this.lastSent && this.lastSent.deadman) {

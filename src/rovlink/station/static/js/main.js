@@ -205,10 +205,20 @@ function setControl(pilotId, pilotLabel, why = null) {
   document.body.classList.toggle("watching", !mine);
   $("control-status").textContent = mine ? "you are the pilot"
     : pilotId ? `watching: ${pilotLabel} has control` : "watching: nobody has control";
-  $("take-control").hidden = mine;
+  station.pilotLabel = pilotLabel;
   $("release-control").hidden = !mine;
+  showTakeQuestion();
   $("record").disabled = !mine;  // only the pilot starts and stops a recording
   showFlightStatus();
+}
+
+// Taking control from another pilot asks first, on the page (see the take-control button).
+function showTakeQuestion() {
+  const mine = station.pilotId !== null && station.pilotId === station.id;
+  if (mine || !station.pilotId) station.askingToTake = false;
+  $("take-control-question").hidden = !station.askingToTake;
+  $("take-control").hidden = mine || station.askingToTake;
+  text("take-control-text", `Take control from ${station.pilotLabel}? Their thrust goes to zero.`);
 }
 
 // The banner under the top bar: the pilot is told why nothing moves; a page that lost control,
@@ -331,7 +341,7 @@ function buildSettings(limits) {
     const argument = limits[name].arguments[0];
     const row = document.createElement("form");
     row.className = "setting-row";
-    row.innerHTML = `<span class="name"></span><input type="number" required step="1">
+    row.innerHTML = `<span class="name"></span><input type="number" required step="1" autocomplete="off">
       <span class="muted"></span><button type="submit">Send</button>`;
     row.querySelector(".name").textContent = `${label} (#${name})`;
     const input = row.querySelector("input");
@@ -349,12 +359,12 @@ function buildSettings(limits) {
 
 // -- input devices and mapping ---------------------------------------------------------------
 
+let renderedDevices = null;
 function renderDevices() {
   const active = devices.active();
   const badge = $("device-status");
   badge.textContent = active.kind ? `input: ${active.label}` : active.label;
   badge.className = "badge " + (active.kind ? "ok" : "warn");
-  const select = $("device-select");
   const pads = devices.pads();
   const options = [["auto", "automatic (the one standard pad)"], ["keyboard", "keyboard"],
     ...pads.filter((pad) => !devices.ignored.has(pad.id)).map((pad) => [`pad:${pad.id}`, `gamepad: ${pad.id}`])];
@@ -363,7 +373,26 @@ function renderDevices() {
   if (choice && choice.kind === "gamepad" && !options.some(([value]) => value === chosen)) {
     options.push([chosen, `gamepad: ${choice.id} (not connected)`]);
   }
-  select.replaceChildren(...options.map(([value, label]) => new Option(label, value, false, value === chosen)));
+  // Rebuilt only when what it shows changed: a rebuild between a press and its release (the
+  // badge changes as the focus leaves a field) would lose the click.
+  const shown = JSON.stringify([options, chosen, pads.map((pad) => [pad.id, pad.mapping]),
+    [...devices.ignored]]);
+  if (shown === renderedDevices) return;
+  renderedDevices = shown;
+  // Buttons, not a <select>: an open native dropdown keeps Space and Esc from the page, and
+  // with them the pilot's STOP keys.
+  const group = $("device-choice");
+  const focused = group.contains(document.activeElement) ? document.activeElement.dataset.device : null;
+  group.replaceChildren(...options.map(([value, label]) => {
+    const button = document.createElement("button");
+    button.type = "button";
+    button.dataset.device = value;
+    button.textContent = label;
+    button.setAttribute("aria-pressed", String(value === chosen));
+    return button;
+  }));
+  // The keyboard's place in the group is kept.
+  if (focused) group.querySelector(`[data-device="${CSS.escape(focused)}"]`)?.focus();
   const list = $("pad-list");
   list.replaceChildren(...pads.map((pad) => {
     const row = document.createElement("div");
@@ -378,10 +407,9 @@ function renderDevices() {
   }));
 }
 
-// Keys pressed in a field do not fly (input.js): a choice made, the keys go back to flying.
-$("device-select").addEventListener("change", (event) => {
-  event.target.blur();
-  const value = event.target.value;
+$("device-choice").addEventListener("click", (event) => {
+  const value = event.target.closest("button[data-device]")?.dataset.device;
+  if (value === undefined) return;
   devices.choose(value === "auto" ? null : value === "keyboard" ? { kind: "keyboard" }
     : { kind: "gamepad", id: value.slice(4) });
 });
@@ -392,11 +420,11 @@ function renderMapping() {
   const rows = [];
   for (const [name, label] of Object.entries(AXES)) {
     const axis = mapping.axes[name];
-    rows.push(`<tr><td>${label}</td><td>axis <input type="number" min="0" max="15" data-axis="${name}" value="${axis.index}"></td>
+    rows.push(`<tr><td>${label}</td><td>axis <input type="number" min="0" max="15" autocomplete="off" data-axis="${name}" value="${axis.index}"></td>
       <td><label><input type="checkbox" data-invert="${name}" ${axis.invert ? "checked" : ""}> invert</label></td></tr>`);
   }
   for (const [name, label] of Object.entries(ACTIONS)) {
-    rows.push(`<tr><td>${label}</td><td>button <input type="number" min="0" max="31" data-button="${name}" value="${mapping.buttons[name]}"></td>
+    rows.push(`<tr><td>${label}</td><td>button <input type="number" min="0" max="31" autocomplete="off" data-button="${name}" value="${mapping.buttons[name]}"></td>
       <td><button type="button" data-learn="${name}">learn</button></td></tr>`);
   }
   table.innerHTML = rows.join("");
@@ -407,9 +435,22 @@ function renderMapping() {
   editor.replaceChildren(table, reset);
   table.addEventListener("change", (event) => {
     const el = event.target;
-    if (el.dataset.axis) mapping.axes[el.dataset.axis].index = Number(el.value);
     if (el.dataset.invert) mapping.axes[el.dataset.invert].invert = el.checked;
-    if (el.dataset.button) mapping.buttons[el.dataset.button] = Number(el.value);
+    if (el.dataset.axis || el.dataset.button) {
+      // A number the pad cannot have is refused and the old one kept: Number("") is 0 and a
+      // button 40 never reads pressed, which would leave the pad's STOP doing nothing.
+      const value = Number(el.value);
+      const kept = el.dataset.axis ? mapping.axes[el.dataset.axis].index : mapping.buttons[el.dataset.button];
+      if (el.value.trim() === "" || !Number.isInteger(value) || value < Number(el.min) || value > Number(el.max)) {
+        const label = el.dataset.axis ? AXES[el.dataset.axis] : ACTIONS[el.dataset.button];
+        const kind = el.dataset.axis ? "an axis" : "a button";
+        toast(`${label}: ${kind} number ${el.min}–${el.max}, not "${el.value}"; kept ${kept}`);
+        el.value = String(kept);
+        return;
+      }
+      if (el.dataset.axis) mapping.axes[el.dataset.axis].index = value;
+      else mapping.buttons[el.dataset.button] = value;
+    }
     saveMapping(mapping);
   });
   table.addEventListener("click", (event) => {
@@ -439,11 +480,20 @@ function renderMapping() {
 // -- buttons and keys -------------------------------------------------------------------------
 
 $("stop").addEventListener("click", stop);
+// Taking control from another pilot is asked on the page, not with confirm(): a browser
+// dialog stops the page (no STOP key, no pad, no STOP button) until it is answered.
 $("take-control").addEventListener("click", () => {
-  const holder = station.telemetry?.pilot_label;
-  if (station.pilotId && !confirm(`${holder} has control. Take it? Their thrust goes to zero.`)) return;
+  if (!station.pilotId) { send({ type: "take_control" }); return; }
+  station.askingToTake = true;
+  showTakeQuestion();
+  $("take-control-no").focus();
+});
+$("take-control-yes").addEventListener("click", () => {
+  station.askingToTake = false;
+  showTakeQuestion();
   send({ type: "take_control" });
 });
+$("take-control-no").addEventListener("click", () => { station.askingToTake = false; showTakeQuestion(); });
 $("release-control").addEventListener("click", () => {
   station.releasing = true;  // (no "you are no longer the pilot" for letting go oneself)
   send({ type: "release_control" });
@@ -469,12 +519,19 @@ $("keyboard-power").addEventListener("input", (event) => {
 $("keyboard-power").addEventListener("change", (event) => event.target.blur());
 
 // Space and Esc stop the robot from anywhere on the page, before anything else sees the key.
+// Nothing on the page may take these keys first: no native <select> (its open dropdown keeps
+// them), no confirm() or alert() (the page stops until answered). Their default action is
+// refused on the release too: Space on a focused button, box or summary is STOP, not a click.
+const isStopKey = (event) => event.code === "Space" || event.code === "Escape";
 addEventListener("keydown", (event) => {
-  if (event.code === "Space" || event.code === "Escape") {
+  if (isStopKey(event)) {
     event.preventDefault();
     event.stopPropagation();
     if (!event.repeat) stop();
   }
+}, { capture: true });
+addEventListener("keyup", (event) => {
+  if (isStopKey(event)) { event.preventDefault(); event.stopPropagation(); }
 }, { capture: true });
 
 document.addEventListener("visibilitychange", () => send({ type: "visibility", hidden: document.hidden }));
