@@ -54,6 +54,9 @@ def test_a_serial_device_that_goes_away_is_let_go_and_opened_again(
         os.write(master, b"#qd!")
         assert _wait_for(lines, lambda: received == b"#qd!")
         os.close(master)  # the device goes away: its descriptor reads as hung up from now on
+        # and udev takes its name away (else the next terminal opened on this machine, which
+        # may get the same /dev/pts number, would be opened as the device come back)
+        device.unlink()
         assert _wait_for(lines, lambda: not lines.lines)
         # Gone, it is not spun on: a wait waits (before, each returned at once, at 100 % CPU).
         started = time.process_time()
@@ -61,7 +64,6 @@ def test_a_serial_device_that_goes_away_is_let_go_and_opened_again(
             lines.wait(0.02)
         assert time.process_time() - started < 0.1
         master, path = _pty()  # plugged in again
-        device.unlink()
         device.symlink_to(path)
         assert _wait_for(lines, lambda: len(lines.lines) == 1)
         assert isinstance(lines.lines[0], SerialDeviceLine)
