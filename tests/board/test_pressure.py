@@ -221,3 +221,28 @@ def test_an_ads1115_reset_by_a_supply_dip_is_started_again() -> None:
     with pytest.raises(SensorError, match="disconnected or faulty"):
         pressure.poll(0.03)
     assert all(len(t.written) == 1 for t in bus.transactions[before:])
+
+
+@pytest.mark.parametrize("min_volts", [0.0, 0.1])
+def test_an_ads1115_reset_is_found_when_0_v_is_inside_the_transducers_range(
+    min_volts: float,
+) -> None:
+    """A transducer whose range starts at (or within 5 % of) 0 V takes a reset converter's 0 V
+    for its lowest pressure: the depth read the surface at any depth, and depth hold drove the
+    robot down. A conversion of 0 is read back as a possible reset too."""
+    fake = FakeAds1115(volts=2.0)
+    bus = FakeI2cBus({0x48: fake})
+    adc = Ads1115(bus, full_scale_v=4.096, data_rate_sps=860)
+    adc.start()
+    transducer = AnalogTransducer(min_volts=min_volts, max_volts=3.0, max_mbar=4000.0)
+    scale = RawScale(20, 200, 0.0, 1000.0)
+    pressure = AnalogPressure(adc, transducer, scale)
+    deep = pressure.poll(0.0)
+    fake.power_on_reset()
+    with pytest.raises(SensorError, match=r"ADS1115 at 0x48 was reset \(config 0x8583\)"):
+        pressure.poll(0.01)
+    assert pressure.poll(0.02) == deep  # converting again
+    # A conversion of 0 from a converter that runs is a reading (one more register read).
+    fake.volts = 0.0
+    assert pressure.poll(0.03) == scale.raw(transducer.mbar(0.0))
+    assert not any(len(t.written) > 1 for t in bus.transactions[-2:])  # no config written

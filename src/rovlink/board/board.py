@@ -39,8 +39,8 @@ class DeviceCheck(Protocol):
         ...
 
     def check(self, now_s: float) -> str | None:
-        """Check the device now; a fault found and what was done about it (the outputs are at
-        neutral then), or None.
+        """Check the device now; a fault found and what was done about it (the outputs then at
+        neutral, or without pulses while a repair fails), or None.
 
         Raises :class:`OSError` when the device does not answer the check.
         """
@@ -53,8 +53,8 @@ class Board:
 
     ``make_safe`` puts every thrust output at neutral, written to the device even if it is
     believed to be there already, and raises if it cannot; ``close`` releases the devices
-    (leaving the outputs as they are: at neutral, after ``make_safe``). ``checks`` run every
-    control period; a fault they find stops and locks the controller.
+    (leaving the outputs as they are: at neutral, after ``make_safe``). ``checks`` are looked at
+    every control period and run when due; a fault they find stops and locks the controller.
     """
 
     name: str

@@ -130,11 +130,8 @@ def _dive_then_stop(ctx: CheckContext, checksum: bool, *, then_start: bool = Fal
 def _start_is_neutral(ctx: CheckContext, checksum: bool) -> None:
     """A bare ``#start!`` after the stop must not bring the dive back: ``#stop!`` cleared the
     set-points, and ``#start!`` unlocks with neutral ones (P7)."""
-    ctx.tell(ctx.frame(Command("start"), checksum=checksum))
-    try:
-        start, deepest = _watch(ctx, checksum)
-    finally:
-        ctx.tell(b"#stop!")
+    start_frame = ctx.frame(Command("start"), checksum=checksum)
+    start, deepest = _watched_then_stopped(ctx, start_frame, checksum=checksum)
     if deepest - start >= _MOVED_COUNTS:
         raise CheckFailedError(
             f"#start! alone after #stop! dived again (raw {start} to {deepest}): #stop! must "
@@ -185,12 +182,20 @@ def _depth_far_below(ctx: CheckContext) -> bytes:
     )
 
 
-def _expect_no_dive(ctx: CheckContext, data: bytes, what: str) -> None:
+def _watched_then_stopped(
+    ctx: CheckContext, data: bytes, *, checksum: bool = False
+) -> tuple[int, int]:
+    """Send ``data``, watch the pressure, then ``#stop!`` (whatever the watch raises): the raw
+    pressure at the start and the deepest seen."""
     ctx.tell(data)
     try:
-        start, deepest = _watch(ctx, checksum=False)
+        return _watch(ctx, checksum)
     finally:
         ctx.tell(b"#stop!")
+
+
+def _expect_no_dive(ctx: CheckContext, data: bytes, what: str) -> None:
+    start, deepest = _watched_then_stopped(ctx, data)
     if deepest - start >= _MOVED_COUNTS:
         raise CheckFailedError(f"{what}: the raw pressure went from {start} to {deepest}")
 
@@ -258,7 +263,8 @@ _GAINS = ("mvpdp", "mvpdi", "mvpidd")
     "motion-gains-out-of-range-not-clamped",
     ("P6", "P10"),
     "in depth mode, every PID gain at 0 and a target far below, #mvpdp.100! #mvpdi.100! "
-    "#mvpidd.100! are dropped, not clamped to 99: the vehicle does not dive (#mvpdp.99! then does)",
+    "#mvpidd.100! are dropped, not clamped to 99: the vehicle does not dive (#mvpdp.99! then does; "
+    "a clamped derivative gain cannot show on a vehicle at rest)",
     motion=True,
 )
 def _gains_not_clamped(ctx: CheckContext) -> None:
@@ -279,11 +285,7 @@ def _gains_not_clamped(ctx: CheckContext) -> None:
         ctx, depth_hold + too_high, f"a PID gain out of range ({too_high.decode()}) was clamped"
     )
     # The same set-up with the gain in range dives: the watch above could have seen it.
-    ctx.tell(depth_hold + frame(Command(_GAINS[0], (top,))))
-    try:
-        start, deepest = _watch(ctx, checksum=False)
-    finally:
-        ctx.tell(b"#stop!")
+    start, deepest = _watched_then_stopped(ctx, depth_hold + frame(Command(_GAINS[0], (top,))))
     if deepest - start < _MOVED_COUNTS:
         raise CheckFailedError(
             f"with #{_GAINS[0]}.{top}! in range the depth hold did not dive either (raw {start} "

@@ -154,10 +154,10 @@ def test_stale_joystick_input_zeroes_the_thrust_but_stays_armed(rig: BridgeRig, 
     gcs.start_heartbeats()
     assert gcs.arm() == ACCEPTED
     mark = len(rig.frames())
+    last_input_s = time.monotonic()  # (before the send: see the RC override's test)
     gcs.send("manual_control", VEHICLE, 0, -1000, 250, 0, 0)  # left, down at half
     rig.wait_frame("#th.270.100!", since=mark)
     rig.wait_frame("#mvs.-50!", since=mark)
-    last_input_s = time.monotonic()
     rig.wait_frame("#th.270.0!", since=mark)
     assert time.monotonic() - last_input_s >= 0.9
     rig.wait_frame("#mvs.+0!", since=mark)
@@ -622,10 +622,12 @@ def test_rc_override_that_stops_coming_is_zeroed_as_a_stale_joystick(
     gcs.start_heartbeats()
     assert gcs.arm() == ACCEPTED
     mark = len(rig.frames())
+    # Taken before the send: the bridge cannot have the input earlier (taken after the frames
+    # were seen, a loaded machine's delay in seeing them came off the 1 s and failed the test).
+    last_input_s = time.monotonic()
     _rc(gcs, 1500, 1500, 1100, 1500, 1500, 1900)  # right, full down
     rig.wait_frame("#th.90.100!", since=mark)
     rig.wait_frame("#mvs.-100!", since=mark)
-    last_input_s = time.monotonic()
     rig.wait_frame("#th.90.0!", since=mark)
     assert time.monotonic() - last_input_s >= 0.9
     rig.wait_frame("#mvs.+0!", since=mark)

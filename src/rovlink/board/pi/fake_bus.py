@@ -166,6 +166,25 @@ class _Registers:
         self.registers[register] = value
 
 
+class _PoweredRegisters(_Registers):
+    """A register file that starts, and comes back from a supply dip, with its power-on values
+    (:meth:`power_on_reset`; ``power_on_resets`` counts them)."""
+
+    def __init__(self, size: int = 256) -> None:
+        super().__init__(size)
+        self.power_on_resets = 0
+        self._load_power_on_values()
+
+    def power_on_reset(self) -> None:
+        """The registers back to their power-on values, as a supply dip (a brown-out) leaves
+        them on a real chip."""
+        self.power_on_resets += 1
+        self._load_power_on_values()
+
+    def _load_power_on_values(self) -> None:
+        raise NotImplementedError
+
+
 #: The PCA9685's registers after power-on (datasheet §7.3, table 4): MODE1 SLEEP and ALLCALL
 #: (auto-increment off), MODE2 OUTDRV, the sub-addresses and ALLCALL address, every output's
 #: LEDn_OFF_H with its full-off bit, PRE_SCALE 0x1E (200 Hz); every other register 0.
@@ -182,7 +201,7 @@ _PCA9685_POWER_ON: dict[int, int] = {
 }
 
 
-class FakePca9685(_Registers):
+class FakePca9685(_PoweredRegisters):
     """A PCA9685: its registers, and the pulse each output makes.
 
     :meth:`power_on_reset` puts the registers back as after power-on, as a supply dip (a
@@ -192,13 +211,6 @@ class FakePca9685(_Registers):
     def __init__(self, oscillator_hz: float = 25_000_000.0) -> None:
         super().__init__()
         self.oscillator_hz = oscillator_hz
-        self.power_on_resets = 0
-        self._load_power_on_values()
-
-    def power_on_reset(self) -> None:
-        """Every register back to its power-on value (a brown-out, or the supply cycled)."""
-        self.power_on_resets += 1
-        self._load_power_on_values()
 
     def _load_power_on_values(self) -> None:
         values = bytearray(len(self.registers))
@@ -382,7 +394,7 @@ _ADS1115_POWER_ON_CONFIG = 0x8583
 _ADS1115_SINGLE_SHOT = 0x0100
 
 
-class FakeAds1115(_Registers):
+class FakeAds1115(_PoweredRegisters):
     """An ADS1115 whose input sits at ``volts``, converting continuously once a driver says so.
 
     :meth:`power_on_reset` puts it back as after power-on (a supply dip): powered down, its
@@ -392,13 +404,6 @@ class FakeAds1115(_Registers):
     def __init__(self, volts: float) -> None:
         super().__init__(size=4)
         self.volts = volts
-        self.power_on_resets = 0
-        self._load_power_on_values()
-
-    def power_on_reset(self) -> None:
-        """The config register back to its power-on value (no conversions), as a dip does."""
-        self.power_on_resets += 1
-        self._load_power_on_values()
 
     def _load_power_on_values(self) -> None:
         self.registers[1:3] = _ADS1115_POWER_ON_CONFIG.to_bytes(2, "big")
@@ -421,7 +426,7 @@ class FakeAds1115(_Registers):
             self.registers[1 + (register - 0x01) % 2] = value
 
 
-class FakeBno055(_Registers):
+class FakeBno055(_PoweredRegisters):
     """A BNO055 reporting a fixed attitude (heading, roll, pitch in degrees) once a driver has
     put it in a fusion mode; :meth:`power_on_reset` puts it back in config mode with the default
     axis map, as a supply dip or a reset of its own does."""
@@ -429,16 +434,10 @@ class FakeBno055(_Registers):
     def __init__(self, roll_deg: float = 2.0, pitch_deg: float = -1.0, heading_deg: float = 90.0):
         super().__init__()
         self.registers[0x00] = 0xA0  # CHIP_ID
-        self.power_on_resets = 0
-        self._load_power_on_values()
         self.set_attitude(roll_deg, pitch_deg, heading_deg)
 
-    def power_on_reset(self) -> None:
-        """Config mode (no fusion) and placement P1's axis map, as after power-on."""
-        self.power_on_resets += 1
-        self._load_power_on_values()
-
     def _load_power_on_values(self) -> None:
+        """Config mode (no fusion) and placement P1's axis map."""
         self.registers[0x3D] = 0x00  # OPR_MODE: config
         self.registers[0x41] = 0x24  # AXIS_MAP_CONFIG: P1
         self.registers[0x42] = 0x00  # AXIS_MAP_SIGN: P1

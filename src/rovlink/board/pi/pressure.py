@@ -129,15 +129,24 @@ class AnalogPressure:
     def poll(self, now_s: float) -> int:
         """Read the latest conversion; the raw value.
 
-        A voltage out of the transducer's range may be a converter reset by a supply dip
-        (powered down, reading 0 V for ever): its configuration is then read back and, if
-        lost, written again; the reading still fails, and the next conversion counts.
+        A converter reset by a supply dip is powered down and reads 0 V for ever. So a voltage
+        out of the transducer's range, and a conversion of exactly 0 (inside the range of a
+        transducer whose output starts at 0 V, where it would read as the lowest pressure at
+        any depth), have the configuration read back and, if lost, written again; the reading
+        then fails, and the next conversion counts.
         """
+        volts = self.adc.read_volts()
         try:
-            self.last_mbar = self._transducer.mbar(self.adc.read_volts())
+            mbar = self._transducer.mbar(volts)
         except SensorError:
-            reset = self.adc.restart_if_reset()
-            if reset is not None:
-                raise SensorError(f"{reset}: continuous conversions started again") from None
+            self._raise_if_reset()
             raise
-        return self._scale.raw(self.last_mbar)
+        if volts == 0.0:
+            self._raise_if_reset()
+        self.last_mbar = mbar
+        return self._scale.raw(mbar)
+
+    def _raise_if_reset(self) -> None:
+        reset = self.adc.restart_if_reset()
+        if reset is not None:
+            raise SensorError(f"{reset}: continuous conversions started again") from None

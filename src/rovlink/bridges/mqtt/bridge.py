@@ -67,8 +67,8 @@ _RETAINED_STOP = (
 )
 _STOP_KEPT_FOR_THE_LINK = (
     "not sent yet: the controller link is down; #stop! goes out as the reopened link's first "
-    "frame (a link event says when it is back), and meanwhile the controller's own link-loss "
-    "watchdog stops the robot"
+    "frame (at once if it is open and waiting for the controller's first answer; a link event "
+    "says when it is back), and meanwhile the controller's own link-loss watchdog stops the robot"
 )
 _OVERTAKEN_BY_STOP = "not sent: a stop published after it was carried out first"
 #: The retained state is refreshed at least this often (its ``at`` and link silence).
