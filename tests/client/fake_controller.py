@@ -69,6 +69,9 @@ class FakeController:
     ) -> None:
         self._fd = fd
         self.latency_s = latency_s
+        #: The latencies of the next replies in turn, before ``latency_s`` again (a line whose
+        #: delay varies; a reply never overtakes an earlier one only if they do not decrease).
+        self.latencies_s: deque[float] = deque()
         self._booted_at = time.monotonic() + boot_s
         self.late_delay_s = late_delay_s
         #: Bytes that arrived while booting, and were lost.
@@ -227,8 +230,9 @@ class FakeController:
                 self._held += replies  # stalled: they go out, in order, when it ends
                 replies = bytearray()
             self._condition.notify_all()
-        if replies and self.latency_s:
-            timer = threading.Timer(self.latency_s, self._write_later, args=(bytes(replies),))
+        latency_s = self.latencies_s.popleft() if replies and self.latencies_s else self.latency_s
+        if replies and latency_s:
+            timer = threading.Timer(latency_s, self._write_later, args=(bytes(replies),))
             timer.daemon = True
             timer.start()
         elif replies:

@@ -182,3 +182,32 @@ async def test_a_probes_reply_on_a_slow_line_answers_no_query_of_the_program(cli
                 await arov.close()
     finally:
         fake.close()
+
+
+@pytest.mark.parametrize("client", ["blocking", "asyncio"])
+async def test_a_probes_reply_on_a_line_whose_delay_varies_answers_no_query_of_the_program(
+    client: str,
+) -> None:
+    # The first probe's reply takes 0.3 s, every later one 0.5 s: the second probe's reply comes
+    # 0.45 s after the first, later than any quiet the client waited for before (0.35 s), and
+    # answered the program's first #qd! with a value from before it was asked (P20). The fence
+    # (#qr!) after the probes ends the wait behind every probe's reply, whatever the delays.
+    fake, sock = FakeController.on_socketpair(latency_s=0.5)
+    fake.latencies_s.append(0.3)
+    fake.qd_counts_queries = True  # each $qd carries the number of its #qd! on the line
+    options = _options(timeout_s=2.0, boot_timeout_s=3.0)
+    try:
+        if client == "blocking":
+            with Client(SocketLink(sock, "varying socket pair"), options) as rov:
+                depth_cm = rov.depth_cm()
+        else:
+            arov = await AsyncClient(SocketLink(sock, "varying socket pair"), options).open()
+            try:
+                depth_cm = await arov.depth_cm()
+            finally:
+                await arov.close()
+        assert depth_cm == fake.query_count  # its own reply: its #qd! is the last query
+        assert fake.frames().count("#qd!") >= 3  # two probes at least (else nothing to show)
+        assert "#qr!" in fake.frames()
+    finally:
+        fake.close()

@@ -6,10 +6,12 @@ and hope: it repeats a *probe* — ``#crcoff!`` (recognised in either mode, P3) 
 ``#qd!`` — every ``interval_s`` until a ``$qd`` reply arrives or ``boot_timeout`` runs out. Once
 one does, it reads on until the line has been quiet for ``quiet_s``, so that the replies to
 earlier probes, still on their way, are not taken for the answers to the program's first
-queries. After more than one probe the quiet must last ``interval_s`` longer: on a line slower
-than the interval (a network bridge on a slow network) the replies of the later probes follow
-the first one an interval apart. Only then does the client put the controller in the checksum
-mode asked for.
+queries. After more than one probe no quiet can tell that every probe's reply is in: on a line
+slower than the interval, or whose delay varies (a network bridge on a slow or wireless
+network), a later probe's reply may follow the first by any time. So the client then sends a
+*fence*, a query of another name (``#qr!``), and reads on until its reply, which comes behind
+every probe's (P20), then ``quiet_s`` more. Only then does the client put the controller in the
+checksum mode asked for.
 
 >>> probe = ReadinessProbe(now=0.0, boot_timeout_s=3.0)
 >>> probe.bytes_to_send(0.0)
@@ -21,14 +23,20 @@ b'#crcoff!#qd!'
 
 from __future__ import annotations
 
+import math
+
 from rovlink.client.errors import ConnectError, ConnectionLostError
 from rovlink.protocol import Decoder, Event, Frame, Response, Text
 from rovlink.protocol.visible import visible
 
-__all__ = ["PROBE_BYTES", "ReadinessProbe"]
+__all__ = ["FENCE_BYTES", "FENCE_PATIENCE_S", "PROBE_BYTES", "ReadinessProbe"]
 
 #: Checksum mode off (either mode recognises it), then a query any controller answers plainly.
 PROBE_BYTES = b"#crcoff!#qd!"
+#: After more than one probe: a query of another name, answered behind every probe's reply.
+FENCE_BYTES = b"#qr!"
+#: How long the line must be quiet when the fence's reply never comes (lost to line noise).
+FENCE_PATIENCE_S = 1.0
 
 
 class ReadinessProbe:
@@ -43,6 +51,9 @@ class ReadinessProbe:
         self.quiet_s = quiet_s
         self.probes_sent = 0
         self.answered = False
+        #: Whether the fence's reply came (after more than one probe).
+        self.fenced = False
+        self._fence_sent_at: float | None = None
         #: The controller's last line of text while it was probed (a boot banner, "busy", …).
         self.last_text: str | None = None
         self._next_probe_at = now
@@ -50,17 +61,24 @@ class ReadinessProbe:
         self._decoder = Decoder()
 
     def bytes_to_send(self, now: float) -> bytes:
-        """The probe, if one is due at ``now`` (and the controller has not answered yet)."""
-        if self.answered or now < self._next_probe_at:
+        """The probe, if one is due at ``now`` (and the controller has not answered yet);
+        once it has, after more than one probe, the fence."""
+        if self.answered:
+            if self.probes_sent > 1 and self._fence_sent_at is None:
+                self._fence_sent_at = now
+                return FENCE_BYTES
+            return b""
+        if now < self._next_probe_at:
             return b""
         self._next_probe_at = now + self.interval_s
         self.probes_sent += 1
         return PROBE_BYTES
 
     def receive(self, data: bytes, now: float) -> None:
-        """Bytes from the controller: a ``$qd`` reply means it is up."""
+        """Bytes from the controller: a ``$qd`` reply means it is up; after more than one
+        probe, the ``$qr`` reply to the fence means every probe's reply is in."""
         self._last_data_at = now
-        if self.answered:
+        if self.fenced or (self.answered and self.probes_sent <= 1):
             return
         self._take(self._decoder.feed(data))
 
@@ -77,23 +95,30 @@ class ReadinessProbe:
         for event in events:
             if isinstance(event, Text):
                 self.last_text = event.text.strip() or self.last_text
-            elif (
-                isinstance(event, Frame)
-                and isinstance(event.message, Response)
-                and event.message.name == "qd"
-            ):
-                self.answered = True
-                return
+            elif isinstance(event, Frame) and isinstance(event.message, Response):
+                name = event.message.name
+                if not self.answered and name == "qd":
+                    self.answered = True
+                elif self._fence_sent_at is not None and name == "qr":
+                    self.fenced = True
+                    return
 
-    @property
-    def _quiet_needed_s(self) -> float:
-        """How long the line must be quiet after the answer: a lone probe's reply is the only
-        one; after several, the next may be an interval behind the last."""
-        return self.quiet_s if self.probes_sent <= 1 else self.interval_s + self.quiet_s
+    def _quiet_from(self) -> tuple[float, float]:
+        """Since when the line must be quiet, and for how long, before the wait ends: after
+        a lone probe's reply (the only one) or the fence's, ``quiet_s``; while the fence's
+        reply is missing, :data:`FENCE_PATIENCE_S` since it or the last bytes."""
+        if self.probes_sent <= 1 or self.fenced:
+            return self._last_data_at, self.quiet_s
+        fence_sent_at = self._fence_sent_at if self._fence_sent_at is not None else math.inf
+        return max(self._last_data_at, fence_sent_at), FENCE_PATIENCE_S
 
     def done(self, now: float) -> bool:
-        """Whether the controller answered and the line has been quiet since."""
-        return self.answered and now - self._last_data_at >= self._quiet_needed_s
+        """Whether the controller answered, every probe's reply is in, and the line has been
+        quiet since."""
+        if not self.answered:
+            return False
+        since, quiet_s = self._quiet_from()
+        return now - since >= quiet_s
 
     def timed_out(self, now: float) -> bool:
         """Whether ``boot_timeout`` ran out without an answer."""
@@ -102,7 +127,10 @@ class ReadinessProbe:
     def wait_s(self, now: float) -> float:
         """How long to wait for bytes before the next step is due."""
         if self.answered:
-            return max(self._last_data_at + self._quiet_needed_s - now, 0.0)
+            if self.probes_sent > 1 and self._fence_sent_at is None:
+                return 0.0  # the fence is due
+            since, quiet_s = self._quiet_from()
+            return max(since + quiet_s - now, 0.0)
         return max(min(self._next_probe_at, self.deadline) - now, 0.0)
 
     @property
