@@ -90,13 +90,26 @@ def unlock_and_arm(page: Page, line: ControllerLine) -> None:
     )
 
 
-def test_stick_right_with_the_dead_man_drives_and_release_stops(browser, station, line):
+def piloting_by_pad(browser, station, line) -> Page:
+    """A pilot's page on the fake pad, the robot unlocked and the relay armed."""
     page = open_page(browser, station)
     take_control(page)
     unlock_and_arm(page, line)
+    return page
+
+
+def flying_by_pad(browser, station, line, axes: list[float], frame: str) -> Page:
+    """:func:`piloting_by_pad`, the sticks at ``axes`` with the dead-man held, once the
+    controller got their ``frame``."""
+    page = piloting_by_pad(browser, station, line)
     mark = line.mark()
-    set_pad(page, axes=[1, 0, 0, 0], deadman=True)
-    line.wait_for("#th.90.100!", after=mark)
+    set_pad(page, axes=axes, deadman=True)
+    line.wait_for(frame, after=mark)
+    return page
+
+
+def test_stick_right_with_the_dead_man_drives_and_release_stops(browser, station, line):
+    page = flying_by_pad(browser, station, line, [1, 0, 0, 0], "#th.90.100!")
     page.wait_for_function("window.rovlinkStation.station.telemetry.relay.status === 'flying'")
     if os.environ.get("ROVLINK_SCREENSHOTS") == "1":  # a dive with some history on the charts
         page.fill("#target-depth", "60")
@@ -116,9 +129,7 @@ def test_stick_right_with_the_dead_man_drives_and_release_stops(browser, station
 
 
 def test_pad_buttons_claw_mode_and_the_vertical_stick(browser, station, line):
-    page = open_page(browser, station)
-    take_control(page)
-    unlock_and_arm(page, line)
+    page = piloting_by_pad(browser, station, line)
     for button, frame in (("claw_open", "#h+!"), ("claw_close", "#h-!"), ("mode", "#mvdirect.1!")):
         mark = line.mark()
         set_pad(page, buttons={button: True})
@@ -137,9 +148,7 @@ def test_pad_buttons_claw_mode_and_the_vertical_stick(browser, station, line):
 
 
 def test_no_thrust_without_the_dead_man(browser, station, line):
-    page = open_page(browser, station)
-    take_control(page)
-    unlock_and_arm(page, line)
+    page = piloting_by_pad(browser, station, line)
     mark = line.mark()
     set_pad(page, axes=[0, -1, 0, 0])  # full ahead, dead-man not held
     page.wait_for_function("window.rovlinkStation.devices.lastInput?.power_percent === 100")
@@ -164,12 +173,7 @@ def test_no_thrust_without_the_dead_man(browser, station, line):
 
 
 def test_a_frozen_pad_zeroes_the_thrust_within_500_ms(browser, station, line):
-    page = open_page(browser, station)
-    take_control(page)
-    unlock_and_arm(page, line)
-    mark = line.mark()
-    set_pad(page, axes=[0, -1, 0, 0], deadman=True)
-    line.wait_for("#th.0.100!", after=mark)
+    page = flying_by_pad(browser, station, line, [0, -1, 0, 0], "#th.0.100!")
     mark = line.mark()
     page.evaluate("fakePads.freeze(0)")
     frozen_s = time.monotonic()
@@ -182,12 +186,7 @@ def test_a_frozen_pad_zeroes_the_thrust_within_500_ms(browser, station, line):
 
 
 def test_closing_the_tab_zeroes_the_thrust_within_500_ms(browser, station, line):
-    page = open_page(browser, station)
-    take_control(page)
-    unlock_and_arm(page, line)
-    mark = line.mark()
-    set_pad(page, axes=[-1, 0, 0, 0], deadman=True)
-    line.wait_for("#th.270.100!", after=mark)
+    page = flying_by_pad(browser, station, line, [-1, 0, 0, 0], "#th.270.100!")
     mark = line.mark()
     closed_s = time.monotonic()
     page.close()
@@ -196,12 +195,7 @@ def test_closing_the_tab_zeroes_the_thrust_within_500_ms(browser, station, line)
 
 
 def test_unplugging_the_pad_zeroes_the_thrust(browser, station, line):
-    page = open_page(browser, station)
-    take_control(page)
-    unlock_and_arm(page, line)
-    mark = line.mark()
-    set_pad(page, axes=[0, 1, 0, 0], deadman=True)
-    line.wait_for("#th.180.100!", after=mark)
+    page = flying_by_pad(browser, station, line, [0, 1, 0, 0], "#th.180.100!")
     mark = line.mark()
     unplugged_s = time.monotonic()
     page.evaluate("fakePads.disconnect(0)")
@@ -212,12 +206,7 @@ def test_unplugging_the_pad_zeroes_the_thrust(browser, station, line):
 
 
 def test_a_page_whose_socket_drops_reconnects_as_a_watcher(browser, station, line):
-    page = open_page(browser, station)
-    take_control(page)
-    unlock_and_arm(page, line)
-    mark = line.mark()
-    set_pad(page, axes=[1, 0, 0, 0], deadman=True)
-    line.wait_for("#th.90.100!", after=mark)
+    page = flying_by_pad(browser, station, line, [1, 0, 0, 0], "#th.90.100!")
     page.wait_for_function("window.rovlinkStation.charts.columns[0].length > 3")
     mark = line.mark()
     page.evaluate("window.rovlinkStation.connection.socket.close()")
@@ -493,12 +482,7 @@ def test_the_record_button_records_and_the_page_downloads(browser, line, tmp_pat
 
 
 def test_a_locked_robot_never_shows_flying(browser, station, line):
-    page = open_page(browser, station)
-    take_control(page)
-    unlock_and_arm(page, line)
-    mark = line.mark()
-    set_pad(page, axes=[1, 0, 0, 0], deadman=True)
-    line.wait_for("#th.90.100!", after=mark)
+    page = flying_by_pad(browser, station, line, [1, 0, 0, 0], "#th.90.100!")
     mark = line.mark()
     page.click("#stop")
     line.wait_for("#stop!", after=mark)
@@ -542,12 +526,7 @@ def test_readings_that_stop_are_shown_as_missing(browser, station, line):
 
 
 def test_stop_on_the_pad_of_a_page_that_lost_control_still_stops(browser, station, line):
-    first = open_page(browser, station)
-    take_control(first)
-    unlock_and_arm(first, line)
-    mark = line.mark()
-    set_pad(first, axes=[1, 0, 0, 0], deadman=True)
-    line.wait_for("#th.90.100!", after=mark)
+    first = flying_by_pad(browser, station, line, [1, 0, 0, 0], "#th.90.100!")
     second = open_page(browser, station, pad=False)
     take_control_from_another(second)
     first.wait_for_selector("#flight-status:has-text('you are no longer the pilot')")
