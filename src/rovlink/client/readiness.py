@@ -63,10 +63,10 @@ class ReadinessProbe:
     def bytes_to_send(self, now: float) -> bytes:
         """The probe, if one is due at ``now`` (and the controller has not answered yet);
         once it has, after more than one probe, the fence."""
+        if self._fence_due:
+            self._fence_sent_at = now
+            return FENCE_BYTES
         if self.answered:
-            if self.probes_sent > 1 and self._fence_sent_at is None:
-                self._fence_sent_at = now
-                return FENCE_BYTES
             return b""
         if now < self._next_probe_at:
             return b""
@@ -103,6 +103,12 @@ class ReadinessProbe:
                     self.fenced = True
                     return
 
+    @property
+    def _fence_due(self) -> bool:
+        """Whether the controller answered after more than one probe and the fence is yet to
+        be sent."""
+        return self.answered and self.probes_sent > 1 and self._fence_sent_at is None
+
     def _quiet_from(self) -> tuple[float, float]:
         """Since when the line must be quiet, and for how long, before the wait ends: after
         a lone probe's reply (the only one) or the fence's, ``quiet_s``; while the fence's
@@ -127,8 +133,8 @@ class ReadinessProbe:
     def wait_s(self, now: float) -> float:
         """How long to wait for bytes before the next step is due."""
         if self.answered:
-            if self.probes_sent > 1 and self._fence_sent_at is None:
-                return 0.0  # the fence is due
+            if self._fence_due:
+                return 0.0
             since, quiet_s = self._quiet_from()
             return max(since + quiet_s - now, 0.0)
         return max(min(self._next_probe_at, self.deadline) - now, 0.0)
