@@ -18,7 +18,7 @@ import pytest
 from rovlink.board.board import BoardStartError
 from rovlink.board.pi.board import fake_bus_for, open_pi_board
 from rovlink.board.pi.config import PiConfig
-from rovlink.board.pi.fake_bus import FakeBno055, FakeI2cBus, FakePca9685
+from rovlink.board.pi.fake_bus import FakeBno055, FakeI2cBus, FakeMs5837, FakePca9685
 from rovlink.board.server import BoardServer
 from tests.board.rig import (
     CLAW_CHANNEL,
@@ -218,6 +218,29 @@ def test_fewer_failures_than_the_limit_do_not_stop_the_motors() -> None:
         assert wait_until(lambda: sensor.total_failures == 2 and sensor.failures == 0)
         assert not rig.server.controller.locked
         assert rig.moving_as_commanded()
+
+
+def test_a_pressure_sensor_reset_mid_dive_costs_one_read_and_depth_comes_back() -> None:
+    with running(_quick(watchdog_s=0.0)) as rig:
+        ms5837 = rig.bus.devices[0x76]
+        assert isinstance(ms5837, FakeMs5837)
+        rig.send(b"#debug1!#start!#th.90.50!")
+        assert wait_until(rig.moving_as_commanded)
+        sensor = rig.server.board.sensors[0]
+        before = sensor.total_failures
+        ms5837.power_on_reset()  # the conversion under way is lost: the ADC read gives 0
+        assert wait_until(lambda: rig.saw(b"conversion read as 0"))
+        assert wait_until(lambda: sensor.total_failures == before + 1 and sensor.failures == 0)
+        assert not rig.server.controller.locked  # one failed read: not stale
+        assert rig.moving_as_commanded()
+        ms5837.set_reading(1013.25 + 2.5 * 997.0 * 9.80665 / 100)  # 2.5 m (the example's water)
+
+        def reads_the_new_depth() -> bool:  # from the next conversions on
+            rig.send(b"#qd!")
+            return rig.saw(b"$qd.250!")
+
+        assert wait_until(reads_the_new_depth), rig.received
+    assert not rig.errors
 
 
 def test_a_leak_pulse_stops_the_motors_with_leak_action_stop() -> None:

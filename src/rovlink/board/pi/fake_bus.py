@@ -368,6 +368,12 @@ class FakeMs5837:
         d1, d2 = ms5837_conversions(self.model, self.prom, pressure_mbar, temperature_c)
         self.d1, self.d2 = d1, d2
 
+    def power_on_reset(self) -> None:
+        """As after a supply dip: the chip reloads its PROM by itself and a conversion in
+        progress is lost, so the next ADC read gives 0 (datasheet)."""
+        self._converted = 0
+        self._answer = b""
+
     def write(self, data: bytes) -> None:
         command = data[0]
         if command == 0x1E:
