@@ -120,6 +120,10 @@ class Client(CommandMethods):
         # owner: a call that an exception ends gives back what its thread still holds (see
         # _recover_after_error).
         self._wire_lock = threading.RLock()  # one writer at a time: queue order = wire order
+        # Writes on a reopened link being readied (P21) take this lock, not the wire lock: a
+        # stop() on it must not queue behind a write still held up on the lost link. Lock
+        # order: the wire lock, then this one, then the state lock.
+        self._readied_lock = threading.RLock()
         self._state_lock = threading.RLock()  # the session and everything below
         self._changed = threading.Condition(self._state_lock)  # a query settled, role released
         # The background reader waits apart, so that callers' notifications do not wake it.
@@ -424,6 +428,13 @@ class Client(CommandMethods):
         """Settle everything as disconnected (state lock held); reopen the link if asked to."""
         if self._lost is not None:
             return
+        if not self._closing:
+            # A write still waiting for room on the lost link is given up now, not at its
+            # write timeout: it holds the wire lock, and every write (a stop()) waits behind.
+            # (Not while closing: a last #stop! may still be on its way out.)
+            abort_writes = getattr(self._link, "abort_writes", None)
+            if abort_writes is not None:
+                abort_writes()
         if self._reopen is not None and not self._closing:
             self._session.disconnect()  # what was on the wire fails: its replies are gone
             self._changed.notify_all()
@@ -448,7 +459,8 @@ class Client(CommandMethods):
             self._waiting_callers += 1
             self._changed.wait_for(lambda: self._reader_ident is None, timeout=2.0)
             self._waiting_callers -= 1
-        with contextlib.suppress(Exception):
+        # Whoever wrote on it has let go too (a write waiting for room was given up: _lose).
+        with self._wire_lock, contextlib.suppress(Exception):
             self._link.close()
         reopen = self._reopen
         assert reopen is not None
@@ -459,9 +471,9 @@ class Client(CommandMethods):
             link: Link | None = None
             try:
                 link = reopen()
-                # Under the wire lock, as every write on it until it is ready: a stop() from
-                # another thread goes on it at once (see _send).
-                with self._wire_lock:
+                # Under the readied link's lock, as every write on it until it is ready: a
+                # stop() from another thread goes on it at once (see _stop_while_reconnecting).
+                with self._readied_lock:
                     with self._state_lock:
                         rest = self._session.link_reopened()
                         self._readied_link = link
@@ -470,33 +482,41 @@ class Client(CommandMethods):
                         with self._state_lock:
                             self._session.count_outside(self._clock(), sent=rest)
                 self._await_ready(link)
-                with self._wire_lock, self._state_lock:
-                    self._readied_link = None
-                    if self._closing:
-                        self._session.reopen_failed()
-                        link.close()
-                        return
-                    session = self._session
-                    session.reset_link()
-                    link.write(session.take_outbox(self._clock()))  # the mode, zero thrust
-                    session.link_ready()  # (not before: a failed write leaves them to the next)
-                    self._link = link
-                    self._send_now = getattr(link, "send_some", None)
-                    self._read_reply = getattr(link, "read_reply", link.read_available)
-                    self._reconnecting = False
-                    plural = "s" if attempts > 1 else ""
-                    session.note_link(
-                        "reconnected",
-                        f"{link.description} after {attempts} attempt{plural}",
-                        self._clock(),
-                    )
-                    self._changed.notify_all()
-                    self._background_wakeup.notify()
+                with self._wire_lock, self._readied_lock:
+                    with self._state_lock:
+                        if self._closing:
+                            self._readied_link = None
+                            self._session.reopen_failed()
+                            link.close()
+                            return
+                        session = self._session
+                        session.reset_link()
+                        data = session.take_outbox(self._clock())  # the mode, zero thrust
+                    link.write(data)  # (not under the state lock: the link may be slow)
+                    with self._state_lock:
+                        self._readied_link = None
+                        if self._closing:  # (close() began during that write)
+                            self._session.reopen_failed()
+                            link.close()
+                            return
+                        session.link_ready()  # (not before: a failed write leaves them)
+                        self._link = link
+                        self._send_now = getattr(link, "send_some", None)
+                        self._read_reply = getattr(link, "read_reply", link.read_available)
+                        self._reconnecting = False
+                        plural = "s" if attempts > 1 else ""
+                        session.note_link(
+                            "reconnected",
+                            f"{link.description} after {attempts} attempt{plural}",
+                            self._clock(),
+                        )
+                        self._changed.notify_all()
+                        self._background_wakeup.notify()
                 break
             except (OSError, ValueError) as error:  # ConnectError, ConnectionLostError too
                 logger.debug("reconnect attempt %d: %s", attempts, error)
                 if link is not None:
-                    with self._wire_lock:  # (no stop() is writing on it)
+                    with self._readied_lock:  # (no stop() is writing on it)
                         with self._state_lock:
                             self._session.reopen_failed()
                             self._readied_link = None
@@ -552,6 +572,8 @@ class Client(CommandMethods):
         finally:
             while _owns(lock):
                 lock.release()
+            while _owns(self._readied_lock):
+                self._readied_lock.release()
             while _owns(self._wire_lock):
                 self._wire_lock.release()
 
@@ -577,23 +599,35 @@ class Client(CommandMethods):
             raise self._lost_error() from error
 
     def _send(self, command: Command) -> None:
-        if command == operations.STOP and self._reconnecting and self._stop_while_reconnecting():
-            return
-        self._check_open()
-        with self._wire_lock:
-            with self._state_lock:
-                if self._closing and command != operations.STOP:  # (another thread closes)
-                    raise self._lost_error()
-                motion_before = self._session.motion_as_sent()
-                data = self._session.command(command, self._clock())
-            try:
-                self._write(data)
-            except ConnectionLostError:
-                raise
-            except BaseException:  # (a Ctrl-C in a blocked write): it may not have gone
+        stop = command == operations.STOP
+        while True:
+            if stop and self._reconnecting and self._stop_while_reconnecting():
+                return
+            self._check_open()
+            with self._wire_lock:
                 with self._state_lock:
-                    self._session.write_interrupted(motion_before)
-                raise
+                    closing = self._closing and (not stop or self._reconnecting)
+                    if self._lost is not None or closing:
+                        raise self._lost_error()  # (lost, or closed, while this waited)
+                    # Lost while this waited for the wire lock (behind a write that timed
+                    # out): not written on the lost link, which would time out once more.
+                    reconnecting = self._reconnecting
+                    if not reconnecting:
+                        motion_before = self._session.motion_as_sent()
+                        data = self._session.command(command, self._clock())
+                if not reconnecting:
+                    try:
+                        self._write(data)
+                    except ConnectionLostError:
+                        # A stop whose link is lost as it is written: the reopened link's
+                        # first frame, as when it is asked for while the link is down.
+                        if not (stop and self._reconnecting and self._stop_while_reconnecting()):
+                            raise
+                    except BaseException:  # (a Ctrl-C in a blocked write): it may not have gone
+                        with self._state_lock:
+                            self._session.write_interrupted(motion_before)
+                        raise
+                    break
         self._emit()
 
     def _stop_while_reconnecting(self) -> bool:
@@ -603,7 +637,7 @@ class Client(CommandMethods):
         link being readied it goes out at once, not after the probe's answer (see
         :meth:`Session.stop_while_reconnecting`); with no link open, it is the next one's first
         frame."""
-        with self._wire_lock:
+        with self._readied_lock:  # (not the wire lock: a write on the lost link may hold it)
             with self._state_lock:
                 if not self._reconnecting or self._closing:  # (checked again under the lock)
                     return False
@@ -638,7 +672,7 @@ class Client(CommandMethods):
             try:
                 data = probe.bytes_to_send(now)
                 if data:
-                    with self._wire_lock:  # (a stop() may write on a reopened link meanwhile)
+                    with self._readied_lock:  # (a stop() may write on a reopened link meanwhile)
                         link.write(data)
                     with self._state_lock:
                         self._session.count_outside(now, sent=data)
@@ -668,6 +702,8 @@ class Client(CommandMethods):
             with self._wire_lock, lock:
                 # While closing only zero thrust goes out (P23): no fence, no mode frame.
                 session = self._session
+                if self._reconnecting:  # no link to write on: the reopened one starts afresh
+                    return
                 take = session.take_outbox_when_closing if self._closing else session.take_outbox
                 data = take(self._clock())
                 if data and self._lost is None:
@@ -869,7 +905,7 @@ class Client(CommandMethods):
         lock.acquire()
         if self._lost is not None or self._closing:
             raise self._lost_error()
-        if self._mode_switcher is not None:
+        if self._mode_switcher is not None or self._reconnecting:
             lock.release()
             wire_lock.release()
             return None
@@ -919,7 +955,8 @@ class Client(CommandMethods):
                     if self._lost is not None or self._closing:
                         raise self._lost_error()
                     switcher = self._mode_switcher
-                    ready = switcher is None or switcher == me
+                    reconnecting = self._reconnecting  # (lost while this waited for the lock)
+                    ready = (switcher is None or switcher == me) and not reconnecting
                     if ready:
                         if isinstance(query, Command):
                             data, pending = session.query(query, self._clock())
@@ -935,6 +972,9 @@ class Client(CommandMethods):
                     except ConnectionLostError as error:
                         lost = error  # (waited for below, once the wire lock is let go)
                     break
+            if reconnecting:  # wait for the reopened link (at most ``timeout``), then again
+                self._check_open()
+                continue
             # A checksum switch is draining the queue: wait for it outside the wire lock.
             with self._state_lock:
                 while self._mode_switcher not in (None, me):

@@ -1,0 +1,205 @@
+"""``stop()`` never queues behind a write that cannot finish: a write waiting for room on a link
+that is lost, or a link whose far end stopped reading (reconnect=True)."""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import select
+import socket
+import threading
+import time
+import tty
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+
+import rovlink
+from rovlink.client import Client, links
+from rovlink.client.errors import ConnectionLostError
+from rovlink.client.events import ClientEvent, LinkState
+from rovlink.client.links import Link, SocketLink
+from tests.client.conftest import CONDITION_TIMEOUT_S, client_options, wait_until
+from tests.client.fake_controller import FakeController
+
+pytestmark = pytest.mark.integration
+
+#: How soon a #stop! asked for must be on the wire when nothing but the client is in its way
+#: (the write timeout, 2 s, is what the client waited for before).
+PROMPT_S = 0.5
+
+
+def _fill(link: SocketLink) -> None:
+    """Fill the kernel's buffers towards a far end that does not read: the next write waits."""
+    while link.send_some(b"\r\n" * 32768):
+        pass
+
+
+def _lost(events: list[ClientEvent]) -> bool:
+    return any(isinstance(event, LinkState) and event.state == "lost" for event in events)
+
+
+def _stopped(fake: FakeController) -> bool:
+    return "#stop!" in fake.frames()
+
+
+def _probed(fake: FakeController) -> bool:
+    return "#qd!" in fake.frames()
+
+
+class _Writer:
+    """A program thread that writes a command and keeps what became of it."""
+
+    def __init__(self, rov: Client) -> None:
+        self.error: BaseException | None = None
+        self.done = threading.Event()
+        self._thread = threading.Thread(target=self._run, args=(rov,), daemon=True)
+        self._thread.start()
+
+    def _run(self, rov: Client) -> None:
+        try:
+            rov.move(90, 40)
+        except BaseException as error:  # (kept for the test to look at)
+            self.error = error
+        finally:
+            self.done.set()
+
+
+@pytest.fixture
+def reopened() -> Iterator[list[FakeController]]:
+    """The controllers of the reopened links, in order (closed after the test)."""
+    fakes: list[FakeController] = []
+    yield fakes
+    for fake in fakes:
+        fake.close()
+
+
+def test_a_stop_on_the_reopened_link_does_not_wait_for_a_write_blocked_on_the_lost_one(
+    reopened: list[FakeController],
+) -> None:
+    # Before, the write waiting for room on the lost link held the wire lock until its 2 s
+    # write timeout: the reopened link was not even probed meanwhile, and stop() waited too.
+    far_end, host_end = socket.socketpair()  # a far end that stops reading: nobody reads it
+
+    def reopen() -> Link:
+        fake, ours = FakeController.on_socketpair(script=("hold",))  # slow to answer the probe
+        reopened.append(fake)
+        return SocketLink(ours, "socket pair, reopened")
+
+    events: list[ClientEvent] = []
+    options = client_options(reconnect=True, boot_timeout_s=2.0, on_event=events.append)
+    link = SocketLink(host_end, "socket pair")
+    far_end.send(b"$qd.0!")  # the answer to the first readiness probe
+    rov = Client(link, options, reopen=reopen)
+    try:
+        _fill(link)
+        sent = rov.counters.frames_sent
+        writer = _Writer(rov)
+        assert wait_until(lambda: rov.counters.frames_sent > sent)  # the #th is being written
+        far_end.shutdown(socket.SHUT_WR)  # the link is lost: the reader sees its end
+        assert wait_until(lambda: _lost(events))
+        assert wait_until(lambda: bool(reopened))
+        probed = reopened[0].wait_for(_probed, PROMPT_S)
+        assert probed, "the reopened link was not probed while a write was blocked on the lost one"
+        started = time.monotonic()
+        rov.stop()
+        returned_s = time.monotonic() - started
+        assert reopened[0].wait_for(_stopped, CONDITION_TIMEOUT_S)
+        stopped_s = time.monotonic() - started
+        assert returned_s < PROMPT_S, f"stop() took {returned_s:.2f} s"
+        assert stopped_s < PROMPT_S, f"#stop! on the reopened link after {stopped_s:.2f} s"
+        # The blocked write was abandoned with its link, not left to time out.
+        assert writer.done.wait(PROMPT_S)
+        assert isinstance(writer.error, ConnectionLostError)
+    finally:
+        for fake in reopened:
+            fake.release()
+        rov.close()
+        far_end.close()
+
+
+class _SerialDevice:
+    """A fake controller behind a pseudo-terminal, under a device name (as udev names an
+    adapter: a symbolic link to whichever node it got)."""
+
+    def __init__(self, name: Path) -> None:
+        master, self._terminal = os.openpty()
+        tty.setraw(self._terminal)  # no echo, no line editing, before the client opens it
+        # (The terminal side stays open here too: a master side read with no terminal side
+        # open fails, and the fake would hang up before the client opened it.)
+        self.fake = FakeController(master)
+        name.symlink_to(os.ttyname(self._terminal))
+
+    def fill_line(self) -> None:
+        """Fill the line towards a controller that stopped reading: the client's next write
+        finds no room. (The terminal moves bytes on towards its master side a little later,
+        so it is filled until it stays full.)"""
+        os.set_blocking(self._terminal, False)
+        while True:
+            for chunk in (b"\r\n" * 1024, b" " * 16, b" "):
+                with contextlib.suppress(BlockingIOError):
+                    while os.write(self._terminal, chunk):
+                        pass
+            _, writable, _ = select.select([], [self._terminal], [], 0.05)
+            try:
+                os.write(self._terminal, b" ")
+            except BlockingIOError:
+                if not writable:
+                    return
+
+    def close(self) -> None:
+        self.fake.close()
+        os.close(self._terminal)
+
+
+@pytest.fixture
+def device_name(tmp_path: Path) -> Path:
+    return tmp_path / "ttyROV"
+
+
+def test_a_stop_behind_a_write_that_times_out_is_the_reopened_links_first_frame(
+    device_name: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # Before, the stop() waiting behind a write to a controller that stopped reading was
+    # written on the link that write had just found dead: it waited the write timeout once
+    # more, raised ConnectionLostError, and was lost (the reopened link got no #stop!, nor
+    # zero thrust, as the motion was taken to be stopped).
+    write_timeout_s = 0.5
+    monkeypatch.setattr(links, "WRITE_TIMEOUT_S", write_timeout_s)
+    first = _SerialDevice(device_name)
+    second: _SerialDevice | None = None
+    events: list[ClientEvent] = []
+    rov = rovlink.connect(
+        str(device_name),
+        reconnect=True,
+        keepalive=None,
+        timeout=2.0,
+        boot_timeout=2.0,
+        motion_timeout=None,
+        on_event=events.append,
+    )
+    try:
+        rov.start()
+        rov.move(90, 50)
+        first.fake.stop_reading()  # the controller hangs
+        first.fill_line()
+        sent = rov.counters.frames_sent
+        writer = _Writer(rov)  # waits for room, then times out: the link is lost
+        assert wait_until(lambda: rov.counters.frames_sent > sent)
+        device_name.unlink()  # plugged out and in again: a working controller, the same name
+        second = _SerialDevice(device_name)
+        started = time.monotonic()
+        rov.stop()
+        took_s = time.monotonic() - started
+        assert took_s < write_timeout_s + PROMPT_S, f"stop() took {took_s:.2f} s"
+        assert writer.done.wait(CONDITION_TIMEOUT_S)
+        assert isinstance(writer.error, ConnectionLostError)
+        assert second.fake.wait_for(_stopped, CONDITION_TIMEOUT_S)
+        assert second.fake.frames()[0] == "#stop!"  # first, before the readiness probe
+        assert rov.depth_cm() == 123
+    finally:
+        rov.close()
+        first.close()
+        if second is not None:
+            second.close()
