@@ -621,8 +621,11 @@ class Client(CommandMethods):
                     except ConnectionLostError:
                         # A stop whose link is lost as it is written: the reopened link's
                         # first frame, as when it is asked for while the link is down.
-                        if not (stop and self._reconnecting and self._stop_while_reconnecting()):
-                            raise
+                        if stop and self._reconnecting and self._stop_while_reconnecting():
+                            break
+                        with self._state_lock:  # (it may not have gone: a reopened link
+                            self._session.write_interrupted(motion_before)  # zeroes it)
+                        raise
                     except BaseException:  # (a Ctrl-C in a blocked write): it may not have gone
                         with self._state_lock:
                             self._session.write_interrupted(motion_before)
@@ -711,13 +714,17 @@ class Client(CommandMethods):
                         written = self._send_now(data) if self._send_now else 0
                     except ConnectionLostError as error:
                         self._lose(error)
+                        session.write_failed(data)
                         return
                     if written < len(data):
                         lock.release()
                         try:
                             self._write(data[written:])
                         except ConnectionLostError:
-                            pass  # recorded as lost: the waiters see it
+                            # Recorded as lost: the waiters see it. An expired motion's zero
+                            # thrust in it may not have gone: a reopened link sends it first.
+                            with lock:
+                                session.write_failed(data)
                         finally:
                             lock.acquire()
         finally:

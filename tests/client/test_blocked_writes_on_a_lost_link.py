@@ -1,5 +1,5 @@
-"""``stop()`` never queues behind a write that cannot finish: a write waiting for room on a link
-that is lost, or a link whose far end stopped reading (reconnect=True)."""
+"""Writes that a lost link cuts off (reconnect=True): ``stop()`` never queues behind a write that
+cannot finish, and a stop or zero thrust that did not get out goes first on the reopened link."""
 
 from __future__ import annotations
 
@@ -51,15 +51,17 @@ def _probed(fake: FakeController) -> bool:
 class _Writer:
     """A program thread that writes a command and keeps what became of it."""
 
-    def __init__(self, rov: Client) -> None:
+    def __init__(self, rov: Client, direction_deg: int = 90, power_percent: int = 40) -> None:
         self.error: BaseException | None = None
         self.done = threading.Event()
-        self._thread = threading.Thread(target=self._run, args=(rov,), daemon=True)
+        self._thread = threading.Thread(
+            target=self._run, args=(rov, direction_deg, power_percent), daemon=True
+        )
         self._thread.start()
 
-    def _run(self, rov: Client) -> None:
+    def _run(self, rov: Client, direction_deg: int, power_percent: int) -> None:
         try:
-            rov.move(90, 40)
+            rov.move(direction_deg, power_percent)
         except BaseException as error:  # (kept for the test to look at)
             self.error = error
         finally:
@@ -198,6 +200,46 @@ def test_a_stop_behind_a_write_that_times_out_is_the_reopened_links_first_frame(
         assert second.fake.wait_for(_stopped, CONDITION_TIMEOUT_S)
         assert second.fake.frames()[0] == "#stop!"  # first, before the readiness probe
         assert rov.depth_cm() == 123
+    finally:
+        rov.close()
+        first.close()
+        if second is not None:
+            second.close()
+
+
+@pytest.mark.parametrize("how", ["the program's zero thrust", "an expired motion's zero thrust"])
+def test_zero_thrust_cut_off_by_the_loss_of_the_link_goes_first_on_the_reopened_one(
+    device_name: Path, monkeypatch: pytest.MonkeyPatch, how: str
+) -> None:
+    # Before, a zero thrust whose write the loss of the link cut off was taken as sent: the
+    # reopened link began with the readiness probe, whose queries fed the watchdog (P17) of a
+    # controller driving on at 50 % (a link that only dropped: no reset).
+    write_timeout_s = 0.3
+    monkeypatch.setattr(links, "WRITE_TIMEOUT_S", write_timeout_s)
+    first = _SerialDevice(device_name)
+    second: _SerialDevice | None = None
+    expiring = how == "an expired motion's zero thrust"
+    rov = rovlink.connect(
+        str(device_name),
+        reconnect=True,
+        keepalive=None,
+        timeout=2.0,
+        boot_timeout=2.0,
+        motion_timeout=0.5 if expiring else None,
+    )
+    try:
+        rov.start()
+        rov.move(90, 50)
+        first.fake.stop_reading()  # the controller hangs
+        first.fill_line()
+        sent = rov.counters.frames_sent
+        if not expiring:
+            _Writer(rov, 90, 0)  # waits for room, then times out: the link is lost
+        assert wait_until(lambda: rov.counters.frames_sent > sent)  # the zero is being written
+        device_name.unlink()  # plugged out and in again: the same name
+        second = _SerialDevice(device_name)
+        assert second.fake.wait_for(lambda fake: len(fake.frames()) >= 3, CONDITION_TIMEOUT_S)
+        assert second.fake.frames()[:3] == ["#th.90.0!", "#crcoff!", "#qd!"]
     finally:
         rov.close()
         first.close()
