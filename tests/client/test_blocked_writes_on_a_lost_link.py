@@ -3,6 +3,7 @@ cannot finish, and a stop or zero thrust that did not get out goes first on the 
 
 from __future__ import annotations
 
+import asyncio
 import contextlib
 import os
 import select
@@ -16,6 +17,7 @@ from pathlib import Path
 import pytest
 
 import rovlink
+import rovlink.aio
 from rovlink.client import Client, links
 from rovlink.client.errors import ConnectionLostError
 from rovlink.client.events import ClientEvent, LinkState
@@ -151,8 +153,11 @@ class _SerialDevice:
                     return
 
     def close(self) -> None:
+        """Pull it out: the client's descriptor reads as hung up from now on (idempotent)."""
         self.fake.close()
-        os.close(self._terminal)
+        if self._terminal >= 0:
+            os.close(self._terminal)
+            self._terminal = -1
 
 
 @pytest.fixture
@@ -242,6 +247,73 @@ def test_zero_thrust_cut_off_by_the_loss_of_the_link_goes_first_on_the_reopened_
         assert second.fake.frames()[:3] == ["#th.90.0!", "#crcoff!", "#qd!"]
     finally:
         rov.close()
+        first.close()
+        if second is not None:
+            second.close()
+
+
+@pytest.mark.parametrize("what", ["#stop!", "#th.90.0!"])
+async def test_the_asyncio_client_gives_up_a_line_that_takes_nothing_and_starts_the_next_with_it(
+    device_name: Path, monkeypatch: pytest.MonkeyPatch, what: str
+) -> None:
+    # Before, the asyncio client kept what a controller that stopped reading did not take in
+    # its buffer for ever: the #stop! (or zero thrust) behind it never went out, and the link
+    # was never taken for lost, so the adapter plugged back under the same name was never
+    # opened.
+    monkeypatch.setattr(links, "WRITE_TIMEOUT_S", 0.3)
+    first = _SerialDevice(device_name)
+    second: _SerialDevice | None = None
+    try:
+        async with rovlink.aio.connect(
+            str(device_name),
+            reconnect=True,
+            keepalive=None,
+            timeout=2.0,
+            boot_timeout=2.0,
+            motion_timeout=None,
+        ) as rov:
+            await rov.start()
+            await rov.move(90, 50)
+            first.fake.stop_reading()  # the controller hangs
+            first.fill_line()
+            # Returns at once: the line takes it when it can.
+            await (rov.stop() if what == "#stop!" else rov.move(90, 0))
+            device_name.unlink()  # plugged out and in again: the same name
+            second = _SerialDevice(device_name)
+            got = await asyncio.to_thread(
+                second.fake.wait_for, lambda fake: what in fake.frames(), CONDITION_TIMEOUT_S
+            )
+            assert got, f"the reopened link got no {what}"
+            assert second.fake.frames()[:3] == [what, "#crcoff!", "#qd!"]  # before the probe
+            assert await rov.depth_cm() == 123
+    finally:
+        first.close()
+        if second is not None:
+            second.close()
+
+
+async def test_an_asyncio_stop_written_as_the_adapter_is_pulled_out_goes_first_on_the_next(
+    device_name: Path,
+) -> None:
+    # Before, the stop() whose own write found the device gone raised ConnectionLostError and
+    # was lost: the reopened link got zero thrust, and the motors stayed unlocked.
+    first = _SerialDevice(device_name)
+    second: _SerialDevice | None = None
+    try:
+        async with rovlink.aio.connect(
+            str(device_name), reconnect=True, keepalive=None, timeout=2.0, boot_timeout=2.0
+        ) as rov:
+            await rov.start()
+            await rov.move(90, 50)
+            device_name.unlink()
+            first.close()  # pulled out: the loop has not seen it yet, the stop's write does
+            await rov.stop()
+            second = _SerialDevice(device_name)  # plugged back under the same name
+            got = await asyncio.to_thread(second.fake.wait_for, _stopped, CONDITION_TIMEOUT_S)
+            assert got, "the reopened link got no #stop!"
+            assert second.fake.frames()[:3] == ["#stop!", "#crcoff!", "#qd!"]
+            assert await rov.depth_cm() == 123
+    finally:
         first.close()
         if second is not None:
             second.close()
