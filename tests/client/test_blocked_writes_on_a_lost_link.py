@@ -280,10 +280,8 @@ async def test_the_asyncio_client_gives_up_a_line_that_takes_nothing_and_starts_
             await (rov.stop() if what == "#stop!" else rov.move(90, 0))
             device_name.unlink()  # plugged out and in again: the same name
             second = _SerialDevice(device_name)
-            got = await asyncio.to_thread(
-                second.fake.wait_for, lambda fake: what in fake.frames(), CONDITION_TIMEOUT_S
-            )
-            assert got, f"the reopened link got no {what}"
+            got = await asyncio.to_thread(second.fake.wait_for, _probed, CONDITION_TIMEOUT_S)
+            assert got, f"the reopened link was not probed: {second.fake.frames()}"
             assert second.fake.frames()[:3] == [what, "#crcoff!", "#qd!"]  # before the probe
             assert await rov.depth_cm() == 123
     finally:
@@ -309,11 +307,56 @@ async def test_an_asyncio_stop_written_as_the_adapter_is_pulled_out_goes_first_o
             first.close()  # pulled out: the loop has not seen it yet, the stop's write does
             await rov.stop()
             second = _SerialDevice(device_name)  # plugged back under the same name
-            got = await asyncio.to_thread(second.fake.wait_for, _stopped, CONDITION_TIMEOUT_S)
-            assert got, "the reopened link got no #stop!"
+            got = await asyncio.to_thread(second.fake.wait_for, _probed, CONDITION_TIMEOUT_S)
+            assert got, f"the reopened link was not probed: {second.fake.frames()}"
             assert second.fake.frames()[:3] == ["#stop!", "#crcoff!", "#qd!"]
             assert await rov.depth_cm() == 123
     finally:
         first.close()
         if second is not None:
             second.close()
+
+
+def test_close_while_a_reopened_link_takes_nothing_returns_at_once_and_lets_the_port_go(
+    reopened: list[FakeController],
+) -> None:
+    # Before, close() waited 2 s for the reconnecting thread, blocked in writing zero thrust to
+    # a reopened link that took nothing, and returned with that thread still running and the
+    # port still open (P22: the program's next open of it could fail).
+    stuck: list[socket.socket] = []
+
+    def reopen() -> Link:
+        far_end, ours = socket.socketpair()  # plugged back, but nothing reads it
+        stuck.append(far_end)
+        link = SocketLink(ours, "socket pair, reopened")
+        _fill(link)
+        return link
+
+    first, host_end = FakeController.on_socketpair()
+    reopened.append(first)
+    events: list[ClientEvent] = []
+    options = client_options(reconnect=True, boot_timeout_s=2.0, on_event=events.append)
+    rov = Client(SocketLink(host_end, "socket pair"), options, reopen=reopen)
+    try:
+        rov.start()
+        rov.move(90, 50)  # a reopened link is sent zero thrust first
+        first.close()
+        assert wait_until(lambda: bool(stuck))
+        reconnector = rov._reconnector
+        assert reconnector is not None
+        started = time.monotonic()
+        rov.close()
+        took_s = time.monotonic() - started
+        assert took_s < PROMPT_S, f"close() took {took_s:.2f} s"
+        reconnector.join(PROMPT_S)
+        assert not reconnector.is_alive()
+        assert stuck[0].fileno() >= 0
+        stuck[0].setblocking(False)
+        with contextlib.suppress(BlockingIOError):  # (what the fill left)
+            while stuck[0].recv(1 << 20):
+                pass
+        assert stuck[0].recv(1) == b""  # the reopened port was let go
+    finally:
+        rov.close()
+        for far_end in stuck:
+            far_end.close()

@@ -211,6 +211,11 @@ class Client(CommandMethods):
                 self._closer = current
                 self._closing = True
                 self._stop_reconnecting.set()
+                # A reopened link that takes nothing would hold the reconnecting thread, and
+                # the port, past this close() (its write gives up after 2 s).
+                abort_writes = getattr(self._readied_link, "abort_writes", None)
+                if abort_writes is not None:
+                    abort_writes()
                 self._background_wakeup.notify()
                 self._changed.notify_all()
                 on_the_wire = self._session.on_the_wire  # (nothing new is written now)
