@@ -11,7 +11,7 @@ import socket
 import threading
 import time
 import tty
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import pytest
@@ -23,7 +23,7 @@ from rovlink.client.errors import ConnectionLostError
 from rovlink.client.events import ClientEvent, LinkState
 from rovlink.client.links import Link, SocketLink
 from tests.client.conftest import CONDITION_TIMEOUT_S, client_options, wait_until
-from tests.client.fake_controller import FakeController
+from tests.client.fake_controller import FakeController, FakeControllerServer
 
 pytestmark = pytest.mark.integration
 
@@ -48,6 +48,23 @@ def _stopped(fake: FakeController) -> bool:
 
 def _probed(fake: FakeController) -> bool:
     return "#qd!" in fake.frames()
+
+
+class _Call:
+    """A program thread that makes one call and keeps what became of it."""
+
+    def __init__(self, call: Callable[[], object]) -> None:
+        self.error: BaseException | None = None
+        self.done = threading.Event()
+        threading.Thread(target=self._run, args=(call,), daemon=True).start()
+
+    def _run(self, call: Callable[[], object]) -> None:
+        try:
+            call()
+        except BaseException as error:  # (kept for the test to look at)
+            self.error = error
+        finally:
+            self.done.set()
 
 
 class _Writer:
@@ -360,3 +377,27 @@ def test_close_while_a_reopened_link_takes_nothing_returns_at_once_and_lets_the_
         rov.close()
         for far_end in stuck:
             far_end.close()
+
+
+def test_a_command_that_waited_for_the_reopened_link_is_not_sent_after_a_stop(
+    port: FakeControllerServer,
+) -> None:
+    # Before, a start() that waited for the reopened link went out after the stop() another
+    # thread called meanwhile: the stop went first, and the robot was unlocked again after it.
+    events: list[ClientEvent] = []
+    with rovlink.connect(
+        port.url, reconnect=True, keepalive=None, timeout=2.0, on_event=events.append
+    ) as rov:
+        rov.start()
+        port.refuse = True  # unplugged
+        port.fakes[0].close()
+        assert wait_until(lambda: _lost(events))
+        starting = _Call(rov.start)  # waits for the link
+        assert wait_until(lambda: rov._waiting_callers > 0)
+        rov.stop()  # (after the start was asked for)
+        port.refuse = False  # plugged back
+        assert starting.done.wait(CONDITION_TIMEOUT_S)
+        assert isinstance(starting.error, ConnectionLostError)
+        assert "stop" in str(starting.error)
+        assert rov.depth_cm() == 123
+        assert "#start!" not in port.fakes[1].frames()

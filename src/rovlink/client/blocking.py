@@ -137,6 +137,8 @@ class Client(CommandMethods):
         self._closing = False
         self._reopen = reopen if options.reconnect else None
         self._reconnecting = False  # the link was lost and is being opened again
+        self._stops_asked = 0  # stop() calls: a command that waited for a link is not sent
+        # after one (see _send)
         # The reopened link while it is being readied (P21): a stop() is written on it at once.
         self._readied_link: Link | None = None
         self._stop_reconnecting = threading.Event()
@@ -605,15 +607,28 @@ class Client(CommandMethods):
 
     def _send(self, command: Command) -> None:
         stop = command == operations.STOP
+        if stop:
+            with self._state_lock:
+                self._stops_asked += 1
+        stops_before = self._stops_asked
+        waited_for_link = False
         while True:
             if stop and self._reconnecting and self._stop_while_reconnecting():
                 return
+            waited_for_link = waited_for_link or self._reconnecting
             self._check_open()
             with self._wire_lock:
                 with self._state_lock:
                     closing = self._closing and (not stop or self._reconnecting)
                     if self._lost is not None or closing:
                         raise self._lost_error()  # (lost, or closed, while this waited)
+                    if waited_for_link and self._stops_asked != stops_before:
+                        # Asked for before the stop, it would go out after it: a start()
+                        # would unlock the robot the program (a pilot) had just stopped.
+                        raise ConnectionLostError(
+                            f"connection lost: {self._link.description}: {command} not sent: "
+                            "stop() was called while it waited for the reopened link"
+                        )
                     # Lost while this waited for the wire lock (behind a write that timed
                     # out): not written on the lost link, which would time out once more.
                     reconnecting = self._reconnecting
