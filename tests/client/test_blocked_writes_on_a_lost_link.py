@@ -401,3 +401,37 @@ def test_a_command_that_waited_for_the_reopened_link_is_not_sent_after_a_stop(
         assert "stop" in str(starting.error)
         assert rov.depth_cm() == 123
         assert "#start!" not in port.fakes[1].frames()
+
+
+def test_a_port_reopened_as_close_begins_is_let_go_untouched(
+    reopened: list[FakeController],
+) -> None:
+    # Before, a port whose opening ended after close() had begun was written to (zero thrust)
+    # and probed before the reconnecting thread noticed the close.
+    first, host_end = FakeController.on_socketpair()
+    reopened.append(first)
+    rov: Client | None = None
+    opening = threading.Event()
+
+    def reopen() -> Link:
+        assert rov is not None
+        opening.set()
+        wait_until(lambda: rov._closing)  # opening takes until close() begins
+        fake, ours = FakeController.on_socketpair()
+        reopened.append(fake)
+        return SocketLink(ours, "socket pair, reopened")
+
+    events: list[ClientEvent] = []
+    options = client_options(reconnect=True, boot_timeout_s=2.0, on_event=events.append)
+    rov = Client(SocketLink(host_end, "socket pair"), options, reopen=reopen)
+    try:
+        rov.start()
+        rov.move(90, 50)  # a reopened link is sent zero thrust first
+        first.close()
+        assert opening.wait(CONDITION_TIMEOUT_S)
+    finally:
+        rov.close()
+    assert len(reopened) == 2
+    late = reopened[1]
+    assert late.wait_for(lambda fake: fake._fd < 0, CONDITION_TIMEOUT_S)  # let go
+    assert late.raw == b""  # untouched

@@ -478,6 +478,9 @@ class Client(CommandMethods):
             link: Link | None = None
             try:
                 link = reopen()
+                if self._stop_reconnecting.is_set():  # close() began while it was being opened
+                    link.close()
+                    return
                 # Under the readied link's lock, as every write on it until it is ready: a
                 # stop() from another thread goes on it at once (see _stop_while_reconnecting).
                 with self._readied_lock:
