@@ -410,13 +410,12 @@ def test_a_port_reopened_as_close_begins_is_let_go_untouched(
     # and probed before the reconnecting thread noticed the close.
     first, host_end = FakeController.on_socketpair()
     reopened.append(first)
-    rov: Client | None = None
+    clients: list[Client] = []
     opening = threading.Event()
 
     def reopen() -> Link:
-        assert rov is not None
         opening.set()
-        wait_until(lambda: rov._closing)  # opening takes until close() begins
+        wait_until(lambda: clients[0]._closing)  # opening takes until close() begins
         fake, ours = FakeController.on_socketpair()
         reopened.append(fake)
         return SocketLink(ours, "socket pair, reopened")
@@ -424,6 +423,7 @@ def test_a_port_reopened_as_close_begins_is_let_go_untouched(
     events: list[ClientEvent] = []
     options = client_options(reconnect=True, boot_timeout_s=2.0, on_event=events.append)
     rov = Client(SocketLink(host_end, "socket pair"), options, reopen=reopen)
+    clients.append(rov)
     try:
         rov.start()
         rov.move(90, 50)  # a reopened link is sent zero thrust first
