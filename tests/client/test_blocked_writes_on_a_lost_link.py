@@ -435,3 +435,47 @@ def test_a_port_reopened_as_close_begins_is_let_go_untouched(
     late = reopened[1]
     assert late.wait_for(lambda fake: fake._fd < 0, CONDITION_TIMEOUT_S)  # let go
     assert late.raw == b""  # untouched
+
+
+def test_a_stop_while_the_reopened_link_takes_nothing_returns_at_once(
+    reopened: list[FakeController], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # Before, stop() waited behind the zero thrust the reconnecting thread was writing on a
+    # reopened link that took nothing, until that write gave up (2 s).
+    monkeypatch.setattr(links, "WRITE_TIMEOUT_S", 1.0)
+    stuck: list[socket.socket] = []
+
+    def reopen() -> Link:
+        if stuck:  # the next time: a controller that reads
+            fake, ours = FakeController.on_socketpair()
+            reopened.append(fake)
+            return SocketLink(ours, "socket pair, reopened")
+        far_end, ours = socket.socketpair()  # plugged back, but nothing reads it
+        stuck.append(far_end)
+        link = SocketLink(ours, "socket pair, reopened, stuck")
+        _fill(link)
+        return link
+
+    first, host_end = FakeController.on_socketpair()
+    reopened.append(first)
+    events: list[ClientEvent] = []
+    options = client_options(reconnect=True, boot_timeout_s=2.0, on_event=events.append)
+    rov = Client(SocketLink(host_end, "socket pair"), options, reopen=reopen)
+    try:
+        rov.start()
+        rov.move(90, 50)  # a reopened link is sent zero thrust first
+        first.close()
+        assert wait_until(lambda: bool(stuck))
+        assert wait_until(lambda: rov._readied_link is not None)  # its zero thrust waits
+        started = time.monotonic()
+        rov.stop()
+        took_s = time.monotonic() - started
+        assert took_s < PROMPT_S, f"stop() took {took_s:.2f} s"
+        # The stuck link gave up, and the next one begins with the stop.
+        assert wait_until(lambda: len(reopened) == 2)
+        assert reopened[1].wait_for(_probed, CONDITION_TIMEOUT_S)
+        assert reopened[1].frames()[:3] == ["#stop!", "#crcoff!", "#qd!"]
+    finally:
+        rov.close()
+        for far_end in stuck:
+            far_end.close()

@@ -124,6 +124,8 @@ class Client(CommandMethods):
         # stop() on it must not queue behind a write still held up on the lost link. Lock
         # order: the wire lock, then this one, then the state lock.
         self._readied_lock = threading.RLock()
+        # A stop() that found that lock held: its holder writes the #stop! before letting go.
+        self._stop_handed_over = False
         self._state_lock = threading.RLock()  # the session and everything below
         self._changed = threading.Condition(self._state_lock)  # a query settled, role released
         # The background reader waits apart, so that callers' notifications do not wake it.
@@ -481,9 +483,10 @@ class Client(CommandMethods):
                 if self._stop_reconnecting.is_set():  # close() began while it was being opened
                     link.close()
                     return
-                # Under the readied link's lock, as every write on it until it is ready: a
+                # Every write on it until it is ready holds the readied link's lock, so that a
                 # stop() from another thread goes on it at once (see _stop_while_reconnecting).
-                with self._readied_lock:
+                self._readied_lock.acquire()
+                try:
                     with self._state_lock:
                         rest = self._session.link_reopened()
                         self._readied_link = link
@@ -491,24 +494,75 @@ class Client(CommandMethods):
                         link.write(rest)
                         with self._state_lock:
                             self._session.count_outside(self._clock(), sent=rest)
+                except BaseException:  # (a stop handed over is kept for the next link)
+                    self._readied_lock.release()
+                    raise
+                self._release_readied(link)
                 self._await_ready(link)
-                with self._wire_lock, self._readied_lock:
-                    with self._state_lock:
-                        if self._closing:
+                if not self._install(link, attempts):
+                    return  # (closed meanwhile)
+                break
+            except (OSError, ValueError) as error:  # ConnectError, ConnectionLostError too
+                logger.debug("reconnect attempt %d: %s", attempts, error)
+                if link is not None:
+                    with self._readied_lock:  # (no stop() is writing on it)
+                        with self._state_lock:
+                            self._session.reopen_failed()  # (a stop is kept for the next)
                             self._readied_link = None
-                            self._session.reopen_failed()
+                            self._stop_handed_over = False
+                        with contextlib.suppress(Exception):
                             link.close()
-                            return
-                        session = self._session
-                        session.reset_link()
-                        data = session.take_outbox(self._clock())  # the mode, zero thrust
+                self._stop_reconnecting.wait(backoff_s)
+                backoff_s = min(backoff_s * 2, _RECONNECT_MAX_S)
+        self._emit()
+
+    def _release_readied(self, link: Link) -> None:
+        """Let go of the readied link's lock (held once), first writing on ``link`` the
+        ``#stop!`` a stop() handed over meanwhile (see :meth:`_stop_while_reconnecting`)."""
+        lock = self._readied_lock
+        try:
+            while True:
+                with self._state_lock:
+                    if not self._stop_handed_over:
+                        # (Under the state lock: a stop() finds the lock free now, or it
+                        # handed the stop over before this looked.)
+                        lock.release()
+                        return
+                    self._stop_handed_over = False
+                    data = self._session.stop_while_reconnecting(self._clock())
+                link.write(data)
+        except BaseException:  # (the attempt fails: the stop is kept for the next link)
+            if _owns(lock):  # (a Ctrl-C may land after the release, on connect)
+                lock.release()
+            raise
+
+    def _install(self, link: Link, attempts: int) -> bool:
+        """Make the reopened ``link``, whose controller answered, the connection's: write the
+        checksum mode and zero thrust (or a stop) first. False if close() began meanwhile."""
+        with self._wire_lock:
+            self._readied_lock.acquire()
+            try:
+                session = self._session
+                with self._state_lock:
+                    if self._closing:
+                        self._readied_link = None
+                        session.reopen_failed()
+                        link.close()
+                        return False
+                    session.reset_link()
+                    data = session.take_outbox(self._clock())  # the mode, zero thrust
+                while True:
                     link.write(data)  # (not under the state lock: the link may be slow)
                     with self._state_lock:
+                        if self._stop_handed_over:  # (asked for during that write)
+                            self._stop_handed_over = False
+                            data = session.stop_while_reconnecting(self._clock())
+                            continue
                         self._readied_link = None
                         if self._closing:  # (close() began during that write)
-                            self._session.reopen_failed()
+                            session.reopen_failed()
                             link.close()
-                            return
+                            return False
                         session.link_ready()  # (not before: a failed write leaves them)
                         self._link = link
                         self._send_now = getattr(link, "send_some", None)
@@ -522,19 +576,9 @@ class Client(CommandMethods):
                         )
                         self._changed.notify_all()
                         self._background_wakeup.notify()
-                break
-            except (OSError, ValueError) as error:  # ConnectError, ConnectionLostError too
-                logger.debug("reconnect attempt %d: %s", attempts, error)
-                if link is not None:
-                    with self._readied_lock:  # (no stop() is writing on it)
-                        with self._state_lock:
-                            self._session.reopen_failed()
-                            self._readied_link = None
-                        with contextlib.suppress(Exception):
-                            link.close()
-                self._stop_reconnecting.wait(backoff_s)
-                backoff_s = min(backoff_s * 2, _RECONNECT_MAX_S)
-        self._emit()
+                        return True
+            finally:
+                self._readied_lock.release()
 
     def _abandon(self, pending: PendingQuery) -> None:
         """Give up the query of a caller that was interrupted (state lock held): it may be
@@ -662,8 +706,22 @@ class Client(CommandMethods):
         leaves the controller's own link-loss failsafe to stop the robot, P17). On a reopened
         link being readied it goes out at once, not after the probe's answer (see
         :meth:`Session.stop_while_reconnecting`); with no link open, it is the next one's first
-        frame."""
-        with self._readied_lock:  # (not the wire lock: a write on the lost link may hold it)
+        frame. It never waits for a write on the reopened link (a line that takes nothing holds
+        one until it gives up): the writer writes the stop next."""
+        lock = self._readied_lock  # (not the wire lock: a write on the lost link may hold it)
+        held = lock.acquire(blocking=False)
+        if not held:
+            with self._state_lock:
+                if not self._reconnecting or self._closing:
+                    return False
+                held = lock.acquire(blocking=False)  # (let go meanwhile)
+                if not held:  # the writer looks for it before letting go (_release_readied)
+                    self._stop_handed_over = True
+                    self._session.hand_over_stop()
+            if not held:
+                self._emit()
+                return True
+        try:
             with self._state_lock:
                 if not self._reconnecting or self._closing:  # (checked again under the lock)
                     return False
@@ -678,6 +736,8 @@ class Client(CommandMethods):
                     link.write(data)
                 except ConnectionLostError as error:  # the attempt fails: kept for the next
                     logger.debug("#stop! on the reopened link: %s", error)
+        finally:
+            lock.release()
         self._emit()
         return True
 
@@ -698,8 +758,13 @@ class Client(CommandMethods):
             try:
                 data = probe.bytes_to_send(now)
                 if data:
-                    with self._readied_lock:  # (a stop() may write on a reopened link meanwhile)
+                    self._readied_lock.acquire()  # (a stop() may write on a reopened link)
+                    try:
                         link.write(data)
+                    except BaseException:
+                        self._readied_lock.release()
+                        raise
+                    self._release_readied(link)
                     with self._state_lock:
                         self._session.count_outside(now, sent=data)
                 data = link.read_available(max(probe.wait_s(clock()), 0.001))

@@ -787,6 +787,12 @@ class Session:
         self._track(_STOP, now)
         return data
 
+    def hand_over_stop(self) -> None:
+        """``#stop!`` asked for while the reopened link is busy with another write (a line
+        that takes nothing holds it until the write gives up): kept, as while no link is open,
+        and the writer asks :meth:`stop_while_reconnecting` for its bytes next."""
+        self._stop_on_reopen = True
+
     def reset_link(self) -> None:
         """Start afresh on a reopened link that answered: no partial frame, nothing late, and
         nothing due but the checksum mode, then zero thrust if the motion last sent was not at
