@@ -103,6 +103,7 @@ class FakeController:
         self._write_order = threading.Lock()
         self._wake_r, self._wake_w = os.pipe()
         self._stopping = False
+        self._reading = True
         self._thread = threading.Thread(target=self._run, name="fake controller", daemon=True)
         self._thread.start()
 
@@ -155,6 +156,13 @@ class FakeController:
         """End a stall begun by a ``hold`` action: the replies held go out, in order."""
         self._end_stall()
 
+    def stop_reading(self) -> None:
+        """Hang: read nothing more (the port stays open), so that the host's bytes pile up in
+        the line until its writes find no room."""
+        with self._condition:
+            self._reading = False
+        os.write(self._wake_w, b"x")
+
     def close(self) -> None:
         """Disconnect: the host sees the end of the stream."""
         with self._condition:
@@ -173,7 +181,10 @@ class FakeController:
     def _run(self) -> None:
         try:
             while not self._stopping:
-                ready, _, _ = select.select([self._fd, self._wake_r], [], [], 1.0)
+                watched = [self._fd, self._wake_r] if self._reading else [self._wake_r]
+                ready, _, _ = select.select(watched, [], [], 1.0)
+                if self._wake_r in ready and not self._stopping:
+                    os.read(self._wake_r, 64)
                 if self._fd not in ready:
                     continue
                 try:

@@ -490,7 +490,12 @@ class AsyncClient(AsyncCommandMethods):
             self._stop_while_reconnecting()
             return
         self._check_open()
-        self._write(self._session.command(command, self._clock()))
+        try:
+            self._write(self._session.command(command, self._clock()))
+        except ConnectionLostError:
+            if not (command == operations.STOP and self._link_down and not self._closed):
+                raise
+            # Cut off by the loss: the reopened link's first frame (see _on_lost).
         self._arm_timer()  # a motion command may now expire
         self._emit()
 
@@ -670,6 +675,8 @@ class AsyncClient(AsyncCommandMethods):
             self._link_down = True
             self._cancel_timer()
             self._wake(self._session.disconnect())  # their replies are gone
+            # A stop or zero thrust that had not all gone goes first on the reopened link.
+            self._session.write_failed(self._transport.undelivered)
             self._session.note_link("lost", f"{error}; reconnecting", self._clock())
             self._emit()
             self._reconnector = self._loop.create_task(self._reconnect())

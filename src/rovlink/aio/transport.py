@@ -17,6 +17,7 @@ import threading
 from collections.abc import Callable
 from typing import Protocol
 
+from rovlink.client import links
 from rovlink.client.errors import ConnectionLostError
 from rovlink.client.links import FdLink, Link
 
@@ -72,6 +73,17 @@ class ByteTransport(Protocol):
         """
         ...
 
+    @property
+    def undelivered(self) -> bytes:
+        """Bytes given to :meth:`write` that may not have reached the port when the link was
+        lost (a whole frame even if part of it went): empty while everything went.
+
+        Example::
+
+            session.write_failed(transport.undelivered)
+        """
+        ...
+
 
 class FdTransport:
     """A link with a file descriptor, driven by the loop's readiness callbacks."""
@@ -81,6 +93,10 @@ class FdTransport:
         self._loop = loop
         self._fd = link.fileno()
         self._buffer = bytearray()
+        # Every write not yet wholly written, from its first byte (the buffer is a tail of it).
+        self._unconfirmed = bytearray()
+        self._last_progress_at = 0.0  # when the buffer last shrank (or began)
+        self._stall_timer: asyncio.TimerHandle | None = None
         self._on_data: DataCallback | None = None
         self._on_lost: LostCallback | None = None
         self._closed = False
@@ -108,15 +124,50 @@ class FdTransport:
             raise ConnectionLostError(f"{self._link.description}: closed")
         if self._buffer:
             self._buffer += data
+            self._unconfirmed += data
             return
         try:
             written = self._link.send_some(data)
         except ConnectionLostError as error:
+            self._unconfirmed += data
             self._fail(error)
             raise
         if written < len(data):
             self._buffer += data[written:]
+            self._unconfirmed += data
             self._loop.add_writer(self._fd, self._writable)
+            # A line that takes nothing for the write timeout is lost, as the blocking
+            # client's write says: else a #stop! would wait behind it for ever, and a reopened
+            # link (reconnect=True) would never be tried.
+            self._last_progress_at = self._loop.time()
+            self._arm_stall_timer(links.WRITE_TIMEOUT_S)
+
+    @property
+    def undelivered(self) -> bytes:
+        """Bytes given to :meth:`write` that may not have reached the port when the link was
+        lost (a whole frame even if part of it went): empty while everything went.
+
+        Example::
+
+            session.write_failed(transport.undelivered)
+        """
+        return bytes(self._unconfirmed)
+
+    def _arm_stall_timer(self, delay_s: float) -> None:
+        self._stall_timer = self._loop.call_later(delay_s, self._check_stall)
+
+    def _check_stall(self) -> None:
+        self._stall_timer = None
+        if not self._buffer or self._failed or self._closed:
+            return
+        timeout_s = links.WRITE_TIMEOUT_S
+        stalled_s = self._loop.time() - self._last_progress_at
+        if stalled_s < timeout_s:
+            self._arm_stall_timer(timeout_s - stalled_s)
+            return
+        self._fail(
+            ConnectionLostError(f"{self._link.description}: write blocked for {timeout_s:g} s")
+        )
 
     def _writable(self) -> None:
         try:
@@ -124,8 +175,11 @@ class FdTransport:
         except ConnectionLostError as error:
             self._fail(error)
             return
+        if written:
+            self._last_progress_at = self._loop.time()
         del self._buffer[:written]
         if not self._buffer:
+            self._unconfirmed.clear()
             self._loop.remove_writer(self._fd)
             self._settle_drained()
 
@@ -145,6 +199,9 @@ class FdTransport:
     def _stop_watching(self) -> None:
         self._loop.remove_reader(self._fd)
         self._loop.remove_writer(self._fd)
+        if self._stall_timer is not None:
+            self._stall_timer.cancel()
+            self._stall_timer = None
 
     async def close(self) -> None:
         """Write what is still buffered (for at most :data:`CLOSE_FLUSH_S`), stop watching and
@@ -172,6 +229,7 @@ class ThreadTransport:
         self._loop = loop
         self._closing = False
         self._closed = False
+        self._undelivered = bytearray()
         self._thread: threading.Thread | None = None
 
     def start(self, on_data: DataCallback, on_lost: LostCallback) -> None:
@@ -207,7 +265,21 @@ class ThreadTransport:
         """Write to the port (such ports take small writes without blocking)."""
         if self._closing:
             raise ConnectionLostError(f"{self._link.description}: closed")
-        self._link.write(data)
+        try:
+            self._link.write(data)
+        except ConnectionLostError:
+            self._undelivered += data
+            raise
+
+    @property
+    def undelivered(self) -> bytes:
+        """Bytes given to :meth:`write` whose write failed with the link (it writes at once).
+
+        Example::
+
+            session.write_failed(transport.undelivered)
+        """
+        return bytes(self._undelivered)
 
     async def close(self) -> None:
         """Stop the thread and close the link."""

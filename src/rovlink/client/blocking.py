@@ -120,6 +120,12 @@ class Client(CommandMethods):
         # owner: a call that an exception ends gives back what its thread still holds (see
         # _recover_after_error).
         self._wire_lock = threading.RLock()  # one writer at a time: queue order = wire order
+        # Writes on a reopened link being readied (P21) take this lock, not the wire lock: a
+        # stop() on it must not queue behind a write still held up on the lost link. Lock
+        # order: the wire lock, then this one, then the state lock.
+        self._readied_lock = threading.RLock()
+        # A stop() that found that lock held: its holder writes the #stop! before letting go.
+        self._stop_handed_over = False
         self._state_lock = threading.RLock()  # the session and everything below
         self._changed = threading.Condition(self._state_lock)  # a query settled, role released
         # The background reader waits apart, so that callers' notifications do not wake it.
@@ -133,6 +139,8 @@ class Client(CommandMethods):
         self._closing = False
         self._reopen = reopen if options.reconnect else None
         self._reconnecting = False  # the link was lost and is being opened again
+        self._stops_asked = 0  # stop() calls: a command that waited for a link is not sent
+        # after one (see _send)
         # The reopened link while it is being readied (P21): a stop() is written on it at once.
         self._readied_link: Link | None = None
         self._stop_reconnecting = threading.Event()
@@ -207,6 +215,11 @@ class Client(CommandMethods):
                 self._closer = current
                 self._closing = True
                 self._stop_reconnecting.set()
+                # A reopened link that takes nothing would hold the reconnecting thread, and
+                # the port, past this close() (its write gives up after 2 s).
+                abort_writes = getattr(self._readied_link, "abort_writes", None)
+                if abort_writes is not None:
+                    abort_writes()
                 self._background_wakeup.notify()
                 self._changed.notify_all()
                 on_the_wire = self._session.on_the_wire  # (nothing new is written now)
@@ -424,6 +437,13 @@ class Client(CommandMethods):
         """Settle everything as disconnected (state lock held); reopen the link if asked to."""
         if self._lost is not None:
             return
+        if not self._closing:
+            # A write still waiting for room on the lost link is given up now, not at its
+            # write timeout: it holds the wire lock, and every write (a stop()) waits behind.
+            # (Not while closing: a last #stop! may still be on its way out.)
+            abort_writes = getattr(self._link, "abort_writes", None)
+            if abort_writes is not None:
+                abort_writes()
         if self._reopen is not None and not self._closing:
             self._session.disconnect()  # what was on the wire fails: its replies are gone
             self._changed.notify_all()
@@ -448,7 +468,8 @@ class Client(CommandMethods):
             self._waiting_callers += 1
             self._changed.wait_for(lambda: self._reader_ident is None, timeout=2.0)
             self._waiting_callers -= 1
-        with contextlib.suppress(Exception):
+        # Whoever wrote on it has let go too (a write waiting for room was given up: _lose).
+        with self._wire_lock, contextlib.suppress(Exception):
             self._link.close()
         reopen = self._reopen
         assert reopen is not None
@@ -459,9 +480,13 @@ class Client(CommandMethods):
             link: Link | None = None
             try:
                 link = reopen()
-                # Under the wire lock, as every write on it until it is ready: a stop() from
-                # another thread goes on it at once (see _send).
-                with self._wire_lock:
+                if self._stop_reconnecting.is_set():  # close() began while it was being opened
+                    link.close()
+                    return
+                # Every write on it until it is ready holds the readied link's lock, so that a
+                # stop() from another thread goes on it at once (see _stop_while_reconnecting).
+                self._readied_lock.acquire()
+                try:
                     with self._state_lock:
                         rest = self._session.link_reopened()
                         self._readied_link = link
@@ -469,42 +494,91 @@ class Client(CommandMethods):
                         link.write(rest)
                         with self._state_lock:
                             self._session.count_outside(self._clock(), sent=rest)
+                except BaseException:  # (a stop handed over is kept for the next link)
+                    self._readied_lock.release()
+                    raise
+                self._release_readied(link)
                 self._await_ready(link)
-                with self._wire_lock, self._state_lock:
-                    self._readied_link = None
-                    if self._closing:
-                        self._session.reopen_failed()
-                        link.close()
-                        return
-                    session = self._session
-                    session.reset_link()
-                    link.write(session.take_outbox(self._clock()))  # the mode, zero thrust
-                    session.link_ready()  # (not before: a failed write leaves them to the next)
-                    self._link = link
-                    self._send_now = getattr(link, "send_some", None)
-                    self._read_reply = getattr(link, "read_reply", link.read_available)
-                    self._reconnecting = False
-                    plural = "s" if attempts > 1 else ""
-                    session.note_link(
-                        "reconnected",
-                        f"{link.description} after {attempts} attempt{plural}",
-                        self._clock(),
-                    )
-                    self._changed.notify_all()
-                    self._background_wakeup.notify()
+                if not self._install(link, attempts):
+                    return  # (closed meanwhile)
                 break
             except (OSError, ValueError) as error:  # ConnectError, ConnectionLostError too
                 logger.debug("reconnect attempt %d: %s", attempts, error)
                 if link is not None:
-                    with self._wire_lock:  # (no stop() is writing on it)
+                    with self._readied_lock:  # (no stop() is writing on it)
                         with self._state_lock:
-                            self._session.reopen_failed()
+                            self._session.reopen_failed()  # (a stop is kept for the next)
                             self._readied_link = None
+                            self._stop_handed_over = False
                         with contextlib.suppress(Exception):
                             link.close()
                 self._stop_reconnecting.wait(backoff_s)
                 backoff_s = min(backoff_s * 2, _RECONNECT_MAX_S)
         self._emit()
+
+    def _release_readied(self, link: Link) -> None:
+        """Let go of the readied link's lock (held once), first writing on ``link`` the
+        ``#stop!`` a stop() handed over meanwhile (see :meth:`_stop_while_reconnecting`)."""
+        lock = self._readied_lock
+        try:
+            while True:
+                with self._state_lock:
+                    if not self._stop_handed_over:
+                        # (Under the state lock: a stop() finds the lock free now, or it
+                        # handed the stop over before this looked.)
+                        lock.release()
+                        return
+                    self._stop_handed_over = False
+                    data = self._session.stop_while_reconnecting(self._clock())
+                link.write(data)
+        except BaseException:  # (the attempt fails: the stop is kept for the next link)
+            if _owns(lock):  # (a Ctrl-C may land after the release, on connect)
+                lock.release()
+            raise
+
+    def _install(self, link: Link, attempts: int) -> bool:
+        """Make the reopened ``link``, whose controller answered, the connection's: write the
+        checksum mode and zero thrust (or a stop) first. False if close() began meanwhile."""
+        with self._wire_lock:
+            self._readied_lock.acquire()
+            try:
+                session = self._session
+                with self._state_lock:
+                    if self._closing:
+                        self._readied_link = None
+                        session.reopen_failed()
+                        link.close()
+                        return False
+                    session.reset_link()
+                    data = session.take_outbox(self._clock())  # the mode, zero thrust
+                while True:
+                    link.write(data)  # (not under the state lock: the link may be slow)
+                    with self._state_lock:
+                        if self._stop_handed_over:  # (asked for during that write)
+                            self._stop_handed_over = False
+                            data = session.stop_while_reconnecting(self._clock())
+                            continue
+                        self._readied_link = None
+                        if self._closing:  # (close() began during that write)
+                            session.reopen_failed()
+                            link.close()
+                            return False
+                        session.link_ready()  # (not before: a failed write leaves them)
+                        self._link = link
+                        self._send_now = getattr(link, "send_some", None)
+                        self._read_reply = getattr(link, "read_reply", link.read_available)
+                        self._reconnecting = False
+                        plural = "s" if attempts > 1 else ""
+                        session.note_link(
+                            "reconnected",
+                            f"{link.description} after {attempts} attempt{plural}",
+                            self._clock(),
+                        )
+                        self._changed.notify_all()
+                        self._background_wakeup.notify()
+                        return True
+            finally:
+                self._readied_lock.release()
 
     def _abandon(self, pending: PendingQuery) -> None:
         """Give up the query of a caller that was interrupted (state lock held): it may be
@@ -552,6 +626,8 @@ class Client(CommandMethods):
         finally:
             while _owns(lock):
                 lock.release()
+            while _owns(self._readied_lock):
+                self._readied_lock.release()
             while _owns(self._wire_lock):
                 self._wire_lock.release()
 
@@ -577,23 +653,51 @@ class Client(CommandMethods):
             raise self._lost_error() from error
 
     def _send(self, command: Command) -> None:
-        if command == operations.STOP and self._reconnecting and self._stop_while_reconnecting():
-            return
-        self._check_open()
-        with self._wire_lock:
+        stop = command == operations.STOP
+        if stop:
             with self._state_lock:
-                if self._closing and command != operations.STOP:  # (another thread closes)
-                    raise self._lost_error()
-                motion_before = self._session.motion_as_sent()
-                data = self._session.command(command, self._clock())
-            try:
-                self._write(data)
-            except ConnectionLostError:
-                raise
-            except BaseException:  # (a Ctrl-C in a blocked write): it may not have gone
+                self._stops_asked += 1
+        stops_before = self._stops_asked
+        waited_for_link = False
+        while True:
+            if stop and self._reconnecting and self._stop_while_reconnecting():
+                return
+            waited_for_link = waited_for_link or self._reconnecting
+            self._check_open()
+            with self._wire_lock:
                 with self._state_lock:
-                    self._session.write_interrupted(motion_before)
-                raise
+                    closing = self._closing and (not stop or self._reconnecting)
+                    if self._lost is not None or closing:
+                        raise self._lost_error()  # (lost, or closed, while this waited)
+                    if waited_for_link and self._stops_asked != stops_before:
+                        # Asked for before the stop, it would go out after it: a start()
+                        # would unlock the robot the program (a pilot) had just stopped.
+                        raise ConnectionLostError(
+                            f"connection lost: {self._link.description}: {command} not sent: "
+                            "stop() was called while it waited for the reopened link"
+                        )
+                    # Lost while this waited for the wire lock (behind a write that timed
+                    # out): not written on the lost link, which would time out once more.
+                    reconnecting = self._reconnecting
+                    if not reconnecting:
+                        motion_before = self._session.motion_as_sent()
+                        data = self._session.command(command, self._clock())
+                if not reconnecting:
+                    try:
+                        self._write(data)
+                    except ConnectionLostError:
+                        # A stop whose link is lost as it is written: the reopened link's
+                        # first frame, as when it is asked for while the link is down.
+                        if stop and self._reconnecting and self._stop_while_reconnecting():
+                            break
+                        with self._state_lock:  # (it may not have gone: a reopened link
+                            self._session.write_interrupted(motion_before)  # zeroes it)
+                        raise
+                    except BaseException:  # (a Ctrl-C in a blocked write): it may not have gone
+                        with self._state_lock:
+                            self._session.write_interrupted(motion_before)
+                        raise
+                    break
         self._emit()
 
     def _stop_while_reconnecting(self) -> bool:
@@ -602,8 +706,22 @@ class Client(CommandMethods):
         leaves the controller's own link-loss failsafe to stop the robot, P17). On a reopened
         link being readied it goes out at once, not after the probe's answer (see
         :meth:`Session.stop_while_reconnecting`); with no link open, it is the next one's first
-        frame."""
-        with self._wire_lock:
+        frame. It never waits for a write on the reopened link (a line that takes nothing holds
+        one until it gives up): the writer writes the stop next."""
+        lock = self._readied_lock  # (not the wire lock: a write on the lost link may hold it)
+        held = lock.acquire(blocking=False)
+        if not held:
+            with self._state_lock:
+                if not self._reconnecting or self._closing:
+                    return False
+                held = lock.acquire(blocking=False)  # (let go meanwhile)
+                if not held:  # the writer looks for it before letting go (_release_readied)
+                    self._stop_handed_over = True
+                    self._session.hand_over_stop()
+            if not held:
+                self._emit()
+                return True
+        try:
             with self._state_lock:
                 if not self._reconnecting or self._closing:  # (checked again under the lock)
                     return False
@@ -618,6 +736,8 @@ class Client(CommandMethods):
                     link.write(data)
                 except ConnectionLostError as error:  # the attempt fails: kept for the next
                     logger.debug("#stop! on the reopened link: %s", error)
+        finally:
+            lock.release()
         self._emit()
         return True
 
@@ -638,8 +758,13 @@ class Client(CommandMethods):
             try:
                 data = probe.bytes_to_send(now)
                 if data:
-                    with self._wire_lock:  # (a stop() may write on a reopened link meanwhile)
+                    self._readied_lock.acquire()  # (a stop() may write on a reopened link)
+                    try:
                         link.write(data)
+                    except BaseException:
+                        self._readied_lock.release()
+                        raise
+                    self._release_readied(link)
                     with self._state_lock:
                         self._session.count_outside(now, sent=data)
                 data = link.read_available(max(probe.wait_s(clock()), 0.001))
@@ -668,6 +793,8 @@ class Client(CommandMethods):
             with self._wire_lock, lock:
                 # While closing only zero thrust goes out (P23): no fence, no mode frame.
                 session = self._session
+                if self._reconnecting:  # no link to write on: the reopened one starts afresh
+                    return
                 take = session.take_outbox_when_closing if self._closing else session.take_outbox
                 data = take(self._clock())
                 if data and self._lost is None:
@@ -675,13 +802,17 @@ class Client(CommandMethods):
                         written = self._send_now(data) if self._send_now else 0
                     except ConnectionLostError as error:
                         self._lose(error)
+                        session.write_failed(data)
                         return
                     if written < len(data):
                         lock.release()
                         try:
                             self._write(data[written:])
                         except ConnectionLostError:
-                            pass  # recorded as lost: the waiters see it
+                            # Recorded as lost: the waiters see it. An expired motion's zero
+                            # thrust in it may not have gone: a reopened link sends it first.
+                            with lock:
+                                session.write_failed(data)
                         finally:
                             lock.acquire()
         finally:
@@ -869,7 +1000,7 @@ class Client(CommandMethods):
         lock.acquire()
         if self._lost is not None or self._closing:
             raise self._lost_error()
-        if self._mode_switcher is not None:
+        if self._mode_switcher is not None or self._reconnecting:
             lock.release()
             wire_lock.release()
             return None
@@ -919,7 +1050,8 @@ class Client(CommandMethods):
                     if self._lost is not None or self._closing:
                         raise self._lost_error()
                     switcher = self._mode_switcher
-                    ready = switcher is None or switcher == me
+                    reconnecting = self._reconnecting  # (lost while this waited for the lock)
+                    ready = (switcher is None or switcher == me) and not reconnecting
                     if ready:
                         if isinstance(query, Command):
                             data, pending = session.query(query, self._clock())
@@ -935,6 +1067,9 @@ class Client(CommandMethods):
                     except ConnectionLostError as error:
                         lost = error  # (waited for below, once the wire lock is let go)
                     break
+            if reconnecting:  # wait for the reopened link (at most ``timeout``), then again
+                self._check_open()
+                continue
             # A checksum switch is draining the queue: wait for it outside the wire lock.
             with self._state_lock:
                 while self._mode_switcher not in (None, me):

@@ -111,6 +111,11 @@ class FdLink:
         self._wake_r.setblocking(False)
         self._wake_w.setblocking(False)
         self._wake_fd = self._wake_r.fileno()
+        # A write waiting for room is woken apart from readers (see abort_writes).
+        self._abort_r, self._abort_w = socket.socketpair()
+        self._abort_r.setblocking(False)
+        self._abort_w.setblocking(False)
+        self._writes_aborted = False
         # A registered poll object costs half of building select's lists on every read.
         self._poll: select.poll | None = None
         if hasattr(select, "poll"):
@@ -187,12 +192,15 @@ class FdLink:
         return self.recv_some()
 
     def write(self, data: bytes) -> None:
-        """Write all of ``data``, waiting for room at most :data:`WRITE_TIMEOUT_S` at a time.
+        """Write all of ``data``, waiting for room at most :data:`WRITE_TIMEOUT_S` at a time,
+        unless :meth:`abort_writes` gives the write up first.
 
         Example::
 
             link.write(b"#qd!")
         """
+        if self._writes_aborted:
+            raise self._aborted_error()
         written = self.send_some(data)
         if written == len(data):  # nearly always: a frame fits in the kernel's buffer
             return
@@ -202,13 +210,34 @@ class FdLink:
             view = view[written:]
             if view and not written:
                 try:
-                    _, ready, _ = select.select([], [self._fd], [], WRITE_TIMEOUT_S)
+                    _, ready, _ = select.select([self._abort_r], [self._fd], [], WRITE_TIMEOUT_S)
                 except (OSError, ValueError) as error:
                     raise ConnectionLostError(f"{self.description}: {error}") from error
+                if self._writes_aborted:
+                    raise self._aborted_error()
                 if not ready:
                     raise ConnectionLostError(
                         f"{self.description}: write blocked for {WRITE_TIMEOUT_S:g} s"
                     )
+
+    def abort_writes(self) -> None:
+        """Give up every write waiting for room, now and from now on: the link is lost.
+
+        A serial device whose far end stopped reading keeps a writer waiting until the write
+        times out, and closing the descriptor does not wake it (a socket's shutdown does): the
+        writer holds the client's wire lock meanwhile, and a ``#stop!`` would wait behind it.
+        Safe from any thread; the descriptor stays open until :meth:`close`.
+
+        Example::
+
+            link.abort_writes()   # a write waiting in another thread raises ConnectionLostError
+        """
+        self._writes_aborted = True
+        with contextlib.suppress(OSError):  # a wake-up already pending, or closed
+            self._abort_w.send(b"x")
+
+    def _aborted_error(self) -> ConnectionLostError:
+        return ConnectionLostError(f"{self.description}: write abandoned, the link is lost")
 
     def wake(self) -> None:
         """Make a ``read_available`` blocked in another thread return now.
@@ -231,12 +260,15 @@ class FdLink:
         if self._closed:
             return
         self._closed = True
+        self.abort_writes()  # (a writer waiting for room must not write on a reused number)
         if self._poll is not None:
             with contextlib.suppress(KeyError, ValueError):
                 self._poll.unregister(self._fd)
         self._close_port()
         self._wake_r.close()
         self._wake_w.close()
+        self._abort_r.close()
+        self._abort_w.close()
 
     def _close_port(self) -> None:
         raise NotImplementedError

@@ -212,6 +212,7 @@ class Session:
         "_readying",
         "_reset_reported_at",
         "_stop_on_reopen",
+        "_unsure_motion",
         "_vertical_percent",
         "counters",
         "events",
@@ -274,6 +275,9 @@ class Session:
         self._power_percent = 0
         self._vertical_percent = 0
         self._motion_renewed_at = float("-inf")
+        # The names of motion commands (th, mvs) whose write failed with the link: on that
+        # axis the controller may drive on with the thrust before, or with theirs.
+        self._unsure_motion: set[str] = set()
         #: Events since the driver last took them (only while someone subscribes).
         self.events: list[ClientEvent] | None = [] if record_events else None
         #: The rare events a driver logs as warnings whether or not anyone subscribes.
@@ -380,6 +384,39 @@ class Session:
             self._direction_deg, self._power_percent = direction_deg, power_percent
         if vertical_percent and not self._vertical_percent:
             self._vertical_percent = vertical_percent
+
+    def write_failed(self, data: bytes) -> None:
+        """Bytes this session handed out were cut off by the loss of the link: the commands
+        among them may or may not have reached the controller. A motion command among them
+        (zero thrust of an expired motion, P23, included) leaves its axis's thrust unknown, so
+        a reopened link zeroes that axis first; a ``#stop!`` among them is sent first on it.
+        Believing them delivered let a reopened link's probes feed the watchdog (P17) of a
+        controller driving on.
+
+        >>> session = Session()
+        >>> _ = session.command(Command("th", (90, 40)), now=0.0)
+        >>> session.write_failed(session.command(Command("th", (90, 0)), now=1.0))
+        >>> session.rest_frames()
+        b'#th.90.0!'
+        """
+        for command in self._commands_in(data):
+            if command == _STOP:
+                self._stop_on_reopen = True
+            elif _is_motion_command(command):
+                self._unsure_motion.add(command.name)
+
+    def _commands_in(self, data: bytes) -> list[Command]:
+        """The commands in bytes this session wrote, in either checksum mode (a mode frame
+        among them switched it halfway)."""
+        commands = []
+        for checksum_enabled in (False, True):
+            decoder = Decoder(checksum_enabled=checksum_enabled, algorithm=self._algorithm)
+            commands += [
+                Command(event.message.name, event.message.values)
+                for event in decoder.feed(data)
+                if isinstance(event, Frame) and event.message.kind is Kind.COMMAND
+            ]
+        return commands
 
     def query(self, command: Command, now: float) -> tuple[bytes, PendingQuery]:
         """The bytes to write for a query (after anything due), and its entry in the queue.
@@ -750,6 +787,12 @@ class Session:
         self._track(_STOP, now)
         return data
 
+    def hand_over_stop(self) -> None:
+        """``#stop!`` asked for while the reopened link is busy with another write (a line
+        that takes nothing holds it until the write gives up): kept, as while no link is open,
+        and the writer asks :meth:`stop_while_reconnecting` for its bytes next."""
+        self._stop_on_reopen = True
+
     def reset_link(self) -> None:
         """Start afresh on a reopened link that answered: no partial frame, nothing late, and
         nothing due but the checksum mode, then zero thrust if the motion last sent was not at
@@ -777,6 +820,7 @@ class Session:
         taken as done: a link that fails on that write (:meth:`reopen_failed`) leaves the next
         one to carry them first again."""
         self._stop_on_reopen = self._readying = False
+        self._unsure_motion.clear()
         self._power_percent = self._vertical_percent = 0
         self._direct_mode = None
 
@@ -866,9 +910,10 @@ class Session:
     def _zeroing_commands(self) -> list[Command]:
         """The commands that bring the motion as last sent to rest (none if it is)."""
         commands = []
-        if self._power_percent:
+        unsure = self._unsure_motion
+        if self._power_percent or "th" in unsure:
             commands.append(Command("th", (self._direction_deg, 0)))
-        if self._vertical_percent:
+        if self._vertical_percent or "mvs" in unsure:
             commands.append(Command("mvs", (0,)))
         return commands
 
