@@ -507,6 +507,43 @@ def test_a_link_that_does_not_open_leaves_no_recording(
     assert not recording.exists()
 
 
+@pytest.mark.parametrize(
+    "command", [*RECORDING_COMMANDS, ("record",)], ids=lambda command: command[0]
+)
+def test_an_existing_recording_is_never_written_over(
+    run_cli: RunCli, tmp_path: Path, command: tuple[str, ...]
+) -> None:
+    # Last week's dive.jsonl was truncated as the new recording opened, and removed with it
+    # when the link then did not open (a recording of its header alone is not kept).
+    recording = tmp_path / "dive.jsonl"
+    recording.write_bytes(b"last week's dive\n")
+    name, *rest = command
+    url = f"socket://127.0.0.1:{_free_port()}"  # nobody listens: the connection is refused
+    option = "-o" if name == "record" else "--record"
+    result = run_cli(name, url, *rest, option, str(recording))
+    assert result.status == 1, result.err
+    assert f"cannot record to {recording}: {recording} exists already" in result.err
+    assert "cannot open" not in result.err  # refused before the link is opened
+    assert recording.read_bytes() == b"last week's dive\n"
+
+
+def test_a_rotation_never_writes_over_an_earlier_rotations_file(
+    run_cli: RunCli, tmp_path: Path
+) -> None:
+    earlier = tmp_path / "dive.001.jsonl"
+    earlier.write_bytes(b"an earlier dive's second file\n")
+    recording = tmp_path / "dive.jsonl"
+    result = run_cli("send", "sim://", "qd", "--record", str(recording), "--split", "1s")
+    assert result.status == 1, result.err
+    assert f"cannot record to {recording}: {earlier} exists already" in result.err
+    assert earlier.read_bytes() == b"an earlier dive's second file\n"
+    assert not recording.exists()
+    # Without rotation the files of an earlier rotation are not in the way.
+    result = run_cli("send", "sim://", "qd", "--record", str(recording))
+    assert result.status == 0, result.err
+    assert earlier.read_bytes() == b"an earlier dive's second file\n"
+
+
 def test_a_rotated_recording_of_headers_alone_counts_as_nothing_recorded(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:

@@ -18,6 +18,7 @@ from rovlink.cli.recording import (
     discard_empty_recording,
     open_recorder,
     recorded_nothing,
+    refuse_existing_recording,
     report_recording,
 )
 
@@ -42,7 +43,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         required=True,
         type=file_name,
         metavar="FILE",
-        help="the recording (.mcap, .jsonl, .csv, .bin)",
+        help="the recording (.mcap, .jsonl, .csv, .bin); a file already there is refused",
     )
     parser.add_argument(
         "--tap",
@@ -75,6 +76,7 @@ def run(args: argparse.Namespace) -> int:
         endpoint = parse_url(args.url, args.baudrate)
     except ValueError as error:
         raise UsageError(f"URL: {error}") from None
+    refuse_existing_recording(args, args.output)  # before the link (a board may reset) opens
     try:
         tap = parse_tap(args.tap) if args.tap is not None else None  # '' is refused there
     except ValueError as error:

@@ -6,6 +6,7 @@ import argparse
 import contextlib
 import math
 import os
+import re
 import sys
 from typing import TYPE_CHECKING
 
@@ -23,6 +24,7 @@ __all__ = [
     "duration",
     "open_recorder",
     "recorded_nothing",
+    "refuse_existing_recording",
     "report_recording",
 ]
 
@@ -111,7 +113,7 @@ def add_record_options(parser: argparse.ArgumentParser) -> None:
         type=file_name,
         metavar="FILE",
         help="record the session: every byte, frame, event and the telemetry "
-        "(.mcap, .jsonl, .csv or .bin by suffix)",
+        "(.mcap, .jsonl, .csv or .bin by suffix; a file already there is refused)",
     )
     add_rotation_options(parser)
 
@@ -126,7 +128,7 @@ def open_recorder(args: argparse.Namespace, path: str, *, url: str, program: str
         format_of(path)
     except ValueError as error:
         raise UsageError(str(error)) from None
-
+    refuse_existing_recording(args, path)
     try:
         return Recorder(
             path,
@@ -141,6 +143,30 @@ def open_recorder(args: argparse.Namespace, path: str, *, url: str, program: str
         raise CommandError(f"cannot record to {path}: {reason(error)}") from None
     except RecordingError as error:
         raise CommandError(str(error)) from None
+
+
+def refuse_existing_recording(args: argparse.Namespace, path: str) -> None:
+    """Refuse to record to ``path`` if a file is there already, or (with ``--max-size`` or
+    ``--split``) a file of a rotation of that name (``dive.001.mcap``): a recording is never
+    written over. It would be lost even if the new one never started, as a recording that holds
+    its header alone is removed (:func:`discard_empty_recording`)."""
+    taken = [path] if os.path.lexists(path) else []
+    if args.max_size is not None or args.split is not None:
+        directory, name = os.path.split(path)
+        stem, suffix = os.path.splitext(name)
+        rotated = re.compile(rf"{re.escape(stem)}\.\d{{3,}}{re.escape(suffix)}")
+        with contextlib.suppress(OSError):  # (a directory that is not there: said on creation)
+            taken += sorted(
+                os.path.join(directory, other)
+                for other in os.listdir(directory or ".")
+                if rotated.fullmatch(other)
+            )
+    if taken:
+        raise CommandError(
+            f"cannot record to {path}: {', '.join(taken)} "
+            f"{'exists' if len(taken) == 1 else 'exist'} already (a recording is "
+            "never written over: remove it, or record to another file)"
+        )
 
 
 def report_recording(recorder: Recorder, elapsed_s: float) -> None:
