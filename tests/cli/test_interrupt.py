@@ -10,6 +10,7 @@ import json
 import os
 import select
 import signal
+import socket
 import subprocess
 import sys
 import termios
@@ -20,7 +21,7 @@ from pathlib import Path
 
 import pytest
 
-from rovlink.recorder import FrameEntry, HeaderEntry
+from rovlink.recorder import FrameEntry, HeaderEntry, read_entries
 from rovlink.recorder.formats import open_sink
 from tests.cli.conftest import RunCli
 from tests.cli.silent_controller import WAIT_S, SilentController
@@ -405,6 +406,96 @@ def test_closing_the_terminal_ends_the_monitor_with_stop(silent: SilentControlle
         assert terminal.process.wait(timeout=WAIT_S) == 130  # (was 1: "cannot write")
         assert silent.wait_for(b"#stop!")
         assert silent.received.rindex(b"#stop!") > silent.received.index(b"#th.0.")
+    finally:
+        terminal.close()
+
+
+def _shown(terminal: Terminal, text: bytes) -> bool:
+    """Whether ``text`` appeared on the terminal within the tests' wait (polled: the terminal
+    is drained by a thread of its own)."""
+    deadline = time.monotonic() + WAIT_S
+    while text not in terminal.shown:
+        if time.monotonic() > deadline:
+            return False
+        time.sleep(0.01)
+    return True
+
+
+def _free_port() -> int:
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        return int(probe.getsockname()[1])
+
+
+def test_a_closed_terminal_ends_a_recording_command_with_130_and_its_file_finished(
+    silent: SilentController, tmp_path: Path
+) -> None:
+    # The recording's summary line could not be written on the closed terminal, and that
+    # write's error made the status 1 (the file was finished first).
+    recording = tmp_path / "dive.jsonl"
+    terminal = Terminal(
+        "demo",
+        silent.url,
+        "--boot-timeout",
+        "0",
+        "--timeout",
+        "60",
+        "--record",
+        str(recording),
+        stderr_on_terminal=True,
+    )
+    try:
+        assert silent.wait_for(b"#qsa!")  # unlocked, diving, polling the sensors
+        terminal.hang_up()
+        assert terminal.process.wait(timeout=WAIT_S) == 130
+        assert silent.wait_for(b"#stop!")
+    finally:
+        terminal.close()
+    sent = [
+        entry.name
+        for entry in read_entries(str(recording))  # read to its end: finished, undamaged
+        if isinstance(entry, FrameEntry) and entry.direction == "out"
+    ]
+    assert sent[-1] == "stop"
+
+
+@pytest.mark.parametrize("command", ["record", "fault"])
+def test_a_closed_terminal_ends_a_serving_command_with_0_and_stop(
+    silent: SilentController, tmp_path: Path, command: str
+) -> None:
+    # As for a service stopped (SIGTERM): status 0, documented. Their last lines (what was
+    # recorded, the fault counters) could not be written on the closed terminal, and that
+    # write's error made the status 1.
+    port = _free_port()
+    program_side = f"socket://127.0.0.1:{port}"
+    recording = tmp_path / "tapped.jsonl"
+    arguments = (
+        ("record", silent.url, "-o", str(recording), "--tap", program_side)
+        if command == "record"
+        else ("fault", "--listen", program_side, "--to", silent.url)
+    )
+    terminal = Terminal(*arguments, stderr_on_terminal=True)
+    try:
+        assert _shown(terminal, b"Ctrl-C stops")
+        with socket.create_connection(("127.0.0.1", port), timeout=WAIT_S) as program:
+            program.sendall(b"#start!#th.0.50!")
+            assert silent.wait_for(b"#th.0.50!")
+            terminal.hang_up()
+            assert terminal.process.wait(timeout=WAIT_S) == 0
+        assert silent.wait_for(b"#stop!")
+    finally:
+        terminal.close()
+    if command == "record":
+        names = [e.name for e in read_entries(str(recording)) if isinstance(e, FrameEntry)]
+        assert names[-1] == "stop"
+
+
+def test_a_closed_terminal_ends_the_simulator_with_0() -> None:
+    terminal = Terminal("sim", "--tcp", "0", stderr_on_terminal=True)
+    try:
+        assert _shown(terminal, b"Ctrl-C stops")
+        terminal.hang_up()
+        assert terminal.process.wait(timeout=WAIT_S) == 0  # (was 1: "rovlink sim stopped")
     finally:
         terminal.close()
 

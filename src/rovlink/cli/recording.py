@@ -7,10 +7,10 @@ import contextlib
 import math
 import os
 import re
-import sys
 from typing import TYPE_CHECKING
 
 from rovlink.cli.failure import CommandError, UsageError, reason
+from rovlink.cli.interrupt import say_last
 from rovlink.cli.link_options import file_name
 
 if TYPE_CHECKING:
@@ -183,10 +183,9 @@ def report_recording(recorder: Recorder, elapsed_s: float) -> None:
         if recorder.dropped
         else ""
     )
-    print(
+    say_last(
         f"recorded {at_least}{held} {unit} in {elapsed_s:.1f} s to {files} "
-        f"({sizes / 1000:.1f} kB){lost}",
-        file=sys.stderr,
+        f"({sizes / 1000:.1f} kB){lost}"
     )
 
 
@@ -204,4 +203,4 @@ def discard_empty_recording(recorder: Recorder, program: str) -> None:
         with contextlib.suppress(FileNotFoundError):
             os.remove(path)
     files = ", ".join(recorder.paths)
-    print(f"{program}: nothing was recorded; {files} not kept", file=sys.stderr)
+    say_last(f"{program}: nothing was recorded; {files} not kept")
