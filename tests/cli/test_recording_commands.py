@@ -544,6 +544,32 @@ def test_a_rotation_never_writes_over_an_earlier_rotations_file(
     assert earlier.read_bytes() == b"an earlier dive's second file\n"
 
 
+def test_a_tap_other_computers_reach_needs_allow_remote(run_cli: RunCli, tmp_path: Path) -> None:
+    # Before, --tap socket://0.0.0.0:PORT served the robot to the whole network with no word:
+    # anyone reaching it drove the robot, unauthenticated (fault and controller refuse so).
+    recording = tmp_path / "tapped.jsonl"
+    tap = "socket://0.0.0.0:0"
+    result = run_cli("record", "sim://", "-o", str(recording), "--tap", tap, "--duration", "0.1")
+    assert result.status == 2
+    assert result.err.splitlines()[-1] == (
+        f"rovlink record: error: --tap {tap}: 0.0.0.0 is not a loopback address, and the "
+        "protocol has no authentication; add --allow-remote to let other computers drive the robot"
+    )
+    assert not recording.exists()
+    result = run_cli(
+        "record",
+        "sim://",
+        "-o",
+        str(recording),
+        "--tap",
+        tap,
+        "--duration",
+        "0.1",
+        "--allow-remote",
+    )
+    assert result.status == 0, result.err
+
+
 def test_a_rotated_recording_of_headers_alone_counts_as_nothing_recorded(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:

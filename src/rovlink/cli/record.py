@@ -57,6 +57,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--duration", type=seconds, metavar="SECONDS", help="stop after this long (default: Ctrl-C)"
     )
+    parser.add_argument(
+        "--allow-remote",
+        action="store_true",
+        help="let --tap socket:// use an address other computers reach; the protocol has no "
+        "authentication, so anyone who reaches it drives the robot",
+    )
     add_checksum_options(parser, "the link starts in checksum mode (to decode its frames)")
     add_rotation_options(parser)
 
@@ -77,6 +83,7 @@ def run(args: argparse.Namespace) -> int:
     except ValueError as error:
         raise UsageError(f"URL: {error}") from None
     refuse_existing_recording(args, args.output)  # before the link (a board may reset) opens
+    _refuse_a_remote_tap(args)
     try:
         tap = parse_tap(args.tap) if args.tap is not None else None  # '' is refused there
     except ValueError as error:
@@ -140,6 +147,21 @@ def run(args: argparse.Namespace) -> int:
         raise CommandError(f"{lost}; the recording ends here")
     signals.finish()  # (Ctrl-C: status 130)
     return 1 if recorder.error else 0
+
+
+def _refuse_a_remote_tap(args: argparse.Namespace) -> None:
+    """As ``rovlink fault`` and ``rovlink controller``: a tap on an address other computers
+    reach lets anyone there drive the robot, unauthenticated, unless ``--allow-remote``."""
+    if args.tap is None or not args.tap.startswith("socket://") or args.allow_remote:
+        return
+    from rovlink.controller.lines import is_loopback  # noqa: PLC0415
+
+    host = args.tap[len("socket://") :].rpartition(":")[0] or "127.0.0.1"
+    if not is_loopback(host.strip("[]")):
+        raise UsageError(
+            f"--tap {args.tap}: {host} is not a loopback address, and the protocol has no "
+            "authentication; add --allow-remote to let other computers drive the robot"
+        )
 
 
 class _FirstWords:
