@@ -31,9 +31,11 @@ from rovlink.recorder import (
     FrameEntry,
     HeaderEntry,
     Recorder,
+    TelemetryEntry,
     WireEntry,
     read_entries,
 )
+from rovlink.recorder.entries import TELEMETRY_FIELDS
 from rovlink.recorder.formats import open_sink
 from tests.cli.conftest import RunCli
 from tests.client.sim_process import running_sim
@@ -291,6 +293,32 @@ def test_replay_of_a_value_of_another_type_names_the_damage(
     result = run_cli("replay", str(path))
     assert result.status == 1
     assert f"{path}: line 2 is damaged ({entry.channel} entry: " in result.err
+
+
+@pytest.mark.parametrize(
+    ("suffix", "depth_cm", "shown"),
+    [
+        (".jsonl", 10**400, "10000000… (401 digits)"),
+        (".csv", 10**400, "10000000… (401 digits)"),
+        (".mcap", 10_000, "10000"),
+    ],
+    ids=["jsonl", "csv", "mcap"],
+)
+def test_plot_of_a_telemetry_value_out_of_its_range_names_the_damage(
+    run_cli: RunCli, tmp_path: Path, suffix: str, depth_cm: int, shown: str
+) -> None:
+    # Before, no controller's value and no recorder's: plotted as a spike, and past a float's
+    # range a traceback (OverflowError).
+    values: dict[str, int | None] = dict.fromkeys(TELEMETRY_FIELDS)
+    good = TelemetryEntry(2.0, 2_000_000_000, {**values, "depth_cm": 30})
+    bad = TelemetryEntry(3.0, 3_000_000_000, {**values, "depth_cm": depth_cm})
+    path = tmp_path / f"damaged{suffix}"
+    _write(path, HeaderEntry(1.0, 1, "sim://?seed=1", False, "crc8", "test", "0"), good, bad)
+    result = run_cli("plot", str(path), "-o", str(tmp_path / "dive.png"))
+    assert result.status == 1
+    assert f"(telemetry depth_cm must be in 0–9999, got {shown})" in result.err
+    assert result.err.startswith(f"plotted {path}")  # the good row, before the damage
+    assert (tmp_path / "dive.png").exists()
 
 
 def test_replay_of_a_foreign_file_is_one_clear_line(run_cli: RunCli, tmp_path: Path) -> None:

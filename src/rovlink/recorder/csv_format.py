@@ -13,7 +13,12 @@ from collections.abc import Iterator
 from datetime import datetime, timezone
 from typing import BinaryIO
 
-from rovlink.recorder.entries import TELEMETRY_FIELDS, Entry, TelemetryEntry
+from rovlink.recorder.entries import (
+    TELEMETRY_FIELDS,
+    Entry,
+    TelemetryEntry,
+    check_telemetry_range,
+)
 from rovlink.recorder.sink import FileSink, RecordingDamagedError, RecordingError
 
 __all__ = ["HEADER", "TelemetryCsvSink", "read_csv"]
@@ -108,8 +113,10 @@ def read_csv(path: str) -> Iterator[Entry]:
                     name: int(text) if text else None
                     for name, text in zip(TELEMETRY_FIELDS, row[2:], strict=True)
                 }
+                for name, value in values.items():
+                    check_telemetry_range(name, value)
                 entry = TelemetryEntry(float(row[0]), int(wall.timestamp() * 1e9), values)
-            except ValueError as error:
+            except ValueError as error:  # (an EntryError too: a value out of its range)
                 # Cut short: the last row, without its newline; else damaged (status 1).
                 cut = not lines.last_complete
                 raise RecordingDamagedError(
