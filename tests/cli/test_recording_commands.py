@@ -321,6 +321,22 @@ def test_plot_of_a_telemetry_value_out_of_its_range_names_the_damage(
     assert (tmp_path / "dive.png").exists()
 
 
+def test_replay_of_a_header_with_an_unknown_algorithm_names_the_file(
+    run_cli: RunCli, tmp_path: Path
+) -> None:
+    # Before, a usage error that blamed --to: "rovlink replay: error: --to: algorithm must be
+    # one of crc8, xor, sum8, got 'nope'" (status 2), of a damaged header.
+    path = tmp_path / "damaged.jsonl"
+    header = HeaderEntry(1.0, 1, "sim://?seed=1", True, "nope", "test", "0")
+    _write(path, header, FrameEntry(2.0, 2, "out", "command", "qd", ()))
+    result = run_cli("replay", str(path), "--to", "sim://")
+    assert result.status == 1
+    assert result.err == (
+        f"rovlink replay: {path}: the header's unknown checksum algorithm 'nope'; expected one "
+        "of: crc8, sum8, xor\n"
+    )
+
+
 def test_replay_of_a_foreign_file_is_one_clear_line(run_cli: RunCli, tmp_path: Path) -> None:
     path = tmp_path / "photo.mcap"
     path.write_bytes(b"\x89PNG\r\n\x1a\n not a recording")
