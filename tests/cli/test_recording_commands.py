@@ -588,6 +588,20 @@ def test_a_rotation_never_writes_over_an_earlier_rotations_file(
     assert earlier.read_bytes() == b"an earlier dive's second file\n"
 
 
+def test_record_to_a_directory_not_there_is_refused_before_the_link_opens(
+    run_cli: RunCli, tmp_path: Path
+) -> None:
+    # Before, the link was opened (a board that resets as its port opens, reset) and the tap
+    # served first, and the file refused after.
+    output = tmp_path / "missing" / "dive.mcap"
+    url = f"socket://127.0.0.1:{_free_port()}"  # nobody listens: opening it would fail
+    result = run_cli("record", url, "-o", str(output))
+    assert result.status == 2
+    assert result.err.splitlines()[-1] == (
+        f"rovlink record: error: -o {output}: no such directory: {output.parent}"
+    )
+
+
 def test_a_tap_other_computers_reach_needs_allow_remote(run_cli: RunCli, tmp_path: Path) -> None:
     # Before, --tap socket://0.0.0.0:PORT served the robot to the whole network with no word:
     # anyone reaching it drove the robot, unauthenticated (fault and controller refuse so).

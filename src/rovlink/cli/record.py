@@ -13,6 +13,7 @@ import time
 
 from rovlink.cli.failure import CommandError, UsageError, reason
 from rovlink.cli.link_options import add_checksum_options, baud_rate, file_name, seconds
+from rovlink.cli.output_file import check_writable
 from rovlink.cli.recording import (
     add_rotation_options,
     discard_empty_recording,
@@ -82,7 +83,9 @@ def run(args: argparse.Namespace) -> int:
         endpoint = parse_url(args.url, args.baudrate)
     except ValueError as error:
         raise UsageError(f"URL: {error}") from None
-    refuse_existing_recording(args, args.output)  # before the link (a board may reset) opens
+    # Before the link opens (a board may reset as its port opens) and the tap is served.
+    refuse_existing_recording(args, args.output)
+    check_writable("-o", args.output)
     _refuse_a_remote_tap(args)
     try:
         tap = parse_tap(args.tap) if args.tap is not None else None  # '' is refused there
