@@ -571,6 +571,14 @@ def test_an_existing_recording_is_never_written_over(
     assert recording.read_bytes() == b"last week's dive\n"
 
 
+def test_overwrite_writes_over_a_recording_already_there(run_cli: RunCli, tmp_path: Path) -> None:
+    recording = tmp_path / "service.jsonl"
+    recording.write_bytes(b"the last run's recording\n")
+    result = run_cli("send", "sim://", "qd", "--record", str(recording), "--overwrite")
+    assert result.status == 0, result.err
+    assert isinstance(next(read_entries(str(recording))), HeaderEntry)
+
+
 def test_a_rotation_never_writes_over_an_earlier_rotations_file(
     run_cli: RunCli, tmp_path: Path
 ) -> None:

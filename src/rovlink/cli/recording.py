@@ -90,8 +90,16 @@ def duration(text: str) -> float:
 
 
 def add_rotation_options(parser: argparse.ArgumentParser) -> None:
-    """``--max-size`` and ``--split``: start a new file when the current one is that big or old."""
+    """``--max-size`` and ``--split``: start a new file when the current one is that big or old;
+    ``--overwrite``: write over a recording already there (a service that records to one name
+    each time it starts)."""
     group = parser.add_argument_group("recording")
+    group.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="write over a recording already there (and its rotation's files); without it, a "
+        "file already there is refused",
+    )
     group.add_argument(
         "--max-size",
         type=byte_size,
@@ -147,9 +155,11 @@ def open_recorder(args: argparse.Namespace, path: str, *, url: str, program: str
 
 def refuse_existing_recording(args: argparse.Namespace, path: str) -> None:
     """Refuse to record to ``path`` if a file is there already, or (with ``--max-size`` or
-    ``--split``) a file of a rotation of that name (``dive.001.mcap``): a recording is never
-    written over. It would be lost even if the new one never started, as a recording that holds
-    its header alone is removed (:func:`discard_empty_recording`)."""
+    ``--split``) a file of a rotation of that name (``dive.001.mcap``): a recording is written
+    over only with ``--overwrite``. It would be lost even if the new one never started, as a
+    recording that holds its header alone is removed (:func:`discard_empty_recording`)."""
+    if getattr(args, "overwrite", False):
+        return
     taken = [path] if os.path.lexists(path) else []
     if args.max_size is not None or args.split is not None:
         directory, name = os.path.split(path)
@@ -165,7 +175,7 @@ def refuse_existing_recording(args: argparse.Namespace, path: str) -> None:
         raise CommandError(
             f"cannot record to {path}: {', '.join(taken)} "
             f"{'exists' if len(taken) == 1 else 'exist'} already (a recording is "
-            "never written over: remove it, or record to another file)"
+            "never written over: remove it, record to another file, or add --overwrite)"
         )
 
 
