@@ -571,6 +571,16 @@ def test_an_existing_recording_is_never_written_over(
     assert recording.read_bytes() == b"last week's dive\n"
 
 
+def test_a_directory_named_as_the_recording_is_said_to_be_one(
+    run_cli: RunCli, tmp_path: Path
+) -> None:
+    directory = tmp_path / "dive.mcap"
+    directory.mkdir()
+    result = run_cli("send", "sim://", "qd", "--record", str(directory))
+    assert result.status == 1
+    assert result.err == f"rovlink send: cannot record to {directory}: Is a directory\n"
+
+
 def test_overwrite_writes_over_a_recording_already_there(run_cli: RunCli, tmp_path: Path) -> None:
     recording = tmp_path / "service.jsonl"
     recording.write_bytes(b"the last run's recording\n")

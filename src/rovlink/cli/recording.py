@@ -160,7 +160,8 @@ def refuse_existing_recording(args: argparse.Namespace, path: str) -> None:
     recording that holds its header alone is removed (:func:`discard_empty_recording`)."""
     if getattr(args, "overwrite", False):
         return
-    taken = [path] if os.path.lexists(path) else []
+    # (A directory is no recording: its open says "Is a directory".)
+    taken = [path] if os.path.lexists(path) and not os.path.isdir(path) else []
     if args.max_size is not None or args.split is not None:
         directory, name = os.path.split(path)
         stem, suffix = os.path.splitext(name)
