@@ -211,6 +211,24 @@ def test_a_history_file_in_a_missing_directory(run_cli: RunCli, tmp_path: Path) 
 
 
 @pytest.mark.timeout(_HANG_TIMEOUT_S)
+def test_a_default_history_that_cannot_be_kept_does_not_keep_the_console_from_the_robot(
+    run_cli: RunCli, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # Before, a user state directory that could not be made (a read-only home, a service
+    # user's home that is not there) refused the console altogether, status 1.
+    not_a_directory = tmp_path / "state"
+    not_a_directory.write_text("")
+    monkeypatch.setenv("XDG_STATE_HOME", str(not_a_directory))
+    result = run_cli("console", "sim://", stdin=b"quit\n")
+    assert result.status == 0, result.err
+    assert result.err.startswith(
+        f"rovlink console: cannot keep the history in {not_a_directory}/rovlink/console_history: "
+    )
+    assert "; kept for this session only\n" in result.err
+    assert "connected to simulated controller" in result.out
+
+
+@pytest.mark.timeout(_HANG_TIMEOUT_S)
 def test_monitor_on_a_port_that_cannot_be_opened(
     run_cli: RunCli, monkeypatch: pytest.MonkeyPatch
 ) -> None:

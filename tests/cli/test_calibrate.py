@@ -87,3 +87,24 @@ def test_a_link_lost_between_the_two_values_says_which_one_went(
         "lost; the depth zero is new and its scale old: calibrate again"
     )
     assert _calibration_sent(deaf_controller) == ["#sdz.20!"]
+
+
+def test_given_readings_too_close_are_refused_before_the_port_opens(
+    run_cli: RunCli, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # Before, the port was opened first (a board that resets when it opens, reset for nothing;
+    # a --record file left holding the connection's probe) and the readings refused after.
+    from rovlink.cli import link_options
+
+    def refuse(*args: object, **kwargs: object) -> None:
+        raise AssertionError("connected")
+
+    monkeypatch.setattr(link_options, "connect", refuse)
+    result = run_cli(
+        "calibrate", "sim://", "--depth", "200", "--surface-raw", "20", "--depth-raw", "22", "--yes"
+    )
+    assert result.status == 1
+    assert result.err == (
+        "rovlink calibrate: the readings are 2 counts apart (surface 20, at 200 cm 22); at least "
+        "10 are needed: go deeper, or check that the sensor reads more with depth\n"
+    )

@@ -8,6 +8,8 @@ import pytest
 
 import rovlink
 from rovlink.cli.demo import DivePlan, DiveProgress, run_dive
+from rovlink.client.events import BytesSent
+from rovlink.recorder import FrameEntry, read_entries
 from tests.cli.conftest import RunCli
 from tests.client.conftest import REPLY_TIMEOUT_S
 
@@ -132,3 +134,54 @@ def test_a_bad_url_leaves_no_recording(run_cli: RunCli, tmp_path: Path) -> None:
     assert result.status == 2
     assert "unknown sim option 'speed'" in result.err
     assert not recording.exists()
+
+
+def test_a_leak_during_the_dive_aborts_it_with_stop(tmp_path: Path) -> None:
+    # Before, the dive went on through a leak: held its depth, drove its square at 30 %,
+    # and ended with status 0 (as tune and the motion checks do, a leak now ends it).
+    sent: list[bytes] = []
+    plan = DivePlan(depth_cm=60, hold_s=0.1, leg_s=0.1, reach_timeout_s=20)
+
+    def on_event(event: object) -> None:
+        if isinstance(event, BytesSent):
+            sent.append(event.data)
+
+    with rovlink.connect(
+        _fast_sim_url(tmp_path), keepalive=None, timeout=REPLY_TIMEOUT_S, on_event=on_event
+    ) as rov:
+        port = rov._link.port  # type: ignore[attr-defined]
+
+        def leak_on_the_way_down(progress: DiveProgress) -> None:
+            if progress.steps[1].status == "running" and progress.latest is not None:
+                with port.lock:  # the probe wet from now on (a pulse is latched)
+                    port.robot.inject_leak(duration_s=1000.0)
+
+        progress = run_dive(rov, plan, leak_on_the_way_down)
+        with port.lock:
+            state = port.controller.state()
+    statuses = [step.status for step in progress.steps]
+    assert statuses[:3] == ["done", "aborted", "skipped"]
+    assert statuses[3:7] == ["skipped"] * 4  # the square
+    assert progress.aborted is not None
+    assert "the leak sensor fired (q.l = 1) during 'dive to 60 cm'" in progress.aborted
+    assert not any(data.startswith(b"#th.") for data in sent)  # no square
+    assert state.locked
+    assert sent.index(b"#stop!") > sent.index(b"#start!")
+
+
+def test_a_leak_latched_before_the_dive_starts_nothing(tmp_path: Path, run_cli: RunCli) -> None:
+    recording = tmp_path / "leaking.jsonl"
+    url = f"{_fast_sim_url(tmp_path)}&leak_at=0"
+    result = run_cli("demo", url, "--hold", "0", "--record", str(recording))
+    assert result.status == 1
+    assert (
+        "rovlink demo: the leak sensor had fired before the dive (q.l = 1): look at the "
+        "vehicle, then reset the latch (slreset); the dive was not started"
+    ) in result.err.splitlines()
+    sent = [
+        entry.name
+        for entry in read_entries(str(recording))
+        if isinstance(entry, FrameEntry) and entry.direction == "out"
+    ]
+    assert "q.l" in sent
+    assert not {"start", "mvd", "th"} & set(sent)

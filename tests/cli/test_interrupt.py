@@ -8,8 +8,10 @@ import contextlib
 import fcntl
 import json
 import os
+import re
 import select
 import signal
+import socket
 import subprocess
 import sys
 import termios
@@ -20,7 +22,7 @@ from pathlib import Path
 
 import pytest
 
-from rovlink.recorder import FrameEntry, HeaderEntry
+from rovlink.recorder import FrameEntry, HeaderEntry, read_entries
 from rovlink.recorder.formats import open_sink
 from tests.cli.conftest import RunCli
 from tests.cli.silent_controller import WAIT_S, SilentController
@@ -33,7 +35,8 @@ EXIT_BOUND_S = 1.5
 
 class DepthAnsweringController(SilentController):
     """Answers each ``#qd!`` (the readiness probe, the keep-alive, a query) with ``$qd.0!``, so
-    that a command connects with its default readiness wait; never answers anything else.
+    that a command connects with its default readiness wait, and each ``#q.l!`` with
+    ``$q.l.0!`` (no leak: the demo asks before it dives); never answers anything else.
     With ``hang_up_after``, closes the connection once that frame has arrived."""
 
     def __init__(self, hang_up_after: bytes | None = None) -> None:
@@ -45,15 +48,22 @@ class DepthAnsweringController(SilentController):
         with connection:
             while data := connection.recv(4096):
                 with self._changed:
-                    asked = self.received.count(b"#qd!")
+                    asked = self._asked()
                     self.received += data
                     self._changed.notify_all()
                     # Counted over everything received: a frame split between reads counts too.
-                    answers = self.received.count(b"#qd!") - asked
+                    answers = self._asked()[len(asked) :]
                     hang_up = self._hang_up_after is not None and self._hang_up_after in data
-                connection.sendall(b"$qd.0!" * answers)
+                connection.sendall(b"".join(_ANSWERS[query] for query in answers))
                 if hang_up:
                     return
+
+    def _asked(self) -> list[bytes]:
+        """The queries answered, in the order received."""
+        return re.findall(rb"#qd!|#q\.l!", self.received)
+
+
+_ANSWERS = {b"#qd!": b"$qd.0!", b"#q.l!": b"$q.l.0!"}
 
 
 @pytest.fixture
@@ -125,15 +135,15 @@ def test_a_signal_after_a_motion_command_sends_stop_first(
 
 @pytest.mark.parametrize("how", ENDING_SIGNALS, ids=lambda how: how.name)
 def test_a_signal_ends_the_demo_with_stop_and_its_recording_finished(
-    silent: SilentController, how: signal.Signals, tmp_path: Path
+    answering: DepthAnsweringController, how: signal.Signals, tmp_path: Path
 ) -> None:
     recording = tmp_path / "dive.jsonl"
-    process = _rovlink("demo", silent.url, "--timeout", "60", "--record", str(recording))
-    assert silent.wait_for(b"#qsa!")  # unlocked, diving, polling the sensors
+    process = _rovlink("demo", answering.url, "--timeout", "60", "--record", str(recording))
+    assert answering.wait_for(b"#qsa!")  # unlocked, diving, polling the sensors
     elapsed_s, stderr = _interrupt(process, how)
     assert process.returncode == 130
     assert elapsed_s < EXIT_BOUND_S
-    assert silent.wait_for(b"#stop!")
+    assert answering.wait_for(b"#stop!")
     assert "recorded" in stderr.decode()  # the summary line of a finished recording
     entries = [json.loads(line) for line in recording.read_text(encoding="utf-8").splitlines()]
     sent = [
@@ -340,15 +350,15 @@ def _end_of(terminal: Terminal) -> str:
     return stderr.decode()
 
 
-def test_closing_the_terminal_ends_the_demo_with_stop(silent: SilentController) -> None:
+def test_closing_the_terminal_ends_the_demo_with_stop(answering: DepthAnsweringController) -> None:
     # The live table cannot be taken down on a closed terminal: #stop! goes first all the same.
-    terminal = Terminal("demo", silent.url, "--boot-timeout", "0", "--timeout", "60")
+    terminal = Terminal("demo", answering.url, "--boot-timeout", "0", "--timeout", "60")
     try:
-        assert silent.wait_for(b"#qsa!")  # unlocked, diving, polling the sensors
+        assert answering.wait_for(b"#qsa!")  # unlocked, diving, polling the sensors
         terminal.hang_up()
         stderr = _end_of(terminal)
         assert terminal.process.returncode == 130, stderr
-        assert silent.wait_for(b"#stop!")
+        assert answering.wait_for(b"#stop!")
         assert stderr.splitlines()[-2:] == [
             "rovlink demo: sent #stop!",
             "rovlink demo: interrupted",
@@ -373,23 +383,23 @@ def test_closing_the_terminal_ends_the_console_as_interrupted(silent: SilentCont
 
 @pytest.mark.parametrize("command", ["console", "demo"])
 def test_a_closed_terminal_that_was_stderr_too_still_ends_with_130(
-    silent: SilentController, command: str
+    answering: DepthAnsweringController, command: str
 ) -> None:
     # As a user runs them, stderr is the terminal: its last line cannot be written once it is
     # closed, and that write's error made the status 1.
     terminal = Terminal(
-        command, silent.url, "--boot-timeout", "0", "--timeout", "60", stderr_on_terminal=True
+        command, answering.url, "--boot-timeout", "0", "--timeout", "60", stderr_on_terminal=True
     )
     try:
         if command == "console":
-            assert silent.wait_for(b"#crcoff!")
+            assert answering.wait_for(b"#crcoff!")
             terminal.type("start\r")
-            assert silent.wait_for(b"#start!")
+            assert answering.wait_for(b"#start!")
         else:
-            assert silent.wait_for(b"#qsa!")  # unlocked, diving, polling the sensors
+            assert answering.wait_for(b"#qsa!")  # unlocked, diving, polling the sensors
         terminal.hang_up()
         assert terminal.process.wait(timeout=WAIT_S) == 130
-        assert silent.wait_for(b"#stop!")
+        assert answering.wait_for(b"#stop!")
     finally:
         terminal.close()
 
@@ -405,6 +415,96 @@ def test_closing_the_terminal_ends_the_monitor_with_stop(silent: SilentControlle
         assert terminal.process.wait(timeout=WAIT_S) == 130  # (was 1: "cannot write")
         assert silent.wait_for(b"#stop!")
         assert silent.received.rindex(b"#stop!") > silent.received.index(b"#th.0.")
+    finally:
+        terminal.close()
+
+
+def _shown(terminal: Terminal, text: bytes) -> bool:
+    """Whether ``text`` appeared on the terminal within the tests' wait (polled: the terminal
+    is drained by a thread of its own)."""
+    deadline = time.monotonic() + WAIT_S
+    while text not in terminal.shown:
+        if time.monotonic() > deadline:
+            return False
+        time.sleep(0.01)
+    return True
+
+
+def _free_port() -> int:
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        return int(probe.getsockname()[1])
+
+
+def test_a_closed_terminal_ends_a_recording_command_with_130_and_its_file_finished(
+    answering: DepthAnsweringController, tmp_path: Path
+) -> None:
+    # The recording's summary line could not be written on the closed terminal, and that
+    # write's error made the status 1 (the file was finished first).
+    recording = tmp_path / "dive.jsonl"
+    terminal = Terminal(
+        "demo",
+        answering.url,
+        "--boot-timeout",
+        "0",
+        "--timeout",
+        "60",
+        "--record",
+        str(recording),
+        stderr_on_terminal=True,
+    )
+    try:
+        assert answering.wait_for(b"#qsa!")  # unlocked, diving, polling the sensors
+        terminal.hang_up()
+        assert terminal.process.wait(timeout=WAIT_S) == 130
+        assert answering.wait_for(b"#stop!")
+    finally:
+        terminal.close()
+    sent = [
+        entry.name
+        for entry in read_entries(str(recording))  # read to its end: finished, undamaged
+        if isinstance(entry, FrameEntry) and entry.direction == "out"
+    ]
+    assert sent[-1] == "stop"
+
+
+@pytest.mark.parametrize("command", ["record", "fault"])
+def test_a_closed_terminal_ends_a_serving_command_with_0_and_stop(
+    silent: SilentController, tmp_path: Path, command: str
+) -> None:
+    # As for a service stopped (SIGTERM): status 0, documented. Their last lines (what was
+    # recorded, the fault counters) could not be written on the closed terminal, and that
+    # write's error made the status 1.
+    port = _free_port()
+    program_side = f"socket://127.0.0.1:{port}"
+    recording = tmp_path / "tapped.jsonl"
+    arguments = (
+        ("record", silent.url, "-o", str(recording), "--tap", program_side)
+        if command == "record"
+        else ("fault", "--listen", program_side, "--to", silent.url)
+    )
+    terminal = Terminal(*arguments, stderr_on_terminal=True)
+    try:
+        assert _shown(terminal, b"Ctrl-C stops")
+        with socket.create_connection(("127.0.0.1", port), timeout=WAIT_S) as program:
+            program.sendall(b"#start!#th.0.50!")
+            assert silent.wait_for(b"#th.0.50!")
+            terminal.hang_up()
+            assert terminal.process.wait(timeout=WAIT_S) == 0
+        assert silent.wait_for(b"#stop!")
+    finally:
+        terminal.close()
+    if command == "record":
+        names = [e.name for e in read_entries(str(recording)) if isinstance(e, FrameEntry)]
+        assert names[-1] == "stop"
+
+
+def test_a_closed_terminal_ends_the_simulator_with_0() -> None:
+    terminal = Terminal("sim", "--tcp", "0", stderr_on_terminal=True)
+    try:
+        assert _shown(terminal, b"Ctrl-C stops")
+        terminal.hang_up()
+        assert terminal.process.wait(timeout=WAIT_S) == 0  # (was 1: "rovlink sim stopped")
     finally:
         terminal.close()
 

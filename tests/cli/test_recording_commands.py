@@ -31,9 +31,11 @@ from rovlink.recorder import (
     FrameEntry,
     HeaderEntry,
     Recorder,
+    TelemetryEntry,
     WireEntry,
     read_entries,
 )
+from rovlink.recorder.entries import TELEMETRY_FIELDS
 from rovlink.recorder.formats import open_sink
 from tests.cli.conftest import RunCli
 from tests.client.sim_process import running_sim
@@ -293,6 +295,48 @@ def test_replay_of_a_value_of_another_type_names_the_damage(
     assert f"{path}: line 2 is damaged ({entry.channel} entry: " in result.err
 
 
+@pytest.mark.parametrize(
+    ("suffix", "depth_cm", "shown"),
+    [
+        (".jsonl", 10**400, "10000000… (401 digits)"),
+        (".csv", 10**400, "10000000… (401 digits)"),
+        (".mcap", 10_000, "10000"),
+    ],
+    ids=["jsonl", "csv", "mcap"],
+)
+def test_plot_of_a_telemetry_value_out_of_its_range_names_the_damage(
+    run_cli: RunCli, tmp_path: Path, suffix: str, depth_cm: int, shown: str
+) -> None:
+    # Before, no controller's value and no recorder's: plotted as a spike, and past a float's
+    # range a traceback (OverflowError).
+    values: dict[str, int | None] = dict.fromkeys(TELEMETRY_FIELDS)
+    good = TelemetryEntry(2.0, 2_000_000_000, {**values, "depth_cm": 30})
+    bad = TelemetryEntry(3.0, 3_000_000_000, {**values, "depth_cm": depth_cm})
+    path = tmp_path / f"damaged{suffix}"
+    _write(path, HeaderEntry(1.0, 1, "sim://?seed=1", False, "crc8", "test", "0"), good, bad)
+    result = run_cli("plot", str(path), "-o", str(tmp_path / "dive.png"))
+    assert result.status == 1
+    assert f"(telemetry depth_cm must be in 0–9999, got {shown})" in result.err
+    assert result.err.startswith(f"plotted {path}")  # the good row, before the damage
+    assert (tmp_path / "dive.png").exists()
+
+
+def test_replay_of_a_header_with_an_unknown_algorithm_names_the_file(
+    run_cli: RunCli, tmp_path: Path
+) -> None:
+    # Before, a usage error that blamed --to: "rovlink replay: error: --to: algorithm must be
+    # one of crc8, xor, sum8, got 'nope'" (status 2), of a damaged header.
+    path = tmp_path / "damaged.jsonl"
+    header = HeaderEntry(1.0, 1, "sim://?seed=1", True, "nope", "test", "0")
+    _write(path, header, FrameEntry(2.0, 2, "out", "command", "qd", ()))
+    result = run_cli("replay", str(path), "--to", "sim://")
+    assert result.status == 1
+    assert result.err == (
+        f"rovlink replay: {path}: the header's unknown checksum algorithm 'nope'; expected one "
+        "of: crc8, sum8, xor\n"
+    )
+
+
 def test_replay_of_a_foreign_file_is_one_clear_line(run_cli: RunCli, tmp_path: Path) -> None:
     path = tmp_path / "photo.mcap"
     path.write_bytes(b"\x89PNG\r\n\x1a\n not a recording")
@@ -505,6 +549,101 @@ def test_a_link_that_does_not_open_leaves_no_recording(
     assert f"rovlink {name}: nothing was recorded; {recording} not kept" in result.err
     assert "recorded 1" not in result.err  # no summary of a recording of nothing
     assert not recording.exists()
+
+
+@pytest.mark.parametrize(
+    "command", [*RECORDING_COMMANDS, ("record",)], ids=lambda command: command[0]
+)
+def test_an_existing_recording_is_never_written_over(
+    run_cli: RunCli, tmp_path: Path, command: tuple[str, ...]
+) -> None:
+    # Last week's dive.jsonl was truncated as the new recording opened, and removed with it
+    # when the link then did not open (a recording of its header alone is not kept).
+    recording = tmp_path / "dive.jsonl"
+    recording.write_bytes(b"last week's dive\n")
+    name, *rest = command
+    url = f"socket://127.0.0.1:{_free_port()}"  # nobody listens: the connection is refused
+    option = "-o" if name == "record" else "--record"
+    result = run_cli(name, url, *rest, option, str(recording))
+    assert result.status == 1, result.err
+    assert f"cannot record to {recording}: {recording} exists already" in result.err
+    assert "cannot open" not in result.err  # refused before the link is opened
+    assert recording.read_bytes() == b"last week's dive\n"
+
+
+def test_a_directory_named_as_the_recording_is_said_to_be_one(
+    run_cli: RunCli, tmp_path: Path
+) -> None:
+    directory = tmp_path / "dive.mcap"
+    directory.mkdir()
+    result = run_cli("send", "sim://", "qd", "--record", str(directory))
+    assert result.status == 1
+    assert result.err == f"rovlink send: cannot record to {directory}: Is a directory\n"
+
+
+def test_overwrite_writes_over_a_recording_already_there(run_cli: RunCli, tmp_path: Path) -> None:
+    recording = tmp_path / "service.jsonl"
+    recording.write_bytes(b"the last run's recording\n")
+    result = run_cli("send", "sim://", "qd", "--record", str(recording), "--overwrite")
+    assert result.status == 0, result.err
+    assert isinstance(next(read_entries(str(recording))), HeaderEntry)
+
+
+def test_a_rotation_never_writes_over_an_earlier_rotations_file(
+    run_cli: RunCli, tmp_path: Path
+) -> None:
+    earlier = tmp_path / "dive.001.jsonl"
+    earlier.write_bytes(b"an earlier dive's second file\n")
+    recording = tmp_path / "dive.jsonl"
+    result = run_cli("send", "sim://", "qd", "--record", str(recording), "--split", "1s")
+    assert result.status == 1, result.err
+    assert f"cannot record to {recording}: {earlier} exists already" in result.err
+    assert earlier.read_bytes() == b"an earlier dive's second file\n"
+    assert not recording.exists()
+    # Without rotation the files of an earlier rotation are not in the way.
+    result = run_cli("send", "sim://", "qd", "--record", str(recording))
+    assert result.status == 0, result.err
+    assert earlier.read_bytes() == b"an earlier dive's second file\n"
+
+
+def test_record_to_a_directory_not_there_is_refused_before_the_link_opens(
+    run_cli: RunCli, tmp_path: Path
+) -> None:
+    # Before, the link was opened (a board that resets as its port opens, reset) and the tap
+    # served first, and the file refused after.
+    output = tmp_path / "missing" / "dive.mcap"
+    url = f"socket://127.0.0.1:{_free_port()}"  # nobody listens: opening it would fail
+    result = run_cli("record", url, "-o", str(output))
+    assert result.status == 2
+    assert result.err.splitlines()[-1] == (
+        f"rovlink record: error: -o {output}: no such directory: {output.parent}"
+    )
+
+
+def test_a_tap_other_computers_reach_needs_allow_remote(run_cli: RunCli, tmp_path: Path) -> None:
+    # Before, --tap socket://0.0.0.0:PORT served the robot to the whole network with no word:
+    # anyone reaching it drove the robot, unauthenticated (fault and controller refuse so).
+    recording = tmp_path / "tapped.jsonl"
+    tap = "socket://0.0.0.0:0"
+    result = run_cli("record", "sim://", "-o", str(recording), "--tap", tap, "--duration", "0.1")
+    assert result.status == 2
+    assert result.err.splitlines()[-1] == (
+        f"rovlink record: error: --tap {tap}: 0.0.0.0 is not a loopback address, and the "
+        "protocol has no authentication; add --allow-remote to let other computers drive the robot"
+    )
+    assert not recording.exists()
+    result = run_cli(
+        "record",
+        "sim://",
+        "-o",
+        str(recording),
+        "--tap",
+        tap,
+        "--duration",
+        "0.1",
+        "--allow-remote",
+    )
+    assert result.status == 0, result.err
 
 
 def test_a_rotated_recording_of_headers_alone_counts_as_nothing_recorded(

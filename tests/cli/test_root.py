@@ -6,6 +6,7 @@ import os
 import re
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 
@@ -154,3 +155,18 @@ def test_output_to_a_closed_pipe_ends_quietly() -> None:
     finally:
         os.close(write_end)
     assert (result.returncode, result.stderr) == (0, "")
+
+
+def test_an_unknown_option_is_said_by_the_commands_own_parser(
+    run_cli: RunCli, tmp_path: Path
+) -> None:
+    # Before, the root parser said it ("rovlink: error: …") after its own usage line, which
+    # names neither the command nor its options (plot's -o given to replay, as here).
+    result = run_cli("replay", str(tmp_path / "dive.mcap"), "-o", "dive.png")
+    assert result.status == 2
+    lines = result.err.splitlines()
+    assert lines[0].startswith("usage: rovlink replay ")
+    assert lines[-1] == "rovlink replay: error: unrecognized arguments: -o dive.png"
+    result = run_cli("--bogus")
+    assert result.status == 2
+    assert result.err.splitlines()[-1] == "rovlink: error: unrecognized arguments: --bogus"

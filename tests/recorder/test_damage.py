@@ -291,3 +291,46 @@ def test_a_failing_writer_stops_the_recording_not_the_link(
         f"recording to {tmp_path / 'dive.jsonl'} stopped: the recorder failed (logged)"
     ]
     assert len(depths) == 5
+
+
+def _csv_lines(make_recording: MakeRecording) -> list[bytes]:
+    lines = Path(make_recording("dive.csv").path).read_bytes().splitlines(keepends=True)
+    assert len(lines) >= 5  # the header and rows enough to damage one in the middle
+    return lines
+
+
+def test_a_csv_row_that_is_not_utf8_is_damage_after_the_rows_before_it(
+    make_recording: MakeRecording, tmp_path: Path
+) -> None:
+    # Before, the file was decoded thousands of bytes at a time: one bad byte anywhere in the
+    # first of them made the whole file "not UTF-8 text, so not a rovlink telemetry CSV".
+    lines = _csv_lines(make_recording)
+    lines[3] = lines[3][:4] + b"\xff" + lines[3][5:]
+    damaged = tmp_path / "damaged.csv"
+    damaged.write_bytes(b"".join(lines))
+    entries, error = _read_all(str(damaged))
+    assert len(entries) == 2
+    assert error is not None
+    assert str(error) == f"{damaged}: row 4 is damaged (not UTF-8 text); read 2 rows before it"
+    assert not error.incomplete  # (status 1)
+
+
+def test_a_csv_row_damaged_mid_file_is_damage_and_a_cut_last_row_is_not(
+    make_recording: MakeRecording, tmp_path: Path
+) -> None:
+    # Before, any row that did not parse counted as a file cut short (status 0, no error).
+    lines = _csv_lines(make_recording)
+    damaged = tmp_path / "damaged.csv"
+    damaged.write_bytes(b"".join([*lines[:3], lines[3].replace(b",", b";", 1), *lines[4:]]))
+    entries, error = _read_all(str(damaged))
+    assert len(entries) == 2
+    assert error is not None
+    assert str(error).startswith(f"{damaged}: row 4 is damaged (13 columns, not 14)")
+    assert not error.incomplete
+    cut = tmp_path / "cut.csv"
+    cut.write_bytes(b"".join(lines)[: -len(lines[-1]) // 2])
+    entries, error = _read_all(str(cut))
+    assert len(entries) == len(lines) - 2
+    assert error is not None
+    assert f"row {len(lines)} is cut short" in str(error)
+    assert error.incomplete  # (status 0)

@@ -98,8 +98,19 @@ def test_the_depth_limit_aborts_with_stop() -> None:
         assert port.controller.locked
 
 
-def test_a_lost_link_aborts() -> None:
+def test_a_lost_link_aborts_and_says_stop_could_not_be_sent() -> None:
+    # Before, the abort said "#stop! sent" of a #stop! that the lost link never took.
     with simulated_plant("standard", 4) as (plant, port):
         port.robot.schedule(3.0, port.close)
-        with pytest.raises(TuneAbortedError, match="link failed"):
+        with pytest.raises(TuneAbortedError, match="link failed") as aborted:
             autotune(plant, RelaySettings(), RULES["heave-poles"], SCALES, None)
+    assert str(aborted.value).endswith(": #stop! could not be sent")
+    assert "#stop! sent" not in str(aborted.value)
+
+
+def test_an_abort_on_a_working_link_says_stop_was_sent() -> None:
+    with simulated_plant("standard", 3) as (plant, port):
+        port.robot.inject_leak(at_s=5.0)
+        with pytest.raises(TuneAbortedError) as aborted:
+            autotune(plant, RelaySettings(), RULES["heave-poles"], SCALES, None)
+    assert str(aborted.value) == "the leak sensor fired: #stop! sent"

@@ -127,3 +127,33 @@ def test_the_default_step_starts_no_shallower_than_min_depth() -> None:
     limits = {"min_depth": 20, "max_depth": 300, "step_from": None}
     assert _step_from(argparse.Namespace(depth=100, **limits)) == 20
     assert _step_from(argparse.Namespace(depth=250, **limits)) == 150
+
+
+@pytest.mark.parametrize(
+    ("plot", "error"),
+    [
+        ("tune.txt", "--plot {tmp}/tune.txt: name the image format by its suffix: .png, .svg"),
+        ("tune", "--plot {tmp}/tune: name the image format by its suffix: .png, .svg"),
+        ("missing/tune.png", "--plot {tmp}/missing/tune.png: no such directory: {tmp}/missing"),
+        ("a-directory.png", "--plot {tmp}/a-directory.png: is a directory"),
+    ],
+)
+def test_a_plot_that_cannot_be_written_is_refused_before_anything_is_sent(
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+    tmp_path: Path,
+    plot: str,
+    error: str,
+) -> None:
+    # Before, --plot was first looked at after the experiment (minutes of the motors running):
+    # a directory not there was one line then, a name without an image suffix a traceback.
+    from rovlink.cli import link_options
+
+    def refuse(args: argparse.Namespace) -> None:
+        raise AssertionError("connected")
+
+    monkeypatch.setattr(link_options, "connect", refuse)
+    (tmp_path / "a-directory.png").mkdir()
+    assert main(["tune", "sim://", "--yes", "--plot", f"{tmp_path}/{plot}"]) == 2
+    last = capsys.readouterr().err.strip().splitlines()[-1]
+    assert last.startswith(f"rovlink tune: error: {error.format(tmp=tmp_path)}")

@@ -235,7 +235,11 @@ def main(argv: list[str] | None = None) -> int:
     command = _chosen_command(argv)
     parser = build_parser(command, others=command is None or argv[0] != command)
     try:
-        args = parser.parse_args(argv)
+        args, extras = parser.parse_known_args(argv)
+        if extras:
+            # Said by the command's parser, with its usage line (the root's would name
+            # neither the command nor its options): "rovlink plot: error: …".
+            getattr(args, "parser", parser).error(f"unrecognized arguments: {' '.join(extras)}")
     except SystemExit as exit_:  # --help, --version and usage errors
         return exit_.code if isinstance(exit_.code, int) else 2
     if args.command is None:

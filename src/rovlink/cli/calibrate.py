@@ -74,14 +74,15 @@ def run(args: argparse.Namespace) -> int:
         raise UsageError(
             "measuring needs a terminal to ask on; give --surface-raw and --depth-raw instead"
         )
-    if not measuring and args.dry_run:  # nothing to read and nothing to send
+    if not measuring:  # nothing to read: bad readings are refused before the port opens
         try:
-            result = two_point(args.surface_raw, args.depth_raw, args.depth, args.min_counts)
+            given = two_point(args.surface_raw, args.depth_raw, args.depth, args.min_counts)
         except CalibrationError as error:
             raise CommandError(str(error)) from None
-        _show(result, args.depth_raw)
-        print("dry run: nothing sent")
-        return 0
+        if args.dry_run:  # and nothing to send
+            _show(given, args.depth_raw)
+            print("dry run: nothing sent")
+            return 0
     client = link_options.connect(args)
     try:
         surface = args.surface_raw

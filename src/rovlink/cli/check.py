@@ -10,13 +10,12 @@ low power and run only with --motion (after a prompt, unless --yes); a leak or a
 from __future__ import annotations
 
 import argparse
-import os
 import sys
-from pathlib import Path
 from typing import TYPE_CHECKING
 
 from rovlink.cli.failure import CommandError, UsageError, reason
 from rovlink.cli.link_options import algorithm_name, bounded_int, confirmed, file_name, seconds
+from rovlink.cli.output_file import check_writable
 
 if TYPE_CHECKING:
     from rovlink.conformance import Check, CheckResult, Report
@@ -105,7 +104,7 @@ def run(args: argparse.Namespace) -> int:
     except ValueError as error:
         raise UsageError(str(error)) from None
     if args.junit:
-        _check_output_path("--junit", args.junit)
+        check_writable("--junit", args.junit)
     # Asked only when a check that runs moves the robot: --motion with --only query-… moves
     # nothing, and needs neither an answer nor --yes.
     moves = any(check.motion for check in checks)
@@ -137,21 +136,6 @@ def run(args: argparse.Namespace) -> int:
         except OSError as error:
             raise CommandError(f"cannot write {args.junit}: {reason(error)}") from None
     return 0 if report.passed else 1
-
-
-def _check_output_path(option: str, path: str) -> None:
-    """Refuse an output file that cannot be written before the run, not after it (a run with
-    --motion takes most of a minute): its directory must exist and be writable."""
-    target = Path(path)
-    directory = target.parent
-    if target.is_dir():
-        raise UsageError(f"{option} {path}: is a directory")
-    if not directory.exists():
-        raise UsageError(f"{option} {path}: no such directory: {directory}")
-    if not directory.is_dir():
-        raise UsageError(f"{option} {path}: not a directory: {directory}")
-    if not os.access(target if target.exists() else directory, os.W_OK):
-        raise UsageError(f"{option} {path}: not writable")
 
 
 def _confirm_motion(percent: int) -> bool:

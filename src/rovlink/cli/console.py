@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import errno
+import sys
 from typing import TYPE_CHECKING
 
 from rovlink.cli import link_options
@@ -75,8 +76,19 @@ def run(args: argparse.Namespace) -> int:
         except (ConnectionError, OSError) as error:
             raise _ConnectError(error) from None
 
-    history = Path(args.history) if args.history else default_history_path()
-    _check_history(history, make_directory=not args.history)
+    history: Path | None
+    if args.history:
+        history = Path(args.history)
+        _check_history(history, make_directory=False)
+    else:
+        history = default_history_path()
+        try:
+            _check_history(history, make_directory=True)
+        except CommandError as error:
+            # A convenience, not a reason to keep a pilot from the robot (a read-only home, a
+            # service user's home that is not there): this session's history only.
+            print(f"rovlink console: {error}; kept for this session only", file=sys.stderr)
+            history = None
     try:
         run_async(run_console(connect, algorithm=args.algorithm, history_path=history))
     except ValueError as error:

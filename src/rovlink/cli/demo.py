@@ -2,7 +2,7 @@
 
 Unlock, dive to a depth and hold it, move in a square, read every sensor one by one, surface,
 lock. The script is :func:`run_dive` (it knows nothing of the terminal); the command renders its
-progress with rich. Whatever happens — an error, Ctrl-C — the robot is sent ``#stop!``.
+progress with rich. Whatever happens — an error, Ctrl-C, a leak — the robot is sent ``#stop!``.
 """
 
 from __future__ import annotations
@@ -54,7 +54,7 @@ class Step:
 
     name: str
     frames: str
-    status: str = "waiting"  # waiting, running, done, not reached, skipped
+    status: str = "waiting"  # waiting, running, done, not reached, aborted, skipped
     detail: str = ""
     started_at: float | None = None
     finished_at: float | None = None
@@ -67,6 +67,12 @@ class DiveProgress:
     steps: list[Step]
     started_at: float = field(default_factory=time.monotonic)
     latest: Sensors | None = None
+    #: Why the dive was aborted (a leak), if it was.
+    aborted: str | None = None
+
+
+class _LeakError(Exception):
+    """The leak sensor has fired (``$q.l.1!``): the dive ends at once with ``#stop!``."""
 
 
 ProgressCallback = Callable[[DiveProgress], None]
@@ -112,6 +118,8 @@ class _Dive:
         reading = self.rov.sensors()
         self.progress.latest = reading
         self.on_progress(self.progress)
+        if reading.leak_detected:
+            raise _LeakError
         return reading
 
     def watch(self, seconds: float) -> None:
@@ -154,14 +162,45 @@ class _Dive:
         rov.move(0, 0)
 
         step = self.begin(7)
+        depth_cm, raw, leak = rov.depth_cm(), rov.pressure_raw(), rov.leak_detected()
         readings = (
-            f"{rov.depth_cm()} cm, raw {rov.pressure_raw()}, "
-            f"leak {'YES' if rov.leak_detected() else 'no'}, roll {rov.roll_deg():+d}°, "
-            f"pitch {rov.pitch_deg():+d}°, heading {rov.heading_deg()}°"
+            f"{depth_cm} cm, raw {raw}, leak {'YES' if leak else 'no'}, "
+            f"roll {rov.roll_deg():+d}°, pitch {rov.pitch_deg():+d}°, heading {rov.heading_deg()}°"
         )
         self.finish(step, detail=readings)
+        if leak:
+            raise _LeakError
 
     def run(self) -> DiveProgress:
+        """The dive; a leak, latched before it or fired during it, ends it at once with
+        ``#stop!`` (a buoyant hull rises when its motors stop), as ``rovlink tune`` and the
+        motion checks end on a leak: no script goes on diving with water coming in."""
+        steps = self.progress.steps
+        try:
+            if self.rov.leak_detected():
+                self.progress.aborted = (
+                    "the leak sensor had fired before the dive (q.l = 1): look at the vehicle, "
+                    "then reset the latch (slreset); the dive was not started"
+                )
+            else:
+                self._dive()
+        except _LeakError:
+            self.rov.stop()
+            during = next((step.name for step in steps if step.status == "running"), "the dive")
+            self.progress.aborted = (
+                f"the leak sensor fired (q.l = 1) during {during!r}: the dive was aborted and "
+                "#stop! sent"
+            )
+        if self.progress.aborted is not None:
+            if steps[-1].status == "waiting" and self.progress.latest is not None:  # (driven)
+                self.finish(self.begin(len(steps) - 1), detail="motors off and locked: leak")
+            for step in steps:
+                if step.status in ("running", "waiting"):
+                    status = "aborted" if step.status == "running" else "skipped"
+                    self.finish(step, status, "leak (q.l = 1)")
+        return self.progress
+
+    def _dive(self) -> None:
         rov, plan = self.rov, self.plan
         rov.start()
         self.finish(self.begin(0))
@@ -183,7 +222,6 @@ class _Dive:
         step = self.begin(9)
         rov.stop()
         self.finish(step, detail="motors off and locked")
-        return self.progress
 
 
 def run_dive(rov: Client, plan: DivePlan, on_progress: ProgressCallback) -> DiveProgress:
@@ -215,6 +253,7 @@ def _render(progress: DiveProgress, url: str) -> RenderableType:
         "running": "[yellow]…[/]",
         "done": "[green]✓[/]",
         "not reached": "[red]✗[/]",
+        "aborted": "[red]✗[/]",
         "skipped": "[dim]–[/]",
     }
     for step in progress.steps:
@@ -342,6 +381,8 @@ def run(args: argparse.Namespace) -> int:
         f"\n{counters.frames_sent} frames sent, {counters.replies} replies, "
         f"{counters.timeouts} timeouts, {counters.retries} retries"
     )
+    if progress.aborted is not None:
+        raise CommandError(progress.aborted)
     if missed:
         print(f"rovlink demo: not completed: {', '.join(missed)}", file=sys.stderr)
         return 1

@@ -7,11 +7,10 @@ stops, the controller gets #stop!."""
 from __future__ import annotations
 
 import argparse
-import sys
 from collections.abc import Callable
 
 from rovlink.cli.failure import CommandError, UsageError, reason
-from rovlink.cli.interrupt import ServingSignals
+from rovlink.cli.interrupt import ServingSignals, say_last
 from rovlink.cli.link_options import bounded_float
 
 __all__ = ["EPILOG"]
@@ -124,7 +123,7 @@ def run(args: argparse.Namespace) -> int:
         if signals is not None:
             signals.restore()
     for direction, counters in port.counters.items():
-        print(f"{direction.replace('_', ' ')}: {counters.summary()}", file=sys.stderr)
+        say_last(f"{direction.replace('_', ' ')}: {counters.summary()}")
     if proxy.lost is not None:
         raise CommandError(f"the controller's link was lost: {proxy.lost}")
     if signals is not None:

@@ -29,6 +29,7 @@ __all__ = [
     "ServingSignals",
     "may_move",
     "run_in_worker",
+    "say_last",
     "say_stopped",
     "send_stop",
 ]
@@ -111,8 +112,15 @@ def send_stop(client: Any) -> str:
 
 def say_stopped(program: str, outcome: str, why: str = "") -> None:
     """``rovlink send: sent #stop!`` (with `` (why)``) on stderr, which may be closed too."""
+    say_last(f"{program}: {outcome}{f' ({why})' if why else ''}")
+
+
+def say_last(line: str) -> None:
+    """``line`` on stderr as a command ends, if it can still be written: a closed terminal
+    (SIGHUP) fails every write, and that error must not become the command's status (a
+    serving command stopped so ends with 0, a driving one with 130, as documented)."""
     with contextlib.suppress(OSError):
-        print(f"{program}: {outcome}{f' ({why})' if why else ''}", file=sys.stderr, flush=True)
+        print(line, file=sys.stderr, flush=True)
 
 
 def run_in_worker(work: Callable[[], T]) -> T:

@@ -10,6 +10,7 @@ import sys
 
 from rovlink.cli.failure import CommandError, UsageError, reason
 from rovlink.cli.link_options import file_name
+from rovlink.cli.output_file import check_image_suffix
 
 __all__ = ["EPILOG"]
 
@@ -47,7 +48,7 @@ def run(args: argparse.Namespace) -> int:
     from rovlink.recorder.plot import FIGURE_SIZE_IN, plot_dive  # noqa: PLC0415
 
     if args.output:
-        _check_image_suffix(args.output)
+        check_image_suffix("-o", args.output)
     if not args.show:
         matplotlib.use("Agg")
     entries = []
@@ -83,16 +84,3 @@ def run(args: argparse.Namespace) -> int:
         print(f"rovlink plot: {damage}", file=sys.stderr)
         return 0 if damage.incomplete else 1
     return 0
-
-
-def _check_image_suffix(path: str) -> None:
-    """Refuse an output without an image suffix: matplotlib would add ``.png`` to the name and
-    write a file other than the one named (or, after ``dir/``, a hidden ``dir/.png``)."""
-    from matplotlib.backend_bases import FigureCanvasBase  # noqa: PLC0415
-
-    formats = FigureCanvasBase.get_supported_filetypes()
-    if os.path.splitext(path)[1].lower().lstrip(".") not in formats:
-        common = [name for name in ("png", "svg", "pdf") if name in formats]
-        others = sorted(set(formats) - set(common))
-        known = ", ".join(f".{name}" for name in common + others)
-        raise UsageError(f"-o {path}: name the image format by its suffix: {known}")

@@ -13,11 +13,13 @@ import time
 
 from rovlink.cli.failure import CommandError, UsageError, reason
 from rovlink.cli.link_options import add_checksum_options, baud_rate, file_name, seconds
+from rovlink.cli.output_file import check_writable
 from rovlink.cli.recording import (
     add_rotation_options,
     discard_empty_recording,
     open_recorder,
     recorded_nothing,
+    refuse_existing_recording,
     report_recording,
 )
 
@@ -42,7 +44,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         required=True,
         type=file_name,
         metavar="FILE",
-        help="the recording (.mcap, .jsonl, .csv, .bin)",
+        help="the recording (.mcap, .jsonl, .csv, .bin); a file already there is refused",
     )
     parser.add_argument(
         "--tap",
@@ -55,6 +57,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--duration", type=seconds, metavar="SECONDS", help="stop after this long (default: Ctrl-C)"
+    )
+    parser.add_argument(
+        "--allow-remote",
+        action="store_true",
+        help="let --tap socket:// use an address other computers reach; the protocol has no "
+        "authentication, so anyone who reaches it drives the robot",
     )
     add_checksum_options(parser, "the link starts in checksum mode (to decode its frames)")
     add_rotation_options(parser)
@@ -75,6 +83,10 @@ def run(args: argparse.Namespace) -> int:
         endpoint = parse_url(args.url, args.baudrate)
     except ValueError as error:
         raise UsageError(f"URL: {error}") from None
+    # Before the link opens (a board may reset as its port opens) and the tap is served.
+    refuse_existing_recording(args, args.output)
+    check_writable("-o", args.output)
+    _refuse_a_remote_tap(args)
     try:
         tap = parse_tap(args.tap) if args.tap is not None else None  # '' is refused there
     except ValueError as error:
@@ -138,6 +150,21 @@ def run(args: argparse.Namespace) -> int:
         raise CommandError(f"{lost}; the recording ends here")
     signals.finish()  # (Ctrl-C: status 130)
     return 1 if recorder.error else 0
+
+
+def _refuse_a_remote_tap(args: argparse.Namespace) -> None:
+    """As ``rovlink fault`` and ``rovlink controller``: a tap on an address other computers
+    reach lets anyone there drive the robot, unauthenticated, unless ``--allow-remote``."""
+    if args.tap is None or not args.tap.startswith("socket://") or args.allow_remote:
+        return
+    from rovlink.controller.lines import is_loopback  # noqa: PLC0415
+
+    host = args.tap[len("socket://") :].rpartition(":")[0] or "127.0.0.1"
+    if not is_loopback(host.strip("[]")):
+        raise UsageError(
+            f"--tap {args.tap}: {host} is not a loopback address, and the protocol has no "
+            "authentication; add --allow-remote to let other computers drive the robot"
+        )
 
 
 class _FirstWords:

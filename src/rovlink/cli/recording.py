@@ -6,10 +6,11 @@ import argparse
 import contextlib
 import math
 import os
-import sys
+import re
 from typing import TYPE_CHECKING
 
 from rovlink.cli.failure import CommandError, UsageError, reason
+from rovlink.cli.interrupt import say_last
 from rovlink.cli.link_options import file_name
 
 if TYPE_CHECKING:
@@ -23,6 +24,7 @@ __all__ = [
     "duration",
     "open_recorder",
     "recorded_nothing",
+    "refuse_existing_recording",
     "report_recording",
 ]
 
@@ -88,8 +90,16 @@ def duration(text: str) -> float:
 
 
 def add_rotation_options(parser: argparse.ArgumentParser) -> None:
-    """``--max-size`` and ``--split``: start a new file when the current one is that big or old."""
+    """``--max-size`` and ``--split``: start a new file when the current one is that big or old;
+    ``--overwrite``: write over a recording already there (a service that records to one name
+    each time it starts)."""
     group = parser.add_argument_group("recording")
+    group.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="write over a recording already there (and its rotation's files); without it, a "
+        "file already there is refused",
+    )
     group.add_argument(
         "--max-size",
         type=byte_size,
@@ -111,7 +121,7 @@ def add_record_options(parser: argparse.ArgumentParser) -> None:
         type=file_name,
         metavar="FILE",
         help="record the session: every byte, frame, event and the telemetry "
-        "(.mcap, .jsonl, .csv or .bin by suffix)",
+        "(.mcap, .jsonl, .csv or .bin by suffix; a file already there is refused)",
     )
     add_rotation_options(parser)
 
@@ -126,7 +136,7 @@ def open_recorder(args: argparse.Namespace, path: str, *, url: str, program: str
         format_of(path)
     except ValueError as error:
         raise UsageError(str(error)) from None
-
+    refuse_existing_recording(args, path)
     try:
         return Recorder(
             path,
@@ -143,6 +153,33 @@ def open_recorder(args: argparse.Namespace, path: str, *, url: str, program: str
         raise CommandError(str(error)) from None
 
 
+def refuse_existing_recording(args: argparse.Namespace, path: str) -> None:
+    """Refuse to record to ``path`` if a file is there already, or (with ``--max-size`` or
+    ``--split``) a file of a rotation of that name (``dive.001.mcap``): a recording is written
+    over only with ``--overwrite``. It would be lost even if the new one never started, as a
+    recording that holds its header alone is removed (:func:`discard_empty_recording`)."""
+    if getattr(args, "overwrite", False):
+        return
+    # (A directory is no recording: its open says "Is a directory".)
+    taken = [path] if os.path.lexists(path) and not os.path.isdir(path) else []
+    if args.max_size is not None or args.split is not None:
+        directory, name = os.path.split(path)
+        stem, suffix = os.path.splitext(name)
+        rotated = re.compile(rf"{re.escape(stem)}\.\d{{3,}}{re.escape(suffix)}")
+        with contextlib.suppress(OSError):  # (a directory that is not there: said on creation)
+            taken += sorted(
+                os.path.join(directory, other)
+                for other in os.listdir(directory or ".")
+                if rotated.fullmatch(other)
+            )
+    if taken:
+        raise CommandError(
+            f"cannot record to {path}: {', '.join(taken)} "
+            f"{'exists' if len(taken) == 1 else 'exist'} already (a recording is "
+            "never written over: remove it, record to another file, or add --overwrite)"
+        )
+
+
 def report_recording(recorder: Recorder, elapsed_s: float) -> None:
     """One line on stderr: what was recorded where, counted as the format holds it (an MCAP
     file's messages, a CSV's rows, a raw capture's bytes); after a failure, what was made
@@ -157,10 +194,9 @@ def report_recording(recorder: Recorder, elapsed_s: float) -> None:
         if recorder.dropped
         else ""
     )
-    print(
+    say_last(
         f"recorded {at_least}{held} {unit} in {elapsed_s:.1f} s to {files} "
-        f"({sizes / 1000:.1f} kB){lost}",
-        file=sys.stderr,
+        f"({sizes / 1000:.1f} kB){lost}"
     )
 
 
@@ -178,4 +214,4 @@ def discard_empty_recording(recorder: Recorder, program: str) -> None:
         with contextlib.suppress(FileNotFoundError):
             os.remove(path)
     files = ", ".join(recorder.paths)
-    print(f"{program}: nothing was recorded; {files} not kept", file=sys.stderr)
+    say_last(f"{program}: nothing was recorded; {files} not kept")

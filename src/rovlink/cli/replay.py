@@ -124,6 +124,7 @@ def _replay_to(args: argparse.Namespace, damage: _Damage) -> int:
     )
     from rovlink.client.errors import ClientError, QueryTimeoutError  # noqa: PLC0415
     from rovlink.piloting.commanded import CommandedState  # noqa: PLC0415
+    from rovlink.protocol import get_algorithm  # noqa: PLC0415
     from rovlink.recorder import HeaderEntry  # noqa: PLC0415
     from rovlink.recorder.comparison import ReplaySummary, replay_steps, run_replay  # noqa: PLC0415
 
@@ -131,6 +132,10 @@ def _replay_to(args: argparse.Namespace, damage: _Damage) -> int:
     header = next((entry for entry in entries if isinstance(entry, HeaderEntry)), None)
     checksum = args.checksum if args.checksum is not None else bool(header and header.checksum)
     algorithm = header.algorithm if header is not None else "crc8"
+    try:
+        get_algorithm(algorithm)
+    except ValueError as error:  # the header damaged (or from a newer version): not --to's
+        raise CommandError(f"{args.file}: the header's {error}") from None
     steps = replay_steps(entries)
     if not steps:
         if damage.error is not None:  # the damage, not the file, is why there is nothing

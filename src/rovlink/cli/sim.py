@@ -4,11 +4,10 @@ in any terminal program (picocom, miniterm, socat) or give it to rovlink as a UR
 from __future__ import annotations
 
 import argparse
-import sys
 from typing import TYPE_CHECKING
 
 from rovlink.cli.failure import CommandError, InputError, UsageError, reason
-from rovlink.cli.interrupt import ServingSignals
+from rovlink.cli.interrupt import ServingSignals, say_last
 from rovlink.cli.link_options import baud_rate, bounded_float, file_name, seconds
 
 if TYPE_CHECKING:
@@ -145,7 +144,7 @@ def run(args: argparse.Namespace) -> int:
         server.close()
         if signals is not None:
             signals.restore()
-    print("rovlink sim stopped", file=sys.stderr)
+    say_last("rovlink sim stopped")  # (a closed terminal, SIGHUP, takes no line)
     if signals is not None:
         signals.finish()  # (Ctrl-C: status 130; SIGTERM, SIGHUP: a service stopped, 0)
     return 0

@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING
 from rovlink.cli import link_options
 from rovlink.cli.failure import CommandError, UsageError, reason
 from rovlink.cli.link_options import bounded_int
+from rovlink.cli.output_file import check_image_suffix, check_writable
 
 if TYPE_CHECKING:
     from rovlink.client import Client
@@ -174,6 +175,8 @@ def run(args: argparse.Namespace) -> int:
     kp, ki, kd = args.restore or (defaults.kp, defaults.ki, defaults.kd)
     restore = ProtocolGains(kp, ki, kd)
     step = None if args.no_verify else StepSettings(from_cm=_step_from(args), to_cm=args.depth)
+    if args.plot:
+        _check_plot(args.plot)
     if not args.yes and not _confirm(args):
         raise CommandError("not confirmed; nothing was sent")
     client = link_options.connect(args)
@@ -286,14 +289,23 @@ def _print(result: TuneResult, applied: bool, final: ProtocolGains) -> None:
     print(f"gains {state}; motors locked")
 
 
-def _plot(result: TuneResult, path: str) -> None:
+def _check_plot(path: str) -> None:
+    """Refuse a ``--plot`` that could not be written before the motors run, not after the
+    experiment: matplotlib missing, a name without an image suffix, a directory not there."""
     try:
-        import matplotlib  # noqa: PLC0415
-
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt  # noqa: PLC0415
+        import matplotlib  # noqa: PLC0415, F401 - the plot extra, only with --plot
     except ImportError:
         raise CommandError("--plot needs matplotlib: pip install 'rovlink[plot]'") from None
+    check_image_suffix("--plot", path)
+    check_writable("--plot", path)
+
+
+def _plot(result: TuneResult, path: str) -> None:
+    import matplotlib  # noqa: PLC0415 - found by _check_plot before the experiment
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt  # noqa: PLC0415
+
     rows = 2 if result.step is not None else 1
     figure, axes = plt.subplots(rows, 1, figsize=(8, 3.2 * rows), squeeze=False)
     relay = result.relay
@@ -324,7 +336,7 @@ def _plot(result: TuneResult, path: str) -> None:
     figure.tight_layout()
     try:
         figure.savefig(path)
-    except OSError as error:
+    except (OSError, ValueError) as error:
         raise CommandError(f"cannot write {path}: {reason(error)}") from None
     finally:
         plt.close(figure)

@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 
 from rovlink.protocol import Command, Response, encode
 from rovlink.recorder.entries import Entry, FrameEntry
+from rovlink.recorder.playback import wait_until
 
 __all__ = ["Divergence", "ReplayStep", "ReplaySummary", "replay_steps", "run_replay"]
 
@@ -134,9 +135,7 @@ def run_replay(
     started_s = clock()
     for step in steps:
         if speed > 0:
-            delay_s = started_s + (step.t_s - first_s) / speed - clock()
-            if delay_s > 0:
-                sleep(delay_s)
+            wait_until(started_s + (step.t_s - first_s) / speed, sleep=sleep, clock=clock)
         replayed = send(step.command)
         divergence = None
         if step.expected_count and not _same(step.recorded, replayed, tolerance):

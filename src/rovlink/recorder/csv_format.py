@@ -11,8 +11,14 @@ import csv
 import io
 from collections.abc import Iterator
 from datetime import datetime, timezone
+from typing import BinaryIO
 
-from rovlink.recorder.entries import TELEMETRY_FIELDS, Entry, TelemetryEntry
+from rovlink.recorder.entries import (
+    TELEMETRY_FIELDS,
+    Entry,
+    TelemetryEntry,
+    check_telemetry_range,
+)
 from rovlink.recorder.sink import FileSink, RecordingDamagedError, RecordingError
 
 __all__ = ["HEADER", "TelemetryCsvSink", "read_csv"]
@@ -65,17 +71,23 @@ class TelemetryCsvSink(FileSink):
 
 
 def read_csv(path: str) -> Iterator[Entry]:
-    """The telemetry rows of a ``.csv`` recording."""
+    """The telemetry rows of a ``.csv`` recording.
+
+    Each line is decoded on its own: a byte that is not UTF-8 damages its row alone, and the
+    rows before it are read (a text stream decodes thousands of bytes at once, and failed on
+    the first row when the damage lay anywhere in the first of them).
+    """
     try:
-        stream = open(path, encoding="utf-8", newline="")  # noqa: SIM115 - closed below
+        stream = open(path, "rb")  # noqa: SIM115 - closed below
     except OSError as error:
         raise RecordingError(f"{path}: {error.strerror}") from None
     count = 0
     with stream:
-        rows = csv.reader(stream)
+        lines = _TextLines(stream)
+        rows = csv.reader(lines)
         try:
             header = next(rows, None)
-        except UnicodeDecodeError:
+        except _NotTextError:
             raise RecordingError(
                 f"{path}: not UTF-8 text, so not a rovlink telemetry CSV"
             ) from None
@@ -84,9 +96,9 @@ def read_csv(path: str) -> Iterator[Entry]:
         while True:
             try:
                 row = next(rows, None)
-            except UnicodeDecodeError:
+            except _NotTextError as error:
                 raise RecordingDamagedError(
-                    f"{path}: not UTF-8 text after row {rows.line_num}; "
+                    f"{path}: row {error.line_number} is damaged (not UTF-8 text); "
                     f"read {count} rows before it",
                     entries_read=count,
                     incomplete=False,
@@ -101,13 +113,46 @@ def read_csv(path: str) -> Iterator[Entry]:
                     name: int(text) if text else None
                     for name, text in zip(TELEMETRY_FIELDS, row[2:], strict=True)
                 }
+                for name, value in values.items():
+                    check_telemetry_range(name, value)
                 entry = TelemetryEntry(float(row[0]), int(wall.timestamp() * 1e9), values)
-            except ValueError as error:
+            except ValueError as error:  # (an EntryError too: a value out of its range)
+                # Cut short: the last row, without its newline; else damaged (status 1).
+                cut = not lines.last_complete
                 raise RecordingDamagedError(
-                    f"{path}: row {rows.line_num} is damaged or cut short ({error}); "
-                    f"read {count} rows before it",
+                    f"{path}: row {rows.line_num} is {'cut short' if cut else 'damaged'} "
+                    f"({error}); read {count} rows before it",
                     entries_read=count,
-                    incomplete=True,
+                    incomplete=cut,
                 ) from None
             count += 1
             yield entry
+
+
+class _NotTextError(Exception):
+    """A line of the file that is not UTF-8 text (its number counts from 1)."""
+
+    def __init__(self, line_number: int) -> None:
+        super().__init__(line_number)
+        self.line_number = line_number
+
+
+class _TextLines:
+    """The lines of a binary stream, each decoded alone (:class:`_NotTextError` at one that is
+    not UTF-8); :attr:`last_complete` says whether the last line given ended with its newline
+    (a recorder stopped abruptly leaves its last row without one)."""
+
+    def __init__(self, stream: BinaryIO) -> None:
+        self._numbered = enumerate(stream, start=1)
+        self.last_complete = True
+
+    def __iter__(self) -> Iterator[str]:
+        return self
+
+    def __next__(self) -> str:
+        number, line = next(self._numbered)
+        self.last_complete = line.endswith(b"\n")
+        try:
+            return line.decode("utf-8")
+        except UnicodeDecodeError:
+            raise _NotTextError(number) from None

@@ -37,6 +37,7 @@ __all__ = [
     "HeaderEntry",
     "TelemetryEntry",
     "WireEntry",
+    "check_telemetry_range",
     "entry_from_json",
 ]
 
@@ -224,9 +225,26 @@ class TelemetryEntry:
             value = data.get(name)
             if value is not None and (isinstance(value, bool) or not isinstance(value, int)):
                 raise EntryError(f"telemetry {name} must be an integer or null, got {value!r}")
+            check_telemetry_range(name, value)
             values[name] = value
         clocks = _fields(cls, {"t_s": data.get("t_s"), "wall_ns": data.get("wall_ns")}, values)
         return cls(t_s=clocks["t_s"], wall_ns=clocks["wall_ns"], values=values)
+
+
+def check_telemetry_range(name: str, value: int | None) -> None:
+    """:class:`EntryError` if telemetry column ``name`` holds a value outside the range of the
+    command table's argument it comes from: no controller sends it and no recorder writes it,
+    so the file is damaged (a plot would draw a spike, or fail past a float's range)."""
+    # (The ranges come through the telemetry's columns: loaded as a recording is read, since
+    # that module needs this one.)
+    from rovlink.recorder.telemetry import COLUMN_RANGES  # noqa: PLC0415
+
+    low, high = COLUMN_RANGES[name]
+    if value is not None and not low <= value <= high:
+        shown = str(value)
+        if len(shown) > 16:
+            shown = f"{shown[:8]}… ({len(shown)} digits)"
+        raise EntryError(f"telemetry {name} must be in {low}–{high}, got {shown}")
 
 
 Entry = HeaderEntry | WireEntry | FrameEntry | EventEntry | TelemetryEntry

@@ -21,7 +21,7 @@ from rovlink.recorder.entries import (
     WireEntry,
 )
 
-__all__ = ["describe", "paced", "session_lines"]
+__all__ = ["describe", "paced", "session_lines", "wait_until"]
 
 
 def _frame_text(entry: FrameEntry) -> str:
@@ -84,11 +84,24 @@ def paced(
         if entry.t_s > 0 and not isinstance(entry, HeaderEntry):
             if first_s is None:
                 first_s = entry.t_s
-            due_s = started_s + (entry.t_s - first_s) / speed
-            delay_s = due_s - clock()
-            if delay_s > 0:
-                sleep(delay_s)
+            wait_until(started_s + (entry.t_s - first_s) / speed, sleep=sleep, clock=clock)
         yield entry
+
+
+#: The longest single sleep: :func:`time.sleep` refuses more than its clock can count (about
+#: 292 years), which a damaged time in a recording can ask for.
+_LONGEST_SLEEP_S = 3600.0
+
+
+def wait_until(
+    due_s: float,
+    *,
+    sleep: Callable[[float], None] = time.sleep,
+    clock: Callable[[], float] = time.monotonic,
+) -> None:
+    """Sleep until ``clock()`` reaches ``due_s``, however far off it is."""
+    while (delay_s := due_s - clock()) > 0:
+        sleep(min(delay_s, _LONGEST_SLEEP_S))
 
 
 def session_lines(entries: Iterable[Entry], *, wire: bool = False) -> Iterator[str]:

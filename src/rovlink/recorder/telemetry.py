@@ -18,10 +18,19 @@ from __future__ import annotations
 
 from collections.abc import Iterable
 
-from rovlink.protocol import COMMANDS, Command, Response, Setting, Spec, VerticalMode
+from rovlink.protocol import (
+    COMMANDS,
+    Command,
+    Kind,
+    Response,
+    Setting,
+    Spec,
+    VerticalMode,
+    lookup,
+)
 from rovlink.recorder.entries import TELEMETRY_FIELDS
 
-__all__ = ["COMMAND_COLUMNS", "RESPONSE_COLUMNS", "TelemetryState"]
+__all__ = ["COLUMN_RANGES", "COMMAND_COLUMNS", "RESPONSE_COLUMNS", "TelemetryState"]
 
 #: Response name → the column of each of its values.
 RESPONSE_COLUMNS: dict[str, tuple[str, ...]] = {
@@ -40,6 +49,21 @@ COMMAND_COLUMNS: dict[str, tuple[str, ...]] = {
     "th": ("thrust_direction_deg", "thrust_power_percent"),
     "mvdirect": ("vertical_direct",),
 }
+
+
+def _column_ranges() -> dict[str, tuple[int, int]]:
+    """Each column's range, from the argument of the command table it is taken from (the lock
+    is 0 or 1)."""
+    ranges = {"locked": (0, 1)}
+    for kind, table in ((Kind.RESPONSE, RESPONSE_COLUMNS), (Kind.COMMAND, COMMAND_COLUMNS)):
+        for name, columns in table.items():
+            for column, argument in zip(columns, lookup(name, kind).arguments, strict=True):
+                ranges[column] = (argument.minimum, argument.maximum)
+    return ranges
+
+
+#: Column → its least and greatest value: a recording with a value outside is damaged.
+COLUMN_RANGES: dict[str, tuple[int, int]] = _column_ranges()
 
 
 def _columns(specs: Iterable[Spec]) -> tuple[str, ...]:

@@ -6,7 +6,6 @@ outside the limits or a lost link sends ``#stop!`` and raises :class:`TuneAborte
 
 from __future__ import annotations
 
-import contextlib
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -17,7 +16,8 @@ __all__ = ["DepthLimits", "Plant", "TuneAbortedError"]
 
 
 class TuneAbortedError(Exception):
-    """The experiment stopped for safety; ``#stop!`` has been sent. The message says why."""
+    """The experiment stopped for safety, with ``#stop!``. The message says why, and whether
+    the ``#stop!`` went (a link that is gone takes nothing)."""
 
 
 @dataclass(frozen=True)
@@ -56,7 +56,7 @@ class Plant:
         self._clock = clock
         self._sleep = sleep
         self._truth = truth
-        self._stopped = False
+        self._stop_outcome: str | None = None
 
     def now_s(self) -> float:
         """The plant's clock, s."""
@@ -93,18 +93,26 @@ class Plant:
         """Run a client call; a failure aborts."""
         self._guarded(action)
 
-    def stop(self) -> None:
-        """``#stop!``, at most once per experiment, whatever state the link is in."""
-        if self._stopped:
-            return
-        self._stopped = True
-        with contextlib.suppress(ClientError, ConnectionError):  # the link is gone: nothing to do
-            self.client.stop()
+    def stop(self) -> str:
+        """``#stop!``, at most once per experiment, whatever state the link is in; what became
+        of it: ``#stop! sent``, or ``#stop! could not be sent: <why>`` (a link that is gone:
+        the controller's link-loss watchdog stops the robot then)."""
+        if self._stop_outcome is None:
+            try:
+                self.client.stop()
+            except (ClientError, ConnectionError) as error:
+                self._stop_outcome = f"#stop! could not be sent: {error}"
+            else:
+                self._stop_outcome = "#stop! sent"
+        return self._stop_outcome
 
     def abort(self, why: str) -> None:
-        """Stop the robot and raise :class:`TuneAbortedError`."""
-        self.stop()
-        raise TuneAbortedError(f"{why}: #stop! sent")
+        """Stop the robot and raise :class:`TuneAbortedError` saying why, and whether the
+        ``#stop!`` went."""
+        outcome = self.stop()
+        if why.startswith("the link failed") and outcome != "#stop! sent":
+            outcome = "#stop! could not be sent"  # (the reason is the failure just named)
+        raise TuneAbortedError(f"{why}: {outcome}")
 
     def _guarded(self, action: Callable[[], None]) -> None:
         try:
