@@ -24,6 +24,7 @@ import pytest
 
 from rovlink.recorder import FrameEntry, HeaderEntry, read_entries
 from rovlink.recorder.formats import open_sink
+from tests.board.rig import fake_toml
 from tests.cli.conftest import RunCli
 from tests.cli.silent_controller import WAIT_S, SilentController
 
@@ -505,6 +506,20 @@ def test_a_closed_terminal_ends_the_simulator_with_0() -> None:
         assert _shown(terminal, b"Ctrl-C stops")
         terminal.hang_up()
         assert terminal.process.wait(timeout=WAIT_S) == 0  # (was 1: "rovlink sim stopped")
+    finally:
+        terminal.close()
+
+
+@pytest.mark.parametrize("board", ["sim", "pi"])
+def test_a_closed_terminal_ends_the_controller_with_0(board: str, tmp_path: Path) -> None:
+    arguments = ["controller", "--board", board, "--tcp", "127.0.0.1:0"]
+    if board == "pi":  # the example rov.toml on fake devices
+        arguments += ["--config", str(fake_toml(tmp_path, tmp_path / "i2c.log"))]
+    terminal = Terminal(*arguments, stderr_on_terminal=True)
+    try:
+        assert _shown(terminal, b"Ctrl-C stops")
+        terminal.hang_up()
+        assert terminal.process.wait(timeout=WAIT_S) == 0  # (was 1: "rovlink controller stopped")
     finally:
         terminal.close()
 

@@ -8,12 +8,11 @@ whoever reaches the line drives the robot, so TCP listens on loopback unless --a
 from __future__ import annotations
 
 import argparse
-import sys
 import threading
 from typing import TYPE_CHECKING
 
 from rovlink.cli.failure import CommandError, InputError, UsageError, reason
-from rovlink.cli.interrupt import ServingSignals
+from rovlink.cli.interrupt import ServingSignals, say_last
 from rovlink.cli.link_options import baud_rate, file_name, seconds
 
 if TYPE_CHECKING:
@@ -167,10 +166,9 @@ def _run_pi(
             server.make_safe()
         server.close()
     schedule = server.schedule
-    print(
+    say_last(  # (a closed terminal, SIGHUP, takes no line)
         f"rovlink controller stopped: thrusters at neutral; {schedule.periods} control periods, "
-        f"{schedule.overruns} overrun(s), {server.device_faults} device fault(s)",
-        file=sys.stderr,
+        f"{schedule.overruns} overrun(s), {server.device_faults} device fault(s)"
     )
     return 0
 
@@ -275,7 +273,7 @@ def _run_sim(
         server.serve(stop.is_set)
     finally:
         server.close()
-    print("rovlink controller stopped", file=sys.stderr)
+    say_last("rovlink controller stopped")
     return 0
 
 
