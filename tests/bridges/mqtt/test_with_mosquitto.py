@@ -460,3 +460,30 @@ async def test_a_stop_is_not_held_up_by_a_query_the_controller_does_not_answer(b
         sent = robot.motion_and_lock_frames()[before:]
         assert sent[:2] == ["#stop!", "#mgmp.100!"]
         assert not [frame for frame in sent if frame.startswith(("#th", "#start"))]
+
+
+async def test_losing_the_broker_zeroes_the_thrust_even_without_a_motion_timeout(
+    broker: Mosquitto,
+):
+    # With --motion-timeout 0 the robot drove on for as long as the broker was away, though no
+    # stop could reach it any more.
+    async with bridged_robot(broker, "z1", motion_timeout_s=None) as robot:
+        # A persistent session (kept through the broker's restart): the event waits for it.
+        async with (
+            subscriber(broker, "rovlink/z1/events", identifier="w", clean=False),
+            subscriber(broker, "rovlink/z1/cmd/reply") as watcher,
+        ):
+            for command in ("mvdirect 1", "start", "th 90 30", "mvs 40"):
+                assert (await watcher.command("z1", command))["ok"]
+        controller = robot.port.robot.controller
+        await until(lambda: controller.state().vertical_thrust_percent == 40)
+        moving = len(robot.frames())
+        broker.stop()
+        await until(lambda: {"#th.90.0!", "#mvs.+0!"} <= set(robot.frames()[moving:]))
+        await until(lambda: controller.state().power_percent == 0)
+        await until(lambda: controller.state().vertical_thrust_percent == 0)
+        assert "#stop!" not in robot.frames()[moving:]  # unlocked still: a depth held stays
+        broker.start()
+        async with subscriber(broker, "rovlink/z1/events", identifier="w", clean=False) as events:
+            failsafe = await events.wait_for("rovlink/z1/events", lambda e: "broker" in e["detail"])
+        assert failsafe["event"] == "failsafe"
