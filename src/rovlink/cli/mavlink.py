@@ -2,8 +2,9 @@
 
 Telemetry out (HEARTBEAT, SYS_STATUS, ATTITUDE, VFR_HUD, GLOBAL_POSITION_INT, SCALED_PRESSURE2),
 parameters, arming, MANUAL/ALT_HOLD and the joystick in. No ground-station heartbeat for 3 s
-while armed stops the robot; joystick input stale for 1 s zeroes its thrust. The robot is left
-locked when the bridge ends.
+while armed stops the robot; joystick input stale for 1 s zeroes its thrust; a stick or RC
+channel off centre at arming is held at neutral until centred. The robot is left locked when the
+bridge ends.
 """
 
 from __future__ import annotations

@@ -166,7 +166,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=2.0,
         metavar="SECONDS",
         help="zero thrust when th/mvs is not renewed for this long, 0–60; 0: never "
-        "(default: %(default)s)",
+        "(losing the broker zeroes it all the same) (default: %(default)s)",
     )
 
 

@@ -241,6 +241,52 @@ def test_rc_release_is_neutral_and_no_change_keeps_the_channel():
     assert rc.update(keep, now_s=0.4 + 2 * INPUT_STALE_S) == (0, 0, 500)  # stale: released
 
 
+def _held(pilot: PilotInput, x: int, y: int, z: int, now_s: float) -> tuple[str, ...]:
+    output = pilot.manual_control(x, y, z, 0, mode=FlightMode.MANUAL, armed=True, now_s=now_s)
+    return output.newly_held
+
+
+def test_an_axis_off_centre_at_arming_is_held_at_neutral_until_centred():
+    pilot = PilotInput(ParameterTable())
+    _drive(pilot, 1000, 0, 800, 0.0, armed=False)  # held over while disarmed
+    pilot.hold_off_centre_axes()  # armed
+    assert _held(pilot, 1000, 0, 800, 0.1) == ("x", "z")  # said once each ...
+    assert _drive(pilot, 1000, 0, 800, 0.2) == []
+    assert _held(pilot, 1000, 0, 800, 0.3) == ()  # ... not again
+    assert _drive(pilot, 100, 0, 800, 0.4) == ["#th.0.10!"]  # x centred (the band's edge)
+    assert _drive(pilot, 1000, 0, 800, 0.5) == ["#th.0.100!"]  # x free, z still held
+    assert _drive(pilot, 1000, 0, 550, 0.6) == ["#mvs.+10!"]  # z within 50 of 500: free
+    assert _drive(pilot, 1000, 0, 1000, 0.7) == ["#mvs.+100!"]
+    pilot.hold_off_centre_axes()  # re-armed with the stick where it is: held again
+    assert _held(pilot, 1000, 0, 1000, 0.8) == ("x", "z")
+
+
+def test_an_axis_centred_at_arming_is_not_held():
+    pilot = PilotInput(ParameterTable())
+    _drive(pilot, 1000, 0, 500, 0.0, armed=False)
+    _drive(pilot, 0, 100, 450, 0.1, armed=False)  # within the band: centred
+    pilot.hold_off_centre_axes()
+    assert _drive(pilot, 0, -1000, 0, 0.2) == ["#th.270.100!", "#mvs.-100!"]
+
+
+def test_an_axis_just_beyond_the_band_at_arming_is_held():
+    pilot = PilotInput(ParameterTable())
+    _drive(pilot, 0, -101, 449, 0.0, armed=False)
+    pilot.hold_off_centre_axes()
+    assert _held(pilot, 0, -1000, 0, 0.1) == ("y", "z")
+
+
+@pytest.mark.parametrize(("pulse_us", "held"), [(1540, False), (1541, True), (1459, True)])
+def test_an_rc_channel_counts_as_neutral_within_40_us(pulse_us: int, held: bool):
+    rc = RcOverride(stale_after_s=INPUT_STALE_S)
+    pilot = PilotInput(ParameterTable())
+    x, y, z = rc.update([0, 0, 0, 0, pulse_us, 0, 0, 0], now_s=0.0)
+    _drive(pilot, x, y, z, 0.0, armed=False)
+    pilot.hold_off_centre_axes()
+    x, y, z = rc.update([0, 0, 0, 0, 1900, 0, 0, 0], now_s=0.1)
+    assert _held(pilot, x, y, z, 0.1) == (("x",) if held else ())
+
+
 def test_stale_input_expires_once_after_one_second():
     pilot = PilotInput(ParameterTable())
     _drive(pilot, 1000, 0, 1000, 0.0)

@@ -131,11 +131,15 @@ def test_mavproxy_flies_with_rc_overrides(mavproxy_rig: tuple[BridgeRig, MavProx
     mark = len(rig.frames())
     proxy.type("rc 3 1600")  # disarmed: nothing moves (P7)
     proxy.wait_output("COMPONENT_ARM_DISARM: ACCEPTED", proxy.type("arm throttle"))
-    rig.wait_frame("#mvs.+25!", since=mark)  # the throttle held by the override, now armed
-    sent = rig.frames_since(mark)
-    assert sent.index("#start!") < sent.index("#mvs.+25!")
-    proxy.type("rc 5 1400")  # forward channel: astern at a quarter
+    # MAVProxy repeats the override: once armed it is held at neutral, and said so.
+    proxy.wait_output("RC 3 held: return to neutral")
+    armed = len(rig.frames())
+    proxy.type("rc 5 1400")  # forward channel, neutral at arming: astern at a quarter
     rig.wait_frame("#th.180.25!", since=mark)
+    assert "#mvs.+25!" not in rig.frames_since(mark)  # channel 3 still held
+    proxy.type("rc 3 1500")  # back to neutral ...
+    proxy.type("rc 3 1600")  # ... then a fresh input drives
+    rig.wait_frame("#mvs.+25!", since=armed)
     proxy.type("rc 3 0")  # released: neutral
     rig.wait_frame("#mvs.+0!", since=mark)
     proxy.type("rc clear")

@@ -616,6 +616,70 @@ def test_rc_override_is_only_the_pilots_and_only_when_armed(rig: BridgeRig, gcs:
     assert _motion(rig, armed) == []
 
 
+def _thrust(rig: BridgeRig, since: int) -> list[str]:
+    """Motion frames that ask for thrust (zero thrust left out)."""
+    return [f for f in _motion(rig, since) if f not in {"#mvs.+0!"} and not f.endswith(".0!")]
+
+
+def _said(gcs: GroundStation, text: str) -> None:
+    gcs.receive("STATUSTEXT", condition=lambda m: text in m.text)
+
+
+def test_an_rc_override_set_while_disarmed_is_held_at_neutral_once_armed(
+    rig: BridgeRig, gcs: GroundStation
+):
+    gcs.start_heartbeats()
+    _rc(gcs, 1500, 1500, 1600, 1500, 1900)  # disarmed: throttle up, full ahead
+    _served_since(gcs)
+    assert gcs.arm() == ACCEPTED
+    armed = len(rig.frames())
+    for _ in range(3):  # repeated, as MAVProxy repeats its overrides
+        _rc(gcs, 1500, 1500, 1600, 1500, 1900)
+    _said(gcs, "RC 3 held: return to neutral")
+    _said(gcs, "RC 5 held: return to neutral")
+    _served_since(gcs)
+    assert _thrust(rig, armed) == []  # before: #th.0.100!, #mvs.+25! at once
+    _rc(gcs, 1500, 1500, 1530, 1500, 0)  # 3 within 40 µs of neutral, 5 released
+    _rc(gcs, 1500, 1500, 1600, 1500, 1900)  # a fresh input
+    rig.wait_frame("#th.0.100!", since=armed)
+    rig.wait_frame("#mvs.+25!", since=armed)
+
+
+def test_an_rc_override_left_from_before_a_disarm_is_held_after_re_arming(
+    rig: BridgeRig, gcs: GroundStation
+):
+    gcs.start_heartbeats()
+    assert gcs.arm() == ACCEPTED
+    mark = len(rig.frames())
+    _rc(gcs, 1500, 1500, 1500, 1500, 1500, 1900)  # full right
+    rig.wait_frame("#th.90.100!", since=mark)
+    assert gcs.command(ARM_DISARM, 0) == ACCEPTED
+    rig.wait_frame("#stop!", since=mark)
+    assert gcs.arm() == ACCEPTED
+    re_armed = len(rig.frames())
+    _rc(gcs, 1500, 1500, 1500, 1500, 1500, 1900)  # still set
+    _said(gcs, "RC 6 held: return to neutral")
+    _served_since(gcs)
+    assert _thrust(rig, re_armed) == []
+    _rc(gcs, 1500, 1500, 1500, 1500, 1500, 1500)
+    _rc(gcs, 1500, 1500, 1500, 1500, 1500, 1700)
+    rig.wait_frame("#th.90.50!", since=re_armed)
+
+
+def test_a_joystick_off_centre_as_it_arms_is_held_until_centred(rig: BridgeRig, gcs: GroundStation):
+    gcs.start_heartbeats()
+    mark = len(rig.frames())
+    gcs.send("manual_control", VEHICLE, 800, 0, 500, 0, 1 << 6)  # BTN6 arms, stick ahead
+    rig.wait_frame("#start!", since=mark)
+    gcs.send("manual_control", VEHICLE, 800, 0, 500, 0, 1 << 6)
+    _said(gcs, "Joystick x held: return to centre")
+    _served_since(gcs)
+    assert _thrust(rig, mark) == []
+    gcs.send("manual_control", VEHICLE, 0, 0, 500, 0, 0)  # centred
+    gcs.send("manual_control", VEHICLE, 800, 0, 500, 0, 0)
+    rig.wait_frame("#th.0.80!", since=mark)
+
+
 def test_rc_override_that_stops_coming_is_zeroed_as_a_stale_joystick(
     rig: BridgeRig, gcs: GroundStation
 ):

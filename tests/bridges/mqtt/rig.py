@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import asyncio
 import json
+import threading
 from collections.abc import AsyncIterator, Callable
 from contextlib import asynccontextmanager
 from dataclasses import dataclass, field
@@ -15,7 +16,7 @@ from rovlink.aio import AsyncClient
 from rovlink.bridges.mqtt.bridge import MqttBridge
 from rovlink.bridges.mqtt.broker import BrokerSettings
 from rovlink.client import ClientOptions
-from rovlink.client.links import PortLink
+from rovlink.client.links import Link, PortLink
 from rovlink.piloting.tracked import TrackedClient
 from rovlink.sim import SimConfig, SimulatedPort
 from tests.bridges.mqtt.broker import Mosquitto
@@ -24,11 +25,30 @@ from tests.piloting.rig import SilenceableLink
 CONDITION_TIMEOUT_S = 15.0
 
 
+class HoldingLink(SilenceableLink):
+    """A link whose controller's answers can also be held back (``held.set()``) until the test
+    releases them (``held.clear()``): a query then waits exactly as long as the test says,
+    however fast or slow the machine is."""
+
+    def __init__(self, inner: Link) -> None:
+        super().__init__(inner)
+        self.held = threading.Event()
+        self._kept = b""  # (read by the client's one reader only)
+
+    def read_available(self, timeout_s: float) -> bytes:
+        data = super().read_available(timeout_s)
+        if self.held.is_set():
+            self._kept += data
+            return b""
+        data, self._kept = self._kept + data, b""
+        return data
+
+
 @dataclass
 class BridgedRobot:
     robot_id: str
     port: SimulatedPort
-    link: SilenceableLink
+    link: HoldingLink
     bridge: MqttBridge
     task: asyncio.Future[None]
 
@@ -55,7 +75,7 @@ async def bridged_robot(
     if leak_at_s is not None:
         port.robot.inject_leak(at_s=leak_at_s)
     port.start(realtime=True)
-    link = SilenceableLink(PortLink(port, f"simulated {robot_id}"))
+    link = HoldingLink(PortLink(port, f"simulated {robot_id}"))
     options = ClientOptions(
         keepalive_s=1.0, timeout_s=timeout_s, boot_timeout_s=None, motion_timeout_s=motion_timeout_s
     )

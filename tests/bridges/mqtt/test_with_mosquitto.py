@@ -15,7 +15,7 @@ from paho.mqtt.properties import Properties
 from rovlink.bridges.mqtt.bridge import _taken_over
 from rovlink.client.errors import ConnectionLostError
 from tests.bridges.mqtt.broker import Mosquitto
-from tests.bridges.mqtt.rig import bridged_robot, subscriber, until
+from tests.bridges.mqtt.rig import CONDITION_TIMEOUT_S, bridged_robot, subscriber, until
 
 pytestmark = pytest.mark.integration
 
@@ -429,24 +429,61 @@ def test_a_session_taken_over_is_told_by_the_brokers_reason():
 
 async def test_a_stop_is_not_held_up_by_a_query_the_controller_does_not_answer(broker: Mosquitto):
     # Commands were carried out one at a time: a stop published after a query waited for that
-    # query's reply timeout and retries (here 3 × 0.5 s: the stop must come while the query still
-    # waits, on a loaded machine too) before #stop! was written.
+    # query's reply (a reply timeout and retries, when the controller does not answer) before
+    # #stop! was written. The controller's answers are held back until the stop has been
+    # answered, with a reply timeout longer than the test waits: a stop queued behind the query
+    # is never answered in time, however fast the machine.
     async with (
-        bridged_robot(broker, "h1", timeout_s=0.5) as robot,
+        bridged_robot(broker, "h1", timeout_s=CONDITION_TIMEOUT_S) as robot,
         subscriber(broker, "rovlink/h1/cmd/reply") as watcher,
     ):
         assert (await watcher.command("h1", "start"))["ok"]
-        robot.link.silent.set()  # the controller stops answering
+        robot.link.held.set()  # the controller does not answer until released
         before = len(robot.motion_and_lock_frames())
         for text in ("qd", "th 90 30", "mgmp 100", "start", "stop"):
             await watcher.client.publish("rovlink/h1/cmd", text, qos=1)
-        await until(lambda: len(watcher.on("rovlink/h1/cmd/reply")) == 6)
+        # The stop first, while the query still waits; the motion and the unlock that came
+        # before it are not sent.
+        await until(lambda: len(watcher.on("rovlink/h1/cmd/reply")) == 4)
         replies = watcher.on("rovlink/h1/cmd/reply")[1:]
-        # The stop first; the motion and the unlock that came before it are not sent; the query
-        # when it ends, then the setting, in their order.
-        assert [r["command"] for r in replies] == ["stop", "th 90 30", "start", "qd", "mgmp 100"]
-        assert [r["ok"] for r in replies] == [True, False, False, False, True]
+        assert [(r["command"], r["ok"]) for r in replies] == [
+            ("stop", True),
+            ("th 90 30", False),
+            ("start", False),
+        ]
         assert "a stop published after it" in replies[1]["error"]
+        assert robot.motion_and_lock_frames()[before:] == ["#stop!"]
+        robot.link.held.clear()  # the query is answered; then the setting, in their order
+        await until(lambda: len(watcher.on("rovlink/h1/cmd/reply")) == 6)
+        replies = watcher.on("rovlink/h1/cmd/reply")[4:]
+        assert [(r["command"], r["ok"]) for r in replies] == [("qd", True), ("mgmp 100", True)]
         sent = robot.motion_and_lock_frames()[before:]
         assert sent[:2] == ["#stop!", "#mgmp.100!"]
         assert not [frame for frame in sent if frame.startswith(("#th", "#start"))]
+
+
+async def test_losing_the_broker_zeroes_the_thrust_even_without_a_motion_timeout(
+    broker: Mosquitto,
+):
+    # With --motion-timeout 0 the robot drove on for as long as the broker was away, though no
+    # stop could reach it any more.
+    async with bridged_robot(broker, "z1", motion_timeout_s=None) as robot:
+        # A persistent session (kept through the broker's restart): the event waits for it.
+        async with (
+            subscriber(broker, "rovlink/z1/events", identifier="w", clean=False),
+            subscriber(broker, "rovlink/z1/cmd/reply") as watcher,
+        ):
+            for command in ("mvdirect 1", "start", "th 90 30", "mvs 40"):
+                assert (await watcher.command("z1", command))["ok"]
+        controller = robot.port.robot.controller
+        await until(lambda: controller.state().vertical_thrust_percent == 40)
+        moving = len(robot.frames())
+        broker.stop()
+        await until(lambda: {"#th.90.0!", "#mvs.+0!"} <= set(robot.frames()[moving:]))
+        await until(lambda: controller.state().power_percent == 0)
+        await until(lambda: controller.state().vertical_thrust_percent == 0)
+        assert "#stop!" not in robot.frames()[moving:]  # unlocked still: a depth held stays
+        broker.start()
+        async with subscriber(broker, "rovlink/z1/events", identifier="w", clean=False) as events:
+            failsafe = await events.wait_for("rovlink/z1/events", lambda e: "broker" in e["detail"])
+        assert failsafe["event"] == "failsafe"

@@ -24,7 +24,7 @@ from rovlink.bridges.mavlink.failsafe import GcsWatchdog
 from rovlink.bridges.mavlink.modes import ButtonFunction, FlightMode
 from rovlink.bridges.mavlink.parameters import PILOT_SYSTEM, ParameterError, ParameterTable
 from rovlink.bridges.mavlink.pilot_input import PilotInput, all_buttons
-from rovlink.bridges.mavlink.rc_override import RcOverride
+from rovlink.bridges.mavlink.rc_override import CHANNEL_OF_AXIS, RcOverride
 from rovlink.bridges.mavlink.telemetry_messages import TelemetryMessages
 from rovlink.bridges.mavlink.telemetry_schedule import MAX_RATE_HZ, TelemetrySchedule
 from rovlink.bridges.mavlink.vehicle_state import VehicleState
@@ -49,6 +49,9 @@ _SEVERITY_CRITICAL = 2
 _SEVERITY_WARNING = 4
 _SEVERITY_INFO = 6
 _PARAM_TYPE_INT32 = 6
+#: An axis held at neutral after arming until centred (said once per axis and arming).
+_STICK_HELD = "Joystick {axis} held: return to centre"
+_CHANNEL_HELD = "RC {channel} held: return to neutral"
 
 
 class MavlinkBridge:
@@ -162,6 +165,7 @@ class MavlinkBridge:
             self._say(_SEVERITY_WARNING, "Arm refused: the controller does not answer")
             return Result.FAILED
         await self._restore_settings()  # (after a reset: not armed before the settings are in)
+        self.pilot.hold_off_centre_axes()  # (an override set while disarmed must not drive)
         await self.rov.send(Command("start"))
         self.watchdog.heartbeat(self._clock())  # arming counts as contact
         await self._hold_current_depth(depth_cm)
@@ -306,20 +310,24 @@ class MavlinkBridge:
         if not self._from_pilot(message):
             return
         buttons = all_buttons(message.buttons, getattr(message, "buttons2", 0))  # (MAVLink 1: none)
-        await self._fly(message.x, message.y, message.z, buttons)
+        await self._fly(message.x, message.y, message.z, buttons, held_text=_STICK_HELD)
 
     async def _on_rc_channels_override(self, message: Any) -> None:
         if not self._from_pilot(message):
             return
         channels = [getattr(message, f"chan{n}_raw") for n in range(1, 9)]
         x, y, z = self.rc_override.update(channels, self._clock())
-        await self._fly(x, y, z, None)
+        await self._fly(x, y, z, None, held_text=_CHANNEL_HELD)
 
-    async def _fly(self, x: int, y: int, z: int, buttons: int | None) -> None:
-        """The pilot's stick (and buttons, ``None``: none in this input) to the robot."""
+    async def _fly(self, x: int, y: int, z: int, buttons: int | None, *, held_text: str) -> None:
+        """The pilot's stick (and buttons, ``None``: none in this input) to the robot;
+        ``held_text`` says an axis is held since arming (``{axis}``, ``{channel}``: its name)."""
         output = self.pilot.manual_control(
             x, y, z, buttons, mode=self.state.mode, armed=self.armed, now_s=self._clock()
         )
+        for axis in output.newly_held:
+            text = held_text.format(axis=axis, channel=CHANNEL_OF_AXIS[axis])
+            self._say(_SEVERITY_WARNING, text)
         for command in output.commands:
             await self.rov.send(command)
         for function in output.pressed:

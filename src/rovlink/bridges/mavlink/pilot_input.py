@@ -10,6 +10,12 @@ at 50 Hz does not fill the serial line.
 
 Input that stops coming for :data:`INPUT_STALE_S` (P23) is expired with zero thrust.
 
+An axis off centre when the vehicle is armed is held at neutral until it has been seen centred
+(within :data:`CENTRE_BAND` of full, the throttle's depth-hold dead band): an RC override set
+while disarmed, or left from before a disarm, is repeated by its ground station and would
+otherwise drive the robot the moment it is armed, without a fresh pilot input; so would a
+joystick held (or drifting) off centre as the arm button is pressed.
+
 What "changed" and "zero" are measured against is the set-points as last sent to the controller
 (:meth:`PilotInput.sync`), never a guess: the controller keeps its thrust across a repeated
 ``#start!`` or ``#mvdirect`` (P7, P9, P11), so a bridge that took those as neutral would never
@@ -28,6 +34,7 @@ from rovlink.protocol import Command, lookup
 
 __all__ = [
     "AXIS_UNUSED",
+    "CENTRE_BAND",
     "INPUT_STALE_S",
     "MAX_CLIMB_CM_S",
     "PilotInput",
@@ -45,6 +52,8 @@ INPUT_STALE_S = 1.0
 MAX_CLIMB_CM_S = 50.0
 #: ALT_HOLD: throttle within this of neutral (of 500) leaves the held depth alone.
 _THROTTLE_DEADBAND = 50
+#: x and y within this of 0 (of 1000) count as centred, as z within the dead band of 500.
+CENTRE_BAND = 100
 #: Longest gap between inputs that moves the held depth (a gap is not a held stick).
 _MAX_STEP_S = 0.2
 _NEUTRAL_Z = 500
@@ -56,6 +65,14 @@ _POWER_RANGE = lookup("th").arguments[1]
 
 def _axis(value: int, unused: int = 0) -> int:
     return unused if value == AXIS_UNUSED else value
+
+
+_NEUTRAL_AXES = {"x": 0, "y": 0, "z": _NEUTRAL_Z}
+_CENTRE_BANDS = {"x": CENTRE_BAND, "y": CENTRE_BAND, "z": _THROTTLE_DEADBAND}
+
+
+def _centred(axis: str, value: int) -> bool:
+    return abs(value - _NEUTRAL_AXES[axis]) <= _CENTRE_BANDS[axis]
 
 
 def all_buttons(buttons: int, buttons2: int) -> int:
@@ -90,10 +107,12 @@ def vertical_thrust_percent(z: int) -> int:
 
 @dataclass(frozen=True, slots=True)
 class PilotOutput:
-    """What one MANUAL_CONTROL asks for: commands to send and button functions pressed."""
+    """What one MANUAL_CONTROL asks for: commands to send, button functions pressed, and the
+    axes ("x", "y", "z") this input found held off centre since arming, each said once."""
 
     commands: tuple[Command, ...] = ()
     pressed: tuple[ButtonFunction, ...] = ()
+    newly_held: tuple[str, ...] = ()
 
 
 class PilotInput:
@@ -118,6 +137,10 @@ class PilotInput:
         self._thrust_percent = 0
         self._target_depth_cm: float | None = None
         self._sent_depth_cm: int | None = None
+        #: The last input's axes (x, y, throttle z), armed or not: the stick as it is at arming.
+        self._stick = {"x": 0, "y": 0, "z": _NEUTRAL_Z}
+        self._held_axes: set[str] = set()
+        self._said_held_axes: set[str] = set()
 
     @property
     def moving(self) -> bool:
@@ -144,6 +167,13 @@ class PilotInput:
             depth = sent.target_depth_cm
             self._target_depth_cm = None if depth is None else float(depth)
 
+    def hold_off_centre_axes(self) -> None:
+        """On arming (and every re-arm): the axes off centre in the last input are held at
+        neutral until an input has them centred (MAVProxy repeats an override set while
+        disarmed; a joystick may be held over as the arm button is pressed)."""
+        self._held_axes = {axis for axis, value in self._stick.items() if not _centred(axis, value)}
+        self._said_held_axes = set()
+
     def hold(self, depth_cm: int) -> Command:
         """ALT_HOLD from now on holds ``depth_cm``: the command that says so."""
         depth = max(_DEPTH_RANGE.minimum, min(_DEPTH_RANGE.maximum, depth_cm))
@@ -168,10 +198,14 @@ class PilotInput:
         previous_at_s = self.last_input_at_s
         self.last_input_at_s = now_s
         pressed = () if buttons is None else self._pressed(buttons)
+        # ArduSub's 0…1000 (MAVLink's common range is −1000…1000): beyond it, full throttle.
+        throttle = max(0, min(_FULL_Z, _axis(z, _NEUTRAL_Z)))
+        self._stick = {"x": _axis(x), "y": _axis(y), "z": throttle}
         if not armed:  # the controller drops motion while locked (P7): nothing to send
             return PilotOutput((), pressed)
+        stick, newly_held = self._released_axes()
         commands: list[Command] = []
-        direction, power = horizontal(_axis(x), _axis(y))
+        direction, power = horizontal(stick["x"], stick["y"])
         if power == 0:
             direction = self._direction_deg  # zero power keeps the last direction, as the session
         if (direction, power) != (self._direction_deg, self._power_percent) and (
@@ -179,8 +213,7 @@ class PilotInput:
         ):
             commands.append(Command("th", (direction, power)))
             self._direction_deg, self._power_percent = direction, power
-        # ArduSub's 0…1000 (MAVLink's common range is −1000…1000): beyond it, full throttle.
-        throttle = max(0, min(_FULL_Z, _axis(z, _NEUTRAL_Z)))
+        throttle = stick["z"]
         if mode is FlightMode.MANUAL:
             thrust = vertical_thrust_percent(throttle)
             if thrust != self._thrust_percent:
@@ -199,7 +232,18 @@ class PilotInput:
                 if depth != self._sent_depth_cm:
                     commands.append(Command("mvd", (depth,)))
                     self._sent_depth_cm = depth
-        return PilotOutput(tuple(commands), pressed)
+        return PilotOutput(tuple(commands), pressed, newly_held)
+
+    def _released_axes(self) -> tuple[dict[str, int], tuple[str, ...]]:
+        """The last input with each axis still held at neutral; the axes newly found held."""
+        self._held_axes -= {axis for axis, value in self._stick.items() if _centred(axis, value)}
+        newly_held = tuple(sorted(self._held_axes - self._said_held_axes))
+        self._said_held_axes |= self._held_axes
+        stick = {
+            axis: _NEUTRAL_AXES[axis] if axis in self._held_axes else value
+            for axis, value in self._stick.items()
+        }
+        return stick, newly_held
 
     def expire(self, now_s: float) -> tuple[Command, ...]:
         """Zero thrust if the input went stale while it asked for thrust (once), else nothing."""

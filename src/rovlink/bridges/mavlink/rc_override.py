@@ -10,6 +10,10 @@ Per the MAVLink spec, on channels 1–8 a value of 0 releases the channel (back 
 robot has no radio to hand it to) and UINT16_MAX leaves it as it is. A channel keeps its value
 from message to message, as ArduSub's overrides do, until the input goes stale: then every
 channel is released, so input that resumes after a silence starts from neutral.
+
+A channel off neutral when the vehicle is armed is held at neutral until an override has it
+back within ±40 µs of 1500 (:class:`~rovlink.bridges.mavlink.pilot_input.PilotInput` holds it,
+as it holds the stick the channel drives).
 """
 
 from __future__ import annotations
@@ -18,6 +22,7 @@ from collections.abc import Sequence
 
 __all__ = [
     "CHANNEL_NO_CHANGE",
+    "CHANNEL_OF_AXIS",
     "CHANNEL_RELEASE",
     "PWM_MAX_US",
     "PWM_MIN_US",
@@ -37,6 +42,8 @@ _THROTTLE_CHANNEL = 3
 _FORWARD_CHANNEL = 5
 _LATERAL_CHANNEL = 6
 _FLOWN_CHANNELS = (_THROTTLE_CHANNEL, _FORWARD_CHANNEL, _LATERAL_CHANNEL)
+#: The channel that drives each of MANUAL_CONTROL's axes.
+CHANNEL_OF_AXIS = {"x": _FORWARD_CHANNEL, "y": _LATERAL_CHANNEL, "z": _THROTTLE_CHANNEL}
 _STICK_FULL = 1000  # MANUAL_CONTROL's full deflection
 _HALF_RANGE_US = (PWM_MAX_US - PWM_MIN_US) // 2
 

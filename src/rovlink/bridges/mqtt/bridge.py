@@ -14,6 +14,9 @@ QoS and what survives a broker outage:
 * the last will: retained ``{"online": false}`` on ``state`` when the bridge vanishes. A bridge
   that ends on its own says why instead: ``bridge stopped``, ``controller link lost: …`` (after a
   ``link`` event) or ``bridge failed: …``.
+
+Losing the broker zeroes the thrust as last sent (a ``failsafe`` event): no command, not even
+``stop``, can reach the robot until it is back.
 """
 
 from __future__ import annotations
@@ -216,6 +219,7 @@ class MqttBridge:
             except aiomqtt.MqttError as error:
                 self.connected.clear()
                 if connected_at_s is not None:
+                    await self._zero_thrust(f"broker {self.broker.describe()} lost: {error}")
                     # The backoff starts again only after a connection that held: one ended at
                     # once, again and again, is no broker restart.
                     if loop.time() - connected_at_s >= _STABLE_CONNECTION_S:
@@ -567,6 +571,28 @@ class MqttBridge:
         task = asyncio.ensure_future(work)
         self._background.add(task)
         task.add_done_callback(self._background.discard)
+
+    async def _zero_thrust(self, reason: str) -> None:
+        """Zero the thrust as last sent, if any: with the broker gone no command, not even a
+        stop, can reach the robot, and a ``--motion-timeout`` of 0 would let it drive on for as
+        long as the broker is away. The lock and a depth held stay, as the motion timeout's."""
+        commanded = self.rov.commanded
+        commands = []
+        if commanded.power_percent:
+            commands.append(Command("th", (commanded.direction_deg, 0)))
+        if commanded.vertical_thrust_percent:
+            commands.append(Command("mvs", (0,)))
+        if not commands:
+            return
+        try:
+            for command in commands:
+                await self.rov.send(command)
+        except ConnectionError as error:
+            if not reopening(self.rov, error):
+                raise
+            return  # (the reopened link's first frame is #stop!: the controller link's loss)
+        frames = " ".join(str(command) for command in commands)
+        self._event("failsafe", f"{reason}: zero thrust sent ({frames})")
 
     async def _stop_quietly(self) -> None:
         with contextlib.suppress(ConnectionError):
