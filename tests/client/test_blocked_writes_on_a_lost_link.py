@@ -19,7 +19,7 @@ import pytest
 import rovlink
 import rovlink.aio
 from rovlink.client import Client, links
-from rovlink.client.errors import ConnectionLostError
+from rovlink.client.errors import ConnectionLostError, SupersededByStopError
 from rovlink.client.events import ClientEvent, LinkState
 from rovlink.client.links import Link, SocketLink
 from tests.client.conftest import CONDITION_TIMEOUT_S, client_options, wait_until
@@ -394,13 +394,18 @@ def test_a_command_that_waited_for_the_reopened_link_is_not_sent_after_a_stop(
         assert wait_until(lambda: _lost(events))
         starting = _Call(rov.start)  # waits for the link
         assert wait_until(lambda: rov._waiting_callers > 0)
-        rov.stop()  # (after the start was asked for)
+        setting = _Call(lambda: rov.set_max_pwm(180))  # waits too; it neither moves nor unlocks
+        assert wait_until(lambda: rov._waiting_callers > 1)
+        rov.stop()  # (after both were asked for)
         port.refuse = False  # plugged back
         assert starting.done.wait(CONDITION_TIMEOUT_S)
-        assert isinstance(starting.error, ConnectionLostError)
-        assert "stop" in str(starting.error)
+        assert setting.done.wait(CONDITION_TIMEOUT_S)
+        assert isinstance(starting.error, SupersededByStopError)
+        assert setting.error is None
         assert rov.depth_cm() == 123
-        assert "#start!" not in port.fakes[1].frames()
+        frames = port.fakes[1].frames()
+        assert "#start!" not in frames
+        assert "#mgmp.180!" in frames
 
 
 def test_a_port_reopened_as_close_begins_is_let_go_untouched(

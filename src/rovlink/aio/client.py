@@ -389,10 +389,13 @@ class AsyncClient(AsyncCommandMethods):
             await self.set_checksum(mode)
             return ()
         self._check_open()
+        # A frame that moves or unlocks, still waiting for a checksum switch when a stop() is
+        # called, is superseded by it (SupersededByStopError): it would follow the #stop!.
+        stops_seen = self._session.stops_asked
         while not self._mode_settled.is_set():  # (another switch may start as one ends)
             await self._mode_settled.wait()
         self._check_open()  # the link may have gone meanwhile: nothing would settle the query
-        data, pending = self._session.raw(data, self._clock())
+        data, pending = self._session.raw(data, self._clock(), stops_seen=stops_seen)
         if pending is not None:
             pending.waiter = self._loop.create_future()
             self._arm_timer()
@@ -486,6 +489,10 @@ class AsyncClient(AsyncCommandMethods):
             raise self._lost_error() from error
 
     def _send(self, command: Command) -> None:
+        # (Written, or queued for the port, before it returns: a set command never waits, so a
+        # stop() after it follows it on the wire. A raw frame may wait: see send_raw.)
+        if command == operations.STOP:
+            self._session.stop_asked()
         if self._link_down and command == operations.STOP and not self._closed:
             self._stop_while_reconnecting()
             return

@@ -1,0 +1,231 @@
+"""A ``stop()`` supersedes the unlock and motion commands already waiting to be written when it
+is called: they are not sent after the ``#stop!`` (a ``start()`` would unlock the robot just
+stopped) and raise SupersededByStopError; queries and other commands still go."""
+
+from __future__ import annotations
+
+import asyncio
+import socket
+import threading
+from collections.abc import Callable
+from types import TracebackType
+
+import pytest
+
+from rovlink.aio import AsyncClient
+from rovlink.client import Client, SupersededByStopError
+from rovlink.client.links import SocketLink
+from rovlink.protocol import Command
+from tests.client.conftest import (
+    CONDITION_TIMEOUT_S,
+    client_options,
+    wait_until,
+    wait_until_async,
+)
+from tests.client.fake_controller import FakeController
+
+
+class _Call:
+    """A program thread that makes one call and keeps what became of it."""
+
+    def __init__(self, call: Callable[[], object]) -> None:
+        self.error: BaseException | None = None
+        self.done = threading.Event()
+        threading.Thread(target=self._run, args=(call,), daemon=True).start()
+
+    def _run(self, call: Callable[[], object]) -> None:
+        try:
+            call()
+        except BaseException as error:  # (kept for the test to look at)
+            self.error = error
+        finally:
+            self.done.set()
+
+
+class _GatedLink(SocketLink):
+    """A socket link whose ``write`` waits, while the gate is shut, until the test opens it."""
+
+    def __init__(self, sock: socket.socket, description: str) -> None:
+        super().__init__(sock, description)
+        self.gate = threading.Event()
+        self.gate.set()
+        self.held = threading.Event()  # a write is waiting at the shut gate
+
+    def write(self, data: bytes) -> None:
+        if not self.gate.is_set():
+            self.held.set()
+            self.gate.wait(CONDITION_TIMEOUT_S)
+        super().write(data)
+
+
+class _WatchedLock:
+    """The client's wire lock, counting the threads waiting for it."""
+
+    def __init__(self, lock: threading.RLock) -> None:
+        self._lock = lock
+        self._count = threading.Lock()
+        self.waiting = 0
+
+    def acquire(self, blocking: bool = True, timeout: float = -1) -> bool:
+        with self._count:
+            self.waiting += 1
+        try:
+            return self._lock.acquire(blocking, timeout)
+        finally:
+            with self._count:
+                self.waiting -= 1
+
+    def release(self) -> None:
+        self._lock.release()
+
+    def __enter__(self) -> bool:
+        return self.acquire()
+
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        traceback: TracebackType | None,
+    ) -> None:
+        self.release()
+
+    def _is_owned(self) -> bool:
+        return bool(self._lock._is_owned())  # type: ignore[attr-defined]
+
+
+@pytest.fixture
+def gated() -> tuple[FakeController, _GatedLink]:
+    fake, host_end = FakeController.on_socketpair()
+    return fake, _GatedLink(host_end, "socket pair, gated")
+
+
+def test_a_start_waiting_behind_a_slow_write_is_not_sent_after_a_stop_called_meanwhile(
+    gated: tuple[FakeController, _GatedLink],
+) -> None:
+    # Before, the start() waiting for the wire lock and the stop() called after it went out in
+    # either order: a #start! after the #stop! unlocked the robot the program had just stopped.
+    fake, link = gated
+    rov = Client(link, client_options())
+    watched = _WatchedLock(rov._wire_lock)
+    rov._wire_lock = watched  # type: ignore[assignment]
+    try:
+        link.gate.clear()
+        slow = _Call(lambda: rov.set_max_pwm(180))  # thread A: its write waits at the gate
+        assert link.held.wait(CONDITION_TIMEOUT_S)
+        starting = _Call(rov.start)  # thread B: waits for the wire lock
+        assert wait_until(lambda: watched.waiting == 1)
+        debugging = _Call(lambda: rov.set_debug(True))  # neither moves nor unlocks
+        assert wait_until(lambda: watched.waiting == 2)
+        stopping = _Call(rov.stop)  # thread C, after both
+        assert wait_until(lambda: watched.waiting == 3)
+        link.gate.set()
+        for call in (slow, starting, debugging, stopping):
+            assert call.done.wait(CONDITION_TIMEOUT_S)
+        assert slow.error is None
+        assert debugging.error is None
+        assert stopping.error is None
+        assert isinstance(starting.error, SupersededByStopError)
+        assert starting.error.command == Command("start")
+        assert "#start!" in str(starting.error)
+        assert "stop" in str(starting.error)
+        assert fake.wait_for(lambda f: {"#stop!", "#debug1!"} <= set(f.frames()))
+        frames = fake.frames()
+        assert "#start!" not in frames
+        assert frames.index("#mgmp.180!") < frames.index("#stop!")
+        # The client goes on: a start() called after the stop is sent.
+        rov.start()
+        assert fake.wait_for(lambda f: f.frames()[-1] == "#start!")
+    finally:
+        link.gate.set()
+        rov.close()
+        fake.close()
+
+
+def test_a_raw_start_waiting_for_a_checksum_switch_is_not_sent_after_a_stop(
+    gated: tuple[FakeController, _GatedLink],
+) -> None:
+    # The same for a raw frame, which waits for a checksum switch to end as a query does.
+    fake, link = gated
+    fake.then("hold")
+    rov = Client(link, client_options(checksum=True))
+    try:
+        held = _Call(rov.depth_cm)  # on the wire, unanswered for now
+        assert fake.wait_for(lambda f: "#qd!" in f.frames())
+        switching = _Call(lambda: rov.set_checksum(False))  # waits for the #qd! to be answered
+        assert wait_until(lambda: rov._mode_switcher is not None)
+        starting = _Call(lambda: rov.send_raw("#start!"))
+        assert wait_until(lambda: rov._waiting_callers >= 2)  # (the switch's and the raw's)
+        rov.stop()
+        fake.release()
+        for call in (held, switching, starting):
+            assert call.done.wait(CONDITION_TIMEOUT_S)
+        assert held.error is None
+        assert switching.error is None
+        assert isinstance(starting.error, SupersededByStopError)
+        assert "#start!" not in fake.frames()
+        assert rov.depth_cm() == 123  # (with checksums off now, as the raw frame)
+    finally:
+        rov.close()
+        fake.close()
+
+
+async def test_asyncio_a_raw_start_waiting_for_a_checksum_switch_is_not_sent_after_a_stop() -> None:
+    # Before, the raw #start! waiting for the switch went out after the #stop! another task
+    # sent meanwhile. (The asyncio client's own command methods never wait: they are written,
+    # or queued for the port in call order, before they return.)
+    fake, host_end = FakeController.on_socketpair(script=("hold",))
+    options = client_options(checksum=True)
+    rov = await AsyncClient(SocketLink(host_end, "socket pair"), options).open()
+    try:
+        held = asyncio.ensure_future(rov.depth_cm())
+        assert await wait_until_async(lambda: "#qd!" in fake.frames())
+        switching = asyncio.ensure_future(rov.set_checksum(False))
+        starting = asyncio.ensure_future(rov.send_raw("#start!"))
+        await asyncio.sleep(0)  # (each task runs up to its wait: the switch's, the raw frame's)
+        assert rov._switching_mode
+        assert not starting.done()
+        await rov.stop()
+        fake.release()
+        assert await asyncio.wait_for(held, CONDITION_TIMEOUT_S) == 123
+        await asyncio.wait_for(switching, CONDITION_TIMEOUT_S)
+        with pytest.raises(SupersededByStopError, match="#start!"):
+            await asyncio.wait_for(starting, CONDITION_TIMEOUT_S)
+        assert await rov.depth_cm() == 123
+        assert "#start!" not in fake.frames()
+        assert fake.frames().index("#stop!") < fake.frames().index("#crcoff!")
+    finally:
+        await rov.close()
+        fake.close()
+
+
+class _StalledSocketLink(SocketLink):
+    """A socket link that takes nothing while the gate is shut (a line with no room)."""
+
+    def __init__(self, sock: socket.socket, description: str) -> None:
+        super().__init__(sock, description)
+        self.gate = threading.Event()
+        self.gate.set()
+
+    def send_some(self, data: bytes | bytearray | memoryview) -> int:
+        if not self.gate.is_set():
+            return 0
+        return super().send_some(data)
+
+
+async def test_asyncio_a_start_queued_behind_a_stalled_write_goes_before_a_later_stop() -> None:
+    # The asyncio client queues each command for the port as it is called: a start() behind a
+    # write the line has not taken goes out before a stop() called after it, never after.
+    fake, host_end = FakeController.on_socketpair()
+    link = _StalledSocketLink(host_end, "socket pair, stalled")
+    rov = await AsyncClient(link, client_options()).open()
+    try:
+        link.gate.clear()
+        await rov.set_max_pwm(180)  # task A: waits in the port's buffer
+        await rov.start()  # task B
+        await rov.stop()  # task C
+        link.gate.set()  # (the line has room again)
+        assert await wait_until_async(lambda: "#stop!" in fake.frames())
+        assert fake.frames()[-3:] == ["#mgmp.180!", "#start!", "#stop!"]
+    finally:
+        await rov.close()
+        fake.close()
