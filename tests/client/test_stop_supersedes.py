@@ -8,7 +8,6 @@ import asyncio
 import socket
 import threading
 from collections.abc import Callable
-from types import TracebackType
 
 import pytest
 
@@ -18,6 +17,7 @@ from rovlink.client.links import SocketLink
 from rovlink.protocol import Command
 from tests.client.conftest import (
     CONDITION_TIMEOUT_S,
+    WatchedLock,
     client_options,
     wait_until,
     wait_until_async,
@@ -58,41 +58,6 @@ class _GatedLink(SocketLink):
         super().write(data)
 
 
-class _WatchedLock:
-    """The client's wire lock, counting the threads waiting for it."""
-
-    def __init__(self, lock: threading.RLock) -> None:
-        self._lock = lock
-        self._count = threading.Lock()
-        self.waiting = 0
-
-    def acquire(self, blocking: bool = True, timeout: float = -1) -> bool:
-        with self._count:
-            self.waiting += 1
-        try:
-            return self._lock.acquire(blocking, timeout)
-        finally:
-            with self._count:
-                self.waiting -= 1
-
-    def release(self) -> None:
-        self._lock.release()
-
-    def __enter__(self) -> bool:
-        return self.acquire()
-
-    def __exit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        traceback: TracebackType | None,
-    ) -> None:
-        self.release()
-
-    def _is_owned(self) -> bool:
-        return bool(self._lock._is_owned())  # type: ignore[attr-defined]
-
-
 @pytest.fixture
 def gated() -> tuple[FakeController, _GatedLink]:
     fake, host_end = FakeController.on_socketpair()
@@ -106,7 +71,7 @@ def test_a_start_waiting_behind_a_slow_write_is_not_sent_after_a_stop_called_mea
     # either order: a #start! after the #stop! unlocked the robot the program had just stopped.
     fake, link = gated
     rov = Client(link, client_options())
-    watched = _WatchedLock(rov._wire_lock)
+    watched = WatchedLock(rov._wire_lock)
     rov._wire_lock = watched  # type: ignore[assignment]
     try:
         link.gate.clear()

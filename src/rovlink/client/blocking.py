@@ -486,6 +486,10 @@ class Client(CommandMethods):
                 self._readied_lock.acquire()
                 try:
                     with self._state_lock:
+                        # (Under the lock close() takes to give up the readied link's writes:
+                        # a close() that began since the check above did not see this link.)
+                        if self._closing:
+                            raise ConnectError(f"{link.description}: closed while reconnecting")
                         rest = self._session.link_reopened()
                         self._readied_link = link
                     if rest:  # first, before any probe feeds the controller's watchdog (P17)
