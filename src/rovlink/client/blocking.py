@@ -22,7 +22,7 @@ from collections.abc import Callable
 from types import TracebackType
 from typing import TypeVar
 
-from rovlink.client import operations
+from rovlink.client import links, operations
 from rovlink.client.command_methods import CommandMethods
 from rovlink.client.counters import LinkCounters
 from rovlink.client.errors import ConnectError, ConnectionLostError, QueryTimeoutError
@@ -244,9 +244,23 @@ class Client(CommandMethods):
                         lambda: self._reader_ident in (None, threading.get_ident()), timeout=2.0
                     )
                     self._waiting_callers -= 1
-                self._link.close()
+                self._close_link_once_written()
         finally:
             self._released.set()
+
+    def _close_link_once_written(self) -> None:
+        """Close the port once no thread is writing on it (at most 2 s more): a descriptor
+        closed under a write in another thread (a stop() from it) could be reused by the next
+        port opened, and written to. A write still waiting for room is given up first."""
+        abort_writes = getattr(self._link, "abort_writes", None)
+        if abort_writes is not None:
+            abort_writes()
+        writing_done = self._wire_lock.acquire(timeout=links.WRITE_TIMEOUT_S)
+        try:
+            self._link.close()
+        finally:
+            if writing_done:
+                self._wire_lock.release()
 
     @property
     def closed(self) -> bool:
