@@ -170,9 +170,12 @@ class _StalledSocketLink(SocketLink):
         super().__init__(sock, description)
         self.gate = threading.Event()
         self.gate.set()
+        #: The thread whose writes the shut gate holds (any thread's if None).
+        self.stalled_thread: int | None = None
 
     def send_some(self, data: bytes | bytearray | memoryview) -> int:
-        if not self.gate.is_set():
+        stalled = self.stalled_thread in (None, threading.get_ident())
+        if stalled and not self.gate.is_set():
             return 0
         return super().send_some(data)
 
@@ -192,5 +195,28 @@ async def test_asyncio_a_start_queued_behind_a_stalled_write_goes_before_a_later
         assert await wait_until_async(lambda: "#stop!" in fake.frames())
         assert fake.frames()[-3:] == ["#mgmp.180!", "#start!", "#stop!"]
     finally:
+        await rov.close()
+        fake.close()
+
+
+async def test_asyncio_a_start_queued_before_an_emergency_stop_is_followed_by_a_stop() -> None:
+    # Before, emergency_stop() (from another thread) wrote #stop! at once, and the #start! the
+    # loop had queued behind a line slow to take it went out after it: the robot was unlocked.
+    fake, host_end = FakeController.on_socketpair()
+    link = _StalledSocketLink(host_end, "socket pair, stalled")
+    rov = await AsyncClient(link, client_options()).open()
+    try:
+        link.gate.clear()
+        link.stalled_thread = threading.get_ident()  # (the loop's writes wait; others go)
+        await rov.start()  # queued for the port
+        assert await asyncio.to_thread(rov.emergency_stop)
+        assert await wait_until_async(lambda: "#stop!" in fake.frames())
+        link.gate.set()
+        assert await wait_until_async(lambda: "#start!" in fake.frames())
+        assert await wait_until_async(lambda: fake.frames()[-1] == "#stop!")
+        frames = fake.frames()
+        assert frames.index("#stop!") < frames.index("#start!") < len(frames) - 1
+    finally:
+        link.gate.set()
         await rov.close()
         fake.close()

@@ -277,17 +277,30 @@ class AsyncClient(AsyncCommandMethods):
         writing may be cut by it, and the controller resynchronises on ``#`` (P1), so the
         ``#stop!`` still arrives whole. Whether it was written (not on a closed link).
 
+        What the loop had queued for the port and not yet written (a ``start()`` behind a line
+        slow to take it) goes out after this ``#stop!`` if the loop runs again: so the loop is
+        also asked to :meth:`stop` as soon as it can, which follows whatever it queued.
+
         Example::
 
             threading.Thread(target=rov.emergency_stop).start()
         """
         if self._closed or self._lost is not None:
             return False
+        with contextlib.suppress(RuntimeError):  # (the loop is closed: it writes nothing more)
+            self._loop.call_soon_threadsafe(self._stop_after_emergency)
         try:
             self._link.write(self._session.frame_for(operations.STOP))
         except (ConnectionError, OSError):
             return False
         return True
+
+    def _stop_after_emergency(self) -> None:
+        """:meth:`stop` in the loop after :meth:`emergency_stop`, behind what it had queued."""
+        if self._closed or self._lost is not None:
+            return
+        with contextlib.suppress(ConnectionError):  # (lost meanwhile: nothing to stop on)
+            self._send(operations.STOP)
 
     def frame_for(self, command: Command) -> bytes:
         """The bytes this client writes for ``command`` now: checksummed in checksum mode,
