@@ -106,30 +106,33 @@ def test_a_start_waiting_behind_a_slow_write_is_not_sent_after_a_stop_called_mea
         fake.close()
 
 
-def test_a_raw_start_waiting_for_a_checksum_switch_is_not_sent_after_a_stop(
+def test_a_raw_start_waiting_behind_a_slow_write_is_not_sent_after_a_stop(
     gated: tuple[FakeController, _GatedLink],
 ) -> None:
-    # The same for a raw frame, which waits for a checksum switch to end as a query does.
+    # The same for a raw frame (which may also wait for a checksum switch to end).
     fake, link = gated
-    fake.then("hold")
-    rov = Client(link, client_options(checksum=True))
+    rov = Client(link, client_options())
+    watched = WatchedLock(rov._wire_lock)
+    rov._wire_lock = watched  # type: ignore[assignment]
     try:
-        held = _Call(rov.depth_cm)  # on the wire, unanswered for now
-        assert fake.wait_for(lambda f: "#qd!" in f.frames())
-        switching = _Call(lambda: rov.set_checksum(False))  # waits for the #qd! to be answered
-        assert wait_until(lambda: rov._mode_switcher is not None)
-        starting = _Call(lambda: rov.send_raw("#start!"))
-        assert wait_until(lambda: rov._waiting_callers >= 2)  # (the switch's and the raw's)
-        rov.stop()
-        fake.release()
-        for call in (held, switching, starting):
+        link.gate.clear()
+        slow = _Call(lambda: rov.set_max_pwm(180))  # its write waits at the gate
+        assert link.held.wait(CONDITION_TIMEOUT_S)
+        starting = _Call(lambda: rov.send_raw("#start!"))  # waits for the wire lock
+        assert wait_until(lambda: watched.waiting == 1)
+        stopping = _Call(rov.stop)
+        assert wait_until(lambda: watched.waiting == 2)
+        link.gate.set()
+        for call in (slow, starting, stopping):
             assert call.done.wait(CONDITION_TIMEOUT_S)
-        assert held.error is None
-        assert switching.error is None
+        assert slow.error is None
+        assert stopping.error is None
         assert isinstance(starting.error, SupersededByStopError)
+        assert fake.wait_for(lambda f: "#stop!" in f.frames())
         assert "#start!" not in fake.frames()
-        assert rov.depth_cm() == 123  # (with checksums off now, as the raw frame)
+        assert rov.depth_cm() == 123
     finally:
+        link.gate.set()
         rov.close()
         fake.close()
 
