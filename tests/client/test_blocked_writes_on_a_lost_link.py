@@ -19,10 +19,10 @@ import pytest
 import rovlink
 import rovlink.aio
 from rovlink.client import Client, links
-from rovlink.client.errors import ConnectionLostError
+from rovlink.client.errors import ConnectionLostError, SupersededByStopError
 from rovlink.client.events import ClientEvent, LinkState
 from rovlink.client.links import Link, SocketLink
-from tests.client.conftest import CONDITION_TIMEOUT_S, client_options, wait_until
+from tests.client.conftest import CONDITION_TIMEOUT_S, WatchedLock, client_options, wait_until
 from tests.client.fake_controller import FakeController, FakeControllerServer
 
 pytestmark = pytest.mark.integration
@@ -394,13 +394,18 @@ def test_a_command_that_waited_for_the_reopened_link_is_not_sent_after_a_stop(
         assert wait_until(lambda: _lost(events))
         starting = _Call(rov.start)  # waits for the link
         assert wait_until(lambda: rov._waiting_callers > 0)
-        rov.stop()  # (after the start was asked for)
+        setting = _Call(lambda: rov.set_max_pwm(180))  # waits too; it neither moves nor unlocks
+        assert wait_until(lambda: rov._waiting_callers > 1)
+        rov.stop()  # (after both were asked for)
         port.refuse = False  # plugged back
         assert starting.done.wait(CONDITION_TIMEOUT_S)
-        assert isinstance(starting.error, ConnectionLostError)
-        assert "stop" in str(starting.error)
+        assert setting.done.wait(CONDITION_TIMEOUT_S)
+        assert isinstance(starting.error, SupersededByStopError)
+        assert setting.error is None
         assert rov.depth_cm() == 123
-        assert "#start!" not in port.fakes[1].frames()
+        frames = port.fakes[1].frames()
+        assert "#start!" not in frames
+        assert "#mgmp.180!" in frames
 
 
 def test_a_port_reopened_as_close_begins_is_let_go_untouched(
@@ -475,6 +480,58 @@ def test_a_stop_while_the_reopened_link_takes_nothing_returns_at_once(
         assert wait_until(lambda: len(reopened) == 2)
         assert reopened[1].wait_for(_probed, CONDITION_TIMEOUT_S)
         assert reopened[1].frames()[:3] == ["#stop!", "#crcoff!", "#qd!"]
+    finally:
+        rov.close()
+        for far_end in stuck:
+            far_end.close()
+
+
+def test_close_as_a_reopened_port_becomes_the_link_being_readied_lets_it_go_at_once(
+    reopened: list[FakeController],
+) -> None:
+    # Before, a close() that began after the port was reopened, but before the reconnecting
+    # thread took it as the link being readied, did not give up that link's writes: the
+    # reconnecting thread wrote zero thrust to a line that took nothing, close() waited 2 s for
+    # it and returned with that thread running and the port open.
+    stuck: list[socket.socket] = []
+
+    def reopen() -> Link:
+        far_end, ours = socket.socketpair()  # plugged back, but nothing reads it
+        stuck.append(far_end)
+        link = SocketLink(ours, "socket pair, reopened")
+        _fill(link)
+        return link
+
+    first, host_end = FakeController.on_socketpair()
+    reopened.append(first)
+    options = client_options(reconnect=True, boot_timeout_s=2.0)
+    rov = Client(SocketLink(host_end, "socket pair"), options, reopen=reopen)
+    readied_lock = WatchedLock(rov._readied_lock)
+    rov._readied_lock = readied_lock  # type: ignore[assignment]
+    try:
+        rov.start()
+        rov.move(90, 50)  # a reopened link is sent zero thrust first
+        readied_lock.acquire()  # (the reconnecting thread waits for it once the port is open)
+        try:
+            first.close()
+            assert wait_until(lambda: readied_lock.waiting == 1)
+            reconnector = rov._reconnector
+            assert reconnector is not None
+            started = time.monotonic()
+            closing = _Call(rov.close)
+            assert wait_until(lambda: rov._closing)
+        finally:
+            readied_lock.release()
+        assert closing.done.wait(CONDITION_TIMEOUT_S)
+        took_s = time.monotonic() - started
+        assert took_s < PROMPT_S, f"close() took {took_s:.2f} s"
+        reconnector.join(PROMPT_S)
+        assert not reconnector.is_alive()
+        stuck[0].setblocking(False)
+        with contextlib.suppress(BlockingIOError):  # (what the fill left)
+            while stuck[0].recv(1 << 20):
+                pass
+        assert stuck[0].recv(1) == b""  # the reopened port was let go
     finally:
         rov.close()
         for far_end in stuck:

@@ -21,6 +21,7 @@ from rovlink.client.links import SocketLink
 from tests.client.conftest import (
     CONDITION_TIMEOUT_S,
     NO_REPLY_TIMEOUT_S,
+    WatchedLock,
     client_options,
     wait_until,
 )
@@ -558,3 +559,50 @@ def test_link_state_events_reach_a_subscriber_that_queries(port: FakeControllerS
         assert depths == [123]
     finally:
         rov.close()
+
+
+class _SlowSendLink(SocketLink):
+    """A socket link whose ``send_some`` is held, once the gate is shut, until the test opens
+    it: a write under way in the kernel call. Notes whether the port was closed meanwhile."""
+
+    def __init__(self, sock: socket.socket, description: str) -> None:
+        super().__init__(sock, description)
+        self.gate = threading.Event()
+        self.gate.set()
+        self.sending = threading.Event()
+        self.closed_under_a_send = False
+
+    def send_some(self, data: bytes | bytearray | memoryview) -> int:
+        if not self.gate.is_set():
+            self.sending.set()
+            self.gate.wait(CONDITION_TIMEOUT_S)
+            self.closed_under_a_send = self._closed
+        return super().send_some(data)
+
+
+def test_close_lets_a_write_under_way_in_another_thread_end_before_it_closes_the_port() -> None:
+    # Before, close() closed the descriptor while another thread's write was in its kernel
+    # call: a port opened meanwhile could get the same number and be written to.
+    fake, host_end = FakeController.on_socketpair()
+    link = _SlowSendLink(host_end, "socket pair, slow to send")
+    rov = Client(link, client_options())
+    wire_lock = WatchedLock(rov._wire_lock)
+    rov._wire_lock = wire_lock  # type: ignore[assignment]
+    try:
+        link.gate.clear()
+        stopping, outcome = _run(rov.stop)  # (from another thread, as a safety thread does)
+        assert link.sending.wait(CONDITION_TIMEOUT_S)
+        closing, _ = _run(rov.close)
+        assert wait_until(lambda: wire_lock.waiting == 1 or link._closed)
+        assert not link._closed
+        link.gate.set()
+        closing.join(CONDITION_TIMEOUT_S)
+        stopping.join(CONDITION_TIMEOUT_S)
+        assert not closing.is_alive()
+        assert not link.closed_under_a_send
+        assert outcome == [None]
+        assert fake.wait_for(lambda f: "#stop!" in f.frames())
+    finally:
+        link.gate.set()
+        rov.close()
+        fake.close()

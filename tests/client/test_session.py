@@ -4,8 +4,9 @@ from __future__ import annotations
 
 import pytest
 
+from rovlink.client.errors import SupersededByStopError
 from rovlink.client.session import FENCE_QUERIES, Outcome, PendingQuery, Session
-from rovlink.protocol import Command, Text
+from rovlink.protocol import COMMANDS, Command, Spec, Text
 
 QSA_REPLY = b"$qd.120!$qr.530!$q.l.0!$qro.-1!$qpi.+3!$qhe.275!"
 
@@ -455,3 +456,34 @@ def test_a_stop_while_a_reopened_link_is_readied_is_written_at_once_and_again_wh
     session.link_ready()  # written: done
     assert session.rest_frames() == b""
     assert session.stop_while_reconnecting(now=6.0) == b""  # (no link being readied)
+
+
+# -- a stop supersedes the unlock and motion commands asked for before it ----------------------
+
+
+def _a_command_of(spec: Spec) -> Command:
+    return Command(spec.name, tuple(argument.minimum for argument in spec.arguments))
+
+
+@pytest.mark.parametrize(
+    "spec", [spec for spec in COMMANDS if not spec.is_query], ids=lambda spec: spec.name
+)
+def test_a_stop_supersedes_exactly_the_commands_that_move_or_unlock(spec: Spec) -> None:
+    session = Session()
+    command = _a_command_of(spec)
+    asked_at = session.stops_asked
+    session.stop_asked()
+    expected = spec.name in {"start", "mvs", "mvd", "th", "h+", "h-"}
+    assert spec.moves_or_unlocks is expected
+    if expected:
+        with pytest.raises(SupersededByStopError) as raised:
+            session.command(command, now=0.0, stops_seen=asked_at)
+        assert raised.value.command == command
+        with pytest.raises(SupersededByStopError):
+            session.raw(session.frame_for(command), now=0.0, stops_seen=asked_at)
+        assert session.counters.frames_sent == 0  # nothing half-sent
+    else:
+        assert session.command(command, now=0.0, stops_seen=asked_at) == session.frame_for(command)
+    # Asked for after the stop, or by a driver that does not say when: sent.
+    assert session.command(command, now=1.0, stops_seen=session.stops_asked)
+    assert session.command(command, now=2.0)

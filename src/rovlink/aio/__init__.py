@@ -26,6 +26,7 @@ from rovlink.client import (
     InvalidArgumentError,
     QueryTimeoutError,
     Sensors,
+    SupersededByStopError,
 )
 
 __all__ = [
@@ -37,5 +38,6 @@ __all__ = [
     "InvalidArgumentError",
     "QueryTimeoutError",
     "Sensors",
+    "SupersededByStopError",
     "connect",
 ]

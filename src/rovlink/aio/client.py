@@ -277,17 +277,30 @@ class AsyncClient(AsyncCommandMethods):
         writing may be cut by it, and the controller resynchronises on ``#`` (P1), so the
         ``#stop!`` still arrives whole. Whether it was written (not on a closed link).
 
+        What the loop had queued for the port and not yet written (a ``start()`` behind a line
+        slow to take it) goes out after this ``#stop!`` if the loop runs again: so the loop is
+        also asked to :meth:`stop` as soon as it can, which follows whatever it queued.
+
         Example::
 
             threading.Thread(target=rov.emergency_stop).start()
         """
         if self._closed or self._lost is not None:
             return False
+        with contextlib.suppress(RuntimeError):  # (the loop is closed: it writes nothing more)
+            self._loop.call_soon_threadsafe(self._stop_after_emergency)
         try:
             self._link.write(self._session.frame_for(operations.STOP))
         except (ConnectionError, OSError):
             return False
         return True
+
+    def _stop_after_emergency(self) -> None:
+        """:meth:`stop` in the loop after :meth:`emergency_stop`, behind what it had queued."""
+        if self._closed or self._lost is not None:
+            return
+        with contextlib.suppress(ConnectionError):  # (lost meanwhile: nothing to stop on)
+            self._send(operations.STOP)
 
     def frame_for(self, command: Command) -> bytes:
         """The bytes this client writes for ``command`` now: checksummed in checksum mode,
@@ -389,10 +402,13 @@ class AsyncClient(AsyncCommandMethods):
             await self.set_checksum(mode)
             return ()
         self._check_open()
+        # A frame that moves or unlocks, still waiting for a checksum switch when a stop() is
+        # called, is superseded by it (SupersededByStopError): it would follow the #stop!.
+        stops_seen = self._session.stops_asked
         while not self._mode_settled.is_set():  # (another switch may start as one ends)
             await self._mode_settled.wait()
         self._check_open()  # the link may have gone meanwhile: nothing would settle the query
-        data, pending = self._session.raw(data, self._clock())
+        data, pending = self._session.raw(data, self._clock(), stops_seen=stops_seen)
         if pending is not None:
             pending.waiter = self._loop.create_future()
             self._arm_timer()
@@ -486,6 +502,10 @@ class AsyncClient(AsyncCommandMethods):
             raise self._lost_error() from error
 
     def _send(self, command: Command) -> None:
+        # (Written, or queued for the port, before it returns: a set command never waits, so a
+        # stop() after it follows it on the wire. A raw frame may wait: see send_raw.)
+        if command == operations.STOP:
+            self._session.stop_asked()
         if self._link_down and command == operations.STOP and not self._closed:
             self._stop_while_reconnecting()
             return

@@ -134,7 +134,8 @@ class FdTransport:
             raise
         if written < len(data):
             self._buffer += data[written:]
-            self._unconfirmed += data
+            # (From the start of the frame cut off: the frames before it went whole.)
+            self._unconfirmed += data[max(data.rfind(b"#", 0, written + 1), 0) :]
             self._loop.add_writer(self._fd, self._writable)
             # A line that takes nothing for the write timeout is lost, as the blocking
             # client's write says: else a #stop! would wait behind it for ever, and a reopened
@@ -182,6 +183,13 @@ class FdTransport:
             self._unconfirmed.clear()
             self._loop.remove_writer(self._fd)
             self._settle_drained()
+        elif written:
+            # Only the frames not wholly written stay unconfirmed: on a line that never quite
+            # drains, every frame written since it last did would pile up here.
+            first_unwritten = len(self._unconfirmed) - len(self._buffer)
+            frame_start = self._unconfirmed.rfind(b"#", 0, first_unwritten + 1)
+            if frame_start > 0:
+                del self._unconfirmed[:frame_start]
 
     def _settle_drained(self) -> None:
         if self._drained is not None and not self._drained.done():

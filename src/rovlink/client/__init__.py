@@ -24,6 +24,7 @@ from rovlink.client.errors import (
     ConnectionLostError,
     InvalidArgumentError,
     QueryTimeoutError,
+    SupersededByStopError,
 )
 from rovlink.client.events import ClientEvent, EventCallback
 from rovlink.client.options import ClientOptions
@@ -44,6 +45,7 @@ __all__ = [
     "LinkCounters",
     "QueryTimeoutError",
     "Sensors",
+    "SupersededByStopError",
     "connect",
     "parse_command_text",
     "parse_url",

@@ -22,7 +22,7 @@ from collections.abc import Callable
 from types import TracebackType
 from typing import TypeVar
 
-from rovlink.client import operations
+from rovlink.client import links, operations
 from rovlink.client.command_methods import CommandMethods
 from rovlink.client.counters import LinkCounters
 from rovlink.client.errors import ConnectError, ConnectionLostError, QueryTimeoutError
@@ -139,8 +139,6 @@ class Client(CommandMethods):
         self._closing = False
         self._reopen = reopen if options.reconnect else None
         self._reconnecting = False  # the link was lost and is being opened again
-        self._stops_asked = 0  # stop() calls: a command that waited for a link is not sent
-        # after one (see _send)
         # The reopened link while it is being readied (P21): a stop() is written on it at once.
         self._readied_link: Link | None = None
         self._stop_reconnecting = threading.Event()
@@ -246,9 +244,23 @@ class Client(CommandMethods):
                         lambda: self._reader_ident in (None, threading.get_ident()), timeout=2.0
                     )
                     self._waiting_callers -= 1
-                self._link.close()
+                self._close_link_once_written()
         finally:
             self._released.set()
+
+    def _close_link_once_written(self) -> None:
+        """Close the port once no thread is writing on it (at most 2 s more): a descriptor
+        closed under a write in another thread (a stop() from it) could be reused by the next
+        port opened, and written to. A write still waiting for room is given up first."""
+        abort_writes = getattr(self._link, "abort_writes", None)
+        if abort_writes is not None:
+            abort_writes()
+        writing_done = self._wire_lock.acquire(timeout=links.WRITE_TIMEOUT_S)
+        try:
+            self._link.close()
+        finally:
+            if writing_done:
+                self._wire_lock.release()
 
     @property
     def closed(self) -> bool:
@@ -488,6 +500,10 @@ class Client(CommandMethods):
                 self._readied_lock.acquire()
                 try:
                     with self._state_lock:
+                        # (Under the lock close() takes to give up the readied link's writes:
+                        # a close() that began since the check above did not see this link.)
+                        if self._closing:
+                            raise ConnectError(f"{link.description}: closed while reconnecting")
                         rest = self._session.link_reopened()
                         self._readied_link = link
                     if rest:  # first, before any probe feeds the controller's watchdog (P17)
@@ -654,34 +670,27 @@ class Client(CommandMethods):
 
     def _send(self, command: Command) -> None:
         stop = command == operations.STOP
-        if stop:
-            with self._state_lock:
-                self._stops_asked += 1
-        stops_before = self._stops_asked
-        waited_for_link = False
+        with self._state_lock:
+            if stop:  # (before it waits for anything: it supersedes what waits already)
+                self._session.stop_asked()
+            stops_seen = self._session.stops_asked
         while True:
             if stop and self._reconnecting and self._stop_while_reconnecting():
                 return
-            waited_for_link = waited_for_link or self._reconnecting
             self._check_open()
             with self._wire_lock:
                 with self._state_lock:
                     closing = self._closing and (not stop or self._reconnecting)
                     if self._lost is not None or closing:
                         raise self._lost_error()  # (lost, or closed, while this waited)
-                    if waited_for_link and self._stops_asked != stops_before:
-                        # Asked for before the stop, it would go out after it: a start()
-                        # would unlock the robot the program (a pilot) had just stopped.
-                        raise ConnectionLostError(
-                            f"connection lost: {self._link.description}: {command} not sent: "
-                            "stop() was called while it waited for the reopened link"
-                        )
                     # Lost while this waited for the wire lock (behind a write that timed
                     # out): not written on the lost link, which would time out once more.
                     reconnecting = self._reconnecting
                     if not reconnecting:
                         motion_before = self._session.motion_as_sent()
-                        data = self._session.command(command, self._clock())
+                        # (SupersededByStopError if it moves or unlocks and a stop() was
+                        # called while it waited: it would go out after the #stop!)
+                        data = self._session.command(command, self._clock(), stops_seen=stops_seen)
                 if not reconnecting:
                     try:
                         self._write(data)
@@ -1044,6 +1053,7 @@ class Client(CommandMethods):
         pending: PendingQuery | None
         lost: ConnectionLostError | None = None
         me = _get_ident()
+        stops_seen = session.stops_asked  # (a raw frame that moves is superseded by a stop)
         while True:
             with self._wire_lock:
                 with self._state_lock:
@@ -1056,7 +1066,7 @@ class Client(CommandMethods):
                         if isinstance(query, Command):
                             data, pending = session.query(query, self._clock())
                         else:
-                            data, pending = session.raw(query, self._clock())
+                            data, pending = session.raw(query, self._clock(), stops_seen=stops_seen)
                         if pending is not None:
                             self._callers[me] = pending
                         background_reading = self._reader_ident == self._background_ident

@@ -17,6 +17,7 @@ __all__ = [
     "ConnectionLostError",
     "InvalidArgumentError",
     "QueryTimeoutError",
+    "SupersededByStopError",
 ]
 
 
@@ -100,3 +101,22 @@ class ConnectError(ClientError, ConnectionError):
     ...
     rovlink.client.errors.ConnectError: cannot open /dev/no-such-port: ...
     """
+
+
+class SupersededByStopError(ClientError):
+    """A command that unlocks the motors or moves the robot was still waiting to be written
+    when ``stop()`` was called (from another thread or task): it was not sent, as it would have
+    gone out after the ``#stop!`` and undone it. ``command`` is the command not sent.
+
+    >>> from rovlink.protocol import Command
+    >>> print(SupersededByStopError(Command("start")))  # doctest: +NORMALIZE_WHITESPACE
+    #start! not sent: stop() was called while it waited to be written, and a stop supersedes
+    the unlock and motion commands asked for before it
+    """
+
+    def __init__(self, command: Command) -> None:
+        self.command = command
+        super().__init__(
+            f"{command} not sent: stop() was called while it waited to be written, and a stop "
+            "supersedes the unlock and motion commands asked for before it"
+        )

@@ -45,6 +45,7 @@ from __future__ import annotations
 from collections import deque
 
 from rovlink.client.counters import LinkCounters
+from rovlink.client.errors import SupersededByStopError
 from rovlink.client.events import (
     BytesReceived,
     BytesSent,
@@ -212,6 +213,7 @@ class Session:
         "_readying",
         "_reset_reported_at",
         "_stop_on_reopen",
+        "_stops_asked",
         "_unsure_motion",
         "_vertical_percent",
         "counters",
@@ -266,6 +268,7 @@ class Session:
         self._reset_reported_at: float | None = None
         #: A #stop! asked for while the link was down: the reopened link's first frame.
         self._stop_on_reopen = False
+        self._stops_asked = 0  # stop() calls so far (see stop_asked)
         #: A reopened link is open and being readied (P21): a #stop! goes on it at once.
         self._readying = False
         # P23: the motion as last sent, and when it was last renewed; the vertical mode as
@@ -357,13 +360,52 @@ class Session:
         checksummed = self._checksum_enabled and not command.spec.honoured_bare
         return encode(command, self._algorithm if checksummed else None)
 
-    def command(self, command: Command, now: float) -> bytes:
+    @property
+    def stops_asked(self) -> int:
+        """How many times the program has asked for a stop (:meth:`stop_asked`): a driver
+        notes it when a command is asked for, and hands it to :meth:`command` or :meth:`raw`
+        with the command."""
+        return self._stops_asked
+
+    def stop_asked(self) -> None:
+        """The program called ``stop()`` (before its ``#stop!`` is written, which may wait).
+
+        A command that moves the robot or unlocks its motors (``Spec.moves_or_unlocks``) asked
+        for before that, and not yet handed out, is superseded: :meth:`command` and :meth:`raw`
+        raise :class:`~rovlink.client.errors.SupersededByStopError` for it rather than let it
+        follow the ``#stop!`` and undo it. Queries and the other commands still go.
+
+        >>> session = Session()
+        >>> asked_at = session.stops_asked  # a start() is asked for, and waits to be written
+        >>> session.stop_asked()  # meanwhile, a stop() from another thread
+        >>> session.command(Command("start"), now=0.0, stops_seen=asked_at)
+        Traceback (most recent call last):
+        ...
+        rovlink.client.errors.SupersededByStopError: #start! not sent: ...
+        >>> session.command(Command("mgmp", (180,)), now=0.0, stops_seen=asked_at)
+        b'#mgmp.180!'
+        """
+        self._stops_asked += 1
+
+    def _check_not_superseded(self, command: Command, stops_seen: int | None) -> None:
+        if (
+            stops_seen is not None
+            and stops_seen != self._stops_asked
+            and command.spec.moves_or_unlocks
+        ):
+            raise SupersededByStopError(command)
+
+    def command(self, command: Command, now: float, *, stops_seen: int | None = None) -> bytes:
         """The bytes to write for a command that expects no reply (after anything due).
 
-        ``crcon``/``crcoff`` switch the session's mode with the controller's.
+        ``crcon``/``crcoff`` switch the session's mode with the controller's. ``stops_seen``:
+        :attr:`stops_asked` when the program asked for the command; a command that moves or
+        unlocks raises :class:`~rovlink.client.errors.SupersededByStopError` if a stop was
+        asked for since (see :meth:`stop_asked`), and nothing is sent.
         """
         if command.spec.is_query:
             raise ValueError(f"{command} is a query: use Session.query")
+        self._check_not_superseded(command, stops_seen)
         data = self.take_outbox(now) + self._account(command, self.frame_for(command), now)
         self._track(command, now)
         return data
@@ -475,10 +517,12 @@ class Session:
         self._last_query_bytes = data
         return data
 
-    def raw(self, frame: bytes, now: float) -> tuple[bytes, PendingQuery | None]:
+    def raw(
+        self, frame: bytes, now: float, *, stops_seen: int | None = None
+    ) -> tuple[bytes, PendingQuery | None]:
         """The bytes to write for a raw frame sent as it is (after anything due); a query in it
         joins the queue. Text or broken frames around it go as they are; more than one command
-        frame is a ValueError (nothing is sent).
+        frame is a ValueError (nothing is sent). ``stops_seen``: as for :meth:`command`.
 
         The frame is read as the controller will read it, in the current checksum mode, so that
         a raw ``#crcon!`` switches the session too and a raw query is matched like any other.
@@ -497,6 +541,8 @@ class Session:
                 f"{len(commands)} commands ({listed}); send each on its own"
             )
         command = commands[0] if commands else None
+        if command is not None:
+            self._check_not_superseded(command, stops_seen)
         data = self.take_outbox(now) + self._account(command, frame, now)
         if command is None:
             return data, None

@@ -201,6 +201,16 @@ class Spec:
         """Whether the command asks for a reply."""
         return bool(self.replies)
 
+    @property
+    def moves_or_unlocks(self) -> bool:
+        """Whether the command moves the robot or unlocks its motors (P7): what must not go out
+        after a ``#stop!`` asked for after it, as it would undo the stop.
+
+        >>> [lookup(name).moves_or_unlocks for name in ("start", "th", "h+", "mvdirect", "qd")]
+        [True, True, True, False, False]
+        """
+        return self.motion or (self.setting is Setting.LOCKED and self.setting_value is False)
+
     def template(self) -> str:
         """The frame with argument placeholders, e.g. ``#th.<direction_deg>.<power_percent>!``."""
         parts = [self.name, *(f"<{argument.name}>" for argument in self.arguments)]

@@ -31,7 +31,7 @@ from typing import Any
 from rovlink.aio.wakeup import wait_for_event
 from rovlink.bridges.kept_settings import KeptSettings
 from rovlink.bridges.mqtt.broker import BrokerSettings
-from rovlink.bridges.mqtt.commands import CommandPolicy, could_move
+from rovlink.bridges.mqtt.commands import CommandPolicy
 from rovlink.bridges.mqtt.outbox import Outbox
 from rovlink.bridges.mqtt.payloads import (
     CommandRequest,
@@ -325,11 +325,11 @@ class MqttBridge:
             self._stops += 1
             waiting = [queue.get_nowait() for _ in range(queue.qsize())]
             for kept in waiting:
-                if not could_move(kept.command):
+                if not kept.command.spec.moves_or_unlocks:
                     queue.put_nowait(kept)
             await self._carry_out(mqtt, asked)
             for overtaken in waiting:
-                if could_move(overtaken.command):
+                if overtaken.command.spec.moves_or_unlocks:
                     await self._answer(mqtt, overtaken, error=_OVERTAKEN_BY_STOP)
 
     async def _carry_out_in_order(self, mqtt: Any, queue: asyncio.Queue[_Asked]) -> None:
@@ -451,7 +451,9 @@ class MqttBridge:
                 return
         else:
             await self._restore_settings()  # (after a reset: before what may build on them)
-            if could_move(command) and asked.stops_before != self._stops:  # a stop came since
+            if (
+                command.spec.moves_or_unlocks and asked.stops_before != self._stops
+            ):  # a stop came since
                 await self._answer(mqtt, asked, error=_OVERTAKEN_BY_STOP)
                 return
         try:

@@ -5,19 +5,9 @@ from __future__ import annotations
 from rovlink.client.command_text import parse_command_text
 from rovlink.protocol import Command, Setting
 
-__all__ = ["CommandPolicy", "CommandRefusedError", "could_move"]
+__all__ = ["CommandPolicy", "CommandRefusedError"]
 
 _LINK_SETTINGS = (Setting.CHECKSUM, Setting.DEBUG)
-
-
-def could_move(command: Command) -> bool:
-    """Whether ``command`` unlocks the motors or moves the robot (P7): what must not follow a
-    ``stop`` that was asked for after it.
-
-    >>> [could_move(parse_command_text(text)) for text in ("start", "th 90 30", "mgmp 100", "qd")]
-    [True, True, False, False]
-    """
-    return command.spec.motion or command.setting == (Setting.LOCKED, False)
 
 
 class CommandRefusedError(ValueError):
