@@ -77,6 +77,7 @@ def _query_until_closed(rov: Client) -> None:
 def test_a_ctrl_c_while_close_waits_for_a_reply_still_releases_the_port(
     make_client: Callable[..., Client], fake: FakeController
 ) -> None:
+    already_running = set(threading.enumerate())  # (another test's may still be ending)
     fake.late_delay_s = 0.5
     fake.then("late")
     rov = make_client(timeout_s=1.0)
@@ -96,7 +97,11 @@ def test_a_ctrl_c_while_close_waits_for_a_reply_still_releases_the_port(
     querying.join()
     assert rov._link._closed  # type: ignore[attr-defined]  # (P22: the port can be opened again)
     rov.close()  # (returns: the port is released)
-    assert not [t for t in threading.enumerate() if t.name.startswith("rovlink") and t.is_alive()]
+    assert not [
+        thread
+        for thread in set(threading.enumerate()) - already_running
+        if thread.name.startswith("rovlink") and thread.is_alive()
+    ]
 
 
 def test_a_callback_calling_sys_exit_is_logged_and_the_client_goes_on(

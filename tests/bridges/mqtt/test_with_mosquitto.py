@@ -487,3 +487,27 @@ async def test_losing_the_broker_zeroes_the_thrust_even_without_a_motion_timeout
         async with subscriber(broker, "rovlink/z1/events", identifier="w", clean=False) as events:
             failsafe = await events.wait_for("rovlink/z1/events", lambda e: "broker" in e["detail"])
         assert failsafe["event"] == "failsafe"
+
+
+async def test_a_broker_disconnect_that_never_ends_does_not_hold_back_the_final_stop(
+    broker: Mosquitto, monkeypatch: pytest.MonkeyPatch
+):
+    # aiomqtt waits for the broker's side of a disconnect without a bound: a bridge ending
+    # behind it never sent its #stop!.
+    monkeypatch.setattr("rovlink.bridges.mqtt.bridge._END_WAIT_S", 0.3)
+    real_exit = aiomqtt.Client.__aexit__
+    let_go = asyncio.Event()
+
+    async def disconnect_that_hangs(self: aiomqtt.Client, *exc_info: object) -> None:
+        await let_go.wait()
+        await real_exit(self, *exc_info)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(aiomqtt.Client, "__aexit__", disconnect_that_hangs)
+    try:
+        async with bridged_robot(broker, "h1") as robot:
+            stops_before = robot.frames().count("#stop!")
+        assert robot.task.done()
+        assert robot.frames().count("#stop!") == stops_before + 1
+    finally:
+        let_go.set()  # (the connection left behind closes before the loop does)
+        await asyncio.sleep(0.1)

@@ -84,6 +84,9 @@ _TELEMETRY_BACKLOG = 64
 _KEEPALIVE_S = 10
 #: The offline state at the end is given up after this (the last will covers a lost broker).
 _FAREWELL_S = 2.0
+#: How long the bridge's tasks have to end once it ends, before ``#stop!`` is sent anyway:
+#: the farewell, then the MQTT disconnect (aiomqtt waits for the broker's side of it unbounded).
+_END_WAIT_S = _FAREWELL_S + 3.0
 #: MQTT 5's DISCONNECT reason: another client connected with this one's client id.
 _SESSION_TAKEN_OVER = 0x8E
 #: A connection that lasted this long resets the reconnection backoff, s.
@@ -180,7 +183,12 @@ class MqttBridge:
             tasks: list[asyncio.Future[None]] = [poller, broker, *self._background]
             for running in tasks:
                 running.cancel()
-            await asyncio.gather(*tasks, return_exceptions=True)
+            _, stuck = await asyncio.wait(tasks, timeout=_END_WAIT_S)
+            if stuck:  # (left behind: the process is ending, and the stop must not wait)
+                logger.warning(
+                    "the broker connection did not close within %g s; stopping the robot anyway",
+                    _END_WAIT_S,
+                )
             with contextlib.suppress(ConnectionError):
                 await self.rov.stop()
 
