@@ -156,6 +156,17 @@ async def test_a_held_frame_whose_timer_fired_does_not_follow_a_take_over(hub):
     assert hub.station.tracked.commanded.power_percent == 0
 
 
+async def test_a_held_frame_whose_timer_fired_does_not_follow_a_stop(hub):
+    peer = await held_back(hub)
+    hub.station._flush_due()  # the motion is on its way ...
+    await hub.send(hub.station.join("other"), {"type": "stop"})  # ... when a STOP comes
+    await hub.settled()
+    assert hub.sent == ["#stop!"]  # nothing after it: no #th.90.80!
+    assert hub.station.tracked.commanded.lock is LockState.LOCKED
+    await hub.send(peer, keys(True, power_percent=80))  # the stick still held: cut, disarmed
+    assert thrust(hub.sent) == []
+
+
 async def test_a_held_frame_goes_out_when_due(hub):
     await held_back(hub)
     hub.station._flush_due()

@@ -546,6 +546,75 @@ def test_stop_on_the_pad_of_a_page_that_lost_control_still_stops(browser, statio
     second.context.close()
 
 
+# The page has read this many pads besides the one in use (a page without the rule reads none:
+# it does not wait, and the press is then missed as it always was).
+OTHER_STOPS_SEEN = "n => (window.rovlinkStation.devices.otherStops?.size ?? n) === n"
+
+
+def press_on(page: Page, index: int, buttons: dict[int, bool], axes: list[float] | None = None):
+    """Set the buttons (by number) and axes of the fake pad in slot ``index``."""
+    page.evaluate(
+        "([index, buttons, axes]) => fakePads.set(index, {buttons, axes})",
+        [index, {str(number): down for number, down in buttons.items()}, axes],
+    )
+
+
+def test_every_pad_in_reach_stops_and_only_the_chosen_one_flies(browser, station, line):
+    page = open_page(browser, station)
+    choose_device(page, "pad:Fake Xbox pad (STANDARD GAMEPAD)")
+    take_control(page)
+    unlock_and_arm(page, line)
+    mark = line.mark()
+    set_pad(page, axes=[1, 0, 0, 0], deadman=True)
+    line.wait_for("#th.90.100!", after=mark)
+    # A co-pilot's pad of another kind (standard mapping: B is STOP) and a headset.
+    page.evaluate("fakePads.connect('Co-pilot pad (STANDARD GAMEPAD)')")
+    page.evaluate("fakePads.connect('USB headset buttons', '')")
+    page.wait_for_function(OTHER_STOPS_SEEN, arg=1)  # (the headset is not read)
+    mark = line.mark()
+    # Everything but STOP on the co-pilot's pad moves nothing: its dead-man, stick, unlock.
+    press_on(page, 1, {DEADMAN: True, UNLOCK: True, CLAW_OPEN: True}, axes=[0, 1, 0, -1])
+    press_on(page, 2, {STOP_BUTTON: True})  # the headset's button 1 is no STOP
+    press_on(page, 1, {STOP_BUTTON: True})  # (before, it did nothing: the pad was not read)
+    line.wait_for("#stop!", after=mark, timeout_s=1.0)
+    page.click("#claw-close")  # a fence
+    line.wait_for("#h-!", after=mark)
+    # Only the pilot's own pad flying on (its renewal) and the STOP with its cut: nothing from
+    # the co-pilot's other buttons and sticks (no #start!, #h+!, #th.0.…, #mvd).
+    flown = {"#th.90.100!", "#stop!", "#th.90.0!", "#mvs.+0!", "#h-!"}
+    assert set(line.frames(mark, commands_only=True)) <= flown
+    # The page says what each pad does.
+    pads = page.text_content("#pad-list") or ""
+    assert "Co-pilot pad (STANDARD GAMEPAD) (standard mapping) · its STOP (button 1)" in pads
+    assert "USB headset buttons (non-standard mapping) · not read" in pads
+    press_on(page, 1, {STOP_BUTTON: False})
+    press_on(page, 2, {STOP_BUTTON: False})
+    # A spare of the chosen pad's kind uses the pilot's mapping: STOP moved to button 7.
+    page.fill("[data-button='stop']", "7")
+    page.press("[data-button='stop']", "Enter")
+    page.evaluate("fakePads.connect('Fake Xbox pad (STANDARD GAMEPAD)')")
+    page.wait_for_function(OTHER_STOPS_SEEN, arg=2)
+    page.wait_for_selector("#pad-list:has-text('its STOP (button 7)')", state="attached")
+    mark = line.mark()
+    press_on(page, 3, {STOP_BUTTON: True})  # its B is not its STOP any more
+    press_on(page, 3, {7: True})
+    line.wait_for("#stop!", after=mark, timeout_s=1.0)
+    assert line.frames(mark, commands_only=True) == ["#stop!"]
+    # A pad first seen with STOP held (the press that shows it to the page) sends nothing.
+    page.evaluate("fakePads.disconnect(1)")
+    page.wait_for_function(OTHER_STOPS_SEEN, arg=1)
+    page.evaluate(  # (in one script: the page cannot poll in between)
+        "fakePads.set(fakePads.connect('Second co-pilot pad (STANDARD GAMEPAD)'),"
+        " {buttons: {1: true}})"
+    )
+    page.wait_for_function(OTHER_STOPS_SEEN, arg=2)
+    mark = line.mark()
+    page.click("#claw-close")  # a fence
+    line.wait_for("#h-!", after=mark)
+    assert line.frames(mark, commands_only=True) == ["#h-!"]
+    page.context.close()
+
+
 def test_keys_typed_in_a_field_do_not_fly(browser, station, line):
     page = _flying_by_keyboard(browser, station, line)
     page.fill("#target-depth", "150")

@@ -18,6 +18,7 @@ import pytest
 from websockets.exceptions import ConnectionClosed, InvalidStatus
 
 from rovlink.protocol import lookup
+from tests.client.fake_controller import FakeControllerServer
 from tests.station.page_socket import PageSocket
 from tests.station.rig import ControllerLine, StationProcess, running_station
 
@@ -453,3 +454,33 @@ async def test_an_ipv6_host_in_brackets_is_served(line):
         page = await PageSocket.open(served.ws_url)
         assert page.hello["pilot_id"] is None
         await page.close()
+
+
+async def test_the_pilot_leaving_while_the_robot_link_is_down_is_shown_to_every_page():
+    port = FakeControllerServer()  # a robot whose adapter can be pulled out and plugged back
+    try:
+        with running_station(port.url) as served:
+            page = await pilot(served)
+            watcher = await PageSocket.open(served.ws_url)
+            await page.send({"type": "command", "name": "start"})
+            await page.send(RELEASED)
+            await page.send(held(pad_ms=1.0))
+            flown = await asyncio.to_thread(
+                port.fakes[0].wait_for, lambda fake: "#th.90.60!" in fake.frames()
+            )
+            assert flown
+            port.refuse = True
+            port.fakes[0].close()
+            await watcher.next("log", lambda m: m["text"].startswith("link lost"))
+            await page.close()
+            # (Before, the cut's zero thrust raised on the lost link out of the closed page's
+            # end, and no page was told that nobody had control.)
+            await watcher.next("control", lambda m: m["pilot_id"] is None)
+            await watcher.send({"type": "take_control"})
+            await watcher.next("control", lambda m: m["pilot_id"] == watcher.id)
+            port.refuse = False
+            await watcher.next("log", lambda m: "link reconnected" in m["text"], timeout_s=10)
+            assert served.process.poll() is None
+            await watcher.close()
+    finally:
+        port.close()

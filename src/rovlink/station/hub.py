@@ -171,6 +171,8 @@ class Station:
         self._sending: set[asyncio.Future[None]] = set()
         #: The driver's word on the link (LinkState): down while a lost port is being reopened.
         self._link_up = True
+        #: A STOP asked for while the link was down: the reopened link's first frame.
+        self._stop_kept = False
         self._recording_told_s = 0.0
         tracked.client.subscribe(self._on_client_event)
         if recordings is not None:
@@ -279,6 +281,10 @@ class Station:
             if peer.hidden:
                 raise MessageError("input from a hidden page is ignored: show the page to fly")
             peer.input_source = message.source
+            if not self._link_up:
+                # Nothing can be relayed, and the relay, cut when the link was lost, stays so:
+                # armed or "flying" on the page would claim what the robot is not doing.
+                return
             depth = self.latest.depth_cm if self.latest is not None else None
             moving, armed = self.relay.moving, self.relay.armed
             await self._send_all(self.relay.update(message.pilot, self._clock(), depth_cm=depth))
@@ -325,8 +331,19 @@ class Station:
 
     async def _stop(self, peer: Peer) -> None:
         self.relay.cut(f"STOP from {peer.label}")
-        await self.tracked.stop()
-        self.log("warning", f"STOP from {peer.label}")
+        down = not self._link_up
+        await self.tracked.stop()  # (never waits: on a link down, the driver keeps it)
+        if down:
+            # Not sent yet: the driver writes it first on the reopened link (and the
+            # controller's own failsafe, P17, stops the robot meanwhile).
+            self._stop_kept = True
+            self.log(
+                "warning",
+                f"STOP from {peer.label}: the robot's link is down; #stop! is the first frame"
+                " on the reopened link",
+            )
+        else:
+            self.log("warning", f"STOP from {peer.label}")
 
     async def _take_control(self, peer: Peer) -> None:
         previous = self.pilot
@@ -359,9 +376,19 @@ class Station:
         }
 
     async def _cut(self, reason: str) -> None:
-        """Zero thrust now (the relay disarms) and say why."""
+        """Zero thrust now (the relay disarms) and say why.
+
+        A zero the link cannot take (lost, being reopened) is an alarm in the log, not an
+        error for the caller: what the cut is part of (a pilot leaving, control changing hands)
+        still happens. The relay is disarmed whatever the link does, and the driver zeroes the
+        motion first on a reopened link.
+        """
         moving = self.relay.moving
-        await self._send_all(self.relay.cut(reason))
+        try:
+            await self._send_all(self.relay.cut(reason))
+        except ClientError as error:
+            self.log("alarm", f"zero thrust could not be sent ({reason}): {error}")
+            return
         if moving:
             self.log("warning", f"thrust to zero: {reason}")
 
@@ -623,6 +650,10 @@ class Station:
             else:
                 self._link_up = True
                 if event.state == "reconnected":
+                    # Input taken while the link was down (the dead-man let go and held again)
+                    # does not fly the robot the moment the link is back: release and press
+                    # the dead-man on the reopened link.
+                    self.relay.cut("the robot's link was reopened")
                     self._reopened()
                     self.log(
                         "warning",
@@ -642,12 +673,19 @@ class Station:
         seen here only as bytes, and again once the controller answered, before this notice);
         the motion as last sent is put at rest here whatever the driver wrote. A reopened serial
         port resets many boards (DTR), and a controller that came back may be another boot, or
-        stopped by its failsafe (P17): the lock is no longer known."""
+        stopped by its failsafe (P17): the lock is no longer known — unless a STOP was asked
+        for while the link was down, whose ``#stop!`` the driver wrote first on it: locked."""
         commanded = self.tracked.commanded
         if commanded.power_percent:
             commanded.apply(Command("th", (commanded.direction_deg, 0)), own=False)
         if commanded.vertical_mode is VerticalMode.DIRECT and commanded.vertical_thrust_percent:
             commanded.apply(Command("mvs", (0,)), own=False)
+        if self._stop_kept:
+            # A STOP while the link was down went first on the reopened link, and the
+            # controller answered after it: locked (a controller that reset is locked too).
+            self._stop_kept = False
+            commanded.apply(Command("stop"), own=False)
+            return
         commanded.forget_lock(_REOPENED)
 
     def _on_sent(self, sent: SentFrame) -> None:

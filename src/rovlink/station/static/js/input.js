@@ -9,8 +9,14 @@
 //
 // Pad buttons fire on a press, not while held. STOP fires from any page that is shown, pilot
 // or not, as the STOP button on the screen does; the other buttons only for the pilot.
+//
+// Every other pad in reach (a co-pilot's, a spare) is read for its STOP button and nothing
+// else: it stops the robot and can move nothing. Its STOP is the mapping's for a pad of the
+// kind the mapping is for (the same id as the chosen pad), else the standard layout's for a
+// pad with the standard mapping; a pad of another kind without it, or on the ignore list, is
+// not read at all (which of its buttons is STOP is not known).
 
-import { padInput, pressed } from "./mapping.js";
+import { DEFAULT_MAPPING, padInput, pressed } from "./mapping.js";
 
 const CHOICE_KEY = "rovlink.device";
 const IGNORE_KEY = "rovlink.ignored-pads";
@@ -29,6 +35,9 @@ function typingIn(target) {
 function loadJson(key, fallback) {
   try { return JSON.parse(localStorage.getItem(key)) ?? fallback; } catch { return fallback; }
 }
+
+// A pad as connected: its slot and its id (another pad in the same slot is another pad).
+function padKey(pad) { return `${pad.index}:${pad.id}`; }
 
 export class Keyboard {
   constructor() {
@@ -76,6 +85,9 @@ export class InputDevices {
     this.resendMs = 50;
     this.previousButtons = {};
     this.buttonsOf = null;  // the pad previousButtons were read from
+    // Every other pad's STOP as last read, by padKey(): a pad not in it is seen for the first
+    // time, and its STOP held then is no press.
+    this.otherStops = new Map();
     this.learning = false;  // a button of the mapping is being learnt
     this.deadmanHeldOff = false;  // since learning: until the dead-man reads released
     this.status = "";
@@ -135,6 +147,37 @@ export class InputDevices {
     return { kind: null, label: "several gamepads: choose one" };
   }
 
+  // The kind of pad the mapping is for: the pad in use, or the one chosen (unplugged).
+  mappedKind(device = this.active()) {
+    if (device.kind === "gamepad") return device.pad.id;
+    return this.choice && this.choice.kind === "gamepad" ? this.choice.id : null;
+  }
+
+  // The STOP button of a pad that is not the one in use; null: the pad is not read.
+  stopButtonOf(pad, mappedKind, mapping = this.mapping()) {
+    if (pad.id === mappedKind) return mapping.buttons.stop;
+    if (pad.mapping === "standard") return DEFAULT_MAPPING.buttons.stop;
+    return null;
+  }
+
+  // The other pads in reach: their STOP, on the press, from a page that is shown (pilot or
+  // not, learning or not: what is learnt is the pad in use's press). Nothing else is read.
+  pollOtherStops(device, mapping, shown) {
+    const inUse = device.kind === "gamepad" ? device.pad : null;
+    const kind = this.mappedKind(device);
+    const seen = new Map();
+    for (const pad of this.usablePads()) {
+      if (inUse !== null && pad.index === inUse.index) continue;
+      const button = this.stopButtonOf(pad, kind, mapping);
+      if (button === null) continue;
+      const key = padKey(pad);
+      const down = pressed(pad, button);
+      if (shown && down && this.otherStops.get(key) === false) this.act("stop");
+      seen.set(key, down);
+    }
+    this.otherStops = seen;  // a pad gone and back is seen for the first time again
+  }
+
   poll() {
     const device = this.active();
     if (device.label !== this.status) { this.status = device.label; this.onChange(); }
@@ -157,6 +200,7 @@ export class InputDevices {
       this.previousButtons[action] = down;
     }
     this.buttonsOf = pad === null ? null : { id: pad.id, index: pad.index };
+    this.pollOtherStops(device, mapping, shown);
     if (!flying) {
       this.lastSent = null;
       this.lastInput = null;  // the stick is drawn only while it flies

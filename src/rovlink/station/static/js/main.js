@@ -370,13 +370,22 @@ function renderDevices() {
     ...pads.filter((pad) => !devices.ignored.has(pad.id)).map((pad) => [`pad:${pad.id}`, `gamepad: ${pad.id}`])];
   const choice = devices.choice;
   const chosen = !choice ? "auto" : choice.kind === "keyboard" ? "keyboard" : `pad:${choice.id}`;
+  // What each pad does: the one in use flies; every other is read for its STOP only.
+  const kind = devices.mappedKind(active);
+  const roles = pads.map((pad) => {
+    if (devices.ignored.has(pad.id)) return "";
+    if (active.kind === "gamepad" && pad.index === active.pad.index) return " · in use";
+    const button = devices.stopButtonOf(pad, kind);
+    return button === null ? " · not read (its STOP button is not known)"
+      : ` · its STOP (button ${button}) stops the robot; nothing else is read`;
+  });
   if (choice && choice.kind === "gamepad" && !options.some(([value]) => value === chosen)) {
     options.push([chosen, `gamepad: ${choice.id} (not connected)`]);
   }
   // Rebuilt only when what it shows changed: a rebuild between a press and its release (the
   // badge changes as the focus leaves a field) would lose the click.
   const shown = JSON.stringify([options, chosen, pads.map((pad) => [pad.id, pad.mapping]),
-    [...devices.ignored]]);
+    [...devices.ignored], roles]);
   if (shown === renderedDevices) return;
   renderedDevices = shown;
   // Buttons, not a <select>: an open native dropdown keeps Space and Esc from the page, and
@@ -394,14 +403,14 @@ function renderDevices() {
   // The keyboard's place in the group is kept.
   if (focused) group.querySelector(`[data-device="${CSS.escape(focused)}"]`)?.focus();
   const list = $("pad-list");
-  list.replaceChildren(...pads.map((pad) => {
+  list.replaceChildren(...pads.map((pad, index) => {
     const row = document.createElement("div");
     const box = document.createElement("input");
     box.type = "checkbox";
     box.checked = devices.ignored.has(pad.id);
     box.addEventListener("change", () => devices.setIgnored(pad.id, box.checked));
     const label = document.createElement("label");
-    label.append(box, ` ignore ${pad.id} (${pad.mapping || "non-standard"} mapping)`);
+    label.append(box, ` ignore ${pad.id} (${pad.mapping || "non-standard"} mapping)${roles[index]}`);
     row.append(label);
     return row;
   }));
@@ -431,7 +440,7 @@ function renderMapping() {
   const reset = document.createElement("button");
   reset.type = "button";
   reset.textContent = "default mapping";
-  reset.addEventListener("click", () => { mapping = resetMapping(); renderMapping(); });
+  reset.addEventListener("click", () => { mapping = resetMapping(); renderMapping(); renderDevices(); });
   editor.replaceChildren(table, reset);
   table.addEventListener("change", (event) => {
     const el = event.target;
@@ -452,6 +461,7 @@ function renderMapping() {
       else mapping.buttons[el.dataset.button] = value;
     }
     saveMapping(mapping);
+    renderDevices();  // (the other pads' STOP button may have changed)
   });
   table.addEventListener("click", (event) => {
     const name = event.target.dataset?.learn;
@@ -472,6 +482,7 @@ function renderMapping() {
         devices.buttonsOf = null;
         if (index >= 0) { mapping.buttons[name] = index; saveMapping(mapping); }
         renderMapping();
+        renderDevices();
       }
     }, 20);
   });
