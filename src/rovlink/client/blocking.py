@@ -546,15 +546,9 @@ class Client(CommandMethods):
         bug in a ``reopen`` callable or a link scheme's opener): the link is lost for good, as
         without ``reconnect``, so that calls say why at once rather than wait for a link that
         will never come (the controller's link-loss failsafe, P17, stops the robot)."""
-        logger.error(
-            "reconnecting %s failed: %s: %s; the connection is lost",
-            self._link.description,
-            type(error).__name__,
-            error,
-            exc_info=error,
-        )
+        description = self._link.description  # (the port's: the attempt's link is not kept)
         lost = ConnectionLostError(
-            f"{self._link.description}: reconnecting failed: {type(error).__name__}: {error}"
+            f"{description}: reconnecting failed: {type(error).__name__}: {error}"
         )
         lost.__cause__ = error
         with self._state_lock:
@@ -565,6 +559,13 @@ class Client(CommandMethods):
             self._session.disconnect()
             self._changed.notify_all()
             self._background_wakeup.notify()
+        logger.error(
+            "reconnecting %s failed: %s: %s; the connection is lost",
+            description,
+            type(error).__name__,
+            error,
+            exc_info=error,
+        )
 
     def _release_readied(self, link: Link) -> None:
         """Let go of the readied link's lock (held once), first writing on ``link`` the
