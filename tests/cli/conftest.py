@@ -10,6 +10,7 @@ from dataclasses import dataclass
 import pytest
 
 from rovlink.cli import main
+from rovlink.cli import monitor as cli_monitor
 from tests.cli.silent_controller import SilentController
 
 
@@ -46,6 +47,13 @@ def run_cli(capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch)
         return CliResult(status, captured.out, captured.err)
 
     return run
+
+
+@pytest.fixture
+def monitor_on_a_terminal(monkeypatch: pytest.MonkeyPatch) -> None:
+    """``rovlink monitor`` runs as if its input and output were a terminal (it refuses to run
+    without one), for tests of what it does after that check."""
+    monkeypatch.setattr(cli_monitor, "missing_terminal", lambda: None)
 
 
 @pytest.fixture

@@ -229,6 +229,7 @@ def test_a_default_history_that_cannot_be_kept_does_not_keep_the_console_from_th
 
 
 @pytest.mark.timeout(_HANG_TIMEOUT_S)
+@pytest.mark.usefixtures("monitor_on_a_terminal")
 def test_monitor_on_a_port_that_cannot_be_opened(
     run_cli: RunCli, monkeypatch: pytest.MonkeyPatch
 ) -> None:

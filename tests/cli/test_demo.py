@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import threading
 from pathlib import Path
 
 import pytest
@@ -11,7 +12,7 @@ from rovlink.cli.demo import DivePlan, DiveProgress, run_dive
 from rovlink.client.events import BytesSent
 from rovlink.recorder import FrameEntry, read_entries
 from tests.cli.conftest import RunCli
-from tests.client.conftest import REPLY_TIMEOUT_S
+from tests.client.conftest import CONDITION_TIMEOUT_S, REPLY_TIMEOUT_S, WatchedLock, wait_until
 
 
 def _fast_sim_url(tmp_path: Path) -> str:
@@ -185,3 +186,59 @@ def test_a_leak_latched_before_the_dive_starts_nothing(tmp_path: Path, run_cli: 
     ]
     assert "q.l" in sent
     assert not {"start", "mvd", "th"} & set(sent)
+
+
+def test_a_stop_from_another_thread_ends_the_dive_without_sending_what_it_superseded(
+    tmp_path: Path,
+) -> None:
+    # A program's safety thread calls stop() while the dive's move waits to be written (behind
+    # another write): the driver does not send the move (SupersededByStopError). Before, that
+    # error left run_dive as if the link had failed, and the progress said nothing of it; now
+    # the dive ends as stopped, and nothing of the dive follows the #stop!.
+    sent: list[bytes] = []
+    plan = DivePlan(depth_cm=60, hold_s=0.1, leg_s=0.1, reach_timeout_s=20)
+
+    def on_event(event: object) -> None:
+        if isinstance(event, BytesSent):
+            sent.append(event.data)
+
+    with rovlink.connect(
+        _fast_sim_url(tmp_path), keepalive=None, timeout=REPLY_TIMEOUT_S, on_event=on_event
+    ) as rov:
+        port = rov._link.port  # type: ignore[attr-defined]
+        wire = WatchedLock(rov._wire_lock)
+        rov._wire_lock = wire  # type: ignore[assignment]
+        held = threading.Event()
+        safety: list[threading.Thread] = []
+
+        def slow_write_then_stop() -> None:
+            with wire:  # another thread's write that the line is slow to take
+                held.set()
+                assert wait_until(lambda: wire.waiting == 1)  # the dive's move waits
+                stopping = threading.Thread(target=rov.stop)  # the safety thread
+                stopping.start()
+                safety.append(stopping)
+                assert wait_until(lambda: wire.waiting == 2)
+
+        def stop_at_the_square(progress: DiveProgress) -> None:
+            if progress.steps[3].status == "running" and not held.is_set():
+                threading.Thread(target=slow_write_then_stop, daemon=True).start()
+                assert held.wait(CONDITION_TIMEOUT_S)
+
+        progress = run_dive(rov, plan, stop_at_the_square)
+        for thread in safety:
+            thread.join(CONDITION_TIMEOUT_S)
+        with port.lock:
+            state = port.controller.state()
+    statuses = [step.status for step in progress.steps]
+    assert statuses[:4] == ["done", "done", "done", "aborted"]
+    assert statuses[4:9] == ["skipped"] * 5
+    assert progress.steps[9].status == "done"
+    assert progress.steps[9].detail == "motors off and locked: stop() called"
+    assert progress.aborted == (
+        "stop() was called during 'square: ahead': the dive was aborted (#th.0.30! not sent)"
+    )
+    assert b"#th.0.30!" not in sent  # the superseded move was not retried
+    first_stop = sent.index(b"#stop!")
+    assert all(data in (b"#stop!", b"#qsa!") for data in sent[first_stop:])
+    assert state.locked

@@ -537,6 +537,7 @@ def test_a_malformed_url_leaves_no_recording(
 
 
 @pytest.mark.parametrize("command", RECORDING_COMMANDS, ids=lambda command: command[0])
+@pytest.mark.usefixtures("monitor_on_a_terminal")
 def test_a_link_that_does_not_open_leaves_no_recording(
     run_cli: RunCli, tmp_path: Path, command: tuple[str, ...]
 ) -> None:
@@ -554,6 +555,7 @@ def test_a_link_that_does_not_open_leaves_no_recording(
 @pytest.mark.parametrize(
     "command", [*RECORDING_COMMANDS, ("record",)], ids=lambda command: command[0]
 )
+@pytest.mark.usefixtures("monitor_on_a_terminal")
 def test_an_existing_recording_is_never_written_over(
     run_cli: RunCli, tmp_path: Path, command: tuple[str, ...]
 ) -> None:

@@ -15,6 +15,7 @@ from textual.pilot import Pilot
 import rovlink.aio.client
 from rovlink.aio import AsyncClient
 from rovlink.cli import build_parser, main
+from rovlink.cli import monitor as cli_monitor
 from rovlink.cli.monitor import build_app
 from rovlink.client.links import Link
 from rovlink.client.options import StrayCallback
@@ -315,6 +316,7 @@ def test_cli_monitor_connects_then_runs_the_dashboard(monkeypatch: pytest.Monkey
         await run_async(self, headless=True, size=SIZE, auto_pilot=drive)
 
     monkeypatch.setattr(MonitorApp, "run_async", headless)
+    monkeypatch.setattr(cli_monitor, "missing_terminal", lambda: None)  # (drawn headless)
     assert main(["monitor", "sim://?seed=1", "--rate", "20"]) == 0
 
 

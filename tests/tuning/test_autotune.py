@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import re
+import threading
+
 import pytest
 
 from rovlink.tuning import (
@@ -15,6 +18,7 @@ from rovlink.tuning import (
     physical_gains,
 )
 from rovlink.tuning.verify import step_metrics
+from tests.client.conftest import CONDITION_TIMEOUT_S, WatchedLock, wait_until
 from tests.tuning.conftest import SCALES, simulated_plant
 
 TARGET_OVERSHOOT_CM = 5.0
@@ -114,3 +118,44 @@ def test_an_abort_on_a_working_link_says_stop_was_sent() -> None:
         with pytest.raises(TuneAbortedError) as aborted:
             autotune(plant, RelaySettings(), RULES["heave-poles"], SCALES, None)
     assert str(aborted.value) == "the leak sensor fired: #stop! sent"
+
+
+def test_a_stop_from_another_thread_aborts_as_a_stop_not_a_failed_link(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    # A program's safety thread calls stop() while the relay's thrust waits to be written
+    # (behind another write): the driver does not send it (SupersededByStopError). Before, the
+    # abort blamed the link ("the link failed: …"); the experiment ends, as asked, either way.
+    with simulated_plant("standard", 3) as (plant, port):
+        client = plant.client
+        wire = WatchedLock(client._wire_lock)
+        client._wire_lock = wire  # type: ignore[assignment]
+        set_vertical_thrust = client.set_vertical_thrust
+        safety: list[threading.Thread] = []
+
+        def slow_write_then_stop(held: threading.Event) -> None:
+            with wire:  # another thread's write that the line is slow to take
+                held.set()
+                assert wait_until(lambda: wire.waiting == 1)  # the relay's thrust waits
+                stopping = threading.Thread(target=client.stop)  # the safety thread
+                stopping.start()
+                safety.append(stopping)
+                assert wait_until(lambda: wire.waiting == 2)
+
+        def thrust(percent: int) -> None:
+            if port.robot.time_s >= 3.0 and not safety:
+                held = threading.Event()
+                threading.Thread(target=slow_write_then_stop, args=(held,), daemon=True).start()
+                assert held.wait(CONDITION_TIMEOUT_S)
+            set_vertical_thrust(percent)
+
+        monkeypatch.setattr(client, "set_vertical_thrust", thrust)
+        with pytest.raises(TuneAbortedError) as aborted:
+            autotune(plant, RelaySettings(), RULES["heave-poles"], SCALES, None)
+        for thread in safety:
+            thread.join(CONDITION_TIMEOUT_S)
+        assert port.controller.locked
+    assert re.fullmatch(
+        r"stop\(\) was called during the experiment \(#mvs\.[-+]\d+! not sent\): #stop! sent",
+        str(aborted.value),
+    )

@@ -711,6 +711,7 @@ class AsyncClient(AsyncCommandMethods):
         """Reopen the port with backoff (0.1 s, doubling to 2 s) until it answers, or close()."""
         reopen = self._reopen
         assert reopen is not None
+        description = self._link.description  # (the port's, whatever the attempts open)
         with contextlib.suppress(Exception):
             await self._transport.close()
         backoff_s = _RECONNECT_FIRST_S
@@ -729,6 +730,9 @@ class AsyncClient(AsyncCommandMethods):
             except asyncio.CancelledError:
                 opening.add_done_callback(_close_opened)
                 raise
+            except Exception as error:  # a bug in reopen or a link scheme: no retry can help
+                self._give_up_reconnecting(error, description)
+                return
             self._link = link
             self._attempt_lost = None
             self._transport = transport_for(link, self._loop)
@@ -755,6 +759,12 @@ class AsyncClient(AsyncCommandMethods):
                 await asyncio.sleep(backoff_s)
                 backoff_s = min(backoff_s * 2, _RECONNECT_MAX_S)
                 continue
+            except Exception as error:  # a bug in the link: as above
+                session.reopen_failed()
+                with contextlib.suppress(Exception):
+                    await self._transport.close()
+                self._give_up_reconnecting(error, description)
+                return
             plural = "s" if attempts > 1 else ""
             session.note_link(
                 "reconnected",
@@ -766,6 +776,31 @@ class AsyncClient(AsyncCommandMethods):
             self._arm_timer()
             self._emit()
             return
+
+    def _give_up_reconnecting(self, error: Exception, description: str) -> None:
+        """The reconnection failed with an error that is neither the port's nor the URL's (a
+        bug in a ``reopen`` callable or a link scheme's opener): the link is lost for good, as
+        without ``reconnect``, so that calls say why at once rather than wait for a link that
+        will never come (the controller's link-loss failsafe, P17, stops the robot)."""
+        if self._closed:
+            return
+        logger.error(
+            "reconnecting %s failed: %s: %s; the connection is lost",
+            description,
+            type(error).__name__,
+            error,
+            exc_info=error,
+        )
+        lost = ConnectionLostError(
+            f"{description}: reconnecting failed: {type(error).__name__}: {error}"
+        )
+        lost.__cause__ = error
+        self._lost = lost
+        self._link_down = False
+        self._link_ready.set()  # (callers waiting for the link fail now, with that error)
+        self._cancel_timer()
+        self._wake(self._session.disconnect())
+        self._emit()
 
     def _arm_timer(self) -> None:
         """Have :meth:`_on_timer` run at the session's next deadline (an earlier one re-arms)."""

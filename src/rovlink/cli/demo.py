@@ -174,8 +174,13 @@ class _Dive:
     def run(self) -> DiveProgress:
         """The dive; a leak, latched before it or fired during it, ends it at once with
         ``#stop!`` (a buoyant hull rises when its motors stop), as ``rovlink tune`` and the
-        motion checks end on a leak: no script goes on diving with water coming in."""
+        motion checks end on a leak: no script goes on diving with water coming in. A
+        ``stop()`` from another thread that supersedes the dive's next command ends it too."""
+        from rovlink.client import SupersededByStopError  # noqa: PLC0415 - the driver's
+
         steps = self.progress.steps
+        why = "leak (q.l = 1)"
+        locked_because = "leak"
         try:
             if self.rov.leak_detected():
                 self.progress.aborted = (
@@ -191,13 +196,24 @@ class _Dive:
                 f"the leak sensor fired (q.l = 1) during {during!r}: the dive was aborted and "
                 "#stop! sent"
             )
+        except SupersededByStopError as error:
+            # The program's own stop() from another thread (a safety thread): the dive ends as
+            # asked, without a retry of the command it superseded; the #stop! is out already.
+            why = locked_because = "stop() called"
+            during = next((step.name for step in steps if step.status == "running"), "the dive")
+            self.progress.aborted = (
+                f"stop() was called during {during!r}: the dive was aborted ({error.command} "
+                "not sent)"
+            )
         if self.progress.aborted is not None:
             if steps[-1].status == "waiting" and self.progress.latest is not None:  # (driven)
-                self.finish(self.begin(len(steps) - 1), detail="motors off and locked: leak")
+                self.finish(
+                    self.begin(len(steps) - 1), detail=f"motors off and locked: {locked_because}"
+                )
             for step in steps:
                 if step.status in ("running", "waiting"):
                     status = "aborted" if step.status == "running" else "skipped"
-                    self.finish(step, status, "leak (q.l = 1)")
+                    self.finish(step, status, why)
         return self.progress
 
     def _dive(self) -> None:

@@ -2,7 +2,15 @@
 
 from __future__ import annotations
 
-__all__ = ["CommandError", "InputError", "UsageError", "error_number", "reason", "unreadable"]
+__all__ = [
+    "CommandError",
+    "InputError",
+    "NoTerminalError",
+    "UsageError",
+    "error_number",
+    "reason",
+    "unreadable",
+]
 
 
 class UsageError(Exception):
@@ -27,6 +35,17 @@ class InputError(CommandError):
     line: the file's content, not the command line, is what to fix).
 
     >>> InputError("robot.toml: not UTF-8 text").exit_status
+    2
+    """
+
+    exit_status = 2
+
+
+class NoTerminalError(CommandError):
+    """The command draws on a terminal and reads its keys, and was run without one (exit
+    status 2, one line: the way it was run, not its command line, is what to change).
+
+    >>> NoTerminalError("needs a terminal").exit_status
     2
     """
 

@@ -2,16 +2,18 @@
 
 space stops, s starts, arrows set direction and power, PgUp/PgDn the depth target, o/c the
 claw, r resets the leak latch, q quits (sending #stop! unless locked as last sent).
+It needs a terminal: its keys come from standard input, its dashboard goes to standard output.
 """
 
 from __future__ import annotations
 
 import argparse
 import errno
-from typing import TYPE_CHECKING
+import sys
+from typing import TYPE_CHECKING, TextIO
 
 from rovlink.cli import link_options
-from rovlink.cli.failure import CommandError, UsageError
+from rovlink.cli.failure import CommandError, NoTerminalError, UsageError
 
 if TYPE_CHECKING:
     from rovlink.aio import AsyncClient
@@ -19,7 +21,7 @@ if TYPE_CHECKING:
     from rovlink.monitor.app import Connector, MonitorApp
     from rovlink.protocol import Event
 
-__all__ = ["EPILOG", "build_app"]
+__all__ = ["EPILOG", "build_app", "missing_terminal"]
 
 EPILOG = """\
 examples:
@@ -67,6 +69,40 @@ def _monitor_app_class() -> type[MonitorApp]:
     return MonitorApp
 
 
+def missing_terminal() -> str | None:
+    """What the dashboard lacks to run, or ``None``: it draws on standard output and reads
+    its keys (space, the stop, among them) from standard input, both a terminal.
+
+    Without one (run from a script, its output to a file) it would write escape sequences
+    until killed, and no key, not even the stop, could reach it.
+    """
+    missing = [
+        name
+        for name, stream in (("standard input", sys.stdin), ("standard output", sys.stdout))
+        if not _is_terminal(stream)
+    ]
+    if not missing:
+        return None
+    return f"{' and '.join(missing)} {'is' if len(missing) == 1 else 'are'} not a terminal"
+
+
+def _is_terminal(stream: TextIO | None) -> bool:
+    try:
+        return stream is not None and stream.isatty()
+    except (ValueError, OSError):  # closed
+        return False
+
+
+def _refuse_without_terminal() -> None:
+    missing = missing_terminal()
+    if missing is not None:
+        raise NoTerminalError(
+            f"needs a terminal for its dashboard and keys, but {missing}; without one, "
+            "read the sensors with 'rovlink send URL qsa', or record the link with "
+            "'rovlink record URL -o FILE'"
+        )
+
+
 class _StrayRelay:
     """The ``on_stray`` of a client opened before its dashboard: what the controller sends
     before the dashboard listens is kept for it."""
@@ -94,6 +130,8 @@ async def _connect_then_show(args: argparse.Namespace) -> None:
     # The port is opened first, as by every other command: one that is busy or missing is one
     # line on stderr, not a dashboard drawn and taken down again.
     _monitor_app_class()  # (a missing extra is said before the port is opened)
+    link_options.check_url(args)  # (a malformed URL is said first, as by every command)
+    _refuse_without_terminal()  # before the port opens, or a recording's file is made
     connect = link_options.connect_async(args)
     relay = _StrayRelay()
     try:

@@ -520,17 +520,52 @@ class Client(CommandMethods):
                 break
             except (OSError, ValueError) as error:  # ConnectError, ConnectionLostError too
                 logger.debug("reconnect attempt %d: %s", attempts, error)
-                if link is not None:
-                    with self._readied_lock:  # (no stop() is writing on it)
-                        with self._state_lock:
-                            self._session.reopen_failed()  # (a stop is kept for the next)
-                            self._readied_link = None
-                            self._stop_handed_over = False
-                        with contextlib.suppress(Exception):
-                            link.close()
+                self._drop_attempt(link)
                 self._stop_reconnecting.wait(backoff_s)
                 backoff_s = min(backoff_s * 2, _RECONNECT_MAX_S)
+            except Exception as error:  # a bug in reopen or a link scheme: no retry can help
+                self._drop_attempt(link)
+                self._give_up_reconnecting(error)
+                break
         self._emit()
+
+    def _drop_attempt(self, link: Link | None) -> None:
+        """Close the link of a failed reconnection attempt, if it was opened."""
+        if link is None:
+            return
+        with self._readied_lock:  # (no stop() is writing on it)
+            with self._state_lock:
+                self._session.reopen_failed()  # (a stop is kept for the next)
+                self._readied_link = None
+                self._stop_handed_over = False
+            with contextlib.suppress(Exception):
+                link.close()
+
+    def _give_up_reconnecting(self, error: Exception) -> None:
+        """The reconnection failed with an error that is neither the port's nor the URL's (a
+        bug in a ``reopen`` callable or a link scheme's opener): the link is lost for good, as
+        without ``reconnect``, so that calls say why at once rather than wait for a link that
+        will never come (the controller's link-loss failsafe, P17, stops the robot)."""
+        description = self._link.description  # (the port's: the attempt's link is not kept)
+        lost = ConnectionLostError(
+            f"{description}: reconnecting failed: {type(error).__name__}: {error}"
+        )
+        lost.__cause__ = error
+        with self._state_lock:
+            if self._closing:
+                return
+            self._reconnecting = False
+            self._lost = lost
+            self._session.disconnect()
+            self._changed.notify_all()
+            self._background_wakeup.notify()
+        logger.error(
+            "reconnecting %s failed: %s: %s; the connection is lost",
+            description,
+            type(error).__name__,
+            error,
+            exc_info=error,
+        )
 
     def _release_readied(self, link: Link) -> None:
         """Let go of the readied link's lock (held once), first writing on ``link`` the

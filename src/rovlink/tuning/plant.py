@@ -1,7 +1,8 @@
 """The vehicle as the tuner sees it: depth and leak in, vertical commands out, a clock, limits.
 
 Every sample reads the depth and the leak latch and checks the safe limits; a leak, a depth
-outside the limits or a lost link sends ``#stop!`` and raises :class:`TuneAbortedError`.
+outside the limits or a lost link sends ``#stop!`` and raises :class:`TuneAbortedError`, and so
+does a ``stop()`` from another thread that supersedes the command the experiment was sending.
 """
 
 from __future__ import annotations
@@ -10,7 +11,7 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 
-from rovlink.client import Client, ClientError
+from rovlink.client import Client, ClientError, SupersededByStopError
 
 __all__ = ["DepthLimits", "Plant", "TuneAbortedError"]
 
@@ -117,5 +118,9 @@ class Plant:
     def _guarded(self, action: Callable[[], None]) -> None:
         try:
             action()
+        except SupersededByStopError as error:
+            # The program's own stop (a safety thread's): the experiment ends as asked, it is
+            # not the link that failed.
+            self.abort(f"stop() was called during the experiment ({error.command} not sent)")
         except (ClientError, ConnectionError) as error:
             self.abort(f"the link failed: {error}")
