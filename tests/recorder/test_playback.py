@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from rovlink.protocol import Command
+from rovlink.protocol import Command, Response
 from rovlink.recorder import Entry, FrameEntry, HeaderEntry
 from rovlink.recorder.comparison import ReplayStep, run_replay
 from rovlink.recorder.playback import paced
@@ -59,3 +59,23 @@ def test_a_replay_waits_for_a_far_off_command_in_sleeps_time_can_take() -> None:
     with pytest.raises(_SeenEnoughError):
         list(replayed)
     assert clock.sleeps == [3600.0] * 3
+
+
+def test_a_divergence_shows_only_the_replies_that_differ_beyond_the_tolerance() -> None:
+    # A pitch within the tolerance is no part of the difference (it was shown beside the leak,
+    # as `recorded $qpi.+2!$q.l.0!, now $qpi.+3!$q.l.1!`).
+    recorded = [Response("qd", (120,)), Response("qpi", (2,)), Response("q.l", (0,))]
+    replayed = (Response("qd", (121,)), Response("qpi", (3,)), Response("q.l", (1,)))
+    step = ReplayStep(1.0, Command("qsa"), recorded, expected_count=3)
+    [(_, _, divergence)] = list(run_replay([step], lambda command: replayed, speed=0, tolerance=3))
+    assert divergence is not None
+    assert (divergence.recorded, divergence.replayed) == ("$q.l.0!", "$q.l.1!")
+
+
+def test_a_difference_beyond_the_tolerance_is_shown() -> None:
+    recorded = [Response("qd", (120,)), Response("qpi", (2,))]
+    replayed = (Response("qd", (120,)), Response("qpi", (9,)))
+    step = ReplayStep(1.0, Command("qsa"), recorded, expected_count=2)
+    [(_, _, divergence)] = list(run_replay([step], lambda command: replayed, speed=0, tolerance=3))
+    assert divergence is not None
+    assert (divergence.recorded, divergence.replayed) == ("$qpi.+2!", "$qpi.+9!")

@@ -87,18 +87,31 @@ def _text(responses: Iterable[Response] | None) -> str:
 
 
 def _changes(
-    recorded: list[Response] | None, replayed: tuple[Response, ...] | None
+    recorded: list[Response] | None, replayed: tuple[Response, ...] | None, tolerance: int
 ) -> tuple[str, str]:
-    """The two sides of a difference: the differing replies' values only, when the same
-    replies came; all of them otherwise."""
-    if (
-        recorded is None
-        or replayed is None
-        or [r.name for r in recorded] != [r.name for r in replayed]
-    ):
+    """The two sides of a difference: the replies that differ beyond ``tolerance`` only, when
+    the same replies came (a pitch within it is no part of the difference); all otherwise."""
+    if recorded is None or replayed is None or not _same_names(recorded, replayed):
         return _text(recorded), _text(replayed)
-    pairs = [(old, new) for old, new in zip(recorded, replayed, strict=True) if old != new]
+    pairs = [
+        (old, new)
+        for old, new in zip(recorded, replayed, strict=True)
+        if _differs(old, new, tolerance)
+    ]
     return _text(old for old, _ in pairs), _text(new for _, new in pairs)
+
+
+def _same_names(recorded: list[Response], replayed: tuple[Response, ...]) -> bool:
+    return [r.name for r in recorded] == [r.name for r in replayed]
+
+
+def _differs(old: Response, new: Response, tolerance: int) -> bool:
+    for argument, a, b in zip(old.spec.arguments, old.values, new.values, strict=True):
+        # A flag (the leak latch) is on or off: no tolerance makes 0 and 1 the same.
+        allowed = tolerance if argument.maximum - argument.minimum > 1 else 0
+        if abs(a - b) > allowed:
+            return True
+    return False
 
 
 def _same(
@@ -106,15 +119,11 @@ def _same(
 ) -> bool:
     if recorded is None or replayed is None:
         return recorded is None and replayed is None
-    if [r.name for r in recorded] != [r.name for r in replayed]:
+    if not _same_names(recorded, replayed):
         return False
-    for old, new in zip(recorded, replayed, strict=True):
-        for argument, a, b in zip(old.spec.arguments, old.values, new.values, strict=True):
-            # A flag (the leak latch) is on or off: no tolerance makes 0 and 1 the same.
-            allowed = tolerance if argument.maximum - argument.minimum > 1 else 0
-            if abs(a - b) > allowed:
-                return False
-    return True
+    return not any(
+        _differs(old, new, tolerance) for old, new in zip(recorded, replayed, strict=True)
+    )
 
 
 def run_replay(
@@ -140,6 +149,6 @@ def run_replay(
         divergence = None
         if step.expected_count and not _same(step.recorded, replayed, tolerance):
             divergence = Divergence(
-                step.t_s - first_s, step.command.name, *_changes(step.recorded, replayed)
+                step.t_s - first_s, step.command.name, *_changes(step.recorded, replayed, tolerance)
             )
         yield step, replayed, divergence
