@@ -680,6 +680,53 @@ def test_a_joystick_off_centre_as_it_arms_is_held_until_centred(rig: BridgeRig, 
     rig.wait_frame("#th.0.80!", since=mark)
 
 
+NEW_PILOT = 254
+
+
+@pytest.mark.parametrize(
+    ("off_centre", "centred", "said", "driven"),
+    [
+        (
+            ("manual_control", VEHICLE, 800, 0, 500, 0, 0),
+            ("manual_control", VEHICLE, 0, 0, 500, 0, 0),
+            "Joystick x held: return to centre",
+            "#th.0.80!",
+        ),
+        (
+            ("rc_channels_override", VEHICLE, 1, 1500, 1500, 1500, 1500, 1900, *[0] * 13),
+            ("rc_channels_override", VEHICLE, 1, 1500, 1500, 1500, 1500, 1500, *[0] * 13),
+            "RC 5 held: return to neutral",
+            "#th.0.100!",
+        ),
+    ],
+    ids=["joystick", "rc_override"],
+)
+def test_a_new_pilots_input_off_centre_is_held_until_centred(
+    rig: BridgeRig,
+    gcs: GroundStation,
+    off_centre: tuple[Any, ...],
+    centred: tuple[Any, ...],
+    said: str,
+    driven: str,
+):
+    # The pilot's ground station changes (SYSID_MYGCS) while armed: the new pilot's stick or
+    # override, off centre all along while ignored, once drove the robot with its first message.
+    gcs.start_heartbeats()
+    assert gcs.arm() == ACCEPTED
+    gcs.send("param_set", VEHICLE, 1, b"SYSID_MYGCS", float(NEW_PILOT), 6)
+    gcs.receive("PARAM_VALUE", condition=lambda m: m.param_id == "SYSID_MYGCS")
+    changed = len(rig.frames())
+    gcs.connection.mav.srcSystem = NEW_PILOT  # the new pilot's ground station (and heartbeat)
+    gcs.send(*off_centre)
+    gcs.send(*off_centre)  # repeated, as a joystick or MAVProxy's overrides are
+    _said(gcs, said)
+    _served_since(gcs)
+    assert _thrust(rig, changed) == []
+    gcs.send(*centred)
+    gcs.send(*off_centre)  # a fresh input
+    rig.wait_frame(driven, since=changed)
+
+
 def test_rc_override_that_stops_coming_is_zeroed_as_a_stale_joystick(
     rig: BridgeRig, gcs: GroundStation
 ):
