@@ -32,6 +32,7 @@ from rovlink.aio.wakeup import wait_for_event
 from rovlink.bridges.kept_settings import KeptSettings
 from rovlink.bridges.mqtt.broker import BrokerSettings
 from rovlink.bridges.mqtt.commands import CommandPolicy
+from rovlink.bridges.mqtt.connection import broker_connection
 from rovlink.bridges.mqtt.outbox import Outbox
 from rovlink.bridges.mqtt.payloads import (
     CommandRequest,
@@ -54,7 +55,7 @@ from rovlink.piloting.commanded import LockState
 from rovlink.piloting.tracked import TrackedClient
 from rovlink.protocol import Command, Response
 
-__all__ = ["BridgeReplacedError", "MqttBridge"]
+__all__ = ["REPLY_TIMEOUT_S", "BridgeReplacedError", "MqttBridge"]
 
 logger = get_logger("rovlink.bridges.mqtt")
 
@@ -82,6 +83,8 @@ _RECONNECT_MAX_S = 5.0
 #: Telemetry waiting for the broker beyond this is dropped (QoS 0 promises no more).
 _TELEMETRY_BACKLOG = 64
 _KEEPALIVE_S = 10
+#: How long the broker has to answer (CONNACK, SUBACK, PUBACK) before the connection is given up.
+REPLY_TIMEOUT_S = 5.0
 #: The offline state at the end is given up after this (the last will covers a lost broker).
 _FAREWELL_S = 2.0
 #: MQTT 5's DISCONNECT reason: another client connected with this one's client id.
@@ -128,6 +131,7 @@ class MqttBridge:
         *,
         rate_hz: float = 5.0,
         allow_commands: bool = False,
+        reply_timeout_s: float = REPLY_TIMEOUT_S,
         wall_clock: Callable[[], float] = time.time,
     ) -> None:
         self.rov = rov
@@ -136,6 +140,8 @@ class MqttBridge:
         self.robot_id = robot_id
         self.policy = CommandPolicy(allow_commands=allow_commands)
         self.outbox = Outbox()
+        #: How long the broker has to answer a connection, subscription or publication, s.
+        self.reply_timeout_s = reply_timeout_s
         self.connected = asyncio.Event()
         self.sequence = 0
         self._wall_clock = wall_clock
@@ -195,7 +201,7 @@ class MqttBridge:
         while True:
             connected_at_s: float | None = None
             try:
-                async with self._client(aiomqtt) as mqtt:
+                async with broker_connection(self._client(aiomqtt)) as mqtt:
                     connected_at_s = loop.time()
                     logger.info("connected to %s", self.broker.describe())
                     try:
@@ -272,7 +278,7 @@ class MqttBridge:
             keepalive=_KEEPALIVE_S,
             tls_params=tls_params,
             tls_insecure=broker.insecure if broker.tls else None,
-            timeout=5.0,
+            timeout=self.reply_timeout_s,
         )
 
     async def _serve(self, mqtt: Any) -> None:
@@ -393,7 +399,9 @@ class MqttBridge:
         try:
             await asyncio.wait_for(goodbye(), _FAREWELL_S)
         except Exception as error:  # ending anyway; the last will may say it
-            logger.warning("could not publish the offline state: %s", error)
+            logger.warning(
+                "could not publish the offline state: %s", str(error) or type(error).__name__
+            )
 
     def _end_reason(self, error: BaseException) -> str:
         """Why the bridge ends, for the offline state: the first reason given is kept (the
