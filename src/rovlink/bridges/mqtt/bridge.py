@@ -47,6 +47,7 @@ from rovlink.bridges.mqtt.payloads import (
 )
 from rovlink.bridges.mqtt.topics import Topics, publish_topic_problem
 from rovlink.bridges.sensor_poll import SensorPoller, reopening
+from rovlink.bridges.task_ending import cancel_and_wait
 from rovlink.client.errors import ConnectionLostError, QueryTimeoutError
 from rovlink.client.events import ClientEvent, LinkState, MotionExpired, ResetSuspected
 from rovlink.client.sensors import Sensors
@@ -87,6 +88,9 @@ _KEEPALIVE_S = 10
 REPLY_TIMEOUT_S = 5.0
 #: The offline state at the end is given up after this (the last will covers a lost broker).
 _FAREWELL_S = 2.0
+#: A task still running this long after its cancellation (beyond the time it may take to end) is
+#: cancelled again: on Python 3.10 a cancellation can be swallowed (bpo-37658).
+_RECANCEL_MARGIN_S = 1.0
 #: MQTT 5's DISCONNECT reason: another client connected with this one's client id.
 _SESSION_TAKEN_OVER = 0x8E
 #: A connection that lasted this long resets the reconnection backoff, s.
@@ -183,10 +187,12 @@ class MqttBridge:
             self._end_reason(error)  # before the broker task is cancelled: it says this reason
             raise
         finally:
-            tasks: list[asyncio.Future[None]] = [poller, broker, *self._background]
-            for running in tasks:
-                running.cancel()
-            await asyncio.gather(*tasks, return_exceptions=True)
+            # The broker task says goodbye as it ends (the offline state), within the farewell
+            # time and a disconnection's reply: cancelled again only if it runs on beyond that.
+            await cancel_and_wait(
+                [poller, broker, *self._background],
+                recancel_after_s=_FAREWELL_S + self.reply_timeout_s + _RECANCEL_MARGIN_S,
+            )
             with contextlib.suppress(ConnectionError):
                 await self.rov.stop()
 
@@ -312,9 +318,7 @@ class MqttBridge:
                 task.result()  # the broker went away (MqttError), or a fault
         finally:
             self.connected.clear()
-            for running in tasks:
-                running.cancel()
-            await asyncio.gather(*tasks, return_exceptions=True)
+            await cancel_and_wait(tasks, recancel_after_s=_RECANCEL_MARGIN_S)
 
     async def _receive(self, mqtt: Any, queue: asyncio.Queue[_Asked]) -> None:
         """Commands in the order they came, one at a time (a query waits for its reply), but a
