@@ -65,13 +65,17 @@ class GroundStation:
         self._backlog: list[Any] = []
         self._beating = threading.Event()
         self._beat_thread: threading.Thread | None = None
+        #: When the last heartbeat was sent (taken just before: the bridge has it later).
+        self.last_heartbeat_s: float | None = None
 
     def send(self, name: str, *fields: Any) -> None:
         with self._lock:
             getattr(self.connection.mav, f"{name}_send")(*fields)
 
     def heartbeat(self) -> None:
-        self.send("heartbeat", GCS_TYPE, 8, 0, 0, 0)
+        with self._lock:
+            self.last_heartbeat_s = time.monotonic()
+            self.connection.mav.heartbeat_send(GCS_TYPE, 8, 0, 0, 0)
 
     def start_heartbeats(self, period_s: float = 0.5) -> None:
         """A ground station's 1 Hz heartbeat (faster, to be well inside the 3 s)."""

@@ -276,6 +276,36 @@ def test_an_axis_just_beyond_the_band_at_arming_is_held():
     assert _held(pilot, 0, -1000, 0, 0.1) == ("y", "z")
 
 
+def test_a_new_pilots_first_input_armed_has_its_axes_off_centre_held():
+    pilot = PilotInput(ParameterTable())
+    assert _drive(pilot, 1000, 0, 500, 0.0) == ["#th.0.100!"]  # the pilot of before drives
+    pilot.new_pilot()  # SYSID_MYGCS changed while armed
+    output = pilot.manual_control(0, 800, 700, 0, mode=FlightMode.MANUAL, armed=True, now_s=0.1)
+    assert output.newly_held == ("y", "z")
+    assert [str(command) for command in output.commands] == ["#th.0.0!"]  # neutral: stopped
+    assert _held(pilot, 0, 800, 700, 0.2) == ()  # said once; the next input is no first one
+    assert _drive(pilot, 0, 0, 500, 0.3) == []  # centred
+    assert _drive(pilot, 0, 800, 700, 0.4) == ["#th.90.80!", "#mvs.+40!"]
+
+
+def test_a_new_pilots_stick_disarmed_is_held_at_arming_and_a_centred_one_drives():
+    pilot = PilotInput(ParameterTable())
+    pilot.new_pilot()
+    _drive(pilot, 0, 800, 500, 0.0, armed=False)  # the new pilot's stick, disarmed
+    pilot.hold_off_centre_axes()  # armed: held as any stick at arming
+    assert _held(pilot, 0, 800, 500, 0.1) == ("y",)
+    pilot.new_pilot()  # armed, a first input centred: nothing held
+    assert _drive(pilot, 0, 0, 500, 0.2) == []
+    assert _drive(pilot, 1000, 0, 500, 0.3) == ["#th.0.100!"]
+
+
+def test_rc_release_puts_every_channel_back_to_neutral():
+    rc = RcOverride(stale_after_s=INPUT_STALE_S)
+    rc.update([1500, 1500, 1900, 1500, 1900, 1100, 0, 0], now_s=0.0)
+    rc.release()  # another ground station flies: its overrides start from neutral
+    assert rc.update([CHANNEL_NO_CHANGE] * 8, now_s=0.1) == (0, 0, 500)
+
+
 @pytest.mark.parametrize(("pulse_us", "held"), [(1540, False), (1541, True), (1459, True)])
 def test_an_rc_channel_counts_as_neutral_within_40_us(pulse_us: int, held: bool):
     rc = RcOverride(stale_after_s=INPUT_STALE_S)

@@ -9,12 +9,12 @@ import threading
 from collections.abc import AsyncIterator, Callable
 from contextlib import asynccontextmanager
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Protocol
 
 import aiomqtt
 
 from rovlink.aio import AsyncClient
-from rovlink.bridges.mqtt.bridge import MqttBridge
+from rovlink.bridges.mqtt.bridge import REPLY_TIMEOUT_S, MqttBridge
 from rovlink.bridges.mqtt.broker import BrokerSettings
 from rovlink.client import ClientOptions
 from rovlink.client.links import Link, PortLink
@@ -25,6 +25,13 @@ from tests.piloting.rig import SilenceableLink
 
 CONDITION_TIMEOUT_S = 15.0
 _DISCONNECT_WAIT_S = 5.0
+
+
+class BrokerAddress(Protocol):
+    """Where a broker listens on the loopback: a mosquitto, or a fake one."""
+
+    @property
+    def port(self) -> int: ...
 
 
 class HoldingLink(SilenceableLink):
@@ -64,7 +71,7 @@ class BridgedRobot:
 
 @asynccontextmanager
 async def bridged_robot(
-    broker: Mosquitto,
+    broker: BrokerAddress,
     robot_id: str,
     *,
     allow_commands: bool = True,
@@ -72,7 +79,11 @@ async def bridged_robot(
     motion_timeout_s: float | None = None,
     leak_at_s: float | None = None,
     timeout_s: float = 2.0,
+    reply_timeout_s: float = REPLY_TIMEOUT_S,
+    wait_connected: bool = True,
 ) -> AsyncIterator[BridgedRobot]:
+    """A bridge for a simulated robot (once connected to ``broker``, unless not
+    ``wait_connected``); cancelled on leaving."""
     port = SimulatedPort(SimConfig(), seed=1)
     if leak_at_s is not None:
         port.robot.inject_leak(at_s=leak_at_s)
@@ -88,11 +99,13 @@ async def bridged_robot(
         robot_id,
         rate_hz=rate_hz,
         allow_commands=allow_commands,
+        reply_timeout_s=reply_timeout_s,
     )
     task = asyncio.ensure_future(bridge.run())
     robot = BridgedRobot(robot_id, port, link, bridge, task)
     try:
-        await until(bridge.connected.is_set)
+        if wait_connected:
+            await until(bridge.connected.is_set)
         yield robot
     finally:
         task.cancel()

@@ -6,6 +6,7 @@ import asyncio
 import contextlib
 import json
 import logging
+from typing import Any
 
 import aiomqtt
 import pytest
@@ -511,3 +512,36 @@ async def test_a_broker_disconnect_that_never_ends_does_not_hold_back_the_final_
     finally:
         let_go.set()  # (the connection left behind closes before the loop does)
         await asyncio.sleep(0.1)
+
+
+async def test_a_bridge_ends_though_a_publish_swallows_its_cancellation(
+    broker: Mosquitto, monkeypatch: pytest.MonkeyPatch
+):
+    # On Python 3.10, asyncio.wait_for (aiomqtt's, waiting for a PUBACK) swallows a cancellation
+    # that comes as the PUBACK does (bpo-37658): the publishing task ran on and the bridge, waiting
+    # for it, never ended. Here a publish in flight swallows the first cancellation, on any Python.
+    real_publish = aiomqtt.Client.publish
+    hold = asyncio.Event()
+    in_flight = asyncio.Event()
+
+    async def publish_swallowing_a_cancellation(self: Any, *args: Any, **kwargs: Any) -> None:
+        if not hold.is_set():
+            return await real_publish(self, *args, **kwargs)
+        hold.clear()  # (only this one)
+        in_flight.set()
+        with contextlib.suppress(asyncio.CancelledError):  # the acknowledgement came with it
+            await asyncio.Event().wait()
+
+    monkeypatch.setattr(aiomqtt.Client, "publish", publish_swallowing_a_cancellation)
+    async with (
+        subscriber(broker, "rovlink/w1/state") as watcher,
+        bridged_robot(broker, "w1") as robot,
+    ):
+        await watcher.wait_for("rovlink/w1/state", lambda s: s["online"])
+        hold.set()
+        await asyncio.wait_for(in_flight.wait(), CONDITION_TIMEOUT_S)
+        robot.task.cancel()
+        await asyncio.wait({robot.task}, timeout=CONDITION_TIMEOUT_S)
+        assert robot.task.done()
+        offline = await watcher.wait_for("rovlink/w1/state", lambda s: not s["online"])
+        assert offline["reason"] == "bridge stopped"

@@ -416,6 +416,11 @@ class MavlinkBridge:
                 return
         if name == PILOT_SYSTEM:
             self._ignored_pilots.clear()  # (a joystick still ignored is said again)
+            if self.parameters.value(name) != before:
+                # The new pilot's stick or overrides, off centre all along, must not drive at
+                # once: held until centred, as at arming.
+                self.pilot.new_pilot()
+                self.rc_override.release()
         self._param_value(name)
 
     def _param_value(self, name: str) -> None:

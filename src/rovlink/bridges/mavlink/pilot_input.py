@@ -14,7 +14,9 @@ An axis off centre when the vehicle is armed is held at neutral until it has bee
 (within :data:`CENTRE_BAND` of full, the throttle's depth-hold dead band): an RC override set
 while disarmed, or left from before a disarm, is repeated by its ground station and would
 otherwise drive the robot the moment it is armed, without a fresh pilot input; so would a
-joystick held (or drifting) off centre as the arm button is pressed.
+joystick held (or drifting) off centre as the arm button is pressed. The same holds when another
+ground station becomes the pilot's while armed (:meth:`PilotInput.new_pilot`): the first input
+of its stick, which may have been off centre all along, is held likewise.
 
 What "changed" and "zero" are measured against is the set-points as last sent to the controller
 (:meth:`PilotInput.sync`), never a guess: the controller keeps its thrust across a repeated
@@ -141,6 +143,8 @@ class PilotInput:
         self._stick = {"x": 0, "y": 0, "z": _NEUTRAL_Z}
         self._held_axes: set[str] = set()
         self._said_held_axes: set[str] = set()
+        #: Another pilot flies and has sent no input yet: its first input's axes are held.
+        self._hold_first_input = False
 
     @property
     def moving(self) -> bool:
@@ -174,6 +178,15 @@ class PilotInput:
         self._held_axes = {axis for axis, value in self._stick.items() if not _centred(axis, value)}
         self._said_held_axes = set()
 
+    def new_pilot(self) -> None:
+        """Another ground station flies from now on: the stick last seen is no longer its own.
+
+        Its first input, armed, has the axes off centre held at neutral until centred, as at
+        arming (its stick, ignored until now, may be held over; its overrides set long since).
+        Disarmed, that input is the stick as it is when the vehicle is armed.
+        """
+        self._hold_first_input = True
+
     def hold(self, depth_cm: int) -> Command:
         """ALT_HOLD from now on holds ``depth_cm``: the command that says so."""
         depth = max(_DEPTH_RANGE.minimum, min(_DEPTH_RANGE.maximum, depth_cm))
@@ -201,6 +214,10 @@ class PilotInput:
         # ArduSub's 0…1000 (MAVLink's common range is −1000…1000): beyond it, full throttle.
         throttle = max(0, min(_FULL_Z, _axis(z, _NEUTRAL_Z)))
         self._stick = {"x": _axis(x), "y": _axis(y), "z": throttle}
+        if self._hold_first_input:  # a new pilot's first input
+            self._hold_first_input = False
+            if armed:
+                self.hold_off_centre_axes()
         if not armed:  # the controller drops motion while locked (P7): nothing to send
             return PilotOutput((), pressed)
         stick, newly_held = self._released_axes()

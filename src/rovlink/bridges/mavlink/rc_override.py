@@ -9,7 +9,8 @@ up or down, so channels 5 and 6 are MANUAL_CONTROL's x and y, channel 3 its z, a
 Per the MAVLink spec, on channels 1–8 a value of 0 releases the channel (back to neutral: the
 robot has no radio to hand it to) and UINT16_MAX leaves it as it is. A channel keeps its value
 from message to message, as ArduSub's overrides do, until the input goes stale: then every
-channel is released, so input that resumes after a silence starts from neutral.
+channel is released, so input that resumes after a silence starts from neutral, as do the
+overrides of a ground station that becomes the pilot's (``SYSID_MYGCS``).
 
 A channel off neutral when the vehicle is armed is held at neutral until an override has it
 back within ±40 µs of 1500 (:class:`~rovlink.bridges.mavlink.pilot_input.PilotInput` holds it,
@@ -69,11 +70,16 @@ class RcOverride:
         self._pulses_us = dict.fromkeys(_FLOWN_CHANNELS, PWM_NEUTRAL_US)
         self._last_at_s: float | None = None
 
+    def release(self) -> None:
+        """Every channel back to neutral (input gone stale, or another ground station flies:
+        its overrides start from neutral, not from the channels the last one set)."""
+        self._pulses_us = dict.fromkeys(_FLOWN_CHANNELS, PWM_NEUTRAL_US)
+
     def update(self, channels: Sequence[int], now_s: float) -> tuple[int, int, int]:
         """Take one message's channels (``channels[0]`` is channel 1); the stick they make:
         x (forward) and y (right) in −1000…1000, z (throttle) in 0…1000 with 500 neutral."""
         if self._last_at_s is not None and now_s - self._last_at_s >= self.stale_after_s:
-            self._pulses_us = dict.fromkeys(_FLOWN_CHANNELS, PWM_NEUTRAL_US)
+            self.release()
         self._last_at_s = now_s
         for channel in _FLOWN_CHANNELS:
             raw = channels[channel - 1]

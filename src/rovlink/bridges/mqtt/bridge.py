@@ -32,6 +32,7 @@ from rovlink.aio.wakeup import wait_for_event
 from rovlink.bridges.kept_settings import KeptSettings
 from rovlink.bridges.mqtt.broker import BrokerSettings
 from rovlink.bridges.mqtt.commands import CommandPolicy
+from rovlink.bridges.mqtt.connection import broker_connection
 from rovlink.bridges.mqtt.outbox import Outbox
 from rovlink.bridges.mqtt.payloads import (
     CommandRequest,
@@ -46,6 +47,7 @@ from rovlink.bridges.mqtt.payloads import (
 )
 from rovlink.bridges.mqtt.topics import Topics, publish_topic_problem
 from rovlink.bridges.sensor_poll import SensorPoller, reopening
+from rovlink.bridges.task_ending import cancel_and_wait
 from rovlink.client.errors import ConnectionLostError, QueryTimeoutError
 from rovlink.client.events import ClientEvent, LinkState, MotionExpired, ResetSuspected
 from rovlink.client.sensors import Sensors
@@ -54,7 +56,7 @@ from rovlink.piloting.commanded import LockState
 from rovlink.piloting.tracked import TrackedClient
 from rovlink.protocol import Command, Response
 
-__all__ = ["BridgeReplacedError", "MqttBridge"]
+__all__ = ["REPLY_TIMEOUT_S", "BridgeReplacedError", "MqttBridge"]
 
 logger = get_logger("rovlink.bridges.mqtt")
 
@@ -82,11 +84,16 @@ _RECONNECT_MAX_S = 5.0
 #: Telemetry waiting for the broker beyond this is dropped (QoS 0 promises no more).
 _TELEMETRY_BACKLOG = 64
 _KEEPALIVE_S = 10
+#: How long the broker has to answer (CONNACK, SUBACK, PUBACK) before the connection is given up.
+REPLY_TIMEOUT_S = 5.0
 #: The offline state at the end is given up after this (the last will covers a lost broker).
 _FAREWELL_S = 2.0
-#: How long the bridge's tasks have to end once it ends, before ``#stop!`` is sent anyway:
-#: the farewell, then the MQTT disconnect (aiomqtt waits for the broker's side of it unbounded).
-_END_WAIT_S = _FAREWELL_S + 3.0
+#: A task still running this long after its cancellation (beyond the time it may take to end) is
+#: cancelled again: on Python 3.10 a cancellation can be swallowed (bpo-37658).
+_RECANCEL_MARGIN_S = 1.0
+#: The longest the bridge's tasks may take to end (recancelled meanwhile) before its final
+#: ``#stop!`` goes anyway: aiomqtt waits for the broker's side of a disconnect without a bound.
+_END_WAIT_S = 10.0
 #: MQTT 5's DISCONNECT reason: another client connected with this one's client id.
 _SESSION_TAKEN_OVER = 0x8E
 #: A connection that lasted this long resets the reconnection backoff, s.
@@ -131,6 +138,7 @@ class MqttBridge:
         *,
         rate_hz: float = 5.0,
         allow_commands: bool = False,
+        reply_timeout_s: float = REPLY_TIMEOUT_S,
         wall_clock: Callable[[], float] = time.time,
     ) -> None:
         self.rov = rov
@@ -139,6 +147,8 @@ class MqttBridge:
         self.robot_id = robot_id
         self.policy = CommandPolicy(allow_commands=allow_commands)
         self.outbox = Outbox()
+        #: How long the broker has to answer a connection, subscription or publication, s.
+        self.reply_timeout_s = reply_timeout_s
         self.connected = asyncio.Event()
         self.sequence = 0
         self._wall_clock = wall_clock
@@ -180,13 +190,18 @@ class MqttBridge:
             self._end_reason(error)  # before the broker task is cancelled: it says this reason
             raise
         finally:
-            tasks: list[asyncio.Future[None]] = [poller, broker, *self._background]
-            for running in tasks:
-                running.cancel()
-            _, stuck = await asyncio.wait(tasks, timeout=_END_WAIT_S)
-            if stuck:  # (left behind: the process is ending, and the stop must not wait)
+            # The broker task says goodbye as it ends (the offline state), within the farewell
+            # time and a disconnection's reply: cancelled again only if it runs on beyond that.
+            ending = asyncio.ensure_future(
+                cancel_and_wait(
+                    [poller, broker, *self._background],
+                    recancel_after_s=_FAREWELL_S + self.reply_timeout_s + _RECANCEL_MARGIN_S,
+                )
+            )
+            ended, _ = await asyncio.wait([ending], timeout=_END_WAIT_S)
+            if not ended:  # (left behind: the process is ending, and the stop must not wait)
                 logger.warning(
-                    "the broker connection did not close within %g s; stopping the robot anyway",
+                    "the bridge's tasks did not end within %g s; stopping the robot anyway",
                     _END_WAIT_S,
                 )
             with contextlib.suppress(ConnectionError):
@@ -203,7 +218,7 @@ class MqttBridge:
         while True:
             connected_at_s: float | None = None
             try:
-                async with self._client(aiomqtt) as mqtt:
+                async with broker_connection(self._client(aiomqtt)) as mqtt:
                     connected_at_s = loop.time()
                     logger.info("connected to %s", self.broker.describe())
                     try:
@@ -280,7 +295,7 @@ class MqttBridge:
             keepalive=_KEEPALIVE_S,
             tls_params=tls_params,
             tls_insecure=broker.insecure if broker.tls else None,
-            timeout=5.0,
+            timeout=self.reply_timeout_s,
         )
 
     async def _serve(self, mqtt: Any) -> None:
@@ -314,9 +329,7 @@ class MqttBridge:
                 task.result()  # the broker went away (MqttError), or a fault
         finally:
             self.connected.clear()
-            for running in tasks:
-                running.cancel()
-            await asyncio.gather(*tasks, return_exceptions=True)
+            await cancel_and_wait(tasks, recancel_after_s=_RECANCEL_MARGIN_S)
 
     async def _receive(self, mqtt: Any, queue: asyncio.Queue[_Asked]) -> None:
         """Commands in the order they came, one at a time (a query waits for its reply), but a
@@ -401,7 +414,9 @@ class MqttBridge:
         try:
             await asyncio.wait_for(goodbye(), _FAREWELL_S)
         except Exception as error:  # ending anyway; the last will may say it
-            logger.warning("could not publish the offline state: %s", error)
+            logger.warning(
+                "could not publish the offline state: %s", str(error) or type(error).__name__
+            )
 
     def _end_reason(self, error: BaseException) -> str:
         """Why the bridge ends, for the offline state: the first reason given is kept (the
