@@ -63,6 +63,23 @@ async def wait_until_async(
     return True
 
 
+class ThreadCall:
+    """A program thread that makes one call and keeps what became of it."""
+
+    def __init__(self, call: Callable[[], object]) -> None:
+        self.error: BaseException | None = None
+        self.done = threading.Event()
+        threading.Thread(target=self._run, args=(call,), daemon=True).start()
+
+    def _run(self, call: Callable[[], object]) -> None:
+        try:
+            call()
+        except BaseException as error:  # (kept for the test to look at)
+            self.error = error
+        finally:
+            self.done.set()
+
+
 class WatchedLock:
     """One of a client's locks, counting the threads waiting for it (put in its place)."""
 

@@ -11,7 +11,7 @@ import socket
 import threading
 import time
 import tty
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -22,7 +22,13 @@ from rovlink.client import Client, links
 from rovlink.client.errors import ConnectionLostError, SupersededByStopError
 from rovlink.client.events import ClientEvent, LinkState
 from rovlink.client.links import Link, SocketLink
-from tests.client.conftest import CONDITION_TIMEOUT_S, WatchedLock, client_options, wait_until
+from tests.client.conftest import (
+    CONDITION_TIMEOUT_S,
+    ThreadCall,
+    WatchedLock,
+    client_options,
+    wait_until,
+)
 from tests.client.fake_controller import FakeController, FakeControllerServer
 
 pytestmark = pytest.mark.integration
@@ -50,41 +56,36 @@ def _probed(fake: FakeController) -> bool:
     return "#qd!" in fake.frames()
 
 
-class _Call:
-    """A program thread that makes one call and keeps what became of it."""
+class _StuckLines:
+    """Reopened links whose far end, plugged back, reads nothing: their writes wait for room."""
 
-    def __init__(self, call: Callable[[], object]) -> None:
-        self.error: BaseException | None = None
-        self.done = threading.Event()
-        threading.Thread(target=self._run, args=(call,), daemon=True).start()
+    def __init__(self) -> None:
+        self.far_ends: list[socket.socket] = []
 
-    def _run(self, call: Callable[[], object]) -> None:
-        try:
-            call()
-        except BaseException as error:  # (kept for the test to look at)
-            self.error = error
-        finally:
-            self.done.set()
+    def open(self) -> Link:
+        far_end, ours = socket.socketpair()
+        self.far_ends.append(far_end)
+        link = SocketLink(ours, "socket pair, reopened, stuck")
+        _fill(link)
+        return link
+
+    def first_was_let_go(self) -> bool:
+        """Whether the first line's port was closed: its far end reads the end, past the fill."""
+        far_end = self.far_ends[0]
+        far_end.setblocking(False)
+        with contextlib.suppress(BlockingIOError):  # (what the fill left)
+            while far_end.recv(1 << 20):
+                pass
+        return far_end.recv(1) == b""
 
 
-class _Writer:
-    """A program thread that writes a command and keeps what became of it."""
-
-    def __init__(self, rov: Client, direction_deg: int = 90, power_percent: int = 40) -> None:
-        self.error: BaseException | None = None
-        self.done = threading.Event()
-        self._thread = threading.Thread(
-            target=self._run, args=(rov, direction_deg, power_percent), daemon=True
-        )
-        self._thread.start()
-
-    def _run(self, rov: Client, direction_deg: int, power_percent: int) -> None:
-        try:
-            rov.move(direction_deg, power_percent)
-        except BaseException as error:  # (kept for the test to look at)
-            self.error = error
-        finally:
-            self.done.set()
+@pytest.fixture
+def stuck() -> Iterator[_StuckLines]:
+    """Lines that take nothing, for ``reopen`` (their far ends closed after the test)."""
+    lines = _StuckLines()
+    yield lines
+    for far_end in lines.far_ends:
+        far_end.close()
 
 
 @pytest.fixture
@@ -116,7 +117,7 @@ def test_a_stop_on_the_reopened_link_does_not_wait_for_a_write_blocked_on_the_lo
     try:
         _fill(link)
         sent = rov.counters.frames_sent
-        writer = _Writer(rov)
+        writer = ThreadCall(lambda: rov.move(90, 40))
         assert wait_until(lambda: rov.counters.frames_sent > sent)  # the #th is being written
         far_end.shutdown(socket.SHUT_WR)  # the link is lost: the reader sees its end
         assert wait_until(lambda: _lost(events))
@@ -209,7 +210,9 @@ def test_a_stop_behind_a_write_that_times_out_is_the_reopened_links_first_frame(
         first.fake.stop_reading()  # the controller hangs
         first.fill_line()
         sent = rov.counters.frames_sent
-        writer = _Writer(rov)  # waits for room, then times out: the link is lost
+        writer = ThreadCall(
+            lambda: rov.move(90, 40)
+        )  # waits for room, then times out: the link is lost
         assert wait_until(lambda: rov.counters.frames_sent > sent)
         device_name.unlink()  # plugged out and in again: a working controller, the same name
         second = _SerialDevice(device_name)
@@ -256,7 +259,7 @@ def test_zero_thrust_cut_off_by_the_loss_of_the_link_goes_first_on_the_reopened_
         first.fill_line()
         sent = rov.counters.frames_sent
         if not expiring:
-            _Writer(rov, 90, 0)  # waits for room, then times out: the link is lost
+            ThreadCall(lambda: rov.move(90, 0))  # waits for room, then times out: the link is lost
         assert wait_until(lambda: rov.counters.frames_sent > sent)  # the zero is being written
         device_name.unlink()  # plugged out and in again: the same name
         second = _SerialDevice(device_name)
@@ -335,30 +338,21 @@ async def test_an_asyncio_stop_written_as_the_adapter_is_pulled_out_goes_first_o
 
 
 def test_close_while_a_reopened_link_takes_nothing_returns_at_once_and_lets_the_port_go(
-    reopened: list[FakeController],
+    reopened: list[FakeController], stuck: _StuckLines
 ) -> None:
     # Before, close() waited 2 s for the reconnecting thread, blocked in writing zero thrust to
     # a reopened link that took nothing, and returned with that thread still running and the
     # port still open (P22: the program's next open of it could fail).
-    stuck: list[socket.socket] = []
-
-    def reopen() -> Link:
-        far_end, ours = socket.socketpair()  # plugged back, but nothing reads it
-        stuck.append(far_end)
-        link = SocketLink(ours, "socket pair, reopened")
-        _fill(link)
-        return link
-
     first, host_end = FakeController.on_socketpair()
     reopened.append(first)
     events: list[ClientEvent] = []
     options = client_options(reconnect=True, boot_timeout_s=2.0, on_event=events.append)
-    rov = Client(SocketLink(host_end, "socket pair"), options, reopen=reopen)
+    rov = Client(SocketLink(host_end, "socket pair"), options, reopen=stuck.open)
     try:
         rov.start()
         rov.move(90, 50)  # a reopened link is sent zero thrust first
         first.close()
-        assert wait_until(lambda: bool(stuck))
+        assert wait_until(lambda: bool(stuck.far_ends))
         reconnector = rov._reconnector
         assert reconnector is not None
         started = time.monotonic()
@@ -367,16 +361,10 @@ def test_close_while_a_reopened_link_takes_nothing_returns_at_once_and_lets_the_
         assert took_s < PROMPT_S, f"close() took {took_s:.2f} s"
         reconnector.join(PROMPT_S)
         assert not reconnector.is_alive()
-        assert stuck[0].fileno() >= 0
-        stuck[0].setblocking(False)
-        with contextlib.suppress(BlockingIOError):  # (what the fill left)
-            while stuck[0].recv(1 << 20):
-                pass
-        assert stuck[0].recv(1) == b""  # the reopened port was let go
+        assert stuck.far_ends[0].fileno() >= 0
+        assert stuck.first_was_let_go()
     finally:
         rov.close()
-        for far_end in stuck:
-            far_end.close()
 
 
 def test_a_command_that_waited_for_the_reopened_link_is_not_sent_after_a_stop(
@@ -392,9 +380,11 @@ def test_a_command_that_waited_for_the_reopened_link_is_not_sent_after_a_stop(
         port.refuse = True  # unplugged
         port.fakes[0].close()
         assert wait_until(lambda: _lost(events))
-        starting = _Call(rov.start)  # waits for the link
+        starting = ThreadCall(rov.start)  # waits for the link
         assert wait_until(lambda: rov._waiting_callers > 0)
-        setting = _Call(lambda: rov.set_max_pwm(180))  # waits too; it neither moves nor unlocks
+        setting = ThreadCall(
+            lambda: rov.set_max_pwm(180)
+        )  # waits too; it neither moves nor unlocks
         assert wait_until(lambda: rov._waiting_callers > 1)
         rov.stop()  # (after both were asked for)
         port.refuse = False  # plugged back
@@ -443,23 +433,18 @@ def test_a_port_reopened_as_close_begins_is_let_go_untouched(
 
 
 def test_a_stop_while_the_reopened_link_takes_nothing_returns_at_once(
-    reopened: list[FakeController], monkeypatch: pytest.MonkeyPatch
+    reopened: list[FakeController], stuck: _StuckLines, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     # Before, stop() waited behind the zero thrust the reconnecting thread was writing on a
     # reopened link that took nothing, until that write gave up (2 s).
     monkeypatch.setattr(links, "WRITE_TIMEOUT_S", 1.0)
-    stuck: list[socket.socket] = []
 
     def reopen() -> Link:
-        if stuck:  # the next time: a controller that reads
+        if stuck.far_ends:  # the next time: a controller that reads
             fake, ours = FakeController.on_socketpair()
             reopened.append(fake)
             return SocketLink(ours, "socket pair, reopened")
-        far_end, ours = socket.socketpair()  # plugged back, but nothing reads it
-        stuck.append(far_end)
-        link = SocketLink(ours, "socket pair, reopened, stuck")
-        _fill(link)
-        return link
+        return stuck.open()  # plugged back, but nothing reads it
 
     first, host_end = FakeController.on_socketpair()
     reopened.append(first)
@@ -470,7 +455,7 @@ def test_a_stop_while_the_reopened_link_takes_nothing_returns_at_once(
         rov.start()
         rov.move(90, 50)  # a reopened link is sent zero thrust first
         first.close()
-        assert wait_until(lambda: bool(stuck))
+        assert wait_until(lambda: bool(stuck.far_ends))
         assert wait_until(lambda: rov._readied_link is not None)  # its zero thrust waits
         started = time.monotonic()
         rov.stop()
@@ -482,30 +467,19 @@ def test_a_stop_while_the_reopened_link_takes_nothing_returns_at_once(
         assert reopened[1].frames()[:3] == ["#stop!", "#crcoff!", "#qd!"]
     finally:
         rov.close()
-        for far_end in stuck:
-            far_end.close()
 
 
 def test_close_as_a_reopened_port_becomes_the_link_being_readied_lets_it_go_at_once(
-    reopened: list[FakeController],
+    reopened: list[FakeController], stuck: _StuckLines
 ) -> None:
     # Before, a close() that began after the port was reopened, but before the reconnecting
     # thread took it as the link being readied, did not give up that link's writes: the
     # reconnecting thread wrote zero thrust to a line that took nothing, close() waited 2 s for
     # it and returned with that thread running and the port open.
-    stuck: list[socket.socket] = []
-
-    def reopen() -> Link:
-        far_end, ours = socket.socketpair()  # plugged back, but nothing reads it
-        stuck.append(far_end)
-        link = SocketLink(ours, "socket pair, reopened")
-        _fill(link)
-        return link
-
     first, host_end = FakeController.on_socketpair()
     reopened.append(first)
     options = client_options(reconnect=True, boot_timeout_s=2.0)
-    rov = Client(SocketLink(host_end, "socket pair"), options, reopen=reopen)
+    rov = Client(SocketLink(host_end, "socket pair"), options, reopen=stuck.open)
     readied_lock = WatchedLock(rov._readied_lock)
     rov._readied_lock = readied_lock  # type: ignore[assignment]
     try:
@@ -518,7 +492,7 @@ def test_close_as_a_reopened_port_becomes_the_link_being_readied_lets_it_go_at_o
             reconnector = rov._reconnector
             assert reconnector is not None
             started = time.monotonic()
-            closing = _Call(rov.close)
+            closing = ThreadCall(rov.close)
             assert wait_until(lambda: rov._closing)
         finally:
             readied_lock.release()
@@ -527,12 +501,6 @@ def test_close_as_a_reopened_port_becomes_the_link_being_readied_lets_it_go_at_o
         assert took_s < PROMPT_S, f"close() took {took_s:.2f} s"
         reconnector.join(PROMPT_S)
         assert not reconnector.is_alive()
-        stuck[0].setblocking(False)
-        with contextlib.suppress(BlockingIOError):  # (what the fill left)
-            while stuck[0].recv(1 << 20):
-                pass
-        assert stuck[0].recv(1) == b""  # the reopened port was let go
+        assert stuck.first_was_let_go()
     finally:
         rov.close()
-        for far_end in stuck:
-            far_end.close()

@@ -7,7 +7,6 @@ from __future__ import annotations
 import asyncio
 import socket
 import threading
-from collections.abc import Callable
 
 import pytest
 
@@ -17,29 +16,13 @@ from rovlink.client.links import SocketLink
 from rovlink.protocol import Command
 from tests.client.conftest import (
     CONDITION_TIMEOUT_S,
+    ThreadCall,
     WatchedLock,
     client_options,
     wait_until,
     wait_until_async,
 )
 from tests.client.fake_controller import FakeController
-
-
-class _Call:
-    """A program thread that makes one call and keeps what became of it."""
-
-    def __init__(self, call: Callable[[], object]) -> None:
-        self.error: BaseException | None = None
-        self.done = threading.Event()
-        threading.Thread(target=self._run, args=(call,), daemon=True).start()
-
-    def _run(self, call: Callable[[], object]) -> None:
-        try:
-            call()
-        except BaseException as error:  # (kept for the test to look at)
-            self.error = error
-        finally:
-            self.done.set()
 
 
 class _GatedLink(SocketLink):
@@ -75,13 +58,13 @@ def test_a_start_waiting_behind_a_slow_write_is_not_sent_after_a_stop_called_mea
     rov._wire_lock = watched  # type: ignore[assignment]
     try:
         link.gate.clear()
-        slow = _Call(lambda: rov.set_max_pwm(180))  # thread A: its write waits at the gate
+        slow = ThreadCall(lambda: rov.set_max_pwm(180))  # thread A: its write waits at the gate
         assert link.held.wait(CONDITION_TIMEOUT_S)
-        starting = _Call(rov.start)  # thread B: waits for the wire lock
+        starting = ThreadCall(rov.start)  # thread B: waits for the wire lock
         assert wait_until(lambda: watched.waiting == 1)
-        debugging = _Call(lambda: rov.set_debug(True))  # neither moves nor unlocks
+        debugging = ThreadCall(lambda: rov.set_debug(True))  # neither moves nor unlocks
         assert wait_until(lambda: watched.waiting == 2)
-        stopping = _Call(rov.stop)  # thread C, after both
+        stopping = ThreadCall(rov.stop)  # thread C, after both
         assert wait_until(lambda: watched.waiting == 3)
         link.gate.set()
         for call in (slow, starting, debugging, stopping):
@@ -116,11 +99,11 @@ def test_a_raw_start_waiting_behind_a_slow_write_is_not_sent_after_a_stop(
     rov._wire_lock = watched  # type: ignore[assignment]
     try:
         link.gate.clear()
-        slow = _Call(lambda: rov.set_max_pwm(180))  # its write waits at the gate
+        slow = ThreadCall(lambda: rov.set_max_pwm(180))  # its write waits at the gate
         assert link.held.wait(CONDITION_TIMEOUT_S)
-        starting = _Call(lambda: rov.send_raw("#start!"))  # waits for the wire lock
+        starting = ThreadCall(lambda: rov.send_raw("#start!"))  # waits for the wire lock
         assert wait_until(lambda: watched.waiting == 1)
-        stopping = _Call(rov.stop)
+        stopping = ThreadCall(rov.stop)
         assert wait_until(lambda: watched.waiting == 2)
         link.gate.set()
         for call in (slow, starting, stopping):
