@@ -34,6 +34,7 @@ from rovlink.client.options import (
     StrayCallback,
 )
 from rovlink.client.readiness import ReadinessProbe
+from rovlink.client.reconnection import reconnect_delays_s, reconnecting_failed
 from rovlink.client.sensors import Sensors
 from rovlink.client.session import Outcome, PendingQuery, Session
 from rovlink.client.unsolicited import DropLog, deliver
@@ -47,9 +48,6 @@ __all__ = ["DEFAULT_MAX_IN_FLIGHT", "AsyncClient", "connect"]
 T = TypeVar("T")
 logger = get_logger("rovlink.aio")
 
-#: Reconnection backoff: the first wait, doubled after each failed attempt, up to the last.
-_RECONNECT_FIRST_S = 0.1
-_RECONNECT_MAX_S = 2.0
 #: Queries on the wire at once: enough to keep a serial line busy, few enough for a small
 #: controller's receive buffer (8 × ``#qsa!`` is 40 bytes).
 DEFAULT_MAX_IN_FLIGHT = 8
@@ -714,7 +712,7 @@ class AsyncClient(AsyncCommandMethods):
         description = self._link.description  # (the port's, whatever the attempts open)
         with contextlib.suppress(Exception):
             await self._transport.close()
-        backoff_s = _RECONNECT_FIRST_S
+        delays_s = reconnect_delays_s()
         attempts = 0
         while not self._closed:
             attempts += 1
@@ -724,8 +722,7 @@ class AsyncClient(AsyncCommandMethods):
                 link = await asyncio.shield(opening)
             except (OSError, ValueError) as error:  # ConnectError is an OSError
                 logger.debug("reconnect attempt %d: %s", attempts, error)
-                await asyncio.sleep(backoff_s)
-                backoff_s = min(backoff_s * 2, _RECONNECT_MAX_S)
+                await asyncio.sleep(next(delays_s))
                 continue
             except asyncio.CancelledError:
                 opening.add_done_callback(_close_opened)
@@ -756,8 +753,7 @@ class AsyncClient(AsyncCommandMethods):
                 session.reopen_failed()
                 with contextlib.suppress(Exception):
                     await self._transport.close()
-                await asyncio.sleep(backoff_s)
-                backoff_s = min(backoff_s * 2, _RECONNECT_MAX_S)
+                await asyncio.sleep(next(delays_s))
                 continue
             except Exception as error:  # a bug in the link: as above
                 session.reopen_failed()
@@ -778,23 +774,10 @@ class AsyncClient(AsyncCommandMethods):
             return
 
     def _give_up_reconnecting(self, error: Exception, description: str) -> None:
-        """The reconnection failed with an error that is neither the port's nor the URL's (a
-        bug in a ``reopen`` callable or a link scheme's opener): the link is lost for good, as
-        without ``reconnect``, so that calls say why at once rather than wait for a link that
-        will never come (the controller's link-loss failsafe, P17, stops the robot)."""
+        """End reconnecting for good (see :func:`.reconnection.reconnecting_failed`)."""
         if self._closed:
             return
-        logger.error(
-            "reconnecting %s failed: %s: %s; the connection is lost",
-            description,
-            type(error).__name__,
-            error,
-            exc_info=error,
-        )
-        lost = ConnectionLostError(
-            f"{description}: reconnecting failed: {type(error).__name__}: {error}"
-        )
-        lost.__cause__ = error
+        lost = reconnecting_failed(description, error, logger)
         self._lost = lost
         self._link_down = False
         self._link_ready.set()  # (callers waiting for the link fail now, with that error)

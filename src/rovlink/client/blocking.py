@@ -35,6 +35,7 @@ from rovlink.client.options import (
     StrayCallback,
 )
 from rovlink.client.readiness import ReadinessProbe
+from rovlink.client.reconnection import reconnect_delays_s, reconnecting_failed
 from rovlink.client.session import Outcome, PendingQuery, Received, Session
 from rovlink.client.unsolicited import DropLog, deliver
 from rovlink.client.url import parse_url
@@ -45,9 +46,6 @@ from rovlink.protocol.frames import checksum_mode_frame
 __all__ = ["Client", "connect"]
 
 _NEVER = float("inf")
-#: Reconnection backoff: the first wait, doubled after each failed attempt, up to the last.
-_RECONNECT_FIRST_S = 0.1
-_RECONNECT_MAX_S = 2.0
 logger = get_logger("rovlink.client")
 
 T = TypeVar("T")
@@ -487,7 +485,7 @@ class Client(CommandMethods):
             self._link.close()
         reopen = self._reopen
         assert reopen is not None
-        backoff_s = _RECONNECT_FIRST_S
+        delays_s = reconnect_delays_s()
         attempts = 0
         while not self._stop_reconnecting.is_set():
             attempts += 1
@@ -523,8 +521,7 @@ class Client(CommandMethods):
             except (OSError, ValueError) as error:  # ConnectError, ConnectionLostError too
                 logger.debug("reconnect attempt %d: %s", attempts, error)
                 self._drop_attempt(link)
-                self._stop_reconnecting.wait(backoff_s)
-                backoff_s = min(backoff_s * 2, _RECONNECT_MAX_S)
+                self._stop_reconnecting.wait(next(delays_s))
             except Exception as error:  # a bug in reopen or a link scheme: no retry can help
                 self._drop_attempt(link)
                 self._give_up_reconnecting(error)
@@ -544,15 +541,12 @@ class Client(CommandMethods):
                 link.close()
 
     def _give_up_reconnecting(self, error: Exception) -> None:
-        """The reconnection failed with an error that is neither the port's nor the URL's (a
-        bug in a ``reopen`` callable or a link scheme's opener): the link is lost for good, as
-        without ``reconnect``, so that calls say why at once rather than wait for a link that
-        will never come (the controller's link-loss failsafe, P17, stops the robot)."""
-        description = self._link.description  # (the port's: the attempt's link is not kept)
-        lost = ConnectionLostError(
-            f"{description}: reconnecting failed: {type(error).__name__}: {error}"
-        )
-        lost.__cause__ = error
+        """End reconnecting for good (see :func:`.reconnection.reconnecting_failed`)."""
+        with self._state_lock:
+            if self._closing:
+                return
+        # (The port's description: the attempt's link is not kept. Logged outside the lock.)
+        lost = reconnecting_failed(self._link.description, error, logger)
         with self._state_lock:
             if self._closing:
                 return
@@ -561,29 +555,13 @@ class Client(CommandMethods):
             self._session.disconnect()
             self._changed.notify_all()
             self._background_wakeup.notify()
-        logger.error(
-            "reconnecting %s failed: %s: %s; the connection is lost",
-            description,
-            type(error).__name__,
-            error,
-            exc_info=error,
-        )
 
     def _release_readied(self, link: Link) -> None:
         """Let go of the readied link's lock (held once), first writing on ``link`` the
         ``#stop!`` a stop() handed over meanwhile (see :meth:`_stop_while_reconnecting`)."""
         lock = self._readied_lock
         try:
-            while True:
-                with self._state_lock:
-                    if not self._stop_handed_over:
-                        # (Under the state lock: a stop() finds the lock free now, or it
-                        # handed the stop over before this looked.)
-                        lock.release()
-                        return
-                    self._stop_handed_over = False
-                    data = self._session.stop_while_reconnecting(self._clock())
-                link.write(data)
+            self._write_then(link, b"", lock.release)
         except BaseException:  # (the attempt fails: the stop is kept for the next link)
             if _owns(lock):  # (a Ctrl-C may land after the release, on connect)
                 lock.release()
@@ -604,34 +582,45 @@ class Client(CommandMethods):
                         return False
                     session.reset_link()
                     data = session.take_outbox(self._clock())  # the mode, zero thrust
-                while True:
-                    link.write(data)  # (not under the state lock: the link may be slow)
-                    with self._state_lock:
-                        if self._stop_handed_over:  # (asked for during that write)
-                            self._stop_handed_over = False
-                            data = session.stop_while_reconnecting(self._clock())
-                            continue
-                        self._readied_link = None
-                        if self._closing:  # (close() began during that write)
-                            session.reopen_failed()
-                            link.close()
-                            return False
-                        session.link_ready()  # (not before: a failed write leaves them)
-                        self._link = link
-                        self._send_now = getattr(link, "send_some", None)
-                        self._read_reply = getattr(link, "read_reply", link.read_available)
-                        self._reconnecting = False
-                        plural = "s" if attempts > 1 else ""
-                        session.note_link(
-                            "reconnected",
-                            f"{link.description} after {attempts} attempt{plural}",
-                            self._clock(),
-                        )
-                        self._changed.notify_all()
-                        self._background_wakeup.notify()
-                        return True
+                return self._write_then(link, data, lambda: self._settle_install(link, attempts))
             finally:
                 self._readied_lock.release()
+
+    def _write_then(self, link: Link, data: bytes, settle: Callable[[], T]) -> T:
+        """Write ``data`` on the readied ``link``, then each ``#stop!`` a stop() hands over
+        meanwhile (see :meth:`_stop_while_reconnecting`), and return ``settle()``, run under the
+        state lock once none is left: a later stop() finds what it settled (the link's lock
+        free, or the link installed), an earlier one handed its stop over first."""
+        while True:
+            if data:
+                link.write(data)  # (not under the state lock: the link may be slow)
+            with self._state_lock:
+                if not self._stop_handed_over:
+                    return settle()
+                self._stop_handed_over = False
+                data = self._session.stop_while_reconnecting(self._clock())
+
+    def _settle_install(self, link: Link, attempts: int) -> bool:
+        """The end of :meth:`_install` (state lock held): ``link`` becomes the connection's,
+        unless close() began during its last write (False)."""
+        session = self._session
+        self._readied_link = None
+        if self._closing:
+            session.reopen_failed()
+            link.close()
+            return False
+        session.link_ready()  # (not before: a failed write leaves them)
+        self._link = link
+        self._send_now = getattr(link, "send_some", None)
+        self._read_reply = getattr(link, "read_reply", link.read_available)
+        self._reconnecting = False
+        plural = "s" if attempts > 1 else ""
+        session.note_link(
+            "reconnected", f"{link.description} after {attempts} attempt{plural}", self._clock()
+        )
+        self._changed.notify_all()
+        self._background_wakeup.notify()
+        return True
 
     def _abandon(self, pending: PendingQuery) -> None:
         """Give up the query of a caller that was interrupted (state lock held): it may be
