@@ -22,6 +22,7 @@ from rovlink.client import Client, links
 from rovlink.client.errors import ConnectionLostError, SupersededByStopError
 from rovlink.client.events import ClientEvent, LinkState
 from rovlink.client.links import Link, SocketLink
+from rovlink.client.url import parse_url
 from tests.client.conftest import (
     CONDITION_TIMEOUT_S,
     ThreadCall,
@@ -504,3 +505,35 @@ def test_close_as_a_reopened_port_becomes_the_link_being_readied_lets_it_go_at_o
         assert stuck.first_was_let_go()
     finally:
         rov.close()
+
+
+@pytest.mark.parametrize("wrapped", [False, True], ids=["serial", "spy"])
+def test_a_write_waiting_on_a_pyserial_port_is_given_up_at_once(
+    tmp_path: Path, wrapped: bool
+) -> None:
+    # spy:// (pyserial's logging wrapper) is read and written through pyserial, not through
+    # the descriptor: its waiting write could not be given up, and a reconnection waited the
+    # 2 s write timeout for it. pyserial's cancel_write ends it, and reports it written.
+    controller_end, terminal = os.openpty()  # the controller end reads nothing
+    tty.setraw(terminal)
+    name = os.ttyname(terminal)
+    url = f"spy://{name}?file={tmp_path / 'spy.txt'}" if wrapped else name
+    link = links.open_link(parse_url(url))
+    try:
+        assert isinstance(link, (links.PortLink, links.FdLink))
+        assert isinstance(link, links.PortLink) == wrapped  # (read and written by pyserial)
+        writer = ThreadCall(lambda: link.write(b"\r\n" * (1 << 20)))  # more than a terminal holds
+        # (Bytes reach the controller end as the write starts; it then waits for room.)
+        assert wait_until(lambda: bool(select.select([controller_end], [], [], 0)[0]))
+        started = time.monotonic()
+        link.abort_writes()
+        assert writer.done.wait(PROMPT_S), "the waiting write was not given up"
+        assert time.monotonic() - started < PROMPT_S
+        assert isinstance(writer.error, ConnectionLostError)
+        assert "write abandoned" in str(writer.error)
+        with pytest.raises(ConnectionLostError, match="write abandoned"):
+            link.write(b"#stop!")  # (the link is lost: the stop goes on the next one)
+    finally:
+        link.close()
+        os.close(terminal)
+        os.close(controller_end)

@@ -200,7 +200,7 @@ class FdLink:
             link.write(b"#qd!")
         """
         if self._writes_aborted:
-            raise self._aborted_error()
+            raise _write_abandoned(self.description)
         written = self.send_some(data)
         if written == len(data):  # nearly always: a frame fits in the kernel's buffer
             return
@@ -214,7 +214,7 @@ class FdLink:
                 except (OSError, ValueError) as error:
                     raise ConnectionLostError(f"{self.description}: {error}") from error
                 if self._writes_aborted:
-                    raise self._aborted_error()
+                    raise _write_abandoned(self.description)
                 if not ready:
                     raise ConnectionLostError(
                         f"{self.description}: write blocked for {WRITE_TIMEOUT_S:g} s"
@@ -235,9 +235,6 @@ class FdLink:
         self._writes_aborted = True
         with contextlib.suppress(OSError):  # a wake-up already pending, or closed
             self._abort_w.send(b"x")
-
-    def _aborted_error(self) -> ConnectionLostError:
-        return ConnectionLostError(f"{self.description}: write abandoned, the link is lost")
 
     def wake(self) -> None:
         """Make a ``read_available`` blocked in another thread return now.
@@ -482,6 +479,7 @@ class PortLink:
         self.description = description
         port.timeout = POLL_INTERVAL_S
         self._closed = False
+        self._writes_aborted = False
 
     @property
     def port(self) -> Any:
@@ -526,10 +524,33 @@ class PortLink:
         """
         if self._closed:
             raise ConnectionLostError(f"{self.description}: closed")
+        if self._writes_aborted:
+            raise _write_abandoned(self.description)
         try:
             self._port.write(data)
         except Exception as error:
             raise ConnectionLostError(f"{self.description}: {error}") from error
+        # (pyserial's write returns, as if it had written, when cancel_write gives it up.)
+        if self._writes_aborted:
+            raise _write_abandoned(self.description)
+
+    def abort_writes(self) -> None:
+        """Give up every write waiting for room, now and from now on: the link is lost.
+
+        Where the port can (pyserial's ports on POSIX, and wrappers of them such as
+        ``spy://``, through ``cancel_write``), a write waiting in another thread returns at
+        once; on others (``rfc2217://``) it ends at the port's own write timeout. Either way it
+        raises :class:`ConnectionLostError` rather than report the data written.
+
+        Example::
+
+            link.abort_writes()   # a write waiting in another thread raises ConnectionLostError
+        """
+        self._writes_aborted = True
+        cancel = getattr(self._port, "cancel_write", None)
+        if cancel is not None:
+            with contextlib.suppress(Exception):  # (a port closed meanwhile)
+                cancel()
 
     def wake(self) -> None:
         """Interrupt a blocked read where the port supports it; otherwise it returns on its own.
@@ -552,7 +573,13 @@ class PortLink:
         """
         if not self._closed:
             self._closed = True
+            self.abort_writes()  # (a writer waiting for room must not outlive the port)
             self._port.close()
+
+
+def _write_abandoned(description: str) -> ConnectionLostError:
+    """What a write given up by ``abort_writes`` raises."""
+    return ConnectionLostError(f"{description}: write abandoned, the link is lost")
 
 
 def _open_serial(endpoint: Endpoint) -> Link:
