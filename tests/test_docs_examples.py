@@ -197,7 +197,9 @@ def _on_a_pseudo_terminal(state: Callable[[FakeController], None]) -> Iterator[C
     try:
         with rovlink.connect(name, keepalive=None) as client:
             state(fake)
-            yield Condition(client, {"/dev/ttyUSB0": name})
+            # (A pseudo-terminal whose other side closed reads as its end, as an unplugged
+            # adapter does, or, a moment later, as an I/O error.)
+            yield Condition(client, {"/dev/ttyUSB0": name, "device disconnected": "…"})
     finally:
         fake.close()
         os.close(terminal)

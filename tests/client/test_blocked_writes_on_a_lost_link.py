@@ -273,9 +273,18 @@ def test_zero_thrust_cut_off_by_the_loss_of_the_link_goes_first_on_the_reopened_
             second.close()
 
 
+def _port_url(device_name: Path, port: str) -> str:
+    """The URL of the device: its name, or through pyserial's logging wrapper (``spy://``,
+    read and written by pyserial rather than through the descriptor)."""
+    if port == "spy":
+        return f"spy://{device_name}?file={device_name.parent / 'spy.txt'}"
+    return str(device_name)
+
+
+@pytest.mark.parametrize("port", ["serial", "spy"])
 @pytest.mark.parametrize("what", ["#stop!", "#th.90.0!"])
 async def test_the_asyncio_client_gives_up_a_line_that_takes_nothing_and_starts_the_next_with_it(
-    device_name: Path, monkeypatch: pytest.MonkeyPatch, what: str
+    device_name: Path, monkeypatch: pytest.MonkeyPatch, what: str, port: str
 ) -> None:
     # Before, the asyncio client kept what a controller that stopped reading did not take in
     # its buffer for ever: the #stop! (or zero thrust) behind it never went out, and the link
@@ -286,7 +295,7 @@ async def test_the_asyncio_client_gives_up_a_line_that_takes_nothing_and_starts_
     second: _SerialDevice | None = None
     try:
         async with rovlink.aio.connect(
-            str(device_name),
+            _port_url(device_name, port),
             reconnect=True,
             keepalive=None,
             timeout=2.0,
@@ -297,8 +306,14 @@ async def test_the_asyncio_client_gives_up_a_line_that_takes_nothing_and_starts_
             await rov.move(90, 50)
             first.fake.stop_reading()  # the controller hangs
             first.fill_line()
-            # Returns at once: the line takes it when it can.
+            # Returns at once: the line takes it when it can (and the loop never waits for
+            # it: through spy://, pyserial's write waited in the loop's thread).
+            loop = asyncio.get_running_loop()
+            started_s = loop.time()
             await (rov.stop() if what == "#stop!" else rov.move(90, 0))
+            await asyncio.sleep(0)
+            took_s = loop.time() - started_s
+            assert took_s < 0.3 / 2, f"the event loop waited {took_s:.2f} s for the write"
             device_name.unlink()  # plugged out and in again: the same name
             second = _SerialDevice(device_name)
             got = await asyncio.to_thread(second.fake.wait_for, _probed, CONDITION_TIMEOUT_S)
@@ -311,8 +326,9 @@ async def test_the_asyncio_client_gives_up_a_line_that_takes_nothing_and_starts_
             second.close()
 
 
+@pytest.mark.parametrize("port", ["serial", "spy"])
 async def test_an_asyncio_stop_written_as_the_adapter_is_pulled_out_goes_first_on_the_next(
-    device_name: Path,
+    device_name: Path, port: str
 ) -> None:
     # Before, the stop() whose own write found the device gone raised ConnectionLostError and
     # was lost: the reopened link got zero thrust, and the motors stayed unlocked.
@@ -320,7 +336,11 @@ async def test_an_asyncio_stop_written_as_the_adapter_is_pulled_out_goes_first_o
     second: _SerialDevice | None = None
     try:
         async with rovlink.aio.connect(
-            str(device_name), reconnect=True, keepalive=None, timeout=2.0, boot_timeout=2.0
+            _port_url(device_name, port),
+            reconnect=True,
+            keepalive=None,
+            timeout=2.0,
+            boot_timeout=2.0,
         ) as rov:
             await rov.start()
             await rov.move(90, 50)
@@ -514,6 +534,8 @@ def test_a_write_waiting_on_a_pyserial_port_is_given_up_at_once(
     # spy:// (pyserial's logging wrapper) is read and written through pyserial, not through
     # the descriptor: its waiting write could not be given up, and a reconnection waited the
     # 2 s write timeout for it. pyserial's cancel_write ends it, and reports it written.
+    # (pyserial waits for room only once its write has begun: a write that finds none at all
+    # retries until its write timeout, which no cancel ends.)
     controller_end, terminal = os.openpty()  # the controller end reads nothing
     tty.setraw(terminal)
     name = os.ttyname(terminal)
@@ -522,9 +544,13 @@ def test_a_write_waiting_on_a_pyserial_port_is_given_up_at_once(
     try:
         assert isinstance(link, (links.PortLink, links.FdLink))
         assert isinstance(link, links.PortLink) == wrapped  # (read and written by pyserial)
-        writer = ThreadCall(lambda: link.write(b"\r\n" * (1 << 20)))  # more than a terminal holds
+        # More than a terminal holds (20 KiB here), not so much that spy:// takes long to log it.
+        writer = ThreadCall(lambda: link.write(b"\r\n" * (1 << 15)))
         # (Bytes reach the controller end as the write starts; it then waits for room.)
-        assert wait_until(lambda: bool(select.select([controller_end], [], [], 0)[0]))
+        assert wait_until(
+            lambda: writer.done.is_set() or bool(select.select([controller_end], [], [], 0)[0])
+        )
+        assert not writer.done.is_set(), f"the write ended before it was given up: {writer.error!r}"
         started = time.monotonic()
         link.abort_writes()
         assert writer.done.wait(PROMPT_S), "the waiting write was not given up"

@@ -5,8 +5,9 @@ socket) with ``loop.add_reader`` and reads whatever is waiting when it becomes r
 go straight to the descriptor and only what does not fit is buffered until it is writable.
 
 Ports without a descriptor (the in-process simulator, ``loop://``, ``rfc2217://``) have no
-readiness to wait on, so :class:`ThreadTransport` reads them in one thread and hands each chunk
-to the loop; everything else — matching, timeouts, retries — still runs in the loop.
+readiness to wait on, so :class:`ThreadTransport` reads them in one thread, hands each chunk to
+the loop, and writes them in another; everything else — matching, timeouts, retries — still
+runs in the loop.
 """
 
 from __future__ import annotations
@@ -230,36 +231,97 @@ class FdTransport:
 
 
 class ThreadTransport:
-    """A link without a descriptor: one thread reads, the loop does everything else."""
+    """A link without a descriptor: one thread reads, one writes, the loop does everything
+    else.
+
+    Such a port's write may wait (``spy://`` on a line with no room, up to its write timeout;
+    ``rfc2217://`` on a stalled network, its socket's timeout): in the loop's thread it would
+    hold up the whole program, a ``stop()`` and a bridge's heartbeats with it. The writing
+    thread takes the bytes in order; a write that fails reports the link lost, as a read does.
+    A port whose writes never wait (``writes_may_wait`` false: the in-process simulator) is
+    written in the loop's thread, at once.
+    """
 
     def __init__(self, link: Link, loop: asyncio.AbstractEventLoop) -> None:
         self._link = link
         self._loop = loop
         self._closing = False
         self._closed = False
-        self._undelivered = bytearray()
-        self._thread: threading.Thread | None = None
+        self._lost: ConnectionLostError | None = None  # (seen by either thread)
+        self._on_lost: LostCallback | None = None
+        # Bytes given to write() not yet written (the queue), and those being written.
+        self._changed = threading.Condition()
+        self._queue = bytearray()
+        self._writing = b""
+        self._failed_writes = bytearray()
+        self._reader: threading.Thread | None = None
+        self._writer: threading.Thread | None = None
 
     def start(self, on_data: DataCallback, on_lost: LostCallback) -> None:
-        """Start the reading thread."""
-        self._thread = threading.Thread(
+        """Start the reading and the writing thread."""
+        self._on_lost = on_lost
+        description = self._link.description
+        self._reader = threading.Thread(
             target=self._read_loop,
-            args=(on_data, on_lost),
-            name=f"rovlink aio reader ({self._link.description})",
+            args=(on_data,),
+            name=f"rovlink aio reader ({description})",
             daemon=True,
         )
-        self._thread.start()
+        self._reader.start()
+        if getattr(self._link, "writes_may_wait", True):
+            self._writer = threading.Thread(
+                target=self._write_loop, name=f"rovlink aio writer ({description})", daemon=True
+            )
+            self._writer.start()
 
-    def _read_loop(self, on_data: DataCallback, on_lost: LostCallback) -> None:
+    def _read_loop(self, on_data: DataCallback) -> None:
         while not self._closing:
             try:
                 data = self._link.read_available(_THREAD_READ_WAIT_S)
             except ConnectionLostError as error:
-                if not self._closing:
-                    self._call_in_loop(on_lost, error)
+                self._lose(error)
                 return
             if data:
                 self._call_in_loop(on_data, data)
+
+    def _write_loop(self) -> None:
+        while True:
+            with self._changed:
+                while not self._queue and not self._closing and self._lost is None:
+                    self._changed.wait()
+                if not self._queue or self._lost is not None:
+                    return  # (closing with everything written, or the link is gone)
+                self._writing = bytes(self._queue)
+                self._queue.clear()
+            try:
+                self._link.write(self._writing)
+            except ConnectionLostError as error:
+                self._lose(error)
+                return
+            with self._changed:
+                self._writing = b""
+                self._changed.notify_all()
+
+    def _lose(self, error: ConnectionLostError) -> None:
+        """The link is gone (either thread found it): report it once, unless closing."""
+        with self._changed:
+            if self._lost is not None:
+                return
+            self._lost = error
+            self._changed.notify_all()
+        self._abort_writes()  # (a write still waiting on the port: the writing thread ends)
+        if not self._closing:
+            self._call_in_loop(self._deliver_lost, error)
+
+    def _deliver_lost(self, error: ConnectionLostError) -> None:
+        # (In the loop, maybe after close() began: the client has a new link by then.)
+        if not self._closed and self._on_lost is not None:
+            self._on_lost(error)
+
+    def _abort_writes(self) -> None:
+        abort_writes = getattr(self._link, "abort_writes", None)
+        if abort_writes is not None:
+            abort_writes()
 
     def _call_in_loop(
         self, callback: Callable[[object], None] | Callable[..., None], argument: object
@@ -270,38 +332,66 @@ class ThreadTransport:
             self._closing = True
 
     def write(self, data: bytes) -> None:
-        """Write to the port (such ports take small writes without blocking)."""
+        """Queue ``data`` for the writing thread; never waits for the port. (A port whose
+        writes never wait, an in-process one, is written at once.)"""
+        if self._writer is None and not getattr(self._link, "writes_may_wait", True):
+            self._write_now(data)
+            return
+        with self._changed:
+            if self._closing:
+                raise ConnectionLostError(f"{self._link.description}: closed")
+            if self._lost is not None:
+                self._failed_writes += data
+                raise self._lost
+            self._queue += data
+            self._changed.notify_all()
+
+    def _write_now(self, data: bytes) -> None:
         if self._closing:
             raise ConnectionLostError(f"{self._link.description}: closed")
         try:
             self._link.write(data)
         except ConnectionLostError:
-            self._undelivered += data
+            with self._changed:
+                self._failed_writes += data
             raise
 
     @property
     def undelivered(self) -> bytes:
-        """Bytes given to :meth:`write` whose write failed with the link (it writes at once).
+        """Bytes given to :meth:`write` that may not have reached the port when the link was
+        lost: those the writing thread had not written, and those written after.
 
         Example::
 
             session.write_failed(transport.undelivered)
         """
-        return bytes(self._undelivered)
+        with self._changed:
+            return self._writing + bytes(self._queue) + bytes(self._failed_writes)
 
     async def close(self) -> None:
-        """Stop the thread and close the link."""
+        """Write what is still queued (for at most :data:`CLOSE_FLUSH_S`: a client leaving by
+        an error sends ``#stop!`` just before it closes), stop the threads, close the link."""
         if self._closed:
             return
         self._closed = True
-        self._closing = True
-        self._link.wake()
-        thread, self._thread = self._thread, None
         try:
-            if thread is not None:
-                await asyncio.to_thread(thread.join, 2.0)
+            await asyncio.to_thread(self._flush, CLOSE_FLUSH_S)
         finally:  # also when cancelled: a second close() returns at once
+            with self._changed:
+                self._closing = True
+                self._changed.notify_all()
+            self._abort_writes()  # (what the flush did not write in time is given up)
+            self._link.wake()
+            for thread in (self._reader, self._writer):
+                if thread is not None:
+                    await asyncio.to_thread(thread.join, 2.0)
             self._link.close()
+
+    def _flush(self, timeout_s: float) -> None:
+        with self._changed:
+            self._changed.wait_for(
+                lambda: self._lost is not None or not (self._queue or self._writing), timeout_s
+            )
 
 
 def transport_for(link: Link, loop: asyncio.AbstractEventLoop) -> ByteTransport:

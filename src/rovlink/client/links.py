@@ -474,9 +474,12 @@ class PortLink:
         link = PortLink(serial.serial_for_url("loop://"), "loopback")
     """
 
-    def __init__(self, port: Any, description: str) -> None:
+    def __init__(self, port: Any, description: str, *, writes_may_wait: bool = True) -> None:
         self._port = port
         self.description = description
+        #: Whether a write may wait for the port (a line with no room, a stalled network): the
+        #: asyncio client then writes from a thread of its own. An in-process port never waits.
+        self.writes_may_wait = writes_may_wait
         port.timeout = POLL_INTERVAL_S
         self._closed = False
         self._writes_aborted = False
@@ -642,7 +645,11 @@ def _open_registered(endpoint: Endpoint) -> Link:
         port = handler.open_url(endpoint.target)
     except (OSError, ValueError) as error:
         raise ConnectError(f"cannot open {endpoint.url}: {error}") from error
-    return PortLink(port, getattr(handler, "DESCRIPTION", endpoint.url))
+    return PortLink(
+        port,
+        getattr(handler, "DESCRIPTION", endpoint.url),
+        writes_may_wait=getattr(handler, "WRITES_MAY_WAIT", True),
+    )
 
 
 def open_link(endpoint: Endpoint) -> Link:

@@ -20,10 +20,20 @@ from urllib.parse import parse_qsl
 
 from rovlink.sim.port import SimulatedPort, open_port
 
-__all__ = ["DESCRIPTION", "SIM_OPTIONS", "SimOptions", "check_url", "open_url", "parse_sim_url"]
+__all__ = [
+    "DESCRIPTION",
+    "SIM_OPTIONS",
+    "WRITES_MAY_WAIT",
+    "SimOptions",
+    "check_url",
+    "open_url",
+    "parse_sim_url",
+]
 
 #: What the client calls a link opened here.
 DESCRIPTION = "simulated controller"
+#: The simulated controller takes every write at once (its replies are readable when it returns).
+WRITES_MAY_WAIT = False
 
 #: ``sim://`` query parameters and what they mean.
 SIM_OPTIONS: dict[str, str] = {
