@@ -615,6 +615,56 @@ def test_every_pad_in_reach_stops_and_only_the_chosen_one_flies(browser, station
     page.context.close()
 
 
+PAD_STOPS = "JSON.parse(localStorage.getItem('rovlink.pad-stops') || '{}')"
+
+
+def test_a_spare_pad_without_the_standard_mapping_stops_once_its_stop_is_learnt(
+    browser, station, line
+):
+    # A spare pad of another kind without the standard mapping (a generic USB pad) was never
+    # read: which of its buttons is STOP was not known, and nothing could tell the page.
+    page = flying_by_pad(browser, station, line, [1, 0, 0, 0], "#th.90.100!")
+    page.evaluate("fakePads.connect('Generic USB pad', '')")
+    learn = "#pad-list button[data-learn-stop='1']"
+    page.wait_for_selector(learn)
+    pads = page.text_content("#pad-list") or ""
+    assert "Generic USB pad (non-standard mapping) · not read" in pads
+    press_on(page, 1, {5: True})  # held as learning starts: not what is learnt
+    page.click(learn)
+    page.wait_for_selector("#pad-list button:text('press its STOP…')")
+    mark = line.mark()
+    press_on(page, 1, {9: True})  # its STOP, pressed to be learnt: no stop for that press
+    page.wait_for_function(f"{PAD_STOPS}['Generic USB pad'] === 9")
+    page.wait_for_selector("#pad-list:has-text('its STOP (button 9) stops the robot')")
+    page.wait_for_function(OTHER_STOPS_SEEN, arg=1)  # read from now on, its STOP held
+    page.click("#claw-close")  # a fence
+    line.wait_for("#h-!", after=mark)
+    assert "#stop!" not in line.frames(mark, commands_only=True)
+    # Its other buttons and sticks move nothing; its STOP, pressed again, stops.
+    press_on(page, 1, {5: False, 9: False, DEADMAN: True, UNLOCK: True}, axes=[0, 1, 0, -1])
+    page.wait_for_function(
+        "window.rovlinkStation.devices.otherStops.get('1:Generic USB pad') === false"
+    )
+    mark = line.mark()
+    press_on(page, 1, {9: True})
+    line.wait_for("#stop!", after=mark, timeout_s=1.0)
+    assert line.frames(mark, commands_only=True)[:1] == ["#stop!"]
+    # Kept in the browser: a page opened later reads it at once.
+    later = open_page(browser, station, pad=False)
+    later.evaluate(
+        "localStorage.setItem('rovlink.pad-stops', JSON.stringify({'Generic USB pad': 9}))"
+    )
+    later.reload()
+    later.wait_for_function("window.rovlinkStation && window.rovlinkStation.station.id !== null")
+    later.evaluate("fakePads.connect('Generic USB pad', '')")
+    later.wait_for_function(OTHER_STOPS_SEEN, arg=1)
+    mark = line.mark()
+    press_on(later, 0, {9: True})
+    line.wait_for("#stop!", after=mark, timeout_s=1.0)
+    later.context.close()
+    page.context.close()
+
+
 def test_keys_typed_in_a_field_do_not_fly(browser, station, line):
     page = _flying_by_keyboard(browser, station, line)
     page.fill("#target-depth", "150")

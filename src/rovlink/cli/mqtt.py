@@ -166,7 +166,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=2.0,
         metavar="SECONDS",
         help="zero thrust when th/mvs is not renewed for this long, 0–60; 0: never "
-        "(losing the broker zeroes it all the same) (default: %(default)s)",
+        "(losing the broker zeroes it all the same); motion reaching the bridge later than "
+        "this (2 s if 0) is refused (default: %(default)s)",
     )
 
 
@@ -195,6 +196,7 @@ def run(args: argparse.Namespace) -> int:
 async def _serve(args: argparse.Namespace, broker: BrokerSettings) -> None:
     import rovlink.aio  # noqa: PLC0415
     from rovlink.bridges.mqtt.bridge import BridgeReplacedError, MqttBridge  # noqa: PLC0415
+    from rovlink.bridges.mqtt.command_age import DEFAULT_MAX_COMMAND_AGE_S  # noqa: PLC0415
     from rovlink.client.errors import ConnectionLostError  # noqa: PLC0415
     from rovlink.piloting.tracked import TrackedClient  # noqa: PLC0415
 
@@ -215,6 +217,8 @@ async def _serve(args: argparse.Namespace, broker: BrokerSettings) -> None:
             args.robot,
             rate_hz=args.rate_hz,
             allow_commands=args.allow_commands,
+            # Motion that reaches the bridge late is refused beyond the time it would have run.
+            max_command_age_s=args.motion_timeout_s or DEFAULT_MAX_COMMAND_AGE_S,
         )
         commands = "commands allowed" if args.allow_commands else "only stop accepted"
         print(

@@ -20,6 +20,7 @@ from rovlink.bridges.mavlink.pilot_input import (
     AXIS_UNUSED,
     INPUT_STALE_S,
     PilotInput,
+    PilotOutput,
     all_buttons,
     horizontal,
     vertical_thrust_percent,
@@ -297,6 +298,31 @@ def test_a_new_pilots_stick_disarmed_is_held_at_arming_and_a_centred_one_drives(
     pilot.new_pilot()  # armed, a first input centred: nothing held
     assert _drive(pilot, 0, 0, 500, 0.2) == []
     assert _drive(pilot, 1000, 0, 500, 0.3) == ["#th.0.100!"]
+
+
+def _buttons(pilot: PilotInput, buttons: int | None, now_s: float, *, armed: bool) -> PilotOutput:
+    return pilot.manual_control(
+        0, 0, 500, buttons, mode=FlightMode.MANUAL, armed=armed, now_s=now_s
+    )
+
+
+def test_a_new_pilots_held_buttons_are_no_press_until_released():
+    pilot = PilotInput(ParameterTable())
+    pilot.new_pilot()
+    assert _buttons(pilot, None, 0.0, armed=False).held_buttons == ()  # an override: no buttons
+    first = _buttons(pilot, 1 << 6 | 1 << 9, 0.1, armed=False)  # BTN6 arms; BTN9 has no function
+    assert (first.pressed, first.held_buttons) == ((), (6,))
+    again = _buttons(pilot, 1 << 6, 0.2, armed=False)
+    assert (again.pressed, again.held_buttons) == ((), ())  # said once
+    assert _buttons(pilot, 0, 0.3, armed=False).pressed == ()
+    assert _buttons(pilot, 1 << 6, 0.4, armed=False).pressed == (ButtonFunction.ARM,)
+
+
+def test_a_button_held_at_arming_was_pressed_once_before_it():
+    pilot = PilotInput(ParameterTable())
+    assert _buttons(pilot, 1 << 2, 0.0, armed=False).pressed == (ButtonFunction.MODE_DEPTH_HOLD,)
+    pilot.hold_off_centre_axes()  # armed, the button still held: no second press
+    assert _buttons(pilot, 1 << 2, 0.1, armed=True).pressed == ()
 
 
 def test_rc_release_puts_every_channel_back_to_neutral():

@@ -730,6 +730,36 @@ def test_a_new_pilots_input_off_centre_is_held_until_centred(
     rig.wait_frame(driven, since=changed)
 
 
+BTN_MODE_DEPTH_HOLD, BTN_ARM = 1 << 2, 1 << 6  # ArduSub's default mapping
+
+
+@pytest.mark.parametrize(
+    ("armed", "held", "acted"),
+    [(False, BTN_ARM, "#start!"), (True, BTN_MODE_DEPTH_HOLD, "#mvdirect.0!")],
+    ids=["arm_button_disarmed", "mode_button_armed"],
+)
+def test_a_button_the_new_pilot_holds_at_the_hand_over_needs_a_release(
+    rig: BridgeRig, gcs: GroundStation, armed: bool, held: int, acted: str
+):
+    # The new pilot's button, held while its joystick was ignored, once counted as a press with
+    # its first message: an arm button armed the vehicle, a mode button changed the mode.
+    gcs.start_heartbeats()
+    if armed:
+        assert gcs.arm() == ACCEPTED
+    gcs.send("param_set", VEHICLE, 1, b"SYSID_MYGCS", float(NEW_PILOT), 6)
+    gcs.receive("PARAM_VALUE", condition=lambda m: m.param_id == "SYSID_MYGCS")
+    changed = len(rig.frames())
+    gcs.connection.mav.srcSystem = NEW_PILOT
+    gcs.send("manual_control", VEHICLE, 0, 0, 500, 0, held)
+    gcs.send("manual_control", VEHICLE, 0, 0, 500, 0, held)  # repeated, as a joystick's are
+    _said(gcs, f"Button {held.bit_length() - 1} held: release it")
+    _served_since(gcs)
+    assert acted not in rig.frames_since(changed)
+    gcs.send("manual_control", VEHICLE, 0, 0, 500, 0, 0)  # released ...
+    gcs.send("manual_control", VEHICLE, 0, 0, 500, 0, held)  # ... and pressed: a press
+    rig.wait_frame(acted, since=changed)
+
+
 def test_rc_override_that_stops_coming_is_zeroed_as_a_stale_joystick(
     rig: BridgeRig, gcs: GroundStation
 ):

@@ -6,13 +6,14 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import gc
-from collections.abc import AsyncIterator
+import socket
+from collections.abc import AsyncIterator, Iterator
 from dataclasses import dataclass, field
 from typing import Any
 
 import pytest
 
-from tests.bridges.mqtt.rig import bridged_robot, until
+from tests.bridges.mqtt.rig import CONDITION_TIMEOUT_S, bridged_robot, until
 
 pytestmark = pytest.mark.integration
 
@@ -106,3 +107,88 @@ async def test_connections_given_up_on_a_silent_broker_are_closed_and_say_nothin
         assert [context["message"] for context in errors] == []
     finally:
         loop.set_exception_handler(None)
+
+
+#: /proc/net/tcp's state of a socket that sent its SYN and has no answer yet.
+_SYN_SENT = "02"
+
+
+def _connecting_ports(port: int) -> set[int]:
+    """The local ports of this machine's TCP sockets waiting for a SYN-ACK from ``port``."""
+    ports = set()
+    with open("/proc/net/tcp", encoding="ascii") as table:
+        for line in table.readlines()[1:]:
+            local, remote, state = line.split()[1:4]
+            if state == _SYN_SENT and int(remote.split(":")[1], 16) == port:
+                ports.add(int(local.split(":")[1], 16))
+    return ports
+
+
+@contextlib.contextmanager
+def _full_listener() -> Iterator[tuple[socket.socket, set[int]]]:
+    """A listening socket whose queue of connections not yet accepted is full (as a stopped
+    broker's fills): a new connection's SYN is dropped, and its handshake waits for a
+    retransmission after the queue has room. With the local ports of the connections that
+    filled it."""
+    listener = socket.create_server(("127.0.0.1", 0), backlog=0)
+    port = listener.getsockname()[1]
+    fillers = [socket.create_connection(("127.0.0.1", port))]  # (the one it has room for)
+    try:
+        yield listener, {filler.getsockname()[1] for filler in fillers}
+    finally:
+        for filler in fillers:
+            filler.close()
+        listener.close()
+
+
+async def test_a_connection_cancelled_in_its_tcp_handshake_is_closed_when_it_completes():
+    # aiomqtt makes the TCP connection (and writes CONNECT) in an executor thread, which a
+    # cancellation does not stop: a bridge ended during the handshake left the connection to
+    # complete later, open, its CONNECT (client id and last will) sent to a broker that resumed.
+    with _full_listener() as (listener, fillers):
+        port = listener.getsockname()[1]
+        broker = _Port(port)
+        async with bridged_robot(broker, "s2", wait_connected=False):
+            await until(lambda: bool(_connecting_ports(port) - fillers))
+        # The broker resumes: it accepts what waited, and the late handshake completes.
+        listener.setblocking(False)
+        loop = asyncio.get_running_loop()
+        late: list[socket.socket] = []
+        deadline = loop.time() + CONDITION_TIMEOUT_S
+        try:
+            while not late:
+                assert loop.time() < deadline, "the cancelled connection never came"
+                with contextlib.suppress(BlockingIOError):
+                    accepted, (_, client_port) = listener.accept()
+                    if client_port not in fillers:
+                        accepted.setblocking(False)  # (for the event loop's sock_recv)
+                        late.append(accepted)
+                    else:
+                        accepted.close()
+                await asyncio.sleep(0.01)
+            (connection,) = late
+            # The connection given up is closed (its CONNECT perhaps written first): its end of
+            # stream comes.
+            try:
+                received = await asyncio.wait_for(_read_to_end(loop, connection), _CLOSED_TIMEOUT_S)
+            except (TimeoutError, asyncio.TimeoutError):
+                raise AssertionError(
+                    "the connection given up in its handshake was left open"
+                ) from None
+            assert received[:1] in (b"", b"\x10")  # nothing, or CONNECT: no more
+        finally:
+            for accepted in late:
+                accepted.close()
+
+
+@dataclass
+class _Port:
+    port: int
+
+
+async def _read_to_end(loop: asyncio.AbstractEventLoop, connection: socket.socket) -> bytes:
+    """What comes on ``connection`` before its end of stream (not CONNACK: none is sent)."""
+    received = b""
+    while data := await loop.sock_recv(connection, 4096):
+        received += data
+    return received

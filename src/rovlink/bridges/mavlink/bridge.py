@@ -52,6 +52,8 @@ _PARAM_TYPE_INT32 = 6
 #: An axis held at neutral after arming until centred (said once per axis and arming).
 _STICK_HELD = "Joystick {axis} held: return to centre"
 _CHANNEL_HELD = "RC {channel} held: return to neutral"
+#: A button a new pilot holds at the hand-over: not a press (said once per button).
+_BUTTON_HELD = "Button {button} held: release it to use it"
 
 
 class MavlinkBridge:
@@ -328,6 +330,8 @@ class MavlinkBridge:
         for axis in output.newly_held:
             text = held_text.format(axis=axis, channel=CHANNEL_OF_AXIS[axis])
             self._say(_SEVERITY_WARNING, text)
+        for button in output.held_buttons:
+            self._say(_SEVERITY_WARNING, _BUTTON_HELD.format(button=button))
         for command in output.commands:
             await self.rov.send(command)
         for function in output.pressed:
@@ -418,7 +422,7 @@ class MavlinkBridge:
             self._ignored_pilots.clear()  # (a joystick still ignored is said again)
             if self.parameters.value(name) != before:
                 # The new pilot's stick or overrides, off centre all along, must not drive at
-                # once: held until centred, as at arming.
+                # once: held until centred, as at arming; its held buttons are not presses.
                 self.pilot.new_pilot()
                 self.rc_override.release()
         self._param_value(name)

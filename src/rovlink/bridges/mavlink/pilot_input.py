@@ -16,7 +16,11 @@ while disarmed, or left from before a disarm, is repeated by its ground station 
 otherwise drive the robot the moment it is armed, without a fresh pilot input; so would a
 joystick held (or drifting) off centre as the arm button is pressed. The same holds when another
 ground station becomes the pilot's while armed (:meth:`PilotInput.new_pilot`): the first input
-of its stick, which may have been off centre all along, is held likewise.
+of its stick, which may have been off centre all along, is held likewise; and a button it
+holds in its first input with buttons counts only once released and pressed again (held while
+its joystick was ignored, it would otherwise arm, disarm or change the mode at the hand-over).
+A button held at arming needs no such care: the pilot's buttons are followed armed or not, so
+a press is a press once, whenever it came.
 
 What "changed" and "zero" are measured against is the set-points as last sent to the controller
 (:meth:`PilotInput.sync`), never a guess: the controller keeps its thrust across a repeated
@@ -109,12 +113,14 @@ def vertical_thrust_percent(z: int) -> int:
 
 @dataclass(frozen=True, slots=True)
 class PilotOutput:
-    """What one MANUAL_CONTROL asks for: commands to send, button functions pressed, and the
-    axes ("x", "y", "z") this input found held off centre since arming, each said once."""
+    """What one MANUAL_CONTROL asks for: commands to send, button functions pressed, the
+    axes ("x", "y", "z") this input found held off centre since arming, each said once, and the
+    buttons with a function that a new pilot's first input holds (not pressed: said once)."""
 
     commands: tuple[Command, ...] = ()
     pressed: tuple[ButtonFunction, ...] = ()
     newly_held: tuple[str, ...] = ()
+    held_buttons: tuple[int, ...] = ()
 
 
 class PilotInput:
@@ -145,6 +151,8 @@ class PilotInput:
         self._said_held_axes: set[str] = set()
         #: Another pilot flies and has sent no input yet: its first input's axes are held.
         self._hold_first_input = False
+        #: Another pilot flies and has sent no buttons yet: the first it sends are not pressed.
+        self._buttons_unknown = False
 
     @property
     def moving(self) -> bool:
@@ -183,9 +191,11 @@ class PilotInput:
 
         Its first input, armed, has the axes off centre held at neutral until centred, as at
         arming (its stick, ignored until now, may be held over; its overrides set long since).
-        Disarmed, that input is the stick as it is when the vehicle is armed.
+        Disarmed, that input is the stick as it is when the vehicle is armed. The buttons its
+        first input with buttons holds, armed or not, count only once released and pressed.
         """
         self._hold_first_input = True
+        self._buttons_unknown = True
 
     def hold(self, depth_cm: int) -> Command:
         """ALT_HOLD from now on holds ``depth_cm``: the command that says so."""
@@ -210,6 +220,13 @@ class PilotInput:
         carry out what changed."""
         previous_at_s = self.last_input_at_s
         self.last_input_at_s = now_s
+        held_buttons: tuple[int, ...] = ()
+        if buttons is not None and self._buttons_unknown:  # a new pilot's first buttons
+            self._buttons_unknown = False
+            self._buttons = buttons
+            held_buttons = tuple(
+                button for button in self._functional_buttons() if buttons & (1 << button)
+            )
         pressed = () if buttons is None else self._pressed(buttons)
         # ArduSub's 0…1000 (MAVLink's common range is −1000…1000): beyond it, full throttle.
         throttle = max(0, min(_FULL_Z, _axis(z, _NEUTRAL_Z)))
@@ -219,7 +236,7 @@ class PilotInput:
             if armed:
                 self.hold_off_centre_axes()
         if not armed:  # the controller drops motion while locked (P7): nothing to send
-            return PilotOutput((), pressed)
+            return PilotOutput((), pressed, held_buttons=held_buttons)
         stick, newly_held = self._released_axes()
         commands: list[Command] = []
         direction, power = horizontal(stick["x"], stick["y"])
@@ -249,7 +266,7 @@ class PilotInput:
                 if depth != self._sent_depth_cm:
                     commands.append(Command("mvd", (depth,)))
                     self._sent_depth_cm = depth
-        return PilotOutput(tuple(commands), pressed, newly_held)
+        return PilotOutput(tuple(commands), pressed, newly_held, held_buttons)
 
     def _released_axes(self) -> tuple[dict[str, int], tuple[str, ...]]:
         """The last input with each axis still held at neutral; the axes newly found held."""
@@ -279,8 +296,15 @@ class PilotInput:
         rising = buttons & ~self._buttons
         self._buttons = buttons
         return tuple(
-            function
-            for button in range(BUTTON_COUNT)
+            self._parameters.button_function(button)
+            for button in self._functional_buttons()
             if rising & (1 << button)
-            and (function := self._parameters.button_function(button)) is not ButtonFunction.NONE
         )
+
+    def _functional_buttons(self) -> list[int]:
+        """The buttons whose ``BTNn_FUNCTION`` is not NONE, in order."""
+        return [
+            button
+            for button in range(BUTTON_COUNT)
+            if self._parameters.button_function(button) is not ButtonFunction.NONE
+        ]

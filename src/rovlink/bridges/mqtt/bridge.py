@@ -11,6 +11,9 @@ QoS and what survives a broker outage:
 * ``cmd``: QoS 1 with a clean session: a command published while the bridge is away is not kept
   for later (a late ``th 90 100`` is not what anyone wants); the sender gets no reply.
   Commands are carried out in order, one at a time; a ``stop`` at once, ahead of the rest.
+  A command that would move or unlock the robot and reaches the bridge late is refused: older
+  than ``max_command_age_s`` by its ``at``, or handed over by a broker that had left a
+  publication of the bridge unanswered that long (a broker that stalled, :mod:`command_age`).
 * the last will: retained ``{"online": false}`` on ``state`` when the bridge vanishes. A bridge
   that ends on its own says why instead: ``bridge stopped``, ``controller link lost: …`` (after a
   ``link`` event) or ``bridge failed: …``.
@@ -31,6 +34,11 @@ from typing import Any
 from rovlink.aio.wakeup import wait_for_event
 from rovlink.bridges.kept_settings import KeptSettings
 from rovlink.bridges.mqtt.broker import BrokerSettings
+from rovlink.bridges.mqtt.command_age import (
+    DEFAULT_MAX_COMMAND_AGE_S,
+    BrokerSilence,
+    publication_age_problem,
+)
 from rovlink.bridges.mqtt.commands import CommandPolicy
 from rovlink.bridges.mqtt.connection import broker_connection
 from rovlink.bridges.mqtt.outbox import Outbox
@@ -113,6 +121,8 @@ class _Asked:
     #: How many stops the bridge had carried out when it came: one more, and a command that could
     #: move the robot is not sent.
     stops_before: int
+    #: How long the broker had left a publication of the bridge unanswered when it came, s.
+    broker_silent_s: float
 
 
 class BridgeReplacedError(Exception):
@@ -139,6 +149,7 @@ class MqttBridge:
         rate_hz: float = 5.0,
         allow_commands: bool = False,
         reply_timeout_s: float = REPLY_TIMEOUT_S,
+        max_command_age_s: float = DEFAULT_MAX_COMMAND_AGE_S,
         wall_clock: Callable[[], float] = time.time,
     ) -> None:
         self.rov = rov
@@ -149,6 +160,9 @@ class MqttBridge:
         self.outbox = Outbox()
         #: How long the broker has to answer a connection, subscription or publication, s.
         self.reply_timeout_s = reply_timeout_s
+        #: A command that would move or unlock the robot and is older than this is refused, s.
+        self.max_command_age_s = max_command_age_s
+        self.broker_silence = BrokerSilence()
         self.connected = asyncio.Event()
         self.sequence = 0
         self._wall_clock = wall_clock
@@ -384,7 +398,7 @@ class MqttBridge:
         comparable["link_status"] = state["link"]["status"]
         if comparable == self._last_state and now_s - self._last_state_at_s < _STATE_REFRESH_S:
             return
-        await mqtt.publish(self.topics.state, encode(state), qos=_QOS_RELIABLE, retain=True)
+        await self._publish_reliably(mqtt, self.topics.state, encode(state), retain=True)
         self._last_state = comparable
         self._last_state_at_s = now_s
 
@@ -399,8 +413,13 @@ class MqttBridge:
             await asyncio.shield(publish)
 
     async def _publish_event(self, mqtt: Any, topic: str, payload: bytes) -> None:
-        await mqtt.publish(topic, payload, qos=_QOS_RELIABLE)
+        await self._publish_reliably(mqtt, topic, payload)
         self.outbox.done()
+
+    async def _publish_reliably(self, mqtt: Any, topic: str, payload: bytes, **kwargs: Any) -> None:
+        """Publish at QoS 1, timing the broker's answer (a stalled broker's silence)."""
+        with self.broker_silence.awaiting_answer():
+            await mqtt.publish(topic, payload, qos=_QOS_RELIABLE, **kwargs)
 
     async def _say_goodbye(self, mqtt: Any, reason: str) -> None:
         """Publish the kept events (the last may say why), then the retained offline state,
@@ -409,7 +428,7 @@ class MqttBridge:
 
         async def goodbye() -> None:
             await self._publish_kept_events(mqtt)
-            await mqtt.publish(self.topics.state, offline, qos=_QOS_RELIABLE, retain=True)
+            await self._publish_reliably(mqtt, self.topics.state, offline, retain=True)
 
         try:
             await asyncio.wait_for(goodbye(), _FAREWELL_S)
@@ -447,10 +466,10 @@ class MqttBridge:
             request = read_request(payload)
             command = self.policy.check(request.text)
             # Stop can only make the robot safer (P3): carried out however it came.
-            if request.id_problem is not None:
+            if request.problem is not None:
                 if command.name != "stop":
-                    raise PayloadError(request.id_problem)
-                warnings.append(f"{request.id_problem}: carried out, as stop always is")
+                    raise PayloadError(request.problem)
+                warnings.append(f"{request.problem}: carried out, as stop always is")
             if retained:
                 if command.name != "stop":
                     raise PayloadError(_RETAINED_REFUSED)
@@ -460,7 +479,9 @@ class MqttBridge:
                 mqtt, message, reply_payload(self.robot_id, request, error=str(error))
             )
             return None
-        return _Asked(message, request, command, "; ".join(warnings) or None, self._stops)
+        warning = "; ".join(warnings) or None
+        silent_s = self.broker_silence.silent_s()
+        return _Asked(message, request, command, warning, self._stops, silent_s)
 
     async def _carry_out(self, mqtt: Any, asked: _Asked) -> None:
         """Send the command asked for and answer with what became of it."""
@@ -479,6 +500,10 @@ class MqttBridge:
             ):  # a stop came since
                 await self._answer(mqtt, asked, error=_OVERTAKEN_BY_STOP)
                 return
+            late = self._late_because(asked)
+            if late is not None:
+                await self._answer(mqtt, asked, error=late)
+                return
         try:
             replies = await self.rov.send(command)
         except QueryTimeoutError as error:
@@ -492,6 +517,26 @@ class MqttBridge:
         else:
             warning = warning or self._dropped_because(command)
             await self._answer(mqtt, asked, frame=str(command), replies=replies, warning=warning)
+
+    def _late_because(self, asked: _Asked) -> str | None:
+        """Why a command that would move or unlock the robot comes too late to be carried out
+        (:mod:`command_age`); ``None`` if it does not, or moves nothing."""
+        if not asked.command.spec.moves_or_unlocks:
+            return None
+        limit_s = self.max_command_age_s
+        if asked.request.published_at_s is not None:
+            problem = publication_age_problem(
+                asked.request.published_at_s, self._wall_clock(), limit_s
+            )
+            if problem is not None:
+                return problem
+        if asked.broker_silent_s > limit_s:
+            return (
+                f"the broker had answered nothing for {asked.broker_silent_s:.1f} s when it "
+                f"handed this over: it may be that old, and motion older than {limit_s:g} s is "
+                "not carried out; publish it again"
+            )
+        return None
 
     async def _answer(
         self,
@@ -545,7 +590,7 @@ class MqttBridge:
             if correlation is not None:
                 properties = Properties(PacketTypes.PUBLISH)  # type: ignore[no-untyped-call]
                 properties.CorrelationData = correlation
-        await mqtt.publish(topic, encode(answer), qos=_QOS_RELIABLE, properties=properties)
+        await self._publish_reliably(mqtt, topic, encode(answer), properties=properties)
 
     # -- what the robot does -------------------------------------------------------------------
 

@@ -2,12 +2,15 @@
 
 Every payload is a JSON object with ``robot`` and ``at`` (Unix time, s). A command request is
 either plain text in the console's words (``th 90 30``) or a JSON object
-``{"command": "th 90 30", "id": "anything"}``; the reply echoes ``id``.
+``{"command": "th 90 30", "id": "anything", "at": 1767225600.25}``; the reply echoes ``id``, and
+``at`` (optional, Unix time, s) says when it was published, so that the bridge can refuse motion
+that reaches it late.
 """
 
 from __future__ import annotations
 
 import json
+import math
 from dataclasses import dataclass
 from typing import Any
 
@@ -43,9 +46,11 @@ class CommandRequest:
 
     text: str
     request_id: str | int | None = None
-    #: What is wrong with the request's ``id`` (then ``None``): the command is refused, but a
-    #: ``stop`` is carried out all the same.
-    id_problem: str | None = None
+    #: What is wrong with the request's ``id`` or ``at`` (then ``None``): the command is
+    #: refused, but a ``stop`` is carried out all the same.
+    problem: str | None = None
+    #: When the request says it was published (its ``at``), Unix time, s.
+    published_at_s: float | None = None
 
 
 def encode(payload: dict[str, Any]) -> bytes:
@@ -161,8 +166,10 @@ def read_request(payload: bytes) -> CommandRequest:
     Traceback (most recent call last):
     ...
     rovlink.bridges.mqtt.payloads.PayloadError: a JSON request needs "command", a string
-    >>> read_request(b'{"command": "stop", "id": 1.5}').id_problem
+    >>> read_request(b'{"command": "stop", "id": 1.5}').problem
     '"id" must be a string or an integer, got 1.5'
+    >>> read_request(b'{"command": "th 90 30", "at": 1767225600.25}').published_at_s
+    1767225600.25
     """
     if len(payload) > MAX_REQUEST_BYTES:
         raise PayloadError(f"payload of {len(payload)} bytes; a command is at most 512")
@@ -184,10 +191,22 @@ def read_request(payload: bytes) -> CommandRequest:
     if not isinstance(command, str) or not command.strip():
         raise PayloadError('a JSON request needs "command", a string')
     request_id = request.get("id")
+    # Not raised here: a stop with a bad id or time must still stop the robot.
     if request_id is not None and (
         isinstance(request_id, bool) or not isinstance(request_id, (str, int))
     ):
-        # Not raised here: a stop with a bad id must still stop the robot.
         problem = f'"id" must be a string or an integer, got {json.dumps(request_id)}'
         return CommandRequest(command.strip(), None, problem)
-    return CommandRequest(command.strip(), request_id)
+    published_at_s = request.get("at")
+    if published_at_s is not None and (
+        isinstance(published_at_s, bool)
+        or not isinstance(published_at_s, (int, float))
+        or not math.isfinite(published_at_s)
+    ):
+        problem = f'"at" must be Unix time in seconds, a number, got {json.dumps(published_at_s)}'
+        return CommandRequest(command.strip(), request_id, problem)
+    return CommandRequest(
+        command.strip(),
+        request_id,
+        published_at_s=None if published_at_s is None else float(published_at_s),
+    )

@@ -12,14 +12,18 @@
 //
 // Every other pad in reach (a co-pilot's, a spare) is read for its STOP button and nothing
 // else: it stops the robot and can move nothing. Its STOP is the mapping's for a pad of the
-// kind the mapping is for (the same id as the chosen pad), else the standard layout's for a
-// pad with the standard mapping; a pad of another kind without it, or on the ignore list, is
-// not read at all (which of its buttons is STOP is not known).
+// kind the mapping is for (the same id as the chosen pad), else the one learnt for its kind
+// (its id) in the pad list, else the standard layout's for a pad with the standard mapping; a
+// pad of another kind without it and with no STOP learnt, or on the ignore list, is not read
+// at all. Its STOP is never guessed (any button of it, say): a headset's volume key, or a
+// button that reads "pressed" now and then on a worn pad, would stop the robot in mid-flight.
 
 import { DEFAULT_MAPPING, padInput, pressed } from "./mapping.js";
 
 const CHOICE_KEY = "rovlink.device";
 const IGNORE_KEY = "rovlink.ignored-pads";
+const PAD_STOPS_KEY = "rovlink.pad-stops";
+const MAX_BUTTON = 31;
 const POLL_MS = 10;
 const BUTTON_ACTIONS = ["unlock", "stop", "claw_open", "claw_close", "mode"];
 
@@ -34,6 +38,18 @@ function typingIn(target) {
 
 function loadJson(key, fallback) {
   try { return JSON.parse(localStorage.getItem(key)) ?? fallback; } catch { return fallback; }
+}
+
+// The STOP button learnt for each kind of pad (by id), as saved: a saved value that is not a
+// button number is left out (that pad is then not read, as before it was learnt).
+function loadPadStops() {
+  const saved = loadJson(PAD_STOPS_KEY, {});
+  const stops = new Map();
+  if (typeof saved !== "object" || Array.isArray(saved)) return stops;
+  for (const [id, button] of Object.entries(saved)) {
+    if (Number.isInteger(button) && button >= 0 && button <= MAX_BUTTON) stops.set(id, button);
+  }
+  return stops;
 }
 
 // A pad as connected: its slot and its id (another pad in the same slot is another pad).
@@ -80,6 +96,7 @@ export class InputDevices {
     this.keyboard = new Keyboard();
     this.choice = loadJson(CHOICE_KEY, null);      // {kind: "gamepad", id} | {kind: "keyboard"}
     this.ignored = new Set(loadJson(IGNORE_KEY, []));
+    this.padStops = loadPadStops();  // id -> its STOP button, learnt in the pad list
     this.lastSent = null;
     this.lastSentAt = 0;
     this.resendMs = 50;
@@ -111,6 +128,17 @@ export class InputDevices {
     this.choice = choice;
     if (choice) localStorage.setItem(CHOICE_KEY, JSON.stringify(choice));
     else localStorage.removeItem(CHOICE_KEY);
+    this.onChange();
+  }
+
+  // A pad of kind ``id`` (not the one in use) stops the robot with ``button`` from now on. A
+  // button held as it is learnt is no press: each such pad is seen for the first time again.
+  setPadStop(id, button) {
+    this.padStops.set(id, button);
+    localStorage.setItem(PAD_STOPS_KEY, JSON.stringify(Object.fromEntries(this.padStops)));
+    for (const key of [...this.otherStops.keys()]) {
+      if (key.slice(key.indexOf(":") + 1) === id) this.otherStops.delete(key);
+    }
     this.onChange();
   }
 
@@ -156,6 +184,7 @@ export class InputDevices {
   // The STOP button of a pad that is not the one in use; null: the pad is not read.
   stopButtonOf(pad, mappedKind, mapping = this.mapping()) {
     if (pad.id === mappedKind) return mapping.buttons.stop;
+    if (this.padStops.has(pad.id)) return this.padStops.get(pad.id);
     if (pad.mapping === "standard") return DEFAULT_MAPPING.buttons.stop;
     return null;
   }

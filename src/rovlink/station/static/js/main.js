@@ -6,7 +6,7 @@ import { Charts } from "./charts.js";
 import { Connection } from "./connection.js";
 import { InputDevices } from "./input.js";
 import { drawAttitude, drawDepth, drawHeading, drawThrust } from "./instruments.js";
-import { ACTIONS, AXES, loadMapping, resetMapping, saveMapping } from "./mapping.js";
+import { ACTIONS, AXES, loadMapping, pressed, resetMapping, saveMapping } from "./mapping.js";
 
 const $ = (id) => document.getElementById(id);
 const station = {
@@ -360,6 +360,7 @@ function buildSettings(limits) {
 // -- input devices and mapping ---------------------------------------------------------------
 
 let renderedDevices = null;
+let learningStopOf = null;  // the slot of the pad whose STOP is being learnt (pad list)
 function renderDevices() {
   const active = devices.active();
   const badge = $("device-status");
@@ -376,16 +377,18 @@ function renderDevices() {
     if (devices.ignored.has(pad.id)) return "";
     if (active.kind === "gamepad" && pad.index === active.pad.index) return " · in use";
     const button = devices.stopButtonOf(pad, kind);
-    return button === null ? " · not read (its STOP button is not known)"
+    return button === null ? " · not read (its STOP button is not known: learn it)"
       : ` · its STOP (button ${button}) stops the robot; nothing else is read`;
   });
+  // A pad read for its STOP only whose STOP can be learnt: not the kind the mapping is for.
+  const learnable = pads.map((pad) => !devices.ignored.has(pad.id) && pad.id !== kind);
   if (choice && choice.kind === "gamepad" && !options.some(([value]) => value === chosen)) {
     options.push([chosen, `gamepad: ${choice.id} (not connected)`]);
   }
   // Rebuilt only when what it shows changed: a rebuild between a press and its release (the
   // badge changes as the focus leaves a field) would lose the click.
   const shown = JSON.stringify([options, chosen, pads.map((pad) => [pad.id, pad.mapping]),
-    [...devices.ignored], roles]);
+    [...devices.ignored], roles, learnable, learningStopOf]);
   if (shown === renderedDevices) return;
   renderedDevices = shown;
   // Buttons, not a <select>: an open native dropdown keeps Space and Esc from the page, and
@@ -412,9 +415,41 @@ function renderDevices() {
     const label = document.createElement("label");
     label.append(box, ` ignore ${pad.id} (${pad.mapping || "non-standard"} mapping)${roles[index]}`);
     row.append(label);
+    if (learnable[index]) {
+      const learn = document.createElement("button");
+      learn.type = "button";
+      learn.dataset.learnStop = String(pad.index);
+      learn.textContent = learningStopOf === pad.index ? "press its STOP…" : "learn its STOP";
+      row.append(" ", learn);
+    }
     return row;
   }));
 }
+
+// Learning another pad's STOP: the first of its buttons pressed that was not held when asked
+// (within 5 s) is its STOP from then on, for every pad of its kind. Its press being learnt,
+// still held, does nothing (the pad is seen for the first time again).
+$("pad-list").addEventListener("click", (event) => {
+  const slot = event.target.closest("button[data-learn-stop]")?.dataset.learnStop;
+  if (slot === undefined || learningStopOf !== null) return;
+  const pad = devices.pads().find((candidate) => candidate.index === Number(slot));
+  if (!pad) return;
+  const id = pad.id;
+  const before = pad.buttons.map((_, index) => pressed(pad, index));
+  const started = performance.now();
+  learningStopOf = pad.index;
+  renderDevices();
+  const wait = setInterval(() => {
+    const now = devices.pads().find((candidate) => candidate.index === pad.index && candidate.id === id);
+    const index = now ? now.buttons.findIndex((_, i) => pressed(now, i) && !before[i]) : -1;
+    if (index < 0 && now && performance.now() - started <= 5000) return;
+    clearInterval(wait);
+    learningStopOf = null;
+    if (index >= 0) devices.setPadStop(id, index);
+    else toast(now ? `no button of ${id} pressed: its STOP is as it was` : `${id} was unplugged`);
+    renderDevices();
+  }, 20);
+});
 
 $("device-choice").addEventListener("click", (event) => {
   const value = event.target.closest("button[data-device]")?.dataset.device;

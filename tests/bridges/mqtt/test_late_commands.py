@@ -1,0 +1,91 @@
+"""Motion that reaches the MQTT bridge late is refused: a mosquitto stopped (SIGSTOP) while a
+command is published to it hands the command over when it resumes (SIGCONT), and a JSON
+request's ``at`` says how old it is."""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import os
+import signal
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+
+import aiomqtt
+import pytest
+
+from tests.bridges.mqtt.broker import Mosquitto
+from tests.bridges.mqtt.rig import bridged_robot, subscriber, until
+
+pytestmark = pytest.mark.integration
+
+#: Short, so that a stall beyond it is quickly seen.
+_MAX_AGE_S = 0.3
+
+
+@contextmanager
+def _stalled(broker: Mosquitto) -> Iterator[None]:
+    """The broker stopped (as a machine swapping, or a debugger): its sockets stay open and
+    what is sent to it waits in them."""
+    assert broker.process is not None
+    os.kill(broker.process.pid, signal.SIGSTOP)
+    try:
+        yield
+    finally:
+        os.kill(broker.process.pid, signal.SIGCONT)
+
+
+async def test_motion_a_stalled_broker_held_is_refused_once_it_resumes(broker: Mosquitto):
+    # The bridge's connection outlives a stall shorter than its reply timeout: a "th" published
+    # during the stall was carried out when the broker resumed, after the motion timeout would
+    # have expired it (and after its pilot may have given up on it).
+    async with (
+        bridged_robot(broker, "late1", max_command_age_s=_MAX_AGE_S) as robot,
+        subscriber(broker, "rovlink/late1/cmd/reply") as watcher,
+        aiomqtt.Client("127.0.0.1", broker.port) as pilot,
+    ):
+        assert (await watcher.command("late1", "start"))["ok"]
+        bridge = robot.bridge
+        with _stalled(broker):
+            published = asyncio.ensure_future(pilot.publish("rovlink/late1/cmd", "th 90 50", qos=1))
+            # The bridge's state (republished every 2 s) waits for the broker's answer.
+            await until(lambda: bridge.broker_silence.silent_s() > _MAX_AGE_S)
+        await published
+        reply = await watcher.wait_for("rovlink/late1/cmd/reply", lambda r: r["command"] != "start")
+        assert reply["command"] == "th 90 50"
+        assert not reply["ok"]
+        assert "the broker had answered nothing for" in reply["error"]
+        assert "#th.90.50!" not in robot.frames()
+        assert bridge.connected.is_set()  # the same connection: the stall was short
+        fresh = await watcher.command("late1", "th 90 50")  # published again, now: carried out
+        assert fresh["ok"], fresh
+        await until(lambda: "#th.90.50!" in robot.frames())
+
+
+async def test_a_requests_at_says_how_old_it_is(broker: Mosquitto):
+    async with (
+        bridged_robot(broker, "late2", max_command_age_s=_MAX_AGE_S) as robot,
+        subscriber(broker, "rovlink/late2/cmd/reply") as watcher,
+    ):
+
+        async def ask(command: str, at: object) -> dict[str, object]:
+            reply = await watcher.command("late2", json.dumps({"command": command, "at": at}))
+            assert isinstance(reply, dict)
+            return reply
+
+        assert (await ask("start", time.time()))["ok"]
+        old = await ask("th 90 50", time.time() - 5.0)
+        assert not old["ok"]
+        assert 'published 5.0 s ago (its "at")' in str(old["error"])
+        ahead = await ask("th 90 50", time.time() + 60.0)
+        assert "60.0 s ahead of the bridge's clock" in str(ahead["error"])
+        bad = await ask("th 90 50", "yesterday")
+        assert bad["error"] == '"at" must be Unix time in seconds, a number, got "yesterday"'
+        assert "#th.90.50!" not in robot.frames()
+        assert (await ask("qd", time.time() - 5.0))["ok"]  # a query moves nothing: answered
+        stop = await ask("stop", time.time() - 5.0)  # stop, however old: carried out
+        assert stop["ok"]
+        assert (await ask("start", time.time()))["ok"]
+        assert (await ask("th 90 50", time.time()))["ok"]
+        await until(lambda: "#th.90.50!" in robot.frames())
