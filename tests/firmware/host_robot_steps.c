@@ -3,6 +3,7 @@
  *
  *   send HEX      bytes to the robot's serial line
  *   run MS        MS milliseconds of 10 ms ticks
+ *   leak-at MS    a leak pulse at MS of simulated time (as the host robot's --leak-at)
  *   show          one line: "at MS thrust PERCENT depth CM locked 0|1 out HEX" (the vertical
  *                 output of the last tick, and what the robot wrote since the last show)
  */
@@ -29,6 +30,8 @@ int main(void) {
                 hex += 2;
             }
             rl_feed(&r.link, bytes, count);
+        } else if (sscanf(line, "leak-at %lu", &milliseconds) == 1) {
+            r.leak_at_s = (double)milliseconds / 1000.0;
         } else if (sscanf(line, "run %lu", &milliseconds) == 1) {
             unsigned long ticks = milliseconds / 10;
             while (ticks--) tick(&r);

@@ -148,3 +148,31 @@ def test_a_hold_after_a_stop_starts_without_the_speed_of_the_earlier_hold(steps:
     for moment in shown[1:4]:
         assert moment.thrust_percent < 20.0, moment
     assert shown[4].depth_cm > held_at_cm - 10, shown[4]
+
+
+def test_a_leak_pulse_is_latched_until_slreset_and_not_after(steps: Path) -> None:
+    # Before: --leak-at wetted the probe for good, so the latch came back after every
+    # #slreset!, where rovlink sim --leak-at gives a 100 ms pulse: the same bytes got $q.l.1!
+    # from one simulated controller and $q.l.0! from the other.
+    latched, reset = _run(
+        steps,
+        [
+            "leak-at 300",
+            "run 500",
+            send(b"#q.l!"),
+            "show",
+            send(b"#slreset!"),
+            "run 100",
+            send(b"#q.l!"),
+            "show",
+        ],
+    )
+    assert latched.output == b"$q.l.1!"
+    assert reset.output == b"$q.l.0!"
+
+
+def test_slreset_while_the_probe_is_still_wet_latches_again(steps: Path) -> None:
+    (shown,) = _run(
+        steps, ["leak-at 300", "run 350", send(b"#slreset!"), "run 20", send(b"#q.l!"), "show"]
+    )
+    assert shown.output == b"$q.l.1!"

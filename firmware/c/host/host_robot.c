@@ -30,6 +30,7 @@
 #define TICK_S 0.01
 #define WATCHDOG_S 2.0
 #define CLAW_PULSE_S 0.05
+#define LEAK_PULSE_S 0.1 /* --leak-at wets the probe this long, as rovlink sim --leak-at does */
 #define PI 3.14159265358979
 
 typedef struct {
@@ -198,7 +199,8 @@ static void tick(robot *r) {
     double thrust_percent = r->vertical_percent;
     double net_n, depth;
     r->time_s += TICK_S;
-    if (r->leak_at_s >= 0 && r->time_s >= r->leak_at_s && !r->leak_latched) {
+    if (r->leak_at_s >= 0 && r->time_s >= r->leak_at_s &&
+        r->time_s < r->leak_at_s + LEAK_PULSE_S && !r->leak_latched) {
         r->leak_latched = 1;
         rl_debug(&r->link, "leak detected, action none");
     }
