@@ -432,3 +432,48 @@ def test_every_frame_near_its_range_edges_gets_the_same_answer_in_every_state(
         python_output = _python_output(alone, 4096, algorithm)
         assert c_output == python_output, alone
     pytest.fail("the C layer and the Python controller differ on the frames in sequence")
+
+
+class _Reading(_Still):
+    """Hardware whose sensors read the given raw pressure and attitude."""
+
+    def __init__(self, raw: int, attitude: Attitude) -> None:
+        self.raw = raw
+        self.attitude = attitude
+
+    def read_raw(self) -> int:
+        return self.raw
+
+    def read_attitude(self) -> Attitude:
+        return self.attitude
+
+
+@pytest.mark.integration
+@pytest.mark.parametrize(
+    ("raw", "roll_deg", "pitch_deg", "heading_deg"),
+    [(530, -1, 3, 275), (1500, 120, -95, 360), (-5, -91, 91, -1), (1024, 90, -90, 359)],
+)
+def test_replies_out_of_their_ranges_are_written_as_the_python_controller_writes_them(
+    replay: Path, raw: int, roll_deg: int, pitch_deg: int, heading_deg: int
+) -> None:
+    # Before: the C layer wrote what the app's sensors gave: $qhe.360! for a heading that
+    # rounds to 360, $qro.+120! for a roll past 90 (P15: headings 0-359, attitude within ±90).
+    stream = b"#qr!#qro!#qpi!#qhe!#crcon!#qsaB1!"
+    still = _Reading(raw, Attitude(float(roll_deg), float(pitch_deg), float(heading_deg)))
+    hardware = Hardware(
+        thrusters=still, pressure=still, imu=still, leak=still, claw=still, clock=still
+    )
+    controller = Controller(ControllerConfig(), hardware)
+    controller.receive(stream)
+    # (Read plain: the checksummed replies come as bad frames, with their bytes.)
+    events = Decoder().feed(controller.read_output())
+    python_replies = [event.raw for event in events if not isinstance(event, Text)]
+    assert len(python_replies) == len(events) == 10
+    # The depth is the app's to compute (P13): the C app is given the Python controller's.
+    depth_cm = Decoder(checksum_enabled=True).feed(python_replies[4])[0]
+    assert isinstance(depth_cm, Frame)
+    values = (depth_cm.message.values[0], raw, 0, roll_deg, pitch_deg, heading_deg)
+    arguments = [str(replay), "4096", "0", "debug", *(str(value) for value in values)]
+    result = subprocess.run(arguments, input=stream, capture_output=True, check=True, timeout=60)
+    lines = result.stdout.decode("ascii").splitlines()
+    assert [line[2:].encode() for line in lines if line.startswith("R ")] == python_replies
