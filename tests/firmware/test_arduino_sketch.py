@@ -3,7 +3,9 @@ pins, replies and failsafes, against the protocol.
 
 ``arduino_host/`` stands in for the few Arduino core calls the sketch makes: a clock the test
 advances (simulated milliseconds, no sleeping), digital and analog inputs the test sets, a serial
-port. The sketch itself is compiled unchanged, with the protocol layer beside it.
+port. The sketch itself is compiled unchanged, with the protocol layer beside it. With
+``--pty`` the same build serves the sketch on a pseudo-terminal in real time, for
+``rovlink check``.
 """
 
 from __future__ import annotations
@@ -14,6 +16,10 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
+
+from rovlink.client.links import open_link
+from rovlink.client.url import parse_url
+from rovlink.conformance import SuiteOptions, run_checks
 
 FIRMWARE = Path(__file__).resolve().parents[2] / "firmware" / "c"
 SKETCH = FIRMWARE / "arduino" / "rovlink_controller"
@@ -75,6 +81,7 @@ def sketch(tmp_path_factory: pytest.TempPathFactory) -> Path:
         "-o",
         str(binary),
         str(HOST / "sketch_host.cpp"),
+        str(HOST / "pty_host.cpp"),
         *objects,
         "-lm",
     ]
@@ -251,3 +258,27 @@ def test_a_new_target_after_a_stop_starts_without_a_kick(sketch: Path) -> None:
         ],
     )
     assert shown[0].vertical_us == (NEUTRAL_US, NEUTRAL_US)
+
+
+@pytest.mark.integration
+@pytest.mark.slow
+def test_rovlink_check_passes_against_the_sketch(sketch: Path) -> None:
+    # Every check but the motion ones: the host build has no vehicle whose depth would change.
+    process = subprocess.Popen(
+        [str(sketch), "--pty"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+    )
+    try:
+        assert process.stdout is not None
+        line = process.stdout.readline()
+        assert "sketch ready: pty " in line, line
+        pty = line.split("pty ", 1)[1].strip()
+        link = open_link(parse_url(pty))
+        try:
+            report = run_checks(link, pty, SuiteOptions())
+        finally:
+            link.close()
+    finally:
+        process.terminate()
+        process.communicate(timeout=10)
+    assert [(result.name, result.message) for result in report.failures] == []
+    assert len(report.results) > 40

@@ -46,4 +46,8 @@ class HostSerial {
 
 extern HostSerial Serial;
 
+/* Serve the sketch on a pseudo-terminal in real time: millis() follows the clock, loop() runs
+ * every 100 us, the serial port is the terminal (pty_host.cpp). Prints the terminal's path. */
+int host_serve_pty(void (*loop)());
+
 #endif

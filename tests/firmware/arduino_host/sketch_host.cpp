@@ -7,6 +7,9 @@
  *   analog N VALUE    an analog input, 0-1023
  *   show              one line: "at MS pulses P3 P5 P6 P9 P10 P11 claw O C out HEX"
  *                     (the ESC pulses in us, the claw pins, what the sketch wrote since)
+ *
+ * With --pty (last argument) it serves the sketch on a pseudo-terminal in real time instead
+ * (pty_host.cpp), for `rovlink check`.
  */
 #include <stdio.h>
 #include <string.h>
@@ -51,6 +54,13 @@ size_t HostSerial::write(const uint8_t *data, size_t length) {
     out_length += length;
     return length;
 }
+size_t HostSerial::host_take(uint8_t *out, size_t size) {
+    size_t length = out_length < size ? out_length : size;
+    memcpy(out, serial_out, length);
+    memmove(serial_out, serial_out + length, out_length - length);
+    out_length -= length;
+    return length;
+}
 void HostSerial::host_send(const uint8_t *data, size_t length) {
     if (in_start == in_end) in_start = in_end = 0;
     if (in_end + length > sizeof serial_in) length = sizeof serial_in - in_end;
@@ -89,6 +99,7 @@ int main(int argc, char **argv) {
         }
     }
     setup();
+    if (argc > 1 && strcmp(argv[argc - 1], "--pty") == 0) return host_serve_pty(loop);
     while (fgets(line, sizeof line, stdin)) {
         char word[16];
         unsigned long a = 0, b = 0;
