@@ -136,6 +136,16 @@ size_t rl_format_reply(const rl_link *link, rl_reply_id reply, int32_t value, ch
     rl_reply_spec spec;
     size_t length = 0, name_length, body_start = 1;
     rom_copy(&spec, &rl_reply_specs[reply], sizeof spec);
+    /* Written as the protocol writes it, whatever the sensor gave (P13, P15): a heading 0-359
+     * (360 is 0, as 359.6 rounds to it), every other value within its reply's range. */
+    if (reply == RL_REPLY_QHE) {
+        value %= 360;
+        if (value < 0) value += 360;
+    } else if (value < spec.argument.minimum) {
+        value = spec.argument.minimum;
+    } else if (value > spec.argument.maximum) {
+        value = spec.argument.maximum;
+    }
     out[length++] = '$';
     name_length = strlen(spec.name);
     memcpy(out + length, spec.name, name_length);

@@ -36,7 +36,8 @@ typedef struct {
      * writes the debug lines of stop, start and mvdirect; for every other command the app
      * writes one (rl_debug, rl_debug_number) saying what changed. */
     void (*command)(void *context, rl_command_id command, const int32_t *values);
-    /* The current value of one reply (a sensor), within the reply's range. */
+    /* The current value of one reply (a sensor). The layer writes a heading modulo 360 (0-359)
+     * and any other value clamped to its reply's range (P13, P15). */
     int32_t (*reply_value)(void *context, rl_reply_id reply);
 } rl_app;
 
@@ -70,7 +71,9 @@ void rl_debug_number(rl_link *link, const char *before, int32_t value, int with_
                      const char *after);
 /* The checksum of body[0..length) as the algorithm defines it. */
 uint8_t rl_checksum(rl_algorithm algorithm, const char *body, size_t length);
-/* Format the reply frame for one value into out (at least 24 bytes); returns its length. */
+/* Format the reply frame for one value into out (at least 24 bytes); returns its length. The
+ * value is written as the protocol writes it: a heading modulo 360, anything else clamped to its
+ * reply's range. */
 size_t rl_format_reply(const rl_link *link, rl_reply_id reply, int32_t value, char *out);
 
 #ifdef __cplusplus

@@ -30,6 +30,7 @@
 #define TICK_S 0.01
 #define WATCHDOG_S 2.0
 #define CLAW_PULSE_S 0.05
+#define LEAK_PULSE_S 0.1 /* --leak-at wets the probe this long, as rovlink sim --leak-at does */
 #define PI 3.14159265358979
 
 typedef struct {
@@ -44,6 +45,7 @@ typedef struct {
     int direction_deg, power_percent, max_pwm;
     int kp, ki, kd;
     double integral, last_depth_cm, speed_cm_s;
+    double thrust_percent; /* the vertical output of the last tick, % (+ up) */
     int zero_raw, k;
     int leak_latched;
     double leak_at_s;
@@ -52,13 +54,6 @@ typedef struct {
     int claw;
     double claw_until_s;
 } robot;
-
-static volatile sig_atomic_t stopping = 0;
-
-static void on_signal(int signum) {
-    (void)signum;
-    stopping = 1;
-}
 
 static void write_all(void *context, const char *data, size_t length) {
     robot *r = (robot *)context;
@@ -83,12 +78,20 @@ static int depth_cm(const robot *r) {
     return depth < 0 ? 0 : depth > 9999 ? 9999 : (int)depth;
 }
 
+/* The depth PID starts afresh: no integral, and the speed estimate at rest (the depth of the
+ * last tick is the robot's own), so that a hold begins without a derivative kick from the speed
+ * of an earlier hold (P10). */
+static void reset_pid(robot *r) {
+    r->integral = 0.0;
+    r->speed_cm_s = 0.0;
+}
+
 /* The motion set-points cleared, as #start! leaves them (P7). */
 static void clear_set_points(robot *r) {
     r->vertical_percent = 0.0;
     r->holding = 0;
     r->direction_deg = r->power_percent = 0;
-    r->integral = 0.0;
+    reset_pid(r);
 }
 
 /* Every output off, as #stop! and the failsafe leave them (P7, P17). */
@@ -123,7 +126,7 @@ static void on_command(void *context, rl_command_id command, const int32_t *valu
     case RL_CMD_START: clear_set_points(r); break; /* only sent when it unlocks */
     case RL_CMD_MVDIRECT: /* only sent when the mode changes */
         r->vertical_percent = 0.0;
-        r->integral = 0.0;
+        reset_pid(r);
         r->holding = !values[0] && !r->link.locked; /* depth mode while unlocked: hold (P9) */
         if (r->holding) r->target_cm = depth_cm(r);
         break;
@@ -132,7 +135,7 @@ static void on_command(void *context, rl_command_id command, const int32_t *valu
         debug_line(r, "vertical thrust %+ld %%", (long)values[0]);
         break;
     case RL_CMD_MVD:
-        if (!r->holding) r->integral = 0.0; /* a new target after none: the PID starts afresh */
+        if (!r->holding) reset_pid(r); /* a new target after none: the PID starts afresh */
         r->holding = 1;
         r->target_cm = (int)values[0];
         debug_line(r, "target depth %ld cm", (long)values[0]);
@@ -196,7 +199,8 @@ static void tick(robot *r) {
     double thrust_percent = r->vertical_percent;
     double net_n, depth;
     r->time_s += TICK_S;
-    if (r->leak_at_s >= 0 && r->time_s >= r->leak_at_s && !r->leak_latched) {
+    if (r->leak_at_s >= 0 && r->time_s >= r->leak_at_s &&
+        r->time_s < r->leak_at_s + LEAK_PULSE_S && !r->leak_latched) {
         r->leak_latched = 1;
         rl_debug(&r->link, "leak detected, action none");
     }
@@ -222,6 +226,7 @@ static void tick(robot *r) {
         if (thrust_percent < -100) thrust_percent = -100;
     }
     r->last_depth_cm = depth;
+    r->thrust_percent = thrust_percent;
     /* Two vertical thrusters of 2.5 kgf, the PWM cap, lag, buoyancy, drag; + up. */
     r->up_thrust_n += (thrust_percent / 100.0 * r->max_pwm / 255.0 * 49.0 - r->up_thrust_n) * 0.1;
     net_n = 2.0 + r->up_thrust_n;
@@ -231,6 +236,30 @@ static void tick(robot *r) {
         r->depth_m = 0;
         if (r->heave_m_s < 0) r->heave_m_s = 0;
     }
+}
+
+/* The robot at power-on, at the surface: the controller's defaults (P7, P8, P10, P13). */
+static void robot_init(robot *r) {
+    static const rl_app app = {write_all, on_command, on_reply};
+    memset(r, 0, sizeof *r);
+    r->max_pwm = 255;
+    r->kp = 40;
+    r->ki = 30;
+    r->kd = 20;
+    r->zero_raw = 20;
+    r->k = 200;
+    r->leak_at_s = -1.0;
+    rl_init(&r->link, &app, r, RL_CRC8);
+}
+
+/* Without a main, for a test that steps the robot in simulated time (tests/firmware). */
+#ifndef RL_HOST_ROBOT_NO_MAIN
+
+static volatile sig_atomic_t stopping = 0;
+
+static void on_signal(int signum) {
+    (void)signum;
+    stopping = 1;
 }
 
 static int open_pty(char *path, size_t size, int *slave) {
@@ -258,19 +287,11 @@ static double now_s(void) {
 }
 
 int main(int argc, char **argv) {
-    static const rl_app app = {write_all, on_command, on_reply};
     static robot r;
     char path[128];
     int slave = -1, i;
     double next_tick_s;
-    memset(&r, 0, sizeof r);
-    r.max_pwm = 255;
-    r.kp = 40;
-    r.ki = 30;
-    r.kd = 20;
-    r.zero_raw = 20;
-    r.k = 200;
-    r.leak_at_s = -1.0;
+    robot_init(&r);
     for (i = 1; i + 1 < argc; i += 2) {
         if (strcmp(argv[i], "--leak-at") == 0) r.leak_at_s = atof(argv[i + 1]);
     }
@@ -279,7 +300,6 @@ int main(int argc, char **argv) {
         perror("rovlink-c: cannot open a pseudo-terminal");
         return 1;
     }
-    rl_init(&r.link, &app, &r, RL_CRC8);
     signal(SIGINT, on_signal);
     signal(SIGTERM, on_signal);
     printf("rovlink-c ready: pty %s (link %u bytes of RAM)\n", path, (unsigned)sizeof r.link);
@@ -307,3 +327,5 @@ int main(int argc, char **argv) {
     close(r.fd);
     return 0;
 }
+
+#endif /* RL_HOST_ROBOT_NO_MAIN */

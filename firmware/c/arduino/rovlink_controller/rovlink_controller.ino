@@ -60,15 +60,12 @@ static void drive(Servo &esc, float percent) {
     esc.writeMicroseconds(1500 + (int)(duty * 500.0f));
 }
 
-static void all_stop() {
-    robot.vertical_percent = 0;
-    robot.holding = false;
-    robot.direction_deg = robot.power_percent = 0;
+/* The depth PID starts afresh: no integral, and the speed estimate at rest from the depth now,
+ * so that a hold begins without a derivative kick from a stale depth (P10). */
+static void reset_pid() {
     robot.integral = 0;
-    for (Servo &esc : vertical) drive(esc, 0);
-    for (Servo &esc : horizontal) drive(esc, 0);
-    digitalWrite(CLAW_OPEN_PIN, LOW);
-    digitalWrite(CLAW_CLOSE_PIN, LOW);
+    robot.speed_cm_s = 0;
+    robot.last_depth_cm = depth_cm();
 }
 
 /* The motion set-points cleared, as #start! leaves them (P7); the outputs follow next tick. */
@@ -76,7 +73,15 @@ static void clear_set_points() {
     robot.vertical_percent = 0;
     robot.holding = false;
     robot.direction_deg = robot.power_percent = 0;
-    robot.integral = 0;
+    reset_pid();
+}
+
+static void all_stop() {
+    clear_set_points();
+    for (Servo &esc : vertical) drive(esc, 0);
+    for (Servo &esc : horizontal) drive(esc, 0);
+    digitalWrite(CLAW_OPEN_PIN, LOW);
+    digitalWrite(CLAW_CLOSE_PIN, LOW);
 }
 
 /* The layer has switched the lock and the vertical mode (start comes only when it unlocks,
@@ -88,7 +93,7 @@ static void on_command(void *, rl_command_id command, const int32_t *values) {
     case RL_CMD_START: clear_set_points(); break;
     case RL_CMD_MVDIRECT:
         robot.vertical_percent = 0;
-        robot.integral = 0;
+        reset_pid();
         robot.holding = !values[0] && !link.locked; /* depth mode while unlocked: hold (P9) */
         if (robot.holding) robot.target_cm = depth_cm();
         break;
@@ -97,7 +102,7 @@ static void on_command(void *, rl_command_id command, const int32_t *values) {
         rl_debug_number(&link, "vertical thrust ", values[0], 1, " %");
         break;
     case RL_CMD_MVD:
-        if (!robot.holding) robot.integral = 0;
+        if (!robot.holding) reset_pid(); /* a new target after none: the PID starts afresh */
         robot.holding = true;
         robot.target_cm = values[0];
         rl_debug_number(&link, "target depth ", values[0], 0, " cm");
@@ -143,6 +148,12 @@ static int32_t on_reply(void *, rl_reply_id reply) {
 
 static void leak_fired() { robot.leak_latched = true; } /* latched however short (P14) */
 
+/* The interrupt sees a pulse shorter than a tick; the level, read at power-on and every tick,
+ * sees a probe that was wet before power-on or is still wet after #slreset! (P14). */
+static void check_leak_level() {
+    if (digitalRead(LEAK_PIN) == LOW) robot.leak_latched = true;
+}
+
 static const rl_app app = {write_serial, on_command, on_reply};
 
 void setup() {
@@ -153,6 +164,7 @@ void setup() {
     pinMode(CLAW_OPEN_PIN, OUTPUT);
     pinMode(CLAW_CLOSE_PIN, OUTPUT);
     attachInterrupt(digitalPinToInterrupt(LEAK_PIN), leak_fired, FALLING);
+    check_leak_level();
     all_stop();
     rl_init(&link, &app, nullptr, RL_CRC8);
 }
@@ -167,6 +179,7 @@ void loop() {
     unsigned long now = millis();
     if ((long)(now - next_tick_ms) < 0) return;
     next_tick_ms = now + TICK_MS;
+    check_leak_level();
     if (link.valid_frames != robot.frames_seen) {
         robot.frames_seen = link.valid_frames;
         robot.last_frame_ms = now;

@@ -1,0 +1,134 @@
+/* The Arduino sketch (firmware/c/arduino/rovlink_controller) on a host, driven by a script on
+ * stdin, one step a line (arguments N=LEVEL set digital inputs as they are at power-on):
+ *
+ *   send HEX          bytes to the sketch's serial port
+ *   run MS            MS milliseconds of loop(), called every 100 us
+ *   pin N LEVEL       a digital input (a falling edge runs its interrupt)
+ *   analog N VALUE    an analog input, 0-1023
+ *   show              one line: "at MS pulses P3 P5 P6 P9 P10 P11 claw O C out HEX"
+ *                     (the ESC pulses in us, the claw pins, what the sketch wrote since)
+ *
+ * With --pty (last argument) it serves the sketch on a pseudo-terminal in real time instead
+ * (pty_host.cpp), for `rovlink check`.
+ */
+#include <stdio.h>
+#include <string.h>
+
+#include "Arduino.h"
+#include "Servo.h"
+
+unsigned long host_millis = 0;
+static unsigned long host_micros = 0;
+int host_pins[PIN_COUNT];
+int host_analog[PIN_COUNT];
+int host_pulse_us[PIN_COUNT];
+static int host_driven[PIN_COUNT]; /* inputs the test drives: a pull-up does not lift them */
+static void (*host_handlers[PIN_COUNT])();
+HostSerial Serial;
+static uint8_t serial_in[4096], serial_out[1 << 16];
+static size_t in_start = 0, in_end = 0, out_length = 0;
+
+unsigned long millis() { return host_millis; }
+int digitalRead(uint8_t pin) { return host_pins[pin]; }
+void digitalWrite(uint8_t pin, int level) { host_pins[pin] = level; }
+int analogRead(uint8_t pin) { return host_analog[pin]; }
+void pinMode(uint8_t pin, int mode) {
+    if (mode == INPUT_PULLUP && !host_driven[pin]) host_pins[pin] = HIGH;
+}
+void attachInterrupt(uint8_t interrupt, void (*handler)(), int mode) {
+    if (mode == FALLING) host_handlers[interrupt] = handler;
+}
+void host_set_pin(uint8_t pin, int level) {
+    int was = host_pins[pin];
+    host_driven[pin] = 1;
+    host_pins[pin] = level;
+    if (was == HIGH && level == LOW && host_handlers[pin]) host_handlers[pin]();
+}
+
+void HostSerial::begin(unsigned long) {}
+int HostSerial::available() { return (int)(in_end - in_start); }
+int HostSerial::read() { return in_start < in_end ? serial_in[in_start++] : -1; }
+size_t HostSerial::write(const uint8_t *data, size_t length) {
+    if (out_length + length > sizeof serial_out) length = sizeof serial_out - out_length;
+    memcpy(serial_out + out_length, data, length);
+    out_length += length;
+    return length;
+}
+size_t HostSerial::host_take(uint8_t *out, size_t size) {
+    size_t length = out_length < size ? out_length : size;
+    memcpy(out, serial_out, length);
+    memmove(serial_out, serial_out + length, out_length - length);
+    out_length -= length;
+    return length;
+}
+void HostSerial::host_send(const uint8_t *data, size_t length) {
+    if (in_start == in_end) in_start = in_end = 0;
+    if (in_end + length > sizeof serial_in) length = sizeof serial_in - in_end;
+    memcpy(serial_in + in_end, data, length);
+    in_end += length;
+}
+
+static int servo_pins[PIN_COUNT], servo_count = 0;
+void Servo::attach(int pin) {
+    servo_pins[servo_count++] = pin;
+    host_pulse_us[pin] = 1500; /* the library's default pulse */
+    pin_ = pin;
+}
+void Servo::writeMicroseconds(int microseconds) { host_pulse_us[pin_] = microseconds; }
+
+#include "rovlink_controller.ino"
+
+static void show() {
+    size_t i;
+    printf("at %lu pulses", host_millis);
+    for (i = 0; i < (size_t)servo_count; i++) printf(" %d", host_pulse_us[servo_pins[i]]);
+    printf(" claw %d %d out ", host_pins[CLAW_OPEN_PIN], host_pins[CLAW_CLOSE_PIN]);
+    for (i = 0; i < out_length; i++) printf("%02x", serial_out[i]);
+    printf("\n");
+    out_length = 0;
+}
+
+int main(int argc, char **argv) {
+    char line[8192];
+    int i;
+    for (i = 1; i < argc; i++) { /* N=LEVEL: a digital input as it is at power-on */
+        unsigned pin, level;
+        if (sscanf(argv[i], "%u=%u", &pin, &level) == 2 && pin < PIN_COUNT) {
+            host_driven[pin] = 1;
+            host_pins[pin] = (int)level;
+        }
+    }
+    setup();
+    if (argc > 1 && strcmp(argv[argc - 1], "--pty") == 0) return host_serve_pty(loop);
+    while (fgets(line, sizeof line, stdin)) {
+        char word[16];
+        unsigned long a = 0, b = 0;
+        if (sscanf(line, "%15s", word) != 1) continue;
+        if (strcmp(word, "send") == 0) {
+            const char *hex = line + 5;
+            uint8_t bytes[4096];
+            size_t count = 0;
+            unsigned value;
+            while (count < sizeof bytes && sscanf(hex, "%2x", &value) == 1) {
+                bytes[count++] = (uint8_t)value;
+                hex += 2;
+            }
+            Serial.host_send(bytes, count);
+        } else if (strcmp(word, "run") == 0 && sscanf(line, "%*s %lu", &a) == 1) {
+            unsigned long steps = a * 10;
+            while (steps--) {
+                loop();
+                host_micros += 100;
+                host_millis = host_micros / 1000;
+            }
+        } else if (strcmp(word, "pin") == 0 && sscanf(line, "%*s %lu %lu", &a, &b) == 2) {
+            host_set_pin((uint8_t)a, (int)b);
+        } else if (strcmp(word, "analog") == 0 && sscanf(line, "%*s %lu %lu", &a, &b) == 2) {
+            host_analog[a] = (int)b;
+        } else if (strcmp(word, "show") == 0) {
+            show();
+        }
+        fflush(stdout);
+    }
+    return 0;
+}

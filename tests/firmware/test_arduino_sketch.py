@@ -1,0 +1,284 @@
+"""The Arduino sketch (``firmware/c/arduino/rovlink_controller``) on a host: its ESC pulses, claw
+pins, replies and failsafes, against the protocol.
+
+``arduino_host/`` stands in for the few Arduino core calls the sketch makes: a clock the test
+advances (simulated milliseconds, no sleeping), digital and analog inputs the test sets, a serial
+port. The sketch itself is compiled unchanged, with the protocol layer beside it. With
+``--pty`` the same build serves the sketch on a pseudo-terminal in real time, for
+``rovlink check``.
+"""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+from dataclasses import dataclass
+from pathlib import Path
+
+import pytest
+
+from rovlink.client.links import open_link
+from rovlink.client.url import parse_url
+from rovlink.conformance import SuiteOptions, run_checks
+
+FIRMWARE = Path(__file__).resolve().parents[2] / "firmware" / "c"
+SKETCH = FIRMWARE / "arduino" / "rovlink_controller"
+HOST = Path(__file__).resolve().parent / "arduino_host"
+GCC = shutil.which("gcc")
+GXX = shutil.which("g++")
+pytestmark = pytest.mark.skipif(
+    GCC is None or GXX is None, reason="gcc and g++ are not installed (.ci/debian-packages)"
+)
+
+NEUTRAL_US = 1500
+FULL_UP_US = 2000
+LEAK_PIN = 2
+PRESSURE_PIN = 14  # A0
+#: The raw reading at 300 cm with the sketch's defaults (zero 20, k 200: 2 cm per count).
+RAW_AT_300_CM = 170
+
+
+@dataclass(frozen=True)
+class Shown:
+    """One ``show`` of the host build: the time, the six ESC pulses, the claw pins, output."""
+
+    at_ms: int
+    vertical_us: tuple[int, int]
+    horizontal_us: tuple[int, int, int, int]
+    claw: tuple[int, int]
+    output: bytes
+
+
+@pytest.fixture(scope="module")
+def sketch(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    assert GCC is not None
+    assert GXX is not None
+    build = tmp_path_factory.mktemp("sketch")
+    objects = []
+    for source in ("rovlink_proto.c", "rovlink_commands.c"):
+        output = build / source.replace(".c", ".o")
+        command = [
+            GCC,
+            "-std=c99",
+            "-c",
+            f"-I{FIRMWARE}",
+            "-o",
+            str(output),
+            str(FIRMWARE / source),
+        ]
+        subprocess.run(command, check=True, timeout=120)
+        objects.append(str(output))
+    binary = build / "sketch"
+    command = [
+        GXX,
+        "-std=c++11",
+        "-Wall",
+        "-Wextra",
+        "-Werror",
+        f"-I{HOST}",
+        f"-I{FIRMWARE}",
+        f"-I{SKETCH}",
+        "-o",
+        str(binary),
+        str(HOST / "sketch_host.cpp"),
+        str(HOST / "pty_host.cpp"),
+        *objects,
+        "-lm",
+    ]
+    result = subprocess.run(command, capture_output=True, text=True, check=False, timeout=120)
+    assert result.returncode == 0, result.stderr
+    return binary
+
+
+def _run(sketch: Path, script: list[str], *power_on: str) -> list[Shown]:
+    """Run ``script`` (see sketch_host.cpp) on a freshly powered-on sketch; every ``show``."""
+    result = subprocess.run(
+        [str(sketch), *power_on],
+        input="".join(line + "\n" for line in script),
+        capture_output=True,
+        text=True,
+        check=True,
+        timeout=30,
+    )
+    shown = []
+    for line in result.stdout.splitlines():
+        words = line.split()
+        pulses = [int(word) for word in words[3:9]]
+        shown.append(
+            Shown(
+                at_ms=int(words[1]),
+                vertical_us=(pulses[0], pulses[1]),
+                horizontal_us=(pulses[2], pulses[3], pulses[4], pulses[5]),
+                claw=(int(words[10]), int(words[11])),
+                output=bytes.fromhex(words[13]) if len(words) > 13 else b"",
+            )
+        )
+    return shown
+
+
+def send(data: bytes) -> str:
+    return "send " + data.hex()
+
+
+def test_the_sketch_answers_a_query_and_drives_nothing_while_locked(sketch: Path) -> None:
+    (shown,) = _run(sketch, ["run 20", send(b"#qd!#th.0.100!"), "run 20", "show"])
+    assert shown.output == b"$qd.0!"
+    assert shown.vertical_us + shown.horizontal_us == (NEUTRAL_US,) * 6
+
+
+def test_stop_puts_every_esc_at_neutral_at_once(sketch: Path) -> None:
+    moving, stopped = _run(
+        sketch,
+        [
+            "run 20",
+            send(b"#start!#mvdirect.1!#mvs.+50!#th.0.100!#h+!"),
+            "run 20",
+            "show",
+            send(b"#stop!"),
+            "run 1",  # (loop() reads the byte; no tick is due in this millisecond)
+            "show",
+        ],
+    )
+    assert moving.vertical_us == (1750, 1750)
+    assert moving.horizontal_us == (FULL_UP_US,) * 4
+    assert stopped.vertical_us + stopped.horizontal_us == (NEUTRAL_US,) * 6
+    assert stopped.claw == (0, 0)
+
+
+def test_link_loss_stops_and_locks_after_two_seconds(sketch: Path) -> None:
+    before, after, refused = _run(
+        sketch,
+        [
+            "run 20",
+            send(b"#debug1!#start!#mvdirect.1!#mvs.+50!"),
+            "run 1950",
+            "show",
+            "run 100",
+            "show",
+            send(b"#mvs.+50!"),
+            "run 20",
+            "show",
+        ],
+    )
+    assert before.vertical_us == (1750, 1750)
+    assert after.vertical_us == (NEUTRAL_US, NEUTRAL_US)
+    assert b"failsafe: no valid frame for 2 s" in after.output
+    assert refused.vertical_us == (NEUTRAL_US, NEUTRAL_US)
+    assert b"motors are locked" in refused.output
+
+
+def test_the_claw_runs_for_one_pulse(sketch: Path) -> None:
+    running, stopped = _run(
+        sketch, ["run 20", send(b"#start!#h-!"), "run 40", "show", "run 20", "show"]
+    )
+    assert running.claw == (0, 1)
+    assert stopped.claw == (0, 0)
+
+
+def test_a_leak_present_at_power_on_is_latched(sketch: Path) -> None:
+    # Before: the latch was set only by a falling edge; a probe already wet at power-on never
+    # made one, and the sketch answered $q.l.0! (P14).
+    (shown,) = _run(sketch, ["run 20", send(b"#q.l!"), "run 5", "show"], f"{LEAK_PIN}=0")
+    assert shown.output == b"$q.l.1!"
+
+
+def test_a_leak_still_present_after_slreset_is_latched_again(sketch: Path) -> None:
+    # Before: #slreset! cleared the latch for good while the probe stayed wet (no new edge).
+    (shown,) = _run(
+        sketch,
+        [
+            f"pin {LEAK_PIN} 0",
+            "run 20",
+            send(b"#q.l!#slreset!"),
+            "run 50",
+            send(b"#q.l!"),
+            "run 5",
+            "show",
+        ],
+    )
+    assert shown.output == b"$q.l.1!$q.l.1!"
+
+
+def test_a_short_leak_pulse_is_latched_until_slreset(sketch: Path) -> None:
+    latched, reset = _run(
+        sketch,
+        [
+            "run 20",
+            f"pin {LEAK_PIN} 0",
+            f"pin {LEAK_PIN} 1",  # (shorter than a tick: only the interrupt sees it)
+            "run 50",
+            send(b"#q.l!"),
+            "run 5",
+            "show",
+            send(b"#slreset!#q.l!"),
+            "run 20",
+            send(b"#q.l!"),
+            "run 5",
+            "show",
+        ],
+    )
+    assert latched.output == b"$q.l.1!"
+    assert reset.output == b"$q.l.0!$q.l.0!"
+
+
+def test_a_depth_hold_at_rest_starts_without_a_kick(sketch: Path) -> None:
+    # Before: the speed estimate took the depth of its last hold (0 cm at power-on) as the
+    # depth a tick ago, so a hold begun at rest at 300 cm saw 30 000 cm/s of descent and
+    # drove the vertical thrusters full up for seconds (P10: derivative on measurement).
+    shown = _run(
+        sketch,
+        [
+            f"analog {PRESSURE_PIN} {RAW_AT_300_CM}",
+            "run 20",
+            send(b"#qd!#start!#mvdirect.1!#mvdirect.0!"),
+            "run 30",
+            "show",
+            "run 300",
+            "show",
+        ],
+    )
+    assert shown[0].output == b"$qd.300!"
+    for moment in shown:
+        assert moment.vertical_us == (NEUTRAL_US, NEUTRAL_US), moment
+
+
+def test_a_new_target_after_a_stop_starts_without_a_kick(sketch: Path) -> None:
+    # Before: the speed estimate of an earlier hold survived #stop! and #start!.
+    shown = _run(
+        sketch,
+        [
+            "run 20",
+            send(b"#start!#mvd.300!"),
+            "run 500",
+            f"analog {PRESSURE_PIN} {RAW_AT_300_CM}",  # (a 300 cm jump in one tick)
+            "run 20",
+            send(b"#stop!#start!#mvd.300!"),
+            "run 30",
+            "show",
+        ],
+    )
+    assert shown[0].vertical_us == (NEUTRAL_US, NEUTRAL_US)
+
+
+@pytest.mark.integration
+@pytest.mark.slow
+def test_rovlink_check_passes_against_the_sketch(sketch: Path) -> None:
+    # Every check but the motion ones: the host build has no vehicle whose depth would change.
+    process = subprocess.Popen(
+        [str(sketch), "--pty"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+    )
+    try:
+        assert process.stdout is not None
+        line = process.stdout.readline()
+        assert "sketch ready: pty " in line, line
+        pty = line.split("pty ", 1)[1].strip()
+        link = open_link(parse_url(pty))
+        try:
+            report = run_checks(link, pty, SuiteOptions())
+        finally:
+            link.close()
+    finally:
+        process.terminate()
+        process.communicate(timeout=10)
+    assert [(result.name, result.message) for result in report.failures] == []
+    assert len(report.results) > 40
