@@ -10,7 +10,6 @@ port. The sketch itself is compiled unchanged, with the protocol layer beside it
 
 from __future__ import annotations
 
-import shutil
 import subprocess
 from dataclasses import dataclass
 from pathlib import Path
@@ -20,12 +19,10 @@ import pytest
 from rovlink.client.links import open_link
 from rovlink.client.url import parse_url
 from rovlink.conformance import SuiteOptions, run_checks
+from tests.firmware.c_build import FIRMWARE, GCC, GXX, LAYER, build
 
-FIRMWARE = Path(__file__).resolve().parents[2] / "firmware" / "c"
 SKETCH = FIRMWARE / "arduino" / "rovlink_controller"
 HOST = Path(__file__).resolve().parent / "arduino_host"
-GCC = shutil.which("gcc")
-GXX = shutil.which("g++")
 pytestmark = pytest.mark.skipif(
     GCC is None or GXX is None, reason="gcc and g++ are not installed (.ci/debian-packages)"
 )
@@ -51,43 +48,16 @@ class Shown:
 
 @pytest.fixture(scope="module")
 def sketch(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    assert GCC is not None
-    assert GXX is not None
-    build = tmp_path_factory.mktemp("sketch")
+    build_dir = tmp_path_factory.mktemp("sketch")
     objects = []
-    for source in ("rovlink_proto.c", "rovlink_commands.c"):
-        output = build / source.replace(".c", ".o")
-        command = [
-            GCC,
-            "-std=c99",
-            "-c",
-            f"-I{FIRMWARE}",
-            "-o",
-            str(output),
-            str(FIRMWARE / source),
-        ]
+    for source in LAYER:  # (C, compiled apart: the sketch's own files are C++)
+        output = build_dir / source.with_suffix(".o").name
+        command = [str(GCC), "-std=c99", "-c", f"-I{FIRMWARE}", "-o", str(output), str(source)]
         subprocess.run(command, check=True, timeout=120)
-        objects.append(str(output))
-    binary = build / "sketch"
-    command = [
-        GXX,
-        "-std=c++11",
-        "-Wall",
-        "-Wextra",
-        "-Werror",
-        f"-I{HOST}",
-        f"-I{FIRMWARE}",
-        f"-I{SKETCH}",
-        "-o",
-        str(binary),
-        str(HOST / "sketch_host.cpp"),
-        str(HOST / "pty_host.cpp"),
-        *objects,
-        "-lm",
-    ]
-    result = subprocess.run(command, capture_output=True, text=True, check=False, timeout=120)
-    assert result.returncode == 0, result.stderr
-    return binary
+        objects.append(output)
+    flags = ("-std=c++11", "-Wall", "-Wextra", "-Werror", f"-I{HOST}", f"-I{SKETCH}")
+    sources = [HOST / "sketch_host.cpp", HOST / "pty_host.cpp", *objects]
+    return build(build_dir / "sketch", sources, *flags, compiler=GXX)
 
 
 def _run(sketch: Path, script: list[str], *power_on: str) -> list[Shown]:

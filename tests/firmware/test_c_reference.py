@@ -3,7 +3,6 @@ sanitizers and a fuzz run."""
 
 from __future__ import annotations
 
-import shutil
 import subprocess
 import time
 from collections.abc import Callable, Iterator, Sequence
@@ -17,14 +16,9 @@ from rovlink.conformance import CHECKS, SuiteOptions, run_checks, select_checks
 from rovlink.controller import Attitude, ControllerConfig, Hardware
 from rovlink.controller.controller import Controller
 from rovlink.protocol import Decoder, Frame, c_table
+from tests.firmware.c_build import FIRMWARE, GCC, LAYER, STRICT, build, needs_gcc
 
-FIRMWARE = Path(__file__).resolve().parents[2] / "firmware" / "c"
-STRICT = ["-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic"]
 SANITIZE = ["-g", "-O1", "-fsanitize=address,undefined", "-fno-sanitize-recover=all"]
-LAYER = [str(FIRMWARE / "rovlink_proto.c"), str(FIRMWARE / "rovlink_commands.c")]
-GCC = shutil.which("gcc")
-
-needs_gcc = pytest.mark.skipif(GCC is None, reason="gcc is not installed (.ci/debian-packages)")
 
 
 def test_generated_command_table_is_up_to_date() -> None:
@@ -35,11 +29,7 @@ def test_generated_command_table_is_up_to_date() -> None:
 
 
 def _build(output: Path, main: str, *flags: str) -> Path:
-    assert GCC is not None
-    command = [GCC, *STRICT, *flags, f"-I{FIRMWARE}", "-o", str(output), main, *LAYER, "-lm"]
-    result = subprocess.run(command, capture_output=True, text=True, check=False, timeout=120)
-    assert result.returncode == 0, result.stderr
-    return output
+    return build(output, [main, *LAYER], *STRICT, *flags)
 
 
 @pytest.fixture(scope="module")

@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import itertools
 import random
-import shutil
 import subprocess
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -34,10 +33,9 @@ from rovlink.protocol import (
     encode,
     get_algorithm,
 )
+from tests.firmware.c_build import FIRMWARE, LAYER, STRICT, build, needs_gcc
 
-FIRMWARE = Path(__file__).resolve().parents[2] / "firmware" / "c"
-GCC = shutil.which("gcc")
-pytestmark = pytest.mark.skipif(GCC is None, reason="gcc is not installed (.ci/debian-packages)")
+pytestmark = needs_gcc
 
 #: Settings the C layer keeps to itself (it tells the app nothing about them).
 _LAYER_ONLY = (Setting.CHECKSUM, Setting.DEBUG)
@@ -198,28 +196,8 @@ def _crc8(body: bytes) -> int:
 
 @pytest.fixture(scope="module")
 def replay(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    assert GCC is not None
     binary = tmp_path_factory.mktemp("c") / "replay"
-    subprocess.run(
-        [
-            GCC,
-            "-std=c99",
-            "-Wall",
-            "-Wextra",
-            "-Werror",
-            "-pedantic",
-            "-O1",
-            f"-I{FIRMWARE}",
-            "-o",
-            str(binary),
-            str(FIRMWARE / "host" / "replay.c"),
-            str(FIRMWARE / "rovlink_proto.c"),
-            str(FIRMWARE / "rovlink_commands.c"),
-        ],
-        check=True,
-        timeout=120,
-    )
-    return binary
+    return build(binary, [FIRMWARE / "host" / "replay.c", *LAYER], *STRICT, "-O1")
 
 
 @pytest.mark.integration

@@ -7,17 +7,16 @@ runs it from a script (see its header).
 
 from __future__ import annotations
 
-import shutil
 import subprocess
 from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
 
-FIRMWARE = Path(__file__).resolve().parents[2] / "firmware" / "c"
+from tests.firmware.c_build import LAYER, STRICT, build, needs_gcc
+
 STEPS = Path(__file__).resolve().parent / "host_robot_steps.c"
-GCC = shutil.which("gcc")
-pytestmark = pytest.mark.skipif(GCC is None, reason="gcc is not installed (.ci/debian-packages)")
+pytestmark = needs_gcc
 
 
 @dataclass(frozen=True)
@@ -33,27 +32,8 @@ class Shown:
 
 @pytest.fixture(scope="module")
 def steps(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    assert GCC is not None
     binary = tmp_path_factory.mktemp("steps") / "host-robot-steps"
-    command = [
-        GCC,
-        "-std=c99",
-        "-Wall",
-        "-Wextra",
-        "-Werror",
-        "-pedantic",
-        "-O1",
-        f"-I{FIRMWARE}",
-        "-o",
-        str(binary),
-        str(STEPS),
-        str(FIRMWARE / "rovlink_proto.c"),
-        str(FIRMWARE / "rovlink_commands.c"),
-        "-lm",
-    ]
-    result = subprocess.run(command, capture_output=True, text=True, check=False, timeout=120)
-    assert result.returncode == 0, result.stderr
-    return binary
+    return build(binary, [STEPS, *LAYER], *STRICT, "-O1")
 
 
 def _run(steps: Path, script: list[str]) -> list[Shown]:

@@ -1,0 +1,33 @@
+"""Building the firmware's C for the tests: the compilers, the strict flags and the protocol
+layer every program links with."""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+from collections.abc import Sequence
+from pathlib import Path
+
+import pytest
+
+FIRMWARE = Path(__file__).resolve().parents[2] / "firmware" / "c"
+GCC = shutil.which("gcc")
+GXX = shutil.which("g++")
+#: The reference is C99 and builds without a warning.
+STRICT = ("-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic")
+#: The protocol layer (generated command table included).
+LAYER = (FIRMWARE / "rovlink_proto.c", FIRMWARE / "rovlink_commands.c")
+
+needs_gcc = pytest.mark.skipif(GCC is None, reason="gcc is not installed (.ci/debian-packages)")
+
+
+def build(
+    output: Path, sources: Sequence[Path | str], *flags: str, compiler: str | None = GCC
+) -> Path:
+    """Compile and link ``sources`` into ``output`` with ``flags``, the firmware's directory
+    on the include path and the maths library; the compiler's messages if it fails."""
+    assert compiler is not None
+    command = [compiler, *flags, f"-I{FIRMWARE}", "-o", str(output), *map(str, sources), "-lm"]
+    result = subprocess.run(command, capture_output=True, text=True, check=False, timeout=120)
+    assert result.returncode == 0, result.stderr
+    return output
