@@ -1,5 +1,5 @@
-"""Building the firmware's C for the tests: the compilers, the strict flags and the protocol
-layer every program links with."""
+"""Building the firmware's C for the tests (the compilers, the strict flags and the protocol
+layer every program links with), and running the stepped programs built from it."""
 
 from __future__ import annotations
 
@@ -31,3 +31,22 @@ def build(
     result = subprocess.run(command, capture_output=True, text=True, check=False, timeout=120)
     assert result.returncode == 0, result.stderr
     return output
+
+
+def run_script(program: Path, script: Sequence[str], *arguments: str) -> list[list[str]]:
+    """Run a stepped program (``host_robot_steps.c``, the sketch's host build) on ``script``,
+    one command a line; the words of each line it shows."""
+    result = subprocess.run(
+        [str(program), *arguments],
+        input="".join(line + "\n" for line in script),
+        capture_output=True,
+        text=True,
+        check=True,
+        timeout=30,
+    )
+    return [line.split() for line in result.stdout.splitlines()]
+
+
+def send(data: bytes) -> str:
+    """The script line that feeds ``data`` to the program's serial input."""
+    return "send " + data.hex()

@@ -19,7 +19,7 @@ import pytest
 from rovlink.client.links import open_link
 from rovlink.client.url import parse_url
 from rovlink.conformance import SuiteOptions, run_checks
-from tests.firmware.c_build import FIRMWARE, GCC, GXX, LAYER, build
+from tests.firmware.c_build import FIRMWARE, GCC, GXX, LAYER, build, run_script, send
 
 SKETCH = FIRMWARE / "arduino" / "rovlink_controller"
 HOST = Path(__file__).resolve().parent / "arduino_host"
@@ -62,17 +62,8 @@ def sketch(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 def _run(sketch: Path, script: list[str], *power_on: str) -> list[Shown]:
     """Run ``script`` (see sketch_host.cpp) on a freshly powered-on sketch; every ``show``."""
-    result = subprocess.run(
-        [str(sketch), *power_on],
-        input="".join(line + "\n" for line in script),
-        capture_output=True,
-        text=True,
-        check=True,
-        timeout=30,
-    )
     shown = []
-    for line in result.stdout.splitlines():
-        words = line.split()
+    for words in run_script(sketch, script, *power_on):
         pulses = [int(word) for word in words[3:9]]
         shown.append(
             Shown(
@@ -84,10 +75,6 @@ def _run(sketch: Path, script: list[str], *power_on: str) -> list[Shown]:
             )
         )
     return shown
-
-
-def send(data: bytes) -> str:
-    return "send " + data.hex()
 
 
 def test_the_sketch_answers_a_query_and_drives_nothing_while_locked(sketch: Path) -> None:

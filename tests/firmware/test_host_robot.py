@@ -7,13 +7,12 @@ runs it from a script (see its header).
 
 from __future__ import annotations
 
-import subprocess
 from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
 
-from tests.firmware.c_build import LAYER, STRICT, build, needs_gcc
+from tests.firmware.c_build import LAYER, STRICT, build, needs_gcc, run_script, send
 
 STEPS = Path(__file__).resolve().parent / "host_robot_steps.c"
 pytestmark = needs_gcc
@@ -37,17 +36,8 @@ def steps(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 
 def _run(steps: Path, script: list[str]) -> list[Shown]:
-    result = subprocess.run(
-        [str(steps)],
-        input="".join(line + "\n" for line in script),
-        capture_output=True,
-        text=True,
-        check=True,
-        timeout=30,
-    )
     shown = []
-    for line in result.stdout.splitlines():
-        words = line.split()
+    for words in run_script(steps, script):
         shown.append(
             Shown(
                 at_ms=int(words[1]),
@@ -58,10 +48,6 @@ def _run(steps: Path, script: list[str]) -> list[Shown]:
             )
         )
     return shown
-
-
-def send(data: bytes) -> str:
-    return "send " + data.hex()
 
 
 def test_stop_zeroes_the_vertical_output_at_the_next_tick(steps: Path) -> None:
