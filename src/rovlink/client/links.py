@@ -591,14 +591,16 @@ def _open_serial(endpoint: Endpoint) -> Link:
 
     # A device is opened exclusively (P22): a second program on the same port would share its
     # byte stream and steal replies. pyserial's URL handlers have no such notion.
-    exclusive = {"exclusive": True} if endpoint.is_device and os.name == "posix" else {}
+    options: dict[str, Any] = (
+        {"exclusive": True} if endpoint.is_device and os.name == "posix" else {}
+    )
+    # pyserial's rfc2217:// refuses a write timeout (NotImplementedError); its writes wait at
+    # most its socket's timeout, 5 s.
+    if not endpoint.target.lower().startswith("rfc2217://"):
+        options["write_timeout"] = WRITE_TIMEOUT_S
     try:
         port = serial.serial_for_url(
-            endpoint.target,
-            baudrate=endpoint.baudrate,
-            timeout=POLL_INTERVAL_S,
-            write_timeout=WRITE_TIMEOUT_S,
-            **exclusive,
+            endpoint.target, baudrate=endpoint.baudrate, timeout=POLL_INTERVAL_S, **options
         )
     except (OSError, ValueError) as error:
         raise ConnectError(_open_error(endpoint, error)) from error
@@ -606,7 +608,7 @@ def _open_serial(endpoint: Endpoint) -> Link:
     # Only pyserial's own POSIX class is read through its descriptor: wrappers such as spy://
     # log in read() and write(), which reading the descriptor would bypass.
     if type(port) is serialposix.Serial:
-        return SerialFdLink(port, description, exclusive=bool(exclusive))
+        return SerialFdLink(port, description, exclusive="exclusive" in options)
     return PortLink(port, description)
 
 
@@ -621,6 +623,11 @@ def _open_error(endpoint: Endpoint, error: BaseException) -> str:
         return f"{name}: not a serial port"
     if errno_value == errno.EACCES or "Permission denied" in text:
         return f"{name}: permission denied (is the user in the dialout group?)"
+    if "waiting for option 'control'" in text:  # (pyserial's rfc2217://, after 3 s)
+        return (
+            f"cannot open {name}: the server does not acknowledge modem control (ser2net on a"
+            " port without modem lines does not): add ?ign_set_control to the URL"
+        )
     reason = getattr(error, "strerror", None) or text
     if errno_value == errno.ENOENT or "No such file" in text:
         reason = os.strerror(errno.ENOENT)

@@ -12,7 +12,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from urllib.parse import parse_qsl, urlencode
+from urllib.parse import quote_plus, unquote_plus, urlencode
 
 from rovlink.client.schemes import handler_module, load_handler
 from rovlink.protocol.text_enum import StrEnum
@@ -54,13 +54,24 @@ class Endpoint:
         return self.scheme is Scheme.SERIAL and "://" not in self.target
 
 
-def _split_query(url: str) -> tuple[str, list[tuple[str, str]]]:
+def _split_query(url: str) -> tuple[str, list[tuple[str, str | None]]]:
+    """The URL before ``?`` and its options, in order: ``(name, value)``, or ``(name, None)``
+    for a flag such as rfc2217://'s ``ign_set_control`` or spy://'s ``raw``."""
     base, _, query = url.partition("?")
-    try:
-        pairs = parse_qsl(query, keep_blank_values=True, strict_parsing=bool(query))
-    except ValueError:
-        raise ValueError(f"{url!r}: malformed query {query!r}") from None
+    pairs: list[tuple[str, str | None]] = []
+    for field in query.split("&") if query else ():
+        name, equals, value = field.partition("=")
+        if not name:
+            raise ValueError(f"{url!r}: malformed query {query!r}")
+        pairs.append((unquote_plus(name), unquote_plus(value) if equals else None))
     return base, pairs
+
+
+def _query_text(pairs: list[tuple[str, str | None]]) -> str:
+    """Options as pyserial reads them (a flag stays a bare name)."""
+    return "&".join(
+        quote_plus(name) if value is None else urlencode([(name, value)]) for name, value in pairs
+    )
 
 
 def _parse_baudrate(url: str, text: str) -> int:
@@ -103,7 +114,7 @@ def parse_url(url: str, baudrate: int | None = None) -> Endpoint:
         return _parse_registered(url, scheme)
     base, pairs = _split_query(url)
     rest = [(name, value) for name, value in pairs if name != "baudrate"]
-    from_url = [_parse_baudrate(url, value) for name, value in pairs if name == "baudrate"]
+    from_url = [_parse_baudrate(url, value or "") for name, value in pairs if name == "baudrate"]
     if len(set(from_url)) > 1:
         raise ValueError(f"{url!r}: baudrate given twice with different values")
     if baudrate is not None and (
@@ -122,5 +133,5 @@ def parse_url(url: str, baudrate: int | None = None) -> Endpoint:
     if "://" not in base and rest:
         names = ", ".join(name for name, _ in rest)
         raise ValueError(f"{url!r}: a serial device takes only ?baudrate=, not {names}")
-    target = base + ("?" + urlencode(rest) if rest else "")
+    target = base + ("?" + _query_text(rest) if rest else "")
     return Endpoint(url, Scheme.SERIAL, target, rate)
