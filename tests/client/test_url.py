@@ -17,6 +17,14 @@ from rovlink.sim.url import SimOptions, parse_sim_url
         ("loop://", Scheme.SERIAL, "loop://", DEFAULT_BAUDRATE),
         ("rfc2217://host:7000?baudrate=57600", Scheme.SERIAL, "rfc2217://host:7000", 57600),
         ("spy://COM3?file=log.txt", Scheme.SERIAL, "spy://COM3?file=log.txt", DEFAULT_BAUDRATE),
+        # An option without a value (pyserial's flags) stays a bare name.
+        (
+            "rfc2217://host:7000?ign_set_control&baudrate=9600",
+            Scheme.SERIAL,
+            "rfc2217://host:7000?ign_set_control",
+            9600,
+        ),
+        ("spy://COM3?file=log.txt&raw", Scheme.SERIAL, "spy://COM3?file=log.txt&raw", 115200),
         ("socket://localhost:5760", Scheme.TCP, "localhost:5760", DEFAULT_BAUDRATE),
         # pyserial's own socket options go to pyserial's handler.
         (
@@ -68,6 +76,8 @@ def test_sim_urls_go_to_the_registered_handler_which_reads_the_options() -> None
         ("/dev/ttyUSB0?baudrate=fast", "baudrate must be an integer in 1–12000000"),
         ("/dev/ttyUSB0?baudrate=99999999999999999999", "baudrate must be an integer in 1–"),
         ("/dev/ttyUSB0?baudrate=0", "baudrate must be an integer in 1–"),
+        ("/dev/ttyUSB0?baudrate", "baudrate must be an integer in 1–"),
+        ("loop://?&logging=debug", "malformed query"),
         ("/dev/ttyUSB0?parity=E", r"only \?baudrate=, not parity"),
         ("socket://localhost", "HOST:PORT"),
         ("socket://localhost:99999", "HOST:PORT"),
