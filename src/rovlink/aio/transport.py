@@ -342,7 +342,7 @@ class ThreadTransport:
                 raise ConnectionLostError(f"{self._link.description}: closed")
             if self._lost is not None:
                 self._failed_writes += data
-                raise self._lost
+                raise ConnectionLostError(str(self._lost))  # (a new one: each has its traceback)
             self._queue += data
             self._changed.notify_all()
 
