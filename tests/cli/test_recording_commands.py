@@ -112,6 +112,25 @@ def test_record_option_on_send_records_the_session(run_cli: RunCli, tmp_path: Pa
     assert names[-1] == ("out", "stop")
 
 
+@pytest.mark.parametrize(
+    ("options", "named"),
+    [
+        (("--max-size", "100M"), "--max-size needs"),
+        (("--split", "10m"), "--split needs"),
+        (("--overwrite",), "--overwrite needs"),
+        (("--overwrite", "--split", "1h"), "--overwrite, --split need"),
+    ],
+)
+def test_recording_options_without_record_are_refused(
+    run_cli: RunCli, options: tuple[str, ...], named: str
+) -> None:
+    # Taken silently, they would leave a team believing the dive was being recorded.
+    result = run_cli("send", "sim://", *options, "qd")
+    assert result.status == 2
+    assert f"{named} --record FILE" in result.err
+    assert result.out == ""  # refused before anything was sent
+
+
 def test_record_option_refuses_an_unknown_format(run_cli: RunCli, tmp_path: Path) -> None:
     result = run_cli("send", "sim://", "--record", str(tmp_path / "x.txt"), "qd")
     assert result.status == 2

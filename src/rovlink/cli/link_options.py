@@ -303,6 +303,9 @@ def session_recorder(args: argparse.Namespace) -> Recorder | None:
     """The recorder of ``--record FILE`` (``None`` without it), started on first use and
     finished when the command ends (:func:`rovlink.cli.main` runs ``args.on_exit``)."""
     if not getattr(args, "record", None):
+        from rovlink.cli.recording import refuse_rotation_without_record  # noqa: PLC0415
+
+        refuse_rotation_without_record(args)
         return None
     recorder: Recorder | None = getattr(args, "recorder", None)
     if recorder is None:

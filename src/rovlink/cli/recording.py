@@ -25,6 +25,7 @@ __all__ = [
     "open_recorder",
     "recorded_nothing",
     "refuse_existing_recording",
+    "refuse_rotation_without_record",
     "report_recording",
 ]
 
@@ -124,6 +125,24 @@ def add_record_options(parser: argparse.ArgumentParser) -> None:
         "(.mcap, .jsonl, .csv or .bin by suffix; a file already there is refused)",
     )
     add_rotation_options(parser)
+
+
+def refuse_rotation_without_record(args: argparse.Namespace) -> None:
+    """Refuse ``--overwrite``, ``--max-size`` and ``--split`` given without ``--record FILE``:
+    they say how to record, and taken silently they would leave a team believing that a dive
+    nothing records was being recorded."""
+    given = [
+        option
+        for option, value in (
+            ("--overwrite", getattr(args, "overwrite", False)),
+            ("--max-size", getattr(args, "max_size", None) is not None),
+            ("--split", getattr(args, "split", None) is not None),
+        )
+        if value
+    ]
+    if given:
+        verb = "needs" if len(given) == 1 else "need"
+        raise UsageError(f"{', '.join(given)} {verb} --record FILE: without it nothing is recorded")
 
 
 def open_recorder(args: argparse.Namespace, path: str, *, url: str, program: str) -> Recorder:
