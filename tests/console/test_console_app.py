@@ -7,6 +7,7 @@ import asyncio
 import contextlib
 import io
 import logging
+import socket
 from collections.abc import AsyncIterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -17,11 +18,13 @@ from prompt_toolkit.input import PipeInput, create_pipe_input
 from prompt_toolkit.output import create_output
 
 import rovlink.aio.client
+from rovlink.aio import AsyncClient
 from rovlink.cli import main
 from rovlink.client.links import Link
-from rovlink.console.app import run_console
-from tests.client.conftest import REPLY_TIMEOUT_S
-from tests.piloting.rig import RecordingLink, Rig, until
+from rovlink.client.options import StrayCallback
+from rovlink.console.app import Connector, run_console
+from tests.client.conftest import REPLY_TIMEOUT_S, client_options
+from tests.piloting.rig import RecordingLink, Rig, SilentController, until
 
 CTRL_A, CTRL_K, CTRL_X, CTRL_D, UP = "\x01", "\x0b", "\x18", "\x04", "\x1b[A"
 CLEAR_LINE = CTRL_A + CTRL_K
@@ -49,12 +52,14 @@ class Terminal:
 
 
 @contextlib.asynccontextmanager
-async def _terminal(rig: Rig, history_path: Path | None) -> AsyncIterator[Terminal]:
+async def _terminal(
+    rig: Rig, history_path: Path | None, connect: Connector | None = None
+) -> AsyncIterator[Terminal]:
     screen = io.StringIO()
     with create_pipe_input() as keys, create_app_session(input=keys, output=create_output(screen)):
-        task = asyncio.create_task(run_console(rig.connect, history_path=history_path))
+        task = asyncio.create_task(run_console(connect or rig.connect, history_path=history_path))
         terminal = Terminal(keys, screen, task)
-        await terminal.wait_shown("connected to simulated controller")
+        await terminal.wait_shown("connected to ")
         try:
             yield terminal
         finally:
@@ -211,8 +216,6 @@ def test_cli_console_refuses_a_bad_url(capsys: pytest.CaptureFixture[str]) -> No
 def test_cli_console_says_when_nothing_listens(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    import socket
-
     with socket.socket() as probe:  # a free port, closed again: nothing listens on it
         probe.bind(("127.0.0.1", 0))
         port = probe.getsockname()[1]
@@ -257,3 +260,32 @@ async def test_the_library_s_warnings_are_printed_above_the_prompt(tmp_path: Pat
         await asyncio.wait_for(term.task, 5.0)
     assert library_logger.handlers == handlers_before
     assert library_logger.propagate
+
+
+@pytest.mark.parametrize("leave", [CTRL_D, "quit\r"], ids=["ctrl-d", "quit"])
+async def test_leaving_stops_at_once_not_behind_a_query_waiting_for_its_reply(
+    tmp_path: Path, leave: str
+) -> None:
+    # Before, Ctrl-D and quit were queued behind the lines typed: with a controller that did
+    # not answer, the robot went on at 40 % until every query had waited out its timeout
+    # (the lines not sent yet were sent first, then #stop!).
+    silent = SilentController()
+    link = silent.link()
+
+    async def connect(on_stray: StrayCallback) -> AsyncClient:
+        options = client_options(timeout_s=30.0, retries=0, on_stray=on_stray)
+        return await AsyncClient(link, options).open()
+
+    async with _terminal(Rig.simulated(), tmp_path / "history", connect) as term:
+        term.type("start\rth 0 40\r")
+        await until(lambda: b"#th.0.40!" in silent.received)
+        term.type("qd\rqhe\r")  # qd waits for a reply that never comes; qhe is queued
+        await until(lambda: b"#qd!" in silent.received)
+        term.type(leave)
+        await term.wait_shown("leaving: 1 queued line(s) dropped, not sent")
+        await until(lambda: b"#stop!" in silent.received)
+        assert not term.task.done()  # the #qd! is still waiting: the stop did not wait for it
+        silent.host_end.shutdown(socket.SHUT_RDWR)  # (the query fails with the link: it ends)
+        await term.finish()
+    silent.close()
+    assert link.frames() == ["#crcoff!", "#start!", "#th.0.40!", "#qd!", "#stop!"]

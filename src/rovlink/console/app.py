@@ -233,17 +233,20 @@ async def _run_connected(
             try:
                 text = await session.prompt_async()
             except EOFError:  # Ctrl-D
-                engine.submit(Quit())
+                await engine.leave()
                 break
             except KeyboardInterrupt:  # the Ctrl-C key: drop the line, keep going
                 continue
             except _EndedBySignal:
                 raise KeyboardInterrupt from None  # (after the finally: #stop!, then closed)
             action = parse_line(text, checksum())
+            if isinstance(action, Quit):
+                # At once, not behind the lines queued: a query waiting out a long timeout
+                # would keep the robot moving, and the console open, until it ended.
+                await engine.leave()
+                break
             if action is not None:
                 engine.submit(action)
-            if isinstance(action, Quit):
-                break
         await runner
     finally:
         if not runner.done():

@@ -2,8 +2,10 @@
 
 Lines are queued and run one after another (a query waits for its replies before the next line
 goes out), while the prompt stays live. :meth:`ConsoleEngine.stop_now` jumps the queue: it sends
-``#stop!`` at once and drops whatever was typed before it but not sent yet. Everything the engine
-has to say goes to ``emit`` as :data:`~rovlink.console.transcript.Line` values.
+``#stop!`` at once and drops whatever was typed before it but not sent yet; so does
+:meth:`ConsoleEngine.leave` (``quit``, Ctrl-D), unless the motors are locked as last sent, and
+the engine ends once the line running is done. Everything the engine has to say goes to ``emit``
+as :data:`~rovlink.console.transcript.Line` values.
 """
 
 from __future__ import annotations
@@ -72,6 +74,7 @@ class ConsoleEngine:
         self._emit = emit
         self._rov: TrackedClient | None = None
         self._queue: asyncio.Queue[Action] = asyncio.Queue()
+        self._left = False
         self.finished = asyncio.Event()
 
     def attach(self, rov: TrackedClient) -> None:
@@ -103,6 +106,26 @@ class ConsoleEngine:
 
     async def stop_now(self) -> None:
         """``#stop!`` at once, dropping the lines queued and not yet sent (keeps a ``quit``)."""
+        dropped = self._drop_queued()
+        note = f"; {dropped} queued line(s) dropped" if dropped else ""
+        self._emit(info_line(f"■ STOP ({STOP_KEY_TEXT}){note}", "class:stop"))
+        try:
+            await self.rov.stop()
+        except ClientError as error:
+            self._emit(error_line(f"#stop! could not be sent: {error}"))
+
+    async def leave(self) -> None:
+        """Leave now (``quit``, Ctrl-D): the lines queued and not yet sent are dropped, and
+        ``#stop!`` goes at once unless the motors are locked as last sent, not after a query
+        still waiting for its reply; :meth:`run` ends once the line running is done."""
+        dropped = self._drop_queued()
+        if dropped:
+            self._emit(info_line(f"leaving: {dropped} queued line(s) dropped, not sent"))
+        self._queue.put_nowait(Quit())
+        await self._quit()
+
+    def _drop_queued(self) -> int:
+        """Empty the queue but for a ``quit``; how many lines were dropped."""
         dropped = 0
         keep: list[Action] = []
         while not self._queue.empty():
@@ -113,12 +136,7 @@ class ConsoleEngine:
                 dropped += 1
         for action in keep:
             self._queue.put_nowait(action)
-        note = f"; {dropped} queued line(s) dropped" if dropped else ""
-        self._emit(info_line(f"■ STOP ({STOP_KEY_TEXT}){note}", "class:stop"))
-        try:
-            await self.rov.stop()
-        except ClientError as error:
-            self._emit(error_line(f"#stop! could not be sent: {error}"))
+        return dropped
 
     # -- running --------------------------------------------------------------------------------
 
@@ -160,6 +178,9 @@ class ConsoleEngine:
             self._emit(error_line(str(error)))
 
     async def _quit(self) -> None:
+        if self._left:  # (leave() has sent it: a quit queued behind it only ends run())
+            return
+        self._left = True
         state = self.rov.commanded
         if self.rov.client.closed or state.lock is LockState.LOCKED:
             return
