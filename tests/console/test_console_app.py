@@ -289,3 +289,18 @@ async def test_leaving_stops_at_once_not_behind_a_query_waiting_for_its_reply(
         await term.finish()
     silent.close()
     assert link.frames() == ["#crcoff!", "#start!", "#th.0.40!", "#qd!", "#stop!"]
+
+
+async def test_pasted_lines_run_one_after_another(tmp_path: Path) -> None:
+    # A terminal pastes between bracketed-paste marks; before, the lines were one line, refused
+    # ("start takes 0 value(s), got 4") and left in the prompt, where Ctrl-K cleared one line.
+    rig = Rig.simulated()
+    async with _terminal(rig, tmp_path / "history") as term:
+        term.type("\x1b[200~start\nth 0 40\nqd\n\x1b[201~\r")
+        await term.wait_shown("qd → 0 cm")
+        term.type("\x1b[200~stop\nmvs 500\x1b[201~\r")  # all refused: not even the stop
+        await term.wait_shown("line 2: mvs: thrust_percent must be in -100…+100, got 500")
+        term.type("\x03")  # (the Ctrl-C key drops the refused text)
+        term.type("\x1b[200~stop\nquit\nstart\x1b[201~\r")  # lines after quit are not run
+        await term.finish()
+    assert rig.frames() == ["#crcoff!", "#start!", "#th.0.40!", "#qd!", "#stop!"]

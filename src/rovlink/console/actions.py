@@ -24,6 +24,7 @@ __all__ = [
     "ShowHelp",
     "ShowStatus",
     "parse_line",
+    "parse_lines",
 ]
 
 _WORD = re.compile(r"[^\s,]+")
@@ -127,6 +128,37 @@ def parse_line(line: str, checksum: str | None = None) -> Action | None:
             if command is not None:
                 return SendCommand(command)
         raise InputError(str(error), _error_position(line, error)) from None
+
+
+def parse_lines(text: str, checksum: str | None = None) -> list[Action]:
+    """The actions of every line of ``text``, in order: pasted lines run one after another, as
+    if typed one by one. All are checked before any runs: one bad line refuses the whole text,
+    its error naming the line and pointing into it.
+
+    >>> parse_lines("start\\nth 0 50\\n\\nqd")  # doctest: +NORMALIZE_WHITESPACE
+    [SendCommand(command=Command(name='start', values=())),
+     SendCommand(command=Command(name='th', values=(0, 50))),
+     SendCommand(command=Command(name='qd', values=()))]
+    >>> try:
+    ...     parse_lines("start\\nth 0 500")
+    ... except InputError as error:
+    ...     print(error.position, error)
+    11 line 2: th: power_percent must be in 0–100, got 500
+    """
+    lines = text.split("\n")
+    several = sum(1 for line in lines if line.strip()) > 1
+    actions: list[Action] = []
+    offset = 0
+    for number, line in enumerate(lines, start=1):
+        try:
+            action = parse_line(line.removesuffix("\r"), checksum)
+        except InputError as error:
+            message = f"line {number}: {error.message}" if several else error.message
+            raise InputError(message, offset + error.position) from None
+        if action is not None:
+            actions.append(action)
+        offset += len(line) + 1
+    return actions
 
 
 def _checksummed_frame(line: str, algorithm: str) -> Command | None:

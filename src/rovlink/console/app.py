@@ -28,7 +28,7 @@ from prompt_toolkit.validation import ValidationError, Validator
 from rovlink.aio import AsyncClient
 from rovlink.client import ClientError
 from rovlink.client.options import StrayCallback
-from rovlink.console.actions import InputError, Quit, parse_line
+from rovlink.console.actions import InputError, Quit, parse_lines
 from rovlink.console.completion import argument_hint, suggestions
 from rovlink.console.engine import ConsoleEngine
 from rovlink.console.help import STOP_KEY_TEXT
@@ -93,7 +93,7 @@ class ConsoleValidator(Validator):
     def validate(self, document: Document) -> None:
         """Raise ValidationError naming what is wrong, e.g. which argument and its range."""
         try:
-            parse_line(document.text, self._checksum())
+            parse_lines(document.text, self._checksum())
         except InputError as error:
             raise ValidationError(cursor_position=error.position, message=error.message) from None
 
@@ -239,14 +239,17 @@ async def _run_connected(
                 continue
             except _EndedBySignal:
                 raise KeyboardInterrupt from None  # (after the finally: #stop!, then closed)
-            action = parse_line(text, checksum())
-            if isinstance(action, Quit):
+            # (Lines pasted at once arrive as one text: each runs as if typed on its own.)
+            actions = parse_lines(text, checksum())
+            for action in actions:
+                if isinstance(action, Quit):
+                    break
+                engine.submit(action)
+            if any(isinstance(action, Quit) for action in actions):
                 # At once, not behind the lines queued: a query waiting out a long timeout
                 # would keep the robot moving, and the console open, until it ended.
                 await engine.leave()
                 break
-            if action is not None:
-                engine.submit(action)
         await runner
     finally:
         if not runner.done():
