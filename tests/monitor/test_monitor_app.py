@@ -389,3 +389,35 @@ async def test_a_warning_from_another_thread_never_waits_for_the_dashboard() -> 
         assert not logging_thread.is_alive()
         await until(lambda: "leak detected" in notified)
         await pilot.press("q")
+
+
+async def test_a_terminal_too_small_for_the_boxes_shows_the_essentials_and_the_keys() -> None:
+    # Before, at 20×5 the screen scrolled to a cut attitude box: no depth, no state as last
+    # sent, no link, and the footer ended at "s start" (no "q quit"); at 80×15 the link box
+    # was below the fold.
+    rig = Rig.simulated()
+    app = MonitorApp(rig.connect, description="bench", rate_hz=20)
+    async with app.run_test(size=(20, 5)) as pilot:
+        await until(lambda: _depth_shown(app) == 0)
+        await pilot.press("s", "up")
+        await until(lambda: "#th.0.10!" in rig.frames())
+        await until(lambda: "motors unlocked · 0…" in screen_text(app))
+        lines = [line.rstrip() for line in screen_text(app).splitlines()]
+        assert lines == [
+            "space STOP · q quit",
+            "depth 0 cm",
+            "motors unlocked · 0…",
+            "link ok",
+            "terminal 20×5: too …",
+        ]
+        assert app.screen.virtual_size.height <= 5  # nothing below the fold
+        await pilot.resize_terminal(80, 15)
+        await until(lambda: "terminal 80×15: too small" in screen_text(app))
+        assert "0° at 10 % (as last sent)" in screen_text(app)
+        await pilot.resize_terminal(80, 24)  # big enough: the boxes are back
+        await until(lambda: screen_text(app).splitlines()[-1].rstrip().endswith("q quit"))
+        assert "commanded, as last sent" in screen_text(app)
+        await pilot.resize_terminal(20, 5)
+        await until(lambda: screen_text(app).startswith("space STOP · q quit"))
+        await pilot.press("q")
+    assert _commands(rig)[-3:] == ["#start!", "#th.0.10!", "#stop!"]
