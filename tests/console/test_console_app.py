@@ -304,3 +304,24 @@ async def test_pasted_lines_run_one_after_another(tmp_path: Path) -> None:
         term.type("\x1b[200~stop\nquit\nstart\x1b[201~\r")  # lines after quit are not run
         await term.finish()
     assert rig.frames() == ["#crcoff!", "#start!", "#th.0.40!", "#qd!", "#stop!"]
+
+
+async def test_leaving_does_not_wait_out_the_reply_timeout_of_a_query_on_the_wire(
+    tmp_path: Path,
+) -> None:
+    # Before, quit sent #stop! at once, then waited for the #qd! on the wire for the whole
+    # reply timeout (--timeout, up to an hour), and again while closing, before it ended.
+    silent = SilentController()
+    link = silent.link()
+
+    async def connect(on_stray: StrayCallback) -> AsyncClient:
+        options = client_options(timeout_s=30.0, retries=0, on_stray=on_stray)
+        return await AsyncClient(link, options).open()
+
+    async with _terminal(Rig.simulated(), tmp_path / "history", connect) as term:
+        term.type("start\rqd\r")
+        await until(lambda: b"#qd!" in silent.received)
+        term.type("quit\r")
+        await term.finish()
+    assert link.frames() == ["#crcoff!", "#start!", "#qd!", "#stop!"]
+    silent.close()

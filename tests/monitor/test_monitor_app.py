@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import asyncio
 import logging
 import re
 import threading
@@ -21,7 +22,7 @@ from rovlink.client.links import Link
 from rovlink.client.options import StrayCallback
 from rovlink.monitor.app import MonitorApp
 from rovlink.protocol import Text as DebugText
-from tests.client.conftest import REPLY_TIMEOUT_S, client_options
+from tests.client.conftest import CONDITION_TIMEOUT_S, REPLY_TIMEOUT_S, client_options
 from tests.monitor.screen import screen_text, shown
 from tests.piloting.rig import RecordingLink, Rig, SilentController, until
 
@@ -421,3 +422,23 @@ async def test_a_terminal_too_small_for_the_boxes_shows_the_essentials_and_the_k
         await until(lambda: screen_text(app).startswith("space STOP · q quit"))
         await pilot.press("q")
     assert _commands(rig)[-3:] == ["#start!", "#th.0.10!", "#stop!"]
+
+
+async def test_q_ends_the_monitor_at_once_while_a_poll_waits_for_its_reply() -> None:
+    # Before, q sent #stop!, then waited for the poll on the wire for the whole reply timeout
+    # (--timeout, up to an hour) before the monitor ended.
+    silent = SilentController()
+
+    def connect(on_stray: StrayCallback) -> Awaitable[AsyncClient]:
+        options = client_options(timeout_s=30.0, retries=0, on_stray=on_stray)
+        return AsyncClient(silent.link(), options).open()
+
+    app = MonitorApp(connect, description="silent", rate_hz=10)
+    async with app.run_test(size=SIZE) as pilot:
+        await until(lambda: b"#qsa!" in silent.received)  # a poll is waiting for its reply
+        await pilot.press("s")
+        await until(lambda: b"#start!" in silent.received)
+        await asyncio.wait_for(pilot.press("q"), CONDITION_TIMEOUT_S)  # (it waits for q's action)
+        await until(lambda: app.return_code is not None)
+    assert silent.received.endswith(b"#stop!")
+    silent.close()

@@ -35,6 +35,7 @@ from rovlink.console.help import STOP_KEY_TEXT
 from rovlink.console.transcript import Line, info_line
 from rovlink.logs import WarningsShownBy
 from rovlink.piloting import LockState, TrackedClient
+from rovlink.piloting.tracked import LEAVING_REPLY_WAIT_S
 from rovlink.protocol.visible import visible
 
 __all__ = ["STYLE", "Connector", "ConsoleCompleter", "ConsoleValidator", "run_console"]
@@ -250,12 +251,16 @@ async def _run_connected(
                 # would keep the robot moving, and the console open, until it ended.
                 await engine.leave()
                 break
-        await runner
+        # #stop! has gone: the line running (a query waiting for its reply) gets a moment to
+        # end, not the whole reply timeout of a controller that does not answer.
+        await asyncio.wait({runner}, timeout=LEAVING_REPLY_WAIT_S)
+        if runner.done():
+            runner.result()  # (an error of the engine's own is raised)
     finally:
         if not runner.done():
             runner.cancel()
         await _stop_unless_locked(rov)
-        await client.close()
+        await rov.close()
 
 
 #: How long leaving may wait for ``#stop!`` to be written (it is not acknowledged).

@@ -493,5 +493,5 @@ class MonitorApp(App[None]):
         if rov is not None and not rov.client.closed:
             if rov.commanded.lock is not LockState.LOCKED:
                 await self._send(Command("stop"))
-            await rov.client.close()
+            await rov.close()  # (a poll waiting for its reply does not hold the exit up)
         self.exit()

@@ -9,6 +9,8 @@ queries sent through :class:`TrackedClient` are timed into its link health.
 
 from __future__ import annotations
 
+import asyncio
+import contextlib
 import time
 from collections.abc import Awaitable, Callable
 from dataclasses import dataclass
@@ -21,7 +23,11 @@ from rovlink.piloting.commanded import CommandedState
 from rovlink.piloting.health import LinkHealth
 from rovlink.protocol import DEFAULT_ALGORITHM, Command, Response
 
-__all__ = ["SentCallback", "SentFrame", "TrackedClient"]
+__all__ = ["LEAVING_REPLY_WAIT_S", "SentCallback", "SentFrame", "TrackedClient"]
+
+#: How long a tool that leaves waits for the replies to its queries still on the wire: long
+#: enough for a controller that answers, not the whole reply timeout of one that does not.
+LEAVING_REPLY_WAIT_S = 1.0
 
 
 @dataclass(frozen=True, slots=True)
@@ -104,6 +110,13 @@ class TrackedClient:
     async def stop(self) -> None:
         """``#stop!``, at once (it does not wait for anything queued before it)."""
         await self.send(Command("stop"))
+
+    async def close(self) -> None:
+        """Close the client for a tool that leaves: the replies to queries still on the wire
+        get :data:`LEAVING_REPLY_WAIT_S`, not the whole reply timeout (``--timeout`` may be an
+        hour), and the port is released all the same."""
+        with contextlib.suppress(asyncio.TimeoutError):  # (not TimeoutError on 3.10)
+            await asyncio.wait_for(self.client.close(), LEAVING_REPLY_WAIT_S)
 
     async def sensors(self) -> Sensors:
         """``#qsa!``: every sensor at once, timed into :attr:`health`."""
