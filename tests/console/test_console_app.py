@@ -325,3 +325,30 @@ async def test_leaving_does_not_wait_out_the_reply_timeout_of_a_query_on_the_wir
         await term.finish()
     assert link.frames() == ["#crcoff!", "#start!", "#qd!", "#stop!"]
     silent.close()
+
+
+async def test_ctrl_c_abandons_a_query_waiting_for_its_reply_and_the_lines_queued(
+    tmp_path: Path,
+) -> None:
+    # Before, the Ctrl-C key only dropped the line being typed: a query waiting for a reply
+    # that never came held every later line for the whole reply timeout (--timeout, up to an
+    # hour), with no way to get the console back but to leave it.
+    silent = SilentController()
+    link = silent.link()
+
+    async def connect(on_stray: StrayCallback) -> AsyncClient:
+        options = client_options(timeout_s=30.0, retries=0, on_stray=on_stray)
+        return await AsyncClient(link, options).open()
+
+    async with _terminal(Rig.simulated(), tmp_path / "history", connect) as term:
+        term.type("qd\rstart\r")
+        await until(lambda: b"#qd!" in silent.received)
+        term.type("\x03")
+        await term.wait_shown("^C: #qd! abandoned; 1 queued line(s) dropped, not sent")
+        term.type("mvd 10\r")  # runs at once: nothing waits for the #qd! any more
+        await until(lambda: b"#mvd.10!" in silent.received)
+        term.type("\x03")  # nothing running: it only drops the line, as before
+        term.type(CTRL_D)
+        await term.finish()
+    assert link.frames() == ["#crcoff!", "#qd!", "#mvd.10!", "#stop!"]
+    silent.close()

@@ -236,7 +236,8 @@ async def _run_connected(
             except EOFError:  # Ctrl-D
                 await engine.leave()
                 break
-            except KeyboardInterrupt:  # the Ctrl-C key: drop the line, keep going
+            except KeyboardInterrupt:  # the Ctrl-C key: drop the line, as in a shell...
+                engine.interrupt()  # ...and the line running and those queued
                 continue
             except _EndedBySignal:
                 raise KeyboardInterrupt from None  # (after the finally: #stop!, then closed)

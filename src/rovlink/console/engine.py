@@ -4,8 +4,9 @@ Lines are queued and run one after another (a query waits for its replies before
 goes out), while the prompt stays live. :meth:`ConsoleEngine.stop_now` jumps the queue: it sends
 ``#stop!`` at once and drops whatever was typed before it but not sent yet; so does
 :meth:`ConsoleEngine.leave` (``quit``, Ctrl-D), unless the motors are locked as last sent, and
-the engine ends once the line running is done. Everything the engine has to say goes to ``emit``
-as :data:`~rovlink.console.transcript.Line` values.
+the engine ends once the line running is done. :meth:`ConsoleEngine.interrupt` (Ctrl-C)
+abandons the line running and drops those queued, sending nothing. Everything the engine has to
+say goes to ``emit`` as :data:`~rovlink.console.transcript.Line` values.
 """
 
 from __future__ import annotations
@@ -75,6 +76,9 @@ class ConsoleEngine:
         self._rov: TrackedClient | None = None
         self._queue: asyncio.Queue[Action] = asyncio.Queue()
         self._left = False
+        self._running: asyncio.Future[None] | None = None
+        #: Set by :meth:`interrupt` while it cancels the line running: what else it dropped.
+        self._interrupted: str | None = None
         self.finished = asyncio.Event()
 
     def attach(self, rov: TrackedClient) -> None:
@@ -148,12 +152,44 @@ class ConsoleEngine:
                 if isinstance(action, Quit):
                     await self._quit()
                     return
-                await self.execute(action)
+                self._running = asyncio.ensure_future(self.execute(action))
+                try:
+                    await self._running
+                except asyncio.CancelledError:
+                    if self._interrupted is None:
+                        raise  # (run() itself was cancelled)
+                    self._interrupted = None
+                finally:
+                    self._running = None
         finally:
             self.finished.set()
 
+    def interrupt(self) -> None:
+        """Ctrl-C: abandon the line running (a query waiting for its reply is not waited for)
+        and drop the lines queued; nothing is sent. Nothing to do if no line is running."""
+        dropped = self._drop_queued()
+        running = self._running
+        if running is None or running.done():
+            if dropped:
+                self._emit(info_line(f"  ^C: {dropped} queued line(s) dropped, not sent"))
+            return
+        note = f"; {dropped} queued line(s) dropped, not sent" if dropped else ""
+        self._interrupted = note
+        running.cancel()
+
     async def execute(self, action: Action) -> None:
         """Run one action now and show its outcome; link errors are shown, not raised."""
+        try:
+            await self._execute(action)
+        except asyncio.CancelledError:
+            note = self._interrupted
+            if note is not None:
+                self._emit(
+                    info_line(f"  ^C: {_action_text(action)} abandoned{note}", "class:warning")
+                )
+            raise
+
+    async def _execute(self, action: Action) -> None:
         try:
             if isinstance(action, SendCommand):
                 self._show_replies(await self.rov.send(action.command))
@@ -205,3 +241,14 @@ class ConsoleEngine:
         if self.rov.checksum_enabled:
             return f"  checksum mode on: every frame now carries a {self.rov.algorithm} checksum"
         return "  checksum mode off"
+
+
+def _action_text(action: Action) -> str:
+    """The line running, in a few words: ``#qd!``, ``raw #qd!``, ``checksum on``."""
+    if isinstance(action, SendCommand):
+        return str(action.command)
+    if isinstance(action, SendRaw):
+        return f"raw {action.frame}"
+    if isinstance(action, SetChecksum):
+        return f"checksum {'on' if action.enabled else 'off'}"
+    return "the line running"
