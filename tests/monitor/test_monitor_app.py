@@ -442,3 +442,25 @@ async def test_q_ends_the_monitor_at_once_while_a_poll_waits_for_its_reply() -> 
         await until(lambda: app.return_code is not None)
     assert silent.received.endswith(b"#stop!")
     silent.close()
+
+
+async def test_a_suspected_controller_reset_shows_the_lock_and_mode_unknown() -> None:
+    # Before, the box went on saying "unlocked (as last sent)" at 10 % after the reset, while
+    # the controller, locked, dropped every key's frame.
+    rig = Rig.simulated()
+
+    def connect(on_stray: StrayCallback) -> Awaitable[AsyncClient]:
+        return rig.connect(on_stray, checksum=True, timeout_s=0.1, retries=2)
+
+    app = MonitorApp(connect, description="bench", rate_hz=20)
+    async with app.run_test(size=SIZE) as pilot:
+        await until(lambda: _depth_shown(app) == 0)
+        await pilot.press("s", "pagedown", "up")
+        await until(lambda: "horizontal 0° at 10 %" in shown(app, "#commanded"))
+        rig.port.controller.reset()  # checksum off: the polls go unanswered until re-sent
+        await until(lambda: "motors     unknown: reset suspected" in shown(app, "#commanded"))
+        commanded = shown(app, "#commanded")
+        assert "vertical   unknown: reset suspected" in commanded
+        assert "horizontal 0° at 0 %" in commanded
+        await pilot.press("q")
+    assert _commands(rig)[-1] == "#stop!"  # (the lock unknown: leaving stops)

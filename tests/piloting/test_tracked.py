@@ -125,3 +125,24 @@ async def test_the_drivers_own_frames_are_not_last_sent() -> None:
     assert rov.commanded.power_percent == 0  # (what the driver's zero thrust did, all the same)
     assert [frame.text for frame in sent][-2:] == ["#crcoff!", "#th.0.0!"]  # (shown as sent)
     await rov.client.close()
+
+
+async def test_a_suspected_controller_reset_makes_the_state_as_last_sent_unknown() -> None:
+    # Before, after the driver had said "controller reset suspected ... the robot is locked
+    # after a reset", the tools still showed "unlocked (as last sent)" at 30 %, and took a
+    # th sent next for one the controller acts on (P21: a host never assumes it still is).
+    rig = Rig.simulated()
+    rov = TrackedClient(await rig.connect(checksum=True, timeout_s=0.25, retries=2))
+    for command in (Command("start"), Command("mvdirect", (1,)), Command("th", (90, 30))):
+        await rov.send(command)
+    rig.port.controller.reset()  # checksum off: it drops the #qd8C! until the mode is re-sent
+    (reply,) = await rov.send(Command("qd"))
+    assert reply.name == "qd"  # (answered once the driver re-asserted checksum mode)
+    state = rov.commanded
+    assert state.lock_text() == "unknown: after a suspected controller reset (locked after one)"
+    assert state.mode_text() == "unknown: after a suspected controller reset (depth mode after one)"
+    assert (state.short_lock_text(), state.short_mode_text()) == ("lock unknown", "mode unknown")
+    assert state.horizontal_text() == "0° at 0 % (as last sent)"
+    await rov.send(Command("start"))
+    assert state.lock_text() == "unlocked (as last sent)"
+    await rov.client.close()

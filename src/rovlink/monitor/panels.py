@@ -141,19 +141,22 @@ def commanded_text(commanded: CommandedState) -> Text:
     lock_style = {LockState.LOCKED: "green", LockState.UNLOCKED: "bold yellow"}.get(
         commanded.lock, "dim"
     )
-    _row(
-        text,
-        "motors",
-        commanded.lock_text() if commanded.lock is not LockState.UNKNOWN else "unknown: none sent",
-        lock_style,
-    )
-    _row(
-        text,
-        "vertical",
-        commanded.short_mode_text()
-        if commanded.vertical_mode is not None
-        else "unknown: none sent",
-    )
+    lock = commanded.lock_text()
+    if commanded.lock is LockState.UNKNOWN:  # (in the box's width; a notice says it in full)
+        lock = (
+            "unknown: reset suspected"
+            if commanded.lock_unknown_after_reset
+            else "unknown: none sent"
+        )
+    _row(text, "motors", lock, lock_style)
+    mode = commanded.short_mode_text()
+    if commanded.vertical_mode is None:
+        mode = (
+            "unknown: reset suspected"
+            if commanded.mode_unknown_after_reset
+            else "unknown: none sent"
+        )
+    _row(text, "vertical", mode)
     _row(text, "horizontal", f"{commanded.direction_deg}° at {commanded.power_percent} %")
     last = commanded.last_command
     if last is None:

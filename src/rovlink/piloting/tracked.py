@@ -16,7 +16,7 @@ from collections.abc import Awaitable, Callable
 from dataclasses import dataclass
 
 from rovlink.aio import AsyncClient
-from rovlink.client.events import BytesSent, ClientEvent
+from rovlink.client.events import BytesSent, ClientEvent, ResetSuspected
 from rovlink.client.operations import SENSORS, raw_frame
 from rovlink.client.sensors import Sensors
 from rovlink.piloting.commanded import CommandedState
@@ -125,6 +125,10 @@ class TrackedClient:
     # -- internals ------------------------------------------------------------------------------
 
     def _on_event(self, event: ClientEvent) -> None:
+        if isinstance(event, ResetSuspected):
+            # (Locked after a reset, P21: the state as last sent no longer holds.)
+            self.commanded.forget_after_reset()
+            return
         if not isinstance(event, BytesSent):
             return
         command = event.command
