@@ -15,6 +15,7 @@ import asyncio
 from collections.abc import Callable
 
 from rovlink.client import ClientError
+from rovlink.client.events import ClientEvent, LateReply
 from rovlink.console.actions import (
     Action,
     Quit,
@@ -30,6 +31,7 @@ from rovlink.console.transcript import (
     error_line,
     event_line,
     info_line,
+    late_reply_line,
     reply_line,
     sent_lines,
 )
@@ -85,6 +87,7 @@ class ConsoleEngine:
         """Drive ``rov``; every frame sent through it is shown."""
         self._rov = rov
         rov.add_sent_listener(self._on_sent)
+        rov.client.subscribe(self._on_client_event)
 
     @property
     def rov(self) -> TrackedClient:
@@ -227,6 +230,12 @@ class ConsoleEngine:
             self._emit(error_line(f"#stop! could not be sent: {error}"))
 
     # -- output ---------------------------------------------------------------------------------
+
+    def _on_client_event(self, event: ClientEvent) -> None:
+        # A reply after its query timed out (the driver drops it): the link is slow, not dead.
+        if isinstance(event, LateReply):
+            algorithm = self.rov.algorithm if self.rov.checksum_enabled else None
+            self._emit(late_reply_line(event.response, algorithm))
 
     def _on_sent(self, sent: SentFrame) -> None:
         for line in sent_lines(sent):
