@@ -23,7 +23,8 @@ from rovlink.cli import main
 from rovlink.client.links import Link
 from rovlink.client.options import StrayCallback
 from rovlink.console.app import Connector, run_console
-from tests.client.conftest import REPLY_TIMEOUT_S, client_options
+from tests.cli.silent_controller import SilentController as CliSilentController
+from tests.client.conftest import NO_REPLY_TIMEOUT_S, REPLY_TIMEOUT_S, client_options
 from tests.piloting.rig import RecordingLink, Rig, SilentController, until
 
 CTRL_A, CTRL_K, CTRL_X, CTRL_D, UP = "\x01", "\x0b", "\x18", "\x04", "\x1b[A"
@@ -351,4 +352,32 @@ async def test_ctrl_c_abandons_a_query_waiting_for_its_reply_and_the_lines_queue
         term.type(CTRL_D)
         await term.finish()
     assert link.frames() == ["#crcoff!", "#qd!", "#mvd.10!", "#stop!"]
+    silent.close()
+
+
+def test_lines_read_from_a_file_all_run_in_order_before_leaving(tmp_path: Path) -> None:
+    # `rovlink console URL < lines.txt`: the end of the file is no Ctrl-D key. Leaving at once
+    # there dropped the lines still queued behind a query waiting for its reply.
+    silent = CliSilentController()
+    screen = io.StringIO()
+    with create_pipe_input() as keys, create_app_session(input=keys, output=create_output(screen)):
+        keys.send_text("qd\rstart\rth 0 30\r" + CTRL_D)  # (pytest's stdin is no terminal)
+        status = main(
+            [
+                "console",
+                silent.url,
+                "--boot-timeout",
+                "0",
+                "--timeout",
+                str(NO_REPLY_TIMEOUT_S),
+                "--retries",
+                "0",
+                "--history",
+                str(tmp_path / "history"),
+            ]
+        )
+    assert status == 0
+    received = bytes(silent.received)
+    assert received.index(b"#qd!") < received.index(b"#start!") < received.index(b"#th.0.30!")
+    assert received.endswith(b"#stop!")
     silent.close()

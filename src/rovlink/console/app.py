@@ -164,10 +164,13 @@ async def run_console(
     algorithm: str = "crc8",
     history_path: Path | None = None,
     emit: Callable[[Line], None] = _print,
+    from_terminal: bool = True,
 ) -> None:
     """Connect and run the console until ``quit`` or Ctrl-D; the client is closed on the way out.
 
     ``history_path`` keeps the input history between sessions (``None``: this session only).
+    ``from_terminal``: the lines are typed at a terminal, where ``quit`` and Ctrl-D leave at
+    once; ``False`` (lines read from a file or a pipe), they run in order, each to its end.
     Raises what ``connect`` raises if the connection cannot be opened.
     """
     # The driver calls back (debug text, stray frames) in a context copied from its reader
@@ -186,7 +189,7 @@ async def run_console(
     warnings = WarningsShownBy(show_warning)
     warnings.attach()
     try:
-        await _run_connected(connect, emit_in_console, algorithm, history_path)
+        await _run_connected(connect, emit_in_console, algorithm, history_path, from_terminal)
     finally:
         warnings.detach()
 
@@ -196,6 +199,7 @@ async def _run_connected(
     emit_in_console: Callable[[Line], None],
     algorithm: str,
     history_path: Path | None,
+    from_terminal: bool,
 ) -> None:
     engine = ConsoleEngine(emit_in_console)
     client = await connect(engine.on_event)
@@ -233,8 +237,11 @@ async def _run_connected(
         while not runner.done():
             try:
                 text = await session.prompt_async()
-            except EOFError:  # Ctrl-D
-                await engine.leave()
+            except EOFError:  # Ctrl-D, or the end of the lines read from a file
+                if from_terminal:
+                    await engine.leave()
+                else:
+                    engine.submit(Quit())
                 break
             except KeyboardInterrupt:  # the Ctrl-C key: drop the line, as in a shell...
                 engine.interrupt()  # ...and the line running and those queued
@@ -248,13 +255,19 @@ async def _run_connected(
                     break
                 engine.submit(action)
             if any(isinstance(action, Quit) for action in actions):
-                # At once, not behind the lines queued: a query waiting out a long timeout
-                # would keep the robot moving, and the console open, until it ended.
-                await engine.leave()
+                if from_terminal:
+                    # At once, not behind the lines queued: a query waiting out a long
+                    # timeout would keep the robot moving, and the console open, until it ended.
+                    await engine.leave()
+                else:
+                    engine.submit(Quit())
                 break
-        # #stop! has gone: the line running (a query waiting for its reply) gets a moment to
-        # end, not the whole reply timeout of a controller that does not answer.
-        await asyncio.wait({runner}, timeout=LEAVING_REPLY_WAIT_S)
+        if from_terminal:
+            # #stop! has gone: the line running (a query waiting for its reply) gets a moment
+            # to end, not the whole reply timeout of a controller that does not answer.
+            await asyncio.wait({runner}, timeout=LEAVING_REPLY_WAIT_S)
+        else:
+            await asyncio.wait({runner})  # (a script's lines run to their end)
         if runner.done():
             runner.result()  # (an error of the engine's own is raised)
     finally:
