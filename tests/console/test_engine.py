@@ -8,7 +8,7 @@ import socket
 
 from rovlink.aio import AsyncClient
 from rovlink.client.links import SocketLink
-from rovlink.console.actions import Quit, SendCommand, SendRaw, SetChecksum, ShowStatus
+from rovlink.console.actions import Quit, SendCommand, SendRaw, SetChecksum, ShowStatus, parse_line
 from rovlink.console.engine import ConsoleEngine
 from rovlink.console.transcript import Line, plain_text
 from rovlink.piloting import TrackedClient
@@ -172,3 +172,20 @@ async def test_a_reply_after_its_query_timed_out_is_shown_as_late() -> None:
     assert "  qd → 5 cm                 $qd.5!  late: its query had timed out" in screen.lines
     await client.close()
     controller_end.close()
+
+
+async def test_help_exit_shows_quit_and_the_console_goes_on() -> None:
+    # Before, `help exit` raised in the engine (exit is quit's other name, not in the table):
+    # the lines typed after it were never run, and the console ended as a usage error.
+    rig = Rig.simulated()
+    engine, screen = await _engine(rig)
+    action = parse_line("help exit")
+    assert action is not None
+    await engine.execute(action)
+    assert "quit" in screen.lines
+    assert (
+        "  leave (sends #stop! first unless locked as last sent); also exit, Ctrl-D" in screen.lines
+    )
+    await engine.execute(SendCommand(Command("qd")))
+    assert "qd → 0 cm" in screen.text()
+    await engine.rov.client.close()

@@ -45,7 +45,9 @@ BUILTINS: tuple[Builtin, ...] = (
     Builtin("checksum", "checksum on|off", "turn checksum mode on or off (#crcon! / #crcoff!)"),
     Builtin("raw", "raw FRAME", "send FRAME exactly as typed, unchecked (e.g. raw #bogus!)"),
     Builtin("status", "status", "the state as last sent and the link's figures"),
-    Builtin("quit", "quit", "leave (sends #stop! first unless locked as last sent); also Ctrl-D"),
+    Builtin(
+        "quit", "quit", "leave (sends #stop! first unless locked as last sent); also exit, Ctrl-D"
+    ),
 )
 _BUILTIN_NAMES = frozenset(builtin.name for builtin in BUILTINS) | {"exit"}
 
@@ -192,6 +194,8 @@ def _builtin(line: str, name: str, words: list[re.Match[str]]) -> Action:
         if not arguments:
             return ShowHelp()
         topic = arguments[0].lstrip("#").rstrip("!")
+        if topic == "exit":  # (quit's other name: its help is quit's)
+            topic = "quit"
         if topic not in _BUILTIN_NAMES:
             try:
                 usage(topic)
