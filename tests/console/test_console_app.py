@@ -19,12 +19,14 @@ from prompt_toolkit.output import create_output
 
 import rovlink.aio.client
 from rovlink.aio import AsyncClient
-from rovlink.cli import main
+from rovlink.cli import build_parser, main
+from rovlink.cli.link_options import connect_async
 from rovlink.client.links import Link
 from rovlink.client.options import StrayCallback
 from rovlink.console.app import Connector, run_console
 from tests.cli.silent_controller import SilentController as CliSilentController
 from tests.client.conftest import NO_REPLY_TIMEOUT_S, REPLY_TIMEOUT_S, client_options
+from tests.client.fake_controller import FakeControllerServer
 from tests.piloting.rig import RecordingLink, Rig, SilentController, until
 
 CTRL_A, CTRL_K, CTRL_X, CTRL_D, UP = "\x01", "\x0b", "\x18", "\x04", "\x1b[A"
@@ -381,3 +383,29 @@ def test_lines_read_from_a_file_all_run_in_order_before_leaving(tmp_path: Path) 
     assert received.index(b"#qd!") < received.index(b"#start!") < received.index(b"#th.0.30!")
     assert received.endswith(b"#stop!")
     silent.close()
+
+
+@pytest.mark.integration
+async def test_a_lost_link_is_reopened_and_the_state_as_last_sent_forgotten(tmp_path: Path) -> None:
+    # Before, an adapter unplugged and plugged back ended the link for good: every line said
+    # "connection lost" until the console was left and started again.
+    port = FakeControllerServer()
+    args = build_parser("console").parse_args(
+        ["console", port.url, "--boot-timeout", "0", "--timeout", str(REPLY_TIMEOUT_S)]
+    )
+    async with _terminal(Rig.simulated(), tmp_path / "history", connect_async(args)) as term:
+        term.type("start\rth 0 40\r")
+        await until(lambda: "#th.0.40!" in port.fakes[0].frames())
+        port.fakes[0].close()
+        await term.wait_shown("! link reopened: the controller may have reset (locked)")
+        term.type("qd\r")
+        await term.wait_shown("qd → 123 cm")
+        term.type("status\r")
+        await term.wait_shown(
+            "motors:     unknown: after the link was reopened (the controller may have reset)"
+        )
+        term.type(CTRL_D)
+        await term.finish()
+    assert port.fakes[1].frames()[0] == "#th.0.0!"  # the driver's zero thrust first
+    assert port.fakes[1].frames()[-1] == "#stop!"  # leaving: the lock unknown
+    port.close()

@@ -23,6 +23,7 @@ from rovlink.client.options import StrayCallback
 from rovlink.monitor.app import MonitorApp
 from rovlink.protocol import Text as DebugText
 from tests.client.conftest import CONDITION_TIMEOUT_S, REPLY_TIMEOUT_S, client_options
+from tests.client.fake_controller import FakeControllerServer
 from tests.monitor.screen import screen_text, shown
 from tests.piloting.rig import RecordingLink, Rig, SilentController, until
 
@@ -464,3 +465,27 @@ async def test_a_suspected_controller_reset_shows_the_lock_and_mode_unknown() ->
         assert "horizontal 0° at 0 %" in commanded
         await pilot.press("q")
     assert _commands(rig)[-1] == "#stop!"  # (the lock unknown: leaving stops)
+
+
+@pytest.mark.integration
+async def test_a_lost_link_is_reopened_and_the_polls_go_on() -> None:
+    # Before, the first poll after the loss ended the polling for good ("link closed: keys
+    # send nothing") though the adapter was plugged back at once.
+    port = FakeControllerServer()
+    args = build_parser("monitor").parse_args(
+        ["monitor", port.url, "--boot-timeout", "0", "--rate", "20"]
+    )
+    app = build_app(args)
+    async with app.run_test(size=SIZE) as pilot:
+        await until(lambda: _depth_shown(app) == 123)
+        await pilot.press("s", "up")
+        await until(lambda: "#th.0.10!" in port.fakes[0].frames())
+        port.fakes[0].close()
+        await until(lambda: len(port.fakes) == 2)
+        await until(lambda: "#qsa!" in port.fakes[1].frames())  # polling the reopened link
+        await until(lambda: "motors     unknown: link reopened" in shown(app, "#commanded"))
+        assert "horizontal 0° at 0 %" in shown(app, "#commanded")
+        await until(lambda: "lost" not in shown(app, "#link"))
+        await pilot.press("q")
+    assert port.fakes[1].frames()[-1] == "#stop!"
+    port.close()

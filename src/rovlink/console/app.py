@@ -130,9 +130,15 @@ def _toolbar(rov: TrackedClient, queued: int) -> StyleAndTextTuples:
     link = f"link {health.status}"
     if health.last_reply_s is not None:
         link += f", reply {health.last_reply_s * 1000:.0f} ms"
-    link_style = "class:toolbar.bad" if health.consecutive_failures or rov.client.closed else ""
+    link_style = (
+        "class:toolbar.bad"
+        if health.consecutive_failures or rov.client.closed or rov.link_down
+        else ""
+    )
     if rov.client.closed:
         link = "link lost"
+    elif rov.link_down:
+        link = "link lost, reopening it"
     checksum = f"checksum {rov.algorithm}" if rov.checksum_enabled else "checksum off"
     fragments: StyleAndTextTuples = [
         ("class:toolbar.stop", f" {STOP_KEY_TEXT}: STOP "),

@@ -15,7 +15,7 @@ import asyncio
 from collections.abc import Callable
 
 from rovlink.client import ClientError
-from rovlink.client.events import ClientEvent, LateReply
+from rovlink.client.events import ClientEvent, LateReply, LinkState
 from rovlink.console.actions import (
     Action,
     Quit,
@@ -37,6 +37,7 @@ from rovlink.console.transcript import (
 )
 from rovlink.logs import get_logger
 from rovlink.piloting import LockState, SentFrame, TrackedClient
+from rovlink.piloting.tracked import REOPENED_NOTICE
 from rovlink.protocol import Event, Response, Setting, setting_command
 
 __all__ = ["ConsoleEngine", "status_lines"]
@@ -53,7 +54,11 @@ def status_lines(rov: TrackedClient) -> list[str]:
     counters = rov.client.counters
     reply = "—" if health.last_reply_s is None else f"{health.last_reply_s * 1000:.1f} ms"
     mode = f"on ({rov.algorithm})" if rov.checksum_enabled else "off"
-    link = "link lost" if rov.client.closed else health.status  # (as the toolbar says)
+    link = health.status  # (as the toolbar says)
+    if rov.client.closed:
+        link = "link lost"
+    elif rov.link_down:
+        link = "link lost, reopening it"
     return [
         f"motors:     {state.lock_text()}",
         f"vertical:   {state.mode_text()}",
@@ -236,6 +241,8 @@ class ConsoleEngine:
         if isinstance(event, LateReply):
             algorithm = self.rov.algorithm if self.rov.checksum_enabled else None
             self._emit(late_reply_line(event.response, algorithm))
+        elif isinstance(event, LinkState) and event.state == "reconnected":
+            self._emit(info_line(f"  ! {REOPENED_NOTICE}", "class:warning"))
 
     def _on_sent(self, sent: SentFrame) -> None:
         for line in sent_lines(sent):

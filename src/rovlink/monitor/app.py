@@ -29,6 +29,7 @@ from textual.widgets import Digits, Footer, Header, Static
 
 from rovlink.aio import AsyncClient
 from rovlink.client import ClientError, ConnectionLostError, QueryTimeoutError
+from rovlink.client.events import ClientEvent, LinkState
 from rovlink.client.options import StrayCallback
 from rovlink.logs import WarningsShownBy
 from rovlink.monitor import controls
@@ -44,6 +45,7 @@ from rovlink.monitor.panels import (
 )
 from rovlink.monitor.readings import DEFAULT_WINDOW_S, Readings
 from rovlink.piloting import LockState, SentFrame, TrackedClient
+from rovlink.piloting.tracked import REOPENED_NOTICE
 from rovlink.protocol import BadFrame, Command, Event
 from rovlink.protocol import Text as DebugText
 from rovlink.protocol.visible import visible
@@ -307,6 +309,7 @@ class MonitorApp(App[None]):
             return
         rov = TrackedClient(client, algorithm=self._algorithm)
         rov.add_sent_listener(self._on_sent)
+        client.subscribe(self._on_client_event)
         self.rov = rov
         self._link_state = client.description
         loop = asyncio.get_running_loop()
@@ -320,8 +323,11 @@ class MonitorApp(App[None]):
                     pass  # counted in rov.health, shown on the link panel
                 except ConnectionLostError as error:
                     self._link_state = f"lost: {error}"
-                    break
+                    if client.closed:
+                        break
+                    # (Being reopened: the polls go on, and fail at once until it is.)
                 else:
+                    self._link_state = client.description
                     self.readings.record(reading, self._clock())
                 self._redraw()
                 await asyncio.sleep(max(self.period_s - (loop.time() - started_s), 0.0))
@@ -338,6 +344,10 @@ class MonitorApp(App[None]):
             self._last_message = visible(event.text)
         elif isinstance(event, BadFrame):
             self._last_message = f"dropped reply {event.raw!r}: {event.detail}"
+
+    def _on_client_event(self, event: ClientEvent) -> None:
+        if isinstance(event, LinkState) and event.state == "reconnected":
+            self.notify(REOPENED_NOTICE, title="link reopened", severity="warning", timeout=10)
 
     def _on_sent(self, sent: SentFrame) -> None:
         if sent.warning is not None:
@@ -381,6 +391,8 @@ class MonitorApp(App[None]):
             link = self._link_state
         elif rov.client.closed:
             link = "lost: keys send nothing"
+        elif rov.link_down:
+            link = "lost, reopening it"
         else:
             link = rov.health.status
         return small_screen_text(

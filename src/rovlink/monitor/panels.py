@@ -143,11 +143,11 @@ def commanded_text(commanded: CommandedState) -> Text:
     )
     lock = commanded.lock_text()
     if commanded.lock is LockState.UNKNOWN:  # (in the box's width; a notice says it in full)
-        lock = (
-            "unknown: reset suspected"
-            if commanded.lock_unknown_after_reset
-            else "unknown: none sent"
-        )
+        lock = "unknown: none sent"
+        if commanded.lock_unknown_after_reset:
+            lock = "unknown: reset suspected"
+        elif commanded.lock_unknown_after_reopening:
+            lock = "unknown: link reopened"
     _row(text, "motors", lock, lock_style)
     mode = commanded.short_mode_text()
     if commanded.vertical_mode is None:

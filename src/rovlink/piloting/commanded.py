@@ -17,6 +17,7 @@ __all__ = ["CommandedState", "LockState"]
 
 _RESET_LOCK_REASON = "a suspected controller reset (locked after one)"
 _RESET_MODE_REASON = "a suspected controller reset (depth mode after one)"
+_REOPENED_LOCK_REASON = "the link was reopened (the controller may have reset)"
 
 
 class LockState(StrEnum):
@@ -87,10 +88,33 @@ class CommandedState:
             self.mode_unknown_because = _RESET_MODE_REASON
         self._clear_set_points()
 
+    def forget_after_reopening(self, *, stopped: bool) -> None:
+        """The link was lost and reopened: the driver's first frames on it put the motion at
+        rest (zero thrust), and a board reset by the reopened port (DTR) or stopped by its own
+        failsafe (P17) is locked; so the lock is unknown unless ``stopped`` (a ``#stop!`` went
+        on the reopened link), and the motion as last sent is at rest.
+
+        >>> state = CommandedState()
+        >>> state.apply(Command("start"))
+        >>> state.apply(Command("th", (90, 30)))
+        >>> state.forget_after_reopening(stopped=False)
+        >>> state.lock_text(), state.power_percent
+        ('unknown: after the link was reopened (the controller may have reset)', 0)
+        """
+        if not stopped:
+            self.forget_lock(_REOPENED_LOCK_REASON)
+        self.power_percent = 0
+        self.vertical_thrust_percent = 0
+
     @property
     def lock_unknown_after_reset(self) -> bool:
         """Whether the lock is unknown because a controller reset is suspected."""
         return self.lock_unknown_because == _RESET_LOCK_REASON
+
+    @property
+    def lock_unknown_after_reopening(self) -> bool:
+        """Whether the lock is unknown because the link was lost and reopened."""
+        return self.lock_unknown_because == _REOPENED_LOCK_REASON
 
     @property
     def mode_unknown_after_reset(self) -> bool:
