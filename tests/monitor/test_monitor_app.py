@@ -487,5 +487,5 @@ async def test_a_lost_link_is_reopened_and_the_polls_go_on() -> None:
         assert "horizontal 0° at 0 %" in shown(app, "#commanded")
         await until(lambda: "lost" not in shown(app, "#link"))
         await pilot.press("q")
-    assert port.fakes[1].frames()[-1] == "#stop!"
+    assert "#stop!" in port.fakes[1].frames()  # (a poll or a keep-alive may follow it)
     port.close()

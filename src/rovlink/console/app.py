@@ -73,8 +73,9 @@ class ConsoleCompleter(Completer):
     def get_completions(
         self, document: Document, complete_event: CompleteEvent
     ) -> Iterable[Completion]:
-        """The suggestions for the text before the cursor."""
-        for suggestion in suggestions(document.text_before_cursor):
+        """The suggestions for the text before the cursor, on its line (lines pasted at once
+        are each a line of their own)."""
+        for suggestion in suggestions(document.current_line_before_cursor):
             yield Completion(
                 suggestion.text,
                 start_position=suggestion.start,
@@ -150,7 +151,8 @@ def _toolbar(rov: TrackedClient, queued: int) -> StyleAndTextTuples:
         ("", "\n "),
     ]
     app = get_app_or_none()
-    hint = argument_hint(app.current_buffer.document.text_before_cursor) if app else None
+    # (On the cursor's line: lines pasted at once are each a line of their own.)
+    hint = argument_hint(app.current_buffer.document.current_line_before_cursor) if app else None
     if hint is not None:
         fragments.append(("class:toolbar.hint", hint.text()))
     else:
