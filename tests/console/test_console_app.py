@@ -425,3 +425,19 @@ async def test_the_toolbar_hint_is_for_the_line_of_a_paste_the_cursor_is_on(
         await until(lambda: "#th.270.25!" in rig.frames())
         term.type(CTRL_D)
         await term.finish()
+
+
+async def test_ctrl_z_says_the_console_is_not_suspended_and_leaves_the_line_alone(
+    tmp_path: Path,
+) -> None:
+    # Before, Ctrl-Z put a ^Z character in the line: "unknown command '\x1a'" once entered.
+    rig = Rig.simulated()
+    async with _terminal(rig, tmp_path / "history") as term:
+        term.type("q")
+        term.type("\x1a")
+        await term.wait_shown("Ctrl-Z does not suspend the console")
+        term.type("d\r")
+        await term.wait_shown("qd → 0 cm")
+        term.type(CTRL_D)
+        await term.finish()
+    assert rig.frames() == ["#crcoff!", "#qd!", "#stop!"]  # (the lock not sent: made safe)

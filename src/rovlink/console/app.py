@@ -66,6 +66,12 @@ STYLE = Style.from_dict(
 
 _TOOLBAR_REFRESH_S = 0.5
 
+#: What the Ctrl-Z key does in the console.
+NO_SUSPEND_TEXT = (
+    "Ctrl-Z does not suspend the console (the robot would go on unattended): "
+    f"{STOP_KEY_TEXT} stops it, Ctrl-D leaves"
+)
+
 
 class ConsoleCompleter(Completer):
     """Command names, console words, argument values and hints (see ``completion``)."""
@@ -117,6 +123,11 @@ def _stop_bindings(engine: ConsoleEngine) -> KeyBindings:
     @bindings.add("<sigint>")
     def _leave(event: KeyPressEvent) -> None:
         event.app.exit(exception=_EndedBySignal())
+
+    # Not a suspend (a stopped console could not stop the robot), nor a character in the line.
+    @bindings.add("c-z")
+    def _no_suspend(event: KeyPressEvent) -> None:
+        engine.say(NO_SUSPEND_TEXT)
 
     return bindings
 

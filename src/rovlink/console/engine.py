@@ -112,6 +112,10 @@ class ConsoleEngine:
         """Queue an action behind those already waiting."""
         self._queue.put_nowait(action)
 
+    def say(self, text: str) -> None:
+        """Show a message of the console's own."""
+        self._emit(info_line(text, "class:warning"))
+
     def on_event(self, event: Event) -> None:
         """Show what came from the controller unasked: debug text, dropped or stray frames."""
         self._emit(event_line(event))
