@@ -396,6 +396,7 @@ async def test_a_lost_link_is_reopened_and_the_state_as_last_sent_forgotten(tmp_
     )
     async with _terminal(Rig.simulated(), tmp_path / "history", connect_async(args)) as term:
         term.type("start\rth 0 40\r")
+        await until(lambda: bool(port.fakes))  # (the fake's own thread takes the connection)
         await until(lambda: "#th.0.40!" in port.fakes[0].frames())
         port.fakes[0].close()
         await term.wait_shown("! link reopened: the controller may have reset (locked)")
