@@ -14,6 +14,7 @@ from rovlink.console.actions import (
     ShowHelp,
     ShowStatus,
     parse_line,
+    parse_lines,
 )
 from rovlink.protocol import Command
 
@@ -125,3 +126,27 @@ def test_a_frame_with_a_wrong_checksum_says_so_and_points_at_it() -> None:
     assert raised.value.position == len("#th.270.25")
     with pytest.raises(InputError, match="not a number"):  # checksum mode off: a bad value
         parse_line("#th.270.25CA!")
+
+
+def test_pasted_lines_are_each_a_line_of_their_own() -> None:
+    # Before, a paste of several lines was one line: "start takes 0 value(s), got 4", and
+    # "th 0\n50" was sent as th 0 50.
+    assert parse_lines("start\r\nth 0 40\n\n  qd  \n") == [
+        SendCommand(Command("start")),
+        SendCommand(Command("th", (0, 40))),
+        SendCommand(Command("qd")),
+    ]
+    with pytest.raises(InputError, match=r"^line 1: th takes 2 value") as refused:
+        parse_lines("th 0\n50")
+    assert refused.value.position == len("th 0")
+
+
+def test_a_bad_pasted_line_refuses_them_all_naming_it_and_pointing_into_it() -> None:
+    text = "start\nth 0 40\nmvs 500\nqd"
+    with pytest.raises(InputError) as refused:
+        parse_lines(text)
+    assert refused.value.message == "line 3: mvs: thrust_percent must be in -100…+100, got 500"
+    assert text[refused.value.position :].startswith("500")
+    with pytest.raises(InputError, match=r"^mvs: thrust") as alone:  # one line: no number
+        parse_lines("\nmvs 500\n")
+    assert alone.value.position == len("\nmvs ")

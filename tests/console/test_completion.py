@@ -88,3 +88,10 @@ def test_prompt_toolkit_completer_passes_suggestions_through() -> None:
     assert [c.text for c in completions] == ["mvpdp", "mvpdi", "mvpidd"]
     assert completions[0].start_position == -3
     assert completions[0].display_meta_text == "vertical (depth) PID proportional gain"
+
+
+def test_on_the_second_line_of_a_paste_the_completer_looks_at_that_line_only() -> None:
+    # Before, the words of the lines above counted: "start\nmvp" offered nothing (mvp was
+    # taken for a value of start).
+    completions = ConsoleCompleter().get_completions(Document("start\nmvp"), CompleteEvent())
+    assert [completion.text for completion in completions] == ["mvpdp", "mvpdi", "mvpidd"]

@@ -7,6 +7,7 @@ import asyncio
 import contextlib
 import io
 import logging
+import socket
 from collections.abc import AsyncIterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -17,11 +18,16 @@ from prompt_toolkit.input import PipeInput, create_pipe_input
 from prompt_toolkit.output import create_output
 
 import rovlink.aio.client
-from rovlink.cli import main
+from rovlink.aio import AsyncClient
+from rovlink.cli import build_parser, main
+from rovlink.cli.link_options import connect_async
 from rovlink.client.links import Link
-from rovlink.console.app import run_console
-from tests.client.conftest import REPLY_TIMEOUT_S
-from tests.piloting.rig import RecordingLink, Rig, until
+from rovlink.client.options import StrayCallback
+from rovlink.console.app import Connector, run_console
+from tests.cli.silent_controller import SilentController as CliSilentController
+from tests.client.conftest import NO_REPLY_TIMEOUT_S, REPLY_TIMEOUT_S, client_options
+from tests.client.fake_controller import FakeControllerServer
+from tests.piloting.rig import RecordingLink, Rig, SilentController, until
 
 CTRL_A, CTRL_K, CTRL_X, CTRL_D, UP = "\x01", "\x0b", "\x18", "\x04", "\x1b[A"
 CLEAR_LINE = CTRL_A + CTRL_K
@@ -49,12 +55,14 @@ class Terminal:
 
 
 @contextlib.asynccontextmanager
-async def _terminal(rig: Rig, history_path: Path | None) -> AsyncIterator[Terminal]:
+async def _terminal(
+    rig: Rig, history_path: Path | None, connect: Connector | None = None
+) -> AsyncIterator[Terminal]:
     screen = io.StringIO()
     with create_pipe_input() as keys, create_app_session(input=keys, output=create_output(screen)):
-        task = asyncio.create_task(run_console(rig.connect, history_path=history_path))
+        task = asyncio.create_task(run_console(connect or rig.connect, history_path=history_path))
         terminal = Terminal(keys, screen, task)
-        await terminal.wait_shown("connected to simulated controller")
+        await terminal.wait_shown("connected to ")
         try:
             yield terminal
         finally:
@@ -211,8 +219,6 @@ def test_cli_console_refuses_a_bad_url(capsys: pytest.CaptureFixture[str]) -> No
 def test_cli_console_says_when_nothing_listens(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    import socket
-
     with socket.socket() as probe:  # a free port, closed again: nothing listens on it
         probe.bind(("127.0.0.1", 0))
         port = probe.getsockname()[1]
@@ -257,3 +263,182 @@ async def test_the_library_s_warnings_are_printed_above_the_prompt(tmp_path: Pat
         await asyncio.wait_for(term.task, 5.0)
     assert library_logger.handlers == handlers_before
     assert library_logger.propagate
+
+
+@pytest.mark.parametrize("leave", [CTRL_D, "quit\r"], ids=["ctrl-d", "quit"])
+async def test_leaving_stops_at_once_not_behind_a_query_waiting_for_its_reply(
+    tmp_path: Path, leave: str
+) -> None:
+    # Before, Ctrl-D and quit were queued behind the lines typed: with a controller that did
+    # not answer, the robot went on at 40 % until every query had waited out its timeout
+    # (the lines not sent yet were sent first, then #stop!).
+    silent = SilentController()
+    link = silent.link()
+
+    async def connect(on_stray: StrayCallback) -> AsyncClient:
+        options = client_options(timeout_s=30.0, retries=0, on_stray=on_stray)
+        return await AsyncClient(link, options).open()
+
+    async with _terminal(Rig.simulated(), tmp_path / "history", connect) as term:
+        term.type("start\rth 0 40\r")
+        await until(lambda: b"#th.0.40!" in silent.received)
+        term.type("qd\rqhe\r")  # qd waits for a reply that never comes; qhe is queued
+        await until(lambda: b"#qd!" in silent.received)
+        term.type(leave)
+        await term.wait_shown("leaving: 1 queued line(s) dropped, not sent")
+        await until(lambda: b"#stop!" in silent.received)
+        assert not term.task.done()  # the #qd! is still waiting: the stop did not wait for it
+        silent.host_end.shutdown(socket.SHUT_RDWR)  # (the query fails with the link: it ends)
+        await term.finish()
+    silent.close()
+    assert link.frames() == ["#crcoff!", "#start!", "#th.0.40!", "#qd!", "#stop!"]
+
+
+async def test_pasted_lines_run_one_after_another(tmp_path: Path) -> None:
+    # A terminal pastes between bracketed-paste marks; before, the lines were one line, refused
+    # ("start takes 0 value(s), got 4") and left in the prompt, where Ctrl-K cleared one line.
+    rig = Rig.simulated()
+    async with _terminal(rig, tmp_path / "history") as term:
+        term.type("\x1b[200~start\nth 0 40\nqd\n\x1b[201~\r")
+        await term.wait_shown("qd → 0 cm")
+        term.type("\x1b[200~stop\nmvs 500\x1b[201~\r")  # all refused: not even the stop
+        await term.wait_shown("line 2: mvs: thrust_percent must be in -100…+100, got 500")
+        term.type("\x03")  # (the Ctrl-C key drops the refused text)
+        term.type("\x1b[200~stop\nquit\nstart\x1b[201~\r")  # lines after quit are not run
+        await term.finish()
+    assert rig.frames() == ["#crcoff!", "#start!", "#th.0.40!", "#qd!", "#stop!"]
+
+
+async def test_leaving_does_not_wait_out_the_reply_timeout_of_a_query_on_the_wire(
+    tmp_path: Path,
+) -> None:
+    # Before, quit sent #stop! at once, then waited for the #qd! on the wire for the whole
+    # reply timeout (--timeout, up to an hour), and again while closing, before it ended.
+    silent = SilentController()
+    link = silent.link()
+
+    async def connect(on_stray: StrayCallback) -> AsyncClient:
+        options = client_options(timeout_s=30.0, retries=0, on_stray=on_stray)
+        return await AsyncClient(link, options).open()
+
+    async with _terminal(Rig.simulated(), tmp_path / "history", connect) as term:
+        term.type("start\rqd\r")
+        await until(lambda: b"#qd!" in silent.received)
+        term.type("quit\r")
+        await term.finish()
+    assert link.frames() == ["#crcoff!", "#start!", "#qd!", "#stop!"]
+    silent.close()
+
+
+async def test_ctrl_c_abandons_a_query_waiting_for_its_reply_and_the_lines_queued(
+    tmp_path: Path,
+) -> None:
+    # Before, the Ctrl-C key only dropped the line being typed: a query waiting for a reply
+    # that never came held every later line for the whole reply timeout (--timeout, up to an
+    # hour), with no way to get the console back but to leave it.
+    silent = SilentController()
+    link = silent.link()
+
+    async def connect(on_stray: StrayCallback) -> AsyncClient:
+        options = client_options(timeout_s=30.0, retries=0, on_stray=on_stray)
+        return await AsyncClient(link, options).open()
+
+    async with _terminal(Rig.simulated(), tmp_path / "history", connect) as term:
+        term.type("qd\rstart\r")
+        await until(lambda: b"#qd!" in silent.received)
+        term.type("\x03")
+        await term.wait_shown("^C: #qd! abandoned; 1 queued line(s) dropped, not sent")
+        term.type("mvd 10\r")  # runs at once: nothing waits for the #qd! any more
+        await until(lambda: b"#mvd.10!" in silent.received)
+        term.type("\x03")  # nothing running: it only drops the line, as before
+        term.type(CTRL_D)
+        await term.finish()
+    assert link.frames() == ["#crcoff!", "#qd!", "#mvd.10!", "#stop!"]
+    silent.close()
+
+
+def test_lines_read_from_a_file_all_run_in_order_before_leaving(tmp_path: Path) -> None:
+    # `rovlink console URL < lines.txt`: the end of the file is no Ctrl-D key. Leaving at once
+    # there dropped the lines still queued behind a query waiting for its reply.
+    silent = CliSilentController()
+    screen = io.StringIO()
+    with create_pipe_input() as keys, create_app_session(input=keys, output=create_output(screen)):
+        keys.send_text("qd\rstart\rth 0 30\r" + CTRL_D)  # (pytest's stdin is no terminal)
+        status = main(
+            [
+                "console",
+                silent.url,
+                "--boot-timeout",
+                "0",
+                "--timeout",
+                str(NO_REPLY_TIMEOUT_S),
+                "--retries",
+                "0",
+                "--history",
+                str(tmp_path / "history"),
+            ]
+        )
+    assert status == 0
+    assert silent.wait_for(b"#stop!")  # (as the far end reads it)
+    received = bytes(silent.received)
+    assert received.index(b"#qd!") < received.index(b"#start!") < received.index(b"#th.0.30!")
+    assert received.rindex(b"#stop!") > received.index(b"#th.0.30!")
+    silent.close()
+
+
+@pytest.mark.integration
+async def test_a_lost_link_is_reopened_and_the_state_as_last_sent_forgotten(tmp_path: Path) -> None:
+    # Before, an adapter unplugged and plugged back ended the link for good: every line said
+    # "connection lost" until the console was left and started again.
+    port = FakeControllerServer()
+    args = build_parser("console").parse_args(
+        ["console", port.url, "--boot-timeout", "0", "--timeout", str(REPLY_TIMEOUT_S)]
+    )
+    async with _terminal(Rig.simulated(), tmp_path / "history", connect_async(args)) as term:
+        term.type("start\rth 0 40\r")
+        await until(lambda: bool(port.fakes))  # (the fake's own thread takes the connection)
+        await until(lambda: "#th.0.40!" in port.fakes[0].frames())
+        port.fakes[0].close()
+        await term.wait_shown("! link reopened: the controller may have reset (locked)")
+        term.type("qd\r")
+        await term.wait_shown("qd → 123 cm")
+        term.type("status\r")
+        await term.wait_shown(
+            "motors:     unknown: after the link was reopened (the controller may have reset)"
+        )
+        term.type(CTRL_D)
+        await term.finish()
+    # Leaving: the lock unknown (as the fake reads it: a keep-alive may follow).
+    await until(lambda: "#stop!" in port.fakes[1].frames())
+    assert port.fakes[1].frames()[0] == "#th.0.0!"  # the driver's zero thrust first
+    port.close()
+
+
+async def test_the_toolbar_hint_is_for_the_line_of_a_paste_the_cursor_is_on(
+    tmp_path: Path,
+) -> None:
+    rig = Rig.simulated()
+    async with _terminal(rig, tmp_path / "history") as term:
+        term.type("\x1b[200~start\nth 270 \x1b[201~")  # pasted, not yet entered
+        # (Before, the hint was start's: the words of every line counted.)
+        await term.wait_shown("th <direction_deg 0–360> [<power_percent 0–100>]")
+        term.type("25\r")
+        await until(lambda: "#th.270.25!" in rig.frames())
+        term.type(CTRL_D)
+        await term.finish()
+
+
+async def test_ctrl_z_says_the_console_is_not_suspended_and_leaves_the_line_alone(
+    tmp_path: Path,
+) -> None:
+    # Before, Ctrl-Z put a ^Z character in the line: "unknown command '\x1a'" once entered.
+    rig = Rig.simulated()
+    async with _terminal(rig, tmp_path / "history") as term:
+        term.type("q")
+        term.type("\x1a")
+        await term.wait_shown("Ctrl-Z does not suspend the console")
+        term.type("d\r")
+        await term.wait_shown("qd → 0 cm")
+        term.type(CTRL_D)
+        await term.finish()
+    assert rig.frames() == ["#crcoff!", "#qd!", "#stop!"]  # (the lock not sent: made safe)

@@ -4,14 +4,16 @@ the stop key jumps the queue, leaving sends #stop! unless locked as last sent.""
 from __future__ import annotations
 
 import asyncio
+import socket
 
 from rovlink.aio import AsyncClient
-from rovlink.console.actions import Quit, SendCommand, SendRaw, SetChecksum, ShowStatus
+from rovlink.client.links import SocketLink
+from rovlink.console.actions import Quit, SendCommand, SendRaw, SetChecksum, ShowStatus, parse_line
 from rovlink.console.engine import ConsoleEngine
 from rovlink.console.transcript import Line, plain_text
 from rovlink.piloting import TrackedClient
 from rovlink.protocol import Command
-from tests.client.conftest import REPLY_TIMEOUT_S, client_options
+from tests.client.conftest import NO_REPLY_TIMEOUT_S, REPLY_TIMEOUT_S, client_options
 from tests.piloting.rig import Rig, SilentController, until
 
 
@@ -151,4 +153,39 @@ async def test_status_says_the_link_is_lost() -> None:
     (link,) = [line for line in screen.lines if line.startswith("link:")]
     assert "link lost" in link
     assert "waiting" not in link
+    await engine.rov.client.close()
+
+
+async def test_a_reply_after_its_query_timed_out_is_shown_as_late() -> None:
+    # Before, a reply that came after its query's timeout was dropped without a word: the
+    # console said "got no valid reply" of a controller that did answer, only slowly.
+    host_end, controller_end = socket.socketpair()
+    options = client_options(timeout_s=NO_REPLY_TIMEOUT_S, retries=0)
+    client = await AsyncClient(SocketLink(host_end, "slow controller"), options).open()
+    screen = Screen()
+    engine = ConsoleEngine(screen)
+    engine.attach(TrackedClient(client))
+    await engine.execute(SendCommand(Command("qd")))
+    assert "#qd! got no valid reply" in screen.text()
+    controller_end.sendall(b"$qd.5!")
+    await until(lambda: "late: its query had timed out" in screen.text())
+    assert "  qd → 5 cm                 $qd.5!  late: its query had timed out" in screen.lines
+    await client.close()
+    controller_end.close()
+
+
+async def test_help_exit_shows_quit_and_the_console_goes_on() -> None:
+    # Before, `help exit` raised in the engine (exit is quit's other name, not in the table):
+    # the lines typed after it were never run, and the console ended as a usage error.
+    rig = Rig.simulated()
+    engine, screen = await _engine(rig)
+    action = parse_line("help exit")
+    assert action is not None
+    await engine.execute(action)
+    assert "quit" in screen.lines
+    assert (
+        "  leave (sends #stop! first unless locked as last sent); also exit, Ctrl-D" in screen.lines
+    )
+    await engine.execute(SendCommand(Command("qd")))
+    assert "qd → 0 cm" in screen.text()
     await engine.rov.client.close()

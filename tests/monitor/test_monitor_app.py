@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import asyncio
 import logging
 import re
 import threading
@@ -21,7 +22,8 @@ from rovlink.client.links import Link
 from rovlink.client.options import StrayCallback
 from rovlink.monitor.app import MonitorApp
 from rovlink.protocol import Text as DebugText
-from tests.client.conftest import REPLY_TIMEOUT_S, client_options
+from tests.client.conftest import CONDITION_TIMEOUT_S, REPLY_TIMEOUT_S, client_options
+from tests.client.fake_controller import FakeControllerServer
 from tests.monitor.screen import screen_text, shown
 from tests.piloting.rig import RecordingLink, Rig, SilentController, until
 
@@ -389,3 +391,101 @@ async def test_a_warning_from_another_thread_never_waits_for_the_dashboard() -> 
         assert not logging_thread.is_alive()
         await until(lambda: "leak detected" in notified)
         await pilot.press("q")
+
+
+async def test_a_terminal_too_small_for_the_boxes_shows_the_essentials_and_the_keys() -> None:
+    # Before, at 20×5 the screen scrolled to a cut attitude box: no depth, no state as last
+    # sent, no link, and the footer ended at "s start" (no "q quit"); at 80×15 the link box
+    # was below the fold.
+    rig = Rig.simulated()
+    app = MonitorApp(rig.connect, description="bench", rate_hz=20)
+    async with app.run_test(size=(20, 5)) as pilot:
+        await until(lambda: _depth_shown(app) == 0)
+        await pilot.press("s", "up")
+        await until(lambda: "#th.0.10!" in rig.frames())
+        await until(lambda: "motors unlocked · 0…" in screen_text(app))
+        lines = [line.rstrip() for line in screen_text(app).splitlines()]
+        assert lines == [
+            "space STOP · q quit",
+            "depth 0 cm",
+            "motors unlocked · 0…",
+            "link ok",
+            "terminal 20×5: too …",
+        ]
+        assert app.screen.virtual_size.height <= 5  # nothing below the fold
+        await pilot.resize_terminal(80, 15)
+        await until(lambda: "terminal 80×15: too small" in screen_text(app))
+        assert "0° at 10 % (as last sent)" in screen_text(app)
+        await pilot.resize_terminal(80, 24)  # big enough: the boxes are back
+        await until(lambda: screen_text(app).splitlines()[-1].rstrip().endswith("q quit"))
+        assert "commanded, as last sent" in screen_text(app)
+        await pilot.resize_terminal(20, 5)
+        await until(lambda: screen_text(app).startswith("space STOP · q quit"))
+        await pilot.press("q")
+    assert _commands(rig)[-3:] == ["#start!", "#th.0.10!", "#stop!"]
+
+
+async def test_q_ends_the_monitor_at_once_while_a_poll_waits_for_its_reply() -> None:
+    # Before, q sent #stop!, then waited for the poll on the wire for the whole reply timeout
+    # (--timeout, up to an hour) before the monitor ended.
+    silent = SilentController()
+
+    def connect(on_stray: StrayCallback) -> Awaitable[AsyncClient]:
+        options = client_options(timeout_s=30.0, retries=0, on_stray=on_stray)
+        return AsyncClient(silent.link(), options).open()
+
+    app = MonitorApp(connect, description="silent", rate_hz=10)
+    async with app.run_test(size=SIZE) as pilot:
+        await until(lambda: b"#qsa!" in silent.received)  # a poll is waiting for its reply
+        await pilot.press("s")
+        await until(lambda: b"#start!" in silent.received)
+        await asyncio.wait_for(pilot.press("q"), CONDITION_TIMEOUT_S)  # (it waits for q's action)
+        await until(lambda: app.return_code is not None)
+    await until(lambda: silent.received.endswith(b"#stop!"))  # (as the far end reads it)
+    silent.close()
+
+
+async def test_a_suspected_controller_reset_shows_the_lock_and_mode_unknown() -> None:
+    # Before, the box went on saying "unlocked (as last sent)" at 10 % after the reset, while
+    # the controller, locked, dropped every key's frame.
+    rig = Rig.simulated()
+
+    def connect(on_stray: StrayCallback) -> Awaitable[AsyncClient]:
+        return rig.connect(on_stray, checksum=True, timeout_s=0.1, retries=2)
+
+    app = MonitorApp(connect, description="bench", rate_hz=20)
+    async with app.run_test(size=SIZE) as pilot:
+        await until(lambda: _depth_shown(app) == 0)
+        await pilot.press("s", "pagedown", "up")
+        await until(lambda: "horizontal 0° at 10 %" in shown(app, "#commanded"))
+        rig.port.controller.reset()  # checksum off: the polls go unanswered until re-sent
+        await until(lambda: "motors     unknown: reset suspected" in shown(app, "#commanded"))
+        commanded = shown(app, "#commanded")
+        assert "vertical   unknown: reset suspected" in commanded
+        assert "horizontal 0° at 0 %" in commanded
+        await pilot.press("q")
+    assert _commands(rig)[-1] == "#stop!"  # (the lock unknown: leaving stops)
+
+
+@pytest.mark.integration
+async def test_a_lost_link_is_reopened_and_the_polls_go_on() -> None:
+    # Before, the first poll after the loss ended the polling for good ("link closed: keys
+    # send nothing") though the adapter was plugged back at once.
+    port = FakeControllerServer()
+    args = build_parser("monitor").parse_args(
+        ["monitor", port.url, "--boot-timeout", "0", "--rate", "20"]
+    )
+    app = build_app(args)
+    async with app.run_test(size=SIZE) as pilot:
+        await until(lambda: _depth_shown(app) == 123)
+        await pilot.press("s", "up")
+        await until(lambda: "#th.0.10!" in port.fakes[0].frames())
+        port.fakes[0].close()
+        await until(lambda: len(port.fakes) == 2)
+        await until(lambda: "#qsa!" in port.fakes[1].frames())  # polling the reopened link
+        await until(lambda: "motors     unknown: link reopened" in shown(app, "#commanded"))
+        assert "horizontal 0° at 0 %" in shown(app, "#commanded")
+        await until(lambda: "lost" not in shown(app, "#link"))
+        await pilot.press("q")
+    await until(lambda: "#stop!" in port.fakes[1].frames())  # (as the fake reads it)
+    port.close()

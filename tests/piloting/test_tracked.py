@@ -4,12 +4,14 @@ from __future__ import annotations
 
 import pytest
 
+import rovlink.aio
 from rovlink.aio import AsyncClient
 from rovlink.client import ClientOptions, QueryTimeoutError
 from rovlink.client.events import BytesSent
 from rovlink.piloting import SentFrame, TrackedClient
 from rovlink.protocol import Command
-from tests.piloting.rig import Rig, SilentController
+from tests.client.fake_controller import FakeControllerServer
+from tests.piloting.rig import Rig, SilentController, until
 
 
 async def test_sent_frames_are_reported_as_written_and_update_the_state() -> None:
@@ -125,3 +127,62 @@ async def test_the_drivers_own_frames_are_not_last_sent() -> None:
     assert rov.commanded.power_percent == 0  # (what the driver's zero thrust did, all the same)
     assert [frame.text for frame in sent][-2:] == ["#crcoff!", "#th.0.0!"]  # (shown as sent)
     await rov.client.close()
+
+
+async def test_a_suspected_controller_reset_makes_the_state_as_last_sent_unknown() -> None:
+    # Before, after the driver had said "controller reset suspected ... the robot is locked
+    # after a reset", the tools still showed "unlocked (as last sent)" at 30 %, and took a
+    # th sent next for one the controller acts on (P21: a host never assumes it still is).
+    rig = Rig.simulated()
+    rov = TrackedClient(await rig.connect(checksum=True, timeout_s=0.25, retries=2))
+    for command in (Command("start"), Command("mvdirect", (1,)), Command("th", (90, 30))):
+        await rov.send(command)
+    rig.port.controller.reset()  # checksum off: it drops the #qd8C! until the mode is re-sent
+    (reply,) = await rov.send(Command("qd"))
+    assert reply.name == "qd"  # (answered once the driver re-asserted checksum mode)
+    state = rov.commanded
+    assert state.lock_text() == "unknown: after a suspected controller reset (locked after one)"
+    assert state.mode_text() == "unknown: after a suspected controller reset (depth mode after one)"
+    assert (state.short_lock_text(), state.short_mode_text()) == ("lock unknown", "mode unknown")
+    assert state.horizontal_text() == "0° at 0 % (as last sent)"
+    await rov.send(Command("start"))
+    assert state.lock_text() == "unlocked (as last sent)"
+    await rov.client.close()
+
+
+@pytest.mark.integration
+async def test_a_reopened_link_forgets_the_lock_and_puts_the_motion_at_rest() -> None:
+    port = FakeControllerServer()
+    async with rovlink.aio.connect(port.url, reconnect=True, keepalive=None, timeout=2.0) as client:
+        rov = TrackedClient(client)
+        await rov.send(Command("start"))
+        await rov.send(Command("th", (270, 40)))
+        port.fakes[0].close()  # unplugged and plugged back
+        await until(lambda: len(port.fakes) == 2)
+        await rov.send(Command("qd"))  # (waits for the reconnection)
+        assert not rov.link_down
+        state = rov.commanded
+        assert state.lock_text() == (
+            "unknown: after the link was reopened (the controller may have reset)"
+        )
+        assert state.horizontal_text() == "270° at 0 % (as last sent)"  # the driver zeroed it
+        assert port.fakes[1].frames()[0] == "#th.270.0!"
+    port.close()
+
+
+@pytest.mark.integration
+async def test_a_stop_while_the_link_is_down_leaves_it_locked_once_reopened() -> None:
+    port = FakeControllerServer()
+    async with rovlink.aio.connect(port.url, reconnect=True, keepalive=None, timeout=2.0) as client:
+        rov = TrackedClient(client)
+        await rov.send(Command("start"))
+        port.refuse = True  # unplugged
+        port.fakes[0].close()
+        await until(lambda: rov.link_down)
+        await rov.stop()  # kept: the reopened link's first frame
+        port.refuse = False
+        await until(lambda: len(port.fakes) == 2)
+        await rov.send(Command("qd"))
+        assert rov.commanded.lock_text() == "locked (as last sent)"
+        assert port.fakes[1].frames()[0] == "#stop!"
+    port.close()

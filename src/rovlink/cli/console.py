@@ -9,7 +9,7 @@ from __future__ import annotations
 import argparse
 import errno
 import sys
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, TextIO
 
 from rovlink.cli import link_options
 from rovlink.cli.failure import CommandError, UsageError, reason
@@ -90,7 +90,15 @@ def run(args: argparse.Namespace) -> int:
             print(f"rovlink console: {error}; kept for this session only", file=sys.stderr)
             history = None
     try:
-        run_async(run_console(connect, algorithm=args.algorithm, history_path=history))
+        run_async(
+            run_console(
+                connect,
+                algorithm=args.algorithm,
+                history_path=history,
+                # Lines read from a file or a pipe all run, in order, to the last.
+                from_terminal=_is_terminal(sys.stdin),
+            )
+        )
     except ValueError as error:
         raise UsageError(str(error)) from None
     except _ConnectError as failed:
@@ -101,6 +109,13 @@ def run(args: argparse.Namespace) -> int:
         # The terminal hung up (its window closed): #stop! went on the way out, as for Ctrl-C.
         raise KeyboardInterrupt from None
     return 0
+
+
+def _is_terminal(stream: TextIO | None) -> bool:
+    try:
+        return stream is not None and stream.isatty()
+    except (ValueError, OSError):  # closed
+        return False
 
 
 class _ConnectError(Exception):

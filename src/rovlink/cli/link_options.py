@@ -275,6 +275,7 @@ def client_options(
     keepalive_s: float | None = None,
     on_stray: StrayCallback | None = None,
     motion_timeout_s: float | None = None,
+    reconnect: bool = False,
 ) -> ClientOptions:
     """The driver's settings from the parsed link options: the one place they meet.
 
@@ -294,6 +295,7 @@ def client_options(
             boot_timeout_s=getattr(args, "boot_timeout_s", DEFAULT_BOOT_TIMEOUT_S),
             motion_timeout_s=motion_timeout_s,
             on_event=recorder.on_event if recorder is not None else None,
+            reconnect=reconnect,
         )
     except ValueError as error:
         raise UsageError(str(error)) from None
@@ -503,7 +505,8 @@ def connect_async(args: argparse.Namespace) -> Callable[[StrayCallback], Awaitab
         # No motion timeout (P23): a person sets a motion here and it holds until they change
         # it. The keep-alive runs on the tool's own event loop, so a tool that hangs stops
         # feeding the controller's link-loss watchdog (P17), which then stops the robot.
-        options = client_options(args, keepalive_s=1.0, on_stray=on_stray)
+        # A lost link (an adapter unplugged and plugged back) is reopened, not the end.
+        options = client_options(args, keepalive_s=1.0, on_stray=on_stray, reconnect=True)
         return rovlink.aio.connect(args.url, baudrate=args.baudrate, options=options)
 
     return connect_with

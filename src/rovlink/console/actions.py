@@ -24,6 +24,7 @@ __all__ = [
     "ShowHelp",
     "ShowStatus",
     "parse_line",
+    "parse_lines",
 ]
 
 _WORD = re.compile(r"[^\s,]+")
@@ -44,7 +45,9 @@ BUILTINS: tuple[Builtin, ...] = (
     Builtin("checksum", "checksum on|off", "turn checksum mode on or off (#crcon! / #crcoff!)"),
     Builtin("raw", "raw FRAME", "send FRAME exactly as typed, unchecked (e.g. raw #bogus!)"),
     Builtin("status", "status", "the state as last sent and the link's figures"),
-    Builtin("quit", "quit", "leave (sends #stop! first unless locked as last sent); also Ctrl-D"),
+    Builtin(
+        "quit", "quit", "leave (sends #stop! first unless locked as last sent); also exit, Ctrl-D"
+    ),
 )
 _BUILTIN_NAMES = frozenset(builtin.name for builtin in BUILTINS) | {"exit"}
 
@@ -129,6 +132,37 @@ def parse_line(line: str, checksum: str | None = None) -> Action | None:
         raise InputError(str(error), _error_position(line, error)) from None
 
 
+def parse_lines(text: str, checksum: str | None = None) -> list[Action]:
+    """The actions of every line of ``text``, in order: pasted lines run one after another, as
+    if typed one by one. All are checked before any runs: one bad line refuses the whole text,
+    its error naming the line and pointing into it.
+
+    >>> parse_lines("start\\nth 0 50\\n\\nqd")  # doctest: +NORMALIZE_WHITESPACE
+    [SendCommand(command=Command(name='start', values=())),
+     SendCommand(command=Command(name='th', values=(0, 50))),
+     SendCommand(command=Command(name='qd', values=()))]
+    >>> try:
+    ...     parse_lines("start\\nth 0 500")
+    ... except InputError as error:
+    ...     print(error.position, error)
+    11 line 2: th: power_percent must be in 0–100, got 500
+    """
+    lines = text.split("\n")
+    several = sum(1 for line in lines if line.strip()) > 1
+    actions: list[Action] = []
+    offset = 0
+    for number, line in enumerate(lines, start=1):
+        try:
+            action = parse_line(line.removesuffix("\r"), checksum)
+        except InputError as error:
+            message = f"line {number}: {error.message}" if several else error.message
+            raise InputError(message, offset + error.position) from None
+        if action is not None:
+            actions.append(action)
+        offset += len(line) + 1
+    return actions
+
+
 def _checksummed_frame(line: str, algorithm: str) -> Command | None:
     """The command of a frame typed with its checksum (``#qd8C!``), as the controller reads it
     in checksum mode; ``None`` if the line is not such a frame. A frame with a wrong checksum
@@ -160,6 +194,8 @@ def _builtin(line: str, name: str, words: list[re.Match[str]]) -> Action:
         if not arguments:
             return ShowHelp()
         topic = arguments[0].lstrip("#").rstrip("!")
+        if topic == "exit":  # (quit's other name: its help is quit's)
+            topic = "quit"
         if topic not in _BUILTIN_NAMES:
             try:
                 usage(topic)

@@ -28,13 +28,14 @@ from prompt_toolkit.validation import ValidationError, Validator
 from rovlink.aio import AsyncClient
 from rovlink.client import ClientError
 from rovlink.client.options import StrayCallback
-from rovlink.console.actions import InputError, Quit, parse_line
+from rovlink.console.actions import InputError, Quit, parse_lines
 from rovlink.console.completion import argument_hint, suggestions
 from rovlink.console.engine import ConsoleEngine
 from rovlink.console.help import STOP_KEY_TEXT
 from rovlink.console.transcript import Line, info_line
 from rovlink.logs import WarningsShownBy
 from rovlink.piloting import LockState, TrackedClient
+from rovlink.piloting.tracked import LEAVING_REPLY_WAIT_S
 from rovlink.protocol.visible import visible
 
 __all__ = ["STYLE", "Connector", "ConsoleCompleter", "ConsoleValidator", "run_console"]
@@ -65,6 +66,12 @@ STYLE = Style.from_dict(
 
 _TOOLBAR_REFRESH_S = 0.5
 
+#: What the Ctrl-Z key does in the console.
+NO_SUSPEND_TEXT = (
+    "Ctrl-Z does not suspend the console (the robot would go on unattended): "
+    f"{STOP_KEY_TEXT} stops it, Ctrl-D leaves"
+)
+
 
 class ConsoleCompleter(Completer):
     """Command names, console words, argument values and hints (see ``completion``)."""
@@ -72,8 +79,9 @@ class ConsoleCompleter(Completer):
     def get_completions(
         self, document: Document, complete_event: CompleteEvent
     ) -> Iterable[Completion]:
-        """The suggestions for the text before the cursor."""
-        for suggestion in suggestions(document.text_before_cursor):
+        """The suggestions for the text before the cursor, on its line (lines pasted at once
+        are each a line of their own)."""
+        for suggestion in suggestions(document.current_line_before_cursor):
             yield Completion(
                 suggestion.text,
                 start_position=suggestion.start,
@@ -93,7 +101,7 @@ class ConsoleValidator(Validator):
     def validate(self, document: Document) -> None:
         """Raise ValidationError naming what is wrong, e.g. which argument and its range."""
         try:
-            parse_line(document.text, self._checksum())
+            parse_lines(document.text, self._checksum())
         except InputError as error:
             raise ValidationError(cursor_position=error.position, message=error.message) from None
 
@@ -116,6 +124,11 @@ def _stop_bindings(engine: ConsoleEngine) -> KeyBindings:
     def _leave(event: KeyPressEvent) -> None:
         event.app.exit(exception=_EndedBySignal())
 
+    # Not a suspend (a stopped console could not stop the robot), nor a character in the line.
+    @bindings.add("c-z")
+    def _no_suspend(event: KeyPressEvent) -> None:
+        engine.say(NO_SUSPEND_TEXT)
+
     return bindings
 
 
@@ -129,9 +142,15 @@ def _toolbar(rov: TrackedClient, queued: int) -> StyleAndTextTuples:
     link = f"link {health.status}"
     if health.last_reply_s is not None:
         link += f", reply {health.last_reply_s * 1000:.0f} ms"
-    link_style = "class:toolbar.bad" if health.consecutive_failures or rov.client.closed else ""
+    link_style = (
+        "class:toolbar.bad"
+        if health.consecutive_failures or rov.client.closed or rov.link_down
+        else ""
+    )
     if rov.client.closed:
         link = "link lost"
+    elif rov.link_down:
+        link = "link lost, reopening it"
     checksum = f"checksum {rov.algorithm}" if rov.checksum_enabled else "checksum off"
     fragments: StyleAndTextTuples = [
         ("class:toolbar.stop", f" {STOP_KEY_TEXT}: STOP "),
@@ -143,7 +162,8 @@ def _toolbar(rov: TrackedClient, queued: int) -> StyleAndTextTuples:
         ("", "\n "),
     ]
     app = get_app_or_none()
-    hint = argument_hint(app.current_buffer.document.text_before_cursor) if app else None
+    # (On the cursor's line: lines pasted at once are each a line of their own.)
+    hint = argument_hint(app.current_buffer.document.current_line_before_cursor) if app else None
     if hint is not None:
         fragments.append(("class:toolbar.hint", hint.text()))
     else:
@@ -163,10 +183,13 @@ async def run_console(
     algorithm: str = "crc8",
     history_path: Path | None = None,
     emit: Callable[[Line], None] = _print,
+    from_terminal: bool = True,
 ) -> None:
     """Connect and run the console until ``quit`` or Ctrl-D; the client is closed on the way out.
 
     ``history_path`` keeps the input history between sessions (``None``: this session only).
+    ``from_terminal``: the lines are typed at a terminal, where ``quit`` and Ctrl-D leave at
+    once; ``False`` (lines read from a file or a pipe), they run in order, each to its end.
     Raises what ``connect`` raises if the connection cannot be opened.
     """
     # The driver calls back (debug text, stray frames) in a context copied from its reader
@@ -185,7 +208,7 @@ async def run_console(
     warnings = WarningsShownBy(show_warning)
     warnings.attach()
     try:
-        await _run_connected(connect, emit_in_console, algorithm, history_path)
+        await _run_connected(connect, emit_in_console, algorithm, history_path, from_terminal)
     finally:
         warnings.detach()
 
@@ -195,6 +218,7 @@ async def _run_connected(
     emit_in_console: Callable[[Line], None],
     algorithm: str,
     history_path: Path | None,
+    from_terminal: bool,
 ) -> None:
     engine = ConsoleEngine(emit_in_console)
     client = await connect(engine.on_event)
@@ -232,24 +256,44 @@ async def _run_connected(
         while not runner.done():
             try:
                 text = await session.prompt_async()
-            except EOFError:  # Ctrl-D
-                engine.submit(Quit())
+            except EOFError:  # Ctrl-D, or the end of the lines read from a file
+                if from_terminal:
+                    await engine.leave()
+                else:
+                    engine.submit(Quit())
                 break
-            except KeyboardInterrupt:  # the Ctrl-C key: drop the line, keep going
+            except KeyboardInterrupt:  # the Ctrl-C key: drop the line, as in a shell...
+                engine.interrupt()  # ...and the line running and those queued
                 continue
             except _EndedBySignal:
                 raise KeyboardInterrupt from None  # (after the finally: #stop!, then closed)
-            action = parse_line(text, checksum())
-            if action is not None:
+            # (Lines pasted at once arrive as one text: each runs as if typed on its own.)
+            actions = parse_lines(text, checksum())
+            for action in actions:
+                if isinstance(action, Quit):
+                    break
                 engine.submit(action)
-            if isinstance(action, Quit):
+            if any(isinstance(action, Quit) for action in actions):
+                if from_terminal:
+                    # At once, not behind the lines queued: a query waiting out a long
+                    # timeout would keep the robot moving, and the console open, until it ended.
+                    await engine.leave()
+                else:
+                    engine.submit(Quit())
                 break
-        await runner
+        if from_terminal:
+            # #stop! has gone: the line running (a query waiting for its reply) gets a moment
+            # to end, not the whole reply timeout of a controller that does not answer.
+            await asyncio.wait({runner}, timeout=LEAVING_REPLY_WAIT_S)
+        else:
+            await asyncio.wait({runner})  # (a script's lines run to their end)
+        if runner.done():
+            runner.result()  # (an error of the engine's own is raised)
     finally:
         if not runner.done():
             runner.cancel()
         await _stop_unless_locked(rov)
-        await client.close()
+        await rov.close()
 
 
 #: How long leaving may wait for ``#stop!`` to be written (it is not acknowledged).

@@ -2,8 +2,11 @@
 
 Lines are queued and run one after another (a query waits for its replies before the next line
 goes out), while the prompt stays live. :meth:`ConsoleEngine.stop_now` jumps the queue: it sends
-``#stop!`` at once and drops whatever was typed before it but not sent yet. Everything the engine
-has to say goes to ``emit`` as :data:`~rovlink.console.transcript.Line` values.
+``#stop!`` at once and drops whatever was typed before it but not sent yet; so does
+:meth:`ConsoleEngine.leave` (``quit``, Ctrl-D), unless the motors are locked as last sent, and
+the engine ends once the line running is done. :meth:`ConsoleEngine.interrupt` (Ctrl-C)
+abandons the line running and drops those queued, sending nothing. Everything the engine has to
+say goes to ``emit`` as :data:`~rovlink.console.transcript.Line` values.
 """
 
 from __future__ import annotations
@@ -12,6 +15,7 @@ import asyncio
 from collections.abc import Callable
 
 from rovlink.client import ClientError
+from rovlink.client.events import ClientEvent, LateReply, LinkState
 from rovlink.console.actions import (
     Action,
     Quit,
@@ -27,11 +31,13 @@ from rovlink.console.transcript import (
     error_line,
     event_line,
     info_line,
+    late_reply_line,
     reply_line,
     sent_lines,
 )
 from rovlink.logs import get_logger
 from rovlink.piloting import LockState, SentFrame, TrackedClient
+from rovlink.piloting.tracked import REOPENED_NOTICE
 from rovlink.protocol import Event, Response, Setting, setting_command
 
 __all__ = ["ConsoleEngine", "status_lines"]
@@ -48,7 +54,11 @@ def status_lines(rov: TrackedClient) -> list[str]:
     counters = rov.client.counters
     reply = "—" if health.last_reply_s is None else f"{health.last_reply_s * 1000:.1f} ms"
     mode = f"on ({rov.algorithm})" if rov.checksum_enabled else "off"
-    link = "link lost" if rov.client.closed else health.status  # (as the toolbar says)
+    link = health.status  # (as the toolbar says)
+    if rov.client.closed:
+        link = "link lost"
+    elif rov.link_down:
+        link = "link lost, reopening it"
     return [
         f"motors:     {state.lock_text()}",
         f"vertical:   {state.mode_text()}",
@@ -72,12 +82,17 @@ class ConsoleEngine:
         self._emit = emit
         self._rov: TrackedClient | None = None
         self._queue: asyncio.Queue[Action] = asyncio.Queue()
+        self._left = False
+        self._running: asyncio.Future[None] | None = None
+        #: Set by :meth:`interrupt` while it cancels the line running: what else it dropped.
+        self._interrupted: str | None = None
         self.finished = asyncio.Event()
 
     def attach(self, rov: TrackedClient) -> None:
         """Drive ``rov``; every frame sent through it is shown."""
         self._rov = rov
         rov.add_sent_listener(self._on_sent)
+        rov.client.subscribe(self._on_client_event)
 
     @property
     def rov(self) -> TrackedClient:
@@ -97,12 +112,36 @@ class ConsoleEngine:
         """Queue an action behind those already waiting."""
         self._queue.put_nowait(action)
 
+    def say(self, text: str) -> None:
+        """Show a message of the console's own."""
+        self._emit(info_line(text, "class:warning"))
+
     def on_event(self, event: Event) -> None:
         """Show what came from the controller unasked: debug text, dropped or stray frames."""
         self._emit(event_line(event))
 
     async def stop_now(self) -> None:
         """``#stop!`` at once, dropping the lines queued and not yet sent (keeps a ``quit``)."""
+        dropped = self._drop_queued()
+        note = f"; {dropped} queued line(s) dropped" if dropped else ""
+        self._emit(info_line(f"■ STOP ({STOP_KEY_TEXT}){note}", "class:stop"))
+        try:
+            await self.rov.stop()
+        except ClientError as error:
+            self._emit(error_line(f"#stop! could not be sent: {error}"))
+
+    async def leave(self) -> None:
+        """Leave now (``quit``, Ctrl-D): the lines queued and not yet sent are dropped, and
+        ``#stop!`` goes at once unless the motors are locked as last sent, not after a query
+        still waiting for its reply; :meth:`run` ends once the line running is done."""
+        dropped = self._drop_queued()
+        if dropped:
+            self._emit(info_line(f"leaving: {dropped} queued line(s) dropped, not sent"))
+        self._queue.put_nowait(Quit())
+        await self._quit()
+
+    def _drop_queued(self) -> int:
+        """Empty the queue but for a ``quit``; how many lines were dropped."""
         dropped = 0
         keep: list[Action] = []
         while not self._queue.empty():
@@ -113,12 +152,7 @@ class ConsoleEngine:
                 dropped += 1
         for action in keep:
             self._queue.put_nowait(action)
-        note = f"; {dropped} queued line(s) dropped" if dropped else ""
-        self._emit(info_line(f"■ STOP ({STOP_KEY_TEXT}){note}", "class:stop"))
-        try:
-            await self.rov.stop()
-        except ClientError as error:
-            self._emit(error_line(f"#stop! could not be sent: {error}"))
+        return dropped
 
     # -- running --------------------------------------------------------------------------------
 
@@ -130,12 +164,44 @@ class ConsoleEngine:
                 if isinstance(action, Quit):
                     await self._quit()
                     return
-                await self.execute(action)
+                self._running = asyncio.ensure_future(self.execute(action))
+                try:
+                    await self._running
+                except asyncio.CancelledError:
+                    if self._interrupted is None:
+                        raise  # (run() itself was cancelled)
+                    self._interrupted = None
+                finally:
+                    self._running = None
         finally:
             self.finished.set()
 
+    def interrupt(self) -> None:
+        """Ctrl-C: abandon the line running (a query waiting for its reply is not waited for)
+        and drop the lines queued; nothing is sent. Nothing to do if no line is running."""
+        dropped = self._drop_queued()
+        running = self._running
+        if running is None or running.done():
+            if dropped:
+                self._emit(info_line(f"  ^C: {dropped} queued line(s) dropped, not sent"))
+            return
+        note = f"; {dropped} queued line(s) dropped, not sent" if dropped else ""
+        self._interrupted = note
+        running.cancel()
+
     async def execute(self, action: Action) -> None:
         """Run one action now and show its outcome; link errors are shown, not raised."""
+        try:
+            await self._execute(action)
+        except asyncio.CancelledError:
+            note = self._interrupted
+            if note is not None:
+                self._emit(
+                    info_line(f"  ^C: {_action_text(action)} abandoned{note}", "class:warning")
+                )
+            raise
+
+    async def _execute(self, action: Action) -> None:
         try:
             if isinstance(action, SendCommand):
                 self._show_replies(await self.rov.send(action.command))
@@ -160,6 +226,9 @@ class ConsoleEngine:
             self._emit(error_line(str(error)))
 
     async def _quit(self) -> None:
+        if self._left:  # (leave() has sent it: a quit queued behind it only ends run())
+            return
+        self._left = True
         state = self.rov.commanded
         if self.rov.client.closed or state.lock is LockState.LOCKED:
             return
@@ -170,6 +239,14 @@ class ConsoleEngine:
             self._emit(error_line(f"#stop! could not be sent: {error}"))
 
     # -- output ---------------------------------------------------------------------------------
+
+    def _on_client_event(self, event: ClientEvent) -> None:
+        # A reply after its query timed out (the driver drops it): the link is slow, not dead.
+        if isinstance(event, LateReply):
+            algorithm = self.rov.algorithm if self.rov.checksum_enabled else None
+            self._emit(late_reply_line(event.response, algorithm))
+        elif isinstance(event, LinkState) and event.state == "reconnected":
+            self._emit(info_line(f"  ! {REOPENED_NOTICE}", "class:warning"))
 
     def _on_sent(self, sent: SentFrame) -> None:
         for line in sent_lines(sent):
@@ -184,3 +261,14 @@ class ConsoleEngine:
         if self.rov.checksum_enabled:
             return f"  checksum mode on: every frame now carries a {self.rov.algorithm} checksum"
         return "  checksum mode off"
+
+
+def _action_text(action: Action) -> str:
+    """The line running, in a few words: ``#qd!``, ``raw #qd!``, ``checksum on``."""
+    if isinstance(action, SendCommand):
+        return str(action.command)
+    if isinstance(action, SendRaw):
+        return f"raw {action.frame}"
+    if isinstance(action, SetChecksum):
+        return f"checksum {'on' if action.enabled else 'off'}"
+    return "the line running"

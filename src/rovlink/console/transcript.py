@@ -16,6 +16,7 @@ __all__ = [
     "error_line",
     "event_line",
     "info_line",
+    "late_reply_line",
     "plain_text",
     "reply_line",
     "sent_lines",
@@ -61,6 +62,16 @@ def reply_line(response: Response, algorithm: str | None = None) -> Line:
     style = "class:alarm" if response.name == "q.l" and response.values[0] else "class:reply"
     frame = encode(response, algorithm).decode("ascii")
     return [(style, f"  {words:<{_REPLY_WIDTH}}"), ("class:frame", frame)]
+
+
+def late_reply_line(response: Response, algorithm: str | None = None) -> Line:
+    """A reply that came after its query had timed out (P20): shown, never taken as the
+    answer to a later query.
+
+    >>> plain_text(late_reply_line(Response("qd", (5,))))
+    '  qd → 5 cm                 $qd.5!  late: its query had timed out'
+    """
+    return [*reply_line(response, algorithm), ("class:warning", "  late: its query had timed out")]
 
 
 def event_line(event: Event) -> Line:

@@ -29,6 +29,7 @@ from textual.widgets import Digits, Footer, Header, Static
 
 from rovlink.aio import AsyncClient
 from rovlink.client import ClientError, ConnectionLostError, QueryTimeoutError
+from rovlink.client.events import ClientEvent, LinkState
 from rovlink.client.options import StrayCallback
 from rovlink.logs import WarningsShownBy
 from rovlink.monitor import controls
@@ -39,10 +40,12 @@ from rovlink.monitor.panels import (
     depth_text,
     leak_text,
     link_text,
+    small_screen_text,
     stale_text,
 )
 from rovlink.monitor.readings import DEFAULT_WINDOW_S, Readings
 from rovlink.piloting import LockState, SentFrame, TrackedClient
+from rovlink.piloting.tracked import REOPENED_NOTICE
 from rovlink.protocol import BadFrame, Command, Event
 from rovlink.protocol import Text as DebugText
 from rovlink.protocol.visible import visible
@@ -58,6 +61,11 @@ _REDRAW_S = 0.25
 _STOP_WRITE_TIMEOUT_S = 1.0
 #: Below this many columns, the top boxes go in two rows of two and the footer is compact.
 NARROW_BELOW_COLUMNS = 100
+#: The smallest terminal the boxes fit in, narrow (two rows of two) and wide (three in a row):
+#: below it, the screen would scroll and cut boxes and keys off, so the essentials are shown
+#: one per line instead (see ``small_screen_text``).
+NARROW_MIN_SIZE = (80, 24)
+WIDE_MIN_SIZE = (NARROW_BELOW_COLUMNS, 19)
 #: Rows the chart's box needs to draw something: its border, two rows of plot, the axis and the
 #: time labels.
 _CHART_MIN_ROWS = 6
@@ -143,6 +151,15 @@ class MonitorApp(App[None]):
     #lower { height: 1fr; min-height: 6; overflow: hidden; }
     #chart-room { height: 1fr; min-height: 0; }
     #chart { height: 1fr; }
+    /* Too small for the boxes: the essentials alone, one per line (the keys among them). */
+    #small {
+        display: none; height: 1fr; border: none; padding: 0;
+        text-wrap: nowrap; text-overflow: ellipsis;
+    }
+    Screen.-small #small { display: block; }
+    Screen.-small Header, Screen.-small #top, Screen.-small #lower, Screen.-small Footer {
+        display: none;
+    }
     """
     BINDINGS: ClassVar[list[BindingType]] = [
         Binding("space", "stop", "STOP", key_display="space", priority=True),
@@ -211,6 +228,7 @@ class MonitorApp(App[None]):
     def compose(self) -> ComposeResult:
         """Depth, attitude and the state as last sent on top; leak, link and chart below."""
         yield Header()
+        yield Panel(self._draw_small, id="small")
         with Container(id="top"):
             with Vertical(id="depth-box"):
                 yield Digits("—", id="depth-digits")
@@ -232,19 +250,26 @@ class MonitorApp(App[None]):
         """Start the link worker and the redraw timer; show the library's warnings as
         notifications while the dashboard owns the terminal."""
         self.query_one("#depth-box").border_title = "depth, cm"
-        self._fit_width(self.size.width)
+        self._fit_size(self.size.width, self.size.height)
         self._warnings_loop = asyncio.get_running_loop()
         self._warnings.attach()
         self.run_worker(self._link_loop(), name="link", group="link", exclusive=True)
         self.set_interval(_REDRAW_S, self._redraw)
 
     def on_resize(self, event: events.Resize) -> None:
-        """Lay the boxes out for the terminal's new width."""
-        self._fit_width(event.size.width)
+        """Lay the boxes out for the terminal's new size."""
+        self._fit_size(event.size.width, event.size.height)
 
-    def _fit_width(self, width: int) -> None:
+    @property
+    def needed_size(self) -> tuple[int, int]:
+        """The smallest terminal the boxes fit in at the present width."""
+        return WIDE_MIN_SIZE if self.size.width >= NARROW_BELOW_COLUMNS else NARROW_MIN_SIZE
+
+    def _fit_size(self, width: int, height: int) -> None:
         narrow = width < NARROW_BELOW_COLUMNS
         self.screen.set_class(narrow, "-narrow")
+        needed_width, needed_height = WIDE_MIN_SIZE if not narrow else NARROW_MIN_SIZE
+        self.screen.set_class(width < needed_width or height < needed_height, "-small")
         with contextlib.suppress(NoMatches):
             # Compact, the keys fit in 80 columns, "q quit" last among them.
             self.query_one(Footer).compact = narrow
@@ -284,6 +309,7 @@ class MonitorApp(App[None]):
             return
         rov = TrackedClient(client, algorithm=self._algorithm)
         rov.add_sent_listener(self._on_sent)
+        client.subscribe(self._on_client_event)
         self.rov = rov
         self._link_state = client.description
         loop = asyncio.get_running_loop()
@@ -297,8 +323,11 @@ class MonitorApp(App[None]):
                     pass  # counted in rov.health, shown on the link panel
                 except ConnectionLostError as error:
                     self._link_state = f"lost: {error}"
-                    break
+                    if client.closed:
+                        break
+                    # (Being reopened: the polls go on, and fail at once until it is.)
                 else:
+                    self._link_state = client.description
                     self.readings.record(reading, self._clock())
                 self._redraw()
                 await asyncio.sleep(max(self.period_s - (loop.time() - started_s), 0.0))
@@ -315,6 +344,10 @@ class MonitorApp(App[None]):
             self._last_message = visible(event.text)
         elif isinstance(event, BadFrame):
             self._last_message = f"dropped reply {event.raw!r}: {event.detail}"
+
+    def _on_client_event(self, event: ClientEvent) -> None:
+        if isinstance(event, LinkState) and event.state == "reconnected":
+            self.notify(REOPENED_NOTICE, title="link reopened", severity="warning", timeout=10)
 
     def _on_sent(self, sent: SentFrame) -> None:
         if sent.warning is not None:
@@ -351,6 +384,25 @@ class MonitorApp(App[None]):
         self.screen.set_class(leak, "leak")
         for panel in self.query(Panel):
             panel.refresh()
+
+    def _draw_small(self, width: int, height: int) -> RenderableType:
+        rov = self.rov
+        if rov is None:
+            link = self._link_state
+        elif rov.client.closed:
+            link = "lost: keys send nothing"
+        elif rov.link_down:
+            link = "lost, reopening it"
+        else:
+            link = rov.health.status
+        return small_screen_text(
+            self.readings,
+            rov.commanded if rov is not None else None,
+            link,
+            stale=stale_text(self.readings, now_s=self._clock(), period_s=self.period_s),
+            size=(self.size.width, self.size.height),
+            needed=self.needed_size,
+        )
 
     def _draw_attitude(self, width: int, height: int) -> RenderableType:
         return attitude_text(self.readings, width, stale=self._stale)
@@ -453,5 +505,5 @@ class MonitorApp(App[None]):
         if rov is not None and not rov.client.closed:
             if rov.commanded.lock is not LockState.LOCKED:
                 await self._send(Command("stop"))
-            await rov.client.close()
+            await rov.close()  # (a poll waiting for its reply does not hold the exit up)
         self.exit()

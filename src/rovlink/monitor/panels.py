@@ -17,6 +17,7 @@ __all__ = [
     "depth_text",
     "leak_text",
     "link_text",
+    "small_screen_text",
     "stale_text",
 ]
 
@@ -140,19 +141,22 @@ def commanded_text(commanded: CommandedState) -> Text:
     lock_style = {LockState.LOCKED: "green", LockState.UNLOCKED: "bold yellow"}.get(
         commanded.lock, "dim"
     )
-    _row(
-        text,
-        "motors",
-        commanded.lock_text() if commanded.lock is not LockState.UNKNOWN else "unknown: none sent",
-        lock_style,
-    )
-    _row(
-        text,
-        "vertical",
-        commanded.short_mode_text()
-        if commanded.vertical_mode is not None
-        else "unknown: none sent",
-    )
+    lock = commanded.lock_text()
+    if commanded.lock is LockState.UNKNOWN:  # (in the box's width; a notice says it in full)
+        lock = "unknown: none sent"
+        if commanded.lock_unknown_after_reset:
+            lock = "unknown: reset suspected"
+        elif commanded.lock_unknown_after_reopening:
+            lock = "unknown: link reopened"
+    _row(text, "motors", lock, lock_style)
+    mode = commanded.short_mode_text()
+    if commanded.vertical_mode is None:
+        mode = (
+            "unknown: reset suspected"
+            if commanded.mode_unknown_after_reset
+            else "unknown: none sent"
+        )
+    _row(text, "vertical", mode)
     _row(text, "horizontal", f"{commanded.direction_deg}° at {commanded.power_percent} %")
     last = commanded.last_command
     if last is None:
@@ -203,4 +207,54 @@ def link_text(
     failures.append(f"failed polls {health.failures}", style="bold red" if health.failures else "")
     _row(text, "errors", failures)
     text.rstrip()
+    return text
+
+
+def small_screen_text(
+    readings: Readings,
+    commanded: CommandedState | None,
+    link: str,
+    *,
+    stale: str | None,
+    size: tuple[int, int],
+    needed: tuple[int, int],
+) -> Text:
+    """The essentials one per line, the most urgent first, for a terminal of ``size`` (columns,
+    rows) too small for the boxes (``needed``): the keys that stop and quit, a leak, the depth,
+    the state as last sent, the link. Each line is cut to the width, never wrapped.
+
+    >>> from rovlink.client import Sensors
+    >>> readings = Readings()
+    >>> readings.record(Sensors(120, 530, True, -1, 3, 275), at_s=5.0)
+    >>> print(small_screen_text(readings, CommandedState(), "ok", stale=None, size=(20, 5),
+    ...                         needed=(80, 24)).plain)
+    space STOP · q quit
+    LEAK (q.l = 1) · r resets the latch
+    depth 120 cm
+    motors lock not sent · 0° at 0 % (as last sent)
+    link ok
+    terminal 20×5: too small for the dashboard, which needs 80×24
+    """
+    text = Text(no_wrap=True, overflow="ellipsis")
+    text.append("space STOP · q quit\n", style="bold")
+    if readings.leak:
+        text.append("LEAK (q.l = 1) · r resets the latch\n", style="bold white on red")
+    reading = readings.latest
+    depth = "depth —" if reading is None else f"depth {reading.depth_cm} cm"
+    text.append(
+        depth + (f" ({stale})" if stale else "") + "\n", style=_value_style(stale is not None)
+    )
+    if commanded is not None:
+        text.append(
+            f"motors {commanded.short_lock_text()} · {commanded.direction_deg}° at "
+            f"{commanded.power_percent} % (as last sent)\n",
+            style="bold yellow" if commanded.lock is LockState.UNLOCKED else "",
+        )
+    text.append(f"link {link}\n", style=_HEALTH_STYLES.get(link, ""))
+    columns, rows = size
+    text.append(
+        f"terminal {columns}×{rows}: too small for the dashboard, which needs "
+        f"{needed[0]}×{needed[1]}",
+        style="dim",
+    )
     return text

@@ -15,6 +15,10 @@ from rovlink.protocol.text_enum import StrEnum
 
 __all__ = ["CommandedState", "LockState"]
 
+_RESET_LOCK_REASON = "a suspected controller reset (locked after one)"
+_RESET_MODE_REASON = "a suspected controller reset (depth mode after one)"
+_REOPENED_LOCK_REASON = "the link was reopened (the controller may have reset)"
+
 
 class LockState(StrEnum):
     """Whether motion is locked, as far as the commands this tool sent tell."""
@@ -55,11 +59,67 @@ class CommandedState:
 
     #: Why the lock is unknown although start or stop was sent (a raw write); ``None`` if not.
     lock_unknown_because: str | None = None
+    #: Why the vertical mode is unknown although mvdirect was sent; ``None`` if not.
+    mode_unknown_because: str | None = None
 
     def forget_lock(self, why: str) -> None:
         """The lock can no longer be told from what was sent (``why``): leaving then stops."""
         self.lock = LockState.UNKNOWN
         self.lock_unknown_because = why
+
+    def forget_after_reset(self) -> None:
+        """The driver suspects a controller reset (P21): after one, the controller is locked in
+        depth mode with neutral set-points, whatever was sent before; but a suspicion is no
+        proof, so the lock and the mode become unknown (leaving still stops) and nothing sent
+        before is taken to hold.
+
+        >>> state = CommandedState()
+        >>> state.apply(Command("start"))
+        >>> state.apply(Command("th", (90, 30)))
+        >>> state.forget_after_reset()
+        >>> state.lock_text()
+        'unknown: after a suspected controller reset (locked after one)'
+        >>> state.horizontal_text()
+        '0° at 0 % (as last sent)'
+        """
+        self.forget_lock(_RESET_LOCK_REASON)
+        if self.vertical_mode is not None:
+            self.vertical_mode = None
+            self.mode_unknown_because = _RESET_MODE_REASON
+        self._clear_set_points()
+
+    def forget_after_reopening(self, *, stopped: bool) -> None:
+        """The link was lost and reopened: the driver's first frames on it put the motion at
+        rest (zero thrust), and a board reset by the reopened port (DTR) or stopped by its own
+        failsafe (P17) is locked; so the lock is unknown unless ``stopped`` (a ``#stop!`` went
+        on the reopened link), and the motion as last sent is at rest.
+
+        >>> state = CommandedState()
+        >>> state.apply(Command("start"))
+        >>> state.apply(Command("th", (90, 30)))
+        >>> state.forget_after_reopening(stopped=False)
+        >>> state.lock_text(), state.power_percent
+        ('unknown: after the link was reopened (the controller may have reset)', 0)
+        """
+        if not stopped:
+            self.forget_lock(_REOPENED_LOCK_REASON)
+        self.power_percent = 0
+        self.vertical_thrust_percent = 0
+
+    @property
+    def lock_unknown_after_reset(self) -> bool:
+        """Whether the lock is unknown because a controller reset is suspected."""
+        return self.lock_unknown_because == _RESET_LOCK_REASON
+
+    @property
+    def lock_unknown_after_reopening(self) -> bool:
+        """Whether the lock is unknown because the link was lost and reopened."""
+        return self.lock_unknown_because == _REOPENED_LOCK_REASON
+
+    @property
+    def mode_unknown_after_reset(self) -> bool:
+        """Whether the vertical mode is unknown because a controller reset is suspected."""
+        return self.mode_unknown_because == _RESET_MODE_REASON
 
     def apply(self, command: Command, *, own: bool = True) -> str | None:
         """Record a command just sent; a warning if the controller will drop it, else ``None``.
@@ -88,6 +148,7 @@ class CommandedState:
                 self.lock = LockState.UNLOCKED
                 self._clear_set_points()
         elif setting is not None and setting[0] is Setting.DIRECT_MODE:
+            self.mode_unknown_because = None
             self._switch_mode(VerticalMode.DIRECT if setting[1] else VerticalMode.DEPTH)
         elif name == "mvs":
             (self.vertical_thrust_percent,) = command.values
@@ -147,20 +208,25 @@ class CommandedState:
         """The vertical mode and its set-point as last sent."""
         mode = self.vertical_mode
         if mode is None:
+            if self.mode_unknown_because is not None:
+                return f"unknown: after {self.mode_unknown_because}"
             return "unknown: no mvdirect sent yet (depth mode after a reset)"
         if mode is VerticalMode.DIRECT:
             return f"direct (as last sent), thrust {self.vertical_thrust_percent:+d} %"
         return f"depth (as last sent), {self.target_text()}"
 
     def short_lock_text(self) -> str:
-        """``locked``, ``unlocked`` or ``lock not sent``, for a line headed "as last sent"."""
-        return "lock not sent" if self.lock is LockState.UNKNOWN else str(self.lock)
+        """``locked``, ``unlocked``, ``lock not sent`` or ``lock unknown`` (sent, but its
+        effect cannot be told), for a line headed "as last sent"."""
+        if self.lock is LockState.UNKNOWN:
+            return "lock not sent" if self.lock_unknown_because is None else "lock unknown"
+        return str(self.lock)
 
     def short_mode_text(self) -> str:
         """``depth, target 100 cm``, ``direct, thrust +30 %`` or ``mode not sent``."""
         mode = self.vertical_mode
         if mode is None:
-            return "mode not sent"
+            return "mode not sent" if self.mode_unknown_because is None else "mode unknown"
         if mode is VerticalMode.DIRECT:
             return f"direct, thrust {self.vertical_thrust_percent:+d} %"
         return f"depth, {self.target_text()}"

@@ -9,19 +9,37 @@ queries sent through :class:`TrackedClient` are timed into its link health.
 
 from __future__ import annotations
 
+import asyncio
+import contextlib
 import time
 from collections.abc import Awaitable, Callable
 from dataclasses import dataclass
 
 from rovlink.aio import AsyncClient
-from rovlink.client.events import BytesSent, ClientEvent
+from rovlink.client.events import BytesSent, ClientEvent, LinkState, ResetSuspected
 from rovlink.client.operations import SENSORS, raw_frame
 from rovlink.client.sensors import Sensors
 from rovlink.piloting.commanded import CommandedState
 from rovlink.piloting.health import LinkHealth
 from rovlink.protocol import DEFAULT_ALGORITHM, Command, Response
 
-__all__ = ["SentCallback", "SentFrame", "TrackedClient"]
+__all__ = [
+    "LEAVING_REPLY_WAIT_S",
+    "REOPENED_NOTICE",
+    "SentCallback",
+    "SentFrame",
+    "TrackedClient",
+]
+
+#: What a tool says once a lost link is reopened (the state as last sent is then forgotten).
+REOPENED_NOTICE = (
+    "link reopened: the controller may have reset (locked) or stopped on its own failsafe,"
+    " and the motion was zeroed; send start to move again"
+)
+
+#: How long a tool that leaves waits for the replies to its queries still on the wire: long
+#: enough for a controller that answers, not the whole reply timeout of one that does not.
+LEAVING_REPLY_WAIT_S = 1.0
 
 
 @dataclass(frozen=True, slots=True)
@@ -73,6 +91,9 @@ class TrackedClient:
         self.health = LinkHealth()
         self._clock = clock
         self._listeners: list[SentCallback] = []
+        #: The link was lost and is being reopened (the client was connected with reconnect).
+        self.link_down = False
+        self._stopped_while_down = False
         client.subscribe(self._on_event)
 
     def add_sent_listener(self, listener: SentCallback) -> None:
@@ -105,6 +126,13 @@ class TrackedClient:
         """``#stop!``, at once (it does not wait for anything queued before it)."""
         await self.send(Command("stop"))
 
+    async def close(self) -> None:
+        """Close the client for a tool that leaves: the replies to queries still on the wire
+        get :data:`LEAVING_REPLY_WAIT_S`, not the whole reply timeout (``--timeout`` may be an
+        hour), and the port is released all the same."""
+        with contextlib.suppress(asyncio.TimeoutError):  # (not TimeoutError on 3.10)
+            await asyncio.wait_for(self.client.close(), LEAVING_REPLY_WAIT_S)
+
     async def sensors(self) -> Sensors:
         """``#qsa!``: every sensor at once, timed into :attr:`health`."""
         return SENSORS.read(await self.send(SENSORS.command))
@@ -112,9 +140,18 @@ class TrackedClient:
     # -- internals ------------------------------------------------------------------------------
 
     def _on_event(self, event: ClientEvent) -> None:
+        if isinstance(event, ResetSuspected):
+            # (Locked after a reset, P21: the state as last sent no longer holds.)
+            self.commanded.forget_after_reset()
+            return
+        if isinstance(event, LinkState):
+            self._on_link_state(event.state)
+            return
         if not isinstance(event, BytesSent):
             return
         command = event.command
+        if self.link_down and command is not None and command.name == "stop":
+            self._stopped_while_down = True  # (the reopened link's first frame)
         if event.by_session:
             # The driver's own frames: keep-alives and fences are left out; the others (#crcoff!
             # re-asserted, zero thrust after motion_timeout) change the state and are shown as
@@ -129,6 +166,14 @@ class TrackedClient:
             self.commanded.forget_lock("a raw write whose effect is not known")
         warning = self.commanded.apply(command) if command is not None else None
         self._tell(SentFrame(event.data, command, warning))
+
+    def _on_link_state(self, state: str) -> None:
+        if state == "lost":
+            self.link_down = True
+            self._stopped_while_down = False
+        elif state == "reconnected":
+            self.link_down = False
+            self.commanded.forget_after_reopening(stopped=self._stopped_while_down)
 
     def _tell(self, sent: SentFrame) -> None:
         for listener in self._listeners:
