@@ -24,6 +24,8 @@ class RecordingLink:
     def __init__(self, inner: Link) -> None:
         self.inner = inner
         self.description = inner.description
+        # (The simulator's writes never wait: the asyncio client writes them at once.)
+        self.writes_may_wait: bool = getattr(inner, "writes_may_wait", True)
         self.written = bytearray()
         self._lock = threading.Lock()
 

@@ -474,12 +474,13 @@ class PortLink:
         link = PortLink(serial.serial_for_url("loop://"), "loopback")
     """
 
-    def __init__(self, port: Any, description: str, *, writes_may_wait: bool = True) -> None:
+    def __init__(self, port: Any, description: str) -> None:
         self._port = port
         self.description = description
         #: Whether a write may wait for the port (a line with no room, a stalled network): the
-        #: asyncio client then writes from a thread of its own. An in-process port never waits.
-        self.writes_may_wait = writes_may_wait
+        #: asyncio client then writes from a thread of its own. A port whose writes never wait
+        #: (an in-process one, such as the simulator's) says so with ``writes_may_wait = False``.
+        self.writes_may_wait: bool = getattr(port, "writes_may_wait", True)
         port.timeout = POLL_INTERVAL_S
         self._closed = False
         self._writes_aborted = False
@@ -652,11 +653,7 @@ def _open_registered(endpoint: Endpoint) -> Link:
         port = handler.open_url(endpoint.target)
     except (OSError, ValueError) as error:
         raise ConnectError(f"cannot open {endpoint.url}: {error}") from error
-    return PortLink(
-        port,
-        getattr(handler, "DESCRIPTION", endpoint.url),
-        writes_may_wait=getattr(handler, "WRITES_MAY_WAIT", True),
-    )
+    return PortLink(port, getattr(handler, "DESCRIPTION", endpoint.url))
 
 
 def open_link(endpoint: Endpoint) -> Link:

@@ -34,6 +34,10 @@ class SimulatedPort:
     and steer the simulation; hold :attr:`lock` while touching them from another thread.
     """
 
+    #: A write never waits: the controller takes the bytes at once (the host driver's asyncio
+    #: client writes it in its event loop's thread).
+    writes_may_wait = False
+
     def __init__(
         self,
         robot_config: SimConfig | None = None,

@@ -23,7 +23,6 @@ from rovlink.sim.port import SimulatedPort, open_port
 __all__ = [
     "DESCRIPTION",
     "SIM_OPTIONS",
-    "WRITES_MAY_WAIT",
     "SimOptions",
     "check_url",
     "open_url",
@@ -32,8 +31,6 @@ __all__ = [
 
 #: What the client calls a link opened here.
 DESCRIPTION = "simulated controller"
-#: The simulated controller takes every write at once (its replies are readable when it returns).
-WRITES_MAY_WAIT = False
 
 #: ``sim://`` query parameters and what they mean.
 SIM_OPTIONS: dict[str, str] = {
