@@ -120,6 +120,44 @@ def test_a_step_outside_the_limits_is_refused_before_anything_is_sent(
     assert capsys.readouterr().err.strip().splitlines()[-1] == f"rovlink tune: error: {error}"
 
 
+@pytest.mark.parametrize(
+    ("argv", "error"),
+    [
+        (
+            ["--depth", "21"],
+            "--depth 21 ± --hysteresis 3 (the relay switches past 18 and 24 cm) must lie "
+            "strictly between --min-depth 20 and --max-depth 300",
+        ),
+        (
+            ["--depth", "40", "--hysteresis", "20"],
+            "--depth 40 ± --hysteresis 20 (the relay switches past 20 and 60 cm) must lie "
+            "strictly between --min-depth 20 and --max-depth 300",
+        ),
+        (
+            ["--depth", "290", "--hysteresis", "10"],
+            "--depth 290 ± --hysteresis 10 (the relay switches past 280 and 300 cm) must lie "
+            "strictly between --min-depth 20 and --max-depth 300",
+        ),
+    ],
+)
+def test_a_relay_that_would_run_into_a_limit_is_refused_before_anything_is_sent(
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+    argv: list[str],
+    error: str,
+) -> None:
+    # Before, --depth 21 (--min-depth 20, --hysteresis 3) ran the motors until the vehicle
+    # rose past 18 cm, where the relay turns, and aborted there: above the limit, every time.
+    from rovlink.cli import link_options
+
+    def refuse(args: argparse.Namespace) -> None:
+        raise AssertionError("connected")
+
+    monkeypatch.setattr(link_options, "connect", refuse)
+    assert main(["tune", "sim://", "--yes", "--no-verify", *argv]) == 2
+    assert capsys.readouterr().err.strip().splitlines()[-1] == f"rovlink tune: error: {error}"
+
+
 def test_the_default_step_starts_no_shallower_than_min_depth() -> None:
     # Before, the step from 1 m above a 100 cm target started at 0 cm, above --min-depth 20.
     from rovlink.cli.tune import _step_from

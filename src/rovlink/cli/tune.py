@@ -170,6 +170,7 @@ def run(args: argparse.Namespace) -> int:
             f"--depth {args.depth} must lie strictly between --min-depth {args.min_depth} "
             f"and --max-depth {args.max_depth}"
         )
+    _check_relay_fits(args)
     defaults = DepthPidConfig()
     scales = GainScales(*(args.scales or (defaults.kp_scale, defaults.ki_scale, defaults.kd_scale)))
     kp, ki, kd = args.restore or (defaults.kp, defaults.ki, defaults.kd)
@@ -201,6 +202,19 @@ def run(args: argparse.Namespace) -> int:
         _plot(result, args.plot)
     met = result.step is None or _meets_targets(result)
     return 0 if met else 1
+
+
+def _check_relay_fits(args: argparse.Namespace) -> None:
+    """Refuse a relay whose switching depths are not inside the limits: the relay turns only
+    once the depth is past --depth ± --hysteresis, so the vehicle would run to a limit and the
+    experiment abort there, every time, after the motors had run."""
+    shallow, deep = args.depth - args.hysteresis, args.depth + args.hysteresis
+    if not (args.min_depth < shallow and deep < args.max_depth):
+        raise UsageError(
+            f"--depth {args.depth} ± --hysteresis {args.hysteresis} (the relay switches past "
+            f"{shallow} and {deep} cm) must lie strictly between --min-depth {args.min_depth} "
+            f"and --max-depth {args.max_depth}"
+        )
 
 
 def _step_from(args: argparse.Namespace) -> int:
