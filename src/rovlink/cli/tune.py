@@ -2,7 +2,7 @@
 limits) measures the ultimate gain and period; a stated rule turns them into gains on the
 protocol's 0-99 scale; a depth step with those gains verifies them (overshoot, settling time,
 RMS). --apply leaves the gains set; without it the gains given by --restore are sent back.
-A leak, a depth past the limits or a lost link sends #stop! and aborts."""
+A leak, a depth past the limits, a lost link or a controller reset sends #stop! and aborts."""
 
 from __future__ import annotations
 
