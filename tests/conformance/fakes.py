@@ -225,6 +225,13 @@ class FaultyController:
         if fault == "acks-sets":
             acks = sum(1 for body in _FRAME.findall(sent) if body.split(b".")[0] in _SETTERS)
             reply += b"$ok!" * acks
+        if fault == "text-acks-sets":  # an OK line for every setting, debug on or off
+            acks = sum(
+                1
+                for body in _FRAME.findall(sent)
+                if body.split(b".")[0] in _SETTERS and not body.startswith(b"debug")
+            )
+            reply += b"OK\r\n" * acks
         if fault == "qsa-wrong-order":
             reply = re.sub(rb"(\$qd\.[^!]*!)(\$qr\.[^!]*!)", rb"\2\1", reply)
         if fault == "leading-zeros":
@@ -318,6 +325,7 @@ def _recomputed(match: re.Match[bytes]) -> bytes:
 #: Each fault and the check that catches it.
 FAULTS: dict[str, str] = {
     "acks-sets": "set-mgmp",
+    "text-acks-sets": "set-mgmp",
     "qsa-wrong-order": "query-qsa",
     "leading-zeros": "query-qd",
     "unsigned-attitude": "query-qro",

@@ -115,6 +115,17 @@ class CheckContext:
             raise CheckFailedError(f"{why}, but the controller answered {raw!r}")
         return exchange
 
+    def expect_silence(self, data: bytes, why: str) -> Exchange:
+        """Send ``data`` with debug off; fail if anything comes back: a frame, or text (with
+        debug off a controller writes nothing but replies, P5)."""
+        exchange = self.expect_no_frames(data, why)
+        if exchange.received:
+            raise CheckFailedError(
+                f"{why}: with debug off nothing at all (P4, P5), but the controller wrote "
+                f"{exchange.received!r}"
+            )
+        return exchange
+
     def expect_reply(self, data: bytes, names: tuple[str, ...], why: str = "") -> Exchange:
         """Send ``data``; fail unless exactly the frames ``names`` come back, valid, in order."""
         exchange = self.ask(data, len(names))
