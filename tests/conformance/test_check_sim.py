@@ -272,3 +272,36 @@ def test_cli_summary_says_the_motion_checks_were_not_run(
     assert "failsafe) not run: add --motion" in out
     assert main(["check", "sim://?seed=2", "--only", "start-stop-silent"]) == 0
     assert "motion checks" not in capsys.readouterr().out  # (the selection has none)
+
+
+def test_a_run_aborted_by_a_lost_link_says_which_checks_did_not_run(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    # Before, a run whose link died at the second of 8 checks ended "1 of 2 checks passed",
+    # and its JUnit had 2 cases: as if the suite had no more checks.
+    from rovlink.cli.check import _print_report
+    from rovlink.client.links import PortLink
+    from rovlink.sim.port import open_port
+
+    port = open_port(seed=1, timeout=0.05)
+    link = PortLink(port, "sim")
+    checks = select_checks(["query-"])
+    try:
+        report = run_checks(link, "sim", SuiteOptions(), checks, on_result=lambda _: port.close())
+    finally:
+        link.close()
+    first, second = report.results
+    assert (first.outcome, second.outcome) == (Outcome.PASSED, Outcome.ABORTED)
+    assert report.not_run == [check.name for check in checks[2:]]
+    assert not report.passed
+    _print_report(report)
+    out = " ".join(capsys.readouterr().out.split())
+    assert f"1 of 2 checks passed in {report.duration_s:.1f} s; 6 more not run: " in out
+    assert f"{second.name} aborted the run" in out
+    suite = ElementTree.fromstring(junit_xml(report))
+    assert suite.get("tests") == str(len(checks))
+    assert suite.get("skipped") == "6"
+    skipped = [
+        case.get("name") for case in suite.iter("testcase") if case.find("skipped") is not None
+    ]
+    assert skipped == report.not_run

@@ -82,12 +82,13 @@ def run_checks(
     started = time.monotonic()
     try:
         _preflight(wire, options)
-        for item in selected:
+        for index, item in enumerate(selected):
             result = _run_one(item, wire, options)
             report.results.append(result)
             if on_result is not None:
                 on_result(result)
             if result.outcome is Outcome.ABORTED:
+                report.not_run = [later.name for later in selected[index + 1 :]]
                 break
         else:
             report.hint = algorithm_hint(link, options, report)
