@@ -305,3 +305,32 @@ def test_a_run_aborted_by_a_lost_link_says_which_checks_did_not_run(
         case.get("name") for case in suite.iter("testcase") if case.find("skipped") is not None
     ]
     assert skipped == report.not_run
+
+
+def test_a_link_lost_before_the_first_check_is_one_line(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    # Before, a controller that closed its socket at once made `rovlink check` end in a
+    # traceback (ConnectionLostError from the preflight).
+    import socket
+    import threading
+
+    listener = socket.create_server(("127.0.0.1", 0))
+    host, port = listener.getsockname()[:2]
+
+    def close_at_once() -> None:
+        connection, _ = listener.accept()
+        connection.close()
+
+    closer = threading.Thread(target=close_at_once, daemon=True)
+    closer.start()
+    try:
+        assert main(["check", f"socket://{host}:{port}"]) == 1
+    finally:
+        closer.join(5.0)
+        listener.close()
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[-1].startswith(
+        f"rovlink check: socket://{host}:{port}: the link was lost before the first check: "
+    )
+    assert "Traceback" not in "\n".join(err)

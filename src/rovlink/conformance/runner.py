@@ -103,7 +103,14 @@ def run_checks(
 
 def _preflight(wire: Wire, options: SuiteOptions) -> None:
     """Wait for the controller to answer ``#q.l!`` (a board may boot for up to 2 s after its
-    port opens, P21), and refuse to go on if its leak latch is set."""
+    port opens, P21), and refuse to go on if its leak latch is set or the link is lost."""
+    try:
+        _wait_for_answer(wire, options)
+    except ConnectionLostError as error:
+        raise PreflightError(f"the link was lost before the first check: {error}") from None
+
+
+def _wait_for_answer(wire: Wire, options: SuiteOptions) -> None:
     context = CheckContext(wire, options)
     deadline = time.monotonic() + options.boot_timeout_s
     received = b""
