@@ -146,3 +146,22 @@ def test_no_hint_when_the_checksum_checks_pass_or_fail_otherwise() -> None:
     failing = _checksum_run(PortLink(FaultyController(plain), plain), "crc8")
     assert not failing.passed
     assert failing.hint is None
+
+
+def test_a_late_reply_is_named_and_kept_out_of_the_next_check() -> None:
+    # A controller that answers 100 ms late, run with a 50 ms reply timeout. Before, each
+    # reply landed in the next query's wait: "expected $qr; got $qd", as if #qr! were answered
+    # by $qd, and a check could pass on the late reply of an earlier one.
+    link = PortLink(FaultyController(NO_FAULT, late_s=0.1), "late")
+    options = SuiteOptions(reply_timeout_s=0.05)
+    try:
+        report = run_checks(link, "late", options, select_checks(["query-qd", "query-qr"]))
+    finally:
+        link.close()
+    for result in report.results:
+        name = result.name.removeprefix("query-")
+        assert result.outcome is Outcome.FAILED
+        assert result.message.startswith(
+            f"expected ${name}; no reply within 50 ms; ${name} came late"
+        )
+        assert "P19 allows 5 ms" in result.message

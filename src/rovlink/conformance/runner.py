@@ -11,6 +11,7 @@ from rovlink.conformance import checksums, debug, framing, motion, replies, sets
 from rovlink.conformance.algorithm_probe import algorithm_hint
 from rovlink.conformance.registry import (
     CHECKS,
+    LATE_WAIT_FACTOR,
     Check,
     CheckAbortedError,
     CheckContext,
@@ -114,12 +115,16 @@ def _wait_for_answer(wire: Wire, options: SuiteOptions) -> None:
     context = CheckContext(wire, options)
     deadline = time.monotonic() + options.boot_timeout_s
     received = b""
+    attempts = 0
     while True:
+        attempts += 1
         context.restore()
+        # Longer than a check waits: a slow answer here is for the checks to report, and
+        # the restore before the next attempt would read it and throw it away.
         exchange = wire.send(
             context.frame(Command("q.l")),
             frames=1,
-            timeout_s=options.reply_timeout_s,
+            timeout_s=LATE_WAIT_FACTOR * options.reply_timeout_s,
             linger_s=0.02,
         )
         values = [
@@ -128,6 +133,10 @@ def _wait_for_answer(wire: Wire, options: SuiteOptions) -> None:
             if isinstance(frame.message, Response) and frame.message.name == "q.l"
         ]
         if values:
+            if attempts > 1:
+                # The answer may be a late one to an earlier attempt: the rest are let come
+                # now, or they would land in the first checks' waits.
+                wire.drain(LATE_WAIT_FACTOR * options.reply_timeout_s)
             break
         received += exchange.received
         if time.monotonic() >= deadline:
