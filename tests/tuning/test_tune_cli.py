@@ -158,6 +158,26 @@ def test_a_relay_that_would_run_into_a_limit_is_refused_before_anything_is_sent(
     assert capsys.readouterr().err.strip().splitlines()[-1] == f"rovlink tune: error: {error}"
 
 
+def test_a_simulator_faster_than_real_time_is_refused_before_anything_is_sent(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # Before, `rovlink tune 'sim://?realtime=0'` ran: the simulated watchdog locked the motors
+    # between two wall-clock samples, and the relay ran for 2 minutes to "no steady
+    # oscillation within 120 s".
+    from rovlink.cli import link_options
+
+    def refuse(args: argparse.Namespace) -> None:
+        raise AssertionError("connected")
+
+    monkeypatch.setattr(link_options, "connect", refuse)
+    assert main(["tune", "sim://?seed=1&realtime=0", "--yes"]) == 2
+    assert capsys.readouterr().err.strip().splitlines()[-1] == (
+        "rovlink tune: error: sim://?seed=1&realtime=0: realtime=0 runs the simulation faster "
+        "than the tune's clock, and its link-loss failsafe (P17) locks the motors between two "
+        "samples; leave realtime on"
+    )
+
+
 def test_the_default_step_starts_no_shallower_than_min_depth() -> None:
     # Before, the step from 1 m above a 100 cm target started at 0 cm, above --min-depth 20.
     from rovlink.cli.tune import _step_from

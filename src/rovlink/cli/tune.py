@@ -171,6 +171,7 @@ def run(args: argparse.Namespace) -> int:
             f"and --max-depth {args.max_depth}"
         )
     _check_relay_fits(args)
+    _check_real_time(args.url)
     defaults = DepthPidConfig()
     scales = GainScales(*(args.scales or (defaults.kp_scale, defaults.ki_scale, defaults.kd_scale)))
     kp, ki, kd = args.restore or (defaults.kp, defaults.ki, defaults.kd)
@@ -214,6 +215,25 @@ def _check_relay_fits(args: argparse.Namespace) -> None:
             f"--depth {args.depth} ± --hysteresis {args.hysteresis} (the relay switches past "
             f"{shallow} and {deep} cm) must lie strictly between --min-depth {args.min_depth} "
             f"and --max-depth {args.max_depth}"
+        )
+
+
+def _check_real_time(url: str) -> None:
+    """Refuse a simulator that runs faster than real time: the experiment is paced by the wall
+    clock, so between two samples the simulated controller saw no frame for seconds, and its
+    link-loss failsafe (P17) locked the motors; the relay then ran to its timeout."""
+    if not url.startswith("sim:"):
+        return
+    from rovlink.sim.url import parse_sim_url  # noqa: PLC0415 - only for a sim:// URL
+
+    try:
+        realtime = parse_sim_url(url).realtime
+    except ValueError:
+        return  # (opening the URL says what is wrong with it)
+    if not realtime:
+        raise UsageError(
+            f"{url}: realtime=0 runs the simulation faster than the tune's clock, and its "
+            "link-loss failsafe (P17) locks the motors between two samples; leave realtime on"
         )
 
 
