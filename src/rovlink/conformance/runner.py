@@ -119,12 +119,14 @@ def _wait_for_answer(wire: Wire, options: SuiteOptions) -> None:
     while True:
         attempts += 1
         context.restore()
-        # Longer than a check waits: a slow answer here is for the checks to report, and
-        # the restore before the next attempt would read it and throw it away.
+        # Longer than a check waits (a slow answer here is for the checks to report, and the
+        # restore before the next attempt would read it and throw it away), but not past the
+        # boot time unless a check's own wait is longer.
+        wait_s = max(deadline - time.monotonic(), options.reply_timeout_s)
         exchange = wire.send(
             context.frame(Command("q.l")),
             frames=1,
-            timeout_s=LATE_WAIT_FACTOR * options.reply_timeout_s,
+            timeout_s=min(LATE_WAIT_FACTOR * options.reply_timeout_s, wait_s),
             linger_s=0.02,
         )
         values = [
