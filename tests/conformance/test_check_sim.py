@@ -311,7 +311,7 @@ def test_a_link_lost_before_the_first_check_is_one_line(
     capsys: pytest.CaptureFixture[str],
 ) -> None:
     # Before, a controller that closed its socket at once made `rovlink check` end in a
-    # traceback (ConnectionLostError from the preflight).
+    # traceback (ConnectionLostError from the preflight), and said nothing of why it closed.
     import socket
     import threading
 
@@ -320,7 +320,14 @@ def test_a_link_lost_before_the_first_check_is_one_line(
 
     def close_at_once() -> None:
         connection, _ = listener.accept()
-        connection.close()
+        connection.sendall(b"busy: the controller already has a client\r\n")
+        # Closed for writing only, and read to the end: a close with unread bytes resets the
+        # connection, and the line could be lost with it.
+        connection.shutdown(socket.SHUT_WR)
+        connection.settimeout(5.0)
+        with connection:
+            while connection.recv(4096):
+                pass
 
     closer = threading.Thread(target=close_at_once, daemon=True)
     closer.start()
@@ -333,4 +340,6 @@ def test_a_link_lost_before_the_first_check_is_one_line(
     assert err[-1].startswith(
         f"rovlink check: socket://{host}:{port}: the link was lost before the first check: "
     )
+    # What it said when it turned the suite away (before, the line left it out).
+    assert err[-1].endswith('; it said: "busy: the controller already has a client"')
     assert "Traceback" not in "\n".join(err)

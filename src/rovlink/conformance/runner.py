@@ -23,6 +23,7 @@ from rovlink.conformance.results import CheckResult, Outcome, Report
 from rovlink.conformance.wire import Wire
 from rovlink.logs import get_logger
 from rovlink.protocol import Command, Response
+from rovlink.protocol.visible import visible
 
 __all__ = ["PreflightError", "run_checks", "select_checks"]
 
@@ -108,7 +109,16 @@ def _preflight(wire: Wire, options: SuiteOptions) -> None:
     try:
         _wait_for_answer(wire, options)
     except ConnectionLostError as error:
-        raise PreflightError(f"the link was lost before the first check: {error}") from None
+        raise PreflightError(
+            f"the link was lost before the first check: {error}{_what_it_said(wire)}"
+        ) from None
+
+
+def _what_it_said(wire: Wire) -> str:
+    """``; it said: "…"`` with the last line of text the controller sent, if any (a server
+    that turns the suite away says why: another client is being served)."""
+    lines = [line for exchange in wire.log for line in exchange.text]
+    return f'; it said: "{visible(lines[-1].text)}"' if lines else ""
 
 
 def _wait_for_answer(wire: Wire, options: SuiteOptions) -> None:
