@@ -215,3 +215,42 @@ def test_a_plot_that_cannot_be_written_is_refused_before_anything_is_sent(
     assert main(["tune", "sim://", "--yes", "--plot", f"{tmp_path}/{plot}"]) == 2
     last = capsys.readouterr().err.strip().splitlines()[-1]
     assert last.startswith(f"rovlink tune: error: {error.format(tmp=tmp_path)}")
+
+
+@pytest.mark.parametrize("ending", ["abort", "ctrl-c"])
+def test_an_aborted_tune_sends_the_gains_back(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str], ending: str
+) -> None:
+    # An abort during the verification (a leak, a limit, Ctrl-C): before, the gains it was
+    # trying were left set, though without --apply the --restore gains are sent back.
+    from rovlink.tuning import Plant, TuneAbortedError
+    from tests.client.conftest import CONDITION_TIMEOUT_S, wait_until
+    from tests.client.fake_controller import FakeControllerServer
+
+    def aborted_in_the_verification(plant: Plant, *args: object) -> None:
+        plant.client.set_depth_pid(90, 91, 92)  # the gains being verified
+        plant.stop()
+        if ending == "ctrl-c":
+            raise KeyboardInterrupt
+        raise TuneAbortedError("the leak sensor fired: #stop! sent")
+
+    monkeypatch.setattr("rovlink.tuning.autotune", aborted_in_the_verification)
+    server = FakeControllerServer()
+    try:
+        status = main(["tune", server.url, "--yes", "--boot-timeout", "0"])
+        assert wait_until(lambda: len(server.fakes) == 1)
+        assert server.ended[0].wait(CONDITION_TIMEOUT_S)
+        frames = server.fakes[0].frames()
+    finally:
+        server.close()
+    last = capsys.readouterr().err.strip().splitlines()[-1]
+    if ending == "ctrl-c":
+        assert (status, last) == (130, "rovlink tune: interrupted")
+    else:
+        assert status == 1
+        assert last == (
+            "rovlink tune: aborted: the leak sensor fired: #stop! sent; gains sent back: "
+            "mvpdp 40, mvpdi 30, mvpidd 20"
+        )
+    gains = [frame for frame in frames if frame.startswith("#mvp")]
+    assert gains[-3:] == ["#mvpdp.40!", "#mvpdi.30!", "#mvpidd.20!"]

@@ -192,7 +192,10 @@ def run(args: argparse.Namespace) -> int:
         try:
             result = autotune(plant, relay, rule, scales, step)
         except TuneAbortedError as error:
-            raise CommandError(f"aborted: {error}") from None
+            raise CommandError(f"aborted: {error}{_gains_back(client, restore)}") from None
+        except KeyboardInterrupt:
+            _gains_back(client, restore)
+            raise
         gains = result.gains
         final = gains if args.apply else restore
         _send_gains(client, final)
@@ -250,6 +253,21 @@ def _step_from(args: argparse.Namespace) -> int:
     if args.step_from == args.depth:
         raise UsageError(f"--step-from {args.step_from} is --depth: the step would not move")
     return int(args.step_from)
+
+
+def _gains_back(client: Client, restore: ProtocolGains) -> str:
+    """After an aborted experiment, send the ``--restore`` gains back, as a finished one does
+    without --apply: an abort during the verification left its untried gains set. What became
+    of them, for the abort's line."""
+    from rovlink.client import ClientError, operations  # noqa: PLC0415
+
+    try:
+        for command in operations.depth_pid(restore.kp, restore.ki, restore.kd):
+            client.send(command)
+    except (ClientError, ConnectionError):
+        # (the link's failure is the abort's reason, said before this)
+        return "; the gains could not be sent back (the link failed): set them"
+    return f"; gains sent back: mvpdp {restore.kp}, mvpdi {restore.ki}, mvpidd {restore.kd}"
 
 
 def _send_gains(client: Client, gains: ProtocolGains) -> None:
