@@ -165,3 +165,29 @@ def test_a_late_reply_is_named_and_kept_out_of_the_next_check() -> None:
             f"expected ${name}; no reply within 50 ms; ${name} came late"
         )
         assert "P19 allows 5 ms" in result.message
+
+
+# Real-time motion (each watches the depth for seconds): on the newest Python only, as slow.
+@pytest.mark.slow
+@pytest.mark.integration
+@pytest.mark.parametrize(
+    ("fault", "name"),
+    [("no-watchdog", "motion-link-loss-failsafe"), (NO_FAULT, "motion-locked-after-stop")],
+)
+def test_a_vehicle_that_cannot_dive_fails_the_no_dive_checks(fault: str, name: str) -> None:
+    # Out of the water, or too buoyant for --motion-power, the vehicle dives for nothing.
+    # Before, the checks that pass when it does not dive passed: a controller without a
+    # link-loss failsafe passed motion-link-loss-failsafe run on the bench.
+    controller = FaultyController(fault)
+    with controller._inner.lock:
+        controller._inner.robot.set_net_buoyancy(200.0)  # newtons up: far beyond the thrust
+    link = PortLink(controller, fault)
+    try:
+        report = run_checks(
+            link, fault, SuiteOptions(motion=True), select_checks([name], motion=True)
+        )
+    finally:
+        link.close()
+    (result,) = report.results
+    assert result.outcome is Outcome.FAILED, result
+    assert "could not be seen (is the vehicle in water" in result.message
