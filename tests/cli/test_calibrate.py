@@ -42,9 +42,26 @@ def test_a_depth_read_back_that_times_out_says_both_values_were_sent(
     assert "Traceback" not in result.err
     assert result.err.splitlines()[-1] == (
         "rovlink calibrate: sent #sdz.20! #sdk.100!, but reading the depth back failed: "
-        f"#qd! got no valid reply within {NO_REPLY_TIMEOUT_S:g} s (1 attempt: timeout)"
+        f"#qsa! got no valid reply within {NO_REPLY_TIMEOUT_S:g} s (1 attempt: timeout)"
     )
     assert _calibration_sent(deaf_controller) == ["#sdz.20!", "#sdk.100!"]
+
+
+def test_values_the_controller_did_not_take_are_an_error(run_cli: RunCli) -> None:
+    # A controller that drops #sdz and #sdk (a reset, a firmware bug) and reads 123 cm at raw
+    # 530, where sdz 20 sdk 100 give 510 cm. Before, calibrate said "sent ...; depth now
+    # 123 cm" with status 0: nothing acknowledges a setting (P4), so nothing was compared.
+    server = FakeControllerServer()
+    try:
+        result = run_cli("calibrate", server.url, *_KNOWN_POINTS, "--yes", *_LINK)
+    finally:
+        server.close()
+    assert result.status == 1
+    assert result.err.splitlines()[-1] == (
+        "rovlink calibrate: sent #sdz.20! #sdk.100!, but the controller did not take them: it "
+        "reads 123 cm at raw 530, where they give 510 cm (P13); did it reset, or drop the "
+        "frames? calibrate again"
+    )
 
 
 def test_a_measurement_that_times_out_sends_nothing(

@@ -37,10 +37,13 @@ _SETTING_LINE = re.compile(
 class FaultyController:
     """A pyserial-like port to the simulated controller, with one named fault."""
 
-    def __init__(self, fault: str, *, seed: int = 1) -> None:
+    def __init__(self, fault: str, *, seed: int = 1, late_s: float = 0.0) -> None:
+        """``late_s``: every reply goes out this late (a controller slower than the suite
+        waits), whatever the fault."""
         if fault not in FAULTS and fault != NO_FAULT:
             raise ValueError(f"unknown fault {fault!r}")
         self.fault = fault
+        self._late_s = late_s
         if fault == "no-watchdog":  # a firmware without the link-loss failsafe (P17)
             config = SimConfig(controller=dataclasses.replace(ControllerConfig(), watchdog_s=0.0))
             self._inner = SimulatedPort(config, seed=seed, timeout=0)
@@ -121,7 +124,14 @@ class FaultyController:
             return
         if self.fault == "slow-replies":
             self._release_at = time.monotonic() + 0.015
+        if self._late_s:
+            threading.Timer(self._late_s, self._deliver_late, args=(data,)).start()
+            return
         self._output += data
+
+    def _deliver_late(self, data: bytes) -> None:
+        with self._lock:
+            self._output += data
 
     def _noise_fed_watchdog(self) -> None:
         while self._inner.is_open:
@@ -225,6 +235,13 @@ class FaultyController:
         if fault == "acks-sets":
             acks = sum(1 for body in _FRAME.findall(sent) if body.split(b".")[0] in _SETTERS)
             reply += b"$ok!" * acks
+        if fault == "text-acks-sets":  # an OK line for every setting, debug on or off
+            acks = sum(
+                1
+                for body in _FRAME.findall(sent)
+                if body.split(b".")[0] in _SETTERS and not body.startswith(b"debug")
+            )
+            reply += b"OK\r\n" * acks
         if fault == "qsa-wrong-order":
             reply = re.sub(rb"(\$qd\.[^!]*!)(\$qr\.[^!]*!)", rb"\2\1", reply)
         if fault == "leading-zeros":
@@ -318,6 +335,7 @@ def _recomputed(match: re.Match[bytes]) -> bytes:
 #: Each fault and the check that catches it.
 FAULTS: dict[str, str] = {
     "acks-sets": "set-mgmp",
+    "text-acks-sets": "set-mgmp",
     "qsa-wrong-order": "query-qsa",
     "leading-zeros": "query-qd",
     "unsigned-attitude": "query-qro",

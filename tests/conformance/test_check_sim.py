@@ -272,3 +272,74 @@ def test_cli_summary_says_the_motion_checks_were_not_run(
     assert "failsafe) not run: add --motion" in out
     assert main(["check", "sim://?seed=2", "--only", "start-stop-silent"]) == 0
     assert "motion checks" not in capsys.readouterr().out  # (the selection has none)
+
+
+def test_a_run_aborted_by_a_lost_link_says_which_checks_did_not_run(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    # Before, a run whose link died at the second of 8 checks ended "1 of 2 checks passed",
+    # and its JUnit had 2 cases: as if the suite had no more checks.
+    from rovlink.cli.check import _print_report
+    from rovlink.client.links import PortLink
+    from rovlink.sim.port import open_port
+
+    port = open_port(seed=1, timeout=0.05)
+    link = PortLink(port, "sim")
+    checks = select_checks(["query-"])
+    try:
+        report = run_checks(link, "sim", SuiteOptions(), checks, on_result=lambda _: port.close())
+    finally:
+        link.close()
+    first, second = report.results
+    assert (first.outcome, second.outcome) == (Outcome.PASSED, Outcome.ABORTED)
+    assert report.not_run == [check.name for check in checks[2:]]
+    assert not report.passed
+    _print_report(report)
+    out = " ".join(capsys.readouterr().out.split())
+    assert f"1 of 2 checks passed in {report.duration_s:.1f} s; 6 more not run: " in out
+    assert f"{second.name} aborted the run" in out
+    suite = ElementTree.fromstring(junit_xml(report))
+    assert suite.get("tests") == str(len(checks))
+    assert suite.get("skipped") == "6"
+    skipped = [
+        case.get("name") for case in suite.iter("testcase") if case.find("skipped") is not None
+    ]
+    assert skipped == report.not_run
+
+
+def test_a_link_lost_before_the_first_check_is_one_line(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    # Before, a controller that closed its socket at once made `rovlink check` end in a
+    # traceback (ConnectionLostError from the preflight), and said nothing of why it closed.
+    import socket
+    import threading
+
+    listener = socket.create_server(("127.0.0.1", 0))
+    host, port = listener.getsockname()[:2]
+
+    def close_at_once() -> None:
+        connection, _ = listener.accept()
+        connection.sendall(b"busy: the controller already has a client\r\n")
+        # Closed for writing only, and read to the end: a close with unread bytes resets the
+        # connection, and the line could be lost with it.
+        connection.shutdown(socket.SHUT_WR)
+        connection.settimeout(5.0)
+        with connection:
+            while connection.recv(4096):
+                pass
+
+    closer = threading.Thread(target=close_at_once, daemon=True)
+    closer.start()
+    try:
+        assert main(["check", f"socket://{host}:{port}"]) == 1
+    finally:
+        closer.join(5.0)
+        listener.close()
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[-1].startswith(
+        f"rovlink check: socket://{host}:{port}: the link was lost before the first check: "
+    )
+    # What it said when it turned the suite away (before, the line left it out).
+    assert err[-1].endswith('; it said: "busy: the controller already has a client"')
+    assert "Traceback" not in "\n".join(err)

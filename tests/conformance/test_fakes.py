@@ -146,3 +146,48 @@ def test_no_hint_when_the_checksum_checks_pass_or_fail_otherwise() -> None:
     failing = _checksum_run(PortLink(FaultyController(plain), plain), "crc8")
     assert not failing.passed
     assert failing.hint is None
+
+
+def test_a_late_reply_is_named_and_kept_out_of_the_next_check() -> None:
+    # A controller that answers 100 ms late, run with a 50 ms reply timeout. Before, each
+    # reply landed in the next query's wait: "expected $qr; got $qd", as if #qr! were answered
+    # by $qd, and a check could pass on the late reply of an earlier one.
+    link = PortLink(FaultyController(NO_FAULT, late_s=0.1), "late")
+    options = SuiteOptions(reply_timeout_s=0.05)
+    try:
+        report = run_checks(link, "late", options, select_checks(["query-qd", "query-qr"]))
+    finally:
+        link.close()
+    for result in report.results:
+        name = result.name.removeprefix("query-")
+        assert result.outcome is Outcome.FAILED
+        assert result.message.startswith(
+            f"expected ${name}; no reply within 50 ms; ${name} came late"
+        )
+        assert "P19 allows 5 ms" in result.message
+
+
+# Real-time motion (each watches the depth for seconds): on the newest Python only, as slow.
+@pytest.mark.slow
+@pytest.mark.integration
+@pytest.mark.parametrize(
+    ("fault", "name"),
+    [("no-watchdog", "motion-link-loss-failsafe"), (NO_FAULT, "motion-locked-after-stop")],
+)
+def test_a_vehicle_that_cannot_dive_fails_the_no_dive_checks(fault: str, name: str) -> None:
+    # Out of the water, or too buoyant for --motion-power, the vehicle dives for nothing.
+    # Before, the checks that pass when it does not dive passed: a controller without a
+    # link-loss failsafe passed motion-link-loss-failsafe run on the bench.
+    controller = FaultyController(fault)
+    with controller._inner.lock:
+        controller._inner.robot.set_net_buoyancy(200.0)  # newtons up: far beyond the thrust
+    link = PortLink(controller, fault)
+    try:
+        report = run_checks(
+            link, fault, SuiteOptions(motion=True), select_checks([name], motion=True)
+        )
+    finally:
+        link.close()
+    (result,) = report.results
+    assert result.outcome is Outcome.FAILED, result
+    assert "could not be seen (is the vehicle in water" in result.message

@@ -172,3 +172,21 @@ def test_serve_returns_with_nothing_left_reading_the_port() -> None:
     assert proxy.lost is None
     assert controller.wait_for(b"#stop!")
     controller.close()
+
+
+def test_bytes_still_delayed_when_the_port_closes_are_sent_not_dropped() -> None:
+    # A program writes its last #stop! and closes its link at once: the stop must still reach
+    # the controller, as a serial line delivers what was written before it was closed.
+    controller = RecordingController()
+    host, port = controller.address
+    fault_port = FaultPort(
+        open_link(parse_url(f"socket://{host}:{port}")), FaultSettings(delay_ms=5000)
+    )
+    try:
+        fault_port.write(b"#start!#th.0.20!")
+        fault_port.write(b"#stop!")
+        fault_port.close()
+        assert controller.wait_for(b"#stop!") == b"#start!#th.0.20!#stop!"
+    finally:
+        fault_port.close()
+        controller.close()

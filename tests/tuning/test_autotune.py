@@ -112,6 +112,36 @@ def test_a_lost_link_aborts_and_says_stop_could_not_be_sent() -> None:
     assert "#stop! sent" not in str(aborted.value)
 
 
+def test_a_controller_reset_aborts_with_stop_and_says_so() -> None:
+    # The board resets during the relay (its watchdog, a brown-out) and loses what it is sent
+    # while it boots: the driver suspects the reset (P21). Before, the relay went on sending
+    # thrust that the locked controller dropped, as the vehicle floated up, until its timeout.
+    with simulated_plant("standard", 3, reply_timeout_s=0.05) as (plant, port):
+        controller = port.robot.controller
+        receive = controller.receive
+        booting = threading.Event()
+
+        def receive_unless_booting(data: bytes, line: object = None) -> None:
+            if booting.is_set() and plant.client.counters.resets_suspected == 0:
+                return  # lost while the board boots, until the host has noticed
+            receive(data, line)
+
+        def reset() -> None:
+            controller.reset()
+            booting.set()
+
+        controller.receive = receive_unless_booting  # type: ignore[method-assign]
+        port.robot.schedule(5.0, reset)
+        with pytest.raises(TuneAbortedError) as aborted:
+            autotune(plant, RelaySettings(), RULES["heave-poles"], SCALES, None)
+        assert port.controller.locked
+        assert port.robot.time_s < 6.0  # at once, not after the relay's timeout
+    assert str(aborted.value) == (
+        "the controller reset (its replies stopped, P21): it is locked now, and the experiment "
+        "cannot go on: #stop! sent"
+    )
+
+
 def test_an_abort_on_a_working_link_says_stop_was_sent() -> None:
     with simulated_plant("standard", 3) as (plant, port):
         port.robot.inject_leak(at_s=5.0)

@@ -120,6 +120,64 @@ def test_a_step_outside_the_limits_is_refused_before_anything_is_sent(
     assert capsys.readouterr().err.strip().splitlines()[-1] == f"rovlink tune: error: {error}"
 
 
+@pytest.mark.parametrize(
+    ("argv", "error"),
+    [
+        (
+            ["--depth", "21"],
+            "--depth 21 ± --hysteresis 3 (the relay switches past 18 and 24 cm) must lie "
+            "strictly between --min-depth 20 and --max-depth 300",
+        ),
+        (
+            ["--depth", "40", "--hysteresis", "20"],
+            "--depth 40 ± --hysteresis 20 (the relay switches past 20 and 60 cm) must lie "
+            "strictly between --min-depth 20 and --max-depth 300",
+        ),
+        (
+            ["--depth", "290", "--hysteresis", "10"],
+            "--depth 290 ± --hysteresis 10 (the relay switches past 280 and 300 cm) must lie "
+            "strictly between --min-depth 20 and --max-depth 300",
+        ),
+    ],
+)
+def test_a_relay_that_would_run_into_a_limit_is_refused_before_anything_is_sent(
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+    argv: list[str],
+    error: str,
+) -> None:
+    # Before, --depth 21 (--min-depth 20, --hysteresis 3) ran the motors until the vehicle
+    # rose past 18 cm, where the relay turns, and aborted there: above the limit, every time.
+    from rovlink.cli import link_options
+
+    def refuse(args: argparse.Namespace) -> None:
+        raise AssertionError("connected")
+
+    monkeypatch.setattr(link_options, "connect", refuse)
+    assert main(["tune", "sim://", "--yes", "--no-verify", *argv]) == 2
+    assert capsys.readouterr().err.strip().splitlines()[-1] == f"rovlink tune: error: {error}"
+
+
+def test_a_simulator_faster_than_real_time_is_refused_before_anything_is_sent(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # Before, `rovlink tune 'sim://?realtime=0'` ran: the simulated watchdog locked the motors
+    # between two wall-clock samples, and the relay ran for 2 minutes to "no steady
+    # oscillation within 120 s".
+    from rovlink.cli import link_options
+
+    def refuse(args: argparse.Namespace) -> None:
+        raise AssertionError("connected")
+
+    monkeypatch.setattr(link_options, "connect", refuse)
+    assert main(["tune", "sim://?seed=1&realtime=0", "--yes"]) == 2
+    assert capsys.readouterr().err.strip().splitlines()[-1] == (
+        "rovlink tune: error: sim://?seed=1&realtime=0: realtime=0 runs the simulation faster "
+        "than the tune's clock, and its link-loss failsafe (P17) locks the motors between two "
+        "samples; leave realtime on"
+    )
+
+
 def test_the_default_step_starts_no_shallower_than_min_depth() -> None:
     # Before, the step from 1 m above a 100 cm target started at 0 cm, above --min-depth 20.
     from rovlink.cli.tune import _step_from
@@ -157,3 +215,42 @@ def test_a_plot_that_cannot_be_written_is_refused_before_anything_is_sent(
     assert main(["tune", "sim://", "--yes", "--plot", f"{tmp_path}/{plot}"]) == 2
     last = capsys.readouterr().err.strip().splitlines()[-1]
     assert last.startswith(f"rovlink tune: error: {error.format(tmp=tmp_path)}")
+
+
+@pytest.mark.parametrize("ending", ["abort", "ctrl-c"])
+def test_an_aborted_tune_sends_the_gains_back(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str], ending: str
+) -> None:
+    # An abort during the verification (a leak, a limit, Ctrl-C): before, the gains it was
+    # trying were left set, though without --apply the --restore gains are sent back.
+    from rovlink.tuning import Plant, TuneAbortedError
+    from tests.client.conftest import CONDITION_TIMEOUT_S, wait_until
+    from tests.client.fake_controller import FakeControllerServer
+
+    def aborted_in_the_verification(plant: Plant, *args: object) -> None:
+        plant.client.set_depth_pid(90, 91, 92)  # the gains being verified
+        plant.stop()
+        if ending == "ctrl-c":
+            raise KeyboardInterrupt
+        raise TuneAbortedError("the leak sensor fired: #stop! sent")
+
+    monkeypatch.setattr("rovlink.tuning.autotune", aborted_in_the_verification)
+    server = FakeControllerServer()
+    try:
+        status = main(["tune", server.url, "--yes", "--boot-timeout", "0"])
+        assert wait_until(lambda: len(server.fakes) == 1)
+        assert server.ended[0].wait(CONDITION_TIMEOUT_S)
+        frames = server.fakes[0].frames()
+    finally:
+        server.close()
+    last = capsys.readouterr().err.strip().splitlines()[-1]
+    if ending == "ctrl-c":
+        assert (status, last) == (130, "rovlink tune: interrupted")
+    else:
+        assert status == 1
+        assert last == (
+            "rovlink tune: aborted: the leak sensor fired: #stop! sent; gains sent back: "
+            "mvpdp 40, mvpdi 30, mvpidd 20"
+        )
+    gains = [frame for frame in frames if frame.startswith("#mvp")]
+    assert gains[-3:] == ["#mvpdp.40!", "#mvpdi.30!", "#mvpidd.20!"]

@@ -130,8 +130,10 @@ def _confirm() -> bool:
 
 
 def _send(client: Client, result: Calibration) -> None:
-    """Send sdz, then sdk, then read the depth they give. A link that fails on the way is one
-    line saying which values went: after sdz alone the controller is half calibrated."""
+    """Send sdz, then sdk, then read the depth and raw reading of one ``#qsa!`` to see that
+    the controller took them (the protocol acknowledges nothing, P4). A link that fails on the
+    way is one line saying which values went: after sdz alone the controller is half
+    calibrated."""
     from rovlink.client import ClientError  # noqa: PLC0415 - the driver loads when used
 
     zero, scale = f"#sdz.{result.zero_raw}!", f"#sdk.{result.k}!"
@@ -141,7 +143,7 @@ def _send(client: Client, result: Calibration) -> None:
         sent.append(zero)
         client.set_depth_scale(result.k)
         sent.append(scale)
-        depth_cm = client.depth_cm()
+        sensors = client.sensors()
     except (ClientError, TimeoutError, ConnectionError) as error:
         if not sent:
             raise CommandError(f"{error}; nothing was sent") from None
@@ -153,7 +155,15 @@ def _send(client: Client, result: Calibration) -> None:
         raise CommandError(
             f"sent {zero} {scale}, but reading the depth back failed: {error}"
         ) from None
-    print(f"sent {zero} {scale}; depth now {depth_cm} cm")
+    depth_cm, raw = sensors.depth_cm, sensors.pressure_raw
+    expected_cm = result.depth_for(raw)
+    if depth_cm != expected_cm:  # (qd and qr of one qsa reply: the same reading, P12, P13)
+        raise CommandError(
+            f"sent {zero} {scale}, but the controller did not take them: it reads {depth_cm} cm "
+            f"at raw {raw}, where they give {expected_cm} cm (P13); did it reset, or drop the "
+            "frames? calibrate again"
+        )
+    print(f"sent {zero} {scale}; depth now {depth_cm} cm (raw {raw})")
 
 
 def _mean_raw(client: Client, samples: int, point: str) -> float:

@@ -199,9 +199,15 @@ def _print_report(report: Report, *, motion_not_run: int = 0) -> None:
     if report.hint is not None:
         console.print(f"\n[yellow]hint[/]: {escape(report.hint)}")
     passed = report.count(Outcome.PASSED)
+    aborted = (
+        f"; {len(report.not_run)} more not run: {report.results[-1].name} aborted the run"
+        if report.not_run
+        else ""
+    )
     console.print(
         f"\n{report.target}: {passed} of {len(report.results)} checks passed "
         f"in {report.duration_s:.1f} s"
+        + aborted
         + (
             f"; {motion_not_run} motion checks (#stop!, the link-loss failsafe) not run: "
             "add --motion"

@@ -2,7 +2,7 @@
 limits) measures the ultimate gain and period; a stated rule turns them into gains on the
 protocol's 0-99 scale; a depth step with those gains verifies them (overshoot, settling time,
 RMS). --apply leaves the gains set; without it the gains given by --restore are sent back.
-A leak, a depth past the limits or a lost link sends #stop! and aborts."""
+A leak, a depth past the limits, a lost link or a controller reset sends #stop! and aborts."""
 
 from __future__ import annotations
 
@@ -170,6 +170,8 @@ def run(args: argparse.Namespace) -> int:
             f"--depth {args.depth} must lie strictly between --min-depth {args.min_depth} "
             f"and --max-depth {args.max_depth}"
         )
+    _check_relay_fits(args)
+    _check_real_time(args.url)
     defaults = DepthPidConfig()
     scales = GainScales(*(args.scales or (defaults.kp_scale, defaults.ki_scale, defaults.kd_scale)))
     kp, ki, kd = args.restore or (defaults.kp, defaults.ki, defaults.kd)
@@ -190,7 +192,10 @@ def run(args: argparse.Namespace) -> int:
         try:
             result = autotune(plant, relay, rule, scales, step)
         except TuneAbortedError as error:
-            raise CommandError(f"aborted: {error}") from None
+            raise CommandError(f"aborted: {error}{_gains_back(client, restore)}") from None
+        except KeyboardInterrupt:
+            _gains_back(client, restore)
+            raise
         gains = result.gains
         final = gains if args.apply else restore
         _send_gains(client, final)
@@ -201,6 +206,38 @@ def run(args: argparse.Namespace) -> int:
         _plot(result, args.plot)
     met = result.step is None or _meets_targets(result)
     return 0 if met else 1
+
+
+def _check_relay_fits(args: argparse.Namespace) -> None:
+    """Refuse a relay whose switching depths are not inside the limits: the relay turns only
+    once the depth is past --depth ± --hysteresis, so the vehicle would run to a limit and the
+    experiment abort there, every time, after the motors had run."""
+    shallow, deep = args.depth - args.hysteresis, args.depth + args.hysteresis
+    if not (args.min_depth < shallow and deep < args.max_depth):
+        raise UsageError(
+            f"--depth {args.depth} ± --hysteresis {args.hysteresis} (the relay switches past "
+            f"{shallow} and {deep} cm) must lie strictly between --min-depth {args.min_depth} "
+            f"and --max-depth {args.max_depth}"
+        )
+
+
+def _check_real_time(url: str) -> None:
+    """Refuse a simulator that runs faster than real time: the experiment is paced by the wall
+    clock, so between two samples the simulated controller saw no frame for seconds, and its
+    link-loss failsafe (P17) locked the motors; the relay then ran to its timeout."""
+    if not url.startswith("sim:"):
+        return
+    from rovlink.sim.url import parse_sim_url  # noqa: PLC0415 - only for a sim:// URL
+
+    try:
+        realtime = parse_sim_url(url).realtime
+    except ValueError:
+        return  # (opening the URL says what is wrong with it)
+    if not realtime:
+        raise UsageError(
+            f"{url}: realtime=0 runs the simulation faster than the tune's clock, and its "
+            "link-loss failsafe (P17) locks the motors between two samples; leave realtime on"
+        )
 
 
 def _step_from(args: argparse.Namespace) -> int:
@@ -216,6 +253,21 @@ def _step_from(args: argparse.Namespace) -> int:
     if args.step_from == args.depth:
         raise UsageError(f"--step-from {args.step_from} is --depth: the step would not move")
     return int(args.step_from)
+
+
+def _gains_back(client: Client, restore: ProtocolGains) -> str:
+    """After an aborted experiment, send the ``--restore`` gains back, as a finished one does
+    without --apply: an abort during the verification left its untried gains set. What became
+    of them, for the abort's line."""
+    from rovlink.client import ClientError, operations  # noqa: PLC0415
+
+    try:
+        for command in operations.depth_pid(restore.kp, restore.ki, restore.kd):
+            client.send(command)
+    except (ClientError, ConnectionError):
+        # (the link's failure is the abort's reason, said before this)
+        return "; the gains could not be sent back (the link failed): set them"
+    return f"; gains sent back: mvpdp {restore.kp}, mvpdi {restore.ki}, mvpidd {restore.kd}"
 
 
 def _send_gains(client: Client, gains: ProtocolGains) -> None:

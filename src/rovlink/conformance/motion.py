@@ -100,6 +100,12 @@ def _locked(ctx: CheckContext) -> None:
     ctx.tell(ctx.frame(Command("stop")))
     if deepest - start >= _MOVED_COUNTS:
         raise CheckFailedError(f"locked, yet the raw pressure went from {start} to {deepest}")
+    _expect_dive(
+        ctx,
+        ctx.frame(Command("start")) + _down(ctx, checksum=False),
+        "unlocked, the same thrust",
+        "thrust obeyed while locked",
+    )
 
 
 def _dive_then_stop(ctx: CheckContext, checksum: bool, *, then_start: bool = False) -> None:
@@ -200,6 +206,21 @@ def _expect_no_dive(ctx: CheckContext, data: bytes, what: str) -> None:
         raise CheckFailedError(f"{what}: the raw pressure went from {start} to {deepest}")
 
 
+def _expect_dive(ctx: CheckContext, data: bytes, what: str, unseen: str) -> None:
+    """The positive control of a check that passes when the vehicle does not dive: ``data``
+    (obeyed, as it must be) dives it. Without it a vehicle that cannot dive at all (out of the
+    water, too buoyant for the power) would pass the check whatever the controller does."""
+    start, deepest = _watched_then_stopped(ctx, data)
+    # Stopped, the vehicle coasts on a little: the next check must not see that as its dive.
+    _watch(ctx, False, _COAST_S, coast=True)
+    if deepest - start < _MOVED_COUNTS:
+        raise CheckFailedError(
+            f"{what} did not dive the vehicle either (raw {start} to {deepest} in "
+            f"{MOTION_WATCH_S:g} s), so {unseen} could not be seen (is the vehicle in water, "
+            f"and {ctx.options.motion_percent} % enough to dive it? --motion-power)"
+        )
+
+
 @check(
     "motion-mode-gating",
     ("P9", "P6"),
@@ -232,6 +253,15 @@ def _mode_gating(ctx: CheckContext) -> None:
         + b"#mvs.-101!",
         "in direct mode #mvd! or the out-of-range #mvs.-101! was obeyed",
     )
+    _expect_dive(
+        ctx,
+        _depth_far_below(ctx)
+        + frame(Command("start"))
+        + frame(Command("mvdirect", (1,)))
+        + frame(Command("mvs", (lookup("mvs").arguments[0].minimum,))),
+        "in direct mode, #mvs.-100! under the same PWM cap",
+        "a command of the other mode obeyed",
+    )
 
 
 @check(
@@ -252,6 +282,12 @@ def _pwm_not_clamped(ctx: CheckContext) -> None:
         + frame(Command("mvs", (-ctx.options.motion_percent,)))
         + b"#mgmp.%d!" % (maximum + 1),
         f"#mgmp.{maximum + 1}! was clamped, not dropped",
+    )
+    _expect_dive(
+        ctx,
+        frame(Command("start")) + _down(ctx, checksum=False),
+        f"with #mgmp.{maximum}!, the same thrust",
+        "a clamped PWM cap",
     )
 
 
@@ -303,6 +339,16 @@ def _gains_not_clamped(ctx: CheckContext) -> None:
 )
 def _watchdog(ctx: CheckContext) -> None:
     ctx.tell(ctx.frame(Command("start")) + _down(ctx, checksum=False))
+    # First the dive, the positive control: a vehicle that does not dive at all would show
+    # no dive after the silence either, failsafe or none.
+    start, deepest = _watch(ctx, checksum=False)
+    if deepest - start < _MOVED_COUNTS:
+        ctx.tell(b"#stop!")
+        raise CheckFailedError(
+            f"unlocked with {ctx.options.motion_percent} % down thrust the vehicle did not dive "
+            f"(raw {start} to {deepest} in {MOTION_WATCH_S:g} s), so the failsafe could not be "
+            "seen (is the vehicle in water? --motion-power)"
+        )
     # No valid frame for longer than the watchdog, but bytes all the time: noise and frames
     # P1 discards. Only valid frames may feed the failsafe (P17).
     silent_until = time.monotonic() + ctx.options.watchdog_s + _WATCHDOG_MARGIN_S

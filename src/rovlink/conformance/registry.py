@@ -15,6 +15,7 @@ from rovlink.protocol import BadFrame, Command, Frame, encode, get_algorithm
 
 __all__ = [
     "CHECKS",
+    "LATE_WAIT_FACTOR",
     "NO_REPLY",
     "Check",
     "CheckAbortedError",
@@ -41,6 +42,9 @@ class CheckAbortedError(Exception):
 
 #: How a failure words a reply that did not come (the algorithm probe looks for it).
 NO_REPLY = "no reply within"
+#: After a reply that did not come as expected, the line is watched this many reply timeouts
+#: longer for it: a late reply is named, and kept out of the next check.
+LATE_WAIT_FACTOR = 3
 
 
 @dataclass(frozen=True)
@@ -115,8 +119,25 @@ class CheckContext:
             raise CheckFailedError(f"{why}, but the controller answered {raw!r}")
         return exchange
 
+    def expect_silence(self, data: bytes, why: str) -> Exchange:
+        """Send ``data`` with debug off; fail if anything comes back: a frame, or text (with
+        debug off a controller writes nothing but replies, P5)."""
+        exchange = self.expect_no_frames(data, why)
+        if exchange.received:
+            raise CheckFailedError(
+                f"{why}: with debug off nothing at all (P4, P5), but the controller wrote "
+                f"{exchange.received!r}"
+            )
+        return exchange
+
     def expect_reply(self, data: bytes, names: tuple[str, ...], why: str = "") -> Exchange:
-        """Send ``data``; fail unless exactly the frames ``names`` come back, valid, in order."""
+        """Send ``data``; fail unless exactly the frames ``names`` come back, valid, in order.
+
+        When they do not, the line is watched a while longer: a reply that comes late is
+        named in the failure (the controller is slower than the suite waits), and read, so
+        that it does not land in the next check's wait as an answer to another query.
+        """
+        sent_at = self.wire.now_s()
         exchange = self.ask(data, len(names))
         frames = exchange.frames
         got = tuple(frame.message.name if isinstance(frame, Frame) else "?" for frame in frames)
@@ -124,7 +145,7 @@ class CheckContext:
         if not frames:
             raise CheckFailedError(
                 f"expected {_names(names)}{context}; {NO_REPLY} "
-                f"{self.options.reply_timeout_s * 1000:.0f} ms"
+                f"{self.options.reply_timeout_s * 1000:.0f} ms" + self._late(names[0], sent_at)
             )
         for frame in frames:
             if isinstance(frame, BadFrame):
@@ -133,8 +154,26 @@ class CheckContext:
                     f"{frame.detail}"
                 )
         if got != names:
-            raise CheckFailedError(f"expected {_names(names)}{context}; got {_names(got)}")
+            late = self._late(names[0], sent_at) if names[0] not in got else ""
+            raise CheckFailedError(f"expected {_names(names)}{context}; got {_names(got)}{late}")
         return exchange
+
+    def _late(self, name: str, sent_at: float) -> str:
+        """Watch the line for a late ``$name``; what to add to the failure if it came."""
+        options = self.options
+        exchange = self.wire.send(
+            b"", frames=1, timeout_s=LATE_WAIT_FACTOR * options.reply_timeout_s, linger_s=0.02
+        )
+        self.exchanges.append(exchange)
+        for frame in exchange.valid_frames:
+            if frame.message.name == name and exchange.reply_s is not None:
+                late_ms = (self.wire.now_s() - sent_at) * 1000
+                return (
+                    f"; ${name} came late, about {late_ms:.0f} ms after the query: the controller "
+                    f"answers later than the suite waits ({options.reply_timeout_s * 1000:.0f} "
+                    "ms, --timeout; P19 allows 5 ms), so its replies land in later queries' waits"
+                )
+        return ""
 
     def restore(self) -> None:
         """Back to the state after reset as far as a host can: checksum and debug off, locked,

@@ -47,6 +47,8 @@ class Report:
     #: What the failures suggest beyond themselves (the controller's checksum algorithm), if
     #: anything.
     hint: str | None = None
+    #: The selected checks that did not run because a check aborted the run, in order.
+    not_run: list[str] = field(default_factory=list)
 
     @property
     def failures(self) -> list[CheckResult]:

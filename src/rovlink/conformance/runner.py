@@ -11,6 +11,7 @@ from rovlink.conformance import checksums, debug, framing, motion, replies, sets
 from rovlink.conformance.algorithm_probe import algorithm_hint
 from rovlink.conformance.registry import (
     CHECKS,
+    LATE_WAIT_FACTOR,
     Check,
     CheckAbortedError,
     CheckContext,
@@ -22,6 +23,7 @@ from rovlink.conformance.results import CheckResult, Outcome, Report
 from rovlink.conformance.wire import Wire
 from rovlink.logs import get_logger
 from rovlink.protocol import Command, Response
+from rovlink.protocol.visible import visible
 
 __all__ = ["PreflightError", "run_checks", "select_checks"]
 
@@ -82,12 +84,13 @@ def run_checks(
     started = time.monotonic()
     try:
         _preflight(wire, options)
-        for item in selected:
+        for index, item in enumerate(selected):
             result = _run_one(item, wire, options)
             report.results.append(result)
             if on_result is not None:
                 on_result(result)
             if result.outcome is Outcome.ABORTED:
+                report.not_run = [later.name for later in selected[index + 1 :]]
                 break
         else:
             report.hint = algorithm_hint(link, options, report)
@@ -102,16 +105,38 @@ def run_checks(
 
 def _preflight(wire: Wire, options: SuiteOptions) -> None:
     """Wait for the controller to answer ``#q.l!`` (a board may boot for up to 2 s after its
-    port opens, P21), and refuse to go on if its leak latch is set."""
+    port opens, P21), and refuse to go on if its leak latch is set or the link is lost."""
+    try:
+        _wait_for_answer(wire, options)
+    except ConnectionLostError as error:
+        raise PreflightError(
+            f"the link was lost before the first check: {error}{_what_it_said(wire)}"
+        ) from None
+
+
+def _what_it_said(wire: Wire) -> str:
+    """``; it said: "…"`` with the last line of text the controller sent, if any (a server
+    that turns the suite away says why: another client is being served)."""
+    lines = [line for exchange in wire.log for line in exchange.text]
+    return f'; it said: "{visible(lines[-1].text)}"' if lines else ""
+
+
+def _wait_for_answer(wire: Wire, options: SuiteOptions) -> None:
     context = CheckContext(wire, options)
     deadline = time.monotonic() + options.boot_timeout_s
     received = b""
+    attempts = 0
     while True:
+        attempts += 1
         context.restore()
+        # Longer than a check waits (a slow answer here is for the checks to report, and the
+        # restore before the next attempt would read it and throw it away), but not past the
+        # boot time unless a check's own wait is longer.
+        wait_s = max(deadline - time.monotonic(), options.reply_timeout_s)
         exchange = wire.send(
             context.frame(Command("q.l")),
             frames=1,
-            timeout_s=options.reply_timeout_s,
+            timeout_s=min(LATE_WAIT_FACTOR * options.reply_timeout_s, wait_s),
             linger_s=0.02,
         )
         values = [
@@ -120,6 +145,10 @@ def _preflight(wire: Wire, options: SuiteOptions) -> None:
             if isinstance(frame.message, Response) and frame.message.name == "q.l"
         ]
         if values:
+            if attempts > 1:
+                # The answer may be a late one to an earlier attempt: the rest are let come
+                # now, or they would land in the first checks' waits.
+                wire.drain(LATE_WAIT_FACTOR * options.reply_timeout_s)
             break
         received += exchange.received
         if time.monotonic() >= deadline:

@@ -65,6 +65,10 @@ class Wire:
         self._decoder = Decoder(algorithm=algorithm)
         self.log: list[Exchange] = []
 
+    def now_s(self) -> float:
+        """The wire's clock, s."""
+        return self._clock()
+
     @property
     def replies_checksummed(self) -> bool:
         """Whether replies are expected to carry checksums (decoded so)."""

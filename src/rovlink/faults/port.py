@@ -141,7 +141,13 @@ class FaultPort:
                 self._lock.wait(wait_s)
 
     def close(self) -> None:
-        """Close the inner link and stop the threads (idempotent)."""
+        """Send the host's bytes still held back by the delay, then close the inner link and
+        stop the threads (idempotent).
+
+        The held-back bytes go at once rather than being dropped: a program's last ``#stop!``
+        is typically written just before it closes its link, and a serial line delivers what
+        was written before it was closed.
+        """
         with self._lock:
             if not self._open:
                 return
@@ -151,6 +157,7 @@ class FaultPort:
         self._reader.join(timeout=1.0)
         if self._writer is not None:
             self._writer.join(timeout=1.0)
+            self._flush_delayed()
         self._inner.close()
         for direction, counters in self.counters.items():
             logger.info("%s %s: %s", self.name, direction, counters.summary())
@@ -174,6 +181,23 @@ class FaultPort:
             self._inner.write(data)
 
     # -- internals ---------------------------------------------------------------------------
+
+    def _flush_delayed(self) -> None:
+        """Write every chunk still waiting for its delay to the inner link, in order."""
+        with self._write_lock:
+            with self._lock:
+                pending = b"".join(chunk for _, chunk in self._down_delay.chunks)
+                self._down_delay.chunks.clear()
+            if not pending or self._lost is not None:
+                return
+            try:
+                self._inner.write(pending)
+            except ConnectionLostError:
+                logger.warning(
+                    "%s: %d delayed bytes to the controller could not be sent: the link is lost",
+                    self.name,
+                    len(pending),
+                )
 
     def _take(self, now: float, size: int) -> bytes:
         chunks = self._up_delay.chunks

@@ -1,8 +1,9 @@
 """The vehicle as the tuner sees it: depth and leak in, vertical commands out, a clock, limits.
 
 Every sample reads the depth and the leak latch and checks the safe limits; a leak, a depth
-outside the limits or a lost link sends ``#stop!`` and raises :class:`TuneAbortedError`, and so
-does a ``stop()`` from another thread that supersedes the command the experiment was sending.
+outside the limits, a lost link or a controller reset sends ``#stop!`` and raises
+:class:`TuneAbortedError`, and so does a ``stop()`` from another thread that supersedes the
+command the experiment was sending.
 """
 
 from __future__ import annotations
@@ -58,6 +59,9 @@ class Plant:
         self._sleep = sleep
         self._truth = truth
         self._stop_outcome: str | None = None
+        # A reset the driver suspects from here on ends the experiment (P21: a controller that
+        # reset is locked and drops the thrust the experiment sends, as the vehicle drifts).
+        self._resets_before = client.counters.resets_suspected
 
     def now_s(self) -> float:
         """The plant's clock, s."""
@@ -77,6 +81,11 @@ class Plant:
             sensors = self.client.sensors()
         except (ClientError, ConnectionError) as error:
             self.abort(f"the link failed: {error}")
+        if self.client.counters.resets_suspected > self._resets_before:
+            self.abort(
+                "the controller reset (its replies stopped, P21): it is locked now, and the "
+                "experiment cannot go on"
+            )
         if sensors.leak_detected:
             self.abort("the leak sensor fired")
         depth = sensors.depth_cm
