@@ -33,6 +33,7 @@ from rovlink.client.errors import QueryTimeoutError
 from rovlink.client.events import ClientEvent, LinkState, ResetSuspected
 from rovlink.client.sensors import Sensors
 from rovlink.logs import get_logger
+from rovlink.piloting.commanded import LockState
 from rovlink.piloting.tracked import TrackedClient
 from rovlink.protocol import Command
 
@@ -456,7 +457,11 @@ class MavlinkBridge:
 
     def _on_client_event(self, event: ClientEvent) -> None:
         lost = isinstance(event, LinkState) and event.state == "lost"
-        if (isinstance(event, ResetSuspected) or lost) and self.armed:
+        reset = isinstance(event, ResetSuspected)
+        # (By a suspected reset the lock as last sent is forgotten already, unknown rather than
+        # unlocked: anything but locked may have been armed.)
+        may_be_armed = self.messages.link_up and self.rov.commanded.lock is not LockState.LOCKED
+        if (lost and self.armed) or (reset and may_be_armed):
             # After a reset the controller is locked (P21): say so rather than show it armed.
             # (On a link being reopened, the #stop! waits to be its first frame.)
             reason = "the controller link was lost" if lost else "the controller may have reset"

@@ -620,9 +620,10 @@ class MqttBridge:
                 f"{event.consecutive_timeouts} queries timed out: the controller may have reset "
                 "(it is locked after a reset)"
             )
-            if self.rov.commanded.lock is LockState.UNLOCKED:
+            if self.rov.commanded.lock is not LockState.LOCKED:
                 # The state says the lock as last sent: #stop! makes it say what a reset did
-                # (P21), rather than "unlocked" for a robot that no longer moves.
+                # (P21), rather than "unlocked" for a robot that no longer moves (or unknown:
+                # the suspicion has made the lock as last sent unknown already).
                 self._in_background(self._stop_quietly())
                 detail += "; #stop! sent"
             self._event("reset_suspected", detail)
