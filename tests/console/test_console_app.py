@@ -8,7 +8,7 @@ import contextlib
 import io
 import logging
 import socket
-from collections.abc import AsyncIterator
+from collections.abc import AsyncIterator, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -69,6 +69,26 @@ async def _terminal(
             if not task.done():
                 task.cancel()
                 await asyncio.gather(task, return_exceptions=True)
+
+
+@dataclass
+class _SilentLine:
+    """A controller that never answers, and a console's connect to it: a reply timeout far
+    beyond any test and no retry, so that a query waits until the test ends it."""
+
+    controller: SilentController
+    link: RecordingLink
+
+    async def connect(self, on_stray: StrayCallback) -> AsyncClient:
+        options = client_options(timeout_s=30.0, retries=0, on_stray=on_stray)
+        return await AsyncClient(self.link, options).open()
+
+
+@pytest.fixture
+def line() -> Iterator[_SilentLine]:
+    controller = SilentController()
+    yield _SilentLine(controller, controller.link())
+    controller.close()
 
 
 async def test_dive_and_surface_with_replies_debug_errors_and_the_stop_key(tmp_path: Path) -> None:
@@ -267,18 +287,12 @@ async def test_the_library_s_warnings_are_printed_above_the_prompt(tmp_path: Pat
 
 @pytest.mark.parametrize("leave", [CTRL_D, "quit\r"], ids=["ctrl-d", "quit"])
 async def test_leaving_stops_at_once_not_behind_a_query_waiting_for_its_reply(
-    tmp_path: Path, leave: str
+    line: _SilentLine, tmp_path: Path, leave: str
 ) -> None:
     # Before, Ctrl-D and quit were queued behind the lines typed: with a controller that did
     # not answer, the robot went on at 40 % until every query had waited out its timeout
     # (the lines not sent yet were sent first, then #stop!).
-    silent = SilentController()
-    link = silent.link()
-
-    async def connect(on_stray: StrayCallback) -> AsyncClient:
-        options = client_options(timeout_s=30.0, retries=0, on_stray=on_stray)
-        return await AsyncClient(link, options).open()
-
+    silent, link, connect = line.controller, line.link, line.connect
     async with _terminal(Rig.simulated(), tmp_path / "history", connect) as term:
         term.type("start\rth 0 40\r")
         await until(lambda: b"#th.0.40!" in silent.received)
@@ -290,7 +304,6 @@ async def test_leaving_stops_at_once_not_behind_a_query_waiting_for_its_reply(
         assert not term.task.done()  # the #qd! is still waiting: the stop did not wait for it
         silent.host_end.shutdown(socket.SHUT_RDWR)  # (the query fails with the link: it ends)
         await term.finish()
-    silent.close()
     assert link.frames() == ["#crcoff!", "#start!", "#th.0.40!", "#qd!", "#stop!"]
 
 
@@ -310,39 +323,28 @@ async def test_pasted_lines_run_one_after_another(tmp_path: Path) -> None:
 
 
 async def test_leaving_does_not_wait_out_the_reply_timeout_of_a_query_on_the_wire(
+    line: _SilentLine,
     tmp_path: Path,
 ) -> None:
     # Before, quit sent #stop! at once, then waited for the #qd! on the wire for the whole
     # reply timeout (--timeout, up to an hour), and again while closing, before it ended.
-    silent = SilentController()
-    link = silent.link()
-
-    async def connect(on_stray: StrayCallback) -> AsyncClient:
-        options = client_options(timeout_s=30.0, retries=0, on_stray=on_stray)
-        return await AsyncClient(link, options).open()
-
+    silent, link, connect = line.controller, line.link, line.connect
     async with _terminal(Rig.simulated(), tmp_path / "history", connect) as term:
         term.type("start\rqd\r")
         await until(lambda: b"#qd!" in silent.received)
         term.type("quit\r")
         await term.finish()
     assert link.frames() == ["#crcoff!", "#start!", "#qd!", "#stop!"]
-    silent.close()
 
 
 async def test_ctrl_c_abandons_a_query_waiting_for_its_reply_and_the_lines_queued(
+    line: _SilentLine,
     tmp_path: Path,
 ) -> None:
     # Before, the Ctrl-C key only dropped the line being typed: a query waiting for a reply
     # that never came held every later line for the whole reply timeout (--timeout, up to an
     # hour), with no way to get the console back but to leave it.
-    silent = SilentController()
-    link = silent.link()
-
-    async def connect(on_stray: StrayCallback) -> AsyncClient:
-        options = client_options(timeout_s=30.0, retries=0, on_stray=on_stray)
-        return await AsyncClient(link, options).open()
-
+    silent, link, connect = line.controller, line.link, line.connect
     async with _terminal(Rig.simulated(), tmp_path / "history", connect) as term:
         term.type("qd\rstart\r")
         await until(lambda: b"#qd!" in silent.received)
@@ -354,7 +356,6 @@ async def test_ctrl_c_abandons_a_query_waiting_for_its_reply_and_the_lines_queue
         term.type(CTRL_D)
         await term.finish()
     assert link.frames() == ["#crcoff!", "#qd!", "#mvd.10!", "#stop!"]
-    silent.close()
 
 
 def test_lines_read_from_a_file_all_run_in_order_before_leaving(tmp_path: Path) -> None:

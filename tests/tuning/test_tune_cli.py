@@ -12,6 +12,17 @@ from rovlink.cli import main
 from rovlink.cli.tune import parse_triple
 
 
+@pytest.fixture
+def nothing_connects(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Fail the test if the command opens its link: what it refuses, it refuses before."""
+    from rovlink.cli import link_options
+
+    def refuse(args: argparse.Namespace) -> None:
+        raise AssertionError("connected")
+
+    monkeypatch.setattr(link_options, "connect", refuse)
+
+
 def test_list_rules_and_usage_errors(capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["tune", "sim://", "--list-rules"]) == 0
     assert "heave-poles" in capsys.readouterr().out
@@ -104,18 +115,12 @@ def test_gains_that_cannot_be_sent_at_the_end_are_one_line(
     ],
 )
 def test_a_step_outside_the_limits_is_refused_before_anything_is_sent(
-    monkeypatch: pytest.MonkeyPatch,
+    nothing_connects: None,
     capsys: pytest.CaptureFixture[str],
     argv: list[str],
     error: str,
 ) -> None:
     # Before, --step-from 500 with --max-depth 300 was taken, and the step drove past the limit.
-    from rovlink.cli import link_options
-
-    def refuse(args: argparse.Namespace) -> None:
-        raise AssertionError("connected")
-
-    monkeypatch.setattr(link_options, "connect", refuse)
     assert main(["tune", "sim://", "--yes", *argv]) == 2
     assert capsys.readouterr().err.strip().splitlines()[-1] == f"rovlink tune: error: {error}"
 
@@ -141,35 +146,23 @@ def test_a_step_outside_the_limits_is_refused_before_anything_is_sent(
     ],
 )
 def test_a_relay_that_would_run_into_a_limit_is_refused_before_anything_is_sent(
-    monkeypatch: pytest.MonkeyPatch,
+    nothing_connects: None,
     capsys: pytest.CaptureFixture[str],
     argv: list[str],
     error: str,
 ) -> None:
     # Before, --depth 21 (--min-depth 20, --hysteresis 3) ran the motors until the vehicle
     # rose past 18 cm, where the relay turns, and aborted there: above the limit, every time.
-    from rovlink.cli import link_options
-
-    def refuse(args: argparse.Namespace) -> None:
-        raise AssertionError("connected")
-
-    monkeypatch.setattr(link_options, "connect", refuse)
     assert main(["tune", "sim://", "--yes", "--no-verify", *argv]) == 2
     assert capsys.readouterr().err.strip().splitlines()[-1] == f"rovlink tune: error: {error}"
 
 
 def test_a_simulator_faster_than_real_time_is_refused_before_anything_is_sent(
-    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+    nothing_connects: None, capsys: pytest.CaptureFixture[str]
 ) -> None:
     # Before, `rovlink tune 'sim://?realtime=0'` ran: the simulated watchdog locked the motors
     # between two wall-clock samples, and the relay ran for 2 minutes to "no steady
     # oscillation within 120 s".
-    from rovlink.cli import link_options
-
-    def refuse(args: argparse.Namespace) -> None:
-        raise AssertionError("connected")
-
-    monkeypatch.setattr(link_options, "connect", refuse)
     assert main(["tune", "sim://?seed=1&realtime=0", "--yes"]) == 2
     assert capsys.readouterr().err.strip().splitlines()[-1] == (
         "rovlink tune: error: sim://?seed=1&realtime=0: realtime=0 runs the simulation faster "
@@ -197,7 +190,7 @@ def test_the_default_step_starts_no_shallower_than_min_depth() -> None:
     ],
 )
 def test_a_plot_that_cannot_be_written_is_refused_before_anything_is_sent(
-    monkeypatch: pytest.MonkeyPatch,
+    nothing_connects: None,
     capsys: pytest.CaptureFixture[str],
     tmp_path: Path,
     plot: str,
@@ -205,12 +198,6 @@ def test_a_plot_that_cannot_be_written_is_refused_before_anything_is_sent(
 ) -> None:
     # Before, --plot was first looked at after the experiment (minutes of the motors running):
     # a directory not there was one line then, a name without an image suffix a traceback.
-    from rovlink.cli import link_options
-
-    def refuse(args: argparse.Namespace) -> None:
-        raise AssertionError("connected")
-
-    monkeypatch.setattr(link_options, "connect", refuse)
     (tmp_path / "a-directory.png").mkdir()
     assert main(["tune", "sim://", "--yes", "--plot", f"{tmp_path}/{plot}"]) == 2
     last = capsys.readouterr().err.strip().splitlines()[-1]
