@@ -10,6 +10,7 @@ import pytest
 
 import rovlink
 import rovlink.aio
+from rovlink.aio.client import DEFAULT_MAX_IN_FLIGHT
 from rovlink.client import Client, ClientOptions
 from rovlink.client.links import PortLink
 from rovlink.controller import ControllerConfig, ControllerState
@@ -229,7 +230,9 @@ async def test_async_telemetry_from_the_simulator() -> None:
             count += 1
             if count == 200:
                 break
-        assert rov.counters.replies == 200
+    # (Pipelined: the queries still in flight when the loop ended may be answered before the
+    # client closes.)
+    assert 200 <= rov.counters.replies <= 200 + DEFAULT_MAX_IN_FLIGHT
 
 
 def test_sim_client_type() -> None:

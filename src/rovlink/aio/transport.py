@@ -375,17 +375,20 @@ class ThreadTransport:
             return
         self._closed = True
         try:
-            await asyncio.to_thread(self._flush, CLOSE_FLUSH_S)
+            if self._writer is not None:  # (else everything was written at once)
+                await asyncio.to_thread(self._flush, CLOSE_FLUSH_S)
         finally:  # also when cancelled: a second close() returns at once
             with self._changed:
                 self._closing = True
                 self._changed.notify_all()
             self._abort_writes()  # (what the flush did not write in time is given up)
             self._link.wake()
-            for thread in (self._reader, self._writer):
-                if thread is not None:
-                    await asyncio.to_thread(thread.join, 2.0)
-            self._link.close()
+            try:
+                for thread in (self._reader, self._writer):
+                    if thread is not None:
+                        await asyncio.to_thread(thread.join, 2.0)
+            finally:  # (cancelled while a thread ends: the port is released all the same)
+                self._link.close()
 
     def _flush(self, timeout_s: float) -> None:
         with self._changed:
