@@ -256,6 +256,8 @@ class ThreadTransport:
         self._failed_writes = bytearray()
         self._reader: threading.Thread | None = None
         self._writer: threading.Thread | None = None
+        #: A port whose writes never wait (the simulator's) is written in the loop's thread.
+        self._writes_at_once = not getattr(link, "writes_may_wait", True)
 
     def start(self, on_data: DataCallback, on_lost: LostCallback) -> None:
         """Start the reading and the writing thread."""
@@ -268,7 +270,7 @@ class ThreadTransport:
             daemon=True,
         )
         self._reader.start()
-        if getattr(self._link, "writes_may_wait", True):
+        if not self._writes_at_once:
             self._writer = threading.Thread(
                 target=self._write_loop, name=f"rovlink aio writer ({description})", daemon=True
             )
@@ -309,7 +311,9 @@ class ThreadTransport:
                 return
             self._lost = error
             self._changed.notify_all()
-        self._abort_writes()  # (a write still waiting on the port: the writing thread ends)
+        links.abort_writes(
+            self._link
+        )  # (a write still waiting on the port: the writing thread ends)
         if not self._closing:
             self._call_in_loop(self._deliver_lost, error)
 
@@ -317,11 +321,6 @@ class ThreadTransport:
         # (In the loop, maybe after close() began: the client has a new link by then.)
         if not self._closed and self._on_lost is not None:
             self._on_lost(error)
-
-    def _abort_writes(self) -> None:
-        abort_writes = getattr(self._link, "abort_writes", None)
-        if abort_writes is not None:
-            abort_writes()
 
     def _call_in_loop(
         self, callback: Callable[[object], None] | Callable[..., None], argument: object
@@ -334,7 +333,7 @@ class ThreadTransport:
     def write(self, data: bytes) -> None:
         """Queue ``data`` for the writing thread; never waits for the port. (A port whose
         writes never wait, an in-process one, is written at once.)"""
-        if self._writer is None and not getattr(self._link, "writes_may_wait", True):
+        if self._writes_at_once:
             self._write_now(data)
             return
         with self._changed:
@@ -381,7 +380,7 @@ class ThreadTransport:
             with self._changed:
                 self._closing = True
                 self._changed.notify_all()
-            self._abort_writes()  # (what the flush did not write in time is given up)
+            links.abort_writes(self._link)  # (what the flush did not write in time is given up)
             self._link.wake()
             try:
                 for thread in (self._reader, self._writer):

@@ -56,14 +56,6 @@ _ANSWERED = Outcome.ANSWERED
 _get_ident = threading.get_ident
 
 
-def _abort_writes(link: Link | None) -> None:
-    """Give up the writes waiting for room on ``link``, where it can (a descriptor's link:
-    :meth:`~rovlink.client.links.FdLink.abort_writes`); others' writes end at their timeout."""
-    abort_writes = getattr(link, "abort_writes", None)
-    if abort_writes is not None:
-        abort_writes()
-
-
 def _owns(lock: threading.RLock) -> bool:
     """Whether this thread holds ``lock`` (the owner check ``threading.Condition`` uses)."""
     return bool(lock._is_owned())  # type: ignore[attr-defined]
@@ -221,7 +213,7 @@ class Client(CommandMethods):
                 self._stop_reconnecting.set()
                 # A reopened link that takes nothing would hold the reconnecting thread, and
                 # the port, past this close() (its write gives up after 2 s).
-                _abort_writes(self._readied_link)
+                links.abort_writes(self._readied_link)
                 self._background_wakeup.notify()
                 self._changed.notify_all()
                 on_the_wire = self._session.on_the_wire  # (nothing new is written now)
@@ -256,7 +248,7 @@ class Client(CommandMethods):
         """Close the port once no thread is writing on it (at most 2 s more): a descriptor
         closed under a write in another thread (a stop() from it) could be reused by the next
         port opened, and written to. A write still waiting for room is given up first."""
-        _abort_writes(self._link)
+        links.abort_writes(self._link)
         writing_done = self._wire_lock.acquire(timeout=links.WRITE_TIMEOUT_S)
         try:
             self._link.close()
@@ -455,7 +447,7 @@ class Client(CommandMethods):
             # A write still waiting for room on the lost link is given up now, not at its
             # write timeout: it holds the wire lock, and every write (a stop()) waits behind.
             # (Not while closing: a last #stop! may still be on its way out.)
-            _abort_writes(self._link)
+            links.abort_writes(self._link)
         if self._reopen is not None and not self._closing:
             self._session.disconnect()  # what was on the wire fails: its replies are gone
             self._changed.notify_all()

@@ -25,7 +25,15 @@ from rovlink.client.errors import ConnectError, ConnectionLostError
 from rovlink.client.schemes import load_handler
 from rovlink.client.url import Endpoint, Scheme
 
-__all__ = ["POLL_INTERVAL_S", "Link", "PortLink", "SerialFdLink", "SocketLink", "open_link"]
+__all__ = [
+    "POLL_INTERVAL_S",
+    "Link",
+    "PortLink",
+    "SerialFdLink",
+    "SocketLink",
+    "abort_writes",
+    "open_link",
+]
 
 #: How long a read of a port without a file descriptor blocks before it looks around again.
 POLL_INTERVAL_S = 0.05
@@ -579,6 +587,19 @@ class PortLink:
             self._closed = True
             self.abort_writes()  # (a writer waiting for room must not outlive the port)
             self._port.close()
+
+
+def abort_writes(link: Link | None) -> None:
+    """Give up the writes waiting for room on ``link``, where it can (the links of this module:
+    ``FdLink.abort_writes``, ``PortLink.abort_writes``); others' writes end at their timeout.
+
+    Example::
+
+        abort_writes(link)   # the link is lost: a writer waiting in another thread gives up
+    """
+    abort = getattr(link, "abort_writes", None)
+    if abort is not None:
+        abort()
 
 
 def _write_abandoned(description: str) -> ConnectionLostError:
