@@ -5,7 +5,9 @@ for a command that waits for the controller on connect, one that answers ``#qd!`
 from __future__ import annotations
 
 import contextlib
+import errno
 import fcntl
+import io
 import json
 import os
 import re
@@ -19,14 +21,19 @@ import threading
 import time
 from collections.abc import Iterator
 from pathlib import Path
+from typing import TYPE_CHECKING, cast
 
 import pytest
 
+from rovlink.cli.interrupt import say_ready
 from rovlink.recorder import FrameEntry, HeaderEntry, read_entries
 from rovlink.recorder.formats import open_sink
 from tests.board.rig import fake_toml
 from tests.cli.conftest import RunCli
 from tests.cli.silent_controller import WAIT_S, SilentController
+
+if TYPE_CHECKING:
+    from _typeshed import ReadableBuffer
 
 pytestmark = pytest.mark.integration
 
@@ -498,6 +505,36 @@ def test_a_closed_terminal_ends_a_serving_command_with_0_and_stop(
     if command == "record":
         names = [e.name for e in read_entries(str(recording)) if isinstance(e, FrameEntry)]
         assert names[-1] == "stop"
+
+
+class _TerminalClosingAfterOneWrite(io.RawIOBase):
+    """A terminal closed as soon as the first thing written shows: later writes fail (EIO)."""
+
+    def __init__(self) -> None:
+        self.written: list[bytes] = []
+
+    def writable(self) -> bool:
+        return True
+
+    def write(self, data: ReadableBuffer, /) -> int:
+        if self.written:
+            raise OSError(errno.EIO, "Input/output error")
+        self.written.append(bytes(data))
+        return len(self.written[0])
+
+
+@pytest.mark.parametrize("unbuffered", [True, False], ids=["PYTHONUNBUFFERED", "buffered"])
+def test_a_ready_line_goes_to_the_terminal_in_one_write(unbuffered: bool) -> None:
+    # Standard output as Python sets it up for a terminal, with PYTHONUNBUFFERED=1 (as many
+    # services and containers run) or without. print writes a line and its end apart when
+    # unbuffered: a terminal closed as soon as the line showed failed the end's write.
+    terminal = _TerminalClosingAfterOneWrite()
+    # (with -u Python wraps the raw file itself, which typeshed's TextIOWrapper does not allow)
+    buffer = cast("io.BufferedWriter", terminal) if unbuffered else io.BufferedWriter(terminal)
+    stdout = io.TextIOWrapper(buffer, line_buffering=not unbuffered, write_through=unbuffered)
+    line = "rovlink sim ready: tcp 127.0.0.1:5760 (seed 1, unpaced); Ctrl-C stops"
+    say_ready(line, stream=stdout)
+    assert terminal.written == [f"{line}\n".encode()]
 
 
 def test_a_closed_terminal_ends_the_simulator_with_0() -> None:

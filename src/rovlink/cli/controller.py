@@ -12,7 +12,7 @@ import threading
 from typing import TYPE_CHECKING
 
 from rovlink.cli.failure import CommandError, InputError, UsageError, reason
-from rovlink.cli.interrupt import ServingSignals, say_last
+from rovlink.cli.interrupt import ServingSignals, say_last, say_ready
 from rovlink.cli.link_options import baud_rate, file_name, seconds
 
 if TYPE_CHECKING:
@@ -144,10 +144,9 @@ def _run_pi(
     server = BoardServer(config.controller, board, overrun_warning_s=config.board.overrun_warning_s)
     try:
         endpoints = _open_endpoints(server, args, address)
-        print(
+        say_ready(
             f"rovlink controller ready: board pi, {', '.join(endpoints)}; "
-            "thrusters at neutral; Ctrl-C stops",
-            flush=True,
+            "thrusters at neutral; Ctrl-C stops"
         )
         try:
             server.serve(stop.is_set)
@@ -267,9 +266,7 @@ def _run_sim(
             except OSError as error:
                 raise CommandError(f"cannot listen on {args.tcp}: {reason(error)}") from None
             endpoints.append(_tcp_endpoint(host, port))
-        print(
-            f"rovlink controller ready: board sim, {', '.join(endpoints)}; Ctrl-C stops", flush=True
-        )
+        say_ready(f"rovlink controller ready: board sim, {', '.join(endpoints)}; Ctrl-C stops")
         server.serve(stop.is_set)
     finally:
         server.close()

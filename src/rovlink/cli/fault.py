@@ -10,7 +10,7 @@ import argparse
 from collections.abc import Callable
 
 from rovlink.cli.failure import CommandError, UsageError, reason
-from rovlink.cli.interrupt import ServingSignals, say_last
+from rovlink.cli.interrupt import ServingSignals, say_last, say_ready
 from rovlink.cli.link_options import bounded_float
 
 __all__ = ["EPILOG"]
@@ -110,12 +110,11 @@ def run(args: argparse.Namespace) -> int:
             raise CommandError(f"cannot listen on {args.listen}: {reason(error)}") from None
         signals = ServingSignals()
         host, tcp_port = proxy.address
-        print(
+        say_ready(
             f"rovlink fault ready: socket://{host}:{tcp_port} -> {link.description} "
             f"(ber {settings.ber:g}, drop {settings.drop:g}, dup {settings.dup:g}, "
             f"delay {settings.delay_ms:g}±{settings.jitter_ms:g} ms, seed {settings.seed}); "
-            "Ctrl-C stops",
-            flush=True,
+            "Ctrl-C stops"
         )
         proxy.serve(signals.stopping.is_set)
     finally:

@@ -16,7 +16,7 @@ import sys
 import threading
 from collections.abc import Callable
 from types import FrameType
-from typing import TYPE_CHECKING, Any, TypeVar
+from typing import TYPE_CHECKING, Any, TextIO, TypeVar
 
 from rovlink.protocol import Setting
 
@@ -30,6 +30,7 @@ __all__ = [
     "may_move",
     "run_in_worker",
     "say_last",
+    "say_ready",
     "say_stopped",
     "send_stop",
 ]
@@ -120,7 +121,23 @@ def say_last(line: str) -> None:
     (SIGHUP) fails every write, and that error must not become the command's status (a
     serving command stopped so ends with 0, a driving one with 130, as documented)."""
     with contextlib.suppress(OSError):
-        print(line, file=sys.stderr, flush=True)
+        _write_line(sys.stderr, line)
+
+
+def say_ready(line: str, *, stream: TextIO | None = None) -> None:
+    """A serving command's ready line (``rovlink sim ready: …; Ctrl-C stops``), on standard
+    output unless ``stream`` says otherwise, written whole at once.
+
+    ``print`` writes a line and its end with two system calls on a terminal: one who closed the
+    window as soon as the line showed made the second fail, and a service stopped by that
+    (SIGHUP, status 0) ended with the write's error (status 1) instead."""
+    _write_line(sys.stdout if stream is None else stream, line)
+
+
+def _write_line(stream: TextIO, line: str) -> None:
+    """``line`` and its end in one write, flushed."""
+    stream.write(f"{line}\n")
+    stream.flush()
 
 
 def run_in_worker(work: Callable[[], T]) -> T:

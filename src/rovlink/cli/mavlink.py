@@ -125,6 +125,7 @@ async def _serve(
     import rovlink.aio  # noqa: PLC0415
     from rovlink.bridges.mavlink.bridge import MavlinkBridge  # noqa: PLC0415
     from rovlink.bridges.mavlink.endpoint import MavlinkEndpoint  # noqa: PLC0415
+    from rovlink.cli.interrupt import say_ready  # noqa: PLC0415 - not on the path of --help
     from rovlink.client.errors import ConnectionLostError  # noqa: PLC0415
     from rovlink.piloting.tracked import TrackedClient  # noqa: PLC0415
 
@@ -148,10 +149,9 @@ async def _serve(
             parameters,
             send_on_start=send_on_start,
         )
-        print(
+        say_ready(
             f"rovlink mavlink ready: {args.url} as MAVLink system {args.system_id} on "
-            f"{args.out}; Ctrl-C stops",
-            flush=True,
+            f"{args.out}; Ctrl-C stops"
         )
         try:
             await bridge.run()

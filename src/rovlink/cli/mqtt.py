@@ -197,6 +197,7 @@ async def _serve(args: argparse.Namespace, broker: BrokerSettings) -> None:
     import rovlink.aio  # noqa: PLC0415
     from rovlink.bridges.mqtt.bridge import BridgeReplacedError, MqttBridge  # noqa: PLC0415
     from rovlink.bridges.mqtt.command_age import DEFAULT_MAX_COMMAND_AGE_S  # noqa: PLC0415
+    from rovlink.cli.interrupt import say_ready  # noqa: PLC0415 - not on the path of --help
     from rovlink.client.errors import ConnectionLostError  # noqa: PLC0415
     from rovlink.piloting.tracked import TrackedClient  # noqa: PLC0415
 
@@ -221,10 +222,9 @@ async def _serve(args: argparse.Namespace, broker: BrokerSettings) -> None:
             max_command_age_s=args.motion_timeout_s or DEFAULT_MAX_COMMAND_AGE_S,
         )
         commands = "commands allowed" if args.allow_commands else "only stop accepted"
-        print(
+        say_ready(
             f"rovlink mqtt ready: {args.url} as rovlink/{args.robot} on {broker.describe()} "
-            f"({commands}); Ctrl-C stops",
-            flush=True,
+            f"({commands}); Ctrl-C stops"
         )
         try:
             await bridge.run()

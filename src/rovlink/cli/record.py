@@ -73,7 +73,7 @@ def run(args: argparse.Namespace) -> int:
     case. A link lost before any frame came (a controller that is busy, a connection closed at
     once) did not open: status 1, and no file is kept. A link lost later ends the recording
     with status 1 (as ``rovlink send`` ends on a lost link), the file kept."""
-    from rovlink.cli.interrupt import ServingSignals  # noqa: PLC0415
+    from rovlink.cli.interrupt import ServingSignals, say_ready  # noqa: PLC0415
     from rovlink.client import parse_url  # noqa: PLC0415 - the driver loads when used
     from rovlink.client.errors import ConnectionLostError  # noqa: PLC0415
     from rovlink.client.links import open_link  # noqa: PLC0415
@@ -114,7 +114,7 @@ def run(args: argparse.Namespace) -> int:
         recorder.on_bytes(direction, data, by_session=by_session)
 
     where = f"; program's side: {tap.path}" if tap is not None else " (listening only)"
-    print(f"recording {args.url} to {args.output}{where}; Ctrl-C stops", file=sys.stderr)
+    say_ready(f"recording {args.url} to {args.output}{where}; Ctrl-C stops", stream=sys.stderr)
     started_s = time.monotonic()
     lost: str | None = None
     try:

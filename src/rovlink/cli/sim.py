@@ -7,7 +7,7 @@ import argparse
 from typing import TYPE_CHECKING
 
 from rovlink.cli.failure import CommandError, InputError, UsageError, reason
-from rovlink.cli.interrupt import ServingSignals, say_last
+from rovlink.cli.interrupt import ServingSignals, say_last, say_ready
 from rovlink.cli.link_options import baud_rate, bounded_float, file_name, seconds
 
 if TYPE_CHECKING:
@@ -134,10 +134,9 @@ def run(args: argparse.Namespace) -> int:
             endpoints.append(f"tcp {host}:{port}")
         signals = ServingSignals()
         pacing = f"{args.baud} baud" if args.baud else "unpaced"
-        print(
+        say_ready(
             f"rovlink sim ready: {', '.join(endpoints)} "
-            f"(seed {server.robot.seed}, {pacing}); Ctrl-C stops",
-            flush=True,
+            f"(seed {server.robot.seed}, {pacing}); Ctrl-C stops"
         )
         server.serve(signals.stopping.is_set)
     finally:

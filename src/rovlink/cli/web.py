@@ -92,6 +92,7 @@ def run(args: argparse.Namespace) -> int:
     from pathlib import Path  # noqa: PLC0415
 
     import rovlink.aio  # noqa: PLC0415
+    from rovlink.cli.interrupt import say_ready  # noqa: PLC0415
 
     recordings = Path(args.recordings)
     if recordings.exists() and not recordings.is_dir():  # else refused only at the first recording
@@ -129,10 +130,7 @@ def run(args: argparse.Namespace) -> int:
             raise link_options.connection_failure(args.url, error) from None
 
     def ready(urls: list[str]) -> None:
-        print(
-            f"rovlink web ready: {args.url} at " + " or ".join(urls) + "; Ctrl-C stops",
-            flush=True,
-        )
+        say_ready(f"rovlink web ready: {args.url} at " + " or ".join(urls) + "; Ctrl-C stops")
 
     try:
         interrupted = run_async(serve(connect, options, description=args.url, ready=ready))
