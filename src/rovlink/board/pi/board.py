@@ -326,6 +326,9 @@ def _starting(what: str, action: Callable[[], _T]) -> _T:
     except (OSError, RuntimeError, ValueError) as error:
         reason = error.strerror if isinstance(error, OSError) and error.strerror else error
         raise BoardStartError(f"{what}: {reason}") from None
+    except Exception as error:  # a library's own (gpiozero's: a pin in use, a fixed pull)
+        logger.debug("%s failed to start", what, exc_info=True)
+        raise BoardStartError(f"{what}: {error}") from None
 
 
 def _first_reading(name: str, source: SensorSource[_T], clock: MonotonicClock) -> _T:
