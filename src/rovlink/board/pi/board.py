@@ -41,7 +41,7 @@ from rovlink.board.sensors import (
 from rovlink.controller import Attitude, Hardware
 from rovlink.logs import get_logger
 
-__all__ = ["fake_bus_for", "open_pi_board"]
+__all__ = ["fake_bus_for", "open_pi_board", "set_pi_outputs_at_rest"]
 
 logger = get_logger(__name__)
 
@@ -213,6 +213,47 @@ def open_pi_board(config: PiConfig, *, bus: I2cBus | None = None, pin_factory: A
     if config.pca9685.check_interval_s > 0:
         checks.append(Pca9685ResetWatch(pca, rest_pulses_us, config.pca9685.check_interval_s))
     return Board("pi", hardware, make_safe, close_all, tuple(sensors), tuple(checks))
+
+
+def set_pi_outputs_at_rest(config: PiConfig, *, bus: I2cBus | None = None) -> str:
+    """Put the thrusters at neutral and a claw motor at rest on the PCA9685 of ``config``, and
+    nothing else (no sensor is opened); what was done, for a log line.
+
+    For a controller that died without doing so itself (killed with SIGKILL, by the kernel's
+    out-of-memory killer, a crash of the interpreter): the chip keeps making the last pulses it
+    was given. A chip still running as the controller left it keeps a servo claw's pulse; one
+    that is not (reset, not answering) is started as at the controller's start. Raises
+    :class:`BoardStartError` naming the chip.
+    """
+    if bus is None:
+        bus = _open_bus(config)
+    try:
+        pca = Pca9685(bus, config.pca9685.address, oscillator_hz=config.pca9685.oscillator_hz)
+        thrusters = EscThrusters(
+            pca,
+            [
+                EscChannel(esc.channel, esc.reversed, esc.min_us, esc.neutral_us, esc.max_us)
+                for esc in config.escs
+            ],
+        )
+        claw = _claw(config, pca)
+        neutral = thrusters.neutral_pulses_us()
+        start = dict(neutral)
+        if isinstance(claw, MotorClaw):
+            neutral[claw.channel] = claw.rest_pulse_us()
+        if isinstance(claw, MotorClaw | ServoClaw):
+            start[claw.channel] = claw.rest_pulse_us()
+        name = f"PWM board PCA9685 at {pca.address:#04x} on I²C bus {config.i2c.bus}"
+        started = _starting(
+            name,
+            lambda: pca.take_over(config.pca9685.frequency_hz, neutral, start),
+        )
+    finally:
+        with contextlib.suppress(Exception):
+            bus.close()
+    how = "started again" if started else "running"
+    channels = ", ".join(str(channel) for channel in sorted(neutral))
+    return f"{name} ({how}): neutral pulses on channels {channels}"
 
 
 def _open_bus(config: PiConfig) -> I2cBus:
