@@ -93,6 +93,33 @@ def test_a_killed_controller_is_set_to_neutral_by_the_units_exec_stop_post(
         assert is_neutral(pulses(transactions))
 
 
+def test_a_second_controller_on_the_same_pwm_board_is_refused_before_touching_it(
+    tmp_path: Path,
+) -> None:
+    # The service runs; someone starts another controller for the bench test. Two controllers
+    # on one PCA9685 each write only what they believe changed: `#stop!` sent to one would not
+    # stop what the other set running. The second refuses before a single transaction.
+    log = tmp_path / "i2c.jsonl"
+    config = make_fake_toml(tmp_path, log, watchdog_s=0.0)
+    with running_controller(tmp_path, "--config", str(config), "--pty") as controller:
+        assert controller.pty_path is not None
+        with rovlink.connect(controller.pty_path, keepalive=None, timeout=REPLY_TIMEOUT_S) as rov:
+            rov.start()
+            rov.move(90, 50)
+            assert wait_until(lambda: _moving(log))
+            chip_writes = [t for t in read_log(log) if t.address == 0x40 and not t.read]
+            for arguments in (("--pty",), ("--neutral",)):
+                result = _run("--config", str(config), *arguments, timeout_s=20.0)
+                assert result.returncode == 1, result.stderr
+                assert (
+                    "PWM board PCA9685 at 0x40 on I²C bus 1 is in use by another rovlink "
+                    "controller" in result.stderr
+                )
+            assert [t for t in read_log(log) if t.address == 0x40 and not t.read] == chip_writes
+            assert _moving(log)
+            assert rov.sensors().pressure_raw == 20  # the first goes on undisturbed
+
+
 def test_neutral_serves_nothing_and_is_for_the_pi_board() -> None:
     assert "--neutral serves nothing" in _run("--config", str(EXAMPLE), "--neutral", "--pty").stderr
     assert "--neutral is for --board pi" in _run("--board", "sim", "--neutral").stderr
@@ -162,9 +189,13 @@ def test_serving_a_serial_device_exclusively(tmp_path: Path) -> None:
                 return b"$qd." in received
 
             assert wait_until(answered)
-            # A second controller on the same device is refused (P22), at neutral.
+            # A second controller on the same device is refused (P22), at neutral. (On a
+            # board of its own: on the same board it would be refused before the device.)
+            other = tmp_path / "other"
+            other.mkdir()
+            other_config = make_fake_toml(other, other / "i2c.jsonl", watchdog_s=0.0)
             second = subprocess.run(
-                controller_command("--config", str(config), "--port", device),
+                controller_command("--config", str(other_config), "--port", device),
                 capture_output=True,
                 text=True,
                 env=environment(),
@@ -178,13 +209,13 @@ def test_serving_a_serial_device_exclusively(tmp_path: Path) -> None:
         os.close(slave)
 
 
-def _run(*arguments: str) -> subprocess.CompletedProcess[str]:
+def _run(*arguments: str, timeout_s: float = 60.0) -> subprocess.CompletedProcess[str]:
     return subprocess.run(
         controller_command(*arguments),
         capture_output=True,
         text=True,
         env=environment(),
-        timeout=60,
+        timeout=timeout_s,
         check=False,
     )
 

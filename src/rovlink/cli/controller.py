@@ -122,7 +122,7 @@ def run(args: argparse.Namespace) -> int:
 def _set_neutral(args: argparse.Namespace) -> int:
     """``--neutral``: the thrusters at neutral, and nothing else opened."""
     from rovlink.board.board import BoardStartError  # noqa: PLC0415
-    from rovlink.board.pi.board import set_pi_outputs_at_rest  # noqa: PLC0415
+    from rovlink.board.pi.board import PwmBoardInUseError, set_pi_outputs_at_rest  # noqa: PLC0415
 
     if args.board != "pi":
         raise UsageError("--neutral is for --board pi")
@@ -132,6 +132,8 @@ def _set_neutral(args: argparse.Namespace) -> int:
     config = _pi_config(args)
     try:
         done = set_pi_outputs_at_rest(config)
+    except PwmBoardInUseError as error:  # a running controller sets its thrusters itself
+        raise CommandError(str(error)) from None
     except BoardStartError as error:
         raise CommandError(f"{error}; NEUTRAL COULD NOT BE SET: cut the thruster power") from None
     say_last(f"rovlink controller: {done}")
