@@ -468,3 +468,20 @@ def test_an_imu_reset_is_repaired_before_it_goes_stale() -> None:
         rig.send(b"#qhe!")
         assert wait_until(lambda: rig.saw(b"$qhe.90!"))
     assert not rig.errors
+
+
+@pytest.mark.parametrize(("watchdog_s", "warned"), [(0.0, True), (2.0, False)])
+def test_a_board_served_without_the_link_loss_failsafe_says_so(
+    caplog: pytest.LogCaptureFixture, watchdog_s: float, warned: bool
+) -> None:
+    # watchdog_s = 0, handy on the simulator's bench, on a robot leaves a dead link's last
+    # command running: the journal must show it from the start.
+    caplog.set_level("WARNING", logger="rovlink.board")
+    config = _quick(watchdog_s=watchdog_s)
+    board = open_pi_board(config, bus=fake_bus_for(config), pin_factory=_mock_pins())
+    try:
+        BoardServer(config.controller, board)
+    finally:
+        board.close()
+    messages = [record.getMessage() for record in caplog.records]
+    assert any("link-loss failsafe is off" in message for message in messages) is warned

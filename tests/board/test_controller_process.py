@@ -59,6 +59,82 @@ def test_a_signal_ends_the_process_with_the_thrusters_at_neutral(
         )
 
 
+def _unit_line(key: str) -> list[str]:
+    """The arguments after ``rovlink`` of the ``key=`` line of docs/hardware.md's unit file."""
+    text = (EXAMPLE.parents[1] / "docs" / "hardware.md").read_text(encoding="utf-8")
+    found = re.search(rf"^{key}=\S*/rovlink (.+)$", text, flags=re.MULTILINE)
+    assert found, f"no {key}= line in the unit file of docs/hardware.md"
+    return found.group(1).split()
+
+
+def test_a_killed_controller_is_set_to_neutral_by_the_units_exec_stop_post(
+    tmp_path: Path,
+) -> None:
+    log = tmp_path / "i2c.jsonl"
+    config = make_fake_toml(tmp_path, log, watchdog_s=0.0)
+    stop_post = [
+        str(config) if a == "/etc/rovlink/rov.toml" else a for a in _unit_line("ExecStopPost")
+    ]
+    assert stop_post[0] == "controller"
+    assert str(config) in stop_post
+    with running_controller(tmp_path, "--config", str(config), "--pty") as controller:
+        assert controller.pty_path is not None
+        with rovlink.connect(controller.pty_path, keepalive=None, timeout=REPLY_TIMEOUT_S) as rov:
+            rov.start()
+            rov.move(90, 50)
+            assert wait_until(lambda: _moving(log))
+            controller.process.kill()  # SIGKILL: nothing of the process runs again
+            assert controller.process.wait(10) == -signal.SIGKILL
+        assert _moving(log)  # the PCA9685 goes on making the last pulses
+        result = _run(*stop_post[1:])
+        assert result.returncode == 0, result.stderr
+        assert "neutral pulses on channels 0, 1, 2, 3, 4, 5, 8" in result.stderr
+        transactions = read_log(log)
+        assert is_neutral(pulses(transactions))
+
+
+def test_a_second_controller_on_the_same_pwm_board_is_refused_before_touching_it(
+    tmp_path: Path,
+) -> None:
+    # The service runs; someone starts another controller for the bench test. Two controllers
+    # on one PCA9685 each write only what they believe changed: `#stop!` sent to one would not
+    # stop what the other set running. The second refuses before a single transaction.
+    log = tmp_path / "i2c.jsonl"
+    config = make_fake_toml(tmp_path, log, watchdog_s=0.0)
+    with running_controller(tmp_path, "--config", str(config), "--pty") as controller:
+        assert controller.pty_path is not None
+        with rovlink.connect(controller.pty_path, keepalive=None, timeout=REPLY_TIMEOUT_S) as rov:
+            rov.start()
+            rov.move(90, 50)
+            assert wait_until(lambda: _moving(log))
+            chip_writes = [t for t in read_log(log) if t.address == 0x40 and not t.read]
+            for arguments in (("--pty",), ("--neutral",)):
+                result = _run("--config", str(config), *arguments, timeout_s=20.0)
+                assert result.returncode == 1, result.stderr
+                assert (
+                    "PWM board PCA9685 at 0x40 on I²C bus 1 is in use by another rovlink "
+                    "controller" in result.stderr
+                )
+            assert [t for t in read_log(log) if t.address == 0x40 and not t.read] == chip_writes
+            assert _moving(log)
+            assert rov.sensors().pressure_raw == 20  # the first goes on undisturbed
+
+
+def test_neutral_serves_nothing_and_is_for_the_pi_board() -> None:
+    assert "--neutral serves nothing" in _run("--config", str(EXAMPLE), "--neutral", "--pty").stderr
+    assert "--neutral is for --board pi" in _run("--board", "sim", "--neutral").stderr
+
+
+def test_neutral_that_cannot_reach_the_pwm_board_says_so(tmp_path: Path) -> None:
+    path = tmp_path / "rov.toml"
+    path.write_text(
+        EXAMPLE.read_text(encoding="utf-8").replace("bus = 1", "bus = 250", 1), encoding="utf-8"
+    )
+    result = _run("--config", str(path), "--neutral")
+    assert result.returncode == 1
+    assert "cannot open I²C bus 250" in result.stderr
+
+
 def test_the_watchdog_of_a_real_process_gives_neutral(tmp_path: Path) -> None:
     log = tmp_path / "i2c.jsonl"
     config = make_fake_toml(tmp_path, log, watchdog_s=0.5)
@@ -113,9 +189,13 @@ def test_serving_a_serial_device_exclusively(tmp_path: Path) -> None:
                 return b"$qd." in received
 
             assert wait_until(answered)
-            # A second controller on the same device is refused (P22), at neutral.
+            # A second controller on the same device is refused (P22), at neutral. (On a
+            # board of its own: on the same board it would be refused before the device.)
+            other = tmp_path / "other"
+            other.mkdir()
+            other_config = make_fake_toml(other, other / "i2c.jsonl", watchdog_s=0.0)
             second = subprocess.run(
-                controller_command("--config", str(config), "--port", device),
+                controller_command("--config", str(other_config), "--port", device),
                 capture_output=True,
                 text=True,
                 env=environment(),
@@ -129,13 +209,13 @@ def test_serving_a_serial_device_exclusively(tmp_path: Path) -> None:
         os.close(slave)
 
 
-def _run(*arguments: str) -> subprocess.CompletedProcess[str]:
+def _run(*arguments: str, timeout_s: float = 60.0) -> subprocess.CompletedProcess[str]:
     return subprocess.run(
         controller_command(*arguments),
         capture_output=True,
         text=True,
         env=environment(),
-        timeout=60,
+        timeout=timeout_s,
         check=False,
     )
 

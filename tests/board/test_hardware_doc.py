@@ -102,3 +102,42 @@ int main(void)
     )
     result = subprocess.run([str(binary)], capture_output=True, text=True, timeout=10, check=False)
     assert result.returncode == 0, result.stdout
+
+
+def _unit_file() -> str:
+    """The systemd unit of "Running it as a service"."""
+    blocks = re.findall(r"^```ini\n(.*?)^```", DOC.read_text(encoding="utf-8"), re.DOTALL | re.M)
+    assert len(blocks) == 1
+    return str(blocks[0])
+
+
+@pytest.mark.skipif(shutil.which("systemd-analyze") is None, reason="no systemd-analyze")
+def test_systemd_takes_the_unit_file(tmp_path: Path) -> None:
+    # Its programs must exist for systemd to take the file: any executable stands in.
+    unit = _unit_file().replace("/home/rov/rovlink/.venv/bin/rovlink", "/bin/true")
+    path = tmp_path / "rovlink.service"
+    path.write_text(unit, encoding="utf-8")
+    result = subprocess.run(
+        ["systemd-analyze", "verify", "--man=no", str(path)],
+        capture_output=True,
+        text=True,
+        timeout=30,
+        check=False,
+    )
+    assert result.returncode == 0, result.stderr
+
+
+def test_the_unit_outlives_its_serial_device_going_away() -> None:
+    """The failsafe table promises that a serial device gone away is opened again every second:
+    BindsTo= on the device would have systemd stop the controller when the adapter is unplugged
+    (and not start it when it is back), the robot dead in the water for the rest of the dive.
+    The unit waits for the device at boot (Requires= and After=) and lets the controller ride
+    out its absence."""
+    lines = _unit_file().splitlines()
+    device_lines = [line for line in lines if ".device" in line and not line.startswith("#")]
+    assert device_lines
+    assert not [line for line in device_lines if line.startswith("BindsTo=")]
+    assert "Requires=dev-serial0.device" in lines
+    assert "After=dev-serial0.device" in lines
+    text = " ".join(DOC.read_text(encoding="utf-8").split())
+    assert "the device is opened again every second" in text

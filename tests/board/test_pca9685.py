@@ -228,3 +228,40 @@ def test_a_watch_interval_that_is_not_positive_is_refused(interval_s: float) -> 
     _bus, _fake, pca = _chip()
     with pytest.raises(ValueError, match="interval_s must be > 0"):
         Pca9685ResetWatch(pca, dict, interval_s)
+
+
+def test_taking_over_a_running_chip_sets_only_the_pulses_given() -> None:
+    # A controller killed while driving: channel 0 a thruster at full ahead, 8 a servo claw.
+    bus, fake, controller = _chip()
+    controller.start(50.0, {0: 1500.0, 8: 1500.0})
+    controller.set_pulses_us({0: 1900.0, 8: 1300.0})
+    before = len(bus.transactions)
+    after_death = Pca9685(bus)
+    assert after_death.take_over(50.0, {0: 1500.0}, {0: 1500.0, 8: 1500.0}) is False
+    assert abs((fake.pulse_us(0) or 0) - 1500.0) <= COUNT_US
+    assert abs((fake.pulse_us(8) or 0) - 1300.0) <= COUNT_US  # the servo holds its place
+    written = [t.written for t in bus.transactions[before:] if len(t.written) > 1]
+    assert written == [bytes([0x06, 0, 0, 307 & 0xFF, 307 >> 8])]  # no sleep, no restart
+
+
+def test_taking_over_a_chip_that_was_reset_starts_it() -> None:
+    _bus, fake, controller = _chip()
+    controller.start(50.0, {0: 1500.0, 8: 1500.0})
+    controller.set_pulses_us({0: 1900.0})
+    fake.power_on_reset()
+    after_death = Pca9685(_bus)
+    assert after_death.take_over(50.0, {0: 1500.0}, {0: 1500.0, 8: 1600.0}) is True
+    assert not fake.sleeping
+    assert fake.prescale == 121
+    assert abs((fake.pulse_us(0) or 0) - 1500.0) <= COUNT_US
+    assert abs((fake.pulse_us(8) or 0) - 1600.0) <= COUNT_US
+
+
+def test_taking_over_a_chip_that_does_not_answer_tries_to_start_it() -> None:
+    bus, _fake, _controller = _chip()
+    bus.fail(0x40, 1)  # the read-back; the start that follows is answered
+    after_death = Pca9685(bus)
+    assert after_death.take_over(50.0, {0: 1500.0}, {0: 1500.0}) is True
+    bus.fail(0x40, 100)
+    with pytest.raises(OSError, match="no acknowledge from 0x40"):
+        Pca9685(bus).take_over(50.0, {0: 1500.0}, {0: 1500.0})

@@ -115,6 +115,22 @@ def _load(**changes: object) -> None:
             "[depth]: k must be in 1–10000 on a Pi board (a raw count is k / 100 cm of water), "
             "got 0",
         ),
+        # Two devices at one address on one bus: the writes of one would go to the other
+        # (an ADS1115's config word lands in a PCA9685's MODE2, making its outputs open-drain).
+        # TOML reads 40 as forty: the BNO055's 0x28, not the PCA9685's 0x40.
+        (
+            {"pca9685__address": 40},
+            "rov.toml [imu] address: 0x28 (40) is already used by [pca9685] on I²C bus 1; "
+            "a TOML number is decimal unless written 0x…",
+        ),
+        (
+            {"pressure__sensor": "ads1115", "pressure__ads1115__address": 0x40},
+            "rov.toml [pressure.ads1115] address: 0x40 (64) is already used by [pca9685]",
+        ),
+        (
+            {"pressure__ms5837__address": 0x28},
+            "rov.toml [imu] address: 0x28 (40) is already used by [pressure.ms5837]",
+        ),
         ({"gpio": {"pin": 3}}, "unknown table [gpio]"),
         # A table written as a value: before, the six board tables' messages left the file out.
         ({"i2c": 1}, "rov.toml [i2c] must be a table, got int"),
@@ -133,6 +149,22 @@ def test_a_wrong_config_is_refused_with_the_key_and_the_reason(
         _load(**changes)
     assert message in str(caught.value)
     assert str(caught.value).startswith("rov.toml")
+
+
+@pytest.mark.parametrize(
+    "changes",
+    [
+        # The IMU on a bus of its own may share the PCA9685's address.
+        {"imu__bus": 3, "imu__address": 0x40},
+        # Only the pressure sensor chosen is on the bus.
+        {"pressure__ads1115__address": 0x40},
+        {"imu__sensor": "none", "imu__address": 0x40},
+    ],
+)
+def test_an_address_on_another_bus_or_of_a_device_not_fitted_is_no_conflict(
+    changes: dict[str, object],
+) -> None:
+    _load(**changes)
 
 
 def test_a_file_that_is_not_toml(tmp_path: Path) -> None:

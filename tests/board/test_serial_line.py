@@ -75,3 +75,34 @@ def test_a_serial_device_that_goes_away_is_let_go_and_opened_again(
     finally:
         lines.close()
         os.close(master)
+
+
+def test_a_serial_device_found_gone_by_a_write_is_opened_again(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # The controller writes on its own (a failsafe's debug line, a reply) and may meet the
+    # unplugged adapter on a write before a read: it must come back all the same.
+    monkeypatch.setattr(lines_module, "SERIAL_REOPEN_S", 0.1)
+    received = bytearray()
+
+    def on_bytes(line: Line, data: bytes) -> None:
+        received.extend(data)
+
+    device = tmp_path / "ttyROV"
+    master, path = _pty()
+    device.symlink_to(path)
+    lines = Lines(on_bytes, busy_message=b"")
+    try:
+        lines.open_serial(str(device), 115200)
+        os.close(master)  # unplugged
+        device.unlink()
+        lines.send(lines.lines[0], b"failsafe: no valid frame for 2 s\r\n")  # fails: EIO
+        assert not lines.lines
+        master, path = _pty()  # plugged in again
+        device.symlink_to(path)
+        assert _wait_for(lines, lambda: len(lines.lines) == 1)
+        os.write(master, b"#qd!")
+        assert _wait_for(lines, lambda: received == b"#qd!")
+    finally:
+        lines.close()
+        os.close(master)

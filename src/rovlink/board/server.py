@@ -44,6 +44,11 @@ class BoardServer:
     ) -> None:
         self.board = board
         self.clock = board.hardware.clock
+        if not config.watchdog_s:
+            logger.warning(
+                "the link-loss failsafe is off (watchdog_s 0): a link that dies leaves the "
+                "thrusters as last commanded"
+            )
         self.controller = Controller(config, board.hardware, self._from_controller)
         self.schedule = FixedRateSchedule(config.tick_s, self.clock.now_s())
         self._overrun_warning_s = overrun_warning_s

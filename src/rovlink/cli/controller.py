@@ -27,6 +27,7 @@ examples:
   rovlink controller --board pi --config rov.toml --pty --tcp 5760
   rovlink controller --board sim --tcp 5760
   rovlink controller --board pi --config rov.toml --tcp 0.0.0.0:5760 --allow-remote
+  rovlink controller --board pi --config rov.toml --neutral   # systemd's ExecStopPost
 
 docs/hardware.md has the wiring, a complete rov.toml and a systemd unit."""
 
@@ -83,6 +84,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "authentication, so anyone who reaches it drives the robot",
     )
     parser.add_argument(
+        "--neutral",
+        action="store_true",
+        help="set the thrusters to neutral on the PWM board and exit, serving nothing: after "
+        "a controller that could not (killed, crashed), e.g. as systemd's ExecStopPost",
+    )
+    parser.add_argument(
         "--watchdog",
         type=_watchdog_seconds,
         metavar="SECONDS",
@@ -92,6 +99,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Serve until SIGTERM or Ctrl-C; the thrusters end at neutral however it ends."""
+    if args.neutral:
+        return _set_neutral(args)
     address = _tcp_address(args)
     if args.port is None and not args.pty and address is None:
         if args.board == "pi":
@@ -108,6 +117,27 @@ def run(args: argparse.Namespace) -> int:
         signals.restore()
     signals.finish()  # (Ctrl-C: status 130; SIGTERM, SIGHUP: a service stopped, 0)
     return status
+
+
+def _set_neutral(args: argparse.Namespace) -> int:
+    """``--neutral``: the thrusters at neutral, and nothing else opened."""
+    from rovlink.board.board import BoardStartError  # noqa: PLC0415
+    from rovlink.board.pi.board import PwmBoardInUseError, set_pi_outputs_at_rest  # noqa: PLC0415
+
+    if args.board != "pi":
+        raise UsageError("--neutral is for --board pi")
+    if args.port is not None or args.pty or args.tcp is not None:
+        raise UsageError("--neutral serves nothing: leave out --port, --pty and --tcp")
+    _configure_logging()
+    config = _pi_config(args)
+    try:
+        done = set_pi_outputs_at_rest(config)
+    except PwmBoardInUseError as error:  # a running controller sets its thrusters itself
+        raise CommandError(str(error)) from None
+    except BoardStartError as error:
+        raise CommandError(f"{error}; NEUTRAL COULD NOT BE SET: cut the thruster power") from None
+    say_last(f"rovlink controller: {done}")
+    return 0
 
 
 def _tcp_address(args: argparse.Namespace) -> tuple[str, int] | None:

@@ -315,8 +315,8 @@ class Lines:
         try:
             written = line.write(bytes(line.unsent))
         except OSError as error:
-            logger.info("%s: write failed (%s), disconnecting", line.name, error)
-            self._remove(line)
+            # An unplugged adapter may show on a write before a read: it comes back as well.
+            self._gone(line, error)
             return
         del line.unsent[:written]
         events = selectors.EVENT_READ | (selectors.EVENT_WRITE if line.unsent else 0)
@@ -341,18 +341,24 @@ class Lines:
         if data is None:
             return
         if not data:
-            if isinstance(line, SerialDeviceLine):
-                logger.warning(
-                    "%s went away (unplugged or hung up); opening it again every %g s",
-                    line.name,
-                    SERIAL_REOPEN_S,
-                )
-                self._gone_serial[(line.path, line.baud)] = time.monotonic() + SERIAL_REOPEN_S
-            else:
-                logger.info("%s disconnected", line.name)
-            self._remove(line)
+            self._gone(line)
             return
         self._on_bytes(line, data)
+
+    def _gone(self, line: Line, write_error: OSError | None = None) -> None:
+        """Let ``line`` go (it hung up, or a write to it failed); a serial device is opened
+        again every ``SERIAL_REOPEN_S``."""
+        if isinstance(line, SerialDeviceLine):
+            why = f"write failed: {write_error}" if write_error else "unplugged or hung up"
+            logger.warning(
+                "%s went away (%s); opening it again every %g s", line.name, why, SERIAL_REOPEN_S
+            )
+            self._gone_serial[(line.path, line.baud)] = time.monotonic() + SERIAL_REOPEN_S
+        elif write_error is not None:
+            logger.info("%s: write failed (%s), disconnecting", line.name, write_error)
+        else:
+            logger.info("%s disconnected", line.name)
+        self._remove(line)
 
     def _reopen_serial(self, now_s: float) -> None:
         """Open again each serial device that went away and is due another try."""

@@ -16,6 +16,7 @@ from typing import Any, TypeVar
 from rovlink.board.board import Board, BoardStartError, MonotonicClock
 from rovlink.board.pi.ads1115 import Ads1115
 from rovlink.board.pi.bno055 import Bno055Imu
+from rovlink.board.pi.claim import BoardInUseError, claim_exclusively
 from rovlink.board.pi.config import (
     ClawKind,
     I2cBackend,
@@ -41,13 +42,17 @@ from rovlink.board.sensors import (
 from rovlink.controller import Attitude, Hardware
 from rovlink.logs import get_logger
 
-__all__ = ["fake_bus_for", "open_pi_board"]
+__all__ = ["PwmBoardInUseError", "fake_bus_for", "open_pi_board", "set_pi_outputs_at_rest"]
 
 logger = get_logger(__name__)
 
 _T = TypeVar("_T")
 _FIRST_READING_S = 0.5  # how long a sensor has at start to give its first reading
 _FAKE_WATER_C = 20.0  # the fake pressure sensor's temperature
+
+
+class PwmBoardInUseError(BoardStartError):
+    """Another rovlink controller holds the PWM board's bus: nothing was written to it."""
 
 
 class _NoLeakSensor:
@@ -119,11 +124,13 @@ def open_pi_board(config: PiConfig, *, bus: I2cBus | None = None, pin_factory: A
     ``bus`` and ``pin_factory`` replace the I²C bus and gpiozero's pin factory (tests); without
     them they follow ``[i2c] backend``. Raises :class:`BoardStartError`.
     """
+    closers: list[Callable[[], None]] = []
     if bus is None:
         bus = _open_bus(config)
+        closers.append(_claim_or_close(config, bus))
+    closers.append(bus.close)
     if pin_factory is None and config.i2c.backend is I2cBackend.FAKE and config.leak.pin >= 0:
         pin_factory = _starting("gpiozero's mock pins for the fake board", _mock_pins)
-    closers: list[Callable[[], None]] = [bus.close]
     pca = Pca9685(bus, config.pca9685.address, oscillator_hz=config.pca9685.oscillator_hz)
     thrusters = EscThrusters(
         pca,
@@ -213,6 +220,81 @@ def open_pi_board(config: PiConfig, *, bus: I2cBus | None = None, pin_factory: A
     if config.pca9685.check_interval_s > 0:
         checks.append(Pca9685ResetWatch(pca, rest_pulses_us, config.pca9685.check_interval_s))
     return Board("pi", hardware, make_safe, close_all, tuple(sensors), tuple(checks))
+
+
+def set_pi_outputs_at_rest(config: PiConfig, *, bus: I2cBus | None = None) -> str:
+    """Put the thrusters at neutral and a claw motor at rest on the PCA9685 of ``config``, and
+    nothing else (no sensor is opened); what was done, for a log line.
+
+    For a controller that died without doing so itself (killed with SIGKILL, by the kernel's
+    out-of-memory killer, a crash of the interpreter): the chip keeps making the last pulses it
+    was given. A chip still running as the controller left it keeps a servo claw's pulse; one
+    that is not (reset, not answering) is started as at the controller's start. Raises
+    :class:`BoardStartError` naming the chip.
+    """
+    release: Callable[[], None] = _nothing
+    if bus is None:
+        bus = _open_bus(config)
+        release = _claim_or_close(config, bus)
+    try:
+        pca = Pca9685(bus, config.pca9685.address, oscillator_hz=config.pca9685.oscillator_hz)
+        thrusters = EscThrusters(
+            pca,
+            [
+                EscChannel(esc.channel, esc.reversed, esc.min_us, esc.neutral_us, esc.max_us)
+                for esc in config.escs
+            ],
+        )
+        claw = _claw(config, pca)
+        neutral = thrusters.neutral_pulses_us()
+        start = dict(neutral)
+        if isinstance(claw, MotorClaw):
+            neutral[claw.channel] = claw.rest_pulse_us()
+        if isinstance(claw, MotorClaw | ServoClaw):
+            start[claw.channel] = claw.rest_pulse_us()
+        name = f"PWM board PCA9685 at {pca.address:#04x} on I²C bus {config.i2c.bus}"
+        started = _starting(
+            name,
+            lambda: pca.take_over(config.pca9685.frequency_hz, neutral, start),
+        )
+    finally:
+        with contextlib.suppress(Exception):
+            bus.close()
+        release()
+    how = "started again" if started else "running"
+    channels = ", ".join(str(channel) for channel in sorted(neutral))
+    return f"{name} ({how}): neutral pulses on channels {channels}"
+
+
+def _nothing() -> None:
+    pass
+
+
+def _claim_or_close(config: PiConfig, bus: I2cBus) -> Callable[[], None]:
+    """Lock the PWM board's bus for this process before anything is written to it (closing
+    ``bus`` if it cannot be); the function that releases the lock.
+
+    The lock is on /dev/i2c-N; on the fake bus, on its log, which stands for the one chip the
+    processes of a test share.
+    """
+    what = f"PWM board PCA9685 at {config.pca9685.address:#04x} on I²C bus {config.i2c.bus}"
+    if config.i2c.backend is I2cBackend.FAKE:
+        path = config.i2c.fake_log
+        if not path:
+            return _nothing
+    else:
+        path = f"/dev/i2c-{config.i2c.bus}"
+    try:
+        return claim_exclusively(path)
+    except BoardInUseError:
+        bus.close()
+        raise PwmBoardInUseError(
+            f"{what} is in use by another rovlink controller; stop it first "
+            "(sudo systemctl stop rovlink)"
+        ) from None
+    except OSError as error:
+        bus.close()
+        raise BoardStartError(f"{what}: cannot lock {path}: {error.strerror or error}") from None
 
 
 def _open_bus(config: PiConfig) -> I2cBus:
@@ -326,6 +408,9 @@ def _starting(what: str, action: Callable[[], _T]) -> _T:
     except (OSError, RuntimeError, ValueError) as error:
         reason = error.strerror if isinstance(error, OSError) and error.strerror else error
         raise BoardStartError(f"{what}: {reason}") from None
+    except Exception as error:  # a library's own (gpiozero's: a pin in use, a fixed pull)
+        logger.debug("%s failed to start", what, exc_info=True)
+        raise BoardStartError(f"{what}: {error}") from None
 
 
 def _first_reading(name: str, source: SensorSource[_T], clock: MonotonicClock) -> _T:

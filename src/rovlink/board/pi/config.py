@@ -2,9 +2,10 @@
 
 The controller's tables (``[controller]``, ``[depth]``, ``[depth_pid]``, ``[[thrusters]]``) are
 read by :func:`rovlink.controller.config_from_mapping`; this module reads the rest and checks
-the whole: every thruster of the layout has an ESC output, no two outputs share a channel,
-pulses fit the PWM period. A wrong file is refused with the file, the table, the key and the
-reason. ``docs/hardware.md`` has a complete, commented example.
+the whole: every thruster of the layout has an ESC output, no two outputs share a channel, no
+two devices share an address on one bus, pulses fit the PWM period. A wrong file is refused
+with the file, the table, the key and the reason. ``docs/hardware.md`` has a complete,
+commented example.
 """
 
 from __future__ import annotations
@@ -480,6 +481,7 @@ def pi_config_from_mapping(data: Mapping[str, Any], source: str = "rov.toml") ->
     )
     config = PiConfig(controller, escs, i2c, pca, claw, pressure, imu, leak, board)
     _check_channels(config, source)
+    _check_addresses(config, source)
     _check_pulses_fit(config, source)
     _check_depth_scale(config, source)
     return config
@@ -530,6 +532,29 @@ def _check_channels(config: PiConfig, source: str) -> None:
                 f"{source} {user} channel: {channel} is already used by {users[channel]}"
             )
         users[channel] = user
+
+
+def _check_addresses(config: PiConfig, source: str) -> None:
+    """No two devices at one address on one bus: one's writes would reach the other (an
+    ADS1115's config word lands in a PCA9685's MODE2 and makes its outputs open-drain)."""
+    pressure = config.pressure
+    devices = [("[pca9685]", config.pca9685.address)]
+    if pressure.sensor is PressureKind.MS5837:
+        devices.append(("[pressure.ms5837]", pressure.ms5837.address))
+    else:
+        devices.append(("[pressure.ads1115]", pressure.ads1115.address))
+    if config.imu.sensor is ImuKind.BNO055 and config.imu.bus in (-1, config.i2c.bus):
+        devices.append(("[imu]", config.imu.address))
+    users: dict[int, str] = {}
+    for user, address in devices:
+        if address in users:
+            # The usual slip: 40 for the 0x40 that i2cdetect shows.
+            raise ConfigError(
+                f"{source} {user} address: {address:#04x} ({address}) is already used by "
+                f"{users[address]} on I²C bus {config.i2c.bus}; a TOML number is decimal "
+                "unless written 0x…"
+            )
+        users[address] = user
 
 
 def _check_pulses_fit(config: PiConfig, source: str) -> None:

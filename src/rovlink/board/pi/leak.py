@@ -11,6 +11,13 @@ from typing import Any
 
 __all__ = ["GpioLeakSensor"]
 
+#: gpiozero reaches the pins through a pin library that the ``pi`` extra does not bring: on
+#: Raspberry Pi OS it is the system's python3-lgpio.
+NO_PIN_LIBRARY = (
+    "gpiozero found no pin library: create the virtual environment with "
+    "--system-site-packages (for the system's python3-lgpio) or pip install lgpio"
+)
+
 
 class GpioLeakSensor:
     """A leak probe on GPIO ``pin`` (BCM numbering); ``active_high`` is wet at 3.3 V."""
@@ -30,12 +37,18 @@ class GpioLeakSensor:
                 f"a pull-{pull} input rests {'low' if pull == 'down' else 'high'}, so it "
                 f"cannot be active {'high' if active_high else 'low'}"
             )
-        if pull == "none":
-            device = DigitalInputDevice(
-                pin, pull_up=None, active_state=active_high, pin_factory=pin_factory
-            )
-        else:
-            device = DigitalInputDevice(pin, pull_up=pull == "up", pin_factory=pin_factory)
+        try:
+            if pull == "none":
+                device = DigitalInputDevice(
+                    pin, pull_up=None, active_state=active_high, pin_factory=pin_factory
+                )
+            else:
+                device = DigitalInputDevice(pin, pull_up=pull == "up", pin_factory=pin_factory)
+        except ImportError as error:
+            # gpiozero loads its pin library with the first device: a missing one is a
+            # ModuleNotFoundError (a factory named in GPIOZERO_PIN_FACTORY) or, when none of
+            # its defaults loads, BadPinFactory, an ImportError of its own.
+            raise RuntimeError(f"{error}; {NO_PIN_LIBRARY}") from error
         device.when_activated = self._on_wet
         self._device = device
         wet = bool(device.is_active)  # already wet at start

@@ -111,6 +111,33 @@ class Pca9685:
         time.sleep(_OSCILLATOR_START_S)
         write(address, bytes([MODE1, RESTART | _MODE1_RUNNING]))
 
+    def take_over(
+        self,
+        frequency_hz: float,
+        pulses_us: Mapping[int, float],
+        start_pulses_us: Mapping[int, float],
+    ) -> bool:
+        """Set ``pulses_us`` on a chip another process started (a controller that died without
+        setting neutral); whether it had to be started.
+
+        A chip running as :meth:`start` leaves it at ``frequency_hz`` (MODE1 and PRE_SCALE
+        read back) gets only ``pulses_us``: its other outputs (a servo claw) keep their pulses.
+        Any other chip (reset by a supply dip, never started, not answering the read-back) is
+        started with ``start_pulses_us``, the others off.
+        """
+        self.prescale = prescale_for(frequency_hz, self.oscillator_hz)
+        self.frequency_hz = frequency_hz
+        try:
+            found = self.reset_found()
+        except OSError:
+            found = "no answer to the read-back"
+        if found is None:
+            self._counts.clear()
+            self.set_pulses_us(pulses_us)
+            return False
+        self.start(frequency_hz, start_pulses_us)
+        return True
+
     def reset_found(self) -> str | None:
         """Read MODE1 and PRE_SCALE back (two one-byte register reads); what differs from what
         :meth:`start` wrote, or None if both are as written.

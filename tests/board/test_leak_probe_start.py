@@ -1,0 +1,94 @@
+"""A leak probe whose GPIO cannot be opened: the board refuses to start with one line naming the
+probe and its pin, outputs at neutral, rather than a traceback from gpiozero."""
+
+from __future__ import annotations
+
+import importlib.util
+
+import pytest
+
+from rovlink.board.board import BoardStartError
+from rovlink.board.pi.board import fake_bus_for, open_pi_board
+from rovlink.board.pi.config import PiConfig
+from tests.board.rig import example_config, is_neutral, pulses
+
+
+def _pin_factory_from(monkeypatch: pytest.MonkeyPatch, name: str) -> None:
+    """gpiozero choosing its pin factory afresh, as GPIOZERO_PIN_FACTORY says."""
+    from gpiozero import Device
+
+    monkeypatch.setattr(Device, "pin_factory", None)
+    monkeypatch.setenv("GPIOZERO_PIN_FACTORY", name)
+
+
+def _real_bus_config() -> PiConfig:
+    # The real backend, so that gpiozero picks its own pin factory; the bus is a fake one.
+    return example_config(i2c={"backend": "smbus2"}, imu={"sensor": "none"})
+
+
+def test_no_pin_library_for_gpiozero_is_named_with_the_remedy(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    # What gpiozero raises when none of its pin libraries loads (a Pi 5's venv without lgpio):
+    # BadPinFactory, an ImportError that is not a ModuleNotFoundError.
+    _pin_factory_from(monkeypatch, "no-such-factory")
+    config = _real_bus_config()
+    bus = fake_bus_for(config)
+    with pytest.raises(BoardStartError) as caught:
+        open_pi_board(config, bus=bus)
+    message = str(caught.value)
+    assert message.startswith("leak probe on GPIO 27: ")
+    assert "no-such-factory" in message
+    assert "lgpio" in message
+    assert "--system-site-packages" in message
+    assert is_neutral(pulses(bus.snapshot()))
+
+
+@pytest.mark.skipif(importlib.util.find_spec("pigpio") is not None, reason="pigpio is installed")
+def test_a_missing_pin_library_is_not_blamed_on_the_pi_extra(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    # The pi extra does not bring a pin library: the system's python3-lgpio does.
+    _pin_factory_from(monkeypatch, "pigpio")
+    config = _real_bus_config()
+    bus = fake_bus_for(config)
+    with pytest.raises(BoardStartError) as caught:
+        open_pi_board(config, bus=bus)
+    message = str(caught.value)
+    assert message.startswith("leak probe on GPIO 27: ")
+    assert "pigpio" in message
+    assert "--system-site-packages" in message
+    assert "rovlink[pi]" not in message
+    assert is_neutral(pulses(bus.snapshot()))
+
+
+def test_a_pin_in_use_is_named() -> None:
+    from gpiozero import DigitalInputDevice
+    from gpiozero.pins.mock import MockFactory
+
+    factory = MockFactory()
+    other = DigitalInputDevice(27, pin_factory=factory)  # another program's, say
+    try:
+        config = example_config(imu={"sensor": "none"})
+        bus = fake_bus_for(config)
+        with pytest.raises(BoardStartError, match=r"^leak probe on GPIO 27: .*in use"):
+            open_pi_board(config, bus=bus, pin_factory=factory)
+        assert is_neutral(pulses(bus.snapshot()))
+    finally:
+        other.close()
+        factory.close()
+
+
+def test_a_pin_with_a_fixed_pull_is_named() -> None:
+    # GPIO 2 and 3 (I²C) have fixed pull-ups on a Pi: a pull-down cannot be set on them.
+    from gpiozero.pins.mock import MockFactory
+
+    factory = MockFactory()
+    try:
+        config = example_config(imu={"sensor": "none"}, leak={"pin": 2})
+        bus = fake_bus_for(config)
+        with pytest.raises(BoardStartError, match=r"^leak probe on GPIO 2: .*fixed pull"):
+            open_pi_board(config, bus=bus, pin_factory=factory)
+        assert is_neutral(pulses(bus.snapshot()))
+    finally:
+        factory.close()
