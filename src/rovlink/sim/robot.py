@@ -101,14 +101,24 @@ class SimulatedRobot:
         self.config = config
         self.seed = seed if seed is not None else random.SystemRandom().randrange(2**32)
         seeds = random.Random(self.seed)
-        # Separate streams: how often the host queries must not change the physics.
+        # Separate streams: how often the host queries must not change the physics, nor what
+        # the control loop reads. (Streams added later are drawn last, so that a seed keeps
+        # giving the run it gave.)
         physics_rng = random.Random(seeds.getrandbits(64))
-        sensor_rng = random.Random(seeds.getrandbits(64))
+        loop_pressure_rng = random.Random(seeds.getrandbits(64))
+        query_pressure_rng = random.Random(seeds.getrandbits(64))
+        imu_rng = random.Random(seeds.getrandbits(64))
         self.tick_s = config.controller.tick_s
         self.clock = SimClock(self.tick_s)
         self.vehicle = Vehicle(config.vehicle, config.controller.thrusters, physics_rng)
-        self.pressure = SimPressureSensor(self.vehicle, config.sensors, sensor_rng)
-        self.imu = SimImu(self.vehicle, config.sensors, sensor_rng)
+        self.pressure = SimPressureSensor(
+            self.vehicle,
+            config.sensors,
+            loop_pressure_rng,
+            clock=self.clock,
+            extra_rng=query_pressure_rng,
+        )
+        self.imu = SimImu(self.vehicle, config.sensors, imu_rng)
         self.leak = SimLeakSensor(self.clock)
         self.claw = SimClaw(self.clock, config.sensors)
         self.hardware = Hardware(
