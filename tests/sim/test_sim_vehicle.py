@@ -6,6 +6,7 @@ import itertools
 import math
 import random
 import statistics
+from collections.abc import Callable
 from pathlib import Path
 
 import pytest
@@ -250,6 +251,46 @@ def test_any_thrust_and_step_keeps_the_vehicle_in_the_water_and_its_speeds_bound
         assert abs(vehicle.surge_m_s) <= surge_limit * (1 + 1e-9)
         assert abs(vehicle.sway_m_s) <= sway_limit * (1 + 1e-9)
         assert 0.0 <= vehicle.heading_deg < 360.0
+
+
+@pytest.mark.parametrize(
+    ("hook", "why"),
+    [
+        # Before, NaN or infinity went into the physics and ended the run at the next pressure
+        # reading with a traceback; a NaN event time stopped every later event.
+        (lambda robot: robot.set_net_buoyancy(math.nan), "net_buoyancy_n must be a finite"),
+        (lambda robot: robot.set_net_buoyancy(-math.inf), "net_buoyancy_n must be a finite"),
+        (lambda robot: robot.set_current(math.inf, 90.0), "speed_m_s must be a finite"),
+        (lambda robot: robot.set_current(0.5, math.nan), "toward_deg must be a finite"),
+        (lambda robot: robot.inject_leak(at_s=math.nan), "at_s must be a finite"),
+        (lambda robot: robot.inject_leak(duration_s=-1.0), "duration_s must be ≥ 0"),
+        (lambda robot: robot.inject_leak(duration_s=math.nan), "duration_s must be ≥ 0"),
+        (lambda robot: robot.schedule(math.nan, lambda: None), "at_s must be a finite"),
+    ],
+)
+def test_scenario_hooks_refuse_what_is_not_a_number_and_change_nothing(
+    hook: Callable[[SimulatedRobot], None], why: str
+) -> None:
+    robot = SimulatedRobot(seed=1)
+    fired: list[float] = []
+    robot.schedule(1.0, lambda: fired.append(robot.time_s))
+    with pytest.raises(ValueError, match=f"^{why}"):
+        hook(robot)
+    robot.advance(2.0)  # runs on, its scheduled event included
+    robot.receive(b"#qd!#q.l!")
+    assert robot.controller.read_output() == b"$qd.0!$q.l.0!"
+    assert fired == [1.0]
+    assert (robot.vehicle.current_north_m_s, robot.vehicle.current_east_m_s) == (0.0, 0.0)
+
+
+def test_a_leak_for_good_stays() -> None:
+    robot = SimulatedRobot(seed=1)
+    robot.inject_leak(at_s=0.5, duration_s=math.inf)
+    robot.advance(1.0)
+    robot.receive(b"#slreset!")
+    robot.advance(1.0)
+    robot.receive(b"#q.l!")
+    assert robot.controller.read_output() == b"$q.l.1!"
 
 
 def test_a_leak_pulse_between_ticks_is_latched() -> None:
