@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import os
 import re
+import select
 import signal
 import socket
 import subprocess
@@ -120,6 +121,24 @@ def test_config_is_applied(run_sim: RunSim, tmp_path: Path) -> None:
     _, match = run_sim("--pty", "--config", str(config))
     with serial.Serial(match["pty"], timeout=0.1) as port:
         assert _query(port, b"#qd!") == b"$qd.40!"  # raw 20 over a zero of 0: 40 cm
+
+
+def test_a_speed_beyond_the_cpu_answers_and_says_it_is_behind(run_sim: RunSim) -> None:
+    # The warning went to no handler: without --verbose, rovlink sim showed no log line at all.
+    process, match = run_sim("--tcp", "127.0.0.1:0", "--speed", "1e6", "--seed", "1")
+    host, port = match["tcp"].rsplit(":", 1)
+    with socket.create_connection((host, int(port)), timeout=5) as connection:
+        connection.sendall(b"#q.l!")
+        assert connection.recv(64) == b"$q.l.0!"
+    assert process.stderr is not None
+    deadline = time.monotonic() + 5
+    line = ""
+    while "behind the wall clock" not in line:
+        assert time.monotonic() < deadline
+        ready, _, _ = select.select([process.stderr], [], [], 0.1)
+        if ready:
+            line = process.stderr.readline()
+    assert "WARNING" in line
 
 
 def test_a_bad_config_is_reported_with_its_key(tmp_path: Path) -> None:

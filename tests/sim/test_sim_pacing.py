@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import logging
+
 import pytest
 
 from rovlink.sim.pacing import LinePacer, TickSchedule
@@ -34,6 +36,25 @@ def test_a_long_stall_skips_ahead_instead_of_racing() -> None:
     assert schedule.due(0.02) == 2
     assert schedule.due(30.0) == 1  # 30 s suspended: not 3000 ticks at once
     assert schedule.due(30.01) == 1
+
+
+def test_a_speed_beyond_the_cpu_gives_its_ticks_in_batches() -> None:
+    # 10 ms of wall time at 10 000 times real time is 10 000 ticks, more than a CPU runs in
+    # 10 ms: given at once, the lines waited for them, and the next batch was longer still.
+    schedule = TickSchedule(0.01, start_wall_s=0.0, speed=10_000.0, batch_ticks=100)
+    batches = [schedule.due(0.01) for _ in range(101)]
+    assert max(batches) == 100
+    assert sum(batches) == 10_000  # none lost: the rest are due at the next calls
+    assert batches[-1] == 0
+    assert schedule.seconds_until_next(0.01) == pytest.approx(0.000001)
+
+
+def test_a_schedule_that_cannot_keep_up_warns_once(caplog: pytest.LogCaptureFixture) -> None:
+    schedule = TickSchedule(0.01, start_wall_s=0.0, speed=10_000.0, max_lag_s=0.5)
+    with caplog.at_level(logging.DEBUG, logger="rovlink.sim.pacing"):
+        assert schedule.due(1.0) == 1  # 1 s behind: skips ahead
+        assert schedule.due(2.0) == 1
+    assert [record.levelno for record in caplog.records] == [logging.WARNING, logging.DEBUG]
 
 
 def test_speed_must_not_be_negative() -> None:

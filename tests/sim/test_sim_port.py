@@ -90,6 +90,24 @@ def test_close_wakes_a_blocked_reader() -> None:
     assert len(errors) == 1
 
 
+def test_a_failing_simulation_closes_the_port_saying_why() -> None:
+    port = open_port(seed=1, realtime=False, timeout=0.05)
+
+    def fail() -> None:
+        raise RuntimeError("a scenario's bug")
+
+    with port.lock:
+        port.robot.schedule(1.0, fail)
+    # Before, the thread died and the port kept answering from a robot frozen in time.
+    _wait_for(lambda: not port.is_open)
+    with pytest.raises(serial.SerialException, match="simulation stopped: RuntimeError: a sce"):
+        port.write(b"#qd!")
+    with pytest.raises(serial.SerialException, match="simulation stopped"):
+        port.read()
+    assert port.robot.time_s == pytest.approx(1.0)
+    port.close()
+
+
 def test_the_realtime_thread_advances_simulated_time() -> None:
     started_wall = time.monotonic()
     with open_port(seed=1, timeout=0.1) as port:

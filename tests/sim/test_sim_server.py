@@ -293,6 +293,16 @@ def test_baud_paces_the_byte_stream(start_server: StartServer) -> None:
     assert elapsed_s >= 0.9 * line_time_s
 
 
+def test_a_speed_beyond_the_cpu_still_answers_at_once(start_server: StartServer) -> None:
+    # A million simulated seconds a second is more ticks than any CPU runs: the server once
+    # ran ever longer batches of them and answered nothing (a #stop! included) for minutes.
+    server = start_server(pty=False, speed=1e6)
+    with _connect(server) as connection:
+        for _ in range(3):
+            connection.sendall(b"#q.l!")
+            assert _read_frames(_recv(connection), 1) == b"$q.l.0!"
+
+
 def test_the_robot_dives_and_holds_one_metre_over_the_pty(start_server: StartServer) -> None:
     # Ten simulated seconds a second. The link-loss failsafe is off: it counts simulated
     # seconds, so one stall of this test's wall-clock polling would trip it.

@@ -4,13 +4,18 @@ from __future__ import annotations
 
 import itertools
 import math
+import random
 import statistics
+from collections.abc import Callable
 from pathlib import Path
 
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from rovlink.controller import ConfigError
-from rovlink.sim import SimulatedRobot, VehicleParams
+from rovlink.controller.config import DEFAULT_THRUSTERS
+from rovlink.sim import SimulatedRobot, Vehicle, VehicleParams
 from rovlink.sim.robot import sim_config_from_mapping, sim_config_reference
 from rovlink.sim.vehicle import thrust_n
 
@@ -178,6 +183,114 @@ def test_changing_buoyancy_makes_it_sink() -> None:
     robot.set_net_buoyancy(-2.0)
     robot.advance(20.0)
     assert robot.vehicle.depth_m > 2.0
+
+
+def test_the_vehicle_rests_on_the_bottom_and_leaves_it_under_up_thrust() -> None:
+    # Before, there was no bottom: full down thrust went on for ever, 12 km down in four hours.
+    config = sim_config_from_mapping(
+        {"controller": {"watchdog_s": 0.0}, "vehicle": {"bottom_depth_m": 3.0}}
+    )
+    robot = SimulatedRobot(config, seed=1)
+    robot.receive(b"#start!#mvdirect.1!#mvs.-100!")
+    robot.advance(20.0)
+    assert robot.vehicle.depth_m == 3.0
+    assert robot.vehicle.heave_m_s == 0.0
+    assert abs(_query(robot, b"#qd!") - 300) <= 2
+    robot.receive(b"#mvs.+100!")
+    robot.advance(1.0)
+    assert robot.vehicle.depth_m < 2.8
+
+
+def _terminal_speed_m_s(force_n: float, quadratic: float, linear: float) -> float:
+    """The speed at which drag (quadratic·v² + linear·v) balances ``force_n``."""
+    return (-linear + math.sqrt(linear * linear + 4.0 * quadratic * force_n)) / (2.0 * quadratic)
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    net_buoyancy_n=st.floats(-30.0, 30.0),
+    bottom_depth_m=st.floats(0.5, 60.0),
+    start_fraction=st.floats(0.0, 1.0),
+    commands=st.lists(
+        st.tuples(
+            st.lists(st.integers(-255, 255), min_size=6, max_size=6),
+            st.floats(0.001, 2.0),
+        ),
+        min_size=1,
+        max_size=25,
+    ),
+)
+def test_any_thrust_and_step_keeps_the_vehicle_in_the_water_and_its_speeds_bounded(
+    net_buoyancy_n: float,
+    bottom_depth_m: float,
+    start_fraction: float,
+    commands: list[tuple[list[int], float]],
+) -> None:
+    params = VehicleParams(net_buoyancy_n=net_buoyancy_n, bottom_depth_m=bottom_depth_m)
+    vehicle = Vehicle(params, DEFAULT_THRUSTERS, random.Random(1))
+    vehicle.depth_m = start_fraction * bottom_depth_m
+    g = 9.80665
+    # From rest, drag taken at the end of each step never lets a speed pass the terminal speed
+    # of the strongest force the vehicle can feel: no energy comes from the integration.
+    heave_limit = _terminal_speed_m_s(
+        abs(net_buoyancy_n) + 2 * params.forward_thrust_kgf * g,
+        params.heave_drag_n_s2_m2,
+        params.heave_linear_drag_n_s_m,
+    )
+    surge_limit, sway_limit = (
+        _terminal_speed_m_s(
+            4 * params.forward_thrust_kgf * g, drag, params.planar_linear_drag_n_s_m
+        )
+        for drag in (params.surge_drag_n_s2_m2, params.sway_drag_n_s2_m2)
+    )
+    for duties, dt_s in commands:
+        vehicle.set_duties(duties)
+        vehicle.step(dt_s)
+        assert 0.0 <= vehicle.depth_m <= bottom_depth_m
+        assert abs(vehicle.heave_m_s) <= heave_limit * (1 + 1e-9)
+        assert abs(vehicle.surge_m_s) <= surge_limit * (1 + 1e-9)
+        assert abs(vehicle.sway_m_s) <= sway_limit * (1 + 1e-9)
+        assert 0.0 <= vehicle.heading_deg < 360.0
+
+
+@pytest.mark.parametrize(
+    ("hook", "why"),
+    [
+        # Before, NaN or infinity went into the physics and ended the run at the next pressure
+        # reading with a traceback; a NaN event time stopped every later event.
+        (lambda robot: robot.set_net_buoyancy(math.nan), "net_buoyancy_n must be a finite"),
+        (lambda robot: robot.set_net_buoyancy(-math.inf), "net_buoyancy_n must be a finite"),
+        (lambda robot: robot.set_current(math.inf, 90.0), "speed_m_s must be a finite"),
+        (lambda robot: robot.set_current(0.5, math.nan), "toward_deg must be a finite"),
+        (lambda robot: robot.inject_leak(at_s=math.nan), "at_s must be a finite"),
+        (lambda robot: robot.inject_leak(duration_s=-1.0), "duration_s must be ≥ 0"),
+        (lambda robot: robot.inject_leak(duration_s=math.nan), "duration_s must be ≥ 0"),
+        (lambda robot: robot.schedule(math.nan, lambda: None), "at_s must be a finite"),
+    ],
+)
+def test_scenario_hooks_refuse_what_is_not_a_number_and_change_nothing(
+    hook: Callable[[SimulatedRobot], None], why: str
+) -> None:
+    robot = SimulatedRobot(seed=1)
+    fired: list[float] = []
+    robot.schedule(1.0, lambda: fired.append(robot.time_s))
+    with pytest.raises(ValueError, match=f"^{why}"):
+        hook(robot)
+    robot.advance(2.0)  # runs on, its scheduled event included
+    robot.receive(b"#qd!#q.l!")
+    assert robot.controller.read_output() == b"$qd.0!$q.l.0!"
+    assert fired == [1.0]
+    assert (robot.vehicle.current_north_m_s, robot.vehicle.current_east_m_s) == (0.0, 0.0)
+
+
+def test_a_leak_for_good_stays() -> None:
+    robot = SimulatedRobot(seed=1)
+    robot.inject_leak(at_s=0.5, duration_s=math.inf)
+    robot.advance(1.0)
+    robot.receive(b"#slreset!")
+    robot.advance(1.0)
+    robot.receive(b"#q.l!")
+    assert robot.controller.read_output() == b"$q.l.1!"
 
 
 def test_a_leak_pulse_between_ticks_is_latched() -> None:

@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING
 
 from rovlink.cli.failure import CommandError, InputError, UsageError, reason
 from rovlink.cli.interrupt import ServingSignals, say_last, say_ready
-from rovlink.cli.link_options import baud_rate, bounded_float, file_name, seconds
+from rovlink.cli.link_options import baud_rate, bounded_float, file_name, log_warnings, seconds
 
 if TYPE_CHECKING:
     from rovlink.sim.robot import SimConfig
@@ -133,6 +133,8 @@ def run(args: argparse.Namespace) -> int:
                 raise CommandError(f"cannot listen on {args.tcp}: {reason(error)}") from None
             endpoints.append(f"tcp {host}:{port}")
         signals = ServingSignals()
+        # A simulation behind the wall clock, a failsafe, a leak: a server's news, on stderr.
+        log_warnings()
         pacing = f"{args.baud} baud" if args.baud else "unpaced"
         say_ready(
             f"rovlink sim ready: {', '.join(endpoints)} "

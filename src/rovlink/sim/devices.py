@@ -96,11 +96,34 @@ class SimThrusters:
 
 
 class SimPressureSensor:
-    """An analog pressure sensor on a 10-bit ADC: linear in depth, noisy, quantised, clipped."""
+    """An analog pressure sensor on a 10-bit ADC: linear in depth, noisy, quantised, clipped.
 
-    __slots__ = ("_noise_scale", "_per_m", "_random", "_vehicle", "_zero")
+    Every conversion has its own noise. The first one in each tick of ``clock`` (the control
+    loop's) draws it from ``rng``, any further one in the same tick (a host's query) from
+    ``extra_rng``: so the loop's readings, and the motion they steer, are the same however
+    often a host queries.
+    """
 
-    def __init__(self, vehicle: Vehicle, params: SensorParams, rng: random.Random) -> None:
+    __slots__ = (
+        "_clock",
+        "_extra_random",
+        "_noise_scale",
+        "_per_m",
+        "_random",
+        "_tick",
+        "_vehicle",
+        "_zero",
+    )
+
+    def __init__(
+        self,
+        vehicle: Vehicle,
+        params: SensorParams,
+        rng: random.Random,
+        *,
+        clock: SimClock,
+        extra_rng: random.Random,
+    ) -> None:
         self._vehicle = vehicle
         self._zero = params.pressure_zero_raw
         self._per_m = params.pressure_counts_per_m
@@ -108,10 +131,18 @@ class SimPressureSensor:
         # enough to Gaussian for an ADC's noise, and cheap enough for a fast simulation.
         self._noise_scale = params.pressure_noise_counts * math.sqrt(6.0)
         self._random = rng.random
+        self._extra_random = extra_rng.random
+        self._clock = clock
+        self._tick = 0  # the tick of the last first conversion; before the first tick, none
 
     def read_raw(self) -> int:
         """One conversion, 0–1023."""
-        random = self._random
+        ticks = self._clock.ticks
+        if ticks != self._tick:
+            self._tick = ticks
+            random = self._random
+        else:
+            random = self._extra_random
         noise = (random() + random() - 1.0) * self._noise_scale
         counts = self._zero + self._vehicle.depth_m * self._per_m + noise
         raw = math.floor(counts + 0.5)

@@ -6,6 +6,7 @@ real time and as fast as possible, and tests need no sleeping.
 
 from __future__ import annotations
 
+import logging
 import math
 
 from rovlink.logs import get_logger
@@ -22,8 +23,10 @@ class TickSchedule:
     """How many simulation ticks are due at a wall-clock time.
 
     ``speed`` is simulated seconds per wall second: 1 is real time; 0 means as fast as
-    possible, in batches of ``batch_ticks``. When the simulation falls more than ``max_lag_s``
-    behind (a suspended process, an overloaded machine), it skips ahead instead of racing.
+    possible. Either way no call gives more than ``batch_ticks``: the rest are due at the next
+    call, so the caller serves its lines between batches. When the simulation falls more than
+    ``max_lag_s`` behind (a suspended process, an overloaded machine, a speed beyond the CPU),
+    it skips ahead instead of racing.
     """
 
     def __init__(
@@ -43,6 +46,7 @@ class TickSchedule:
         self._max_lag_s = max_lag_s
         self._start_wall_s = start_wall_s
         self._ticks = 0
+        self._skipped_before = False
 
     @property
     def as_fast_as_possible(self) -> bool:
@@ -56,13 +60,19 @@ class TickSchedule:
         wanted = math.floor((wall_s - self._start_wall_s) * self.speed / self.tick_s + 1e-9)
         count = wanted - self._ticks
         if count * self.tick_s / self.speed > self._max_lag_s:
-            logger.warning(
+            # A speed the CPU cannot keep up with skips ahead every max_lag_s: say it once.
+            logger.log(
+                logging.DEBUG if self._skipped_before else logging.WARNING,
                 "simulation %.2f s behind the wall clock: skipping ahead",
                 count * self.tick_s / self.speed,
             )
+            self._skipped_before = True
             count = 1
             self._start_wall_s = wall_s - (self._ticks + 1) * self.tick_s / self.speed
-        count = max(count, 0)
+        # Capped: at a speed beyond the CPU, the ticks of max_lag_s took longer than that to
+        # run, so every batch was longer than the last, and the lines (a #stop! among them)
+        # went unserved for seconds.
+        count = min(max(count, 0), self.batch_ticks)
         self._ticks += count
         return count
 

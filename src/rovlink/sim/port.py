@@ -14,11 +14,14 @@ from types import TracebackType
 import serial
 
 from rovlink.controller import Controller
+from rovlink.logs import get_logger
 from rovlink.sim.pacing import TickSchedule
 from rovlink.sim.robot import SimConfig, SimulatedRobot, load_sim_config
 from rovlink.sim.vehicle import Vehicle
 
 __all__ = ["SimulatedPort", "open_port"]
+
+logger = get_logger(__name__)
 
 #: Controller output kept for a reader that does not read (as a UART's buffer would overflow).
 _MAX_BUFFERED_BYTES = 1 << 16
@@ -54,6 +57,8 @@ class SimulatedPort:
         self.robot = SimulatedRobot(robot_config, seed=seed, write=self._from_controller)
         self._stopping = threading.Event()
         self._is_open = True
+        #: Why the simulation thread ended on its own, if it did.
+        self._failure: str | None = None
         self._thread: threading.Thread | None = None
 
     def start(self, *, realtime: bool = True) -> None:
@@ -166,9 +171,22 @@ class SimulatedPort:
 
     def _check_open(self) -> None:
         if not self._is_open:
-            raise serial.SerialException("the simulated port is closed")
+            raise serial.SerialException(self._failure or "the simulated port is closed")
 
     def _run(self, realtime: bool) -> None:
+        try:
+            self._simulate(realtime)
+        except Exception as error:  # a scheduled action's, or the physics'
+            # The port closes as a serial port whose device is gone: before, its thread died
+            # and writes were still answered from a frozen robot, which looked alive to a host
+            # (no failsafe, no motion) while nothing moved.
+            logger.exception("the simulation stopped")
+            with self._data_ready:
+                self._failure = f"the simulation stopped: {type(error).__name__}: {error}"
+                self._is_open = False
+                self._data_ready.notify_all()
+
+    def _simulate(self, realtime: bool) -> None:
         schedule = TickSchedule(self.robot.tick_s, time.monotonic(), speed=1.0 if realtime else 0.0)
         step = self.robot.step
         while not self._stopping.is_set():

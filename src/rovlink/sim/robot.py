@@ -101,14 +101,24 @@ class SimulatedRobot:
         self.config = config
         self.seed = seed if seed is not None else random.SystemRandom().randrange(2**32)
         seeds = random.Random(self.seed)
-        # Separate streams: how often the host queries must not change the physics.
+        # Separate streams: how often the host queries must not change the physics, nor what
+        # the control loop reads. (Streams added later are drawn last, so that a seed keeps
+        # giving the run it gave.)
         physics_rng = random.Random(seeds.getrandbits(64))
-        sensor_rng = random.Random(seeds.getrandbits(64))
+        loop_pressure_rng = random.Random(seeds.getrandbits(64))
+        query_pressure_rng = random.Random(seeds.getrandbits(64))
+        imu_rng = random.Random(seeds.getrandbits(64))
         self.tick_s = config.controller.tick_s
         self.clock = SimClock(self.tick_s)
         self.vehicle = Vehicle(config.vehicle, config.controller.thrusters, physics_rng)
-        self.pressure = SimPressureSensor(self.vehicle, config.sensors, sensor_rng)
-        self.imu = SimImu(self.vehicle, config.sensors, sensor_rng)
+        self.pressure = SimPressureSensor(
+            self.vehicle,
+            config.sensors,
+            loop_pressure_rng,
+            clock=self.clock,
+            extra_rng=query_pressure_rng,
+        )
+        self.imu = SimImu(self.vehicle, config.sensors, imu_rng)
         self.leak = SimLeakSensor(self.clock)
         self.claw = SimClaw(self.clock, config.sensors)
         self.hardware = Hardware(
@@ -158,23 +168,36 @@ class SimulatedRobot:
 
     # -- scenario hooks ----------------------------------------------------------------------
 
+    # The hooks refuse NaN and infinity at the call: in the physics they ended the simulation
+    # at its next sensor reading (a NaN depth) with a traceback far from the cause, and a NaN
+    # time sat at the top of the event queue, so no later event ever ran.
+
     def schedule(self, at_s: float, action: Callable[[], None]) -> None:
         """Run ``action`` at simulated time ``at_s`` (at once, on the next step, if it is past)."""
+        _require_finite("at_s", at_s)
         heapq.heappush(self._events, (at_s, next(self._event_order), action))
 
     def inject_leak(
         self, at_s: float | None = None, duration_s: float = DEFAULT_LEAK_PULSE_S
     ) -> None:
-        """Wet the leak probe for ``duration_s`` from ``at_s`` (default: now)."""
+        """Wet the leak probe for ``duration_s`` (``math.inf``: for good) from ``at_s``
+        (default: now)."""
+        if at_s is not None:
+            _require_finite("at_s", at_s)
+        if not duration_s >= 0:  # (NaN too)
+            raise ValueError(f"duration_s must be ≥ 0, got {duration_s}")
         start_s = self.time_s if at_s is None else at_s
         self.leak.add_wet_interval(start_s, duration_s)
 
     def set_net_buoyancy(self, net_buoyancy_n: float) -> None:
         """Change buoyancy minus weight, N (e.g. after picking up a load)."""
+        _require_finite("net_buoyancy_n", net_buoyancy_n)
         self.vehicle.net_buoyancy_n = net_buoyancy_n
 
     def set_current(self, speed_m_s: float, toward_deg: float) -> None:
         """A water current of ``speed_m_s`` flowing toward ``toward_deg`` (clockwise from north)."""
+        _require_finite("speed_m_s", speed_m_s)
+        _require_finite("toward_deg", toward_deg)
         angle = math.radians(toward_deg)
         self.vehicle.current_north_m_s = speed_m_s * math.cos(angle)
         self.vehicle.current_east_m_s = speed_m_s * math.sin(angle)
@@ -185,3 +208,8 @@ class SimulatedRobot:
         while events and events[0][0] <= now:
             _, _, action = heapq.heappop(events)
             action()
+
+
+def _require_finite(name: str, value: float) -> None:
+    if not math.isfinite(value):
+        raise ValueError(f"{name} must be a finite number, got {value}")

@@ -1,7 +1,8 @@
 """The vehicle's physics: heave with buoyancy and drag, planar motion and yaw, wave roll/pitch.
 
-Coordinates: depth ``depth_m`` positive down from the surface; the planar position is north/east
-in metres; body axes are x forward (surge), y starboard (sway); heading is clockwise from north.
+Coordinates: depth ``depth_m`` positive down from the surface, between the surface and a flat
+bottom (``bottom_depth_m``); the planar position is north/east in metres; body axes are x
+forward (surge), y starboard (sway); heading is clockwise from north.
 Time advances in fixed steps of at most 10 ms whatever the controller's rate (semi-implicit Euler,
 the drag taken at the end of each step so that no drag or step makes it oscillate), so a run is
 a pure function of its inputs and its seed.
@@ -130,6 +131,12 @@ class VehicleParams:
             "(0: none); fades with depth as the wave motion does, seeded"
         ),
     )
+    bottom_depth_m: float = field(
+        default=50.0,
+        metadata=_doc(
+            "depth of the bottom, m: the vehicle rests on it as it floats against the surface"
+        ),
+    )
     roll_trim_deg: float = field(default=0.0, metadata=_doc("static roll, degrees"))
     pitch_trim_deg: float = field(default=0.0, metadata=_doc("static pitch, degrees"))
 
@@ -156,6 +163,7 @@ class VehicleParams:
             "yaw_disturbance_period_s",
             "forward_thrust_kgf",
             "reverse_thrust_kgf",
+            "bottom_depth_m",
         ):
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
@@ -255,6 +263,7 @@ class Vehicle:
         self._heave_mass_kg = params.mass_kg + params.added_mass_heave_kg
         self._surge_mass_kg = params.mass_kg + params.added_mass_surge_kg
         self._sway_mass_kg = params.mass_kg + params.added_mass_sway_kg
+        self._bottom_depth_m = params.bottom_depth_m
         self._dt_s = 0.0
         self._prepare(0.01)
 
@@ -349,7 +358,8 @@ class Vehicle:
         self.yaw_torque_n_m = yaw_torque
 
         # Heave: buoyancy, thrust, waves and drag; the surface is a limit the vehicle floats
-        # against.
+        # against, the bottom one it rests on (without it, full down thrust went on for ever:
+        # 12 km down after four hours).
         speed = self.heave_m_s
         up_force = self.net_buoyancy_n + up_thrust
         if self._heave_waves:
@@ -364,6 +374,9 @@ class Vehicle:
         if depth <= 0.0:
             depth = 0.0
             speed = max(speed, 0.0)
+        elif depth >= self._bottom_depth_m:
+            depth = self._bottom_depth_m
+            speed = min(speed, 0.0)
         self.depth_m = depth
         self.heave_m_s = speed
 
