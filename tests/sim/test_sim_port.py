@@ -96,15 +96,17 @@ def test_a_failing_simulation_closes_the_port_saying_why() -> None:
     def fail() -> None:
         raise RuntimeError("a scenario's bug")
 
-    with port.lock:
-        port.robot.schedule(1.0, fail)
+    with port.lock:  # (an unpaced simulation may be past any fixed time already)
+        fails_at_s = port.robot.time_s + 1.0
+        port.robot.schedule(fails_at_s, fail)
     # Before, the thread died and the port kept answering from a robot frozen in time.
     _wait_for(lambda: not port.is_open)
     with pytest.raises(serial.SerialException, match="simulation stopped: RuntimeError: a sce"):
         port.write(b"#qd!")
     with pytest.raises(serial.SerialException, match="simulation stopped"):
         port.read()
-    assert port.robot.time_s == pytest.approx(1.0)
+    # It stopped at the failing step, in time.
+    assert port.robot.time_s == pytest.approx(fails_at_s, abs=port.robot.tick_s)
     port.close()
 
 
