@@ -199,9 +199,11 @@ class AsyncClient(AsyncCommandMethods):
         exc: BaseException | None,
         traceback: TracebackType | None,
     ) -> None:
-        if exc_type is not None and self._lost is None and not self._closed:
+        if exc_type is not None and self._lost is None:
+            # Leaving by an error: make the robot safe first (also while another task's close()
+            # lets the queries on the wire be answered: the port is open until it ends).
             with contextlib.suppress(ConnectionError):
-                await self.stop()  # leaving by an error: make the robot safe first
+                await self.stop()
         await self.close()
 
     async def close(self) -> None:
@@ -283,7 +285,7 @@ class AsyncClient(AsyncCommandMethods):
 
             threading.Thread(target=rov.emergency_stop).start()
         """
-        if self._closed or self._lost is not None:
+        if self._lost is not None:  # (the port is open until close() has let the wire settle)
             return False
         with contextlib.suppress(RuntimeError):  # (the loop is closed: it writes nothing more)
             self._loop.call_soon_threadsafe(self._stop_after_emergency)
@@ -295,7 +297,7 @@ class AsyncClient(AsyncCommandMethods):
 
     def _stop_after_emergency(self) -> None:
         """:meth:`stop` in the loop after :meth:`emergency_stop`, behind what it had queued."""
-        if self._closed or self._lost is not None:
+        if self._lost is not None:
             return
         with contextlib.suppress(ConnectionError):  # (lost meanwhile: nothing to stop on)
             self._send(operations.STOP)
@@ -502,12 +504,19 @@ class AsyncClient(AsyncCommandMethods):
     def _send(self, command: Command) -> None:
         # (Written, or queued for the port, before it returns: a set command never waits, so a
         # stop() after it follows it on the wire. A raw frame may wait: see send_raw.)
-        if command == operations.STOP:
+        stop = command == operations.STOP
+        if stop:
             self._session.stop_asked()
-        if self._link_down and command == operations.STOP and not self._closed:
-            self._stop_while_reconnecting()
-            return
-        self._check_open()
+            if self._link_down and not self._closed:
+                self._stop_while_reconnecting()
+                return
+        if stop and self._closed and self._lost is None:
+            # close() is letting the queries on the wire be answered: the port is still open,
+            # and a stop still goes out until it is closed (as the blocking client's). Nothing
+            # else due is written but an expired motion's zero thrust (P23).
+            self._flush_due()
+        else:
+            self._check_open()
         try:
             self._write(self._session.command(command, self._clock()))
         except ConnectionLostError:
