@@ -217,6 +217,7 @@ class AsyncClient(AsyncCommandMethods):
 
             await rov.close()
         """
+        self._check_loop()
         if self._closed:
             await self._released.wait()  # a close() under way: return once it is done
             return
@@ -343,6 +344,7 @@ class AsyncClient(AsyncCommandMethods):
             raise ValueError(
                 f"telemetry: rate_hz must be a positive number or None, got {rate_hz!r}"
             )
+        self._check_loop()
         period_s = 1.0 / rate_hz if rate_hz else 0.0
         loop = self._loop
         polls: deque[asyncio.Task[Sensors]] = deque()
@@ -396,6 +398,7 @@ class AsyncClient(AsyncCommandMethods):
 
             replies = await rov.send_raw("#qsa!")
         """
+        self._check_loop()
         data = operations.raw_frame(frame)
         mode = checksum_mode_frame(data)
         if mode is not None:  # a mode frame by exact match, as the controller takes it (P3)
@@ -428,6 +431,7 @@ class AsyncClient(AsyncCommandMethods):
     async def _switch_checksum(self, command: Command) -> None:
         """Send ``#crcon!``/``#crcoff!`` once the queries on the wire are answered in the old
         mode."""
+        self._check_loop()
         self._check_open()
         while not self._mode_settled.is_set():
             await self._mode_settled.wait()
@@ -440,6 +444,28 @@ class AsyncClient(AsyncCommandMethods):
         finally:
             self._mode_settled.set()
             self._switching_mode = False
+
+    def _check_loop(self) -> None:
+        if _running_loop() is not self._loop:
+            raise self._wrong_loop_error()
+
+    def _wrong_loop_error(self) -> RuntimeError:
+        # Its futures, timer and port watch are the loop's it was opened in: used from another
+        # loop, a query was written from the wrong thread and then failed with asyncio's "got
+        # Future attached to a different loop", its slot given back while it was on the wire.
+        return RuntimeError(
+            f"{self._link.description}: this client belongs to the event loop it was opened "
+            "in, not this one (another thread's, or a later asyncio.run): call it in that "
+            "loop (asyncio.run_coroutine_threadsafe from another thread; emergency_stop() "
+            "from any thread), or connect again in this one"
+        )
+
+    def _stop_from_another_loop(self) -> None:
+        """``stop()`` called in another event loop: the robot is stopped all the same, as
+        :meth:`emergency_stop` does (written at once, then a stop in the client's own loop if it
+        still runs). ConnectionLostError once the port is closed, as in the client's loop."""
+        if not self.emergency_stop() and self._lost is not None:
+            raise self._lost_error()
 
     def _check_open(self) -> None:
         if self._lost is not None or self._closed:
@@ -505,6 +531,11 @@ class AsyncClient(AsyncCommandMethods):
         # (Written, or queued for the port, before it returns: a set command never waits, so a
         # stop() after it follows it on the wire. A raw frame may wait: see send_raw.)
         stop = command == operations.STOP
+        if _running_loop() is not self._loop:
+            if not stop:
+                raise self._wrong_loop_error()
+            self._stop_from_another_loop()
+            return
         if stop:
             self._session.stop_asked()
             if self._link_down and not self._closed:
@@ -582,6 +613,8 @@ class AsyncClient(AsyncCommandMethods):
 
         One coroutine for the whole query: every layer of coroutines costs a polling loop.
         """
+        if _running_loop() is not self._loop:
+            raise self._wrong_loop_error()
         if self._link_down:
             await self._await_link()
         command = query.command
@@ -824,6 +857,14 @@ class AsyncClient(AsyncCommandMethods):
             self._flush_due()
         self._emit()
         self._arm_timer()
+
+
+def _running_loop() -> asyncio.AbstractEventLoop | None:
+    """The event loop running in this thread, if any (a coroutine may be run without one)."""
+    try:
+        return asyncio.get_running_loop()
+    except RuntimeError:
+        return None
 
 
 def _loop_clock(loop: asyncio.AbstractEventLoop) -> Callable[[], float]:
