@@ -129,6 +129,9 @@ class AsyncClient(AsyncCommandMethods):
         # Why the reopened link failed before it was ready (it fails that attempt).
         self._attempt_lost: ConnectionLostError | None = None
         self._released = asyncio.Event()  # set once close() has released the port
+        # Once open() has succeeded: only a connection made is reopened when lost (a link lost
+        # while connecting fails the connect, as the blocking client's does).
+        self._opened = False
 
     async def open(self) -> AsyncClient:
         """Start reading, wait until the controller answers (``boot_timeout``, P21), and put it in
@@ -158,6 +161,7 @@ class AsyncClient(AsyncCommandMethods):
             self._closed = True
             await self._release("open failed")
             raise
+        self._opened = True
         self._arm_timer()
         return self
 
@@ -170,8 +174,9 @@ class AsyncClient(AsyncCommandMethods):
         try:
             while not probe.done(loop.time()):
                 if self._closed or (self._lost is not None and not reconnecting):
-                    error = self._lost_error()
-                    raise probe.lost(error) if self._lost is not None else error
+                    if self._lost is not None:  # (the link's own error, as the blocking client)
+                        raise probe.lost(self._lost)
+                    raise self._lost_error()
                 if reconnecting and self._attempt_lost is not None:
                     raise self._attempt_lost
                 now = loop.time()
@@ -181,8 +186,11 @@ class AsyncClient(AsyncCommandMethods):
                     )
                 data = probe.bytes_to_send(now)
                 if data:
-                    self._write(data)
-                    self._session.count_outside(now, sent=data)
+                    # (A write that finds the link lost is said at the top of the loop: as a
+                    # failure to connect, with what the controller said before.)
+                    with contextlib.suppress(ConnectionLostError):
+                        self._write(data)
+                        self._session.count_outside(now, sent=data)
                 self._probe_data.clear()
                 await wait_for_event(self._probe_data, max(probe.wait_s(loop.time()), 0.001))
         finally:
@@ -726,7 +734,7 @@ class AsyncClient(AsyncCommandMethods):
     def _on_lost(self, error: ConnectionLostError) -> None:
         if self._lost is not None:
             return
-        if self._reopen is not None and not self._closed:
+        if self._reopen is not None and self._opened and not self._closed:
             if not self._link_ready.is_set():  # the reopened link, before it was ready
                 self._attempt_lost = error
                 self._probe_data.set()  # (the readiness wait gives up now)
@@ -744,7 +752,7 @@ class AsyncClient(AsyncCommandMethods):
         self._lost = error
         self._cancel_timer()
         self._wake(self._session.disconnect())
-        if not self._closed:
+        if self._opened and not self._closed:  # (while connecting: the connect's error says it)
             logger.warning("%s", error)
 
     async def _reconnect(self) -> None:
