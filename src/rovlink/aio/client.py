@@ -412,6 +412,10 @@ class AsyncClient(AsyncCommandMethods):
         if mode is not None:  # a mode frame by exact match, as the controller takes it (P3)
             await self.set_checksum(mode)
             return ()
+        if self._link_down:  # as the command it carries: a query waits for the link, at most
+            command = self._session.raw_command(data)  # timeout; a set command fails at once
+            if command is not None and command.spec.is_query:
+                await self._await_link()
         self._check_open()
         # A frame that moves or unlocks, still waiting for a checksum switch when a stop() is
         # called, is superseded by it (SupersededByStopError): it would follow the #stop!.
