@@ -595,6 +595,39 @@ async def test_leaving_by_an_error_delivers_the_stop_behind_a_full_send_buffer()
     assert received.count(b"#th.") == 1000
 
 
+async def test_a_close_cancelled_as_its_send_buffer_drains_is_cancelled() -> None:
+    """On Python 3.10, ``asyncio.wait_for`` returns the result of what it waits for if that is
+    done when the cancellation comes (bpo-37658): a close() cancelled by its caller's deadline
+    just as the port took the last of its buffer returned as if not cancelled, and the caller
+    ran on past its own deadline (a TaskGroup's sibling, a shutdown that must end)."""
+    host_end, controller_end = socket.socketpair()
+    host_end.setsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF, 4096)
+    controller_end.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
+    rov = await AsyncClient(SocketLink(host_end, "slow reader"), client_options()).open()
+    for index in range(1000):
+        await rov.move(index % 360, 40)
+    transport = rov._transport
+    assert transport._buffer  # type: ignore[attr-defined]  # (really behind)
+    closing = asyncio.ensure_future(rov.close())
+    assert await wait_until_async(lambda: transport._drained is not None)  # type: ignore[attr-defined]
+    # The deadline comes as the buffer drains: in the same turn of the loop.
+    transport._drained.add_done_callback(lambda _: closing.cancel())  # type: ignore[attr-defined]
+    with controller_end:
+        reader = threading.Thread(target=lambda: _read_to_the_end(controller_end))
+        reader.start()
+        with pytest.raises(asyncio.CancelledError):
+            await asyncio.wait_for(asyncio.shield(closing), CONDITION_TIMEOUT_S)
+        await asyncio.to_thread(reader.join, CONDITION_TIMEOUT_S)
+    assert rov.closed
+    with pytest.raises(ConnectionLostError, match="closed"):
+        await rov.stop()  # the port was released all the same
+
+
+def _read_to_the_end(sock: socket.socket) -> None:
+    while sock.recv(65536):
+        pass
+
+
 async def test_a_cancelled_connect_leaves_no_port_open(monkeypatch: pytest.MonkeyPatch) -> None:
     def simulators() -> int:
         return sum(thread.name.startswith("rovlink-sim") for thread in threading.enumerate())
