@@ -98,4 +98,8 @@ def test_a_client_connected_in_an_earlier_asyncio_run_says_so(
     asyncio.run(client.stop())  # the robot is stopped all the same
     assert fake.wait_for(lambda f: f.frames()[-1:] == ["#stop!"])
     assert "#qd!" not in fake.frames()[1:]
-    sock.close()
+    asyncio.run(client.close())  # and the port can be released: nothing else would
+    assert sock.fileno() == -1
+    assert client.closed
+    with pytest.raises(ConnectionLostError, match="closed"):
+        asyncio.run(client.depth_cm())

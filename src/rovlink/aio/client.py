@@ -221,11 +221,19 @@ class AsyncClient(AsyncCommandMethods):
         their replies — of keep-alives, of the polls of a ``telemetry`` loop just left — would
         greet the next connection to the controller as if they answered its queries.
 
+        Called in a later event loop than the one the client was opened in, once that one has
+        been closed (``rov = asyncio.run(connect(url))``), it just closes the port: nothing
+        could be answered.
+
         Example::
 
             await rov.close()
         """
-        self._check_loop()
+        if _running_loop() is not self._loop:
+            if not self._loop.is_closed():
+                raise self._wrong_loop_error()
+            self._close_after_its_loop()
+            return
         if self._closed:
             await self._released.wait()  # a close() under way: return once it is done
             return
@@ -461,16 +469,29 @@ class AsyncClient(AsyncCommandMethods):
         if _running_loop() is not self._loop:
             raise self._wrong_loop_error()
 
-    def _wrong_loop_error(self) -> RuntimeError:
+    def _wrong_loop_error(self) -> Exception:
         # Its futures, timer and port watch are the loop's it was opened in: used from another
         # loop, a query was written from the wrong thread and then failed with asyncio's "got
         # Future attached to a different loop", its slot given back while it was on the wire.
+        if self._closed or self._lost is not None:  # (as in its own loop)
+            return self._lost_error()
         return RuntimeError(
             f"{self._link.description}: this client belongs to the event loop it was opened "
             "in, not this one (another thread's, or a later asyncio.run): call it in that "
             "loop (asyncio.run_coroutine_threadsafe from another thread; emergency_stop() "
             "from any thread), or connect again in this one"
         )
+
+    def _close_after_its_loop(self) -> None:
+        """close() once the client's loop is closed: nothing runs there any more (no reader, no
+        timer), so the port is closed as it is; there was no other way to release it."""
+        self._closed = True
+        if self._lost is None:
+            self._lost = ConnectionLostError(f"{self._link.description}: closed")
+        with contextlib.suppress(OSError):
+            self._link.close()  # (its reading thread, if any, ends on the closed port)
+        with contextlib.suppress(RuntimeError):  # (a waiter of the closed loop cannot be woken)
+            self._released.set()
 
     def _stop_from_another_loop(self) -> None:
         """``stop()`` called in another event loop: the robot is stopped all the same, as
