@@ -13,6 +13,7 @@ import asyncio
 import contextlib
 import math
 import time
+from asyncio.events import _get_running_loop as _running_loop  # (None, not an error, if none)
 from collections import deque
 from collections.abc import AsyncIterator, Callable, Generator
 from types import TracebackType
@@ -890,14 +891,6 @@ class AsyncClient(AsyncCommandMethods):
             self._flush_due()
         self._emit()
         self._arm_timer()
-
-
-def _running_loop() -> asyncio.AbstractEventLoop | None:
-    """The event loop running in this thread, if any (a coroutine may be run without one)."""
-    try:
-        return asyncio.get_running_loop()
-    except RuntimeError:
-        return None
 
 
 def _loop_clock(loop: asyncio.AbstractEventLoop) -> Callable[[], float]:
