@@ -152,6 +152,40 @@ async def test_a_cancelled_query_keeps_its_slot_until_its_reply_comes(
     await client.close()
 
 
+@pytest.mark.parametrize("first", ["typed", "raw"])
+async def test_a_raw_query_waits_for_a_slot_and_keeps_it_as_any_query(
+    pair: tuple[FakeController, socket.socket], loop_errors: list[dict[str, Any]], first: str
+) -> None:
+    """Before, ``send_raw`` took no ``max_in_flight`` slot: a raw query went on the wire beside
+    as many queries as the line was meant to carry (a console's ``#qsa!`` beside a
+    ``telemetry`` loop's eight), and its slot was not held when its caller was cancelled."""
+    fake, sock = pair
+    client = await _client(sock, max_in_flight=1)
+    fake.then("hold")
+    on_the_wire = asyncio.ensure_future(
+        client.depth_cm() if first == "typed" else client.send_raw("#qd!")
+    )
+    await _arrived(fake, lambda f: f.query_count == 1)
+    sent = client.counters.frames_sent
+    second = asyncio.ensure_future(
+        client.send_raw("#qhe!") if first == "typed" else client.heading_deg()
+    )
+    for _ in range(3):  # (the call writes before its first wait, if it may)
+        await asyncio.sleep(0)
+    assert client.counters.frames_sent == sent, "a second query on a line that carries one"
+    on_the_wire.cancel()  # cancelled on the wire: it keeps the slot until its reply comes
+    for _ in range(3):
+        await asyncio.sleep(0)
+    assert client.counters.frames_sent == sent
+    fake.release()
+    replies = await asyncio.wait_for(second, CONDITION_TIMEOUT_S)
+    assert replies == ((Response("qhe", (275,)),) if first == "typed" else 275)
+    with pytest.raises(asyncio.CancelledError):
+        await on_the_wire
+    await _assert_usable(fake, client, 1)
+    await client.close()
+
+
 async def test_cancelled_reply_wait_then_timed_out_is_fenced(
     pair: tuple[FakeController, socket.socket], loop_errors: list[dict[str, Any]]
 ) -> None:

@@ -421,26 +421,42 @@ class AsyncClient(AsyncCommandMethods):
         if mode is not None:  # a mode frame by exact match, as the controller takes it (P3)
             await self.set_checksum(mode)
             return ()
-        if self._link_down:  # as the command it carries: a query waits for the link, at most
-            command = self._session.raw_command(data)  # timeout; a set command fails at once
-            if command is not None and command.spec.is_query:
-                await self._await_link()
+        # As the command it carries: a query waits for a link being reopened (at most timeout)
+        # and for a max_in_flight slot; a set command fails at once on a link being reopened.
+        # (ValueError for more than one command, before anything waits.)
+        command = self._session.raw_command(data)
+        is_query = command is not None and command.spec.is_query
+        if self._link_down and is_query:
+            await self._await_link()
         self._check_open()
         # A frame that moves or unlocks, still waiting for a checksum switch when a stop() is
         # called, is superseded by it (SupersededByStopError): it would follow the #stop!.
         stops_seen = self._session.stops_asked
-        while not self._mode_settled.is_set():  # (another switch may start as one ends)
-            await self._mode_settled.wait()
-        self._check_open()  # the link may have gone meanwhile: nothing would settle the query
-        data, pending = self._session.raw(data, self._clock(), stops_seen=stops_seen)
-        if pending is not None:
-            pending.waiter = self._loop.create_future()
-            self._arm_timer()
-        self._write(data)
-        self._emit()
-        if pending is None:
-            return ()
-        outcome: Outcome = await pending.waiter  # type: ignore[misc]
+        if is_query:
+            await self._in_flight.take()  # (cancelled while it waits: it holds none)
+        slot_handed_over = False
+        try:
+            while not self._mode_settled.is_set():  # (another switch may start as one ends)
+                await self._mode_settled.wait()
+            self._check_open()  # the link may have gone meanwhile: nothing would settle it
+            data, pending = self._session.raw(data, self._clock(), stops_seen=stops_seen)
+            if pending is not None:
+                pending.waiter = self._loop.create_future()
+                self._arm_timer()
+            self._write(data)
+            self._emit()
+            if pending is None:
+                return ()
+            try:
+                outcome: Outcome = await pending.waiter  # type: ignore[misc]
+            except asyncio.CancelledError:
+                if is_query and not pending.settled:  # on the wire: as _ask's
+                    self._hold_slot_until_settled(pending)
+                    slot_handed_over = True
+                raise
+        finally:
+            if is_query and not slot_handed_over:
+                self._in_flight.release()
         if outcome is Outcome.DISCONNECTED:
             raise self._lost_error()
         if outcome is Outcome.ANSWERED:
