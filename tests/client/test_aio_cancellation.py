@@ -152,6 +152,40 @@ async def test_a_cancelled_query_keeps_its_slot_until_its_reply_comes(
     await client.close()
 
 
+@pytest.mark.parametrize("first", ["typed", "raw"])
+async def test_a_raw_query_waits_for_a_slot_and_keeps_it_as_any_query(
+    pair: tuple[FakeController, socket.socket], loop_errors: list[dict[str, Any]], first: str
+) -> None:
+    """Before, ``send_raw`` took no ``max_in_flight`` slot: a raw query went on the wire beside
+    as many queries as the line was meant to carry (a console's ``#qsa!`` beside a
+    ``telemetry`` loop's eight), and its slot was not held when its caller was cancelled."""
+    fake, sock = pair
+    client = await _client(sock, max_in_flight=1)
+    fake.then("hold")
+    on_the_wire = asyncio.ensure_future(
+        client.depth_cm() if first == "typed" else client.send_raw("#qd!")
+    )
+    await _arrived(fake, lambda f: f.query_count == 1)
+    sent = client.counters.frames_sent
+    second = asyncio.ensure_future(
+        client.send_raw("#qhe!") if first == "typed" else client.heading_deg()
+    )
+    for _ in range(3):  # (the call writes before its first wait, if it may)
+        await asyncio.sleep(0)
+    assert client.counters.frames_sent == sent, "a second query on a line that carries one"
+    on_the_wire.cancel()  # cancelled on the wire: it keeps the slot until its reply comes
+    for _ in range(3):
+        await asyncio.sleep(0)
+    assert client.counters.frames_sent == sent
+    fake.release()
+    replies = await asyncio.wait_for(second, CONDITION_TIMEOUT_S)
+    assert replies == ((Response("qhe", (275,)),) if first == "typed" else 275)
+    with pytest.raises(asyncio.CancelledError):
+        await on_the_wire
+    await _assert_usable(fake, client, 1)
+    await client.close()
+
+
 async def test_cancelled_reply_wait_then_timed_out_is_fenced(
     pair: tuple[FakeController, socket.socket], loop_errors: list[dict[str, Any]]
 ) -> None:
@@ -593,6 +627,39 @@ async def test_leaving_by_an_error_delivers_the_stop_behind_a_full_send_buffer()
     await asyncio.to_thread(reader.join, CONDITION_TIMEOUT_S)
     assert received.endswith(b"#stop!")
     assert received.count(b"#th.") == 1000
+
+
+async def test_a_close_cancelled_as_its_send_buffer_drains_is_cancelled() -> None:
+    """On Python 3.10, ``asyncio.wait_for`` returns the result of what it waits for if that is
+    done when the cancellation comes (bpo-37658): a close() cancelled by its caller's deadline
+    just as the port took the last of its buffer returned as if not cancelled, and the caller
+    ran on past its own deadline (a TaskGroup's sibling, a shutdown that must end)."""
+    host_end, controller_end = socket.socketpair()
+    host_end.setsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF, 4096)
+    controller_end.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
+    rov = await AsyncClient(SocketLink(host_end, "slow reader"), client_options()).open()
+    for index in range(1000):
+        await rov.move(index % 360, 40)
+    transport = rov._transport
+    assert transport._buffer  # type: ignore[attr-defined]  # (really behind)
+    closing = asyncio.ensure_future(rov.close())
+    assert await wait_until_async(lambda: transport._drained is not None)  # type: ignore[attr-defined]
+    # The deadline comes as the buffer drains: in the same turn of the loop.
+    transport._drained.add_done_callback(lambda _: closing.cancel())  # type: ignore[attr-defined]
+    with controller_end:
+        reader = threading.Thread(target=lambda: _read_to_the_end(controller_end))
+        reader.start()
+        with pytest.raises(asyncio.CancelledError):
+            await asyncio.wait_for(asyncio.shield(closing), CONDITION_TIMEOUT_S)
+        await asyncio.to_thread(reader.join, CONDITION_TIMEOUT_S)
+    assert rov.closed
+    with pytest.raises(ConnectionLostError, match="closed"):
+        await rov.stop()  # the port was released all the same
+
+
+def _read_to_the_end(sock: socket.socket) -> None:
+    while sock.recv(65536):
+        pass
 
 
 async def test_a_cancelled_connect_leaves_no_port_open(monkeypatch: pytest.MonkeyPatch) -> None:

@@ -6,12 +6,14 @@ the client reconnects. Nothing may hang, leak a port, or leave the loop watching
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import socket
 import threading
 from collections.abc import Iterator
 
 import pytest
 
+import rovlink
 import rovlink.aio
 from rovlink.aio import AsyncClient, ConnectError, ConnectionLostError
 from rovlink.client.events import ClientEvent, LinkState
@@ -115,6 +117,65 @@ async def test_send_raw_waiting_for_a_checksum_switch_fails_when_the_link_is_los
     finally:
         await client.close()
         fake.close()
+
+
+class _BusyServer:
+    """A TCP port whose every connection is told it is busy, then closed (a second client of
+    ``rovlink sim --tcp``, a serial-to-network bridge that serves one client)."""
+
+    SAYS = b"busy: the controller already has a client\r\n"
+
+    def __init__(self) -> None:
+        self._server = socket.create_server(("127.0.0.1", 0))
+        self.url = f"socket://127.0.0.1:{self._server.getsockname()[1]}"
+        self.connections = 0
+        threading.Thread(target=self._serve, name="busy server", daemon=True).start()
+
+    def _serve(self) -> None:
+        while True:
+            try:
+                connection, _ = self._server.accept()
+            except OSError:
+                return
+            self.connections += 1
+            with connection:
+                connection.sendall(self.SAYS)
+                connection.shutdown(socket.SHUT_WR)
+                # Read on until the client lets go: closed with its probe unread, the
+                # connection would be reset, and the client would read that rather than the end.
+                connection.settimeout(CONDITION_TIMEOUT_S)
+                with contextlib.suppress(OSError):
+                    while connection.recv(1024):
+                        pass
+
+    def close(self) -> None:
+        with contextlib.suppress(OSError):
+            self._server.shutdown(socket.SHUT_RDWR)
+        self._server.close()
+
+
+@pytest.mark.parametrize("reconnect", [False, True])
+async def test_a_link_closed_while_connecting_is_a_connect_error_as_the_blocking_clients(
+    reconnect: bool,
+) -> None:
+    """Before, with ``reconnect=True`` the asyncio client began reconnecting while it was still
+    connecting: it opened the port again and again, and the connect failed after a quarter of a
+    second with "ConnectionLostError: …: lost, reconnecting", not what the controller said;
+    without it, the ConnectError read "connection lost: …", unlike the blocking client's."""
+    server = _BusyServer()
+    try:
+        with pytest.raises(ConnectError) as blocking:
+            await asyncio.to_thread(rovlink.connect, server.url, reconnect=reconnect)
+        assert str(blocking.value).endswith(
+            '; it said: "busy: the controller already has a client"'
+        )
+        with pytest.raises(ConnectError) as native:
+            await rovlink.aio.connect(server.url, reconnect=reconnect)
+        assert str(native.value) == str(blocking.value)
+        assert server.connections == 2  # one each: nothing was reopened
+        assert asyncio.all_tasks() == {asyncio.current_task()}  # (nor is being reopened)
+    finally:
+        server.close()
 
 
 async def test_a_reopened_link_that_fails_at_once_is_one_failed_attempt() -> None:

@@ -15,6 +15,7 @@ from rovlink.client.errors import ConnectionLostError
 from rovlink.client.events import ClientEvent, LinkState
 from rovlink.client.links import Link, SocketLink
 from rovlink.client.readiness import PROBE_BYTES
+from rovlink.protocol import Response
 from tests.client.conftest import (
     CONDITION_TIMEOUT_S,
     client_options,
@@ -369,3 +370,31 @@ async def test_a_reopened_link_lost_as_it_became_ready_leaves_the_next_one_its_f
         plugged_back.set()
         for fake in fakes:
             fake.close()
+
+
+async def test_the_asyncio_clients_raw_frames_wait_for_the_link_as_their_commands_do(
+    port: FakeControllerServer,
+) -> None:
+    """A raw query waits for the reopened link (at most ``timeout``), as ``depth_cm()`` and the
+    blocking client's ``send_raw`` do; a raw set frame fails at once, as ``move()`` does. Before,
+    a raw query failed at once: the console's ``#qd!`` did, while its ``qd`` waited."""
+    events: list[ClientEvent] = []
+    async with rovlink.aio.connect(
+        port.url, reconnect=True, keepalive=None, timeout=2.0, on_event=events.append
+    ) as rov:
+        port.refuse = True
+        port.fakes[0].close()
+        assert await wait_until_async(lambda: _lost(events))
+        with pytest.raises(ConnectionLostError, match="lost, reconnecting"):
+            await rov.send_raw("#th.0.10!")
+        with pytest.raises(ConnectionLostError, match="lost, reconnecting"):
+            await rov.move(0, 10)
+        queries = [
+            asyncio.ensure_future(rov.send_raw("#qd!")),
+            asyncio.ensure_future(rov.depth_cm()),
+        ]
+        await asyncio.sleep(0)
+        port.refuse = False
+        raw, typed = await asyncio.wait_for(asyncio.gather(*queries), CONDITION_TIMEOUT_S)
+        assert (raw, typed) == ((Response("qd", (123,)),), 123)
+        assert "#th.0.10!" not in port.fakes[1].frames()

@@ -13,6 +13,7 @@ import asyncio
 import contextlib
 import math
 import time
+from asyncio.events import _get_running_loop as _running_loop  # (None, not an error, if none)
 from collections import deque
 from collections.abc import AsyncIterator, Callable, Generator
 from types import TracebackType
@@ -129,6 +130,9 @@ class AsyncClient(AsyncCommandMethods):
         # Why the reopened link failed before it was ready (it fails that attempt).
         self._attempt_lost: ConnectionLostError | None = None
         self._released = asyncio.Event()  # set once close() has released the port
+        # Once open() has succeeded: only a connection made is reopened when lost (a link lost
+        # while connecting fails the connect, as the blocking client's does).
+        self._opened = False
 
     async def open(self) -> AsyncClient:
         """Start reading, wait until the controller answers (``boot_timeout``, P21), and put it in
@@ -158,6 +162,7 @@ class AsyncClient(AsyncCommandMethods):
             self._closed = True
             await self._release("open failed")
             raise
+        self._opened = True
         self._arm_timer()
         return self
 
@@ -170,8 +175,9 @@ class AsyncClient(AsyncCommandMethods):
         try:
             while not probe.done(loop.time()):
                 if self._closed or (self._lost is not None and not reconnecting):
-                    error = self._lost_error()
-                    raise probe.lost(error) if self._lost is not None else error
+                    if self._lost is not None:  # (the link's own error, as the blocking client)
+                        raise probe.lost(self._lost)
+                    raise self._lost_error()
                 if reconnecting and self._attempt_lost is not None:
                     raise self._attempt_lost
                 now = loop.time()
@@ -181,8 +187,11 @@ class AsyncClient(AsyncCommandMethods):
                     )
                 data = probe.bytes_to_send(now)
                 if data:
-                    self._write(data)
-                    self._session.count_outside(now, sent=data)
+                    # (A write that finds the link lost is said at the top of the loop: as a
+                    # failure to connect, with what the controller said before.)
+                    with contextlib.suppress(ConnectionLostError):
+                        self._write(data)
+                        self._session.count_outside(now, sent=data)
                 self._probe_data.clear()
                 await wait_for_event(self._probe_data, max(probe.wait_s(loop.time()), 0.001))
         finally:
@@ -199,9 +208,11 @@ class AsyncClient(AsyncCommandMethods):
         exc: BaseException | None,
         traceback: TracebackType | None,
     ) -> None:
-        if exc_type is not None and self._lost is None and not self._closed:
+        if exc_type is not None and self._lost is None:
+            # Leaving by an error: make the robot safe first (also while another task's close()
+            # lets the queries on the wire be answered: the port is open until it ends).
             with contextlib.suppress(ConnectionError):
-                await self.stop()  # leaving by an error: make the robot safe first
+                await self.stop()
         await self.close()
 
     async def close(self) -> None:
@@ -211,10 +222,19 @@ class AsyncClient(AsyncCommandMethods):
         their replies — of keep-alives, of the polls of a ``telemetry`` loop just left — would
         greet the next connection to the controller as if they answered its queries.
 
+        Called in a later event loop than the one the client was opened in, once that one has
+        been closed (``rov = asyncio.run(connect(url))``), it just closes the port: nothing
+        could be answered.
+
         Example::
 
             await rov.close()
         """
+        if _running_loop() is not self._loop:
+            if not self._loop.is_closed():
+                raise self._wrong_loop_error()
+            self._close_after_its_loop()
+            return
         if self._closed:
             await self._released.wait()  # a close() under way: return once it is done
             return
@@ -283,7 +303,7 @@ class AsyncClient(AsyncCommandMethods):
 
             threading.Thread(target=rov.emergency_stop).start()
         """
-        if self._closed or self._lost is not None:
+        if self._lost is not None:  # (the port is open until close() has let the wire settle)
             return False
         with contextlib.suppress(RuntimeError):  # (the loop is closed: it writes nothing more)
             self._loop.call_soon_threadsafe(self._stop_after_emergency)
@@ -295,7 +315,7 @@ class AsyncClient(AsyncCommandMethods):
 
     def _stop_after_emergency(self) -> None:
         """:meth:`stop` in the loop after :meth:`emergency_stop`, behind what it had queued."""
-        if self._closed or self._lost is not None:
+        if self._lost is not None:
             return
         with contextlib.suppress(ConnectionError):  # (lost meanwhile: nothing to stop on)
             self._send(operations.STOP)
@@ -341,6 +361,7 @@ class AsyncClient(AsyncCommandMethods):
             raise ValueError(
                 f"telemetry: rate_hz must be a positive number or None, got {rate_hz!r}"
             )
+        self._check_loop()
         period_s = 1.0 / rate_hz if rate_hz else 0.0
         loop = self._loop
         polls: deque[asyncio.Task[Sensors]] = deque()
@@ -394,27 +415,48 @@ class AsyncClient(AsyncCommandMethods):
 
             replies = await rov.send_raw("#qsa!")
         """
+        self._check_loop()
         data = operations.raw_frame(frame)
         mode = checksum_mode_frame(data)
         if mode is not None:  # a mode frame by exact match, as the controller takes it (P3)
             await self.set_checksum(mode)
             return ()
+        # As the command it carries: a query waits for a link being reopened (at most timeout)
+        # and for a max_in_flight slot; a set command fails at once on a link being reopened.
+        # (ValueError for more than one command, before anything waits.)
+        command = self._session.raw_command(data)
+        is_query = command is not None and command.spec.is_query
+        if self._link_down and is_query:
+            await self._await_link()
         self._check_open()
         # A frame that moves or unlocks, still waiting for a checksum switch when a stop() is
         # called, is superseded by it (SupersededByStopError): it would follow the #stop!.
         stops_seen = self._session.stops_asked
-        while not self._mode_settled.is_set():  # (another switch may start as one ends)
-            await self._mode_settled.wait()
-        self._check_open()  # the link may have gone meanwhile: nothing would settle the query
-        data, pending = self._session.raw(data, self._clock(), stops_seen=stops_seen)
-        if pending is not None:
-            pending.waiter = self._loop.create_future()
-            self._arm_timer()
-        self._write(data)
-        self._emit()
-        if pending is None:
-            return ()
-        outcome: Outcome = await pending.waiter  # type: ignore[misc]
+        if is_query:
+            await self._in_flight.take()  # (cancelled while it waits: it holds none)
+        slot_handed_over = False
+        try:
+            while not self._mode_settled.is_set():  # (another switch may start as one ends)
+                await self._mode_settled.wait()
+            self._check_open()  # the link may have gone meanwhile: nothing would settle it
+            data, pending = self._session.raw(data, self._clock(), stops_seen=stops_seen)
+            if pending is not None:
+                pending.waiter = self._loop.create_future()
+                self._arm_timer()
+            self._write(data)
+            self._emit()
+            if pending is None:
+                return ()
+            try:
+                outcome: Outcome = await pending.waiter  # type: ignore[misc]
+            except asyncio.CancelledError:
+                if is_query and not pending.settled:  # on the wire: as _ask's
+                    self._hold_slot_until_settled(pending)
+                    slot_handed_over = True
+                raise
+        finally:
+            if is_query and not slot_handed_over:
+                self._in_flight.release()
         if outcome is Outcome.DISCONNECTED:
             raise self._lost_error()
         if outcome is Outcome.ANSWERED:
@@ -426,6 +468,7 @@ class AsyncClient(AsyncCommandMethods):
     async def _switch_checksum(self, command: Command) -> None:
         """Send ``#crcon!``/``#crcoff!`` once the queries on the wire are answered in the old
         mode."""
+        self._check_loop()
         self._check_open()
         while not self._mode_settled.is_set():
             await self._mode_settled.wait()
@@ -438,6 +481,41 @@ class AsyncClient(AsyncCommandMethods):
         finally:
             self._mode_settled.set()
             self._switching_mode = False
+
+    def _check_loop(self) -> None:
+        if _running_loop() is not self._loop:
+            raise self._wrong_loop_error()
+
+    def _wrong_loop_error(self) -> Exception:
+        # Its futures, timer and port watch are the loop's it was opened in: used from another
+        # loop, a query was written from the wrong thread and then failed with asyncio's "got
+        # Future attached to a different loop", its slot given back while it was on the wire.
+        if self._closed or self._lost is not None:  # (as in its own loop)
+            return self._lost_error()
+        return RuntimeError(
+            f"{self._link.description}: this client belongs to the event loop it was opened "
+            "in, not this one (another thread's, or a later asyncio.run): call it in that "
+            "loop (asyncio.run_coroutine_threadsafe from another thread; emergency_stop() "
+            "from any thread), or connect again in this one"
+        )
+
+    def _close_after_its_loop(self) -> None:
+        """close() once the client's loop is closed: nothing runs there any more (no reader, no
+        timer), so the port is closed as it is; there was no other way to release it."""
+        self._closed = True
+        if self._lost is None:
+            self._lost = ConnectionLostError(f"{self._link.description}: closed")
+        with contextlib.suppress(OSError):
+            self._link.close()  # (its reading thread, if any, ends on the closed port)
+        with contextlib.suppress(RuntimeError):  # (a waiter of the closed loop cannot be woken)
+            self._released.set()
+
+    def _stop_from_another_loop(self) -> None:
+        """``stop()`` called in another event loop: the robot is stopped all the same, as
+        :meth:`emergency_stop` does (written at once, then a stop in the client's own loop if it
+        still runs). ConnectionLostError once the port is closed, as in the client's loop."""
+        if not self.emergency_stop() and self._lost is not None:
+            raise self._lost_error()
 
     def _check_open(self) -> None:
         if self._lost is not None or self._closed:
@@ -502,12 +580,24 @@ class AsyncClient(AsyncCommandMethods):
     def _send(self, command: Command) -> None:
         # (Written, or queued for the port, before it returns: a set command never waits, so a
         # stop() after it follows it on the wire. A raw frame may wait: see send_raw.)
-        if command == operations.STOP:
-            self._session.stop_asked()
-        if self._link_down and command == operations.STOP and not self._closed:
-            self._stop_while_reconnecting()
+        stop = command == operations.STOP
+        if _running_loop() is not self._loop:
+            if not stop:
+                raise self._wrong_loop_error()
+            self._stop_from_another_loop()
             return
-        self._check_open()
+        if stop:
+            self._session.stop_asked()
+            if self._link_down and not self._closed:
+                self._stop_while_reconnecting()
+                return
+        if stop and self._closed and self._lost is None:
+            # close() is letting the queries on the wire be answered: the port is still open,
+            # and a stop still goes out until it is closed (as the blocking client's). Nothing
+            # else due is written but an expired motion's zero thrust (P23).
+            self._flush_due()
+        else:
+            self._check_open()
         try:
             self._write(self._session.command(command, self._clock()))
         except ConnectionLostError:
@@ -573,6 +663,8 @@ class AsyncClient(AsyncCommandMethods):
 
         One coroutine for the whole query: every layer of coroutines costs a polling loop.
         """
+        if _running_loop() is not self._loop:
+            raise self._wrong_loop_error()
         if self._link_down:
             await self._await_link()
         command = query.command
@@ -684,7 +776,7 @@ class AsyncClient(AsyncCommandMethods):
     def _on_lost(self, error: ConnectionLostError) -> None:
         if self._lost is not None:
             return
-        if self._reopen is not None and not self._closed:
+        if self._reopen is not None and self._opened and not self._closed:
             if not self._link_ready.is_set():  # the reopened link, before it was ready
                 self._attempt_lost = error
                 self._probe_data.set()  # (the readiness wait gives up now)
@@ -702,7 +794,7 @@ class AsyncClient(AsyncCommandMethods):
         self._lost = error
         self._cancel_timer()
         self._wake(self._session.disconnect())
-        if not self._closed:
+        if self._opened and not self._closed:  # (while connecting: the connect's error says it)
             logger.warning("%s", error)
 
     async def _reconnect(self) -> None:

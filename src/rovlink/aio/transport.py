@@ -13,7 +13,6 @@ runs in the loop.
 from __future__ import annotations
 
 import asyncio
-import contextlib
 import threading
 from collections.abc import Callable
 from typing import Protocol
@@ -222,8 +221,9 @@ class FdTransport:
         try:
             if self._buffer and not self._failed:
                 self._drained = self._loop.create_future()
-                with contextlib.suppress(asyncio.TimeoutError):
-                    await asyncio.wait_for(asyncio.shield(self._drained), CLOSE_FLUSH_S)
+                # Not wait_for: on Python 3.10 it swallows a cancellation that comes as the
+                # buffer drains (bpo-37658), and the caller's deadline would be lost.
+                await asyncio.wait({self._drained}, timeout=CLOSE_FLUSH_S)
         finally:  # (cancelled too: the port is released)
             self._closed = True
             self._stop_watching()

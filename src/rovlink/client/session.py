@@ -517,15 +517,12 @@ class Session:
         self._last_query_bytes = data
         return data
 
-    def raw(
-        self, frame: bytes, now: float, *, stops_seen: int | None = None
-    ) -> tuple[bytes, PendingQuery | None]:
-        """The bytes to write for a raw frame sent as it is (after anything due); a query in it
-        joins the queue. Text or broken frames around it go as they are; more than one command
-        frame is a ValueError (nothing is sent). ``stops_seen``: as for :meth:`command`.
+    def raw_command(self, frame: bytes) -> Command | None:
+        """The command a raw frame carries, read as the controller will read it in the current
+        checksum mode (``None``: text or a broken frame); more than one is a ValueError.
 
-        The frame is read as the controller will read it, in the current checksum mode, so that
-        a raw ``#crcon!`` switches the session too and a raw query is matched like any other.
+        >>> Session().raw_command(b"#qd!"), Session().raw_command(b"hello")
+        (Command(name='qd', values=()), None)
         """
         self._raw_decoder.checksum_enabled = self._checksum_enabled
         self._raw_decoder.reset()
@@ -540,7 +537,19 @@ class Session:
                 f"send_raw sends one frame at a time: '{visible(frame.decode('latin-1'))}' holds "
                 f"{len(commands)} commands ({listed}); send each on its own"
             )
-        command = commands[0] if commands else None
+        return commands[0] if commands else None
+
+    def raw(
+        self, frame: bytes, now: float, *, stops_seen: int | None = None
+    ) -> tuple[bytes, PendingQuery | None]:
+        """The bytes to write for a raw frame sent as it is (after anything due); a query in it
+        joins the queue. Text or broken frames around it go as they are; more than one command
+        frame is a ValueError (nothing is sent). ``stops_seen``: as for :meth:`command`.
+
+        The frame is read as the controller will read it, in the current checksum mode, so that
+        a raw ``#crcon!`` switches the session too and a raw query is matched like any other.
+        """
+        command = self.raw_command(frame)
         if command is not None:
             self._check_not_superseded(command, stops_seen)
         data = self.take_outbox(now) + self._account(command, frame, now)
