@@ -610,6 +610,27 @@ def test_overwrite_writes_over_a_recording_already_there(run_cli: RunCli, tmp_pa
     assert isinstance(next(read_entries(str(recording))), HeaderEntry)
 
 
+def test_overwrite_with_rotation_removes_the_earlier_rotations_files(
+    run_cli: RunCli, tmp_path: Path
+) -> None:
+    # A service that records to one name with --overwrite --split: the last run's dive.002 and
+    # dive.003, which the new run never reached, were left beside its dive.jsonl and dive.001,
+    # and read as the new dive's later parts.
+    recording = tmp_path / "dive.jsonl"
+    earlier = [tmp_path / f"dive.{index:03d}.jsonl" for index in (1, 2, 3)]
+    for path in (recording, *earlier):
+        path.write_bytes(b"the last run's recording\n")
+    other = tmp_path / "other.001.jsonl"  # another recording's file: left alone
+    other.write_bytes(b"another recording\n")
+    result = run_cli(
+        "send", "sim://", "qd", "--record", str(recording), "--split", "1h", "--overwrite"
+    )
+    assert result.status == 0, result.err
+    assert isinstance(next(read_entries(str(recording))), HeaderEntry)
+    assert [path for path in earlier if path.exists()] == []
+    assert other.read_bytes() == b"another recording\n"
+
+
 def test_a_rotation_never_writes_over_an_earlier_rotations_file(
     run_cli: RunCli, tmp_path: Path
 ) -> None:
