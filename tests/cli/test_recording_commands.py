@@ -21,6 +21,7 @@ from typing import Any
 import pytest
 
 import rovlink
+from rovlink.cli import main
 from rovlink.cli.recording import recorded_nothing
 from rovlink.client import Client
 from rovlink.client.events import BytesSent, ClientEvent
@@ -379,6 +380,21 @@ def test_plot_writes_a_png_of_the_expected_size(run_cli: RunCli, tmp_path: Path)
     assert header[:8] == b"\x89PNG\r\n\x1a\n"
     width, height = struct.unpack(">II", header[16:24])
     assert (width, height) == (1200, 1100)
+
+
+def test_plot_of_a_file_whose_name_is_not_utf8(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # A name with a Latin-1 byte ended in a traceback of the PNG renderer (its title).
+    pytest.importorskip("matplotlib", reason="matplotlib is in the test extra (plot)")
+    values: dict[str, int | None] = dict.fromkeys(TELEMETRY_FIELDS)
+    path = tmp_path / os.fsdecode(b"plong\xe9e.jsonl")
+    _write(path, TelemetryEntry(2.0, 2_000_000_000, {**values, "depth_cm": 30}))
+    image = tmp_path / "dive.png"
+    stderr = io.StringIO()  # (the real one writes such a name with a backslash escape)
+    monkeypatch.setattr(sys, "stderr", stderr)
+    assert main(["plot", str(path), "-o", str(image)]) == 0, stderr.getvalue()
+    assert image.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
 def test_plot_of_a_raw_capture_says_there_is_no_telemetry(run_cli: RunCli, tmp_path: Path) -> None:

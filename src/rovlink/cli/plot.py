@@ -34,6 +34,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--show", action="store_true", help="open a window (needs a display)")
 
 
+def _title(path: str) -> str:
+    """The file's name as text: a name that is not UTF-8 (a FAT stick's Latin-1 names) holds
+    undecodable bytes as lone surrogates, which the PNG renderer refuses with a traceback.
+
+    >>> _title(os.fsdecode(b"dives/plong\\xe9e.mcap"))
+    'plong\ufffde.mcap'
+    """
+    return os.fsencode(os.path.basename(path)).decode("utf-8", "replace")
+
+
 def run(args: argparse.Namespace) -> int:
     """Draw the dive; damage in the file is reported after the plot of what could be read."""
     if not args.output and not args.show:
@@ -71,7 +81,7 @@ def run(args: argparse.Namespace) -> int:
         from matplotlib import pyplot  # noqa: PLC0415
 
         window = pyplot.figure(figsize=FIGURE_SIZE_IN, layout="constrained")
-    figure = plot_dive(entries, title=os.path.basename(args.file), figure=window)
+    figure = plot_dive(entries, title=_title(args.file), figure=window)
     if args.output:
         try:
             figure.savefig(args.output)
