@@ -334,3 +334,21 @@ def test_a_csv_row_damaged_mid_file_is_damage_and_a_cut_last_row_is_not(
     assert error is not None
     assert f"row {len(lines)} is cut short" in str(error)
     assert error.incomplete  # (status 0)
+
+
+@pytest.mark.parametrize("cut_bytes", [0, 1, 20], ids=lambda n: f"{n}-bytes")
+def test_a_csv_cut_before_or_in_its_header_ends_early(
+    make_recording: MakeRecording, tmp_path: Path, cut_bytes: int
+) -> None:
+    # A recorder killed in its first second leaves an empty .csv (its header is written with
+    # the first second): it read as a foreign file, 'its header differs', where an .mcap or a
+    # .jsonl reads as a recording that ends early with nothing in it.
+    header = _csv_lines(make_recording)[0]
+    cut = tmp_path / "killed.csv"
+    cut.write_bytes(header[:cut_bytes])
+    entries, damage = _read_all(str(cut))
+    assert entries == []
+    assert damage is not None
+    assert damage.incomplete
+    assert str(cut) in str(damage)
+    assert damage.entries_read == 0
