@@ -257,6 +257,26 @@ def test_replay_into_a_changed_controller_shows_what_changed(
     assert "different" in result.out
 
 
+def test_replay_to_times_a_difference_as_the_session_is_listed(
+    run_cli: RunCli, tmp_path: Path
+) -> None:
+    # A difference was timed from the first command replayed, the listing from the recording's
+    # start: the query listed at 2.000 s was reported at 0.500 s.
+    path = tmp_path / "dive.jsonl"
+    _write(
+        path,
+        HeaderEntry(1.0, 1, "sim://?seed=1", False, "crc8", "test", "0"),
+        FrameEntry(2.5, 2, "out", "command", "qr", ()),
+        FrameEntry(3.0, 3, "out", "command", "qd", ()),
+        FrameEntry(3.001, 3, "in", "response", "qd", (9999,), query="qd", round_trip_ms=1.0),
+    )
+    listed = run_cli("replay", str(path))
+    assert "    2.000 s  out  #qd!" in listed.out
+    result = run_cli("replay", str(path), "--to", "sim://?seed=1", "--speed", "100")
+    assert result.status == 1, result.err
+    assert "\n    2.000 s  qd: recorded $qd.9999!, now $qd." in result.out
+
+
 def test_replay_reports_damage_after_what_it_read(run_cli: RunCli, tmp_path: Path) -> None:
     path = tmp_path / "dive.jsonl"
     _record(path)

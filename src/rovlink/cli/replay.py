@@ -137,6 +137,8 @@ def _replay_to(args: argparse.Namespace, damage: _Damage) -> int:
     except ValueError as error:  # the header damaged (or from a newer version): not --to's
         raise CommandError(f"{args.file}: the header's {error}") from None
     steps = replay_steps(entries)
+    # Differences are timed as the session is listed (rovlink replay FILE): from its start.
+    origin_s = next((entry.t_s for entry in entries if entry.t_s > 0), None)
     if not steps:
         if damage.error is not None:  # the damage, not the file, is why there is nothing
             raise CommandError(f"{damage.error}; nothing before it to replay")
@@ -166,7 +168,7 @@ def _replay_to(args: argparse.Namespace, damage: _Damage) -> int:
     def replay() -> ReplaySummary:
         summary = ReplaySummary()
         for step, _, divergence in run_replay(
-            steps, send, speed=args.speed or 1.0, tolerance=args.tolerance
+            steps, send, speed=args.speed or 1.0, tolerance=args.tolerance, origin_s=origin_s
         ):
             summary.commands_sent += 1
             if not step.expected_count:

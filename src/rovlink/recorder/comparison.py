@@ -132,15 +132,18 @@ def run_replay(
     *,
     speed: float = 1.0,
     tolerance: int = 0,
+    origin_s: float | None = None,
     sleep: Callable[[float], None] = time.sleep,
     clock: Callable[[], float] = time.monotonic,
 ) -> Iterator[tuple[ReplayStep, tuple[Response, ...] | None, Divergence | None]]:
     """Send each step at its recorded time (divided by ``speed``; 0: no waiting) with ``send``
     (``None`` back: the query got no reply) and yield it with what came back and the
-    divergence, if any."""
+    divergence, if any, timed from ``origin_s`` (the recording's start, where ``rovlink
+    replay`` counts from; default: the first step)."""
     if not steps:
         return
     first_s = steps[0].t_s
+    origin_s = first_s if origin_s is None else origin_s
     started_s = clock()
     for step in steps:
         if speed > 0:
@@ -149,6 +152,8 @@ def run_replay(
         divergence = None
         if step.expected_count and not _same(step.recorded, replayed, tolerance):
             divergence = Divergence(
-                step.t_s - first_s, step.command.name, *_changes(step.recorded, replayed, tolerance)
+                step.t_s - origin_s,
+                step.command.name,
+                *_changes(step.recorded, replayed, tolerance),
             )
         yield step, replayed, divergence
