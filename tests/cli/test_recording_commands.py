@@ -278,6 +278,27 @@ def test_replay_to_times_a_difference_as_the_session_is_listed(
     assert "\n    2.000 s  qd: recorded $qd.9999!, now $qd." in result.out
 
 
+def test_replay_to_holds_no_more_of_a_recording_than_its_commands(
+    run_cli: RunCli, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # Every entry was held while the commands were resent: 250 MB for an hour of 10 Hz qsa.
+    most_alive = 0
+
+    def entries(path: str) -> Iterator[Entry]:
+        nonlocal most_alive
+        yield HeaderEntry(1.0, 1, "sim://?seed=1", False, "crc8", "test", "0")
+        for index in range(2000):
+            _CountedWire.alive += 1
+            most_alive = max(most_alive, _CountedWire.alive)
+            yield _CountedWire(1.0 + index / 1000, 1, "in", b"$qd.10!")
+        yield FrameEntry(3.0, 3, "out", "command", "qd", ())
+
+    monkeypatch.setattr("rovlink.recorder.read_entries", entries)
+    result = run_cli("replay", str(tmp_path / "dive.jsonl"), "--to", "sim://?seed=1")
+    assert "1 commands replayed" in result.out, result.err
+    assert most_alive < 10
+
+
 def test_replay_reports_damage_after_what_it_read(run_cli: RunCli, tmp_path: Path) -> None:
     path = tmp_path / "dive.jsonl"
     _record(path)
