@@ -352,3 +352,19 @@ def test_a_csv_cut_before_or_in_its_header_ends_early(
     assert damage.incomplete
     assert str(cut) in str(damage)
     assert damage.entries_read == 0
+
+
+def test_a_csv_row_cut_in_its_last_value_is_cut_short_not_read(
+    make_recording: MakeRecording, tmp_path: Path
+) -> None:
+    # A row cut in the middle of its last number parsed: 30 % power read as 3 %, and the
+    # recording as whole.
+    lines = _csv_lines(make_recording)
+    *columns, _ = lines[-1].rstrip(b"\n").split(b",")  # the last: thrust_power_percent
+    cut = tmp_path / "cut.csv"
+    cut.write_bytes(b"".join([*lines[:-1], b",".join([*columns, b"3"])]))  # 30, cut
+    entries, error = _read_all(str(cut))
+    assert len(entries) == len(lines) - 2
+    assert error is not None
+    assert f"row {len(lines)} is cut short" in str(error)
+    assert error.incomplete

@@ -114,6 +114,10 @@ def read_csv(path: str) -> Iterator[Entry]:
             if row is None:
                 break
             try:
+                if not lines.last_complete:
+                    # The recorder ends every row with its newline: a row without one was cut
+                    # short, even where what is left parses (30 cut to 3 in the last column).
+                    raise ValueError("no newline at its end")
                 if len(row) != len(HEADER):
                     raise ValueError(f"{len(row)} columns, not {len(HEADER)}")
                 wall = datetime.fromisoformat(row[1])
