@@ -368,3 +368,24 @@ def test_a_csv_row_cut_in_its_last_value_is_cut_short_not_read(
     assert error is not None
     assert f"row {len(lines)} is cut short" in str(error)
     assert error.incomplete
+
+
+@pytest.mark.parametrize("profile", ["ros2", ""])
+def test_an_mcap_file_of_another_program_is_refused_by_name(tmp_path: Path, profile: str) -> None:
+    # A ROS bag or a Foxglove recording read as a rovlink recording with nothing in it:
+    # replay and decode printed nothing, with status 0.
+    from mcap.writer import Writer
+
+    path = tmp_path / "bag.mcap"
+    with path.open("wb") as stream:
+        writer = Writer(stream)
+        writer.start(profile=profile, library="another program")
+        schema = writer.register_schema(name="Imu", encoding="jsonschema", data=b"{}")
+        channel = writer.register_channel(topic="/imu", message_encoding="json", schema_id=schema)
+        writer.add_message(channel_id=channel, log_time=1, publish_time=1, data=b'{"x": 1}')
+        writer.finish()
+    with pytest.raises(RecordingError) as caught:
+        list(read_entries(str(path)))
+    assert not isinstance(caught.value, RecordingDamagedError)
+    assert str(caught.value).startswith(f"{path}: not a rovlink recording: an MCAP file")
+    assert ("'ros2'" in str(caught.value)) is bool(profile)
