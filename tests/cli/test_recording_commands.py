@@ -299,6 +299,37 @@ def test_replay_to_holds_no_more_of_a_recording_than_its_commands(
     assert most_alive < 10
 
 
+def test_replay_to_in_checksum_mode_stays_in_it(
+    run_cli: RunCli, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # The recording driver's own #crcoff! on connecting was recorded as the program's: the
+    # replay resent it, and went on without checksums though --checksum asked for them.
+    path = tmp_path / "plain.jsonl"
+    assert run_cli("send", "sim://?seed=1", "--record", str(path), "qd").status == 0
+    [mode_frame] = [
+        e for e in read_entries(str(path)) if isinstance(e, FrameEntry) and e.name == "crcoff"
+    ]
+    assert mode_frame.by_session
+    written: list[bytes] = []
+    connect = rovlink.connect
+
+    def connect_noting(url: str, **options: Any) -> Client:
+        def note(event: ClientEvent) -> None:
+            if isinstance(event, BytesSent):
+                written.append(event.data)
+
+        return connect(url, on_event=note, **options)
+
+    monkeypatch.setattr(rovlink, "connect", connect_noting)
+    result = run_cli("replay", str(path), "--to", "sim://?seed=1", "--checksum")
+    assert result.status == 0, result.err
+    assert result.out.startswith("1 commands replayed")
+    # (The readiness probe's own #crcoff! comes before the #crcon! of --checksum.)
+    in_checksum_mode = b"".join(written).partition(b"#crcon!")[2]
+    assert in_checksum_mode.startswith(b"#qd8C!")
+    assert b"#crcoff!" not in in_checksum_mode
+
+
 def test_replay_reports_damage_after_what_it_read(run_cli: RunCli, tmp_path: Path) -> None:
     path = tmp_path / "dive.jsonl"
     _record(path)

@@ -3,7 +3,17 @@ mode, and a sniffer's commands recorded as commands."""
 
 from __future__ import annotations
 
-from rovlink.client.events import BytesSent, LateReply, QueryFailed, ReplyReceived
+import asyncio
+
+import rovlink
+import rovlink.aio
+from rovlink.client.events import (
+    BytesSent,
+    ClientEvent,
+    LateReply,
+    QueryFailed,
+    ReplyReceived,
+)
 from rovlink.protocol import Command, Response, encode
 from rovlink.recorder.entries import Entry, EventEntry, FrameEntry, TelemetryEntry
 from rovlink.recorder.translate import ClientEventLog, TapLog
@@ -146,3 +156,28 @@ def test_a_late_reply_leaves_the_retrys_send_time_to_the_retrys_reply() -> None:
     ):
         entries += log.entries(0, event)
     assert _round_trips(entries) == [("qd", None), ("qd", 3.0)]
+
+
+def _mode_frames_sent(events: list[ClientEvent]) -> list[tuple[str, bool]]:
+    return [
+        (event.command.name, event.by_session)
+        for event in events
+        if isinstance(event, BytesSent) and event.command is not None
+    ]
+
+
+def test_the_drivers_mode_frame_on_connecting_is_the_drivers_own() -> None:
+    # It was recorded as a command of the program: listed without "(by the driver)" and resent
+    # by rovlink replay --to, which then left the checksum mode --checksum asked for.
+    events: list[ClientEvent] = []
+    with rovlink.connect("sim://", on_event=events.append):
+        pass
+    assert _mode_frames_sent(events)[0] == ("crcoff", True)
+
+    async def connect_async() -> None:
+        async with rovlink.aio.connect("sim://", on_event=async_events.append):
+            pass
+
+    async_events: list[ClientEvent] = []
+    asyncio.run(connect_async())
+    assert _mode_frames_sent(async_events)[0] == ("crcoff", True)
