@@ -80,7 +80,8 @@ class HeaderEntry:
 @dataclass(frozen=True, slots=True)
 class WireEntry:
     """Bytes exactly as on the wire; ``by_session``: written by the driver itself (keep-alive,
-    fence, mode frame, retry, expired motion), not by the program."""
+    fence, mode frame, expired motion), not by the program (a retry is the query again, after
+    its ``query_failed`` event)."""
 
     channel: ClassVar[str] = "wire"
     t_s: float
