@@ -15,12 +15,14 @@ import subprocess
 import sys
 import threading
 import time
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
 import pytest
 
 import rovlink
+from rovlink.cli import main
 from rovlink.cli.recording import recorded_nothing
 from rovlink.client import Client
 from rovlink.client.events import BytesSent, ClientEvent
@@ -256,6 +258,78 @@ def test_replay_into_a_changed_controller_shows_what_changed(
     assert "different" in result.out
 
 
+def test_replay_to_times_a_difference_as_the_session_is_listed(
+    run_cli: RunCli, tmp_path: Path
+) -> None:
+    # A difference was timed from the first command replayed, the listing from the recording's
+    # start: the query listed at 2.000 s was reported at 0.500 s.
+    path = tmp_path / "dive.jsonl"
+    _write(
+        path,
+        HeaderEntry(1.0, 1, "sim://?seed=1", False, "crc8", "test", "0"),
+        FrameEntry(2.5, 2, "out", "command", "qr", ()),
+        FrameEntry(3.0, 3, "out", "command", "qd", ()),
+        FrameEntry(3.001, 3, "in", "response", "qd", (9999,), query="qd", round_trip_ms=1.0),
+    )
+    listed = run_cli("replay", str(path))
+    assert "    2.000 s  out  #qd!" in listed.out
+    result = run_cli("replay", str(path), "--to", "sim://?seed=1", "--speed", "100")
+    assert result.status == 1, result.err
+    assert result.out.startswith("    2.000 s  qd: recorded $qd.9999!, now $qd.")
+
+
+def test_replay_to_holds_no_more_of_a_recording_than_its_commands(
+    run_cli: RunCli, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # Every entry was held while the commands were resent: 250 MB for an hour of 10 Hz qsa.
+    most_alive = 0
+
+    def entries(path: str) -> Iterator[Entry]:
+        nonlocal most_alive
+        yield HeaderEntry(1.0, 1, "sim://?seed=1", False, "crc8", "test", "0")
+        for index in range(2000):
+            _CountedWire.alive += 1
+            most_alive = max(most_alive, _CountedWire.alive)
+            yield _CountedWire(1.0 + index / 1000, 1, "in", b"$qd.10!")
+        yield FrameEntry(3.0, 3, "out", "command", "qd", ())
+
+    monkeypatch.setattr("rovlink.recorder.read_entries", entries)
+    result = run_cli("replay", str(tmp_path / "dive.jsonl"), "--to", "sim://?seed=1")
+    assert "1 commands replayed" in result.out, result.err
+    assert most_alive < 10
+
+
+def test_replay_to_in_checksum_mode_stays_in_it(
+    run_cli: RunCli, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # The recording driver's own #crcoff! on connecting was recorded as the program's: the
+    # replay resent it, and went on without checksums though --checksum asked for them.
+    path = tmp_path / "plain.jsonl"
+    assert run_cli("send", "sim://?seed=1", "--record", str(path), "qd").status == 0
+    [mode_frame] = [
+        e for e in read_entries(str(path)) if isinstance(e, FrameEntry) and e.name == "crcoff"
+    ]
+    assert mode_frame.by_session
+    written: list[bytes] = []
+    connect = rovlink.connect
+
+    def connect_noting(url: str, **options: Any) -> Client:
+        def note(event: ClientEvent) -> None:
+            if isinstance(event, BytesSent):
+                written.append(event.data)
+
+        return connect(url, on_event=note, **options)
+
+    monkeypatch.setattr(rovlink, "connect", connect_noting)
+    result = run_cli("replay", str(path), "--to", "sim://?seed=1", "--checksum")
+    assert result.status == 0, result.err
+    assert result.out.startswith("1 commands replayed")
+    # (The readiness probe's own #crcoff! comes before the #crcon! of --checksum.)
+    in_checksum_mode = b"".join(written).partition(b"#crcon!")[2]
+    assert in_checksum_mode.startswith(b"#qd8C!")
+    assert b"#crcoff!" not in in_checksum_mode
+
+
 def test_replay_reports_damage_after_what_it_read(run_cli: RunCli, tmp_path: Path) -> None:
     path = tmp_path / "dive.jsonl"
     _record(path)
@@ -379,6 +453,54 @@ def test_plot_writes_a_png_of_the_expected_size(run_cli: RunCli, tmp_path: Path)
     assert header[:8] == b"\x89PNG\r\n\x1a\n"
     width, height = struct.unpack(">II", header[16:24])
     assert (width, height) == (1200, 1100)
+
+
+def test_plot_of_a_file_whose_name_is_not_utf8(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # A name with a Latin-1 byte ended in a traceback of the PNG renderer (its title).
+    pytest.importorskip("matplotlib", reason="matplotlib is in the test extra (plot)")
+    values: dict[str, int | None] = dict.fromkeys(TELEMETRY_FIELDS)
+    path = tmp_path / os.fsdecode(b"plong\xe9e.jsonl")
+    _write(path, TelemetryEntry(2.0, 2_000_000_000, {**values, "depth_cm": 30}))
+    image = tmp_path / "dive.png"
+    stderr = io.StringIO()  # (the real one writes such a name with a backslash escape)
+    monkeypatch.setattr(sys, "stderr", stderr)
+    assert main(["plot", str(path), "-o", str(image)]) == 0, stderr.getvalue()
+    assert image.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+class _CountedWire(WireEntry):
+    """A wire entry that counts how many of its kind are alive."""
+
+    alive = 0
+
+    def __del__(self) -> None:
+        _CountedWire.alive -= 1
+
+
+def test_plot_holds_no_more_of_a_recording_than_its_telemetry(
+    run_cli: RunCli, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # Every entry was held until the plot was drawn: an hour of 10 Hz qsa took 290 MB, most
+    # of it wire and frames that a plot never draws.
+    pytest.importorskip("matplotlib", reason="matplotlib is in the test extra (plot)")
+    values: dict[str, int | None] = dict.fromkeys(TELEMETRY_FIELDS)
+    most_alive = 0
+
+    def entries(path: str) -> Iterator[Entry]:
+        nonlocal most_alive
+        yield TelemetryEntry(1.0, 1, {**values, "depth_cm": 10})
+        for index in range(2000):
+            _CountedWire.alive += 1
+            most_alive = max(most_alive, _CountedWire.alive)
+            yield _CountedWire(1.0 + index / 1000, 1, "in", b"$qd.10!")
+        yield TelemetryEntry(3.0, 3, {**values, "depth_cm": 20})
+
+    monkeypatch.setattr("rovlink.recorder.read_entries", entries)
+    result = run_cli("plot", str(tmp_path / "dive.jsonl"), "-o", str(tmp_path / "dive.png"))
+    assert result.status == 0, result.err
+    assert most_alive < 10
 
 
 def test_plot_of_a_raw_capture_says_there_is_no_telemetry(run_cli: RunCli, tmp_path: Path) -> None:
@@ -608,6 +730,27 @@ def test_overwrite_writes_over_a_recording_already_there(run_cli: RunCli, tmp_pa
     result = run_cli("send", "sim://", "qd", "--record", str(recording), "--overwrite")
     assert result.status == 0, result.err
     assert isinstance(next(read_entries(str(recording))), HeaderEntry)
+
+
+def test_overwrite_with_rotation_removes_the_earlier_rotations_files(
+    run_cli: RunCli, tmp_path: Path
+) -> None:
+    # A service that records to one name with --overwrite --split: the last run's dive.002 and
+    # dive.003, which the new run never reached, were left beside its dive.jsonl and dive.001,
+    # and read as the new dive's later parts.
+    recording = tmp_path / "dive.jsonl"
+    earlier = [tmp_path / f"dive.{index:03d}.jsonl" for index in (1, 2, 3)]
+    for path in (recording, *earlier):
+        path.write_bytes(b"the last run's recording\n")
+    other = tmp_path / "other.001.jsonl"  # another recording's file: left alone
+    other.write_bytes(b"another recording\n")
+    result = run_cli(
+        "send", "sim://", "qd", "--record", str(recording), "--split", "1h", "--overwrite"
+    )
+    assert result.status == 0, result.err
+    assert isinstance(next(read_entries(str(recording))), HeaderEntry)
+    assert [path for path in earlier if path.exists()] == []
+    assert other.read_bytes() == b"another recording\n"
 
 
 def test_a_rotation_never_writes_over_an_earlier_rotations_file(

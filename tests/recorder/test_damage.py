@@ -334,3 +334,58 @@ def test_a_csv_row_damaged_mid_file_is_damage_and_a_cut_last_row_is_not(
     assert error is not None
     assert f"row {len(lines)} is cut short" in str(error)
     assert error.incomplete  # (status 0)
+
+
+@pytest.mark.parametrize("cut_bytes", [0, 1, 20], ids=lambda n: f"{n}-bytes")
+def test_a_csv_cut_before_or_in_its_header_ends_early(
+    make_recording: MakeRecording, tmp_path: Path, cut_bytes: int
+) -> None:
+    # A recorder killed in its first second leaves an empty .csv (its header is written with
+    # the first second): it read as a foreign file, 'its header differs', where an .mcap or a
+    # .jsonl reads as a recording that ends early with nothing in it.
+    header = _csv_lines(make_recording)[0]
+    cut = tmp_path / "killed.csv"
+    cut.write_bytes(header[:cut_bytes])
+    entries, damage = _read_all(str(cut))
+    assert entries == []
+    assert damage is not None
+    assert damage.incomplete
+    assert str(cut) in str(damage)
+    assert damage.entries_read == 0
+
+
+def test_a_csv_row_cut_in_its_last_value_is_cut_short_not_read(
+    make_recording: MakeRecording, tmp_path: Path
+) -> None:
+    # A row cut in the middle of its last number parsed: 30 % power read as 3 %, and the
+    # recording as whole.
+    lines = _csv_lines(make_recording)
+    *columns, _ = lines[-1].rstrip(b"\n").split(b",")  # the last: thrust_power_percent
+    cut = tmp_path / "cut.csv"
+    cut.write_bytes(b"".join([*lines[:-1], b",".join([*columns, b"3"])]))  # 30, cut
+    entries, error = _read_all(str(cut))
+    assert len(entries) == len(lines) - 2
+    assert error is not None
+    assert f"row {len(lines)} is cut short" in str(error)
+    assert error.incomplete
+
+
+@pytest.mark.parametrize("profile", ["ros2", ""])
+def test_an_mcap_file_of_another_program_is_refused_by_name(tmp_path: Path, profile: str) -> None:
+    # A ROS bag or a Foxglove recording read as a rovlink recording with nothing in it:
+    # replay and decode printed nothing, with status 0.
+    from mcap.writer import Writer
+
+    path = tmp_path / "bag.mcap"
+    with path.open("wb") as stream:
+        writer = Writer(stream)
+        writer.start(profile=profile, library="another program")
+        schema = writer.register_schema(name="Imu", encoding="jsonschema", data=b"{}")
+        channel = writer.register_channel(topic="/imu", message_encoding="json", schema_id=schema)
+        writer.add_message(channel_id=channel, log_time=1, publish_time=1, data=b'{"x": 1}')
+        writer.finish()
+    with pytest.raises(RecordingError) as caught:
+        list(read_entries(str(path)))
+    assert not isinstance(caught.value, RecordingDamagedError)
+    assert str(caught.value).startswith(f"{path}: not a rovlink recording: an MCAP file")
+    assert ("'ros2'" in str(caught.value)) is bool(profile)

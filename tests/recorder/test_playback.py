@@ -5,8 +5,8 @@ from __future__ import annotations
 import pytest
 
 from rovlink.protocol import Command, Response
-from rovlink.recorder import Entry, FrameEntry, HeaderEntry
-from rovlink.recorder.comparison import ReplayStep, run_replay
+from rovlink.recorder import Entry, EventEntry, FrameEntry, HeaderEntry
+from rovlink.recorder.comparison import ReplayStep, replay_steps, run_replay
 from rovlink.recorder.playback import paced
 
 #: Ten billion seconds: more than time.sleep can wait at once (its clock counts about 292
@@ -79,3 +79,66 @@ def test_a_difference_beyond_the_tolerance_is_shown() -> None:
     [(_, _, divergence)] = list(run_replay([step], lambda command: replayed, speed=0, tolerance=3))
     assert divergence is not None
     assert (divergence.recorded, divergence.replayed) == ("$qpi.+2!", "$qpi.+9!")
+
+
+def _query(t_s: float, name: str = "qd", *, by_session: bool = False) -> FrameEntry:
+    return FrameEntry(t_s, 0, "out", "command", name, (), by_session=by_session)
+
+
+def _reply(t_s: float, value: int, query: str = "qd", name: str | None = None) -> FrameEntry:
+    return FrameEntry(t_s, 0, "in", "response", name or query, (value,), query=query)
+
+
+def _failed(t_s: float, name: str = "qd") -> EventEntry:
+    return EventEntry(t_s, 0, "query_failed", name, "timeout")
+
+
+def _recorded(steps: list[ReplayStep]) -> list[tuple[float, list[Response] | None, int]]:
+    return [(step.t_s, step.recorded, step.expected_count) for step in steps]
+
+
+def test_a_query_that_failed_for_good_recorded_no_reply_and_the_next_ones_their_own() -> None:
+    # Its attempts failed (the driver retried it twice): the reply of each later qd was taken
+    # for the one before's, and a replay showed every one of them as different.
+    # (Each failure is followed by the driver's fence, #qhe!, and its retry.)
+    entries: list[Entry] = [_query(1.0)]
+    for at_s in (1.5, 2.0, 2.5):
+        entries += [_failed(at_s), _query(at_s, "qhe", by_session=True), _reply(at_s, 9, "qhe")]
+        if at_s < 2.5:
+            entries.append(_query(at_s))
+    entries.append(_query(3.0, "qr"))
+    for index in range(3):
+        entries += [_query(4.0 + index), _reply(4.01 + index, 10 + index)]
+    assert _recorded(replay_steps(entries)) == [
+        (1.0, None, 1),
+        (3.0, None, 0),  # (the recording ends before its reply)
+        (4.0, [Response("qd", (10,))], 1),
+        (5.0, [Response("qd", (11,))], 1),
+        (6.0, [Response("qd", (12,))], 1),
+    ]
+
+
+def test_a_query_answered_on_its_retry_recorded_the_retrys_reply() -> None:
+    entries: list[Entry] = [
+        _query(1.0, "qsa"),
+        _reply(1.01, 5, "qsa", "qd"),  # the first of its six, then the rest lost: a failure
+        _failed(1.5, "qsa"),
+        _query(1.5, "qhe", by_session=True),  # the driver's fence
+        _reply(1.5, 9, "qhe"),
+        _query(1.5, "qsa"),  # its retry (recorded as the program's, as the driver sends it)
+        *(_reply(1.51, 0, "qsa", name) for name in ("qd", "qr", "q.l", "qro", "qpi", "qhe")),
+    ]
+    [step] = replay_steps(entries)
+    assert step.recorded is not None
+    assert [response.values for response in step.recorded] == [(0,)] * 6  # the retry's alone
+
+
+def test_a_query_the_recording_ends_before_the_reply_of_is_not_compared() -> None:
+    # A --split part or a killed recorder ends between a query and its reply: a replay showed
+    # a difference ('recorded no reply') that was none.
+    entries: list[Entry] = [_query(1.0), _reply(1.01, 5), _query(2.0), _query(3.0)]
+    assert _recorded(replay_steps(entries)) == [
+        (1.0, [Response("qd", (5,))], 1),
+        (2.0, None, 0),
+        (3.0, None, 0),
+    ]

@@ -3,9 +3,20 @@ mode, and a sniffer's commands recorded as commands."""
 
 from __future__ import annotations
 
+import asyncio
+
+import rovlink
+import rovlink.aio
+from rovlink.client.events import (
+    BytesSent,
+    ClientEvent,
+    LateReply,
+    QueryFailed,
+    ReplyReceived,
+)
 from rovlink.protocol import Command, Response, encode
 from rovlink.recorder.entries import Entry, EventEntry, FrameEntry, TelemetryEntry
-from rovlink.recorder.translate import TapLog
+from rovlink.recorder.translate import ClientEventLog, TapLog
 
 
 def _feed(log: TapLog, *chunks: tuple[str, bytes]) -> list[Entry]:
@@ -90,3 +101,83 @@ def test_a_query_never_answered_does_not_set_the_mode_of_the_replies_after_it() 
     )
     assert _problems(entries) == []
     assert _replies(entries) == [("qr", "qr", (512,)), ("qr", "qr", (513,))]
+
+
+def _round_trips(entries: list[Entry]) -> list[tuple[str, float | None]]:
+    return [
+        (e.name, e.round_trip_ms)
+        for e in entries
+        if isinstance(e, FrameEntry) and e.kind == "response"
+    ]
+
+
+_SENSORS = b"$qd.1!$qr.2!$q.l.0!$qro.+0!$qpi.+0!$qhe.5!"
+
+
+def test_a_tapped_reply_has_its_own_querys_round_trip_in_each_of_its_responses() -> None:
+    # Each response of a qsa reply took a send time of its own: the second took the next
+    # qsa's (50 ms here), the other four and the next reply had none.
+    log = TapLog()
+    entries = log.entries(0.0, 0, "out", b"#qsa!") + log.entries(0.05, 0, "out", b"#qsa!")
+    entries += log.entries(0.1, 0, "in", _SENSORS) + log.entries(0.15, 0, "in", _SENSORS)
+    assert (
+        _round_trips(entries)
+        == [(name, 100.0) for name in ("qd", "qr", "q.l", "qro", "qpi", "qhe")] * 2
+    )
+
+
+def test_a_tapped_reply_is_timed_from_its_own_query_not_an_unanswered_one() -> None:
+    # The first qd was never answered (the qr after it was, so it never will be, P4): the
+    # reply to the next qd was timed from it, two seconds before.
+    log = TapLog()
+    entries: list[Entry] = []
+    for at_s, direction, data in (
+        (0.0, "out", b"#qd!"),
+        (1.0, "out", b"#qr!"),
+        (1.001, "in", b"$qr.20!"),
+        (2.0, "out", b"#qd!"),
+        (2.003, "in", b"$qd.5!"),
+    ):
+        entries += log.entries(at_s, 0, direction, data)
+    assert _round_trips(entries) == [("qr", 1.0), ("qd", 3.0)]
+
+
+def test_a_late_reply_leaves_the_retrys_send_time_to_the_retrys_reply() -> None:
+    # The late reply took the retry's send time, and the retry's own reply had none.
+    query = Command("qd")
+    log = ClientEventLog()
+    entries: list[Entry] = []
+    for event in (
+        BytesSent(0.0, b"#qd!", query),
+        QueryFailed(0.5, query, "timeout"),
+        BytesSent(0.5, b"#qd!", query, by_session=True),
+        LateReply(0.6, Response("qd", (4,))),
+        ReplyReceived(0.503, query, (Response("qd", (5,)),)),
+    ):
+        entries += log.entries(0, event)
+    assert _round_trips(entries) == [("qd", None), ("qd", 3.0)]
+
+
+def _mode_frames_sent(events: list[ClientEvent]) -> list[tuple[str, bool]]:
+    return [
+        (event.command.name, event.by_session)
+        for event in events
+        if isinstance(event, BytesSent) and event.command is not None
+    ]
+
+
+def test_the_drivers_mode_frame_on_connecting_is_the_drivers_own() -> None:
+    # It was recorded as a command of the program: listed without "(by the driver)" and resent
+    # by rovlink replay --to, which then left the checksum mode --checksum asked for.
+    events: list[ClientEvent] = []
+    with rovlink.connect("sim://", on_event=events.append):
+        pass
+    assert _mode_frames_sent(events)[0] == ("crcoff", True)
+
+    async def connect_async() -> None:
+        async with rovlink.aio.connect("sim://", on_event=async_events.append):
+            pass
+
+    async_events: list[ClientEvent] = []
+    asyncio.run(connect_async())
+    assert _mode_frames_sent(async_events)[0] == ("crcoff", True)

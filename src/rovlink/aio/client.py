@@ -146,7 +146,8 @@ class AsyncClient(AsyncCommandMethods):
         options = self._options
         try:
             await self._await_ready()
-            self._send(operations.checksum(options.checksum))
+            # The mode frame is the driver's own (a replay of a recording leaves it out).
+            self._send(operations.checksum(options.checksum), by_session=True)
             if options.checksum and options.boot_timeout_s is not None:
                 try:
                     await self._request(Command("qd"))
@@ -577,7 +578,7 @@ class AsyncClient(AsyncCommandMethods):
             self._on_lost(error)
             raise self._lost_error() from error
 
-    def _send(self, command: Command) -> None:
+    def _send(self, command: Command, *, by_session: bool = False) -> None:
         # (Written, or queued for the port, before it returns: a set command never waits, so a
         # stop() after it follows it on the wire. A raw frame may wait: see send_raw.)
         stop = command == operations.STOP
@@ -599,7 +600,7 @@ class AsyncClient(AsyncCommandMethods):
         else:
             self._check_open()
         try:
-            self._write(self._session.command(command, self._clock()))
+            self._write(self._session.command(command, self._clock(), by_session=by_session))
         except ConnectionLostError:
             if not (command == operations.STOP and self._link_down and not self._closed):
                 raise

@@ -156,6 +156,8 @@ def open_recorder(args: argparse.Namespace, path: str, *, url: str, program: str
     except ValueError as error:
         raise UsageError(str(error)) from None
     refuse_existing_recording(args, path)
+    if getattr(args, "overwrite", False) and _rotates(args):
+        _remove_earlier_rotation(path)
     try:
         return Recorder(
             path,
@@ -172,6 +174,35 @@ def open_recorder(args: argparse.Namespace, path: str, *, url: str, program: str
         raise CommandError(str(error)) from None
 
 
+def _rotates(args: argparse.Namespace) -> bool:
+    return args.max_size is not None or args.split is not None
+
+
+def _rotation_files(path: str) -> list[str]:
+    """The files of a rotation of ``path`` that are there (``dive.001.mcap``…), in order."""
+    directory, name = os.path.split(path)
+    stem, suffix = os.path.splitext(name)
+    rotated = re.compile(rf"{re.escape(stem)}\.\d{{3,}}{re.escape(suffix)}")
+    try:
+        names = os.listdir(directory or ".")
+    except OSError:  # (a directory that is not there: said on creation)
+        return []
+    return sorted(os.path.join(directory, other) for other in names if rotated.fullmatch(other))
+
+
+def _remove_earlier_rotation(path: str) -> None:
+    """Remove the files of an earlier rotation of ``path`` (``--overwrite``): the new recording
+    writes over them as it reaches them, and those it never reaches would be taken for its
+    later parts, mixing two dives."""
+    for earlier in _rotation_files(path):
+        try:
+            os.remove(earlier)
+        except FileNotFoundError:
+            pass
+        except OSError as error:
+            raise CommandError(f"cannot record to {path}: {earlier}: {reason(error)}") from None
+
+
 def refuse_existing_recording(args: argparse.Namespace, path: str) -> None:
     """Refuse to record to ``path`` if a file is there already, or (with ``--max-size`` or
     ``--split``) a file of a rotation of that name (``dive.001.mcap``): a recording is written
@@ -181,16 +212,8 @@ def refuse_existing_recording(args: argparse.Namespace, path: str) -> None:
         return
     # (A directory is no recording: its open says "Is a directory".)
     taken = [path] if os.path.lexists(path) and not os.path.isdir(path) else []
-    if args.max_size is not None or args.split is not None:
-        directory, name = os.path.split(path)
-        stem, suffix = os.path.splitext(name)
-        rotated = re.compile(rf"{re.escape(stem)}\.\d{{3,}}{re.escape(suffix)}")
-        with contextlib.suppress(OSError):  # (a directory that is not there: said on creation)
-            taken += sorted(
-                os.path.join(directory, other)
-                for other in os.listdir(directory or ".")
-                if rotated.fullmatch(other)
-            )
+    if _rotates(args):
+        taken += _rotation_files(path)
     if taken:
         raise CommandError(
             f"cannot record to {path}: {', '.join(taken)} "

@@ -128,15 +128,28 @@ def _replay_to(args: argparse.Namespace, damage: _Damage) -> int:
     from rovlink.recorder import HeaderEntry  # noqa: PLC0415
     from rovlink.recorder.comparison import ReplaySummary, replay_steps, run_replay  # noqa: PLC0415
 
-    entries = list(damage.entries(args.file))
-    header = next((entry for entry in entries if isinstance(entry, HeaderEntry)), None)
+    header: HeaderEntry | None = None
+    # Differences are timed as the session is listed (rovlink replay FILE): from its start.
+    origin_s: float | None = None
+
+    def scanned() -> Iterator[Entry]:
+        """The entries, one at a time (an hour's recording is never held whole), noting the
+        header and the start."""
+        nonlocal header, origin_s
+        for entry in damage.entries(args.file):
+            if header is None and isinstance(entry, HeaderEntry):
+                header = entry
+            if origin_s is None and entry.t_s > 0:
+                origin_s = entry.t_s
+            yield entry
+
+    steps = replay_steps(scanned())
     checksum = args.checksum if args.checksum is not None else bool(header and header.checksum)
     algorithm = header.algorithm if header is not None else "crc8"
     try:
         get_algorithm(algorithm)
     except ValueError as error:  # the header damaged (or from a newer version): not --to's
         raise CommandError(f"{args.file}: the header's {error}") from None
-    steps = replay_steps(entries)
     if not steps:
         if damage.error is not None:  # the damage, not the file, is why there is nothing
             raise CommandError(f"{damage.error}; nothing before it to replay")
@@ -166,7 +179,7 @@ def _replay_to(args: argparse.Namespace, damage: _Damage) -> int:
     def replay() -> ReplaySummary:
         summary = ReplaySummary()
         for step, _, divergence in run_replay(
-            steps, send, speed=args.speed or 1.0, tolerance=args.tolerance
+            steps, send, speed=args.speed or 1.0, tolerance=args.tolerance, origin_s=origin_s
         ):
             summary.commands_sent += 1
             if not step.expected_count:

@@ -164,7 +164,8 @@ class Client(CommandMethods):
         )
         try:
             self._await_ready()
-            self._send(operations.checksum(options.checksum))
+            # The mode frame is the driver's own (a replay of a recording leaves it out).
+            self._send(operations.checksum(options.checksum), by_session=True)
             if options.checksum and options.boot_timeout_s is not None:
                 self._confirm_checksum_mode()
         except BaseException:
@@ -686,7 +687,7 @@ class Client(CommandMethods):
             self._connection_lost(error)
             raise self._lost_error() from error
 
-    def _send(self, command: Command) -> None:
+    def _send(self, command: Command, *, by_session: bool = False) -> None:
         stop = command == operations.STOP
         with self._state_lock:
             if stop:  # (before it waits for anything: it supersedes what waits already)
@@ -708,7 +709,9 @@ class Client(CommandMethods):
                         motion_before = self._session.motion_as_sent()
                         # (SupersededByStopError if it moves or unlocks and a stop() was
                         # called while it waited: it would go out after the #stop!)
-                        data = self._session.command(command, self._clock(), stops_seen=stops_seen)
+                        data = self._session.command(
+                            command, self._clock(), stops_seen=stops_seen, by_session=by_session
+                        )
                 if not reconnecting:
                     try:
                         self._write(data)

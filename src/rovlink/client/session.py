@@ -395,18 +395,27 @@ class Session:
         ):
             raise SupersededByStopError(command)
 
-    def command(self, command: Command, now: float, *, stops_seen: int | None = None) -> bytes:
+    def command(
+        self,
+        command: Command,
+        now: float,
+        *,
+        stops_seen: int | None = None,
+        by_session: bool = False,
+    ) -> bytes:
         """The bytes to write for a command that expects no reply (after anything due).
 
         ``crcon``/``crcoff`` switch the session's mode with the controller's. ``stops_seen``:
         :attr:`stops_asked` when the program asked for the command; a command that moves or
         unlocks raises :class:`~rovlink.client.errors.SupersededByStopError` if a stop was
-        asked for since (see :meth:`stop_asked`), and nothing is sent.
+        asked for since (see :meth:`stop_asked`), and nothing is sent. ``by_session``: the
+        driver sends it of itself (the mode frame on connecting), not the program.
         """
         if command.spec.is_query:
             raise ValueError(f"{command} is a query: use Session.query")
         self._check_not_superseded(command, stops_seen)
-        data = self.take_outbox(now) + self._account(command, self.frame_for(command), now)
+        data = self.take_outbox(now)  # (first: what is due goes, and is accounted, first)
+        data += self._account(command, self.frame_for(command), now, by_session=by_session)
         self._track(command, now)
         return data
 

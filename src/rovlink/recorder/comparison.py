@@ -14,7 +14,7 @@ from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, field
 
 from rovlink.protocol import Command, Response, encode
-from rovlink.recorder.entries import Entry, FrameEntry
+from rovlink.recorder.entries import Entry, EventEntry, FrameEntry
 from rovlink.recorder.playback import wait_until
 
 __all__ = ["Divergence", "ReplayStep", "ReplaySummary", "replay_steps", "run_replay"]
@@ -55,13 +55,37 @@ class ReplaySummary:
 
 
 def replay_steps(entries: Iterable[Entry]) -> list[ReplayStep]:
-    """The program's commands in a recording, each query with its recorded replies."""
+    """The program's commands in a recording, each query with its recorded replies.
+
+    A query that failed (a ``query_failed`` event) awaits the driver's retry, the next command
+    of its name (the driver's fence may come first); if a command of another name comes first,
+    the failure was final and the query recorded no reply (the later replies of its name are
+    the later queries'). A query whose reply the recording ends before (a ``--split`` part, a
+    killed recorder) is resent but not compared: what it got is not known.
+    """
     steps: list[ReplayStep] = []
     awaiting: dict[str, deque[ReplayStep]] = {}
+    failed: set[str] = set()  # names whose oldest awaiting query failed, a retry not yet seen
     for entry in entries:
+        if isinstance(entry, EventEntry):
+            if entry.event == "query_failed" and awaiting.get(entry.name):
+                awaiting[entry.name][0].recorded = None  # (a part of a reply: discarded)
+                failed.add(entry.name)
+            continue
         if not isinstance(entry, FrameEntry):
             continue
-        if entry.direction == "out" and entry.kind == "command" and not entry.by_session:
+        if entry.direction == "out" and entry.kind == "command":
+            if entry.name in failed:
+                # Its retry (the driver's, in whichever way it marks it; a program that asks
+                # again at once after a final failure cannot be told from one): the query
+                # awaits its reply still.
+                failed.discard(entry.name)
+                continue
+            if entry.by_session:
+                continue  # (a fence, a keep-alive, a mode frame: no retry and no decision)
+            for name in failed:  # the program went on: those failures were final
+                awaiting[name].popleft()
+            failed.clear()
             command = Command(entry.name, entry.values)
             step = ReplayStep(entry.t_s, command, expected_count=len(command.spec.replies))
             steps.append(step)
@@ -77,6 +101,11 @@ def replay_steps(entries: Iterable[Entry]) -> list[ReplayStep]:
             step.recorded.append(Response(entry.name, entry.values))
             if len(step.recorded) >= step.expected_count:
                 queue.popleft()
+    for name, queue in awaiting.items():
+        for step in queue:
+            if name not in failed:  # (a failure the recording ends on: no reply, as recorded)
+                step.expected_count = 0
+            failed.discard(name)  # (only the oldest had failed)
     return steps
 
 
@@ -132,15 +161,18 @@ def run_replay(
     *,
     speed: float = 1.0,
     tolerance: int = 0,
+    origin_s: float | None = None,
     sleep: Callable[[float], None] = time.sleep,
     clock: Callable[[], float] = time.monotonic,
 ) -> Iterator[tuple[ReplayStep, tuple[Response, ...] | None, Divergence | None]]:
     """Send each step at its recorded time (divided by ``speed``; 0: no waiting) with ``send``
     (``None`` back: the query got no reply) and yield it with what came back and the
-    divergence, if any."""
+    divergence, if any, timed from ``origin_s`` (the recording's start, where ``rovlink
+    replay`` counts from; default: the first step)."""
     if not steps:
         return
     first_s = steps[0].t_s
+    origin_s = first_s if origin_s is None else origin_s
     started_s = clock()
     for step in steps:
         if speed > 0:
@@ -149,6 +181,8 @@ def run_replay(
         divergence = None
         if step.expected_count and not _same(step.recorded, replayed, tolerance):
             divergence = Divergence(
-                step.t_s - first_s, step.command.name, *_changes(step.recorded, replayed, tolerance)
+                step.t_s - origin_s,
+                step.command.name,
+                *_changes(step.recorded, replayed, tolerance),
             )
         yield step, replayed, divergence

@@ -91,7 +91,15 @@ def read_csv(path: str) -> Iterator[Entry]:
             raise RecordingError(
                 f"{path}: not UTF-8 text, so not a rovlink telemetry CSV"
             ) from None
+        if header is None:  # (an empty file: its recorder killed before its first flush)
+            raise RecordingDamagedError.empty(path)
         if header != list(HEADER):
+            if not lines.last_complete and ",".join(HEADER).startswith(",".join(header)):
+                raise RecordingDamagedError(
+                    f"{path}: ends in its header line (the recording was cut short); read 0 rows",
+                    entries_read=0,
+                    incomplete=True,
+                )
             raise RecordingError(f"{path}: not a rovlink telemetry CSV (its header differs)")
         while True:
             try:
@@ -106,6 +114,10 @@ def read_csv(path: str) -> Iterator[Entry]:
             if row is None:
                 break
             try:
+                if not lines.last_complete:
+                    # The recorder ends every row with its newline: a row without one was cut
+                    # short, even where what is left parses (30 cut to 3 in the last column).
+                    raise ValueError("no newline at its end")
                 if len(row) != len(HEADER):
                     raise ValueError(f"{len(row)} columns, not {len(HEADER)}")
                 wall = datetime.fromisoformat(row[1])

@@ -80,7 +80,8 @@ class HeaderEntry:
 @dataclass(frozen=True, slots=True)
 class WireEntry:
     """Bytes exactly as on the wire; ``by_session``: written by the driver itself (keep-alive,
-    fence, mode frame, retry, expired motion), not by the program."""
+    fence, mode frame, expired motion), not by the program (a retry is the query again, after
+    its ``query_failed`` event)."""
 
     channel: ClassVar[str] = "wire"
     t_s: float
@@ -277,22 +278,47 @@ _JSON_TYPES: dict[str, tuple[tuple[type, ...], str]] = {
 }
 
 
+@dataclass(frozen=True, slots=True)
+class _FieldCheck:
+    """What the JSON Schema of a channel allows in one field, ready to check (made once: a
+    recording of an hour holds some 360 000 entries)."""
+
+    name: str
+    #: The Python types of its JSON types.
+    allowed: tuple[type, ...]
+    #: Whether JSON's true and false are allowed (they are no numbers, though Python's bool is
+    #: an int).
+    boolean: bool
+    #: Its JSON types, for an error.
+    expected: str
+    #: The values allowed, if the schema lists them.
+    enum: tuple[Any, ...] | None
+
+    @classmethod
+    def of(cls, name: str, schema: Mapping[str, Any]) -> _FieldCheck:
+        types = schema["type"] if isinstance(schema["type"], list) else [schema["type"]]
+        return cls(
+            name,
+            tuple(python for each in types for python in _JSON_TYPES[each][0]),
+            "boolean" in types,
+            " or ".join(_JSON_TYPES[each][1] for each in types),
+            tuple(schema["enum"]) if "enum" in schema else None,
+        )
+
+
 def _check_types(channel: str, data: Mapping[str, Any]) -> None:
     """Refuse a value of another type than the channel's JSON Schema gives it (or, with an
     ``enum``, another value): the tools that print, plot and resend an entry take its values to
     be what the schema says. An absent field is left to the entry's defaults and own checks."""
-    for name, schema in CHANNELS[channel]["properties"].items():
+    for check in _CHECKS[channel]:
+        name = check.name
         if name not in data:
             continue
         value = data[name]
-        types = schema["type"] if isinstance(schema["type"], list) else [schema["type"]]
-        allowed = tuple(python for each in types for python in _JSON_TYPES[each][0])
-        # JSON's true and false are no numbers, though Python's bool is an int.
-        if (isinstance(value, bool) and "boolean" not in types) or not isinstance(value, allowed):
-            expected = " or ".join(_JSON_TYPES[each][1] for each in types)
-            raise EntryError(f"{channel} entry: {name} must be {expected}, got {value!r}")
-        if "enum" in schema and value not in schema["enum"]:
-            expected = ", ".join(repr(choice) for choice in schema["enum"])
+        if (value.__class__ is bool and not check.boolean) or not isinstance(value, check.allowed):
+            raise EntryError(f"{channel} entry: {name} must be {check.expected}, got {value!r}")
+        if check.enum is not None and value not in check.enum:
+            expected = ", ".join(repr(choice) for choice in check.enum)
             raise EntryError(f"{channel} entry: {name} must be one of {expected}, got {value!r}")
 
 
@@ -301,7 +327,9 @@ def _fields(
 ) -> dict[str, Any]:
     """``data``'s values for ``cls``'s fields, the clocks checked; extra keys are ignored (a
     newer minor version may add some)."""
-    names = {field.name for field in dataclasses.fields(cls)} - set(extra or ())
+    names = _FIELD_NAMES[cls]
+    if extra:
+        names = names - set(extra)
     fields = {name: data[name] for name in names if name in data}
     t_s, wall_ns = fields.get("t_s"), fields.get("wall_ns")
     if isinstance(t_s, bool) or not isinstance(t_s, int | float) or not math.isfinite(t_s):
@@ -372,4 +400,15 @@ CHANNELS: dict[str, dict[str, Any]] = {
             },
         },
     },
+}
+
+
+#: Each channel's checks of its JSON Schema, made once.
+_CHECKS: dict[str, tuple[_FieldCheck, ...]] = {
+    channel: tuple(_FieldCheck.of(name, field) for name, field in schema["properties"].items())
+    for channel, schema in CHANNELS.items()
+}
+#: Each kind of entry's field names.
+_FIELD_NAMES: dict[type[Entry], frozenset[str]] = {
+    kind: frozenset(field.name for field in dataclasses.fields(kind)) for kind in _TYPES.values()
 }

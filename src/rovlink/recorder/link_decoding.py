@@ -31,6 +31,8 @@ class _Awaited:
     names: deque[str]
     #: The checksum mode in force when the controller took the query: its replies' mode (P3).
     checksum: bool
+    #: When the query was seen going out (the caller's clock): its replies' round trip.
+    sent_s: float = 0.0
 
 
 class LinkDecoder:
@@ -56,6 +58,8 @@ class LinkDecoder:
         self._awaited: deque[_Awaited] = deque(maxlen=_MAX_AWAITED)
         # The start byte of the frame the ``in`` stream is inside (b"": between frames).
         self._in_start = b""
+        # When the bytes being fed were seen (a query's send time).
+        self._at_s = 0.0
 
     def set_mode(self, checksum: bool, algorithm: str) -> None:
         """Start again in ``checksum`` mode with ``algorithm`` (a new file of a rotated
@@ -68,7 +72,16 @@ class LinkDecoder:
     def feed(self, direction: str, data: bytes) -> list[tuple[Event, str | None]]:
         """The events of ``data`` seen going ``direction`` (``out``: to the controller), each
         with the query it answered (``None`` for commands, text, bad and stray frames)."""
-        out: list[tuple[Event, str | None]] = []
+        return [(event, query) for event, query, _ in self.feed_timed(direction, data, 0.0)]
+
+    def feed_timed(
+        self, direction: str, data: bytes, at_s: float
+    ) -> list[tuple[Event, str | None, float | None]]:
+        """As :meth:`feed`, for ``data`` seen at ``at_s``: each event also with when the query
+        it answered was seen going out (every response of a ``qsa`` reply with its ``qsa``'s
+        time, and never with the time of a query that went unanswered before it)."""
+        out: list[tuple[Event, str | None, float | None]] = []
+        self._at_s = at_s
         if direction == "out":
             self._take(self._out.feed(data), out)
             return out
@@ -103,24 +116,32 @@ class LinkDecoder:
         mode = self.checksum
         return all(awaited.checksum == mode for awaited in self._awaited)
 
-    def _take(self, events: list[Event], out: list[tuple[Event, str | None]]) -> None:
+    def _take(self, events: list[Event], out: list[tuple[Event, str | None, float | None]]) -> None:
         for decoded in events:
             event = self._in_the_other_mode(decoded) if isinstance(decoded, BadFrame) else decoded
-            query = None
+            answered = None
             if isinstance(event, Frame):
                 message = event.message
                 if message.kind is Kind.COMMAND:
                     command = Command(message.name, message.values)
                     if command.spec.replies:  # (in the mode before the command's own change)
                         self._awaited.append(
-                            _Awaited(command.name, deque(command.spec.replies), self.checksum)
+                            _Awaited(
+                                command.name,
+                                deque(command.spec.replies),
+                                self.checksum,
+                                self._at_s,
+                            )
                         )
                     setting = command.setting
                     if setting is not None and setting[0] is Setting.CHECKSUM:
                         self.checksum = setting[1]
                 else:
-                    query = self._answered(event)
-            out.append((event, query))
+                    answered = self._answered(event)
+            if answered is None:
+                out.append((event, None, None))
+            else:
+                out.append((event, answered.query, answered.sent_s))
 
     def _in_the_other_mode(self, event: BadFrame) -> Event:
         """A reply that failed in the mode of the oldest awaited query, read again in the other
@@ -139,7 +160,7 @@ class LinkDecoder:
         awaits = any(a.checksum is mode and a.names[0] == name for a in self._awaited)
         return decoded[0] if awaits else event
 
-    def _answered(self, event: Frame) -> str | None:
+    def _answered(self, event: Frame) -> _Awaited | None:
         """The query that ``event`` answers, taken off the awaited list; ``None`` if none.
 
         The controller answers in order (P4): the queries before the one answered will never
@@ -152,7 +173,7 @@ class LinkDecoder:
                     self._awaited.popleft()
                 if not awaited.names:
                     self._awaited.popleft()
-                return awaited.query
+                return awaited
         return None
 
 

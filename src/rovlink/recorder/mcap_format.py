@@ -13,7 +13,7 @@ import json
 import struct
 from collections.abc import Iterator
 
-from mcap.records import Channel, Message
+from mcap.records import Channel, Header, Message
 from mcap.stream_reader import StreamReader
 from mcap.writer import Writer
 
@@ -86,6 +86,7 @@ def read_mcap(path: str) -> Iterator[Entry]:
         raise RecordingError(f"{path}: {error.strerror}") from None
     count = 0
     channels: dict[int, str] = {}
+    profile = ""  # whose MCAP file it is: a ROS bag's says "ros2"
     with stream:
         head = stream.read(len(_MAGIC))
         stream.seek(0)
@@ -106,8 +107,12 @@ def read_mcap(path: str) -> Iterator[Entry]:
                     raise RecordingDamagedError.empty(path) from None
                 raise _damage(path, error, count) from None
             if record is None:
+                if not channels:  # (ours are written first, before any message)
+                    raise RecordingError(_foreign(path, profile))
                 return
-            if isinstance(record, Channel):
+            if isinstance(record, Header):
+                profile = record.profile
+            elif isinstance(record, Channel):
                 if record.topic.startswith(TOPIC_PREFIX):
                     channels[record.id] = record.topic[len(TOPIC_PREFIX) :]
             elif isinstance(record, Message) and record.channel_id in channels:
@@ -122,6 +127,12 @@ def read_mcap(path: str) -> Iterator[Entry]:
                     ) from None
                 count += 1
                 yield entry
+
+
+def _foreign(path: str, profile: str) -> str:
+    """What an MCAP file of another program is not (its profile says whose it is, if any)."""
+    whose = f" (profile {profile!r})" if profile else ""
+    return f"{path}: not a rovlink recording: an MCAP file{whose} with no {TOPIC_PREFIX}… topics"
 
 
 def _damage(path: str, error: Exception, count: int) -> RecordingDamagedError:

@@ -15,7 +15,7 @@ from typing import Any
 
 from rovlink.recorder.entries import Entry, EventEntry, TelemetryEntry
 
-__all__ = ["FIGURE_SIZE_IN", "DiveSeries", "collect", "plot_dive"]
+__all__ = ["FIGURE_SIZE_IN", "DiveSeries", "collect", "plot_dive", "plot_series"]
 
 #: Events drawn as markers on the link panel, with their label and colour.
 _LINK_MARKERS: dict[str, tuple[str, str]] = {
@@ -38,7 +38,8 @@ class DiveSeries:
 
 
 def collect(entries: Iterable[Entry]) -> DiveSeries:
-    """The telemetry columns and events of ``entries`` (``nan`` where a value is not known)."""
+    """The telemetry columns and events of ``entries`` (``nan`` where a value is not known),
+    taken one entry at a time: an hour's recording is never held whole."""
     series = DiveSeries()
     first_s: float | None = None
     for entry in entries:
@@ -70,9 +71,13 @@ FIGURE_SIZE_IN = (12.0, 11.0)
 def plot_dive(entries: Iterable[Entry], *, title: str = "", figure: Any = None) -> Any:
     """A matplotlib figure of the dive in ``entries`` (five panels, one time axis), drawn in
     ``figure`` if given (a window's, for ``--show``)."""
+    return plot_series(collect(entries), title=title, figure=figure)
+
+
+def plot_series(series: DiveSeries, *, title: str = "", figure: Any = None) -> Any:
+    """As :func:`plot_dive`, for the series :func:`collect` took from a recording."""
     from matplotlib.figure import Figure  # noqa: PLC0415 - the plot extra, only when plotting
 
-    series = collect(entries)
     if figure is None:
         figure = Figure(figsize=FIGURE_SIZE_IN, dpi=100, layout="constrained")
     depth, thrust, attitude, heading, link = figure.subplots(

@@ -58,7 +58,6 @@ class SessionLog:
         self.telemetry = TelemetryState()
         #: The checksum mode the next command is taken in, as the commands seen set it (P3).
         self.checksum = checksum
-        self._sent_at: dict[str, deque[float]] = {}
         self._leak: int | None = None
 
     def wire(
@@ -74,9 +73,6 @@ class SessionLog:
         out.append(
             FrameEntry(t_s, wall_ns, "out", "command", command.name, command.values, by_session)
         )
-        if command.spec.is_query:
-            awaited = self._sent_at.setdefault(command.name, deque(maxlen=_MAX_AWAITED))
-            awaited.append(t_s)
         setting = command.setting
         if setting is not None and setting[0] is Setting.CHECKSUM:
             self.checksum = setting[1]
@@ -96,15 +92,11 @@ class SessionLog:
         responses: tuple[Response, ...],
         out: list[Entry],
         *,
+        round_trip_ms: float | None = None,
         late: bool = False,
     ) -> None:
-        """Responses came in, answering ``query`` (``None``: none); the telemetry follows
-        unless they came late (the driver discarded them)."""
-        round_trip_ms = None
-        if query is not None:
-            awaited = self._sent_at.get(query)
-            if awaited:
-                round_trip_ms = round((t_s - awaited.popleft()) * 1000.0, 3)
+        """Responses came in, answering ``query`` (``None``: none) ``round_trip_ms`` after it
+        went out; the telemetry follows unless they came late (the driver discarded them)."""
         changed = False
         for response in responses:
             out.append(
@@ -125,12 +117,6 @@ class SessionLog:
         if changed:
             self._note_leak(t_s, wall_ns, out)
             out.append(TelemetryEntry(t_s, wall_ns, dict(self.telemetry.values)))
-
-    def forget(self, query: str) -> None:
-        """A query failed: its send time is no longer awaited."""
-        awaited = self._sent_at.get(query)
-        if awaited:
-            awaited.popleft()
 
     def decoded(self, t_s: float, wall_ns: int, event: Event, out: list[Entry]) -> None:
         """A decoder event that answered no query: debug text, a bad or a stray frame."""
@@ -164,6 +150,8 @@ class ClientEventLog:
 
     def __init__(self, *, checksum: bool = False) -> None:
         self.log = SessionLog(checksum=checksum)
+        # The send times of the queries awaiting replies, per name, oldest first.
+        self._sent_at: dict[str, deque[float]] = {}
 
     def entries(self, wall_ns: int, event: ClientEvent) -> list[Entry]:
         """The entries of one event, seen at ``wall_ns``."""
@@ -172,20 +160,29 @@ class ClientEventLog:
         out: list[Entry] = []
         if isinstance(event, BytesSent):
             out.append(log.wire(t_s, wall_ns, "out", event.data, event.by_session))
-            if event.command is not None:
-                log.command(t_s, wall_ns, event.command, event.by_session, out)
+            command = event.command
+            if command is not None:
+                if command.spec.is_query:
+                    sent = self._sent_at.setdefault(command.name, deque(maxlen=_MAX_AWAITED))
+                    sent.append(t_s)
+                log.command(t_s, wall_ns, command, event.by_session, out)
         elif isinstance(event, BytesReceived):
             out.append(log.wire(t_s, wall_ns, "in", event.data))
         elif isinstance(event, ReplyReceived):
-            log.replies(t_s, wall_ns, event.query.name, event.responses, out)
+            name = event.query.name
+            sent_s = self._take_sent(name)
+            round_trip_ms = None if sent_s is None else _milliseconds(t_s - sent_s)
+            log.replies(t_s, wall_ns, name, event.responses, out, round_trip_ms=round_trip_ms)
         elif isinstance(event, LateReply):
+            # Its query failed, and its send time went with the failure: a send time taken
+            # here would be a later query's (a retry's), which would then have none.
             response = event.response
             log.replies(t_s, wall_ns, response.name, (response,), out, late=True)
             out.append(EventEntry(t_s, wall_ns, "late_reply", response.name, "discarded"))
         elif isinstance(event, Unsolicited):
             log.decoded(t_s, wall_ns, event.event, out)
         elif isinstance(event, QueryFailed):
-            log.forget(event.query.name)
+            self._take_sent(event.query.name)
             out.append(EventEntry(t_s, wall_ns, "query_failed", event.query.name, event.outcome))
         elif isinstance(event, ResetSuspected):
             detail = f"{event.consecutive_timeouts} consecutive timeouts"
@@ -199,6 +196,11 @@ class ClientEventLog:
         elif isinstance(event, LinkState):
             out.append(EventEntry(t_s, wall_ns, "link", event.state, event.detail))
         return out
+
+    def _take_sent(self, query: str) -> float | None:
+        """The send time of the oldest ``query`` awaiting a reply, no longer awaited."""
+        sent = self._sent_at.get(query)
+        return sent.popleft() if sent else None
 
 
 class TapLog:
@@ -216,7 +218,7 @@ class TapLog:
         ``by_session``: written by the tap itself."""
         log = self.log
         out: list[Entry] = [log.wire(t_s, wall_ns, direction, data, by_session)]
-        for event, query in self._link.feed(direction, data):
+        for event, query, sent_s in self._link.feed_timed(direction, data, t_s):
             if isinstance(event, Frame):
                 message = event.message
                 if message.kind is Kind.COMMAND:
@@ -225,7 +227,12 @@ class TapLog:
                     continue
                 if query is not None:
                     response = Response(message.name, message.values)
-                    log.replies(t_s, wall_ns, query, (response,), out)
+                    round_trip_ms = None if sent_s is None else _milliseconds(t_s - sent_s)
+                    log.replies(t_s, wall_ns, query, (response,), out, round_trip_ms=round_trip_ms)
                     continue
             log.decoded(t_s, wall_ns, event, out)
         return out
+
+
+def _milliseconds(seconds: float) -> float:
+    return round(seconds * 1000.0, 3)
