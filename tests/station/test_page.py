@@ -222,6 +222,36 @@ def test_a_page_whose_socket_drops_reconnects_as_a_watcher(browser, station, lin
     page.context.close()
 
 
+def test_stop_pressed_while_the_station_cannot_be_reached_goes_first_on_reconnecting(
+    browser, station, line
+):
+    page = open_page(browser, station, pad=False)
+    take_control(page)
+    mark = line.mark()
+    page.click("#unlock")
+    line.wait_for("#start!", after=mark)
+    # The socket drops and STOP is pressed before the page has reconnected (in one script:
+    # the page cannot reconnect in between). Before, the STOP was dropped without a word.
+    page.evaluate(
+        "window.rovlinkStation.connection.socket.close(); document.getElementById('stop').click()"
+    )
+    page.wait_for_selector("#toast:has-text('STOP not sent yet')")
+    line.wait_for("#stop!", after=mark)
+    line.wait_until(lambda: line.controller_locked)
+    page.wait_for_selector("#toast:has-text('STOP sent')")
+    # A command that cannot be sent says so; it is not kept (it would act later, unasked).
+    mark = line.mark()
+    page.evaluate(
+        "window.rovlinkStation.connection.socket.close(); document.getElementById('unlock').click()"
+    )
+    page.wait_for_selector("#toast:has-text('not connected to the station: #start! not sent')")
+    page.wait_for_function("window.rovlinkStation.connection.isOpen")
+    page.click("#stop")  # a fence
+    line.wait_for("#stop!", after=mark)
+    assert line.frames(mark, commands_only=True) == ["#stop!"]  # (a watcher now: no cut)
+    page.context.close()
+
+
 def choose_device(page: Page, value: str) -> None:
     """Choose the input device (``keyboard``, ``auto``, ``pad:ID``) under *Input device*."""
     page.click(f"#device-choice button[data-device='{value}']")

@@ -17,6 +17,8 @@ const station = {
   heardAt: null, readingAt: null,
   // Why this page is no longer the pilot, shown until it takes control again.
   lostControl: null,
+  // STOP was pressed while the station could not be reached: sent first when it is.
+  stopKept: false,
 };
 // No word from the station (not even its heartbeat) for this long: the socket is given up and
 // a new one opened. By then the station has dropped the old one too (serve.py pings every 5 s
@@ -29,8 +31,23 @@ const connection = new Connection(onMessage, onConnectionState);
 
 const isPilot = () => station.id !== null && station.pilotId === station.id && connection.isOpen;
 const send = (message) => connection.send(message);
-const command = (name, values = []) => send({ type: "command", name, values });
-const stop = () => send({ type: "stop" });
+// What the pilot asks for while the page cannot reach the station (the connection dropped and
+// is being reopened) is not sent, and the page says so: it would act later, unasked. STOP
+// excepted: it is kept and sent first when the station is reached again (it can only make the
+// robot safer; the station zeroed the thrust when the connection dropped, but only STOP locks
+// the motors), and the pilot is told that it has not gone yet.
+const ask = (message, what) => {
+  if (send(message)) return true;
+  toast(`not connected to the station: ${what} not sent`);
+  return false;
+};
+const command = (name, values = []) => ask({ type: "command", name, values },
+  `#${[name, ...values].join(".")}!`);
+const stop = () => {
+  if (send({ type: "stop" })) return;
+  station.stopKept = true;
+  toast("STOP not sent yet: the station cannot be reached; it goes first when it is", null);
+};
 
 const devices = new InputDevices({
   send,
@@ -138,6 +155,10 @@ function onConnectionState(state) {
   station.heardAt = state === "open" ? performance.now() : null;
   station.readingAt = null;
   if (state === "open") {
+    if (station.stopKept && send({ type: "stop" })) {
+      station.stopKept = false;
+      toast("STOP sent (pressed while the station could not be reached)");
+    }
     // The station takes a new page as shown: one opened in a background tab says otherwise.
     if (document.hidden) send({ type: "visibility", hidden: true });
   } else {
@@ -321,12 +342,13 @@ function addLog(entry) {
 }
 
 let toastTimer = null;
-function toast(message) {
+// A message at the bottom of the page for a few seconds (``shownMs``; null: until the next).
+function toast(message, shownMs = 4000) {
   const el = $("toast");
   el.textContent = message;
   el.hidden = false;
   clearTimeout(toastTimer);
-  toastTimer = setTimeout(() => { el.hidden = true; }, 4000);
+  if (shownMs !== null) toastTimer = setTimeout(() => { el.hidden = true; }, shownMs);
 }
 
 // -- settings from the command table ---------------------------------------------------------
@@ -529,7 +551,7 @@ $("stop").addEventListener("click", stop);
 // Taking control from another pilot is asked on the page, not with confirm(): a browser
 // dialog stops the page (no STOP key, no pad, no STOP button) until it is answered.
 $("take-control").addEventListener("click", () => {
-  if (!station.pilotId) { send({ type: "take_control" }); return; }
+  if (!station.pilotId) { ask({ type: "take_control" }, "taking control"); return; }
   station.askingToTake = true;
   showTakeQuestion();
   $("take-control-no").focus();
@@ -537,15 +559,16 @@ $("take-control").addEventListener("click", () => {
 $("take-control-yes").addEventListener("click", () => {
   station.askingToTake = false;
   showTakeQuestion();
-  send({ type: "take_control" });
+  ask({ type: "take_control" }, "taking control");
 });
 $("take-control-no").addEventListener("click", () => { station.askingToTake = false; showTakeQuestion(); });
 $("release-control").addEventListener("click", () => {
   station.releasing = true;  // (no "you are no longer the pilot" for letting go oneself)
-  send({ type: "release_control" });
+  ask({ type: "release_control" }, "releasing control");
 });
 $("record").addEventListener("click", () => {
-  send({ type: station.recording?.active ? "record_stop" : "record_start" });
+  const start = !station.recording?.active;
+  ask({ type: start ? "record_start" : "record_stop" }, start ? "Record" : "Stop recording");
 });
 $("unlock").addEventListener("click", () => command("start"));
 $("mode-depth").addEventListener("click", () => command("mvdirect", [0]));
