@@ -239,16 +239,68 @@ def test_stop_pressed_while_the_station_cannot_be_reached_goes_first_on_reconnec
     line.wait_for("#stop!", after=mark)
     line.wait_until(lambda: line.controller_locked)
     page.wait_for_selector("#toast:has-text('STOP sent')")
-    # A command that cannot be sent says so; it is not kept (it would act later, unasked).
-    mark = line.mark()
+    # Anything else that cannot be sent says so; it is not kept (it would act later, unasked).
     page.evaluate(
-        "window.rovlinkStation.connection.socket.close(); document.getElementById('unlock').click()"
+        "window.rovlinkStation.connection.socket.close();"
+        " document.getElementById('take-control').click()"
     )
-    page.wait_for_selector("#toast:has-text('not connected to the station: #start! not sent')")
-    page.wait_for_function("window.rovlinkStation.connection.isOpen")
-    page.click("#stop")  # a fence
-    line.wait_for("#stop!", after=mark)
-    assert line.frames(mark, commands_only=True) == ["#stop!"]  # (a watcher now: no cut)
+    page.wait_for_selector("#toast:has-text('not connected to the station: taking control')")
+    page.wait_for_function("window.rovlinkStation.station.id === 'p3'")
+    page.click("#stop")  # a fence: its log entry comes after anything sent before it
+    page.wait_for_selector("#log li:has-text('STOP from browser 3')")
+    assert page.text_content("#control-status") == "watching: nobody has control"
+    page.context.close()
+
+
+#: The accessibility tree's roles of what a person operates on the page.
+CONTROL_ROLES = ("button", "spinbutton", "textbox", "checkbox", "slider", "link", "combobox")
+#: The watcher's page: what only the pilot may use.
+PILOT_ONLY = ".pilot-only button, .pilot-only input, #settings-rows button, #settings-rows input"
+
+
+def accessible_controls(page: Page) -> list[tuple[str, str, bool]]:
+    """Every control in the page's accessibility tree (as a screen reader gets it): its role,
+    its name and whether it is disabled."""
+    session = page.context.new_cdp_session(page)
+    nodes = session.send("Accessibility.getFullAXTree")["nodes"]
+    session.detach()
+    controls = []
+    for node in nodes:
+        role = node.get("role", {}).get("value")
+        if node.get("ignored") or role not in CONTROL_ROLES:
+            continue
+        properties = {item["name"]: item["value"].get("value") for item in node["properties"]}
+        name = str(node.get("name", {}).get("value", "")).strip()
+        controls.append((role, name, bool(properties.get("disabled"))))
+    return controls
+
+
+def test_every_control_is_named_and_a_watchers_pilot_controls_are_disabled(browser, station, line):
+    page = open_page(browser, station)
+    page.click("#settings-panel summary")  # its fields in the tree too
+    page.wait_for_selector("#setting-mgmp", state="visible")
+    controls = accessible_controls(page)
+    assert len(controls) > 40
+    # Each has a name of its own (before: 15 number fields without one, six "Send", six
+    # "learn" and three "invert" that did not say what for).
+    nameless = [role for role, name, _ in controls if not name]
+    assert not nameless, f"{len(nameless)} controls without a name: {nameless}"
+    named = [(role, name) for role, name, _ in controls]
+    assert len(set(named)) == len(named), sorted(n for n in named if named.count(n) > 1)
+    # A watcher's pilot controls are disabled, as a screen reader and the keyboard get them
+    # (before, only greyed out for the mouse: Tab and Enter pressed them).
+    watched = page.locator(PILOT_ONLY).evaluate_all("els => els.map(el => el.disabled)")
+    assert len(watched) > 10
+    assert all(watched)
+    disabled = {name for _, name, off in controls if off}
+    assert {"Unlock (#start!)", "Claw open", "Hold"} <= disabled
+    # The pilot's page: enabled; the instruments are images named by what they show, and
+    # why nothing moves (a cut and its reason) is announced.
+    take_control(page)
+    assert not any(page.locator(PILOT_ONLY).evaluate_all("els => els.map(el => el.disabled)"))
+    assert page.get_attribute("#flight-status", "role") == "status"
+    for canvas in ("attitude", "depth", "thrust vector", "heading"):
+        assert page.get_by_role("img", name=canvas, exact=True).count() == 1
     page.context.close()
 
 

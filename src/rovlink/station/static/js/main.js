@@ -230,8 +230,13 @@ function setControl(pilotId, pilotLabel, why = null) {
   $("release-control").hidden = !mine;
   showTakeQuestion();
   $("record").disabled = !mine;  // only the pilot starts and stops a recording
+  // Disabled, not only greyed out: the keyboard and a screen reader get it too.
+  for (const control of document.querySelectorAll(PILOT_CONTROLS)) control.disabled = !mine;
   showFlightStatus();
 }
+
+// What only the pilot may use (the settings rows are built when the station says hello).
+const PILOT_CONTROLS = ".pilot-only button, .pilot-only input, #settings-rows button, #settings-rows input";
 
 // Taking control from another pilot asks first, on the page (see the take-control button).
 function showTakeQuestion() {
@@ -363,9 +368,11 @@ function buildSettings(limits) {
     const argument = limits[name].arguments[0];
     const row = document.createElement("form");
     row.className = "setting-row";
-    row.innerHTML = `<span class="name"></span><input type="number" required step="1" autocomplete="off">
+    row.innerHTML = `<label class="name"></label><input type="number" required step="1" autocomplete="off">
       <span class="muted"></span><button type="submit">Send</button>`;
     row.querySelector(".name").textContent = `${label} (#${name})`;
+    row.querySelector(".name").htmlFor = `setting-${name}`;
+    row.querySelector("button").setAttribute("aria-label", `Send ${label}`);
     const input = row.querySelector("input");
     Object.assign(input, { min: argument.min, max: argument.max, name, id: `setting-${name}` });
     row.querySelector(".muted").textContent = `${argument.min}–${argument.max} ${argument.unit}`;
@@ -486,12 +493,12 @@ function renderMapping() {
   const rows = [];
   for (const [name, label] of Object.entries(AXES)) {
     const axis = mapping.axes[name];
-    rows.push(`<tr><td>${label}</td><td>axis <input type="number" min="0" max="15" autocomplete="off" data-axis="${name}" value="${axis.index}"></td>
-      <td><label><input type="checkbox" data-invert="${name}" ${axis.invert ? "checked" : ""}> invert</label></td></tr>`);
+    rows.push(`<tr><td>${label}</td><td>axis <input type="number" min="0" max="15" autocomplete="off" data-axis="${name}" value="${axis.index}" aria-label="${label}: axis"></td>
+      <td><label><input type="checkbox" data-invert="${name}" ${axis.invert ? "checked" : ""} aria-label="invert ${label}"> invert</label></td></tr>`);
   }
   for (const [name, label] of Object.entries(ACTIONS)) {
-    rows.push(`<tr><td>${label}</td><td>button <input type="number" min="0" max="31" autocomplete="off" data-button="${name}" value="${mapping.buttons[name]}"></td>
-      <td><button type="button" data-learn="${name}">learn</button></td></tr>`);
+    rows.push(`<tr><td>${label}</td><td>button <input type="number" min="0" max="31" autocomplete="off" data-button="${name}" value="${mapping.buttons[name]}" aria-label="${label}: button"></td>
+      <td><button type="button" data-learn="${name}" aria-label="learn ${label}">learn</button></td></tr>`);
   }
   table.innerHTML = rows.join("");
   const reset = document.createElement("button");
@@ -526,6 +533,7 @@ function renderMapping() {
     const pad = devices.active().pad;
     if (!pad) { toast("choose a gamepad first"); return; }
     event.target.textContent = "press a button…";
+    event.target.setAttribute("aria-label", `${ACTIONS[name]}: press a button…`);
     const before = pad.buttons.map((b) => b.pressed);
     const started = performance.now();
     devices.learning = true;
