@@ -494,6 +494,31 @@ def test_keyboard_flying_with_shift_as_the_dead_man(browser, station, line):
     page.context.close()
 
 
+ARROWS_SCROLLED = """() => { window.arrowsScrolled = [];
+  addEventListener('keydown', (event) => {
+    if (event.code.startsWith('Arrow')) window.arrowsScrolled.push(!event.defaultPrevented);
+  }); }"""
+
+
+def test_flying_with_the_arrow_keys_does_not_scroll_the_page(browser, station, line):
+    page = _flying_by_keyboard(browser, station, line)
+    page.evaluate(ARROWS_SCROLLED)  # whether the browser's scrolling is left to each key
+    mark = line.mark()
+    page.keyboard.down("ArrowDown")  # (before, the instruments scrolled away as it flew)
+    page.keyboard.down("Shift")
+    page.keyboard.down("ArrowDown")  # (a repeat, as a key held down gives)
+    line.wait_for("#th.180.40!", after=mark)
+    page.keyboard.up("ArrowDown")
+    page.keyboard.up("Shift")
+    line.wait_for("#th.180.0!", after=mark)
+    assert page.evaluate("window.arrowsScrolled") == [False, False]
+    # A page that does not fly by keyboard (here: by pad) leaves the arrows to the browser.
+    choose_device(page, "auto")
+    page.keyboard.press("ArrowDown")
+    assert page.evaluate("window.arrowsScrolled") == [False, False, True]
+    page.context.close()
+
+
 def test_no_silent_pick_of_the_input_device(browser, station, line):
     page = open_page(browser, station, pad=False)
     take_control(page)
