@@ -494,6 +494,43 @@ def test_keyboard_flying_with_shift_as_the_dead_man(browser, station, line):
     page.context.close()
 
 
+def test_leaving_the_window_with_keys_held_zeroes_the_thrust(browser, station, line):
+    page = _flying_by_keyboard(browser, station, line)
+    mark = line.mark()
+    page.keyboard.down("Shift")
+    page.keyboard.down("d")
+    line.wait_for("#th.90.40!", after=mark)
+    # The window loses the keyboard's focus (another window clicked): the keys' releases go
+    # there, never to this page.
+    left_s = time.monotonic()
+    page.evaluate("dispatchEvent(new FocusEvent('blur'))")
+    zero = line.wait_for("#th.90.0!", after=mark)
+    assert zero.at_s - left_s < CUT_WITHIN_S
+    page.keyboard.down("d")  # back, D repeating as still held, Shift not: nothing flies
+    page.wait_for_function("window.rovlinkStation.devices.lastInput?.power_percent === 40")
+    page.click("#claw-close")  # a fence
+    line.wait_for("#h-!", after=mark)
+    assert line.frames(mark, commands_only=True)[-1] == "#h-!"
+    assert line.frames(mark, commands_only=True).count("#th.90.40!") <= 2  # (one renewal)
+    page.context.close()
+
+
+def test_reloading_mid_dive_zeroes_the_thrust_and_comes_back_as_a_watcher(browser, station, line):
+    page = flying_by_pad(browser, station, line, [0, -1, 0, 0], "#th.0.100!")
+    mark = line.mark()
+    reloaded_s = time.monotonic()
+    page.reload()
+    zero = line.wait_for("#th.0.0!", after=mark)
+    assert zero.at_s - reloaded_s < CUT_WITHIN_S
+    page.wait_for_function("window.rovlinkStation && window.rovlinkStation.station.id === 'p2'")
+    page.evaluate("fakePads.connect(); fakePads.set(0, {axes: [0, -1, 0, 0], buttons: {4: true}})")
+    page.wait_for_selector("#control-status:text-is('watching: nobody has control')")
+    page.click("#stop")  # a fence: the held pad flew nothing
+    line.wait_for("#stop!", after=mark)
+    assert "#th.0.100!" not in line.frames(mark)
+    page.context.close()
+
+
 ARROWS_SCROLLED = """() => { window.arrowsScrolled = [];
   addEventListener('keydown', (event) => {
     if (event.code.startsWith('Arrow')) window.arrowsScrolled.push(!event.defaultPrevented);
