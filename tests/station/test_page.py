@@ -108,6 +108,13 @@ def flying_by_pad(browser, station, line, axes: list[float], frame: str) -> Page
     return page
 
 
+# The input messages the page sends from now on, kept in window.inputsSent.
+INPUTS_SENT = """() => { const connection = window.rovlinkStation.connection;
+  const send = connection.send.bind(connection); window.inputsSent = [];
+  connection.send = (m) => { if (m.type === 'input') window.inputsSent.push(m); return send(m); };
+}"""
+
+
 def test_stick_right_with_the_dead_man_drives_and_release_stops(browser, station, line):
     page = flying_by_pad(browser, station, line, [1, 0, 0, 0], "#th.90.100!")
     page.wait_for_function("window.rovlinkStation.station.telemetry.relay.status === 'flying'")
@@ -122,9 +129,12 @@ def test_stick_right_with_the_dead_man_drives_and_release_stops(browser, station
         mark = line.mark()
         set_pad(page, axes=[1, 0, 0, 0], deadman=True)
         line.wait_for("#th.90.100!", after=mark)
+    page.evaluate(INPUTS_SENT)
     mark = line.mark()
     set_pad(page, deadman=False)
     line.wait_for("#th.90.0!", after=mark, timeout_s=CUT_WITHIN_S * 2)
+    # Each input carries the page's clock: the station measures how late it arrives.
+    assert page.evaluate("window.inputsSent.map(m => typeof m.sent_ms)")[:1] == ["number"]
     page.context.close()
 
 

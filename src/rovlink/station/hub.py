@@ -117,6 +117,9 @@ class Peer:
     #: was last topped up (``None``: not yet).
     allowance: float = MESSAGE_BURST
     allowance_at_s: float | None = None
+    #: The least time any of the page's inputs took to arrive, its clock against the station's
+    #: (ms; ``None``: no stamped input yet): an input that took longer waited on the way.
+    fastest_arrival_ms: float | None = None
 
     def spend(self, now_s: float) -> bool:
         """One message arrived at ``now_s``: whether the page is within its allowance."""
@@ -126,6 +129,19 @@ class Peer:
         self.allowance_at_s = now_s
         self.allowance -= 1.0
         return self.allowance >= 0.0
+
+    def lateness_s(self, sent_ms: float, now_s: float) -> float:
+        """How much later than the fastest of the page's inputs one sent at ``sent_ms`` (the
+        page's clock) arrived at ``now_s`` (the station's): the clocks' offset cancels out.
+
+        >>> peer = Peer("p1", "browser 1")
+        >>> peer.lateness_s(1000.0, now_s=50.0), peer.lateness_s(1100.0, now_s=50.7)
+        (0.0, 0.6)
+        """
+        arrival_ms = now_s * 1e3 - sent_ms
+        if self.fastest_arrival_ms is None or arrival_ms < self.fastest_arrival_ms:
+            self.fastest_arrival_ms = arrival_ms
+        return round((arrival_ms - self.fastest_arrival_ms) / 1e3, 6)
 
     def put(self, message: dict[str, Any]) -> None:
         """Queue ``message`` for the page; dropped if the page is too far behind."""
@@ -281,6 +297,17 @@ class Station:
             if peer.hidden:
                 raise MessageError("input from a hidden page is ignored: show the page to fly")
             peer.input_source = message.source
+            if message.sent_ms is not None:
+                late_s = peer.lateness_s(message.sent_ms, self._clock())
+                if late_s > STALE_INPUT_S:
+                    # A network slower than the page's input: each message waits longer on the
+                    # way, and arriving they keep the relay's input fresh. As old as that, the
+                    # input is stale, a release of the dead-man too: cut, relay nothing.
+                    if self.relay.armed:
+                        await self._cut(
+                            f"the page's input arrives {late_s:.1f} s late (a slow network?)"
+                        )
+                    return
             if not self._link_up:
                 # Nothing can be relayed, and the relay, cut when the link was lost, stays so:
                 # armed or "flying" on the page would claim what the robot is not doing.

@@ -264,7 +264,8 @@ export class InputDevices {
     const changed = !this.lastSent || ["deadman", "direction_deg", "power_percent",
       "vertical_percent", "source"].some((key) => input[key] !== this.lastSent[key]);
     if (changed || (input.deadman && now - this.lastSentAt >= this.resendMs)) {
-      if (this.send({ type: "input", ...input })) {
+      // Stamped with this page's clock: the station measures how late each one arrives.
+      if (this.send({ type: "input", ...input, sent_ms: performance.now() })) {
         this.lastSent = input;
         this.lastSentAt = now;
       }
