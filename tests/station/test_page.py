@@ -679,6 +679,24 @@ def test_readings_that_stop_are_shown_as_missing(browser, station, line):
     page.context.close()
 
 
+@pytest.mark.slow  # (the lateness builds up in real time, to over a second: some 6 s)
+def test_readings_that_arrive_late_are_shown_as_old(browser, station, line):
+    page = open_page(browser, station, pad=False)
+    page.wait_for_function("window.rovlinkStation.station.telemetryCount > 3")
+    session = page.context.new_cdp_session(page)
+    session.send("Network.enable")
+    # A network slower than the readings: they all arrive, each later than the one before.
+    # (Before, the page showed them as live, seconds old, between bursts.)
+    slow = {"offline": False, "latency": 0, "downloadThroughput": 300, "uploadThroughput": -1}
+    session.send("Network.emulateNetworkConditions", slow)
+    page.wait_for_selector("#stale-banner:has-text('arrive')", timeout=10_000)
+    assert "late (a slow network?): everything shown is old" in page.text_content("#stale-banner")
+    assert page.evaluate("document.body.classList.contains('stale')")
+    session.send("Network.emulateNetworkConditions", {**slow, "downloadThroughput": -1})
+    page.wait_for_selector("#stale-banner", state="hidden", timeout=8000)  # caught up
+    page.context.close()
+
+
 def test_stop_on_the_pad_of_a_page_that_lost_control_still_stops(browser, station, line):
     first = flying_by_pad(browser, station, line, [1, 0, 0, 0], "#th.90.100!")
     second = open_page(browser, station, pad=False)

@@ -19,11 +19,34 @@ const station = {
   lostControl: null,
   // STOP was pressed while the station could not be reached: sent first when it is.
   stopKept: false,
+  // How long the fastest of this socket's timed messages took to arrive, the station's clock
+  // against this page's (ms; null: none yet), and how much later than that the last one came.
+  fastestArrivalMs: null, fastestAt: 0, lateMs: 0,
 };
 // No word from the station (not even its heartbeat) for this long: the socket is given up and
 // a new one opened. By then the station has dropped the old one too (serve.py pings every 5 s
 // and gives up 5 s later), so the page does not come back as a second copy of itself.
 const SILENT_RECONNECT_MS = 10000;
+// The station's messages arrive this much later than the fastest did: a network slower than
+// they are (each waits longer than the one before), and what is shown is that old.
+const LATE_MS = 1000;
+
+// The two clocks may drift apart this much (0.1 %: quartz does far better); a network that
+// holds messages back makes them later much faster.
+const CLOCK_DRIFT = 1e-3;
+
+// A message stamped with the station's time ``t`` (s) arrived now: how late (see LATE_MS).
+function measureLateness(t) {
+  if (typeof t !== "number") return;
+  const now = performance.now();
+  const arrivalMs = now - t * 1000;
+  let fastest = station.fastestArrivalMs;
+  if (fastest !== null) fastest += Math.max(0, now - station.fastestAt) * CLOCK_DRIFT;
+  if (fastest === null || arrivalMs < fastest) fastest = arrivalMs;
+  station.fastestArrivalMs = fastest;
+  station.fastestAt = now;
+  station.lateMs = arrivalMs - fastest;
+}
 let mapping = loadMapping();
 const alarm = new AlarmSound();
 const charts = new Charts($("depth-chart"), $("attitude-chart"));
@@ -102,6 +125,9 @@ function onMessage(message) {
   station.heardAt = performance.now();
   switch (message.type) {
     case "hello":
+      // Another station, maybe (restarted): its clock is another.
+      station.fastestArrivalMs = null;
+      station.lateMs = 0;
       station.id = message.id;
       station.limits = message.limits;
       station.rateHz = message.rate_hz;
@@ -123,6 +149,7 @@ function onMessage(message) {
       break;
     case "telemetry": {
       station.telemetryCount += 1;
+      measureLateness(message.t);
       const s = message.sensors;
       if (s) station.readingAt = station.heardAt;
       showTelemetry(message);
@@ -132,6 +159,7 @@ function onMessage(message) {
       break;
     }
     case "heartbeat":
+      measureLateness(message.t);
       break;
     case "control":
       setControl(message.pilot_id, message.pilot_label, message.text);
@@ -193,6 +221,10 @@ function showFreshness() {
     stale = `no word from the station for ${silent.toFixed(0)} s (the network?): everything shown is old`;
     old = true;
     if (now - station.heardAt > SILENT_RECONNECT_MS) connection.reconnect();
+  } else if (station.lateMs > LATE_MS) {
+    const late = station.lateMs / 1000;
+    stale = `what the station says arrives ${late.toFixed(1)} s late (a slow network?): everything shown is old`;
+    old = true;
   } else if (station.readingAt === null
     || now - station.readingAt > Math.max(1000, 3000 / station.rateHz)) {
     const since = station.readingAt === null ? ""
