@@ -361,3 +361,21 @@ async def test_a_late_poll_is_not_followed_by_another_at_once(hub, monkeypatch: 
         polling.cancel()
     gaps = [later - earlier for earlier, later in itertools.pairwise(read_at)]
     assert min(gaps) > 0.5 / hub.station.rate_hz, gaps
+
+
+def lateness_over(peer: Peer, seconds: float, page_rate: float, every_s: float = 0.05) -> float:
+    """The most ``peer.lateness_s`` says over ``seconds`` of inputs every ``every_s``, each
+    sent at the page's clock running ``page_rate`` times the station's."""
+    most = 0.0
+    for step in range(int(seconds / every_s)):
+        now_s = step * every_s
+        most = max(most, peer.lateness_s(now_s * page_rate * 1e3, now_s))
+    return most
+
+
+def test_a_page_clock_that_drifts_is_not_taken_for_a_slow_network():
+    # Two computers' clocks: the page's 0.05 % slow, for two hours. Without an allowance, its
+    # input would have been measured 3.6 s late, and cut as stale, after two hours.
+    assert lateness_over(Peer("p1", "browser 1"), 7200.0, page_rate=0.9995) < 0.05
+    # A network that holds the input back makes it later far faster: 10 % a second.
+    assert lateness_over(Peer("p2", "browser 2"), 5.0, page_rate=0.9) > 0.3

@@ -37,6 +37,16 @@ def test_keyboard_input_has_no_pad_timestamp():
     )
     assert isinstance(message, InputMessage)
     assert message.pilot.pad_timestamp_ms is None
+    assert message.sent_ms is None  # (not said: how late it arrives is not measured)
+
+
+def test_an_input_may_say_when_it_was_sent():
+    message = parse_message(
+        '{"type": "input", "source": "keyboard", "deadman": false, "direction_deg": 0,'
+        ' "power_percent": 0, "vertical_percent": 0, "sent_ms": 5678.5}'
+    )
+    assert isinstance(message, InputMessage)
+    assert message.sent_ms == 5678.5
 
 
 @pytest.mark.parametrize(
@@ -54,6 +64,11 @@ def test_keyboard_input_has_no_pad_timestamp():
         ('{"type": "input", "deadman": 1}', "'deadman' must be true or false"),
         ('{"type": "input", "deadman": true, "direction_deg": 1.5}', "'direction_deg' must be"),
         ('{"type": "input", "deadman": true, "pad_timestamp_ms": Infinity}', "not JSON"),
+        (
+            '{"type": "input", "source": "keyboard", "deadman": true, "direction_deg": 0,'
+            ' "power_percent": 0, "vertical_percent": 0, "sent_ms": "now"}',
+            "'sent_ms' must be a number",
+        ),
     ],
 )
 def test_refusals_say_what_was_wrong(text, says):

@@ -175,6 +175,51 @@ async def test_a_frozen_pad_is_cut_though_the_page_keeps_sending(station, line):
     await page.close()
 
 
+async def test_input_that_arrives_late_is_not_relayed_though_it_keeps_arriving(station, line):
+    # A network slower than the page's input (a weak Wi-Fi): every message gets through, each
+    # later than the one before. Before, the stick flew on as it had been seconds ago, and the
+    # dead-man's release took as long to arrive. The page stamps each input with its own clock.
+    page = await pilot(station)
+    await fly(page, line)
+
+    async def send(message: dict[str, Any], late_s: float) -> None:
+        sent_ms = (time.monotonic() - late_s) * 1e3
+        await page.send({**message, "sent_ms": sent_ms})
+
+    pad_ms = 10.0
+    for _ in range(3):  # on time
+        await send(held(pad_ms=pad_ms), late_s=0.0)
+        pad_ms += 50
+        await asyncio.sleep(0.05)
+    mark = line.mark()
+    late_from_s = time.monotonic()
+    stop = asyncio.Event()
+
+    async def late() -> None:  # the pad live, its messages arriving 600 ms late
+        nonlocal pad_ms
+        while not stop.is_set():
+            await send(held(pad_ms=pad_ms), late_s=0.6)
+            pad_ms += 50
+            await asyncio.sleep(0.05)
+
+    sender = asyncio.ensure_future(late())
+    try:
+        zero = await asyncio.to_thread(line.wait_for, "#th.90.0!", after=mark)
+        assert zero.at_s - late_from_s < CUT_WITHIN_S
+        log = await page.next("log", lambda m: "late" in m["text"])
+        assert "arrives 0.6 s late" in log["text"]
+        await send(RELEASED, late_s=0.6)  # released and held again, late: nothing flies
+    finally:
+        stop.set()
+        await sender
+    await send(RELEASED, late_s=0.0)  # on time again: released and held, it flies
+    await send(held(pad_ms=pad_ms), late_s=0.0)
+    flown = await asyncio.to_thread(line.wait_for, "#th.90.60!", after=mark)
+    assert [frame for frame in line.frames(mark) if frame == "#th.90.60!"] == ["#th.90.60!"]
+    assert flown.at_s > zero.at_s
+    await page.close()
+
+
 async def test_a_live_pad_keeps_flying_and_the_motion_is_renewed(station, line):
     page = await pilot(station)
     await fly(page, line)

@@ -64,6 +64,7 @@ from rovlink.station.recording import RecordingError, StationRecordings
 from rovlink.station.relay import STALE_INPUT_S, ThrustRelay, is_zero_thrust
 
 __all__ = [
+    "CLOCK_DRIFT",
     "DEFAULT_RATE_HZ",
     "HEARTBEAT_S",
     "MESSAGES_PER_S",
@@ -97,6 +98,9 @@ HEARTBEAT_S = 1.0
 #: that stalled for seconds delivers what it held at once). More closes that page's socket.
 MESSAGES_PER_S = 200.0
 MESSAGE_BURST = 1000.0
+#: How far the page's clock may drift from the station's (0.1 %: quartz does far better): a
+#: page's input is measured late only beyond it.
+CLOCK_DRIFT = 1e-3
 #: Why the lock as last sent is no longer known once the robot's link is reopened.
 _REOPENED = "the link was reopened (the controller may have reset)"
 
@@ -117,6 +121,10 @@ class Peer:
     #: was last topped up (``None``: not yet).
     allowance: float = MESSAGE_BURST
     allowance_at_s: float | None = None
+    #: The least time any of the page's inputs took to arrive, its clock against the station's
+    #: (ms; ``None``: no stamped input yet): an input that took longer waited on the way.
+    fastest_arrival_ms: float | None = None
+    fastest_at_s: float = 0.0
 
     def spend(self, now_s: float) -> bool:
         """One message arrived at ``now_s``: whether the page is within its allowance."""
@@ -126,6 +134,26 @@ class Peer:
         self.allowance_at_s = now_s
         self.allowance -= 1.0
         return self.allowance >= 0.0
+
+    def lateness_s(self, sent_ms: float, now_s: float) -> float:
+        """How much later than the fastest of the page's inputs one sent at ``sent_ms`` (the
+        page's clock) arrived at ``now_s`` (the station's): the clocks' offset cancels out.
+
+        The fastest is let drift by :data:`CLOCK_DRIFT` (two computers' clocks do not keep
+        quite the same time): a network that holds messages back makes them later much faster.
+
+        >>> peer = Peer("p1", "browser 1")
+        >>> peer.lateness_s(1000.0, now_s=50.0), peer.lateness_s(1100.0, now_s=50.7)
+        (0.0, 0.599)
+        """
+        arrival_ms = now_s * 1e3 - sent_ms
+        fastest_ms = self.fastest_arrival_ms
+        if fastest_ms is not None:
+            fastest_ms += max(0.0, now_s - self.fastest_at_s) * 1e3 * CLOCK_DRIFT
+        if fastest_ms is None or arrival_ms < fastest_ms:
+            fastest_ms = arrival_ms
+        self.fastest_arrival_ms, self.fastest_at_s = fastest_ms, now_s
+        return round((arrival_ms - fastest_ms) / 1e3, 3)
 
     def put(self, message: dict[str, Any]) -> None:
         """Queue ``message`` for the page; dropped if the page is too far behind."""
@@ -281,6 +309,17 @@ class Station:
             if peer.hidden:
                 raise MessageError("input from a hidden page is ignored: show the page to fly")
             peer.input_source = message.source
+            if message.sent_ms is not None:
+                late_s = peer.lateness_s(message.sent_ms, self._clock())
+                if late_s > STALE_INPUT_S:
+                    # A network slower than the page's input: each message waits longer on the
+                    # way, and arriving they keep the relay's input fresh. As old as that, the
+                    # input is stale, a release of the dead-man too: cut, relay nothing.
+                    if self.relay.armed:
+                        await self._cut(
+                            f"the page's input arrives {late_s:.1f} s late (a slow network?)"
+                        )
+                    return
             if not self._link_up:
                 # Nothing can be relayed, and the relay, cut when the link was lost, stays so:
                 # armed or "flying" on the page would claim what the robot is not doing.

@@ -82,6 +82,9 @@ class InputMessage:
     pilot: PilotInput
     #: What produced it, ``gamepad`` or ``keyboard``: shown to the others.
     source: str
+    #: When the page sent it, on the page's own clock (ms; ``None``: not said): how late
+    #: messages arrive is measured against the earliest any arrived.
+    sent_ms: float | None = None
 
 
 @dataclass(frozen=True, slots=True)
@@ -178,6 +181,9 @@ def _input(data: dict[str, Any]) -> InputMessage:
     pad_timestamp_ms = None
     if source == "gamepad":
         pad_timestamp_ms = float(_field(data, "input", "pad_timestamp_ms", float))
+    sent_ms = None
+    if "sent_ms" in data:
+        sent_ms = float(_field(data, "input", "sent_ms", float))
     try:
         pilot = PilotInput(
             deadman=deadman,
@@ -188,7 +194,7 @@ def _input(data: dict[str, Any]) -> InputMessage:
         )
     except ValueError as error:
         raise MessageError(f"input: {error}") from None
-    return InputMessage(pilot, source)
+    return InputMessage(pilot, source, sent_ms)
 
 
 def _command(data: dict[str, Any]) -> CommandRequest:

@@ -55,12 +55,19 @@ function loadPadStops() {
 // A pad as connected: its slot and its id (another pad in the same slot is another pad).
 function padKey(pad) { return `${pad.index}:${pad.id}`; }
 
+// Keys that fly and that the browser would also act on: the arrows scroll the page.
+const SCROLLING_KEYS = ["ArrowUp", "ArrowDown", "ArrowLeft", "ArrowRight"];
+
 export class Keyboard {
-  constructor() {
+  // flying() says whether the keys fly the robot now (the keyboard in use, on the pilot's page).
+  constructor(flying = () => false) {
     this.down = new Set();
     this.powerPercent = 40;
     addEventListener("keydown", (event) => {
-      if (!typingIn(event.target)) this.down.add(event.code);
+      if (typingIn(event.target)) return;
+      this.down.add(event.code);
+      // The arrows fly the robot, and nothing else: the instruments must not scroll away.
+      if (SCROLLING_KEYS.includes(event.code) && flying()) event.preventDefault();
     });
     addEventListener("keyup", (event) => { this.down.delete(event.code); });
     addEventListener("blur", () => this.down.clear());
@@ -93,7 +100,7 @@ export class InputDevices {
     this.isPilot = isPilot;
     this.mapping = mapping;
     this.onChange = onChange;
-    this.keyboard = new Keyboard();
+    this.keyboard = new Keyboard(() => this.isPilot() && this.active().kind === "keyboard");
     this.choice = loadJson(CHOICE_KEY, null);      // {kind: "gamepad", id} | {kind: "keyboard"}
     this.ignored = new Set(loadJson(IGNORE_KEY, []));
     this.padStops = loadPadStops();  // id -> its STOP button, learnt in the pad list
@@ -257,7 +264,8 @@ export class InputDevices {
     const changed = !this.lastSent || ["deadman", "direction_deg", "power_percent",
       "vertical_percent", "source"].some((key) => input[key] !== this.lastSent[key]);
     if (changed || (input.deadman && now - this.lastSentAt >= this.resendMs)) {
-      if (this.send({ type: "input", ...input })) {
+      // Stamped with this page's clock: the station measures how late each one arrives.
+      if (this.send({ type: "input", ...input, sent_ms: performance.now() })) {
         this.lastSent = input;
         this.lastSentAt = now;
       }

@@ -17,11 +17,36 @@ const station = {
   heardAt: null, readingAt: null,
   // Why this page is no longer the pilot, shown until it takes control again.
   lostControl: null,
+  // STOP was pressed while the station could not be reached: sent first when it is.
+  stopKept: false,
+  // How long the fastest of this socket's timed messages took to arrive, the station's clock
+  // against this page's (ms; null: none yet), and how much later than that the last one came.
+  fastestArrivalMs: null, fastestAt: 0, lateMs: 0,
 };
 // No word from the station (not even its heartbeat) for this long: the socket is given up and
 // a new one opened. By then the station has dropped the old one too (serve.py pings every 5 s
 // and gives up 5 s later), so the page does not come back as a second copy of itself.
 const SILENT_RECONNECT_MS = 10000;
+// The station's messages arrive this much later than the fastest did: a network slower than
+// they are (each waits longer than the one before), and what is shown is that old.
+const LATE_MS = 1000;
+
+// The two clocks may drift apart this much (0.1 %: quartz does far better); a network that
+// holds messages back makes them later much faster.
+const CLOCK_DRIFT = 1e-3;
+
+// A message stamped with the station's time ``t`` (s) arrived now: how late (see LATE_MS).
+function measureLateness(t) {
+  if (typeof t !== "number") return;
+  const now = performance.now();
+  const arrivalMs = now - t * 1000;
+  let fastest = station.fastestArrivalMs;
+  if (fastest !== null) fastest += Math.max(0, now - station.fastestAt) * CLOCK_DRIFT;
+  if (fastest === null || arrivalMs < fastest) fastest = arrivalMs;
+  station.fastestArrivalMs = fastest;
+  station.fastestAt = now;
+  station.lateMs = arrivalMs - fastest;
+}
 let mapping = loadMapping();
 const alarm = new AlarmSound();
 const charts = new Charts($("depth-chart"), $("attitude-chart"));
@@ -29,8 +54,23 @@ const connection = new Connection(onMessage, onConnectionState);
 
 const isPilot = () => station.id !== null && station.pilotId === station.id && connection.isOpen;
 const send = (message) => connection.send(message);
-const command = (name, values = []) => send({ type: "command", name, values });
-const stop = () => send({ type: "stop" });
+// What the pilot asks for while the page cannot reach the station (the connection dropped and
+// is being reopened) is not sent, and the page says so: it would act later, unasked. STOP
+// excepted: it is kept and sent first when the station is reached again (it can only make the
+// robot safer; the station zeroed the thrust when the connection dropped, but only STOP locks
+// the motors), and the pilot is told that it has not gone yet.
+const ask = (message, what) => {
+  if (send(message)) return true;
+  toast(`not connected to the station: ${what} not sent`);
+  return false;
+};
+const command = (name, values = []) => ask({ type: "command", name, values },
+  `#${[name, ...values].join(".")}!`);
+const stop = () => {
+  if (send({ type: "stop" })) return;
+  station.stopKept = true;
+  toast("STOP not sent yet: the station cannot be reached; it goes first when it is", null);
+};
 
 const devices = new InputDevices({
   send,
@@ -85,6 +125,9 @@ function onMessage(message) {
   station.heardAt = performance.now();
   switch (message.type) {
     case "hello":
+      // Another station, maybe (restarted): its clock is another.
+      station.fastestArrivalMs = null;
+      station.lateMs = 0;
       station.id = message.id;
       station.limits = message.limits;
       station.rateHz = message.rate_hz;
@@ -106,6 +149,7 @@ function onMessage(message) {
       break;
     case "telemetry": {
       station.telemetryCount += 1;
+      measureLateness(message.t);
       const s = message.sensors;
       if (s) station.readingAt = station.heardAt;
       showTelemetry(message);
@@ -115,6 +159,7 @@ function onMessage(message) {
       break;
     }
     case "heartbeat":
+      measureLateness(message.t);
       break;
     case "control":
       setControl(message.pilot_id, message.pilot_label, message.text);
@@ -138,6 +183,10 @@ function onConnectionState(state) {
   station.heardAt = state === "open" ? performance.now() : null;
   station.readingAt = null;
   if (state === "open") {
+    if (station.stopKept && send({ type: "stop" })) {
+      station.stopKept = false;
+      toast("STOP sent (pressed while the station could not be reached)");
+    }
     // The station takes a new page as shown: one opened in a background tab says otherwise.
     if (document.hidden) send({ type: "visibility", hidden: true });
   } else {
@@ -172,6 +221,10 @@ function showFreshness() {
     stale = `no word from the station for ${silent.toFixed(0)} s (the network?): everything shown is old`;
     old = true;
     if (now - station.heardAt > SILENT_RECONNECT_MS) connection.reconnect();
+  } else if (station.lateMs > LATE_MS) {
+    const late = station.lateMs / 1000;
+    stale = `what the station says arrives ${late.toFixed(1)} s late (a slow network?): everything shown is old`;
+    old = true;
   } else if (station.readingAt === null
     || now - station.readingAt > Math.max(1000, 3000 / station.rateHz)) {
     const since = station.readingAt === null ? ""
@@ -209,8 +262,13 @@ function setControl(pilotId, pilotLabel, why = null) {
   $("release-control").hidden = !mine;
   showTakeQuestion();
   $("record").disabled = !mine;  // only the pilot starts and stops a recording
+  // Disabled, not only greyed out: the keyboard and a screen reader get it too.
+  for (const control of document.querySelectorAll(PILOT_CONTROLS)) control.disabled = !mine;
   showFlightStatus();
 }
+
+// What only the pilot may use (the settings rows are built when the station says hello).
+const PILOT_CONTROLS = ".pilot-only button, .pilot-only input, #settings-rows button, #settings-rows input";
 
 // Taking control from another pilot asks first, on the page (see the take-control button).
 function showTakeQuestion() {
@@ -321,12 +379,13 @@ function addLog(entry) {
 }
 
 let toastTimer = null;
-function toast(message) {
+// A message at the bottom of the page for a few seconds (``shownMs``; null: until the next).
+function toast(message, shownMs = 4000) {
   const el = $("toast");
   el.textContent = message;
   el.hidden = false;
   clearTimeout(toastTimer);
-  toastTimer = setTimeout(() => { el.hidden = true; }, 4000);
+  if (shownMs !== null) toastTimer = setTimeout(() => { el.hidden = true; }, shownMs);
 }
 
 // -- settings from the command table ---------------------------------------------------------
@@ -341,9 +400,11 @@ function buildSettings(limits) {
     const argument = limits[name].arguments[0];
     const row = document.createElement("form");
     row.className = "setting-row";
-    row.innerHTML = `<span class="name"></span><input type="number" required step="1" autocomplete="off">
+    row.innerHTML = `<label class="name"></label><input type="number" required step="1" autocomplete="off">
       <span class="muted"></span><button type="submit">Send</button>`;
     row.querySelector(".name").textContent = `${label} (#${name})`;
+    row.querySelector(".name").htmlFor = `setting-${name}`;
+    row.querySelector("button").setAttribute("aria-label", `Send ${label}`);
     const input = row.querySelector("input");
     Object.assign(input, { min: argument.min, max: argument.max, name, id: `setting-${name}` });
     row.querySelector(".muted").textContent = `${argument.min}–${argument.max} ${argument.unit}`;
@@ -464,12 +525,12 @@ function renderMapping() {
   const rows = [];
   for (const [name, label] of Object.entries(AXES)) {
     const axis = mapping.axes[name];
-    rows.push(`<tr><td>${label}</td><td>axis <input type="number" min="0" max="15" autocomplete="off" data-axis="${name}" value="${axis.index}"></td>
-      <td><label><input type="checkbox" data-invert="${name}" ${axis.invert ? "checked" : ""}> invert</label></td></tr>`);
+    rows.push(`<tr><td>${label}</td><td>axis <input type="number" min="0" max="15" autocomplete="off" data-axis="${name}" value="${axis.index}" aria-label="${label}: axis"></td>
+      <td><label><input type="checkbox" data-invert="${name}" ${axis.invert ? "checked" : ""} aria-label="invert ${label}"> invert</label></td></tr>`);
   }
   for (const [name, label] of Object.entries(ACTIONS)) {
-    rows.push(`<tr><td>${label}</td><td>button <input type="number" min="0" max="31" autocomplete="off" data-button="${name}" value="${mapping.buttons[name]}"></td>
-      <td><button type="button" data-learn="${name}">learn</button></td></tr>`);
+    rows.push(`<tr><td>${label}</td><td>button <input type="number" min="0" max="31" autocomplete="off" data-button="${name}" value="${mapping.buttons[name]}" aria-label="${label}: button"></td>
+      <td><button type="button" data-learn="${name}" aria-label="learn ${label}">learn</button></td></tr>`);
   }
   table.innerHTML = rows.join("");
   const reset = document.createElement("button");
@@ -504,6 +565,7 @@ function renderMapping() {
     const pad = devices.active().pad;
     if (!pad) { toast("choose a gamepad first"); return; }
     event.target.textContent = "press a button…";
+    event.target.setAttribute("aria-label", `${ACTIONS[name]}: press a button…`);
     const before = pad.buttons.map((b) => b.pressed);
     const started = performance.now();
     devices.learning = true;
@@ -529,7 +591,7 @@ $("stop").addEventListener("click", stop);
 // Taking control from another pilot is asked on the page, not with confirm(): a browser
 // dialog stops the page (no STOP key, no pad, no STOP button) until it is answered.
 $("take-control").addEventListener("click", () => {
-  if (!station.pilotId) { send({ type: "take_control" }); return; }
+  if (!station.pilotId) { ask({ type: "take_control" }, "taking control"); return; }
   station.askingToTake = true;
   showTakeQuestion();
   $("take-control-no").focus();
@@ -537,15 +599,16 @@ $("take-control").addEventListener("click", () => {
 $("take-control-yes").addEventListener("click", () => {
   station.askingToTake = false;
   showTakeQuestion();
-  send({ type: "take_control" });
+  ask({ type: "take_control" }, "taking control");
 });
 $("take-control-no").addEventListener("click", () => { station.askingToTake = false; showTakeQuestion(); });
 $("release-control").addEventListener("click", () => {
   station.releasing = true;  // (no "you are no longer the pilot" for letting go oneself)
-  send({ type: "release_control" });
+  ask({ type: "release_control" }, "releasing control");
 });
 $("record").addEventListener("click", () => {
-  send({ type: station.recording?.active ? "record_stop" : "record_start" });
+  const start = !station.recording?.active;
+  ask({ type: start ? "record_start" : "record_stop" }, start ? "Record" : "Stop recording");
 });
 $("unlock").addEventListener("click", () => command("start"));
 $("mode-depth").addEventListener("click", () => command("mvdirect", [0]));
