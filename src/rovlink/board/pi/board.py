@@ -131,15 +131,7 @@ def open_pi_board(config: PiConfig, *, bus: I2cBus | None = None, pin_factory: A
     closers.append(bus.close)
     if pin_factory is None and config.i2c.backend is I2cBackend.FAKE and config.leak.pin >= 0:
         pin_factory = _starting("gpiozero's mock pins for the fake board", _mock_pins)
-    pca = Pca9685(bus, config.pca9685.address, oscillator_hz=config.pca9685.oscillator_hz)
-    thrusters = EscThrusters(
-        pca,
-        [
-            EscChannel(esc.channel, esc.reversed, esc.min_us, esc.neutral_us, esc.max_us)
-            for esc in config.escs
-        ],
-    )
-    claw = _claw(config, pca)
+    pca, thrusters, claw = _pwm_outputs(config, bus)
     where = f"on I²C bus {config.i2c.bus}"
     started = False
 
@@ -237,15 +229,7 @@ def set_pi_outputs_at_rest(config: PiConfig, *, bus: I2cBus | None = None) -> st
         bus = _open_bus(config)
         release = _claim_or_close(config, bus)
     try:
-        pca = Pca9685(bus, config.pca9685.address, oscillator_hz=config.pca9685.oscillator_hz)
-        thrusters = EscThrusters(
-            pca,
-            [
-                EscChannel(esc.channel, esc.reversed, esc.min_us, esc.neutral_us, esc.max_us)
-                for esc in config.escs
-            ],
-        )
-        claw = _claw(config, pca)
+        pca, thrusters, claw = _pwm_outputs(config, bus)
         neutral = thrusters.neutral_pulses_us()
         start = dict(neutral)
         if isinstance(claw, MotorClaw):
@@ -345,6 +329,18 @@ def _mock_pins() -> Any:
     from gpiozero.pins.mock import MockFactory  # noqa: PLC0415
 
     return MockFactory()
+
+
+def _pwm_outputs(
+    config: PiConfig, bus: I2cBus
+) -> tuple[Pca9685, EscThrusters, MotorClaw | ServoClaw | _NoClaw]:
+    """The PCA9685 of ``config`` on ``bus``, its ESCs and its claw (nothing written yet)."""
+    pca = Pca9685(bus, config.pca9685.address, oscillator_hz=config.pca9685.oscillator_hz)
+    escs = [
+        EscChannel(esc.channel, esc.reversed, esc.min_us, esc.neutral_us, esc.max_us)
+        for esc in config.escs
+    ]
+    return pca, EscThrusters(pca, escs), _claw(config, pca)
 
 
 def _claw(config: PiConfig, pca: Pca9685) -> MotorClaw | ServoClaw | _NoClaw:
