@@ -18,6 +18,7 @@ from rovlink.protocol import (
     Response,
     UnknownCommandError,
     encode,
+    parse_body,
 )
 
 # Every literal frame of the original specification, with the name and values it decodes to.
@@ -228,3 +229,23 @@ def test_every_setting_has_both_values_in_the_table() -> None:
         for value in (True, False):
             command = setting_command(setting, value)
             assert command.setting == (setting, value)
+
+
+@pytest.mark.parametrize(
+    ("kind", "body", "values"),
+    [
+        (Kind.COMMAND, "mgmp.00255", (255,)),
+        (Kind.COMMAND, "th.0360.0100", (360, 100)),
+        (Kind.COMMAND, "mvs.-0100", (-100,)),
+        (Kind.COMMAND, "mvs.+007", (7,)),
+        (Kind.COMMAND, "sdk.0010000", (10000,)),
+        (Kind.RESPONSE, "qro.-.09", (-9,)),
+        (Kind.RESPONSE, "q.l.01", (1,)),
+    ],
+)
+def test_the_full_parser_takes_leading_zeros(
+    kind: Kind, body: str, values: tuple[int, ...]
+) -> None:
+    # P6 for the parser that names problems (the console's frames, the decoder's odd forms),
+    # not only for the decoder's fast path.
+    assert parse_body(kind, body).values == values
