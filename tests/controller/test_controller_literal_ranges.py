@@ -8,6 +8,7 @@ import pytest
 from rovlink.protocol import ArgumentError, Command, Decoder, Frame, Response
 from tests.controller.controller_rig import Rig, make_rig
 from tests.protocol.spec_ranges import RESPONSE_RANGES, command_body, edge_cases, value_text
+from tests.protocol.test_frames import SEED_FRAMES
 
 
 def _ready_rig(name: str) -> Rig:
@@ -94,3 +95,13 @@ def test_a_host_sends_each_edge_and_refuses_one_past_it(
     else:
         with pytest.raises(ArgumentError, match="mvpidd" if name == "mvpdd" else name):
             Command(name, values)
+
+
+@pytest.mark.parametrize("frame", [raw for raw, _, _ in SEED_FRAMES if raw.startswith(b"#")])
+def test_the_controller_takes_every_command_frame_of_the_original(frame: bytes) -> None:
+    name = frame[1:-1].split(b".")[0].decode()
+    rig = _ready_rig("mvs" if name in ("mvs", "mvdirect") else name)
+    output = rig.send(frame)
+    assert b"dropped" not in output, output
+    if name not in ("crcon", "crcoff", "debug1", "debug0"):
+        assert output, frame  # a reply, or a line about what it set (P4, P5)

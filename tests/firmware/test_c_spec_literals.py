@@ -16,6 +16,7 @@ from rovlink.protocol import COMMANDS, lookup
 from rovlink.protocol.checksum import crc8_smbus
 from tests.firmware.c_build import FIRMWARE, LAYER, STRICT, build, needs_gcc
 from tests.protocol.spec_ranges import command_body, edge_cases
+from tests.protocol.test_frames import SEED_FRAMES
 
 pytestmark = needs_gcc
 
@@ -88,3 +89,13 @@ def test_a_byte_outside_the_printable_range_discards_the_frame(replay: Path, byt
     lines = _run(replay, b"#debug1!#mgmp.1" + byte + b"5!#qd!")
     assert lines[1] == "D dropped <mgmp.1>: a byte outside 0x21-0x7E", lines
     assert [line for line in lines if line.startswith(("C ", "R "))] == ["R $qd.1020!"]
+
+
+@pytest.mark.parametrize("frame", [raw for raw, _, _ in SEED_FRAMES if raw.startswith(b"#")])
+def test_the_c_layer_takes_every_command_frame_of_the_original(replay: Path, frame: bytes) -> None:
+    name = frame[1:-1].split(b".")[0]
+    setup = b"#debug1!#start!" + (b"#mvdirect.1!" if name in (b"mvs", b"mvdirect") else b"")
+    lines = _run(replay, setup + frame)[len(_run(replay, setup)) :]
+    assert not [line for line in lines if line.startswith("D dropped")], lines
+    if name not in (b"crcon", b"crcoff", b"debug1", b"debug0"):
+        assert lines, frame  # a reply, a dispatch or a line about what it set (P4, P5)
