@@ -89,3 +89,35 @@ def test_usage_and_completion_come_from_the_table() -> None:
     assert usage("qsa") == "qsa"
     assert complete_names("q") == ["qd", "qr", "q.l", "qro", "qpi", "qhe", "qsa"]
     assert complete_names("") == [spec.name for spec in COMMANDS]
+
+
+@pytest.mark.parametrize(
+    ("text", "message", "argument"),
+    [
+        # A "+" only where the argument is signed (P6), as the frame form "#mgmp.+5!" says.
+        ("mgmp +5", "mgmp: max_pwm must be an integer in 0–255, got '+5'", "max_pwm"),
+        ("th +90 10", "th: direction_deg must be an integer in 0–360, got '+90'", "direction_deg"),
+        # Decimal digits of other scripts are not the protocol's digits.
+        ("mgmp \u0663", "mgmp: max_pwm must be an integer in 0–255, got '\u0663'", "max_pwm"),
+        (
+            "mvs \uff15",
+            "mvs: thrust_percent must be an integer in -100…+100, got '\uff15'",
+            "thrust_percent",
+        ),
+    ],
+)
+def test_values_are_ascii_digits_with_a_sign_only_where_signed(
+    text: str, message: str, argument: str
+) -> None:
+    with pytest.raises(CommandTextError) as caught:
+        parse_command_text(text)
+    assert str(caught.value) == message
+    assert caught.value.argument == argument
+
+
+@pytest.mark.parametrize(
+    ("text", "frame"),
+    [("mvs +5", "#mvs.+5!"), ("mvs -0", "#mvs.+0!"), ("mgmp 0255", "#mgmp.255!")],
+)
+def test_signed_values_keep_their_sign_and_leading_zeros_are_taken(text: str, frame: str) -> None:
+    assert str(parse_command_text(text)) == frame

@@ -112,3 +112,10 @@ def test_no_decoder_mistakes_debug_output_for_a_frame(data: bytes) -> None:
         assert not isinstance(event, BadFrame)
         if isinstance(event, Text):
             assert event.text.startswith("debug: ")
+
+
+def test_text_between_frames_is_reported_without_its_frame_characters(debug_rig: Rig) -> None:
+    # An "!" outside a frame is text (P1); the line that reports it must not carry it (P5).
+    output = debug_rig.send(b"boot ok!\r\nv1.2!!\r\n")
+    assert output.count(b"ignored text between frames") == 2, output
+    assert b"!" not in output

@@ -5,6 +5,7 @@ from __future__ import annotations
 import pytest
 
 from rovlink.controller import ControllerConfig, DepthCalibration
+from rovlink.protocol import Decoder, Frame
 from tests.controller.controller_rig import Rig, make_rig
 
 
@@ -173,3 +174,19 @@ def test_a_depth_scale_of_0_gets_no_down_thrust_from_the_depth_hold() -> None:
     rig.send(b"#mvdirect.1!#mvs.-50!")  # direct mode is the pilot's
     rig.tick()
     assert rig.vertical_duties[0] < 0
+
+
+@pytest.mark.parametrize("raw", [1500, 4095, -7])
+def test_the_pid_uses_the_depth_qd_reports_for_a_reading_off_the_scale(raw: int) -> None:
+    # P13: "qd reports this value and the PID uses it". A sensor reading past the raw scale
+    # (a 12-bit converter) is taken at the top of it, in the control loop as in the replies;
+    # before, the loop computed 2960 cm from 1500 while qd said 2008.
+    rig = make_rig(watchdog_s=0.0)
+    rig.pressure.raw = raw
+    rig.send(b"#start!#mvdirect.1!#mvdirect.0!")  # depth mode: hold the depth read now (P9)
+    rig.tick()
+    (reply,) = Decoder().feed(rig.send(b"#qd!"))
+    assert isinstance(reply, Frame)
+    (qd_cm,) = reply.message.values
+    assert rig.controller.depth_cm == qd_cm
+    assert rig.controller.state().target_depth_cm == qd_cm

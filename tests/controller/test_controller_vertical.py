@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import pytest
+
 from rovlink.controller import ControllerConfig, DepthPidConfig
 from rovlink.protocol import VerticalMode
 from tests.controller.controller_rig import Rig, make_rig
@@ -135,3 +137,17 @@ def test_mvpdd_is_accepted_for_mvpidd(armed_rig: Rig) -> None:
 def test_gains_come_from_the_configuration() -> None:
     rig = make_rig(ControllerConfig(depth_pid=DepthPidConfig(kp=1, ki=2, kd=3)))
     assert rig.controller.state().gains == (1, 2, 3)
+
+
+@pytest.mark.parametrize(("depth_cm", "target_cm"), [(30, 0), (0, 30), (100, 0), (0, 1000)])
+def test_the_output_is_clamped_to_full_thrust_both_ways(
+    armed_rig: Rig, depth_cm: int, target_cm: int
+) -> None:
+    # P10: clamped to ±100 %, so no duty exceeds mgmp (P8). With kp 99 (4.95 % per cm) an error
+    # of 30 cm asks for 148.5 %.
+    armed_rig.send(b"#mgmp.200!#mvpdp.99!#mvpdi.0!#mvpidd.0!")
+    armed_rig.set_depth_cm(depth_cm)
+    armed_rig.send(b"#mvd.%d!" % target_cm)
+    armed_rig.tick()
+    full = 200 if depth_cm > target_cm else -200
+    assert armed_rig.vertical_duties == (full, full)

@@ -6,7 +6,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from rovlink.protocol import ALGORITHMS, UnknownAlgorithmError, get_algorithm
+from rovlink.protocol import ALGORITHMS, Decoder, Frame, UnknownAlgorithmError, get_algorithm
 from rovlink.protocol.checksum import crc8_smbus, sum8, xor8
 
 
@@ -62,3 +62,23 @@ def test_unknown_algorithm_names_the_choices() -> None:
     with pytest.raises(UnknownAlgorithmError, match=r"'md5'.*crc8, sum8, xor"):
         get_algorithm("md5")
     assert set(ALGORITHMS) == {"crc8", "xor", "sum8"}
+
+
+@pytest.mark.parametrize(
+    ("start", "body", "xor_digits", "sum8_digits"),
+    [
+        # Odd lengths and sums past 255, where a slip in either algorithm shows.
+        (b"#", b"th.270.25", b"2E", b"38"),
+        (b"#", b"mvd.100", b"60", b"06"),
+        (b"$", b"qro.-1", b"5E", b"DE"),
+    ],
+)
+def test_xor_and_sum8_vectors(
+    start: bytes, body: bytes, xor_digits: bytes, sum8_digits: bytes
+) -> None:
+    assert get_algorithm("xor").digits(body) == xor_digits
+    assert get_algorithm("sum8").digits(body) == sum8_digits
+    for algorithm, digits in (("xor", xor_digits), ("sum8", sum8_digits)):
+        decoder = Decoder(checksum_enabled=True, algorithm=algorithm)
+        (event,) = decoder.feed(start + body + digits.lower() + b"!")
+        assert isinstance(event, Frame), (algorithm, event)

@@ -18,6 +18,7 @@ from rovlink.protocol import (
     Response,
     UnknownCommandError,
     encode,
+    parse_body,
 )
 
 # Every literal frame of the original specification, with the name and values it decodes to.
@@ -31,6 +32,12 @@ SEED_FRAMES: list[tuple[bytes, str, list[int]]] = [
     (b"#mgmp.0!", "mgmp", [0]),
     (b"#mgmp.64!", "mgmp", [64]),
     (b"#mgmp.128!", "mgmp", [128]),
+    (b"#mvpdp.7!", "mvpdp", [7]),
+    (b"#mvpdp.92!", "mvpdp", [92]),
+    (b"#mvpdi.37!", "mvpdi", [37]),
+    (b"#mvpdi.4!", "mvpdi", [4]),
+    (b"#mvpidd.11!", "mvpidd", [11]),
+    (b"#mvpidd.9!", "mvpidd", [9]),
     (b"#mvdirect.1!", "mvdirect", [1]),
     (b"#mvdirect.0!", "mvdirect", [0]),
     (b"#mvs.+100!", "mvs", [100]),
@@ -50,6 +57,8 @@ SEED_FRAMES: list[tuple[bytes, str, list[int]]] = [
     (b"$qro.-1!", "qro", [-1]),
     (b"$qro.+15!", "qro", [15]),
     (b"#qpi!", "qpi", []),
+    (b"$qpi.-1!", "qpi", [-1]),
+    (b"$qpi.+15!", "qpi", [15]),
     (b"#qhe!", "qhe", []),
     (b"#qsa!", "qsa", []),
     (b"#h+!", "h+", []),
@@ -228,3 +237,23 @@ def test_every_setting_has_both_values_in_the_table() -> None:
         for value in (True, False):
             command = setting_command(setting, value)
             assert command.setting == (setting, value)
+
+
+@pytest.mark.parametrize(
+    ("kind", "body", "values"),
+    [
+        (Kind.COMMAND, "mgmp.00255", (255,)),
+        (Kind.COMMAND, "th.0360.0100", (360, 100)),
+        (Kind.COMMAND, "mvs.-0100", (-100,)),
+        (Kind.COMMAND, "mvs.+007", (7,)),
+        (Kind.COMMAND, "sdk.0010000", (10000,)),
+        (Kind.RESPONSE, "qro.-.09", (-9,)),
+        (Kind.RESPONSE, "q.l.01", (1,)),
+    ],
+)
+def test_the_full_parser_takes_leading_zeros(
+    kind: Kind, body: str, values: tuple[int, ...]
+) -> None:
+    # P6 for the parser that names problems (the console's frames, the decoder's odd forms),
+    # not only for the decoder's fast path.
+    assert parse_body(kind, body).values == values

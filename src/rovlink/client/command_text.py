@@ -25,7 +25,10 @@ from rovlink.protocol.commands import SPELLINGS
 __all__ = ["CommandTextError", "complete_names", "parse_command_text", "usage"]
 
 _SEPARATORS = re.compile(r"[\s,]+")
-_INTEGER = re.compile(r"[+-]?\d+")
+# ASCII digits only (``\d`` would take "٣" for 3), and a "+" only where the argument is signed,
+# as in a frame (P6); "-" is let through to the range check, which names the range.
+_INTEGER = re.compile(r"-?[0-9]+")
+_SIGNED_INTEGER = re.compile(r"[+-]?[0-9]+")
 
 
 class CommandTextError(ValueError):
@@ -106,7 +109,7 @@ def _from_words(words: list[str]) -> Command:
     values = []
     for token, argument in zip(tokens, spec.arguments, strict=True):
         range_text = argument.range_text()
-        if not _INTEGER.fullmatch(token):
+        if not (_SIGNED_INTEGER if argument.signed else _INTEGER).fullmatch(token):
             raise CommandTextError(
                 f"{spec.name}: {argument.name} must be an integer in {range_text}, got {token!r}",
                 argument.name,

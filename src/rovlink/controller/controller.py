@@ -38,6 +38,8 @@ __all__ = ["Controller", "ControllerState"]
 logger = get_logger(__name__)
 
 _MAX_DEPTH_CM = 9999
+#: The top of the raw scale `qr` reports (P13).
+_RAW_MAX = 1024
 _FULL_UP_PERCENT = 100
 #: How far above the maximum depth the robot must rise before down thrust is allowed again.
 _MAX_DEPTH_RELEASE_CM = 5
@@ -202,6 +204,12 @@ class Controller:
         dt_s = self._tick_s if last is None else now - last
         self._last_tick_s = now
         raw = hardware.pressure.read_raw()
+        # On the scale `qr` reports (as _sensor_values does), so that the PID holds the depth
+        # `qd` reports (P13) even with a sensor that reads past 1024.
+        if raw > _RAW_MAX:
+            raw = _RAW_MAX
+        elif raw < 0:
+            raw = 0
         depth_cm = (raw - self._zero_raw) * self._k // 100
         if depth_cm < 0:
             depth_cm = 0
@@ -320,7 +328,7 @@ class Controller:
         values: dict[str, int] = {}
         hardware = self._hardware
         if "qd" in names or "qr" in names:
-            raw = min(max(hardware.pressure.read_raw(), 0), 1024)
+            raw = min(max(hardware.pressure.read_raw(), 0), _RAW_MAX)
             values["qr"] = raw
             values["qd"] = self._depth_from_raw(raw)
         if "q.l" in names:
@@ -450,7 +458,7 @@ class Controller:
     # -- behaviour ---------------------------------------------------------------------------
 
     def _read_depth_cm(self) -> int:
-        return self._depth_from_raw(self._hardware.pressure.read_raw())
+        return self._depth_from_raw(min(max(self._hardware.pressure.read_raw(), 0), _RAW_MAX))
 
     def _depth_from_raw(self, raw: int) -> int:
         depth_cm = (raw - self._zero_raw) * self._k // 100
