@@ -7,6 +7,7 @@ its assets are files of this package (no network needed: the robot's laptop is o
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import json
 import logging
 from importlib import resources
@@ -23,7 +24,7 @@ from starlette.responses import (
 from starlette.routing import Mount, Route, WebSocketRoute
 from starlette.staticfiles import StaticFiles
 from starlette.types import ASGIApp, Receive, Scope, Send
-from starlette.websockets import WebSocket, WebSocketDisconnect
+from starlette.websockets import WebSocket
 
 from rovlink.station.access import Access
 from rovlink.station.hub import Station
@@ -119,7 +120,13 @@ def build_app(station: Station, access: Access) -> ASGIApp:
 
 
 async def _serve_page(station: Station, websocket: WebSocket) -> None:
-    """One page's WebSocket: its messages to the station, the station's to it."""
+    """One page's WebSocket: its messages to the station, the station's to it.
+
+    Three ways it ends: the page closes it (or it drops), the page floods the station, or the
+    page falls so far behind that its outbox overflows (:mod:`rovlink.station.outbox`). The
+    last is noticed at once, not when the write stuck behind the slow page returns: the page
+    leaves the station (a pilot's thrust to zero) before its socket is closed.
+    """
 
     await websocket.accept()
     client = websocket.client
@@ -130,21 +137,38 @@ async def _serve_page(station: Station, websocket: WebSocket) -> None:
             message = await peer.outbox.get()
             await websocket.send_text(json.dumps(message, separators=(",", ":")))
 
-    writer = asyncio.ensure_future(write())
-    try:
+    async def read() -> str | None:
+        """Until the page goes; why it must be closed, if it must (``None``: it closed)."""
         while True:
             message = await websocket.receive()
             if message["type"] == "websocket.disconnect":
-                break
+                return None
             if not await station.handle(peer, message.get("text", message.get("bytes"))):
-                await websocket.close(code=1008, reason="too many messages")
-                break
+                return "too many messages"
             # Messages already received are handed over without a pause: without this one, a
             # page that floods the station would hold the event loop, and with it the polls,
             # the watchdog and every other page, for as long as it keeps sending.
             await asyncio.sleep(0)
-    except WebSocketDisconnect:
-        pass
+
+    reader = asyncio.ensure_future(read())
+    tasks = {
+        reader,
+        asyncio.ensure_future(write()),
+        asyncio.ensure_future(peer.outbox.wait_overflow()),
+    }
+    closing: tuple[int, str] | None = None  # the close frame's code and reason, if one is due
+    try:
+        done, _ = await asyncio.wait(tasks, return_when=asyncio.FIRST_COMPLETED)
+        if peer.outbox.overflowed:
+            closing = (1013, "too far behind: reconnect for the whole state")
+        elif reader in done and not reader.exception() and reader.result() is not None:
+            closing = (1008, reader.result() or "")
+        # Otherwise the socket went: the page closed it, or a send found it gone.
     finally:
-        writer.cancel()
+        for task in tasks:
+            task.cancel()
+        await asyncio.gather(*tasks, return_exceptions=True)
         await station.leave(peer)
+    if closing is not None:
+        with contextlib.suppress(Exception):  # the socket may have gone meanwhile
+            await websocket.close(code=closing[0], reason=closing[1])

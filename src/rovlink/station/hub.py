@@ -15,8 +15,11 @@ A pilot action is a message type in :mod:`rovlink.station.messages` and a branch
 button's start and stop are one (:mod:`rovlink.station.recording`); every page sees the
 recording's state and may download the finished ones.
 
-Each page has an outbox that the WebSocket endpoint drains; a page too slow to take its
-messages misses readings (they are dropped, never queued without bound), not the others. Every
+Each page has an outbox that the WebSocket endpoint drains (:mod:`rovlink.station.outbox`): a
+page too slow to take its messages skips old readings and heartbeats (never queued without
+bound), never a control change, a log entry or an error; one so far behind that its outbox is
+full of those is closed (:meth:`Station.leave`, then it reconnects and gets a fresh ``hello``).
+Every
 page also gets a ``heartbeat`` each second, whatever the robot's link does, so that a page can
 tell a silent station (a network gone quiet without closing the socket) from a slow robot. A
 page that sends more messages than any page would (:data:`MESSAGES_PER_S`, after a burst of
@@ -60,6 +63,7 @@ from rovlink.station.messages import (
     VisibilityMessage,
     parse_message,
 )
+from rovlink.station.outbox import Outbox
 from rovlink.station.recording import RecordingError, StationRecordings
 from rovlink.station.relay import STALE_INPUT_S, ThrustRelay, is_zero_thrust
 
@@ -86,7 +90,8 @@ INPUT_RESEND_S = 0.05
 HISTORY_S = 300.0
 #: Event-log entries kept for a page that opens late.
 LOG_ENTRIES = 200
-#: Messages a page may have waiting before newer ones are dropped for it.
+#: Messages a page may have waiting; beyond, superseded ones are dropped (see
+#: :mod:`rovlink.station.outbox`).
 OUTBOX_SIZE = 256
 #: Failed polls are logged at most this often (a dead link fails ten a second).
 _FAILURE_LOG_EVERY_S = 2.0
@@ -111,12 +116,9 @@ class Peer:
 
     id: str
     label: str
-    outbox: asyncio.Queue[dict[str, Any]] = field(
-        default_factory=lambda: asyncio.Queue(OUTBOX_SIZE)
-    )
+    outbox: Outbox = field(default_factory=lambda: Outbox(OUTBOX_SIZE))
     hidden: bool = False
     input_source: str | None = None
-    dropped_messages: int = 0
     #: The page's message allowance (a token bucket, see :data:`MESSAGES_PER_S`) and when it
     #: was last topped up (``None``: not yet).
     allowance: float = MESSAGE_BURST
@@ -155,12 +157,15 @@ class Peer:
         self.fastest_arrival_ms, self.fastest_at_s = fastest_ms, now_s
         return round((arrival_ms - fastest_ms) / 1e3, 3)
 
+    @property
+    def dropped_messages(self) -> int:
+        """Messages the page will never get (superseded ones dropped, or lost with an
+        overflow)."""
+        return self.outbox.dropped_messages
+
     def put(self, message: dict[str, Any]) -> None:
-        """Queue ``message`` for the page; dropped if the page is too far behind."""
-        try:
-            self.outbox.put_nowait(message)
-        except asyncio.QueueFull:
-            self.dropped_messages += 1
+        """Queue ``message`` for the page (see :class:`Outbox` for a page too far behind)."""
+        self.outbox.put(message)
 
 
 class Station:
@@ -220,13 +225,17 @@ class Station:
         return peer
 
     async def leave(self, peer: Peer) -> None:
-        """A page's WebSocket closed (or dropped): if it was the pilot, thrust goes to zero."""
-        self.peers.pop(peer.id, None)
+        """A page's WebSocket closed (or dropped), or is being closed because the page fell
+        too far behind (its outbox overflowed): if it was the pilot, thrust goes to zero."""
+        if self.peers.pop(peer.id, None) is None:
+            return  # left already
+        behind = peer.outbox.overflowed
+        gone = "fell too far behind (its connection is closed)" if behind else "disconnected"
         if self.pilot is peer:
             self.pilot = None
-            await self._cut(f"the pilot's page ({peer.label}) disconnected")
-            self._announce_control(f"{peer.label} disconnected; nobody has control")
-        self.log("info", f"{peer.label} disconnected")
+            await self._cut(f"the pilot's page ({peer.label}) {gone}")
+            self._announce_control(f"{peer.label} {gone}; nobody has control")
+        self.log("warning" if behind else "info", f"{peer.label} {gone}")
 
     async def handle(self, peer: Peer, text: str | bytes | None) -> bool:
         """One message from ``peer``; a refused one gets an ``error`` back and sends nothing.
