@@ -164,6 +164,9 @@ async def _serve_page(station: Station, websocket: WebSocket) -> None:
         elif reader in done and not reader.exception() and reader.result() is not None:
             closing = (1008, reader.result() or "")
         # Otherwise the socket went: the page closed it, or a send found it gone.
+        for task in done:
+            if not task.cancelled() and task.exception() is not None:
+                logger.debug("%s: its connection ended: %r", peer.label, task.exception())
     finally:
         for task in tasks:
             task.cancel()

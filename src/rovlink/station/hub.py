@@ -16,15 +16,15 @@ button's start and stop are one (:mod:`rovlink.station.recording`); every page s
 recording's state and may download the finished ones.
 
 Each page has an outbox that the WebSocket endpoint drains (:mod:`rovlink.station.outbox`): a
-page too slow to take its messages skips old readings and heartbeats (never queued without
-bound), never a control change, a log entry or an error; one so far behind that its outbox is
-full of those is closed (:meth:`Station.leave`, then it reconnects and gets a fresh ``hello``).
-Every
-page also gets a ``heartbeat`` each second, whatever the robot's link does, so that a page can
-tell a silent station (a network gone quiet without closing the socket) from a slow robot. A
-page that sends more messages than any page would (:data:`MESSAGES_PER_S`, after a burst of
-:data:`MESSAGE_BURST`) is told to go: :meth:`Station.handle` returns ``False`` and the
-WebSocket endpoint closes it.
+page too slow to take its messages skips old readings, heartbeats and recording states (never
+queued without bound), never a control change, a log entry or an error; one so far behind
+that its outbox is full of those is closed (:meth:`Station.leave`, then it reconnects and gets
+a fresh ``hello``).
+Every page also gets a ``heartbeat`` each second, whatever the robot's link does, so that a
+page can tell a silent station (a network gone quiet without closing the socket) from a slow
+robot. A page that sends more messages than any page would (:data:`MESSAGES_PER_S`, after a
+burst of :data:`MESSAGE_BURST`) is told to go: :meth:`Station.handle` returns ``False`` and
+the WebSocket endpoint closes it.
 """
 
 from __future__ import annotations
