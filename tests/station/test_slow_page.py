@@ -5,12 +5,17 @@ that only those wait for it is closed, and a pilot's thrust goes to zero first."
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import dataclasses
 import json
+import socket
 from collections.abc import AsyncIterator, MutableMapping
 from typing import Any
 
 import pytest
+import uvicorn
+from websockets.asyncio.client import connect
+from websockets.exceptions import ConnectionClosed
 
 from rovlink.station.access import Access
 from rovlink.station.app import build_app
@@ -180,3 +185,59 @@ async def test_the_endpoint_closes_a_page_too_far_behind_and_cuts_its_thrust_fir
     finally:
         serving.cancel()
     assert "fell too far behind" in hub.warnings()[-1]
+
+
+async def test_a_pilot_on_a_real_socket_that_stops_reading_is_closed_and_its_thrust_zeroed(
+    hub, monkeypatch: pytest.MonkeyPatch
+):
+    # uvicorn in this process, with buffers small enough on both sides of the TCP connection
+    # (and a small outbox) for a page that stops reading to fill them in a moment.
+    monkeypatch.setattr("rovlink.station.hub.OUTBOX_SIZE", 16)
+    listener = socket.socket()
+    listener.setsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF, 4096)  # the accepted socket's
+    listener.bind(("127.0.0.1", 0))
+    listener.listen()
+    port = listener.getsockname()[1]
+    app = build_app(hub.station, Access(bind_host="127.0.0.1", port=port))
+    config = uvicorn.Config(app, log_level="warning", lifespan="off", ws="websockets-sansio")
+    server = uvicorn.Server(config)
+    serving = asyncio.ensure_future(server.serve(sockets=[listener]))
+    stuck = socket.socket()
+    try:
+        await until(lambda: server.started)
+        stuck.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)  # before connecting
+        stuck.connect(("127.0.0.1", port))
+        url = f"ws://127.0.0.1:{port}/ws"
+        # max_queue=1: once it holds the hello, the client reads nothing more from its socket.
+        page = await connect(url, sock=stuck, max_queue=1, ping_interval=None)
+        for message in (
+            {"type": "take_control"},
+            {"type": "command", "name": "start"},
+            keys(False),
+            keys(True, power_percent=50),
+        ):
+            await page.send(json.dumps(message))
+        await until(lambda: thrust(hub.sent)[-1:] == ["#th.90.50!"])
+        padding = "." * 2000  # long entries: the buffers fill sooner
+        for number in range(20_000):  # log entries: a page may not miss one
+            if hub.station.pilot is None:
+                break
+            hub.station.log("info", f"entry {number} {padding}")
+            await asyncio.sleep(0)  # the page's writer fills the socket until it waits
+        assert hub.station.pilot is None
+        assert thrust(hub.sent)[-1] == "#th.90.0!"
+        assert "fell too far behind" in hub.warnings()[-1]
+        received = []
+        with contextlib.suppress(ConnectionClosed):  # it reads again, to the close
+            while True:
+                received.append(json.loads(await page.recv()))
+        assert page.close_code == 1013
+        logged = [m["text"].split() for m in received if m["type"] == "log"]
+        entries = [int(words[1]) for words in logged if words[0] == "entry"]
+        assert entries == list(range(len(entries)))  # none missing up to where it was closed
+        assert number > 16  # it was closed with its buffers full, not for one entry too many
+        assert len(entries) > 16  # what the buffers held reached it, then the close
+    finally:
+        stuck.close()  # a page still stuck (on a failure) must not hold the server's shutdown
+        server.should_exit = True
+        await asyncio.wait_for(serving, 5.0)
