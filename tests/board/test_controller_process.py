@@ -79,7 +79,10 @@ def test_a_killed_controller_is_set_to_neutral_by_the_units_exec_stop_post(
     assert str(config) in stop_post
     with running_controller(tmp_path, "--config", str(config), "--pty") as controller:
         assert controller.pty_path is not None
-        with rovlink.connect(controller.pty_path, keepalive=None, timeout=REPLY_TIMEOUT_S) as rov:
+        # No motion timeout: the pulses at the kill are the motion's, however slow the machine.
+        with rovlink.connect(
+            controller.pty_path, keepalive=None, timeout=REPLY_TIMEOUT_S, motion_timeout=None
+        ) as rov:
             rov.start()
             rov.move(90, 50)
             assert wait_until(lambda: _moving(log))
@@ -103,7 +106,11 @@ def test_a_second_controller_on_the_same_pwm_board_is_refused_before_touching_it
     config = make_fake_toml(tmp_path, log, watchdog_s=0.0)
     with running_controller(tmp_path, "--config", str(config), "--pty") as controller:
         assert controller.pty_path is not None
-        with rovlink.connect(controller.pty_path, keepalive=None, timeout=REPLY_TIMEOUT_S) as rov:
+        # No motion timeout: the motion stands however long the two refusals take (the
+        # driver's 2 s expiry wrote zero thrust to the chip while a loaded machine ran them).
+        with rovlink.connect(
+            controller.pty_path, keepalive=None, timeout=REPLY_TIMEOUT_S, motion_timeout=None
+        ) as rov:
             rov.start()
             rov.move(90, 50)
             assert wait_until(lambda: _moving(log))

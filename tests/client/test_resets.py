@@ -188,12 +188,14 @@ async def test_a_probes_reply_on_a_slow_line_answers_no_query_of_the_program(cli
 async def test_a_probes_reply_on_a_line_whose_delay_varies_answers_no_query_of_the_program(
     client: str,
 ) -> None:
-    # The first probe's reply takes 0.3 s, every later one 0.5 s: the second probe's reply comes
-    # 0.45 s after the first, later than any quiet the client waited for before (0.35 s), and
-    # answered the program's first #qd! with a value from before it was asked (P20). The fence
-    # (#qr!) after the probes ends the wait behind every probe's reply, whatever the delays.
-    fake, sock = FakeController.on_socketpair(latency_s=0.5)
-    fake.latencies_s.append(0.3)
+    # The first probe's reply takes 0.45 s, every later one 0.7 s: the second probe (sent
+    # 0.25 s after the first) gets its reply 0.5 s after the first's, later than any quiet the
+    # client waited for before (0.35 s), and it answered the program's first #qd! with a value
+    # from before it was asked (P20). The fence (#qr!) after the probes ends the wait behind
+    # every probe's reply, whatever the delays. (With 0.3 s for the first reply, a thread held
+    # up for 50 ms on a loaded machine sent the second probe after it: nothing to show.)
+    fake, sock = FakeController.on_socketpair(latency_s=0.7)
+    fake.latencies_s.append(0.45)
     fake.qd_counts_queries = True  # each $qd carries the number of its #qd! on the line
     options = _options(timeout_s=2.0, boot_timeout_s=3.0)
     try:
