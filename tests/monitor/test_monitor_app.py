@@ -22,7 +22,11 @@ from rovlink.client.links import Link
 from rovlink.client.options import StrayCallback
 from rovlink.monitor.app import MonitorApp
 from rovlink.protocol import Text as DebugText
-from tests.client.conftest import CONDITION_TIMEOUT_S, REPLY_TIMEOUT_S, client_options
+from tests.client.conftest import (
+    CONDITION_TIMEOUT_S,
+    NO_REPLY_TIMEOUT_S,
+    client_options,
+)
 from tests.client.fake_controller import FakeControllerServer
 from tests.monitor.screen import screen_text, shown
 from tests.piloting.rig import RecordingLink, Rig, SilentController, until
@@ -173,22 +177,33 @@ async def test_leak_alarm_and_reset() -> None:
     assert _commands(rig)[-1] == "#stop!"  # lock unknown on leaving: made safe
 
 
-async def test_a_silent_link_degrades_link_health_while_keys_still_work() -> None:
-    silent = SilentController()
-
+def _silent_app(silent: SilentController, reply_timeout_s: float) -> MonitorApp:
     def connect(on_stray: StrayCallback) -> Awaitable[AsyncClient]:
-        # Long enough for the first poll to be still waiting when space is pressed, however
-        # slow the machine; the test then waits it out to see the link's health degrade.
-        options = client_options(timeout_s=REPLY_TIMEOUT_S, retries=0, on_stray=on_stray)
+        options = client_options(timeout_s=reply_timeout_s, retries=0, on_stray=on_stray)
         return AsyncClient(silent.link(), options).open()
 
-    app = MonitorApp(connect, description="silent", rate_hz=10)
+    return MonitorApp(connect, description="silent", rate_hz=10)
+
+
+async def test_keys_still_work_while_a_poll_waits_for_its_reply() -> None:
+    silent = SilentController()
+    # A poll that waits far longer than any machine takes to handle a key: the stop cannot
+    # have waited for it.
+    app = _silent_app(silent, reply_timeout_s=30 * CONDITION_TIMEOUT_S)
     async with app.run_test(size=SIZE) as pilot:
         await until(lambda: b"#qsa!" in silent.received)  # a poll is waiting for its reply
         await pilot.press("space")
         await until(lambda: silent.received.endswith(b"#stop!"))
         assert app.rov is not None
         assert app.rov.health.failures == 0  # sent while the poll still waited
+        await pilot.press("q")
+    silent.close()
+
+
+async def test_a_silent_link_degrades_link_health_while_keys_still_work() -> None:
+    silent = SilentController()
+    app = _silent_app(silent, reply_timeout_s=NO_REPLY_TIMEOUT_S)
+    async with app.run_test(size=SIZE) as pilot:
         await until(lambda: "no reply" in shown(app, "#link"))
         link = shown(app, "#link")
         assert "no reading yet" in link
