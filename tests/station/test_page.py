@@ -331,7 +331,7 @@ def stop_key_reaches_the_robot(page: Page, line: ControllerLine, key: str, where
     mark = line.mark()
     page.keyboard.press(key)
     try:
-        line.wait_for("#stop!", after=mark, timeout_s=1.0)
+        line.wait_for("#stop!", after=mark)
     except AssertionError:
         raise AssertionError(f"{key} with {where} did not stop the robot") from None
     # Only the STOP: the key did nothing else (no click on a focused button).
@@ -748,7 +748,7 @@ def test_every_pad_in_reach_stops_and_only_the_chosen_one_flies(browser, station
     press_on(page, 1, {DEADMAN: True, UNLOCK: True, CLAW_OPEN: True}, axes=[0, 1, 0, -1])
     press_on(page, 2, {STOP_BUTTON: True})  # the headset's button 1 is no STOP
     press_on(page, 1, {STOP_BUTTON: True})  # (before, it did nothing: the pad was not read)
-    line.wait_for("#stop!", after=mark, timeout_s=1.0)
+    line.wait_for("#stop!", after=mark)
     page.click("#claw-close")  # a fence
     line.wait_for("#h-!", after=mark)
     # Only the pilot's own pad flying on (its renewal) and the STOP with its cut: nothing from
@@ -770,7 +770,7 @@ def test_every_pad_in_reach_stops_and_only_the_chosen_one_flies(browser, station
     mark = line.mark()
     press_on(page, 3, {STOP_BUTTON: True})  # its B is not its STOP any more
     press_on(page, 3, {7: True})
-    line.wait_for("#stop!", after=mark, timeout_s=1.0)
+    line.wait_for("#stop!", after=mark)
     assert line.frames(mark, commands_only=True) == ["#stop!"]
     # A pad first seen with STOP held (the press that shows it to the page) sends nothing.
     page.evaluate("fakePads.disconnect(1)")
@@ -819,7 +819,7 @@ def test_a_spare_pad_without_the_standard_mapping_stops_once_its_stop_is_learnt(
     )
     mark = line.mark()
     press_on(page, 1, {9: True})
-    line.wait_for("#stop!", after=mark, timeout_s=1.0)
+    line.wait_for("#stop!", after=mark)
     assert line.frames(mark, commands_only=True)[:1] == ["#stop!"]
     # Kept in the browser: a page opened later reads it at once.
     later = open_page(browser, station, pad=False)
@@ -832,7 +832,7 @@ def test_a_spare_pad_without_the_standard_mapping_stops_once_its_stop_is_learnt(
     later.wait_for_function(OTHER_STOPS_SEEN, arg=1)
     mark = line.mark()
     press_on(later, 0, {9: True})
-    line.wait_for("#stop!", after=mark, timeout_s=1.0)
+    line.wait_for("#stop!", after=mark)
     later.context.close()
     page.context.close()
 
@@ -898,7 +898,7 @@ def test_learning_a_button_fires_nothing(browser, station, line):
         page.press("[data-button='stop']", "Enter")
         mark = line.mark()
         set_pad(page, stop_button=True)
-        line.wait_for("#stop!", after=mark, timeout_s=1.0)
+        line.wait_for("#stop!", after=mark)
         set_pad(page, stop_button=False)
         page.wait_for_selector("#toast:has-text('STOP (#stop!): a button number 0–31')")
         assert page.input_value("[data-button='stop']") == "1"
