@@ -9,12 +9,19 @@ import re
 import signal
 import subprocess
 import tty
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
 
 import rovlink
-from tests.board.controller_process import controller_command, environment, running_controller
+from rovlink.client.blocking import Client
+from tests.board.controller_process import (
+    ControllerProcess,
+    controller_command,
+    environment,
+    running_controller,
+)
 from tests.board.rig import COUNT_US, EXAMPLE, is_neutral, pulses, read_log, wait_until
 from tests.board.rig import fake_toml as make_fake_toml
 from tests.client.conftest import REPLY_TIMEOUT_S
@@ -31,6 +38,23 @@ def _moving(log: Path) -> bool:
     return value is not None and abs(value - _MOVING_US) <= COUNT_US
 
 
+@contextlib.contextmanager
+def _moving_robot(controller: ControllerProcess, log: Path) -> Iterator[Client]:
+    """The robot unlocked and moving (``#th.90.50!``) through ``controller``: the client.
+
+    No motion timeout: the pulses stay the motion's however slow the machine (the driver's 2 s
+    expiry wrote zero thrust to the chip while a loaded machine ran the test's next steps).
+    """
+    assert controller.pty_path is not None
+    with rovlink.connect(
+        controller.pty_path, keepalive=None, timeout=REPLY_TIMEOUT_S, motion_timeout=None
+    ) as rov:
+        rov.start()
+        rov.move(90, 50)
+        assert wait_until(lambda: _moving(log))
+        yield rov
+
+
 @pytest.mark.parametrize(
     ("signum", "status"), [(signal.SIGTERM, 0), (signal.SIGINT, 130), (signal.SIGHUP, 0)]
 )
@@ -43,10 +67,7 @@ def test_a_signal_ends_the_process_with_the_thrusters_at_neutral(
         assert controller.pty_path is not None
         assert "board pi" in controller.ready_line
         assert is_neutral(pulses(read_log(log)))  # armed before the ready line
-        with rovlink.connect(controller.pty_path, keepalive=None, timeout=REPLY_TIMEOUT_S) as rov:
-            rov.start()
-            rov.move(90, 50)
-            assert wait_until(lambda: _moving(log))
+        with _moving_robot(controller, log):
             controller.process.send_signal(signum)
             assert controller.process.wait(10) == status  # (Ctrl-C: 130, as every command)
         transactions = read_log(log)
@@ -78,14 +99,7 @@ def test_a_killed_controller_is_set_to_neutral_by_the_units_exec_stop_post(
     assert stop_post[0] == "controller"
     assert str(config) in stop_post
     with running_controller(tmp_path, "--config", str(config), "--pty") as controller:
-        assert controller.pty_path is not None
-        # No motion timeout: the pulses at the kill are the motion's, however slow the machine.
-        with rovlink.connect(
-            controller.pty_path, keepalive=None, timeout=REPLY_TIMEOUT_S, motion_timeout=None
-        ) as rov:
-            rov.start()
-            rov.move(90, 50)
-            assert wait_until(lambda: _moving(log))
+        with _moving_robot(controller, log):
             controller.process.kill()  # SIGKILL: nothing of the process runs again
             assert controller.process.wait(10) == -signal.SIGKILL
         assert _moving(log)  # the PCA9685 goes on making the last pulses
@@ -104,27 +118,21 @@ def test_a_second_controller_on_the_same_pwm_board_is_refused_before_touching_it
     # stop what the other set running. The second refuses before a single transaction.
     log = tmp_path / "i2c.jsonl"
     config = make_fake_toml(tmp_path, log, watchdog_s=0.0)
-    with running_controller(tmp_path, "--config", str(config), "--pty") as controller:
-        assert controller.pty_path is not None
-        # No motion timeout: the motion stands however long the two refusals take (the
-        # driver's 2 s expiry wrote zero thrust to the chip while a loaded machine ran them).
-        with rovlink.connect(
-            controller.pty_path, keepalive=None, timeout=REPLY_TIMEOUT_S, motion_timeout=None
-        ) as rov:
-            rov.start()
-            rov.move(90, 50)
-            assert wait_until(lambda: _moving(log))
-            chip_writes = [t for t in read_log(log) if t.address == 0x40 and not t.read]
-            for arguments in (("--pty",), ("--neutral",)):
-                result = _run("--config", str(config), *arguments, timeout_s=20.0)
-                assert result.returncode == 1, result.stderr
-                assert (
-                    "PWM board PCA9685 at 0x40 on I²C bus 1 is in use by another rovlink "
-                    "controller" in result.stderr
-                )
-            assert [t for t in read_log(log) if t.address == 0x40 and not t.read] == chip_writes
-            assert _moving(log)
-            assert rov.sensors().pressure_raw == 20  # the first goes on undisturbed
+    with (
+        running_controller(tmp_path, "--config", str(config), "--pty") as controller,
+        _moving_robot(controller, log) as rov,
+    ):
+        chip_writes = [t for t in read_log(log) if t.address == 0x40 and not t.read]
+        for arguments in (("--pty",), ("--neutral",)):
+            result = _run("--config", str(config), *arguments, timeout_s=20.0)
+            assert result.returncode == 1, result.stderr
+            assert (
+                "PWM board PCA9685 at 0x40 on I²C bus 1 is in use by another rovlink "
+                "controller" in result.stderr
+            )
+        assert [t for t in read_log(log) if t.address == 0x40 and not t.read] == chip_writes
+        assert _moving(log)
+        assert rov.sensors().pressure_raw == 20  # the first goes on undisturbed
 
 
 def test_neutral_serves_nothing_and_is_for_the_pi_board() -> None:
