@@ -4,9 +4,10 @@ other end of a pseudo-terminal closed) and comes back."""
 from __future__ import annotations
 
 import os
+import select
 import time
 import tty
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import pytest
@@ -36,73 +37,102 @@ def _wait_for(lines: Lines, condition: Callable[[], bool], timeout_s: float = 3.
     return False
 
 
-def test_a_serial_device_that_goes_away_is_let_go_and_opened_again(
-    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
-) -> None:
+def _read_until(master: int, wanted: bytes, timeout_s: float = 3.0) -> bytes:
+    """What the far end of a line reads, until ``wanted`` has come or the timeout."""
+    data = b""
+    deadline = time.monotonic() + timeout_s
+    while wanted not in data and time.monotonic() < deadline:
+        ready, _, _ = select.select([master], [], [], max(0.0, deadline - time.monotonic()))
+        if ready:
+            data += os.read(master, 100)
+    return data
+
+
+class _UsbAdapter:
+    """A serial device under a name of its own, as udev gives an adapter, that can be unplugged
+    and plugged in again; :attr:`master` is the far end of the line."""
+
+    def __init__(self, name: Path) -> None:
+        self.name = name
+        self.master = -1
+        self.plug_in()
+
+    def plug_in(self) -> None:
+        self.master, path = _pty()
+        self.name.symlink_to(path)
+
+    def unplug(self) -> None:
+        # Its descriptor reads as hung up from now on, and udev takes its name away (else the
+        # next terminal opened on this machine, which may get the same /dev/pts number, would
+        # be opened as the device come back).
+        os.close(self.master)
+        self.master = -1
+        self.name.unlink()
+
+    def close(self) -> None:
+        if self.master >= 0:
+            os.close(self.master)
+
+
+@pytest.fixture
+def adapter(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Iterator[_UsbAdapter]:
     monkeypatch.setattr(lines_module, "SERIAL_REOPEN_S", 0.1)
-    received = bytearray()
+    adapter = _UsbAdapter(tmp_path / "ttyROV")
+    yield adapter
+    adapter.close()
+
+
+@pytest.fixture
+def received() -> bytearray:
+    """What the controller's lines read, in order."""
+    return bytearray()
+
+
+@pytest.fixture
+def lines(adapter: _UsbAdapter, received: bytearray) -> Iterator[Lines]:
+    """The controller's lines, serving ``adapter``'s device by its name."""
 
     def on_bytes(line: Line, data: bytes) -> None:
         received.extend(data)
 
-    device = tmp_path / "ttyROV"  # as a udev name points at whichever node the adapter gets
-    master, path = _pty()
-    device.symlink_to(path)
     lines = Lines(on_bytes, busy_message=b"")
     try:
-        lines.open_serial(str(device), 115200)
-        os.write(master, b"#qd!")
-        assert _wait_for(lines, lambda: received == b"#qd!")
-        os.close(master)  # the device goes away: its descriptor reads as hung up from now on
-        # and udev takes its name away (else the next terminal opened on this machine, which
-        # may get the same /dev/pts number, would be opened as the device come back)
-        device.unlink()
-        assert _wait_for(lines, lambda: not lines.lines)
-        # Gone, it is not spun on: a wait waits (before, each returned at once, at 100 % CPU).
-        started = time.process_time()
-        for _ in range(10):
-            lines.wait(0.02)
-        assert time.process_time() - started < 0.1
-        master, path = _pty()  # plugged in again
-        device.symlink_to(path)
-        assert _wait_for(lines, lambda: len(lines.lines) == 1)
-        assert isinstance(lines.lines[0], SerialDeviceLine)
-        os.write(master, b"#qr!")
-        assert _wait_for(lines, lambda: received == b"#qd!#qr!")
-        lines.send(lines.lines[0], b"$qr.20!")
-        time.sleep(0.05)
-        assert os.read(master, 100) == b"$qr.20!"
+        lines.open_serial(str(adapter.name), 115200)
+        yield lines
     finally:
         lines.close()
-        os.close(master)
+
+
+def test_a_serial_device_that_goes_away_is_let_go_and_opened_again(
+    adapter: _UsbAdapter, lines: Lines, received: bytearray
+) -> None:
+    os.write(adapter.master, b"#qd!")
+    assert _wait_for(lines, lambda: received == b"#qd!")
+    adapter.unplug()
+    assert _wait_for(lines, lambda: not lines.lines)
+    # Gone, it is not spun on: a wait waits (before, each returned at once, at 100 % CPU).
+    started = time.process_time()
+    for _ in range(10):
+        lines.wait(0.02)
+    assert time.process_time() - started < 0.1
+    adapter.plug_in()
+    assert _wait_for(lines, lambda: len(lines.lines) == 1)
+    assert isinstance(lines.lines[0], SerialDeviceLine)
+    os.write(adapter.master, b"#qr!")
+    assert _wait_for(lines, lambda: received == b"#qd!#qr!")
+    lines.send(lines.lines[0], b"$qr.20!")
+    assert _read_until(adapter.master, b"$qr.20!") == b"$qr.20!"
 
 
 def test_a_serial_device_found_gone_by_a_write_is_opened_again(
-    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+    adapter: _UsbAdapter, lines: Lines, received: bytearray
 ) -> None:
     # The controller writes on its own (a failsafe's debug line, a reply) and may meet the
     # unplugged adapter on a write before a read: it must come back all the same.
-    monkeypatch.setattr(lines_module, "SERIAL_REOPEN_S", 0.1)
-    received = bytearray()
-
-    def on_bytes(line: Line, data: bytes) -> None:
-        received.extend(data)
-
-    device = tmp_path / "ttyROV"
-    master, path = _pty()
-    device.symlink_to(path)
-    lines = Lines(on_bytes, busy_message=b"")
-    try:
-        lines.open_serial(str(device), 115200)
-        os.close(master)  # unplugged
-        device.unlink()
-        lines.send(lines.lines[0], b"failsafe: no valid frame for 2 s\r\n")  # fails: EIO
-        assert not lines.lines
-        master, path = _pty()  # plugged in again
-        device.symlink_to(path)
-        assert _wait_for(lines, lambda: len(lines.lines) == 1)
-        os.write(master, b"#qd!")
-        assert _wait_for(lines, lambda: received == b"#qd!")
-    finally:
-        lines.close()
-        os.close(master)
+    adapter.unplug()
+    lines.send(lines.lines[0], b"failsafe: no valid frame for 2 s\r\n")  # fails: EIO
+    assert not lines.lines
+    adapter.plug_in()
+    assert _wait_for(lines, lambda: len(lines.lines) == 1)
+    os.write(adapter.master, b"#qd!")
+    assert _wait_for(lines, lambda: received == b"#qd!")
