@@ -9,7 +9,6 @@ import pytest
 
 from rovlink.board.board import BoardStartError
 from rovlink.board.pi.board import fake_bus_for, open_pi_board
-from rovlink.board.pi.config import PiConfig
 from tests.board.rig import example_config, is_neutral, pulses
 
 
@@ -21,9 +20,17 @@ def _pin_factory_from(monkeypatch: pytest.MonkeyPatch, name: str) -> None:
     monkeypatch.setenv("GPIOZERO_PIN_FACTORY", name)
 
 
-def _real_bus_config() -> PiConfig:
-    # The real backend, so that gpiozero picks its own pin factory; the bus is a fake one.
-    return example_config(i2c={"backend": "smbus2"}, imu={"sensor": "none"})
+def _start_failure_with_the_pin_factory_of_the_system() -> str:
+    """Why the board did not start, gpiozero picking its own pin factory (the real backend's
+    way; the bus is a fake one); the thrusters were left at neutral."""
+    config = example_config(i2c={"backend": "smbus2"}, imu={"sensor": "none"})
+    bus = fake_bus_for(config)
+    with pytest.raises(BoardStartError) as caught:
+        open_pi_board(config, bus=bus)
+    assert is_neutral(pulses(bus.snapshot()))
+    message = str(caught.value)
+    assert message.startswith("leak probe on GPIO 27: ")
+    return message
 
 
 def test_no_pin_library_for_gpiozero_is_named_with_the_remedy(
@@ -32,16 +39,10 @@ def test_no_pin_library_for_gpiozero_is_named_with_the_remedy(
     # What gpiozero raises when none of its pin libraries loads (a Pi 5's venv without lgpio):
     # BadPinFactory, an ImportError that is not a ModuleNotFoundError.
     _pin_factory_from(monkeypatch, "no-such-factory")
-    config = _real_bus_config()
-    bus = fake_bus_for(config)
-    with pytest.raises(BoardStartError) as caught:
-        open_pi_board(config, bus=bus)
-    message = str(caught.value)
-    assert message.startswith("leak probe on GPIO 27: ")
+    message = _start_failure_with_the_pin_factory_of_the_system()
     assert "no-such-factory" in message
     assert "lgpio" in message
     assert "--system-site-packages" in message
-    assert is_neutral(pulses(bus.snapshot()))
 
 
 @pytest.mark.skipif(importlib.util.find_spec("pigpio") is not None, reason="pigpio is installed")
@@ -50,16 +51,10 @@ def test_a_missing_pin_library_is_not_blamed_on_the_pi_extra(
 ) -> None:
     # The pi extra does not bring a pin library: the system's python3-lgpio does.
     _pin_factory_from(monkeypatch, "pigpio")
-    config = _real_bus_config()
-    bus = fake_bus_for(config)
-    with pytest.raises(BoardStartError) as caught:
-        open_pi_board(config, bus=bus)
-    message = str(caught.value)
-    assert message.startswith("leak probe on GPIO 27: ")
+    message = _start_failure_with_the_pin_factory_of_the_system()
     assert "pigpio" in message
     assert "--system-site-packages" in message
     assert "rovlink[pi]" not in message
-    assert is_neutral(pulses(bus.snapshot()))
 
 
 def test_a_pin_in_use_is_named() -> None:
