@@ -204,8 +204,8 @@ class Controller:
         dt_s = self._tick_s if last is None else now - last
         self._last_tick_s = now
         raw = hardware.pressure.read_raw()
-        # On the scale `qr` reports (as _sensor_values does), so that the PID holds the depth
-        # `qd` reports (P13) even with a sensor that reads past 1024.
+        # _read_raw, inlined (this runs every tick): on the scale `qr` reports, so that the PID
+        # holds the depth `qd` reports (P13) even with a sensor that reads past 1024.
         if raw > _RAW_MAX:
             raw = _RAW_MAX
         elif raw < 0:
@@ -328,7 +328,7 @@ class Controller:
         values: dict[str, int] = {}
         hardware = self._hardware
         if "qd" in names or "qr" in names:
-            raw = min(max(hardware.pressure.read_raw(), 0), _RAW_MAX)
+            raw = self._read_raw()
             values["qr"] = raw
             values["qd"] = self._depth_from_raw(raw)
         if "q.l" in names:
@@ -457,8 +457,12 @@ class Controller:
 
     # -- behaviour ---------------------------------------------------------------------------
 
+    def _read_raw(self) -> int:
+        """The pressure sensor's reading on the scale ``qr`` reports, 0–1024 (P13)."""
+        return min(max(self._hardware.pressure.read_raw(), 0), _RAW_MAX)
+
     def _read_depth_cm(self) -> int:
-        return self._depth_from_raw(min(max(self._hardware.pressure.read_raw(), 0), _RAW_MAX))
+        return self._depth_from_raw(self._read_raw())
 
     def _depth_from_raw(self, raw: int) -> int:
         depth_cm = (raw - self._zero_raw) * self._k // 100

@@ -136,10 +136,7 @@ def open_pi_board(config: PiConfig, *, bus: I2cBus | None = None, pin_factory: A
     started = False
 
     def rest_pulses_us() -> dict[int, float]:
-        rest = thrusters.neutral_pulses_us()
-        if isinstance(claw, MotorClaw | ServoClaw):
-            rest[claw.channel] = claw.rest_pulse_us()
-        return rest
+        return _rest_pulses_us(thrusters, claw)
 
     try:
         rest = rest_pulses_us()
@@ -230,12 +227,10 @@ def set_pi_outputs_at_rest(config: PiConfig, *, bus: I2cBus | None = None) -> st
         release = _claim_or_close(config, bus)
     try:
         pca, thrusters, claw = _pwm_outputs(config, bus)
-        neutral = thrusters.neutral_pulses_us()
-        start = dict(neutral)
+        start = _rest_pulses_us(thrusters, claw)
+        neutral = thrusters.neutral_pulses_us()  # (a servo claw keeps its place)
         if isinstance(claw, MotorClaw):
             neutral[claw.channel] = claw.rest_pulse_us()
-        if isinstance(claw, MotorClaw | ServoClaw):
-            start[claw.channel] = claw.rest_pulse_us()
         name = f"PWM board PCA9685 at {pca.address:#04x} on I²C bus {config.i2c.bus}"
         started = _starting(
             name,
@@ -329,6 +324,16 @@ def _mock_pins() -> Any:
     from gpiozero.pins.mock import MockFactory  # noqa: PLC0415
 
     return MockFactory()
+
+
+def _rest_pulses_us(
+    thrusters: EscThrusters, claw: MotorClaw | ServoClaw | _NoClaw
+) -> dict[int, float]:
+    """The outputs as the controller starts them: every ESC at neutral, a claw at rest."""
+    rest = thrusters.neutral_pulses_us()
+    if isinstance(claw, MotorClaw | ServoClaw):
+        rest[claw.channel] = claw.rest_pulse_us()
+    return rest
 
 
 def _pwm_outputs(
