@@ -122,8 +122,9 @@ def test_a_raw_start_waiting_behind_a_slow_write_is_not_sent_after_a_stop(
 
 async def test_asyncio_a_raw_start_waiting_for_a_checksum_switch_is_not_sent_after_a_stop() -> None:
     # Before, the raw #start! waiting for the switch went out after the #stop! another task
-    # sent meanwhile. (The asyncio client's own command methods never wait: they are written,
-    # or queued for the port in call order, before they return.)
+    # sent meanwhile. (The asyncio client's own command methods wait for nothing but a slow
+    # serial line, test_line_pacing; here they are written, or queued for the port in call
+    # order, before they return.)
     fake, host_end = FakeController.on_socketpair(script=("hold",))
     options = client_options(checksum=True)
     rov = await AsyncClient(SocketLink(host_end, "socket pair"), options).open()

@@ -23,7 +23,7 @@ from rovlink.aio.command_methods import AsyncCommandMethods
 from rovlink.aio.slots import InFlightSlots
 from rovlink.aio.transport import ByteTransport, transport_for
 from rovlink.aio.wakeup import wait_for_event
-from rovlink.client import operations
+from rovlink.client import links, operations
 from rovlink.client.counters import LinkCounters
 from rovlink.client.errors import ConnectError, ConnectionLostError, QueryTimeoutError
 from rovlink.client.events import EventCallback
@@ -578,9 +578,27 @@ class AsyncClient(AsyncCommandMethods):
             self._on_lost(error)
             raise self._lost_error() from error
 
-    def _send(self, command: Command, *, by_session: bool = False) -> None:
-        # (Written, or queued for the port, before it returns: a set command never waits, so a
-        # stop() after it follows it on the wire. A raw frame may wait: see send_raw.)
+    async def _send_paced(self, command: Command) -> None:
+        """:meth:`_send`, once the serial line has at most :data:`links.MAX_QUEUED_LINE_S` of
+        bytes ahead of it: a program that sends faster than the line carries would otherwise
+        fill the kernel's buffer, seconds of a slow line, and a ``#stop!`` would wait behind all
+        of it. A stop() meanwhile goes first, and supersedes a motion frame waiting here."""
+        queued_s = links.queued_line_s(self._link)
+        if queued_s is None or queued_s() <= links.MAX_QUEUED_LINE_S:
+            self._send(command)  # (the usual case: no wait, so nothing can come between)
+            return
+        stops_seen = self._session.stops_asked
+        while queued_s is not None and (ahead_s := queued_s() - links.MAX_QUEUED_LINE_S) > 0:
+            await asyncio.sleep(ahead_s)
+            queued_s = links.queued_line_s(self._link)  # (a reopened link's, from now on)
+        self._send(command, stops_seen=stops_seen)
+
+    def _send(
+        self, command: Command, *, by_session: bool = False, stops_seen: int | None = None
+    ) -> None:
+        # (Written, or queued for the port, before it returns: a set command never waits here,
+        # so a stop() after it follows it on the wire. Before it, a command method waits for a
+        # slow serial line (_send_paced); a raw frame may wait too: see send_raw.)
         stop = command == operations.STOP
         if _running_loop() is not self._loop:
             if not stop:
@@ -600,7 +618,11 @@ class AsyncClient(AsyncCommandMethods):
         else:
             self._check_open()
         try:
-            self._write(self._session.command(command, self._clock(), by_session=by_session))
+            self._write(
+                self._session.command(
+                    command, self._clock(), by_session=by_session, stops_seen=stops_seen
+                )
+            )
         except ConnectionLostError:
             if not (command == operations.STOP and self._link_down and not self._closed):
                 raise

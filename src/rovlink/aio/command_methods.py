@@ -21,6 +21,9 @@ class AsyncCommandMethods:
     def _send(self, command: Command) -> None:
         raise NotImplementedError
 
+    async def _send_paced(self, command: Command) -> None:
+        raise NotImplementedError
+
     async def _ask(self, query: operations.Query[T]) -> T:
         raise NotImplementedError
 
@@ -45,7 +48,7 @@ class AsyncCommandMethods:
 
             await rov.start()
         """
-        self._send(operations.START)
+        await self._send_paced(operations.START)
 
     async def set_checksum(self, enabled: bool) -> None:
         """``#crcon!``: turn checksum use on (never carries a checksum).
@@ -74,7 +77,7 @@ class AsyncCommandMethods:
 
             await rov.set_debug(True)
         """
-        self._send(operations.debug(enabled))
+        await self._send_paced(operations.debug(enabled))
 
     async def set_max_pwm(self, duty: int) -> None:
         """``#mgmp.<max_pwm>!``: maximum PWM duty for every thruster.
@@ -85,7 +88,7 @@ class AsyncCommandMethods:
 
             await rov.set_max_pwm(180)
         """
-        self._send(operations.max_pwm(duty))
+        await self._send_paced(operations.max_pwm(duty))
 
     async def set_depth_pid(
         self, p: int | None = None, i: int | None = None, d: int | None = None
@@ -105,7 +108,7 @@ class AsyncCommandMethods:
             await rov.set_depth_pid(p=30, d=10)
         """
         for command in operations.depth_pid(p, i, d):
-            self._send(command)
+            await self._send_paced(command)
 
     async def set_direct_mode(self, enabled: bool) -> None:
         """``#mvdirect.<enabled>!``: vertical direct-control mode on (1) or depth mode (0).
@@ -117,7 +120,7 @@ class AsyncCommandMethods:
             await rov.set_direct_mode(True)
             await rov.set_vertical_thrust(-30)
         """
-        self._send(operations.direct_mode(enabled))
+        await self._send_paced(operations.direct_mode(enabled))
 
     async def set_vertical_thrust(self, percent: int) -> None:
         """``#mvs.<thrust_percent>!``: direct mode: vertical thrust, % (+ up, − down).
@@ -128,7 +131,7 @@ class AsyncCommandMethods:
 
             await rov.set_vertical_thrust(+50)
         """
-        self._send(operations.vertical_thrust(percent))
+        await self._send_paced(operations.vertical_thrust(percent))
 
     async def hold_depth(self, depth_cm: int) -> None:
         """``#mvd.<target_depth_cm>!``: depth mode: hold this depth, cm from the surface.
@@ -139,7 +142,7 @@ class AsyncCommandMethods:
 
             await rov.hold_depth(100)   # one metre
         """
-        self._send(operations.hold_depth(depth_cm))
+        await self._send_paced(operations.hold_depth(depth_cm))
 
     async def move(self, direction_deg: int, power_percent: int) -> None:
         """``#th.<direction_deg>.<power_percent>!``: horizontal motion: direction (0 ahead,
@@ -152,7 +155,7 @@ class AsyncCommandMethods:
 
             await rov.move(270, 25)   # left at a quarter power
         """
-        self._send(operations.move(direction_deg, power_percent))
+        await self._send_paced(operations.move(direction_deg, power_percent))
 
     async def set_depth_zero(self, raw: int) -> None:
         """``#sdz.<zero_raw>!``: set the depth zero: raw reading at the surface.
@@ -163,7 +166,7 @@ class AsyncCommandMethods:
 
             await rov.set_depth_zero(await rov.pressure_raw())   # calibrate at the surface
         """
-        self._send(operations.depth_zero(raw))
+        await self._send_paced(operations.depth_zero(raw))
 
     async def set_depth_scale(self, k: int) -> None:
         """``#sdk.<k>!``: set the depth coefficient k: depth[m] = (raw − zero) · k / 10000.
@@ -174,7 +177,7 @@ class AsyncCommandMethods:
 
             await rov.set_depth_scale(1000)
         """
-        self._send(operations.depth_scale(k))
+        await self._send_paced(operations.depth_scale(k))
 
     async def reset_leak(self) -> None:
         """``#slreset!``: reset the leak latch.
@@ -183,7 +186,7 @@ class AsyncCommandMethods:
 
             await rov.reset_leak()
         """
-        self._send(operations.RESET_LEAK)
+        await self._send_paced(operations.RESET_LEAK)
 
     async def claw_open(self) -> None:
         """``#h+!``: claw open: run the claw motor for one pulse.
@@ -192,7 +195,7 @@ class AsyncCommandMethods:
 
             await rov.claw_open()
         """
-        self._send(operations.CLAW_OPEN)
+        await self._send_paced(operations.CLAW_OPEN)
 
     async def claw_close(self) -> None:
         """``#h-!``: claw close: run the claw motor for one pulse.
@@ -201,7 +204,7 @@ class AsyncCommandMethods:
 
             await rov.claw_close()
         """
-        self._send(operations.CLAW_CLOSE)
+        await self._send_paced(operations.CLAW_CLOSE)
 
     async def depth_cm(self) -> int:
         """``#qd!`` → ``$qd.<depth_cm>!``: query depth, cm.

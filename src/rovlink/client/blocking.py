@@ -157,6 +157,7 @@ class Client(CommandMethods):
         self._background_ident: int | None = None
         # Links over a descriptor write without blocking: queries then take a shorter path.
         self._send_now: Callable[[bytes], int] | None = getattr(link, "send_some", None)
+        self._queued_line_s = links.queued_line_s(link)
         # A caller waiting for its reply reads with this: links that can sleep in the read
         # itself offer ``read_reply`` (only the background reader needs waking up).
         self._read_reply: Callable[[float], bytes] = getattr(
@@ -605,6 +606,7 @@ class Client(CommandMethods):
         session.link_ready()  # (not before: a failed write leaves them)
         self._link = link
         self._send_now = getattr(link, "send_some", None)
+        self._queued_line_s = links.queued_line_s(link)
         self._read_reply = getattr(link, "read_reply", link.read_available)
         self._reconnecting = False
         plural = "s" if attempts > 1 else ""
@@ -693,6 +695,8 @@ class Client(CommandMethods):
             if stop:  # (before it waits for anything: it supersedes what waits already)
                 self._session.stop_asked()
             stops_seen = self._session.stops_asked
+        if not stop:
+            self._wait_for_line()
         while True:
             if stop and self._reconnecting and self._stop_while_reconnecting():
                 return
@@ -729,6 +733,18 @@ class Client(CommandMethods):
                         raise
                     break
         self._emit()
+
+    def _wait_for_line(self) -> None:
+        """Wait until the serial line has at most :data:`links.MAX_QUEUED_LINE_S` of bytes
+        ahead of the next frame. A program that sends faster than the line carries (a loop of
+        ``move``) would otherwise fill the kernel's buffer, seconds of a slow line, and a
+        ``#stop!`` would wait behind all of it; a stop itself never waits here. (Not under a
+        lock: a stop() meanwhile goes first, and supersedes a motion frame waiting here.)"""
+        queued_s = self._queued_line_s
+        if queued_s is None:
+            return
+        while (ahead_s := queued_s() - links.MAX_QUEUED_LINE_S) > 0:
+            time.sleep(ahead_s)
 
     def _stop_while_reconnecting(self) -> bool:
         """``stop()`` while the link is being reopened; False if it no longer is (the usual path

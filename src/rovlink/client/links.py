@@ -19,13 +19,17 @@ import select
 import socket
 import struct
 import sys
+import time
+from collections.abc import Callable
 from typing import Any, Protocol
 
 from rovlink.client.errors import ConnectError, ConnectionLostError
 from rovlink.client.schemes import load_handler
 from rovlink.client.url import Endpoint, Scheme
+from rovlink.protocol.frames import BITS_PER_BYTE_8N1
 
 __all__ = [
+    "MAX_QUEUED_LINE_S",
     "POLL_INTERVAL_S",
     "Link",
     "PortLink",
@@ -33,10 +37,14 @@ __all__ = [
     "SocketLink",
     "abort_writes",
     "open_link",
+    "queued_line_s",
 ]
 
 #: How long a read of a port without a file descriptor blocks before it looks around again.
 POLL_INTERVAL_S = 0.05
+#: The most line time a client lets queue ahead of a frame it sends other than ``#stop!``, s:
+#: what a ``#stop!`` may wait behind (see :meth:`SerialFdLink.queued_s`).
+MAX_QUEUED_LINE_S = 0.02
 #: A write that cannot make progress for this long means the link is dead.
 WRITE_TIMEOUT_S = 2.0
 CONNECT_TIMEOUT_S = 5.0
@@ -295,6 +303,21 @@ class SerialFdLink(FdLink):
         os.set_blocking(self._fd, False)  # pyserial opens it so; make sure
         #: Whether the terminal's own exclusive mode was set (see :func:`_set_exclusive_mode`).
         self.exclusive_mode = exclusive and _set_exclusive_mode(self._fd)
+        # The kernel takes a few KB at once (4 KB: a UART's or a USB adapter's buffer), which a
+        # line takes seconds to send at a low rate; what is written is timed at the port's rate.
+        baudrate = getattr(port, "baudrate", None)
+        self._byte_s = BITS_PER_BYTE_8N1 / baudrate if isinstance(baudrate, int) else 0.0
+        self._line_free_at_s = 0.0  # when the last byte written has left the line (estimated)
+
+    def queued_s(self) -> float:
+        """Seconds the line still needs for the bytes written to it, estimated at its baud rate.
+
+        Example::
+
+            link.write(b"#th.90.50!")
+            link.queued_s()   # 0.0104 at 9600 baud, falling to 0 as the frame leaves
+        """
+        return max(self._line_free_at_s - time.monotonic(), 0.0)
 
     def recv_some(self) -> bytes:
         """Whatever is waiting now; raise ConnectionLostError if the device went away.
@@ -322,11 +345,16 @@ class SerialFdLink(FdLink):
             unsent = data[link.send_some(data):]
         """
         try:
-            return os.write(self._fd, data)
+            written = os.write(self._fd, data)
         except BlockingIOError:
             return 0
         except OSError as error:
             raise ConnectionLostError(f"{self.description}: {error.strerror or error}") from error
+        if self._byte_s:
+            now_s = time.monotonic()
+            start_s = self._line_free_at_s if self._line_free_at_s > now_s else now_s
+            self._line_free_at_s = start_s + written * self._byte_s
+        return written
 
     def _close_port(self) -> None:
         if self.exclusive_mode:
@@ -600,6 +628,20 @@ def abort_writes(link: Link | None) -> None:
     abort = getattr(link, "abort_writes", None)
     if abort is not None:
         abort()
+
+
+def queued_line_s(link: Link) -> Callable[[], float] | None:
+    """How to read the seconds ``link``'s line still needs for what was written to it (see
+    :meth:`SerialFdLink.queued_s`); None for a link that does not know (TCP, ``loop://``).
+
+    Example::
+
+        queued_s = queued_line_s(link)
+        if queued_s is not None and queued_s() > 0.1:
+            print("the line is behind")
+    """
+    queued_s: Callable[[], float] | None = getattr(link, "queued_s", None)
+    return queued_s
 
 
 def _write_abandoned(description: str) -> ConnectionLostError:

@@ -300,10 +300,13 @@ def _wrap(text: str, indent: str, width: int = 100) -> list[str]:
 
 def _body(method: Method, asynchronous: bool) -> list[str]:
     wait = "await " if asynchronous else ""
+    # The asyncio client lets a slow serial line catch up before a frame, in a coroutine; the
+    # blocking client does in its _send. A #stop! never waits for the line.
+    send = "await self._send_paced" if asynchronous and method.frames != ("stop",) else "self._send"
     if method.how == "send":
-        return [f"self._send({method.call})"]
+        return [f"{send}({method.call})"]
     if method.how == "send_each":
-        return [f"for command in {method.call}:", "    self._send(command)"]
+        return [f"for command in {method.call}:", f"    {send}(command)"]
     if method.how == "ask":
         return [f"return {wait}self._ask({method.call})"]
     if method.how == "switch_checksum":
@@ -338,6 +341,12 @@ def _render(asynchronous: bool) -> str:
         "        raise NotImplementedError",
         "",
     ]
+    if asynchronous:
+        out += [
+            "    async def _send_paced(self, command: Command) -> None:",
+            "        raise NotImplementedError",
+            "",
+        ]
     prefix = "async " if asynchronous else ""
     out += [
         f"    {prefix}def _ask(self, query: operations.Query[T]) -> T:",

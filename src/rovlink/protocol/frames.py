@@ -18,6 +18,7 @@ from rovlink.protocol.messages import Command, Message, Response, trusted_messag
 from rovlink.protocol.text_enum import StrEnum
 
 __all__ = [
+    "BITS_PER_BYTE_8N1",
     "CHECKSUM_MODE_FRAMES",
     "MAX_FRAME_BYTES",
     "FrameError",
@@ -27,6 +28,9 @@ __all__ = [
     "encode",
     "parse_body",
 ]
+
+#: Bits a byte takes on the serial line, 8N1 (P19): a start bit, eight data bits, a stop bit.
+BITS_PER_BYTE_8N1 = 10
 
 #: The longest whole frame, start and end characters included (P1).
 MAX_FRAME_BYTES = 64

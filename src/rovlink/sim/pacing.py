@@ -10,13 +10,11 @@ import logging
 import math
 
 from rovlink.logs import get_logger
+from rovlink.protocol.frames import BITS_PER_BYTE_8N1
 
-__all__ = ["BITS_PER_BYTE_8N1", "LinePacer", "TickSchedule"]
+__all__ = ["LinePacer", "TickSchedule"]
 
 logger = get_logger(__name__)
-
-#: A start bit, eight data bits, no parity, one stop bit.
-BITS_PER_BYTE_8N1 = 10
 
 
 class TickSchedule:
