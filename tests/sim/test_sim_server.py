@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import select
 import socket
 import threading
 import time
@@ -16,7 +17,7 @@ from rovlink.busy_tcp import RefusedClients
 from rovlink.controller import ControllerConfig
 from rovlink.controller import lines as lines_module
 from rovlink.sim import SimConfig
-from rovlink.sim.server import BUSY_MESSAGE, SimServer, parse_tcp_address
+from rovlink.sim.server import BUSY_MESSAGE, LINE_BUFFER_BYTES, SimServer, parse_tcp_address
 
 pytestmark = pytest.mark.integration
 
@@ -291,6 +292,33 @@ def test_baud_paces_the_byte_stream(start_server: StartServer) -> None:
     # the baud rate's is checked, without a wall clock, in test_sim_pacing.
     line_time_s = (len(b"#qsa!") + len(reply)) * 10 / 1200
     assert elapsed_s >= 0.9 * line_time_s
+
+
+def test_a_paced_line_makes_its_writer_wait_as_a_full_serial_port_does(
+    start_server: StartServer,
+) -> None:
+    # Before, the server read whatever came at once and kept up to 64 KB (a minute at 9600 baud)
+    # to hand the controller at the line's rate, and dropped the oldest beyond: a writer never
+    # waited, and a #stop! it wrote reached the controller a minute late. A serial port's driver
+    # takes some 4 KB, then its writer waits.
+    server = start_server(tcp=False, baud=115200)  # 11.5 KB a second
+    frames = b"#mgmp.180!" * 100  # (a set command: no reply to read)
+    with _open_pty(server) as port:
+        fd = port.fileno()
+        os.set_blocking(fd, False)
+        accepted_bytes = 0
+        writing_s = 0.3
+        deadline = time.monotonic() + writing_s
+        while time.monotonic() < deadline:
+            try:
+                accepted_bytes += os.write(fd, frames)
+            except BlockingIOError:
+                select.select([], [fd], [], 0.01)
+        # What the line carried meanwhile, the server's 4 KB and the pseudo-terminal's own
+        # buffers (some 20 KB on Linux). Unbounded, it was megabytes.
+        carried_bytes = writing_s * 115200 / 10
+        assert accepted_bytes < carried_bytes + LINE_BUFFER_BYTES + 64 * 1024
+    assert all(pacers.to_controller.dropped_bytes == 0 for pacers in server._pacers.values())
 
 
 def test_a_speed_beyond_the_cpu_still_answers_at_once(start_server: StartServer) -> None:

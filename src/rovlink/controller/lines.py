@@ -81,6 +81,10 @@ class Line:
         self.name = name
         self.fd = fd
         self.unsent = bytearray()
+        #: Whether the line is read (see :meth:`Lines.set_reading`).
+        self.reading = True
+        #: The selector events the line is watched for (0: not registered).
+        self.watched_events = 0
 
     def read(self) -> bytes | None:
         """Bytes from the peer; b"" when it has gone; None when there is nothing after all."""
@@ -297,6 +301,14 @@ class Lines:
             del line.unsent[:overflow]
         self._flush(line)
 
+    def set_reading(self, line: Line, reading: bool) -> None:
+        """Read ``line`` or leave its bytes in the kernel: a server whose controller is behind
+        (a slow line's rate) stops reading, and the writer at the other end waits for room, as
+        it would on a serial line whose buffer is full."""
+        if line.reading != reading and line in self.lines:
+            line.reading = reading
+            self._watch(line)
+
     def close(self) -> None:
         """Close every line and the listener."""
         self._gone_serial.clear()
@@ -319,8 +331,23 @@ class Lines:
             self._gone(line, error)
             return
         del line.unsent[:written]
-        events = selectors.EVENT_READ | (selectors.EVENT_WRITE if line.unsent else 0)
-        self._selector.modify(line.fd, events, self._on_line_event(line))
+        self._watch(line)
+
+    def _watch(self, line: Line) -> None:
+        """Watch ``line`` for what it waits for: bytes to read (unless reading is paused), room
+        to write what is unsent."""
+        events = (selectors.EVENT_READ if line.reading else 0) | (
+            selectors.EVENT_WRITE if line.unsent else 0
+        )
+        if events == line.watched_events:
+            return
+        if not events:  # (a selector watches nothing for no events)
+            self._selector.unregister(line.fd)
+        elif line.watched_events:
+            self._selector.modify(line.fd, events, self._on_line_event(line))
+        else:
+            self._selector.register(line.fd, events, self._on_line_event(line))
+        line.watched_events = events
 
     def _on_refused_readable(self, key: selectors.SelectorKey, mask: int) -> None:
         connection = key.fileobj
@@ -394,13 +421,15 @@ class Lines:
 
     def _add(self, line: Line) -> None:
         self.lines.append(line)
-        self._selector.register(line.fd, selectors.EVENT_READ, self._on_line_event(line))
+        self._watch(line)
         if self._on_open is not None:
             self._on_open(line)
 
     def _remove(self, line: Line) -> None:
         self.lines.remove(line)
-        self._selector.unregister(line.fd)
+        if line.watched_events:
+            self._selector.unregister(line.fd)
+            line.watched_events = 0
         line.close()
         if line is self._tcp_line:
             self._tcp_line = None

@@ -8,7 +8,9 @@ Both links lead to the one controller, but each is its own wire: what the contro
 it handles bytes from a link (replies, and debug lines about those frames) goes back on that link
 only. What it writes on its own (failsafe and leak lines, from its tick) goes to every link: the
 TCP client if one is connected, and the PTY, which cannot tell whether a terminal program has it
-open. Output that nobody reads is bounded (the oldest is dropped, as a UART overruns).
+open. Output that nobody reads is bounded (the oldest is dropped, as a UART overruns). Input
+faster than a paced line carries waits in the kernel once the line holds 4 KB: its writer waits
+for room, as on a serial port.
 """
 
 from __future__ import annotations
@@ -21,12 +23,16 @@ from rovlink.logs import get_logger
 from rovlink.sim.pacing import LinePacer, TickSchedule
 from rovlink.sim.robot import SimConfig, SimulatedRobot
 
-__all__ = ["BUSY_MESSAGE", "SimServer", "parse_tcp_address"]
+__all__ = ["BUSY_MESSAGE", "LINE_BUFFER_BYTES", "SimServer", "parse_tcp_address"]
 
 logger = get_logger(__name__)
 
 #: What a second TCP client reads before it is disconnected.
 BUSY_MESSAGE = b"busy: the simulated controller already has a client\r\n"
+
+#: What a paced line holds on its way to the controller before it takes nothing more, bytes: a
+#: serial port driver's buffer (a UART's or a USB adapter's, 4 KB on Linux).
+LINE_BUFFER_BYTES = 4096
 
 #: The longest the loop sleeps, so a stop request is seen promptly, s.
 _MAX_WAIT_S = 0.05
@@ -117,8 +123,13 @@ class SimServer:
         self.robot.controller.forget_line(line)
 
     def _on_bytes(self, line: Line, data: bytes) -> None:
-        self._pacers[line].to_controller.push(data, time.monotonic())
+        to_controller = self._pacers[line].to_controller
+        to_controller.push(data, time.monotonic())
         self._pump()  # unpaced, the reply leaves in this same turn of the loop
+        if len(to_controller) >= LINE_BUFFER_BYTES:
+            # A full line takes nothing more: the writer waits for room, as on a serial port,
+            # rather than have what it wrote dropped or sent seconds later.
+            self._lines.set_reading(line, False)
 
     def _from_controller(self, data: bytes) -> None:
         now = time.monotonic()
@@ -140,6 +151,8 @@ class SimServer:
                     self.robot.receive(data, line)
                 finally:
                     self._replying_to = None
+                if not line.reading and len(pacers.to_controller) < LINE_BUFFER_BYTES:
+                    self._lines.set_reading(line, True)
         for line, pacers in list(self._pacers.items()):
             data = pacers.from_controller.release(now)
             if data:  # anything still unsent waits for the selector to say it is writable
