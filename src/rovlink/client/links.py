@@ -27,6 +27,7 @@ from rovlink.client.errors import ConnectError, ConnectionLostError
 from rovlink.client.schemes import load_handler
 from rovlink.client.url import Endpoint, Scheme
 from rovlink.protocol.frames import BITS_PER_BYTE_8N1
+from rovlink.serial_latency import ask_for_low_latency
 
 __all__ = [
     "MAX_QUEUED_LINE_S",
@@ -672,6 +673,7 @@ def _open_serial(endpoint: Endpoint) -> Link:
     # Only pyserial's own POSIX class is read through its descriptor: wrappers such as spy://
     # log in read() and write(), which reading the descriptor would bypass.
     if type(port) is serialposix.Serial:
+        ask_for_low_latency(port, endpoint.target)  # (a USB adapter's replies come at once)
         return SerialFdLink(port, description, exclusive="exclusive" in options)
     return PortLink(port, description)
 

@@ -29,6 +29,7 @@ from typing import Any
 
 from rovlink.busy_tcp import RefusedClients
 from rovlink.logs import get_logger
+from rovlink.serial_latency import ask_for_low_latency
 
 __all__ = [
     "Line",
@@ -129,6 +130,7 @@ class SerialDeviceLine(Line):
         self._serial: Any = serial.Serial(
             path, baud, timeout=0, write_timeout=0, exclusive=True, rtscts=False, dsrdtr=False
         )
+        ask_for_low_latency(self._serial, path)  # (a USB adapter hands on each frame at once)
         fd = self._serial.fileno()
         os.set_blocking(fd, False)
         # pyserial's lock keeps out programs that lock too; TIOCEXCL keeps out every other
