@@ -31,7 +31,9 @@ uint8_t rl_checksum(rl_algorithm algorithm, const char *body, size_t length) {
             int bit;
             value ^= byte;
             for (bit = 0; bit < 8; bit++) {
-                value = (value & 0x80u) ? (uint8_t)((value << 1) ^ 0x07u) : (uint8_t)(value << 1);
+                uint8_t carry = (uint8_t)(value & 0x80u);
+                value = (uint8_t)(value << 1);
+                if (carry) value ^= 0x07u;
             }
         }
     }

@@ -19,7 +19,17 @@ import pytest
 from rovlink.client.links import open_link
 from rovlink.client.url import parse_url
 from rovlink.conformance import SuiteOptions, run_checks
-from tests.firmware.c_build import FIRMWARE, GCC, GXX, LAYER, build, run_script, send
+from tests.firmware.c_build import (
+    FIRMWARE,
+    GCC,
+    GXX,
+    LAYER,
+    STRICT,
+    WARNINGS,
+    build,
+    run_script,
+    send,
+)
 
 SKETCH = FIRMWARE / "arduino" / "rovlink_controller"
 HOST = Path(__file__).resolve().parent / "arduino_host"
@@ -52,10 +62,10 @@ def sketch(tmp_path_factory: pytest.TempPathFactory) -> Path:
     objects = []
     for source in LAYER:  # (C, compiled apart: the sketch's own files are C++)
         output = build_dir / source.with_suffix(".o").name
-        command = [str(GCC), "-std=c99", "-c", f"-I{FIRMWARE}", "-o", str(output), str(source)]
+        command = [str(GCC), *STRICT, "-c", f"-I{FIRMWARE}", "-o", str(output), str(source)]
         subprocess.run(command, check=True, timeout=120)
         objects.append(output)
-    flags = ("-std=c++11", "-Wall", "-Wextra", "-Werror", f"-I{HOST}", f"-I{SKETCH}")
+    flags = ("-std=c++11", *WARNINGS, "-Werror", f"-I{HOST}", f"-I{SKETCH}")
     sources = [HOST / "sketch_host.cpp", HOST / "pty_host.cpp", *objects]
     return build(build_dir / "sketch", sources, *flags, compiler=GXX)
 

@@ -16,7 +16,7 @@ from rovlink.conformance import CHECKS, SuiteOptions, run_checks, select_checks
 from rovlink.controller import Attitude, ControllerConfig, Hardware
 from rovlink.controller.controller import Controller
 from rovlink.protocol import Decoder, Frame, c_table
-from tests.firmware.c_build import FIRMWARE, GCC, LAYER, STRICT, build, needs_gcc
+from tests.firmware.c_build import CLANG, FIRMWARE, GCC, LAYER, STRICT, build, needs_gcc
 
 SANITIZE = ["-g", "-O1", "-fsanitize=address,undefined", "-fno-sanitize-recover=all"]
 
@@ -26,6 +26,40 @@ def test_generated_command_table_is_up_to_date() -> None:
     source = (FIRMWARE / c_table.SOURCE_NAME).read_text(encoding="ascii")
     assert header == c_table.render_header(), "run: python -m rovlink.protocol.c_table firmware/c"
     assert source == c_table.render_source(), "run: python -m rovlink.protocol.c_table firmware/c"
+
+
+#: Every C source of the reference: the layer, the host robot, its stepped build, the fuzz run
+#: and the replay of the differential tests.
+_SOURCES = (
+    *LAYER,
+    FIRMWARE / "host" / "host_robot.c",
+    FIRMWARE / "host" / "fuzz_parser.c",
+    FIRMWARE / "host" / "replay.c",
+    Path(__file__).with_name("host_robot_steps.c"),
+)
+_COMPILERS = {"gcc": GCC, "clang": CLANG}
+
+
+@pytest.mark.parametrize("compiler", sorted(_COMPILERS))
+@pytest.mark.parametrize("source", _SOURCES, ids=lambda path: path.name)
+def test_every_c_source_compiles_without_a_warning(
+    tmp_path: Path, compiler: str, source: Path
+) -> None:
+    # Before: -Wconversion and -Wsign-conversion warned in the CRC-8 (clang, and gcc in the
+    # sanitizers' build). Compiled only: optimised as the host build and as the sanitizers'.
+    executable = _COMPILERS[compiler]
+    if executable is None:
+        pytest.skip(f"{compiler} is not installed (.ci/debian-packages)")
+    for flags in (["-O2"], SANITIZE):
+        command = [executable, *STRICT, *flags, f"-I{FIRMWARE}", "-c", str(source)]
+        result = subprocess.run(
+            [*command, "-o", str(tmp_path / "out.o")],
+            capture_output=True,
+            text=True,
+            check=False,
+            timeout=60,
+        )
+        assert result.returncode == 0, (flags, result.stderr)
 
 
 def _build(output: Path, main: str, *flags: str) -> Path:

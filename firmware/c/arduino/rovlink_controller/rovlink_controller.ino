@@ -56,7 +56,7 @@ static int depth_cm() {
 
 /* Thrust in % (+ forward / up) to an ESC pulse, scaled by the PWM cap (P8). */
 static void drive(Servo &esc, float percent) {
-    float duty = percent / 100.0f * robot.max_pwm / 255.0f;
+    float duty = percent / 100.0f * (float)robot.max_pwm / 255.0f;
     esc.writeMicroseconds(1500 + (int)(duty * 500.0f));
 }
 
@@ -65,7 +65,7 @@ static void drive(Servo &esc, float percent) {
 static void reset_pid() {
     robot.integral = 0;
     robot.speed_cm_s = 0;
-    robot.last_depth_cm = depth_cm();
+    robot.last_depth_cm = (float)depth_cm();
 }
 
 /* The motion set-points cleared, as #start! leaves them (P7); the outputs follow next tick. */
@@ -86,7 +86,8 @@ static void all_stop() {
 
 /* The layer has switched the lock and the vertical mode (start comes only when it unlocks,
  * mvdirect only when the mode changes) and writes their debug lines; every other setting gets
- * its line here (P5). Set-points persist until changed (P11). */
+ * its line here (P5). Set-points persist until changed (P11). The layer passes only values within
+ * their ranges (-100 to 10000): each fits an int of 16 bits (AVR). */
 static void on_command(void *, rl_command_id command, const int32_t *values) {
     switch (command) {
     case RL_CMD_STOP: all_stop(); break;
@@ -98,30 +99,30 @@ static void on_command(void *, rl_command_id command, const int32_t *values) {
         if (robot.holding) robot.target_cm = depth_cm();
         break;
     case RL_CMD_MVS:
-        robot.vertical_percent = values[0];
+        robot.vertical_percent = (int)values[0];
         rl_debug_number(&link, "vertical thrust ", values[0], 1, " %");
         break;
     case RL_CMD_MVD:
         if (!robot.holding) reset_pid(); /* a new target after none: the PID starts afresh */
         robot.holding = true;
-        robot.target_cm = values[0];
+        robot.target_cm = (int)values[0];
         rl_debug_number(&link, "target depth ", values[0], 0, " cm");
         break;
     case RL_CMD_TH:
-        robot.direction_deg = values[0] % 360;
-        robot.power_percent = values[1];
+        robot.direction_deg = (int)(values[0] % 360);
+        robot.power_percent = (int)values[1];
         rl_debug_number(&link, "horizontal direction ", robot.direction_deg, 0, " deg");
         rl_debug_number(&link, "horizontal power ", values[1], 0, " %");
         break;
     case RL_CMD_MGMP:
-        robot.max_pwm = values[0];
+        robot.max_pwm = (int)values[0];
         rl_debug_number(&link, "max PWM ", values[0], 0, "");
         break;
-    case RL_CMD_MVPDP: robot.kp = values[0]; rl_debug_number(&link, "depth PID kp ", values[0], 0, ""); break;
-    case RL_CMD_MVPDI: robot.ki = values[0]; rl_debug_number(&link, "depth PID ki ", values[0], 0, ""); break;
-    case RL_CMD_MVPIDD: robot.kd = values[0]; rl_debug_number(&link, "depth PID kd ", values[0], 0, ""); break;
-    case RL_CMD_SDZ: robot.zero_raw = values[0]; rl_debug_number(&link, "depth zero ", values[0], 0, ""); break;
-    case RL_CMD_SDK: robot.k = values[0]; rl_debug_number(&link, "depth coefficient k ", values[0], 0, ""); break;
+    case RL_CMD_MVPDP: robot.kp = (int)values[0]; rl_debug_number(&link, "depth PID kp ", values[0], 0, ""); break;
+    case RL_CMD_MVPDI: robot.ki = (int)values[0]; rl_debug_number(&link, "depth PID ki ", values[0], 0, ""); break;
+    case RL_CMD_MVPIDD: robot.kd = (int)values[0]; rl_debug_number(&link, "depth PID kd ", values[0], 0, ""); break;
+    case RL_CMD_SDZ: robot.zero_raw = (int)values[0]; rl_debug_number(&link, "depth zero ", values[0], 0, ""); break;
+    case RL_CMD_SDK: robot.k = (int)values[0]; rl_debug_number(&link, "depth coefficient k ", values[0], 0, ""); break;
     case RL_CMD_SLRESET: robot.leak_latched = false; rl_debug(&link, "leak latch reset"); break;
     case RL_CMD_H_OPEN: case RL_CMD_H_CLOSE:
         digitalWrite(CLAW_OPEN_PIN, command == RL_CMD_H_OPEN ? HIGH : LOW);
@@ -195,25 +196,27 @@ void loop() {
     if (link.locked) return;
 
     /* Vertical: direct thrust, or the depth PID (P9, P10). */
-    float up = robot.vertical_percent;
+    float up = (float)robot.vertical_percent;
     if (robot.holding) {
-        float depth = depth_cm();
-        float error = depth - robot.target_cm; /* too deep: positive: thrust up */
+        float depth = (float)depth_cm();
+        float error = depth - (float)robot.target_cm; /* too deep: positive: thrust up */
         float dt = TICK_MS / 1000.0f;
         robot.speed_cm_s += ((depth - robot.last_depth_cm) / dt - robot.speed_cm_s) * dt / 0.5f;
         robot.last_depth_cm = depth;
-        robot.integral = constrain(robot.integral + robot.ki * 0.005f * error * dt, -100, 100);
-        up = constrain(robot.kp * 0.05f * error + robot.integral + robot.kd * 0.1f * robot.speed_cm_s,
-                       -100, 100);
+        robot.integral = constrain(robot.integral + (float)robot.ki * 0.005f * error * dt, -100.0f, 100.0f);
+        up = constrain((float)robot.kp * 0.05f * error + robot.integral +
+                           (float)robot.kd * 0.1f * robot.speed_cm_s,
+                       -100.0f, 100.0f);
     }
     for (Servo &esc : vertical) drive(esc, up);
 
     /* Horizontal: four thrusters at 45 degrees (P11), normalised to 100 %. */
-    float angle = robot.direction_deg * PI / 180.0f;
-    float surge = cos(angle) * robot.power_percent, sway = sin(angle) * robot.power_percent;
+    float angle = (float)robot.direction_deg * (float)PI / 180.0f;
+    float power = (float)robot.power_percent;
+    float surge = (float)cos(angle) * power, sway = (float)sin(angle) * power;
     float outputs[4] = {surge + sway, surge - sway, surge - sway, surge + sway};
     float largest = 0;
     for (float value : outputs) if (fabsf(value) > largest) largest = fabsf(value);
-    float scale = largest > robot.power_percent && largest > 0 ? robot.power_percent / largest : 1;
+    float scale = largest > power && largest > 0 ? power / largest : 1;
     for (uint8_t i = 0; i < 4; i++) drive(horizontal[i], outputs[i] * scale);
 }
