@@ -100,36 +100,57 @@ static void on_command(void *, rl_command_id command, const int32_t *values) {
         break;
     case RL_CMD_MVS:
         robot.vertical_percent = (int)values[0];
-        rl_debug_number(&link, "vertical thrust ", values[0], 1, " %");
+        rl_debug_number_flash(&link, RL_TEXT("vertical thrust "), values[0], 1, RL_TEXT(" %"));
         break;
     case RL_CMD_MVD:
         if (!robot.holding) reset_pid(); /* a new target after none: the PID starts afresh */
         robot.holding = true;
         robot.target_cm = (int)values[0];
-        rl_debug_number(&link, "target depth ", values[0], 0, " cm");
+        rl_debug_number_flash(&link, RL_TEXT("target depth "), values[0], 0, RL_TEXT(" cm"));
         break;
     case RL_CMD_TH:
         robot.direction_deg = (int)(values[0] % 360);
         robot.power_percent = (int)values[1];
-        rl_debug_number(&link, "horizontal direction ", robot.direction_deg, 0, " deg");
-        rl_debug_number(&link, "horizontal power ", values[1], 0, " %");
+        rl_debug_number_flash(&link, RL_TEXT("horizontal direction "), robot.direction_deg, 0,
+                              RL_TEXT(" deg"));
+        rl_debug_number_flash(&link, RL_TEXT("horizontal power "), values[1], 0, RL_TEXT(" %"));
         break;
     case RL_CMD_MGMP:
         robot.max_pwm = (int)values[0];
-        rl_debug_number(&link, "max PWM ", values[0], 0, "");
+        rl_debug_number_flash(&link, RL_TEXT("max PWM "), values[0], 0, RL_TEXT(""));
         break;
-    case RL_CMD_MVPDP: robot.kp = (int)values[0]; rl_debug_number(&link, "depth PID kp ", values[0], 0, ""); break;
-    case RL_CMD_MVPDI: robot.ki = (int)values[0]; rl_debug_number(&link, "depth PID ki ", values[0], 0, ""); break;
-    case RL_CMD_MVPIDD: robot.kd = (int)values[0]; rl_debug_number(&link, "depth PID kd ", values[0], 0, ""); break;
-    case RL_CMD_SDZ: robot.zero_raw = (int)values[0]; rl_debug_number(&link, "depth zero ", values[0], 0, ""); break;
-    case RL_CMD_SDK: robot.k = (int)values[0]; rl_debug_number(&link, "depth coefficient k ", values[0], 0, ""); break;
-    case RL_CMD_SLRESET: robot.leak_latched = false; rl_debug(&link, "leak latch reset"); break;
+    case RL_CMD_MVPDP:
+        robot.kp = (int)values[0];
+        rl_debug_number_flash(&link, RL_TEXT("depth PID kp "), values[0], 0, RL_TEXT(""));
+        break;
+    case RL_CMD_MVPDI:
+        robot.ki = (int)values[0];
+        rl_debug_number_flash(&link, RL_TEXT("depth PID ki "), values[0], 0, RL_TEXT(""));
+        break;
+    case RL_CMD_MVPIDD:
+        robot.kd = (int)values[0];
+        rl_debug_number_flash(&link, RL_TEXT("depth PID kd "), values[0], 0, RL_TEXT(""));
+        break;
+    case RL_CMD_SDZ:
+        robot.zero_raw = (int)values[0];
+        rl_debug_number_flash(&link, RL_TEXT("depth zero "), values[0], 0, RL_TEXT(""));
+        break;
+    case RL_CMD_SDK:
+        robot.k = (int)values[0];
+        rl_debug_number_flash(&link, RL_TEXT("depth coefficient k "), values[0], 0, RL_TEXT(""));
+        break;
+    case RL_CMD_SLRESET:
+        robot.leak_latched = false;
+        rl_debug_flash(&link, RL_TEXT("leak latch reset"));
+        break;
     case RL_CMD_H_OPEN: case RL_CMD_H_CLOSE:
         digitalWrite(CLAW_OPEN_PIN, command == RL_CMD_H_OPEN ? HIGH : LOW);
         digitalWrite(CLAW_CLOSE_PIN, command == RL_CMD_H_CLOSE ? HIGH : LOW);
         robot.claw_until_ms = millis() + CLAW_PULSE_MS;
-        rl_debug_number(&link, command == RL_CMD_H_OPEN ? "claw opening for " : "claw closing for ",
-                        (int32_t)CLAW_PULSE_MS, 0, " ms");
+        rl_debug_number_flash(&link,
+                              command == RL_CMD_H_OPEN ? RL_TEXT("claw opening for ")
+                                                       : RL_TEXT("claw closing for "),
+                              (int32_t)CLAW_PULSE_MS, 0, RL_TEXT(" ms"));
         break;
     default: break;
     }
@@ -184,8 +205,8 @@ void loop() {
     if (link.valid_frames != robot.frames_seen) {
         robot.frames_seen = link.valid_frames;
         robot.last_frame_ms = now;
-    } else if (!link.locked && now - robot.last_frame_ms > WATCHDOG_MS) {
-        rl_lock(&link, "failsafe: no valid frame for 2 s: motors stopped and locked"); /* P17 */
+    } else if (!link.locked && now - robot.last_frame_ms > WATCHDOG_MS) { /* P17 */
+        rl_lock_flash(&link, RL_TEXT("failsafe: no valid frame for 2 s: motors stopped and locked"));
         all_stop();
     }
     if (robot.claw_until_ms && (long)(now - robot.claw_until_ms) >= 0) {

@@ -1,0 +1,89 @@
+"""The C reference on an 8-bit target: compiled (not run) for an ATmega328P, the Arduino Uno's
+chip (2 KB of RAM, a 16-bit ``int``), with avr-gcc."""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+from pathlib import Path
+
+import pytest
+
+from tests.firmware.c_build import FIRMWARE, LAYER, STRICT, WARNINGS
+
+AVR_GCC = shutil.which("avr-gcc")
+AVR_GXX = shutil.which("avr-g++")
+AVR_OBJDUMP = shutil.which("avr-objdump")
+#: The Uno's chip, built for size as the Arduino IDE builds.
+TARGET = ("-mmcu=atmega328p", "-Os")
+SKETCH = FIRMWARE / "arduino" / "rovlink_controller" / "rovlink_controller.ino"
+HOST = Path(__file__).with_name("arduino_host")
+
+pytestmark = pytest.mark.skipif(
+    AVR_GCC is None or AVR_GXX is None or AVR_OBJDUMP is None,
+    reason="avr-gcc is not installed (.ci/debian-packages: gcc-avr, avr-libc)",
+)
+
+
+def _compile(compiler: str | None, source: Path, output: Path, *flags: str) -> Path:
+    assert compiler is not None
+    command = [compiler, *TARGET, *flags, f"-I{FIRMWARE}", "-c", "-o", str(output), str(source)]
+    result = subprocess.run(command, capture_output=True, text=True, check=False, timeout=60)
+    assert result.returncode == 0, result.stderr
+    return output
+
+
+def _sections(object_file: Path) -> dict[str, int]:
+    """The size of each section of an object file, by name."""
+    assert AVR_OBJDUMP is not None
+    result = subprocess.run(
+        [AVR_OBJDUMP, "-h", str(object_file)], capture_output=True, text=True, check=True
+    )
+    sections = {}
+    for line in result.stdout.splitlines():
+        words = line.split()
+        if len(words) >= 3 and words[0].isdigit():
+            sections[words[1]] = int(words[2], 16)
+    return sections
+
+
+def _in_ram(sections: dict[str, int]) -> dict[str, int]:
+    """The sections an AVR program keeps in RAM: its variables and, unlike most targets, its
+    constants (.rodata is copied to RAM at start); only PROGMEM data stays in flash."""
+    return {
+        name: size
+        for name, size in sections.items()
+        if size and name.startswith((".data", ".bss", ".rodata"))
+    }
+
+
+@pytest.mark.parametrize("source", LAYER, ids=lambda path: path.name)
+def test_the_layer_takes_no_ram_of_its_own_on_avr(tmp_path: Path, source: Path) -> None:
+    # Before: the layer's 789 bytes of debug and drop texts, and its hex digits and table of
+    # checksum lines, were constants in RAM: 820 of the Uno's 2048 bytes. Its texts are in
+    # flash now (RL_TEXT), like the command table. (Without a warning with a 16-bit int, too.)
+    sections = _sections(_compile(AVR_GCC, source, tmp_path / "layer.o", *STRICT))
+    assert _in_ram(sections) == {}
+
+
+def test_a_link_takes_79_bytes_of_ram_on_avr(tmp_path: Path) -> None:
+    # As the README says: the RAM the layer needs is the app's one rl_link.
+    check = tmp_path / "link_size.c"
+    check.write_text(
+        '#include "rovlink_proto.h"\n'
+        "typedef char link_is_79_bytes[sizeof(rl_link) == 79 ? 1 : -1];\n",
+        encoding="ascii",
+    )
+    _compile(AVR_GCC, check, tmp_path / "link_size.o", "-std=c99")
+
+
+def test_the_sketch_compiles_for_avr_without_a_warning_and_keeps_its_texts_in_flash(
+    tmp_path: Path,
+) -> None:
+    # Over the host stand-in for the Arduino core (tests/firmware/arduino_host): the sketch's
+    # own code with a 16-bit int. Before: ten int32_t values narrowed to int without a cast,
+    # and 285 bytes of debug texts in RAM (now rl_debug_flash and RL_TEXT).
+    flags = ("-std=c++11", *WARNINGS, "-Werror", f"-I{HOST}", "-x", "c++")
+    sections = _sections(_compile(AVR_GXX, SKETCH, tmp_path / "sketch.o", *flags))
+    assert [name for name in _in_ram(sections) if name.startswith(".rodata.str")] == []
+    assert sections.get(".progmem.data", 0) > 200  # (its texts, where they went)
