@@ -52,8 +52,11 @@ int main(int argc, char **argv) {
 
 
 def _example() -> str:
-    (block,) = re.findall(r"^```c\n(.*?)^```$", README.read_text(encoding="utf-8"), re.M | re.S)
-    return block
+    blocks: list[str] = re.findall(
+        r"^```c\n(.*?)^```$", README.read_text(encoding="utf-8"), re.M | re.S
+    )
+    assert len(blocks) == 1, "the README has one C block, its example"
+    return blocks[0]
 
 
 @pytest.fixture(scope="module")
