@@ -247,6 +247,7 @@ def _argument_texts(argument: Argument) -> tuple[str, ...]:
     """A value at each edge of the argument's range, inside and out, as a host might write it;
     and the edges past 16 and 32 bits (a parser that wraps takes 65536 + low for low)."""
     low, high = argument.minimum, argument.maximum
+    texts: tuple[str, ...]
     texts = (str(low), str(high), str((low + high) // 2), f"0{high}", str(high + 1), str(low - 1))
     texts += (str(low + 2**16), str(low + 2**32), str(2**31), "0" * 20 + str(high))
     if argument.signed:
