@@ -436,7 +436,9 @@ void rl_feed(rl_link *link, const uint8_t *data, size_t length) {
     for (i = 0; i < length; i++) {
         uint8_t byte = data[i];
         if (byte == '#' || byte == '$') {
-            if (link->in_frame) drop(link, RL_TEXT("a new frame started before its end"));
+            if (link->in_frame && !link->too_long) {
+                drop(link, RL_TEXT("a new frame started before its end"));
+            }
             link->in_frame = 1;
             link->too_long = 0;
             link->length = 0;
@@ -445,19 +447,17 @@ void rl_feed(rl_link *link, const uint8_t *data, size_t length) {
             /* between frames: line breaks, spaces, noise (P1) */
         } else if (byte == '!') {
             link->in_frame = 0;
-            if (link->too_long) {
-                link->length = RL_BODY_BYTES;
-                drop(link, RL_TEXT("longer than 64 bytes"));
-            } else {
-                handle_frame(link);
-            }
+            if (!link->too_long) handle_frame(link);
         } else if (byte < 0x21 || byte > 0x7e) {
             link->in_frame = 0;
-            drop(link, RL_TEXT("a byte outside 0x21-0x7E"));
+            if (!link->too_long) drop(link, RL_TEXT("a byte outside 0x21-0x7E"));
+        } else if (link->too_long) {
+            /* the rest of a frame dropped already: skipped up to its end */
         } else if (link->length < RL_BODY_BYTES) {
             link->buffer[link->length++] = (char)byte;
-        } else {
+        } else { /* dropped as soon as it is too long, whether or not it ever ends */
             link->too_long = 1;
+            drop(link, RL_TEXT("longer than 64 bytes"));
         }
     }
 }

@@ -59,7 +59,7 @@ typedef struct {
     uint8_t locked;        /* P7: locked after reset */
     uint8_t direct_mode;   /* P9: depth mode after reset */
     uint8_t in_frame;      /* inside a frame: start seen, end not yet */
-    uint8_t too_long;      /* the frame outgrew the buffer: it is dropped at its end */
+    uint8_t too_long;      /* the frame outgrew the buffer: dropped, its rest skipped */
     uint8_t start;         /* '#' or '$' */
     uint8_t length;        /* bytes of body (and checksum) in buffer */
     char buffer[RL_MAX_FRAME_BYTES - 2];

@@ -273,14 +273,13 @@ _LOOSE_BODIES = st.builds(
     st.lists(st.sampled_from(_VALUES), max_size=3),
 )
 _BODIES = st.one_of(_TABLE_BODIES, _TABLE_BODIES, _LOOSE_BODIES)
-#: Noise, mode frames, a reply, the longest frame and one a byte too long; frames and noise far
-#: past the limit (255 and 256 bytes: a length kept in a byte wraps there), one unterminated.
+#: Noise, mode frames, a reply, the longest frame and one a byte too long; one of 257 bytes (a
+#: length kept in a byte wraps past 255) and one too long that does not end.
 _NOISE: tuple[bytes, ...] = (
     *(b"\r\n", b" ", b"\x00", b"\x7f", b"\xff", b"#", b"$", b"!", b"$qd.5!", b"#crcon!"),
     *(b"#crcoff!", b"#debug1!", b"#debug0!", b"#start!", b"#stop!", b"#crcon!", b"#crcoff!"),
     *(b"#" + b"1" * 62 + b"!", b"#" + b"1" * 63 + b"!"),
-    *(b"#" + b"1" * 254 + b"!", b"#" + b"1" * 255 + b"!", b"#qd" + b"0" * 500 + b"!"),
-    *(b"#mvs.+" + b"0" * 300, b"x" * 300, b"$" + b"q" * 256 + b"!"),
+    *(b"#" + b"1" * 255 + b"!", b"#mvs.+" + b"0" * 70),
 )
 #: A frame's checksum: none, right, right in lowercase, wrong, one digit only, a digit that is
 #: no hex digit, a third digit.
@@ -427,6 +426,23 @@ def test_every_frame_near_its_range_edges_gets_the_same_answer_in_every_state(
         python_output = _python_output(alone, 4096, algorithm)
         assert c_output == python_output, alone
     pytest.fail("the C layer and the Python controller differ on the frames in sequence")
+
+
+@pytest.mark.integration
+@pytest.mark.parametrize(
+    "after",
+    [b"", b"1" * 300, b"!", b"#qd!", b"$qd.5!", b"\r\n#qd!", b" qd!#qd!"],
+    ids=["unended", "more", "end", "start", "reply", "line-break", "space"],
+)
+def test_a_frame_is_dropped_as_it_outgrows_the_limit(replay: Path, after: bytes) -> None:
+    # Before: the C layer said "dropped" only at the frame's end (or the next start), and so
+    # never for a frame that does not end; the Python controller says it when the 65th byte
+    # comes. Once: the rest of the frame, up to its end, is skipped (P1).
+    stream = b"#debug1!#" + b"1" * 63 + after
+    for chunk in (1, 4096):
+        expected = _python_output(stream, chunk, "crc8")
+        assert expected[1].count("dropped") == 1 + (b"$" in after)
+        assert _c_output(replay, stream, chunk, "crc8") == expected
 
 
 #: What random bytes are drawn from: any byte; the protocol's characters and hex digits only,
