@@ -4,7 +4,6 @@
 #include <string.h>
 
 #define RL_BODY_BYTES (RL_MAX_FRAME_BYTES - 2)
-#define RL_REPLY_BYTES 24
 #define RL_DEBUG_BYTES 96
 /* A debug line's text: the line less its CR LF. */
 #define RL_DEBUG_TEXT_BYTES (RL_DEBUG_BYTES - 2)

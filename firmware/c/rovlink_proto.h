@@ -88,7 +88,10 @@ void rl_debug_number_flash(rl_link *link, const char *before, int32_t value, int
                            const char *after);
 /* The checksum of body[0..length) as the algorithm defines it. */
 uint8_t rl_checksum(rl_algorithm algorithm, const char *body, size_t length);
-/* Format the reply frame for one value into out (at least 24 bytes); returns its length. The
+/* The longest reply frame rl_format_reply writes, with room to spare. */
+#define RL_REPLY_BYTES 24
+
+/* Format the reply frame for one value into out (RL_REPLY_BYTES); returns its length. The
  * value is written as the protocol writes it: a heading modulo 360, anything else clamped to its
  * reply's range. */
 size_t rl_format_reply(const rl_link *link, rl_reply_id reply, int32_t value, char *out);
