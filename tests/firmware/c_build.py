@@ -18,6 +18,8 @@ CLANG = shutil.which("clang")
 #: included (an int of 16 bits on the small targets makes those matter).
 WARNINGS = ("-Wall", "-Wextra", "-Wpedantic", "-Wconversion", "-Wsign-conversion", "-Wshadow")
 STRICT = ("-std=c99", *WARNINGS, "-Werror")
+#: AddressSanitizer and UBSan, the first report fatal.
+SANITIZE = ("-g", "-O1", "-fsanitize=address,undefined", "-fno-sanitize-recover=all")
 #: The protocol layer (generated command table included).
 LAYER = (FIRMWARE / "rovlink_proto.c", FIRMWARE / "rovlink_commands.c")
 

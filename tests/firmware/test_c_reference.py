@@ -16,9 +16,15 @@ from rovlink.conformance import CHECKS, SuiteOptions, run_checks, select_checks
 from rovlink.controller import Attitude, ControllerConfig, Hardware
 from rovlink.controller.controller import Controller
 from rovlink.protocol import Decoder, Frame, c_table
-from tests.firmware.c_build import CLANG, FIRMWARE, GCC, LAYER, STRICT, build, needs_gcc
-
-SANITIZE = ["-g", "-O1", "-fsanitize=address,undefined", "-fno-sanitize-recover=all"]
+from tests.firmware.c_build import (
+    CLANG,
+    FIRMWARE,
+    GCC,
+    LAYER,
+    SANITIZE,
+    STRICT,
+    build,
+)
 
 
 def test_generated_command_table_is_up_to_date() -> None:
@@ -117,18 +123,21 @@ def test_rovlink_check_passes_against_the_sanitized_build(sanitized_binary: Path
         assert [(r.name, r.message) for r in report.failures] == []
 
 
-@needs_gcc
 @pytest.mark.integration
-def test_fuzz_run_of_the_parser_under_sanitizers(tmp_path: Path) -> None:
-    binary = _build(tmp_path / "fuzz", str(FIRMWARE / "host" / "fuzz_parser.c"), *SANITIZE)
-    for seed in ("1", "2"):
-        result = subprocess.run(
-            [str(binary), "100000", seed], capture_output=True, text=True, check=False, timeout=300
-        )
-        assert result.returncode == 0, result.stderr
-        assert ": ok" in result.stdout
-        commands = int(result.stdout.split(" commands")[0].rsplit(" ", 1)[1])
-        assert commands > 1000  # the streams reach the dispatch, not only the parser
+@pytest.mark.parametrize(("compiler", "seed"), [("gcc", "1"), ("clang", "2")])
+def test_fuzz_run_of_the_parser_under_sanitizers(tmp_path: Path, compiler: str, seed: str) -> None:
+    executable = _COMPILERS[compiler]
+    if executable is None:
+        pytest.skip(f"{compiler} is not installed (.ci/debian-packages)")
+    source = FIRMWARE / "host" / "fuzz_parser.c"
+    binary = build(tmp_path / "fuzz", [source, *LAYER], *STRICT, *SANITIZE, compiler=executable)
+    result = subprocess.run(
+        [str(binary), "100000", seed], capture_output=True, text=True, check=False, timeout=300
+    )
+    assert result.returncode == 0, result.stderr
+    assert ": ok" in result.stdout
+    commands = int(result.stdout.split(" commands")[0].rsplit(" ", 1)[1])
+    assert commands > 1000  # the streams reach the dispatch, not only the parser
 
 
 #: Every kind of setting change in debug mode, and the repeats that change nothing (P5, P11).
