@@ -469,6 +469,21 @@ def test_c_and_python_agree_on_random_bytes(replay: Path) -> None:
             assert _c_decisions(replay, stream, chunk) == _python_decisions(stream, chunk), case
 
 
+@pytest.mark.integration
+@pytest.mark.parametrize("state", [b"", b"#start!", b"#start!#mvdirect.1!"], ids=repr)
+def test_every_command_at_its_range_edges_is_dispatched_alike(replay: Path, state: bytes) -> None:
+    # The calibration (sdz, sdk) too, which the replies above leave out: the same commands with
+    # the same values, the same queries answered, at and past each edge of every range.
+    bodies = [
+        _body_of(name, values)
+        for spec in COMMANDS
+        for name in (spec.name, *spec.aliases)
+        for values in itertools.product(*(_argument_texts(a) for a in spec.arguments))
+    ]
+    stream = b"".join(state + b"#" + body.encode() + b"!" for body in bodies)
+    assert _c_decisions(replay, stream, 4096) == _python_decisions(stream, 4096)
+
+
 class _Reading(_Still):
     """Hardware whose sensors read the given raw pressure and attitude."""
 
