@@ -15,7 +15,7 @@ from rovlink.client.url import parse_url
 from rovlink.conformance import CHECKS, SuiteOptions, run_checks, select_checks
 from rovlink.controller import Attitude, ControllerConfig, Hardware
 from rovlink.controller.controller import Controller
-from rovlink.protocol import Decoder, Frame, c_table
+from rovlink.protocol import COMMANDS, Argument, Decoder, Frame, Kind, Spec, c_table
 from tests.firmware.c_build import (
     CLANG,
     FIRMWARE,
@@ -32,6 +32,17 @@ def test_generated_command_table_is_up_to_date() -> None:
     source = (FIRMWARE / c_table.SOURCE_NAME).read_text(encoding="ascii")
     assert header == c_table.render_header(), "run: python -m rovlink.protocol.c_table firmware/c"
     assert source == c_table.render_source(), "run: python -m rovlink.protocol.c_table firmware/c"
+
+
+def test_the_c_table_refuses_a_range_its_16_bit_fields_cannot_hold(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    # Before: a range past 32767 was written into the int16_t fields as it was, and a compiler
+    # without -Werror truncated it without a word (40000 became -25536).
+    wide = Spec("wide", Kind.COMMAND, "a wide range", (Argument("count", 0, 40000),))
+    monkeypatch.setattr(c_table, "COMMANDS", (*COMMANDS, wide))
+    with pytest.raises(ValueError, match=r"wide: the range 0\.\.40000 of count does not fit"):
+        c_table.render_source()
 
 
 #: Every C source of the reference: the layer, the host robot, its stepped build, the fuzz run
