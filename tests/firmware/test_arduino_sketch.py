@@ -142,6 +142,59 @@ def test_the_claw_runs_for_one_pulse(sketch: Path) -> None:
     assert stopped.claw == (0, 0)
 
 
+#: millis() wraps to 0 after this many ms (49.7 days): it is 32 bits on the boards.
+_WRAP_MS = 2**32
+
+
+def _days_later(at_ms: int) -> list[str]:
+    """Script steps that bring the clock to ``at_ms`` as days of running would: in quarters,
+    with the loop run after each (the sketch's times are told apart by differences, which a
+    single jump of more than 2**31 ms would turn negative, as no real clock does)."""
+    return [step for i in (1, 2, 3) for step in (f"clock {at_ms * i // 4}", "run 20")] + [
+        f"clock {at_ms}"
+    ]
+
+
+def test_the_claw_stops_after_one_pulse_begun_50_ms_before_the_clock_wraps(
+    sketch: Path,
+) -> None:
+    # Before: the pulse's end was kept as a time, 0 meaning none; a pulse begun 50 ms before
+    # millis() wraps ends at 0, and the claw ran until the next claw command or stop.
+    running, stopped = _run(
+        sketch,
+        [
+            *_days_later(_WRAP_MS - 60),
+            send(b"#start!"),
+            "run 10",
+            send(b"#h+!"),  # (read at 2**32 - 50 ms)
+            "run 40",
+            "show",
+            "run 30",
+            "show",
+        ],
+    )
+    assert running.claw == (1, 0)
+    assert stopped.claw == (0, 0)
+
+
+def test_the_ticks_and_the_link_watchdog_go_on_across_the_clock_wrap(sketch: Path) -> None:
+    # A 32-bit clock wrapping (49.7 days on): the depth ticks go on, a link kept alive stays
+    # unlocked, and a link lost just before the wrap still stops the robot 2 s after.
+    alive, lost = _run(
+        sketch,
+        [
+            *_days_later(_WRAP_MS - 1000),
+            send(b"#start!#mvdirect.1!#mvs.+50!"),
+            *(step for _ in range(4) for step in ("run 500", send(b"#qd!"))),
+            "show",
+            "run 2100",
+            "show",
+        ],
+    )
+    assert alive.vertical_us == (1750, 1750)
+    assert lost.vertical_us == (NEUTRAL_US, NEUTRAL_US)
+
+
 def test_a_leak_present_at_power_on_is_latched(sketch: Path) -> None:
     # Before: the latch was set only by a falling edge; a probe already wet at power-on never
     # made one, and the sketch answered $q.l.0! (P14).

@@ -21,9 +21,11 @@ static const uint8_t PRESSURE_PIN = A0;
 static const uint8_t LEAK_PIN = 2;
 static const uint8_t CLAW_OPEN_PIN = 7;
 static const uint8_t CLAW_CLOSE_PIN = 8;
-static const unsigned long TICK_MS = 10;
-static const unsigned long WATCHDOG_MS = 2000; /* P17 */
-static const unsigned long CLAW_PULSE_MS = 50; /* P16 */
+/* Times in ms, as millis() gives them: 32 bits, wrapping after 49.7 days; compared by their
+ * difference, which the wrap does not upset. */
+static const uint32_t TICK_MS = 10;
+static const uint32_t WATCHDOG_MS = 2000; /* P17 */
+static const uint32_t CLAW_PULSE_MS = 50; /* P16 */
 
 static Servo vertical[2];
 static Servo horizontal[4];
@@ -40,8 +42,9 @@ static struct {
     int zero_raw, k;
     volatile bool leak_latched;
     uint32_t frames_seen;
-    unsigned long last_frame_ms, claw_until_ms;
-} robot = {0, false, 0, 0, 0, 255, 40, 30, 20, 0, 0, 0, 20, 200, false, 0, 0, 0};
+    uint32_t last_frame_ms, claw_until_ms;
+    bool claw_running; /* (a flag of its own: any time, 0 too, can end a pulse) */
+} robot = {0, false, 0, 0, 0, 255, 40, 30, 20, 0, 0, 0, 20, 200, false, 0, 0, 0, false};
 
 static void write_serial(void *, const char *data, size_t length) {
     Serial.write(reinterpret_cast<const uint8_t *>(data), length);
@@ -80,6 +83,7 @@ static void all_stop() {
     clear_set_points();
     for (Servo &esc : vertical) drive(esc, 0);
     for (Servo &esc : horizontal) drive(esc, 0);
+    robot.claw_running = false;
     digitalWrite(CLAW_OPEN_PIN, LOW);
     digitalWrite(CLAW_CLOSE_PIN, LOW);
 }
@@ -146,7 +150,8 @@ static void on_command(void *, rl_command_id command, const int32_t *values) {
     case RL_CMD_H_OPEN: case RL_CMD_H_CLOSE:
         digitalWrite(CLAW_OPEN_PIN, command == RL_CMD_H_OPEN ? HIGH : LOW);
         digitalWrite(CLAW_CLOSE_PIN, command == RL_CMD_H_CLOSE ? HIGH : LOW);
-        robot.claw_until_ms = millis() + CLAW_PULSE_MS;
+        robot.claw_until_ms = (uint32_t)millis() + CLAW_PULSE_MS;
+        robot.claw_running = true;
         rl_debug_number_flash(&link,
                               command == RL_CMD_H_OPEN ? RL_TEXT("claw opening for ")
                                                        : RL_TEXT("claw closing for "),
@@ -192,14 +197,14 @@ void setup() {
 }
 
 void loop() {
-    static unsigned long next_tick_ms = 0;
+    static uint32_t next_tick_ms = 0;
     uint8_t buffer[32];
     size_t count = 0;
     while (Serial.available() && count < sizeof buffer) buffer[count++] = (uint8_t)Serial.read();
     if (count) rl_feed(&link, buffer, count); /* replies go out before this returns (P19) */
 
-    unsigned long now = millis();
-    if ((long)(now - next_tick_ms) < 0) return;
+    uint32_t now = (uint32_t)millis();
+    if ((int32_t)(now - next_tick_ms) < 0) return;
     next_tick_ms = now + TICK_MS;
     check_leak_level();
     if (link.valid_frames != robot.frames_seen) {
@@ -209,8 +214,8 @@ void loop() {
         rl_lock_flash(&link, RL_TEXT("failsafe: no valid frame for 2 s: motors stopped and locked"));
         all_stop();
     }
-    if (robot.claw_until_ms && (long)(now - robot.claw_until_ms) >= 0) {
-        robot.claw_until_ms = 0;
+    if (robot.claw_running && (int32_t)(now - robot.claw_until_ms) >= 0) {
+        robot.claw_running = false;
         digitalWrite(CLAW_OPEN_PIN, LOW);
         digitalWrite(CLAW_CLOSE_PIN, LOW);
     }
