@@ -3,6 +3,7 @@ chip (2 KB of RAM, a 16-bit ``int``), with avr-gcc."""
 
 from __future__ import annotations
 
+import re
 import shutil
 import subprocess
 from pathlib import Path
@@ -14,13 +15,14 @@ from tests.firmware.c_build import FIRMWARE, LAYER, STRICT, WARNINGS
 AVR_GCC = shutil.which("avr-gcc")
 AVR_GXX = shutil.which("avr-g++")
 AVR_OBJDUMP = shutil.which("avr-objdump")
+AVR_NM = shutil.which("avr-nm")
 #: The Uno's chip, built for size as the Arduino IDE builds.
 TARGET = ("-mmcu=atmega328p", "-Os")
 SKETCH = FIRMWARE / "arduino" / "rovlink_controller" / "rovlink_controller.ino"
 HOST = Path(__file__).with_name("arduino_host")
 
 pytestmark = pytest.mark.skipif(
-    AVR_GCC is None or AVR_GXX is None or AVR_OBJDUMP is None,
+    AVR_GCC is None or AVR_GXX is None or AVR_OBJDUMP is None or AVR_NM is None,
     reason="avr-gcc is not installed (.ci/debian-packages: gcc-avr, avr-libc)",
 )
 
@@ -64,6 +66,31 @@ def test_the_layer_takes_no_ram_of_its_own_on_avr(tmp_path: Path, source: Path) 
     # flash now (RL_TEXT), like the command table. (Without a warning with a 16-bit int, too.)
     sections = _sections(_compile(AVR_GCC, source, tmp_path / "layer.o", *STRICT))
     assert _in_ram(sections) == {}
+
+
+#: What the layer may call: a few string functions, flash reads, its tables, and libgcc's integer
+#: multiplication and division (32-bit numbers on an 8-bit chip).
+_ALLOWED_CALLS = {"memcmp", "memcpy", "memcpy_P", "memset", "strlen"}
+_TABLES = re.compile(r"rl_\w+")
+_INTEGER_HELPERS = re.compile(r"__(u?divmod|u?mul)\w*[hsd]i\d")
+
+
+def test_the_layer_calls_no_malloc_stdio_or_float_on_avr(tmp_path: Path) -> None:
+    # As the README promises: no malloc, no stdio, no float (a float routine or printf would
+    # cost kilobytes of flash on an 8-bit chip).
+    assert AVR_NM is not None
+    object_file = _compile(AVR_GCC, LAYER[0], tmp_path / "layer.o", *STRICT)
+    result = subprocess.run(
+        [AVR_NM, "-u", str(object_file)], capture_output=True, text=True, check=True
+    )
+    called = {line.split()[-1] for line in result.stdout.splitlines() if line.strip()}
+    assert "memcpy_P" in called  # (the tables are read from flash)
+    others = {
+        name
+        for name in called - _ALLOWED_CALLS
+        if not _TABLES.fullmatch(name) and not _INTEGER_HELPERS.fullmatch(name)
+    }
+    assert others == set()
 
 
 def test_a_link_takes_79_bytes_of_ram_on_avr(tmp_path: Path) -> None:
