@@ -98,7 +98,7 @@ typedef struct {
     rl_argument argument;
 } rl_reply_spec;
 
-/* On AVR the tables live in flash (PROGMEM); read them with rl_rom_copy (rovlink_proto.c). */
+/* On AVR the tables live in flash (PROGMEM): read them with memcpy_P, as rovlink_proto.c does. */
 #if defined(__AVR__)
 #include <avr/pgmspace.h>
 #define RL_ROM PROGMEM

@@ -4,10 +4,11 @@
 #include <string.h>
 
 #define RL_BODY_BYTES (RL_MAX_FRAME_BYTES - 2)
-#define RL_REPLY_BYTES 24
 #define RL_DEBUG_BYTES 96
-
-static const char hex_digits[] = "0123456789ABCDEF";
+/* A debug line's text: the line less its CR LF. */
+#define RL_DEBUG_TEXT_BYTES (RL_DEBUG_BYTES - 2)
+/* The longest number format_number writes: "-2147483648". */
+#define RL_NUMBER_BYTES 11
 
 /* Copy a table entry out of flash (AVR) or plain memory. */
 static void rom_copy(void *out, const void *rom, size_t size) {
@@ -16,6 +17,21 @@ static void rom_copy(void *out, const void *rom, size_t size) {
 #else
     memcpy(out, rom, size);
 #endif
+}
+
+/* One character of a text in flash (RL_TEXT) or, if in_flash is 0, in RAM: on AVR the two are
+ * different address spaces. */
+static char text_char(const char *text, size_t index, int in_flash) {
+#if defined(__AVR__)
+    if (in_flash) return (char)pgm_read_byte(text + index);
+#else
+    (void)in_flash;
+#endif
+    return text[index];
+}
+
+static char hex_digit(unsigned value) {
+    return (char)(value < 10u ? '0' + value : 'A' + (value - 10u));
 }
 
 uint8_t rl_checksum(rl_algorithm algorithm, const char *body, size_t length) {
@@ -31,7 +47,9 @@ uint8_t rl_checksum(rl_algorithm algorithm, const char *body, size_t length) {
             int bit;
             value ^= byte;
             for (bit = 0; bit < 8; bit++) {
-                value = (value & 0x80u) ? (uint8_t)((value << 1) ^ 0x07u) : (uint8_t)(value << 1);
+                uint8_t carry = (uint8_t)(value & 0x80u);
+                value = (uint8_t)(value << 1);
+                if (carry) value ^= 0x07u;
             }
         }
     }
@@ -49,42 +67,59 @@ static void write_bytes(rl_link *link, const char *data, size_t length) {
     link->app->write(link->context, data, length);
 }
 
-void rl_debug(rl_link *link, const char *text) {
-    char line[RL_DEBUG_BYTES];
-    size_t length = 0;
-    static const char prefix[] = "debug: ";
-    if (!link->debug_on) return;
-    memcpy(line, prefix, sizeof prefix - 1);
-    length = sizeof prefix - 1;
-    while (*text && length < sizeof line - 2) {
-        char c = *text++;
-        /* Nothing in a debug line may look like a frame (P5). */
-        line[length++] = (c == '#' || c == '$' || c == '!' || c < 0x20 || c > 0x7e) ? '?' : c;
+/* A debug line as it is built: one buffer on the stack, whatever goes into it. */
+typedef struct {
+    char bytes[RL_DEBUG_BYTES];
+    size_t length;
+} debug_line;
+
+/* Append a text up to a line length of limit. Nothing in a debug line may look like a frame
+ * (P5): '#', '$', '!' and bytes that are not printable become '?'. */
+static void line_add(debug_line *line, const char *text, int in_flash, size_t limit) {
+    size_t i;
+    char c;
+    for (i = 0; line->length < limit && (c = text_char(text, i, in_flash)) != '\0'; i++) {
+        line->bytes[line->length++] =
+            (c == '#' || c == '$' || c == '!' || c < 0x20 || c > 0x7e) ? '?' : c;
     }
-    line[length++] = '\r';
-    line[length++] = '\n';
-    write_bytes(link, line, length);
 }
 
-/* "dropped <body>: why" as a debug line. */
-static void drop(rl_link *link, const char *why) {
-    char text[RL_DEBUG_BYTES - 10];
-    size_t length = 0, body, i;
+static void line_start(debug_line *line) {
+    line->length = 0;
+    line_add(line, RL_TEXT("debug: "), 1, RL_DEBUG_TEXT_BYTES);
+}
+
+static void line_end(rl_link *link, debug_line *line) {
+    line->bytes[line->length++] = '\r';
+    line->bytes[line->length++] = '\n';
+    write_bytes(link, line->bytes, line->length);
+}
+
+static void debug_text(rl_link *link, const char *text, int in_flash) {
+    debug_line line;
     if (!link->debug_on) return;
-    memcpy(text, "dropped <", 9);
-    length = 9;
+    line_start(&line);
+    line_add(&line, text, in_flash, RL_DEBUG_TEXT_BYTES);
+    line_end(link, &line);
+}
+
+void rl_debug(rl_link *link, const char *text) { debug_text(link, text, 0); }
+
+void rl_debug_flash(rl_link *link, const char *text) { debug_text(link, text, 1); }
+
+/* "dropped <body>: why" as a debug line; why is in flash (RL_TEXT). */
+static void drop(rl_link *link, const char *why) {
+    debug_line line;
+    size_t body, i;
+    if (!link->debug_on) return;
+    line_start(&line);
+    line_add(&line, RL_TEXT("dropped <"), 1, RL_DEBUG_TEXT_BYTES);
     body = link->length < 24 ? link->length : 24;
-    for (i = 0; i < body; i++) text[length++] = link->buffer[i];
-    if (body < link->length) {
-        memcpy(text + length, "...", 3);
-        length += 3;
-    }
-    text[length++] = '>';
-    text[length++] = ':';
-    text[length++] = ' ';
-    for (i = 0; why[i] && length < sizeof text - 1; i++) text[length++] = why[i];
-    text[length] = '\0';
-    rl_debug(link, text);
+    for (i = 0; i < body; i++) line.bytes[line.length++] = link->buffer[i]; /* 0x21-0x7E */
+    if (body < link->length) line_add(&line, RL_TEXT("..."), 1, RL_DEBUG_TEXT_BYTES);
+    line_add(&line, RL_TEXT(">: "), 1, RL_DEBUG_TEXT_BYTES);
+    line_add(&line, why, 1, RL_DEBUG_TEXT_BYTES);
+    line_end(link, &line);
 }
 
 void rl_init(rl_link *link, const rl_app *app, void *context, rl_algorithm algorithm) {
@@ -97,13 +132,18 @@ void rl_init(rl_link *link, const rl_app *app, void *context, rl_algorithm algor
 
 void rl_lock(rl_link *link, const char *why) {
     link->locked = 1;
-    rl_debug(link, why);
+    debug_text(link, why, 0);
 }
 
-/* A decimal number at out (at most 12 bytes): no leading zeros; with_sign: always a sign, zero as
- * +0 (P6, P15), else a '-' on negative values only. Returns its length. */
+void rl_lock_flash(rl_link *link, const char *why) {
+    link->locked = 1;
+    debug_text(link, why, 1);
+}
+
+/* A decimal number at out (at most RL_NUMBER_BYTES): no leading zeros; with_sign: always a
+ * sign, zero as +0 (P6, P15), else a '-' on negative values only. Returns its length. */
 static size_t format_number(char *out, int32_t value, int with_sign) {
-    char digits[12];
+    char digits[10];
     int count = 0;
     size_t length = 0;
     uint32_t magnitude = value < 0 ? (uint32_t)(-(value + 1)) + 1u : (uint32_t)value;
@@ -120,16 +160,25 @@ static size_t format_number(char *out, int32_t value, int with_sign) {
     return length;
 }
 
+static void debug_number(rl_link *link, const char *before, int32_t value, int with_sign,
+                         const char *after, int in_flash) {
+    debug_line line;
+    if (!link->debug_on) return;
+    line_start(&line);
+    line_add(&line, before, in_flash, RL_DEBUG_TEXT_BYTES - RL_NUMBER_BYTES); /* room for it */
+    line.length += format_number(line.bytes + line.length, value, with_sign);
+    line_add(&line, after, in_flash, RL_DEBUG_TEXT_BYTES);
+    line_end(link, &line);
+}
+
 void rl_debug_number(rl_link *link, const char *before, int32_t value, int with_sign,
                      const char *after) {
-    char text[RL_DEBUG_BYTES - 10];
-    size_t length = 0, i;
-    if (!link->debug_on) return;
-    for (i = 0; before[i] && length < sizeof text - 13; i++) text[length++] = before[i];
-    length += format_number(text + length, value, with_sign);
-    for (i = 0; after[i] && length < sizeof text - 1; i++) text[length++] = after[i];
-    text[length] = '\0';
-    rl_debug(link, text);
+    debug_number(link, before, value, with_sign, after, 0);
+}
+
+void rl_debug_number_flash(rl_link *link, const char *before, int32_t value, int with_sign,
+                           const char *after) {
+    debug_number(link, before, value, with_sign, after, 1);
 }
 
 size_t rl_format_reply(const rl_link *link, rl_reply_id reply, int32_t value, char *out) {
@@ -155,8 +204,8 @@ size_t rl_format_reply(const rl_link *link, rl_reply_id reply, int32_t value, ch
     if (link->checksum_on) {
         uint8_t sum = rl_checksum((rl_algorithm)link->algorithm, out + body_start,
                                   length - body_start);
-        out[length++] = hex_digits[sum >> 4];
-        out[length++] = hex_digits[sum & 0x0f];
+        out[length++] = hex_digit(sum >> 4);
+        out[length++] = hex_digit(sum & 0x0fu);
     }
     out[length++] = '!';
     return length;
@@ -209,8 +258,14 @@ static void reply(rl_link *link, const rl_command_spec *spec) {
     }
 }
 
-static const char *const algorithm_lines[] = {"checksum mode on (crc8)", "checksum mode on (xor)",
-                                               "checksum mode on (sum8)"};
+/* (A function, not a table of pointers: on AVR the texts stay in flash.) */
+static const char *checksum_on_line(uint8_t algorithm) {
+    switch (algorithm) {
+    case RL_XOR: return RL_TEXT("checksum mode on (xor)");
+    case RL_SUM8: return RL_TEXT("checksum mode on (sum8)");
+    default: return RL_TEXT("checksum mode on (crc8)");
+    }
+}
 
 /* Switch the layer's own state for a setting and write its debug line (P5); 0 if the command
  * goes no further: a mode frame, or a start or mvdirect that changes nothing (the app is told
@@ -221,40 +276,41 @@ static int apply_setting(rl_link *link, const rl_command_spec *spec, const int32
     switch (spec->setting) {
     case RL_SETTING_CHECKSUM:
         link->checksum_on = on; /* from the next frame on, both directions (P3) */
-        rl_debug(link, on ? algorithm_lines[link->algorithm] : "checksum mode off");
+        rl_debug_flash(link, on ? checksum_on_line(link->algorithm) : RL_TEXT("checksum mode off"));
         return 0;
     case RL_SETTING_DEBUG:
         if (on == link->debug_on) return 0;
-        if (!on) rl_debug(link, "debug output off");
+        if (!on) rl_debug_flash(link, RL_TEXT("debug output off"));
         link->debug_on = on;
-        if (on) rl_debug(link, "debug output on");
+        if (on) rl_debug_flash(link, RL_TEXT("debug output on"));
         return 0;
     case RL_SETTING_LOCKED:
         if (on) {
             link->locked = 1;
-            rl_debug(link, "stop command: motors stopped and locked");
+            rl_debug_flash(link, RL_TEXT("stop command: motors stopped and locked"));
             return 1;
         }
         if (!link->locked) {
-            rl_debug(link, "start: motors already unlocked, nothing changed");
+            rl_debug_flash(link, RL_TEXT("start: motors already unlocked, nothing changed"));
             return 0;
         }
         link->locked = 0;
-        rl_debug(link, "motors unlocked");
+        rl_debug_flash(link, RL_TEXT("motors unlocked"));
         return 1;
     case RL_SETTING_DIRECT_MODE:
         if (on == link->direct_mode) {
-            rl_debug(link, on ? "vertical mode already direct, nothing changed"
-                              : "vertical mode already depth, nothing changed");
+            rl_debug_flash(link, on ? RL_TEXT("vertical mode already direct, nothing changed")
+                                    : RL_TEXT("vertical mode already depth, nothing changed"));
             return 0;
         }
         link->direct_mode = on;
         if (!on && !link->locked) { /* the app holds the current depth (P9) */
-            rl_debug_number(link, "vertical mode depth, holding ",
-                            link->app->reply_value(link->context, RL_REPLY_QD), 0, " cm");
+            rl_debug_number_flash(link, RL_TEXT("vertical mode depth, holding "),
+                                  link->app->reply_value(link->context, RL_REPLY_QD), 0,
+                                  RL_TEXT(" cm"));
         } else {
-            rl_debug(link, on ? "vertical mode direct, vertical thrust 0"
-                              : "vertical mode depth, vertical thrust 0");
+            rl_debug_flash(link, on ? RL_TEXT("vertical mode direct, vertical thrust 0")
+                                    : RL_TEXT("vertical mode depth, vertical thrust 0"));
         }
         return 1;
     default:
@@ -269,24 +325,24 @@ static int parse_arguments(const char *text, size_t length, const rl_command_spe
     for (i = 0; i <= length; i++) {
         if (i < length && text[i] != '.') continue;
         if (count == spec->argument_count) {
-            *why = "too many arguments";
+            *why = RL_TEXT("too many arguments");
             return 0;
         }
         if (!parse_number(text + start, i - start, spec->arguments[count].is_signed,
                           &values[count])) {
-            *why = "not a number";
+            *why = RL_TEXT("not a number");
             return 0;
         }
         if (values[count] < spec->arguments[count].minimum ||
             values[count] > spec->arguments[count].maximum) {
-            *why = "out of range"; /* dropped, never clamped (P6) */
+            *why = RL_TEXT("out of range"); /* dropped, never clamped (P6) */
             return 0;
         }
         count++;
         start = i + 1;
     }
     if (count != spec->argument_count) {
-        *why = "too few arguments";
+        *why = RL_TEXT("too few arguments");
         return 0;
     }
     return 1;
@@ -299,10 +355,10 @@ static void handle_frame(rl_link *link) {
     int found;
     rl_command_spec spec;
     int32_t values[RL_MAX_ARGUMENTS] = {0};
-    const char *why = "";
+    const char *why = RL_TEXT("");
 
     if (link->start != '#') {
-        drop(link, "a reply, not a command");
+        drop(link, RL_TEXT("a reply, not a command"));
         return;
     }
     found = find_command(body, length, &name_length);
@@ -317,7 +373,7 @@ static void handle_frame(rl_link *link) {
                                (spec.flags & RL_HONOURED_BARE))) {
         int high, low;
         if (length < 3) {
-            drop(link, "missing or wrong checksum");
+            drop(link, RL_TEXT("missing or wrong checksum"));
             return;
         }
         high = hex_value(body[length - 2]);
@@ -325,7 +381,7 @@ static void handle_frame(rl_link *link) {
         if (high < 0 || low < 0 ||
             rl_checksum((rl_algorithm)link->algorithm, body, length - 2) !=
                 (uint8_t)(high * 16 + low)) {
-            drop(link, "missing or wrong checksum");
+            drop(link, RL_TEXT("missing or wrong checksum"));
             return;
         }
         length -= 2;
@@ -333,20 +389,20 @@ static void handle_frame(rl_link *link) {
         if (found >= 0) rom_copy(&spec, &rl_command_specs[found], sizeof spec);
     }
     if (found < 0) {
-        drop(link, "unknown command");
+        drop(link, RL_TEXT("unknown command"));
         return;
     }
     if (spec.flags & RL_EXACT_MATCH) {
-        drop(link, "crcon and crcoff never carry a checksum");
+        drop(link, RL_TEXT("crcon and crcoff never carry a checksum"));
         return;
     }
     if (spec.argument_count == 0 && name_length != length) {
-        drop(link, "takes no argument");
+        drop(link, RL_TEXT("takes no argument"));
         return;
     }
     if (spec.argument_count > 0) {
         if (name_length == length || body[name_length] != '.') {
-            drop(link, "needs arguments");
+            drop(link, RL_TEXT("needs arguments"));
             return;
         }
         if (!parse_arguments(body + name_length + 1, length - name_length - 1, &spec, values,
@@ -357,12 +413,12 @@ static void handle_frame(rl_link *link) {
     }
     link->valid_frames++; /* any valid command keeps the link alive (P17), even one dropped */
     if ((spec.flags & RL_MOTION) && link->locked) {
-        drop(link, "motors are locked; send start first");
+        drop(link, RL_TEXT("motors are locked; send start first"));
         return;
     }
     if (((spec.flags & RL_NEEDS_DIRECT) && !link->direct_mode) ||
         ((spec.flags & RL_NEEDS_DEPTH) && link->direct_mode)) {
-        drop(link, "not in this vertical mode");
+        drop(link, RL_TEXT("not in this vertical mode"));
         return;
     }
     if (spec.reply_count) {
@@ -379,7 +435,9 @@ void rl_feed(rl_link *link, const uint8_t *data, size_t length) {
     for (i = 0; i < length; i++) {
         uint8_t byte = data[i];
         if (byte == '#' || byte == '$') {
-            if (link->in_frame) drop(link, "a new frame started before its end");
+            if (link->in_frame && !link->too_long) {
+                drop(link, RL_TEXT("a new frame started before its end"));
+            }
             link->in_frame = 1;
             link->too_long = 0;
             link->length = 0;
@@ -388,19 +446,17 @@ void rl_feed(rl_link *link, const uint8_t *data, size_t length) {
             /* between frames: line breaks, spaces, noise (P1) */
         } else if (byte == '!') {
             link->in_frame = 0;
-            if (link->too_long) {
-                link->length = RL_BODY_BYTES;
-                drop(link, "longer than 64 bytes");
-            } else {
-                handle_frame(link);
-            }
+            if (!link->too_long) handle_frame(link);
         } else if (byte < 0x21 || byte > 0x7e) {
             link->in_frame = 0;
-            drop(link, "a byte outside 0x21-0x7E");
+            if (!link->too_long) drop(link, RL_TEXT("a byte outside 0x21-0x7E"));
+        } else if (link->too_long) {
+            /* the rest of a frame dropped already: skipped up to its end */
         } else if (link->length < RL_BODY_BYTES) {
             link->buffer[link->length++] = (char)byte;
-        } else {
+        } else { /* dropped as soon as it is too long, whether or not it ever ends */
             link->too_long = 1;
+            drop(link, RL_TEXT("longer than 64 bytes"));
         }
     }
 }

@@ -1,9 +1,10 @@
 /* rovlink C99 reference: the controller's protocol layer (PROTOCOL.md P1-P7, P9, P12, P15).
  *
  * Bytes in (rl_feed), commands out (the app's callbacks), replies and debug lines out (the app's
- * write callback). No malloc, no stdio, fixed buffers: one rl_link is about 80 bytes of RAM and
- * the command table lives in flash on AVR. The names, ranges and flags of every command come
- * from rovlink_commands.{h,c}, generated from the Python command table.
+ * write callback). No malloc, no stdio, no float, fixed buffers: one rl_link is 79 bytes of RAM
+ * on AVR and the layer has no other RAM of its own; its command table and texts live in flash
+ * on AVR. The names, ranges and flags of every command come from rovlink_commands.{h,c},
+ * generated from the Python command table.
  *
  *   rl_link link;
  *   rl_init(&link, &app, &robot, RL_CRC8);
@@ -26,6 +27,14 @@ extern "C" {
 #endif
 
 typedef enum { RL_CRC8, RL_XOR, RL_SUM8 } rl_algorithm;
+
+/* A string literal kept in flash on AVR (PSTR), where a plain literal takes RAM; itself
+ * elsewhere. For the *_flash functions: rl_debug_flash(&link, RL_TEXT("leak latch reset")). */
+#if defined(__AVR__)
+#define RL_TEXT(literal) PSTR(literal)
+#else
+#define RL_TEXT(literal) (literal)
+#endif
 
 typedef struct {
     /* Write bytes to the serial line (replies, debug lines). */
@@ -50,7 +59,7 @@ typedef struct {
     uint8_t locked;        /* P7: locked after reset */
     uint8_t direct_mode;   /* P9: depth mode after reset */
     uint8_t in_frame;      /* inside a frame: start seen, end not yet */
-    uint8_t too_long;      /* the frame outgrew the buffer: it is dropped at its end */
+    uint8_t too_long;      /* the frame outgrew the buffer: dropped, its rest skipped */
     uint8_t start;         /* '#' or '$' */
     uint8_t length;        /* bytes of body (and checksum) in buffer */
     char buffer[RL_MAX_FRAME_BYTES - 2];
@@ -61,17 +70,28 @@ typedef struct {
 void rl_init(rl_link *link, const rl_app *app, void *context, rl_algorithm algorithm);
 /* Handle received bytes, any chunking. Replies are written before this returns (P19). */
 void rl_feed(rl_link *link, const uint8_t *data, size_t length);
-/* Lock the motors as #stop! does (for the app's failsafes); the app zeroes its outputs. */
+/* Lock the motors as #stop! does (for the app's failsafes) and write why as a debug line; the
+ * app zeroes its outputs. */
 void rl_lock(rl_link *link, const char *why);
-/* Write a debug line if debug is on; '#', '$' and '!' become '?' (P5). */
+/* Write a debug line if debug is on; '#', '$', '!' and bytes that are not printable become '?'
+ * (P5); cut at 87 characters. */
 void rl_debug(rl_link *link, const char *text);
 /* The debug line before, value, after (a sign on positive values too if with_sign), without
  * stdio: rl_debug_number(link, "max PWM ", 200, 0, "") writes "debug: max PWM 200". */
 void rl_debug_number(rl_link *link, const char *before, int32_t value, int with_sign,
                      const char *after);
+/* The same with every text in flash (RL_TEXT) on AVR, saving their RAM; elsewhere the same as
+ * rl_lock, rl_debug and rl_debug_number. */
+void rl_lock_flash(rl_link *link, const char *why);
+void rl_debug_flash(rl_link *link, const char *text);
+void rl_debug_number_flash(rl_link *link, const char *before, int32_t value, int with_sign,
+                           const char *after);
 /* The checksum of body[0..length) as the algorithm defines it. */
 uint8_t rl_checksum(rl_algorithm algorithm, const char *body, size_t length);
-/* Format the reply frame for one value into out (at least 24 bytes); returns its length. The
+/* The longest reply frame rl_format_reply writes, with room to spare. */
+#define RL_REPLY_BYTES 24
+
+/* Format the reply frame for one value into out (RL_REPLY_BYTES); returns its length. The
  * value is written as the protocol writes it: a heading modulo 360, anything else clamped to its
  * reply's range. */
 size_t rl_format_reply(const rl_link *link, rl_reply_id reply, int32_t value, char *out);

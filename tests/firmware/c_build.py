@@ -13,8 +13,13 @@ import pytest
 FIRMWARE = Path(__file__).resolve().parents[2] / "firmware" / "c"
 GCC = shutil.which("gcc")
 GXX = shutil.which("g++")
-#: The reference is C99 and builds without a warning.
-STRICT = ("-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic")
+CLANG = shutil.which("clang")
+#: The reference is C99 and builds without a warning, implicit conversions and shadowed names
+#: included (an int of 16 bits on the small targets makes those matter).
+WARNINGS = ("-Wall", "-Wextra", "-Wpedantic", "-Wconversion", "-Wsign-conversion", "-Wshadow")
+STRICT = ("-std=c99", *WARNINGS, "-Werror")
+#: AddressSanitizer and UBSan, the first report fatal.
+SANITIZE = ("-g", "-O1", "-fsanitize=address,undefined", "-fno-sanitize-recover=all")
 #: The protocol layer (generated command table included).
 LAYER = (FIRMWARE / "rovlink_proto.c", FIRMWARE / "rovlink_commands.c")
 

@@ -19,7 +19,17 @@ import pytest
 from rovlink.client.links import open_link
 from rovlink.client.url import parse_url
 from rovlink.conformance import SuiteOptions, run_checks
-from tests.firmware.c_build import FIRMWARE, GCC, GXX, LAYER, build, run_script, send
+from tests.firmware.c_build import (
+    FIRMWARE,
+    GCC,
+    GXX,
+    LAYER,
+    STRICT,
+    WARNINGS,
+    build,
+    run_script,
+    send,
+)
 
 SKETCH = FIRMWARE / "arduino" / "rovlink_controller"
 HOST = Path(__file__).resolve().parent / "arduino_host"
@@ -52,10 +62,10 @@ def sketch(tmp_path_factory: pytest.TempPathFactory) -> Path:
     objects = []
     for source in LAYER:  # (C, compiled apart: the sketch's own files are C++)
         output = build_dir / source.with_suffix(".o").name
-        command = [str(GCC), "-std=c99", "-c", f"-I{FIRMWARE}", "-o", str(output), str(source)]
+        command = [str(GCC), *STRICT, "-c", f"-I{FIRMWARE}", "-o", str(output), str(source)]
         subprocess.run(command, check=True, timeout=120)
         objects.append(output)
-    flags = ("-std=c++11", "-Wall", "-Wextra", "-Werror", f"-I{HOST}", f"-I{SKETCH}")
+    flags = ("-std=c++11", *WARNINGS, "-Werror", f"-I{HOST}", f"-I{SKETCH}")
     sources = [HOST / "sketch_host.cpp", HOST / "pty_host.cpp", *objects]
     return build(build_dir / "sketch", sources, *flags, compiler=GXX)
 
@@ -130,6 +140,59 @@ def test_the_claw_runs_for_one_pulse(sketch: Path) -> None:
     )
     assert running.claw == (0, 1)
     assert stopped.claw == (0, 0)
+
+
+#: millis() wraps to 0 after this many ms (49.7 days): it is 32 bits on the boards.
+_WRAP_MS = 2**32
+
+
+def _days_later(at_ms: int) -> list[str]:
+    """Script steps that bring the clock to ``at_ms`` as days of running would: in quarters,
+    with the loop run after each (the sketch's times are told apart by differences, which a
+    single jump of more than 2**31 ms would turn negative, as no real clock does)."""
+    return [step for i in (1, 2, 3) for step in (f"clock {at_ms * i // 4}", "run 20")] + [
+        f"clock {at_ms}"
+    ]
+
+
+def test_the_claw_stops_after_one_pulse_begun_50_ms_before_the_clock_wraps(
+    sketch: Path,
+) -> None:
+    # Before: the pulse's end was kept as a time, 0 meaning none; a pulse begun 50 ms before
+    # millis() wraps ends at 0, and the claw ran until the next claw command or stop.
+    running, stopped = _run(
+        sketch,
+        [
+            *_days_later(_WRAP_MS - 60),
+            send(b"#start!"),
+            "run 10",
+            send(b"#h+!"),  # (read at 2**32 - 50 ms)
+            "run 40",
+            "show",
+            "run 30",
+            "show",
+        ],
+    )
+    assert running.claw == (1, 0)
+    assert stopped.claw == (0, 0)
+
+
+def test_the_ticks_and_the_link_watchdog_go_on_across_the_clock_wrap(sketch: Path) -> None:
+    # A 32-bit clock wrapping (49.7 days on): the depth ticks go on, a link kept alive stays
+    # unlocked, and a link lost just before the wrap still stops the robot 2 s after.
+    alive, lost = _run(
+        sketch,
+        [
+            *_days_later(_WRAP_MS - 1000),
+            send(b"#start!#mvdirect.1!#mvs.+50!"),
+            *(step for _ in range(4) for step in ("run 500", send(b"#qd!"))),
+            "show",
+            "run 2100",
+            "show",
+        ],
+    )
+    assert alive.vertical_us == (1750, 1750)
+    assert lost.vertical_us == (NEUTRAL_US, NEUTRAL_US)
 
 
 def test_a_leak_present_at_power_on_is_latched(sketch: Path) -> None:

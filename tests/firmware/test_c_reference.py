@@ -15,10 +15,16 @@ from rovlink.client.url import parse_url
 from rovlink.conformance import CHECKS, SuiteOptions, run_checks, select_checks
 from rovlink.controller import Attitude, ControllerConfig, Hardware
 from rovlink.controller.controller import Controller
-from rovlink.protocol import Decoder, Frame, c_table
-from tests.firmware.c_build import FIRMWARE, GCC, LAYER, STRICT, build, needs_gcc
-
-SANITIZE = ["-g", "-O1", "-fsanitize=address,undefined", "-fno-sanitize-recover=all"]
+from rovlink.protocol import COMMANDS, Argument, Decoder, Frame, Kind, Spec, c_table
+from tests.firmware.c_build import (
+    CLANG,
+    FIRMWARE,
+    GCC,
+    LAYER,
+    SANITIZE,
+    STRICT,
+    build,
+)
 
 
 def test_generated_command_table_is_up_to_date() -> None:
@@ -26,6 +32,46 @@ def test_generated_command_table_is_up_to_date() -> None:
     source = (FIRMWARE / c_table.SOURCE_NAME).read_text(encoding="ascii")
     assert header == c_table.render_header(), "run: python -m rovlink.protocol.c_table firmware/c"
     assert source == c_table.render_source(), "run: python -m rovlink.protocol.c_table firmware/c"
+
+
+def test_the_c_table_refuses_a_range_its_16_bit_fields_cannot_hold(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    # Before: a range past 32767 was written into the int16_t fields as it was, and a compiler
+    # without -Werror truncated it without a word (40000 became -25536).
+    wide = Spec("wide", Kind.COMMAND, "a wide range", (Argument("count", 0, 40000),))
+    monkeypatch.setattr(c_table, "COMMANDS", (*COMMANDS, wide))
+    with pytest.raises(ValueError, match=r"wide: the range 0\.\.40000 of count does not fit"):
+        c_table.render_source()
+
+
+#: Every C source of the reference: the layer, the host robot, its stepped build, the fuzz run
+#: and the replay of the differential tests.
+_SOURCES = (
+    *LAYER,
+    FIRMWARE / "host" / "host_robot.c",
+    FIRMWARE / "host" / "fuzz_parser.c",
+    FIRMWARE / "host" / "replay.c",
+    Path(__file__).with_name("host_robot_steps.c"),
+)
+_COMPILERS = {"gcc": GCC, "clang": CLANG}
+
+
+@pytest.mark.parametrize("compiler", sorted(_COMPILERS))
+@pytest.mark.parametrize("flags", [("-O2",), SANITIZE], ids=["optimised", "sanitizers"])
+def test_every_c_source_compiles_without_a_warning(
+    tmp_path: Path, compiler: str, flags: Sequence[str]
+) -> None:
+    # Before: -Wconversion and -Wsign-conversion warned in the CRC-8 (clang, and gcc in the
+    # sanitizers' build). Compiled only, each source to its object file.
+    executable = _COMPILERS[compiler]
+    if executable is None:
+        pytest.skip(f"{compiler} is not installed (.ci/debian-packages)")
+    command = [executable, *STRICT, *flags, f"-I{FIRMWARE}", "-c", *map(str, _SOURCES)]
+    result = subprocess.run(
+        command, cwd=tmp_path, capture_output=True, text=True, check=False, timeout=120
+    )
+    assert result.returncode == 0, result.stderr
 
 
 def _build(output: Path, main: str, *flags: str) -> Path:
@@ -88,18 +134,21 @@ def test_rovlink_check_passes_against_the_sanitized_build(sanitized_binary: Path
         assert [(r.name, r.message) for r in report.failures] == []
 
 
-@needs_gcc
 @pytest.mark.integration
-def test_fuzz_run_of_the_parser_under_sanitizers(tmp_path: Path) -> None:
-    binary = _build(tmp_path / "fuzz", str(FIRMWARE / "host" / "fuzz_parser.c"), *SANITIZE)
-    for seed in ("1", "2"):
-        result = subprocess.run(
-            [str(binary), "100000", seed], capture_output=True, text=True, check=False, timeout=300
-        )
-        assert result.returncode == 0, result.stderr
-        assert ": ok" in result.stdout
-        commands = int(result.stdout.split(" commands")[0].rsplit(" ", 1)[1])
-        assert commands > 1000  # the streams reach the dispatch, not only the parser
+@pytest.mark.parametrize(("compiler", "seed"), [("gcc", "1"), ("clang", "2")])
+def test_fuzz_run_of_the_parser_under_sanitizers(tmp_path: Path, compiler: str, seed: str) -> None:
+    executable = _COMPILERS[compiler]
+    if executable is None:
+        pytest.skip(f"{compiler} is not installed (.ci/debian-packages)")
+    source = FIRMWARE / "host" / "fuzz_parser.c"
+    binary = build(tmp_path / "fuzz", [source, *LAYER], *STRICT, *SANITIZE, compiler=executable)
+    result = subprocess.run(
+        [str(binary), "100000", seed], capture_output=True, text=True, check=False, timeout=300
+    )
+    assert result.returncode == 0, result.stderr
+    assert ": ok" in result.stdout
+    commands = int(result.stdout.split(" commands")[0].rsplit(" ", 1)[1])
+    assert commands > 1000  # the streams reach the dispatch, not only the parser
 
 
 #: Every kind of setting change in debug mode, and the repeats that change nothing (P5, P11).

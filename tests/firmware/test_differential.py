@@ -224,10 +224,13 @@ _LAYER_LINES = (
     "vertical mode",
     "start:",
 )
-#: Values at and past the range edges, signs, leading zeros, empty and malformed.
+#: Values at and past the range edges, signs, leading zeros, empty and malformed; and numbers
+#: past 16 and 32 bits, which a parser that wraps would take for small ones (65541 for 5).
 _VALUES: tuple[str, ...] = (
     *("0", "1", "00", "007", "-0", "+0", "+5", "-1", "99", "100", "+100", "-100", "101"),
     *("-101", "255", "256", "360", "361", "1024", "1025", "9999", "10000", "", "+", "x"),
+    *("32768", "65541", "2147483648", "4294967301", "-2147483649", "9" * 30, "0" * 30 + "7"),
+    *("+-5", "--5", "5+", "1e3", "0x10"),
 )
 #: Every spelling but the calibration's: replay.c's depth is fixed, the Python controller's
 #: follows sdz and sdk (the decisions on those are compared above).
@@ -241,10 +244,15 @@ _NAMES: tuple[str, ...] = (*(name for _, name in _SPELLINGS), *("Qd", "q", "mv",
 
 
 def _argument_texts(argument: Argument) -> tuple[str, ...]:
-    """A value at each edge of the argument's range, inside and out, as a host might write it."""
+    """A value at each edge of the argument's range, inside and out, as a host might write it;
+    and the edges past 16 and 32 bits (a parser that wraps takes 65536 + low for low)."""
     low, high = argument.minimum, argument.maximum
+    texts: tuple[str, ...]
     texts = (str(low), str(high), str((low + high) // 2), f"0{high}", str(high + 1), str(low - 1))
-    return (*texts, f"{high:+d}", f"{low:+d}", "+0", "-0") if argument.signed else texts
+    texts += (str(low + 2**16), str(low + 2**32), str(2**31), "0" * 20 + str(high))
+    if argument.signed:
+        texts += (f"{high:+d}", f"{low:+d}", "+0", "-0", str(-(2**31) - 1), str(low - 2**32))
+    return texts
 
 
 def _body_of(name: str, values: tuple[str, ...]) -> str:
@@ -265,14 +273,18 @@ _LOOSE_BODIES = st.builds(
     st.lists(st.sampled_from(_VALUES), max_size=3),
 )
 _BODIES = st.one_of(_TABLE_BODIES, _TABLE_BODIES, _LOOSE_BODIES)
-#: Noise, mode frames, a reply, the longest frame and one a byte too long.
+#: Noise, mode frames, a reply, the longest frame and one a byte too long; one of 257 bytes (a
+#: length kept in a byte wraps past 255) and one too long that does not end.
 _NOISE: tuple[bytes, ...] = (
     *(b"\r\n", b" ", b"\x00", b"\x7f", b"\xff", b"#", b"$", b"!", b"$qd.5!", b"#crcon!"),
     *(b"#crcoff!", b"#debug1!", b"#debug0!", b"#start!", b"#stop!", b"#crcon!", b"#crcoff!"),
     *(b"#" + b"1" * 62 + b"!", b"#" + b"1" * 63 + b"!"),
+    *(b"#" + b"1" * 255 + b"!", b"#mvs.+" + b"0" * 70),
 )
-#: A frame's checksum: none, right, right in lowercase, wrong, one digit only.
+#: A frame's checksum: none, right, right in lowercase, wrong, one digit only, a digit that is
+#: no hex digit, a third digit.
 _CHECKSUMS = ("none", "none", "none", "right", "right", "right", "lower", "wrong", "short")
+_BAD_CHECKSUMS = ("nonhex", "extra")
 
 
 def _one_piece(
@@ -286,7 +298,7 @@ def _one_piece(
 _STREAM_PIECES: st.SearchStrategy[tuple[str, str] | bytes] = st.builds(
     _one_piece,
     st.integers(0, 5),
-    st.tuples(_BODIES, st.sampled_from(_CHECKSUMS)),
+    st.tuples(_BODIES, st.sampled_from(_CHECKSUMS + _BAD_CHECKSUMS)),
     st.sampled_from(_NOISE),
     st.binary(min_size=1, max_size=4),
 )
@@ -303,6 +315,10 @@ def _piece_bytes(piece: tuple[str, str] | bytes, algorithm: str) -> bytes:
         digits = b"%02X" % (int(digits, 16) ^ 0x10)
     elif checksum == "short":
         digits = digits[:1]
+    elif checksum == "nonhex":
+        digits = b"G" + digits[1:]
+    elif checksum == "extra":
+        digits += b"0"
     elif checksum == "none":
         digits = b""
     return b"#" + body + digits + b"!"
@@ -399,7 +415,7 @@ def test_every_frame_near_its_range_edges_gets_the_same_answer_in_every_state(
     frames = [
         _piece_bytes((body, checksum), algorithm)
         for body in _TABLE_BODY_LIST
-        for checksum in ("none", "right", "lower", "wrong", "short")
+        for checksum in ("none", "right", "lower", "wrong", "short", *_BAD_CHECKSUMS)
     ]
     stream = setup + b"".join(frame + b"#qr!" + setup for frame in frames)
     if _c_output(replay, stream, 4096, algorithm) == _python_output(stream, 4096, algorithm):
@@ -410,6 +426,62 @@ def test_every_frame_near_its_range_edges_gets_the_same_answer_in_every_state(
         python_output = _python_output(alone, 4096, algorithm)
         assert c_output == python_output, alone
     pytest.fail("the C layer and the Python controller differ on the frames in sequence")
+
+
+@pytest.mark.integration
+@pytest.mark.parametrize(
+    "after",
+    [b"", b"1" * 300, b"!", b"#qd!", b"$qd.5!", b"\r\n#qd!", b" qd!#qd!"],
+    ids=["unended", "more", "end", "start", "reply", "line-break", "space"],
+)
+def test_a_frame_is_dropped_as_it_outgrows_the_limit(replay: Path, after: bytes) -> None:
+    # Before: the C layer said "dropped" only at the frame's end (or the next start), and so
+    # never for a frame that does not end; the Python controller says it when the 65th byte
+    # comes. Once: the rest of the frame, up to its end, is skipped (P1).
+    stream = b"#debug1!#" + b"1" * 63 + after
+    for chunk in (1, 4096):
+        expected = _python_output(stream, chunk, "crc8")
+        assert expected[1].count("dropped") == 1 + (b"$" in after)
+        assert _c_output(replay, stream, chunk, "crc8") == expected
+
+
+#: What random bytes are drawn from: any byte; the protocol's characters and hex digits only,
+#: which make frames, checksums and numbers far more often.
+_ALPHABETS = (bytes(range(256)), b"#$!.+-0123456789ABCDEFabcdef qdstarmvhl\r\n")
+
+
+@pytest.mark.integration
+def test_c_and_python_agree_on_random_bytes(replay: Path) -> None:
+    # Line noise of up to 4 KB, in any chunks, with debug on and after each checksum switch:
+    # the same replies, the same lines of the layer's states, a "dropped" line for the same
+    # frames, the same commands dispatched.
+    rng = random.Random(7)
+    for case in range(24):
+        alphabet = _ALPHABETS[case % 2]
+        noise = bytes(rng.choice(alphabet) for _ in range(rng.choice((16, 300, 4096))))
+        start = rng.choice((b"#debug1!", b"#debug1!#start!", b"#debug1!#crcon!#start!"))
+        stream = start + noise + b"#qd!#stop!"
+        chunk = rng.choice((1, 7, 64, 4096))
+        algorithm = _C_ALGORITHMS[case % 3]
+        expected = _python_output(stream, chunk, algorithm)
+        assert _c_output(replay, stream, chunk, algorithm) == expected, (case, stream)
+        if algorithm == "crc8":  # (the dispatch is compared with the default algorithm)
+            assert _c_decisions(replay, stream, chunk) == _python_decisions(stream, chunk), case
+
+
+@pytest.mark.integration
+@pytest.mark.parametrize("state", [b"", b"#start!", b"#start!#mvdirect.1!"], ids=repr)
+def test_every_command_at_its_range_edges_is_dispatched_alike(replay: Path, state: bytes) -> None:
+    # The calibration (sdz, sdk) too, which the replies above leave out: the same commands with
+    # the same values, the same queries answered, at and past each edge of every range.
+    bodies = [
+        _body_of(name, values)
+        for spec in COMMANDS
+        for name in (spec.name, *spec.aliases)
+        for values in itertools.product(*(_argument_texts(a) for a in spec.arguments))
+    ]
+    stream = b"".join(state + b"#" + body.encode() + b"!" for body in bodies)
+    assert _c_decisions(replay, stream, 4096) == _python_decisions(stream, 4096)
 
 
 class _Reading(_Still):

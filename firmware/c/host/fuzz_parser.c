@@ -9,6 +9,8 @@
  * whole valid and damaged frames, in random chunks, in either checksum mode. The callbacks
  * check what a controller relies on: commands with in-range values only, replies formatted
  * within their buffer and free of bytes that are not printable, motion only while unlocked.
+ * They also give the layer what an app might: debug texts of any bytes and length, numbers
+ * of any 32 bits, sensor values far out of their ranges.
  * Any violation (or a sanitizer report) exits non-zero.
  */
 #include <stdio.h>
@@ -48,6 +50,32 @@ static void on_write(void *context, const char *data, size_t length) {
     } else if (memchr(data, '#', length) || memchr(data, '$', length) ||
                memchr(data, '!', length)) {
         fail("debug text with a frame character");
+    } else if (length < 2 || data[length - 2] != '\r' || data[length - 1] != '\n' ||
+               memchr(data, '\r', length - 2) || memchr(data, '\n', length - 2)) {
+        fail("a debug line that is not one line ending in CR LF");
+    }
+}
+
+/* A text of random bytes (none zero), of random length up to 199. */
+static const char *random_text(void) {
+    static char text[200];
+    size_t length = next_random() % sizeof text, i;
+    for (i = 0; i < length; i++) text[i] = (char)(1 + next_random() % 255);
+    text[length] = '\0';
+    return text;
+}
+
+/* What an app writes about a command: any text, any number (debug lines stay whole lines). */
+static void app_debug_line(void) {
+    const char *before = random_text();
+    switch (next_random() % 3) {
+    case 0: rl_debug(&link, before); break;
+    case 1: rl_debug_flash(&link, before); break;
+    default: {
+        static char after[200];
+        memcpy(after, random_text(), sizeof after);
+        rl_debug_number(&link, before, (int32_t)next_random(), (int)(next_random() & 1), after);
+    }
     }
 }
 
@@ -55,6 +83,7 @@ static void on_command(void *context, rl_command_id command, const int32_t *valu
     rl_command_spec spec;
     uint8_t i;
     (void)context;
+    app_debug_line();
     if ((int)command < 0 || command >= RL_CMD_COUNT) fail("a command id out of range");
     memcpy(&spec, &rl_command_specs[command], sizeof spec);
     for (i = 0; i < spec.argument_count; i++) {
@@ -72,8 +101,12 @@ static int32_t on_reply(void *context, rl_reply_id reply) {
     (void)context;
     if ((int)reply < 0 || reply >= RL_REPLY_COUNT) fail("a reply id out of range");
     memcpy(&spec, &rl_reply_specs[reply], sizeof spec);
-    /* Extremes of each range, to exercise the formatting. */
-    return (next_random() & 1) ? spec.argument.minimum : spec.argument.maximum;
+    /* Extremes of each range, or any 32 bits (the layer writes them within the range). */
+    switch (next_random() % 3) {
+    case 0: return spec.argument.minimum;
+    case 1: return spec.argument.maximum;
+    default: return (int32_t)next_random();
+    }
 }
 
 static const char *const pieces[] = {

@@ -13,7 +13,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from rovlink.protocol.commands import COMMANDS, RESPONSES, Setting, Spec, VerticalMode
+from rovlink.protocol.commands import COMMANDS, RESPONSES, Argument, Setting, Spec, VerticalMode
 from rovlink.protocol.frames import MAX_FRAME_BYTES
 
 __all__ = ["HEADER_NAME", "SOURCE_NAME", "identifier", "render_header", "render_source"]
@@ -27,6 +27,9 @@ _NOTICE = (
     " * Do not edit: change the command table and regenerate. */\n"
 )
 _NAME_BYTES = max(len(spelling) for spec in COMMANDS for spelling in (spec.name, *spec.aliases))
+#: What the C table's int16_t range fields hold; the C parser (parse_number in rovlink_proto.c)
+#: stops counting a number past 99 999, so that it never overflows, which is beyond these too.
+_C_RANGE = (-(2**15), 2**15 - 1)
 
 
 def identifier(spec: Spec) -> str:
@@ -58,11 +61,19 @@ def _setting(spec: Spec) -> str:
     return f"RL_SETTING_{spec.setting.name}, {value}"
 
 
+def _c_argument(spec: Spec, argument: Argument) -> str:
+    """An argument as the C table's rl_argument; an error for a range it cannot hold."""
+    low, high = _C_RANGE
+    if not low <= argument.minimum <= argument.maximum <= high:
+        raise ValueError(
+            f"{spec.name}: the range {argument.minimum}..{argument.maximum} of {argument.name}"
+            f" does not fit the C table's 16-bit range fields ({low}..{high})"
+        )
+    return f"{{{argument.minimum}, {argument.maximum}, {int(argument.signed)}}}"
+
+
 def _arguments(spec: Spec) -> str:
-    items = [
-        f"{{{argument.minimum}, {argument.maximum}, {int(argument.signed)}}}"
-        for argument in spec.arguments
-    ]
+    items = [_c_argument(spec, argument) for argument in spec.arguments]
     return "{" + ", ".join(items or ["{0, 0, 0}"]) + "}"
 
 
@@ -143,7 +154,7 @@ typedef struct {{
     rl_argument argument;
 }} rl_reply_spec;
 
-/* On AVR the tables live in flash (PROGMEM); read them with rl_rom_copy (rovlink_proto.c). */
+/* On AVR the tables live in flash (PROGMEM): read them with memcpy_P, as rovlink_proto.c does. */
 #if defined(__AVR__)
 #include <avr/pgmspace.h>
 #define RL_ROM PROGMEM
@@ -173,9 +184,7 @@ def render_source() -> str:
         for spelling in (spec.name, *spec.aliases)
     )
     replies = ",\n".join(
-        f'    {{"{spec.name}", {{{spec.arguments[0].minimum}, {spec.arguments[0].maximum}, '
-        f"{int(spec.arguments[0].signed)}}}}}"
-        for spec in RESPONSES
+        f'    {{"{spec.name}", {_c_argument(spec, spec.arguments[0])}}}' for spec in RESPONSES
     )
     return f"""{_NOTICE}
 #include "{HEADER_NAME}"

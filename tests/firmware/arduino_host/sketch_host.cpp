@@ -3,6 +3,8 @@
  *
  *   send HEX          bytes to the sketch's serial port
  *   run MS            MS milliseconds of loop(), called every 100 us
+ *   clock MS          set the clock to MS ms since power-on (millis() is 32 bits, as on the
+ *                     boards: it wraps to 0 after 4294967295, some 49.7 days)
  *   pin N LEVEL       a digital input (a falling edge runs its interrupt)
  *   analog N VALUE    an analog input, 0-1023
  *   show              one line: "at MS pulses P3 P5 P6 P9 P10 P11 claw O C out HEX"
@@ -28,7 +30,7 @@ HostSerial Serial;
 static uint8_t serial_in[4096], serial_out[1 << 16];
 static size_t in_start = 0, in_end = 0, out_length = 0;
 
-unsigned long millis() { return host_millis; }
+unsigned long millis() { return host_millis & 0xFFFFFFFFul; }
 int digitalRead(uint8_t pin) { return host_pins[pin]; }
 void digitalWrite(uint8_t pin, int level) { host_pins[pin] = level; }
 int analogRead(uint8_t pin) { return host_analog[pin]; }
@@ -121,6 +123,9 @@ int main(int argc, char **argv) {
                 host_micros += 100;
                 host_millis = host_micros / 1000;
             }
+        } else if (strcmp(word, "clock") == 0 && sscanf(line, "%*s %lu", &a) == 1) {
+            host_millis = a;
+            host_micros = a * 1000;
         } else if (strcmp(word, "pin") == 0 && sscanf(line, "%*s %lu %lu", &a, &b) == 2) {
             host_set_pin((uint8_t)a, (int)b);
         } else if (strcmp(word, "analog") == 0 && sscanf(line, "%*s %lu %lu", &a, &b) == 2) {

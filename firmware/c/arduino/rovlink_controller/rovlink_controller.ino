@@ -21,9 +21,11 @@ static const uint8_t PRESSURE_PIN = A0;
 static const uint8_t LEAK_PIN = 2;
 static const uint8_t CLAW_OPEN_PIN = 7;
 static const uint8_t CLAW_CLOSE_PIN = 8;
-static const unsigned long TICK_MS = 10;
-static const unsigned long WATCHDOG_MS = 2000; /* P17 */
-static const unsigned long CLAW_PULSE_MS = 50; /* P16 */
+/* Times in ms, as millis() gives them: 32 bits, wrapping after 49.7 days; compared by their
+ * difference, which the wrap does not upset. */
+static const uint32_t TICK_MS = 10;
+static const uint32_t WATCHDOG_MS = 2000; /* P17 */
+static const uint32_t CLAW_PULSE_MS = 50; /* P16 */
 
 static Servo vertical[2];
 static Servo horizontal[4];
@@ -40,8 +42,9 @@ static struct {
     int zero_raw, k;
     volatile bool leak_latched;
     uint32_t frames_seen;
-    unsigned long last_frame_ms, claw_until_ms;
-} robot = {0, false, 0, 0, 0, 255, 40, 30, 20, 0, 0, 0, 20, 200, false, 0, 0, 0};
+    uint32_t last_frame_ms, claw_until_ms;
+    bool claw_running; /* (a flag of its own: any time, 0 too, can end a pulse) */
+} robot = {0, false, 0, 0, 0, 255, 40, 30, 20, 0, 0, 0, 20, 200, false, 0, 0, 0, false};
 
 static void write_serial(void *, const char *data, size_t length) {
     Serial.write(reinterpret_cast<const uint8_t *>(data), length);
@@ -56,7 +59,7 @@ static int depth_cm() {
 
 /* Thrust in % (+ forward / up) to an ESC pulse, scaled by the PWM cap (P8). */
 static void drive(Servo &esc, float percent) {
-    float duty = percent / 100.0f * robot.max_pwm / 255.0f;
+    float duty = percent / 100.0f * (float)robot.max_pwm / 255.0f;
     esc.writeMicroseconds(1500 + (int)(duty * 500.0f));
 }
 
@@ -65,7 +68,7 @@ static void drive(Servo &esc, float percent) {
 static void reset_pid() {
     robot.integral = 0;
     robot.speed_cm_s = 0;
-    robot.last_depth_cm = depth_cm();
+    robot.last_depth_cm = (float)depth_cm();
 }
 
 /* The motion set-points cleared, as #start! leaves them (P7); the outputs follow next tick. */
@@ -80,13 +83,15 @@ static void all_stop() {
     clear_set_points();
     for (Servo &esc : vertical) drive(esc, 0);
     for (Servo &esc : horizontal) drive(esc, 0);
+    robot.claw_running = false;
     digitalWrite(CLAW_OPEN_PIN, LOW);
     digitalWrite(CLAW_CLOSE_PIN, LOW);
 }
 
 /* The layer has switched the lock and the vertical mode (start comes only when it unlocks,
  * mvdirect only when the mode changes) and writes their debug lines; every other setting gets
- * its line here (P5). Set-points persist until changed (P11). */
+ * its line here (P5). Set-points persist until changed (P11). The layer passes only values within
+ * their ranges (-100 to 10000): each fits an int of 16 bits (AVR). */
 static void on_command(void *, rl_command_id command, const int32_t *values) {
     switch (command) {
     case RL_CMD_STOP: all_stop(); break;
@@ -98,37 +103,59 @@ static void on_command(void *, rl_command_id command, const int32_t *values) {
         if (robot.holding) robot.target_cm = depth_cm();
         break;
     case RL_CMD_MVS:
-        robot.vertical_percent = values[0];
-        rl_debug_number(&link, "vertical thrust ", values[0], 1, " %");
+        robot.vertical_percent = (int)values[0];
+        rl_debug_number_flash(&link, RL_TEXT("vertical thrust "), values[0], 1, RL_TEXT(" %"));
         break;
     case RL_CMD_MVD:
         if (!robot.holding) reset_pid(); /* a new target after none: the PID starts afresh */
         robot.holding = true;
-        robot.target_cm = values[0];
-        rl_debug_number(&link, "target depth ", values[0], 0, " cm");
+        robot.target_cm = (int)values[0];
+        rl_debug_number_flash(&link, RL_TEXT("target depth "), values[0], 0, RL_TEXT(" cm"));
         break;
     case RL_CMD_TH:
-        robot.direction_deg = values[0] % 360;
-        robot.power_percent = values[1];
-        rl_debug_number(&link, "horizontal direction ", robot.direction_deg, 0, " deg");
-        rl_debug_number(&link, "horizontal power ", values[1], 0, " %");
+        robot.direction_deg = (int)(values[0] % 360);
+        robot.power_percent = (int)values[1];
+        rl_debug_number_flash(&link, RL_TEXT("horizontal direction "), robot.direction_deg, 0,
+                              RL_TEXT(" deg"));
+        rl_debug_number_flash(&link, RL_TEXT("horizontal power "), values[1], 0, RL_TEXT(" %"));
         break;
     case RL_CMD_MGMP:
-        robot.max_pwm = values[0];
-        rl_debug_number(&link, "max PWM ", values[0], 0, "");
+        robot.max_pwm = (int)values[0];
+        rl_debug_number_flash(&link, RL_TEXT("max PWM "), values[0], 0, RL_TEXT(""));
         break;
-    case RL_CMD_MVPDP: robot.kp = values[0]; rl_debug_number(&link, "depth PID kp ", values[0], 0, ""); break;
-    case RL_CMD_MVPDI: robot.ki = values[0]; rl_debug_number(&link, "depth PID ki ", values[0], 0, ""); break;
-    case RL_CMD_MVPIDD: robot.kd = values[0]; rl_debug_number(&link, "depth PID kd ", values[0], 0, ""); break;
-    case RL_CMD_SDZ: robot.zero_raw = values[0]; rl_debug_number(&link, "depth zero ", values[0], 0, ""); break;
-    case RL_CMD_SDK: robot.k = values[0]; rl_debug_number(&link, "depth coefficient k ", values[0], 0, ""); break;
-    case RL_CMD_SLRESET: robot.leak_latched = false; rl_debug(&link, "leak latch reset"); break;
+    case RL_CMD_MVPDP:
+        robot.kp = (int)values[0];
+        rl_debug_number_flash(&link, RL_TEXT("depth PID kp "), values[0], 0, RL_TEXT(""));
+        break;
+    case RL_CMD_MVPDI:
+        robot.ki = (int)values[0];
+        rl_debug_number_flash(&link, RL_TEXT("depth PID ki "), values[0], 0, RL_TEXT(""));
+        break;
+    case RL_CMD_MVPIDD:
+        robot.kd = (int)values[0];
+        rl_debug_number_flash(&link, RL_TEXT("depth PID kd "), values[0], 0, RL_TEXT(""));
+        break;
+    case RL_CMD_SDZ:
+        robot.zero_raw = (int)values[0];
+        rl_debug_number_flash(&link, RL_TEXT("depth zero "), values[0], 0, RL_TEXT(""));
+        break;
+    case RL_CMD_SDK:
+        robot.k = (int)values[0];
+        rl_debug_number_flash(&link, RL_TEXT("depth coefficient k "), values[0], 0, RL_TEXT(""));
+        break;
+    case RL_CMD_SLRESET:
+        robot.leak_latched = false;
+        rl_debug_flash(&link, RL_TEXT("leak latch reset"));
+        break;
     case RL_CMD_H_OPEN: case RL_CMD_H_CLOSE:
         digitalWrite(CLAW_OPEN_PIN, command == RL_CMD_H_OPEN ? HIGH : LOW);
         digitalWrite(CLAW_CLOSE_PIN, command == RL_CMD_H_CLOSE ? HIGH : LOW);
-        robot.claw_until_ms = millis() + CLAW_PULSE_MS;
-        rl_debug_number(&link, command == RL_CMD_H_OPEN ? "claw opening for " : "claw closing for ",
-                        (int32_t)CLAW_PULSE_MS, 0, " ms");
+        robot.claw_until_ms = (uint32_t)millis() + CLAW_PULSE_MS;
+        robot.claw_running = true;
+        rl_debug_number_flash(&link,
+                              command == RL_CMD_H_OPEN ? RL_TEXT("claw opening for ")
+                                                       : RL_TEXT("claw closing for "),
+                              (int32_t)CLAW_PULSE_MS, 0, RL_TEXT(" ms"));
         break;
     default: break;
     }
@@ -170,50 +197,52 @@ void setup() {
 }
 
 void loop() {
-    static unsigned long next_tick_ms = 0;
+    static uint32_t next_tick_ms = 0;
     uint8_t buffer[32];
     size_t count = 0;
     while (Serial.available() && count < sizeof buffer) buffer[count++] = (uint8_t)Serial.read();
     if (count) rl_feed(&link, buffer, count); /* replies go out before this returns (P19) */
 
-    unsigned long now = millis();
-    if ((long)(now - next_tick_ms) < 0) return;
+    uint32_t now = (uint32_t)millis();
+    if ((int32_t)(now - next_tick_ms) < 0) return;
     next_tick_ms = now + TICK_MS;
     check_leak_level();
     if (link.valid_frames != robot.frames_seen) {
         robot.frames_seen = link.valid_frames;
         robot.last_frame_ms = now;
-    } else if (!link.locked && now - robot.last_frame_ms > WATCHDOG_MS) {
-        rl_lock(&link, "failsafe: no valid frame for 2 s: motors stopped and locked"); /* P17 */
+    } else if (!link.locked && now - robot.last_frame_ms > WATCHDOG_MS) { /* P17 */
+        rl_lock_flash(&link, RL_TEXT("failsafe: no valid frame for 2 s: motors stopped and locked"));
         all_stop();
     }
-    if (robot.claw_until_ms && (long)(now - robot.claw_until_ms) >= 0) {
-        robot.claw_until_ms = 0;
+    if (robot.claw_running && (int32_t)(now - robot.claw_until_ms) >= 0) {
+        robot.claw_running = false;
         digitalWrite(CLAW_OPEN_PIN, LOW);
         digitalWrite(CLAW_CLOSE_PIN, LOW);
     }
     if (link.locked) return;
 
     /* Vertical: direct thrust, or the depth PID (P9, P10). */
-    float up = robot.vertical_percent;
+    float up = (float)robot.vertical_percent;
     if (robot.holding) {
-        float depth = depth_cm();
-        float error = depth - robot.target_cm; /* too deep: positive: thrust up */
+        float depth = (float)depth_cm();
+        float error = depth - (float)robot.target_cm; /* too deep: positive: thrust up */
         float dt = TICK_MS / 1000.0f;
         robot.speed_cm_s += ((depth - robot.last_depth_cm) / dt - robot.speed_cm_s) * dt / 0.5f;
         robot.last_depth_cm = depth;
-        robot.integral = constrain(robot.integral + robot.ki * 0.005f * error * dt, -100, 100);
-        up = constrain(robot.kp * 0.05f * error + robot.integral + robot.kd * 0.1f * robot.speed_cm_s,
-                       -100, 100);
+        robot.integral = constrain(robot.integral + (float)robot.ki * 0.005f * error * dt, -100.0f, 100.0f);
+        up = constrain((float)robot.kp * 0.05f * error + robot.integral +
+                           (float)robot.kd * 0.1f * robot.speed_cm_s,
+                       -100.0f, 100.0f);
     }
     for (Servo &esc : vertical) drive(esc, up);
 
     /* Horizontal: four thrusters at 45 degrees (P11), normalised to 100 %. */
-    float angle = robot.direction_deg * PI / 180.0f;
-    float surge = cos(angle) * robot.power_percent, sway = sin(angle) * robot.power_percent;
+    float angle = (float)robot.direction_deg * (float)PI / 180.0f;
+    float power = (float)robot.power_percent;
+    float surge = (float)cos(angle) * power, sway = (float)sin(angle) * power;
     float outputs[4] = {surge + sway, surge - sway, surge - sway, surge + sway};
     float largest = 0;
     for (float value : outputs) if (fabsf(value) > largest) largest = fabsf(value);
-    float scale = largest > robot.power_percent && largest > 0 ? robot.power_percent / largest : 1;
+    float scale = largest > power && largest > 0 ? power / largest : 1;
     for (uint8_t i = 0; i < 4; i++) drive(horizontal[i], outputs[i] * scale);
 }
