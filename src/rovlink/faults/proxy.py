@@ -69,6 +69,13 @@ class FaultProxy:
         self._client_lock = threading.Lock()
         #: The thread serving the current client; alive until its #stop! is sent.
         self._session: threading.Thread | None = None
+        #: Set as the current client's #stop! is sent: the next client may be served. (Its
+        #: thread may still be finishing meanwhile; a client that connected once the stop was
+        #: on its way was refused or not at random.)
+        self._session_over = threading.Event()
+        self._session_over.set()
+        #: Held for each write to the controller: the next client's bytes follow the #stop!.
+        self._controller_lock = threading.Lock()
         self.clients_served = 0
         self.clients_refused = 0
         self.lost: str | None = None
@@ -112,13 +119,14 @@ class FaultProxy:
             return
         # Busy until the session's thread has sent its #stop!: a client that connected before
         # then is refused, never served after the stop with what it sent meanwhile.
-        if self._session is not None and self._session.is_alive():
+        if not self._session_over.is_set():
             logger.info("refused %s:%s: busy", address[0], address[1])
             self.clients_refused += 1
             self._refused.refuse(connection)
             return
         logger.info("client %s:%s connected", address[0], address[1])
         self.clients_served += 1
+        self._session_over.clear()
         self._session = threading.Thread(
             target=self._serve_client,
             args=(connection, address, should_stop),
@@ -143,7 +151,9 @@ class FaultProxy:
             with self._client_lock:
                 self._client = None
             connection.close()
-            self._stop_robot()
+            with self._controller_lock:
+                self._session_over.set()  # (the next client's bytes wait for this lock)
+                self._stop_robot()
             logger.info("client %s:%s gone: #stop! sent", address[0], address[1])
 
     def _client_to_controller(
@@ -159,7 +169,8 @@ class FaultProxy:
             if not data:
                 return
             try:
-                self.port.write(data)
+                with self._controller_lock:
+                    self.port.write(data)
             except ConnectionLostError as error:
                 self.lost = str(error)
                 return
