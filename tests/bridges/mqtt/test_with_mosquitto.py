@@ -20,6 +20,8 @@ from tests.bridges.mqtt.rig import CONDITION_TIMEOUT_S, bridged_robot, subscribe
 
 pytestmark = pytest.mark.integration
 
+_HUGE_AT_START = b'{"command": "start", "at": 1' + b"0" * 400 + b"}"
+
 
 async def test_a_subscriber_sees_three_robots_and_a_command_reaches_only_its_robot(
     broker: Mosquitto,
@@ -73,6 +75,9 @@ async def test_queries_answer_with_named_values(broker: Mosquitto):
         (b"crcon", "owns the checksum and debug modes"),
         (b"x" * 600, "a command is at most 512"),
         (b'{"command": "start", "id": 1.5}', '"id" must be a string or an integer, got 1.5'),
+        # An integer too large for a float once ended the bridge (OverflowError); quoted short.
+        (_HUGE_AT_START, '"at" must be Unix time in seconds, a number, got 1000000000'),
+        (b'{"command": "start", "at": 1e300}', 'its "at" is 1e+300 s ahead of the bridge\'s'),
     ],
 )
 async def test_malformed_payloads_get_an_error_and_send_nothing(
@@ -86,6 +91,7 @@ async def test_malformed_payloads_get_an_error_and_send_nothing(
         reply = await watcher.command("m1", payload)
         assert reply["ok"] is False
         assert error in reply["error"]
+        assert len(reply["error"]) < 200  # what was wrong, not the payload written out
         assert robot.motion_and_lock_frames()[before:] == []
         assert (await watcher.command("m1", "stop"))["ok"]  # still serving
         await until(lambda: robot.motion_and_lock_frames()[before:] == ["#stop!"])
@@ -120,6 +126,19 @@ async def test_a_stop_with_a_bad_id_still_stops_the_robot(broker: Mosquitto, req
         assert "id" not in reply
         assert f'"id" must be a string or an integer, got {request_id}' in reply["warning"]
         await until(lambda: robot.motion_and_lock_frames()[before:] == ["#stop!"])
+
+
+async def test_a_stop_with_a_huge_at_still_stops_the_robot(broker: Mosquitto):
+    async with (
+        bridged_robot(broker, "i2", allow_commands=False) as robot,
+        subscriber(broker, "rovlink/i2/cmd/reply") as watcher,
+    ):
+        before = len(robot.motion_and_lock_frames())
+        reply = await watcher.command("i2", _HUGE_AT_START.replace(b"start", b"stop"))
+        assert (reply["ok"], reply["frame"]) == (True, "#stop!")
+        assert '"at" must be Unix time in seconds' in reply["warning"]
+        await until(lambda: robot.motion_and_lock_frames()[before:] == ["#stop!"])
+        assert not robot.task.done()
 
 
 async def test_an_mqtt5_response_topic_and_correlation_data_are_honoured(broker: Mosquitto):

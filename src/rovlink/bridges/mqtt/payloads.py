@@ -34,6 +34,8 @@ __all__ = [
 
 #: A command is a few words; anything longer is refused unread.
 MAX_REQUEST_BYTES = 512
+#: A value quoted in an error is cut to this many characters.
+_SHOWN_CHARACTERS = 40
 
 
 class PayloadError(ValueError):
@@ -195,18 +197,29 @@ def read_request(payload: bytes) -> CommandRequest:
     if request_id is not None and (
         isinstance(request_id, bool) or not isinstance(request_id, (str, int))
     ):
-        problem = f'"id" must be a string or an integer, got {json.dumps(request_id)}'
+        problem = f'"id" must be a string or an integer, got {_shown(request_id)}'
         return CommandRequest(command.strip(), None, problem)
-    published_at_s = request.get("at")
-    if published_at_s is not None and (
-        isinstance(published_at_s, bool)
-        or not isinstance(published_at_s, (int, float))
-        or not math.isfinite(published_at_s)
-    ):
-        problem = f'"at" must be Unix time in seconds, a number, got {json.dumps(published_at_s)}'
+    published_at = request.get("at")
+    published_at_s = None if published_at is None else _unix_time_s(published_at)
+    if published_at is not None and published_at_s is None:
+        problem = f'"at" must be Unix time in seconds, a number, got {_shown(published_at)}'
         return CommandRequest(command.strip(), request_id, problem)
-    return CommandRequest(
-        command.strip(),
-        request_id,
-        published_at_s=None if published_at_s is None else float(published_at_s),
-    )
+    return CommandRequest(command.strip(), request_id, published_at_s=published_at_s)
+
+
+def _unix_time_s(value: Any) -> float | None:
+    """``value`` as a finite float of seconds, or ``None`` if it is not one (a JSON integer may
+    have hundreds of digits: too large for a float)."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        return None
+    try:
+        seconds = float(value)
+    except OverflowError:
+        return None
+    return seconds if math.isfinite(seconds) else None
+
+
+def _shown(value: Any) -> str:
+    """``value`` as JSON, cut short: an error repeats what was wrong, not a whole payload."""
+    text = json.dumps(value, ensure_ascii=False)
+    return text if len(text) <= _SHOWN_CHARACTERS else text[: _SHOWN_CHARACTERS - 1] + "…"
