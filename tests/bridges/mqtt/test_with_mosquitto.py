@@ -213,7 +213,9 @@ async def test_broker_restart_reconnects_and_keeps_events(broker: Mosquitto):
         assert len(robot.bridge.outbox) == 0
 
 
-async def _ask_with_response_topic(broker: Mosquitto, command: bytes, response_topic: str) -> None:
+async def _ask_with_response_topic(
+    broker: Mosquitto, command: bytes, response_topic: str, robot_id: str = "w1"
+) -> None:
     """Publish ``command`` as an MQTT 5 request whose replies should go to ``response_topic``."""
     properties = Properties(PacketTypes.PUBLISH)
     properties.ResponseTopic = response_topic
@@ -221,7 +223,7 @@ async def _ask_with_response_topic(broker: Mosquitto, command: bytes, response_t
     async with aiomqtt.Client(
         "127.0.0.1", broker.port, protocol=aiomqtt.ProtocolVersion.V5
     ) as asker:
-        await asker.publish("rovlink/w1/cmd", command, qos=1, properties=properties)
+        await asker.publish(f"rovlink/{robot_id}/cmd", command, qos=1, properties=properties)
 
 
 async def test_a_response_topic_with_a_wildcard_is_refused_and_the_command_still_handled(
@@ -244,6 +246,28 @@ async def test_a_response_topic_with_a_wildcard_is_refused_and_the_command_still
         assert len(watcher.on("rovlink/w1/cmd/reply")) == 1
         assert all("response topic" in record.getMessage() for record in caplog.records)
         assert watcher.on("rovlink/w1/state")[-1]["online"] is True
+
+
+@pytest.mark.parametrize("target", ["rovlink/w2/cmd", "rovlink/other/cmd", "rovlink/w2/state"])
+async def test_a_reply_is_never_sent_to_a_bridges_own_topic(
+    broker: Mosquitto, caplog: pytest.LogCaptureFixture, target: str
+):
+    # Before, a reply sent to a command topic was read there as a command (it carries its
+    # "command"): this bridge carried its `start` out twice, or another robot carried it out.
+    caplog.set_level("WARNING", logger="rovlink.bridges.mqtt")
+    async with (
+        bridged_robot(broker, "w2") as robot,
+        subscriber(broker, "rovlink/+/cmd", "rovlink/w2/state", "rovlink/w2/cmd/reply") as watcher,
+    ):
+        await watcher.wait_for("rovlink/w2/state")
+        await _ask_with_response_topic(broker, b'{"command": "start"}', target, robot_id="w2")
+        await until(lambda: "response topic" in caplog.text)
+        assert "is a bridge's own topic" in caplog.text
+        assert (await watcher.command("w2", b'{"command": "qd"}'))["ok"]  # after any loop
+        assert robot.motion_and_lock_frames().count("#start!") == 1
+        assert [topic for topic, p in watcher.received if isinstance(p, dict) and "ok" in p] == [
+            "rovlink/w2/cmd/reply"  # (qd's)
+        ]
 
 
 async def test_an_unexpected_error_ends_the_bridge_offline_and_stopped(

@@ -53,7 +53,7 @@ from rovlink.bridges.mqtt.payloads import (
     state_payload,
     telemetry_payload,
 )
-from rovlink.bridges.mqtt.topics import Topics, publish_topic_problem
+from rovlink.bridges.mqtt.topics import Topics, response_topic_problem
 from rovlink.bridges.sensor_poll import SensorPoller, reopening
 from rovlink.bridges.task_ending import cancel_and_wait
 from rovlink.client.errors import ConnectionLostError, QueryTimeoutError
@@ -575,9 +575,10 @@ class MqttBridge:
         asked = getattr(message, "properties", None)
         response_topic = getattr(asked, "ResponseTopic", None)
         if isinstance(response_topic, str) and response_topic:
-            problem = publish_topic_problem(response_topic)
+            problem = response_topic_problem(response_topic)
             if problem is not None:
-                # Whoever asked chose it; publishing would raise and end the bridge.
+                # Whoever asked chose it; publishing would raise and end the bridge, or (a
+                # bridge's command topic) have the reply carried out as a command.
                 logger.warning(
                     "command %r: no reply sent: its response topic %r %s",
                     answer.get("command"),
