@@ -144,7 +144,9 @@ async def _watch(broker: BrokerSettings, snapshot_s: float | None) -> None:
             collector = asyncio.ensure_future(collect())
             try:
                 if snapshot_s is not None:
-                    await asyncio.sleep(snapshot_s)
+                    await asyncio.wait([collector], timeout=snapshot_s)
+                    if collector.done():  # (the broker went away, or a fault: said, not hidden)
+                        collector.result()
                     console.print(fleet_table(view, time.monotonic()))
                     return
                 with Live(console=console, refresh_per_second=_REFRESH_HZ) as live:
