@@ -6,11 +6,7 @@ from __future__ import annotations
 
 import asyncio
 import json
-import os
-import signal
 import time
-from collections.abc import Iterator
-from contextlib import contextmanager
 
 import aiomqtt
 import pytest
@@ -24,18 +20,6 @@ pytestmark = pytest.mark.integration
 _MAX_AGE_S = 0.3
 
 
-@contextmanager
-def _stalled(broker: Mosquitto) -> Iterator[None]:
-    """The broker stopped (as a machine swapping, or a debugger): its sockets stay open and
-    what is sent to it waits in them."""
-    assert broker.process is not None
-    os.kill(broker.process.pid, signal.SIGSTOP)
-    try:
-        yield
-    finally:
-        os.kill(broker.process.pid, signal.SIGCONT)
-
-
 async def test_motion_a_stalled_broker_held_is_refused_once_it_resumes(broker: Mosquitto):
     # The bridge's connection outlives a stall shorter than its reply timeout: a "th" published
     # during the stall was carried out when the broker resumed, after the motion timeout would
@@ -47,7 +31,7 @@ async def test_motion_a_stalled_broker_held_is_refused_once_it_resumes(broker: M
     ):
         assert (await watcher.command("late1", "start"))["ok"]
         bridge = robot.bridge
-        with _stalled(broker):
+        with broker.stalled():
             published = asyncio.ensure_future(pilot.publish("rovlink/late1/cmd", "th 90 50", qos=1))
             # The bridge's state (republished every 2 s) waits for the broker's answer.
             await until(lambda: bridge.broker_silence.silent_s() > _MAX_AGE_S)

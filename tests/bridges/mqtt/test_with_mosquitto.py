@@ -551,10 +551,37 @@ async def test_a_broker_disconnect_that_never_ends_does_not_hold_back_the_final_
         async with bridged_robot(broker, "h1") as robot:
             stops_before = robot.frames().count("#stop!")
         assert robot.task.done()
-        assert robot.frames().count("#stop!") == stops_before + 1
+        # The one as it began to end, and the final one, after its tasks.
+        assert robot.frames().count("#stop!") == stops_before + 2
     finally:
         let_go.set()  # (the connection left behind closes before the loop does)
         await asyncio.sleep(0.1)
+
+
+async def test_an_ending_bridge_stops_the_robot_before_saying_goodbye_to_a_stalled_broker(
+    broker: Mosquitto, monkeypatch: pytest.MonkeyPatch
+):
+    # The final #stop! came only once the offline state had been published or given up (2 s
+    # with a stalled broker): after Ctrl-C a robot without a motion timeout drove on meanwhile.
+    # The goodbye waits for the broker as long as it is stalled.
+    monkeypatch.setattr("rovlink.bridges.mqtt.bridge._FAREWELL_S", 60.0)
+    monkeypatch.setattr("rovlink.bridges.mqtt.bridge._END_WAIT_S", 60.0)
+    async with (
+        bridged_robot(broker, "e1", motion_timeout_s=None, reply_timeout_s=60.0) as robot,
+        subscriber(broker, "rovlink/e1/cmd/reply", "rovlink/e1/state") as watcher,
+    ):
+        for command in ("start", "th 90 100"):
+            assert (await watcher.command("e1", command))["ok"]
+        controller = robot.port.robot.controller
+        await until(lambda: controller.state().power_percent == 100)
+        with broker.stalled():
+            robot.task.cancel()
+            await until(lambda: controller.state().locked and controller.state().power_percent == 0)
+            assert not robot.task.done()  # still saying goodbye, to a broker that answers nothing
+        await asyncio.wait({robot.task}, timeout=CONDITION_TIMEOUT_S)
+        assert robot.task.done()
+        offline = await watcher.wait_for("rovlink/e1/state", lambda s: not s["online"])
+        assert offline["reason"] == "bridge stopped"
 
 
 async def test_a_bridge_ends_though_a_publish_swallows_its_cancellation(

@@ -192,7 +192,8 @@ class MqttBridge:
         """Serve until cancelled (or the controller's connection is lost for good: a link that a
         client with ``reconnect`` reopens is served through, commands refused meanwhile); the
         robot is sent ``#stop!`` at the start, so that its state is known (locked) before anyone
-        commands it, and at the end, when the state is marked offline."""
+        commands it, and as soon as the bridge begins to end, before the state is marked offline
+        (and once more when it has)."""
         await self.rov.stop()
         poller = asyncio.ensure_future(self.poller.run())
         broker = asyncio.ensure_future(self._stay_connected())
@@ -204,6 +205,12 @@ class MqttBridge:
             self._end_reason(error)  # before the broker task is cancelled: it says this reason
             raise
         finally:
+            # The robot first: the goodbye below may wait for a stalled broker (the farewell
+            # time, a disconnection's reply), and without a motion timeout it would drive on
+            # meanwhile, after Ctrl-C. Stopped again at the very end, in case a command being
+            # carried out went out after this.
+            with contextlib.suppress(ConnectionError):
+                await self.rov.stop()
             # The broker task says goodbye as it ends (the offline state), within the farewell
             # time and a disconnection's reply: cancelled again only if it runs on beyond that.
             ending = asyncio.ensure_future(
