@@ -53,6 +53,7 @@ from rovlink.bridges.mqtt.payloads import (
     state_payload,
     telemetry_payload,
 )
+from rovlink.bridges.mqtt.refusals import first_refusal, watch_publications
 from rovlink.bridges.mqtt.topics import Topics, response_topic_problem
 from rovlink.bridges.sensor_poll import SensorPoller, reopening
 from rovlink.bridges.task_ending import cancel_and_wait
@@ -185,6 +186,8 @@ class MqttBridge:
         self.kept = KeptSettings()
         self.kept.follow(rov)
         self._background: set[asyncio.Future[None]] = set()
+        #: Topics the broker refused to let this connection publish to (each logged once).
+        self._refused_topics: set[str] = set()
         rov.client.subscribe(self._on_client_event)
         rov.add_sent_listener(lambda _sent: self._wake_publisher.set())
 
@@ -305,7 +308,7 @@ class MqttBridge:
             qos=_QOS_RELIABLE,
             retain=True,
         )
-        return aiomqtt.Client(
+        client = aiomqtt.Client(
             broker.host,
             broker.port,
             username=broker.username,
@@ -318,6 +321,25 @@ class MqttBridge:
             tls_insecure=broker.insecure if broker.tls else None,
             timeout=self.reply_timeout_s,
         )
+        watch_publications(client, self._on_publication_refused)
+        return client
+
+    def _access_control(self) -> str:
+        user = self.broker.username
+        return f"user {user!r}" if user else "anonymous clients"
+
+    def _on_publication_refused(self, topic: str, reason: str) -> None:
+        if topic in self._refused_topics:
+            return
+        self._refused_topics.add(topic)
+        logger.error(
+            "broker %s refused this bridge's publication to %s (%s): nobody receives it; "
+            "check the broker's access control for %s",
+            self.broker.describe(),
+            topic,
+            reason,
+            self._access_control(),
+        )
 
     async def _serve(self, mqtt: Any) -> None:
         if self._event_publish is not None:
@@ -328,7 +350,7 @@ class MqttBridge:
         # every (re)connection, a `th 90 100` published minutes or a broker restart ago. And a
         # live one keeps its flag (retain as published), to be refused: carried out once, it
         # would stay stored on the broker for the next connection of a bridge without this.
-        await mqtt.subscribe(
+        granted = await mqtt.subscribe(
             self.topics.command,
             options=SubscribeOptions(
                 qos=_QOS_RELIABLE,
@@ -336,6 +358,18 @@ class MqttBridge:
                 retainHandling=SubscribeOptions.RETAIN_DO_NOT_SEND,
             ),
         )
+        refusal = first_refusal(granted)
+        if refusal is not None:  # (the bridge serves on: telemetry, state, events)
+            logger.error(
+                "broker %s refused this bridge's subscription to %s (%s): no command, not even "
+                "stop, reaches the robot through the broker; check the broker's access control "
+                "for %s",
+                self.broker.describe(),
+                self.topics.command,
+                refusal,
+                self._access_control(),
+            )
+        self._refused_topics.clear()  # (said again on each connection: the rules may change)
         self._last_state = None  # publish it afresh: the broker may have restarted
         self.connected.set()
         queue: asyncio.Queue[_Asked] = asyncio.Queue()
