@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import asyncio
 import json
+import socket
 import time
 
 import aiomqtt
@@ -73,3 +74,51 @@ async def test_a_requests_at_says_how_old_it_is(broker: Mosquitto):
         assert (await ask("start", time.time()))["ok"]
         assert (await ask("th 90 50", time.time()))["ok"]
         await until(lambda: "#th.90.50!" in robot.frames())
+
+
+async def test_motion_a_publishers_client_kept_through_its_reconnection_is_refused_by_its_at(
+    broker: Mosquitto,
+):
+    # paho-mqtt keeps a QoS 1 publication made while its connection is down and sends it once
+    # it has reconnected: the broker hands it over as new, however late. Only its "at" tells.
+    import paho.mqtt.client as paho_mqtt
+    from paho.mqtt.enums import CallbackAPIVersion
+
+    async with (
+        bridged_robot(broker, "late3", max_command_age_s=_MAX_AGE_S) as robot,
+        subscriber(broker, "rovlink/late3/cmd/reply") as watcher,
+    ):
+        assert (await watcher.command("late3", "start"))["ok"]
+        pilot = paho_mqtt.Client(CallbackAPIVersion.VERSION2)
+        pilot.reconnect_delay_set(min_delay=1, max_delay=1)  # (longer than _MAX_AGE_S)
+        connected = asyncio.Event()
+        loop = asyncio.get_running_loop()
+
+        def on_connect(*_: object) -> None:
+            loop.call_soon_threadsafe(connected.set)
+
+        pilot.on_connect = on_connect
+        pilot.connect("127.0.0.1", broker.port)
+        pilot.loop_start()
+        try:
+            await asyncio.wait_for(connected.wait(), 15)
+            connected.clear()
+            link = pilot.socket()
+            assert isinstance(link, socket.socket)
+            link.shutdown(socket.SHUT_RDWR)  # its network drops
+            await until(lambda: not pilot.is_connected())
+            stamped = json.dumps({"command": "th 90 50", "at": time.time()})
+            for payload in (stamped, "th 90 60"):
+                kept = pilot.publish("rovlink/late3/cmd", payload, qos=1)
+                assert kept.rc == paho_mqtt.MQTT_ERR_NO_CONN  # kept for later
+            await asyncio.wait_for(connected.wait(), 15)  # reconnected: both sent now
+            await until(lambda: len(watcher.on("rovlink/late3/cmd/reply")) == 3)
+        finally:
+            pilot.loop_stop()
+            pilot.disconnect()
+        late, bare = watcher.on("rovlink/late3/cmd/reply")[1:]
+        assert late["ok"] is False
+        assert 'ago (its "at"): motion older than 0.3 s is not carried out' in late["error"]
+        assert "#th.90.50!" not in robot.frames()
+        # Without "at" nothing tells it from a fresh command (docs/bridges.md says so).
+        assert bare["ok"] is True
