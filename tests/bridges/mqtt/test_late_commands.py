@@ -8,6 +8,7 @@ import asyncio
 import json
 import socket
 import time
+from typing import Any
 
 import aiomqtt
 import pytest
@@ -122,3 +123,33 @@ async def test_motion_a_publishers_client_kept_through_its_reconnection_is_refus
         assert "#th.90.50!" not in robot.frames()
         # Without "at" nothing tells it from a fresh command (docs/bridges.md says so).
         assert bare["ok"] is True
+
+
+async def test_readings_a_lost_connection_did_not_carry_are_not_published_on_the_next(
+    broker: Mosquitto, monkeypatch: pytest.MonkeyPatch
+):
+    # The readings queued while a stalled broker held the publisher back (up to 64) were
+    # published on the next connection, seconds late, ahead of the live ones.
+    monkeypatch.setattr("rovlink.bridges.mqtt.bridge._STATE_REFRESH_S", 0.2)  # (noticed soon)
+    published: list[tuple[int, int]] = []  # (connection, seq) of each reading published
+    real_publish = aiomqtt.Client.publish
+
+    async def recording_publish(
+        self: aiomqtt.Client, topic: str, *args: Any, **kwargs: Any
+    ) -> None:
+        if topic.endswith("/telemetry"):
+            published.append((id(self), json.loads(args[0])["seq"]))
+        await real_publish(self, topic, *args, **kwargs)
+
+    monkeypatch.setattr(aiomqtt.Client, "publish", recording_publish)
+    async with bridged_robot(broker, "late4", rate_hz=50, reply_timeout_s=0.5) as robot:
+        bridge = robot.bridge
+        await until(lambda: len(published) > 0)
+        with broker.stalled():
+            await until(lambda: not bridge.connected.is_set())
+            given_up_at_seq = bridge.sequence
+        await until(bridge.connected.is_set)
+        await until(lambda: published[-1][1] > given_up_at_seq + 5)
+        last_connection = published[-1][0]
+        on_the_next = [seq for connection, seq in published if connection == last_connection]
+        assert min(on_the_next) > given_up_at_seq

@@ -385,6 +385,11 @@ class MqttBridge:
         finally:
             self.connected.clear()
             await cancel_and_wait(tasks, recancel_after_s=_RECANCEL_MARGIN_S)
+            # Readings the lost connection did not carry (a stalled broker held the publisher
+            # back) are dropped, not published on the next one seconds late: QoS 0 telemetry is
+            # live, and its seq shows the gap.
+            while not self._telemetry.empty():
+                self._telemetry.get_nowait()
 
     async def _receive(self, mqtt: Any, queue: asyncio.Queue[_Asked]) -> None:
         """Commands in the order they came, one at a time (a query waits for its reply), but a
