@@ -128,6 +128,22 @@ async def test_a_stop_with_a_bad_id_still_stops_the_robot(broker: Mosquitto, req
         await until(lambda: robot.motion_and_lock_frames()[before:] == ["#stop!"])
 
 
+@pytest.mark.parametrize("payload", [b"stop", b'{"command": "stop", "id": 3}'])
+async def test_a_command_from_a_file_with_a_byte_order_mark_is_read(
+    broker: Mosquitto, payload: bytes
+):
+    # A file saved by a Windows editor or PowerShell starts with a UTF-8 byte order mark: the
+    # stop published from it (mosquitto_pub -f) was refused, "unknown command '\ufeffstop'".
+    async with (
+        bridged_robot(broker, "o1", allow_commands=False) as robot,
+        subscriber(broker, "rovlink/o1/cmd/reply") as watcher,
+    ):
+        before = len(robot.motion_and_lock_frames())
+        reply = await watcher.command("o1", b"\xef\xbb\xbf" + payload)
+        assert (reply["ok"], reply["command"], reply["frame"]) == (True, "stop", "#stop!")
+        await until(lambda: robot.motion_and_lock_frames()[before:] == ["#stop!"])
+
+
 async def test_a_stop_with_a_huge_at_still_stops_the_robot(broker: Mosquitto):
     async with (
         bridged_robot(broker, "i2", allow_commands=False) as robot,

@@ -176,7 +176,9 @@ def read_request(payload: bytes) -> CommandRequest:
     if len(payload) > MAX_REQUEST_BYTES:
         raise PayloadError(f"payload of {len(payload)} bytes; a command is at most 512")
     try:
-        text = payload.decode("utf-8").strip()
+        # (A byte order mark, as Windows editors and PowerShell write one at the start of a
+        # file sent with `mosquitto_pub -f`, is not part of the command.)
+        text = payload.decode("utf-8-sig").strip()
     except UnicodeDecodeError:
         raise PayloadError("payload is not UTF-8 text") from None
     if not text:
