@@ -78,6 +78,8 @@ async def test_queries_answer_with_named_values(broker: Mosquitto):
         # An integer too large for a float once ended the bridge (OverflowError); quoted short.
         (_HUGE_AT_START, '"at" must be Unix time in seconds, a number, got 1000000000'),
         (b'{"command": "start", "at": 1e300}', 'its "at" is 1e+300 s ahead of the bridge\'s'),
+        # Which one counts depends on the parser: a tool reading the first saw a stop.
+        (b'{"command": "stop", "command": "start"}', '"command" is given more than once'),
     ],
 )
 async def test_malformed_payloads_get_an_error_and_send_nothing(
@@ -141,6 +143,18 @@ async def test_a_command_from_a_file_with_a_byte_order_mark_is_read(
         before = len(robot.motion_and_lock_frames())
         reply = await watcher.command("o1", b"\xef\xbb\xbf" + payload)
         assert (reply["ok"], reply["command"], reply["frame"]) == (True, "stop", "#stop!")
+        await until(lambda: robot.motion_and_lock_frames()[before:] == ["#stop!"])
+
+
+async def test_a_stop_with_a_key_given_twice_still_stops_the_robot(broker: Mosquitto):
+    async with (
+        bridged_robot(broker, "i3", allow_commands=False) as robot,
+        subscriber(broker, "rovlink/i3/cmd/reply") as watcher,
+    ):
+        before = len(robot.motion_and_lock_frames())
+        reply = await watcher.command("i3", b'{"command": "stop", "id": 1, "id": 2}')
+        assert (reply["ok"], reply["frame"]) == (True, "#stop!")
+        assert '"id" is given more than once' in reply["warning"]
         await until(lambda: robot.motion_and_lock_frames()[before:] == ["#stop!"])
 
 

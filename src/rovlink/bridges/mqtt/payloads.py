@@ -186,7 +186,7 @@ def read_request(payload: bytes) -> CommandRequest:
     if not text.startswith("{"):
         return CommandRequest(text)
     try:
-        request = json.loads(text)
+        request = json.loads(text, object_pairs_hook=_JsonObject.of)
     except json.JSONDecodeError as error:
         raise PayloadError(f"payload is not valid JSON: {error.msg} at {error.pos}") from None
     if not isinstance(request, dict):
@@ -194,6 +194,12 @@ def read_request(payload: bytes) -> CommandRequest:
     command = request.get("command")
     if not isinstance(command, str) or not command.strip():
         raise PayloadError('a JSON request needs "command", a string')
+    repeated = getattr(request, "repeated", None)
+    if repeated is not None:
+        # Parsers differ on which one counts (Python's: the last), so a tool that reads the
+        # first would see another request than the bridge: `{"command": "stop", "command": …}`.
+        problem = f'"{repeated}" is given more than once: which one is meant is not clear'
+        return CommandRequest(command.strip(), None, problem)
     request_id = request.get("id")
     # Not raised here: a stop with a bad id or time must still stop the robot.
     if request_id is not None and (
@@ -207,6 +213,20 @@ def read_request(payload: bytes) -> CommandRequest:
         problem = f'"at" must be Unix time in seconds, a number, got {_shown(published_at)}'
         return CommandRequest(command.strip(), request_id, problem)
     return CommandRequest(command.strip(), request_id, published_at_s=published_at_s)
+
+
+class _JsonObject(dict[str, Any]):
+    """A JSON object that remembers a key given more than once (``json`` keeps the last)."""
+
+    repeated: str | None = None
+
+    @classmethod
+    def of(cls, pairs: list[tuple[str, Any]]) -> _JsonObject:
+        json_object = cls(pairs)
+        if len(json_object) < len(pairs):
+            keys = [key for key, _ in pairs]
+            json_object.repeated = next(k for n, k in enumerate(keys) if k in keys[:n])
+        return json_object
 
 
 def _unix_time_s(value: Any) -> float | None:
