@@ -87,7 +87,9 @@ def _cell(text: str, style: str = "") -> Text:
 
     from rovlink.protocol.visible import visible  # noqa: PLC0415
 
-    return Text(visible(text), style=style)
+    # A lone surrogate (JSON's "\ud800") can be written in no encoding: shown as its escape.
+    printable = text.encode("utf-8", errors="backslashreplace").decode("utf-8")
+    return Text(visible(printable), style=style)
 
 
 def run(args: argparse.Namespace) -> int:

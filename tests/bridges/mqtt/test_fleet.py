@@ -168,6 +168,8 @@ async def test_fleet_prints_markup_like_retained_states_as_they_are(broker: Mosq
     retained = {
         "rovlink/j2/state": '{"online": false, "reason": "[/]"}',
         "rovlink/j3/state": '{"online": "false", "reason": "[bold]x"}',
+        # A lone surrogate: printing it ended the table (UnicodeEncodeError).
+        "rovlink/j4/state": '{"online": false, "reason": "x\\ud800y"}',
     }
     for topic, payload in retained.items():
         await asyncio.to_thread(
@@ -191,6 +193,8 @@ async def test_fleet_prints_markup_like_retained_states_as_they_are(broker: Mosq
     j3 = next(line for line in lines if " j3 " in line)
     assert "malformed" in j3
     assert " online " not in j3  # (the problem quotes "online")
+    j4 = next(line for line in lines if " j4 " in line)
+    assert "x\\ud800y" in j4
 
 
 @pytest.mark.integration

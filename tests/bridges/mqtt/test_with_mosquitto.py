@@ -78,6 +78,8 @@ async def test_queries_answer_with_named_values(broker: Mosquitto):
         # An integer too large for a float once ended the bridge (OverflowError); quoted short.
         (_HUGE_AT_START, '"at" must be Unix time in seconds, a number, got 1000000000'),
         (b'{"command": "start", "at": 1e300}', 'its "at" is 1e+300 s ahead of the bridge\'s'),
+        # A lone surrogate has no UTF-8: the reply that quoted it ended the bridge.
+        (b'{"command": "\\ud800"}', "unknown command '\\ud800'"),
         # Which one counts depends on the parser: a tool reading the first saw a stop.
         (b'{"command": "stop", "command": "start"}', '"command" is given more than once'),
     ],
@@ -144,6 +146,17 @@ async def test_a_command_from_a_file_with_a_byte_order_mark_is_read(
         reply = await watcher.command("o1", b"\xef\xbb\xbf" + payload)
         assert (reply["ok"], reply["command"], reply["frame"]) == (True, "stop", "#stop!")
         await until(lambda: robot.motion_and_lock_frames()[before:] == ["#stop!"])
+
+
+async def test_an_id_with_a_lone_surrogate_comes_back_as_it_was(broker: Mosquitto):
+    # Its reply could not be encoded as UTF-8: the bridge ended, after sending the command.
+    async with (
+        bridged_robot(broker, "u1") as robot,
+        subscriber(broker, "rovlink/u1/cmd/reply") as watcher,
+    ):
+        reply = await watcher.command("u1", b'{"command": "qd", "id": "a\\ud800"}')
+        assert (reply["ok"], reply["id"]) == (True, "a\ud800")
+        assert not robot.task.done()
 
 
 async def test_a_stop_with_a_key_given_twice_still_stops_the_robot(broker: Mosquitto):

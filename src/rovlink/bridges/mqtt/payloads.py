@@ -56,8 +56,16 @@ class CommandRequest:
 
 
 def encode(payload: dict[str, Any]) -> bytes:
-    """Compact JSON, UTF-8."""
-    return json.dumps(payload, separators=(",", ":"), ensure_ascii=False).encode("utf-8")
+    """Compact JSON, UTF-8.
+
+    A lone surrogate (a request's ``"\\ud800"``, echoed in its reply) has no UTF-8: it is
+    written as the JSON escape it came as, which a JSON reader takes back as it was.
+
+    >>> encode({"id": "\\ud800", "text": "é"})
+    b'{"id":"\\\\ud800","text":"\\xc3\\xa9"}'
+    """
+    text = json.dumps(payload, separators=(",", ":"), ensure_ascii=False)
+    return text.encode("utf-8", errors="backslashreplace")
 
 
 def telemetry_payload(robot: str, sensors: Sensors, sequence: int, at_s: float) -> dict[str, Any]:
