@@ -8,7 +8,10 @@ import json
 from collections.abc import Iterator
 from pathlib import Path
 
+import aiomqtt
 import pytest
+from paho.mqtt.packettypes import PacketTypes
+from paho.mqtt.properties import Properties
 
 from tests.bridges.mqtt.broker import Mosquitto, mosquitto_available
 from tests.bridges.mqtt.rig import bridged_robot, subscriber, until
@@ -69,7 +72,7 @@ async def test_publications_the_broker_refuses_are_logged_by_topic(
 ):
     # Before, mosquitto's "Not authorized" PUBACKs were taken as delivered: the state and every
     # reply were dropped, and nothing said so.
-    caplog.set_level("ERROR", logger="rovlink.bridges.mqtt")
+    caplog.set_level("WARNING", logger="rovlink.bridges.mqtt")
     async with (
         bridged_robot(acl_broker, "a1") as robot,
         subscriber(acl_broker) as asker,
@@ -82,6 +85,15 @@ async def test_publications_the_broker_refuses_are_logged_by_topic(
         assert all("(Not authorized)" in text for text in refusals)
         assert all("access control for anonymous clients" in text for text in refusals)
         assert "#qd!" in robot.frames()  # the command itself came through
+        # A response topic its asker chose is the asker's business: a warning, not an error.
+        properties = Properties(PacketTypes.PUBLISH)
+        properties.ResponseTopic = "answers/a1"
+        async with aiomqtt.Client(
+            "127.0.0.1", acl_broker.port, protocol=aiomqtt.ProtocolVersion.V5
+        ) as v5_asker:
+            await v5_asker.publish("rovlink/a1/cmd", b"qd", qos=1, properties=properties)
+        await until(lambda: "reply to the response topic answers/a1" in caplog.text)
+        assert len([r for r in caplog.records if r.levelname == "ERROR"]) == 2
         assert not robot.task.done()
 
 

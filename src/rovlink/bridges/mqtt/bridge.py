@@ -107,6 +107,8 @@ _END_WAIT_S = 10.0
 _SESSION_TAKEN_OVER = 0x8E
 #: A connection that lasted this long resets the reconnection backoff, s.
 _STABLE_CONNECTION_S = 10.0
+#: Topics whose refused publications are said, each once, per connection.
+_REFUSALS_SAID = 20
 #: Connections in a row ended this soon that make the bridge say a second one may be running.
 _SHORT_LIVED_WARNING = 3
 
@@ -329,17 +331,28 @@ class MqttBridge:
         return f"user {user!r}" if user else "anonymous clients"
 
     def _on_publication_refused(self, topic: str, reason: str) -> None:
-        if topic in self._refused_topics:
-            return
+        if topic in self._refused_topics or len(self._refused_topics) >= _REFUSALS_SAID:
+            return  # (an asker naming new response topics without end is not said without end)
         self._refused_topics.add(topic)
-        logger.error(
-            "broker %s refused this bridge's publication to %s (%s): nobody receives it; "
-            "check the broker's access control for %s",
-            self.broker.describe(),
-            topic,
-            reason,
-            self._access_control(),
-        )
+        own = (self.topics.telemetry, self.topics.state, self.topics.events)
+        if topic in (*own, self.topics.command_reply):
+            logger.error(
+                "broker %s refused this bridge's publication to %s (%s): nobody receives it; "
+                "check the broker's access control for %s",
+                self.broker.describe(),
+                topic,
+                reason,
+                self._access_control(),
+            )
+        else:  # a response topic its asker chose
+            logger.warning(
+                "broker %s refused this bridge's reply to the response topic %s (%s): its asker "
+                "gets no reply; the broker's access control for %s does not allow it",
+                self.broker.describe(),
+                topic,
+                reason,
+                self._access_control(),
+            )
 
     async def _serve(self, mqtt: Any) -> None:
         if self._event_publish is not None:

@@ -70,9 +70,10 @@ def publish_topic_problem(topic: str) -> str | None:
 
 def response_topic_problem(topic: str) -> str | None:
     """Why a reply must not go to ``topic``, a request's response topic, or ``None``: one that
-    cannot be published to, or a bridge's own topic. A reply carries its ``command``: on a
-    ``cmd`` topic a bridge would carry it out again (this one, or another robot's), and on a
-    ``state`` or ``events`` topic the fleet would take it for the robot's.
+    cannot be published to, a broker's own (``$SYS/…``), or a bridge's own topic. A reply
+    carries its ``command``: on a ``cmd`` topic a bridge would carry it out again (this one, or
+    another robot's), and on a ``state`` or ``events`` topic the fleet would take it for the
+    robot's.
 
     >>> response_topic_problem("rovlink/rov-1/cmd/reply") is None
     True
@@ -82,6 +83,8 @@ def response_topic_problem(topic: str) -> str | None:
     problem = publish_topic_problem(topic)
     if problem is not None:
         return problem
+    if topic.startswith("$"):  # ($SYS/…, $share/…: MQTT leaves them to the broker)
+        return "is a broker's own topic (it starts with '$')"
     parts = robot_of(topic)
     if parts is not None and parts[1] in _BRIDGE_TOPICS:
         what = "command" if parts[1] == "cmd" else parts[1]
