@@ -76,6 +76,7 @@ def test_errors_name_the_argument_and_its_range(
         ("#!", "empty frame"),
         ("thrust 1", "unknown command 'thrust'; did you mean th"),
         ("#stpo!", "unknown command 'stpo'; did you mean stop"),
+        ("STOP", "unknown command 'STOP'; did you mean stop"),
         ("zzzz", "unknown command 'zzzz'"),
     ],
 )

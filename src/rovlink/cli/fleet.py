@@ -87,7 +87,9 @@ def _cell(text: str, style: str = "") -> Text:
 
     from rovlink.protocol.visible import visible  # noqa: PLC0415
 
-    return Text(visible(text), style=style)
+    # A lone surrogate (JSON's "\ud800") can be written in no encoding: shown as its escape.
+    printable = text.encode("utf-8", errors="backslashreplace").decode("utf-8")
+    return Text(visible(printable), style=style)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -144,7 +146,9 @@ async def _watch(broker: BrokerSettings, snapshot_s: float | None) -> None:
             collector = asyncio.ensure_future(collect())
             try:
                 if snapshot_s is not None:
-                    await asyncio.sleep(snapshot_s)
+                    await asyncio.wait([collector], timeout=snapshot_s)
+                    if collector.done():  # (the broker went away, or a fault: said, not hidden)
+                        collector.result()
                     console.print(fleet_table(view, time.monotonic()))
                     return
                 with Live(console=console, refresh_per_second=_REFRESH_HZ) as live:

@@ -73,7 +73,8 @@ def _spec(name: str) -> Spec:
         return lookup(name)
     except UnknownCommandError:
         spellings = list(SPELLINGS[Kind.COMMAND])
-        close = difflib.get_close_matches(name, spellings, n=3, cutoff=0.6)
+        # (Case too: the names are lower case, and "STOP" typed in a hurry is meant as stop.)
+        close = difflib.get_close_matches(name.lower(), spellings, n=3, cutoff=0.6)
         # A word that starts with a command's name ("thrust" for "th") is probably that command.
         close += [s for s in spellings if len(s) > 1 and name.startswith(s) and s not in close]
         hint = f"; did you mean {', '.join(close)}?" if close else ""

@@ -4,9 +4,12 @@ from __future__ import annotations
 
 import os
 import shutil
+import signal
 import socket
 import subprocess
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 _START_TIMEOUT_S = 10.0
@@ -71,6 +74,17 @@ class Mosquitto:
                 self.process.kill()
                 self.process.wait()
         self.process = None
+
+    @contextmanager
+    def stalled(self) -> Iterator[None]:
+        """The broker stopped (SIGSTOP, as a machine swapping, or a debugger): its sockets stay
+        open and what is sent to it waits in them; resumed (SIGCONT) on leaving."""
+        assert self.process is not None
+        os.kill(self.process.pid, signal.SIGSTOP)
+        try:
+            yield
+        finally:
+            os.kill(self.process.pid, signal.SIGCONT)
 
     def restart(self) -> None:
         self.stop()

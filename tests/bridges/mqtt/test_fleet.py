@@ -40,6 +40,8 @@ def test_the_view_follows_state_telemetry_and_events():
         ("rovlink/a/cmd", b'{"command": "stop"}'),
         ("other/a/state", b'{"online": true}'),
         ("rovlink/a", b'{"online": true}'),
+        ("rovlink/a/state", b"[" * 100_000),  # deeper than the parser goes: RecursionError
+        ("rovlink/a/state", b'{"online": true, "depth_cm": ' + b"1" * 5000 + b"}"),  # too many
     ],
 )
 def test_what_is_not_a_bridges_message_is_ignored(topic: str, payload: bytes):
@@ -166,6 +168,8 @@ async def test_fleet_prints_markup_like_retained_states_as_they_are(broker: Mosq
     retained = {
         "rovlink/j2/state": '{"online": false, "reason": "[/]"}',
         "rovlink/j3/state": '{"online": "false", "reason": "[bold]x"}',
+        # A lone surrogate: printing it ended the table (UnicodeEncodeError).
+        "rovlink/j4/state": '{"online": false, "reason": "x\\ud800y"}',
     }
     for topic, payload in retained.items():
         await asyncio.to_thread(
@@ -189,3 +193,37 @@ async def test_fleet_prints_markup_like_retained_states_as_they_are(broker: Mosq
     j3 = next(line for line in lines if " j3 " in line)
     assert "malformed" in j3
     assert " online " not in j3  # (the problem quotes "online")
+    j4 = next(line for line in lines if " j4 " in line)
+    assert "x\\ud800y" in j4
+
+
+@pytest.mark.integration
+async def test_fleet_lists_the_robots_after_a_state_it_cannot_parse(broker: Mosquitto):
+    # Before, a retained state nested deeper than the JSON parser goes ended the live table
+    # (RecursionError) at every start, and left a snapshot without the robots that came after.
+    from paho.mqtt import publish
+
+    retained = {
+        "rovlink/bad/state": b"[" * 100_000,
+        "rovlink/huge/state": b'{"online": true, "depth_cm": ' + b"1" * 5000 + b"}",
+        "rovlink/good/state": b'{"online": false, "reason": "bridge stopped"}',
+    }
+    for topic, payload in retained.items():
+        await asyncio.to_thread(
+            publish.single, topic, payload, qos=1, retain=True, port=broker.port
+        )
+    environment = dict(
+        os.environ, PYTHONPATH=_SRC + os.pathsep + os.environ.get("PYTHONPATH", ""), COLUMNS="160"
+    )
+    process = await asyncio.create_subprocess_exec(
+        sys.executable, "-m", "rovlink", "fleet", "--broker", broker.url, "--snapshot", "1",
+        stdout=asyncio.subprocess.PIPE,
+        stderr=asyncio.subprocess.PIPE,
+        env=environment,
+    )  # fmt: skip
+    out, err = await asyncio.wait_for(process.communicate(), 30)
+    assert process.returncode == 0, err.decode()
+    lines = out.decode().splitlines()
+    good = next(line for line in lines if " good " in line)
+    assert "offline" in good
+    assert not any(" bad " in line or " huge " in line for line in lines)

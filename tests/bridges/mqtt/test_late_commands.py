@@ -6,11 +6,9 @@ from __future__ import annotations
 
 import asyncio
 import json
-import os
-import signal
+import socket
 import time
-from collections.abc import Iterator
-from contextlib import contextmanager
+from typing import Any
 
 import aiomqtt
 import pytest
@@ -24,18 +22,6 @@ pytestmark = pytest.mark.integration
 _MAX_AGE_S = 0.3
 
 
-@contextmanager
-def _stalled(broker: Mosquitto) -> Iterator[None]:
-    """The broker stopped (as a machine swapping, or a debugger): its sockets stay open and
-    what is sent to it waits in them."""
-    assert broker.process is not None
-    os.kill(broker.process.pid, signal.SIGSTOP)
-    try:
-        yield
-    finally:
-        os.kill(broker.process.pid, signal.SIGCONT)
-
-
 async def test_motion_a_stalled_broker_held_is_refused_once_it_resumes(broker: Mosquitto):
     # The bridge's connection outlives a stall shorter than its reply timeout: a "th" published
     # during the stall was carried out when the broker resumed, after the motion timeout would
@@ -47,7 +33,7 @@ async def test_motion_a_stalled_broker_held_is_refused_once_it_resumes(broker: M
     ):
         assert (await watcher.command("late1", "start"))["ok"]
         bridge = robot.bridge
-        with _stalled(broker):
+        with broker.stalled():
             published = asyncio.ensure_future(pilot.publish("rovlink/late1/cmd", "th 90 50", qos=1))
             # The bridge's state (republished every 2 s) waits for the broker's answer.
             await until(lambda: bridge.broker_silence.silent_s() > _MAX_AGE_S)
@@ -89,3 +75,81 @@ async def test_a_requests_at_says_how_old_it_is(broker: Mosquitto):
         assert (await ask("start", time.time()))["ok"]
         assert (await ask("th 90 50", time.time()))["ok"]
         await until(lambda: "#th.90.50!" in robot.frames())
+
+
+async def test_motion_a_publishers_client_kept_through_its_reconnection_is_refused_by_its_at(
+    broker: Mosquitto,
+):
+    # paho-mqtt keeps a QoS 1 publication made while its connection is down and sends it once
+    # it has reconnected: the broker hands it over as new, however late. Only its "at" tells.
+    import paho.mqtt.client as paho_mqtt
+    from paho.mqtt.enums import CallbackAPIVersion
+
+    async with (
+        bridged_robot(broker, "late3", max_command_age_s=_MAX_AGE_S) as robot,
+        subscriber(broker, "rovlink/late3/cmd/reply") as watcher,
+    ):
+        assert (await watcher.command("late3", "start"))["ok"]
+        pilot = paho_mqtt.Client(CallbackAPIVersion.VERSION2)
+        pilot.reconnect_delay_set(min_delay=1, max_delay=1)  # (longer than _MAX_AGE_S)
+        connected = asyncio.Event()
+        loop = asyncio.get_running_loop()
+
+        def on_connect(*_: object) -> None:
+            loop.call_soon_threadsafe(connected.set)
+
+        pilot.on_connect = on_connect
+        pilot.connect("127.0.0.1", broker.port)
+        pilot.loop_start()
+        try:
+            await asyncio.wait_for(connected.wait(), 15)
+            connected.clear()
+            link = pilot.socket()
+            assert isinstance(link, socket.socket)
+            link.shutdown(socket.SHUT_RDWR)  # its network drops
+            await until(lambda: not pilot.is_connected())
+            stamped = json.dumps({"command": "th 90 50", "at": time.time()})
+            for payload in (stamped, "th 90 60"):
+                kept = pilot.publish("rovlink/late3/cmd", payload, qos=1)
+                assert kept.rc == paho_mqtt.MQTT_ERR_NO_CONN  # kept for later
+            await asyncio.wait_for(connected.wait(), 15)  # reconnected: both sent now
+            await until(lambda: len(watcher.on("rovlink/late3/cmd/reply")) == 3)
+        finally:
+            pilot.loop_stop()
+            pilot.disconnect()
+        late, bare = watcher.on("rovlink/late3/cmd/reply")[1:]
+        assert late["ok"] is False
+        assert 'ago (its "at"): motion older than 0.3 s is not carried out' in late["error"]
+        assert "#th.90.50!" not in robot.frames()
+        # Without "at" nothing tells it from a fresh command (docs/bridges.md says so).
+        assert bare["ok"] is True
+
+
+async def test_readings_a_lost_connection_did_not_carry_are_not_published_on_the_next(
+    broker: Mosquitto, monkeypatch: pytest.MonkeyPatch
+):
+    # The readings queued while a stalled broker held the publisher back (up to 64) were
+    # published on the next connection, seconds late, ahead of the live ones.
+    monkeypatch.setattr("rovlink.bridges.mqtt.bridge._STATE_REFRESH_S", 0.2)  # (noticed soon)
+    published: list[tuple[int, int]] = []  # (connection, seq) of each reading published
+    real_publish = aiomqtt.Client.publish
+
+    async def recording_publish(
+        self: aiomqtt.Client, topic: str, *args: Any, **kwargs: Any
+    ) -> None:
+        if topic.endswith("/telemetry"):
+            published.append((id(self), json.loads(args[0])["seq"]))
+        await real_publish(self, topic, *args, **kwargs)
+
+    monkeypatch.setattr(aiomqtt.Client, "publish", recording_publish)
+    async with bridged_robot(broker, "late4", rate_hz=50, reply_timeout_s=0.5) as robot:
+        bridge = robot.bridge
+        await until(lambda: len(published) > 0)
+        with broker.stalled():
+            await until(lambda: not bridge.connected.is_set())
+            given_up_at_seq = bridge.sequence
+        await until(bridge.connected.is_set)
+        await until(lambda: published[-1][1] > given_up_at_seq + 5)
+        last_connection = published[-1][0]
+        on_the_next = [seq for connection, seq in published if connection == last_connection]
+        assert min(on_the_next) > given_up_at_seq

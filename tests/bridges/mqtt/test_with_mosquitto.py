@@ -20,6 +20,8 @@ from tests.bridges.mqtt.rig import CONDITION_TIMEOUT_S, bridged_robot, subscribe
 
 pytestmark = pytest.mark.integration
 
+_HUGE_AT_START = b'{"command": "start", "at": 1' + b"0" * 400 + b"}"
+
 
 async def test_a_subscriber_sees_three_robots_and_a_command_reaches_only_its_robot(
     broker: Mosquitto,
@@ -69,10 +71,18 @@ async def test_queries_answer_with_named_values(broker: Mosquitto):
         (b'{"cmd": "th 90 30"}', 'a JSON request needs "command"'),
         (b"th 400 30", "th: direction_deg must be in 0–360, got 400"),
         (b"thrust 1", "unknown command 'thrust'"),
+        (b"STOP", "unknown command 'STOP'; did you mean stop?"),  # (no hint before)
         (b"", "empty payload"),
         (b"crcon", "owns the checksum and debug modes"),
         (b"x" * 600, "a command is at most 512"),
         (b'{"command": "start", "id": 1.5}', '"id" must be a string or an integer, got 1.5'),
+        # An integer too large for a float once ended the bridge (OverflowError); quoted short.
+        (_HUGE_AT_START, '"at" must be Unix time in seconds, a number, got 1000000000'),
+        (b'{"command": "start", "at": 1e300}', 'its "at" is 1e+300 s ahead of the bridge\'s'),
+        # A lone surrogate has no UTF-8: the reply that quoted it ended the bridge.
+        (b'{"command": "\\ud800"}', "unknown command '\\ud800'"),
+        # Which one counts depends on the parser: a tool reading the first saw a stop.
+        (b'{"command": "stop", "command": "start"}', '"command" is given more than once'),
     ],
 )
 async def test_malformed_payloads_get_an_error_and_send_nothing(
@@ -86,6 +96,7 @@ async def test_malformed_payloads_get_an_error_and_send_nothing(
         reply = await watcher.command("m1", payload)
         assert reply["ok"] is False
         assert error in reply["error"]
+        assert len(reply["error"]) < 200  # what was wrong, not the payload written out
         assert robot.motion_and_lock_frames()[before:] == []
         assert (await watcher.command("m1", "stop"))["ok"]  # still serving
         await until(lambda: robot.motion_and_lock_frames()[before:] == ["#stop!"])
@@ -120,6 +131,58 @@ async def test_a_stop_with_a_bad_id_still_stops_the_robot(broker: Mosquitto, req
         assert "id" not in reply
         assert f'"id" must be a string or an integer, got {request_id}' in reply["warning"]
         await until(lambda: robot.motion_and_lock_frames()[before:] == ["#stop!"])
+
+
+@pytest.mark.parametrize("payload", [b"stop", b'{"command": "stop", "id": 3}'])
+async def test_a_command_from_a_file_with_a_byte_order_mark_is_read(
+    broker: Mosquitto, payload: bytes
+):
+    # A file saved by a Windows editor or PowerShell starts with a UTF-8 byte order mark: the
+    # stop published from it (mosquitto_pub -f) was refused, "unknown command '\ufeffstop'".
+    async with (
+        bridged_robot(broker, "o1", allow_commands=False) as robot,
+        subscriber(broker, "rovlink/o1/cmd/reply") as watcher,
+    ):
+        before = len(robot.motion_and_lock_frames())
+        reply = await watcher.command("o1", b"\xef\xbb\xbf" + payload)
+        assert (reply["ok"], reply["command"], reply["frame"]) == (True, "stop", "#stop!")
+        await until(lambda: robot.motion_and_lock_frames()[before:] == ["#stop!"])
+
+
+async def test_an_id_with_a_lone_surrogate_comes_back_as_it_was(broker: Mosquitto):
+    # Its reply could not be encoded as UTF-8: the bridge ended, after sending the command.
+    async with (
+        bridged_robot(broker, "u1") as robot,
+        subscriber(broker, "rovlink/u1/cmd/reply") as watcher,
+    ):
+        reply = await watcher.command("u1", b'{"command": "qd", "id": "a\\ud800"}')
+        assert (reply["ok"], reply["id"]) == (True, "a\ud800")
+        assert not robot.task.done()
+
+
+async def test_a_stop_with_a_key_given_twice_still_stops_the_robot(broker: Mosquitto):
+    async with (
+        bridged_robot(broker, "i3", allow_commands=False) as robot,
+        subscriber(broker, "rovlink/i3/cmd/reply") as watcher,
+    ):
+        before = len(robot.motion_and_lock_frames())
+        reply = await watcher.command("i3", b'{"command": "stop", "id": 1, "id": 2}')
+        assert (reply["ok"], reply["frame"]) == (True, "#stop!")
+        assert '"id" is given more than once' in reply["warning"]
+        await until(lambda: robot.motion_and_lock_frames()[before:] == ["#stop!"])
+
+
+async def test_a_stop_with_a_huge_at_still_stops_the_robot(broker: Mosquitto):
+    async with (
+        bridged_robot(broker, "i2", allow_commands=False) as robot,
+        subscriber(broker, "rovlink/i2/cmd/reply") as watcher,
+    ):
+        before = len(robot.motion_and_lock_frames())
+        reply = await watcher.command("i2", _HUGE_AT_START.replace(b"start", b"stop"))
+        assert (reply["ok"], reply["frame"]) == (True, "#stop!")
+        assert '"at" must be Unix time in seconds' in reply["warning"]
+        await until(lambda: robot.motion_and_lock_frames()[before:] == ["#stop!"])
+        assert not robot.task.done()
 
 
 async def test_an_mqtt5_response_topic_and_correlation_data_are_honoured(broker: Mosquitto):
@@ -194,7 +257,9 @@ async def test_broker_restart_reconnects_and_keeps_events(broker: Mosquitto):
         assert len(robot.bridge.outbox) == 0
 
 
-async def _ask_with_response_topic(broker: Mosquitto, command: bytes, response_topic: str) -> None:
+async def _ask_with_response_topic(
+    broker: Mosquitto, command: bytes, response_topic: str, robot_id: str = "w1"
+) -> None:
     """Publish ``command`` as an MQTT 5 request whose replies should go to ``response_topic``."""
     properties = Properties(PacketTypes.PUBLISH)
     properties.ResponseTopic = response_topic
@@ -202,7 +267,7 @@ async def _ask_with_response_topic(broker: Mosquitto, command: bytes, response_t
     async with aiomqtt.Client(
         "127.0.0.1", broker.port, protocol=aiomqtt.ProtocolVersion.V5
     ) as asker:
-        await asker.publish("rovlink/w1/cmd", command, qos=1, properties=properties)
+        await asker.publish(f"rovlink/{robot_id}/cmd", command, qos=1, properties=properties)
 
 
 async def test_a_response_topic_with_a_wildcard_is_refused_and_the_command_still_handled(
@@ -225,6 +290,37 @@ async def test_a_response_topic_with_a_wildcard_is_refused_and_the_command_still
         assert len(watcher.on("rovlink/w1/cmd/reply")) == 1
         assert all("response topic" in record.getMessage() for record in caplog.records)
         assert watcher.on("rovlink/w1/state")[-1]["online"] is True
+
+
+@pytest.mark.parametrize(
+    ("target", "problem"),
+    [
+        ("rovlink/w2/cmd", "is a bridge's own topic"),
+        ("rovlink/other/cmd", "is a bridge's own topic"),
+        ("rovlink/w2/state", "is a bridge's own topic"),
+        ("$SYS/x", "is a broker's own topic"),  # (refused by the broker, and logged as an error)
+    ],
+)
+async def test_a_reply_is_never_sent_to_a_bridges_own_topic(
+    broker: Mosquitto, caplog: pytest.LogCaptureFixture, target: str, problem: str
+):
+    # Before, a reply sent to a command topic was read there as a command (it carries its
+    # "command"): this bridge carried its `start` out twice, or another robot carried it out.
+    caplog.set_level("WARNING", logger="rovlink.bridges.mqtt")
+    async with (
+        bridged_robot(broker, "w2") as robot,
+        subscriber(broker, "rovlink/+/cmd", "rovlink/w2/state", "rovlink/w2/cmd/reply") as watcher,
+    ):
+        await watcher.wait_for("rovlink/w2/state")
+        await _ask_with_response_topic(broker, b'{"command": "start"}', target, robot_id="w2")
+        await until(lambda: "response topic" in caplog.text)
+        assert problem in caplog.text
+        assert not [record for record in caplog.records if record.levelname == "ERROR"]
+        assert (await watcher.command("w2", b'{"command": "qd"}'))["ok"]  # after any loop
+        assert robot.motion_and_lock_frames().count("#start!") == 1
+        assert [topic for topic, p in watcher.received if isinstance(p, dict) and "ok" in p] == [
+            "rovlink/w2/cmd/reply"  # (qd's)
+        ]
 
 
 async def test_an_unexpected_error_ends_the_bridge_offline_and_stopped(
@@ -508,10 +604,37 @@ async def test_a_broker_disconnect_that_never_ends_does_not_hold_back_the_final_
         async with bridged_robot(broker, "h1") as robot:
             stops_before = robot.frames().count("#stop!")
         assert robot.task.done()
-        assert robot.frames().count("#stop!") == stops_before + 1
+        # The one as it began to end, and the final one, after its tasks.
+        assert robot.frames().count("#stop!") == stops_before + 2
     finally:
         let_go.set()  # (the connection left behind closes before the loop does)
         await asyncio.sleep(0.1)
+
+
+async def test_an_ending_bridge_stops_the_robot_before_saying_goodbye_to_a_stalled_broker(
+    broker: Mosquitto, monkeypatch: pytest.MonkeyPatch
+):
+    # The final #stop! came only once the offline state had been published or given up (2 s
+    # with a stalled broker): after Ctrl-C a robot without a motion timeout drove on meanwhile.
+    # The goodbye waits for the broker as long as it is stalled.
+    monkeypatch.setattr("rovlink.bridges.mqtt.bridge._FAREWELL_S", 60.0)
+    monkeypatch.setattr("rovlink.bridges.mqtt.bridge._END_WAIT_S", 60.0)
+    async with (
+        bridged_robot(broker, "e1", motion_timeout_s=None, reply_timeout_s=60.0) as robot,
+        subscriber(broker, "rovlink/e1/cmd/reply", "rovlink/e1/state") as watcher,
+    ):
+        for command in ("start", "th 90 100"):
+            assert (await watcher.command("e1", command))["ok"]
+        controller = robot.port.robot.controller
+        await until(lambda: controller.state().power_percent == 100)
+        with broker.stalled():
+            robot.task.cancel()
+            await until(lambda: controller.state().locked and controller.state().power_percent == 0)
+            assert not robot.task.done()  # still saying goodbye, to a broker that answers nothing
+        await asyncio.wait({robot.task}, timeout=CONDITION_TIMEOUT_S)
+        assert robot.task.done()
+        offline = await watcher.wait_for("rovlink/e1/state", lambda s: not s["online"])
+        assert offline["reason"] == "bridge stopped"
 
 
 async def test_a_bridge_ends_though_a_publish_swallows_its_cancellation(

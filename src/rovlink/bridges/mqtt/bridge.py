@@ -53,7 +53,8 @@ from rovlink.bridges.mqtt.payloads import (
     state_payload,
     telemetry_payload,
 )
-from rovlink.bridges.mqtt.topics import Topics, publish_topic_problem
+from rovlink.bridges.mqtt.refusals import first_refusal, watch_publications
+from rovlink.bridges.mqtt.topics import Topics, response_topic_problem
 from rovlink.bridges.sensor_poll import SensorPoller, reopening
 from rovlink.bridges.task_ending import cancel_and_wait
 from rovlink.client.errors import ConnectionLostError, QueryTimeoutError
@@ -106,6 +107,8 @@ _END_WAIT_S = 10.0
 _SESSION_TAKEN_OVER = 0x8E
 #: A connection that lasted this long resets the reconnection backoff, s.
 _STABLE_CONNECTION_S = 10.0
+#: Topics whose refused publications are said, each once, per connection.
+_REFUSALS_SAID = 20
 #: Connections in a row ended this soon that make the bridge say a second one may be running.
 _SHORT_LIVED_WARNING = 3
 
@@ -185,6 +188,8 @@ class MqttBridge:
         self.kept = KeptSettings()
         self.kept.follow(rov)
         self._background: set[asyncio.Future[None]] = set()
+        #: Topics the broker refused to let this connection publish to (each logged once).
+        self._refused_topics: set[str] = set()
         rov.client.subscribe(self._on_client_event)
         rov.add_sent_listener(lambda _sent: self._wake_publisher.set())
 
@@ -192,7 +197,8 @@ class MqttBridge:
         """Serve until cancelled (or the controller's connection is lost for good: a link that a
         client with ``reconnect`` reopens is served through, commands refused meanwhile); the
         robot is sent ``#stop!`` at the start, so that its state is known (locked) before anyone
-        commands it, and at the end, when the state is marked offline."""
+        commands it, and as soon as the bridge begins to end, before the state is marked offline
+        (and once more when it has)."""
         await self.rov.stop()
         poller = asyncio.ensure_future(self.poller.run())
         broker = asyncio.ensure_future(self._stay_connected())
@@ -204,6 +210,12 @@ class MqttBridge:
             self._end_reason(error)  # before the broker task is cancelled: it says this reason
             raise
         finally:
+            # The robot first: the goodbye below may wait for a stalled broker (the farewell
+            # time, a disconnection's reply), and without a motion timeout it would drive on
+            # meanwhile, after Ctrl-C. Stopped again at the very end, in case a command being
+            # carried out went out after this.
+            with contextlib.suppress(ConnectionError):
+                await self.rov.stop()
             # The broker task says goodbye as it ends (the offline state), within the farewell
             # time and a disconnection's reply: cancelled again only if it runs on beyond that.
             ending = asyncio.ensure_future(
@@ -298,7 +310,7 @@ class MqttBridge:
             qos=_QOS_RELIABLE,
             retain=True,
         )
-        return aiomqtt.Client(
+        client = aiomqtt.Client(
             broker.host,
             broker.port,
             username=broker.username,
@@ -311,6 +323,36 @@ class MqttBridge:
             tls_insecure=broker.insecure if broker.tls else None,
             timeout=self.reply_timeout_s,
         )
+        watch_publications(client, self._on_publication_refused)
+        return client
+
+    def _access_control(self) -> str:
+        user = self.broker.username
+        return f"user {user!r}" if user else "anonymous clients"
+
+    def _on_publication_refused(self, topic: str, reason: str) -> None:
+        if topic in self._refused_topics or len(self._refused_topics) >= _REFUSALS_SAID:
+            return  # (an asker naming new response topics without end is not said without end)
+        self._refused_topics.add(topic)
+        own = (self.topics.telemetry, self.topics.state, self.topics.events)
+        if topic in (*own, self.topics.command_reply):
+            logger.error(
+                "broker %s refused this bridge's publication to %s (%s): nobody receives it; "
+                "check the broker's access control for %s",
+                self.broker.describe(),
+                topic,
+                reason,
+                self._access_control(),
+            )
+        else:  # a response topic its asker chose
+            logger.warning(
+                "broker %s refused this bridge's reply to the response topic %s (%s): its asker "
+                "gets no reply; the broker's access control for %s does not allow it",
+                self.broker.describe(),
+                topic,
+                reason,
+                self._access_control(),
+            )
 
     async def _serve(self, mqtt: Any) -> None:
         if self._event_publish is not None:
@@ -321,7 +363,7 @@ class MqttBridge:
         # every (re)connection, a `th 90 100` published minutes or a broker restart ago. And a
         # live one keeps its flag (retain as published), to be refused: carried out once, it
         # would stay stored on the broker for the next connection of a bridge without this.
-        await mqtt.subscribe(
+        granted = await mqtt.subscribe(
             self.topics.command,
             options=SubscribeOptions(
                 qos=_QOS_RELIABLE,
@@ -329,6 +371,18 @@ class MqttBridge:
                 retainHandling=SubscribeOptions.RETAIN_DO_NOT_SEND,
             ),
         )
+        refusal = first_refusal(granted)
+        if refusal is not None:  # (the bridge serves on: telemetry, state, events)
+            logger.error(
+                "broker %s refused this bridge's subscription to %s (%s): no command, not even "
+                "stop, reaches the robot through the broker; check the broker's access control "
+                "for %s",
+                self.broker.describe(),
+                self.topics.command,
+                refusal,
+                self._access_control(),
+            )
+        self._refused_topics.clear()  # (said again on each connection: the rules may change)
         self._last_state = None  # publish it afresh: the broker may have restarted
         self.connected.set()
         queue: asyncio.Queue[_Asked] = asyncio.Queue()
@@ -344,6 +398,11 @@ class MqttBridge:
         finally:
             self.connected.clear()
             await cancel_and_wait(tasks, recancel_after_s=_RECANCEL_MARGIN_S)
+            # Readings the lost connection did not carry (a stalled broker held the publisher
+            # back) are dropped, not published on the next one seconds late: QoS 0 telemetry is
+            # live, and its seq shows the gap.
+            while not self._telemetry.empty():
+                self._telemetry.get_nowait()
 
     async def _receive(self, mqtt: Any, queue: asyncio.Queue[_Asked]) -> None:
         """Commands in the order they came, one at a time (a query waits for its reply), but a
@@ -575,9 +634,10 @@ class MqttBridge:
         asked = getattr(message, "properties", None)
         response_topic = getattr(asked, "ResponseTopic", None)
         if isinstance(response_topic, str) and response_topic:
-            problem = publish_topic_problem(response_topic)
+            problem = response_topic_problem(response_topic)
             if problem is not None:
-                # Whoever asked chose it; publishing would raise and end the bridge.
+                # Whoever asked chose it; publishing would raise and end the bridge, or (a
+                # bridge's command topic) have the reply carried out as a command.
                 logger.warning(
                     "command %r: no reply sent: its response topic %r %s",
                     answer.get("command"),

@@ -71,12 +71,18 @@ def publication_age_problem(published_at_s: float, now_s: float, max_age_s: floa
     age_s = now_s - published_at_s
     if age_s > max_age_s:
         return (
-            f'published {age_s:.1f} s ago (its "at"): motion older than {max_age_s:g} s is not '
-            "carried out; publish it again"
+            f'published {_seconds(age_s)} s ago (its "at"): motion older than {max_age_s:g} s '
+            "is not carried out; publish it again"
         )
     if age_s < -max_age_s:
         return (
-            f'its "at" is {-age_s:.1f} s ahead of the bridge\'s clock: motion is not carried out '
-            "until the clocks agree"
+            f'its "at" is {_seconds(-age_s)} s ahead of the bridge\'s clock: motion is not '
+            "carried out until the clocks agree"
         )
     return None
+
+
+def _seconds(duration_s: float) -> str:
+    """A duration for a message: tenths, or three figures when an ``at`` is absurdly far off
+    (``1e300`` would be written out in 300 digits)."""
+    return f"{duration_s:.1f}" if duration_s < 1e6 else f"{duration_s:.3g}"

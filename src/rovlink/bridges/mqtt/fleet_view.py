@@ -81,7 +81,9 @@ class FleetView:
         robot, what = where
         try:
             data = json.loads(payload)
-        except (UnicodeDecodeError, json.JSONDecodeError):
+        except (ValueError, RecursionError):
+            # Not UTF-8, not JSON, an integer of more digits than Python converts, or nested
+            # deeper than the parser goes: anyone may publish it (retained, at every start).
             data = None
         if not isinstance(data, dict) or what not in ("state", "telemetry", "events"):
             self.ignored += 1

@@ -34,6 +34,8 @@ __all__ = [
 
 #: A command is a few words; anything longer is refused unread.
 MAX_REQUEST_BYTES = 512
+#: A value quoted in an error is cut to this many characters.
+_SHOWN_CHARACTERS = 40
 
 
 class PayloadError(ValueError):
@@ -54,8 +56,16 @@ class CommandRequest:
 
 
 def encode(payload: dict[str, Any]) -> bytes:
-    """Compact JSON, UTF-8."""
-    return json.dumps(payload, separators=(",", ":"), ensure_ascii=False).encode("utf-8")
+    """Compact JSON, UTF-8.
+
+    A lone surrogate (a request's ``"\\ud800"``, echoed in its reply) has no UTF-8: it is
+    written as the JSON escape it came as, which a JSON reader takes back as it was.
+
+    >>> encode({"id": "\\ud800", "text": "é"})
+    b'{"id":"\\\\ud800","text":"\\xc3\\xa9"}'
+    """
+    text = json.dumps(payload, separators=(",", ":"), ensure_ascii=False)
+    return text.encode("utf-8", errors="backslashreplace")
 
 
 def telemetry_payload(robot: str, sensors: Sensors, sequence: int, at_s: float) -> dict[str, Any]:
@@ -174,7 +184,9 @@ def read_request(payload: bytes) -> CommandRequest:
     if len(payload) > MAX_REQUEST_BYTES:
         raise PayloadError(f"payload of {len(payload)} bytes; a command is at most 512")
     try:
-        text = payload.decode("utf-8").strip()
+        # (A byte order mark, as Windows editors and PowerShell write one at the start of a
+        # file sent with `mosquitto_pub -f`, is not part of the command.)
+        text = payload.decode("utf-8-sig").strip()
     except UnicodeDecodeError:
         raise PayloadError("payload is not UTF-8 text") from None
     if not text:
@@ -182,7 +194,7 @@ def read_request(payload: bytes) -> CommandRequest:
     if not text.startswith("{"):
         return CommandRequest(text)
     try:
-        request = json.loads(text)
+        request = json.loads(text, object_pairs_hook=_JsonObject.of)
     except json.JSONDecodeError as error:
         raise PayloadError(f"payload is not valid JSON: {error.msg} at {error.pos}") from None
     if not isinstance(request, dict):
@@ -190,23 +202,54 @@ def read_request(payload: bytes) -> CommandRequest:
     command = request.get("command")
     if not isinstance(command, str) or not command.strip():
         raise PayloadError('a JSON request needs "command", a string')
+    repeated = getattr(request, "repeated", None)
+    if repeated is not None:
+        # Parsers differ on which one counts (Python's: the last), so a tool that reads the
+        # first would see another request than the bridge: `{"command": "stop", "command": …}`.
+        problem = f'"{repeated}" is given more than once: which one is meant is not clear'
+        return CommandRequest(command.strip(), None, problem)
     request_id = request.get("id")
     # Not raised here: a stop with a bad id or time must still stop the robot.
     if request_id is not None and (
         isinstance(request_id, bool) or not isinstance(request_id, (str, int))
     ):
-        problem = f'"id" must be a string or an integer, got {json.dumps(request_id)}'
+        problem = f'"id" must be a string or an integer, got {_shown(request_id)}'
         return CommandRequest(command.strip(), None, problem)
-    published_at_s = request.get("at")
-    if published_at_s is not None and (
-        isinstance(published_at_s, bool)
-        or not isinstance(published_at_s, (int, float))
-        or not math.isfinite(published_at_s)
-    ):
-        problem = f'"at" must be Unix time in seconds, a number, got {json.dumps(published_at_s)}'
+    published_at = request.get("at")
+    published_at_s = None if published_at is None else _unix_time_s(published_at)
+    if published_at is not None and published_at_s is None:
+        problem = f'"at" must be Unix time in seconds, a number, got {_shown(published_at)}'
         return CommandRequest(command.strip(), request_id, problem)
-    return CommandRequest(
-        command.strip(),
-        request_id,
-        published_at_s=None if published_at_s is None else float(published_at_s),
-    )
+    return CommandRequest(command.strip(), request_id, published_at_s=published_at_s)
+
+
+class _JsonObject(dict[str, Any]):
+    """A JSON object that remembers a key given more than once (``json`` keeps the last)."""
+
+    repeated: str | None = None
+
+    @classmethod
+    def of(cls, pairs: list[tuple[str, Any]]) -> _JsonObject:
+        json_object = cls(pairs)
+        if len(json_object) < len(pairs):
+            keys = [key for key, _ in pairs]
+            json_object.repeated = next(k for n, k in enumerate(keys) if k in keys[:n])
+        return json_object
+
+
+def _unix_time_s(value: Any) -> float | None:
+    """``value`` as a finite float of seconds, or ``None`` if it is not one (a JSON integer may
+    have hundreds of digits: too large for a float)."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        return None
+    try:
+        seconds = float(value)
+    except OverflowError:
+        return None
+    return seconds if math.isfinite(seconds) else None
+
+
+def _shown(value: Any) -> str:
+    """``value`` as JSON, cut short: an error repeats what was wrong, not a whole payload."""
+    text = json.dumps(value, ensure_ascii=False)
+    return text if len(text) <= _SHOWN_CHARACTERS else text[: _SHOWN_CHARACTERS - 1] + "…"

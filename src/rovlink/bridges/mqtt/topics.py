@@ -6,11 +6,20 @@ from __future__ import annotations
 import re
 from dataclasses import dataclass
 
-__all__ = ["ROOT", "Topics", "check_robot_id", "publish_topic_problem", "robot_of"]
+__all__ = [
+    "ROOT",
+    "Topics",
+    "check_robot_id",
+    "publish_topic_problem",
+    "response_topic_problem",
+    "robot_of",
+]
 
 #: Every topic of the bridges is under this.
 ROOT = "rovlink"
 _ROBOT_ID = re.compile(r"[A-Za-z0-9_.-]{1,64}")
+#: What a bridge publishes or reads under ``rovlink/ID/`` (``cmd/reply`` is for replies).
+_BRIDGE_TOPICS = ("telemetry", "state", "events", "cmd")
 #: MQTT's limit on a topic name, in UTF-8 bytes.
 _MAX_TOPIC_BYTES = 65535
 
@@ -56,6 +65,30 @@ def publish_topic_problem(topic: str) -> str | None:
         return "is not valid UTF-8"
     if size_bytes > _MAX_TOPIC_BYTES:
         return f"is {size_bytes} bytes long; a topic is at most {_MAX_TOPIC_BYTES}"
+    return None
+
+
+def response_topic_problem(topic: str) -> str | None:
+    """Why a reply must not go to ``topic``, a request's response topic, or ``None``: one that
+    cannot be published to, a broker's own (``$SYS/…``), or a bridge's own topic. A reply
+    carries its ``command``: on a ``cmd`` topic a bridge would carry it out again (this one, or
+    another robot's), and on a ``state`` or ``events`` topic the fleet would take it for the
+    robot's.
+
+    >>> response_topic_problem("rovlink/rov-1/cmd/reply") is None
+    True
+    >>> response_topic_problem("rovlink/rov-2/cmd")
+    "is a bridge's own topic (the command topic of robot 'rov-2')"
+    """
+    problem = publish_topic_problem(topic)
+    if problem is not None:
+        return problem
+    if topic.startswith("$"):  # ($SYS/…, $share/…: MQTT leaves them to the broker)
+        return "is a broker's own topic (it starts with '$')"
+    parts = robot_of(topic)
+    if parts is not None and parts[1] in _BRIDGE_TOPICS:
+        what = "command" if parts[1] == "cmd" else parts[1]
+        return f"is a bridge's own topic (the {what} topic of robot {parts[0]!r})"
     return None
 
 
