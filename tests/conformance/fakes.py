@@ -64,6 +64,7 @@ class FaultyController:
         self._direct = False
         self._thrust: bytes | None = None
         self._zero: int | None = None  # the calibration sent (depth-off-by-one-count, -rounded)
+        self._error_lines = b""  # error-line-with-debug-off: written after the next reply
         self._k: int | None = None
         if fault == "watchdog-fed-by-noise":  # its own failsafe: fed by any byte at all
             config = SimConfig(controller=dataclasses.replace(ControllerConfig(), watchdog_s=0.0))
@@ -221,6 +222,11 @@ class FaultyController:
             data = re.sub(rb"#sdk\.(\d{5,})!", lambda m: b"#sdk.%d!" % min(int(m[1]), 10000), data)
         if fault == "no-length-limit":
             data = re.sub(rb"#sdz\.0{20,}(\d+)!", rb"#sdz.\1!", data)
+        if fault == "error-line-with-debug-off" and self._checksum:
+            # A line for every frame dropped for its checksum, whatever the debug mode.
+            for body in _FRAME.findall(data):
+                if body not in (b"crcon", b"crcoff", b"stop") and not _checksum_right(body):
+                    self._error_lines += b"E01 bad checksum\r\n"
         if fault == "ignores-checksum-value" and self._checksum:
             data = _FRAME.sub(_recomputed, data)
         for frame in _FRAME.findall(data):
@@ -258,6 +264,8 @@ class FaultyController:
             reply = re.sub(rb"debug: [^\r]*\r\n", b"", reply)
         if fault == "no-setting-debug-lines":
             reply = _SETTING_LINE.sub(b"", reply)
+        if self._error_lines:
+            reply, self._error_lines = reply + self._error_lines, b""
         if fault in ("depth-off-by-one-count", "depth-rounded") and not checksum:
             reply = re.sub(rb"\$qd\.(\d+)!\$qr\.(\d+)!", self._wrong_depth, reply)
         return reply
@@ -324,6 +332,11 @@ def _clamped(data: bytes) -> bytes:
     return re.sub(rb"#(mgmp|mvs|mvd)\.([-+]?\d+)!", clamp, data)
 
 
+def _checksum_right(body: bytes) -> bool:
+    """Whether ``body`` ends in the right checksum of the rest (either case, P2)."""
+    return len(body) > 2 and _CRC8.digits(body[:-2]) == body[-2:].upper()
+
+
 def _recomputed(match: re.Match[bytes]) -> bytes:
     body = match[1]
     if body in (b"crcon", b"crcoff") or len(body) < 3:
@@ -342,6 +355,7 @@ FAULTS: dict[str, str] = {
     "extra-reply": "query-qd",
     "slow-replies": "reply-time",
     "ignores-checksum-value": "checksum-bad-dropped",
+    "error-line-with-debug-off": "checksum-bad-dropped",
     "mode-reaches-back": "checksum-on-per-frame",
     "plain-replies-in-checksum-mode": "checksum-replies",
     "no-checksum-mode": "checksum-replies",
