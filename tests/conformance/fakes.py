@@ -168,6 +168,36 @@ class FaultyController:
         out += data[position:]
         return bytes(out)
 
+    def _while_locked(self, data: bytes) -> bytes:
+        """locked-keeps-set-points: an ``mvs`` sent while locked is kept, and the next
+        ``#start!`` obeys it. depth-hold-while-locked: the lock gates ``mvs``, ``th`` and the
+        claw but not ``mvd``, whose depth hold drives the thrusters locked or not."""
+        out = bytearray()
+        position = 0
+        for match in _FRAME.finditer(data):
+            out += data[position : match.start()]
+            position = match.end()
+            body, frame = match[1], match[0]
+            if body == b"stop":
+                self._unlocked = False
+            elif body == b"start":
+                if self._thrust is not None and not self._unlocked:
+                    frame += _frame(b"mvs." + self._thrust, False)
+                self._thrust = None
+                self._unlocked = True
+            elif body.startswith(b"mvs.") and not self._unlocked:
+                if self.fault == "locked-keeps-set-points":
+                    self._thrust = body[4:]
+            elif (
+                body.startswith(b"mvd.")
+                and not self._unlocked
+                and self.fault == "depth-hold-while-locked"
+            ):
+                frame = b"#start!" + frame  # (the simulated controller's lock lifted)
+            out += frame
+        out += data[position:]
+        return bytes(out)
+
     def _incoming(self, data: bytes) -> bytes:
         fault = self.fault
         if fault == "watchdog-fed-by-noise":
@@ -179,6 +209,8 @@ class FaultyController:
                 self._k = int(value)
         if fault in ("stop-keeps-set-points", "watchdog-fed-by-noise"):
             data = self._track_lock(data)
+        if fault in ("locked-keeps-set-points", "depth-hold-while-locked"):
+            data = self._while_locked(data)
         if fault == "mvd-enters-depth-mode":  # takes mvd in direct mode, switching mode
             data = re.sub(rb"#mvd\.(\d+)!", rb"#mvdirect.0!#mvd.\1!", data)
         if fault == "clamps-motion-out-of-range":
@@ -220,6 +252,8 @@ class FaultyController:
         if fault == "clamps-out-of-range":
             data = re.sub(rb"#sdz\.(\d{4,})!", lambda m: b"#sdz.%d!" % min(int(m[1]), 1024), data)
             data = re.sub(rb"#sdk\.(\d{5,})!", lambda m: b"#sdk.%d!" % min(int(m[1]), 10000), data)
+        if fault == "range-ends-dropped":  # its ranges end one short: sdz 1–1023, sdk 1–9999
+            data = data.replace(b"#sdz.1024!", b"#sdz.1025!").replace(b"#sdk.0!", b"#sdk.10001!")
         if fault == "no-length-limit":
             data = re.sub(rb"#sdz\.0{20,}(\d+)!", rb"#sdz.\1!", data)
         if fault == "error-line-with-debug-off" and self._checksum:
@@ -368,11 +402,14 @@ FAULTS: dict[str, str] = {
     "no-resync": "resync-on-start",
     "case-insensitive": "unknown-and-malformed-dropped",
     "clamps-out-of-range": "calibration-out-of-range-not-clamped",
+    "range-ends-dropped": "calibration-range-ends-taken",
     "stop-needs-checksum": "motion-bare-stop-in-checksum-mode",
     "direct-mode-only": "motion-mode-gating",
     "no-watchdog": "motion-link-loss-failsafe",
     "watchdog-fed-by-noise": "motion-link-loss-failsafe",
     "stop-keeps-set-points": "motion-stop-halts",
+    "locked-keeps-set-points": "motion-locked-after-stop",
+    "depth-hold-while-locked": "motion-locked-after-stop",
     "mvd-enters-depth-mode": "motion-mode-gating",
     "clamps-motion-out-of-range": "motion-out-of-range-not-clamped",
     "clamps-gains-out-of-range": "motion-gains-out-of-range-not-clamped",

@@ -343,3 +343,35 @@ def test_a_link_lost_before_the_first_check_is_one_line(
     # What it said when it turned the suite away (before, the line left it out).
     assert err[-1].endswith('; it said: "busy: the controller already has a client"')
     assert "Traceback" not in "\n".join(err)
+
+
+@pytest.mark.parametrize(
+    ("url", "why"),
+    [
+        ("sim://?leak_at=0", "the leak latch is set"),
+        ("socket://127.0.0.1:{port}", "cannot open socket://127.0.0.1:"),
+    ],
+)
+def test_a_run_that_cannot_start_leaves_a_junit_file_that_says_so(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], url: str, why: str
+) -> None:
+    # Before, the file an earlier run wrote was left as it was: a CI read its results (every
+    # check passed) as this run's.
+    import socket
+
+    with socket.socket() as unused:  # a port nothing listens on
+        unused.bind(("127.0.0.1", 0))
+        url = url.format(port=unused.getsockname()[1])
+    junit = tmp_path / "check.xml"
+    junit.write_text('<testsuite name="rovlink check" tests="50" failures="0"/>', encoding="utf-8")
+    assert main(["check", url, "--junit", str(junit)]) == 1
+    line = capsys.readouterr().err.strip().splitlines()[-1]
+    suite = ElementTree.parse(junit).getroot()
+    assert (suite.get("tests"), suite.get("errors"), suite.get("failures")) == ("1", "1", "0")
+    (case,) = suite.iter("testcase")
+    assert case.get("name") == "preflight"
+    error = case.find("error")
+    assert error is not None
+    message = error.get("message") or ""
+    assert why in message
+    assert line == f"rovlink check: {message}"

@@ -11,7 +11,8 @@ from __future__ import annotations
 
 import argparse
 import sys
-from typing import TYPE_CHECKING
+from pathlib import Path
+from typing import TYPE_CHECKING, NoReturn
 
 from rovlink.cli.failure import CommandError, UsageError, reason
 from rovlink.cli.link_options import algorithm_name, bounded_int, confirmed, file_name, seconds
@@ -122,11 +123,11 @@ def run(args: argparse.Namespace) -> int:
     try:
         link = open_link(endpoint)
     except ConnectError as error:
-        raise CommandError(str(error)) from None
+        _not_started(args, str(error))
     try:
         report = run_checks(link, args.url, options, checks, on_result=_progress)
     except PreflightError as error:
-        raise CommandError(f"{args.url}: {error}") from None
+        _not_started(args, f"{args.url}: {error}")
     finally:
         link.close()
     _print_report(report, motion_not_run=0 if args.motion else _motion_checks(args.only))
@@ -136,6 +137,19 @@ def run(args: argparse.Namespace) -> int:
         except OSError as error:
             raise CommandError(f"cannot write {args.junit}: {reason(error)}") from None
     return 0 if report.passed else 1
+
+
+def _not_started(args: argparse.Namespace, why: str) -> NoReturn:
+    """End a run that could not start with ``why``; with ``--junit``, its file says so (left
+    as an earlier run wrote it, a CI would read that run's results as this one's)."""
+    from rovlink.conformance.junit import junit_not_started  # noqa: PLC0415
+
+    if args.junit:
+        try:
+            Path(args.junit).write_bytes(junit_not_started(args.url, why) + b"\n")
+        except OSError as error:
+            why += f"; cannot write {args.junit}: {reason(error)}"
+    raise CommandError(why)
 
 
 def _confirm_motion(percent: int) -> bool:

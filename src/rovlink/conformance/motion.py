@@ -91,18 +91,37 @@ def _down(ctx: CheckContext, checksum: bool) -> bytes:
 @check(
     "motion-locked-after-stop",
     ("P7",),
-    "after #stop!, direct-mode down thrust is dropped: the depth does not grow",
+    "after #stop!, down thrust in direct mode and a depth target far below in depth mode are "
+    "dropped: the depth does not grow, nor after a #start! alone",
     motion=True,
 )
 def _locked(ctx: CheckContext) -> None:
-    ctx.tell(ctx.frame(Command("stop")) + _down(ctx, checksum=False))
-    start, deepest = _watch(ctx, checksum=False)
-    ctx.tell(ctx.frame(Command("stop")))
-    if deepest - start >= _MOVED_COUNTS:
-        raise CheckFailedError(f"locked, yet the raw pressure went from {start} to {deepest}")
+    frame = ctx.frame
+    thrust = f"#mvs.-{ctx.options.motion_percent}!"
+    target = f"#mvd.{lookup('mvd').arguments[0].maximum}!"
+    # Each motion command sent while locked, then a bare #start!: dropped (P7), not kept as a
+    # set-point that the #start! brings back.
+    for what, data in (
+        (thrust, _down(ctx, checksum=False)),
+        (
+            target,
+            _depth_far_below(ctx)
+            + frame(Command("mvdirect", (0,)))
+            + frame(Command("mvd", (lookup("mvd").arguments[0].maximum,))),
+        ),
+    ):
+        _expect_no_dive(
+            ctx, frame(Command("stop")) + data, f"locked, yet {what} was obeyed", stop=False
+        )
+        _expect_no_dive(
+            ctx,
+            frame(Command("start")),
+            f"{what} sent while locked was kept and obeyed at a #start! alone (P7: motion "
+            "commands are dropped while locked, and #start! unlocks with neutral set-points)",
+        )
     _expect_dive(
         ctx,
-        ctx.frame(Command("start")) + _down(ctx, checksum=False),
+        frame(Command("start")) + _down(ctx, checksum=False),
         "unlocked, the same thrust",
         "thrust obeyed while locked",
     )
@@ -141,7 +160,8 @@ def _start_is_neutral(ctx: CheckContext, checksum: bool) -> None:
     if deepest - start >= _MOVED_COUNTS:
         raise CheckFailedError(
             f"#start! alone after #stop! dived again (raw {start} to {deepest}): #stop! must "
-            "clear the motion set-points and #start! unlock with neutral ones"
+            "clear the motion set-points, the thrust sent after it while locked must be "
+            "dropped, and #start! unlock with neutral ones (P7)"
         )
 
 
@@ -200,9 +220,22 @@ def _watched_then_stopped(
         ctx.tell(b"#stop!")
 
 
-def _expect_no_dive(ctx: CheckContext, data: bytes, what: str) -> None:
-    start, deepest = _watched_then_stopped(ctx, data)
+def _expect_no_dive(ctx: CheckContext, data: bytes, what: str, *, stop: bool = True) -> None:
+    """Send ``data`` and fail if the vehicle dives. ``#stop!`` after the watch, unless ``stop``
+    is false and the vehicle did not dive: what comes next then finds the state ``data`` left
+    (a #stop! would clear a set-point that a locked controller kept)."""
+    if stop:
+        start, deepest = _watched_then_stopped(ctx, data)
+    else:
+        ctx.tell(data)
+        try:
+            start, deepest = _watch(ctx, False)
+        except BaseException:
+            ctx.tell(b"#stop!")
+            raise
     if deepest - start >= _MOVED_COUNTS:
+        if not stop:
+            ctx.tell(b"#stop!")
         raise CheckFailedError(f"{what}: the raw pressure went from {start} to {deepest}")
 
 
