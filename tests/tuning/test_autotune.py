@@ -189,3 +189,25 @@ def test_a_stop_from_another_thread_aborts_as_a_stop_not_a_failed_link(
         r"stop\(\) was called during the experiment \(#mvs\.[-+]\d+! not sent\): #stop! sent",
         str(aborted.value),
     )
+
+
+def test_the_verification_keeps_to_the_shallow_limit() -> None:
+    # The hold at the step's start overshoots on its way up from the target: here to 38 cm,
+    # above the 50 cm limit. Before, the verification sampled without the shallow limit and
+    # the run went on as if nothing had happened.
+    with simulated_plant("standard", 1, DepthLimits(50, 400)) as (plant, port):
+        with pytest.raises(TuneAbortedError) as aborted:
+            autotune(
+                plant,
+                RelaySettings(target_cm=150),
+                RULES["heave-poles"],
+                SCALES,
+                StepSettings(from_cm=50, to_cm=150),
+            )
+        assert port.controller.locked
+        assert port.vehicle.duties == (0,) * len(port.vehicle.duties)
+    assert re.fullmatch(
+        r"verification \(gains \d+ \d+ \d+, 50 -> 150 cm\): depth (4\d|3\d) cm is above the "
+        r"limit of 50 cm: #stop! sent",
+        str(aborted.value),
+    )
