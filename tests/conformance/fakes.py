@@ -261,6 +261,9 @@ class FaultyController:
             for body in _FRAME.findall(data):
                 if body not in (b"crcon", b"crcoff", b"stop") and not _checksum_right(body):
                     self._error_lines += b"E01 bad checksum\r\n"
+        if fault == "mode-frames-take-checksum":  # strips a right checksum off #crcon/#crcoff
+            for body in (b"crcon", b"crcoff"):
+                data = data.replace(b"#" + body + _CRC8.digits(body) + b"!", b"#" + body + b"!")
         if fault == "ignores-checksum-value" and self._checksum:
             data = _FRAME.sub(_recomputed, data)
         for frame in _FRAME.findall(data):
@@ -391,6 +394,7 @@ FAULTS: dict[str, str] = {
     "ignores-checksum-value": "checksum-bad-dropped",
     "error-line-with-debug-off": "checksum-bad-dropped",
     "mode-reaches-back": "checksum-on-per-frame",
+    "mode-frames-take-checksum": "checksum-mode-frames-exact",
     "plain-replies-in-checksum-mode": "checksum-replies",
     "no-checksum-mode": "checksum-replies",
     "uppercase-checksums-only": "checksum-lowercase-accepted",
