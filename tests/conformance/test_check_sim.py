@@ -375,3 +375,38 @@ def test_a_run_that_cannot_start_leaves_a_junit_file_that_says_so(
     message = error.get("message") or ""
     assert why in message
     assert line == f"rovlink check: {message}"
+
+
+def test_an_interrupted_run_leaves_a_junit_file_that_says_so(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # Ctrl-C, or a CI job's timeout (SIGTERM, taken as Ctrl-C), during the second check.
+    # Before, the file an earlier run wrote was left as it was, read as this run's results.
+    from rovlink.cli import check as check_command
+
+    progress = check_command._progress
+    seen: list[str] = []
+
+    def interrupted_at_the_second(result: CheckResult) -> None:
+        progress(result)
+        seen.append(result.name)
+        if len(seen) == 2:
+            raise KeyboardInterrupt
+
+    monkeypatch.setattr(check_command, "_progress", interrupted_at_the_second)
+    junit = tmp_path / "check.xml"
+    junit.write_text('<testsuite name="rovlink check" tests="50" failures="0"/>', encoding="utf-8")
+    assert main(["check", "sim://?seed=2", "--only", "query-", "--junit", str(junit)]) == 130
+    assert capsys.readouterr().err.strip().splitlines()[-1] == "rovlink check: interrupted"
+    suite = ElementTree.parse(junit).getroot()
+    selected = [check.name for check in select_checks(["query-"])]
+    assert (suite.get("tests"), suite.get("errors")) == (str(len(selected) + 1), "1")
+    cases = {case.get("name"): case for case in suite.iter("testcase")}
+    assert list(cases) == [*seen, "interrupted", *selected[2:]]
+    error = cases["interrupted"].find("error")
+    assert error is not None
+    assert error.get("message") == "the run was interrupted (Ctrl-C or a signal)"
+    for name in selected[2:]:
+        skipped = cases[name].find("skipped")
+        assert skipped is not None
+        assert skipped.get("message") == "not run: the run was interrupted (Ctrl-C or a signal)"

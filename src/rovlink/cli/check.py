@@ -10,6 +10,7 @@ low power and run only with --motion (after a prompt, unless --yes); a leak or a
 from __future__ import annotations
 
 import argparse
+import contextlib
 import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, NoReturn
@@ -124,10 +125,20 @@ def run(args: argparse.Namespace) -> int:
         link = open_link(endpoint)
     except ConnectError as error:
         _not_started(args, str(error))
+    done: list[CheckResult] = []
+
+    def on_result(result: CheckResult) -> None:
+        done.append(result)
+        _progress(result)
+
     try:
-        report = run_checks(link, args.url, options, checks, on_result=_progress)
+        report = run_checks(link, args.url, options, checks, on_result=on_result)
     except PreflightError as error:
         _not_started(args, f"{args.url}: {error}")
+    except KeyboardInterrupt:  # (Ctrl-C, or a CI's timeout: SIGTERM)
+        if args.junit:
+            _write_interrupted(args.junit, args.url, checks, done)
+        raise
     finally:
         link.close()
     _print_report(report, motion_not_run=0 if args.motion else _motion_checks(args.only))
@@ -137,6 +148,25 @@ def run(args: argparse.Namespace) -> int:
         except OSError as error:
             raise CommandError(f"cannot write {args.junit}: {reason(error)}") from None
     return 0 if report.passed else 1
+
+
+def _write_interrupted(
+    path: str, target: str, checks: list[Check], done: list[CheckResult]
+) -> None:
+    """The ``--junit`` file of an interrupted run: the checks that ended, one case in error
+    saying so, and the rest not run (left as an earlier run wrote it, a CI would read that
+    run's results as this one's)."""
+    from rovlink.conformance import Report, write_junit  # noqa: PLC0415
+
+    names = {result.name for result in done}
+    report = Report(
+        target,
+        list(done),
+        not_run=[check.name for check in checks if check.name not in names],
+        cut_short_by="the run was interrupted (Ctrl-C or a signal)",
+    )
+    with contextlib.suppress(OSError):  # (the interruption is what the command reports)
+        write_junit(report, path)
 
 
 def _not_started(args: argparse.Namespace, why: str) -> NoReturn:
@@ -214,9 +244,7 @@ def _print_report(report: Report, *, motion_not_run: int = 0) -> None:
         console.print(f"\n[yellow]hint[/]: {escape(report.hint)}")
     passed = report.count(Outcome.PASSED)
     aborted = (
-        f"; {len(report.not_run)} more not run: {report.results[-1].name} aborted the run"
-        if report.not_run
-        else ""
+        f"; {len(report.not_run)} more not run: {report.stopped_because}" if report.not_run else ""
     )
     console.print(
         f"\n{report.target}: {passed} of {len(report.results)} checks passed "

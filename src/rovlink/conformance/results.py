@@ -49,6 +49,17 @@ class Report:
     hint: str | None = None
     #: The selected checks that did not run because a check aborted the run, in order.
     not_run: list[str] = field(default_factory=list)
+    #: Why the checks in :attr:`not_run` did not run, when it was not the last check's abort
+    #: (the run was interrupted).
+    cut_short_by: str | None = None
+
+    @property
+    def stopped_because(self) -> str:
+        """Why the run ended before :attr:`not_run`: ``<check> aborted the run``, or what cut it
+        short."""
+        if self.cut_short_by is not None:
+            return self.cut_short_by
+        return f"{self.results[-1].name} aborted the run" if self.results else "the run ended"
 
     @property
     def failures(self) -> list[CheckResult]:
@@ -57,8 +68,9 @@ class Report:
 
     @property
     def passed(self) -> bool:
-        """Whether no check failed and at least one passed: a run of no checks proves nothing."""
-        return not self.failures and self.count(Outcome.PASSED) > 0
+        """Whether no check failed and at least one passed, and the run was not cut short: a
+        run of no checks proves nothing."""
+        return not self.failures and self.count(Outcome.PASSED) > 0 and not self.cut_short_by
 
     def count(self, outcome: Outcome) -> int:
         """How many checks ended so."""
