@@ -211,3 +211,19 @@ def test_the_verification_keeps_to_the_shallow_limit() -> None:
         r"limit of 50 cm: #stop! sent",
         str(aborted.value),
     )
+
+
+def test_a_vehicle_that_never_reaches_the_target_is_said_so() -> None:
+    # The PWM cap at 0 (as rovlink check leaves it): the thrust moves nothing. Before, the
+    # relay ran to its timeout and said only "no steady oscillation within 20 s".
+    with simulated_plant("standard", 3) as (plant, port):
+        plant.client.set_max_pwm(0)
+        with pytest.raises(TuneAbortedError) as aborted:
+            autotune(plant, RelaySettings(timeout_s=20.0), RULES["heave-poles"], SCALES, None)
+        assert port.controller.locked
+    assert re.fullmatch(
+        r"the vehicle did not get below 103 cm in 20 s of 30 % down thrust \(the deepest was "
+        r"\d cm\): is it in the water, and is the PWM cap \(mgmp\) above 0\? \(rovlink check "
+        r"leaves it at 0\): #stop! sent",
+        str(aborted.value),
+    )

@@ -64,7 +64,7 @@ def run_relay(plant: Plant, settings: RelaySettings) -> RelayResult:
     while True:
         now = plant.now_s()
         if now - start_s > settings.timeout_s:
-            plant.abort(f"no steady oscillation within {settings.timeout_s:g} s")
+            plant.abort(_no_oscillation(settings, bool(switch_times), high))
         # The shallow limit holds once the vehicle has been down to the target.
         depth = plant.sample(enforce_min=bool(switch_times))
         result.times_s.append(now - start_s)
@@ -105,6 +105,19 @@ def run_relay(plant: Plant, settings: RelaySettings) -> RelayResult:
     result.amplitude_cm = amplitude
     result.bias_percent = bias
     return result
+
+
+def _no_oscillation(settings: RelaySettings, reached: bool, deepest_cm: int | None) -> str:
+    """Why the relay timed out: no steady oscillation, or (the commonest cause) the vehicle
+    never got down to the target, which the thrust alone cannot tell."""
+    if reached:
+        return f"no steady oscillation within {settings.timeout_s:g} s"
+    deepest = "no depth read" if deepest_cm is None else f"the deepest was {deepest_cm} cm"
+    return (
+        f"the vehicle did not get below {settings.target_cm + settings.hysteresis_cm} cm in "
+        f"{settings.timeout_s:g} s of {settings.amplitude_percent} % down thrust ({deepest}): "
+        "is it in the water, and is the PWM cap (mgmp) above 0? (rovlink check leaves it at 0)"
+    )
 
 
 def _clamp(percent: int) -> int:
