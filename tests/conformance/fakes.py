@@ -66,13 +66,14 @@ class FaultyController:
         self._zero: int | None = None  # the calibration sent (depth-off-by-one-count, -rounded)
         self._error_lines = b""  # error-line-with-debug-off: written after the next reply
         self._k: int | None = None
-        if fault == "watchdog-fed-by-noise":  # its own failsafe: fed by any byte at all
+        if fault in ("watchdog-fed-by-noise", "watchdog-fed-by-motion-only"):
+            # Its own failsafe: fed by any byte at all, or only by motion commands.
             config = SimConfig(controller=dataclasses.replace(ControllerConfig(), watchdog_s=0.0))
             self._inner.close()
             self._inner = SimulatedPort(config, seed=seed, timeout=0)
             self._inner.start()
             self._last_byte_s = time.monotonic()
-            threading.Thread(target=self._noise_fed_watchdog, daemon=True).start()
+            threading.Thread(target=self._own_watchdog, daemon=True).start()
 
     # -- the pyserial subset -------------------------------------------------------------------
 
@@ -134,7 +135,7 @@ class FaultyController:
         with self._lock:
             self._output += data
 
-    def _noise_fed_watchdog(self) -> None:
+    def _own_watchdog(self) -> None:
         while self._inner.is_open:
             time.sleep(0.05)
             with self._lock:
@@ -200,14 +201,20 @@ class FaultyController:
 
     def _incoming(self, data: bytes) -> bytes:
         fault = self.fault
-        if fault == "watchdog-fed-by-noise":
+        if fault == "watchdog-fed-by-noise" or (
+            fault == "watchdog-fed-by-motion-only" and _MOTION_FRAME.search(data)
+        ):
             self._last_byte_s = time.monotonic()
         for name, value in re.findall(rb"#(sdz|sdk)\.(\d{1,5})!", data):
             if name == b"sdz" and int(value) <= 1024:
                 self._zero = int(value)
             elif name == b"sdk" and int(value) <= 10000:
                 self._k = int(value)
-        if fault in ("stop-keeps-set-points", "watchdog-fed-by-noise"):
+        if fault in (
+            "stop-keeps-set-points",
+            "watchdog-fed-by-noise",
+            "watchdog-fed-by-motion-only",
+        ):
             data = self._track_lock(data)
         if fault in ("locked-keeps-set-points", "depth-hold-while-locked"):
             data = self._while_locked(data)
@@ -342,6 +349,8 @@ class FaultyController:
         return bytes(out)
 
 
+#: The frames that feed the failsafe of the watchdog-fed-by-motion-only firmware.
+_MOTION_FRAME = re.compile(rb"#(?:start|th\.|mvs\.|mvd\.|h[+-])")
 #: The watchdog of the watchdog-fed-by-noise firmware, s.
 _WATCHDOG_S = 2.0
 #: The ranges a clamping firmware forces motion and PWM arguments into.
@@ -411,6 +420,7 @@ FAULTS: dict[str, str] = {
     "direct-mode-only": "motion-mode-gating",
     "no-watchdog": "motion-link-loss-failsafe",
     "watchdog-fed-by-noise": "motion-link-loss-failsafe",
+    "watchdog-fed-by-motion-only": "motion-link-loss-failsafe",
     "stop-keeps-set-points": "motion-stop-halts",
     "locked-keeps-set-points": "motion-locked-after-stop",
     "depth-hold-while-locked": "motion-locked-after-stop",

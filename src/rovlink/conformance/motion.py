@@ -366,8 +366,9 @@ def _gains_not_clamped(ctx: CheckContext) -> None:
 @check(
     "motion-link-loss-failsafe",
     ("P17",),
-    "unlocked and diving, no valid frame for the watchdog's time (only noise and broken frames: "
-    "a control byte, over 64 bytes, unfinished) stops and locks the motors",
+    "unlocked and diving, queries alone keep the link alive past the watchdog's time; no valid "
+    "frame for that time (only noise and broken frames: a control byte, over 64 bytes, "
+    "unfinished) stops and locks the motors",
     motion=True,
 )
 def _watchdog(ctx: CheckContext) -> None:
@@ -381,6 +382,22 @@ def _watchdog(ctx: CheckContext) -> None:
             f"unlocked with {ctx.options.motion_percent} % down thrust the vehicle did not dive "
             f"(raw {start} to {deepest} in {MOTION_WATCH_S:g} s), so the failsafe could not be "
             "seen (is the vehicle in water? --motion-power)"
+        )
+    # Queries alone, for longer than the watchdog and the coast after it: they are valid
+    # frames, so they keep the link alive (P17), and the dive goes on. A failsafe that only
+    # motion commands feed stops a host that relays a steady motion and polls its sensors.
+    alive_until = time.monotonic() + ctx.options.watchdog_s + _COAST_S + _WATCHDOG_MARGIN_S
+    while time.monotonic() < alive_until:
+        _sample(ctx, checksum=False)
+        time.sleep(_POLL_S)
+    start, deepest = _watch(ctx, checksum=False)
+    if deepest - start < _MOVED_COUNTS:
+        ctx.tell(b"#stop!")
+        raise CheckFailedError(
+            f"with only queries sent for {ctx.options.watchdog_s + _COAST_S:g} s, more than the "
+            f"watchdog's {ctx.options.watchdog_s:g} s, the dive stopped (raw {start} to "
+            f"{deepest} in {MOTION_WATCH_S:g} s): any valid frame, a query too, must keep the "
+            "link alive (P17)"
         )
     # No valid frame for longer than the watchdog, but bytes all the time: noise and frames
     # P1 discards. Only valid frames may feed the failsafe (P17).
