@@ -227,3 +227,23 @@ def test_a_vehicle_that_never_reaches_the_target_is_said_so() -> None:
         r"leaves it at 0\): #stop! sent",
         str(aborted.value),
     )
+
+
+def test_a_depth_that_does_not_follow_the_pressure_aborts_the_relay() -> None:
+    # sdk 1, as rovlink check --motion leaves it: the depth reads raw / 100, 0 cm however deep
+    # the vehicle goes. Before, the relay drove it down at 30 % until its timeout (120 s),
+    # the --max-depth limit judged on a depth that never moved.
+    with simulated_plant("standard", 3, DepthLimits(0, 300)) as (plant, port):
+        plant.client.set_depth_zero(0)
+        plant.client.set_depth_scale(1)
+        with pytest.raises(TuneAbortedError) as aborted:
+            autotune(plant, RelaySettings(), RULES["heave-poles"], SCALES, None)
+        assert port.controller.locked
+        assert port.vehicle.depth_m < 0.5  # (about 20 cm: 10 counts at 2 cm a count)
+    assert re.fullmatch(
+        r"the raw pressure rose from \d+ to \d+ but the depth stayed at 0 cm: the depth "
+        r"calibration \(sdz, sdk\) does not follow the pressure, and the depth limits cannot be "
+        r"kept \(rovlink check leaves sdk at a test value; calibrate with rovlink calibrate\): "
+        r"#stop! sent",
+        str(aborted.value),
+    )
