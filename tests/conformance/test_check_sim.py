@@ -410,3 +410,18 @@ def test_an_interrupted_run_leaves_a_junit_file_that_says_so(
         skipped = cases[name].find("skipped")
         assert skipped is not None
         assert skipped.get("message") == "not run: the run was interrupted (Ctrl-C or a signal)"
+
+
+def test_the_summary_names_the_settings_left_at_test_values(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    # Before, only the docs said so: a run left the PWM cap at 0 and the calibration at test
+    # values, and the next tool (rovlink tune) drove a vehicle whose thrust or depth was wrong.
+    assert main(["check", "sim://?seed=2", "--only", "set-sdz", "--only", "set-mgmp"]) == 0
+    out = " ".join(capsys.readouterr().out.split())
+    assert (
+        "the checks set mgmp, sdz to test values, which no query reads back: reset the "
+        "controller (or set them again) before using it"
+    ) in out
+    assert main(["check", "sim://?seed=2", "--only", "query-qd"]) == 0
+    assert "test values" not in capsys.readouterr().out

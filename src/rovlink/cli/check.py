@@ -242,6 +242,11 @@ def _print_report(report: Report, *, motion_not_run: int = 0) -> None:
         console.print(escape(evidence_text(result.evidence, 4)), highlight=False)
     if report.hint is not None:
         console.print(f"\n[yellow]hint[/]: {escape(report.hint)}")
+    if report.settings_sent:
+        console.print(
+            f"\nthe checks set {', '.join(report.settings_sent)} to test values, which no query "
+            "reads back: reset the controller (or set them again) before using it"
+        )
     passed = report.count(Outcome.PASSED)
     aborted = (
         f"; {len(report.not_run)} more not run: {report.stopped_because}" if report.not_run else ""
