@@ -386,7 +386,8 @@ def _watchdog(ctx: CheckContext) -> None:
     # Queries alone, for longer than the watchdog and the coast after it: they are valid
     # frames, so they keep the link alive (P17), and the dive goes on. A failsafe that only
     # motion commands feed stops a host that relays a steady motion and polls its sensors.
-    alive_until = time.monotonic() + ctx.options.watchdog_s + _COAST_S + _WATCHDOG_MARGIN_S
+    queried_s = ctx.options.watchdog_s + _COAST_S + _WATCHDOG_MARGIN_S
+    alive_until = time.monotonic() + queried_s
     while time.monotonic() < alive_until:
         _sample(ctx, checksum=False)
         time.sleep(_POLL_S)
@@ -394,7 +395,7 @@ def _watchdog(ctx: CheckContext) -> None:
     if deepest - start < _MOVED_COUNTS:
         ctx.tell(b"#stop!")
         raise CheckFailedError(
-            f"with only queries sent for {ctx.options.watchdog_s + _COAST_S:g} s, more than the "
+            f"with only queries sent for {queried_s:g} s, more than the "
             f"watchdog's {ctx.options.watchdog_s:g} s, the dive stopped (raw {start} to "
             f"{deepest} in {MOTION_WATCH_S:g} s): any valid frame, a query too, must keep the "
             "link alive (P17)"
