@@ -110,9 +110,10 @@ def run_relay(plant: Plant, settings: RelaySettings) -> RelayResult:
     return result
 
 
-#: A rise of the raw pressure (counts) that must show in the depth: 20 cm at the default
-#: calibration (2 cm a count), 10 cm at 1 cm a count.
-_RAW_RISE_COUNTS = 10
+#: A rise of the raw pressure (counts) that must show in the depth: 50 cm at the default
+#: calibration (2 cm a count). Well above what a vehicle floating at the surface, its depth
+#: clamped at 0 while the raw reading is below the zero, sees of waves and noise.
+_RAW_RISE_COUNTS = 25
 #: The least the depth must have changed by then, cm.
 _DEPTH_CHANGE_CM = 2
 
