@@ -425,3 +425,40 @@ def test_the_summary_names_the_settings_left_at_test_values(
     ) in out
     assert main(["check", "sim://?seed=2", "--only", "query-qd"]) == 0
     assert "test values" not in capsys.readouterr().out
+
+
+def test_ctrl_c_during_a_dive_leaves_the_robot_locked_with_zero_thrust(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    # Ctrl-C (or SIGTERM, taken as Ctrl-C) lands while a motion check watches the vehicle dive.
+    import time
+    from types import SimpleNamespace
+
+    from rovlink.client.links import PortLink
+    from rovlink.conformance import motion
+    from rovlink.sim.port import open_port
+
+    port = open_port(seed=6, timeout=0.05)
+
+    def sleep(seconds: float) -> None:
+        with port.lock:
+            diving = not port.controller.locked and any(port.vehicle.duties)
+        if diving:
+            raise KeyboardInterrupt
+        time.sleep(seconds)
+
+    monkeypatch.setattr(motion, "time", SimpleNamespace(monotonic=time.monotonic, sleep=sleep))
+    link = PortLink(port, "sim")
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            run_checks(
+                link,
+                "sim",
+                SuiteOptions(motion=True),
+                select_checks(["motion-stop-halts"], motion=True),
+            )
+        with port.lock:
+            assert port.controller.locked
+            assert all(duty == 0 for duty in port.vehicle.duties)
+    finally:
+        link.close()
