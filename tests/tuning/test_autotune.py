@@ -247,3 +247,20 @@ def test_a_depth_that_does_not_follow_the_pressure_aborts_the_relay() -> None:
         r"#stop! sent",
         str(aborted.value),
     )
+
+
+def test_ctrl_c_during_the_relay_leaves_the_robot_locked_with_zero_thrust() -> None:
+    # Ctrl-C (or SIGTERM, taken as Ctrl-C) lands while the relay waits between two samples.
+    with simulated_plant("standard", 3) as (plant, port):
+        advance = port.advance
+
+        def wait(seconds: float) -> None:
+            if port.robot.time_s > 5.0 and any(port.vehicle.duties):
+                raise KeyboardInterrupt
+            advance(seconds)
+
+        plant._sleep = wait
+        with pytest.raises(KeyboardInterrupt):
+            autotune(plant, RelaySettings(), RULES["heave-poles"], SCALES, None)
+        assert port.controller.locked
+        assert port.vehicle.duties == (0,) * len(port.vehicle.duties)
