@@ -64,14 +64,16 @@ class FaultyController:
         self._direct = False
         self._thrust: bytes | None = None
         self._zero: int | None = None  # the calibration sent (depth-off-by-one-count, -rounded)
+        self._error_lines = b""  # error-line-with-debug-off: written after the next reply
         self._k: int | None = None
-        if fault == "watchdog-fed-by-noise":  # its own failsafe: fed by any byte at all
+        if fault in ("watchdog-fed-by-noise", "watchdog-fed-by-motion-only"):
+            # Its own failsafe: fed by any byte at all, or only by motion commands.
             config = SimConfig(controller=dataclasses.replace(ControllerConfig(), watchdog_s=0.0))
             self._inner.close()
             self._inner = SimulatedPort(config, seed=seed, timeout=0)
             self._inner.start()
             self._last_byte_s = time.monotonic()
-            threading.Thread(target=self._noise_fed_watchdog, daemon=True).start()
+            threading.Thread(target=self._own_watchdog, daemon=True).start()
 
     # -- the pyserial subset -------------------------------------------------------------------
 
@@ -133,7 +135,7 @@ class FaultyController:
         with self._lock:
             self._output += data
 
-    def _noise_fed_watchdog(self) -> None:
+    def _own_watchdog(self) -> None:
         while self._inner.is_open:
             time.sleep(0.05)
             with self._lock:
@@ -167,17 +169,55 @@ class FaultyController:
         out += data[position:]
         return bytes(out)
 
+    def _while_locked(self, data: bytes) -> bytes:
+        """locked-keeps-set-points: an ``mvs`` sent while locked is kept, and the next
+        ``#start!`` obeys it. depth-hold-while-locked: the lock gates ``mvs``, ``th`` and the
+        claw but not ``mvd``, whose depth hold drives the thrusters locked or not."""
+        out = bytearray()
+        position = 0
+        for match in _FRAME.finditer(data):
+            out += data[position : match.start()]
+            position = match.end()
+            body, frame = match[1], match[0]
+            if body == b"stop":
+                self._unlocked = False
+            elif body == b"start":
+                if self._thrust is not None and not self._unlocked:
+                    frame += _frame(b"mvs." + self._thrust, False)
+                self._thrust = None
+                self._unlocked = True
+            elif body.startswith(b"mvs.") and not self._unlocked:
+                if self.fault == "locked-keeps-set-points":
+                    self._thrust = body[4:]
+            elif (
+                body.startswith(b"mvd.")
+                and not self._unlocked
+                and self.fault == "depth-hold-while-locked"
+            ):
+                frame = b"#start!" + frame  # (the simulated controller's lock lifted)
+            out += frame
+        out += data[position:]
+        return bytes(out)
+
     def _incoming(self, data: bytes) -> bytes:
         fault = self.fault
-        if fault == "watchdog-fed-by-noise":
+        if fault == "watchdog-fed-by-noise" or (
+            fault == "watchdog-fed-by-motion-only" and _MOTION_FRAME.search(data)
+        ):
             self._last_byte_s = time.monotonic()
         for name, value in re.findall(rb"#(sdz|sdk)\.(\d{1,5})!", data):
             if name == b"sdz" and int(value) <= 1024:
                 self._zero = int(value)
             elif name == b"sdk" and int(value) <= 10000:
                 self._k = int(value)
-        if fault in ("stop-keeps-set-points", "watchdog-fed-by-noise"):
+        if fault in (
+            "stop-keeps-set-points",
+            "watchdog-fed-by-noise",
+            "watchdog-fed-by-motion-only",
+        ):
             data = self._track_lock(data)
+        if fault in ("locked-keeps-set-points", "depth-hold-while-locked"):
+            data = self._while_locked(data)
         if fault == "mvd-enters-depth-mode":  # takes mvd in direct mode, switching mode
             data = re.sub(rb"#mvd\.(\d+)!", rb"#mvdirect.0!#mvd.\1!", data)
         if fault == "clamps-motion-out-of-range":
@@ -219,8 +259,18 @@ class FaultyController:
         if fault == "clamps-out-of-range":
             data = re.sub(rb"#sdz\.(\d{4,})!", lambda m: b"#sdz.%d!" % min(int(m[1]), 1024), data)
             data = re.sub(rb"#sdk\.(\d{5,})!", lambda m: b"#sdk.%d!" % min(int(m[1]), 10000), data)
+        if fault == "range-ends-dropped":  # its ranges end one short: sdz 1–1023, sdk 1–9999
+            data = data.replace(b"#sdz.1024!", b"#sdz.1025!").replace(b"#sdk.0!", b"#sdk.10001!")
         if fault == "no-length-limit":
             data = re.sub(rb"#sdz\.0{20,}(\d+)!", rb"#sdz.\1!", data)
+        if fault == "error-line-with-debug-off" and self._checksum:
+            # A line for every frame dropped for its checksum, whatever the debug mode.
+            for body in _FRAME.findall(data):
+                if body not in (b"crcon", b"crcoff", b"stop") and not _checksum_right(body):
+                    self._error_lines += b"E01 bad checksum\r\n"
+        if fault == "mode-frames-take-checksum":  # strips a right checksum off #crcon/#crcoff
+            for body in (b"crcon", b"crcoff"):
+                data = data.replace(b"#" + body + _CRC8.digits(body) + b"!", b"#" + body + b"!")
         if fault == "ignores-checksum-value" and self._checksum:
             data = _FRAME.sub(_recomputed, data)
         for frame in _FRAME.findall(data):
@@ -258,6 +308,8 @@ class FaultyController:
             reply = re.sub(rb"debug: [^\r]*\r\n", b"", reply)
         if fault == "no-setting-debug-lines":
             reply = _SETTING_LINE.sub(b"", reply)
+        if self._error_lines:
+            reply, self._error_lines = reply + self._error_lines, b""
         if fault in ("depth-off-by-one-count", "depth-rounded") and not checksum:
             reply = re.sub(rb"\$qd\.(\d+)!\$qr\.(\d+)!", self._wrong_depth, reply)
         return reply
@@ -297,6 +349,8 @@ class FaultyController:
         return bytes(out)
 
 
+#: The frames that feed the failsafe of the watchdog-fed-by-motion-only firmware.
+_MOTION_FRAME = re.compile(rb"#(?:start|th\.|mvs\.|mvd\.|h[+-])")
 #: The watchdog of the watchdog-fed-by-noise firmware, s.
 _WATCHDOG_S = 2.0
 #: The ranges a clamping firmware forces motion and PWM arguments into.
@@ -324,6 +378,11 @@ def _clamped(data: bytes) -> bytes:
     return re.sub(rb"#(mgmp|mvs|mvd)\.([-+]?\d+)!", clamp, data)
 
 
+def _checksum_right(body: bytes) -> bool:
+    """Whether ``body`` ends in the right checksum of the rest (either case, P2)."""
+    return len(body) > 2 and _CRC8.digits(body[:-2]) == body[-2:].upper()
+
+
 def _recomputed(match: re.Match[bytes]) -> bytes:
     body = match[1]
     if body in (b"crcon", b"crcoff") or len(body) < 3:
@@ -342,7 +401,9 @@ FAULTS: dict[str, str] = {
     "extra-reply": "query-qd",
     "slow-replies": "reply-time",
     "ignores-checksum-value": "checksum-bad-dropped",
+    "error-line-with-debug-off": "checksum-bad-dropped",
     "mode-reaches-back": "checksum-on-per-frame",
+    "mode-frames-take-checksum": "checksum-mode-frames-exact",
     "plain-replies-in-checksum-mode": "checksum-replies",
     "no-checksum-mode": "checksum-replies",
     "uppercase-checksums-only": "checksum-lowercase-accepted",
@@ -354,11 +415,15 @@ FAULTS: dict[str, str] = {
     "no-resync": "resync-on-start",
     "case-insensitive": "unknown-and-malformed-dropped",
     "clamps-out-of-range": "calibration-out-of-range-not-clamped",
+    "range-ends-dropped": "calibration-range-ends-taken",
     "stop-needs-checksum": "motion-bare-stop-in-checksum-mode",
     "direct-mode-only": "motion-mode-gating",
     "no-watchdog": "motion-link-loss-failsafe",
     "watchdog-fed-by-noise": "motion-link-loss-failsafe",
+    "watchdog-fed-by-motion-only": "motion-link-loss-failsafe",
     "stop-keeps-set-points": "motion-stop-halts",
+    "locked-keeps-set-points": "motion-locked-after-stop",
+    "depth-hold-while-locked": "motion-locked-after-stop",
     "mvd-enters-depth-mode": "motion-mode-gating",
     "clamps-motion-out-of-range": "motion-out-of-range-not-clamped",
     "clamps-gains-out-of-range": "motion-gains-out-of-range-not-clamped",

@@ -343,3 +343,122 @@ def test_a_link_lost_before_the_first_check_is_one_line(
     # What it said when it turned the suite away (before, the line left it out).
     assert err[-1].endswith('; it said: "busy: the controller already has a client"')
     assert "Traceback" not in "\n".join(err)
+
+
+@pytest.mark.parametrize(
+    ("url", "why"),
+    [
+        ("sim://?leak_at=0", "the leak latch is set"),
+        ("socket://127.0.0.1:{port}", "cannot open socket://127.0.0.1:"),
+    ],
+)
+def test_a_run_that_cannot_start_leaves_a_junit_file_that_says_so(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], url: str, why: str
+) -> None:
+    # Before, the file an earlier run wrote was left as it was: a CI read its results (every
+    # check passed) as this run's.
+    import socket
+
+    with socket.socket() as unused:  # a port nothing listens on
+        unused.bind(("127.0.0.1", 0))
+        url = url.format(port=unused.getsockname()[1])
+    junit = tmp_path / "check.xml"
+    junit.write_text('<testsuite name="rovlink check" tests="50" failures="0"/>', encoding="utf-8")
+    assert main(["check", url, "--junit", str(junit)]) == 1
+    line = capsys.readouterr().err.strip().splitlines()[-1]
+    suite = ElementTree.parse(junit).getroot()
+    assert (suite.get("tests"), suite.get("errors"), suite.get("failures")) == ("1", "1", "0")
+    (case,) = suite.iter("testcase")
+    assert case.get("name") == "preflight"
+    error = case.find("error")
+    assert error is not None
+    message = error.get("message") or ""
+    assert why in message
+    assert line == f"rovlink check: {message}"
+
+
+def test_an_interrupted_run_leaves_a_junit_file_that_says_so(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # Ctrl-C, or a CI job's timeout (SIGTERM, taken as Ctrl-C), during the second check.
+    # Before, the file an earlier run wrote was left as it was, read as this run's results.
+    from rovlink.cli import check as check_command
+
+    progress = check_command._progress
+    seen: list[str] = []
+
+    def interrupted_at_the_second(result: CheckResult) -> None:
+        progress(result)
+        seen.append(result.name)
+        if len(seen) == 2:
+            raise KeyboardInterrupt
+
+    monkeypatch.setattr(check_command, "_progress", interrupted_at_the_second)
+    junit = tmp_path / "check.xml"
+    junit.write_text('<testsuite name="rovlink check" tests="50" failures="0"/>', encoding="utf-8")
+    assert main(["check", "sim://?seed=2", "--only", "query-", "--junit", str(junit)]) == 130
+    assert capsys.readouterr().err.strip().splitlines()[-1] == "rovlink check: interrupted"
+    suite = ElementTree.parse(junit).getroot()
+    selected = [check.name for check in select_checks(["query-"])]
+    assert (suite.get("tests"), suite.get("errors")) == (str(len(selected) + 1), "1")
+    cases = {case.get("name"): case for case in suite.iter("testcase")}
+    assert list(cases) == [*seen, "interrupted", *selected[2:]]
+    error = cases["interrupted"].find("error")
+    assert error is not None
+    assert error.get("message") == "the run was interrupted (Ctrl-C or a signal)"
+    for name in selected[2:]:
+        skipped = cases[name].find("skipped")
+        assert skipped is not None
+        assert skipped.get("message") == "not run: the run was interrupted (Ctrl-C or a signal)"
+
+
+def test_the_summary_names_the_settings_left_at_test_values(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    # Before, only the docs said so: a run left the PWM cap at 0 and the calibration at test
+    # values, and the next tool (rovlink tune) drove a vehicle whose thrust or depth was wrong.
+    assert main(["check", "sim://?seed=2", "--only", "set-sdz", "--only", "set-mgmp"]) == 0
+    out = " ".join(capsys.readouterr().out.split())
+    assert (
+        "the checks set mgmp, sdz to test values, which no query reads back: reset the "
+        "controller (or set them again) before using it"
+    ) in out
+    assert main(["check", "sim://?seed=2", "--only", "query-qd"]) == 0
+    assert "test values" not in capsys.readouterr().out
+
+
+def test_ctrl_c_during_a_dive_leaves_the_robot_locked_with_zero_thrust(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    # Ctrl-C (or SIGTERM, taken as Ctrl-C) lands while a motion check watches the vehicle dive.
+    import time
+    from types import SimpleNamespace
+
+    from rovlink.client.links import PortLink
+    from rovlink.conformance import motion
+    from rovlink.sim.port import open_port
+
+    port = open_port(seed=6, timeout=0.05)
+
+    def sleep(seconds: float) -> None:
+        with port.lock:
+            diving = not port.controller.locked and any(port.vehicle.duties)
+        if diving:
+            raise KeyboardInterrupt
+        time.sleep(seconds)
+
+    monkeypatch.setattr(motion, "time", SimpleNamespace(monotonic=time.monotonic, sleep=sleep))
+    link = PortLink(port, "sim")
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            run_checks(
+                link,
+                "sim",
+                SuiteOptions(motion=True),
+                select_checks(["motion-stop-halts"], motion=True),
+            )
+        with port.lock:
+            assert port.controller.locked
+            assert all(duty == 0 for duty in port.vehicle.duties)
+    finally:
+        link.close()

@@ -60,3 +60,10 @@ def test_url_round_trip_and_errors() -> None:
         parse_fault_url("fault://?inner=sim://&delay_ms=1&jitter_ms=2")
     with pytest.raises(ValueError, match="seed must be an integer"):
         parse_fault_url("fault://?inner=sim://&seed=x")
+
+
+def test_url_round_trip_keeps_every_digit() -> None:
+    # Before, the URL kept 6 significant digits: ber 0.0012345678 came back as 0.00123457.
+    settings = FaultSettings(ber=0.0012345678, delay_ms=1234.5678, jitter_ms=0.1234567, seed=3)
+    assert parse_fault_url(fault_url("sim://", settings)) == ("sim://", settings)
+    assert fault_url("sim://", FaultSettings(ber=1e-3)) == "fault://?inner=sim%3A%2F%2F&ber=0.001"

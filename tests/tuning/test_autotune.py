@@ -189,3 +189,78 @@ def test_a_stop_from_another_thread_aborts_as_a_stop_not_a_failed_link(
         r"stop\(\) was called during the experiment \(#mvs\.[-+]\d+! not sent\): #stop! sent",
         str(aborted.value),
     )
+
+
+def test_the_verification_keeps_to_the_shallow_limit() -> None:
+    # The hold at the step's start overshoots on its way up from the target: here to 38 cm,
+    # above the 50 cm limit. Before, the verification sampled without the shallow limit and
+    # the run went on as if nothing had happened.
+    with simulated_plant("standard", 1, DepthLimits(50, 400)) as (plant, port):
+        with pytest.raises(TuneAbortedError) as aborted:
+            autotune(
+                plant,
+                RelaySettings(target_cm=150),
+                RULES["heave-poles"],
+                SCALES,
+                StepSettings(from_cm=50, to_cm=150),
+            )
+        assert port.controller.locked
+        assert port.vehicle.duties == (0,) * len(port.vehicle.duties)
+    assert re.fullmatch(
+        r"verification \(gains \d+ \d+ \d+, 50 -> 150 cm\): depth (4\d|3\d) cm is above the "
+        r"limit of 50 cm: #stop! sent",
+        str(aborted.value),
+    )
+
+
+def test_a_vehicle_that_never_reaches_the_target_is_said_so() -> None:
+    # The PWM cap at 0 (as rovlink check leaves it): the thrust moves nothing. Before, the
+    # relay ran to its timeout and said only "no steady oscillation within 20 s".
+    with simulated_plant("standard", 3) as (plant, port):
+        plant.client.set_max_pwm(0)
+        with pytest.raises(TuneAbortedError) as aborted:
+            autotune(plant, RelaySettings(timeout_s=20.0), RULES["heave-poles"], SCALES, None)
+        assert port.controller.locked
+    assert re.fullmatch(
+        r"the vehicle did not get below 103 cm in 20 s of 30 % down thrust \(the deepest was "
+        r"\d cm\): is it in the water, and is the PWM cap \(mgmp\) above 0\? \(rovlink check "
+        r"leaves it at 0\): #stop! sent",
+        str(aborted.value),
+    )
+
+
+def test_a_depth_that_does_not_follow_the_pressure_aborts_the_relay() -> None:
+    # sdk 1, as rovlink check --motion leaves it: the depth reads raw / 100, 0 cm however deep
+    # the vehicle goes. Before, the relay drove it down at 30 % until its timeout (120 s),
+    # the --max-depth limit judged on a depth that never moved.
+    with simulated_plant("standard", 3, DepthLimits(0, 300)) as (plant, port):
+        plant.client.set_depth_zero(0)
+        plant.client.set_depth_scale(1)
+        with pytest.raises(TuneAbortedError) as aborted:
+            autotune(plant, RelaySettings(), RULES["heave-poles"], SCALES, None)
+        assert port.controller.locked
+        assert port.vehicle.depth_m < 1.0  # (about 50 cm: 25 counts at 2 cm a count)
+    assert re.fullmatch(
+        r"the raw pressure rose from \d+ to \d+ but the depth stayed at 0 cm: the depth "
+        r"calibration \(sdz, sdk\) does not follow the pressure, and the depth limits cannot be "
+        r"kept \(rovlink check leaves sdk at a test value; calibrate with rovlink calibrate\): "
+        r"#stop! sent",
+        str(aborted.value),
+    )
+
+
+def test_ctrl_c_during_the_relay_leaves_the_robot_locked_with_zero_thrust() -> None:
+    # Ctrl-C (or SIGTERM, taken as Ctrl-C) lands while the relay waits between two samples.
+    with simulated_plant("standard", 3) as (plant, port):
+        advance = port.advance
+
+        def wait(seconds: float) -> None:
+            if port.robot.time_s > 5.0 and any(port.vehicle.duties):
+                raise KeyboardInterrupt
+            advance(seconds)
+
+        plant._sleep = wait
+        with pytest.raises(KeyboardInterrupt):
+            autotune(plant, RelaySettings(), RULES["heave-poles"], SCALES, None)
+        assert port.controller.locked
+        assert port.vehicle.duties == (0,) * len(port.vehicle.duties)

@@ -9,6 +9,7 @@ from types import SimpleNamespace
 import pytest
 
 from rovlink.cli import main
+from rovlink.cli.failure import UsageError
 from rovlink.cli.tune import parse_triple
 
 
@@ -171,13 +172,19 @@ def test_a_simulator_faster_than_real_time_is_refused_before_anything_is_sent(
     )
 
 
-def test_the_default_step_starts_no_shallower_than_min_depth() -> None:
-    # Before, the step from 1 m above a 100 cm target started at 0 cm, above --min-depth 20.
+def test_the_default_step_starts_well_inside_the_limits() -> None:
+    # Before, the step from 1 m above a 100 cm target started at 0 cm, above --min-depth 20;
+    # then at 20 cm, which the hold's approach overshot (to 6-10 cm on the simulated
+    # vehicles), unseen, as the verification did not keep to the shallow limit.
     from rovlink.cli.tune import _step_from
 
     limits = {"min_depth": 20, "max_depth": 300, "step_from": None}
-    assert _step_from(argparse.Namespace(depth=100, **limits)) == 20
+    assert _step_from(argparse.Namespace(depth=100, **limits)) == 40
     assert _step_from(argparse.Namespace(depth=250, **limits)) == 150
+    assert _step_from(argparse.Namespace(depth=30, **limits)) == 130  # no room above: below
+    assert _step_from(argparse.Namespace(depth=270, **limits)) == 170
+    with pytest.raises(UsageError, match="--depth 50 leaves no room for the verification's step"):
+        _step_from(argparse.Namespace(depth=50, min_depth=40, max_depth=60, step_from=None))
 
 
 @pytest.mark.parametrize(

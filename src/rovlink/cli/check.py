@@ -10,8 +10,10 @@ low power and run only with --motion (after a prompt, unless --yes); a leak or a
 from __future__ import annotations
 
 import argparse
+import contextlib
 import sys
-from typing import TYPE_CHECKING
+from pathlib import Path
+from typing import TYPE_CHECKING, NoReturn
 
 from rovlink.cli.failure import CommandError, UsageError, reason
 from rovlink.cli.link_options import algorithm_name, bounded_int, confirmed, file_name, seconds
@@ -122,11 +124,21 @@ def run(args: argparse.Namespace) -> int:
     try:
         link = open_link(endpoint)
     except ConnectError as error:
-        raise CommandError(str(error)) from None
+        _not_started(args, str(error))
+    done: list[CheckResult] = []
+
+    def on_result(result: CheckResult) -> None:
+        done.append(result)
+        _progress(result)
+
     try:
-        report = run_checks(link, args.url, options, checks, on_result=_progress)
+        report = run_checks(link, args.url, options, checks, on_result=on_result)
     except PreflightError as error:
-        raise CommandError(f"{args.url}: {error}") from None
+        _not_started(args, f"{args.url}: {error}")
+    except KeyboardInterrupt:  # (Ctrl-C, or a CI's timeout: SIGTERM)
+        if args.junit:
+            _write_interrupted(args.junit, args.url, checks, done)
+        raise
     finally:
         link.close()
     _print_report(report, motion_not_run=0 if args.motion else _motion_checks(args.only))
@@ -136,6 +148,38 @@ def run(args: argparse.Namespace) -> int:
         except OSError as error:
             raise CommandError(f"cannot write {args.junit}: {reason(error)}") from None
     return 0 if report.passed else 1
+
+
+def _write_interrupted(
+    path: str, target: str, checks: list[Check], done: list[CheckResult]
+) -> None:
+    """The ``--junit`` file of an interrupted run: the checks that ended, one case in error
+    saying so, and the rest not run (left as an earlier run wrote it, a CI would read that
+    run's results as this one's)."""
+    from rovlink.conformance import Report, write_junit  # noqa: PLC0415
+
+    names = {result.name for result in done}
+    report = Report(
+        target,
+        list(done),
+        not_run=[check.name for check in checks if check.name not in names],
+        cut_short_by="the run was interrupted (Ctrl-C or a signal)",
+    )
+    with contextlib.suppress(OSError):  # (the interruption is what the command reports)
+        write_junit(report, path)
+
+
+def _not_started(args: argparse.Namespace, why: str) -> NoReturn:
+    """End a run that could not start with ``why``; with ``--junit``, its file says so (left
+    as an earlier run wrote it, a CI would read that run's results as this one's)."""
+    from rovlink.conformance.junit import junit_not_started  # noqa: PLC0415
+
+    if args.junit:
+        try:
+            Path(args.junit).write_bytes(junit_not_started(args.url, why) + b"\n")
+        except OSError as error:
+            why += f"; cannot write {args.junit}: {reason(error)}"
+    raise CommandError(why)
 
 
 def _confirm_motion(percent: int) -> bool:
@@ -198,11 +242,14 @@ def _print_report(report: Report, *, motion_not_run: int = 0) -> None:
         console.print(escape(evidence_text(result.evidence, 4)), highlight=False)
     if report.hint is not None:
         console.print(f"\n[yellow]hint[/]: {escape(report.hint)}")
+    if report.settings_sent:
+        console.print(
+            f"\nthe checks set {', '.join(report.settings_sent)} to test values, which no query "
+            "reads back: reset the controller (or set them again) before using it"
+        )
     passed = report.count(Outcome.PASSED)
     aborted = (
-        f"; {len(report.not_run)} more not run: {report.results[-1].name} aborted the run"
-        if report.not_run
-        else ""
+        f"; {len(report.not_run)} more not run: {report.stopped_because}" if report.not_run else ""
     )
     console.print(
         f"\n{report.target}: {passed} of {len(report.results)} checks passed "

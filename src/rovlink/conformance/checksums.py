@@ -144,8 +144,17 @@ def _mode_frames(ctx: CheckContext) -> None:
     _checksum_on(ctx)
     _checksum_on(ctx)  # again, in checksum mode, still without checksum
     ctx.expect_reply(ctx.frame(_QD, checksum=True), ("qd",), "still in checksum mode")
+    # With its checksum a mode frame is no mode frame (P3): dropped, the mode left as it was.
+    crcoff = ctx.with_checksum(ctx.frame(_CRCOFF)[1:-1])
+    ctx.expect_no_frames(crcoff, f"{crcoff!r} carries a checksum: dropped")
+    ctx.expect_reply(
+        ctx.frame(_QD, checksum=True), ("qd",), f"{crcoff!r} must not have left checksum mode"
+    )
     _checksum_off(ctx)
     ctx.expect_reply(ctx.frame(_QD), ("qd",), "#crcoff! in checksum mode, without checksum")
+    crcon = ctx.with_checksum(ctx.frame(_CRCON)[1:-1])
+    ctx.expect_no_frames(crcon, f"{crcon!r} carries a checksum: dropped")
+    ctx.expect_reply(ctx.frame(_QD), ("qd",), f"{crcon!r} must not have turned checksum mode on")
 
 
 @check(

@@ -31,6 +31,7 @@ def _lines(exchange: Exchange) -> int:
     "with debug on, each dropped frame gets a CR LF line and no line contains # $ or !",
 )
 def _clean(ctx: CheckContext) -> None:
+    ctx.debug_on = True
     ctx.tell(ctx.frame(_DEBUG_ON))
     exchange = ctx.expect_no_frames(b"".join(_DROPPED), "dropped frames are answered by text only")
     received = exchange.received
@@ -104,6 +105,7 @@ def _setting_changes() -> list[Command]:
     "sdz, sdk, mvdirect, start, th (at 0 % power) and stop",
 )
 def _setting_lines(ctx: CheckContext) -> None:
+    ctx.debug_on = True
     ctx.tell(ctx.frame(_DEBUG_ON) + _first_values())
     for change in _setting_changes():
         exchange = ctx.expect_no_frames(ctx.frame(change), f"{change} sets something")

@@ -91,18 +91,37 @@ def _down(ctx: CheckContext, checksum: bool) -> bytes:
 @check(
     "motion-locked-after-stop",
     ("P7",),
-    "after #stop!, direct-mode down thrust is dropped: the depth does not grow",
+    "after #stop!, down thrust in direct mode and a depth target far below in depth mode are "
+    "dropped: the depth does not grow, nor after a #start! alone",
     motion=True,
 )
 def _locked(ctx: CheckContext) -> None:
-    ctx.tell(ctx.frame(Command("stop")) + _down(ctx, checksum=False))
-    start, deepest = _watch(ctx, checksum=False)
-    ctx.tell(ctx.frame(Command("stop")))
-    if deepest - start >= _MOVED_COUNTS:
-        raise CheckFailedError(f"locked, yet the raw pressure went from {start} to {deepest}")
+    frame = ctx.frame
+    thrust = f"#mvs.-{ctx.options.motion_percent}!"
+    target = f"#mvd.{lookup('mvd').arguments[0].maximum}!"
+    # Each motion command sent while locked, then a bare #start!: dropped (P7), not kept as a
+    # set-point that the #start! brings back.
+    for what, data in (
+        (thrust, _down(ctx, checksum=False)),
+        (
+            target,
+            _depth_far_below(ctx)
+            + frame(Command("mvdirect", (0,)))
+            + frame(Command("mvd", (lookup("mvd").arguments[0].maximum,))),
+        ),
+    ):
+        _expect_no_dive(
+            ctx, frame(Command("stop")) + data, f"locked, yet {what} was obeyed", stop=False
+        )
+        _expect_no_dive(
+            ctx,
+            frame(Command("start")),
+            f"{what} sent while locked was kept and obeyed at a #start! alone (P7: motion "
+            "commands are dropped while locked, and #start! unlocks with neutral set-points)",
+        )
     _expect_dive(
         ctx,
-        ctx.frame(Command("start")) + _down(ctx, checksum=False),
+        frame(Command("start")) + _down(ctx, checksum=False),
         "unlocked, the same thrust",
         "thrust obeyed while locked",
     )
@@ -141,7 +160,8 @@ def _start_is_neutral(ctx: CheckContext, checksum: bool) -> None:
     if deepest - start >= _MOVED_COUNTS:
         raise CheckFailedError(
             f"#start! alone after #stop! dived again (raw {start} to {deepest}): #stop! must "
-            "clear the motion set-points and #start! unlock with neutral ones"
+            "clear the motion set-points, the thrust sent after it while locked must be "
+            "dropped, and #start! unlock with neutral ones (P7)"
         )
 
 
@@ -200,9 +220,22 @@ def _watched_then_stopped(
         ctx.tell(b"#stop!")
 
 
-def _expect_no_dive(ctx: CheckContext, data: bytes, what: str) -> None:
-    start, deepest = _watched_then_stopped(ctx, data)
+def _expect_no_dive(ctx: CheckContext, data: bytes, what: str, *, stop: bool = True) -> None:
+    """Send ``data`` and fail if the vehicle dives. ``#stop!`` after the watch, unless ``stop``
+    is false and the vehicle did not dive: what comes next then finds the state ``data`` left
+    (a #stop! would clear a set-point that a locked controller kept)."""
+    if stop:
+        start, deepest = _watched_then_stopped(ctx, data)
+    else:
+        ctx.tell(data)
+        try:
+            start, deepest = _watch(ctx, False)
+        except BaseException:
+            ctx.tell(b"#stop!")
+            raise
     if deepest - start >= _MOVED_COUNTS:
+        if not stop:
+            ctx.tell(b"#stop!")
         raise CheckFailedError(f"{what}: the raw pressure went from {start} to {deepest}")
 
 
@@ -333,8 +366,9 @@ def _gains_not_clamped(ctx: CheckContext) -> None:
 @check(
     "motion-link-loss-failsafe",
     ("P17",),
-    "unlocked and diving, no valid frame for the watchdog's time (only noise and broken frames: "
-    "a control byte, over 64 bytes, unfinished) stops and locks the motors",
+    "unlocked and diving, queries alone keep the link alive past the watchdog's time; no valid "
+    "frame for that time (only noise and broken frames: a control byte, over 64 bytes, "
+    "unfinished) stops and locks the motors",
     motion=True,
 )
 def _watchdog(ctx: CheckContext) -> None:
@@ -348,6 +382,23 @@ def _watchdog(ctx: CheckContext) -> None:
             f"unlocked with {ctx.options.motion_percent} % down thrust the vehicle did not dive "
             f"(raw {start} to {deepest} in {MOTION_WATCH_S:g} s), so the failsafe could not be "
             "seen (is the vehicle in water? --motion-power)"
+        )
+    # Queries alone, for longer than the watchdog and the coast after it: they are valid
+    # frames, so they keep the link alive (P17), and the dive goes on. A failsafe that only
+    # motion commands feed stops a host that relays a steady motion and polls its sensors.
+    queried_s = ctx.options.watchdog_s + _COAST_S + _WATCHDOG_MARGIN_S
+    alive_until = time.monotonic() + queried_s
+    while time.monotonic() < alive_until:
+        _sample(ctx, checksum=False)
+        time.sleep(_POLL_S)
+    start, deepest = _watch(ctx, checksum=False)
+    if deepest - start < _MOVED_COUNTS:
+        ctx.tell(b"#stop!")
+        raise CheckFailedError(
+            f"with only queries sent for {queried_s:g} s, more than the "
+            f"watchdog's {ctx.options.watchdog_s:g} s, the dive stopped (raw {start} to "
+            f"{deepest} in {MOTION_WATCH_S:g} s): any valid frame, a query too, must keep the "
+            "link alive (P17)"
         )
     # No valid frame for longer than the watchdog, but bytes all the time: noise and frames
     # P1 discards. Only valid frames may feed the failsafe (P17).

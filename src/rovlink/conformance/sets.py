@@ -12,9 +12,9 @@ these settings until it is reset; the summary says so.
 
 from __future__ import annotations
 
-from rovlink.conformance.registry import CheckContext, check
+from rovlink.conformance.registry import CheckContext, CheckSkippedError, check
 from rovlink.conformance.replies import expect_depth, first_value
-from rovlink.protocol import COMMANDS, Command, Setting, Spec, lookup
+from rovlink.protocol import COMMANDS, Command, Setting, Spec, lookup, setting_command
 
 __all__ = ["SETTERS"]
 
@@ -30,21 +30,22 @@ SETTERS: tuple[Spec, ...] = tuple(
 
 
 def _setter_check(spec: Spec) -> None:
+    command = Command(spec.name, tuple(argument.minimum for argument in spec.arguments))
+    # #debug1! turns debug on and prints its line (P5); with debug off, every other setting,
+    # #debug0! too, is answered by nothing at all.
+    turns_debug_on = command == setting_command(Setting.DEBUG, True)
+
     def run(ctx: CheckContext) -> None:
         ctx.tell(ctx.frame(Command("stop")))
-        command = Command(spec.name, tuple(argument.minimum for argument in spec.arguments))
-        why = f"{command} sets something: no reply (P4)"
-        if spec.setting is Setting.DEBUG:  # (#debug1! prints its line, P5)
-            ctx.expect_no_frames(ctx.frame(command), why)
-        else:
-            ctx.expect_silence(ctx.frame(command), why)
+        ctx.debug_on = turns_debug_on
+        ctx.expect_no_frames(ctx.frame(command), f"{command} sets something: no reply (P4)")
         ctx.expect_reply(ctx.frame(Command("qd")), ("qd",), f"after {command}")
 
     check(
         f"set-{spec.name}",
         ("P4", *spec.rules),
         f"{spec.template()} is answered by no frame"
-        + ("" if spec.setting is Setting.DEBUG else ", and by no text with debug off"),
+        + ("" if turns_debug_on else ", and by no text with debug off"),
     )(run)
 
 
@@ -61,11 +62,11 @@ for _spec in SETTERS:
     "#start! and #stop! are answered by no frame, and by no text with debug off",
 )
 def _start_stop(ctx: CheckContext) -> None:
-    ctx.expect_silence(
+    ctx.expect_no_frames(
         ctx.frame(Command("start")) + ctx.frame(Command("stop")),
         "start and stop set something: no reply (P4)",
     )
-    ctx.expect_silence(ctx.frame(Command("stop")), "a second #stop! is answered by nothing")
+    ctx.expect_no_frames(ctx.frame(Command("stop")), "a second #stop! is answered by nothing")
     ctx.expect_reply(ctx.frame(Command("qd")), ("qd",), "after #stop!")
 
 
@@ -84,6 +85,42 @@ def _calibration(ctx: CheckContext) -> None:
         ctx.tell(ctx.frame(Command("sdz", (zero,))) + ctx.frame(Command("sdk", (k,))))
         for _ in range(_SAMPLES):
             expect_depth(ctx, zero, k, "sdz and sdk take effect at once")
+
+
+@check(
+    "calibration-range-ends-taken",
+    ("P6", "P13"),
+    "#sdz! and #sdk! at each end of their range are taken, not dropped: #sdz.<max>! and "
+    "#sdk.0! each bring the depth to 0",
+)
+def _calibration_ends(ctx: CheckContext) -> None:
+    # Each end in turn, from a calibration whose depth is not 0 (the raw reading times 100,
+    # clamped): a controller whose range ends one short (a < for a <=) drops the frame, and
+    # the depth stays where it was.
+    zero_arg, k_arg = lookup("sdz").arguments[0], lookup("sdk").arguments[0]
+    if first_value(ctx.expect_reply(ctx.frame(Command("qr")), ("qr",)), "qr") == 0:
+        raise CheckSkippedError(
+            "the raw pressure reads 0: every calibration gives the depth 0, so whether the "
+            "range's ends are taken cannot be seen"
+        )
+    deep = ctx.frame(Command("sdz", (zero_arg.minimum,))) + ctx.frame(
+        Command("sdk", (k_arg.maximum,))
+    )
+    for name, zero, k in (
+        ("sdz", zero_arg.maximum, k_arg.maximum),
+        ("sdk", zero_arg.minimum, k_arg.minimum),
+    ):
+        ctx.tell(deep)
+        value = zero if name == "sdz" else k
+        argument = zero_arg if name == "sdz" else k_arg
+        ctx.tell(ctx.frame(Command(name, (value,))))
+        expect_depth(
+            ctx,
+            zero,
+            k,
+            f"#{name}.{value}! is in range ({argument.minimum}–{argument.maximum}) and must be "
+            "taken",
+        )
 
 
 @check(

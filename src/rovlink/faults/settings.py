@@ -119,5 +119,7 @@ def fault_url(inner: str, settings: FaultSettings) -> str:
     for name in ("ber", "drop", "dup", "delay_ms", "jitter_ms", "seed"):
         value = getattr(settings, name)
         if value != getattr(defaults, name):
-            parts.append(f"{name}={value:g}" if isinstance(value, float) else f"{name}={value}")
+            # repr: the shortest text that reads back as the same float (``g`` kept 6 digits,
+            # so a URL logged to reproduce a run described other faults).
+            parts.append(f"{name}={value!r}")
     return "fault://?" + "&".join(parts)

@@ -4,7 +4,7 @@ Example::
 
     from rovlink.tuning import DepthLimits, Plant, RelaySettings, RULES, autotune
     result = autotune(Plant(client, DepthLimits(20, 300)), RelaySettings(target_cm=150),
-                      RULES["no-overshoot"], scales, StepSettings(from_cm=50, to_cm=150))
+                      RULES["zn-no-overshoot"], scales, StepSettings(from_cm=50, to_cm=150))
 """
 
 from rovlink.tuning.autotune import TuneResult, autotune

@@ -59,6 +59,9 @@ class Plant:
         self._sleep = sleep
         self._truth = truth
         self._stop_outcome: str | None = None
+        #: The raw pressure reading (qr) of the last sample, for checks of the depth's
+        #: calibration; None before the first.
+        self.last_pressure_raw: int | None = None
         # A reset the driver suspects from here on ends the experiment (P21: a controller that
         # reset is locked and drops the thrust the experiment sends, as the vehicle drifts).
         self._resets_before = client.counters.resets_suspected
@@ -88,6 +91,7 @@ class Plant:
             )
         if sensors.leak_detected:
             self.abort("the leak sensor fired")
+        self.last_pressure_raw = sensors.pressure_raw
         depth = sensors.depth_cm
         if depth > self.limits.max_cm:
             self.abort(f"depth {depth} cm is past the limit of {self.limits.max_cm} cm")

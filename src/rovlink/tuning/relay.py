@@ -61,12 +61,15 @@ def run_relay(plant: Plant, settings: RelaySettings) -> RelayResult:
     up_s = down_s = 0.0
     low = high = None
     result = RelayResult(0.0, 0.0, 0.0, 0.0)
+    first: tuple[int, int | None] | None = None  # the depth and raw pressure at the start
     while True:
         now = plant.now_s()
         if now - start_s > settings.timeout_s:
-            plant.abort(f"no steady oscillation within {settings.timeout_s:g} s")
+            plant.abort(_no_oscillation(settings, bool(switch_times), high))
         # The shallow limit holds once the vehicle has been down to the target.
         depth = plant.sample(enforce_min=bool(switch_times))
+        first = first or (depth, plant.last_pressure_raw)
+        _check_depth_follows_pressure(plant, first, depth)
         result.times_s.append(now - start_s)
         result.depths_cm.append(depth)
         result.outputs_percent.append(output)
@@ -105,6 +108,46 @@ def run_relay(plant: Plant, settings: RelaySettings) -> RelayResult:
     result.amplitude_cm = amplitude
     result.bias_percent = bias
     return result
+
+
+#: A rise of the raw pressure (counts) that must show in the depth: 50 cm at the default
+#: calibration (2 cm a count). Well above what a vehicle floating at the surface, its depth
+#: clamped at 0 while the raw reading is below the zero, sees of waves and noise.
+_RAW_RISE_COUNTS = 25
+#: The least the depth must have changed by then, cm.
+_DEPTH_CHANGE_CM = 2
+
+
+def _check_depth_follows_pressure(
+    plant: Plant, first: tuple[int, int | None], depth_cm: int
+) -> None:
+    """Abort when the pressure has risen but the depth has not: the depth limits are judged on
+    the depth (qd), so a calibration that does not follow the pressure (``sdk`` left at 1 by a
+    check run, or 0) would let the relay drive the vehicle down unchecked."""
+    first_depth, first_raw = first
+    raw = plant.last_pressure_raw
+    if first_raw is None or raw is None or raw - first_raw < _RAW_RISE_COUNTS:
+        return
+    if abs(depth_cm - first_depth) < _DEPTH_CHANGE_CM:
+        plant.abort(
+            f"the raw pressure rose from {first_raw} to {raw} but the depth stayed at "
+            f"{depth_cm} cm: the depth calibration (sdz, sdk) does not follow the pressure, and "
+            "the depth limits cannot be kept (rovlink check leaves sdk at a test value; "
+            "calibrate with rovlink calibrate)"
+        )
+
+
+def _no_oscillation(settings: RelaySettings, reached: bool, deepest_cm: int | None) -> str:
+    """Why the relay timed out: no steady oscillation, or (the commonest cause) the vehicle
+    never got down to the target, which the thrust alone cannot tell."""
+    if reached:
+        return f"no steady oscillation within {settings.timeout_s:g} s"
+    deepest = "no depth read" if deepest_cm is None else f"the deepest was {deepest_cm} cm"
+    return (
+        f"the vehicle did not get below {settings.target_cm + settings.hysteresis_cm} cm in "
+        f"{settings.timeout_s:g} s of {settings.amplitude_percent} % down thrust ({deepest}): "
+        "is it in the water, and is the PWM cap (mgmp) above 0? (rovlink check leaves it at 0)"
+    )
 
 
 def _clamp(percent: int) -> int:

@@ -6,7 +6,7 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
-from rovlink.tuning.plant import Plant
+from rovlink.tuning.plant import Plant, TuneAbortedError
 from rovlink.tuning.rules import ProtocolGains
 
 __all__ = ["StepMetrics", "StepResult", "StepSettings", "run_step", "step_metrics"]
@@ -77,29 +77,40 @@ class StepResult:
 
 
 def run_step(plant: Plant, gains: ProtocolGains, settings: StepSettings) -> StepResult:
-    """Hold ``from_cm`` in depth mode with ``gains``, step to ``to_cm`` and record the depth."""
+    """Hold ``from_cm`` in depth mode with ``gains``, step to ``to_cm`` and record the depth.
+
+    Both depth limits hold throughout, as in the relay once it has reached its target: untried
+    gains that overshoot past one abort the verification with ``#stop!``, its message saying
+    that the verification was under way.
+    """
     client = plant.client
-    plant.send(lambda: client.set_direct_mode(False))
-    plant.send(lambda: client.set_depth_pid(gains.kp, gains.ki, gains.kd))
-    plant.send(lambda: client.hold_depth(settings.from_cm))
-    _watch(plant, settings.hold_s, settings.sample_s)
-    plant.send(lambda: client.hold_depth(settings.to_cm))
-    result = StepResult(settings)
-    start_s = plant.now_s()
-    while True:
-        elapsed = plant.now_s() - start_s
-        if elapsed > settings.watch_s:
-            return result
-        result.times_s.append(elapsed)
-        result.depths_cm.append(plant.sample(enforce_min=False))
-        truth = plant.true_depth_cm()
-        if truth is not None:
-            result.true_depths_cm.append(truth)
-        plant.wait(settings.sample_s)
+    try:
+        plant.send(lambda: client.set_direct_mode(False))
+        plant.send(lambda: client.set_depth_pid(gains.kp, gains.ki, gains.kd))
+        plant.send(lambda: client.hold_depth(settings.from_cm))
+        _watch(plant, settings.hold_s, settings.sample_s)
+        plant.send(lambda: client.hold_depth(settings.to_cm))
+        result = StepResult(settings)
+        start_s = plant.now_s()
+        while True:
+            elapsed = plant.now_s() - start_s
+            if elapsed > settings.watch_s:
+                return result
+            result.times_s.append(elapsed)
+            result.depths_cm.append(plant.sample())
+            truth = plant.true_depth_cm()
+            if truth is not None:
+                result.true_depths_cm.append(truth)
+            plant.wait(settings.sample_s)
+    except TuneAbortedError as error:
+        raise TuneAbortedError(
+            f"verification (gains {gains.kp} {gains.ki} {gains.kd}, {settings.from_cm} -> "
+            f"{settings.to_cm} cm): {error}"
+        ) from None
 
 
 def _watch(plant: Plant, seconds: float, sample_s: float) -> None:
     end_s = plant.now_s() + seconds
     while plant.now_s() < end_s:
-        plant.sample(enforce_min=False)
+        plant.sample()
         plant.wait(sample_s)
