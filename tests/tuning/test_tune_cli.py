@@ -248,3 +248,70 @@ def test_an_aborted_tune_sends_the_gains_back(
         )
     gains = [frame for frame in frames if frame.startswith("#mvp")]
     assert gains[-3:] == ["#mvpdp.40!", "#mvpdi.30!", "#mvpidd.20!"]
+
+
+def _result_missing_the_settling_target() -> object:
+    from rovlink.tuning import ProtocolGains, StepResult, StepSettings
+
+    settings = StepSettings(from_cm=40, to_cm=100)
+    # Still 10 cm off the target 12 s after the step: the 10 s settling target is missed.
+    times_s = [step * 0.5 for step in range(150)]
+    depths_cm = [90 if time_s <= 12.0 else 100 for time_s in times_s]
+    step = StepResult(settings, times_s, depths_cm)
+    relay = SimpleNamespace(
+        ultimate_gain=2.4, ultimate_period_s=4.0, amplitude_cm=16.0, bias_percent=-8.8
+    )
+    physical = SimpleNamespace(kp=2.9, ki=0.39, kd=3.4)
+    rule = SimpleNamespace(name="heave-poles", description="mass model")
+    return SimpleNamespace(
+        relay=relay, rule=rule, physical=physical, gains=ProtocolGains(58, 78, 34), step=step
+    )
+
+
+def test_apply_leaves_no_gains_set_that_missed_the_verifications_targets(
+    capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # Before, --apply left the tuned gains set even when their step missed a target: gains
+    # that held the depth worse than the ones they replaced flew the next dive.
+    from rovlink.client import Client
+    from rovlink.protocol import Command
+
+    monkeypatch.setattr("rovlink.tuning.autotune", lambda *_: _result_missing_the_settling_target())
+    sent: list[str] = []
+    send = Client.send
+
+    def recorded(client: Client, command: Command) -> object:
+        sent.append(str(command))
+        return send(client, command)
+
+    monkeypatch.setattr(Client, "send", recorded)
+    assert main(["tune", "sim://", "--yes", "--apply"]) == 1
+    assert sent == ["#mvpdp.40!", "#mvpdi.30!", "#mvpidd.20!"]
+    out = capsys.readouterr().out
+    assert "within ±3 cm after 12.0 s (target ≤ 10)" in out
+    assert out.splitlines()[-1] == (
+        "gains not applied (--apply: the verification missed a target); sent back mvpdp 40, "
+        "mvpdi 30, mvpidd 20; motors locked"
+    )
+
+
+def test_apply_leaves_gains_set_that_met_the_targets(
+    capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from rovlink.client import Client
+    from rovlink.protocol import Command
+
+    result = _result_missing_the_settling_target()
+    result.step.depths_cm[:] = [100] * len(result.step.depths_cm)  # type: ignore[attr-defined]
+    monkeypatch.setattr("rovlink.tuning.autotune", lambda *_: result)
+    sent: list[str] = []
+    send = Client.send
+
+    def recorded(client: Client, command: Command) -> object:
+        sent.append(str(command))
+        return send(client, command)
+
+    monkeypatch.setattr(Client, "send", recorded)
+    assert main(["tune", "sim://", "--yes", "--apply"]) == 0
+    assert sent == ["#mvpdp.58!", "#mvpdi.78!", "#mvpidd.34!"]
+    assert capsys.readouterr().out.splitlines()[-1] == "gains applied; motors locked"

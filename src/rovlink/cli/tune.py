@@ -1,7 +1,8 @@
 """Tune the depth PID: a relay experiment in direct mode around a target depth (inside safe
 limits) measures the ultimate gain and period; a stated rule turns them into gains on the
 protocol's 0-99 scale; a depth step with those gains verifies them (overshoot, settling time,
-RMS). --apply leaves the gains set; without it the gains given by --restore are sent back.
+RMS). --apply leaves the gains set if they met the verification's targets; otherwise the gains
+given by --restore are sent back.
 A leak, a depth past the limits, a lost link or a controller reset sends #stop! and aborts."""
 
 from __future__ import annotations
@@ -132,7 +133,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "20 cm below --min-depth; 1 m down where there is no room up)",
     )
     group.add_argument("--no-verify", action="store_true", help="skip the verification step")
-    group.add_argument("--apply", action="store_true", help="leave the tuned gains set")
+    group.add_argument(
+        "--apply",
+        action="store_true",
+        help="leave the tuned gains set, if the verification met its targets (or was skipped)",
+    )
     group.add_argument(
         "--plot",
         type=link_options.file_name,
@@ -200,15 +205,17 @@ def run(args: argparse.Namespace) -> int:
         except KeyboardInterrupt:
             _gains_back(client, restore)
             raise
-        gains = result.gains
-        final = gains if args.apply else restore
+        # Gains the verification found wanting are not left set, --apply or not: they may
+        # hold the depth worse than the ones they would replace.
+        met = result.step is None or _meets_targets(result)
+        applied = args.apply and met
+        final = result.gains if applied else restore
         _send_gains(client, final)
     finally:
         client.close()
-    _print(result, args.apply, final)
+    _print(result, applied, final, refused=args.apply and not met)
     if args.plot:
         _plot(result, args.plot)
-    met = result.step is None or _meets_targets(result)
     return 0 if met else 1
 
 
@@ -327,7 +334,7 @@ def _meets_targets(result: TuneResult) -> bool:
     )
 
 
-def _print(result: TuneResult, applied: bool, final: ProtocolGains) -> None:
+def _print(result: TuneResult, applied: bool, final: ProtocolGains, *, refused: bool) -> None:
     relay = result.relay
     physical = result.physical
     gains = result.gains
@@ -354,7 +361,8 @@ def _print(result: TuneResult, applied: bool, final: ProtocolGains) -> None:
             f"(target ≤ {TARGET_RMS_CM:g})"
         )
     sent = f"mvpdp {final.kp}, mvpdi {final.ki}, mvpidd {final.kd}"
-    state = "applied" if applied else f"not applied; sent back {sent}"
+    why = " (--apply: the verification missed a target)" if refused else ""
+    state = "applied" if applied else f"not applied{why}; sent back {sent}"
     print(f"gains {state}; motors locked")
 
 
