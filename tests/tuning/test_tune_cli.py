@@ -83,7 +83,7 @@ def test_gains_that_cannot_be_sent_at_the_end_are_one_line(
     from rovlink.protocol import Command
     from rovlink.tuning import ProtocolGains
 
-    tuned = SimpleNamespace(gains=ProtocolGains(55, 20, 10))
+    tuned = SimpleNamespace(gains=ProtocolGains(55, 20, 10), step=None)  # (--no-verify)
     monkeypatch.setattr("rovlink.tuning.autotune", lambda *_: tuned)
     send = Client.send
 
