@@ -15,30 +15,39 @@ import contextvars
 from collections.abc import Awaitable, Callable, Iterable
 from pathlib import Path
 
-from prompt_toolkit import PromptSession, print_formatted_text
+from prompt_toolkit import PromptSession
 from prompt_toolkit.application import get_app_or_none
 from prompt_toolkit.completion import CompleteEvent, Completer, Completion
 from prompt_toolkit.document import Document
-from prompt_toolkit.formatted_text import FormattedText, StyleAndTextTuples
+from prompt_toolkit.formatted_text import StyleAndTextTuples
 from prompt_toolkit.history import FileHistory, History, InMemoryHistory
 from prompt_toolkit.key_binding import KeyBindings, KeyPressEvent
 from prompt_toolkit.styles import Style
+from prompt_toolkit.utils import is_dumb_terminal
 from prompt_toolkit.validation import ValidationError, Validator
 
 from rovlink.aio import AsyncClient
 from rovlink.client import ClientError
 from rovlink.client.options import StrayCallback
+from rovlink.console.above_prompt import print_above_prompt
 from rovlink.console.actions import InputError, Quit, parse_lines
 from rovlink.console.completion import argument_hint, suggestions
 from rovlink.console.engine import ConsoleEngine
 from rovlink.console.help import STOP_KEY_TEXT
-from rovlink.console.transcript import Line, info_line
+from rovlink.console.transcript import Line, error_line, info_line
 from rovlink.logs import WarningsShownBy
 from rovlink.piloting import LockState, TrackedClient
 from rovlink.piloting.tracked import LEAVING_REPLY_WAIT_S
 from rovlink.protocol.visible import visible
 
-__all__ = ["STYLE", "Connector", "ConsoleCompleter", "ConsoleValidator", "run_console"]
+__all__ = [
+    "STYLE",
+    "Connector",
+    "ConsoleCompleter",
+    "ConsoleValidator",
+    "RefusedLineError",
+    "run_console",
+]
 
 #: Opens the connection, given the callback for what the controller sends unasked.
 Connector = Callable[[StrayCallback], Awaitable[AsyncClient]]
@@ -104,6 +113,11 @@ class ConsoleValidator(Validator):
             parse_lines(document.text, self._checksum())
         except InputError as error:
             raise ValidationError(cursor_position=error.position, message=error.message) from None
+
+
+class RefusedLineError(Exception):
+    """A line read from a file or a pipe was not valid input: the console left after the lines
+    before it, without running it or those after it (``#stop!`` first unless locked)."""
 
 
 class _EndedBySignal(Exception):  # noqa: N818 - a way of leaving, not an error
@@ -174,7 +188,7 @@ def _toolbar(rov: TrackedClient, queued: int) -> StyleAndTextTuples:
 
 
 def _print(line: Line) -> None:
-    print_formatted_text(FormattedText(line), style=STYLE)
+    print_above_prompt(line, STYLE)
 
 
 async def run_console(
@@ -190,7 +204,8 @@ async def run_console(
     ``history_path`` keeps the input history between sessions (``None``: this session only).
     ``from_terminal``: the lines are typed at a terminal, where ``quit`` and Ctrl-D leave at
     once; ``False`` (lines read from a file or a pipe), they run in order, each to its end.
-    Raises what ``connect`` raises if the connection cannot be opened.
+    Raises what ``connect`` raises if the connection cannot be opened, and
+    :class:`RefusedLineError` for a bad line read from a file or a pipe.
     """
     # The driver calls back (debug text, stray frames) in a context copied from its reader
     # thread, which knows nothing of this prompt; print in the console's own context, so that
@@ -228,6 +243,10 @@ async def _run_connected(
     def checksum() -> str | None:  # (a frame typed with its checksum is taken in that mode)
         return rov.algorithm if rov.checksum_enabled else None
 
+    # A line is refused in place, the cursor on the culprit, where the operator can mend it: not
+    # in lines read from a file (the next lines would be typed into the refused one), nor on a
+    # dumb terminal (which cannot show the message under the line).
+    check_in_place = from_terminal and not is_dumb_terminal()
     history: History = InMemoryHistory()
     if history_path is not None:
         history_path.parent.mkdir(parents=True, exist_ok=True)
@@ -238,7 +257,7 @@ async def _run_connected(
         history=history,
         completer=ConsoleCompleter(),
         complete_while_typing=True,
-        validator=ConsoleValidator(checksum),
+        validator=ConsoleValidator(checksum) if check_in_place else None,
         validate_while_typing=False,
         key_bindings=_stop_bindings(engine),
         bottom_toolbar=lambda: _toolbar(rov, engine.queued),
@@ -252,6 +271,8 @@ async def _run_connected(
         )
     )
     runner = asyncio.create_task(engine.run())
+    refused: RefusedLineError | None = None
+    lines_read = 0
     try:
         while not runner.done():
             try:
@@ -267,8 +288,19 @@ async def _run_connected(
                 continue
             except _EndedBySignal:
                 raise KeyboardInterrupt from None  # (after the finally: #stop!, then closed)
+            first_line = lines_read + 1
+            lines_read += text.count("\n") + 1
             # (Lines pasted at once arrive as one text: each runs as if typed on its own.)
-            actions = parse_lines(text, checksum())
+            try:
+                actions = parse_lines(text, checksum())
+            except InputError as error:  # (not checked in place)
+                if from_terminal:
+                    emit_in_console(error_line(error.message))
+                    continue
+                refused = RefusedLineError(
+                    f"line {first_line}: {error.message} (the lines after it were not run)"
+                )
+                actions = [Quit()]
             for action in actions:
                 if isinstance(action, Quit):
                     break
@@ -294,6 +326,8 @@ async def _run_connected(
             runner.cancel()
         await _stop_unless_locked(rov)
         await rov.close()
+    if refused is not None:
+        raise refused
 
 
 #: How long leaving may wait for ``#stop!`` to be written (it is not acknowledged).
