@@ -4,11 +4,15 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import fcntl
 import os
+import re
 import select
+import struct
 import termios
 import threading
-from collections.abc import Iterator
+from collections.abc import AsyncIterator, Iterator
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -53,6 +57,59 @@ def _drained(master: int) -> Iterator[bytearray]:
             os.close(descriptor)
 
 
+@dataclass
+class _ConsoleTerminal:
+    """The console running in this process on a pseudo-terminal: type into it, read its screen."""
+
+    master: int
+    shown: bytearray
+    task: asyncio.Task[None]
+
+    def type(self, text: str) -> None:
+        os.write(self.master, text.encode())
+
+    def text(self) -> str:
+        """What it wrote, its control sequences left out."""
+        return _CONTROL_SEQUENCE.sub("", self.shown.decode(errors="replace"))
+
+    async def wait_shown(self, pattern: str) -> None:
+        await until(lambda: re.search(pattern, self.text()) is not None)
+
+    async def finish(self) -> None:
+        await asyncio.wait_for(self.task, WAIT_S)
+
+
+_CONTROL_SEQUENCE = re.compile(r"\x1b\[[0-9;?]*[A-Za-z]")
+
+
+@contextlib.asynccontextmanager
+async def _console_on_a_terminal(
+    tmp_path: Path, columns: int = 80, rows: int = 24
+) -> AsyncIterator[_ConsoleTerminal]:
+    """``run_console`` on the simulator, its keys and screen a pseudo-terminal of this size."""
+    master, slave = os.openpty()
+    fcntl.ioctl(slave, termios.TIOCSWINSZ, struct.pack("HHHH", rows, columns, 0, 0))
+    try:
+        with (
+            open(slave, closefd=False) as keys,
+            open(slave, "w", closefd=False) as screen,
+            _drained(master) as shown,
+            create_app_session(input=create_input(keys), output=create_output(screen)),
+        ):
+            rig = Rig.simulated()
+            task = asyncio.create_task(run_console(rig.connect, history_path=tmp_path / "history"))
+            terminal = _ConsoleTerminal(master, shown, task)
+            try:
+                await terminal.wait_shown("connected to ")
+                yield terminal
+            finally:
+                if not task.done():
+                    task.cancel()
+                    await asyncio.gather(task, return_exceptions=True)
+    finally:
+        os.close(slave)
+
+
 def test_on_a_dumb_terminal_a_refused_line_says_why_and_the_next_line_runs(
     tmp_path: Path,
 ) -> None:
@@ -87,19 +144,22 @@ async def test_replies_are_printed_with_the_terminal_left_in_raw_mode(
         set_attributes(fd, when, attributes)
 
     monkeypatch.setattr(termios, "tcsetattr", watched)
-    rig = Rig.simulated()
-    master, slave = os.openpty()
-    with (
-        open(slave, closefd=False) as keys,
-        open(slave, "w", closefd=False) as screen,
-        _drained(master) as shown,
-        create_app_session(input=create_input(keys), output=create_output(screen)),
-    ):
-        console = asyncio.create_task(run_console(rig.connect, history_path=tmp_path / "history"))
-        os.write(master, b"debug1\rstart\rqd\r")
-        await until(lambda: "qd → 0 cm" in shown.decode(errors="replace"))
-        os.write(master, CTRL_D.encode())
-        await asyncio.wait_for(console, WAIT_S)
-    os.close(slave)
-    assert "⋯ debug: motors unlocked" in shown.decode(errors="replace")
+    async with _console_on_a_terminal(tmp_path) as terminal:
+        terminal.type("debug1\rstart\rqd\r")
+        await terminal.wait_shown("qd → 0 cm")
+        terminal.type(CTRL_D)
+        await terminal.finish()
+    assert "⋯ debug: motors unlocked" in terminal.text()
     assert signal_keys_while_prompting == []
+
+
+async def test_at_80_columns_the_toolbar_shows_the_link_s_state_in_full(tmp_path: Path) -> None:
+    # Before, the toolbar's first line was cut at the terminal's edge: unlocked in direct mode,
+    # checksum on, at 80 columns "link ok, reply 3 ms" read "li" (and "link lost, reopening
+    # it" read "link lost,").
+    async with _console_on_a_terminal(tmp_path, columns=80) as terminal:
+        terminal.type("start\rmvdirect 1\rmvs -50\rchecksum on\rqd\r")
+        await terminal.wait_shown(r"thrust -50 % │ checksum crc8")
+        await terminal.wait_shown(r"link ok, reply \d+ ms")
+        terminal.type(CTRL_D)
+        await terminal.finish()

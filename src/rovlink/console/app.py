@@ -12,6 +12,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import contextvars
+import textwrap
 from collections.abc import Awaitable, Callable, Iterable
 from pathlib import Path
 
@@ -19,7 +20,7 @@ from prompt_toolkit import PromptSession
 from prompt_toolkit.application import get_app_or_none
 from prompt_toolkit.completion import CompleteEvent, Completer, Completion
 from prompt_toolkit.document import Document
-from prompt_toolkit.formatted_text import StyleAndTextTuples
+from prompt_toolkit.formatted_text import StyleAndTextTuples, fragment_list_width
 from prompt_toolkit.history import FileHistory, History, InMemoryHistory
 from prompt_toolkit.key_binding import KeyBindings, KeyPressEvent
 from prompt_toolkit.styles import Style
@@ -166,25 +167,58 @@ def _toolbar(rov: TrackedClient, queued: int) -> StyleAndTextTuples:
     elif rov.link_down:
         link = "link lost, reopening it"
     checksum = f"checksum {rov.algorithm}" if rov.checksum_enabled else "checksum off"
-    fragments: StyleAndTextTuples = [
-        ("class:toolbar.stop", f" {STOP_KEY_TEXT}: STOP "),
-        ("", " as last sent: "),
-        (lock_style, state.short_lock_text()),
-        ("", f", {state.short_mode_text()} │ {checksum} │ "),
-        (link_style, link),
-        ("class:toolbar.bad", f" │ {queued} line(s) waiting" if queued else ""),
-        ("", "\n "),
+    parts: list[StyleAndTextTuples] = [
+        [("", "as last sent: "), (lock_style, state.short_lock_text())],
+        [("", state.short_mode_text())],
+        [("", checksum)],
+        [(link_style, link)],
     ]
+    if queued:
+        parts.append([("class:toolbar.bad", f"{queued} line(s) waiting")])
     app = get_app_or_none()
+    width = app.output.get_size().columns if app else _TOOLBAR_WIDTH
     # (On the cursor's line: lines pasted at once are each a line of their own.)
     hint = argument_hint(app.current_buffer.document.current_line_before_cursor) if app else None
-    if hint is not None:
-        fragments.append(("class:toolbar.hint", hint.text()))
-    else:
-        fragments.append(
-            ("", "Tab completes · 'help' lists commands · 'help th' shows one · Ctrl-D quits")
-        )
+    help_line: StyleAndTextTuples = (
+        [("", "Tab completes · 'help' lists commands · 'help th' shows one · Ctrl-D quits")]
+        if hint is None
+        else [("class:toolbar.hint", hint.text())]
+    )
+    # A part that would run past the edge goes on the next line: cut, the link's state (at the
+    # end) was what went first, at 80 columns.
+    status = _fitted([("class:toolbar.stop", f" {STOP_KEY_TEXT}: STOP ")], parts, width)
+    return [*status, ("", "\n"), *_wrapped(help_line, width)]
+
+
+#: The toolbar's width when no prompt is running to give the terminal's.
+_TOOLBAR_WIDTH = 80
+
+
+def _fitted(
+    first: StyleAndTextTuples, parts: list[StyleAndTextTuples], width: int
+) -> StyleAndTextTuples:
+    """``first``, then ``parts`` separated by ``│`` (the first by ``,`` from the second),
+    each part put on a new line where it would run past ``width``."""
+    fragments: StyleAndTextTuples = list(first)
+    used = fragment_list_width(fragments)
+    for index, part in enumerate(parts):
+        separator = " " if index == 0 else (", " if index == 1 else " │ ")
+        part_width = fragment_list_width(part)
+        if used + len(separator) + part_width >= width:
+            fragments.append(("", "\n"))
+            separator, used = " ", 0
+        fragments.append(("", separator))
+        fragments.extend(part)
+        used += len(separator) + part_width
     return fragments
+
+
+def _wrapped(line: StyleAndTextTuples, width: int) -> StyleAndTextTuples:
+    """``line`` (one style) broken between words to lines of less than ``width`` columns."""
+    style = line[0][0]
+    text = "".join(text for _, text, *_ in line)
+    lines = textwrap.wrap(text, max(width - 2, 10)) or [""]
+    return [(style, " " + "\n ".join(lines))]
 
 
 def _print(line: Line) -> None:
