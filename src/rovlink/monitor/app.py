@@ -322,10 +322,11 @@ class MonitorApp(App[None]):
                 except QueryTimeoutError:
                     pass  # counted in rov.health, shown on the link panel
                 except ConnectionLostError as error:
-                    self._link_state = f"lost: {error}"
                     if client.closed:
+                        self._link_state = f"lost: {error}"
                         break
-                    # (Being reopened: the polls go on, and fail at once until it is.)
+                    # Being reopened (the link panel says so): the polls go on, and fail at
+                    # once until it is.
                 else:
                     self._link_state = client.description
                     self.readings.record(reading, self._clock())
@@ -428,6 +429,7 @@ class MonitorApp(App[None]):
             self.readings,
             now_s=self._clock(),
             rate_hz=self.rate_hz,
+            reopening=self.rov.link_down,
         )
         if self.rov.client.closed:  # (in the panel's four rows, instead of the health)
             return Text(f"{self._link_state}\nlink closed: keys send nothing", style="bold red")
