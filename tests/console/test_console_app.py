@@ -477,3 +477,26 @@ def test_a_bad_line_read_from_a_file_ends_the_console_naming_it_and_stops(
     assert b"#mvd" not in received
     assert b"#th.400" not in received
     silent.close()
+
+
+def test_lines_read_from_a_file_show_no_toolbar_nor_a_stop_key_that_cannot_be_pressed(
+    tmp_path: Path,
+) -> None:
+    # Before, the transcript of `rovlink console URL < lines.txt > log` was the toolbar drawn
+    # again and again, and it (and the first line) said Ctrl-X sends #stop!: no key reaches a
+    # console whose lines come from a file; Ctrl-C, a signal then, stops the robot.
+    silent = CliSilentController()
+    screen = io.StringIO()
+    with create_pipe_input() as keys, create_app_session(input=keys, output=create_output(screen)):
+        keys.send_text("start\nth 0 30\n")
+        keys.close()
+        status = main(
+            ["console", silent.url, "--boot-timeout", "0", "--history", str(tmp_path / "history")]
+        )
+    assert status == 0
+    transcript = screen.getvalue()
+    assert "→ #th.0.30!" in transcript
+    assert "Ctrl-X" not in transcript
+    assert "Tab completes" not in transcript
+    assert "Ctrl-C sends #stop! and ends the console" in transcript
+    silent.close()

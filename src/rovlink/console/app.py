@@ -285,25 +285,27 @@ async def _run_connected(
     if history_path is not None:
         history_path.parent.mkdir(parents=True, exist_ok=True)
         history = FileHistory(str(history_path))
+    # Lines read from a file: nobody types, so no menus, and no toolbar (drawn again and again
+    # into the transcript) with a stop key that no key reaches; Ctrl-C is a signal then.
     session: PromptSession[str] = PromptSession(
         [("class:prompt", "rovlink> ")],
         style=STYLE,
         history=history,
-        completer=ConsoleCompleter(),
-        complete_while_typing=True,
+        completer=ConsoleCompleter() if from_terminal else None,
+        complete_while_typing=from_terminal,
+        reserve_space_for_menu=8 if from_terminal else 0,
         validator=ConsoleValidator(checksum) if check_in_place else None,
         validate_while_typing=False,
         key_bindings=_stop_bindings(engine),
-        bottom_toolbar=lambda: _toolbar(rov, engine.queued),
-        refresh_interval=_TOOLBAR_REFRESH_S,
+        bottom_toolbar=(lambda: _toolbar(rov, engine.queued)) if from_terminal else None,
+        refresh_interval=_TOOLBAR_REFRESH_S if from_terminal else 0,
     )
-    emit_in_console(
-        info_line(
-            f"connected to {client.description}; {STOP_KEY_TEXT} sends #stop! at any "
-            "time; 'help' lists commands",
-            "class:info",
-        )
+    stop_text = (
+        f"{STOP_KEY_TEXT} sends #stop! at any time; 'help' lists commands"
+        if from_terminal
+        else "its lines run in order; Ctrl-C sends #stop! and ends the console"
     )
+    emit_in_console(info_line(f"connected to {client.description}; {stop_text}", "class:info"))
     runner = asyncio.create_task(engine.run())
     refused: RefusedLineError | None = None
     lines_read = 0
