@@ -38,14 +38,18 @@ class Terminal:
     """A ``rovlink`` command on a pseudo-terminal of its own, as a user runs it; what it shows
     is drained (a full terminal would block it) and kept. :meth:`hang_up` closes the terminal,
     as closing its window does: the command gets SIGHUP and its terminal fails every write.
-    ``term``: the terminal's type (``TERM``)."""
+    ``term``: the terminal's type (``TERM``); ``env``: more environment variables."""
 
     def __init__(
-        self, *arguments: str, stderr_on_terminal: bool = False, term: str = "xterm-256color"
+        self,
+        *arguments: str,
+        stderr_on_terminal: bool = False,
+        term: str = "xterm-256color",
+        env: dict[str, str] | None = None,
     ) -> None:
         self._master, slave = os.openpty()
         source = str(Path(__file__).resolve().parents[1] / "src")
-        environment = {**os.environ, "PYTHONPATH": source, "TERM": term}
+        environment = {**os.environ, "PYTHONPATH": source, "TERM": term, **(env or {})}
         environment.pop("NO_COLOR", None)
         self.process = subprocess.Popen(
             [sys.executable, "-m", "rovlink", *arguments],

@@ -10,6 +10,7 @@ from pathlib import Path
 import pytest
 
 from tests.cli.conftest import RunCli
+from tests.terminals import WAIT_S, Terminal
 
 
 def _listener() -> socket.socket:
@@ -77,3 +78,21 @@ def test_the_monitor_with_its_output_to_a_file_ends_at_once(tmp_path: Path) -> N
     assert finished.returncode == 2
     assert output.read_bytes() == b""  # not one escape sequence
     assert finished.stderr.decode().startswith("rovlink monitor: needs a terminal")
+
+
+@pytest.mark.integration
+def test_on_a_terminal_whose_encoding_cannot_draw_it_the_monitor_is_refused() -> None:
+    # Before, in a locale that is not UTF-8 every box and arrow of the dashboard came out as an
+    # escape ("\\u256d\\u2500 depth, cm \\u2500…"), over the whole screen.
+    ascii_locale = {"LC_ALL": "C", "PYTHONCOERCECLOCALE": "0", "PYTHONUTF8": "0"}
+    terminal = Terminal("monitor", "sim://", env=ascii_locale)
+    try:
+        _, stderr = terminal.process.communicate(timeout=WAIT_S)
+        assert terminal.process.returncode == 2
+        assert stderr.decode() == (
+            "rovlink monitor: the terminal's encoding, ascii, cannot show the dashboard's boxes "
+            "and arrows; run it in a UTF-8 locale, e.g. LC_ALL=C.UTF-8\n"
+        )
+        assert b"\\u25" not in terminal.shown
+    finally:
+        terminal.close()
