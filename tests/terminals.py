@@ -6,10 +6,12 @@ import contextlib
 import fcntl
 import os
 import select
+import struct
 import subprocess
 import sys
 import termios
 import threading
+from collections.abc import Callable
 from pathlib import Path
 
 #: How long a test waits for a command to show something or to end.
@@ -38,7 +40,8 @@ class Terminal:
     """A ``rovlink`` command on a pseudo-terminal of its own, as a user runs it; what it shows
     is drained (a full terminal would block it) and kept. :meth:`hang_up` closes the terminal,
     as closing its window does: the command gets SIGHUP and its terminal fails every write.
-    ``term``: the terminal's type (``TERM``); ``env``: more environment variables."""
+    ``term``: the terminal's type (``TERM``); ``env``: more environment variables; ``size``:
+    columns and rows."""
 
     def __init__(
         self,
@@ -46,8 +49,11 @@ class Terminal:
         stderr_on_terminal: bool = False,
         term: str = "xterm-256color",
         env: dict[str, str] | None = None,
+        size: tuple[int, int] = (80, 24),
     ) -> None:
         self._master, slave = os.openpty()
+        columns, rows = size
+        fcntl.ioctl(slave, termios.TIOCSWINSZ, struct.pack("HHHH", rows, columns, 0, 0))
         source = str(Path(__file__).resolve().parents[1] / "src")
         environment = {**os.environ, "PYTHONPATH": source, "TERM": term, **(env or {})}
         environment.pop("NO_COLOR", None)
@@ -81,8 +87,12 @@ class Terminal:
 
     def wait_shown(self, text: bytes, timeout_s: float = WAIT_S) -> bool:
         """Whether ``text`` appeared on the terminal within ``timeout_s``."""
+        return self.wait_until(lambda shown: text in shown, timeout_s)
+
+    def wait_until(self, holds: Callable[[bytes], bool], timeout_s: float = WAIT_S) -> bool:
+        """Whether what the terminal was sent made ``holds`` true within ``timeout_s``."""
         with self._changed:
-            return self._changed.wait_for(lambda: text in self.shown, timeout_s)
+            return self._changed.wait_for(lambda: holds(bytes(self.shown)), timeout_s)
 
     def type(self, text: str) -> None:
         os.write(self._master, text.encode())
