@@ -109,8 +109,9 @@ def _interrupt(
 
 
 #: Ctrl-C, and what ends a program otherwise: kill and service managers (SIGTERM), a closed
-#: terminal or SSH session (SIGHUP). Each ends a command as Ctrl-C does.
-ENDING_SIGNALS = [signal.SIGINT, signal.SIGTERM, signal.SIGHUP]
+#: terminal or SSH session (SIGHUP), the Ctrl-\ key of a terminal not in raw mode (SIGQUIT).
+#: Each ends a command as Ctrl-C does.
+ENDING_SIGNALS = [signal.SIGINT, signal.SIGTERM, signal.SIGHUP, signal.SIGQUIT]
 
 
 def test_ctrl_c_ends_send_waiting_for_a_silent_controller_at_once(silent: SilentController) -> None:
