@@ -1,9 +1,21 @@
-"""Terminals as another program sees them."""
+"""Terminals as another program sees them, and commands run on a pseudo-terminal of their own."""
 
 from __future__ import annotations
 
+import contextlib
+import fcntl
 import os
+import select
+import struct
 import subprocess
+import sys
+import termios
+import threading
+from collections.abc import Callable
+from pathlib import Path
+
+#: How long a test waits for a command to show something or to end.
+WAIT_S = 15.0
 
 
 def open_as_another_user(device: str) -> str:
@@ -15,3 +27,89 @@ def open_as_another_user(device: str) -> str:
         command, capture_output=True, text=True, timeout=30, check=False, user=user
     )
     return result.stdout + result.stderr
+
+
+def _own_terminal() -> None:
+    """In the child: a session of its own with the pseudo-terminal (its standard input) as its
+    controlling terminal, as a login shell has, so that closing the terminal hangs it up."""
+    os.setsid()
+    fcntl.ioctl(0, termios.TIOCSCTTY, 0)
+
+
+class Terminal:
+    """A ``rovlink`` command on a pseudo-terminal of its own, as a user runs it; what it shows
+    is drained (a full terminal would block it) and kept. :meth:`hang_up` closes the terminal,
+    as closing its window does: the command gets SIGHUP and its terminal fails every write.
+    ``term``: the terminal's type (``TERM``); ``env``: more environment variables; ``size``:
+    columns and rows."""
+
+    def __init__(
+        self,
+        *arguments: str,
+        stderr_on_terminal: bool = False,
+        term: str = "xterm-256color",
+        env: dict[str, str] | None = None,
+        size: tuple[int, int] = (80, 24),
+    ) -> None:
+        self._master, slave = os.openpty()
+        columns, rows = size
+        fcntl.ioctl(slave, termios.TIOCSWINSZ, struct.pack("HHHH", rows, columns, 0, 0))
+        source = str(Path(__file__).resolve().parents[1] / "src")
+        environment = {**os.environ, "PYTHONPATH": source, "TERM": term, **(env or {})}
+        environment.pop("NO_COLOR", None)
+        self.process = subprocess.Popen(
+            [sys.executable, "-m", "rovlink", *arguments],
+            stdin=slave,
+            stdout=slave,
+            stderr=slave if stderr_on_terminal else subprocess.PIPE,
+            env=environment,
+            preexec_fn=_own_terminal,  # noqa: PLW1509 - no threads yet
+        )
+        os.close(slave)
+        self.shown = bytearray()
+        self._changed = threading.Condition()
+        self._wake_r, self._wake_w = os.pipe()
+        self._reader = threading.Thread(target=self._drain, daemon=True)
+        self._reader.start()
+
+    def _drain(self) -> None:
+        with contextlib.suppress(OSError):
+            while True:
+                ready, _, _ = select.select([self._master, self._wake_r], [], [])
+                if self._wake_r in ready:
+                    return
+                data = os.read(self._master, 4096)
+                if not data:
+                    return
+                with self._changed:
+                    self.shown += data
+                    self._changed.notify_all()
+
+    def wait_shown(self, text: bytes, timeout_s: float = WAIT_S) -> bool:
+        """Whether ``text`` appeared on the terminal within ``timeout_s``."""
+        return self.wait_until(lambda shown: text in shown, timeout_s)
+
+    def wait_until(self, holds: Callable[[bytes], bool], timeout_s: float = WAIT_S) -> bool:
+        """Whether what the terminal was sent made ``holds`` true within ``timeout_s``."""
+        with self._changed:
+            return self._changed.wait_for(lambda: holds(bytes(self.shown)), timeout_s)
+
+    def type(self, text: str) -> None:
+        os.write(self._master, text.encode())
+
+    def hang_up(self) -> None:
+        """Close the terminal: the last descriptor of its master side goes."""
+        os.write(self._wake_w, b"x")
+        self._reader.join(WAIT_S)
+        assert not self._reader.is_alive()
+        if self._master >= 0:
+            os.close(self._master)
+            self._master = -1
+
+    def close(self) -> None:
+        if self.process.poll() is None:
+            self.process.kill()
+        self.process.communicate(timeout=WAIT_S)
+        self.hang_up()
+        os.close(self._wake_r)
+        os.close(self._wake_w)

@@ -56,7 +56,8 @@ def _moving_robot(controller: ControllerProcess, log: Path) -> Iterator[Client]:
 
 
 @pytest.mark.parametrize(
-    ("signum", "status"), [(signal.SIGTERM, 0), (signal.SIGINT, 130), (signal.SIGHUP, 0)]
+    ("signum", "status"),
+    [(signal.SIGTERM, 0), (signal.SIGINT, 130), (signal.SIGHUP, 0), (signal.SIGQUIT, 130)],
 )
 def test_a_signal_ends_the_process_with_the_thrusters_at_neutral(
     tmp_path: Path, signum: int, status: int

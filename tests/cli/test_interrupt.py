@@ -4,20 +4,15 @@ for a command that waits for the controller on connect, one that answers ``#qd!`
 
 from __future__ import annotations
 
-import contextlib
 import errno
-import fcntl
 import io
 import json
 import os
 import re
-import select
 import signal
 import socket
 import subprocess
 import sys
-import termios
-import threading
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -31,6 +26,7 @@ from rovlink.recorder.formats import open_sink
 from tests.board.rig import fake_toml
 from tests.cli.conftest import RunCli
 from tests.cli.silent_controller import WAIT_S, SilentController
+from tests.terminals import Terminal
 
 if TYPE_CHECKING:
     from _typeshed import ReadableBuffer
@@ -113,8 +109,9 @@ def _interrupt(
 
 
 #: Ctrl-C, and what ends a program otherwise: kill and service managers (SIGTERM), a closed
-#: terminal or SSH session (SIGHUP). Each ends a command as Ctrl-C does.
-ENDING_SIGNALS = [signal.SIGINT, signal.SIGTERM, signal.SIGHUP]
+#: terminal or SSH session (SIGHUP), the Ctrl-\ key of a terminal not in raw mode (SIGQUIT).
+#: Each ends a command as Ctrl-C does.
+ENDING_SIGNALS = [signal.SIGINT, signal.SIGTERM, signal.SIGHUP, signal.SIGQUIT]
 
 
 def test_ctrl_c_ends_send_waiting_for_a_silent_controller_at_once(silent: SilentController) -> None:
@@ -224,69 +221,6 @@ def test_a_demo_whose_link_is_lost_says_stop_could_not_be_sent(run_cli: RunCli) 
     assert lines[-2].startswith("rovlink demo: could not send #stop!: ")
     assert lines[-1].startswith("rovlink demo: ")
     assert "sent #stop!" not in lines[-1]
-
-
-def _own_terminal() -> None:
-    """In the child: a session of its own with the pseudo-terminal (its standard input) as its
-    controlling terminal, as a login shell has, so that closing the terminal hangs it up."""
-    os.setsid()
-    fcntl.ioctl(0, termios.TIOCSCTTY, 0)
-
-
-class Terminal:
-    """A command on a pseudo-terminal of its own, as a user runs it; what it shows is drained
-    (a full terminal would block it) and kept. :meth:`hang_up` closes the terminal, as closing
-    its window does: the command gets SIGHUP and its terminal fails every write."""
-
-    def __init__(self, *arguments: str, stderr_on_terminal: bool = False) -> None:
-        self._master, slave = os.openpty()
-        source = str(Path(__file__).resolve().parents[2] / "src")
-        environment = {**os.environ, "PYTHONPATH": source, "TERM": "xterm-256color"}
-        environment.pop("NO_COLOR", None)
-        self.process = subprocess.Popen(
-            [sys.executable, "-m", "rovlink", *arguments],
-            stdin=slave,
-            stdout=slave,
-            stderr=slave if stderr_on_terminal else subprocess.PIPE,
-            env=environment,
-            preexec_fn=_own_terminal,  # noqa: PLW1509 - no threads yet
-        )
-        os.close(slave)
-        self.shown = bytearray()
-        self._wake_r, self._wake_w = os.pipe()
-        self._reader = threading.Thread(target=self._drain, daemon=True)
-        self._reader.start()
-
-    def _drain(self) -> None:
-        with contextlib.suppress(OSError):
-            while True:
-                ready, _, _ = select.select([self._master, self._wake_r], [], [])
-                if self._wake_r in ready:
-                    return
-                data = os.read(self._master, 4096)
-                if not data:
-                    return
-                self.shown += data
-
-    def type(self, text: str) -> None:
-        os.write(self._master, text.encode())
-
-    def hang_up(self) -> None:
-        """Close the terminal: the last descriptor of its master side goes."""
-        os.write(self._wake_w, b"x")
-        self._reader.join(WAIT_S)
-        assert not self._reader.is_alive()
-        if self._master >= 0:
-            os.close(self._master)
-            self._master = -1
-
-    def close(self) -> None:
-        if self.process.poll() is None:
-            self.process.kill()
-        self.process.communicate(timeout=WAIT_S)
-        self.hang_up()
-        os.close(self._wake_r)
-        os.close(self._wake_w)
 
 
 def _drive_ahead_in_the_console(terminal: Terminal, silent: SilentController) -> None:

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import functools
+import re
 import socket
 import subprocess
 import sys
@@ -10,6 +12,7 @@ from pathlib import Path
 import pytest
 
 from tests.cli.conftest import RunCli
+from tests.terminals import WAIT_S, Terminal
 
 
 def _listener() -> socket.socket:
@@ -77,3 +80,59 @@ def test_the_monitor_with_its_output_to_a_file_ends_at_once(tmp_path: Path) -> N
     assert finished.returncode == 2
     assert output.read_bytes() == b""  # not one escape sequence
     assert finished.stderr.decode().startswith("rovlink monitor: needs a terminal")
+
+
+@pytest.mark.integration
+def test_on_a_terminal_whose_encoding_cannot_draw_it_the_monitor_is_refused() -> None:
+    # Before, in a locale that is not UTF-8 every box and arrow of the dashboard came out as an
+    # escape ("\\u256d\\u2500 depth, cm \\u2500…"), over the whole screen.
+    ascii_locale = {"LC_ALL": "C", "PYTHONCOERCECLOCALE": "0", "PYTHONUTF8": "0"}
+    terminal = Terminal("monitor", "sim://", env=ascii_locale)
+    try:
+        _, stderr = terminal.process.communicate(timeout=WAIT_S)
+        assert terminal.process.returncode == 2
+        assert stderr.decode() == (
+            "rovlink monitor: the terminal's encoding, ascii, cannot show the dashboard's boxes "
+            "and arrows; run it in a UTF-8 locale, e.g. LC_ALL=C.UTF-8\n"
+        )
+        assert b"\\u25" not in terminal.shown
+    finally:
+        terminal.close()
+
+
+def _plain(shown: bytes) -> bytes:
+    """What was sent to the terminal, its control sequences (colours, moves) left out."""
+    return re.sub(rb"\x1b\[[0-9;?]*[A-Za-z]", b"", shown)
+
+
+def _redrawn_link_box_thrice(start: int, shown: bytes) -> bool:
+    """Whether the link box ("last reading … s ago") was drawn three times since ``start``."""
+    return shown[start:].count(b"last reading") >= 3
+
+
+#: The titles of the boxes that do not change between polls, as drawn on their borders.
+_IDLE_BOX_TITLES = (b"depth, cm", b"attitude", b"commanded, as last sent", b"\xe2\x94\x80 leak ")
+
+
+@pytest.mark.integration
+def test_an_idle_dashboard_draws_again_only_the_box_that_changed() -> None:
+    # Before, every box was drawn again four times a second though nothing in it changed (a
+    # border's subtitle set to what it was): 30 kB/s to the terminal, and CPU, at --rate 0.1,
+    # a load on a slow link to the pilot's screen. Between polls only the link box changes
+    # (its "last reading … s ago").
+    terminal = Terminal("monitor", "sim://", "--rate", "0.1", stderr_on_terminal=True)
+    try:
+        assert terminal.wait_until(lambda shown: b"raw pressure 2" in _plain(shown))  # (polled)
+        # Three redraws of the link box in a row with no other box among them (a start-up
+        # redraw of the whole screen may come late on a slow machine: a few tries).
+        redrawn_boxes: set[bytes] = set()
+        for _ in range(5):
+            start = len(terminal.shown)
+            assert terminal.wait_until(functools.partial(_redrawn_link_box_thrice, start))
+            idle = bytes(terminal.shown[start:])
+            redrawn_boxes = {title for title in _IDLE_BOX_TITLES if title in idle}
+            if not redrawn_boxes:
+                break
+        assert redrawn_boxes == set()
+    finally:
+        terminal.close()

@@ -980,7 +980,8 @@ def test_a_foreign_file_named_mcap_says_what_it_is_not_with_a_reason(
 
 @pytest.mark.integration
 @pytest.mark.parametrize(
-    ("how", "status"), [(signal.SIGINT, 130), (signal.SIGTERM, 0), (signal.SIGHUP, 0)]
+    ("how", "status"),
+    [(signal.SIGINT, 130), (signal.SIGTERM, 0), (signal.SIGHUP, 0), (signal.SIGQUIT, 130)],
 )
 def test_record_ends_on_ctrl_c_with_130_and_on_a_service_stop_with_0(
     tmp_path: Path, how: signal.Signals, status: int

@@ -78,6 +78,11 @@ def test_errors_name_the_argument_and_its_range(
         ("#stpo!", "unknown command 'stpo'; did you mean stop"),
         ("STOP", "unknown command 'STOP'; did you mean stop"),
         ("zzzz", "unknown command 'zzzz'"),
+        # Before: "unknown command 'qd!#qd'; did you mean qd?", and no hint for "QD".
+        ("#qd!#qd!", "one frame at a time: '#qd!#qd!' holds more than one"),
+        ("#start!#th.0.50!", "one frame at a time"),
+        ("QD", r"unknown command 'QD': commands are lower-case, did you mean qd\?"),
+        ("#Stop!", r"unknown command 'Stop': commands are lower-case, did you mean stop\?"),
     ],
 )
 def test_malformed_and_unknown_text(text: str, message: str) -> None:

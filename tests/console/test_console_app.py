@@ -443,3 +443,60 @@ async def test_ctrl_z_says_the_console_is_not_suspended_and_leaves_the_line_alon
         term.type(CTRL_D)
         await term.finish()
     assert rig.frames() == ["#crcoff!", "#qd!", "#stop!"]  # (the lock not sent: made safe)
+
+
+def test_a_bad_line_read_from_a_file_ends_the_console_naming_it_and_stops(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # `rovlink console URL < lines.txt` with a typo on line 3: before, the refused line stayed
+    # in the prompt, the lines after it were typed into it ("th th 400 mvd 10 1"), and the
+    # console left with status 0 as if the script had run.
+    silent = CliSilentController()
+    screen = io.StringIO()
+    with create_pipe_input() as keys, create_app_session(input=keys, output=create_output(screen)):
+        keys.send_text("start\nth 0 30\nth 400 1\nmvd 10\n")
+        keys.close()  # the end of the file
+        status = main(
+            [
+                "console",
+                silent.url,
+                "--boot-timeout",
+                "0",
+                "--history",
+                str(tmp_path / "history"),
+            ]
+        )
+    assert status == 1
+    assert capsys.readouterr().err.splitlines()[-1] == (
+        "rovlink console: line 3: th: direction_deg must be in 0–360, got 400"
+        " (the lines after it were not run)"
+    )
+    assert silent.wait_until(lambda received: received.endswith(b"#stop!"))
+    received = bytes(silent.received)
+    assert received.index(b"#start!") < received.index(b"#th.0.30!") < received.index(b"#stop!")
+    assert b"#mvd" not in received
+    assert b"#th.400" not in received
+    silent.close()
+
+
+def test_lines_read_from_a_file_show_no_toolbar_nor_a_stop_key_that_cannot_be_pressed(
+    tmp_path: Path,
+) -> None:
+    # Before, the transcript of `rovlink console URL < lines.txt > log` was the toolbar drawn
+    # again and again, and it (and the first line) said Ctrl-X sends #stop!: no key reaches a
+    # console whose lines come from a file; Ctrl-C, a signal then, stops the robot.
+    silent = CliSilentController()
+    screen = io.StringIO()
+    with create_pipe_input() as keys, create_app_session(input=keys, output=create_output(screen)):
+        keys.send_text("start\nth 0 30\n")
+        keys.close()
+        status = main(
+            ["console", silent.url, "--boot-timeout", "0", "--history", str(tmp_path / "history")]
+        )
+    assert status == 0
+    transcript = screen.getvalue()
+    assert "→ #th.0.30!" in transcript
+    assert "Ctrl-X" not in transcript
+    assert "Tab completes" not in transcript
+    assert "Ctrl-C sends #stop! and ends the console" in transcript
+    silent.close()

@@ -504,3 +504,28 @@ async def test_a_lost_link_is_reopened_and_the_polls_go_on() -> None:
         await pilot.press("q")
     await until(lambda: "#stop!" in port.fakes[1].frames())  # (as the fake reads it)
     port.close()
+
+
+async def test_at_80_by_24_a_link_being_reopened_says_so_and_keeps_its_error_counts_on_screen() -> (
+    None
+):
+    # Before, the link row read "lost: connection lost: tcp …: not reopened within 0.5 s
+    # (reconnecting) · polling 20 Hz ·": two lines at 80 columns, which pushed the health and
+    # the row of timeouts and failed polls out of the box.
+    port = FakeControllerServer()
+    args = build_parser("monitor").parse_args(
+        ["monitor", port.url, "--boot-timeout", "0", "--rate", "20"]
+    )
+    app = build_app(args)
+    async with app.run_test(size=(80, 24)) as pilot:
+        await until(lambda: _depth_shown(app) == 123)
+        port.refuse = True  # (unplugged, and not yet plugged back)
+        port.fakes[0].close()
+        await until(lambda: "lost, reopening it" in shown(app, "#link"))
+        await until(lambda: "stale" in screen_text(app))  # (polls failed meanwhile)
+        screen = screen_text(app)
+        assert f"link       tcp 127.0.0.1:{port.url.rsplit(':', 1)[1]} · polling 20 Hz" in screen
+        assert "lost, reopening it" in screen
+        assert "errors     timeouts 0 · retries 0 · checksum errors 0 · failed polls" in screen
+        await pilot.press("q")
+    port.close()

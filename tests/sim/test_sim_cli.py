@@ -85,13 +85,14 @@ def test_it_prints_a_ready_line_and_stops_cleanly_on_sigterm(run_sim: RunSim) ->
 
 
 @pytest.mark.parametrize(
-    ("how", "status"), [(signal.SIGINT, 130), (signal.SIGTERM, 0), (signal.SIGHUP, 0)]
+    ("how", "status"),
+    [(signal.SIGINT, 130), (signal.SIGTERM, 0), (signal.SIGHUP, 0), (signal.SIGQUIT, 130)],
 )
 def test_ctrl_c_stops_it_cleanly_with_130_and_a_service_stop_with_0(
     run_sim: RunSim, how: signal.Signals, status: int
 ) -> None:
-    # Ctrl-C ends every command with 130, as shells expect; SIGTERM and SIGHUP are how a
-    # service manager stops a service, whose normal end is status 0.
+    # Ctrl-C ends every command with 130, as shells expect, and so does Ctrl-\ (SIGQUIT);
+    # SIGTERM and SIGHUP are how a service manager stops a service, whose normal end is 0.
     process, _ = run_sim("--tcp", "0")
     process.send_signal(how)
     _, stderr = process.communicate(timeout=5)
@@ -251,3 +252,31 @@ def test_a_pty_and_a_tcp_client_at_once_each_get_their_replies(run_sim: RunSim) 
             reply += tcp.recv(64)
         assert reply == b"$qr.20!"
         assert _query(pty, b"d!") == b"$qd.0!"
+
+
+def _ignore_ctrl_c() -> None:
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # as a shell starts a background job (&)
+
+
+def test_sigquit_stops_it_cleanly_in_the_background_too() -> None:
+    # A background job ignores SIGINT, which the command line's SIGQUIT handler raised: the
+    # KeyboardInterrupt it raised instead was lost in the serving loop, which served on.
+    process = subprocess.Popen(
+        _command("--tcp", "0"),
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=_environment(),
+        preexec_fn=_ignore_ctrl_c,  # noqa: PLW1509 - no threads yet
+    )
+    try:
+        assert process.stdout is not None
+        assert _READY.match(process.stdout.readline())
+        process.send_signal(signal.SIGQUIT)
+        _, stderr = process.communicate(timeout=5)
+        assert process.returncode == 130, stderr
+        assert "stopped" in stderr
+    finally:
+        if process.poll() is None:
+            process.kill()
+            process.communicate(timeout=5)

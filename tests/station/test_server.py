@@ -452,8 +452,9 @@ async def test_a_killed_station_leaves_the_robot_to_its_own_failsafe(line):
         ([signal.SIGTERM], 0),
         ([signal.SIGHUP], 0),
         ([signal.SIGINT, signal.SIGHUP], 130),
+        ([signal.SIGQUIT], 130),
     ],
-    ids=["SIGINT", "SIGTERM", "SIGHUP", "SIGINT-then-SIGHUP"],
+    ids=["SIGINT", "SIGTERM", "SIGHUP", "SIGINT-then-SIGHUP", "SIGQUIT"],
 )
 async def test_ctrl_c_terminate_or_a_closed_terminal_sends_stop_on_the_way_out(
     line, signals, status

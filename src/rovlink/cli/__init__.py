@@ -191,11 +191,12 @@ def _nothing() -> None:
 
 
 def _take_termination_as_ctrl_c() -> Callable[[], None]:
-    """Have SIGTERM and SIGHUP (a service stopped, ``kill``, a terminal or an SSH session
-    closed) end the command as Ctrl-C does: after ``#stop!`` where it may have moved the robot,
-    with its recording finished; returns what puts the previous handlers back. Commands that
-    serve (``sim``, ``controller``, ``record``, ``web``, ``fault``) put their own handlers over
-    these, and asyncio commands take them on their event loop (``cli/async_run.py``). A signal
+    """Have SIGTERM, SIGHUP and SIGQUIT (a service stopped, ``kill``, a terminal or an SSH
+    session closed, the Ctrl-\\ key) end the command as Ctrl-C does: after ``#stop!`` where it
+    may have moved the robot, with its recording finished; returns what puts the previous
+    handlers back. Commands that serve (``sim``, ``controller``, ``record``, ``web``,
+    ``fault``) put their own handlers over these, and asyncio commands take them on their event
+    loop (``cli/async_run.py``). A signal
     ignored on entry (``nohup``) stays ignored."""
     import signal  # noqa: PLC0415 - not on the path of --help and --version
 
@@ -209,8 +210,8 @@ def _take_termination_as_ctrl_c() -> Callable[[], None]:
 
     previous: dict[int, Any] = {}
     try:
-        for name in ("SIGTERM", "SIGHUP"):
-            number = getattr(signal, name, None)  # (no SIGHUP on Windows)
+        for name in ("SIGTERM", "SIGHUP", "SIGQUIT"):
+            number = getattr(signal, name, None)  # (no SIGHUP, SIGQUIT on Windows)
             if number is not None and signal.getsignal(number) is signal.SIG_DFL:
                 previous[number] = signal.signal(number, as_ctrl_c)
     except ValueError:  # not the main thread (main() called by a program's thread)

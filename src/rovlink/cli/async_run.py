@@ -9,9 +9,9 @@ too: landing while a future wakes the task that awaits it, it leaves that task a
 and the run's shutdown, which waits for every task to end, never returns. On 3.10 this module
 does what 3.11 does.
 
-SIGTERM and SIGHUP cancel the main task from the event loop on every Python, whatever SIGINT's
-handler: in a background job SIGINT is ignored, and the command line's own handler for them
-would then raise KeyboardInterrupt wherever the interpreter is, as 3.10's Ctrl-C did.
+SIGTERM, SIGHUP and SIGQUIT cancel the main task from the event loop on every Python, whatever
+SIGINT's handler: in a background job SIGINT is ignored, and the command line's own handler for
+them would then raise KeyboardInterrupt wherever the interpreter is, as 3.10's Ctrl-C did.
 
 Once a signal has cancelled the main task, SIGTERM and SIGHUP change nothing: a terminal closed
 or a service stopped while the command is on its way out must not cut its ``#stop!`` short. A
@@ -66,10 +66,11 @@ class Ending:
 
 
 async def ended_by_termination(main: Coroutine[Any, Any, T], ending: Ending) -> T:
-    """Await ``main``, cancelled by the first SIGTERM or SIGHUP (each a callback of the event
-    loop, which runs between its callbacks, never inside one); ``KeyboardInterrupt`` when a
-    signal has cancelled it. A signal ignored on entry (``nohup``) stays ignored; the handlers
-    before are put back after. Where the loop cannot watch signals (Windows), ``main`` alone."""
+    """Await ``main``, cancelled by the first SIGTERM, SIGHUP or SIGQUIT (each a callback of
+    the event loop, which runs between its callbacks, never inside one); ``KeyboardInterrupt``
+    when a signal has cancelled it. A signal ignored on entry (``nohup``) stays ignored; the
+    handlers before are put back after. Where the loop cannot watch signals (Windows),
+    ``main`` alone."""
     loop = asyncio.get_running_loop()
     task = asyncio.current_task()
     assert task is not None  # (a coroutine run by asyncio.run is a task's)
@@ -81,8 +82,8 @@ async def ended_by_termination(main: Coroutine[Any, Any, T], ending: Ending) -> 
         task.cancel()
 
     previous: dict[int, Any] = {}
-    for name in ("SIGTERM", "SIGHUP"):
-        number = getattr(signal, name, None)  # (no SIGHUP on Windows)
+    for name in ("SIGTERM", "SIGHUP", "SIGQUIT"):
+        number = getattr(signal, name, None)  # (no SIGHUP, SIGQUIT on Windows)
         if number is None:
             continue
         handler = signal.getsignal(number)
@@ -186,13 +187,15 @@ LEAVE_BOUND_S = 3.0
 #: What the process exits with when it has to be ended without its event loop (130: interrupted).
 _EXIT_INTERRUPTED = 130
 _TERMINATING = frozenset(
-    getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, name)
+    getattr(signal, name)
+    for name in ("SIGINT", "SIGTERM", "SIGHUP", "SIGQUIT")
+    if hasattr(signal, name)
 )
 
 
 class StopOnTermination:
-    """While in effect, SIGINT, SIGTERM and SIGHUP call ``emergency_stop`` at once in a thread
-    of their own, and end the process ``LEAVE_BOUND_S`` later if it has not ended by then.
+    """While in effect, SIGINT, SIGTERM, SIGHUP and SIGQUIT call ``emergency_stop`` at once in
+    a thread of their own, and end the process ``LEAVE_BOUND_S`` later if it has not ended by then.
 
     For a command whose event loop may block: textual writes to the terminal through a thread
     and a bounded queue, and on a closed terminal that thread dies or stalls, so the loop

@@ -62,7 +62,7 @@ def run(args: argparse.Namespace) -> int:
     from rovlink.cli.async_run import run_async  # noqa: PLC0415 - keep asyncio off other commands
 
     try:
-        from rovlink.console.app import run_console  # noqa: PLC0415
+        from rovlink.console.app import RefusedLineError, run_console  # noqa: PLC0415
         from rovlink.console.history import default_history_path  # noqa: PLC0415
     except ImportError as error:
         raise CommandError(f"needs {error.name}: pip install 'rovlink[console]'") from None
@@ -99,6 +99,8 @@ def run(args: argparse.Namespace) -> int:
                 from_terminal=_is_terminal(sys.stdin),
             )
         )
+    except RefusedLineError as error:
+        raise CommandError(str(error)) from None
     except ValueError as error:
         raise UsageError(str(error)) from None
     except _ConnectError as failed:

@@ -161,13 +161,21 @@ def run_in_worker(work: Callable[[], T]) -> T:
     return outcome[0]
 
 
+#: The signals a terminal's keys send (Ctrl-C, Ctrl-\\): a serving command they end says
+#: "interrupted" (130), where a service manager's SIGTERM or a closed terminal's SIGHUP is a
+#: clean stop (0).
+_KEYS_OF_A_TERMINAL = frozenset(
+    getattr(signal, name) for name in ("SIGINT", "SIGQUIT") if hasattr(signal, name)
+)
+
+
 class ServingSignals:
     """How a serving command (``sim``, ``controller``, ``record``, ``fault``) is ended: Ctrl-C,
-    SIGTERM and SIGHUP set :attr:`stopping`, and its loop ends cleanly (a file finished, a
-    ``#stop!`` sent). Then :meth:`finish` raises KeyboardInterrupt if it was Ctrl-C, so that
-    the status is 130 as for every command; SIGTERM and SIGHUP, a service manager's way of
-    stopping a service, end it with its own status (0). A signal ignored on entry (``nohup``,
-    SIGINT in a background job) stays ignored.
+    SIGTERM, SIGHUP and SIGQUIT set :attr:`stopping`, and its loop ends cleanly (a file
+    finished, a ``#stop!`` sent). Then :meth:`finish` raises KeyboardInterrupt if it was Ctrl-C
+    or Ctrl-\\ (SIGQUIT), so that the status is 130 as for every command; SIGTERM and SIGHUP,
+    a service manager's way of stopping a service, end it with its own status (0). A signal
+    ignored on entry (``nohup``, SIGINT in a background job) stays ignored.
 
     Example::
 
@@ -184,14 +192,14 @@ class ServingSignals:
         #: Whether Ctrl-C (SIGINT) ended the command.
         self.interrupted = False
         self._previous: dict[int, Any] = {}
-        for name in ("SIGINT", "SIGTERM", "SIGHUP"):
-            number = getattr(signal, name, None)  # (no SIGHUP on Windows)
+        for name in ("SIGINT", "SIGTERM", "SIGHUP", "SIGQUIT"):
+            number = getattr(signal, name, None)  # (no SIGHUP, SIGQUIT on Windows)
             if number is None or signal.getsignal(number) is signal.SIG_IGN:
                 continue
             self._previous[number] = signal.signal(number, self._handle)
 
     def _handle(self, signum: int, frame: FrameType | None) -> None:
-        if signum == signal.SIGINT:
+        if signum in _KEYS_OF_A_TERMINAL:
             self.interrupted = True
         self.stopping.set()
 

@@ -21,7 +21,7 @@ if TYPE_CHECKING:
     from rovlink.monitor.app import Connector, MonitorApp
     from rovlink.protocol import Event
 
-__all__ = ["EPILOG", "build_app", "missing_terminal"]
+__all__ = ["EPILOG", "build_app", "missing_terminal", "undrawable_encoding"]
 
 EPILOG = """\
 examples:
@@ -93,6 +93,24 @@ def _is_terminal(stream: TextIO | None) -> bool:
         return False
 
 
+#: Characters the dashboard draws with: boxes, bars, the compass tape, arrows and units.
+_DRAWN_CHARACTERS = "╭─│╰━┃▲●┼·°—←→↑↓⭘"
+
+
+def undrawable_encoding() -> str | None:
+    """The encoding of the terminal the dashboard draws on (textual draws on standard error)
+    if it cannot show the dashboard's characters, as in a locale that is not UTF-8; else
+    ``None``. There every box and arrow would come out as an escape, ``\\u2500``."""
+    encoding = getattr(sys.__stderr__, "encoding", None)
+    if not isinstance(encoding, str):
+        return None
+    try:
+        _DRAWN_CHARACTERS.encode(encoding)
+    except (UnicodeEncodeError, LookupError):
+        return encoding
+    return None
+
+
 def _refuse_without_terminal() -> None:
     missing = missing_terminal()
     if missing is not None:
@@ -100,6 +118,12 @@ def _refuse_without_terminal() -> None:
             f"needs a terminal for its dashboard and keys, but {missing}; without one, "
             "read the sensors with 'rovlink send URL qsa', or record the link with "
             "'rovlink record URL -o FILE'"
+        )
+    encoding = undrawable_encoding()
+    if encoding is not None:
+        raise NoTerminalError(
+            f"the terminal's encoding, {encoding}, cannot show the dashboard's boxes and "
+            "arrows; run it in a UTF-8 locale, e.g. LC_ALL=C.UTF-8"
         )
 
 

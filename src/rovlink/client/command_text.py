@@ -73,7 +73,10 @@ def _spec(name: str) -> Spec:
         return lookup(name)
     except UnknownCommandError:
         spellings = list(SPELLINGS[Kind.COMMAND])
-        # (Case too: the names are lower case, and "STOP" typed in a hurry is meant as stop.)
+        if name.lower() in spellings:  # (P6: commands are lower-case and case-sensitive)
+            raise CommandTextError(
+                f"unknown command {name!r}: commands are lower-case, did you mean {name.lower()}?"
+            ) from None
         close = difflib.get_close_matches(name.lower(), spellings, n=3, cutoff=0.6)
         # A word that starts with a command's name ("thrust" for "th") is probably that command.
         close += [s for s in spellings if len(s) > 1 and name.startswith(s) and s not in close]
@@ -146,6 +149,8 @@ def parse_command_text(text: str) -> Command:
     if stripped.startswith("#"):
         if not stripped.endswith("!") or len(stripped) < 2:
             raise CommandTextError(f"a frame must end with '!': {stripped!r}")
+        if "#" in stripped[1:] or "!" in stripped[:-1]:
+            raise CommandTextError(f"one frame at a time: {stripped!r} holds more than one")
         return _from_body(stripped[1:-1], stripped)
     words = [word for word in _SEPARATORS.split(stripped) if word]
     if len(words) == 1 and "." in words[0] and words[0] not in SPELLINGS[Kind.COMMAND]:

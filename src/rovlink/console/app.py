@@ -12,33 +12,43 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import contextvars
+import textwrap
 from collections.abc import Awaitable, Callable, Iterable
 from pathlib import Path
 
-from prompt_toolkit import PromptSession, print_formatted_text
+from prompt_toolkit import PromptSession
 from prompt_toolkit.application import get_app_or_none
 from prompt_toolkit.completion import CompleteEvent, Completer, Completion
 from prompt_toolkit.document import Document
-from prompt_toolkit.formatted_text import FormattedText, StyleAndTextTuples
+from prompt_toolkit.formatted_text import StyleAndTextTuples, fragment_list_width
 from prompt_toolkit.history import FileHistory, History, InMemoryHistory
 from prompt_toolkit.key_binding import KeyBindings, KeyPressEvent
 from prompt_toolkit.styles import Style
+from prompt_toolkit.utils import is_dumb_terminal
 from prompt_toolkit.validation import ValidationError, Validator
 
 from rovlink.aio import AsyncClient
 from rovlink.client import ClientError
 from rovlink.client.options import StrayCallback
+from rovlink.console.above_prompt import print_above_prompt
 from rovlink.console.actions import InputError, Quit, parse_lines
 from rovlink.console.completion import argument_hint, suggestions
 from rovlink.console.engine import ConsoleEngine
 from rovlink.console.help import STOP_KEY_TEXT
-from rovlink.console.transcript import Line, info_line
+from rovlink.console.transcript import Line, error_line, info_line
 from rovlink.logs import WarningsShownBy
 from rovlink.piloting import LockState, TrackedClient
 from rovlink.piloting.tracked import LEAVING_REPLY_WAIT_S
 from rovlink.protocol.visible import visible
 
-__all__ = ["STYLE", "Connector", "ConsoleCompleter", "ConsoleValidator", "run_console"]
+__all__ = [
+    "STYLE",
+    "Connector",
+    "ConsoleCompleter",
+    "ConsoleValidator",
+    "RefusedLineError",
+    "run_console",
+]
 
 #: Opens the connection, given the callback for what the controller sends unasked.
 Connector = Callable[[StrayCallback], Awaitable[AsyncClient]]
@@ -106,6 +116,11 @@ class ConsoleValidator(Validator):
             raise ValidationError(cursor_position=error.position, message=error.message) from None
 
 
+class RefusedLineError(Exception):
+    """A line read from a file or a pipe was not valid input: the console left after the lines
+    before it, without running it or those after it (``#stop!`` first unless locked)."""
+
+
 class _EndedBySignal(Exception):  # noqa: N818 - a way of leaving, not an error
     """SIGINT from outside (``kill -INT``; SIGTERM and SIGHUP arrive as it): leave the console.
     The Ctrl-C key, read as a key in the terminal's raw mode, only drops the line typed."""
@@ -152,29 +167,62 @@ def _toolbar(rov: TrackedClient, queued: int) -> StyleAndTextTuples:
     elif rov.link_down:
         link = "link lost, reopening it"
     checksum = f"checksum {rov.algorithm}" if rov.checksum_enabled else "checksum off"
-    fragments: StyleAndTextTuples = [
-        ("class:toolbar.stop", f" {STOP_KEY_TEXT}: STOP "),
-        ("", " as last sent: "),
-        (lock_style, state.short_lock_text()),
-        ("", f", {state.short_mode_text()} │ {checksum} │ "),
-        (link_style, link),
-        ("class:toolbar.bad", f" │ {queued} line(s) waiting" if queued else ""),
-        ("", "\n "),
+    parts: list[StyleAndTextTuples] = [
+        [("", "as last sent: "), (lock_style, state.short_lock_text())],
+        [("", state.short_mode_text())],
+        [("", checksum)],
+        [(link_style, link)],
     ]
+    if queued:
+        parts.append([("class:toolbar.bad", f"{queued} line(s) waiting")])
     app = get_app_or_none()
+    width = app.output.get_size().columns if app else _TOOLBAR_WIDTH
     # (On the cursor's line: lines pasted at once are each a line of their own.)
     hint = argument_hint(app.current_buffer.document.current_line_before_cursor) if app else None
-    if hint is not None:
-        fragments.append(("class:toolbar.hint", hint.text()))
-    else:
-        fragments.append(
-            ("", "Tab completes · 'help' lists commands · 'help th' shows one · Ctrl-D quits")
-        )
+    help_line: StyleAndTextTuples = (
+        [("", "Tab completes · 'help' lists commands · 'help th' shows one · Ctrl-D quits")]
+        if hint is None
+        else [("class:toolbar.hint", hint.text())]
+    )
+    # A part that would run past the edge goes on the next line: cut, the link's state (at the
+    # end) was what went first, at 80 columns.
+    status = _fitted([("class:toolbar.stop", f" {STOP_KEY_TEXT}: STOP ")], parts, width)
+    return [*status, ("", "\n"), *_wrapped(help_line, width)]
+
+
+#: The toolbar's width when no prompt is running to give the terminal's.
+_TOOLBAR_WIDTH = 80
+
+
+def _fitted(
+    first: StyleAndTextTuples, parts: list[StyleAndTextTuples], width: int
+) -> StyleAndTextTuples:
+    """``first``, then ``parts`` separated by ``│`` (the first by ``,`` from the second),
+    each part put on a new line where it would run past ``width``."""
+    fragments: StyleAndTextTuples = list(first)
+    used = fragment_list_width(fragments)
+    for index, part in enumerate(parts):
+        separator = " " if index == 0 else (", " if index == 1 else " │ ")
+        part_width = fragment_list_width(part)
+        if used + len(separator) + part_width >= width:
+            fragments.append(("", "\n"))
+            separator, used = " ", 0
+        fragments.append(("", separator))
+        fragments.extend(part)
+        used += len(separator) + part_width
     return fragments
 
 
+def _wrapped(line: StyleAndTextTuples, width: int) -> StyleAndTextTuples:
+    """``line`` (one style) broken between words to lines of less than ``width`` columns."""
+    style = line[0][0]
+    text = "".join(text for _, text, *_ in line)
+    lines = textwrap.wrap(text, max(width - 2, 10)) or [""]
+    return [(style, " " + "\n ".join(lines))]
+
+
 def _print(line: Line) -> None:
-    print_formatted_text(FormattedText(line), style=STYLE)
+    print_above_prompt(line, STYLE)
 
 
 async def run_console(
@@ -190,7 +238,8 @@ async def run_console(
     ``history_path`` keeps the input history between sessions (``None``: this session only).
     ``from_terminal``: the lines are typed at a terminal, where ``quit`` and Ctrl-D leave at
     once; ``False`` (lines read from a file or a pipe), they run in order, each to its end.
-    Raises what ``connect`` raises if the connection cannot be opened.
+    Raises what ``connect`` raises if the connection cannot be opened, and
+    :class:`RefusedLineError` for a bad line read from a file or a pipe.
     """
     # The driver calls back (debug text, stray frames) in a context copied from its reader
     # thread, which knows nothing of this prompt; print in the console's own context, so that
@@ -228,30 +277,38 @@ async def _run_connected(
     def checksum() -> str | None:  # (a frame typed with its checksum is taken in that mode)
         return rov.algorithm if rov.checksum_enabled else None
 
+    # A line is refused in place, the cursor on the culprit, where the operator can mend it: not
+    # in lines read from a file (the next lines would be typed into the refused one), nor on a
+    # dumb terminal (which cannot show the message under the line).
+    check_in_place = from_terminal and not is_dumb_terminal()
     history: History = InMemoryHistory()
     if history_path is not None:
         history_path.parent.mkdir(parents=True, exist_ok=True)
         history = FileHistory(str(history_path))
+    # Lines read from a file: nobody types, so no menus, and no toolbar (drawn again and again
+    # into the transcript) with a stop key that no key reaches; Ctrl-C is a signal then.
     session: PromptSession[str] = PromptSession(
         [("class:prompt", "rovlink> ")],
         style=STYLE,
         history=history,
-        completer=ConsoleCompleter(),
-        complete_while_typing=True,
-        validator=ConsoleValidator(checksum),
+        completer=ConsoleCompleter() if from_terminal else None,
+        complete_while_typing=from_terminal,
+        reserve_space_for_menu=8 if from_terminal else 0,
+        validator=ConsoleValidator(checksum) if check_in_place else None,
         validate_while_typing=False,
         key_bindings=_stop_bindings(engine),
-        bottom_toolbar=lambda: _toolbar(rov, engine.queued),
-        refresh_interval=_TOOLBAR_REFRESH_S,
+        bottom_toolbar=(lambda: _toolbar(rov, engine.queued)) if from_terminal else None,
+        refresh_interval=_TOOLBAR_REFRESH_S if from_terminal else 0,
     )
-    emit_in_console(
-        info_line(
-            f"connected to {client.description}; {STOP_KEY_TEXT} sends #stop! at any "
-            "time; 'help' lists commands",
-            "class:info",
-        )
+    stop_text = (
+        f"{STOP_KEY_TEXT} sends #stop! at any time; 'help' lists commands"
+        if from_terminal
+        else "its lines run in order; Ctrl-C sends #stop! and ends the console"
     )
+    emit_in_console(info_line(f"connected to {client.description}; {stop_text}", "class:info"))
     runner = asyncio.create_task(engine.run())
+    refused: RefusedLineError | None = None
+    lines_read = 0
     try:
         while not runner.done():
             try:
@@ -267,8 +324,19 @@ async def _run_connected(
                 continue
             except _EndedBySignal:
                 raise KeyboardInterrupt from None  # (after the finally: #stop!, then closed)
+            first_line = lines_read + 1
+            lines_read += text.count("\n") + 1
             # (Lines pasted at once arrive as one text: each runs as if typed on its own.)
-            actions = parse_lines(text, checksum())
+            try:
+                actions = parse_lines(text, checksum())
+            except InputError as error:  # (not checked in place)
+                if from_terminal:
+                    emit_in_console(error_line(error.message))
+                    continue
+                refused = RefusedLineError(
+                    f"line {first_line}: {error.message} (the lines after it were not run)"
+                )
+                actions = [Quit()]
             for action in actions:
                 if isinstance(action, Quit):
                     break
@@ -294,6 +362,8 @@ async def _run_connected(
             runner.cancel()
         await _stop_unless_locked(rov)
         await rov.close()
+    if refused is not None:
+        raise refused
 
 
 #: How long leaving may wait for ``#stop!`` to be written (it is not acknowledged).

@@ -86,11 +86,19 @@ class Panel(Widget):
     ) -> None:
         super().__init__(id=id, classes=classes)
         self._draw = draw
+        self._drawn: RenderableType | None = None
         self.border_title = title
 
     def render(self) -> RenderableType:
         """The content for the size the layout gave this panel."""
-        return self._draw(self.content_size.width, self.content_size.height)
+        self._drawn = self._draw(self.content_size.width, self.content_size.height)
+        return self._drawn
+
+    def refresh_if_changed(self) -> None:
+        """Draw the panel again if its content changed: each redraw writes the whole box to the
+        terminal, many times a second, which an idle dashboard has no need to."""
+        if self._draw(self.content_size.width, self.content_size.height) != self._drawn:
+            self.refresh()
 
     def text(self) -> str:
         """The content as plain text (what a person reads on screen)."""
@@ -219,6 +227,7 @@ class MonitorApp(App[None]):
         self.sub_title = description
         self._link_state = "connecting…"
         self._last_message = ""
+        self._depth_readout: Text | None = None
         # Written to stderr, the library's warnings would land over the dashboard's screen.
         self._warnings = WarningsShownBy(self._notify_warning)
         self._warnings_loop: asyncio.AbstractEventLoop | None = None
@@ -322,10 +331,11 @@ class MonitorApp(App[None]):
                 except QueryTimeoutError:
                     pass  # counted in rov.health, shown on the link panel
                 except ConnectionLostError as error:
-                    self._link_state = f"lost: {error}"
                     if client.closed:
+                        self._link_state = f"lost: {error}"
                         break
-                    # (Being reopened: the polls go on, and fail at once until it is.)
+                    # Being reopened (the link panel says so): the polls go on, and fail at
+                    # once until it is.
                 else:
                     self._link_state = client.description
                     self.readings.record(reading, self._clock())
@@ -367,15 +377,18 @@ class MonitorApp(App[None]):
         for selector in _READING_BOXES:
             box = self.query_one(selector)
             box.set_class(self._stale, "-stale")
-            box.border_subtitle = stale or ""
-        self.query_one("#depth-digits", Digits).update(
-            "—" if reading is None else str(reading.depth_cm)
-        )
+            if box.border_subtitle != (stale or ""):  # (set, it redraws the box, changed or not)
+                box.border_subtitle = stale or ""
+        digits = self.query_one("#depth-digits", Digits)
+        depth = "—" if reading is None else str(reading.depth_cm)
+        if digits.value != depth:  # (an update redraws it, changed or not)
+            digits.update(depth)
         commanded = self.rov.commanded if self.rov is not None else None
         if commanded is not None:
-            self.query_one("#depth-readout", Static).update(
-                depth_text(self.readings, commanded, stale=self._stale)
-            )
+            readout = depth_text(self.readings, commanded, stale=self._stale)
+            if readout != self._depth_readout:  # (an update redraws it, changed or not)
+                self._depth_readout = readout
+                self.query_one("#depth-readout", Static).update(readout)
         leak = self.readings.leak
         leak_panel = self.query_one("#leak", Panel)
         if leak and not leak_panel.has_class("alarm"):
@@ -383,7 +396,7 @@ class MonitorApp(App[None]):
         leak_panel.set_class(leak, "alarm")
         self.screen.set_class(leak, "leak")
         for panel in self.query(Panel):
-            panel.refresh()
+            panel.refresh_if_changed()
 
     def _draw_small(self, width: int, height: int) -> RenderableType:
         rov = self.rov
@@ -428,6 +441,7 @@ class MonitorApp(App[None]):
             self.readings,
             now_s=self._clock(),
             rate_hz=self.rate_hz,
+            reopening=self.rov.link_down,
         )
         if self.rov.client.closed:  # (in the panel's four rows, instead of the health)
             return Text(f"{self._link_state}\nlink closed: keys send nothing", style="bold red")

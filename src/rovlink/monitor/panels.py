@@ -177,16 +177,17 @@ def link_text(
     *,
     now_s: float,
     rate_hz: float,
+    reopening: bool = False,
 ) -> Text:
-    """Link health: status, reply times, silence, timeouts, retries, checksum errors."""
+    """Link health: status, reply times, silence, timeouts, retries, checksum errors.
+    ``reopening``: the link was lost and is being reopened, which the status says instead."""
     text = Text()
-    status = health.status
+    status = "lost, reopening it" if reopening else health.status
+    style = "bold white on red" if reopening else _HEALTH_STYLES.get(status, "")
     _row(
         text,
         "link",
-        Text(f"{description} · polling {rate_hz:g} Hz · ").append(
-            f" {status} ", style=_HEALTH_STYLES.get(status, "")
-        ),
+        Text(f"{description} · polling {rate_hz:g} Hz · ").append(f" {status} ", style=style),
     )
     if health.last_reply_s is not None and health.average_reply_s is not None:
         _row(

@@ -48,10 +48,10 @@ class ServeOptions:
 
 
 class _Server(uvicorn.Server):
-    """uvicorn's server, except that SIGINT, SIGTERM and SIGHUP only end the serving: uvicorn
-    would raise the signal again as soon as it stops, and SIGTERM's default action would end the
-    process before the station has sent ``#stop!`` and closed the link. :attr:`interrupted`:
-    whether the signal that ended it was Ctrl-C (the command's status is then 130)."""
+    """uvicorn's server, except that SIGINT, SIGTERM, SIGHUP and SIGQUIT only end the serving:
+    uvicorn would raise the signal again as soon as it stops, and SIGTERM's default action would
+    end the process before the station has sent ``#stop!`` and closed the link. :attr:`interrupted`:
+    whether the signal that ended it was Ctrl-C or Ctrl-\\ (the command's status is then 130)."""
 
     interrupted = False
 
@@ -59,7 +59,7 @@ class _Server(uvicorn.Server):
         # Any Ctrl-C counts, also one after another ending signal: the kernel hands pending
         # signals over lowest number first, so a Ctrl-C and a closed terminal at once arrive
         # as SIGHUP then SIGINT, and the status depended on that race.
-        if sig == signal.SIGINT:
+        if sig == signal.SIGINT or sig == getattr(signal, "SIGQUIT", None):  # (Ctrl-C, Ctrl-\\)
             self.interrupted = True
         super().handle_exit(sig, frame)
 
@@ -83,7 +83,9 @@ class _Server(uvicorn.Server):
 #: What ends the serving gracefully. SIGHUP (a closed terminal) too: left to the command line's
 #: own handler, it cancelled the station mid-way through a graceful shutdown.
 _ENDING_SIGNALS = tuple(
-    getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, name)
+    getattr(signal, name)
+    for name in ("SIGINT", "SIGTERM", "SIGHUP", "SIGQUIT")
+    if hasattr(signal, name)
 )
 
 
