@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import asyncio
 import json
+import re
 import socket
 import time
 from typing import Any
@@ -64,7 +65,8 @@ async def test_a_requests_at_says_how_old_it_is(broker: Mosquitto):
         assert (await ask("start", time.time()))["ok"]
         old = await ask("th 90 50", time.time() - 5.0)
         assert not old["ok"]
-        assert 'published 5.0 s ago (its "at")' in str(old["error"])
+        # (5.0 s, or a little more on a loaded machine: the request takes time to arrive.)
+        assert re.search(r'published 5\.[0-4] s ago \(its "at"\)', str(old["error"]))
         ahead = await ask("th 90 50", time.time() + 60.0)
         assert "60.0 s ahead of the bridge's clock" in str(ahead["error"])
         bad = await ask("th 90 50", "yesterday")

@@ -71,7 +71,7 @@ async def test_queries_answer_with_named_values(broker: Mosquitto):
         (b'{"cmd": "th 90 30"}', 'a JSON request needs "command"'),
         (b"th 400 30", "th: direction_deg must be in 0–360, got 400"),
         (b"thrust 1", "unknown command 'thrust'"),
-        (b"STOP", "unknown command 'STOP'; did you mean stop?"),  # (no hint before)
+        (b"STOP", "unknown command 'STOP': commands are lower-case, did you mean stop?"),
         (b"", "empty payload"),
         (b"crcon", "owns the checksum and debug modes"),
         (b"x" * 600, "a command is at most 512"),
