@@ -32,6 +32,7 @@ ARMED_FLAG = 128
 ACCEPTED, DENIED, UNSUPPORTED, FAILED = 0, 2, 3, 4
 STANDBY, CRITICAL = 3, 5  # MAV_STATE
 ARM_DISARM, DO_SET_MODE, DO_GRIPPER = 400, 176, 211
+SET_MODE_ID = 11  # the SET_MODE message's id: ArduPilot's COMMAND_ACK.command for it
 SET_MESSAGE_INTERVAL, REQUEST_MESSAGE = 511, 512
 NAV_TAKEOFF = 22
 ATTITUDE_ID, AUTOPILOT_VERSION_ID = 30, 148
@@ -212,6 +213,22 @@ def test_unsupported_modes_and_commands_are_answered_unsupported(
     assert all(f in {"#qsa!", "#qd!"} for f in rig.frames_since(mark))  # polls only
 
 
+@pytest.mark.parametrize(("mode", "result"), [(ALT_HOLD, ACCEPTED), (STABILIZE, UNSUPPORTED)])
+def test_set_mode_is_acknowledged_as_ardupilot_does(
+    rig: BridgeRig, gcs: GroundStation, mode: int, result: int
+):
+    # ArduSub's pymavlink example changes the mode with SET_MODE and waits for the COMMAND_ACK
+    # whose command is MAVLINK_MSG_ID_SET_MODE (11), as ArduPilot sends it; an ack for 176 it
+    # never takes, and waits for ever.
+    mark = len(rig.frames())
+    gcs.send("set_mode", VEHICLE, 1, mode)  # MAV_MODE_FLAG_CUSTOM_MODE_ENABLED
+    ack = gcs.receive("COMMAND_ACK", condition=lambda m: m.command in (SET_MODE_ID, DO_SET_MODE))
+    assert (ack.command, ack.result) == (SET_MODE_ID, result)
+    assert (ack.target_system, ack.target_component) == (255, 190)
+    if result == ACCEPTED:
+        rig.wait_frame("#mvdirect.0!", since=mark)
+
+
 def test_the_gripper_needs_arming(rig: BridgeRig, gcs: GroundStation):
     assert gcs.command(DO_GRIPPER, 1, 1) == DENIED
     gcs.start_heartbeats()
@@ -352,7 +369,7 @@ def _change_mode_or_re_arm(gcs: GroundStation, change: str) -> None:
         assert gcs.set_mode(MANUAL) == ACCEPTED  # MANUAL again: #mvdirect.1! changes nothing
     elif change == "SET_MODE":
         gcs.send("set_mode", VEHICLE, 1, MANUAL)
-        gcs.receive("COMMAND_ACK", condition=lambda m: m.command == DO_SET_MODE)
+        gcs.receive("COMMAND_ACK", condition=lambda m: m.command == SET_MODE_ID)
     elif change == "mode button":
         gcs.send("manual_control", VEHICLE, 1000, 0, 0, 0, 1 << 1)  # BTN1: MANUAL
     elif change == "re-arm":

@@ -14,7 +14,6 @@ from typing import Any
 
 from rovlink.bridges.kept_settings import KeptSettings
 from rovlink.bridges.mavlink.command_handling import (
-    MAV_CMD,
     Result,
     handle_command,
     mode_result,
@@ -50,6 +49,9 @@ _SEVERITY_CRITICAL = 2
 _SEVERITY_WARNING = 4
 _SEVERITY_INFO = 6
 _PARAM_TYPE_INT32 = 6
+#: SET_MODE is acknowledged with its message id as the command, as ArduPilot does (ArduSub's
+#: pymavlink example waits for that COMMAND_ACK).
+_SET_MODE_MESSAGE_ID = 11
 #: An axis held at neutral after arming until centred (said once per axis and arming).
 _STICK_HELD = "Joystick {axis} held: return to centre"
 _CHANNEL_HELD = "RC {channel} held: return to neutral"
@@ -367,7 +369,7 @@ class MavlinkBridge:
         result = await self._while_link_down(
             mode_result(self, message.base_mode, message.custom_mode)
         )
-        self._ack(message, MAV_CMD.DO_SET_MODE, result)
+        self._ack(message, _SET_MODE_MESSAGE_ID, result)
 
     async def _while_link_down(self, action: Coroutine[Any, Any, Result]) -> Result:
         """``action``'s result; TEMPORARILY_REJECTED if the controller link is being reopened
