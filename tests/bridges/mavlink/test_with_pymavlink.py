@@ -343,6 +343,26 @@ def test_the_bridge_dials_a_restarted_tcp_ground_station_again():
         server.close()
 
 
+def test_a_tcp_ground_station_that_starts_after_the_bridge_is_dialled(
+    capsys: pytest.CaptureFixture[str],
+):
+    # The vehicle's computer boots before the ground station's: the bridge serves on and dials
+    # it (pymavlink's client gave up after its retries, printing, and the bridge ended).
+    port = free_tcp_port()
+    with running_bridge(endpoint=f"tcp:127.0.0.1:{port}") as rig:
+        server = GroundStation(f"tcpin:127.0.0.1:{port}")
+        try:
+            server.receive("HEARTBEAT", condition=lambda m: m.type == SUBMARINE)
+            server.heartbeat()
+            server.start_heartbeats()
+            mark = len(rig.frames())
+            assert server.arm() == ACCEPTED
+            rig.wait_frame("#start!", since=mark)
+        finally:
+            server.close()
+    assert capsys.readouterr().out == ""  # (pymavlink's "Connection refused sleeping")
+
+
 def test_nonsense_values_are_denied_and_the_bridge_serves_on(rig: BridgeRig, gcs: GroundStation):
     nan = float("nan")
     assert gcs.command(REQUEST_MESSAGE, nan) == DENIED

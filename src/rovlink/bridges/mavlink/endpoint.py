@@ -77,6 +77,46 @@ def is_addressed_to(message: Any, system_id: int, component_id: int) -> bool:
     )
 
 
+def _dial(address: tuple[str, int]) -> socket.socket | None:
+    """A TCP connection to a ground station's server, ready for pymavlink; ``None`` if it does
+    not answer within :data:`_REDIAL_S` (the next attempt is the reader's)."""
+    try:
+        port = socket.create_connection(address, timeout=_REDIAL_S)
+    except OSError as error:
+        logger.debug("MAVLink: tcp:%s:%s: %s", *address, error)
+        return None
+    port.setblocking(False)
+    port.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+    return port
+
+
+def _tcp_client(mavtcp: type[Any]) -> type[Any]:
+    """pymavlink's TCP client class, made to start without its ground station.
+
+    pymavlink's connects in its constructor, tries a few times (printing, sleeping, blocking for
+    as long as a host that does not answer takes) and raises: a bridge started before its
+    ground station (the vehicle's computer boots first) would end. This one tries once, for at
+    most :data:`_REDIAL_S`, and is otherwise left unconnected (``port`` ``None``) for the
+    endpoint's reader to dial.
+    """
+
+    class DialledLater(mavtcp):  # type: ignore[misc]
+        def do_connect(self) -> None:
+            port = _dial(self.destination_addr)
+            # (pymavlink's constructor takes the descriptor of what this leaves in ``port``)
+            self.port: socket.socket | None = socket.socket() if port is None else port
+            self.dialled = port is not None
+
+        def __init__(self, device: str, **options: Any) -> None:
+            super().__init__(device, **options)
+            if not self.dialled and self.port is not None:
+                self.port.close()
+                self.port = None
+                logger.info("MAVLink: no ground station at tcp:%s yet: dialling it", device)
+
+    return DialledLater
+
+
 class MavlinkEndpoint:
     """One MAVLink connection as vehicle ``system_id``, component 1 (the autopilot)."""
 
@@ -95,12 +135,18 @@ class MavlinkEndpoint:
         self.address = address
         self.system_id = system_id
         self.component_id = 1
-        self._connection: Any = mavutil.mavlink_connection(
-            address,
-            source_system=system_id,
-            source_component=self.component_id,
-            dialect="ardupilotmega",
-        )
+        if scheme == "tcp":
+            mavutil.set_dialect("ardupilotmega")
+            self._connection: Any = _tcp_client(mavutil.mavtcp)(
+                f"{host}:{port}", source_system=system_id, source_component=self.component_id
+            )
+        else:
+            self._connection = mavutil.mavlink_connection(
+                address,
+                source_system=system_id,
+                source_component=self.component_id,
+                dialect="ardupilotmega",
+            )
         #: The dialect module (message classes and constants).
         self.dialect: Any = mavutil.mavlink
         self.scheme = scheme
@@ -204,13 +250,9 @@ class MavlinkEndpoint:
         if self._stopping.wait(_REDIAL_S):
             return
         connection = self._connection
-        try:
-            port = socket.create_connection(connection.destination_addr, timeout=_REDIAL_S)
-        except OSError as error:
-            logger.debug("MAVLink: %s: %s", self.address, error)
+        port = _dial(connection.destination_addr)
+        if port is None:
             return
-        port.setblocking(False)
-        port.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
         with self._lock:
             connection.port = port
             connection.fd = port.fileno()
