@@ -434,9 +434,12 @@ def test_the_joystick_of_another_system_does_not_drive_this_one(rig: BridgeRig, 
     assert gcs.arm() == ACCEPTED
     mark = len(rig.frames())
     gcs.send("manual_control", 2, 0, 1000, 1000, 0, 0)  # for system 2: right, full up
+    # A joystick broadcast (target 0) drives no vehicle, as in ArduSub, which takes
+    # MANUAL_CONTROL aimed at it only: it once drove every vehicle on the network at once.
+    gcs.send("manual_control", 0, 0, 1000, 1000, 0, 0)
     _served_since(gcs)
     assert not [f for f in rig.frames_since(mark) if f.startswith(("#th", "#mvs"))]
-    gcs.send("manual_control", 0, 0, 1000, 1000, 0, 0)  # a broadcast drives
+    gcs.send("manual_control", VEHICLE, 0, 1000, 1000, 0, 0)
     rig.wait_frame("#th.90.100!", since=mark)
 
 

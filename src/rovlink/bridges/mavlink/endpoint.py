@@ -39,6 +39,9 @@ _READ_TIMEOUT_S = 0.2  # how soon the reader thread notices it should stop
 _REDIAL_S = 1.0
 #: Messages whose target system field is not ``target_system`` (MANUAL_CONTROL's is ``target``).
 _TARGET_SYSTEM_FIELD = {"MANUAL_CONTROL": "target"}
+#: Messages taken only when aimed at this system, never as a broadcast: ArduSub takes a joystick
+#: aimed at it only, so one broadcast cannot drive every vehicle on the network.
+_AIMED_ONLY = frozenset({"MANUAL_CONTROL"})
 _BROADCAST = 0
 
 
@@ -65,11 +68,14 @@ def check_address(address: str) -> None:
 def is_addressed_to(message: Any, system_id: int, component_id: int) -> bool:
     """Whether ``message`` is for component ``component_id`` of system ``system_id``, by
     MAVLink's addressing: a target of 0 is a broadcast, a message without target fields is for
-    everyone, and one for another component of this system is not this component's.
+    everyone, and one for another component of this system is not this component's. A joystick
+    (MANUAL_CONTROL) must be aimed at this system, as ArduSub has it: a broadcast is not.
     """
     fields = message.get_fieldnames()
-    system_field = _TARGET_SYSTEM_FIELD.get(message.get_type(), "target_system")
-    if system_field in fields and getattr(message, system_field) not in (_BROADCAST, system_id):
+    kind = message.get_type()
+    system_field = _TARGET_SYSTEM_FIELD.get(kind, "target_system")
+    systems = (system_id,) if kind in _AIMED_ONLY else (_BROADCAST, system_id)
+    if system_field in fields and getattr(message, system_field) not in systems:
         return False
     return "target_component" not in fields or message.target_component in (
         _BROADCAST,
