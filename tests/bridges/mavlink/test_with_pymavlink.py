@@ -250,6 +250,25 @@ def test_a_button_arms_with_ardusubs_default_mapping(rig: BridgeRig, gcs: Ground
     rig.wait_frame("#stop!", since=mark)
 
 
+def test_arming_needs_a_disarm_button_as_in_ardusub(rig: BridgeRig, gcs: GroundStation):
+    # Underwater the pilot's hands are on the joystick: ArduSub refuses to arm without a button
+    # that disarms ("PreArm: Must assign a disarm or arm_toggle button"); the bridge armed.
+    gcs.start_heartbeats()
+    gcs.send("param_set", VEHICLE, 1, b"BTN4_FUNCTION", 5, 6)  # disarm → MANUAL: none left
+    assert (
+        gcs.receive("PARAM_VALUE", condition=lambda m: m.param_id == "BTN4_FUNCTION").param_value
+        == 5
+    )
+    mark = len(rig.frames())
+    assert gcs.arm() == FAILED
+    assert "disarm" in gcs.receive("STATUSTEXT", condition=lambda m: "PreArm" in m.text).text
+    gcs.send("param_set", VEHICLE, 1, b"BTN20_FUNCTION", 2, 6)  # arm toggle, in buttons2
+    gcs.receive("PARAM_VALUE", condition=lambda m: m.param_id == "BTN20_FUNCTION")
+    assert "#start!" not in rig.frames_since(mark)
+    assert gcs.arm() == ACCEPTED
+    rig.wait_frame("#start!", since=mark)
+
+
 def test_message_interval_raises_a_rate(rig: BridgeRig, gcs: GroundStation):
     assert gcs.command(SET_MESSAGE_INTERVAL, ATTITUDE_ID, 50_000) == ACCEPTED  # 20 Hz
     gcs.receive("ATTITUDE")

@@ -57,6 +57,8 @@ _STICK_HELD = "Joystick {axis} held: return to centre"
 _CHANNEL_HELD = "RC {channel} held: return to neutral"
 #: A button a new pilot holds at the hand-over: not a press (said once per button).
 _BUTTON_HELD = "Button {button} held: release it to use it"
+#: ArduSub's pre-arm check, word for word (ground stations show PreArm texts as such).
+_NO_DISARM_BUTTON = "PreArm: Must assign a disarm or arm_toggle button"
 
 
 class MavlinkBridge:
@@ -155,7 +157,8 @@ class MavlinkBridge:
     async def arm(self) -> Result:
         """``#start!``; in ALT_HOLD the depth of the moment is held.
 
-        Refused (FAILED) while the controller's queries fail, as HEARTBEAT shows it CRITICAL,
+        Refused (FAILED) when no joystick button disarms (``BTNn_FUNCTION`` 4 or 2), as in
+        ArduSub; while the controller's queries fail, as HEARTBEAT shows it CRITICAL,
         and when it does not answer a query of its own (a pre-arm check, as ArduSub's): a
         controller that has just gone silent fails a poll only a reply timeout or more later.
         An armed vehicle's ARM is accepted at once and changes nothing, as ArduSub's: no
@@ -165,6 +168,9 @@ class MavlinkBridge:
         if self.armed:
             self.watchdog.heartbeat(self._clock())  # (contact all the same)
             return Result.ACCEPTED
+        if not self.parameters.disarm_button_assigned():
+            self._say(_SEVERITY_CRITICAL, _NO_DISARM_BUTTON)
+            return Result.FAILED
         depth_cm = await self._depth_now_cm() if self.messages.link_ok() else None
         if depth_cm is None:
             self._say(_SEVERITY_WARNING, "Arm refused: the controller does not answer")
