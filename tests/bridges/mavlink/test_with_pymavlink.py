@@ -154,6 +154,27 @@ def test_no_stop_while_the_ground_station_beats(rig: BridgeRig, gcs: GroundStati
     assert _armed(gcs)
 
 
+@pytest.mark.parametrize("input_kind", ["manual_control", "rc_channels_override"])
+def test_the_pilots_joystick_is_contact_as_a_heartbeat_is(
+    rig: BridgeRig, gcs: GroundStation, input_kind: str
+):
+    # ArduSub takes the pilot's MANUAL_CONTROL and RC overrides as heartbeats: its pymavlink
+    # examples fly without sending any. The bridge stopped such a script 3 s after arming.
+    rig.bridge.watchdog.timeout_s = 0.5  # (3 s in use: the same rule, sooner)
+    assert gcs.arm() == ACCEPTED  # (contact: no heartbeat from here on)
+    mark = len(rig.frames())
+    started_s = time.monotonic()
+    while time.monotonic() - started_s < 1.2:
+        if input_kind == "manual_control":
+            gcs.send("manual_control", VEHICLE, 0, 0, 500, 0, 0)
+        else:
+            gcs.send("rc_channels_override", VEHICLE, 1, *[1500] * 8)
+        time.sleep(0.05)
+    _served_since(gcs)
+    assert "#stop!" not in rig.frames_since(mark)
+    rig.wait_frame("#stop!", since=mark)  # the input stops: the ground station is lost
+
+
 def test_stale_joystick_input_zeroes_the_thrust_but_stays_armed(rig: BridgeRig, gcs: GroundStation):
     gcs.start_heartbeats()
     assert gcs.arm() == ACCEPTED

@@ -303,9 +303,12 @@ class MavlinkBridge:
             self.watchdog.heartbeat(self._clock())
 
     def _from_pilot(self, message: Any) -> bool:
-        """Whether pilot input comes from the pilot's ground station (``SYSID_MYGCS``)."""
+        """Whether pilot input comes from the pilot's ground station (``SYSID_MYGCS``); if so,
+        it is contact for the failsafe, as a heartbeat is (as in ArduSub, whose pymavlink
+        examples fly with no heartbeat)."""
         source = message.get_srcSystem()
         if source == self.parameters.pilot_system:
+            self.watchdog.heartbeat(self._clock())
             return True
         # Two joysticks would take turns at the thrust, message by message (as ArduSub, only
         # SYSID_MYGCS flies); said once per ground station, so that its pilot knows.
