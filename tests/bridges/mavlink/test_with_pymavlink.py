@@ -57,6 +57,10 @@ def test_autopilot_version_on_request_and_an_empty_mission(gcs: GroundStation):
     assert gcs.command(REQUEST_MESSAGE, AUTOPILOT_VERSION_ID) == ACCEPTED
     version = gcs.receive("AUTOPILOT_VERSION")
     assert version.capabilities & 8192  # MAV_PROTOCOL_CAPABILITY_MAVLINK2
+    # How parameter values sit in PARAM_VALUE's float: cast, as ArduPilot's (MAVLink asks for
+    # this flag or BYTEWISE; without either a ground station may read 40 as 1109393408).
+    assert version.capabilities & 131072  # MAV_PROTOCOL_CAPABILITY_PARAM_ENCODE_C_CAST
+    assert not version.capabilities & 16  # MAV_PROTOCOL_CAPABILITY_PARAM_ENCODE_BYTEWISE
     gcs.send("mission_request_list", VEHICLE, 1, 0)
     assert gcs.receive("MISSION_COUNT").count == 0
 
