@@ -338,6 +338,23 @@ def test_ending_the_bridge_locks_the_robot():
     assert "#stop!" in rig.frames_since(mark)
 
 
+def test_telemetry_to_a_broadcast_address_reaches_the_ground_station():
+    # A topside network whose ground station's address is not known beforehand: the bridge sends
+    # to the subnet's broadcast address (here loopback's). Every send failed (EACCES: the socket
+    # was not allowed to broadcast; pymavlink drops the error), though the bridge said "ready".
+    port = free_udp_port()
+    with running_bridge(endpoint=f"udpout:127.255.255.255:{port}") as rig:
+        gcs = GroundStation(f"udpin:0.0.0.0:{port}")
+        try:
+            gcs.receive("HEARTBEAT", condition=lambda m: m.type == SUBMARINE)
+            gcs.heartbeat()  # and the ground station's answers come back
+            mark = len(rig.frames())
+            assert gcs.arm() == ACCEPTED
+            rig.wait_frame("#start!", since=mark)
+        finally:
+            gcs.close()
+
+
 def test_a_ground_station_over_tcp():
     port = free_tcp_port()
     with running_bridge(endpoint=f"tcpin:127.0.0.1:{port}") as rig:

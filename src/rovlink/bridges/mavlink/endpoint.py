@@ -153,6 +153,11 @@ class MavlinkEndpoint:
                 source_component=self.component_id,
                 dialect="ardupilotmega",
             )
+        if scheme == "udpout":
+            # A topside subnet's broadcast address is a destination as good as any (a ground
+            # station whose address is not known beforehand): without this every send to it
+            # fails, and pymavlink drops the error.
+            self._connection.port.setsockopt(socket.SOL_SOCKET, socket.SO_BROADCAST, 1)
         #: The dialect module (message classes and constants).
         self.dialect: Any = mavutil.mavlink
         self.scheme = scheme
