@@ -84,7 +84,8 @@ def run(args: argparse.Namespace) -> int:
     values: dict[str, int] = {}
     if args.params is not None:
         try:
-            text = args.params.read_text(encoding="utf-8")
+            # (utf-8-sig: a byte order mark, as Windows editors save one, is not a name's start)
+            text = args.params.read_text(encoding="utf-8-sig")
         except (OSError, UnicodeDecodeError) as error:
             raise unreadable(args.params, error) from None
         try:
