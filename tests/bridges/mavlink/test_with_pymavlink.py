@@ -305,6 +305,7 @@ def test_message_interval_raises_a_rate(rig: BridgeRig, gcs: GroundStation):
     # 15 at the default 4 Hz would take 3.75 s.
     assert time.monotonic() - started_s < 2.5
     assert rig.bridge.poller.rate_hz >= 20
+    assert gcs.command(SET_MESSAGE_INTERVAL, 0, 100_000) == UNSUPPORTED  # HEARTBEAT: 1 Hz
 
 
 def test_disarm_is_accepted_even_when_not_armed(rig: BridgeRig, gcs: GroundStation):
