@@ -8,7 +8,8 @@ Ground stations come and go, and the endpoint outlives them. pymavlink's TCP con
 their socket when a peer goes (a write that fails closes it), so reading and writing never run at
 once: the reader waits for data outside the lock and reads under it. A TCP ground station that
 closes its end is let go (``tcpin``: the next one is accepted; ``tcp``: it is dialled again),
-where pymavlink would read an ended stream for ever.
+where pymavlink would read an ended stream for ever; a ``tcp`` one not there yet when the bridge
+starts is dialled until it answers, where pymavlink's client would give up.
 """
 
 from __future__ import annotations
