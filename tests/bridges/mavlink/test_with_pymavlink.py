@@ -224,6 +224,31 @@ def test_alt_hold_holds_the_current_depth_and_the_stick_moves_it(
     rig.wait_frame("#mvdirect.1!", since=mark)
 
 
+def test_depth_hold_engaged_while_diving_holds_the_depth_of_that_moment(
+    rig: BridgeRig, gcs: GroundStation
+):
+    # The held depth was the last sensor poll's (4 Hz: up to 0.25 s old, 2 Hz when telemetry is
+    # slow), sent over the controller's own hold of the moment (P9): a robot diving at 0.9 m/s
+    # was sent up to tens of cm back up. Here the polls are made rare, so the last is old.
+    gcs.start_heartbeats()
+    assert gcs.arm() == ACCEPTED
+    rig.bridge.poller.rate_hz = 0.1  # (from the next poll on: the one after is 10 s later)
+    polled = rig.bridge.state.sensors
+    wait_for(lambda: rig.bridge.state.sensors is not polled)
+    vehicle = rig.port.robot.vehicle
+    started_s = time.monotonic()
+    while time.monotonic() - started_s < 1.0:  # full down: the robot dives
+        gcs.send("manual_control", VEHICLE, 0, 0, 0, 0, 0)
+        time.sleep(0.05)
+    mark = len(rig.frames())
+    before_cm = vehicle.depth_m * 100
+    assert gcs.set_mode(ALT_HOLD) == ACCEPTED
+    held = int(_wait_prefix(rig, "#mvd.", mark)[0][len("#mvd.") : -1])
+    after_cm = vehicle.depth_m * 100
+    assert after_cm - (rig.bridge.state.depth_cm or 0) > 25  # (the last poll's is that old)
+    assert before_cm - 10 <= held <= after_cm + 10  # (10: the sensor's noise and resolution)
+
+
 def _wait_prefix(rig: BridgeRig, prefix: str, since: int) -> list[str]:
     wait_for(lambda: any(f.startswith(prefix) for f in rig.frames_since(since)))
     return [f for f in rig.frames_since(since) if f.startswith(prefix)]

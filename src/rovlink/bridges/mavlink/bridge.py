@@ -212,9 +212,24 @@ class MavlinkBridge:
         entering = mode is not self.state.mode
         await self.rov.send(Command("mvdirect", (int(mode is FlightMode.MANUAL),)))
         self.state.mode = mode  # (once sent: a link being reopened refuses it)
-        if entering:
-            await self._hold_current_depth()
+        if entering and mode is FlightMode.ALT_HOLD and self.armed:
+            # The controller holds the depth of this moment itself (P9). The stick moves the
+            # hold from the depth a fresh qd answers, asked aside: waited for here, it would
+            # hold up the messages after it (a disarm) while the robot may move; and the last
+            # poll's depth is up to a poll period old, which sent a diving robot back up.
+            self._in_background(self._hold_depth_of_now())
         return Result.ACCEPTED
+
+    async def _hold_depth_of_now(self) -> None:
+        """ALT_HOLD just entered, armed: hold the depth a fresh ``qd`` answers (the last poll's
+        if it gets none), unless a depth was held meanwhile (a re-arm) or the mode or the lock
+        changed."""
+        with contextlib.suppress(ConnectionError):  # (a link being reopened: disarmed)
+            depth_cm = await self._depth_now_cm()
+            if depth_cm is None:
+                depth_cm = self.state.depth_cm
+            if depth_cm is not None and self.pilot.target_depth_cm is None:
+                await self._hold_current_depth(depth_cm)
 
     async def gripper(self, *, close: bool) -> Result:
         """``#h-!`` (close) or ``#h+!`` (open): only when armed (the claw is motion, P7)."""
@@ -506,11 +521,9 @@ class MavlinkBridge:
             logger.warning("the controller may have reset: sent again %s", frames)
             self._say(_SEVERITY_WARNING, "Controller reset? Parameters and mode sent again")
 
-    async def _hold_current_depth(self, depth_cm: int | None = None) -> None:
-        """In ALT_HOLD, armed: hold ``depth_cm`` (default: the last polled depth)."""
-        if depth_cm is None:
-            depth_cm = self.state.depth_cm
-        if self.state.mode is FlightMode.ALT_HOLD and self.armed and depth_cm is not None:
+    async def _hold_current_depth(self, depth_cm: int) -> None:
+        """In ALT_HOLD, armed: hold ``depth_cm``."""
+        if self.state.mode is FlightMode.ALT_HOLD and self.armed:
             await self.rov.send(self.pilot.hold(depth_cm))
 
     def _poll_rate_hz(self) -> float:
