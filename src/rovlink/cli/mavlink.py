@@ -1,10 +1,10 @@
 """Serve the robot as an ArduSub-like MAVLink vehicle for QGroundControl, MAVProxy or pymavlink.
 
 Telemetry out (HEARTBEAT, SYS_STATUS, ATTITUDE, VFR_HUD, GLOBAL_POSITION_INT, SCALED_PRESSURE2),
-parameters, arming, MANUAL/ALT_HOLD and the joystick in. No ground-station heartbeat for 3 s
-while armed stops the robot; joystick input stale for 1 s zeroes its thrust; a stick or RC
-channel off centre at arming is held at neutral until centred. The robot is left locked when the
-bridge ends.
+parameters, arming, MANUAL/ALT_HOLD and the joystick in. No ground-station heartbeat or
+joystick input for 3 s while armed stops the robot; joystick input stale for 1 s zeroes its
+thrust; a stick or RC channel off centre at arming is held at neutral until centred. The robot
+is left locked when the bridge ends.
 """
 
 from __future__ import annotations
@@ -84,7 +84,8 @@ def run(args: argparse.Namespace) -> int:
     values: dict[str, int] = {}
     if args.params is not None:
         try:
-            text = args.params.read_text(encoding="utf-8")
+            # (utf-8-sig: a byte order mark, as Windows editors save one, is not a name's start)
+            text = args.params.read_text(encoding="utf-8-sig")
         except (OSError, UnicodeDecodeError) as error:
             raise unreadable(args.params, error) from None
         try:

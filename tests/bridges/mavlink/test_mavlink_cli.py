@@ -52,6 +52,20 @@ def test_a_qgroundcontrol_parameter_file_is_read(run_cli: RunCli, tmp_path: Path
     )
 
 
+def test_a_parameter_file_saved_with_a_byte_order_mark_is_read(
+    run_cli: RunCli, tmp_path: Path
+) -> None:
+    # Windows editors save UTF-8 with a byte order mark (and CRLF line ends): line 1 was refused
+    # as "no parameter '\\ufeffRL_DEPTH_P'". The error now is the one on line 2.
+    params = tmp_path / "robot.param"
+    params.write_bytes(b"\xef\xbb\xbfRL_DEPTH_P 30\r\nRL_MAX_PWM 999\r\n")
+    result = run_cli("mavlink", "sim://", "--params", str(params))
+    assert result.status == 2
+    assert result.err.strip().endswith(
+        "robot.param:2: RL_MAX_PWM must be an integer in 0–255, got 999"
+    )
+
+
 @pytest.mark.integration
 def test_the_command_serves_a_ground_station_and_ends_on_ctrl_c(tmp_path: Path) -> None:
     port = free_udp_port()

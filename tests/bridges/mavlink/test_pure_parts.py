@@ -558,7 +558,7 @@ def test_mavlink_addressing_broadcasts_systems_and_components():
         return is_addressed_to(message, system_id=1, component_id=1)
 
     assert for_us(dialect.MAVLink_heartbeat_message(6, 8, 0, 0, 0, 3))  # no target: everyone's
-    assert for_us(dialect.MAVLink_manual_control_message(0, 0, 0, 500, 0, 0))
+    assert not for_us(dialect.MAVLink_manual_control_message(0, 0, 0, 500, 0, 0))  # ArduSub's
     assert for_us(dialect.MAVLink_manual_control_message(1, 0, 0, 500, 0, 0))
     assert not for_us(dialect.MAVLink_manual_control_message(2, 0, 0, 500, 0, 0))
     for system, component, expected in [(1, 1, True), (1, 0, True), (0, 0, True),

@@ -32,6 +32,7 @@ ARMED_FLAG = 128
 ACCEPTED, DENIED, UNSUPPORTED, FAILED = 0, 2, 3, 4
 STANDBY, CRITICAL = 3, 5  # MAV_STATE
 ARM_DISARM, DO_SET_MODE, DO_GRIPPER = 400, 176, 211
+SET_MODE_ID = 11  # the SET_MODE message's id: ArduPilot's COMMAND_ACK.command for it
 SET_MESSAGE_INTERVAL, REQUEST_MESSAGE = 511, 512
 NAV_TAKEOFF = 22
 ATTITUDE_ID, AUTOPILOT_VERSION_ID = 30, 148
@@ -56,6 +57,10 @@ def test_autopilot_version_on_request_and_an_empty_mission(gcs: GroundStation):
     assert gcs.command(REQUEST_MESSAGE, AUTOPILOT_VERSION_ID) == ACCEPTED
     version = gcs.receive("AUTOPILOT_VERSION")
     assert version.capabilities & 8192  # MAV_PROTOCOL_CAPABILITY_MAVLINK2
+    # How parameter values sit in PARAM_VALUE's float: cast, as ArduPilot's (MAVLink asks for
+    # this flag or BYTEWISE; without either a ground station may read 40 as 1109393408).
+    assert version.capabilities & 131072  # MAV_PROTOCOL_CAPABILITY_PARAM_ENCODE_C_CAST
+    assert not version.capabilities & 16  # MAV_PROTOCOL_CAPABILITY_PARAM_ENCODE_BYTEWISE
     gcs.send("mission_request_list", VEHICLE, 1, 0)
     assert gcs.receive("MISSION_COUNT").count == 0
 
@@ -153,6 +158,27 @@ def test_no_stop_while_the_ground_station_beats(rig: BridgeRig, gcs: GroundStati
     assert _armed(gcs)
 
 
+@pytest.mark.parametrize("input_kind", ["manual_control", "rc_channels_override"])
+def test_the_pilots_joystick_is_contact_as_a_heartbeat_is(
+    rig: BridgeRig, gcs: GroundStation, input_kind: str
+):
+    # ArduSub takes the pilot's MANUAL_CONTROL and RC overrides as heartbeats: its pymavlink
+    # examples fly without sending any. The bridge stopped such a script 3 s after arming.
+    rig.bridge.watchdog.timeout_s = 0.8  # (3 s in use: the same rule, sooner)
+    assert gcs.arm() == ACCEPTED  # (contact: no heartbeat from here on)
+    mark = len(rig.frames())
+    started_s = time.monotonic()
+    while time.monotonic() - started_s < 1.0:  # longer than the failsafe's timeout
+        if input_kind == "manual_control":
+            gcs.send("manual_control", VEHICLE, 0, 0, 500, 0, 0)
+        else:
+            gcs.send("rc_channels_override", VEHICLE, 1, *[1500] * 8)
+        time.sleep(0.05)
+    _served_since(gcs)
+    assert "#stop!" not in rig.frames_since(mark)
+    rig.wait_frame("#stop!", since=mark)  # the input stops: the ground station is lost
+
+
 def test_stale_joystick_input_zeroes_the_thrust_but_stays_armed(rig: BridgeRig, gcs: GroundStation):
     gcs.start_heartbeats()
     assert gcs.arm() == ACCEPTED
@@ -198,6 +224,31 @@ def test_alt_hold_holds_the_current_depth_and_the_stick_moves_it(
     rig.wait_frame("#mvdirect.1!", since=mark)
 
 
+def test_depth_hold_engaged_while_diving_holds_the_depth_of_that_moment(
+    rig: BridgeRig, gcs: GroundStation
+):
+    # The held depth was the last sensor poll's (4 Hz: up to 0.25 s old, 2 Hz when telemetry is
+    # slow), sent over the controller's own hold of the moment (P9): a robot diving at 0.9 m/s
+    # was sent up to tens of cm back up. Here the polls are made rare, so the last is old.
+    gcs.start_heartbeats()
+    assert gcs.arm() == ACCEPTED
+    rig.bridge.poller.rate_hz = 0.1  # (from the next poll on: the one after is 10 s later)
+    polled = rig.bridge.state.sensors
+    wait_for(lambda: rig.bridge.state.sensors is not polled)
+    vehicle = rig.port.robot.vehicle
+    started_s = time.monotonic()
+    while time.monotonic() - started_s < 1.0:  # full down: the robot dives
+        gcs.send("manual_control", VEHICLE, 0, 0, 0, 0, 0)
+        time.sleep(0.05)
+    mark = len(rig.frames())
+    before_cm = vehicle.depth_m * 100
+    assert gcs.set_mode(ALT_HOLD) == ACCEPTED
+    held = int(_wait_prefix(rig, "#mvd.", mark)[0][len("#mvd.") : -1])
+    after_cm = vehicle.depth_m * 100
+    assert after_cm - (rig.bridge.state.depth_cm or 0) > 25  # (the last poll's is that old)
+    assert before_cm - 10 <= held <= after_cm + 10  # (10: the sensor's noise and resolution)
+
+
 def _wait_prefix(rig: BridgeRig, prefix: str, since: int) -> list[str]:
     wait_for(lambda: any(f.startswith(prefix) for f in rig.frames_since(since)))
     return [f for f in rig.frames_since(since) if f.startswith(prefix)]
@@ -210,6 +261,22 @@ def test_unsupported_modes_and_commands_are_answered_unsupported(
     assert gcs.set_mode(STABILIZE) == UNSUPPORTED
     assert gcs.command(NAV_TAKEOFF) == UNSUPPORTED
     assert all(f in {"#qsa!", "#qd!"} for f in rig.frames_since(mark))  # polls only
+
+
+@pytest.mark.parametrize(("mode", "result"), [(ALT_HOLD, ACCEPTED), (STABILIZE, UNSUPPORTED)])
+def test_set_mode_is_acknowledged_as_ardupilot_does(
+    rig: BridgeRig, gcs: GroundStation, mode: int, result: int
+):
+    # ArduSub's pymavlink example changes the mode with SET_MODE and waits for the COMMAND_ACK
+    # whose command is MAVLINK_MSG_ID_SET_MODE (11), as ArduPilot sends it; an ack for 176 it
+    # never takes, and waits for ever.
+    mark = len(rig.frames())
+    gcs.send("set_mode", VEHICLE, 1, mode)  # MAV_MODE_FLAG_CUSTOM_MODE_ENABLED
+    ack = gcs.receive("COMMAND_ACK", condition=lambda m: m.command in (SET_MODE_ID, DO_SET_MODE))
+    assert (ack.command, ack.result) == (SET_MODE_ID, result)
+    assert (ack.target_system, ack.target_component) == (255, 190)
+    if result == ACCEPTED:
+        rig.wait_frame("#mvdirect.0!", since=mark)
 
 
 def test_the_gripper_needs_arming(rig: BridgeRig, gcs: GroundStation):
@@ -233,6 +300,25 @@ def test_a_button_arms_with_ardusubs_default_mapping(rig: BridgeRig, gcs: Ground
     rig.wait_frame("#stop!", since=mark)
 
 
+def test_arming_needs_a_disarm_button_as_in_ardusub(rig: BridgeRig, gcs: GroundStation):
+    # Underwater the pilot's hands are on the joystick: ArduSub refuses to arm without a button
+    # that disarms ("PreArm: Must assign a disarm or arm_toggle button"); the bridge armed.
+    gcs.start_heartbeats()
+    gcs.send("param_set", VEHICLE, 1, b"BTN4_FUNCTION", 5, 6)  # disarm → MANUAL: none left
+    assert (
+        gcs.receive("PARAM_VALUE", condition=lambda m: m.param_id == "BTN4_FUNCTION").param_value
+        == 5
+    )
+    mark = len(rig.frames())
+    assert gcs.arm() == FAILED
+    assert "disarm" in gcs.receive("STATUSTEXT", condition=lambda m: "PreArm" in m.text).text
+    gcs.send("param_set", VEHICLE, 1, b"BTN20_FUNCTION", 2, 6)  # arm toggle, in buttons2
+    gcs.receive("PARAM_VALUE", condition=lambda m: m.param_id == "BTN20_FUNCTION")
+    assert "#start!" not in rig.frames_since(mark)
+    assert gcs.arm() == ACCEPTED
+    rig.wait_frame("#start!", since=mark)
+
+
 def test_message_interval_raises_a_rate(rig: BridgeRig, gcs: GroundStation):
     assert gcs.command(SET_MESSAGE_INTERVAL, ATTITUDE_ID, 50_000) == ACCEPTED  # 20 Hz
     gcs.receive("ATTITUDE")
@@ -244,6 +330,7 @@ def test_message_interval_raises_a_rate(rig: BridgeRig, gcs: GroundStation):
     # 15 at the default 4 Hz would take 3.75 s.
     assert time.monotonic() - started_s < 2.5
     assert rig.bridge.poller.rate_hz >= 20
+    assert gcs.command(SET_MESSAGE_INTERVAL, 0, 100_000) == UNSUPPORTED  # HEARTBEAT: 1 Hz
 
 
 def test_disarm_is_accepted_even_when_not_armed(rig: BridgeRig, gcs: GroundStation):
@@ -275,6 +362,23 @@ def test_ending_the_bridge_locks_the_robot():
         finally:
             gcs.close()
     assert "#stop!" in rig.frames_since(mark)
+
+
+def test_telemetry_to_a_broadcast_address_reaches_the_ground_station():
+    # A topside network whose ground station's address is not known beforehand: the bridge sends
+    # to the subnet's broadcast address (here loopback's). Every send failed (EACCES: the socket
+    # was not allowed to broadcast; pymavlink drops the error), though the bridge said "ready".
+    port = free_udp_port()
+    with running_bridge(endpoint=f"udpout:127.255.255.255:{port}") as rig:
+        gcs = GroundStation(f"udpin:0.0.0.0:{port}")
+        try:
+            gcs.receive("HEARTBEAT", condition=lambda m: m.type == SUBMARINE)
+            gcs.heartbeat()  # and the ground station's answers come back
+            mark = len(rig.frames())
+            assert gcs.arm() == ACCEPTED
+            rig.wait_frame("#start!", since=mark)
+        finally:
+            gcs.close()
 
 
 def test_a_ground_station_over_tcp():
@@ -326,6 +430,26 @@ def test_the_bridge_dials_a_restarted_tcp_ground_station_again():
         server.close()
 
 
+def test_a_tcp_ground_station_that_starts_after_the_bridge_is_dialled(
+    capsys: pytest.CaptureFixture[str],
+):
+    # The vehicle's computer boots before the ground station's: the bridge serves on and dials
+    # it (pymavlink's client gave up after its retries, printing, and the bridge ended).
+    port = free_tcp_port()
+    with running_bridge(endpoint=f"tcp:127.0.0.1:{port}") as rig:
+        server = GroundStation(f"tcpin:127.0.0.1:{port}")
+        try:
+            server.receive("HEARTBEAT", condition=lambda m: m.type == SUBMARINE)
+            server.heartbeat()
+            server.start_heartbeats()
+            mark = len(rig.frames())
+            assert server.arm() == ACCEPTED
+            rig.wait_frame("#start!", since=mark)
+        finally:
+            server.close()
+    assert capsys.readouterr().out == ""  # (pymavlink's "Connection refused sleeping")
+
+
 def test_nonsense_values_are_denied_and_the_bridge_serves_on(rig: BridgeRig, gcs: GroundStation):
     nan = float("nan")
     assert gcs.command(REQUEST_MESSAGE, nan) == DENIED
@@ -352,7 +476,7 @@ def _change_mode_or_re_arm(gcs: GroundStation, change: str) -> None:
         assert gcs.set_mode(MANUAL) == ACCEPTED  # MANUAL again: #mvdirect.1! changes nothing
     elif change == "SET_MODE":
         gcs.send("set_mode", VEHICLE, 1, MANUAL)
-        gcs.receive("COMMAND_ACK", condition=lambda m: m.command == DO_SET_MODE)
+        gcs.receive("COMMAND_ACK", condition=lambda m: m.command == SET_MODE_ID)
     elif change == "mode button":
         gcs.send("manual_control", VEHICLE, 1000, 0, 0, 0, 1 << 1)  # BTN1: MANUAL
     elif change == "re-arm":
@@ -397,9 +521,12 @@ def test_the_joystick_of_another_system_does_not_drive_this_one(rig: BridgeRig, 
     assert gcs.arm() == ACCEPTED
     mark = len(rig.frames())
     gcs.send("manual_control", 2, 0, 1000, 1000, 0, 0)  # for system 2: right, full up
+    # A joystick broadcast (target 0) drives no vehicle, as in ArduSub, which takes
+    # MANUAL_CONTROL aimed at it only: it once drove every vehicle on the network at once.
+    gcs.send("manual_control", 0, 0, 1000, 1000, 0, 0)
     _served_since(gcs)
     assert not [f for f in rig.frames_since(mark) if f.startswith(("#th", "#mvs"))]
-    gcs.send("manual_control", 0, 0, 1000, 1000, 0, 0)  # a broadcast drives
+    gcs.send("manual_control", VEHICLE, 0, 1000, 1000, 0, 0)
     rig.wait_frame("#th.90.100!", since=mark)
 
 

@@ -14,7 +14,6 @@ from typing import Any
 
 from rovlink.bridges.kept_settings import KeptSettings
 from rovlink.bridges.mavlink.command_handling import (
-    MAV_CMD,
     Result,
     handle_command,
     mode_result,
@@ -50,11 +49,16 @@ _SEVERITY_CRITICAL = 2
 _SEVERITY_WARNING = 4
 _SEVERITY_INFO = 6
 _PARAM_TYPE_INT32 = 6
+#: SET_MODE is acknowledged with its message id as the command, as ArduPilot does (ArduSub's
+#: pymavlink example waits for that COMMAND_ACK).
+_SET_MODE_MESSAGE_ID = 11
 #: An axis held at neutral after arming until centred (said once per axis and arming).
 _STICK_HELD = "Joystick {axis} held: return to centre"
 _CHANNEL_HELD = "RC {channel} held: return to neutral"
 #: A button a new pilot holds at the hand-over: not a press (said once per button).
 _BUTTON_HELD = "Button {button} held: release it to use it"
+#: ArduSub's pre-arm check, word for word (ground stations show PreArm texts as such).
+_NO_DISARM_BUTTON = "PreArm: Must assign a disarm or arm_toggle button"
 
 
 class MavlinkBridge:
@@ -153,7 +157,8 @@ class MavlinkBridge:
     async def arm(self) -> Result:
         """``#start!``; in ALT_HOLD the depth of the moment is held.
 
-        Refused (FAILED) while the controller's queries fail, as HEARTBEAT shows it CRITICAL,
+        Refused (FAILED) when no joystick button disarms (``BTNn_FUNCTION`` 4 or 2), as in
+        ArduSub; while the controller's queries fail, as HEARTBEAT shows it CRITICAL,
         and when it does not answer a query of its own (a pre-arm check, as ArduSub's): a
         controller that has just gone silent fails a poll only a reply timeout or more later.
         An armed vehicle's ARM is accepted at once and changes nothing, as ArduSub's: no
@@ -163,6 +168,9 @@ class MavlinkBridge:
         if self.armed:
             self.watchdog.heartbeat(self._clock())  # (contact all the same)
             return Result.ACCEPTED
+        if not self.parameters.disarm_button_assigned():
+            self._say(_SEVERITY_CRITICAL, _NO_DISARM_BUTTON)
+            return Result.FAILED
         depth_cm = await self._depth_now_cm() if self.messages.link_ok() else None
         if depth_cm is None:
             self._say(_SEVERITY_WARNING, "Arm refused: the controller does not answer")
@@ -204,9 +212,24 @@ class MavlinkBridge:
         entering = mode is not self.state.mode
         await self.rov.send(Command("mvdirect", (int(mode is FlightMode.MANUAL),)))
         self.state.mode = mode  # (once sent: a link being reopened refuses it)
-        if entering:
-            await self._hold_current_depth()
+        if entering and mode is FlightMode.ALT_HOLD and self.armed:
+            # The controller holds the depth of this moment itself (P9). The stick moves the
+            # hold from the depth a fresh qd answers, asked aside: waited for here, it would
+            # hold up the messages after it (a disarm) while the robot may move; and the last
+            # poll's depth is up to a poll period old, which sent a diving robot back up.
+            self._in_background(self._hold_depth_of_now())
         return Result.ACCEPTED
+
+    async def _hold_depth_of_now(self) -> None:
+        """ALT_HOLD just entered, armed: hold the depth a fresh ``qd`` answers (the last poll's
+        if it gets none), unless a depth was held meanwhile (a re-arm) or the mode or the lock
+        changed."""
+        with contextlib.suppress(ConnectionError):  # (a link being reopened: disarmed)
+            depth_cm = await self._depth_now_cm()
+            if depth_cm is None:
+                depth_cm = self.state.depth_cm
+            if depth_cm is not None and self.pilot.target_depth_cm is None:
+                await self._hold_current_depth(depth_cm)
 
     async def gripper(self, *, close: bool) -> Result:
         """``#h-!`` (close) or ``#h+!`` (open): only when armed (the claw is motion, P7)."""
@@ -295,9 +318,12 @@ class MavlinkBridge:
             self.watchdog.heartbeat(self._clock())
 
     def _from_pilot(self, message: Any) -> bool:
-        """Whether pilot input comes from the pilot's ground station (``SYSID_MYGCS``)."""
+        """Whether pilot input comes from the pilot's ground station (``SYSID_MYGCS``); if so,
+        it is contact for the failsafe, as a heartbeat is (as in ArduSub, whose pymavlink
+        examples fly with no heartbeat)."""
         source = message.get_srcSystem()
         if source == self.parameters.pilot_system:
+            self.watchdog.heartbeat(self._clock())
             return True
         # Two joysticks would take turns at the thrust, message by message (as ArduSub, only
         # SYSID_MYGCS flies); said once per ground station, so that its pilot knows.
@@ -367,7 +393,7 @@ class MavlinkBridge:
         result = await self._while_link_down(
             mode_result(self, message.base_mode, message.custom_mode)
         )
-        self._ack(message, MAV_CMD.DO_SET_MODE, result)
+        self._ack(message, _SET_MODE_MESSAGE_ID, result)
 
     async def _while_link_down(self, action: Coroutine[Any, Any, Result]) -> Result:
         """``action``'s result; TEMPORARILY_REJECTED if the controller link is being reopened
@@ -495,11 +521,9 @@ class MavlinkBridge:
             logger.warning("the controller may have reset: sent again %s", frames)
             self._say(_SEVERITY_WARNING, "Controller reset? Parameters and mode sent again")
 
-    async def _hold_current_depth(self, depth_cm: int | None = None) -> None:
-        """In ALT_HOLD, armed: hold ``depth_cm`` (default: the last polled depth)."""
-        if depth_cm is None:
-            depth_cm = self.state.depth_cm
-        if self.state.mode is FlightMode.ALT_HOLD and self.armed and depth_cm is not None:
+    async def _hold_current_depth(self, depth_cm: int) -> None:
+        """In ALT_HOLD, armed: hold ``depth_cm``."""
+        if self.state.mode is FlightMode.ALT_HOLD and self.armed:
             await self.rov.send(self.pilot.hold(depth_cm))
 
     def _poll_rate_hz(self) -> float:

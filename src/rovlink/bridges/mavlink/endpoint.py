@@ -8,7 +8,8 @@ Ground stations come and go, and the endpoint outlives them. pymavlink's TCP con
 their socket when a peer goes (a write that fails closes it), so reading and writing never run at
 once: the reader waits for data outside the lock and reads under it. A TCP ground station that
 closes its end is let go (``tcpin``: the next one is accepted; ``tcp``: it is dialled again),
-where pymavlink would read an ended stream for ever.
+where pymavlink would read an ended stream for ever; a ``tcp`` one not there yet when the bridge
+starts is dialled until it answers, where pymavlink's client would give up.
 """
 
 from __future__ import annotations
@@ -39,6 +40,9 @@ _READ_TIMEOUT_S = 0.2  # how soon the reader thread notices it should stop
 _REDIAL_S = 1.0
 #: Messages whose target system field is not ``target_system`` (MANUAL_CONTROL's is ``target``).
 _TARGET_SYSTEM_FIELD = {"MANUAL_CONTROL": "target"}
+#: Messages taken only when aimed at this system, never as a broadcast: ArduSub takes a joystick
+#: aimed at it only, so one broadcast cannot drive every vehicle on the network.
+_AIMED_ONLY = frozenset({"MANUAL_CONTROL"})
 _BROADCAST = 0
 
 
@@ -65,16 +69,59 @@ def check_address(address: str) -> None:
 def is_addressed_to(message: Any, system_id: int, component_id: int) -> bool:
     """Whether ``message`` is for component ``component_id`` of system ``system_id``, by
     MAVLink's addressing: a target of 0 is a broadcast, a message without target fields is for
-    everyone, and one for another component of this system is not this component's.
+    everyone, and one for another component of this system is not this component's. A joystick
+    (MANUAL_CONTROL) must be aimed at this system, as ArduSub has it: a broadcast is not.
     """
     fields = message.get_fieldnames()
-    system_field = _TARGET_SYSTEM_FIELD.get(message.get_type(), "target_system")
-    if system_field in fields and getattr(message, system_field) not in (_BROADCAST, system_id):
+    kind = message.get_type()
+    system_field = _TARGET_SYSTEM_FIELD.get(kind, "target_system")
+    systems = (system_id,) if kind in _AIMED_ONLY else (_BROADCAST, system_id)
+    if system_field in fields and getattr(message, system_field) not in systems:
         return False
     return "target_component" not in fields or message.target_component in (
         _BROADCAST,
         component_id,
     )
+
+
+def _dial(address: tuple[str, int]) -> socket.socket | None:
+    """A TCP connection to a ground station's server, ready for pymavlink; ``None`` if it does
+    not answer within :data:`_REDIAL_S` (the next attempt is the reader's)."""
+    try:
+        port = socket.create_connection(address, timeout=_REDIAL_S)
+    except OSError as error:
+        logger.debug("MAVLink: tcp:%s:%s: %s", *address, error)
+        return None
+    port.setblocking(False)
+    port.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+    return port
+
+
+def _tcp_client(mavtcp: type[Any]) -> type[Any]:
+    """pymavlink's TCP client class, made to start without its ground station.
+
+    pymavlink's connects in its constructor, tries a few times (printing, sleeping, blocking for
+    as long as a host that does not answer takes) and raises: a bridge started before its
+    ground station (the vehicle's computer boots first) would end. This one tries once, for at
+    most :data:`_REDIAL_S`, and is otherwise left unconnected (``port`` ``None``) for the
+    endpoint's reader to dial.
+    """
+
+    class DialledLater(mavtcp):  # type: ignore[misc]
+        def do_connect(self) -> None:
+            port = _dial(self.destination_addr)
+            # (pymavlink's constructor takes the descriptor of what this leaves in ``port``)
+            self.port: socket.socket | None = socket.socket() if port is None else port
+            self.dialled = port is not None
+
+        def __init__(self, device: str, **options: Any) -> None:
+            super().__init__(device, **options)
+            if not self.dialled and self.port is not None:
+                self.port.close()
+                self.port = None
+                logger.info("MAVLink: no ground station at tcp:%s yet: dialling it", device)
+
+    return DialledLater
 
 
 class MavlinkEndpoint:
@@ -95,12 +142,23 @@ class MavlinkEndpoint:
         self.address = address
         self.system_id = system_id
         self.component_id = 1
-        self._connection: Any = mavutil.mavlink_connection(
-            address,
-            source_system=system_id,
-            source_component=self.component_id,
-            dialect="ardupilotmega",
-        )
+        if scheme == "tcp":
+            mavutil.set_dialect("ardupilotmega")
+            self._connection: Any = _tcp_client(mavutil.mavtcp)(
+                f"{host}:{port}", source_system=system_id, source_component=self.component_id
+            )
+        else:
+            self._connection = mavutil.mavlink_connection(
+                address,
+                source_system=system_id,
+                source_component=self.component_id,
+                dialect="ardupilotmega",
+            )
+        if scheme == "udpout":
+            # A topside subnet's broadcast address is a destination as good as any (a ground
+            # station whose address is not known beforehand): without this every send to it
+            # fails, and pymavlink drops the error.
+            self._connection.port.setsockopt(socket.SOL_SOCKET, socket.SO_BROADCAST, 1)
         #: The dialect module (message classes and constants).
         self.dialect: Any = mavutil.mavlink
         self.scheme = scheme
@@ -204,13 +262,9 @@ class MavlinkEndpoint:
         if self._stopping.wait(_REDIAL_S):
             return
         connection = self._connection
-        try:
-            port = socket.create_connection(connection.destination_addr, timeout=_REDIAL_S)
-        except OSError as error:
-            logger.debug("MAVLink: %s: %s", self.address, error)
+        port = _dial(connection.destination_addr)
+        if port is None:
             return
-        port.setblocking(False)
-        port.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
         with self._lock:
             connection.port = port
             connection.fd = port.fileno()

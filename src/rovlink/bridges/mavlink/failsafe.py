@@ -1,9 +1,11 @@
-"""The ground-station failsafe: no GCS heartbeat for 3 s while armed → ``#stop!``.
+"""The ground-station failsafe: no word from the pilot's ground station for 3 s while armed →
+``#stop!``.
 
 ArduSub's pilot-input failsafe only runs once a pilot has sent input and can be disabled; this
 one has no gaps: it watches the ground station's HEARTBEAT from the moment the robot is armed
 (arming counts as contact), whatever the mode, whether or not a joystick was ever used, and
-cannot be switched off. Stale joystick input is :mod:`pilot_input`'s part.
+cannot be switched off. The pilot's joystick (MANUAL_CONTROL, RC overrides) is contact too, as
+in ArduSub. Stale joystick input is :mod:`pilot_input`'s part.
 """
 
 from __future__ import annotations
@@ -31,7 +33,8 @@ class GcsWatchdog:
         self._tripped = False
 
     def heartbeat(self, now_s: float) -> None:
-        """A ground station's HEARTBEAT arrived (or the robot was armed by one)."""
+        """A ground station's HEARTBEAT or joystick input arrived (or the robot was armed by
+        one)."""
         self.last_heartbeat_at_s = now_s
         self._tripped = False
 

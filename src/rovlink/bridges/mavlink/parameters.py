@@ -207,6 +207,12 @@ class ParameterTable:
         """The function button ``button`` carries out."""
         return ButtonFunction(self._values[button_parameter(button)])
 
+    def disarm_button_assigned(self) -> bool:
+        """Whether a button disarms (``DISARM`` or ``ARM_TOGGLE``): ArduSub's pre-arm check,
+        since underwater the pilot's hands are on the joystick."""
+        disarming = {ButtonFunction.DISARM, ButtonFunction.ARM_TOGGLE}
+        return any(self.button_function(button) in disarming for button in range(BUTTON_COUNT))
+
     def set(self, name: str, value: float) -> Command | None:
         """Set ``name`` to ``value``; the command to send for it (``None``: the bridge's own).
 

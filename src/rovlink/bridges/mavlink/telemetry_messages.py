@@ -197,10 +197,13 @@ class TelemetryMessages:
         self._mav.scaled_pressure2_send(self._boot_ms(), pressure_hpa, 0.0, 0)
 
     def autopilot_version(self) -> None:
-        """AUTOPILOT_VERSION: MAVLink 2, float parameters, COMMAND_INT; rovlink's version."""
+        """AUTOPILOT_VERSION: MAVLink 2, parameter values cast to PARAM_VALUE's float (as
+        ArduPilot's: the flag MAVLink asks for, and the older one it replaced), COMMAND_INT;
+        rovlink's version."""
         d = self._dialect
         capabilities = (
             d.MAV_PROTOCOL_CAPABILITY_MAVLINK2
+            | d.MAV_PROTOCOL_CAPABILITY_PARAM_ENCODE_C_CAST
             | d.MAV_PROTOCOL_CAPABILITY_PARAM_FLOAT
             | d.MAV_PROTOCOL_CAPABILITY_COMMAND_INT
         )
