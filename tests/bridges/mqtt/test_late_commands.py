@@ -156,3 +156,23 @@ async def test_readings_a_lost_connection_did_not_carry_are_not_published_on_the
         last_connection = published[-1][0]
         on_the_next = [seq for connection, seq in published if connection == last_connection]
         assert min(on_the_next) > given_up_at_seq
+
+
+async def test_readings_beyond_the_backlog_drop_the_oldest_not_the_newest(broker: Mosquitto):
+    # A broker too slow for the telemetry: the backlog (64 readings) kept its oldest and dropped
+    # every newer one, so the readings published once it caught up were seconds old.
+    from rovlink.bridges.mqtt import bridge as bridge_module
+    from rovlink.client.sensors import Sensors
+
+    backlog = bridge_module._TELEMETRY_BACKLOG
+    async with bridged_robot(broker, "late5", rate_hz=1) as robot:
+        bridge = robot.bridge
+        await until(bridge.connected.is_set)
+        reading = Sensors(100, 600, False, 0, 0, 90)
+        # (No await in between: the publisher cannot take any of them meanwhile.)
+        for _ in range(backlog + 20):
+            bridge._on_reading(reading)
+        newest = bridge.sequence
+        queued = [json.loads(bridge._telemetry.get_nowait())["seq"] for _ in range(backlog)]
+        assert queued[-1] == newest
+        assert queued == list(range(newest - backlog + 1, newest + 1))

@@ -90,7 +90,7 @@ _STATE_REFRESH_S = 2.0
 #: Reconnection backoff: first wait, doubled up to the last.
 _RECONNECT_FIRST_S = 0.2
 _RECONNECT_MAX_S = 5.0
-#: Telemetry waiting for the broker beyond this is dropped (QoS 0 promises no more).
+#: Telemetry waiting for the broker beyond this drops its oldest (QoS 0 promises no more).
 _TELEMETRY_BACKLOG = 64
 _KEEPALIVE_S = 10
 #: How long the broker has to answer (CONNACK, SUBACK, PUBACK) before the connection is given up.
@@ -666,8 +666,9 @@ class MqttBridge:
             payload = encode(
                 telemetry_payload(self.robot_id, sensors, self.sequence, self._wall_clock())
             )
-            with contextlib.suppress(asyncio.QueueFull):
-                self._telemetry.put_nowait(payload)
+            if self._telemetry.full():  # (the oldest gives way: a reading is worth its news)
+                self._telemetry.get_nowait()
+            self._telemetry.put_nowait(payload)
         self._wake_publisher.set()
 
     def _on_client_event(self, event: ClientEvent) -> None:
