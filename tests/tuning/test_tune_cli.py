@@ -268,15 +268,11 @@ def _result_missing_the_settling_target() -> object:
     )
 
 
-def test_apply_leaves_no_gains_set_that_missed_the_verifications_targets(
-    capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
-) -> None:
-    # Before, --apply left the tuned gains set even when their step missed a target: gains
-    # that held the depth worse than the ones they replaced flew the next dive.
+def _sent_frames(monkeypatch: pytest.MonkeyPatch) -> list[str]:
+    """The frames the blocking client's ``send`` will send, as they go."""
     from rovlink.client import Client
     from rovlink.protocol import Command
 
-    monkeypatch.setattr("rovlink.tuning.autotune", lambda *_: _result_missing_the_settling_target())
     sent: list[str] = []
     send = Client.send
 
@@ -285,6 +281,16 @@ def test_apply_leaves_no_gains_set_that_missed_the_verifications_targets(
         return send(client, command)
 
     monkeypatch.setattr(Client, "send", recorded)
+    return sent
+
+
+def test_apply_leaves_no_gains_set_that_missed_the_verifications_targets(
+    capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # Before, --apply left the tuned gains set even when their step missed a target: gains
+    # that held the depth worse than the ones they replaced flew the next dive.
+    monkeypatch.setattr("rovlink.tuning.autotune", lambda *_: _result_missing_the_settling_target())
+    sent = _sent_frames(monkeypatch)
     assert main(["tune", "sim://", "--yes", "--apply"]) == 1
     assert sent == ["#mvpdp.40!", "#mvpdi.30!", "#mvpidd.20!"]
     out = capsys.readouterr().out
@@ -298,20 +304,10 @@ def test_apply_leaves_no_gains_set_that_missed_the_verifications_targets(
 def test_apply_leaves_gains_set_that_met_the_targets(
     capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    from rovlink.client import Client
-    from rovlink.protocol import Command
-
     result = _result_missing_the_settling_target()
     result.step.depths_cm[:] = [100] * len(result.step.depths_cm)  # type: ignore[attr-defined]
     monkeypatch.setattr("rovlink.tuning.autotune", lambda *_: result)
-    sent: list[str] = []
-    send = Client.send
-
-    def recorded(client: Client, command: Command) -> object:
-        sent.append(str(command))
-        return send(client, command)
-
-    monkeypatch.setattr(Client, "send", recorded)
+    sent = _sent_frames(monkeypatch)
     assert main(["tune", "sim://", "--yes", "--apply"]) == 0
     assert sent == ["#mvpdp.58!", "#mvpdi.78!", "#mvpidd.34!"]
     assert capsys.readouterr().out.splitlines()[-1] == "gains applied; motors locked"

@@ -6,6 +6,7 @@ import asyncio
 import contextlib
 import os
 import sys
+from collections.abc import Mapping
 from pathlib import Path
 
 import pytest
@@ -163,30 +164,13 @@ def test_text_from_the_broker_is_shown_as_text_never_as_markup_or_terminal_codes
 
 @pytest.mark.integration
 async def test_fleet_prints_markup_like_retained_states_as_they_are(broker: Mosquitto):
-    from paho.mqtt import publish
-
     retained = {
         "rovlink/j2/state": '{"online": false, "reason": "[/]"}',
         "rovlink/j3/state": '{"online": "false", "reason": "[bold]x"}',
         # A lone surrogate: printing it ended the table (UnicodeEncodeError).
         "rovlink/j4/state": '{"online": false, "reason": "x\\ud800y"}',
     }
-    for topic, payload in retained.items():
-        await asyncio.to_thread(
-            publish.single, topic, payload, qos=1, retain=True, port=broker.port
-        )
-    environment = dict(
-        os.environ, PYTHONPATH=_SRC + os.pathsep + os.environ.get("PYTHONPATH", ""), COLUMNS="160"
-    )
-    process = await asyncio.create_subprocess_exec(
-        sys.executable, "-m", "rovlink", "fleet", "--broker", broker.url, "--snapshot", "1",
-        stdout=asyncio.subprocess.PIPE,
-        stderr=asyncio.subprocess.PIPE,
-        env=environment,
-    )  # fmt: skip
-    out, err = await asyncio.wait_for(process.communicate(), 30)
-    assert process.returncode == 0, err.decode()
-    lines = out.decode().splitlines()
+    lines = await _snapshot_after_retaining(broker, retained)
     j2 = next(line for line in lines if " j2 " in line)
     assert "offline" in j2
     assert "[/]" in j2
@@ -201,13 +185,23 @@ async def test_fleet_prints_markup_like_retained_states_as_they_are(broker: Mosq
 async def test_fleet_lists_the_robots_after_a_state_it_cannot_parse(broker: Mosquitto):
     # Before, a retained state nested deeper than the JSON parser goes ended the live table
     # (RecursionError) at every start, and left a snapshot without the robots that came after.
-    from paho.mqtt import publish
-
-    retained = {
+    retained: dict[str, str | bytes] = {
         "rovlink/bad/state": b"[" * 100_000,
         "rovlink/huge/state": b'{"online": true, "depth_cm": ' + b"1" * 5000 + b"}",
         "rovlink/good/state": b'{"online": false, "reason": "bridge stopped"}',
     }
+    lines = await _snapshot_after_retaining(broker, retained)
+    good = next(line for line in lines if " good " in line)
+    assert "offline" in good
+    assert not any(" bad " in line or " huge " in line for line in lines)
+
+
+async def _snapshot_after_retaining(
+    broker: Mosquitto, retained: Mapping[str, str | bytes]
+) -> list[str]:
+    """The lines of ``rovlink fleet --snapshot 1`` run after ``retained`` was published so."""
+    from paho.mqtt import publish
+
     for topic, payload in retained.items():
         await asyncio.to_thread(
             publish.single, topic, payload, qos=1, retain=True, port=broker.port
@@ -223,7 +217,4 @@ async def test_fleet_lists_the_robots_after_a_state_it_cannot_parse(broker: Mosq
     )  # fmt: skip
     out, err = await asyncio.wait_for(process.communicate(), 30)
     assert process.returncode == 0, err.decode()
-    lines = out.decode().splitlines()
-    good = next(line for line in lines if " good " in line)
-    assert "offline" in good
-    assert not any(" bad " in line or " huge " in line for line in lines)
+    return out.decode().splitlines()
