@@ -157,6 +157,30 @@ def test_output_to_a_closed_pipe_ends_quietly() -> None:
     assert (result.returncode, result.stderr) == (0, "")
 
 
+@pytest.mark.parametrize(
+    "words",
+    [("check", "--list"), ("demo", "--depth", "5", "--hold", "0", "--leg", "0")],
+    ids=["check", "demo"],
+)
+def test_a_table_to_a_closed_pipe_ends_quietly(words: tuple[str, ...]) -> None:
+    # Before, rich's console ended these with status 1 and nothing said (`check --list | head`
+    # read as a failed check).
+    read_end, write_end = os.pipe()
+    os.close(read_end)
+    try:
+        result = subprocess.run(
+            [sys.executable, "-m", "rovlink", *words],
+            stdout=write_end,
+            stderr=subprocess.PIPE,
+            text=True,
+            check=False,
+            timeout=60,
+        )
+    finally:
+        os.close(write_end)
+    assert (result.returncode, result.stderr) == (0, "")
+
+
 def test_an_unknown_option_is_said_by_the_commands_own_parser(
     run_cli: RunCli, tmp_path: Path
 ) -> None:

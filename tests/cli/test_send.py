@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 import re
 import socket
 import subprocess
@@ -346,3 +347,46 @@ def test_an_output_closed_after_motion_still_ends_the_line_with_stop() -> None:
         assert port.fakes[0].frames().count("#stop!") == 1
     finally:
         port.close()
+
+
+def test_raw_output_closed_after_motion_still_ends_the_line_with_stop() -> None:
+    # `send URL --raw start "th 270 25" … | head -4`: before, the closed output was raised by
+    # the shown bytes of the next frame before it was written, and then by those of #stop!,
+    # which never went ("could not send #stop!: [Errno 32] Broken pipe", status 1).
+    port = FakeControllerServer(script=("reply", "late"))  # (the probe's #qd!, then the line's)
+    try:
+        line = ["start", "th 270 25", "qd", "qd", "stop"]
+        process = subprocess.Popen(
+            [sys.executable, "-m", "rovlink", "send", port.url, "--raw", *line],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+        )
+        assert process.stdout is not None
+        while process.stdout.readline() not in (b"> #start!\n", b""):
+            pass
+        process.stdout.close()  # as `head` does, once it has the lines it wanted
+        _, stderr = process.communicate(timeout=15)
+        assert (process.returncode, stderr.decode()) == (0, "rovlink send: sent #stop!\n")
+        assert wait_until(lambda: port.fakes[0].frames()[-1:] == ["#stop!"])
+        assert port.fakes[0].frames().count("#stop!") == 1
+    finally:
+        port.close()
+
+
+def test_raw_output_closed_before_the_first_line_ends_quietly() -> None:
+    # `send sim:// --raw qd | head -0`: before, "cannot open sim://: Broken pipe", status 1:
+    # the probe's bytes, shown as the link opened, were taken for the link's failure.
+    read_end, write_end = os.pipe()
+    os.close(read_end)
+    try:
+        result = subprocess.run(
+            [sys.executable, "-m", "rovlink", "send", "sim://", "--raw", "qd"],
+            stdout=write_end,
+            stderr=subprocess.PIPE,
+            text=True,
+            check=False,
+            timeout=60,
+        )
+    finally:
+        os.close(write_end)
+    assert (result.returncode, result.stderr) == (0, "")

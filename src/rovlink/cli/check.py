@@ -154,14 +154,15 @@ def _progress(result: CheckResult) -> None:
 
 
 def _print_list(checks: list[Check]) -> None:
-    from rich.console import Console  # noqa: PLC0415
     from rich.table import Table  # noqa: PLC0415
+
+    from rovlink.cli.rich_console import TableConsole  # noqa: PLC0415
 
     table = Table("check", "rules", "what it shows", box=None)
     for item in checks:
         label = item.name + (" (--motion)" if item.motion else "")
         table.add_row(label, " ".join(item.rules), item.description)
-    Console().print(table)
+    TableConsole().print(table)
 
 
 def _motion_checks(names: list[str] | None) -> int:
@@ -172,14 +173,14 @@ def _motion_checks(names: list[str] | None) -> int:
 
 
 def _print_report(report: Report, *, motion_not_run: int = 0) -> None:
-    from rich.console import Console  # noqa: PLC0415
     from rich.markup import escape  # noqa: PLC0415
     from rich.table import Table  # noqa: PLC0415
 
+    from rovlink.cli.rich_console import TableConsole  # noqa: PLC0415
     from rovlink.conformance import Outcome  # noqa: PLC0415
     from rovlink.conformance.junit import evidence_text  # noqa: PLC0415
 
-    console = Console()
+    console = TableConsole()
     table = Table("result", "check", "rules", "ms", box=None)
     colours = {"pass": "green", "fail": "red", "abort": "red", "skip": "yellow"}
     for result in report.results:

@@ -107,13 +107,13 @@ async def _watch(broker: BrokerSettings, snapshot_s: float | None) -> None:
     import asyncio  # noqa: PLC0415
 
     import aiomqtt  # noqa: PLC0415
-    from rich.console import Console  # noqa: PLC0415
     from rich.live import Live  # noqa: PLC0415
 
     from rovlink.bridges.mqtt.fleet_view import FleetView  # noqa: PLC0415
+    from rovlink.cli.rich_console import TableConsole  # noqa: PLC0415
 
     view = FleetView()
-    console = Console()
+    console = TableConsole()
     tls_params = (
         aiomqtt.TLSParameters(
             ca_certs=None if broker.ca_file is None else str(broker.ca_file),

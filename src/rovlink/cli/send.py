@@ -214,14 +214,26 @@ def _print_text(event: Event) -> None:
 
 
 class _Printer:
-    """Prints the bytes of a link as they go, for ``--raw``; threads print whole lines."""
+    """Prints the bytes of a link as they go, for ``--raw``; threads print whole lines.
+
+    It is called by the link itself, before a write and after a read: an output that cannot be
+    written (``| head`` gone, a full disk) ends the showing, never the link's traffic, so that
+    ``#stop!`` still goes; the command's own next line finds the output closed and ends the
+    command (after ``#stop!``, where it may have moved the robot).
+    """
 
     def __init__(self) -> None:
         self._lock = threading.Lock()
+        self._failed = False
 
     def __call__(self, direction: str, data: bytes) -> None:
         with self._lock:
-            print(f"{direction} {repr(data)[2:-1]}", flush=True)
+            if self._failed:
+                return
+            try:
+                print(f"{direction} {repr(data)[2:-1]}", flush=True)
+            except OSError:
+                self._failed = True
 
 
 def _send_one(client: Client, item: Outgoing) -> tuple[bytes, tuple[Response, ...]]:
