@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import argparse
 import os
 import re
 import subprocess
@@ -12,6 +13,7 @@ import pytest
 
 import rovlink
 from rovlink.cli import COMMANDS as ALL_COMMANDS
+from rovlink.cli import build_parser
 from tests.cli.conftest import RunCli
 
 COMMANDS = ("decode", "reference", "sim", "send", "demo", "console", "monitor")
@@ -69,6 +71,59 @@ def test_on_off_flags_take_no_value(run_cli: RunCli) -> None:
     assert result.status == 2
     assert "unrecognized arguments: sim://" in result.err
     assert "could not open" not in result.err
+
+
+def _command_parser(name: str) -> argparse.ArgumentParser:
+    parser = build_parser(name, others=False)
+    commands = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    command_parser: argparse.ArgumentParser = commands.choices[name]
+    return command_parser
+
+
+def _shown_options() -> list[tuple[str, str, str, str]]:
+    """Every option of every command as its help shows it: (command, option, what it takes,
+    its help)."""
+    shown: list[tuple[str, str, str, str]] = []
+    for name in ALL_COMMANDS:
+        parser = _command_parser(name)
+        formatter = parser._get_formatter()
+        for action in parser._actions:
+            if not action.option_strings or action.help in (None, argparse.SUPPRESS):
+                continue
+            takes = "" if action.nargs == 0 else formatter._format_args(action, action.dest.upper())
+            default = action.default
+            stated = default is None or default is False or default in ([], argparse.SUPPRESS)
+            stated = stated or action.nargs == 0
+            help_text = formatter._expand_help(action) + ("" if stated else " <no default>")
+            shown.append((name, action.option_strings[-1], takes, help_text))
+    return shown
+
+
+def test_every_option_names_what_it_takes_and_states_its_default() -> None:
+    # Before, some said "--min-counts MIN_COUNTS" or "--step-from STEP_FROM" (argparse's name
+    # of the variable) where a unit or kind belongs, and "(default 20)" or no default at all
+    # where the rest say "(default: 20)".
+    problems = [
+        f"rovlink {name} {option} {takes}: {help_text}"
+        for name, option, takes, help_text in _shown_options()
+        if "_" in takes or ("<no default>" in help_text and "(default: " not in help_text)
+    ]
+    assert not problems, "\n".join(problems)
+
+
+#: Options that take a different thing in different commands, under the one name.
+_NAMES_OF_TWO_MEANINGS = {"--output": "a recording or an image", "--port": "a device or a TCP port"}
+
+
+def test_an_option_takes_the_same_kind_of_value_in_every_command() -> None:
+    # Before, `tune --depth DEPTH` where `demo` and `calibrate` say `--depth CM`, and
+    # `check --algorithm ALGORITHM` where every other command says `--algorithm NAME`.
+    takes_by_option: dict[str, set[str]] = {}
+    for _, option, takes, _ in _shown_options():
+        if option not in _NAMES_OF_TWO_MEANINGS:
+            takes_by_option.setdefault(option, set()).add(takes)
+    differing = {option: takes for option, takes in takes_by_option.items() if len(takes) > 1}
+    assert not differing
 
 
 def test_unknown_command(run_cli: RunCli) -> None:

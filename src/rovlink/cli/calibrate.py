@@ -53,16 +53,22 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--samples",
         type=lambda text: bounded_int(text, 1, 1000),
         default=20,
-        help="#qr! readings averaged per point (default 20)",
+        metavar="N",
+        help="#qr! readings averaged per point, 1–1000 (default: %(default)s)",
     )
     group.add_argument(
         "--min-counts",
         type=lambda text: bounded_float(text, 1, 1024),
         default=10,
-        help="the least difference of the two readings, counts (default 10)",
+        metavar="COUNTS",
+        help="the least difference of the two readings, counts (default: %(default)s)",
     )
     group.add_argument("--dry-run", action="store_true", help="show the values, send nothing")
-    group.add_argument("--yes", action="store_true", help="send without asking")
+    group.add_argument(
+        "--yes",
+        action="store_true",
+        help="send without asking (needed when there is no terminal to ask on)",
+    )
 
 
 def run(args: argparse.Namespace) -> int:
@@ -73,6 +79,10 @@ def run(args: argparse.Namespace) -> int:
     if measuring and not sys.stdin.isatty():
         raise UsageError(
             "measuring needs a terminal to ask on; give --surface-raw and --depth-raw instead"
+        )
+    if not (args.yes or args.dry_run or sys.stdin.isatty()):  # as tune and check --motion
+        raise UsageError(
+            "sending needs --yes when there is no terminal to ask on (--dry-run shows the values)"
         )
     if not measuring:  # nothing to read: bad readings are refused before the port opens
         try:
@@ -103,7 +113,7 @@ def run(args: argparse.Namespace) -> int:
         if args.dry_run:
             print("dry run: nothing sent")
             return 0
-        if not args.yes and sys.stdin.isatty() and not _confirm():
+        if not args.yes and not _confirm():
             print("not sent")
             return 1
         _send(client, result)

@@ -50,6 +50,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--algorithm",
         type=algorithm_name,
         default="crc8",
+        metavar="NAME",
         help="the controller's checksum algorithm (default: %(default)s)",
     )
     parser.add_argument(
