@@ -7,11 +7,12 @@ retained states show robots that are offline too. Read-only: it sends no command
 from __future__ import annotations
 
 import argparse
+import sys
 import time
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, TextIO
 
 from rovlink.cli import link_options
-from rovlink.cli.failure import CommandError
+from rovlink.cli.failure import CommandError, NoTerminalError
 from rovlink.cli.mqtt import add_broker_options, broker_settings
 
 if TYPE_CHECKING:
@@ -93,6 +94,13 @@ def _cell(text: str, style: str = "") -> Text:
 def run(args: argparse.Namespace) -> int:
     """Show the table until Ctrl-C (or once, with ``--snapshot``)."""
     broker = broker_settings(args)
+    if args.snapshot_s is None and not _is_terminal(sys.stdout):
+        # Rich draws a live table on a terminal alone: elsewhere nothing would be written until
+        # the command was stopped (`rovlink fleet | head` would wait for ever).
+        raise NoTerminalError(
+            "the live table needs a terminal, but standard output is not one; "
+            "--snapshot SECONDS prints the table once"
+        )
     try:
         import aiomqtt  # noqa: F401, PLC0415 - the mqtt extra
     except ImportError:
@@ -101,6 +109,13 @@ def run(args: argparse.Namespace) -> int:
 
     run_async(_watch(broker, args.snapshot_s))
     return 0
+
+
+def _is_terminal(stream: TextIO | None) -> bool:
+    try:
+        return stream is not None and stream.isatty()
+    except (ValueError, OSError):  # closed
+        return False
 
 
 async def _watch(broker: BrokerSettings, snapshot_s: float | None) -> None:
