@@ -180,6 +180,31 @@ def test_decode_imports_no_module_it_does_not_need() -> None:
     )
 
 
+def test_help_imports_no_module_only_running_needs() -> None:
+    # `rovlink calibrate --help` imported statistics (with decimal, fractions and random), a
+    # sixth of its start-up, for the mean of the readings it takes when it runs.
+    code = (
+        "import contextlib, io, sys\n"
+        "from rovlink.cli import COMMANDS, main\n"
+        "heavy = {'serial', 'rich', 'textual', 'prompt_toolkit', 'matplotlib', 'numpy',\n"
+        "         'aiomqtt', 'paho', 'pymavlink', 'starlette', 'uvicorn', 'mcap', 'asyncio',\n"
+        "         'ssl', 'statistics', 'decimal', 'random'}\n"
+        "loaded = {}\n"
+        "for name in COMMANDS:\n"
+        "    before = set(sys.modules)\n"
+        "    with contextlib.redirect_stdout(io.StringIO()):\n"
+        "        assert main([name, '--help']) == 0\n"
+        "    new = {module.split('.')[0] for module in set(sys.modules) - before} & heavy\n"
+        "    if new:\n"
+        "        loaded[name] = sorted(new)\n"
+        "assert not loaded, loaded\n"
+    )
+    result = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, check=False, timeout=60
+    )
+    assert result.returncode == 0, result.stderr.splitlines()[-1:]
+
+
 def test_output_to_a_full_device_is_a_one_line_error() -> None:
     with open("/dev/full", "wb") as full:
         result = subprocess.run(

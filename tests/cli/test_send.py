@@ -139,6 +139,16 @@ def test_a_raw_frame_the_controller_would_drop_is_refused(run_cli: RunCli) -> No
     assert result.out == ""
 
 
+def test_the_help_gives_the_statuses_the_command_ends_with(run_cli: RunCli) -> None:
+    # Before, the help said a frame the controller would drop exits with status 1, as a failure
+    # while sending does; it is refused before anything is sent, as a usage error (2).
+    refused = run_cli("send", "--checksum", "sim://", "#qd00!").status
+    failed = run_cli("send", "socket://127.0.0.1:1", "qd").status
+    help_text = " ".join(run_cli("send", "--help").out.split())
+    assert f"a raw frame the controller would drop, is refused (status {refused})" in help_text
+    assert f"a lost link) exits with status {failed}" in help_text
+
+
 def test_raw_shows_the_exact_bytes_both_ways(run_cli: RunCli) -> None:
     result = run_cli("send", "--raw", "--checksum", "--timeout", REPLY_TIMEOUT, "sim://", "qd")
     assert result.status == 0, result.err

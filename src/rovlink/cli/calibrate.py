@@ -6,7 +6,6 @@ readings must be far enough apart and the result within the command table's rang
 from __future__ import annotations
 
 import argparse
-import statistics
 import sys
 from typing import TYPE_CHECKING
 
@@ -178,6 +177,8 @@ def _send(client: Client, result: Calibration) -> None:
 
 def _mean_raw(client: Client, samples: int, point: str) -> float:
     """The mean of ``samples`` raw readings; a link failure names the ``point`` measured."""
+    import statistics  # noqa: PLC0415 - with decimal and random: not on the path of --help
+
     from rovlink.client import ClientError  # noqa: PLC0415 - the driver loads when used
 
     try:

@@ -1,9 +1,11 @@
 """Send commands in order and print the decoded replies.
 
-Every command is checked before anything is sent. A raw frame ('#qd!') goes as typed when the
-controller will take it so; in checksum mode a frame typed without its checksum gets it. Any
-failure (no reply, a frame the controller would drop, a lost link) exits with status 1. Ctrl-C
-stops at once, sending #stop! first if a command may have moved the robot.
+Every command is checked before anything is sent: one that does not parse, or a raw frame the
+controller would drop, is refused (status 2). A raw frame ('#qd!') goes as typed when the
+controller will take it so; in checksum mode a frame typed without its checksum gets it. A
+failure while sending (no reply, a lost link) exits with status 1, after #stop! once a command
+that may move the robot has gone. Ctrl-C stops at once, sending #stop! first if a command may
+have moved the robot.
 """
 
 from __future__ import annotations
