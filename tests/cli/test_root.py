@@ -88,7 +88,13 @@ def _shown_options() -> list[tuple[str, str, str, str]]:
         parser = _command_parser(name)
         formatter = parser._get_formatter()
         for action in parser._actions:
-            if not action.option_strings or action.help in (None, argparse.SUPPRESS):
+            if action.help in (None, argparse.SUPPRESS):
+                continue
+            if not action.option_strings:
+                takes = formatter._format_args(action, action.dest)
+                unnamed = " <its variable's name>" if action.metavar is None else ""
+                help_text = formatter._expand_help(action) + unnamed
+                shown.append((name, action.dest, takes.strip("[]"), help_text))
                 continue
             takes = "" if action.nargs == 0 else formatter._format_args(action, action.dest.upper())
             default = action.default
@@ -101,12 +107,14 @@ def _shown_options() -> list[tuple[str, str, str, str]]:
 
 def test_every_option_names_what_it_takes_and_states_its_default() -> None:
     # Before, some said "--min-counts MIN_COUNTS" or "--step-from STEP_FROM" (argparse's name
-    # of the variable) where a unit or kind belongs, and "(default 20)" or no default at all
-    # where the rest say "(default: 20)".
+    # of the variable) where a unit or kind belongs, `check [url]` where the rest say `URL`,
+    # and "(default 20)" or no default at all where the rest say "(default: 20)".
     problems = [
         f"rovlink {name} {option} {takes}: {help_text}"
         for name, option, takes, help_text in _shown_options()
-        if "_" in takes or ("<no default>" in help_text and "(default: " not in help_text)
+        if "_" in takes
+        or "<its variable's name>" in help_text
+        or ("<no default>" in help_text and "(default: " not in help_text)
     ]
     assert not problems, "\n".join(problems)
 

@@ -34,7 +34,13 @@ _MAX_MOTION_PERCENT = 50
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """``check``'s options."""
-    parser.add_argument("url", nargs="?", help="the controller's port or URL")
+    parser.add_argument(
+        "url",
+        nargs="?",
+        metavar="URL",
+        help="the controller's serial device or URL (socket://HOST:PORT, sim://); needed "
+        "unless --list",
+    )
     parser.add_argument("--list", action="store_true", help="list the checks and exit")
     parser.add_argument(
         "--only",
