@@ -213,6 +213,36 @@ def test_help_imports_no_module_only_running_needs() -> None:
     assert result.returncode == 0, result.stderr.splitlines()[-1:]
 
 
+@pytest.mark.parametrize(
+    ("words", "said"),
+    [
+        (
+            [b"decode", b"\xff-missing.bin"],
+            b"rovlink decode: cannot read \\xff-missing.bin: No such file or directory\n",
+        ),
+        (
+            [b"send", b"sim://", b"q\xffd"],
+            b"rovlink send: error: command 1 ('q\\xffd'): unknown command 'q\\xffd'; did you "
+            b"mean qd?\n",
+        ),
+    ],
+    ids=["failure", "usage error"],
+)
+def test_a_word_that_is_not_utf8_is_said_with_its_bytes(
+    words: list[bytes], said: bytes, tmp_path: Path
+) -> None:
+    # A file name from a FAT stick or an old system. Before, "\udcff-missing.bin": Python's
+    # stand-in for the byte, which no name holds.
+    result = subprocess.run(
+        [sys.executable.encode(), b"-m", b"rovlink", *words],
+        capture_output=True,
+        check=False,
+        timeout=60,
+        cwd=tmp_path,
+    )
+    assert result.stderr.splitlines(keepends=True)[-1] == said
+
+
 def test_output_to_a_full_device_is_a_one_line_error() -> None:
     with open("/dev/full", "wb") as full:
         result = subprocess.run(
