@@ -12,7 +12,7 @@ import time
 from typing import TYPE_CHECKING, TextIO
 
 from rovlink.cli import link_options
-from rovlink.cli.failure import CommandError, NoTerminalError
+from rovlink.cli.failure import CommandError, NoTerminalError, reason
 from rovlink.cli.mqtt import add_broker_options, broker_settings
 
 if TYPE_CHECKING:
@@ -138,6 +138,7 @@ async def _watch(broker: BrokerSettings, snapshot_s: float | None) -> None:
         if broker.tls
         else None
     )
+    connected = False
     try:
         async with aiomqtt.Client(
             broker.host,
@@ -148,6 +149,7 @@ async def _watch(broker: BrokerSettings, snapshot_s: float | None) -> None:
             tls_insecure=broker.insecure if broker.tls else None,
             timeout=5.0,
         ) as mqtt:
+            connected = True
             for topic in _TOPICS:
                 await mqtt.subscribe(topic, qos=1)
 
@@ -171,4 +173,5 @@ async def _watch(broker: BrokerSettings, snapshot_s: float | None) -> None:
                 collector.cancel()
                 await asyncio.gather(collector, return_exceptions=True)
     except aiomqtt.MqttError as error:
-        raise CommandError(f"broker {broker.describe()}: {error}") from None
+        where = "broker" if connected else "cannot connect to the broker"
+        raise CommandError(f"{where} {broker.describe()}: {reason(error)}") from None
