@@ -52,6 +52,14 @@ def test_every_command_has_a_description_and_option_help(run_cli: RunCli) -> Non
         assert len(description) > 20, name
 
 
+@pytest.mark.parametrize("name", ALL_COMMANDS)
+def test_every_commands_help_ends_with_examples(run_cli: RunCli, name: str) -> None:
+    # As docs/tools.md says of `rovlink COMMAND --help`; `reference` had none.
+    result = run_cli(name, "--help")
+    examples = result.out.split("\nexamples:\n", 1)[-1] if "\nexamples:\n" in result.out else ""
+    assert f"  rovlink {name}" in examples
+
+
 @pytest.mark.parametrize("name", [None, *ALL_COMMANDS])
 def test_help_is_plain_text_without_markup(run_cli: RunCli, name: str | None) -> None:
     # Regression: descriptions came from docstrings with their Sphinx markup (:func:`…`, ``…``).
