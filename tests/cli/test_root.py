@@ -3,8 +3,11 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
+import io
 import os
 import re
+import shlex
 import subprocess
 import sys
 from pathlib import Path
@@ -58,6 +61,41 @@ def test_every_commands_help_ends_with_examples(run_cli: RunCli, name: str) -> N
     result = run_cli(name, "--help")
     examples = result.out.split("\nexamples:\n", 1)[-1] if "\nexamples:\n" in result.out else ""
     assert f"  rovlink {name}" in examples
+
+
+def _help_examples() -> list[tuple[str, list[str]]]:
+    """The ``rovlink …`` lines of every help's examples: (the help's command, the words)."""
+    from rovlink.cli import _EPILOG
+
+    found: list[tuple[str, list[str]]] = []
+    for name in ["rovlink", *ALL_COMMANDS]:
+        epilog = _EPILOG if name == "rovlink" else _command_parser(name).epilog or ""
+        for line in epilog.replace("\\\n", " ").splitlines():
+            if line.strip().startswith("rovlink "):
+                example = re.split(r"\s{2,}", line.strip())[0]  # (the words after it explain)
+                lexer = shlex.shlex(example, posix=True, punctuation_chars=True)
+                lexer.whitespace_split = True
+                words = list(lexer)
+                ends = [words.index(word) for word in ("|", ">") if word in words]
+                found.append((name, words[1 : min(ends, default=len(words))]))
+    return found
+
+
+def test_the_help_examples_are_command_lines_the_commands_accept() -> None:
+    # The pages' examples are parsed in test_docs_command_lines.py; those of --help were not.
+    examples = _help_examples()
+    assert len(examples) >= 2 * len(ALL_COMMANDS)
+    refused = []
+    for name, words in examples:
+        parser = build_parser(next((word for word in words if word in ALL_COMMANDS), None))
+        errors = io.StringIO()
+        try:
+            with contextlib.redirect_stderr(errors), contextlib.redirect_stdout(io.StringIO()):
+                parser.parse_args(words)
+        except SystemExit as ending:
+            if ending.code not in (0, None):
+                refused.append(f"{name}: {shlex.join(words)}: {errors.getvalue().strip()}")
+    assert not refused
 
 
 @pytest.mark.parametrize("name", [None, *ALL_COMMANDS])
