@@ -76,6 +76,10 @@ def test_errors_name_the_argument_and_its_range(
         ("#!", "empty frame"),
         ("thrust 1", "unknown command 'thrust'; did you mean th"),
         ("#stpo!", "unknown command 'stpo'; did you mean stop"),
+        # Caps lock: names are lower case (before, 'QD' and 'STOP' got no suggestion).
+        ("QD", r"unknown command 'QD'; did you mean qd\?"),
+        ("#STOP!", r"unknown command 'STOP'; did you mean stop\?"),
+        ("TH 90 30", r"unknown command 'TH'; did you mean th\?"),
         ("zzzz", "unknown command 'zzzz'"),
     ],
 )

@@ -73,9 +73,11 @@ def _spec(name: str) -> Spec:
         return lookup(name)
     except UnknownCommandError:
         spellings = list(SPELLINGS[Kind.COMMAND])
-        close = difflib.get_close_matches(name, spellings, n=3, cutoff=0.6)
+        # Names are lower case: a name typed in capitals (caps lock) is matched as it would be.
+        typed = name.lower()
+        close = difflib.get_close_matches(typed, spellings, n=3, cutoff=0.6)
         # A word that starts with a command's name ("thrust" for "th") is probably that command.
-        close += [s for s in spellings if len(s) > 1 and name.startswith(s) and s not in close]
+        close += [s for s in spellings if len(s) > 1 and typed.startswith(s) and s not in close]
         hint = f"; did you mean {', '.join(close)}?" if close else ""
         raise CommandTextError(f"unknown command {name!r}{hint}") from None
 
