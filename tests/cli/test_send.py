@@ -149,6 +149,23 @@ def test_the_help_gives_the_statuses_the_command_ends_with(run_cli: RunCli) -> N
     assert f"a lost link) exits with status {failed}" in help_text
 
 
+@pytest.mark.parametrize(
+    ("word", "why"),
+    [
+        # Before, "the controller would drop it: not a command frame", where it takes both.
+        ("#qd!#qr!", "more than one frame in one word: give each as a word of its own "
+         "('#qd!' '#qr!')"),
+        # Before, sent as typed: #qd! and then "x!" on the line, unsaid.
+        ("#qd!x!", "a raw frame is '#', a body and '!', with nothing after the '!'"),
+        ("#qd!!", "a raw frame is '#', a body and '!', with nothing after the '!'"),
+    ],
+)  # fmt: skip
+def test_more_than_a_frame_in_one_word_is_refused(run_cli: RunCli, word: str, why: str) -> None:
+    result = run_cli("send", "sim://", word)
+    assert (result.status, result.out) == (2, "")
+    assert result.err.splitlines()[-1] == f"rovlink send: error: command 1 ({word!r}): {why}"
+
+
 def test_raw_shows_the_exact_bytes_both_ways(run_cli: RunCli) -> None:
     result = run_cli("send", "--raw", "--checksum", "--timeout", REPLY_TIMEOUT, "sim://", "qd")
     assert result.status == 0, result.err

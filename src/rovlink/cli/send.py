@@ -154,6 +154,14 @@ def _raw_outgoing(text: str, *, checksum: bool, algorithm: str) -> Outgoing:
     """A raw frame as the controller will take it in the checksum mode it will be in."""
     if not (text.isascii() and text.startswith("#") and text.endswith("!") and len(text) > 2):
         raise ValueError("a raw frame is '#', a body and '!'")
+    frames = text[:-1].split("!")
+    if len(frames) > 1:  # (the bytes would go as typed, the rest as line noise after the frame)
+        if not all(frame.startswith("#") for frame in frames):
+            raise ValueError("a raw frame is '#', a body and '!', with nothing after the '!'")
+        words = " ".join(repr(f"{frame}!") for frame in frames)
+        raise ValueError(
+            f"more than one frame in one word: give each as a word of its own ({words})"
+        )
     frame = text.encode("ascii")
     taken = _decoded_command(frame, checksum=checksum, algorithm=algorithm)
     if isinstance(taken, Command):
