@@ -253,6 +253,40 @@ def test_monitor_on_a_port_that_cannot_be_opened(
     assert started == []
 
 
+def test_the_fleets_live_table_without_a_terminal_is_refused(run_cli: RunCli) -> None:
+    # `rovlink fleet | head`, `rovlink fleet > fleet.txt`: rich draws a live table on a terminal
+    # alone, so before, nothing was written until the command was stopped (`head` waited for
+    # ever); nobody listens at this broker, which it tried to reach.
+    result = run_cli("fleet", "--broker", "mqtt://127.0.0.1:1")
+    assert (result.status, result.out) == (2, "")
+    assert result.err == (
+        "rovlink fleet: the live table needs a terminal, but standard output is not one; "
+        "--snapshot SECONDS prints the table once\n"
+    )
+
+
+@pytest.mark.parametrize(
+    ("broker", "why"),
+    [
+        ("mqtt://127.0.0.1:1", "Connection refused"),
+        ("mqtt://nonexistent.invalid", "Name or service not known"),
+    ],
+    ids=["refused", "no such host"],
+)
+@pytest.mark.timeout(_HANG_TIMEOUT_S)
+def test_a_broker_that_cannot_be_reached_is_said_in_the_systems_words(
+    run_cli: RunCli, broker: str, why: str
+) -> None:
+    # Before, "broker mqtt://127.0.0.1:1: [Errno 111] Connection refused", where every other
+    # command says the system's reason alone.
+    pytest.importorskip("aiomqtt", reason="aiomqtt is in the test extra (mqtt)")
+    result = run_cli("fleet", "--broker", broker, "--snapshot", "0.1")
+    assert result.status == 1
+    assert result.err.startswith(f"rovlink fleet: cannot connect to the broker {broker}")
+    assert result.err.endswith(f": {why}\n")
+    assert "Errno" not in result.err
+
+
 @pytest.mark.integration
 @pytest.mark.timeout(_HANG_TIMEOUT_S)
 def test_tls_files_that_are_not_pem(run_cli: RunCli, tmp_path: Path) -> None:

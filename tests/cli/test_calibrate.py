@@ -125,3 +125,19 @@ def test_given_readings_too_close_are_refused_before_the_port_opens(
         "rovlink calibrate: the readings are 2 counts apart (surface 20, at 200 cm 22); at least "
         "10 are needed: go deeper, or check that the sensor reads more with depth\n"
     )
+
+
+def test_sending_without_a_terminal_to_ask_on_needs_yes(run_cli: RunCli) -> None:
+    # As `tune` and `check --motion` refuse to act unasked. Before, calibrate asked only on a
+    # terminal and, without one, sent #sdz and #sdk unasked (`calibrate … < /dev/null`).
+    server = FakeControllerServer()
+    try:
+        result = run_cli("calibrate", server.url, *_KNOWN_POINTS, *_LINK)
+    finally:
+        server.close()
+    assert result.status == 2
+    assert result.err.splitlines()[-1] == (
+        "rovlink calibrate: error: sending needs --yes when there is no terminal to ask on "
+        "(--dry-run shows the values)"
+    )
+    assert server.fakes == []  # refused before the port opened

@@ -455,6 +455,52 @@ def test_plot_writes_a_png_of_the_expected_size(run_cli: RunCli, tmp_path: Path)
     assert (width, height) == (1200, 1100)
 
 
+def test_plot_show_without_a_display_writes_nothing_and_says_what_would(
+    run_cli: RunCli, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # Before, the error told to "use -o IMAGE", given already.
+    path = tmp_path / "dive.mcap"
+    _record(path)
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    image = tmp_path / "dive.png"
+    result = run_cli("plot", str(path), "-o", str(image), "--show")
+    assert (result.status, result.err) == (
+        1,
+        f"rovlink plot: --show needs a display (none here); without --show the plot is "
+        f"written to {image} alone\n",
+    )
+    assert not image.exists()
+
+
+def test_plot_show_where_no_window_can_open_is_an_error(tmp_path: Path) -> None:
+    # A display that cannot be opened (here, none at that number; elsewhere, no toolkit such as
+    # tkinter): matplotlib draws without a window. Before, the command ended with status 0, a
+    # UserWarning ("FigureCanvasAgg is non-interactive") and no window.
+    pytest.importorskip("matplotlib", reason="matplotlib is in the test extra (plot)")
+    path = tmp_path / "dive.mcap"
+    _record(path)
+    environment = {
+        name: value
+        for name, value in os.environ.items()
+        if name not in ("MPLBACKEND", "WAYLAND_DISPLAY")
+    }
+    environment["DISPLAY"] = ":9999"
+    result = subprocess.run(
+        [sys.executable, "-m", "rovlink", "plot", str(path), "--show"],
+        env=environment,
+        capture_output=True,
+        text=True,
+        check=False,
+        timeout=60,
+    )
+    assert (result.returncode, result.stderr) == (
+        1,
+        "rovlink plot: --show cannot open a window on display :9999 (no display there, or no "
+        "window toolkit for matplotlib: tkinter, Qt or GTK); use -o IMAGE\n",
+    )
+
+
 def test_plot_of_a_file_whose_name_is_not_utf8(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:

@@ -2,8 +2,12 @@
 
 from __future__ import annotations
 
+import argparse
+import contextlib
+import io
 import os
 import re
+import shlex
 import subprocess
 import sys
 from pathlib import Path
@@ -12,6 +16,7 @@ import pytest
 
 import rovlink
 from rovlink.cli import COMMANDS as ALL_COMMANDS
+from rovlink.cli import build_parser
 from tests.cli.conftest import RunCli
 
 COMMANDS = ("decode", "reference", "sim", "send", "demo", "console", "monitor")
@@ -50,6 +55,49 @@ def test_every_command_has_a_description_and_option_help(run_cli: RunCli) -> Non
         assert len(description) > 20, name
 
 
+@pytest.mark.parametrize("name", ALL_COMMANDS)
+def test_every_commands_help_ends_with_examples(run_cli: RunCli, name: str) -> None:
+    # As docs/tools.md says of `rovlink COMMAND --help`; `reference` had none.
+    result = run_cli(name, "--help")
+    examples = result.out.split("\nexamples:\n", 1)[-1] if "\nexamples:\n" in result.out else ""
+    assert f"  rovlink {name}" in examples
+
+
+def _help_examples() -> list[tuple[str, list[str]]]:
+    """The ``rovlink …`` lines of every help's examples: (the help's command, the words)."""
+    from rovlink.cli import _EPILOG
+
+    found: list[tuple[str, list[str]]] = []
+    for name in ["rovlink", *ALL_COMMANDS]:
+        epilog = _EPILOG if name == "rovlink" else _command_parser(name).epilog or ""
+        for line in epilog.replace("\\\n", " ").splitlines():
+            if line.strip().startswith("rovlink "):
+                example = re.split(r"\s{2,}", line.strip())[0]  # (the words after it explain)
+                lexer = shlex.shlex(example, posix=True, punctuation_chars=True)
+                lexer.whitespace_split = True
+                words = list(lexer)
+                ends = [words.index(word) for word in ("|", ">") if word in words]
+                found.append((name, words[1 : min(ends, default=len(words))]))
+    return found
+
+
+def test_the_help_examples_are_command_lines_the_commands_accept() -> None:
+    # The pages' examples are parsed in test_docs_command_lines.py; those of --help were not.
+    examples = _help_examples()
+    assert len(examples) >= 2 * len(ALL_COMMANDS)
+    refused = []
+    for name, words in examples:
+        parser = build_parser(next((word for word in words if word in ALL_COMMANDS), None))
+        errors = io.StringIO()
+        try:
+            with contextlib.redirect_stderr(errors), contextlib.redirect_stdout(io.StringIO()):
+                parser.parse_args(words)
+        except SystemExit as ending:
+            if ending.code not in (0, None):
+                refused.append(f"{name}: {shlex.join(words)}: {errors.getvalue().strip()}")
+    assert not refused
+
+
 @pytest.mark.parametrize("name", [None, *ALL_COMMANDS])
 def test_help_is_plain_text_without_markup(run_cli: RunCli, name: str | None) -> None:
     # Regression: descriptions came from docstrings with their Sphinx markup (:func:`…`, ``…``).
@@ -69,6 +117,67 @@ def test_on_off_flags_take_no_value(run_cli: RunCli) -> None:
     assert result.status == 2
     assert "unrecognized arguments: sim://" in result.err
     assert "could not open" not in result.err
+
+
+def _command_parser(name: str) -> argparse.ArgumentParser:
+    parser = build_parser(name, others=False)
+    commands = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    command_parser: argparse.ArgumentParser = commands.choices[name]
+    return command_parser
+
+
+def _shown_options() -> list[tuple[str, str, str, str]]:
+    """Every option of every command as its help shows it: (command, option, what it takes,
+    its help)."""
+    shown: list[tuple[str, str, str, str]] = []
+    for name in ALL_COMMANDS:
+        parser = _command_parser(name)
+        formatter = parser._get_formatter()
+        for action in parser._actions:
+            if action.help in (None, argparse.SUPPRESS):
+                continue
+            if not action.option_strings:
+                takes = formatter._format_args(action, action.dest)
+                unnamed = " <its variable's name>" if action.metavar is None else ""
+                help_text = formatter._expand_help(action) + unnamed
+                shown.append((name, action.dest, takes.strip("[]"), help_text))
+                continue
+            takes = "" if action.nargs == 0 else formatter._format_args(action, action.dest.upper())
+            default = action.default
+            stated = default is None or default is False or default in ([], argparse.SUPPRESS)
+            stated = stated or action.nargs == 0
+            help_text = formatter._expand_help(action) + ("" if stated else " <no default>")
+            shown.append((name, action.option_strings[-1], takes, help_text))
+    return shown
+
+
+def test_every_option_names_what_it_takes_and_states_its_default() -> None:
+    # Before, some said "--min-counts MIN_COUNTS" or "--step-from STEP_FROM" (argparse's name
+    # of the variable) where a unit or kind belongs, `check [url]` where the rest say `URL`,
+    # and "(default 20)" or no default at all where the rest say "(default: 20)".
+    problems = [
+        f"rovlink {name} {option} {takes}: {help_text}"
+        for name, option, takes, help_text in _shown_options()
+        if "_" in takes
+        or "<its variable's name>" in help_text
+        or ("<no default>" in help_text and "(default: " not in help_text)
+    ]
+    assert not problems, "\n".join(problems)
+
+
+#: Options that take a different thing in different commands, under the one name.
+_NAMES_OF_TWO_MEANINGS = {"--output": "a recording or an image", "--port": "a device or a TCP port"}
+
+
+def test_an_option_takes_the_same_kind_of_value_in_every_command() -> None:
+    # Before, `tune --depth DEPTH` where `demo` and `calibrate` say `--depth CM`, and
+    # `check --algorithm ALGORITHM` where every other command says `--algorithm NAME`.
+    takes_by_option: dict[str, set[str]] = {}
+    for _, option, takes, _ in _shown_options():
+        if option not in _NAMES_OF_TWO_MEANINGS:
+            takes_by_option.setdefault(option, set()).add(takes)
+    differing = {option: takes for option, takes in takes_by_option.items() if len(takes) > 1}
+    assert not differing
 
 
 def test_unknown_command(run_cli: RunCli) -> None:
@@ -125,6 +234,61 @@ def test_decode_imports_no_module_it_does_not_need() -> None:
     )
 
 
+def test_help_imports_no_module_only_running_needs() -> None:
+    # `rovlink calibrate --help` imported statistics (with decimal, fractions and random), a
+    # sixth of its start-up, for the mean of the readings it takes when it runs.
+    code = (
+        "import contextlib, io, sys\n"
+        "from rovlink.cli import COMMANDS, main\n"
+        "heavy = {'serial', 'rich', 'textual', 'prompt_toolkit', 'matplotlib', 'numpy',\n"
+        "         'aiomqtt', 'paho', 'pymavlink', 'starlette', 'uvicorn', 'mcap', 'asyncio',\n"
+        "         'ssl', 'statistics', 'decimal', 'random'}\n"
+        "loaded = {}\n"
+        "for name in COMMANDS:\n"
+        "    before = set(sys.modules)\n"
+        "    with contextlib.redirect_stdout(io.StringIO()):\n"
+        "        assert main([name, '--help']) == 0\n"
+        "    new = {module.split('.')[0] for module in set(sys.modules) - before} & heavy\n"
+        "    if new:\n"
+        "        loaded[name] = sorted(new)\n"
+        "assert not loaded, loaded\n"
+    )
+    result = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, check=False, timeout=60
+    )
+    assert result.returncode == 0, result.stderr.splitlines()[-1:]
+
+
+@pytest.mark.parametrize(
+    ("words", "said"),
+    [
+        (
+            [b"decode", b"\xff-missing.bin"],
+            b"rovlink decode: cannot read \\xff-missing.bin: No such file or directory\n",
+        ),
+        (
+            [b"send", b"sim://", b"q\xffd"],
+            b"rovlink send: error: command 1 ('q\\xffd'): unknown command 'q\\xffd'; did you "
+            b"mean qd?\n",
+        ),
+    ],
+    ids=["failure", "usage error"],
+)
+def test_a_word_that_is_not_utf8_is_said_with_its_bytes(
+    words: list[bytes], said: bytes, tmp_path: Path
+) -> None:
+    # A file name from a FAT stick or an old system. Before, "\udcff-missing.bin": Python's
+    # stand-in for the byte, which no name holds.
+    result = subprocess.run(
+        [sys.executable.encode(), b"-m", b"rovlink", *words],
+        capture_output=True,
+        check=False,
+        timeout=60,
+        cwd=tmp_path,
+    )
+    assert result.stderr.splitlines(keepends=True)[-1] == said
+
+
 def test_output_to_a_full_device_is_a_one_line_error() -> None:
     with open("/dev/full", "wb") as full:
         result = subprocess.run(
@@ -146,6 +310,30 @@ def test_output_to_a_closed_pipe_ends_quietly() -> None:
     try:
         result = subprocess.run(
             [sys.executable, "-m", "rovlink", "reference"],
+            stdout=write_end,
+            stderr=subprocess.PIPE,
+            text=True,
+            check=False,
+            timeout=60,
+        )
+    finally:
+        os.close(write_end)
+    assert (result.returncode, result.stderr) == (0, "")
+
+
+@pytest.mark.parametrize(
+    "words",
+    [("check", "--list"), ("demo", "--depth", "5", "--hold", "0", "--leg", "0")],
+    ids=["check", "demo"],
+)
+def test_a_table_to_a_closed_pipe_ends_quietly(words: tuple[str, ...]) -> None:
+    # Before, rich's console ended these with status 1 and nothing said (`check --list | head`
+    # read as a failed check).
+    read_end, write_end = os.pipe()
+    os.close(read_end)
+    try:
+        result = subprocess.run(
+            [sys.executable, "-m", "rovlink", *words],
             stdout=write_end,
             stderr=subprocess.PIPE,
             text=True,

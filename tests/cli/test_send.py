@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 import re
 import socket
 import subprocess
@@ -136,6 +137,33 @@ def test_a_raw_frame_the_controller_would_drop_is_refused(run_cli: RunCli) -> No
     assert "command 1 ('#qd00!'): the controller would drop it" in result.err
     assert "crc8" in result.err
     assert result.out == ""
+
+
+def test_the_help_gives_the_statuses_the_command_ends_with(run_cli: RunCli) -> None:
+    # Before, the help said a frame the controller would drop exits with status 1, as a failure
+    # while sending does; it is refused before anything is sent, as a usage error (2).
+    refused = run_cli("send", "--checksum", "sim://", "#qd00!").status
+    failed = run_cli("send", "socket://127.0.0.1:1", "qd").status
+    help_text = " ".join(run_cli("send", "--help").out.split())
+    assert f"a raw frame the controller would drop, is refused (status {refused})" in help_text
+    assert f"a lost link) exits with status {failed}" in help_text
+
+
+@pytest.mark.parametrize(
+    ("word", "why"),
+    [
+        # Before, "the controller would drop it: not a command frame", where it takes both.
+        ("#qd!#qr!", "more than one frame in one word: give each as a word of its own "
+         "('#qd!' '#qr!')"),
+        # Before, sent as typed: #qd! and then "x!" on the line, unsaid.
+        ("#qd!x!", "a raw frame is '#', a body and '!', with nothing after the '!'"),
+        ("#qd!!", "a raw frame is '#', a body and '!', with nothing after the '!'"),
+    ],
+)  # fmt: skip
+def test_more_than_a_frame_in_one_word_is_refused(run_cli: RunCli, word: str, why: str) -> None:
+    result = run_cli("send", "sim://", word)
+    assert (result.status, result.out) == (2, "")
+    assert result.err.splitlines()[-1] == f"rovlink send: error: command 1 ({word!r}): {why}"
 
 
 def test_raw_shows_the_exact_bytes_both_ways(run_cli: RunCli) -> None:
@@ -346,3 +374,46 @@ def test_an_output_closed_after_motion_still_ends_the_line_with_stop() -> None:
         assert port.fakes[0].frames().count("#stop!") == 1
     finally:
         port.close()
+
+
+def test_raw_output_closed_after_motion_still_ends_the_line_with_stop() -> None:
+    # `send URL --raw start "th 270 25" … | head -4`: before, the closed output was raised by
+    # the shown bytes of the next frame before it was written, and then by those of #stop!,
+    # which never went ("could not send #stop!: [Errno 32] Broken pipe", status 1).
+    port = FakeControllerServer(script=("reply", "late"))  # (the probe's #qd!, then the line's)
+    try:
+        line = ["start", "th 270 25", "qd", "qd", "stop"]
+        process = subprocess.Popen(
+            [sys.executable, "-m", "rovlink", "send", port.url, "--raw", *line],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+        )
+        assert process.stdout is not None
+        while process.stdout.readline() not in (b"> #start!\n", b""):
+            pass
+        process.stdout.close()  # as `head` does, once it has the lines it wanted
+        _, stderr = process.communicate(timeout=15)
+        assert (process.returncode, stderr.decode()) == (0, "rovlink send: sent #stop!\n")
+        assert wait_until(lambda: port.fakes[0].frames()[-1:] == ["#stop!"])
+        assert port.fakes[0].frames().count("#stop!") == 1
+    finally:
+        port.close()
+
+
+def test_raw_output_closed_before_the_first_line_ends_quietly() -> None:
+    # `send sim:// --raw qd | head -0`: before, "cannot open sim://: Broken pipe", status 1:
+    # the probe's bytes, shown as the link opened, were taken for the link's failure.
+    read_end, write_end = os.pipe()
+    os.close(read_end)
+    try:
+        result = subprocess.run(
+            [sys.executable, "-m", "rovlink", "send", "sim://", "--raw", "qd"],
+            stdout=write_end,
+            stderr=subprocess.PIPE,
+            text=True,
+            check=False,
+            timeout=60,
+        )
+    finally:
+        os.close(write_end)
+    assert (result.returncode, result.stderr) == (0, "")

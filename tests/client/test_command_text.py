@@ -77,6 +77,8 @@ def test_errors_name_the_argument_and_its_range(
         ("thrust 1", "unknown command 'thrust'; did you mean th"),
         ("#stpo!", "unknown command 'stpo'; did you mean stop"),
         ("STOP", r"unknown command 'STOP': commands are lower-case, did you mean stop\?"),
+        ("#STOP!", r"unknown command 'STOP': commands are lower-case, did you mean stop\?"),
+        ("TH 90 30", r"unknown command 'TH': commands are lower-case, did you mean th\?"),
         ("zzzz", "unknown command 'zzzz'"),
         # Before: "unknown command 'qd!#qd'; did you mean qd?", and no hint for "QD".
         ("#qd!#qd!", "one frame at a time: '#qd!#qd!' holds more than one"),

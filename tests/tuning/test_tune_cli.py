@@ -41,8 +41,8 @@ def test_help_shows_the_depth_limits_defaults(capsys: pytest.CaptureFixture[str]
     # Regression: the limits a --depth is refused for were in neither the error nor the help.
     assert main(["tune", "--help"]) == 0
     help_text = " ".join(capsys.readouterr().out.split())  # (however argparse wrapped it)
-    assert "--min-depth MIN_DEPTH shallowest allowed, cm (default 20)" in help_text
-    assert "--max-depth MAX_DEPTH deepest allowed, cm (default 300)" in help_text
+    assert "--min-depth CM shallowest allowed, cm (default: 20)" in help_text
+    assert "--max-depth CM deepest allowed, cm (default: 300)" in help_text
 
 
 def test_parse_triple() -> None:

@@ -267,7 +267,7 @@ def main(argv: list[str] | None = None) -> int:
                 finish()
     except UsageError as error:
         command_parser.print_usage(sys.stderr)
-        print(f"{command_parser.prog}: error: {error}", file=sys.stderr)
+        print(_as_typed(f"{command_parser.prog}: error: {error}"), file=sys.stderr)
         return 2
     except CommandError as error:
         _say(f"{command_parser.prog}: {error}")
@@ -292,6 +292,22 @@ def _say(line: str) -> None:
     """A last line on stderr, if it can still be written: after a closed terminal (SIGHUP) it
     cannot, and the error of that write made the status 1 instead of the command's."""
     try:  # noqa: SIM105 - contextlib is not imported at start-up
-        print(line, file=sys.stderr)
+        print(_as_typed(line), file=sys.stderr)
     except OSError:
         pass
+
+
+def _as_typed(line: str) -> str:
+    r"""``line`` with the bytes of a word that is not UTF-8 (a file name from a FAT stick) shown
+    as ``\xNN``: Python holds each as a lone surrogate, which stderr (or a message's ``repr``)
+    would show as ``\udcNN``.
+
+    >>> _as_typed("cannot read \udcff.bin")
+    'cannot read \\xff.bin'
+    >>> _as_typed("unknown command 'q\\udcffd'")
+    "unknown command 'q\\xffd'"
+    """
+    import re  # noqa: PLC0415 - loaded by argparse already; only as an error is said
+
+    line = line.encode("utf-8", "surrogateescape").decode("utf-8", "backslashreplace")
+    return re.sub(r"\\udc([89a-f][0-9a-f])", r"\\x\1", line)

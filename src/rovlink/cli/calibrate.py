@@ -6,7 +6,6 @@ readings must be far enough apart and the result within the command table's rang
 from __future__ import annotations
 
 import argparse
-import statistics
 import sys
 from typing import TYPE_CHECKING
 
@@ -53,16 +52,22 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--samples",
         type=lambda text: bounded_int(text, 1, 1000),
         default=20,
-        help="#qr! readings averaged per point (default 20)",
+        metavar="N",
+        help="#qr! readings averaged per point, 1–1000 (default: %(default)s)",
     )
     group.add_argument(
         "--min-counts",
         type=lambda text: bounded_float(text, 1, 1024),
         default=10,
-        help="the least difference of the two readings, counts (default 10)",
+        metavar="COUNTS",
+        help="the least difference of the two readings, counts (default: %(default)s)",
     )
     group.add_argument("--dry-run", action="store_true", help="show the values, send nothing")
-    group.add_argument("--yes", action="store_true", help="send without asking")
+    group.add_argument(
+        "--yes",
+        action="store_true",
+        help="send without asking (needed when there is no terminal to ask on)",
+    )
 
 
 def run(args: argparse.Namespace) -> int:
@@ -73,6 +78,10 @@ def run(args: argparse.Namespace) -> int:
     if measuring and not sys.stdin.isatty():
         raise UsageError(
             "measuring needs a terminal to ask on; give --surface-raw and --depth-raw instead"
+        )
+    if not (args.yes or args.dry_run or sys.stdin.isatty()):  # as tune and check --motion
+        raise UsageError(
+            "sending needs --yes when there is no terminal to ask on (--dry-run shows the values)"
         )
     if not measuring:  # nothing to read: bad readings are refused before the port opens
         try:
@@ -103,7 +112,7 @@ def run(args: argparse.Namespace) -> int:
         if args.dry_run:
             print("dry run: nothing sent")
             return 0
-        if not args.yes and sys.stdin.isatty() and not _confirm():
+        if not args.yes and not _confirm():
             print("not sent")
             return 1
         _send(client, result)
@@ -168,6 +177,8 @@ def _send(client: Client, result: Calibration) -> None:
 
 def _mean_raw(client: Client, samples: int, point: str) -> float:
     """The mean of ``samples`` raw readings; a link failure names the ``point`` measured."""
+    import statistics  # noqa: PLC0415 - with decimal and random: not on the path of --help
+
     from rovlink.client import ClientError  # noqa: PLC0415 - the driver loads when used
 
     try:

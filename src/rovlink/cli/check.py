@@ -36,7 +36,13 @@ _MAX_MOTION_PERCENT = 50
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """``check``'s options."""
-    parser.add_argument("url", nargs="?", help="the controller's port or URL")
+    parser.add_argument(
+        "url",
+        nargs="?",
+        metavar="URL",
+        help="the controller's serial device or URL (socket://HOST:PORT, sim://); needed "
+        "unless --list",
+    )
     parser.add_argument("--list", action="store_true", help="list the checks and exit")
     parser.add_argument(
         "--only",
@@ -52,6 +58,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--algorithm",
         type=algorithm_name,
         default="crc8",
+        metavar="NAME",
         help="the controller's checksum algorithm (default: %(default)s)",
     )
     parser.add_argument(
@@ -198,14 +205,15 @@ def _progress(result: CheckResult) -> None:
 
 
 def _print_list(checks: list[Check]) -> None:
-    from rich.console import Console  # noqa: PLC0415
     from rich.table import Table  # noqa: PLC0415
+
+    from rovlink.cli.rich_console import TableConsole  # noqa: PLC0415
 
     table = Table("check", "rules", "what it shows", box=None)
     for item in checks:
         label = item.name + (" (--motion)" if item.motion else "")
         table.add_row(label, " ".join(item.rules), item.description)
-    Console().print(table)
+    TableConsole().print(table)
 
 
 def _motion_checks(names: list[str] | None) -> int:
@@ -216,14 +224,14 @@ def _motion_checks(names: list[str] | None) -> int:
 
 
 def _print_report(report: Report, *, motion_not_run: int = 0) -> None:
-    from rich.console import Console  # noqa: PLC0415
     from rich.markup import escape  # noqa: PLC0415
     from rich.table import Table  # noqa: PLC0415
 
+    from rovlink.cli.rich_console import TableConsole  # noqa: PLC0415
     from rovlink.conformance import Outcome  # noqa: PLC0415
     from rovlink.conformance.junit import evidence_text  # noqa: PLC0415
 
-    console = Console()
+    console = TableConsole()
     table = Table("result", "check", "rules", "ms", box=None)
     colours = {"pass": "green", "fail": "red", "abort": "red", "skip": "yellow"}
     for result in report.results:

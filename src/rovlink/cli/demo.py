@@ -357,8 +357,9 @@ def _take_down(live: Live) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Run the dive with a live table; exit status 1 unless every step was done."""
-    from rich.console import Console  # noqa: PLC0415
     from rich.live import Live  # noqa: PLC0415
+
+    from rovlink.cli.rich_console import TableConsole  # noqa: PLC0415
 
     plan = DivePlan(
         depth_cm=args.depth_cm,
@@ -369,7 +370,7 @@ def run(args: argparse.Namespace) -> int:
     )
     rov = link_options.connect(args, keepalive_s=1.0)
     gate = GatedClient(rov)
-    console = Console()
+    console = TableConsole()
     with (
         link_options.closing_unless_interrupted(rov),
         Live(console=console, refresh_per_second=8) as live,

@@ -63,13 +63,21 @@ def reason(error: BaseException) -> str:
     'No such file or directory'
     >>> reason(OSError(21, "could not open port /tmp: [Errno 21] Is a directory: '/tmp'"))
     'Is a directory'
+
+    A name that does not resolve (``socket.gaierror``, whose numbers are not the system's) is
+    said in the resolver's words, from wherever it is in the chain.
     """
     code = error_number(error)
     if code is not None and code > 0:  # (socket.gaierror's are negative: not the system's)
         import os  # noqa: PLC0415 - loaded by the interpreter anyway; kept off the start-up path
 
         return os.strerror(code)
-    return getattr(error, "strerror", None) or str(error)
+    words = None
+    cause: BaseException | None = error
+    while cause is not None:
+        words = getattr(cause, "strerror", None) or words
+        cause = cause.__cause__ or cause.__context__
+    return words or str(error)
 
 
 def error_number(error: BaseException) -> int | None:

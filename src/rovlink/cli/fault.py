@@ -32,20 +32,40 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--listen", required=True, metavar="socket://HOST:PORT", help="where programs connect"
     )
     parser.add_argument("--to", required=True, metavar="URL", help="the controller's port or URL")
-    parser.add_argument("--ber", type=_probability(0.5), default=0.0, help="bit error rate")
-    parser.add_argument("--drop", type=_probability(1.0), default=0.0, help="byte loss rate")
-    parser.add_argument("--dup", type=_probability(1.0), default=0.0, help="byte duplicate rate")
+    parser.add_argument(
+        "--ber",
+        type=_probability(0.5),
+        default=0.0,
+        metavar="RATE",
+        help="bit error rate (default: 0)",
+    )
+    parser.add_argument(
+        "--drop",
+        type=_probability(1.0),
+        default=0.0,
+        metavar="RATE",
+        help="byte loss rate (default: 0)",
+    )
+    parser.add_argument(
+        "--dup",
+        type=_probability(1.0),
+        default=0.0,
+        metavar="RATE",
+        help="byte duplicate rate (default: 0)",
+    )
     parser.add_argument(
         "--delay-ms",
         type=lambda text: bounded_float(text, 0.0, 10_000.0, " ms"),
         default=0.0,
-        help="delay of every chunk, ms",
+        metavar="MS",
+        help="delay of every chunk, ms (default: 0)",
     )
     parser.add_argument(
         "--jitter-ms",
         type=lambda text: bounded_float(text, 0.0, 10_000.0, " ms"),
         default=0.0,
-        help="random extra or less delay, up to this, ms (at most --delay-ms)",
+        metavar="MS",
+        help="random extra or less delay, up to this, ms, at most --delay-ms (default: 0)",
     )
     parser.add_argument("--seed", type=int, default=0, help="seed of the faults (default: 0)")
     parser.add_argument(

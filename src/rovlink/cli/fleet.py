@@ -7,11 +7,12 @@ retained states show robots that are offline too. Read-only: it sends no command
 from __future__ import annotations
 
 import argparse
+import sys
 import time
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, TextIO
 
 from rovlink.cli import link_options
-from rovlink.cli.failure import CommandError
+from rovlink.cli.failure import CommandError, NoTerminalError, reason
 from rovlink.cli.mqtt import add_broker_options, broker_settings
 
 if TYPE_CHECKING:
@@ -95,6 +96,13 @@ def _cell(text: str, style: str = "") -> Text:
 def run(args: argparse.Namespace) -> int:
     """Show the table until Ctrl-C (or once, with ``--snapshot``)."""
     broker = broker_settings(args)
+    if args.snapshot_s is None and not _is_terminal(sys.stdout):
+        # Rich draws a live table on a terminal alone: elsewhere nothing would be written until
+        # the command was stopped (`rovlink fleet | head` would wait for ever).
+        raise NoTerminalError(
+            "the live table needs a terminal, but standard output is not one; "
+            "--snapshot SECONDS prints the table once"
+        )
     try:
         import aiomqtt  # noqa: F401, PLC0415 - the mqtt extra
     except ImportError:
@@ -105,17 +113,24 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
+def _is_terminal(stream: TextIO | None) -> bool:
+    try:
+        return stream is not None and stream.isatty()
+    except (ValueError, OSError):  # closed
+        return False
+
+
 async def _watch(broker: BrokerSettings, snapshot_s: float | None) -> None:
     import asyncio  # noqa: PLC0415
 
     import aiomqtt  # noqa: PLC0415
-    from rich.console import Console  # noqa: PLC0415
     from rich.live import Live  # noqa: PLC0415
 
     from rovlink.bridges.mqtt.fleet_view import FleetView  # noqa: PLC0415
+    from rovlink.cli.rich_console import TableConsole  # noqa: PLC0415
 
     view = FleetView()
-    console = Console()
+    console = TableConsole()
     tls_params = (
         aiomqtt.TLSParameters(
             ca_certs=None if broker.ca_file is None else str(broker.ca_file),
@@ -125,6 +140,7 @@ async def _watch(broker: BrokerSettings, snapshot_s: float | None) -> None:
         if broker.tls
         else None
     )
+    connected = False
     try:
         async with aiomqtt.Client(
             broker.host,
@@ -135,6 +151,7 @@ async def _watch(broker: BrokerSettings, snapshot_s: float | None) -> None:
             tls_insecure=broker.insecure if broker.tls else None,
             timeout=5.0,
         ) as mqtt:
+            connected = True
             for topic in _TOPICS:
                 await mqtt.subscribe(topic, qos=1)
 
@@ -160,4 +177,5 @@ async def _watch(broker: BrokerSettings, snapshot_s: float | None) -> None:
                 collector.cancel()
                 await asyncio.gather(collector, return_exceptions=True)
     except aiomqtt.MqttError as error:
-        raise CommandError(f"broker {broker.describe()}: {error}") from None
+        where = "broker" if connected else "cannot connect to the broker"
+        raise CommandError(f"{where} {broker.describe()}: {reason(error)}") from None

@@ -49,16 +49,40 @@ def _title(path: str) -> str:
     return os.fsencode(os.path.basename(path)).decode("utf-8", "replace")
 
 
+#: matplotlib's backends that draw without a window: where it finds no display it can open, or
+#: no window toolkit, it falls back to one of them, and its show() then only warns.
+_WINDOWLESS_BACKENDS = frozenset({"agg", "cairo", "pdf", "pgf", "ps", "svg", "template"})
+
+
+def _check_window(display: str | None) -> None:
+    """Refuse ``--show`` before anything is read or written where no window can open."""
+    from matplotlib import pyplot  # noqa: PLC0415 - picks the backend: a window's, if any works
+
+    if pyplot.get_backend().lower() in _WINDOWLESS_BACKENDS:
+        raise CommandError(
+            f"--show cannot open a window on display {display} (no display there, or no "
+            "window toolkit for matplotlib: tkinter, Qt or GTK); use -o IMAGE"
+        )
+
+
 def run(args: argparse.Namespace) -> int:
     """Draw the dive; damage in the file is reported after the plot of what could be read."""
     if not args.output and not args.show:
         raise UsageError("say where the plot goes: -o IMAGE, --show, or both")
-    if args.show and not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
-        raise CommandError("--show needs a display (none here): use -o IMAGE")
+    display = os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")
+    if args.show and not display:
+        instead = (
+            f"without --show the plot is written to {args.output} alone"
+            if args.output
+            else "use -o IMAGE"
+        )
+        raise CommandError(f"--show needs a display (none here); {instead}")
     try:
         import matplotlib  # noqa: PLC0415 - the plot extra, only for this command
     except ImportError:
         raise CommandError("plotting needs matplotlib: pip install 'rovlink[plot]'") from None
+    if args.show:
+        _check_window(display)
     from rovlink.recorder import RecordingDamagedError, RecordingError, read_entries  # noqa: PLC0415
     from rovlink.recorder.plot import FIGURE_SIZE_IN, collect, plot_series  # noqa: PLC0415
 

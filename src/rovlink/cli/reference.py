@@ -6,7 +6,12 @@ from __future__ import annotations
 import argparse
 import sys
 
-__all__: list[str] = []
+__all__ = ["EPILOG"]
+
+EPILOG = """\
+examples:
+  rovlink reference > docs/commands.md    the page of the docs, generated again
+  rovlink reference | less"""
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

@@ -1,9 +1,11 @@
 """Send commands in order and print the decoded replies.
 
-Every command is checked before anything is sent. A raw frame ('#qd!') goes as typed when the
-controller will take it so; in checksum mode a frame typed without its checksum gets it. Any
-failure (no reply, a frame the controller would drop, a lost link) exits with status 1. Ctrl-C
-stops at once, sending #stop! first if a command may have moved the robot.
+Every command is checked before anything is sent: one that does not parse, or a raw frame the
+controller would drop, is refused (status 2). A raw frame ('#qd!') goes as typed when the
+controller will take it so; in checksum mode a frame typed without its checksum gets it. A
+failure while sending (no reply, a lost link) exits with status 1, after #stop! once a command
+that may move the robot has gone. Ctrl-C stops at once, sending #stop! first if a command may
+have moved the robot.
 """
 
 from __future__ import annotations
@@ -152,6 +154,14 @@ def _raw_outgoing(text: str, *, checksum: bool, algorithm: str) -> Outgoing:
     """A raw frame as the controller will take it in the checksum mode it will be in."""
     if not (text.isascii() and text.startswith("#") and text.endswith("!") and len(text) > 2):
         raise ValueError("a raw frame is '#', a body and '!'")
+    frames = text[:-1].split("!")
+    if len(frames) > 1:  # (the bytes would go as typed, the rest as line noise after the frame)
+        if not all(frame.startswith("#") for frame in frames):
+            raise ValueError("a raw frame is '#', a body and '!', with nothing after the '!'")
+        words = " ".join(repr(f"{frame}!") for frame in frames)
+        raise ValueError(
+            f"more than one frame in one word: give each as a word of its own ({words})"
+        )
     frame = text.encode("ascii")
     taken = _decoded_command(frame, checksum=checksum, algorithm=algorithm)
     if isinstance(taken, Command):
@@ -214,14 +224,26 @@ def _print_text(event: Event) -> None:
 
 
 class _Printer:
-    """Prints the bytes of a link as they go, for ``--raw``; threads print whole lines."""
+    """Prints the bytes of a link as they go, for ``--raw``; threads print whole lines.
+
+    It is called by the link itself, before a write and after a read: an output that cannot be
+    written (``| head`` gone, a full disk) ends the showing, never the link's traffic, so that
+    ``#stop!`` still goes; the command's own next line finds the output closed and ends the
+    command (after ``#stop!``, where it may have moved the robot).
+    """
 
     def __init__(self) -> None:
         self._lock = threading.Lock()
+        self._failed = False
 
     def __call__(self, direction: str, data: bytes) -> None:
         with self._lock:
-            print(f"{direction} {repr(data)[2:-1]}", flush=True)
+            if self._failed:
+                return
+            try:
+                print(f"{direction} {repr(data)[2:-1]}", flush=True)
+            except OSError:
+                self._failed = True
 
 
 def _send_one(client: Client, item: Outgoing) -> tuple[bytes, tuple[Response, ...]]:

@@ -88,29 +88,44 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--depth",
         type=_depth,
         default=100,
-        help="target depth, cm, strictly between --min-depth and --max-depth (default %(default)s)",
+        metavar="CM",
+        help="target depth, cm, strictly between --min-depth and --max-depth "
+        "(default: %(default)s)",
     )
     group.add_argument(
-        "--min-depth", type=_depth, default=20, help="shallowest allowed, cm (default %(default)s)"
+        "--min-depth",
+        type=_depth,
+        default=20,
+        metavar="CM",
+        help="shallowest allowed, cm (default: %(default)s)",
     )
     group.add_argument(
-        "--max-depth", type=_depth, default=300, help="deepest allowed, cm (default %(default)s)"
+        "--max-depth",
+        type=_depth,
+        default=300,
+        metavar="CM",
+        help="deepest allowed, cm (default: %(default)s)",
     )
     group.add_argument(
         "--relay-power",
         type=lambda text: bounded_int(text, 5, 60),
         default=30,
         metavar="PERCENT",
-        help="relay amplitude, %% vertical thrust (default 30)",
+        help="relay amplitude, %% vertical thrust, 5–60 (default: %(default)s)",
     )
     group.add_argument(
         "--hysteresis",
         type=lambda text: bounded_int(text, 1, 50),
         default=3,
         metavar="CM",
-        help="relay hysteresis, cm: above the sensor's noise (default 3)",
+        help="relay hysteresis, cm, 1–50: above the sensor's noise (default: %(default)s)",
     )
-    group.add_argument("--rule", default="heave-poles", help="tuning rule (see --list-rules)")
+    group.add_argument(
+        "--rule",
+        default="heave-poles",
+        metavar="RULE",
+        help="tuning rule, one of --list-rules (default: %(default)s)",
+    )
     group.add_argument("--list-rules", action="store_true", help="list the rules and exit")
     group.add_argument(
         "--scales",
@@ -129,6 +144,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     group.add_argument(
         "--step-from",
         type=_depth,
+        metavar="CM",
         help="depth the verification steps from, within the limits (default: 1 m up, at least "
         "20 cm below --min-depth; 1 m down where there is no room up)",
     )

@@ -73,13 +73,14 @@ def _spec(name: str) -> Spec:
         return lookup(name)
     except UnknownCommandError:
         spellings = list(SPELLINGS[Kind.COMMAND])
-        if name.lower() in spellings:  # (P6: commands are lower-case and case-sensitive)
+        typed = name.lower()  # (caps lock: a name in capitals is matched as it would be)
+        if typed in spellings:  # (P6: commands are lower-case and case-sensitive)
             raise CommandTextError(
-                f"unknown command {name!r}: commands are lower-case, did you mean {name.lower()}?"
+                f"unknown command {name!r}: commands are lower-case, did you mean {typed}?"
             ) from None
-        close = difflib.get_close_matches(name.lower(), spellings, n=3, cutoff=0.6)
+        close = difflib.get_close_matches(typed, spellings, n=3, cutoff=0.6)
         # A word that starts with a command's name ("thrust" for "th") is probably that command.
-        close += [s for s in spellings if len(s) > 1 and name.startswith(s) and s not in close]
+        close += [s for s in spellings if len(s) > 1 and typed.startswith(s) and s not in close]
         hint = f"; did you mean {', '.join(close)}?" if close else ""
         raise CommandTextError(f"unknown command {name!r}{hint}") from None
 
