@@ -5,7 +5,6 @@ from __future__ import annotations
 import argparse
 import contextlib
 import io
-import os
 import re
 import shlex
 import subprocess
@@ -17,6 +16,7 @@ import pytest
 import rovlink
 from rovlink.cli import COMMANDS as ALL_COMMANDS
 from rovlink.cli import build_parser
+from tests.cli.closed_pipe import run_into_a_closed_pipe
 from tests.cli.conftest import RunCli
 
 COMMANDS = ("decode", "reference", "sim", "send", "demo", "console", "monitor")
@@ -305,19 +305,7 @@ def test_output_to_a_full_device_is_a_one_line_error() -> None:
 
 def test_output_to_a_closed_pipe_ends_quietly() -> None:
     """``rovlink reference | head -0``: the reader is gone before the first write."""
-    read_end, write_end = os.pipe()
-    os.close(read_end)
-    try:
-        result = subprocess.run(
-            [sys.executable, "-m", "rovlink", "reference"],
-            stdout=write_end,
-            stderr=subprocess.PIPE,
-            text=True,
-            check=False,
-            timeout=60,
-        )
-    finally:
-        os.close(write_end)
+    result = run_into_a_closed_pipe("reference")
     assert (result.returncode, result.stderr) == (0, "")
 
 
@@ -329,19 +317,7 @@ def test_output_to_a_closed_pipe_ends_quietly() -> None:
 def test_a_table_to_a_closed_pipe_ends_quietly(words: tuple[str, ...]) -> None:
     # Before, rich's console ended these with status 1 and nothing said (`check --list | head`
     # read as a failed check).
-    read_end, write_end = os.pipe()
-    os.close(read_end)
-    try:
-        result = subprocess.run(
-            [sys.executable, "-m", "rovlink", *words],
-            stdout=write_end,
-            stderr=subprocess.PIPE,
-            text=True,
-            check=False,
-            timeout=60,
-        )
-    finally:
-        os.close(write_end)
+    result = run_into_a_closed_pipe(*words)
     assert (result.returncode, result.stderr) == (0, "")
 
 

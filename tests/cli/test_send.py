@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import os
 import re
 import socket
 import subprocess
@@ -17,6 +16,7 @@ import pytest
 from rovlink.cli.send import group_words
 from rovlink.client import CommandTextError, parse_command_text
 from rovlink.protocol import get_algorithm
+from tests.cli.closed_pipe import run_into_a_closed_pipe
 from tests.cli.conftest import RunCli
 from tests.cli.silent_controller import SilentController
 from tests.client.conftest import REPLY_TIMEOUT_S, wait_until
@@ -403,17 +403,5 @@ def test_raw_output_closed_after_motion_still_ends_the_line_with_stop() -> None:
 def test_raw_output_closed_before_the_first_line_ends_quietly() -> None:
     # `send sim:// --raw qd | head -0`: before, "cannot open sim://: Broken pipe", status 1:
     # the probe's bytes, shown as the link opened, were taken for the link's failure.
-    read_end, write_end = os.pipe()
-    os.close(read_end)
-    try:
-        result = subprocess.run(
-            [sys.executable, "-m", "rovlink", "send", "sim://", "--raw", "qd"],
-            stdout=write_end,
-            stderr=subprocess.PIPE,
-            text=True,
-            check=False,
-            timeout=60,
-        )
-    finally:
-        os.close(write_end)
+    result = run_into_a_closed_pipe("send", "sim://", "--raw", "qd")
     assert (result.returncode, result.stderr) == (0, "")
