@@ -1,12 +1,15 @@
-"""Depth-PID autotune on the three simulated vehicles and five noise seeds each, with heave waves,
-against the default gains measured in the same run.
+"""Depth-PID autotune on the simulated vehicles and several noise seeds: steps from the surface
+and from mid-water with the gains of each rule, against the default gains in the same run.
 
-Each run: the relay experiment in direct mode around 100 cm, the default rule (heave-poles),
-then a 0 → 100 cm step with the tuned gains; the same step with the default gains (40, 30, 20)
-is the peer. Figures from the true (simulated) depth, as in bench/depth_step.py. The simulated
-robot is stepped by hand under a real client, so minutes of experiment take seconds.
+Each run: the relay experiment in direct mode around 100 cm and the verification the command
+runs by default (40 → 100 cm), for the default rule (simc) and the former one (heave-poles);
+then 0 → 100, 20 → 100 and 40 → 100 cm depth steps, each held 15 s at its start, with the gains
+each rule gave and with the default gains (40, 30, 20). Figures from the true (simulated) depth,
+as in bench/depth_step.py: the time after which the depth stays within ±3 cm, and the
+overshoot. The simulated robot is stepped by hand under a real client, so minutes of
+experiment take seconds.
 
-    PYTHONPATH=src python bench/tune.py [--seeds 5]
+    PYTHONPATH=src python bench/tune.py [--seeds 5] [--vehicles default,light,standard,heavy]
 """
 
 from __future__ import annotations
@@ -17,7 +20,6 @@ from rovlink.client import Client, ClientOptions
 from rovlink.client.links import PortLink
 from rovlink.controller.config import DepthPidConfig
 from rovlink.sim.port import open_port
-from rovlink.sim.presets import PRESETS
 from rovlink.tuning import (
     RULES,
     DepthLimits,
@@ -32,10 +34,13 @@ from rovlink.tuning import (
 from rovlink.tuning.verify import StepMetrics
 
 TARGETS = {"overshoot_cm": 5.0, "settling_s": 10.0, "rms_cm": 2.0}
-STEP = StepSettings(from_cm=0, to_cm=100)
+VERIFICATION = StepSettings(from_cm=40, to_cm=100)
+STARTS_CM = (0, 20, 40)
+RULE_NAMES = ("simc", "heave-poles")
 
 
-def _plant(preset: str, seed: int) -> tuple[Plant, Client]:
+def _plant(vehicle: str, seed: int) -> tuple[Plant, Client]:
+    preset = None if vehicle == "default" else vehicle
     port = open_port(seed=seed, preset=preset, manual=True, timeout=0.05)
     options = ClientOptions(keepalive_s=None, motion_timeout_s=None, boot_timeout_s=None)
     client = Client(PortLink(port, "sim"), options)
@@ -49,62 +54,70 @@ def _plant(preset: str, seed: int) -> tuple[Plant, Client]:
     return plant, client
 
 
-def tuned(preset: str, seed: int, scales: GainScales) -> tuple[ProtocolGains, StepMetrics]:
-    plant, client = _plant(preset, seed)
+def tuned(vehicle: str, seed: int, rule: str, scales: GainScales) -> tuple[ProtocolGains, bool]:
+    """The gains the rule gives, and whether its own verification met the targets."""
+    plant, client = _plant(vehicle, seed)
     try:
-        result = autotune(plant, RelaySettings(), RULES["heave-poles"], scales, STEP)
+        result = autotune(plant, RelaySettings(), RULES[rule], scales, VERIFICATION)
     finally:
         client.close()
     assert result.step is not None
-    assert result.step.true is not None
-    return result.gains, result.step.true
+    metrics = result.step.measured
+    met = all(getattr(metrics, name) <= target for name, target in TARGETS.items())
+    return result.gains, met
 
 
-def default(preset: str, seed: int, gains: ProtocolGains) -> StepMetrics:
-    plant, client = _plant(preset, seed)
+def step(vehicle: str, seed: int, gains: ProtocolGains, from_cm: int) -> StepMetrics:
+    plant, client = _plant(vehicle, seed)
     try:
         client.start()
-        step = run_step(plant, gains, STEP)
+        result = run_step(
+            plant, gains, StepSettings(from_cm=from_cm, to_cm=100, hold_s=15.0, watch_s=40.0)
+        )
         plant.stop()
     finally:
         client.close()
-    assert step.true is not None
-    return step.true
+    assert result.true is not None
+    return result.true
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, default=5)
+    parser.add_argument("--vehicles", default="default,light,standard,heavy")
     args = parser.parse_args()
     config = DepthPidConfig()
     scales = GainScales(config.kp_scale, config.ki_scale, config.kd_scale)
     reset_gains = ProtocolGains(config.kp, config.ki, config.kd)
-    worst: dict[str, dict[str, float]] = {"tuned": {}, "default": {}}
-    print(
-        "| vehicle | seed | tuned gains | overshoot cm | settle s | RMS cm |"
-        " default gains: overshoot cm | settle s | RMS cm |"
-    )
-    print("|---|---|---|---|---|---|---|---|---|")
-    for preset, vehicle in PRESETS.items():
+    columns = " | ".join(f"{start} → 100 cm" for start in STARTS_CM)
+    print(f"| vehicle | seed | gains | kp ki kd | verification | {columns} |")
+    print("|---|---|---|---|---|" + "---|" * len(STARTS_CM))
+    worst: dict[tuple[str, str, int], float] = {}
+    for vehicle in args.vehicles.split(","):
         for seed in range(1, args.seeds + 1):
-            gains, mine = tuned(preset, seed, scales)
-            peer = default(preset, seed, reset_gains)
-            for label, metrics in (("tuned", mine), ("default", peer)):
-                for name in TARGETS:
-                    worst[label][name] = max(worst[label].get(name, 0.0), getattr(metrics, name))
-            print(
-                f"| {preset} ({vehicle.mass_kg:g} kg) | {seed} | {gains.kp} {gains.ki} {gains.kd}"
-                f" | {mine.overshoot_cm:.1f} | {mine.settling_s:.1f} | {mine.rms_cm:.2f}"
-                f" | {peer.overshoot_cm:.1f} | {peer.settling_s:.1f} | {peer.rms_cm:.2f} |"
-            )
+            sets: list[tuple[str, ProtocolGains, str]] = []
+            for rule in RULE_NAMES:
+                gains, met = tuned(vehicle, seed, rule, scales)
+                sets.append((rule, gains, "met" if met else "missed"))
+            sets.append(("default gains", reset_gains, ""))
+            for label, gains, verdict in sets:
+                cells = []
+                for start in STARTS_CM:
+                    metrics = step(vehicle, seed, gains, start)
+                    key = (vehicle, label, start)
+                    worst[key] = max(worst.get(key, 0.0), metrics.settling_s)
+                    cells.append(f"{metrics.settling_s:.1f} s / {metrics.overshoot_cm:.1f} cm")
+                print(
+                    f"| {vehicle} | {seed} | {label} | {gains.kp} {gains.ki} {gains.kd} | "
+                    f"{verdict} | {' | '.join(cells)} |",
+                    flush=True,
+                )
     print()
-    for name, target in TARGETS.items():
-        tuned_worst = worst["tuned"][name]
-        verdict = "meets" if tuned_worst <= target else "MISSES"
-        print(
-            f"worst {name}: tuned {tuned_worst:.2f} ({verdict} ≤ {target:g}), "
-            f"default gains {worst['default'][name]:.2f}"
-        )
+    print(f"worst time to ±3 cm over the seeds | {columns}")
+    for vehicle in args.vehicles.split(","):
+        for label in (*RULE_NAMES, "default gains"):
+            cells = " | ".join(f"{worst[vehicle, label, start]:.1f} s" for start in STARTS_CM)
+            print(f"| {vehicle} | {label} | {cells} |")
 
 
 if __name__ == "__main__":

@@ -17,9 +17,14 @@ SCALES = GainScales(DEFAULTS.kp_scale, DEFAULTS.ki_scale, DEFAULTS.kd_scale)
 
 @contextmanager
 def simulated_plant(
-    preset: str, seed: int, limits: DepthLimits | None = None, *, reply_timeout_s: float = 0.5
+    preset: str | None,
+    seed: int,
+    limits: DepthLimits | None = None,
+    *,
+    reply_timeout_s: float = 0.5,
 ) -> Iterator[tuple[Plant, SimulatedPort]]:
-    """A plant on the preset's vehicle whose clock is the simulation's."""
+    """A plant on the preset's vehicle (None: the default vehicle, without waves) whose clock
+    is the simulation's."""
     port = open_port(seed=seed, preset=preset, manual=True, timeout=0.05)
     options = ClientOptions(
         timeout_s=reply_timeout_s, keepalive_s=None, motion_timeout_s=None, boot_timeout_s=None

@@ -26,7 +26,10 @@ def nothing_connects(monkeypatch: pytest.MonkeyPatch) -> None:
 
 def test_list_rules_and_usage_errors(capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["tune", "sim://", "--list-rules"]) == 0
-    assert "heave-poles" in capsys.readouterr().out
+    listed = capsys.readouterr().out.splitlines()
+    assert listed[0].startswith("simc ")
+    assert listed[0].endswith("(default)")
+    assert any(line.startswith("heave-poles ") for line in listed)
     assert main(["tune", "sim://", "--rule", "magic", "--yes"]) == 2
     assert "unknown rule 'magic'" in capsys.readouterr().err
     assert main(["tune", "sim://", "--depth", "500", "--max-depth", "300", "--yes"]) == 2

@@ -122,7 +122,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     group.add_argument(
         "--rule",
-        default="heave-poles",
+        default="simc",
         metavar="RULE",
         help="tuning rule, one of --list-rules (default: %(default)s)",
     )

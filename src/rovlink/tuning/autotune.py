@@ -42,7 +42,7 @@ def autotune(
         plant.send(lambda: client.set_direct_mode(True))
         relay = run_relay(plant, relay_settings)
         plant.vertical_thrust(0)
-        physical = physical_gains(relay.ultimate_gain, relay.ultimate_period_s, rule)
+        physical = physical_gains(relay.ultimate_gain, relay.ultimate_period_s, rule, scales.max_kp)
         gains = physical.to_protocol(scales)
         logger.info(
             "relay: Ku %.3f %%/cm, Tu %.2f s, amplitude %.1f cm, trim %.1f %%; gains %s",

@@ -18,7 +18,10 @@ class StepSettings:
 
     from_cm: int = 0
     to_cm: int = 100
-    hold_s: float = 10.0
+    #: Long enough for the integral to find the trim at ``from_cm`` after the move there: the
+    #: step is then one from a held depth, not the tail of the move (with 10 s and an integral
+    #: time of 19 s, the move's windup was still decaying when the step began).
+    hold_s: float = 30.0
     watch_s: float = 70.0
     sample_s: float = 0.05
     band_cm: float = 3.0
