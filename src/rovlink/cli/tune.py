@@ -30,8 +30,9 @@ examples:
   rovlink tune socket://robot:5760 --rule zn-no-overshoot --relay-power 20"""
 
 #: How far inside the depth limits the verification's default step starts: its hold there is
-#: approached from the target with the untried gains and overshoots on the way (12 to 14 cm
-#: over 80 cm on the simulated vehicles), and the limits abort the verification.
+#: approached from the target with the untried gains and overshoots on the way (6 to 10 cm
+#: over 80 cm on the simulated vehicles with the simc rule, 12 to 14 cm with heave-poles), and
+#: the limits abort the verification.
 _STEP_MARGIN_CM = 20
 #: The targets of the verification (docs/builders.md).
 TARGET_OVERSHOOT_CM = 5.0
