@@ -36,6 +36,7 @@ from typing import Any
 from rovlink.aio.wakeup import wait_for_event
 from rovlink.bridges.kept_settings import KeptSettings
 from rovlink.bridges.mqtt.broker import BrokerSettings
+from rovlink.bridges.mqtt.broker_failure import broker_failure
 from rovlink.bridges.mqtt.command_age import (
     DEFAULT_MAX_COMMAND_AGE_S,
     BrokerSilence,
@@ -274,8 +275,14 @@ class MqttBridge:
                         raise
             except aiomqtt.MqttError as error:
                 self.connected.clear()
+                failure = broker_failure(
+                    error,
+                    self.broker,
+                    connected=connected_at_s is not None,
+                    reply_timeout_s=self.reply_timeout_s,
+                )
                 if connected_at_s is not None:
-                    await self._zero_thrust(f"broker {self.broker.describe()} lost: {error}")
+                    await self._zero_thrust(f"broker {self.broker.describe()} {failure}")
                     # The backoff starts again only after a connection that held: one ended at
                     # once, again and again, is no broker restart.
                     if loop.time() - connected_at_s >= _STABLE_CONNECTION_S:
@@ -283,7 +290,7 @@ class MqttBridge:
                     else:
                         short_lived += 1
                 logger.warning(
-                    "broker %s: %s; retrying in %g s", self.broker.describe(), error, wait_s
+                    "broker %s: %s; retrying in %g s", self.broker.describe(), failure, wait_s
                 )
                 if short_lived >= _SHORT_LIVED_WARNING:
                     logger.error(
