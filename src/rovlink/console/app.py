@@ -35,6 +35,7 @@ from rovlink.console.actions import InputError, Quit, parse_lines
 from rovlink.console.completion import argument_hint, suggestions
 from rovlink.console.engine import ConsoleEngine
 from rovlink.console.help import STOP_KEY_TEXT
+from rovlink.console.no_suspend import suspension_refused
 from rovlink.console.transcript import Line, error_line, info_line
 from rovlink.logs import WarningsShownBy
 from rovlink.piloting import LockState, TrackedClient
@@ -256,20 +257,32 @@ async def run_console(
 
     warnings = WarningsShownBy(show_warning)
     warnings.attach()
+    engine = ConsoleEngine(emit_in_console)
     try:
-        await _run_connected(connect, emit_in_console, algorithm, history_path, from_terminal)
+        # Ctrl-Z is a key while a prompt reads them; between prompts (the terminal in cooked mode
+        # for a moment), or while a script's lines run, it is a signal: said as the key is.
+        with suspension_refused(lambda: engine.say(NO_SUSPEND_TEXT)):
+            await _run_connected(
+                connect,
+                engine,
+                emit_in_console,
+                algorithm=algorithm,
+                history_path=history_path,
+                from_terminal=from_terminal,
+            )
     finally:
         warnings.detach()
 
 
 async def _run_connected(
     connect: Connector,
+    engine: ConsoleEngine,
     emit_in_console: Callable[[Line], None],
+    *,
     algorithm: str,
     history_path: Path | None,
     from_terminal: bool,
 ) -> None:
-    engine = ConsoleEngine(emit_in_console)
     client = await connect(engine.on_event)
     rov = TrackedClient(client, algorithm=algorithm)
     engine.attach(rov)
