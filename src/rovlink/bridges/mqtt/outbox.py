@@ -47,11 +47,15 @@ class Outbox:
     (2, [b'\\x02', b'\\x03'])
     >>> box.take_drops(), box.take_drops()
     (DroppedEvents(count=2, first_at_s=10.0, last_at_s=11.0), None)
+    >>> Outbox(capacity=0)
+    Traceback (most recent call last):
+    ...
+    ValueError: the events kept for the broker must be at least 1, got 0
     """
 
     def __init__(self, capacity: int = DEFAULT_CAPACITY) -> None:
         if capacity < 1:
-            raise ValueError(f"the outbox keeps at least one event, not {capacity}")
+            raise ValueError(f"the events kept for the broker must be at least 1, got {capacity}")
         self.capacity = capacity
         self._items: deque[KeptEvent] = deque()
         #: Notes put ahead of the kept events (:meth:`put_first`), oldest first.
