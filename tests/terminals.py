@@ -41,7 +41,9 @@ class Terminal:
     is drained (a full terminal would block it) and kept. :meth:`hang_up` closes the terminal,
     as closing its window does: the command gets SIGHUP and its terminal fails every write.
     ``term``: the terminal's type (``TERM``); ``env``: more environment variables; ``size``:
-    columns and rows."""
+    columns and rows; ``job_control``: the command is a job of a shell with job control (its
+    own process group, in the foreground, that a SIGTSTP can stop: the kernel discards one sent
+    to the process group of a session's leader, which has no shell to continue it)."""
 
     def __init__(
         self,
@@ -50,6 +52,7 @@ class Terminal:
         term: str = "xterm-256color",
         env: dict[str, str] | None = None,
         size: tuple[int, int] = (80, 24),
+        job_control: bool = False,
     ) -> None:
         self._master, slave = os.openpty()
         columns, rows = size
@@ -57,8 +60,12 @@ class Terminal:
         source = str(Path(__file__).resolve().parents[1] / "src")
         environment = {**os.environ, "PYTHONPATH": source, "TERM": term, **(env or {})}
         environment.pop("NO_COLOR", None)
+        command = [sys.executable, "-m", "rovlink", *arguments]
+        if job_control:  # (the shell says how the job ended: 148 if SIGTSTP stopped it)
+            shell = 'set -m; "$@"; status=$?; echo "[job ended: $status]"; exit $status'
+            command = ["bash", "--norc", "--noprofile", "-i", "-c", shell, "bash", *command]
         self.process = subprocess.Popen(
-            [sys.executable, "-m", "rovlink", *arguments],
+            command,
             stdin=slave,
             stdout=slave,
             stderr=slave if stderr_on_terminal else subprocess.PIPE,
@@ -96,6 +103,13 @@ class Terminal:
 
     def type(self, text: str) -> None:
         os.write(self._master, text.encode())
+
+    def signal_keys_on(self) -> None:
+        """Turn the terminal's signal keys on (``ISIG``) as a program's cooked mode has them:
+        Ctrl-C, Ctrl-Z and Ctrl-\\ typed next are signals to its foreground process group."""
+        attributes = termios.tcgetattr(self._master)  # (a master's are its terminal's)
+        attributes[3] |= termios.ISIG
+        termios.tcsetattr(self._master, termios.TCSANOW, attributes)
 
     def hang_up(self) -> None:
         """Close the terminal: the last descriptor of its master side goes."""

@@ -204,8 +204,11 @@ async def test_history_is_kept_between_sessions(tmp_path: Path) -> None:
     assert second.frames()[1] == "#qhe!"
 
 
-def test_cli_console_on_sim(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    """``rovlink console sim://``: the real URL, history in the user's state directory."""
+def test_cli_console_on_sim(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``rovlink console sim://``: the real URL, history in the user's state directory. (Its
+    input and output are not terminals: the output is the replies, the notice on stderr.)"""
     monkeypatch.setenv("XDG_STATE_HOME", str(tmp_path))
     links: list[RecordingLink] = []
     open_link = rovlink.aio.client.open_link  # type: ignore[attr-defined]
@@ -221,7 +224,7 @@ def test_cli_console_on_sim(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> 
         keys.send_text("qd\r" + CTRL_D)
         status = main(["console", "sim://?seed=1", "--timeout", str(REPLY_TIMEOUT_S)])
     assert status == 0
-    assert "connected to simulated controller" in screen.getvalue()
+    assert "connected to simulated controller" in capsys.readouterr().err
     assert "qd → 0 cm" in screen.getvalue()
     (link,) = links
     frames = link.frames()
@@ -480,7 +483,7 @@ def test_a_bad_line_read_from_a_file_ends_the_console_naming_it_and_stops(
 
 
 def test_lines_read_from_a_file_show_no_toolbar_nor_a_stop_key_that_cannot_be_pressed(
-    tmp_path: Path,
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     # Before, the transcript of `rovlink console URL < lines.txt > log` was the toolbar drawn
     # again and again, and it (and the first line) said Ctrl-X sends #stop!: no key reaches a
@@ -498,5 +501,7 @@ def test_lines_read_from_a_file_show_no_toolbar_nor_a_stop_key_that_cannot_be_pr
     assert "→ #th.0.30!" in transcript
     assert "Ctrl-X" not in transcript
     assert "Tab completes" not in transcript
-    assert "Ctrl-C sends #stop! and ends the console" in transcript
+    notice = capsys.readouterr().err  # (the transcript, to a file, is the replies alone)
+    assert "Ctrl-C sends #stop! and ends the console" in notice
+    assert "Ctrl-X" not in notice
     silent.close()

@@ -128,6 +128,35 @@ def test_on_a_dumb_terminal_a_refused_line_says_why_and_the_next_line_runs(
         terminal.close()
 
 
+def test_ctrl_z_between_prompts_does_not_suspend_the_console(tmp_path: Path) -> None:
+    # Between one prompt and the next, prompt_toolkit puts the terminal back in its cooked mode
+    # for a moment: a Ctrl-Z typed then was the terminal's, and suspended the console (as a job
+    # of a shell with job control) with the robot moving. That moment is made to last here: the
+    # signal keys are turned on as the cooked mode has them, and Ctrl-Z typed.
+    terminal = Terminal(
+        "console",
+        "sim://",
+        "--history",
+        str(tmp_path / "history"),
+        job_control=True,
+        env={"PROMPT_TOOLKIT_NO_CPR": "1"},  # (this terminal answers no cursor position request)
+    )
+    try:
+        assert terminal.wait_shown(b"connected to ")
+        terminal.type("start\rth 90 40\r")
+        assert terminal.wait_shown(b"#th.90.40!")
+        terminal.signal_keys_on()
+        terminal.type("\x1a")  # (sends SIGTSTP to the console's process group)
+        assert terminal.wait_until(lambda shown: b"does not suspend" in shown or b"job" in shown)
+        assert b"[job ended" not in terminal.shown
+        terminal.type("qd\r")  # still at the helm
+        assert terminal.wait_shown("qd → ".encode())
+        terminal.type(CTRL_D)
+        assert terminal.process.wait(timeout=WAIT_S) == 0
+    finally:
+        terminal.close()
+
+
 async def test_replies_are_printed_with_the_terminal_left_in_raw_mode(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:

@@ -107,6 +107,28 @@ def test_without_an_endpoint_it_opens_a_pty(run_sim: RunSim) -> None:
     assert not match["tcp"]
 
 
+def test_a_listener_on_every_interface_is_warned_of(run_sim: RunSim) -> None:
+    # Regression: `--tcp 0.0.0.0:5760` served a robot with no authentication to every network
+    # without a word, where `rovlink controller` refuses it without --allow-remote.
+    process, match = run_sim("--tcp", "0.0.0.0:0", "--seed", "1")
+    assert match["tcp"].startswith("0.0.0.0:")
+    assert "(REMOTE, NO AUTHENTICATION)" in match.string
+    assert process.stderr is not None
+    warning = process.stderr.readline()  # (logged before the ready line was printed)
+    assert "WARNING" in warning
+    assert f"listening on {match['tcp']} (every network interface)" in warning
+    assert "anyone connected can drive the robot" in warning
+
+
+def test_a_loopback_listener_is_not_warned_of(run_sim: RunSim) -> None:
+    process, match = run_sim("--tcp", "127.0.0.1:0", "--seed", "1")
+    assert "REMOTE" not in match.string
+    process.send_signal(signal.SIGTERM)
+    _, stderr = process.communicate(timeout=5)
+    assert "WARNING" not in stderr
+    assert "anyone connected" not in stderr
+
+
 def test_leak_at_injects_a_pulse(run_sim: RunSim) -> None:
     _, match = run_sim("--pty", "--leak-at", "0.2", "--seed", "1")
     with serial.Serial(match["pty"], timeout=0.1) as port:

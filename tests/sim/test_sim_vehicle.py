@@ -158,6 +158,49 @@ def test_sideways_moves_to_starboard() -> None:
     assert abs(robot.vehicle.surge_m_s) < 0.6 * robot.vehicle.sway_m_s
 
 
+def test_a_vehicle_turning_under_way_skids_out_of_the_turn() -> None:
+    # Regression: the planar equations had no Coriolis or centripetal terms: a vehicle turning
+    # under way kept its velocity along its bow, as on rails, its sway exactly 0.
+    params = VehicleParams(yaw_disturbance_n_m=0.0)
+    vehicle = Vehicle(params, DEFAULT_THRUSTERS, random.Random(1))
+    # Full ahead on the left thrusters, less on the right: ahead and turning to starboard, and
+    # no sway thrust (the vectored thrusters' sideways pushes cancel out).
+    vehicle.set_duties([255, 230, 255, 230, 0, 0])
+    for _ in range(2000):
+        vehicle.step(0.01)
+    surge, sway, rate = vehicle.surge_m_s, vehicle.sway_m_s, vehicle.yaw_rate_rad_s
+    assert surge > 0.5
+    assert rate > 0.3
+    assert sway < -0.1  # to port: out of the starboard turn
+    # A steady turn: the sway drag holds the centripetal force m·u·r (to within what steps of
+    # 10 ms make of a turn of 70°/s).
+    drag_n = params.sway_drag_n_s2_m2 * sway * abs(sway) + params.planar_linear_drag_n_s_m * sway
+    assert drag_n == pytest.approx(-params.mass_kg * surge * rate, rel=0.04)
+
+
+def test_a_hull_without_drag_or_added_mass_goes_on_straight_while_it_spins() -> None:
+    params = VehicleParams(
+        added_mass_surge_kg=0.0,
+        added_mass_sway_kg=0.0,
+        surge_drag_n_s2_m2=0.0,
+        sway_drag_n_s2_m2=0.0,
+        planar_linear_drag_n_s_m=0.0,
+        yaw_drag_n_m_s2=0.0,
+        yaw_linear_drag_n_m_s=0.0,
+        yaw_disturbance_n_m=0.0,
+    )
+    vehicle = Vehicle(params, DEFAULT_THRUSTERS, random.Random(1))
+    heading = vehicle.heading_rad
+    vehicle.surge_m_s = 1.0
+    vehicle.yaw_rate_rad_s = 1.0  # (a turn every 6.3 s, kept: nothing damps it)
+    for _ in range(1000):
+        vehicle.step(0.01)
+    # Ten seconds, one and a half turns: 10 m along the first heading, at 1 m/s all along.
+    assert math.hypot(vehicle.surge_m_s, vehicle.sway_m_s) == pytest.approx(1.0, abs=1e-9)
+    assert vehicle.north_m == pytest.approx(10.0 * math.cos(heading), abs=0.05)
+    assert vehicle.east_m == pytest.approx(10.0 * math.sin(heading), abs=0.05)
+
+
 def test_the_heading_wanders_slowly_on_its_own() -> None:
     robot = SimulatedRobot(seed=5)
     headings = []

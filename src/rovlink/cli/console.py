@@ -7,6 +7,7 @@ Ctrl-D leaves, sending #stop! first unless the robot is locked as last sent.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import errno
 import sys
 from typing import TYPE_CHECKING, TextIO
@@ -64,6 +65,7 @@ def run(args: argparse.Namespace) -> int:
     try:
         from rovlink.console.app import RefusedLineError, run_console  # noqa: PLC0415
         from rovlink.console.history import default_history_path  # noqa: PLC0415
+        from rovlink.console.script_input import script_input  # noqa: PLC0415
     except ImportError as error:
         raise CommandError(f"needs {error.name}: pip install 'rovlink[console]'") from None
 
@@ -89,16 +91,20 @@ def run(args: argparse.Namespace) -> int:
             # service user's home that is not there): this session's history only.
             print(f"rovlink console: {error}; kept for this session only", file=sys.stderr)
             history = None
+    from_terminal = _is_terminal(sys.stdin)
     try:
-        run_async(
-            run_console(
-                connect,
-                algorithm=args.algorithm,
-                history_path=history,
-                # Lines read from a file or a pipe all run, in order, to the last.
-                from_terminal=_is_terminal(sys.stdin),
+        with contextlib.nullcontext() if from_terminal else script_input(sys.stdin):
+            run_async(
+                run_console(
+                    connect,
+                    algorithm=args.algorithm,
+                    history_path=history,
+                    # Lines read from a file or a pipe all run, in order, to the last.
+                    from_terminal=from_terminal,
+                    # (Its output to a file or a pipe is then the replies alone.)
+                    notices=lambda text: print(f"rovlink console: {text}", file=sys.stderr),
+                )
             )
-        )
     except RefusedLineError as error:
         raise CommandError(str(error)) from None
     except ValueError as error:

@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING
 from rovlink.cli.failure import CommandError, InputError, UsageError, reason
 from rovlink.cli.interrupt import ServingSignals, say_last, say_ready
 from rovlink.cli.link_options import baud_rate, file_name, seconds
+from rovlink.cli.tcp_endpoint import tcp_endpoint
 
 if TYPE_CHECKING:
     from rovlink.board.pi.config import PiConfig
@@ -222,25 +223,8 @@ def _open_endpoints(
             host, port = server.listen_tcp(*address)
         except OSError as error:
             raise CommandError(f"cannot listen on {args.tcp}: {reason(error)}") from None
-        endpoints.append(_tcp_endpoint(host, port))
+        endpoints.append(tcp_endpoint(host, port, "rovlink.board"))
     return endpoints
-
-
-def _tcp_endpoint(host: str, port: int) -> str:
-    """``tcp HOST:PORT``, and a warning in the log and in the ready line if it is not loopback."""
-    import logging  # noqa: PLC0415
-
-    from rovlink.controller.lines import is_loopback  # noqa: PLC0415
-
-    if is_loopback(host):
-        return f"tcp {host}:{port}"
-    logging.getLogger("rovlink.board").warning(
-        "listening on %s:%d for any computer that reaches it; the protocol has no "
-        "authentication: anyone connected can drive the robot",
-        host,
-        port,
-    )
-    return f"tcp {host}:{port} (REMOTE, NO AUTHENTICATION)"
 
 
 def _pi_config(args: argparse.Namespace) -> PiConfig:
@@ -295,7 +279,7 @@ def _run_sim(
                 host, port = server.listen_tcp(*address)
             except OSError as error:
                 raise CommandError(f"cannot listen on {args.tcp}: {reason(error)}") from None
-            endpoints.append(_tcp_endpoint(host, port))
+            endpoints.append(tcp_endpoint(host, port, "rovlink.board"))
         say_ready(f"rovlink controller ready: board sim, {', '.join(endpoints)}; Ctrl-C stops")
         server.serve(stop.is_set)
     finally:

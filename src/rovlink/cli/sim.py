@@ -9,6 +9,7 @@ from typing import TYPE_CHECKING
 from rovlink.cli.failure import CommandError, InputError, UsageError, reason
 from rovlink.cli.interrupt import ServingSignals, say_last, say_ready
 from rovlink.cli.link_options import baud_rate, bounded_float, file_name, log_warnings, seconds
+from rovlink.cli.tcp_endpoint import tcp_endpoint
 
 if TYPE_CHECKING:
     from rovlink.sim.robot import SimConfig
@@ -122,6 +123,9 @@ def run(args: argparse.Namespace) -> int:
     if args.leak_at is not None:
         server.robot.inject_leak(at_s=args.leak_at)
     signals: ServingSignals | None = None
+    # A simulation behind the wall clock, a failsafe, a leak, a listener other computers reach:
+    # a server's news, on stderr.
+    log_warnings()
     try:
         endpoints = []
         if args.pty or address is None:
@@ -131,10 +135,8 @@ def run(args: argparse.Namespace) -> int:
                 host, port = server.listen_tcp(*address)
             except OSError as error:
                 raise CommandError(f"cannot listen on {args.tcp}: {reason(error)}") from None
-            endpoints.append(f"tcp {host}:{port}")
+            endpoints.append(tcp_endpoint(host, port, "rovlink.sim"))
         signals = ServingSignals()
-        # A simulation behind the wall clock, a failsafe, a leak: a server's news, on stderr.
-        log_warnings()
         pacing = f"{args.baud} baud" if args.baud else "unpaced"
         say_ready(
             f"rovlink sim ready: {', '.join(endpoints)} "

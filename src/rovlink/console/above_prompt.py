@@ -7,6 +7,9 @@ moving), Ctrl-C and Ctrl-\\ are signals, Ctrl-D is lost and typed letters are ec
 middle of the output. Replies and debug lines stream in while the operator types, so that moment
 comes often. Here the prompt is erased, the line printed and the prompt drawn again, all on the
 prompt's event loop, while the prompt goes on reading its keys in raw mode.
+
+To an output that is not a terminal (a file, a pipe: prompt_toolkit's plain text output) a line
+is its text and a line end, ``\n``: not the ``\r\n`` a terminal is given.
 """
 
 from __future__ import annotations
@@ -17,10 +20,16 @@ from typing import Any
 from prompt_toolkit.application import Application, get_app_or_none, get_app_session
 from prompt_toolkit.formatted_text import FormattedText
 from prompt_toolkit.output import Output
+from prompt_toolkit.output.plain_text import PlainTextOutput
 from prompt_toolkit.renderer import print_formatted_text as render_text
 from prompt_toolkit.styles import BaseStyle
 
-__all__ = ["print_above_prompt"]
+__all__ = ["output_is_plain_text", "print_above_prompt"]
+
+
+def output_is_plain_text() -> bool:
+    """Whether the console's output is not a terminal (a file, a pipe): plain text, no prompt."""
+    return isinstance(get_app_session().output, PlainTextOutput)
 
 
 def print_above_prompt(fragments: Sequence[tuple[str, str]], style: BaseStyle) -> None:
@@ -50,5 +59,8 @@ def _print_above(
 
 
 def _print(output: Output, fragments: Sequence[tuple[str, str]], style: BaseStyle) -> None:
-    render_text(output, FormattedText([*fragments, ("", "\n")]), style)
+    if isinstance(output, PlainTextOutput):  # (its text alone, and "\n" as a file's lines end)
+        output.write("".join(text for _, text, *_ in fragments) + "\n")
+    else:
+        render_text(output, FormattedText([*fragments, ("", "\n")]), style)
     output.flush()

@@ -23,6 +23,7 @@ from prompt_toolkit.document import Document
 from prompt_toolkit.formatted_text import StyleAndTextTuples, fragment_list_width
 from prompt_toolkit.history import FileHistory, History, InMemoryHistory
 from prompt_toolkit.key_binding import KeyBindings, KeyPressEvent
+from prompt_toolkit.output import DummyOutput
 from prompt_toolkit.styles import Style
 from prompt_toolkit.utils import is_dumb_terminal
 from prompt_toolkit.validation import ValidationError, Validator
@@ -30,11 +31,12 @@ from prompt_toolkit.validation import ValidationError, Validator
 from rovlink.aio import AsyncClient
 from rovlink.client import ClientError
 from rovlink.client.options import StrayCallback
-from rovlink.console.above_prompt import print_above_prompt
+from rovlink.console.above_prompt import output_is_plain_text, print_above_prompt
 from rovlink.console.actions import InputError, Quit, parse_lines
 from rovlink.console.completion import argument_hint, suggestions
 from rovlink.console.engine import ConsoleEngine
 from rovlink.console.help import STOP_KEY_TEXT
+from rovlink.console.no_suspend import suspension_refused
 from rovlink.console.transcript import Line, error_line, info_line
 from rovlink.logs import WarningsShownBy
 from rovlink.piloting import LockState, TrackedClient
@@ -232,12 +234,16 @@ async def run_console(
     history_path: Path | None = None,
     emit: Callable[[Line], None] = _print,
     from_terminal: bool = True,
+    notices: Callable[[str], None] | None = None,
 ) -> None:
     """Connect and run the console until ``quit`` or Ctrl-D; the client is closed on the way out.
 
     ``history_path`` keeps the input history between sessions (``None``: this session only).
     ``from_terminal``: the lines are typed at a terminal, where ``quit`` and Ctrl-D leave at
-    once; ``False`` (lines read from a file or a pipe), they run in order, each to its end.
+    once; ``False`` (lines read from a file or a pipe), they run in order, each to its end, and
+    when the output is not a terminal either (a file, a pipe) it is their replies alone: no
+    prompt, no line echoed, and the console's own notice (what it is connected to) goes to
+    ``notices`` if given.
     Raises what ``connect`` raises if the connection cannot be opened, and
     :class:`RefusedLineError` for a bad line read from a file or a pipe.
     """
@@ -256,20 +262,34 @@ async def run_console(
 
     warnings = WarningsShownBy(show_warning)
     warnings.attach()
+    engine = ConsoleEngine(emit_in_console)
     try:
-        await _run_connected(connect, emit_in_console, algorithm, history_path, from_terminal)
+        # Ctrl-Z is a key while a prompt reads them; between prompts (the terminal in cooked mode
+        # for a moment), or while a script's lines run, it is a signal: said as the key is.
+        with suspension_refused(lambda: engine.say(NO_SUSPEND_TEXT)):
+            await _run_connected(
+                connect,
+                engine,
+                emit_in_console,
+                algorithm=algorithm,
+                history_path=history_path,
+                from_terminal=from_terminal,
+                notices=notices,
+            )
     finally:
         warnings.detach()
 
 
 async def _run_connected(
     connect: Connector,
+    engine: ConsoleEngine,
     emit_in_console: Callable[[Line], None],
+    *,
     algorithm: str,
     history_path: Path | None,
     from_terminal: bool,
+    notices: Callable[[str], None] | None,
 ) -> None:
-    engine = ConsoleEngine(emit_in_console)
     client = await connect(engine.on_event)
     rov = TrackedClient(client, algorithm=algorithm)
     engine.attach(rov)
@@ -286,7 +306,10 @@ async def _run_connected(
         history_path.parent.mkdir(parents=True, exist_ok=True)
         history = FileHistory(str(history_path))
     # Lines read from a file: nobody types, so no menus, and no toolbar (drawn again and again
-    # into the transcript) with a stop key that no key reaches; Ctrl-C is a signal then.
+    # into the transcript) with a stop key that no key reaches; Ctrl-C is a signal then. Nor,
+    # to a file or a pipe, a prompt: drawn as plain text it is the line echoed after
+    # "rovlink> " and the blank lines of the rows it moves through.
+    replies_alone = not from_terminal and output_is_plain_text()
     session: PromptSession[str] = PromptSession(
         [("class:prompt", "rovlink> ")],
         style=STYLE,
@@ -299,13 +322,18 @@ async def _run_connected(
         key_bindings=_stop_bindings(engine),
         bottom_toolbar=(lambda: _toolbar(rov, engine.queued)) if from_terminal else None,
         refresh_interval=_TOOLBAR_REFRESH_S if from_terminal else 0,
+        output=DummyOutput() if replies_alone else None,
     )
     stop_text = (
         f"{STOP_KEY_TEXT} sends #stop! at any time; 'help' lists commands"
         if from_terminal
         else "its lines run in order; Ctrl-C sends #stop! and ends the console"
     )
-    emit_in_console(info_line(f"connected to {client.description}; {stop_text}", "class:info"))
+    connected = f"connected to {client.description}; {stop_text}"
+    if replies_alone and notices is not None:
+        notices(connected)
+    else:
+        emit_in_console(info_line(connected, "class:info"))
     runner = asyncio.create_task(engine.run())
     refused: RefusedLineError | None = None
     lines_read = 0

@@ -17,6 +17,7 @@ from rovlink.aio import AsyncClient
 from rovlink.bridges.mqtt.bridge import REPLY_TIMEOUT_S, MqttBridge
 from rovlink.bridges.mqtt.broker import BrokerSettings
 from rovlink.bridges.mqtt.command_age import DEFAULT_MAX_COMMAND_AGE_S
+from rovlink.bridges.mqtt.outbox import DEFAULT_CAPACITY
 from rovlink.client import ClientOptions
 from rovlink.client.links import Link, PortLink
 from rovlink.piloting.tracked import TrackedClient
@@ -82,6 +83,7 @@ async def bridged_robot(
     timeout_s: float = 2.0,
     reply_timeout_s: float = REPLY_TIMEOUT_S,
     max_command_age_s: float = DEFAULT_MAX_COMMAND_AGE_S,
+    max_kept_events: int = DEFAULT_CAPACITY,
     wait_connected: bool = True,
 ) -> AsyncIterator[BridgedRobot]:
     """A bridge for a simulated robot (once connected to ``broker``, unless not
@@ -103,6 +105,7 @@ async def bridged_robot(
         allow_commands=allow_commands,
         reply_timeout_s=reply_timeout_s,
         max_command_age_s=max_command_age_s,
+        max_kept_events=max_kept_events,
     )
     task = asyncio.ensure_future(bridge.run())
     robot = BridgedRobot(robot_id, port, link, bridge, task)

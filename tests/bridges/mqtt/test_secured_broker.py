@@ -14,7 +14,7 @@ import aiomqtt
 import pytest
 
 from rovlink.aio import AsyncClient
-from rovlink.bridges.mqtt.bridge import MqttBridge
+from rovlink.bridges.mqtt.bridge import REPLY_TIMEOUT_S, MqttBridge
 from rovlink.bridges.mqtt.broker import BrokerSettings
 from rovlink.client import ClientOptions
 from rovlink.client.links import PortLink
@@ -70,12 +70,14 @@ def secured_broker(tmp_path: Path) -> Iterator[Mosquitto]:
         broker.stop()
 
 
-async def _bridge_connects(settings: BrokerSettings, within_s: float) -> bool:
+async def _bridge_connects(
+    settings: BrokerSettings, within_s: float, reply_timeout_s: float = REPLY_TIMEOUT_S
+) -> bool:
     port = SimulatedPort(seed=1)
     port.start(realtime=True)
     options = ClientOptions(keepalive_s=1.0, timeout_s=2.0, boot_timeout_s=None)
     client = await AsyncClient(PortLink(port, "simulated"), options).open()
-    bridge = MqttBridge(TrackedClient(client), settings, "rov-1")
+    bridge = MqttBridge(TrackedClient(client), settings, "rov-1", reply_timeout_s=reply_timeout_s)
     task = asyncio.ensure_future(bridge.run())
     try:
         try:
@@ -108,18 +110,36 @@ async def test_the_bridge_logs_in_over_tls(secured_broker: Mosquitto):
         assert b'"robot":"rov-1"' in first.payload
 
 
+_LOGIN_REFUSED = "cannot connect: the broker refused the login: Not authorized (check the user"
+
+
 @pytest.mark.parametrize(
-    "change",
+    ("change", "said"),
     [
-        {"password": "wrong"},
-        {"username": None, "password": None},
-        {"tls": False},
-        {"ca_file": None},  # the system's CAs do not know this broker
+        ({"password": "wrong"}, _LOGIN_REFUSED),
+        ({"username": None, "password": None}, _LOGIN_REFUSED),
+        (
+            {"tls": False},  # (its CONNECT reaches a listener waiting for a TLS handshake)
+            "cannot connect: no answer to the MQTT connection within 1 s (a stalled or "
+            "overloaded broker, or one that expects TLS: mqtts://)",
+        ),
+        (
+            {"ca_file": None},  # the system's CAs do not know this broker
+            "cannot connect: TLS failure: the broker's certificate was not accepted "
+            "(self-signed certificate in certificate chain)",
+        ),
     ],
+    ids=["wrong password", "no user", "no TLS", "no CA"],
 )
-async def test_wrong_credentials_or_trust_never_connect(
-    secured_broker: Mosquitto, change: dict[str, object]
+async def test_wrong_credentials_or_trust_never_connect_and_are_said(
+    secured_broker: Mosquitto,
+    change: dict[str, object],
+    said: str,
+    caplog: pytest.LogCaptureFixture,
 ):
+    # Regression: the retry warnings said "[code:135] Not authorized", "Operation timed out",
+    # "[SSL: CERTIFICATE_VERIFY_FAILED] certificate verify failed: … (_ssl.c:1020)".
+    caplog.set_level("WARNING", logger="rovlink.bridges.mqtt")
     settings: dict[str, object] = {
         "host": "127.0.0.1",
         "port": secured_broker.port,
@@ -129,4 +149,8 @@ async def test_wrong_credentials_or_trust_never_connect(
         "ca_file": secured_broker.workdir / "ca.pem",
     }
     settings.update(change)
-    assert not await _bridge_connects(BrokerSettings(**settings), 2.0)  # type: ignore[arg-type]
+    broker = BrokerSettings(**settings)  # type: ignore[arg-type]
+    assert not await _bridge_connects(broker, 2.0, reply_timeout_s=1.0)
+    warnings = [r.getMessage() for r in caplog.records if "retrying in" in r.getMessage()]
+    assert warnings, "the bridge must say why it retries"
+    assert warnings[0].startswith(f"broker {broker.describe()}: {said}")

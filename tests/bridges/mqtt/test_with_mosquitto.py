@@ -15,6 +15,7 @@ from paho.mqtt.properties import Properties
 
 from rovlink.bridges.mqtt.bridge import _taken_over
 from rovlink.client.errors import ConnectionLostError
+from rovlink.protocol import Command
 from tests.bridges.mqtt.broker import Mosquitto
 from tests.bridges.mqtt.rig import CONDITION_TIMEOUT_S, bridged_robot, subscriber, until
 
@@ -255,6 +256,38 @@ async def test_broker_restart_reconnects_and_keeps_events(broker: Mosquitto):
             )
             assert resumed["leak"] is True
         assert len(robot.bridge.outbox) == 0
+
+
+async def test_events_dropped_during_an_outage_are_said_when_the_broker_is_back(
+    broker: Mosquitto, caplog: pytest.LogCaptureFixture
+):
+    # Regression: beyond the events kept (1000; 2 here) the oldest were dropped and only
+    # counted: subscribers got the kept ones as if nothing had happened before them.
+    caplog.set_level("WARNING", logger="rovlink.bridges.mqtt")
+    async with bridged_robot(broker, "k1", motion_timeout_s=0.05, max_kept_events=2) as robot:
+        # A persistent session: the broker keeps for it what the bridge publishes at reconnection.
+        async with subscriber(broker, "rovlink/k1/events", identifier="k1-watcher", clean=False):
+            pass
+        broker.stop()
+        await until(lambda: not robot.bridge.connected.is_set())
+        outbox = robot.bridge.outbox
+        for happened in range(1, 6):  # five failsafe events (motion not renewed) in the outage
+            await robot.bridge.rov.send(Command("th", (90, 10)))
+            await until(lambda n=happened: outbox.dropped + len(outbox) >= n)  # type: ignore[misc]
+        broker.start()
+        async with subscriber(
+            broker, "rovlink/k1/events", identifier="k1-watcher", clean=False
+        ) as watcher:
+            await until(lambda: len(watcher.on("rovlink/k1/events")) >= 3)
+            events = watcher.on("rovlink/k1/events")
+    assert [event["event"] for event in events] == ["events_dropped", "failsafe", "failsafe"]
+    said, first_kept = events[0], events[1]
+    assert said["dropped"] == 3
+    assert said["first_dropped_at"] < said["last_dropped_at"] <= first_kept["at"]
+    assert said["detail"].startswith("3 events dropped while the broker could not take them")
+    logged = [record.getMessage() for record in caplog.records]
+    assert any("oldest now give way" in line for line in logged)  # as it began
+    assert f"broker {broker.url}: {said['detail']}" in logged  # and once it was back
 
 
 async def _ask_with_response_topic(

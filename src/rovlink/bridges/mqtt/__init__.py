@@ -2,5 +2,6 @@
 
 The pure parts — :mod:`broker` (the broker's address and credentials), :mod:`topics`,
 :mod:`payloads` (what each topic carries), :mod:`commands` (the command topic's rules),
-:mod:`outbox` and :mod:`fleet_view` — need no MQTT library; :mod:`bridge` runs them on aiomqtt.
+:mod:`outbox`, :mod:`fleet_view` and :mod:`broker_failure` (what went wrong with the broker, in
+words) — need no MQTT library; :mod:`bridge` runs them on aiomqtt.
 """

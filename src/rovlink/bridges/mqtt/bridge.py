@@ -7,7 +7,9 @@ QoS and what survives a broker outage:
 * ``state``: QoS 1, retained, published on every change and every few seconds, and again on
   each reconnect: a subscriber always gets the latest state, never a stale one.
 * ``events``: QoS 1, at least once. Events that happen while the broker is away are kept (up
-  to 1000) and published, in order, when it is back.
+  to 1000) and published, in order, when it is back; beyond that the oldest give way, and an
+  ``events_dropped`` event published ahead of the kept ones says how many and when (and so does
+  the log).
 * ``cmd``: QoS 1 with a clean session: a command published while the bridge is away is not kept
   for later (a late ``th 90 100`` is not what anyone wants); the sender gets no reply.
   Commands are carried out in order, one at a time; a ``stop`` at once, ahead of the rest.
@@ -34,6 +36,7 @@ from typing import Any
 from rovlink.aio.wakeup import wait_for_event
 from rovlink.bridges.kept_settings import KeptSettings
 from rovlink.bridges.mqtt.broker import BrokerSettings
+from rovlink.bridges.mqtt.broker_failure import broker_failure
 from rovlink.bridges.mqtt.command_age import (
     DEFAULT_MAX_COMMAND_AGE_S,
     BrokerSilence,
@@ -41,12 +44,13 @@ from rovlink.bridges.mqtt.command_age import (
 )
 from rovlink.bridges.mqtt.commands import CommandPolicy
 from rovlink.bridges.mqtt.connection import broker_connection
-from rovlink.bridges.mqtt.outbox import Outbox
+from rovlink.bridges.mqtt.outbox import DEFAULT_CAPACITY, KeptEvent, Outbox
 from rovlink.bridges.mqtt.payloads import (
     CommandRequest,
     PayloadError,
     encode,
     event_payload,
+    events_dropped_payload,
     offline_state,
     read_request,
     reply_payload,
@@ -153,6 +157,7 @@ class MqttBridge:
         allow_commands: bool = False,
         reply_timeout_s: float = REPLY_TIMEOUT_S,
         max_command_age_s: float = DEFAULT_MAX_COMMAND_AGE_S,
+        max_kept_events: int = DEFAULT_CAPACITY,
         wall_clock: Callable[[], float] = time.time,
     ) -> None:
         self.rov = rov
@@ -160,7 +165,10 @@ class MqttBridge:
         self.topics = Topics(robot_id)
         self.robot_id = robot_id
         self.policy = CommandPolicy(allow_commands=allow_commands)
-        self.outbox = Outbox()
+        #: Events waiting for the broker; beyond ``max_kept_events`` the oldest give way.
+        self.outbox = Outbox(max_kept_events)
+        #: The outbox has dropped events since it was last said (logged once an outage).
+        self._dropping = False
         #: How long the broker has to answer a connection, subscription or publication, s.
         self.reply_timeout_s = reply_timeout_s
         #: A command that would move or unlock the robot and is older than this is refused, s.
@@ -267,8 +275,14 @@ class MqttBridge:
                         raise
             except aiomqtt.MqttError as error:
                 self.connected.clear()
+                failure = broker_failure(
+                    error,
+                    self.broker,
+                    connected=connected_at_s is not None,
+                    reply_timeout_s=self.reply_timeout_s,
+                )
                 if connected_at_s is not None:
-                    await self._zero_thrust(f"broker {self.broker.describe()} lost: {error}")
+                    await self._zero_thrust(f"broker {self.broker.describe()} {failure}")
                     # The backoff starts again only after a connection that held: one ended at
                     # once, again and again, is no broker restart.
                     if loop.time() - connected_at_s >= _STABLE_CONNECTION_S:
@@ -276,7 +290,7 @@ class MqttBridge:
                     else:
                         short_lived += 1
                 logger.warning(
-                    "broker %s: %s; retrying in %g s", self.broker.describe(), error, wait_s
+                    "broker %s: %s; retrying in %g s", self.broker.describe(), failure, wait_s
                 )
                 if short_lived >= _SHORT_LIVED_WARNING:
                     logger.error(
@@ -462,18 +476,35 @@ class MqttBridge:
         self._last_state_at_s = now_s
 
     async def _publish_kept_events(self, mqtt: Any) -> None:
-        """Publish the kept events, oldest first. Each publish goes on when its caller is
-        cancelled, so that the goodbye that follows waits for it rather than sending it twice."""
-        while (kept := self.outbox.peek()) is not None:
+        """Publish the kept events, oldest first, after saying how many were dropped if the
+        outbox was full. Each publish goes on when its caller is cancelled, so that the goodbye
+        that follows waits for it rather than sending it twice."""
+        while True:
+            self._say_drops()
+            kept = self.outbox.peek()
+            if kept is None:
+                return
             publish = self._event_publish
             if publish is None or publish.done():
-                publish = asyncio.ensure_future(self._publish_event(mqtt, *kept))
+                publish = asyncio.ensure_future(self._publish_event(mqtt, kept))
                 self._event_publish = publish
             await asyncio.shield(publish)
 
-    async def _publish_event(self, mqtt: Any, topic: str, payload: bytes) -> None:
-        await self._publish_reliably(mqtt, topic, payload)
-        self.outbox.done()
+    async def _publish_event(self, mqtt: Any, event: KeptEvent) -> None:
+        await self._publish_reliably(mqtt, event.topic, event.payload)
+        self.outbox.done(event)
+
+    def _say_drops(self) -> None:
+        """The events the full outbox dropped, said in the log and in an ``events_dropped``
+        event ahead of the kept ones (the dropped ones came before them)."""
+        drops = self.outbox.take_drops()
+        if drops is None:
+            return
+        self._dropping = False
+        at_s = self._wall_clock()
+        payload = events_dropped_payload(self.robot_id, drops, self.outbox.capacity, at_s)
+        logger.warning("broker %s: %s", self.broker.describe(), payload["detail"])
+        self.outbox.put_first(self.topics.events, encode(payload), at_s)
 
     async def _publish_reliably(self, mqtt: Any, topic: str, payload: bytes, **kwargs: Any) -> None:
         """Publish at QoS 1, timing the broker's answer (a stalled broker's silence)."""
@@ -739,8 +770,16 @@ class MqttBridge:
 
     def _event(self, name: str, detail: str) -> None:
         logger.info("event %s: %s", name, detail)
-        payload = event_payload(self.robot_id, name, detail, self._wall_clock())
-        self.outbox.put(self.topics.events, encode(payload))
+        at_s = self._wall_clock()
+        payload = event_payload(self.robot_id, name, detail, at_s)
+        if self.outbox.put(self.topics.events, encode(payload), at_s) and not self._dropping:
+            self._dropping = True
+            logger.warning(
+                "broker %s has not taken the last %d events: the oldest now give way (how many "
+                "is published when it takes them again)",
+                self.broker.describe(),
+                self.outbox.capacity,
+            )
         self._wake_publisher.set()
 
 

@@ -12,8 +12,10 @@ from __future__ import annotations
 import json
 import math
 from dataclasses import dataclass
+from datetime import datetime, timezone
 from typing import Any
 
+from rovlink.bridges.mqtt.outbox import DroppedEvents
 from rovlink.client.sensors import Sensors
 from rovlink.piloting.commanded import CommandedState
 from rovlink.piloting.health import LinkHealth
@@ -25,6 +27,7 @@ __all__ = [
     "PayloadError",
     "encode",
     "event_payload",
+    "events_dropped_payload",
     "offline_state",
     "read_request",
     "reply_payload",
@@ -126,8 +129,46 @@ def offline_state(robot: str, reason: str) -> dict[str, Any]:
 
 
 def event_payload(robot: str, event: str, detail: str, at_s: float) -> dict[str, Any]:
-    """An event: ``leak``, ``failsafe``, ``reset_suspected``, ``link``, ``motion_expired``."""
+    """An event: ``leak``, ``failsafe``, ``reset_suspected``, ``link``, ``events_dropped``."""
     return {"robot": robot, "at": round(at_s, 3), "event": event, "detail": detail}
+
+
+def events_dropped_payload(
+    robot: str, drops: DroppedEvents, kept: int, at_s: float
+) -> dict[str, Any]:
+    """The ``events_dropped`` event: how many events a full outbox dropped while the broker
+    could not take them, and when the first and the last of them happened (``first_dropped_at``,
+    ``last_dropped_at``, Unix time, s).
+
+    >>> payload = events_dropped_payload("rov-1", DroppedEvents(3, 0.0, 1.5), 1000, 60.0)
+    >>> payload["dropped"], payload["last_dropped_at"]
+    (3, 1.5)
+    >>> for part in payload["detail"].split(": "):
+    ...     print(part)
+    3 events dropped while the broker could not take them (the bridge keeps the latest 1000)
+    they happened from 1970-01-01T00:00:00.000Z to 1970-01-01T00:00:01.500Z
+    """
+    what = "1 event" if drops.count == 1 else f"{drops.count} events"
+    when = (
+        f"it happened at {_utc(drops.first_at_s)}"
+        if drops.count == 1
+        else f"they happened from {_utc(drops.first_at_s)} to {_utc(drops.last_at_s)}"
+    )
+    detail = (
+        f"{what} dropped while the broker could not take them "
+        f"(the bridge keeps the latest {kept}): {when}"
+    )
+    payload = event_payload(robot, "events_dropped", detail, at_s)
+    payload["dropped"] = drops.count
+    payload["first_dropped_at"] = round(drops.first_at_s, 3)
+    payload["last_dropped_at"] = round(drops.last_at_s, 3)
+    return payload
+
+
+def _utc(at_s: float) -> str:
+    """``2026-11-27T14:10:01.234Z``."""
+    moment = datetime.fromtimestamp(at_s, timezone.utc)
+    return moment.strftime("%Y-%m-%dT%H:%M:%S.") + f"{moment.microsecond // 1000:03d}Z"
 
 
 def reply_payload(

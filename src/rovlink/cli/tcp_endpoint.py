@@ -1,0 +1,33 @@
+"""The ready line's ``tcp HOST:PORT`` for a robot served on TCP: said loudly, and warned of in
+the log, when other computers can reach it (the protocol has no authentication)."""
+
+from __future__ import annotations
+
+__all__ = ["REMOTE_MARK", "tcp_endpoint"]
+
+#: Follows the address in the ready line when it is not a loopback address.
+REMOTE_MARK = "(REMOTE, NO AUTHENTICATION)"
+
+
+def tcp_endpoint(host: str, port: int, logger_name: str) -> str:
+    """``tcp HOST:PORT``; for a listener other computers reach (``0.0.0.0``, a LAN address),
+    :data:`REMOTE_MARK` after it and a warning on ``logger_name`` that anyone can drive the robot.
+
+    >>> tcp_endpoint("127.0.0.1", 5760, "rovlink.sim")
+    'tcp 127.0.0.1:5760'
+    """
+    import logging  # noqa: PLC0415 - kept off the command line's start-up path
+
+    from rovlink.controller.lines import is_loopback  # noqa: PLC0415
+
+    if is_loopback(host):
+        return f"tcp {host}:{port}"
+    everywhere = " (every network interface)" if host in ("0.0.0.0", "::") else ""
+    logging.getLogger(logger_name).warning(
+        "listening on %s:%d%s for any computer that reaches it; the protocol has no "
+        "authentication: anyone connected can drive the robot",
+        host,
+        port,
+        everywhere,
+    )
+    return f"tcp {host}:{port} {REMOTE_MARK}"
