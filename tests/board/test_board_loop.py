@@ -20,6 +20,7 @@ from rovlink.board.pi.board import fake_bus_for, open_pi_board
 from rovlink.board.pi.config import PiConfig
 from rovlink.board.pi.fake_bus import FakeBno055, FakeI2cBus, FakeMs5837, FakePca9685
 from rovlink.board.server import BoardServer
+from rovlink.board.watchdog_bounds import MAX_BOARD_WATCHDOG_S
 from tests.board.rig import (
     CLAW_CHANNEL,
     COUNT_US,
@@ -135,7 +136,7 @@ def test_the_link_loss_watchdog_gives_neutral() -> None:
 
 
 def test_an_exception_in_the_control_loop_ends_it_at_neutral() -> None:
-    with running(_quick(watchdog_s=0.0)) as rig:
+    with running(_quick(watchdog_s=MAX_BOARD_WATCHDOG_S)) as rig:
         rig.send(b"#start!#th.90.50!")
         assert wait_until(rig.moving_as_commanded)
 
@@ -150,7 +151,7 @@ def test_an_exception_in_the_control_loop_ends_it_at_neutral() -> None:
 
 
 def test_one_failed_write_to_the_pwm_board_is_retried() -> None:
-    with running(_quick(watchdog_s=0.0)) as rig:
+    with running(_quick(watchdog_s=MAX_BOARD_WATCHDOG_S)) as rig:
         rig.send(b"#start!")
         rig.bus.fail(0x40, 1)
         rig.send(b"#th.90.50!")
@@ -160,7 +161,7 @@ def test_one_failed_write_to_the_pwm_board_is_retried() -> None:
 
 
 def test_an_i2c_error_on_the_pwm_board_ends_the_loop_at_neutral_after_a_retry() -> None:
-    with running(_quick(watchdog_s=0.0)) as rig:
+    with running(_quick(watchdog_s=MAX_BOARD_WATCHDOG_S)) as rig:
         rig.send(b"#start!#th.90.50!")
         assert wait_until(rig.moving_as_commanded)
         # The stop's write and its retry fail, and so does the first attempt at neutral.
@@ -175,7 +176,7 @@ def test_an_i2c_error_on_the_pwm_board_ends_the_loop_at_neutral_after_a_retry() 
 def test_a_failed_write_to_the_moving_claw_does_not_hold_up_the_stop() -> None:
     # Before, the stop wrote the claw's rest first, without a retry: one I²C error on it ended
     # the stop (and the loop) before the thrusters were set to neutral.
-    with running(_quick(watchdog_s=0.0, claw_pulse_ms=5000)) as rig:
+    with running(_quick(watchdog_s=MAX_BOARD_WATCHDOG_S, claw_pulse_ms=5000)) as rig:
         rig.send(b"#start!#th.90.50!#h+!")
         claw = lambda: pulses(rig.bus.snapshot(), [CLAW_CHANNEL])[0]  # noqa: E731
         at_rest = lambda: claw() == pytest.approx(1500.0, abs=COUNT_US)  # noqa: E731
@@ -189,7 +190,7 @@ def test_a_failed_write_to_the_moving_claw_does_not_hold_up_the_stop() -> None:
 
 
 def test_a_stale_pressure_sensor_stops_the_motors_until_it_answers() -> None:
-    with running(_quick(watchdog_s=0.0)) as rig:
+    with running(_quick(watchdog_s=MAX_BOARD_WATCHDOG_S)) as rig:
         rig.send(b"#debug1!#start!#th.90.50!")
         assert wait_until(rig.moving_as_commanded)
         rig.bus.fail(0x76, 10**6)
@@ -209,7 +210,7 @@ def test_a_stale_pressure_sensor_stops_the_motors_until_it_answers() -> None:
 
 
 def test_fewer_failures_than_the_limit_do_not_stop_the_motors() -> None:
-    with running(_quick(watchdog_s=0.0)) as rig:
+    with running(_quick(watchdog_s=MAX_BOARD_WATCHDOG_S)) as rig:
         rig.send(b"#debug1!#start!#th.90.50!")
         assert wait_until(rig.moving_as_commanded)
         rig.bus.fail(0x76, 2)
@@ -221,7 +222,7 @@ def test_fewer_failures_than_the_limit_do_not_stop_the_motors() -> None:
 
 
 def test_a_pressure_sensor_reset_mid_dive_costs_one_read_and_depth_comes_back() -> None:
-    with running(_quick(watchdog_s=0.0)) as rig:
+    with running(_quick(watchdog_s=MAX_BOARD_WATCHDOG_S)) as rig:
         ms5837 = rig.bus.devices[0x76]
         assert isinstance(ms5837, FakeMs5837)
         rig.send(b"#debug1!#start!#th.90.50!")
@@ -244,7 +245,7 @@ def test_a_pressure_sensor_reset_mid_dive_costs_one_read_and_depth_comes_back() 
 
 
 def test_a_leak_pulse_stops_the_motors_with_leak_action_stop() -> None:
-    with running(_quick(watchdog_s=0.0)) as rig:
+    with running(_quick(watchdog_s=MAX_BOARD_WATCHDOG_S)) as rig:
         rig.send(b"#start!#th.90.50!")
         assert wait_until(rig.moving_as_commanded)
         pin = rig.pins.pin(27)
@@ -256,7 +257,7 @@ def test_a_leak_pulse_stops_the_motors_with_leak_action_stop() -> None:
 
 
 def test_the_claw_motor_runs_for_its_pulse_then_stops() -> None:
-    with running(_quick(watchdog_s=0.0, claw_pulse_ms=200)) as rig:
+    with running(_quick(watchdog_s=MAX_BOARD_WATCHDOG_S, claw_pulse_ms=200)) as rig:
         rig.send(b"#start!#h+!")
         claw = lambda: pulses(rig.bus.snapshot(), [CLAW_CHANNEL])[0]  # noqa: E731
         assert wait_until(lambda: claw() == pytest.approx(1900.0, abs=COUNT_US))
@@ -359,7 +360,7 @@ def test_overruns_are_counted_and_logged(caplog: pytest.LogCaptureFixture) -> No
     import time
 
     caplog.set_level("WARNING", logger="rovlink.board")
-    with running(_quick(watchdog_s=0.0)) as rig:
+    with running(_quick(watchdog_s=MAX_BOARD_WATCHDOG_S)) as rig:
         sensor = rig.server.board.sensors[0]
         source = sensor._source
         slow_polls = [3]
@@ -385,7 +386,7 @@ def _chip_pulses(rig: Running) -> list[float | None]:
 
 
 def test_a_pwm_board_reset_is_found_reported_restarted_at_neutral_and_locks() -> None:
-    with running(_quick(watchdog_s=0.0)) as rig:
+    with running(_quick(watchdog_s=MAX_BOARD_WATCHDOG_S)) as rig:
         chip = rig.bus.devices[0x40]
         assert isinstance(chip, FakePca9685)
         rig.send(b"#debug1!#start!#th.90.50!")
@@ -408,7 +409,7 @@ def test_a_pwm_board_reset_is_found_reported_restarted_at_neutral_and_locks() ->
 
 
 def test_a_pwm_board_reset_while_locked_is_reported_and_repaired() -> None:
-    with running(_quick(watchdog_s=0.0)) as rig:
+    with running(_quick(watchdog_s=MAX_BOARD_WATCHDOG_S)) as rig:
         chip = rig.bus.devices[0x40]
         assert isinstance(chip, FakePca9685)
         rig.send(b"#debug1!")
@@ -424,7 +425,7 @@ def test_a_pwm_board_that_fails_its_check_does_not_end_the_loop(
     caplog: pytest.LogCaptureFixture,
 ) -> None:
     caplog.set_level("INFO", logger="rovlink.board")
-    with running(_quick(watchdog_s=0.0)) as rig:
+    with running(_quick(watchdog_s=MAX_BOARD_WATCHDOG_S)) as rig:
         # Locked and still: the only transactions with the chip are the checks' reads.
         rig.bus.fail(0x40, 3)
         assert wait_until(lambda: sum(t.failed for t in rig.bus.snapshot()) == 3)
@@ -453,7 +454,7 @@ def test_the_pwm_board_check_can_be_turned_off() -> None:
 
 
 def test_an_imu_reset_is_repaired_before_it_goes_stale() -> None:
-    with running(with_controller(example_config(), watchdog_s=0.0)) as rig:
+    with running(with_controller(example_config(), watchdog_s=MAX_BOARD_WATCHDOG_S)) as rig:
         bno = rig.bus.devices[0x28]
         assert isinstance(bno, FakeBno055)
         rig.send(b"#debug1!#start!#th.90.50!")
@@ -470,18 +471,23 @@ def test_an_imu_reset_is_repaired_before_it_goes_stale() -> None:
     assert not rig.errors
 
 
-@pytest.mark.parametrize(("watchdog_s", "warned"), [(0.0, True), (2.0, False)])
-def test_a_board_served_without_the_link_loss_failsafe_says_so(
-    caplog: pytest.LogCaptureFixture, watchdog_s: float, warned: bool
+@pytest.mark.parametrize(
+    ("watchdog_s", "reason"),
+    [
+        (0.0, "got 0, which turns the link-loss failsafe off (P17)"),
+        (3600.0, "got 3600: a dead link would leave the thrusters running that long"),
+    ],
+)
+def test_a_board_is_never_served_without_a_link_loss_failsafe(
+    watchdog_s: float, reason: str
 ) -> None:
     # watchdog_s = 0, handy on the simulator's bench, on a robot leaves a dead link's last
-    # command running: the journal must show it from the start.
-    caplog.set_level("WARNING", logger="rovlink.board")
+    # command running: the board loop refuses it even from a config its file checks skipped.
     config = _quick(watchdog_s=watchdog_s)
     board = open_pi_board(config, bus=fake_bus_for(config), pin_factory=_mock_pins())
     try:
-        BoardServer(config.controller, board)
+        with pytest.raises(ValueError, match=r"watchdog_s must be 0\.1–10 s on a robot") as caught:
+            BoardServer(config.controller, board)
     finally:
         board.close()
-    messages = [record.getMessage() for record in caplog.records]
-    assert any("link-loss failsafe is off" in message for message in messages) is warned
+    assert reason in str(caught.value)

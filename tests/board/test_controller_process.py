@@ -15,6 +15,7 @@ from pathlib import Path
 import pytest
 
 import rovlink
+from rovlink.board.watchdog_bounds import MAX_BOARD_WATCHDOG_S
 from rovlink.client.blocking import Client
 from tests.board.controller_process import (
     ControllerProcess,
@@ -63,7 +64,7 @@ def test_a_signal_ends_the_process_with_the_thrusters_at_neutral(
     tmp_path: Path, signum: int, status: int
 ) -> None:
     log = tmp_path / "i2c.jsonl"
-    config = make_fake_toml(tmp_path, log, watchdog_s=0.0)
+    config = make_fake_toml(tmp_path, log, watchdog_s=MAX_BOARD_WATCHDOG_S)
     with running_controller(tmp_path, "--config", str(config), "--pty") as controller:
         assert controller.pty_path is not None
         assert "board pi" in controller.ready_line
@@ -93,7 +94,7 @@ def test_a_killed_controller_is_set_to_neutral_by_the_units_exec_stop_post(
     tmp_path: Path,
 ) -> None:
     log = tmp_path / "i2c.jsonl"
-    config = make_fake_toml(tmp_path, log, watchdog_s=0.0)
+    config = make_fake_toml(tmp_path, log, watchdog_s=MAX_BOARD_WATCHDOG_S)
     stop_post = [
         str(config) if a == "/etc/rovlink/rov.toml" else a for a in _unit_line("ExecStopPost")
     ]
@@ -118,7 +119,7 @@ def test_a_second_controller_on_the_same_pwm_board_is_refused_before_touching_it
     # on one PCA9685 each write only what they believe changed: `#stop!` sent to one would not
     # stop what the other set running. The second refuses before a single transaction.
     log = tmp_path / "i2c.jsonl"
-    config = make_fake_toml(tmp_path, log, watchdog_s=0.0)
+    config = make_fake_toml(tmp_path, log, watchdog_s=MAX_BOARD_WATCHDOG_S)
     with (
         running_controller(tmp_path, "--config", str(config), "--pty") as controller,
         _moving_robot(controller, log) as rov,
@@ -186,7 +187,7 @@ def test_the_driver_passes_the_simulators_tests_against_the_pi_board(
 
 def test_serving_a_serial_device_exclusively(tmp_path: Path) -> None:
     log = tmp_path / "i2c.jsonl"
-    config = make_fake_toml(tmp_path, log, watchdog_s=0.0)
+    config = make_fake_toml(tmp_path, log, watchdog_s=MAX_BOARD_WATCHDOG_S)
     master, slave = os.openpty()
     tty.setraw(slave)
     device = os.ttyname(slave)
@@ -209,7 +210,9 @@ def test_serving_a_serial_device_exclusively(tmp_path: Path) -> None:
             # board of its own: on the same board it would be refused before the device.)
             other = tmp_path / "other"
             other.mkdir()
-            other_config = make_fake_toml(other, other / "i2c.jsonl", watchdog_s=0.0)
+            other_config = make_fake_toml(
+                other, other / "i2c.jsonl", watchdog_s=MAX_BOARD_WATCHDOG_S
+            )
             second = subprocess.run(
                 controller_command("--config", str(other_config), "--port", device),
                 capture_output=True,
@@ -259,6 +262,13 @@ def test_a_wrong_config_is_one_line_naming_the_key(tmp_path: Path) -> None:
     assert result.returncode == 2
     assert result.stderr.strip().count("\n") == 0
     assert "[esc.rear_right] channel: 2 is already used by [esc.rear_left]" in result.stderr
+
+
+@pytest.mark.parametrize("watchdog", ["0", "3600"])
+def test_a_robot_is_never_served_without_a_link_loss_failsafe(watchdog: str) -> None:
+    result = _run("--config", str(EXAMPLE), "--pty", "--watchdog", watchdog)
+    assert result.returncode == 2
+    assert f"--watchdog must be 0.1–10 s on a robot, got {watchdog}" in result.stderr
 
 
 def test_usage_errors() -> None:

@@ -167,6 +167,50 @@ def test_an_address_on_another_bus_or_of_a_device_not_fitted_is_no_conflict(
     _load(**changes)
 
 
+@pytest.mark.parametrize(
+    ("watchdog_s", "reason"),
+    [
+        # P17's "0 disables" is for the simulator's bench: on a robot a dead link would leave
+        # the thrusters running.
+        ("0", "must be 0.1–10 s on a robot, got 0, which turns the link-loss failsafe off"),
+        ("0.0", "must be 0.1–10 s on a robot, got 0, which turns the link-loss failsafe off"),
+        ("7200", "must be 0.1–10 s on a robot, got 7200: a dead link would leave the thrusters"),
+        ("10.5", "must be 0.1–10 s on a robot, got 10.5"),
+        ("0.05", "must be 0.1–10 s on a robot, got 0.05"),
+        ("1e-9", "must be 0.1–10 s on a robot, got 1e-09"),
+    ],
+)
+def test_the_link_loss_failsafe_of_a_robot_is_bounded(
+    tmp_path: Path, watchdog_s: str, reason: str
+) -> None:
+    path = tmp_path / "rov.toml"
+    text = EXAMPLE.read_text(encoding="utf-8")
+    path.write_text(text.replace("watchdog_s = 2.0", f"watchdog_s = {watchdog_s}"), "utf-8")
+    with pytest.raises(ConfigError) as caught:
+        load_pi_config(path)
+    assert str(caught.value).startswith(f"{path} [controller] watchdog_s: {reason}")
+
+
+@pytest.mark.parametrize("watchdog_s", ["nan", "inf", "-1", "-0.5"])
+def test_a_link_loss_failsafe_that_is_no_duration_is_refused(
+    tmp_path: Path, watchdog_s: str
+) -> None:
+    path = tmp_path / "rov.toml"
+    text = EXAMPLE.read_text(encoding="utf-8")
+    path.write_text(text.replace("watchdog_s = 2.0", f"watchdog_s = {watchdog_s}"), "utf-8")
+    with pytest.raises(ConfigError, match=r"\[controller\]: watchdog_s must be ≥ 0") as caught:
+        load_pi_config(path)
+    assert str(caught.value).startswith(str(path))
+
+
+@pytest.mark.parametrize("watchdog_s", [0.1, 2.0, 10.0])
+def test_a_link_loss_failsafe_within_the_bounds_is_taken(tmp_path: Path, watchdog_s: float) -> None:
+    path = tmp_path / "rov.toml"
+    text = EXAMPLE.read_text(encoding="utf-8")
+    path.write_text(text.replace("watchdog_s = 2.0", f"watchdog_s = {watchdog_s}"), "utf-8")
+    assert load_pi_config(path).controller.watchdog_s == watchdog_s
+
+
 def test_a_file_that_is_not_toml(tmp_path: Path) -> None:
     path = tmp_path / "rov.toml"
     path.write_text("[pca9685\naddress = 1\n", encoding="utf-8")

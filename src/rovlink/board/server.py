@@ -17,6 +17,7 @@ from collections.abc import Callable
 
 from rovlink.board.board import Board, DeviceCheck
 from rovlink.board.schedule import FixedRateSchedule
+from rovlink.board.watchdog_bounds import board_watchdog_problem
 from rovlink.controller import ControllerConfig
 from rovlink.controller.controller import Controller
 from rovlink.controller.lines import Line, Lines
@@ -33,7 +34,11 @@ _SAFE_ATTEMPTS = 3
 
 
 class BoardServer:
-    """The controller on ``board``, served on a serial device, a PTY and/or TCP."""
+    """The controller on ``board``, served on a serial device, a PTY and/or TCP.
+
+    Raises :class:`ValueError` if ``config`` has the link-loss failsafe off or too long for a
+    robot (:mod:`rovlink.board.watchdog_bounds`).
+    """
 
     def __init__(
         self,
@@ -44,11 +49,9 @@ class BoardServer:
     ) -> None:
         self.board = board
         self.clock = board.hardware.clock
-        if not config.watchdog_s:
-            logger.warning(
-                "the link-loss failsafe is off (watchdog_s 0): a link that dies leaves the "
-                "thrusters as last commanded"
-            )
+        problem = board_watchdog_problem(config.watchdog_s)
+        if problem is not None:  # (a board's config refuses it first, naming its file)
+            raise ValueError(f"watchdog_s {problem}")
         self.controller = Controller(config, board.hardware, self._from_controller)
         self.schedule = FixedRateSchedule(config.tick_s, self.clock.now_s())
         self._overrun_warning_s = overrun_warning_s

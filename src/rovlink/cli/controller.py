@@ -93,7 +93,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--watchdog",
         type=_watchdog_seconds,
         metavar="SECONDS",
-        help="link-loss failsafe timeout (default: from the config, 2 s); 0 turns it off",
+        help="link-loss failsafe timeout (default: from the config, 2 s); --board pi: "
+        "0.1–10 s, --board sim: 0 turns it off",
     )
 
 
@@ -256,6 +257,11 @@ def _pi_config(args: argparse.Namespace) -> PiConfig:
     except ConfigError as error:
         raise InputError(str(error)) from None
     if args.watchdog is not None:
+        from rovlink.board.watchdog_bounds import board_watchdog_problem  # noqa: PLC0415
+
+        problem = board_watchdog_problem(args.watchdog)
+        if problem is not None:
+            raise UsageError(f"--watchdog {problem}")
         controller = dataclasses.replace(config.controller, watchdog_s=args.watchdog)
         config = dataclasses.replace(config, controller=controller)
     return config

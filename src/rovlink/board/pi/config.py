@@ -21,6 +21,7 @@ from rovlink.board.pi.bno055 import PLACEMENTS
 from rovlink.board.pi.ms5837 import OVERSAMPLING, Ms5837Model
 from rovlink.board.pi.pca9685 import CHANNELS, DEFAULT_OSCILLATOR_HZ, prescale_for
 from rovlink.board.pi.pressure import MIN_SCALE_K
+from rovlink.board.watchdog_bounds import board_watchdog_problem
 from rovlink.controller import ControllerConfig, config_from_mapping
 from rovlink.controller.config import (
     ConfigError,
@@ -484,6 +485,7 @@ def pi_config_from_mapping(data: Mapping[str, Any], source: str = "rov.toml") ->
     _check_addresses(config, source)
     _check_pulses_fit(config, source)
     _check_depth_scale(config, source)
+    _check_watchdog(config, source)
     return config
 
 
@@ -580,6 +582,12 @@ def _check_depth_scale(config: PiConfig, source: str) -> None:
         f"{source} [depth]: k must be in {MIN_SCALE_K}–10000 on a Pi board "
         f"(a raw count is k / 100 cm of water), got {k}",
     )
+
+
+def _check_watchdog(config: PiConfig, source: str) -> None:
+    """The link-loss failsafe is what stops a robot whose link died: never off, never hours."""
+    problem = board_watchdog_problem(config.controller.watchdog_s)
+    _require(problem is None, f"{source} [controller] watchdog_s: {problem}")
 
 
 def pi_config_reference() -> str:
