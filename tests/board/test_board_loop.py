@@ -209,6 +209,34 @@ def test_a_stale_pressure_sensor_stops_the_motors_until_it_answers() -> None:
     assert not rig.errors
 
 
+def test_a_dead_imu_is_said_to_be_stale_and_the_robot_can_still_be_driven() -> None:
+    # The controller steers by no attitude (no yaw command, P11: no heading hold), so a dead
+    # compass must not stop the thrusters mid-dive; the pilot is told what no longer reads.
+    with running(with_controller(example_config(), watchdog_s=MAX_BOARD_WATCHDOG_S)) as rig:
+        rig.send(b"#debug1!#start!#th.90.50!")
+        assert wait_until(rig.moving_as_commanded)
+        imu = rig.server.board.sensors[1]
+        rig.bus.fail(0x28, 10**6)
+        assert wait_until(
+            lambda: rig.saw(
+                b"IMU BNO055 at 0x28 stale (5 failed reads in a row): roll, pitch and heading "
+                b"are not measured, qro, qpi and qhe repeat the last good reading; driving goes on"
+            )
+        ), rig.received
+        assert imu.stale
+        assert not rig.server.controller.locked
+        assert rig.moving_as_commanded(), rig.pulses()
+        rig.send(b"#th.0.0!#qsa!")  # still driven by hand, and every sensor still answers
+        assert wait_until(lambda: rig.saw(b"$qhe.90!"))
+        assert wait_until(rig.neutral), rig.pulses()
+        rig.send(b"#th.90.50!")
+        assert wait_until(rig.moving_as_commanded), rig.pulses()
+        assert b"failsafe" not in rig.received
+        rig.bus.fail(0x28, 0)
+        assert wait_until(lambda: rig.saw(b"IMU BNO055 at 0x28 answers again"))
+    assert not rig.errors
+
+
 def test_fewer_failures_than_the_limit_do_not_stop_the_motors() -> None:
     with running(_quick(watchdog_s=MAX_BOARD_WATCHDOG_S)) as rig:
         rig.send(b"#debug1!#start!#th.90.50!")

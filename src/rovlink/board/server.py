@@ -1,11 +1,11 @@
 """The board loop: the controller on a real board, serving its serial lines.
 
 One thread and one :mod:`selectors` loop. Every control period, at a fixed rate: poll the
-sensors, apply the stale-sensor failsafe, run the board's device checks (a fault found stops and
-locks the controller), tick the controller (which sets the thrusters). In
-between, move bytes between the links and the controller. Whatever ends the loop (a stop
-request on SIGTERM or Ctrl-C, an exception anywhere in it), the ``finally`` puts every thruster
-at neutral before anything else happens.
+sensors, apply the stale-sensor failsafe (to the sensors the controller drives by), run the
+board's device checks (a fault found stops and locks the controller), tick the controller
+(which sets the thrusters). In between, move bytes between the links and the controller.
+Whatever ends the loop (a stop request on SIGTERM or Ctrl-C, an exception anywhere in it), the
+``finally`` puts every thruster at neutral before anything else happens.
 
 Replies go back on the link whose bytes the controller is handling; what the controller writes
 on its own (failsafe and leak lines) goes to every link. Output nobody reads is bounded.
@@ -14,9 +14,11 @@ on its own (failsafe and leak lines) goes to every link. Output nobody reads is 
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import Any
 
 from rovlink.board.board import Board, DeviceCheck
 from rovlink.board.schedule import FixedRateSchedule
+from rovlink.board.sensors import PolledSensor
 from rovlink.board.watchdog_bounds import board_watchdog_problem
 from rovlink.controller import ControllerConfig
 from rovlink.controller.controller import Controller
@@ -142,10 +144,8 @@ class BoardServer:
             if sensor.stale:
                 if sensor.name not in self._stale:
                     self._stale.add(sensor.name)
-                    logger.warning(
-                        "%s stale: %d failed reads in a row", sensor.name, sensor.failures
-                    )
-                if not controller.locked:
+                    self._went_stale(sensor)
+                if sensor.needed_to_drive and not controller.locked:
                     controller.failsafe(
                         f"failsafe: {sensor.name} stale ({sensor.failures} failed reads in a row)"
                     )
@@ -158,6 +158,19 @@ class BoardServer:
             if check.is_due(now_s):
                 self._check_device(check, now_s)
         controller.tick()
+
+    def _went_stale(self, sensor: PolledSensor[Any]) -> None:
+        """Say that ``sensor`` went stale; one the controller does not drive by is said in a
+        debug line too, as no failsafe line tells the pilot."""
+        if sensor.needed_to_drive:
+            logger.warning("%s stale: %d failed reads in a row", sensor.name, sensor.failures)
+            return
+        text = (
+            f"{sensor.name} stale ({sensor.failures} failed reads in a row): "
+            f"{sensor.lost_when_stale}; driving goes on"
+        )
+        logger.warning("%s", text)
+        self.controller.debug(text)
 
     def _check_device(self, check: DeviceCheck, now_s: float) -> None:
         """Run one device check. A fault is an error in the log and a failsafe: whatever the

@@ -42,13 +42,25 @@ from rovlink.board.sensors import (
 from rovlink.controller import Attitude, Hardware
 from rovlink.logs import get_logger
 
-__all__ = ["PwmBoardInUseError", "fake_bus_for", "open_pi_board", "set_pi_outputs_at_rest"]
+__all__ = [
+    "IMU_LOST_WHEN_STALE",
+    "PwmBoardInUseError",
+    "fake_bus_for",
+    "open_pi_board",
+    "set_pi_outputs_at_rest",
+]
 
 logger = get_logger(__name__)
 
 _T = TypeVar("_T")
 _FIRST_READING_S = 0.5  # how long a sensor has at start to give its first reading
 _FAKE_WATER_C = 20.0  # the fake pressure sensor's temperature
+#: What a dead IMU takes from the pilot. Not the motors: the controller steers by no attitude
+#: (the protocol has no yaw command, P11, so it holds no heading), and stopping a robot that
+#: can still be driven and surfaced by hand would make a compass fault a lost dive.
+IMU_LOST_WHEN_STALE = (
+    "roll, pitch and heading are not measured, qro, qpi and qhe repeat the last good reading"
+)
 
 
 class PwmBoardInUseError(BoardStartError):
@@ -316,7 +328,11 @@ def _open_bno055(
     bus_number = imu.bus if imu_bus is not bus else config.i2c.bus
     _starting(f"{name} on I²C bus {bus_number}", bno.start)
     return PolledSensor(
-        name, bno, _first_reading(name, bno, clock), config.board.stale_after_failures
+        name,
+        bno,
+        _first_reading(name, bno, clock),
+        config.board.stale_after_failures,
+        lost_when_stale=IMU_LOST_WHEN_STALE,
     )
 
 

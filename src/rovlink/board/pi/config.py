@@ -401,8 +401,9 @@ class BoardConfig:
     stale_after_failures: int = field(
         default=5,
         metadata=_doc(
-            "stop the motors when a sensor fails this many reads in a row (stale-sensor "
-            "failsafe); they may be started again once it answers"
+            "a sensor that fails this many reads in a row is stale: the pressure sensor's stops "
+            "the motors (stale-sensor failsafe; they may be started again once it answers), the "
+            "IMU's is reported and driving goes on"
         ),
     )
     overrun_warning_s: float = field(
