@@ -16,18 +16,21 @@ from typing import Any
 import pytest
 
 from rovlink.board.board import BoardStartError
-from rovlink.board.pi.board import fake_bus_for, open_pi_board
-from rovlink.board.pi.config import PiConfig
+from rovlink.board.pi.board import fake_bus_for, open_pi_board, set_pi_outputs_at_rest
+from rovlink.board.pi.config import PiConfig, pi_config_from_mapping
 from rovlink.board.pi.fake_bus import FakeBno055, FakeI2cBus, FakeMs5837, FakePca9685
 from rovlink.board.server import BoardServer
 from rovlink.board.watchdog_bounds import MAX_BOARD_WATCHDOG_S
 from tests.board.rig import (
     CLAW_CHANNEL,
     COUNT_US,
+    PCA_ADDRESS,
+    SECOND_PCA_ADDRESS,
     THRUSTER_CHANNELS,
     example_config,
     is_neutral,
     pulses,
+    two_pwm_boards_data,
     wait_until,
     with_controller,
 )
@@ -300,7 +303,7 @@ def test_a_missing_device_is_refused_at_start_naming_it_with_the_outputs_at_neut
     del bus.devices[0x28]  # no IMU answers
     with pytest.raises(BoardStartError, match=r"IMU BNO055 at 0x28 on I²C bus 1: .*"):
         open_pi_board(config, bus=bus, pin_factory=MockFactory())
-    assert is_neutral(pulses(bus.snapshot()))
+    assert is_neutral(pulses(bus.snapshot(), [0, 1, 2, 3]))
 
 
 def test_a_pressure_sensor_with_a_corrupt_prom_is_refused_at_start() -> None:
@@ -309,7 +312,7 @@ def test_a_pressure_sensor_with_a_corrupt_prom_is_refused_at_start() -> None:
     bus.devices[0x76].prom[3] ^= 0x0100  # type: ignore[attr-defined]
     with pytest.raises(BoardStartError, match=r"MS5837-30BA at 0x76 on I²C bus 1: .*CRC-4"):
         open_pi_board(config, bus=bus)
-    assert is_neutral(pulses(bus.snapshot()))
+    assert is_neutral(pulses(bus.snapshot(), [0, 1, 2, 3]))
 
 
 def test_a_bus_that_does_not_exist_is_named() -> None:
@@ -379,7 +382,7 @@ def test_a_servo_claw_steps_and_holds() -> None:
         assert claw() == pytest.approx(1750.0, abs=COUNT_US)
         board.make_safe()
         assert claw() == pytest.approx(1750.0, abs=COUNT_US)
-        assert is_neutral(pulses(bus.snapshot()))
+        assert is_neutral(pulses(bus.snapshot(), [0, 1, 2, 3]))
     finally:
         board.close()
 
@@ -472,7 +475,7 @@ def test_a_pwm_board_that_fails_its_check_does_not_end_the_loop(
 def test_the_pwm_board_check_can_be_turned_off() -> None:
     config = _quick()
     config = dataclasses.replace(
-        config, pca9685=dataclasses.replace(config.pca9685, check_interval_s=0.0)
+        config, pwm_boards=(dataclasses.replace(config.pwm_boards[0], check_interval_s=0.0),)
     )
     board = open_pi_board(config, bus=fake_bus_for(config), pin_factory=_mock_pins())
     try:
@@ -497,6 +500,103 @@ def test_an_imu_reset_is_repaired_before_it_goes_stale() -> None:
         rig.send(b"#qhe!")
         assert wait_until(lambda: rig.saw(b"$qhe.90!"))
     assert not rig.errors
+
+
+#: `#mvdirect.1!#mvs.+50!` on the vertical thrusters of two_pwm_boards_data, channels 0 and 1
+#: of the second PWM board: duty +128, vertical_right reversed.
+_VERTICAL_UP_50_US = [1500 + 400 * 128 / 255, 1500 - 400 * 128 / 255]
+
+
+def _on_two_boards(**controller: Any) -> PiConfig:
+    return with_controller(pi_config_from_mapping(two_pwm_boards_data(), "rov.toml"), **controller)
+
+
+def _second_board(rig: Running) -> list[float | None]:
+    """The vertical thrusters' pulses and the claw's, on the second PWM board."""
+    return pulses(rig.bus.snapshot(), [0, 1, 15], SECOND_PCA_ADDRESS)
+
+
+def _both_moving(rig: Running) -> bool:
+    first = rig.pulses()[:4]
+    second = _second_board(rig)[:2]
+    expected = TH_90_50_US[:4] + _VERTICAL_UP_50_US
+    return all(
+        value is not None and abs(value - want) <= COUNT_US
+        for value, want in zip(first + second, expected, strict=True)
+    )
+
+
+def _both_neutral(rig: Running) -> bool:
+    return is_neutral(rig.pulses()[:4]) and is_neutral(_second_board(rig))
+
+
+def test_thrusters_on_two_pwm_boards_of_one_bus_move_and_stop_together() -> None:
+    with running(_on_two_boards(watchdog_s=0.3)) as rig:
+        assert _both_neutral(rig)  # from the start, the claw at rest on the second board too
+        move = b"#start!#th.90.50!#mvdirect.1!#mvs.+50!"
+        rig.send(move)
+        assert wait_until(lambda: _both_moving(rig)), (rig.pulses(), _second_board(rig))
+        rig.send(b"#stop!")
+        assert wait_until(lambda: _both_neutral(rig)), (rig.pulses(), _second_board(rig))
+        rig.send(move)  # and nothing more: the link-loss failsafe stops both boards
+        assert wait_until(lambda: _both_moving(rig))
+        assert wait_until(lambda: _both_neutral(rig)), (rig.pulses(), _second_board(rig))
+        assert rig.server.controller.locked
+        assert [check.name for check in rig.server.board.checks] == [
+            "PWM board PCA9685 at 0x40",
+            "PWM board PCA9685 at 0x41",
+        ]
+    assert not rig.errors
+
+
+def test_a_reset_of_the_second_pwm_board_is_found_and_stops_both() -> None:
+    with running(_on_two_boards(watchdog_s=MAX_BOARD_WATCHDOG_S)) as rig:
+        chip = rig.bus.devices[SECOND_PCA_ADDRESS]
+        assert isinstance(chip, FakePca9685)
+        rig.send(b"#debug1!#start!#th.90.50!#mvdirect.1!#mvs.+50!")
+        assert wait_until(lambda: _both_moving(rig))
+        chip.power_on_reset()
+        assert wait_until(lambda: rig.saw(b"failsafe: PWM board PCA9685 at 0x41 was reset"))
+        assert wait_until(lambda: _both_neutral(rig)), (rig.pulses(), _second_board(rig))
+        assert not chip.sleeping
+        assert rig.server.controller.locked
+    assert not rig.errors
+
+
+def test_a_pwm_board_that_stops_answering_leaves_the_other_at_neutral() -> None:
+    with running(_on_two_boards(watchdog_s=MAX_BOARD_WATCHDOG_S)) as rig:
+        rig.send(b"#start!#th.90.50!#mvdirect.1!#mvs.+50!")
+        assert wait_until(lambda: _both_moving(rig))
+        rig.bus.fail(PCA_ADDRESS, 10**6)  # the first board is gone for good
+        rig.send(b"#stop!")
+        assert wait_until(lambda: bool(rig.errors))
+        assert isinstance(rig.errors[0], OSError)
+        assert is_neutral(_second_board(rig)[:2]), _second_board(rig)
+        assert not rig.server.at_rest  # (the first board's neutral could not be set: said so)
+
+
+def test_neutral_from_another_process_reaches_every_pwm_board() -> None:
+    # systemd's ExecStopPost after a controller killed with both boards driving.
+    config = _on_two_boards()
+    bus = fake_bus_for(config)
+    board = open_pi_board(config, bus=bus, pin_factory=_mock_pins())
+    try:
+        board.hardware.thrusters.set_duties([128] * 6)
+    finally:
+        board.close()
+    assert not is_neutral(pulses(bus.snapshot(), [0, 1], SECOND_PCA_ADDRESS))
+    bus.fail(PCA_ADDRESS, 10**6)
+    with pytest.raises(BoardStartError) as caught:
+        set_pi_outputs_at_rest(config, bus=bus)
+    assert str(caught.value).startswith("PWM board PCA9685 at 0x40 on I²C bus 1: ")
+    assert "done: PWM board PCA9685 at 0x41 on I²C bus 1 (running): neutral pulses" in str(
+        caught.value
+    )
+    assert is_neutral(pulses(bus.snapshot(), [0, 1], SECOND_PCA_ADDRESS))
+    bus.fail(PCA_ADDRESS, 0)
+    done = set_pi_outputs_at_rest(config, bus=bus)
+    assert done.count("neutral pulses on channels") == 2
+    assert is_neutral(pulses(bus.snapshot(), [0, 1, 2, 3]))
 
 
 @pytest.mark.parametrize(
