@@ -113,6 +113,41 @@ def test_a_killed_controller_is_set_to_neutral_by_the_units_exec_stop_post(
         assert is_neutral(pulses(transactions))
 
 
+def test_neutral_after_a_killed_controller_needs_only_the_pwm_boards_tables(
+    tmp_path: Path,
+) -> None:
+    # rov.toml was edited while the controller ran (a wrong gain, the failsafe turned off to
+    # try something): the controller would refuse it at its next start, and ExecStopPost must
+    # still set neutral after the controller is killed.
+    log = tmp_path / "i2c.jsonl"
+    config = make_fake_toml(tmp_path, log)
+    with running_controller(tmp_path, "--config", str(config), "--pty") as controller:
+        with _moving_robot(controller, log):
+            controller.process.kill()
+            assert controller.process.wait(10) == -signal.SIGKILL
+        text = config.read_text(encoding="utf-8")
+        text = text.replace("kp = 40", "kp = 400").replace("watchdog_s = 2.0", "watchdog_s = 0")
+        config.write_text(text.replace("poll_hz = 20.0", "poll_hz = 500.0"), encoding="utf-8")
+        assert "[depth_pid]: kp must be in 0–99" in _run("--config", str(config), "--pty").stderr
+        assert _moving(log)
+        result = _run("--config", str(config), "--neutral")
+        assert result.returncode == 0, result.stderr
+        assert "neutral pulses on channels 0, 1, 2, 3, 4, 5, 8" in result.stderr
+        assert is_neutral(pulses(read_log(log)))
+
+
+def test_neutral_with_a_wrong_pwm_board_table_says_it_could_not_set_neutral(
+    tmp_path: Path,
+) -> None:
+    path = tmp_path / "rov.toml"
+    text = EXAMPLE.read_text(encoding="utf-8").replace("channel = 3", "channel = 2")
+    path.write_text(text, encoding="utf-8")
+    result = _run("--config", str(path), "--neutral")
+    assert result.returncode == 2
+    assert "[esc.rear_right] channel: 2 is already used by [esc.rear_left]" in result.stderr
+    assert "NEUTRAL COULD NOT BE SET: cut the thruster power" in result.stderr
+
+
 def test_a_second_controller_on_the_same_pwm_board_is_refused_before_touching_it(
     tmp_path: Path,
 ) -> None:

@@ -11,6 +11,7 @@ from rovlink.board.pi.config import (
     ClawKind,
     PressureKind,
     load_pi_config,
+    load_pi_outputs_config,
     pi_config_from_mapping,
     pi_config_reference,
 )
@@ -294,6 +295,20 @@ def test_an_empty_list_of_pwm_boards_is_refused() -> None:
     data["pca9685"] = []
     with pytest.raises(ConfigError, match=r"rov.toml \[\[pca9685\]\]: no PWM board"):
         pi_config_from_mapping(data, "rov.toml")
+
+
+def test_the_pwm_boards_part_is_read_whatever_the_other_tables_hold(tmp_path: Path) -> None:
+    path = tmp_path / "rov.toml"
+    text = EXAMPLE.read_text(encoding="utf-8").replace("kp = 40", "kp = 400")
+    path.write_text(text.replace("[board]", "[board]\nno_such_key = 1"), encoding="utf-8")
+    with pytest.raises(ConfigError, match="kp must be in 0–99"):
+        load_pi_config(path)
+    config = load_pi_outputs_config(path)
+    assert [esc.channel for esc in config.escs] == [0, 1, 2, 3, 4, 5]
+    assert config.claw.channel == 8
+    path.write_text(text.replace("channel = 8", "channel = 5"), encoding="utf-8")
+    with pytest.raises(ConfigError, match=r"\[claw\] channel: 5 is already used by"):
+        load_pi_outputs_config(path)
 
 
 def test_a_file_that_is_not_toml(tmp_path: Path) -> None:

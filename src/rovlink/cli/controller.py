@@ -130,7 +130,7 @@ def _set_neutral(args: argparse.Namespace) -> int:
     if args.port is not None or args.pty or args.tcp is not None:
         raise UsageError("--neutral serves nothing: leave out --port, --pty and --tcp")
     _configure_logging()
-    config = _pi_config(args)
+    config = _pi_outputs_config(args)
     try:
         done = set_pi_outputs_at_rest(config)
     except PwmBoardInUseError as error:  # a running controller sets its thrusters itself
@@ -265,6 +265,20 @@ def _pi_config(args: argparse.Namespace) -> PiConfig:
         controller = dataclasses.replace(config.controller, watchdog_s=args.watchdog)
         config = dataclasses.replace(config, controller=controller)
     return config
+
+
+def _pi_outputs_config(args: argparse.Namespace) -> PiConfig:
+    """What ``--neutral`` needs of rov.toml: the PWM boards' tables only, so that a mistake
+    in another table cannot leave the thrusters of a dead controller running."""
+    from rovlink.board.pi.config import load_pi_outputs_config  # noqa: PLC0415
+    from rovlink.controller import ConfigError  # noqa: PLC0415
+
+    if args.config is None:
+        raise UsageError("--board pi needs --config rov.toml (see docs/hardware.md)")
+    try:
+        return load_pi_outputs_config(args.config)
+    except ConfigError as error:
+        raise InputError(f"{error}; NEUTRAL COULD NOT BE SET: cut the thruster power") from None
 
 
 def _run_sim(

@@ -49,6 +49,7 @@ __all__ = [
     "PressureConfig",
     "PressureKind",
     "load_pi_config",
+    "load_pi_outputs_config",
     "pi_config_from_mapping",
     "pi_config_reference",
 ]
@@ -507,9 +508,7 @@ def pi_config_from_mapping(data: Mapping[str, Any], source: str = "rov.toml") ->
     )
     config = PiConfig(controller, escs, i2c, pwm_boards, claw, pressure, imu, leak, board)
     _check_addresses(config, source)  # (first: an output's pca9685 key names an address)
-    _check_pwm_board_keys(config, source)
-    _check_channels(config, source)
-    _check_pulses_fit(config, source)
+    _check_outputs(config, source)
     _check_depth_scale(config, source)
     _check_watchdog(config, source)
     return config
@@ -518,6 +517,44 @@ def pi_config_from_mapping(data: Mapping[str, Any], source: str = "rov.toml") ->
 def load_pi_config(path: Path | str) -> PiConfig:
     """Read and check a ``rov.toml``."""
     return pi_config_from_mapping(read_toml(path), str(path))
+
+
+#: The tables that say which pulses the PWM boards make: all that setting neutral needs.
+_OUTPUT_TABLES = ("thrusters", "i2c", "pca9685", "esc", "claw")
+
+
+def load_pi_outputs_config(path: Path | str) -> PiConfig:
+    """The PWM boards' part of a ``rov.toml``: its ``[[thrusters]]``, ``[i2c]``, ``[pca9685]``,
+    ``[esc.*]`` and ``[claw]``, checked as :func:`load_pi_config` checks them; every other
+    table is left unread, at its defaults.
+
+    For setting the thrusters to neutral after the controller died (``--neutral``, systemd's
+    ExecStopPost): a mistake elsewhere in the file (an edit made while the controller ran, a
+    key a newer version refuses) must not leave the thrusters running.
+    """
+    data = read_toml(path)
+    source = str(path)
+    outputs = {name: data[name] for name in _OUTPUT_TABLES if name in data}
+    controller = config_from_mapping(outputs, source, other_tables=_BOARD_TABLES)
+    escs = _escs(controller, _table(outputs, "esc", f"{source} [esc]"), source)
+    i2c = dataclass_from_table(
+        I2cConfig, _table(outputs, "i2c", f"{source} [i2c]"), f"{source} [i2c]"
+    )
+    claw = dataclass_from_table(
+        ClawConfig, _table(outputs, "claw", f"{source} [claw]"), f"{source} [claw]"
+    )
+    config = PiConfig(controller, escs, i2c, _pwm_boards(outputs, source), claw)
+    _check_addresses(config, source, sensors=False)
+    _check_outputs(config, source)
+    return config
+
+
+def _check_outputs(config: PiConfig, source: str) -> None:
+    """Each output on a PWM board of the file, on a channel of its own, its pulses in the
+    board's period."""
+    _check_pwm_board_keys(config, source)
+    _check_channels(config, source)
+    _check_pulses_fit(config, source)
 
 
 def _pwm_boards(data: Mapping[str, Any], source: str) -> tuple[Pca9685Config, ...]:
@@ -599,20 +636,22 @@ def _check_channels(config: PiConfig, source: str) -> None:
         users[board, channel] = user
 
 
-def _check_addresses(config: PiConfig, source: str) -> None:
+def _check_addresses(config: PiConfig, source: str, *, sensors: bool = True) -> None:
     """No two devices at one address on one bus: one's writes would reach the other (an
-    ADS1115's config word lands in a PCA9685's MODE2 and makes its outputs open-drain)."""
+    ADS1115's config word lands in a PCA9685's MODE2 and makes its outputs open-drain).
+    ``sensors``: the sensors' addresses too, not only the PWM boards'."""
     pressure = config.pressure
     devices = [
         (config.pwm_board_table(index), board.address)
         for index, board in enumerate(config.pwm_boards)
     ]
-    if pressure.sensor is PressureKind.MS5837:
-        devices.append(("[pressure.ms5837]", pressure.ms5837.address))
-    else:
-        devices.append(("[pressure.ads1115]", pressure.ads1115.address))
-    if config.imu.sensor is ImuKind.BNO055 and config.imu.bus in (-1, config.i2c.bus):
-        devices.append(("[imu]", config.imu.address))
+    if sensors:
+        if pressure.sensor is PressureKind.MS5837:
+            devices.append(("[pressure.ms5837]", pressure.ms5837.address))
+        else:
+            devices.append(("[pressure.ads1115]", pressure.ads1115.address))
+        if config.imu.sensor is ImuKind.BNO055 and config.imu.bus in (-1, config.i2c.bus):
+            devices.append(("[imu]", config.imu.address))
     users: dict[int, str] = {}
     for user, address in devices:
         if address in users:
