@@ -148,6 +148,29 @@ def test_neutral_with_a_wrong_pwm_board_table_says_it_could_not_set_neutral(
     assert "NEUTRAL COULD NOT BE SET: cut the thruster power" in result.stderr
 
 
+def test_the_unit_has_systemd_kill_a_controller_that_hangs(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    text = (EXAMPLE.parents[1] / "docs" / "hardware.md").read_text(encoding="utf-8")
+    assert re.search(r"^WatchdogSec=5$", text, flags=re.MULTILINE)
+    assert re.search(r"^NotifyAccess=main$", text, flags=re.MULTILINE)
+    # What systemd gives a service with WatchdogSec=5 (its NOTIFY_SOCKET, here a test's).
+    listener = socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM)
+    listener.bind(str(tmp_path / "notify"))
+    listener.settimeout(REPLY_TIMEOUT_S)
+    monkeypatch.setenv("NOTIFY_SOCKET", str(tmp_path / "notify"))
+    monkeypatch.setenv("WATCHDOG_USEC", "200000")
+    monkeypatch.delenv("WATCHDOG_PID", raising=False)
+    config = make_fake_toml(tmp_path, tmp_path / "i2c.jsonl")
+    try:
+        with running_controller(tmp_path, "--config", str(config), "--pty"):
+            told = [listener.recv(100) for _ in range(6)]
+    finally:
+        listener.close()
+    assert b"READY=1" in told
+    assert told.count(b"WATCHDOG=1") >= 4  # every 0.1 s, half of WATCHDOG_USEC
+
+
 def test_a_second_controller_on_the_same_pwm_board_is_refused_before_touching_it(
     tmp_path: Path,
 ) -> None:

@@ -162,23 +162,35 @@ def _run_pi(
     args: argparse.Namespace, address: tuple[str, int] | None, stop: threading.Event
 ) -> int:
     import logging  # noqa: PLC0415
+    import time  # noqa: PLC0415
 
     from rovlink.board.board import BoardStartError  # noqa: PLC0415
     from rovlink.board.pi.board import open_pi_board  # noqa: PLC0415
     from rovlink.board.server import BoardServer  # noqa: PLC0415
+    from rovlink.board.service_notify import ServiceWatchdog  # noqa: PLC0415
 
     config = _pi_config(args)
     try:
         board = open_pi_board(config)
     except BoardStartError as error:
         raise CommandError(str(error)) from None
-    server = BoardServer(config.controller, board, overrun_warning_s=config.board.overrun_warning_s)
+    service_watchdog = ServiceWatchdog.from_environment()  # (WatchdogSec= in the unit)
+    if service_watchdog is not None:
+        service_watchdog.pet(time.monotonic())  # (the start took its time: a second or two)
+    server = BoardServer(
+        config.controller,
+        board,
+        overrun_warning_s=config.board.overrun_warning_s,
+        service_watchdog=service_watchdog,
+    )
     try:
         endpoints = _open_endpoints(server, args, address)
         say_ready(
             f"rovlink controller ready: board pi, {', '.join(endpoints)}; "
             "thrusters at neutral; Ctrl-C stops"
         )
+        if service_watchdog is not None:
+            service_watchdog.ready()
         try:
             server.serve(stop.is_set)
         except Exception as error:
@@ -195,6 +207,8 @@ def _run_pi(
         if not server.at_rest:
             server.make_safe()
         server.close()
+        if service_watchdog is not None:
+            service_watchdog.close()
     schedule = server.schedule
     say_last(  # (a closed terminal, SIGHUP, takes no line)
         f"rovlink controller stopped: thrusters at neutral; {schedule.periods} control periods, "
