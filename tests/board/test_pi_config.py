@@ -121,9 +121,21 @@ def _load(**changes: object) -> None:
         # (an ADS1115's config word lands in a PCA9685's MODE2, making its outputs open-drain).
         # TOML reads 40 as forty: the BNO055's 0x28, not the PCA9685's 0x40.
         (
-            {"pca9685__address": 40},
-            "rov.toml [imu] address: 0x28 (40) is already used by [pca9685] on I²C bus 1; "
+            {"imu__address": 0x40},
+            "rov.toml [imu] address: 0x40 (64) is already used by [pca9685] on I²C bus 1; "
             "a TOML number is decimal unless written 0x…",
+        ),
+        (
+            {"pca9685__address": 40},
+            "rov.toml [pca9685]: address must be a PCA9685's, 0x40–0x77 but not 0x70 (the All "
+            "Call address every PCA9685 answers after a reset), got 0x28 (40); a TOML number is "
+            "decimal unless written 0x…",
+        ),
+        # Every PCA9685 answers 0x70 after power-on or a supply dip: a chip strapped there would
+        # have its writes land in every other chip that reset.
+        (
+            {"pca9685__address": 0x70},
+            "rov.toml [pca9685]: address must be a PCA9685's, 0x40–0x77 but not 0x70",
         ),
         (
             {"pressure__sensor": "ads1115", "pressure__ads1115__address": 0x40},

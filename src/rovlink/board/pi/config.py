@@ -19,7 +19,13 @@ from typing import Any
 from rovlink.board.pi.ads1115 import DATA_RATES_SPS, FULL_SCALES_V
 from rovlink.board.pi.bno055 import PLACEMENTS
 from rovlink.board.pi.ms5837 import OVERSAMPLING, Ms5837Model
-from rovlink.board.pi.pca9685 import CHANNELS, DEFAULT_OSCILLATOR_HZ, prescale_for
+from rovlink.board.pi.pca9685 import (
+    ALL_CALL_ADDRESS,
+    CHANNELS,
+    DEFAULT_OSCILLATOR_HZ,
+    FIRST_ADDRESS,
+    prescale_for,
+)
 from rovlink.board.pi.pressure import MIN_SCALE_K
 from rovlink.board.watchdog_bounds import board_watchdog_problem
 from rovlink.controller import ControllerConfig, config_from_mapping
@@ -138,7 +144,13 @@ class I2cConfig:
 class Pca9685Config:
     """``[pca9685]``: the PWM board of the ESCs and the claw."""
 
-    address: int = field(default=0x40, metadata=_doc("I²C address (0x40 unless re-strapped)"))
+    address: int = field(
+        default=0x40,
+        metadata=_doc(
+            "I²C address: 0x40 unless re-strapped, 0x40–0x77 but not 0x70 (the All Call "
+            "address every PCA9685 answers after a reset)"
+        ),
+    )
     frequency_hz: float = field(
         default=50.0, metadata=_doc("pulse frequency, Hz (50 for ESCs and servos)")
     )
@@ -160,6 +172,13 @@ class Pca9685Config:
 
     def __post_init__(self) -> None:
         _check_address("address", self.address)
+        _require(
+            self.address >= FIRST_ADDRESS and self.address != ALL_CALL_ADDRESS,
+            f"address must be a PCA9685's, {FIRST_ADDRESS:#04x}–0x77 but not "
+            f"{ALL_CALL_ADDRESS:#04x} (the All Call address every PCA9685 answers after a "
+            f"reset), got {self.address:#04x} ({self.address}); a TOML number is decimal "
+            "unless written 0x…",
+        )
         _require(
             self.check_interval_s == 0
             or (math.isfinite(self.check_interval_s) and 0.01 <= self.check_interval_s <= 60),
