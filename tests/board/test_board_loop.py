@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import dataclasses
 import os
+import socket
 import threading
 from collections.abc import Iterator
 from contextlib import contextmanager, suppress
@@ -499,6 +500,75 @@ def test_an_imu_reset_is_repaired_before_it_goes_stale() -> None:
         rig.received.clear()
         rig.send(b"#qhe!")
         assert wait_until(lambda: rig.saw(b"$qhe.90!"))
+    assert not rig.errors
+
+
+@contextmanager
+def _served_on_tcp(config: PiConfig, silent_client_gives_way_s: float) -> Iterator[Running]:
+    """``config``'s board served on TCP only (``Running.fd`` is unused: -1)."""
+    from gpiozero.pins.mock import MockFactory
+
+    pins = MockFactory()
+    bus = fake_bus_for(config)
+    board = open_pi_board(config, bus=bus, pin_factory=pins)
+    server = BoardServer(
+        config.controller, board, silent_client_gives_way_s=silent_client_gives_way_s
+    )
+    server.listen_tcp("127.0.0.1", 0)
+    stop = threading.Event()
+    rig = Running(server, bus, -1, pins)
+    thread = threading.Thread(target=server.serve, args=(stop.is_set,), daemon=True)
+    thread.start()
+    try:
+        yield rig
+    finally:
+        stop.set()
+        thread.join(10)
+        server.close()
+        pins.close()
+
+
+def _reply(client: socket.socket, query: bytes) -> bytes:
+    client.sendall(query)
+    return client.recv(100)
+
+
+def test_a_tcp_client_whose_link_died_unseen_gives_way_to_a_new_one() -> None:
+    # A station on Wi-Fi that dropped: no FIN ever arrives, the connection stays open. Its
+    # motion is stopped by the link-loss failsafe; the station connecting again must get the
+    # line, not "busy" for good.
+    with _served_on_tcp(_quick(watchdog_s=0.3), silent_client_gives_way_s=0.3) as rig:
+        address = rig.server.tcp_address
+        assert address is not None
+        with socket.create_connection(address, timeout=5) as dead:
+            dead.sendall(b"#start!#th.90.50!")
+            assert wait_until(rig.moving_as_commanded)
+            assert wait_until(rig.neutral)  # the failsafe: the link is silent
+            assert wait_until(lambda: rig.server.controller.locked)
+
+            def connected_again() -> bool:
+                with socket.create_connection(address, timeout=5) as again:
+                    if _reply(again, b"#qd!").startswith(b"$qd."):
+                        again.sendall(b"#start!#th.90.50!")
+                        return wait_until(rig.moving_as_commanded)
+                    return False
+
+            assert wait_until(connected_again)
+    assert not rig.errors
+
+
+def test_a_tcp_client_that_keeps_its_link_alive_is_not_pushed_out() -> None:
+    with _served_on_tcp(_quick(watchdog_s=0.3), silent_client_gives_way_s=0.3) as rig:
+        address = rig.server.tcp_address
+        assert address is not None
+        with socket.create_connection(address, timeout=5) as live:
+            live.sendall(b"#start!#th.90.50!")
+            assert wait_until(rig.moving_as_commanded)
+            for _ in range(10):  # queries faster than the silence that gives way
+                assert _reply(live, b"#qd!").startswith(b"$qd.")
+                with socket.create_connection(address, timeout=5) as other:
+                    assert other.recv(100).startswith(b"busy")
+            assert rig.moving_as_commanded()
     assert not rig.errors
 
 

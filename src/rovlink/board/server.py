@@ -26,12 +26,17 @@ from rovlink.controller.controller import Controller
 from rovlink.controller.lines import Line, Lines
 from rovlink.logs import get_logger
 
-__all__ = ["BUSY_MESSAGE", "BoardServer"]
+__all__ = ["BUSY_MESSAGE", "SILENT_CLIENT_GIVES_WAY_S", "BoardServer"]
 
 logger = get_logger(__name__)
 
 #: What a second TCP client reads before it is disconnected.
 BUSY_MESSAGE = b"busy: the controller already has a client\r\n"
+#: How long a TCP client must have sent nothing before a new one takes its place, s: a host
+#: keeps its link alive (P17; rovlink's hosts every idle second), so one silent this long has
+#: lost it (a dropped Wi-Fi, a pulled cable leave the connection open), and its motion was
+#: stopped by then.
+SILENT_CLIENT_GIVES_WAY_S = 3.0
 _MAX_WAIT_S = 0.05  # a stop request is seen at least this often
 _SAFE_ATTEMPTS = 3
 
@@ -40,7 +45,9 @@ class BoardServer:
     """The controller on ``board``, served on a serial device, a PTY and/or TCP.
 
     Raises :class:`ValueError` if ``config`` has the link-loss failsafe off or too long for a
-    robot (:mod:`rovlink.board.watchdog_bounds`).
+    robot (:mod:`rovlink.board.watchdog_bounds`). A TCP client that has sent nothing for
+    ``silent_client_gives_way_s`` (default: :data:`SILENT_CLIENT_GIVES_WAY_S`, or the link-loss
+    failsafe's time if longer) gives way to a new one rather than keep it out as busy.
     """
 
     def __init__(
@@ -50,6 +57,7 @@ class BoardServer:
         *,
         overrun_warning_s: float = 10.0,
         service_watchdog: ServiceWatchdog | None = None,
+        silent_client_gives_way_s: float | None = None,
     ) -> None:
         self.board = board
         #: Told after every control period completed (systemd ends a loop that hangs).
@@ -67,6 +75,11 @@ class BoardServer:
             self._on_bytes,
             busy_message=BUSY_MESSAGE,
             on_close=self.controller.forget_line,
+            silent_client_gives_way_s=(
+                max(config.watchdog_s, SILENT_CLIENT_GIVES_WAY_S)
+                if silent_client_gives_way_s is None
+                else silent_client_gives_way_s
+            ),
         )
         self._replying_to: Line | None = None
         self._stale: set[str] = set()
