@@ -83,10 +83,15 @@ class Running:
 
 @contextmanager
 def running(config: PiConfig) -> Iterator[Running]:
+    with running_on(config, fake_bus_for(config)) as rig:
+        yield rig
+
+
+@contextmanager
+def running_on(config: PiConfig, bus: FakeI2cBus) -> Iterator[Running]:
     from gpiozero.pins.mock import MockFactory
 
     pins = MockFactory()
-    bus = fake_bus_for(config)
     board = open_pi_board(config, bus=bus, pin_factory=pins)
     server = BoardServer(config.controller, board)
     path = server.open_pty()
@@ -301,10 +306,36 @@ def test_a_missing_device_is_refused_at_start_naming_it_with_the_outputs_at_neut
 
     config = example_config()
     bus = fake_bus_for(config)
-    del bus.devices[0x28]  # no IMU answers
-    with pytest.raises(BoardStartError, match=r"IMU BNO055 at 0x28 on I²C bus 1: .*"):
+    del bus.devices[0x76]  # no pressure sensor answers: depth hold and the depth limit need it
+    with pytest.raises(BoardStartError, match=r"MS5837-30BA at 0x76 on I²C bus 1: .*"):
         open_pi_board(config, bus=bus, pin_factory=MockFactory())
     assert is_neutral(pulses(bus.snapshot(), [0, 1, 2, 3]))
+
+
+def test_a_dead_imu_at_start_is_named_and_the_robot_can_be_driven(
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    # A controller restarted mid-dive (after a failure) with its IMU dead must still drive
+    # the robot home: the controller steers by no attitude.
+    config = with_controller(example_config(), watchdog_s=MAX_BOARD_WATCHDOG_S)
+    bus = fake_bus_for(config)
+    del bus.devices[0x28]
+    with running_on(config, bus) as rig:
+        assert rig.server.board.warnings == (
+            "IMU BNO055 at 0x28 not answering: roll, pitch and heading are not measured, qro, "
+            "qpi and qhe read 0 until the controller is restarted with it answering",
+        )
+        assert any(
+            "IMU BNO055 at 0x28 on I²C bus 1" in record.getMessage() and record.levelname == "ERROR"
+            for record in caplog.records
+        )
+        rig.send(b"#debug1!#start!#th.90.50!#qhe!")
+        assert wait_until(rig.moving_as_commanded), rig.pulses()
+        assert wait_until(lambda: rig.saw(b"$qhe.0!"))
+        assert wait_until(lambda: rig.saw(b"IMU BNO055 at 0x28 stale"))
+        assert not rig.server.controller.locked
+        assert rig.moving_as_commanded()
+    assert not rig.errors
 
 
 def test_a_pressure_sensor_with_a_corrupt_prom_is_refused_at_start() -> None:

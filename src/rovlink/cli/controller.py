@@ -185,9 +185,10 @@ def _run_pi(
     )
     try:
         endpoints = _open_endpoints(server, args, address)
+        degraded = "".join(f"; {warning}" for warning in board.warnings)
         say_ready(
             f"rovlink controller ready: board pi, {', '.join(endpoints)}; "
-            "thrusters at neutral; Ctrl-C stops"
+            f"thrusters at neutral{degraded}; Ctrl-C stops"
         )
         if service_watchdog is not None:
             service_watchdog.ready()

@@ -38,12 +38,14 @@ from rovlink.board.sensors import (
     PolledImu,
     PolledPressure,
     PolledSensor,
+    SensorError,
     SensorSource,
 )
 from rovlink.controller import Attitude, Hardware
 from rovlink.logs import get_logger
 
 __all__ = [
+    "IMU_DID_NOT_START",
     "IMU_LOST_WHEN_STALE",
     "PwmBoardInUseError",
     "fake_bus_for",
@@ -61,6 +63,11 @@ _FAKE_WATER_C = 20.0  # the fake pressure sensor's temperature
 #: can still be driven and surfaced by hand would make a compass fault a lost dive.
 IMU_LOST_WHEN_STALE = (
     "roll, pitch and heading are not measured, qro, qpi and qhe repeat the last good reading"
+)
+#: What an IMU that did not start takes from the pilot (until the controller is restarted).
+IMU_DID_NOT_START = (
+    "roll, pitch and heading are not measured, qro, qpi and qhe read 0 until the controller is "
+    "restarted with it answering"
 )
 
 
@@ -176,9 +183,10 @@ def open_pi_board(config: PiConfig, *, bus: I2cBus | None = None, pin_factory: A
             stale_after,
         )
         sensors: list[PolledSensor[Any]] = [pressure]
+        warnings: list[str] = []
         imu: Any = _LevelImu()
         if config.imu.sensor is ImuKind.BNO055:
-            imu_sensor = _open_bno055(config, bus, closers, clock)
+            imu_sensor = _open_bno055(config, bus, closers, clock, warnings)
             sensors.append(imu_sensor)
             imu = PolledImu(imu_sensor)
         leak: Any = _NoLeakSensor()
@@ -226,7 +234,9 @@ def open_pi_board(config: PiConfig, *, bus: I2cBus | None = None, pin_factory: A
         for pca, pwm in zip(thrusters.chips, config.pwm_boards, strict=True)
         if pwm.check_interval_s > 0
     ]
-    return Board("pi", hardware, make_safe, close_all, tuple(sensors), tuple(checks))
+    return Board(
+        "pi", hardware, make_safe, close_all, tuple(sensors), tuple(checks), tuple(warnings)
+    )
 
 
 def set_pi_outputs_at_rest(config: PiConfig, *, bus: I2cBus | None = None) -> str:
@@ -328,9 +338,14 @@ def _open_bus(config: PiConfig) -> I2cBus:
 
 
 def _open_bno055(
-    config: PiConfig, bus: I2cBus, closers: list[Callable[[], None]], clock: MonotonicClock
+    config: PiConfig,
+    bus: I2cBus,
+    closers: list[Callable[[], None]],
+    clock: MonotonicClock,
+    warnings: list[str],
 ) -> PolledSensor[Attitude]:
-    """Start the BNO055 (on its own bus if it has one) and take its first reading."""
+    """Start the BNO055 (on its own bus if it has one) and take its first reading; a chip that
+    does not is a sensor that fails every read (and a line in ``warnings``)."""
     imu = config.imu
     imu_bus = _open_imu_bus(config, bus)
     if imu_bus is not bus:
@@ -346,14 +361,41 @@ def _open_bno055(
     )
     name = f"IMU BNO055 at {bno.address:#04x}"
     bus_number = imu.bus if imu_bus is not bus else config.i2c.bus
-    _starting(f"{name} on I²C bus {bus_number}", bno.start)
+    where = f"{name} on I²C bus {bus_number}"
+    # A board without the library is not set up: refused. A chip that does not answer is a
+    # dead sensor the pilot can drive without (a restart mid-dive must not leave the robot
+    # without thrusters): the controller goes on, and says so.
+    _starting(where, _bno055_library)
+    try:
+        _starting(where, bno.start)
+        first = _first_reading(name, bno, clock)
+    except BoardStartError as error:
+        logger.error("%s; going on without it: %s", error, IMU_DID_NOT_START)
+        warnings.append(f"{name} not answering: {IMU_DID_NOT_START}")
+        return PolledSensor(
+            name,
+            _ImuThatDidNotStart(f"did not start ({error})"),
+            LEVEL,
+            config.board.stale_after_failures,
+            lost_when_stale=IMU_DID_NOT_START,
+        )
     return PolledSensor(
-        name,
-        bno,
-        _first_reading(name, bno, clock),
-        config.board.stale_after_failures,
-        lost_when_stale=IMU_LOST_WHEN_STALE,
+        name, bno, first, config.board.stale_after_failures, lost_when_stale=IMU_LOST_WHEN_STALE
     )
+
+
+def _bno055_library() -> None:
+    import adafruit_bno055  # noqa: F401, PLC0415 - the pi extra, needed on the board only
+
+
+class _ImuThatDidNotStart:
+    """The IMU's source when the chip did not start: every poll fails, saying why."""
+
+    def __init__(self, why: str) -> None:
+        self._why = why
+
+    def poll(self, now_s: float) -> Attitude | None:
+        raise SensorError(self._why)
 
 
 def _mock_pins() -> Any:
