@@ -676,6 +676,18 @@ def test_a_pwm_board_that_stops_answering_leaves_the_other_at_neutral() -> None:
         assert not rig.server.at_rest  # (the first board's neutral could not be set: said so)
 
 
+def test_a_pwm_board_that_stops_answering_does_not_keep_the_claw_of_another_running() -> None:
+    with running(_on_two_boards(watchdog_s=MAX_BOARD_WATCHDOG_S, claw_pulse_ms=5000)) as rig:
+        claw = lambda: _second_board(rig)[2]  # noqa: E731
+        rig.send(b"#start!#th.90.50!#mvdirect.1!#mvs.+50!#h+!")
+        assert wait_until(lambda: _both_moving(rig))
+        assert claw() == pytest.approx(1900.0, abs=COUNT_US)
+        rig.bus.fail(PCA_ADDRESS, 10**6)  # the first board is gone for good
+        rig.send(b"#stop!")
+        assert wait_until(lambda: bool(rig.errors))
+        assert claw() == pytest.approx(1500.0, abs=COUNT_US)
+
+
 def test_neutral_from_another_process_reaches_every_pwm_board() -> None:
     # systemd's ExecStopPost after a controller killed with both boards driving.
     config = _on_two_boards()

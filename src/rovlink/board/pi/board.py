@@ -211,8 +211,10 @@ def open_pi_board(config: PiConfig, *, bus: I2cBus | None = None, pin_factory: A
         raise
 
     def make_safe() -> None:
-        thrusters.neutral()
-        claw.neutral()
+        try:
+            thrusters.neutral()
+        finally:  # a claw motor on a board that answers stops even if another board does not
+            claw.neutral()
 
     def close_all() -> None:
         for release in reversed(closers):
