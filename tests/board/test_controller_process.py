@@ -152,6 +152,7 @@ def test_the_unit_has_systemd_kill_a_controller_that_hangs(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     text = (EXAMPLE.parents[1] / "docs" / "hardware.md").read_text(encoding="utf-8")
+    assert re.search(r"^Type=notify$", text, flags=re.MULTILINE)
     assert re.search(r"^WatchdogSec=5$", text, flags=re.MULTILINE)
     assert re.search(r"^NotifyAccess=main$", text, flags=re.MULTILINE)
     # What systemd gives a service with WatchdogSec=5 (its NOTIFY_SOCKET, here a test's).

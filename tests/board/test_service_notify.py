@@ -14,7 +14,7 @@ import pytest
 
 from rovlink.board.pi.board import fake_bus_for, open_pi_board
 from rovlink.board.server import BoardServer
-from rovlink.board.service_notify import ServiceWatchdog
+from rovlink.board.service_notify import ServiceNotifier
 from tests.board.rig import example_config, wait_until, with_controller
 
 _INTERVAL_S = 0.02
@@ -46,8 +46,7 @@ def _received(listener: socket.socket) -> list[bytes]:
     [
         ({"NOTIFY_SOCKET": "/run/n", "WATCHDOG_USEC": "5000000"}, 2.5),
         ({"NOTIFY_SOCKET": "@abstract", "WATCHDOG_USEC": "1000000", "WATCHDOG_PID": "self"}, 0.5),
-        ({"NOTIFY_SOCKET": "/run/n"}, None),  # no WatchdogSec=
-        ({"WATCHDOG_USEC": "5000000"}, None),  # not under systemd
+        ({"NOTIFY_SOCKET": "/run/n"}, None),  # no WatchdogSec=: READY=1 only
         ({"NOTIFY_SOCKET": "/run/n", "WATCHDOG_USEC": "0"}, None),
         ({"NOTIFY_SOCKET": "/run/n", "WATCHDOG_USEC": "5000000", "WATCHDOG_PID": "1"}, None),
     ],
@@ -57,20 +56,33 @@ def test_the_watchdog_is_what_systemd_asks_for(
 ) -> None:
     if environment.get("WATCHDOG_PID") == "self":
         environment["WATCHDOG_PID"] = str(os.getpid())
-    watchdog = ServiceWatchdog.from_environment(environment)
-    if expected_interval_s is None:
-        assert watchdog is None
-        return
-    assert watchdog is not None
+    notifier = ServiceNotifier.from_environment(environment)
+    assert notifier is not None
     try:
-        assert watchdog.interval_s == expected_interval_s
+        assert notifier.interval_s == expected_interval_s
     finally:
-        watchdog.close()
+        notifier.close()
+
+
+def test_not_under_systemd_nothing_is_told() -> None:
+    assert ServiceNotifier.from_environment({"WATCHDOG_USEC": "5000000"}) is None
+
+
+def test_without_a_watchdog_only_ready_is_told(tmp_path: Path) -> None:
+    with _systemd_socket(tmp_path) as listener:
+        notifier = ServiceNotifier(str(tmp_path / "notify"), interval_s=None)
+        try:
+            notifier.ready()
+            for period in range(100):
+                notifier.pet(period * 0.01)
+        finally:
+            notifier.close()
+        assert _received(listener) == [b"READY=1"]
 
 
 def test_the_watchdog_is_told_at_most_every_half_of_its_time(tmp_path: Path) -> None:
     with _systemd_socket(tmp_path) as listener:
-        watchdog = ServiceWatchdog(str(tmp_path / "notify"), interval_s=0.5)
+        watchdog = ServiceNotifier(str(tmp_path / "notify"), interval_s=0.5)
         try:
             watchdog.ready()
             for period in range(100):  # one second of 10 ms control periods
@@ -87,8 +99,8 @@ def test_a_control_loop_that_hangs_stops_telling_systemd(tmp_path: Path) -> None
     pins = MockFactory()
     board = open_pi_board(config, bus=fake_bus_for(config), pin_factory=pins)
     with _systemd_socket(tmp_path) as listener:
-        watchdog = ServiceWatchdog(str(tmp_path / "notify"), _INTERVAL_S)
-        server = BoardServer(config.controller, board, service_watchdog=watchdog)
+        watchdog = ServiceNotifier(str(tmp_path / "notify"), _INTERVAL_S)
+        server = BoardServer(config.controller, board, service_notifier=watchdog)
         stop = threading.Event()
         hang = threading.Event()
         hung = threading.Event()

@@ -19,7 +19,7 @@ from typing import Any
 from rovlink.board.board import Board, DeviceCheck
 from rovlink.board.schedule import FixedRateSchedule
 from rovlink.board.sensors import PolledSensor
-from rovlink.board.service_notify import ServiceWatchdog
+from rovlink.board.service_notify import ServiceNotifier
 from rovlink.board.watchdog_bounds import board_watchdog_problem
 from rovlink.controller import ControllerConfig
 from rovlink.controller.controller import Controller
@@ -56,12 +56,12 @@ class BoardServer:
         board: Board,
         *,
         overrun_warning_s: float = 10.0,
-        service_watchdog: ServiceWatchdog | None = None,
+        service_notifier: ServiceNotifier | None = None,
         silent_client_gives_way_s: float | None = None,
     ) -> None:
         self.board = board
         #: Told after every control period completed (systemd ends a loop that hangs).
-        self.service_watchdog = service_watchdog
+        self.service_notifier = service_notifier
         self.clock = board.hardware.clock
         problem = board_watchdog_problem(config.watchdog_s)
         if problem is not None:  # (a board's config refuses it first, naming its file)
@@ -175,8 +175,8 @@ class BoardServer:
             if check.is_due(now_s):
                 self._check_device(check, now_s)
         controller.tick()
-        if self.service_watchdog is not None:
-            self.service_watchdog.pet(now_s)
+        if self.service_notifier is not None:
+            self.service_notifier.pet(now_s)
 
     def _went_stale(self, sensor: PolledSensor[Any]) -> None:
         """Say that ``sensor`` went stale; one the controller does not drive by is said in a

@@ -8,8 +8,9 @@ failsafe runs in the same loop. With ``WatchdogSec=`` in the unit, systemd expec
 after each control period it completes, so a loop that stops completing periods stops it.
 
 The protocol is a datagram to the socket named by ``$NOTIFY_SOCKET`` (``sd_notify(3)``), so no
-library is needed. Without ``$WATCHDOG_USEC`` (not under systemd, or no ``WatchdogSec=``)
-nothing is sent.
+library is needed. ``READY=1`` is sent once the controller serves (``Type=notify``: systemd
+arms the watchdog then, so a slow start is not taken for a hang); ``WATCHDOG=1`` only when
+``$WATCHDOG_USEC`` asks for it. Not under systemd, nothing is sent.
 """
 
 from __future__ import annotations
@@ -20,16 +21,17 @@ from collections.abc import Mapping
 
 from rovlink.logs import get_logger
 
-__all__ = ["ServiceWatchdog"]
+__all__ = ["ServiceNotifier"]
 
 logger = get_logger(__name__)
 
 
-class ServiceWatchdog:
-    """``WATCHDOG=1`` to systemd at half its ``WatchdogSec=`` (as ``sd_watchdog_enabled(3)``
-    advises), from the control loop; ``READY=1`` once the controller serves."""
+class ServiceNotifier:
+    """``READY=1`` to systemd once the controller serves; ``WATCHDOG=1`` from the control loop
+    at half its ``WatchdogSec=`` (as ``sd_watchdog_enabled(3)`` advises), if it has one
+    (``interval_s`` None: it has not)."""
 
-    def __init__(self, socket_path: str, interval_s: float) -> None:
+    def __init__(self, socket_path: str, interval_s: float | None) -> None:
         # An abstract socket's name is written with a leading "@" in the environment.
         self._address = "\0" + socket_path[1:] if socket_path.startswith("@") else socket_path
         self.interval_s = interval_s
@@ -40,26 +42,26 @@ class ServiceWatchdog:
     @classmethod
     def from_environment(
         cls, environment: Mapping[str, str] | None = None
-    ) -> ServiceWatchdog | None:
-        """The watchdog systemd asks for in ``environment`` (this process's by default), or
-        None when it asks for none (or asks another process: ``$WATCHDOG_PID``)."""
+    ) -> ServiceNotifier | None:
+        """What systemd asks for in ``environment`` (this process's by default): None when not
+        under systemd (no ``$NOTIFY_SOCKET``); a watchdog interval when ``$WATCHDOG_USEC`` is
+        set for this process (``$WATCHDOG_PID``)."""
         environment = os.environ if environment is None else environment
         path = environment.get("NOTIFY_SOCKET", "")
+        if not path:
+            return None
         usec = environment.get("WATCHDOG_USEC", "")
         pid = environment.get("WATCHDOG_PID", "")
-        if not path or not usec.isdigit() or int(usec) == 0:
-            return None
-        if pid and pid != str(os.getpid()):
-            return None
-        return cls(path, int(usec) / 2e6)
+        watched = usec.isdigit() and int(usec) > 0 and pid in ("", str(os.getpid()))
+        return cls(path, int(usec) / 2e6 if watched else None)
 
     def ready(self) -> None:
         """Tell systemd the controller serves (``Type=notify``)."""
         self._send(b"READY=1")
 
     def pet(self, now_s: float) -> None:
-        """A control period completed at ``now_s``: tell systemd if it is time to."""
-        if now_s < self._next_s:
+        """A control period completed at ``now_s``: tell systemd's watchdog if it is time to."""
+        if self.interval_s is None or now_s < self._next_s:
             return
         self._next_s = now_s + self.interval_s
         self._send(b"WATCHDOG=1")

@@ -162,26 +162,23 @@ def _run_pi(
     args: argparse.Namespace, address: tuple[str, int] | None, stop: threading.Event
 ) -> int:
     import logging  # noqa: PLC0415
-    import time  # noqa: PLC0415
 
     from rovlink.board.board import BoardStartError  # noqa: PLC0415
     from rovlink.board.pi.board import open_pi_board  # noqa: PLC0415
     from rovlink.board.server import BoardServer  # noqa: PLC0415
-    from rovlink.board.service_notify import ServiceWatchdog  # noqa: PLC0415
+    from rovlink.board.service_notify import ServiceNotifier  # noqa: PLC0415
 
     config = _pi_config(args)
     try:
         board = open_pi_board(config)
     except BoardStartError as error:
         raise CommandError(str(error)) from None
-    service_watchdog = ServiceWatchdog.from_environment()  # (WatchdogSec= in the unit)
-    if service_watchdog is not None:
-        service_watchdog.pet(time.monotonic())  # (the start took its time: a second or two)
+    service_notifier = ServiceNotifier.from_environment()  # (Type=notify, WatchdogSec=)
     server = BoardServer(
         config.controller,
         board,
         overrun_warning_s=config.board.overrun_warning_s,
-        service_watchdog=service_watchdog,
+        service_notifier=service_notifier,
     )
     try:
         endpoints = _open_endpoints(server, args, address)
@@ -190,8 +187,8 @@ def _run_pi(
             f"rovlink controller ready: board pi, {', '.join(endpoints)}; "
             f"thrusters at neutral{degraded}; Ctrl-C stops"
         )
-        if service_watchdog is not None:
-            service_watchdog.ready()
+        if service_notifier is not None:
+            service_notifier.ready()
         try:
             server.serve(stop.is_set)
         except Exception as error:
@@ -208,8 +205,8 @@ def _run_pi(
         if not server.at_rest:
             server.make_safe()
         server.close()
-        if service_watchdog is not None:
-            service_watchdog.close()
+        if service_notifier is not None:
+            service_notifier.close()
     schedule = server.schedule
     say_last(  # (a closed terminal, SIGHUP, takes no line)
         f"rovlink controller stopped: thrusters at neutral; {schedule.periods} control periods, "
