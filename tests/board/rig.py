@@ -35,6 +35,24 @@ def example_config(**tables: dict[str, Any]) -> PiConfig:
     return pi_config_from_mapping(data, "rov.toml")
 
 
+#: The second PWM board of :func:`two_pwm_boards_data`.
+SECOND_PCA_ADDRESS = 0x41
+
+
+def two_pwm_boards_data() -> dict[str, Any]:
+    """The example rov.toml (fake bus, no IMU: its driver's reset takes a second) with a
+    second PCA9685 at 0x41 on the same bus, which drives the vertical thrusters on its
+    channels 0 and 1 and the claw on its channel 15."""
+    data = read_toml(EXAMPLE)
+    data["i2c"]["backend"] = "fake"
+    data["imu"]["sensor"] = "none"
+    data["pca9685"] = [data["pca9685"], {"address": SECOND_PCA_ADDRESS}]
+    data["esc"]["vertical_left"].update(pca9685=SECOND_PCA_ADDRESS, channel=0)
+    data["esc"]["vertical_right"].update(pca9685=SECOND_PCA_ADDRESS, channel=1)
+    data["claw"].update(pca9685=SECOND_PCA_ADDRESS, channel=15)
+    return data
+
+
 def fake_toml(tmp_path: Path, log: Path, *, model: str = "02ba", watchdog_s: float = 2.0) -> Path:
     """A copy of the example rov.toml for a process on the fake bus, logging to ``log``."""
     text = EXAMPLE.read_text(encoding="utf-8")
@@ -57,10 +75,13 @@ def replay(transactions: Iterable[Transaction], address: int = PCA_ADDRESS) -> F
 
 
 def pulses(
-    transactions: Iterable[Transaction], channels: Sequence[int] = THRUSTER_CHANNELS
+    transactions: Iterable[Transaction],
+    channels: Sequence[int] = THRUSTER_CHANNELS,
+    address: int = PCA_ADDRESS,
 ) -> list[float | None]:
-    """The pulse on each of ``channels``, µs, after ``transactions``."""
-    chip = replay(transactions)
+    """The pulse on each of ``channels`` of the PCA9685 at ``address``, µs, after
+    ``transactions``."""
+    chip = replay(transactions, address)
     return [chip.pulse_us(channel) for channel in channels]
 
 

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import dataclasses
 import os
+import socket
 import threading
 from collections.abc import Iterator
 from contextlib import contextmanager, suppress
@@ -16,17 +17,21 @@ from typing import Any
 import pytest
 
 from rovlink.board.board import BoardStartError
-from rovlink.board.pi.board import fake_bus_for, open_pi_board
-from rovlink.board.pi.config import PiConfig
+from rovlink.board.pi.board import fake_bus_for, open_pi_board, set_pi_outputs_at_rest
+from rovlink.board.pi.config import PiConfig, pi_config_from_mapping
 from rovlink.board.pi.fake_bus import FakeBno055, FakeI2cBus, FakeMs5837, FakePca9685
 from rovlink.board.server import BoardServer
+from rovlink.board.watchdog_bounds import MAX_BOARD_WATCHDOG_S
 from tests.board.rig import (
     CLAW_CHANNEL,
     COUNT_US,
+    PCA_ADDRESS,
+    SECOND_PCA_ADDRESS,
     THRUSTER_CHANNELS,
     example_config,
     is_neutral,
     pulses,
+    two_pwm_boards_data,
     wait_until,
     with_controller,
 )
@@ -78,10 +83,15 @@ class Running:
 
 @contextmanager
 def running(config: PiConfig) -> Iterator[Running]:
+    with running_on(config, fake_bus_for(config)) as rig:
+        yield rig
+
+
+@contextmanager
+def running_on(config: PiConfig, bus: FakeI2cBus) -> Iterator[Running]:
     from gpiozero.pins.mock import MockFactory
 
     pins = MockFactory()
-    bus = fake_bus_for(config)
     board = open_pi_board(config, bus=bus, pin_factory=pins)
     server = BoardServer(config.controller, board)
     path = server.open_pty()
@@ -135,7 +145,7 @@ def test_the_link_loss_watchdog_gives_neutral() -> None:
 
 
 def test_an_exception_in_the_control_loop_ends_it_at_neutral() -> None:
-    with running(_quick(watchdog_s=0.0)) as rig:
+    with running(_quick(watchdog_s=MAX_BOARD_WATCHDOG_S)) as rig:
         rig.send(b"#start!#th.90.50!")
         assert wait_until(rig.moving_as_commanded)
 
@@ -150,7 +160,7 @@ def test_an_exception_in_the_control_loop_ends_it_at_neutral() -> None:
 
 
 def test_one_failed_write_to_the_pwm_board_is_retried() -> None:
-    with running(_quick(watchdog_s=0.0)) as rig:
+    with running(_quick(watchdog_s=MAX_BOARD_WATCHDOG_S)) as rig:
         rig.send(b"#start!")
         rig.bus.fail(0x40, 1)
         rig.send(b"#th.90.50!")
@@ -160,7 +170,7 @@ def test_one_failed_write_to_the_pwm_board_is_retried() -> None:
 
 
 def test_an_i2c_error_on_the_pwm_board_ends_the_loop_at_neutral_after_a_retry() -> None:
-    with running(_quick(watchdog_s=0.0)) as rig:
+    with running(_quick(watchdog_s=MAX_BOARD_WATCHDOG_S)) as rig:
         rig.send(b"#start!#th.90.50!")
         assert wait_until(rig.moving_as_commanded)
         # The stop's write and its retry fail, and so does the first attempt at neutral.
@@ -175,7 +185,7 @@ def test_an_i2c_error_on_the_pwm_board_ends_the_loop_at_neutral_after_a_retry() 
 def test_a_failed_write_to_the_moving_claw_does_not_hold_up_the_stop() -> None:
     # Before, the stop wrote the claw's rest first, without a retry: one I²C error on it ended
     # the stop (and the loop) before the thrusters were set to neutral.
-    with running(_quick(watchdog_s=0.0, claw_pulse_ms=5000)) as rig:
+    with running(_quick(watchdog_s=MAX_BOARD_WATCHDOG_S, claw_pulse_ms=5000)) as rig:
         rig.send(b"#start!#th.90.50!#h+!")
         claw = lambda: pulses(rig.bus.snapshot(), [CLAW_CHANNEL])[0]  # noqa: E731
         at_rest = lambda: claw() == pytest.approx(1500.0, abs=COUNT_US)  # noqa: E731
@@ -189,7 +199,7 @@ def test_a_failed_write_to_the_moving_claw_does_not_hold_up_the_stop() -> None:
 
 
 def test_a_stale_pressure_sensor_stops_the_motors_until_it_answers() -> None:
-    with running(_quick(watchdog_s=0.0)) as rig:
+    with running(_quick(watchdog_s=MAX_BOARD_WATCHDOG_S)) as rig:
         rig.send(b"#debug1!#start!#th.90.50!")
         assert wait_until(rig.moving_as_commanded)
         rig.bus.fail(0x76, 10**6)
@@ -208,8 +218,36 @@ def test_a_stale_pressure_sensor_stops_the_motors_until_it_answers() -> None:
     assert not rig.errors
 
 
+def test_a_dead_imu_is_said_to_be_stale_and_the_robot_can_still_be_driven() -> None:
+    # The controller steers by no attitude (no yaw command, P11: no heading hold), so a dead
+    # compass must not stop the thrusters mid-dive; the pilot is told what no longer reads.
+    with running(with_controller(example_config(), watchdog_s=MAX_BOARD_WATCHDOG_S)) as rig:
+        rig.send(b"#debug1!#start!#th.90.50!")
+        assert wait_until(rig.moving_as_commanded)
+        imu = rig.server.board.sensors[1]
+        rig.bus.fail(0x28, 10**6)
+        assert wait_until(
+            lambda: rig.saw(
+                b"IMU BNO055 at 0x28 stale (5 failed reads in a row): roll, pitch and heading "
+                b"are not measured, qro, qpi and qhe repeat the last good reading; driving goes on"
+            )
+        ), rig.received
+        assert imu.stale
+        assert not rig.server.controller.locked
+        assert rig.moving_as_commanded(), rig.pulses()
+        rig.send(b"#th.0.0!#qsa!")  # still driven by hand, and every sensor still answers
+        assert wait_until(lambda: rig.saw(b"$qhe.90!"))
+        assert wait_until(rig.neutral), rig.pulses()
+        rig.send(b"#th.90.50!")
+        assert wait_until(rig.moving_as_commanded), rig.pulses()
+        assert b"failsafe" not in rig.received
+        rig.bus.fail(0x28, 0)
+        assert wait_until(lambda: rig.saw(b"IMU BNO055 at 0x28 answers again"))
+    assert not rig.errors
+
+
 def test_fewer_failures_than_the_limit_do_not_stop_the_motors() -> None:
-    with running(_quick(watchdog_s=0.0)) as rig:
+    with running(_quick(watchdog_s=MAX_BOARD_WATCHDOG_S)) as rig:
         rig.send(b"#debug1!#start!#th.90.50!")
         assert wait_until(rig.moving_as_commanded)
         rig.bus.fail(0x76, 2)
@@ -221,7 +259,7 @@ def test_fewer_failures_than_the_limit_do_not_stop_the_motors() -> None:
 
 
 def test_a_pressure_sensor_reset_mid_dive_costs_one_read_and_depth_comes_back() -> None:
-    with running(_quick(watchdog_s=0.0)) as rig:
+    with running(_quick(watchdog_s=MAX_BOARD_WATCHDOG_S)) as rig:
         ms5837 = rig.bus.devices[0x76]
         assert isinstance(ms5837, FakeMs5837)
         rig.send(b"#debug1!#start!#th.90.50!")
@@ -244,7 +282,7 @@ def test_a_pressure_sensor_reset_mid_dive_costs_one_read_and_depth_comes_back() 
 
 
 def test_a_leak_pulse_stops_the_motors_with_leak_action_stop() -> None:
-    with running(_quick(watchdog_s=0.0)) as rig:
+    with running(_quick(watchdog_s=MAX_BOARD_WATCHDOG_S)) as rig:
         rig.send(b"#start!#th.90.50!")
         assert wait_until(rig.moving_as_commanded)
         pin = rig.pins.pin(27)
@@ -256,7 +294,7 @@ def test_a_leak_pulse_stops_the_motors_with_leak_action_stop() -> None:
 
 
 def test_the_claw_motor_runs_for_its_pulse_then_stops() -> None:
-    with running(_quick(watchdog_s=0.0, claw_pulse_ms=200)) as rig:
+    with running(_quick(watchdog_s=MAX_BOARD_WATCHDOG_S, claw_pulse_ms=200)) as rig:
         rig.send(b"#start!#h+!")
         claw = lambda: pulses(rig.bus.snapshot(), [CLAW_CHANNEL])[0]  # noqa: E731
         assert wait_until(lambda: claw() == pytest.approx(1900.0, abs=COUNT_US))
@@ -268,10 +306,36 @@ def test_a_missing_device_is_refused_at_start_naming_it_with_the_outputs_at_neut
 
     config = example_config()
     bus = fake_bus_for(config)
-    del bus.devices[0x28]  # no IMU answers
-    with pytest.raises(BoardStartError, match=r"IMU BNO055 at 0x28 on I²C bus 1: .*"):
+    del bus.devices[0x76]  # no pressure sensor answers: depth hold and the depth limit need it
+    with pytest.raises(BoardStartError, match=r"MS5837-30BA at 0x76 on I²C bus 1: .*"):
         open_pi_board(config, bus=bus, pin_factory=MockFactory())
-    assert is_neutral(pulses(bus.snapshot()))
+    assert is_neutral(pulses(bus.snapshot(), [0, 1, 2, 3]))
+
+
+def test_a_dead_imu_at_start_is_named_and_the_robot_can_be_driven(
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    # A controller restarted mid-dive (after a failure) with its IMU dead must still drive
+    # the robot home: the controller steers by no attitude.
+    config = with_controller(example_config(), watchdog_s=MAX_BOARD_WATCHDOG_S)
+    bus = fake_bus_for(config)
+    del bus.devices[0x28]
+    with running_on(config, bus) as rig:
+        assert rig.server.board.warnings == (
+            "IMU BNO055 at 0x28 not answering: roll, pitch and heading are not measured, qro, "
+            "qpi and qhe read 0 until the controller is restarted with it answering",
+        )
+        assert any(
+            "IMU BNO055 at 0x28 on I²C bus 1" in record.getMessage() and record.levelname == "ERROR"
+            for record in caplog.records
+        )
+        rig.send(b"#debug1!#start!#th.90.50!#qhe!")
+        assert wait_until(rig.moving_as_commanded), rig.pulses()
+        assert wait_until(lambda: rig.saw(b"$qhe.0!"))
+        assert wait_until(lambda: rig.saw(b"IMU BNO055 at 0x28 stale"))
+        assert not rig.server.controller.locked
+        assert rig.moving_as_commanded()
+    assert not rig.errors
 
 
 def test_a_pressure_sensor_with_a_corrupt_prom_is_refused_at_start() -> None:
@@ -280,7 +344,7 @@ def test_a_pressure_sensor_with_a_corrupt_prom_is_refused_at_start() -> None:
     bus.devices[0x76].prom[3] ^= 0x0100  # type: ignore[attr-defined]
     with pytest.raises(BoardStartError, match=r"MS5837-30BA at 0x76 on I²C bus 1: .*CRC-4"):
         open_pi_board(config, bus=bus)
-    assert is_neutral(pulses(bus.snapshot()))
+    assert is_neutral(pulses(bus.snapshot(), [0, 1, 2, 3]))
 
 
 def test_a_bus_that_does_not_exist_is_named() -> None:
@@ -350,7 +414,7 @@ def test_a_servo_claw_steps_and_holds() -> None:
         assert claw() == pytest.approx(1750.0, abs=COUNT_US)
         board.make_safe()
         assert claw() == pytest.approx(1750.0, abs=COUNT_US)
-        assert is_neutral(pulses(bus.snapshot()))
+        assert is_neutral(pulses(bus.snapshot(), [0, 1, 2, 3]))
     finally:
         board.close()
 
@@ -359,7 +423,7 @@ def test_overruns_are_counted_and_logged(caplog: pytest.LogCaptureFixture) -> No
     import time
 
     caplog.set_level("WARNING", logger="rovlink.board")
-    with running(_quick(watchdog_s=0.0)) as rig:
+    with running(_quick(watchdog_s=MAX_BOARD_WATCHDOG_S)) as rig:
         sensor = rig.server.board.sensors[0]
         source = sensor._source
         slow_polls = [3]
@@ -385,7 +449,7 @@ def _chip_pulses(rig: Running) -> list[float | None]:
 
 
 def test_a_pwm_board_reset_is_found_reported_restarted_at_neutral_and_locks() -> None:
-    with running(_quick(watchdog_s=0.0)) as rig:
+    with running(_quick(watchdog_s=MAX_BOARD_WATCHDOG_S)) as rig:
         chip = rig.bus.devices[0x40]
         assert isinstance(chip, FakePca9685)
         rig.send(b"#debug1!#start!#th.90.50!")
@@ -408,7 +472,7 @@ def test_a_pwm_board_reset_is_found_reported_restarted_at_neutral_and_locks() ->
 
 
 def test_a_pwm_board_reset_while_locked_is_reported_and_repaired() -> None:
-    with running(_quick(watchdog_s=0.0)) as rig:
+    with running(_quick(watchdog_s=MAX_BOARD_WATCHDOG_S)) as rig:
         chip = rig.bus.devices[0x40]
         assert isinstance(chip, FakePca9685)
         rig.send(b"#debug1!")
@@ -424,7 +488,7 @@ def test_a_pwm_board_that_fails_its_check_does_not_end_the_loop(
     caplog: pytest.LogCaptureFixture,
 ) -> None:
     caplog.set_level("INFO", logger="rovlink.board")
-    with running(_quick(watchdog_s=0.0)) as rig:
+    with running(_quick(watchdog_s=MAX_BOARD_WATCHDOG_S)) as rig:
         # Locked and still: the only transactions with the chip are the checks' reads.
         rig.bus.fail(0x40, 3)
         assert wait_until(lambda: sum(t.failed for t in rig.bus.snapshot()) == 3)
@@ -443,7 +507,7 @@ def test_a_pwm_board_that_fails_its_check_does_not_end_the_loop(
 def test_the_pwm_board_check_can_be_turned_off() -> None:
     config = _quick()
     config = dataclasses.replace(
-        config, pca9685=dataclasses.replace(config.pca9685, check_interval_s=0.0)
+        config, pwm_boards=(dataclasses.replace(config.pwm_boards[0], check_interval_s=0.0),)
     )
     board = open_pi_board(config, bus=fake_bus_for(config), pin_factory=_mock_pins())
     try:
@@ -453,7 +517,7 @@ def test_the_pwm_board_check_can_be_turned_off() -> None:
 
 
 def test_an_imu_reset_is_repaired_before_it_goes_stale() -> None:
-    with running(with_controller(example_config(), watchdog_s=0.0)) as rig:
+    with running(with_controller(example_config(), watchdog_s=MAX_BOARD_WATCHDOG_S)) as rig:
         bno = rig.bus.devices[0x28]
         assert isinstance(bno, FakeBno055)
         rig.send(b"#debug1!#start!#th.90.50!")
@@ -470,18 +534,201 @@ def test_an_imu_reset_is_repaired_before_it_goes_stale() -> None:
     assert not rig.errors
 
 
-@pytest.mark.parametrize(("watchdog_s", "warned"), [(0.0, True), (2.0, False)])
-def test_a_board_served_without_the_link_loss_failsafe_says_so(
-    caplog: pytest.LogCaptureFixture, watchdog_s: float, warned: bool
+@contextmanager
+def _served_on_tcp(config: PiConfig, silent_client_gives_way_s: float) -> Iterator[Running]:
+    """``config``'s board served on TCP only (``Running.fd`` is unused: -1)."""
+    from gpiozero.pins.mock import MockFactory
+
+    pins = MockFactory()
+    bus = fake_bus_for(config)
+    board = open_pi_board(config, bus=bus, pin_factory=pins)
+    server = BoardServer(
+        config.controller, board, silent_client_gives_way_s=silent_client_gives_way_s
+    )
+    server.listen_tcp("127.0.0.1", 0)
+    stop = threading.Event()
+    rig = Running(server, bus, -1, pins)
+    thread = threading.Thread(target=server.serve, args=(stop.is_set,), daemon=True)
+    thread.start()
+    try:
+        yield rig
+    finally:
+        stop.set()
+        thread.join(10)
+        server.close()
+        pins.close()
+
+
+def _reply(client: socket.socket, query: bytes) -> bytes:
+    client.sendall(query)
+    return client.recv(100)
+
+
+def test_a_tcp_client_whose_link_died_unseen_gives_way_to_a_new_one() -> None:
+    # A station on Wi-Fi that dropped: no FIN ever arrives, the connection stays open. Its
+    # motion is stopped by the link-loss failsafe; the station connecting again must get the
+    # line, not "busy" for good.
+    with _served_on_tcp(_quick(watchdog_s=0.3), silent_client_gives_way_s=0.3) as rig:
+        address = rig.server.tcp_address
+        assert address is not None
+        with socket.create_connection(address, timeout=5) as dead:
+            dead.sendall(b"#start!#th.90.50!")
+            assert wait_until(rig.moving_as_commanded)
+            assert wait_until(rig.neutral)  # the failsafe: the link is silent
+            assert wait_until(lambda: rig.server.controller.locked)
+
+            def connected_again() -> bool:
+                with socket.create_connection(address, timeout=5) as again:
+                    if _reply(again, b"#qd!").startswith(b"$qd."):
+                        again.sendall(b"#start!#th.90.50!")
+                        return wait_until(rig.moving_as_commanded)
+                    return False
+
+            assert wait_until(connected_again)
+    assert not rig.errors
+
+
+def test_a_tcp_client_that_keeps_its_link_alive_is_not_pushed_out() -> None:
+    with _served_on_tcp(_quick(watchdog_s=0.3), silent_client_gives_way_s=0.3) as rig:
+        address = rig.server.tcp_address
+        assert address is not None
+        with socket.create_connection(address, timeout=5) as live:
+            live.sendall(b"#start!#th.90.50!")
+            assert wait_until(rig.moving_as_commanded)
+            for _ in range(10):  # queries faster than the silence that gives way
+                assert _reply(live, b"#qd!").startswith(b"$qd.")
+                with socket.create_connection(address, timeout=5) as other:
+                    assert other.recv(100).startswith(b"busy")
+            assert rig.moving_as_commanded()
+    assert not rig.errors
+
+
+#: `#mvdirect.1!#mvs.+50!` on the vertical thrusters of two_pwm_boards_data, channels 0 and 1
+#: of the second PWM board: duty +128, vertical_right reversed.
+_VERTICAL_UP_50_US = [1500 + 400 * 128 / 255, 1500 - 400 * 128 / 255]
+
+
+def _on_two_boards(**controller: Any) -> PiConfig:
+    return with_controller(pi_config_from_mapping(two_pwm_boards_data(), "rov.toml"), **controller)
+
+
+def _second_board(rig: Running) -> list[float | None]:
+    """The vertical thrusters' pulses and the claw's, on the second PWM board."""
+    return pulses(rig.bus.snapshot(), [0, 1, 15], SECOND_PCA_ADDRESS)
+
+
+def _both_moving(rig: Running) -> bool:
+    first = rig.pulses()[:4]
+    second = _second_board(rig)[:2]
+    expected = TH_90_50_US[:4] + _VERTICAL_UP_50_US
+    return all(
+        value is not None and abs(value - want) <= COUNT_US
+        for value, want in zip(first + second, expected, strict=True)
+    )
+
+
+def _both_neutral(rig: Running) -> bool:
+    return is_neutral(rig.pulses()[:4]) and is_neutral(_second_board(rig))
+
+
+def test_thrusters_on_two_pwm_boards_of_one_bus_move_and_stop_together() -> None:
+    with running(_on_two_boards(watchdog_s=0.3)) as rig:
+        assert _both_neutral(rig)  # from the start, the claw at rest on the second board too
+        move = b"#start!#th.90.50!#mvdirect.1!#mvs.+50!"
+        rig.send(move)
+        assert wait_until(lambda: _both_moving(rig)), (rig.pulses(), _second_board(rig))
+        rig.send(b"#stop!")
+        assert wait_until(lambda: _both_neutral(rig)), (rig.pulses(), _second_board(rig))
+        rig.send(move)  # and nothing more: the link-loss failsafe stops both boards
+        assert wait_until(lambda: _both_moving(rig))
+        assert wait_until(lambda: _both_neutral(rig)), (rig.pulses(), _second_board(rig))
+        assert rig.server.controller.locked
+        assert [check.name for check in rig.server.board.checks] == [
+            "PWM board PCA9685 at 0x40",
+            "PWM board PCA9685 at 0x41",
+        ]
+    assert not rig.errors
+
+
+def test_a_reset_of_the_second_pwm_board_is_found_and_stops_both() -> None:
+    with running(_on_two_boards(watchdog_s=MAX_BOARD_WATCHDOG_S)) as rig:
+        chip = rig.bus.devices[SECOND_PCA_ADDRESS]
+        assert isinstance(chip, FakePca9685)
+        rig.send(b"#debug1!#start!#th.90.50!#mvdirect.1!#mvs.+50!")
+        assert wait_until(lambda: _both_moving(rig))
+        chip.power_on_reset()
+        assert wait_until(lambda: rig.saw(b"failsafe: PWM board PCA9685 at 0x41 was reset"))
+        assert wait_until(lambda: _both_neutral(rig)), (rig.pulses(), _second_board(rig))
+        assert not chip.sleeping
+        assert rig.server.controller.locked
+    assert not rig.errors
+
+
+def test_a_pwm_board_that_stops_answering_leaves_the_other_at_neutral() -> None:
+    with running(_on_two_boards(watchdog_s=MAX_BOARD_WATCHDOG_S)) as rig:
+        rig.send(b"#start!#th.90.50!#mvdirect.1!#mvs.+50!")
+        assert wait_until(lambda: _both_moving(rig))
+        rig.bus.fail(PCA_ADDRESS, 10**6)  # the first board is gone for good
+        rig.send(b"#stop!")
+        assert wait_until(lambda: bool(rig.errors))
+        assert isinstance(rig.errors[0], OSError)
+        assert is_neutral(_second_board(rig)[:2]), _second_board(rig)
+        assert not rig.server.at_rest  # (the first board's neutral could not be set: said so)
+
+
+def test_a_pwm_board_that_stops_answering_does_not_keep_the_claw_of_another_running() -> None:
+    with running(_on_two_boards(watchdog_s=MAX_BOARD_WATCHDOG_S, claw_pulse_ms=5000)) as rig:
+        claw = lambda: _second_board(rig)[2]  # noqa: E731
+        rig.send(b"#start!#th.90.50!#mvdirect.1!#mvs.+50!#h+!")
+        assert wait_until(lambda: _both_moving(rig))
+        assert claw() == pytest.approx(1900.0, abs=COUNT_US)
+        rig.bus.fail(PCA_ADDRESS, 10**6)  # the first board is gone for good
+        rig.send(b"#stop!")
+        assert wait_until(lambda: bool(rig.errors))
+        assert claw() == pytest.approx(1500.0, abs=COUNT_US)
+
+
+def test_neutral_from_another_process_reaches_every_pwm_board() -> None:
+    # systemd's ExecStopPost after a controller killed with both boards driving.
+    config = _on_two_boards()
+    bus = fake_bus_for(config)
+    board = open_pi_board(config, bus=bus, pin_factory=_mock_pins())
+    try:
+        board.hardware.thrusters.set_duties([128] * 6)
+    finally:
+        board.close()
+    assert not is_neutral(pulses(bus.snapshot(), [0, 1], SECOND_PCA_ADDRESS))
+    bus.fail(PCA_ADDRESS, 10**6)
+    with pytest.raises(BoardStartError) as caught:
+        set_pi_outputs_at_rest(config, bus=bus)
+    assert str(caught.value).startswith("PWM board PCA9685 at 0x40 on I²C bus 1: ")
+    assert "done: PWM board PCA9685 at 0x41 on I²C bus 1 (running): neutral pulses" in str(
+        caught.value
+    )
+    assert is_neutral(pulses(bus.snapshot(), [0, 1], SECOND_PCA_ADDRESS))
+    bus.fail(PCA_ADDRESS, 0)
+    done = set_pi_outputs_at_rest(config, bus=bus)
+    assert done.count("neutral pulses on channels") == 2
+    assert is_neutral(pulses(bus.snapshot(), [0, 1, 2, 3]))
+
+
+@pytest.mark.parametrize(
+    ("watchdog_s", "reason"),
+    [
+        (0.0, "got 0, which turns the link-loss failsafe off (P17)"),
+        (3600.0, "got 3600: a dead link would leave the thrusters running that long"),
+    ],
+)
+def test_a_board_is_never_served_without_a_link_loss_failsafe(
+    watchdog_s: float, reason: str
 ) -> None:
     # watchdog_s = 0, handy on the simulator's bench, on a robot leaves a dead link's last
-    # command running: the journal must show it from the start.
-    caplog.set_level("WARNING", logger="rovlink.board")
+    # command running: the board loop refuses it even from a config its file checks skipped.
     config = _quick(watchdog_s=watchdog_s)
     board = open_pi_board(config, bus=fake_bus_for(config), pin_factory=_mock_pins())
     try:
-        BoardServer(config.controller, board)
+        with pytest.raises(ValueError, match=r"watchdog_s must be 0\.1–10 s on a robot") as caught:
+            BoardServer(config.controller, board)
     finally:
         board.close()
-    messages = [record.getMessage() for record in caplog.records]
-    assert any("link-loss failsafe is off" in message for message in messages) is warned
+    assert reason in str(caught.value)

@@ -7,6 +7,7 @@ import contextlib
 import os
 import re
 import signal
+import socket
 import subprocess
 import tty
 from collections.abc import Iterator
@@ -15,6 +16,7 @@ from pathlib import Path
 import pytest
 
 import rovlink
+from rovlink.board.watchdog_bounds import MAX_BOARD_WATCHDOG_S
 from rovlink.client.blocking import Client
 from tests.board.controller_process import (
     ControllerProcess,
@@ -63,7 +65,7 @@ def test_a_signal_ends_the_process_with_the_thrusters_at_neutral(
     tmp_path: Path, signum: int, status: int
 ) -> None:
     log = tmp_path / "i2c.jsonl"
-    config = make_fake_toml(tmp_path, log, watchdog_s=0.0)
+    config = make_fake_toml(tmp_path, log, watchdog_s=MAX_BOARD_WATCHDOG_S)
     with running_controller(tmp_path, "--config", str(config), "--pty") as controller:
         assert controller.pty_path is not None
         assert "board pi" in controller.ready_line
@@ -93,7 +95,7 @@ def test_a_killed_controller_is_set_to_neutral_by_the_units_exec_stop_post(
     tmp_path: Path,
 ) -> None:
     log = tmp_path / "i2c.jsonl"
-    config = make_fake_toml(tmp_path, log, watchdog_s=0.0)
+    config = make_fake_toml(tmp_path, log, watchdog_s=MAX_BOARD_WATCHDOG_S)
     stop_post = [
         str(config) if a == "/etc/rovlink/rov.toml" else a for a in _unit_line("ExecStopPost")
     ]
@@ -111,6 +113,65 @@ def test_a_killed_controller_is_set_to_neutral_by_the_units_exec_stop_post(
         assert is_neutral(pulses(transactions))
 
 
+def test_neutral_after_a_killed_controller_needs_only_the_pwm_boards_tables(
+    tmp_path: Path,
+) -> None:
+    # rov.toml was edited while the controller ran (a wrong gain, the failsafe turned off to
+    # try something): the controller would refuse it at its next start, and ExecStopPost must
+    # still set neutral after the controller is killed.
+    log = tmp_path / "i2c.jsonl"
+    config = make_fake_toml(tmp_path, log)
+    with running_controller(tmp_path, "--config", str(config), "--pty") as controller:
+        with _moving_robot(controller, log):
+            controller.process.kill()
+            assert controller.process.wait(10) == -signal.SIGKILL
+        text = config.read_text(encoding="utf-8")
+        text = text.replace("kp = 40", "kp = 400").replace("watchdog_s = 2.0", "watchdog_s = 0")
+        config.write_text(text.replace("poll_hz = 20.0", "poll_hz = 500.0"), encoding="utf-8")
+        assert "[depth_pid]: kp must be in 0–99" in _run("--config", str(config), "--pty").stderr
+        assert _moving(log)
+        result = _run("--config", str(config), "--neutral")
+        assert result.returncode == 0, result.stderr
+        assert "neutral pulses on channels 0, 1, 2, 3, 4, 5, 8" in result.stderr
+        assert is_neutral(pulses(read_log(log)))
+
+
+def test_neutral_with_a_wrong_pwm_board_table_says_it_could_not_set_neutral(
+    tmp_path: Path,
+) -> None:
+    path = tmp_path / "rov.toml"
+    text = EXAMPLE.read_text(encoding="utf-8").replace("channel = 3", "channel = 2")
+    path.write_text(text, encoding="utf-8")
+    result = _run("--config", str(path), "--neutral")
+    assert result.returncode == 2
+    assert "[esc.rear_right] channel: 2 is already used by [esc.rear_left]" in result.stderr
+    assert "NEUTRAL COULD NOT BE SET: cut the thruster power" in result.stderr
+
+
+def test_the_unit_has_systemd_kill_a_controller_that_hangs(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    text = (EXAMPLE.parents[1] / "docs" / "hardware.md").read_text(encoding="utf-8")
+    assert re.search(r"^Type=notify$", text, flags=re.MULTILINE)
+    assert re.search(r"^WatchdogSec=5$", text, flags=re.MULTILINE)
+    assert re.search(r"^NotifyAccess=main$", text, flags=re.MULTILINE)
+    # What systemd gives a service with WatchdogSec=5 (its NOTIFY_SOCKET, here a test's).
+    listener = socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM)
+    listener.bind(str(tmp_path / "notify"))
+    listener.settimeout(REPLY_TIMEOUT_S)
+    monkeypatch.setenv("NOTIFY_SOCKET", str(tmp_path / "notify"))
+    monkeypatch.setenv("WATCHDOG_USEC", "200000")
+    monkeypatch.delenv("WATCHDOG_PID", raising=False)
+    config = make_fake_toml(tmp_path, tmp_path / "i2c.jsonl")
+    try:
+        with running_controller(tmp_path, "--config", str(config), "--pty"):
+            told = [listener.recv(100) for _ in range(6)]
+    finally:
+        listener.close()
+    assert b"READY=1" in told
+    assert told.count(b"WATCHDOG=1") >= 4  # every 0.1 s, half of WATCHDOG_USEC
+
+
 def test_a_second_controller_on_the_same_pwm_board_is_refused_before_touching_it(
     tmp_path: Path,
 ) -> None:
@@ -118,7 +179,7 @@ def test_a_second_controller_on_the_same_pwm_board_is_refused_before_touching_it
     # on one PCA9685 each write only what they believe changed: `#stop!` sent to one would not
     # stop what the other set running. The second refuses before a single transaction.
     log = tmp_path / "i2c.jsonl"
-    config = make_fake_toml(tmp_path, log, watchdog_s=0.0)
+    config = make_fake_toml(tmp_path, log, watchdog_s=MAX_BOARD_WATCHDOG_S)
     with (
         running_controller(tmp_path, "--config", str(config), "--pty") as controller,
         _moving_robot(controller, log) as rov,
@@ -165,6 +226,35 @@ def test_the_watchdog_of_a_real_process_gives_neutral(tmp_path: Path) -> None:
             assert "failsafe: no valid frame" in controller.stderr()
 
 
+def test_a_tcp_host_that_dies_while_driving_is_stopped_though_a_monitor_keeps_talking(
+    tmp_path: Path,
+) -> None:
+    # A pilot's station drives over TCP while a monitor on the pseudo-terminal polls the
+    # sensors. The station is killed: its motion must not run on, fed by the monitor's queries.
+    log = tmp_path / "i2c.jsonl"
+    config = make_fake_toml(tmp_path, log, watchdog_s=0.3)
+    with running_controller(tmp_path, "--config", str(config), "--pty", "--tcp", "0") as controller:
+        assert controller.pty_path is not None
+        assert controller.tcp_url is not None
+        host, port = controller.tcp_url.removeprefix("socket://").rsplit(":", 1)
+        monitor = os.open(controller.pty_path, os.O_RDWR | os.O_NOCTTY)
+        try:
+            tty.setraw(monitor)
+            with socket.create_connection((host, int(port)), timeout=5) as station:
+                station.sendall(b"#start!#th.90.50!")
+                assert wait_until(lambda: _moving(log))
+            # The station is gone; the monitor keeps asking for the sensors.
+
+            def stopped_while_polled() -> bool:
+                os.write(monitor, b"#qsa!")
+                return is_neutral(pulses(read_log(log)))
+
+            assert wait_until(stopped_while_polled, timeout_s=5.0), pulses(read_log(log))
+        finally:
+            os.close(monitor)
+        assert "failsafe: no valid frame" in controller.stderr()
+
+
 @pytest.mark.parametrize("transport", ["pty", "tcp"])
 def test_the_driver_passes_the_simulators_tests_against_the_pi_board(
     tmp_path: Path, transport: str
@@ -186,7 +276,7 @@ def test_the_driver_passes_the_simulators_tests_against_the_pi_board(
 
 def test_serving_a_serial_device_exclusively(tmp_path: Path) -> None:
     log = tmp_path / "i2c.jsonl"
-    config = make_fake_toml(tmp_path, log, watchdog_s=0.0)
+    config = make_fake_toml(tmp_path, log, watchdog_s=MAX_BOARD_WATCHDOG_S)
     master, slave = os.openpty()
     tty.setraw(slave)
     device = os.ttyname(slave)
@@ -209,7 +299,9 @@ def test_serving_a_serial_device_exclusively(tmp_path: Path) -> None:
             # board of its own: on the same board it would be refused before the device.)
             other = tmp_path / "other"
             other.mkdir()
-            other_config = make_fake_toml(other, other / "i2c.jsonl", watchdog_s=0.0)
+            other_config = make_fake_toml(
+                other, other / "i2c.jsonl", watchdog_s=MAX_BOARD_WATCHDOG_S
+            )
             second = subprocess.run(
                 controller_command("--config", str(other_config), "--port", device),
                 capture_output=True,
@@ -259,6 +351,13 @@ def test_a_wrong_config_is_one_line_naming_the_key(tmp_path: Path) -> None:
     assert result.returncode == 2
     assert result.stderr.strip().count("\n") == 0
     assert "[esc.rear_right] channel: 2 is already used by [esc.rear_left]" in result.stderr
+
+
+@pytest.mark.parametrize("watchdog", ["0", "3600"])
+def test_a_robot_is_never_served_without_a_link_loss_failsafe(watchdog: str) -> None:
+    result = _run("--config", str(EXAMPLE), "--pty", "--watchdog", watchdog)
+    assert result.returncode == 2
+    assert f"--watchdog must be 0.1–10 s on a robot, got {watchdog}" in result.stderr
 
 
 def test_usage_errors() -> None:

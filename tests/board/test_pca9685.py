@@ -95,8 +95,8 @@ def test_esc_pulses_span_the_range_and_reverse() -> None:
 
 def test_neutral_is_written_even_when_the_driver_believes_it_is_there() -> None:
     bus, fake, pca = _chip()
-    thrusters = EscThrusters(pca, [EscChannel(0), EscChannel(1)])
-    pca.start(50.0, thrusters.neutral_pulses_us())
+    thrusters = EscThrusters([pca], [(pca, EscChannel(0)), (pca, EscChannel(1))])
+    pca.start(50.0, thrusters.neutral_pulses_us()[pca])
     # Someone else (a restarted chip, a glitch) changed the outputs behind the driver's back.
     fake.write(bytes([0x06, 0, 0, 0x60, 0x01]))
     before = len(bus.transactions)
@@ -145,9 +145,14 @@ def test_a_chip_at_200_hz_is_found_reset_by_its_mode_alone() -> None:
 
 def _watch(interval_s: float = 0.1) -> tuple[FakeI2cBus, FakePca9685, Pca9685, Pca9685ResetWatch]:
     bus, fake, pca = _chip()
-    thrusters = EscThrusters(pca, [EscChannel(0), EscChannel(1, reversed=True)])
-    pca.start(50.0, thrusters.neutral_pulses_us())
-    return bus, fake, pca, Pca9685ResetWatch(pca, thrusters.neutral_pulses_us, interval_s)
+    thrusters = EscThrusters([pca], [(pca, EscChannel(0)), (pca, EscChannel(1, reversed=True))])
+    pca.start(50.0, thrusters.neutral_pulses_us()[pca])
+    return (
+        bus,
+        fake,
+        pca,
+        Pca9685ResetWatch(pca, lambda: thrusters.neutral_pulses_us()[pca], interval_s),
+    )
 
 
 def _period(watch: Pca9685ResetWatch, now_s: float) -> str | None:
@@ -168,7 +173,8 @@ def test_the_watch_reads_back_at_most_once_an_interval() -> None:
 def test_a_reset_is_reported_counted_and_the_chip_started_again_at_neutral() -> None:
     _bus, fake, pca, watch = _watch()
     assert _period(watch, 0.0) is None
-    EscThrusters(pca, [EscChannel(0), EscChannel(1, reversed=True)]).set_duties([200, 200])
+    escs = [(pca, EscChannel(0)), (pca, EscChannel(1, reversed=True))]
+    EscThrusters([pca], escs).set_duties([200, 200])
     fake.power_on_reset()
     assert _period(watch, 0.05) is None  # not due yet: the ESCs are without pulses until 0.1 s
     fault = _period(watch, 0.1)
@@ -265,3 +271,36 @@ def test_taking_over_a_chip_that_does_not_answer_tries_to_start_it() -> None:
     bus.fail(0x40, 100)
     with pytest.raises(OSError, match="no acknowledge from 0x40"):
         Pca9685(bus).take_over(50.0, {0: 1500.0}, {0: 1500.0})
+
+
+def _two_chips() -> tuple[FakeI2cBus, EscThrusters, list[FakePca9685]]:
+    """Two PCA9685 on one bus, two ESCs on each (both on channel 0 and 1)."""
+    fakes = [FakePca9685(), FakePca9685()]
+    bus = FakeI2cBus({0x40: fakes[0], 0x41: fakes[1]})
+    first, second = Pca9685(bus, 0x40), Pca9685(bus, 0x41)
+    escs = [(pca, EscChannel(channel)) for pca in (first, second) for channel in (0, 1)]
+    thrusters = EscThrusters([first, second], escs)
+    for pca, pulses in thrusters.neutral_pulses_us().items():
+        pca.start(50.0, pulses)
+    return bus, thrusters, fakes
+
+
+def test_thrusters_on_two_chips_are_set_with_one_write_to_each() -> None:
+    bus, thrusters, fakes = _two_chips()
+    before = len(bus.transactions)
+    thrusters.set_duties([255, 255, -255, -255])
+    writes = bus.transactions[before:]
+    assert [t.address for t in writes] == [0x40, 0x41]
+    assert [fakes[0].pulse_us(0), fakes[1].pulse_us(1)] == pytest.approx([1900, 1100], abs=COUNT_US)
+
+
+@pytest.mark.parametrize("method", ["set_duties", "neutral"])
+def test_a_chip_that_does_not_answer_leaves_the_other_written(method: str) -> None:
+    bus, thrusters, fakes = _two_chips()
+    thrusters.set_duties([255, 255, 255, 255])
+    bus.fail(0x40, 10)  # the first chip is gone, the second must still stop
+    stop = thrusters.neutral if method == "neutral" else lambda: thrusters.set_duties([0] * 4)
+    with pytest.raises(OSError, match="no acknowledge from 0x40"):
+        stop()
+    assert [fakes[1].pulse_us(0), fakes[1].pulse_us(1)] == pytest.approx([1500] * 2, abs=COUNT_US)
+    assert fakes[0].pulse_us(0) == pytest.approx(1900, abs=COUNT_US)  # (as it was left)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -10,13 +11,14 @@ from rovlink.board.pi.config import (
     ClawKind,
     PressureKind,
     load_pi_config,
+    load_pi_outputs_config,
     pi_config_from_mapping,
     pi_config_reference,
 )
 from rovlink.board.pi.ms5837 import Ms5837Model
 from rovlink.controller import ConfigError, LeakAction
 from rovlink.controller.config import read_toml
-from tests.board.rig import EXAMPLE
+from tests.board.rig import EXAMPLE, two_pwm_boards_data
 
 
 def test_the_documented_example_loads() -> None:
@@ -28,8 +30,8 @@ def test_the_documented_example_loads() -> None:
     assert config.pressure.ms5837.model is Ms5837Model.BA30
     assert config.controller.leak_action is LeakAction.STOP
     assert config.leak.pin == 27
-    assert config.pca9685.address == 0x40
-    assert config.pca9685.check_interval_s == 0.1
+    assert [pwm.address for pwm in config.pwm_boards] == [0x40]
+    assert config.pwm_boards[0].check_interval_s == 0.1
 
 
 def test_the_reference_names_every_board_table() -> None:
@@ -119,9 +121,21 @@ def _load(**changes: object) -> None:
         # (an ADS1115's config word lands in a PCA9685's MODE2, making its outputs open-drain).
         # TOML reads 40 as forty: the BNO055's 0x28, not the PCA9685's 0x40.
         (
-            {"pca9685__address": 40},
-            "rov.toml [imu] address: 0x28 (40) is already used by [pca9685] on I²C bus 1; "
+            {"imu__address": 0x40},
+            "rov.toml [imu] address: 0x40 (64) is already used by [pca9685] on I²C bus 1; "
             "a TOML number is decimal unless written 0x…",
+        ),
+        (
+            {"pca9685__address": 40},
+            "rov.toml [pca9685]: address must be a PCA9685's, 0x40–0x77 but not 0x70 (the All "
+            "Call address every PCA9685 answers after a reset), got 0x28 (40); a TOML number is "
+            "decimal unless written 0x…",
+        ),
+        # Every PCA9685 answers 0x70 after power-on or a supply dip: a chip strapped there would
+        # have its writes land in every other chip that reset.
+        (
+            {"pca9685__address": 0x70},
+            "rov.toml [pca9685]: address must be a PCA9685's, 0x40–0x77 but not 0x70",
         ),
         (
             {"pressure__sensor": "ads1115", "pressure__ads1115__address": 0x40},
@@ -165,6 +179,148 @@ def test_an_address_on_another_bus_or_of_a_device_not_fitted_is_no_conflict(
     changes: dict[str, object],
 ) -> None:
     _load(**changes)
+
+
+@pytest.mark.parametrize(
+    ("watchdog_s", "reason"),
+    [
+        # P17's "0 disables" is for the simulator's bench: on a robot a dead link would leave
+        # the thrusters running.
+        ("0", "must be 0.1–10 s on a robot, got 0, which turns the link-loss failsafe off"),
+        ("0.0", "must be 0.1–10 s on a robot, got 0, which turns the link-loss failsafe off"),
+        ("7200", "must be 0.1–10 s on a robot, got 7200: a dead link would leave the thrusters"),
+        ("10.5", "must be 0.1–10 s on a robot, got 10.5"),
+        ("0.05", "must be 0.1–10 s on a robot, got 0.05"),
+        ("1e-9", "must be 0.1–10 s on a robot, got 1e-09"),
+    ],
+)
+def test_the_link_loss_failsafe_of_a_robot_is_bounded(
+    tmp_path: Path, watchdog_s: str, reason: str
+) -> None:
+    path = tmp_path / "rov.toml"
+    text = EXAMPLE.read_text(encoding="utf-8")
+    path.write_text(text.replace("watchdog_s = 2.0", f"watchdog_s = {watchdog_s}"), "utf-8")
+    with pytest.raises(ConfigError) as caught:
+        load_pi_config(path)
+    assert str(caught.value).startswith(f"{path} [controller] watchdog_s: {reason}")
+
+
+@pytest.mark.parametrize("watchdog_s", ["nan", "inf", "-1", "-0.5"])
+def test_a_link_loss_failsafe_that_is_no_duration_is_refused(
+    tmp_path: Path, watchdog_s: str
+) -> None:
+    path = tmp_path / "rov.toml"
+    text = EXAMPLE.read_text(encoding="utf-8")
+    path.write_text(text.replace("watchdog_s = 2.0", f"watchdog_s = {watchdog_s}"), "utf-8")
+    with pytest.raises(ConfigError, match=r"\[controller\]: watchdog_s must be ≥ 0") as caught:
+        load_pi_config(path)
+    assert str(caught.value).startswith(str(path))
+
+
+@pytest.mark.parametrize("watchdog_s", [0.1, 2.0, 10.0])
+def test_a_link_loss_failsafe_within_the_bounds_is_taken(tmp_path: Path, watchdog_s: float) -> None:
+    path = tmp_path / "rov.toml"
+    text = EXAMPLE.read_text(encoding="utf-8")
+    path.write_text(text.replace("watchdog_s = 2.0", f"watchdog_s = {watchdog_s}"), "utf-8")
+    assert load_pi_config(path).controller.watchdog_s == watchdog_s
+
+
+def test_several_pwm_boards_share_one_bus() -> None:
+    config = pi_config_from_mapping(two_pwm_boards_data(), "rov.toml")
+    assert [pwm.address for pwm in config.pwm_boards] == [0x40, 0x41]
+    boards = [config.pwm_board_index(esc.pca9685) for esc in config.escs]
+    assert boards == [0, 0, 0, 0, 1, 1]
+    assert [esc.channel for esc in config.escs] == [0, 1, 2, 3, 0, 1]  # channels 0, 1 twice
+    assert config.pwm_board_index(config.claw.pca9685) == 1
+
+
+def test_more_thrusters_than_one_pwm_board_has_channels() -> None:
+    # 18 thrusters and a claw: 19 outputs, more than a PCA9685's 16.
+    data = read_toml(EXAMPLE)
+    data["thrusters"] = [{"name": f"t{index}", "angle_deg": 20.0 * index} for index in range(18)]
+    data["pca9685"] = [{"address": 0x40}, {"address": 0x41}]
+    data["esc"] = {
+        f"t{index}": {"channel": index % 16, "pca9685": 0x40 if index < 16 else 0x41}
+        for index in range(18)
+    }
+    data["claw"].update(channel=2, pca9685=0x41)
+    config = pi_config_from_mapping(data, "rov.toml")
+    assert len(config.escs) == 18
+    assert [config.pwm_board_index(esc.pca9685) for esc in config.escs] == [0] * 16 + [1, 1]
+
+
+def _two_boards(**changes: object) -> None:
+    data = two_pwm_boards_data()
+    for dotted, value in changes.items():
+        *path, key = dotted.split("__")
+        table: Any = data
+        for name in path:
+            table = table[int(name)] if isinstance(table, list) else table[name]
+        table[key] = value
+    pi_config_from_mapping(data, "rov.toml")
+
+
+@pytest.mark.parametrize(
+    ("changes", "message"),
+    [
+        (
+            {"pca9685__1__address": 0x40},
+            "rov.toml [[pca9685]] #2 address: 0x40 (64) is already used by [[pca9685]] #1 "
+            "on I²C bus 1",
+        ),
+        (
+            {"pca9685__1__address": 0x76},
+            "rov.toml [pressure.ms5837] address: 0x76 (118) is already used by [[pca9685]] #2",
+        ),
+        (
+            {"esc__vertical_left__pca9685": 0x42},
+            "rov.toml [esc.vertical_left] pca9685: no PCA9685 at 0x42; the PWM boards are at "
+            "0x40, 0x41",
+        ),
+        (
+            {"claw__pca9685": 0x60},
+            "rov.toml [claw] pca9685: no PCA9685 at 0x60; the PWM boards are at 0x40, 0x41",
+        ),
+        (
+            {"esc__vertical_right__channel": 0},
+            "rov.toml [esc.vertical_right] channel: 0 of the PCA9685 at 0x41 is already used by "
+            "[esc.vertical_left]",
+        ),
+        (
+            {"pca9685__1__frequency_hz": 600.0},
+            "rov.toml [[pca9685]] #2 frequency_hz: a 1900 µs pulse does not fit in the 1638 µs "
+            "period of 600 Hz",
+        ),
+        ({"pca9685__1__adress": 0x42}, "rov.toml [[pca9685]] #2: unknown key 'adress'"),
+    ],
+)
+def test_a_wrong_pwm_board_list_is_refused_naming_the_table_and_the_key(
+    changes: dict[str, object], message: str
+) -> None:
+    with pytest.raises(ConfigError) as caught:
+        _two_boards(**changes)
+    assert str(caught.value).startswith(message)
+
+
+def test_an_empty_list_of_pwm_boards_is_refused() -> None:
+    data = two_pwm_boards_data()
+    data["pca9685"] = []
+    with pytest.raises(ConfigError, match=r"rov.toml \[\[pca9685\]\]: no PWM board"):
+        pi_config_from_mapping(data, "rov.toml")
+
+
+def test_the_pwm_boards_part_is_read_whatever_the_other_tables_hold(tmp_path: Path) -> None:
+    path = tmp_path / "rov.toml"
+    text = EXAMPLE.read_text(encoding="utf-8").replace("kp = 40", "kp = 400")
+    path.write_text(text.replace("[board]", "[board]\nno_such_key = 1"), encoding="utf-8")
+    with pytest.raises(ConfigError, match="kp must be in 0–99"):
+        load_pi_config(path)
+    config = load_pi_outputs_config(path)
+    assert [esc.channel for esc in config.escs] == [0, 1, 2, 3, 4, 5]
+    assert config.claw.channel == 8
+    path.write_text(text.replace("channel = 8", "channel = 5"), encoding="utf-8")
+    with pytest.raises(ConfigError, match=r"\[claw\] channel: 5 is already used by"):
+        load_pi_outputs_config(path)
 
 
 def test_a_file_that_is_not_toml(tmp_path: Path) -> None:

@@ -63,3 +63,5 @@ class Board:
     close: Callable[[], None]
     sensors: Sequence[PolledSensor[Any]] = field(default_factory=tuple)
     checks: Sequence[DeviceCheck] = field(default_factory=tuple)
+    #: What the board started without (a dead IMU), for the controller's ready line.
+    warnings: Sequence[str] = field(default_factory=tuple)

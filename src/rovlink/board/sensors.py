@@ -4,7 +4,10 @@ The board loop polls every sensor once per control period, before the controller
 the controller reads the values kept here; so a sensor's I/O (an I²C transaction, a conversion
 under way) never happens inside the controller, and a failed read is never an exception in it.
 A failed poll keeps the last good value and counts; after ``stale_after`` failures in a row the
-sensor is *stale*, and the board loop stops the motors until it answers again.
+sensor is *stale*. A sensor the controller drives by (the pressure sensor: depth hold and the
+depth limit) then stops the motors until it answers again; one it only reports (the IMU: the
+protocol has no yaw command, so the controller holds no heading, P11) is said to be stale and
+driving goes on.
 """
 
 from __future__ import annotations
@@ -47,15 +50,32 @@ class SensorSource(Protocol[_T_co]):
 class PolledSensor(Generic[_T]):
     """One sensor: its last good value, and how many polls in a row have failed."""
 
-    def __init__(self, name: str, source: SensorSource[_T], initial: _T, stale_after: int) -> None:
+    def __init__(
+        self,
+        name: str,
+        source: SensorSource[_T],
+        initial: _T,
+        stale_after: int,
+        *,
+        lost_when_stale: str = "",
+    ) -> None:
+        """``lost_when_stale`` says what a stale sensor takes from the pilot when driving can
+        go on without it; empty (the default) for a sensor the controller drives by, whose
+        staleness stops the motors."""
         if stale_after < 1:
             raise ValueError(f"stale_after must be ≥ 1, got {stale_after}")
         self.name = name
         self.value = initial
         self.stale_after = stale_after
+        self.lost_when_stale = lost_when_stale
         self.failures = 0
         self.total_failures = 0
         self._source = source
+
+    @property
+    def needed_to_drive(self) -> bool:
+        """Whether the motors stop while this sensor is stale (the stale-sensor failsafe)."""
+        return not self.lost_when_stale
 
     @property
     def stale(self) -> bool:

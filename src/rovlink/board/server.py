@@ -1,11 +1,11 @@
 """The board loop: the controller on a real board, serving its serial lines.
 
 One thread and one :mod:`selectors` loop. Every control period, at a fixed rate: poll the
-sensors, apply the stale-sensor failsafe, run the board's device checks (a fault found stops and
-locks the controller), tick the controller (which sets the thrusters). In
-between, move bytes between the links and the controller. Whatever ends the loop (a stop
-request on SIGTERM or Ctrl-C, an exception anywhere in it), the ``finally`` puts every thruster
-at neutral before anything else happens.
+sensors, apply the stale-sensor failsafe (to the sensors the controller drives by), run the
+board's device checks (a fault found stops and locks the controller), tick the controller
+(which sets the thrusters). In between, move bytes between the links and the controller.
+Whatever ends the loop (a stop request on SIGTERM or Ctrl-C, an exception anywhere in it), the
+``finally`` puts every thruster at neutral before anything else happens.
 
 Replies go back on the link whose bytes the controller is handling; what the controller writes
 on its own (failsafe and leak lines) goes to every link. Output nobody reads is bounded.
@@ -14,26 +14,41 @@ on its own (failsafe and leak lines) goes to every link. Output nobody reads is 
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import Any
 
 from rovlink.board.board import Board, DeviceCheck
 from rovlink.board.schedule import FixedRateSchedule
+from rovlink.board.sensors import PolledSensor
+from rovlink.board.service_notify import ServiceNotifier
+from rovlink.board.watchdog_bounds import board_watchdog_problem
 from rovlink.controller import ControllerConfig
 from rovlink.controller.controller import Controller
 from rovlink.controller.lines import Line, Lines
 from rovlink.logs import get_logger
 
-__all__ = ["BUSY_MESSAGE", "BoardServer"]
+__all__ = ["BUSY_MESSAGE", "SILENT_CLIENT_GIVES_WAY_S", "BoardServer"]
 
 logger = get_logger(__name__)
 
 #: What a second TCP client reads before it is disconnected.
 BUSY_MESSAGE = b"busy: the controller already has a client\r\n"
+#: How long a TCP client must have sent nothing before a new one takes its place, s: a host
+#: keeps its link alive (P17; rovlink's hosts every idle second), so one silent this long has
+#: lost it (a dropped Wi-Fi, a pulled cable leave the connection open), and its motion was
+#: stopped by then.
+SILENT_CLIENT_GIVES_WAY_S = 3.0
 _MAX_WAIT_S = 0.05  # a stop request is seen at least this often
 _SAFE_ATTEMPTS = 3
 
 
 class BoardServer:
-    """The controller on ``board``, served on a serial device, a PTY and/or TCP."""
+    """The controller on ``board``, served on a serial device, a PTY and/or TCP.
+
+    Raises :class:`ValueError` if ``config`` has the link-loss failsafe off or too long for a
+    robot (:mod:`rovlink.board.watchdog_bounds`). A TCP client that has sent nothing for
+    ``silent_client_gives_way_s`` (default: :data:`SILENT_CLIENT_GIVES_WAY_S`, or the link-loss
+    failsafe's time if longer) gives way to a new one rather than keep it out as busy.
+    """
 
     def __init__(
         self,
@@ -41,14 +56,16 @@ class BoardServer:
         board: Board,
         *,
         overrun_warning_s: float = 10.0,
+        service_notifier: ServiceNotifier | None = None,
+        silent_client_gives_way_s: float | None = None,
     ) -> None:
         self.board = board
+        #: Told after every control period completed (systemd ends a loop that hangs).
+        self.service_notifier = service_notifier
         self.clock = board.hardware.clock
-        if not config.watchdog_s:
-            logger.warning(
-                "the link-loss failsafe is off (watchdog_s 0): a link that dies leaves the "
-                "thrusters as last commanded"
-            )
+        problem = board_watchdog_problem(config.watchdog_s)
+        if problem is not None:  # (a board's config refuses it first, naming its file)
+            raise ValueError(f"watchdog_s {problem}")
         self.controller = Controller(config, board.hardware, self._from_controller)
         self.schedule = FixedRateSchedule(config.tick_s, self.clock.now_s())
         self._overrun_warning_s = overrun_warning_s
@@ -58,6 +75,11 @@ class BoardServer:
             self._on_bytes,
             busy_message=BUSY_MESSAGE,
             on_close=self.controller.forget_line,
+            silent_client_gives_way_s=(
+                max(config.watchdog_s, SILENT_CLIENT_GIVES_WAY_S)
+                if silent_client_gives_way_s is None
+                else silent_client_gives_way_s
+            ),
         )
         self._replying_to: Line | None = None
         self._stale: set[str] = set()
@@ -139,10 +161,8 @@ class BoardServer:
             if sensor.stale:
                 if sensor.name not in self._stale:
                     self._stale.add(sensor.name)
-                    logger.warning(
-                        "%s stale: %d failed reads in a row", sensor.name, sensor.failures
-                    )
-                if not controller.locked:
+                    self._went_stale(sensor)
+                if sensor.needed_to_drive and not controller.locked:
                     controller.failsafe(
                         f"failsafe: {sensor.name} stale ({sensor.failures} failed reads in a row)"
                     )
@@ -155,6 +175,21 @@ class BoardServer:
             if check.is_due(now_s):
                 self._check_device(check, now_s)
         controller.tick()
+        if self.service_notifier is not None:
+            self.service_notifier.pet(now_s)
+
+    def _went_stale(self, sensor: PolledSensor[Any]) -> None:
+        """Say that ``sensor`` went stale; one the controller does not drive by is said in a
+        debug line too, as no failsafe line tells the pilot."""
+        if sensor.needed_to_drive:
+            logger.warning("%s stale: %d failed reads in a row", sensor.name, sensor.failures)
+            return
+        text = (
+            f"{sensor.name} stale ({sensor.failures} failed reads in a row): "
+            f"{sensor.lost_when_stale}; driving goes on"
+        )
+        logger.warning("%s", text)
+        self.controller.debug(text)
 
     def _check_device(self, check: DeviceCheck, now_s: float) -> None:
         """Run one device check. A fault is an error in the log and a failsafe: whatever the

@@ -94,7 +94,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--watchdog",
         type=_watchdog_seconds,
         metavar="SECONDS",
-        help="link-loss failsafe timeout (default: from the config, 2 s); 0 turns it off",
+        help="link-loss failsafe timeout (default: from the config, 2 s); --board pi: "
+        "0.1–10 s, --board sim: 0 turns it off",
     )
 
 
@@ -130,7 +131,7 @@ def _set_neutral(args: argparse.Namespace) -> int:
     if args.port is not None or args.pty or args.tcp is not None:
         raise UsageError("--neutral serves nothing: leave out --port, --pty and --tcp")
     _configure_logging()
-    config = _pi_config(args)
+    config = _pi_outputs_config(args)
     try:
         done = set_pi_outputs_at_rest(config)
     except PwmBoardInUseError as error:  # a running controller sets its thrusters itself
@@ -166,19 +167,29 @@ def _run_pi(
     from rovlink.board.board import BoardStartError  # noqa: PLC0415
     from rovlink.board.pi.board import open_pi_board  # noqa: PLC0415
     from rovlink.board.server import BoardServer  # noqa: PLC0415
+    from rovlink.board.service_notify import ServiceNotifier  # noqa: PLC0415
 
     config = _pi_config(args)
     try:
         board = open_pi_board(config)
     except BoardStartError as error:
         raise CommandError(str(error)) from None
-    server = BoardServer(config.controller, board, overrun_warning_s=config.board.overrun_warning_s)
+    service_notifier = ServiceNotifier.from_environment()  # (Type=notify, WatchdogSec=)
+    server = BoardServer(
+        config.controller,
+        board,
+        overrun_warning_s=config.board.overrun_warning_s,
+        service_notifier=service_notifier,
+    )
     try:
         endpoints = _open_endpoints(server, args, address)
+        degraded = "".join(f"; {warning}" for warning in board.warnings)
         say_ready(
             f"rovlink controller ready: board pi, {', '.join(endpoints)}; "
-            "thrusters at neutral; Ctrl-C stops"
+            f"thrusters at neutral{degraded}; Ctrl-C stops"
         )
+        if service_notifier is not None:
+            service_notifier.ready()
         try:
             server.serve(stop.is_set)
         except Exception as error:
@@ -195,6 +206,8 @@ def _run_pi(
         if not server.at_rest:
             server.make_safe()
         server.close()
+        if service_notifier is not None:
+            service_notifier.close()
     schedule = server.schedule
     say_last(  # (a closed terminal, SIGHUP, takes no line)
         f"rovlink controller stopped: thrusters at neutral; {schedule.periods} control periods, "
@@ -240,9 +253,28 @@ def _pi_config(args: argparse.Namespace) -> PiConfig:
     except ConfigError as error:
         raise InputError(str(error)) from None
     if args.watchdog is not None:
+        from rovlink.board.watchdog_bounds import board_watchdog_problem  # noqa: PLC0415
+
+        problem = board_watchdog_problem(args.watchdog)
+        if problem is not None:
+            raise UsageError(f"--watchdog {problem}")
         controller = dataclasses.replace(config.controller, watchdog_s=args.watchdog)
         config = dataclasses.replace(config, controller=controller)
     return config
+
+
+def _pi_outputs_config(args: argparse.Namespace) -> PiConfig:
+    """What ``--neutral`` needs of rov.toml: the PWM boards' tables only, so that a mistake
+    in another table cannot leave the thrusters of a dead controller running."""
+    from rovlink.board.pi.config import load_pi_outputs_config  # noqa: PLC0415
+    from rovlink.controller import ConfigError  # noqa: PLC0415
+
+    if args.config is None:
+        raise UsageError("--board pi needs --config rov.toml (see docs/hardware.md)")
+    try:
+        return load_pi_outputs_config(args.config)
+    except ConfigError as error:
+        raise InputError(f"{error}; NEUTRAL COULD NOT BE SET: cut the thruster power") from None
 
 
 def _run_sim(

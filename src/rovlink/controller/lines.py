@@ -86,6 +86,8 @@ class Line:
         self.reading = True
         #: The selector events the line is watched for (0: not registered).
         self.watched_events = 0
+        #: When the line last read bytes (or opened), :func:`time.monotonic` seconds.
+        self.last_bytes_s = time.monotonic()
 
     def read(self) -> bytes | None:
         """Bytes from the peer; b"" when it has gone; None when there is nothing after all."""
@@ -221,7 +223,9 @@ class Lines:
 
     ``on_bytes(line, data)`` gets what each line reads; ``on_open`` and ``on_close`` see lines
     come (a TCP client connecting) and go. A second TCP client reads ``busy_message`` and is
-    disconnected.
+    disconnected, unless the first has sent nothing for ``silent_client_gives_way_s`` (0:
+    never): a client whose link died without closing (a dropped Wi-Fi, a pulled cable: no FIN
+    ever comes) would otherwise keep every host out, the robot's own included, for good.
     """
 
     def __init__(
@@ -231,8 +235,10 @@ class Lines:
         busy_message: bytes,
         on_open: Callable[[Line], None] | None = None,
         on_close: Callable[[Line], None] | None = None,
+        silent_client_gives_way_s: float = 0.0,
     ) -> None:
         self._on_bytes = on_bytes
+        self._silent_client_gives_way_s = silent_client_gives_way_s
         self._on_open = on_open
         self._on_close = on_close
         # select(2) takes microsecond timeouts where epoll and poll round up to whole
@@ -372,6 +378,7 @@ class Lines:
         if not data:
             self._gone(line)
             return
+        line.last_bytes_s = time.monotonic()
         self._on_bytes(line, data)
 
     def _gone(self, line: Line, write_error: OSError | None = None) -> None:
@@ -412,10 +419,22 @@ class Lines:
             connection, address = self._listener.accept()
         except BlockingIOError:
             return
-        if self._tcp_line is not None:
-            logger.info("refused %s:%s: busy", address[0], address[1])
-            self._refused.refuse(connection)
-            return
+        current = self._tcp_line
+        if current is not None:
+            silent_s = time.monotonic() - current.last_bytes_s
+            gives_way_s = self._silent_client_gives_way_s
+            if not gives_way_s or silent_s < gives_way_s:
+                logger.info("refused %s:%s: busy", address[0], address[1])
+                self._refused.refuse(connection)
+                return
+            logger.warning(
+                "%s sent nothing for %.1f s: disconnected for %s:%s",
+                current.name,
+                silent_s,
+                address[0],
+                address[1],
+            )
+            self._remove(current)
         line = TcpLine(connection)
         self._tcp_line = line
         self._add(line)

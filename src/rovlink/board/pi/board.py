@@ -9,6 +9,7 @@ neutral and every device opened so far is released.
 from __future__ import annotations
 
 import contextlib
+import functools
 import time
 from collections.abc import Callable
 from typing import Any, TypeVar
@@ -37,18 +38,37 @@ from rovlink.board.sensors import (
     PolledImu,
     PolledPressure,
     PolledSensor,
+    SensorError,
     SensorSource,
 )
 from rovlink.controller import Attitude, Hardware
 from rovlink.logs import get_logger
 
-__all__ = ["PwmBoardInUseError", "fake_bus_for", "open_pi_board", "set_pi_outputs_at_rest"]
+__all__ = [
+    "IMU_DID_NOT_START",
+    "IMU_LOST_WHEN_STALE",
+    "PwmBoardInUseError",
+    "fake_bus_for",
+    "open_pi_board",
+    "set_pi_outputs_at_rest",
+]
 
 logger = get_logger(__name__)
 
 _T = TypeVar("_T")
 _FIRST_READING_S = 0.5  # how long a sensor has at start to give its first reading
 _FAKE_WATER_C = 20.0  # the fake pressure sensor's temperature
+#: What a dead IMU takes from the pilot. Not the motors: the controller steers by no attitude
+#: (the protocol has no yaw command, P11, so it holds no heading), and stopping a robot that
+#: can still be driven and surfaced by hand would make a compass fault a lost dive.
+IMU_LOST_WHEN_STALE = (
+    "roll, pitch and heading are not measured, qro, qpi and qhe repeat the last good reading"
+)
+#: What an IMU that did not start takes from the pilot (until the controller is restarted).
+IMU_DID_NOT_START = (
+    "roll, pitch and heading are not measured, qro, qpi and qhe read 0 until the controller is "
+    "restarted with it answering"
+)
 
 
 class PwmBoardInUseError(BoardStartError):
@@ -76,7 +96,7 @@ class _LevelImu:
 def fake_bus_for(config: PiConfig, log_path: str = "") -> FakeI2cBus:
     """A fake bus with every device ``config`` names, at its address, at the surface."""
     devices: dict[int, Any] = {
-        config.pca9685.address: FakePca9685(config.pca9685.oscillator_hz),
+        pwm.address: FakePca9685(pwm.oscillator_hz) for pwm in config.pwm_boards
     }
     pressure = config.pressure
     if pressure.sensor is PressureKind.MS5837:
@@ -131,25 +151,28 @@ def open_pi_board(config: PiConfig, *, bus: I2cBus | None = None, pin_factory: A
     closers.append(bus.close)
     if pin_factory is None and config.i2c.backend is I2cBackend.FAKE and config.leak.pin >= 0:
         pin_factory = _starting("gpiozero's mock pins for the fake board", _mock_pins)
-    pca, thrusters, claw = _pwm_outputs(config, bus)
+    thrusters, claw = _pwm_outputs(config, bus)
     where = f"on I²C bus {config.i2c.bus}"
     started = False
 
-    def rest_pulses_us() -> dict[int, float]:
+    def rest_pulses_us() -> dict[Pca9685, dict[int, float]]:
         return _rest_pulses_us(thrusters, claw)
 
     try:
         rest = rest_pulses_us()
-        _starting(
-            f"PWM board PCA9685 at {pca.address:#04x} {where}",
-            lambda: pca.start(config.pca9685.frequency_hz, rest),
-        )
-        started = True
-        logger.info(
-            "thrusters at neutral for ESC arming: pulses on channels %s at %.1f Hz",
-            ", ".join(str(channel) for channel in sorted(rest)),
-            config.pca9685.frequency_hz,
-        )
+        for pca, pwm in zip(thrusters.chips, config.pwm_boards, strict=True):
+            started = True  # (from the first write on: neutral is set on the way out)
+            _starting(
+                f"PWM board PCA9685 at {pca.address:#04x} {where}",
+                functools.partial(pca.start, pwm.frequency_hz, rest[pca]),
+            )
+            logger.info(
+                "thrusters at neutral for ESC arming: PCA9685 at %#04x, pulses on channels %s "
+                "at %.1f Hz",
+                pca.address,
+                ", ".join(str(channel) for channel in sorted(rest[pca])) or "none",
+                pwm.frequency_hz,
+            )
         clock = MonotonicClock()
         stale_after = config.board.stale_after_failures
         pressure_name, pressure_source = _pressure_source(config, bus, where, clock)
@@ -160,9 +183,10 @@ def open_pi_board(config: PiConfig, *, bus: I2cBus | None = None, pin_factory: A
             stale_after,
         )
         sensors: list[PolledSensor[Any]] = [pressure]
+        warnings: list[str] = []
         imu: Any = _LevelImu()
         if config.imu.sensor is ImuKind.BNO055:
-            imu_sensor = _open_bno055(config, bus, closers, clock)
+            imu_sensor = _open_bno055(config, bus, closers, clock, warnings)
             sensors.append(imu_sensor)
             imu = PolledImu(imu_sensor)
         leak: Any = _NoLeakSensor()
@@ -187,8 +211,10 @@ def open_pi_board(config: PiConfig, *, bus: I2cBus | None = None, pin_factory: A
         raise
 
     def make_safe() -> None:
-        thrusters.neutral()
-        claw.neutral()
+        try:
+            thrusters.neutral()
+        finally:  # a claw motor on a board that answers stops even if another board does not
+            claw.neutral()
 
     def close_all() -> None:
         for release in reversed(closers):
@@ -205,10 +231,14 @@ def open_pi_board(config: PiConfig, *, bus: I2cBus | None = None, pin_factory: A
         claw=claw,
         clock=clock,
     )
-    checks = []
-    if config.pca9685.check_interval_s > 0:
-        checks.append(Pca9685ResetWatch(pca, rest_pulses_us, config.pca9685.check_interval_s))
-    return Board("pi", hardware, make_safe, close_all, tuple(sensors), tuple(checks))
+    checks = [
+        Pca9685ResetWatch(pca, _rest_of(pca, rest_pulses_us), pwm.check_interval_s)
+        for pca, pwm in zip(thrusters.chips, config.pwm_boards, strict=True)
+        if pwm.check_interval_s > 0
+    ]
+    return Board(
+        "pi", hardware, make_safe, close_all, tuple(sensors), tuple(checks), tuple(warnings)
+    )
 
 
 def set_pi_outputs_at_rest(config: PiConfig, *, bus: I2cBus | None = None) -> str:
@@ -225,24 +255,35 @@ def set_pi_outputs_at_rest(config: PiConfig, *, bus: I2cBus | None = None) -> st
     if bus is None:
         bus = _open_bus(config)
         release = _claim_or_close(config, bus)
+    done: list[str] = []
+    failures: list[str] = []
     try:
-        pca, thrusters, claw = _pwm_outputs(config, bus)
+        thrusters, claw = _pwm_outputs(config, bus)
         start = _rest_pulses_us(thrusters, claw)
         neutral = thrusters.neutral_pulses_us()  # (a servo claw keeps its place)
         if isinstance(claw, MotorClaw):
-            neutral[claw.channel] = claw.rest_pulse_us()
-        name = f"PWM board PCA9685 at {pca.address:#04x} on I²C bus {config.i2c.bus}"
-        started = _starting(
-            name,
-            lambda: pca.take_over(config.pca9685.frequency_hz, neutral, start),
-        )
+            neutral[claw.pca][claw.channel] = claw.rest_pulse_us()
+        # Every chip, even after one failed: it must not keep another's thrusters running.
+        for pca, pwm in zip(thrusters.chips, config.pwm_boards, strict=True):
+            name = f"PWM board PCA9685 at {pca.address:#04x} on I²C bus {config.i2c.bus}"
+            try:
+                started = _starting(
+                    name,
+                    functools.partial(pca.take_over, pwm.frequency_hz, neutral[pca], start[pca]),
+                )
+            except BoardStartError as error:
+                failures.append(str(error))
+                continue
+            how = "started again" if started else "running"
+            channels = ", ".join(str(channel) for channel in sorted(neutral[pca])) or "none"
+            done.append(f"{name} ({how}): neutral pulses on channels {channels}")
     finally:
         with contextlib.suppress(Exception):
             bus.close()
         release()
-    how = "started again" if started else "running"
-    channels = ", ".join(str(channel) for channel in sorted(neutral))
-    return f"{name} ({how}): neutral pulses on channels {channels}"
+    if failures:
+        raise BoardStartError("; ".join(failures + [f"done: {text}" for text in done]))
+    return "; ".join(done)
 
 
 def _nothing() -> None:
@@ -256,7 +297,9 @@ def _claim_or_close(config: PiConfig, bus: I2cBus) -> Callable[[], None]:
     The lock is on /dev/i2c-N; on the fake bus, on its log, which stands for the one chip the
     processes of a test share.
     """
-    what = f"PWM board PCA9685 at {config.pca9685.address:#04x} on I²C bus {config.i2c.bus}"
+    addresses = " and ".join(f"{pwm.address:#04x}" for pwm in config.pwm_boards)
+    boards = "PWM board" if len(config.pwm_boards) == 1 else "PWM boards"
+    what = f"{boards} PCA9685 at {addresses} on I²C bus {config.i2c.bus}"
     if config.i2c.backend is I2cBackend.FAKE:
         path = config.i2c.fake_log
         if not path:
@@ -268,7 +311,8 @@ def _claim_or_close(config: PiConfig, bus: I2cBus) -> Callable[[], None]:
     except BoardInUseError:
         bus.close()
         raise PwmBoardInUseError(
-            f"{what} is in use by another rovlink controller; stop it first "
+            f"{what} {'is' if len(config.pwm_boards) == 1 else 'are'} in use by another "
+            "rovlink controller; stop it first "
             "(sudo systemctl stop rovlink)"
         ) from None
     except OSError as error:
@@ -296,9 +340,14 @@ def _open_bus(config: PiConfig) -> I2cBus:
 
 
 def _open_bno055(
-    config: PiConfig, bus: I2cBus, closers: list[Callable[[], None]], clock: MonotonicClock
+    config: PiConfig,
+    bus: I2cBus,
+    closers: list[Callable[[], None]],
+    clock: MonotonicClock,
+    warnings: list[str],
 ) -> PolledSensor[Attitude]:
-    """Start the BNO055 (on its own bus if it has one) and take its first reading."""
+    """Start the BNO055 (on its own bus if it has one) and take its first reading; a chip that
+    does not is a sensor that fails every read (and a line in ``warnings``)."""
     imu = config.imu
     imu_bus = _open_imu_bus(config, bus)
     if imu_bus is not bus:
@@ -314,10 +363,41 @@ def _open_bno055(
     )
     name = f"IMU BNO055 at {bno.address:#04x}"
     bus_number = imu.bus if imu_bus is not bus else config.i2c.bus
-    _starting(f"{name} on I²C bus {bus_number}", bno.start)
+    where = f"{name} on I²C bus {bus_number}"
+    # A board without the library is not set up: refused. A chip that does not answer is a
+    # dead sensor the pilot can drive without (a restart mid-dive must not leave the robot
+    # without thrusters): the controller goes on, and says so.
+    _starting(where, _bno055_library)
+    try:
+        _starting(where, bno.start)
+        first = _first_reading(name, bno, clock)
+    except BoardStartError as error:
+        logger.error("%s; going on without it: %s", error, IMU_DID_NOT_START)
+        warnings.append(f"{name} not answering: {IMU_DID_NOT_START}")
+        return PolledSensor(
+            name,
+            _ImuThatDidNotStart(f"did not start ({error})"),
+            LEVEL,
+            config.board.stale_after_failures,
+            lost_when_stale=IMU_DID_NOT_START,
+        )
     return PolledSensor(
-        name, bno, _first_reading(name, bno, clock), config.board.stale_after_failures
+        name, bno, first, config.board.stale_after_failures, lost_when_stale=IMU_LOST_WHEN_STALE
     )
+
+
+def _bno055_library() -> None:
+    import adafruit_bno055  # noqa: F401, PLC0415 - the pi extra, needed on the board only
+
+
+class _ImuThatDidNotStart:
+    """The IMU's source when the chip did not start: every poll fails, saying why."""
+
+    def __init__(self, why: str) -> None:
+        self._why = why
+
+    def poll(self, now_s: float) -> Attitude | None:
+        raise SensorError(self._why)
 
 
 def _mock_pins() -> Any:
@@ -328,24 +408,40 @@ def _mock_pins() -> Any:
 
 def _rest_pulses_us(
     thrusters: EscThrusters, claw: MotorClaw | ServoClaw | _NoClaw
-) -> dict[int, float]:
-    """The outputs as the controller starts them: every ESC at neutral, a claw at rest."""
+) -> dict[Pca9685, dict[int, float]]:
+    """The outputs as the controller starts them, by chip: every ESC at neutral, a claw at
+    rest."""
     rest = thrusters.neutral_pulses_us()
     if isinstance(claw, MotorClaw | ServoClaw):
-        rest[claw.channel] = claw.rest_pulse_us()
+        rest[claw.pca][claw.channel] = claw.rest_pulse_us()
     return rest
+
+
+def _rest_of(
+    pca: Pca9685, rest_pulses_us: Callable[[], dict[Pca9685, dict[int, float]]]
+) -> Callable[[], dict[int, float]]:
+    """The rest pulses of one chip, as they are when asked (a servo claw moves)."""
+    return lambda: rest_pulses_us()[pca]
 
 
 def _pwm_outputs(
     config: PiConfig, bus: I2cBus
-) -> tuple[Pca9685, EscThrusters, MotorClaw | ServoClaw | _NoClaw]:
-    """The PCA9685 of ``config`` on ``bus``, its ESCs and its claw (nothing written yet)."""
-    pca = Pca9685(bus, config.pca9685.address, oscillator_hz=config.pca9685.oscillator_hz)
+) -> tuple[EscThrusters, MotorClaw | ServoClaw | _NoClaw]:
+    """The PCA9685s of ``config`` on ``bus``, with their ESCs, and the claw (nothing written
+    yet)."""
+    chips = [
+        Pca9685(bus, pwm.address, oscillator_hz=pwm.oscillator_hz) for pwm in config.pwm_boards
+    ]
     escs = [
-        EscChannel(esc.channel, esc.reversed, esc.min_us, esc.neutral_us, esc.max_us)
+        (
+            chips[config.pwm_board_index(esc.pca9685)],
+            EscChannel(esc.channel, esc.reversed, esc.min_us, esc.neutral_us, esc.max_us),
+        )
         for esc in config.escs
     ]
-    return pca, EscThrusters(pca, escs), _claw(config, pca)
+    claw = config.claw
+    claw_chip = chips[0 if claw.kind is ClawKind.NONE else config.pwm_board_index(claw.pca9685)]
+    return EscThrusters(chips, escs), _claw(config, claw_chip)
 
 
 def _claw(config: PiConfig, pca: Pca9685) -> MotorClaw | ServoClaw | _NoClaw:

@@ -19,8 +19,15 @@ from typing import Any
 from rovlink.board.pi.ads1115 import DATA_RATES_SPS, FULL_SCALES_V
 from rovlink.board.pi.bno055 import PLACEMENTS
 from rovlink.board.pi.ms5837 import OVERSAMPLING, Ms5837Model
-from rovlink.board.pi.pca9685 import CHANNELS, DEFAULT_OSCILLATOR_HZ, prescale_for
+from rovlink.board.pi.pca9685 import (
+    ALL_CALL_ADDRESS,
+    CHANNELS,
+    DEFAULT_OSCILLATOR_HZ,
+    FIRST_ADDRESS,
+    prescale_for,
+)
 from rovlink.board.pi.pressure import MIN_SCALE_K
+from rovlink.board.watchdog_bounds import board_watchdog_problem
 from rovlink.controller import ControllerConfig, config_from_mapping
 from rovlink.controller.config import (
     ConfigError,
@@ -48,12 +55,17 @@ __all__ = [
     "PressureConfig",
     "PressureKind",
     "load_pi_config",
+    "load_pi_outputs_config",
     "pi_config_from_mapping",
     "pi_config_reference",
 ]
 
 _doc = parameter_doc
 _MIN_PULSE_US = 500.0
+#: The ``pca9685`` key of an output's table.
+_PCA9685_KEY_DOC = (
+    "the address of its PCA9685 when there are several (`[[pca9685]]`); -1: the first one"
+)
 _MAX_PULSE_US = 2500.0
 
 
@@ -132,7 +144,13 @@ class I2cConfig:
 class Pca9685Config:
     """``[pca9685]``: the PWM board of the ESCs and the claw."""
 
-    address: int = field(default=0x40, metadata=_doc("I²C address (0x40 unless re-strapped)"))
+    address: int = field(
+        default=0x40,
+        metadata=_doc(
+            "I²C address: 0x40 unless re-strapped, 0x40–0x77 but not 0x70 (the All Call "
+            "address every PCA9685 answers after a reset)"
+        ),
+    )
     frequency_hz: float = field(
         default=50.0, metadata=_doc("pulse frequency, Hz (50 for ESCs and servos)")
     )
@@ -155,6 +173,13 @@ class Pca9685Config:
     def __post_init__(self) -> None:
         _check_address("address", self.address)
         _require(
+            self.address >= FIRST_ADDRESS and self.address != ALL_CALL_ADDRESS,
+            f"address must be a PCA9685's, {FIRST_ADDRESS:#04x}–0x77 but not "
+            f"{ALL_CALL_ADDRESS:#04x} (the All Call address every PCA9685 answers after a "
+            f"reset), got {self.address:#04x} ({self.address}); a TOML number is decimal "
+            "unless written 0x…",
+        )
+        _require(
             self.check_interval_s == 0
             or (math.isfinite(self.check_interval_s) and 0.01 <= self.check_interval_s <= 60),
             f"check_interval_s must be 0 (never) or 0.01–60, got {self.check_interval_s}",
@@ -174,6 +199,7 @@ class EscConfig:
     """``[esc.<thruster name>]``: one thruster's ESC."""
 
     channel: int = field(default=-1, metadata=_doc("PCA9685 output 0–15 (required)"))
+    pca9685: int = field(default=-1, metadata=_doc(_PCA9685_KEY_DOC))
     reversed: bool = field(
         default=False, metadata=_doc("true if + duty must give a pulse below neutral")
     )
@@ -197,6 +223,7 @@ class ClawConfig:
 
     kind: ClawKind = field(default=ClawKind.NONE, metadata=_doc("`none`, `motor` or `servo`"))
     channel: int = field(default=-1, metadata=_doc("PCA9685 output 0–15"))
+    pca9685: int = field(default=-1, metadata=_doc(_PCA9685_KEY_DOC))
     open_us: float = field(
         default=1900.0, metadata=_doc("motor: pulse while opening; servo: fully open, µs")
     )
@@ -400,8 +427,9 @@ class BoardConfig:
     stale_after_failures: int = field(
         default=5,
         metadata=_doc(
-            "stop the motors when a sensor fails this many reads in a row (stale-sensor "
-            "failsafe); they may be started again once it answers"
+            "a sensor that fails this many reads in a row is stale: the pressure sensor's stops "
+            "the motors (stale-sensor failsafe; they may be started again once it answers), the "
+            "IMU's is reported and driving goes on"
         ),
     )
     overrun_warning_s: float = field(
@@ -426,12 +454,32 @@ class PiConfig:
     controller: ControllerConfig
     escs: tuple[EscConfig, ...]  # in the order of controller.thrusters
     i2c: I2cConfig = field(default_factory=I2cConfig)
-    pca9685: Pca9685Config = field(default_factory=Pca9685Config)
+    #: The PWM boards on the bus: ``[pca9685]``, or several as ``[[pca9685]]``.
+    pwm_boards: tuple[Pca9685Config, ...] = (Pca9685Config(),)
     claw: ClawConfig = field(default_factory=ClawConfig)
     pressure: PressureConfig = field(default_factory=PressureConfig)
     imu: ImuConfig = field(default_factory=ImuConfig)
     leak: LeakConfig = field(default_factory=LeakConfig)
     board: BoardConfig = field(default_factory=BoardConfig)
+
+    def __post_init__(self) -> None:
+        if not self.pwm_boards:
+            raise ConfigError("at least one PCA9685 is needed")
+
+    def pwm_board_index(self, pca9685: int) -> int:
+        """The place in :attr:`pwm_boards` of an output's ``pca9685`` key (-1: the first);
+        :class:`ConfigError` if no PWM board is at that address."""
+        if pca9685 == -1:
+            return 0
+        for index, board in enumerate(self.pwm_boards):
+            if board.address == pca9685:
+                return index
+        addresses = ", ".join(f"{board.address:#04x}" for board in self.pwm_boards)
+        raise ConfigError(f"no PCA9685 at {pca9685:#04x}; the PWM boards are at {addresses}")
+
+    def pwm_board_table(self, index: int) -> str:
+        """How the file names the PWM board at ``index``: ``[pca9685]`` or ``[[pca9685]] #N``."""
+        return "[pca9685]" if len(self.pwm_boards) == 1 else f"[[pca9685]] #{index + 1}"
 
 
 #: The board's tables, beside the controller's.
@@ -450,9 +498,7 @@ def pi_config_from_mapping(data: Mapping[str, Any], source: str = "rov.toml") ->
     controller = config_from_mapping(data, source, other_tables=_BOARD_TABLES)
     escs = _escs(controller, _table(data, "esc", f"{source} [esc]"), source)
     i2c = dataclass_from_table(I2cConfig, _table(data, "i2c", f"{source} [i2c]"), f"{source} [i2c]")
-    pca = dataclass_from_table(
-        Pca9685Config, _table(data, "pca9685", f"{source} [pca9685]"), f"{source} [pca9685]"
-    )
+    pwm_boards = _pwm_boards(data, source)
     claw = dataclass_from_table(
         ClawConfig, _table(data, "claw", f"{source} [claw]"), f"{source} [claw]"
     )
@@ -479,17 +525,96 @@ def pi_config_from_mapping(data: Mapping[str, Any], source: str = "rov.toml") ->
     board = dataclass_from_table(
         BoardConfig, _table(data, "board", f"{source} [board]"), f"{source} [board]"
     )
-    config = PiConfig(controller, escs, i2c, pca, claw, pressure, imu, leak, board)
-    _check_channels(config, source)
-    _check_addresses(config, source)
-    _check_pulses_fit(config, source)
+    config = PiConfig(controller, escs, i2c, pwm_boards, claw, pressure, imu, leak, board)
+    _check_addresses(config, source)  # (first: an output's pca9685 key names an address)
+    _check_outputs(config, source)
     _check_depth_scale(config, source)
+    _check_watchdog(config, source)
     return config
 
 
 def load_pi_config(path: Path | str) -> PiConfig:
     """Read and check a ``rov.toml``."""
     return pi_config_from_mapping(read_toml(path), str(path))
+
+
+#: The tables that say which pulses the PWM boards make: all that setting neutral needs.
+_OUTPUT_TABLES = ("thrusters", "i2c", "pca9685", "esc", "claw")
+
+
+def load_pi_outputs_config(path: Path | str) -> PiConfig:
+    """The PWM boards' part of a ``rov.toml``: its ``[[thrusters]]``, ``[i2c]``, ``[pca9685]``,
+    ``[esc.*]`` and ``[claw]``, checked as :func:`load_pi_config` checks them; every other
+    table is left unread, at its defaults.
+
+    For setting the thrusters to neutral after the controller died (``--neutral``, systemd's
+    ExecStopPost): a mistake elsewhere in the file (an edit made while the controller ran, a
+    key a newer version refuses) must not leave the thrusters running.
+    """
+    data = read_toml(path)
+    source = str(path)
+    outputs = {name: data[name] for name in _OUTPUT_TABLES if name in data}
+    controller = config_from_mapping(outputs, source, other_tables=_BOARD_TABLES)
+    escs = _escs(controller, _table(outputs, "esc", f"{source} [esc]"), source)
+    i2c = dataclass_from_table(
+        I2cConfig, _table(outputs, "i2c", f"{source} [i2c]"), f"{source} [i2c]"
+    )
+    claw = dataclass_from_table(
+        ClawConfig, _table(outputs, "claw", f"{source} [claw]"), f"{source} [claw]"
+    )
+    config = PiConfig(controller, escs, i2c, _pwm_boards(outputs, source), claw)
+    _check_addresses(config, source, sensors=False)
+    _check_outputs(config, source)
+    return config
+
+
+def _check_outputs(config: PiConfig, source: str) -> None:
+    """Each output on a PWM board of the file, on a channel of its own, its pulses in the
+    board's period."""
+    _check_pwm_board_keys(config, source)
+    _check_channels(config, source)
+    _check_pulses_fit(config, source)
+
+
+def _pwm_boards(data: Mapping[str, Any], source: str) -> tuple[Pca9685Config, ...]:
+    """``[pca9685]`` (one PWM board), or ``[[pca9685]]`` (one table for each)."""
+    tables = data.get("pca9685", {})
+    if not isinstance(tables, list):
+        where = f"{source} [pca9685]"
+        return (dataclass_from_table(Pca9685Config, _table(data, "pca9685", where), where),)
+    if not tables:
+        raise ConfigError(f"{source} [[pca9685]]: no PWM board; one table for each PCA9685")
+    return tuple(
+        dataclass_from_table(Pca9685Config, table, f"{source} [[pca9685]] #{index + 1}")
+        for index, table in enumerate(tables)
+    )
+
+
+def _outputs(config: PiConfig) -> list[tuple[str, int, int]]:
+    """Every output in use: its table, its PWM board's place in ``pwm_boards``, its channel."""
+    outputs = [
+        (f"[esc.{thruster.name}]", config.pwm_board_index(esc.pca9685), esc.channel)
+        for esc, thruster in zip(config.escs, config.controller.thrusters, strict=True)
+    ]
+    if config.claw.kind is not ClawKind.NONE:
+        claw = config.claw
+        outputs.append(("[claw]", config.pwm_board_index(claw.pca9685), claw.channel))
+    return outputs
+
+
+def _check_pwm_board_keys(config: PiConfig, source: str) -> None:
+    """Every output's ``pca9685`` names a PWM board of the file."""
+    tables = [
+        (f"[esc.{thruster.name}]", esc.pca9685)
+        for esc, thruster in zip(config.escs, config.controller.thrusters, strict=True)
+    ]
+    if config.claw.kind is not ClawKind.NONE:
+        tables.append(("[claw]", config.claw.pca9685))
+    for table, pca9685 in tables:
+        try:
+            config.pwm_board_index(pca9685)
+        except ConfigError as error:
+            raise ConfigError(f"{source} {table} pca9685: {error}") from None
 
 
 def _escs(
@@ -519,32 +644,33 @@ def _escs(
 
 
 def _check_channels(config: PiConfig, source: str) -> None:
-    users: dict[int, str] = {}
-    outputs = [
-        (esc.channel, f"[esc.{thruster.name}]")
-        for esc, thruster in zip(config.escs, config.controller.thrusters, strict=True)
-    ]
-    if config.claw.kind is not ClawKind.NONE:
-        outputs.append((config.claw.channel, "[claw]"))
-    for channel, user in outputs:
-        if channel in users:
+    users: dict[tuple[int, int], str] = {}
+    several = len(config.pwm_boards) > 1
+    for user, board, channel in _outputs(config):
+        if (board, channel) in users:
+            on = f" of the PCA9685 at {config.pwm_boards[board].address:#04x}" if several else ""
             raise ConfigError(
-                f"{source} {user} channel: {channel} is already used by {users[channel]}"
+                f"{source} {user} channel: {channel}{on} is already used by {users[board, channel]}"
             )
-        users[channel] = user
+        users[board, channel] = user
 
 
-def _check_addresses(config: PiConfig, source: str) -> None:
+def _check_addresses(config: PiConfig, source: str, *, sensors: bool = True) -> None:
     """No two devices at one address on one bus: one's writes would reach the other (an
-    ADS1115's config word lands in a PCA9685's MODE2 and makes its outputs open-drain)."""
+    ADS1115's config word lands in a PCA9685's MODE2 and makes its outputs open-drain).
+    ``sensors``: the sensors' addresses too, not only the PWM boards'."""
     pressure = config.pressure
-    devices = [("[pca9685]", config.pca9685.address)]
-    if pressure.sensor is PressureKind.MS5837:
-        devices.append(("[pressure.ms5837]", pressure.ms5837.address))
-    else:
-        devices.append(("[pressure.ads1115]", pressure.ads1115.address))
-    if config.imu.sensor is ImuKind.BNO055 and config.imu.bus in (-1, config.i2c.bus):
-        devices.append(("[imu]", config.imu.address))
+    devices = [
+        (config.pwm_board_table(index), board.address)
+        for index, board in enumerate(config.pwm_boards)
+    ]
+    if sensors:
+        if pressure.sensor is PressureKind.MS5837:
+            devices.append(("[pressure.ms5837]", pressure.ms5837.address))
+        else:
+            devices.append(("[pressure.ads1115]", pressure.ads1115.address))
+        if config.imu.sensor is ImuKind.BNO055 and config.imu.bus in (-1, config.i2c.bus):
+            devices.append(("[imu]", config.imu.address))
     users: dict[int, str] = {}
     for user, address in devices:
         if address in users:
@@ -558,17 +684,23 @@ def _check_addresses(config: PiConfig, source: str) -> None:
 
 
 def _check_pulses_fit(config: PiConfig, source: str) -> None:
-    prescale = prescale_for(config.pca9685.frequency_hz, config.pca9685.oscillator_hz)
-    period_us = 4096 * (prescale + 1) / config.pca9685.oscillator_hz * 1e6
-    longest = max(
-        [esc.max_us for esc in config.escs]
-        + [config.claw.open_us, config.claw.close_us, config.claw.neutral_us]
-    )
-    _require(
-        longest < period_us,
-        f"{source} [pca9685] frequency_hz: a {longest:g} µs pulse does not fit in the "
-        f"{period_us:.0f} µs period of {config.pca9685.frequency_hz:g} Hz",
-    )
+    """Each PWM board's period holds the longest pulse of the outputs on it."""
+    longest_us = [0.0] * len(config.pwm_boards)
+    for esc in config.escs:
+        board = config.pwm_board_index(esc.pca9685)
+        longest_us[board] = max(longest_us[board], esc.max_us)
+    claw = config.claw
+    if claw.kind is not ClawKind.NONE:
+        board = config.pwm_board_index(claw.pca9685)
+        longest_us[board] = max(longest_us[board], claw.open_us, claw.close_us, claw.neutral_us)
+    for index, (pwm, longest) in enumerate(zip(config.pwm_boards, longest_us, strict=True)):
+        prescale = prescale_for(pwm.frequency_hz, pwm.oscillator_hz)
+        period_us = 4096 * (prescale + 1) / pwm.oscillator_hz * 1e6
+        _require(
+            longest < period_us,
+            f"{source} {config.pwm_board_table(index)} frequency_hz: a {longest:g} µs pulse "
+            f"does not fit in the {period_us:.0f} µs period of {pwm.frequency_hz:g} Hz",
+        )
 
 
 def _check_depth_scale(config: PiConfig, source: str) -> None:
@@ -580,6 +712,12 @@ def _check_depth_scale(config: PiConfig, source: str) -> None:
         f"{source} [depth]: k must be in {MIN_SCALE_K}–10000 on a Pi board "
         f"(a raw count is k / 100 cm of water), got {k}",
     )
+
+
+def _check_watchdog(config: PiConfig, source: str) -> None:
+    """The link-loss failsafe is what stops a robot whose link died: never off, never hours."""
+    problem = board_watchdog_problem(config.controller.watchdog_s)
+    _require(problem is None, f"{source} [controller] watchdog_s: {problem}")
 
 
 def pi_config_reference() -> str:

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 from rovlink.board.pi.pca9685 import Pca9685
@@ -56,31 +56,70 @@ def _write_retried_once(pca: Pca9685, pulses: dict[int, float]) -> None:
 
 
 class EscThrusters:
-    """The controller's thruster outputs (layout order) as ESC pulses on a PCA9685."""
+    """The controller's thruster outputs (layout order) as ESC pulses on one or more PCA9685
+    (several chips on one bus for more than 16 outputs)."""
 
-    def __init__(self, pca: Pca9685, escs: Sequence[EscChannel]) -> None:
-        self._pca = pca
+    def __init__(self, chips: Sequence[Pca9685], escs: Sequence[tuple[Pca9685, EscChannel]]):
+        """``chips``: every PWM board, in the order they are started; ``escs``: each thruster's
+        chip and ESC, in layout order."""
+        self._chips = tuple(chips)
         self._escs = tuple(escs)
+        if any(pca not in self._chips for pca, _ in self._escs):
+            raise ValueError("an ESC is on a PCA9685 that is not among the chips")
 
-    def neutral_pulses_us(self) -> dict[int, float]:
-        """Every ESC's neutral pulse, by channel."""
-        return {esc.channel: esc.neutral_us for esc in self._escs}
+    @property
+    def chips(self) -> tuple[Pca9685, ...]:
+        """Every PWM board, in the order they are started."""
+        return self._chips
+
+    def neutral_pulses_us(self) -> dict[Pca9685, dict[int, float]]:
+        """Every ESC's neutral pulse, by chip (every chip, those without an ESC too) and
+        channel."""
+        pulses: dict[Pca9685, dict[int, float]] = {pca: {} for pca in self._chips}
+        for pca, esc in self._escs:
+            pulses[pca][esc.channel] = esc.neutral_us
+        return pulses
 
     def set_duties(self, duties: Sequence[int]) -> None:
-        """Apply signed duties, one per thruster of the layout (a failed write is retried
-        once)."""
+        """Apply signed duties, one per thruster of the layout: one write per chip of the
+        outputs changed on it (a failed write is retried once; every chip is written before
+        a failure is raised)."""
         if len(duties) != len(self._escs):
             raise ValueError(f"{len(duties)} duties for {len(self._escs)} thrusters")
-        pulses = {
-            esc.channel: pulse_for_duty(esc, duty)
-            for esc, duty in zip(self._escs, duties, strict=True)
-        }
-        _write_retried_once(self._pca, pulses)
+        pulses: dict[Pca9685, dict[int, float]] = {pca: {} for pca in self._chips}
+        for (pca, esc), duty in zip(self._escs, duties, strict=True):
+            pulses[pca][esc.channel] = pulse_for_duty(esc, duty)
+        _on_every_chip(pulses, _write_retried_once)
 
     def neutral(self) -> None:
-        """Neutral on every ESC, written even if the driver believes it is there already."""
-        self._pca.forget_written()
-        self._pca.set_pulses_us(self.neutral_pulses_us())
+        """Neutral on every ESC, written even if the driver believes it is there already
+        (every chip is written before a failure is raised)."""
+
+        def write_again(pca: Pca9685, pulses: dict[int, float]) -> None:
+            pca.forget_written()
+            pca.set_pulses_us(pulses)
+
+        _on_every_chip(self.neutral_pulses_us(), write_again)
+
+
+def _on_every_chip(
+    pulses: dict[Pca9685, dict[int, float]],
+    write: Callable[[Pca9685, dict[int, float]], None],
+) -> None:
+    """``write`` each chip's ``pulses``, every chip even after one failed (a chip that does not
+    answer must not leave the thrusters of another running); then raise the first failure."""
+    failures: list[Exception] = []
+    for pca, chip_pulses in pulses.items():
+        if not chip_pulses:
+            continue
+        try:
+            write(pca, chip_pulses)
+        except (OSError, RuntimeError) as error:  # (RuntimeError: a chip never started)
+            if len(pulses) > 1:
+                logger.error("PCA9685 at %#04x: pulses not set: %s", pca.address, error)
+            failures.append(error)
+    if failures:
+        raise failures[0]
 
 
 class MotorClaw:
@@ -92,6 +131,11 @@ class MotorClaw:
         self._pca = pca
         self.channel = channel
         self._pulses = {1: open_us, -1: close_us, 0: neutral_us}
+
+    @property
+    def pca(self) -> Pca9685:
+        """The PWM board the claw is on."""
+        return self._pca
 
     def rest_pulse_us(self) -> float:
         """The pulse at start and after a stop: the motor stands still."""
@@ -129,6 +173,11 @@ class ServoClaw:
         self._open_sign = 1 if open_us >= close_us else -1
         self._step_us = step_us
         self.position_us = start_us
+
+    @property
+    def pca(self) -> Pca9685:
+        """The PWM board the claw is on."""
+        return self._pca
 
     def rest_pulse_us(self) -> float:
         """The pulse at start: the configured start position."""

@@ -14,10 +14,22 @@ from collections.abc import Mapping
 
 from rovlink.board.pi.i2c import I2cBus, check_address
 
-__all__ = ["CHANNELS", "DEFAULT_OSCILLATOR_HZ", "Pca9685", "prescale_for"]
+__all__ = [
+    "ALL_CALL_ADDRESS",
+    "CHANNELS",
+    "DEFAULT_OSCILLATOR_HZ",
+    "FIRST_ADDRESS",
+    "Pca9685",
+    "prescale_for",
+]
 
 #: Outputs on the chip, numbered 0–15.
 CHANNELS = 16
+#: The chip's address with A5–A0 low; its six address pins add 0–63 (datasheet §7.1.1).
+FIRST_ADDRESS = 0x40
+#: The LED All Call address, which every PCA9685 answers after power-on or a reset (datasheet
+#: §7.1.3): a chip strapped to it would have its writes land in every other chip that reset.
+ALL_CALL_ADDRESS = 0x70
 #: The internal oscillator's nominal frequency (datasheet §7.3.5); real chips are within ±5 %.
 DEFAULT_OSCILLATOR_HZ = 25_000_000.0
 _STEPS = 4096  # 12-bit counter
