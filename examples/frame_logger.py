@@ -1,0 +1,161 @@
+"""Log every frame and event of a connection as JSON lines, through the client's one hook.
+
+Shows ``on_event``: the client calls it with every event of the connection, in order — the
+bytes written (``out``) and read (``in``) exactly as on the wire, every reply with the query it
+answered, and what the session decided itself (``local``: a failed query, a suspected reset, an
+expired motion). :class:`FrameLog` writes each as one JSON object per line with its time, so a
+team can add it to any program (``on_event=FrameLog(file)``) and read the log with ``jq`` or
+pandas. The session it logs here is short: read the sensors, unlock, move ahead for a while
+(renewing the command), lock.
+
+Run it::
+
+    python examples/frame_logger.py                                 # the simulator, to stdout
+    python examples/frame_logger.py /dev/ttyUSB0 --output dive.jsonl
+    python examples/frame_logger.py --output - | jq -c 'select(.direction == "out")'
+
+A line looks like::
+
+    {"t_s": 0.0213, "utc": "2026-01-05T10:31:07.123456+00:00", "direction": "out",
+     "event": "BytesSent", "data": "#qsa!", "command": "#qsa!", "by_session": false}
+
+``t_s`` is the session's clock, in seconds since the first event (for intervals); ``utc`` is the
+wall clock when the hook ran (to line the log up with other records).
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import enum
+import json
+import logging
+import sys
+import time
+from collections.abc import Sequence
+from datetime import datetime, timezone
+from typing import IO
+
+import rovlink
+from rovlink.client import ClientError, ClientEvent
+from rovlink.protocol import Command, Response
+
+log = logging.getLogger("frame_logger")
+
+#: Seconds between two ``move`` commands while moving: well within ``motion_timeout`` (2 s).
+RENEW_INTERVAL_S = 0.5
+
+
+def jsonable(value: object) -> object:
+    """An event's field as JSON: bytes as text (non-ASCII escaped), frames as they are written."""
+    if isinstance(value, bytes):
+        return value.decode("ascii", "backslashreplace")
+    if isinstance(value, (Command, Response)):
+        return str(value)  # the frame without checksum: '#th.0.30!', '$qd.42!'
+    if isinstance(value, enum.Enum):
+        return value.name.lower()
+    if isinstance(value, (tuple, list)):
+        return [jsonable(item) for item in value]
+    if value is None or isinstance(value, (bool, int, float, str)):
+        return value
+    return repr(value)  # debug text, line noise, a dropped frame: the protocol's Event
+
+
+class FrameLog:
+    """An ``on_event`` hook that writes each event as a line of JSON to ``stream``.
+
+    The client calls it from one thread at a time, in order, so it needs no lock; it flushes
+    each line so that a crash loses nothing already seen.
+    """
+
+    def __init__(self, stream: IO[str]) -> None:
+        self.stream = stream
+        self.lines = 0
+        self._first_at_s: float | None = None
+
+    def __call__(self, event: ClientEvent) -> None:
+        if self._first_at_s is None:
+            self._first_at_s = event.at_s
+        record: dict[str, object] = {
+            "t_s": round(event.at_s - self._first_at_s, 6),
+            "utc": datetime.now(timezone.utc).isoformat(),
+            "direction": event.direction,
+            "event": type(event).__name__,
+        }
+        for field in dataclasses.fields(event):
+            if field.name != "at_s":
+                record[field.name] = jsonable(getattr(event, field.name))
+        self.stream.write(json.dumps(record, ensure_ascii=False) + "\n")
+        self.stream.flush()
+        self.lines += 1
+
+
+def short_session(url: str, frame_log: FrameLog, move_s: float) -> None:
+    """Read the sensors, unlock, move ahead for ``move_s`` seconds, lock; every event logged."""
+    with rovlink.connect(url, on_event=frame_log) as rov:
+        try:
+            reading = rov.sensors()
+            log.info("depth %d cm, heading %d°", reading.depth_cm, reading.heading_deg)
+            rov.start()
+            ends_at = time.monotonic() + move_s
+            while time.monotonic() < ends_at:
+                rov.move(0, 20)
+                time.sleep(min(RENEW_INTERVAL_S, max(ends_at - time.monotonic(), 0.0)))
+            rov.move(0, 0)
+        finally:
+            rov.stop()
+
+
+def open_output(path: str) -> IO[str]:
+    """The file to write the log to; ``-`` is standard output (left open when closed)."""
+    if path == "-":
+        return open(sys.stdout.fileno(), "w", encoding="utf-8", closefd=False)
+    return open(path, "w", encoding="utf-8")
+
+
+def parse_arguments(argv: Sequence[str] | None) -> argparse.Namespace:
+    """The command line: the URL (default ``sim://``), the output and the time moving."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument(
+        "url", nargs="?", default="sim://", help="the robot's port or URL (default: sim://)"
+    )
+    parser.add_argument(
+        "--output", default="-", metavar="FILE", help="JSON lines file ('-', the default: stdout)"
+    )
+    parser.add_argument(
+        "--duration",
+        type=float,
+        default=1.0,
+        metavar="SECONDS",
+        help="time moving ahead at 20 %% (default: 1)",
+    )
+    parser.add_argument("-v", "--verbose", action="store_true", help="show the driver's log")
+    args = parser.parse_args(argv)
+    if args.duration < 0:
+        parser.error(f"--duration must not be negative, got {args.duration:g}")
+    return args
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Log the session; exit status 0, or 1 on a driver error, 130 after Ctrl-C."""
+    args = parse_arguments(argv)
+    logging.basicConfig(
+        level=logging.INFO if args.verbose else logging.WARNING,
+        format="%(levelname)s %(name)s: %(message)s",
+    )
+    try:
+        with open_output(args.output) as stream:
+            frame_log = FrameLog(stream)
+            short_session(args.url, frame_log, args.duration)
+    except (OSError, ClientError, TimeoutError) as error:  # the file, the link, a query
+        log.error("%s", error)
+        return 1
+    except KeyboardInterrupt:
+        return 130
+    if args.output != "-":
+        print(f"{frame_log.lines} events written to {args.output}", flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
