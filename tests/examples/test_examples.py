@@ -23,7 +23,7 @@ import subprocess
 import sys
 import threading
 from collections.abc import Callable, Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from types import ModuleType
 from typing import Any
@@ -33,6 +33,8 @@ import pytest
 from rovlink.client.schemes import register_scheme, unregister_scheme
 from rovlink.controller.controller import ControllerState
 from rovlink.sim.port import SimulatedPort
+from rovlink.sim.robot import load_sim_config
+from rovlink.sim.server import SimServer
 from tests.client.conftest import CONDITION_TIMEOUT_S, wait_until
 from tests.examples import kept_sim
 
@@ -70,6 +72,9 @@ class KeptSim:
     """The URL to give an example, and the simulator it opened."""
 
     url: str
+    #: Set when the test has ended: a watch still waiting gives up (it must not act on the
+    #: next test's simulator).
+    ended: threading.Event = field(default_factory=threading.Event)
 
     def port(self) -> SimulatedPort:
         """The one port the example opened."""
@@ -100,6 +105,8 @@ class KeptSim:
 
         def watch() -> None:
             def check() -> bool:
+                if self.ended.is_set():
+                    return True
                 if not kept_sim.OPENED:
                     return False
                 port = kept_sim.OPENED[0]
@@ -109,7 +116,7 @@ class KeptSim:
                     action(port)
                     return True
 
-            if wait_until(check):
+            if wait_until(check) and not self.ended.is_set():
                 done.set()
 
         threading.Thread(target=watch, daemon=True).start()
@@ -127,9 +134,11 @@ def sim(tmp_path: Path) -> Iterator[KeptSim]:
     config.write_text("[controller]\nwatchdog_s = 0\n")
     kept_sim.OPENED.clear()
     register_scheme(kept_sim.SCHEME, "tests.examples.kept_sim")
+    kept = KeptSim(f"{kept_sim.SCHEME}://?realtime=0&seed=1&config={config}")
     try:
-        yield KeptSim(f"{kept_sim.SCHEME}://?realtime=0&seed=1&config={config}")
+        yield kept
     finally:
+        kept.ended.set()
         unregister_scheme(kept_sim.SCHEME)
         for port in kept_sim.OPENED:
             port.close()
@@ -153,6 +162,53 @@ def script_command(name: str, *argv: str) -> list[str]:
     return [sys.executable, str(EXAMPLES / f"{name}.py"), *argv]
 
 
+@pytest.fixture
+def pty_sim(tmp_path: Path) -> Iterator[tuple[SimServer, str]]:
+    """A fast simulator without the link-loss watchdog on a real pseudo-terminal, served from a
+    thread of the test (so the test reads its state), and the terminal's path."""
+    config = tmp_path / "fast.toml"
+    config.write_text("[controller]\nwatchdog_s = 0\n")
+    server = SimServer(load_sim_config(config), seed=1, speed=0)
+    path = server.open_pty()
+    stopping = threading.Event()
+    thread = threading.Thread(target=server.serve, args=(stopping.is_set,), daemon=True)
+    thread.start()
+    try:
+        yield server, path
+    finally:
+        stopping.set()
+        thread.join(timeout=CONDITION_TIMEOUT_S)
+        server.close()
+
+
+def interrupt_when_printed(command: list[str], marker: str) -> tuple[int, str]:
+    """Run ``command``, press Ctrl-C (SIGINT) once a line containing ``marker`` is printed;
+    its exit status and everything it printed."""
+    process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    lines: queue.Queue[str] = queue.Queue()
+
+    def read() -> None:
+        assert process.stdout is not None
+        for line in process.stdout:
+            lines.put(line)
+
+    reader = threading.Thread(target=read, daemon=True)
+    reader.start()
+    seen = ""
+    try:
+        while marker not in seen:
+            seen += lines.get(timeout=CONDITION_TIMEOUT_S)
+        process.send_signal(signal.SIGINT)
+        status = process.wait(timeout=CONDITION_TIMEOUT_S)
+    finally:
+        process.kill()
+        process.wait()
+    reader.join(timeout=CONDITION_TIMEOUT_S)
+    while not lines.empty():
+        seen += lines.get()
+    return status, seen
+
+
 # -- every example -------------------------------------------------------------------------------
 
 
@@ -163,6 +219,7 @@ def test_every_example_has_a_test() -> None:
     assert sorted(set(names) - tested) == [], "examples without a test_<name>_… test here"
 
 
+@pytest.mark.integration
 @pytest.mark.parametrize("name", example_names())
 def test_every_example_runs_as_a_script_and_says_what_it_does(name: str) -> None:
     result = subprocess.run(
@@ -199,39 +256,14 @@ def test_poll_sensors_prints_a_line_per_reading(
     sim.assert_stopped_and_locked()  # it never unlocked
 
 
+@pytest.mark.integration
 def test_poll_sensors_ends_cleanly_on_ctrl_c_and_defaults_to_the_simulator() -> None:
-    process = subprocess.Popen(
-        script_command("poll_sensors", "--rate", "20"),
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-    )
-    lines: queue.Queue[str] = queue.Queue()
-
-    def read() -> None:
-        assert process.stdout is not None
-        for line in process.stdout:
-            lines.put(line)
-
-    reader = threading.Thread(target=read, daemon=True)
-    reader.start()
-    try:
-        seen = lines.get(timeout=CONDITION_TIMEOUT_S)
-        seen += lines.get(timeout=CONDITION_TIMEOUT_S)  # the first reading
-        assert READING_LINE.search(seen), seen
-        process.send_signal(signal.SIGINT)
-        status = process.wait(timeout=CONDITION_TIMEOUT_S)
-    finally:
-        process.kill()
-        process.wait()
-    reader.join(timeout=CONDITION_TIMEOUT_S)
-    while not lines.empty():
-        seen += lines.get()
-    assert process.stderr is not None
-    assert status == 0, process.stderr.read()
-    assert seen.startswith("connected to simulated controller")
-    assert "interrupted" in seen
-    assert re.search(r"^\d+ readings, 0 missed", seen, re.M), seen
+    status, out = interrupt_when_printed(script_command("poll_sensors", "--rate", "20"), "°")
+    assert status == 0, out
+    assert out.startswith("connected to simulated controller")
+    assert READING_LINE.search(out), out
+    assert "interrupted" in out
+    assert re.search(r"^\d+ readings, 0 missed", out, re.M), out
 
 
 def test_poll_sensors_refuses_a_bad_rate(capsys: pytest.CaptureFixture[str]) -> None:
@@ -259,7 +291,7 @@ def test_dive_and_hold_dives_holds_surfaces_and_locks(
     assert held is not None, steps
     assert abs(int(held[1]) - 40) <= 10
     assert steps[3] == "surfacing"
-    assert re.fullmatch(r"at the surface \(\d cm\)", steps[4]), steps
+    assert re.fullmatch(r"at the surface \(\d+ cm\)", steps[4]), steps
     assert steps[5:] == ["motors off and locked", "dive completed"]
     sim.assert_stopped_and_locked()
 
@@ -278,7 +310,7 @@ def test_dive_and_hold_surfaces_on_a_leak_during_the_dive(
     assert re.search(r"^LEAK: the leak sensor fired at \d+ cm; aborting the dive$", out, re.M)
     after_leak = out.split("LEAK:")[1]
     assert "surfacing" in after_leak
-    assert re.search(r"^at the surface \(\d cm\)$", after_leak, re.M), out
+    assert re.search(r"^at the surface \(\d+ cm\)$", after_leak, re.M), out
     assert re.search(
         r"motors off and locked\ndive aborted: the leak sensor fired at \d+ cm\n$", out
     )
@@ -313,6 +345,22 @@ def test_dive_and_hold_stops_the_robot_when_interrupted(
     sim.assert_stopped_and_locked()
 
 
+@pytest.mark.integration
+def test_dive_and_hold_stops_the_robot_on_ctrl_c_over_a_serial_line(
+    pty_sim: tuple[SimServer, str],
+) -> None:
+    server, path = pty_sim
+    command = script_command(
+        "dive_and_hold", path, "--depth", "30", "--hold", "60", "--interval", "0.05"
+    )
+    status, out = interrupt_when_printed(command, "holding")
+    assert status == 130, out
+    assert out.endswith("motors off and locked\ninterrupted\n")
+    state = server.robot.controller.state()
+    assert state.locked
+    assert state.target_depth_cm is None
+
+
 # -- async_telemetry_and_control.py -------------------------------------------------------------
 
 
@@ -334,7 +382,7 @@ def test_async_telemetry_and_control_drives_the_square_and_locks(
         "pilot: port (270°) at 30 %",
     ]
     assert pilot[6] == "pilot: surfacing"
-    assert re.fullmatch(r"pilot: at the surface \(\d cm\)", pilot[7])
+    assert re.fullmatch(r"pilot: at the surface \(\d+ cm\)", pilot[7])
     assert out.count("telemetry: depth") >= 3
     assert out.endswith("motors off and locked\npattern completed\n")
     sim.assert_stopped_and_locked()
@@ -347,16 +395,32 @@ def test_async_telemetry_and_control_cancels_the_pilot_at_its_deadline(
     moving = sim.when(lambda port: port.controller.state().power_percent == 30)
     status, out = run_example(
         "async_telemetry_and_control", sim.url, "--depth", "20", "--leg", "30", "--rate", "50",
-        "--deadline", "0.6", capsys=capsys,
+        "--deadline", "1", capsys=capsys,
     )  # fmt: skip
     assert moving.is_set()
     assert status == 1
     assert "pilot: ahead (0°) at 30 %" in out
     assert "pilot: starboard" not in out
     assert out.endswith(
-        "motors off and locked\nrun aborted: the run took longer than its deadline of 0.6 s\n"
+        "motors off and locked\nrun aborted: the run took longer than its deadline of 1 s\n"
     )
     sim.assert_stopped_and_locked()
+
+
+@pytest.mark.integration
+def test_async_telemetry_and_control_stops_the_robot_on_ctrl_c_over_a_serial_line(
+    pty_sim: tuple[SimServer, str],
+) -> None:
+    server, path = pty_sim
+    command = script_command(
+        "async_telemetry_and_control", path, "--depth", "20", "--leg", "60", "--rate", "20"
+    )
+    status, out = interrupt_when_printed(command, "pilot: ahead")
+    assert status == 130, out
+    assert out.endswith("motors off and locked\ninterrupted\n")
+    state = server.robot.controller.state()
+    assert state.locked
+    assert state.power_percent == 0
 
 
 def test_async_telemetry_and_control_ends_on_a_leak(
@@ -415,6 +479,7 @@ def test_frame_logger_writes_every_event_both_ways_as_json_lines(
     sim.assert_stopped_and_locked()
 
 
+@pytest.mark.integration
 def test_frame_logger_writes_to_standard_output_as_a_script(tmp_path: Path) -> None:
     config = tmp_path / "fast.toml"
     config.write_text("[controller]\nwatchdog_s = 0\n")
