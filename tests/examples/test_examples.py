@@ -345,6 +345,28 @@ def test_dive_and_hold_stops_the_robot_when_interrupted(
     sim.assert_stopped_and_locked()
 
 
+def test_dive_and_hold_reports_a_lost_link_and_exits(
+    sim: KeptSim, capsys: pytest.CaptureFixture[str], caplog: pytest.LogCaptureFixture
+) -> None:
+    diving = sim.when(unlocked_at_depth(10))
+
+    def unplug() -> None:  # (outside the port's lock: closing joins the simulation's thread)
+        if diving.wait(CONDITION_TIMEOUT_S):
+            sim.port().close()
+
+    threading.Thread(target=unplug, daemon=True).start()
+    status, out = run_example(
+        "dive_and_hold", sim.url, "--depth", "60", "--hold", "30", "--interval", "0.05",
+        capsys=capsys,
+    )  # fmt: skip
+    assert diving.is_set()
+    assert status == 1
+    assert "motors off and locked" not in out  # nothing could be sent: the controller's
+    messages = [record.getMessage() for record in caplog.records]  # failsafe's job now
+    assert any(message.startswith("could not send #stop!: connection lost") for message in messages)
+    assert any(message.startswith("dive aborted: connection lost") for message in messages)
+
+
 @pytest.mark.integration
 def test_dive_and_hold_stops_the_robot_on_ctrl_c_over_a_serial_line(
     pty_sim: tuple[SimServer, str],
