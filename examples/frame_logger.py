@@ -26,6 +26,7 @@ wall clock when the hook ran (to line the log up with other records).
 from __future__ import annotations
 
 import argparse
+import contextlib
 import dataclasses
 import enum
 import json
@@ -65,15 +66,21 @@ class FrameLog:
     """An ``on_event`` hook that writes each event as a line of JSON to ``stream``.
 
     The client calls it from one thread at a time, in order, so it needs no lock; it flushes
-    each line so that a crash loses nothing already seen.
+    each line so that a crash loses nothing already seen. A stream that fails (a full disk, a
+    reader that went away) stops the log, not the program: the error is logged once and kept
+    in :attr:`error`.
     """
 
     def __init__(self, stream: IO[str]) -> None:
         self.stream = stream
         self.lines = 0
+        #: Why the log stopped early, if it did.
+        self.error: OSError | None = None
         self._first_at_s: float | None = None
 
     def __call__(self, event: ClientEvent) -> None:
+        if self.error is not None:
+            return
         if self._first_at_s is None:
             self._first_at_s = event.at_s
         record: dict[str, object] = {
@@ -85,9 +92,14 @@ class FrameLog:
         for field in dataclasses.fields(event):
             if field.name != "at_s":
                 record[field.name] = jsonable(getattr(event, field.name))
-        self.stream.write(json.dumps(record, ensure_ascii=False) + "\n")
-        self.stream.flush()
-        self.lines += 1
+        try:
+            self.stream.write(json.dumps(record, ensure_ascii=False) + "\n")
+            self.stream.flush()
+        except OSError as error:
+            self.error = error
+            log.error("the frame log stopped after %d lines: %s", self.lines, error)
+        else:
+            self.lines += 1
 
 
 def short_session(url: str, frame_log: FrameLog, move_s: float) -> None:
@@ -137,21 +149,32 @@ def parse_arguments(argv: Sequence[str] | None) -> argparse.Namespace:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Log the session; exit status 0, or 1 on a driver error, 130 after Ctrl-C."""
+    """Log the session; exit status 0, or 1 if the link or the log failed, 130 after Ctrl-C."""
     args = parse_arguments(argv)
     logging.basicConfig(
         level=logging.INFO if args.verbose else logging.WARNING,
         format="%(levelname)s %(name)s: %(message)s",
     )
     try:
-        with open_output(args.output) as stream:
-            frame_log = FrameLog(stream)
-            short_session(args.url, frame_log, args.duration)
-    except (OSError, ClientError, TimeoutError) as error:  # the file, the link, a query
-        log.error("%s", error)
+        stream = open_output(args.output)
+    except OSError as error:
+        log.error("cannot write the log: %s", error)
+        return 1
+    frame_log = FrameLog(stream)
+    try:
+        short_session(args.url, frame_log, args.duration)
+    except (ClientError, TimeoutError, ConnectionError) as error:  # the link, a query
+        log.error("session aborted: %s", error)
         return 1
     except KeyboardInterrupt:
         return 130
+    finally:
+        # Each line was flushed as it was written: what is left is a line the stream refused,
+        # and the log's error said so already.
+        with contextlib.suppress(OSError):
+            stream.close()
+    if frame_log.error is not None:
+        return 1
     if args.output != "-":
         print(f"{frame_log.lines} events written to {args.output}", flush=True)
     return 0

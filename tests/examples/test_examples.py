@@ -501,6 +501,20 @@ def test_frame_logger_writes_every_event_both_ways_as_json_lines(
     sim.assert_stopped_and_locked()
 
 
+@pytest.mark.skipif(not Path("/dev/full").exists(), reason="needs /dev/full (Linux)")
+def test_frame_logger_stops_the_log_not_the_session_when_the_output_fails(
+    sim: KeptSim, capsys: pytest.CaptureFixture[str], caplog: pytest.LogCaptureFixture
+) -> None:
+    status, out = run_example(
+        "frame_logger", sim.url, "--output", "/dev/full", "--duration", "0.1", capsys=capsys
+    )
+    assert status == 1
+    assert out == ""
+    errors = [record.getMessage() for record in caplog.records if record.levelname == "ERROR"]
+    assert errors == ["the frame log stopped after 0 lines: [Errno 28] No space left on device"]
+    sim.assert_stopped_and_locked()  # the session went on to its #stop!
+
+
 @pytest.mark.integration
 def test_frame_logger_writes_to_standard_output_as_a_script(tmp_path: Path) -> None:
     config = tmp_path / "fast.toml"
