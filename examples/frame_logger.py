@@ -38,7 +38,7 @@ from datetime import datetime, timezone
 from typing import IO
 
 import rovlink
-from rovlink.client import ClientError, ClientEvent
+from rovlink.client import ClientError, ClientEvent, ConnectionLostError
 from rovlink.protocol import Command, Response
 
 log = logging.getLogger("frame_logger")
@@ -115,7 +115,11 @@ def short_session(url: str, frame_log: FrameLog, move_s: float) -> None:
                 time.sleep(min(RENEW_INTERVAL_S, max(ends_at - time.monotonic(), 0.0)))
             rov.move(0, 0)
         finally:
-            rov.stop()
+            try:
+                rov.stop()
+            except ConnectionLostError as error:
+                # Nothing can be sent; the controller's link-loss failsafe stops the robot.
+                log.error("could not send #stop!: %s", error)
 
 
 def open_output(path: str) -> IO[str]:

@@ -38,7 +38,13 @@ from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass
 
 import rovlink
-from rovlink.client import Client, ClientError, ClientEvent, parse_command_text
+from rovlink.client import (
+    Client,
+    ClientError,
+    ClientEvent,
+    ConnectionLostError,
+    parse_command_text,
+)
 from rovlink.client.events import MotionExpired
 from rovlink.protocol import Command
 
@@ -151,7 +157,8 @@ def run_step(rov: Client, step: Step, renew_every_s: float) -> None:
         ends_at = time.monotonic() + step.seconds
         while (remaining_s := ends_at - time.monotonic()) > 0:
             time.sleep(min(renew_every_s, remaining_s))
-            rov.send(step.command)
+            if time.monotonic() < ends_at:
+                rov.send(step.command)
         rov.send(zero_thrust(step.command))
 
 
@@ -170,8 +177,13 @@ def teleoperate(url: str, steps: Iterable[Step], deadman_s: float) -> None:
             for step in steps:
                 run_step(rov, step, renew_every_s=deadman_s / 4)
         finally:
-            rov.stop()
-            print("motors off and locked", flush=True)
+            try:
+                rov.stop()
+            except ConnectionLostError as error:
+                # Nothing can be sent; the controller's link-loss failsafe stops the robot.
+                log.error("could not send #stop!: %s", error)
+            else:
+                print("motors off and locked", flush=True)
 
 
 def parse_arguments(argv: Sequence[str] | None) -> argparse.Namespace:
