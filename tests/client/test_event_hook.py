@@ -14,6 +14,7 @@ from rovlink.client.events import (
     BytesReceived,
     BytesSent,
     ClientEvent,
+    LinkState,
     QueryFailed,
     ReplyReceived,
     Unsolicited,
@@ -117,3 +118,49 @@ def test_a_subscriber_that_comes_later_sees_the_events_from_then_on(
         sent = [event for event in events if isinstance(event, BytesSent)]
         assert [event.data for event in sent] == [b"#th.0.20!"]
         assert sent[0].by_session is False
+
+
+def test_a_hook_failing_on_every_event_is_logged_once_then_counted(
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    from rovlink.client.unsolicited import HOOK_FAILURE_WARNING_PERIOD_S, HookFailureLog, deliver
+
+    caplog.set_level(logging.DEBUG, logger="rovlink")
+    now = [0.0]
+    failures = HookFailureLog(clock=lambda: now[0])
+
+    def broken_pipe(event: object) -> None:
+        raise BrokenPipeError(32, "Broken pipe")
+
+    events = [LinkState(0.0, "lost", "unplugged")]
+    for step in range(100):  # 100 events over 25 s
+        now[0] = step * 0.25
+        deliver(events, (), broken_pipe, failures)
+    tracebacks = [record for record in caplog.records if record.exc_info]
+    warnings = [record for record in caplog.records if record.levelno == logging.WARNING]
+    assert len(tracebacks) == 1
+    assert "on_event callback failed" in tracebacks[0].getMessage()
+    # Then at most one warning a period, each with the count since the last said.
+    assert len(warnings) == int(24.75 // HOOK_FAILURE_WARNING_PERIOD_S)
+    assert "failed 40 more times" in warnings[0].getMessage()
+    assert "BrokenPipeError" in warnings[0].getMessage()
+    assert failures.unsaid(broken_pipe) == 99 - 80
+
+
+def test_a_client_whose_hook_fails_on_every_event_logs_one_traceback(
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    import rovlink
+
+    caplog.set_level(logging.DEBUG, logger="rovlink")
+
+    def broken_pipe(event: object) -> None:
+        raise BrokenPipeError(32, "Broken pipe")
+
+    with rovlink.connect("sim://", keepalive=None, on_event=broken_pipe) as rov:
+        for _ in range(20):
+            rov.depth_cm()
+        rov.subscribe(broken_pipe)  # a second registration of it: counted with the first
+        rov.depth_cm()
+    tracebacks = [record for record in caplog.records if record.exc_info]
+    assert len(tracebacks) == 1

@@ -38,7 +38,7 @@ from rovlink.client.readiness import ReadinessProbe
 from rovlink.client.reconnection import reconnect_delays_s, reconnecting_failed
 from rovlink.client.sensors import Sensors
 from rovlink.client.session import Outcome, PendingQuery, Session
-from rovlink.client.unsolicited import DropLog, deliver
+from rovlink.client.unsolicited import DropLog, HookFailureLog, deliver
 from rovlink.client.url import parse_url
 from rovlink.logs import get_logger
 from rovlink.protocol import Command, Response, Setting
@@ -108,6 +108,7 @@ class AsyncClient(AsyncCommandMethods):
             record_events=options.on_event is not None,
         )
         self._drops = DropLog()
+        self._hook_failures = HookFailureLog()
         self._subscribers: list[EventCallback] = []
         self._probe: ReadinessProbe | None = None  # while waiting for the controller (P21)
         self._probe_data = asyncio.Event()
@@ -663,9 +664,9 @@ class AsyncClient(AsyncCommandMethods):
         session = self._session
         if session.events or session.notices:
             events = session.take_events()
-            deliver(events, session.take_notices(), self._options.on_event)
+            deliver(events, session.take_notices(), self._options.on_event, self._hook_failures)
             for subscriber in self._subscribers:
-                deliver(events, (), subscriber)
+                deliver(events, (), subscriber, self._hook_failures)
 
     def _flush_due(self) -> None:
         """Write what the session has due (a fence, a keep-alive, zero thrust); while closing,

@@ -37,7 +37,7 @@ from rovlink.client.options import (
 from rovlink.client.readiness import ReadinessProbe
 from rovlink.client.reconnection import reconnect_delays_s, reconnecting_failed
 from rovlink.client.session import Outcome, PendingQuery, Received, Session
-from rovlink.client.unsolicited import DropLog, deliver
+from rovlink.client.unsolicited import DropLog, HookFailureLog, deliver
 from rovlink.client.url import parse_url
 from rovlink.logs import get_logger
 from rovlink.protocol import Command, Event, Response, Setting
@@ -113,6 +113,7 @@ class Client(CommandMethods):
             record_events=options.on_event is not None,
         )
         self._drops = DropLog()
+        self._hook_failures = HookFailureLog()
         self._subscribers: list[EventCallback] = []
         # Lock order: the wire lock, then the state lock. Re-entrant locks, as they know their
         # owner: a call that an exception ends gives back what its thread still holds (see
@@ -919,9 +920,9 @@ class Client(CommandMethods):
                         return
                     self._events_taken += len(events) + len(notices)
                     subscribers = tuple(self._subscribers)
-                deliver(events, notices, self._options.on_event)
+                deliver(events, notices, self._options.on_event, self._hook_failures)
                 for subscriber in subscribers:
-                    deliver(events, (), subscriber)
+                    deliver(events, (), subscriber, self._hook_failures)
                 with self._state_lock:
                     self._events_delivered += len(events) + len(notices)
                     self._delivered.notify_all()

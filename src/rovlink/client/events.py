@@ -128,7 +128,7 @@ class MotionExpired:
 
 @dataclass(frozen=True, slots=True)
 class LinkState:
-    """The link itself: ``ready`` (the controller answered), ``lost``, ``reconnected``."""
+    """The link itself: ``lost`` (with ``reconnect=True``, being reopened) or ``reconnected``."""
 
     direction: ClassVar[str] = "local"
     at_s: float
