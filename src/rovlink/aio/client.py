@@ -300,12 +300,27 @@ class AsyncClient(AsyncCommandMethods):
         slow to take it) goes out after this ``#stop!`` if the loop runs again: so the loop is
         also asked to :meth:`stop` as soon as it can, which follows whatever it queued.
 
+        Called in the event loop itself (a signal handler of the loop, a callback), it never
+        blocks the loop: the ``#stop!`` is written at once as far as the port takes it, ahead
+        of everything queued, and the rest of it goes first when the port has room (``True``:
+        written or first in line); the :meth:`stop` behind what was queued follows at once.
+
         Example::
 
             threading.Thread(target=rov.emergency_stop).start()
         """
         if self._lost is not None:  # (the port is open until close() has let the wire settle)
             return False
+        if _running_loop() is self._loop:
+            # A write to the port here would block the loop (up to the write timeout, on a line
+            # with no room): ahead of the transport's queue instead, then the loop's own stop.
+            try:
+                self._transport.write_first(self._session.frame_for(operations.STOP))
+                written = True
+            except ConnectionLostError:  # (reported by the transport; a link being reopened
+                written = False  # gets the stop below as its first frame)
+            self._stop_after_emergency()
+            return written
         with contextlib.suppress(RuntimeError):  # (the loop is closed: it writes nothing more)
             self._loop.call_soon_threadsafe(self._stop_after_emergency)
         try:

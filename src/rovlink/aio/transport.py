@@ -64,6 +64,16 @@ class ByteTransport(Protocol):
         """
         ...
 
+    def write_first(self, data: bytes) -> None:
+        """Write ``data`` ahead of everything queued, without blocking: now as far as the port
+        takes it, the rest first in the queue; raise ConnectionLostError if the link is gone.
+
+        Example::
+
+            transport.write_first(b"#stop!")
+        """
+        ...
+
     async def close(self) -> None:
         """Stop and release the link.
 
@@ -140,6 +150,29 @@ class FdTransport:
             # A line that takes nothing for the write timeout is lost, as the blocking
             # client's write says: else a #stop! would wait behind it for ever, and a reopened
             # link (reconnect=True) would never be tried.
+            self._last_progress_at = self._loop.time()
+            self._arm_stall_timer(links.WRITE_TIMEOUT_S)
+
+    def write_first(self, data: bytes) -> None:
+        """Write ``data`` now, ahead of what is buffered (a frame cut by it is resynchronised
+        on ``#``, P1); what does not fit goes first in the buffer."""
+        if self._closed:
+            raise ConnectionLostError(f"{self._link.description}: closed")
+        # (Where the frames not yet wholly written end: the buffer is their tail.)
+        first_unwritten = len(self._unconfirmed) - len(self._buffer)
+        try:
+            written = self._link.send_some(data)
+        except ConnectionLostError as error:
+            self._unconfirmed[first_unwritten:first_unwritten] = data
+            self._fail(error)
+            raise
+        if written == len(data):
+            return
+        self._unconfirmed[first_unwritten:first_unwritten] = data
+        was_empty = not self._buffer
+        self._buffer[:0] = data[written:]
+        if was_empty:
+            self._loop.add_writer(self._fd, self._writable)
             self._last_progress_at = self._loop.time()
             self._arm_stall_timer(links.WRITE_TIMEOUT_S)
 
@@ -343,6 +376,22 @@ class ThreadTransport:
                 self._failed_writes += data
                 raise ConnectionLostError(str(self._lost))  # (a new one: each has its traceback)
             self._queue += data
+            self._changed.notify_all()
+
+    def write_first(self, data: bytes) -> None:
+        """Queue ``data`` for the writing thread ahead of everything queued: it goes next,
+        once a write already under way has ended; never waits for the port. (A port whose
+        writes never wait is written at once.)"""
+        if self._writes_at_once:
+            self._write_now(data)
+            return
+        with self._changed:
+            if self._closing:
+                raise ConnectionLostError(f"{self._link.description}: closed")
+            if self._lost is not None:
+                self._failed_writes += data
+                raise ConnectionLostError(str(self._lost))
+            self._queue[:0] = data
             self._changed.notify_all()
 
     def _write_now(self, data: bytes) -> None:
