@@ -219,9 +219,13 @@ class AsyncClient(AsyncCommandMethods):
     async def close(self) -> None:
         """Release the port; pending and later calls raise ConnectionLostError.
 
-        Queries already on the wire are answered first (for at most ``timeout``): otherwise
-        their replies — of keep-alives, of the polls of a ``telemetry`` loop just left — would
-        greet the next connection to the controller as if they answered its queries.
+        If the program moved the robot or unlocked its motors since its last ``stop()``, and the
+        link is up, ``#stop!`` goes out first, behind what was already queued for the port
+        (``stop_on_close=False`` leaves the robot as it is); closing waits at most 2 s for the
+        port to take it. Queries already on the wire are answered next (for at most
+        ``timeout``): otherwise their replies — of keep-alives, of the polls of a ``telemetry``
+        loop just left — would greet the next connection to the controller as if they answered
+        its queries.
 
         Called in a later event loop than the one the client was opened in, once that one has
         been closed (``rov = asyncio.run(connect(url))``), it just closes the port: nothing
@@ -239,12 +243,24 @@ class AsyncClient(AsyncCommandMethods):
         if self._closed:
             await self._released.wait()  # a close() under way: return once it is done
             return
+        # A robot driver sends zero on shutdown: a program that moved the robot and then
+        # closed (or left ``async with``) left it driving until the controller's link-loss
+        # watchdog (P17). Not on a link being reopened: nothing could carry it.
+        stop_due = (
+            self._options.stop_on_close
+            and self._session.moved_since_stop
+            and self._lost is None
+            and not self._link_down
+        )
         self._closed = True
         self._link_ready.set()  # callers waiting for a reconnection fail now, as closed
         self._link_down = False
         if self._reconnector is not None:
             self._reconnector.cancel()
         try:
+            if stop_due:
+                with contextlib.suppress(ConnectionError):  # (lost as it was written)
+                    self._send(operations.STOP, by_session=True)
             await self._drain()
         finally:
             # Also when the drain is cancelled (asyncio.timeout, a TaskGroup): otherwise the port
@@ -1027,6 +1043,7 @@ def connect(
     on_stray: StrayCallback | None = None,
     on_event: EventCallback | None = None,
     reconnect: bool = False,
+    stop_on_close: bool = True,
     options: ClientOptions | None = None,
     max_in_flight: int = DEFAULT_MAX_IN_FLIGHT,
 ) -> _Connecting:
@@ -1057,6 +1074,7 @@ def connect(
             motion_timeout,
             on_event,
             reconnect,
+            stop_on_close,
         )
     if isinstance(max_in_flight, bool) or not isinstance(max_in_flight, int) or max_in_flight < 1:
         raise ValueError(f"max_in_flight must be an integer ≥ 1, got {max_in_flight!r}")

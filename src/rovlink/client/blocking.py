@@ -68,6 +68,8 @@ _MAX_READ_WAIT_S = 0.25
 _CALLER_GRACE_S = 0.005
 #: How long a call waits for another thread to deliver its events to the hook (see _emit).
 _DELIVERY_WAIT_S = 1.0
+#: How long close() waits for the #stop! it sends when the robot was moved (see _stop_on_close).
+_STOP_ON_CLOSE_WAIT_S = 0.5
 
 
 class Client(CommandMethods):
@@ -196,8 +198,11 @@ class Client(CommandMethods):
     def close(self) -> None:
         """Release the port; pending and later calls raise ConnectionLostError.
 
-        Queries already on the wire are answered first (for at most ``timeout``), so that their
-        replies do not greet the next connection as if they answered its queries.
+        If the program moved the robot or unlocked its motors since its last ``stop()``, and the
+        link is up, ``#stop!`` goes out first (waited for at most 0.5 s; ``stop_on_close=False``
+        leaves the robot as it is). Queries already on the wire are answered next (for at most
+        ``timeout``), so that their replies do not greet the next connection as if they
+        answered its queries.
 
         Example::
 
@@ -205,6 +210,7 @@ class Client(CommandMethods):
             rov.close()
         """
         current = threading.current_thread()
+        stop_due = False
         with self._changed:
             if self._closing:
                 closer = self._closer
@@ -219,6 +225,12 @@ class Client(CommandMethods):
                 self._background_wakeup.notify()
                 self._changed.notify_all()
                 on_the_wire = self._session.on_the_wire  # (nothing new is written now)
+                stop_due = (
+                    self._options.stop_on_close
+                    and self._session.moved_since_stop
+                    and self._lost is None
+                    and not self._reconnecting
+                )
         if closer is not None:
             # Closed once the port is released, whoever closes it (P22: the program may open
             # it again) — unless this thread is one the first close() waits for.
@@ -227,6 +239,8 @@ class Client(CommandMethods):
             return
         try:
             try:
+                if stop_due:
+                    self._stop_on_close()
                 for query in on_the_wire:  # answered, or timed out, before the port closes
                     self._wait(query, owned=False)
             finally:  # (a Ctrl-C in that wait still releases the port: P22, a next open)
@@ -245,6 +259,34 @@ class Client(CommandMethods):
                 self._close_link_once_written()
         finally:
             self._released.set()
+
+    def _stop_on_close(self) -> None:
+        """Send ``#stop!`` as close() begins, waiting for it at most
+        :data:`_STOP_ON_CLOSE_WAIT_S`: a robot driver sends zero on shutdown, and a program
+        that moved the robot and then closed (or left its ``with`` block) left it driving until
+        the controller's link-loss watchdog (P17). The write is a thread's of its own, so that
+        a line that takes nothing (or a port that cannot give up a write) never holds close()
+        up: closing the port ends that write."""
+        writer = threading.Thread(
+            target=self._write_stop_on_close,
+            name=f"rovlink stop on close ({self._link.description})",
+            daemon=True,
+        )
+        writer.start()
+        writer.join(_STOP_ON_CLOSE_WAIT_S)
+        if writer.is_alive():
+            logger.warning(
+                "%s: #stop! on close not written within %g s (the line takes nothing); closing "
+                "without it: the controller's link-loss failsafe stops the robot",
+                self._link.description,
+                _STOP_ON_CLOSE_WAIT_S,
+            )
+
+    def _write_stop_on_close(self) -> None:
+        try:
+            self._send(operations.STOP, by_session=True)
+        except ConnectionError as error:  # (lost meanwhile: nothing to stop on)
+            logger.debug("#stop! on close: %s", error)
 
     def _close_link_once_written(self) -> None:
         """Close the port once no thread is writing on it (at most 2 s more): a descriptor
@@ -1306,6 +1348,7 @@ def connect(
     on_stray: StrayCallback | None = None,
     on_event: EventCallback | None = None,
     reconnect: bool = False,
+    stop_on_close: bool = True,
     options: ClientOptions | None = None,
 ) -> Client:
     """Connect to a controller and return a blocking :class:`Client` (a context manager).
@@ -1323,7 +1366,9 @@ def connect(
     ``on_event`` with every event of the connection (:mod:`rovlink.client.events`);
     ``reconnect=True`` reopens a lost port (an adapter unplugged and plugged back) with backoff,
     waits for the controller again and restores the checksum mode: the calls on the wire when it
-    was lost raise ConnectionLostError, later calls wait for it up to ``timeout``.
+    was lost raise ConnectionLostError, later calls wait for it up to ``timeout``;
+    ``stop_on_close=False`` keeps ``close()`` from sending ``#stop!`` when the program moved the
+    robot (a tool that hands the robot on, moving, to another program).
     ``options`` gives all of these at once as a :class:`ClientOptions` instead.
 
     Example::
@@ -1348,6 +1393,7 @@ def connect(
             motion_timeout,
             on_event,
             reconnect,
+            stop_on_close,
         )
     endpoint = parse_url(url, baudrate)
     link = open_link(endpoint)
