@@ -5,6 +5,7 @@ stop it, with the option pyserial needs for a server that does not acknowledge m
 from __future__ import annotations
 
 import asyncio
+import itertools
 import os
 import shutil
 import socket
@@ -114,3 +115,28 @@ def test_a_server_that_does_not_acknowledge_modem_control_is_named_with_the_opti
     message = _open_error(endpoint, SerialException("timeout while waiting for option 'control'"))
     assert message.startswith("cannot open rfc2217://robot:2217: ")
     assert "?ign_set_control" in message
+
+
+@pytest.mark.integration
+async def test_closing_the_asyncio_client_does_not_stall_its_event_loop(served: Served) -> None:
+    # pyserial's rfc2217:// close waits for its reader thread, then sleeps 0.3 s; done in the
+    # event loop's thread, it held everything else up for as long (a bridge's heartbeats).
+    rov = await rovlink.aio.connect(served.url, keepalive=None)
+    assert await rov.depth_cm() == 123
+    loop = asyncio.get_running_loop()
+    ticks: list[float] = []
+
+    async def tick() -> None:
+        while True:
+            ticks.append(loop.time())
+            await asyncio.sleep(0.01)
+
+    ticker = asyncio.ensure_future(tick())
+    try:
+        await asyncio.sleep(0.02)
+        await rov.close()
+        ticks.append(loop.time())
+    finally:
+        ticker.cancel()
+    gaps = [later - earlier for earlier, later in itertools.pairwise(ticks)]
+    assert max(gaps) < 0.2, f"the event loop stood still for {max(gaps):.2f} s"

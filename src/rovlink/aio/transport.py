@@ -13,13 +13,15 @@ runs in the loop.
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import threading
 from collections.abc import Callable
 from typing import Protocol
 
-from rovlink.client import links
+from rovlink.client import links, port_closing
 from rovlink.client.errors import ConnectionLostError
 from rovlink.client.links import FdLink, Link
+from rovlink.client.port_closing import PortClosing
 
 # FdTransport and ThreadTransport are reached through transport_for, as a ByteTransport.
 __all__ = ["ByteTransport", "transport_for"]
@@ -260,7 +262,7 @@ class FdTransport:
         finally:  # (cancelled too: the port is released)
             self._closed = True
             self._stop_watching()
-            self._link.close()
+            await close_link(self._link, self._loop)
 
 
 class ThreadTransport:
@@ -436,13 +438,45 @@ class ThreadTransport:
                     if thread is not None:
                         await asyncio.to_thread(thread.join, 2.0)
             finally:  # (cancelled while a thread ends: the port is released all the same)
-                self._link.close()
+                await close_link(self._link, self._loop)
 
     def _flush(self, timeout_s: float) -> None:
         with self._changed:
             self._changed.wait_for(
                 lambda: self._lost is not None or not (self._queue or self._writing), timeout_s
             )
+
+
+async def close_link(link: Link, loop: asyncio.AbstractEventLoop) -> None:
+    """Close ``link`` in a thread of its own, waiting at most
+    :data:`~rovlink.client.port_closing.CLOSE_TIMEOUT_S` without blocking the loop: a serial
+    device's close waits in the kernel for its output to drain (or for good, on a USB adapter
+    whose driver hangs), and ``rfc2217://``'s for its reader thread, then 0.3 s more. A close
+    still under way then is reported and left to end in the background.
+
+    Example::
+
+        await close_link(link, asyncio.get_running_loop())
+    """
+    ended: asyncio.Future[None] = loop.create_future()
+
+    def wake_the_loop() -> None:
+        with contextlib.suppress(RuntimeError):  # (the loop is closed: nobody waits)
+            loop.call_soon_threadsafe(_settle, ended)
+
+    closing = PortClosing(link, then=wake_the_loop)
+    timeout_s = port_closing.CLOSE_TIMEOUT_S
+    try:
+        await asyncio.wait({ended}, timeout=timeout_s)
+    finally:
+        ended.cancel()  # (cancelled: the close goes on in its thread)
+    if not closing.ended():
+        closing.report(timeout_s)
+
+
+def _settle(future: asyncio.Future[None]) -> None:
+    if not future.done():
+        future.set_result(None)
 
 
 def transport_for(link: Link, loop: asyncio.AbstractEventLoop) -> ByteTransport:

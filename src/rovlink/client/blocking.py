@@ -34,6 +34,7 @@ from rovlink.client.options import (
     ClientOptions,
     StrayCallback,
 )
+from rovlink.client.port_closing import close_within
 from rovlink.client.readiness import ReadinessProbe
 from rovlink.client.reconnection import reconnect_delays_s, reconnecting_failed
 from rovlink.client.session import Outcome, PendingQuery, Received, Session
@@ -295,7 +296,7 @@ class Client(CommandMethods):
         links.abort_writes(self._link)
         writing_done = self._wire_lock.acquire(timeout=links.WRITE_TIMEOUT_S)
         try:
-            self._link.close()
+            close_within(self._link)  # (a close that hangs is reported and left to end)
         finally:
             if writing_done:
                 self._wire_lock.release()
@@ -518,7 +519,7 @@ class Client(CommandMethods):
             self._waiting_callers -= 1
         # Whoever wrote on it has let go too (a write waiting for room was given up: _lose).
         with self._wire_lock, contextlib.suppress(Exception):
-            self._link.close()
+            close_within(self._link)  # (a port whose close hangs is not waited for)
         reopen = self._reopen
         assert reopen is not None
         delays_s = reconnect_delays_s()
