@@ -135,6 +135,9 @@ def _frames_after_close(options: ClientOptions, program: list[str]) -> list[str]
         (["#start!"], True, ["#start!", "#qd!", "#stop!"]),  # unlocked: locked again
         (["#start!", "#th.0.40!", "#stop!"], True, ["#start!", "#th.0.40!", "#stop!", "#qd!"]),
         (["#mgmp.100!", "#q.l!"], True, ["#mgmp.100!", "#q.l!", "#qd!"]),  # nothing moved
+        # (Motion while locked as last sent is dropped by the controller, P7: nothing moved.)
+        (["#stop!", "#th.0.40!"], True, ["#stop!", "#th.0.40!", "#qd!"]),
+        (["#stop!", "#start!"], True, ["#stop!", "#start!", "#qd!", "#stop!"]),
         (["#th.0.40!"], False, ["#th.0.40!", "#qd!"]),  # the program asked to leave it so
     ],
 )
