@@ -18,6 +18,7 @@ import os
 import select
 import socket
 import sys
+import threading
 import time
 from collections.abc import Callable
 from typing import Any, Protocol
@@ -525,18 +526,31 @@ class PortLink:
 
         Where the port can (pyserial's ports on POSIX, and wrappers of them such as
         ``spy://``, through ``cancel_write``), a write waiting in another thread returns at
-        once; on others (``rfc2217://``) it ends at the port's own write timeout. Either way it
-        raises :class:`ConnectionLostError` rather than report the data written.
+        once. A port that cannot cancel a write (``rfc2217://``, whose write waits up to its
+        socket's timeout, 5 s) is closed instead, in a thread of its own (its close may wait),
+        which ends the write as well. Either way it raises :class:`ConnectionLostError` rather
+        than report the data written.
 
         Example::
 
             link.abort_writes()   # a write waiting in another thread raises ConnectionLostError
         """
+        first = not self._writes_aborted
         self._writes_aborted = True
         cancel = getattr(self._port, "cancel_write", None)
         if cancel is not None:
             with contextlib.suppress(Exception):  # (a port closed meanwhile)
                 cancel()
+        elif first and self.writes_may_wait and not self._closed:
+            threading.Thread(
+                target=self._close_port_quietly,
+                name=f"rovlink abort writes ({self.description})",
+                daemon=True,
+            ).start()
+
+    def _close_port_quietly(self) -> None:
+        with contextlib.suppress(Exception):  # (close() closes it again, and says so)
+            self._port.close()
 
     def wake(self) -> None:
         """Interrupt a blocked read where the port supports it; otherwise it returns on its own.
