@@ -510,6 +510,10 @@ class Client(CommandMethods):
         self._lost = error
         self._session.disconnect()
         self._changed.notify_all()
+        if not self._closing and self._background_ident is not None:
+            # (As the asyncio client: a program that was idle, the keep-alive's link lost,
+            # hears of it before its next call. While connecting, the connect's error says it.)
+            logger.warning("%s", error)
 
     def _reconnect_loop(self) -> None:
         """Reopen the port with backoff (0.1 s, doubling to 2 s) until it answers, or close()."""
