@@ -319,7 +319,8 @@ class AsyncClient(AsyncCommandMethods):
         Called in the event loop itself (a signal handler of the loop, a callback), it never
         blocks the loop: the ``#stop!`` is written at once as far as the port takes it, ahead
         of everything queued, and the rest of it goes first when the port has room (``True``:
-        written or first in line); the :meth:`stop` behind what was queued follows at once.
+        written or first in line); the :meth:`stop` behind what was queued follows as the loop's
+        next callback.
 
         Example::
 
@@ -330,13 +331,14 @@ class AsyncClient(AsyncCommandMethods):
         if _running_loop() is self._loop:
             # A write to the port here would block the loop (up to the write timeout, on a line
             # with no room): ahead of the transport's queue instead, then the loop's own stop.
+            # The stop behind what was queued is the loop's next callback, not made here: a
+            # handler of signal.signal may have interrupted the client halfway through a call.
+            self._loop.call_soon(self._stop_after_emergency)
             try:
                 self._transport.write_first(self._session.frame_for(operations.STOP))
-                written = True
-            except ConnectionLostError:  # (reported by the transport; a link being reopened
-                written = False  # gets the stop below as its first frame)
-            self._stop_after_emergency()
-            return written
+            except ConnectionLostError:  # (a link being reopened gets that stop first)
+                return False
+            return True
         with contextlib.suppress(RuntimeError):  # (the loop is closed: it writes nothing more)
             self._loop.call_soon_threadsafe(self._stop_after_emergency)
         try:
