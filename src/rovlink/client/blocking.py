@@ -15,9 +15,11 @@ use the client.
 
 from __future__ import annotations
 
+import atexit
 import contextlib
 import threading
 import time
+import weakref
 from collections.abc import Callable
 from types import TracebackType
 from typing import TypeVar
@@ -178,6 +180,7 @@ class Client(CommandMethods):
         # Started after the first frame, so that an idle link is measured from it.
         self._background.start()
         self._background_ident = self._background.ident
+        _open_clients.add(self)
 
     # -- the connection -------------------------------------------------------------------------
 
@@ -212,6 +215,7 @@ class Client(CommandMethods):
         """
         current = threading.current_thread()
         stop_due = False
+        _open_clients.discard(self)
         with self._changed:
             if self._closing:
                 closer = self._closer
@@ -1337,6 +1341,23 @@ class Client(CommandMethods):
         if next_deadline is not None:
             wait_s = min(wait_s, next_deadline - now)
         return max(wait_s, 0.001)
+
+
+#: The clients open in this process: a program that ends without closing one (the end of its
+#: script, ``sys.exit()``, an uncaught error) has it closed on the way out, so that it stops the
+#: robot it moved (see :meth:`Client.close`) rather than leave it to the controller's watchdog.
+_open_clients: weakref.WeakSet[Client] = weakref.WeakSet()
+
+
+def _close_open_clients() -> None:
+    for client in list(_open_clients):
+        try:
+            client.close()
+        except Exception:  # (the others are closed all the same)
+            logger.exception("closing %s as the program ends", client.description)
+
+
+atexit.register(_close_open_clients)
 
 
 def connect(
