@@ -1,6 +1,7 @@
 """A program that ends without closing its blocking client (the end of its script, an uncaught
-error) has it closed on the way out, so the robot it moved is stopped at once. Before, the
-process ended with the robot driving on until the controller's link-loss watchdog (2 s)."""
+error) has it send the ``#stop!`` of ``close()`` on the way out: the robot it moved is stopped at
+once. Before, the process ended with the robot driving on until the controller's link-loss
+watchdog (2 s)."""
 
 from __future__ import annotations
 

@@ -287,6 +287,21 @@ class Client(CommandMethods):
                 _STOP_ON_CLOSE_WAIT_S,
             )
 
+    def _stop_at_exit(self) -> None:
+        """The program ends with the client open: the ``#stop!`` of close(), if due, and not
+        the rest (waiting for the replies on the wire would hold the exit up, as after Ctrl-C;
+        the system releases the port)."""
+        with self._state_lock:
+            due = (
+                self._options.stop_on_close
+                and self._session.moved_since_stop
+                and self._lost is None
+                and not self._reconnecting
+                and not self._closing
+            )
+        if due:
+            self._stop_on_close()
+
     def _write_stop_on_close(self) -> None:
         try:
             self._send(operations.STOP, by_session=True)
@@ -1344,20 +1359,20 @@ class Client(CommandMethods):
 
 
 #: The clients open in this process: a program that ends without closing one (the end of its
-#: script, ``sys.exit()``, an uncaught error) has it closed on the way out, so that it stops the
-#: robot it moved (see :meth:`Client.close`) rather than leave it to the controller's watchdog.
+#: script, ``sys.exit()``, an uncaught error) has it stop the robot it moved on the way out (see
+#: :meth:`Client.close`) rather than leave it to the controller's watchdog.
 _open_clients: weakref.WeakSet[Client] = weakref.WeakSet()
 
 
-def _close_open_clients() -> None:
+def _stop_open_clients() -> None:
     for client in list(_open_clients):
         try:
-            client.close()
-        except Exception:  # (the others are closed all the same)
-            logger.exception("closing %s as the program ends", client.description)
+            client._stop_at_exit()
+        except Exception:  # (the others are stopped all the same)
+            logger.exception("stopping %s as the program ends", client.description)
 
 
-atexit.register(_close_open_clients)
+atexit.register(_stop_open_clients)
 
 
 def connect(
