@@ -44,3 +44,34 @@ def test_a_program_that_ends_without_closing_its_client_stops_the_robot(
     (fake,) = port.fakes
     assert fake.wait_for(lambda f: f.frames()[-1:] == ["#stop!"]), fake.frames()
     assert fake.frames() == ["#crcoff!", "#start!", "#th.90.40!", "#qd!", "#stop!"]
+
+
+_ASYNC_PROGRAM = """
+import asyncio, sys
+import rovlink.aio
+
+async def main() -> None:
+    rov = await rovlink.aio.connect(sys.argv[1], keepalive=None, boot_timeout=None)
+    await rov.start()
+    await rov.move(90, 40)
+    assert await rov.depth_cm() == 123
+
+asyncio.run(main())
+"""
+
+
+def test_an_asyncio_program_that_ends_without_closing_its_client_stops_the_robot(
+    port: FakeControllerServer,
+) -> None:
+    child = subprocess.run(
+        [sys.executable, "-c", _ASYNC_PROGRAM, port.url],
+        env=rovlink_environment(),
+        capture_output=True,
+        check=False,
+        text=True,
+        timeout=CONDITION_TIMEOUT_S * 2,
+    )
+    assert child.returncode == 0, child.stderr
+    (fake,) = port.fakes
+    assert fake.wait_for(lambda f: f.frames()[-1:] == ["#stop!"]), fake.frames()
+    assert fake.frames() == ["#crcoff!", "#start!", "#th.90.40!", "#qd!", "#stop!"]

@@ -10,9 +10,11 @@ per reply. Timeouts are one loop timer at the oldest query's deadline.
 from __future__ import annotations
 
 import asyncio
+import atexit
 import contextlib
 import math
 import time
+import weakref
 from asyncio.events import _get_running_loop as _running_loop  # (None, not an error, if none)
 from collections import deque
 from collections.abc import AsyncIterator, Callable, Generator
@@ -165,6 +167,7 @@ class AsyncClient(AsyncCommandMethods):
             raise
         self._opened = True
         self._arm_timer()
+        _open_clients.add(self)
         return self
 
     async def _await_ready(self, *, reconnecting: bool = False) -> None:
@@ -240,6 +243,7 @@ class AsyncClient(AsyncCommandMethods):
                 raise self._wrong_loop_error()
             self._close_after_its_loop()
             return
+        _open_clients.discard(self)
         if self._closed:
             await self._released.wait()  # a close() under way: return once it is done
             return
@@ -346,6 +350,17 @@ class AsyncClient(AsyncCommandMethods):
         except (ConnectionError, OSError):
             return False
         return True
+
+    def _stop_at_exit(self) -> None:
+        """The program ends with the client open (``asyncio.run`` returned without a close):
+        the ``#stop!`` of close(), if due, written as :meth:`emergency_stop` writes it (the loop
+        has ended)."""
+        if (
+            self._options.stop_on_close
+            and self._session.moved_since_stop
+            and not (self._closed or self._link_down or self._lost is not None)
+        ):
+            self.emergency_stop()
 
     def _stop_after_emergency(self) -> None:
         """:meth:`stop` in the loop after :meth:`emergency_stop`, behind what it had queued."""
@@ -963,6 +978,23 @@ class AsyncClient(AsyncCommandMethods):
             self._flush_due()
         self._emit()
         self._arm_timer()
+
+
+#: The clients open in this process: a program that ends without closing one has it stop the
+#: robot it moved on the way out (see :meth:`AsyncClient.close`), rather than leave it to the
+#: controller's watchdog.
+_open_clients: weakref.WeakSet[AsyncClient] = weakref.WeakSet()
+
+
+def _stop_open_clients() -> None:
+    for client in list(_open_clients):
+        try:
+            client._stop_at_exit()
+        except Exception:  # (the others are stopped all the same)
+            logger.exception("stopping %s as the program ends", client.description)
+
+
+atexit.register(_stop_open_clients)
 
 
 def _loop_clock(loop: asyncio.AbstractEventLoop) -> Callable[[], float]:
