@@ -37,7 +37,12 @@ class PortClosing:
 
     def __init__(self, link: Link, *, then: Callable[[], None] | None = None) -> None:
         """Start closing ``link``; ``then`` is called in the closing thread once it has ended
-        (an event loop's wake-up)."""
+        (an event loop's wake-up).
+
+        Example::
+
+            closing = PortClosing(link, then=lambda: print("closed"))
+        """
         self._link = link
         self._then = then
         self._error: Exception | None = None
