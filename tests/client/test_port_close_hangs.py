@@ -1,8 +1,9 @@
 """A port whose close hangs (a USB serial adapter whose driver is stuck: the kernel's close waits
 for output that never drains) never holds the program: both clients wait for it at most
 ``CLOSE_TIMEOUT_S``, say so in a warning naming the port, and leave it to end in the background;
-the asyncio client's event loop runs on meanwhile. Before, ``close()`` waited for as long as the
-port's close did, and the asyncio client waited for it inside the event loop."""
+the asyncio client's event loop runs on meanwhile, and a reconnection does not wait for the lost
+port's close either. Before, ``close()`` waited for as long as the port's close did (the asyncio
+client inside the event loop), and so did a reconnection before it opened anything."""
 
 from __future__ import annotations
 
@@ -13,15 +14,24 @@ import os
 import threading
 import time
 import tty
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 
 import pytest
 
 import rovlink
 import rovlink.aio
 from rovlink.aio import AsyncClient
-from rovlink.client import Client, port_closing
-from tests.client.conftest import CONDITION_TIMEOUT_S, REPLY_TIMEOUT_S, ThreadCall
+from rovlink.client import Client, links, port_closing
+from rovlink.client.events import ClientEvent, LinkState
+from rovlink.client.url import parse_url
+from tests.client.conftest import (
+    CONDITION_TIMEOUT_S,
+    REPLY_TIMEOUT_S,
+    ThreadCall,
+    client_options,
+    wait_until,
+    wait_until_async,
+)
 from tests.client.fake_controller import FakeController
 
 pytestmark = pytest.mark.integration
@@ -120,3 +130,65 @@ def test_a_close_that_ends_in_time_is_waited_for_and_its_error_raised() -> None:
 
     with pytest.raises(OSError, match="the port said no"):
         port_closing.close_within(_FailingLink(), CONDITION_TIMEOUT_S)  # type: ignore[arg-type]
+
+
+def _reconnected(events: list[ClientEvent]) -> bool:
+    return any(isinstance(event, LinkState) and event.state == "reconnected" for event in events)
+
+
+def test_the_blocking_client_reconnects_without_waiting_for_the_lost_port_to_close(
+    pty_fake: tuple[FakeController, str], reopened: list[FakeController]
+) -> None:
+    # An adapter pulled out whose driver then hangs in close: the reconnection waited for that
+    # close before it opened anything.
+    fake, path = pty_fake
+    events: list[ClientEvent] = []
+    options = client_options(reconnect=True, on_event=events.append, timeout_s=REPLY_TIMEOUT_S)
+    rov = Client(links.open_link(parse_url(path)), options, reopen=_reopen_to(reopened))
+    let_go = _make_close_hang(rov)
+    try:
+        assert rov.depth_cm() == 123
+        fake.close()  # pulled out
+        assert wait_until(lambda: _reconnected(events), _STUCK_FOR_S - 1.0)
+        assert rov.depth_cm() == 123  # on the reopened link
+    finally:
+        let_go.set()
+        rov.close()
+
+
+async def test_the_asyncio_client_reconnects_without_waiting_for_the_lost_port_to_close(
+    pty_fake: tuple[FakeController, str], reopened: list[FakeController]
+) -> None:
+    fake, path = pty_fake
+    events: list[ClientEvent] = []
+    options = client_options(reconnect=True, on_event=events.append, timeout_s=REPLY_TIMEOUT_S)
+    link = links.open_link(parse_url(path))
+    rov = await AsyncClient(link, options, reopen=_reopen_to(reopened)).open()
+    let_go = _make_close_hang(rov)
+    try:
+        assert await rov.depth_cm() == 123
+        fake.close()
+        assert await wait_until_async(lambda: _reconnected(events), _STUCK_FOR_S - 1.0)
+        assert await rov.depth_cm() == 123
+    finally:
+        let_go.set()
+        await rov.close()
+
+
+def _reopen_to(reopened: list[FakeController]) -> Callable[[], links.Link]:
+    """A ``reopen`` that plugs a fresh controller in, on a socket pair."""
+
+    def reopen() -> links.Link:
+        fake, ours = FakeController.on_socketpair()
+        reopened.append(fake)
+        return links.SocketLink(ours, "socket pair, reopened")
+
+    return reopen
+
+
+@pytest.fixture
+def reopened() -> Iterator[list[FakeController]]:
+    fakes: list[FakeController] = []
+    yield fakes
+    for fake in fakes:
+        fake.close()
