@@ -192,3 +192,32 @@ def reopened() -> Iterator[list[FakeController]]:
     yield fakes
     for fake in fakes:
         fake.close()
+
+
+def test_closing_in_a_later_event_loop_stops_the_robot_and_does_not_wait_for_a_close_that_hangs(
+    pty_fake: tuple[FakeController, str],
+) -> None:
+    # rov = asyncio.run(connect(url)), then asyncio.run(rov.close()): the port was closed as it
+    # was, in the second loop's thread, for as long as its close hung, and the robot the first
+    # loop moved was left moving.
+    fake, path = pty_fake
+
+    async def connect_and_move() -> AsyncClient:
+        rov = await rovlink.aio.connect(
+            path, keepalive=None, boot_timeout=None, timeout=REPLY_TIMEOUT_S
+        )
+        await rov.start()
+        await rov.move(0, 40)
+        assert await rov.depth_cm() == 123
+        return rov
+
+    rov = asyncio.run(connect_and_move())
+    let_go = _make_close_hang(rov)
+    try:
+        started = time.monotonic()
+        asyncio.run(rov.close())
+        assert time.monotonic() - started < _STUCK_FOR_S - 1.0, "close() waited for it"
+        assert fake.wait_for(lambda f: f.frames()[-1:] == ["#stop!"])
+        assert rov.closed
+    finally:
+        let_go.set()

@@ -36,6 +36,7 @@ from rovlink.client.options import (
     ClientOptions,
     StrayCallback,
 )
+from rovlink.client.port_closing import close_within
 from rovlink.client.readiness import ReadinessProbe
 from rovlink.client.reconnection import reconnect_delays_s, reconnecting_failed
 from rovlink.client.sensors import Sensors
@@ -550,12 +551,15 @@ class AsyncClient(AsyncCommandMethods):
 
     def _close_after_its_loop(self) -> None:
         """close() once the client's loop is closed: nothing runs there any more (no reader, no
-        timer), so the port is closed as it is; there was no other way to release it."""
+        timer), so the port is closed as it is, after the ``#stop!`` of close() if it is due
+        (written as :meth:`emergency_stop` writes it); there was no other way to release it."""
+        self._stop_at_exit()
+        _open_clients.discard(self)
         self._closed = True
         if self._lost is None:
             self._lost = ConnectionLostError(f"{self._link.description}: closed")
-        with contextlib.suppress(OSError):
-            self._link.close()  # (its reading thread, if any, ends on the closed port)
+        with contextlib.suppress(OSError):  # (its reading thread, if any, ends on the closed port)
+            close_within(self._link)  # (a close that hangs is reported and left to end)
         with contextlib.suppress(RuntimeError):  # (a waiter of the closed loop cannot be woken)
             self._released.set()
 
