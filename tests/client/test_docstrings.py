@@ -1,8 +1,9 @@
 """House rule: every public function and method of the host driver has a docstring with an example.
 
 The public driver is what ``rovlink.client`` and ``rovlink.aio`` export, what the driver's link,
-transport and stray-event modules export, with the methods and properties of the classes among
-them (inherited ones included), and the public functions of ``rovlink send`` and ``rovlink demo``.
+port-closing, transport and stray-event modules export, with the methods and properties of the
+classes among them (inherited ones included), and the public functions of ``rovlink send`` and
+``rovlink demo``.
 """
 
 from __future__ import annotations
@@ -17,12 +18,14 @@ import rovlink.cli.demo
 import rovlink.cli.send
 import rovlink.client
 import rovlink.client.links
+import rovlink.client.port_closing
 import rovlink.client.unsolicited
 
 MODULES: tuple[ModuleType, ...] = (
     rovlink.client,
     rovlink.aio,
     rovlink.client.links,
+    rovlink.client.port_closing,
     rovlink.client.unsolicited,
     rovlink.aio.transport,
     rovlink.cli.send,

@@ -106,7 +106,8 @@ def test_motion_that_expires_while_the_blocking_client_closes_is_still_zeroed(
     """close() waits (up to the timeout) for a query on the wire; a motion that expires in that
     wait is zeroed all the same, as it would be without the close (before, nothing was written
     while closing, and only the controller's own failsafe stopped the robot, 2 s after)."""
-    client = make_client(motion_timeout_s=0.5, timeout_s=1.0)
+    # (No #stop! on close, which would zero the motion before it expires.)
+    client = make_client(motion_timeout_s=0.5, timeout_s=1.0, stop_on_close=False)
     client.start()
     client.move(45, 60)
     fake.then("drop")
@@ -125,7 +126,7 @@ def test_motion_that_expires_while_the_blocking_client_closes_is_still_zeroed(
 async def test_motion_that_expires_while_the_asyncio_client_closes_is_still_zeroed(
     fake: FakeController, make_async_client: MakeAsyncClient
 ) -> None:
-    client = await make_async_client(motion_timeout_s=0.5, timeout_s=1.0)
+    client = await make_async_client(motion_timeout_s=0.5, timeout_s=1.0, stop_on_close=False)
     await client.start()
     await client.move(45, 60)
     fake.then("drop")

@@ -1,4 +1,4 @@
-"""A caller waiting for its own reply on TCP sleeps in ``recv`` (``SocketLink.read_reply``):
+"""A caller waiting for its own reply on TCP sleeps in ``poll`` (``SocketLink.read_available``):
 it gets the reply, gives up at its deadline, and is woken by the other end or by ``close``."""
 
 from __future__ import annotations
@@ -32,15 +32,14 @@ def test_the_reply_is_read_as_it_arrives(pair: tuple[SocketLink, socket.socket])
     link.send_some(b"#qd!")
     assert controller.recv(64) == b"#qd!"
     controller.sendall(b"$qd.5!")
-    assert link.read_reply(CONDITION_TIMEOUT_S) == b"$qd.5!"
+    assert link.read_available(CONDITION_TIMEOUT_S) == b"$qd.5!"
 
 
 def test_silence_ends_the_read_at_its_deadline(pair: tuple[SocketLink, socket.socket]) -> None:
     link, _ = pair
     started = time.monotonic()
-    assert link.read_reply(0.05) == b""
-    assert time.monotonic() - started >= 0.045  # (the receive timeout rounds up, never down)
-    assert link.read_reply(0.0005) == b""  # shorter than the kernel's timer: polled instead
+    assert link.read_available(0.05) == b""
+    assert time.monotonic() - started >= 0.045  # (poll rounds up, never down)
 
 
 def test_the_other_end_closing_is_a_lost_connection(
@@ -49,7 +48,7 @@ def test_the_other_end_closing_is_a_lost_connection(
     link, controller = pair
     controller.close()
     with pytest.raises(ConnectionLostError, match="closed by the other end"):
-        link.read_reply(CONDITION_TIMEOUT_S)
+        link.read_available(CONDITION_TIMEOUT_S)
 
 
 def test_close_wakes_a_read_asleep_in_another_thread(
@@ -60,7 +59,7 @@ def test_close_wakes_a_read_asleep_in_another_thread(
 
     def read() -> None:
         try:
-            outcome.append(link.read_reply(30.0))
+            outcome.append(link.read_available(30.0))
         except ConnectionLostError as error:
             outcome.append(error)
 
@@ -80,7 +79,7 @@ def _asleep(thread: threading.Thread) -> bool:
     return stat[stat.rindex(")") + 2] == "S"
 
 
-def test_the_descriptor_blocks_but_no_other_call_does(
+def test_no_call_blocks(
     pair: tuple[SocketLink, socket.socket],
 ) -> None:
     link, _ = pair

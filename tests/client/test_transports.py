@@ -76,10 +76,12 @@ def test_blocking_client_over_a_pty(pty_fake: tuple[FakeController, str]) -> Non
         assert rov.sensors() == EXPECTED_SENSORS
         rov.move(270, 25)
         assert rov.depth_cm() == 123
-    # The readiness probe (P21), then the checksum mode, confirmed by a query.
+    # The readiness probe (P21), then the checksum mode, confirmed by a query; the robot moved,
+    # so closing stops it.
+    assert fake.wait_for(lambda f: f.frames()[-1:] == ["#stop!"])
     assert fake.frames()[:2] == ["#crcoff!", "#qd!"]
-    assert fake.frames()[-5:] == ["#crcon!", "#qd!", "#qsa!", "#th.270.25!", "#qd!"]
-    assert bytes(fake.raw).endswith(b"#crcon!#qd8C!#qsaB1!#th.270.25CA!#qd8C!")
+    assert fake.frames()[-6:] == ["#crcon!", "#qd!", "#qsa!", "#th.270.25!", "#qd!", "#stop!"]
+    assert bytes(fake.raw).endswith(b"#crcon!#qd8C!#qsaB1!#th.270.25CA!#qd8C!#stop!")
 
 
 def test_pty_disconnect_is_a_lost_connection(pty_fake: tuple[FakeController, str]) -> None:
@@ -129,7 +131,7 @@ async def test_async_client_over_a_pty(pty_fake: tuple[FakeController, str]) -> 
         results = await asyncio.gather(*(rov.sensors() for _ in range(50)))
         assert results == [EXPECTED_SENSORS] * 50
         await rov.claw_open()
-    assert fake.wait_for(lambda f: f.frames()[-1:] == ["#h+!"])
+    assert fake.wait_for(lambda f: f.frames()[-2:] == ["#h+!", "#stop!"])  # (stopped on close)
 
 
 async def test_async_client_over_tcp_and_disconnect(tcp_fake: _TcpFake) -> None:

@@ -10,9 +10,11 @@ per reply. Timeouts are one loop timer at the oldest query's deadline.
 from __future__ import annotations
 
 import asyncio
+import atexit
 import contextlib
 import math
 import time
+import weakref
 from asyncio.events import _get_running_loop as _running_loop  # (None, not an error, if none)
 from collections import deque
 from collections.abc import AsyncIterator, Callable, Generator
@@ -34,6 +36,7 @@ from rovlink.client.options import (
     ClientOptions,
     StrayCallback,
 )
+from rovlink.client.port_closing import close_within
 from rovlink.client.readiness import ReadinessProbe
 from rovlink.client.reconnection import reconnect_delays_s, reconnecting_failed
 from rovlink.client.sensors import Sensors
@@ -166,6 +169,7 @@ class AsyncClient(AsyncCommandMethods):
             raise
         self._opened = True
         self._arm_timer()
+        _open_clients.add(self)
         return self
 
     async def _await_ready(self, *, reconnecting: bool = False) -> None:
@@ -220,9 +224,13 @@ class AsyncClient(AsyncCommandMethods):
     async def close(self) -> None:
         """Release the port; pending and later calls raise ConnectionLostError.
 
-        Queries already on the wire are answered first (for at most ``timeout``): otherwise
-        their replies — of keep-alives, of the polls of a ``telemetry`` loop just left — would
-        greet the next connection to the controller as if they answered its queries.
+        If the program moved the robot or unlocked its motors since its last ``stop()``, and the
+        link is up, ``#stop!`` goes out first, behind what was already queued for the port
+        (``stop_on_close=False`` leaves the robot as it is); closing waits at most 2 s for the
+        port to take it. Queries already on the wire are answered next (for at most
+        ``timeout``): otherwise their replies — of keep-alives, of the polls of a ``telemetry``
+        loop just left — would greet the next connection to the controller as if they answered
+        its queries.
 
         Called in a later event loop than the one the client was opened in, once that one has
         been closed (``rov = asyncio.run(connect(url))``), it just closes the port: nothing
@@ -237,15 +245,28 @@ class AsyncClient(AsyncCommandMethods):
                 raise self._wrong_loop_error()
             self._close_after_its_loop()
             return
+        _open_clients.discard(self)
         if self._closed:
             await self._released.wait()  # a close() under way: return once it is done
             return
+        # A robot driver sends zero on shutdown: a program that moved the robot and then
+        # closed (or left ``async with``) left it driving until the controller's link-loss
+        # watchdog (P17). Not on a link being reopened: nothing could carry it.
+        stop_due = (
+            self._options.stop_on_close
+            and self._session.moved_since_stop
+            and self._lost is None
+            and not self._link_down
+        )
         self._closed = True
         self._link_ready.set()  # callers waiting for a reconnection fail now, as closed
         self._link_down = False
         if self._reconnector is not None:
             self._reconnector.cancel()
         try:
+            if stop_due:
+                with contextlib.suppress(ConnectionError):  # (lost as it was written)
+                    self._send(operations.STOP, by_session=True)
             await self._drain()
         finally:
             # Also when the drain is cancelled (asyncio.timeout, a TaskGroup): otherwise the port
@@ -301,12 +322,29 @@ class AsyncClient(AsyncCommandMethods):
         slow to take it) goes out after this ``#stop!`` if the loop runs again: so the loop is
         also asked to :meth:`stop` as soon as it can, which follows whatever it queued.
 
+        Called in the event loop itself (a signal handler of the loop, a callback), it never
+        blocks the loop: the ``#stop!`` is written at once as far as the port takes it, ahead
+        of everything queued, and the rest of it goes first when the port has room (``True``:
+        written or first in line); the :meth:`stop` behind what was queued follows as the loop's
+        next callback.
+
         Example::
 
             threading.Thread(target=rov.emergency_stop).start()
         """
         if self._lost is not None:  # (the port is open until close() has let the wire settle)
             return False
+        if _running_loop() is self._loop:
+            # A write to the port here would block the loop (up to the write timeout, on a line
+            # with no room): ahead of the transport's queue instead, then the loop's own stop.
+            # The stop behind what was queued is the loop's next callback, not made here: a
+            # handler of signal.signal may have interrupted the client halfway through a call.
+            self._loop.call_soon(self._stop_after_emergency)
+            try:
+                self._transport.write_first(self._session.frame_for(operations.STOP))
+            except ConnectionLostError:  # (a link being reopened gets that stop first)
+                return False
+            return True
         with contextlib.suppress(RuntimeError):  # (the loop is closed: it writes nothing more)
             self._loop.call_soon_threadsafe(self._stop_after_emergency)
         try:
@@ -314,6 +352,17 @@ class AsyncClient(AsyncCommandMethods):
         except (ConnectionError, OSError):
             return False
         return True
+
+    def _stop_at_exit(self) -> None:
+        """The program ends with the client open (``asyncio.run`` returned without a close):
+        the ``#stop!`` of close(), if due, written as :meth:`emergency_stop` writes it (the loop
+        has ended)."""
+        if (
+            self._options.stop_on_close
+            and self._session.moved_since_stop
+            and not (self._closed or self._link_down or self._lost is not None)
+        ):
+            self.emergency_stop()
 
     def _stop_after_emergency(self) -> None:
         """:meth:`stop` in the loop after :meth:`emergency_stop`, behind what it had queued."""
@@ -503,12 +552,15 @@ class AsyncClient(AsyncCommandMethods):
 
     def _close_after_its_loop(self) -> None:
         """close() once the client's loop is closed: nothing runs there any more (no reader, no
-        timer), so the port is closed as it is; there was no other way to release it."""
+        timer), so the port is closed as it is, after the ``#stop!`` of close() if it is due
+        (written as :meth:`emergency_stop` writes it); there was no other way to release it."""
+        self._stop_at_exit()
+        _open_clients.discard(self)
         self._closed = True
         if self._lost is None:
             self._lost = ConnectionLostError(f"{self._link.description}: closed")
-        with contextlib.suppress(OSError):
-            self._link.close()  # (its reading thread, if any, ends on the closed port)
+        with contextlib.suppress(OSError):  # (its reading thread, if any, ends on the closed port)
+            close_within(self._link)  # (a close that hangs is reported and left to end)
         with contextlib.suppress(RuntimeError):  # (a waiter of the closed loop cannot be woken)
             self._released.set()
 
@@ -933,6 +985,23 @@ class AsyncClient(AsyncCommandMethods):
         self._arm_timer()
 
 
+#: The clients open in this process: a program that ends without closing one has it stop the
+#: robot it moved on the way out (see :meth:`AsyncClient.close`), rather than leave it to the
+#: controller's watchdog.
+_open_clients: weakref.WeakSet[AsyncClient] = weakref.WeakSet()
+
+
+def _stop_open_clients() -> None:
+    for client in list(_open_clients):
+        try:
+            client._stop_at_exit()
+        except Exception:  # (the others are stopped all the same)
+            logger.exception("stopping %s as the program ends", client.description)
+
+
+atexit.register(_stop_open_clients)
+
+
 def _loop_clock(loop: asyncio.AbstractEventLoop) -> Callable[[], float]:
     """``loop.time``, or the clock it reads when it is asyncio's own (``time.monotonic``):
     read twice a query, and a Python method around a C function costs a call."""
@@ -1013,6 +1082,7 @@ def connect(
     on_stray: StrayCallback | None = None,
     on_event: EventCallback | None = None,
     reconnect: bool = False,
+    stop_on_close: bool = True,
     options: ClientOptions | None = None,
     max_in_flight: int = DEFAULT_MAX_IN_FLIGHT,
 ) -> _Connecting:
@@ -1043,6 +1113,7 @@ def connect(
             motion_timeout,
             on_event,
             reconnect,
+            stop_on_close,
         )
     if isinstance(max_in_flight, bool) or not isinstance(max_in_flight, int) or max_in_flight < 1:
         raise ValueError(f"max_in_flight must be an integer ≥ 1, got {max_in_flight!r}")

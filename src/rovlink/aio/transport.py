@@ -13,13 +13,15 @@ runs in the loop.
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import threading
 from collections.abc import Callable
 from typing import Protocol
 
-from rovlink.client import links
+from rovlink.client import links, port_closing
 from rovlink.client.errors import ConnectionLostError
 from rovlink.client.links import FdLink, Link
+from rovlink.client.port_closing import PortClosing
 
 # FdTransport and ThreadTransport are reached through transport_for, as a ByteTransport.
 __all__ = ["ByteTransport", "transport_for"]
@@ -61,6 +63,16 @@ class ByteTransport(Protocol):
         Example::
 
             transport.write(b"#qd!")
+        """
+        ...
+
+    def write_first(self, data: bytes) -> None:
+        """Write ``data`` ahead of everything queued, without blocking: now as far as the port
+        takes it, the rest first in the queue; raise ConnectionLostError if the link is gone.
+
+        Example::
+
+            transport.write_first(b"#stop!")
         """
         ...
 
@@ -140,6 +152,29 @@ class FdTransport:
             # A line that takes nothing for the write timeout is lost, as the blocking
             # client's write says: else a #stop! would wait behind it for ever, and a reopened
             # link (reconnect=True) would never be tried.
+            self._last_progress_at = self._loop.time()
+            self._arm_stall_timer(links.WRITE_TIMEOUT_S)
+
+    def write_first(self, data: bytes) -> None:
+        """Write ``data`` now, ahead of what is buffered (a frame cut by it is resynchronised
+        on ``#``, P1); what does not fit goes first in the buffer."""
+        if self._closed:
+            raise ConnectionLostError(f"{self._link.description}: closed")
+        # (Where the frames not yet wholly written end: the buffer is their tail.)
+        first_unwritten = len(self._unconfirmed) - len(self._buffer)
+        try:
+            written = self._link.send_some(data)
+        except ConnectionLostError as error:
+            self._unconfirmed[first_unwritten:first_unwritten] = data
+            self._fail(error)
+            raise
+        if written == len(data):
+            return
+        self._unconfirmed[first_unwritten:first_unwritten] = data
+        was_empty = not self._buffer
+        self._buffer[:0] = data[written:]
+        if was_empty:
+            self._loop.add_writer(self._fd, self._writable)
             self._last_progress_at = self._loop.time()
             self._arm_stall_timer(links.WRITE_TIMEOUT_S)
 
@@ -227,7 +262,7 @@ class FdTransport:
         finally:  # (cancelled too: the port is released)
             self._closed = True
             self._stop_watching()
-            self._link.close()
+            await close_link(self._link, self._loop)
 
 
 class ThreadTransport:
@@ -345,6 +380,22 @@ class ThreadTransport:
             self._queue += data
             self._changed.notify_all()
 
+    def write_first(self, data: bytes) -> None:
+        """Queue ``data`` for the writing thread ahead of everything queued: it goes next,
+        once a write already under way has ended; never waits for the port. (A port whose
+        writes never wait is written at once.)"""
+        if self._writes_at_once:
+            self._write_now(data)
+            return
+        with self._changed:
+            if self._closing:
+                raise ConnectionLostError(f"{self._link.description}: closed")
+            if self._lost is not None:
+                self._failed_writes += data
+                raise ConnectionLostError(str(self._lost))
+            self._queue[:0] = data
+            self._changed.notify_all()
+
     def _write_now(self, data: bytes) -> None:
         if self._closing:
             raise ConnectionLostError(f"{self._link.description}: closed")
@@ -387,13 +438,45 @@ class ThreadTransport:
                     if thread is not None:
                         await asyncio.to_thread(thread.join, 2.0)
             finally:  # (cancelled while a thread ends: the port is released all the same)
-                self._link.close()
+                await close_link(self._link, self._loop)
 
     def _flush(self, timeout_s: float) -> None:
         with self._changed:
             self._changed.wait_for(
                 lambda: self._lost is not None or not (self._queue or self._writing), timeout_s
             )
+
+
+async def close_link(link: Link, loop: asyncio.AbstractEventLoop) -> None:
+    """Close ``link`` in a thread of its own, waiting at most
+    :data:`~rovlink.client.port_closing.CLOSE_TIMEOUT_S` without blocking the loop: a serial
+    device's close waits in the kernel for its output to drain (or for good, on a USB adapter
+    whose driver hangs), and ``rfc2217://``'s for its reader thread, then 0.3 s more. A close
+    still under way then is reported and left to end in the background.
+
+    Example::
+
+        await close_link(link, asyncio.get_running_loop())
+    """
+    ended: asyncio.Future[None] = loop.create_future()
+
+    def wake_the_loop() -> None:
+        with contextlib.suppress(RuntimeError):  # (the loop is closed: nobody waits)
+            loop.call_soon_threadsafe(_settle, ended)
+
+    closing = PortClosing(link, then=wake_the_loop)
+    timeout_s = port_closing.CLOSE_TIMEOUT_S
+    try:
+        await asyncio.wait({ended}, timeout=timeout_s)
+    finally:
+        ended.cancel()  # (cancelled: the close goes on in its thread)
+    if not closing.ended():
+        closing.report(timeout_s)
+
+
+def _settle(future: asyncio.Future[None]) -> None:
+    if not future.done():
+        future.set_result(None)
 
 
 def transport_for(link: Link, loop: asyncio.AbstractEventLoop) -> ByteTransport:

@@ -15,9 +15,11 @@ use the client.
 
 from __future__ import annotations
 
+import atexit
 import contextlib
 import threading
 import time
+import weakref
 from collections.abc import Callable
 from types import TracebackType
 from typing import TypeVar
@@ -34,6 +36,7 @@ from rovlink.client.options import (
     ClientOptions,
     StrayCallback,
 )
+from rovlink.client.port_closing import close_within
 from rovlink.client.readiness import ReadinessProbe
 from rovlink.client.reconnection import reconnect_delays_s, reconnecting_failed
 from rovlink.client.session import Outcome, PendingQuery, Received, Session
@@ -68,6 +71,8 @@ _MAX_READ_WAIT_S = 0.25
 _CALLER_GRACE_S = 0.005
 #: How long a call waits for another thread to deliver its events to the hook (see _emit).
 _DELIVERY_WAIT_S = 1.0
+#: How long close() waits for the #stop! it sends when the robot was moved (see _stop_on_close).
+_STOP_ON_CLOSE_WAIT_S = 0.5
 
 
 class Client(CommandMethods):
@@ -176,6 +181,7 @@ class Client(CommandMethods):
         # Started after the first frame, so that an idle link is measured from it.
         self._background.start()
         self._background_ident = self._background.ident
+        _open_clients.add(self)
 
     # -- the connection -------------------------------------------------------------------------
 
@@ -197,8 +203,11 @@ class Client(CommandMethods):
     def close(self) -> None:
         """Release the port; pending and later calls raise ConnectionLostError.
 
-        Queries already on the wire are answered first (for at most ``timeout``), so that their
-        replies do not greet the next connection as if they answered its queries.
+        If the program moved the robot or unlocked its motors since its last ``stop()``, and the
+        link is up, ``#stop!`` goes out first (waited for at most 0.5 s; ``stop_on_close=False``
+        leaves the robot as it is). Queries already on the wire are answered next (for at most
+        ``timeout``), so that their replies do not greet the next connection as if they
+        answered its queries.
 
         Example::
 
@@ -206,6 +215,8 @@ class Client(CommandMethods):
             rov.close()
         """
         current = threading.current_thread()
+        stop_due = False
+        _open_clients.discard(self)
         with self._changed:
             if self._closing:
                 closer = self._closer
@@ -220,6 +231,12 @@ class Client(CommandMethods):
                 self._background_wakeup.notify()
                 self._changed.notify_all()
                 on_the_wire = self._session.on_the_wire  # (nothing new is written now)
+                stop_due = (
+                    self._options.stop_on_close
+                    and self._session.moved_since_stop
+                    and self._lost is None
+                    and not self._reconnecting
+                )
         if closer is not None:
             # Closed once the port is released, whoever closes it (P22: the program may open
             # it again) — unless this thread is one the first close() waits for.
@@ -228,6 +245,8 @@ class Client(CommandMethods):
             return
         try:
             try:
+                if stop_due:
+                    self._stop_on_close()
                 for query in on_the_wire:  # answered, or timed out, before the port closes
                     self._wait(query, owned=False)
             finally:  # (a Ctrl-C in that wait still releases the port: P22, a next open)
@@ -247,6 +266,49 @@ class Client(CommandMethods):
         finally:
             self._released.set()
 
+    def _stop_on_close(self) -> None:
+        """Send ``#stop!`` as close() begins, waiting for it at most
+        :data:`_STOP_ON_CLOSE_WAIT_S`: a robot driver sends zero on shutdown, and a program
+        that moved the robot and then closed (or left its ``with`` block) left it driving until
+        the controller's link-loss watchdog (P17). The write is a thread's of its own, so that
+        a line that takes nothing (or a port that cannot give up a write) never holds close()
+        up: closing the port ends that write."""
+        writer = threading.Thread(
+            target=self._write_stop_on_close,
+            name=f"rovlink stop on close ({self._link.description})",
+            daemon=True,
+        )
+        writer.start()
+        writer.join(_STOP_ON_CLOSE_WAIT_S)
+        if writer.is_alive():
+            logger.warning(
+                "%s: #stop! on close not written within %g s (the line takes nothing); closing "
+                "without it: the controller's link-loss failsafe stops the robot",
+                self._link.description,
+                _STOP_ON_CLOSE_WAIT_S,
+            )
+
+    def _stop_at_exit(self) -> None:
+        """The program ends with the client open: the ``#stop!`` of close(), if due, and not
+        the rest (waiting for the replies on the wire would hold the exit up, as after Ctrl-C;
+        the system releases the port)."""
+        with self._state_lock:
+            due = (
+                self._options.stop_on_close
+                and self._session.moved_since_stop
+                and self._lost is None
+                and not self._reconnecting
+                and not self._closing
+            )
+        if due:
+            self._stop_on_close()
+
+    def _write_stop_on_close(self) -> None:
+        try:
+            self._send(operations.STOP, by_session=True)
+        except ConnectionError as error:  # (lost meanwhile: nothing to stop on)
+            logger.debug("#stop! on close: %s", error)
+
     def _close_link_once_written(self) -> None:
         """Close the port once no thread is writing on it (at most 2 s more): a descriptor
         closed under a write in another thread (a stop() from it) could be reused by the next
@@ -254,7 +316,7 @@ class Client(CommandMethods):
         links.abort_writes(self._link)
         writing_done = self._wire_lock.acquire(timeout=links.WRITE_TIMEOUT_S)
         try:
-            self._link.close()
+            close_within(self._link)  # (a close that hangs is reported and left to end)
         finally:
             if writing_done:
                 self._wire_lock.release()
@@ -468,6 +530,10 @@ class Client(CommandMethods):
         self._lost = error
         self._session.disconnect()
         self._changed.notify_all()
+        if not self._closing and self._background_ident is not None:
+            # (As the asyncio client: a program that was idle, the keep-alive's link lost,
+            # hears of it before its next call. While connecting, the connect's error says it.)
+            logger.warning("%s", error)
 
     def _reconnect_loop(self) -> None:
         """Reopen the port with backoff (0.1 s, doubling to 2 s) until it answers, or close()."""
@@ -477,7 +543,7 @@ class Client(CommandMethods):
             self._waiting_callers -= 1
         # Whoever wrote on it has let go too (a write waiting for room was given up: _lose).
         with self._wire_lock, contextlib.suppress(Exception):
-            self._link.close()
+            close_within(self._link)  # (a port whose close hangs is not waited for)
         reopen = self._reopen
         assert reopen is not None
         delays_s = reconnect_delays_s()
@@ -1293,6 +1359,23 @@ class Client(CommandMethods):
         return max(wait_s, 0.001)
 
 
+#: The clients open in this process: a program that ends without closing one (the end of its
+#: script, ``sys.exit()``, an uncaught error) has it stop the robot it moved on the way out (see
+#: :meth:`Client.close`) rather than leave it to the controller's watchdog.
+_open_clients: weakref.WeakSet[Client] = weakref.WeakSet()
+
+
+def _stop_open_clients() -> None:
+    for client in list(_open_clients):
+        try:
+            client._stop_at_exit()
+        except Exception:  # (the others are stopped all the same)
+            logger.exception("stopping %s as the program ends", client.description)
+
+
+atexit.register(_stop_open_clients)
+
+
 def connect(
     url: str,
     *,
@@ -1307,6 +1390,7 @@ def connect(
     on_stray: StrayCallback | None = None,
     on_event: EventCallback | None = None,
     reconnect: bool = False,
+    stop_on_close: bool = True,
     options: ClientOptions | None = None,
 ) -> Client:
     """Connect to a controller and return a blocking :class:`Client` (a context manager).
@@ -1324,7 +1408,9 @@ def connect(
     ``on_event`` with every event of the connection (:mod:`rovlink.client.events`);
     ``reconnect=True`` reopens a lost port (an adapter unplugged and plugged back) with backoff,
     waits for the controller again and restores the checksum mode: the calls on the wire when it
-    was lost raise ConnectionLostError, later calls wait for it up to ``timeout``.
+    was lost raise ConnectionLostError, later calls wait for it up to ``timeout``;
+    ``stop_on_close=False`` keeps ``close()`` from sending ``#stop!`` when the program moved the
+    robot (a tool that hands the robot on, moving, to another program).
     ``options`` gives all of these at once as a :class:`ClientOptions` instead.
 
     Example::
@@ -1349,6 +1435,7 @@ def connect(
             motion_timeout,
             on_event,
             reconnect,
+            stop_on_close,
         )
     endpoint = parse_url(url, baudrate)
     link = open_link(endpoint)

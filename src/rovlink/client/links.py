@@ -17,8 +17,8 @@ import logging
 import os
 import select
 import socket
-import struct
 import sys
+import threading
 import time
 from collections.abc import Callable
 from typing import Any, Protocol
@@ -50,10 +50,6 @@ MAX_QUEUED_LINE_S = 0.02
 WRITE_TIMEOUT_S = 2.0
 CONNECT_TIMEOUT_S = 5.0
 _READ_BYTES = 65536
-#: How late a caller asleep in :meth:`SocketLink.read_reply` may notice its deadline: the receive
-#: timeout is reset only when it is off by more, so that most queries reuse the last one.
-_RECEIVE_TIMEOUT_SLACK_S = 0.002
-_TIMEVAL = struct.Struct("@ll")  # struct timeval, as SO_RCVTIMEO takes it
 #: Device numbers of Unix98 pseudo-terminals' terminal sides (Linux's devices.txt).
 _PSEUDO_TERMINAL_MAJORS = range(136, 144)
 
@@ -410,33 +406,11 @@ class SocketLink(FdLink):
         self.description = description
         if sock.family in (socket.AF_INET, socket.AF_INET6):
             sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-        # Where every call can say "do not block" (MSG_DONTWAIT), the descriptor stays blocking
-        # and a caller waiting for its reply sleeps in ``recv`` itself, with the kernel's receive
-        # timeout as its deadline: no ``poll`` before each read (see :meth:`read_reply`).
-        self._dont_wait = getattr(socket, "MSG_DONTWAIT", 0)
-        sock.setblocking(bool(self._dont_wait))
-        self._receive_timeout_s = 0.0  # SO_RCVTIMEO as last set; 0: never set (blocks forever)
-        self._reply_timeout_s = -1.0  # the last timeout read_reply was asked for and could keep
-        if not self._dont_wait:
-            self.read_reply = self.read_available  # type: ignore[method-assign]
-
-    def _set_receive_timeout(self, timeout_s: float) -> bool:
-        """Make ``recv`` give up after about ``timeout_s`` (at most the slack later); False if
-        the kernel's timer cannot time that (too short: ``read_available`` polls instead)."""
-        if timeout_s < _RECEIVE_TIMEOUT_SLACK_S or self._closed:  # (SO_RCVTIMEO 0: forever)
-            return False
-        if not timeout_s <= self._receive_timeout_s <= timeout_s + _RECEIVE_TIMEOUT_SLACK_S:
-            # Set rarely: a later read of a query asks for a little less than the first.
-            receive_timeout_s = timeout_s + _RECEIVE_TIMEOUT_SLACK_S / 2
-            seconds = int(receive_timeout_s)
-            self._socket.setsockopt(
-                socket.SOL_SOCKET,
-                socket.SO_RCVTIMEO,
-                _TIMEVAL.pack(seconds, int((receive_timeout_s - seconds) * 1e6)),
-            )
-            self._receive_timeout_s = receive_timeout_s
-        self._reply_timeout_s = timeout_s
-        return True
+        # Non-blocking: a caller waiting for its reply polls with an absolute deadline (see
+        # FdLink.read_available). A read asleep in ``recv`` with the kernel's receive timeout
+        # (SO_RCVTIMEO) restarted with the whole timeout each time the process was stopped and
+        # continued (SIGSTOP/SIGCONT, a profiler's ptrace), so a query could wait for ever.
+        sock.setblocking(False)
 
     def recv_some(self) -> bytes:
         """Whatever is waiting now; raise ConnectionLostError when the peer closed.
@@ -446,41 +420,13 @@ class SocketLink(FdLink):
             data = link.recv_some()   # b"" when nothing is waiting
         """
         try:
-            data = self._socket.recv(_READ_BYTES, self._dont_wait)
+            data = self._socket.recv(_READ_BYTES)
         except BlockingIOError:
             return b""
         except OSError as error:
             raise ConnectionLostError(f"{self.description}: {error.strerror or error}") from error
         if not data:
             raise ConnectionLostError(f"{self.description}: closed by the other end")
-        return data
-
-    def read_reply(self, timeout_s: float) -> bytes:
-        """Wait up to about ``timeout_s`` for bytes, asleep in ``recv``; all that are waiting.
-
-        For a caller waiting for its own reply, which nobody else needs to wake: the wait ends
-        with the reply or the deadline (up to :data:`_RECEIVE_TIMEOUT_SLACK_S` late), or when
-        the other end closes. Half the system calls of :meth:`read_available`.
-
-        Example::
-
-            link.send_some(b"#qd!")
-            data = link.read_reply(0.5)   # b"$qd.12!", or b"" after 0.5 s of silence
-        """
-        # (A query's first read asks for the session's timeout, the same float every time.)
-        if timeout_s != self._reply_timeout_s and not self._set_receive_timeout(timeout_s):
-            return self.read_available(timeout_s)
-        try:
-            data = self._socket.recv(_READ_BYTES)
-        except BlockingIOError:  # the receive timeout passed
-            return b""
-        except OSError as error:
-            if self._closed:
-                raise ConnectionLostError(f"{self.description}: closed") from error
-            raise ConnectionLostError(f"{self.description}: {error.strerror or error}") from error
-        if not data:  # the other end closed, or close() shut the socket down to wake us
-            closer = "" if self._closed else " by the other end"
-            raise ConnectionLostError(f"{self.description}: closed{closer}")
         return data
 
     def send_some(self, data: bytes | bytearray | memoryview) -> int:
@@ -491,14 +437,14 @@ class SocketLink(FdLink):
             unsent = data[link.send_some(data):]
         """
         try:
-            return self._socket.send(data, self._dont_wait)
+            return self._socket.send(data)
         except BlockingIOError:
             return 0
         except OSError as error:
             raise ConnectionLostError(f"{self.description}: {error.strerror or error}") from error
 
     def _close_port(self) -> None:
-        with contextlib.suppress(OSError):  # wakes a read asleep in recv (read_reply)
+        with contextlib.suppress(OSError):  # wakes a read asleep in poll in another thread
             self._socket.shutdown(socket.SHUT_RDWR)
         self._socket.close()
 
@@ -580,18 +526,31 @@ class PortLink:
 
         Where the port can (pyserial's ports on POSIX, and wrappers of them such as
         ``spy://``, through ``cancel_write``), a write waiting in another thread returns at
-        once; on others (``rfc2217://``) it ends at the port's own write timeout. Either way it
-        raises :class:`ConnectionLostError` rather than report the data written.
+        once. A port that cannot cancel a write (``rfc2217://``, whose write waits up to its
+        socket's timeout, 5 s) is closed instead, in a thread of its own (its close may wait),
+        which ends the write as well. Either way it raises :class:`ConnectionLostError` rather
+        than report the data written.
 
         Example::
 
             link.abort_writes()   # a write waiting in another thread raises ConnectionLostError
         """
+        first = not self._writes_aborted
         self._writes_aborted = True
         cancel = getattr(self._port, "cancel_write", None)
         if cancel is not None:
             with contextlib.suppress(Exception):  # (a port closed meanwhile)
                 cancel()
+        elif first and self.writes_may_wait and not self._closed:
+            threading.Thread(
+                target=self._close_port_quietly,
+                name=f"rovlink abort writes ({self.description})",
+                daemon=True,
+            ).start()
+
+    def _close_port_quietly(self) -> None:
+        with contextlib.suppress(Exception):  # (close() closes it again, and says so)
+            self._port.close()
 
     def wake(self) -> None:
         """Interrupt a blocked read where the port supports it; otherwise it returns on its own.

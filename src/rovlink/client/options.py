@@ -37,8 +37,10 @@ class ClientOptions:
     keep-alive query (``None`` or 0: never), ``boot_timeout_s`` to wait on connect for the
     controller to answer (``None``: do not wait), ``motion_timeout_s`` after which an unrenewed
     motion command is expired with zero thrust (``None``: never), ``on_stray`` for what
-    answered no query, ``on_event`` for every event of the connection, and ``reconnect`` to
-    reopen a lost link (a serial adapter unplugged and plugged back) with backoff.
+    answered no query, ``on_event`` for every event of the connection, ``reconnect`` to
+    reopen a lost link (a serial adapter unplugged and plugged back) with backoff, and
+    ``stop_on_close`` to send ``#stop!`` on ``close()`` when the program has moved or unlocked
+    the robot since its last stop (``False``: leave the robot as it is, to the next program).
 
     >>> ClientOptions(timeout_s=0).timeout_s
     Traceback (most recent call last):
@@ -56,6 +58,7 @@ class ClientOptions:
     motion_timeout_s: float | None = DEFAULT_MOTION_TIMEOUT_S
     on_event: EventCallback | None = None
     reconnect: bool = False
+    stop_on_close: bool = True
 
     def __post_init__(self) -> None:
         _check_seconds("timeout", self.timeout_s, optional=False)
@@ -71,6 +74,8 @@ class ClientOptions:
         _check_seconds("motion_timeout", self.motion_timeout_s, optional=True)
         if not isinstance(self.reconnect, bool):
             raise TypeError(f"reconnect must be True or False, got {self.reconnect!r}")
+        if not isinstance(self.stop_on_close, bool):
+            raise TypeError(f"stop_on_close must be True or False, got {self.stop_on_close!r}")
         if not isinstance(self.checksum, bool):
             raise TypeError(f"checksum must be True or False, got {self.checksum!r}")
         if self.algorithm not in ALGORITHMS:

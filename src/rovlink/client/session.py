@@ -203,7 +203,9 @@ class Session:
         "_last_query",
         "_last_query_bytes",
         "_late_names",
+        "_locked_as_sent",
         "_motion_renewed_at",
+        "_moved_since_stop",
         "_outbox",
         "_pending",
         "_power_percent",
@@ -278,6 +280,10 @@ class Session:
         self._power_percent = 0
         self._vertical_percent = 0
         self._motion_renewed_at = float("-inf")
+        # A command that moves or unlocks was sent since the last #stop! (close() stops then),
+        # and whether the motors are locked as last sent (None: not known, as on connecting).
+        self._moved_since_stop = False
+        self._locked_as_sent: bool | None = None
         # The names of motion commands (th, mvs) whose write failed with the link: on that
         # axis the controller may drive on with the thrust before, or with theirs.
         self._unsure_motion: set[str] = set()
@@ -366,6 +372,23 @@ class Session:
         notes it when a command is asked for, and hands it to :meth:`command` or :meth:`raw`
         with the command."""
         return self._stops_asked
+
+    @property
+    def moved_since_stop(self) -> bool:
+        """Whether a command that moves the robot or unlocks its motors (``Spec.moves_or_unlocks``)
+        was sent since the last ``#stop!``: a driver that closes sends one then. A motion
+        command sent after a ``#stop!`` and before a ``#start!`` does not count: the controller
+        drops it (P7).
+
+        >>> session = Session()
+        >>> _ = session.command(Command("th", (90, 40)), now=0.0)
+        >>> session.moved_since_stop
+        True
+        >>> _ = session.command(Command("stop"), now=1.0)
+        >>> session.moved_since_stop
+        False
+        """
+        return self._moved_since_stop
 
     def stop_asked(self) -> None:
         """The program called ``stop()`` (before its ``#stop!`` is written, which may wait).
@@ -944,6 +967,11 @@ class Session:
 
     def _track(self, command: Command, now: float) -> None:
         """Keep the motion as sent, for P23 (``mvd`` holds a depth: it is not relayed thrust)."""
+        spec = command.spec
+        # (A motion command while the motors are locked as last sent is dropped, P7: unless a
+        # #start! follows it, it moves nothing.)
+        if spec.moves_or_unlocks and (self._locked_as_sent is not True or not spec.motion):
+            self._moved_since_stop = True
         name = command.name
         if name == "th":
             self._direction_deg, self._power_percent = command.values
@@ -959,8 +987,11 @@ class Session:
             # drive on. So not on #start! (while unlocked it changes nothing, P7) nor on
             # #mvdirect to the mode it is in, or to an unknown one (P9).
             setting, value = command.setting
+            if setting is Setting.LOCKED:
+                self._locked_as_sent = value
             if setting is Setting.LOCKED and value:  # stop: every set-point cleared (P7)
                 self._power_percent = self._vertical_percent = 0
+                self._moved_since_stop = False
             elif setting is Setting.DIRECT_MODE:
                 if self._direct_mode is not None and value != self._direct_mode:
                     self._vertical_percent = 0  # a change of mode sets it to 0 (P9)

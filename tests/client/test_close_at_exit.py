@@ -1,0 +1,77 @@
+"""A program that ends without closing its blocking client (the end of its script, an uncaught
+error) has it send the ``#stop!`` of ``close()`` on the way out: the robot it moved is stopped at
+once. Before, the process ended with the robot driving on until the controller's link-loss
+watchdog (2 s)."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import pytest
+
+from tests.client.conftest import CONDITION_TIMEOUT_S
+from tests.client.fake_controller import FakeControllerServer
+from tests.rovlink_process import rovlink_environment
+
+pytestmark = pytest.mark.integration
+
+_PROGRAM = """
+import sys
+import rovlink
+rov = rovlink.connect(sys.argv[1], keepalive=None, boot_timeout=None)
+rov.start()
+rov.move(90, 40)
+assert rov.depth_cm() == 123
+if sys.argv[2] == "raises":
+    raise RuntimeError("the program fails")
+"""
+
+
+@pytest.mark.parametrize("ending", ["ends", "raises"])
+def test_a_program_that_ends_without_closing_its_client_stops_the_robot(
+    port: FakeControllerServer, ending: str
+) -> None:
+    child = subprocess.run(
+        [sys.executable, "-c", _PROGRAM, port.url, ending],
+        env=rovlink_environment(),
+        capture_output=True,
+        check=False,
+        text=True,
+        timeout=CONDITION_TIMEOUT_S * 2,
+    )
+    assert child.returncode == (1 if ending == "raises" else 0), child.stderr
+    (fake,) = port.fakes
+    assert fake.wait_for(lambda f: f.frames()[-1:] == ["#stop!"]), fake.frames()
+    assert fake.frames() == ["#crcoff!", "#start!", "#th.90.40!", "#qd!", "#stop!"]
+
+
+_ASYNC_PROGRAM = """
+import asyncio, sys
+import rovlink.aio
+
+async def main() -> None:
+    rov = await rovlink.aio.connect(sys.argv[1], keepalive=None, boot_timeout=None)
+    await rov.start()
+    await rov.move(90, 40)
+    assert await rov.depth_cm() == 123
+
+asyncio.run(main())
+"""
+
+
+def test_an_asyncio_program_that_ends_without_closing_its_client_stops_the_robot(
+    port: FakeControllerServer,
+) -> None:
+    child = subprocess.run(
+        [sys.executable, "-c", _ASYNC_PROGRAM, port.url],
+        env=rovlink_environment(),
+        capture_output=True,
+        check=False,
+        text=True,
+        timeout=CONDITION_TIMEOUT_S * 2,
+    )
+    assert child.returncode == 0, child.stderr
+    (fake,) = port.fakes
+    assert fake.wait_for(lambda f: f.frames()[-1:] == ["#stop!"]), fake.frames()
+    assert fake.frames() == ["#crcoff!", "#start!", "#th.90.40!", "#qd!", "#stop!"]

@@ -1,0 +1,168 @@
+"""Closing a client that moved the robot stops it: ``#stop!`` goes out first, in both clients,
+whether the program calls ``close()`` or leaves its ``with`` block, over the in-process
+simulator, a real pseudo-terminal and TCP. Before, ``close()`` let go of the port and the robot
+drove on with the thrust last sent until the controller's link-loss watchdog (2 s) stopped it."""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+import os
+import socket
+import time
+import tty
+from collections.abc import Iterator
+
+import pytest
+
+import rovlink
+import rovlink.aio
+from rovlink.aio import AsyncClient
+from rovlink.client import Client, ClientOptions
+from rovlink.client.links import SocketLink
+from rovlink.controller import ControllerState
+from rovlink.sim import SimulatedPort
+from tests.client.conftest import (
+    CONDITION_TIMEOUT_S,
+    REPLY_TIMEOUT_S,
+    client_options,
+    wait_until,
+)
+from tests.client.fake_controller import FakeController
+
+pytestmark = pytest.mark.integration
+
+
+def _state(rov: Client | AsyncClient) -> ControllerState:
+    port = rov._link.port  # type: ignore[attr-defined]
+    assert isinstance(port, SimulatedPort)
+    with port.lock:
+        return port.controller.state()
+
+
+def _driving(state: ControllerState) -> tuple[bool, int, int]:
+    return state.locked, state.power_percent, state.vertical_thrust_percent
+
+
+_SIM = "sim://?seed=3"
+_MOVING = (False, 40, -30)
+_STOPPED = (True, 0, 0)
+
+
+@pytest.mark.parametrize("how", ["close()", "leaving with"])
+def test_closing_the_blocking_client_stops_the_robot_it_moved(how: str) -> None:
+    rov = rovlink.connect(_SIM, keepalive=None, timeout=REPLY_TIMEOUT_S)
+    with rov:
+        rov.start()
+        rov.move(90, 40)
+        rov.set_direct_mode(True)
+        rov.set_vertical_thrust(-30)
+        assert rov.depth_cm() >= 0  # (everything before it has reached the controller)
+        assert _driving(_state(rov)) == _MOVING
+        if how == "close()":
+            rov.close()
+    assert _driving(_state(rov)) == _STOPPED
+
+
+@pytest.mark.parametrize("how", ["close()", "leaving async with"])
+async def test_closing_the_asyncio_client_stops_the_robot_it_moved(how: str) -> None:
+    async with rovlink.aio.connect(_SIM, keepalive=None, timeout=REPLY_TIMEOUT_S) as rov:
+        await rov.start()
+        await rov.move(90, 40)
+        await rov.set_direct_mode(True)
+        await rov.set_vertical_thrust(-30)
+        assert await rov.depth_cm() >= 0
+        assert _driving(_state(rov)) == _MOVING
+        if how == "close()":
+            await rov.close()
+    assert _driving(_state(rov)) == _STOPPED
+
+
+@pytest.fixture
+def pty_fake() -> Iterator[tuple[FakeController, str]]:
+    """A fake controller on a pseudo-terminal; yields it and the terminal's path."""
+    master, slave = os.openpty()
+    tty.setraw(slave)  # no echo, no line editing, before the client opens it
+    fake = FakeController(master)
+    yield fake, os.ttyname(slave)
+    fake.close()
+    os.close(slave)
+
+
+def test_over_a_pseudo_terminal_both_clients_stop_on_close(
+    pty_fake: tuple[FakeController, str],
+) -> None:
+    fake, path = pty_fake
+    rov = rovlink.connect(path, keepalive=None, boot_timeout=None, timeout=REPLY_TIMEOUT_S)
+    rov.start()
+    rov.move(0, 50)
+    rov.close()
+    assert fake.wait_for(lambda f: len(f.frames()) == 4)
+    assert fake.frames() == ["#crcoff!", "#start!", "#th.0.50!", "#stop!"]
+
+    async def pilot() -> None:
+        rov = await rovlink.aio.connect(
+            path, keepalive=None, boot_timeout=None, timeout=REPLY_TIMEOUT_S
+        )
+        await rov.hold_depth(120)
+        await rov.close()
+
+    asyncio.run(pilot())
+    assert fake.wait_for(lambda f: len(f.frames()) == 7)
+    assert fake.frames()[4:] == ["#crcoff!", "#mvd.120!", "#stop!"]
+
+
+def _frames_after_close(options: ClientOptions, program: list[str]) -> list[str]:
+    """The frames a fake on a socket pair got from a blocking client that sent ``program``
+    (commands as text) and closed, after its ``#crcoff!``."""
+    fake, host_end = FakeController.on_socketpair()
+    try:
+        rov = Client(SocketLink(host_end, "socket pair"), options)
+        for command in program:
+            rov.send_raw(command)
+        rov.depth_cm()  # (all before it has arrived)
+        rov.close()
+        fake._thread.join(CONDITION_TIMEOUT_S)  # (it ends at the end of the stream: all read)
+        return fake.frames()[1:]
+    finally:
+        fake.close()
+
+
+@pytest.mark.parametrize(
+    ("program", "stop_on_close", "expected"),
+    [
+        (["#th.0.40!"], True, ["#th.0.40!", "#qd!", "#stop!"]),
+        (["#start!"], True, ["#start!", "#qd!", "#stop!"]),  # unlocked: locked again
+        (["#start!", "#th.0.40!", "#stop!"], True, ["#start!", "#th.0.40!", "#stop!", "#qd!"]),
+        (["#mgmp.100!", "#q.l!"], True, ["#mgmp.100!", "#q.l!", "#qd!"]),  # nothing moved
+        # (Motion while locked as last sent is dropped by the controller, P7: nothing moved.)
+        (["#stop!", "#th.0.40!"], True, ["#stop!", "#th.0.40!", "#qd!"]),
+        (["#stop!", "#start!"], True, ["#stop!", "#start!", "#qd!", "#stop!"]),
+        (["#th.0.40!"], False, ["#th.0.40!", "#qd!"]),  # the program asked to leave it so
+    ],
+)
+def test_a_stop_on_close_only_when_the_robot_was_moved_since_the_last_stop(
+    program: list[str], stop_on_close: bool, expected: list[str]
+) -> None:
+    options = client_options(stop_on_close=stop_on_close)
+    assert _frames_after_close(options, program) == expected
+
+
+def test_close_does_not_hang_on_a_line_that_takes_nothing(
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    ours, theirs = socket.socketpair()  # nobody reads the far end
+    link = SocketLink(ours, "socket pair")
+    rov = Client(link, client_options())
+    try:
+        rov.move(0, 40)
+        while link.send_some(b"x" * 65536):  # the line takes nothing more
+            pass
+        started = time.monotonic()
+        with caplog.at_level(logging.WARNING, logger="rovlink.client"):
+            rov.close()
+        assert time.monotonic() - started < 1.5  # the stop's 0.5 s, and the port released
+        assert "#stop! on close not written within 0.5 s" in caplog.text
+        assert wait_until(lambda: rov.closed)
+    finally:
+        theirs.close()
