@@ -5,7 +5,8 @@ controller would drop, is refused (status 2). A raw frame ('#qd!') goes as typed
 controller will take it so; in checksum mode a frame typed without its checksum gets it. A
 failure while sending (no reply, a lost link) exits with status 1, after #stop! once a command
 that may move the robot has gone. Ctrl-C stops at once, sending #stop! first if a command may
-have moved the robot.
+have moved the robot. The robot is not left driving: when the commands moved it or unlocked its
+motors and no stop came after, #stop! is sent as the link closes.
 """
 
 from __future__ import annotations
