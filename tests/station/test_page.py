@@ -525,6 +525,95 @@ def test_leaving_the_window_with_keys_held_zeroes_the_thrust(browser, station, l
     page.context.close()
 
 
+# The keyboard's confirmation windows, shortened for the tests (the system's repeat of a key
+# held is played by the page's own timer here: Playwright holds a key without repeating it).
+SHORT_CONFIRMATION = """() => Object.assign(window.rovlinkStation.devices.keyboard,
+  {pressConfirmMs: 500, repeatConfirmMs: 300})"""
+# A key event as the system gives one (``{code, repeat, shiftKey}``).
+KEY_EVENT = """([kind, init]) => document.body.dispatchEvent(
+  new KeyboardEvent(kind, {bubbles: true, key: init.code.slice(-1).toLowerCase(), ...init}))"""
+REPEATING = """(code) => { window.repeating = setInterval(() => document.body.dispatchEvent(
+  new KeyboardEvent('keydown', {bubbles: true, code, repeat: true, shiftKey: true})), 30); }"""
+
+
+def test_a_key_up_the_page_never_gets_zeroes_the_thrust(browser, station, line):
+    # The system keeps a key-up for itself (macOS gives none for a key let go while Cmd is
+    # down): before, the robot flew on that key for good.
+    page = _flying_by_keyboard(browser, station, line)
+    page.evaluate(SHORT_CONFIRMATION)
+    mark = line.mark()
+    page.keyboard.down("Shift")
+    page.keyboard.down("d")
+    line.wait_for("#th.90.40!", after=mark)
+    page.evaluate(REPEATING, "KeyD")  # held: the system repeats D, the key pressed last
+    page.wait_for_function("window.rovlinkStation.devices.lastInput?.deadman", timeout=2000)
+    time.sleep(0.8)  # past both windows: the repeats keep Shift and D held
+    assert "#th.90.0!" not in line.frames(mark)
+    assert page.evaluate("window.rovlinkStation.devices.lastInput.power_percent") == 40
+    page.evaluate("clearInterval(window.repeating)")  # D let go; its key-up never comes
+    lost_s = time.monotonic()
+    zero = line.wait_for("#th.90.0!", after=mark, timeout_s=3.0)
+    assert zero.at_s - lost_s < 0.3 + CUT_WITHIN_S
+    page.wait_for_selector("#device-status:has-text('taken as released: press it again')")
+    # Pressed again, it flies again.
+    mark = line.mark()
+    page.keyboard.up("d")
+    page.keyboard.up("Shift")
+    page.keyboard.down("Shift")
+    page.keyboard.down("d")
+    line.wait_for("#th.90.40!", after=mark)
+    page.wait_for_selector("#device-status:text-is('input: keyboard')")
+    page.context.close()
+
+
+def test_keys_let_go_where_the_page_cannot_hear_them_fly_nothing(browser, station, line):
+    page = _flying_by_keyboard(browser, station, line)
+    mark = line.mark()
+    page.keyboard.down("Shift")
+    page.keyboard.down("d")
+    line.wait_for("#th.90.40!", after=mark)
+    # Shift's key-up lost: the next key event says Shift is up. Before, it flew on on D.
+    mark = line.mark()
+    page.evaluate(KEY_EVENT, ["keydown", {"code": "KeyD", "repeat": True, "shiftKey": False}])
+    line.wait_for("#th.90.0!", after=mark, timeout_s=CUT_WITHIN_S * 2)
+    page.keyboard.up("d")
+    page.keyboard.up("Shift")
+    # The browser's menu opened (a right click, or the menu key): the keys let go while it is
+    # open have their key-ups go to it. Before, D and Shift stayed held.
+    page.keyboard.down("Shift")
+    page.keyboard.down("d")
+    line.wait_for("#th.90.40!", after=mark)
+    mark = line.mark()
+    page.mouse.click(700, 500, button="right")
+    line.wait_for("#th.90.0!", after=mark, timeout_s=CUT_WITHIN_S * 2)
+    page.keyboard.up("d")
+    page.keyboard.up("Shift")
+    # The tab hidden with D and Shift held; D let go meanwhile (its key-up never came), and the
+    # pilot back presses the dead-man again: before, the robot flew off on D.
+    page.keyboard.down("Shift")
+    page.keyboard.down("d")
+    line.wait_for("#th.90.40!", after=mark)
+    mark = line.mark()
+    page.evaluate(HIDE_THE_TAB, True)
+    line.wait_for("#th.90.0!", after=mark, timeout_s=CUT_WITHIN_S * 2)
+    page.evaluate(HIDE_THE_TAB, False)
+    page.keyboard.up("Shift")
+    page.wait_for_function("window.rovlinkStation.devices.lastInput?.deadman === false")
+    page.keyboard.down("Shift")
+    page.wait_for_function("window.rovlinkStation.devices.lastInput?.deadman === true")
+    page.click("#claw-close")  # a fence
+    line.wait_for("#h-!", after=mark)
+    assert "#th.90.40!" not in line.frames(mark)
+    page.keyboard.up("Shift")
+    page.context.close()
+
+
+# The tab hidden (true) or shown again, as the browser tells the page.
+HIDE_THE_TAB = """(hidden) => {
+  Object.defineProperty(document, 'hidden', {configurable: true, get: () => hidden});
+  document.dispatchEvent(new Event('visibilitychange')); }"""
+
+
 def test_reloading_mid_dive_zeroes_the_thrust_and_comes_back_as_a_watcher(browser, station, line):
     page = flying_by_pad(browser, station, line, [0, -1, 0, 0], "#th.0.100!")
     mark = line.mark()
