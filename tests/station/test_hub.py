@@ -379,3 +379,26 @@ def test_a_page_clock_that_drifts_is_not_taken_for_a_slow_network():
     assert lateness_over(Peer("p1", "browser 1"), 7200.0, page_rate=0.9995) < 0.05
     # A network that holds the input back makes it later far faster: 10 % a second.
     assert lateness_over(Peer("p2", "browser 2"), 5.0, page_rate=0.9) > 0.3
+
+
+async def test_a_closing_station_stops_the_robot_and_then_takes_only_stop(hub):
+    pilot = await hub.pilot()
+    await hub.send(pilot, {"type": "command", "name": "start"})
+    await hub.send(pilot, keys(False))
+    await hub.send(pilot, keys(True, power_percent=50))
+    await hub.station.stop_first()
+    assert hub.sent[-3:] == ["#th.90.0!", "#mvs.+0!", "#stop!"]
+    sent = len(hub.sent)
+    # Nothing unlocks or flies it again while the pages' connections are being closed.
+    for message in (
+        keys(False),
+        keys(True, power_percent=50),
+        {"type": "command", "name": "start"},
+        {"type": "take_control"},
+    ):
+        await hub.send(pilot, message)
+    errors = [m["message"] for m in drain(pilot) if m["type"] == "error"]
+    assert errors == ["the station is closing: only STOP is taken"] * 4
+    await hub.send(pilot, {"type": "stop"})
+    await hub.station.shutdown()
+    assert hub.sent[sent:] == ["#stop!"]  # the STOP only; locked, shutdown sends no other

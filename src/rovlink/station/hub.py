@@ -207,6 +207,8 @@ class Station:
         #: A STOP asked for while the link was down: the reopened link's first frame.
         self._stop_kept = False
         self._recording_told_s = 0.0
+        #: The station is closing (:meth:`stop_first`): a page may only stop the robot.
+        self.closing = False
         tracked.client.subscribe(self._on_client_event)
         if recordings is not None:
             tracked.client.subscribe(recordings.on_event)
@@ -280,16 +282,33 @@ class Station:
                 task.cancel()
             await asyncio.gather(*tasks, return_exceptions=True)
 
+    async def stop_first(self) -> None:
+        """The station is about to close: thrust to zero and, unless locked as last sent,
+        ``#stop!``, now, before the pages' connections are closed (a page whose socket is stuck
+        behind full buffers holds their closing up for as long as the server waits for it).
+        From then on a page may only stop the robot: nothing unlocks it or flies it again."""
+        if self.closing:
+            return
+        self.closing = True
+        self.log("warning", "the station is closing: the robot is stopped (#stop!)")
+        await self._cut("the station is closing")
+        await self._stop_unless_locked()
+
     async def shutdown(self) -> None:
-        """The station is closing: thrust to zero and, unless locked as last sent, ``#stop!``;
-        then a running recording is finished (its last frame the ``#stop!``)."""
+        """The station is closing: thrust to zero and, unless locked as last sent, ``#stop!``
+        (as :meth:`stop_first`, if it was not called); then a running recording is finished
+        (its last frame the ``#stop!``)."""
+        self.closing = True
         self.relay.cut("the station is closing")
-        if self.tracked.commanded.lock is not LockState.LOCKED and not self.tracked.client.closed:
-            with contextlib.suppress(ClientError):
-                await self.tracked.stop()
+        await self._stop_unless_locked()
         if self.recordings is not None and self.recordings.active:
             finished = await self.recordings.stop()
             logger.info("recording %s finished (%d bytes)", finished.path, finished.size_bytes)
+
+    async def _stop_unless_locked(self) -> None:
+        if self.tracked.commanded.lock is not LockState.LOCKED and not self.tracked.client.closed:
+            with contextlib.suppress(ClientError):
+                await self.tracked.stop()
 
     def log(self, level: str, text: str) -> None:
         """Add to the event log every page shows (``info``, ``warning`` or ``alarm``)."""
@@ -305,6 +324,8 @@ class Station:
     # -- acting on messages ---------------------------------------------------------------------
 
     async def _act(self, peer: Peer, message: PageMessage) -> None:
+        if self.closing and not _is_stop(message):
+            raise MessageError("the station is closing: only STOP is taken")
         if isinstance(message, StopRequest):
             await self._stop(peer)
         elif isinstance(message, ControlRequest):
@@ -750,3 +771,10 @@ class Station:
             and is_zero_thrust(command)
             and self.tracked.commanded.lock is LockState.LOCKED
         )
+
+
+def _is_stop(message: PageMessage) -> bool:
+    """Whether ``message`` asks for ``#stop!`` (the STOP message, or the command)."""
+    return isinstance(message, StopRequest) or (
+        isinstance(message, CommandRequest) and message.command.name == "stop"
+    )
