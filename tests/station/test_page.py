@@ -434,6 +434,26 @@ def test_a_leak_shows_the_alarm_and_reset_sends_slreset(browser, station, line):
     page.context.close()
 
 
+def test_the_leak_alarm_stays_while_no_reading_says_the_latch_is_clear(browser, station, line):
+    page = open_page(browser, station, pad=False)
+    page.click("#flight-status")  # (a click: the page may sound)
+    line.server.robot.inject_leak()
+    page.wait_for_selector("#leak-alarm", state="visible")
+    assert page.evaluate("window.rovlinkStation.alarm.playing")
+    # The robot's link lost (a cable pulled as the hull floods): no readings, the latch as it
+    # was last read. Before, the banner went and the beep stopped at the first failed poll.
+    line.close()
+    page.wait_for_selector("#depth-value:text-is('–')", timeout=10_000)  # a poll failed
+    page.wait_for_function(
+        "window.rovlinkStation.station.telemetry.sensors === null"
+        " && window.rovlinkStation.station.telemetryCount > 0"
+    )
+    assert page.is_visible("#leak-alarm")
+    assert "as last read" in page.text_content("#leak-alarm")
+    assert page.evaluate("window.rovlinkStation.alarm.playing")
+    page.context.close()
+
+
 def test_a_second_browser_cannot_command(browser, station, line):
     pilot = open_page(browser, station)
     take_control(pilot)

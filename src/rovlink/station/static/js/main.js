@@ -11,6 +11,7 @@ import { ACTIONS, AXES, loadMapping, pressed, resetMapping, saveMapping } from "
 const $ = (id) => document.getElementById(id);
 const station = {
   id: null, pilotId: null, limits: null, telemetry: null, leakSilenced: false, telemetryCount: 0,
+  leak: false,  // the leak latch as last read
   rateHz: 10, heartbeatMs: 1000,
   // When the station last said anything, and when the last reading of the robot came
   // (performance.now()); null: not since this socket opened.
@@ -322,7 +323,7 @@ function showTelemetry(t) {
   text("relay-state", t.relay.status);
   showFlightStatus();
   showLink(t.link);
-  showLeak(Boolean(s && s.leak));
+  showLeak(s);
 }
 
 const LINK_ROWS = [
@@ -361,7 +362,13 @@ function showLink(link) {
   }
 }
 
-function showLeak(leak) {
+// The leak latch as last read: a failed poll (a timeout, the robot's link lost) says nothing of
+// it, and the alarm stays until a reading says the latch is clear.
+function showLeak(sensors) {
+  if (sensors) station.leak = Boolean(sensors.leak);
+  const leak = station.leak;
+  text("leak-detail", sensors ? "the leak sensor fired (latched until reset)"
+    : "the leak sensor fired (latched until reset), as last read: no reading from the robot now");
   $("leak-alarm").hidden = !leak;
   if (!leak) station.leakSilenced = false;
   if (leak && !station.leakSilenced) alarm.start(); else alarm.stop();
