@@ -387,7 +387,7 @@ async def test_a_closing_station_stops_the_robot_and_then_takes_only_stop(hub):
     await hub.send(pilot, keys(False))
     await hub.send(pilot, keys(True, power_percent=50))
     await hub.station.stop_first()
-    assert hub.sent[-3:] == ["#th.90.0!", "#mvs.+0!", "#stop!"]
+    assert hub.sent[-2:] == ["#th.90.50!", "#stop!"]  # #stop! first: it zeroes every output
     sent = len(hub.sent)
     # Nothing unlocks or flies it again while the pages' connections are being closed.
     for message in (
@@ -400,5 +400,7 @@ async def test_a_closing_station_stops_the_robot_and_then_takes_only_stop(hub):
     errors = [m["message"] for m in drain(pilot) if m["type"] == "error"]
     assert errors == ["the station is closing: only STOP is taken"] * 4
     await hub.send(pilot, {"type": "stop"})
+    await hub.station.leave(pilot)
     await hub.station.shutdown()
-    assert hub.sent[sent:] == ["#stop!"]  # the STOP only; locked, shutdown sends no other
+    # The STOP only: locked, neither the pilot leaving nor the shutdown sends another frame.
+    assert hub.sent[sent:] == ["#stop!"]

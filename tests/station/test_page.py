@@ -14,6 +14,7 @@ from typing import Any
 import pytest
 
 from tests.station.rig import CHROMIUM, CHROMIUM_ARGS, ControllerLine, StationProcess
+from tests.station.stalling_link import stalling_link
 
 pytestmark = pytest.mark.integration
 
@@ -249,6 +250,8 @@ def test_stop_pressed_while_the_station_cannot_be_reached_goes_first_on_reconnec
     line.wait_for("#stop!", after=mark)
     line.wait_until(lambda: line.controller_locked)
     page.wait_for_selector("#toast:has-text('STOP sent')")
+    assert line.frames(mark, commands_only=True).count("#stop!") == 1  # (kept, and its own)
+    page.wait_for_function("window.rovlinkStation.station.id === 'p2'")  # reconnected
     # Anything else that cannot be sent says so; it is not kept (it would act later, unasked).
     page.evaluate(
         "window.rovlinkStation.connection.socket.close();"
@@ -260,6 +263,30 @@ def test_stop_pressed_while_the_station_cannot_be_reached_goes_first_on_reconnec
     page.wait_for_selector("#log li:has-text('STOP from browser 3')")
     assert page.text_content("#control-status") == "watching: nobody has control"
     page.context.close()
+
+
+def test_stop_pressed_on_a_connection_that_stopped_carrying_anything_gets_through(
+    browser, station, line
+):
+    port = int(station.base.rstrip("/").rsplit(":", 1)[1])
+    with stalling_link(port) as link:
+        page = flying_by_pad(
+            browser, StationProcess(station.process, link.url), line, [1, 0, 0, 0], "#th.90.100!"
+        )
+        mark = line.mark()
+        # The network stops carrying what this page sends on its socket (a Wi-Fi that roamed:
+        # the old connection is dead, and neither end knows it yet); the station hears nothing.
+        link.stall_open_connections()
+        line.wait_for("#th.90.0!", after=mark)  # (the station's watchdog)
+        pressed_s = time.monotonic()
+        page.click("#stop")
+        # Before, the STOP waited on the dead socket, and was lost with it when the station
+        # gave the connection up (10 s): the motors stayed unlocked.
+        stopped = line.wait_for("#stop!", after=mark, timeout_s=3.0)
+        assert stopped.at_s - pressed_s < CUT_WITHIN_S
+        page.wait_for_selector("#log li:has-text('STOP from browser 1')")
+        set_pad(page, deadman=False)
+        page.context.close()
 
 
 #: The accessibility tree's roles of what a person operates on the page.

@@ -106,6 +106,8 @@ MESSAGE_BURST = 1000.0
 #: How far the page's clock may drift from the station's (0.1 %: quartz does far better): a
 #: page's input is measured late only beyond it.
 CLOCK_DRIFT = 1e-3
+#: How many STOPs are remembered by their ``stop_id`` (a page's STOP may arrive twice).
+_STOPS_KEPT = 256
 #: Why the lock as last sent is no longer known once the robot's link is reopened.
 _REOPENED = "the link was reopened (the controller may have reset)"
 
@@ -209,6 +211,9 @@ class Station:
         self._recording_told_s = 0.0
         #: The station is closing (:meth:`stop_first`): a page may only stop the robot.
         self.closing = False
+        #: The latest STOPs done, by their ``stop_id`` (each may arrive twice: see
+        #: :meth:`stop_on_its_own`).
+        self._stops_done: deque[str] = deque(maxlen=_STOPS_KEPT)
         tracked.client.subscribe(self._on_client_event)
         if recordings is not None:
             tracked.client.subscribe(recordings.on_event)
@@ -290,8 +295,8 @@ class Station:
         if self.closing:
             return
         self.closing = True
+        self.relay.cut("the station is closing")  # (#stop! zeroes every output: it goes first)
         self.log("warning", "the station is closing: the robot is stopped (#stop!)")
-        await self._cut("the station is closing")
         await self._stop_unless_locked()
 
     async def shutdown(self) -> None:
@@ -327,7 +332,7 @@ class Station:
         if self.closing and not _is_stop(message):
             raise MessageError("the station is closing: only STOP is taken")
         if isinstance(message, StopRequest):
-            await self._stop(peer)
+            await self._stop(peer.label, message.stop_id)
         elif isinstance(message, ControlRequest):
             await (self._take_control(peer) if message.take else self._release_control(peer))
         elif isinstance(message, VisibilityMessage):
@@ -361,7 +366,7 @@ class Station:
             self._schedule_flush()
         elif isinstance(message, CommandRequest):
             if message.command.name == "stop":
-                await self._stop(peer)
+                await self._stop(peer.label)
                 return
             self._require_pilot(peer, "send commands")
             await self.tracked.send(message.command)
@@ -398,8 +403,20 @@ class Station:
                 f"only the pilot may {what}; {holder} has control (take control first)"
             )
 
-    async def _stop(self, peer: Peer) -> None:
-        self.relay.cut(f"STOP from {peer.label}")
+    async def stop_on_its_own(self, stop_id: str | None, page_id: str | None, address: str) -> None:
+        """A page's STOP on a connection of its own (the ``/stop`` WebSocket): the page's own
+        socket may be stuck behind what it has still to send (a network slower than the
+        pilot's input), or dead without either end knowing it yet (a Wi-Fi that roamed). The
+        same STOP may arrive over both: ``stop_id`` names it, and the second does nothing."""
+        peer = self.peers.get(page_id) if page_id is not None else None
+        await self._stop(peer.label if peer is not None else f"a page ({address})", stop_id)
+
+    async def _stop(self, label: str, stop_id: str | None = None) -> None:
+        if stop_id is not None:
+            if stop_id in self._stops_done:
+                return  # that press arrived the other way first
+            self._stops_done.append(stop_id)
+        self.relay.cut(f"STOP from {label}")
         down = not self._link_up
         await self.tracked.stop()  # (never waits: on a link down, the driver keeps it)
         if down:
@@ -408,11 +425,11 @@ class Station:
             self._stop_kept = True
             self.log(
                 "warning",
-                f"STOP from {peer.label}: the robot's link is down; #stop! is the first frame"
+                f"STOP from {label}: the robot's link is down; #stop! is the first frame"
                 " on the reopened link",
             )
         else:
-            self.log("warning", f"STOP from {peer.label}")
+            self.log("warning", f"STOP from {label}")
 
     async def _take_control(self, peer: Peer) -> None:
         previous = self.pilot
@@ -453,8 +470,12 @@ class Station:
         motion first on a reopened link.
         """
         moving = self.relay.moving
+        commands = self.relay.cut(reason)
+        if self.closing and self.tracked.commanded.lock is LockState.LOCKED:
+            # Stopped on the way out (see stop_first): the #stop! stays the last frame.
+            commands = []
         try:
-            await self._send_all(self.relay.cut(reason))
+            await self._send_all(commands)
         except ClientError as error:
             self.log("alarm", f"zero thrust could not be sent ({reason}): {error}")
             return
@@ -538,6 +559,11 @@ class Station:
         loop = asyncio.get_running_loop()
         next_s = loop.time()
         while True:
+            if self.closing:
+                # Stopped on the way out: the #stop! is the last frame the robot gets (and the
+                # last of a recording), while the pages' connections are closed.
+                await asyncio.sleep(period_s)
+                continue
             try:
                 reading: Sensors | None = await self.tracked.sensors()
             except ClientError as error:  # a timeout, or the link lost (and being reopened)

@@ -34,6 +34,7 @@ __all__ = [
     "StopRequest",
     "VisibilityMessage",
     "parse_message",
+    "parse_stop",
 ]
 
 #: Larger messages are refused unread (the largest real one is a few hundred bytes).
@@ -72,7 +73,13 @@ class ControlRequest:
 
 @dataclass(frozen=True, slots=True)
 class StopRequest:
-    """``stop``: ``#stop!`` now (any page may send it: it only makes the robot safer)."""
+    """``stop``: ``#stop!`` now (any page may send it: it only makes the robot safer).
+
+    ``stop_id`` names one press of STOP: the page sends it over its WebSocket and over one of
+    its own (``/stop``), and the second to arrive is the same STOP.
+    """
+
+    stop_id: str | None = None
 
 
 @dataclass(frozen=True, slots=True)
@@ -139,7 +146,7 @@ def parse_message(text: str | bytes | None) -> PageMessage:
     if kind in ("take_control", "release_control"):
         return ControlRequest(take=kind == "take_control")
     if kind == "stop":
-        return StopRequest()
+        return StopRequest(_stop_id(data, kind))
     if kind == "input":
         return _input(data)
     if kind == "visibility":
@@ -152,6 +159,45 @@ def parse_message(text: str | bytes | None) -> PageMessage:
         "take_control, release_control, stop, input, visibility, command, record_start, record_stop"
     )
     raise MessageError(f"unknown message type {kind[:40]!r}; known: {known}")
+
+
+#: The longest ``stop_id`` taken (a page makes them far shorter).
+MAX_STOP_ID_CHARS = 64
+
+
+def _stop_id(data: dict[str, Any], kind: str) -> str | None:
+    if data.get("stop_id") is None:
+        return None
+    stop_id = _field(data, kind, "stop_id", str)
+    if not 0 < len(stop_id) <= MAX_STOP_ID_CHARS:
+        raise MessageError(f"{kind}: 'stop_id' must be 1 to {MAX_STOP_ID_CHARS} characters")
+    return str(stop_id)
+
+
+def parse_stop(text: str) -> tuple[str | None, str | None]:
+    """The STOP a page sends on a connection of its own (``/stop``: ``{"stop_id": ...,
+    "page_id": ...}``, both optional): its ``stop_id`` and the id of the page that sent it;
+    MessageError naming what was wrong.
+
+    >>> parse_stop('{"stop_id": "k3-1", "page_id": "p2"}')
+    ('k3-1', 'p2')
+    >>> parse_stop('[]')
+    Traceback (most recent call last):
+    ...
+    rovlink.station.messages.MessageError: a STOP is a JSON object, not list
+    """
+    if len(text) > MAX_MESSAGE_BYTES:
+        raise MessageError(f"a STOP of {len(text)} characters; the limit is {MAX_MESSAGE_BYTES}")
+    try:
+        data = json.loads(text, parse_constant=_refuse_constant)
+    except (RecursionError, json.JSONDecodeError):
+        raise MessageError("a STOP is JSON text") from None
+    if not isinstance(data, dict):
+        raise MessageError(f"a STOP is a JSON object, not {type(data).__name__}")
+    page_id = None
+    if data.get("page_id") is not None:
+        page_id = str(_field(data, "stop", "page_id", str))[:MAX_STOP_ID_CHARS]
+    return _stop_id(data, "stop"), page_id
 
 
 def _field(data: dict[str, Any], kind: str, name: str, wanted: type) -> Any:

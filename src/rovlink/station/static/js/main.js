@@ -18,8 +18,8 @@ const station = {
   heardAt: null, readingAt: null,
   // Why this page is no longer the pilot, shown until it takes control again.
   lostControl: null,
-  // STOP was pressed while the station could not be reached: sent first when it is.
-  stopKept: false,
+  // STOP (its stop_id) pressed while the station could not be reached: sent first when it is.
+  stopKept: null,
   // How long the fastest of this socket's timed messages took to arrive, the station's clock
   // against this page's (ms; null: none yet), and how much later than that the last one came.
   fastestArrivalMs: null, fastestAt: 0, lateMs: 0,
@@ -67,9 +67,24 @@ const ask = (message, what) => {
 };
 const command = (name, values = []) => ask({ type: "command", name, values },
   `#${[name, ...values].join(".")}!`);
+// Each press of STOP goes over the page's WebSocket and over one of its own (/stop, opened for
+// it): the page's socket may be stuck behind what it has still to send (a network slower than
+// the pilot's input), or dead without either end knowing it yet (a Wi-Fi that roamed), and a
+// STOP sent on it would wait there, or be lost with it. A new WebSocket is a new connection
+// (an HTTP request may go on a kept-alive one, as dead). The station takes the first to arrive
+// (by its stop_id).
+const STOP_SESSION = Math.random().toString(36).slice(2, 10);
+let stopsPressed = 0;
 const stop = () => {
-  if (send({ type: "stop" })) return;
-  station.stopKept = true;
+  stopsPressed += 1;
+  const stopId = `${STOP_SESSION}-${stopsPressed}`;
+  connection.stopOnItsOwn({ stop_id: stopId, page_id: station.id }, () => {
+    if (station.stopKept !== stopId) return;
+    station.stopKept = null;  // it got through that way
+    toast("STOP sent (pressed while the station's connection was down)");
+  });
+  if (send({ type: "stop", stop_id: stopId })) return;
+  station.stopKept = stopId;
   toast("STOP not sent yet: the station cannot be reached; it goes first when it is", null);
 };
 
@@ -184,8 +199,8 @@ function onConnectionState(state) {
   station.heardAt = state === "open" ? performance.now() : null;
   station.readingAt = null;
   if (state === "open") {
-    if (station.stopKept && send({ type: "stop" })) {
-      station.stopKept = false;
+    if (station.stopKept && send({ type: "stop", stop_id: station.stopKept })) {
+      station.stopKept = null;
       toast("STOP sent (pressed while the station could not be reached)");
     }
     // The station takes a new page as shown: one opened in a background tab says otherwise.
