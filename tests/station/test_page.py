@@ -522,6 +522,37 @@ def test_a_second_browser_cannot_command(browser, station, line):
     watcher.context.close()
 
 
+# What the station says is held back from the page until deliverHeldMessages() (a slow network).
+HOLD_MESSAGES = """() => { const connection = window.rovlinkStation.connection;
+  const handle = connection.onMessage; const held = [];
+  connection.onMessage = (message) => held.push(message);
+  window.deliverHeldMessages = () => { connection.onMessage = handle; held.forEach(handle); };
+}"""
+
+
+def test_two_pages_taking_control_at_once_leave_it_with_the_first_and_ask_the_other(
+    browser, station, line
+):
+    first = open_page(browser, station, pad=False)
+    second = open_page(browser, station, pad=False)
+    # Both click Take control with nobody in control, each before it hears of the other (what
+    # the station says reaches the second page only after its click).
+    second.evaluate(HOLD_MESSAGES)
+    first.click("#take-control")
+    first.wait_for_selector("#control.pilot")
+    second.click("#take-control")
+    second.evaluate("window.deliverHeldMessages()")
+    # Before, the second took it from the first without asking, as the first was taking off.
+    second.wait_for_selector("#toast:has-text('took control a moment before: nothing changed')")
+    first.wait_for_selector("#control.pilot")
+    assert second.text_content("#control-status") == "watching: browser 1 (127.0.0.1) has control"
+    # Taking it now asks first, as from any pilot.
+    take_control_from_another(second)
+    first.wait_for_selector("#control-status:has-text('watching: browser 2')")
+    first.context.close()
+    second.context.close()
+
+
 def _flying_by_keyboard(browser, station, line):
     """A pilot's page on the keyboard, the robot unlocked and the relay armed."""
     page = open_page(browser, station, pad=False)

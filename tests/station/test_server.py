@@ -360,6 +360,7 @@ HOSTILE: list[str | bytes] = [
     '{"type": "input", "deadman": true, "direction_deg": 90, "power_percent": 50,'
     ' "vertical_percent": 0, "source": "mind-control"}',
     '{"type": "visibility", "hidden": "maybe"}',
+    '{"type": "take_control", "from": 5}',
     "[" * 5000 + "]" * 5000,
     '{"type": "stop", "padding": "' + "x" * 5000 + '"}',
 ]

@@ -334,6 +334,8 @@ class Station:
         if isinstance(message, StopRequest):
             await self._stop(peer.label, message.stop_id)
         elif isinstance(message, ControlRequest):
+            if message.take and message.from_given:
+                self._require_pilot_is(peer, message.from_pilot)
             await (self._take_control(peer) if message.take else self._release_control(peer))
         elif isinstance(message, VisibilityMessage):
             peer.hidden = message.hidden
@@ -395,6 +397,17 @@ class Station:
         except RecordingError as error:
             raise MessageError(str(error)) from None
         self._broadcast(recordings.state())
+
+    def _require_pilot_is(self, peer: Peer, expected_id: str | None) -> None:
+        """A page takes control from the pilot it knows of (``None``: nobody): another page
+        that took it a moment before is not displaced without the page asking first."""
+        pilot = self.pilot
+        if pilot is None or pilot is peer or pilot.id == expected_id:
+            return
+        raise MessageError(
+            f"{pilot.label} took control a moment before: nothing changed "
+            "(take control again to take it from them)"
+        )
 
     def _require_pilot(self, peer: Peer, what: str) -> None:
         if self.pilot is not peer:

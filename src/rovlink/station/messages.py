@@ -66,9 +66,17 @@ class MessageError(ValueError):
 
 @dataclass(frozen=True, slots=True)
 class ControlRequest:
-    """``take_control`` or ``release_control``."""
+    """``take_control`` or ``release_control``.
+
+    ``take_control`` may say whom the page takes control from (``from``: the pilot's id as the
+    page knows it, ``null`` for nobody): if someone else has it by the time it arrives (another
+    page took it a moment before), nothing changes and the page is told, so that it asks
+    first, as for any pilot. Without ``from`` (a program), control is taken from whoever has it.
+    """
 
     take: bool
+    from_pilot: str | None = None
+    from_given: bool = False
 
 
 @dataclass(frozen=True, slots=True)
@@ -144,6 +152,13 @@ def parse_message(text: str | bytes | None) -> PageMessage:
     if not isinstance(kind, str):
         raise MessageError("a message needs a 'type' (a string)")
     if kind in ("take_control", "release_control"):
+        if kind == "take_control" and "from" in data:
+            from_pilot = data["from"]
+            if from_pilot is not None and not isinstance(from_pilot, str):
+                raise MessageError(
+                    f"take_control: 'from' must be a page's id or null, got {from_pilot!r:.40}"
+                )
+            return ControlRequest(take=True, from_pilot=from_pilot, from_given=True)
         return ControlRequest(take=kind == "take_control")
     if kind == "stop":
         return StopRequest(_stop_id(data, kind))

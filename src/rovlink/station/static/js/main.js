@@ -613,7 +613,9 @@ $("stop").addEventListener("click", stop);
 // Taking control from another pilot is asked on the page, not with confirm(): a browser
 // dialog stops the page (no STOP key, no pad, no STOP button) until it is answered.
 $("take-control").addEventListener("click", () => {
-  if (!station.pilotId) { ask({ type: "take_control" }, "taking control"); return; }
+  // Taken from whom this page knows has it: the station refuses if another page took it
+  // meanwhile, and the page then asks, as for any pilot.
+  if (!station.pilotId) { ask({ type: "take_control", from: null }, "taking control"); return; }
   station.askingToTake = true;
   showTakeQuestion();
   $("take-control-no").focus();
@@ -621,7 +623,7 @@ $("take-control").addEventListener("click", () => {
 $("take-control-yes").addEventListener("click", () => {
   station.askingToTake = false;
   showTakeQuestion();
-  ask({ type: "take_control" }, "taking control");
+  ask({ type: "take_control", from: station.pilotId }, "taking control");
 });
 $("take-control-no").addEventListener("click", () => { station.askingToTake = false; showTakeQuestion(); });
 $("release-control").addEventListener("click", () => {
