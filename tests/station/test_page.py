@@ -109,6 +109,12 @@ def flying_by_pad(browser, station, line, axes: list[float], frame: str) -> Page
     return page
 
 
+# The command messages the page sends from now on, kept in window.commandsSent.
+COMMANDS_SENT = """() => { const connection = window.rovlinkStation.connection;
+  const send = connection.send.bind(connection); window.commandsSent = [];
+  connection.send = (m) => {
+    if (m.type === 'command') window.commandsSent.push(m); return send(m); };
+}"""
 # The input messages the page sends from now on, kept in window.inputsSent.
 INPUTS_SENT = """() => { const connection = window.rovlinkStation.connection;
   const send = connection.send.bind(connection); window.inputsSent = [];
@@ -756,10 +762,13 @@ def test_settings_send_values_within_the_command_table(browser, station, line):
     take_control(page)
     page.click("#settings-panel summary")
     assert page.get_attribute("#setting-mgmp", "max") == "255"
+    page.evaluate(COMMANDS_SENT)
     mark = line.mark()
     page.fill("#setting-mgmp", "200")
     page.press("#setting-mgmp", "Enter")
     line.wait_for("#mgmp.200!", after=mark)
+    # Stamped with the page's clock: the station does not send one held up on a slow network.
+    assert page.evaluate("window.commandsSent.map(m => typeof m.sent_ms)") == ["number"]
     page.fill("#setting-mvpdp", "120")  # beyond 0–99: the browser refuses to submit it
     page.press("#setting-mvpdp", "Enter")
     page.fill("#target-depth", "150")

@@ -71,6 +71,7 @@ __all__ = [
     "CLOCK_DRIFT",
     "DEFAULT_RATE_HZ",
     "HEARTBEAT_S",
+    "LATE_COMMAND_S",
     "MESSAGES_PER_S",
     "MESSAGE_BURST",
     "WATCHDOG_PERIOD_S",
@@ -103,6 +104,10 @@ HEARTBEAT_S = 1.0
 #: that stalled for seconds delivers what it held at once). More closes that page's socket.
 MESSAGES_PER_S = 200.0
 MESSAGE_BURST = 1000.0
+#: A pilot's command that arrives later than this, against the fastest of the page's
+#: messages, is not sent: it would act long after it was asked for (a network slower than the
+#: page's input delivers everything, each message later than the one before).
+LATE_COMMAND_S = 1.0
 #: How far the page's clock may drift from the station's (0.1 %: quartz does far better): a
 #: page's input is measured late only beyond it.
 CLOCK_DRIFT = 1e-3
@@ -371,6 +376,15 @@ class Station:
                 await self._stop(peer.label)
                 return
             self._require_pilot(peer, "send commands")
+            if message.sent_ms is not None:
+                late_s = peer.lateness_s(message.sent_ms, self._clock())
+                if late_s > LATE_COMMAND_S:
+                    # Held up on a network slower than the page's input: sent now, it would act
+                    # long after it was asked for, unasked.
+                    raise MessageError(
+                        f"#{message.command.name}: arrived {late_s:.1f} s late (a slow "
+                        "network?): not sent; ask again"
+                    )
             await self.tracked.send(message.command)
             self.log("info", f"{peer.label}: {message.command}")
         elif isinstance(message, RecordRequest):

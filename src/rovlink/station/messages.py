@@ -111,9 +111,13 @@ class VisibilityMessage:
 
 @dataclass(frozen=True, slots=True)
 class CommandRequest:
-    """``command``: one frame of :data:`PAGE_COMMANDS`, its values checked by the table."""
+    """``command``: one frame of :data:`PAGE_COMMANDS`, its values checked by the table.
+
+    ``sent_ms``, as an input's: when the page sent it, on its own clock (``None``: not said).
+    """
 
     command: Command
+    sent_ms: float | None = None
 
 
 @dataclass(frozen=True, slots=True)
@@ -279,4 +283,7 @@ def _command(data: dict[str, Any]) -> CommandRequest:
         command = Command(name, tuple(values))
     except (ArgumentError, ValueError) as error:
         raise MessageError(f"command: {error}") from None
-    return CommandRequest(command)
+    sent_ms = None
+    if "sent_ms" in data:
+        sent_ms = float(_field(data, "command", "sent_ms", float))
+    return CommandRequest(command, sent_ms)

@@ -65,8 +65,10 @@ const ask = (message, what) => {
   toast(`not connected to the station: ${what} not sent`);
   return false;
 };
-const command = (name, values = []) => ask({ type: "command", name, values },
-  `#${[name, ...values].join(".")}!`);
+// Stamped with this page's clock, as its input is: a command held up on a slow network is not
+// sent when it arrives seconds later (the station says so).
+const command = (name, values = []) => ask({ type: "command", name, values,
+  sent_ms: performance.now() }, `#${[name, ...values].join(".")}!`);
 // Each press of STOP goes over the page's WebSocket and over one of its own (/stop, opened for
 // it): the page's socket may be stuck behind what it has still to send (a network slower than
 // the pilot's input), or dead without either end knowing it yet (a Wi-Fi that roamed), and a
