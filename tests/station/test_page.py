@@ -202,6 +202,25 @@ def test_a_frozen_pad_zeroes_the_thrust_within_500_ms(browser, station, line):
     page.context.close()
 
 
+def test_a_page_whose_script_stalls_zeroes_the_thrust_within_500_ms(browser, station, line):
+    page = flying_by_pad(browser, station, line, [0, -1, 0, 0], "#th.0.100!")
+    mark = line.mark()
+    # The page's script stalls for a second (a long task, a browser busy elsewhere): it sends
+    # nothing, its socket stays open.
+    page.evaluate(
+        "setTimeout(() => { const t = performance.now(); while (performance.now() - t < 1000); })"
+    )
+    stalled_s = time.monotonic()
+    zero = line.wait_for("#th.0.0!", after=mark)
+    assert zero.at_s - stalled_s < CUT_WITHIN_S
+    # Awake again with the dead-man still held: nothing moves until it is released and pressed.
+    page.wait_for_function("window.rovlinkStation.devices.lastInput?.deadman === true")
+    page.click("#claw-close")  # a fence
+    line.wait_for("#h-!", after=mark)
+    assert "#th.0.100!" not in line.frames(mark)
+    page.context.close()
+
+
 def test_closing_the_tab_zeroes_the_thrust_within_500_ms(browser, station, line):
     page = flying_by_pad(browser, station, line, [-1, 0, 0, 0], "#th.270.100!")
     mark = line.mark()
