@@ -657,7 +657,7 @@ def test_a_key_up_the_page_never_gets_zeroes_the_thrust(browser, station, line):
     lost_s = time.monotonic()
     zero = line.wait_for("#th.90.0!", after=mark, timeout_s=3.0)
     assert zero.at_s - lost_s < 0.3 + CUT_WITHIN_S
-    page.wait_for_selector("#device-status:has-text('taken as released: press it again')")
+    page.wait_for_selector("#device-status.warn:has-text('taken as released: press it again')")
     # Pressed again, it flies again.
     mark = line.mark()
     page.keyboard.up("d")
@@ -1035,7 +1035,7 @@ def test_a_spare_pad_without_the_standard_mapping_stops_once_its_stop_is_learnt(
 def test_keys_typed_in_a_field_do_not_fly(browser, station, line):
     page = _flying_by_keyboard(browser, station, line)
     page.fill("#target-depth", "150")
-    page.wait_for_selector("#device-status:has-text('paused while typing')")
+    page.wait_for_selector("#device-status.warn:has-text('paused while typing')")
     mark = line.mark()
     page.keyboard.down("Shift")  # Shift with the arrows selects text in the field
     page.keyboard.press("ArrowLeft")

@@ -124,7 +124,7 @@ export class InputDevices {
         // with it was let go of (only the key pressed last repeats).
         label = "keyboard (a key held with no repeat from the system was taken as released: press it again)";
       }
-      return { kind: "keyboard", label };
+      return { kind: "keyboard", label, warning: label !== "keyboard" };
     }
     if (choice && choice.kind === "gamepad") {
       const pad = pads.find((candidate) => candidate.id === choice.id);

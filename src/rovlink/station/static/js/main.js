@@ -450,7 +450,7 @@ function renderDevices() {
   const active = devices.active();
   const badge = $("device-status");
   badge.textContent = active.kind ? `input: ${active.label}` : active.label;
-  badge.className = "badge " + (active.kind ? "ok" : "warn");
+  badge.className = "badge " + (active.kind && !active.warning ? "ok" : "warn");
   const pads = devices.pads();
   const options = [["auto", "automatic (the one standard pad)"], ["keyboard", "keyboard"],
     ...pads.filter((pad) => !devices.ignored.has(pad.id)).map((pad) => [`pad:${pad.id}`, `gamepad: ${pad.id}`])];
