@@ -301,7 +301,8 @@ class Station:
             return
         self.closing = True
         self.relay.cut("the station is closing")  # (#stop! zeroes every output: it goes first)
-        self.log("warning", "the station is closing: the robot is stopped (#stop!)")
+        locked = self.tracked.commanded.lock is LockState.LOCKED
+        self.log("warning", f"the station is closing: {'locked' if locked else '#stop!'}")
         await self._stop_unless_locked()
 
     async def shutdown(self) -> None:

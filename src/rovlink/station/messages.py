@@ -6,7 +6,7 @@ a page may not send — is a :class:`MessageError` whose text names what was wro
 answers it with an ``error`` message and sends nothing to the robot.
 
 >>> parse_message('{"type": "command", "name": "mvd", "values": [150]}')
-CommandRequest(command=Command(name='mvd', values=(150,)))
+CommandRequest(command=Command(name='mvd', values=(150,)), sent_ms=None)
 >>> parse_message('{"type": "command", "name": "th", "values": [90, 40]}')
 Traceback (most recent call last):
 ...

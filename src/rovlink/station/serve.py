@@ -69,6 +69,10 @@ class _Server(uvicorn.Server):
         if sig == signal.SIGINT or sig == getattr(signal, "SIGQUIT", None):  # (Ctrl-C, Ctrl-\\)
             self.interrupted = True
         super().handle_exit(sig, frame)
+        try:
+            asyncio.get_running_loop()
+        except RuntimeError:  # (not from the loop's signal handler: shutdown() stops it)
+            return
         self._robot_stopped()  # at once, not at the serving loop's next tick
 
     async def shutdown(self, sockets: list[socket.socket] | None = None) -> None:
