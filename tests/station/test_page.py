@@ -258,6 +258,12 @@ def test_a_page_whose_socket_drops_reconnects_as_a_watcher(browser, station, lin
     page.context.close()
 
 
+# Every text the toast shows from now on, in window.toastsShown (one may follow another at once).
+TOASTS_SHOWN = """() => { const toast = document.getElementById('toast'); window.toastsShown = [];
+  new MutationObserver(() => window.toastsShown.push(toast.textContent))
+    .observe(toast, {childList: true, characterData: true, subtree: true}); }"""
+
+
 def test_stop_pressed_while_the_station_cannot_be_reached_goes_first_on_reconnecting(
     browser, station, line
 ):
@@ -268,13 +274,15 @@ def test_stop_pressed_while_the_station_cannot_be_reached_goes_first_on_reconnec
     line.wait_for("#start!", after=mark)
     # The socket drops and STOP is pressed before the page has reconnected (in one script:
     # the page cannot reconnect in between). Before, the STOP was dropped without a word.
+    page.evaluate(TOASTS_SHOWN)
     page.evaluate(
         "window.rovlinkStation.connection.socket.close(); document.getElementById('stop').click()"
     )
-    page.wait_for_selector("#toast:has-text('STOP not sent yet')")
     line.wait_for("#stop!", after=mark)
     line.wait_until(lambda: line.controller_locked)
-    page.wait_for_selector("#toast:has-text('STOP sent')")
+    page.wait_for_function("window.toastsShown.some(text => text.startsWith('STOP sent'))")
+    shown = page.evaluate("window.toastsShown")
+    assert shown[0].startswith("STOP not sent yet")
     assert line.frames(mark, commands_only=True).count("#stop!") == 1  # (kept, and its own)
     page.wait_for_function("window.rovlinkStation.station.id === 'p2'")  # reconnected
     # Anything else that cannot be sent says so; it is not kept (it would act later, unasked).
