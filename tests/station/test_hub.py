@@ -379,3 +379,46 @@ def test_a_page_clock_that_drifts_is_not_taken_for_a_slow_network():
     assert lateness_over(Peer("p1", "browser 1"), 7200.0, page_rate=0.9995) < 0.05
     # A network that holds the input back makes it later far faster: 10 % a second.
     assert lateness_over(Peer("p2", "browser 2"), 5.0, page_rate=0.9) > 0.3
+
+
+async def test_a_closing_station_stops_the_robot_and_then_takes_only_stop(hub):
+    pilot = await hub.pilot()
+    await hub.send(pilot, {"type": "command", "name": "start"})
+    await hub.send(pilot, keys(False))
+    await hub.send(pilot, keys(True, power_percent=50))
+    await hub.station.stop_first()
+    assert hub.sent[-2:] == ["#th.90.50!", "#stop!"]  # #stop! first: it zeroes every output
+    sent = len(hub.sent)
+    # Nothing unlocks or flies it again while the pages' connections are being closed.
+    for message in (
+        keys(False),
+        keys(True, power_percent=50),
+        {"type": "command", "name": "start"},
+        {"type": "take_control"},
+    ):
+        await hub.send(pilot, message)
+    errors = [m["message"] for m in drain(pilot) if m["type"] == "error"]
+    assert errors == ["the station is closing: only STOP is taken"] * 4
+    await hub.send(pilot, {"type": "stop"})
+    await hub.station.leave(pilot)
+    await hub.station.shutdown()
+    # The STOP only: locked, neither the pilot leaving nor the shutdown sends another frame.
+    assert hub.sent[sent:] == ["#stop!"]
+
+
+async def test_a_command_that_arrives_seconds_late_is_not_sent(hub):
+    pilot = await hub.pilot()
+    await hub.send(pilot, {**keys(False), "sent_ms": 1000.0})  # on time: the fastest
+    hub.clock.now_s += 0.5
+    await hub.send(pilot, {"type": "command", "name": "start", "sent_ms": 1500.0})
+    assert hub.sent[-1] == "#start!"
+    # A network slower than the page: Claw open, asked for at 1.6 s, arrives 3.9 s late. Sent
+    # then, it would act long after it was asked for; before, it was.
+    hub.clock.now_s += 4.0
+    await hub.send(pilot, {"type": "command", "name": "h+", "sent_ms": 1600.0})
+    errors = [m["message"] for m in drain(pilot) if m["type"] == "error"]
+    assert errors == ["#h+: arrived 3.9 s late (a slow network?): not sent; ask again"]
+    assert hub.sent[-1] == "#start!"
+    # On time again (the network caught up): sent.
+    await hub.send(pilot, {"type": "command", "name": "h+", "sent_ms": 5600.0})
+    assert hub.sent[-1] == "#h+!"

@@ -14,6 +14,7 @@ from typing import Any
 import pytest
 
 from tests.station.rig import CHROMIUM, CHROMIUM_ARGS, ControllerLine, StationProcess
+from tests.station.stalling_link import stalling_link
 
 pytestmark = pytest.mark.integration
 
@@ -108,6 +109,12 @@ def flying_by_pad(browser, station, line, axes: list[float], frame: str) -> Page
     return page
 
 
+# The command messages the page sends from now on, kept in window.commandsSent.
+COMMANDS_SENT = """() => { const connection = window.rovlinkStation.connection;
+  const send = connection.send.bind(connection); window.commandsSent = [];
+  connection.send = (m) => {
+    if (m.type === 'command') window.commandsSent.push(m); return send(m); };
+}"""
 # The input messages the page sends from now on, kept in window.inputsSent.
 INPUTS_SENT = """() => { const connection = window.rovlinkStation.connection;
   const send = connection.send.bind(connection); window.inputsSent = [];
@@ -195,6 +202,25 @@ def test_a_frozen_pad_zeroes_the_thrust_within_500_ms(browser, station, line):
     page.context.close()
 
 
+def test_a_page_whose_script_stalls_zeroes_the_thrust_within_500_ms(browser, station, line):
+    page = flying_by_pad(browser, station, line, [0, -1, 0, 0], "#th.0.100!")
+    mark = line.mark()
+    # The page's script stalls for a second (a long task, a browser busy elsewhere): it sends
+    # nothing, its socket stays open.
+    page.evaluate(
+        "setTimeout(() => { const t = performance.now(); while (performance.now() - t < 1000); })"
+    )
+    stalled_s = time.monotonic()
+    zero = line.wait_for("#th.0.0!", after=mark)
+    assert zero.at_s - stalled_s < CUT_WITHIN_S
+    # Awake again with the dead-man still held: nothing moves until it is released and pressed.
+    page.wait_for_function("window.rovlinkStation.devices.lastInput?.deadman === true")
+    page.click("#claw-close")  # a fence
+    line.wait_for("#h-!", after=mark)
+    assert "#th.0.100!" not in line.frames(mark)
+    page.context.close()
+
+
 def test_closing_the_tab_zeroes_the_thrust_within_500_ms(browser, station, line):
     page = flying_by_pad(browser, station, line, [-1, 0, 0, 0], "#th.270.100!")
     mark = line.mark()
@@ -232,6 +258,12 @@ def test_a_page_whose_socket_drops_reconnects_as_a_watcher(browser, station, lin
     page.context.close()
 
 
+# Every text the toast shows from now on, in window.toastsShown (one may follow another at once).
+TOASTS_SHOWN = """() => { const toast = document.getElementById('toast'); window.toastsShown = [];
+  new MutationObserver(() => window.toastsShown.push(toast.textContent))
+    .observe(toast, {childList: true, characterData: true, subtree: true}); }"""
+
+
 def test_stop_pressed_while_the_station_cannot_be_reached_goes_first_on_reconnecting(
     browser, station, line
 ):
@@ -242,13 +274,17 @@ def test_stop_pressed_while_the_station_cannot_be_reached_goes_first_on_reconnec
     line.wait_for("#start!", after=mark)
     # The socket drops and STOP is pressed before the page has reconnected (in one script:
     # the page cannot reconnect in between). Before, the STOP was dropped without a word.
+    page.evaluate(TOASTS_SHOWN)
     page.evaluate(
         "window.rovlinkStation.connection.socket.close(); document.getElementById('stop').click()"
     )
-    page.wait_for_selector("#toast:has-text('STOP not sent yet')")
     line.wait_for("#stop!", after=mark)
     line.wait_until(lambda: line.controller_locked)
-    page.wait_for_selector("#toast:has-text('STOP sent')")
+    page.wait_for_function("window.toastsShown.some(text => text.startsWith('STOP sent'))")
+    shown = page.evaluate("window.toastsShown")
+    assert shown[0].startswith("STOP not sent yet")
+    assert line.frames(mark, commands_only=True).count("#stop!") == 1  # (kept, and its own)
+    page.wait_for_function("window.rovlinkStation.station.id === 'p2'")  # reconnected
     # Anything else that cannot be sent says so; it is not kept (it would act later, unasked).
     page.evaluate(
         "window.rovlinkStation.connection.socket.close();"
@@ -260,6 +296,30 @@ def test_stop_pressed_while_the_station_cannot_be_reached_goes_first_on_reconnec
     page.wait_for_selector("#log li:has-text('STOP from browser 3')")
     assert page.text_content("#control-status") == "watching: nobody has control"
     page.context.close()
+
+
+def test_stop_pressed_on_a_connection_that_stopped_carrying_anything_gets_through(
+    browser, station, line
+):
+    port = int(station.base.rstrip("/").rsplit(":", 1)[1])
+    with stalling_link(port) as link:
+        page = flying_by_pad(
+            browser, StationProcess(station.process, link.url), line, [1, 0, 0, 0], "#th.90.100!"
+        )
+        mark = line.mark()
+        # The network stops carrying what this page sends on its socket (a Wi-Fi that roamed:
+        # the old connection is dead, and neither end knows it yet); the station hears nothing.
+        link.stall_open_connections()
+        line.wait_for("#th.90.0!", after=mark)  # (the station's watchdog)
+        pressed_s = time.monotonic()
+        page.click("#stop")
+        # Before, the STOP waited on the dead socket, and was lost with it when the station
+        # gave the connection up (10 s): the motors stayed unlocked.
+        stopped = line.wait_for("#stop!", after=mark, timeout_s=3.0)
+        assert stopped.at_s - pressed_s < CUT_WITHIN_S
+        page.wait_for_selector("#log li:has-text('STOP from browser 1')")
+        set_pad(page, deadman=False)
+        page.context.close()
 
 
 #: The accessibility tree's roles of what a person operates on the page.
@@ -434,6 +494,26 @@ def test_a_leak_shows_the_alarm_and_reset_sends_slreset(browser, station, line):
     page.context.close()
 
 
+def test_the_leak_alarm_stays_while_no_reading_says_the_latch_is_clear(browser, station, line):
+    page = open_page(browser, station, pad=False)
+    page.click("#flight-status")  # (a click: the page may sound)
+    line.server.robot.inject_leak()
+    page.wait_for_selector("#leak-alarm", state="visible")
+    assert page.evaluate("window.rovlinkStation.alarm.playing")
+    # The robot's link lost (a cable pulled as the hull floods): no readings, the latch as it
+    # was last read. Before, the banner went and the beep stopped at the first failed poll.
+    line.close()
+    page.wait_for_selector("#depth-value:text-is('–')", timeout=10_000)  # a poll failed
+    page.wait_for_function(
+        "window.rovlinkStation.station.telemetry.sensors === null"
+        " && window.rovlinkStation.station.telemetryCount > 0"
+    )
+    assert page.is_visible("#leak-alarm")
+    assert "as last read" in page.text_content("#leak-alarm")
+    assert page.evaluate("window.rovlinkStation.alarm.playing")
+    page.context.close()
+
+
 def test_a_second_browser_cannot_command(browser, station, line):
     pilot = open_page(browser, station)
     take_control(pilot)
@@ -473,6 +553,37 @@ def test_a_second_browser_cannot_command(browser, station, line):
     screenshot(pilot, "watcher")
     pilot.context.close()
     watcher.context.close()
+
+
+# What the station says is held back from the page until deliverHeldMessages() (a slow network).
+HOLD_MESSAGES = """() => { const connection = window.rovlinkStation.connection;
+  const handle = connection.onMessage; const held = [];
+  connection.onMessage = (message) => held.push(message);
+  window.deliverHeldMessages = () => { connection.onMessage = handle; held.forEach(handle); };
+}"""
+
+
+def test_two_pages_taking_control_at_once_leave_it_with_the_first_and_ask_the_other(
+    browser, station, line
+):
+    first = open_page(browser, station, pad=False)
+    second = open_page(browser, station, pad=False)
+    # Both click Take control with nobody in control, each before it hears of the other (what
+    # the station says reaches the second page only after its click).
+    second.evaluate(HOLD_MESSAGES)
+    first.click("#take-control")
+    first.wait_for_selector("#control.pilot")
+    second.click("#take-control")
+    second.evaluate("window.deliverHeldMessages()")
+    # Before, the second took it from the first without asking, as the first was taking off.
+    second.wait_for_selector("#toast:has-text('took control a moment before: nothing changed')")
+    first.wait_for_selector("#control.pilot")
+    assert second.text_content("#control-status") == "watching: browser 1 (127.0.0.1) has control"
+    # Taking it now asks first, as from any pilot.
+    take_control_from_another(second)
+    first.wait_for_selector("#control-status:has-text('watching: browser 2')")
+    first.context.close()
+    second.context.close()
 
 
 def _flying_by_keyboard(browser, station, line):
@@ -523,6 +634,95 @@ def test_leaving_the_window_with_keys_held_zeroes_the_thrust(browser, station, l
     assert line.frames(mark, commands_only=True)[-1] == "#h-!"
     assert line.frames(mark, commands_only=True).count("#th.90.40!") <= 2  # (one renewal)
     page.context.close()
+
+
+# The keyboard's confirmation windows, shortened for the tests (the system's repeat of a key
+# held is played by the page's own timer here: Playwright holds a key without repeating it).
+SHORT_CONFIRMATION = """() => Object.assign(window.rovlinkStation.devices.keyboard,
+  {pressConfirmMs: 500, repeatConfirmMs: 300})"""
+# A key event as the system gives one (``{code, repeat, shiftKey}``).
+KEY_EVENT = """([kind, init]) => document.body.dispatchEvent(
+  new KeyboardEvent(kind, {bubbles: true, key: init.code.slice(-1).toLowerCase(), ...init}))"""
+REPEATING = """(code) => { window.repeating = setInterval(() => document.body.dispatchEvent(
+  new KeyboardEvent('keydown', {bubbles: true, code, repeat: true, shiftKey: true})), 30); }"""
+
+
+def test_a_key_up_the_page_never_gets_zeroes_the_thrust(browser, station, line):
+    # The system keeps a key-up for itself (macOS gives none for a key let go while Cmd is
+    # down): before, the robot flew on that key for good.
+    page = _flying_by_keyboard(browser, station, line)
+    page.evaluate(SHORT_CONFIRMATION)
+    mark = line.mark()
+    page.keyboard.down("Shift")
+    page.keyboard.down("d")
+    line.wait_for("#th.90.40!", after=mark)
+    page.evaluate(REPEATING, "KeyD")  # held: the system repeats D, the key pressed last
+    page.wait_for_function("window.rovlinkStation.devices.lastInput?.deadman", timeout=2000)
+    time.sleep(0.8)  # past both windows: the repeats keep Shift and D held
+    assert "#th.90.0!" not in line.frames(mark)
+    assert page.evaluate("window.rovlinkStation.devices.lastInput.power_percent") == 40
+    page.evaluate("clearInterval(window.repeating)")  # D let go; its key-up never comes
+    lost_s = time.monotonic()
+    zero = line.wait_for("#th.90.0!", after=mark, timeout_s=3.0)
+    assert zero.at_s - lost_s < 0.3 + CUT_WITHIN_S
+    page.wait_for_selector("#device-status.warn:has-text('taken as released: press it again')")
+    # Pressed again, it flies again.
+    mark = line.mark()
+    page.keyboard.up("d")
+    page.keyboard.up("Shift")
+    page.keyboard.down("Shift")
+    page.keyboard.down("d")
+    line.wait_for("#th.90.40!", after=mark)
+    page.wait_for_selector("#device-status:text-is('input: keyboard')")
+    page.context.close()
+
+
+def test_keys_let_go_where_the_page_cannot_hear_them_fly_nothing(browser, station, line):
+    page = _flying_by_keyboard(browser, station, line)
+    mark = line.mark()
+    page.keyboard.down("Shift")
+    page.keyboard.down("d")
+    line.wait_for("#th.90.40!", after=mark)
+    # Shift's key-up lost: the next key event says Shift is up. Before, it flew on on D.
+    mark = line.mark()
+    page.evaluate(KEY_EVENT, ["keydown", {"code": "KeyD", "repeat": True, "shiftKey": False}])
+    line.wait_for("#th.90.0!", after=mark, timeout_s=CUT_WITHIN_S * 2)
+    page.keyboard.up("d")
+    page.keyboard.up("Shift")
+    # The browser's menu opened (a right click, or the menu key): the keys let go while it is
+    # open have their key-ups go to it. Before, D and Shift stayed held.
+    page.keyboard.down("Shift")
+    page.keyboard.down("d")
+    line.wait_for("#th.90.40!", after=mark)
+    mark = line.mark()
+    page.mouse.click(700, 500, button="right")
+    line.wait_for("#th.90.0!", after=mark, timeout_s=CUT_WITHIN_S * 2)
+    page.keyboard.up("d")
+    page.keyboard.up("Shift")
+    # The tab hidden with D and Shift held; D let go meanwhile (its key-up never came), and the
+    # pilot back presses the dead-man again: before, the robot flew off on D.
+    page.keyboard.down("Shift")
+    page.keyboard.down("d")
+    line.wait_for("#th.90.40!", after=mark)
+    mark = line.mark()
+    page.evaluate(HIDE_THE_TAB, True)
+    line.wait_for("#th.90.0!", after=mark, timeout_s=CUT_WITHIN_S * 2)
+    page.evaluate(HIDE_THE_TAB, False)
+    page.keyboard.up("Shift")
+    page.wait_for_function("window.rovlinkStation.devices.lastInput?.deadman === false")
+    page.keyboard.down("Shift")
+    page.wait_for_function("window.rovlinkStation.devices.lastInput?.deadman === true")
+    page.click("#claw-close")  # a fence
+    line.wait_for("#h-!", after=mark)
+    assert "#th.90.40!" not in line.frames(mark)
+    page.keyboard.up("Shift")
+    page.context.close()
+
+
+# The tab hidden (true) or shown again, as the browser tells the page.
+HIDE_THE_TAB = """(hidden) => {
+  Object.defineProperty(document, 'hidden', {configurable: true, get: () => hidden});
+  document.dispatchEvent(new Event('visibilitychange')); }"""
 
 
 def test_reloading_mid_dive_zeroes_the_thrust_and_comes_back_as_a_watcher(browser, station, line):
@@ -589,10 +789,13 @@ def test_settings_send_values_within_the_command_table(browser, station, line):
     take_control(page)
     page.click("#settings-panel summary")
     assert page.get_attribute("#setting-mgmp", "max") == "255"
+    page.evaluate(COMMANDS_SENT)
     mark = line.mark()
     page.fill("#setting-mgmp", "200")
     page.press("#setting-mgmp", "Enter")
     line.wait_for("#mgmp.200!", after=mark)
+    # Stamped with the page's clock: the station does not send one held up on a slow network.
+    assert page.evaluate("window.commandsSent.map(m => typeof m.sent_ms)") == ["number"]
     page.fill("#setting-mvpdp", "120")  # beyond 0–99: the browser refuses to submit it
     page.press("#setting-mvpdp", "Enter")
     page.fill("#target-depth", "150")
@@ -840,7 +1043,7 @@ def test_a_spare_pad_without_the_standard_mapping_stops_once_its_stop_is_learnt(
 def test_keys_typed_in_a_field_do_not_fly(browser, station, line):
     page = _flying_by_keyboard(browser, station, line)
     page.fill("#target-depth", "150")
-    page.wait_for_selector("#device-status:has-text('paused while typing')")
+    page.wait_for_selector("#device-status.warn:has-text('paused while typing')")
     mark = line.mark()
     page.keyboard.down("Shift")  # Shift with the arrows selects text in the field
     page.keyboard.press("ArrowLeft")

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import json
 import os
 import signal
 import socket
@@ -15,12 +16,14 @@ from collections.abc import AsyncIterator
 from typing import Any
 
 import pytest
+from websockets.asyncio.client import connect
 from websockets.exceptions import ConnectionClosed, InvalidStatus
 
 from rovlink.protocol import lookup
 from tests.client.fake_controller import FakeControllerServer
 from tests.station.page_socket import PageSocket
 from tests.station.rig import ControllerLine, StationProcess, running_station
+from tests.station.test_hub import until
 
 pytestmark = pytest.mark.integration
 
@@ -289,6 +292,46 @@ async def test_stop_works_from_any_page(station, line):
     await watcher.close()
 
 
+async def stop_on_its_own(url: str, message: str, **options: Any) -> str:
+    """Send ``message`` on a ``/stop`` WebSocket of its own; the station's answer."""
+    async with connect(url, **options) as socket:
+        await socket.send(message)
+        return str(await asyncio.wait_for(socket.recv(), 5))
+
+
+async def test_a_stop_on_a_socket_of_its_own_is_taken_once_and_checked_as_the_page_is(
+    station, line
+):
+    page = await pilot(station)
+    await fly(page, line)
+    stop_url = station.ws_url[: -len("ws")] + "stop"
+    mark = line.mark()
+    press = json.dumps({"stop_id": "k1-1", "page_id": page.id})
+    assert await stop_on_its_own(stop_url, press) == "stopped"
+    await asyncio.to_thread(line.wait_for, "#stop!", after=mark)
+    # The same press over the page's socket, after it: nothing more (and one log entry).
+    await page.send({"type": "stop", "stop_id": "k1-1"})
+    await page.send({"type": "command", "name": "h+"})  # a fence
+    await asyncio.to_thread(line.wait_for, "#h+!", after=mark)
+    logged = await page.next("log", lambda m: m["text"].startswith("STOP"))
+    assert logged["text"] == f"STOP from {page.hello['label']}"
+
+    def logs() -> list[str]:
+        return [m["text"] for m in page.messages if m["type"] == "log"]
+
+    await until(lambda: any(text.endswith("#h+!") for text in logs()))
+    assert not [text for text in logs() if "STOP" in text]
+    assert line.frames(mark, commands_only=True) == ["#stop!", "#h+!"]
+    # Checked as a page's socket is: from another origin it is refused; what is not a STOP
+    # is answered with what was wrong, and stops nothing.
+    with pytest.raises(InvalidStatus) as refused:
+        await stop_on_its_own(stop_url, press, origin="http://evil.example")
+    assert refused.value.response.status_code == 403
+    answer = await stop_on_its_own(stop_url, '{"stop_id": 7}')
+    assert answer == "refused: stop: 'stop_id' must be a string, got 7"
+    await page.close()
+
+
 HOSTILE: list[str | bytes] = [
     b"\x00\x01binary",
     "not json",
@@ -317,6 +360,7 @@ HOSTILE: list[str | bytes] = [
     '{"type": "input", "deadman": true, "direction_deg": 90, "power_percent": 50,'
     ' "vertical_percent": 0, "source": "mind-control"}',
     '{"type": "visibility", "hidden": "maybe"}',
+    '{"type": "take_control", "from": 5}',
     "[" * 5000 + "]" * 5000,
     '{"type": "stop", "padding": "' + "x" * 5000 + '"}',
 ]

@@ -24,10 +24,11 @@ from starlette.responses import (
 from starlette.routing import Mount, Route, WebSocketRoute
 from starlette.staticfiles import StaticFiles
 from starlette.types import ASGIApp, Receive, Scope, Send
-from starlette.websockets import WebSocket
+from starlette.websockets import WebSocket, WebSocketDisconnect
 
 from rovlink.station.access import Access
 from rovlink.station.hub import Station
+from rovlink.station.messages import MessageError, parse_stop
 
 __all__ = ["STATIC_DIRECTORY", "AccessGuard", "build_app"]
 
@@ -96,6 +97,9 @@ def build_app(station: Station, access: Access) -> ASGIApp:
     async def socket(websocket: WebSocket) -> None:
         await _serve_page(station, websocket)
 
+    async def stop(websocket: WebSocket) -> None:
+        await _serve_stop(station, websocket)
+
     async def recording(request: Any) -> Response:
         # Only a finished recording of this station, by its name: never a path from the page.
         name = request.path_params["name"]
@@ -113,10 +117,43 @@ def build_app(station: Station, access: Access) -> ASGIApp:
             Route("/", index),
             Mount("/static", StaticFiles(directory=STATIC_DIRECTORY), name="static"),
             Route("/recordings/{name}", recording),
+            WebSocketRoute("/stop", stop),
             WebSocketRoute("/ws", socket),
         ]
     )
     return AccessGuard(app, access)
+
+
+#: How long a STOP's own connection may take to say which STOP it is.
+_STOP_MESSAGE_TIMEOUT_S = 5.0
+
+
+async def _serve_stop(station: Station, websocket: WebSocket) -> None:
+    """A page's STOP on a WebSocket of its own (``/stop``): one message, ``{"stop_id": ...,
+    "page_id": ...}``, answered ``stopped`` (or with what was wrong), then closed.
+
+    A WebSocket, not an HTTP request: a browser opens a new connection for every WebSocket,
+    while a request may go on a kept-alive connection as dead as the page's socket (see
+    :meth:`Station.stop_on_its_own`). The access checks are the page socket's (the same
+    origin, the token).
+    """
+    await websocket.accept()
+    try:
+        message = await asyncio.wait_for(websocket.receive(), _STOP_MESSAGE_TIMEOUT_S)
+        text = message.get("text")
+        if message["type"] == "websocket.disconnect" or not isinstance(text, str):
+            return
+        try:
+            stop_id, page_id = parse_stop(text)
+        except MessageError as error:
+            await websocket.send_text(f"refused: {error}")
+        else:
+            client = websocket.client
+            await station.stop_on_its_own(stop_id, page_id, client.host if client else "unknown")
+            await websocket.send_text("stopped")
+        await websocket.close()
+    except (asyncio.TimeoutError, WebSocketDisconnect):
+        return
 
 
 async def _serve_page(station: Station, websocket: WebSocket) -> None:

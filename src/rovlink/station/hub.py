@@ -71,6 +71,7 @@ __all__ = [
     "CLOCK_DRIFT",
     "DEFAULT_RATE_HZ",
     "HEARTBEAT_S",
+    "LATE_COMMAND_S",
     "MESSAGES_PER_S",
     "MESSAGE_BURST",
     "WATCHDOG_PERIOD_S",
@@ -103,9 +104,15 @@ HEARTBEAT_S = 1.0
 #: that stalled for seconds delivers what it held at once). More closes that page's socket.
 MESSAGES_PER_S = 200.0
 MESSAGE_BURST = 1000.0
+#: A pilot's command that arrives later than this, against the fastest of the page's
+#: messages, is not sent: it would act long after it was asked for (a network slower than the
+#: page's input delivers everything, each message later than the one before).
+LATE_COMMAND_S = 1.0
 #: How far the page's clock may drift from the station's (0.1 %: quartz does far better): a
 #: page's input is measured late only beyond it.
 CLOCK_DRIFT = 1e-3
+#: How many STOPs are remembered by their ``stop_id`` (a page's STOP may arrive twice).
+_STOPS_KEPT = 256
 #: Why the lock as last sent is no longer known once the robot's link is reopened.
 _REOPENED = "the link was reopened (the controller may have reset)"
 
@@ -207,6 +214,11 @@ class Station:
         #: A STOP asked for while the link was down: the reopened link's first frame.
         self._stop_kept = False
         self._recording_told_s = 0.0
+        #: The station is closing (:meth:`stop_first`): a page may only stop the robot.
+        self.closing = False
+        #: The latest STOPs done, by their ``stop_id`` (each may arrive twice: see
+        #: :meth:`stop_on_its_own`).
+        self._stops_done: deque[str] = deque(maxlen=_STOPS_KEPT)
         tracked.client.subscribe(self._on_client_event)
         if recordings is not None:
             tracked.client.subscribe(recordings.on_event)
@@ -280,16 +292,34 @@ class Station:
                 task.cancel()
             await asyncio.gather(*tasks, return_exceptions=True)
 
+    async def stop_first(self) -> None:
+        """The station is about to close: thrust to zero and, unless locked as last sent,
+        ``#stop!``, now, before the pages' connections are closed (a page whose socket is stuck
+        behind full buffers holds their closing up for as long as the server waits for it).
+        From then on a page may only stop the robot: nothing unlocks it or flies it again."""
+        if self.closing:
+            return
+        self.closing = True
+        self.relay.cut("the station is closing")  # (#stop! zeroes every output: it goes first)
+        locked = self.tracked.commanded.lock is LockState.LOCKED
+        self.log("warning", f"the station is closing: {'locked' if locked else '#stop!'}")
+        await self._stop_unless_locked()
+
     async def shutdown(self) -> None:
-        """The station is closing: thrust to zero and, unless locked as last sent, ``#stop!``;
-        then a running recording is finished (its last frame the ``#stop!``)."""
+        """The station is closing: thrust to zero and, unless locked as last sent, ``#stop!``
+        (as :meth:`stop_first`, if it was not called); then a running recording is finished
+        (its last frame the ``#stop!``)."""
+        self.closing = True
         self.relay.cut("the station is closing")
-        if self.tracked.commanded.lock is not LockState.LOCKED and not self.tracked.client.closed:
-            with contextlib.suppress(ClientError):
-                await self.tracked.stop()
+        await self._stop_unless_locked()
         if self.recordings is not None and self.recordings.active:
             finished = await self.recordings.stop()
             logger.info("recording %s finished (%d bytes)", finished.path, finished.size_bytes)
+
+    async def _stop_unless_locked(self) -> None:
+        if self.tracked.commanded.lock is not LockState.LOCKED and not self.tracked.client.closed:
+            with contextlib.suppress(ClientError):
+                await self.tracked.stop()
 
     def log(self, level: str, text: str) -> None:
         """Add to the event log every page shows (``info``, ``warning`` or ``alarm``)."""
@@ -305,9 +335,13 @@ class Station:
     # -- acting on messages ---------------------------------------------------------------------
 
     async def _act(self, peer: Peer, message: PageMessage) -> None:
+        if self.closing and not _is_stop(message):
+            raise MessageError("the station is closing: only STOP is taken")
         if isinstance(message, StopRequest):
-            await self._stop(peer)
+            await self._stop(peer.label, message.stop_id)
         elif isinstance(message, ControlRequest):
+            if message.take and message.from_given:
+                self._require_pilot_is(peer, message.from_pilot)
             await (self._take_control(peer) if message.take else self._release_control(peer))
         elif isinstance(message, VisibilityMessage):
             peer.hidden = message.hidden
@@ -340,9 +374,18 @@ class Station:
             self._schedule_flush()
         elif isinstance(message, CommandRequest):
             if message.command.name == "stop":
-                await self._stop(peer)
+                await self._stop(peer.label)
                 return
             self._require_pilot(peer, "send commands")
+            if message.sent_ms is not None:
+                late_s = peer.lateness_s(message.sent_ms, self._clock())
+                if late_s > LATE_COMMAND_S:
+                    # Held up on a network slower than the page's input: sent now, it would act
+                    # long after it was asked for, unasked.
+                    raise MessageError(
+                        f"#{message.command.name}: arrived {late_s:.1f} s late (a slow "
+                        "network?): not sent; ask again"
+                    )
             await self.tracked.send(message.command)
             self.log("info", f"{peer.label}: {message.command}")
         elif isinstance(message, RecordRequest):
@@ -370,6 +413,17 @@ class Station:
             raise MessageError(str(error)) from None
         self._broadcast(recordings.state())
 
+    def _require_pilot_is(self, peer: Peer, expected_id: str | None) -> None:
+        """A page takes control from the pilot it knows of (``None``: nobody): another page
+        that took it a moment before is not displaced without the page asking first."""
+        pilot = self.pilot
+        if pilot is None or pilot is peer or pilot.id == expected_id:
+            return
+        raise MessageError(
+            f"{pilot.label} took control a moment before: nothing changed "
+            "(take control again to take it from them)"
+        )
+
     def _require_pilot(self, peer: Peer, what: str) -> None:
         if self.pilot is not peer:
             holder = self.pilot.label if self.pilot is not None else "nobody"
@@ -377,8 +431,20 @@ class Station:
                 f"only the pilot may {what}; {holder} has control (take control first)"
             )
 
-    async def _stop(self, peer: Peer) -> None:
-        self.relay.cut(f"STOP from {peer.label}")
+    async def stop_on_its_own(self, stop_id: str | None, page_id: str | None, address: str) -> None:
+        """A page's STOP on a connection of its own (the ``/stop`` WebSocket): the page's own
+        socket may be stuck behind what it has still to send (a network slower than the
+        pilot's input), or dead without either end knowing it yet (a Wi-Fi that roamed). The
+        same STOP may arrive over both: ``stop_id`` names it, and the second does nothing."""
+        peer = self.peers.get(page_id) if page_id is not None else None
+        await self._stop(peer.label if peer is not None else f"a page ({address})", stop_id)
+
+    async def _stop(self, label: str, stop_id: str | None = None) -> None:
+        if stop_id is not None:
+            if stop_id in self._stops_done:
+                return  # that press arrived the other way first
+            self._stops_done.append(stop_id)
+        self.relay.cut(f"STOP from {label}")
         down = not self._link_up
         await self.tracked.stop()  # (never waits: on a link down, the driver keeps it)
         if down:
@@ -387,11 +453,11 @@ class Station:
             self._stop_kept = True
             self.log(
                 "warning",
-                f"STOP from {peer.label}: the robot's link is down; #stop! is the first frame"
+                f"STOP from {label}: the robot's link is down; #stop! is the first frame"
                 " on the reopened link",
             )
         else:
-            self.log("warning", f"STOP from {peer.label}")
+            self.log("warning", f"STOP from {label}")
 
     async def _take_control(self, peer: Peer) -> None:
         previous = self.pilot
@@ -432,8 +498,12 @@ class Station:
         motion first on a reopened link.
         """
         moving = self.relay.moving
+        commands = self.relay.cut(reason)
+        if self.closing and self.tracked.commanded.lock is LockState.LOCKED:
+            # Stopped on the way out (see stop_first): the #stop! stays the last frame.
+            commands = []
         try:
-            await self._send_all(self.relay.cut(reason))
+            await self._send_all(commands)
         except ClientError as error:
             self.log("alarm", f"zero thrust could not be sent ({reason}): {error}")
             return
@@ -517,6 +587,11 @@ class Station:
         loop = asyncio.get_running_loop()
         next_s = loop.time()
         while True:
+            if self.closing:
+                # Stopped on the way out: the #stop! is the last frame the robot gets (and the
+                # last of a recording), while the pages' connections are closed.
+                await asyncio.sleep(period_s)
+                continue
             try:
                 reading: Sensors | None = await self.tracked.sensors()
             except ClientError as error:  # a timeout, or the link lost (and being reopened)
@@ -750,3 +825,10 @@ class Station:
             and is_zero_thrust(command)
             and self.tracked.commanded.lock is LockState.LOCKED
         )
+
+
+def _is_stop(message: PageMessage) -> bool:
+    """Whether ``message`` asks for ``#stop!`` (the STOP message, or the command)."""
+    return isinstance(message, StopRequest) or (
+        isinstance(message, CommandRequest) and message.command.name == "stop"
+    )

@@ -6,7 +6,7 @@ a page may not send — is a :class:`MessageError` whose text names what was wro
 answers it with an ``error`` message and sends nothing to the robot.
 
 >>> parse_message('{"type": "command", "name": "mvd", "values": [150]}')
-CommandRequest(command=Command(name='mvd', values=(150,)))
+CommandRequest(command=Command(name='mvd', values=(150,)), sent_ms=None)
 >>> parse_message('{"type": "command", "name": "th", "values": [90, 40]}')
 Traceback (most recent call last):
 ...
@@ -34,6 +34,7 @@ __all__ = [
     "StopRequest",
     "VisibilityMessage",
     "parse_message",
+    "parse_stop",
 ]
 
 #: Larger messages are refused unread (the largest real one is a few hundred bytes).
@@ -65,14 +66,28 @@ class MessageError(ValueError):
 
 @dataclass(frozen=True, slots=True)
 class ControlRequest:
-    """``take_control`` or ``release_control``."""
+    """``take_control`` or ``release_control``.
+
+    ``take_control`` may say whom the page takes control from (``from``: the pilot's id as the
+    page knows it, ``null`` for nobody): if someone else has it by the time it arrives (another
+    page took it a moment before), nothing changes and the page is told, so that it asks
+    first, as for any pilot. Without ``from`` (a program), control is taken from whoever has it.
+    """
 
     take: bool
+    from_pilot: str | None = None
+    from_given: bool = False
 
 
 @dataclass(frozen=True, slots=True)
 class StopRequest:
-    """``stop``: ``#stop!`` now (any page may send it: it only makes the robot safer)."""
+    """``stop``: ``#stop!`` now (any page may send it: it only makes the robot safer).
+
+    ``stop_id`` names one press of STOP: the page sends it over its WebSocket and over one of
+    its own (``/stop``), and the second to arrive is the same STOP.
+    """
+
+    stop_id: str | None = None
 
 
 @dataclass(frozen=True, slots=True)
@@ -96,9 +111,13 @@ class VisibilityMessage:
 
 @dataclass(frozen=True, slots=True)
 class CommandRequest:
-    """``command``: one frame of :data:`PAGE_COMMANDS`, its values checked by the table."""
+    """``command``: one frame of :data:`PAGE_COMMANDS`, its values checked by the table.
+
+    ``sent_ms``, as an input's: when the page sent it, on its own clock (``None``: not said).
+    """
 
     command: Command
+    sent_ms: float | None = None
 
 
 @dataclass(frozen=True, slots=True)
@@ -137,9 +156,16 @@ def parse_message(text: str | bytes | None) -> PageMessage:
     if not isinstance(kind, str):
         raise MessageError("a message needs a 'type' (a string)")
     if kind in ("take_control", "release_control"):
+        if kind == "take_control" and "from" in data:
+            from_pilot = data["from"]
+            if from_pilot is not None and not isinstance(from_pilot, str):
+                raise MessageError(
+                    f"take_control: 'from' must be a page's id or null, got {from_pilot!r:.40}"
+                )
+            return ControlRequest(take=True, from_pilot=from_pilot, from_given=True)
         return ControlRequest(take=kind == "take_control")
     if kind == "stop":
-        return StopRequest()
+        return StopRequest(_stop_id(data, kind))
     if kind == "input":
         return _input(data)
     if kind == "visibility":
@@ -152,6 +178,45 @@ def parse_message(text: str | bytes | None) -> PageMessage:
         "take_control, release_control, stop, input, visibility, command, record_start, record_stop"
     )
     raise MessageError(f"unknown message type {kind[:40]!r}; known: {known}")
+
+
+#: The longest ``stop_id`` taken (a page makes them far shorter).
+MAX_STOP_ID_CHARS = 64
+
+
+def _stop_id(data: dict[str, Any], kind: str) -> str | None:
+    if data.get("stop_id") is None:
+        return None
+    stop_id = _field(data, kind, "stop_id", str)
+    if not 0 < len(stop_id) <= MAX_STOP_ID_CHARS:
+        raise MessageError(f"{kind}: 'stop_id' must be 1 to {MAX_STOP_ID_CHARS} characters")
+    return str(stop_id)
+
+
+def parse_stop(text: str) -> tuple[str | None, str | None]:
+    """The STOP a page sends on a connection of its own (``/stop``: ``{"stop_id": ...,
+    "page_id": ...}``, both optional): its ``stop_id`` and the id of the page that sent it;
+    MessageError naming what was wrong.
+
+    >>> parse_stop('{"stop_id": "k3-1", "page_id": "p2"}')
+    ('k3-1', 'p2')
+    >>> parse_stop('[]')
+    Traceback (most recent call last):
+    ...
+    rovlink.station.messages.MessageError: a STOP is a JSON object, not list
+    """
+    if len(text) > MAX_MESSAGE_BYTES:
+        raise MessageError(f"a STOP of {len(text)} characters; the limit is {MAX_MESSAGE_BYTES}")
+    try:
+        data = json.loads(text, parse_constant=_refuse_constant)
+    except (RecursionError, json.JSONDecodeError):
+        raise MessageError("a STOP is JSON text") from None
+    if not isinstance(data, dict):
+        raise MessageError(f"a STOP is a JSON object, not {type(data).__name__}")
+    page_id = None
+    if data.get("page_id") is not None:
+        page_id = str(_field(data, "stop", "page_id", str))[:MAX_STOP_ID_CHARS]
+    return _stop_id(data, "stop"), page_id
 
 
 def _field(data: dict[str, Any], kind: str, name: str, wanted: type) -> Any:
@@ -218,4 +283,7 @@ def _command(data: dict[str, Any]) -> CommandRequest:
         command = Command(name, tuple(values))
     except (ArgumentError, ValueError) as error:
         raise MessageError(f"command: {error}") from None
-    return CommandRequest(command)
+    sent_ms = None
+    if "sent_ms" in data:
+        sent_ms = float(_field(data, "command", "sent_ms", float))
+    return CommandRequest(command, sent_ms)

@@ -55,6 +55,13 @@ class _Server(uvicorn.Server):
 
     interrupted = False
 
+    def __init__(
+        self, config: uvicorn.Config, *, stop_robot: Callable[[], Awaitable[None]]
+    ) -> None:
+        super().__init__(config)
+        self._stop_robot = stop_robot
+        self._stopping: asyncio.Future[None] | None = None
+
     def handle_exit(self, sig: int, frame: FrameType | None) -> None:
         # Any Ctrl-C counts, also one after another ending signal: the kernel hands pending
         # signals over lowest number first, so a Ctrl-C and a closed terminal at once arrive
@@ -62,6 +69,26 @@ class _Server(uvicorn.Server):
         if sig == signal.SIGINT or sig == getattr(signal, "SIGQUIT", None):  # (Ctrl-C, Ctrl-\\)
             self.interrupted = True
         super().handle_exit(sig, frame)
+        try:
+            asyncio.get_running_loop()
+        except RuntimeError:  # (not from the loop's signal handler: shutdown() stops it)
+            return
+        self._robot_stopped()  # at once, not at the serving loop's next tick
+
+    async def shutdown(self, sockets: list[socket.socket] | None = None) -> None:
+        # The robot is stopped before the pages' connections are closed: uvicorn waits for
+        # them, up to its graceful timeout for one whose socket is stuck behind full buffers,
+        # and the station's #stop! waited with them.
+        try:
+            await self._robot_stopped()
+        except Exception:
+            logger.exception("stopping the robot before closing the pages failed")
+        await super().shutdown(sockets)
+
+    def _robot_stopped(self) -> asyncio.Future[None]:
+        if self._stopping is None:
+            self._stopping = asyncio.ensure_future(self._stop_robot())
+        return self._stopping
 
     @contextlib.contextmanager
     def capture_signals(self) -> Generator[None, None, None]:
@@ -180,7 +207,7 @@ async def serve(
             ws_ping_timeout=5.0,
             timeout_graceful_shutdown=1,
         )
-        server = _Server(config)
+        server = _Server(config, stop_robot=station.stop_first)
         running = asyncio.ensure_future(station.run())
         # Without its watchdog the station must not go on serving: it shuts down (and sends
         # #stop! on the way out).

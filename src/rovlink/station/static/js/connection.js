@@ -1,6 +1,14 @@
 // The WebSocket to the station: JSON messages both ways, reconnecting after a drop.
 // The server's watchdog, not this code, keeps the robot safe when the socket dies.
 
+// How long a STOP's own socket is kept open for its answer.
+const STOP_SOCKET_MS = 10000;
+
+function socketUrl(path) {
+  const scheme = location.protocol === "https:" ? "wss:" : "ws:";
+  return `${scheme}//${location.host}${path}`;
+}
+
 export class Connection {
   constructor(onMessage, onState) {
     this.onMessage = onMessage;
@@ -11,8 +19,7 @@ export class Connection {
   }
 
   open() {
-    const scheme = location.protocol === "https:" ? "wss:" : "ws:";
-    const socket = new WebSocket(`${scheme}//${location.host}/ws`);
+    const socket = new WebSocket(socketUrl("/ws"));
     this.socket = socket;
     this.onState("connecting");
     socket.addEventListener("open", () => { this.retryMs = 500; this.onState("open"); });
@@ -52,6 +59,19 @@ export class Connection {
     this.closedForGood = false;
     this.retryMs = 500;
     if (!this.socket) this.open();
+  }
+
+  // A STOP on a WebSocket of its own (a new connection: see main.js); stopped() once the
+  // station says it stopped the robot. Nothing is said when it cannot be reached.
+  stopOnItsOwn(message, stopped) {
+    let socket;
+    try { socket = new WebSocket(socketUrl("/stop")); } catch { return; }
+    socket.addEventListener("open", () => socket.send(JSON.stringify(message)));
+    socket.addEventListener("message", (event) => {
+      if (event.data === "stopped") stopped();
+      socket.close();
+    });
+    setTimeout(() => socket.close(), STOP_SOCKET_MS);
   }
 
   send(message) {

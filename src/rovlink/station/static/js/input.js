@@ -18,6 +18,7 @@
 // at all. Its STOP is never guessed (any button of it, say): a headset's volume key, or a
 // button that reads "pressed" now and then on a worn pad, would stop the robot in mid-flight.
 
+import { Keyboard, typingIn } from "./keyboard.js";
 import { DEFAULT_MAPPING, padInput, pressed } from "./mapping.js";
 
 const CHOICE_KEY = "rovlink.device";
@@ -26,15 +27,6 @@ const PAD_STOPS_KEY = "rovlink.pad-stops";
 const MAX_BUTTON = 31;
 const POLL_MS = 10;
 const BUTTON_ACTIONS = ["unlock", "stop", "claw_open", "claw_close", "mode"];
-
-// A key pressed in a field the pilot types in (the depth target, a setting) is not a flying
-// key: Shift with the arrows selects text there.
-function typingIn(target) {
-  if (!(target instanceof Element)) return false;
-  if (target.isContentEditable || target.tagName === "TEXTAREA") return true;
-  return target.tagName === "INPUT"
-    && !["button", "submit", "reset", "checkbox", "radio"].includes(target.type);
-}
 
 function loadJson(key, fallback) {
   try { return JSON.parse(localStorage.getItem(key)) ?? fallback; } catch { return fallback; }
@@ -54,42 +46,6 @@ function loadPadStops() {
 
 // A pad as connected: its slot and its id (another pad in the same slot is another pad).
 function padKey(pad) { return `${pad.index}:${pad.id}`; }
-
-// Keys that fly and that the browser would also act on: the arrows scroll the page.
-const SCROLLING_KEYS = ["ArrowUp", "ArrowDown", "ArrowLeft", "ArrowRight"];
-
-export class Keyboard {
-  // flying() says whether the keys fly the robot now (the keyboard in use, on the pilot's page).
-  constructor(flying = () => false) {
-    this.down = new Set();
-    this.powerPercent = 40;
-    addEventListener("keydown", (event) => {
-      if (typingIn(event.target)) return;
-      this.down.add(event.code);
-      // The arrows fly the robot, and nothing else: the instruments must not scroll away.
-      if (SCROLLING_KEYS.includes(event.code) && flying()) event.preventDefault();
-    });
-    addEventListener("keyup", (event) => { this.down.delete(event.code); });
-    addEventListener("blur", () => this.down.clear());
-    // Moving into a field lets go of every key held: the dead-man too.
-    addEventListener("focusin", (event) => { if (typingIn(event.target)) this.down.clear(); });
-  }
-
-  has(...codes) { return codes.some((code) => this.down.has(code)); }
-
-  input() {
-    const ahead = (this.has("KeyW", "ArrowUp") ? 1 : 0) - (this.has("KeyS", "ArrowDown") ? 1 : 0);
-    const right = (this.has("KeyD", "ArrowRight") ? 1 : 0) - (this.has("KeyA", "ArrowLeft") ? 1 : 0);
-    const up = (this.has("KeyR") ? 1 : 0) - (this.has("KeyF") ? 1 : 0);
-    const moving = ahead !== 0 || right !== 0;
-    return {
-      deadman: this.has("ShiftLeft", "ShiftRight"),
-      direction_deg: moving ? Math.round((Math.atan2(right, ahead) * 180) / Math.PI + 360) % 360 : 0,
-      power_percent: moving ? this.powerPercent : 0,
-      vertical_percent: up * Math.min(100, this.powerPercent),
-    };
-  }
-}
 
 export class InputDevices {
   // send(message) sends to the server; act(name) runs a button's action; isPilot() says
@@ -160,9 +116,15 @@ export class InputDevices {
     const pads = this.usablePads();
     const choice = this.choice;
     if (choice && choice.kind === "keyboard") {
-      const label = typingIn(document.activeElement)
-        ? "keyboard (paused while typing in a field: click the page to fly)" : "keyboard";
-      return { kind: "keyboard", label };
+      let label = "keyboard";
+      if (typingIn(document.activeElement)) {
+        label = "keyboard (paused while typing in a field: click the page to fly)";
+      } else if (this.keyboard.lapsed) {
+        // The system stopped repeating it: its key-up may have been lost, or another key held
+        // with it was let go of (only the key pressed last repeats).
+        label = "keyboard (a key held with no repeat from the system was taken as released: press it again)";
+      }
+      return { kind: "keyboard", label, warning: label !== "keyboard" };
     }
     if (choice && choice.kind === "gamepad") {
       const pad = pads.find((candidate) => candidate.id === choice.id);

@@ -11,14 +11,15 @@ import { ACTIONS, AXES, loadMapping, pressed, resetMapping, saveMapping } from "
 const $ = (id) => document.getElementById(id);
 const station = {
   id: null, pilotId: null, limits: null, telemetry: null, leakSilenced: false, telemetryCount: 0,
+  leak: false,  // the leak latch as last read
   rateHz: 10, heartbeatMs: 1000,
   // When the station last said anything, and when the last reading of the robot came
   // (performance.now()); null: not since this socket opened.
   heardAt: null, readingAt: null,
   // Why this page is no longer the pilot, shown until it takes control again.
   lostControl: null,
-  // STOP was pressed while the station could not be reached: sent first when it is.
-  stopKept: false,
+  // STOP (its stop_id) pressed while the station could not be reached: sent first when it is.
+  stopKept: null,
   // How long the fastest of this socket's timed messages took to arrive, the station's clock
   // against this page's (ms; null: none yet), and how much later than that the last one came.
   fastestArrivalMs: null, fastestAt: 0, lateMs: 0,
@@ -64,11 +65,28 @@ const ask = (message, what) => {
   toast(`not connected to the station: ${what} not sent`);
   return false;
 };
-const command = (name, values = []) => ask({ type: "command", name, values },
-  `#${[name, ...values].join(".")}!`);
+// Stamped with this page's clock, as its input is: a command held up on a slow network is not
+// sent when it arrives seconds later (the station says so).
+const command = (name, values = []) => ask({ type: "command", name, values,
+  sent_ms: performance.now() }, `#${[name, ...values].join(".")}!`);
+// Each press of STOP goes over the page's WebSocket and over one of its own (/stop, opened for
+// it): the page's socket may be stuck behind what it has still to send (a network slower than
+// the pilot's input), or dead without either end knowing it yet (a Wi-Fi that roamed), and a
+// STOP sent on it would wait there, or be lost with it. A new WebSocket is a new connection
+// (an HTTP request may go on a kept-alive one, as dead). The station takes the first to arrive
+// (by its stop_id).
+const STOP_SESSION = Math.random().toString(36).slice(2, 10);
+let stopsPressed = 0;
 const stop = () => {
-  if (send({ type: "stop" })) return;
-  station.stopKept = true;
+  stopsPressed += 1;
+  const stopId = `${STOP_SESSION}-${stopsPressed}`;
+  connection.stopOnItsOwn({ stop_id: stopId, page_id: station.id }, () => {
+    if (station.stopKept !== stopId) return;
+    station.stopKept = null;  // it got through that way
+    toast("STOP sent (pressed while the station's connection was down)");
+  });
+  if (send({ type: "stop", stop_id: stopId })) return;
+  station.stopKept = stopId;
   toast("STOP not sent yet: the station cannot be reached; it goes first when it is", null);
 };
 
@@ -183,8 +201,8 @@ function onConnectionState(state) {
   station.heardAt = state === "open" ? performance.now() : null;
   station.readingAt = null;
   if (state === "open") {
-    if (station.stopKept && send({ type: "stop" })) {
-      station.stopKept = false;
+    if (station.stopKept && send({ type: "stop", stop_id: station.stopKept })) {
+      station.stopKept = null;
       toast("STOP sent (pressed while the station could not be reached)");
     }
     // The station takes a new page as shown: one opened in a background tab says otherwise.
@@ -322,7 +340,7 @@ function showTelemetry(t) {
   text("relay-state", t.relay.status);
   showFlightStatus();
   showLink(t.link);
-  showLeak(Boolean(s && s.leak));
+  showLeak(s);
 }
 
 const LINK_ROWS = [
@@ -361,7 +379,13 @@ function showLink(link) {
   }
 }
 
-function showLeak(leak) {
+// The leak latch as last read: a failed poll (a timeout, the robot's link lost) says nothing of
+// it, and the alarm stays until a reading says the latch is clear.
+function showLeak(sensors) {
+  if (sensors) station.leak = Boolean(sensors.leak);
+  const leak = station.leak;
+  text("leak-detail", sensors ? "the leak sensor fired (latched until reset)"
+    : "the leak sensor fired (latched until reset), as last read: no reading from the robot now");
   $("leak-alarm").hidden = !leak;
   if (!leak) station.leakSilenced = false;
   if (leak && !station.leakSilenced) alarm.start(); else alarm.stop();
@@ -426,7 +450,7 @@ function renderDevices() {
   const active = devices.active();
   const badge = $("device-status");
   badge.textContent = active.kind ? `input: ${active.label}` : active.label;
-  badge.className = "badge " + (active.kind ? "ok" : "warn");
+  badge.className = "badge " + (active.kind && !active.warning ? "ok" : "warn");
   const pads = devices.pads();
   const options = [["auto", "automatic (the one standard pad)"], ["keyboard", "keyboard"],
     ...pads.filter((pad) => !devices.ignored.has(pad.id)).map((pad) => [`pad:${pad.id}`, `gamepad: ${pad.id}`])];
@@ -591,7 +615,9 @@ $("stop").addEventListener("click", stop);
 // Taking control from another pilot is asked on the page, not with confirm(): a browser
 // dialog stops the page (no STOP key, no pad, no STOP button) until it is answered.
 $("take-control").addEventListener("click", () => {
-  if (!station.pilotId) { ask({ type: "take_control" }, "taking control"); return; }
+  // Taken from whom this page knows has it: the station refuses if another page took it
+  // meanwhile, and the page then asks, as for any pilot.
+  if (!station.pilotId) { ask({ type: "take_control", from: null }, "taking control"); return; }
   station.askingToTake = true;
   showTakeQuestion();
   $("take-control-no").focus();
@@ -599,7 +625,7 @@ $("take-control").addEventListener("click", () => {
 $("take-control-yes").addEventListener("click", () => {
   station.askingToTake = false;
   showTakeQuestion();
-  ask({ type: "take_control" }, "taking control");
+  ask({ type: "take_control", from: station.pilotId }, "taking control");
 });
 $("take-control-no").addEventListener("click", () => { station.askingToTake = false; showTakeQuestion(); });
 $("release-control").addEventListener("click", () => {
