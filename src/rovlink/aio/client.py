@@ -711,10 +711,11 @@ class AsyncClient(AsyncCommandMethods):
                     self._check_open()
                 session = self._session
                 now = self._clock()
-                if attempt:
+                if attempt:  # (the general path: its event marks it a retry)
                     session.counters.retries += 1
-                # The usual case (nothing due or held) without the general path's bookkeeping.
-                ready = session.fast_query(command, now) or session.query(command, now)
+                    ready = session.query(command, now, retry=True)
+                else:  # the usual case (nothing due or held) without the general path's work
+                    ready = session.fast_query(command, now) or session.query(command, now)
                 data, pending = ready
                 waiter = pending.waiter = self._loop.create_future()
                 if data:  # (nothing while queries are held back, P20)

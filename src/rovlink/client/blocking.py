@@ -1013,11 +1013,13 @@ class Client(CommandMethods):
             if attempt:
                 with self._state_lock:
                     self._session.counters.retries += 1
-            pending = self._send_query_holding_state(command, me) if self._send_now else None
+            # (A retry takes the general path, which marks it one in its event.)
+            fast = self._send_now is not None and not attempt
+            pending = self._send_query_holding_state(command, me) if fast else None
             if pending is not None:
                 outcome = self._wait(pending, holding_state=True)
             else:
-                pending = self._send_query(command)
+                pending = self._send_query(command, retry=attempt > 0)
                 assert pending is not None
                 outcome = self._wait(pending)
             if outcome is _ANSWERED:
@@ -1079,8 +1081,9 @@ class Client(CommandMethods):
             self._link.wake()
         return pending
 
-    def _send_query(self, query: Command | bytes) -> PendingQuery | None:
-        """Queue and write a query: a command, or a raw frame (which may be no query at all).
+    def _send_query(self, query: Command | bytes, *, retry: bool = False) -> PendingQuery | None:
+        """Queue and write a query: a command (``retry``: again, after a failed attempt), or a
+        raw frame (which may be no query at all).
 
         The caller counts as active until :meth:`_wait` returns, so the background reader
         stays out of its way; if the background reader is reading, it is woken to step aside.
@@ -1101,7 +1104,7 @@ class Client(CommandMethods):
                     ready = (switcher is None or switcher == me) and not reconnecting
                     if ready:
                         if isinstance(query, Command):
-                            data, pending = session.query(query, self._clock())
+                            data, pending = session.query(query, self._clock(), retry=retry)
                         else:
                             data, pending = session.raw(query, self._clock(), stops_seen=stops_seen)
                         if pending is not None:

@@ -57,24 +57,41 @@ class ReplaySummary:
 def replay_steps(entries: Iterable[Entry]) -> list[ReplayStep]:
     """The program's commands in a recording, each query with its recorded replies.
 
-    A query that failed (a ``query_failed`` event) awaits the driver's retry, the next command
-    of its name (the driver's fence may come first); if a command of another name comes first,
-    the failure was final and the query recorded no reply (the later replies of its name are
-    the later queries'). A query whose reply the recording ends before (a ``--split`` part, a
-    killed recorder) is resent but not compared: what it got is not known.
+    A query that failed (a ``query_failed`` event) awaits the driver's retry, and is answered
+    by the retry's replies; without one, the failure was final and the query recorded no reply
+    (the later replies of its name are the later queries'). The driver's events mark each
+    retry (a frame's ``retry``); in a recording without the marks (a tap's, an older one) the
+    retry is taken to be the next command of its name (the driver's fence may come first), and
+    the failure final if a command of another name comes first. A query whose reply the
+    recording ends before (a ``--split`` part, a killed recorder) is resent but not compared:
+    what it got is not known.
     """
     steps: list[ReplayStep] = []
     awaiting: dict[str, deque[ReplayStep]] = {}
     failed: set[str] = set()  # names whose oldest awaiting query failed, a retry not yet seen
+    # With retries marked: the queries that failed, per name, oldest first, awaiting a retry.
+    retrying: dict[str, deque[ReplayStep]] = {}
+    marked = False  # the recording marks retries (a command's ``retry`` is not None)
     for entry in entries:
         if isinstance(entry, EventEntry):
-            if entry.event == "query_failed" and awaiting.get(entry.name):
-                awaiting[entry.name][0].recorded = None  # (a part of a reply: discarded)
+            queue = awaiting.get(entry.name)
+            if entry.event != "query_failed" or not queue:
+                continue
+            queue[0].recorded = None  # (a part of a reply: discarded)
+            if marked:  # it awaits its retry, if one comes, and no reply until then
+                retrying.setdefault(entry.name, deque()).append(queue.popleft())
+            else:
                 failed.add(entry.name)
             continue
         if not isinstance(entry, FrameEntry):
             continue
         if entry.direction == "out" and entry.kind == "command":
+            marked |= entry.retry is not None
+            if entry.retry:
+                retried = retrying.get(entry.name)
+                if retried:  # awaits its replies again, now behind the queries sent before
+                    awaiting.setdefault(entry.name, deque()).append(retried.popleft())
+                continue
             if entry.name in failed:
                 # Its retry (the driver's, in whichever way it marks it; a program that asks
                 # again at once after a final failure cannot be told from one): the query
