@@ -405,7 +405,10 @@ class AsyncClient(AsyncCommandMethods):
             return ()
         if command.spec.is_query:
             return tuple(await self._request(command))
-        self._send(command)
+        if command == operations.STOP:
+            self._send(command)  # (never waits for the line)
+        else:
+            await self._send_paced(command)  # as the command methods' frames
         return ()
 
     async def send_raw(self, frame: str | bytes) -> tuple[Response, ...]:
@@ -430,9 +433,16 @@ class AsyncClient(AsyncCommandMethods):
         if self._link_down and is_query:
             await self._await_link()
         self._check_open()
-        # A frame that moves or unlocks, still waiting for a checksum switch when a stop() is
-        # called, is superseded by it (SupersededByStopError): it would follow the #stop!.
+        # A frame that moves or unlocks, still waiting for a checksum switch or the line when a
+        # stop() is called, is superseded by it (SupersededByStopError): it would follow the
+        # #stop!. A raw #stop! is one such stop, and never waits for the line.
+        stop = command == operations.STOP
+        if stop:
+            self._session.stop_asked()
         stops_seen = self._session.stops_asked
+        if not is_query and not stop:
+            await self._wait_for_line()  # as a command method's frame
+            self._check_open()
         if is_query:
             await self._in_flight.take()  # (cancelled while it waits: it holds none)
         slot_handed_over = False
@@ -588,17 +598,23 @@ class AsyncClient(AsyncCommandMethods):
             self._send(command)  # (the usual case: no wait, so nothing can come between)
             return
         stops_seen = self._session.stops_asked
+        await self._wait_for_line()
+        self._send(command, stops_seen=stops_seen)
+
+    async def _wait_for_line(self) -> None:
+        """Wait until the serial line has at most :data:`links.MAX_QUEUED_LINE_S` of bytes
+        ahead of the next frame."""
+        queued_s = links.queued_line_s(self._link)
         while queued_s is not None and (ahead_s := queued_s() - links.MAX_QUEUED_LINE_S) > 0:
             await asyncio.sleep(ahead_s)
             queued_s = links.queued_line_s(self._link)  # (a reopened link's, from now on)
-        self._send(command, stops_seen=stops_seen)
 
     def _send(
         self, command: Command, *, by_session: bool = False, stops_seen: int | None = None
     ) -> None:
         # (Written, or queued for the port, before it returns: a set command never waits here,
         # so a stop() after it follows it on the wire. Before it, a command method waits for a
-        # slow serial line (_send_paced); a raw frame may wait too: see send_raw.)
+        # slow serial line (_send_paced), as send() and a raw frame do but for a stop.)
         stop = command == operations.STOP
         if _running_loop() is not self._loop:
             if not stop:

@@ -350,7 +350,15 @@ class Client(CommandMethods):
             self.set_checksum(mode)
             return ()
         try:
-            pending = self._send_query(data)
+            with self._state_lock:
+                command = self._session.raw_command(data)  # (ValueError for more than one)
+                stop = command == operations.STOP
+                if stop:  # as stop(): it supersedes what waits already
+                    self._session.stop_asked()
+                stops_seen = self._session.stops_asked
+            if not stop and (command is None or not command.spec.is_query):
+                self._wait_for_line()  # as a command method's frame (a query waits for replies)
+            pending = self._send_query(data, stops_seen=stops_seen)
             if pending is None:
                 self._emit()  # (what was sent, as a command's is: no wait reports it later)
                 return ()
@@ -1081,9 +1089,12 @@ class Client(CommandMethods):
             self._link.wake()
         return pending
 
-    def _send_query(self, query: Command | bytes, *, retry: bool = False) -> PendingQuery | None:
+    def _send_query(
+        self, query: Command | bytes, *, retry: bool = False, stops_seen: int | None = None
+    ) -> PendingQuery | None:
         """Queue and write a query: a command (``retry``: again, after a failed attempt), or a
-        raw frame (which may be no query at all).
+        raw frame (which may be no query at all; ``stops_seen``: the stops asked for when the
+        program sent it, default now).
 
         The caller counts as active until :meth:`_wait` returns, so the background reader
         stays out of its way; if the background reader is reading, it is woken to step aside.
@@ -1093,7 +1104,8 @@ class Client(CommandMethods):
         pending: PendingQuery | None
         lost: ConnectionLostError | None = None
         me = _get_ident()
-        stops_seen = session.stops_asked  # (a raw frame that moves is superseded by a stop)
+        if stops_seen is None:  # (a raw frame that moves is superseded by a stop)
+            stops_seen = session.stops_asked
         while True:
             with self._wire_lock:
                 with self._state_lock:
