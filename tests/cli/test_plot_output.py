@@ -45,7 +45,7 @@ def test_an_image_cut_short_is_not_left_behind(
     run_cli: RunCli, recording: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     # Before, the half-written PNG of a disk that filled up stayed, named as the plot.
-    from matplotlib.figure import Figure  # noqa: PLC0415 - the plot extra
+    from matplotlib.figure import Figure  # (the plot extra)
 
     def fill_up(self: Figure, path: str, **kwargs: object) -> None:
         Path(path).write_bytes(b"\x89PNG\r\n\x1a\n")  # its start, and then the disk was full
