@@ -142,3 +142,26 @@ def test_a_query_the_recording_ends_before_the_reply_of_is_not_compared() -> Non
         (2.0, None, 0),
         (3.0, None, 0),
     ]
+
+
+def test_the_drivers_own_motion_and_lock_frames_are_replayed_where_they_were() -> None:
+    # Before, an expired motion's zero thrust (and a #stop! kept for a reopened link) was left
+    # out as the driver's: the replaying driver had to expire the motion itself, by the wall
+    # clock, which at another --speed fell elsewhere, and where the recorded program (the
+    # monitor) had no motion timeout, it stopped what the controller had kept going.
+    entries: list[Entry] = [
+        _query(0.5, "crcoff", by_session=True),  # a mode frame: the replaying driver's own
+        _query(1.0, "start"),
+        FrameEntry(1.1, 0, "out", "command", "th", (90, 40)),
+        _query(2.0, "qhe", by_session=True),  # a keep-alive
+        _reply(2.0, 90, "qhe"),
+        EventEntry(3.1, 0, "motion_expired", "th", "zero thrust sent"),
+        FrameEntry(3.1, 0, "out", "command", "th", (90, 0), by_session=True),
+        _query(4.0, "stop", by_session=True),  # kept while the link was down
+    ]
+    assert [(step.t_s, str(step.command)) for step in replay_steps(entries)] == [
+        (1.0, "#start!"),
+        (1.1, "#th.90.40!"),
+        (3.1, "#th.90.0!"),
+        (4.0, "#stop!"),
+    ]

@@ -2,7 +2,9 @@
 ones: how a firmware author checks a new build against last week's dive.
 
 The program's own commands are replayed (not the driver's keep-alives, retries and fences: the
-replaying driver makes its own) at their recorded times. Each query's replies are compared value
+replaying driver makes its own), and the driver's own frames that set the motion or the lock
+(an expired motion's zero thrust, a ``#stop!`` kept for a reopened link), at their recorded
+times. Each query's replies are compared value
 by value with the recorded replies, within ``tolerance`` (flags such as the leak latch exactly).
 """
 
@@ -13,7 +15,7 @@ from collections import deque
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, field
 
-from rovlink.protocol import Command, Response, encode
+from rovlink.protocol import Command, Response, Setting, encode
 from rovlink.recorder.entries import Entry, EventEntry, FrameEntry
 from rovlink.recorder.playback import wait_until
 
@@ -98,7 +100,7 @@ def replay_steps(entries: Iterable[Entry]) -> list[ReplayStep]:
                 # awaits its reply still.
                 failed.discard(entry.name)
                 continue
-            if entry.by_session:
+            if entry.by_session and not _moves_or_locks(entry):
                 continue  # (a fence, a keep-alive, a mode frame: no retry and no decision)
             for name in failed:  # the program went on: those failures were final
                 awaiting[name].popleft()
@@ -124,6 +126,16 @@ def replay_steps(entries: Iterable[Entry]) -> list[ReplayStep]:
                 step.expected_count = 0
             failed.discard(name)  # (only the oldest had failed)
     return steps
+
+
+def _moves_or_locks(entry: FrameEntry) -> bool:
+    """Whether a frame the driver wrote itself set the robot's motion or lock: the zero thrust
+    of an expired motion (P23) or of a reopened link, a ``#stop!`` kept for a reopened link.
+    The controller acted on them as on the program's, so a replay sends them where they were
+    (the replaying driver expires no motion of its own: at another ``--speed`` it would at
+    other points of the session)."""
+    spec = Command(entry.name, entry.values).spec
+    return not spec.is_query and (spec.motion or spec.setting is Setting.LOCKED)
 
 
 def _text(responses: Iterable[Response] | None) -> str:
