@@ -13,6 +13,7 @@ from tests.cli.conftest import RunCli
 from tests.cli.test_demo import _fast_sim_url
 from tests.client.conftest import REPLY_TIMEOUT_S, wait_until
 from tests.client.fake_controller import FakeControllerServer
+from tests.terminals import WAIT_S, Terminal
 
 pytestmark = pytest.mark.skipif(not os.path.exists("/dev/full"), reason="no /dev/full here")
 
@@ -30,6 +31,10 @@ def controller() -> Iterator[FakeControllerServer]:
     server = FakeControllerServer()
     yield server
     server.close()
+
+
+def _frames(controller: FakeControllerServer) -> list[str]:
+    return controller.fakes[0].frames() if controller.fakes else []
 
 
 def _send(run_cli: RunCli, url: str, recording: Path, *line: str) -> tuple[int, str]:
@@ -75,3 +80,26 @@ def test_demo_whose_recording_fails_fails_naming_the_file(
         f"rovlink demo: recording to {full_disk} stopped: No space left on device\n"
     )
     assert "motors off and locked" in result.out
+
+
+@pytest.mark.integration
+def test_the_monitor_whose_recording_fails_fails_naming_the_file_and_stops_the_robot(
+    full_disk: Path, controller: FakeControllerServer
+) -> None:
+    # Before: status 0 when the pilot quit, the failure seen only as a passing warning.
+    terminal = Terminal(
+        "monitor", controller.url, "--boot-timeout", "0", "--record", str(full_disk), "--overwrite"
+    )
+    try:
+        assert wait_until(lambda: "#qsa!" in _frames(controller), timeout_s=WAIT_S)
+        terminal.type("s")  # start: the robot may move now
+        assert wait_until(lambda: "#start!" in _frames(controller), timeout_s=WAIT_S)
+        terminal.type("q")
+        _, stderr = terminal.process.communicate(timeout=WAIT_S)
+    finally:
+        terminal.close()
+    assert terminal.process.returncode == 1
+    assert stderr.decode().endswith(
+        f"rovlink monitor: recording to {full_disk} stopped: No space left on device\n"
+    )
+    assert wait_until(lambda: controller.fakes[0].frames()[-1:] == ["#stop!"])
