@@ -69,7 +69,9 @@ def replay_steps(entries: Iterable[Entry]) -> list[ReplayStep]:
     what it got is not known.
     """
     steps: list[ReplayStep] = []
-    awaiting: dict[str, deque[ReplayStep]] = {}
+    # Per name, the queries awaiting replies in the order they went; with retries marked, the
+    # driver's own (keep-alives, fences: None) among them, whose replies are no program's.
+    awaiting: dict[str, deque[ReplayStep | None]] = {}
     failed: set[str] = set()  # names whose oldest awaiting query failed, a retry not yet seen
     # With retries marked: the queries that failed, per name, oldest first, awaiting a retry.
     retrying: dict[str, deque[ReplayStep]] = {}
@@ -79,9 +81,14 @@ def replay_steps(entries: Iterable[Entry]) -> list[ReplayStep]:
             queue = awaiting.get(entry.name)
             if entry.event != "query_failed" or not queue:
                 continue
-            queue[0].recorded = None  # (a part of a reply: discarded)
+            failing = queue[0]
+            if failing is None:  # (the driver's own query failed: it makes another)
+                queue.popleft()
+                continue
+            failing.recorded = None  # (a part of a reply: discarded)
             if marked:  # it awaits its retry, if one comes, and no reply until then
-                retrying.setdefault(entry.name, deque()).append(queue.popleft())
+                retrying.setdefault(entry.name, deque()).append(failing)
+                queue.popleft()
             else:
                 failed.add(entry.name)
             continue
@@ -101,6 +108,8 @@ def replay_steps(entries: Iterable[Entry]) -> list[ReplayStep]:
                 failed.discard(entry.name)
                 continue
             if entry.by_session and not _moves_or_locks(entry):
+                if marked and entry.kind == "command" and Command(entry.name).spec.is_query:
+                    awaiting.setdefault(entry.name, deque()).append(None)
                 continue  # (a fence, a keep-alive, a mode frame: no retry and no decision)
             for name in failed:  # the program went on: those failures were final
                 awaiting[name].popleft()
@@ -114,16 +123,21 @@ def replay_steps(entries: Iterable[Entry]) -> list[ReplayStep]:
             queue = awaiting.get(entry.query)
             if not queue:
                 continue  # answers a query of the driver's own (a keep-alive)
-            step = queue[0]
-            if step.recorded is None:
-                step.recorded = []
-            step.recorded.append(Response(entry.name, entry.values))
-            if len(step.recorded) >= step.expected_count:
+            answered = queue[0]
+            if answered is None:  # (a keep-alive, a fence: one reply each)
+                queue.popleft()
+                continue
+            if answered.recorded is None:
+                answered.recorded = []
+            answered.recorded.append(Response(entry.name, entry.values))
+            if len(answered.recorded) >= answered.expected_count:
                 queue.popleft()
     for name, queue in awaiting.items():
-        for step in queue:
+        for waiting in queue:
+            if waiting is None:
+                continue
             if name not in failed:  # (a failure the recording ends on: no reply, as recorded)
-                step.expected_count = 0
+                waiting.expected_count = 0
             failed.discard(name)  # (only the oldest had failed)
     return steps
 
