@@ -413,7 +413,9 @@ class AsyncClient(AsyncCommandMethods):
 
     async def send_raw(self, frame: str | bytes) -> tuple[Response, ...]:
         """Send a frame exactly as given, once; a query returns its replies. One command frame
-        at a time (ValueError for more); text or broken frames around it go as they are.
+        at a time (ValueError for more); text or broken frames around it go as they are. On a
+        slow serial line it waits for the line as a command method does, but for a query and a
+        ``#stop!`` (which, as :meth:`stop`, supersedes a motion frame still waiting).
 
         Example::
 

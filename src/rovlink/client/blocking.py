@@ -337,7 +337,9 @@ class Client(CommandMethods):
 
         For experiments: the frame is not checked or given a checksum, and is not retried. One
         command frame at a time (ValueError for more: their motion and replies would go
-        untracked); text or broken frames around it go as they are.
+        untracked); text or broken frames around it go as they are. On a slow serial line it
+        waits for the line as a command method does, but for a query and a ``#stop!`` (which,
+        as :meth:`stop`, supersedes a motion frame still waiting).
 
         Example::
 
