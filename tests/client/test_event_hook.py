@@ -2,13 +2,16 @@
 
 from __future__ import annotations
 
+import asyncio
 import logging
 import socket
 import subprocess
 import sys
+from collections.abc import Awaitable, Callable
 
 import pytest
 
+from rovlink.aio import AsyncClient
 from rovlink.client import Client, ClientOptions
 from rovlink.client.events import (
     BytesReceived,
@@ -21,6 +24,7 @@ from rovlink.client.events import (
 )
 from rovlink.client.links import SocketLink
 from rovlink.protocol import BadFrame, Reason
+from tests.client.conftest import NO_REPLY_TIMEOUT_S
 from tests.client.fake_controller import FakeController
 
 
@@ -164,3 +168,37 @@ def test_a_client_whose_hook_fails_on_every_event_logs_one_traceback(
         rov.depth_cm()
     tracebacks = [record for record in caplog.records if record.exc_info]
     assert len(tracebacks) == 1
+
+
+def _retry_marks(events: list[ClientEvent], name: str) -> list[bool]:
+    return [
+        event.retry
+        for event in events
+        if isinstance(event, BytesSent) and event.command is not None and event.command.name == name
+    ]
+
+
+def test_a_retry_is_marked_as_the_drivers_not_the_programs(
+    make_client: Callable[..., Client], fake: FakeController
+) -> None:
+    # Before, a retry was a BytesSent like the program's query: a recording replayed it twice.
+    events: list[ClientEvent] = []
+    rov = make_client(drops_time_out_at_once=True, on_event=events.append)
+    fake.then("drop")
+    assert rov.depth_cm() == 123
+    assert _retry_marks(events, "qd") == [False, True]
+    assert _retry_marks(events, "qhe") == [False]  # the fence: by the session, no retry
+    fence = next(e for e in events if isinstance(e, BytesSent) and e.data == b"#qhe!")
+    assert fence.by_session
+
+
+async def test_the_asyncio_clients_retries_are_marked_too(
+    make_async_client: Callable[..., Awaitable[AsyncClient]], fake: FakeController
+) -> None:
+    events: list[ClientEvent] = []
+    rov = await make_async_client(
+        max_in_flight=2, timeout_s=NO_REPLY_TIMEOUT_S, on_event=events.append
+    )
+    fake.then("drop", "drop")
+    assert list(await asyncio.gather(rov.depth_cm(), rov.depth_cm())) == [123, 123]
+    assert _retry_marks(events, "qd") == [False, False, True, True]

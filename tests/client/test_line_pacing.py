@@ -18,6 +18,7 @@ import rovlink.aio
 from rovlink.aio import AsyncClient
 from rovlink.client import Client, SupersededByStopError
 from rovlink.client.links import MAX_QUEUED_LINE_S, SerialFdLink, SocketLink, queued_line_s
+from rovlink.protocol import Command
 from rovlink.sim.server import SimServer
 from tests.client.conftest import (
     CONDITION_TIMEOUT_S,
@@ -199,6 +200,95 @@ async def test_asyncio_a_move_waiting_for_the_line_is_superseded_by_a_stop() -> 
             await asyncio.wait_for(moving, CONDITION_TIMEOUT_S)
         await asyncio.wait_for(setting, CONDITION_TIMEOUT_S)
         assert await wait_until_async(lambda: "#mgmp.180!" in fake.frames())
+        assert "#th.90.50!" not in fake.frames()
+    finally:
+        link.backlog_s = 0.0
+        await rov.close()
+        fake.close()
+
+
+# -- raw frames and send(Command) go as the command methods do -------------------------------
+
+
+def _move_of(number: int, how: str) -> object:
+    return f"#th.90.{number % 50}!" if how == "send_raw" else Command("th", (90, number % 50))
+
+
+@pytest.mark.parametrize(("how", "stop_how"), [("send_raw", "stop"), ("send_raw", "raw #stop!")])
+def test_a_stop_after_a_burst_of_raw_moves_reaches_the_controller_at_once(
+    sim: _ServedSim, how: str, stop_how: str
+) -> None:
+    # Before, send_raw frames went into the kernel unpaced: the #stop! reached the controller
+    # half a second after it was sent, behind fifty moves.
+    with rovlink.connect(sim.url, keepalive=None) as rov:
+        rov.start()
+        send = getattr(rov, how)
+        for number in range(MOVES):
+            send(_move_of(number, how))
+        stop_called_at_s = time.monotonic()
+        rov.stop() if stop_how == "stop" else rov.send_raw("#stop!")
+        assert _stop_latency_s(sim, stop_called_at_s) < STOP_LATENCY_LIMIT_S
+
+
+@pytest.mark.parametrize(("how", "stop_how"), [("send_raw", "stop"), ("send", "raw #stop!")])
+def test_asyncio_a_stop_after_a_burst_of_raw_moves_reaches_the_controller_at_once(
+    sim: _ServedSim, how: str, stop_how: str
+) -> None:
+    # Before, neither raw frames nor send(Command) were paced by the asyncio client (the
+    # blocking client's send(Command) was).
+    async def fly() -> float:
+        async with rovlink.aio.connect(sim.url, keepalive=None) as rov:
+            await rov.start()
+            send = getattr(rov, how)
+            for number in range(MOVES):
+                await send(_move_of(number, how))
+            stop_called_at_s = time.monotonic()
+            await (rov.stop() if stop_how == "stop" else rov.send_raw("#stop!"))
+            return stop_called_at_s
+
+    stop_called_at_s = asyncio.run(fly())
+    assert _stop_latency_s(sim, stop_called_at_s) < STOP_LATENCY_LIMIT_S
+
+
+def test_a_raw_move_waiting_for_the_line_is_superseded_by_a_raw_stop_which_does_not_wait(
+    backlogged: tuple[FakeController, _BackloggedLink],
+) -> None:
+    fake, link = backlogged
+    rov = Client(link, client_options())
+    try:
+        rov.start()
+        link.backlog_s = MAX_QUEUED_LINE_S + 0.03
+        moving = ThreadCall(lambda: rov.send_raw("#th.90.50!"))
+        assert link.asked.wait(CONDITION_TIMEOUT_S)
+        assert rov.send_raw("#qd!")[0].name == "qd"  # a query does not wait for the line
+        rov.send_raw("#stop!")  # the line is still behind: it goes all the same
+        assert fake.wait_for(lambda f: "#stop!" in f.frames())
+        assert not moving.done.is_set()
+        link.backlog_s = 0.0
+        assert moving.done.wait(CONDITION_TIMEOUT_S)
+        assert isinstance(moving.error, SupersededByStopError)
+        assert "#th.90.50!" not in fake.frames()
+    finally:
+        link.backlog_s = 0.0
+        rov.close()
+
+
+async def test_asyncio_a_raw_move_waiting_for_the_line_is_superseded_by_a_raw_stop() -> None:
+    fake, host_end = FakeController.on_socketpair()
+    link = _BackloggedLink(host_end, "socket pair, backlogged")
+    rov = await AsyncClient(link, client_options()).open()
+    try:
+        await rov.start()
+        link.backlog_s = MAX_QUEUED_LINE_S + 0.03
+        moving = asyncio.ensure_future(rov.send_raw("#th.90.50!"))
+        assert await wait_until_async(link.asked.is_set)
+        assert (await rov.send_raw("#qd!"))[0].name == "qd"  # a query does not wait
+        await rov.send_raw("#stop!")
+        assert await wait_until_async(lambda: "#stop!" in fake.frames())
+        assert not moving.done()
+        link.backlog_s = 0.0
+        with pytest.raises(SupersededByStopError, match=r"#th\.90\.50!"):
+            await asyncio.wait_for(moving, CONDITION_TIMEOUT_S)
         assert "#th.90.50!" not in fake.frames()
     finally:
         link.backlog_s = 0.0

@@ -5,6 +5,7 @@ from __future__ import annotations
 import pytest
 
 from rovlink.client.errors import SupersededByStopError
+from rovlink.client.events import BytesSent
 from rovlink.client.session import FENCE_QUERIES, Outcome, PendingQuery, Session
 from rovlink.protocol import COMMANDS, Command, Spec, Text
 
@@ -487,3 +488,22 @@ def test_a_stop_supersedes_exactly_the_commands_that_move_or_unlock(spec: Spec) 
     # Asked for after the stop, or by a driver that does not say when: sent.
     assert session.command(command, now=1.0, stops_seen=session.stops_asked)
     assert session.command(command, now=2.0)
+
+
+def test_a_query_held_back_for_a_quiet_line_goes_out_as_the_programs() -> None:
+    # Released from a quiet-line wait, it went out as a frame of the session's own: a recording
+    # took it for a fence, and a replay left it out.
+    session = Session(timeout_s=0.5)
+    session.events = []
+    for fence in FENCE_QUERIES:
+        session.query(fence, now=0.0)
+    session.expire(now=0.5)
+    session.query(Command("qd"), now=0.6)
+    session.query(Command("qr"), now=0.6, retry=True)
+    session.tick(now=1.1)
+    assert session.take_outbox(now=1.1) == b"#qd!#qr!"
+    sent = [event for event in session.take_events() if isinstance(event, BytesSent)]
+    assert [(e.data, e.by_session, e.retry) for e in sent[-2:]] == [
+        (b"#qd!", False, False),
+        (b"#qr!", False, True),
+    ]

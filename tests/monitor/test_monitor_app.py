@@ -500,6 +500,8 @@ async def test_a_lost_link_is_reopened_and_the_polls_go_on() -> None:
         await until(lambda: "#qsa!" in port.fakes[1].frames())  # polling the reopened link
         await until(lambda: "motors     unknown: link reopened" in shown(app, "#commanded"))
         assert "horizontal 0° at 0 %" in shown(app, "#commanded")
+        # Before, "last sent  #th.0.10!": sent on the old link, and undone on the new one.
+        assert "last sent  — since the link was reopened" in shown(app, "#commanded")
         await until(lambda: "lost" not in shown(app, "#link"))
         await pilot.press("q")
     await until(lambda: "#stop!" in port.fakes[1].frames())  # (as the fake reads it)

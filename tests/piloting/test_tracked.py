@@ -167,6 +167,11 @@ async def test_a_reopened_link_forgets_the_lock_and_puts_the_motion_at_rest() ->
         )
         assert state.horizontal_text() == "270° at 0 % (as last sent)"  # the driver zeroed it
         assert port.fakes[1].frames()[0] == "#th.270.0!"
+        # Before, the last sent stayed #th.270.40!, sent on the old link, which the driver's
+        # zero thrust had undone on the new one.
+        assert (state.last_command, state.last_forgotten_on_reopening) == (None, True)
+        await rov.send(Command("start"))
+        assert (state.last_command, state.last_forgotten_on_reopening) == (Command("start"), False)
     port.close()
 
 
@@ -185,4 +190,5 @@ async def test_a_stop_while_the_link_is_down_leaves_it_locked_once_reopened() ->
         await rov.send(Command("qd"))
         assert rov.commanded.lock_text() == "locked (as last sent)"
         assert port.fakes[1].frames()[0] == "#stop!"
+        assert rov.commanded.last_command == Command("stop")  # (it went on the reopened link)
     port.close()

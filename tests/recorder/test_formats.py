@@ -4,18 +4,22 @@ CSV as pandas reads it."""
 from __future__ import annotations
 
 import json
+import os
+import threading
 import time
 from pathlib import Path
 
 import pytest
 from mcap.reader import make_reader
 
+import rovlink
 from rovlink.protocol import COMMANDS, RESPONSES
 from rovlink.recorder import (
     Entry,
     EventEntry,
     FrameEntry,
     HeaderEntry,
+    Recorder,
     TelemetryEntry,
     WireEntry,
     format_of,
@@ -23,7 +27,7 @@ from rovlink.recorder import (
 )
 from rovlink.recorder.entries import CHANNELS, TELEMETRY_FIELDS
 from rovlink.recorder.telemetry import COMMAND_COLUMNS, RESPONSE_COLUMNS
-from tests.recorder.conftest import MakeRecording
+from tests.recorder.conftest import MakeRecording, drive_a_short_dive
 
 
 def _frames(entries: list[Entry]) -> list[tuple[str, str, str | None]]:
@@ -135,3 +139,23 @@ def test_telemetry_columns_come_from_the_command_table() -> None:
         assert len(columns) == len(commands[name].arguments)
     used = {c for cs in (*RESPONSE_COLUMNS.values(), *COMMAND_COLUMNS.values()) for c in cs}
     assert used | {"locked"} == set(TELEMETRY_FIELDS)
+
+
+@pytest.mark.parametrize("suffix", [".mcap", ".jsonl", ".csv"])
+def test_a_recording_into_a_pipe_holds_the_whole_session(tmp_path: Path, suffix: str) -> None:
+    # A pipe to another program (a FIFO) refuses fsync: the recording stopped at its first
+    # flush ("recording to live.jsonl stopped: Invalid argument").
+    fifo = tmp_path / f"live{suffix}"
+    os.mkfifo(fifo)
+    copy = tmp_path / f"copy{suffix}"
+    reader = threading.Thread(target=lambda: copy.write_bytes(fifo.read_bytes()))
+    reader.start()
+    recorder = Recorder(str(fifo), url="sim://?seed=1")  # (opens once the reader has)
+    with recorder, rovlink.connect("sim://?seed=1", on_event=recorder.on_event) as rov:
+        drive_a_short_dive(rov)
+        assert recorder.sync() is None
+    reader.join(timeout=10)
+    assert recorder.error is None
+    entries = list(read_entries(str(copy)))
+    assert len(entries) == recorder.held() > 1  # (.csv: the telemetry rows)
+    assert any(isinstance(entry, TelemetryEntry) for entry in entries)

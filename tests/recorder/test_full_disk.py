@@ -178,3 +178,26 @@ def test_the_command_lines_recording_that_stops_is_shown_with_the_librarys_warni
     finally:
         warnings.detach()
     assert shown == [f"{recorder.error} (the link goes on)"]
+
+
+def test_sync_makes_the_session_so_far_durable_or_says_why_not(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # A command asks before it ends, while it can still stop the robot: before, a full disk
+    # showed only once the file was closed, after the command had ended with status 0.
+    full = threading.Event()
+    monkeypatch.setattr(
+        "rovlink.recorder.recorder.open_sink", lambda path: _FillingSink(open_sink(path), full)
+    )
+    path = tmp_path / "dive.jsonl"
+    recorder = Recorder(str(path), url="sim://", on_failure=lambda reason: None)
+    with rovlink.connect("sim://", on_event=recorder.on_event) as rov:
+        rov.depth_cm()
+        assert recorder.sync() is None
+        assert recorder.held() == recorder.entries_written  # all of it, durable
+        assert any(isinstance(entry, TelemetryEntry) for entry in read_entries(str(path)))
+        full.set()
+        rov.depth_cm()
+        assert recorder.sync() == f"recording to {path} stopped: No space left on device"
+    recorder.close()
+    assert recorder.sync() == recorder.error  # (at once, once the writer has ended)

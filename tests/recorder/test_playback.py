@@ -142,3 +142,42 @@ def test_a_query_the_recording_ends_before_the_reply_of_is_not_compared() -> Non
         (2.0, None, 0),
         (3.0, None, 0),
     ]
+
+
+def test_the_drivers_own_motion_and_lock_frames_are_replayed_where_they_were() -> None:
+    # Before, an expired motion's zero thrust (and a #stop! kept for a reopened link) was left
+    # out as the driver's: the replaying driver had to expire the motion itself, by the wall
+    # clock, which at another --speed fell elsewhere, and where the recorded program (the
+    # monitor) had no motion timeout, it stopped what the controller had kept going.
+    entries: list[Entry] = [
+        _query(0.5, "crcoff", by_session=True),  # a mode frame: the replaying driver's own
+        _query(1.0, "start"),
+        FrameEntry(1.1, 0, "out", "command", "th", (90, 40)),
+        _query(2.0, "qhe", by_session=True),  # a keep-alive
+        _reply(2.0, 90, "qhe"),
+        EventEntry(3.1, 0, "motion_expired", "th", "zero thrust sent"),
+        FrameEntry(3.1, 0, "out", "command", "th", (90, 0), by_session=True),
+        _query(4.0, "stop", by_session=True),  # kept while the link was down
+    ]
+    assert [(step.t_s, str(step.command)) for step in replay_steps(entries)] == [
+        (1.0, "#start!"),
+        (1.1, "#th.90.40!"),
+        (3.1, "#th.90.0!"),
+        (4.0, "#stop!"),
+    ]
+
+
+def _marked(t_s: float, name: str = "qd", *, by_session: bool = False) -> FrameEntry:
+    """A command as the driver's events record it: whether it was a retry is known."""
+    return FrameEntry(t_s, 0, "out", "command", name, (), by_session=by_session, retry=False)
+
+
+def test_a_keep_alive_on_the_wire_with_a_query_of_its_name_answers_none_of_the_programs() -> None:
+    # Before, the keep-alive's reply (the older) was taken for the program's query, and its
+    # failure for the program's failure: a replay showed "recorded no reply" where it had one.
+    answered: list[Entry] = [_marked(1.0, by_session=True), _marked(1.01), _reply(1.02, 5)]
+    answered.append(_reply(1.03, 6))
+    failed: list[Entry] = [_marked(2.0, by_session=True), _marked(2.01), _failed(2.5)]
+    failed.append(_reply(2.51, 7))
+    assert _recorded(replay_steps(answered)) == [(1.01, [Response("qd", (6,))], 1)]
+    assert _recorded(replay_steps(failed)) == [(2.01, [Response("qd", (7,))], 1)]

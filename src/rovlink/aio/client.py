@@ -455,12 +455,17 @@ class AsyncClient(AsyncCommandMethods):
             return ()
         if command.spec.is_query:
             return tuple(await self._request(command))
-        self._send(command)
+        if command == operations.STOP:
+            self._send(command)  # (never waits for the line)
+        else:
+            await self._send_paced(command)  # as the command methods' frames
         return ()
 
     async def send_raw(self, frame: str | bytes) -> tuple[Response, ...]:
         """Send a frame exactly as given, once; a query returns its replies. One command frame
-        at a time (ValueError for more); text or broken frames around it go as they are.
+        at a time (ValueError for more); text or broken frames around it go as they are. On a
+        slow serial line it waits for the line as a command method does, but for a query and a
+        ``#stop!`` (which, as :meth:`stop`, supersedes a motion frame still waiting).
 
         Example::
 
@@ -480,9 +485,16 @@ class AsyncClient(AsyncCommandMethods):
         if self._link_down and is_query:
             await self._await_link()
         self._check_open()
-        # A frame that moves or unlocks, still waiting for a checksum switch when a stop() is
-        # called, is superseded by it (SupersededByStopError): it would follow the #stop!.
+        # A frame that moves or unlocks, still waiting for a checksum switch or the line when a
+        # stop() is called, is superseded by it (SupersededByStopError): it would follow the
+        # #stop!. A raw #stop! is one such stop, and never waits for the line.
+        stop = command == operations.STOP
+        if stop:
+            self._session.stop_asked()
         stops_seen = self._session.stops_asked
+        if not is_query and not stop:
+            await self._wait_for_line()  # as a command method's frame
+            self._check_open()
         if is_query:
             await self._in_flight.take()  # (cancelled while it waits: it holds none)
         slot_handed_over = False
@@ -641,17 +653,23 @@ class AsyncClient(AsyncCommandMethods):
             self._send(command)  # (the usual case: no wait, so nothing can come between)
             return
         stops_seen = self._session.stops_asked
+        await self._wait_for_line()
+        self._send(command, stops_seen=stops_seen)
+
+    async def _wait_for_line(self) -> None:
+        """Wait until the serial line has at most :data:`links.MAX_QUEUED_LINE_S` of bytes
+        ahead of the next frame."""
+        queued_s = links.queued_line_s(self._link)
         while queued_s is not None and (ahead_s := queued_s() - links.MAX_QUEUED_LINE_S) > 0:
             await asyncio.sleep(ahead_s)
             queued_s = links.queued_line_s(self._link)  # (a reopened link's, from now on)
-        self._send(command, stops_seen=stops_seen)
 
     def _send(
         self, command: Command, *, by_session: bool = False, stops_seen: int | None = None
     ) -> None:
         # (Written, or queued for the port, before it returns: a set command never waits here,
         # so a stop() after it follows it on the wire. Before it, a command method waits for a
-        # slow serial line (_send_paced); a raw frame may wait too: see send_raw.)
+        # slow serial line (_send_paced), as send() and a raw frame do but for a stop.)
         stop = command == operations.STOP
         if _running_loop() is not self._loop:
             if not stop:
@@ -764,10 +782,11 @@ class AsyncClient(AsyncCommandMethods):
                     self._check_open()
                 session = self._session
                 now = self._clock()
-                if attempt:
+                if attempt:  # (the general path: its event marks it a retry)
                     session.counters.retries += 1
-                # The usual case (nothing due or held) without the general path's bookkeeping.
-                ready = session.fast_query(command, now) or session.query(command, now)
+                    ready = session.query(command, now, retry=True)
+                else:  # the usual case (nothing due or held) without the general path's work
+                    ready = session.fast_query(command, now) or session.query(command, now)
                 data, pending = ready
                 waiter = pending.waiter = self._loop.create_future()
                 if data:  # (nothing while queries are held back, P20)

@@ -285,6 +285,10 @@ def main(argv: list[str] | None = None) -> int:
             raise
         print(f"{command_parser.prog}: cannot write the output: {error.strerror}", file=sys.stderr)
         return 1
+    failure = getattr(args, "recording_failure", None)  # (set as its recording is finished)
+    if failure is not None and status == 0:
+        _say(f"{command_parser.prog}: {failure}")
+        return 1
     return status
 
 

@@ -332,6 +332,8 @@ def session_recorder(args: argparse.Namespace) -> Recorder | None:
                 discard_empty_recording(recorder, program)
             else:
                 report_recording(recorder, time.monotonic() - started_s)
+            # (main() fails the command with it: a dive believed recorded was not)
+            args.recording_failure = recorder.error
 
         on_exit = getattr(args, "on_exit", None)
         if on_exit is not None:
@@ -341,6 +343,14 @@ def session_recorder(args: argparse.Namespace) -> Recorder | None:
 
             atexit.register(finish)
     return recorder
+
+
+def recording_failure(args: argparse.Namespace) -> str | None:
+    """Why the recording of ``--record FILE`` stopped (naming the file), if it did: all the
+    session so far is written and made durable first, so a full disk shows here, while the
+    command can still stop the robot before it fails. ``None`` without ``--record``."""
+    recorder: Recorder | None = getattr(args, "recorder", None)
+    return recorder.sync() if recorder is not None else None
 
 
 def check_url(args: argparse.Namespace) -> None:

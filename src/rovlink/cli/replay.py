@@ -155,7 +155,13 @@ def _replay_to(args: argparse.Namespace, damage: _Damage) -> int:
             raise CommandError(f"{damage.error}; nothing before it to replay")
         raise CommandError(f"{args.file} has no commands of a program to replay")
     try:
-        client = rovlink.connect(args.to, checksum=checksum, algorithm=algorithm)
+        # No motion expiry of its own: the recording holds the recorded driver's (its zero
+        # thrust is replayed where it was), and one of the replay's, timed by the wall clock,
+        # would fall elsewhere at another --speed, or where the recorded program (the monitor)
+        # had none. The keep-alive still feeds the controller's watchdog (P17).
+        client = rovlink.connect(
+            args.to, checksum=checksum, algorithm=algorithm, motion_timeout=None
+        )
     except (ConnectionError, OSError) as error:
         raise connection_failure(args.to, error) from None
     except ValueError as error:

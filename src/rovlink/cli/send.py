@@ -4,9 +4,10 @@ Every command is checked before anything is sent: one that does not parse, or a 
 controller would drop, is refused (status 2). A raw frame ('#qd!') goes as typed when the
 controller will take it so; in checksum mode a frame typed without its checksum gets it. A
 failure while sending (no reply, a lost link) exits with status 1, after #stop! once a command
-that may move the robot has gone. Ctrl-C stops at once, sending #stop! first if a command may
-have moved the robot. The robot is not left driving: when the commands moved it or unlocked its
-motors and no stop came after, #stop! is sent as the link closes.
+that may move the robot has gone; so does a --record file that could not be written. Ctrl-C
+stops at once, sending #stop! first if a command may have moved the robot. The robot is not left
+driving: when the commands moved it or unlocked its motors and no stop came after, #stop! is sent
+as the link closes.
 """
 
 from __future__ import annotations
@@ -319,4 +320,9 @@ def run(args: argparse.Namespace) -> int:
                 raise CommandError(f"{error} ({outcome})") from None
             say_stopped("rovlink send", outcome)
             raise
+        failure = link_options.recording_failure(args)
+        if failure is not None:  # a failure as any other: the robot is not left moving
+            if may_have_moved:
+                raise CommandError(f"{failure} ({send_stop(client)})")
+            raise CommandError(failure)
     return 0

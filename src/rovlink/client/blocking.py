@@ -400,7 +400,9 @@ class Client(CommandMethods):
 
         For experiments: the frame is not checked or given a checksum, and is not retried. One
         command frame at a time (ValueError for more: their motion and replies would go
-        untracked); text or broken frames around it go as they are.
+        untracked); text or broken frames around it go as they are. On a slow serial line it
+        waits for the line as a command method does, but for a query and a ``#stop!`` (which,
+        as :meth:`stop`, supersedes a motion frame still waiting).
 
         Example::
 
@@ -413,7 +415,15 @@ class Client(CommandMethods):
             self.set_checksum(mode)
             return ()
         try:
-            pending = self._send_query(data)
+            with self._state_lock:
+                command = self._session.raw_command(data)  # (ValueError for more than one)
+                stop = command == operations.STOP
+                if stop:  # as stop(): it supersedes what waits already
+                    self._session.stop_asked()
+                stops_seen = self._session.stops_asked
+            if not stop and (command is None or not command.spec.is_query):
+                self._wait_for_line()  # as a command method's frame (a query waits for replies)
+            pending = self._send_query(data, stops_seen=stops_seen)
             if pending is None:
                 self._emit()  # (what was sent, as a command's is: no wait reports it later)
                 return ()
@@ -1080,11 +1090,13 @@ class Client(CommandMethods):
             if attempt:
                 with self._state_lock:
                     self._session.counters.retries += 1
-            pending = self._send_query_holding_state(command, me) if self._send_now else None
+            # (A retry takes the general path, which marks it one in its event.)
+            fast = self._send_now is not None and not attempt
+            pending = self._send_query_holding_state(command, me) if fast else None
             if pending is not None:
                 outcome = self._wait(pending, holding_state=True)
             else:
-                pending = self._send_query(command)
+                pending = self._send_query(command, retry=attempt > 0)
                 assert pending is not None
                 outcome = self._wait(pending)
             if outcome is _ANSWERED:
@@ -1146,8 +1158,12 @@ class Client(CommandMethods):
             self._link.wake()
         return pending
 
-    def _send_query(self, query: Command | bytes) -> PendingQuery | None:
-        """Queue and write a query: a command, or a raw frame (which may be no query at all).
+    def _send_query(
+        self, query: Command | bytes, *, retry: bool = False, stops_seen: int | None = None
+    ) -> PendingQuery | None:
+        """Queue and write a query: a command (``retry``: again, after a failed attempt), or a
+        raw frame (which may be no query at all; ``stops_seen``: the stops asked for when the
+        program sent it, default now).
 
         The caller counts as active until :meth:`_wait` returns, so the background reader
         stays out of its way; if the background reader is reading, it is woken to step aside.
@@ -1157,7 +1173,8 @@ class Client(CommandMethods):
         pending: PendingQuery | None
         lost: ConnectionLostError | None = None
         me = _get_ident()
-        stops_seen = session.stops_asked  # (a raw frame that moves is superseded by a stop)
+        if stops_seen is None:  # (a raw frame that moves is superseded by a stop)
+            stops_seen = session.stops_asked
         while True:
             with self._wire_lock:
                 with self._state_lock:
@@ -1168,7 +1185,7 @@ class Client(CommandMethods):
                     ready = (switcher is None or switcher == me) and not reconnecting
                     if ready:
                         if isinstance(query, Command):
-                            data, pending = session.query(query, self._clock())
+                            data, pending = session.query(query, self._clock(), retry=retry)
                         else:
                             data, pending = session.raw(query, self._clock(), stops_seen=stops_seen)
                         if pending is not None:

@@ -42,13 +42,15 @@ __all__ = [
 class BytesSent:
     """Bytes written to the controller; ``command`` is the command they carry, if one;
     ``by_session``: the session wrote them itself (a keep-alive, a fence, a mode frame, zero
-    thrust after ``motion_timeout``), not the program."""
+    thrust after ``motion_timeout``), not the program; ``retry``: a query sent again after an
+    attempt of it failed (the program asked for it once: a replay sends it once)."""
 
     direction: ClassVar[str] = "out"
     at_s: float
     data: bytes
     command: Command | None
     by_session: bool = False
+    retry: bool = False
 
 
 @dataclass(frozen=True, slots=True)

@@ -141,6 +141,8 @@ class PendingQuery:
     keepalive: bool = False
     #: Sent by the session itself (a keep-alive or a fence): nobody waits for it.
     internal: bool = False
+    #: A query sent again after an attempt of it failed (not a new one of the program's).
+    retry: bool = False
     outcome: Outcome = _PENDING
     #: The client's handle to wake the caller (an ``asyncio.Future``), if it needs one.
     waiter: object = None
@@ -492,20 +494,25 @@ class Session:
             ]
         return commands
 
-    def query(self, command: Command, now: float) -> tuple[bytes, PendingQuery]:
+    def query(
+        self, command: Command, now: float, *, retry: bool = False
+    ) -> tuple[bytes, PendingQuery]:
         """The bytes to write for a query (after anything due), and its entry in the queue.
 
         Write the bytes before anything else is written: the queue's order is the wire's.
         While a quiet-line resynchronisation holds queries back, the query is queued to be sent
-        later (by :meth:`tick`) and only what is due is returned.
+        later (by :meth:`tick`) and only what is due is returned. ``retry``: the query again,
+        after an attempt of it failed (its event says so: a recording's replay sends it once).
         """
         pending = PendingQuery(command, now)
+        if retry:
+            pending.retry = True
         if self._quiet_until is not None:
             self._held.append(pending)
             return self.take_outbox(now), pending
         data = self.take_outbox(now) if self._outbox else b""
         frame = self.query_bytes(command)
-        self._account(command, frame, now)
+        self._account(command, frame, now, retry=retry)
         self._pending.append(pending)
         return data + frame, pending
 
@@ -603,9 +610,12 @@ class Session:
             return b""
         parts = []
         for data, pending, command in self._outbox:
+            if pending is None or pending.internal:
+                self._account(command, data, now, by_session=True)
+            else:  # a program's query, held back during a resynchronisation (P20)
+                self._account(command, data, now, retry=pending.retry)
             if pending is not None:
                 pending.sent_at = now
-            self._account(command, data, now, by_session=True)
             parts.append(data)
         self._outbox.clear()
         return b"".join(parts)
@@ -944,14 +954,20 @@ class Session:
             self.events.append(event)
 
     def _account(
-        self, command: Command | None, data: bytes, now: float, *, by_session: bool = False
+        self,
+        command: Command | None,
+        data: bytes,
+        now: float,
+        *,
+        by_session: bool = False,
+        retry: bool = False,
     ) -> bytes:
         counters = self.counters
         counters.frames_sent += 1
         counters.bytes_sent += len(data)
         self.last_sent_at = now
         if self.events is not None:
-            self.events.append(BytesSent(now, data, command, by_session))
+            self.events.append(BytesSent(now, data, command, by_session, retry))
         setting = command.setting if command is not None else None
         if setting is not None and setting[0] is Setting.CHECKSUM:
             self._set_mode(setting[1], now)

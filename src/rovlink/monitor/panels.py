@@ -160,7 +160,8 @@ def commanded_text(commanded: CommandedState) -> Text:
     _row(text, "horizontal", f"{commanded.direction_deg}° at {commanded.power_percent} %")
     last = commanded.last_command
     if last is None:
-        _row(text, "last sent", "—", "dim")
+        reopened = commanded.last_forgotten_on_reopening
+        _row(text, "last sent", "— since the link was reopened" if reopened else "—", "dim")
     elif commanded.last_dropped_because is not None:
         _row(text, "last sent", f"{last}  (dropped: {_drop_reason(commanded, last)})", "yellow")
     else:

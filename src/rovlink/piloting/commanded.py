@@ -56,6 +56,8 @@ class CommandedState:
     last_command: Command | None = None
     #: Why the controller drops :attr:`last_command` (as last sent); ``None`` if it acts on it.
     last_dropped_because: str | None = None
+    #: :attr:`last_command` was forgotten as the link was reopened (it went on the old link).
+    last_forgotten_on_reopening: bool = False
 
     #: Why the lock is unknown although start or stop was sent (a raw write); ``None`` if not.
     lock_unknown_because: str | None = None
@@ -88,23 +90,29 @@ class CommandedState:
             self.mode_unknown_because = _RESET_MODE_REASON
         self._clear_set_points()
 
-    def forget_after_reopening(self, *, stopped: bool) -> None:
+    def forget_after_reopening(self, *, stopped: bool, sent_on_it: bool = False) -> None:
         """The link was lost and reopened: the driver's first frames on it put the motion at
         rest (zero thrust), and a board reset by the reopened port (DTR) or stopped by its own
         failsafe (P17) is locked; so the lock is unknown unless ``stopped`` (a ``#stop!`` went
-        on the reopened link), and the motion as last sent is at rest.
+        on the reopened link), and the motion as last sent is at rest. The last command sent
+        is forgotten unless ``sent_on_it`` (the tool's own frame went on the reopened link):
+        shown, it went on the old link, and its set-points are the driver's zeros now.
 
         >>> state = CommandedState()
         >>> state.apply(Command("start"))
         >>> state.apply(Command("th", (90, 30)))
         >>> state.forget_after_reopening(stopped=False)
-        >>> state.lock_text(), state.power_percent
-        ('unknown: after the link was reopened (the controller may have reset)', 0)
+        >>> state.lock_text(), state.power_percent, state.last_command
+        ('unknown: after the link was reopened (the controller may have reset)', 0, None)
         """
         if not stopped:
             self.forget_lock(_REOPENED_LOCK_REASON)
         self.power_percent = 0
         self.vertical_thrust_percent = 0
+        if not sent_on_it:
+            self.last_command = None
+            self.last_dropped_because = None
+            self.last_forgotten_on_reopening = True
 
     @property
     def lock_unknown_after_reset(self) -> bool:
@@ -135,6 +143,7 @@ class CommandedState:
         if own and not command.spec.is_query:  # (the driver's own frames are not "last sent")
             self.last_command = command
             self.last_dropped_because = warning
+            self.last_forgotten_on_reopening = False
         if warning is not None:
             return warning
         name = command.name

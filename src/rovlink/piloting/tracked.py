@@ -94,6 +94,7 @@ class TrackedClient:
         #: The link was lost and is being reopened (the client was connected with reconnect).
         self.link_down = False
         self._stopped_while_down = False
+        self._sent_while_down = False  # a frame of the tool's own went on the reopened link
         client.subscribe(self._on_event)
 
     def add_sent_listener(self, listener: SentCallback) -> None:
@@ -150,9 +151,12 @@ class TrackedClient:
         if not isinstance(event, BytesSent):
             return
         command = event.command
-        if self.link_down and command is not None and command.name == "stop":
-            self._stopped_while_down = True  # (the reopened link's first frame)
-        if event.by_session:
+        # A #stop! asked for while the link was down goes first on the reopened one, written
+        # by the driver but the operator's all the same: it is "last sent".
+        kept_stop = self.link_down and command is not None and command.name == "stop"
+        if kept_stop:
+            self._stopped_while_down = True
+        if event.by_session and not kept_stop:
             # The driver's own frames: keep-alives and fences are left out; the others (#crcoff!
             # re-asserted, zero thrust after motion_timeout) change the state and are shown as
             # sent, but "last sent" stays the operator's.
@@ -160,6 +164,8 @@ class TrackedClient:
                 return
             self._tell(SentFrame(event.data, command, self.commanded.apply(command, own=False)))
             return
+        if self.link_down:
+            self._sent_while_down = True  # (the reopened link's first frames: a kept #stop!)
         if command is None or not _one_whole_frame(event.data):
             # A raw write whose effect is unknown: a partial frame may complete one already in
             # the controller's buffer (raw #sta, then raw rt! is #start!).
@@ -170,10 +176,12 @@ class TrackedClient:
     def _on_link_state(self, state: str) -> None:
         if state == "lost":
             self.link_down = True
-            self._stopped_while_down = False
+            self._stopped_while_down = self._sent_while_down = False
         elif state == "reconnected":
             self.link_down = False
-            self.commanded.forget_after_reopening(stopped=self._stopped_while_down)
+            self.commanded.forget_after_reopening(
+                stopped=self._stopped_while_down, sent_on_it=self._sent_while_down
+            )
 
     def _tell(self, sent: SentFrame) -> None:
         for listener in self._listeners:

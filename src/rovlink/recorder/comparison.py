@@ -2,7 +2,9 @@
 ones: how a firmware author checks a new build against last week's dive.
 
 The program's own commands are replayed (not the driver's keep-alives, retries and fences: the
-replaying driver makes its own) at their recorded times. Each query's replies are compared value
+replaying driver makes its own), and the driver's own frames that set the motion or the lock
+(an expired motion's zero thrust, a ``#stop!`` kept for a reopened link), at their recorded
+times. Each query's replies are compared value
 by value with the recorded replies, within ``tolerance`` (flags such as the leak latch exactly).
 """
 
@@ -13,7 +15,7 @@ from collections import deque
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, field
 
-from rovlink.protocol import Command, Response, encode
+from rovlink.protocol import Command, Response, Setting, encode
 from rovlink.recorder.entries import Entry, EventEntry, FrameEntry
 from rovlink.recorder.playback import wait_until
 
@@ -57,31 +59,57 @@ class ReplaySummary:
 def replay_steps(entries: Iterable[Entry]) -> list[ReplayStep]:
     """The program's commands in a recording, each query with its recorded replies.
 
-    A query that failed (a ``query_failed`` event) awaits the driver's retry, the next command
-    of its name (the driver's fence may come first); if a command of another name comes first,
-    the failure was final and the query recorded no reply (the later replies of its name are
-    the later queries'). A query whose reply the recording ends before (a ``--split`` part, a
-    killed recorder) is resent but not compared: what it got is not known.
+    A query that failed (a ``query_failed`` event) awaits the driver's retry, and is answered
+    by the retry's replies; without one, the failure was final and the query recorded no reply
+    (the later replies of its name are the later queries'). The driver's events mark each
+    retry (a frame's ``retry``); in a recording without the marks (a tap's, an older one) the
+    retry is taken to be the next command of its name (the driver's fence may come first), and
+    the failure final if a command of another name comes first. A query whose reply the
+    recording ends before (a ``--split`` part, a killed recorder) is resent but not compared:
+    what it got is not known.
     """
     steps: list[ReplayStep] = []
-    awaiting: dict[str, deque[ReplayStep]] = {}
+    # Per name, the queries awaiting replies in the order they went; with retries marked, the
+    # driver's own (keep-alives, fences: None) among them, whose replies are no program's.
+    awaiting: dict[str, deque[ReplayStep | None]] = {}
     failed: set[str] = set()  # names whose oldest awaiting query failed, a retry not yet seen
+    # With retries marked: the queries that failed, per name, oldest first, awaiting a retry.
+    retrying: dict[str, deque[ReplayStep]] = {}
+    marked = False  # the recording marks retries (a command's ``retry`` is not None)
     for entry in entries:
         if isinstance(entry, EventEntry):
-            if entry.event == "query_failed" and awaiting.get(entry.name):
-                awaiting[entry.name][0].recorded = None  # (a part of a reply: discarded)
+            queue = awaiting.get(entry.name)
+            if entry.event != "query_failed" or not queue:
+                continue
+            failing = queue[0]
+            if failing is None:  # (the driver's own query failed: it makes another)
+                queue.popleft()
+                continue
+            failing.recorded = None  # (a part of a reply: discarded)
+            if marked:  # it awaits its retry, if one comes, and no reply until then
+                retrying.setdefault(entry.name, deque()).append(failing)
+                queue.popleft()
+            else:
                 failed.add(entry.name)
             continue
         if not isinstance(entry, FrameEntry):
             continue
         if entry.direction == "out" and entry.kind == "command":
+            marked |= entry.retry is not None
+            if entry.retry:
+                retried = retrying.get(entry.name)
+                if retried:  # awaits its replies again, now behind the queries sent before
+                    awaiting.setdefault(entry.name, deque()).append(retried.popleft())
+                continue
             if entry.name in failed:
                 # Its retry (the driver's, in whichever way it marks it; a program that asks
                 # again at once after a final failure cannot be told from one): the query
                 # awaits its reply still.
                 failed.discard(entry.name)
                 continue
-            if entry.by_session:
+            if entry.by_session and not _moves_or_locks(entry):
+                if marked and entry.kind == "command" and Command(entry.name).spec.is_query:
+                    awaiting.setdefault(entry.name, deque()).append(None)
                 continue  # (a fence, a keep-alive, a mode frame: no retry and no decision)
             for name in failed:  # the program went on: those failures were final
                 awaiting[name].popleft()
@@ -95,18 +123,33 @@ def replay_steps(entries: Iterable[Entry]) -> list[ReplayStep]:
             queue = awaiting.get(entry.query)
             if not queue:
                 continue  # answers a query of the driver's own (a keep-alive)
-            step = queue[0]
-            if step.recorded is None:
-                step.recorded = []
-            step.recorded.append(Response(entry.name, entry.values))
-            if len(step.recorded) >= step.expected_count:
+            answered = queue[0]
+            if answered is None:  # (a keep-alive, a fence: one reply each)
+                queue.popleft()
+                continue
+            if answered.recorded is None:
+                answered.recorded = []
+            answered.recorded.append(Response(entry.name, entry.values))
+            if len(answered.recorded) >= answered.expected_count:
                 queue.popleft()
     for name, queue in awaiting.items():
-        for step in queue:
+        for waiting in queue:
+            if waiting is None:
+                continue
             if name not in failed:  # (a failure the recording ends on: no reply, as recorded)
-                step.expected_count = 0
+                waiting.expected_count = 0
             failed.discard(name)  # (only the oldest had failed)
     return steps
+
+
+def _moves_or_locks(entry: FrameEntry) -> bool:
+    """Whether a frame the driver wrote itself set the robot's motion or lock: the zero thrust
+    of an expired motion (P23) or of a reopened link, a ``#stop!`` kept for a reopened link.
+    The controller acted on them as on the program's, so a replay sends them where they were
+    (the replaying driver expires no motion of its own: at another ``--speed`` it would at
+    other points of the session)."""
+    spec = Command(entry.name, entry.values).spec
+    return not spec.is_query and (spec.motion or spec.setting is Setting.LOCKED)
 
 
 def _text(responses: Iterable[Response] | None) -> str:

@@ -81,7 +81,7 @@ class HeaderEntry:
 class WireEntry:
     """Bytes exactly as on the wire; ``by_session``: written by the driver itself (keep-alive,
     fence, mode frame, expired motion), not by the program (a retry is the query again, after
-    its ``query_failed`` event)."""
+    its ``query_failed`` event: its frame entry says so)."""
 
     channel: ClassVar[str] = "wire"
     t_s: float
@@ -115,7 +115,10 @@ class FrameEntry:
 
     A response carries ``query``, the name of the query it answered (``None`` when it answered
     none), ``round_trip_ms`` from that query's frame, and ``late`` if it came after the query
-    had failed (discarded by the driver).
+    had failed (discarded by the driver). A command recorded from the driver's events carries
+    ``retry``: ``True`` for a query the driver sent again after an attempt failed, ``False``
+    for any other; ``None`` where nobody knows (bytes seen by a tap or a sniffer, or a
+    recording older than the field).
     """
 
     channel: ClassVar[str] = "frames"
@@ -129,6 +132,7 @@ class FrameEntry:
     query: str | None = None
     round_trip_ms: float | None = None
     late: bool = False
+    retry: bool | None = None
 
     def to_json(self) -> dict[str, Any]:
         data = dataclasses.asdict(self)
@@ -382,6 +386,7 @@ CHANNELS: dict[str, dict[str, Any]] = {
             "query": {"type": ["string", "null"]},
             "round_trip_ms": {"type": ["number", "null"]},
             "late": {"type": "boolean"},
+            "retry": {"type": ["boolean", "null"]},
         },
     },
     "events": {

@@ -12,6 +12,7 @@ from __future__ import annotations
 import json
 import struct
 from collections.abc import Iterator
+from typing import BinaryIO, cast
 
 from mcap.records import Channel, Header, Message
 from mcap.stream_reader import StreamReader
@@ -33,6 +34,26 @@ _MAGIC = b"\x89MCAP0\r\n"
 _RECORD_SIZE_LIMIT = 64 << 20
 
 
+class _PositionCounted:
+    """A pipe, with the position the MCAP writer asks for as it indexes its chunks (a pipe has
+    none of its own: ``tell`` fails with "Illegal seek")."""
+
+    def __init__(self, stream: BinaryIO) -> None:
+        self._stream = stream
+        self._position = 0
+
+    def write(self, data: bytes) -> int:
+        written = self._stream.write(data)
+        self._position += len(data)
+        return written
+
+    def tell(self) -> int:
+        return self._position
+
+    def flush(self) -> None:
+        self._stream.flush()
+
+
 class McapSink(FileSink):
     """Writes entries as MCAP messages."""
 
@@ -40,7 +61,8 @@ class McapSink(FileSink):
 
     def __init__(self, path: str) -> None:
         super().__init__(path)
-        self._writer = Writer(self._file)
+        stream = self._file if self._on_disk else cast("BinaryIO", _PositionCounted(self._file))
+        self._writer = Writer(stream)
         self._writer.start(profile=PROFILE, library=f"rovlink {rovlink.__version__}")
         self._channel_ids: dict[str, int] = {}
         for channel, schema in CHANNELS.items():

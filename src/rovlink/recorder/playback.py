@@ -40,6 +40,8 @@ def describe(entry: Entry, *, wire: bool = False) -> str | None:
         notes = []
         if entry.by_session:
             notes.append("by the driver")
+        if entry.retry:
+            notes.append("retry by the driver")
         if entry.query is not None:
             answer = f"answers {entry.query}"
             if entry.round_trip_ms is not None:

@@ -122,6 +122,10 @@ class Recorder:
         self._file_started_s = time.monotonic()
         self._write_header()
         self._stopping = threading.Event()
+        # Wakes the writer for :meth:`sync`, and its caller once it is done.
+        self._sync_changed = threading.Condition()
+        self._syncs_asked = 0
+        self._syncs_done = 0
         self._thread = threading.Thread(target=self._run, name="rovlink-recorder", daemon=True)
         self._thread.start()
 
@@ -156,11 +160,28 @@ class Recorder:
         sink = self._sink
         return self._held_before + (sink.held() if sink is not None else 0)
 
+    def sync(self, timeout_s: float = 5.0) -> str | None:
+        """Write and make durable everything handed over so far, and return :attr:`error`:
+        whether the recording holds the session up to now. A command checks it before it ends,
+        while it can still stop the robot (a failure may show only as the file is flushed).
+        Waits at most ``timeout_s`` for a disk that does not answer (``None`` back then, as the
+        recording has not failed yet)."""
+        with self._sync_changed:
+            self._syncs_asked += 1
+            asked = self._syncs_asked
+            self._sync_changed.notify_all()
+            self._sync_changed.wait_for(
+                lambda: self._syncs_done >= asked or not self._thread.is_alive(), timeout_s
+            )
+        return self.error
+
     # -- ending ------------------------------------------------------------------------------
 
     def close(self) -> None:
         """Write what is left, finish the file (its index) and stop the writer."""
-        self._stopping.set()
+        with self._sync_changed:
+            self._stopping.set()
+            self._sync_changed.notify_all()
         self._thread.join()
         self._accepting = False
 
@@ -180,12 +201,21 @@ class Recorder:
     def _run(self) -> None:
         last_flush_s = time.monotonic()
         try:
-            while not self._stopping.wait(_DRAIN_INTERVAL_S):
+            while True:
+                with self._sync_changed:
+                    self._sync_changed.wait_for(
+                        lambda: self._stopping.is_set() or self._syncs_asked > self._syncs_done,
+                        _DRAIN_INTERVAL_S,
+                    )
+                    asked = self._syncs_asked
+                if self._stopping.is_set():
+                    break
                 self._drain()
                 now_s = time.monotonic()
-                if now_s - last_flush_s >= FLUSH_INTERVAL_S:
+                if now_s - last_flush_s >= FLUSH_INTERVAL_S or asked > self._syncs_done:
                     last_flush_s = now_s
                     self._flush_or_rotate(now_s)
+                self._synced(asked)
             self._drain()
             if self._sink is not None:
                 self._close_sink(self._sink)
@@ -194,6 +224,17 @@ class Recorder:
         except Exception:  # a bug in the writer must stop the recording, never the link
             logger.exception("the recorder's writer failed")
             self._fail("the recorder failed (logged)")
+        finally:
+            self._synced(None)  # (nothing more will be written)
+
+    def _synced(self, asked: int | None) -> None:
+        """What :meth:`sync` asked up to ``asked`` (``None``: all) is done: wake its callers."""
+        with self._sync_changed:
+            if asked is None:
+                asked = self._syncs_asked
+            if asked > self._syncs_done:
+                self._syncs_done = asked
+                self._sync_changed.notify_all()
 
     def _drain(self) -> None:
         queue = self._queue

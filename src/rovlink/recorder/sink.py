@@ -10,6 +10,7 @@ cut short or damaged, after everything readable before the damage.
 from __future__ import annotations
 
 import os
+import stat
 from typing import BinaryIO, Protocol
 
 from rovlink.recorder.entries import Entry
@@ -80,6 +81,9 @@ class FileSink:
     def __init__(self, path: str) -> None:
         self.path = path
         self._file: BinaryIO = open(path, "wb")  # noqa: SIM115 - closed by close()
+        # A pipe to another program (a FIFO) has no disk to sync to: it refuses fsync (EINVAL),
+        # and the recording stopped at its first flush.
+        self._on_disk = not stat.S_ISFIFO(os.fstat(self._file.fileno()).st_mode)
         self._written = 0
         self._durable = 0
 
@@ -87,14 +91,16 @@ class FileSink:
         """Write the buffers out and ask the system to put them on the disk."""
         written = self._written
         self._file.flush()
-        os.fsync(self._file.fileno())
+        if self._on_disk:
+            os.fsync(self._file.fileno())
         self._durable = written
 
     def held(self) -> int:
         return self._durable
 
     def size_bytes(self) -> int:
-        return self._file.tell()
+        # (A pipe has no position, and nothing it held stays to be counted: never too big.)
+        return self._file.tell() if self._on_disk else 0
 
     def close(self) -> None:
         if not self._file.closed:

@@ -67,11 +67,28 @@ class SessionLog:
         return WireEntry(t_s, wall_ns, direction, data, by_session)
 
     def command(
-        self, t_s: float, wall_ns: int, command: Command, by_session: bool, out: list[Entry]
+        self,
+        t_s: float,
+        wall_ns: int,
+        command: Command,
+        by_session: bool,
+        out: list[Entry],
+        *,
+        retry: bool | None = None,
     ) -> None:
-        """A command went out: its frame, its effect on the lock and the telemetry."""
+        """A command went out: its frame, its effect on the lock and the telemetry
+        (``retry``: whether it was a retry of the driver's, ``None``: not known)."""
         out.append(
-            FrameEntry(t_s, wall_ns, "out", "command", command.name, command.values, by_session)
+            FrameEntry(
+                t_s,
+                wall_ns,
+                "out",
+                "command",
+                command.name,
+                command.values,
+                by_session,
+                retry=retry,
+            )
         )
         setting = command.setting
         if setting is not None and setting[0] is Setting.CHECKSUM:
@@ -165,7 +182,7 @@ class ClientEventLog:
                 if command.spec.is_query:
                     sent = self._sent_at.setdefault(command.name, deque(maxlen=_MAX_AWAITED))
                     sent.append(t_s)
-                log.command(t_s, wall_ns, command, event.by_session, out)
+                log.command(t_s, wall_ns, command, event.by_session, out, retry=event.retry)
         elif isinstance(event, BytesReceived):
             out.append(log.wire(t_s, wall_ns, "in", event.data))
         elif isinstance(event, ReplyReceived):

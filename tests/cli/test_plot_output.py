@@ -1,0 +1,59 @@
+"""``rovlink plot -o IMAGE`` that cannot write its image: one line naming it, and no part of an
+image left behind."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+import rovlink
+from rovlink.recorder import Recorder
+from tests.cli.conftest import RunCli
+
+pytest.importorskip("matplotlib", reason="matplotlib is in the test extra (plot)")
+
+
+@pytest.fixture
+def recording(tmp_path: Path) -> Path:
+    path = tmp_path / "dive.jsonl"
+    recorder = Recorder(str(path), url="sim://?seed=1&realtime=0")
+    with recorder, rovlink.connect("sim://?seed=1&realtime=0", on_event=recorder.on_event) as rov:
+        rov.start()
+        rov.hold_depth(30)
+        for _ in range(5):
+            rov.sensors()
+        rov.stop()
+    return path
+
+
+def test_a_format_whose_program_is_missing_is_one_line(
+    run_cli: RunCli, recording: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # Before, a traceback: matplotlib's .pgf needs LaTeX ("'xelatex' not found").
+    monkeypatch.setenv("PATH", str(tmp_path))  # (no LaTeX there, installed or not)
+    image = tmp_path / "dive.pgf"
+    result = run_cli("plot", str(recording), "-o", str(image))
+    assert result.status == 1
+    assert result.err.startswith(f"rovlink plot: cannot write {image}: ")
+    assert "not found" in result.err
+    assert "Traceback" not in result.err
+    assert not image.exists()
+
+
+def test_an_image_cut_short_is_not_left_behind(
+    run_cli: RunCli, recording: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # Before, the half-written PNG of a disk that filled up stayed, named as the plot.
+    from matplotlib.figure import Figure  # (the plot extra)
+
+    def fill_up(self: Figure, path: str, **kwargs: object) -> None:
+        Path(path).write_bytes(b"\x89PNG\r\n\x1a\n")  # its start, and then the disk was full
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(Figure, "savefig", fill_up)
+    image = tmp_path / "dive.png"
+    result = run_cli("plot", str(recording), "-o", str(image))
+    assert result.status == 1
+    assert result.err == f"rovlink plot: cannot write {image}: No space left on device\n"
+    assert not image.exists()
