@@ -194,6 +194,30 @@ def _commands_sent_on_connect(monkeypatch: pytest.MonkeyPatch) -> list[str]:
     return sent
 
 
+def _cut_before_the_stop_on_close(path: Path) -> None:
+    """Leave the recording at ``path`` as a killed recorder or a ``--split`` part leaves it:
+    without the ``#stop!`` the driver sent as the link closed (nor anything after)."""
+    lines = path.read_text(encoding="utf-8").splitlines(keepends=True)
+    cut = next(
+        index
+        for index, line in enumerate(lines)
+        if '"name":"stop"' in line and '"by_session":true' in line
+    )
+    path.write_text("".join(lines[:cut]), encoding="utf-8")
+
+
+def test_replay_of_a_program_that_closed_while_moving_ends_with_the_recorded_stop(
+    run_cli: RunCli, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    path = tmp_path / "dive.jsonl"
+    assert run_cli("send", "sim://?seed=1", "--record", str(path), "start", "th 0 50").status == 0
+    sent = _commands_sent_on_connect(monkeypatch)
+    result = run_cli("replay", str(path), "--to", "sim://?seed=1")
+    assert result.status == 0, result.err
+    assert sent[-3:] == ["start", "th", "stop"]  # the driver's stop on close, as recorded
+    assert "rovlink replay: sent #stop!" not in result.err
+
+
 @pytest.mark.parametrize(
     ("recorded", "stopped"),
     [
@@ -213,6 +237,8 @@ def test_replay_to_a_controller_never_leaves_the_robot_moving(
 ) -> None:
     path = tmp_path / "dive.jsonl"
     assert run_cli("send", "sim://?seed=1", "--record", str(path), *recorded).status == 0
+    if stopped:
+        _cut_before_the_stop_on_close(path)
     sent = _commands_sent_on_connect(monkeypatch)
     result = run_cli("replay", str(path), "--to", "sim://?seed=1")
     assert result.status == 0, result.err
