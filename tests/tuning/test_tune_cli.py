@@ -314,3 +314,25 @@ def test_apply_leaves_gains_set_that_met_the_targets(
     assert main(["tune", "sim://", "--yes", "--apply"]) == 0
     assert sent == ["#mvpdp.58!", "#mvpdi.78!", "#mvpidd.34!"]
     assert capsys.readouterr().out.splitlines()[-1] == "gains applied; motors locked"
+
+
+def test_a_plot_whose_format_needs_a_missing_program_is_one_line_after_the_gains_went_back(
+    capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch, tmp_path: Path
+) -> None:
+    # Before, a traceback: matplotlib's .pgf needs LaTeX ("'xelatex' not found").
+    pytest.importorskip("matplotlib", reason="matplotlib is in the test extra (plot)")
+    result = _result_missing_the_settling_target()
+    result.relay.times_s = [0.0, 1.0, 2.0]  # type: ignore[attr-defined]
+    result.relay.depths_cm = [100, 104, 98]  # type: ignore[attr-defined]
+    result.relay.outputs_percent = [30, -30, 30]  # type: ignore[attr-defined]
+    monkeypatch.setattr("rovlink.tuning.autotune", lambda *_: result)
+    sent = _sent_frames(monkeypatch)
+    monkeypatch.setenv("PATH", str(tmp_path))  # (no LaTeX there, installed or not)
+    image = tmp_path / "tune.pgf"
+    assert main(["tune", "sim://", "--yes", "--plot", str(image)]) == 1
+    assert sent == ["#mvpdp.40!", "#mvpdi.30!", "#mvpidd.20!"]  # the gains went back first
+    err = capsys.readouterr().err
+    assert err.startswith(f"rovlink tune: cannot write {image}: ")
+    assert "not found" in err
+    assert "Traceback" not in err
+    assert not image.exists()

@@ -1,15 +1,22 @@
 """An output file named on the command line is checked before the command's work, not after
 it: ``check --junit`` runs for most of a minute, ``tune --plot`` for minutes with the motors
-running, and a name that cannot be written would be found only at the end."""
+running, and a name that cannot be written would be found only at the end. What fails still at
+the end (a full disk, a format needing a program not installed) is one line, with no part of the
+file left (:func:`save_figure`)."""
 
 from __future__ import annotations
 
+import contextlib
 import os
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-from rovlink.cli.failure import UsageError
+from rovlink.cli.failure import CommandError, UsageError, reason
 
-__all__ = ["check_image_suffix", "check_writable"]
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
+
+__all__ = ["check_image_suffix", "check_writable", "save_figure"]
 
 
 def check_writable(option: str, path: str) -> None:
@@ -39,3 +46,18 @@ def check_image_suffix(option: str, path: str) -> None:
         others = sorted(set(formats) - set(common))
         known = ", ".join(f".{name}" for name in common + others)
         raise UsageError(f"{option} {path}: name the image format by its suffix: {known}")
+
+
+def save_figure(figure: Figure, path: str) -> None:
+    """Write ``figure`` to ``path``; a failure is a :class:`CommandError` of one line, and
+    leaves no part of an image there (a truncated PNG opens as a broken one, or as a plot that
+    ends early)."""
+    try:
+        figure.savefig(path)
+    except (OSError, ValueError, RuntimeError) as error:
+        # (RuntimeError: a format that needs a program not installed, .pgf's LaTeX)
+        if os.path.isfile(path) and not os.path.islink(path):
+            with contextlib.suppress(OSError):
+                os.remove(path)
+        why = str(error) if isinstance(error, RuntimeError) else reason(error)  # (its own words)
+        raise CommandError(f"cannot write {path}: {why}") from None

@@ -5,19 +5,16 @@ pip install 'rovlink[plot]')."""
 from __future__ import annotations
 
 import argparse
-import contextlib
 import os
 import sys
 from collections.abc import Iterator
 from typing import TYPE_CHECKING
 
-from rovlink.cli.failure import CommandError, UsageError, reason
+from rovlink.cli.failure import CommandError, UsageError
 from rovlink.cli.link_options import file_name
-from rovlink.cli.output_file import check_image_suffix
+from rovlink.cli.output_file import check_image_suffix, save_figure
 
 if TYPE_CHECKING:
-    from matplotlib.figure import Figure
-
     from rovlink.recorder import Entry
 
 __all__ = ["EPILOG"]
@@ -66,20 +63,6 @@ def _check_window(display: str | None) -> None:
             f"--show cannot open a window on display {display} (no display there, or no "
             "window toolkit for matplotlib: tkinter, Qt or GTK); use -o IMAGE"
         )
-
-
-def _save(figure: Figure, path: str) -> None:
-    """Write the plot to ``path``; a failure is one line, and leaves no part of an image there
-    (a truncated PNG opens as a broken one, or as a plot that ends early)."""
-    try:
-        figure.savefig(path)
-    except (OSError, ValueError, RuntimeError) as error:
-        # (RuntimeError: a format that needs a program not installed, .pgf's LaTeX)
-        if os.path.isfile(path) and not os.path.islink(path):
-            with contextlib.suppress(OSError):
-                os.remove(path)
-        why = str(error) if isinstance(error, RuntimeError) else reason(error)  # (its own words)
-        raise CommandError(f"cannot write {path}: {why}") from None
 
 
 def run(args: argparse.Namespace) -> int:
@@ -134,7 +117,7 @@ def run(args: argparse.Namespace) -> int:
         window = pyplot.figure(figsize=FIGURE_SIZE_IN, layout="constrained")
     figure = plot_series(series, title=_title(args.file), figure=window)
     if args.output:
-        _save(figure, args.output)
+        save_figure(figure, args.output)
         print(f"plotted {args.file} to {args.output}", file=sys.stderr)
     if window is not None:
         pyplot.show()

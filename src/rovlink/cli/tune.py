@@ -13,9 +13,9 @@ import sys
 from typing import TYPE_CHECKING
 
 from rovlink.cli import link_options
-from rovlink.cli.failure import CommandError, UsageError, reason
+from rovlink.cli.failure import CommandError, UsageError
 from rovlink.cli.link_options import bounded_int
-from rovlink.cli.output_file import check_image_suffix, check_writable
+from rovlink.cli.output_file import check_image_suffix, check_writable, save_figure
 
 if TYPE_CHECKING:
     from rovlink.client import Client
@@ -429,8 +429,6 @@ def _plot(result: TuneResult, path: str) -> None:
         bottom.legend(loc="best")
     figure.tight_layout()
     try:
-        figure.savefig(path)
-    except (OSError, ValueError) as error:
-        raise CommandError(f"cannot write {path}: {reason(error)}") from None
+        save_figure(figure, path)
     finally:
         plt.close(figure)
