@@ -7,6 +7,7 @@ import contextlib
 import os
 import re
 import signal
+import socket
 import subprocess
 import tty
 from collections.abc import Iterator
@@ -163,6 +164,35 @@ def test_the_watchdog_of_a_real_process_gives_neutral(tmp_path: Path) -> None:
             # No keep-alive: the controller's own watchdog stops the thrusters.
             assert wait_until(lambda: is_neutral(pulses(read_log(log))))
             assert "failsafe: no valid frame" in controller.stderr()
+
+
+def test_a_tcp_host_that_dies_while_driving_is_stopped_though_a_monitor_keeps_talking(
+    tmp_path: Path,
+) -> None:
+    # A pilot's station drives over TCP while a monitor on the pseudo-terminal polls the
+    # sensors. The station is killed: its motion must not run on, fed by the monitor's queries.
+    log = tmp_path / "i2c.jsonl"
+    config = make_fake_toml(tmp_path, log, watchdog_s=0.3)
+    with running_controller(tmp_path, "--config", str(config), "--pty", "--tcp", "0") as controller:
+        assert controller.pty_path is not None
+        assert controller.tcp_url is not None
+        host, port = controller.tcp_url.removeprefix("socket://").rsplit(":", 1)
+        monitor = os.open(controller.pty_path, os.O_RDWR | os.O_NOCTTY)
+        try:
+            tty.setraw(monitor)
+            with socket.create_connection((host, int(port)), timeout=5) as station:
+                station.sendall(b"#start!#th.90.50!")
+                assert wait_until(lambda: _moving(log))
+            # The station is gone; the monitor keeps asking for the sensors.
+
+            def stopped_while_polled() -> bool:
+                os.write(monitor, b"#qsa!")
+                return is_neutral(pulses(read_log(log)))
+
+            assert wait_until(stopped_while_polled, timeout_s=5.0), pulses(read_log(log))
+        finally:
+            os.close(monitor)
+        assert "failsafe: no valid frame" in controller.stderr()
 
 
 @pytest.mark.parametrize("transport", ["pty", "tcp"])

@@ -37,6 +37,36 @@ def test_any_valid_frame_keeps_the_link_alive() -> None:
     assert not rig.controller.locked
 
 
+def test_another_line_does_not_keep_the_driving_line_alive() -> None:
+    # A host drives on one line, a monitor polls on another (a TCP client and the PTY): when
+    # the driving host dies, the monitor's queries must not keep its motion running.
+    rig = make_rig(watchdog_s=0.5)
+    rig.controller.receive(b"#start!#th.0.100!", "station")
+    last_frame_s = rig.clock.time_s
+    while not rig.controller.locked and rig.clock.time_s < 5.0:
+        rig.controller.receive(b"#qsa!#mgmp.255!", "monitor")
+        rig.tick()
+    assert rig.controller.locked
+    assert 0.5 - 1e-6 <= rig.clock.time_s - last_frame_s <= 0.5 + TICK_S + 1e-6
+    assert set(rig.thrusters.duties) == {0}
+
+
+def test_the_line_that_drives_last_is_the_one_that_must_stay_alive() -> None:
+    rig = make_rig(watchdog_s=0.5)
+    rig.controller.receive(b"#start!", "first")
+    rig.run(0.3)
+    rig.controller.receive(b"#th.0.50!", "second")  # the second host takes over the driving
+    for _ in range(5):  # the first goes quiet; the second keeps its link alive with queries
+        rig.run(0.3)
+        rig.controller.receive(b"#qd!", "second")
+    assert not rig.controller.locked
+    rig.controller.receive(b"#th.0.60!", "first")  # back to the first, which then goes quiet
+    rig.run(0.3)
+    rig.controller.receive(b"#qd!", "second")
+    rig.run(0.3)
+    assert rig.controller.locked
+
+
 def test_bad_frames_and_replies_do_not_keep_the_link_alive() -> None:
     rig = make_rig()
     rig.send(b"#start!")

@@ -99,6 +99,11 @@ class Controller:
         # frame (P3), so the others are switched when that frame is executed.
         self._decoders: dict[Hashable, Decoder] = {}
         self._reading: Decoder | None = None
+        self._reading_line: Hashable = None
+        # The line whose `start` or motion command was obeyed last: only its frames feed the
+        # link-loss failsafe (P17), so a host that dies while driving is stopped even while
+        # another line (a monitor polling the sensors) keeps talking.
+        self._driving_line: Hashable = None
         self._mixer = ThrusterMixer(config.thrusters, config.max_pwm)
         self._pid = DepthPid(config.depth_pid)
         self._idle_duties = [0] * len(config.thrusters)
@@ -179,6 +184,7 @@ class Controller:
             decoder = self._decoders[line] = Decoder(algorithm=self._algorithm)
             decoder.checksum_enabled = self._checksum_enabled
         self._reading = decoder
+        self._reading_line = line
         try:
             for event in decoder.feed(data):
                 if isinstance(event, Frame):
@@ -191,6 +197,7 @@ class Controller:
                     self._debug(f"ignored text between frames: {event.text.strip()[:60]!r}")
         finally:
             self._reading = None
+            self._reading_line = None
 
     def forget_line(self, line: Hashable) -> None:
         """``line`` is gone: what it left of a frame is dropped."""
@@ -302,12 +309,17 @@ class Controller:
             self._drop(frame, "a reply, not a command")
             return
         assert isinstance(message, Command)
-        # Any valid command keeps the link alive (P17), even one dropped below.
-        self._last_frame_s = self._hardware.clock.now_s()
         spec = message.spec
+        line = self._reading_line
         if spec.motion and self._locked:
             self._drop(frame, "motors are locked; send start first")
             return
+        if spec.motion or message.setting == (Setting.LOCKED, False):  # motion, or `start`
+            self._driving_line = line
+        # Any valid command of the driving line keeps the link alive (P17), even one dropped
+        # below (a query is enough).
+        if line == self._driving_line:
+            self._last_frame_s = self._hardware.clock.now_s()
         if spec.mode is not None and spec.mode is not self._vertical_mode:
             self._drop(frame, f"needs {spec.mode} mode, the vertical mode is {self._vertical_mode}")
             return
