@@ -1,5 +1,6 @@
 """A controller served on several lines at once (a PTY and a TCP client): each line's bytes are
-framed on their own; the checksum mode is the controller's, across lines."""
+framed on their own and has its own checksum mode; the lock and the set-points are the
+controller's."""
 
 from __future__ import annotations
 
@@ -20,18 +21,39 @@ def test_half_a_frame_on_one_line_survives_a_whole_frame_on_another(rig: Rig) ->
     assert _send(rig, b"d!", PTY) == b"$qd.0!"
 
 
-def test_a_checksum_mode_set_on_one_line_holds_on_the_others(rig: Rig) -> None:
+def test_a_checksum_mode_set_on_one_line_leaves_the_others_in_theirs(rig: Rig) -> None:
+    # Before, the mode was the controller's: a program on the PTY that put it on made every
+    # frame of a program on TCP a bad one (and each re-asserted its mode in turn, P21).
     assert _send(rig, b"#qd!", TCP) == b"$qd.0!"  # (the TCP line's decoder exists)
     assert _send(rig, b"#crcon!", PTY) == b""
-    assert _send(rig, b"#qd!", TCP) == b""  # no checksum: dropped on every line
-    assert _send(rig, b"#qd8C!", TCP) == b"$qd.0A2!"
-    assert _send(rig, b"#crcoff!", TCP) == b""
+    assert _send(rig, b"#qd!", TCP) == b"$qd.0!"  # plain on TCP, still
+    assert _send(rig, b"#qd!", PTY) == b""  # no checksum on the PTY: dropped
+    assert _send(rig, b"#qd8C!", PTY) == b"$qd.0A2!"
+    assert rig.controller.state(PTY).checksum_enabled
+    assert not rig.controller.state(TCP).checksum_enabled
+    assert _send(rig, b"#crcoff!", TCP) == b""  # off where it was off: the PTY stays on
+    assert _send(rig, b"#qd8C!", PTY) == b"$qd.0A2!"
+
+
+def test_a_line_opened_later_starts_with_checksum_mode_off(rig: Rig) -> None:
+    assert _send(rig, b"#crcon!", PTY) == b""
+    assert _send(rig, b"#qd!", TCP) == b"$qd.0!"
+
+
+def test_a_reset_puts_every_line_back_to_checksum_mode_off(rig: Rig) -> None:
+    assert _send(rig, b"#crcon!", PTY) == b""
+    rig.controller.reset()
     assert _send(rig, b"#qd!", PTY) == b"$qd.0!"
 
 
-def test_a_line_opened_later_starts_in_the_controllers_checksum_mode(rig: Rig) -> None:
+def test_a_stop_on_one_line_stops_the_motion_another_line_commanded(rig: Rig) -> None:
+    # Locking and set-points are the controller's, whatever the lines' checksum modes.
+    assert _send(rig, b"#start!#th.0.100!", TCP) == b""
     assert _send(rig, b"#crcon!", PTY) == b""
-    assert _send(rig, b"#qd8C!", TCP) == b"$qd.0A2!"
+    assert _send(rig, b"#stop!", PTY) == b""  # honoured bare in checksum mode (P3)
+    state = rig.controller.state()
+    assert state.locked
+    assert state.power_percent == 0
 
 
 def test_a_mode_frame_switches_its_own_line_per_frame(rig: Rig) -> None:

@@ -6,9 +6,8 @@ import contextlib
 import os
 import select
 import socket
-import threading
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 
 import pytest
 import serial
@@ -18,36 +17,9 @@ from rovlink.controller import ControllerConfig
 from rovlink.controller import lines as lines_module
 from rovlink.sim import SimConfig
 from rovlink.sim.server import BUSY_MESSAGE, LINE_BUFFER_BYTES, SimServer, parse_tcp_address
+from tests.sim.conftest import StartServer
 
 pytestmark = pytest.mark.integration
-
-StartServer = Callable[..., SimServer]
-
-
-@pytest.fixture
-def start_server() -> Iterator[StartServer]:
-    running: list[tuple[SimServer, threading.Event, threading.Thread]] = []
-
-    def start(
-        config: SimConfig | None = None, *, pty: bool = True, tcp: bool = True, **options: object
-    ) -> SimServer:
-        server = SimServer(config, seed=1, **options)  # type: ignore[arg-type]
-        if pty:
-            server.open_pty()
-        if tcp:
-            server.listen_tcp("127.0.0.1", 0)
-        stop = threading.Event()
-        thread = threading.Thread(target=server.serve, args=(stop.is_set,), daemon=True)
-        thread.start()
-        running.append((server, stop, thread))
-        return server
-
-    yield start
-    for server, stop, thread in running:
-        stop.set()
-        thread.join(timeout=5)
-        assert not thread.is_alive()
-        server.close()
 
 
 def _read_frames(read: Callable[[], bytes], count: int, timeout_s: float = 5.0) -> bytes:

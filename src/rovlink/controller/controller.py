@@ -95,10 +95,15 @@ class Controller:
         self._algorithm = get_algorithm(config.checksum_algorithm)
         # One decoder for each line the controller is served on (a PTY and a TCP client at
         # once): half a frame on one line must not be spoilt by bytes from another. The
-        # checksum mode is the controller's, and a decoder switches its own as it reads a mode
-        # frame (P3), so the others are switched when that frame is executed.
+        # checksum mode is each line's own: it is how the bytes of that wire are framed, and a
+        # program on one line switching it must not make every frame of a program on another
+        # line a bad one (the two would take turns re-asserting their modes, P21).
         self._decoders: dict[Hashable, Decoder] = {}
-        self._reading: Decoder | None = None
+        # The lines whose replies carry a checksum. A line's decoder switches its own mode as
+        # it reads a mode frame, possibly ahead of frames of the same chunk not yet executed;
+        # this switches when the mode frame is executed, so a reply never takes a mode set
+        # after its query (P3).
+        self._checksum_lines: set[Hashable] = set()
         self._reading_line: Hashable = None
         # The line whose `start` or motion command was obeyed last: only its frames feed the
         # link-loss failsafe (P17), so a host that dies while driving is stopped even while
@@ -145,11 +150,7 @@ class Controller:
         for decoder in self._decoders.values():
             decoder.reset()
             decoder.checksum_enabled = False
-        # The mode replies are encoded in. The decoder switches its own mode as it reads a
-        # mode frame, possibly ahead of frames of the same chunk not yet executed; this one
-        # switches when the mode frame is executed, so a reply never takes a mode set after
-        # its query (P3).
-        self._checksum_enabled = False
+        self._checksum_lines.clear()
         self._debug_enabled = False
         self._locked = True
         self._vertical_mode = VerticalMode.DEPTH
@@ -180,10 +181,8 @@ class Controller:
         """Take bytes received on ``line`` (any key naming it; one line: leave it out):
         execute every complete frame in them, answer queries at once."""
         decoder = self._decoders.get(line)
-        if decoder is None:
+        if decoder is None:  # a new line starts with checksum mode off, as after a reset
             decoder = self._decoders[line] = Decoder(algorithm=self._algorithm)
-            decoder.checksum_enabled = self._checksum_enabled
-        self._reading = decoder
         self._reading_line = line
         try:
             for event in decoder.feed(data):
@@ -196,12 +195,12 @@ class Controller:
                 elif isinstance(event, Text):
                     self._debug(f"ignored text between frames: {event.text.strip()[:60]!r}")
         finally:
-            self._reading = None
             self._reading_line = None
 
     def forget_line(self, line: Hashable) -> None:
         """``line`` is gone: what it left of a frame is dropped."""
         self._decoders.pop(line, None)
+        self._checksum_lines.discard(line)
 
     def tick(self) -> None:
         """One control period: sensors, leak latch, watchdog, claw timer, PID, thruster outputs."""
@@ -262,8 +261,9 @@ class Controller:
         self._output.clear()
         return output
 
-    def state(self) -> ControllerState:
-        """A snapshot of the settings and set-points."""
+    def state(self, line: Hashable = None) -> ControllerState:
+        """A snapshot of the settings and set-points; ``checksum_enabled`` is ``line``'s (each
+        line has its own checksum mode)."""
         return ControllerState(
             locked=self._locked,
             vertical_mode=self._vertical_mode,
@@ -277,7 +277,7 @@ class Controller:
             depth_k=self._k,
             leak_latched=self._leak_latched,
             debug_enabled=self._debug_enabled,
-            checksum_enabled=self._checksum_enabled,
+            checksum_enabled=line in self._checksum_lines,
             claw_direction=self._claw_direction,
         )
 
@@ -332,7 +332,7 @@ class Controller:
         self._debug(f"dropped {describe_frame(frame.raw)}: {why}")
 
     def _reply(self, names: tuple[str, ...]) -> None:
-        checksum = self._algorithm if self._checksum_enabled else None
+        checksum = self._algorithm if self._reading_line in self._checksum_lines else None
         values = self._sensor_values(names)
         self._write(b"".join(encode(Response(name, (values[name],)), checksum) for name in names))
 
@@ -361,11 +361,11 @@ class Controller:
 
     def _on_checksum_mode(self, enabled: bool) -> None:
         # The line's decoder has already switched on this frame (P3), and may have read past
-        # it; the other lines' switch now, and replies from here on.
-        self._checksum_enabled = enabled
-        for decoder in self._decoders.values():
-            if decoder is not self._reading:
-                decoder.checksum_enabled = enabled
+        # it; the line's replies switch now. Other lines keep their own mode.
+        if enabled:
+            self._checksum_lines.add(self._reading_line)
+        else:
+            self._checksum_lines.discard(self._reading_line)
         if enabled:
             self._debug(f"checksum mode on ({self._algorithm.name})")
         else:

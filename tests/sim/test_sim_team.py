@@ -1,0 +1,108 @@
+"""Several tools on one simulated controller at once, one on its PTY and one on its TCP port, as
+a team flies a robot: what one tool does to the controller's shared state (the lock, the
+set-points, the link-loss failsafe) and what it must not do to another tool's link (the checksum
+and debug modes)."""
+
+from __future__ import annotations
+
+import socket
+import time
+from collections.abc import Callable
+
+import pytest
+
+import rovlink
+from rovlink.controller import ControllerConfig
+from rovlink.sim import SimConfig
+from rovlink.sim.server import SimServer
+from tests.sim.conftest import StartServer
+
+pytestmark = pytest.mark.integration
+
+
+def _wait_for(condition: Callable[[], bool], what: str, timeout_s: float = 3.0) -> None:
+    deadline = time.monotonic() + timeout_s
+    while not condition():
+        if time.monotonic() > deadline:
+            pytest.fail(f"timed out waiting until {what}")
+        time.sleep(0.005)
+
+
+def _pty_url(server: SimServer) -> str:
+    assert server.pty_path is not None
+    return server.pty_path
+
+
+def _tcp_url(server: SimServer) -> str:
+    assert server.tcp_address is not None
+    host, port = server.tcp_address
+    return f"socket://{host}:{port}"
+
+
+def _moving(server: SimServer) -> bool:
+    return any(server.robot.controller.duties)
+
+
+def _stopped(server: SimServer) -> bool:
+    controller = server.robot.controller
+    return controller.locked and not any(controller.duties)
+
+
+def test_a_tool_in_checksum_mode_leaves_another_tools_plain_link_alone(
+    start_server: StartServer,
+) -> None:
+    # Before, the checksum mode was the controller's: a tool on TCP putting it on made every
+    # query of a tool on the PTY time out, each suspected a reset in turn and re-asserted its
+    # own mode, and so on, query after query.
+    server = start_server()
+    with (
+        rovlink.connect(_pty_url(server), timeout=0.2, retries=1, keepalive=None) as plain,
+        rovlink.connect(
+            _tcp_url(server), checksum=True, timeout=0.2, retries=1, keepalive=None
+        ) as checked,
+    ):
+        for _ in range(3):
+            assert plain.depth_cm() == 0
+            assert checked.depth_cm() == 0
+        checked.set_debug(True)  # debug output is the controller's: text a client skips
+        plain.sensors()
+        checked.sensors()
+        plain.set_debug(False)
+        assert checked.depth_cm() == 0
+        for client in (plain, checked):
+            counters = client.counters
+            assert (counters.timeouts, counters.resets_suspected) == (0, 0), counters
+
+
+def test_a_driver_whose_socket_closes_is_stopped_while_a_passive_tool_keeps_polling(
+    start_server: StartServer,
+) -> None:
+    # A recorder or a telemetry bridge polling on the PTY kept the link-loss failsafe fed, and
+    # the motion of a driver that had died over TCP ran on for good.
+    server = start_server(SimConfig(controller=ControllerConfig(watchdog_s=0.3)))
+    with rovlink.connect(_pty_url(server), keepalive=0.05, timeout=0.3) as passive:
+        assert server.tcp_address is not None
+        with socket.create_connection(server.tcp_address, timeout=2) as driver:
+            driver.sendall(b"#start!#th.0.100!")
+            _wait_for(lambda: _moving(server), "the driver moves the robot")
+        _wait_for(lambda: _stopped(server), "the failsafe stops the robot")
+        assert passive.depth_cm() == 0  # the passive tool's link lives on
+        assert passive.counters.timeouts == 0
+
+
+def test_a_stop_from_any_tool_stops_the_motion_another_commanded(
+    start_server: StartServer,
+) -> None:
+    server = start_server()
+    with (
+        rovlink.connect(_tcp_url(server), checksum=True, timeout=0.3, keepalive=None) as pilot,
+        rovlink.connect(_pty_url(server), timeout=0.3, keepalive=None) as bystander,
+    ):
+        pilot.start()
+        pilot.move(0, 60)
+        _wait_for(lambda: _moving(server), "the pilot moves the robot")
+        bystander.stop()
+        _wait_for(lambda: _stopped(server), "the bystander's stop stops the robot")
+        pilot.move(90, 60)  # dropped: locked for every tool (P7)
+        assert pilot.depth_cm() == 0  # (the move has been handled)
+        assert _stopped(server)
