@@ -69,3 +69,24 @@ def test_what_a_closed_line_left_of_a_frame_is_forgotten(rig: Rig) -> None:
     rig.controller.forget_line(TCP)
     assert _send(rig, b"00!#qd!", TCP) == b"$qd.0!"  # a new client's bytes, framed afresh
     assert rig.controller.state().target_depth_cm is None
+
+
+def test_the_line_that_drove_going_stops_the_robot_at_once(rig: Rig) -> None:
+    # Before, the robot drove on until the link-loss failsafe, or for good with it off.
+    assert _send(rig, b"#start!#th.0.100!", TCP) == b""
+    assert _send(rig, b"#debug1!", PTY) == b"debug: debug output on\r\n"
+    rig.controller.forget_line(TCP)
+    state = rig.controller.state()
+    assert state.locked
+    assert state.power_percent == 0
+    assert rig.controller.read_output() == (
+        b"debug: failsafe: the line that drove has gone: motors stopped and locked\r\n"
+    )
+
+
+def test_a_line_that_did_not_drive_going_stops_nothing(rig: Rig) -> None:
+    assert _send(rig, b"#qd!", PTY) == b"$qd.0!"
+    assert _send(rig, b"#start!#th.0.100!", TCP) == b""
+    rig.controller.forget_line(PTY)
+    assert not rig.controller.state().locked
+    assert rig.controller.state().power_percent == 100

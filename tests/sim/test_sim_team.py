@@ -106,3 +106,18 @@ def test_a_stop_from_any_tool_stops_the_motion_another_commanded(
         pilot.move(90, 60)  # dropped: locked for every tool (P7)
         assert pilot.depth_cm() == 0  # (the move has been handled)
         assert _stopped(server)
+
+
+def test_a_driver_whose_socket_closes_is_stopped_at_once_with_the_failsafe_off(
+    start_server: StartServer,
+) -> None:
+    # With --watchdog 0 (a person typing frames on the PTY), the motion of a program that died
+    # over TCP ran on for good; with the failsafe on, for its whole timeout.
+    server = start_server(SimConfig(controller=ControllerConfig(watchdog_s=0.0)))
+    with rovlink.connect(_pty_url(server), timeout=0.3, keepalive=None) as bystander:
+        assert server.tcp_address is not None
+        with socket.create_connection(server.tcp_address, timeout=2) as driver:
+            driver.sendall(b"#start!#th.0.100!")
+            _wait_for(lambda: _moving(server), "the driver moves the robot")
+        _wait_for(lambda: _stopped(server), "the robot stops", timeout_s=1.0)
+        assert bystander.depth_cm() == 0

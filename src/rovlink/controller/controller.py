@@ -198,9 +198,19 @@ class Controller:
             self._reading_line = None
 
     def forget_line(self, line: Hashable) -> None:
-        """``line`` is gone: what it left of a frame is dropped."""
+        """``line`` is gone (a TCP client closed, a serial device unplugged): what it left of a
+        frame is dropped, and if it drove the robot, the robot stops as on `#stop!`.
+
+        Its host can no longer steer or stop what it commanded, and nobody else is known to be
+        in charge: the link-loss failsafe would stop it only ``watchdog_s`` later, or never when
+        it is off.
+        """
         self._decoders.pop(line, None)
         self._checksum_lines.discard(line)
+        if line == self._driving_line:
+            self._driving_line = None
+            if not self._locked:
+                self._stop("failsafe: the line that drove has gone")
 
     def tick(self) -> None:
         """One control period: sensors, leak latch, watchdog, claw timer, PID, thruster outputs."""
