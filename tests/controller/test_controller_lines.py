@@ -1,10 +1,12 @@
 """A controller served on several lines at once (a PTY and a TCP client): each line's bytes are
 framed on their own and has its own checksum mode; the lock and the set-points are the
-controller's."""
+controller's, and every line hears when they change hands."""
 
 from __future__ import annotations
 
-from tests.controller.controller_rig import Rig
+from rovlink.controller import Controller, ControllerConfig
+from rovlink.controller.hardware import Hardware
+from tests.controller.controller_rig import Rig, make_rig
 
 PTY, TCP = "pty", "tcp"
 
@@ -90,3 +92,46 @@ def test_a_line_that_did_not_drive_going_stops_nothing(rig: Rig) -> None:
     rig.controller.forget_line(PTY)
     assert not rig.controller.state().locked
     assert rig.controller.state().power_percent == 100
+
+
+class _TwoWays:
+    """A controller whose output is kept apart: for the line being read, for every line."""
+
+    def __init__(self) -> None:
+        rig = make_rig()
+        hardware = Hardware(rig.thrusters, rig.pressure, rig.imu, rig.leak, rig.claw, rig.clock)
+        self.own: list[bytes] = []
+        self.every: list[bytes] = []
+        self.controller = Controller(
+            ControllerConfig(), hardware, self.own.append, write_to_every_line=self.every.append
+        )
+
+    def send(self, data: bytes, line: str) -> None:
+        self.controller.receive(data, line)
+
+
+def test_a_lock_change_from_one_line_is_told_to_every_line() -> None:
+    # Before, a pilot's tool never heard that another tool's #stop! had locked the robot: the
+    # line went back to the line that sent the stop only.
+    two = _TwoWays()
+    two.send(b"#debug1!", PTY)
+    two.send(b"#start!#th.0.50!", TCP)
+    two.send(b"#stop!", PTY)
+    assert two.every == [
+        b"debug: motors unlocked\r\n",
+        b"debug: stop command: motors stopped and locked\r\n",
+    ]
+    assert b"".join(two.own).count(b"\r\n") == 2  # debug on; horizontal 0 deg at 50 %
+
+
+def test_another_line_taking_over_the_driving_is_told_to_every_line() -> None:
+    two = _TwoWays()
+    two.send(b"#debug1!#start!#th.0.50!", TCP)
+    two.send(b"#qsa!", PTY)  # polling: not driving
+    two.send(b"#th.90.30!", TCP)  # the same line drives on
+    assert two.every == [b"debug: motors unlocked\r\n"]
+    two.send(b"#th.180.20!", PTY)
+    assert two.every[1:] == [
+        b"debug: <th.180.20> from another line: it drives now, and the link-loss failsafe "
+        b"follows it\r\n"
+    ]

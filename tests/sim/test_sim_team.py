@@ -13,6 +13,7 @@ import pytest
 
 import rovlink
 from rovlink.controller import ControllerConfig
+from rovlink.protocol import Event, Text
 from rovlink.sim import SimConfig
 from rovlink.sim.server import SimServer
 from tests.sim.conftest import StartServer
@@ -121,3 +122,40 @@ def test_a_driver_whose_socket_closes_is_stopped_at_once_with_the_failsafe_off(
             _wait_for(lambda: _moving(server), "the driver moves the robot")
         _wait_for(lambda: _stopped(server), "the robot stops", timeout_s=1.0)
         assert bystander.depth_cm() == 0
+
+
+def test_with_debug_on_a_pilot_hears_a_bystanders_stop_and_a_second_driver(
+    start_server: StartServer,
+) -> None:
+    # Before, what the controller said of a #stop! or of another line's motion went back on the
+    # line that sent it only: the pilot's tool (and a recorder on its line) never heard of it.
+    server = start_server()
+    heard: list[str] = []
+
+    def keep_text(event: Event) -> None:
+        if isinstance(event, Text):
+            heard.append(event.text)
+
+    with (
+        rovlink.connect(_tcp_url(server), timeout=1.0, keepalive=None, on_stray=keep_text) as pilot,
+        rovlink.connect(_pty_url(server), timeout=1.0, keepalive=None) as bystander,
+    ):
+        # Each tool's query after its commands: its reply comes once they have been handled
+        # (one line's frames are handled in order; two lines' in any).
+        pilot.set_debug(True)
+        pilot.start()
+        pilot.move(0, 60)
+        pilot.depth_cm()
+        bystander.move(90, 20)  # a second driver
+        bystander.depth_cm()
+        bystander.stop()
+        bystander.depth_cm()
+        assert _stopped(server)
+        pilot.depth_cm()  # (the pilot reads what came meanwhile)
+        # (The order they are handed on in is the client's: its reader may hand on one chunk
+        # and the caller's read the next.)
+        assert {
+            "debug: <th.90.20> from another line: it drives now, and the link-loss failsafe "
+            "follows it",
+            "debug: stop command: motors stopped and locked",
+        } <= set(heard), heard

@@ -87,11 +87,18 @@ class Controller:
         config: ControllerConfig,
         hardware: Hardware,
         write: Callable[[bytes], None] | None = None,
+        write_to_every_line: Callable[[bytes], None] | None = None,
     ) -> None:
         self.config = config
         self._hardware = hardware
         self._output = bytearray()
         self._write = write if write is not None else self._output.extend
+        # What every line must hear even while the controller handles another line's bytes:
+        # the lock changing (a `#stop!` or `#start!` from any line, a failsafe) and another line
+        # taking over the driving. One line served: the same as ``write``.
+        self._write_to_every_line = (
+            write_to_every_line if write_to_every_line is not None else self._write
+        )
         self._algorithm = get_algorithm(config.checksum_algorithm)
         # One decoder for each line the controller is served on (a PTY and a TCP client at
         # once): half a frame on one line must not be spoilt by bytes from another. The
@@ -325,6 +332,13 @@ class Controller:
             self._drop(frame, "motors are locked; send start first")
             return
         if spec.motion or message.setting == (Setting.LOCKED, False):  # motion, or `start`
+            if line != self._driving_line and self._driving_line in self._decoders:
+                # Two hosts driving at once: each takes the other for idle. Say so on both.
+                self._debug(
+                    f"{describe_frame(frame.raw)} from another line: it drives now, and the "
+                    "link-loss failsafe follows it",
+                    every_line=True,
+                )
             self._driving_line = line
         # Any valid command of the driving line keeps the link alive (P17), even one dropped
         # below (a query is enough).
@@ -390,7 +404,7 @@ class Controller:
             return
         self._locked = False
         self._clear_set_points()
-        self._debug("motors unlocked")
+        self._debug("motors unlocked", every_line=True)
 
     def _on_debug_mode(self, enabled: bool) -> None:
         if enabled == self._debug_enabled:
@@ -511,7 +525,7 @@ class Controller:
         self._hardware.claw.drive(0)
         if not commanded:  # a failsafe: worth a line in the log of the board's owner
             logger.warning("%s: motors stopped and locked", why)
-        self._debug(f"{why}: motors stopped and locked")
+        self._debug(f"{why}: motors stopped and locked", every_line=True)
 
     def _leak_fired(self) -> None:
         """The leak sensor fired since the last tick: latch it and take the leak action (P14).
@@ -570,9 +584,9 @@ class Controller:
             lower = 0.0
         return self._pid.update(target_cm, depth_cm, dt_s, lower=lower)
 
-    def _debug(self, text: str) -> None:
+    def _debug(self, text: str, *, every_line: bool = False) -> None:
         if self._debug_enabled:
-            self._write(debug_line(text))
+            (self._write_to_every_line if every_line else self._write)(debug_line(text))
 
 
 def _attitude_deg(value_deg: float) -> int:
