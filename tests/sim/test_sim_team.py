@@ -5,9 +5,12 @@ and debug modes)."""
 
 from __future__ import annotations
 
+import json
 import socket
+import subprocess
 import time
 from collections.abc import Callable
+from pathlib import Path
 
 import pytest
 
@@ -16,6 +19,7 @@ from rovlink.controller import ControllerConfig
 from rovlink.protocol import Event, Text
 from rovlink.sim import SimConfig
 from rovlink.sim.server import SimServer
+from tests.rovlink_process import rovlink_command, rovlink_environment
 from tests.sim.conftest import StartServer
 
 pytestmark = pytest.mark.integration
@@ -159,3 +163,41 @@ def test_with_debug_on_a_pilot_hears_a_bystanders_stop_and_a_second_driver(
             "follows it",
             "debug: stop command: motors stopped and locked",
         } <= set(heard), heard
+
+
+def test_a_recorder_on_one_line_records_the_stop_a_tool_on_another_line_sent(
+    start_server: StartServer, tmp_path: Path
+) -> None:
+    # `rovlink record` listening on the PTY, a pilot on TCP with debug output on: before, the
+    # recording held nothing of the pilot's start and stop.
+    server = start_server()
+    recording = tmp_path / "deck.jsonl"
+    recorder = subprocess.Popen(
+        rovlink_command("record", _pty_url(server), "-o", str(recording)),
+        stdin=subprocess.DEVNULL,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=rovlink_environment(),
+    )
+    try:
+        assert recorder.stderr is not None
+        assert recorder.stderr.readline().startswith("recording ")
+        with rovlink.connect(_tcp_url(server), timeout=1.0, keepalive=None) as pilot:
+            pilot.set_debug(True)
+            pilot.start()
+            pilot.stop()
+
+            def recorded() -> str:
+                return recording.read_text() if recording.exists() else ""
+
+            _wait_for(lambda: "stop command" in recorded(), "the recorder has the stop")
+    finally:
+        recorder.terminate()
+        recorder.communicate(timeout=10)
+    texts = [
+        entry["detail"]
+        for entry in map(json.loads, recording.read_text().splitlines())
+        if entry["channel"] == "events" and entry["event"] == "text"
+    ]
+    assert texts == ["debug: motors unlocked", "debug: stop command: motors stopped and locked"]
