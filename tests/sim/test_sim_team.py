@@ -8,6 +8,7 @@ from __future__ import annotations
 import json
 import socket
 import subprocess
+import sys
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -201,3 +202,39 @@ def test_a_recorder_on_one_line_records_the_stop_a_tool_on_another_line_sent(
         if entry["channel"] == "events" and entry["event"] == "text"
     ]
     assert texts == ["debug: motors unlocked", "debug: stop command: motors stopped and locked"]
+
+
+_DRIVER_PROGRAM = """
+import sys, time, rovlink
+rov = rovlink.connect(sys.argv[1], keepalive=0.1)
+rov.start()
+rov.move(0, 80)
+rov.depth_cm()
+print("driving", flush=True)
+time.sleep(60)
+"""
+
+
+def test_a_driver_killed_with_sigkill_is_stopped_at_once_and_the_others_stay(
+    start_server: StartServer,
+) -> None:
+    # A program driving over TCP killed with SIGKILL (no close(), no #stop!): with the failsafe
+    # off its motion ran on for good; the bystander's link must not be touched.
+    server = start_server(SimConfig(controller=ControllerConfig(watchdog_s=0.0)))
+    with rovlink.connect(_pty_url(server), timeout=0.5, keepalive=0.05) as bystander:
+        driver = subprocess.Popen(
+            [sys.executable, "-c", _DRIVER_PROGRAM, _tcp_url(server)],
+            stdout=subprocess.PIPE,
+            text=True,
+            env=rovlink_environment(),
+        )
+        try:
+            assert driver.stdout is not None
+            assert driver.stdout.readline() == "driving\n"
+            _wait_for(lambda: _moving(server), "the driver moves the robot")
+        finally:
+            driver.kill()
+            driver.wait(timeout=10)
+        _wait_for(lambda: _stopped(server), "the robot stops", timeout_s=1.0)
+        assert bystander.depth_cm() == 0
+        assert bystander.counters.timeouts == 0
