@@ -80,6 +80,12 @@ class Controller:
     chunk from the serial line, ``tick()`` every ``config.tick_s`` seconds, and send on what
     the controller writes. Queries are answered inside ``receive``, so a reply is ready as soon
     as the query's last byte has arrived (P19).
+
+    Served on several lines (``receive(data, line)``), each line has its own framing and
+    checksum mode; the rest is the controller's. What it writes while it handles a line's bytes
+    is for that line (``write``), but for what every line must hear, wherever it came from: the
+    lock changing and another line taking over the driving (``write_to_every_line``; by
+    default ``write``).
     """
 
     def __init__(
@@ -388,11 +394,9 @@ class Controller:
         # it; the line's replies switch now. Other lines keep their own mode.
         if enabled:
             self._checksum_lines.add(self._reading_line)
-        else:
-            self._checksum_lines.discard(self._reading_line)
-        if enabled:
             self._debug(f"checksum mode on ({self._algorithm.name})")
         else:
+            self._checksum_lines.discard(self._reading_line)
             self._debug("checksum mode off")
 
     def _on_locked(self, locked: bool) -> None:
