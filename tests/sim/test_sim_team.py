@@ -62,9 +62,9 @@ def test_a_tool_in_checksum_mode_leaves_another_tools_plain_link_alone(
     # own mode, and so on, query after query.
     server = start_server()
     with (
-        rovlink.connect(_pty_url(server), timeout=0.2, retries=1, keepalive=None) as plain,
+        rovlink.connect(_pty_url(server), timeout=1.0, retries=1, keepalive=None) as plain,
         rovlink.connect(
-            _tcp_url(server), checksum=True, timeout=0.2, retries=1, keepalive=None
+            _tcp_url(server), checksum=True, timeout=1.0, retries=1, keepalive=None
         ) as checked,
     ):
         for _ in range(3):
@@ -86,7 +86,7 @@ def test_a_driver_whose_socket_closes_is_stopped_while_a_passive_tool_keeps_poll
     # A recorder or a telemetry bridge polling on the PTY kept the link-loss failsafe fed, and
     # the motion of a driver that had died over TCP ran on for good.
     server = start_server(SimConfig(controller=ControllerConfig(watchdog_s=0.3)))
-    with rovlink.connect(_pty_url(server), keepalive=0.05, timeout=0.3) as passive:
+    with rovlink.connect(_pty_url(server), keepalive=0.05, timeout=1.0) as passive:
         assert server.tcp_address is not None
         with socket.create_connection(server.tcp_address, timeout=2) as driver:
             driver.sendall(b"#start!#th.0.100!")
@@ -101,8 +101,8 @@ def test_a_stop_from_any_tool_stops_the_motion_another_commanded(
 ) -> None:
     server = start_server()
     with (
-        rovlink.connect(_tcp_url(server), checksum=True, timeout=0.3, keepalive=None) as pilot,
-        rovlink.connect(_pty_url(server), timeout=0.3, keepalive=None) as bystander,
+        rovlink.connect(_tcp_url(server), checksum=True, timeout=1.0, keepalive=None) as pilot,
+        rovlink.connect(_pty_url(server), timeout=1.0, keepalive=None) as bystander,
     ):
         pilot.start()
         pilot.move(0, 60)
@@ -120,7 +120,7 @@ def test_a_driver_whose_socket_closes_is_stopped_at_once_with_the_failsafe_off(
     # With --watchdog 0 (a person typing frames on the PTY), the motion of a program that died
     # over TCP ran on for good; with the failsafe on, for its whole timeout.
     server = start_server(SimConfig(controller=ControllerConfig(watchdog_s=0.0)))
-    with rovlink.connect(_pty_url(server), timeout=0.3, keepalive=None) as bystander:
+    with rovlink.connect(_pty_url(server), timeout=1.0, keepalive=None) as bystander:
         assert server.tcp_address is not None
         with socket.create_connection(server.tcp_address, timeout=2) as driver:
             driver.sendall(b"#start!#th.0.100!")
@@ -221,7 +221,7 @@ def test_a_driver_killed_with_sigkill_is_stopped_at_once_and_the_others_stay(
     # A program driving over TCP killed with SIGKILL (no close(), no #stop!): with the failsafe
     # off its motion ran on for good; the bystander's link must not be touched.
     server = start_server(SimConfig(controller=ControllerConfig(watchdog_s=0.0)))
-    with rovlink.connect(_pty_url(server), timeout=0.5, keepalive=0.05) as bystander:
+    with rovlink.connect(_pty_url(server), timeout=1.0, keepalive=0.05) as bystander:
         driver = subprocess.Popen(
             [sys.executable, "-c", _DRIVER_PROGRAM, _tcp_url(server)],
             stdout=subprocess.PIPE,
