@@ -87,7 +87,7 @@ def _python_decisions(stream: bytes, chunk: int) -> list[str]:
     reply = controller._reply
 
     def replied(names: tuple[str, ...]) -> None:
-        checked = controller._checksum_enabled
+        checked = controller.state().checksum_enabled
         lines.extend(f"R {name} {'checksummed' if checked else 'plain'}" for name in names)
         reply(names)
 

@@ -6,9 +6,8 @@ import contextlib
 import os
 import select
 import socket
-import threading
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 
 import pytest
 import serial
@@ -18,36 +17,9 @@ from rovlink.controller import ControllerConfig
 from rovlink.controller import lines as lines_module
 from rovlink.sim import SimConfig
 from rovlink.sim.server import BUSY_MESSAGE, LINE_BUFFER_BYTES, SimServer, parse_tcp_address
+from tests.sim.conftest import StartServer
 
 pytestmark = pytest.mark.integration
-
-StartServer = Callable[..., SimServer]
-
-
-@pytest.fixture
-def start_server() -> Iterator[StartServer]:
-    running: list[tuple[SimServer, threading.Event, threading.Thread]] = []
-
-    def start(
-        config: SimConfig | None = None, *, pty: bool = True, tcp: bool = True, **options: object
-    ) -> SimServer:
-        server = SimServer(config, seed=1, **options)  # type: ignore[arg-type]
-        if pty:
-            server.open_pty()
-        if tcp:
-            server.listen_tcp("127.0.0.1", 0)
-        stop = threading.Event()
-        thread = threading.Thread(target=server.serve, args=(stop.is_set,), daemon=True)
-        thread.start()
-        running.append((server, stop, thread))
-        return server
-
-    yield start
-    for server, stop, thread in running:
-        stop.set()
-        thread.join(timeout=5)
-        assert not thread.is_alive()
-        server.close()
 
 
 def _read_frames(read: Callable[[], bytes], count: int, timeout_s: float = 5.0) -> bytes:
@@ -261,7 +233,7 @@ def test_each_link_gets_the_replies_to_its_own_queries_only(
     assert b"".join(pty_writes) == b"$qd.0!"
 
 
-def test_debug_lines_about_a_frame_go_to_its_link_failsafe_lines_to_every_link(
+def test_debug_lines_about_a_frame_go_to_its_link_lock_and_failsafe_lines_to_every_link(
     start_server: StartServer,
 ) -> None:
     config = SimConfig(controller=ControllerConfig(watchdog_s=0.5))
@@ -271,14 +243,16 @@ def test_debug_lines_about_a_frame_go_to_its_link_failsafe_lines_to_every_link(
         tcp = b""
         pty = b""
         deadline = time.monotonic() + 10
-        while b"failsafe" not in tcp or not pty.endswith(b"\r\n"):
+        while b"failsafe" not in tcp or b"failsafe" not in pty or not pty.endswith(b"\r\n"):
             assert time.monotonic() < deadline, (tcp, pty)
             tcp += _recv(connection)()
             pty += port.read(256)
         assert b"debug output on" in tcp
         assert b"<bogus>" in tcp
-        assert pty.startswith(b"debug: failsafe: no valid frame for 0.5 s"), pty
-        assert pty.count(b"\r\n") == 1
+        assert pty == (
+            b"debug: motors unlocked\r\n"
+            b"debug: failsafe: no valid frame for 0.5 s: motors stopped and locked\r\n"
+        )
 
 
 def test_baud_paces_the_byte_stream(start_server: StartServer) -> None:

@@ -66,7 +66,12 @@ class BoardServer:
         problem = board_watchdog_problem(config.watchdog_s)
         if problem is not None:  # (a board's config refuses it first, naming its file)
             raise ValueError(f"watchdog_s {problem}")
-        self.controller = Controller(config, board.hardware, self._from_controller)
+        self.controller = Controller(
+            config,
+            board.hardware,
+            self._from_controller,
+            write_to_every_line=self._to_every_line,
+        )
         self.schedule = FixedRateSchedule(config.tick_s, self.clock.now_s())
         self._overrun_warning_s = overrun_warning_s
         self._overruns_reported = 0
@@ -241,6 +246,13 @@ class BoardServer:
         lines = self._lines
         targets = [self._replying_to] if self._replying_to is not None else lines.lines
         for line in list(targets):
+            lines.send(line, data)
+
+    def _to_every_line(self, data: bytes) -> None:
+        """What every line must hear, whichever line's bytes the controller is handling (the
+        lock changing, another line taking over the driving)."""
+        lines = self._lines
+        for line in list(lines.lines):
             lines.send(line, data)
 
     def _on_bytes(self, line: Line, data: bytes) -> None:

@@ -80,6 +80,12 @@ class Controller:
     chunk from the serial line, ``tick()`` every ``config.tick_s`` seconds, and send on what
     the controller writes. Queries are answered inside ``receive``, so a reply is ready as soon
     as the query's last byte has arrived (P19).
+
+    Served on several lines (``receive(data, line)``), each line has its own framing and
+    checksum mode; the rest is the controller's. What it writes while it handles a line's bytes
+    is for that line (``write``), but for what every line must hear, wherever it came from: the
+    lock changing and another line taking over the driving (``write_to_every_line``; by
+    default ``write``).
     """
 
     def __init__(
@@ -87,18 +93,30 @@ class Controller:
         config: ControllerConfig,
         hardware: Hardware,
         write: Callable[[bytes], None] | None = None,
+        write_to_every_line: Callable[[bytes], None] | None = None,
     ) -> None:
         self.config = config
         self._hardware = hardware
         self._output = bytearray()
         self._write = write if write is not None else self._output.extend
+        # What every line must hear even while the controller handles another line's bytes:
+        # the lock changing (a `#stop!` or `#start!` from any line, a failsafe) and another line
+        # taking over the driving. One line served: the same as ``write``.
+        self._write_to_every_line = (
+            write_to_every_line if write_to_every_line is not None else self._write
+        )
         self._algorithm = get_algorithm(config.checksum_algorithm)
         # One decoder for each line the controller is served on (a PTY and a TCP client at
         # once): half a frame on one line must not be spoilt by bytes from another. The
-        # checksum mode is the controller's, and a decoder switches its own as it reads a mode
-        # frame (P3), so the others are switched when that frame is executed.
+        # checksum mode is each line's own: it is how the bytes of that wire are framed, and a
+        # program on one line switching it must not make every frame of a program on another
+        # line a bad one (the two would take turns re-asserting their modes, P21).
         self._decoders: dict[Hashable, Decoder] = {}
-        self._reading: Decoder | None = None
+        # The lines whose replies carry a checksum. A line's decoder switches its own mode as
+        # it reads a mode frame, possibly ahead of frames of the same chunk not yet executed;
+        # this switches when the mode frame is executed, so a reply never takes a mode set
+        # after its query (P3).
+        self._checksum_lines: set[Hashable] = set()
         self._reading_line: Hashable = None
         # The line whose `start` or motion command was obeyed last: only its frames feed the
         # link-loss failsafe (P17), so a host that dies while driving is stopped even while
@@ -145,11 +163,7 @@ class Controller:
         for decoder in self._decoders.values():
             decoder.reset()
             decoder.checksum_enabled = False
-        # The mode replies are encoded in. The decoder switches its own mode as it reads a
-        # mode frame, possibly ahead of frames of the same chunk not yet executed; this one
-        # switches when the mode frame is executed, so a reply never takes a mode set after
-        # its query (P3).
-        self._checksum_enabled = False
+        self._checksum_lines.clear()
         self._debug_enabled = False
         self._locked = True
         self._vertical_mode = VerticalMode.DEPTH
@@ -180,10 +194,8 @@ class Controller:
         """Take bytes received on ``line`` (any key naming it; one line: leave it out):
         execute every complete frame in them, answer queries at once."""
         decoder = self._decoders.get(line)
-        if decoder is None:
+        if decoder is None:  # a new line starts with checksum mode off, as after a reset
             decoder = self._decoders[line] = Decoder(algorithm=self._algorithm)
-            decoder.checksum_enabled = self._checksum_enabled
-        self._reading = decoder
         self._reading_line = line
         try:
             for event in decoder.feed(data):
@@ -196,12 +208,22 @@ class Controller:
                 elif isinstance(event, Text):
                     self._debug(f"ignored text between frames: {event.text.strip()[:60]!r}")
         finally:
-            self._reading = None
             self._reading_line = None
 
     def forget_line(self, line: Hashable) -> None:
-        """``line`` is gone: what it left of a frame is dropped."""
+        """``line`` is gone (a TCP client closed, a serial device unplugged): what it left of a
+        frame is dropped, and if it drove the robot, the robot stops as on `#stop!`.
+
+        Its host can no longer steer or stop what it commanded, and nobody else is known to be
+        in charge: the link-loss failsafe would stop it only ``watchdog_s`` later, or never when
+        it is off.
+        """
         self._decoders.pop(line, None)
+        self._checksum_lines.discard(line)
+        if line == self._driving_line:
+            self._driving_line = None
+            if not self._locked:
+                self._stop("failsafe: the line that drove has gone")
 
     def tick(self) -> None:
         """One control period: sensors, leak latch, watchdog, claw timer, PID, thruster outputs."""
@@ -262,8 +284,9 @@ class Controller:
         self._output.clear()
         return output
 
-    def state(self) -> ControllerState:
-        """A snapshot of the settings and set-points."""
+    def state(self, line: Hashable = None) -> ControllerState:
+        """A snapshot of the settings and set-points; ``checksum_enabled`` is ``line``'s (each
+        line has its own checksum mode)."""
         return ControllerState(
             locked=self._locked,
             vertical_mode=self._vertical_mode,
@@ -277,7 +300,7 @@ class Controller:
             depth_k=self._k,
             leak_latched=self._leak_latched,
             debug_enabled=self._debug_enabled,
-            checksum_enabled=self._checksum_enabled,
+            checksum_enabled=line in self._checksum_lines,
             claw_direction=self._claw_direction,
         )
 
@@ -315,6 +338,13 @@ class Controller:
             self._drop(frame, "motors are locked; send start first")
             return
         if spec.motion or message.setting == (Setting.LOCKED, False):  # motion, or `start`
+            if line != self._driving_line and self._driving_line in self._decoders:
+                # Two hosts driving at once: each takes the other for idle. Say so on both.
+                self._debug(
+                    f"{describe_frame(frame.raw)} from another line: it drives now, and the "
+                    "link-loss failsafe follows it",
+                    every_line=True,
+                )
             self._driving_line = line
         # Any valid command of the driving line keeps the link alive (P17), even one dropped
         # below (a query is enough).
@@ -332,7 +362,7 @@ class Controller:
         self._debug(f"dropped {describe_frame(frame.raw)}: {why}")
 
     def _reply(self, names: tuple[str, ...]) -> None:
-        checksum = self._algorithm if self._checksum_enabled else None
+        checksum = self._algorithm if self._reading_line in self._checksum_lines else None
         values = self._sensor_values(names)
         self._write(b"".join(encode(Response(name, (values[name],)), checksum) for name in names))
 
@@ -361,14 +391,12 @@ class Controller:
 
     def _on_checksum_mode(self, enabled: bool) -> None:
         # The line's decoder has already switched on this frame (P3), and may have read past
-        # it; the other lines' switch now, and replies from here on.
-        self._checksum_enabled = enabled
-        for decoder in self._decoders.values():
-            if decoder is not self._reading:
-                decoder.checksum_enabled = enabled
+        # it; the line's replies switch now. Other lines keep their own mode.
         if enabled:
+            self._checksum_lines.add(self._reading_line)
             self._debug(f"checksum mode on ({self._algorithm.name})")
         else:
+            self._checksum_lines.discard(self._reading_line)
             self._debug("checksum mode off")
 
     def _on_locked(self, locked: bool) -> None:
@@ -380,7 +408,7 @@ class Controller:
             return
         self._locked = False
         self._clear_set_points()
-        self._debug("motors unlocked")
+        self._debug("motors unlocked", every_line=True)
 
     def _on_debug_mode(self, enabled: bool) -> None:
         if enabled == self._debug_enabled:
@@ -501,7 +529,7 @@ class Controller:
         self._hardware.claw.drive(0)
         if not commanded:  # a failsafe: worth a line in the log of the board's owner
             logger.warning("%s: motors stopped and locked", why)
-        self._debug(f"{why}: motors stopped and locked")
+        self._debug(f"{why}: motors stopped and locked", every_line=True)
 
     def _leak_fired(self) -> None:
         """The leak sensor fired since the last tick: latch it and take the leak action (P14).
@@ -560,9 +588,9 @@ class Controller:
             lower = 0.0
         return self._pid.update(target_cm, depth_cm, dt_s, lower=lower)
 
-    def _debug(self, text: str) -> None:
+    def _debug(self, text: str, *, every_line: bool = False) -> None:
         if self._debug_enabled:
-            self._write(debug_line(text))
+            (self._write_to_every_line if every_line else self._write)(debug_line(text))
 
 
 def _attitude_deg(value_deg: float) -> int:

@@ -86,7 +86,8 @@ class SimulatedRobot:
 
     ``step()`` advances one control period: scheduled scenario events, then the physics over the
     period, then the controller's tick. Bytes from the host go to ``receive``; the controller's
-    output goes to ``write`` (or, without it, to :meth:`Controller.read_output`). With a ``seed``
+    output goes to ``write`` (or, without it, to :meth:`Controller.read_output`), and what every
+    line served must hear to ``write_to_every_line`` (see :class:`Controller`). With a ``seed``
     the run is reproducible: the same bytes at the same simulated times give the same results.
     """
 
@@ -96,6 +97,7 @@ class SimulatedRobot:
         *,
         seed: int | None = None,
         write: Callable[[bytes], None] | None = None,
+        write_to_every_line: Callable[[bytes], None] | None = None,
     ) -> None:
         config = config if config is not None else SimConfig()
         self.config = config
@@ -129,7 +131,9 @@ class SimulatedRobot:
             claw=self.claw,
             clock=self.clock,
         )
-        self.controller = Controller(config.controller, self.hardware, write)
+        self.controller = Controller(
+            config.controller, self.hardware, write, write_to_every_line=write_to_every_line
+        )
         self._events: list[tuple[float, int, Callable[[], None]]] = []
         self._event_order = itertools.count()
 

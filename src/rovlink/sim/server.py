@@ -61,7 +61,12 @@ class SimServer:
         baud: int | None = None,
         speed: float = 1.0,
     ) -> None:
-        self.robot = SimulatedRobot(config, seed=seed, write=self._from_controller)
+        self.robot = SimulatedRobot(
+            config,
+            seed=seed,
+            write=self._from_controller,
+            write_to_every_line=self._to_every_line,
+        )
         self.baud = baud
         self.speed = speed
         self._lines = Lines(
@@ -138,6 +143,13 @@ class SimServer:
             self._pacers[source].from_controller.push(data, now)
             return
         for pacers in self._pacers.values():  # spontaneous output: a failsafe or leak line
+            pacers.from_controller.push(data, now)
+
+    def _to_every_line(self, data: bytes) -> None:
+        """What every line must hear, whichever line's bytes the controller is handling (the
+        lock changing, another line taking over the driving)."""
+        now = time.monotonic()
+        for pacers in self._pacers.values():
             pacers.from_controller.push(data, now)
 
     def _pump(self) -> None:
