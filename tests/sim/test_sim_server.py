@@ -17,6 +17,7 @@ from rovlink.controller import ControllerConfig
 from rovlink.controller import lines as lines_module
 from rovlink.sim import SimConfig
 from rovlink.sim.server import BUSY_MESSAGE, LINE_BUFFER_BYTES, SimServer, parse_tcp_address
+from tests.client.conftest import wait_until
 from tests.sim.conftest import StartServer
 
 pytestmark = pytest.mark.integration
@@ -119,6 +120,55 @@ def test_a_second_tcp_client_is_told_it_is_busy_and_closed(start_server: StartSe
             assert received == BUSY_MESSAGE
         first.sendall(b"#qd!")  # the first client is undisturbed
         assert _read_frames(_recv(first), 1) == b"$qd.0!"
+
+
+def test_a_tcp_client_whose_link_died_unseen_gives_way_to_a_new_one(
+    start_server: StartServer,
+) -> None:
+    # A station on Wi-Fi that dropped: no FIN ever arrives, the connection stays open. Before,
+    # the station connecting again read "busy" for as long as the simulator ran. Its motion
+    # stops when its line goes (it drove).
+    server = start_server(pty=False, silent_client_gives_way_s=0.2)
+    with _connect(server) as dead:
+        dead.sendall(b"#start!#th.90.50!#qd!")
+        _read_frames(_recv(dead), 1)
+        assert not server.robot.controller.locked
+
+        def connected_again() -> bool:
+            with _connect(server) as again:
+                again.sendall(b"#qd!")
+                try:
+                    return _read_frames(_recv(again), 1, timeout_s=1.0).startswith(b"$qd.")
+                except pytest.fail.Exception:
+                    return False
+
+        assert wait_until(connected_again, timeout_s=10.0)
+        assert server.robot.controller.locked  # the line that drove went: stopped at once
+
+
+def test_a_tcp_client_that_keeps_its_link_alive_is_not_pushed_out(
+    start_server: StartServer,
+) -> None:
+    server = start_server(pty=False, silent_client_gives_way_s=0.5)
+    with _connect(server) as live:
+        for _ in range(5):  # queries faster than the silence that gives way
+            live.sendall(b"#qd!")
+            assert _read_frames(_recv(live), 1) == b"$qd.0!"
+            with _connect(server) as other:
+                other.settimeout(5)
+                assert other.recv(4096).startswith(b"busy")
+
+
+def test_a_silent_client_gives_way_after_three_seconds_or_the_failsafes_time() -> None:
+    from rovlink.controller.lines import SILENT_CLIENT_GIVES_WAY_S
+
+    def gives_way_s(server: SimServer) -> float:
+        return server._lines._silent_client_gives_way_s
+
+    assert gives_way_s(SimServer(seed=1)) == SILENT_CLIENT_GIVES_WAY_S
+    slow = SimConfig(controller=ControllerConfig(watchdog_s=5.0))
+    assert gives_way_s(SimServer(slow, seed=1)) == 5.0
+    assert gives_way_s(SimServer(slow, seed=1, speed=10.0)) == SILENT_CLIENT_GIVES_WAY_S
 
 
 def test_a_second_client_that_writes_at_once_still_reads_why_it_was_refused(

@@ -23,7 +23,7 @@ from rovlink.board.service_notify import ServiceNotifier
 from rovlink.board.watchdog_bounds import board_watchdog_problem
 from rovlink.controller import ControllerConfig
 from rovlink.controller.controller import Controller
-from rovlink.controller.lines import Line, Lines
+from rovlink.controller.lines import SILENT_CLIENT_GIVES_WAY_S, Line, Lines
 from rovlink.logs import get_logger
 
 __all__ = ["BUSY_MESSAGE", "SILENT_CLIENT_GIVES_WAY_S", "BoardServer"]
@@ -32,11 +32,6 @@ logger = get_logger(__name__)
 
 #: What a second TCP client reads before it is disconnected.
 BUSY_MESSAGE = b"busy: the controller already has a client\r\n"
-#: How long a TCP client must have sent nothing before a new one takes its place, s: a host
-#: keeps its link alive (P17; rovlink's hosts every idle second), so one silent this long has
-#: lost it (a dropped Wi-Fi, a pulled cable leave the connection open), and its motion was
-#: stopped by then.
-SILENT_CLIENT_GIVES_WAY_S = 3.0
 _MAX_WAIT_S = 0.05  # a stop request is seen at least this often
 _SAFE_ATTEMPTS = 3
 

@@ -32,6 +32,7 @@ from rovlink.logs import get_logger
 from rovlink.serial_latency import ask_for_low_latency
 
 __all__ = [
+    "SILENT_CLIENT_GIVES_WAY_S",
     "Line",
     "Lines",
     "PtyLine",
@@ -52,6 +53,11 @@ MAX_PENDING_BYTES = 1 << 16
 _HANGUP_EMPTY_READS = 3
 #: How often a serial device that went away is opened again, s.
 SERIAL_REOPEN_S = 1.0
+#: How long a TCP client must have sent nothing before a new one takes its place, s: a host
+#: keeps its link alive (P17; rovlink's hosts every idle second), so one silent this long has
+#: lost it (a dropped Wi-Fi, a pulled cable leave the connection open), and its motion was
+#: stopped by then.
+SILENT_CLIENT_GIVES_WAY_S = 3.0
 
 
 def parse_tcp_address(text: str, default_host: str = "127.0.0.1") -> tuple[str, int]:

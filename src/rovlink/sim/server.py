@@ -18,7 +18,7 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 
-from rovlink.controller.lines import Line, Lines, parse_tcp_address
+from rovlink.controller.lines import SILENT_CLIENT_GIVES_WAY_S, Line, Lines, parse_tcp_address
 from rovlink.logs import get_logger
 from rovlink.sim.pacing import LinePacer, TickSchedule
 from rovlink.sim.robot import SimConfig, SimulatedRobot
@@ -50,7 +50,10 @@ class SimServer:
     """One simulated robot served on a PTY and/or TCP, stepped in real time (or faster).
 
     ``baud`` paces both directions at that rate (8N1); ``None`` leaves the stream unpaced.
-    ``speed`` is simulated seconds per wall second, 0 for as fast as the CPU allows.
+    ``speed`` is simulated seconds per wall second, 0 for as fast as the CPU allows. A TCP
+    client that has sent nothing for ``silent_client_gives_way_s`` wall seconds (default:
+    :data:`~rovlink.controller.lines.SILENT_CLIENT_GIVES_WAY_S`, or the link-loss failsafe's
+    time if longer) gives way to a new one, as on a robot, rather than keep it out as busy.
     """
 
     def __init__(
@@ -60,6 +63,7 @@ class SimServer:
         seed: int | None = None,
         baud: int | None = None,
         speed: float = 1.0,
+        silent_client_gives_way_s: float | None = None,
     ) -> None:
         self.robot = SimulatedRobot(
             config,
@@ -69,11 +73,16 @@ class SimServer:
         )
         self.baud = baud
         self.speed = speed
+        if silent_client_gives_way_s is None:
+            watchdog_s = self.robot.config.controller.watchdog_s
+            watchdog_wall_s = watchdog_s / speed if speed > 0 else 0.0
+            silent_client_gives_way_s = max(SILENT_CLIENT_GIVES_WAY_S, watchdog_wall_s)
         self._lines = Lines(
             self._on_bytes,
             busy_message=BUSY_MESSAGE,
             on_open=self._on_open,
             on_close=self._on_close,
+            silent_client_gives_way_s=silent_client_gives_way_s,
         )
         self._pacers: dict[Line, _Pacers] = {}
         # The line whose bytes the controller is handling: its output goes back there only.
