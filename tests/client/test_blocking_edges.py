@@ -204,3 +204,40 @@ def test_a_callback_that_queries_while_another_thread_switches_checksum_does_not
     assert switched.wait(CONDITION_TIMEOUT_S)
     assert wait_until(lambda: answered == [123])  # (the callback may run in the reader thread)
     assert rov.checksum_enabled
+
+
+def test_stray_lines_reach_on_stray_in_wire_order_whichever_thread_reads_them(
+    make_client: Callable[..., Client], fake: FakeController
+) -> None:
+    # Before, each thread that read stray text reported it after letting the state go: a slow
+    # callback in one thread was overtaken by another's report (debug lines out of order).
+    from rovlink.protocol import Text
+
+    seen: list[str] = []
+
+    def slow_stray(event: object) -> None:
+        if isinstance(event, Text):
+            seen.append(event.text.strip())
+            time.sleep(0.001)  # a callback that logs to a slow terminal
+
+    rov = make_client(on_stray=slow_stray, keepalive_s=0.01)
+    lines = 150
+    done = threading.Event()
+
+    def query() -> None:
+        while not done.is_set():
+            rov.depth_cm()
+
+    threads = [threading.Thread(target=query) for _ in range(3)]
+    for thread in threads:
+        thread.start()
+    try:
+        for number in range(lines):
+            fake.send(f"line {number}\r\n".encode())
+        assert wait_until(lambda: len(seen) >= lines)
+    finally:
+        done.set()
+        for thread in threads:
+            thread.join(CONDITION_TIMEOUT_S)
+        rov.close()
+    assert seen == [f"line {number}" for number in range(lines)]

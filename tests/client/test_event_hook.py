@@ -202,3 +202,22 @@ async def test_the_asyncio_clients_retries_are_marked_too(
     fake.then("drop", "drop")
     assert list(await asyncio.gather(rov.depth_cm(), rov.depth_cm())) == [123, 123]
     assert _retry_marks(events, "qd") == [False, False, True, True]
+
+
+def test_an_on_stray_callback_failing_on_every_line_is_logged_once_then_counted(
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    from rovlink.client.unsolicited import DropLog
+    from rovlink.protocol import Text
+
+    caplog.set_level(logging.DEBUG, logger="rovlink")
+    log = DropLog()
+
+    def broken_pipe(event: object) -> None:
+        raise BrokenPipeError(32, "Broken pipe")
+
+    for second in range(5):
+        log.report([Text("depth pid 1\r\n")] * 10, broken_pipe, now=float(second))
+    tracebacks = [record for record in caplog.records if record.exc_info]
+    assert len(tracebacks) == 1
+    assert "on_stray callback failed" in tracebacks[0].getMessage()

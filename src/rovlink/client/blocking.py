@@ -119,6 +119,10 @@ class Client(CommandMethods):
         )
         self._drops = DropLog()
         self._hook_failures = HookFailureLog()
+        # What answered no query (text, stray and bad frames), in the order it was read, for
+        # ``on_stray``: kept under the state lock and delivered with the events, by one thread
+        # at a time, so that a slow callback in one thread is not overtaken by another's.
+        self._strays: list[Event] = []
         self._subscribers: list[EventCallback] = []
         # Lock order: the wire lock, then the state lock. Re-entrant locks, as they know their
         # owner: a call that an exception ends gives back what its thread still holds (see
@@ -965,7 +969,7 @@ class Client(CommandMethods):
         returns).
         """
         session = self._session
-        if session.events is None and not session.notices:
+        if session.events is None and not session.notices and not self._strays:
             return
         me = _get_ident()
         with self._state_lock:
@@ -975,7 +979,7 @@ class Client(CommandMethods):
                 # the checksum switch (the deliverer's callback may query, which waits for the
                 # switch) or closes (it may close too), and bounded whatever a callback does.
                 if me not in (deliverer, self._mode_switcher) and not self._closing:
-                    pending = len(session.events or ()) + len(session.notices)
+                    pending = len(session.events or ()) + len(session.notices) + len(self._strays)
                     target = self._events_taken + pending
                     give_up_at = time.monotonic() + _DELIVERY_WAIT_S
                     while self._deliverer is not None and self._events_delivered < target:
@@ -990,17 +994,21 @@ class Client(CommandMethods):
                 with self._state_lock:
                     events = session.take_events()
                     notices = session.take_notices()
-                    if not (events or notices):
+                    strays, self._strays = self._strays, []
+                    if not (events or notices or strays):
                         self._deliverer = None
                         self._delivered.notify_all()
                         return
-                    self._events_taken += len(events) + len(notices)
+                    taken = len(events) + len(notices) + len(strays)
+                    self._events_taken += taken
                     subscribers = tuple(self._subscribers)
+                if strays:
+                    self._drops.report(strays, self._options.on_stray, self._clock())
                 deliver(events, notices, self._options.on_event, self._hook_failures)
                 for subscriber in subscribers:
                     deliver(events, (), subscriber, self._hook_failures)
                 with self._state_lock:
-                    self._events_delivered += len(events) + len(notices)
+                    self._events_delivered += taken
                     self._delivered.notify_all()
         except BaseException:  # (a Ctrl-C in a callback): another thread may deliver now
             with self._state_lock:
@@ -1060,13 +1068,12 @@ class Client(CommandMethods):
                         return pending.responses
                     # Part of the reply, or more than it (text, noise, another caller's reply),
                     # or only an earlier caller's reply, or nothing.
-                    unsolicited = received.unsolicited if isinstance(received, Received) else []
+                    if isinstance(received, Received) and received.unsolicited:
+                        self._strays += received.unsolicited  # (delivered by _wait's _emit)
                     if session.has_outbox:
                         self._flush_due()
                     self._notify_callers()
                     outcome = self._wait(pending, holding_state=True)
-                    if unsolicited:
-                        self._drops.report(unsolicited, self._options.on_stray, now)
             if outcome is _ANSWERED:
                 return pending.responses
             return self._attempts(command, outcome)
@@ -1226,7 +1233,6 @@ class Client(CommandMethods):
         lock = self._state_lock
         session = self._session
         clock = self._clock
-        unsolicited: list[Event] | None = None
         me = _get_ident()
         if not holding_state:
             lock.acquire()
@@ -1258,9 +1264,7 @@ class Client(CommandMethods):
                 elif data:
                     received = session.receive(data, now)
                     if received.unsolicited:
-                        if unsolicited is None:
-                            unsolicited = []
-                        unsolicited += received.unsolicited
+                        self._strays += received.unsolicited
                     if session.has_outbox:
                         self._flush_due()
                 if self._waiting_callers:
@@ -1271,8 +1275,6 @@ class Client(CommandMethods):
             del self._callers[me]
             self._last_caller_at = now
         lock.release()
-        if unsolicited:
-            self._drops.report(unsolicited, self._options.on_stray, now)
         self._emit()
         return pending.outcome
 
@@ -1284,7 +1286,6 @@ class Client(CommandMethods):
                 turn = self._next_turn()
             if turn is None:
                 return
-            unsolicited: list[Event] = []
             if turn:
                 try:
                     wait_s = self._housekeeping()
@@ -1295,7 +1296,8 @@ class Client(CommandMethods):
                         if data:
                             with lock:
                                 received = session.receive(data, self._clock())
-                                unsolicited = received.unsolicited
+                                if received.unsolicited:
+                                    self._strays += received.unsolicited
                                 if session.has_outbox:
                                     self._flush_due()
                 except ConnectionLostError as error:
@@ -1305,8 +1307,6 @@ class Client(CommandMethods):
                     with lock:
                         self._reader_ident = None
                         self._notify_callers()  # results, or the role, for a waiting caller
-            if unsolicited:
-                self._drops.report(unsolicited, self._options.on_stray, self._clock())
             self._emit()
 
     def _next_turn(self) -> bool | None:

@@ -56,9 +56,11 @@ class DropLog:
         self.period_s = period_s
         self.dropped_since_warning = 0
         self._last_warning_at = float("-inf")
+        self._callback_failures = HookFailureLog("on_stray")
 
     def report(self, events: Iterable[Event], callback: StrayCallback | None, now: float) -> None:
-        """Log each event and pass it to ``callback`` (a callback that raises is logged).
+        """Log each event and pass it to ``callback`` (a callback that raises is logged once,
+        then counted: :class:`HookFailureLog`).
 
         Example::
 
@@ -76,8 +78,8 @@ class DropLog:
             if callback is not None:
                 try:
                     callback(event)
-                except (Exception, SystemExit):  # (SystemExit too: it ends a reader thread)
-                    logger.exception("on_stray callback failed on %r", event)
+                except (Exception, SystemExit) as error:  # (SystemExit: it ends a reader thread)
+                    self._callback_failures.report(callback, event, error)
         if self.dropped_since_warning and now - self._last_warning_at >= self.period_s:
             logger.warning(
                 "%d received frame(s) dropped (bad checksum or malformed) since "
@@ -92,7 +94,7 @@ class HookFailureLog:
     """Logs the failures of event callbacks: each callback's first with its traceback, then
     how many more, at most once per :data:`HOOK_FAILURE_WARNING_PERIOD_S`.
 
-    >>> failures = HookFailureLog(clock=lambda: 0.0)
+    >>> failures = HookFailureLog("on_event", clock=lambda: 0.0)
     >>> hook = print
     >>> failures.report(hook, "event", ValueError("bad"))  # logged, with the traceback
     >>> failures.report(hook, "event", ValueError("bad"))  # counted
@@ -100,7 +102,8 @@ class HookFailureLog:
     1
     """
 
-    def __init__(self, clock: Callable[[], float] = time.monotonic) -> None:
+    def __init__(self, name: str = "on_event", clock: Callable[[], float] = time.monotonic) -> None:
+        self._name = name  # what the user calls the callbacks: on_event, on_stray
         self._clock = clock
         # By the callback's id: a callback need not be hashable, and each client keeps its
         # callbacks (``on_event``, the subscribers) alive as long as this log.
@@ -130,8 +133,9 @@ class HookFailureLog:
         said_at = self._said_at.get(key)
         if said_at is None:
             logger.error(
-                "on_event callback failed on %r (its further failures are counted: a warning "
+                "%s callback failed on %r (its further failures are counted: a warning "
                 "at most every %g s)",
+                self._name,
                 event,
                 HOOK_FAILURE_WARNING_PERIOD_S,
                 exc_info=error,
@@ -141,7 +145,8 @@ class HookFailureLog:
         unsaid = self._unsaid.get(key, 0) + 1
         if now - said_at >= HOOK_FAILURE_WARNING_PERIOD_S:
             logger.warning(
-                "on_event callback failed %d more times since it was last logged, last on %r: %r",
+                "%s callback failed %d more times since it was last logged, last on %r: %r",
+                self._name,
                 unsaid,
                 event,
                 error,
