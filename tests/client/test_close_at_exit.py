@@ -5,12 +5,18 @@ watchdog (2 s)."""
 
 from __future__ import annotations
 
+import asyncio
+import logging
+import socket
 import subprocess
 import sys
 
 import pytest
 
-from tests.client.conftest import CONDITION_TIMEOUT_S
+from rovlink.aio import AsyncClient
+from rovlink.client import links
+from rovlink.client.links import SocketLink
+from tests.client.conftest import CONDITION_TIMEOUT_S, ThreadCall, client_options
 from tests.client.fake_controller import FakeControllerServer
 from tests.rovlink_process import rovlink_environment
 
@@ -75,3 +81,31 @@ def test_an_asyncio_program_that_ends_without_closing_its_client_stops_the_robot
     (fake,) = port.fakes
     assert fake.wait_for(lambda f: f.frames()[-1:] == ["#stop!"]), fake.frames()
     assert fake.frames() == ["#crcoff!", "#start!", "#th.90.40!", "#qd!", "#stop!"]
+
+
+def test_at_exit_an_asyncio_client_on_a_line_that_takes_nothing_does_not_hold_the_exit(
+    monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture
+) -> None:
+    # A write waiting for room gives up only after the write timeout: made far longer than
+    # the wait below, so that an exit waiting for that write is told from one that does not.
+    monkeypatch.setattr(links, "WRITE_TIMEOUT_S", CONDITION_TIMEOUT_S * 10)
+    ours, theirs = socket.socketpair()  # nobody reads the far end
+    link = SocketLink(ours, "socket pair")
+
+    async def drive() -> AsyncClient:
+        rov = await AsyncClient(link, client_options()).open()
+        await rov.move(0, 40)
+        return rov
+
+    rov = asyncio.run(drive())  # the program's loop ends without close()
+    try:
+        while link.send_some(b"x" * 65536):  # the line takes nothing more
+            pass
+        with caplog.at_level(logging.WARNING, logger="rovlink.client"):
+            exiting = ThreadCall(rov._stop_at_exit)  # what the atexit handler does for it
+            assert exiting.done.wait(CONDITION_TIMEOUT_S), "the exit waits for the write"
+        assert exiting.error is None
+        assert "#stop! not written within 0.5 s" in caplog.text
+    finally:
+        theirs.close()  # (the write still waiting fails now)
+        asyncio.run(rov.close())
