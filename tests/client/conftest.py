@@ -3,9 +3,12 @@
 from __future__ import annotations
 
 import asyncio
+import itertools
+import os
 import socket
 import threading
 import time
+import tty
 from collections.abc import AsyncIterator, Awaitable, Callable, Iterator
 from types import TracebackType
 from typing import Any
@@ -203,3 +206,44 @@ def port() -> Iterator[FakeControllerServer]:
     served = FakeControllerServer()
     yield served
     served.close()
+
+
+@pytest.fixture
+def pty_fake() -> Iterator[tuple[FakeController, str]]:
+    """A fake controller on a pseudo-terminal; yields it and the terminal's path."""
+    master, slave = os.openpty()
+    tty.setraw(slave)  # no echo, no line editing, before the client opens it
+    fake = FakeController(master)
+    yield fake, os.ttyname(slave)
+    fake.close()
+    os.close(slave)
+
+
+@pytest.fixture
+def reopened() -> Iterator[list[FakeController]]:
+    """The controllers of the reopened links, in order (closed after the test)."""
+    fakes: list[FakeController] = []
+    yield fakes
+    for fake in fakes:
+        fake.close()
+
+
+async def longest_loop_stall_s(call: Callable[[], Awaitable[object]]) -> float:
+    """Await ``call()`` while a task ticks every 10 ms; the longest the event loop went without
+    running that task, s (a loop blocked by a call stands still for as long as it blocks)."""
+    loop = asyncio.get_running_loop()
+    ticks: list[float] = []
+
+    async def tick() -> None:
+        while True:
+            ticks.append(loop.time())
+            await asyncio.sleep(0.01)
+
+    ticker = asyncio.ensure_future(tick())
+    try:
+        await asyncio.sleep(0.02)
+        await call()
+        ticks.append(loop.time())
+    finally:
+        ticker.cancel()
+    return max(later - earlier for earlier, later in itertools.pairwise(ticks))

@@ -89,15 +89,6 @@ def stuck() -> Iterator[_StuckLines]:
         far_end.close()
 
 
-@pytest.fixture
-def reopened() -> Iterator[list[FakeController]]:
-    """The controllers of the reopened links, in order (closed after the test)."""
-    fakes: list[FakeController] = []
-    yield fakes
-    for fake in fakes:
-        fake.close()
-
-
 def test_a_stop_on_the_reopened_link_does_not_wait_for_a_write_blocked_on_the_lost_one(
     reopened: list[FakeController],
 ) -> None:

@@ -7,10 +7,7 @@ from __future__ import annotations
 
 import asyncio
 import logging
-import os
 import socket
-import tty
-from collections.abc import Iterator
 
 import pytest
 
@@ -76,17 +73,6 @@ async def test_closing_the_asyncio_client_stops_the_robot_it_moved(how: str) -> 
         if how == "close()":
             await rov.close()
     assert _driving(_state(rov)) == _STOPPED
-
-
-@pytest.fixture
-def pty_fake() -> Iterator[tuple[FakeController, str]]:
-    """A fake controller on a pseudo-terminal; yields it and the terminal's path."""
-    master, slave = os.openpty()
-    tty.setraw(slave)  # no echo, no line editing, before the client opens it
-    fake = FakeController(master)
-    yield fake, os.ttyname(slave)
-    fake.close()
-    os.close(slave)
 
 
 def test_over_a_pseudo_terminal_both_clients_stop_on_close(
