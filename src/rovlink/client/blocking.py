@@ -161,11 +161,8 @@ class Client(CommandMethods):
         # Links over a descriptor write without blocking: queries then take a shorter path.
         self._send_now: Callable[[bytes], int] | None = getattr(link, "send_some", None)
         self._queued_line_s = links.queued_line_s(link)
-        # A caller waiting for its reply reads with this: links that can sleep in the read
-        # itself offer ``read_reply`` (only the background reader needs waking up).
-        self._read_reply: Callable[[float], bytes] = getattr(
-            link, "read_reply", link.read_available
-        )
+        # A caller waiting for its reply reads with this (the link's; a test interrupts it).
+        self._read_reply: Callable[[float], bytes] = link.read_available
         try:
             self._await_ready()
             # The mode frame is the driver's own (a replay of a recording leaves it out).
@@ -656,7 +653,7 @@ class Client(CommandMethods):
         self._link = link
         self._send_now = getattr(link, "send_some", None)
         self._queued_line_s = links.queued_line_s(link)
-        self._read_reply = getattr(link, "read_reply", link.read_available)
+        self._read_reply = link.read_available
         self._reconnecting = False
         plural = "s" if attempts > 1 else ""
         session.note_link(
