@@ -10,20 +10,23 @@ import logging
 import socket
 import subprocess
 import sys
+import threading
 
 import pytest
 
+import rovlink.aio
 from rovlink.aio import AsyncClient
 from rovlink.client import links
 from rovlink.client.links import SocketLink
-from tests.client.conftest import CONDITION_TIMEOUT_S, ThreadCall, client_options
-from tests.client.fake_controller import FakeControllerServer
+from tests.client.conftest import CONDITION_TIMEOUT_S, ThreadCall, client_options, wait_until
+from tests.client.fake_controller import FakeController, FakeControllerServer
 from tests.rovlink_process import rovlink_environment
 
 pytestmark = pytest.mark.integration
 
 _PROGRAM = """
 import sys
+import threading
 import rovlink
 rov = rovlink.connect(sys.argv[1], keepalive=None, boot_timeout=None)
 rov.start()
@@ -109,3 +112,34 @@ def test_at_exit_an_asyncio_client_on_a_line_that_takes_nothing_does_not_hold_th
     finally:
         theirs.close()  # (the write still waiting fails now)
         asyncio.run(rov.close())
+
+
+def _stop_writers() -> list[threading.Thread]:
+    return [thread for thread in threading.enumerate() if thread.name.startswith("rovlink stop")]
+
+
+def test_closing_in_a_later_loop_on_a_line_that_takes_nothing_leaves_no_write_under_way(
+    monkeypatch: pytest.MonkeyPatch, pty_fake: tuple[FakeController, str]
+) -> None:
+    # The #stop! not written within its 0.5 s is given up before the port is closed: a write
+    # still waiting then would go to whatever the system next opens under that descriptor.
+    # (A pseudo-terminal: closing it does not wake a write waiting for room, as a socket's
+    # shutdown does.)
+    monkeypatch.setattr(links, "WRITE_TIMEOUT_S", CONDITION_TIMEOUT_S * 10)
+    fake, path = pty_fake
+
+    async def drive() -> AsyncClient:
+        rov = await rovlink.aio.connect(path, keepalive=None, boot_timeout=None)
+        await rov.move(0, 40)
+        return rov
+
+    rov = asyncio.run(drive())
+    fake.stop_reading()
+    link = rov._link
+    assert isinstance(link, links.FdLink)
+    while link.send_some(b"\r\n" * 4096):  # the line takes nothing more
+        pass
+    closing = ThreadCall(lambda: asyncio.run(rov.close()))  # in a later event loop
+    assert closing.done.wait(CONDITION_TIMEOUT_S), "close() waits for the write"
+    assert closing.error is None
+    assert wait_until(lambda: not _stop_writers()), "a #stop! still waits on the closed port"
