@@ -16,8 +16,8 @@ from typing import Any
 import pytest
 
 from rovlink.aio import AsyncClient
-from rovlink.client import Client, ClientOptions
-from rovlink.client.links import SocketLink
+from rovlink.client import Client, ClientOptions, links
+from rovlink.client.links import FdLink, SocketLink
 from tests.client.fake_controller import FakeController, FakeControllerServer
 
 #: The timeout of queries that are meant to be answered: long enough for a reply on a loaded
@@ -247,3 +247,16 @@ async def longest_loop_stall_s(call: Callable[[], Awaitable[object]]) -> float:
     finally:
         ticker.cancel()
     return max(later - earlier for earlier, later in itertools.pairwise(ticks))
+
+
+def fill_line(link: FdLink) -> None:
+    """Fill the kernel's buffers towards a far end that does not read: the next write waits."""
+    while link.send_some(b"\r\n" * 32768):
+        pass
+
+
+@pytest.fixture
+def long_write_timeout(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A write waiting for room gives up only after the write timeout: made far longer than a
+    test waits, so that a call that waits for such a write is told from one that does not."""
+    monkeypatch.setattr(links, "WRITE_TIMEOUT_S", CONDITION_TIMEOUT_S * 10)

@@ -18,7 +18,13 @@ import rovlink.aio
 from rovlink.aio import AsyncClient
 from rovlink.client import links
 from rovlink.client.links import SocketLink
-from tests.client.conftest import CONDITION_TIMEOUT_S, ThreadCall, client_options, wait_until
+from tests.client.conftest import (
+    CONDITION_TIMEOUT_S,
+    ThreadCall,
+    client_options,
+    fill_line,
+    wait_until,
+)
 from tests.client.fake_controller import FakeController, FakeControllerServer
 from tests.rovlink_process import rovlink_environment
 
@@ -86,12 +92,10 @@ def test_an_asyncio_program_that_ends_without_closing_its_client_stops_the_robot
     assert fake.frames() == ["#crcoff!", "#start!", "#th.90.40!", "#qd!", "#stop!"]
 
 
+@pytest.mark.usefixtures("long_write_timeout")
 def test_at_exit_an_asyncio_client_on_a_line_that_takes_nothing_does_not_hold_the_exit(
-    monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture
+    caplog: pytest.LogCaptureFixture,
 ) -> None:
-    # A write waiting for room gives up only after the write timeout: made far longer than
-    # the wait below, so that an exit waiting for that write is told from one that does not.
-    monkeypatch.setattr(links, "WRITE_TIMEOUT_S", CONDITION_TIMEOUT_S * 10)
     ours, theirs = socket.socketpair()  # nobody reads the far end
     link = SocketLink(ours, "socket pair")
 
@@ -102,8 +106,7 @@ def test_at_exit_an_asyncio_client_on_a_line_that_takes_nothing_does_not_hold_th
 
     rov = asyncio.run(drive())  # the program's loop ends without close()
     try:
-        while link.send_some(b"x" * 65536):  # the line takes nothing more
-            pass
+        fill_line(link)  # the line takes nothing more
         with caplog.at_level(logging.WARNING, logger="rovlink.client"):
             exiting = ThreadCall(rov._stop_at_exit)  # what the atexit handler does for it
             assert exiting.done.wait(CONDITION_TIMEOUT_S), "the exit waits for the write"
@@ -118,14 +121,14 @@ def _stop_writers() -> list[threading.Thread]:
     return [thread for thread in threading.enumerate() if thread.name.startswith("rovlink stop")]
 
 
+@pytest.mark.usefixtures("long_write_timeout")
 def test_closing_in_a_later_loop_on_a_line_that_takes_nothing_leaves_no_write_under_way(
-    monkeypatch: pytest.MonkeyPatch, pty_fake: tuple[FakeController, str]
+    pty_fake: tuple[FakeController, str],
 ) -> None:
     # The #stop! not written within its 0.5 s is given up before the port is closed: a write
     # still waiting then would go to whatever the system next opens under that descriptor.
     # (A pseudo-terminal: closing it does not wake a write waiting for room, as a socket's
     # shutdown does.)
-    monkeypatch.setattr(links, "WRITE_TIMEOUT_S", CONDITION_TIMEOUT_S * 10)
     fake, path = pty_fake
 
     async def drive() -> AsyncClient:
@@ -137,8 +140,7 @@ def test_closing_in_a_later_loop_on_a_line_that_takes_nothing_leaves_no_write_un
     fake.stop_reading()
     link = rov._link
     assert isinstance(link, links.FdLink)
-    while link.send_some(b"\r\n" * 4096):  # the line takes nothing more
-        pass
+    fill_line(link)  # the line takes nothing more
     closing = ThreadCall(lambda: asyncio.run(rov.close()))  # in a later event loop
     assert closing.done.wait(CONDITION_TIMEOUT_S), "close() waits for the write"
     assert closing.error is None

@@ -14,7 +14,7 @@ import pytest
 import rovlink
 import rovlink.aio
 from rovlink.aio import AsyncClient
-from rovlink.client import Client, ClientOptions, links
+from rovlink.client import Client, ClientOptions
 from rovlink.client.links import SocketLink
 from rovlink.controller import ControllerState
 from rovlink.sim import SimulatedPort
@@ -23,6 +23,7 @@ from tests.client.conftest import (
     REPLY_TIMEOUT_S,
     ThreadCall,
     client_options,
+    fill_line,
     wait_until,
 )
 from tests.client.fake_controller import FakeController
@@ -134,19 +135,16 @@ def test_a_stop_on_close_only_when_the_robot_was_moved_since_the_last_stop(
     assert _frames_after_close(options, program) == expected
 
 
+@pytest.mark.usefixtures("long_write_timeout")
 def test_close_does_not_hang_on_a_line_that_takes_nothing(
-    monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture
+    caplog: pytest.LogCaptureFixture,
 ) -> None:
-    # A write waiting for room gives up only after the write timeout: made far longer than
-    # the wait below, so that a close waiting for that write is told from one that does not.
-    monkeypatch.setattr(links, "WRITE_TIMEOUT_S", CONDITION_TIMEOUT_S * 10)
     ours, theirs = socket.socketpair()  # nobody reads the far end
     link = SocketLink(ours, "socket pair")
     rov = Client(link, client_options())
     try:
         rov.move(0, 40)
-        while link.send_some(b"x" * 65536):  # the line takes nothing more
-            pass
+        fill_line(link)  # the line takes nothing more
         with caplog.at_level(logging.WARNING, logger="rovlink.client"):
             closing = ThreadCall(rov.close)
             assert closing.done.wait(CONDITION_TIMEOUT_S), "close() waits for the write"
