@@ -92,6 +92,40 @@ def test_an_asyncio_program_that_ends_without_closing_its_client_stops_the_robot
     assert fake.frames() == ["#crcoff!", "#start!", "#th.90.40!", "#qd!", "#stop!"]
 
 
+_FORKING_PROGRAM = """
+import os, sys
+import rovlink
+rov = rovlink.connect(sys.argv[1], keepalive=None, boot_timeout=None)
+rov.start()
+rov.move(90, 40)
+child = os.fork()
+if child == 0:
+    sys.exit(0)  # (the end of a child's work: its exit handlers run)
+os.waitpid(child, 0)
+assert rov.depth_cm() == 123
+os._exit(0)  # (the parent's own stop at exit is not what this looks at)
+"""
+
+
+def test_a_forked_child_that_ends_does_not_stop_the_robot_of_its_parent(
+    port: FakeControllerServer,
+) -> None:
+    # A child made with os.fork() shares its parent's port, not its driving: its exit sent the
+    # #stop! of the parent's open client, and stopped the robot under the parent.
+    child = subprocess.run(
+        [sys.executable, "-c", _FORKING_PROGRAM, port.url],
+        env=rovlink_environment(),
+        capture_output=True,
+        check=False,
+        text=True,
+        timeout=CONDITION_TIMEOUT_S * 2,
+    )
+    assert child.returncode == 0, child.stderr
+    (fake,) = port.fakes
+    assert fake.wait_for(lambda f: "#qd!" in f.frames()), fake.frames()
+    assert fake.frames() == ["#crcoff!", "#start!", "#th.90.40!", "#qd!"]
+
+
 @pytest.mark.usefixtures("long_write_timeout")
 def test_at_exit_an_asyncio_client_on_a_line_that_takes_nothing_does_not_hold_the_exit(
     caplog: pytest.LogCaptureFixture,

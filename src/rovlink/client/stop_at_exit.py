@@ -8,12 +8,14 @@ that ``#stop!`` through :func:`stop_within`, which never holds the caller up for
 :data:`STOP_WAIT_S`: the write is a thread's of its own, and a line that takes nothing (a write
 waits up to 2 s for room, ``rfc2217://``'s up to its socket's 5 s) is left to the controller's
 failsafe. The clients still open as the program ends are stopped the same way by an ``atexit``
-handler, one after the other, so the exit waits at most that long for each.
+handler, one after the other, so the exit waits at most that long for each; not by a child the
+program forked, which shares its ports but not its driving.
 """
 
 from __future__ import annotations
 
 import atexit
+import os
 import threading
 import weakref
 from collections.abc import Callable
@@ -99,3 +101,7 @@ def _stop_open_clients() -> None:
 
 
 atexit.register(_stop_open_clients)
+# A child made with os.fork() shares the program's ports, not its driving: its exit must not
+# stop the robot under the program (a child's handlers run when it ends with sys.exit()).
+if hasattr(os, "register_at_fork"):  # (not on Windows)
+    os.register_at_fork(after_in_child=_open_clients.clear)
