@@ -151,8 +151,13 @@ def test_at_exit_an_asyncio_client_on_a_line_that_takes_nothing_does_not_hold_th
         asyncio.run(rov.close())
 
 
-def _stop_writers() -> list[threading.Thread]:
-    return [thread for thread in threading.enumerate() if thread.name.startswith("rovlink stop")]
+def _stop_writers(port: str) -> list[threading.Thread]:
+    """The threads writing the #stop! of a client on ``port`` (named after its description)."""
+    return [
+        thread
+        for thread in threading.enumerate()
+        if thread.name.startswith("rovlink stop") and port in thread.name
+    ]
 
 
 @pytest.mark.usefixtures("long_write_timeout")
@@ -178,4 +183,4 @@ def test_closing_in_a_later_loop_on_a_line_that_takes_nothing_leaves_no_write_un
     closing = ThreadCall(lambda: asyncio.run(rov.close()))  # in a later event loop
     assert closing.done.wait(CONDITION_TIMEOUT_S), "close() waits for the write"
     assert closing.error is None
-    assert wait_until(lambda: not _stop_writers()), "a #stop! still waits on the closed port"
+    assert wait_until(lambda: not _stop_writers(path)), "a #stop! still waits on the closed port"
