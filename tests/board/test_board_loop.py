@@ -564,6 +564,17 @@ def _reply(client: socket.socket, query: bytes) -> bytes:
     return client.recv(100)
 
 
+def _received_until(client: socket.socket, fragment: bytes) -> bool:
+    """Read from ``client`` until ``fragment`` has come (True) or the connection ends."""
+    received = b""
+    while fragment not in received:
+        data = client.recv(4096)
+        if not data:
+            return False
+        received += data
+    return True
+
+
 def test_a_tcp_client_whose_link_died_unseen_gives_way_to_a_new_one() -> None:
     # A station on Wi-Fi that dropped: no FIN ever arrives, the connection stays open. Its
     # motion is stopped by the link-loss failsafe; the station connecting again must get the
@@ -572,8 +583,9 @@ def test_a_tcp_client_whose_link_died_unseen_gives_way_to_a_new_one() -> None:
         address = rig.server.tcp_address
         assert address is not None
         with socket.create_connection(address, timeout=5) as dead:
-            dead.sendall(b"#start!#th.90.50!")
-            assert wait_until(rig.moving_as_commanded)
+            dead.sendall(b"#debug1!#start!#th.90.50!")
+            # (Said by the controller rather than caught moving: the motion lasts 0.3 s.)
+            assert _received_until(dead, b"failsafe: no valid frame for 0.3 s")
             assert wait_until(rig.neutral)  # the failsafe: the link is silent
             assert wait_until(lambda: rig.server.controller.locked)
 
@@ -581,7 +593,13 @@ def test_a_tcp_client_whose_link_died_unseen_gives_way_to_a_new_one() -> None:
                 with socket.create_connection(address, timeout=5) as again:
                     if _reply(again, b"#qd!").startswith(b"$qd."):
                         again.sendall(b"#start!#th.90.50!")
-                        return wait_until(rig.moving_as_commanded)
+                        # (Its queries keep the motion alive while the test looks.)
+                        return wait_until(
+                            lambda: (
+                                _reply(again, b"#qd!").startswith(b"$qd.")
+                                and rig.moving_as_commanded()
+                            )
+                        )
                     return False
 
             assert wait_until(connected_again)
@@ -589,7 +607,9 @@ def test_a_tcp_client_whose_link_died_unseen_gives_way_to_a_new_one() -> None:
 
 
 def test_a_tcp_client_that_keeps_its_link_alive_is_not_pushed_out() -> None:
-    with _served_on_tcp(_quick(watchdog_s=0.3), silent_client_gives_way_s=0.3) as rig:
+    # (Times far longer than a query and a connection take, even on a loaded machine: the
+    # test waits for neither, it only needs each round to come well within them.)
+    with _served_on_tcp(_quick(watchdog_s=2.0), silent_client_gives_way_s=2.0) as rig:
         address = rig.server.tcp_address
         assert address is not None
         with socket.create_connection(address, timeout=5) as live:
@@ -639,8 +659,9 @@ def test_thrusters_on_two_pwm_boards_of_one_bus_move_and_stop_together() -> None
         assert wait_until(lambda: _both_moving(rig)), (rig.pulses(), _second_board(rig))
         rig.send(b"#stop!")
         assert wait_until(lambda: _both_neutral(rig)), (rig.pulses(), _second_board(rig))
-        rig.send(move)  # and nothing more: the link-loss failsafe stops both boards
-        assert wait_until(lambda: _both_moving(rig))
+        rig.send(b"#debug1!" + move)  # and nothing more: the link-loss failsafe stops both
+        # (Said by the controller rather than caught moving: the motion lasts 0.3 s.)
+        assert wait_until(lambda: rig.saw(b"failsafe: no valid frame for 0.3 s"))
         assert wait_until(lambda: _both_neutral(rig)), (rig.pulses(), _second_board(rig))
         assert rig.server.controller.locked
         assert [check.name for check in rig.server.board.checks] == [

@@ -242,7 +242,12 @@ def test_a_tcp_host_that_dies_while_driving_is_stopped_though_a_monitor_keeps_ta
             tty.setraw(monitor)
             with socket.create_connection((host, int(port)), timeout=5) as station:
                 station.sendall(b"#start!#th.90.50!")
-                assert wait_until(lambda: _moving(log))
+
+                def moving_while_alive() -> bool:  # (its queries keep its motion alive)
+                    station.sendall(b"#qd!")
+                    return _moving(log)
+
+                assert wait_until(moving_while_alive)
                 # The station hangs, its connection left open (one that closes it is
                 # stopped at once); the monitor keeps asking for the sensors.
 

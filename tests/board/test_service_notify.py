@@ -15,7 +15,7 @@ import pytest
 from rovlink.board.pi.board import fake_bus_for, open_pi_board
 from rovlink.board.server import BoardServer
 from rovlink.board.service_notify import ServiceNotifier
-from tests.board.rig import example_config, wait_until, with_controller
+from tests.board.rig import CONDITION_TIMEOUT_S, example_config, wait_until, with_controller
 
 _INTERVAL_S = 0.02
 
@@ -132,3 +132,26 @@ def test_a_control_loop_that_hangs_stops_telling_systemd(tmp_path: Path) -> None
             server.close()
             watchdog.close()
             pins.close()
+
+
+def test_a_notification_systemd_does_not_take_never_holds_the_control_loop(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    # Nobody reads the socket: once its queue is full, a blocking send waited for good, in the
+    # control loop, where the thrusters are set.
+    with _systemd_socket(tmp_path):
+        notifier = ServiceNotifier(str(tmp_path / "notify"), interval_s=1.0)
+        periods_done = threading.Event()
+
+        def control_periods() -> None:
+            for period in range(5000):  # far more than the socket's queue holds
+                notifier.pet(float(period))
+            periods_done.set()
+
+        threading.Thread(target=control_periods, daemon=True).start()
+        try:
+            assert periods_done.wait(CONDITION_TIMEOUT_S), "a notification held the loop"
+        finally:
+            notifier.close()  # (a send still waiting fails now)
+    errors = [record for record in caplog.records if "cannot notify systemd" in record.message]
+    assert len(errors) == 1  # said once, not once a period

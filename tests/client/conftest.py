@@ -3,9 +3,12 @@
 from __future__ import annotations
 
 import asyncio
+import itertools
+import os
 import socket
 import threading
 import time
+import tty
 from collections.abc import AsyncIterator, Awaitable, Callable, Iterator
 from types import TracebackType
 from typing import Any
@@ -13,8 +16,8 @@ from typing import Any
 import pytest
 
 from rovlink.aio import AsyncClient
-from rovlink.client import Client, ClientOptions
-from rovlink.client.links import SocketLink
+from rovlink.client import Client, ClientOptions, links
+from rovlink.client.links import FdLink, SocketLink
 from tests.client.fake_controller import FakeController, FakeControllerServer
 
 #: The timeout of queries that are meant to be answered: long enough for a reply on a loaded
@@ -203,3 +206,57 @@ def port() -> Iterator[FakeControllerServer]:
     served = FakeControllerServer()
     yield served
     served.close()
+
+
+@pytest.fixture
+def pty_fake() -> Iterator[tuple[FakeController, str]]:
+    """A fake controller on a pseudo-terminal; yields it and the terminal's path."""
+    master, slave = os.openpty()
+    tty.setraw(slave)  # no echo, no line editing, before the client opens it
+    fake = FakeController(master)
+    yield fake, os.ttyname(slave)
+    fake.close()
+    os.close(slave)
+
+
+@pytest.fixture
+def reopened() -> Iterator[list[FakeController]]:
+    """The controllers of the reopened links, in order (closed after the test)."""
+    fakes: list[FakeController] = []
+    yield fakes
+    for fake in fakes:
+        fake.close()
+
+
+async def longest_loop_stall_s(call: Callable[[], Awaitable[object]]) -> float:
+    """Await ``call()`` while a task ticks every 10 ms; the longest the event loop went without
+    running that task, s (a loop blocked by a call stands still for as long as it blocks)."""
+    loop = asyncio.get_running_loop()
+    ticks: list[float] = []
+
+    async def tick() -> None:
+        while True:
+            ticks.append(loop.time())
+            await asyncio.sleep(0.01)
+
+    ticker = asyncio.ensure_future(tick())
+    try:
+        await asyncio.sleep(0.02)
+        await call()
+        ticks.append(loop.time())
+    finally:
+        ticker.cancel()
+    return max(later - earlier for earlier, later in itertools.pairwise(ticks))
+
+
+def fill_line(link: FdLink) -> None:
+    """Fill the kernel's buffers towards a far end that does not read: the next write waits."""
+    while link.send_some(b"\r\n" * 32768):
+        pass
+
+
+@pytest.fixture
+def long_write_timeout(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A write waiting for room gives up only after the write timeout: made far longer than a
+    test waits, so that a call that waits for such a write is told from one that does not."""
+    monkeypatch.setattr(links, "WRITE_TIMEOUT_S", CONDITION_TIMEOUT_S * 10)

@@ -28,6 +28,7 @@ from tests.client.conftest import (
     ThreadCall,
     WatchedLock,
     client_options,
+    fill_line,
     wait_until,
 )
 from tests.client.fake_controller import FakeController, FakeControllerServer
@@ -37,12 +38,6 @@ pytestmark = pytest.mark.integration
 #: How soon a #stop! asked for must be on the wire when nothing but the client is in its way
 #: (the write timeout, 2 s, is what the client waited for before).
 PROMPT_S = 0.5
-
-
-def _fill(link: SocketLink) -> None:
-    """Fill the kernel's buffers towards a far end that does not read: the next write waits."""
-    while link.send_some(b"\r\n" * 32768):
-        pass
 
 
 def _lost(events: list[ClientEvent]) -> bool:
@@ -67,7 +62,7 @@ class _StuckLines:
         far_end, ours = socket.socketpair()
         self.far_ends.append(far_end)
         link = SocketLink(ours, "socket pair, reopened, stuck")
-        _fill(link)
+        fill_line(link)
         return link
 
     def first_was_let_go(self) -> bool:
@@ -89,15 +84,6 @@ def stuck() -> Iterator[_StuckLines]:
         far_end.close()
 
 
-@pytest.fixture
-def reopened() -> Iterator[list[FakeController]]:
-    """The controllers of the reopened links, in order (closed after the test)."""
-    fakes: list[FakeController] = []
-    yield fakes
-    for fake in fakes:
-        fake.close()
-
-
 def test_a_stop_on_the_reopened_link_does_not_wait_for_a_write_blocked_on_the_lost_one(
     reopened: list[FakeController],
 ) -> None:
@@ -116,7 +102,7 @@ def test_a_stop_on_the_reopened_link_does_not_wait_for_a_write_blocked_on_the_lo
     far_end.send(b"$qd.0!")  # the answer to the first readiness probe
     rov = Client(link, options, reopen=reopen)
     try:
-        _fill(link)
+        fill_line(link)
         sent = rov.counters.frames_sent
         writer = ThreadCall(lambda: rov.move(90, 40))
         assert wait_until(lambda: rov.counters.frames_sent > sent)  # the #th is being written

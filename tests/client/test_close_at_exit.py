@@ -5,19 +5,34 @@ watchdog (2 s)."""
 
 from __future__ import annotations
 
+import asyncio
+import logging
+import socket
 import subprocess
 import sys
+import threading
 
 import pytest
 
-from tests.client.conftest import CONDITION_TIMEOUT_S
-from tests.client.fake_controller import FakeControllerServer
+import rovlink.aio
+from rovlink.aio import AsyncClient
+from rovlink.client import links
+from rovlink.client.links import SocketLink
+from tests.client.conftest import (
+    CONDITION_TIMEOUT_S,
+    ThreadCall,
+    client_options,
+    fill_line,
+    wait_until,
+)
+from tests.client.fake_controller import FakeController, FakeControllerServer
 from tests.rovlink_process import rovlink_environment
 
 pytestmark = pytest.mark.integration
 
 _PROGRAM = """
 import sys
+import threading
 import rovlink
 rov = rovlink.connect(sys.argv[1], keepalive=None, boot_timeout=None)
 rov.start()
@@ -75,3 +90,97 @@ def test_an_asyncio_program_that_ends_without_closing_its_client_stops_the_robot
     (fake,) = port.fakes
     assert fake.wait_for(lambda f: f.frames()[-1:] == ["#stop!"]), fake.frames()
     assert fake.frames() == ["#crcoff!", "#start!", "#th.90.40!", "#qd!", "#stop!"]
+
+
+_FORKING_PROGRAM = """
+import os, sys
+import rovlink
+rov = rovlink.connect(sys.argv[1], keepalive=None, boot_timeout=None)
+rov.start()
+rov.move(90, 40)
+child = os.fork()
+if child == 0:
+    sys.exit(0)  # (the end of a child's work: its exit handlers run)
+os.waitpid(child, 0)
+assert rov.depth_cm() == 123
+os._exit(0)  # (the parent's own stop at exit is not what this looks at)
+"""
+
+
+def test_a_forked_child_that_ends_does_not_stop_the_robot_of_its_parent(
+    port: FakeControllerServer,
+) -> None:
+    # A child made with os.fork() shares its parent's port, not its driving: its exit sent the
+    # #stop! of the parent's open client, and stopped the robot under the parent.
+    child = subprocess.run(
+        [sys.executable, "-c", _FORKING_PROGRAM, port.url],
+        env=rovlink_environment(),
+        capture_output=True,
+        check=False,
+        text=True,
+        timeout=CONDITION_TIMEOUT_S * 2,
+    )
+    assert child.returncode == 0, child.stderr
+    (fake,) = port.fakes
+    assert fake.wait_for(lambda f: "#qd!" in f.frames()), fake.frames()
+    assert fake.frames() == ["#crcoff!", "#start!", "#th.90.40!", "#qd!"]
+
+
+@pytest.mark.usefixtures("long_write_timeout")
+def test_at_exit_an_asyncio_client_on_a_line_that_takes_nothing_does_not_hold_the_exit(
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    ours, theirs = socket.socketpair()  # nobody reads the far end
+    link = SocketLink(ours, "socket pair")
+
+    async def drive() -> AsyncClient:
+        rov = await AsyncClient(link, client_options()).open()
+        await rov.move(0, 40)
+        return rov
+
+    rov = asyncio.run(drive())  # the program's loop ends without close()
+    try:
+        fill_line(link)  # the line takes nothing more
+        with caplog.at_level(logging.WARNING, logger="rovlink.client"):
+            exiting = ThreadCall(rov._stop_at_exit)  # what the atexit handler does for it
+            assert exiting.done.wait(CONDITION_TIMEOUT_S), "the exit waits for the write"
+        assert exiting.error is None
+        assert "#stop! not written within 0.5 s" in caplog.text
+    finally:
+        theirs.close()  # (the write still waiting fails now)
+        asyncio.run(rov.close())
+
+
+def _stop_writers(port: str) -> list[threading.Thread]:
+    """The threads writing the #stop! of a client on ``port`` (named after its description)."""
+    return [
+        thread
+        for thread in threading.enumerate()
+        if thread.name.startswith("rovlink stop") and port in thread.name
+    ]
+
+
+@pytest.mark.usefixtures("long_write_timeout")
+def test_closing_in_a_later_loop_on_a_line_that_takes_nothing_leaves_no_write_under_way(
+    pty_fake: tuple[FakeController, str],
+) -> None:
+    # The #stop! not written within its 0.5 s is given up before the port is closed: a write
+    # still waiting then would go to whatever the system next opens under that descriptor.
+    # (A pseudo-terminal: closing it does not wake a write waiting for room, as a socket's
+    # shutdown does.)
+    fake, path = pty_fake
+
+    async def drive() -> AsyncClient:
+        rov = await rovlink.aio.connect(path, keepalive=None, boot_timeout=None)
+        await rov.move(0, 40)
+        return rov
+
+    rov = asyncio.run(drive())
+    fake.stop_reading()
+    link = rov._link
+    assert isinstance(link, links.FdLink)
+    fill_line(link)  # the line takes nothing more
+    closing = ThreadCall(lambda: asyncio.run(rov.close()))  # in a later event loop
+    assert closing.done.wait(CONDITION_TIMEOUT_S), "close() waits for the write"
+    assert closing.error is None
+    assert wait_until(lambda: not _stop_writers(path)), "a #stop! still waits on the closed port"

@@ -7,11 +7,7 @@ from __future__ import annotations
 
 import asyncio
 import logging
-import os
 import socket
-import time
-import tty
-from collections.abc import Iterator
 
 import pytest
 
@@ -25,7 +21,9 @@ from rovlink.sim import SimulatedPort
 from tests.client.conftest import (
     CONDITION_TIMEOUT_S,
     REPLY_TIMEOUT_S,
+    ThreadCall,
     client_options,
+    fill_line,
     wait_until,
 )
 from tests.client.fake_controller import FakeController
@@ -76,17 +74,6 @@ async def test_closing_the_asyncio_client_stops_the_robot_it_moved(how: str) -> 
         if how == "close()":
             await rov.close()
     assert _driving(_state(rov)) == _STOPPED
-
-
-@pytest.fixture
-def pty_fake() -> Iterator[tuple[FakeController, str]]:
-    """A fake controller on a pseudo-terminal; yields it and the terminal's path."""
-    master, slave = os.openpty()
-    tty.setraw(slave)  # no echo, no line editing, before the client opens it
-    fake = FakeController(master)
-    yield fake, os.ttyname(slave)
-    fake.close()
-    os.close(slave)
 
 
 def test_over_a_pseudo_terminal_both_clients_stop_on_close(
@@ -148,6 +135,7 @@ def test_a_stop_on_close_only_when_the_robot_was_moved_since_the_last_stop(
     assert _frames_after_close(options, program) == expected
 
 
+@pytest.mark.usefixtures("long_write_timeout")
 def test_close_does_not_hang_on_a_line_that_takes_nothing(
     caplog: pytest.LogCaptureFixture,
 ) -> None:
@@ -156,13 +144,12 @@ def test_close_does_not_hang_on_a_line_that_takes_nothing(
     rov = Client(link, client_options())
     try:
         rov.move(0, 40)
-        while link.send_some(b"x" * 65536):  # the line takes nothing more
-            pass
-        started = time.monotonic()
+        fill_line(link)  # the line takes nothing more
         with caplog.at_level(logging.WARNING, logger="rovlink.client"):
-            rov.close()
-        assert time.monotonic() - started < 1.5  # the stop's 0.5 s, and the port released
-        assert "#stop! on close not written within 0.5 s" in caplog.text
+            closing = ThreadCall(rov.close)
+            assert closing.done.wait(CONDITION_TIMEOUT_S), "close() waits for the write"
+        assert closing.error is None
+        assert "#stop! not written within 0.5 s" in caplog.text
         assert wait_until(lambda: rov.closed)
     finally:
         theirs.close()

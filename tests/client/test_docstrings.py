@@ -1,9 +1,9 @@
 """House rule: every public function and method of the host driver has a docstring with an example.
 
 The public driver is what ``rovlink.client`` and ``rovlink.aio`` export, what the driver's link,
-port-closing, transport and stray-event modules export, with the methods and properties of the
-classes among them (inherited ones included), and the public functions of ``rovlink send`` and
-``rovlink demo``.
+port-closing, stop-at-exit, transport and stray-event modules export, with the methods and
+properties of the classes among them (inherited ones included), and the public functions of
+``rovlink send`` and ``rovlink demo``.
 """
 
 from __future__ import annotations
@@ -19,6 +19,7 @@ import rovlink.cli.send
 import rovlink.client
 import rovlink.client.links
 import rovlink.client.port_closing
+import rovlink.client.stop_at_exit
 import rovlink.client.unsolicited
 
 MODULES: tuple[ModuleType, ...] = (
@@ -26,6 +27,7 @@ MODULES: tuple[ModuleType, ...] = (
     rovlink.aio,
     rovlink.client.links,
     rovlink.client.port_closing,
+    rovlink.client.stop_at_exit,
     rovlink.client.unsolicited,
     rovlink.aio.transport,
     rovlink.cli.send,

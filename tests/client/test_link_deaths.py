@@ -103,15 +103,13 @@ def dying(request: pytest.FixtureRequest) -> Iterator[tuple[Far, Callable[[], No
         yield end, lambda: death(end.fake())
 
 
+def _settings(**options: object) -> dict[str, object]:
+    """The tests' connection settings, with ``options``."""
+    return {"keepalive": None, "boot_timeout": None, "timeout": _TIMEOUT_S, "retries": 0, **options}
+
+
 def _connect(far: Far, **options: object) -> rovlink.Client:
-    settings: dict[str, object] = {
-        "keepalive": None,
-        "boot_timeout": None,
-        "timeout": _TIMEOUT_S,
-        "retries": 0,
-    }
-    settings.update(options)
-    return rovlink.connect(far.url, **settings)  # type: ignore[arg-type]
+    return rovlink.connect(far.url, **_settings(**options))  # type: ignore[arg-type]
 
 
 def _assert_closed_clearly(rov: rovlink.Client, far: Far) -> None:
@@ -161,14 +159,7 @@ def test_blocking_a_far_end_that_hangs(far: Far) -> None:
 
 
 async def _aconnect(far: Far, **options: object) -> rovlink.aio.AsyncClient:
-    settings: dict[str, object] = {
-        "keepalive": None,
-        "boot_timeout": None,
-        "timeout": _TIMEOUT_S,
-        "retries": 0,
-    }
-    settings.update(options)
-    return await rovlink.aio.connect(far.url, **settings)  # type: ignore[arg-type]
+    return await rovlink.aio.connect(far.url, **_settings(**options))  # type: ignore[arg-type]
 
 
 async def _assert_closed_clearly_async(rov: rovlink.aio.AsyncClient, far: Far) -> None:

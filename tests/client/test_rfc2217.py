@@ -5,12 +5,10 @@ stop it, with the option pyserial needs for a server that does not acknowledge m
 from __future__ import annotations
 
 import asyncio
-import itertools
 import os
 import shutil
 import socket
 import subprocess
-import time
 import tty
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -24,14 +22,20 @@ import rovlink.aio
 from rovlink.client import ConnectionLostError, links
 from rovlink.client.links import _open_error
 from rovlink.client.url import parse_url
-from tests.client.conftest import CONDITION_TIMEOUT_S, ThreadCall, wait_until
+from tests.client.conftest import (
+    CONDITION_TIMEOUT_S,
+    ThreadCall,
+    longest_loop_stall_s,
+    wait_until,
+)
 from tests.client.fake_controller import FakeController
 
 SER2NET = shutil.which("ser2net") or (
     "/usr/sbin/ser2net" if Path("/usr/sbin/ser2net").exists() else None
 )
-#: How soon a write given up must end (the port's own timeout, 5 s, is what it waited for).
-_PROMPT_S = 0.5
+#: How soon a write given up must end: half the port's own timeout, 5 s, which is what it waited
+#: for (ending at once, it has room for a loaded machine).
+_PROMPT_S = 2.5
 
 
 @dataclass
@@ -127,23 +131,8 @@ async def test_closing_the_asyncio_client_does_not_stall_its_event_loop(served: 
     # event loop's thread, it held everything else up for as long (a bridge's heartbeats).
     rov = await rovlink.aio.connect(served.url, keepalive=None)
     assert await rov.depth_cm() == 123
-    loop = asyncio.get_running_loop()
-    ticks: list[float] = []
-
-    async def tick() -> None:
-        while True:
-            ticks.append(loop.time())
-            await asyncio.sleep(0.01)
-
-    ticker = asyncio.ensure_future(tick())
-    try:
-        await asyncio.sleep(0.02)
-        await rov.close()
-        ticks.append(loop.time())
-    finally:
-        ticker.cancel()
-    gaps = [later - earlier for earlier, later in itertools.pairwise(ticks)]
-    assert max(gaps) < 0.2, f"the event loop stood still for {max(gaps):.2f} s"
+    stall_s = await longest_loop_stall_s(rov.close)
+    assert stall_s < 0.2, f"the event loop stood still for {stall_s:.2f} s"
 
 
 @pytest.mark.integration
@@ -158,10 +147,8 @@ def test_a_write_waiting_on_an_rfc2217_port_is_given_up_at_once(served: Served) 
         served.fake.stop_reading()
         writer = ThreadCall(lambda: link.write(b"\r\n" * (1 << 23)))  # more than the line holds
         assert not writer.done.wait(0.3), f"the write ended at once: {writer.error!r}"
-        started = time.monotonic()
         link.abort_writes()
         assert writer.done.wait(_PROMPT_S), "the waiting write was not given up"
-        assert time.monotonic() - started < _PROMPT_S
         assert isinstance(writer.error, ConnectionLostError)
     finally:
         link.close()

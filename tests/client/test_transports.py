@@ -3,10 +3,8 @@
 from __future__ import annotations
 
 import asyncio
-import os
 import socket
 import threading
-import tty
 from collections.abc import Iterator
 
 import pytest
@@ -21,17 +19,6 @@ from tests.client.fake_controller import FakeController
 pytestmark = pytest.mark.integration
 
 EXPECTED_SENSORS = Sensors(123, 530, False, -1, 15, 275)
-
-
-@pytest.fixture
-def pty_fake() -> Iterator[tuple[FakeController, str]]:
-    """A fake controller on a pseudo-terminal; yields it and the terminal's path."""
-    master, slave = os.openpty()
-    tty.setraw(slave)  # no echo, no line editing, before the client opens it
-    fake = FakeController(master)
-    yield fake, os.ttyname(slave)
-    fake.close()
-    os.close(slave)
 
 
 class _TcpFake:

@@ -367,20 +367,27 @@ def test_dive_and_hold_reports_a_lost_link_and_exits(
     assert any(message.startswith("dive aborted: connection lost") for message in messages)
 
 
-@pytest.mark.integration
-def test_dive_and_hold_stops_the_robot_on_ctrl_c_over_a_serial_line(
-    pty_sim: tuple[SimServer, str],
+def stops_the_robot_on_ctrl_c(
+    pty_sim: tuple[SimServer, str], name: str, arguments: list[str], printed: str
 ) -> None:
+    """Run example ``name`` as a script on the simulator's pseudo-terminal, Ctrl-C it once it has
+    printed ``printed``: it says it stopped, and the robot is locked, with nothing set."""
     server, path = pty_sim
-    command = script_command(
-        "dive_and_hold", path, "--depth", "30", "--hold", "60", "--interval", "0.05"
-    )
-    status, out = interrupt_when_printed(command, "holding")
+    status, out = interrupt_when_printed(script_command(name, path, *arguments), printed)
     assert status == 130, out
     assert out.endswith("motors off and locked\ninterrupted\n")
     state = server.robot.controller.state()
     assert state.locked
+    assert state.power_percent == 0
     assert state.target_depth_cm is None
+
+
+@pytest.mark.integration
+def test_dive_and_hold_stops_the_robot_on_ctrl_c_over_a_serial_line(
+    pty_sim: tuple[SimServer, str],
+) -> None:
+    arguments = ["--depth", "30", "--hold", "60", "--interval", "0.05"]
+    stops_the_robot_on_ctrl_c(pty_sim, "dive_and_hold", arguments, "holding")
 
 
 # -- async_telemetry_and_control.py -------------------------------------------------------------
@@ -433,16 +440,8 @@ def test_async_telemetry_and_control_cancels_the_pilot_at_its_deadline(
 def test_async_telemetry_and_control_stops_the_robot_on_ctrl_c_over_a_serial_line(
     pty_sim: tuple[SimServer, str],
 ) -> None:
-    server, path = pty_sim
-    command = script_command(
-        "async_telemetry_and_control", path, "--depth", "20", "--leg", "60", "--rate", "20"
-    )
-    status, out = interrupt_when_printed(command, "pilot: ahead")
-    assert status == 130, out
-    assert out.endswith("motors off and locked\ninterrupted\n")
-    state = server.robot.controller.state()
-    assert state.locked
-    assert state.power_percent == 0
+    arguments = ["--depth", "20", "--leg", "60", "--rate", "20"]
+    stops_the_robot_on_ctrl_c(pty_sim, "async_telemetry_and_control", arguments, "pilot: ahead")
 
 
 def test_async_telemetry_and_control_ends_on_a_leak(

@@ -10,11 +10,9 @@ per reply. Timeouts are one loop timer at the oldest query's deadline.
 from __future__ import annotations
 
 import asyncio
-import atexit
 import contextlib
 import math
 import time
-import weakref
 from asyncio.events import _get_running_loop as _running_loop  # (None, not an error, if none)
 from collections import deque
 from collections.abc import AsyncIterator, Callable, Generator
@@ -41,6 +39,7 @@ from rovlink.client.readiness import ReadinessProbe
 from rovlink.client.reconnection import reconnect_delays_s, reconnecting_failed
 from rovlink.client.sensors import Sensors
 from rovlink.client.session import Outcome, PendingQuery, Session
+from rovlink.client.stop_at_exit import stop_at_exit, stop_within
 from rovlink.client.unsolicited import DropLog, HookFailureLog, deliver
 from rovlink.client.url import parse_url
 from rovlink.logs import get_logger
@@ -169,7 +168,7 @@ class AsyncClient(AsyncCommandMethods):
             raise
         self._opened = True
         self._arm_timer()
-        _open_clients.add(self)
+        stop_at_exit(self)  # (the robot it moved is stopped if the program ends with it open)
         return self
 
     async def _await_ready(self, *, reconnecting: bool = False) -> None:
@@ -245,7 +244,7 @@ class AsyncClient(AsyncCommandMethods):
                 raise self._wrong_loop_error()
             self._close_after_its_loop()
             return
-        _open_clients.discard(self)
+        stop_at_exit(self, wanted=False)
         if self._closed:
             await self._released.wait()  # a close() under way: return once it is done
             return
@@ -356,13 +355,14 @@ class AsyncClient(AsyncCommandMethods):
     def _stop_at_exit(self) -> None:
         """The program ends with the client open (``asyncio.run`` returned without a close):
         the ``#stop!`` of close(), if due, written as :meth:`emergency_stop` writes it (the loop
-        has ended)."""
+        has ended), waited for at most 0.5 s: a line that takes nothing would hold the exit up
+        for the write timeout."""
         if (
             self._options.stop_on_close
             and self._session.moved_since_stop
             and not (self._closed or self._link_down or self._lost is not None)
         ):
-            self.emergency_stop()
+            stop_within(self.emergency_stop, self._link.description)
 
     def _stop_after_emergency(self) -> None:
         """:meth:`stop` in the loop after :meth:`emergency_stop`, behind what it had queued."""
@@ -567,7 +567,7 @@ class AsyncClient(AsyncCommandMethods):
         timer), so the port is closed as it is, after the ``#stop!`` of close() if it is due
         (written as :meth:`emergency_stop` writes it); there was no other way to release it."""
         self._stop_at_exit()
-        _open_clients.discard(self)
+        stop_at_exit(self, wanted=False)
         self._closed = True
         if self._lost is None:
             self._lost = ConnectionLostError(f"{self._link.description}: closed")
@@ -1002,23 +1002,6 @@ class AsyncClient(AsyncCommandMethods):
             self._flush_due()
         self._emit()
         self._arm_timer()
-
-
-#: The clients open in this process: a program that ends without closing one has it stop the
-#: robot it moved on the way out (see :meth:`AsyncClient.close`), rather than leave it to the
-#: controller's watchdog.
-_open_clients: weakref.WeakSet[AsyncClient] = weakref.WeakSet()
-
-
-def _stop_open_clients() -> None:
-    for client in list(_open_clients):
-        try:
-            client._stop_at_exit()
-        except Exception:  # (the others are stopped all the same)
-            logger.exception("stopping %s as the program ends", client.description)
-
-
-atexit.register(_stop_open_clients)
 
 
 def _loop_clock(loop: asyncio.AbstractEventLoop) -> Callable[[], float]:

@@ -368,6 +368,15 @@ class ThreadTransport:
     def write(self, data: bytes) -> None:
         """Queue ``data`` for the writing thread; never waits for the port. (A port whose
         writes never wait, an in-process one, is written at once.)"""
+        self._queue_for_writer(data, first=False)
+
+    def write_first(self, data: bytes) -> None:
+        """Queue ``data`` for the writing thread ahead of everything queued: it goes next,
+        once a write already under way has ended; never waits for the port. (A port whose
+        writes never wait is written at once.)"""
+        self._queue_for_writer(data, first=True)
+
+    def _queue_for_writer(self, data: bytes, *, first: bool) -> None:
         if self._writes_at_once:
             self._write_now(data)
             return
@@ -377,23 +386,10 @@ class ThreadTransport:
             if self._lost is not None:
                 self._failed_writes += data
                 raise ConnectionLostError(str(self._lost))  # (a new one: each has its traceback)
-            self._queue += data
-            self._changed.notify_all()
-
-    def write_first(self, data: bytes) -> None:
-        """Queue ``data`` for the writing thread ahead of everything queued: it goes next,
-        once a write already under way has ended; never waits for the port. (A port whose
-        writes never wait is written at once.)"""
-        if self._writes_at_once:
-            self._write_now(data)
-            return
-        with self._changed:
-            if self._closing:
-                raise ConnectionLostError(f"{self._link.description}: closed")
-            if self._lost is not None:
-                self._failed_writes += data
-                raise ConnectionLostError(str(self._lost))
-            self._queue[:0] = data
+            if first:
+                self._queue[:0] = data
+            else:
+                self._queue += data
             self._changed.notify_all()
 
     def _write_now(self, data: bytes) -> None:

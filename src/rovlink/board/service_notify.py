@@ -36,6 +36,9 @@ class ServiceNotifier:
         self._address = "\0" + socket_path[1:] if socket_path.startswith("@") else socket_path
         self.interval_s = interval_s
         self._socket = socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM)
+        # Sent from the control loop, which sets the thrusters: a queue systemd does not empty
+        # must fail the send (said once), never hold the loop.
+        self._socket.setblocking(False)
         self._next_s = float("-inf")
         self._failed = False
 

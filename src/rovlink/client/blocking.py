@@ -15,11 +15,9 @@ use the client.
 
 from __future__ import annotations
 
-import atexit
 import contextlib
 import threading
 import time
-import weakref
 from collections.abc import Callable
 from types import TracebackType
 from typing import TypeVar
@@ -40,6 +38,7 @@ from rovlink.client.port_closing import close_within
 from rovlink.client.readiness import ReadinessProbe
 from rovlink.client.reconnection import reconnect_delays_s, reconnecting_failed
 from rovlink.client.session import Outcome, PendingQuery, Received, Session
+from rovlink.client.stop_at_exit import stop_at_exit, stop_within
 from rovlink.client.unsolicited import DropLog, HookFailureLog, deliver
 from rovlink.client.url import parse_url
 from rovlink.logs import get_logger
@@ -71,8 +70,6 @@ _MAX_READ_WAIT_S = 0.25
 _CALLER_GRACE_S = 0.005
 #: How long a call waits for another thread to deliver its events to the hook (see _emit).
 _DELIVERY_WAIT_S = 1.0
-#: How long close() waits for the #stop! it sends when the robot was moved (see _stop_on_close).
-_STOP_ON_CLOSE_WAIT_S = 0.5
 
 
 class Client(CommandMethods):
@@ -168,11 +165,8 @@ class Client(CommandMethods):
         # Links over a descriptor write without blocking: queries then take a shorter path.
         self._send_now: Callable[[bytes], int] | None = getattr(link, "send_some", None)
         self._queued_line_s = links.queued_line_s(link)
-        # A caller waiting for its reply reads with this: links that can sleep in the read
-        # itself offer ``read_reply`` (only the background reader needs waking up).
-        self._read_reply: Callable[[float], bytes] = getattr(
-            link, "read_reply", link.read_available
-        )
+        # A caller waiting for its reply reads with this (the link's; a test interrupts it).
+        self._read_reply: Callable[[float], bytes] = link.read_available
         try:
             self._await_ready()
             # The mode frame is the driver's own (a replay of a recording leaves it out).
@@ -185,7 +179,7 @@ class Client(CommandMethods):
         # Started after the first frame, so that an idle link is measured from it.
         self._background.start()
         self._background_ident = self._background.ident
-        _open_clients.add(self)
+        stop_at_exit(self)  # (the robot it moved is stopped if the program ends with it open)
 
     # -- the connection -------------------------------------------------------------------------
 
@@ -220,7 +214,7 @@ class Client(CommandMethods):
         """
         current = threading.current_thread()
         stop_due = False
-        _open_clients.discard(self)
+        stop_at_exit(self, wanted=False)
         with self._changed:
             if self._closing:
                 closer = self._closer
@@ -271,26 +265,11 @@ class Client(CommandMethods):
             self._released.set()
 
     def _stop_on_close(self) -> None:
-        """Send ``#stop!`` as close() begins, waiting for it at most
-        :data:`_STOP_ON_CLOSE_WAIT_S`: a robot driver sends zero on shutdown, and a program
-        that moved the robot and then closed (or left its ``with`` block) left it driving until
-        the controller's link-loss watchdog (P17). The write is a thread's of its own, so that
-        a line that takes nothing (or a port that cannot give up a write) never holds close()
-        up: closing the port ends that write."""
-        writer = threading.Thread(
-            target=self._write_stop_on_close,
-            name=f"rovlink stop on close ({self._link.description})",
-            daemon=True,
-        )
-        writer.start()
-        writer.join(_STOP_ON_CLOSE_WAIT_S)
-        if writer.is_alive():
-            logger.warning(
-                "%s: #stop! on close not written within %g s (the line takes nothing); closing "
-                "without it: the controller's link-loss failsafe stops the robot",
-                self._link.description,
-                _STOP_ON_CLOSE_WAIT_S,
-            )
+        """Send ``#stop!`` as close() begins, waiting for it at most 0.5 s
+        (:func:`~rovlink.client.stop_at_exit.stop_within`): a line that takes nothing (or a port
+        that cannot give up a write) never holds close() up, and closing the port ends that
+        write."""
+        stop_within(self._write_stop_on_close, self._link.description)
 
     def _stop_at_exit(self) -> None:
         """The program ends with the client open: the ``#stop!`` of close(), if due, and not
@@ -688,7 +667,7 @@ class Client(CommandMethods):
         self._link = link
         self._send_now = getattr(link, "send_some", None)
         self._queued_line_s = links.queued_line_s(link)
-        self._read_reply = getattr(link, "read_reply", link.read_available)
+        self._read_reply = link.read_available
         self._reconnecting = False
         plural = "s" if attempts > 1 else ""
         session.note_link(
@@ -1374,23 +1353,6 @@ class Client(CommandMethods):
         if next_deadline is not None:
             wait_s = min(wait_s, next_deadline - now)
         return max(wait_s, 0.001)
-
-
-#: The clients open in this process: a program that ends without closing one (the end of its
-#: script, ``sys.exit()``, an uncaught error) has it stop the robot it moved on the way out (see
-#: :meth:`Client.close`) rather than leave it to the controller's watchdog.
-_open_clients: weakref.WeakSet[Client] = weakref.WeakSet()
-
-
-def _stop_open_clients() -> None:
-    for client in list(_open_clients):
-        try:
-            client._stop_at_exit()
-        except Exception:  # (the others are stopped all the same)
-            logger.exception("stopping %s as the program ends", client.description)
-
-
-atexit.register(_stop_open_clients)
 
 
 def connect(

@@ -272,8 +272,11 @@ class Vehicle:
         self._sway_mass_kg = params.mass_kg + params.added_mass_sway_kg
         # The rigid-body Coriolis terms, m·v·r in surge and −m·u·r in sway, turn (u, v) along an
         # ellipse that keeps the kinetic energy ½(M_u·u² + M_v·v²): its scaled form turns at
-        # m/√(M_u·M_v) times the yaw rate, and is turned exactly (no energy from the step).
-        self._coriolis_rate = params.mass_kg / math.sqrt(self._surge_mass_kg * self._sway_mass_kg)
+        # m/√(M_u·M_v) times the yaw rate (a ratio, rad per rad), and is turned exactly (no
+        # energy from the step).
+        self._coriolis_turn_per_yaw = params.mass_kg / math.sqrt(
+            self._surge_mass_kg * self._sway_mass_kg
+        )
         self._sway_per_surge = math.sqrt(self._surge_mass_kg / self._sway_mass_kg)
         self._bottom_depth_m = params.bottom_depth_m
         self._dt_s = 0.0
@@ -432,7 +435,7 @@ class Vehicle:
         # the scaled velocity by the Cayley transform (norm-preserving: a long turn gains no
         # speed from the steps), with the turn just made: a hull of its own mass alone keeps
         # its velocity over the ground as it turns.
-        half_angle = 0.5 * self._coriolis_rate * rate * dt_s
+        half_angle = 0.5 * self._coriolis_turn_per_yaw * rate * dt_s
         if half_angle:
             squared = half_angle * half_angle
             cos_turn = (1.0 - squared) / (1.0 + squared)

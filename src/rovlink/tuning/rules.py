@@ -65,6 +65,12 @@ class ZieglerNicholsRule(Rule):
         )
 
 
+def _heave_response(ultimate_gain: float, ultimate_period_s: float) -> float:
+    """The hull's heave as a mass pushed by thrust, from the relay: depth'' = b · thrust, with
+    b = ω_u² / Ku at the oscillation's ω_u = 2π / Tu; b in cm/s² per %."""
+    return (2.0 * math.pi / ultimate_period_s) ** 2 / ultimate_gain
+
+
 @dataclass(frozen=True)
 class HeavePolesRule(Rule):
     """The heave of a hull is close to a mass pushed by thrust: depth'' = b · thrust. At the
@@ -80,7 +86,7 @@ class HeavePolesRule(Rule):
     def gains(
         self, ultimate_gain: float, ultimate_period_s: float, max_kp: float | None = None
     ) -> PhysicalGains:
-        plant_gain = (2.0 * math.pi / ultimate_period_s) ** 2 / ultimate_gain  # cm/s² per %
+        plant_gain = _heave_response(ultimate_gain, ultimate_period_s)
         omega = self.bandwidth_rad_s
         kp = omega**2 / plant_gain
         ti = self.integral_periods * 2.0 * math.pi / omega
@@ -125,7 +131,7 @@ class SimcRule(Rule):
     def gains(
         self, ultimate_gain: float, ultimate_period_s: float, max_kp: float | None = None
     ) -> PhysicalGains:
-        plant_gain = (2.0 * math.pi / ultimate_period_s) ** 2 / ultimate_gain  # cm/s² per %
+        plant_gain = _heave_response(ultimate_gain, ultimate_period_s)
         time_s = self.closed_loop_s
         if max_kp is not None and 1.0 / (2.0 * plant_gain * time_s**2) > max_kp:
             time_s = math.sqrt(1.0 / (2.0 * plant_gain * max_kp))

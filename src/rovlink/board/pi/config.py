@@ -496,12 +496,7 @@ def _table(data: Mapping[str, Any], name: str, where: str) -> Mapping[str, Any]:
 def pi_config_from_mapping(data: Mapping[str, Any], source: str = "rov.toml") -> PiConfig:
     """The configuration in parsed TOML ``data``; :class:`ConfigError` names what is wrong."""
     controller = config_from_mapping(data, source, other_tables=_BOARD_TABLES)
-    escs = _escs(controller, _table(data, "esc", f"{source} [esc]"), source)
-    i2c = dataclass_from_table(I2cConfig, _table(data, "i2c", f"{source} [i2c]"), f"{source} [i2c]")
-    pwm_boards = _pwm_boards(data, source)
-    claw = dataclass_from_table(
-        ClawConfig, _table(data, "claw", f"{source} [claw]"), f"{source} [claw]"
-    )
+    escs, i2c, pwm_boards, claw = _output_tables(data, controller, source)
     pressure_table = dict(_table(data, "pressure", f"{source} [pressure]"))
     ms5837 = dataclass_from_table(
         Ms5837Config,
@@ -555,17 +550,23 @@ def load_pi_outputs_config(path: Path | str) -> PiConfig:
     source = str(path)
     outputs = {name: data[name] for name in _OUTPUT_TABLES if name in data}
     controller = config_from_mapping(outputs, source, other_tables=_BOARD_TABLES)
-    escs = _escs(controller, _table(outputs, "esc", f"{source} [esc]"), source)
-    i2c = dataclass_from_table(
-        I2cConfig, _table(outputs, "i2c", f"{source} [i2c]"), f"{source} [i2c]"
-    )
-    claw = dataclass_from_table(
-        ClawConfig, _table(outputs, "claw", f"{source} [claw]"), f"{source} [claw]"
-    )
-    config = PiConfig(controller, escs, i2c, _pwm_boards(outputs, source), claw)
+    config = PiConfig(controller, *_output_tables(outputs, controller, source))
     _check_addresses(config, source, sensors=False)
     _check_outputs(config, source)
     return config
+
+
+def _output_tables(
+    data: Mapping[str, Any], controller: ControllerConfig, source: str
+) -> tuple[tuple[EscConfig, ...], I2cConfig, tuple[Pca9685Config, ...], ClawConfig]:
+    """The ``[esc.*]``, ``[i2c]``, ``[pca9685]`` and ``[claw]`` tables of ``data``, in
+    :class:`PiConfig`'s order."""
+    escs = _escs(controller, _table(data, "esc", f"{source} [esc]"), source)
+    i2c = dataclass_from_table(I2cConfig, _table(data, "i2c", f"{source} [i2c]"), f"{source} [i2c]")
+    claw = dataclass_from_table(
+        ClawConfig, _table(data, "claw", f"{source} [claw]"), f"{source} [claw]"
+    )
+    return escs, i2c, _pwm_boards(data, source), claw
 
 
 def _check_outputs(config: PiConfig, source: str) -> None:
