@@ -43,18 +43,23 @@ if sys.argv[2] == "raises":
 """
 
 
-@pytest.mark.parametrize("ending", ["ends", "raises"])
-def test_a_program_that_ends_without_closing_its_client_stops_the_robot(
-    port: FakeControllerServer, ending: str
-) -> None:
-    child = subprocess.run(
-        [sys.executable, "-c", _PROGRAM, port.url, ending],
+def _run_program(source: str, *argv: str) -> subprocess.CompletedProcess[str]:
+    """Run ``source`` as a Python program with ``argv``, to its end."""
+    return subprocess.run(
+        [sys.executable, "-c", source, *argv],
         env=rovlink_environment(),
         capture_output=True,
         check=False,
         text=True,
         timeout=CONDITION_TIMEOUT_S * 2,
     )
+
+
+@pytest.mark.parametrize("ending", ["ends", "raises"])
+def test_a_program_that_ends_without_closing_its_client_stops_the_robot(
+    port: FakeControllerServer, ending: str
+) -> None:
+    child = _run_program(_PROGRAM, port.url, ending)
     assert child.returncode == (1 if ending == "raises" else 0), child.stderr
     (fake,) = port.fakes
     assert fake.wait_for(lambda f: f.frames()[-1:] == ["#stop!"]), fake.frames()
@@ -78,14 +83,7 @@ asyncio.run(main())
 def test_an_asyncio_program_that_ends_without_closing_its_client_stops_the_robot(
     port: FakeControllerServer,
 ) -> None:
-    child = subprocess.run(
-        [sys.executable, "-c", _ASYNC_PROGRAM, port.url],
-        env=rovlink_environment(),
-        capture_output=True,
-        check=False,
-        text=True,
-        timeout=CONDITION_TIMEOUT_S * 2,
-    )
+    child = _run_program(_ASYNC_PROGRAM, port.url)
     assert child.returncode == 0, child.stderr
     (fake,) = port.fakes
     assert fake.wait_for(lambda f: f.frames()[-1:] == ["#stop!"]), fake.frames()
@@ -112,14 +110,7 @@ def test_a_forked_child_that_ends_does_not_stop_the_robot_of_its_parent(
 ) -> None:
     # A child made with os.fork() shares its parent's port, not its driving: its exit sent the
     # #stop! of the parent's open client, and stopped the robot under the parent.
-    child = subprocess.run(
-        [sys.executable, "-c", _FORKING_PROGRAM, port.url],
-        env=rovlink_environment(),
-        capture_output=True,
-        check=False,
-        text=True,
-        timeout=CONDITION_TIMEOUT_S * 2,
-    )
+    child = _run_program(_FORKING_PROGRAM, port.url)
     assert child.returncode == 0, child.stderr
     (fake,) = port.fakes
     assert fake.wait_for(lambda f: "#qd!" in f.frames()), fake.frames()
