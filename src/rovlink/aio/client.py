@@ -251,12 +251,7 @@ class AsyncClient(AsyncCommandMethods):
         # A robot driver sends zero on shutdown: a program that moved the robot and then
         # closed (or left ``async with``) left it driving until the controller's link-loss
         # watchdog (P17). Not on a link being reopened: nothing could carry it.
-        stop_due = (
-            self._options.stop_on_close
-            and self._session.moved_since_stop
-            and self._lost is None
-            and not self._link_down
-        )
+        stop_due = self._stop_due_on_close()
         self._closed = True
         self._link_ready.set()  # callers waiting for a reconnection fail now, as closed
         self._link_down = False
@@ -357,12 +352,18 @@ class AsyncClient(AsyncCommandMethods):
         the ``#stop!`` of close(), if due, written as :meth:`emergency_stop` writes it (the loop
         has ended), waited for at most 0.5 s: a line that takes nothing would hold the exit up
         for the write timeout."""
-        if (
+        if not self._closed and self._stop_due_on_close():
+            stop_within(self.emergency_stop, self._link.description)
+
+    def _stop_due_on_close(self) -> bool:
+        """Whether letting go of the robot owes it a ``#stop!``: the program moved it or
+        unlocked it since its last stop, did not opt out, and a link can carry it."""
+        return (
             self._options.stop_on_close
             and self._session.moved_since_stop
-            and not (self._closed or self._link_down or self._lost is not None)
-        ):
-            stop_within(self.emergency_stop, self._link.description)
+            and self._lost is None
+            and not self._link_down
+        )
 
     def _stop_after_emergency(self) -> None:
         """:meth:`stop` in the loop after :meth:`emergency_stop`, behind what it had queued."""

@@ -229,12 +229,7 @@ class Client(CommandMethods):
                 self._background_wakeup.notify()
                 self._changed.notify_all()
                 on_the_wire = self._session.on_the_wire  # (nothing new is written now)
-                stop_due = (
-                    self._options.stop_on_close
-                    and self._session.moved_since_stop
-                    and self._lost is None
-                    and not self._reconnecting
-                )
+                stop_due = self._stop_due_on_close()
         if closer is not None:
             # Closed once the port is released, whoever closes it (P22: the program may open
             # it again) — unless this thread is one the first close() waits for.
@@ -264,6 +259,16 @@ class Client(CommandMethods):
         finally:
             self._released.set()
 
+    def _stop_due_on_close(self) -> bool:
+        """Whether letting go of the robot owes it a ``#stop!`` (state lock held): the program
+        moved it or unlocked it since its last stop, did not opt out, and a link can carry it."""
+        return (
+            self._options.stop_on_close
+            and self._session.moved_since_stop
+            and self._lost is None
+            and not self._reconnecting
+        )
+
     def _stop_on_close(self) -> None:
         """Send ``#stop!`` as close() begins, waiting for it at most 0.5 s
         (:func:`~rovlink.client.stop_at_exit.stop_within`): a line that takes nothing (or a port
@@ -276,13 +281,7 @@ class Client(CommandMethods):
         the rest (waiting for the replies on the wire would hold the exit up, as after Ctrl-C;
         the system releases the port)."""
         with self._state_lock:
-            due = (
-                self._options.stop_on_close
-                and self._session.moved_since_stop
-                and self._lost is None
-                and not self._reconnecting
-                and not self._closing
-            )
+            due = not self._closing and self._stop_due_on_close()
         if due:
             self._stop_on_close()
 
