@@ -142,3 +142,25 @@ def test_slreset_while_the_probe_is_still_wet_latches_again(steps: Path) -> None
         steps, ["leak-at 300", "run 350", send(b"#slreset!"), "run 20", send(b"#q.l!"), "show"]
     )
     assert shown.output == b"$q.l.1!"
+
+
+def test_attitude_ties_round_up_as_the_python_controller_does(tmp_path: Path) -> None:
+    """A value exactly half-way between two degrees goes up, toward +∞, as in rovlink's
+    controller (docs/hardware.md): −2.5° → −2 and −0.5° → 0, not away from zero."""
+    probe = tmp_path / "attitude_probe.c"
+    probe.write_text(
+        "#define RL_HOST_ROBOT_NO_MAIN\n"
+        '#include "host/host_robot.c"\n'
+        "int main(void) {\n"
+        "    const double values[] = {-90.6, -2.5, -0.5, -0.4, 0.5, 2.5, 89.5, 90.5};\n"
+        "    size_t i;\n"
+        "    for (i = 0; i < sizeof values / sizeof values[0]; i++)\n"
+        '        printf("%d\\n", attitude_deg(values[i]));\n'
+        "    return 0;\n"
+        "}\n"
+    )
+    binary = build(
+        tmp_path / "attitude-probe", [probe, *LAYER], *STRICT, "-Wno-unused-function", "-O1"
+    )
+    printed = [int(word) for (word,) in run_script(binary, [])]
+    assert printed == [-90, -2, 0, 0, 1, 3, 90, 90]

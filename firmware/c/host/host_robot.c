@@ -175,8 +175,9 @@ static void on_command(void *context, rl_command_id command, const int32_t *valu
     }
 }
 
+/* Whole degrees, a tie taken up (toward +infinity) as rovlink's controller does: -2.5 gives -2. */
 static int attitude_deg(double value) {
-    long rounded = lround(value);
+    long rounded = lround(floor(value + 0.5));
     return rounded < -90 ? -90 : rounded > 90 ? 90 : (int)rounded;
 }
 
