@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import argparse
 import threading
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Protocol
 
 from rovlink.cli.failure import CommandError, InputError, UsageError, reason
 from rovlink.cli.interrupt import ServingSignals, say_last, say_ready
@@ -229,6 +229,20 @@ def _open_endpoints(
         except (serial.SerialException, OSError, ValueError) as error:
             raise CommandError(f"cannot open {args.port}: {error}") from None
         endpoints.append(f"serial {args.port} {args.baud} baud")
+    return endpoints + _open_pty_and_tcp(server, args, address)
+
+
+class _LineServer(Protocol):
+    def open_pty(self) -> str: ...
+    def listen_tcp(self, host: str, port: int) -> tuple[str, int]: ...
+
+
+def _open_pty_and_tcp(
+    server: _LineServer, args: argparse.Namespace, address: tuple[str, int] | None
+) -> list[str]:
+    """Open the PTY and the TCP listener asked for (a board or the simulator); their
+    descriptions."""
+    endpoints = []
     if args.pty:
         endpoints.append(f"pty {server.open_pty()}")
     if address is not None:
@@ -303,15 +317,7 @@ def _run_sim(
         config = dataclasses.replace(config, controller=controller)
     server = SimServer(config)
     try:
-        endpoints = []
-        if args.pty:
-            endpoints.append(f"pty {server.open_pty()}")
-        if address is not None:
-            try:
-                host, port = server.listen_tcp(*address)
-            except OSError as error:
-                raise CommandError(f"cannot listen on {args.tcp}: {reason(error)}") from None
-            endpoints.append(tcp_endpoint(host, port, "rovlink.board"))
+        endpoints = _open_pty_and_tcp(server, args, address)
         say_ready(f"rovlink controller ready: board sim, {', '.join(endpoints)}; Ctrl-C stops")
         server.serve(stop.is_set)
     finally:
