@@ -371,7 +371,8 @@ def _print(result: TuneResult, applied: bool, final: ProtocolGains, *, refused: 
         metrics = result.step.measured
         settings = result.step.settings
         print(
-            f"verify: step {settings.from_cm} -> {settings.to_cm} cm (measured depth): "
+            f"verify: step {settings.from_cm} -> {settings.to_cm} cm (measured depth, mean over "
+            f"{settings.smooth_s:g} s): "
             f"overshoot {metrics.overshoot_cm:.1f} cm (target ≤ {TARGET_OVERSHOOT_CM:g}), "
             f"within ±{settings.band_cm:g} cm after {metrics.settling_s:.1f} s "
             f"(target ≤ {TARGET_SETTLE_S:g}), RMS {metrics.rms_cm:.2f} cm over the minute after "
@@ -416,6 +417,11 @@ def _plot(result: TuneResult, path: str) -> None:
         step = result.step
         bottom = axes[1][0]
         bottom.plot(step.times_s, step.depths_cm, label="depth (qd), cm")
+        bottom.plot(
+            step.times_s,
+            step.smoothed_depths_cm,
+            label=f"qd, mean over {step.settings.smooth_s:g} s (judged)",
+        )
         if step.true_depths_cm:
             bottom.plot(step.times_s, step.true_depths_cm, label="true depth, cm")
         target = step.settings.to_cm
