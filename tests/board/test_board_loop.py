@@ -206,7 +206,9 @@ def test_a_stale_pressure_sensor_stops_the_motors_until_it_answers() -> None:
         assert wait_until(rig.neutral), rig.pulses()
         assert rig.server.controller.locked
         assert wait_until(lambda: rig.saw(b"read failed"))
-        assert wait_until(lambda: rig.saw(b"stale (5 failed reads in a row): motors stopped"))
+        # (How many reads fail in stale_after_s depends on the loop's timing: not said here.)
+        assert wait_until(lambda: rig.saw(b"at 0x76 stale ("))
+        assert wait_until(lambda: rig.saw(b" s): motors stopped"))
         # Started again while the sensor is still dead: stopped again.
         rig.send(b"#start!#th.90.50!")
         assert wait_until(lambda: rig.server.controller.locked)
@@ -226,9 +228,10 @@ def test_a_dead_imu_is_said_to_be_stale_and_the_robot_can_still_be_driven() -> N
         assert wait_until(rig.moving_as_commanded)
         imu = rig.server.board.sensors[1]
         rig.bus.fail(0x28, 10**6)
+        assert wait_until(lambda: rig.saw(b"IMU BNO055 at 0x28 stale ("))
         assert wait_until(
             lambda: rig.saw(
-                b"IMU BNO055 at 0x28 stale (5 failed reads in a row): roll, pitch and heading "
+                b" s): roll, pitch and heading "
                 b"are not measured, qro, qpi and qhe repeat the last good reading; driving goes on"
             )
         ), rig.received

@@ -110,7 +110,7 @@ def _load(**changes: object) -> None:
             "[leak]: pull = 'up' makes the pin rest high: it cannot be active high",
         ),
         ({"i2c__fake_log": "x.jsonl"}, '[i2c]: fake_log is for backend = "fake" only'),
-        ({"board__stale_after_failures": 0}, "[board]: stale_after_failures must be 1–1000, got 0"),
+        ({"board__stale_after_s": -0.5}, "[board]: stale_after_s must be 0–10 s, got -0.5"),
         ({"controller__watchdog_s": -1.0}, "[controller]: watchdog_s must be ≥ 0"),
         (
             {"depth__k": 0},

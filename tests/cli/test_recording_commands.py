@@ -356,6 +356,70 @@ def test_replay_to_in_checksum_mode_stays_in_it(
     assert b"#crcoff!" not in in_checksum_mode
 
 
+def _replayed_bytes(
+    run_cli: RunCli, path: Path, monkeypatch: pytest.MonkeyPatch, *options: str
+) -> bytes:
+    """What ``rovlink replay PATH --to sim://…`` wrote to the controller."""
+    written: list[bytes] = []
+    connect = rovlink.connect
+
+    def connect_noting(url: str, **settings: Any) -> Client:
+        def note(event: ClientEvent) -> None:
+            if isinstance(event, BytesSent):
+                written.append(event.data)
+
+        return connect(url, on_event=note, **settings)
+
+    monkeypatch.setattr(rovlink, "connect", connect_noting)
+    result = run_cli("replay", str(path), "--to", "sim://?seed=1", *options)
+    assert result.status == 0, result.err
+    return b"".join(written)
+
+
+def test_a_recording_made_with_checksum_says_it_starts_plain(
+    run_cli: RunCli, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # Its header said checksum on, though the driver's connect probe and mode frame went plain.
+    path = tmp_path / "checked.jsonl"
+    assert run_cli("send", "sim://?seed=1", "--checksum", "--record", str(path), "qd").status == 0
+    entries = list(read_entries(str(path)))
+    header = entries[0]
+    assert isinstance(header, HeaderEntry)
+    assert (header.checksum, header.format_version) == (False, 2)
+    [first_out] = [e for e in entries if isinstance(e, WireEntry) and e.direction == "out"][:1]
+    assert first_out.data.startswith(b"#crcoff!#qd!")  # (the connect probe: plain)
+    # The mode frame, and the event of the change, say when checksums start.
+    frames = [(e.name, e.by_session) for e in entries if isinstance(e, FrameEntry)]
+    assert frames[0] == ("crcon", True)
+    changes = [(e.name, e.detail) for e in entries if isinstance(e, EventEntry)]
+    assert ("checksum", "on") in changes
+    decoded = run_cli("decode", str(path), "--stats")
+    assert list(json.loads(decoded.out)["events"]) == ["frame"]  # (no error: each in its mode)
+    listed = run_cli("replay", str(path)).out.splitlines()
+    assert "(no checksum)" in listed[0]
+    assert "mode changed checksum: on" in "\n".join(listed)
+    # Replayed in the mode the recorded driver asked for, as before.
+    replayed = _replayed_bytes(run_cli, path, monkeypatch).partition(b"#crcon!")[2]
+    assert replayed.startswith(b"#qd8C!")
+
+
+def test_replay_of_a_format_1_recording_made_with_checksum_stays_in_checksum_mode(
+    run_cli: RunCli, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    path = tmp_path / "older.jsonl"
+    _write(
+        path,
+        HeaderEntry(1.0, 1, "sim://", True, "crc8", "rovlink send", "0.1.0", format_version=1),
+        WireEntry(1.1, 1, "out", b"#crcoff!#qd!", by_session=True),
+        WireEntry(1.2, 1, "in", b"$qd.0!"),
+        FrameEntry(1.3, 1, "out", "command", "crcon", (), by_session=True),
+        FrameEntry(1.4, 1, "out", "command", "qd", ()),
+        FrameEntry(1.5, 1, "in", "response", "qd", (0,), query="qd"),
+    )
+    replayed = _replayed_bytes(run_cli, path, monkeypatch).partition(b"#crcon!")[2]
+    assert replayed.startswith(b"#qd8C!")
+
+
 def test_replay_reports_damage_after_what_it_read(run_cli: RunCli, tmp_path: Path) -> None:
     path = tmp_path / "dive.jsonl"
     _record(path)

@@ -8,12 +8,13 @@ from __future__ import annotations
 import asyncio
 import logging
 import socket
+from collections.abc import Callable
 
 import pytest
 
 import rovlink
 import rovlink.aio
-from rovlink.aio import AsyncClient
+from rovlink.aio import AsyncClient, transport
 from rovlink.client import Client, ClientOptions
 from rovlink.client.links import SocketLink
 from rovlink.controller import ControllerState
@@ -43,6 +44,8 @@ def _driving(state: ControllerState) -> tuple[bool, int, int]:
 
 
 _SIM = "sim://?seed=3"
+#: How soon leaving a block on a line that takes nothing must end (well under a write timeout).
+_LEAVING_BOUND_S = 1.5
 _MOVING = (False, 40, -30)
 _STOPPED = (True, 0, 0)
 
@@ -151,5 +154,74 @@ def test_close_does_not_hang_on_a_line_that_takes_nothing(
         assert closing.error is None
         assert "#stop! not written within 0.5 s" in caplog.text
         assert wait_until(lambda: rov.closed)
+    finally:
+        theirs.close()
+
+
+def _failing_program(rov: Client, before_the_error: Callable[[], object]) -> None:
+    with rov:
+        before_the_error()
+        raise KeyError("the robot program failed")
+
+
+@pytest.mark.parametrize("transport", ["socket pair", "tcp"])
+@pytest.mark.usefixtures("long_write_timeout")
+def test_leaving_with_by_an_error_does_not_hang_on_a_line_that_takes_nothing(
+    transport: str, caplog: pytest.LogCaptureFixture
+) -> None:
+    """Bounded as close() is: before, the error's own stop() waited for the write timeout."""
+    if transport == "tcp":
+        server = socket.create_server(("127.0.0.1", 0))
+        ours = socket.create_connection(server.getsockname())
+        theirs, _ = server.accept()  # nobody reads it
+        server.close()
+    else:
+        ours, theirs = socket.socketpair()
+    link = SocketLink(ours, transport)
+    # (Nothing moved, and no stop on close asked for: an error stops the robot all the same.)
+    rov = Client(link, client_options(stop_on_close=False))
+    try:
+        with caplog.at_level(logging.WARNING, logger="rovlink.client"):
+            leaving = ThreadCall(lambda: _failing_program(rov, lambda: fill_line(link)))
+            assert leaving.done.wait(CONDITION_TIMEOUT_S), "leaving waits for the write"
+        assert isinstance(leaving.error, KeyError)  # the program's error, not masked
+        assert f"{transport}: #stop! not written within 0.5 s" in caplog.text
+        assert wait_until(lambda: rov.closed)
+    finally:
+        theirs.close()
+
+
+def test_leaving_with_by_an_error_stops_even_a_robot_left_as_it_is_on_close() -> None:
+    fake, host_end = FakeController.on_socketpair()
+    try:
+        rov = Client(SocketLink(host_end, "socket pair"), client_options(stop_on_close=False))
+        with pytest.raises(KeyError):
+            _failing_program(rov, lambda: rov.move(0, 40))
+        assert rov.closed
+        fake._thread.join(CONDITION_TIMEOUT_S)  # (it ends at the end of the stream: all read)
+        assert fake.frames()[1:] == ["#th.0.40!", "#stop!"]
+    finally:
+        fake.close()
+
+
+async def test_leaving_async_with_by_an_error_is_bounded_as_close_is(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """The asyncio client's stop on an error is queued for the port, as close()'s is: leaving
+    waits for a line that takes nothing at most CLOSE_FLUSH_S (made short here), as close()."""
+    monkeypatch.setattr(transport, "CLOSE_FLUSH_S", 0.1)
+    ours, theirs = socket.socketpair()  # nobody reads the far end
+    link = SocketLink(ours, "socket pair")
+    try:
+        rov = await AsyncClient(link, client_options(stop_on_close=False)).open()
+
+        async def failing_program() -> None:
+            async with rov:
+                fill_line(link)
+                raise KeyError("the robot program failed")
+
+        with pytest.raises(KeyError):  # the program's error, not masked
+            await asyncio.wait_for(failing_program(), _LEAVING_BOUND_S)
+        assert rov.closed
     finally:
         theirs.close()

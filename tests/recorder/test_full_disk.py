@@ -169,7 +169,9 @@ def test_the_command_lines_recording_that_stops_is_shown_with_the_librarys_warni
     try:
         args = argparse.Namespace(max_size=None, split=None, checksum=False, algorithm="crc8")
         path = str(tmp_path / "dive.jsonl")
-        recorder = open_recorder(args, path, url="sim://", program="rovlink monitor")
+        recorder = open_recorder(
+            args, path, url="sim://", program="rovlink monitor", checksum=False
+        )
         with rovlink.connect("sim://", on_event=recorder.on_event) as rov:
             full.set()
             rov.depth_cm()

@@ -163,9 +163,7 @@ class BoardServer:
                     self._stale.add(sensor.name)
                     self._went_stale(sensor)
                 if sensor.needed_to_drive and not controller.locked:
-                    controller.failsafe(
-                        f"failsafe: {sensor.name} stale ({sensor.failures} failed reads in a row)"
-                    )
+                    controller.failsafe(f"failsafe: {sensor.name} stale ({sensor.failing_text})")
             elif sensor.name in self._stale:
                 self._stale.discard(sensor.name)
                 controller.debug(f"{sensor.name} answers again")
@@ -182,10 +180,10 @@ class BoardServer:
         """Say that ``sensor`` went stale; one the controller does not drive by is said in a
         debug line too, as no failsafe line tells the pilot."""
         if sensor.needed_to_drive:
-            logger.warning("%s stale: %d failed reads in a row", sensor.name, sensor.failures)
+            logger.warning("%s stale: %s", sensor.name, sensor.failing_text)
             return
         text = (
-            f"{sensor.name} stale ({sensor.failures} failed reads in a row): "
+            f"{sensor.name} stale ({sensor.failing_text}): "
             f"{sensor.lost_when_stale}; driving goes on"
         )
         logger.warning("%s", text)

@@ -322,7 +322,9 @@ def session_recorder(args: argparse.Namespace) -> Recorder | None:
 
         check_url(args)  # a malformed URL is refused before its recording's file is made
         program = f"rovlink {getattr(args, 'command', None) or ''}".strip()
-        recorder = open_recorder(args, args.record, url=args.url, program=program)
+        # Started before the driver connects, whose connect probe and mode frame go plain
+        # (--checksum: its #crcon!, recorded with the mode change, switches after them).
+        recorder = open_recorder(args, args.record, url=args.url, program=program, checksum=False)
         args.recorder = recorder
         started_s = time.monotonic()
 

@@ -104,7 +104,10 @@ def run(args: argparse.Namespace) -> int:
     from rovlink.cli.link_options import log_warnings  # noqa: PLC0415
 
     log_warnings()  # (a recording that stops, a lost link: on stderr)
-    recorder = open_recorder(args, args.output, url=args.url, program="rovlink record")
+    # (--checksum: the link is in checksum mode already, as the recording starts.)
+    recorder = open_recorder(
+        args, args.output, url=args.url, program="rovlink record", checksum=args.checksum
+    )
     signals = ServingSignals()
     stopping = signals.stopping
     heard = _FirstWords()

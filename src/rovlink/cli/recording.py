@@ -145,10 +145,13 @@ def refuse_rotation_without_record(args: argparse.Namespace) -> None:
         raise UsageError(f"{', '.join(given)} {verb} --record FILE: without it nothing is recorded")
 
 
-def open_recorder(args: argparse.Namespace, path: str, *, url: str, program: str) -> Recorder:
-    """A recorder on ``path`` with the command's options. A failure while recording never stops
-    the link; the recorder logs it, and the command shows it where it shows the library's
-    warnings (on stderr; in the dashboard and the console, which hold the terminal)."""
+def open_recorder(
+    args: argparse.Namespace, path: str, *, url: str, program: str, checksum: bool
+) -> Recorder:
+    """A recorder on ``path`` with the command's options; ``checksum``: the mode the link is in
+    as the recording starts. A failure while recording never stops the link; the recorder
+    logs it, and the command shows it where it shows the library's warnings (on stderr; in
+    the dashboard and the console, which hold the terminal)."""
     from rovlink.recorder import Recorder, RecordingError, format_of  # noqa: PLC0415
 
     try:
@@ -162,7 +165,7 @@ def open_recorder(args: argparse.Namespace, path: str, *, url: str, program: str
         return Recorder(
             path,
             url=url,
-            checksum=bool(getattr(args, "checksum", False)),
+            checksum=checksum,
             algorithm=getattr(args, "algorithm", "crc8"),
             program=program,
             max_size_bytes=args.max_size,

@@ -55,7 +55,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--checksum",
         action=OnOff,
         default=None,
-        help="checksum mode of the replay (default: as recorded)",
+        help="checksum mode of the replay (default: as the recorded driver asked for it)",
     )
     group.add_argument(
         "--tolerance",
@@ -126,25 +126,40 @@ def _replay_to(args: argparse.Namespace, damage: _Damage) -> int:
     from rovlink.piloting.commanded import CommandedState  # noqa: PLC0415
     from rovlink.protocol import get_algorithm  # noqa: PLC0415
     from rovlink.recorder import HeaderEntry  # noqa: PLC0415
-    from rovlink.recorder.comparison import ReplaySummary, replay_steps, run_replay  # noqa: PLC0415
+    from rovlink.recorder.comparison import (  # noqa: PLC0415
+        ReplaySummary,
+        drivers_checksum_mode,
+        replay_steps,
+        run_replay,
+    )
 
     header: HeaderEntry | None = None
+    # The mode the recording's driver asked for, as its mode frame says: its recording starts
+    # plain (the connect probe, the mode frame), as its header says.
+    asked_checksum: bool | None = None
     # Differences are timed as the session is listed (rovlink replay FILE): from its start.
     origin_s: float | None = None
 
     def scanned() -> Iterator[Entry]:
         """The entries, one at a time (an hour's recording is never held whole), noting the
         header and the start."""
-        nonlocal header, origin_s
+        nonlocal header, origin_s, asked_checksum
         for entry in damage.entries(args.file):
             if header is None and isinstance(entry, HeaderEntry):
                 header = entry
+            if asked_checksum is None:
+                asked_checksum = drivers_checksum_mode(entry)
             if origin_s is None and entry.t_s > 0:
                 origin_s = entry.t_s
             yield entry
 
     steps = replay_steps(scanned())
-    checksum = args.checksum if args.checksum is not None else bool(header and header.checksum)
+    if args.checksum is not None:
+        checksum = args.checksum
+    elif asked_checksum is not None:
+        checksum = asked_checksum
+    else:  # (a tap's or a sniffer's recording: the mode the link was in)
+        checksum = bool(header and header.checksum)
     algorithm = header.algorithm if header is not None else "crc8"
     try:
         get_algorithm(algorithm)

@@ -192,11 +192,10 @@ class Client(CommandMethods):
         exc: BaseException | None,
         traceback: TracebackType | None,
     ) -> None:
-        if exc_type is not None and self._lost is None:
-            # Leaving by an error: make the robot safe before letting go of it.
-            with contextlib.suppress(ConnectionError):
-                self.stop()
-        self.close()
+        # Leaving by an error: the robot is made safe before it is let go of, whatever it was
+        # sent, by the #stop! of close() (bounded the same way: a hung far end never holds the
+        # error up for a write timeout, and nothing raised there hides it).
+        self._close(leaving_by_error=exc_type is not None)
 
     def close(self) -> None:
         """Release the port; pending and later calls raise ConnectionLostError.
@@ -212,12 +211,17 @@ class Client(CommandMethods):
             rov = rovlink.connect("sim://")
             rov.close()
         """
+        self._close(leaving_by_error=False)
+
+    def _close(self, *, leaving_by_error: bool) -> None:
+        """close(); ``leaving_by_error``: the ``with`` block was left by an exception, which
+        owes the robot a ``#stop!`` whatever it was sent (also while another thread closes)."""
         current = threading.current_thread()
-        stop_due = False
         stop_at_exit(self, wanted=False)
         with self._changed:
             if self._closing:
                 closer = self._closer
+                stop_due = leaving_by_error and self._stop_due_on_close(leaving_by_error=True)
             else:
                 closer = None
                 self._closer = current
@@ -229,8 +233,10 @@ class Client(CommandMethods):
                 self._background_wakeup.notify()
                 self._changed.notify_all()
                 on_the_wire = self._session.on_the_wire  # (nothing new is written now)
-                stop_due = self._stop_due_on_close()
+                stop_due = self._stop_due_on_close(leaving_by_error=leaving_by_error)
         if closer is not None:
+            if stop_due:  # (the port is open until the first close() has let the wire settle)
+                self._stop_on_close()
             # Closed once the port is released, whoever closes it (P22: the program may open
             # it again) — unless this thread is one the first close() waits for.
             if current not in (closer, self._background, self._reconnector):
@@ -259,15 +265,14 @@ class Client(CommandMethods):
         finally:
             self._released.set()
 
-    def _stop_due_on_close(self) -> bool:
+    def _stop_due_on_close(self, *, leaving_by_error: bool = False) -> bool:
         """Whether letting go of the robot owes it a ``#stop!`` (state lock held): the program
-        moved it or unlocked it since its last stop, did not opt out, and a link can carry it."""
-        return (
-            self._options.stop_on_close
-            and self._session.moved_since_stop
-            and self._lost is None
-            and not self._reconnecting
+        left its ``with`` block by an error, or moved the robot or unlocked it since its last
+        stop and did not opt out; and a link can carry it."""
+        wanted = leaving_by_error or (
+            self._options.stop_on_close and self._session.moved_since_stop
         )
+        return wanted and self._lost is None and not self._reconnecting
 
     def _stop_on_close(self) -> None:
         """Send ``#stop!`` as close() begins, waiting for it at most 0.5 s

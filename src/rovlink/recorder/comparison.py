@@ -19,7 +19,14 @@ from rovlink.protocol import Command, Response, Setting, encode
 from rovlink.recorder.entries import Entry, EventEntry, FrameEntry
 from rovlink.recorder.playback import wait_until
 
-__all__ = ["Divergence", "ReplayStep", "ReplaySummary", "replay_steps", "run_replay"]
+__all__ = [
+    "Divergence",
+    "ReplayStep",
+    "ReplaySummary",
+    "drivers_checksum_mode",
+    "replay_steps",
+    "run_replay",
+]
 
 
 @dataclass
@@ -140,6 +147,31 @@ def replay_steps(entries: Iterable[Entry]) -> list[ReplayStep]:
                 waiting.expected_count = 0
             failed.discard(name)  # (only the oldest had failed)
     return steps
+
+
+def drivers_checksum_mode(entry: Entry) -> bool | None:
+    """The checksum mode ``entry`` shows the recording's driver asking for: its own mode frame
+    (``#crcon!``, ``#crcoff!``, written as it connects, P3); None for any other entry.
+
+    The header says the mode the recording starts in, which for a driver is off (its connect
+    probe and mode frame go plain); the mode its program asked for is its mode frame's.
+
+    >>> drivers_checksum_mode(FrameEntry(1.0, 1, "out", "command", "crcon", (), by_session=True))
+    True
+    >>> drivers_checksum_mode(FrameEntry(1.0, 1, "out", "command", "crcon", ()))  # a program's
+    """
+    if not (
+        isinstance(entry, FrameEntry)
+        and entry.direction == "out"
+        and entry.kind == "command"
+        and entry.by_session
+    ):
+        return None
+    try:
+        setting = Command(entry.name, entry.values).setting
+    except ValueError:  # (a name no command has: a damaged or foreign recording)
+        return None
+    return setting[1] if setting is not None and setting[0] is Setting.CHECKSUM else None
 
 
 def _moves_or_locks(entry: FrameEntry) -> bool:

@@ -41,8 +41,11 @@ __all__ = [
     "entry_from_json",
 ]
 
-#: The recording format's version; a reader refuses a newer one.
-FORMAT_VERSION = 1
+#: The recording format's version; a reader refuses a newer one. 2: a header's ``checksum`` is
+#: the mode of the file's first frames in every recording; in 1, a driving command's recording
+#: made with ``--checksum`` said on, the mode its driver asked for, though the connect probe
+#: and the mode frame before it went plain (the mode frame says what was asked for, in both).
+FORMAT_VERSION = 2
 
 
 class EntryError(ValueError):
@@ -57,7 +60,10 @@ _CLOCKS_SCHEMA: dict[str, Any] = {
 
 @dataclass(frozen=True, slots=True)
 class HeaderEntry:
-    """How the recording was made: the link, its checksum mode, the program and its version."""
+    """How the recording was made: the link, the checksum mode its first frames are in (as the
+    file starts: each file of a rotation has its own; a driver's recording starts plain, and
+    its ``#crcon!`` and ``mode_changed`` event say when that changes), the program and its
+    version."""
 
     channel: ClassVar[str] = "header"
     t_s: float

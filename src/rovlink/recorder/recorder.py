@@ -76,6 +76,11 @@ class Recorder:
     ``on_failure`` is called with it (without one, it is logged at ERROR); the link is never
     affected.
 
+    ``checksum`` is the mode the link is in as the recording starts, which its header says:
+    off for a driver about to connect (its connect probe and mode frame go plain; a
+    ``--checksum`` driver's ``#crcon!`` is recorded as it switches), the link's mode for a tap
+    or a sniffer joining it.
+
     The file is created when the recorder is made, so a path that cannot be written is an
     ``OSError`` at once.
     """

@@ -174,13 +174,13 @@ def open_pi_board(config: PiConfig, *, bus: I2cBus | None = None, pin_factory: A
                 pwm.frequency_hz,
             )
         clock = MonotonicClock()
-        stale_after = config.board.stale_after_failures
+        stale_after_s = config.board.stale_after_s
         pressure_name, pressure_source = _pressure_source(config, bus, where, clock)
         pressure = PolledSensor(
             pressure_name,
             pressure_source,
             _first_reading(pressure_name, pressure_source, clock),
-            stale_after,
+            stale_after_s,
         )
         sensors: list[PolledSensor[Any]] = [pressure]
         warnings: list[str] = []
@@ -378,11 +378,11 @@ def _open_bno055(
             name,
             _ImuThatDidNotStart(f"did not start ({error})"),
             LEVEL,
-            config.board.stale_after_failures,
+            config.board.stale_after_s,
             lost_when_stale=IMU_DID_NOT_START,
         )
     return PolledSensor(
-        name, bno, first, config.board.stale_after_failures, lost_when_stale=IMU_LOST_WHEN_STALE
+        name, bno, first, config.board.stale_after_s, lost_when_stale=IMU_LOST_WHEN_STALE
     )
 
 

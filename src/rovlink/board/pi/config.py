@@ -39,6 +39,8 @@ from rovlink.controller.config import (
 from rovlink.protocol.text_enum import StrEnum
 
 __all__ = [
+    "MAX_STALE_AFTER_S",
+    "STALE_AFTER_S",
     "Ads1115Config",
     "BoardConfig",
     "ClawConfig",
@@ -420,16 +422,25 @@ class LeakConfig:
         )
 
 
+#: The default of ``[board] stale_after_s``: five failed reads in a row at the default 100 Hz
+#: (the first to the fifth, four control periods apart), as the limit counted in reads was.
+STALE_AFTER_S = 0.04
+#: The longest it may be: a dead pressure sensor must not drive on for long.
+MAX_STALE_AFTER_S = 10.0
+
+
 @dataclass(frozen=True, slots=True)
 class BoardConfig:
     """``[board]``: the board loop."""
 
-    stale_after_failures: int = field(
-        default=5,
+    stale_after_s: float = field(
+        default=STALE_AFTER_S,
         metadata=_doc(
-            "a sensor that fails this many reads in a row is stale: the pressure sensor's stops "
-            "the motors (stale-sensor failsafe; they may be started again once it answers), the "
-            "IMU's is reported and driving goes on"
+            "a sensor whose reads have been failing this long (a read fails this long after the "
+            "first failed one, no good reading between) is stale, whatever tick_hz: the "
+            "pressure sensor's stops the motors (stale-sensor failsafe; they may be started "
+            "again once it answers), the IMU's is reported and driving goes on; "
+            f"0–{MAX_STALE_AFTER_S:g} s (0: at the first failed read)"
         ),
     )
     overrun_warning_s: float = field(
@@ -438,8 +449,8 @@ class BoardConfig:
 
     def __post_init__(self) -> None:
         _require(
-            1 <= self.stale_after_failures <= 1000,
-            f"stale_after_failures must be 1–1000, got {self.stale_after_failures}",
+            math.isfinite(self.stale_after_s) and 0 <= self.stale_after_s <= MAX_STALE_AFTER_S,
+            f"stale_after_s must be 0–{MAX_STALE_AFTER_S:g} s, got {self.stale_after_s}",
         )
         _require(
             math.isfinite(self.overrun_warning_s) and self.overrun_warning_s > 0,
