@@ -474,10 +474,22 @@ def test_the_stop_button_and_the_stop_keys_send_stop(browser, station, line):
 
 def test_a_leak_shows_the_alarm_and_reset_sends_slreset(browser, station, line):
     page = open_page(browser, station, pad=False)
-    take_control(page)
     assert page.is_hidden("#leak-alarm")
     line.server.robot.inject_leak()
     page.wait_for_selector("#leak-alarm", state="visible")
+    # A watcher may silence its own page, not reset the robot's latch (the station refuses).
+    assert page.is_disabled("#leak-reset")
+    assert page.is_enabled("#leak-silence")
+    # On a phone the banner wraps: its buttons stay in the window, which never scrolls sideways.
+    page.set_viewport_size({"width": 390, "height": 844})
+    page.wait_for_function(  # (the charts follow the window's width a moment later)
+        "document.getElementById('leak-reset').getBoundingClientRect().right <= innerWidth"
+        " && document.documentElement.scrollWidth <= innerWidth",
+        timeout=2000,
+    )
+    page.set_viewport_size({"width": 1400, "height": 1000})
+    take_control(page)
+    assert page.is_enabled("#leak-reset")
     page.wait_for_function(
         "[...document.querySelectorAll('#log li.alarm')]"
         ".some(li => li.textContent.includes('LEAK'))"

@@ -285,8 +285,9 @@ function setControl(pilotId, pilotLabel, why = null) {
   showFlightStatus();
 }
 
-// What only the pilot may use (the settings rows are built when the station says hello).
-const PILOT_CONTROLS = ".pilot-only button, .pilot-only input, #settings-rows button, #settings-rows input";
+// What only the pilot may use (the settings rows are built when the station says hello). The
+// leak alarm's *Silence* is this page's own sound: any page may use it.
+const PILOT_CONTROLS = ".pilot-only button, .pilot-only input, #settings-rows button, #settings-rows input, #leak-reset";
 
 // Taking control from another pilot asks first, on the page (see the take-control button).
 function showTakeQuestion() {
