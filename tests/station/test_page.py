@@ -868,6 +868,26 @@ def test_a_locked_robot_never_shows_flying(browser, station, line):
     page.context.close()
 
 
+def test_stop_with_the_dead_man_released_takes_one_press_to_fly_again(browser, station, line):
+    page = flying_by_pad(browser, station, line, [1, 0, 0, 0], "#th.90.100!")
+    mark = line.mark()
+    set_pad(page, axes=[0, 0, 0, 0], deadman=False)
+    line.wait_for("#th.90.0!", after=mark)
+    page.click("#stop")
+    line.wait_for("#stop!", after=mark)
+    # The dead-man is released already: the page says so again after the cut, and the banner
+    # names what keeps the robot still (the lock), not "release the dead-man", which the pilot
+    # had done. Before, the dead-man had to be pressed, released and pressed again.
+    page.wait_for_selector(
+        "#flight-status:text-is('motors locked: unlock (#start!) to fly')", timeout=2000
+    )
+    unlock_and_arm(page, line)
+    mark = line.mark()
+    set_pad(page, axes=[1, 0, 0, 0], deadman=True)
+    line.wait_for("#th.90.100!", after=mark, timeout_s=1.0)
+    page.context.close()
+
+
 def test_a_silent_station_is_shown_as_such_not_as_live(browser, station, line):
     page = open_page(browser, station, pad=False)
     page.wait_for_selector("#stale-banner", state="hidden")

@@ -312,6 +312,8 @@ function showTelemetry(t) {
   if (!t) return;
   station.telemetry = t;
   if (t.pilot_id !== station.pilotId) setControl(t.pilot_id, t.pilot_label);
+  // Not armed: a dead-man already released is said again (the relay waits to hear it).
+  if (isPilot() && t.relay && !t.relay.armed) devices.releaseAsked = true;
   const s = t.sensors, c = t.commanded;
   // Depth mode is the mode after a reset: a target sent without mvdirect is held.
   const target = c.vertical_mode !== "direct" ? c.target_depth_cm : null;
