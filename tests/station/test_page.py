@@ -480,14 +480,6 @@ def test_a_leak_shows_the_alarm_and_reset_sends_slreset(browser, station, line):
     # A watcher may silence its own page, not reset the robot's latch (the station refuses).
     assert page.is_disabled("#leak-reset")
     assert page.is_enabled("#leak-silence")
-    # On a phone the banner wraps: its buttons stay in the window, which never scrolls sideways.
-    page.set_viewport_size({"width": 390, "height": 844})
-    page.wait_for_function(  # (the charts follow the window's width a moment later)
-        "document.getElementById('leak-reset').getBoundingClientRect().right <= innerWidth"
-        " && document.documentElement.scrollWidth <= innerWidth",
-        timeout=2000,
-    )
-    page.set_viewport_size({"width": 1400, "height": 1000})
     take_control(page)
     assert page.is_enabled("#leak-reset")
     page.wait_for_function(
@@ -503,6 +495,27 @@ def test_a_leak_shows_the_alarm_and_reset_sends_slreset(browser, station, line):
     page.click("#leak-reset")
     line.wait_for("#slreset!", after=mark)
     page.wait_for_selector("#leak-alarm", state="hidden")
+    page.context.close()
+
+
+def test_a_phone_sized_window_shows_everything_whole_and_readable(browser, station, line):
+    page = open_page(browser, station, pad=False)
+    line.server.robot.inject_leak()
+    page.wait_for_selector("#leak-alarm", state="visible")
+    page.set_viewport_size({"width": 390, "height": 844})
+    # The leak banner wraps: its buttons stay in the window, which never scrolls sideways.
+    page.wait_for_function(  # (the charts follow the window's width a moment later)
+        "document.getElementById('leak-reset').getBoundingClientRect().right <= innerWidth"
+        " && document.documentElement.scrollWidth <= innerWidth",
+        timeout=2000,
+    )
+    # The heading tape is drawn for the width it is shown at, not shrunk to half its size
+    # (its figures were 6 px high).
+    page.wait_for_function(
+        "Math.abs(document.getElementById('heading').width"
+        " - document.getElementById('heading').getBoundingClientRect().width) < 1",
+        timeout=2000,
+    )
     page.context.close()
 
 

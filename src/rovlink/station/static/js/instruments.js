@@ -61,7 +61,14 @@ export function drawAttitude(canvas, rollDeg, pitchDeg) {
 
 const CARDINALS = { 0: "N", 45: "NE", 90: "E", 135: "SE", 180: "S", 225: "SW", 270: "W", 315: "NW" };
 
+// The heading tape's width at most (px): on a narrower window it is drawn for the width it is
+// shown at, not drawn at this width and shrunk with its figures (6 px high on a phone).
+const HEADING_WIDTH_PX = 620;
+
 export function drawHeading(canvas, headingDeg) {
+  const shownPx = Math.floor(canvas.parentElement?.clientWidth ?? HEADING_WIDTH_PX);
+  const widthPx = Math.min(HEADING_WIDTH_PX, shownPx > 0 ? shownPx : HEADING_WIDTH_PX);
+  if (canvas.width !== widthPx) canvas.width = widthPx;
   const ctx = context(canvas);
   const { width: w, height: h } = canvas;
   const pxPerDeg = w / 120;
