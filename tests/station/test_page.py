@@ -28,7 +28,6 @@ if not os.path.exists(CHROMIUM):
     )
 
 FAKE_GAMEPAD = (Path(__file__).parent / "fake_gamepad.js").read_text(encoding="utf-8")
-SCREENSHOTS = Path(__file__).resolve().parents[2] / "docs" / "station"
 CUT_WITHIN_S = 0.5
 DEADMAN, UNLOCK, STOP_BUTTON, CLAW_OPEN, CLAW_CLOSE, MODE = 4, 0, 1, 2, 3, 9
 
@@ -72,13 +71,6 @@ def set_pad(
     numbered = {str(globals()[name.upper()]): down for name, down in pressed.items()}
     script = "([axes, buttons]) => fakePads.set(0, {axes, buttons})"
     return float(page.evaluate(script, [axes, numbered]))
-
-
-def screenshot(page: Page, name: str) -> None:
-    """With ROVLINK_SCREENSHOTS=1, the page as it is now, for docs/station.md."""
-    if os.environ.get("ROVLINK_SCREENSHOTS") == "1":
-        SCREENSHOTS.mkdir(parents=True, exist_ok=True)
-        page.screenshot(path=str(SCREENSHOTS / f"{name}.png"), full_page=True)
 
 
 def unlock_and_arm(page: Page, line: ControllerLine) -> None:
@@ -125,17 +117,6 @@ INPUTS_SENT = """() => { const connection = window.rovlinkStation.connection;
 def test_stick_right_with_the_dead_man_drives_and_release_stops(browser, station, line):
     page = flying_by_pad(browser, station, line, [1, 0, 0, 0], "#th.90.100!")
     page.wait_for_function("window.rovlinkStation.station.telemetry.relay.status === 'flying'")
-    if os.environ.get("ROVLINK_SCREENSHOTS") == "1":  # a dive with some history on the charts
-        page.fill("#target-depth", "60")
-        page.press("#target-depth", "Enter")
-        set_pad(page, axes=[0.5, -0.6, 0, 0], deadman=True)
-        page.wait_for_function(
-            "window.rovlinkStation.station.telemetry.sensors.depth_cm >= 55", timeout=60_000
-        )
-        screenshot(page, "pilot")
-        mark = line.mark()
-        set_pad(page, axes=[1, 0, 0, 0], deadman=True)
-        line.wait_for("#th.90.100!", after=mark)
     page.evaluate(INPUTS_SENT)
     mark = line.mark()
     set_pad(page, deadman=False)
@@ -486,7 +467,6 @@ def test_a_leak_shows_the_alarm_and_reset_sends_slreset(browser, station, line):
         "[...document.querySelectorAll('#log li.alarm')]"
         ".some(li => li.textContent.includes('LEAK'))"
     )
-    screenshot(page, "leak")
     assert page.evaluate("window.rovlinkStation.alarm.playing")  # the beep, every second
     page.click("#leak-silence")
     assert not page.evaluate("window.rovlinkStation.alarm.playing")
@@ -575,7 +555,6 @@ def test_a_second_browser_cannot_command(browser, station, line):
     watcher.click("#claw-close")  # a fence
     line.wait_for("#h-!", after=taken)
     assert "#start!" not in line.frames(taken)
-    screenshot(pilot, "watcher")
     pilot.context.close()
     watcher.context.close()
 
