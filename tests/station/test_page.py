@@ -440,6 +440,14 @@ def test_no_control_on_the_page_keeps_the_stop_keys(browser, station, line):
     page.context.close()
 
 
+# The element is on screen, and what is at its centre is itself (nothing lies over it).
+ON_SCREEN_UNCOVERED = """(selector) => { const el = document.querySelector(selector);
+  const r = el.getBoundingClientRect();
+  const inside = r.top >= 0 && r.bottom <= innerHeight && r.left >= 0 && r.right <= innerWidth;
+  return inside && el.contains(document.elementFromPoint((r.left + r.right) / 2,
+    (r.top + r.bottom) / 2)); }"""
+
+
 def test_the_stop_button_and_the_stop_keys_send_stop(browser, station, line):
     page = open_page(browser, station, pad=False)
     for press in (
@@ -461,6 +469,11 @@ def test_a_leak_shows_the_alarm_and_reset_sends_slreset(browser, station, line):
     # A watcher may silence its own page, not reset the robot's latch (the station refuses).
     assert page.is_disabled("#leak-reset")
     assert page.is_enabled("#leak-silence")
+    # The banner stays on screen with the top bar, whatever is scrolled to (the mapping, the
+    # settings): before, it went off the top with the instruments.
+    page.mouse.wheel(0, 2000)
+    page.wait_for_function("scrollY > 0")
+    assert page.evaluate(ON_SCREEN_UNCOVERED, "#leak-silence")
     take_control(page)
     assert page.is_enabled("#leak-reset")
     page.wait_for_function(
