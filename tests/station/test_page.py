@@ -786,10 +786,15 @@ def test_flying_with_the_arrow_keys_does_not_scroll_the_page(browser, station, l
 def test_no_silent_pick_of_the_input_device(browser, station, line):
     page = open_page(browser, station, pad=False)
     take_control(page)
+    # The pilot is told under the top bar what keeps the robot still: no device, not "release
+    # the dead-man to arm" (there was none to release).
+    page.wait_for_selector("#flight-status:has-text('no gamepad: connect one')", timeout=2000)
     page.evaluate("fakePads.connect('USB headset buttons', '')")
     page.wait_for_selector("#device-status:has-text('no gamepad with the standard mapping')")
+    page.wait_for_selector("#flight-status:has-text('no gamepad with the standard mapping')")
     page.evaluate("fakePads.connect('Pad A (STANDARD GAMEPAD)')")
     page.wait_for_selector("#device-status:has-text('Pad A')")
+    page.wait_for_function("!document.getElementById('flight-status').textContent")  # armed
     page.evaluate("fakePads.connect('Pad B (STANDARD GAMEPAD)')")
     page.wait_for_selector("#device-status:has-text('several gamepads: choose one')")
     choose_device(page, "pad:Pad B (STANDARD GAMEPAD)")

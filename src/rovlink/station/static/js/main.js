@@ -104,7 +104,7 @@ const devices = new InputDevices({
   },
   isPilot,
   mapping: () => mapping,
-  onChange: () => renderDevices(),
+  onChange: () => { renderDevices(); showFlightStatus(); },
 });
 
 // -- messages from the station -----------------------------------------------------------------
@@ -300,9 +300,13 @@ function showTakeQuestion() {
 
 // The banner under the top bar: the pilot is told why nothing moves; a page that lost control,
 // why it did (until it takes control again).
+// A pilot with no input device is told that first: the relay, which has heard no input, says
+// "release the dead-man to arm", and there is no dead-man to release.
 function showFlightStatus() {
   const status = station.telemetry?.relay?.status ?? "";
-  const why = status === "flying" || status.startsWith("armed") ? "" : status;
+  const device = devices.active();
+  const why = device.kind === null ? `${device.label} (nothing flies without an input device)`
+    : status === "flying" || status.startsWith("armed") ? "" : status;
   text("flight-status", isPilot() ? why : station.lostControl ?? "");
 }
 
