@@ -913,6 +913,14 @@ def test_a_silent_station_is_shown_as_such_not_as_live(browser, station, line):
     page.context.close()
 
 
+# The texts drawn on the heading tape from now on, in window.headingTexts.
+HEADING_TEXTS = """() => { const fill = CanvasRenderingContext2D.prototype.fillText;
+  window.headingTexts = [];
+  CanvasRenderingContext2D.prototype.fillText = function (text, ...rest) {
+    if (this.canvas.id === 'heading') window.headingTexts.push(String(text));
+    return fill.call(this, text, ...rest); }; }"""
+
+
 def test_readings_that_stop_are_shown_as_missing(browser, station, line):
     page = open_page(browser, station, pad=False)
     page.wait_for_function("window.rovlinkStation.charts.columns[1].length > 3")
@@ -921,6 +929,13 @@ def test_readings_that_stop_are_shown_as_missing(browser, station, line):
     page.wait_for_selector("#depth-value:text-is('–')")  # once a poll has failed
     # A gap in the charts, not a line drawn across it.
     page.wait_for_function("window.rovlinkStation.charts.columns[1].includes(null)")
+    # The heading tape says there is no reading, as the attitude does; before, it showed its
+    # scale round north, as if the robot pointed there.
+    page.evaluate(HEADING_TEXTS)
+    page.wait_for_function("window.headingTexts.length > 0")
+    texts = page.evaluate("window.headingTexts")
+    assert "no reading" in texts
+    assert "N" not in texts
     page.context.close()
 
 
