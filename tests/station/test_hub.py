@@ -424,6 +424,23 @@ async def test_a_closing_station_shows_every_page_the_robot_stopped(hub):
     assert last["relay"]["status"] == CLOSING_STATUS
 
 
+async def test_the_pilot_is_told_when_the_controller_drops_its_command(hub):
+    pilot = await hub.pilot()
+    await hub.send(pilot, {"type": "command", "name": "stop"})
+    drain(pilot)
+    # Claw open while locked: sent (the station says what it sent), and dropped by the
+    # controller (P7). Before, only the event log said so, far from the button pressed.
+    await hub.send(pilot, {"type": "command", "name": "h+"})
+    assert hub.sent[-1] == "#h+!"
+    errors = [m["message"] for m in drain(pilot) if m["type"] == "error"]
+    assert errors == [
+        "#h+!: the controller drops h+ while motion is locked (as last sent): send start first"
+    ]
+    await hub.send(pilot, {"type": "command", "name": "start"})
+    await hub.send(pilot, {"type": "command", "name": "h+"})
+    assert [m for m in drain(pilot) if m["type"] == "error"] == []
+
+
 async def test_a_command_that_arrives_seconds_late_is_not_sent(hub):
     pilot = await hub.pilot()
     await hub.send(pilot, {**keys(False), "sent_ms": 1000.0})  # on time: the fastest

@@ -393,6 +393,11 @@ class Station:
                     )
             await self.tracked.send(message.command)
             self.log("info", f"{peer.label}: {message.command}")
+            dropped_because = self.tracked.commanded.last_dropped_because
+            if dropped_because is not None:
+                # Sent (the state is what was sent), and the controller drops it: the pilot
+                # who pressed the button is told, not only the event log.
+                peer.put({"type": "error", "message": f"{message.command}: {dropped_because}"})
         elif isinstance(message, RecordRequest):
             self._require_pilot(peer, "start or stop a recording")
             await self._record(peer, start=message.start)
