@@ -502,6 +502,13 @@ def test_a_phone_sized_window_shows_everything_whole_and_readable(browser, stati
         " && document.documentElement.scrollWidth <= innerWidth",
         timeout=2000,
     )
+    # A message at the bottom takes the window's width, not half of it (four words a line).
+    page.evaluate("window.rovlinkStation.connection.send({type: 'command', name: 'start'})")
+    page.wait_for_selector("#toast:has-text('only the pilot')")
+    assert page.evaluate(
+        "(() => { const r = document.getElementById('toast').getBoundingClientRect();"
+        " return r.width > 0.75 * innerWidth && r.left >= 0 && r.right <= innerWidth; })()"
+    )
     # The heading tape is drawn for the width it is shown at, not shrunk to half its size
     # (its figures were 6 px high).
     page.wait_for_function(
