@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 from collections.abc import Iterator
 
 import pytest
@@ -20,3 +21,14 @@ def line() -> Iterator[ControllerLine]:
 def station(line: ControllerLine) -> Iterator[StationProcess]:
     with running_station(line.url) as process:
         yield process
+
+
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """The screenshots of the docs are retaken on demand (``ROVLINK_SCREENSHOTS=1``), and
+    otherwise deselected rather than skipped: in CI a skipped test fails the run."""
+    if os.environ.get("ROVLINK_SCREENSHOTS") == "1":
+        return
+    retaking = [item for item in items if item.get_closest_marker("screenshots") is not None]
+    if retaking:
+        config.hook.pytest_deselected(items=retaking)
+        items[:] = [item for item in items if item.get_closest_marker("screenshots") is None]

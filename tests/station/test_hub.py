@@ -22,7 +22,7 @@ from rovlink.piloting import LockState, TrackedClient
 from rovlink.recorder.entries import Entry
 from rovlink.recorder.formats import open_sink
 from rovlink.recorder.sink import Sink
-from rovlink.station.hub import MESSAGE_BURST, MESSAGES_PER_S, Peer, Station
+from rovlink.station.hub import CLOSING_STATUS, MESSAGE_BURST, MESSAGES_PER_S, Peer, Station
 from rovlink.station.recording import StationRecordings
 
 
@@ -404,6 +404,41 @@ async def test_a_closing_station_stops_the_robot_and_then_takes_only_stop(hub):
     await hub.station.shutdown()
     # The STOP only: locked, neither the pilot leaving nor the shutdown sends another frame.
     assert hub.sent[sent:] == ["#stop!"]
+
+
+async def test_a_closing_station_shows_every_page_the_robot_stopped(hub):
+    pilot = await hub.pilot()
+    await hub.send(pilot, {"type": "command", "name": "start"})
+    await hub.send(pilot, keys(False))
+    await hub.send(pilot, keys(True, power_percent=50))
+    drain(pilot)
+    await hub.station.stop_first()
+    # The polls stop while the pages are closed: the state after the #stop! is sent at once.
+    # Before, the pages kept "unlocked", "flying" and the thrust of the last poll for good.
+    telemetry = [m for m in drain(pilot) if m["type"] == "telemetry"]
+    assert telemetry, "no state after the station's #stop!"
+    last = telemetry[-1]
+    assert last["commanded"]["lock"] == "locked"
+    assert last["commanded"]["power_percent"] == 0
+    assert not last["relay"]["armed"]
+    assert last["relay"]["status"] == CLOSING_STATUS
+
+
+async def test_the_pilot_is_told_when_the_controller_drops_its_command(hub):
+    pilot = await hub.pilot()
+    await hub.send(pilot, {"type": "command", "name": "stop"})
+    drain(pilot)
+    # Claw open while locked: sent (the station says what it sent), and dropped by the
+    # controller (P7). Before, only the event log said so, far from the button pressed.
+    await hub.send(pilot, {"type": "command", "name": "h+"})
+    assert hub.sent[-1] == "#h+!"
+    errors = [m["message"] for m in drain(pilot) if m["type"] == "error"]
+    assert errors == [
+        "#h+!: the controller drops h+ while motion is locked (as last sent): send start first"
+    ]
+    await hub.send(pilot, {"type": "command", "name": "start"})
+    await hub.send(pilot, {"type": "command", "name": "h+"})
+    assert [m for m in drain(pilot) if m["type"] == "error"] == []
 
 
 async def test_a_command_that_arrives_seconds_late_is_not_sent(hub):

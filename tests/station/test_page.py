@@ -28,7 +28,6 @@ if not os.path.exists(CHROMIUM):
     )
 
 FAKE_GAMEPAD = (Path(__file__).parent / "fake_gamepad.js").read_text(encoding="utf-8")
-SCREENSHOTS = Path(__file__).resolve().parents[2] / "docs" / "station"
 CUT_WITHIN_S = 0.5
 DEADMAN, UNLOCK, STOP_BUTTON, CLAW_OPEN, CLAW_CLOSE, MODE = 4, 0, 1, 2, 3, 9
 
@@ -72,13 +71,6 @@ def set_pad(
     numbered = {str(globals()[name.upper()]): down for name, down in pressed.items()}
     script = "([axes, buttons]) => fakePads.set(0, {axes, buttons})"
     return float(page.evaluate(script, [axes, numbered]))
-
-
-def screenshot(page: Page, name: str) -> None:
-    """With ROVLINK_SCREENSHOTS=1, the page as it is now, for docs/station.md."""
-    if os.environ.get("ROVLINK_SCREENSHOTS") == "1":
-        SCREENSHOTS.mkdir(parents=True, exist_ok=True)
-        page.screenshot(path=str(SCREENSHOTS / f"{name}.png"), full_page=True)
 
 
 def unlock_and_arm(page: Page, line: ControllerLine) -> None:
@@ -125,17 +117,6 @@ INPUTS_SENT = """() => { const connection = window.rovlinkStation.connection;
 def test_stick_right_with_the_dead_man_drives_and_release_stops(browser, station, line):
     page = flying_by_pad(browser, station, line, [1, 0, 0, 0], "#th.90.100!")
     page.wait_for_function("window.rovlinkStation.station.telemetry.relay.status === 'flying'")
-    if os.environ.get("ROVLINK_SCREENSHOTS") == "1":  # a dive with some history on the charts
-        page.fill("#target-depth", "60")
-        page.press("#target-depth", "Enter")
-        set_pad(page, axes=[0.5, -0.6, 0, 0], deadman=True)
-        page.wait_for_function(
-            "window.rovlinkStation.station.telemetry.sensors.depth_cm >= 55", timeout=60_000
-        )
-        screenshot(page, "pilot")
-        mark = line.mark()
-        set_pad(page, axes=[1, 0, 0, 0], deadman=True)
-        line.wait_for("#th.90.100!", after=mark)
     page.evaluate(INPUTS_SENT)
     mark = line.mark()
     set_pad(page, deadman=False)
@@ -459,6 +440,14 @@ def test_no_control_on_the_page_keeps_the_stop_keys(browser, station, line):
     page.context.close()
 
 
+# The element is on screen, and what is at its centre is itself (nothing lies over it).
+ON_SCREEN_UNCOVERED = """(selector) => { const el = document.querySelector(selector);
+  const r = el.getBoundingClientRect();
+  const inside = r.top >= 0 && r.bottom <= innerHeight && r.left >= 0 && r.right <= innerWidth;
+  return inside && el.contains(document.elementFromPoint((r.left + r.right) / 2,
+    (r.top + r.bottom) / 2)); }"""
+
+
 def test_the_stop_button_and_the_stop_keys_send_stop(browser, station, line):
     page = open_page(browser, station, pad=False)
     for press in (
@@ -474,15 +463,23 @@ def test_the_stop_button_and_the_stop_keys_send_stop(browser, station, line):
 
 def test_a_leak_shows_the_alarm_and_reset_sends_slreset(browser, station, line):
     page = open_page(browser, station, pad=False)
-    take_control(page)
     assert page.is_hidden("#leak-alarm")
     line.server.robot.inject_leak()
     page.wait_for_selector("#leak-alarm", state="visible")
+    # A watcher may silence its own page, not reset the robot's latch (the station refuses).
+    assert page.is_disabled("#leak-reset")
+    assert page.is_enabled("#leak-silence")
+    # The banner stays on screen with the top bar, whatever is scrolled to (the mapping, the
+    # settings): before, it went off the top with the instruments.
+    page.mouse.wheel(0, 2000)
+    page.wait_for_function("scrollY > 0")
+    assert page.evaluate(ON_SCREEN_UNCOVERED, "#leak-silence")
+    take_control(page)
+    assert page.is_enabled("#leak-reset")
     page.wait_for_function(
         "[...document.querySelectorAll('#log li.alarm')]"
         ".some(li => li.textContent.includes('LEAK'))"
     )
-    screenshot(page, "leak")
     assert page.evaluate("window.rovlinkStation.alarm.playing")  # the beep, every second
     page.click("#leak-silence")
     assert not page.evaluate("window.rovlinkStation.alarm.playing")
@@ -491,6 +488,34 @@ def test_a_leak_shows_the_alarm_and_reset_sends_slreset(browser, station, line):
     page.click("#leak-reset")
     line.wait_for("#slreset!", after=mark)
     page.wait_for_selector("#leak-alarm", state="hidden")
+    page.context.close()
+
+
+def test_a_phone_sized_window_shows_everything_whole_and_readable(browser, station, line):
+    page = open_page(browser, station, pad=False)
+    line.server.robot.inject_leak()
+    page.wait_for_selector("#leak-alarm", state="visible")
+    page.set_viewport_size({"width": 390, "height": 844})
+    # The leak banner wraps: its buttons stay in the window, which never scrolls sideways.
+    page.wait_for_function(  # (the charts follow the window's width a moment later)
+        "document.getElementById('leak-reset').getBoundingClientRect().right <= innerWidth"
+        " && document.documentElement.scrollWidth <= innerWidth",
+        timeout=2000,
+    )
+    # A message at the bottom takes the window's width, not half of it (four words a line).
+    page.evaluate("window.rovlinkStation.connection.send({type: 'command', name: 'start'})")
+    page.wait_for_selector("#toast:has-text('only the pilot')")
+    assert page.evaluate(
+        "(() => { const r = document.getElementById('toast').getBoundingClientRect();"
+        " return r.width > 0.75 * innerWidth && r.left >= 0 && r.right <= innerWidth; })()"
+    )
+    # The heading tape is drawn for the width it is shown at, not shrunk to half its size
+    # (its figures were 6 px high).
+    page.wait_for_function(
+        "Math.abs(document.getElementById('heading').width"
+        " - document.getElementById('heading').getBoundingClientRect().width) < 1",
+        timeout=2000,
+    )
     page.context.close()
 
 
@@ -550,7 +575,6 @@ def test_a_second_browser_cannot_command(browser, station, line):
     watcher.click("#claw-close")  # a fence
     line.wait_for("#h-!", after=taken)
     assert "#start!" not in line.frames(taken)
-    screenshot(pilot, "watcher")
     pilot.context.close()
     watcher.context.close()
 
@@ -769,10 +793,15 @@ def test_flying_with_the_arrow_keys_does_not_scroll_the_page(browser, station, l
 def test_no_silent_pick_of_the_input_device(browser, station, line):
     page = open_page(browser, station, pad=False)
     take_control(page)
+    # The pilot is told under the top bar what keeps the robot still: no device, not "release
+    # the dead-man to arm" (there was none to release).
+    page.wait_for_selector("#flight-status:has-text('no gamepad: connect one')", timeout=2000)
     page.evaluate("fakePads.connect('USB headset buttons', '')")
     page.wait_for_selector("#device-status:has-text('no gamepad with the standard mapping')")
+    page.wait_for_selector("#flight-status:has-text('no gamepad with the standard mapping')")
     page.evaluate("fakePads.connect('Pad A (STANDARD GAMEPAD)')")
     page.wait_for_selector("#device-status:has-text('Pad A')")
+    page.wait_for_function("!document.getElementById('flight-status').textContent")  # armed
     page.evaluate("fakePads.connect('Pad B (STANDARD GAMEPAD)')")
     page.wait_for_selector("#device-status:has-text('several gamepads: choose one')")
     choose_device(page, "pad:Pad B (STANDARD GAMEPAD)")
@@ -856,6 +885,26 @@ def test_a_locked_robot_never_shows_flying(browser, station, line):
     page.context.close()
 
 
+def test_stop_with_the_dead_man_released_takes_one_press_to_fly_again(browser, station, line):
+    page = flying_by_pad(browser, station, line, [1, 0, 0, 0], "#th.90.100!")
+    mark = line.mark()
+    set_pad(page, axes=[0, 0, 0, 0], deadman=False)
+    line.wait_for("#th.90.0!", after=mark)
+    page.click("#stop")
+    line.wait_for("#stop!", after=mark)
+    # The dead-man is released already: the page says so again after the cut, and the banner
+    # names what keeps the robot still (the lock), not "release the dead-man", which the pilot
+    # had done. Before, the dead-man had to be pressed, released and pressed again.
+    page.wait_for_selector(
+        "#flight-status:text-is('motors locked: unlock (#start!) to fly')", timeout=2000
+    )
+    unlock_and_arm(page, line)
+    mark = line.mark()
+    set_pad(page, axes=[1, 0, 0, 0], deadman=True)
+    line.wait_for("#th.90.100!", after=mark, timeout_s=1.0)
+    page.context.close()
+
+
 def test_a_silent_station_is_shown_as_such_not_as_live(browser, station, line):
     page = open_page(browser, station, pad=False)
     page.wait_for_selector("#stale-banner", state="hidden")
@@ -871,6 +920,14 @@ def test_a_silent_station_is_shown_as_such_not_as_live(browser, station, line):
     page.context.close()
 
 
+# The texts drawn on the heading tape from now on, in window.headingTexts.
+HEADING_TEXTS = """() => { const fill = CanvasRenderingContext2D.prototype.fillText;
+  window.headingTexts = [];
+  CanvasRenderingContext2D.prototype.fillText = function (text, ...rest) {
+    if (this.canvas.id === 'heading') window.headingTexts.push(String(text));
+    return fill.call(this, text, ...rest); }; }"""
+
+
 def test_readings_that_stop_are_shown_as_missing(browser, station, line):
     page = open_page(browser, station, pad=False)
     page.wait_for_function("window.rovlinkStation.charts.columns[1].length > 3")
@@ -879,6 +936,13 @@ def test_readings_that_stop_are_shown_as_missing(browser, station, line):
     page.wait_for_selector("#depth-value:text-is('–')")  # once a poll has failed
     # A gap in the charts, not a line drawn across it.
     page.wait_for_function("window.rovlinkStation.charts.columns[1].includes(null)")
+    # The heading tape says there is no reading, as the attitude does; before, it showed its
+    # scale round north, as if the robot pointed there.
+    page.evaluate(HEADING_TEXTS)
+    page.wait_for_function("window.headingTexts.length > 0")
+    texts = page.evaluate("window.headingTexts")
+    assert "no reading" in texts
+    assert "N" not in texts
     page.context.close()
 
 

@@ -108,6 +108,8 @@ MESSAGE_BURST = 1000.0
 #: messages, is not sent: it would act long after it was asked for (a network slower than the
 #: page's input delivers everything, each message later than the one before).
 LATE_COMMAND_S = 1.0
+#: The relay's status while the station closes (:meth:`Station.stop_first`): only STOP is taken.
+CLOSING_STATUS = "the station is closing: nothing moves (only STOP is taken)"
 #: How far the page's clock may drift from the station's (0.1 %: quartz does far better): a
 #: page's input is measured late only beyond it.
 CLOCK_DRIFT = 1e-3
@@ -304,6 +306,9 @@ class Station:
         locked = self.tracked.commanded.lock is LockState.LOCKED
         self.log("warning", f"the station is closing: {'locked' if locked else '#stop!'}")
         await self._stop_unless_locked()
+        # The polls stop from now on: without this the pages would keep the last poll's state
+        # (unlocked, flying, its thrust) while the robot was stopped.
+        self._broadcast(self._telemetry(self.latest))
 
     async def shutdown(self) -> None:
         """The station is closing: thrust to zero and, unless locked as last sent, ``#stop!``
@@ -388,6 +393,11 @@ class Station:
                     )
             await self.tracked.send(message.command)
             self.log("info", f"{peer.label}: {message.command}")
+            dropped_because = self.tracked.commanded.last_dropped_because
+            if dropped_because is not None:
+                # Sent (the state is what was sent), and the controller drops it: the pilot
+                # who pressed the button is told, not only the event log.
+                peer.put({"type": "error", "message": f"{message.command}: {dropped_because}"})
         elif isinstance(message, RecordRequest):
             self._require_pilot(peer, "start or stop a recording")
             await self._record(peer, start=message.start)
@@ -697,7 +707,11 @@ class Station:
                 "direction_deg": commanded.direction_deg,
                 "power_percent": commanded.power_percent,
             },
-            "relay": {"armed": relay.armed, "moving": relay.moving, "status": relay.status},
+            "relay": {
+                "armed": relay.armed,
+                "moving": relay.moving,
+                "status": CLOSING_STATUS if self.closing else relay.status,
+            },
             "link": self._link_health(),
             **self._control_state(),
             "pilot_input": self.pilot.input_source if self.pilot is not None else None,

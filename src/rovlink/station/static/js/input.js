@@ -72,6 +72,10 @@ export class InputDevices {
     this.deadmanHeldOff = false;  // since learning: until the dead-man reads released
     this.status = "";
     this.lastInput = null;
+    // The station cut the relay (STOP, a new pilot, a reopened link...): it arms again once it
+    // hears the dead-man released. Sent once if it is, else nothing but a press would be sent
+    // (the page sends on changes), and the pilot would have to press, release and press again.
+    this.releaseAsked = false;
     addEventListener("gamepadconnected", () => this.onChange());
     addEventListener("gamepaddisconnected", () => this.onChange());
     setInterval(() => this.poll(), POLL_MS);
@@ -223,7 +227,9 @@ export class InputDevices {
     this.lastInput = input;
     if (input === null) return;
     const now = performance.now();
-    const changed = !this.lastSent || ["deadman", "direction_deg", "power_percent",
+    const released = this.releaseAsked && !input.deadman;
+    this.releaseAsked = false;
+    const changed = released || !this.lastSent || ["deadman", "direction_deg", "power_percent",
       "vertical_percent", "source"].some((key) => input[key] !== this.lastSent[key]);
     if (changed || (input.deadman && now - this.lastSentAt >= this.resendMs)) {
       // Stamped with this page's clock: the station measures how late each one arrives.

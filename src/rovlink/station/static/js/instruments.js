@@ -61,12 +61,25 @@ export function drawAttitude(canvas, rollDeg, pitchDeg) {
 
 const CARDINALS = { 0: "N", 45: "NE", 90: "E", 135: "SE", 180: "S", 225: "SW", 270: "W", 315: "NW" };
 
+// The heading tape's width at most (px): on a narrower window it is drawn for the width it is
+// shown at, not drawn at this width and shrunk with its figures (6 px high on a phone).
+const HEADING_WIDTH_PX = 620;
+
 export function drawHeading(canvas, headingDeg) {
+  const shownPx = Math.floor(canvas.parentElement?.clientWidth ?? HEADING_WIDTH_PX);
+  const widthPx = Math.min(HEADING_WIDTH_PX, shownPx > 0 ? shownPx : HEADING_WIDTH_PX);
+  if (canvas.width !== widthPx) canvas.width = widthPx;
   const ctx = context(canvas);
   const { width: w, height: h } = canvas;
   const pxPerDeg = w / 120;
-  const heading = headingDeg ?? 0;
   ctx.fillStyle = "#0f1920"; ctx.fillRect(0, 0, w, h);
+  if (headingDeg === null || headingDeg === undefined) {
+    // No scale: round north, it would read as a heading.
+    ctx.fillStyle = MUTED; ctx.textAlign = "center"; ctx.font = "13px sans-serif";
+    ctx.fillText("no reading", w / 2, h / 2 + 4);
+    return;
+  }
+  const heading = headingDeg;
   ctx.strokeStyle = WHITE; ctx.fillStyle = WHITE; ctx.textAlign = "center";
   ctx.font = "12px sans-serif";
   const first = Math.ceil((heading - 60) / 5) * 5;
@@ -85,7 +98,7 @@ export function drawHeading(canvas, headingDeg) {
   ctx.beginPath(); ctx.moveTo(w / 2 - 8, 0); ctx.lineTo(w / 2 + 8, 0); ctx.lineTo(w / 2, 12); ctx.fill();
   ctx.fillStyle = "#000"; ctx.fillRect(w / 2 - 24, 12, 48, 18);
   ctx.fillStyle = WHITE; ctx.font = "bold 13px sans-serif";
-  ctx.fillText(headingDeg === null || headingDeg === undefined ? "–" : `${heading}°`, w / 2, 26);
+  ctx.fillText(`${heading}°`, w / 2, 26);
 }
 
 export function drawDepth(canvas, depthCm, targetCm) {

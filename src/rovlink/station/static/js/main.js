@@ -104,7 +104,7 @@ const devices = new InputDevices({
   },
   isPilot,
   mapping: () => mapping,
-  onChange: () => renderDevices(),
+  onChange: () => { renderDevices(); showFlightStatus(); },
 });
 
 // -- messages from the station -----------------------------------------------------------------
@@ -285,8 +285,9 @@ function setControl(pilotId, pilotLabel, why = null) {
   showFlightStatus();
 }
 
-// What only the pilot may use (the settings rows are built when the station says hello).
-const PILOT_CONTROLS = ".pilot-only button, .pilot-only input, #settings-rows button, #settings-rows input";
+// What only the pilot may use (the settings rows are built when the station says hello). The
+// leak alarm's *Silence* is this page's own sound: any page may use it.
+const PILOT_CONTROLS = ".pilot-only button, .pilot-only input, #settings-rows button, #settings-rows input, #leak-reset";
 
 // Taking control from another pilot asks first, on the page (see the take-control button).
 function showTakeQuestion() {
@@ -299,9 +300,13 @@ function showTakeQuestion() {
 
 // The banner under the top bar: the pilot is told why nothing moves; a page that lost control,
 // why it did (until it takes control again).
+// A pilot with no input device is told that first: the relay, which has heard no input, says
+// "release the dead-man to arm", and there is no dead-man to release.
 function showFlightStatus() {
   const status = station.telemetry?.relay?.status ?? "";
-  const why = status === "flying" || status.startsWith("armed") ? "" : status;
+  const device = devices.active();
+  const why = device.kind === null ? `${device.label} (nothing flies without an input device)`
+    : status === "flying" || status.startsWith("armed") ? "" : status;
   text("flight-status", isPilot() ? why : station.lostControl ?? "");
 }
 
@@ -311,6 +316,8 @@ function showTelemetry(t) {
   if (!t) return;
   station.telemetry = t;
   if (t.pilot_id !== station.pilotId) setControl(t.pilot_id, t.pilot_label);
+  // Not armed: a dead-man already released is said again (the relay waits to hear it).
+  if (isPilot() && t.relay && !t.relay.armed) devices.releaseAsked = true;
   const s = t.sensors, c = t.commanded;
   // Depth mode is the mode after a reset: a target sent without mvdirect is held.
   const target = c.vertical_mode !== "direct" ? c.target_depth_cm : null;
