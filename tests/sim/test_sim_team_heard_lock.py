@@ -17,6 +17,7 @@ from rovlink.aio import AsyncClient
 from rovlink.client.options import StrayCallback
 from rovlink.monitor.app import MonitorApp
 from rovlink.piloting import LockState, TrackedClient
+from rovlink.piloting.hearing import hear_other_lines
 from rovlink.sim.server import SimServer
 from rovlink.station.hub import Peer, Station
 from tests.monitor.screen import shown
@@ -143,3 +144,20 @@ async def test_the_monitors_motors_row_shows_a_bystanders_stop(start_server: Sta
             "the monitor shows the stop",
         )
         await pilot.press("q")
+
+
+async def test_hearing_other_lines_hears_a_stop_with_no_bystander_turning_debug_on(
+    start_server: StartServer,
+) -> None:
+    # What --hear-other-lines does: the tool itself puts the controller's debug output on.
+    server = start_server()
+    assert server.pty_path is not None
+    async with (
+        rovlink.aio.connect(_tcp_url(server), timeout=1.0, keepalive=None) as client,
+        rovlink.aio.connect(server.pty_path, timeout=1.0, keepalive=None) as bystander,
+    ):
+        rov = TrackedClient(client)
+        await hear_other_lines(client)
+        await rov.send_raw("#start!")
+        await bystander.stop()
+        await _until(lambda: rov.commanded.heard_lock is LockState.LOCKED, "the stop is heard")
