@@ -141,3 +141,15 @@ def test_a_suspected_reset_forgets_what_was_heard() -> None:
     state.forget_after_reset()
     assert (state.heard_lock, state.lock) == (None, LockState.UNKNOWN)
     assert state.lock_text().startswith("unknown: after a suspected controller reset")
+
+
+def test_the_lock_as_sent_stays_the_tools_own_for_leaving() -> None:
+    # A tool that unlocked the robot stops it on leaving unless it locked it itself.
+    state = _state(Command("start"))
+    state.hear(_STOPPED)
+    state.hear(_UNLOCKED)
+    state.hear(_STOPPED)
+    assert (state.lock, state.sent_lock) == (LockState.LOCKED, LockState.UNLOCKED)
+    state.apply(Command("stop"))
+    assert state.sent_lock is LockState.LOCKED
+    assert _state(Command("stop")).sent_lock is LockState.LOCKED

@@ -14,6 +14,7 @@ import pytest
 
 import rovlink.aio
 from rovlink.aio import AsyncClient
+from rovlink.client.events import BytesSent, ClientEvent
 from rovlink.client.options import StrayCallback
 from rovlink.monitor.app import MonitorApp
 from rovlink.piloting import LockState, TrackedClient
@@ -128,9 +129,16 @@ async def test_every_page_of_the_station_shows_a_bystanders_stop(start_server: S
 
 async def test_the_monitors_motors_row_shows_a_bystanders_stop(start_server: StartServer) -> None:
     server = start_server()
+    sent: list[bytes] = []
+
+    def keep_sent(event: ClientEvent) -> None:
+        if isinstance(event, BytesSent):
+            sent.append(event.data)
 
     async def connect(on_stray: StrayCallback) -> AsyncClient:
-        return await rovlink.aio.connect(_tcp_url(server), timeout=1.0, on_stray=on_stray)
+        return await rovlink.aio.connect(
+            _tcp_url(server), timeout=1.0, on_stray=on_stray, on_event=keep_sent
+        )
 
     app = MonitorApp(connect, description="tcp", rate_hz=20)
     async with _bystander(server) as bystander, app.run_test(size=(100, 34)) as pilot:
@@ -143,7 +151,11 @@ async def test_the_monitors_motors_row_shows_a_bystanders_stop(start_server: Sta
             lambda: "locked (stopped by another line)" in shown(app, "#commanded"),
             "the monitor shows the stop",
         )
+        before = len(sent)
         await pilot.press("q")
+    # It unlocked the robot and never stopped it itself: leaving, it still does (a stop heard
+    # is no reason to send less than before; the monitor and its driver both see to it).
+    assert b"#stop!" in sent[before:]
 
 
 async def test_hearing_other_lines_hears_a_stop_with_no_bystander_turning_debug_on(

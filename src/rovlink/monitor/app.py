@@ -346,7 +346,7 @@ class MonitorApp(App[None]):
         finally:
             # Leaving any other way than q (SIGINT, SIGTERM, an error) cancels this loop:
             # the robot this monitor may have moved is stopped on the way out.
-            if not client.closed and rov.commanded.lock is not LockState.LOCKED:
+            if not client.closed and rov.commanded.sent_lock is not LockState.LOCKED:
                 with contextlib.suppress(ClientError, TimeoutError, ConnectionError):
                     await asyncio.wait_for(rov.stop(), _STOP_WRITE_TIMEOUT_S)
             self._redraw()
@@ -526,7 +526,7 @@ class MonitorApp(App[None]):
         """Leave; ``#stop!`` first unless the motors are locked as last sent."""
         rov = self.rov
         if rov is not None and not rov.client.closed:
-            if rov.commanded.lock is not LockState.LOCKED:
+            if rov.commanded.sent_lock is not LockState.LOCKED:
                 await self._send(Command("stop"))
             await rov.close()  # (a poll waiting for its reply does not hold the exit up)
         self.exit()

@@ -78,6 +78,8 @@ class CommandedState:
     #: Where :attr:`heard_lock` came from: ``stopped by another line``, ``stopped by the
     #: controller: failsafe: …``, ``started by another line``.
     heard_lock_because: str | None = None
+    #: :attr:`lock` as this tool had sent it when the controller was first heard to differ.
+    lock_before_heard: LockState | None = None
 
     def forget_lock(self, why: str) -> None:
         """The lock can no longer be told from what was sent (``why``): leaving then stops."""
@@ -90,6 +92,15 @@ class CommandedState:
         """The lock as last heard from the controller if it spoke since this tool's last start
         or stop, else as last sent (what the tools show)."""
         return self.heard_lock if self.heard_lock is not None else self.lock
+
+    @property
+    def sent_lock(self) -> LockState:
+        """The lock as this tool itself last sent it, whatever was heard since: a tool that
+        leaves stops the robot unless it locked it itself (nothing heard makes it send less
+        than it would have, nor more)."""
+        if self.heard_lock is None or self.lock_before_heard is None:
+            return self.lock
+        return self.lock_before_heard
 
     def hear(self, announcement: Announcement) -> bool:
         """Take what the controller announced to every line; whether the lock shown changed.
@@ -112,9 +123,15 @@ class CommandedState:
         ('unlocked (started by another line)', 'locked')
         """
         kind = announcement.kind
+        if kind not in (AnnouncementKind.LOCKED, AnnouncementKind.UNLOCKED):
+            return False
+        if self.latest_lock is (
+            LockState.LOCKED if kind is AnnouncementKind.LOCKED else LockState.UNLOCKED
+        ):
+            return False
+        if self.heard_lock is None:
+            self.lock_before_heard = self.lock
         if kind is AnnouncementKind.LOCKED:
-            if self.latest_lock is LockState.LOCKED:
-                return False
             self.lock = LockState.LOCKED
             self.lock_unknown_because = None
             self._clear_set_points()
@@ -126,17 +143,14 @@ class CommandedState:
                 else f"stopped by the controller: {why}"
             )
             return True
-        if kind is AnnouncementKind.UNLOCKED:
-            if self.latest_lock is LockState.UNLOCKED:
-                return False
-            self.heard_lock = LockState.UNLOCKED
-            self.heard_lock_because = "started by another line"
-            return True
-        return False
+        self.heard_lock = LockState.UNLOCKED
+        self.heard_lock_because = "started by another line"
+        return True
 
     def _forget_heard(self) -> None:
         self.heard_lock = None
         self.heard_lock_because = None
+        self.lock_before_heard = None
 
     def forget_after_reset(self) -> None:
         """The driver suspects a controller reset (P21): after one, the controller is locked in

@@ -303,7 +303,7 @@ class Station:
             return
         self.closing = True
         self.relay.cut("the station is closing")  # (#stop! zeroes every output: it goes first)
-        locked = self.tracked.commanded.lock is LockState.LOCKED
+        locked = self.tracked.commanded.sent_lock is LockState.LOCKED
         self.log("warning", f"the station is closing: {'locked' if locked else '#stop!'}")
         await self._stop_unless_locked()
 
@@ -319,7 +319,11 @@ class Station:
             logger.info("recording %s finished (%d bytes)", finished.path, finished.size_bytes)
 
     async def _stop_unless_locked(self) -> None:
-        if self.tracked.commanded.lock is not LockState.LOCKED and not self.tracked.client.closed:
+        # (As sent by the station itself: a stop heard is no reason to leave without one.)
+        if (
+            self.tracked.commanded.sent_lock is not LockState.LOCKED
+            and not self.tracked.client.closed
+        ):
             with contextlib.suppress(ClientError):
                 await self.tracked.stop()
 

@@ -723,7 +723,7 @@ class MqttBridge:
             self._event("reset_suspected", detail)
         elif isinstance(event, LinkState):
             lost = event.state == "lost"
-            if lost and self.rov.commanded.lock is LockState.UNLOCKED:
+            if lost and self.rov.commanded.sent_lock is LockState.UNLOCKED:
                 # The robot's own watchdog stops it (P17) unless the link is soon back: #stop!
                 # is then the reopened link's first frame, and the state says locked.
                 self._in_background(self._stop_quietly())
