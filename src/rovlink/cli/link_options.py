@@ -275,8 +275,7 @@ def add_hearing_option(parser: argparse.ArgumentParser) -> None:
     """``--hear-other-lines``, for the tools that show the lock (web, monitor, the bridges)."""
     parser.add_argument(
         "--hear-other-lines",
-        action=OnOff,
-        default=False,
+        action="store_true",
         help="put the controller's debug output on (#debug1!, again after a reset), so that a "
         "#stop! from another line or a failsafe shows here as locked; the controller then "
         "writes a line of text for each change it makes, to every line (default: off)",
