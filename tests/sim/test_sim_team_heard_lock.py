@@ -16,6 +16,7 @@ import rovlink.aio
 from rovlink.aio import AsyncClient
 from rovlink.client.events import BytesSent, ClientEvent
 from rovlink.client.options import StrayCallback
+from rovlink.console.engine import status_lines
 from rovlink.monitor.app import MonitorApp
 from rovlink.piloting import LockState, TrackedClient
 from rovlink.piloting.hearing import hear_other_lines
@@ -74,6 +75,7 @@ async def test_a_tracked_client_takes_a_bystanders_stop_and_shows_its_unlock(
         await bystander.stop()
         await _until(lambda: rov.commanded.lock is LockState.LOCKED, "the pilot hears the stop")
         assert rov.commanded.lock_text() == "locked (stopped by another line)"
+        assert status_lines(rov)[0] == "motors:     locked (stopped by another line)"  # console
         assert rov.commanded.power_percent == 0  # the controller cleared its set-points
         # Another line unlocks: shown, but the pilot's tool stays locked until it unlocks.
         await bystander.start()

@@ -154,7 +154,7 @@ def _toolbar(rov: TrackedClient, queued: int) -> StyleAndTextTuples:
     lock_style = {
         LockState.LOCKED: "class:toolbar.locked",
         LockState.UNLOCKED: "class:toolbar.unlocked",
-    }.get(state.lock, "")
+    }.get(state.latest_lock, "")  # (the lock the controller announced, if it did)
     health = rov.health
     link = f"link {health.status}"
     if health.last_reply_s is not None:
