@@ -6,6 +6,7 @@ import pytest
 
 from rovlink.piloting import CommandedState, LockState
 from rovlink.protocol import Command, VerticalMode
+from rovlink.protocol.announcements import STOP_COMMAND, Announcement, AnnouncementKind
 
 
 def _state(*commands: Command) -> CommandedState:
@@ -90,3 +91,65 @@ def test_th_360_is_0_and_settings_leave_the_state_alone() -> None:
     )
     assert state.direction_deg == 0
     assert state.horizontal_text() == "0° at 10 % (as last sent)"
+
+
+_STOPPED = Announcement(AnnouncementKind.LOCKED, STOP_COMMAND)
+_UNLOCKED = Announcement(AnnouncementKind.UNLOCKED)
+
+
+def test_a_stop_heard_locks_as_the_tools_own_and_says_where_it_came_from() -> None:
+    state = _state(Command("start"), Command("mvdirect", (1,)), Command("th", (90, 40)))
+    assert state.hear(_STOPPED)
+    assert state.lock is LockState.LOCKED
+    assert (state.power_percent, state.direction_deg) == (0, 0)
+    assert state.lock_text() == "locked (stopped by another line)"
+    assert state.short_lock_text() == "locked (heard)"
+    assert state.apply(Command("th", (0, 10))) is not None  # dropped: locked
+    assert state.vertical_mode is VerticalMode.DIRECT  # a stop leaves the mode
+
+
+def test_a_failsafe_heard_names_its_reason() -> None:
+    state = _state(Command("start"))
+    assert state.hear(Announcement(AnnouncementKind.LOCKED, "failsafe: no valid frame for 2 s"))
+    assert (
+        state.lock_text() == "locked (stopped by the controller: failsafe: no valid frame for 2 s)"
+    )
+
+
+def test_what_the_tool_sent_heard_back_changes_nothing() -> None:
+    state = _state(Command("stop"))
+    assert not state.hear(_STOPPED)
+    assert state.lock_text() == "locked (as last sent)"
+    state.apply(Command("start"))
+    assert not state.hear(_UNLOCKED)
+    assert not state.hear(Announcement(AnnouncementKind.ANOTHER_LINE_DRIVES, "<th.0.1>"))
+    assert state.lock_text() == "unlocked (as last sent)"
+
+
+def test_an_unlock_heard_is_shown_but_the_tool_stays_locked_until_it_unlocks() -> None:
+    state = _state(Command("stop"))
+    assert state.hear(_UNLOCKED)
+    assert (state.lock, state.latest_lock) == (LockState.LOCKED, LockState.UNLOCKED)
+    assert state.apply(Command("th", (0, 10))) is not None  # nothing relayed: still dropped
+    state.apply(Command("start"))
+    assert (state.heard_lock, state.lock_text()) == (None, "unlocked (as last sent)")
+
+
+def test_a_suspected_reset_forgets_what_was_heard() -> None:
+    state = _state(Command("start"))
+    state.hear(_STOPPED)
+    state.forget_after_reset()
+    assert (state.heard_lock, state.lock) == (None, LockState.UNKNOWN)
+    assert state.lock_text().startswith("unknown: after a suspected controller reset")
+
+
+def test_the_lock_as_sent_stays_the_tools_own_for_leaving() -> None:
+    # A tool that unlocked the robot stops it on leaving unless it locked it itself.
+    state = _state(Command("start"))
+    state.hear(_STOPPED)
+    state.hear(_UNLOCKED)
+    state.hear(_STOPPED)
+    assert (state.lock, state.sent_lock) == (LockState.LOCKED, LockState.UNLOCKED)
+    state.apply(Command("stop"))
+    assert state.sent_lock is LockState.LOCKED
+    assert _state(Command("stop")).sent_lock is LockState.LOCKED

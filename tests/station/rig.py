@@ -44,13 +44,16 @@ class Received:
 
 
 class ControllerLine:
-    """A simulated robot served on TCP in a thread; every frame that reaches its controller is
-    recorded with the time it arrived. ``wait_for`` waits on a condition, with a timeout."""
+    """A simulated robot served on TCP (and, with ``pty``, a PTY) in a thread; every frame that
+    reaches its controller is recorded with the time it arrived. ``wait_for`` waits on a
+    condition, with a timeout."""
 
-    def __init__(self, *, seed: int = 1) -> None:
+    def __init__(self, *, seed: int = 1, pty: bool = False) -> None:
         self.server = SimServer(seed=seed)
         host, port = self.server.listen_tcp()
         self.url = f"socket://{host}:{port}"
+        #: With ``pty``: a second line, for a bystander's tool (its frames are recorded too).
+        self.pty_path = self.server.open_pty() if pty else None
         self.received: list[Received] = []
         self._changed = threading.Condition()
         self._decoder = Decoder()

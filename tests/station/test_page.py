@@ -13,7 +13,14 @@ from typing import Any
 
 import pytest
 
-from tests.station.rig import CHROMIUM, CHROMIUM_ARGS, ControllerLine, StationProcess
+import rovlink
+from tests.station.rig import (
+    CHROMIUM,
+    CHROMIUM_ARGS,
+    ControllerLine,
+    StationProcess,
+    running_station,
+)
 from tests.station.stalling_link import stalling_link
 
 pytestmark = pytest.mark.integration
@@ -836,7 +843,6 @@ def test_settings_send_values_within_the_command_table(browser, station, line):
 
 def test_the_record_button_records_and_the_page_downloads(browser, line, tmp_path):
     from rovlink.recorder import FrameEntry, read_entries
-    from tests.station.rig import running_station
 
     with running_station(line.url, "--recordings", str(tmp_path)) as served:
         page = open_page(browser, served, pad=False)
@@ -1170,3 +1176,26 @@ def test_learning_a_button_fires_nothing(browser, station, line):
         page.wait_for_selector("#toast:has-text('STOP (#stop!): a button number 0–31')")
         assert page.input_value("[data-button='stop']") == "1"
     page.context.close()
+
+
+def test_a_stop_from_another_line_shows_on_every_page_with_hear_other_lines(browser):
+    # Before, every page went on showing "unlocked" after another tool's #stop!.
+    line = ControllerLine(pty=True)
+    assert line.pty_path is not None
+    try:
+        with running_station(line.url, "--hear-other-lines") as served:
+            line.wait_for("#debug1!")  # the station put debug output on
+            pilot = piloting_by_pad(browser, served, line)  # (unlocked)
+            watcher = open_page(browser, served, pad=False)
+            with rovlink.connect(line.pty_path, timeout=1.0, keepalive=None) as bystander:
+                bystander.stop()
+            for page in (pilot, watcher):
+                page.wait_for_function(
+                    "document.getElementById('lock-state').textContent"
+                    " === 'locked (stopped by another line)'"
+                )
+                assert page.get_attribute("#lock-state", "class") == "locked"
+            pilot.context.close()
+            watcher.context.close()
+    finally:
+        line.close()

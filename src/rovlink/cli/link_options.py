@@ -34,6 +34,7 @@ __all__ = [
     "DEFAULT_URL",
     "MAX_RETRIES",
     "MAX_TIMEOUT_S",
+    "add_hearing_option",
     "add_link_options",
     "algorithm_name",
     "ask",
@@ -43,6 +44,7 @@ __all__ = [
     "connect",
     "connect_async",
     "file_name",
+    "hear_other_lines_if_asked",
     "log_warnings",
     "positive_int",
     "seconds",
@@ -267,6 +269,26 @@ def add_link_options(parser: argparse.ArgumentParser, *, url_required: bool = Fa
     from rovlink.cli.recording import add_record_options  # noqa: PLC0415 - as open_recorder
 
     add_record_options(parser)
+
+
+def add_hearing_option(parser: argparse.ArgumentParser) -> None:
+    """``--hear-other-lines``, for the tools that show the lock (web, monitor, the bridges)."""
+    parser.add_argument(
+        "--hear-other-lines",
+        action="store_true",
+        help="put the controller's debug output on (#debug1!, again after a reset), so that a "
+        "#stop! from another line or a failsafe shows here as locked; the controller then "
+        "writes a line of text for each change it makes, to every line (default: off)",
+    )
+
+
+async def hear_other_lines_if_asked(args: argparse.Namespace, client: AsyncClient) -> None:
+    """With ``--hear-other-lines``, put the controller's debug output on (and again after a
+    reset: :func:`rovlink.piloting.hearing.hear_other_lines`); else nothing."""
+    if getattr(args, "hear_other_lines", False):
+        from rovlink.piloting.hearing import hear_other_lines  # noqa: PLC0415
+
+        await hear_other_lines(client)
 
 
 def client_options(

@@ -41,6 +41,7 @@ def _path(text: str) -> Path:
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """``mavlink``'s options."""
     link_options.add_link_options(parser)
+    link_options.add_hearing_option(parser)
     group = parser.add_argument_group("MAVLink options")
     group.add_argument(
         "--out",
@@ -140,6 +141,7 @@ async def _serve(
     except (ConnectionError, OSError) as error:
         raise link_options.connection_failure(args.url, error) from None
     async with client:
+        await link_options.hear_other_lines_if_asked(args, client)
         try:
             endpoint = MavlinkEndpoint(args.out, system_id=args.system_id)
         except OSError as error:

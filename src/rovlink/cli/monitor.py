@@ -37,6 +37,7 @@ def _rate_hz(text: str) -> float:
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """``monitor``'s options."""
     link_options.add_link_options(parser)
+    link_options.add_hearing_option(parser)
     parser.add_argument(
         "--rate",
         dest="rate_hz",
@@ -173,6 +174,7 @@ async def _connect_then_show(args: argparse.Namespace) -> None:
     # robot and ends the process without it (see StopOnTermination).
     with StopOnTermination(client.emergency_stop, "rovlink monitor"):
         try:
+            await link_options.hear_other_lines_if_asked(args, client)
             await build_app(args, connected).run_async()
         finally:
             if not client.closed:

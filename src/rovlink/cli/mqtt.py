@@ -143,6 +143,7 @@ def _check_tls_files(args: argparse.Namespace) -> None:
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """``mqtt``'s options."""
     link_options.add_link_options(parser)
+    link_options.add_hearing_option(parser)
     add_broker_options(parser)
     group = parser.add_argument_group("bridge options")
     group.add_argument("--robot", required=True, metavar="ID", help="the robot's id: rovlink/ID/…")
@@ -212,6 +213,7 @@ async def _serve(args: argparse.Namespace, broker: BrokerSettings) -> None:
     except (ConnectionError, OSError) as error:
         raise link_options.connection_failure(args.url, error) from None
     async with client:
+        await link_options.hear_other_lines_if_asked(args, client)
         bridge = MqttBridge(
             TrackedClient(client, algorithm=args.algorithm),
             broker,

@@ -45,6 +45,7 @@ def _rate_hz(text: str) -> float:
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """``web``'s options."""
     link_options.add_link_options(parser)
+    link_options.add_hearing_option(parser)
     group = parser.add_argument_group("station options")
     group.add_argument(
         "--host",
@@ -123,11 +124,17 @@ def run(args: argparse.Namespace) -> int:
 
     async def connect() -> rovlink.aio.AsyncClient:
         try:
-            return await rovlink.aio.connect(
+            client = await rovlink.aio.connect(
                 args.url, baudrate=args.baudrate, options=client_options
             )
         except (ConnectionError, OSError) as error:
             raise link_options.connection_failure(args.url, error) from None
+        try:
+            await link_options.hear_other_lines_if_asked(args, client)
+        except BaseException:
+            await client.close()
+            raise
+        return client
 
     def ready(urls: list[str]) -> None:
         say_ready(f"rovlink web ready: {args.url} at " + " or ".join(urls) + "; Ctrl-C stops")

@@ -154,7 +154,7 @@ def _toolbar(rov: TrackedClient, queued: int) -> StyleAndTextTuples:
     lock_style = {
         LockState.LOCKED: "class:toolbar.locked",
         LockState.UNLOCKED: "class:toolbar.unlocked",
-    }.get(state.lock, "")
+    }.get(state.latest_lock, "")  # (the lock the controller announced, if it did)
     health = rov.health
     link = f"link {health.status}"
     if health.last_reply_s is not None:
@@ -401,7 +401,7 @@ _STOP_WRITE_TIMEOUT_S = 1.0
 async def _stop_unless_locked(rov: TrackedClient) -> None:
     """``#stop!`` on the way out unless the motors are locked as last sent: leaving by
     ``quit`` has sent it already; leaving by Ctrl-C (SIGINT) or an error has not."""
-    if rov.client.closed or rov.commanded.lock is LockState.LOCKED:
+    if rov.client.closed or rov.commanded.sent_lock is LockState.LOCKED:
         return
     with contextlib.suppress(ClientError, TimeoutError, ConnectionError):
         await asyncio.wait_for(rov.stop(), _STOP_WRITE_TIMEOUT_S)

@@ -230,7 +230,7 @@ class ConsoleEngine:
             return
         self._left = True
         state = self.rov.commanded
-        if self.rov.client.closed or state.lock is LockState.LOCKED:
+        if self.rov.client.closed or state.sent_lock is LockState.LOCKED:
             return
         self._emit(info_line(f"leaving: sending #stop! (motors {state.lock_text()})"))
         try:

@@ -32,6 +32,12 @@ from rovlink.protocol import (
     encode,
     get_algorithm,
 )
+from rovlink.protocol.announcements import (
+    STOP_COMMAND,
+    UNLOCKED_TEXT,
+    another_line_text,
+    locked_text,
+)
 
 __all__ = ["Controller", "ControllerState"]
 
@@ -340,11 +346,7 @@ class Controller:
         if spec.motion or message.setting == (Setting.LOCKED, False):  # motion, or `start`
             if line != self._driving_line and self._driving_line in self._decoders:
                 # Two hosts driving at once: each takes the other for idle. Say so on both.
-                self._debug(
-                    f"{describe_frame(frame.raw)} from another line: it drives now, and the "
-                    "link-loss failsafe follows it",
-                    every_line=True,
-                )
+                self._debug(another_line_text(describe_frame(frame.raw)), every_line=True)
             self._driving_line = line
         # Any valid command of the driving line keeps the link alive (P17), even one dropped
         # below (a query is enough).
@@ -401,14 +403,14 @@ class Controller:
 
     def _on_locked(self, locked: bool) -> None:
         if locked:
-            self._stop("stop command", commanded=True)
+            self._stop(STOP_COMMAND, commanded=True)
             return
         if not self._locked:
             self._debug("start: motors already unlocked, nothing changed")
             return
         self._locked = False
         self._clear_set_points()
-        self._debug("motors unlocked", every_line=True)
+        self._debug(UNLOCKED_TEXT, every_line=True)
 
     def _on_debug_mode(self, enabled: bool) -> None:
         if enabled == self._debug_enabled:
@@ -528,8 +530,8 @@ class Controller:
             self._claw_direction = 0
         self._hardware.claw.drive(0)
         if not commanded:  # a failsafe: worth a line in the log of the board's owner
-            logger.warning("%s: motors stopped and locked", why)
-        self._debug(f"{why}: motors stopped and locked", every_line=True)
+            logger.warning("%s", locked_text(why))
+        self._debug(locked_text(why), every_line=True)
 
     def _leak_fired(self) -> None:
         """The leak sensor fired since the last tick: latch it and take the leak action (P14).

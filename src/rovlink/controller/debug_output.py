@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from rovlink.protocol.announcements import DEBUG_PREFIX
+
 __all__ = ["debug_line", "describe_frame"]
 
 # The three frame characters become look-alikes that are plain text, and the typography of
@@ -24,6 +26,7 @@ _SAFE = str.maketrans(
         "°": " deg",
     }
 )
+DEBUG_PREFIX_BYTES = DEBUG_PREFIX.encode("ascii")
 _PRINTABLE = frozenset(range(0x20, 0x7F))
 
 
@@ -34,7 +37,7 @@ def debug_line(text: str) -> bytes:
     b'debug: dropped No.qd.: must be in 0-255\\r\\n'
     """
     safe = text.translate(_SAFE)
-    return b"debug: " + safe.encode("ascii", errors="backslashreplace") + b"\r\n"
+    return DEBUG_PREFIX_BYTES + safe.encode("ascii", errors="backslashreplace") + b"\r\n"
 
 
 def describe_frame(raw: bytes) -> str:

@@ -48,6 +48,7 @@ from rovlink.piloting import LockState, SentFrame, TrackedClient
 from rovlink.piloting.tracked import REOPENED_NOTICE
 from rovlink.protocol import BadFrame, Command, Event
 from rovlink.protocol import Text as DebugText
+from rovlink.protocol.announcements import Announcement
 from rovlink.protocol.visible import visible
 
 __all__ = ["Connector", "MonitorApp", "Panel", "ShownIfRoom"]
@@ -318,6 +319,7 @@ class MonitorApp(App[None]):
             return
         rov = TrackedClient(client, algorithm=self._algorithm)
         rov.add_sent_listener(self._on_sent)
+        rov.add_heard_listener(self._on_heard)
         client.subscribe(self._on_client_event)
         self.rov = rov
         self._link_state = client.description
@@ -344,7 +346,7 @@ class MonitorApp(App[None]):
         finally:
             # Leaving any other way than q (SIGINT, SIGTERM, an error) cancels this loop:
             # the robot this monitor may have moved is stopped on the way out.
-            if not client.closed and rov.commanded.lock is not LockState.LOCKED:
+            if not client.closed and rov.commanded.sent_lock is not LockState.LOCKED:
                 with contextlib.suppress(ClientError, TimeoutError, ConnectionError):
                     await asyncio.wait_for(rov.stop(), _STOP_WRITE_TIMEOUT_S)
             self._redraw()
@@ -358,6 +360,13 @@ class MonitorApp(App[None]):
     def _on_client_event(self, event: ClientEvent) -> None:
         if isinstance(event, LinkState) and event.state == "reconnected":
             self.notify(REOPENED_NOTICE, title="link reopened", severity="warning", timeout=10)
+
+    def _on_heard(self, _announcement: Announcement) -> None:
+        """The controller announced a lock change this monitor did not send: said in full
+        (the box may show it cut), and drawn now."""
+        if self.rov is not None:
+            self.notify(f"motors {self.rov.commanded.lock_text()}", severity="warning")
+        self._redraw()
 
     def _on_sent(self, sent: SentFrame) -> None:
         if sent.warning is not None:
@@ -517,7 +526,7 @@ class MonitorApp(App[None]):
         """Leave; ``#stop!`` first unless the motors are locked as last sent."""
         rov = self.rov
         if rov is not None and not rov.client.closed:
-            if rov.commanded.lock is not LockState.LOCKED:
+            if rov.commanded.sent_lock is not LockState.LOCKED:
                 await self._send(Command("stop"))
             await rov.close()  # (a poll waiting for its reply does not hold the exit up)
         self.exit()

@@ -135,14 +135,22 @@ def _drop_reason(commanded: CommandedState, command: Command) -> str:
     return f"{commanded.vertical_mode} mode"
 
 
+#: The longest lock text the commanded box shows in full.
+_LOCK_WIDTH = 34
+
+
 def commanded_text(commanded: CommandedState) -> Text:
-    """Lock, vertical mode and set-points, as last sent by this monitor (the panel says so)."""
+    """Lock, vertical mode and set-points, as last sent by this monitor (the panel says so), or
+    the lock as the controller announced it since (``locked (stopped by another line)``)."""
     text = Text()
     lock_style = {LockState.LOCKED: "green", LockState.UNLOCKED: "bold yellow"}.get(
-        commanded.lock, "dim"
+        commanded.latest_lock, "dim"
     )
     lock = commanded.lock_text()
-    if commanded.lock is LockState.UNKNOWN:  # (in the box's width; a notice says it in full)
+    if commanded.heard_lock is not None:  # announced by the controller (debug output on)
+        if len(lock) > _LOCK_WIDTH:  # (a failsafe's reason; a notice says it in full)
+            lock = commanded.short_lock_text()
+    elif commanded.lock is LockState.UNKNOWN:  # (in the box's width; a notice says it in full)
         lock = "unknown: none sent"
         if commanded.lock_unknown_after_reset:
             lock = "unknown: reset suspected"
@@ -250,7 +258,7 @@ def small_screen_text(
         text.append(
             f"motors {commanded.short_lock_text()} · {commanded.direction_deg}° at "
             f"{commanded.power_percent} % (as last sent)\n",
-            style="bold yellow" if commanded.lock is LockState.UNLOCKED else "",
+            style="bold yellow" if commanded.latest_lock is LockState.UNLOCKED else "",
         )
     text.append(f"link {link}\n", style=_HEALTH_STYLES.get(link, ""))
     columns, rows = size

@@ -4,6 +4,13 @@ The protocol has no query for "locked?" or "which vertical mode?", and commands 
 are never acknowledged (P4). So a tool can only know what it sent itself; this module keeps that,
 applying the controller's rules to it — a motion command while locked is dropped, ``#stop!``
 clears the set-points — and words it honestly: "locked (as last sent)".
+
+With debug output on, the controller tells every line when the lock changes
+(:mod:`rovlink.protocol.announcements`); :meth:`CommandedState.hear` takes what it says, so a
+``#stop!`` from another line or a failsafe shows as "locked (stopped by another line)". What is
+heard never makes a tool send anything: a stop heard locks the tool as its own would (it relays
+no motion, an ARM sends ``#start!`` again), but an unlock heard is only shown — the tool drives
+again only once its own pilot unlocks.
 """
 
 from __future__ import annotations
@@ -11,6 +18,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from rovlink.protocol import Command, Setting, VerticalMode
+from rovlink.protocol.announcements import STOP_COMMAND, Announcement, AnnouncementKind
 from rovlink.protocol.text_enum import StrEnum
 
 __all__ = ["CommandedState", "LockState"]
@@ -64,10 +72,85 @@ class CommandedState:
     #: Why the vertical mode is unknown although mvdirect was sent; ``None`` if not.
     mode_unknown_because: str | None = None
 
+    #: The lock as the controller announced it after this tool's last start or stop, when that
+    #: differs from what the tool sent; ``None``: nothing of the kind heard since.
+    heard_lock: LockState | None = None
+    #: Where :attr:`heard_lock` came from: ``stopped by another line``, ``stopped by the
+    #: controller: failsafe: …``, ``started by another line``.
+    heard_lock_because: str | None = None
+    #: :attr:`lock` as this tool had sent it when the controller was first heard to differ.
+    lock_before_heard: LockState | None = None
+
     def forget_lock(self, why: str) -> None:
         """The lock can no longer be told from what was sent (``why``): leaving then stops."""
         self.lock = LockState.UNKNOWN
         self.lock_unknown_because = why
+        self._forget_heard()
+
+    @property
+    def latest_lock(self) -> LockState:
+        """The lock as last heard from the controller if it spoke since this tool's last start
+        or stop, else as last sent (what the tools show)."""
+        return self.heard_lock if self.heard_lock is not None else self.lock
+
+    @property
+    def sent_lock(self) -> LockState:
+        """The lock as this tool itself last sent it, whatever was heard since: a tool that
+        leaves stops the robot unless it locked it itself (nothing heard makes it send less
+        than it would have, nor more)."""
+        if self.heard_lock is None or self.lock_before_heard is None:
+            return self.lock
+        return self.lock_before_heard
+
+    def hear(self, announcement: Announcement) -> bool:
+        """Take what the controller announced to every line; whether the lock shown changed.
+
+        A stop heard is taken as this tool's own (locked, set-points cleared); an unlock heard
+        is shown only: :attr:`lock` stays as last sent, so nothing is relayed until the tool
+        itself sends ``#start!``. An announcement of what this tool sent itself changes nothing.
+
+        >>> state = CommandedState()
+        >>> state.apply(Command("start"))
+        >>> state.hear(Announcement(AnnouncementKind.UNLOCKED))  # its own start, heard back
+        False
+        >>> state.hear(Announcement(AnnouncementKind.LOCKED, "stop command"))
+        True
+        >>> state.lock_text(), str(state.lock)
+        ('locked (stopped by another line)', 'locked')
+        >>> state.hear(Announcement(AnnouncementKind.UNLOCKED))
+        True
+        >>> state.lock_text(), str(state.lock)
+        ('unlocked (started by another line)', 'locked')
+        """
+        kind = announcement.kind
+        if kind not in (AnnouncementKind.LOCKED, AnnouncementKind.UNLOCKED):
+            return False
+        if self.latest_lock is (
+            LockState.LOCKED if kind is AnnouncementKind.LOCKED else LockState.UNLOCKED
+        ):
+            return False
+        if self.heard_lock is None:
+            self.lock_before_heard = self.lock
+        if kind is AnnouncementKind.LOCKED:
+            self.lock = LockState.LOCKED
+            self.lock_unknown_because = None
+            self._clear_set_points()
+            self.heard_lock = LockState.LOCKED
+            why = announcement.detail
+            self.heard_lock_because = (
+                "stopped by another line"
+                if why == STOP_COMMAND
+                else f"stopped by the controller: {why}"
+            )
+            return True
+        self.heard_lock = LockState.UNLOCKED
+        self.heard_lock_because = "started by another line"
+        return True
+
+    def _forget_heard(self) -> None:
+        self.heard_lock = None
+        self.heard_lock_because = None
+        self.lock_before_heard = None
 
     def forget_after_reset(self) -> None:
         """The driver suspects a controller reset (P21): after one, the controller is locked in
@@ -105,6 +188,7 @@ class CommandedState:
         >>> state.lock_text(), state.power_percent, state.last_command
         ('unknown: after the link was reopened (the controller may have reset)', 0, None)
         """
+        self._forget_heard()  # (heard on the old link)
         if not stopped:
             self.forget_lock(_REOPENED_LOCK_REASON)
         self.power_percent = 0
@@ -150,6 +234,7 @@ class CommandedState:
         setting = command.setting
         if setting is not None and setting[0] is Setting.LOCKED:
             self.lock_unknown_because = None
+            self._forget_heard()
             if setting[1]:  # stop
                 self.lock = LockState.LOCKED
                 self._clear_set_points()
@@ -206,7 +291,10 @@ class CommandedState:
     # -- in words -------------------------------------------------------------------------------
 
     def lock_text(self) -> str:
-        """``locked (as last sent)``, ``unlocked (as last sent)`` or why it is unknown."""
+        """``locked (as last sent)``, ``unlocked (as last sent)``, the lock heard and where
+        from (``locked (stopped by another line)``), or why it is unknown."""
+        if self.heard_lock is not None:
+            return f"{self.heard_lock} ({self.heard_lock_because})"
         if self.lock is LockState.UNKNOWN:
             if self.lock_unknown_because is not None:
                 return f"unknown: after {self.lock_unknown_because}"
@@ -226,7 +314,10 @@ class CommandedState:
 
     def short_lock_text(self) -> str:
         """``locked``, ``unlocked``, ``lock not sent`` or ``lock unknown`` (sent, but its
-        effect cannot be told), for a line headed "as last sent"."""
+        effect cannot be told), for a line headed "as last sent"; ``locked (heard)``,
+        ``unlocked (heard)`` for a lock the controller announced."""
+        if self.heard_lock is not None:
+            return f"{self.heard_lock} (heard)"
         if self.lock is LockState.UNKNOWN:
             return "lock not sent" if self.lock_unknown_because is None else "lock unknown"
         return str(self.lock)

@@ -16,16 +16,18 @@ from collections.abc import Awaitable, Callable
 from dataclasses import dataclass
 
 from rovlink.aio import AsyncClient
-from rovlink.client.events import BytesSent, ClientEvent, LinkState, ResetSuspected
+from rovlink.client.events import BytesSent, ClientEvent, LinkState, ResetSuspected, Unsolicited
 from rovlink.client.operations import SENSORS, raw_frame
 from rovlink.client.sensors import Sensors
 from rovlink.piloting.commanded import CommandedState
 from rovlink.piloting.health import LinkHealth
-from rovlink.protocol import DEFAULT_ALGORITHM, Command, Response
+from rovlink.protocol import DEFAULT_ALGORITHM, Command, Response, Text
+from rovlink.protocol.announcements import Announcement, read_announcement
 
 __all__ = [
     "LEAVING_REPLY_WAIT_S",
     "REOPENED_NOTICE",
+    "HeardCallback",
     "SentCallback",
     "SentFrame",
     "TrackedClient",
@@ -59,6 +61,8 @@ class SentFrame:
 
 
 SentCallback = Callable[[SentFrame], None]
+#: Called with an announcement of the controller's that changed the lock a tool shows.
+HeardCallback = Callable[[Announcement], None]
 
 
 class TrackedClient:
@@ -68,7 +72,9 @@ class TrackedClient:
     client, or by the session itself (zero thrust after ``motion_timeout``) — updates the state
     and reaches the sent listeners; the session's keep-alives and fences do not. ``algorithm``
     is the one the client was connected with, for the tools to name. Queries sent through it are
-    timed into :attr:`health`.
+    timed into :attr:`health`. With debug output on, what the controller announces to every
+    line (the lock changing) updates the state too (:meth:`CommandedState.hear`) and reaches
+    the heard listeners; it never makes this client send anything.
 
     Example::
 
@@ -91,6 +97,7 @@ class TrackedClient:
         self.health = LinkHealth()
         self._clock = clock
         self._listeners: list[SentCallback] = []
+        self._heard_listeners: list[HeardCallback] = []
         #: The link was lost and is being reopened (the client was connected with reconnect).
         self.link_down = False
         self._stopped_while_down = False
@@ -100,6 +107,11 @@ class TrackedClient:
     def add_sent_listener(self, listener: SentCallback) -> None:
         """Call ``listener`` with every frame sent through this client, as it is sent."""
         self._listeners.append(listener)
+
+    def add_heard_listener(self, listener: HeardCallback) -> None:
+        """Call ``listener`` with each announcement of the controller's (debug output on) that
+        changed the lock shown, once :attr:`commanded` has taken it."""
+        self._heard_listeners.append(listener)
 
     @property
     def checksum_enabled(self) -> bool:
@@ -149,6 +161,8 @@ class TrackedClient:
             self._on_link_state(event.state)
             return
         if not isinstance(event, BytesSent):
+            if isinstance(event, Unsolicited) and isinstance(event.event, Text):
+                self._on_text(event.event.text)  # (text only: replies never get here)
             return
         command = event.command
         # A #stop! asked for while the link was down goes first on the reopened one, written
@@ -172,6 +186,13 @@ class TrackedClient:
             self.commanded.forget_lock("a raw write whose effect is not known")
         warning = self.commanded.apply(command) if command is not None else None
         self._tell(SentFrame(event.data, command, warning))
+
+    def _on_text(self, text: str) -> None:
+        announcement = read_announcement(text)
+        if announcement is None or not self.commanded.hear(announcement):
+            return
+        for listener in self._heard_listeners:
+            listener(announcement)
 
     def _on_link_state(self, state: str) -> None:
         if state == "lost":

@@ -51,6 +51,7 @@ from rovlink.client.events import (
 from rovlink.client.sensors import Sensors
 from rovlink.piloting import LockState, SentFrame, TrackedClient
 from rovlink.protocol import Command, Text, VerticalMode
+from rovlink.protocol.announcements import Announcement, AnnouncementKind
 from rovlink.station.limits import command_limits
 from rovlink.station.messages import (
     CommandRequest,
@@ -226,6 +227,7 @@ class Station:
             tracked.client.subscribe(recordings.on_event)
             recordings.add_failure_listener(self._recording_failed)
         tracked.add_sent_listener(self._on_sent)
+        tracked.add_heard_listener(self._on_heard)
 
     # -- the pages ------------------------------------------------------------------------------
 
@@ -303,7 +305,7 @@ class Station:
             return
         self.closing = True
         self.relay.cut("the station is closing")  # (#stop! zeroes every output: it goes first)
-        locked = self.tracked.commanded.lock is LockState.LOCKED
+        locked = self.tracked.commanded.sent_lock is LockState.LOCKED
         self.log("warning", f"the station is closing: {'locked' if locked else '#stop!'}")
         await self._stop_unless_locked()
         # The polls stop from now on: without this the pages would keep the last poll's state
@@ -322,7 +324,11 @@ class Station:
             logger.info("recording %s finished (%d bytes)", finished.path, finished.size_bytes)
 
     async def _stop_unless_locked(self) -> None:
-        if self.tracked.commanded.lock is not LockState.LOCKED and not self.tracked.client.closed:
+        # (As sent by the station itself: a stop heard is no reason to leave without one.)
+        if (
+            self.tracked.commanded.sent_lock is not LockState.LOCKED
+            and not self.tracked.client.closed
+        ):
             with contextlib.suppress(ClientError):
                 await self.tracked.stop()
 
@@ -698,6 +704,8 @@ class Station:
             "commanded": {
                 "lock": str(commanded.lock),
                 "lock_unknown_because": commanded.lock_unknown_because,
+                "heard_lock": None if commanded.heard_lock is None else str(commanded.heard_lock),
+                "heard_lock_because": commanded.heard_lock_because,
                 "vertical_mode": None
                 if commanded.vertical_mode is None
                 else str(commanded.vertical_mode),
@@ -824,6 +832,20 @@ class Station:
             commanded.apply(Command("stop"), own=False)
             return
         commanded.forget_lock(_REOPENED)
+
+    def _on_heard(self, announcement: Announcement) -> None:
+        """The controller announced a lock change (debug output on) that the station did not
+        send: every page is told now, not at the next poll. A stop heard cuts the relay as a
+        STOP pressed here would (unlocked again, the pilot releases and presses the dead-man);
+        its zero thrust is not sent: nothing heard makes the station send anything, and the
+        controller has zeroed every output already."""
+        commanded = self.tracked.commanded
+        if announcement.kind is AnnouncementKind.LOCKED:
+            self.relay.cut(f"motors {commanded.lock_text()}")
+            self.log("warning", f"motors {commanded.lock_text()}: unlock (#start!) to fly again")
+        else:
+            self.log("info", f"motors {commanded.lock_text()}; this station flies once unlocked")
+        self._broadcast(self._telemetry(self.latest))
 
     def _on_sent(self, sent: SentFrame) -> None:
         if sent.warning is None or self._zero_to_locked(sent):

@@ -35,6 +35,7 @@ from rovlink.logs import get_logger
 from rovlink.piloting.commanded import LockState
 from rovlink.piloting.tracked import TrackedClient
 from rovlink.protocol import Command
+from rovlink.protocol.announcements import Announcement, AnnouncementKind
 
 __all__ = ["MavlinkBridge"]
 
@@ -116,6 +117,7 @@ class MavlinkBridge:
         # What the pilot input measures changes and staleness against: the set-points as the
         # controller has them after each frame (whoever sent it), not what the bridge expects.
         rov.add_sent_listener(lambda _sent: self.pilot.sync(rov.commanded))
+        rov.add_heard_listener(self._on_heard)
 
     @property
     def armed(self) -> bool:
@@ -503,6 +505,18 @@ class MavlinkBridge:
             # A reset, or a board that a reopened port may have reset (an Arduino's DTR line):
             # its settings are sent again once it answers.
             self.kept.reset_suspected()
+
+    def _on_heard(self, announcement: Announcement) -> None:
+        """The controller announced a lock change the bridge did not send (debug output on).
+        A stop: the vehicle is DISARMED from the next HEARTBEAT on, and the next ARM sends
+        ``#start!`` again. An unlock from another line leaves it disarmed: ARMED would make
+        this ground station's sticks drive a robot its pilot never armed. Nothing is sent."""
+        self.pilot.sync(self.rov.commanded)  # (a stop cleared the set-points)
+        because = self.rov.commanded.heard_lock_because
+        if announcement.kind is AnnouncementKind.LOCKED:
+            self._say(_SEVERITY_WARNING, f"Disarmed: {because}")
+        else:
+            self._say(_SEVERITY_INFO, f"Motors {because}: ARM to drive from here")
 
     def _in_background(self, work: Coroutine[Any, Any, None]) -> None:
         task = asyncio.ensure_future(work)

@@ -68,6 +68,7 @@ from rovlink.logs import get_logger
 from rovlink.piloting.commanded import LockState
 from rovlink.piloting.tracked import TrackedClient
 from rovlink.protocol import Command, Response
+from rovlink.protocol.announcements import Announcement
 
 __all__ = ["REPLY_TIMEOUT_S", "BridgeReplacedError", "MqttBridge"]
 
@@ -200,6 +201,7 @@ class MqttBridge:
         self._refused_topics: set[str] = set()
         rov.client.subscribe(self._on_client_event)
         rov.add_sent_listener(lambda _sent: self._wake_publisher.set())
+        rov.add_heard_listener(self._on_heard)
 
     async def run(self) -> None:
         """Serve until cancelled (or the controller's connection is lost for good: a link that a
@@ -721,7 +723,7 @@ class MqttBridge:
             self._event("reset_suspected", detail)
         elif isinstance(event, LinkState):
             lost = event.state == "lost"
-            if lost and self.rov.commanded.lock is LockState.UNLOCKED:
+            if lost and self.rov.commanded.sent_lock is LockState.UNLOCKED:
                 # The robot's own watchdog stops it (P17) unless the link is soon back: #stop!
                 # is then the reopened link's first frame, and the state says locked.
                 self._in_background(self._stop_quietly())
@@ -729,6 +731,12 @@ class MqttBridge:
                 self.kept.reset_suspected()
             self._link_lost_reported = self._link_down = lost
             self._event("link", f"{event.state} {event.detail}".strip())
+
+    def _on_heard(self, _announcement: Announcement) -> None:
+        """The controller announced a lock change the bridge did not send (debug output on):
+        a ``lock`` event, and the state published now. Nothing is sent to the controller."""
+        self._event("lock", f"motors {self.rov.commanded.lock_text()}")
+        self._wake_publisher.set()
 
     def _in_background(self, work: Coroutine[Any, Any, None]) -> None:
         task = asyncio.ensure_future(work)

@@ -97,13 +97,19 @@ def state_payload(
     at_s: float,
     now_s: float,
 ) -> dict[str, Any]:
-    """The retained state: online, the lock, mode and set-points as last sent, link health."""
+    """The retained state: online, the lock, mode and set-points as last sent, link health.
+
+    The lock is the one the controller announced, if it did after the bridge's last start or
+    stop (debug output on), with where it came from in ``lock_heard_because``
+    (``stopped by another line``); else as last sent, and ``lock_heard_because`` is ``None``.
+    """
     silent_s = health.silent_s(now_s)
     return {
         "robot": robot,
         "at": round(at_s, 3),
         "online": True,
-        "lock": str(commanded.lock),
+        "lock": str(commanded.latest_lock),
+        "lock_heard_because": commanded.heard_lock_because,
         "mode": None if commanded.vertical_mode is None else str(commanded.vertical_mode),
         "target_depth_cm": commanded.target_depth_cm,
         "vertical_thrust_percent": commanded.vertical_thrust_percent,
@@ -129,7 +135,8 @@ def offline_state(robot: str, reason: str) -> dict[str, Any]:
 
 
 def event_payload(robot: str, event: str, detail: str, at_s: float) -> dict[str, Any]:
-    """An event: ``leak``, ``failsafe``, ``reset_suspected``, ``link``, ``events_dropped``."""
+    """An event: ``leak``, ``failsafe``, ``reset_suspected``, ``link``, ``lock`` (a lock change
+    the controller announced), ``events_dropped``."""
     return {"robot": robot, "at": round(at_s, 3), "event": event, "detail": detail}
 
 

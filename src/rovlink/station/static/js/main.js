@@ -330,10 +330,13 @@ function showTelemetry(t) {
   text("heading-value", s ? `${s.heading_deg}°` : "–");
   text("depth-value", s ? `${s.depth_cm} cm` : "–");
   text("thrust-value", `${c.direction_deg}° at ${c.power_percent} %`);
+  // A lock the controller announced (debug output on: another line's stop, a failsafe) is
+  // shown with where it came from; else the lock as last sent.
   const lock = $("lock-state");
-  lock.className = c.lock;
-  text("lock-state", c.lock !== "unknown" ? c.lock : c.lock_unknown_because
-    ? `unknown: after ${c.lock_unknown_because}` : "not sent yet (locked after a reset)");
+  lock.className = c.heard_lock ?? c.lock;
+  text("lock-state", c.heard_lock ? `${c.heard_lock} (${c.heard_lock_because})`
+    : c.lock !== "unknown" ? c.lock : c.lock_unknown_because
+      ? `unknown: after ${c.lock_unknown_because}` : "not sent yet (locked after a reset)");
   const targetText = c.target_depth_cm !== null ? `target ${c.target_depth_cm} cm`
     : c.holding_entry_depth ? "holding its depth on entry" : "no target sent";
   const mode = c.vertical_mode === "direct"
