@@ -541,11 +541,18 @@ def test_the_leak_alarm_stays_while_no_reading_says_the_latch_is_clear(browser, 
 
 def test_a_second_browser_cannot_command(browser, station, line):
     pilot = open_page(browser, station)
+    # Nobody has control: the relay row says so, not the pilot's "release the dead-man to arm".
+    pilot.wait_for_selector("#relay-state:text-is('no thrust; nobody has control')", timeout=2000)
     take_control(pilot)
     watcher = open_page(browser, station)
     watcher.wait_for_function(
         "document.getElementById('control-status').textContent.includes('has control')"
     )
+    # A watcher sees what the robot does and who flies; the pilot, what to do.
+    watcher.wait_for_selector(
+        "#relay-state:text-is('no thrust; browser 1 (127.0.0.1) has control')"
+    )
+    pilot.wait_for_selector("#relay-state:text-is('armed (dead-man released)')")
     mark = line.mark()
     set_pad(watcher, axes=[1, 0, 0, 0], deadman=True, unlock=True)
     watcher.click("#claw-open", force=True)  # shown disabled; forced, the server still refuses
@@ -554,6 +561,13 @@ def test_a_second_browser_cannot_command(browser, station, line):
     set_pad(pilot, unlock=True)  # a fence from the pilot
     line.wait_for("#start!", after=mark)
     assert line.frames(mark, commands_only=True) == ["#start!"]
+    set_pad(pilot, unlock=False, axes=[1, 0, 0, 0], deadman=True)
+    line.wait_for("#th.90.100!", after=mark)
+    watcher.wait_for_selector(
+        "#relay-state.flying:text-is('flying; browser 1 (127.0.0.1) has control')"
+    )
+    set_pad(pilot, deadman=False)
+    line.wait_for("#th.90.0!", after=mark)
     # Taking control is explicit (the watcher is asked, on the page) and both see it.
     watcher.click("#take-control")
     watcher.click("#take-control-no")  # asked, and cancelled: nothing changes

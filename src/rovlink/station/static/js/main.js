@@ -310,6 +310,18 @@ function showFlightStatus() {
   text("flight-status", isPilot() ? why : station.lostControl ?? "");
 }
 
+// The relay row. The relay's status is the pilot's ("release the dead-man to arm", "unlock
+// (#start!) to fly"): a watcher, and every page while nobody has control, is told instead what
+// the robot does and who flies.
+function relayText(t) {
+  if (isPilot()) return t.relay.status;
+  const c = t.commanded;
+  const doing = c.lock === "locked" ? "motors locked"
+    : !t.relay.moving ? "no thrust"
+      : c.lock === "unlocked" ? "flying" : "flying, if the motors are unlocked";
+  return `${doing}; ${t.pilot_label ? `${t.pilot_label} has control` : "nobody has control"}`;
+}
+
 function text(id, value) { const el = $(id); if (el.textContent !== value) el.textContent = value; }
 
 function showTelemetry(t) {
@@ -342,9 +354,10 @@ function showTelemetry(t) {
       : `depth (the mode after a reset; mvdirect not sent), ${targetText}`;
   text("mode-state", mode);
   text("horizontal-state", `${c.direction_deg}° at ${c.power_percent} %`);
-  const relay = $("relay-state");
-  relay.className = t.relay.status === "flying" ? "flying" : "";
-  text("relay-state", t.relay.status);
+  const relayShown = relayText(t);
+  const flying = relayShown === "flying" || relayShown.startsWith("flying;");
+  $("relay-state").className = flying ? "flying" : "";
+  text("relay-state", relayShown);
   showFlightStatus();
   showLink(t.link);
   showLeak(s);
