@@ -516,7 +516,29 @@ def test_a_phone_sized_window_shows_everything_whole_and_readable(browser, stati
         " - document.getElementById('heading').getBoundingClientRect().width) < 1",
         timeout=2000,
     )
+    # At every heading, each of the tape's labels is drawn whole (before, those at its edges
+    # were cut: "00" of 300).
+    cut = page.evaluate(HEADING_LABELS_CUT)
+    assert not cut, f"labels cut at the tape's edges: {cut[:5]}"
     page.context.close()
+
+
+# The heading tape drawn at every whole heading: the labels that do not lie wholly on it.
+HEADING_LABELS_CUT = """async () => {
+  const { drawHeading } = await import('/static/js/instruments.js');
+  const canvas = document.getElementById('heading');
+  const fill = CanvasRenderingContext2D.prototype.fillText;
+  const cut = [];
+  CanvasRenderingContext2D.prototype.fillText = function (text, x, ...rest) {
+    const half = this.measureText(text).width / 2;
+    if (this.canvas === canvas && (x - half < 0 || x + half > this.canvas.width)) {
+      cut.push([String(text), Math.round(x), this.canvas.width]);
+    }
+    return fill.call(this, text, x, ...rest);
+  };
+  try { for (let deg = 0; deg < 360; deg += 1) drawHeading(canvas, deg); }
+  finally { CanvasRenderingContext2D.prototype.fillText = fill; }
+  return cut; }"""
 
 
 def test_the_leak_alarm_stays_while_no_reading_says_the_latch_is_clear(browser, station, line):
