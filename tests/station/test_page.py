@@ -236,6 +236,15 @@ def test_a_page_whose_socket_drops_reconnects_as_a_watcher(browser, station, lin
     times = page.evaluate("window.rovlinkStation.charts.columns[0]")
     assert times == sorted(set(times))  # the history once, in order
     assert "#th.90.100!" not in line.frames(mark)  # the held pad does not fly a watcher
+    # The station closes (SIGTERM): the page says so, not that the connection dropped.
+    set_pad(page, deadman=False)
+    take_control(page)
+    station.process.terminate()
+    page.wait_for_selector(
+        "#flight-status:text-is('you are no longer the pilot: the station closed')", timeout=5000
+    )
+    assert page.text_content("#connection") == "the station closed: reconnecting when it is back"
+    assert page.text_content("#stale-banner") == "the station closed: everything shown is old"
     page.context.close()
 
 
