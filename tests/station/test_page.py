@@ -502,6 +502,9 @@ def test_a_leak_shows_the_alarm_and_reset_sends_slreset(browser, station, line):
 
 def test_a_phone_sized_window_shows_everything_whole_and_readable(browser, station, line):
     page = open_page(browser, station, pad=False)
+    # A watcher that lost nothing: no banner under the top bar, and no empty strip in its place.
+    assert page.text_content("#flight-status") == ""
+    assert page.evaluate("document.getElementById('flight-status').offsetHeight") == 0
     line.server.robot.inject_leak()
     page.wait_for_selector("#leak-alarm", state="visible")
     page.set_viewport_size({"width": 390, "height": 844})
