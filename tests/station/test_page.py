@@ -500,20 +500,36 @@ def test_a_leak_shows_the_alarm_and_reset_sends_slreset(browser, station, line):
     page.context.close()
 
 
+# How much of the window's height the sticky top bar (with the leak banner) takes.
+TOP_BAR_SHARE = "document.getElementById('top').getBoundingClientRect().height / innerHeight"
+# STOP's width and height (px).
+STOP_SIZE = """() => { const r = document.getElementById('stop').getBoundingClientRect();
+  return [r.width, r.height]; }"""
+
+
 def test_a_phone_sized_window_shows_everything_whole_and_readable(browser, station, line):
     page = open_page(browser, station, pad=False)
     # A watcher that lost nothing: no banner under the top bar, and no empty strip in its place.
     assert page.text_content("#flight-status") == ""
     assert page.evaluate("document.getElementById('flight-status').offsetHeight") == 0
+    page.set_viewport_size({"width": 390, "height": 844})
+    page.wait_for_function(  # (the charts follow the window's width a moment later)
+        "document.documentElement.scrollWidth <= innerWidth", timeout=2000
+    )
+    # The sticky top bar is compact: a sixth of the screen at most (before, a third), its STOP
+    # whole, uncovered and big enough to hit, the link's state shown.
+    assert page.evaluate(TOP_BAR_SHARE) <= 1 / 6
+    assert page.evaluate(STOP_REACHABLE)
+    assert page.evaluate(STOP_SIZE) >= [80, 44]
+    assert page.evaluate(ON_SCREEN_UNCOVERED, "#connection")
     line.server.robot.inject_leak()
     page.wait_for_selector("#leak-alarm", state="visible")
-    page.set_viewport_size({"width": 390, "height": 844})
-    # The leak banner wraps: its buttons stay in the window, which never scrolls sideways.
-    page.wait_for_function(  # (the charts follow the window's width a moment later)
-        "document.getElementById('leak-reset').getBoundingClientRect().right <= innerWidth"
-        " && document.documentElement.scrollWidth <= innerWidth",
-        timeout=2000,
-    )
+    # With the leak banner under it: a quarter of the screen at most (before, a half). The
+    # banner wraps: its buttons stay in the window, which never scrolls sideways.
+    assert page.evaluate(TOP_BAR_SHARE) <= 1 / 4
+    assert page.evaluate(STOP_REACHABLE)
+    for shown in ("#connection", "#leak-alarm strong", "#leak-silence", "#leak-reset"):
+        assert page.evaluate(ON_SCREEN_UNCOVERED, shown), shown
     # A message at the bottom takes the window's width, not half of it (four words a line).
     page.evaluate("window.rovlinkStation.connection.send({type: 'command', name: 'start'})")
     page.wait_for_selector("#toast:has-text('only the pilot')")
