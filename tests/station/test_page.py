@@ -548,7 +548,34 @@ def test_a_phone_sized_window_shows_everything_whole_and_readable(browser, stati
     # were cut: "00" of 300).
     cut = page.evaluate(HEADING_LABELS_CUT)
     assert not cut, f"labels cut at the tape's edges: {cut[:5]}"
+    # The settings' fields, ranges and Send buttons line up, each range on one line (before,
+    # "0–" above "99", and every field where its name ended).
+    page.click("#settings-panel summary")
+    page.wait_for_selector("#setting-mgmp", state="visible")
+    assert page.evaluate(SETTINGS_LAYOUT) == {
+        "rows": 6,
+        "columns": [1, 1, 1],
+        "ranges on one line": True,
+        "inside the window": True,
+    }
     page.context.close()
+
+
+# The settings rows: how many, how many left edges their fields, ranges and Send buttons have
+# (1 each: in columns), whether every range is one line high and everything inside the window.
+SETTINGS_LAYOUT = """() => {
+  const rows = [...document.querySelectorAll('.setting-row')];
+  const lefts = (selector) => new Set(rows.map(
+    (row) => Math.round(row.querySelector(selector).getBoundingClientRect().left))).size;
+  const ranges = rows.map((row) => row.querySelector('.muted'));
+  return {
+    rows: rows.length,
+    columns: [lefts('input'), lefts('.muted'), lefts('button')],
+    'ranges on one line': ranges.every((el) => el.getBoundingClientRect().height
+      < 1.5 * parseFloat(getComputedStyle(el).lineHeight)),
+    'inside the window': rows.every((row) => [...row.children].every(
+      (el) => el.getBoundingClientRect().right <= innerWidth)),
+  }; }"""
 
 
 # The heading tape drawn at every whole heading: the labels that do not lie wholly on it.
