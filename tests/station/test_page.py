@@ -243,6 +243,15 @@ def test_a_page_whose_socket_drops_reconnects_as_a_watcher(browser, station, lin
     times = page.evaluate("window.rovlinkStation.charts.columns[0]")
     assert times == sorted(set(times))  # the history once, in order
     assert "#th.90.100!" not in line.frames(mark)  # the held pad does not fly a watcher
+    # The station closes (SIGTERM): the page says so, not that the connection dropped.
+    set_pad(page, deadman=False)
+    take_control(page)
+    station.process.terminate()
+    page.wait_for_selector(
+        "#flight-status:text-is('you are no longer the pilot: the station closed')", timeout=5000
+    )
+    assert page.text_content("#connection") == "the station closed: reconnecting when it is back"
+    assert page.text_content("#stale-banner") == "the station closed: everything shown is old"
     page.context.close()
 
 
@@ -498,17 +507,36 @@ def test_a_leak_shows_the_alarm_and_reset_sends_slreset(browser, station, line):
     page.context.close()
 
 
+# How much of the window's height the sticky top bar (with the leak banner) takes.
+TOP_BAR_SHARE = "document.getElementById('top').getBoundingClientRect().height / innerHeight"
+# STOP's width and height (px).
+STOP_SIZE = """() => { const r = document.getElementById('stop').getBoundingClientRect();
+  return [r.width, r.height]; }"""
+
+
 def test_a_phone_sized_window_shows_everything_whole_and_readable(browser, station, line):
     page = open_page(browser, station, pad=False)
+    # A watcher that lost nothing: no banner under the top bar, and no empty strip in its place.
+    assert page.text_content("#flight-status") == ""
+    assert page.evaluate("document.getElementById('flight-status').offsetHeight") == 0
+    page.set_viewport_size({"width": 390, "height": 844})
+    page.wait_for_function(  # (the charts follow the window's width a moment later)
+        "document.documentElement.scrollWidth <= innerWidth", timeout=2000
+    )
+    # The sticky top bar is compact: a sixth of the screen at most (before, a third), its STOP
+    # whole, uncovered and big enough to hit, the link's state shown.
+    assert page.evaluate(TOP_BAR_SHARE) <= 1 / 6
+    assert page.evaluate(STOP_REACHABLE)
+    assert page.evaluate(STOP_SIZE) >= [80, 44]
+    assert page.evaluate(ON_SCREEN_UNCOVERED, "#connection")
     line.server.robot.inject_leak()
     page.wait_for_selector("#leak-alarm", state="visible")
-    page.set_viewport_size({"width": 390, "height": 844})
-    # The leak banner wraps: its buttons stay in the window, which never scrolls sideways.
-    page.wait_for_function(  # (the charts follow the window's width a moment later)
-        "document.getElementById('leak-reset').getBoundingClientRect().right <= innerWidth"
-        " && document.documentElement.scrollWidth <= innerWidth",
-        timeout=2000,
-    )
+    # With the leak banner under it: a quarter of the screen at most (before, a half). The
+    # banner wraps: its buttons stay in the window, which never scrolls sideways.
+    assert page.evaluate(TOP_BAR_SHARE) <= 1 / 4
+    assert page.evaluate(STOP_REACHABLE)
+    for shown in ("#connection", "#leak-alarm strong", "#leak-silence", "#leak-reset"):
+        assert page.evaluate(ON_SCREEN_UNCOVERED, shown), shown
     # A message at the bottom takes the window's width, not half of it (four words a line).
     page.evaluate("window.rovlinkStation.connection.send({type: 'command', name: 'start'})")
     page.wait_for_selector("#toast:has-text('only the pilot')")
@@ -523,12 +551,61 @@ def test_a_phone_sized_window_shows_everything_whole_and_readable(browser, stati
         " - document.getElementById('heading').getBoundingClientRect().width) < 1",
         timeout=2000,
     )
+    # At every heading, each of the tape's labels is drawn whole (before, those at its edges
+    # were cut: "00" of 300).
+    cut = page.evaluate(HEADING_LABELS_CUT)
+    assert not cut, f"labels cut at the tape's edges: {cut[:5]}"
+    # The settings' fields, ranges and Send buttons line up, each range on one line (before,
+    # "0–" above "99", and every field where its name ended).
+    page.click("#settings-panel summary")
+    page.wait_for_selector("#setting-mgmp", state="visible")
+    assert page.evaluate(SETTINGS_LAYOUT) == {
+        "rows": 6,
+        "columns": [1, 1, 1],
+        "ranges on one line": True,
+        "inside the window": True,
+    }
     page.context.close()
+
+
+# The settings rows: how many, how many left edges their fields, ranges and Send buttons have
+# (1 each: in columns), whether every range is one line high and everything inside the window.
+SETTINGS_LAYOUT = """() => {
+  const rows = [...document.querySelectorAll('.setting-row')];
+  const lefts = (selector) => new Set(rows.map(
+    (row) => Math.round(row.querySelector(selector).getBoundingClientRect().left))).size;
+  const ranges = rows.map((row) => row.querySelector('.muted'));
+  return {
+    rows: rows.length,
+    columns: [lefts('input'), lefts('.muted'), lefts('button')],
+    'ranges on one line': ranges.every((el) => el.getBoundingClientRect().height
+      < 1.5 * parseFloat(getComputedStyle(el).lineHeight)),
+    'inside the window': rows.every((row) => [...row.children].every(
+      (el) => el.getBoundingClientRect().right <= innerWidth)),
+  }; }"""
+
+
+# The heading tape drawn at every whole heading: the labels that do not lie wholly on it.
+HEADING_LABELS_CUT = """async () => {
+  const { drawHeading } = await import('/static/js/instruments.js');
+  const canvas = document.getElementById('heading');
+  const fill = CanvasRenderingContext2D.prototype.fillText;
+  const cut = [];
+  CanvasRenderingContext2D.prototype.fillText = function (text, x, ...rest) {
+    const half = this.measureText(text).width / 2;
+    if (this.canvas === canvas && (x - half < 0 || x + half > this.canvas.width)) {
+      cut.push([String(text), Math.round(x), this.canvas.width]);
+    }
+    return fill.call(this, text, x, ...rest);
+  };
+  try { for (let deg = 0; deg < 360; deg += 1) drawHeading(canvas, deg); }
+  finally { CanvasRenderingContext2D.prototype.fillText = fill; }
+  return cut; }"""
 
 
 def test_the_leak_alarm_stays_while_no_reading_says_the_latch_is_clear(browser, station, line):
     page = open_page(browser, station, pad=False)
-    page.click("#flight-status")  # (a click: the page may sound)
+    page.click(".log h2")  # (a click: the page may sound)
     line.server.robot.inject_leak()
     page.wait_for_selector("#leak-alarm", state="visible")
     assert page.evaluate("window.rovlinkStation.alarm.playing")
@@ -548,11 +625,18 @@ def test_the_leak_alarm_stays_while_no_reading_says_the_latch_is_clear(browser, 
 
 def test_a_second_browser_cannot_command(browser, station, line):
     pilot = open_page(browser, station)
+    # Nobody has control: the relay row says so, not the pilot's "release the dead-man to arm".
+    pilot.wait_for_selector("#relay-state:text-is('no thrust; nobody has control')", timeout=2000)
     take_control(pilot)
     watcher = open_page(browser, station)
     watcher.wait_for_function(
         "document.getElementById('control-status').textContent.includes('has control')"
     )
+    # A watcher sees what the robot does and who flies; the pilot, what to do.
+    watcher.wait_for_selector(
+        "#relay-state:text-is('no thrust; browser 1 (127.0.0.1) has control')"
+    )
+    pilot.wait_for_selector("#relay-state:text-is('armed (dead-man released)')")
     mark = line.mark()
     set_pad(watcher, axes=[1, 0, 0, 0], deadman=True, unlock=True)
     watcher.click("#claw-open", force=True)  # shown disabled; forced, the server still refuses
@@ -561,6 +645,13 @@ def test_a_second_browser_cannot_command(browser, station, line):
     set_pad(pilot, unlock=True)  # a fence from the pilot
     line.wait_for("#start!", after=mark)
     assert line.frames(mark, commands_only=True) == ["#start!"]
+    set_pad(pilot, unlock=False, axes=[1, 0, 0, 0], deadman=True)
+    line.wait_for("#th.90.100!", after=mark)
+    watcher.wait_for_selector(
+        "#relay-state.flying:text-is('flying; browser 1 (127.0.0.1) has control')"
+    )
+    set_pad(pilot, deadman=False)
+    line.wait_for("#th.90.0!", after=mark)
     # Taking control is explicit (the watcher is asked, on the page) and both see it.
     watcher.click("#take-control")
     watcher.click("#take-control-no")  # asked, and cancelled: nothing changes
@@ -697,10 +788,13 @@ def test_a_key_up_the_page_never_gets_zeroes_the_thrust(browser, station, line):
     zero = line.wait_for("#th.90.0!", after=mark, timeout_s=3.0)
     assert zero.at_s - lost_s < 0.3 + CUT_WITHIN_S
     page.wait_for_selector("#device-status.warn:has-text('taken as released: press it again')")
+    # Every key let go of (D's key-up still never came): nothing is left to press again, and
+    # the badge says so (before, it asked for a press until the next one).
+    page.keyboard.up("Shift")
+    page.wait_for_selector("#device-status:text-is('input: keyboard')", timeout=1000)
     # Pressed again, it flies again.
     mark = line.mark()
     page.keyboard.up("d")
-    page.keyboard.up("Shift")
     page.keyboard.down("Shift")
     page.keyboard.down("d")
     line.wait_for("#th.90.40!", after=mark)
@@ -1124,7 +1218,7 @@ def test_keys_typed_in_a_field_do_not_fly(browser, station, line):
     page.press("#target-depth", "Enter")  # a fence
     line.wait_for("#mvd.150!", after=mark)
     assert line.frames(mark, commands_only=True) == ["#mvd.150!"]  # (before: #th.270.40!)
-    page.click("#flight-status")  # out of the field: the keys fly again
+    page.click(".log h2")  # out of the field: the keys fly again
     page.wait_for_selector("#device-status:text-is('input: keyboard')")
     page.keyboard.down("Shift")
     page.keyboard.down("d")

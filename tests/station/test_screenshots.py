@@ -51,7 +51,7 @@ def test_pilot_png_a_dive_with_the_depth_held(
     mark = line.mark()
     page.press("#target-depth", "Enter")
     line.wait_for(f"#mvd.{DIVE_TARGET_CM}!", after=mark)
-    page.click("#flight-status")  # out of the field: the pad flies again
+    page.click(".log h2")  # out of the field: the pad flies again
     set_pad(page, axes=[0.5, -0.6, 0, 0], deadman=True)
     page.wait_for_function(
         f"window.rovlinkStation.station.telemetry.sensors.depth_cm >= {DIVE_TARGET_CM - 5}",

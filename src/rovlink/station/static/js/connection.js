@@ -28,10 +28,10 @@ export class Connection {
       try { message = JSON.parse(event.data); } catch { return; }
       this.onMessage(message);
     });
-    socket.addEventListener("close", () => {
+    socket.addEventListener("close", (event) => {
       if (this.socket !== socket) return;
       this.socket = null;
-      this.onState("closed");
+      this.onState("closed", event.code);
       if (this.closedForGood) return;
       setTimeout(() => this.open(), this.retryMs);
       this.retryMs = Math.min(this.retryMs * 2, 5000);

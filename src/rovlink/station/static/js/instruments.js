@@ -65,6 +65,12 @@ const CARDINALS = { 0: "N", 45: "NE", 90: "E", 135: "SE", 180: "S", 225: "SW", 2
 // shown at, not drawn at this width and shrunk with its figures (6 px high on a phone).
 const HEADING_WIDTH_PX = 620;
 
+// A label centred on ``x``, drawn only if it fits whole: cut at the tape's edge, "300" read "00".
+function label(ctx, text, x, y) {
+  const half = ctx.measureText(text).width / 2;
+  if (x - half >= 0 && x + half <= ctx.canvas.width) ctx.fillText(text, x, y);
+}
+
 export function drawHeading(canvas, headingDeg) {
   const shownPx = Math.floor(canvas.parentElement?.clientWidth ?? HEADING_WIDTH_PX);
   const widthPx = Math.min(HEADING_WIDTH_PX, shownPx > 0 ? shownPx : HEADING_WIDTH_PX);
@@ -89,9 +95,9 @@ export function drawHeading(canvas, headingDeg) {
     const long = norm % 15 === 0;
     ctx.beginPath(); ctx.moveTo(x, h); ctx.lineTo(x, h - (long ? 18 : 9)); ctx.stroke();
     if (norm % 45 === 0) {
-      ctx.font = "bold 14px sans-serif"; ctx.fillText(CARDINALS[norm], x, h - 26);
+      ctx.font = "bold 14px sans-serif"; label(ctx, CARDINALS[norm], x, h - 26);
     } else if (norm % 15 === 0) {
-      ctx.font = "11px sans-serif"; ctx.fillText(String(norm), x, h - 26);
+      ctx.font = "11px sans-serif"; label(ctx, String(norm), x, h - 26);
     }
   }
   ctx.fillStyle = TARGET;

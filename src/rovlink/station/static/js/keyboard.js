@@ -47,8 +47,9 @@ export class Keyboard {
     this.repeatConfirmMs = REPEAT_CONFIRM_MS;
     this.held = new Map();  // key code -> until when it is trusted held (performance.now())
     this.powerPercent = 40;
-    // A flying key was taken as released for want of a repeat (shown until the next press).
-    this.lapsed = false;
+    // The flying keys taken as released for want of a repeat: the page says so until they
+    // are let go of (their key-up comes), every key is let go of, or a key is pressed.
+    this.lapsedKeys = new Set();
     addEventListener("keydown", (event) => {
       if (typingIn(event.target)) return;
       this.keyDown(event);
@@ -57,7 +58,11 @@ export class Keyboard {
     });
     addEventListener("keyup", (event) => {
       this.held.delete(event.code);
+      this.lapsedKeys.delete(event.code);
       this.shiftSays(event, performance.now() + this.pressConfirmMs);
+      // Nothing held any more: there is nothing to press again (a lapsed key's own key-up may
+      // be the one that never came).
+      if (this.held.size === 0) this.lapsedKeys.clear();
     });
     addEventListener("blur", () => this.releaseAll());
     // The browser's menu takes the key-ups of the keys let go while it is open.
@@ -68,6 +73,9 @@ export class Keyboard {
   }
 
   releaseAll() { this.held.clear(); }
+
+  // A flying key was taken as released for want of a repeat, and is not let go of yet.
+  get lapsed() { return this.lapsedKeys.size > 0; }
 
   keyDown(event) {
     const now = performance.now();
@@ -81,7 +89,7 @@ export class Keyboard {
       }
     } else if (kept) {
       this.held.set(event.code, now + this.pressConfirmMs);
-      this.lapsed = false;
+      this.lapsedKeys.clear();
     }
     this.shiftSays(event, now + (event.repeat ? this.repeatConfirmMs : this.pressConfirmMs));
   }
@@ -102,7 +110,7 @@ export class Keyboard {
       if (until >= now) keys.add(code);
       else if (!DEADMAN_KEYS.includes(code)) {
         this.held.delete(code);
-        this.lapsed = true;
+        this.lapsedKeys.add(code);
       }
     }
     return keys;

@@ -23,6 +23,9 @@ const station = {
   // How long the fastest of this socket's timed messages took to arrive, the station's clock
   // against this page's (ms; null: none yet), and how much later than that the last one came.
   fastestArrivalMs: null, fastestAt: 0, lateMs: 0,
+  // The station closed this page's socket on its way out (not a connection that dropped):
+  // said until a socket opens again.
+  closed: false,
 };
 // No word from the station (not even its heartbeat) for this long: the socket is given up and
 // a new one opened. By then the station has dropped the old one too (serve.py pings every 5 s
@@ -192,11 +195,19 @@ function onMessage(message) {
   }
 }
 
-function onConnectionState(state) {
+// A station that closes (Ctrl-C, SIGTERM) closes the pages' sockets as a server going away
+// does: 1001 (going away) or 1012 (service restart). A connection that drops ends with 1006.
+const STATION_CLOSED_CODES = [1001, 1012];
+
+// ``closeCode``: how a socket that was open closed (null: given up by this page, or never open).
+function onConnectionState(state, closeCode = null) {
+  if (state === "open") station.closed = false;
+  else if (STATION_CLOSED_CODES.includes(closeCode)) station.closed = true;
   const badge = $("connection");
   badge.className = "badge " + (state === "open" ? "ok" : "bad");
-  badge.textContent = state === "open" ? "station connected" : state === "connecting"
-    ? "connecting…" : "station connection lost: reconnecting";
+  badge.textContent = state === "open" ? "station connected"
+    : station.closed ? "the station closed: reconnecting when it is back"
+      : state === "connecting" ? "connecting…" : "station connection lost: reconnecting";
   // An open socket counts as word from the station: one that then says nothing is silent.
   station.heardAt = state === "open" ? performance.now() : null;
   station.readingAt = null;
@@ -208,7 +219,8 @@ function onConnectionState(state) {
     // The station takes a new page as shown: one opened in a background tab says otherwise.
     if (document.hidden) send({ type: "visibility", hidden: true });
   } else {
-    setControl(null, null, "the connection to the station dropped");
+    setControl(null, null, station.closed ? "the station closed"
+      : "the connection to the station dropped");
   }
   showFreshness();
 }
@@ -232,7 +244,7 @@ function showFreshness() {
   let stale = "";
   let old = false;
   if (!connection.isOpen) {
-    stale = "not connected to the station: everything shown is old";
+    stale = `${station.closed ? "the station closed" : "not connected to the station"}: everything shown is old`;
     old = true;
   } else if (station.heardAt !== null && now - station.heardAt > 2.5 * station.heartbeatMs) {
     const silent = (now - station.heardAt) / 1000;
@@ -310,6 +322,18 @@ function showFlightStatus() {
   text("flight-status", isPilot() ? why : station.lostControl ?? "");
 }
 
+// The relay row. The relay's status is the pilot's ("release the dead-man to arm", "unlock
+// (#start!) to fly"): a watcher, and every page while nobody has control, is told instead what
+// the robot does and who flies.
+function relayText(t) {
+  if (isPilot()) return t.relay.status;
+  const c = t.commanded;
+  const doing = c.lock === "locked" ? "motors locked"
+    : !t.relay.moving ? "no thrust"
+      : c.lock === "unlocked" ? "flying" : "flying, if the motors are unlocked";
+  return `${doing}; ${t.pilot_label ? `${t.pilot_label} has control` : "nobody has control"}`;
+}
+
 function text(id, value) { const el = $(id); if (el.textContent !== value) el.textContent = value; }
 
 function showTelemetry(t) {
@@ -345,9 +369,10 @@ function showTelemetry(t) {
       : `depth (the mode after a reset; mvdirect not sent), ${targetText}`;
   text("mode-state", mode);
   text("horizontal-state", `${c.direction_deg}° at ${c.power_percent} %`);
-  const relay = $("relay-state");
-  relay.className = t.relay.status === "flying" ? "flying" : "";
-  text("relay-state", t.relay.status);
+  const relayShown = relayText(t);
+  const flying = relayShown === "flying" || relayShown.startsWith("flying;");
+  $("relay-state").className = flying ? "flying" : "";
+  text("relay-state", relayShown);
   showFlightStatus();
   showLink(t.link);
   showLeak(s);
