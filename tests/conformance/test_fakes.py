@@ -191,3 +191,18 @@ def test_a_vehicle_that_cannot_dive_fails_the_no_dive_checks(fault: str, name: s
     (result,) = report.results
     assert result.outcome is Outcome.FAILED, result
     assert "could not be seen (is the vehicle in water" in result.message
+
+
+def test_a_missing_reply_is_said_in_words_not_as_bytes() -> None:
+    # A controller that switches its checksum mode only after the whole chunk drops the
+    # checksummed #qd of #crcon!#qd<CS>!: nothing comes. Before, the failure read
+    # "got b'nothing'", the word shown as if those bytes had come.
+    fault = "mode-per-chunk"
+    link = PortLink(FaultyController(fault), fault)
+    try:
+        report = run_checks(link, fault, SuiteOptions(), select_checks(["checksum-on-next-frame"]))
+    finally:
+        link.close()
+    (result,) = report.results
+    assert result.outcome is Outcome.FAILED
+    assert result.message.endswith(", got nothing"), result.message
