@@ -15,6 +15,7 @@ from rovlink.client import ClientOptions, ConnectError, ConnectionLostError
 from rovlink.client.links import PortLink
 from rovlink.faults import FaultPort, FaultSettings
 from rovlink.sim.port import open_port
+from tests.rovlink_process import running_rovlink
 
 
 def test_driver_opens_fault_urls_and_checksums_keep_replies_right() -> None:
@@ -153,3 +154,19 @@ def test_fault_refuses_a_non_loopback_listen_address_without_allow_remote(
     error = capsys.readouterr().err.strip().splitlines()[-1]
     assert "0.0.0.0 is not a loopback address" in error
     assert "--allow-remote" in error
+
+
+@pytest.mark.integration
+def test_the_ready_line_gives_an_ipv6_listener_as_a_url_that_opens() -> None:
+    # Before, it printed socket://::1:PORT, which no client parses; the ready line is the URL
+    # that users copy into their program.
+    with socket.socket(socket.AF_INET6) as probe:
+        probe.bind(("::1", 0))
+        port = int(probe.getsockname()[1])
+    with running_rovlink(
+        "fault", "--listen", f"socket://[::1]:{port}", "--to", "sim://", ready_timeout_s=10
+    ) as (_, ready):
+        url = ready.split()[3]
+        assert url == f"socket://[::1]:{port}", ready
+        with rovlink.connect(url, timeout=0.5) as rov:
+            assert rov.depth_cm() >= 0

@@ -130,8 +130,9 @@ def run(args: argparse.Namespace) -> int:
             raise CommandError(f"cannot listen on {args.listen}: {reason(error)}") from None
         signals = ServingSignals()
         host, tcp_port = proxy.address
+        shown_host = f"[{host}]" if ":" in host else host  # (a URL that opens: IPv6 in [])
         say_ready(
-            f"rovlink fault ready: socket://{host}:{tcp_port} -> {link.description} "
+            f"rovlink fault ready: socket://{shown_host}:{tcp_port} -> {link.description} "
             f"(ber {settings.ber:g}, drop {settings.drop:g}, dup {settings.dup:g}, "
             f"delay {settings.delay_ms:g}±{settings.jitter_ms:g} ms, seed {settings.seed}); "
             "Ctrl-C stops"
