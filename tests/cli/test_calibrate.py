@@ -141,3 +141,17 @@ def test_sending_without_a_terminal_to_ask_on_needs_yes(run_cli: RunCli) -> None
         "(--dry-run shows the values)"
     )
     assert server.fakes == []  # refused before the port opened
+
+
+def test_given_readings_are_refused_for_what_is_wrong_with_them_before_yes_is_asked_for(
+    run_cli: RunCli,
+) -> None:
+    # In a script (no terminal) without --yes. Before, the command said only that sending
+    # needed --yes; with --yes added it then refused the readings: two runs to learn one fact.
+    result = run_cli(
+        "calibrate", "sim://", "--depth", "200", "--surface-raw", "120", "--depth-raw", "20"
+    )
+    assert result.status == 1
+    assert result.err.splitlines()[-1].startswith(
+        "rovlink calibrate: the readings are -100 counts apart (surface 120, at 200 cm 20)"
+    )

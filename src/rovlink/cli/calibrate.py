@@ -79,19 +79,20 @@ def run(args: argparse.Namespace) -> int:
         raise UsageError(
             "measuring needs a terminal to ask on; give --surface-raw and --depth-raw instead"
         )
+    given: Calibration | None = None
+    if not measuring:  # nothing to read: bad readings are refused before the port opens,
+        try:  # and before --yes is asked for (readings that cannot be sent, said first)
+            given = two_point(args.surface_raw, args.depth_raw, args.depth, args.min_counts)
+        except CalibrationError as error:
+            raise CommandError(str(error)) from None
     if not (args.yes or args.dry_run or sys.stdin.isatty()):  # as tune and check --motion
         raise UsageError(
             "sending needs --yes when there is no terminal to ask on (--dry-run shows the values)"
         )
-    if not measuring:  # nothing to read: bad readings are refused before the port opens
-        try:
-            given = two_point(args.surface_raw, args.depth_raw, args.depth, args.min_counts)
-        except CalibrationError as error:
-            raise CommandError(str(error)) from None
-        if args.dry_run:  # and nothing to send
-            _show(given, args.depth_raw)
-            print("dry run: nothing sent")
-            return 0
+    if given is not None and args.dry_run:  # and nothing to send
+        _show(given, args.depth_raw)
+        print("dry run: nothing sent")
+        return 0
     client = link_options.connect(args)
     try:
         surface = args.surface_raw
