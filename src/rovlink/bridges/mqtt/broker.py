@@ -44,7 +44,10 @@ def parse_broker_url(url: str) -> tuple[str, int, bool]:
     ValueError: broker 'http://localhost': expected mqtt://HOST[:PORT] or mqtts://HOST[:PORT]
     """
     expected = f"broker {url!r}: expected mqtt://HOST[:PORT] or mqtts://HOST[:PORT]"
-    parts = urlsplit(url)
+    try:
+        parts = urlsplit(url)
+    except ValueError:  # (an unclosed "[" of an IPv6 address: urllib names no URL)
+        raise ValueError(expected) from None
     if parts.scheme not in _DEFAULT_PORTS or not parts.hostname or parts.path not in ("", "/"):
         raise ValueError(expected)
     if parts.username or parts.password:
