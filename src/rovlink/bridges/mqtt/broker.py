@@ -28,9 +28,14 @@ class BrokerSettings:
     insecure: bool = False
 
     def describe(self) -> str:
-        """``mqtts://broker:8883`` (never the password)."""
+        """``mqtts://broker:8883`` (never the password): a URL ``--broker`` takes.
+
+        >>> BrokerSettings("::1", 1883).describe()
+        'mqtt://[::1]:1883'
+        """
         user = f"{self.username}@" if self.username else ""
-        return f"{'mqtts' if self.tls else 'mqtt'}://{user}{self.host}:{self.port}"
+        host = f"[{self.host}]" if ":" in self.host else self.host  # (IPv6)
+        return f"{'mqtts' if self.tls else 'mqtt'}://{user}{host}:{self.port}"
 
 
 def parse_broker_url(url: str) -> tuple[str, int, bool]:
