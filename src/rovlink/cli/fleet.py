@@ -20,7 +20,7 @@ if TYPE_CHECKING:
     from rich.text import Text
 
     from rovlink.bridges.mqtt.broker import BrokerSettings
-    from rovlink.bridges.mqtt.fleet_view import FleetView
+    from rovlink.bridges.mqtt.fleet_view import FleetView, RobotRow
 
 __all__ = ["EPILOG", "fleet_table"]
 
@@ -48,38 +48,80 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
 
 
-def fleet_table(view: FleetView, now_s: float) -> Table:
-    """The table of robots as the view has them now.
+#: The columns, in order; robot and presence are always shown.
+_COLUMNS = ("robot", "presence", "depth", "leak", "lock", "mode", "link", "last event")
+#: The columns that give way, first to last, when the terminal is too narrow for them all.
+_GIVE_WAY = ("last event", "mode", "link", "lock", "depth", "leak")
+
+
+def fleet_table(view: FleetView, now_s: float, width: int | None = None) -> Table:
+    """The table of robots as the view has them now, in ``width`` columns if given.
 
     Every cell is a :class:`~rich.text.Text`: what came from the broker (any program may publish
     under ``rovlink/``) is shown as it is, never read as markup or obeyed as terminal codes.
+    Where ``width`` is too narrow for every column, the least needed give way (the caption
+    names them) rather than every column shrinking to a letter and an ellipsis.
     """
+    rows = [_row_cells(row, now_s) for row in view.rows()]
+    shown = list(_COLUMNS)
+    table = _table(shown, rows)
+    if width is not None:
+        hidden: list[str] = []
+        for column in _GIVE_WAY:
+            if _minimum_width(table) <= width:
+                break
+            shown.remove(column)
+            hidden.append(column)
+            table = _table(shown, rows)
+        if hidden:
+            hidden.sort(key=_COLUMNS.index)
+            table.caption = f"not shown: {', '.join(hidden)} (widen the terminal)"
+    if not rows:
+        table.caption = "no robot has published yet"
+    return table
+
+
+def _row_cells(row: RobotRow, now_s: float) -> dict[str, Text]:
+    """One robot's cells, by column."""
+    presence = row.presence(now_s)
+    if presence == "offline" and row.offline_reason:
+        note = row.offline_reason
+    elif presence == "malformed":
+        note = f"state not understood: {row.state_problem}"
+    else:
+        note = row.last_event or ""
+    return {
+        "robot": _cell(row.robot),
+        "presence": _cell(presence, _PRESENCE_STYLES.get(presence, "")),
+        "depth": _cell("—" if row.depth_cm is None else f"{row.depth_cm} cm"),
+        "leak": _cell("LEAK", "bold red") if row.leak else _cell("dry"),
+        "lock": _cell(row.lock or "—"),
+        "mode": _cell(row.mode or "—"),
+        "link": _cell(row.link or "—"),
+        "last event": _cell(note),
+    }
+
+
+def _table(columns: list[str], rows: list[dict[str, Text]]) -> Table:
     from rich.table import Table  # noqa: PLC0415
 
     table = Table(title="rovlink fleet", expand=False)
-    for column in ("robot", "presence", "depth", "leak", "lock", "mode", "link", "last event"):
+    for column in columns:
         table.add_column(column)
-    for row in view.rows():
-        presence = row.presence(now_s)
-        if presence == "offline" and row.offline_reason:
-            note = row.offline_reason
-        elif presence == "malformed":
-            note = f"state not understood: {row.state_problem}"
-        else:
-            note = row.last_event or ""
-        table.add_row(
-            _cell(row.robot),
-            _cell(presence, _PRESENCE_STYLES.get(presence, "")),
-            _cell("—" if row.depth_cm is None else f"{row.depth_cm} cm"),
-            _cell("LEAK", "bold red") if row.leak else _cell("dry"),
-            _cell(row.lock or "—"),
-            _cell(row.mode or "—"),
-            _cell(row.link or "—"),
-            _cell(note),
-        )
-    if not view.rows():
-        table.caption = "no robot has published yet"
+    for cells in rows:
+        table.add_row(*(cells[column] for column in columns))
     return table
+
+
+def _minimum_width(table: Table) -> int:
+    """The fewest columns ``table`` takes with no cell cut short (its words wrapped)."""
+    import io  # noqa: PLC0415
+
+    from rich.console import Console  # noqa: PLC0415
+    from rich.measure import Measurement  # noqa: PLC0415
+
+    console = Console(file=io.StringIO(), width=10_000)
+    return Measurement.get(console, console.options, table).minimum
 
 
 def _cell(text: str, style: str = "") -> Text:
@@ -166,11 +208,11 @@ async def _watch(broker: BrokerSettings, snapshot_s: float | None) -> None:
                     await asyncio.wait([collector], timeout=snapshot_s)
                     if collector.done():  # (the broker went away, or a fault: said, not hidden)
                         collector.result()
-                    console.print(fleet_table(view, time.monotonic()))
+                    console.print(fleet_table(view, time.monotonic(), console.width))
                     return
                 with Live(console=console, refresh_per_second=_REFRESH_HZ) as live:
                     while not collector.done():
-                        live.update(fleet_table(view, time.monotonic()))
+                        live.update(fleet_table(view, time.monotonic(), console.width))
                         await asyncio.sleep(1 / _REFRESH_HZ)
                 collector.result()
             finally:

@@ -138,6 +138,32 @@ def test_the_table_shows_each_robot_in_words():
     assert "no robot has published yet" in empty.export_text()
 
 
+@pytest.mark.parametrize("width", [40, 60])
+def test_a_narrow_terminal_keeps_each_robot_and_its_presence_whole(width: int) -> None:
+    # Before, every column shrank alike: on 40 columns the rows read "r… │ o… │ d…", no robot
+    # and no presence to be made out. The least needed columns now give way, and say so.
+    from rich.console import Console
+
+    from rovlink.cli.fleet import fleet_table
+
+    view = FleetView()
+    view.apply("rovlink/rov-alpha/state", b'{"online": true, "lock": "unlocked"}', 0.0)
+    view.apply("rovlink/rov-alpha/telemetry", b'{"depth_cm": 120, "leak": true}', 0.0)
+    view.apply("rovlink/rov-beta/state", b'{"online": false, "reason": "bridge stopped"}', 0.0)
+    console = Console(width=width, record=True)
+    console.print(fleet_table(view, now_s=1.0, width=width))
+    text = console.export_text()
+    assert "…" not in text
+    lines = text.splitlines()
+    assert all(len(line) <= width for line in lines)
+    row_alpha = next(line for line in lines if " rov-alpha " in line)
+    row_beta = next(line for line in lines if " rov-beta " in line)
+    assert "online" in row_alpha
+    assert "LEAK" in row_alpha
+    assert "offline" in row_beta
+    assert "widen the terminal" in " ".join(text.split())
+
+
 def test_text_from_the_broker_is_shown_as_text_never_as_markup_or_terminal_codes():
     from rich.console import Console
 
