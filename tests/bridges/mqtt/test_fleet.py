@@ -244,3 +244,31 @@ async def _snapshot_after_retaining(
     out, err = await asyncio.wait_for(process.communicate(), 30)
     assert process.returncode == 0, err.decode()
     return out.decode().splitlines()
+
+
+@pytest.mark.integration
+def test_the_live_table_rides_out_a_broker_restart(broker: Mosquitto) -> None:
+    # Before, the live table ended with status 1 ("Disconnected during message iteration") as
+    # the broker stopped, where the bridges it watches reconnect: a restarted broker left the
+    # operator with no table. It now says the broker is lost and picks up where it left off.
+    from paho.mqtt import publish
+
+    from tests.terminals import Terminal
+
+    def retain(robot: str) -> None:
+        topic, state = f"rovlink/{robot}/state", '{"online": true, "lock": "locked"}'
+        publish.single(topic, state, qos=1, retain=True, port=broker.port)
+
+    retain("r1")
+    terminal = Terminal("fleet", "--broker", broker.url, size=(120, 30))
+    try:
+        assert terminal.wait_shown(b" r1 ")
+        broker.stop()
+        assert terminal.wait_shown(b"reconnecting"), terminal.shown.decode(errors="replace")
+        assert terminal.process.poll() is None
+        broker.start()
+        retain("r2")
+        assert terminal.wait_shown(b" r2 "), terminal.shown.decode(errors="replace")
+        assert terminal.process.poll() is None
+    finally:
+        terminal.close()
