@@ -155,3 +155,19 @@ def test_given_readings_are_refused_for_what_is_wrong_with_them_before_yes_is_as
     assert result.err.splitlines()[-1].startswith(
         "rovlink calibrate: the readings are -100 counts apart (surface 120, at 200 cm 20)"
     )
+
+
+def test_a_read_back_at_the_surface_says_it_cannot_show_the_values_were_taken(
+    run_cli: RunCli,
+) -> None:
+    # The simulated sensor reads about 20 at the surface, below the new zero of 30: every
+    # calibration reads 0 cm there, taken or dropped. Before, "depth now 0 cm" alone passed
+    # for the read-back that shows the controller took them.
+    result = run_cli(
+        "calibrate", "sim://?seed=1", "--depth", "200", "--surface-raw", "30", "--depth-raw", "130",
+        "--yes",
+    )  # fmt: skip
+    assert result.status == 0, result.err
+    last = " ".join(result.out.split("\n")[-2:])
+    assert last.startswith("sent #sdz.30! #sdk.200!; depth now 0 cm"), result.out
+    assert "cannot show that the controller took them" in last

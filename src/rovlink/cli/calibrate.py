@@ -173,7 +173,13 @@ def _send(client: Client, result: Calibration) -> None:
             f"at raw {raw}, where they give {expected_cm} cm (P13); did it reset, or drop the "
             "frames? calibrate again"
         )
-    print(f"sent {zero} {scale}; depth now {depth_cm} cm (raw {raw})")
+    sent_line = f"sent {zero} {scale}; depth now {depth_cm} cm (raw {raw})"
+    if not result.shown_at(raw):  # (a controller that dropped them would read the same)
+        sent_line += (
+            f", which cannot show that the controller took them: other values read {depth_cm} "
+            "cm there too; read the depth again with the sensor lower"
+        )
+    print(sent_line)
 
 
 def _mean_raw(client: Client, samples: int, point: str) -> float:
