@@ -410,6 +410,11 @@ def test_an_interrupted_run_leaves_a_junit_file_that_says_so(
         skipped = cases[name].find("skipped")
         assert skipped is not None
         assert skipped.get("message") == "not run: the run was interrupted (Ctrl-C or a signal)"
+    # The run's time, not "0.000": at least the time of the checks that ended. (Before, the
+    # suite said the run took no time, under cases that each took some.)
+    ended_s = sum(float(cases[name].get("time") or "nan") for name in seen)
+    assert ended_s > 0
+    assert float(suite.get("time") or "nan") >= ended_s - 0.002  # (each rounded to 1 ms)
 
 
 def test_the_summary_names_the_settings_left_at_test_values(

@@ -12,6 +12,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import sys
+import time
 from pathlib import Path
 from typing import TYPE_CHECKING, NoReturn
 
@@ -138,13 +139,14 @@ def run(args: argparse.Namespace) -> int:
         done.append(result)
         _progress(result)
 
+    started_s = time.monotonic()
     try:
         report = run_checks(link, args.url, options, checks, on_result=on_result)
     except PreflightError as error:
         _not_started(args, f"{args.url}: {error}")
     except KeyboardInterrupt:  # (Ctrl-C, or a CI's timeout: SIGTERM)
         if args.junit:
-            _write_interrupted(args.junit, args.url, checks, done)
+            _write_interrupted(args.junit, args.url, checks, done, time.monotonic() - started_s)
         raise
     finally:
         link.close()
@@ -158,17 +160,18 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _write_interrupted(
-    path: str, target: str, checks: list[Check], done: list[CheckResult]
+    path: str, target: str, checks: list[Check], done: list[CheckResult], duration_s: float
 ) -> None:
-    """The ``--junit`` file of an interrupted run: the checks that ended, one case in error
-    saying so, and the rest not run (left as an earlier run wrote it, a CI would read that
-    run's results as this one's)."""
+    """The ``--junit`` file of an interrupted run that lasted ``duration_s``: the checks that
+    ended, one case in error saying so, and the rest not run (left as an earlier run wrote it,
+    a CI would read that run's results as this one's)."""
     from rovlink.conformance import Report, write_junit  # noqa: PLC0415
 
     names = {result.name for result in done}
     report = Report(
         target,
         list(done),
+        duration_s=duration_s,
         not_run=[check.name for check in checks if check.name not in names],
         cut_short_by="the run was interrupted (Ctrl-C or a signal)",
     )
