@@ -147,6 +147,16 @@ def test_cli_exit_status_table_and_junit(
     assert len(cases) == len(select_checks(["query-"]))
 
 
+def test_cli_list_shows_the_checks_only_selects(capsys: pytest.CaptureFixture[str]) -> None:
+    # Before, --only was ignored by --list: every check was listed, whatever it selected.
+    assert main(["check", "--list", "--only", "checksum-bare", "--only", "motion-stop"]) == 0
+    rows = capsys.readouterr().out.splitlines()[1:]  # (a row's further lines start blank)
+    listed = [line.split()[0] for line in rows if line[:1] == " " and line[1:2] != " "]
+    assert listed == ["checksum-bare-stop-accepted", "motion-stop-halts"], listed
+    assert main(["check", "--list", "--only", "nope"]) == 2
+    assert "no check is named 'nope'" in capsys.readouterr().err
+
+
 def test_cli_list_and_usage_errors(capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["check", "--list"]) == 0
     assert "motion-stop-halts (--motion)" in capsys.readouterr().out

@@ -44,7 +44,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="the controller's serial device or URL (socket://HOST:PORT, sim://); needed "
         "unless --list",
     )
-    parser.add_argument("--list", action="store_true", help="list the checks and exit")
+    parser.add_argument(
+        "--list", action="store_true", help="list the checks (those --only selects) and exit"
+    )
     parser.add_argument(
         "--only",
         action="append",
@@ -103,8 +105,12 @@ def run(args: argparse.Namespace) -> int:
         write_junit,
     )
 
-    if args.list:
-        _print_list(select_checks(motion=True))
+    if args.list:  # (what --only selects, motion checks included: a list runs nothing)
+        try:
+            listed = select_checks(args.only, motion=True)
+        except ValueError as error:
+            raise UsageError(str(error)) from None
+        _print_list(listed)
         return 0
     if args.url is None:
         raise UsageError("the controller's URL is required (or --list)")
