@@ -147,6 +147,27 @@ def test_cli_exit_status_table_and_junit(
     assert len(cases) == len(select_checks(["query-"]))
 
 
+@pytest.mark.parametrize(
+    ("option", "too_low", "too_high", "shown"),
+    [
+        ("--timeout", "0.001", "11", "0.01–10"),
+        ("--motion-power", "4", "51", "5–50"),
+        ("--watchdog", "0.05", "61", "0.1–60"),
+    ],
+)
+def test_help_gives_the_range_each_number_is_checked_against(
+    capsys: pytest.CaptureFixture[str], option: str, too_low: str, too_high: str, shown: str
+) -> None:
+    # Before, --help gave the defaults alone: a user learnt the range from a refused value.
+    for value in (too_low, too_high):
+        assert main(["check", "sim://", option, value]) == 2
+        assert f"argument {option}" in capsys.readouterr().err
+    assert main(["check", "--help"]) == 0
+    text = " ".join(capsys.readouterr().out.split())
+    described = text[text.index(f"{option} ", text.index("options:")) :]
+    assert shown in described[: described.index("(default")], described[:200]
+
+
 def test_cli_list_shows_the_checks_only_selects(capsys: pytest.CaptureFixture[str]) -> None:
     # Before, --only was ignored by --list: every check was listed, whatever it selected.
     assert main(["check", "--list", "--only", "checksum-bare", "--only", "motion-stop"]) == 0

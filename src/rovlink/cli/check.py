@@ -69,7 +69,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         type=lambda text: seconds(text, minimum=0.01, maximum=10.0),
         default=0.25,
         metavar="SECONDS",
-        help="how long to wait for a reply before calling it missing (default: %(default)s)",
+        help="how long to wait for a reply before calling it missing, 0.01–10 "
+        "(default: %(default)s)",
     )
     parser.add_argument(
         "--motion", action="store_true", help="also run the motion checks (the thrusters turn)"
@@ -79,14 +80,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         type=lambda text: bounded_int(text, 5, _MAX_MOTION_PERCENT),
         default=30,
         metavar="PERCENT",
-        help="vertical thrust of the motion checks, %% (default: %(default)s)",
+        help=f"vertical thrust of the motion checks, %%, 5–{_MAX_MOTION_PERCENT} "
+        "(default: %(default)s)",
     )
     parser.add_argument(
         "--watchdog",
         type=lambda text: seconds(text, minimum=0.1, maximum=60.0),
         default=2.0,
         metavar="SECONDS",
-        help="the controller's link-loss watchdog, for the failsafe check (default: 2)",
+        help="the controller's link-loss watchdog, for the failsafe check, 0.1–60 (default: 2)",
     )
     parser.add_argument("--yes", action="store_true", help="do not ask before motion checks")
     parser.add_argument("--seed", type=int, default=1, help="seed of the noise sent (default: 1)")
