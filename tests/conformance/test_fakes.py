@@ -206,3 +206,26 @@ def test_a_missing_reply_is_said_in_words_not_as_bytes() -> None:
     (result,) = report.results
     assert result.outcome is Outcome.FAILED
     assert result.message.endswith(", got nothing"), result.message
+
+
+class _TextForQd(FaultyController):
+    """Answers #qd! with an error line, not a frame (a firmware that knows no qd)."""
+
+    def _outgoing(self, reply: bytes, sent: bytes, checksum: bool) -> bytes:
+        reply = super()._outgoing(reply, sent, checksum)
+        return reply.replace(b"$qd.0!", b"E02 unknown command\r\n") if sent == b"#qd!" else reply
+
+
+def test_a_failure_for_want_of_a_frame_says_what_came_instead() -> None:
+    # Before: "expected $qd; no reply within 250 ms", as if the line had stayed silent; only
+    # the evidence below showed the controller's line.
+    link = PortLink(_TextForQd(NO_FAULT), "text for qd")
+    try:
+        report = run_checks(link, "fake", SuiteOptions(), select_checks(["query-qd"]))
+    finally:
+        link.close()
+    (result,) = report.results
+    assert result.outcome is Outcome.FAILED
+    assert result.message == (
+        "expected $qd; no reply within 250 ms, but text came: b'E02 unknown command\\r\\n'"
+    )
