@@ -6,6 +6,7 @@ import socket
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import pytest
 
@@ -170,3 +171,25 @@ def test_the_ready_line_gives_an_ipv6_listener_as_a_url_that_opens() -> None:
         assert url == f"socket://[::1]:{port}", ready
         with rovlink.connect(url, timeout=0.5) as rov:
             assert rov.depth_cm() >= 0
+
+
+@pytest.mark.integration
+def test_the_proxy_says_on_exit_how_many_clients_it_served_and_refused(tmp_path: Path) -> None:
+    # Before, the counts were kept but never said: a program told "busy" and disconnected
+    # showed in no report, only as a client that never got an answer.
+    port = _free_port()
+    url = f"socket://127.0.0.1:{port}"
+    with (tmp_path / "stderr").open("w+") as stderr:
+        with (
+            running_rovlink(
+                "fault", "--listen", url, "--to", "sim://", ready_timeout_s=10, stderr=stderr
+            ),
+            rovlink.connect(url, timeout=0.5) as rov,
+        ):
+            assert rov.depth_cm() >= 0
+            with socket.create_connection(("127.0.0.1", port)) as second:
+                second.settimeout(5)
+                assert second.recv(100).startswith(b"busy:")
+        stderr.seek(0)
+        said = stderr.read()
+    assert "clients: 1 served, 1 refused (busy)" in said, said

@@ -77,7 +77,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Serve until Ctrl-C or SIGTERM; print what the faults did."""
+    """Serve until Ctrl-C or SIGTERM; print what the faults did and how many clients came."""
     from rovlink.client.errors import ConnectError  # noqa: PLC0415
     from rovlink.client.links import open_link  # noqa: PLC0415
     from rovlink.client.url import Scheme, parse_url  # noqa: PLC0415
@@ -144,6 +144,7 @@ def run(args: argparse.Namespace) -> int:
             signals.restore()
     for direction, counters in port.counters.items():
         say_last(f"{direction.replace('_', ' ')}: {counters.summary()}")
+    say_last(f"clients: {proxy.clients_served} served, {proxy.clients_refused} refused (busy)")
     if proxy.lost is not None:
         raise CommandError(f"the controller's link was lost: {proxy.lost}")
     if signals is not None:
