@@ -171,3 +171,21 @@ def test_a_read_back_at_the_surface_says_it_cannot_show_the_values_were_taken(
     last = " ".join(result.out.split("\n")[-2:])
     assert last.startswith("sent #sdz.30! #sdk.200!; depth now 0 cm"), result.out
     assert "cannot show that the controller took them" in last
+
+
+@pytest.mark.parametrize("depth_raw", ["120.55", "120.5", "130.449"])
+def test_the_raw_reading_shown_reads_as_the_depth_shown(run_cli: RunCli, depth_raw: str) -> None:
+    # Before, the raw was shown to one decimal and its depth computed from the unrounded
+    # value: 120.55 was shown "raw 120.5 reads as 200 cm", where 120.5 reads as 199 cm.
+    import re
+
+    from rovlink.tuning.calibration import two_point
+
+    arguments = ("--depth", "200", "--surface-raw", "20", "--depth-raw", depth_raw, "--dry-run")
+    result = run_cli("calibrate", "sim://", *arguments)
+    assert result.status == 0, result.err
+    found = re.search(r"raw ([0-9.]+) reads as (\d+) cm", result.out)
+    assert found is not None, result.out
+    shown_raw, shown_cm = float(found[1]), int(found[2])
+    assert two_point(20.0, float(depth_raw), 200).depth_for(shown_raw) == shown_cm
+    assert abs(shown_raw - float(depth_raw)) < 0.01

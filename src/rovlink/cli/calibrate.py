@@ -123,9 +123,10 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _show(result: Calibration, at_depth: float) -> None:
+    shown_raw = round(at_depth, 2)  # (its depth from the raw shown: floored, it may differ)
     print(
         f"sdz {result.zero_raw}, sdk {result.k} ({result.cm_per_count:.2f} cm per count; "
-        f"raw {at_depth:.1f} reads as {result.depth_for(at_depth)} cm)"
+        f"raw {shown_raw:.2f} reads as {result.depth_for(shown_raw)} cm)"
     )
 
 
