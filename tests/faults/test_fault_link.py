@@ -193,3 +193,25 @@ def test_the_proxy_says_on_exit_how_many_clients_it_served_and_refused(tmp_path:
         stderr.seek(0)
         said = stderr.read()
     assert "clients: 1 served, 1 refused (busy)" in said, said
+
+
+@pytest.mark.parametrize(
+    ("option", "too_high", "shown"),
+    [
+        ("--ber", "0.6", "0–0.5"),
+        ("--drop", "1.1", "0–1"),
+        ("--dup", "1.1", "0–1"),
+        ("--delay-ms", "10001", "0–10000"),
+    ],
+)
+def test_fault_help_gives_the_range_each_rate_and_delay_is_checked_against(
+    capsys: pytest.CaptureFixture[str], option: str, too_high: str, shown: str
+) -> None:
+    # Before, --help gave the defaults alone: a user learnt the range from a refused value.
+    listen = ("--listen", "socket://127.0.0.1:5761", "--to", "sim://")
+    assert main(["fault", *listen, option, too_high]) == 2
+    assert f"argument {option}" in capsys.readouterr().err
+    assert main(["fault", "--help"]) == 0
+    text = " ".join(capsys.readouterr().out.split())
+    described = text[text.index(f"{option} ", text.index("options:")) :]
+    assert shown in described[: described.index("(default")], described[:200]

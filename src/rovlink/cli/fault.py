@@ -37,28 +37,28 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         type=_probability(0.5),
         default=0.0,
         metavar="RATE",
-        help="bit error rate (default: 0)",
+        help="bit error rate, 0–0.5 (default: 0)",
     )
     parser.add_argument(
         "--drop",
         type=_probability(1.0),
         default=0.0,
         metavar="RATE",
-        help="byte loss rate (default: 0)",
+        help="byte loss rate, 0–1 (default: 0)",
     )
     parser.add_argument(
         "--dup",
         type=_probability(1.0),
         default=0.0,
         metavar="RATE",
-        help="byte duplicate rate (default: 0)",
+        help="byte duplicate rate, 0–1 (default: 0)",
     )
     parser.add_argument(
         "--delay-ms",
         type=lambda text: bounded_float(text, 0.0, 10_000.0, " ms"),
         default=0.0,
         metavar="MS",
-        help="delay of every chunk, ms (default: 0)",
+        help="delay of every chunk, ms, 0–10000 (default: 0)",
     )
     parser.add_argument(
         "--jitter-ms",
