@@ -53,7 +53,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         type=lambda text: link_options.bounded_float(text, 0.1, 60.0, " s"),
         default=None,
         metavar="SECONDS",
-        help="listen this long, print the table once and exit (default: a live table)",
+        help="listen this long, 0.1–60, print the table once and exit (default: a live table)",
     )
 
 

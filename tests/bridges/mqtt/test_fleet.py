@@ -14,6 +14,7 @@ import pytest
 from rovlink.bridges.mqtt.fleet_view import SILENT_AFTER_S, FleetView
 from tests.bridges.mqtt.broker import Mosquitto
 from tests.bridges.mqtt.rig import bridged_robot, subscriber
+from tests.cli.conftest import RunCli
 
 _SRC = str(Path(__file__).resolve().parents[3] / "src")
 
@@ -272,3 +273,13 @@ def test_the_live_table_rides_out_a_broker_restart(broker: Mosquitto) -> None:
         assert terminal.process.poll() is None
     finally:
         terminal.close()
+
+
+def test_fleet_help_gives_the_range_snapshot_is_checked_against(run_cli: RunCli) -> None:
+    # Before, --help did not say it: a user learnt 0.1–60 from a refused value.
+    refused = run_cli("fleet", "--broker", "mqtt://127.0.0.1:1", "--snapshot", "61")
+    assert refused.status == 2
+    assert "60" in refused.err
+    text = " ".join(run_cli("fleet", "--help").out.split())
+    described = text[text.index("--snapshot SECONDS", text.index("options:")) :]
+    assert "0.1–60" in described[: described.index("(default")]
