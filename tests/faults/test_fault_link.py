@@ -215,3 +215,21 @@ def test_fault_help_gives_the_range_each_rate_and_delay_is_checked_against(
     text = " ".join(capsys.readouterr().out.split())
     described = text[text.index(f"{option} ", text.index("options:")) :]
     assert shown in described[: described.index("(default")], described[:200]
+
+
+@pytest.mark.integration
+def test_a_listener_other_computers_reach_is_said_loudly(tmp_path: Path) -> None:
+    # As rovlink sim and rovlink controller say it. Before, --allow-remote served the robot,
+    # unauthenticated, to every network with a ready line like any other.
+    port = _free_port()
+    listen = f"socket://0.0.0.0:{port}"
+    with (tmp_path / "stderr").open("w+") as stderr:
+        with running_rovlink(
+            "fault", "--listen", listen, "--to", "sim://", "--allow-remote",
+            ready_timeout_s=10, stderr=stderr,
+        ) as (_, ready):  # fmt: skip
+            assert ready.startswith(f"rovlink fault ready: {listen} (REMOTE, NO AUTHENTICATION) ")
+        stderr.seek(0)
+        said = stderr.read()
+    assert f"listening on 0.0.0.0:{port} (every network interface)" in said, said
+    assert "anyone connected can drive the robot" in said

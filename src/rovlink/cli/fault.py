@@ -11,7 +11,8 @@ from collections.abc import Callable
 
 from rovlink.cli.failure import CommandError, UsageError, reason
 from rovlink.cli.interrupt import ServingSignals, say_last, say_ready
-from rovlink.cli.link_options import bounded_float
+from rovlink.cli.link_options import bounded_float, log_warnings
+from rovlink.cli.tcp_endpoint import REMOTE_MARK, tcp_endpoint
 
 __all__ = ["EPILOG"]
 
@@ -92,6 +93,7 @@ def run(args: argparse.Namespace) -> int:
         except ValueError as error:
             raise UsageError(f"{option}: {error}") from None
     listen, target = endpoints
+    log_warnings()  # (a listener other computers reach, a #stop! the lost link could not take)
     if args.jitter_ms > args.delay_ms:
         raise UsageError(
             f"--jitter-ms {args.jitter_ms:g} is more than --delay-ms {args.delay_ms:g}"
@@ -131,8 +133,11 @@ def run(args: argparse.Namespace) -> int:
         signals = ServingSignals()
         host, tcp_port = proxy.address
         shown_host = f"[{host}]" if ":" in host else host  # (a URL that opens: IPv6 in [])
+        # Said loudly, and warned of, when other computers reach it: as rovlink sim does.
+        endpoint = tcp_endpoint(host, tcp_port, "rovlink.faults")
+        remote = f" {REMOTE_MARK}" if endpoint.endswith(REMOTE_MARK) else ""
         say_ready(
-            f"rovlink fault ready: socket://{shown_host}:{tcp_port} -> {link.description} "
+            f"rovlink fault ready: socket://{shown_host}:{tcp_port}{remote} -> {link.description} "
             f"(ber {settings.ber:g}, drop {settings.drop:g}, dup {settings.dup:g}, "
             f"delay {settings.delay_ms:g}±{settings.jitter_ms:g} ms, seed {settings.seed}); "
             "Ctrl-C stops"
