@@ -38,9 +38,9 @@ _TOPICS = ("rovlink/+/state", "rovlink/+/telemetry", "rovlink/+/events")
 _REFRESH_HZ = 4
 #: Waits before reconnecting to a broker that was lost, doubling up to the most, s.
 _FIRST_RETRY_S = 0.5
+_MOST_RETRY_S = 8.0
 #: How long the broker has to answer a request (connecting, subscribing), s.
 _REPLY_TIMEOUT_S = 5.0
-_MOST_RETRY_S = 8.0
 _PRESENCE_STYLES = {"online": "green", "silent": "yellow", "offline": "red", "malformed": "magenta"}
 
 
