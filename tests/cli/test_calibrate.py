@@ -141,3 +141,51 @@ def test_sending_without_a_terminal_to_ask_on_needs_yes(run_cli: RunCli) -> None
         "(--dry-run shows the values)"
     )
     assert server.fakes == []  # refused before the port opened
+
+
+def test_given_readings_are_refused_for_what_is_wrong_with_them_before_yes_is_asked_for(
+    run_cli: RunCli,
+) -> None:
+    # In a script (no terminal) without --yes. Before, the command said only that sending
+    # needed --yes; with --yes added it then refused the readings: two runs to learn one fact.
+    result = run_cli(
+        "calibrate", "sim://", "--depth", "200", "--surface-raw", "120", "--depth-raw", "20"
+    )
+    assert result.status == 1
+    assert result.err.splitlines()[-1].startswith(
+        "rovlink calibrate: the readings are -100 counts apart (surface 120, at 200 cm 20)"
+    )
+
+
+def test_a_read_back_at_the_surface_says_it_cannot_show_the_values_were_taken(
+    run_cli: RunCli,
+) -> None:
+    # The simulated sensor reads about 20 at the surface, below the new zero of 30: every
+    # calibration reads 0 cm there, taken or dropped. Before, "depth now 0 cm" alone passed
+    # for the read-back that shows the controller took them.
+    result = run_cli(
+        "calibrate", "sim://?seed=1", "--depth", "200", "--surface-raw", "30", "--depth-raw", "130",
+        "--yes",
+    )  # fmt: skip
+    assert result.status == 0, result.err
+    last = " ".join(result.out.split("\n")[-2:])
+    assert last.startswith("sent #sdz.30! #sdk.200!; depth now 0 cm"), result.out
+    assert "cannot show that the controller took them" in last
+
+
+@pytest.mark.parametrize("depth_raw", ["120.55", "120.5", "130.449"])
+def test_the_raw_reading_shown_reads_as_the_depth_shown(run_cli: RunCli, depth_raw: str) -> None:
+    # Before, the raw was shown to one decimal and its depth computed from the unrounded
+    # value: 120.55 was shown "raw 120.5 reads as 200 cm", where 120.5 reads as 199 cm.
+    import re
+
+    from rovlink.tuning.calibration import two_point
+
+    arguments = ("--depth", "200", "--surface-raw", "20", "--depth-raw", depth_raw, "--dry-run")
+    result = run_cli("calibrate", "sim://", *arguments)
+    assert result.status == 0, result.err
+    found = re.search(r"raw ([0-9.]+) reads as (\d+) cm", result.out)
+    assert found is not None, result.out
+    shown_raw, shown_cm = float(found[1]), int(found[2])
+    assert two_point(20.0, float(depth_raw), 200).depth_for(shown_raw) == shown_cm
+    assert abs(shown_raw - float(depth_raw)) < 0.01

@@ -147,6 +147,37 @@ def test_cli_exit_status_table_and_junit(
     assert len(cases) == len(select_checks(["query-"]))
 
 
+@pytest.mark.parametrize(
+    ("option", "too_low", "too_high", "shown"),
+    [
+        ("--timeout", "0.001", "11", "0.01–10"),
+        ("--motion-power", "4", "51", "5–50"),
+        ("--watchdog", "0.05", "61", "0.1–60"),
+    ],
+)
+def test_help_gives_the_range_each_number_is_checked_against(
+    capsys: pytest.CaptureFixture[str], option: str, too_low: str, too_high: str, shown: str
+) -> None:
+    # Before, --help gave the defaults alone: a user learnt the range from a refused value.
+    for value in (too_low, too_high):
+        assert main(["check", "sim://", option, value]) == 2
+        assert f"argument {option}" in capsys.readouterr().err
+    assert main(["check", "--help"]) == 0
+    text = " ".join(capsys.readouterr().out.split())
+    described = text[text.index(f"{option} ", text.index("options:")) :]
+    assert shown in described[: described.index("(default")], described[:200]
+
+
+def test_cli_list_shows_the_checks_only_selects(capsys: pytest.CaptureFixture[str]) -> None:
+    # Before, --only was ignored by --list: every check was listed, whatever it selected.
+    assert main(["check", "--list", "--only", "checksum-bare", "--only", "motion-stop"]) == 0
+    rows = capsys.readouterr().out.splitlines()[1:]  # (a row's further lines start blank)
+    listed = [line.split()[0] for line in rows if line[:1] == " " and line[1:2] != " "]
+    assert listed == ["checksum-bare-stop-accepted", "motion-stop-halts"], listed
+    assert main(["check", "--list", "--only", "nope"]) == 2
+    assert "no check is named 'nope'" in capsys.readouterr().err
+
+
 def test_cli_list_and_usage_errors(capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["check", "--list"]) == 0
     assert "motion-stop-halts (--motion)" in capsys.readouterr().out
@@ -410,6 +441,11 @@ def test_an_interrupted_run_leaves_a_junit_file_that_says_so(
         skipped = cases[name].find("skipped")
         assert skipped is not None
         assert skipped.get("message") == "not run: the run was interrupted (Ctrl-C or a signal)"
+    # The run's time, not "0.000": at least the time of the checks that ended. (Before, the
+    # suite said the run took no time, under cases that each took some.)
+    ended_s = sum(float(cases[name].get("time") or "nan") for name in seen)
+    assert ended_s > 0
+    assert float(suite.get("time") or "nan") >= ended_s - 0.002  # (each rounded to 1 ms)
 
 
 def test_the_summary_names_the_settings_left_at_test_values(

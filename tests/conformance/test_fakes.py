@@ -191,3 +191,41 @@ def test_a_vehicle_that_cannot_dive_fails_the_no_dive_checks(fault: str, name: s
     (result,) = report.results
     assert result.outcome is Outcome.FAILED, result
     assert "could not be seen (is the vehicle in water" in result.message
+
+
+def test_a_missing_reply_is_said_in_words_not_as_bytes() -> None:
+    # A controller that switches its checksum mode only after the whole chunk drops the
+    # checksummed #qd of #crcon!#qd<CS>!: nothing comes. Before, the failure read
+    # "got b'nothing'", the word shown as if those bytes had come.
+    fault = "mode-per-chunk"
+    link = PortLink(FaultyController(fault), fault)
+    try:
+        report = run_checks(link, fault, SuiteOptions(), select_checks(["checksum-on-next-frame"]))
+    finally:
+        link.close()
+    (result,) = report.results
+    assert result.outcome is Outcome.FAILED
+    assert result.message.endswith(", got nothing"), result.message
+
+
+class _TextForQd(FaultyController):
+    """Answers #qd! with an error line, not a frame (a firmware that knows no qd)."""
+
+    def _outgoing(self, reply: bytes, sent: bytes, checksum: bool) -> bytes:
+        reply = super()._outgoing(reply, sent, checksum)
+        return reply.replace(b"$qd.0!", b"E02 unknown command\r\n") if sent == b"#qd!" else reply
+
+
+def test_a_failure_for_want_of_a_frame_says_what_came_instead() -> None:
+    # Before: "expected $qd; no reply within 250 ms", as if the line had stayed silent; only
+    # the evidence below showed the controller's line.
+    link = PortLink(_TextForQd(NO_FAULT), "text for qd")
+    try:
+        report = run_checks(link, "fake", SuiteOptions(), select_checks(["query-qd"]))
+    finally:
+        link.close()
+    (result,) = report.results
+    assert result.outcome is Outcome.FAILED
+    assert result.message == (
+        "expected $qd; no reply within 250 ms, but text came: b'E02 unknown command\\r\\n'"
+    )

@@ -6,6 +6,7 @@ import socket
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import pytest
 
@@ -15,6 +16,7 @@ from rovlink.client import ClientOptions, ConnectError, ConnectionLostError
 from rovlink.client.links import PortLink
 from rovlink.faults import FaultPort, FaultSettings
 from rovlink.sim.port import open_port
+from tests.rovlink_process import running_rovlink
 
 
 def test_driver_opens_fault_urls_and_checksums_keep_replies_right() -> None:
@@ -153,3 +155,81 @@ def test_fault_refuses_a_non_loopback_listen_address_without_allow_remote(
     error = capsys.readouterr().err.strip().splitlines()[-1]
     assert "0.0.0.0 is not a loopback address" in error
     assert "--allow-remote" in error
+
+
+@pytest.mark.integration
+def test_the_ready_line_gives_an_ipv6_listener_as_a_url_that_opens() -> None:
+    # Before, it printed socket://::1:PORT, which no client parses; the ready line is the URL
+    # that users copy into their program.
+    with socket.socket(socket.AF_INET6) as probe:
+        probe.bind(("::1", 0))
+        port = int(probe.getsockname()[1])
+    with running_rovlink(
+        "fault", "--listen", f"socket://[::1]:{port}", "--to", "sim://", ready_timeout_s=10
+    ) as (_, ready):
+        url = ready.split()[3]
+        assert url == f"socket://[::1]:{port}", ready
+        with rovlink.connect(url, timeout=0.5) as rov:
+            assert rov.depth_cm() >= 0
+
+
+@pytest.mark.integration
+def test_the_proxy_says_on_exit_how_many_clients_it_served_and_refused(tmp_path: Path) -> None:
+    # Before, the counts were kept but never said: a program told "busy" and disconnected
+    # showed in no report, only as a client that never got an answer.
+    port = _free_port()
+    url = f"socket://127.0.0.1:{port}"
+    with (tmp_path / "stderr").open("w+") as stderr:
+        with (
+            running_rovlink(
+                "fault", "--listen", url, "--to", "sim://", ready_timeout_s=10, stderr=stderr
+            ),
+            rovlink.connect(url, timeout=0.5) as rov,
+        ):
+            assert rov.depth_cm() >= 0
+            with socket.create_connection(("127.0.0.1", port)) as second:
+                second.settimeout(5)
+                assert second.recv(100).startswith(b"busy:")
+        stderr.seek(0)
+        said = stderr.read()
+    assert "clients: 1 served, 1 refused (busy)" in said, said
+
+
+@pytest.mark.parametrize(
+    ("option", "too_high", "shown"),
+    [
+        ("--ber", "0.6", "0–0.5"),
+        ("--drop", "1.1", "0–1"),
+        ("--dup", "1.1", "0–1"),
+        ("--delay-ms", "10001", "0–10000"),
+    ],
+)
+def test_fault_help_gives_the_range_each_rate_and_delay_is_checked_against(
+    capsys: pytest.CaptureFixture[str], option: str, too_high: str, shown: str
+) -> None:
+    # Before, --help gave the defaults alone: a user learnt the range from a refused value.
+    listen = ("--listen", "socket://127.0.0.1:5761", "--to", "sim://")
+    assert main(["fault", *listen, option, too_high]) == 2
+    assert f"argument {option}" in capsys.readouterr().err
+    assert main(["fault", "--help"]) == 0
+    text = " ".join(capsys.readouterr().out.split())
+    described = text[text.index(f"{option} ", text.index("options:")) :]
+    assert shown in described[: described.index("(default")], described[:200]
+
+
+@pytest.mark.integration
+def test_a_listener_other_computers_reach_is_said_loudly(tmp_path: Path) -> None:
+    # As rovlink sim and rovlink controller say it. Before, --allow-remote served the robot,
+    # unauthenticated, to every network with a ready line like any other.
+    port = _free_port()
+    listen = f"socket://0.0.0.0:{port}"
+    with (tmp_path / "stderr").open("w+") as stderr:
+        with running_rovlink(
+            "fault", "--listen", listen, "--to", "sim://", "--allow-remote",
+            ready_timeout_s=10, stderr=stderr,
+        ) as (_, ready):  # fmt: skip
+            assert ready.startswith(f"rovlink fault ready: {listen} (REMOTE, NO AUTHENTICATION) ")
+        stderr.seek(0)
+        said = stderr.read()
+    assert f"listening on 0.0.0.0:{port} (every network interface)" in said, said
+    assert "anyone connected can drive the robot" in said

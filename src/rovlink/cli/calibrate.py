@@ -79,19 +79,20 @@ def run(args: argparse.Namespace) -> int:
         raise UsageError(
             "measuring needs a terminal to ask on; give --surface-raw and --depth-raw instead"
         )
+    given: Calibration | None = None
+    if not measuring:  # nothing to read: bad readings are refused before the port opens,
+        try:  # and before --yes is asked for (readings that cannot be sent, said first)
+            given = two_point(args.surface_raw, args.depth_raw, args.depth, args.min_counts)
+        except CalibrationError as error:
+            raise CommandError(str(error)) from None
     if not (args.yes or args.dry_run or sys.stdin.isatty()):  # as tune and check --motion
         raise UsageError(
             "sending needs --yes when there is no terminal to ask on (--dry-run shows the values)"
         )
-    if not measuring:  # nothing to read: bad readings are refused before the port opens
-        try:
-            given = two_point(args.surface_raw, args.depth_raw, args.depth, args.min_counts)
-        except CalibrationError as error:
-            raise CommandError(str(error)) from None
-        if args.dry_run:  # and nothing to send
-            _show(given, args.depth_raw)
-            print("dry run: nothing sent")
-            return 0
+    if given is not None and args.dry_run:  # and nothing to send
+        _show(given, args.depth_raw)
+        print("dry run: nothing sent")
+        return 0
     client = link_options.connect(args)
     try:
         surface = args.surface_raw
@@ -122,9 +123,10 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _show(result: Calibration, at_depth: float) -> None:
+    shown_raw = round(at_depth, 2)  # (its depth from the raw shown: floored, it may differ)
     print(
         f"sdz {result.zero_raw}, sdk {result.k} ({result.cm_per_count:.2f} cm per count; "
-        f"raw {at_depth:.1f} reads as {result.depth_for(at_depth)} cm)"
+        f"raw {shown_raw:.2f} reads as {result.depth_for(shown_raw)} cm)"
     )
 
 
@@ -172,7 +174,13 @@ def _send(client: Client, result: Calibration) -> None:
             f"at raw {raw}, where they give {expected_cm} cm (P13); did it reset, or drop the "
             "frames? calibrate again"
         )
-    print(f"sent {zero} {scale}; depth now {depth_cm} cm (raw {raw})")
+    sent_line = f"sent {zero} {scale}; depth now {depth_cm} cm (raw {raw})"
+    if not result.shown_at(raw):  # (a controller that dropped them would read the same)
+        sent_line += (
+            f", which cannot show that the controller took them: other values read {depth_cm} "
+            "cm there too; read the depth again with the sensor lower"
+        )
+    print(sent_line)
 
 
 def _mean_raw(client: Client, samples: int, point: str) -> float:

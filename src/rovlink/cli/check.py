@@ -12,6 +12,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import sys
+import time
 from pathlib import Path
 from typing import TYPE_CHECKING, NoReturn
 
@@ -43,7 +44,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="the controller's serial device or URL (socket://HOST:PORT, sim://); needed "
         "unless --list",
     )
-    parser.add_argument("--list", action="store_true", help="list the checks and exit")
+    parser.add_argument(
+        "--list", action="store_true", help="list the checks (those --only selects) and exit"
+    )
     parser.add_argument(
         "--only",
         action="append",
@@ -66,7 +69,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         type=lambda text: seconds(text, minimum=0.01, maximum=10.0),
         default=0.25,
         metavar="SECONDS",
-        help="how long to wait for a reply before calling it missing (default: %(default)s)",
+        help="how long to wait for a reply before calling it missing, 0.01–10 "
+        "(default: %(default)s)",
     )
     parser.add_argument(
         "--motion", action="store_true", help="also run the motion checks (the thrusters turn)"
@@ -76,14 +80,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         type=lambda text: bounded_int(text, 5, _MAX_MOTION_PERCENT),
         default=30,
         metavar="PERCENT",
-        help="vertical thrust of the motion checks, %% (default: %(default)s)",
+        help=f"vertical thrust of the motion checks, %%, 5–{_MAX_MOTION_PERCENT} "
+        "(default: %(default)s)",
     )
     parser.add_argument(
         "--watchdog",
         type=lambda text: seconds(text, minimum=0.1, maximum=60.0),
         default=2.0,
         metavar="SECONDS",
-        help="the controller's link-loss watchdog, for the failsafe check (default: 2)",
+        help="the controller's link-loss watchdog, for the failsafe check, 0.1–60 (default: 2)",
     )
     parser.add_argument("--yes", action="store_true", help="do not ask before motion checks")
     parser.add_argument("--seed", type=int, default=1, help="seed of the noise sent (default: 1)")
@@ -102,8 +107,12 @@ def run(args: argparse.Namespace) -> int:
         write_junit,
     )
 
-    if args.list:
-        _print_list(select_checks(motion=True))
+    if args.list:  # (what --only selects, motion checks included: a list runs nothing)
+        try:
+            listed = select_checks(args.only, motion=True)
+        except ValueError as error:
+            raise UsageError(str(error)) from None
+        _print_list(listed)
         return 0
     if args.url is None:
         raise UsageError("the controller's URL is required (or --list)")
@@ -138,13 +147,14 @@ def run(args: argparse.Namespace) -> int:
         done.append(result)
         _progress(result)
 
+    started_s = time.monotonic()
     try:
         report = run_checks(link, args.url, options, checks, on_result=on_result)
     except PreflightError as error:
         _not_started(args, f"{args.url}: {error}")
     except KeyboardInterrupt:  # (Ctrl-C, or a CI's timeout: SIGTERM)
         if args.junit:
-            _write_interrupted(args.junit, args.url, checks, done)
+            _write_interrupted(args.junit, args.url, checks, done, time.monotonic() - started_s)
         raise
     finally:
         link.close()
@@ -158,17 +168,18 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _write_interrupted(
-    path: str, target: str, checks: list[Check], done: list[CheckResult]
+    path: str, target: str, checks: list[Check], done: list[CheckResult], duration_s: float
 ) -> None:
-    """The ``--junit`` file of an interrupted run: the checks that ended, one case in error
-    saying so, and the rest not run (left as an earlier run wrote it, a CI would read that
-    run's results as this one's)."""
+    """The ``--junit`` file of an interrupted run that lasted ``duration_s``: the checks that
+    ended, one case in error saying so, and the rest not run (left as an earlier run wrote it,
+    a CI would read that run's results as this one's)."""
     from rovlink.conformance import Report, write_junit  # noqa: PLC0415
 
     names = {result.name for result in done}
     report = Report(
         target,
         list(done),
+        duration_s=duration_s,
         not_run=[check.name for check in checks if check.name not in names],
         cut_short_by="the run was interrupted (Ctrl-C or a signal)",
     )

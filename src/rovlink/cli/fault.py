@@ -11,7 +11,8 @@ from collections.abc import Callable
 
 from rovlink.cli.failure import CommandError, UsageError, reason
 from rovlink.cli.interrupt import ServingSignals, say_last, say_ready
-from rovlink.cli.link_options import bounded_float
+from rovlink.cli.link_options import bounded_float, log_warnings
+from rovlink.cli.tcp_endpoint import REMOTE_MARK, tcp_endpoint
 
 __all__ = ["EPILOG"]
 
@@ -37,28 +38,28 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         type=_probability(0.5),
         default=0.0,
         metavar="RATE",
-        help="bit error rate (default: 0)",
+        help="bit error rate, 0–0.5 (default: 0)",
     )
     parser.add_argument(
         "--drop",
         type=_probability(1.0),
         default=0.0,
         metavar="RATE",
-        help="byte loss rate (default: 0)",
+        help="byte loss rate, 0–1 (default: 0)",
     )
     parser.add_argument(
         "--dup",
         type=_probability(1.0),
         default=0.0,
         metavar="RATE",
-        help="byte duplicate rate (default: 0)",
+        help="byte duplicate rate, 0–1 (default: 0)",
     )
     parser.add_argument(
         "--delay-ms",
         type=lambda text: bounded_float(text, 0.0, 10_000.0, " ms"),
         default=0.0,
         metavar="MS",
-        help="delay of every chunk, ms (default: 0)",
+        help="delay of every chunk, ms, 0–10000 (default: 0)",
     )
     parser.add_argument(
         "--jitter-ms",
@@ -77,7 +78,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Serve until Ctrl-C or SIGTERM; print what the faults did."""
+    """Serve until Ctrl-C or SIGTERM; print what the faults did and how many clients came."""
     from rovlink.client.errors import ConnectError  # noqa: PLC0415
     from rovlink.client.links import open_link  # noqa: PLC0415
     from rovlink.client.url import Scheme, parse_url  # noqa: PLC0415
@@ -92,6 +93,7 @@ def run(args: argparse.Namespace) -> int:
         except ValueError as error:
             raise UsageError(f"{option}: {error}") from None
     listen, target = endpoints
+    log_warnings()  # (a listener other computers reach, a #stop! the lost link could not take)
     if args.jitter_ms > args.delay_ms:
         raise UsageError(
             f"--jitter-ms {args.jitter_ms:g} is more than --delay-ms {args.delay_ms:g}"
@@ -130,8 +132,12 @@ def run(args: argparse.Namespace) -> int:
             raise CommandError(f"cannot listen on {args.listen}: {reason(error)}") from None
         signals = ServingSignals()
         host, tcp_port = proxy.address
+        shown_host = f"[{host}]" if ":" in host else host  # (a URL that opens: IPv6 in [])
+        # Said loudly, and warned of, when other computers reach it: as rovlink sim does.
+        endpoint = tcp_endpoint(host, tcp_port, "rovlink.faults")
+        remote = f" {REMOTE_MARK}" if endpoint.endswith(REMOTE_MARK) else ""
         say_ready(
-            f"rovlink fault ready: socket://{host}:{tcp_port} -> {link.description} "
+            f"rovlink fault ready: socket://{shown_host}:{tcp_port}{remote} -> {link.description} "
             f"(ber {settings.ber:g}, drop {settings.drop:g}, dup {settings.dup:g}, "
             f"delay {settings.delay_ms:g}±{settings.jitter_ms:g} ms, seed {settings.seed}); "
             "Ctrl-C stops"
@@ -143,6 +149,7 @@ def run(args: argparse.Namespace) -> int:
             signals.restore()
     for direction, counters in port.counters.items():
         say_last(f"{direction.replace('_', ' ')}: {counters.summary()}")
+    say_last(f"clients: {proxy.clients_served} served, {proxy.clients_refused} refused (busy)")
     if proxy.lost is not None:
         raise CommandError(f"the controller's link was lost: {proxy.lost}")
     if signals is not None:

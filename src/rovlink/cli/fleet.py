@@ -7,8 +7,10 @@ retained states show robots that are offline too. Read-only: it sends no command
 from __future__ import annotations
 
 import argparse
+import contextlib
 import sys
 import time
+from collections.abc import Callable
 from typing import TYPE_CHECKING, TextIO
 
 from rovlink.cli import link_options
@@ -16,11 +18,13 @@ from rovlink.cli.failure import CommandError, NoTerminalError, reason
 from rovlink.cli.mqtt import add_broker_options, broker_settings
 
 if TYPE_CHECKING:
+    import aiomqtt
     from rich.table import Table
     from rich.text import Text
 
     from rovlink.bridges.mqtt.broker import BrokerSettings
-    from rovlink.bridges.mqtt.fleet_view import FleetView
+    from rovlink.bridges.mqtt.fleet_view import FleetView, RobotRow
+    from rovlink.cli.rich_console import TableConsole
 
 __all__ = ["EPILOG", "fleet_table"]
 
@@ -32,6 +36,11 @@ examples:
 
 _TOPICS = ("rovlink/+/state", "rovlink/+/telemetry", "rovlink/+/events")
 _REFRESH_HZ = 4
+#: Waits before reconnecting to a broker that was lost, doubling up to the most, s.
+_FIRST_RETRY_S = 0.5
+_MOST_RETRY_S = 8.0
+#: How long the broker has to answer a request (connecting, subscribing), s.
+_REPLY_TIMEOUT_S = 5.0
 _PRESENCE_STYLES = {"online": "green", "silent": "yellow", "offline": "red", "malformed": "magenta"}
 
 
@@ -44,42 +53,84 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         type=lambda text: link_options.bounded_float(text, 0.1, 60.0, " s"),
         default=None,
         metavar="SECONDS",
-        help="listen this long, print the table once and exit (default: a live table)",
+        help="listen this long, 0.1–60, print the table once and exit (default: a live table)",
     )
 
 
-def fleet_table(view: FleetView, now_s: float) -> Table:
-    """The table of robots as the view has them now.
+#: The columns, in order; robot and presence are always shown.
+_COLUMNS = ("robot", "presence", "depth", "leak", "lock", "mode", "link", "last event")
+#: The columns that give way, first to last, when the terminal is too narrow for them all.
+_GIVE_WAY = ("last event", "mode", "link", "lock", "depth", "leak")
+
+
+def fleet_table(view: FleetView, now_s: float, width: int | None = None) -> Table:
+    """The table of robots as the view has them now, in ``width`` columns if given.
 
     Every cell is a :class:`~rich.text.Text`: what came from the broker (any program may publish
     under ``rovlink/``) is shown as it is, never read as markup or obeyed as terminal codes.
+    Where ``width`` is too narrow for every column, the least needed give way (the caption
+    names them) rather than every column shrinking to a letter and an ellipsis.
     """
+    rows = [_row_cells(row, now_s) for row in view.rows()]
+    shown = list(_COLUMNS)
+    table = _table(shown, rows)
+    if width is not None:
+        hidden: list[str] = []
+        for column in _GIVE_WAY:
+            if _minimum_width(table) <= width:
+                break
+            shown.remove(column)
+            hidden.append(column)
+            table = _table(shown, rows)
+        if hidden:
+            hidden.sort(key=_COLUMNS.index)
+            table.caption = f"not shown: {', '.join(hidden)} (widen the terminal)"
+    if not rows:
+        table.caption = "no robot has published yet"
+    return table
+
+
+def _row_cells(row: RobotRow, now_s: float) -> dict[str, Text]:
+    """One robot's cells, by column."""
+    presence = row.presence(now_s)
+    if presence == "offline" and row.offline_reason:
+        note = row.offline_reason
+    elif presence == "malformed":
+        note = f"state not understood: {row.state_problem}"
+    else:
+        note = row.last_event or ""
+    return {
+        "robot": _cell(row.robot),
+        "presence": _cell(presence, _PRESENCE_STYLES.get(presence, "")),
+        "depth": _cell("—" if row.depth_cm is None else f"{row.depth_cm} cm"),
+        "leak": _cell("LEAK", "bold red") if row.leak else _cell("dry"),
+        "lock": _cell(row.lock or "—"),
+        "mode": _cell(row.mode or "—"),
+        "link": _cell(row.link or "—"),
+        "last event": _cell(note),
+    }
+
+
+def _table(columns: list[str], rows: list[dict[str, Text]]) -> Table:
     from rich.table import Table  # noqa: PLC0415
 
     table = Table(title="rovlink fleet", expand=False)
-    for column in ("robot", "presence", "depth", "leak", "lock", "mode", "link", "last event"):
+    for column in columns:
         table.add_column(column)
-    for row in view.rows():
-        presence = row.presence(now_s)
-        if presence == "offline" and row.offline_reason:
-            note = row.offline_reason
-        elif presence == "malformed":
-            note = f"state not understood: {row.state_problem}"
-        else:
-            note = row.last_event or ""
-        table.add_row(
-            _cell(row.robot),
-            _cell(presence, _PRESENCE_STYLES.get(presence, "")),
-            _cell("—" if row.depth_cm is None else f"{row.depth_cm} cm"),
-            _cell("LEAK", "bold red") if row.leak else _cell("dry"),
-            _cell(row.lock or "—"),
-            _cell(row.mode or "—"),
-            _cell(row.link or "—"),
-            _cell(note),
-        )
-    if not view.rows():
-        table.caption = "no robot has published yet"
+    for cells in rows:
+        table.add_row(*(cells[column] for column in columns))
     return table
+
+
+def _minimum_width(table: Table) -> int:
+    """The fewest columns ``table`` takes with no cell cut short (its words wrapped)."""
+    import io  # noqa: PLC0415
+
+    from rich.console import Console  # noqa: PLC0415
+    from rich.measure import Measurement  # noqa: PLC0415
+
+    console = Console(file=io.StringIO(), width=10_000)
+    return Measurement.get(console, console.options, table).minimum
 
 
 def _cell(text: str, style: str = "") -> Text:
@@ -121,16 +172,30 @@ def _is_terminal(stream: TextIO | None) -> bool:
 
 
 async def _watch(broker: BrokerSettings, snapshot_s: float | None) -> None:
-    import asyncio  # noqa: PLC0415
-
     import aiomqtt  # noqa: PLC0415
-    from rich.live import Live  # noqa: PLC0415
 
     from rovlink.bridges.mqtt.fleet_view import FleetView  # noqa: PLC0415
     from rovlink.cli.rich_console import TableConsole  # noqa: PLC0415
 
     view = FleetView()
     console = TableConsole()
+    connected = False
+    try:
+        if snapshot_s is not None:
+            async with _client(broker) as mqtt:
+                connected = True
+                await _snapshot(mqtt, view, console, snapshot_s)
+            return
+        await _live(broker, view, console)
+    except aiomqtt.MqttError as error:
+        where = "broker" if connected else "cannot connect to the broker"
+        raise CommandError(f"{where} {broker.describe()}: {reason(error)}") from None
+
+
+def _client(broker: BrokerSettings) -> aiomqtt.Client:
+    """A client of the broker, not yet connected (``async with`` connects it)."""
+    import aiomqtt  # noqa: PLC0415
+
     tls_params = (
         aiomqtt.TLSParameters(
             ca_certs=None if broker.ca_file is None else str(broker.ca_file),
@@ -140,42 +205,98 @@ async def _watch(broker: BrokerSettings, snapshot_s: float | None) -> None:
         if broker.tls
         else None
     )
-    connected = False
+    return aiomqtt.Client(
+        broker.host,
+        broker.port,
+        username=broker.username,
+        password=broker.password,
+        tls_params=tls_params,
+        tls_insecure=broker.insecure if broker.tls else None,
+        timeout=_REPLY_TIMEOUT_S,
+    )
+
+
+async def _collect(mqtt: aiomqtt.Client, view: FleetView) -> None:
+    """Subscribe, and feed the view every message until the connection ends (MqttError)."""
+    for topic in _TOPICS:
+        await mqtt.subscribe(topic, qos=1)
+    async for message in mqtt.messages:
+        payload = message.payload if isinstance(message.payload, bytes) else b""
+        view.apply(message.topic.value, payload, time.monotonic())
+
+
+async def _snapshot(
+    mqtt: aiomqtt.Client, view: FleetView, console: TableConsole, snapshot_s: float
+) -> None:
+    import asyncio  # noqa: PLC0415
+
+    collector = asyncio.ensure_future(_collect(mqtt, view))
     try:
-        async with aiomqtt.Client(
-            broker.host,
-            broker.port,
-            username=broker.username,
-            password=broker.password,
-            tls_params=tls_params,
-            tls_insecure=broker.insecure if broker.tls else None,
-            timeout=5.0,
-        ) as mqtt:
-            connected = True
-            for topic in _TOPICS:
-                await mqtt.subscribe(topic, qos=1)
+        await asyncio.wait([collector], timeout=snapshot_s)
+        if collector.done():  # (the broker went away, or a fault: said, not hidden)
+            collector.result()
+        console.print(fleet_table(view, time.monotonic(), console.width))
+    finally:
+        collector.cancel()
+        await asyncio.gather(collector, return_exceptions=True)
 
-            async def collect() -> None:
-                async for message in mqtt.messages:
-                    payload = message.payload if isinstance(message.payload, bytes) else b""
-                    view.apply(message.topic.value, payload, time.monotonic())
 
-            collector = asyncio.ensure_future(collect())
+async def _live(broker: BrokerSettings, view: FleetView, console: TableConsole) -> None:
+    """The live table until Ctrl-C. A broker that cannot be reached at first is an error
+    (MqttError); one lost later is reconnected to, with backoff, as the bridges do, and the
+    caption says so meanwhile (the rows are as they were last heard)."""
+    import asyncio  # noqa: PLC0415
+
+    import aiomqtt  # noqa: PLC0415
+    from rich.live import Live  # noqa: PLC0415
+
+    from rovlink.bridges.mqtt.broker_failure import broker_failure  # noqa: PLC0415
+
+    trouble: str | None = None
+
+    def draw() -> Table:
+        table = fleet_table(view, time.monotonic(), console.width)
+        if trouble is not None:
+            table.caption = trouble if table.caption is None else f"{trouble}; {table.caption}"
+        return table
+
+    async def show_until(live: Live, done: Callable[[], bool]) -> None:
+        while not done():
+            live.update(draw())
+            await asyncio.sleep(1 / _REFRESH_HZ)
+
+    live: Live | None = None
+    retry_s = _FIRST_RETRY_S
+    with contextlib.ExitStack() as screen:
+        while True:
+            connected = False
             try:
-                if snapshot_s is not None:
-                    await asyncio.wait([collector], timeout=snapshot_s)
-                    if collector.done():  # (the broker went away, or a fault: said, not hidden)
+                async with _client(broker) as mqtt:
+                    connected = True
+                    if live is None:  # (the table shows once the broker is reached)
+                        live = screen.enter_context(
+                            Live(console=console, refresh_per_second=_REFRESH_HZ)
+                        )
+                    trouble, retry_s = None, _FIRST_RETRY_S
+                    collector = asyncio.ensure_future(_collect(mqtt, view))
+                    try:
+                        await show_until(live, collector.done)
                         collector.result()
-                    console.print(fleet_table(view, time.monotonic()))
-                    return
-                with Live(console=console, refresh_per_second=_REFRESH_HZ) as live:
-                    while not collector.done():
-                        live.update(fleet_table(view, time.monotonic()))
-                        await asyncio.sleep(1 / _REFRESH_HZ)
-                collector.result()
-            finally:
-                collector.cancel()
-                await asyncio.gather(collector, return_exceptions=True)
-    except aiomqtt.MqttError as error:
-        where = "broker" if connected else "cannot connect to the broker"
-        raise CommandError(f"{where} {broker.describe()}: {reason(error)}") from None
+                    finally:
+                        collector.cancel()
+                        await asyncio.gather(collector, return_exceptions=True)
+            except aiomqtt.MqttError as error:
+                if live is None:
+                    raise
+                failure = broker_failure(
+                    error, broker, connected=connected, reply_timeout_s=_REPLY_TIMEOUT_S
+                )
+                trouble = f"broker {broker.describe()}: {failure}; reconnecting in {retry_s:g} s"
+            assert live is not None
+            retry_at = time.monotonic() + retry_s
+
+            def waited(at: float = retry_at) -> bool:
+                return time.monotonic() >= at
+
+            await show_until(live, waited)
+            retry_s = min(2 * retry_s, _MOST_RETRY_S)

@@ -173,4 +173,4 @@ def _expect_one(exchange: Exchange, name: str, what: str) -> None:
     frames = exchange.frames
     if len(frames) != 1 or not isinstance(frames[0], Frame) or frames[0].message.name != name:
         raw = b"".join(frame.raw for frame in frames)
-        raise CheckFailedError(f"expected {what}, got {raw or b'nothing'!r}")
+        raise CheckFailedError(f"expected {what}, got {repr(raw) if raw else 'nothing'}")

@@ -143,9 +143,13 @@ class CheckContext:
         got = tuple(frame.message.name if isinstance(frame, Frame) else "?" for frame in frames)
         context = f" ({why})" if why else ""
         if not frames:
+            # Text in place of the reply (an error line, a reply spoilt on the line) is named:
+            # "no reply" alone reads as a silent line.
+            came = f", but text came: {exchange.received!r}" if exchange.received else ""
             raise CheckFailedError(
                 f"expected {_names(names)}{context}; {NO_REPLY} "
-                f"{self.options.reply_timeout_s * 1000:.0f} ms" + self._late(names[0], sent_at)
+                f"{self.options.reply_timeout_s * 1000:.0f} ms{came}"
+                + self._late(names[0], sent_at)
             )
         for frame in frames:
             if isinstance(frame, BadFrame):

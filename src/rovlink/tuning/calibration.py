@@ -16,6 +16,9 @@ from rovlink.protocol import Kind, lookup
 
 __all__ = ["DEFAULT_MIN_COUNTS", "Calibration", "CalibrationError", "two_point"]
 
+#: The deepest depth the controller reports, cm: deeper reads as this (P13).
+_MAX_DEPTH_CM = lookup("qd", Kind.RESPONSE).arguments[0].maximum
+
 #: The two readings must be at least this many counts apart: closer, one count of noise moves k
 #: by more than 10 %.
 DEFAULT_MIN_COUNTS = 10
@@ -42,8 +45,18 @@ class Calibration:
 
     def depth_for(self, raw: float) -> int:
         """The depth the controller will report for ``raw`` (P13)."""
-        maximum = lookup("qd", Kind.RESPONSE).arguments[0].maximum
-        return max(0, min(maximum, int((raw - self.zero_raw) * self.k // 100)))
+        return max(0, min(_MAX_DEPTH_CM, int((raw - self.zero_raw) * self.k // 100)))
+
+    def shown_at(self, raw: float) -> bool:
+        """Whether the depth read at ``raw`` can show that the controller took these values:
+        not at an end of the depth range, where other values read the same (at or above the
+        surface every calibration reads 0 cm).
+
+        >>> calibration = two_point(20.0, 120.0, 200)
+        >>> calibration.shown_at(20), calibration.shown_at(70)
+        (False, True)
+        """
+        return 0 < self.depth_for(raw) < _MAX_DEPTH_CM
 
 
 def two_point(

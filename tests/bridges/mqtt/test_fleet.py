@@ -14,6 +14,7 @@ import pytest
 from rovlink.bridges.mqtt.fleet_view import SILENT_AFTER_S, FleetView
 from tests.bridges.mqtt.broker import Mosquitto
 from tests.bridges.mqtt.rig import bridged_robot, subscriber
+from tests.cli.conftest import RunCli
 
 _SRC = str(Path(__file__).resolve().parents[3] / "src")
 
@@ -138,6 +139,32 @@ def test_the_table_shows_each_robot_in_words():
     assert "no robot has published yet" in empty.export_text()
 
 
+@pytest.mark.parametrize("width", [40, 60])
+def test_a_narrow_terminal_keeps_each_robot_and_its_presence_whole(width: int) -> None:
+    # Before, every column shrank alike: on 40 columns the rows read "r… │ o… │ d…", no robot
+    # and no presence to be made out. The least needed columns now give way, and say so.
+    from rich.console import Console
+
+    from rovlink.cli.fleet import fleet_table
+
+    view = FleetView()
+    view.apply("rovlink/rov-alpha/state", b'{"online": true, "lock": "unlocked"}', 0.0)
+    view.apply("rovlink/rov-alpha/telemetry", b'{"depth_cm": 120, "leak": true}', 0.0)
+    view.apply("rovlink/rov-beta/state", b'{"online": false, "reason": "bridge stopped"}', 0.0)
+    console = Console(width=width, record=True)
+    console.print(fleet_table(view, now_s=1.0, width=width))
+    text = console.export_text()
+    assert "…" not in text
+    lines = text.splitlines()
+    assert all(len(line) <= width for line in lines)
+    row_alpha = next(line for line in lines if " rov-alpha " in line)
+    row_beta = next(line for line in lines if " rov-beta " in line)
+    assert "online" in row_alpha
+    assert "LEAK" in row_alpha
+    assert "offline" in row_beta
+    assert "widen the terminal" in " ".join(text.split())
+
+
 def test_text_from_the_broker_is_shown_as_text_never_as_markup_or_terminal_codes():
     from rich.console import Console
 
@@ -218,3 +245,41 @@ async def _snapshot_after_retaining(
     out, err = await asyncio.wait_for(process.communicate(), 30)
     assert process.returncode == 0, err.decode()
     return out.decode().splitlines()
+
+
+@pytest.mark.integration
+def test_the_live_table_rides_out_a_broker_restart(broker: Mosquitto) -> None:
+    # Before, the live table ended with status 1 ("Disconnected during message iteration") as
+    # the broker stopped, where the bridges it watches reconnect: a restarted broker left the
+    # operator with no table. It now says the broker is lost and picks up where it left off.
+    from paho.mqtt import publish
+
+    from tests.terminals import Terminal
+
+    def retain(robot: str) -> None:
+        topic, state = f"rovlink/{robot}/state", '{"online": true, "lock": "locked"}'
+        publish.single(topic, state, qos=1, retain=True, port=broker.port)
+
+    retain("r1")
+    terminal = Terminal("fleet", "--broker", broker.url, size=(120, 30))
+    try:
+        assert terminal.wait_shown(b" r1 ")
+        broker.stop()
+        assert terminal.wait_shown(b"reconnecting"), terminal.shown.decode(errors="replace")
+        assert terminal.process.poll() is None
+        broker.start()
+        retain("r2")
+        assert terminal.wait_shown(b" r2 "), terminal.shown.decode(errors="replace")
+        assert terminal.process.poll() is None
+    finally:
+        terminal.close()
+
+
+def test_fleet_help_gives_the_range_snapshot_is_checked_against(run_cli: RunCli) -> None:
+    # Before, --help did not say it: a user learnt 0.1–60 from a refused value.
+    refused = run_cli("fleet", "--broker", "mqtt://127.0.0.1:1", "--snapshot", "61")
+    assert refused.status == 2
+    assert "60" in refused.err
+    text = " ".join(run_cli("fleet", "--help").out.split())
+    described = text[text.index("--snapshot SECONDS", text.index("options:")) :]
+    assert "0.1–60" in described[: described.index("(default")]

@@ -21,6 +21,8 @@ _SRC = str(Path(__file__).resolve().parents[3] / "src")
     ("arguments", "error"),
     [
         (["--broker", "http://h", "--robot", "r"], "expected mqtt://HOST[:PORT]"),
+        # Before, urllib's own words alone: "error: Invalid IPv6 URL", naming no option.
+        (["--broker", "mqtt://[::1", "--robot", "r"], "broker 'mqtt://[::1': expected mqtt://"),
         (["--broker", "mqtt://h", "--robot", "a/b"], "robot id 'a/b'"),
         (["--broker", "mqtt://h", "--robot", "r", "--tls-insecure"], "need an mqtts:// broker"),
         (["--broker", "mqtts://h", "--robot", "r", "--cafile", "/nonexistent.pem"], "no such file"),

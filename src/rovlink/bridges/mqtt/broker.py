@@ -28,9 +28,14 @@ class BrokerSettings:
     insecure: bool = False
 
     def describe(self) -> str:
-        """``mqtts://broker:8883`` (never the password)."""
+        """``mqtts://broker:8883`` (never the password): a URL ``--broker`` takes.
+
+        >>> BrokerSettings("::1", 1883).describe()
+        'mqtt://[::1]:1883'
+        """
         user = f"{self.username}@" if self.username else ""
-        return f"{'mqtts' if self.tls else 'mqtt'}://{user}{self.host}:{self.port}"
+        host = f"[{self.host}]" if ":" in self.host else self.host  # (IPv6)
+        return f"{'mqtts' if self.tls else 'mqtt'}://{user}{host}:{self.port}"
 
 
 def parse_broker_url(url: str) -> tuple[str, int, bool]:
@@ -44,7 +49,10 @@ def parse_broker_url(url: str) -> tuple[str, int, bool]:
     ValueError: broker 'http://localhost': expected mqtt://HOST[:PORT] or mqtts://HOST[:PORT]
     """
     expected = f"broker {url!r}: expected mqtt://HOST[:PORT] or mqtts://HOST[:PORT]"
-    parts = urlsplit(url)
+    try:
+        parts = urlsplit(url)
+    except ValueError:  # (an unclosed "[" of an IPv6 address: urllib names no URL)
+        raise ValueError(expected) from None
     if parts.scheme not in _DEFAULT_PORTS or not parts.hostname or parts.path not in ("", "/"):
         raise ValueError(expected)
     if parts.username or parts.password:
