@@ -336,30 +336,19 @@ def test_replay_to_in_checksum_mode_stays_in_it(
         e for e in read_entries(str(path)) if isinstance(e, FrameEntry) and e.name == "crcoff"
     ]
     assert mode_frame.by_session
-    written: list[bytes] = []
-    connect = rovlink.connect
-
-    def connect_noting(url: str, **options: Any) -> Client:
-        def note(event: ClientEvent) -> None:
-            if isinstance(event, BytesSent):
-                written.append(event.data)
-
-        return connect(url, on_event=note, **options)
-
-    monkeypatch.setattr(rovlink, "connect", connect_noting)
-    result = run_cli("replay", str(path), "--to", "sim://?seed=1", "--checksum")
-    assert result.status == 0, result.err
-    assert result.out.startswith("1 commands replayed")
+    out, written = _replay(run_cli, path, monkeypatch, "--checksum")
+    assert out.startswith("1 commands replayed")
     # (The readiness probe's own #crcoff! comes before the #crcon! of --checksum.)
-    in_checksum_mode = b"".join(written).partition(b"#crcon!")[2]
+    in_checksum_mode = written.partition(b"#crcon!")[2]
     assert in_checksum_mode.startswith(b"#qd8C!")
     assert b"#crcoff!" not in in_checksum_mode
 
 
-def _replayed_bytes(
+def _replay(
     run_cli: RunCli, path: Path, monkeypatch: pytest.MonkeyPatch, *options: str
-) -> bytes:
-    """What ``rovlink replay PATH --to sim://…`` wrote to the controller."""
+) -> tuple[str, bytes]:
+    """``rovlink replay PATH --to sim://…``: what it printed, and what it wrote to the
+    controller."""
     written: list[bytes] = []
     connect = rovlink.connect
 
@@ -373,7 +362,7 @@ def _replayed_bytes(
     monkeypatch.setattr(rovlink, "connect", connect_noting)
     result = run_cli("replay", str(path), "--to", "sim://?seed=1", *options)
     assert result.status == 0, result.err
-    return b"".join(written)
+    return result.out, b"".join(written)
 
 
 def test_a_recording_made_with_checksum_says_it_starts_plain(
@@ -399,7 +388,7 @@ def test_a_recording_made_with_checksum_says_it_starts_plain(
     assert "(no checksum)" in listed[0]
     assert "mode changed checksum: on" in "\n".join(listed)
     # Replayed in the mode the recorded driver asked for, as before.
-    replayed = _replayed_bytes(run_cli, path, monkeypatch).partition(b"#crcon!")[2]
+    replayed = _replay(run_cli, path, monkeypatch)[1].partition(b"#crcon!")[2]
     assert replayed.startswith(b"#qd8C!")
 
 
@@ -416,7 +405,7 @@ def test_replay_of_a_format_1_recording_made_with_checksum_stays_in_checksum_mod
         FrameEntry(1.4, 1, "out", "command", "qd", ()),
         FrameEntry(1.5, 1, "in", "response", "qd", (0,), query="qd"),
     )
-    replayed = _replayed_bytes(run_cli, path, monkeypatch).partition(b"#crcon!")[2]
+    replayed = _replay(run_cli, path, monkeypatch)[1].partition(b"#crcon!")[2]
     assert replayed.startswith(b"#qd8C!")
 
 

@@ -12,6 +12,12 @@ from pathlib import Path
 
 import pytest
 
+from rovlink.protocol.announcements import (
+    STOP_COMMAND,
+    Announcement,
+    AnnouncementKind,
+    read_announcement,
+)
 from tests.firmware.c_build import LAYER, STRICT, build, needs_gcc, run_script, send
 
 STEPS = Path(__file__).resolve().parent / "host_robot_steps.c"
@@ -164,3 +170,30 @@ def test_attitude_ties_round_up_as_the_python_controller_does(tmp_path: Path) ->
     )
     printed = [int(word) for (word,) in run_script(binary, [])]
     assert printed == [-90, -2, 0, 0, 1, 3, 90, 90]
+
+
+def test_its_lock_announcements_are_the_ones_rovlink_tools_hear(steps: Path) -> None:
+    # The C reference spells the controller's announcements out (C cannot take them from
+    # rovlink.protocol.announcements): a tool with --hear-other-lines hears its lock change.
+    shown = _run(
+        steps,
+        [
+            send(b"#debug1!#start!"),
+            "run 10",
+            "show",
+            send(b"#stop!"),
+            "run 10",
+            "show",
+            send(b"#start!"),
+            "run 2100",
+            "show",
+        ],
+    )
+    lines = b"".join(each.output for each in shown).decode("ascii").splitlines()
+    heard = [read_announcement(line) for line in lines]
+    assert [each for each in heard if each is not None] == [
+        Announcement(AnnouncementKind.UNLOCKED),
+        Announcement(AnnouncementKind.LOCKED, STOP_COMMAND),
+        Announcement(AnnouncementKind.UNLOCKED),
+        Announcement(AnnouncementKind.LOCKED, "failsafe: no valid frame for 2 s"),
+    ]

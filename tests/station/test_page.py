@@ -1293,3 +1293,32 @@ def test_a_stop_from_another_line_shows_on_every_page_with_hear_other_lines(brow
             watcher.context.close()
     finally:
         line.close()
+
+
+def test_a_watchers_relay_row_says_unlocked_after_another_line_unlocks_with_hear_other_lines(
+    browser,
+):
+    # Before, after another line's #stop! then #start!, the watcher's relay row went by the lock
+    # as the station sent it and said "motors locked" under "unlocked (started by another line)".
+    line = ControllerLine(pty=True)
+    assert line.pty_path is not None
+    try:
+        with running_station(line.url, "--hear-other-lines") as served:
+            line.wait_for("#debug1!")
+            watcher = open_page(browser, served, pad=False)
+            with rovlink.connect(line.pty_path, timeout=1.0, keepalive=None) as bystander:
+                bystander.stop()
+                watcher.wait_for_selector("#lock-state:text-is('locked (stopped by another line)')")
+                bystander.start()
+                watcher.wait_for_selector(
+                    "#lock-state:text-is('unlocked (started by another line)')"
+                )
+                watcher.wait_for_selector(
+                    "#relay-state:text-is('motors unlocked (started by another line);"
+                    " nobody has control')",
+                    timeout=2000,
+                )
+                bystander.stop()
+            watcher.context.close()
+    finally:
+        line.close()

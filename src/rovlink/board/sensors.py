@@ -6,10 +6,11 @@ under way) never happens inside the controller, and a failed read is never an ex
 A failed poll keeps the last good value and counts; once its polls have been failing for
 ``stale_after_s`` (a failed poll that long after the first failed one, with no good reading
 between) the sensor is *stale*, whatever the loop's rate, until it gives a good reading again.
-One failed read never makes a sensor stale, however seldom the sensor is read. A sensor the
-controller drives by (the pressure sensor: depth hold and the depth limit) then stops the motors
-until it answers again; one it only reports (the IMU: the protocol has no yaw command, so the
-controller holds no heading, P11) is said to be stale and driving goes on.
+One failed read never makes a sensor stale (unless ``stale_after_s`` is 0), however seldom
+the sensor is read. A sensor the controller drives by (the pressure sensor: depth hold and the
+depth limit) then stops the motors until it answers again; one it only reports (the IMU: the
+protocol has no yaw command, so the controller holds no heading, P11) is said to be stale and
+driving goes on.
 """
 
 from __future__ import annotations

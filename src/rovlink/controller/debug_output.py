@@ -26,7 +26,7 @@ _SAFE = str.maketrans(
         "°": " deg",
     }
 )
-DEBUG_PREFIX_BYTES = DEBUG_PREFIX.encode("ascii")
+_DEBUG_PREFIX_BYTES = DEBUG_PREFIX.encode("ascii")
 _PRINTABLE = frozenset(range(0x20, 0x7F))
 
 
@@ -37,7 +37,7 @@ def debug_line(text: str) -> bytes:
     b'debug: dropped No.qd.: must be in 0-255\\r\\n'
     """
     safe = text.translate(_SAFE)
-    return DEBUG_PREFIX_BYTES + safe.encode("ascii", errors="backslashreplace") + b"\r\n"
+    return _DEBUG_PREFIX_BYTES + safe.encode("ascii", errors="backslashreplace") + b"\r\n"
 
 
 def describe_frame(raw: bytes) -> str:

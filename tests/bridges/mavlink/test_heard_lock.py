@@ -15,7 +15,10 @@ import rovlink
 import rovlink.aio
 from rovlink.bridges.mavlink.bridge import MavlinkBridge
 from rovlink.bridges.mavlink.endpoint import MavlinkEndpoint
-from rovlink.piloting.tracked import TrackedClient
+from rovlink.client.events import LinkState
+from rovlink.piloting.tracked import SentFrame, TrackedClient
+from rovlink.protocol import Command
+from rovlink.protocol.announcements import STOP_COMMAND, Announcement, AnnouncementKind
 from rovlink.sim.server import SimServer
 from tests.bridges.mavlink.rig import CONDITION_TIMEOUT_S, GroundStation, free_udp_port, wait_for
 from tests.sim.conftest import StartServer, start_server  # noqa: F401 - the fixture
@@ -94,3 +97,27 @@ def test_a_stop_from_another_line_disarms_the_vehicle_and_arm_starts_it_again(
             assert bridge.armed
         finally:
             gcs.close()
+
+
+async def test_an_armed_bridge_that_heard_a_stop_still_stops_the_robot_when_its_link_drops() -> (
+    None
+):
+    # Before, a stop heard disarmed the bridge, and losing the link then queued no #stop!: with
+    # --hear-other-lines the bridge sent less than without (another line may have unlocked the
+    # robot since), where every other tool goes by the lock it sent itself (sent_lock).
+    async with rovlink.aio.connect("sim://", timeout=1.0, motion_timeout=None) as client:
+        rov = TrackedClient(client)
+        bridge = MavlinkBridge(rov, MavlinkEndpoint(f"udpout:127.0.0.1:{free_udp_port()}"))
+        try:
+            await rov.send(Command("start"))  # armed, as after the ground station's ARM
+            rov.commanded.hear(Announcement(AnnouncementKind.LOCKED, STOP_COMMAND))
+            assert not bridge.armed
+            stops: list[SentFrame] = []
+            rov.add_sent_listener(
+                lambda sent: stops.append(sent) if sent.text == "#stop!" else None
+            )
+            bridge._on_client_event(LinkState(0.0, "lost", "test"))
+            await asyncio.wait_for(asyncio.gather(*bridge._background), CONDITION_TIMEOUT_S)
+            assert [sent.text for sent in stops] == ["#stop!"]
+        finally:
+            bridge.endpoint.close()

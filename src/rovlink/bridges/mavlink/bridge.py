@@ -489,7 +489,12 @@ class MavlinkBridge:
         # (By a suspected reset the lock as last sent is forgotten already, unknown rather than
         # unlocked: anything but locked may have been armed.)
         may_be_armed = self.messages.link_up and self.rov.commanded.lock is not LockState.LOCKED
-        if (lost and self.armed) or (reset and may_be_armed):
+        # Losing the link stops the robot if the bridge unlocked it itself (sent_lock): a stop
+        # heard since is no reason to send less (another line may have unlocked it again).
+        armed_by_bridge = (
+            self.messages.link_up and self.rov.commanded.sent_lock is LockState.UNLOCKED
+        )
+        if (lost and armed_by_bridge) or (reset and may_be_armed):
             # After a reset the controller is locked (P21): say so rather than show it armed.
             # (On a link being reopened, the #stop! waits to be its first frame.)
             reason = "the controller link was lost" if lost else "the controller may have reset"

@@ -328,9 +328,11 @@ function showFlightStatus() {
 function relayText(t) {
   if (isPilot()) return t.relay.status;
   const c = t.commanded;
-  const doing = c.lock === "locked" ? "motors locked"
-    : !t.relay.moving ? "no thrust"
-      : c.lock === "unlocked" ? "flying" : "flying, if the motors are unlocked";
+  // (A lock the controller announced goes before the lock as this station sent it.)
+  const lock = c.heard_lock ?? c.lock;
+  const doing = lock === "locked" ? "motors locked"
+    : t.relay.moving ? (lock === "unlocked" ? "flying" : "flying, if the motors are unlocked")
+      : c.heard_lock ? `motors ${c.heard_lock} (${c.heard_lock_because})` : "no thrust";
   return `${doing}; ${t.pilot_label ? `${t.pilot_label} has control` : "nobody has control"}`;
 }
 
