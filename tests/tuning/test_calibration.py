@@ -16,9 +16,24 @@ from rovlink.tuning.calibration import CalibrationError, two_point
 def test_two_point_arithmetic() -> None:
     calibration = two_point(20.4, 95.0, 150)
     assert calibration.zero_raw == 20
-    assert calibration.k == round(150 * 100 / (95.0 - 20.4))
+    assert calibration.k == round(150 * 100 / (95.0 - 20))
     assert calibration.depth_for(95.0) == pytest.approx(150, abs=1)
     assert calibration.depth_for(0) == 0  # clamped, as P13 says
+
+
+@pytest.mark.parametrize("surface_raw", [20.0, 20.3, 20.5, 20.6, 20.9])
+@pytest.mark.parametrize(("counts", "depth_cm"), [(50.0, 100), (99.6, 200), (74.6, 150)])
+def test_the_calibration_reads_the_known_depth_at_its_reading(
+    surface_raw: float, counts: float, depth_cm: int
+) -> None:
+    # The zero the controller gets is whole: k is taken over the counts from it, so that only
+    # k's own rounding (half a hundredth of a cm per count) stands between the known depth and
+    # what the calibration gives there. Before, k came from the counts from the surface reading
+    # itself: 20.6 and 120.6 for 200 cm gave zero 21 and k 200, 199.2 cm at the known depth.
+    calibration = two_point(surface_raw, surface_raw + counts, depth_cm)
+    counts_from_zero = surface_raw + counts - calibration.zero_raw
+    given_cm = counts_from_zero * calibration.k / 100
+    assert abs(given_cm - depth_cm) <= counts_from_zero * 0.5 / 100 + 1e-9
 
 
 @pytest.mark.parametrize(

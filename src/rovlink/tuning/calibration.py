@@ -80,7 +80,10 @@ def two_point(
             "or check that the sensor reads more with depth"
         )
     zero = round(surface_raw)
-    k = round(depth_cm * 100 / counts)
+    # k over the counts from the zero the controller is given, not from the surface reading:
+    # the line through (zero, 0 cm) then passes through the known depth, where a k from the
+    # unrounded counts put it up to half a count off (a whole cm at 2 cm a count).
+    k = round(depth_cm * 100 / (depth_raw - zero))
     if k == 0:  # (sdk 0 is in range, but then every depth reads 0)
         raise CalibrationError(
             f"k would round to 0: {depth_cm} cm over {counts:g} counts is finer than sdk can "
