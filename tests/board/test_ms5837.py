@@ -11,7 +11,14 @@ from rovlink.board.pi.fake_bus import (
     FakeMs5837,
     ms5837_prom,
 )
-from rovlink.board.pi.ms5837 import Ms5837, Ms5837Model, Ms5837Reading, compensate, crc4
+from rovlink.board.pi.ms5837 import (
+    Ms5837,
+    Ms5837Model,
+    Ms5837Reading,
+    compensate,
+    crc4,
+    product_version,
+)
 from rovlink.board.sensors import SensorError
 
 
@@ -124,6 +131,68 @@ def test_a_prom_with_a_bad_crc4_is_refused(word: int) -> None:
     _, sensor, _bus = _sensor(model, fake)
     with pytest.raises(SensorError, match="CRC-4"):
         sensor.start()
+
+
+@pytest.mark.parametrize("word", [0x0000, 0xFFFF])
+def test_a_prom_that_reads_the_same_word_everywhere_is_refused_as_no_calibration(
+    word: int,
+) -> None:
+    # Seven zero words pass the CRC-4 (its remainder over zeros is 0): the sensor would start
+    # and read 0 mbar, blamed on the model setting. Seven 0xFFFF words fail it, as "corrupt".
+    assert crc4([0x0000] * 7) == 0
+    model = Ms5837Model.BA30
+    _, d1, d2 = MS5837_EXAMPLES[model]
+    _, sensor, _bus = _sensor(model, FakeMs5837([word] * 7, d1, d2, model))
+    with pytest.raises(SensorError, match=f"0x76: every PROM word reads {word:#06x}, no calib"):
+        sensor.start()
+    assert sensor.prom == ()
+
+
+def _prom_with_version(model: Ms5837Model, version: int) -> list[int]:
+    """The datasheet's example calibration, with ``version`` in word 0's bits 11–5 (its bits
+    4–0, factory data, at 0b10110) and the CRC-4 made to fit."""
+    return ms5837_prom(MS5837_EXAMPLES[model][0], factory_bits=version << 5 | 0b10110)
+
+
+@pytest.mark.parametrize(
+    ("fitted", "version", "configured", "part"),
+    [
+        # The datasheets' fixed product versions: 0011010 for the MS5837-30BA26 (a Bar30),
+        # 0010101 (21) for the MS5837-02BA21.
+        (Ms5837Model.BA30, 0b0011010, Ms5837Model.BA02, "MS5837-30BA26"),
+        (Ms5837Model.BA02, 0b0010101, Ms5837Model.BA30, "MS5837-02BA21"),
+    ],
+)
+def test_a_model_its_prom_contradicts_is_refused_naming_the_part_and_the_key(
+    fitted: Ms5837Model, version: int, configured: Ms5837Model, part: str
+) -> None:
+    _, d1, d2 = MS5837_EXAMPLES[fitted]
+    fake = FakeMs5837(_prom_with_version(fitted, version), d1, d2, fitted)
+    _, sensor, _bus = _sensor(configured, fake)
+    with pytest.raises(SensorError) as raised:
+        sensor.start()
+    assert str(raised.value) == (
+        f"MS5837 at 0x76: its PROM names it an {part} (product version {version:#04x} in word "
+        f'0), not the {configured} it is set to be: set [pressure.ms5837] model = "{fitted}"'
+    )
+
+
+@pytest.mark.parametrize(
+    ("fitted", "version"),
+    [
+        (Ms5837Model.BA30, 0b0011010),  # an MS5837-30BA26
+        (Ms5837Model.BA02, 0b0010101),  # an MS5837-02BA21
+        (Ms5837Model.BA30, 0),  # an older MS5837-30BA01: 0, as an MS5837-02BA01
+        (Ms5837Model.BA02, 0),
+        (Ms5837Model.BA30, 0b1111111),  # a version no datasheet lists
+    ],
+)
+def test_a_model_its_prom_names_or_cannot_tell_starts(fitted: Ms5837Model, version: int) -> None:
+    _, d1, d2 = MS5837_EXAMPLES[fitted]
+    fake = FakeMs5837(_prom_with_version(fitted, version), d1, d2, fitted)
+    _, sensor, _bus = _sensor(fitted, fake)
+    sensor.start()
+    assert product_version(sensor.prom[0]) == version
 
 
 def test_the_crc_ignores_its_own_nibble_and_sees_every_word() -> None:

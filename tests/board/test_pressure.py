@@ -7,7 +7,13 @@ import pytest
 from rovlink.board.board import BoardStartError
 from rovlink.board.pi.ads1115 import Ads1115, config_word
 from rovlink.board.pi.board import fake_bus_for, open_pi_board
-from rovlink.board.pi.fake_bus import FakeAds1115, FakeI2cBus, FakeMs5837
+from rovlink.board.pi.fake_bus import (
+    MS5837_EXAMPLES,
+    FakeAds1115,
+    FakeI2cBus,
+    FakeMs5837,
+    ms5837_prom,
+)
 from rovlink.board.pi.ms5837 import Ms5837Model
 from rovlink.board.pi.pressure import AnalogPressure, AnalogTransducer, RawScale
 from rovlink.board.sensors import SensorError
@@ -159,8 +165,9 @@ def test_the_depth_of_the_fake_ms5837_through_the_board_and_the_controller(
 
 
 def test_a_bar30_configured_as_a_bar02_is_refused_at_start_not_read_as_the_surface() -> None:
-    """The PROM cannot tell the models apart, and the 02BA's compensation makes a 30BA's
-    1013 mbar about 51 mbar: raw 0, `qd` 0 at any depth, a depth hold pushing down for ever.
+    """A PROM whose product version names no model (this fake's) cannot tell the models
+    apart, and the 02BA's compensation makes a 30BA's 1013 mbar about 51 mbar: raw 0, `qd` 0
+    at any depth, a depth hold pushing down for ever.
     No air or water is below 300 mbar, so such a reading is a fault, never a depth."""
     config = example_config(
         imu={"sensor": "none"}, leak={"pin": -1}, pressure={"ms5837": {"model": "02ba"}}
@@ -172,6 +179,26 @@ def test_a_bar30_configured_as_a_bar02_is_refused_at_start_not_read_as_the_surfa
         match=r"MS5837-02BA at 0x76: no reading at start: it reads 50\.\d+ mbar, below any "
         r"air or water \(300 mbar\): is \[pressure\.ms5837\] model right\? "
         r"\(30ba: Bar30, 02ba: Bar02\)",
+    ):
+        open_pi_board(config, bus=bus)
+    assert is_neutral(pulses(bus.snapshot()))
+
+
+def test_a_bar02_whose_prom_names_it_is_refused_at_start_as_a_bar30() -> None:
+    """Computed as a 30BA, an 02BA's 1013 mbar reads about 20 bar, a plausible depth: no
+    reading shows the mistake. An MS5837-02BA21 names itself in its PROM (product version 21 in
+    word 0's bits 11–5), so it is refused at start, naming the key to set."""
+    config = example_config(imu={"sensor": "none"}, leak={"pin": -1})  # model = "30ba"
+    coefficients, d1, d2 = MS5837_EXAMPLES[Ms5837Model.BA02]
+    fake = FakeMs5837(ms5837_prom(coefficients, factory_bits=21 << 5), d1, d2, Ms5837Model.BA02)
+    fake.set_reading(1013.25)
+    bus = fake_bus_for(config)
+    bus.devices[0x76] = fake
+    with pytest.raises(
+        BoardStartError,
+        match=r"^pressure sensor MS5837-30BA at 0x76 on I²C bus 1: MS5837 at 0x76: its PROM "
+        r"names it an MS5837-02BA21 \(product version 0x15 in word 0\), not the 30ba it is "
+        r'set to be: set \[pressure\.ms5837\] model = "02ba"$',
     ):
         open_pi_board(config, bus=bus)
     assert is_neutral(pulses(bus.snapshot()))

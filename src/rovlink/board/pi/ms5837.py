@@ -22,11 +22,13 @@ from rovlink.protocol.text_enum import StrEnum
 
 __all__ = [
     "OVERSAMPLING",
+    "PRODUCT_VERSIONS",
     "Ms5837",
     "Ms5837Model",
     "Ms5837Reading",
     "compensate",
     "crc4",
+    "product_version",
 ]
 
 _RESET = 0x1E
@@ -53,6 +55,24 @@ class Ms5837Model(StrEnum):
 
     BA30 = "30ba"  # 0–30 bar (Bar30)
     BA02 = "02ba"  # 0–2 bar (Bar02)
+
+
+#: Product versions (PROM word 0, bits 11–5) that name the model (TE's datasheets, "Version PROM
+#: Word 0 programming"; the MS5837-30BA26 is the Bar30's part). Version 0 is an MS5837-02BA01
+#: and an older MS5837-30BA01 alike, so it, like any version not listed, says nothing.
+PRODUCT_VERSIONS: dict[int, tuple[str, Ms5837Model]] = {
+    0x1A: ("MS5837-30BA26", Ms5837Model.BA30),
+    0x15: ("MS5837-02BA21", Ms5837Model.BA02),
+}
+
+
+def product_version(word0: int) -> int:
+    """The product version in PROM word 0 (bits 11–5).
+
+    >>> hex(product_version(0x7348))  # CRC 7, version 0x1A (an MS5837-30BA26), factory bits 8
+    '0x1a'
+    """
+    return (word0 >> 5) & 0x7F
 
 
 class Ms5837Reading(NamedTuple):
@@ -169,10 +189,21 @@ class Ms5837:
         self._cycle = _Cycle()
 
     def start(self) -> None:
-        """Reset the sensor and read its calibration; :class:`SensorError` on a bad CRC-4."""
+        """Reset the sensor and read its calibration; :class:`SensorError` on a bad CRC-4, or
+        when the PROM's product version names the other model."""
         self.bus.write(self.address, bytes([_RESET]))
         time.sleep(_RESET_S)
-        self.prom = self.read_prom()
+        prom = self.read_prom()
+        version = product_version(prom[0])
+        named = PRODUCT_VERSIONS.get(version)
+        if named is not None and named[1] is not self.model:
+            part, model = named
+            raise SensorError(
+                f"MS5837 at {self.address:#04x}: its PROM names it an {part} (product version "
+                f"{version:#04x} in word 0), not the {self.model} it is set to be: set "
+                f'[pressure.ms5837] model = "{model}"'
+            )
+        self.prom = prom
         self._cycle = _Cycle()
 
     def read_prom(self) -> tuple[int, ...]:
@@ -181,6 +212,13 @@ class Ms5837:
         for index in range(_PROM_WORDS):
             data = self.bus.write_read(self.address, bytes([_PROM_READ + 2 * index]), 2)
             words.append(int.from_bytes(data, "big"))
+        if len(set(words)) == 1:
+            # Seven zero words pass the CRC-4 (its remainder over zeros is 0) and compensate to
+            # 0 mbar: another device at this address, or a bus that reads a constant.
+            raise SensorError(
+                f"MS5837 at {self.address:#04x}: every PROM word reads {words[0]:#06x}, no "
+                "calibration: is an MS5837 at this address?"
+            )
         stored = words[0] >> 12
         computed = crc4(words)
         if stored != computed:

@@ -68,8 +68,9 @@ class Ms5837Pressure:
     """An MS5837 as the board's pressure source (raw scale).
 
     A reading below :data:`LEAST_PLAUSIBLE_MBAR` is a :class:`SensorError`, never a depth: the
-    PROM does not say which model the sensor is, and a Bar30 computed as a Bar02 reads about a
-    twentieth of its pressure, which the raw scale would clip to the surface at any depth.
+    PROM of many parts does not say which model the sensor is (see
+    :data:`~rovlink.board.pi.ms5837.PRODUCT_VERSIONS`), and a Bar30 computed as a Bar02 reads
+    about a twentieth of its pressure, which the raw scale would clip to the surface at any depth.
     """
 
     def __init__(self, sensor: Ms5837, scale: RawScale) -> None:
