@@ -272,6 +272,7 @@ def test_a_pressure_sensor_reset_mid_dive_costs_one_read_and_depth_comes_back() 
         ms5837.power_on_reset()  # the conversion under way is lost: the ADC read gives 0
         assert wait_until(lambda: rig.saw(b"conversion read as 0"))
         assert wait_until(lambda: sensor.total_failures == before + 1 and sensor.failures == 0)
+        assert ms5837.resets == 2  # at start, and the datasheet's reset after a power-on
         assert not rig.server.controller.locked  # one failed read: not stale
         assert rig.moving_as_commanded()
         ms5837.set_reading(1013.25 + 2.5 * 997.0 * 9.80665 / 100)  # 2.5 m (the example's water)

@@ -237,16 +237,48 @@ def test_the_read_waits_a_whole_conversion_after_the_convert_commands_write() ->
             assert started_s >= converted_s + sensor.conversion_s, (started_s, converted_s)
 
 
-def test_a_conversion_read_as_zero_is_an_error_and_the_cycle_restarts() -> None:
+def test_a_conversion_read_as_zero_sends_the_reset_and_restarts_the_cycle_after_it() -> None:
+    # A lost conversion, most likely a chip reset by a supply dip: the datasheet has the reset
+    # command sent after a power-on (it loads the PROM into the chip's registers), and it takes
+    # 2.8 ms, in which nothing else is sent.
+    fake, sensor, bus = _sensor(Ms5837Model.BA02)
+    sensor.start()
+    assert fake.resets == 1
+    _poll_at(sensor, bus, 0.0)
+    fake._converted = 0  # the conversion was lost (the datasheet's answer: 0)
+    with pytest.raises(SensorError, match=r"0x76: conversion read as 0"):
+        _poll_at(sensor, bus, 0.010)
+    assert fake.resets == 2
+    assert bus.transactions[-1].written == b"\x1e"
+    sent = len(bus.transactions)
+    assert _poll_at(sensor, bus, 0.0127) is None  # 2.7 ms after the reset: nothing sent
+    assert len(bus.transactions) == sent
+    assert _poll_at(sensor, bus, 0.0131) is None  # D1 again
+    assert bus.transactions[-1].written == b"\x48"
+    assert _poll_at(sensor, bus, 0.0231) is None
+    assert _poll_at(sensor, bus, 0.0331) == (1100.02, 20.00)
+
+
+def test_a_reset_that_fails_after_a_lost_conversion_starts_the_cycle_over() -> None:
     fake, sensor, bus = _sensor(Ms5837Model.BA02)
     sensor.start()
     _poll_at(sensor, bus, 0.0)
-    fake._converted = 0  # the conversion was lost (the datasheet's answer: 0)
+    fake._converted = 0
+    real_write = bus.write
+
+    def reset_fails(address: int, data: bytes) -> None:
+        if data == b"\x1e":
+            raise OSError(121, "no acknowledge")
+        real_write(address, data)
+
+    bus.write = reset_fails  # type: ignore[method-assign]
     with pytest.raises(SensorError, match="read as 0"):
         _poll_at(sensor, bus, 0.010)
-    assert _poll_at(sensor, bus, 0.011) is None  # D1 again
+    bus.write = real_write  # type: ignore[method-assign]
+    assert _poll_at(sensor, bus, 0.011) is None  # D1 at once: no reset to wait for
+    assert bus.transactions[-1].written == b"\x48"
     assert _poll_at(sensor, bus, 0.021) is None
-    assert _poll_at(sensor, bus, 0.031) is not None
+    assert _poll_at(sensor, bus, 0.031) == (1100.02, 20.00)
 
 
 def test_an_i2c_failure_surfaces_as_oserror() -> None:

@@ -369,15 +369,16 @@ class FakeMs5837:
         self.d1, self.d2 = d1, d2
 
     def power_on_reset(self) -> None:
-        """As after a supply dip: the chip reloads its PROM by itself and a conversion in
-        progress is lost, so the next ADC read gives 0 (datasheet)."""
+        """As after a supply dip: a conversion in progress is lost, so the next ADC read gives
+        0 (datasheet), after which the driver sends the reset command."""
         self._converted = 0
         self._answer = b""
 
     def write(self, data: bytes) -> None:
         command = data[0]
-        if command == 0x1E:
+        if command == 0x1E:  # a conversion under way is lost (datasheet)
             self.resets += 1
+            self._converted = 0
         elif 0xA0 <= command <= 0xAE:
             self._answer = self.prom[(command - 0xA0) // 2].to_bytes(2, "big")
         elif 0x40 <= command <= 0x4A:

@@ -18,6 +18,7 @@ from rovlink.board.board import MonotonicClock
 from rovlink.board.pi.i2c import I2cBus, check_address
 from rovlink.board.sensors import SensorError
 from rovlink.controller import Clock
+from rovlink.logs import get_logger
 from rovlink.protocol.text_enum import StrEnum
 
 __all__ = [
@@ -30,6 +31,8 @@ __all__ = [
     "crc4",
     "product_version",
 ]
+
+logger = get_logger(__name__)
 
 _RESET = 0x1E
 _ADC_READ = 0x00
@@ -153,7 +156,8 @@ def _second_order(model: Ms5837Model, dt: int, temp: int) -> tuple[int, int, int
 
 @dataclass
 class _Cycle:
-    """Where the D1/D2 cycle is: the conversion under way and when it is done."""
+    """Where the D1/D2 cycle is: the conversion under way (or none: after a reset), and when
+    it, or the reset, is done."""
 
     converting: int | None = None  # _CONVERT_D1 or _CONVERT_D2
     ready_s: float = 0.0
@@ -231,12 +235,15 @@ class Ms5837:
     def poll(self, now_s: float) -> Ms5837Reading | None:
         """Advance the D1/D2 cycle without waiting; a reading when a D1–D2 pair completes."""
         cycle = self._cycle
-        if cycle.converting is not None and now_s < cycle.ready_s:
+        if now_s < cycle.ready_s:
             return None
         reading = None
         if cycle.converting is not None:
             try:
                 value = self._read_adc()
+            except SensorError:
+                self._reset_after_lost_conversion()
+                raise
             except OSError:
                 self._cycle = _Cycle()  # start over with D1
                 raise
@@ -253,8 +260,29 @@ class Ms5837:
         cycle.ready_s = self._clock.now_s() + self.conversion_s
         return reading
 
+    def _reset_after_lost_conversion(self) -> None:
+        """Send the reset command, and start the next conversion (D1) once it is done.
+
+        A conversion read as 0 was lost: most likely the chip was reset by a supply dip, and
+        after a power-on the datasheet has the reset command sent, which loads the calibration
+        PROM into the chip's registers (and brings back a chip left in an unknown state). If
+        the command itself fails, the cycle starts over with D1 and the next lost conversion
+        tries again.
+        """
+        self._cycle = _Cycle()
+        try:
+            self.bus.write(self.address, bytes([_RESET]))
+        except OSError as error:
+            logger.debug(
+                "MS5837 at %#04x: reset after a lost conversion failed: %s", self.address, error
+            )
+            return
+        self._cycle = _Cycle(ready_s=self._clock.now_s() + _RESET_S)
+
     def _read_adc(self) -> int:
         value = int.from_bytes(self.bus.write_read(self.address, bytes([_ADC_READ]), 3), "big")
         if value == 0:  # the datasheet's answer to a read without a finished conversion
-            raise SensorError(f"MS5837 at {self.address:#04x}: conversion read as 0")
+            raise SensorError(
+                f"MS5837 at {self.address:#04x}: conversion read as 0 (lost; reset sent)"
+            )
         return value
