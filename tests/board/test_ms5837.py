@@ -259,6 +259,32 @@ def test_a_conversion_read_as_zero_sends_the_reset_and_restarts_the_cycle_after_
     assert _poll_at(sensor, bus, 0.0331) == (1100.02, 20.00)
 
 
+def test_a_temperature_outside_the_datasheets_range_is_a_corrupt_conversion() -> None:
+    # The 30BA example's D2 with its bit 23 set, as a bit flipped on a noisy bus would:
+    # dT = 15204022 − 26646·2⁸ = 8382646, TEMP = 2000 + 8382646·26146 / 2²³ = 28127
+    # (281.27 °C, outside TEMP's −4000…8500), and OFF = 36352·2¹⁶ + 22354·dT / 2⁷,
+    # SENS = 34982·2¹⁵ + 20328·dT / 2⁸, P = (D1·SENS / 2²¹ − OFF) / 2¹³ = 53407 (5340.7 mbar):
+    # 44 m of water, a plausible depth. Second order (TEMP ≥ 2000): Ti = 2·dT² / 2³⁷ = 1022,
+    # so the reading is 271.05 °C.
+    coefficients, d1, d2 = MS5837_EXAMPLES[Ms5837Model.BA30]
+    corrupt_d2 = d2 | 1 << 23
+    assert corrupt_d2 == 15204022
+    assert compensate(Ms5837Model.BA30, [0, *coefficients], d1, corrupt_d2, second_order=False) == (
+        5340.7,
+        281.27,
+    )
+    fake, sensor, bus = _sensor(Ms5837Model.BA30)
+    sensor.start()
+    fake.d2 = corrupt_d2
+    _poll_at(sensor, bus, 0.0)
+    _poll_at(sensor, bus, 0.010)
+    with pytest.raises(SensorError, match=r"0x76: it reads 271\.05 °C, outside the -40–85 °C"):
+        _poll_at(sensor, bus, 0.020)
+    fake.d2 = d2  # the next pair is whole: read as ever
+    assert _poll_at(sensor, bus, 0.030) is None
+    assert _poll_at(sensor, bus, 0.040) == (3999.8, 19.81)
+
+
 def test_a_reset_that_fails_after_a_lost_conversion_starts_the_cycle_over() -> None:
     fake, sensor, bus = _sensor(Ms5837Model.BA02)
     sensor.start()

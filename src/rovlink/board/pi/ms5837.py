@@ -42,6 +42,11 @@ _CONVERT_D2 = 0x50
 _PROM_WORDS = 7
 _RESET_S = 0.003  # reload of the PROM after a reset: 2.8 ms (datasheet)
 
+#: The range of TEMP in the datasheets' calculation (−4000 to 8500, in 0.01 °C): a reading
+#: outside it comes from a corrupt conversion.
+_MIN_C = -40.0
+_MAX_C = 85.0
+
 #: Oversampling ratio → (command offset, maximum conversion time, s) from the datasheet.
 OVERSAMPLING: dict[int, tuple[int, float]] = {
     256: (0x0, 0.00060),
@@ -258,6 +263,13 @@ class Ms5837:
         # From the write's end, not the period's start: the write (and this period's reads
         # before it) may take milliseconds, and a read before the conversion ends gives 0.
         cycle.ready_s = self._clock.now_s() + self.conversion_s
+        if reading is not None and not _MIN_C <= reading.temperature_c <= _MAX_C:
+            # A corrupt D2 (a bit lost on a noisy bus) shifts the pressure too, often to a
+            # plausible one; its temperature gives it away.
+            raise SensorError(
+                f"MS5837 at {self.address:#04x}: it reads {reading.temperature_c:g} °C, outside "
+                f"the {_MIN_C:g}–{_MAX_C:g} °C of its datasheet: a corrupt conversion"
+            )
         return reading
 
     def _reset_after_lost_conversion(self) -> None:
