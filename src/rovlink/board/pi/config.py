@@ -256,7 +256,11 @@ class Ms5837Config:
     address: int = field(default=0x76, metadata=_doc("I²C address (fixed at 0x76 on the chip)"))
     oversampling: int = field(
         default=4096,
-        metadata=_doc("oversampling ratio: " + ", ".join(map(str, OVERSAMPLING))),
+        metadata=_doc(
+            "oversampling ratio: "
+            + ", ".join(map(str, OVERSAMPLING))
+            + " (the MS5837-30BA26's datasheet, the Bar30's part, stops at 4096)"
+        ),
     )
 
     def __post_init__(self) -> None:
