@@ -59,6 +59,28 @@ def test_an_attitude_that_is_not_a_number_is_a_sensor_error() -> None:
         imu.poll(0.0)
 
 
+def test_an_attitude_outside_the_datasheets_ranges_is_a_corrupt_read() -> None:
+    fake, _, imu = _started()  # (one chip for every case: its start takes 0.7 s)
+    # The datasheet's ranges (table 3-13): heading 0–360°, roll ±90°, pitch ±180°. A heading of
+    # −100° (raw −1600) would have passed as 260° once wrapped.
+    cases = [
+        (2.0, -1.0, -100.0),
+        (90.0625, -1.0, 90.0),
+        (-90.0625, -1.0, 90.0),
+        (2.0, 180.0625, 90.0),
+        (2.0, -180.0625, 90.0),
+        (2.0, -1.0, 360.0625),
+    ]
+    for number, (roll_deg, pitch_deg, heading_deg) in enumerate(cases):
+        fake.set_attitude(roll_deg, pitch_deg, heading_deg)
+        with pytest.raises(SensorError, match=r"BNO055 at 0x28: heading .* a corrupt read"):
+            imu.poll(float(number))
+    fake.set_attitude(90.0, -180.0, 360.0)  # the ranges' ends are attitudes
+    attitude = imu.poll(10.0)
+    assert attitude is not None
+    assert (attitude.roll_deg, attitude.pitch_deg, attitude.heading_deg) == (90.0, -180.0, 0.0)
+
+
 def test_a_bno055_reset_is_put_back_into_fusion_with_its_placement() -> None:
     """A reset (a supply dip, the chip's own watchdog) brings the chip back in config mode with
     the default axis map: no attitude, for ever, and the stale-IMU failsafe would keep the motors

@@ -122,6 +122,13 @@ class Bno055Imu:
         heading, roll, pitch = self._sensor.euler
         if roll is None or pitch is None or heading is None:
             self._out_of_fusion(now_s)
+        if not (0.0 <= heading <= 360.0 and -90.0 <= roll <= 90.0 and -180.0 <= pitch <= 180.0):
+            # Outside the datasheet's ranges: a corrupt read (on a Pi 3/4's I²C, a byte
+            # misread while the chip stretched the clock), never an attitude.
+            raise SensorError(
+                f"BNO055 at {self.address:#04x}: heading {heading:g}°, roll {roll:g}°, pitch "
+                f"{pitch:g}° are outside the datasheet's 0–360°, ±90°, ±180°: a corrupt read"
+            )
         return finite_attitude(
             self._roll_sign * roll,
             self._pitch_sign * pitch,
