@@ -629,6 +629,25 @@ def test_the_leak_alarm_stays_while_no_reading_says_the_latch_is_clear(browser, 
     page.context.close()
 
 
+def test_a_watcher_is_told_the_robot_holds_a_depth_not_that_it_has_no_thrust(
+    browser, station, line
+):
+    pilot = open_page(browser, station, pad=False)
+    take_control(pilot)
+    pilot.click("#unlock")
+    line.wait_for("#start!")
+    pilot.fill("#target-depth", "150")
+    pilot.press("#target-depth", "Enter")
+    line.wait_for("#mvd.150!")
+    watcher = open_page(browser, station, pad=False)
+    # (Before: "no thrust", while the depth hold drove the vertical thrusters.)
+    watcher.wait_for_selector("#relay-state:text-matches('^holding 150 cm; .* has control$')")
+    pilot.click("#stop")
+    watcher.wait_for_selector("#relay-state:text-matches('^motors locked; ')")
+    watcher.context.close()
+    pilot.context.close()
+
+
 def test_a_second_browser_cannot_command(browser, station, line):
     pilot = open_page(browser, station)
     # Nobody has control: the relay row says so, not the pilot's "release the dead-man to arm".

@@ -330,9 +330,15 @@ function relayText(t) {
   const c = t.commanded;
   // (A lock the controller announced goes before the lock as this station sent it.)
   const lock = c.heard_lock ?? c.lock;
+  // With no motion relayed, a depth hold still drives the vertical thrusters.
+  const holding = c.vertical_mode === "direct" ? null
+    : c.target_depth_cm !== null ? `holding ${c.target_depth_cm} cm`
+      : c.holding_entry_depth ? "holding its depth on entry" : null;
   const doing = lock === "locked" ? "motors locked"
     : t.relay.moving ? (lock === "unlocked" ? "flying" : "flying, if the motors are unlocked")
-      : c.heard_lock ? `motors ${c.heard_lock} (${c.heard_lock_because})` : "no thrust";
+      : c.heard_lock ? `motors ${c.heard_lock} (${c.heard_lock_because})`
+        : holding === null ? "no thrust"
+          : lock === "unlocked" ? holding : `${holding}, if the motors are unlocked`;
   return `${doing}; ${t.pilot_label ? `${t.pilot_label} has control` : "nobody has control"}`;
 }
 
