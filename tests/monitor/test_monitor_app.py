@@ -21,6 +21,7 @@ from rovlink.cli.monitor import build_app
 from rovlink.client.links import Link
 from rovlink.client.options import StrayCallback
 from rovlink.monitor.app import MonitorApp
+from rovlink.piloting.tracked import STOP_KEPT_NOTICE, STOP_UNSENT_NOTICE
 from rovlink.protocol import Text as DebugText
 from tests.client.conftest import (
     CONDITION_TIMEOUT_S,
@@ -531,3 +532,50 @@ async def test_at_80_by_24_a_link_being_reopened_says_so_and_keeps_its_error_cou
         assert "errors     timeouts 0 · retries 0 · checksum errors 0 · failed polls" in screen
         await pilot.press("q")
     port.close()
+
+
+@pytest.mark.integration
+async def test_a_stop_while_the_link_is_down_says_it_is_kept_and_leaving_says_it_never_went() -> (
+    None
+):
+    # Before, space with the link down changed nothing on screen (the box still read "unlocked",
+    # last sent the motion) and q left without a word: the #stop! had gone nowhere.
+    port = FakeControllerServer()
+    args = build_parser("monitor").parse_args(
+        ["monitor", port.url, "--boot-timeout", "0", "--rate", "20"]
+    )
+    app = build_app(args)
+    notified = _record_notifications(app)
+    async with app.run_test(size=SIZE) as pilot:
+        await until(lambda: _depth_shown(app) == 123)
+        await pilot.press("s", "up")
+        await until(lambda: "#th.0.10!" in port.fakes[0].frames())
+        port.refuse = True  # (unplugged, and not yet plugged back)
+        port.fakes[0].close()
+        await until(lambda: "lost, reopening it" in shown(app, "#link"))
+        await pilot.press("space")
+        await until(lambda: STOP_KEPT_NOTICE in notified)
+        assert app.stop_unsent is None
+        await pilot.press("q")
+    assert app.stop_unsent == STOP_UNSENT_NOTICE
+    port.close()
+
+
+def test_leaving_with_the_link_down_is_said_on_stderr(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # The dashboard is gone by then: the line goes where a terminal keeps it.
+    run_async = MonitorApp.run_async
+
+    async def headless(self: MonitorApp, **options: object) -> None:
+        async def drive(pilot: Pilot[object]) -> None:
+            await until(lambda: self.readings.latest is not None)
+            self.stop_unsent = STOP_UNSENT_NOTICE  # (as leaving with the link down sets it)
+            await pilot.press("q")
+
+        await run_async(self, headless=True, size=SIZE, auto_pilot=drive)
+
+    monkeypatch.setattr(MonitorApp, "run_async", headless)
+    monkeypatch.setattr(cli_monitor, "missing_terminal", lambda: None)  # (drawn headless)
+    assert main(["monitor", "sim://?seed=1", "--rate", "20"]) == 0
+    assert capsys.readouterr().err == f"rovlink monitor: {STOP_UNSENT_NOTICE}\n"

@@ -388,6 +388,8 @@ async def _run_connected(
     finally:
         if not runner.done():
             runner.cancel()
+        if not engine.left and _stop_wanted(rov) and rov.link_down:
+            engine.say_stop_unsent()  # (ended by a signal or an error, with the link down)
         await _stop_unless_locked(rov)
         await rov.close()
     if refused is not None:
@@ -401,7 +403,12 @@ _STOP_WRITE_TIMEOUT_S = 1.0
 async def _stop_unless_locked(rov: TrackedClient) -> None:
     """``#stop!`` on the way out unless the motors are locked as last sent: leaving by
     ``quit`` has sent it already; leaving by Ctrl-C (SIGINT) or an error has not."""
-    if rov.client.closed or rov.commanded.sent_lock is LockState.LOCKED:
+    if not _stop_wanted(rov):
         return
     with contextlib.suppress(ClientError, TimeoutError, ConnectionError):
         await asyncio.wait_for(rov.stop(), _STOP_WRITE_TIMEOUT_S)
+
+
+def _stop_wanted(rov: TrackedClient) -> bool:
+    """Whether leaving sends ``#stop!``: the link is open and not locked as last sent."""
+    return not rov.client.closed and rov.commanded.sent_lock is not LockState.LOCKED

@@ -45,7 +45,7 @@ from rovlink.monitor.panels import (
 )
 from rovlink.monitor.readings import DEFAULT_WINDOW_S, Readings
 from rovlink.piloting import LockState, SentFrame, TrackedClient
-from rovlink.piloting.tracked import REOPENED_NOTICE
+from rovlink.piloting.tracked import REOPENED_NOTICE, STOP_KEPT_NOTICE, STOP_UNSENT_NOTICE
 from rovlink.protocol import BadFrame, Command, Event
 from rovlink.protocol import Text as DebugText
 from rovlink.protocol.announcements import Announcement
@@ -228,6 +228,9 @@ class MonitorApp(App[None]):
         self.sub_title = description
         self._link_state = "connecting…"
         self._last_message = ""
+        #: Set when the monitor left, unlocked, with the link down: what to say of the
+        #: ``#stop!`` that never went (the dashboard is gone by then: the command says it).
+        self.stop_unsent: str | None = None
         self._depth_readout: Text | None = None
         # Written to stderr, the library's warnings would land over the dashboard's screen.
         self._warnings = WarningsShownBy(self._notify_warning)
@@ -347,9 +350,16 @@ class MonitorApp(App[None]):
             # Leaving any other way than q (SIGINT, SIGTERM, an error) cancels this loop:
             # the robot this monitor may have moved is stopped on the way out.
             if not client.closed and rov.commanded.sent_lock is not LockState.LOCKED:
+                self._note_stop_unsent(rov)
                 with contextlib.suppress(ClientError, TimeoutError, ConnectionError):
                     await asyncio.wait_for(rov.stop(), _STOP_WRITE_TIMEOUT_S)
             self._redraw()
+
+    def _note_stop_unsent(self, rov: TrackedClient) -> None:
+        """Leaving with the link down: the ``#stop!`` is only kept for a link that will not be
+        reopened now."""
+        if rov.link_down:
+            self.stop_unsent = STOP_UNSENT_NOTICE
 
     def _on_event(self, event: Event) -> None:
         if isinstance(event, DebugText):
@@ -487,8 +497,11 @@ class MonitorApp(App[None]):
         self._redraw()
 
     async def action_stop(self) -> None:
-        """``#stop!``: all motors off, locked."""
+        """``#stop!``: all motors off, locked (with the link down: kept, and said so)."""
         await self._send(Command("stop"))
+        rov = self.rov
+        if rov is not None and rov.link_down and not rov.client.closed:
+            self.notify(STOP_KEPT_NOTICE, title="#stop! not sent yet", severity="error", timeout=10)
 
     async def action_start(self) -> None:
         """``#start!``: unlock."""
@@ -527,6 +540,7 @@ class MonitorApp(App[None]):
         rov = self.rov
         if rov is not None and not rov.client.closed:
             if rov.commanded.sent_lock is not LockState.LOCKED:
+                self._note_stop_unsent(rov)
                 await self._send(Command("stop"))
             await rov.close()  # (a poll waiting for its reply does not hold the exit up)
         self.exit()
