@@ -25,7 +25,7 @@ from prompt_toolkit.history import FileHistory, History, InMemoryHistory
 from prompt_toolkit.key_binding import KeyBindings, KeyPressEvent
 from prompt_toolkit.output import DummyOutput
 from prompt_toolkit.styles import Style
-from prompt_toolkit.utils import is_dumb_terminal
+from prompt_toolkit.utils import get_cwidth, is_dumb_terminal
 from prompt_toolkit.validation import ValidationError, Validator
 
 from rovlink.aio import AsyncClient
@@ -181,11 +181,16 @@ def _toolbar(rov: TrackedClient, queued: int) -> StyleAndTextTuples:
     width = app.output.get_size().columns if app else _TOOLBAR_WIDTH
     # (On the cursor's line: lines pasted at once are each a line of their own.)
     hint = argument_hint(app.current_buffer.document.current_line_before_cursor) if app else None
+    refused = app.current_buffer.validation_error if app else None
     help_line: StyleAndTextTuples = (
         [("", "Tab completes · 'help' lists commands · 'help th' shows one · Ctrl-D quits")]
         if hint is None
         else [("class:toolbar.hint", hint.text())]
     )
+    if refused is not None and get_cwidth(refused.message) >= width:
+        # Its own row (prompt_toolkit's, one row high) cuts it at the edge, and with it the
+        # value refused: here it is wrapped, whole.
+        help_line = [("class:toolbar.bad", refused.message)]
     # A part that would run past the edge goes on the next line: cut, the link's state (at the
     # end) was what went first, at 80 columns.
     status = _fitted([("class:toolbar.stop", f" {STOP_KEY_TEXT}: STOP ")], parts, width)
