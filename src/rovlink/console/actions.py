@@ -28,6 +28,9 @@ __all__ = [
 ]
 
 _WORD = re.compile(r"[^\s,]+")
+#: A whole frame, as copied from a capture or a log: several on a line run one after another.
+_FRAME = re.compile(r"#[^#!\s]*!")
+_FRAMES_ONLY = re.compile(r"\s*(?:#[^#!\s]*!\s*){2,}")
 
 
 @dataclass(frozen=True, slots=True)
@@ -134,8 +137,9 @@ def parse_line(line: str, checksum: str | None = None) -> Action | None:
 
 def parse_lines(text: str, checksum: str | None = None) -> list[Action]:
     """The actions of every line of ``text``, in order: pasted lines run one after another, as
-    if typed one by one. All are checked before any runs: one bad line refuses the whole text,
-    its error naming the line and pointing into it.
+    if typed one by one, and so do the frames of a line of frames alone (``#start!#qd!``).
+    All are checked before any runs: one bad line refuses the whole text, its error naming the
+    line and pointing into it.
 
     >>> parse_lines("start\\nth 0 50\\n\\nqd")  # doctest: +NORMALIZE_WHITESPACE
     [SendCommand(command=Command(name='start', values=())),
@@ -152,15 +156,24 @@ def parse_lines(text: str, checksum: str | None = None) -> list[Action]:
     actions: list[Action] = []
     offset = 0
     for number, line in enumerate(lines, start=1):
-        try:
-            action = parse_line(line.removesuffix("\r"), checksum)
-        except InputError as error:
-            message = f"line {number}: {error.message}" if several else error.message
-            raise InputError(message, offset + error.position) from None
-        if action is not None:
-            actions.append(action)
+        for start, part in _parts(line.removesuffix("\r")):
+            try:
+                action = parse_line(part, checksum)
+            except InputError as error:
+                message = f"line {number}: {error.message}" if several else error.message
+                raise InputError(message, offset + start + error.position) from None
+            if action is not None:
+                actions.append(action)
         offset += len(line) + 1
     return actions
+
+
+def _parts(line: str) -> list[tuple[int, str]]:
+    """The line, or each frame of a line of frames alone (``#start!#th.90.30!``), with where
+    in the line it starts."""
+    if _FRAMES_ONLY.fullmatch(line) is None:
+        return [(0, line)]
+    return [(frame.start(), frame.group()) for frame in _FRAME.finditer(line)]
 
 
 def _checksummed_frame(line: str, algorithm: str) -> Command | None:
