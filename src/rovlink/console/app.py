@@ -36,10 +36,10 @@ from rovlink.console.actions import InputError, Quit, parse_lines
 from rovlink.console.completion import argument_hint, suggestions
 from rovlink.console.engine import ConsoleEngine
 from rovlink.console.help import STOP_KEY_TEXT
-from rovlink.console.no_suspend import suspension_refused
 from rovlink.console.transcript import Line, error_line, info_line
 from rovlink.logs import WarningsShownBy
 from rovlink.piloting import LockState, TrackedClient
+from rovlink.piloting.no_suspend import suspension_refused
 from rovlink.piloting.tracked import LEAVING_REPLY_WAIT_S
 from rovlink.protocol.visible import visible
 

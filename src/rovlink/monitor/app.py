@@ -45,6 +45,7 @@ from rovlink.monitor.panels import (
 )
 from rovlink.monitor.readings import DEFAULT_WINDOW_S, Readings
 from rovlink.piloting import LockState, SentFrame, TrackedClient
+from rovlink.piloting.no_suspend import suspension_refused
 from rovlink.piloting.tracked import REOPENED_NOTICE, STOP_KEPT_NOTICE, STOP_UNSENT_NOTICE
 from rovlink.protocol import BadFrame, Command, Event
 from rovlink.protocol import Text as DebugText
@@ -70,6 +71,11 @@ WIDE_MIN_SIZE = (NARROW_BELOW_COLUMNS, 19)
 #: Rows the chart's box needs to draw something: its border, two rows of plot, the axis and the
 #: time labels.
 _CHART_MIN_ROWS = 6
+#: What SIGTSTP (a Ctrl-Z where the terminal's signal keys are on, ``kill -TSTP``) does.
+NO_SUSPEND_TEXT = (
+    "SIGTSTP does not suspend the monitor (the robot would go on unattended): space stops it,"
+    " q quits"
+)
 #: The boxes that show a sensor reading: each is marked when the reading is stale.
 _READING_BOXES = ("#depth-box", "#attitude", "#leak")
 
@@ -235,6 +241,7 @@ class MonitorApp(App[None]):
         # Written to stderr, the library's warnings would land over the dashboard's screen.
         self._warnings = WarningsShownBy(self._notify_warning)
         self._warnings_loop: asyncio.AbstractEventLoop | None = None
+        self._no_suspend = contextlib.ExitStack()
 
     # -- layout ---------------------------------------------------------------------------------
 
@@ -266,6 +273,11 @@ class MonitorApp(App[None]):
         self._fit_size(self.size.width, self.size.height)
         self._warnings_loop = asyncio.get_running_loop()
         self._warnings.attach()
+        # (Here, once textual's driver has put in its own SIGTSTP handler, which stops the
+        # process: a stopped dashboard could not stop the robot.)
+        self._no_suspend.enter_context(
+            suspension_refused(lambda: self.notify(NO_SUSPEND_TEXT, severity="warning"))
+        )
         self.run_worker(self._link_loop(), name="link", group="link", exclusive=True)
         self.set_interval(_REDRAW_S, self._redraw)
 
@@ -290,6 +302,7 @@ class MonitorApp(App[None]):
     def on_unmount(self) -> None:
         """Warnings go where they went before (stderr) once the dashboard is gone."""
         self._warnings.detach()
+        self._no_suspend.close()
 
     def _notify_warning(self, message: str, level: int) -> None:
         severity: Literal["warning", "error"] = "error" if level >= logging.ERROR else "warning"
