@@ -202,3 +202,15 @@ async def test_at_40_columns_a_refused_line_s_message_is_shown_whole(tmp_path: P
         await terminal.wait_shown(r"got\s*400")
         terminal.type("\x03" + CTRL_D)
         await terminal.finish()
+
+
+async def test_a_refused_value_thousands_of_digits_long_takes_three_toolbar_rows(
+    tmp_path: Path,
+) -> None:
+    # The message names the value refused, whole: wrapped whole in the toolbar it took every row
+    # of the screen; three rows, the last cut with "…".
+    async with _console_on_a_terminal(tmp_path, columns=60, rows=30) as terminal:
+        terminal.type(f"th {'1' * 400} 5\r")
+        await terminal.wait_shown(r"got 1+\s+1+\s+…")
+        terminal.type("\x03" + CTRL_D)
+        await terminal.finish()

@@ -221,11 +221,18 @@ def _fitted(
 
 
 def _wrapped(line: StyleAndTextTuples, width: int) -> StyleAndTextTuples:
-    """``line`` (one style) broken between words to lines of less than ``width`` columns."""
+    """``line`` (one style) broken between words to lines of less than ``width`` columns, at
+    most ``_TOOLBAR_HELP_ROWS`` of them (a refused value may be thousands of digits long)."""
     style = line[0][0]
     text = "".join(text for _, text, *_ in line)
-    lines = textwrap.wrap(text, max(width - 2, 10)) or [""]
+    lines = textwrap.wrap(
+        text, max(width - 2, 10), max_lines=_TOOLBAR_HELP_ROWS, placeholder=" …"
+    ) or [""]
     return [(style, " " + "\n ".join(lines))]
+
+
+#: The most rows the toolbar's second part (the hint, or a refused line's message) takes.
+_TOOLBAR_HELP_ROWS = 3
 
 
 def _print(line: Line) -> None:
