@@ -22,6 +22,7 @@ from rovlink.client.links import Link
 from rovlink.client.options import StrayCallback
 from rovlink.monitor.app import MonitorApp
 from rovlink.piloting.tracked import STOP_KEPT_NOTICE, STOP_UNSENT_NOTICE
+from rovlink.protocol import BadFrame, Reason
 from rovlink.protocol import Text as DebugText
 from tests.client.conftest import (
     CONDITION_TIMEOUT_S,
@@ -109,6 +110,23 @@ async def test_controller_text_shows_its_control_characters_escaped() -> None:
         strays[0](DebugText("\x1b[31mRED\x07"))
         await until(lambda: "\\x1b[31mRED\\x07" in shown(app, "#commanded"))
         assert "\x1b" not in shown(app, "#commanded")
+        await pilot.press("q")
+
+
+async def test_a_dropped_reply_is_shown_as_the_controller_wrote_it() -> None:
+    # Before, as Python wrote the bytes: "dropped reply b'$qd.12X!': …".
+    rig = Rig.simulated()
+    strays: list[StrayCallback] = []
+
+    async def connect(on_stray: StrayCallback) -> AsyncClient:
+        strays.append(on_stray)
+        return await rig.connect(on_stray)
+
+    app = MonitorApp(connect, description="bench", rate_hz=20)
+    async with app.run_test(size=(140, 34)) as pilot:
+        await until(lambda: _depth_shown(app) == 0)
+        strays[0](BadFrame(Reason.MALFORMED, b"$qd.1\x1b2!", "not a number"))
+        await until(lambda: "dropped reply $qd.1\\x1b2!: not a number" in shown(app, "#commanded"))
         await pilot.press("q")
 
 

@@ -378,7 +378,8 @@ class MonitorApp(App[None]):
         if isinstance(event, DebugText):
             self._last_message = visible(event.text)
         elif isinstance(event, BadFrame):
-            self._last_message = f"dropped reply {event.raw!r}: {event.detail}"
+            raw = visible(event.raw.decode("ascii", errors="backslashreplace"))
+            self._last_message = f"dropped reply {raw}: {event.detail}"
 
     def _on_client_event(self, event: ClientEvent) -> None:
         if isinstance(event, LinkState) and event.state == "reconnected":
