@@ -8,6 +8,7 @@ It needs a terminal: its keys come from standard input, its dashboard goes to st
 from __future__ import annotations
 
 import argparse
+import contextlib
 import errno
 import sys
 from typing import TYPE_CHECKING, TextIO
@@ -180,7 +181,8 @@ async def _connect_then_show(args: argparse.Namespace) -> None:
                 await app.run_async()
             finally:
                 if app.stop_unsent is not None:  # (once the dashboard has left the terminal)
-                    print(f"rovlink monitor: {app.stop_unsent}", file=sys.stderr)
+                    with contextlib.suppress(OSError):  # (a terminal that hung up)
+                        print(f"rovlink monitor: {app.stop_unsent}", file=sys.stderr)
         finally:
             if not client.closed:
                 await client.close()

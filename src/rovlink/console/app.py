@@ -400,10 +400,13 @@ async def _run_connected(
     finally:
         if not runner.done():
             runner.cancel()
-        if not engine.left and _stop_wanted(rov) and rov.link_down:
-            engine.say_stop_unsent()  # (ended by a signal or an error, with the link down)
+        # Ended by a signal or an error with the link down: said once the rest is done (the
+        # terminal may be the one that hung up).
+        unsent = not engine.left and _stop_wanted(rov) and rov.link_down
         await _stop_unless_locked(rov)
         await rov.close()
+        if unsent:
+            engine.say_stop_unsent()
     if refused is not None:
         raise refused
 
