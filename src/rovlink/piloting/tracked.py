@@ -43,7 +43,7 @@ REOPENED_NOTICE = (
 
 #: What a tool says of a #stop! asked for while the link is down: it is not on the wire yet.
 STOP_KEPT_NOTICE = (
-    "link lost: #stop! goes first when the link is reopened; until then the controller's"
+    "link lost: #stop! is sent as soon as the link is reopened; until then the controller's"
     " link-loss failsafe (P17) is what stops the motors"
 )
 
