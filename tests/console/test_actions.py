@@ -167,3 +167,18 @@ def test_frames_pasted_on_one_line_run_one_after_another() -> None:
     assert text[refused.value.position :].startswith("400.30!")
     with pytest.raises(InputError, match="must end with '!'"):  # (not frames, each whole)
         parse_line("#start!#th.90.30")
+
+
+@pytest.mark.parametrize(
+    ("line", "culprit"),
+    [("#qd!$qd.5!", "$qd.5!"), ("#qd!!", "!"), ("##qd!", "#"), ("#th.90.30!junk", "junk")],
+)
+def test_a_line_of_frames_with_something_else_in_it_points_at_what_is_not_a_frame(
+    line: str, culprit: str
+) -> None:
+    # Before, "one frame at a time: '#qd!$qd.5!' holds more than one", the cursor at the start
+    # (and in a console that runs several frames on a line).
+    with pytest.raises(InputError) as refused:
+        parse_lines(line)
+    assert refused.value.message.startswith(f"not a whole frame: {culprit!r}")
+    assert line[refused.value.position :].startswith(culprit)

@@ -170,10 +170,33 @@ def parse_lines(text: str, checksum: str | None = None) -> list[Action]:
 
 def _parts(line: str) -> list[tuple[int, str]]:
     """The line, or each frame of a line of frames alone (``#start!#th.90.30!``), with where
-    in the line it starts."""
-    if _FRAMES_ONLY.fullmatch(line) is None:
+    in the line it starts. A line that begins with a whole frame and goes on with something
+    else (``#qd!$qd.5!``, ``#qd!!``) is refused, pointing at what is not a frame."""
+    if _FRAMES_ONLY.fullmatch(line) is not None:
+        return [(frame.start(), frame.group()) for frame in _FRAME.finditer(line)]
+    first = _FRAME.search(line)
+    if first is None:
         return [(0, line)]
-    return [(frame.start(), frame.group()) for frame in _FRAME.finditer(line)]
+    before = line[: first.start()]
+    if before.strip():
+        if not before.lstrip().startswith("#"):  # (words: the command parser says what is wrong)
+            return [(0, line)]
+        position = len(before) - len(before.lstrip())  # (##qd!, #th.90 #qd!)
+        raise InputError(_not_a_frame(before.split(maxsplit=1)[0]), position)
+    if not line[first.end() :].strip():
+        return [(0, line)]
+    frames_end = first.end()
+    for frame in _FRAME.finditer(line, first.end()):
+        if line[frames_end : frame.start()].strip():
+            break
+        frames_end = frame.end()
+    rest = line[frames_end:]
+    position = frames_end + len(rest) - len(rest.lstrip())
+    raise InputError(_not_a_frame(line[position:].split(maxsplit=1)[0]), position)
+
+
+def _not_a_frame(text: str) -> str:
+    return f"not a whole frame: {text!r} (frames on one line are each #…!, e.g. #start!#qd!)"
 
 
 def _checksummed_frame(line: str, algorithm: str) -> Command | None:
