@@ -236,6 +236,23 @@ async def test_a_silent_link_degrades_link_health_while_keys_still_work() -> Non
     silent.close()
 
 
+async def test_a_depth_key_with_no_depth_reading_sends_no_target() -> None:
+    # Before, PgDn with no reading yet (a silent sensor link) sent #mvd.10!: the step was taken
+    # from 0 cm, and a robot at 3 m rose to 10 cm.
+    silent = SilentController()
+    app = _silent_app(silent, reply_timeout_s=NO_REPLY_TIMEOUT_S)
+    notified = _record_notifications(app)
+    async with app.run_test(size=SIZE) as pilot:
+        await until(lambda: "no reply" in shown(app, "#link"))
+        await pilot.press("s", "pagedown", "pageup")
+        await until(lambda: b"#start!" in silent.received)
+        await until(lambda: len([text for text in notified if "no depth reading" in text]) == 2)
+        assert b"#mvd." not in silent.received
+        assert b"#mvdirect." not in silent.received
+        await pilot.press("q")
+    silent.close()
+
+
 async def test_a_failed_connection_is_shown_and_q_still_quits() -> None:
     async def connect(on_stray: StrayCallback) -> AsyncClient:
         raise ConnectionRefusedError("nothing listening")

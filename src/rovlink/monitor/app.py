@@ -535,11 +535,14 @@ class MonitorApp(App[None]):
         """``mvd`` with the target moved by ``step_cm`` (after ``mvdirect 0`` if needed)."""
         if self.rov is not None:
             reading = self.readings.latest
-            await self._send(
-                *controls.change_depth_target(
+            try:
+                commands = controls.change_depth_target(
                     self.rov.commanded, reading.depth_cm if reading else None, step_cm
                 )
-            )
+            except controls.NoDepthReadingError as error:
+                self.notify(str(error), title="nothing sent", severity="warning")
+                return
+            await self._send(*commands)
 
     async def action_claw(self, frame_name: str) -> None:
         """``#h+!`` or ``#h-!``: one claw pulse."""
