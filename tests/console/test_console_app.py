@@ -231,7 +231,8 @@ def test_cli_console_on_sim(
     frames = link.frames()
     assert (frames[0], frames[-1]) == ("#crcoff!", "#stop!")
     assert "#qd!" in frames
-    assert "qd" in (tmp_path / "rovlink" / "console_history").read_text()
+    # The history is kept there (made at the start), but not the lines of a pipe: none typed.
+    assert (tmp_path / "rovlink" / "console_history").read_text() == ""
 
 
 def test_cli_console_refuses_a_bad_url(capsys: pytest.CaptureFixture[str]) -> None:
@@ -537,3 +538,20 @@ async def test_a_stop_while_the_link_is_down_says_it_is_kept_and_leaving_says_it
         assert term.shown().count(STOP_UNSENT_NOTICE) == 1
         assert "leaving: sending #stop!" not in term.shown()
     port.close()
+
+
+async def test_lines_read_from_a_file_are_kept_out_of_the_typed_history(tmp_path: Path) -> None:
+    # Before, every line of `rovlink console < dive.txt` went into the history the pilot's
+    # up arrow walks through, hundreds of lines of a script among the lines typed.
+    history = tmp_path / "history"
+    history.write_text("\n# 2026-01-01 00:00:00\n+qhe\n", encoding="utf-8")
+    rig = Rig.simulated()
+    screen = io.StringIO()
+    with create_pipe_input() as keys, create_app_session(input=keys, output=create_output(screen)):
+        keys.send_text("start\rqd\rstop\r")
+        keys.close()  # (the end of the file)
+        await asyncio.wait_for(
+            run_console(rig.connect, history_path=history, from_terminal=False), 5
+        )
+    assert rig.frames()[-3:] == ["#start!", "#qd!", "#stop!"]
+    assert history.read_text(encoding="utf-8") == "\n# 2026-01-01 00:00:00\n+qhe\n"

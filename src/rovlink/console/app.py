@@ -250,7 +250,8 @@ async def run_console(
 ) -> None:
     """Connect and run the console until ``quit`` or Ctrl-D; the client is closed on the way out.
 
-    ``history_path`` keeps the input history between sessions (``None``: this session only).
+    ``history_path`` keeps the lines typed between sessions (``None``: this session only);
+    lines read from a file or a pipe are not kept.
     ``from_terminal``: the lines are typed at a terminal, where ``quit`` and Ctrl-D leave at
     once; ``False`` (lines read from a file or a pipe), they run in order, each to its end, and
     when the output is not a terminal either (a file, a pipe) it is their replies alone: no
@@ -314,7 +315,7 @@ async def _run_connected(
     # dumb terminal (which cannot show the message under the line).
     check_in_place = from_terminal and not is_dumb_terminal()
     history: History = InMemoryHistory()
-    if history_path is not None:
+    if history_path is not None and from_terminal:  # (a script's lines are not lines typed)
         history_path.parent.mkdir(parents=True, exist_ok=True)
         history = FileHistory(str(history_path))
     # Lines read from a file: nobody types, so no menus, and no toolbar (drawn again and again
