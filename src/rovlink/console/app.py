@@ -189,7 +189,7 @@ def _toolbar(rov: TrackedClient, queued: int) -> StyleAndTextTuples:
     )
     if refused is not None and get_cwidth(refused.message) >= width:
         # Its own row (prompt_toolkit's, one row high) cuts it at the edge, and with it the
-        # value refused: here it is wrapped, whole.
+        # value refused: here it is wrapped (in a few rows: see _wrapped).
         help_line = [("class:toolbar.bad", refused.message)]
     # A part that would run past the edge goes on the next line: cut, the link's state (at the
     # end) was what went first, at 80 columns.
