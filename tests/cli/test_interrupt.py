@@ -286,6 +286,33 @@ def test_the_ctrl_c_key_quits_the_monitor_as_q_does(silent: SilentController) ->
         terminal.close()
 
 
+def test_sigtstp_does_not_suspend_the_monitor(silent: SilentController) -> None:
+    # Before, textual's handler stopped the process on SIGTSTP (a Ctrl-Z where the terminal's
+    # signal keys are on, a `kill -TSTP`): the dashboard, its keys and its keep-alives stopped
+    # with the robot moving, as the console refuses to.
+    terminal = Terminal(
+        "monitor",
+        silent.url,
+        "--boot-timeout",
+        "0",
+        "--timeout",
+        "0.2",
+        job_control=True,
+        stderr_on_terminal=True,
+    )
+    try:
+        _drive_ahead_in_the_monitor(terminal, silent)
+        terminal.signal_keys_on()
+        terminal.type("\x1a")  # (sends SIGTSTP to the monitor's process group)
+        assert terminal.wait_until(lambda shown: b"does not suspend" in shown or b"job" in shown)
+        assert b"[job ended" not in terminal.shown
+        terminal.type("q")  # still at the helm
+        assert terminal.process.wait(timeout=WAIT_S) == 0
+        assert silent.received.rindex(b"#stop!") > silent.received.index(b"#th.0.")
+    finally:
+        terminal.close()
+
+
 def _end_of(terminal: Terminal) -> str:
     """What the command said on stderr once it has ended (within WAIT_S)."""
     _, stderr = terminal.process.communicate(timeout=WAIT_S)

@@ -150,3 +150,35 @@ def test_a_bad_pasted_line_refuses_them_all_naming_it_and_pointing_into_it() -> 
     with pytest.raises(InputError, match=r"^mvs: thrust") as alone:  # one line: no number
         parse_lines("\nmvs 500\n")
     assert alone.value.position == len("\nmvs ")
+
+
+def test_frames_pasted_on_one_line_run_one_after_another() -> None:
+    # Frames copied from a capture or a log come as one line: before, it was refused ("one
+    # frame at a time: '#start!#th.90.30!' holds more than one") with no way on but retyping.
+    assert parse_lines("#start!#th.90.30!  #qd8C!", "crc8") == [
+        SendCommand(Command("start")),
+        SendCommand(Command("th", (90, 30))),
+        SendCommand(Command("qd")),
+    ]
+    text = "qd\n #start!#th.400.30!#qd!"
+    with pytest.raises(InputError) as refused:  # checked whole first: none runs
+        parse_lines(text)
+    assert refused.value.message == "line 2: th: direction_deg must be in 0–360, got 400"
+    assert text[refused.value.position :].startswith("400.30!")
+    with pytest.raises(InputError, match="must end with '!'"):  # (not frames, each whole)
+        parse_line("#start!#th.90.30")
+
+
+@pytest.mark.parametrize(
+    ("line", "culprit"),
+    [("#qd!$qd.5!", "$qd.5!"), ("#qd!!", "!"), ("##qd!", "#"), ("#th.90.30!junk", "junk")],
+)
+def test_a_line_of_frames_with_something_else_in_it_points_at_what_is_not_a_frame(
+    line: str, culprit: str
+) -> None:
+    # Before, "one frame at a time: '#qd!$qd.5!' holds more than one", the cursor at the start
+    # (and in a console that runs several frames on a line).
+    with pytest.raises(InputError) as refused:
+        parse_lines(line)
+    assert refused.value.message.startswith(f"not a whole frame: {culprit!r}")
+    assert line[refused.value.position :].startswith(culprit)

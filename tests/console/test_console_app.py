@@ -24,6 +24,7 @@ from rovlink.cli.link_options import connect_async
 from rovlink.client.links import Link
 from rovlink.client.options import StrayCallback
 from rovlink.console.app import Connector, run_console
+from rovlink.piloting.tracked import STOP_KEPT_NOTICE, STOP_UNSENT_NOTICE
 from tests.cli.silent_controller import SilentController as CliSilentController
 from tests.client.conftest import NO_REPLY_TIMEOUT_S, REPLY_TIMEOUT_S, client_options
 from tests.client.fake_controller import FakeControllerServer
@@ -230,7 +231,8 @@ def test_cli_console_on_sim(
     frames = link.frames()
     assert (frames[0], frames[-1]) == ("#crcoff!", "#stop!")
     assert "#qd!" in frames
-    assert "qd" in (tmp_path / "rovlink" / "console_history").read_text()
+    # The history is kept there (made at the start), but not the lines of a pipe: none typed.
+    assert (tmp_path / "rovlink" / "console_history").read_text() == ""
 
 
 def test_cli_console_refuses_a_bad_url(capsys: pytest.CaptureFixture[str]) -> None:
@@ -505,3 +507,51 @@ def test_lines_read_from_a_file_show_no_toolbar_nor_a_stop_key_that_cannot_be_pr
     assert "Ctrl-C sends #stop! and ends the console" in notice
     assert "Ctrl-X" not in notice
     silent.close()
+
+
+@pytest.mark.integration
+@pytest.mark.parametrize("leave", ["ctrl-d", "signal"])
+async def test_a_stop_while_the_link_is_down_says_it_is_kept_and_leaving_says_it_never_went(
+    tmp_path: Path, leave: str
+) -> None:
+    # Before, Ctrl-X with the link down printed "■ STOP" and nothing else (the #stop! had not
+    # gone), and leaving printed "leaving: sending #stop!" for a #stop! that never went.
+    port = FakeControllerServer()
+    args = build_parser("console").parse_args(
+        ["console", port.url, "--boot-timeout", "0", "--timeout", str(REPLY_TIMEOUT_S)]
+    )
+    async with _terminal(Rig.simulated(), tmp_path / "history", connect_async(args)) as term:
+        term.type("start\rth 0 40\r")
+        await until(lambda: bool(port.fakes))  # (the fake's own thread takes the connection)
+        await until(lambda: "#th.0.40!" in port.fakes[0].frames())
+        port.refuse = True  # (unplugged, and not yet plugged back)
+        port.fakes[0].close()
+        await term.wait_shown("! link lost: ")
+        term.type(CTRL_X)
+        await term.wait_shown(f"! {STOP_KEPT_NOTICE}")
+        if leave == "ctrl-d":
+            term.type(CTRL_D)
+            await term.finish()
+        else:  # (SIGINT, SIGTERM, SIGHUP: the console is cancelled)
+            term.task.cancel()
+            await asyncio.gather(term.task, return_exceptions=True)
+        assert term.shown().count(STOP_UNSENT_NOTICE) == 1
+        assert "leaving: sending #stop!" not in term.shown()
+    port.close()
+
+
+async def test_lines_read_from_a_file_are_kept_out_of_the_typed_history(tmp_path: Path) -> None:
+    # Before, every line of `rovlink console < dive.txt` went into the history the pilot's
+    # up arrow walks through, hundreds of lines of a script among the lines typed.
+    history = tmp_path / "history"
+    history.write_text("\n# 2026-01-01 00:00:00\n+qhe\n", encoding="utf-8")
+    rig = Rig.simulated()
+    screen = io.StringIO()
+    with create_pipe_input() as keys, create_app_session(input=keys, output=create_output(screen)):
+        keys.send_text("start\rqd\rstop\r")
+        keys.close()  # (the end of the file)
+        await asyncio.wait_for(
+            run_console(rig.connect, history_path=history, from_terminal=False), 5
+        )
+    assert rig.frames()[-3:] == ["#start!", "#qd!", "#stop!"]
+    assert history.read_text(encoding="utf-8") == "\n# 2026-01-01 00:00:00\n+qhe\n"

@@ -192,3 +192,25 @@ async def test_at_80_columns_the_toolbar_shows_the_link_s_state_in_full(tmp_path
         await terminal.wait_shown(r"link ok, reply \d+ ms")
         terminal.type(CTRL_D)
         await terminal.finish()
+
+
+async def test_at_40_columns_a_refused_line_s_message_is_shown_whole(tmp_path: Path) -> None:
+    # Before, the message under the line was cut at the terminal's edge: at 40 columns
+    # "th: direction_deg must be in 0–360, got" without the value that was refused.
+    async with _console_on_a_terminal(tmp_path, columns=40) as terminal:
+        terminal.type("th 400 25\r")
+        await terminal.wait_shown(r"got\s*400")
+        terminal.type("\x03" + CTRL_D)
+        await terminal.finish()
+
+
+async def test_a_refused_value_thousands_of_digits_long_takes_three_toolbar_rows(
+    tmp_path: Path,
+) -> None:
+    # The message names the value refused, whole: wrapped whole in the toolbar it took every row
+    # of the screen; three rows, the last cut with "…".
+    async with _console_on_a_terminal(tmp_path, columns=60, rows=30) as terminal:
+        terminal.type(f"th {'1' * 400} 5\r")
+        await terminal.wait_shown(r"got 1+\s+1+\s+…")
+        terminal.type("\x03" + CTRL_D)
+        await terminal.finish()

@@ -2,8 +2,12 @@
 
 from __future__ import annotations
 
+import re
+from pathlib import Path
+
 import pytest
 
+from rovlink.console.actions import parse_line
 from rovlink.console.help import STOP_KEY_TEXT, command_help, overview
 from rovlink.protocol import COMMANDS, Spec
 
@@ -43,3 +47,17 @@ def test_queries_list_their_replies_and_aliases_are_named() -> None:
     assert "  replies: $qd, $qr, $q.l, $qro, $qpi, $qhe" in command_help("qsa")
     assert "  also spelled: mvpdd" in command_help("mvpidd")
     assert command_help("checksum")[0] == "checksum on|off"
+
+
+def test_console_lines_the_docs_name_are_lines_the_console_takes() -> None:
+    # Before, docs/tools.md and docs/team-setup.md told the reader to type `debug 1`, which the
+    # console refuses ("unknown command 'debug'"): the command is debug1.
+    docs = Path(__file__).resolve().parents[2] / "docs"
+    quoted = [
+        line
+        for page in ("tools.md", "team-setup.md")
+        for line in re.findall(r"the console's `([^`]+)`", (docs / page).read_text("utf-8"))
+    ]
+    assert quoted
+    for line in quoted:
+        assert parse_line(line) is not None, line

@@ -30,6 +30,15 @@ def test_a_leak_reply_is_an_alarm() -> None:
     assert "LEAK" in plain_text(line)
 
 
+def test_words_longer_than_the_column_never_run_into_the_frame() -> None:
+    # Before, the leak reply read "q.l → LEAK: the sensor fired since the last reset$q.l.1!".
+    words, frame = reply_line(Response("q.l", (1,)))
+    assert words[1].endswith("reset  ")
+    assert frame[1] == "$q.l.1!"
+    short_words, _ = reply_line(Response("qd", (123,)))
+    assert len(short_words[1]) == len(plain_text(reply_line(Response("qd", (5,))))) - len("$qd.5!")
+
+
 def test_sent_frames_and_their_warnings() -> None:
     (line,) = sent_lines(SentFrame(b"#qd8C!", Command("qd")))
     assert plain_text(line) == "  → #qd8C!"

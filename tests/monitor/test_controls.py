@@ -4,7 +4,12 @@ from __future__ import annotations
 
 import pytest
 
-from rovlink.monitor.controls import change_depth_target, change_power, turn
+from rovlink.monitor.controls import (
+    NoDepthReadingError,
+    change_depth_target,
+    change_power,
+    turn,
+)
 from rovlink.piloting import CommandedState
 from rovlink.protocol import Command, VerticalMode
 
@@ -25,7 +30,6 @@ def test_power_stays_in_range() -> None:
 @pytest.mark.parametrize(
     ("depth_cm", "step_cm", "target_cm"),
     [
-        (None, 10, 10),
         (0, -10, 0),
         (57, 10, 60),
         (57, -10, 50),
@@ -41,6 +45,14 @@ def test_the_first_target_is_the_next_step_from_the_depth_now(
         Command("mvdirect", (0,)),
         Command("mvd", (target_cm,)),
     ]
+
+
+def test_with_no_depth_reading_the_first_target_is_refused() -> None:
+    # (A step from 0 cm would send a robot at 3 m up to 10 cm.)
+    with pytest.raises(NoDepthReadingError, match="no depth reading yet"):
+        change_depth_target(CommandedState(), None, 10)
+    state = CommandedState(vertical_mode=VerticalMode.DEPTH, target_depth_cm=30)
+    assert change_depth_target(state, None, 10) == [Command("mvd", (40,))]  # (from the target)
 
 
 def test_later_steps_move_the_target_as_last_sent() -> None:

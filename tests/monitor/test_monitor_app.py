@@ -21,6 +21,8 @@ from rovlink.cli.monitor import build_app
 from rovlink.client.links import Link
 from rovlink.client.options import StrayCallback
 from rovlink.monitor.app import MonitorApp
+from rovlink.piloting.tracked import STOP_KEPT_NOTICE, STOP_UNSENT_NOTICE
+from rovlink.protocol import BadFrame, Reason
 from rovlink.protocol import Text as DebugText
 from tests.client.conftest import (
     CONDITION_TIMEOUT_S,
@@ -108,6 +110,23 @@ async def test_controller_text_shows_its_control_characters_escaped() -> None:
         strays[0](DebugText("\x1b[31mRED\x07"))
         await until(lambda: "\\x1b[31mRED\\x07" in shown(app, "#commanded"))
         assert "\x1b" not in shown(app, "#commanded")
+        await pilot.press("q")
+
+
+async def test_a_dropped_reply_is_shown_as_the_controller_wrote_it() -> None:
+    # Before, as Python wrote the bytes: "dropped reply b'$qd.12X!': …".
+    rig = Rig.simulated()
+    strays: list[StrayCallback] = []
+
+    async def connect(on_stray: StrayCallback) -> AsyncClient:
+        strays.append(on_stray)
+        return await rig.connect(on_stray)
+
+    app = MonitorApp(connect, description="bench", rate_hz=20)
+    async with app.run_test(size=(140, 34)) as pilot:
+        await until(lambda: _depth_shown(app) == 0)
+        strays[0](BadFrame(Reason.MALFORMED, b"$qd.1\x1b2!", "not a number"))
+        await until(lambda: "dropped reply $qd.1\\x1b2!: not a number" in shown(app, "#commanded"))
         await pilot.press("q")
 
 
@@ -214,6 +233,23 @@ async def test_a_silent_link_degrades_link_health_while_keys_still_work() -> Non
         assert shown(app, "#depth-digits") == "—"
         await pilot.press("q")
         await until(lambda: silent.received.rfind(b"#stop!") > silent.received.rfind(b"#start!"))
+    silent.close()
+
+
+async def test_a_depth_key_with_no_depth_reading_sends_no_target() -> None:
+    # Before, PgDn with no reading yet (a silent sensor link) sent #mvd.10!: the step was taken
+    # from 0 cm, and a robot at 3 m rose to 10 cm.
+    silent = SilentController()
+    app = _silent_app(silent, reply_timeout_s=NO_REPLY_TIMEOUT_S)
+    notified = _record_notifications(app)
+    async with app.run_test(size=SIZE) as pilot:
+        await until(lambda: "no reply" in shown(app, "#link"))
+        await pilot.press("s", "pagedown", "pageup")
+        await until(lambda: b"#start!" in silent.received)
+        await until(lambda: len([text for text in notified if "no depth reading" in text]) == 2)
+        assert b"#mvd." not in silent.received
+        assert b"#mvdirect." not in silent.received
+        await pilot.press("q")
     silent.close()
 
 
@@ -531,3 +567,50 @@ async def test_at_80_by_24_a_link_being_reopened_says_so_and_keeps_its_error_cou
         assert "errors     timeouts 0 · retries 0 · checksum errors 0 · failed polls" in screen
         await pilot.press("q")
     port.close()
+
+
+@pytest.mark.integration
+async def test_a_stop_while_the_link_is_down_says_it_is_kept_and_leaving_says_it_never_went() -> (
+    None
+):
+    # Before, space with the link down changed nothing on screen (the box still read "unlocked",
+    # last sent the motion) and q left without a word: the #stop! had gone nowhere.
+    port = FakeControllerServer()
+    args = build_parser("monitor").parse_args(
+        ["monitor", port.url, "--boot-timeout", "0", "--rate", "20"]
+    )
+    app = build_app(args)
+    notified = _record_notifications(app)
+    async with app.run_test(size=SIZE) as pilot:
+        await until(lambda: _depth_shown(app) == 123)
+        await pilot.press("s", "up")
+        await until(lambda: "#th.0.10!" in port.fakes[0].frames())
+        port.refuse = True  # (unplugged, and not yet plugged back)
+        port.fakes[0].close()
+        await until(lambda: "lost, reopening it" in shown(app, "#link"))
+        await pilot.press("space")
+        await until(lambda: STOP_KEPT_NOTICE in notified)
+        assert app.stop_unsent is None
+        await pilot.press("q")
+    assert app.stop_unsent == STOP_UNSENT_NOTICE
+    port.close()
+
+
+def test_leaving_with_the_link_down_is_said_on_stderr(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # The dashboard is gone by then: the line goes where a terminal keeps it.
+    run_async = MonitorApp.run_async
+
+    async def headless(self: MonitorApp, **options: object) -> None:
+        async def drive(pilot: Pilot[object]) -> None:
+            await until(lambda: self.readings.latest is not None)
+            self.stop_unsent = STOP_UNSENT_NOTICE  # (as leaving with the link down sets it)
+            await pilot.press("q")
+
+        await run_async(self, headless=True, size=SIZE, auto_pilot=drive)
+
+    monkeypatch.setattr(MonitorApp, "run_async", headless)
+    monkeypatch.setattr(cli_monitor, "missing_terminal", lambda: None)  # (drawn headless)
+    assert main(["monitor", "sim://?seed=1", "--rate", "20"]) == 0
+    assert capsys.readouterr().err == f"rovlink monitor: {STOP_UNSENT_NOTICE}\n"

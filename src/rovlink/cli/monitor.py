@@ -8,6 +8,7 @@ It needs a terminal: its keys come from standard input, its dashboard goes to st
 from __future__ import annotations
 
 import argparse
+import contextlib
 import errno
 import sys
 from typing import TYPE_CHECKING, TextIO
@@ -175,7 +176,13 @@ async def _connect_then_show(args: argparse.Namespace) -> None:
     with StopOnTermination(client.emergency_stop, "rovlink monitor"):
         try:
             await link_options.hear_other_lines_if_asked(args, client)
-            await build_app(args, connected).run_async()
+            app = build_app(args, connected)
+            try:
+                await app.run_async()
+            finally:
+                if app.stop_unsent is not None:  # (once the dashboard has left the terminal)
+                    with contextlib.suppress(OSError):  # (a terminal that hung up)
+                        print(f"rovlink monitor: {app.stop_unsent}", file=sys.stderr)
         finally:
             if not client.closed:
                 await client.close()

@@ -28,6 +28,9 @@ __all__ = [
 ]
 
 _WORD = re.compile(r"[^\s,]+")
+#: A whole frame, as copied from a capture or a log: several on a line run one after another.
+_FRAME = re.compile(r"#[^#!\s]*!")
+_FRAMES_ONLY = re.compile(r"\s*(?:#[^#!\s]*!\s*){2,}")
 
 
 @dataclass(frozen=True, slots=True)
@@ -134,8 +137,9 @@ def parse_line(line: str, checksum: str | None = None) -> Action | None:
 
 def parse_lines(text: str, checksum: str | None = None) -> list[Action]:
     """The actions of every line of ``text``, in order: pasted lines run one after another, as
-    if typed one by one. All are checked before any runs: one bad line refuses the whole text,
-    its error naming the line and pointing into it.
+    if typed one by one, and so do the frames of a line of frames alone (``#start!#qd!``).
+    All are checked before any runs: one bad line refuses the whole text, its error naming the
+    line and pointing into it.
 
     >>> parse_lines("start\\nth 0 50\\n\\nqd")  # doctest: +NORMALIZE_WHITESPACE
     [SendCommand(command=Command(name='start', values=())),
@@ -152,15 +156,47 @@ def parse_lines(text: str, checksum: str | None = None) -> list[Action]:
     actions: list[Action] = []
     offset = 0
     for number, line in enumerate(lines, start=1):
-        try:
-            action = parse_line(line.removesuffix("\r"), checksum)
-        except InputError as error:
-            message = f"line {number}: {error.message}" if several else error.message
-            raise InputError(message, offset + error.position) from None
-        if action is not None:
-            actions.append(action)
+        for start, part in _parts(line.removesuffix("\r")):
+            try:
+                action = parse_line(part, checksum)
+            except InputError as error:
+                message = f"line {number}: {error.message}" if several else error.message
+                raise InputError(message, offset + start + error.position) from None
+            if action is not None:
+                actions.append(action)
         offset += len(line) + 1
     return actions
+
+
+def _parts(line: str) -> list[tuple[int, str]]:
+    """The line, or each frame of a line of frames alone (``#start!#th.90.30!``), with where
+    in the line it starts. A line that begins with a whole frame and goes on with something
+    else (``#qd!$qd.5!``, ``#qd!!``) is refused, pointing at what is not a frame."""
+    if _FRAMES_ONLY.fullmatch(line) is not None:
+        return [(frame.start(), frame.group()) for frame in _FRAME.finditer(line)]
+    first = _FRAME.search(line)
+    if first is None:
+        return [(0, line)]
+    before = line[: first.start()]
+    if before.strip():
+        if not before.lstrip().startswith("#"):  # (words: the command parser says what is wrong)
+            return [(0, line)]
+        position = len(before) - len(before.lstrip())  # (##qd!, #th.90 #qd!)
+        raise InputError(_not_a_frame(before.split(maxsplit=1)[0]), position)
+    if not line[first.end() :].strip():
+        return [(0, line)]
+    frames_end = first.end()
+    for frame in _FRAME.finditer(line, first.end()):
+        if line[frames_end : frame.start()].strip():
+            break
+        frames_end = frame.end()
+    rest = line[frames_end:]
+    position = frames_end + len(rest) - len(rest.lstrip())
+    raise InputError(_not_a_frame(line[position:].split(maxsplit=1)[0]), position)
+
+
+def _not_a_frame(text: str) -> str:
+    return f"not a whole frame: {text!r} (frames on one line are each #…!, e.g. #start!#qd!)"
 
 
 def _checksummed_frame(line: str, algorithm: str) -> Command | None:

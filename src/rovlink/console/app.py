@@ -25,7 +25,7 @@ from prompt_toolkit.history import FileHistory, History, InMemoryHistory
 from prompt_toolkit.key_binding import KeyBindings, KeyPressEvent
 from prompt_toolkit.output import DummyOutput
 from prompt_toolkit.styles import Style
-from prompt_toolkit.utils import is_dumb_terminal
+from prompt_toolkit.utils import get_cwidth, is_dumb_terminal
 from prompt_toolkit.validation import ValidationError, Validator
 
 from rovlink.aio import AsyncClient
@@ -36,10 +36,10 @@ from rovlink.console.actions import InputError, Quit, parse_lines
 from rovlink.console.completion import argument_hint, suggestions
 from rovlink.console.engine import ConsoleEngine
 from rovlink.console.help import STOP_KEY_TEXT
-from rovlink.console.no_suspend import suspension_refused
 from rovlink.console.transcript import Line, error_line, info_line
 from rovlink.logs import WarningsShownBy
 from rovlink.piloting import LockState, TrackedClient
+from rovlink.piloting.no_suspend import suspension_refused
 from rovlink.piloting.tracked import LEAVING_REPLY_WAIT_S
 from rovlink.protocol.visible import visible
 
@@ -181,11 +181,16 @@ def _toolbar(rov: TrackedClient, queued: int) -> StyleAndTextTuples:
     width = app.output.get_size().columns if app else _TOOLBAR_WIDTH
     # (On the cursor's line: lines pasted at once are each a line of their own.)
     hint = argument_hint(app.current_buffer.document.current_line_before_cursor) if app else None
+    refused = app.current_buffer.validation_error if app else None
     help_line: StyleAndTextTuples = (
         [("", "Tab completes · 'help' lists commands · 'help th' shows one · Ctrl-D quits")]
         if hint is None
         else [("class:toolbar.hint", hint.text())]
     )
+    if refused is not None and get_cwidth(refused.message) >= width:
+        # Its own row (prompt_toolkit's, one row high) cuts it at the edge, and with it the
+        # value refused: here it is wrapped (in a few rows: see _wrapped).
+        help_line = [("class:toolbar.bad", refused.message)]
     # A part that would run past the edge goes on the next line: cut, the link's state (at the
     # end) was what went first, at 80 columns.
     status = _fitted([("class:toolbar.stop", f" {STOP_KEY_TEXT}: STOP ")], parts, width)
@@ -216,11 +221,18 @@ def _fitted(
 
 
 def _wrapped(line: StyleAndTextTuples, width: int) -> StyleAndTextTuples:
-    """``line`` (one style) broken between words to lines of less than ``width`` columns."""
+    """``line`` (one style) broken between words to lines of less than ``width`` columns, at
+    most ``_TOOLBAR_HELP_ROWS`` of them (a refused value may be thousands of digits long)."""
     style = line[0][0]
     text = "".join(text for _, text, *_ in line)
-    lines = textwrap.wrap(text, max(width - 2, 10)) or [""]
+    lines = textwrap.wrap(
+        text, max(width - 2, 10), max_lines=_TOOLBAR_HELP_ROWS, placeholder=" …"
+    ) or [""]
     return [(style, " " + "\n ".join(lines))]
+
+
+#: The most rows the toolbar's second part (the hint, or a refused line's message) takes.
+_TOOLBAR_HELP_ROWS = 3
 
 
 def _print(line: Line) -> None:
@@ -238,7 +250,8 @@ async def run_console(
 ) -> None:
     """Connect and run the console until ``quit`` or Ctrl-D; the client is closed on the way out.
 
-    ``history_path`` keeps the input history between sessions (``None``: this session only).
+    ``history_path`` keeps the lines typed between sessions (``None``: this session only);
+    lines read from a file or a pipe are not kept.
     ``from_terminal``: the lines are typed at a terminal, where ``quit`` and Ctrl-D leave at
     once; ``False`` (lines read from a file or a pipe), they run in order, each to its end, and
     when the output is not a terminal either (a file, a pipe) it is their replies alone: no
@@ -302,7 +315,7 @@ async def _run_connected(
     # dumb terminal (which cannot show the message under the line).
     check_in_place = from_terminal and not is_dumb_terminal()
     history: History = InMemoryHistory()
-    if history_path is not None:
+    if history_path is not None and from_terminal:  # (a script's lines are not lines typed)
         history_path.parent.mkdir(parents=True, exist_ok=True)
         history = FileHistory(str(history_path))
     # Lines read from a file: nobody types, so no menus, and no toolbar (drawn again and again
@@ -388,8 +401,13 @@ async def _run_connected(
     finally:
         if not runner.done():
             runner.cancel()
+        # Ended by a signal or an error with the link down: said once the rest is done (the
+        # terminal may be the one that hung up).
+        unsent = not engine.left and _stop_wanted(rov) and rov.link_down
         await _stop_unless_locked(rov)
         await rov.close()
+        if unsent:
+            engine.say_stop_unsent()
     if refused is not None:
         raise refused
 
@@ -401,7 +419,12 @@ _STOP_WRITE_TIMEOUT_S = 1.0
 async def _stop_unless_locked(rov: TrackedClient) -> None:
     """``#stop!`` on the way out unless the motors are locked as last sent: leaving by
     ``quit`` has sent it already; leaving by Ctrl-C (SIGINT) or an error has not."""
-    if rov.client.closed or rov.commanded.sent_lock is LockState.LOCKED:
+    if not _stop_wanted(rov):
         return
     with contextlib.suppress(ClientError, TimeoutError, ConnectionError):
         await asyncio.wait_for(rov.stop(), _STOP_WRITE_TIMEOUT_S)
+
+
+def _stop_wanted(rov: TrackedClient) -> bool:
+    """Whether leaving sends ``#stop!``: the link is open and not locked as last sent."""
+    return not rov.client.closed and rov.commanded.sent_lock is not LockState.LOCKED

@@ -37,7 +37,7 @@ from rovlink.console.transcript import (
 )
 from rovlink.logs import get_logger
 from rovlink.piloting import LockState, SentFrame, TrackedClient
-from rovlink.piloting.tracked import REOPENED_NOTICE
+from rovlink.piloting.tracked import REOPENED_NOTICE, STOP_KEPT_NOTICE, STOP_UNSENT_NOTICE
 from rovlink.protocol import Event, Response, Setting, setting_command
 
 __all__ = ["ConsoleEngine", "status_lines"]
@@ -129,6 +129,9 @@ class ConsoleEngine:
             await self.rov.stop()
         except ClientError as error:
             self._emit(error_line(f"#stop! could not be sent: {error}"))
+            return
+        if self.rov.link_down and not self.rov.client.closed:  # (kept: no "→ #stop!" yet)
+            self._emit(info_line(f"  ! {STOP_KEPT_NOTICE}", "class:error"))
 
     async def leave(self) -> None:
         """Leave now (``quit``, Ctrl-D): the lines queued and not yet sent are dropped, and
@@ -139,6 +142,15 @@ class ConsoleEngine:
             self._emit(info_line(f"leaving: {dropped} queued line(s) dropped, not sent"))
         self._queue.put_nowait(Quit())
         await self._quit()
+
+    @property
+    def left(self) -> bool:
+        """Whether ``quit`` (or Ctrl-D) has been run: its ``#stop!`` has been seen to."""
+        return self._left
+
+    def say_stop_unsent(self) -> None:
+        """Leaving, unlocked, with the link down: the ``#stop!`` cannot go, said so."""
+        self._emit(error_line(STOP_UNSENT_NOTICE))
 
     def _drop_queued(self) -> int:
         """Empty the queue but for a ``quit``; how many lines were dropped."""
@@ -232,7 +244,10 @@ class ConsoleEngine:
         state = self.rov.commanded
         if self.rov.client.closed or state.sent_lock is LockState.LOCKED:
             return
-        self._emit(info_line(f"leaving: sending #stop! (motors {state.lock_text()})"))
+        if self.rov.link_down:  # (kept for a link that will not be reopened now)
+            self.say_stop_unsent()
+        else:
+            self._emit(info_line(f"leaving: sending #stop! (motors {state.lock_text()})"))
         try:
             await self.rov.stop()
         except ClientError as error:

@@ -61,7 +61,9 @@ def reply_line(response: Response, algorithm: str | None = None) -> Line:
     words = reply_text(response)
     style = "class:alarm" if response.name == "q.l" and response.values[0] else "class:reply"
     frame = encode(response, algorithm).decode("ascii")
-    return [(style, f"  {words:<{_REPLY_WIDTH}}"), ("class:frame", frame)]
+    # (Words longer than the column, a leak's, keep a gap before the frame all the same.)
+    column = max(_REPLY_WIDTH, len(words) + 2)
+    return [(style, f"  {words:<{column}}"), ("class:frame", frame)]
 
 
 def late_reply_line(response: Response, algorithm: str | None = None) -> Line:

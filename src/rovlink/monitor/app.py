@@ -45,7 +45,8 @@ from rovlink.monitor.panels import (
 )
 from rovlink.monitor.readings import DEFAULT_WINDOW_S, Readings
 from rovlink.piloting import LockState, SentFrame, TrackedClient
-from rovlink.piloting.tracked import REOPENED_NOTICE
+from rovlink.piloting.no_suspend import suspension_refused
+from rovlink.piloting.tracked import REOPENED_NOTICE, STOP_KEPT_NOTICE, STOP_UNSENT_NOTICE
 from rovlink.protocol import BadFrame, Command, Event
 from rovlink.protocol import Text as DebugText
 from rovlink.protocol.announcements import Announcement
@@ -70,6 +71,11 @@ WIDE_MIN_SIZE = (NARROW_BELOW_COLUMNS, 19)
 #: Rows the chart's box needs to draw something: its border, two rows of plot, the axis and the
 #: time labels.
 _CHART_MIN_ROWS = 6
+#: What SIGTSTP (a Ctrl-Z where the terminal's signal keys are on, ``kill -TSTP``) does.
+NO_SUSPEND_TEXT = (
+    "SIGTSTP does not suspend the monitor (the robot would go on unattended): space stops it,"
+    " q quits"
+)
 #: The boxes that show a sensor reading: each is marked when the reading is stale.
 _READING_BOXES = ("#depth-box", "#attitude", "#leak")
 
@@ -228,10 +234,14 @@ class MonitorApp(App[None]):
         self.sub_title = description
         self._link_state = "connecting…"
         self._last_message = ""
+        #: Set when the monitor left, unlocked, with the link down: what to say of the
+        #: ``#stop!`` that never went (the dashboard is gone by then: the command says it).
+        self.stop_unsent: str | None = None
         self._depth_readout: Text | None = None
         # Written to stderr, the library's warnings would land over the dashboard's screen.
         self._warnings = WarningsShownBy(self._notify_warning)
         self._warnings_loop: asyncio.AbstractEventLoop | None = None
+        self._no_suspend = contextlib.ExitStack()
 
     # -- layout ---------------------------------------------------------------------------------
 
@@ -263,6 +273,11 @@ class MonitorApp(App[None]):
         self._fit_size(self.size.width, self.size.height)
         self._warnings_loop = asyncio.get_running_loop()
         self._warnings.attach()
+        # (Here, once textual's driver has put in its own SIGTSTP handler, which stops the
+        # process: a stopped dashboard could not stop the robot.)
+        self._no_suspend.enter_context(
+            suspension_refused(lambda: self.notify(NO_SUSPEND_TEXT, severity="warning"))
+        )
         self.run_worker(self._link_loop(), name="link", group="link", exclusive=True)
         self.set_interval(_REDRAW_S, self._redraw)
 
@@ -287,6 +302,7 @@ class MonitorApp(App[None]):
     def on_unmount(self) -> None:
         """Warnings go where they went before (stderr) once the dashboard is gone."""
         self._warnings.detach()
+        self._no_suspend.close()
 
     def _notify_warning(self, message: str, level: int) -> None:
         severity: Literal["warning", "error"] = "error" if level >= logging.ERROR else "warning"
@@ -347,15 +363,23 @@ class MonitorApp(App[None]):
             # Leaving any other way than q (SIGINT, SIGTERM, an error) cancels this loop:
             # the robot this monitor may have moved is stopped on the way out.
             if not client.closed and rov.commanded.sent_lock is not LockState.LOCKED:
+                self._note_stop_unsent(rov)
                 with contextlib.suppress(ClientError, TimeoutError, ConnectionError):
                     await asyncio.wait_for(rov.stop(), _STOP_WRITE_TIMEOUT_S)
             self._redraw()
+
+    def _note_stop_unsent(self, rov: TrackedClient) -> None:
+        """Leaving with the link down: the ``#stop!`` is only kept for a link that will not be
+        reopened now."""
+        if rov.link_down:
+            self.stop_unsent = STOP_UNSENT_NOTICE
 
     def _on_event(self, event: Event) -> None:
         if isinstance(event, DebugText):
             self._last_message = visible(event.text)
         elif isinstance(event, BadFrame):
-            self._last_message = f"dropped reply {event.raw!r}: {event.detail}"
+            raw = visible(event.raw.decode("ascii", errors="backslashreplace"))
+            self._last_message = f"dropped reply {raw}: {event.detail}"
 
     def _on_client_event(self, event: ClientEvent) -> None:
         if isinstance(event, LinkState) and event.state == "reconnected":
@@ -487,8 +511,11 @@ class MonitorApp(App[None]):
         self._redraw()
 
     async def action_stop(self) -> None:
-        """``#stop!``: all motors off, locked."""
+        """``#stop!``: all motors off, locked (with the link down: kept, and said so)."""
         await self._send(Command("stop"))
+        rov = self.rov
+        if rov is not None and rov.link_down and not rov.client.closed:
+            self.notify(STOP_KEPT_NOTICE, title="#stop! not sent yet", severity="error", timeout=10)
 
     async def action_start(self) -> None:
         """``#start!``: unlock."""
@@ -508,11 +535,14 @@ class MonitorApp(App[None]):
         """``mvd`` with the target moved by ``step_cm`` (after ``mvdirect 0`` if needed)."""
         if self.rov is not None:
             reading = self.readings.latest
-            await self._send(
-                *controls.change_depth_target(
+            try:
+                commands = controls.change_depth_target(
                     self.rov.commanded, reading.depth_cm if reading else None, step_cm
                 )
-            )
+            except controls.NoDepthReadingError as error:
+                self.notify(str(error), title="nothing sent", severity="warning")
+                return
+            await self._send(*commands)
 
     async def action_claw(self, frame_name: str) -> None:
         """``#h+!`` or ``#h-!``: one claw pulse."""
@@ -527,6 +557,7 @@ class MonitorApp(App[None]):
         rov = self.rov
         if rov is not None and not rov.client.closed:
             if rov.commanded.sent_lock is not LockState.LOCKED:
+                self._note_stop_unsent(rov)
                 await self._send(Command("stop"))
             await rov.close()  # (a poll waiting for its reply does not hold the exit up)
         self.exit()

@@ -9,6 +9,7 @@ __all__ = [
     "DEPTH_STEP_CM",
     "DIRECTION_STEP_DEG",
     "POWER_STEP_PERCENT",
+    "NoDepthReadingError",
     "change_depth_target",
     "change_power",
     "turn",
@@ -41,9 +42,15 @@ def change_power(state: CommandedState, step_percent: int) -> Command:
     return Command("th", (state.direction_deg, power))
 
 
+class NoDepthReadingError(ValueError):
+    """A first depth target asked for with no depth reading to step from."""
+
+
 def change_depth_target(state: CommandedState, depth_cm: int | None, step_cm: int) -> list[Command]:
     """``mvd`` with the target moved by ``step_cm`` (+ deeper), after ``mvdirect 0`` unless depth
-    mode was the last sent. With no target sent yet, the step is from the depth now.
+    mode was the last sent. With no target sent yet, the step is from the depth now
+    (``depth_cm``); with no reading of it either, :class:`NoDepthReadingError` (a step from 0 cm
+    would send a robot at 3 m up to 10 cm).
 
     >>> change_depth_target(CommandedState(), 57, DEPTH_STEP_CM)
     [Command(name='mvdirect', values=(0,)), Command(name='mvd', values=(60,))]
@@ -56,7 +63,11 @@ def change_depth_target(state: CommandedState, depth_cm: int | None, step_cm: in
     if state.target_depth_cm is not None and state.vertical_mode is VerticalMode.DEPTH:
         target_cm = state.target_depth_cm + step_cm
     else:  # the next point of the step grid beyond the depth now, in the step's direction
-        now_cm = depth_cm or 0
+        if depth_cm is None:
+            raise NoDepthReadingError(
+                "no depth reading yet: the first depth target is a step from the depth now"
+            )
+        now_cm = depth_cm
         size_cm = abs(step_cm)
         if step_cm > 0:
             target_cm = (now_cm // size_cm + 1) * size_cm

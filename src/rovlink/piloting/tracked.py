@@ -27,6 +27,8 @@ from rovlink.protocol.announcements import Announcement, read_announcement
 __all__ = [
     "LEAVING_REPLY_WAIT_S",
     "REOPENED_NOTICE",
+    "STOP_KEPT_NOTICE",
+    "STOP_UNSENT_NOTICE",
     "HeardCallback",
     "SentCallback",
     "SentFrame",
@@ -37,6 +39,18 @@ __all__ = [
 REOPENED_NOTICE = (
     "link reopened: the controller may have reset (locked) or stopped on its own failsafe,"
     " and the motion was zeroed; send start to move again"
+)
+
+#: What a tool says of a #stop! asked for while the link is down: it is not on the wire yet.
+STOP_KEPT_NOTICE = (
+    "link lost: #stop! is sent as soon as the link is reopened; until then the controller's"
+    " link-loss failsafe (P17) is what stops the motors"
+)
+
+#: What a tool says when it leaves, unlocked, while the link is down: its #stop! never went.
+STOP_UNSENT_NOTICE = (
+    "#stop! could not be sent: the link is lost; the controller's link-loss failsafe (P17)"
+    " is what stops the motors"
 )
 
 #: How long a tool that leaves waits for the replies to its queries still on the wire: long
