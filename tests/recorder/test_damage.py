@@ -389,3 +389,35 @@ def test_an_mcap_file_of_another_program_is_refused_by_name(tmp_path: Path, prof
     assert not isinstance(caught.value, RecordingDamagedError)
     assert str(caught.value).startswith(f"{path}: not a rovlink recording: an MCAP file")
     assert ("'ros2'" in str(caught.value)) is bool(profile)
+
+
+@pytest.mark.parametrize("suffix", [".mcap", ".jsonl"])
+def test_a_recording_of_a_newer_format_version_is_refused_by_name(
+    tmp_path: Path, suffix: str
+) -> None:
+    # It was read as if it were of this version: its fields may mean something else by then.
+    path = str(tmp_path / f"newer{suffix}")
+    sink = open_sink(path)
+    sink.write(HeaderEntry(1.0, 1, "sim://", False, "crc8", "rovlink record", "9.0.0", 99))
+    sink.write(WireEntry(1.5, 2, "out", b"#qd!"))
+    sink.close()
+    with pytest.raises(RecordingError) as caught:
+        list(read_entries(path))
+    assert not isinstance(caught.value, RecordingDamagedError)
+    assert str(caught.value) == (
+        f"{path}: recorded by rovlink record 9.0.0 in format version 99; rovlink "
+        f"{rovlink.__version__} reads versions up to 2: upgrade rovlink to read it"
+    )
+
+
+@pytest.mark.parametrize("content", [b"hello\n", b"PK\x03\x04 a zip file, not a recording\n"])
+def test_a_foreign_mcap_is_named_without_the_librarys_words(tmp_path: Path, content: bytes) -> None:
+    # It said "not an MCAP recording (unpack requires a buffer of 8 bytes)".
+    path = tmp_path / "notes.mcap"
+    path.write_bytes(content)
+    with pytest.raises(RecordingError) as caught:
+        list(read_entries(str(path)))
+    assert str(caught.value) == (
+        f"{path}: not an MCAP recording (it does not start with MCAP's magic bytes: another "
+        "kind of file named .mcap)"
+    )
