@@ -11,9 +11,10 @@ from __future__ import annotations
 
 from collections.abc import Iterable
 from dataclasses import dataclass, field
+from datetime import datetime, timezone
 from typing import Any
 
-from rovlink.recorder.entries import Entry, EventEntry, TelemetryEntry
+from rovlink.recorder.entries import Entry, EventEntry, HeaderEntry, TelemetryEntry
 
 __all__ = ["FIGURE_SIZE_IN", "DiveSeries", "collect", "plot_dive", "plot_series"]
 
@@ -25,6 +26,9 @@ _LINK_MARKERS: dict[str, tuple[str, str]] = {
     "reset_suspected": ("reset suspected", "black"),
     "link": ("link state", "tab:gray"),
     "motion_expired": ("motion expired", "tab:brown"),
+    # (A leak latched by the reply that ends a dive was drawn as nothing: its step starts at
+    # the last row.)
+    "leak": ("leak latch change", "tab:red"),
 }
 
 
@@ -35,6 +39,22 @@ class DiveSeries:
     time_s: list[float] = field(default_factory=list)
     columns: dict[str, list[float]] = field(default_factory=dict)
     events: list[tuple[float, str]] = field(default_factory=list)
+    #: Who recorded it (``rovlink demo on sim://``), from its header; empty for a ``.csv``.
+    recorded_by: str = ""
+    #: The wall clock at time 0, ns since the Unix epoch.
+    start_wall_ns: int | None = None
+
+    def describe(self) -> str:
+        """Who recorded the dive and when it started (UTC), for the figure's title.
+
+        >>> DiveSeries(recorded_by="rovlink demo on sim://", start_wall_ns=0).describe()
+        'rovlink demo on sim://, started 1970-01-01 00:00:00 UTC'
+        """
+        parts = [self.recorded_by] if self.recorded_by else []
+        if self.start_wall_ns is not None:
+            start = datetime.fromtimestamp(self.start_wall_ns / 1e9, tz=timezone.utc)
+            parts.append(f"started {start:%Y-%m-%d %H:%M:%S} UTC")
+        return ", ".join(parts)
 
 
 def collect(entries: Iterable[Entry]) -> DiveSeries:
@@ -43,9 +63,12 @@ def collect(entries: Iterable[Entry]) -> DiveSeries:
     series = DiveSeries()
     first_s: float | None = None
     for entry in entries:
-        if isinstance(entry, TelemetryEntry):
+        if isinstance(entry, HeaderEntry):
+            series.recorded_by = f"{entry.program} on {entry.url}"
+        elif isinstance(entry, TelemetryEntry):
             if first_s is None:
                 first_s = entry.t_s
+                series.start_wall_ns = entry.wall_ns
             series.time_s.append(entry.t_s - first_s)
             for name, value in entry.values.items():
                 series.columns.setdefault(name, []).append(
@@ -54,6 +77,7 @@ def collect(entries: Iterable[Entry]) -> DiveSeries:
         elif isinstance(entry, EventEntry) and entry.event in _LINK_MARKERS:
             if first_s is None:
                 first_s = entry.t_s
+                series.start_wall_ns = entry.wall_ns
             series.events.append((entry.t_s - first_s, entry.event))
     return series
 
@@ -70,7 +94,8 @@ FIGURE_SIZE_IN = (12.0, 11.0)
 
 def plot_dive(entries: Iterable[Entry], *, title: str = "", figure: Any = None) -> Any:
     """A matplotlib figure of the dive in ``entries`` (five panels, one time axis), drawn in
-    ``figure`` if given (a window's, for ``--show``)."""
+    ``figure`` if given (a window's, for ``--show``); ``title`` (the file's name) is followed
+    by who recorded the dive and when it started."""
     return plot_series(collect(entries), title=title, figure=figure)
 
 
@@ -124,6 +149,7 @@ def plot_series(series: DiveSeries, *, title: str = "", figure: Any = None) -> A
             handles, labels = handles + more_handles, labels + more_labels
         if handles:
             axis.legend(handles, labels, loc="upper right", fontsize="small")
-    if title:
-        figure.suptitle(title)
+    described = series.describe()
+    if title or described:
+        figure.suptitle("\n".join(part for part in (title, described) if part))
     return figure

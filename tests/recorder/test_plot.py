@@ -1,0 +1,55 @@
+"""The picture of a dive: what it marks and what its title says, from entries made by hand."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import pytest
+
+from rovlink.recorder import Entry, EventEntry, HeaderEntry, TelemetryEntry
+from rovlink.recorder.plot import collect, plot_dive
+
+pytest.importorskip("matplotlib", reason="matplotlib is in the test extra (plot)")
+
+#: 2026-11-27 19:07:12 UTC, in ns since the Unix epoch.
+_START_WALL_NS = 1_795_806_432_000_000_000
+
+
+def _row(t_s: float, *, leak: int) -> TelemetryEntry:
+    wall_ns = _START_WALL_NS + round((t_s - 100.0) * 1e9)
+    return TelemetryEntry(t_s, wall_ns, {"depth_cm": 80, "leak": leak, "locked": 0})
+
+
+def _dive_ending_in_a_leak() -> list[Entry]:
+    """A dive whose last reply latched the leak, as a demo aborted by a leak ends."""
+    header = HeaderEntry(99.9, _START_WALL_NS - 100_000_000, "sim://", False, "crc8", "demo", "1")
+    fired = EventEntry(105.0, _START_WALL_NS + 5_000_000_000, "leak", "q.l", "leak latch fired")
+    return [header, _row(100.0, leak=0), _row(102.5, leak=0), fired, _row(105.0, leak=1)]
+
+
+def _state_panel_lines(figure: Any) -> dict[str, list[Any]]:
+    lines: dict[str, list[Any]] = {}
+    (state,) = (axis for axis in figure.axes if axis.get_ylabel() == "state")
+    for line in state.get_lines():
+        lines.setdefault(line.get_label(), []).append(line)
+    return lines
+
+
+def test_a_leak_is_marked_where_it_fired() -> None:
+    # A leak latched by the dive's last reply was drawn as nothing: the latch's step starts at
+    # the last row, and leak events were not among the marked ones.
+    figure = plot_dive(_dive_ending_in_a_leak())
+    marks = _state_panel_lines(figure)["leak latch change"]
+    assert [list(mark.get_xdata()) for mark in marks] == [[5.0, 5.0]]
+
+
+def test_the_title_says_who_recorded_the_dive_and_when_it_started() -> None:
+    # The image said only the file's name: a plot passed round a week later said neither when
+    # nor on what.
+    figure = plot_dive(_dive_ending_in_a_leak(), title="dive.mcap")
+    assert figure.get_suptitle() == "dive.mcap\ndemo on sim://, started 2026-11-27 19:07:12 UTC"
+
+
+def test_a_csv_without_a_header_still_says_when() -> None:
+    series = collect([_row(100.0, leak=0)])
+    assert series.describe() == "started 2026-11-27 19:07:12 UTC"
