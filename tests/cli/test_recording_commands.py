@@ -37,7 +37,7 @@ from rovlink.recorder import (
     WireEntry,
     read_entries,
 )
-from rovlink.recorder.entries import TELEMETRY_FIELDS
+from rovlink.recorder.entries import FORMAT_VERSION, TELEMETRY_FIELDS
 from rovlink.recorder.formats import open_sink
 from tests.cli.conftest import RunCli
 from tests.client.sim_process import running_sim
@@ -374,7 +374,7 @@ def test_a_recording_made_with_checksum_says_it_starts_plain(
     entries = list(read_entries(str(path)))
     header = entries[0]
     assert isinstance(header, HeaderEntry)
-    assert (header.checksum, header.format_version) == (False, 2)
+    assert (header.checksum, header.format_version) == (False, FORMAT_VERSION)
     [first_out] = [e for e in entries if isinstance(e, WireEntry) and e.direction == "out"][:1]
     assert first_out.data.startswith(b"#crcoff!#qd!")  # (the connect probe: plain)
     # The mode frame, and the event of the change, say when checksums start.
@@ -642,13 +642,13 @@ def test_plot_of_a_recording_damaged_before_its_telemetry_names_the_damage(
     pytest.importorskip("matplotlib", reason="matplotlib is in the test extra (plot)")
     path = tmp_path / "dive.jsonl"
     _write(path, HeaderEntry(1.0, 1, "sim://?seed=1", False, "crc8", "test", "0"))
-    with path.open("ab") as damaged:
+    with path.open("ab") as damaged:  # (after the line that ends a closed file)
         damaged.write(b'{"channel":"telemetry","t_s":"x","wall_ns":1}\n')
     image = tmp_path / "x.png"
     result = run_cli("plot", str(path), "-o", str(image))
     assert result.status == 1
     assert result.err == (
-        f"rovlink plot: {path}: line 2 is damaged (telemetry entry: t_s must be a number, "
+        f"rovlink plot: {path}: line 3 is damaged (telemetry entry: t_s must be a number, "
         "got 'x'); read 1 entries before it; no telemetry before it to plot\n"
     )
     assert not image.exists()

@@ -45,7 +45,9 @@ __all__ = [
 #: the mode of the file's first frames in every recording; in 1, a driving command's recording
 #: made with ``--checksum`` said on, the mode its driver asked for, though the connect probe
 #: and the mode frame before it went plain (the mode frame says what was asked for, in both).
-FORMAT_VERSION = 2
+#: 3: a ``.jsonl`` file its recorder closed ends with a ``recording_end`` event (a file without
+#: it was cut: its recorder was killed).
+FORMAT_VERSION = 3
 
 
 class EntryError(ValueError):
