@@ -53,3 +53,8 @@ def test_the_title_says_who_recorded_the_dive_and_when_it_started() -> None:
 def test_a_csv_without_a_header_still_says_when() -> None:
     series = collect([_row(100.0, leak=0)])
     assert series.describe() == "started 2026-11-27 19:07:12 UTC"
+
+
+def test_a_damaged_wall_clock_leaves_the_start_out_of_the_title() -> None:
+    series = collect([TelemetryEntry(1.0, 10**30, {"depth_cm": 80})])
+    assert series.describe() == ""

@@ -11,10 +11,9 @@ from __future__ import annotations
 
 from collections.abc import Iterable
 from dataclasses import dataclass, field
-from datetime import datetime, timezone
 from typing import Any
 
-from rovlink.recorder.entries import Entry, EventEntry, HeaderEntry, TelemetryEntry
+from rovlink.recorder.entries import Entry, EventEntry, HeaderEntry, TelemetryEntry, utc_text
 
 __all__ = ["FIGURE_SIZE_IN", "DiveSeries", "collect", "plot_dive", "plot_series"]
 
@@ -51,9 +50,9 @@ class DiveSeries:
         'rovlink demo on sim://, started 1970-01-01 00:00:00 UTC'
         """
         parts = [self.recorded_by] if self.recorded_by else []
-        if self.start_wall_ns is not None:
-            start = datetime.fromtimestamp(self.start_wall_ns / 1e9, tz=timezone.utc)
-            parts.append(f"started {start:%Y-%m-%d %H:%M:%S} UTC")
+        started = None if self.start_wall_ns is None else utc_text(self.start_wall_ns)
+        if started is not None:
+            parts.append(f"started {started}")
         return ", ".join(parts)
 
 
