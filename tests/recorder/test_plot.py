@@ -6,7 +6,7 @@ from typing import Any
 
 import pytest
 
-from rovlink.recorder import Entry, EventEntry, HeaderEntry, TelemetryEntry
+from rovlink.recorder import Entry, EventEntry, FrameEntry, HeaderEntry, TelemetryEntry
 from rovlink.recorder.plot import collect, plot_dive
 
 pytest.importorskip("matplotlib", reason="matplotlib is in the test extra (plot)")
@@ -58,3 +58,14 @@ def test_a_csv_without_a_header_still_says_when() -> None:
 def test_a_damaged_wall_clock_leaves_the_start_out_of_the_title() -> None:
     series = collect([TelemetryEntry(1.0, 10**30, {"depth_cm": 80})])
     assert series.describe() == ""
+
+
+def test_a_value_that_never_changed_is_drawn_to_the_recordings_end() -> None:
+    # Telemetry is a row per change: a depth that stayed 0 through a 7 s recording was one row,
+    # and its panel was empty.
+    row = TelemetryEntry(100.0, _START_WALL_NS, {"depth_cm": 0})
+    query = FrameEntry(107.0, _START_WALL_NS + 7_000_000_000, "out", "command", "qd", ())
+    series = collect([row, query])
+    assert (series.time_s, series.columns) == ([0.0, 7.0], {"depth_cm": [0.0, 0.0]})
+    (depth,) = (axis for axis in plot_dive([row, query]).axes if axis.get_ylabel() == "depth, cm")
+    assert [list(line.get_xdata()) for line in depth.get_lines()] == [[0.0, 7.0]]

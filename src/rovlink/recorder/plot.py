@@ -9,6 +9,7 @@ Example::
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 from typing import Any
@@ -58,10 +59,13 @@ class DiveSeries:
 
 def collect(entries: Iterable[Entry]) -> DiveSeries:
     """The telemetry columns and events of ``entries`` (``nan`` where a value is not known),
-    taken one entry at a time: an hour's recording is never held whole."""
+    taken one entry at a time: an hour's recording is never held whole. The last row's values
+    hold to the recording's end (its last entry of any channel)."""
     series = DiveSeries()
     first_s: float | None = None
+    last_s = -math.inf  # (the recording's end: its last entry of any channel)
     for entry in entries:
+        last_s = max(last_s, entry.t_s)
         if isinstance(entry, HeaderEntry):
             series.recorded_by = f"{entry.program} on {entry.url}"
         elif isinstance(entry, TelemetryEntry):
@@ -78,6 +82,12 @@ def collect(entries: Iterable[Entry]) -> DiveSeries:
                 first_s = entry.t_s
                 series.start_wall_ns = entry.wall_ns
             series.events.append((entry.t_s - first_s, entry.event))
+    if first_s is not None and series.time_s and last_s - first_s > series.time_s[-1]:
+        # A row holds until the next change, and the last one until the recording ends: a
+        # value that never changed, one row, was drawn as nothing at all.
+        series.time_s.append(last_s - first_s)
+        for values in series.columns.values():
+            values.append(values[-1])
     return series
 
 
