@@ -69,3 +69,17 @@ def test_a_value_that_never_changed_is_drawn_to_the_recordings_end() -> None:
     assert (series.time_s, series.columns) == ([0.0, 7.0], {"depth_cm": [0.0, 0.0]})
     (depth,) = (axis for axis in plot_dive([row, query]).axes if axis.get_ylabel() == "depth, cm")
     assert [list(line.get_xdata()) for line in depth.get_lines()] == [[0.0, 7.0]]
+
+
+def test_no_legend_hides_the_data_of_its_panel() -> None:
+    # In the panel's upper right corner, the depth legend covered the surfacing at a dive's end.
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    figure = plot_dive(_dive_ending_in_a_leak())
+    renderer = FigureCanvasAgg(figure).get_renderer()
+    figure.draw(renderer)
+    legends = [(axis, axis.get_legend()) for axis in figure.axes if axis.get_legend()]
+    assert len(legends) == 2  # (the depth panel's, the state panel's: only they have data)
+    for axis, legend in legends:
+        panel = axis.get_window_extent(renderer)
+        assert not legend.get_window_extent(renderer).overlaps(panel), axis.get_ylabel()

@@ -157,7 +157,11 @@ def plot_series(series: DiveSeries, *, title: str = "", figure: Any = None) -> A
             more_handles, more_labels = direction.get_legend_handles_labels()
             handles, labels = handles + more_handles, labels + more_labels
         if handles:
-            axis.legend(handles, labels, loc="upper right", fontsize="small")
+            # Outside the panel, right of the direction axis: inside, it hid the data under it
+            # (the surfacing, at the right of the depth panel).
+            axis.legend(
+                handles, labels, loc="upper left", bbox_to_anchor=(1.07, 1.0), fontsize="small"
+            )
     described = series.describe()
     if title or described:
         figure.suptitle("\n".join(part for part in (title, described) if part))
