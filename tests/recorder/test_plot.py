@@ -83,3 +83,12 @@ def test_no_legend_hides_the_data_of_its_panel() -> None:
     for axis, legend in legends:
         panel = axis.get_window_extent(renderer)
         assert not legend.get_window_extent(renderer).overlaps(panel), axis.get_ylabel()
+
+
+def test_a_lost_link_and_its_return_are_told_apart() -> None:
+    lost = EventEntry(101.0, _START_WALL_NS + 10**9, "link", "lost", "tcp: closed; reconnecting")
+    back = EventEntry(104.0, _START_WALL_NS + 4 * 10**9, "link", "reconnected", "after 6 attempts")
+    figure = plot_dive([_row(100.0, leak=0), lost, back, _row(105.0, leak=0)])
+    marks = _state_panel_lines(figure)
+    assert [list(mark.get_xdata()) for mark in marks["link lost"]] == [[1.0, 1.0]]
+    assert [list(mark.get_xdata()) for mark in marks["link reconnected"]] == [[4.0, 4.0]]

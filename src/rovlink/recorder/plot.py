@@ -25,6 +25,9 @@ _LINK_MARKERS: dict[str, tuple[str, str]] = {
     "late_reply": ("late reply", "tab:purple"),
     "reset_suspected": ("reset suspected", "black"),
     "link": ("link state", "tab:gray"),
+    # (Both were "link state": which line was the loss and which the return, nobody could tell.)
+    "link lost": ("link lost", "tab:pink"),
+    "link reconnected": ("link reconnected", "tab:green"),
     "motion_expired": ("motion expired", "tab:brown"),
     # (A leak latched by the reply that ends a dive was drawn as nothing: its step starts at
     # the last row.)
@@ -81,7 +84,9 @@ def collect(entries: Iterable[Entry]) -> DiveSeries:
             if first_s is None:
                 first_s = entry.t_s
                 series.start_wall_ns = entry.wall_ns
-            series.events.append((entry.t_s - first_s, entry.event))
+            state = f"{entry.event} {entry.name}"  # (a link event's name is its state)
+            marker = state if entry.event == "link" and state in _LINK_MARKERS else entry.event
+            series.events.append((entry.t_s - first_s, marker))
     if first_s is not None and series.time_s and last_s - first_s > series.time_s[-1]:
         # A row holds until the next change, and the last one until the recording ends: a
         # value that never changed, one row, was drawn as nothing at all.
