@@ -92,3 +92,27 @@ def test_a_lost_link_and_its_return_are_told_apart() -> None:
     marks = _state_panel_lines(figure)
     assert [list(mark.get_xdata()) for mark in marks["link lost"]] == [[1.0, 1.0]]
     assert [list(mark.get_xdata()) for mark in marks["link reconnected"]] == [[4.0, 4.0]]
+
+
+def test_an_hour_is_labelled_in_minutes() -> None:
+    # It read "3500" on an axis of seconds.
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    figure = plot_dive([_row(100.0, leak=0), _row(3700.0, leak=0)])
+    FigureCanvasAgg(figure).draw()
+    state = figure.axes[4]
+    assert state.get_xlabel() == "time from the first row, min"
+    ticks = [label.get_text() for label in state.get_xticklabels()]
+    assert {"0", "30", "60"} <= set(ticks)
+
+
+def test_ten_minutes_are_labelled_in_seconds() -> None:
+    figure = plot_dive([_row(100.0, leak=0), _row(700.0, leak=0)])
+    assert figure.axes[4].get_xlabel() == "time from the first row, s"
+
+
+def test_the_header_is_no_end_of_the_recording() -> None:
+    # (A header on another clock than its entries, as a program feeding made-up times writes.)
+    header = HeaderEntry(9999.0, _START_WALL_NS, "", False, "crc8", "bench", "1")
+    series = collect([header, _row(100.0, leak=0), _row(101.0, leak=0)])
+    assert (series.time_s, series.recorded_by) == ([0.0, 1.0], "bench")

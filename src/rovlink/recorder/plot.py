@@ -68,10 +68,11 @@ def collect(entries: Iterable[Entry]) -> DiveSeries:
     first_s: float | None = None
     last_s = -math.inf  # (the recording's end: its last entry of any channel)
     for entry in entries:
+        if isinstance(entry, HeaderEntry):  # (written as the file starts: not its end)
+            series.recorded_by = f"{entry.program} on {entry.url}" if entry.url else entry.program
+            continue
         last_s = max(last_s, entry.t_s)
-        if isinstance(entry, HeaderEntry):
-            series.recorded_by = f"{entry.program} on {entry.url}"
-        elif isinstance(entry, TelemetryEntry):
+        if isinstance(entry, TelemetryEntry):
             if first_s is None:
                 first_s = entry.t_s
                 series.start_wall_ns = entry.wall_ns
@@ -94,6 +95,26 @@ def collect(entries: Iterable[Entry]) -> DiveSeries:
         for values in series.columns.values():
             values.append(values[-1])
     return series
+
+
+#: The longest span labelled in seconds: an hour's dive read "3500 s" where a pilot thinks in
+#: minutes.
+_LONGEST_IN_SECONDS_S = 600.0
+#: Minute steps for the ticks of a longer span, in seconds.
+_MINUTE_STEPS_S = (60.0, 120.0, 300.0, 600.0, 900.0, 1800.0, 3600.0, 7200.0, 21600.0)
+
+
+def _label_time_axis(axis: Any, span_s: float) -> None:
+    """Label the time axis in seconds, or in minutes (ticks at whole minutes) past 10 min."""
+    if span_s <= _LONGEST_IN_SECONDS_S:
+        axis.set_xlabel("time from the first row, s")
+        return
+    from matplotlib.ticker import FuncFormatter, MultipleLocator  # noqa: PLC0415
+
+    step_s = next((step for step in _MINUTE_STEPS_S if span_s / step <= 10), _MINUTE_STEPS_S[-1])
+    axis.xaxis.set_major_locator(MultipleLocator(step_s))
+    axis.xaxis.set_major_formatter(FuncFormatter(lambda seconds, _: f"{seconds / 60:g}"))
+    axis.set_xlabel("time from the first row, min")
 
 
 def _step(axis: Any, series: DiveSeries, column: str, label: str, **style: Any) -> None:
@@ -154,7 +175,7 @@ def plot_series(series: DiveSeries, *, title: str = "", figure: Any = None) -> A
             label=None if label in labelled else label,
         )
         labelled.add(label)
-    link.set_xlabel("time from the first row, s")
+    _label_time_axis(link, max([*series.time_s[-1:], *(time_s for time_s, _ in series.events)]))
     for axis in (depth, thrust, attitude, heading, link):
         axis.grid(True, alpha=0.3)
         handles, labels = axis.get_legend_handles_labels()
