@@ -1006,8 +1006,14 @@ def test_record_of_a_link_lost_mid_recording_keeps_the_file_and_fails(
         controller.close()
     assert result.status == 1, result.err
     assert "closed by the other end; the recording ends here" in result.err
-    frames = [(e.kind, e.name) for e in read_entries(str(output)) if isinstance(e, FrameEntry)]
+    entries = list(read_entries(str(output)))
+    frames = [(e.kind, e.name) for e in entries if isinstance(e, FrameEntry)]
     assert frames == [("command", "qd"), ("response", "qd")]
+    # The file says why it ends (it ended as if its recorder had been stopped by hand).
+    last = entries[-1]
+    assert isinstance(last, EventEntry)
+    assert (last.event, last.name) == ("link", "lost")
+    assert "closed by the other end" in last.detail
 
 
 def test_decode_of_a_recording_starts_in_its_headers_mode(run_cli: RunCli, tmp_path: Path) -> None:
