@@ -40,6 +40,7 @@ from rovlink.recorder import (
 from rovlink.recorder.entries import FORMAT_VERSION, TELEMETRY_FIELDS
 from rovlink.recorder.formats import open_sink
 from tests.cli.conftest import RunCli
+from tests.client.fake_controller import FakeControllerServer
 from tests.client.sim_process import running_sim
 
 _SRC = str(Path(__file__).resolve().parents[2] / "src")
@@ -1132,3 +1133,24 @@ def test_record_ends_on_ctrl_c_with_130_and_on_a_service_stop_with_0(
             _, err = recorder.communicate(timeout=20)
     assert recorder.returncode == status, err
     assert "recorded" in err  # the file finished either way
+
+
+@pytest.mark.integration
+def test_a_driving_command_whose_link_is_lost_ends_its_recording_saying_so(
+    run_cli: RunCli, tmp_path: Path
+) -> None:
+    # Its recording ended as one of a session that ended well: nothing in the file said the
+    # link was lost (only the command's last line, gone with the terminal).
+    output = tmp_path / "lost.jsonl"
+    # The connect probe and the first qd answered; at the second, the controller hangs up.
+    controller = FakeControllerServer(script=("reply", "reply", "close"))
+    try:
+        result = run_cli("send", controller.url, "--record", str(output), "qd", "qd", "qd")
+    finally:
+        controller.close()
+    assert result.status == 1, result.err
+    assert "connection lost" in result.err
+    last = list(read_entries(str(output)))[-1]
+    assert isinstance(last, EventEntry)
+    assert (last.event, last.name) == ("link", "lost")
+    assert "closed by the other end" in last.detail
