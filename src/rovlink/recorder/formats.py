@@ -70,6 +70,8 @@ def format_of(path: str) -> Format:
     if found is None:
         known = ", ".join(FORMATS)
         known = known[: known.rfind(", ")] + " or" + known[known.rfind(",") + 1 :]
+        if not suffix:  # ("unknown recording format ''" named nothing a user typed)
+            raise ValueError(f"{path}: no suffix to choose the recording format by; use {known}")
         raise ValueError(f"{path}: unknown recording format {suffix!r}; use {known}")
     return found
 
