@@ -57,3 +57,22 @@ def test_an_image_cut_short_is_not_left_behind(
     assert result.status == 1
     assert result.err == f"rovlink plot: cannot write {image}: No space left on device\n"
     assert not image.exists()
+
+
+def test_a_recording_cut_short_says_so_on_the_image(
+    run_cli: RunCli, recording: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # Only stderr said that the recording ends early; the image, which is what is passed
+    # round, looked like a whole dive.
+    from matplotlib.figure import Figure  # (the plot extra)
+
+    titles: list[str] = []
+    monkeypatch.setattr(
+        Figure, "savefig", lambda self, *_, **__: titles.append(self.get_suptitle())
+    )
+    data = recording.read_bytes()
+    recording.write_bytes(data[: data.rindex(b"\n", 0, len(data) - 1) + 20])  # a killed recorder
+    result = run_cli("plot", str(recording), "-o", str(tmp_path / "dive.png"))
+    assert result.status == 0
+    assert "ends in the middle of line" in result.err
+    assert titles[0].startswith("dive.jsonl (ends early: its recorder was stopped abruptly)\n")

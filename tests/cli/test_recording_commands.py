@@ -37,9 +37,10 @@ from rovlink.recorder import (
     WireEntry,
     read_entries,
 )
-from rovlink.recorder.entries import TELEMETRY_FIELDS
+from rovlink.recorder.entries import FORMAT_VERSION, TELEMETRY_FIELDS
 from rovlink.recorder.formats import open_sink
 from tests.cli.conftest import RunCli
+from tests.client.fake_controller import FakeControllerServer
 from tests.client.sim_process import running_sim
 
 _SRC = str(Path(__file__).resolve().parents[2] / "src")
@@ -374,7 +375,7 @@ def test_a_recording_made_with_checksum_says_it_starts_plain(
     entries = list(read_entries(str(path)))
     header = entries[0]
     assert isinstance(header, HeaderEntry)
-    assert (header.checksum, header.format_version) == (False, 2)
+    assert (header.checksum, header.format_version) == (False, FORMAT_VERSION)
     [first_out] = [e for e in entries if isinstance(e, WireEntry) and e.direction == "out"][:1]
     assert first_out.data.startswith(b"#crcoff!#qd!")  # (the connect probe: plain)
     # The mode frame, and the event of the change, say when checksums start.
@@ -642,13 +643,13 @@ def test_plot_of_a_recording_damaged_before_its_telemetry_names_the_damage(
     pytest.importorskip("matplotlib", reason="matplotlib is in the test extra (plot)")
     path = tmp_path / "dive.jsonl"
     _write(path, HeaderEntry(1.0, 1, "sim://?seed=1", False, "crc8", "test", "0"))
-    with path.open("ab") as damaged:
+    with path.open("ab") as damaged:  # (after the line that ends a closed file)
         damaged.write(b'{"channel":"telemetry","t_s":"x","wall_ns":1}\n')
     image = tmp_path / "x.png"
     result = run_cli("plot", str(path), "-o", str(image))
     assert result.status == 1
     assert result.err == (
-        f"rovlink plot: {path}: line 2 is damaged (telemetry entry: t_s must be a number, "
+        f"rovlink plot: {path}: line 3 is damaged (telemetry entry: t_s must be a number, "
         "got 'x'); read 1 entries before it; no telemetry before it to plot\n"
     )
     assert not image.exists()
@@ -1006,8 +1007,14 @@ def test_record_of_a_link_lost_mid_recording_keeps_the_file_and_fails(
         controller.close()
     assert result.status == 1, result.err
     assert "closed by the other end; the recording ends here" in result.err
-    frames = [(e.kind, e.name) for e in read_entries(str(output)) if isinstance(e, FrameEntry)]
+    entries = list(read_entries(str(output)))
+    frames = [(e.kind, e.name) for e in entries if isinstance(e, FrameEntry)]
     assert frames == [("command", "qd"), ("response", "qd")]
+    # The file says why it ends (it ended as if its recorder had been stopped by hand).
+    last = entries[-1]
+    assert isinstance(last, EventEntry)
+    assert (last.event, last.name) == ("link", "lost")
+    assert "closed by the other end" in last.detail
 
 
 def test_decode_of_a_recording_starts_in_its_headers_mode(run_cli: RunCli, tmp_path: Path) -> None:
@@ -1126,3 +1133,24 @@ def test_record_ends_on_ctrl_c_with_130_and_on_a_service_stop_with_0(
             _, err = recorder.communicate(timeout=20)
     assert recorder.returncode == status, err
     assert "recorded" in err  # the file finished either way
+
+
+@pytest.mark.integration
+def test_a_driving_command_whose_link_is_lost_ends_its_recording_saying_so(
+    run_cli: RunCli, tmp_path: Path
+) -> None:
+    # Its recording ended as one of a session that ended well: nothing in the file said the
+    # link was lost (only the command's last line, gone with the terminal).
+    output = tmp_path / "lost.jsonl"
+    # The connect probe and the first qd answered; at the second, the controller hangs up.
+    controller = FakeControllerServer(script=("reply", "reply", "close"))
+    try:
+        result = run_cli("send", controller.url, "--record", str(output), "qd", "qd", "qd")
+    finally:
+        controller.close()
+    assert result.status == 1, result.err
+    assert "connection lost" in result.err
+    last = list(read_entries(str(output)))[-1]
+    assert isinstance(last, EventEntry)
+    assert (last.event, last.name) == ("link", "lost")
+    assert "closed by the other end" in last.detail

@@ -60,3 +60,28 @@ def test_a_motion_held_longer_than_a_motion_timeout_is_replayed_held(
     assert "#qd!" in sent
     # (but for the queries: the replayed one, and the replaying driver's keep-alives)
     assert [frame for frame in sent if frame != "#qd!"] == ["#start!", "#th.90.40!", "#stop!"]
+
+
+def test_a_replay_says_before_it_starts_which_commands_move_the_robot(
+    run_cli: RunCli, tmp_path: Path, controller: FakeControllerServer
+) -> None:
+    # It said "replaying 4 commands of … to …", nothing of a robot about to be unlocked and
+    # driven by a recording someone else made.
+    recording = tmp_path / "moving.jsonl"
+    now_s = time.monotonic()
+    _write(
+        recording,
+        [
+            HeaderEntry(now_s, 0, "sim://", False, "crc8", "rovlink monitor", "0"),
+            FrameEntry(now_s + 0.01, 0, "out", "command", "start", ()),
+            FrameEntry(now_s + 0.02, 0, "out", "command", "th", (90, 40)),
+            FrameEntry(now_s + 0.03, 0, "out", "command", "th", (0, 0)),
+            FrameEntry(now_s + 0.04, 0, "out", "command", "stop", ()),
+        ],
+    )
+    result = run_cli("replay", str(recording), "--to", controller.url)
+    assert result.status == 0, result.out + result.err
+    assert result.err.splitlines()[0] == (
+        f"replaying 4 commands of {recording} to {controller.url}; 3 of them unlock or move the "
+        "robot (start, th)"
+    )

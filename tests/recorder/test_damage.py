@@ -5,6 +5,7 @@ a disk that fills up stops the recording, never the link."""
 from __future__ import annotations
 
 import dataclasses
+import json
 import math
 import os
 import signal
@@ -29,7 +30,9 @@ from rovlink.recorder import (
     read_entries,
     rotated_path,
 )
+from rovlink.recorder.entries import FORMAT_VERSION
 from rovlink.recorder.formats import open_sink
+from rovlink.recorder.jsonl_format import JsonLinesSink
 from tests.recorder.conftest import MakeRecording
 
 _SRC = str(Path(__file__).resolve().parents[2] / "src")
@@ -78,8 +81,10 @@ def test_sigkill_leaves_everything_but_the_last_second(tmp_path: Path, suffix: s
         assert damage is not None
         assert damage.incomplete
         assert "ends early" in str(damage)
-    else:  # JSON lines end at any line: at worst a cut last line
-        assert damage is None or damage.incomplete
+    else:  # JSON lines: cut in a line, or between two without the closing line
+        assert damage is not None
+        assert damage.incomplete
+        assert "ends early" in str(damage) or "ends in the middle of line" in str(damage)
     wire = [entry for entry in entries if isinstance(entry, WireEntry)]
     assert wire
     assert wire[0].t_s == pytest.approx(first)
@@ -389,3 +394,77 @@ def test_an_mcap_file_of_another_program_is_refused_by_name(tmp_path: Path, prof
     assert not isinstance(caught.value, RecordingDamagedError)
     assert str(caught.value).startswith(f"{path}: not a rovlink recording: an MCAP file")
     assert ("'ros2'" in str(caught.value)) is bool(profile)
+
+
+@pytest.mark.parametrize("suffix", [".mcap", ".jsonl"])
+def test_a_recording_of_a_newer_format_version_is_refused_by_name(
+    tmp_path: Path, suffix: str
+) -> None:
+    # It was read as if it were of this version: its fields may mean something else by then.
+    path = str(tmp_path / f"newer{suffix}")
+    sink = open_sink(path)
+    sink.write(HeaderEntry(1.0, 1, "sim://", False, "crc8", "rovlink record", "9.0.0", 99))
+    sink.write(WireEntry(1.5, 2, "out", b"#qd!"))
+    sink.close()
+    with pytest.raises(RecordingError) as caught:
+        list(read_entries(path))
+    assert not isinstance(caught.value, RecordingDamagedError)
+    assert str(caught.value) == (
+        f"{path}: recorded by rovlink record 9.0.0 in format version 99; rovlink "
+        f"{rovlink.__version__} reads versions up to {FORMAT_VERSION}: upgrade rovlink to read it"
+    )
+
+
+@pytest.mark.parametrize("content", [b"hello\n", b"PK\x03\x04 a zip file, not a recording\n"])
+def test_a_foreign_mcap_is_named_without_the_librarys_words(tmp_path: Path, content: bytes) -> None:
+    # It said "not an MCAP recording (unpack requires a buffer of 8 bytes)".
+    path = tmp_path / "notes.mcap"
+    path.write_bytes(content)
+    with pytest.raises(RecordingError) as caught:
+        list(read_entries(str(path)))
+    assert str(caught.value) == (
+        f"{path}: not an MCAP recording (it does not start with MCAP's magic bytes: another "
+        "kind of file named .mcap)"
+    )
+
+
+def _jsonl_of_a_short_session(path: str) -> JsonLinesSink:
+    sink = JsonLinesSink(path)
+    sink.write(HeaderEntry(1.0, 1, "sim://", False, "crc8", "rovlink send", "0.1.0"))
+    sink.write(WireEntry(1.5, 2, "out", b"#qd!"))
+    sink.flush()
+    return sink
+
+
+def test_a_jsonl_cut_between_two_lines_says_it_ends_early(tmp_path: Path) -> None:
+    # A recorder killed just after a flush left whole lines: the file read as a whole recording,
+    # and replay and plot said nothing of the cut.
+    path = str(tmp_path / "killed.jsonl")
+    _jsonl_of_a_short_session(path)._file.close()  # (killed: never closed by its recorder)
+    entries, damage = _read_all(path)
+    assert len(entries) == 2
+    assert damage is not None
+    assert damage.incomplete
+    assert str(damage) == (
+        f"{path}: the recording ends early, without its closing line (its recorder was stopped "
+        "abruptly); read 2 entries"
+    )
+
+
+def test_a_closed_jsonl_reads_whole_without_its_closing_line(tmp_path: Path) -> None:
+    path = str(tmp_path / "closed.jsonl")
+    sink = _jsonl_of_a_short_session(path)
+    sink.close()
+    assert sink.held() == 2  # (the closing line is no line of the session)
+    entries, damage = _read_all(path)
+    assert damage is None
+    assert [entry.channel for entry in entries] == ["header", "wire"]
+    assert b'"event":"recording_end"' in Path(path).read_bytes().splitlines()[-1]
+
+
+def test_a_jsonl_of_format_2_is_whole_without_a_closing_line(tmp_path: Path) -> None:
+    path = tmp_path / "older.jsonl"
+    header = HeaderEntry(1.0, 1, "sim://", False, "crc8", "rovlink send", "0.1.0", 2)
+    path.write_text(json.dumps({"channel": "header", **header.to_json()}) + "\n")
+    entries, damage = _read_all(str(path))
+    assert (len(entries), damage) == (1, None)

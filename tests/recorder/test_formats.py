@@ -130,6 +130,15 @@ def test_unknown_suffix_is_refused_with_the_known_ones() -> None:
         format_of("dive.txt")
 
 
+def test_a_name_without_a_suffix_is_refused_as_such() -> None:
+    # It said "unknown recording format ''".
+    with pytest.raises(ValueError, match="no suffix") as caught:
+        format_of("dives/dive")
+    assert str(caught.value) == (
+        "dives/dive: no suffix to choose the recording format by; use .mcap, .jsonl, .csv or .bin"
+    )
+
+
 def test_telemetry_columns_come_from_the_command_table() -> None:
     responses = {spec.name: spec for spec in RESPONSES}
     commands = {spec.name: spec for spec in COMMANDS}

@@ -7,7 +7,7 @@ import pytest
 from rovlink.protocol import Command, Response
 from rovlink.recorder import Entry, EventEntry, FrameEntry, HeaderEntry
 from rovlink.recorder.comparison import ReplayStep, replay_steps, run_replay
-from rovlink.recorder.playback import paced
+from rovlink.recorder.playback import paced, session_lines
 
 #: Ten billion seconds: more than time.sleep can wait at once (its clock counts about 292
 #: years), as a damaged time in a recording can ask.
@@ -181,3 +181,13 @@ def test_a_keep_alive_on_the_wire_with_a_query_of_its_name_answers_none_of_the_p
     failed.append(_reply(2.51, 7))
     assert _recorded(replay_steps(answered)) == [(1.01, [Response("qd", (6,))], 1)]
     assert _recorded(replay_steps(failed)) == [(2.01, [Response("qd", (7,))], 1)]
+
+
+def test_the_listing_says_when_the_session_started() -> None:
+    # Every time in it counted from the start, and nothing said when that was.
+    header = HeaderEntry(10.0, 1_795_806_432_000_000_000, "sim://", False, "crc8", "demo", "1")
+    damaged = HeaderEntry(10.0, 10**30, "sim://", False, "crc8", "demo", "1")
+    assert list(session_lines([header, damaged])) == [
+        "    0.000 s  --   demo 1 on sim:// (no checksum), started 2026-11-27 19:07:12 UTC",
+        "    0.000 s  --   demo 1 on sim:// (no checksum)",
+    ]

@@ -228,3 +228,61 @@ def test_a_program_that_stopped_the_robot_before_closing_the_terminal_is_not_fol
     assert pty_tap.controller.wait_for(b"#mvs.+10!" + STOP_FRAME) == (
         b"#start!#th.90.50!#stop!#start!#mvs.+10!" + STOP_FRAME
     )
+
+
+class _HangingUpController:
+    """A TCP 'controller' that keeps what it is sent until told to hang up."""
+
+    def __init__(self) -> None:
+        self._listener = socket.create_server(("127.0.0.1", 0))
+        self.url = f"socket://127.0.0.1:{self._listener.getsockname()[1]}"
+        self.received = bytearray()
+        self._hang_up = threading.Event()
+        self._thread = threading.Thread(target=self._serve, daemon=True)
+        self._thread.start()
+
+    def _serve(self) -> None:
+        connection, _ = self._listener.accept()
+        with connection:
+            connection.settimeout(0.01)
+            while not self._hang_up.is_set():
+                with contextlib.suppress(TimeoutError):
+                    self.received += connection.recv(4096)
+
+    def hang_up(self) -> None:
+        self._hang_up.set()
+        self._thread.join(_TIMEOUT_S)
+        self._listener.close()
+
+
+def test_no_stop_is_recorded_as_sent_on_a_controller_link_that_is_lost() -> None:
+    # The tap wrote #stop! to a controller that had hung up (the write "succeeded": a closed TCP
+    # peer takes bytes until its reset comes back) and recorded it as sent: the recording said
+    # the robot was stopped and locked when nothing reached it.
+    controller = _HangingUpController()
+    link = open_link(parse_url(controller.url))
+    endpoint = TcpEndpoint("127.0.0.1", 0)
+    recorded = _Chunks()
+    lost: list[BaseException] = []
+
+    def forwarding() -> None:
+        try:
+            forward(endpoint, link, recorded, threading.Event())
+        except BaseException as error:  # (kept for the assertion)
+            lost.append(error)
+
+    thread = threading.Thread(target=forwarding, daemon=True)
+    thread.start()
+    host, port = endpoint.path.removeprefix("socket://").rsplit(":", 1)
+    mover = _program((host, int(port)))
+    try:
+        mover.sendall(b"#start!#th.90.50!")
+        assert wait_until(lambda: controller.received.endswith(b"#th.90.50!"), _TIMEOUT_S)
+        controller.hang_up()
+        thread.join(_TIMEOUT_S)
+        assert [type(error).__name__ for error in lost] == ["ConnectionLostError"]
+        assert ("out", STOP_FRAME, True) not in recorded.chunks
+    finally:
+        mover.close()
+        endpoint.close()
+        link.close()

@@ -261,6 +261,9 @@ def main(argv: list[str] | None = None) -> int:
         )
         try:
             status: int = args.run(args)
+        except BaseException as error:
+            args.failure = error  # (what ended it, for the finishers: a recording says so)
+            raise
         finally:
             restore_signals()
             for finish in args.on_exit:

@@ -351,6 +351,11 @@ def session_recorder(args: argparse.Namespace) -> Recorder | None:
         started_s = time.monotonic()
 
         def finish() -> None:
+            lost = _link_lost(getattr(args, "failure", None))
+            if lost is not None:  # in the file too: read later, it must say why it ends
+                from rovlink.client.events import LinkState  # noqa: PLC0415
+
+                recorder.on_event(LinkState(time.monotonic(), "lost", str(lost)))
             recorder.close()
             if recorded_nothing(recorder):  # (the link did not open, or carried nothing)
                 discard_empty_recording(recorder, program)
@@ -367,6 +372,20 @@ def session_recorder(args: argparse.Namespace) -> Recorder | None:
 
             atexit.register(finish)
     return recorder
+
+
+def _link_lost(failure: BaseException | None) -> BaseException | None:
+    """The lost link that ended the command, if one did: ``failure`` or what it was raised
+    from or while handling (a command says a lost link in its own words)."""
+    from rovlink.client.errors import ConnectionLostError  # noqa: PLC0415
+
+    seen: set[int] = set()
+    while failure is not None and id(failure) not in seen:
+        if isinstance(failure, ConnectionLostError):
+            return failure
+        seen.add(id(failure))
+        failure = failure.__cause__ or failure.__context__
+    return None
 
 
 def recording_failure(args: argparse.Namespace) -> str | None:

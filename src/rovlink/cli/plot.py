@@ -115,7 +115,14 @@ def run(args: argparse.Namespace) -> int:
         from matplotlib import pyplot  # noqa: PLC0415
 
         window = pyplot.figure(figsize=FIGURE_SIZE_IN, layout="constrained")
-    figure = plot_series(series, title=_title(args.file), figure=window)
+    title = _title(args.file)
+    if damage is not None:  # (said on stderr too, but the image is what gets shared)
+        title += (
+            " (ends early: its recorder was stopped abruptly)"
+            if damage.incomplete
+            else f" (damaged: plotted up to entry {damage.entries_read})"
+        )
+    figure = plot_series(series, title=title, figure=window)
     if args.output:
         save_figure(figure, args.output)
         print(f"plotted {args.file} to {args.output}", file=sys.stderr)

@@ -76,6 +76,7 @@ def run(args: argparse.Namespace) -> int:
     from rovlink.cli.interrupt import ServingSignals, say_ready  # noqa: PLC0415
     from rovlink.client import parse_url  # noqa: PLC0415 - the driver loads when used
     from rovlink.client.errors import ConnectionLostError  # noqa: PLC0415
+    from rovlink.client.events import LinkState  # noqa: PLC0415
     from rovlink.client.links import open_link  # noqa: PLC0415
     from rovlink.recorder.tap import forward, parse_tap  # noqa: PLC0415
 
@@ -134,6 +135,8 @@ def run(args: argparse.Namespace) -> int:
                     record("in", data)
     except ConnectionLostError as error:
         lost = str(error)
+        # In the file too: read later, it must not look like one stopped by hand.
+        recorder.on_event(LinkState(time.monotonic(), "lost", lost))
     finally:
         link.close()
         if tap is not None:

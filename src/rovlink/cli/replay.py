@@ -214,7 +214,7 @@ def _replay_to(args: argparse.Namespace, damage: _Damage) -> int:
                 print(divergence)
         return summary
 
-    print(f"replaying {len(steps)} commands of {args.file} to {args.to}", file=sys.stderr)
+    print(_announcement(args.file, args.to, [step.command for step in steps]), file=sys.stderr)
     with closing_unless_interrupted(client):
         try:
             summary = run_in_worker(replay)
@@ -235,6 +235,29 @@ def _replay_to(args: argparse.Namespace, damage: _Damage) -> int:
         + (f" (first {args.max_differences} shown)" if differing > args.max_differences else "")
     )
     return 1 if differing else 0
+
+
+def _announcement(path: str, url: str, commands: list[Command]) -> str:
+    """What the replay is about to send, said before the first command goes: whether it
+    unlocks or moves the robot, and with which commands (a controller with a robot on it).
+
+    >>> from rovlink.protocol import Command
+    >>> _announcement("d.mcap", "sim://", [Command("start"), Command("th", (0, 30)), Command("qd")])
+    'replaying 3 commands of d.mcap to sim://; 2 of them unlock or move the robot (start, th)'
+    >>> _announcement("d.mcap", "sim://", [Command("qd")])
+    'replaying 1 command of d.mcap to sim://; none of them unlocks or moves the robot'
+    """
+    from rovlink.cli.interrupt import may_move  # noqa: PLC0415
+
+    moving = [command.name for command in commands if may_move(command)]
+    noun = "command" if len(commands) == 1 else "commands"
+    said = f"replaying {len(commands)} {noun} of {path} to {url}"
+    if not moving:
+        return f"{said}; none of them unlocks or moves the robot"
+    return (
+        f"{said}; {len(moving)} of them unlock or move the robot "
+        f"({', '.join(dict.fromkeys(moving))})"
+    )
 
 
 def _stop_if_left_moving(client: Client, commanded: CommandedState, sent: list[Command]) -> None:

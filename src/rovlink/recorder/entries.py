@@ -23,6 +23,7 @@ import dataclasses
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
+from datetime import datetime, timezone
 from typing import Any, ClassVar
 
 from rovlink.protocol import Command, Response
@@ -39,13 +40,31 @@ __all__ = [
     "WireEntry",
     "check_telemetry_range",
     "entry_from_json",
+    "utc_text",
 ]
 
 #: The recording format's version; a reader refuses a newer one. 2: a header's ``checksum`` is
 #: the mode of the file's first frames in every recording; in 1, a driving command's recording
 #: made with ``--checksum`` said on, the mode its driver asked for, though the connect probe
 #: and the mode frame before it went plain (the mode frame says what was asked for, in both).
-FORMAT_VERSION = 2
+#: 3: a ``.jsonl`` file its recorder closed ends with a ``recording_end`` event (a file without
+#: it was cut: its recorder was killed).
+FORMAT_VERSION = 3
+
+
+def utc_text(wall_ns: int) -> str | None:
+    """An entry's ``wall_ns`` as people read it, in UTC to the second (``None`` for a time no
+    calendar holds: a damaged one).
+
+    >>> utc_text(1_795_806_432_000_000_000)
+    '2026-11-27 19:07:12 UTC'
+    >>> utc_text(10**30) is None
+    True
+    """
+    try:
+        return f"{datetime.fromtimestamp(wall_ns / 1e9, tz=timezone.utc):%Y-%m-%d %H:%M:%S} UTC"
+    except (OverflowError, ValueError, OSError):
+        return None
 
 
 class EntryError(ValueError):

@@ -20,7 +20,8 @@ from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import cast
 
-from rovlink.recorder.entries import Entry
+import rovlink
+from rovlink.recorder.entries import FORMAT_VERSION, Entry, HeaderEntry
 from rovlink.recorder.sink import RecordingError, Sink
 
 __all__ = ["FORMATS", "Format", "MissingLibraryError", "format_of", "open_sink", "read_entries"]
@@ -69,6 +70,8 @@ def format_of(path: str) -> Format:
     if found is None:
         known = ", ".join(FORMATS)
         known = known[: known.rfind(", ")] + " or" + known[known.rfind(",") + 1 :]
+        if not suffix:  # ("unknown recording format ''" named nothing a user typed)
+            raise ValueError(f"{path}: no suffix to choose the recording format by; use {known}")
         raise ValueError(f"{path}: unknown recording format {suffix!r}; use {known}")
     return found
 
@@ -104,4 +107,17 @@ def read_entries(path: str) -> Iterator[Entry]:
     if os.path.isdir(path):
         raise RecordingError(f"{path}: is a directory")
     reader = getattr(_module(kind), kind.reader)
-    return cast(Iterator[Entry], reader(path))
+    return _refusing_newer(path, cast(Iterator[Entry], reader(path)))
+
+
+def _refusing_newer(path: str, entries: Iterator[Entry]) -> Iterator[Entry]:
+    """``entries``, refused at a header of a newer format version than this rovlink reads: its
+    fields may mean something else, and a replay or a plot of them would mislead."""
+    for entry in entries:
+        if isinstance(entry, HeaderEntry) and entry.format_version > FORMAT_VERSION:
+            raise RecordingError(
+                f"{path}: recorded by {entry.program} {entry.version} in format version "
+                f"{entry.format_version}; rovlink {rovlink.__version__} reads versions up to "
+                f"{FORMAT_VERSION}: upgrade rovlink to read it"
+            )
+        yield entry

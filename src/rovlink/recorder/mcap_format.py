@@ -121,8 +121,12 @@ def read_mcap(path: str) -> Iterator[Entry]:
             # short unpack, a bad record length): each is damage at this point of the file.
             except Exception as error:
                 if count == 0 and not channels and not _MAGIC.startswith(head):
-                    detail = str(error) or type(error).__name__
-                    raise RecordingError(f"{path}: not an MCAP recording ({detail})") from None
+                    # (The library's own words, "unpack requires a buffer of 8 bytes", say
+                    # nothing to whoever gave the file.)
+                    raise RecordingError(
+                        f"{path}: not an MCAP recording (it does not start with MCAP's magic "
+                        "bytes: another kind of file named .mcap)"
+                    ) from None
                 # (An empty file, or one cut after its first bytes, is a recorder killed before
                 # its first second: a recording that ends early, as any other.)
                 if not head:

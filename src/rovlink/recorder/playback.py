@@ -4,6 +4,8 @@ recorded pace if asked.
 >>> from rovlink.recorder.entries import FrameEntry
 >>> describe(FrameEntry(1.25, 0, "in", "response", "qd", (95,), query="qd", round_trip_ms=2.5))
 'in   $qd.95!  (answers qd, 2.5 ms)'
+>>> describe(HeaderEntry(1.0, 1_795_806_432_000_000_000, "sim://", False, "crc8", "demo", "1"))
+'--   demo 1 on sim:// (no checksum), started 2026-11-27 19:07:12 UTC'
 """
 
 from __future__ import annotations
@@ -19,6 +21,7 @@ from rovlink.recorder.entries import (
     HeaderEntry,
     TelemetryEntry,
     WireEntry,
+    utc_text,
 )
 
 __all__ = ["describe", "paced", "session_lines", "wait_until"]
@@ -65,7 +68,10 @@ def describe(entry: Entry, *, wire: bool = False) -> str | None:
         return f"{marker}   {entry.data!r}"
     if isinstance(entry, HeaderEntry):
         mode = f"checksum {entry.algorithm}" if entry.checksum else "no checksum"
-        return f"--   {entry.program} {entry.version} on {entry.url or '?'} ({mode})"
+        line = f"--   {entry.program} {entry.version} on {entry.url or '?'} ({mode})"
+        # (The times after it count from it: without the wall clock, nobody could tell when.)
+        started = utc_text(entry.wall_ns)
+        return f"{line}, started {started}" if started else line
     if isinstance(entry, TelemetryEntry):
         return None
     return None

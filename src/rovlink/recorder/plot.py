@@ -9,11 +9,12 @@ Example::
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 from typing import Any
 
-from rovlink.recorder.entries import Entry, EventEntry, TelemetryEntry
+from rovlink.recorder.entries import Entry, EventEntry, HeaderEntry, TelemetryEntry, utc_text
 
 __all__ = ["FIGURE_SIZE_IN", "DiveSeries", "collect", "plot_dive", "plot_series"]
 
@@ -24,7 +25,13 @@ _LINK_MARKERS: dict[str, tuple[str, str]] = {
     "late_reply": ("late reply", "tab:purple"),
     "reset_suspected": ("reset suspected", "black"),
     "link": ("link state", "tab:gray"),
+    # (Both were "link state": which line was the loss and which the return, nobody could tell.)
+    "link lost": ("link lost", "tab:pink"),
+    "link reconnected": ("link reconnected", "tab:green"),
     "motion_expired": ("motion expired", "tab:brown"),
+    # (A leak latched by the reply that ends a dive was drawn as nothing: its step starts at
+    # the last row.)
+    "leak": ("leak latch change", "tab:red"),
 }
 
 
@@ -35,17 +42,40 @@ class DiveSeries:
     time_s: list[float] = field(default_factory=list)
     columns: dict[str, list[float]] = field(default_factory=dict)
     events: list[tuple[float, str]] = field(default_factory=list)
+    #: Who recorded it (``rovlink demo on sim://``), from its header; empty for a ``.csv``.
+    recorded_by: str = ""
+    #: The wall clock at time 0, ns since the Unix epoch.
+    start_wall_ns: int | None = None
+
+    def describe(self) -> str:
+        """Who recorded the dive and when it started (UTC), for the figure's title.
+
+        >>> DiveSeries(recorded_by="rovlink demo on sim://", start_wall_ns=0).describe()
+        'rovlink demo on sim://, started 1970-01-01 00:00:00 UTC'
+        """
+        parts = [self.recorded_by] if self.recorded_by else []
+        started = None if self.start_wall_ns is None else utc_text(self.start_wall_ns)
+        if started is not None:
+            parts.append(f"started {started}")
+        return ", ".join(parts)
 
 
 def collect(entries: Iterable[Entry]) -> DiveSeries:
     """The telemetry columns and events of ``entries`` (``nan`` where a value is not known),
-    taken one entry at a time: an hour's recording is never held whole."""
+    taken one entry at a time: an hour's recording is never held whole. The last row's values
+    hold to the recording's end (its last entry of any channel)."""
     series = DiveSeries()
     first_s: float | None = None
+    last_s = -math.inf  # (the recording's end: its last entry of any channel)
     for entry in entries:
+        if isinstance(entry, HeaderEntry):  # (written as the file starts: not its end)
+            series.recorded_by = f"{entry.program} on {entry.url}" if entry.url else entry.program
+            continue
+        last_s = max(last_s, entry.t_s)
         if isinstance(entry, TelemetryEntry):
             if first_s is None:
                 first_s = entry.t_s
+                series.start_wall_ns = entry.wall_ns
             series.time_s.append(entry.t_s - first_s)
             for name, value in entry.values.items():
                 series.columns.setdefault(name, []).append(
@@ -54,8 +84,37 @@ def collect(entries: Iterable[Entry]) -> DiveSeries:
         elif isinstance(entry, EventEntry) and entry.event in _LINK_MARKERS:
             if first_s is None:
                 first_s = entry.t_s
-            series.events.append((entry.t_s - first_s, entry.event))
+                series.start_wall_ns = entry.wall_ns
+            state = f"{entry.event} {entry.name}"  # (a link event's name is its state)
+            marker = state if entry.event == "link" and state in _LINK_MARKERS else entry.event
+            series.events.append((entry.t_s - first_s, marker))
+    if first_s is not None and series.time_s and last_s - first_s > series.time_s[-1]:
+        # A row holds until the next change, and the last one until the recording ends: a
+        # value that never changed, one row, was drawn as nothing at all.
+        series.time_s.append(last_s - first_s)
+        for values in series.columns.values():
+            values.append(values[-1])
     return series
+
+
+#: The longest span labelled in seconds: an hour's dive read "3500 s" where a pilot thinks in
+#: minutes.
+_LONGEST_IN_SECONDS_S = 600.0
+#: Minute steps for the ticks of a longer span, in seconds.
+_MINUTE_STEPS_S = (60.0, 120.0, 300.0, 600.0, 900.0, 1800.0, 3600.0, 7200.0, 21600.0)
+
+
+def _label_time_axis(axis: Any, span_s: float) -> None:
+    """Label the time axis in seconds, or in minutes (ticks at whole minutes) past 10 min."""
+    if span_s <= _LONGEST_IN_SECONDS_S:
+        axis.set_xlabel("time from the first row, s")
+        return
+    from matplotlib.ticker import FuncFormatter, MultipleLocator  # noqa: PLC0415
+
+    step_s = next((step for step in _MINUTE_STEPS_S if span_s / step <= 10), _MINUTE_STEPS_S[-1])
+    axis.xaxis.set_major_locator(MultipleLocator(step_s))
+    axis.xaxis.set_major_formatter(FuncFormatter(lambda seconds, _: f"{seconds / 60:g}"))
+    axis.set_xlabel("time from the first row, min")
 
 
 def _step(axis: Any, series: DiveSeries, column: str, label: str, **style: Any) -> None:
@@ -70,7 +129,8 @@ FIGURE_SIZE_IN = (12.0, 11.0)
 
 def plot_dive(entries: Iterable[Entry], *, title: str = "", figure: Any = None) -> Any:
     """A matplotlib figure of the dive in ``entries`` (five panels, one time axis), drawn in
-    ``figure`` if given (a window's, for ``--show``)."""
+    ``figure`` if given (a window's, for ``--show``); ``title`` (the file's name) is followed
+    by who recorded the dive and when it started."""
     return plot_series(collect(entries), title=title, figure=figure)
 
 
@@ -115,7 +175,7 @@ def plot_series(series: DiveSeries, *, title: str = "", figure: Any = None) -> A
             label=None if label in labelled else label,
         )
         labelled.add(label)
-    link.set_xlabel("time from the first row, s")
+    _label_time_axis(link, max([*series.time_s[-1:], *(time_s for time_s, _ in series.events)]))
     for axis in (depth, thrust, attitude, heading, link):
         axis.grid(True, alpha=0.3)
         handles, labels = axis.get_legend_handles_labels()
@@ -123,7 +183,12 @@ def plot_series(series: DiveSeries, *, title: str = "", figure: Any = None) -> A
             more_handles, more_labels = direction.get_legend_handles_labels()
             handles, labels = handles + more_handles, labels + more_labels
         if handles:
-            axis.legend(handles, labels, loc="upper right", fontsize="small")
-    if title:
-        figure.suptitle(title)
+            # Outside the panel, right of the direction axis: inside, it hid the data under it
+            # (the surfacing, at the right of the depth panel).
+            axis.legend(
+                handles, labels, loc="upper left", bbox_to_anchor=(1.07, 1.0), fontsize="small"
+            )
+    described = series.describe()
+    if title or described:
+        figure.suptitle("\n".join(part for part in (title, described) if part))
     return figure

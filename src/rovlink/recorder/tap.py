@@ -337,8 +337,15 @@ def forward(
     calling ``record(direction, data)`` for each chunk before passing it on. ``checksum`` and
     ``algorithm``: the mode the link starts in, to read the program's frames."""
     program: list[Link | None] = [None]
+    # Set once a read found the controller's link lost: a write to it may still "succeed" (a
+    # TCP peer that closed takes bytes until its reset comes back), and a #stop! recorded as
+    # sent there would say the robot was stopped when nothing reached it.
+    controller_lost = threading.Event()
 
     def stop_robot() -> None:
+        if controller_lost.is_set():
+            logger.warning("tap: could not send #stop!: the controller's link is lost")
+            return
         try:
             controller.write(STOP_FRAME)
         except ConnectionLostError:
@@ -392,6 +399,9 @@ def forward(
                 if side is not None:
                     with contextlib.suppress(ConnectionLostError):
                         side.write(data)
+    except ConnectionLostError:
+        controller_lost.set()
+        raise
     finally:
         stopping.set()
         thread.join()
