@@ -517,6 +517,10 @@ class _Actions:
         self.done.append(f"interval {message_id} {interval_us:g}")
         return Result.ACCEPTED
 
+    def get_message_interval(self, message_id: int) -> Result:
+        self.done.append(f"interval of {message_id}")
+        return Result.ACCEPTED
+
 
 @pytest.mark.parametrize(
     ("command", "params", "result", "done"),
@@ -525,8 +529,8 @@ class _Actions:
         (400, [0], Result.ACCEPTED, ["disarm"]),
         (400, [2], Result.DENIED, []),
         (176, [1, 2], Result.ACCEPTED, ["ALT_HOLD"]),
-        (176, [1, 0], Result.UNSUPPORTED, []),  # STABILIZE
-        (176, [0, 19], Result.UNSUPPORTED, []),  # not a custom mode
+        (176, [1, 0], Result.DENIED, []),  # STABILIZE: a mode the bridge has not
+        (176, [0, 19], Result.DENIED, []),  # not a custom mode
         (176, [math.nan, 19], Result.DENIED, []),
         (211, [1, 1], Result.ACCEPTED, ["close"]),
         (211, [1, 0], Result.ACCEPTED, ["open"]),
@@ -536,6 +540,8 @@ class _Actions:
         (520, [1], Result.ACCEPTED, ["request 148"]),
         (511, [30, 50000], Result.ACCEPTED, ["interval 30 50000"]),
         (511, [30, math.nan], Result.DENIED, []),
+        (510, [30], Result.ACCEPTED, ["interval of 30"]),
+        (510, [math.nan], Result.DENIED, []),
         (22, [], Result.UNSUPPORTED, []),  # NAV_TAKEOFF
     ],
 )

@@ -20,6 +20,7 @@ from rovlink.bridges.mavlink.command_handling import (
 )
 from rovlink.bridges.mavlink.endpoint import MavlinkEndpoint
 from rovlink.bridges.mavlink.failsafe import GcsWatchdog
+from rovlink.bridges.mavlink.file_transfer import refusal
 from rovlink.bridges.mavlink.modes import ButtonFunction, FlightMode
 from rovlink.bridges.mavlink.parameters import PILOT_SYSTEM, ParameterError, ParameterTable
 from rovlink.bridges.mavlink.pilot_input import PilotInput, all_buttons
@@ -50,6 +51,9 @@ _SEVERITY_CRITICAL = 2
 _SEVERITY_WARNING = 4
 _SEVERITY_INFO = 6
 _PARAM_TYPE_INT32 = 6
+_MISSION_ACCEPTED = 0  # MAV_MISSION_RESULT
+_MISSION_UNSUPPORTED = 3
+_MISSION_INVALID_SEQUENCE = 13
 #: SET_MODE is acknowledged with its message id as the command, as ArduPilot does (ArduSub's
 #: pymavlink example waits for that COMMAND_ACK).
 _SET_MODE_MESSAGE_ID = 11
@@ -109,6 +113,12 @@ class MavlinkBridge:
             "PARAM_SET": self._on_param_set,
             "REQUEST_DATA_STREAM": self._on_request_data_stream,
             "MISSION_REQUEST_LIST": self._on_mission_request_list,
+            "MISSION_COUNT": self._on_mission_upload,
+            "MISSION_CLEAR_ALL": self._on_mission_clear_all,
+            "MISSION_REQUEST_INT": self._on_mission_item_request,
+            "MISSION_REQUEST": self._on_mission_item_request,
+            "TIMESYNC": self._on_timesync,
+            "FILE_TRANSFER_PROTOCOL": self._on_file_transfer,
         }
         #: The gains, calibration and mode as last sent: sent again after a suspected reset.
         self.kept = KeptSettings()
@@ -242,17 +252,17 @@ class MavlinkBridge:
         return Result.ACCEPTED
 
     def request_message(self, message_id: int) -> Result:
-        """Send one message now, if the bridge has it."""
+        """Send one message now, if the bridge has it (DENIED if not)."""
         name = self._message_name(message_id)
         if name is None or not self.messages.send(name):
-            return Result.UNSUPPORTED
+            return Result.DENIED
         return Result.ACCEPTED
 
     def set_message_interval(self, message_id: int, interval_us: float) -> Result:
         """SET_MESSAGE_INTERVAL: −1 off, 0 the default, else every ``interval_us`` µs."""
         name = self._message_name(message_id)
         if name is None:
-            return Result.UNSUPPORTED
+            return Result.DENIED
         if interval_us < 0:
             interval_s: float | None = 0.0
         elif interval_us == 0:
@@ -260,8 +270,15 @@ class MavlinkBridge:
         else:
             interval_s = interval_us / 1e6
         if not self.schedule.set_interval(name, interval_s, self._clock()):
-            return Result.UNSUPPORTED
+            return Result.DENIED  # (HEARTBEAT stays at 1 Hz; a message not sent on a schedule)
         self.poller.set_rate(self._poll_rate_hz())
+        return Result.ACCEPTED
+
+    def get_message_interval(self, message_id: int) -> Result:
+        """GET_MESSAGE_INTERVAL: MESSAGE_INTERVAL says it (0: not sent on a schedule)."""
+        name = self._message_name(message_id)
+        interval_us = 0 if name is None else self.schedule.interval_us(name)
+        self.messages.message_interval(message_id, interval_us)
         return Result.ACCEPTED
 
     # -- loops -----------------------------------------------------------------------------------
@@ -474,6 +491,34 @@ class MavlinkBridge:
         self.messages.mission_count(
             message.get_srcSystem(), message.get_srcComponent(), message.mission_type
         )
+
+    async def _on_mission_upload(self, message: Any) -> None:
+        """An upload (MISSION_COUNT): of nothing, accepted (the list stays empty); of items,
+        refused at once, where a ground station left unanswered retries and times out."""
+        result = _MISSION_ACCEPTED if message.count == 0 else _MISSION_UNSUPPORTED
+        self._mission_ack(message, result)
+
+    async def _on_mission_clear_all(self, message: Any) -> None:
+        self._mission_ack(message, _MISSION_ACCEPTED)  # (there is nothing to clear)
+
+    async def _on_mission_item_request(self, message: Any) -> None:
+        self._mission_ack(message, _MISSION_INVALID_SEQUENCE)  # (there is no item)
+
+    def _mission_ack(self, message: Any, result: int) -> None:
+        self.messages.mission_ack(
+            message.get_srcSystem(), message.get_srcComponent(), result, message.mission_type
+        )
+
+    async def _on_timesync(self, message: Any) -> None:
+        if message.tc1 == 0:  # a request (tc1 set: an answer, another system's)
+            self.messages.timesync(message.ts1)
+
+    async def _on_file_transfer(self, message: Any) -> None:
+        payload = refusal(message.payload)
+        if payload is not None:
+            self.messages.file_transfer(
+                message.get_srcSystem(), message.get_srcComponent(), payload
+            )
 
     # -- internals -------------------------------------------------------------------------------
 
