@@ -100,3 +100,28 @@ def test_no_fence_is_no_fence_breach(gcs: GroundStation):
     assert status.onboard_control_sensors_health & GEOFENCE
     assert not status.onboard_control_sensors_present & GEOFENCE
     assert not status.onboard_control_sensors_enabled & GEOFENCE
+
+
+def _depth_target(gcs: GroundStation, alt_m: float, *, frame: int = 5, type_mask: int = 0) -> None:
+    # ArduSub's pymavlink example for a depth in ALT_HOLD: everything but z ignored.
+    mask = type_mask or 0b0000_1111_1111_1011  # all but POSITION_TARGET_TYPEMASK_Z_IGNORE
+    gcs.send("set_position_target_global_int", 0, VEHICLE, 1, frame, mask, 0, 0, alt_m,
+             0, 0, 0, 0, 0, 0, 0, 0)  # fmt: skip
+
+
+def test_a_depth_target_is_held_in_alt_hold_as_ardusub_takes_it(rig: BridgeRig, gcs: GroundStation):
+    mark = len(rig.frames())
+    _depth_target(gcs, -1.5)  # disarmed, MANUAL: refused, and said
+    gcs.receive("STATUSTEXT", condition=lambda m: "ALT_HOLD and armed only" in m.text)
+    gcs.start_heartbeats()
+    assert gcs.arm() == ACCEPTED
+    assert gcs.set_mode(ALT_HOLD) == ACCEPTED
+    rig.wait_frame("#mvdirect.0!", since=mark)
+    _depth_target(gcs, -1.5)
+    rig.wait_frame("#mvd.150!", since=mark)
+    _depth_target(gcs, -0.4, frame=6)  # relative altitude: the same, without a position
+    rig.wait_frame("#mvd.40!", since=mark)
+    _depth_target(gcs, -2.0, type_mask=0xFFF)  # z ignored too: nothing to do
+    _depth_target(gcs, -2.0, frame=1)  # MAV_FRAME_LOCAL_NED: not taken, and said
+    gcs.receive("STATUSTEXT", condition=lambda m: "frame 1" in m.text)
+    assert not [f for f in rig.frames_since(mark) if f.startswith("#mvd.200")]

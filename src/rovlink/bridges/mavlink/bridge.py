@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import math
 import time
 from collections.abc import Callable, Coroutine, Iterable
 from typing import Any
@@ -51,6 +52,11 @@ _SEVERITY_CRITICAL = 2
 _SEVERITY_WARNING = 4
 _SEVERITY_INFO = 6
 _PARAM_TYPE_INT32 = 6
+#: SET_POSITION_TARGET_GLOBAL_INT: the altitude ignored (POSITION_TARGET_TYPEMASK_Z_IGNORE), and
+#: the frames whose altitude is above the surface (MAV_FRAME_GLOBAL_INT, _RELATIVE_ALT_INT): the
+#: robot has no position, so either's zero is the surface, as its depth sensor's is.
+_POSITION_TARGET_Z_IGNORE = 4
+_DEPTH_TARGET_FRAMES = frozenset({5, 6})
 _MISSION_ACCEPTED = 0  # MAV_MISSION_RESULT
 _MISSION_UNSUPPORTED = 3
 _MISSION_INVALID_SEQUENCE = 13
@@ -100,6 +106,8 @@ class MavlinkBridge:
         self._inbox: asyncio.Queue[Any] = asyncio.Queue()
         #: Systems whose joystick was ignored (not SYSID_MYGCS), each said once.
         self._ignored_pilots: set[int] = set()
+        #: Why the last depth target was ignored, said once until one is taken or why changes.
+        self._depth_target_refusal: str | None = None
         self._background: set[asyncio.Future[None]] = set()
         self._handlers: dict[str, Callable[[Any], Any]] = {
             "HEARTBEAT": self._on_heartbeat,
@@ -119,6 +127,7 @@ class MavlinkBridge:
             "MISSION_REQUEST": self._on_mission_item_request,
             "TIMESYNC": self._on_timesync,
             "FILE_TRANSFER_PROTOCOL": self._on_file_transfer,
+            "SET_POSITION_TARGET_GLOBAL_INT": self._on_position_target,
         }
         #: The gains, calibration and mode as last sent: sent again after a suspected reset.
         self.kept = KeptSettings()
@@ -508,6 +517,26 @@ class MavlinkBridge:
         self.messages.mission_ack(
             message.get_srcSystem(), message.get_srcComponent(), result, message.mission_type
         )
+
+    async def _on_position_target(self, message: Any) -> None:
+        """SET_POSITION_TARGET_GLOBAL_INT's altitude as the depth to hold (ArduSub's way for a
+        script to set one: ``alt`` −0.5 holds 50 cm), in ALT_HOLD and armed; its other fields
+        (position, velocities, yaw) the protocol cannot carry out."""
+        if message.type_mask & _POSITION_TARGET_Z_IGNORE:
+            return
+        refusal = None
+        if message.coordinate_frame not in _DEPTH_TARGET_FRAMES:
+            refusal = f"Depth target ignored: frame {message.coordinate_frame} is not global"
+        elif self.state.mode is not FlightMode.ALT_HOLD or not self.armed:
+            refusal = "Depth target ignored: ALT_HOLD and armed only"
+        if refusal is not None:
+            if refusal != self._depth_target_refusal:  # (a script may send one at 10 Hz)
+                self._depth_target_refusal = refusal
+                self._say(_SEVERITY_WARNING, refusal)
+            return
+        self._depth_target_refusal = None
+        if math.isfinite(message.alt):
+            await self.rov.send(self.pilot.hold(round(-message.alt * 100)))
 
     async def _on_timesync(self, message: Any) -> None:
         if message.tc1 == 0:  # a request (tc1 set: an answer, another system's)
