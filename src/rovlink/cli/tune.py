@@ -216,7 +216,7 @@ def run(args: argparse.Namespace) -> int:
             hysteresis_cm=args.hysteresis,
         )
         try:
-            result = autotune(plant, relay, rule, scales, step)
+            result = autotune(plant, relay, rule, scales, step, progress=_progress)
         except TuneAbortedError as error:
             raise CommandError(f"aborted: {error}{_gains_back(client, restore)}") from None
         except KeyboardInterrupt:
@@ -234,6 +234,12 @@ def run(args: argparse.Namespace) -> int:
     if args.plot:
         _plot(result, args.plot)
     return 0 if met else 1
+
+
+def _progress(line: str) -> None:
+    """What the experiment is doing, on stderr as it starts (it runs for minutes with the motors
+    on; the result goes to stdout at the end)."""
+    print(line, file=sys.stderr, flush=True)
 
 
 def _check_relay_fits(args: argparse.Namespace) -> None:
