@@ -4,13 +4,15 @@ bit of SYS_STATUS. A question left unanswered has a ground station retry and wai
 
 from __future__ import annotations
 
+import errno
 import struct
 import time
 
 import pytest
 
+from rovlink.bridges.mavlink.endpoint import MavlinkEndpoint
 from rovlink.bridges.mavlink.file_transfer import ERROR_UNKNOWN_COMMAND, OPCODE_NAK
-from tests.bridges.mavlink.rig import VEHICLE, BridgeRig, GroundStation
+from tests.bridges.mavlink.rig import VEHICLE, BridgeRig, GroundStation, free_udp_port
 
 pytestmark = pytest.mark.integration
 
@@ -125,3 +127,17 @@ def test_a_depth_target_is_held_in_alt_hold_as_ardusub_takes_it(rig: BridgeRig, 
     _depth_target(gcs, -2.0, frame=1)  # MAV_FRAME_LOCAL_NED: not taken, and said
     gcs.receive("STATUSTEXT", condition=lambda m: "frame 1" in m.text)
     assert not [f for f in rig.frames_since(mark) if f.startswith("#mvd.200")]
+
+
+def test_a_udp_port_another_bridge_listens_on_is_refused() -> None:
+    # pymavlink binds with SO_REUSEADDR: a second bridge on the same port started, and each
+    # ground station datagram (a disarm among them) went to one of the two.
+    port = free_udp_port()
+    first = MavlinkEndpoint(f"udpin:127.0.0.1:{port}")
+    try:
+        with pytest.raises(OSError, match="in use") as refused:
+            MavlinkEndpoint(f"udpin:127.0.0.1:{port}")
+        assert refused.value.errno == errno.EADDRINUSE
+    finally:
+        first.close()
+    MavlinkEndpoint(f"udpin:127.0.0.1:{port}").close()  # free again: taken
