@@ -12,7 +12,14 @@ import pytest
 
 from rovlink.bridges.mavlink.endpoint import MavlinkEndpoint
 from rovlink.bridges.mavlink.file_transfer import ERROR_UNKNOWN_COMMAND, OPCODE_NAK
-from tests.bridges.mavlink.rig import VEHICLE, BridgeRig, GroundStation, free_udp_port
+from tests.bridges.mavlink.rig import (
+    VEHICLE,
+    BridgeRig,
+    GroundStation,
+    free_udp_port,
+    running_bridge,
+    wait_for,
+)
 
 pytestmark = pytest.mark.integration
 
@@ -141,3 +148,19 @@ def test_a_udp_port_another_bridge_listens_on_is_refused() -> None:
     finally:
         first.close()
     MavlinkEndpoint(f"udpin:127.0.0.1:{port}").close()  # free again: taken
+
+
+def test_a_leak_is_said_again_while_the_latch_is_set_for_a_late_ground_station() -> None:
+    # Said once only, a ground station connecting later saw a CRITICAL vehicle and no reason.
+    with running_bridge(leak_at_s=0.2) as rig:
+        rig.bridge.leak_repeat_s = 0.3  # (ArduSub's 20 s, shortened)
+        wait_for(lambda: rig.bridge.state.leak)
+        late = GroundStation(rig.gcs_address)
+        try:
+            late.receive("STATUSTEXT", condition=lambda m: m.text == "Leak detected")
+            said_s = time.monotonic()
+            text = late.receive("STATUSTEXT", condition=lambda m: m.text == "Leak detected")
+            assert text.severity == 2  # MAV_SEVERITY_CRITICAL
+            assert time.monotonic() - said_s >= 0.2
+        finally:
+            late.close()

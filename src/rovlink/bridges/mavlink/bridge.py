@@ -39,10 +39,12 @@ from rovlink.piloting.tracked import TrackedClient
 from rovlink.protocol import Command
 from rovlink.protocol.announcements import Announcement, AnnouncementKind
 
-__all__ = ["MavlinkBridge"]
+__all__ = ["LEAK_REPEAT_S", "MavlinkBridge"]
 
 logger = get_logger("rovlink.bridges.mavlink")
 
+#: How often "Leak detected" is said while the leak latch is set, s (ArduSub's period).
+LEAK_REPEAT_S = 20.0
 #: How often the failsafes are checked and due telemetry is sent, s.
 _TICK_S = 0.02
 #: The sensors are read at least this often, whatever the ground station asks (leak, depth).
@@ -106,6 +108,10 @@ class MavlinkBridge:
         self._inbox: asyncio.Queue[Any] = asyncio.Queue()
         #: Systems whose joystick was ignored (not SYSID_MYGCS), each said once.
         self._ignored_pilots: set[int] = set()
+        #: The leak is said again this often while the latch is set, as ArduSub does: a ground
+        #: station that connects later sees a CRITICAL vehicle, and is told why.
+        self.leak_repeat_s = LEAK_REPEAT_S
+        self._leak_said_at_s: float | None = None
         #: Why the last depth target was ignored, said once until one is taken or why changes.
         self._depth_target_refusal: str | None = None
         self._background: set[asyncio.Future[None]] = set()
@@ -552,7 +558,14 @@ class MavlinkBridge:
     # -- internals -------------------------------------------------------------------------------
 
     def _on_reading(self, sensors: Sensors) -> None:
-        if self.state.update(sensors, self._clock()):
+        now_s = self._clock()
+        first_leak = self.state.update(sensors, now_s)
+        if first_leak or (
+            self.state.leak
+            and self._leak_said_at_s is not None
+            and now_s - self._leak_said_at_s >= self.leak_repeat_s
+        ):
+            self._leak_said_at_s = now_s
             self._say(_SEVERITY_CRITICAL, "Leak detected")
         if self.kept.pending:  # the controller answers again after a suspected reset
             self._in_background(self._restore_settings())
