@@ -241,9 +241,12 @@ def test_an_aborted_tune_sends_the_gains_back(
         frames = server.fakes[0].frames()
     finally:
         server.close()
-    last = capsys.readouterr().err.strip().splitlines()[-1]
+    err = capsys.readouterr().err.strip().splitlines()
+    last = err[-1]
     if ending == "ctrl-c":
         assert (status, last) == (130, "rovlink tune: interrupted")
+        # Said what became of the motors and the gains (before, only "interrupted").
+        assert err[-2] == "#stop! sent; gains sent back: mvpdp 40, mvpdi 30, mvpidd 20"
     else:
         assert status == 1
         assert last == (

@@ -220,7 +220,9 @@ def run(args: argparse.Namespace) -> int:
         except TuneAbortedError as error:
             raise CommandError(f"aborted: {error}{_gains_back(client, restore)}") from None
         except KeyboardInterrupt:
-            _gains_back(client, restore)
+            # What became of the motors and the gains, before "interrupted": the operator
+            # pressed Ctrl-C to stop a running experiment and is told that it did.
+            print(f"{plant.stop()}{_gains_back(client, restore)}", file=sys.stderr, flush=True)
             raise
         # Gains the verification found wanting are not left set, --apply or not: they may
         # hold the depth worse than the ones they would replace.
