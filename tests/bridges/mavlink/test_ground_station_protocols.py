@@ -164,3 +164,23 @@ def test_a_leak_is_said_again_while_the_latch_is_set_for_a_late_ground_station()
             assert time.monotonic() - said_s >= 0.2
         finally:
             late.close()
+
+
+def test_a_joystick_aimed_at_every_vehicle_drives_none_and_is_said_once(
+    rig: BridgeRig, gcs: GroundStation
+):
+    # A script that never read the vehicle's id sends MANUAL_CONTROL to system 0: ArduSub
+    # ignores it, and so does the bridge; before, without a word.
+    gcs.start_heartbeats()
+    assert gcs.arm() == ACCEPTED
+    mark = len(rig.frames())
+    for _ in range(3):
+        gcs.send("manual_control", 0, 500, 0, 500, 0, 0)
+    text = gcs.receive("STATUSTEXT", condition=lambda m: "system 0" in m.text)
+    assert text.text == "Joystick to system 0 ignored: aim it at 1"
+    gcs.send("manual_control", VEHICLE, 0, 0, 500, 0, 0)  # aimed: drives (centred)
+    gcs.send("manual_control", VEHICLE, 500, 0, 500, 0, 0)
+    rig.wait_frame("#th.0.50!", since=mark)
+    assert gcs.command(REQUEST_MESSAGE, SYSTEM_TIME_ID) == ACCEPTED  # (what came before: read)
+    assert not [m for m in gcs.kept("STATUSTEXT") if "system 0" in m.text]  # said once
+    assert [f for f in rig.frames_since(mark) if f.startswith("#th")] == ["#th.0.50!"]

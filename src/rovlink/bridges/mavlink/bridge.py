@@ -108,6 +108,8 @@ class MavlinkBridge:
         self._inbox: asyncio.Queue[Any] = asyncio.Queue()
         #: Systems whose joystick was ignored (not SYSID_MYGCS), each said once.
         self._ignored_pilots: set[int] = set()
+        #: Systems whose joystick was aimed at system 0 (every vehicle), each said once.
+        self._broadcast_joysticks: set[int] = set()
         #: The leak is said again this often while the latch is set, as ArduSub does: a ground
         #: station that connects later sees a CRITICAL vehicle, and is told why.
         self.leak_repeat_s = LEAK_REPEAT_S
@@ -302,6 +304,7 @@ class MavlinkBridge:
         while True:
             message = await self._inbox.get()
             if not self.endpoint.is_for_me(message):
+                self._said_broadcast_joystick(message)
                 continue  # for another vehicle, or another component of this one
             handler = self._handlers.get(message.get_type())
             if handler is None:
@@ -350,6 +353,20 @@ class MavlinkBridge:
         # must not keep the vehicle armed after the pilot's has gone.
         if message.type == _GCS_TYPE and message.get_srcSystem() == self.parameters.pilot_system:
             self.watchdog.heartbeat(self._clock())
+
+    def _said_broadcast_joystick(self, message: Any) -> None:
+        """A joystick aimed at every vehicle (``target`` 0: a script that never read the
+        vehicle's id from its HEARTBEAT) drives none, as in ArduSub; said once per ground
+        station, as nothing else would tell its pilot why nothing moves."""
+        if message.get_type() != "MANUAL_CONTROL" or message.target != 0:
+            return
+        source = message.get_srcSystem()
+        if source not in self._broadcast_joysticks:
+            self._broadcast_joysticks.add(source)
+            self._say(
+                _SEVERITY_WARNING,
+                f"Joystick to system 0 ignored: aim it at {self.endpoint.system_id}",
+            )
 
     def _from_pilot(self, message: Any) -> bool:
         """Whether pilot input comes from the pilot's ground station (``SYSID_MYGCS``); if so,
