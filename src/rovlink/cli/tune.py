@@ -25,7 +25,7 @@ __all__ = ["EPILOG", "parse_triple"]
 
 EPILOG = """\
 examples:
-  rovlink tune sim://?preset=heavy --yes --plot tune.png
+  rovlink tune 'sim://?preset=heavy' --yes --plot tune.png
   rovlink tune /dev/ttyUSB0 --depth 150 --min-depth 50 --max-depth 300 --apply
   rovlink tune socket://robot:5760 --rule zn-no-overshoot --relay-power 20"""
 
