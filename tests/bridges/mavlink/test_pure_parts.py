@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 import struct
+from types import SimpleNamespace
 
 import pytest
 
@@ -26,7 +27,11 @@ from rovlink.bridges.mavlink.pilot_input import (
     vertical_thrust_percent,
 )
 from rovlink.bridges.mavlink.rc_override import CHANNEL_NO_CHANGE, RcOverride
-from rovlink.bridges.mavlink.telemetry_messages import STATUSTEXT_CHARS, statustext_chunks
+from rovlink.bridges.mavlink.telemetry_messages import (
+    STATUSTEXT_CHARS,
+    TelemetryMessages,
+    statustext_chunks,
+)
 from rovlink.bridges.mavlink.telemetry_schedule import MAX_RATE_HZ, TelemetrySchedule
 from rovlink.bridges.mavlink.vehicle_state import (
     SURFACE_PRESSURE_HPA,
@@ -573,3 +578,20 @@ def test_mavlink_addressing_broadcasts_systems_and_components():
             system, component, 400, 0, 0, 0, 0, 0, 0, 0, 0
         )
         assert for_us(command) is expected, (system, component)
+
+
+# -- telemetry messages ------------------------------------------------------------------------
+
+
+def test_the_heading_is_unknown_until_the_first_reading_not_north():
+    from pymavlink.dialects.v20 import ardupilotmega as dialect
+
+    sent: list[tuple[object, ...]] = []
+    mav = SimpleNamespace(global_position_int_send=lambda *fields: sent.append(fields))
+    endpoint = SimpleNamespace(mav=mav, dialect=dialect)
+    state = VehicleState()
+    messages = TelemetryMessages(endpoint, state, None, ParameterTable(), lambda: 0.0)  # type: ignore[arg-type]
+    messages.send("GLOBAL_POSITION_INT")
+    state.update(Sensors(150, 95, False, 0, 0, 0), now_s=1.0)  # heading 0: north, now known
+    messages.send("GLOBAL_POSITION_INT")
+    assert [fields[-1] for fields in sent] == [65535, 0]  # hdg: UINT16_MAX is "unknown"

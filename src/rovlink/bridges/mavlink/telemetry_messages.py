@@ -17,6 +17,7 @@ __all__ = ["STATUSTEXT_CHARS", "TelemetryMessages", "statustext_chunks", "versio
 
 _UNKNOWN_VOLTAGE_MV = 65535  # SYS_STATUS: no battery monitor
 _UNKNOWN = -1
+_UNKNOWN_HEADING = 0xFFFF  # GLOBAL_POSITION_INT.hdg
 #: STATUSTEXT carries at most 50 characters; a longer text is sent in chunks (MAVLink 2).
 STATUSTEXT_CHARS = 50
 _LAST_STATUSTEXT_ID = 0xFFFF  # ``id`` is a uint16; 0 means "a text of one chunk"
@@ -182,8 +183,12 @@ class TelemetryMessages:
         )
 
     def global_position_int(self) -> None:
-        """GLOBAL_POSITION_INT: no position fix (lat, lon 0); altitudes = −depth, mm."""
+        """GLOBAL_POSITION_INT: no position fix (lat, lon 0); altitudes = −depth, mm; the heading
+        UINT16_MAX (unknown, as MAVLink has it) until the first reading, not 0 (north)."""
         altitude_mm = round(self._state.altitude_m() * 1000)
+        heading_cdeg = (
+            _UNKNOWN_HEADING if self._state.sensors is None else self._state.heading_deg() * 100
+        )
         self._mav.global_position_int_send(
             self._boot_ms(),
             0,
@@ -193,7 +198,7 @@ class TelemetryMessages:
             0,
             0,
             round(-self._state.climb_cm_s),  # vz: + down, cm/s
-            self._state.heading_deg() * 100,
+            heading_cdeg,
         )
 
     def scaled_pressure2(self) -> None:
