@@ -14,6 +14,7 @@ from collections.abc import Callable, Coroutine, Iterable
 from typing import Any
 
 from rovlink.bridges.kept_settings import KeptSettings
+from rovlink.bridges.mavlink import file_transfer
 from rovlink.bridges.mavlink.command_handling import (
     Result,
     handle_command,
@@ -21,7 +22,6 @@ from rovlink.bridges.mavlink.command_handling import (
 )
 from rovlink.bridges.mavlink.endpoint import MavlinkEndpoint
 from rovlink.bridges.mavlink.failsafe import GcsWatchdog
-from rovlink.bridges.mavlink.file_transfer import refusal
 from rovlink.bridges.mavlink.modes import ButtonFunction, FlightMode
 from rovlink.bridges.mavlink.parameters import PILOT_SYSTEM, ParameterError, ParameterTable
 from rovlink.bridges.mavlink.pilot_input import PilotInput, all_buttons
@@ -547,15 +547,15 @@ class MavlinkBridge:
         (position, velocities, yaw) the protocol cannot carry out."""
         if message.type_mask & _POSITION_TARGET_Z_IGNORE:
             return
-        refusal = None
+        why_not = None
         if message.coordinate_frame not in _DEPTH_TARGET_FRAMES:
-            refusal = f"Depth target ignored: frame {message.coordinate_frame} is not global"
+            why_not = f"Depth target ignored: frame {message.coordinate_frame} is not global"
         elif self.state.mode is not FlightMode.ALT_HOLD or not self.armed:
-            refusal = "Depth target ignored: ALT_HOLD and armed only"
-        if refusal is not None:
-            if refusal != self._depth_target_refusal:  # (a script may send one at 10 Hz)
-                self._depth_target_refusal = refusal
-                self._say(_SEVERITY_WARNING, refusal)
+            why_not = "Depth target ignored: ALT_HOLD and armed only"
+        if why_not is not None:
+            if why_not != self._depth_target_refusal:  # (a script may send one at 10 Hz)
+                self._depth_target_refusal = why_not
+                self._say(_SEVERITY_WARNING, why_not)
             return
         self._depth_target_refusal = None
         if math.isfinite(message.alt):
@@ -566,7 +566,7 @@ class MavlinkBridge:
             self.messages.timesync(message.ts1)
 
     async def _on_file_transfer(self, message: Any) -> None:
-        payload = refusal(message.payload)
+        payload = file_transfer.refusal(message.payload)
         if payload is not None:
             self.messages.file_transfer(
                 message.get_srcSystem(), message.get_srcComponent(), payload
