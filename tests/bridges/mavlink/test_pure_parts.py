@@ -450,6 +450,15 @@ def test_rates_follow_streams_and_intervals_within_bounds():
     assert schedule.rates_hz["VFR_HUD"] == 4.0
 
 
+def test_only_messages_with_readings_set_how_often_the_sensors_are_read():
+    schedule = TelemetrySchedule(now_s=0.0)
+    assert schedule.fastest_rate_hz() == 4.0  # ATTITUDE, VFR_HUD, GLOBAL_POSITION_INT
+    assert schedule.set_interval("SYSTEM_TIME", 1 / MAX_RATE_HZ, now_s=0.0)  # the clock, fast
+    assert schedule.fastest_rate_hz() == 4.0  # no reason to poll the serial line faster
+    assert schedule.set_interval("SCALED_PRESSURE2", 0.1, now_s=0.0)
+    assert schedule.fastest_rate_hz() == 10.0
+
+
 def test_a_stalled_schedule_does_not_burst():
     schedule = TelemetrySchedule(now_s=0.0)
     schedule.due(0.0)

@@ -33,6 +33,8 @@ STREAMS: Mapping[int, tuple[str, ...]] = {
     12: ("SYSTEM_TIME",),  # EXTRA3
 }
 _ALL_STREAMS = 0
+#: Messages filled from no sensor reading: their rates leave the sensor poll alone.
+_CARRIES_NO_READING = frozenset({"HEARTBEAT", "SYSTEM_TIME"})
 _FIXED = "HEARTBEAT"
 
 
@@ -87,8 +89,11 @@ class TelemetrySchedule:
         return round(1_000_000 / rate_hz) if rate_hz > 0 else -1
 
     def fastest_rate_hz(self) -> float:
-        """The highest rate asked for: how often the sensors need reading."""
-        return max(self.rates_hz.values())
+        """The highest rate asked for of a message that carries readings: how often the sensors
+        need reading (SYSTEM_TIME, asked fast, is no reason to poll the serial line faster)."""
+        return max(
+            rate_hz for name, rate_hz in self.rates_hz.items() if name not in _CARRIES_NO_READING
+        )
 
     def due(self, now_s: float) -> list[str]:
         """The messages due now; each is then scheduled one period later."""
