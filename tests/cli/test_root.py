@@ -98,6 +98,23 @@ def test_the_help_examples_are_command_lines_the_commands_accept() -> None:
     assert not refused
 
 
+def test_the_help_examples_quote_what_a_shell_would_expand() -> None:
+    # `rovlink tune sim://?preset=heavy` is a glob: zsh refuses it ("no matches found"), and a
+    # file that matched would replace it in bash. The docs quoted it; tune's --help did not.
+    from rovlink.cli import _EPILOG
+
+    unquoted = []
+    for name in ["rovlink", *ALL_COMMANDS]:
+        epilog = _EPILOG if name == "rovlink" else _command_parser(name).epilog or ""
+        for line in epilog.replace("\\\n", " ").splitlines():
+            if line.strip().startswith("rovlink "):
+                example = re.split(r"\s{2,}", line.strip())[0]
+                for word in shlex.split(example, posix=False):  # (quotes kept)
+                    if re.search(r"[?*\[]", word) and word[0] not in "'\"":
+                        unquoted.append(f"{name}: {word}")
+    assert not unquoted
+
+
 @pytest.mark.parametrize("name", [None, *ALL_COMMANDS])
 def test_help_is_plain_text_without_markup(run_cli: RunCli, name: str | None) -> None:
     # Regression: descriptions came from docstrings with their Sphinx markup (:func:`…`, ``…``).

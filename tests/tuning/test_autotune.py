@@ -407,3 +407,25 @@ def test_ctrl_c_during_the_relay_leaves_the_robot_locked_with_zero_thrust() -> N
             autotune(plant, RelaySettings(), RULES["heave-poles"], SCALES, None)
         assert port.controller.locked
         assert port.vehicle.duties == (0,) * len(port.vehicle.duties)
+
+
+def test_the_autotune_says_what_it_does_as_it_goes() -> None:
+    # Minutes with the motors running: before, nothing was said until the end.
+    told: list[str] = []
+    with simulated_plant(None, 1) as (plant, port):
+
+        def progress(line: str) -> None:
+            told.append(line)
+            assert not port.controller.locked  # (said while it happens, not after)
+
+        settings = StepSettings(from_cm=60, to_cm=100, hold_s=5.0, watch_s=15.0)
+        result = autotune(plant, RelaySettings(target_cm=100), DEFAULT_RULE, SCALES, settings,
+                          progress=progress)  # fmt: skip
+    gains = result.gains
+    assert told == [
+        "motors unlocked: relay of ±30 % vertical thrust around 100 cm (up to 120 s)",
+        f"relay done: Ku {result.relay.ultimate_gain:.3f} %/cm, Tu "
+        f"{result.relay.ultimate_period_s:.2f} s -> mvpdp {gains.kp}, mvpdi {gains.ki}, "
+        f"mvpidd {gains.kd} ({DEFAULT_RULE.name})",
+        "verifying: holding 60 cm for 5 s, then a step to 100 cm watched for 15 s",
+    ]

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+from collections.abc import Callable
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -87,7 +88,7 @@ def test_gains_that_cannot_be_sent_at_the_end_are_one_line(
     from rovlink.tuning import ProtocolGains
 
     tuned = SimpleNamespace(gains=ProtocolGains(55, 20, 10), step=None)  # (--no-verify)
-    monkeypatch.setattr("rovlink.tuning.autotune", lambda *_: tuned)
+    monkeypatch.setattr("rovlink.tuning.autotune", lambda *_, **__: tuned)
     send = Client.send
 
     def lost_after_the_first_gain(client: Client, command: Command) -> object:
@@ -224,7 +225,7 @@ def test_an_aborted_tune_sends_the_gains_back(
     from tests.client.conftest import CONDITION_TIMEOUT_S, wait_until
     from tests.client.fake_controller import FakeControllerServer
 
-    def aborted_in_the_verification(plant: Plant, *args: object) -> None:
+    def aborted_in_the_verification(plant: Plant, *args: object, **kwargs: object) -> None:
         plant.client.set_depth_pid(90, 91, 92)  # the gains being verified
         plant.stop()
         if ending == "ctrl-c":
@@ -240,9 +241,12 @@ def test_an_aborted_tune_sends_the_gains_back(
         frames = server.fakes[0].frames()
     finally:
         server.close()
-    last = capsys.readouterr().err.strip().splitlines()[-1]
+    err = capsys.readouterr().err.strip().splitlines()
+    last = err[-1]
     if ending == "ctrl-c":
         assert (status, last) == (130, "rovlink tune: interrupted")
+        # Said what became of the motors and the gains (before, only "interrupted").
+        assert err[-2] == "#stop! sent; gains sent back: mvpdp 40, mvpdi 30, mvpidd 20"
     else:
         assert status == 1
         assert last == (
@@ -292,7 +296,9 @@ def test_apply_leaves_no_gains_set_that_missed_the_verifications_targets(
 ) -> None:
     # Before, --apply left the tuned gains set even when their step missed a target: gains
     # that held the depth worse than the ones they replaced flew the next dive.
-    monkeypatch.setattr("rovlink.tuning.autotune", lambda *_: _result_missing_the_settling_target())
+    monkeypatch.setattr(
+        "rovlink.tuning.autotune", lambda *_, **__: _result_missing_the_settling_target()
+    )
     sent = _sent_frames(monkeypatch)
     assert main(["tune", "sim://", "--yes", "--apply"]) == 1
     assert sent == ["#mvpdp.40!", "#mvpdi.30!", "#mvpidd.20!"]
@@ -309,7 +315,7 @@ def test_apply_leaves_gains_set_that_met_the_targets(
 ) -> None:
     result = _result_missing_the_settling_target()
     result.step.depths_cm[:] = [100] * len(result.step.depths_cm)  # type: ignore[attr-defined]
-    monkeypatch.setattr("rovlink.tuning.autotune", lambda *_: result)
+    monkeypatch.setattr("rovlink.tuning.autotune", lambda *_, **__: result)
     sent = _sent_frames(monkeypatch)
     assert main(["tune", "sim://", "--yes", "--apply"]) == 0
     assert sent == ["#mvpdp.58!", "#mvpdi.78!", "#mvpidd.34!"]
@@ -325,7 +331,7 @@ def test_a_plot_whose_format_needs_a_missing_program_is_one_line_after_the_gains
     result.relay.times_s = [0.0, 1.0, 2.0]  # type: ignore[attr-defined]
     result.relay.depths_cm = [100, 104, 98]  # type: ignore[attr-defined]
     result.relay.outputs_percent = [30, -30, 30]  # type: ignore[attr-defined]
-    monkeypatch.setattr("rovlink.tuning.autotune", lambda *_: result)
+    monkeypatch.setattr("rovlink.tuning.autotune", lambda *_, **__: result)
     sent = _sent_frames(monkeypatch)
     monkeypatch.setenv("PATH", str(tmp_path))  # (no LaTeX there, installed or not)
     image = tmp_path / "tune.pgf"
@@ -336,3 +342,24 @@ def test_a_plot_whose_format_needs_a_missing_program_is_one_line_after_the_gains
     assert "not found" in err
     assert "Traceback" not in err
     assert not image.exists()
+
+
+def test_the_experiment_is_said_on_stderr_as_it_goes(
+    capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # Before, `rovlink tune` said nothing for the minutes its motors ran.
+    heard: list[str] = []
+
+    def tuned(*_: object, progress: Callable[[str], None]) -> object:
+        progress("motors unlocked: relay of ±30 % vertical thrust around 100 cm (up to 120 s)")
+        heard.append(capsys.readouterr().err)  # on the terminal before the experiment ends
+        result = _result_missing_the_settling_target()
+        result.step = None  # type: ignore[attr-defined]
+        return result
+
+    monkeypatch.setattr("rovlink.tuning.autotune", tuned)
+    assert main(["tune", "sim://", "--yes", "--no-verify"]) == 0
+    assert heard == [
+        "motors unlocked: relay of ±30 % vertical thrust around 100 cm (up to 120 s)\n"
+    ]
+    assert capsys.readouterr().out.splitlines()[-1].endswith("motors locked")

@@ -1,10 +1,10 @@
 """Serve the robot as an ArduSub-like MAVLink vehicle for QGroundControl, MAVProxy or pymavlink.
 
-Telemetry out (HEARTBEAT, SYS_STATUS, ATTITUDE, VFR_HUD, GLOBAL_POSITION_INT, SCALED_PRESSURE2),
-parameters, arming, MANUAL/ALT_HOLD and the joystick in. No ground-station heartbeat or
-joystick input for 3 s while armed stops the robot; joystick input stale for 1 s zeroes its
-thrust; a stick or RC channel off centre at arming is held at neutral until centred. The robot
-is left locked when the bridge ends.
+Telemetry out (HEARTBEAT, SYS_STATUS, ATTITUDE, VFR_HUD, GLOBAL_POSITION_INT, SCALED_PRESSURE2,
+SYSTEM_TIME), parameters, arming, MANUAL/ALT_HOLD and the joystick in. No ground-station
+heartbeat or joystick input for 3 s while armed stops the robot; joystick input stale for 1 s
+zeroes its thrust; a stick or RC channel off centre at arming is held at neutral until centred.
+The robot is left locked when the bridge ends.
 """
 
 from __future__ import annotations

@@ -25,7 +25,7 @@ __all__ = ["EPILOG", "parse_triple"]
 
 EPILOG = """\
 examples:
-  rovlink tune sim://?preset=heavy --yes --plot tune.png
+  rovlink tune 'sim://?preset=heavy' --yes --plot tune.png
   rovlink tune /dev/ttyUSB0 --depth 150 --min-depth 50 --max-depth 300 --apply
   rovlink tune socket://robot:5760 --rule zn-no-overshoot --relay-power 20"""
 
@@ -216,11 +216,13 @@ def run(args: argparse.Namespace) -> int:
             hysteresis_cm=args.hysteresis,
         )
         try:
-            result = autotune(plant, relay, rule, scales, step)
+            result = autotune(plant, relay, rule, scales, step, progress=_progress)
         except TuneAbortedError as error:
             raise CommandError(f"aborted: {error}{_gains_back(client, restore)}") from None
         except KeyboardInterrupt:
-            _gains_back(client, restore)
+            # What became of the motors and the gains, before "interrupted": the operator
+            # pressed Ctrl-C to stop a running experiment and is told that it did.
+            print(f"{plant.stop()}{_gains_back(client, restore)}", file=sys.stderr, flush=True)
             raise
         # Gains the verification found wanting are not left set, --apply or not: they may
         # hold the depth worse than the ones they would replace.
@@ -234,6 +236,12 @@ def run(args: argparse.Namespace) -> int:
     if args.plot:
         _plot(result, args.plot)
     return 0 if met else 1
+
+
+def _progress(line: str) -> None:
+    """What the experiment is doing, on stderr as it starts (it runs for minutes with the motors
+    on; the result goes to stdout at the end)."""
+    print(line, file=sys.stderr, flush=True)
 
 
 def _check_relay_fits(args: argparse.Namespace) -> None:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 import struct
+from types import SimpleNamespace
 
 import pytest
 
@@ -26,7 +27,11 @@ from rovlink.bridges.mavlink.pilot_input import (
     vertical_thrust_percent,
 )
 from rovlink.bridges.mavlink.rc_override import CHANNEL_NO_CHANGE, RcOverride
-from rovlink.bridges.mavlink.telemetry_messages import STATUSTEXT_CHARS, statustext_chunks
+from rovlink.bridges.mavlink.telemetry_messages import (
+    STATUSTEXT_CHARS,
+    TelemetryMessages,
+    statustext_chunks,
+)
 from rovlink.bridges.mavlink.telemetry_schedule import MAX_RATE_HZ, TelemetrySchedule
 from rovlink.bridges.mavlink.vehicle_state import (
     SURFACE_PRESSURE_HPA,
@@ -445,6 +450,15 @@ def test_rates_follow_streams_and_intervals_within_bounds():
     assert schedule.rates_hz["VFR_HUD"] == 4.0
 
 
+def test_only_messages_with_readings_set_how_often_the_sensors_are_read():
+    schedule = TelemetrySchedule(now_s=0.0)
+    assert schedule.fastest_rate_hz() == 4.0  # ATTITUDE, VFR_HUD, GLOBAL_POSITION_INT
+    assert schedule.set_interval("SYSTEM_TIME", 1 / MAX_RATE_HZ, now_s=0.0)  # the clock, fast
+    assert schedule.fastest_rate_hz() == 4.0  # no reason to poll the serial line faster
+    assert schedule.set_interval("SCALED_PRESSURE2", 0.1, now_s=0.0)
+    assert schedule.fastest_rate_hz() == 10.0
+
+
 def test_a_stalled_schedule_does_not_burst():
     schedule = TelemetrySchedule(now_s=0.0)
     schedule.due(0.0)
@@ -517,6 +531,10 @@ class _Actions:
         self.done.append(f"interval {message_id} {interval_us:g}")
         return Result.ACCEPTED
 
+    def get_message_interval(self, message_id: int) -> Result:
+        self.done.append(f"interval of {message_id}")
+        return Result.ACCEPTED
+
 
 @pytest.mark.parametrize(
     ("command", "params", "result", "done"),
@@ -525,8 +543,8 @@ class _Actions:
         (400, [0], Result.ACCEPTED, ["disarm"]),
         (400, [2], Result.DENIED, []),
         (176, [1, 2], Result.ACCEPTED, ["ALT_HOLD"]),
-        (176, [1, 0], Result.UNSUPPORTED, []),  # STABILIZE
-        (176, [0, 19], Result.UNSUPPORTED, []),  # not a custom mode
+        (176, [1, 0], Result.DENIED, []),  # STABILIZE: a mode the bridge has not
+        (176, [0, 19], Result.DENIED, []),  # not a custom mode
         (176, [math.nan, 19], Result.DENIED, []),
         (211, [1, 1], Result.ACCEPTED, ["close"]),
         (211, [1, 0], Result.ACCEPTED, ["open"]),
@@ -536,6 +554,8 @@ class _Actions:
         (520, [1], Result.ACCEPTED, ["request 148"]),
         (511, [30, 50000], Result.ACCEPTED, ["interval 30 50000"]),
         (511, [30, math.nan], Result.DENIED, []),
+        (510, [30], Result.ACCEPTED, ["interval of 30"]),
+        (510, [math.nan], Result.DENIED, []),
         (22, [], Result.UNSUPPORTED, []),  # NAV_TAKEOFF
     ],
 )
@@ -567,3 +587,20 @@ def test_mavlink_addressing_broadcasts_systems_and_components():
             system, component, 400, 0, 0, 0, 0, 0, 0, 0, 0
         )
         assert for_us(command) is expected, (system, component)
+
+
+# -- telemetry messages ------------------------------------------------------------------------
+
+
+def test_the_heading_is_unknown_until_the_first_reading_not_north():
+    from pymavlink.dialects.v20 import ardupilotmega as dialect
+
+    sent: list[tuple[object, ...]] = []
+    mav = SimpleNamespace(global_position_int_send=lambda *fields: sent.append(fields))
+    endpoint = SimpleNamespace(mav=mav, dialect=dialect)
+    state = VehicleState()
+    messages = TelemetryMessages(endpoint, state, None, ParameterTable(), lambda: 0.0)  # type: ignore[arg-type]
+    messages.send("GLOBAL_POSITION_INT")
+    state.update(Sensors(150, 95, False, 0, 0, 0), now_s=1.0)  # heading 0: north, now known
+    messages.send("GLOBAL_POSITION_INT")
+    assert [fields[-1] for fields in sent] == [65535, 0]  # hdg: UINT16_MAX is "unknown"

@@ -254,16 +254,16 @@ def _wait_prefix(rig: BridgeRig, prefix: str, since: int) -> list[str]:
     return [f for f in rig.frames_since(since) if f.startswith(prefix)]
 
 
-def test_unsupported_modes_and_commands_are_answered_unsupported(
+def test_unsupported_modes_are_denied_and_unknown_commands_unsupported(
     rig: BridgeRig, gcs: GroundStation
 ):
     mark = len(rig.frames())
-    assert gcs.set_mode(STABILIZE) == UNSUPPORTED
+    assert gcs.set_mode(STABILIZE) == DENIED
     assert gcs.command(NAV_TAKEOFF) == UNSUPPORTED
     assert all(f in {"#qsa!", "#qd!"} for f in rig.frames_since(mark))  # polls only
 
 
-@pytest.mark.parametrize(("mode", "result"), [(ALT_HOLD, ACCEPTED), (STABILIZE, UNSUPPORTED)])
+@pytest.mark.parametrize(("mode", "result"), [(ALT_HOLD, ACCEPTED), (STABILIZE, DENIED)])
 def test_set_mode_is_acknowledged_as_ardupilot_does(
     rig: BridgeRig, gcs: GroundStation, mode: int, result: int
 ):
@@ -330,7 +330,7 @@ def test_message_interval_raises_a_rate(rig: BridgeRig, gcs: GroundStation):
     # 15 at the default 4 Hz would take 3.75 s.
     assert time.monotonic() - started_s < 2.5
     assert rig.bridge.poller.rate_hz >= 20
-    assert gcs.command(SET_MESSAGE_INTERVAL, 0, 100_000) == UNSUPPORTED  # HEARTBEAT: 1 Hz
+    assert gcs.command(SET_MESSAGE_INTERVAL, 0, 100_000) == DENIED  # HEARTBEAT: 1 Hz
 
 
 def test_disarm_is_accepted_even_when_not_armed(rig: BridgeRig, gcs: GroundStation):

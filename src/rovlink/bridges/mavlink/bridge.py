@@ -8,11 +8,13 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import math
 import time
 from collections.abc import Callable, Coroutine, Iterable
 from typing import Any
 
 from rovlink.bridges.kept_settings import KeptSettings
+from rovlink.bridges.mavlink import file_transfer
 from rovlink.bridges.mavlink.command_handling import (
     Result,
     handle_command,
@@ -37,10 +39,12 @@ from rovlink.piloting.tracked import TrackedClient
 from rovlink.protocol import Command
 from rovlink.protocol.announcements import Announcement, AnnouncementKind
 
-__all__ = ["MavlinkBridge"]
+__all__ = ["LEAK_REPEAT_S", "MavlinkBridge"]
 
 logger = get_logger("rovlink.bridges.mavlink")
 
+#: How often "Leak detected" is said while the leak latch is set, s (ArduSub's period).
+LEAK_REPEAT_S = 20.0
 #: How often the failsafes are checked and due telemetry is sent, s.
 _TICK_S = 0.02
 #: The sensors are read at least this often, whatever the ground station asks (leak, depth).
@@ -50,6 +54,14 @@ _SEVERITY_CRITICAL = 2
 _SEVERITY_WARNING = 4
 _SEVERITY_INFO = 6
 _PARAM_TYPE_INT32 = 6
+#: SET_POSITION_TARGET_GLOBAL_INT: the altitude ignored (POSITION_TARGET_TYPEMASK_Z_IGNORE), and
+#: the frames whose altitude is above the surface (MAV_FRAME_GLOBAL_INT, _RELATIVE_ALT_INT): the
+#: robot has no position, so either's zero is the surface, as its depth sensor's is.
+_POSITION_TARGET_Z_IGNORE = 4
+_DEPTH_TARGET_FRAMES = frozenset({5, 6})
+_MISSION_ACCEPTED = 0  # MAV_MISSION_RESULT
+_MISSION_UNSUPPORTED = 3
+_MISSION_INVALID_SEQUENCE = 13
 #: SET_MODE is acknowledged with its message id as the command, as ArduPilot does (ArduSub's
 #: pymavlink example waits for that COMMAND_ACK).
 _SET_MODE_MESSAGE_ID = 11
@@ -96,6 +108,14 @@ class MavlinkBridge:
         self._inbox: asyncio.Queue[Any] = asyncio.Queue()
         #: Systems whose joystick was ignored (not SYSID_MYGCS), each said once.
         self._ignored_pilots: set[int] = set()
+        #: Systems whose joystick was aimed at system 0 (every vehicle), each said once.
+        self._broadcast_joysticks: set[int] = set()
+        #: The leak is said again this often while the latch is set, as ArduSub does: a ground
+        #: station that connects later sees a CRITICAL vehicle, and is told why.
+        self.leak_repeat_s = LEAK_REPEAT_S
+        self._leak_said_at_s: float | None = None
+        #: Why the last depth target was ignored, said once until one is taken or why changes.
+        self._depth_target_refusal: str | None = None
         self._background: set[asyncio.Future[None]] = set()
         self._handlers: dict[str, Callable[[Any], Any]] = {
             "HEARTBEAT": self._on_heartbeat,
@@ -109,6 +129,13 @@ class MavlinkBridge:
             "PARAM_SET": self._on_param_set,
             "REQUEST_DATA_STREAM": self._on_request_data_stream,
             "MISSION_REQUEST_LIST": self._on_mission_request_list,
+            "MISSION_COUNT": self._on_mission_upload,
+            "MISSION_CLEAR_ALL": self._on_mission_clear_all,
+            "MISSION_REQUEST_INT": self._on_mission_item_request,
+            "MISSION_REQUEST": self._on_mission_item_request,
+            "TIMESYNC": self._on_timesync,
+            "FILE_TRANSFER_PROTOCOL": self._on_file_transfer,
+            "SET_POSITION_TARGET_GLOBAL_INT": self._on_position_target,
         }
         #: The gains, calibration and mode as last sent: sent again after a suspected reset.
         self.kept = KeptSettings()
@@ -242,17 +269,17 @@ class MavlinkBridge:
         return Result.ACCEPTED
 
     def request_message(self, message_id: int) -> Result:
-        """Send one message now, if the bridge has it."""
+        """Send one message now, if the bridge has it (DENIED if not)."""
         name = self._message_name(message_id)
         if name is None or not self.messages.send(name):
-            return Result.UNSUPPORTED
+            return Result.DENIED
         return Result.ACCEPTED
 
     def set_message_interval(self, message_id: int, interval_us: float) -> Result:
         """SET_MESSAGE_INTERVAL: −1 off, 0 the default, else every ``interval_us`` µs."""
         name = self._message_name(message_id)
         if name is None:
-            return Result.UNSUPPORTED
+            return Result.DENIED
         if interval_us < 0:
             interval_s: float | None = 0.0
         elif interval_us == 0:
@@ -260,8 +287,15 @@ class MavlinkBridge:
         else:
             interval_s = interval_us / 1e6
         if not self.schedule.set_interval(name, interval_s, self._clock()):
-            return Result.UNSUPPORTED
+            return Result.DENIED  # (HEARTBEAT stays at 1 Hz; a message not sent on a schedule)
         self.poller.set_rate(self._poll_rate_hz())
+        return Result.ACCEPTED
+
+    def get_message_interval(self, message_id: int) -> Result:
+        """GET_MESSAGE_INTERVAL: MESSAGE_INTERVAL says it (0: not sent on a schedule)."""
+        name = self._message_name(message_id)
+        interval_us = 0 if name is None else self.schedule.interval_us(name)
+        self.messages.message_interval(message_id, interval_us)
         return Result.ACCEPTED
 
     # -- loops -----------------------------------------------------------------------------------
@@ -270,6 +304,7 @@ class MavlinkBridge:
         while True:
             message = await self._inbox.get()
             if not self.endpoint.is_for_me(message):
+                self._said_broadcast_joystick(message)
                 continue  # for another vehicle, or another component of this one
             handler = self._handlers.get(message.get_type())
             if handler is None:
@@ -318,6 +353,20 @@ class MavlinkBridge:
         # must not keep the vehicle armed after the pilot's has gone.
         if message.type == _GCS_TYPE and message.get_srcSystem() == self.parameters.pilot_system:
             self.watchdog.heartbeat(self._clock())
+
+    def _said_broadcast_joystick(self, message: Any) -> None:
+        """A joystick aimed at every vehicle (``target`` 0: a script that never read the
+        vehicle's id from its HEARTBEAT) drives none, as in ArduSub; said once per ground
+        station, as nothing else would tell its pilot why nothing moves."""
+        if message.get_type() != "MANUAL_CONTROL" or message.target != 0:
+            return
+        source = message.get_srcSystem()
+        if source not in self._broadcast_joysticks:
+            self._broadcast_joysticks.add(source)
+            self._say(
+                _SEVERITY_WARNING,
+                f"Joystick to system 0 ignored: aim it at {self.endpoint.system_id}",
+            )
 
     def _from_pilot(self, message: Any) -> bool:
         """Whether pilot input comes from the pilot's ground station (``SYSID_MYGCS``); if so,
@@ -475,10 +524,65 @@ class MavlinkBridge:
             message.get_srcSystem(), message.get_srcComponent(), message.mission_type
         )
 
+    async def _on_mission_upload(self, message: Any) -> None:
+        """An upload (MISSION_COUNT): of nothing, accepted (the list stays empty); of items,
+        refused at once, where a ground station left unanswered retries and times out."""
+        result = _MISSION_ACCEPTED if message.count == 0 else _MISSION_UNSUPPORTED
+        self._mission_ack(message, result)
+
+    async def _on_mission_clear_all(self, message: Any) -> None:
+        self._mission_ack(message, _MISSION_ACCEPTED)  # (there is nothing to clear)
+
+    async def _on_mission_item_request(self, message: Any) -> None:
+        self._mission_ack(message, _MISSION_INVALID_SEQUENCE)  # (there is no item)
+
+    def _mission_ack(self, message: Any, result: int) -> None:
+        self.messages.mission_ack(
+            message.get_srcSystem(), message.get_srcComponent(), result, message.mission_type
+        )
+
+    async def _on_position_target(self, message: Any) -> None:
+        """SET_POSITION_TARGET_GLOBAL_INT's altitude as the depth to hold (ArduSub's way for a
+        script to set one: ``alt`` −0.5 holds 50 cm), in ALT_HOLD and armed; its other fields
+        (position, velocities, yaw) the protocol cannot carry out."""
+        if message.type_mask & _POSITION_TARGET_Z_IGNORE:
+            return
+        why_not = None
+        if message.coordinate_frame not in _DEPTH_TARGET_FRAMES:
+            why_not = f"Depth target ignored: frame {message.coordinate_frame} is not global"
+        elif self.state.mode is not FlightMode.ALT_HOLD or not self.armed:
+            why_not = "Depth target ignored: ALT_HOLD and armed only"
+        if why_not is not None:
+            if why_not != self._depth_target_refusal:  # (a script may send one at 10 Hz)
+                self._depth_target_refusal = why_not
+                self._say(_SEVERITY_WARNING, why_not)
+            return
+        self._depth_target_refusal = None
+        if math.isfinite(message.alt):
+            await self.rov.send(self.pilot.hold(round(-message.alt * 100)))
+
+    async def _on_timesync(self, message: Any) -> None:
+        if message.tc1 == 0:  # a request (tc1 set: an answer, another system's)
+            self.messages.timesync(message.ts1)
+
+    async def _on_file_transfer(self, message: Any) -> None:
+        payload = file_transfer.refusal(message.payload)
+        if payload is not None:
+            self.messages.file_transfer(
+                message.get_srcSystem(), message.get_srcComponent(), payload
+            )
+
     # -- internals -------------------------------------------------------------------------------
 
     def _on_reading(self, sensors: Sensors) -> None:
-        if self.state.update(sensors, self._clock()):
+        now_s = self._clock()
+        first_leak = self.state.update(sensors, now_s)
+        if first_leak or (
+            self.state.leak
+            and self._leak_said_at_s is not None
+            and now_s - self._leak_said_at_s >= self.leak_repeat_s
+        ):
+            self._leak_said_at_s = now_s
             self._say(_SEVERITY_CRITICAL, "Leak detected")
         if self.kept.pending:  # the controller answers again after a suspected reset
             self._in_background(self._restore_settings())

@@ -1,7 +1,10 @@
 """MAVLink commands (COMMAND_LONG, COMMAND_INT, SET_MODE) to the vehicle's actions.
 
-Every command gets a COMMAND_ACK; one the protocol cannot carry out is answered
-MAV_RESULT_UNSUPPORTED, never ignored.
+Every command gets a COMMAND_ACK; one the bridge does not know is answered
+MAV_RESULT_UNSUPPORTED, never ignored. A command it knows asked for something it cannot do (a
+flight mode it has not, a message it does not send) is MAV_RESULT_DENIED, as MAVLink has it
+("supported, but invalid parameters"): UNSUPPORTED would tell the ground station that the
+command itself is unknown, and ground stations stop using a command they were told so.
 """
 
 from __future__ import annotations
@@ -31,6 +34,7 @@ class MAV_CMD(IntEnum):  # noqa: N801 - MAVLink's own name
     DO_SET_MODE = 176
     DO_GRIPPER = 211
     COMPONENT_ARM_DISARM = 400
+    GET_MESSAGE_INTERVAL = 510
     SET_MESSAGE_INTERVAL = 511
     REQUEST_MESSAGE = 512
     REQUEST_AUTOPILOT_CAPABILITIES = 520
@@ -63,6 +67,9 @@ class VehicleActions(Protocol):
     def set_message_interval(self, message_id: int, interval_us: float) -> Result:
         """Send a message at an interval (−1: not at all, 0: its default)."""
 
+    def get_message_interval(self, message_id: int) -> Result:
+        """Say a message's interval (MESSAGE_INTERVAL)."""
+
 
 def _whole(value: float) -> int | None:
     """A parameter that must be a whole number, or ``None`` (NaN, infinite, fractional)."""
@@ -72,16 +79,14 @@ def _whole(value: float) -> int | None:
 
 
 async def mode_result(actions: VehicleActions, base_mode: float, custom_mode: float) -> Result:
-    """DO_SET_MODE or SET_MODE: a custom mode the bridge serves, else unsupported."""
+    """DO_SET_MODE or SET_MODE: a custom mode the bridge serves, else denied."""
     base, custom = _whole(base_mode), _whole(custom_mode)
-    if base is None or custom is None:
+    if base is None or custom is None or not base & _CUSTOM_MODE_ENABLED:
         return Result.DENIED
-    if not base & _CUSTOM_MODE_ENABLED:
-        return Result.UNSUPPORTED
     try:
         mode = FlightMode(custom)
     except ValueError:
-        return Result.UNSUPPORTED
+        return Result.DENIED
     return await actions.set_mode(mode)
 
 
@@ -102,11 +107,17 @@ async def handle_command(actions: VehicleActions, command: int, params: list[flo
         return await actions.gripper(close=p2 == _GRIPPER_GRAB)
     if command == MAV_CMD.REQUEST_AUTOPILOT_CAPABILITIES:
         return actions.request_message(_AUTOPILOT_VERSION)
-    if command in (MAV_CMD.REQUEST_MESSAGE, MAV_CMD.SET_MESSAGE_INTERVAL):
+    if command in (
+        MAV_CMD.REQUEST_MESSAGE,
+        MAV_CMD.SET_MESSAGE_INTERVAL,
+        MAV_CMD.GET_MESSAGE_INTERVAL,
+    ):
         message_id = _whole(p1)
         if message_id is None or (command == MAV_CMD.SET_MESSAGE_INTERVAL and math.isnan(p2)):
             return Result.DENIED
         if command == MAV_CMD.REQUEST_MESSAGE:
             return actions.request_message(message_id)
+        if command == MAV_CMD.GET_MESSAGE_INTERVAL:
+            return actions.get_message_interval(message_id)
         return actions.set_message_interval(message_id, p2)
     return Result.UNSUPPORTED

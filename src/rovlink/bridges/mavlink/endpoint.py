@@ -84,6 +84,18 @@ def is_addressed_to(message: Any, system_id: int, component_id: int) -> bool:
     )
 
 
+def _check_udp_port_free(host: str, port: int) -> None:
+    """``OSError`` (address in use) if a UDP socket is bound at ``host:port`` already.
+
+    pymavlink's UDP server binds with SO_REUSEADDR, with which Linux lets a second socket bind
+    the same port beside one that has it too: a second bridge (or a ground station listening
+    there) would start, and each ground station's datagrams, a disarm among them, would reach
+    one of the two, whichever the kernel picked. A socket without the option may not share it.
+    """
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
+        probe.bind((host, port))
+
+
 def _dial(address: tuple[str, int]) -> socket.socket | None:
     """A TCP connection to a ground station's server, ready for pymavlink; ``None`` if it does
     not answer within :data:`_REDIAL_S` (the next attempt is the reader's)."""
@@ -134,6 +146,8 @@ class MavlinkEndpoint:
             # pymavlink resolves an output's host only when it sends, and drops the error:
             # a name that does not resolve would be a bridge sending nowhere, silently.
             socket.getaddrinfo(host, int(port), type=socket.SOCK_DGRAM)
+        if scheme == "udpin":
+            _check_udp_port_free(host, int(port))
         # MAVLink 2 (pymavlink reads this when it loads a dialect): signatures aside, every
         # field of every message, and extensions such as SYS_STATUS's extended sensors.
         os.environ["MAVLINK20"] = "1"

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable
 from typing import Any
 
@@ -16,6 +17,7 @@ __all__ = ["STATUSTEXT_CHARS", "TelemetryMessages", "statustext_chunks", "versio
 
 _UNKNOWN_VOLTAGE_MV = 65535  # SYS_STATUS: no battery monitor
 _UNKNOWN = -1
+_UNKNOWN_HEADING = 0xFFFF  # GLOBAL_POSITION_INT.hdg
 #: STATUSTEXT carries at most 50 characters; a longer text is sent in chunks (MAVLink 2).
 STATUSTEXT_CHARS = 50
 _LAST_STATUSTEXT_ID = 0xFFFF  # ``id`` is a uint16; 0 means "a text of one chunk"
@@ -78,6 +80,7 @@ class TelemetryMessages:
             "VFR_HUD": self.vfr_hud,
             "GLOBAL_POSITION_INT": self.global_position_int,
             "SCALED_PRESSURE2": self.scaled_pressure2,
+            "SYSTEM_TIME": self.system_time,
             "AUTOPILOT_VERSION": self.autopilot_version,
         }
 
@@ -137,7 +140,8 @@ class TelemetryMessages:
         )
 
     def sys_status(self) -> None:
-        """SYS_STATUS: the sensors behind ``qsa``, healthy while the controller answers."""
+        """SYS_STATUS: the sensors behind ``qsa``, healthy while the controller answers; no
+        fence (present, enabled: no; breached: no)."""
         d = self._dialect
         sensors = (
             d.MAV_SYS_STATUS_SENSOR_3D_GYRO
@@ -147,6 +151,10 @@ class TelemetryMessages:
         )
         enabled = sensors if self.armed else sensors & ~d.MAV_SYS_STATUS_SENSOR_MOTOR_OUTPUTS
         healthy = sensors if self.link_ok() and self._state.sensors is not None else 0
+        # No fence, and so none breached: its health bit set, as ArduPilot sets it (ground
+        # stations read a fence's health whether or not one is present: MAVProxy said "fence
+        # breach" on connecting).
+        healthy |= d.MAV_SYS_STATUS_GEOFENCE
         health = self._rov.health
         attempts = health.replies + health.failures
         drop_rate = round(10000 * health.failures / attempts) if attempts else 0
@@ -175,8 +183,12 @@ class TelemetryMessages:
         )
 
     def global_position_int(self) -> None:
-        """GLOBAL_POSITION_INT: no position fix (lat, lon 0); altitudes = −depth, mm."""
+        """GLOBAL_POSITION_INT: no position fix (lat, lon 0); altitudes = −depth, mm; the heading
+        UINT16_MAX (unknown, as MAVLink has it) until the first reading, not 0 (north)."""
         altitude_mm = round(self._state.altitude_m() * 1000)
+        heading_cdeg = (
+            _UNKNOWN_HEADING if self._state.sensors is None else self._state.heading_deg() * 100
+        )
         self._mav.global_position_int_send(
             self._boot_ms(),
             0,
@@ -186,7 +198,7 @@ class TelemetryMessages:
             0,
             0,
             round(-self._state.climb_cm_s),  # vz: + down, cm/s
-            self._state.heading_deg() * 100,
+            heading_cdeg,
         )
 
     def scaled_pressure2(self) -> None:
@@ -226,3 +238,28 @@ class TelemetryMessages:
     def mission_count(self, target_system: int, target_component: int, mission_type: int) -> None:
         """MISSION_COUNT 0: the robot runs no missions."""
         self._mav.mission_count_send(target_system, target_component, 0, mission_type)
+
+    def mission_ack(
+        self, target_system: int, target_component: int, result: int, mission_type: int
+    ) -> None:
+        """MISSION_ACK ``result`` (MAV_MISSION_RESULT) for the mission transfer of a ground
+        station."""
+        self._mav.mission_ack_send(target_system, target_component, result, mission_type)
+
+    def system_time(self) -> None:
+        """SYSTEM_TIME: this computer's clock (UTC, µs) and the time since the bridge started."""
+        self._mav.system_time_send(int(time.time() * 1_000_000), self._boot_ms())
+
+    def timesync(self, request_ts1: int) -> None:
+        """TIMESYNC's answer to a request: ``tc1`` the time since the bridge started (ns, never 0:
+        0 marks a request), ``ts1`` the request's (the asker matches its answer by it)."""
+        now_ns = max(1, int((self._clock() - self._started_s) * 1_000_000_000))
+        self._mav.timesync_send(now_ns, request_ts1)
+
+    def message_interval(self, message_id: int, interval_us: int) -> None:
+        """MESSAGE_INTERVAL: −1 not sent, 0 not available, else every ``interval_us`` µs."""
+        self._mav.message_interval_send(message_id, interval_us)
+
+    def file_transfer(self, target_system: int, target_component: int, payload: list[int]) -> None:
+        """FILE_TRANSFER_PROTOCOL ``payload`` to whoever asked (network 0)."""
+        self._mav.file_transfer_protocol_send(0, target_system, target_component, payload)

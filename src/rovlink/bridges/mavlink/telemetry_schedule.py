@@ -19,6 +19,7 @@ DEFAULT_RATES_HZ: Mapping[str, float] = {
     "VFR_HUD": 4.0,
     "GLOBAL_POSITION_INT": 4.0,
     "SCALED_PRESSURE2": 2.0,
+    "SYSTEM_TIME": 1.0,
 }
 #: The fastest rate served: the sensors are polled at most this often over the serial line.
 MAX_RATE_HZ = 25.0
@@ -29,8 +30,11 @@ STREAMS: Mapping[int, tuple[str, ...]] = {
     6: ("GLOBAL_POSITION_INT",),  # POSITION
     10: ("ATTITUDE",),  # EXTRA1
     11: ("VFR_HUD",),  # EXTRA2
+    12: ("SYSTEM_TIME",),  # EXTRA3
 }
 _ALL_STREAMS = 0
+#: Messages filled from no sensor reading: their rates leave the sensor poll alone.
+_CARRIES_NO_READING = frozenset({"HEARTBEAT", "SYSTEM_TIME"})
 _FIXED = "HEARTBEAT"
 
 
@@ -76,9 +80,20 @@ class TelemetrySchedule:
             for name in names:
                 self.set_rate(name, rate_hz, now_s)
 
+    def interval_us(self, name: str) -> int:
+        """MESSAGE_INTERVAL's value for ``name``: −1 while it is off, 0 if it is not sent on a
+        schedule at all, else its interval in µs."""
+        if not self.known(name):
+            return 0
+        rate_hz = self.rates_hz[name]
+        return round(1_000_000 / rate_hz) if rate_hz > 0 else -1
+
     def fastest_rate_hz(self) -> float:
-        """The highest rate asked for: how often the sensors need reading."""
-        return max(self.rates_hz.values())
+        """The highest rate asked for of a message that carries readings: how often the sensors
+        need reading (SYSTEM_TIME, asked fast, is no reason to poll the serial line faster)."""
+        return max(
+            rate_hz for name, rate_hz in self.rates_hz.items() if name not in _CARRIES_NO_READING
+        )
 
     def due(self, now_s: float) -> list[str]:
         """The messages due now; each is then scheduled one period later."""
