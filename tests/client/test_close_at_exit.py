@@ -117,6 +117,84 @@ def test_a_forked_child_that_ends_does_not_stop_the_robot_of_its_parent(
     assert fake.frames() == ["#crcoff!", "#start!", "#th.90.40!", "#qd!"]
 
 
+_FORKED_CHILD_USING_THE_CLIENT = """
+import os, sys
+import rovlink
+from rovlink.client import ClientError
+with rovlink.connect(sys.argv[1], keepalive=None, boot_timeout=None) as rov:
+    rov.start()
+    rov.move(90, 40)
+    child = os.fork()
+    if child == 0:
+        for call in (rov.depth_cm, lambda: rov.move(0, 10), rov.stop):
+            try:
+                call()
+            except ClientError as error:
+                print(error)
+        rov.close()
+        sys.exit(0)  # (and leaves the with block: an exception)
+    os.waitpid(child, 0)
+    assert rov.depth_cm() == 123
+    os._exit(0)
+"""
+
+
+def test_a_forked_child_cannot_use_or_close_the_client_of_its_parent(
+    port: FakeControllerServer,
+) -> None:
+    # The child wrote its queries and commands on the parent's port (and read its replies),
+    # and its close(), or leaving the with block, sent #stop! and shut the parent's link down.
+    child = _run_program(_FORKED_CHILD_USING_THE_CLIENT, port.url)
+    assert child.returncode == 0, child.stderr
+    (fake,) = port.fakes
+    assert fake.wait_for(lambda f: "#qd!" in f.frames()), fake.frames()
+    assert fake.frames() == ["#crcoff!", "#start!", "#th.90.40!", "#qd!"]
+    said = child.stdout.splitlines()
+    assert len(said) == 3, child.stdout
+    assert all("os.fork()" in line and "connect a client of its own" in line for line in said)
+
+
+_FORKED_CHILD_USING_THE_ASYNC_CLIENT = """
+import asyncio, os, sys
+import rovlink.aio
+from rovlink.client import ClientError
+
+async def drive() -> rovlink.aio.AsyncClient:
+    rov = await rovlink.aio.connect(sys.argv[1], keepalive=None, boot_timeout=None)
+    await rov.start()
+    await rov.move(90, 40)
+    assert await rov.depth_cm() == 123
+    return rov
+
+rov = asyncio.run(drive())
+child = os.fork()
+if child == 0:
+    print(rov.emergency_stop())
+    try:
+        asyncio.run(rov.stop())
+    except ClientError as error:
+        print(error)
+    asyncio.run(rov.close())
+    sys.exit(0)
+os.waitpid(child, 0)
+assert rov.emergency_stop()  # (the parent's link is still up)
+os._exit(0)
+"""
+
+
+def test_a_forked_child_cannot_use_or_close_the_asyncio_client_of_its_parent(
+    port: FakeControllerServer,
+) -> None:
+    child = _run_program(_FORKED_CHILD_USING_THE_ASYNC_CLIENT, port.url)
+    assert child.returncode == 0, child.stderr
+    (fake,) = port.fakes
+    assert fake.wait_for(lambda f: "#stop!" in f.frames()), fake.frames()
+    assert fake.frames() == ["#crcoff!", "#start!", "#th.90.40!", "#qd!", "#stop!"]
+    said = child.stdout.splitlines()
+    assert said[0] == "False", child.stdout
+    assert "os.fork()" in said[1], child.stdout
+
+
 @pytest.mark.usefixtures("long_write_timeout")
 def test_at_exit_an_asyncio_client_on_a_line_that_takes_nothing_does_not_hold_the_exit(
     caplog: pytest.LogCaptureFixture,

@@ -125,6 +125,7 @@ class AsyncClient(AsyncCommandMethods):
         self._timer_at = math.inf  # when self._timer fires (without calling its when())
         self._lost: ConnectionLostError | None = None
         self._closed = False
+        self._in_forked_child = False  # (see _forked)
         self._reopen = reopen if self._options.reconnect else None
         self._link_ready = asyncio.Event()  # cleared while a lost link is being reopened
         self._link_ready.set()
@@ -239,6 +240,8 @@ class AsyncClient(AsyncCommandMethods):
 
             await rov.close()
         """
+        if self._in_forked_child:  # the port is the parent's: nothing to write or close
+            return
         if _running_loop() is not self._loop:
             if not self._loop.is_closed():
                 raise self._wrong_loop_error()
@@ -354,6 +357,14 @@ class AsyncClient(AsyncCommandMethods):
         for the write timeout."""
         if not self._closed and self._stop_due_on_close():
             stop_within(self.emergency_stop, self._link.description)
+
+    def _forked(self, error: ConnectionLostError) -> None:
+        """In a child made with ``os.fork()``: every call raises ``error`` (``stop()`` and
+        :meth:`emergency_stop` write nothing), and close() neither writes nor closes the port,
+        the parent's."""
+        self._in_forked_child = True
+        self._closed = True
+        self._lost = error
 
     def _stop_due_on_close(self) -> bool:
         """Whether letting go of the robot owes it a ``#stop!``: the program moved it or

@@ -149,6 +149,7 @@ class Client(CommandMethods):
         self._stop_reconnecting = threading.Event()
         self._reconnector: threading.Thread | None = None
         self._closer: threading.Thread | None = None  # the thread in the first close()
+        self._in_forked_child = False  # (see _forked)
         self._released = threading.Event()  # set when that close() has released the port
         self._reader_ident: int | None = None  # the thread holding the reader role
         self._mode_switcher: int | None = None  # the thread draining queries to switch checksum
@@ -216,6 +217,8 @@ class Client(CommandMethods):
     def _close(self, *, leaving_by_error: bool) -> None:
         """close(); ``leaving_by_error``: the ``with`` block was left by an exception, which
         owes the robot a ``#stop!`` whatever it was sent (also while another thread closes)."""
+        if self._in_forked_child:  # the port is the parent's: nothing to write or close
+            return
         current = threading.current_thread()
         stop_at_exit(self, wanted=False)
         with self._changed:
@@ -264,6 +267,23 @@ class Client(CommandMethods):
                 self._close_link_once_written()
         finally:
             self._released.set()
+
+    def _forked(self, error: ConnectionLostError) -> None:
+        """In a child made with ``os.fork()`` (its only thread, before it runs on): every call
+        raises ``error``, and close() neither writes nor closes the port, the parent's."""
+        self._in_forked_child = True
+        self._lost = error
+        self._reconnecting = False
+        self._readied_link = None
+        self._reader_ident = None
+        self._deliverer = None
+        # A lock that another of the parent's threads held at the fork is held for good here.
+        self._wire_lock = threading.RLock()
+        self._readied_lock = threading.RLock()
+        self._state_lock = threading.RLock()
+        self._changed = threading.Condition(self._state_lock)
+        self._background_wakeup = threading.Condition(self._state_lock)
+        self._delivered = threading.Condition(self._state_lock)
 
     def _stop_due_on_close(self, *, leaving_by_error: bool = False) -> bool:
         """Whether letting go of the robot owes it a ``#stop!`` (state lock held): the program

@@ -21,9 +21,10 @@ import weakref
 from collections.abc import Callable
 from typing import Protocol
 
+from rovlink.client.errors import ConnectionLostError
 from rovlink.logs import get_logger
 
-__all__ = ["STOP_WAIT_S", "stop_at_exit", "stop_within"]
+__all__ = ["STOP_WAIT_S", "forked_child_error", "stop_at_exit", "stop_within"]
 
 #: How long the ``#stop!`` of a close, or of a program's end, is waited for.
 STOP_WAIT_S = 0.5
@@ -36,6 +37,8 @@ class _StoppedAtExit(Protocol):
     def description(self) -> str: ...
 
     def _stop_at_exit(self) -> None: ...
+
+    def _forked(self, error: ConnectionLostError) -> None: ...
 
 
 #: The clients open in this process (either kind): each is stopped as the program ends.
@@ -100,8 +103,31 @@ def _stop_open_clients() -> None:
             logger.exception("stopping %s as the program ends", client.description)
 
 
+def forked_child_error(description: str, parent_pid: int) -> ConnectionLostError:
+    """What every call of a client raises in a child made with ``os.fork()``.
+
+    >>> print(forked_child_error("/dev/ttyUSB0", 1234))  # doctest: +NORMALIZE_WHITESPACE
+    /dev/ttyUSB0: this client is process 1234's, and this process is a child it made with
+    os.fork(): it shares that port, and writes, reads and closes nothing of it; connect a client
+    of its own
+    """
+    return ConnectionLostError(
+        f"{description}: this client is process {parent_pid}'s, and this process is a child it "
+        "made with os.fork(): it shares that port, and writes, reads and closes nothing of it; "
+        "connect a client of its own"
+    )
+
+
+def _in_forked_child() -> None:
+    # A child made with os.fork() shares the program's ports, not its driving: its calls would
+    # write on the parent's port and take its replies, and its close() (or leaving a with block,
+    # or its exit) would send #stop! and shut the parent's link down under it.
+    parent_pid = os.getppid()
+    for client in list(_open_clients):
+        client._forked(forked_child_error(client.description, parent_pid))
+    _open_clients.clear()
+
+
 atexit.register(_stop_open_clients)
-# A child made with os.fork() shares the program's ports, not its driving: its exit must not
-# stop the robot under the program (a child's handlers run when it ends with sys.exit()).
 if hasattr(os, "register_at_fork"):  # (not on Windows)
-    os.register_at_fork(after_in_child=_open_clients.clear)
+    os.register_at_fork(after_in_child=_in_forked_child)
