@@ -3,9 +3,12 @@
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import pytest
 
+import rovlink
+import rovlink.aio
 from rovlink.client import ClientOptions
 
 
@@ -19,3 +22,23 @@ def test_a_keepalive_that_is_no_interval_is_refused(keepalive_s: object) -> None
 @pytest.mark.parametrize("keepalive_s", [None, 0, 0.0, 0.01, 1.0, 3600])
 def test_a_keepalive_interval_or_never_is_taken(keepalive_s: float | None) -> None:
     assert ClientOptions(keepalive_s=keepalive_s).keepalive_s == keepalive_s
+
+
+@pytest.mark.parametrize("connect", [rovlink.connect, rovlink.aio.connect])
+def test_a_setting_given_beside_options_is_refused_not_dropped(connect: Any) -> None:
+    # (Before, connect(url, options=..., timeout=0.1) ran with the options' timeout, silently.)
+    options = ClientOptions(retries=0)
+    with pytest.raises(
+        TypeError,
+        match=r"timeout=0\.1, reconnect=True given with options=: .*"
+        r"\(timeout_s=0\.1, reconnect=True\)",
+    ):
+        connect("sim://", options=options, timeout=0.1, reconnect=True)
+    with pytest.raises(TypeError, match=r"options must be a rovlink\.client\.ClientOptions"):
+        connect("sim://", options={"timeout_s": 0.1})
+
+
+def test_options_alone_or_with_keywords_at_their_defaults_are_taken() -> None:
+    options = ClientOptions(timeout_s=0.3, keepalive_s=None)
+    with rovlink.connect("sim://", options=options, timeout=0.5, keepalive=1.0) as rov:
+        assert rov._options is options

@@ -33,6 +33,7 @@ from rovlink.client.options import (
     DEFAULT_MOTION_TIMEOUT_S,
     ClientOptions,
     StrayCallback,
+    connect_options,
 )
 from rovlink.client.port_closing import close_within
 from rovlink.client.readiness import ReadinessProbe
@@ -1115,20 +1116,20 @@ def connect(
 
         asyncio.run(main())
     """
-    if options is None:
-        options = ClientOptions(
-            timeout,
-            retries,
-            checksum,
-            algorithm,
-            keepalive,
-            on_stray,
-            boot_timeout,
-            motion_timeout,
-            on_event,
-            reconnect,
-            stop_on_close,
-        )
+    options = connect_options(
+        options,
+        timeout=timeout,
+        retries=retries,
+        checksum=checksum,
+        algorithm=algorithm,
+        keepalive=keepalive,
+        on_stray=on_stray,
+        boot_timeout=boot_timeout,
+        motion_timeout=motion_timeout,
+        on_event=on_event,
+        reconnect=reconnect,
+        stop_on_close=stop_on_close,
+    )
     if isinstance(max_in_flight, bool) or not isinstance(max_in_flight, int) or max_in_flight < 1:
         raise ValueError(f"max_in_flight must be an integer ≥ 1, got {max_in_flight!r}")
     return _Connecting(url, options, baudrate, max_in_flight)

@@ -33,6 +33,7 @@ from rovlink.client.options import (
     DEFAULT_MOTION_TIMEOUT_S,
     ClientOptions,
     StrayCallback,
+    connect_options,
 )
 from rovlink.client.port_closing import close_within
 from rovlink.client.readiness import ReadinessProbe
@@ -1414,7 +1415,8 @@ def connect(
     was lost raise ConnectionLostError, later calls wait for it up to ``timeout``;
     ``stop_on_close=False`` keeps ``close()`` from sending ``#stop!`` when the program moved the
     robot (a tool that hands the robot on, moving, to another program).
-    ``options`` gives all of these at once as a :class:`ClientOptions` instead.
+    ``options`` gives all of these at once as a :class:`ClientOptions` instead (its fields
+    name the seconds: ``timeout_s``...; a keyword beside it is a TypeError).
 
     Example::
 
@@ -1426,20 +1428,20 @@ def connect(
             print(rov.sensors())
             rov.stop()
     """
-    if options is None:
-        options = ClientOptions(
-            timeout,
-            retries,
-            checksum,
-            algorithm,
-            keepalive,
-            on_stray,
-            boot_timeout,
-            motion_timeout,
-            on_event,
-            reconnect,
-            stop_on_close,
-        )
+    options = connect_options(
+        options,
+        timeout=timeout,
+        retries=retries,
+        checksum=checksum,
+        algorithm=algorithm,
+        keepalive=keepalive,
+        on_stray=on_stray,
+        boot_timeout=boot_timeout,
+        motion_timeout=motion_timeout,
+        on_event=on_event,
+        reconnect=reconnect,
+        stop_on_close=stop_on_close,
+    )
     endpoint = parse_url(url, baudrate)
     link = open_link(endpoint)
     try:

@@ -3,12 +3,19 @@
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
+from typing import Any
 
 from rovlink.client.events import EventCallback
 from rovlink.protocol import ALGORITHMS, Event
 
-__all__ = ["DEFAULT_BOOT_TIMEOUT_S", "DEFAULT_MOTION_TIMEOUT_S", "ClientOptions", "StrayCallback"]
+__all__ = [
+    "DEFAULT_BOOT_TIMEOUT_S",
+    "DEFAULT_MOTION_TIMEOUT_S",
+    "ClientOptions",
+    "StrayCallback",
+    "connect_options",
+]
 
 #: How long ``connect`` waits for the controller to answer: an Arduino-class board resets when its
 #: port opens and ignores input for up to 2 s while it boots (P21).
@@ -111,3 +118,53 @@ def _check_seconds(name: str, value: object, *, optional: bool) -> None:
             f"{name} must be a positive number of seconds up to "
             f"{MAX_TIMEOUT_S:g}{never}, got {value!r}"
         )
+
+
+#: ``connect``'s keywords that are settings, with the :class:`ClientOptions` field each sets.
+_KEYWORD_FIELDS = {
+    "timeout": "timeout_s",
+    "retries": "retries",
+    "checksum": "checksum",
+    "algorithm": "algorithm",
+    "keepalive": "keepalive_s",
+    "on_stray": "on_stray",
+    "boot_timeout": "boot_timeout_s",
+    "motion_timeout": "motion_timeout_s",
+    "on_event": "on_event",
+    "reconnect": "reconnect",
+    "stop_on_close": "stop_on_close",
+}
+
+
+def connect_options(options: ClientOptions | None, **keywords: Any) -> ClientOptions:
+    """The settings of ``connect(url, ..., options=...)``: ``options``, or the keywords.
+
+    Both at once is a TypeError naming the keywords that differ from their defaults: they would
+    have been dropped without a word (``timeout=0.1`` beside an ``options`` of 0.5 s).
+
+    >>> connect_options(None, timeout=0.2).timeout_s
+    0.2
+    >>> connect_options(ClientOptions(retries=0), timeout=0.2)  # doctest: +NORMALIZE_WHITESPACE
+    Traceback (most recent call last):
+    ...
+    TypeError: connect: timeout=0.2 given with options=: give every setting in the ClientOptions
+    (timeout_s=0.2), or none of them
+    """
+    if options is None:
+        return ClientOptions(**{_KEYWORD_FIELDS[name]: value for name, value in keywords.items()})
+    if not isinstance(options, ClientOptions):
+        raise TypeError(f"options must be a rovlink.client.ClientOptions, got {options!r}")
+    defaults = {field.name: field.default for field in fields(ClientOptions)}
+    given = {
+        name: value
+        for name, value in keywords.items()
+        if value is not defaults[_KEYWORD_FIELDS[name]] and value != defaults[_KEYWORD_FIELDS[name]]
+    }
+    if given:
+        as_keywords = ", ".join(f"{name}={value!r}" for name, value in given.items())
+        as_fields = ", ".join(f"{_KEYWORD_FIELDS[name]}={value!r}" for name, value in given.items())
+        raise TypeError(
+            f"connect: {as_keywords} given with options=: give every setting in the "
+            f"ClientOptions ({as_fields}), or none of them"
+        )
+    return options
