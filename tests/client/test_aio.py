@@ -12,6 +12,7 @@ from typing import Any
 
 import pytest
 
+import rovlink.aio
 from rovlink.aio import AsyncClient, ConnectionLostError, InvalidArgumentError, QueryTimeoutError
 from rovlink.client.links import SocketLink
 from rovlink.protocol import Command, Event, Response, Text, get_algorithm
@@ -393,3 +394,20 @@ async def test_a_query_queued_behind_max_in_flight_is_not_left_in_the_session_on
         await client.close()
         for fake in fakes:
             fake.close()
+
+
+async def test_a_connect_not_awaited_says_to_await_it() -> None:
+    # (Before: "'_Connecting' object has no attribute 'depth_cm'", a private class's name.)
+    connecting = rovlink.aio.connect("sim://")
+    with pytest.raises(AttributeError, match=r"no 'depth_cm': await it first \(rov = await rov"):
+        connecting.depth_cm  # type: ignore[attr-defined]  # noqa: B018 (mypy says so too)
+
+
+def test_a_connect_in_a_plain_with_says_to_use_async_with() -> None:
+    # (Before: "'_Connecting' object does not support the context manager protocol", or on
+    # Python 3.10 "AttributeError: __enter__".)
+    with (
+        pytest.raises(TypeError, match=r"use async with rovlink\.aio\.connect\(url\) as rov"),
+        rovlink.aio.connect("sim://"),  # type: ignore[attr-defined]  # (what mypy says)
+    ):
+        pass

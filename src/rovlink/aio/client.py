@@ -17,7 +17,7 @@ from asyncio.events import _get_running_loop as _running_loop  # (None, not an e
 from collections import deque
 from collections.abc import AsyncIterator, Callable, Generator
 from types import TracebackType
-from typing import Any, TypeVar
+from typing import TYPE_CHECKING, Any, TypeVar
 
 from rovlink.aio.command_methods import AsyncCommandMethods
 from rovlink.aio.slots import InFlightSlots
@@ -1068,6 +1068,27 @@ class _Connecting:
 
     def __await__(self) -> Generator[Any, None, AsyncClient]:
         return self._open().__await__()
+
+    # A program that forgets ``await`` or ``async with`` is told what to write, not that a
+    # private class lacks an attribute or the context manager protocol. (Hidden from type
+    # checkers, which report those mistakes themselves.)
+    if not TYPE_CHECKING:
+
+        def __getattr__(self, name: str) -> Any:
+            raise AttributeError(
+                f"rovlink.aio.connect() returns a connection still to be made, which has no "
+                f"{name!r}: await it first (rov = await rovlink.aio.connect(url)), or use "
+                "async with rovlink.aio.connect(url) as rov"
+            )
+
+        def __enter__(self) -> AsyncClient:
+            raise TypeError(
+                "rovlink.aio.connect() is for asyncio: use async with rovlink.aio.connect(url) as "
+                "rov (in a coroutine), or with rovlink.connect(url) as rov for the blocking client"
+            )
+
+        def __exit__(self, *exc_info: object) -> None:
+            """(Never reached: ``__enter__`` raises.)"""
 
     async def __aenter__(self) -> AsyncClient:
         self._client = await self._open()
