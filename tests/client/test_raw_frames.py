@@ -6,7 +6,7 @@ import pytest
 
 from rovlink.client.events import BytesSent, ClientEvent
 from rovlink.client.session import Session
-from rovlink.protocol import Command
+from rovlink.protocol import Command, Response
 from tests.client.conftest import wait_until_async
 from tests.client.fake_controller import FakeController
 from tests.client.test_aio import MakeAsyncClient
@@ -38,6 +38,47 @@ async def test_the_asyncio_client_sends_one_raw_frame_at_a_time(
         await client.send_raw(chunk)
     assert await client.send_raw("#qd!") == await client.send(Command("qd"))
     assert fake.frames()[1:] == ["#qd!", "#qd!"]
+
+
+#: What a program may pass by mistake, and the type error each is (before: an AttributeError
+#: of the str, "'str' object has no attribute 'setting'", and a ValueError for a frame's type).
+WRONG_TYPES = [
+    (
+        "send",
+        "qd",
+        r"send: command must be a rovlink\.protocol\.Command, got 'qd' \(text as "
+        r"typed: send\(parse_command_text\('qd'\)\); a frame as it is: send_raw\('qd'\)\)",
+    ),
+    ("send", b"#qd!", r"send: command must be a rovlink\.protocol\.Command, got b'#qd!'"),
+    ("send", Response("qd", (1,)), r"send: command must be a rovlink\.protocol\.Command"),
+    ("send_raw", 123, r"send_raw: frame must be text or bytes, got 123"),
+]
+
+
+@pytest.mark.parametrize(("method", "argument", "message"), WRONG_TYPES)
+def test_the_blocking_client_says_what_send_takes(
+    fake: FakeController, make_client: MakeClient, method: str, argument: object, message: str
+) -> None:
+    client = make_client()
+    with pytest.raises(TypeError, match=message):
+        getattr(client, method)(argument)
+    assert client.send(Command("qd"))  # nothing of it was sent
+    assert fake.frames()[1:] == ["#qd!"]
+
+
+@pytest.mark.parametrize(("method", "argument", "message"), WRONG_TYPES)
+async def test_the_asyncio_client_says_what_send_takes(
+    fake: FakeController,
+    make_async_client: MakeAsyncClient,
+    method: str,
+    argument: object,
+    message: str,
+) -> None:
+    client = await make_async_client()
+    with pytest.raises(TypeError, match=message):
+        await getattr(client, method)(argument)
+    assert await client.send(Command("qd"))
+    assert fake.frames()[1:] == ["#qd!"]
 
 
 def test_a_raw_motion_frame_among_noise_still_expires() -> None:

@@ -462,6 +462,7 @@ class AsyncClient(AsyncCommandMethods):
 
             (reply,) = await rov.send(Command("qhe"))
         """
+        command = operations.any_command(command)
         setting = command.setting
         if setting is not None and setting[0] is Setting.CHECKSUM:
             await self.set_checksum(setting[1])

@@ -394,6 +394,7 @@ class Client(CommandMethods):
             rov.send(Command("th", (90, 40)))
             (reply,) = rov.send(Command("qd"))
         """
+        command = operations.any_command(command)
         setting = command.setting
         if setting is not None and setting[0] is Setting.CHECKSUM:
             self.set_checksum(setting[1])

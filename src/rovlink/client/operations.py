@@ -218,6 +218,29 @@ def raw_frame(frame: str | bytes) -> bytes:
         if not frame.isascii():
             raise ValueError(f"send_raw: frame must be ASCII, got {frame!r}")
         frame = frame.encode("ascii")
-    if not isinstance(frame, bytes | bytearray) or not frame:
-        raise ValueError(f"send_raw: frame must be non-empty text or bytes, got {frame!r}")
+    if not isinstance(frame, bytes | bytearray):
+        raise TypeError(f"send_raw: frame must be text or bytes, got {frame!r}")
+    if not frame:
+        raise ValueError(f"send_raw: frame must not be empty, got {frame!r}")
     return bytes(frame)
+
+
+def any_command(command: Command) -> Command:
+    """The argument of ``send``, checked: a :class:`~rovlink.protocol.Command` (text and frames
+    have their own ways in, which a TypeError names).
+
+    >>> any_command("th 90 40")  # doctest: +NORMALIZE_WHITESPACE
+    Traceback (most recent call last):
+    ...
+    TypeError: send: command must be a rovlink.protocol.Command, got 'th 90 40' (text as typed:
+    send(parse_command_text('th 90 40')); a frame as it is: send_raw('th 90 40'))
+    """
+    if isinstance(command, Command):
+        return command
+    hint = ""
+    if isinstance(command, str | bytes):
+        hint = (
+            f" (text as typed: send(parse_command_text({command!r})); a frame as it is: "
+            f"send_raw({command!r}))"
+        )
+    raise TypeError(f"send: command must be a rovlink.protocol.Command, got {command!r}{hint}")
