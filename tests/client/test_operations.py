@@ -53,7 +53,7 @@ def test_both_clients_have_every_method_with_the_same_signature(method: str) -> 
         (lambda: ops.depth_scale(-1), "set_depth_scale: k must be in 0–10000 (#sdk)"),
         (lambda: ops.depth_pid(p=10, d=100), "set_depth_pid: d must be in 0–99 (#mvpidd)"),
         (ops.depth_pid, "give at least one of p, i, d"),
-        (lambda: ops.raw_frame(""), "non-empty"),
+        (lambda: ops.raw_frame(""), "frame must not be empty"),
         (lambda: ops.raw_frame("#qd°!"), "ASCII"),
     ],
 )
