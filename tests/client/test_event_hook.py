@@ -221,3 +221,24 @@ def test_an_on_stray_callback_failing_on_every_line_is_logged_once_then_counted(
     tracebacks = [record for record in caplog.records if record.exc_info]
     assert len(tracebacks) == 1
     assert "on_stray callback failed" in tracebacks[0].getMessage()
+
+
+@pytest.mark.parametrize("callback", [None, 42, "print"])
+def test_subscribing_what_cannot_be_called_is_refused_at_once(
+    make_client: Callable[..., Client], callback: object
+) -> None:
+    # (Before, it was taken, and every event then failed in it, logged, the program hearing
+    # nothing.)
+    rov = make_client()
+    with pytest.raises(TypeError, match=r"subscribe: callback must be callable .*, got "):
+        rov.subscribe(callback)  # type: ignore[arg-type]
+    assert rov.depth_cm() == 123
+
+
+async def test_the_asyncio_client_refuses_it_too(
+    make_async_client: Callable[..., Awaitable[AsyncClient]],
+) -> None:
+    rov = await make_async_client()
+    with pytest.raises(TypeError, match=r"subscribe: callback must be callable .*, got None"):
+        rov.subscribe(None)  # type: ignore[arg-type]
+    assert await rov.depth_cm() == 123

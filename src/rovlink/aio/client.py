@@ -26,7 +26,7 @@ from rovlink.aio.wakeup import wait_for_event
 from rovlink.client import links, operations
 from rovlink.client.counters import LinkCounters
 from rovlink.client.errors import ConnectError, ConnectionLostError, QueryTimeoutError
-from rovlink.client.events import EventCallback
+from rovlink.client.events import EventCallback, subscriber
 from rovlink.client.links import Link, SocketLink, open_link
 from rovlink.client.options import (
     DEFAULT_BOOT_TIMEOUT_S,
@@ -740,7 +740,7 @@ class AsyncClient(AsyncCommandMethods):
 
             rov.subscribe(lambda event: print(event.direction, event))
         """
-        self._subscribers.append(callback)
+        self._subscribers.append(subscriber(callback))
         self._session.record_events()
 
     def _emit(self) -> None:

@@ -26,7 +26,7 @@ from rovlink.client import links, operations
 from rovlink.client.command_methods import CommandMethods
 from rovlink.client.counters import LinkCounters
 from rovlink.client.errors import ConnectError, ConnectionLostError, QueryTimeoutError
-from rovlink.client.events import EventCallback
+from rovlink.client.events import EventCallback, subscriber
 from rovlink.client.links import Link, SocketLink, open_link
 from rovlink.client.options import (
     DEFAULT_BOOT_TIMEOUT_S,
@@ -957,6 +957,7 @@ class Client(CommandMethods):
 
             rov.subscribe(lambda event: print(event.direction, event))
         """
+        callback = subscriber(callback)
         with self._state_lock:
             self._subscribers.append(callback)
             self._session.record_events()

@@ -35,6 +35,7 @@ __all__ = [
     "ReplyReceived",
     "ResetSuspected",
     "Unsolicited",
+    "subscriber",
 ]
 
 
@@ -157,3 +158,19 @@ ClientEvent = (
 #: ``events: list[ClientEvent] = []``, then
 #: ``rovlink.connect(url, on_event=events.append)`` keeps them all.
 EventCallback = Callable[[ClientEvent], None]
+
+
+def subscriber(callback: EventCallback) -> EventCallback:
+    """The argument of ``subscribe``, checked now: a callback that is not callable would fail
+    at every event, each failure only logged, and the program would hear nothing.
+
+    >>> subscriber(None)
+    Traceback (most recent call last):
+    ...
+    TypeError: subscribe: callback must be callable (it is called with each event), got None
+    """
+    if not callable(callback):
+        raise TypeError(
+            f"subscribe: callback must be callable (it is called with each event), got {callback!r}"
+        )
+    return callback
