@@ -14,6 +14,8 @@ from collections.abc import Callable
 
 import pytest
 
+import rovlink
+import rovlink.aio
 from rovlink.client.blocking import Client
 from rovlink.client.errors import ConnectionLostError
 from rovlink.client.events import BytesReceived, BytesSent, ClientEvent, ReplyReceived
@@ -241,3 +243,18 @@ def test_stray_lines_reach_on_stray_in_wire_order_whichever_thread_reads_them(
             thread.join(CONDITION_TIMEOUT_S)
         rov.close()
     assert seen == [f"line {number}" for number in range(lines)]
+
+
+def test_a_client_prints_as_what_it_is_connected_to_and_its_state() -> None:
+    # (Before: <rovlink.client.blocking.Client object at 0x7f…>, the same open or closed.)
+    rov = rovlink.connect("sim://")
+    assert repr(rov) == "<rovlink.client.Client simulated controller: open>"
+    rov.close()
+    assert str(rov) == "<rovlink.client.Client simulated controller: closed>"
+
+
+async def test_an_asyncio_client_prints_so_too() -> None:
+    rov = await rovlink.aio.connect("sim://")
+    assert repr(rov) == "<rovlink.aio.AsyncClient simulated controller: open>"
+    await rov.close()
+    assert repr(rov) == "<rovlink.aio.AsyncClient simulated controller: closed>"

@@ -279,6 +279,21 @@ class AsyncClient(AsyncCommandMethods):
         finally:
             self._released.set()
 
+    def __repr__(self) -> str:
+        """What it is connected to and whether the link is up: ``print(rov)`` in a program.
+
+        Example::
+
+            print(rov)  # <rovlink.aio.AsyncClient tcp 192.168.2.2:5760: open>
+        """
+        if self._closed:
+            state = "closed"
+        elif self._lost is not None:
+            state = "lost"
+        else:
+            state = "reconnecting" if self._link_down else "open"
+        return f"<rovlink.aio.AsyncClient {self._link.description}: {state}>"
+
     @property
     def closed(self) -> bool:
         """Whether the client was closed or lost its connection.

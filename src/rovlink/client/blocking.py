@@ -329,6 +329,21 @@ class Client(CommandMethods):
             if writing_done:
                 self._wire_lock.release()
 
+    def __repr__(self) -> str:
+        """What it is connected to and whether the link is up: ``print(rov)`` in a program.
+
+        Example::
+
+            print(rov)  # <rovlink.client.Client /dev/ttyUSB0 at 115200 baud: open>
+        """
+        if self._closing or self._in_forked_child:
+            state = "closed"
+        elif self._lost is not None:
+            state = "lost"
+        else:
+            state = "reconnecting" if self._reconnecting else "open"
+        return f"<rovlink.client.Client {self._link.description}: {state}>"
+
     @property
     def closed(self) -> bool:
         """Whether the client was closed or lost its connection.
