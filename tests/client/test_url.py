@@ -86,3 +86,11 @@ def test_sim_urls_go_to_the_registered_handler_which_reads_the_options() -> None
 def test_bad_urls_say_what_is_wrong(url: str, message: str) -> None:
     with pytest.raises(ValueError, match=message):
         parse_url(url)
+
+
+@pytest.mark.parametrize("url", ["sim://", "/dev/ttyUSB0", "socket://localhost:5760"])
+@pytest.mark.parametrize("baudrate", [0, -9600, "9600", 9600.0, True])
+def test_a_bad_baudrate_argument_is_refused_whatever_the_url(url: str, baudrate: object) -> None:
+    # (Before, sim:// took any baudrate=, and a program found its mistake on the robot's port.)
+    with pytest.raises(ValueError, match=r"baudrate must be an integer in 1–12000000, got "):
+        parse_url(url, baudrate)  # type: ignore[arg-type]

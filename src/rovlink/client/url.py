@@ -109,6 +109,14 @@ def parse_url(url: str, baudrate: int | None = None) -> Endpoint:
     if not isinstance(url, str) or not url.strip():
         raise ValueError(f"connection URL must be a non-empty string, got {url!r}")
     url = url.strip()
+    # Checked for every scheme: a program written against sim:// (which has no baud rate) must
+    # not find its bad value only when it moves to the robot's port.
+    if baudrate is not None and (
+        isinstance(baudrate, bool)
+        or not isinstance(baudrate, int)
+        or not 0 < baudrate <= MAX_BAUDRATE
+    ):
+        raise ValueError(f"baudrate must be an integer in 1–{MAX_BAUDRATE}, got {baudrate!r}")
     scheme = url.partition(":")[0]
     if handler_module(scheme) is not None:
         return _parse_registered(url, scheme)
@@ -117,12 +125,6 @@ def parse_url(url: str, baudrate: int | None = None) -> Endpoint:
     from_url = [_parse_baudrate(url, value or "") for name, value in pairs if name == "baudrate"]
     if len(set(from_url)) > 1:
         raise ValueError(f"{url!r}: baudrate given twice with different values")
-    if baudrate is not None and (
-        isinstance(baudrate, bool)
-        or not isinstance(baudrate, int)
-        or not 0 < baudrate <= MAX_BAUDRATE
-    ):
-        raise ValueError(f"baudrate must be an integer in 1–{MAX_BAUDRATE}, got {baudrate!r}")
     if from_url and baudrate is not None and from_url[0] != baudrate:
         raise ValueError(
             f"{url!r}: baudrate={baudrate} disagrees with the URL's baudrate={from_url[0]}"
