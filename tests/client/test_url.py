@@ -89,8 +89,25 @@ def test_bad_urls_say_what_is_wrong(url: str, message: str) -> None:
 
 
 @pytest.mark.parametrize("url", ["sim://", "/dev/ttyUSB0", "socket://localhost:5760"])
-@pytest.mark.parametrize("baudrate", [0, -9600, "9600", 9600.0, True])
-def test_a_bad_baudrate_argument_is_refused_whatever_the_url(url: str, baudrate: object) -> None:
+@pytest.mark.parametrize(
+    ("baudrate", "error"),
+    [
+        (0, ValueError),
+        (-9600, ValueError),
+        ("9600", TypeError),
+        (9600.0, TypeError),
+        (True, TypeError),
+    ],
+)
+def test_a_bad_baudrate_argument_is_refused_whatever_the_url(
+    url: str, baudrate: object, error: type[Exception]
+) -> None:
     # (Before, sim:// took any baudrate=, and a program found its mistake on the robot's port.)
-    with pytest.raises(ValueError, match=r"baudrate must be an integer in 1–12000000, got "):
+    with pytest.raises(error, match=r"baudrate must be an integer in 1–12000000, got "):
         parse_url(url, baudrate)  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize(("url", "error"), [(123, TypeError), (None, TypeError), (" ", ValueError)])
+def test_a_url_that_is_no_text_is_a_type_error(url: object, error: type[Exception]) -> None:
+    with pytest.raises(error, match=r"connection URL must be a non-empty string, got "):
+        parse_url(url)  # type: ignore[arg-type]

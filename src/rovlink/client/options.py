@@ -69,14 +69,11 @@ class ClientOptions:
 
     def __post_init__(self) -> None:
         _check_seconds("timeout", self.timeout_s, optional=False)
-        if (
-            isinstance(self.retries, bool)
-            or not isinstance(self.retries, int)
-            or not 0 <= self.retries <= MAX_RETRIES
-        ):
-            raise ValueError(
-                f"retries must be an integer from 0 to {MAX_RETRIES}, got {self.retries!r}"
-            )
+        retries_text = f"retries must be an integer from 0 to {MAX_RETRIES}, got {self.retries!r}"
+        if isinstance(self.retries, bool) or not isinstance(self.retries, int):
+            raise TypeError(retries_text)
+        if not 0 <= self.retries <= MAX_RETRIES:
+            raise ValueError(retries_text)
         _check_seconds("boot_timeout", self.boot_timeout_s, optional=True)
         _check_seconds("motion_timeout", self.motion_timeout_s, optional=True)
         if not isinstance(self.reconnect, bool):
@@ -89,15 +86,15 @@ class ClientOptions:
             known = ", ".join(ALGORITHMS)
             raise ValueError(f"algorithm must be one of {known}, got {self.algorithm!r}")
         keepalive = self.keepalive_s
-        if keepalive is not None and (
-            isinstance(keepalive, bool)
-            or not isinstance(keepalive, int | float)
-            or not (keepalive == 0 or MIN_KEEPALIVE_S <= keepalive <= MAX_TIMEOUT_S)
-        ):
-            raise ValueError(
-                f"keepalive must be seconds from {MIN_KEEPALIVE_S:g} to {MAX_TIMEOUT_S:g}, or 0 "
-                f"or None for never, got {keepalive!r}"
-            )
+        keepalive_text = (
+            f"keepalive must be seconds from {MIN_KEEPALIVE_S:g} to {MAX_TIMEOUT_S:g}, or 0 "
+            f"or None for never, got {keepalive!r}"
+        )
+        if keepalive is not None:
+            if isinstance(keepalive, bool) or not isinstance(keepalive, int | float):
+                raise TypeError(keepalive_text)
+            if not (keepalive == 0 or MIN_KEEPALIVE_S <= keepalive <= MAX_TIMEOUT_S):
+                raise ValueError(keepalive_text)
         for name in ("on_stray", "on_event"):
             callback = getattr(self, name)
             if callback is not None and not callable(callback):
@@ -105,19 +102,18 @@ class ClientOptions:
 
 
 def _check_seconds(name: str, value: object, *, optional: bool) -> None:
-    """A positive number of seconds up to an hour (or ``None`` where that means "never")."""
+    """A positive number of seconds up to an hour (or ``None`` where that means "never");
+    TypeError for what is no number, ValueError for a number out of range."""
     if value is None and optional:
         return
-    if (
-        isinstance(value, bool)
-        or not isinstance(value, int | float)
-        or not 0 < value <= MAX_TIMEOUT_S
-    ):
-        never = " or None" if optional else ""
-        raise ValueError(
-            f"{name} must be a positive number of seconds up to "
-            f"{MAX_TIMEOUT_S:g}{never}, got {value!r}"
-        )
+    never = " or None" if optional else ""
+    text = (
+        f"{name} must be a positive number of seconds up to {MAX_TIMEOUT_S:g}{never}, got {value!r}"
+    )
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise TypeError(text)
+    if not 0 < value <= MAX_TIMEOUT_S:
+        raise ValueError(text)
 
 
 #: ``connect``'s keywords that are settings, with the :class:`ClientOptions` field each sets.

@@ -106,17 +106,19 @@ def parse_url(url: str, baudrate: int | None = None) -> Endpoint:
     >>> parse_url("sim://?seed=1").handler
     'sim'
     """
-    if not isinstance(url, str) or not url.strip():
+    if not isinstance(url, str):
+        raise TypeError(f"connection URL must be a non-empty string, got {url!r}")
+    if not url.strip():
         raise ValueError(f"connection URL must be a non-empty string, got {url!r}")
     url = url.strip()
     # Checked for every scheme: a program written against sim:// (which has no baud rate) must
     # not find its bad value only when it moves to the robot's port.
-    if baudrate is not None and (
-        isinstance(baudrate, bool)
-        or not isinstance(baudrate, int)
-        or not 0 < baudrate <= MAX_BAUDRATE
-    ):
-        raise ValueError(f"baudrate must be an integer in 1–{MAX_BAUDRATE}, got {baudrate!r}")
+    if baudrate is not None:
+        baudrate_text = f"baudrate must be an integer in 1–{MAX_BAUDRATE}, got {baudrate!r}"
+        if isinstance(baudrate, bool) or not isinstance(baudrate, int):
+            raise TypeError(baudrate_text)
+        if not 0 < baudrate <= MAX_BAUDRATE:
+            raise ValueError(baudrate_text)
     scheme = url.partition(":")[0]
     if handler_module(scheme) is not None:
         return _parse_registered(url, scheme)
