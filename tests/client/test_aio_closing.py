@@ -12,6 +12,7 @@ from rovlink.aio import AsyncClient, ConnectionLostError
 from rovlink.client.links import SocketLink
 from tests.client.conftest import CONDITION_TIMEOUT_S, client_options, wait_until_async
 from tests.client.fake_controller import FakeController
+from tests.client.test_aio import MakeAsyncClient
 
 
 async def _client_draining_a_held_query(
@@ -65,3 +66,20 @@ async def test_leaving_async_with_by_an_error_while_another_task_closes_stops_th
     await asyncio.wait_for(closing, CONDITION_TIMEOUT_S)
     with pytest.raises(KeyError):  # (its close() returns once the other one is done)
         await asyncio.wait_for(failing, CONDITION_TIMEOUT_S)
+
+
+async def test_a_call_while_close_settles_the_wire_names_the_port(
+    fake: FakeController, make_async_client: MakeAsyncClient
+) -> None:
+    # (Before: "connection lost: closed", which of a program's clients not said.)
+    rov = await make_async_client()
+    fake.then("hold")
+    held = asyncio.ensure_future(rov.depth_cm())
+    assert await wait_until_async(lambda: "#qd!" in fake.frames())
+    closing = asyncio.ensure_future(rov.close())
+    assert await wait_until_async(lambda: rov.closed)
+    with pytest.raises(ConnectionLostError, match=r"^connection lost: socket pair: closed$"):
+        await rov.depth_cm()
+    fake.release()
+    await closing
+    assert await held == 123

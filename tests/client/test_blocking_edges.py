@@ -20,7 +20,7 @@ from rovlink.client.blocking import Client
 from rovlink.client.errors import ConnectionLostError
 from rovlink.client.events import BytesReceived, BytesSent, ClientEvent, ReplyReceived
 from rovlink.client.links import SocketLink
-from tests.client.conftest import CONDITION_TIMEOUT_S, client_options, wait_until
+from tests.client.conftest import CONDITION_TIMEOUT_S, ThreadCall, client_options, wait_until
 from tests.client.fake_controller import FakeController
 
 pytestmark = pytest.mark.integration
@@ -258,3 +258,21 @@ async def test_an_asyncio_client_prints_so_too() -> None:
     assert repr(rov) == "<rovlink.aio.AsyncClient simulated controller: open>"
     await rov.close()
     assert repr(rov) == "<rovlink.aio.AsyncClient simulated controller: closed>"
+
+
+def test_a_call_while_close_settles_the_wire_names_the_port(
+    fake: FakeController, make_client: Callable[..., Client]
+) -> None:
+    # (Before: "connection lost: closed", which of a program's clients not said.)
+    rov = make_client()
+    fake.then("hold")
+    held = ThreadCall(rov.depth_cm)
+    assert fake.wait_for(lambda f: "#qd!" in f.frames())
+    closing = ThreadCall(rov.close)
+    assert wait_until(lambda: rov.closed)
+    with pytest.raises(ConnectionLostError, match=r"^connection lost: socket pair: closed$"):
+        rov.depth_cm()
+    fake.release()
+    assert closing.done.wait(CONDITION_TIMEOUT_S)
+    assert held.done.wait(CONDITION_TIMEOUT_S)
+    assert held.error is None

@@ -658,7 +658,7 @@ class AsyncClient(AsyncCommandMethods):
 
     def _lost_error(self) -> ConnectionLostError:
         lost = self._lost
-        reason = str(lost) if lost is not None else "closed"
+        reason = str(lost) if lost is not None else f"{self._link.description}: closed"
         if lost is None and self._link_down and not self._closed:
             reason = f"{self._link.description}: lost, reconnecting"
         error = ConnectionLostError(f"connection lost: {reason}")

@@ -527,7 +527,7 @@ class Client(CommandMethods):
 
     def _lost_error(self) -> ConnectionLostError:
         lost = self._lost
-        reason = str(lost) if lost is not None else "closed"
+        reason = str(lost) if lost is not None else f"{self._link.description}: closed"
         if lost is None and self._reconnecting and not self._closing:
             reason = f"{self._link.description}: lost, reconnecting"
         error = ConnectionLostError(f"connection lost: {reason}")
