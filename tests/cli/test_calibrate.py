@@ -42,7 +42,8 @@ def test_a_depth_read_back_that_times_out_says_both_values_were_sent(
     assert "Traceback" not in result.err
     assert result.err.splitlines()[-1] == (
         "rovlink calibrate: sent #sdz.20! #sdk.100!, but reading the depth back failed: "
-        f"#qsa! got no valid reply within {NO_REPLY_TIMEOUT_S:g} s (1 attempt: timeout)"
+        f"#qsa! got no valid reply within {NO_REPLY_TIMEOUT_S:g} s (1 attempt: timeout) on "
+        f"tcp {deaf_controller.url.removeprefix('socket://')}"
     )
     assert _calibration_sent(deaf_controller) == ["#sdz.20!", "#sdk.100!"]
 
@@ -83,7 +84,8 @@ def test_a_measurement_that_times_out_sends_nothing(
     assert "Traceback" not in result.err
     assert result.err.splitlines()[-1] == (
         "rovlink calibrate: measuring the surface: #qr! got no valid reply within "
-        f"{NO_REPLY_TIMEOUT_S:g} s (1 attempt: timeout); nothing was sent"
+        f"{NO_REPLY_TIMEOUT_S:g} s (1 attempt: timeout) on "
+        f"tcp {deaf_controller.url.removeprefix('socket://')}; nothing was sent"
     )
     assert _calibration_sent(deaf_controller) == []
 

@@ -530,7 +530,8 @@ def test_a_query_without_a_reply_fails_in_one_line(
     )
     assert result.status == 1
     assert result.err == (
-        "rovlink send: #qd! got no valid reply within 0.05 s (1 attempt: timeout)\n"
+        "rovlink send: #qd! got no valid reply within 0.05 s (1 attempt: timeout) on "
+        f"tcp 127.0.0.1:{silent.port}\n"
     )
 
 

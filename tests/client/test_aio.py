@@ -118,6 +118,8 @@ async def test_a_query_with_no_reply_times_out_after_its_retries(
         await client.roll_deg()
     assert caught.value.query == Command("qro")
     assert caught.value.failures == ("timeout", "timeout")
+    assert caught.value.port == "socket pair"
+    assert str(caught.value).endswith("(2 attempts: timeout, timeout) on socket pair")
     counters = client.counters
     assert counters.retries == 1
     # The unanswered fences (P20) time out too.

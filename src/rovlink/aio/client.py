@@ -553,7 +553,9 @@ class AsyncClient(AsyncCommandMethods):
             raise self._lost_error()
         if outcome is Outcome.ANSWERED:
             return tuple(pending.responses)
-        raise QueryTimeoutError(pending.command, [outcome.value], self._options.timeout_s)
+        raise QueryTimeoutError(
+            pending.command, [outcome.value], self._options.timeout_s, self._link.description
+        )
 
     # -- internals ------------------------------------------------------------------------------
 
@@ -850,7 +852,7 @@ class AsyncClient(AsyncCommandMethods):
                 slots.release()
             else:  # (release's usual case, without the call)
                 slots.free += 1
-        raise QueryTimeoutError(command, failures, self._options.timeout_s)
+        raise QueryTimeoutError(command, failures, self._options.timeout_s, self._link.description)
 
     def _hold_slot_until_settled(self, pending: PendingQuery) -> None:
         """Keep the ``max_in_flight`` slot of a query whose caller was cancelled until the query

@@ -459,7 +459,9 @@ class Client(CommandMethods):
             return tuple(pending.responses)
         if outcome is Outcome.DISCONNECTED:
             raise self._lost_error()
-        raise QueryTimeoutError(pending.command, [outcome.value], self._options.timeout_s)
+        raise QueryTimeoutError(
+            pending.command, [outcome.value], self._options.timeout_s, self._link.description
+        )
 
     # -- internals ------------------------------------------------------------------------------
 
@@ -1132,7 +1134,7 @@ class Client(CommandMethods):
             if outcome is Outcome.DISCONNECTED:
                 raise self._lost_error()
             failures.append(outcome.value)
-        raise QueryTimeoutError(command, failures, self._options.timeout_s)
+        raise QueryTimeoutError(command, failures, self._options.timeout_s, self._link.description)
 
     def _send_query_holding_state(self, command: Command, me: int) -> PendingQuery | None:
         """Write and queue a query of thread ``me`` on a link that writes without blocking;

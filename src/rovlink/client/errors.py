@@ -57,22 +57,28 @@ class QueryTimeoutError(ClientError, TimeoutError):
 
     ``query`` is the command, ``failures`` says what happened to each attempt (``timeout``:
     nothing arrived in time; ``corrupt``: the reply failed its checksum or was malformed;
-    ``lost``: the controller answered a later query first).
+    ``lost``: the controller answered a later query first), ``port`` the link it was sent on
+    (``None``: not said).
 
     >>> from rovlink.protocol import Command
-    >>> str(QueryTimeoutError(Command("qd"), ["timeout", "corrupt"], 0.5))
-    '#qd! got no valid reply within 0.5 s (2 attempts: timeout, corrupt)'
+    >>> str(QueryTimeoutError(Command("qd"), ["timeout", "corrupt"], 0.5, "/dev/ttyUSB0"))
+    '#qd! got no valid reply within 0.5 s (2 attempts: timeout, corrupt) on /dev/ttyUSB0'
     """
 
-    def __init__(self, query: Command, failures: Sequence[str], timeout_s: float) -> None:
+    def __init__(
+        self, query: Command, failures: Sequence[str], timeout_s: float, port: str | None = None
+    ) -> None:
         self.query = query
         self.failures = tuple(failures)
         self.timeout_s = timeout_s
+        self.port = port
         attempts = len(self.failures)
         noun = "attempt" if attempts == 1 else "attempts"
+        # (Where: a program driving two robots, or a tool, says which link did not answer.)
+        on_port = f" on {port}" if port is not None else ""
         super().__init__(
             f"{query} got no valid reply within {timeout_s:g} s "
-            f"({attempts} {noun}: {', '.join(self.failures)})"
+            f"({attempts} {noun}: {', '.join(self.failures)}){on_port}"
         )
 
 
