@@ -299,3 +299,20 @@ async def test_close_while_reconnecting_fails_waiting_calls_at_once_and_closes_a
         for fake, link in reopened:
             link.close()
             fake.close()
+
+
+def test_asyncio_run_takes_a_connect_as_its_coroutine() -> None:
+    # As close()'s docstring shows: before, asyncio.run (and create_task) refused it, "a
+    # coroutine was expected, got <rovlink.aio.client._Connecting object …>".
+    rov = asyncio.run(rovlink.aio.connect("sim://"))
+    assert isinstance(rov, rovlink.aio.AsyncClient)
+    asyncio.run(rov.close())
+    assert rov.closed
+
+
+async def test_a_connect_may_be_a_task_of_its_own() -> None:
+    rov = await asyncio.create_task(rovlink.aio.connect("sim://"))
+    try:
+        assert await rov.depth_cm() == 0
+    finally:
+        await rov.close()

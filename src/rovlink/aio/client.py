@@ -15,7 +15,7 @@ import math
 import time
 from asyncio.events import _get_running_loop as _running_loop  # (None, not an error, if none)
 from collections import deque
-from collections.abc import AsyncIterator, Callable, Generator
+from collections.abc import AsyncIterator, Callable, Coroutine, Generator
 from types import TracebackType
 from typing import TYPE_CHECKING, Any, TypeVar
 
@@ -1050,8 +1050,10 @@ def _close_opened(opening: asyncio.Future[Link]) -> None:
         opening.result().close()
 
 
-class _Connecting:
-    """What :func:`connect` returns: ``await`` it, or use it with ``async with``."""
+class _Connecting(Coroutine[Any, Any, AsyncClient]):
+    """What :func:`connect` returns: ``await`` it, or use it with ``async with``; a coroutine,
+    so that ``asyncio.run(connect(url))`` and ``asyncio.create_task(connect(url))`` take it too
+    (they take coroutines only, not any awaitable)."""
 
     def __init__(
         self, url: str, options: ClientOptions, baudrate: int | None, max_in_flight: int
@@ -1060,6 +1062,22 @@ class _Connecting:
         self._options = options
         self._max_in_flight = max_in_flight
         self._client: AsyncClient | None = None
+        self._opening: Coroutine[Any, Any, AsyncClient] | None = None  # once awaited or run
+
+    def _coroutine(self) -> Coroutine[Any, Any, AsyncClient]:
+        if self._opening is None:
+            self._opening = self._open()
+        return self._opening
+
+    def send(self, value: Any) -> Any:
+        return self._coroutine().send(value)
+
+    def throw(self, *error: Any) -> Any:
+        return self._coroutine().throw(*error)
+
+    def close(self) -> None:
+        if self._opening is not None:
+            self._opening.close()
 
     async def _open(self) -> AsyncClient:
         # Opening a port or a TCP connection blocks: keep it off the loop. Shielded, as a
@@ -1085,7 +1103,7 @@ class _Connecting:
             raise
 
     def __await__(self) -> Generator[Any, None, AsyncClient]:
-        return self._open().__await__()
+        return self._coroutine().__await__()
 
     # A program that forgets ``await`` or ``async with`` is told what to write, not that a
     # private class lacks an attribute or the context manager protocol. (Hidden from type
