@@ -302,3 +302,29 @@ def test_rovlink_check_passes_against_the_sketch(sketch: Path) -> None:
         process.communicate(timeout=10)
     assert [(result.name, result.message) for result in report.failures] == []
     assert len(report.results) > 40
+
+
+def test_debug_output_never_holds_up_the_loop_on_an_uno(sketch: Path) -> None:
+    # An Uno's core waits in Serial.write() for room in its 64-byte transmit buffer, which
+    # drains at 11.5 bytes a ms: 200 '#' of line noise make 200 "dropped" lines, some 11 000
+    # bytes, a second of waiting in which the claw would run on and no tick would come.
+    running, later, answered = _run(
+        sketch,
+        [
+            "run 20",
+            send(b"#debug1!#start!#h-!"),
+            "run 5",
+            "show",
+            send(b"#" * 200),
+            "run 60",
+            "show",
+            send(b"#qd!"),
+            "run 200",
+            "show",
+        ],
+    )
+    assert running.claw == (0, 1)
+    assert later.at_ms <= running.at_ms + 60 + 10  # (a debug line waits for nothing)
+    assert later.claw == (0, 0)  # the pulse ended on time
+    assert b"$qd.0!" in answered.output  # a reply always goes out
+    assert b"debug lines dropped: serial output busy" in later.output + answered.output
