@@ -50,7 +50,8 @@ static struct {
 static uint16_t debug_lines_dropped = 0;
 /* Serial.availableForWrite() of an empty transmit buffer on an Uno (the core keeps one of its
  * 64 bytes free). A debug line longer than that (up to 96 bytes) still goes out into an empty
- * buffer: the wait for its rest is at most 3 ms. */
+ * buffer: the wait for its rest is at most 3 ms. On a core whose Serial does not implement
+ * availableForWrite() (Print's own returns 0), set it to 0: every line then goes out. */
 static const int TX_EMPTY_ROOM = 63;
 
 /* A reply (it starts with '$') always goes out, at once (P4, P19). A debug line goes out only
