@@ -17,6 +17,7 @@
 #define A0 14
 #define PI 3.14159265358979
 #define PIN_COUNT 20
+#define SERIAL_RX_BUFFER_SIZE 64 /* as the AVR core has it */
 #define digitalPinToInterrupt(pin) (pin)
 #define constrain(value, low, high) ((value) < (low) ? (low) : (value) > (high) ? (high) : (value))
 

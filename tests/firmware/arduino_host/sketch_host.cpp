@@ -68,8 +68,36 @@ int HostSerial::availableForWrite() {
     tx_drain();
     return (int)(TX_BUFFER_BYTES - tx_queued);
 }
-int HostSerial::available() { return (int)(in_end - in_start); }
-int HostSerial::read() { return in_start < in_end ? serial_in[in_start++] : -1; }
+/* The UART's receive side in a stepped run, as an Uno's core has it: the sent bytes arrive one
+ * every 87 us into a 64-byte buffer (63 of it usable); a byte that finds it full is lost. */
+#define RX_BUFFER_BYTES 63
+static uint8_t rx_buffer[RX_BUFFER_BYTES];
+static size_t rx_start = 0, rx_count = 0;
+static unsigned long rx_next_us = 0; /* when the next byte on the line arrives */
+
+static void rx_arrive() {
+    while (in_start < in_end && host_micros >= rx_next_us) {
+        uint8_t byte = serial_in[in_start++];
+        if (rx_count < RX_BUFFER_BYTES) rx_buffer[(rx_start + rx_count++) % RX_BUFFER_BYTES] = byte;
+        rx_next_us += TX_BYTE_US;
+    }
+}
+
+int HostSerial::available() {
+    if (!host_uart_timing) return (int)(in_end - in_start);
+    rx_arrive();
+    return (int)rx_count;
+}
+int HostSerial::read() {
+    int byte;
+    if (!host_uart_timing) return in_start < in_end ? serial_in[in_start++] : -1;
+    rx_arrive();
+    if (!rx_count) return -1;
+    byte = rx_buffer[rx_start];
+    rx_start = (rx_start + 1) % RX_BUFFER_BYTES;
+    rx_count--;
+    return byte;
+}
 size_t HostSerial::write(const uint8_t *data, size_t length) {
     size_t i;
     for (i = 0; host_uart_timing && i < length; i++) {
@@ -94,7 +122,10 @@ size_t HostSerial::host_take(uint8_t *out, size_t size) {
     return length;
 }
 void HostSerial::host_send(const uint8_t *data, size_t length) {
-    if (in_start == in_end) in_start = in_end = 0;
+    if (in_start == in_end) {
+        in_start = in_end = 0;
+        rx_next_us = host_micros + TX_BYTE_US; /* (the line was idle: the first byte's time) */
+    }
     if (in_end + length > sizeof serial_in) length = sizeof serial_in - in_end;
     memcpy(serial_in + in_end, data, length);
     in_end += length;
@@ -160,6 +191,7 @@ int main(int argc, char **argv) {
             host_millis = a;
             host_micros = a * 1000;
             tx_queued = 0; /* (the time jumped: the line has sent it all) */
+            rx_next_us = host_micros;
         } else if (strcmp(word, "pin") == 0 && sscanf(line, "%*s %lu %lu", &a, &b) == 2) {
             host_set_pin((uint8_t)a, (int)b);
         } else if (strcmp(word, "analog") == 0 && sscanf(line, "%*s %lu %lu", &a, &b) == 2) {

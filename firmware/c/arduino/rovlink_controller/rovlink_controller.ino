@@ -225,12 +225,36 @@ void setup() {
     rl_init(&link, &app, nullptr, RL_CRC8);
 }
 
+/* Serial.available() of a full receive buffer. The AVR core drops a byte that finds its buffer
+ * full without a word: a full buffer is all the sketch can see of a loss. (Other cores: set
+ * it to yours, or report their overrun events through rl_rx_lost.) */
+#if defined(SERIAL_RX_BUFFER_SIZE)
+static const int RX_FULL = SERIAL_RX_BUFFER_SIZE - 1;
+#else
+static const int RX_FULL = 0; /* unknown: not watched */
+#endif
+
+/* The received bytes to the layer. Once the receive buffer was full, bytes may have been lost
+ * after the ones in it: those are fed, then rl_rx_lost drops the frame they end in, which the
+ * bytes after the loss would otherwise complete into another command (P1). */
+static void receive() {
+    static int before_loss = 0; /* bytes still to feed ahead of a possible loss */
+    uint8_t buffer[32];
+    size_t count = 0, limit = sizeof buffer;
+    int waiting = Serial.available();
+    if (!before_loss && RX_FULL && waiting >= RX_FULL) before_loss = waiting;
+    if (before_loss && (size_t)before_loss < limit) limit = (size_t)before_loss;
+    while (count < limit && Serial.available()) buffer[count++] = (uint8_t)Serial.read();
+    if (count) rl_feed(&link, buffer, count); /* replies go out before this returns (P19) */
+    if (before_loss) {
+        before_loss -= (int)count;
+        if (!before_loss) rl_rx_lost(&link);
+    }
+}
+
 void loop() {
     static uint32_t next_tick_ms = 0;
-    uint8_t buffer[32];
-    size_t count = 0;
-    while (Serial.available() && count < sizeof buffer) buffer[count++] = (uint8_t)Serial.read();
-    if (count) rl_feed(&link, buffer, count); /* replies go out before this returns (P19) */
+    receive();
 
     uint32_t now = (uint32_t)millis();
     if ((int32_t)(now - next_tick_ms) < 0) return;
