@@ -56,10 +56,10 @@ static const int TX_EMPTY_ROOM = 63;
 
 /* A reply (it starts with '$') always goes out, at once (P4, P19). A debug line goes out only
  * if it fits the room left in the transmit buffer (or the buffer is empty), else it is counted
- * and reported later: on an
- * Uno Serial.write() waits for room in the core's 64-byte buffer, which drains at 11.5 bytes a
- * ms at 115200 baud, and debug output (a line for each dropped frame of line noise) would hold
- * up the loop: the ticks, the claw pulse, the link watchdog and the reading of #stop!. */
+ * and reported later: on an Uno Serial.write() waits for room in the core's 64-byte buffer,
+ * which drains at 11.5 bytes a ms at 115200 baud, and debug output (a line for each dropped
+ * frame of line noise) would hold up the loop: the ticks, the claw pulse, the link watchdog
+ * and the reading of #stop!. */
 static void write_serial(void *, const char *data, size_t length) {
     int room = Serial.availableForWrite();
     if (data[0] != '$' && (size_t)room < length && room < TX_EMPTY_ROOM) {
