@@ -130,6 +130,13 @@ void rl_init(rl_link *link, const rl_app *app, void *context, rl_algorithm algor
     link->locked = 1;
 }
 
+void rl_rx_lost(rl_link *link) {
+    if (link->in_frame && !link->too_long) {
+        drop(link, RL_TEXT("bytes lost in it (receive overrun)"));
+    }
+    link->in_frame = 0;
+}
+
 void rl_lock(rl_link *link, const char *why) {
     link->locked = 1;
     debug_text(link, why, 0);

@@ -10,6 +10,18 @@
  *   rl_init(&link, &app, &robot, RL_CRC8);
  *   for (;;) { n = uart_read(buf); rl_feed(&link, buf, n); robot_tick(&robot); }
  *
+ * Where to call it from: every rl_ function from one context, the main loop, one call at a time.
+ * The layer is not re-entrant and keeps no lock; its callbacks run inside rl_feed (and write
+ * inside rl_lock and rl_debug*), so they must not call rl_feed. A UART receive interrupt only
+ * puts the bytes in a queue that the main loop hands to rl_feed; nothing of rl_link is shared
+ * with an interrupt, so nothing needs to be volatile (read link.valid_frames in the main loop
+ * too: on an 8-bit chip a 32-bit read while an interrupt changes it can be torn). If the queue
+ * overflows or the UART reports an overrun, call rl_rx_lost before feeding what came after.
+ * Each write call is one whole reply frame (it starts with '$') or one whole debug line (it
+ * starts with "debug: ", at most 96 bytes with its CR LF): a board whose write blocks when its
+ * transmit buffer is full can leave out debug lines that do not fit and never a reply (the
+ * Arduino sketch does). The deepest stack is about 270 bytes on AVR, the callbacks on top.
+ *
  * The layer keeps the states the protocol itself gates on: the checksum mode (P3, switched per
  * frame in both directions), debug output (P5), the motor lock (P7) and the vertical mode (P9).
  * Everything else (outputs, the PID, the watchdog of P17, the leak action) is the app's.
@@ -70,6 +82,12 @@ typedef struct {
 void rl_init(rl_link *link, const rl_app *app, void *context, rl_algorithm algorithm);
 /* Handle received bytes, any chunking. Replies are written before this returns (P19). */
 void rl_feed(rl_link *link, const uint8_t *data, size_t length);
+/* Bytes were lost before the ones fed next: a UART overrun or framing error, a receive buffer
+ * that overflowed. The unfinished frame is dropped (with a debug line), since its rest may be
+ * lost and the next frame's bytes would complete it: "#th.270.25!#th.0.0!" less "5!#th.0."
+ * reads "#th.270.20!" while checksum mode is off. Call it before feeding the bytes that came
+ * after the loss, from where rl_feed is called. */
+void rl_rx_lost(rl_link *link);
 /* Lock the motors as #stop! does (for the app's failsafes) and write why as a debug line; the
  * app zeroes its outputs. */
 void rl_lock(rl_link *link, const char *why);

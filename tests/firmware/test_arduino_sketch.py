@@ -136,7 +136,9 @@ def test_link_loss_stops_and_locks_after_two_seconds(sketch: Path) -> None:
 
 def test_the_claw_runs_for_one_pulse(sketch: Path) -> None:
     running, stopped = _run(
-        sketch, ["run 20", send(b"#start!#h-!"), "run 40", "show", "run 20", "show"]
+        # (the bytes take 1 ms to arrive at 115200 baud; the pulse ends at the tick after 50 ms)
+        sketch,
+        ["run 20", send(b"#start!#h-!"), "run 40", "show", "run 25", "show"],
     )
     assert running.claw == (0, 1)
     assert stopped.claw == (0, 0)
@@ -302,3 +304,68 @@ def test_rovlink_check_passes_against_the_sketch(sketch: Path) -> None:
         process.communicate(timeout=10)
     assert [(result.name, result.message) for result in report.failures] == []
     assert len(report.results) > 40
+
+
+def test_debug_output_never_holds_up_the_loop_on_an_uno(sketch: Path) -> None:
+    # An Uno's core waits in Serial.write() for room in its 64-byte transmit buffer, which
+    # drains at 11.5 bytes a ms: 200 '#' of line noise make 200 "dropped" lines, some 11 000
+    # bytes, a second of waiting in which the claw would run on and no tick would come.
+    running, later, answered = _run(
+        sketch,
+        [
+            "run 20",
+            send(b"#debug1!#start!#h-!"),
+            "run 5",
+            "show",
+            send(b"#" * 200),
+            "run 60",
+            "show",
+            send(b"#qd!"),
+            "run 200",
+            "show",
+        ],
+    )
+    assert running.claw == (0, 1)
+    assert later.at_ms <= running.at_ms + 60 + 10  # (a debug line waits for nothing)
+    assert later.claw == (0, 0)  # the pulse ended on time
+    assert b"$qd.0!" in answered.output  # a reply always goes out
+    assert b"debug lines dropped: serial output busy" in later.output + answered.output
+
+
+#: Four queries whose replies hold the loop up, spaces, then motion frames: on an Uno the 64-byte
+#: receive buffer overflows meanwhile and a run of bytes is lost. (Each case: the spaces, the
+#: frames.)
+_OVERRUNS = (
+    (37, (b"#th.0.34!", b"#th.90.17!", b"#th.0.15!", b"#th.0.81!", b"#th.180.35!", b"#th.90.78!")),
+    (
+        33,
+        (b"#th.0.56!", b"#th.0.20!", b"#th.90.61!", b"#th.180.91!", b"#th.90.22!", b"#th.180.45!"),
+    ),
+    (
+        33,
+        (
+            b"#th.90.48!",
+            b"#th.270.90!",
+            b"#th.90.67!",
+            b"#th.180.73!",
+            b"#th.0.84!",
+            b"#th.180.91!",
+        ),
+    ),
+)
+
+
+def _horizontal_after(sketch: Path, stream: bytes) -> tuple[int, int, int, int]:
+    (shown,) = _run(sketch, ["run 20", send(b"#start!"), "run 20", send(stream), "run 400", "show"])
+    return shown.horizontal_us
+
+
+@pytest.mark.parametrize(("spaces", "frames"), _OVERRUNS, ids=("a", "b", "c"))
+def test_bytes_lost_in_a_receive_overrun_never_splice_two_frames_into_a_third(
+    sketch: Path, spaces: int, frames: tuple[bytes, ...]
+) -> None:
+    # Before: "#th.0.81!#th.180.35!#th.90.78!" less a run of lost bytes read as "#th.0.78!":
+    # 78 % ahead, which nobody sent. Now the frame the lost bytes cut is dropped.
+    after = _horizontal_after(sketch, b"#qsa!" * 4 + b" " * spaces + b"".join(frames))
+    sent = {_horizontal_after(sketch, frame) for frame in frames}
+    assert after in sent | {(NEUTRAL_US,) * 4}

@@ -3,6 +3,7 @@ sanitizers and a fuzz run."""
 
 from __future__ import annotations
 
+import os
 import subprocess
 import time
 from collections.abc import Callable, Iterator, Sequence
@@ -244,3 +245,44 @@ def test_a_repeated_start_keeps_the_set_points_of_the_c_reference(host_binary: P
         finally:
             link.write(b"#stop!")
             link.close()
+
+
+def _write_until_full(pty: str, data: bytes, times: int) -> int:
+    """Write ``data`` to ``pty`` up to ``times`` times without waiting; how many went in."""
+    writer = os.open(pty, os.O_WRONLY | os.O_NOCTTY | os.O_NONBLOCK)
+    try:
+        for written in range(times):
+            try:
+                os.write(writer, data)
+            except BlockingIOError:  # (the robot's input is full: it has stopped reading)
+                return written
+        return times
+    finally:
+        os.close(writer)
+
+
+@pytest.mark.integration
+def test_the_host_build_runs_on_while_nobody_reads_its_output(host_binary: Path) -> None:
+    # A UART sends whether or not anyone listens; a pseudo-terminal nobody reads fills up.
+    # Before: the host build waited in write() for a reader for ever: no tick, no link-loss
+    # failsafe, no more input read, and SIGTERM or Ctrl-C did not stop it (write() was
+    # retried on EINTR).
+    process = subprocess.Popen(
+        [str(host_binary)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+    )
+    try:
+        assert process.stdout is not None
+        pty = process.stdout.readline().split("pty ", 1)[1].split()[0]
+        _write_until_full(pty, b"#qhe!" * 20, 5000)  # up to 500 KB of replies nobody reads
+        deadline = time.monotonic() + 2.0
+        while _write_until_full(pty, b"#qhe!", 1) == 0:  # the robot reads its input again
+            assert time.monotonic() < deadline, "the host build stopped reading its input"
+            time.sleep(0.01)
+    finally:
+        process.terminate()
+        try:
+            process.communicate(timeout=2)
+        except subprocess.TimeoutExpired:
+            process.kill()
+            process.communicate()
+            pytest.fail("the host build did not stop on SIGTERM")

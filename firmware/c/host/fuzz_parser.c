@@ -6,7 +6,8 @@
  *   ./fuzz-parser 200000 1        iterations, seed
  *
  * Each iteration feeds a random stream, built from raw bytes, the protocol's characters and
- * whole valid and damaged frames, in random chunks, in either checksum mode. The callbacks
+ * whole valid and damaged frames, in random chunks (now and then with bytes lost between two,
+ * rl_rx_lost), in either checksum mode. The callbacks
  * check what a controller relies on: commands with in-range values only, replies formatted
  * within their buffer and free of bytes that are not printable, motion only while unlocked.
  * They also give the layer what an app might: debug texts of any bytes and length, numbers
@@ -157,6 +158,7 @@ int main(int argc, char **argv) {
             if (chunk > length - position) chunk = length - position;
             rl_feed(&link, stream + position, chunk);
             position += chunk;
+            if (next_random() % 32 == 0) rl_rx_lost(&link); /* a receive overrun */
             if (link.length > RL_MAX_FRAME_BYTES - 2) fail("the frame buffer overran");
         }
     }

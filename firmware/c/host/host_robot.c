@@ -36,6 +36,7 @@
 typedef struct {
     rl_link link;
     int fd;
+    int output_lost; /* a write found no reader: later ones do not wait for one */
     double time_s;
     /* physics */
     double depth_m, heave_m_s, up_thrust_n;
@@ -55,14 +56,34 @@ typedef struct {
     double claw_until_s;
 } robot;
 
+/* Set by SIGINT and SIGTERM: the main loop ends, and no write waits any more. */
+static volatile sig_atomic_t stopping = 0;
+
+/* How long a write waits for room on a line nobody reads before it drops what is left. */
+#define WRITE_WAIT_MS 100
+
+/* As a UART: the bytes go out whether or not anyone reads them. A pseudo-terminal that nobody
+ * reads fills up instead; the robot waits for room at most WRITE_WAIT_MS, then drops the rest,
+ * and drops at once until a write goes through again, so that it never stops (no tick, no
+ * failsafe, no input read, no way to stop it) waiting for a reader. */
 static void write_all(void *context, const char *data, size_t length) {
     robot *r = (robot *)context;
-    while (length) {
+    while (length && !stopping) {
         ssize_t written = write(r->fd, data, length);
         if (written < 0) {
-            if (errno == EINTR || errno == EAGAIN) continue;
-            return;
+            struct pollfd room;
+            if (errno == EINTR) continue;
+            if (errno != EAGAIN || r->output_lost) return;
+            room.fd = r->fd;
+            room.events = POLLOUT;
+            room.revents = 0;
+            if (poll(&room, 1, WRITE_WAIT_MS) <= 0) {
+                r->output_lost = 1;
+                return;
+            }
+            continue;
         }
+        r->output_lost = 0;
         data += written;
         length -= (size_t)written;
     }
@@ -256,8 +277,6 @@ static void robot_init(robot *r) {
 /* Without a main, for a test that steps the robot in simulated time (tests/firmware). */
 #ifndef RL_HOST_ROBOT_NO_MAIN
 
-static volatile sig_atomic_t stopping = 0;
-
 static void on_signal(int signum) {
     (void)signum;
     stopping = 1;
@@ -278,6 +297,8 @@ static int open_pty(char *path, size_t size, int *slave) {
     settings.c_cflag &= ~(tcflag_t)(CSIZE | PARENB);
     settings.c_cflag |= CS8;
     if (tcsetattr(*slave, TCSANOW, &settings)) return -1;
+    /* Writes that never wait for a reader (write_all); reads only when poll says so. */
+    if (fcntl(master, F_SETFL, fcntl(master, F_GETFL) | O_NONBLOCK)) return -1;
     return master;
 }
 

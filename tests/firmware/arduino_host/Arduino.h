@@ -17,6 +17,7 @@
 #define A0 14
 #define PI 3.14159265358979
 #define PIN_COUNT 20
+#define SERIAL_RX_BUFFER_SIZE 64 /* as the AVR core has it */
 #define digitalPinToInterrupt(pin) (pin)
 #define constrain(value, low, high) ((value) < (low) ? (low) : (value) > (high) ? (high) : (value))
 
@@ -38,13 +39,19 @@ class HostSerial {
     void begin(unsigned long baud);
     int available();
     int read();
+    /* As an Uno's core in a stepped run: a 64-byte transmit buffer (63 of it usable) that drains at 115200 baud
+     * (87 us a byte) as the clock goes; write() waits, the clock running, until there is room.
+     * With --pty the buffer never fills. */
     size_t write(const uint8_t *data, size_t length);
+    int availableForWrite();
     /* The test's side: bytes to the sketch, and what the sketch wrote. */
     void host_send(const uint8_t *data, size_t length);
     size_t host_take(uint8_t *out, size_t size);
 };
 
 extern HostSerial Serial;
+/* 0 with --pty: the transmit buffer is the terminal's, never full. */
+extern int host_uart_timing;
 
 /* Serve the sketch on a pseudo-terminal in real time: millis() follows the clock, loop() runs
  * every 100 us, the serial port is the terminal (pty_host.cpp). Prints the terminal's path. */

@@ -32,7 +32,10 @@ int host_serve_pty(void (*loop)()) {
     clock_gettime(CLOCK_MONOTONIC, &start);
     for (;;) {
         uint8_t bytes[256];
-        ssize_t count = read(master, bytes, sizeof bytes);
+        /* No more than a receive buffer short of full holds: the terminal keeps the rest, and
+         * the sketch never sees the full buffer that stands for a lost byte on an Uno. */
+        int room = SERIAL_RX_BUFFER_SIZE - 2 - Serial.available();
+        ssize_t count = room > 0 ? read(master, bytes, (size_t)room) : 0;
         if (count > 0) Serial.host_send(bytes, (size_t)count);
         loop();
         size_t length = Serial.host_take(bytes, sizeof bytes);

@@ -29,6 +29,13 @@ static void (*host_handlers[PIN_COUNT])();
 HostSerial Serial;
 static uint8_t serial_in[4096], serial_out[1 << 16];
 static size_t in_start = 0, in_end = 0, out_length = 0;
+/* The UART's transmit buffer in a stepped run, as an Uno's core has it: 64 bytes, one of them
+ * always free, sent at 10 bits a byte at 115200 baud. */
+#define TX_BUFFER_BYTES 63
+#define TX_BYTE_US 87
+int host_uart_timing = 1;
+static size_t tx_queued = 0;
+static unsigned long tx_sent_us = 0; /* when the byte at the head of the buffer left */
 
 unsigned long millis() { return host_millis & 0xFFFFFFFFul; }
 int digitalRead(uint8_t pin) { return host_pins[pin]; }
@@ -47,10 +54,61 @@ void host_set_pin(uint8_t pin, int level) {
     if (was == HIGH && level == LOW && host_handlers[pin]) host_handlers[pin]();
 }
 
+/* The bytes the line has sent by now leave the buffer. */
+static void tx_drain() {
+    while (tx_queued && host_micros - tx_sent_us >= TX_BYTE_US) {
+        tx_queued--;
+        tx_sent_us += TX_BYTE_US;
+    }
+}
+
 void HostSerial::begin(unsigned long) {}
-int HostSerial::available() { return (int)(in_end - in_start); }
-int HostSerial::read() { return in_start < in_end ? serial_in[in_start++] : -1; }
+int HostSerial::availableForWrite() {
+    if (!host_uart_timing) return TX_BUFFER_BYTES;
+    tx_drain();
+    return (int)(TX_BUFFER_BYTES - tx_queued);
+}
+/* The UART's receive side in a stepped run, as an Uno's core has it: the sent bytes arrive one
+ * every 87 us into a 64-byte buffer (63 of it usable); a byte that finds it full is lost. */
+#define RX_BUFFER_BYTES 63
+static uint8_t rx_buffer[RX_BUFFER_BYTES];
+static size_t rx_start = 0, rx_count = 0;
+static unsigned long rx_next_us = 0; /* when the next byte on the line arrives */
+
+static void rx_arrive() {
+    while (in_start < in_end && host_micros >= rx_next_us) {
+        uint8_t byte = serial_in[in_start++];
+        if (rx_count < RX_BUFFER_BYTES) rx_buffer[(rx_start + rx_count++) % RX_BUFFER_BYTES] = byte;
+        rx_next_us += TX_BYTE_US;
+    }
+}
+
+int HostSerial::available() {
+    if (!host_uart_timing) return (int)(in_end - in_start);
+    rx_arrive();
+    return (int)rx_count;
+}
+int HostSerial::read() {
+    int byte;
+    if (!host_uart_timing) return in_start < in_end ? serial_in[in_start++] : -1;
+    rx_arrive();
+    if (!rx_count) return -1;
+    byte = rx_buffer[rx_start];
+    rx_start = (rx_start + 1) % RX_BUFFER_BYTES;
+    rx_count--;
+    return byte;
+}
 size_t HostSerial::write(const uint8_t *data, size_t length) {
+    size_t i;
+    for (i = 0; host_uart_timing && i < length; i++) {
+        tx_drain();
+        if (tx_queued == TX_BUFFER_BYTES) { /* the core waits for room, the clock running */
+            host_micros = tx_sent_us + TX_BYTE_US;
+            host_millis = host_micros / 1000;
+            tx_drain();
+        }
+        if (tx_queued++ == 0) tx_sent_us = host_micros;
+    }
     if (out_length + length > sizeof serial_out) length = sizeof serial_out - out_length;
     memcpy(serial_out + out_length, data, length);
     out_length += length;
@@ -64,7 +122,10 @@ size_t HostSerial::host_take(uint8_t *out, size_t size) {
     return length;
 }
 void HostSerial::host_send(const uint8_t *data, size_t length) {
-    if (in_start == in_end) in_start = in_end = 0;
+    if (in_start == in_end) {
+        in_start = in_end = 0;
+        rx_next_us = host_micros + TX_BYTE_US; /* (the line was idle: the first byte's time) */
+    }
     if (in_end + length > sizeof serial_in) length = sizeof serial_in - in_end;
     memcpy(serial_in + in_end, data, length);
     in_end += length;
@@ -101,7 +162,10 @@ int main(int argc, char **argv) {
         }
     }
     setup();
-    if (argc > 1 && strcmp(argv[argc - 1], "--pty") == 0) return host_serve_pty(loop);
+    if (argc > 1 && strcmp(argv[argc - 1], "--pty") == 0) {
+        host_uart_timing = 0;
+        return host_serve_pty(loop);
+    }
     while (fgets(line, sizeof line, stdin)) {
         char word[16];
         unsigned long a = 0, b = 0;
@@ -126,6 +190,8 @@ int main(int argc, char **argv) {
         } else if (strcmp(word, "clock") == 0 && sscanf(line, "%*s %lu", &a) == 1) {
             host_millis = a;
             host_micros = a * 1000;
+            tx_queued = 0; /* (the time jumped: the line has sent it all) */
+            rx_next_us = host_micros;
         } else if (strcmp(word, "pin") == 0 && sscanf(line, "%*s %lu %lu", &a, &b) == 2) {
             host_set_pin((uint8_t)a, (int)b);
         } else if (strcmp(word, "analog") == 0 && sscanf(line, "%*s %lu %lu", &a, &b) == 2) {

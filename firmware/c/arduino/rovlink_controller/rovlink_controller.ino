@@ -46,8 +46,37 @@ static struct {
     bool claw_running; /* (a flag of its own: any time, 0 too, can end a pulse) */
 } robot = {0, false, 0, 0, 0, 255, 40, 30, 20, 0, 0, 0, 20, 200, false, 0, 0, 0, false};
 
+/* Debug lines the transmit buffer had no room for, since the last report of them. */
+static uint16_t debug_lines_dropped = 0;
+/* Serial.availableForWrite() of an empty transmit buffer on an Uno (the core keeps one of its
+ * 64 bytes free). A debug line longer than that (up to 96 bytes) still goes out into an empty
+ * buffer: the wait for its rest is at most 3 ms. On a core whose Serial does not implement
+ * availableForWrite() (Print's own returns 0), set it to 0: every line then goes out. */
+static const int TX_EMPTY_ROOM = 63;
+
+/* A reply (it starts with '$') always goes out, at once (P4, P19). A debug line goes out only
+ * if it fits the room left in the transmit buffer (or the buffer is empty), else it is counted
+ * and reported later: on an Uno Serial.write() waits for room in the core's 64-byte buffer,
+ * which drains at 11.5 bytes a ms at 115200 baud, and debug output (a line for each dropped
+ * frame of line noise) would hold up the loop: the ticks, the claw pulse, the link watchdog
+ * and the reading of #stop!. */
 static void write_serial(void *, const char *data, size_t length) {
+    int room = Serial.availableForWrite();
+    if (data[0] != '$' && (size_t)room < length && room < TX_EMPTY_ROOM) {
+        if (debug_lines_dropped < UINT16_MAX) debug_lines_dropped++;
+        return;
+    }
     Serial.write(reinterpret_cast<const uint8_t *>(data), length);
+}
+
+/* "debug: 65535 debug lines dropped: serial output busy" and CR LF, once there is room. */
+static void report_debug_lines_dropped() {
+    static const int REPORT_BYTES = 56;
+    if (!debug_lines_dropped || Serial.availableForWrite() < REPORT_BYTES) return;
+    uint16_t count = debug_lines_dropped;
+    debug_lines_dropped = 0;
+    rl_debug_number_flash(&link, RL_TEXT(""), count, 0,
+                          RL_TEXT(" debug lines dropped: serial output busy"));
 }
 
 static int raw_pressure() { return analogRead(PRESSURE_PIN); }
@@ -196,17 +225,42 @@ void setup() {
     rl_init(&link, &app, nullptr, RL_CRC8);
 }
 
+/* Serial.available() of a full receive buffer. The AVR core drops a byte that finds its buffer
+ * full without a word: a full buffer is all the sketch can see of a loss. (Other cores: set
+ * it to yours, or report their overrun events through rl_rx_lost.) */
+#if defined(SERIAL_RX_BUFFER_SIZE)
+static const int RX_FULL = SERIAL_RX_BUFFER_SIZE - 1;
+#else
+static const int RX_FULL = 0; /* unknown: not watched */
+#endif
+
+/* The received bytes to the layer. Once the receive buffer was full, bytes may have been lost
+ * after the ones in it: those are fed, then rl_rx_lost drops the frame they end in, which the
+ * bytes after the loss would otherwise complete into another command (P1). */
+static void receive() {
+    static int before_loss = 0; /* bytes still to feed ahead of a possible loss */
+    uint8_t buffer[32];
+    size_t count = 0, limit = sizeof buffer;
+    int waiting = Serial.available();
+    if (!before_loss && RX_FULL && waiting >= RX_FULL) before_loss = waiting;
+    if (before_loss && (size_t)before_loss < limit) limit = (size_t)before_loss;
+    while (count < limit && Serial.available()) buffer[count++] = (uint8_t)Serial.read();
+    if (count) rl_feed(&link, buffer, count); /* replies go out before this returns (P19) */
+    if (before_loss) {
+        before_loss -= (int)count;
+        if (!before_loss) rl_rx_lost(&link);
+    }
+}
+
 void loop() {
     static uint32_t next_tick_ms = 0;
-    uint8_t buffer[32];
-    size_t count = 0;
-    while (Serial.available() && count < sizeof buffer) buffer[count++] = (uint8_t)Serial.read();
-    if (count) rl_feed(&link, buffer, count); /* replies go out before this returns (P19) */
+    receive();
 
     uint32_t now = (uint32_t)millis();
     if ((int32_t)(now - next_tick_ms) < 0) return;
     next_tick_ms = now + TICK_MS;
     check_leak_level();
+    report_debug_lines_dropped();
     if (link.valid_frames != robot.frames_seen) {
         robot.frames_seen = link.valid_frames;
         robot.last_frame_ms = now;
