@@ -276,8 +276,11 @@ static const char *checksum_on_line(uint8_t algorithm) {
 
 /* Switch the layer's own state for a setting and write its debug line (P5); 0 if the command
  * goes no further: a mode frame, or a start or mvdirect that changes nothing (the app is told
- * only of changes, so that a repeated #start! keeps the set-points, P11). */
-static int apply_setting(rl_link *link, const rl_command_spec *spec, const int32_t *values) {
+ * only of changes, so that a repeated #start! keeps the set-points, P11), or a stop, which the
+ * app is told of here, before its line is written: on a slow line the write may wait, and the
+ * outputs go to neutral first. */
+static int apply_setting(rl_link *link, const rl_command_spec *spec, rl_command_id command,
+                         const int32_t *values) {
     uint8_t on = spec->setting_value == RL_FROM_ARGUMENT ? (uint8_t)(values[0] != 0)
                                                          : spec->setting_value;
     switch (spec->setting) {
@@ -294,8 +297,9 @@ static int apply_setting(rl_link *link, const rl_command_spec *spec, const int32
     case RL_SETTING_LOCKED:
         if (on) {
             link->locked = 1;
+            link->app->command(link->context, command, values);
             rl_debug_flash(link, RL_TEXT("stop command: motors stopped and locked"));
-            return 1;
+            return 0;
         }
         if (!link->locked) {
             rl_debug_flash(link, RL_TEXT("start: motors already unlocked, nothing changed"));
@@ -373,7 +377,7 @@ static void handle_frame(rl_link *link) {
     /* Mode frames by exact match, in either mode, before any checksum is stripped (P3). */
     if (found >= 0 && name_length == length && (spec.flags & RL_EXACT_MATCH)) {
         link->valid_frames++;
-        apply_setting(link, &spec, values);
+        apply_setting(link, &spec, (rl_command_id)found, values);
         return;
     }
     if (link->checksum_on && !(found >= 0 && name_length == length &&
@@ -432,7 +436,7 @@ static void handle_frame(rl_link *link) {
         reply(link, &spec);
         return;
     }
-    if (apply_setting(link, &spec, values)) {
+    if (apply_setting(link, &spec, (rl_command_id)found, values)) {
         link->app->command(link->context, (rl_command_id)found, values);
     }
 }

@@ -88,8 +88,9 @@ void rl_feed(rl_link *link, const uint8_t *data, size_t length);
  * reads "#th.270.20!" while checksum mode is off. Call it before feeding the bytes that came
  * after the loss, from where rl_feed is called. */
 void rl_rx_lost(rl_link *link);
-/* Lock the motors as #stop! does (for the app's failsafes) and write why as a debug line; the
- * app zeroes its outputs. */
+/* Lock the motors as #stop! does (for the app's failsafes) and write why as a debug line. The
+ * app zeroes its outputs first: the write may wait for a slow line (as the layer tells the app
+ * of a #stop! before it writes its line). */
 void rl_lock(rl_link *link, const char *why);
 /* Write a debug line if debug is on; '#', '$', '!' and bytes that are not printable become '?'
  * (P5); cut at 87 characters. */

@@ -38,3 +38,12 @@ def test_bytes_lost_between_frames_drop_nothing(steps: Path) -> None:
     lines = [" ".join(words) for words in run_script(steps, script)]
     assert "C th 90 10" in lines
     assert not any("dropped" in line for line in lines)
+
+
+def test_a_stop_reaches_the_app_before_its_line_is_written(steps: Path) -> None:
+    # On a slow line the write of a debug line may wait for room (an Uno's 64-byte buffer):
+    # the app's outputs go to neutral first, then the line is written.
+    script = [_feed(b"#start!#th.90.10!#stop!")]
+    lines = [" ".join(words) for words in run_script(steps, script)]
+    stop_at = lines.index("C stop")
+    assert lines[stop_at + 1] == "D stop command: motors stopped and locked"

@@ -230,8 +230,8 @@ static void tick(robot *r) {
         r->frames_seen = r->link.valid_frames;
         r->last_frame_s = r->time_s;
     } else if (!r->link.locked && r->time_s - r->last_frame_s > WATCHDOG_S) {
+        neutral(r); /* (before the line, whose write may wait for the line) */
         rl_lock(&r->link, "failsafe: no valid frame for 2 s: motors stopped and locked");
-        neutral(r);
     }
     if (r->claw && r->time_s >= r->claw_until_s) r->claw = 0;
     depth = depth_cm(r);

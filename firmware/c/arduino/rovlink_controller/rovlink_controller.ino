@@ -265,8 +265,8 @@ void loop() {
         robot.frames_seen = link.valid_frames;
         robot.last_frame_ms = now;
     } else if (!link.locked && now - robot.last_frame_ms > WATCHDOG_MS) { /* P17 */
+        all_stop(); /* (before the line, whose write may wait for the line) */
         rl_lock_flash(&link, RL_TEXT("failsafe: no valid frame for 2 s: motors stopped and locked"));
-        all_stop();
     }
     if (robot.claw_running && (int32_t)(now - robot.claw_until_ms) >= 0) {
         robot.claw_running = false;
