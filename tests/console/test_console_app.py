@@ -18,12 +18,13 @@ from prompt_toolkit.input import PipeInput, create_pipe_input
 from prompt_toolkit.output import create_output
 
 import rovlink.aio.client
+import rovlink.console.app
 from rovlink.aio import AsyncClient
 from rovlink.cli import build_parser, main
 from rovlink.cli.link_options import connect_async
 from rovlink.client.links import Link
 from rovlink.client.options import StrayCallback
-from rovlink.console.app import Connector, run_console
+from rovlink.console.app import Connector, StopUnsentError, run_console
 from rovlink.piloting.tracked import STOP_KEPT_NOTICE, STOP_UNSENT_NOTICE
 from tests.cli.silent_controller import SilentController as CliSilentController
 from tests.client.conftest import NO_REPLY_TIMEOUT_S, REPLY_TIMEOUT_S, client_options
@@ -233,6 +234,42 @@ def test_cli_console_on_sim(
     assert "#qd!" in frames
     # The history is kept there (made at the start), but not the lines of a pipe: none typed.
     assert (tmp_path / "rovlink" / "console_history").read_text() == ""
+
+
+def test_a_script_s_output_to_a_file_keeps_the_console_s_own_remarks_on_stderr(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # `rovlink console URL < lines.txt | tee dive.log`: before, "leaving: sending #stop!
+    # (motors ...)" went into the log among the replies, as did a query's error.
+    screen = io.StringIO()
+    with create_pipe_input() as keys, create_app_session(input=keys, output=create_output(screen)):
+        keys.send_text("start\nqd\n")  # (no stop: leaving sends it)
+        keys.close()
+        status = main(["console", "sim://?seed=1", "--history", str(tmp_path / "history")])
+    assert status == 0
+    assert screen.getvalue().splitlines() == [
+        "  → #start!",
+        "  → #qd!",
+        "  qd → 0 cm                 $qd.0!",
+        "  → #stop!",
+    ]
+    assert capsys.readouterr().err.splitlines()[1:] == [
+        "rovlink console: leaving: sending #stop! (motors unlocked (as last sent))"
+    ]
+
+
+def test_cli_console_leaving_with_the_stop_unsent_exits_1(
+    monkeypatch: pytest.MonkeyPatch, tmp_path: Path
+) -> None:
+    # The console has said it (its transcript, or stderr): the status tells a script.
+    async def link_lost(*_: object, **__: object) -> None:
+        raise StopUnsentError(STOP_UNSENT_NOTICE)
+
+    monkeypatch.setattr(rovlink.console.app, "run_console", link_lost)
+    screen = io.StringIO()
+    with create_pipe_input() as keys, create_app_session(input=keys, output=create_output(screen)):
+        keys.close()
+        assert main(["console", "sim://", "--history", str(tmp_path / "history")]) == 1
 
 
 def test_cli_console_refuses_a_bad_url(capsys: pytest.CaptureFixture[str]) -> None:
@@ -531,7 +568,10 @@ async def test_a_stop_while_the_link_is_down_says_it_is_kept_and_leaving_says_it
         await term.wait_shown(f"! {STOP_KEPT_NOTICE}")
         if leave == "ctrl-d":
             term.type(CTRL_D)
-            await term.finish()
+            # Before, leaving so ended as any quit: `rovlink console` exited 0, and a script
+            # could not tell that the robot was left to the controller's failsafe.
+            with pytest.raises(StopUnsentError):
+                await term.finish()
         else:  # (SIGINT, SIGTERM, SIGHUP: the console is cancelled)
             term.task.cancel()
             await asyncio.gather(term.task, return_exceptions=True)
