@@ -258,6 +258,37 @@ def test_a_script_s_output_to_a_file_keeps_the_console_s_own_remarks_on_stderr(
     ]
 
 
+def test_lines_read_from_a_file_that_fail_as_they_run_end_the_console_with_status_1(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # `rovlink console URL < lines.txt` to a controller that does not answer: before, every
+    # query failed and the console exited 0, as if the script had run (`send` exits 1).
+    silent = CliSilentController()
+    screen = io.StringIO()
+    with create_pipe_input() as keys, create_app_session(input=keys, output=create_output(screen)):
+        keys.send_text("qd\nqd\n")
+        keys.close()
+        status = main(
+            [
+                "console",
+                silent.url,
+                "--boot-timeout",
+                "0",
+                "--timeout",
+                str(NO_REPLY_TIMEOUT_S),
+                "--retries",
+                "0",
+                "--history",
+                str(tmp_path / "history"),
+            ]
+        )
+    assert status == 1
+    errors = capsys.readouterr().err.splitlines()
+    assert sum("✗ #qd! got no valid reply" in line for line in errors) == 2
+    assert errors[-1] == "rovlink console: 2 line(s) failed as they ran (each said above)"
+    silent.close()
+
+
 def test_cli_console_leaving_with_the_stop_unsent_exits_1(
     monkeypatch: pytest.MonkeyPatch, tmp_path: Path
 ) -> None:
@@ -421,7 +452,7 @@ def test_lines_read_from_a_file_all_run_in_order_before_leaving(tmp_path: Path) 
                 str(tmp_path / "history"),
             ]
         )
-    assert status == 0
+    assert status == 1  # (the qd got no reply: a line that failed, said by the status)
     assert silent.wait_for(b"#stop!")  # (as the far end reads it)
     received = bytes(silent.received)
     assert received.index(b"#qd!") < received.index(b"#start!") < received.index(b"#th.0.30!")

@@ -64,6 +64,7 @@ def run(args: argparse.Namespace) -> int:
 
     try:
         from rovlink.console.app import (  # noqa: PLC0415
+            LinesFailedError,
             RefusedLineError,
             StopUnsentError,
             run_console,
@@ -112,7 +113,7 @@ def run(args: argparse.Namespace) -> int:
                     ),
                 )
             )
-    except RefusedLineError as error:
+    except (RefusedLineError, LinesFailedError) as error:
         raise CommandError(str(error)) from None
     except StopUnsentError:
         # Said already, where the console says it (its transcript, or stderr under a script):

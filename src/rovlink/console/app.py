@@ -48,6 +48,7 @@ __all__ = [
     "Connector",
     "ConsoleCompleter",
     "ConsoleValidator",
+    "LinesFailedError",
     "RefusedLineError",
     "StopUnsentError",
     "run_console",
@@ -123,6 +124,11 @@ class ConsoleValidator(Validator):
 class StopUnsentError(Exception):
     """Leaving (``quit``, Ctrl-D, the end of a script's lines), unlocked as last sent, the
     ``#stop!`` could not be sent: the link was lost (the console has said so)."""
+
+
+class LinesFailedError(Exception):
+    """Lines read from a file or a pipe failed as they ran (a query with no reply, a lost
+    link): each was said as it failed; the lines after it ran all the same."""
 
 
 class RefusedLineError(Exception):
@@ -267,7 +273,8 @@ async def run_console(
     Raises what ``connect`` raises if the connection cannot be opened,
     :class:`RefusedLineError` for a bad line read from a file or a pipe, and
     :class:`StopUnsentError` when leaving found the link lost, the motors not locked as last
-    sent: the ``#stop!`` never went.
+    sent: the ``#stop!`` never went, and :class:`LinesFailedError` when lines read from a file
+    or a pipe failed as they ran.
     """
     # The driver calls back (debug text, stray frames) in a context copied from its reader
     # thread, which knows nothing of this prompt; print in the console's own context, so that
@@ -428,6 +435,10 @@ async def _run_connected(
         raise refused
     if engine.stop_unsent:
         raise StopUnsentError(STOP_UNSENT_NOTICE)
+    if not from_terminal and engine.failed_lines:
+        raise LinesFailedError(
+            f"{engine.failed_lines} line(s) failed as they ran (each said above)"
+        )
 
 
 #: How long leaving may wait for ``#stop!`` to be written (it is not acknowledged).

@@ -85,6 +85,8 @@ class ConsoleEngine:
         self._queue: asyncio.Queue[Action] = asyncio.Queue()
         self._left = False
         self._stop_unsent = False
+        #: Lines that failed (no reply, a lost link, a frame refused by the driver).
+        self.failed_lines = 0
         self._running: asyncio.Future[None] | None = None
         #: Set by :meth:`interrupt` while it cancels the line running: what else it dropped.
         self._interrupted: str | None = None
@@ -229,6 +231,7 @@ class ConsoleEngine:
                 try:
                     replies = await self.rov.send_raw(action.frame)
                 except ValueError as error:  # (more than one frame: nothing was sent)
+                    self.failed_lines += 1
                     self._emit(error_line(str(error)))
                     return
                 self._show_replies(replies)
@@ -243,6 +246,7 @@ class ConsoleEngine:
                 for line in status_lines(self.rov):
                     self._emit(info_line(line))
         except (ClientError, TimeoutError, ConnectionError) as error:
+            self.failed_lines += 1
             self._emit(error_line(str(error)))
 
     async def _quit(self) -> None:
