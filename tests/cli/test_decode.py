@@ -7,6 +7,7 @@ from pathlib import Path
 
 import pytest
 
+from rovlink.protocol.frames import Reason
 from tests.cli.conftest import RunCli
 
 
@@ -102,8 +103,6 @@ def test_the_json_schema_in_the_docs_names_every_event_s_keys_and_every_reason(
     run_cli: RunCli,
 ) -> None:
     # docs/tools.md describes the keys of each event; the decoder's output must have them.
-    from rovlink.protocol.frames import Reason  # noqa: PLC0415
-
     docs = (Path(__file__).resolve().parents[2] / "docs" / "tools.md").read_text("utf-8")
     rows = {
         row.split("|")[1].strip().strip('`"'): row.split("|")[2]
