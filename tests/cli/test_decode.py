@@ -7,6 +7,7 @@ from pathlib import Path
 
 import pytest
 
+from rovlink.protocol.frames import Reason
 from tests.cli.conftest import RunCli
 
 
@@ -96,3 +97,23 @@ def test_decode_escapes_del_and_c1_controls_as_json_does_c0(run_cli: RunCli) -> 
     events = _lines(result.out)
     assert events[0] == {"event": "text", "text": "a\x7fb\x1b[2Jc\x9b31md"}
     assert [(e["event"], e.get("raw")) for e in events[1:]] == [("error", "#q"), ("text", None)]
+
+
+def test_the_json_schema_in_the_docs_names_every_event_s_keys_and_every_reason(
+    run_cli: RunCli,
+) -> None:
+    # docs/tools.md describes the keys of each event; the decoder's output must have them.
+    docs = (Path(__file__).resolve().parents[2] / "docs" / "tools.md").read_text("utf-8")
+    rows = {
+        row.split("|")[1].strip().strip('`"'): row.split("|")[2]
+        for row in docs.splitlines()
+        if row.startswith('| `"') and row.count("|") == 3
+    }
+    result = run_cli("decode", "-", stdin=b"boot\n#qd!$qd.5!#zz!")
+    for line in result.out.splitlines():
+        event = json.loads(line)
+        for key in set(event) - {"event"}:
+            assert f'`"{key}"`' in rows[str(event["event"])], (event["event"], key)
+    assert {reason.value for reason in Reason} == {
+        word.strip('`"') for word in rows["error"].split("(")[1].split(")")[0].split(", ")
+    }

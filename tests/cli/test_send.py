@@ -186,6 +186,19 @@ def test_raw_shows_the_exact_bytes_both_ways(run_cli: RunCli) -> None:
     assert received[0].endswith(xor.digits(body.encode()).decode() + "!")
 
 
+def test_raw_with_json_keeps_every_line_json(run_cli: RunCli) -> None:
+    # `send URL --json --raw qd | jq`: before, the ">> #qd!" lines came among the JSON objects
+    # and the first of them stopped the parser.
+    result = run_cli("send", "--raw", "--json", "--timeout", REPLY_TIMEOUT, "sim://", "qd")
+    assert result.status == 0, result.err
+    objects = [json.loads(line) for line in result.out.splitlines()]
+    assert objects[0] == {"written": "#crcoff!#qd!"}  # the readiness probe (P21)
+    assert {"written": "#qd!"} in objects
+    assert objects[-1]["command"] == "#qd!"
+    read = "".join(str(item["read"]) for item in objects if "read" in item)
+    assert read.endswith(objects[-1]["replies"][0]["frame"])
+
+
 def test_an_unknown_raw_frame_is_refused_before_anything_is_sent(run_cli: RunCli) -> None:
     result = run_cli("send", "sim://", "qd", "#zz!")
     assert result.status == 2

@@ -18,12 +18,13 @@ from prompt_toolkit.input import PipeInput, create_pipe_input
 from prompt_toolkit.output import create_output
 
 import rovlink.aio.client
+import rovlink.console.app
 from rovlink.aio import AsyncClient
 from rovlink.cli import build_parser, main
 from rovlink.cli.link_options import connect_async
 from rovlink.client.links import Link
 from rovlink.client.options import StrayCallback
-from rovlink.console.app import Connector, run_console
+from rovlink.console.app import Connector, StopUnsentError, run_console
 from rovlink.piloting.tracked import STOP_KEPT_NOTICE, STOP_UNSENT_NOTICE
 from tests.cli.silent_controller import SilentController as CliSilentController
 from tests.client.conftest import NO_REPLY_TIMEOUT_S, REPLY_TIMEOUT_S, client_options
@@ -235,6 +236,73 @@ def test_cli_console_on_sim(
     assert (tmp_path / "rovlink" / "console_history").read_text() == ""
 
 
+def test_a_script_s_output_to_a_file_keeps_the_console_s_own_remarks_on_stderr(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # `rovlink console URL < lines.txt | tee dive.log`: before, "leaving: sending #stop!
+    # (motors ...)" went into the log among the replies, as did a query's error.
+    screen = io.StringIO()
+    with create_pipe_input() as keys, create_app_session(input=keys, output=create_output(screen)):
+        keys.send_text("start\nqd\n")  # (no stop: leaving sends it)
+        keys.close()
+        status = main(["console", "sim://?seed=1", "--history", str(tmp_path / "history")])
+    assert status == 0
+    assert screen.getvalue().splitlines() == [
+        "  → #start!",
+        "  → #qd!",
+        "  qd → 0 cm                 $qd.0!",
+        "  → #stop!",
+    ]
+    assert capsys.readouterr().err.splitlines()[1:] == [
+        "rovlink console: leaving: sending #stop! (motors unlocked (as last sent))"
+    ]
+
+
+def test_lines_read_from_a_file_that_fail_as_they_run_end_the_console_with_status_1(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # `rovlink console URL < lines.txt` to a controller that does not answer: before, every
+    # query failed and the console exited 0, as if the script had run (`send` exits 1).
+    silent = CliSilentController()
+    screen = io.StringIO()
+    with create_pipe_input() as keys, create_app_session(input=keys, output=create_output(screen)):
+        keys.send_text("qd\nqd\n")
+        keys.close()
+        status = main(
+            [
+                "console",
+                silent.url,
+                "--boot-timeout",
+                "0",
+                "--timeout",
+                str(NO_REPLY_TIMEOUT_S),
+                "--retries",
+                "0",
+                "--history",
+                str(tmp_path / "history"),
+            ]
+        )
+    assert status == 1
+    errors = capsys.readouterr().err.splitlines()
+    assert sum("✗ #qd! got no valid reply" in line for line in errors) == 2
+    assert errors[-1] == "rovlink console: 2 line(s) failed as they ran (each said above)"
+    silent.close()
+
+
+def test_cli_console_leaving_with_the_stop_unsent_exits_1(
+    monkeypatch: pytest.MonkeyPatch, tmp_path: Path
+) -> None:
+    # The console has said it (its transcript, or stderr): the status tells a script.
+    async def link_lost(*_: object, **__: object) -> None:
+        raise StopUnsentError(STOP_UNSENT_NOTICE)
+
+    monkeypatch.setattr(rovlink.console.app, "run_console", link_lost)
+    screen = io.StringIO()
+    with create_pipe_input() as keys, create_app_session(input=keys, output=create_output(screen)):
+        keys.close()
+        assert main(["console", "sim://", "--history", str(tmp_path / "history")]) == 1
+
+
 def test_cli_console_refuses_a_bad_url(capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["console", "sim://?nosuch=1"]) == 2
     assert "unknown sim option 'nosuch'" in capsys.readouterr().err
@@ -384,7 +452,7 @@ def test_lines_read_from_a_file_all_run_in_order_before_leaving(tmp_path: Path) 
                 str(tmp_path / "history"),
             ]
         )
-    assert status == 0
+    assert status == 1  # (the qd got no reply: a line that failed, said by the status)
     assert silent.wait_for(b"#stop!")  # (as the far end reads it)
     received = bytes(silent.received)
     assert received.index(b"#qd!") < received.index(b"#start!") < received.index(b"#th.0.30!")
@@ -531,7 +599,10 @@ async def test_a_stop_while_the_link_is_down_says_it_is_kept_and_leaving_says_it
         await term.wait_shown(f"! {STOP_KEPT_NOTICE}")
         if leave == "ctrl-d":
             term.type(CTRL_D)
-            await term.finish()
+            # Before, leaving so ended as any quit: `rovlink console` exited 0, and a script
+            # could not tell that the robot was left to the controller's failsafe.
+            with pytest.raises(StopUnsentError):
+                await term.finish()
         else:  # (SIGINT, SIGTERM, SIGHUP: the console is cancelled)
             term.task.cancel()
             await asyncio.gather(term.task, return_exceptions=True)

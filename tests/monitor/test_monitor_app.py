@@ -612,5 +612,6 @@ def test_leaving_with_the_link_down_is_said_on_stderr(
 
     monkeypatch.setattr(MonitorApp, "run_async", headless)
     monkeypatch.setattr(cli_monitor, "missing_terminal", lambda: None)  # (drawn headless)
-    assert main(["monitor", "sim://?seed=1", "--rate", "20"]) == 0
+    # (Before, the status was 0, as after a stop that went: a script could not tell.)
+    assert main(["monitor", "sim://?seed=1", "--rate", "20"]) == 1
     assert capsys.readouterr().err == f"rovlink monitor: {STOP_UNSENT_NOTICE}\n"

@@ -63,7 +63,12 @@ def run(args: argparse.Namespace) -> int:
     from rovlink.cli.async_run import run_async  # noqa: PLC0415 - keep asyncio off other commands
 
     try:
-        from rovlink.console.app import RefusedLineError, run_console  # noqa: PLC0415
+        from rovlink.console.app import (  # noqa: PLC0415
+            LinesFailedError,
+            RefusedLineError,
+            StopUnsentError,
+            run_console,
+        )
         from rovlink.console.history import default_history_path  # noqa: PLC0415
         from rovlink.console.script_input import script_input  # noqa: PLC0415
     except ImportError as error:
@@ -101,12 +106,19 @@ def run(args: argparse.Namespace) -> int:
                     history_path=history,
                     # Lines read from a file or a pipe all run, in order, to the last.
                     from_terminal=from_terminal,
-                    # (Its output to a file or a pipe is then the replies alone.)
-                    notices=lambda text: print(f"rovlink console: {text}", file=sys.stderr),
+                    # (Its output to a file or a pipe is then what went out and came back alone:
+                    # the console's own remarks go to stderr.)
+                    notices=lambda text: print(
+                        f"rovlink console: {text}", file=sys.stderr, flush=True
+                    ),
                 )
             )
-    except RefusedLineError as error:
+    except (RefusedLineError, LinesFailedError) as error:
         raise CommandError(str(error)) from None
+    except StopUnsentError:
+        # Said already, where the console says it (its transcript, or stderr under a script):
+        # a script learns it from the status, as from any failure.
+        return 1
     except ValueError as error:
         raise UsageError(str(error)) from None
     except _ConnectError as failed:

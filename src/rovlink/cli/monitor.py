@@ -150,7 +150,8 @@ class _StrayRelay:
         self._early.clear()
 
 
-async def _connect_then_show(args: argparse.Namespace) -> None:
+async def _connect_then_show(args: argparse.Namespace) -> bool:
+    """Run the dashboard; whether leaving found the link lost, unlocked: ``#stop!`` unsent."""
     from rovlink.cli.async_run import StopOnTermination  # noqa: PLC0415 - as run_async
 
     # The port is opened first, as by every other command: one that is busy or missing is one
@@ -186,6 +187,7 @@ async def _connect_then_show(args: argparse.Namespace) -> None:
         finally:
             if not client.closed:
                 await client.close()
+    return app.stop_unsent is not None
 
 
 def run(args: argparse.Namespace) -> int:
@@ -193,9 +195,10 @@ def run(args: argparse.Namespace) -> int:
     from rovlink.cli.async_run import run_async  # noqa: PLC0415 - not on the path of --help
 
     try:
-        run_async(_connect_then_show(args))
+        stop_unsent = run_async(_connect_then_show(args))
     except OSError as error:
         if error.errno != errno.EIO:
             raise
         raise KeyboardInterrupt from None  # its terminal hung up: ended as by Ctrl-C
-    return 0
+    # Left with q while the link was lost, unlocked: said on stderr; the status tells a script.
+    return 1 if stop_unsent else 0

@@ -216,7 +216,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="one JSON object per command instead of text",
     )
     parser.add_argument(
-        "--raw", action="store_true", help="also show the exact bytes written (>>) and read (<<)"
+        "--raw",
+        action="store_true",
+        help="also show the exact bytes written (>>) and read (<<); with --json as objects "
+        '{"written": …} and {"read": …}',
     )
 
 
@@ -234,18 +237,28 @@ class _Printer:
     command (after ``#stop!``, where it may have moved the robot).
     """
 
-    def __init__(self) -> None:
+    def __init__(self, *, as_json: bool = False) -> None:
         self._lock = threading.Lock()
         self._failed = False
+        self._as_json = as_json
 
     def __call__(self, direction: str, data: bytes) -> None:
         with self._lock:
             if self._failed:
                 return
             try:
-                print(f"{direction} {repr(data)[2:-1]}", flush=True)
+                print(self._line(direction, data), flush=True)
             except OSError:
                 self._failed = True
+
+    def _line(self, direction: str, data: bytes) -> str:
+        """``>> #qd!``; with ``--json`` a JSON object of its own, so that every line of the
+        output parses: ``{"written": "#qd!"}``, ``{"read": "$qd.0!"}`` (bytes beyond ASCII as
+        their Latin-1 characters)."""
+        if not self._as_json:
+            return f"{direction} {repr(data)[2:-1]}"
+        key = "written" if direction == ">>" else "read"
+        return json.dumps({key: data.decode("latin-1")})
 
 
 def _send_one(client: Client, item: Outgoing) -> tuple[bytes, tuple[Response, ...]]:
@@ -290,7 +303,7 @@ def run(args: argparse.Namespace) -> int:
     """Send the commands in order; stop at the first failure (with ``#stop!`` once a command
     that may move the robot was sent)."""
     outgoing = plan(args.commands, checksum=args.checksum, algorithm=args.algorithm)
-    show_bytes = _Printer() if args.raw else None
+    show_bytes = _Printer(as_json=args.as_json) if args.raw else None
     client = link_options.connect(args, on_stray=_print_text, show_bytes=show_bytes)
     gate = GatedClient(client)
     may_have_moved = False  # once a command that may move the robot has been sent (or tried)

@@ -134,7 +134,10 @@ def run(args: argparse.Namespace) -> int:
             try:
                 host, port = server.listen_tcp(*address)
             except OSError as error:
-                raise CommandError(f"cannot listen on {args.tcp}: {reason(error)}") from None
+                # (The host too, when the user gave the port alone: which address is busy.)
+                host, port = address
+                where = f"[{host}]:{port}" if ":" in host else f"{host}:{port}"
+                raise CommandError(f"cannot listen on {where}: {reason(error)}") from None
             endpoints.append(tcp_endpoint(host, port, "rovlink.sim"))
         signals = ServingSignals()
         pacing = f"{args.baud} baud" if args.baud else "unpaced"

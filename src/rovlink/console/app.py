@@ -36,11 +36,11 @@ from rovlink.console.actions import InputError, Quit, parse_lines
 from rovlink.console.completion import argument_hint, suggestions
 from rovlink.console.engine import ConsoleEngine
 from rovlink.console.help import STOP_KEY_TEXT
-from rovlink.console.transcript import Line, error_line, info_line
+from rovlink.console.transcript import Line, error_line, info_line, is_notice, plain_text
 from rovlink.logs import WarningsShownBy
 from rovlink.piloting import LockState, TrackedClient
 from rovlink.piloting.no_suspend import suspension_refused
-from rovlink.piloting.tracked import LEAVING_REPLY_WAIT_S
+from rovlink.piloting.tracked import LEAVING_REPLY_WAIT_S, STOP_UNSENT_NOTICE
 from rovlink.protocol.visible import visible
 
 __all__ = [
@@ -48,7 +48,9 @@ __all__ = [
     "Connector",
     "ConsoleCompleter",
     "ConsoleValidator",
+    "LinesFailedError",
     "RefusedLineError",
+    "StopUnsentError",
     "run_console",
 ]
 
@@ -66,6 +68,7 @@ STYLE = Style.from_dict(
         "warning": "ansiyellow",
         "error": "bold ansired",
         "info": "",
+        "notice": "",
         "stop": "bold ansiwhite bg:ansired",
         "bottom-toolbar": "noreverse bg:ansiblack ansiwhite",
         "toolbar.stop": "bold ansiwhite bg:ansired",
@@ -116,6 +119,16 @@ class ConsoleValidator(Validator):
             parse_lines(document.text, self._checksum())
         except InputError as error:
             raise ValidationError(cursor_position=error.position, message=error.message) from None
+
+
+class StopUnsentError(Exception):
+    """Leaving (``quit``, Ctrl-D, the end of a script's lines), unlocked as last sent, the
+    ``#stop!`` could not be sent: the link was lost (the console has said so)."""
+
+
+class LinesFailedError(Exception):
+    """Lines read from a file or a pipe failed as they ran (a query with no reply, a lost
+    link): each was said as it failed; the lines after it ran all the same."""
 
 
 class RefusedLineError(Exception):
@@ -257,16 +270,26 @@ async def run_console(
     when the output is not a terminal either (a file, a pipe) it is their replies alone: no
     prompt, no line echoed, and the console's own notice (what it is connected to) goes to
     ``notices`` if given.
-    Raises what ``connect`` raises if the connection cannot be opened, and
-    :class:`RefusedLineError` for a bad line read from a file or a pipe.
+    Raises what ``connect`` raises if the connection cannot be opened,
+    :class:`RefusedLineError` for a bad line read from a file or a pipe, and
+    :class:`StopUnsentError` when leaving found the link lost, the motors not locked as last
+    sent: the ``#stop!`` never went, and :class:`LinesFailedError` when lines read from a file
+    or a pipe failed as they ran.
     """
     # The driver calls back (debug text, stray frames) in a context copied from its reader
     # thread, which knows nothing of this prompt; print in the console's own context, so that
     # lines go above the prompt of this app session.
     console_context = contextvars.copy_context()
+    # To a file or a pipe, the output of a script's lines is what was sent and what came
+    # back; the console's own remarks (leaving, a warning, an error) go to ``notices``.
+    replies_alone = not from_terminal and output_is_plain_text()
+    notices_apart = notices if replies_alone else None
 
     def emit_in_console(line: Line) -> None:
-        console_context.run(emit, line)
+        if notices_apart is not None and is_notice(line):
+            notices_apart(plain_text(line).strip())
+        else:
+            console_context.run(emit, line)
 
     # Written to stderr, the library's warnings (a lost link, a suspected reset) would land in
     # the middle of the prompt: they are printed above it as the console's own lines.
@@ -287,7 +310,7 @@ async def run_console(
                 algorithm=algorithm,
                 history_path=history_path,
                 from_terminal=from_terminal,
-                notices=notices,
+                notices=notices_apart,
             )
     finally:
         warnings.detach()
@@ -322,7 +345,7 @@ async def _run_connected(
     # into the transcript) with a stop key that no key reaches; Ctrl-C is a signal then. Nor,
     # to a file or a pipe, a prompt: drawn as plain text it is the line echoed after
     # "rovlink> " and the blank lines of the rows it moves through.
-    replies_alone = not from_terminal and output_is_plain_text()
+    replies_alone = not from_terminal and output_is_plain_text()  # (as run_console says)
     session: PromptSession[str] = PromptSession(
         [("class:prompt", "rovlink> ")],
         style=STYLE,
@@ -343,7 +366,7 @@ async def _run_connected(
         else "its lines run in order; Ctrl-C sends #stop! and ends the console"
     )
     connected = f"connected to {client.description}; {stop_text}"
-    if replies_alone and notices is not None:
+    if notices is not None:
         notices(connected)
     else:
         emit_in_console(info_line(connected, "class:info"))
@@ -410,6 +433,12 @@ async def _run_connected(
             engine.say_stop_unsent()
     if refused is not None:
         raise refused
+    if engine.stop_unsent:
+        raise StopUnsentError(STOP_UNSENT_NOTICE)
+    if not from_terminal and engine.failed_lines:
+        raise LinesFailedError(
+            f"{engine.failed_lines} line(s) failed as they ran (each said above)"
+        )
 
 
 #: How long leaving may wait for ``#stop!`` to be written (it is not acknowledged).

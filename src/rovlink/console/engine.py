@@ -32,6 +32,7 @@ from rovlink.console.transcript import (
     event_line,
     info_line,
     late_reply_line,
+    notice_line,
     reply_line,
     sent_lines,
 )
@@ -83,6 +84,9 @@ class ConsoleEngine:
         self._rov: TrackedClient | None = None
         self._queue: asyncio.Queue[Action] = asyncio.Queue()
         self._left = False
+        self._stop_unsent = False
+        #: Lines that failed (no reply, a lost link, a frame refused by the driver).
+        self.failed_lines = 0
         self._running: asyncio.Future[None] | None = None
         #: Set by :meth:`interrupt` while it cancels the line running: what else it dropped.
         self._interrupted: str | None = None
@@ -139,7 +143,7 @@ class ConsoleEngine:
         still waiting for its reply; :meth:`run` ends once the line running is done."""
         dropped = self._drop_queued()
         if dropped:
-            self._emit(info_line(f"leaving: {dropped} queued line(s) dropped, not sent"))
+            self._emit(notice_line(f"leaving: {dropped} queued line(s) dropped, not sent"))
         self._queue.put_nowait(Quit())
         await self._quit()
 
@@ -148,8 +152,14 @@ class ConsoleEngine:
         """Whether ``quit`` (or Ctrl-D) has been run: its ``#stop!`` has been seen to."""
         return self._left
 
+    @property
+    def stop_unsent(self) -> bool:
+        """Whether leaving, unlocked, found the ``#stop!`` could not go (the link lost)."""
+        return self._stop_unsent
+
     def say_stop_unsent(self) -> None:
         """Leaving, unlocked, with the link down: the ``#stop!`` cannot go, said so."""
+        self._stop_unsent = True
         self._emit(error_line(STOP_UNSENT_NOTICE))
 
     def _drop_queued(self) -> int:
@@ -195,7 +205,7 @@ class ConsoleEngine:
         running = self._running
         if running is None or running.done():
             if dropped:
-                self._emit(info_line(f"  ^C: {dropped} queued line(s) dropped, not sent"))
+                self._emit(notice_line(f"  ^C: {dropped} queued line(s) dropped, not sent"))
             return
         note = f"; {dropped} queued line(s) dropped, not sent" if dropped else ""
         self._interrupted = note
@@ -221,6 +231,7 @@ class ConsoleEngine:
                 try:
                     replies = await self.rov.send_raw(action.frame)
                 except ValueError as error:  # (more than one frame: nothing was sent)
+                    self.failed_lines += 1
                     self._emit(error_line(str(error)))
                     return
                 self._show_replies(replies)
@@ -235,6 +246,7 @@ class ConsoleEngine:
                 for line in status_lines(self.rov):
                     self._emit(info_line(line))
         except (ClientError, TimeoutError, ConnectionError) as error:
+            self.failed_lines += 1
             self._emit(error_line(str(error)))
 
     async def _quit(self) -> None:
@@ -247,10 +259,11 @@ class ConsoleEngine:
         if self.rov.link_down:  # (kept for a link that will not be reopened now)
             self.say_stop_unsent()
         else:
-            self._emit(info_line(f"leaving: sending #stop! (motors {state.lock_text()})"))
+            self._emit(notice_line(f"leaving: sending #stop! (motors {state.lock_text()})"))
         try:
             await self.rov.stop()
         except ClientError as error:
+            self._stop_unsent = True
             self._emit(error_line(f"#stop! could not be sent: {error}"))
 
     # -- output ---------------------------------------------------------------------------------

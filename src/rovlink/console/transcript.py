@@ -16,7 +16,9 @@ __all__ = [
     "error_line",
     "event_line",
     "info_line",
+    "is_notice",
     "late_reply_line",
+    "notice_line",
     "plain_text",
     "reply_line",
     "sent_lines",
@@ -99,3 +101,25 @@ def error_line(text: str) -> Line:
 def info_line(text: str, style: str = "class:info") -> Line:
     """A message of the console itself."""
     return [(style, text)]
+
+
+def notice_line(text: str) -> Line:
+    """A remark of the console's own on what it does (leaving, a line abandoned): not an
+    answer to a line."""
+    return [("class:notice", text)]
+
+
+#: The styles that begin a remark of the console's own, not what went out or came back nor
+#: the answer to a line (``help``, ``status``).
+_NOTICE_STYLES = frozenset({"class:notice", "class:warning", "class:error", "class:stop"})
+
+
+def is_notice(line: Line) -> bool:
+    """Whether ``line`` is the console's own remark (a warning, an error, leaving): what a
+    script's output to a file or a pipe leaves to stderr, keeping stdout for what was sent,
+    the replies and the controller's own lines.
+
+    >>> is_notice(error_line("#qd!: no reply")), is_notice(reply_line(Response("qd", (5,))))
+    (True, False)
+    """
+    return bool(line) and line[0][0] in _NOTICE_STYLES
