@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING, Protocol
 from rovlink.cli.failure import CommandError, InputError, UsageError, reason
 from rovlink.cli.interrupt import ServingSignals, say_last, say_ready
 from rovlink.cli.link_options import baud_rate, file_name, seconds
-from rovlink.cli.tcp_endpoint import tcp_endpoint
+from rovlink.cli.tcp_endpoint import listen_address, tcp_endpoint
 
 if TYPE_CHECKING:
     from rovlink.board.pi.config import PiConfig
@@ -249,7 +249,8 @@ def _open_pty_and_tcp(
         try:
             host, port = server.listen_tcp(*address)
         except OSError as error:
-            raise CommandError(f"cannot listen on {args.tcp}: {reason(error)}") from None
+            where = listen_address(*address)
+            raise CommandError(f"cannot listen on {where}: {reason(error)}") from None
         endpoints.append(tcp_endpoint(host, port, "rovlink.board"))
     return endpoints
 

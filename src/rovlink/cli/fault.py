@@ -12,7 +12,7 @@ from collections.abc import Callable
 from rovlink.cli.failure import CommandError, UsageError, reason
 from rovlink.cli.interrupt import ServingSignals, say_last, say_ready
 from rovlink.cli.link_options import bounded_float, log_warnings
-from rovlink.cli.tcp_endpoint import REMOTE_MARK, tcp_endpoint
+from rovlink.cli.tcp_endpoint import REMOTE_MARK, listen_address, tcp_endpoint
 
 __all__ = ["EPILOG"]
 
@@ -129,7 +129,8 @@ def run(args: argparse.Namespace) -> int:
         try:
             proxy = FaultProxy(port, listen.host, listen.port)
         except OSError as error:
-            raise CommandError(f"cannot listen on {args.listen}: {reason(error)}") from None
+            where = listen_address(listen.host, listen.port)
+            raise CommandError(f"cannot listen on {where}: {reason(error)}") from None
         signals = ServingSignals()
         host, tcp_port = proxy.address
         shown_host = f"[{host}]" if ":" in host else host  # (a URL that opens: IPv6 in [])

@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING
 from rovlink.cli.failure import CommandError, InputError, UsageError, reason
 from rovlink.cli.interrupt import ServingSignals, say_last, say_ready
 from rovlink.cli.link_options import baud_rate, bounded_float, file_name, log_warnings, seconds
-from rovlink.cli.tcp_endpoint import tcp_endpoint
+from rovlink.cli.tcp_endpoint import listen_address, tcp_endpoint
 
 if TYPE_CHECKING:
     from rovlink.sim.robot import SimConfig
@@ -134,9 +134,7 @@ def run(args: argparse.Namespace) -> int:
             try:
                 host, port = server.listen_tcp(*address)
             except OSError as error:
-                # (The host too, when the user gave the port alone: which address is busy.)
-                host, port = address
-                where = f"[{host}]:{port}" if ":" in host else f"{host}:{port}"
+                where = listen_address(*address)
                 raise CommandError(f"cannot listen on {where}: {reason(error)}") from None
             endpoints.append(tcp_endpoint(host, port, "rovlink.sim"))
         signals = ServingSignals()

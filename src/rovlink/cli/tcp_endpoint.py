@@ -3,10 +3,20 @@ the log, when other computers can reach it (the protocol has no authentication).
 
 from __future__ import annotations
 
-__all__ = ["REMOTE_MARK", "tcp_endpoint"]
+__all__ = ["REMOTE_MARK", "listen_address", "tcp_endpoint"]
 
 #: Follows the address in the ready line when it is not a loopback address.
 REMOTE_MARK = "(REMOTE, NO AUTHENTICATION)"
+
+
+def listen_address(host: str, port: int) -> str:
+    """``HOST:PORT`` as an error names an address it could not listen on (the host too when
+    the user gave the port alone: which address is busy); an IPv6 host in brackets.
+
+    >>> listen_address("::1", 5760)
+    '[::1]:5760'
+    """
+    return f"[{host}]:{port}" if ":" in host else f"{host}:{port}"
 
 
 def tcp_endpoint(host: str, port: int, logger_name: str) -> str:
