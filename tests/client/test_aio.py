@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import asyncio
 import logging
+import math
 import random
 import socket
 import time
@@ -279,9 +280,16 @@ async def test_telemetry_skips_a_reading_that_timed_out(
 
 async def test_telemetry_rejects_a_bad_rate(make_async_client: MakeAsyncClient) -> None:
     client = await make_async_client()
-    with pytest.raises(ValueError, match="rate_hz must be a positive number"):
-        async for _ in client.telemetry(0):
-            pass
+    for rate_hz in (0, -1.0, math.nan, math.inf):
+        with pytest.raises(ValueError, match="rate_hz must be a positive number"):
+            async for _ in client.telemetry(rate_hz):
+                pass
+    # A wrong type is a TypeError, as for the connection's settings (before: a ValueError; and a
+    # rate of NaN polled with no pause).
+    for wrong in ("10", True):
+        with pytest.raises(TypeError, match="rate_hz must be a positive number"):
+            async for _ in client.telemetry(wrong):  # type: ignore[arg-type]
+                pass
 
 
 async def test_send_and_send_raw(

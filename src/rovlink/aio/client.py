@@ -434,9 +434,14 @@ class AsyncClient(AsyncCommandMethods):
                 if reading.leak_detected:
                     break
         """
+        # (A wrong type is a TypeError, a value out of range a ValueError, as for the settings.)
         if rate_hz is not None and (
-            isinstance(rate_hz, bool) or not isinstance(rate_hz, int | float) or rate_hz <= 0
+            isinstance(rate_hz, bool) or not isinstance(rate_hz, int | float)
         ):
+            raise TypeError(
+                f"telemetry: rate_hz must be a positive number or None, got {rate_hz!r}"
+            )
+        if rate_hz is not None and not (0 < rate_hz < math.inf):
             raise ValueError(
                 f"telemetry: rate_hz must be a positive number or None, got {rate_hz!r}"
             )
