@@ -165,7 +165,12 @@ async def test_checksum_switch_waits_for_queries_in_flight(
     assert client.checksum_enabled
     assert client.counters.retries == 0
     assert fake.bad_frames == []
-    assert bytes(fake.raw).endswith(b"#qd8C!" * 10)
+    # Every query asked for after the switch goes out in the new mode. (Calls that waited behind
+    # it go out as the event loop wakes them: a depth handed a freed slot just as the switch
+    # ended may go before a sensors() that had waited for the switch itself.)
+    raw = bytes(fake.raw)
+    assert raw.count(b"#qd8C!") == 10
+    assert b"#qd!" not in raw
 
 
 async def test_debug_text_goes_to_the_callback_and_the_log(

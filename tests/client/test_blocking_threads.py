@@ -448,7 +448,8 @@ def test_threads_on_a_faulty_line_get_fresh_replies_or_errors(
     wrong: list[str] = []
     depths: list[int] = []
     lock = threading.Lock()
-    # Each attempt may wait once for a fence and a quiet line (P20) besides its own timeout.
+    # Each attempt may wait once for a fence (P20) besides its own timeout. (No qsa here: never
+    # every name late, so never a quiet-line wait.)
     bound_s = 2 * timeout_s * (retries + 1) + 1.0
 
     def worker(index: int) -> None:

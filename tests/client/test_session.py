@@ -94,10 +94,43 @@ def test_a_dropped_reply_before_qsa_queries_hands_none_of_their_replies_to_a_lat
     # Every fence name is late: new queries wait for a quiet line (P20), and then go out.
     _, later = session.query(Command("qd"), now=0.02)
     assert session.take_outbox(now=0.02) == b""
-    assert session.tick(now=0.6) == []
-    assert session.take_outbox(now=0.6) == b"#qd!"
-    session.receive(b"$qd.6!", now=0.61)
+    quiet_s = session.quiet_window_s
+    assert session.tick(now=0.01 + quiet_s - 0.01) == []
+    assert session.take_outbox(now=0.01 + quiet_s - 0.01) == b""  # not quiet long enough yet
+    assert session.tick(now=0.01 + quiet_s) == []
+    assert session.take_outbox(now=0.01 + quiet_s) == b"#qd!"
+    session.receive(b"$qd.6!", now=0.02 + quiet_s)
     assert later.responses[0].values == (6,)
+
+
+def test_a_reply_stalled_past_the_timeout_answers_no_query_released_after_a_quiet_wait() -> None:
+    """On the wire ``qsa`` (its reply dropped) and, just before it times out, ``qd``, whose
+    reply the controller holds back a while. The qsa's timeout makes every name late, so the
+    retries wait for a quiet line; the stalled ``$qd`` came ``timeout_s`` after that began, the
+    retried qsa was on the wire by then and took it as its own depth (a flaky field report:
+    ``sensors()`` returned the previous ``depth_cm()``'s reply)."""
+    session = Session(timeout_s=0.1)
+    _, qsa = session.query(Command("qsa"), now=0.0)
+    _, depth = session.query(Command("qd"), now=0.09)
+    assert session.tick(now=0.1) == [qsa, depth]  # qsa timed out; qd fails with it (resync)
+    _, retried = session.query(Command("qsa"), now=0.1, retry=True)
+    assert session.take_outbox(now=0.1) == b""  # held for a quiet line
+    # The controller stalled as it answered qd at 0.09, for longer than the timeout itself: its
+    # reply comes after a window of one timeout from the qsa's failure would have ended.
+    session.tick(now=0.21)
+    session.receive(b"$qd.2!", now=0.22)
+    assert not retried.settled
+    assert retried.responses == []
+    assert session.counters.late_replies == 1
+    # Still no new query on the wire until the line has been quiet again; then the retry goes.
+    assert session.take_outbox(now=0.22) == b""
+    deadline = session.next_deadline()
+    assert deadline is not None
+    session.tick(now=deadline)
+    assert session.take_outbox(now=deadline) == b"#qsa!"
+    session.receive(QSA_REPLY, now=deadline + 0.01)
+    assert retried.outcome is Outcome.ANSWERED
+    assert retried.responses[0].values == (120,)
 
 
 def test_a_fence_that_fails_is_followed_by_another() -> None:
@@ -274,8 +307,9 @@ def test_abandoning_a_settled_or_held_query_sends_nothing() -> None:
     session.abandon(held, now=0.7)
     assert held.outcome is Outcome.ABANDONED
     assert not session.pending
-    assert session.tick(now=1.1) == []
-    assert session.take_outbox(now=1.1) == b""
+    assert session.tick(now=0.5 + session.quiet_window_s) == []
+    assert not session.resynchronising  # the wait ended, with nothing to send
+    assert session.take_outbox(now=0.5 + session.quiet_window_s) == b""
 
 
 def test_a_fence_not_yet_written_is_not_on_the_wire() -> None:
@@ -500,8 +534,8 @@ def test_a_query_held_back_for_a_quiet_line_goes_out_as_the_programs() -> None:
     session.expire(now=0.5)
     session.query(Command("qd"), now=0.6)
     session.query(Command("qr"), now=0.6, retry=True)
-    session.tick(now=1.1)
-    assert session.take_outbox(now=1.1) == b"#qd!#qr!"
+    session.tick(now=0.5 + session.quiet_window_s)
+    assert session.take_outbox(now=0.5 + session.quiet_window_s) == b"#qd!#qr!"
     sent = [event for event in session.take_events() if isinstance(event, BytesSent)]
     assert [(e.data, e.by_session, e.retry) for e in sent[-2:]] == [
         (b"#qd!", False, False),

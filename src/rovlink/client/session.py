@@ -26,8 +26,8 @@ and writes a *fence*: a query of a name that is not late. Until the fence's repl
 reply of a late name is a :class:`~rovlink.client.events.LateReply`, counted and discarded; the
 controller answers in order, so nothing sent before the fence can arrive after its reply. When
 every name is late (a ``qsa`` timed out), no fence can be told apart: the session then holds new
-queries back until the line has been quiet for ``timeout_s`` — nothing is sent, so nothing new
-can be confused with what is still on its way.
+queries back until the line has been quiet for twice ``timeout_s`` (:attr:`Session.quiet_window_s`)
+— nothing is sent, so nothing new can be confused with what is still on its way.
 
 Resets (P21). After ``reset_after_timeouts`` consecutive timeouts the session suspects the
 controller reset (it comes back with checksum mode off, locked): it re-asserts its checksum mode
@@ -333,6 +333,14 @@ class Session:
         if query.outcome is _PENDING and query in self._held:
             return float("inf")  # not on the wire yet: it cannot time out
         return max(query.sent_at, self._last_progress_at) + self.timeout_s
+
+    @property
+    def quiet_window_s(self) -> float:
+        """How long the line must be quiet before queries held back for it go out (P20): twice
+        ``timeout_s``. A reply is late once it is ``timeout_s`` overdue, and a controller that
+        stalled on a query sent just before the timeout is still sending what it owes for up
+        to that long again: a window of one timeout released the retries into its replies."""
+        return 2.0 * self.timeout_s
 
     def next_deadline(self) -> float | None:
         """When :meth:`tick` has something to do next, if ever."""
@@ -1098,7 +1106,7 @@ class Session:
                 self._outbox.append((self.query_bytes(candidate), fence, candidate))
                 self.counters.fences += 1
                 return
-        self._quiet_until = now + self.timeout_s
+        self._quiet_until = now + self.quiet_window_s
 
     def _end_resync(self) -> None:
         self._late_names.clear()
@@ -1115,7 +1123,7 @@ class Session:
     def _late(self, response: Response, now: float) -> None:
         self.counters.late_replies += 1
         if self._quiet_until is not None:
-            self._quiet_until = now + self.timeout_s  # not quiet yet
+            self._quiet_until = now + self.quiet_window_s  # not quiet yet
         if self.events is not None:
             self.events.append(LateReply(now, response))
 
