@@ -1004,7 +1004,9 @@ def test_a_locked_robot_never_shows_flying(browser, station, line):
         "window.rovlinkStation.station.telemetry.relay.status.startsWith('motors locked')"
     )
     set_pad(page, axes=[1, 0, 0, 0], deadman=True)
-    time.sleep(0.3)  # (before, the relay row read "flying" in green beside "motors: locked")
+    # The station armed on that dead-man: the row shown is the one drawn from the same message
+    # (before, it read "flying" in green beside "motors: locked").
+    page.wait_for_function("window.rovlinkStation.station.telemetry.relay.armed === true")
     assert page.text_content("#relay-state") == "motors locked: unlock (#start!) to fly"
     assert page.get_attribute("#relay-state", "class") != "flying"
     assert "unlock (#start!)" in page.text_content("#flight-status")
@@ -1232,14 +1234,14 @@ def test_a_spare_pad_without_the_standard_mapping_stops_once_its_stop_is_learnt(
 
 
 def test_keys_typed_in_a_field_do_not_fly(browser, station, line):
-    page = _flying_by_keyboard(browser, station, line)
+    page = _flying_by_keyboard(browser, station, line, fake_clock=True)
     page.fill("#target-depth", "150")
     page.wait_for_selector("#device-status.warn:has-text('paused while typing')")
     mark = line.mark()
     page.keyboard.down("Shift")  # Shift with the arrows selects text in the field
     page.keyboard.press("ArrowLeft")
     page.keyboard.down("ArrowLeft")
-    time.sleep(0.3)
+    page.clock.run_for(300)  # held: every timer of the page's input loop fires meanwhile
     page.keyboard.up("ArrowLeft")
     page.keyboard.up("Shift")
     page.press("#target-depth", "Enter")  # a fence
@@ -1272,7 +1274,8 @@ def test_a_page_that_hears_nothing_for_10_s_reconnects(browser, station, line):
 
 
 def test_learning_a_button_fires_nothing(browser, station, line):
-    page = open_page(browser, station)  # a watcher setting up its pad while another flies
+    # A watcher setting up its pad while another flies.
+    page = open_page(browser, station, fake_clock=True)
     page.wait_for_function("window.rovlinkStation.devices.buttonsOf !== null")
     mark = line.mark()
     page.click("[data-learn='claw_open']")
@@ -1280,7 +1283,7 @@ def test_learning_a_button_fires_nothing(browser, station, line):
     page.wait_for_function(
         "JSON.parse(localStorage.getItem('rovlink.mapping') || '{}').buttons?.claw_open === 1"
     )
-    time.sleep(0.1)
+    page.clock.run_for(100)  # held: the page reads the pad on every frame meanwhile
     set_pad(page, stop_button=False)
     page.click("#stop")  # a fence
     line.wait_for("#stop!", after=mark)
