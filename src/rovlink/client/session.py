@@ -337,9 +337,9 @@ class Session:
     @property
     def quiet_window_s(self) -> float:
         """How long the line must be quiet before queries held back for it go out (P20): twice
-        ``timeout_s``. A reply is late once it is ``timeout_s`` overdue, and a controller that
-        stalled on a query sent just before the timeout is still sending what it owes for up
-        to that long again: a window of one timeout released the retries into its replies."""
+        ``timeout_s``. A controller that stalled answering a query sent just before the timeout
+        may owe that reply for up to one timeout more: a window of one timeout released the
+        retries into it."""
         return 2.0 * self.timeout_s
 
     def next_deadline(self) -> float | None:
