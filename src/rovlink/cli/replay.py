@@ -89,12 +89,9 @@ class _Damage:
 
 
 def _check_kind(path: str) -> None:
-    from rovlink.recorder import format_of  # noqa: PLC0415
+    from rovlink.cli.recording import check_recording_name  # noqa: PLC0415
 
-    try:
-        kind = format_of(path)
-    except ValueError as error:
-        raise UsageError(str(error)) from None
+    kind = check_recording_name(path)
     if kind.suffix == ".bin":
         raise CommandError(f"{path} is raw wire bytes without times: rovlink decode {path}")
     if kind.suffix == ".csv":
