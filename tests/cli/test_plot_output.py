@@ -76,3 +76,32 @@ def test_a_recording_cut_short_says_so_on_the_image(
     assert result.status == 0
     assert "ends in the middle of line" in result.err
     assert titles[0].startswith("dive.jsonl (ends early: its recorder was stopped abruptly)\n")
+
+
+def test_a_csv_cut_between_two_rows_says_so(
+    run_cli: RunCli, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # A telemetry table whose recorder was killed between two rows plotted as a whole dive.
+    from matplotlib.figure import Figure  # (the plot extra)
+
+    titles: list[str] = []
+    monkeypatch.setattr(
+        Figure, "savefig", lambda self, *_, **__: titles.append(self.get_suptitle())
+    )
+    path = tmp_path / "dive.csv"
+    recorder = Recorder(str(path), url="sim://?seed=1&realtime=0")
+    with recorder, rovlink.connect("sim://?seed=1&realtime=0", on_event=recorder.on_event) as rov:
+        rov.start()
+        rov.hold_depth(30)
+        for _ in range(5):
+            rov.sensors()
+        rov.stop()
+    rows = path.read_bytes().splitlines(keepends=True)
+    path.write_bytes(b"".join(rows[:-2]))  # a recorder killed after a flush
+    result = run_cli("plot", str(path), "-o", str(tmp_path / "dive.png"))
+    assert result.status == 0
+    assert result.err.splitlines()[-1] == (
+        f"rovlink plot: {path}: the recording ends early, without its closing row (its "
+        f"recorder was stopped abruptly); read {len(rows) - 3} rows"
+    )
+    assert titles[0].startswith("dive.csv (ends early: its recorder was stopped abruptly)\n")

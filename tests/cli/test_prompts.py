@@ -28,7 +28,24 @@ def test_the_end_of_the_input_at_a_confirmation_is_a_no(
     assert ended.err == declined.err
     # The same words, the prompt's line ended before them.
     assert ended.out.split() == declined.out.split()
-    assert ended.out.endswith(("] \nnot sent\n", "on: \n"))
+    assert ended.out.endswith(("] \n", "on: \n"))
+    assert declined.err.endswith("not confirmed; nothing was sent\n")
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [["calibrate", "sim://", *_CALIBRATE_KNOWN_POINTS], ["tune", "sim://"]],
+    ids=lambda argv: argv[0],
+)
+def test_a_no_at_a_confirmation_is_said_on_stderr_as_every_failure(
+    run_cli: RunCli, argv: list[str]
+) -> None:
+    # calibrate ended with status 1 and said only "not sent", on stdout: stderr, where a failure
+    # is said, had nothing, and tune and check say a no there.
+    result = run_cli(*argv, stdin=b"n\n", tty=True)
+    assert result.status == 1
+    assert result.err.splitlines()[-1] == f"rovlink {argv[0]}: not confirmed; nothing was sent"
+    assert "not sent" not in result.out
 
 
 @pytest.mark.parametrize("answers", [b"", b"\n"], ids=["at the surface", "at the depth"])

@@ -140,6 +140,39 @@ def test_record_option_refuses_an_unknown_format(run_cli: RunCli, tmp_path: Path
     assert "unknown recording format '.txt'" in result.err
 
 
+@pytest.mark.parametrize("name", ["dive.txt", "dive"])
+@pytest.mark.parametrize(
+    "command",
+    [
+        ("send", "sim://", "qd", "--record"),
+        ("record", "sim://", "--duration", "0.1", "-o"),
+        ("replay",),
+        ("plot", "-o", "dive.png"),
+    ],
+    ids=lambda command: command[0],
+)
+@pytest.mark.parametrize("exists", [False, True], ids=["new", "existing"])
+def test_a_recording_name_of_no_format_is_a_usage_error_in_every_command(
+    run_cli: RunCli,
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    command: tuple[str, ...],
+    name: str,
+    exists: bool,
+) -> None:
+    # plot said it with status 1, and record said of an existing file that it exists already
+    # (status 1), where send, replay and record said a usage error (status 2).
+    monkeypatch.chdir(tmp_path)
+    if exists:
+        Path(name).write_text("x\n")
+    result = run_cli(*command, name)
+    assert result.status == 2, result.err
+    assert result.err.startswith(f"usage: rovlink {command[0]} ")
+    assert result.err.splitlines()[-1].startswith(f"rovlink {command[0]}: error: {name}: ")
+    assert "recording format" in result.err
+    assert not Path("dive.png").exists()
+
+
 def _record(path: Path, url: str = "sim://?seed=4") -> None:
     recorder = Recorder(str(path), url=url)
     with recorder, rovlink.connect(url, on_event=recorder.on_event) as rov:

@@ -30,7 +30,8 @@ from rovlink.recorder import (
     read_entries,
     rotated_path,
 )
-from rovlink.recorder.entries import FORMAT_VERSION
+from rovlink.recorder.csv_format import UNENDED_HEADER, TelemetryCsvSink
+from rovlink.recorder.entries import FORMAT_VERSION, TELEMETRY_FIELDS, TelemetryEntry
 from rovlink.recorder.formats import open_sink
 from rovlink.recorder.jsonl_format import JsonLinesSink
 from tests.recorder.conftest import MakeRecording
@@ -330,7 +331,7 @@ def test_a_csv_row_damaged_mid_file_is_damage_and_a_cut_last_row_is_not(
     entries, error = _read_all(str(damaged))
     assert len(entries) == 2
     assert error is not None
-    assert str(error).startswith(f"{damaged}: row 4 is damaged (13 columns, not 14)")
+    assert str(error).startswith(f"{damaged}: row 4 is damaged (14 columns, not 15)")
     assert not error.incomplete
     cut = tmp_path / "cut.csv"
     cut.write_bytes(b"".join(lines)[: -len(lines[-1]) // 2])
@@ -364,8 +365,8 @@ def test_a_csv_row_cut_in_its_last_value_is_cut_short_not_read(
 ) -> None:
     # A row cut in the middle of its last number parsed: 30 % power read as 3 %, and the
     # recording as whole.
-    lines = _csv_lines(make_recording)
-    *columns, _ = lines[-1].rstrip(b"\n").split(b",")  # the last: thrust_power_percent
+    lines = _csv_lines(make_recording)[:-1]  # (and its closing row: cut before it)
+    *columns, _, _ = lines[-1].rstrip(b"\n").split(b",")  # thrust_power_percent, event
     cut = tmp_path / "cut.csv"
     cut.write_bytes(b"".join([*lines[:-1], b",".join([*columns, b"3"])]))  # 30, cut
     entries, error = _read_all(str(cut))
@@ -468,3 +469,71 @@ def test_a_jsonl_of_format_2_is_whole_without_a_closing_line(tmp_path: Path) -> 
     path.write_text(json.dumps({"channel": "header", **header.to_json()}) + "\n")
     entries, damage = _read_all(str(path))
     assert (len(entries), damage) == (1, None)
+
+
+def _csv_of_a_short_session(path: str) -> TelemetryCsvSink:
+    sink = TelemetryCsvSink(path)
+    values = dict.fromkeys(TELEMETRY_FIELDS)
+    sink.write(TelemetryEntry(1.0, 1_000_000_000, {**values, "depth_cm": 12}))
+    sink.write(TelemetryEntry(1.5, 1_500_000_000, {**values, "depth_cm": 14}))
+    sink.write(WireEntry(2.5, 2_500_000_000, "in", b"$qd.14!"))  # (the session goes on)
+    sink.flush()
+    return sink
+
+
+def test_a_csv_cut_between_two_rows_says_it_ends_early(tmp_path: Path) -> None:
+    # A recorder killed just after a flush left whole rows: the file read as a whole recording,
+    # and plot said nothing of the cut.
+    path = str(tmp_path / "killed.csv")
+    sink = _csv_of_a_short_session(path)
+    sink._file.close()  # (killed: never closed by its recorder)
+    entries, damage = _read_all(path)
+    assert len(entries) == 2
+    assert damage is not None
+    assert damage.incomplete
+    assert str(damage) == (
+        f"{path}: the recording ends early, without its closing row (its recorder was stopped "
+        "abruptly); read 2 rows"
+    )
+
+
+def test_a_closed_csv_reads_whole_and_ends_with_its_closing_row(tmp_path: Path) -> None:
+    path = str(tmp_path / "closed.csv")
+    sink = _csv_of_a_short_session(path)
+    sink.close()
+    assert sink.held() == 2  # (the closing row is no row of the session)
+    entries, damage = _read_all(path)
+    assert damage is None
+    assert [entry.values["depth_cm"] for entry in entries if isinstance(entry, TelemetryEntry)] == [
+        12,
+        14,
+    ]
+    # When the session ended (its last entry), with the values held until then.
+    closing = Path(path).read_text().splitlines()[-1].split(",")
+    assert (closing[0], closing[2], closing[-1]) == ("2.500000", "14", "recording_end")
+
+
+def test_a_csv_row_after_the_closing_row_is_damage(tmp_path: Path) -> None:
+    path = tmp_path / "appended.csv"
+    _csv_of_a_short_session(str(path)).close()
+    rows = path.read_bytes().splitlines(keepends=True)
+    path.write_bytes(b"".join([*rows, rows[1]]))
+    entries, damage = _read_all(str(path))
+    assert len(entries) == 2
+    assert damage is not None
+    assert not damage.incomplete
+    assert "row 5 is damaged (a row after the closing row (recording_end))" in str(damage)
+
+
+def test_a_csv_without_the_event_column_is_whole_without_a_closing_row(tmp_path: Path) -> None:
+    # Written before the closing row: nothing in such a file can say that it was cut.
+    path = tmp_path / "older.csv"
+    empty = "," * (len(TELEMETRY_FIELDS) - 1)
+    path.write_text(
+        ",".join(UNENDED_HEADER) + "\n" + f"1.000000,1970-01-01T00:00:01.000000+00:00,12{empty}\n"
+    )
+    entries, damage = _read_all(str(path))
+    assert damage is None
+    assert [entry.values["depth_cm"] for entry in entries if isinstance(entry, TelemetryEntry)] == [
+        12
+    ]

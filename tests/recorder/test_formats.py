@@ -106,10 +106,12 @@ def test_csv_is_the_telemetry_table_pandas_reads(make_recording: MakeRecording) 
     pandas = pytest.importorskip("pandas", reason="pandas is in the test extra")
     recorder = make_recording("dive.csv")
     table = pandas.read_csv(recorder.path)
-    assert list(table.columns) == ["t_s", "wall_time", *TELEMETRY_FIELDS]
-    assert len(table) == sum(
+    assert list(table.columns) == ["t_s", "wall_time", *TELEMETRY_FIELDS, "event"]
+    assert len(table) == 1 + sum(  # (the closing row)
         isinstance(entry, TelemetryEntry) for entry in read_entries(recorder.path)
     )
+    assert table["event"].iloc[-1] == "recording_end"
+    assert table["event"].iloc[:-1].isna().all()
     assert table["setpoint_cm"].dropna().iloc[-1] == 40
     assert table["t_s"].is_monotonic_increasing
     assert pandas.to_datetime(table["wall_time"]).notna().all()

@@ -86,3 +86,29 @@ def test_every_option_is_in_the_docs_options_table():
     table = [line for line in docs.splitlines() if line.startswith("| `")]
     documented = {word.strip("`,") for line in table for word in line.split("|")[1].split()}
     assert options - documented == set()
+
+
+@pytest.mark.parametrize(
+    ("argv", "algorithm"),
+    [(["sim://?algorithm=xor"], "xor"), (["sim://", "--algorithm", "sum8"], "sum8")],
+    ids=["the URL's", "the option's"],
+)
+def test_the_station_names_the_simulators_algorithm(
+    monkeypatch: pytest.MonkeyPatch, argv: list[str], algorithm: str
+) -> None:
+    # The station was given crc8 for a sim://?algorithm=xor link: its options were made
+    # before the URL's algorithm was taken.
+    from rovlink.station import serve as station_serve
+    from rovlink.station.serve import ServeOptions
+
+    served: list[tuple[ServeOptions, str]] = []
+
+    async def serve(connect: object, options: ServeOptions, **kwargs: object) -> bool:
+        served.append((options, str(kwargs["description"])))
+        return False
+
+    monkeypatch.setattr(station_serve, "serve", serve)
+    assert main(["web", *argv, "--port", "0"]) == 0
+    [(options, url)] = served
+    assert options.algorithm == algorithm
+    assert url == f"sim://?algorithm={algorithm}"

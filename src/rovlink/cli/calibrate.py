@@ -66,7 +66,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     group.add_argument(
         "--yes",
         action="store_true",
-        help="send without asking (needed when there is no terminal to ask on)",
+        help="send without asking (needed when there is no terminal to ask on); without it, "
+        "any answer but y sends nothing and ends with status 1, as a no to tune or check does",
     )
 
 
@@ -113,9 +114,8 @@ def run(args: argparse.Namespace) -> int:
         if args.dry_run:
             print("dry run: nothing sent")
             return 0
-        if not args.yes and not _confirm():
-            print("not sent")
-            return 1
+        if not args.yes and not _confirm():  # (as tune and check --motion say a no)
+            raise CommandError("not confirmed; nothing was sent")
         _send(client, result)
     finally:
         client.close()

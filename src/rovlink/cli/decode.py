@@ -217,14 +217,17 @@ def run(args: argparse.Namespace) -> int:
 def _is_telemetry_table(path: str) -> bool:
     """Whether ``path`` starts with the header of a recording's telemetry CSV (any other
     ``.csv`` is decoded as a capture: some save theirs under that name)."""
-    from rovlink.recorder.csv_format import HEADER  # noqa: PLC0415
+    from rovlink.recorder.csv_format import HEADER, UNENDED_HEADER  # noqa: PLC0415
 
     try:
         with open(path, "rb") as stream:
             first_line = stream.readline(4096)
     except OSError:
         return False  # said by the capture's own open, with the reason
-    return first_line.rstrip(b"\r\n") == ",".join(HEADER).encode()
+    return first_line.rstrip(b"\r\n") in (
+        ",".join(HEADER).encode(),
+        ",".join(UNENDED_HEADER).encode(),
+    )
 
 
 def _decode_recording(args: argparse.Namespace) -> int:

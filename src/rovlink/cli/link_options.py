@@ -207,6 +207,21 @@ def add_checksum_options(parser: argparse.ArgumentParser, checksum_help: str) ->
     )
 
 
+class _GivenAlgorithm(argparse.Action):
+    """``--algorithm NAME``, noting that it was given (``args.algorithm_given``): a simulated
+    controller then takes it, where the default leaves it the one its URL or file names."""
+
+    def __call__(
+        self,
+        parser: argparse.ArgumentParser,
+        namespace: argparse.Namespace,
+        values: object,
+        option_string: str | None = None,
+    ) -> None:
+        setattr(namespace, self.dest, values)
+        namespace.algorithm_given = True
+
+
 def add_link_options(parser: argparse.ArgumentParser, *, url_required: bool = False) -> None:
     """The URL argument and the connection options, with their checks and defaults."""
     if url_required:
@@ -229,9 +244,11 @@ def add_link_options(parser: argparse.ArgumentParser, *, url_required: bool = Fa
     group.add_argument(
         "--algorithm",
         type=algorithm_name,
+        action=_GivenAlgorithm,
         default=DEFAULT_ALGORITHM,
         metavar="NAME",
-        help=f"checksum algorithm: {', '.join(sorted(ALGORITHMS))} (default: %(default)s)",
+        help=f"checksum algorithm: {', '.join(sorted(ALGORITHMS))}; a sim:// controller "
+        "takes it too (default: the URL's ?algorithm= for sim://, else %(default)s)",
     )
     group.add_argument(
         "--baudrate",
@@ -397,13 +414,32 @@ def recording_failure(args: argparse.Namespace) -> str | None:
 
 
 def check_url(args: argparse.Namespace) -> None:
-    """Refuse a malformed URL before anything is opened (a usage error naming it)."""
+    """Refuse a malformed URL before anything is opened (a usage error naming it); for a
+    ``sim://`` URL, have the simulated controller and the host use one checksum algorithm."""
     from rovlink.client import parse_url  # noqa: PLC0415
 
     try:
-        parse_url(args.url, args.baudrate)
+        endpoint = parse_url(args.url, args.baudrate)
     except ValueError as error:
         raise UsageError(f"URL: {error}") from None
+    if endpoint.handler == "sim":
+        _agree_on_algorithm_with_simulator(args)
+
+
+def _agree_on_algorithm_with_simulator(args: argparse.Namespace) -> None:
+    """``--algorithm NAME`` goes into the ``sim://`` URL (``?algorithm=NAME``); without it, the
+    host takes the algorithm the URL names, if it names one."""
+    from rovlink.sim.url import parse_sim_url, with_algorithm  # noqa: PLC0415
+
+    if getattr(args, "algorithm_given", False):
+        try:
+            args.url = with_algorithm(args.url, args.algorithm)
+        except ValueError as error:
+            raise UsageError(f"--algorithm {args.algorithm}: {error}") from None
+        return
+    named = parse_sim_url(args.url).algorithm
+    if named is not None:
+        args.algorithm = named
 
 
 def connection_failure(url: str, error: BaseException) -> CommandError:

@@ -69,6 +69,9 @@ def run(args: argparse.Namespace) -> int:
     """Draw the dive; damage in the file is reported after the plot of what could be read."""
     if not args.output and not args.show:
         raise UsageError("say where the plot goes: -o IMAGE, --show, or both")
+    from rovlink.cli.recording import check_recording_name  # noqa: PLC0415
+
+    check_recording_name(args.file)  # (as replay: a name of no recording format, status 2)
     display = os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")
     if args.show and not display:
         instead = (

@@ -16,6 +16,7 @@ from rovlink.cli.link_options import add_checksum_options, baud_rate, file_name,
 from rovlink.cli.output_file import check_writable
 from rovlink.cli.recording import (
     add_rotation_options,
+    check_recording_name,
     discard_empty_recording,
     open_recorder,
     recorded_nothing,
@@ -85,6 +86,7 @@ def run(args: argparse.Namespace) -> int:
     except ValueError as error:
         raise UsageError(f"URL: {error}") from None
     # Before the link opens (a board may reset as its port opens) and the tap is served.
+    check_recording_name(args.output)  # (a name of no format: status 2, whether it exists or not)
     refuse_existing_recording(args, args.output)
     check_writable("-o", args.output)
     _refuse_a_remote_tap(args)

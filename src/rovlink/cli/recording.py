@@ -15,11 +15,13 @@ from rovlink.cli.link_options import file_name
 
 if TYPE_CHECKING:
     from rovlink.recorder import Recorder
+    from rovlink.recorder.formats import Format
 
 __all__ = [
     "add_record_options",
     "add_rotation_options",
     "byte_size",
+    "check_recording_name",
     "discard_empty_recording",
     "duration",
     "open_recorder",
@@ -145,6 +147,17 @@ def refuse_rotation_without_record(args: argparse.Namespace) -> None:
         raise UsageError(f"{', '.join(given)} {verb} --record FILE: without it nothing is recorded")
 
 
+def check_recording_name(path: str) -> Format:
+    """The format ``path``'s suffix names; a usage error (status 2) if it names none: the
+    name is what the command line got wrong, for every command given a recording's name."""
+    from rovlink.recorder import format_of  # noqa: PLC0415
+
+    try:
+        return format_of(path)
+    except ValueError as error:
+        raise UsageError(str(error)) from None
+
+
 def open_recorder(
     args: argparse.Namespace, path: str, *, url: str, program: str, checksum: bool
 ) -> Recorder:
@@ -152,12 +165,9 @@ def open_recorder(
     as the recording starts. A failure while recording never stops the link; the recorder
     logs it, and the command shows it where it shows the library's warnings (on stderr; in
     the dashboard and the console, which hold the terminal)."""
-    from rovlink.recorder import Recorder, RecordingError, format_of  # noqa: PLC0415
+    from rovlink.recorder import Recorder, RecordingError  # noqa: PLC0415
 
-    try:
-        format_of(path)
-    except ValueError as error:
-        raise UsageError(str(error)) from None
+    check_recording_name(path)
     refuse_existing_recording(args, path)
     if getattr(args, "overwrite", False) and _rotates(args):
         _remove_earlier_rotation(path)

@@ -89,12 +89,9 @@ class _Damage:
 
 
 def _check_kind(path: str) -> None:
-    from rovlink.recorder import format_of  # noqa: PLC0415
+    from rovlink.cli.recording import check_recording_name  # noqa: PLC0415
 
-    try:
-        kind = format_of(path)
-    except ValueError as error:
-        raise UsageError(str(error)) from None
+    kind = check_recording_name(path)
     if kind.suffix == ".bin":
         raise CommandError(f"{path} is raw wire bytes without times: rovlink decode {path}")
     if kind.suffix == ".csv":
@@ -169,14 +166,20 @@ def _replay_to(args: argparse.Namespace, damage: _Damage) -> int:
         if damage.error is not None:  # the damage, not the file, is why there is nothing
             raise CommandError(f"{damage.error}; nothing before it to replay")
         raise CommandError(f"{args.file} has no commands of a program to replay")
+    to = args.to
+    if to.partition(":")[0] == "sim":  # a simulated controller on the recorded algorithm
+        from rovlink.sim.url import with_algorithm  # noqa: PLC0415
+
+        try:
+            to = with_algorithm(to, algorithm)
+        except ValueError as error:
+            raise UsageError(f"--to: {error} (the recording's)") from None
     try:
         # No motion expiry of its own: the recording holds the recorded driver's (its zero
         # thrust is replayed where it was), and one of the replay's, timed by the wall clock,
         # would fall elsewhere at another --speed, or where the recorded program (the monitor)
         # had none. The keep-alive still feeds the controller's watchdog (P17).
-        client = rovlink.connect(
-            args.to, checksum=checksum, algorithm=algorithm, motion_timeout=None
-        )
+        client = rovlink.connect(to, checksum=checksum, algorithm=algorithm, motion_timeout=None)
     except (ConnectionError, OSError) as error:
         raise connection_failure(args.to, error) from None
     except ValueError as error:

@@ -302,6 +302,7 @@ def _show(
 def run(args: argparse.Namespace) -> int:
     """Send the commands in order; stop at the first failure (with ``#stop!`` once a command
     that may move the robot was sent)."""
+    link_options.check_url(args)  # (a sim:// URL's algorithm is the one frames are checked with)
     outgoing = plan(args.commands, checksum=args.checksum, algorithm=args.algorithm)
     show_bytes = _Printer(as_json=args.as_json) if args.raw else None
     client = link_options.connect(args, on_stray=_print_text, show_bytes=show_bytes)

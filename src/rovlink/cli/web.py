@@ -95,6 +95,7 @@ def run(args: argparse.Namespace) -> int:
     import rovlink.aio  # noqa: PLC0415
     from rovlink.cli.interrupt import say_ready  # noqa: PLC0415
 
+    link_options.check_url(args)  # (first: a sim:// URL's algorithm is the station's too)
     recordings = Path(args.recordings)
     if recordings.exists() and not recordings.is_dir():  # else refused only at the first recording
         raise UsageError(f"--recordings {args.recordings}: not a directory")
@@ -115,7 +116,6 @@ def run(args: argparse.Namespace) -> int:
     # second (a second line of defence behind the station's own 300 ms watchdog). The
     # keep-alive runs on the station's event loop: a hung station stops feeding the
     # controller's link-loss failsafe (P17), which then stops the robot.
-    link_options.check_url(args)
     client_options = dataclasses.replace(
         link_options.client_options(args, keepalive_s=1.0, motion_timeout_s=_MOTION_BACKSTOP_S),
         reconnect=True,

@@ -2,14 +2,19 @@
 
 ``pandas.read_csv(path)`` reads it with no options: a header line, ``t_s`` (monotonic seconds),
 ``wall_time`` (ISO 8601, UTC), then one column per :data:`TELEMETRY_FIELDS`, empty where not
-known yet.
+known yet, and ``event``. A file its recorder closed ends with a closing row, whose ``event`` is
+``recording_end`` (the other rows leave it empty): the time the recording ended and the values
+held until then. A file without it was cut short (its recorder killed between two rows). Files
+written before the ``event`` column (:data:`UNENDED_HEADER`) have no closing row, and are read
+as before.
 """
 
 from __future__ import annotations
 
 import csv
 import io
-from collections.abc import Iterator
+import time
+from collections.abc import Iterator, Mapping
 from datetime import datetime, timezone
 from typing import BinaryIO
 
@@ -21,10 +26,14 @@ from rovlink.recorder.entries import (
 )
 from rovlink.recorder.sink import FileSink, RecordingDamagedError, RecordingError
 
-__all__ = ["HEADER", "TelemetryCsvSink", "read_csv"]
+__all__ = ["END_EVENT", "HEADER", "UNENDED_HEADER", "TelemetryCsvSink", "read_csv"]
 
+#: The ``event`` of the row that ends a file its recorder closed (as ``.jsonl``'s last line).
+END_EVENT = "recording_end"
 #: The CSV's columns.
-HEADER = ("t_s", "wall_time", *TELEMETRY_FIELDS)
+HEADER = ("t_s", "wall_time", *TELEMETRY_FIELDS, "event")
+#: The columns of files written before the closing row: nothing says whether one was cut.
+UNENDED_HEADER = HEADER[:-1]
 
 
 def _wall_time(wall_ns: int) -> str:
@@ -41,30 +50,53 @@ class TelemetryCsvSink(FileSink):
         self._text = io.TextIOWrapper(self._file, encoding="utf-8", newline="")
         self._writer = csv.writer(self._text, lineterminator="\n")
         self._writer.writerow(HEADER)
+        self._last_values: Mapping[str, int | None] = dict.fromkeys(TELEMETRY_FIELDS)
+        self._last_clocks: tuple[float, int] | None = None
+        self._failed = False  # (a file that lost rows is not ended as whole)
 
     def write(self, entry: Entry) -> None:
+        # Every entry's clocks, not only telemetry's: the closing row says when it all ended.
+        self._last_clocks = (entry.t_s, entry.wall_ns)
         if isinstance(entry, TelemetryEntry):
-            values = entry.values
-            self._writer.writerow(
-                [
-                    f"{entry.t_s:.6f}",
-                    _wall_time(entry.wall_ns),
-                    *("" if values[name] is None else values[name] for name in TELEMETRY_FIELDS),
-                ]
-            )
+            self._write_row(entry.t_s, entry.wall_ns, entry.values, "")
+            self._last_values = entry.values
             self._written += 1
 
+    def _write_row(
+        self, t_s: float, wall_ns: int, values: Mapping[str, int | None], event: str
+    ) -> None:
+        row = [
+            f"{t_s:.6f}",
+            _wall_time(wall_ns),
+            *("" if values[name] is None else values[name] for name in TELEMETRY_FIELDS),
+            event,
+        ]
+        try:
+            self._writer.writerow(row)
+        except BaseException:
+            self._failed = True
+            raise
+
     def flush(self) -> None:
-        self._text.flush()
-        super().flush()
+        try:
+            self._text.flush()
+            super().flush()
+        except BaseException:
+            self._failed = True
+            raise
 
     def size_bytes(self) -> int:
         self._text.flush()
         return super().size_bytes()
 
     def close(self) -> None:
+        """End the file with its closing row (not counted as a row of the session), unless
+        writing failed before, and close it."""
         if not self._file.closed:
             try:
+                if not self._failed:
+                    t_s, wall_ns = self._last_clocks or (time.monotonic(), time.time_ns())
+                    self._write_row(t_s, wall_ns, self._last_values, END_EVENT)
                 self.flush()
             finally:  # closed even when the disk is full
                 self._text.close()
@@ -93,14 +125,17 @@ def read_csv(path: str) -> Iterator[Entry]:
             ) from None
         if header is None:  # (an empty file: its recorder killed before its first flush)
             raise RecordingDamagedError.empty(path)
-        if header != list(HEADER):
-            if not lines.last_complete and ",".join(HEADER).startswith(",".join(header)):
-                raise RecordingDamagedError(
-                    f"{path}: ends in its header line (the recording was cut short); read 0 rows",
-                    entries_read=0,
-                    incomplete=True,
-                )
+        if not lines.last_complete and ",".join(HEADER).startswith(",".join(header)):
+            raise RecordingDamagedError(
+                f"{path}: ends in its header line (the recording was cut short); read 0 rows",
+                entries_read=0,
+                incomplete=True,
+            )
+        if header not in (list(HEADER), list(UNENDED_HEADER)):
             raise RecordingError(f"{path}: not a rovlink telemetry CSV (its header differs)")
+        columns = len(header)
+        ends_with_its_row = columns == len(HEADER)
+        ended = False
         while True:
             try:
                 row = next(rows, None)
@@ -118,12 +153,19 @@ def read_csv(path: str) -> Iterator[Entry]:
                     # The recorder ends every row with its newline: a row without one was cut
                     # short, even where what is left parses (30 cut to 3 in the last column).
                     raise ValueError("no newline at its end")
-                if len(row) != len(HEADER):
-                    raise ValueError(f"{len(row)} columns, not {len(HEADER)}")
+                if len(row) != columns:
+                    raise ValueError(f"{len(row)} columns, not {columns}")
+                if ended:
+                    raise ValueError(f"a row after the closing row ({END_EVENT})")
+                event = row[-1] if ends_with_its_row else ""
+                if event not in ("", END_EVENT):
+                    raise ValueError(f"unknown event {event!r}")
                 wall = datetime.fromisoformat(row[1])
                 values = {
                     name: int(text) if text else None
-                    for name, text in zip(TELEMETRY_FIELDS, row[2:], strict=True)
+                    for name, text in zip(
+                        TELEMETRY_FIELDS, row[2 : 2 + len(TELEMETRY_FIELDS)], strict=True
+                    )
                 }
                 for name, value in values.items():
                     check_telemetry_range(name, value)
@@ -137,8 +179,18 @@ def read_csv(path: str) -> Iterator[Entry]:
                     entries_read=count,
                     incomplete=cut,
                 ) from None
+            if event == END_EVENT:
+                ended = True
+                continue
             count += 1
             yield entry
+    if ends_with_its_row and not ended:
+        raise RecordingDamagedError(
+            f"{path}: the recording ends early, without its closing row (its recorder was "
+            f"stopped abruptly); read {count} rows",
+            entries_read=count,
+            incomplete=True,
+        )
 
 
 class _NotTextError(Exception):

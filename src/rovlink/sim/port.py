@@ -6,6 +6,7 @@ the controller at once, so a query's reply is ready to read when ``write`` retur
 
 from __future__ import annotations
 
+import dataclasses
 import threading
 import time
 from pathlib import Path
@@ -214,12 +215,14 @@ def open_port(
     manual: bool = False,
     timeout: float | None = None,
     preset: str | None = None,
+    algorithm: str | None = None,
 ) -> SimulatedPort:
     """Open a simulated controller as a serial port (see :class:`SimulatedPort`).
 
     ``leak_at_s`` injects a 100 ms leak pulse at that simulated time; ``config`` is a TOML file
     (controller tables plus ``[vehicle]`` and ``[sensors]``); ``preset`` a vehicle of
-    :mod:`rovlink.sim.presets` in place of the file's. ``realtime=False`` runs the
+    :mod:`rovlink.sim.presets` in place of the file's; ``algorithm`` the controller's checksum
+    algorithm in place of the file's ``checksum_algorithm``. ``realtime=False`` runs the
     simulation as fast as the CPU allows; ``manual=True`` runs no thread at all: simulated time
     then moves only through :meth:`SimulatedPort.advance`.
     """
@@ -228,6 +231,11 @@ def open_port(
         from rovlink.sim.presets import preset_config  # noqa: PLC0415
 
         robot_config = preset_config(preset, robot_config)
+    if algorithm is not None:
+        base = robot_config or SimConfig()
+        robot_config = dataclasses.replace(
+            base, controller=dataclasses.replace(base.controller, checksum_algorithm=algorithm)
+        )
     port = SimulatedPort(robot_config, seed=seed, timeout=timeout)
     if leak_at_s is not None:
         port.robot.inject_leak(at_s=leak_at_s)

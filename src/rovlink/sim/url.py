@@ -5,7 +5,7 @@ The client finds this module through its registry of URL schemes
 The simulator's options are query parameters: ``sim://?seed=1&leak_at=5&realtime=0&config=f.toml``.
 
 >>> parse_sim_url("sim://?leak_at=5&seed=1")
-SimOptions(seed=1, leak_at_s=5.0, config=None, realtime=True, preset=None)
+SimOptions(seed=1, leak_at_s=5.0, config=None, realtime=True, preset=None, algorithm=None)
 >>> parse_sim_url("sim://?seed=x")
 Traceback (most recent call last):
 ...
@@ -27,6 +27,7 @@ __all__ = [
     "check_url",
     "open_url",
     "parse_sim_url",
+    "with_algorithm",
 ]
 
 #: What the client calls a link opened here.
@@ -39,6 +40,8 @@ SIM_OPTIONS: dict[str, str] = {
     "config": "path of a vehicle/controller configuration file (TOML)",
     "realtime": "1 (default) to run in real time, 0 as fast as possible",
     "preset": "a vehicle preset: light, standard or heavy (see rovlink.sim.presets)",
+    "algorithm": "the controller's checksum algorithm: crc8, sum8 or xor (default: the "
+    "config file's checksum_algorithm, else crc8)",
 }
 
 _FLAGS = {"1": True, "true": True, "yes": True, "0": False, "false": False, "no": False}
@@ -53,6 +56,7 @@ class SimOptions:
     config: str | None = None
     realtime: bool = True
     preset: str | None = None
+    algorithm: str | None = None
 
 
 def parse_sim_url(url: str) -> SimOptions:
@@ -98,6 +102,15 @@ def parse_sim_url(url: str) -> SimOptions:
             known = ", ".join(sorted(PRESETS))
             raise ValueError(f"{url!r}: unknown preset {values['preset']!r}; known: {known}")
         options = replace(options, preset=values["preset"])
+    if "algorithm" in values:
+        from rovlink.protocol import ALGORITHMS  # noqa: PLC0415 - only for this option
+
+        if values["algorithm"] not in ALGORITHMS:
+            known = ", ".join(sorted(ALGORITHMS))
+            raise ValueError(
+                f"{url!r}: unknown checksum algorithm {values['algorithm']!r}; known: {known}"
+            )
+        options = replace(options, algorithm=values["algorithm"])
     if "config" in values:
         if not values["config"]:
             raise ValueError(f"{url!r}: config needs a file path")
@@ -127,4 +140,29 @@ def open_url(url: str) -> SimulatedPort:
         config=options.config,
         realtime=options.realtime,
         preset=options.preset,
+        algorithm=options.algorithm,
     )
+
+
+def with_algorithm(url: str, algorithm: str) -> str:
+    """``url`` whose simulated controller uses the checksum ``algorithm``: the host's, so that
+    the two agree. ValueError if the URL already names another one.
+
+    >>> with_algorithm("sim://?seed=1", "xor")
+    'sim://?seed=1&algorithm=xor'
+    >>> with_algorithm("sim://?algorithm=xor", "xor")
+    'sim://?algorithm=xor'
+    >>> with_algorithm("sim://?algorithm=sum8", "xor")
+    Traceback (most recent call last):
+    ...
+    ValueError: 'sim://?algorithm=sum8': the simulated controller's algorithm is sum8, not xor
+    """
+    named = parse_sim_url(url).algorithm
+    if named == algorithm:
+        return url
+    if named is not None:
+        raise ValueError(
+            f"{url!r}: the simulated controller's algorithm is {named}, not {algorithm}"
+        )
+    base, _, query = url.partition("?")
+    return f"{base}?{query}&algorithm={algorithm}" if query else f"{base}?algorithm={algorithm}"
