@@ -222,7 +222,15 @@ async def _collect(mqtt: aiomqtt.Client, view: FleetView) -> None:
         await mqtt.subscribe(topic, qos=1)
     async for message in mqtt.messages:
         payload = message.payload if isinstance(message.payload, bytes) else b""
-        view.apply(message.topic.value, payload, time.monotonic())
+        # A retained state may be hours old (a broker restored from its persistence): its
+        # "at" says when it was heard, not its arrival.
+        retained_wall_now_s = time.time() if message.retain else None
+        view.apply(
+            message.topic.value,
+            payload,
+            time.monotonic(),
+            retained_wall_now_s=retained_wall_now_s,
+        )
 
 
 async def _snapshot(

@@ -6,6 +6,7 @@ import asyncio
 import contextlib
 import os
 import sys
+import time
 from collections.abc import Mapping
 from pathlib import Path
 
@@ -283,3 +284,35 @@ def test_fleet_help_gives_the_range_snapshot_is_checked_against(run_cli: RunCli)
     text = " ".join(run_cli("fleet", "--help").out.split())
     described = text[text.index("--snapshot SECONDS", text.index("options:")) :]
     assert "0.1–60" in described[: described.index("(default")]
+
+
+@pytest.mark.integration
+async def test_a_retained_online_state_long_unrefreshed_is_silent_not_online(broker: Mosquitto):
+    # A broker that lost power restores the states it persisted last: "online" for a robot whose
+    # bridge went with it, and no last will ever follows. Before, the snapshot (and the live
+    # table, for its first 10 s) showed such a robot online, its link "ok", from a state an
+    # hour old; a bridge refreshes its state every 2 s, so its "at" says it is gone.
+    now_s = time.time()
+    retained = {
+        "rovlink/stale/state": f'{{"online": true, "at": {now_s - 3600}, "lock": "locked"}}',
+        "rovlink/fresh/state": f'{{"online": true, "at": {now_s}, "lock": "locked"}}',
+    }
+    lines = await _snapshot_after_retaining(broker, retained)
+    stale = next(line for line in lines if " stale " in line)
+    assert "silent" in stale
+    assert " online " not in stale
+    fresh = next(line for line in lines if " fresh " in line)
+    assert " online " in fresh
+
+
+def test_a_retained_state_counts_from_its_at_and_a_live_one_from_now():
+    view = FleetView()
+    old = b'{"online": true, "at": 1000.0}'
+    view.apply("rovlink/a/state", old, 50.0, retained_wall_now_s=1000.0 + SILENT_AFTER_S + 5)
+    (row,) = view.rows()
+    assert row.presence(50.0) == "silent"
+    view.apply("rovlink/a/state", old, 51.0)  # published now (its clock may be wrong)
+    assert row.presence(51.0) == "online"
+    # A bridge clock ahead of this one's is no reason to call it silent later.
+    view.apply("rovlink/b/state", b'{"online": true, "at": 2000.0}', 60.0, retained_wall_now_s=1.0)
+    assert view.rows()[1].presence(60.0 + SILENT_AFTER_S - 1) == "online"
