@@ -84,6 +84,9 @@ async def test_queries_answer_with_named_values(broker: Mosquitto):
         (b'{"command": "\\ud800"}', "unknown command '\\ud800'"),
         # Which one counts depends on the parser: a tool reading the first saw a stop.
         (b'{"command": "stop", "command": "start"}', '"command" is given more than once'),
+        # A misspelt "at" was ignored: motion carried out unchecked for lateness, as if sent now.
+        (b'{"command": "th 90 30", "time": 1767225600}', 'unknown key "time"'),
+        (b'{"command": "start", "Id": 4}', 'unknown key "Id"'),
     ],
 )
 async def test_malformed_payloads_get_an_error_and_send_nothing(
@@ -170,6 +173,18 @@ async def test_a_stop_with_a_key_given_twice_still_stops_the_robot(broker: Mosqu
         reply = await watcher.command("i3", b'{"command": "stop", "id": 1, "id": 2}')
         assert (reply["ok"], reply["frame"]) == (True, "#stop!")
         assert '"id" is given more than once' in reply["warning"]
+        await until(lambda: robot.motion_and_lock_frames()[before:] == ["#stop!"])
+
+
+async def test_a_stop_with_an_unknown_key_still_stops_the_robot(broker: Mosquitto):
+    async with (
+        bridged_robot(broker, "i4", allow_commands=False) as robot,
+        subscriber(broker, "rovlink/i4/cmd/reply") as watcher,
+    ):
+        before = len(robot.motion_and_lock_frames())
+        reply = await watcher.command("i4", b'{"command": "stop", "id": 9, "reason": "surface"}')
+        assert (reply["ok"], reply["frame"], reply["id"]) == (True, "#stop!", 9)
+        assert 'unknown key "reason"' in reply["warning"]
         await until(lambda: robot.motion_and_lock_frames()[before:] == ["#stop!"])
 
 
