@@ -103,12 +103,18 @@ def _row_cells(row: RobotRow, now_s: float) -> dict[str, Text]:
         "robot": _cell(row.robot),
         "presence": _cell(presence, _PRESENCE_STYLES.get(presence, "")),
         "depth": _cell("—" if row.depth_cm is None else f"{row.depth_cm} cm"),
-        "leak": _cell("LEAK", "bold red") if row.leak else _cell("dry"),
+        "leak": _leak_cell(row.leak),
         "lock": _cell(row.lock or "—"),
         "mode": _cell(row.mode or "—"),
         "link": _cell(row.link or "—"),
         "last event": _cell(note),
     }
+
+
+def _leak_cell(leak: bool | None) -> Text:
+    if leak is None:  # (never heard: an offline state does not say)
+        return _cell("—")
+    return _cell("LEAK", "bold red") if leak else _cell("dry")
 
 
 def _table(columns: list[str], rows: list[dict[str, Text]]) -> Table:

@@ -316,3 +316,31 @@ def test_a_retained_state_counts_from_its_at_and_a_live_one_from_now():
     # A bridge clock ahead of this one's is no reason to call it silent later.
     view.apply("rovlink/b/state", b'{"online": true, "at": 2000.0}', 60.0, retained_wall_now_s=1.0)
     assert view.rows()[1].presence(60.0 + SILENT_AFTER_S - 1) == "online"
+
+
+def test_a_leak_never_heard_of_is_not_shown_dry():
+    # An offline state (the last will) says nothing of the leak, nor does a state that is not a
+    # bridge's: the table showed "dry" for them, a robot whose bridge died of the water in it
+    # among them. What was heard last stands; what was never heard is "—".
+    from rich.console import Console
+
+    from rovlink.cli.fleet import fleet_table
+
+    view = FleetView()
+    view.apply("rovlink/gone/state", b'{"online": false, "reason": "bridge connection lost"}', 0.0)
+    view.apply("rovlink/wet/telemetry", b'{"depth_cm": 120, "leak": true}', 0.0)
+    view.apply("rovlink/wet/state", b'{"online": false, "reason": "bridge connection lost"}', 0.1)
+    view.apply("rovlink/dry/state", b'{"online": true, "leak": false}', 0.0)
+    console = Console(width=160, record=True)
+    console.print(fleet_table(view, now_s=1.0))
+    lines = console.export_text().splitlines()
+    cells = {
+        name: [
+            cell.strip() for cell in next(line for line in lines if f" {name} " in line).split("│")
+        ]
+        for name in ("gone", "wet", "dry")
+    }
+    leak_column = 4  # (after the border, robot, presence and depth)
+    assert cells["gone"][leak_column] == "—"
+    assert cells["wet"][leak_column] == "LEAK"
+    assert cells["dry"][leak_column] == "dry"

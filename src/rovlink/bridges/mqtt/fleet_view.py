@@ -28,7 +28,8 @@ class RobotRow:
     online: bool | None = None
     offline_reason: str | None = None
     depth_cm: int | None = None
-    leak: bool = False
+    #: ``None`` until a message tells (an offline state, the last will, does not).
+    leak: bool | None = None
     link: str | None = None
     lock: str | None = None
     mode: str | None = None
@@ -108,7 +109,7 @@ class FleetView:
             self._state(row, data)
         elif what == "telemetry":
             row.depth_cm = _integer(data.get("depth_cm"), row.depth_cm)
-            row.leak = bool(data.get("leak", row.leak))
+            row.leak = _leak(data.get("leak"), row.leak)
             if row.online is None:
                 row.online = True
         else:
@@ -131,7 +132,7 @@ class FleetView:
             return
         row.offline_reason = None
         row.depth_cm = _integer(data.get("depth_cm"), row.depth_cm)
-        row.leak = bool(data.get("leak", row.leak))
+        row.leak = _leak(data.get("leak"), row.leak)
         row.lock = data.get("lock") if isinstance(data.get("lock"), str) else row.lock
         row.mode = data.get("mode") if isinstance(data.get("mode"), str) else row.mode
         link = data.get("link")
@@ -150,6 +151,14 @@ def _age_s(data: dict[str, Any], retained_wall_now_s: float | None) -> float:
     except OverflowError:  # (a JSON integer of hundreds of digits)
         return 0.0
     return age_s if math.isfinite(age_s) and age_s > 0 else 0.0
+
+
+def _leak(value: object, default: bool | None) -> bool | None:
+    """A message's ``leak``: JSON true or false; any other value that is set counts as a leak
+    (a warning too many rather than a leak missed); none leaves ``default``."""
+    if isinstance(value, bool):
+        return value
+    return True if value else default
 
 
 def _integer(value: object, default: int | None) -> int | None:
