@@ -14,7 +14,7 @@ from collections.abc import Callable
 from typing import TYPE_CHECKING, TextIO
 
 from rovlink.cli import link_options
-from rovlink.cli.failure import CommandError, NoTerminalError, reason
+from rovlink.cli.failure import CommandError, NoTerminalError
 from rovlink.cli.mqtt import add_broker_options, broker_settings
 
 if TYPE_CHECKING:
@@ -194,8 +194,14 @@ async def _watch(broker: BrokerSettings, snapshot_s: float | None) -> None:
             return
         await _live(broker, view, console)
     except aiomqtt.MqttError as error:
-        where = "broker" if connected else "cannot connect to the broker"
-        raise CommandError(f"{where} {broker.describe()}: {reason(error)}") from None
+        # In the bridge's words (aiomqtt's are "[code:135] Not authorized", or for a
+        # certificate not trusted "Operation not permitted").
+        from rovlink.bridges.mqtt.broker_failure import broker_failure  # noqa: PLC0415
+
+        failure = broker_failure(
+            error, broker, connected=connected, reply_timeout_s=_REPLY_TIMEOUT_S
+        )
+        raise CommandError(f"broker {broker.describe()}: {failure}") from None
 
 
 def _client(broker: BrokerSettings) -> aiomqtt.Client:
