@@ -344,3 +344,63 @@ def test_a_leak_never_heard_of_is_not_shown_dry():
     assert cells["gone"][leak_column] == "—"
     assert cells["wet"][leak_column] == "LEAK"
     assert cells["dry"][leak_column] == "dry"
+
+
+def _many_robots_and_a_leak_last() -> FleetView:
+    view = FleetView()
+    for number in range(1, 31):
+        view.apply(f"rovlink/r{number:02}/state", b'{"online": true, "lock": "locked"}', 0.0)
+    view.apply("rovlink/zz-leak/state", b'{"online": true, "leak": true}', 0.0)
+    view.apply("rovlink/zz-gone/state", b'{"online": false, "reason": "bridge stopped"}', 0.0)
+    return view
+
+
+@pytest.mark.parametrize("rows", [12, 24])
+def test_robots_a_short_terminal_cannot_show_are_said_a_leak_by_name(rows: int) -> None:
+    from rich.console import Console
+
+    from rovlink.cli.fleet import fleet_table
+
+    console = Console(width=100, height=rows, record=True)
+    console.print(fleet_table(_many_robots_and_a_leak_last(), now_s=1.0, width=100, height=rows))
+    lines = console.export_text().splitlines()
+    assert len(lines) <= rows
+    assert " r01 " in lines[4]  # (after the title and the header) in order, from the first
+    shown = sum(1 for line in lines if line.startswith("│ "))
+    caption = " ".join(" ".join(lines[4 + shown :]).split())
+    assert f"{32 - shown} more robots not shown" in caption
+    assert "LEAK: zz-leak" in caption
+    assert "1 offline" in caption
+    everything = Console(width=100, record=True)
+    everything.print(fleet_table(_many_robots_and_a_leak_last(), now_s=1.0, width=100))
+    assert "zz-leak" in everything.export_text()  # (no height: a snapshot shows every robot)
+
+
+@pytest.mark.integration
+def test_the_live_table_on_a_short_terminal_names_the_leak_it_cannot_show(
+    broker: Mosquitto,
+) -> None:
+    # Before, the rows past the terminal's height were cut to "...": a robot whose id sorts
+    # last, leaking, was not shown, nor said, however long one watched.
+    from paho.mqtt import publish
+
+    from tests.terminals import Terminal
+
+    states = {f"rovlink/r{number:02}/state": '{"online": true}' for number in range(1, 31)}
+    states["rovlink/zz-leak/state"] = '{"online": true, "leak": true}'
+    publish.multiple(
+        [
+            {"topic": topic, "payload": state, "qos": 1, "retain": True}
+            for topic, state in states.items()
+        ],
+        port=broker.port,
+    )
+    terminal = Terminal("fleet", "--broker", broker.url, size=(100, 24))
+    try:
+        # (the caption: "14 more robots not shown …: LEAK: zz-leak", LEAK in red, wrapped)
+        assert terminal.wait_until(
+            lambda shown: b"more robots not shown" in shown and b"zz-leak" in shown
+        ), terminal.shown.decode(errors="replace")
+        assert b" r01 " in terminal.shown
+    finally:
+        terminal.close()
