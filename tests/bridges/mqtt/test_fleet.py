@@ -313,6 +313,9 @@ def test_a_retained_state_counts_from_its_at_and_a_live_one_from_now():
     assert row.presence(50.0) == "silent"
     view.apply("rovlink/a/state", old, 51.0)  # published now (its clock may be wrong)
     assert row.presence(51.0) == "online"
+    # Handed over again (the table reconnected to its broker): heard live since all the same.
+    view.apply("rovlink/a/state", old, 52.0, retained_wall_now_s=1000.0 + SILENT_AFTER_S + 7)
+    assert row.presence(52.0) == "online"
     # A bridge clock ahead of this one's is no reason to call it silent later.
     view.apply("rovlink/b/state", b'{"online": true, "at": 2000.0}', 60.0, retained_wall_now_s=1.0)
     assert view.rows()[1].presence(60.0 + SILENT_AFTER_S - 1) == "online"

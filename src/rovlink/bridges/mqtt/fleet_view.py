@@ -104,7 +104,9 @@ class FleetView:
             self.ignored += 1
             return False
         row = self._robots.setdefault(robot, RobotRow(robot))
-        row.last_heard_s = now_s - _age_s(data, retained_wall_now_s)
+        heard_s = now_s - _age_s(data, retained_wall_now_s)
+        if row.last_heard_s is None or heard_s > row.last_heard_s:  # (a retained one is older)
+            row.last_heard_s = heard_s
         if what == "state":
             self._state(row, data)
         elif what == "telemetry":
