@@ -6,6 +6,7 @@ import asyncio
 import contextlib
 import json
 import logging
+import time
 from typing import Any
 
 import aiomqtt
@@ -80,6 +81,11 @@ async def test_queries_answer_with_named_values(broker: Mosquitto):
         # An integer too large for a float once ended the bridge (OverflowError); quoted short.
         (_HUGE_AT_START, '"at" must be Unix time in seconds, a number, got 1000000000'),
         (b'{"command": "start", "at": 1e300}', 'its "at" is 1e+300 s ahead of the bridge\'s'),
+        # JavaScript's Date.now() is in milliseconds: the clocks were blamed.
+        (
+            f'{{"command": "th 90 30", "at": {int(time.time() * 1000)}}}'.encode(),
+            '"at" is Unix time in seconds: this one looks like milliseconds',
+        ),
         # A lone surrogate has no UTF-8: the reply that quoted it ended the bridge.
         (b'{"command": "\\ud800"}', "unknown command '\\ud800'"),
         # Which one counts depends on the parser: a tool reading the first saw a stop.
