@@ -14,7 +14,7 @@ from collections.abc import Callable
 from typing import TYPE_CHECKING, TextIO
 
 from rovlink.cli import link_options
-from rovlink.cli.failure import CommandError, NoTerminalError, reason
+from rovlink.cli.failure import CommandError, NoTerminalError
 from rovlink.cli.mqtt import add_broker_options, broker_settings
 
 if TYPE_CHECKING:
@@ -63,17 +63,29 @@ _COLUMNS = ("robot", "presence", "depth", "leak", "lock", "mode", "link", "last 
 _GIVE_WAY = ("last event", "mode", "link", "lock", "depth", "leak")
 
 
-def fleet_table(view: FleetView, now_s: float, width: int | None = None) -> Table:
-    """The table of robots as the view has them now, in ``width`` columns if given.
+def fleet_table(
+    view: FleetView,
+    now_s: float,
+    width: int | None = None,
+    height: int | None = None,
+    note: str | None = None,
+) -> Table:
+    """The table of robots as the view has them now, in ``width`` columns and ``height`` rows
+    if given, with ``note`` first in its caption (a broker lost).
 
     Every cell is a :class:`~rich.text.Text`: what came from the broker (any program may publish
     under ``rovlink/``) is shown as it is, never read as markup or obeyed as terminal codes.
     Where ``width`` is too narrow for every column, the least needed give way (the caption
-    names them) rather than every column shrinking to a letter and an ellipsis.
+    names them) rather than every column shrinking to a letter and an ellipsis. Where
+    ``height`` is too short for every robot, the last ones by id give way, and the caption says
+    how many, naming those that leak and counting those offline or silent: a live table cut
+    at the terminal's bottom showed them as "...".
     """
-    rows = [_row_cells(row, now_s) for row in view.rows()]
+    robots = view.rows()
+    rows = [_row_cells(row, now_s) for row in robots]
     shown = list(_COLUMNS)
     table = _table(shown, rows)
+    column_caption: str | None = None
     if width is not None:
         hidden: list[str] = []
         for column in _GIVE_WAY:
@@ -84,10 +96,49 @@ def fleet_table(view: FleetView, now_s: float, width: int | None = None) -> Tabl
             table = _table(shown, rows)
         if hidden:
             hidden.sort(key=_COLUMNS.index)
-            table.caption = f"not shown: {', '.join(hidden)} (widen the terminal)"
+            column_caption = f"not shown: {', '.join(hidden)} (widen the terminal)"
     if not rows:
-        table.caption = "no robot has published yet"
+        column_caption = "no robot has published yet"
+    captions = [text for text in (note, column_caption) if text is not None]
+    table.caption = "; ".join(captions) or None
+    if rows and width is not None and height is not None:
+        kept = len(rows)
+        while kept > 0 and (overflow := _lines(table, width) - height) > 0:
+            kept = max(0, kept - overflow)  # (a row takes a line at least: a few rounds)
+            table = _table(shown, rows[:kept])
+            table.caption = _caption_of_the_hidden(robots[kept:], now_s, captions)
     return table
+
+
+def _lines(table: Table, width: int) -> int:
+    """How many lines ``table`` takes on a terminal ``width`` columns wide."""
+    import io  # noqa: PLC0415
+
+    from rich.console import Console  # noqa: PLC0415
+
+    console = Console(file=io.StringIO(), width=width)
+    return len(console.render_lines(table, console.options, pad=False))
+
+
+def _caption_of_the_hidden(hidden: list[RobotRow], now_s: float, before: list[str]) -> Text:
+    """``12 more robots not shown …: LEAK: rov-9; 2 offline`` after the captions ``before``
+    (robot ids as text, not markup)."""
+    from rich.text import Text  # noqa: PLC0415
+
+    what = "1 more robot" if len(hidden) == 1 else f"{len(hidden)} more robots"
+    caption = Text("".join(f"{text}; " for text in before))
+    caption.append(f"{what} not shown (a taller terminal shows them)")
+    leaking = [row.robot for row in hidden if row.leak]
+    if leaking:
+        caption.append(": ")
+        caption.append("LEAK", "bold red")
+        caption.append_text(_cell(": " + ", ".join(leaking)))
+    presences = [row.presence(now_s) for row in hidden]
+    for presence in ("offline", "silent", "malformed"):
+        count = presences.count(presence)
+        if count:
+            caption.append(f"; {count} {presence}")
+    return caption
 
 
 def _row_cells(row: RobotRow, now_s: float) -> dict[str, Text]:
@@ -103,12 +154,18 @@ def _row_cells(row: RobotRow, now_s: float) -> dict[str, Text]:
         "robot": _cell(row.robot),
         "presence": _cell(presence, _PRESENCE_STYLES.get(presence, "")),
         "depth": _cell("—" if row.depth_cm is None else f"{row.depth_cm} cm"),
-        "leak": _cell("LEAK", "bold red") if row.leak else _cell("dry"),
+        "leak": _leak_cell(row.leak),
         "lock": _cell(row.lock or "—"),
         "mode": _cell(row.mode or "—"),
         "link": _cell(row.link or "—"),
         "last event": _cell(note),
     }
+
+
+def _leak_cell(leak: bool | None) -> Text:
+    if leak is None:  # (never heard: an offline state does not say)
+        return _cell("—")
+    return _cell("LEAK", "bold red") if leak else _cell("dry")
 
 
 def _table(columns: list[str], rows: list[dict[str, Text]]) -> Table:
@@ -188,8 +245,14 @@ async def _watch(broker: BrokerSettings, snapshot_s: float | None) -> None:
             return
         await _live(broker, view, console)
     except aiomqtt.MqttError as error:
-        where = "broker" if connected else "cannot connect to the broker"
-        raise CommandError(f"{where} {broker.describe()}: {reason(error)}") from None
+        # In the bridge's words (aiomqtt's are "[code:135] Not authorized", or for a
+        # certificate not trusted "Operation not permitted").
+        from rovlink.bridges.mqtt.broker_failure import broker_failure  # noqa: PLC0415
+
+        failure = broker_failure(
+            error, broker, connected=connected, reply_timeout_s=_REPLY_TIMEOUT_S
+        )
+        raise CommandError(f"broker {broker.describe()}: {failure}") from None
 
 
 def _client(broker: BrokerSettings) -> aiomqtt.Client:
@@ -222,7 +285,15 @@ async def _collect(mqtt: aiomqtt.Client, view: FleetView) -> None:
         await mqtt.subscribe(topic, qos=1)
     async for message in mqtt.messages:
         payload = message.payload if isinstance(message.payload, bytes) else b""
-        view.apply(message.topic.value, payload, time.monotonic())
+        # A retained state may be hours old (a broker restored from its persistence): its
+        # "at" says when it was heard, not its arrival.
+        retained_wall_now_s = time.time() if message.retain else None
+        view.apply(
+            message.topic.value,
+            payload,
+            time.monotonic(),
+            retained_wall_now_s=retained_wall_now_s,
+        )
 
 
 async def _snapshot(
@@ -255,10 +326,7 @@ async def _live(broker: BrokerSettings, view: FleetView, console: TableConsole) 
     trouble: str | None = None
 
     def draw() -> Table:
-        table = fleet_table(view, time.monotonic(), console.width)
-        if trouble is not None:
-            table.caption = trouble if table.caption is None else f"{trouble}; {table.caption}"
-        return table
+        return fleet_table(view, time.monotonic(), console.width, console.height, trouble)
 
     async def show_until(live: Live, done: Callable[[], bool]) -> None:
         while not done():

@@ -6,6 +6,7 @@ import asyncio
 import contextlib
 import os
 import sys
+import time
 from collections.abc import Mapping
 from pathlib import Path
 
@@ -283,3 +284,126 @@ def test_fleet_help_gives_the_range_snapshot_is_checked_against(run_cli: RunCli)
     text = " ".join(run_cli("fleet", "--help").out.split())
     described = text[text.index("--snapshot SECONDS", text.index("options:")) :]
     assert "0.1–60" in described[: described.index("(default")]
+
+
+@pytest.mark.integration
+async def test_a_retained_online_state_long_unrefreshed_is_silent_not_online(broker: Mosquitto):
+    # A broker that lost power restores the states it persisted last: "online" for a robot whose
+    # bridge went with it, and no last will ever follows. Before, the snapshot (and the live
+    # table, for its first 10 s) showed such a robot online, its link "ok", from a state an
+    # hour old; a bridge refreshes its state every 2 s, so its "at" says it is gone.
+    now_s = time.time()
+    retained = {
+        "rovlink/stale/state": f'{{"online": true, "at": {now_s - 3600}, "lock": "locked"}}',
+        "rovlink/fresh/state": f'{{"online": true, "at": {now_s}, "lock": "locked"}}',
+    }
+    lines = await _snapshot_after_retaining(broker, retained)
+    stale = next(line for line in lines if " stale " in line)
+    assert "silent" in stale
+    assert " online " not in stale
+    fresh = next(line for line in lines if " fresh " in line)
+    assert " online " in fresh
+
+
+def test_a_retained_state_counts_from_its_at_and_a_live_one_from_now():
+    view = FleetView()
+    old = b'{"online": true, "at": 1000.0}'
+    view.apply("rovlink/a/state", old, 50.0, retained_wall_now_s=1000.0 + SILENT_AFTER_S + 5)
+    (row,) = view.rows()
+    assert row.presence(50.0) == "silent"
+    view.apply("rovlink/a/state", old, 51.0)  # published now (its clock may be wrong)
+    assert row.presence(51.0) == "online"
+    # Handed over again (the table reconnected to its broker): heard live since all the same.
+    view.apply("rovlink/a/state", old, 52.0, retained_wall_now_s=1000.0 + SILENT_AFTER_S + 7)
+    assert row.presence(52.0) == "online"
+    # A bridge clock ahead of this one's is no reason to call it silent later.
+    view.apply("rovlink/b/state", b'{"online": true, "at": 2000.0}', 60.0, retained_wall_now_s=1.0)
+    assert view.rows()[1].presence(60.0 + SILENT_AFTER_S - 1) == "online"
+
+
+def test_a_leak_never_heard_of_is_not_shown_dry():
+    # An offline state (the last will) says nothing of the leak, nor does a state that is not a
+    # bridge's: the table showed "dry" for them, a robot whose bridge died of the water in it
+    # among them. What was heard last stands; what was never heard is "—".
+    from rich.console import Console
+
+    from rovlink.cli.fleet import fleet_table
+
+    view = FleetView()
+    view.apply("rovlink/gone/state", b'{"online": false, "reason": "bridge connection lost"}', 0.0)
+    view.apply("rovlink/wet/telemetry", b'{"depth_cm": 120, "leak": true}', 0.0)
+    view.apply("rovlink/wet/state", b'{"online": false, "reason": "bridge connection lost"}', 0.1)
+    view.apply("rovlink/dry/state", b'{"online": true, "leak": false}', 0.0)
+    console = Console(width=160, record=True)
+    console.print(fleet_table(view, now_s=1.0))
+    lines = console.export_text().splitlines()
+    cells = {
+        name: [
+            cell.strip() for cell in next(line for line in lines if f" {name} " in line).split("│")
+        ]
+        for name in ("gone", "wet", "dry")
+    }
+    leak_column = 4  # (after the border, robot, presence and depth)
+    assert cells["gone"][leak_column] == "—"
+    assert cells["wet"][leak_column] == "LEAK"
+    assert cells["dry"][leak_column] == "dry"
+
+
+def _many_robots_and_a_leak_last() -> FleetView:
+    view = FleetView()
+    for number in range(1, 31):
+        view.apply(f"rovlink/r{number:02}/state", b'{"online": true, "lock": "locked"}', 0.0)
+    view.apply("rovlink/zz-leak/state", b'{"online": true, "leak": true}', 0.0)
+    view.apply("rovlink/zz-gone/state", b'{"online": false, "reason": "bridge stopped"}', 0.0)
+    return view
+
+
+@pytest.mark.parametrize("rows", [12, 24])
+def test_robots_a_short_terminal_cannot_show_are_said_a_leak_by_name(rows: int) -> None:
+    from rich.console import Console
+
+    from rovlink.cli.fleet import fleet_table
+
+    console = Console(width=100, height=rows, record=True)
+    console.print(fleet_table(_many_robots_and_a_leak_last(), now_s=1.0, width=100, height=rows))
+    lines = console.export_text().splitlines()
+    assert len(lines) <= rows
+    assert " r01 " in lines[4]  # (after the title and the header) in order, from the first
+    shown = sum(1 for line in lines if line.startswith("│ "))
+    caption = " ".join(" ".join(lines[4 + shown :]).split())
+    assert f"{32 - shown} more robots not shown" in caption
+    assert "LEAK: zz-leak" in caption
+    assert "1 offline" in caption
+    everything = Console(width=100, record=True)
+    everything.print(fleet_table(_many_robots_and_a_leak_last(), now_s=1.0, width=100))
+    assert "zz-leak" in everything.export_text()  # (no height: a snapshot shows every robot)
+
+
+@pytest.mark.integration
+def test_the_live_table_on_a_short_terminal_names_the_leak_it_cannot_show(
+    broker: Mosquitto,
+) -> None:
+    # Before, the rows past the terminal's height were cut to "...": a robot whose id sorts
+    # last, leaking, was not shown, nor said, however long one watched.
+    from paho.mqtt import publish
+
+    from tests.terminals import Terminal
+
+    states = {f"rovlink/r{number:02}/state": '{"online": true}' for number in range(1, 31)}
+    states["rovlink/zz-leak/state"] = '{"online": true, "leak": true}'
+    publish.multiple(
+        [
+            {"topic": topic, "payload": state, "qos": 1, "retain": True}
+            for topic, state in states.items()
+        ],
+        port=broker.port,
+    )
+    terminal = Terminal("fleet", "--broker", broker.url, size=(100, 24))
+    try:
+        # (the caption: "14 more robots not shown …: LEAK: zz-leak", LEAK in red, wrapped)
+        assert terminal.wait_until(
+            lambda shown: b"more robots not shown" in shown and b"zz-leak" in shown
+        ), terminal.shown.decode(errors="replace")
+        assert b" r01 " in terminal.shown
+    finally:
+        terminal.close()

@@ -22,6 +22,7 @@ from rovlink.piloting.tracked import TrackedClient
 from rovlink.sim import SimulatedPort
 from tests.bridges.mqtt.broker import Mosquitto, mosquitto_available
 from tests.bridges.mqtt.rig import until
+from tests.cli.conftest import RunCli
 
 pytestmark = pytest.mark.integration
 
@@ -154,3 +155,29 @@ async def test_wrong_credentials_or_trust_never_connect_and_are_said(
     warnings = [r.getMessage() for r in caplog.records if "retrying in" in r.getMessage()]
     assert warnings, "the bridge must say why it retries"
     assert warnings[0].startswith(f"broker {broker.describe()}: {said}")
+
+
+@pytest.mark.parametrize(
+    ("wrong", "said"),
+    [
+        ("password", "cannot connect: the broker refused the login: Not authorized (check"),
+        ("ca", "cannot connect: TLS failure: the broker's certificate was not accepted"),
+    ],
+)
+def test_fleet_says_why_it_cannot_connect_as_the_bridge_does(
+    secured_broker: Mosquitto, run_cli: RunCli, tmp_path: Path, wrong: str, said: str
+) -> None:
+    # Before: "cannot connect to the broker …: [code:135] Not authorized", and for a CA not
+    # given "[SSL: CERTIFICATE_VERIFY_FAILED] certificate verify failed: … (_ssl.c:1020)".
+    password_file = tmp_path / "fleet-password"
+    password_file.write_text("not-it" if wrong == "password" else PASSWORD, encoding="utf-8")
+    url = f"mqtts://{USER}@127.0.0.1:{secured_broker.port}"
+    trust = [] if wrong == "ca" else ["--cafile", str(secured_broker.workdir / "ca.pem")]
+    result = run_cli(
+        "fleet", "--broker", url.replace(f"{USER}@", ""), "--username", USER,
+        "--password-file", str(password_file), *trust, "--snapshot", "1",
+    )  # fmt: skip
+    assert result.status == 1
+    assert result.err.startswith(f"rovlink fleet: broker {url}: {said}"), result.err
+    assert "[code:" not in result.err
+    assert "_ssl.c" not in result.err

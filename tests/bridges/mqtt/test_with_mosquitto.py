@@ -6,6 +6,7 @@ import asyncio
 import contextlib
 import json
 import logging
+import time
 from typing import Any
 
 import aiomqtt
@@ -80,10 +81,18 @@ async def test_queries_answer_with_named_values(broker: Mosquitto):
         # An integer too large for a float once ended the bridge (OverflowError); quoted short.
         (_HUGE_AT_START, '"at" must be Unix time in seconds, a number, got 1000000000'),
         (b'{"command": "start", "at": 1e300}', 'its "at" is 1e+300 s ahead of the bridge\'s'),
+        # JavaScript's Date.now() is in milliseconds: the clocks were blamed.
+        (
+            f'{{"command": "th 90 30", "at": {int(time.time() * 1000)}}}'.encode(),
+            '"at" is Unix time in seconds: this one looks like milliseconds',
+        ),
         # A lone surrogate has no UTF-8: the reply that quoted it ended the bridge.
         (b'{"command": "\\ud800"}', "unknown command '\\ud800'"),
         # Which one counts depends on the parser: a tool reading the first saw a stop.
         (b'{"command": "stop", "command": "start"}', '"command" is given more than once'),
+        # A misspelt "at" was ignored: motion carried out unchecked for lateness, as if sent now.
+        (b'{"command": "th 90 30", "time": 1767225600}', 'unknown key "time"'),
+        (b'{"command": "start", "Id": 4}', 'unknown key "Id"'),
     ],
 )
 async def test_malformed_payloads_get_an_error_and_send_nothing(
@@ -170,6 +179,18 @@ async def test_a_stop_with_a_key_given_twice_still_stops_the_robot(broker: Mosqu
         reply = await watcher.command("i3", b'{"command": "stop", "id": 1, "id": 2}')
         assert (reply["ok"], reply["frame"]) == (True, "#stop!")
         assert '"id" is given more than once' in reply["warning"]
+        await until(lambda: robot.motion_and_lock_frames()[before:] == ["#stop!"])
+
+
+async def test_a_stop_with_an_unknown_key_still_stops_the_robot(broker: Mosquitto):
+    async with (
+        bridged_robot(broker, "i4", allow_commands=False) as robot,
+        subscriber(broker, "rovlink/i4/cmd/reply") as watcher,
+    ):
+        before = len(robot.motion_and_lock_frames())
+        reply = await watcher.command("i4", b'{"command": "stop", "id": 9, "reason": "surface"}')
+        assert (reply["ok"], reply["frame"], reply["id"]) == (True, "#stop!", 9)
+        assert 'unknown key "reason"' in reply["warning"]
         await until(lambda: robot.motion_and_lock_frames()[before:] == ["#stop!"])
 
 

@@ -22,6 +22,8 @@ __all__ = ["DEFAULT_MAX_COMMAND_AGE_S", "BrokerSilence", "publication_age_proble
 
 #: Motion older than this is not carried out (the CLI's default motion timeout), s.
 DEFAULT_MAX_COMMAND_AGE_S = 2.0
+#: An "at" a thousand times the clock, give or take this, was written in milliseconds, s.
+_A_DAY_S = 86_400.0
 
 
 class BrokerSilence:
@@ -67,6 +69,8 @@ def publication_age_problem(published_at_s: float, now_s: float, max_age_s: floa
     True
     >>> publication_age_problem(100.0, 104.5, 2.0)
     'published 4.5 s ago (its "at"): motion older than 2 s is not carried out; publish it again'
+    >>> publication_age_problem(1767225600250.0, 1767225600.5, 2.0)
+    '"at" is Unix time in seconds: this one looks like milliseconds'
     """
     age_s = now_s - published_at_s
     if age_s > max_age_s:
@@ -75,6 +79,8 @@ def publication_age_problem(published_at_s: float, now_s: float, max_age_s: floa
             "is not carried out; publish it again"
         )
     if age_s < -max_age_s:
+        if abs(published_at_s / 1000 - now_s) < _A_DAY_S:  # (JavaScript's Date.now(), say)
+            return '"at" is Unix time in seconds: this one looks like milliseconds'
         return (
             f'its "at" is {_seconds(-age_s)} s ahead of the bridge\'s clock: motion is not '
             "carried out until the clocks agree"

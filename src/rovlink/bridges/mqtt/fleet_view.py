@@ -8,6 +8,7 @@ text here comes from the broker: whoever shows it must show it as text, not obey
 from __future__ import annotations
 
 import json
+import math
 from dataclasses import dataclass
 from typing import Any
 
@@ -27,7 +28,8 @@ class RobotRow:
     online: bool | None = None
     offline_reason: str | None = None
     depth_cm: int | None = None
-    leak: bool = False
+    #: ``None`` until a message tells (an offline state, the last will, does not).
+    leak: bool | None = None
     link: str | None = None
     lock: str | None = None
     mode: str | None = None
@@ -72,8 +74,21 @@ class FleetView:
         """Every robot, by id."""
         return [self._robots[robot] for robot in sorted(self._robots)]
 
-    def apply(self, topic: str, payload: bytes, now_s: float) -> bool:
-        """Take one message; whether it was a bridge's."""
+    def apply(
+        self,
+        topic: str,
+        payload: bytes,
+        now_s: float,
+        *,
+        retained_wall_now_s: float | None = None,
+    ) -> bool:
+        """Take one message; whether it was a bridge's.
+
+        ``retained_wall_now_s`` (Unix time now, s) marks a message the broker kept (retained),
+        handed over on subscribing however old it is: a state then counts as heard when its
+        ``at`` says it was published, not now. A broker that lost power restores the states it
+        persisted, "online" for a robot whose bridge went with it, and no last will follows.
+        """
         where = robot_of(topic)
         if where is None:
             self.ignored += 1
@@ -89,12 +104,14 @@ class FleetView:
             self.ignored += 1
             return False
         row = self._robots.setdefault(robot, RobotRow(robot))
-        row.last_heard_s = now_s
+        heard_s = now_s - _age_s(data, retained_wall_now_s)
+        if row.last_heard_s is None or heard_s > row.last_heard_s:  # (a retained one is older)
+            row.last_heard_s = heard_s
         if what == "state":
             self._state(row, data)
         elif what == "telemetry":
             row.depth_cm = _integer(data.get("depth_cm"), row.depth_cm)
-            row.leak = bool(data.get("leak", row.leak))
+            row.leak = _leak(data.get("leak"), row.leak)
             if row.online is None:
                 row.online = True
         else:
@@ -117,12 +134,33 @@ class FleetView:
             return
         row.offline_reason = None
         row.depth_cm = _integer(data.get("depth_cm"), row.depth_cm)
-        row.leak = bool(data.get("leak", row.leak))
+        row.leak = _leak(data.get("leak"), row.leak)
         row.lock = data.get("lock") if isinstance(data.get("lock"), str) else row.lock
         row.mode = data.get("mode") if isinstance(data.get("mode"), str) else row.mode
         link = data.get("link")
         if isinstance(link, dict) and isinstance(link.get("status"), str):
             row.link = link["status"]
+
+
+def _age_s(data: dict[str, Any], retained_wall_now_s: float | None) -> float:
+    """How long ago a retained message was published, by its ``at`` (0 if it does not say, or
+    if its clock is ahead of this one's: a bridge is not called silent for its clock)."""
+    at_s = data.get("at")
+    if retained_wall_now_s is None or isinstance(at_s, bool) or not isinstance(at_s, (int, float)):
+        return 0.0
+    try:
+        age_s = retained_wall_now_s - float(at_s)
+    except OverflowError:  # (a JSON integer of hundreds of digits)
+        return 0.0
+    return age_s if math.isfinite(age_s) and age_s > 0 else 0.0
+
+
+def _leak(value: object, default: bool | None) -> bool | None:
+    """A message's ``leak``: JSON true or false; any other value that is set counts as a leak
+    (a warning too many rather than a leak missed); none leaves ``default``."""
+    if isinstance(value, bool):
+        return value
+    return True if value else default
 
 
 def _integer(value: object, default: int | None) -> int | None:

@@ -37,6 +37,8 @@ __all__ = [
 
 #: A command is a few words; anything longer is refused unread.
 MAX_REQUEST_BYTES = 512
+#: The keys of a JSON request; any other is refused (a stop is carried out with a warning).
+_REQUEST_KEYS = ("command", "id", "at")
 #: A value quoted in an error is cut to this many characters.
 _SHOWN_CHARACTERS = 40
 
@@ -228,6 +230,8 @@ def read_request(payload: bytes) -> CommandRequest:
     '"id" must be a string or an integer, got 1.5'
     >>> read_request(b'{"command": "th 90 30", "at": 1767225600.25}').published_at_s
     1767225600.25
+    >>> read_request(b'{"command": "th 90 30", "time": 1767225600.25}').problem
+    'unknown key "time": a JSON request has "command", and optionally "id" and "at"'
     """
     if len(payload) > MAX_REQUEST_BYTES:
         raise PayloadError(f"payload of {len(payload)} bytes; a command is at most 512")
@@ -267,6 +271,14 @@ def read_request(payload: bytes) -> CommandRequest:
     published_at_s = None if published_at is None else _unix_time_s(published_at)
     if published_at is not None and published_at_s is None:
         problem = f'"at" must be Unix time in seconds, a number, got {_shown(published_at)}'
+        return CommandRequest(command.strip(), request_id, problem)
+    unknown = [key for key in request if key not in _REQUEST_KEYS]
+    if unknown:
+        # A misspelt "at" ("time", "At") would leave motion unchecked for lateness, unseen.
+        problem = (
+            f"unknown key {_shown(unknown[0])}: a JSON request has "
+            '"command", and optionally "id" and "at"'
+        )
         return CommandRequest(command.strip(), request_id, problem)
     return CommandRequest(command.strip(), request_id, published_at_s=published_at_s)
 
