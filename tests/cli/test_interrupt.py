@@ -552,8 +552,23 @@ def test_a_signal_ends_a_bridge_with_its_final_stop(
     assert silent.wait_for(b"#qsa!")  # past the #stop! it sends on start, polling
     stops_before = silent.received.count(b"#stop!")
     _, stderr = _interrupt(process, how)
+    # A service stopped (systemctl stop, a closed SSH session): a clean end, status 0, as for
+    # the other serving commands (before: 130, and systemd marked the bridge failed).
+    assert process.returncode == 0, stderr
+    assert stderr.decode().splitlines()[-1] == f"rovlink {command} stopped"
+    assert silent.wait_until(lambda received: received.count(b"#stop!") > stops_before)
+
+
+@pytest.mark.parametrize("how", [signal.SIGINT, signal.SIGQUIT], ids=lambda how: how.name)
+def test_ctrl_c_ends_a_bridge_as_interrupted_with_its_final_stop(
+    silent: SilentController, how: signal.Signals
+) -> None:
+    process = _rovlink("mavlink", silent.url, "--out", "udpout:127.0.0.1:9")
+    assert silent.wait_for(b"#qsa!")
+    stops_before = silent.received.count(b"#stop!")
+    _, stderr = _interrupt(process, how)
     assert process.returncode == 130, stderr
-    assert stderr.decode().splitlines()[-1] == f"rovlink {command}: interrupted"
+    assert stderr.decode().splitlines()[-1] == "rovlink mavlink: interrupted"
     assert silent.wait_until(lambda received: received.count(b"#stop!") > stops_before)
 
 
@@ -566,6 +581,6 @@ def test_a_signal_ends_a_background_bridge_with_its_final_stop(
     assert silent.wait_for(b"#qsa!")
     stops_before = silent.received.count(b"#stop!")
     _, stderr = _interrupt(process, how)
-    assert process.returncode == 130, stderr
-    assert stderr.decode().splitlines()[-1] == "rovlink mavlink: interrupted"
+    assert process.returncode == 0, stderr
+    assert stderr.decode().splitlines()[-1] == "rovlink mavlink stopped"
     assert silent.wait_until(lambda received: received.count(b"#stop!") > stops_before)

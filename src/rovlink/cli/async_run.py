@@ -31,7 +31,7 @@ from collections.abc import Callable, Coroutine
 from types import TracebackType
 from typing import Any, TypeVar
 
-__all__ = ["StopOnTermination", "run_async"]
+__all__ = ["StopOnTermination", "run_async", "serve_async"]
 
 logger = logging.getLogger(__name__)
 
@@ -46,10 +46,42 @@ def run_async(main: Coroutine[Any, Any, T]) -> T:
 
         run_async(_serve(args, broker))
     """
+    return _run(main, Ending())
+
+
+def serve_async(main: Coroutine[Any, Any, None], program: str) -> None:
+    """:func:`run_async` for a serving command (a bridge, run as a service): SIGTERM and
+    SIGHUP, how a service manager or a closed SSH session stops it, end it cleanly with
+    ``PROGRAM stopped`` and return (status 0: ``systemctl stop`` counts anything else as a
+    failure); Ctrl-C and SIGQUIT still raise ``KeyboardInterrupt`` (status 130), as for every
+    command.
+
+    Example::
+
+        serve_async(_serve(args, broker), "rovlink mqtt")
+    """
+    from rovlink.cli.interrupt import say_last  # noqa: PLC0415 - (the rest of it is not needed)
+
     ending = Ending()
+    try:
+        _run(main, ending)
+    except KeyboardInterrupt:
+        if not ending.stopped_as_a_service:
+            raise
+        say_last(f"{program} stopped")
+
+
+def _run(main: Coroutine[Any, Any, T], ending: Ending) -> T:
     if sys.version_info >= (3, 11):
         return asyncio.run(ended_by_termination(main, ending))
     return run_cancelled_by_ctrl_c(ended_by_termination(main, ending), ending)
+
+
+#: The signals that stop a service (a service manager's, a closed terminal's): for a serving
+#: command a clean end, where Ctrl-C and Ctrl-\ say "interrupted".
+_SERVICE_STOPS = frozenset(
+    getattr(signal, name) for name in ("SIGTERM", "SIGHUP") if hasattr(signal, name)
+)
 
 
 class Ending:
@@ -57,6 +89,8 @@ class Ending:
 
     def __init__(self) -> None:
         self.cancelled = False
+        #: Whether the signal that cancelled it was SIGTERM or SIGHUP (not Ctrl-C, SIGQUIT).
+        self.stopped_as_a_service = False
 
     def seen_on(self, task: asyncio.Task[Any]) -> bool:
         """Whether ``task`` is being cancelled already: by a signal handled here, or (3.11
@@ -75,10 +109,11 @@ async def ended_by_termination(main: Coroutine[Any, Any, T], ending: Ending) -> 
     task = asyncio.current_task()
     assert task is not None  # (a coroutine run by asyncio.run is a task's)
 
-    def terminate() -> None:
+    def terminate(number: int) -> None:
         if ending.seen_on(task):  # (on its way out already: not cut short)
             return
         ending.cancelled = True
+        ending.stopped_as_a_service = number in _SERVICE_STOPS
         task.cancel()
 
     previous: dict[int, Any] = {}
@@ -90,7 +125,7 @@ async def ended_by_termination(main: Coroutine[Any, Any, T], ending: Ending) -> 
         if handler is signal.SIG_IGN:
             continue
         try:
-            loop.add_signal_handler(number, terminate)
+            loop.add_signal_handler(number, terminate, number)
         except (NotImplementedError, RuntimeError, ValueError):  # Windows; not the main thread
             continue
         previous[number] = handler

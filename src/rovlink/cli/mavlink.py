@@ -100,9 +100,10 @@ def run(args: argparse.Namespace) -> int:
     link_options.check_url(args)
     link_options.client_options(args)
     link_options.log_warnings()
-    from rovlink.cli.async_run import run_async  # noqa: PLC0415 - not on the path of --help
+    from rovlink.cli.async_run import serve_async  # noqa: PLC0415 - not on the path of --help
 
-    run_async(_serve(args, ParameterTable(_defaults() | values), list(values)))
+    # (SIGTERM, SIGHUP: a service stopped, status 0; Ctrl-C: 130)
+    serve_async(_serve(args, ParameterTable(_defaults() | values), list(values)), "rovlink mavlink")
     return 0
 
 
