@@ -82,9 +82,10 @@ async def test_queries_answer_with_named_values(broker: Mosquitto):
         (_HUGE_AT_START, '"at" must be Unix time in seconds, a number, got 1000000000'),
         (b'{"command": "start", "at": 1e300}', 'its "at" is 1e+300 s ahead of the bridge\'s'),
         # JavaScript's Date.now() is in milliseconds: the clocks were blamed.
-        (
+        pytest.param(
             f'{{"command": "th 90 30", "at": {int(time.time() * 1000)}}}'.encode(),
             '"at" is Unix time in seconds: this one looks like milliseconds',
+            id="at-in-milliseconds",  # (not the time: each test process collects its own)
         ),
         # A lone surrogate has no UTF-8: the reply that quoted it ended the bridge.
         (b'{"command": "\\ud800"}', "unknown command '\\ud800'"),
@@ -93,6 +94,9 @@ async def test_queries_answer_with_named_values(broker: Mosquitto):
         # A misspelt "at" was ignored: motion carried out unchecked for lateness, as if sent now.
         (b'{"command": "th 90 30", "time": 1767225600}', 'unknown key "time"'),
         (b'{"command": "start", "Id": 4}', 'unknown key "Id"'),
+        # A file of commands sent whole: "start takes 0 value(s), got 3".
+        (b"start\nth 90 30\n", 'one command per message: this one has 2 lines ("th 90 30" after'),
+        (b'{"command": "start\\nth 90 30"}', "one command per message: this one has 2 lines"),
     ],
 )
 async def test_malformed_payloads_get_an_error_and_send_nothing(
@@ -191,6 +195,18 @@ async def test_a_stop_with_an_unknown_key_still_stops_the_robot(broker: Mosquitt
         reply = await watcher.command("i4", b'{"command": "stop", "id": 9, "reason": "surface"}')
         assert (reply["ok"], reply["frame"], reply["id"]) == (True, "#stop!", 9)
         assert 'unknown key "reason"' in reply["warning"]
+        await until(lambda: robot.motion_and_lock_frames()[before:] == ["#stop!"])
+
+
+async def test_a_stop_followed_by_other_lines_still_stops_the_robot(broker: Mosquitto):
+    async with (
+        bridged_robot(broker, "i5", allow_commands=False) as robot,
+        subscriber(broker, "rovlink/i5/cmd/reply") as watcher,
+    ):
+        before = len(robot.motion_and_lock_frames())
+        reply = await watcher.command("i5", b'{"command": "stop\\nstart", "id": 3}')
+        assert (reply["ok"], reply["frame"], reply["id"]) == (True, "#stop!", 3)
+        assert "one command per message" in reply["warning"]
         await until(lambda: robot.motion_and_lock_frames()[before:] == ["#stop!"])
 
 

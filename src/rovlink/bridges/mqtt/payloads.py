@@ -244,7 +244,8 @@ def read_request(payload: bytes) -> CommandRequest:
     if not text:
         raise PayloadError("empty payload; send a command such as 'stop' or 'th 90 30'")
     if not text.startswith("{"):
-        return CommandRequest(text)
+        first, problem = _first_line(text)
+        return CommandRequest(first, None, problem)
     try:
         request = json.loads(text, object_pairs_hook=_JsonObject.of)
     except json.JSONDecodeError as error:
@@ -254,6 +255,7 @@ def read_request(payload: bytes) -> CommandRequest:
     command = request.get("command")
     if not isinstance(command, str) or not command.strip():
         raise PayloadError('a JSON request needs "command", a string')
+    command, several_lines = _first_line(command.strip())
     repeated = getattr(request, "repeated", None)
     if repeated is not None:
         # Parsers differ on which one counts (Python's: the last), so a tool that reads the
@@ -280,7 +282,25 @@ def read_request(payload: bytes) -> CommandRequest:
             '"command", and optionally "id" and "at"'
         )
         return CommandRequest(command.strip(), request_id, problem)
+    if several_lines is not None:
+        return CommandRequest(command, request_id, several_lines)
     return CommandRequest(command.strip(), request_id, published_at_s=published_at_s)
+
+
+def _first_line(text: str) -> tuple[str, str | None]:
+    """The command of a payload and, if it has more lines than one, the problem: a message
+    carries one command (a file of them sent whole read as one command with too many values).
+
+    >>> _first_line("stop\\r\\n\\nstart")
+    ('stop', 'one command per message: this one has 2 lines ("start" after "stop")')
+    """
+    lines = [line.strip() for line in text.splitlines() if line.strip()]
+    if len(lines) <= 1:
+        return text, None
+    return lines[0], (
+        f"one command per message: this one has {len(lines)} lines "
+        f"({_shown(lines[1])} after {_shown(lines[0])})"
+    )
 
 
 class _JsonObject(dict[str, Any]):
