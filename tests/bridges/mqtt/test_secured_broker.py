@@ -171,13 +171,14 @@ def test_fleet_says_why_it_cannot_connect_as_the_bridge_does(
     # given "[SSL: CERTIFICATE_VERIFY_FAILED] certificate verify failed: … (_ssl.c:1020)".
     password_file = tmp_path / "fleet-password"
     password_file.write_text("not-it" if wrong == "password" else PASSWORD, encoding="utf-8")
-    url = f"mqtts://{USER}@127.0.0.1:{secured_broker.port}"
+    url = f"mqtts://127.0.0.1:{secured_broker.port}"
     trust = [] if wrong == "ca" else ["--cafile", str(secured_broker.workdir / "ca.pem")]
     result = run_cli(
-        "fleet", "--broker", url.replace(f"{USER}@", ""), "--username", USER,
+        "fleet", "--broker", url, "--username", USER,
         "--password-file", str(password_file), *trust, "--snapshot", "1",
     )  # fmt: skip
     assert result.status == 1
-    assert result.err.startswith(f"rovlink fleet: broker {url}: {said}"), result.err
+    # The URL as --broker takes it (before, with the user in it, which --broker refuses).
+    assert result.err.startswith(f"rovlink fleet: broker {url} (as {USER}): {said}"), result.err
     assert "[code:" not in result.err
     assert "_ssl.c" not in result.err

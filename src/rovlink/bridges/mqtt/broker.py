@@ -28,14 +28,17 @@ class BrokerSettings:
     insecure: bool = False
 
     def describe(self) -> str:
-        """``mqtts://broker:8883`` (never the password): a URL ``--broker`` takes.
+        """``mqtts://broker:8883``, a URL ``--broker`` takes, and the user if there is one
+        (never the password), which ``--broker`` refuses in its URL: ``--username`` gives it.
 
         >>> BrokerSettings("::1", 1883).describe()
         'mqtt://[::1]:1883'
+        >>> BrokerSettings("broker.example", 8883, tls=True, username="rov-1").describe()
+        'mqtts://broker.example:8883 (as rov-1)'
         """
-        user = f"{self.username}@" if self.username else ""
         host = f"[{self.host}]" if ":" in self.host else self.host  # (IPv6)
-        return f"{'mqtts' if self.tls else 'mqtt'}://{user}{host}:{self.port}"
+        user = f" (as {self.username})" if self.username else ""
+        return f"{'mqtts' if self.tls else 'mqtt'}://{host}:{self.port}{user}"
 
 
 def parse_broker_url(url: str) -> tuple[str, int, bool]:
