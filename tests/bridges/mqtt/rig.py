@@ -85,14 +85,18 @@ async def bridged_robot(
     max_command_age_s: float = DEFAULT_MAX_COMMAND_AGE_S,
     max_kept_events: int = DEFAULT_CAPACITY,
     wait_connected: bool = True,
+    replies_held: bool = False,
 ) -> AsyncIterator[BridgedRobot]:
     """A bridge for a simulated robot (once connected to ``broker``, unless not
-    ``wait_connected``); cancelled on leaving."""
+    ``wait_connected``; with ``replies_held``, the controller's replies held back from the
+    start until the test clears ``robot.link.held``); cancelled on leaving."""
     port = SimulatedPort(SimConfig(), seed=1)
     if leak_at_s is not None:
         port.robot.inject_leak(at_s=leak_at_s)
     port.start(realtime=True)
     link = HoldingLink(PortLink(port, f"simulated {robot_id}"))
+    if replies_held:
+        link.held.set()
     options = ClientOptions(
         keepalive_s=1.0, timeout_s=timeout_s, boot_timeout_s=None, motion_timeout_s=motion_timeout_s
     )

@@ -116,6 +116,20 @@ async def test_malformed_payloads_get_an_error_and_send_nothing(
         await until(lambda: robot.motion_and_lock_frames()[before:] == ["#stop!"])
 
 
+async def test_a_state_before_the_first_reading_does_not_say_dry(broker: Mosquitto):
+    # Before, "leak": false until a sensor reading came: a robot whose controller never
+    # answered showed dry on every fleet view.
+    async with (
+        bridged_robot(broker, "u2", replies_held=True) as robot,
+        subscriber(broker, "rovlink/u2/state") as watcher,
+    ):
+        state = await watcher.wait_for("rovlink/u2/state", lambda s: s.get("online"))
+        assert (state["depth_cm"], state["leak"]) == (None, None)
+        robot.link.held.clear()
+        state = await watcher.wait_for("rovlink/u2/state", lambda s: s["depth_cm"] is not None)
+        assert state["leak"] is False
+
+
 async def test_without_allow_commands_only_stop_is_accepted(broker: Mosquitto):
     async with (
         bridged_robot(broker, "s1", allow_commands=False) as robot,

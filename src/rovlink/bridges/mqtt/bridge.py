@@ -462,7 +462,7 @@ class MqttBridge:
             self.rov.commanded,
             self.rov.health,
             depth_cm=None if self._latest is None else self._latest.depth_cm,
-            leak=self._latest is not None and self._latest.leak_detected,
+            leak=None if self._latest is None else self._latest.leak_detected,
             commands_allowed=self.policy.allow_commands,
             at_s=self._wall_clock(),
             now_s=self.rov.now_s(),

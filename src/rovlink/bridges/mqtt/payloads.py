@@ -94,7 +94,7 @@ def state_payload(
     health: LinkHealth,
     *,
     depth_cm: int | None,
-    leak: bool,
+    leak: bool | None,
     commands_allowed: bool,
     at_s: float,
     now_s: float,
@@ -104,6 +104,7 @@ def state_payload(
     The lock is the one the controller announced, if it did after the bridge's last start or
     stop (debug output on), with where it came from in ``lock_heard_because``
     (``stopped by another line``); else as last sent, and ``lock_heard_because`` is ``None``.
+    ``depth_cm`` and ``leak`` are ``None`` until the first sensor reading.
     """
     silent_s = health.silent_s(now_s)
     return {
