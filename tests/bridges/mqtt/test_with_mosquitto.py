@@ -462,6 +462,7 @@ async def test_a_retained_command_is_never_carried_out_again_after_a_reconnectio
             refused = watcher.on("rovlink/k1/cmd/reply")[before]
             assert refused["ok"] is False  # live, yet retained: refused, with the reason
             assert "publish commands without retain" in refused["error"]
+            assert "clear this one with an empty retained message" in refused["error"]
             assert (await watcher.command("k1", "start"))["ok"]  # the robot is unlocked now
         broker.restart()  # (the broker keeps its retained messages)
         await until(lambda: not robot.bridge.connected.is_set())

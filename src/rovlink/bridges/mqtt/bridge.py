@@ -78,7 +78,8 @@ _QOS_TELEMETRY = 0
 _QOS_RELIABLE = 1
 _RETAINED_REFUSED = (
     "a retained command is not carried out (the broker would give it again on every "
-    "reconnection): publish commands without retain"
+    "reconnection): publish commands without retain, and clear this one with an empty "
+    "retained message"
 )
 _RETAINED_STOP = (
     "published retained: carried out, as stop always is, but publish commands without retain "
