@@ -541,3 +541,27 @@ def test_a_query_held_back_for_a_quiet_line_goes_out_as_the_programs() -> None:
         (b"#qd!", False, False),
         (b"#qr!", False, True),
     ]
+
+
+@pytest.mark.parametrize("checksum", [False, True])
+def test_a_quiet_line_wait_keeps_the_link_alive_with_the_checksum_mode_as_it_is(
+    checksum: bool,
+) -> None:
+    # Every name late (a qsa timed out): no query may go until the line is quiet. Before, the
+    # keep-alive waited too, and the line was silent for the timeout and the wait (1.5 s by
+    # default): a damaged frame or two around that gap tripped the controller's 2 s failsafe.
+    session = Session(timeout_s=0.5, keepalive_s=1.0)
+    if checksum:
+        session.command(Command("crcon"), now=0.0)
+    session.query(Command("qsa"), now=0.0)
+    session.tick(now=0.5)
+    assert session.resynchronising
+    assert session.next_deadline() == 1.0  # the keep-alive, before the wait ends at 1.5
+    assert session.tick(now=1.0) == []
+    assert session.take_outbox(now=1.0) == (b"#crcon!" if checksum else b"#crcoff!")
+    assert session.counters.keepalives == 1
+    assert session.pending == ()  # nothing to wait for: the frame has no reply
+    assert session.checksum_enabled is checksum
+    assert session.resynchronising  # the wait goes on, to its end
+    session.tick(now=1.5)
+    assert not session.resynchronising

@@ -357,7 +357,7 @@ class Session:
             due = quiet_until
         if self.motion_timeout_s and (self._power_percent or self._vertical_percent):
             due = min(due, self._motion_renewed_at + self.motion_timeout_s)
-        if self.keepalive_s and quiet_until is None:
+        if self.keepalive_s:
             due = min(due, self.last_sent_at + self.keepalive_s)
         return None if due == _NEVER else due
 
@@ -762,17 +762,20 @@ class Session:
             and now - self._motion_renewed_at >= self.motion_timeout_s
         ):
             self._expire_motion(now)
-        if (
-            self.keepalive_s
-            and self._quiet_until is None
-            and not self._outbox
-            and now - self.last_sent_at >= self.keepalive_s
-        ):
-            pending = PendingQuery(KEEPALIVE_QUERY, now)
-            pending.keepalive = pending.internal = True
+        if self.keepalive_s and not self._outbox and now - self.last_sent_at >= self.keepalive_s:
             self.counters.keepalives += 1
-            self._pending.append(pending)
-            self._outbox.append((self.query_bytes(KEEPALIVE_QUERY), pending, KEEPALIVE_QUERY))
+            if self._quiet_until is None:
+                pending = PendingQuery(KEEPALIVE_QUERY, now)
+                pending.keepalive = pending.internal = True
+                self._pending.append(pending)
+                self._outbox.append((self.query_bytes(KEEPALIVE_QUERY), pending, KEEPALIVE_QUERY))
+            else:
+                # Waiting for a quiet line (P20), no query may go: the checksum mode as it is
+                # (no reply, no change) keeps the controller's link-loss failsafe fed instead.
+                # Else a timed-out qsa left the line silent for its timeout and the wait, 1.5 s
+                # by default, and a damaged frame or two around that gap tripped the failsafe.
+                mode = setting_command(Setting.CHECKSUM, self._checksum_enabled)
+                self._outbox.append((self.frame_for(mode), None, mode))
         return settled
 
     def expire(self, now: float) -> list[PendingQuery]:
