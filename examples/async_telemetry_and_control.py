@@ -13,8 +13,10 @@ Shows the asyncio client (``rovlink.aio.connect``) as a top-level program uses i
 The first task to end decides: the pilot finishing is success, anything else cancels the others.
 Cancellation is safe: the client's command methods never wait, so a task cancelled between two
 commands leaves nothing half-sent; the ``finally`` sends ``#stop!`` however the run ended, and
-leaving ``async with`` by an exception (a cancellation included) sends one too. It runs on
-Python 3.10 (no ``TaskGroup`` or ``asyncio.timeout``: ``asyncio.wait`` does the same here).
+leaving ``async with`` by an exception (a cancellation included) sends one too. Ctrl-C, SIGTERM
+(``kill``, ``systemctl stop``) and SIGHUP (the terminal or the SSH session closed) cancel the
+run that way. It runs on Python 3.10 (no ``TaskGroup`` or ``asyncio.timeout``: ``asyncio.wait``
+does the same here).
 
 Run it::
 
@@ -22,14 +24,17 @@ Run it::
     python examples/async_telemetry_and_control.py /dev/ttyUSB0 --depth 50 --power 20
     python examples/async_telemetry_and_control.py 'sim://?leak_at=4'  # a leak ends the run
 
-Exit status: 0 when the pattern was completed, 1 when the run was aborted, 130 after Ctrl-C.
+Exit status: 0 when the pattern was completed, 1 when the run was aborted, 130 after Ctrl-C,
+SIGTERM or SIGHUP.
 """
 
 from __future__ import annotations
 
 import argparse
 import asyncio
+import contextlib
 import logging
+import signal
 import sys
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -174,8 +179,27 @@ async def run(rov: AsyncClient, plan: Plan) -> None:
         raise RunAbortedError(f"the {ended} task ended on its own")
 
 
+def cancel_on_termination(task: asyncio.Task[None]) -> None:
+    """Have SIGTERM (``kill``, ``systemctl stop``) and SIGHUP (the terminal or the SSH session
+    closed) cancel ``task`` as Ctrl-C does, so that its ``finally`` sends ``#stop!``.
+
+    Python's default for both ends the process at once, running no ``finally``: the robot would
+    keep its last command until the controller's link-loss failsafe stopped it. A signal ignored
+    on entry (``nohup``) stays ignored; the handlers go with the event loop.
+    """
+    loop = asyncio.get_running_loop()
+    for name in ("SIGTERM", "SIGHUP"):  # (Windows has no SIGHUP)
+        signum = getattr(signal, name, None)
+        if signum is not None and signal.getsignal(signum) is signal.SIG_DFL:
+            with contextlib.suppress(NotImplementedError):  # (Windows' loops take no signals)
+                loop.add_signal_handler(signum, task.cancel)
+
+
 async def run_and_stop(url: str, plan: Plan) -> None:
     """Connect, run, and send ``#stop!`` however the run ends."""
+    task = asyncio.current_task()
+    assert task is not None
+    cancel_on_termination(task)
     async with rovlink.aio.connect(url, motion_timeout=plan.motion_timeout_s) as rov:
         try:
             await run(rov, plan)
@@ -253,7 +277,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     except (ClientError, TimeoutError, ConnectionError) as error:
         log.error("run aborted: %s", error)
         return 1
-    except KeyboardInterrupt:
+    except (KeyboardInterrupt, asyncio.CancelledError):  # Ctrl-C; SIGTERM, SIGHUP
         print("interrupted", flush=True)
         return 130
     print("pattern completed", flush=True)

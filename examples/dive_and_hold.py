@@ -6,7 +6,9 @@ latch set; unlock (``#start!``), leave direct-thrust mode and give the controlle
 the sensors until the depth has settled within a tolerance, with a deadline; hold it; surface
 (``#mvd.0!``); lock (``#stop!``). A leak at any point aborts the dive and surfaces at once. The
 ``#stop!`` is in a ``finally``, so an error, a lost reply or Ctrl-C still ends with the motors
-off and locked (and leaving the ``with`` block by an exception sends one too).
+off and locked (and leaving the ``with`` block by an exception sends one too); so do SIGTERM
+(``kill``, ``systemctl stop``) and SIGHUP (the terminal or the SSH session closed), which it takes
+as Ctrl-C.
 
 Run it::
 
@@ -15,17 +17,19 @@ Run it::
     python examples/dive_and_hold.py 'sim://?leak_at=3'               # a leak during the dive
 
 Exit status: 0 when the dive was completed, 1 when it was aborted (a leak, a depth not reached,
-an error), 130 after Ctrl-C.
+an error), 130 after Ctrl-C, SIGTERM or SIGHUP.
 """
 
 from __future__ import annotations
 
 import argparse
 import logging
+import signal
 import sys
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
+from types import FrameType
 
 import rovlink
 from rovlink.client import Client, ClientError, ConnectionLostError, Sensors
@@ -148,6 +152,24 @@ def stop_robot(rov: Client) -> None:
         print("motors off and locked", flush=True)
 
 
+def take_termination_as_ctrl_c() -> None:
+    """Have SIGTERM (``kill``, ``systemctl stop``) and SIGHUP (the terminal or the SSH session
+    closed) end the program as Ctrl-C does: through the ``finally`` that sends ``#stop!``.
+
+    Python's default for both ends the process at once, running no ``finally``: the robot would
+    keep its last command until the controller's link-loss failsafe stopped it. A signal ignored
+    on entry (``nohup``) stays ignored.
+    """
+
+    def as_ctrl_c(signum: int, frame: FrameType | None) -> None:
+        raise KeyboardInterrupt(signal.Signals(signum).name)
+
+    for name in ("SIGTERM", "SIGHUP"):  # (Windows has no SIGHUP)
+        signum = getattr(signal, name, None)
+        if signum is not None and signal.getsignal(signum) is signal.SIG_DFL:
+            signal.signal(signum, as_ctrl_c)
+
+
 def parse_arguments(argv: Sequence[str] | None) -> argparse.Namespace:
     """The command line: the URL (default ``sim://``) and the dive's numbers."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -215,4 +237,5 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
+    take_termination_as_ctrl_c()
     sys.exit(main())

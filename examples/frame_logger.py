@@ -6,7 +6,8 @@ answered, and what the session decided itself (``local``: a failed query, a susp
 expired motion). :class:`FrameLog` writes each as one JSON object per line with its time, so a
 team can add it to any program (``on_event=FrameLog(file)``) and read the log with ``jq`` or
 pandas. The session it logs here is short: read the sensors, unlock, move ahead for a while
-(renewing the command), lock.
+(renewing the command), lock; Ctrl-C, SIGTERM (``kill``, ``systemctl stop``) and SIGHUP (the
+terminal or the SSH session closed) lock it too.
 
 Run it::
 
@@ -31,10 +32,12 @@ import dataclasses
 import enum
 import json
 import logging
+import signal
 import sys
 import time
 from collections.abc import Sequence
 from datetime import datetime, timezone
+from types import FrameType
 from typing import IO
 
 import rovlink
@@ -129,6 +132,24 @@ def open_output(path: str) -> IO[str]:
     return open(path, "w", encoding="utf-8")
 
 
+def take_termination_as_ctrl_c() -> None:
+    """Have SIGTERM (``kill``, ``systemctl stop``) and SIGHUP (the terminal or the SSH session
+    closed) end the program as Ctrl-C does: through the ``finally`` that sends ``#stop!``.
+
+    Python's default for both ends the process at once, running no ``finally``: the robot would
+    keep its last command until the controller's link-loss failsafe stopped it. A signal ignored
+    on entry (``nohup``) stays ignored.
+    """
+
+    def as_ctrl_c(signum: int, frame: FrameType | None) -> None:
+        raise KeyboardInterrupt(signal.Signals(signum).name)
+
+    for name in ("SIGTERM", "SIGHUP"):  # (Windows has no SIGHUP)
+        signum = getattr(signal, name, None)
+        if signum is not None and signal.getsignal(signum) is signal.SIG_DFL:
+            signal.signal(signum, as_ctrl_c)
+
+
 def parse_arguments(argv: Sequence[str] | None) -> argparse.Namespace:
     """The command line: the URL (default ``sim://``), the output and the time moving."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -153,7 +174,8 @@ def parse_arguments(argv: Sequence[str] | None) -> argparse.Namespace:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Log the session; exit status 0, or 1 if the link or the log failed, 130 after Ctrl-C."""
+    """Log the session; exit status 0, or 1 if the link or the log failed, 130 after Ctrl-C,
+    SIGTERM or SIGHUP."""
     args = parse_arguments(argv)
     logging.basicConfig(
         level=logging.INFO if args.verbose else logging.WARNING,
@@ -185,4 +207,5 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
+    take_termination_as_ctrl_c()
     sys.exit(main())

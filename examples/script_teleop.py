@@ -11,7 +11,8 @@ lists them), checked by ``rovlink.client.parse_command_text`` before anything is
 The dead-man is the client's ``motion_timeout`` (``--deadman``, 1 s by default): a thrust the
 program does not renew within it is zeroed by the client, so a typed ``th 0 40`` moves the robot
 for one second and a script or a person that stops sending stops the robot. Queries print their
-replies. At the end of the input, on an error and on Ctrl-C the robot gets ``#stop!``.
+replies. At the end of the input, on an error, on Ctrl-C, on SIGTERM (``kill``, ``systemctl
+stop``) and on SIGHUP (the terminal or the SSH session closed) the robot gets ``#stop!``.
 
 A script file (``--script``) is checked whole before the robot is touched, so a mistake on
 line 12 is reported before line 1 moves anything; typed lines are checked one by one (a wrong
@@ -24,7 +25,7 @@ Run it::
     printf 'start\\nmvd 50\\nwait 5\\nth 0 40 for 3\\nqsa\\n' | python examples/script_teleop.py
 
 Exit status: 0 at the end of the input, 1 on a driver error, 2 for a script with mistakes,
-130 after Ctrl-C.
+130 after Ctrl-C, SIGTERM or SIGHUP.
 """
 
 from __future__ import annotations
@@ -32,10 +33,12 @@ from __future__ import annotations
 import argparse
 import logging
 import re
+import signal
 import sys
 import time
 from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass
+from types import FrameType
 
 import rovlink
 from rovlink.client import (
@@ -186,6 +189,24 @@ def teleoperate(url: str, steps: Iterable[Step], deadman_s: float) -> None:
                 print("motors off and locked", flush=True)
 
 
+def take_termination_as_ctrl_c() -> None:
+    """Have SIGTERM (``kill``, ``systemctl stop``) and SIGHUP (the terminal or the SSH session
+    closed) end the program as Ctrl-C does: through the ``finally`` that sends ``#stop!``.
+
+    Python's default for both ends the process at once, running no ``finally``: the robot would
+    keep its last command until the controller's link-loss failsafe stopped it. A signal ignored
+    on entry (``nohup``) stays ignored.
+    """
+
+    def as_ctrl_c(signum: int, frame: FrameType | None) -> None:
+        raise KeyboardInterrupt(signal.Signals(signum).name)
+
+    for name in ("SIGTERM", "SIGHUP"):  # (Windows has no SIGHUP)
+        signum = getattr(signal, name, None)
+        if signum is not None and signal.getsignal(signum) is signal.SIG_DFL:
+            signal.signal(signum, as_ctrl_c)
+
+
 def parse_arguments(argv: Sequence[str] | None) -> argparse.Namespace:
     """The command line: the URL (default ``sim://``), the script and the dead-man time."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -241,4 +262,5 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
+    take_termination_as_ctrl_c()
     sys.exit(main())

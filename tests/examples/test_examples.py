@@ -16,6 +16,7 @@ import doctest
 import importlib.util
 import io
 import json
+import os
 import queue
 import re
 import signal
@@ -37,6 +38,7 @@ from rovlink.sim.robot import load_sim_config
 from rovlink.sim.server import SimServer
 from tests.client.conftest import CONDITION_TIMEOUT_S, wait_until
 from tests.examples import kept_sim
+from tests.terminals import Terminal
 
 ROOT = Path(__file__).resolve().parents[2]
 EXAMPLES = ROOT / "examples"
@@ -388,6 +390,118 @@ def test_dive_and_hold_stops_the_robot_on_ctrl_c_over_a_serial_line(
 ) -> None:
     arguments = ["--depth", "30", "--hold", "60", "--interval", "0.05"]
     stops_the_robot_on_ctrl_c(pty_sim, "dive_and_hold", arguments, "holding")
+
+
+def signal_when(
+    command: list[str],
+    server: SimServer,
+    moving: Callable[[ControllerState], bool],
+    signum: signal.Signals,
+) -> tuple[int, str]:
+    """Run ``command``, send it ``signum`` once the controller's state is ``moving``; its exit
+    status and everything it printed."""
+    process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    try:
+        controller = server.robot.controller
+        assert wait_until(lambda: moving(controller.state()) or process.poll() is not None)
+        assert process.poll() is None, process.communicate()[0]
+        process.send_signal(signum)
+        out, _ = process.communicate(timeout=CONDITION_TIMEOUT_S)
+    finally:
+        process.kill()
+        process.wait()
+    return process.returncode, out
+
+
+def assert_stopped(server: SimServer) -> None:
+    """The robot is locked, with no thrust and no depth asked for."""
+    state = server.robot.controller.state()
+    assert state.locked
+    assert state.power_percent == 0
+    assert state.vertical_thrust_percent == 0
+    assert state.target_depth_cm is None
+
+
+#: A script that drives ahead until stopped, for script_teleop.py.
+DRIVING_SCRIPT = "start\nth 0 40 for 60\n"
+
+#: Each example that moves the robot: its arguments after the URL ("SCRIPT" for a file holding
+#: DRIVING_SCRIPT), and when it is moving.
+MOVING: dict[str, tuple[list[str], Callable[[ControllerState], bool]]] = {
+    "dive_and_hold": (
+        ["--depth", "30", "--hold", "60", "--interval", "0.05"],
+        lambda state: not state.locked and state.target_depth_cm == 30,
+    ),
+    "async_telemetry_and_control": (
+        ["--depth", "20", "--leg", "60", "--rate", "20"],
+        lambda state: state.power_percent == 30,
+    ),
+    "frame_logger": (
+        ["--duration", "60", "--output", os.devnull],
+        lambda state: state.power_percent == 20,
+    ),
+    "script_teleop": (["--script", "SCRIPT"], lambda state: state.power_percent == 40),
+}
+
+
+def moving_arguments(name: str, tmp_path: Path) -> list[str]:
+    """The arguments of ``MOVING[name]``, with its script written out."""
+    script = tmp_path / "drive.txt"
+    script.write_text(DRIVING_SCRIPT)
+    return [str(script) if word == "SCRIPT" else word for word in MOVING[name][0]]
+
+
+@pytest.mark.integration
+@pytest.mark.parametrize("name", sorted(MOVING))
+def test_every_example_that_moves_stops_the_robot_on_sigterm(
+    pty_sim: tuple[SimServer, str], name: str, tmp_path: Path
+) -> None:
+    # kill, systemctl stop: by Python's default the process ends at once, running no finally,
+    # and the robot drives on until the controller's own failsafe (off here) stops it.
+    server, path = pty_sim
+    command = script_command(name, path, *moving_arguments(name, tmp_path))
+    status, out = signal_when(command, server, MOVING[name][1], signal.SIGTERM)
+    assert status == 130, out
+    assert out.endswith("interrupted\n") or name == "frame_logger", out
+    assert_stopped(server)
+
+
+@pytest.mark.integration
+@pytest.mark.parametrize("name", ["dive_and_hold", "async_telemetry_and_control"])
+def test_every_example_that_moves_stops_the_robot_when_its_terminal_closes(
+    pty_sim: tuple[SimServer, str], name: str, tmp_path: Path
+) -> None:
+    # An SSH session dropped: the kernel sends SIGHUP, and the terminal fails every write.
+    server, path = pty_sim
+    terminal = Terminal(path, *moving_arguments(name, tmp_path), script=EXAMPLES / f"{name}.py")
+    try:
+        controller = server.robot.controller
+        assert wait_until(lambda: MOVING[name][1](controller.state()))
+        terminal.hang_up()
+        terminal.process.wait(timeout=CONDITION_TIMEOUT_S)
+        assert terminal.process.returncode != -signal.SIGHUP
+    finally:
+        terminal.close()
+    assert_stopped(server)
+
+
+@pytest.mark.integration
+def test_script_teleop_stops_the_robot_when_the_terminal_it_is_typed_on_closes(
+    pty_sim: tuple[SimServer, str],
+) -> None:
+    server, path = pty_sim
+    terminal = Terminal(path, script=EXAMPLES / "script_teleop.py")
+    try:
+        assert terminal.wait_shown(b"dead-man 1 s")
+        terminal.type(DRIVING_SCRIPT)
+        controller = server.robot.controller
+        assert wait_until(lambda: controller.state().power_percent == 40)
+        terminal.hang_up()
+        terminal.process.wait(timeout=CONDITION_TIMEOUT_S)
+        assert terminal.process.returncode != -signal.SIGHUP
+    finally:
+        terminal.close()
+    assert_stopped(server)
 
 
 # -- async_telemetry_and_control.py -------------------------------------------------------------
