@@ -41,6 +41,7 @@ from dataclasses import dataclass
 
 import rovlink.aio
 from rovlink.aio import AsyncClient, ClientError, ConnectionLostError, Sensors
+from rovlink.client import parse_url
 
 log = logging.getLogger("async_telemetry_and_control")
 
@@ -244,6 +245,10 @@ def parse_arguments(argv: Sequence[str] | None) -> argparse.Namespace:
     )
     parser.add_argument("-v", "--verbose", action="store_true", help="show the driver's log")
     args = parser.parse_args(argv)
+    try:
+        parse_url(args.url)  # as connect checks it: a typo is a usage error, not a traceback
+    except ValueError as error:
+        parser.error(str(error))
     if not 0 <= args.depth <= 9999:
         parser.error(f"--depth must be in 0–9999 cm, got {args.depth}")
     if not 0 <= args.power <= 100:

@@ -41,7 +41,7 @@ from types import FrameType
 from typing import IO
 
 import rovlink
-from rovlink.client import ClientError, ClientEvent, ConnectionLostError
+from rovlink.client import ClientError, ClientEvent, ConnectionLostError, parse_url
 from rovlink.protocol import Command, Response
 
 log = logging.getLogger("frame_logger")
@@ -168,6 +168,10 @@ def parse_arguments(argv: Sequence[str] | None) -> argparse.Namespace:
     )
     parser.add_argument("-v", "--verbose", action="store_true", help="show the driver's log")
     args = parser.parse_args(argv)
+    try:
+        parse_url(args.url)  # as connect checks it: a typo is a usage error, not a traceback
+    except ValueError as error:
+        parser.error(str(error))
     if args.duration < 0:
         parser.error(f"--duration must not be negative, got {args.duration:g}")
     return args

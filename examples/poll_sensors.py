@@ -25,7 +25,14 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import rovlink
-from rovlink.client import Client, ConnectError, ConnectionLostError, QueryTimeoutError, Sensors
+from rovlink.client import (
+    Client,
+    ConnectError,
+    ConnectionLostError,
+    QueryTimeoutError,
+    Sensors,
+    parse_url,
+)
 
 log = logging.getLogger("poll_sensors")
 
@@ -94,6 +101,10 @@ def parse_arguments(argv: Sequence[str] | None) -> argparse.Namespace:
     )
     parser.add_argument("-v", "--verbose", action="store_true", help="show the driver's log")
     args = parser.parse_args(argv)
+    try:
+        parse_url(args.url)  # as connect checks it: a typo is a usage error, not a traceback
+    except ValueError as error:
+        parser.error(str(error))
     if not 0 < args.rate <= 100:
         parser.error(f"--rate must be in (0, 100] readings a second, got {args.rate:g}")
     if args.duration is not None and args.duration < 0:

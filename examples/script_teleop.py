@@ -47,6 +47,7 @@ from rovlink.client import (
     ClientEvent,
     ConnectionLostError,
     parse_command_text,
+    parse_url,
 )
 from rovlink.client.events import MotionExpired
 from rovlink.protocol import Command
@@ -225,6 +226,10 @@ def parse_arguments(argv: Sequence[str] | None) -> argparse.Namespace:
     )
     parser.add_argument("-v", "--verbose", action="store_true", help="show the driver's log")
     args = parser.parse_args(argv)
+    try:
+        parse_url(args.url)  # as connect checks it: a typo is a usage error, not a traceback
+    except ValueError as error:
+        parser.error(str(error))
     if not 0.05 <= args.deadman <= 10:
         parser.error(f"--deadman must be in 0.05–10 s, got {args.deadman:g}")
     return args

@@ -240,6 +240,26 @@ def test_every_example_docstring_example_holds(name: str) -> None:
     assert results.failed == 0
 
 
+@pytest.mark.parametrize("name", example_names())
+@pytest.mark.parametrize(
+    ("url", "said"),
+    [
+        ("sim://?speed=2", "unknown sim option 'speed'"),
+        ("/dev/ttyUSB0?baud=9600", "a serial device takes only ?baudrate=, not baud"),
+    ],
+)
+def test_every_example_refuses_a_bad_url_as_a_usage_error(
+    name: str, url: str, said: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # (It was a traceback of the ValueError raised by connect.)
+    with pytest.raises(SystemExit) as exit_info:
+        load_example(name).main([url])
+    assert exit_info.value.code == 2
+    err = capsys.readouterr().err
+    assert err.startswith("usage: ")
+    assert f"error: {url!r}: {said}" in err.splitlines()[-1]
+
+
 # -- poll_sensors.py -----------------------------------------------------------------------------
 
 
