@@ -3,7 +3,8 @@
 Shows the shape of a mission script on the blocking client: refuse to start with the leak
 latch set; unlock (``#start!``), leave direct-thrust mode and give the controller a target depth
 (``#mvd.<cm>!``: its own PID holds it, so nothing expires while the script only watches); watch
-the sensors until the depth has settled within a tolerance, with a deadline; hold it; surface
+the sensors until the depth has settled within a tolerance, with a deadline; hold it, watching
+that it stays there (a controller that reset or stopped the motors comes back locked); surface
 (``#mvd.0!``); lock (``#stop!``). A leak at any point aborts the dive and surfaces at once. The
 ``#stop!`` is in a ``finally``, so an error, a lost reply or Ctrl-C still ends with the motors
 off and locked (and leaving the ``with`` block by an exception sends one too); so do SIGTERM
@@ -16,8 +17,8 @@ Run it::
     python examples/dive_and_hold.py /dev/ttyUSB0 --depth 50 --hold 30
     python examples/dive_and_hold.py 'sim://?leak_at=3'               # a leak during the dive
 
-Exit status: 0 when the dive was completed, 1 when it was aborted (a leak, a depth not reached,
-an error), 130 after Ctrl-C, SIGTERM or SIGHUP.
+Exit status: 0 when the dive was completed, 1 when it was aborted (a leak, a depth not reached
+or lost, an error), 130 after Ctrl-C, SIGTERM or SIGHUP.
 """
 
 from __future__ import annotations
@@ -46,6 +47,12 @@ class LeakDetectedError(Exception):
 
 class DepthNotReachedError(Exception):
     """The depth did not settle within the deadline: the dive goes no further."""
+
+
+class DepthLostError(Exception):
+    """The depth left the tolerance while holding: the controller reset (it comes back locked)
+    or stopped the motors (its link-loss failsafe, a leak), a thruster failed. The dive goes no
+    further."""
 
 
 @dataclass(frozen=True)
@@ -93,10 +100,21 @@ def wait_for_depth(rov: Client, target_cm: int, plan: DivePlan, *, check_leak: b
 
 
 def hold(rov: Client, plan: DivePlan) -> None:
-    """Watch the sensors for ``plan.hold_s`` while the controller holds the depth."""
+    """Watch the sensors for ``plan.hold_s`` while the controller holds the depth.
+
+    :class:`DepthLostError` when the depth has left the tolerance for ``SETTLED_READINGS``
+    readings in a row: nothing else would tell (the controller answers queries as before).
+    """
     deadline = time.monotonic() + plan.hold_s
+    off_depth = 0
     while True:
-        read_sensors(rov)
+        depth_cm = read_sensors(rov).depth_cm
+        off_depth = off_depth + 1 if abs(depth_cm - plan.depth_cm) > plan.tolerance_cm else 0
+        if off_depth >= SETTLED_READINGS:
+            raise DepthLostError(
+                f"lost the depth while holding {plan.depth_cm} ± {plan.tolerance_cm} cm: at "
+                f"{depth_cm} cm for {off_depth} readings (did the controller reset or stop?)"
+            )
         remaining_s = deadline - time.monotonic()
         if remaining_s <= 0:
             return
@@ -135,7 +153,7 @@ def dive(rov: Client, plan: DivePlan) -> None:
         print(f"LEAK: {error}; aborting the dive", flush=True)
         surface(rov, plan)
         raise
-    except DepthNotReachedError:
+    except (DepthNotReachedError, DepthLostError):
         surface(rov, plan)  # never stay at a depth nobody chose
         raise
     surface(rov, plan)
@@ -227,7 +245,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                 dive(rov, plan)
             finally:
                 stop_robot(rov)
-    except (LeakDetectedError, DepthNotReachedError) as error:
+    except (LeakDetectedError, DepthNotReachedError, DepthLostError) as error:
         print(f"dive aborted: {error}", flush=True)
         return 1
     except (ClientError, TimeoutError, ConnectionError) as error:

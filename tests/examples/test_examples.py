@@ -350,6 +350,38 @@ def test_dive_and_hold_does_not_start_with_the_leak_latch_set(
     sim.assert_stopped_and_locked()
 
 
+def test_dive_and_hold_aborts_when_the_controller_resets_while_it_holds(
+    sim: KeptSim, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # A reset (a brown-out, the board's own watchdog) or a failsafe of the controller locks the
+    # motors and the hull floats up: the hold must notice, not report the dive completed.
+    example = load_example("dive_and_hold")
+    hold = example.hold
+
+    def reset_then_hold(rov: object, plan: object) -> None:
+        port = sim.port()
+        with port.lock:
+            port.controller.reset()
+        hold(rov, plan)
+
+    monkeypatch.setattr(example, "hold", reset_then_hold)
+    status, out = run_example(
+        "dive_and_hold", sim.url, "--depth", "60", "--hold", "30", "--reach-timeout", "10",
+        "--interval", "0.05",
+        capsys=capsys,
+    )  # fmt: skip
+    assert status == 1, out
+    assert "dive completed" not in out
+    after_hold = out.split("holding")[1]
+    assert "surfacing" in after_hold
+    assert re.search(
+        r"motors off and locked\ndive aborted: lost the depth while holding 60 ± 10 cm: at \d+ cm "
+        r"for 3 readings \(did the controller reset or stop\?\)\n$",
+        out,
+    ), out
+    sim.assert_stopped_and_locked()
+
+
 def test_dive_and_hold_stops_the_robot_when_interrupted(
     sim: KeptSim, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
 ) -> None:
