@@ -18,10 +18,14 @@ Run it::
 A line looks like::
 
     {"t_s": 0.0213, "utc": "2026-01-05T10:31:07.123456+00:00", "direction": "out",
-     "event": "BytesSent", "data": "#qsa!", "command": "#qsa!", "by_session": false}
+     "event": "BytesSent", "data": "#qsa!", "command": "#qsa!", "by_session": false,
+     "retry": false}
 
 ``t_s`` is the session's clock, in seconds since the first event (for intervals); ``utc`` is the
-wall clock when the hook ran (to line the log up with other records).
+wall clock when the hook ran (to line the log up with other records). What answered no query
+(``"event": "Unsolicited"``) is under ``unsolicited``: ``{"type": "Text", "text": …}`` for
+debug text or noise, ``{"type": "BadFrame", "reason": …, "raw": …, "detail": …}`` for a dropped
+frame, ``{"type": "Frame", …}`` for a stray one.
 """
 
 from __future__ import annotations
@@ -42,12 +46,16 @@ from typing import IO
 
 import rovlink
 from rovlink.client import ClientError, ClientEvent, ConnectionLostError, parse_url
-from rovlink.protocol import Command, Response
+from rovlink.protocol import BadFrame, Command, Frame, Response, Text
 
 log = logging.getLogger("frame_logger")
 
 #: Seconds between two ``move`` commands while moving: well within ``motion_timeout`` (2 s).
 RENEW_INTERVAL_S = 0.5
+
+#: An event's field written under another name: ``Unsolicited.event`` (what answered no query)
+#: would overwrite the line's own ``event``.
+FIELD_KEYS = {"event": "unsolicited"}
 
 
 def jsonable(value: object) -> object:
@@ -60,9 +68,12 @@ def jsonable(value: object) -> object:
         return value.name.lower()
     if isinstance(value, (tuple, list)):
         return [jsonable(item) for item in value]
+    if isinstance(value, (Text, BadFrame, Frame)):  # debug text, line noise, a dropped frame
+        fields = {name: jsonable(getattr(value, name)) for name in type(value).__match_args__}
+        return {"type": type(value).__name__, **fields}
     if value is None or isinstance(value, (bool, int, float, str)):
         return value
-    return repr(value)  # debug text, line noise, a dropped frame: the protocol's Event
+    return repr(value)
 
 
 class FrameLog:
@@ -94,7 +105,9 @@ class FrameLog:
         }
         for field in dataclasses.fields(event):
             if field.name != "at_s":
-                record[field.name] = jsonable(getattr(event, field.name))
+                record[FIELD_KEYS.get(field.name, field.name)] = jsonable(
+                    getattr(event, field.name)
+                )
         try:
             self.stream.write(json.dumps(record, ensure_ascii=False) + "\n")
             self.stream.flush()

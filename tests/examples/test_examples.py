@@ -666,6 +666,33 @@ def test_frame_logger_writes_every_event_both_ways_as_json_lines(
     sim.assert_stopped_and_locked()
 
 
+def test_frame_logger_keeps_the_event_name_of_what_answered_no_query() -> None:
+    # Unsolicited's own field is named "event": it overwrote the line's event name with a repr.
+    from rovlink.client.events import Unsolicited
+    from rovlink.protocol import BadFrame, Frame, Reason, Response, Text
+
+    stream = io.StringIO()
+    frame_log = load_example("frame_logger").FrameLog(stream)
+    for what in (
+        Text("debug: max PWM 200 (was 255)"),
+        BadFrame(Reason.MALFORMED, b"$qr\x0e", "byte 0x0e inside a frame"),
+        Frame(Response("qd", (12,)), b"$qd.12!"),
+    ):
+        frame_log(Unsolicited(1.5, what))
+    records = [json.loads(line) for line in stream.getvalue().splitlines()]
+    assert [record["event"] for record in records] == ["Unsolicited"] * 3
+    assert [record["unsolicited"] for record in records] == [
+        {"type": "Text", "text": "debug: max PWM 200 (was 255)"},
+        {
+            "type": "BadFrame",
+            "reason": "malformed",
+            "raw": "$qr\x0e",
+            "detail": "byte 0x0e inside a frame",
+        },
+        {"type": "Frame", "message": "$qd.12!", "raw": "$qd.12!"},
+    ]
+
+
 @pytest.mark.skipif(not Path("/dev/full").exists(), reason="needs /dev/full (Linux)")
 def test_frame_logger_stops_the_log_not_the_session_when_the_output_fails(
     sim: KeptSim, capsys: pytest.CaptureFixture[str], caplog: pytest.LogCaptureFixture
