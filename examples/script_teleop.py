@@ -1,12 +1,17 @@
 """Drive the robot from typed lines or a script file, with the motion timeout as the dead-man.
 
 Shows teleoperation without a gamepad: each line is a command as ``rovlink send`` reads it
-(``start``, ``th 90 30``, ``mvs -20``, ``mvd 100``, ``qsa``, ``stop``; ``rovlink reference``
-lists them), checked by ``rovlink.client.parse_command_text`` before anything is sent, plus:
+(``start``, ``th 90 30``, ``mvd 100``, ``mvdirect 1`` then ``mvs -20``, ``qsa``, ``stop``;
+``rovlink reference`` lists them), checked by ``rovlink.client.parse_command_text`` before
+anything is sent, plus:
 
 * ``wait SECONDS`` — pause the script;
 * ``COMMAND for SECONDS`` — a thrust command (``th``, ``mvs``) renewed for that long, then
   zeroed: ``th 0 40 for 3`` drives ahead for three seconds.
+
+The controller acts on motion only once unlocked (``start``), and on ``mvs`` only in direct
+mode (``mvdirect 1``; ``mvdirect 0`` hands the vertical thrusters back to the depth hold,
+``mvd``): anything else it drops without a word, as the protocol has no acknowledgements.
 
 The dead-man is the client's ``motion_timeout`` (``--deadman``, 1 s by default): a thrust the
 program does not renew within it is zeroed by the client, so a typed ``th 0 40`` moves the robot

@@ -756,6 +756,20 @@ def test_script_teleop_runs_a_script_with_the_dead_man(
     sim.assert_stopped_and_locked()
 
 
+def test_script_teleop_drives_the_vertical_thrusters_as_its_docstring_says(
+    sim: KeptSim, capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
+    # mvs acts in direct mode only: the docstring once showed it alone, and it did nothing.
+    assert "``mvdirect 1`` then ``mvs -20``" in load_example("script_teleop").__doc__
+    thrusting = sim.when(lambda port: port.controller.state().vertical_thrust_percent == -20)
+    script = tmp_path / "down.txt"
+    script.write_text("start\nmvdirect 1\nmvs -20 for 0.5\n")
+    status, out = run_example("script_teleop", sim.url, "--script", str(script), capsys=capsys)
+    assert status == 0, out
+    assert thrusting.wait(CONDITION_TIMEOUT_S)
+    sim.assert_stopped_and_locked()
+
+
 def test_script_teleop_checks_a_whole_script_before_sending_anything(
     sim: KeptSim, capsys: pytest.CaptureFixture[str], tmp_path: Path
 ) -> None:
