@@ -3,7 +3,8 @@
 Shows the asyncio client (``rovlink.aio.connect``) as a top-level program uses it:
 
 * a telemetry task reads every sensor at a fixed rate (``rov.telemetry(rate_hz)``), prints each
-  reading and shares the latest with the other tasks; a leak ends the run;
+  reading and shares the latest with the other tasks; a leak ends the run, and so does the
+  depth lost while the pilot holds it (a controller that reset or stopped comes back locked);
 * a pilot task unlocks, dives with the controller's depth hold, drives a square (renewing each
   ``move`` well within ``motion_timeout``, so a pilot that hangs lets the client zero the
   thrust), surfaces and locks;
@@ -48,6 +49,9 @@ log = logging.getLogger("async_telemetry_and_control")
 #: The square: (name, direction clockwise from the bow in degrees).
 LEGS = (("ahead", 0), ("starboard", 90), ("astern", 180), ("port", 270))
 
+#: Readings in a row outside the tolerance that count as the depth lost (one could be a wave).
+OFF_DEPTH_READINGS = 3
+
 
 class RunAbortedError(Exception):
     """The run ended before the pattern was completed: a leak, stale telemetry, the deadline."""
@@ -75,6 +79,8 @@ class Telemetry:
     def __init__(self) -> None:
         self.latest: Sensors | None = None
         self.received_at = asyncio.get_running_loop().time()
+        #: The depth the pilot holds, cm, once there (None: diving or surfacing).
+        self.holding_cm: int | None = None
         self._changed = asyncio.Condition()
 
     async def update(self, reading: Sensors) -> None:
@@ -93,7 +99,9 @@ class Telemetry:
 
 
 async def stream_telemetry(rov: AsyncClient, plan: Plan, telemetry: Telemetry) -> None:
-    """Print every reading and share it; a leak raises :class:`RunAbortedError`."""
+    """Print every reading and share it; a leak, or the depth the pilot holds lost for
+    ``OFF_DEPTH_READINGS`` readings, raises :class:`RunAbortedError`."""
+    off_depth = 0
     async for reading in rov.telemetry(plan.rate_hz):
         print(
             f"telemetry: depth {reading.depth_cm:4d} cm  heading {reading.heading_deg:3d}°  "
@@ -103,6 +111,15 @@ async def stream_telemetry(rov: AsyncClient, plan: Plan, telemetry: Telemetry) -
         await telemetry.update(reading)
         if reading.leak_detected:
             raise RunAbortedError(f"the leak sensor fired at {reading.depth_cm} cm")
+        target_cm = telemetry.holding_cm
+        off = target_cm is not None and abs(reading.depth_cm - target_cm) > plan.tolerance_cm
+        off_depth = off_depth + 1 if off else 0
+        if off_depth >= OFF_DEPTH_READINGS:
+            raise RunAbortedError(
+                f"lost the depth while holding {target_cm} ± {plan.tolerance_cm} cm: at "
+                f"{reading.depth_cm} cm for {off_depth} readings "
+                "(did the controller reset or stop?)"
+            )
     # (telemetry() ends only by raising: a lost connection is a ConnectionLostError.)
 
 
@@ -120,6 +137,7 @@ async def drive_pattern(rov: AsyncClient, plan: Plan, telemetry: Telemetry) -> N
     await rov.hold_depth(plan.depth_cm)
     depth_cm = await at_depth(telemetry, plan.depth_cm, plan.tolerance_cm)
     print(f"pilot: at {depth_cm} cm", flush=True)
+    telemetry.holding_cm = plan.depth_cm
     loop = asyncio.get_running_loop()
     renew_every_s = plan.motion_timeout_s / 4
     for name, direction_deg in LEGS:
@@ -131,6 +149,7 @@ async def drive_pattern(rov: AsyncClient, plan: Plan, telemetry: Telemetry) -> N
             await rov.move(direction_deg, plan.power_percent)
             await asyncio.sleep(min(renew_every_s, max(leg_ends_at - loop.time(), 0.0)))
     await rov.move(0, 0)
+    telemetry.holding_cm = None
     print("pilot: surfacing", flush=True)
     await rov.hold_depth(0)
     depth_cm = await at_depth(telemetry, 0, plan.tolerance_cm)

@@ -624,6 +624,28 @@ def test_async_telemetry_and_control_ends_on_a_leak(
     sim.assert_stopped_and_locked()
 
 
+def test_async_telemetry_and_control_ends_when_the_controller_resets_while_it_drives(
+    sim: KeptSim, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # The controller comes back locked and the hull floats up: the run must not say completed.
+    reset = sim.when(
+        lambda port: port.controller.state().power_percent == 30,
+        lambda port: port.controller.reset(),
+    )
+    status, out = run_example(
+        "async_telemetry_and_control", sim.url, "--depth", "60", "--leg", "0.5", "--rate", "50",
+        capsys=capsys,
+    )  # fmt: skip
+    assert reset.is_set()
+    assert status == 1, out
+    assert re.search(
+        r"motors off and locked\nrun aborted: lost the depth while holding 60 ± 10 cm: at \d+ cm "
+        r"for 3 readings \(did the controller reset or stop\?\)\n$",
+        out,
+    ), out
+    sim.assert_stopped_and_locked()
+
+
 def test_async_telemetry_and_control_watchdog_ends_on_stale_telemetry() -> None:
     import asyncio
 
