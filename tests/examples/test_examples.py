@@ -7,7 +7,8 @@ controller's state once the example has closed its client. The simulation runs a
 CPU allows, so a dive takes a fraction of a second; its link-loss watchdog counts simulated
 seconds, which pass far faster than the examples' wall-clock polling, so it is off — and so a
 locked robot at the end is the example's doing, not the failsafe's. A few tests run an example
-as a script, in a process of its own, as a user does (Ctrl-C included).
+as a script, in a process of its own, as a user does (Ctrl-C, SIGTERM and a terminal that closes
+included).
 """
 
 from __future__ import annotations
@@ -31,8 +32,10 @@ from typing import Any
 
 import pytest
 
+from rovlink.client.events import Unsolicited
 from rovlink.client.schemes import register_scheme, unregister_scheme
 from rovlink.controller.controller import ControllerState
+from rovlink.protocol import BadFrame, Frame, Reason, Response, Text
 from rovlink.sim.port import SimulatedPort
 from rovlink.sim.robot import load_sim_config
 from rovlink.sim.server import SimServer
@@ -690,9 +693,6 @@ def test_frame_logger_writes_every_event_both_ways_as_json_lines(
 
 def test_frame_logger_keeps_the_event_name_of_what_answered_no_query() -> None:
     # Unsolicited's own field is named "event": it overwrote the line's event name with a repr.
-    from rovlink.client.events import Unsolicited
-    from rovlink.protocol import BadFrame, Frame, Reason, Response, Text
-
     stream = io.StringIO()
     frame_log = load_example("frame_logger").FrameLog(stream)
     for what in (
