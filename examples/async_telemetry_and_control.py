@@ -15,9 +15,9 @@ The first task to end decides: the pilot finishing is success, anything else can
 Cancellation is safe: the client's command methods never wait, so a task cancelled between two
 commands leaves nothing half-sent; the ``finally`` sends ``#stop!`` however the run ended, and
 leaving ``async with`` by an exception (a cancellation included) sends one too. Ctrl-C, SIGTERM
-(``kill``, ``systemctl stop``) and SIGHUP (the terminal or the SSH session closed) cancel the
-run that way. It runs on Python 3.10 (no ``TaskGroup`` or ``asyncio.timeout``: ``asyncio.wait``
-does the same here).
+(``kill``, ``systemctl stop``), SIGHUP (the terminal or the SSH session closed) and SIGQUIT
+(Ctrl-\\) cancel the run that way. It runs on Python 3.10 (no ``TaskGroup`` or
+``asyncio.timeout``: ``asyncio.wait`` does the same here).
 
 Run it::
 
@@ -26,7 +26,7 @@ Run it::
     python examples/async_telemetry_and_control.py 'sim://?leak_at=4'  # a leak ends the run
 
 Exit status: 0 when the pattern was completed, 1 when the run was aborted, 130 after Ctrl-C,
-SIGTERM or SIGHUP.
+SIGTERM, SIGHUP or SIGQUIT.
 """
 
 from __future__ import annotations
@@ -200,15 +200,16 @@ async def run(rov: AsyncClient, plan: Plan) -> None:
 
 
 def cancel_on_termination(task: asyncio.Task[None]) -> None:
-    """Have SIGTERM (``kill``, ``systemctl stop``) and SIGHUP (the terminal or the SSH session
-    closed) cancel ``task`` as Ctrl-C does, so that its ``finally`` sends ``#stop!``.
+    """Have SIGTERM (``kill``, ``systemctl stop``), SIGHUP (the terminal or the SSH session
+    closed) and SIGQUIT (Ctrl-\\) cancel ``task`` as Ctrl-C does, so that its ``finally`` sends
+    ``#stop!``.
 
-    Python's default for both ends the process at once, running no ``finally``: the robot would
+    Python's default for each ends the process at once, running no ``finally``: the robot would
     keep its last command until the controller's link-loss failsafe stopped it. A signal ignored
     on entry (``nohup``) stays ignored; the handlers go with the event loop.
     """
     loop = asyncio.get_running_loop()
-    for name in ("SIGTERM", "SIGHUP"):  # (Windows has no SIGHUP)
+    for name in ("SIGTERM", "SIGHUP", "SIGQUIT"):  # (Windows has neither of the last two)
         signum = getattr(signal, name, None)
         if signum is not None and signal.getsignal(signum) is signal.SIG_DFL:
             with contextlib.suppress(NotImplementedError):  # (Windows' loops take no signals)
@@ -301,7 +302,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     except (ClientError, TimeoutError, ConnectionError) as error:
         log.error("run aborted: %s", error)
         return 1
-    except (KeyboardInterrupt, asyncio.CancelledError):  # Ctrl-C; SIGTERM, SIGHUP
+    except (KeyboardInterrupt, asyncio.CancelledError):  # Ctrl-C; SIGTERM, SIGHUP, SIGQUIT
         print("interrupted", flush=True)
         return 130
     print("pattern completed", flush=True)

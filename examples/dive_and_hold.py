@@ -8,8 +8,8 @@ that it stays there (a controller that reset or stopped the motors comes back lo
 (``#mvd.0!``); lock (``#stop!``). A leak at any point aborts the dive and surfaces at once. The
 ``#stop!`` is in a ``finally``, so an error, a lost reply or Ctrl-C still ends with the motors
 off and locked (and leaving the ``with`` block by an exception sends one too); so do SIGTERM
-(``kill``, ``systemctl stop``) and SIGHUP (the terminal or the SSH session closed), which it takes
-as Ctrl-C.
+(``kill``, ``systemctl stop``), SIGHUP (the terminal or the SSH session closed) and SIGQUIT
+(Ctrl-\\), which it takes as Ctrl-C.
 
 Run it::
 
@@ -18,7 +18,7 @@ Run it::
     python examples/dive_and_hold.py 'sim://?leak_at=3'               # a leak during the dive
 
 Exit status: 0 when the dive was completed, 1 when it was aborted (a leak, a depth not reached
-or lost, an error), 130 after Ctrl-C, SIGTERM or SIGHUP.
+or lost, an error), 130 after Ctrl-C, SIGTERM, SIGHUP or SIGQUIT.
 """
 
 from __future__ import annotations
@@ -171,10 +171,11 @@ def stop_robot(rov: Client) -> None:
 
 
 def take_termination_as_ctrl_c() -> None:
-    """Have SIGTERM (``kill``, ``systemctl stop``) and SIGHUP (the terminal or the SSH session
-    closed) end the program as Ctrl-C does: through the ``finally`` that sends ``#stop!``.
+    """Have SIGTERM (``kill``, ``systemctl stop``), SIGHUP (the terminal or the SSH session
+    closed) and SIGQUIT (Ctrl-\\) end the program as Ctrl-C does: through the ``finally`` that
+    sends ``#stop!``.
 
-    Python's default for both ends the process at once, running no ``finally``: the robot would
+    Python's default for each ends the process at once, running no ``finally``: the robot would
     keep its last command until the controller's link-loss failsafe stopped it. A signal ignored
     on entry (``nohup``) stays ignored.
     """
@@ -182,7 +183,7 @@ def take_termination_as_ctrl_c() -> None:
     def as_ctrl_c(signum: int, frame: FrameType | None) -> None:
         raise KeyboardInterrupt(signal.Signals(signum).name)
 
-    for name in ("SIGTERM", "SIGHUP"):  # (Windows has no SIGHUP)
+    for name in ("SIGTERM", "SIGHUP", "SIGQUIT"):  # (Windows has neither of the last two)
         signum = getattr(signal, name, None)
         if signum is not None and signal.getsignal(signum) is signal.SIG_DFL:
             signal.signal(signum, as_ctrl_c)

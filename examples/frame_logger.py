@@ -6,8 +6,8 @@ answered, and what the session decided itself (``local``: a failed query, a susp
 expired motion). :class:`FrameLog` writes each as one JSON object per line with its time, so a
 team can add it to any program (``on_event=FrameLog(file)``) and read the log with ``jq`` or
 pandas. The session it logs here is short: read the sensors, unlock, move ahead for a while
-(renewing the command), lock; Ctrl-C, SIGTERM (``kill``, ``systemctl stop``) and SIGHUP (the
-terminal or the SSH session closed) lock it too.
+(renewing the command), lock; Ctrl-C, SIGTERM (``kill``, ``systemctl stop``), SIGHUP (the
+terminal or the SSH session closed) and SIGQUIT (Ctrl-\\) lock it too.
 
 Run it::
 
@@ -146,10 +146,11 @@ def open_output(path: str) -> IO[str]:
 
 
 def take_termination_as_ctrl_c() -> None:
-    """Have SIGTERM (``kill``, ``systemctl stop``) and SIGHUP (the terminal or the SSH session
-    closed) end the program as Ctrl-C does: through the ``finally`` that sends ``#stop!``.
+    """Have SIGTERM (``kill``, ``systemctl stop``), SIGHUP (the terminal or the SSH session
+    closed) and SIGQUIT (Ctrl-\\) end the program as Ctrl-C does: through the ``finally`` that
+    sends ``#stop!``.
 
-    Python's default for both ends the process at once, running no ``finally``: the robot would
+    Python's default for each ends the process at once, running no ``finally``: the robot would
     keep its last command until the controller's link-loss failsafe stopped it. A signal ignored
     on entry (``nohup``) stays ignored.
     """
@@ -157,7 +158,7 @@ def take_termination_as_ctrl_c() -> None:
     def as_ctrl_c(signum: int, frame: FrameType | None) -> None:
         raise KeyboardInterrupt(signal.Signals(signum).name)
 
-    for name in ("SIGTERM", "SIGHUP"):  # (Windows has no SIGHUP)
+    for name in ("SIGTERM", "SIGHUP", "SIGQUIT"):  # (Windows has neither of the last two)
         signum = getattr(signal, name, None)
         if signum is not None and signal.getsignal(signum) is signal.SIG_DFL:
             signal.signal(signum, as_ctrl_c)
@@ -192,7 +193,7 @@ def parse_arguments(argv: Sequence[str] | None) -> argparse.Namespace:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Log the session; exit status 0, or 1 if the link or the log failed, 130 after Ctrl-C,
-    SIGTERM or SIGHUP."""
+    SIGTERM, SIGHUP or SIGQUIT."""
     args = parse_arguments(argv)
     logging.basicConfig(
         level=logging.INFO if args.verbose else logging.WARNING,

@@ -17,7 +17,8 @@ The dead-man is the client's ``motion_timeout`` (``--deadman``, 1 s by default):
 program does not renew within it is zeroed by the client, so a typed ``th 0 40`` moves the robot
 for one second and a script or a person that stops sending stops the robot. Queries print their
 replies. At the end of the input, on an error, on Ctrl-C, on SIGTERM (``kill``, ``systemctl
-stop``) and on SIGHUP (the terminal or the SSH session closed) the robot gets ``#stop!``.
+stop``), on SIGHUP (the terminal or the SSH session closed) and on SIGQUIT (Ctrl-\\) the robot
+gets ``#stop!``.
 
 A script file (``--script``) is checked whole before the robot is touched, so a mistake on
 line 12 is reported before line 1 moves anything; typed lines are checked one by one (a wrong
@@ -30,7 +31,7 @@ Run it::
     printf 'start\\nmvd 50\\nwait 5\\nth 0 40 for 3\\nqsa\\n' | python examples/script_teleop.py
 
 Exit status: 0 at the end of the input, 1 on a driver error, 2 for a script with mistakes,
-130 after Ctrl-C, SIGTERM or SIGHUP.
+130 after Ctrl-C, SIGTERM, SIGHUP or SIGQUIT.
 """
 
 from __future__ import annotations
@@ -196,10 +197,11 @@ def teleoperate(url: str, steps: Iterable[Step], deadman_s: float) -> None:
 
 
 def take_termination_as_ctrl_c() -> None:
-    """Have SIGTERM (``kill``, ``systemctl stop``) and SIGHUP (the terminal or the SSH session
-    closed) end the program as Ctrl-C does: through the ``finally`` that sends ``#stop!``.
+    """Have SIGTERM (``kill``, ``systemctl stop``), SIGHUP (the terminal or the SSH session
+    closed) and SIGQUIT (Ctrl-\\) end the program as Ctrl-C does: through the ``finally`` that
+    sends ``#stop!``.
 
-    Python's default for both ends the process at once, running no ``finally``: the robot would
+    Python's default for each ends the process at once, running no ``finally``: the robot would
     keep its last command until the controller's link-loss failsafe stopped it. A signal ignored
     on entry (``nohup``) stays ignored.
     """
@@ -207,7 +209,7 @@ def take_termination_as_ctrl_c() -> None:
     def as_ctrl_c(signum: int, frame: FrameType | None) -> None:
         raise KeyboardInterrupt(signal.Signals(signum).name)
 
-    for name in ("SIGTERM", "SIGHUP"):  # (Windows has no SIGHUP)
+    for name in ("SIGTERM", "SIGHUP", "SIGQUIT"):  # (Windows has neither of the last two)
         signum = getattr(signal, name, None)
         if signum is not None and signal.getsignal(signum) is signal.SIG_DFL:
             signal.signal(signum, as_ctrl_c)

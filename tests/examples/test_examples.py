@@ -13,6 +13,7 @@ included).
 
 from __future__ import annotations
 
+import contextlib
 import doctest
 import importlib.util
 import io
@@ -167,13 +168,14 @@ def script_command(name: str, *argv: str) -> list[str]:
     return [sys.executable, str(EXAMPLES / f"{name}.py"), *argv]
 
 
-@pytest.fixture
-def pty_sim(tmp_path: Path) -> Iterator[tuple[SimServer, str]]:
-    """A fast simulator without the link-loss watchdog on a real pseudo-terminal, served from a
-    thread of the test (so the test reads its state), and the terminal's path."""
-    config = tmp_path / "fast.toml"
+@contextlib.contextmanager
+def served_on_a_pty(tmp_path: Path, speed: float) -> Iterator[tuple[SimServer, str]]:
+    """A simulator without the link-loss watchdog on a real pseudo-terminal at ``speed`` (0: as
+    fast as the CPU allows), served from a thread of the test (so the test reads its state), and
+    the terminal's path."""
+    config = tmp_path / "no-watchdog.toml"
     config.write_text("[controller]\nwatchdog_s = 0\n")
-    server = SimServer(load_sim_config(config), seed=1, speed=0)
+    server = SimServer(load_sim_config(config), seed=1, speed=speed)
     path = server.open_pty()
     stopping = threading.Event()
     thread = threading.Thread(target=server.serve, args=(stopping.is_set,), daemon=True)
@@ -184,6 +186,21 @@ def pty_sim(tmp_path: Path) -> Iterator[tuple[SimServer, str]]:
         stopping.set()
         thread.join(timeout=CONDITION_TIMEOUT_S)
         server.close()
+
+
+@pytest.fixture
+def pty_sim(tmp_path: Path) -> Iterator[tuple[SimServer, str]]:
+    """A fast simulator on a pseudo-terminal (:func:`served_on_a_pty`): a dive takes no time."""
+    with served_on_a_pty(tmp_path, speed=0) as served:
+        yield served
+
+
+@pytest.fixture
+def realtime_pty_sim(tmp_path: Path) -> Iterator[tuple[SimServer, str]]:
+    """A simulator on a pseudo-terminal (:func:`served_on_a_pty`) in real time: it leaves the
+    CPU to the example between its ticks."""
+    with served_on_a_pty(tmp_path, speed=1) as served:
+        yield served
 
 
 def interrupt_when_printed(command: list[str], marker: str) -> tuple[int, str]:
@@ -487,8 +504,8 @@ MOVING: dict[str, tuple[list[str], Callable[[ControllerState], bool]]] = {
         ["--depth", "30", "--hold", "60", "--interval", "0.05"],
         lambda state: not state.locked and state.target_depth_cm == 30,
     ),
-    "async_telemetry_and_control": (
-        ["--depth", "20", "--leg", "60", "--rate", "20"],
+    "async_telemetry_and_control": (  # (at 5 cm from the start: within the tolerance)
+        ["--depth", "5", "--leg", "60", "--rate", "20"],
         lambda state: state.power_percent == 30,
     ),
     "frame_logger": (
@@ -507,15 +524,22 @@ def moving_arguments(name: str, tmp_path: Path) -> list[str]:
 
 
 @pytest.mark.integration
-@pytest.mark.parametrize("name", sorted(MOVING))
-def test_every_example_that_moves_stops_the_robot_on_sigterm(
-    pty_sim: tuple[SimServer, str], name: str, tmp_path: Path
+@pytest.mark.parametrize(
+    ("name", "signum"),
+    [
+        *((name, signal.SIGTERM) for name in sorted(MOVING)),
+        ("dive_and_hold", signal.SIGQUIT),
+        ("async_telemetry_and_control", signal.SIGQUIT),
+    ],
+)
+def test_every_example_that_moves_stops_the_robot_on_sigterm_and_sigquit(
+    realtime_pty_sim: tuple[SimServer, str], name: str, signum: signal.Signals, tmp_path: Path
 ) -> None:
-    # kill, systemctl stop: by Python's default the process ends at once, running no finally,
-    # and the robot drives on until the controller's own failsafe (off here) stops it.
-    server, path = pty_sim
+    # kill, systemctl stop, Ctrl-\: by Python's default the process ends at once, running no
+    # finally, and the robot drives on until the controller's own failsafe (off here) stops it.
+    server, path = realtime_pty_sim
     command = script_command(name, path, *moving_arguments(name, tmp_path))
-    status, out = signal_when(command, server, MOVING[name][1], signal.SIGTERM)
+    status, out = signal_when(command, server, MOVING[name][1], signum)
     assert status == 130, out
     assert out.endswith("interrupted\n") or name == "frame_logger", out
     assert_stopped(server)
@@ -524,10 +548,10 @@ def test_every_example_that_moves_stops_the_robot_on_sigterm(
 @pytest.mark.integration
 @pytest.mark.parametrize("name", ["dive_and_hold", "async_telemetry_and_control"])
 def test_every_example_that_moves_stops_the_robot_when_its_terminal_closes(
-    pty_sim: tuple[SimServer, str], name: str, tmp_path: Path
+    realtime_pty_sim: tuple[SimServer, str], name: str, tmp_path: Path
 ) -> None:
     # An SSH session dropped: the kernel sends SIGHUP, and the terminal fails every write.
-    server, path = pty_sim
+    server, path = realtime_pty_sim
     terminal = Terminal(path, *moving_arguments(name, tmp_path), script=EXAMPLES / f"{name}.py")
     try:
         controller = server.robot.controller
@@ -542,9 +566,9 @@ def test_every_example_that_moves_stops_the_robot_when_its_terminal_closes(
 
 @pytest.mark.integration
 def test_script_teleop_stops_the_robot_when_the_terminal_it_is_typed_on_closes(
-    pty_sim: tuple[SimServer, str],
+    realtime_pty_sim: tuple[SimServer, str],
 ) -> None:
-    server, path = pty_sim
+    server, path = realtime_pty_sim
     terminal = Terminal(path, script=EXAMPLES / "script_teleop.py")
     try:
         assert terminal.wait_shown(b"dead-man 1 s")
