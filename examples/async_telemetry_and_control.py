@@ -274,8 +274,9 @@ def parse_arguments(argv: Sequence[str] | None) -> argparse.Namespace:
     if not 0 <= args.power <= 100:
         parser.error(f"--power must be in 0–100 %, got {args.power}")
     for option in ("leg", "rate", "stale", "deadline"):
-        if getattr(args, option) <= 0:
-            parser.error(f"--{option} must be positive")
+        value = getattr(args, option)
+        if not value > 0:  # (written so that NaN fails too)
+            parser.error(f"--{option} must be positive, got {value:g}")
     return args
 
 

@@ -225,8 +225,9 @@ def parse_arguments(argv: Sequence[str] | None) -> argparse.Namespace:
     if not 0 <= args.depth <= 9999:
         parser.error(f"--depth must be in 0–9999 cm, got {args.depth}")
     for option in ("hold", "tolerance", "reach_timeout"):
-        if getattr(args, option) < 0:
-            parser.error(f"--{option.replace('_', '-')} must not be negative")
+        value = getattr(args, option)
+        if not value >= 0:  # (written so that NaN fails too: it would hold or wait for good)
+            parser.error(f"--{option.replace('_', '-')} must be 0 or more, got {value:g}")
     if not 0.01 <= args.interval <= 10:
         parser.error(f"--interval must be in 0.01–10 s, got {args.interval:g}")
     return args

@@ -186,7 +186,7 @@ def parse_arguments(argv: Sequence[str] | None) -> argparse.Namespace:
         parse_url(args.url)  # as connect checks it: a typo is a usage error, not a traceback
     except ValueError as error:
         parser.error(str(error))
-    if args.duration < 0:
+    if not args.duration >= 0:  # (NaN too)
         parser.error(f"--duration must not be negative, got {args.duration:g}")
     return args
 

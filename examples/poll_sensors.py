@@ -107,7 +107,7 @@ def parse_arguments(argv: Sequence[str] | None) -> argparse.Namespace:
         parser.error(str(error))
     if not 0 < args.rate <= 100:
         parser.error(f"--rate must be in (0, 100] readings a second, got {args.rate:g}")
-    if args.duration is not None and args.duration < 0:
+    if args.duration is not None and not args.duration >= 0:  # (NaN too)
         parser.error(f"--duration must not be negative, got {args.duration:g}")
     return args
 

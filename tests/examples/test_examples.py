@@ -280,6 +280,27 @@ def test_every_example_refuses_a_bad_url_as_a_usage_error(
     assert f"error: {url!r}: {said}" in err.splitlines()[-1]
 
 
+@pytest.mark.parametrize(
+    ("name", "option", "said"),
+    [
+        ("poll_sensors", "--duration", "--duration must not be negative, got nan"),
+        ("dive_and_hold", "--hold", "--hold must be 0 or more, got nan"),
+        ("dive_and_hold", "--reach-timeout", "--reach-timeout must be 0 or more, got nan"),
+        ("async_telemetry_and_control", "--leg", "--leg must be positive, got nan"),
+        ("async_telemetry_and_control", "--deadline", "--deadline must be positive, got nan"),
+        ("frame_logger", "--duration", "--duration must not be negative, got nan"),
+    ],
+)
+def test_every_example_refuses_a_number_of_seconds_that_is_not_a_number(
+    name: str, option: str, said: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # (argparse's float takes "nan": a hold that never ended, a deadline never reached.)
+    with pytest.raises(SystemExit) as exit_info:
+        load_example(name).parse_arguments([option, "nan"])
+    assert exit_info.value.code == 2
+    assert capsys.readouterr().err.splitlines()[-1].endswith(f"error: {said}")
+
+
 # -- poll_sensors.py -----------------------------------------------------------------------------
 
 
