@@ -216,12 +216,14 @@ def cancel_on_termination(task: asyncio.Task[None]) -> None:
                 loop.add_signal_handler(signum, task.cancel)
 
 
-async def run_and_stop(url: str, plan: Plan) -> None:
+async def run_and_stop(url: str, plan: Plan, *, checksum: bool = False) -> None:
     """Connect, run, and send ``#stop!`` however the run ends."""
     task = asyncio.current_task()
     assert task is not None
     cancel_on_termination(task)
-    async with rovlink.aio.connect(url, motion_timeout=plan.motion_timeout_s) as rov:
+    async with rovlink.aio.connect(
+        url, checksum=checksum, motion_timeout=plan.motion_timeout_s
+    ) as rov:
         try:
             await run(rov, plan)
         finally:
@@ -263,6 +265,11 @@ def parse_arguments(argv: Sequence[str] | None) -> argparse.Namespace:
         metavar="SECONDS",
         help="abort a run that takes longer (default: 120)",
     )
+    parser.add_argument(
+        "--checksum",
+        action="store_true",
+        help="checksum mode (CRC-8): a frame a noisy line damaged is dropped, never acted on",
+    )
     parser.add_argument("-v", "--verbose", action="store_true", help="show the driver's log")
     args = parser.parse_args(argv)
     try:
@@ -296,7 +303,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         deadline_s=args.deadline,
     )
     try:
-        asyncio.run(run_and_stop(args.url, plan))
+        asyncio.run(run_and_stop(args.url, plan, checksum=args.checksum))
     except RunAbortedError as error:
         print(f"run aborted: {error}", flush=True)
         return 1

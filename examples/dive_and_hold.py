@@ -216,6 +216,11 @@ def parse_arguments(argv: Sequence[str] | None) -> argparse.Namespace:
         metavar="SECONDS",
         help="between two readings of the sensors (default: 0.2)",
     )
+    parser.add_argument(
+        "--checksum",
+        action="store_true",
+        help="checksum mode (CRC-8): a frame a noisy line damaged is dropped, never acted on",
+    )
     parser.add_argument("-v", "--verbose", action="store_true", help="show the driver's log")
     args = parser.parse_args(argv)
     try:
@@ -242,7 +247,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     )
     plan = DivePlan(args.depth, args.hold, args.tolerance, args.reach_timeout, args.interval)
     try:
-        with rovlink.connect(args.url) as rov:
+        with rovlink.connect(args.url, checksum=args.checksum) as rov:
             try:
                 dive(rov, plan)
             finally:

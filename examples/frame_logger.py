@@ -118,9 +118,9 @@ class FrameLog:
             self.lines += 1
 
 
-def short_session(url: str, frame_log: FrameLog, move_s: float) -> None:
+def short_session(url: str, frame_log: FrameLog, move_s: float, *, checksum: bool = False) -> None:
     """Read the sensors, unlock, move ahead for ``move_s`` seconds, lock; every event logged."""
-    with rovlink.connect(url, on_event=frame_log) as rov:
+    with rovlink.connect(url, checksum=checksum, on_event=frame_log) as rov:
         try:
             reading = rov.sensors()
             log.info("depth %d cm, heading %d°", reading.depth_cm, reading.heading_deg)
@@ -180,6 +180,11 @@ def parse_arguments(argv: Sequence[str] | None) -> argparse.Namespace:
         metavar="SECONDS",
         help="time moving ahead at 20 %% (default: 1)",
     )
+    parser.add_argument(
+        "--checksum",
+        action="store_true",
+        help="checksum mode (CRC-8): a frame a noisy line damaged is dropped, never acted on",
+    )
     parser.add_argument("-v", "--verbose", action="store_true", help="show the driver's log")
     args = parser.parse_args(argv)
     try:
@@ -206,7 +211,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 1
     frame_log = FrameLog(stream)
     try:
-        short_session(args.url, frame_log, args.duration)
+        short_session(args.url, frame_log, args.duration, checksum=args.checksum)
     except (ClientError, TimeoutError, ConnectionError) as error:  # the link, a query
         log.error("session aborted: %s", error)
         return 1

@@ -99,6 +99,11 @@ def parse_arguments(argv: Sequence[str] | None) -> argparse.Namespace:
         metavar="SECONDS",
         help="stop after this long (default: run until Ctrl-C)",
     )
+    parser.add_argument(
+        "--checksum",
+        action="store_true",
+        help="checksum mode (CRC-8): a frame a noisy line damaged is dropped, never acted on",
+    )
     parser.add_argument("-v", "--verbose", action="store_true", help="show the driver's log")
     args = parser.parse_args(argv)
     try:
@@ -121,7 +126,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     )
     counts = PollCounts()
     try:
-        with rovlink.connect(args.url) as rov:
+        with rovlink.connect(args.url, checksum=args.checksum) as rov:
             print(f"connected to {rov.description}; Ctrl-C stops", flush=True)
             try:
                 poll(rov, args.rate, args.duration, counts)

@@ -179,9 +179,13 @@ def report_dead_man(event: ClientEvent) -> None:
         print(f"dead-man: no thrust command renewed in time, sent {frames}", flush=True)
 
 
-def teleoperate(url: str, steps: Iterable[Step], deadman_s: float) -> None:
+def teleoperate(
+    url: str, steps: Iterable[Step], deadman_s: float, *, checksum: bool = False
+) -> None:
     """Connect and run the steps; ``#stop!`` at the end however it ends."""
-    with rovlink.connect(url, motion_timeout=deadman_s, on_event=report_dead_man) as rov:
+    with rovlink.connect(
+        url, checksum=checksum, motion_timeout=deadman_s, on_event=report_dead_man
+    ) as rov:
         print(f"connected to {rov.description}; dead-man {deadman_s:g} s", flush=True)
         try:
             for step in steps:
@@ -231,6 +235,11 @@ def parse_arguments(argv: Sequence[str] | None) -> argparse.Namespace:
         metavar="SECONDS",
         help="zero a thrust not renewed for this long (default: 1)",
     )
+    parser.add_argument(
+        "--checksum",
+        action="store_true",
+        help="checksum mode (CRC-8): a frame a noisy line damaged is dropped, never acted on",
+    )
     parser.add_argument("-v", "--verbose", action="store_true", help="show the driver's log")
     args = parser.parse_args(argv)
     try:
@@ -263,7 +272,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     else:
         steps = typed_steps(sys.stdin)
     try:
-        teleoperate(args.url, steps, args.deadman)
+        teleoperate(args.url, steps, args.deadman, checksum=args.checksum)
     except (ClientError, TimeoutError, ConnectionError) as error:
         log.error("%s", error)
         return 1

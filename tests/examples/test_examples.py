@@ -301,6 +301,31 @@ def test_every_example_refuses_a_number_of_seconds_that_is_not_a_number(
     assert capsys.readouterr().err.splitlines()[-1].endswith(f"error: {said}")
 
 
+#: A short run of each example, its arguments after the URL ("SCRIPT": a file of two lines).
+SHORT_RUNS: dict[str, list[str]] = {
+    "poll_sensors": ["--duration", "0.05", "--rate", "50"],
+    "dive_and_hold": ["--depth", "20", "--hold", "0", "--interval", "0.05"],
+    "async_telemetry_and_control": ["--depth", "5", "--leg", "0.05", "--rate", "50"],
+    "frame_logger": ["--duration", "0", "--output", os.devnull],
+    "script_teleop": ["--script", "SCRIPT"],
+}
+
+
+@pytest.mark.parametrize("name", example_names())
+def test_every_example_runs_in_checksum_mode_when_asked(
+    name: str, sim: KeptSim, capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
+    # On a noisy tether a bit error can turn #mvd.100! into #mvd.900!: with --checksum the
+    # controller drops it instead.
+    script = tmp_path / "short.txt"
+    script.write_text("start\nqd\n")
+    arguments = [str(script) if word == "SCRIPT" else word for word in SHORT_RUNS[name]]
+    status, out = run_example(name, sim.url, "--checksum", *arguments, capsys=capsys)
+    assert status == 0, out
+    assert sim.state().checksum_enabled
+    sim.assert_stopped_and_locked()
+
+
 # -- poll_sensors.py -----------------------------------------------------------------------------
 
 
