@@ -3,7 +3,8 @@
 Shows the asyncio client (``rovlink.aio.connect``) as a top-level program uses it:
 
 * a telemetry task reads every sensor at a fixed rate (``rov.telemetry(rate_hz)``), prints each
-  reading and shares the latest with the other tasks; a leak ends the run;
+  reading and shares the latest with the other tasks; a leak ends the run, and so does the
+  depth lost while the pilot holds it (a controller that reset or stopped comes back locked);
 * a pilot task unlocks, dives with the controller's depth hold, drives a square (renewing each
   ``move`` well within ``motion_timeout``, so a pilot that hangs lets the client zero the
   thrust), surfaces and locks;
@@ -13,8 +14,10 @@ Shows the asyncio client (``rovlink.aio.connect``) as a top-level program uses i
 The first task to end decides: the pilot finishing is success, anything else cancels the others.
 Cancellation is safe: the client's command methods never wait, so a task cancelled between two
 commands leaves nothing half-sent; the ``finally`` sends ``#stop!`` however the run ended, and
-leaving ``async with`` by an exception (a cancellation included) sends one too. It runs on
-Python 3.10 (no ``TaskGroup`` or ``asyncio.timeout``: ``asyncio.wait`` does the same here).
+leaving ``async with`` by an exception (a cancellation included) sends one too. Ctrl-C, SIGTERM
+(``kill``, ``systemctl stop``), SIGHUP (the terminal or the SSH session closed) and SIGQUIT
+(Ctrl-\\) cancel the run that way. It runs on Python 3.10 (no ``TaskGroup`` or
+``asyncio.timeout``: ``asyncio.wait`` does the same here).
 
 Run it::
 
@@ -22,25 +25,32 @@ Run it::
     python examples/async_telemetry_and_control.py /dev/ttyUSB0 --depth 50 --power 20
     python examples/async_telemetry_and_control.py 'sim://?leak_at=4'  # a leak ends the run
 
-Exit status: 0 when the pattern was completed, 1 when the run was aborted, 130 after Ctrl-C.
+Exit status: 0 when the pattern was completed, 1 when the run was aborted, 130 after Ctrl-C,
+SIGTERM, SIGHUP or SIGQUIT.
 """
 
 from __future__ import annotations
 
 import argparse
 import asyncio
+import contextlib
 import logging
+import signal
 import sys
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import rovlink.aio
 from rovlink.aio import AsyncClient, ClientError, ConnectionLostError, Sensors
+from rovlink.client import parse_url
 
 log = logging.getLogger("async_telemetry_and_control")
 
 #: The square: (name, direction clockwise from the bow in degrees).
 LEGS = (("ahead", 0), ("starboard", 90), ("astern", 180), ("port", 270))
+
+#: Readings in a row outside the tolerance that count as the depth lost (one could be a wave).
+OFF_DEPTH_READINGS = 3
 
 
 class RunAbortedError(Exception):
@@ -69,6 +79,8 @@ class Telemetry:
     def __init__(self) -> None:
         self.latest: Sensors | None = None
         self.received_at = asyncio.get_running_loop().time()
+        #: The depth the pilot holds, cm, once there (None: diving or surfacing).
+        self.holding_cm: int | None = None
         self._changed = asyncio.Condition()
 
     async def update(self, reading: Sensors) -> None:
@@ -87,7 +99,9 @@ class Telemetry:
 
 
 async def stream_telemetry(rov: AsyncClient, plan: Plan, telemetry: Telemetry) -> None:
-    """Print every reading and share it; a leak raises :class:`RunAbortedError`."""
+    """Print every reading and share it; a leak, or the depth the pilot holds lost for
+    ``OFF_DEPTH_READINGS`` readings, raises :class:`RunAbortedError`."""
+    off_depth = 0
     async for reading in rov.telemetry(plan.rate_hz):
         print(
             f"telemetry: depth {reading.depth_cm:4d} cm  heading {reading.heading_deg:3d}°  "
@@ -97,6 +111,15 @@ async def stream_telemetry(rov: AsyncClient, plan: Plan, telemetry: Telemetry) -
         await telemetry.update(reading)
         if reading.leak_detected:
             raise RunAbortedError(f"the leak sensor fired at {reading.depth_cm} cm")
+        target_cm = telemetry.holding_cm
+        off = target_cm is not None and abs(reading.depth_cm - target_cm) > plan.tolerance_cm
+        off_depth = off_depth + 1 if off else 0
+        if off_depth >= OFF_DEPTH_READINGS:
+            raise RunAbortedError(
+                f"lost the depth while holding {target_cm} ± {plan.tolerance_cm} cm: at "
+                f"{reading.depth_cm} cm for {off_depth} readings "
+                "(did the controller reset or stop?)"
+            )
     # (telemetry() ends only by raising: a lost connection is a ConnectionLostError.)
 
 
@@ -114,6 +137,7 @@ async def drive_pattern(rov: AsyncClient, plan: Plan, telemetry: Telemetry) -> N
     await rov.hold_depth(plan.depth_cm)
     depth_cm = await at_depth(telemetry, plan.depth_cm, plan.tolerance_cm)
     print(f"pilot: at {depth_cm} cm", flush=True)
+    telemetry.holding_cm = plan.depth_cm
     loop = asyncio.get_running_loop()
     renew_every_s = plan.motion_timeout_s / 4
     for name, direction_deg in LEGS:
@@ -125,6 +149,7 @@ async def drive_pattern(rov: AsyncClient, plan: Plan, telemetry: Telemetry) -> N
             await rov.move(direction_deg, plan.power_percent)
             await asyncio.sleep(min(renew_every_s, max(leg_ends_at - loop.time(), 0.0)))
     await rov.move(0, 0)
+    telemetry.holding_cm = None
     print("pilot: surfacing", flush=True)
     await rov.hold_depth(0)
     depth_cm = await at_depth(telemetry, 0, plan.tolerance_cm)
@@ -174,9 +199,31 @@ async def run(rov: AsyncClient, plan: Plan) -> None:
         raise RunAbortedError(f"the {ended} task ended on its own")
 
 
-async def run_and_stop(url: str, plan: Plan) -> None:
+def cancel_on_termination(task: asyncio.Task[None]) -> None:
+    """Have SIGTERM (``kill``, ``systemctl stop``), SIGHUP (the terminal or the SSH session
+    closed) and SIGQUIT (Ctrl-\\) cancel ``task`` as Ctrl-C does, so that its ``finally`` sends
+    ``#stop!``.
+
+    Python's default for each ends the process at once, running no ``finally``: the robot would
+    keep its last command until the controller's link-loss failsafe stopped it. A signal ignored
+    on entry (``nohup``) stays ignored; the handlers go with the event loop.
+    """
+    loop = asyncio.get_running_loop()
+    for name in ("SIGTERM", "SIGHUP", "SIGQUIT"):  # (Windows has neither of the last two)
+        signum = getattr(signal, name, None)
+        if signum is not None and signal.getsignal(signum) is signal.SIG_DFL:
+            with contextlib.suppress(NotImplementedError):  # (Windows' loops take no signals)
+                loop.add_signal_handler(signum, task.cancel)
+
+
+async def run_and_stop(url: str, plan: Plan, *, checksum: bool = False) -> None:
     """Connect, run, and send ``#stop!`` however the run ends."""
-    async with rovlink.aio.connect(url, motion_timeout=plan.motion_timeout_s) as rov:
+    task = asyncio.current_task()
+    assert task is not None
+    cancel_on_termination(task)
+    async with rovlink.aio.connect(
+        url, checksum=checksum, motion_timeout=plan.motion_timeout_s
+    ) as rov:
         try:
             await run(rov, plan)
         finally:
@@ -218,15 +265,25 @@ def parse_arguments(argv: Sequence[str] | None) -> argparse.Namespace:
         metavar="SECONDS",
         help="abort a run that takes longer (default: 120)",
     )
+    parser.add_argument(
+        "--checksum",
+        action="store_true",
+        help="checksum mode (CRC-8): a frame a noisy line damaged is dropped, never acted on",
+    )
     parser.add_argument("-v", "--verbose", action="store_true", help="show the driver's log")
     args = parser.parse_args(argv)
+    try:
+        parse_url(args.url)  # as connect checks it: a typo is a usage error, not a traceback
+    except ValueError as error:
+        parser.error(str(error))
     if not 0 <= args.depth <= 9999:
         parser.error(f"--depth must be in 0–9999 cm, got {args.depth}")
     if not 0 <= args.power <= 100:
         parser.error(f"--power must be in 0–100 %, got {args.power}")
     for option in ("leg", "rate", "stale", "deadline"):
-        if getattr(args, option) <= 0:
-            parser.error(f"--{option} must be positive")
+        value = getattr(args, option)
+        if not value > 0:  # (written so that NaN fails too)
+            parser.error(f"--{option} must be positive, got {value:g}")
     return args
 
 
@@ -246,14 +303,14 @@ def main(argv: Sequence[str] | None = None) -> int:
         deadline_s=args.deadline,
     )
     try:
-        asyncio.run(run_and_stop(args.url, plan))
+        asyncio.run(run_and_stop(args.url, plan, checksum=args.checksum))
     except RunAbortedError as error:
         print(f"run aborted: {error}", flush=True)
         return 1
     except (ClientError, TimeoutError, ConnectionError) as error:
         log.error("run aborted: %s", error)
         return 1
-    except KeyboardInterrupt:
+    except (KeyboardInterrupt, asyncio.CancelledError):  # Ctrl-C; SIGTERM, SIGHUP, SIGQUIT
         print("interrupted", flush=True)
         return 130
     print("pattern completed", flush=True)

@@ -3,10 +3,13 @@
 Shows the shape of a mission script on the blocking client: refuse to start with the leak
 latch set; unlock (``#start!``), leave direct-thrust mode and give the controller a target depth
 (``#mvd.<cm>!``: its own PID holds it, so nothing expires while the script only watches); watch
-the sensors until the depth has settled within a tolerance, with a deadline; hold it; surface
+the sensors until the depth has settled within a tolerance, with a deadline; hold it, watching
+that it stays there (a controller that reset or stopped the motors comes back locked); surface
 (``#mvd.0!``); lock (``#stop!``). A leak at any point aborts the dive and surfaces at once. The
 ``#stop!`` is in a ``finally``, so an error, a lost reply or Ctrl-C still ends with the motors
-off and locked (and leaving the ``with`` block by an exception sends one too).
+off and locked (and leaving the ``with`` block by an exception sends one too); so do SIGTERM
+(``kill``, ``systemctl stop``), SIGHUP (the terminal or the SSH session closed) and SIGQUIT
+(Ctrl-\\), which it takes as Ctrl-C.
 
 Run it::
 
@@ -14,21 +17,23 @@ Run it::
     python examples/dive_and_hold.py /dev/ttyUSB0 --depth 50 --hold 30
     python examples/dive_and_hold.py 'sim://?leak_at=3'               # a leak during the dive
 
-Exit status: 0 when the dive was completed, 1 when it was aborted (a leak, a depth not reached,
-an error), 130 after Ctrl-C.
+Exit status: 0 when the dive was completed, 1 when it was aborted (a leak, a depth not reached
+or lost, an error), 130 after Ctrl-C, SIGTERM, SIGHUP or SIGQUIT.
 """
 
 from __future__ import annotations
 
 import argparse
 import logging
+import signal
 import sys
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
+from types import FrameType
 
 import rovlink
-from rovlink.client import Client, ClientError, ConnectionLostError, Sensors
+from rovlink.client import Client, ClientError, ConnectionLostError, Sensors, parse_url
 
 log = logging.getLogger("dive_and_hold")
 
@@ -42,6 +47,12 @@ class LeakDetectedError(Exception):
 
 class DepthNotReachedError(Exception):
     """The depth did not settle within the deadline: the dive goes no further."""
+
+
+class DepthLostError(Exception):
+    """The depth left the tolerance while holding: the controller reset (it comes back locked)
+    or stopped the motors (its link-loss failsafe, a leak), a thruster failed. The dive goes no
+    further."""
 
 
 @dataclass(frozen=True)
@@ -89,10 +100,21 @@ def wait_for_depth(rov: Client, target_cm: int, plan: DivePlan, *, check_leak: b
 
 
 def hold(rov: Client, plan: DivePlan) -> None:
-    """Watch the sensors for ``plan.hold_s`` while the controller holds the depth."""
+    """Watch the sensors for ``plan.hold_s`` while the controller holds the depth.
+
+    :class:`DepthLostError` when the depth has left the tolerance for ``SETTLED_READINGS``
+    readings in a row: nothing else would tell (the controller answers queries as before).
+    """
     deadline = time.monotonic() + plan.hold_s
+    off_depth = 0
     while True:
-        read_sensors(rov)
+        depth_cm = read_sensors(rov).depth_cm
+        off_depth = off_depth + 1 if abs(depth_cm - plan.depth_cm) > plan.tolerance_cm else 0
+        if off_depth >= SETTLED_READINGS:
+            raise DepthLostError(
+                f"lost the depth while holding {plan.depth_cm} ± {plan.tolerance_cm} cm: at "
+                f"{depth_cm} cm for {off_depth} readings (did the controller reset or stop?)"
+            )
         remaining_s = deadline - time.monotonic()
         if remaining_s <= 0:
             return
@@ -131,7 +153,7 @@ def dive(rov: Client, plan: DivePlan) -> None:
         print(f"LEAK: {error}; aborting the dive", flush=True)
         surface(rov, plan)
         raise
-    except DepthNotReachedError:
+    except (DepthNotReachedError, DepthLostError):
         surface(rov, plan)  # never stay at a depth nobody chose
         raise
     surface(rov, plan)
@@ -146,6 +168,25 @@ def stop_robot(rov: Client) -> None:
         log.error("could not send #stop!: %s", error)
     else:
         print("motors off and locked", flush=True)
+
+
+def take_termination_as_ctrl_c() -> None:
+    """Have SIGTERM (``kill``, ``systemctl stop``), SIGHUP (the terminal or the SSH session
+    closed) and SIGQUIT (Ctrl-\\) end the program as Ctrl-C does: through the ``finally`` that
+    sends ``#stop!``.
+
+    Python's default for each ends the process at once, running no ``finally``: the robot would
+    keep its last command until the controller's link-loss failsafe stopped it. A signal ignored
+    on entry (``nohup``) stays ignored.
+    """
+
+    def as_ctrl_c(signum: int, frame: FrameType | None) -> None:
+        raise KeyboardInterrupt(signal.Signals(signum).name)
+
+    for name in ("SIGTERM", "SIGHUP", "SIGQUIT"):  # (Windows has neither of the last two)
+        signum = getattr(signal, name, None)
+        if signum is not None and signal.getsignal(signum) is signal.SIG_DFL:
+            signal.signal(signum, as_ctrl_c)
 
 
 def parse_arguments(argv: Sequence[str] | None) -> argparse.Namespace:
@@ -175,13 +216,23 @@ def parse_arguments(argv: Sequence[str] | None) -> argparse.Namespace:
         metavar="SECONDS",
         help="between two readings of the sensors (default: 0.2)",
     )
+    parser.add_argument(
+        "--checksum",
+        action="store_true",
+        help="checksum mode (CRC-8): a frame a noisy line damaged is dropped, never acted on",
+    )
     parser.add_argument("-v", "--verbose", action="store_true", help="show the driver's log")
     args = parser.parse_args(argv)
+    try:
+        parse_url(args.url)  # as connect checks it: a typo is a usage error, not a traceback
+    except ValueError as error:
+        parser.error(str(error))
     if not 0 <= args.depth <= 9999:
         parser.error(f"--depth must be in 0–9999 cm, got {args.depth}")
     for option in ("hold", "tolerance", "reach_timeout"):
-        if getattr(args, option) < 0:
-            parser.error(f"--{option.replace('_', '-')} must not be negative")
+        value = getattr(args, option)
+        if not value >= 0:  # (written so that NaN fails too: it would hold or wait for good)
+            parser.error(f"--{option.replace('_', '-')} must be 0 or more, got {value:g}")
     if not 0.01 <= args.interval <= 10:
         parser.error(f"--interval must be in 0.01–10 s, got {args.interval:g}")
     return args
@@ -196,12 +247,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     )
     plan = DivePlan(args.depth, args.hold, args.tolerance, args.reach_timeout, args.interval)
     try:
-        with rovlink.connect(args.url) as rov:
+        with rovlink.connect(args.url, checksum=args.checksum) as rov:
             try:
                 dive(rov, plan)
             finally:
                 stop_robot(rov)
-    except (LeakDetectedError, DepthNotReachedError) as error:
+    except (LeakDetectedError, DepthNotReachedError, DepthLostError) as error:
         print(f"dive aborted: {error}", flush=True)
         return 1
     except (ClientError, TimeoutError, ConnectionError) as error:
@@ -215,4 +266,5 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
+    take_termination_as_ctrl_c()
     sys.exit(main())

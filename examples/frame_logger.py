@@ -6,7 +6,8 @@ answered, and what the session decided itself (``local``: a failed query, a susp
 expired motion). :class:`FrameLog` writes each as one JSON object per line with its time, so a
 team can add it to any program (``on_event=FrameLog(file)``) and read the log with ``jq`` or
 pandas. The session it logs here is short: read the sensors, unlock, move ahead for a while
-(renewing the command), lock.
+(renewing the command), lock; Ctrl-C, SIGTERM (``kill``, ``systemctl stop``), SIGHUP (the
+terminal or the SSH session closed) and SIGQUIT (Ctrl-\\) lock it too.
 
 Run it::
 
@@ -17,10 +18,14 @@ Run it::
 A line looks like::
 
     {"t_s": 0.0213, "utc": "2026-01-05T10:31:07.123456+00:00", "direction": "out",
-     "event": "BytesSent", "data": "#qsa!", "command": "#qsa!", "by_session": false}
+     "event": "BytesSent", "data": "#qsa!", "command": "#qsa!", "by_session": false,
+     "retry": false}
 
 ``t_s`` is the session's clock, in seconds since the first event (for intervals); ``utc`` is the
-wall clock when the hook ran (to line the log up with other records).
+wall clock when the hook ran (to line the log up with other records). What answered no query
+(``"event": "Unsolicited"``) is under ``unsolicited``: ``{"type": "Text", "text": …}`` for
+debug text or noise, ``{"type": "BadFrame", "reason": …, "raw": …, "detail": …}`` for a dropped
+frame, ``{"type": "Frame", …}`` for a stray one.
 """
 
 from __future__ import annotations
@@ -31,20 +36,26 @@ import dataclasses
 import enum
 import json
 import logging
+import signal
 import sys
 import time
 from collections.abc import Sequence
 from datetime import datetime, timezone
+from types import FrameType
 from typing import IO
 
 import rovlink
-from rovlink.client import ClientError, ClientEvent, ConnectionLostError
-from rovlink.protocol import Command, Response
+from rovlink.client import ClientError, ClientEvent, ConnectionLostError, parse_url
+from rovlink.protocol import BadFrame, Command, Frame, Response, Text
 
 log = logging.getLogger("frame_logger")
 
 #: Seconds between two ``move`` commands while moving: well within ``motion_timeout`` (2 s).
 RENEW_INTERVAL_S = 0.5
+
+#: An event's field written under another name: ``Unsolicited.event`` (what answered no query)
+#: would overwrite the line's own ``event``.
+FIELD_KEYS = {"event": "unsolicited"}
 
 
 def jsonable(value: object) -> object:
@@ -57,9 +68,12 @@ def jsonable(value: object) -> object:
         return value.name.lower()
     if isinstance(value, (tuple, list)):
         return [jsonable(item) for item in value]
+    if isinstance(value, (Text, BadFrame, Frame)):  # debug text, line noise, a dropped frame
+        fields = {name: jsonable(getattr(value, name)) for name in type(value).__match_args__}
+        return {"type": type(value).__name__, **fields}
     if value is None or isinstance(value, (bool, int, float, str)):
         return value
-    return repr(value)  # debug text, line noise, a dropped frame: the protocol's Event
+    return repr(value)
 
 
 class FrameLog:
@@ -91,7 +105,9 @@ class FrameLog:
         }
         for field in dataclasses.fields(event):
             if field.name != "at_s":
-                record[field.name] = jsonable(getattr(event, field.name))
+                record[FIELD_KEYS.get(field.name, field.name)] = jsonable(
+                    getattr(event, field.name)
+                )
         try:
             self.stream.write(json.dumps(record, ensure_ascii=False) + "\n")
             self.stream.flush()
@@ -102,9 +118,9 @@ class FrameLog:
             self.lines += 1
 
 
-def short_session(url: str, frame_log: FrameLog, move_s: float) -> None:
+def short_session(url: str, frame_log: FrameLog, move_s: float, *, checksum: bool = False) -> None:
     """Read the sensors, unlock, move ahead for ``move_s`` seconds, lock; every event logged."""
-    with rovlink.connect(url, on_event=frame_log) as rov:
+    with rovlink.connect(url, checksum=checksum, on_event=frame_log) as rov:
         try:
             reading = rov.sensors()
             log.info("depth %d cm, heading %d°", reading.depth_cm, reading.heading_deg)
@@ -129,6 +145,25 @@ def open_output(path: str) -> IO[str]:
     return open(path, "w", encoding="utf-8")
 
 
+def take_termination_as_ctrl_c() -> None:
+    """Have SIGTERM (``kill``, ``systemctl stop``), SIGHUP (the terminal or the SSH session
+    closed) and SIGQUIT (Ctrl-\\) end the program as Ctrl-C does: through the ``finally`` that
+    sends ``#stop!``.
+
+    Python's default for each ends the process at once, running no ``finally``: the robot would
+    keep its last command until the controller's link-loss failsafe stopped it. A signal ignored
+    on entry (``nohup``) stays ignored.
+    """
+
+    def as_ctrl_c(signum: int, frame: FrameType | None) -> None:
+        raise KeyboardInterrupt(signal.Signals(signum).name)
+
+    for name in ("SIGTERM", "SIGHUP", "SIGQUIT"):  # (Windows has neither of the last two)
+        signum = getattr(signal, name, None)
+        if signum is not None and signal.getsignal(signum) is signal.SIG_DFL:
+            signal.signal(signum, as_ctrl_c)
+
+
 def parse_arguments(argv: Sequence[str] | None) -> argparse.Namespace:
     """The command line: the URL (default ``sim://``), the output and the time moving."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -145,15 +180,25 @@ def parse_arguments(argv: Sequence[str] | None) -> argparse.Namespace:
         metavar="SECONDS",
         help="time moving ahead at 20 %% (default: 1)",
     )
+    parser.add_argument(
+        "--checksum",
+        action="store_true",
+        help="checksum mode (CRC-8): a frame a noisy line damaged is dropped, never acted on",
+    )
     parser.add_argument("-v", "--verbose", action="store_true", help="show the driver's log")
     args = parser.parse_args(argv)
-    if args.duration < 0:
+    try:
+        parse_url(args.url)  # as connect checks it: a typo is a usage error, not a traceback
+    except ValueError as error:
+        parser.error(str(error))
+    if not args.duration >= 0:  # (NaN too)
         parser.error(f"--duration must not be negative, got {args.duration:g}")
     return args
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Log the session; exit status 0, or 1 if the link or the log failed, 130 after Ctrl-C."""
+    """Log the session; exit status 0, or 1 if the link or the log failed, 130 after Ctrl-C,
+    SIGTERM, SIGHUP or SIGQUIT."""
     args = parse_arguments(argv)
     logging.basicConfig(
         level=logging.INFO if args.verbose else logging.WARNING,
@@ -166,7 +211,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 1
     frame_log = FrameLog(stream)
     try:
-        short_session(args.url, frame_log, args.duration)
+        short_session(args.url, frame_log, args.duration, checksum=args.checksum)
     except (ClientError, TimeoutError, ConnectionError) as error:  # the link, a query
         log.error("session aborted: %s", error)
         return 1
@@ -185,4 +230,5 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
+    take_termination_as_ctrl_c()
     sys.exit(main())

@@ -25,7 +25,14 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import rovlink
-from rovlink.client import Client, ConnectError, ConnectionLostError, QueryTimeoutError, Sensors
+from rovlink.client import (
+    Client,
+    ConnectError,
+    ConnectionLostError,
+    QueryTimeoutError,
+    Sensors,
+    parse_url,
+)
 
 log = logging.getLogger("poll_sensors")
 
@@ -92,11 +99,20 @@ def parse_arguments(argv: Sequence[str] | None) -> argparse.Namespace:
         metavar="SECONDS",
         help="stop after this long (default: run until Ctrl-C)",
     )
+    parser.add_argument(
+        "--checksum",
+        action="store_true",
+        help="checksum mode (CRC-8): a frame a noisy line damaged is dropped, never acted on",
+    )
     parser.add_argument("-v", "--verbose", action="store_true", help="show the driver's log")
     args = parser.parse_args(argv)
+    try:
+        parse_url(args.url)  # as connect checks it: a typo is a usage error, not a traceback
+    except ValueError as error:
+        parser.error(str(error))
     if not 0 < args.rate <= 100:
         parser.error(f"--rate must be in (0, 100] readings a second, got {args.rate:g}")
-    if args.duration is not None and args.duration < 0:
+    if args.duration is not None and not args.duration >= 0:  # (NaN too)
         parser.error(f"--duration must not be negative, got {args.duration:g}")
     return args
 
@@ -110,7 +126,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     )
     counts = PollCounts()
     try:
-        with rovlink.connect(args.url) as rov:
+        with rovlink.connect(args.url, checksum=args.checksum) as rov:
             print(f"connected to {rov.description}; Ctrl-C stops", flush=True)
             try:
                 poll(rov, args.rate, args.duration, counts)

@@ -1,17 +1,24 @@
 """Drive the robot from typed lines or a script file, with the motion timeout as the dead-man.
 
 Shows teleoperation without a gamepad: each line is a command as ``rovlink send`` reads it
-(``start``, ``th 90 30``, ``mvs -20``, ``mvd 100``, ``qsa``, ``stop``; ``rovlink reference``
-lists them), checked by ``rovlink.client.parse_command_text`` before anything is sent, plus:
+(``start``, ``th 90 30``, ``mvd 100``, ``mvdirect 1`` then ``mvs -20``, ``qsa``, ``stop``;
+``rovlink reference`` lists them), checked by ``rovlink.client.parse_command_text`` before
+anything is sent, plus:
 
 * ``wait SECONDS`` — pause the script;
 * ``COMMAND for SECONDS`` — a thrust command (``th``, ``mvs``) renewed for that long, then
   zeroed: ``th 0 40 for 3`` drives ahead for three seconds.
 
+The controller acts on motion only once unlocked (``start``), and on ``mvs`` only in direct
+mode (``mvdirect 1``; ``mvdirect 0`` hands the vertical thrusters back to the depth hold,
+``mvd``): anything else it drops without a word, as the protocol has no acknowledgements.
+
 The dead-man is the client's ``motion_timeout`` (``--deadman``, 1 s by default): a thrust the
 program does not renew within it is zeroed by the client, so a typed ``th 0 40`` moves the robot
 for one second and a script or a person that stops sending stops the robot. Queries print their
-replies. At the end of the input, on an error and on Ctrl-C the robot gets ``#stop!``.
+replies. At the end of the input, on an error, on Ctrl-C, on SIGTERM (``kill``, ``systemctl
+stop``), on SIGHUP (the terminal or the SSH session closed) and on SIGQUIT (Ctrl-\\) the robot
+gets ``#stop!``.
 
 A script file (``--script``) is checked whole before the robot is touched, so a mistake on
 line 12 is reported before line 1 moves anything; typed lines are checked one by one (a wrong
@@ -24,7 +31,7 @@ Run it::
     printf 'start\\nmvd 50\\nwait 5\\nth 0 40 for 3\\nqsa\\n' | python examples/script_teleop.py
 
 Exit status: 0 at the end of the input, 1 on a driver error, 2 for a script with mistakes,
-130 after Ctrl-C.
+130 after Ctrl-C, SIGTERM, SIGHUP or SIGQUIT.
 """
 
 from __future__ import annotations
@@ -32,10 +39,12 @@ from __future__ import annotations
 import argparse
 import logging
 import re
+import signal
 import sys
 import time
 from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass
+from types import FrameType
 
 import rovlink
 from rovlink.client import (
@@ -44,6 +53,7 @@ from rovlink.client import (
     ClientEvent,
     ConnectionLostError,
     parse_command_text,
+    parse_url,
 )
 from rovlink.client.events import MotionExpired
 from rovlink.protocol import Command
@@ -169,9 +179,13 @@ def report_dead_man(event: ClientEvent) -> None:
         print(f"dead-man: no thrust command renewed in time, sent {frames}", flush=True)
 
 
-def teleoperate(url: str, steps: Iterable[Step], deadman_s: float) -> None:
+def teleoperate(
+    url: str, steps: Iterable[Step], deadman_s: float, *, checksum: bool = False
+) -> None:
     """Connect and run the steps; ``#stop!`` at the end however it ends."""
-    with rovlink.connect(url, motion_timeout=deadman_s, on_event=report_dead_man) as rov:
+    with rovlink.connect(
+        url, checksum=checksum, motion_timeout=deadman_s, on_event=report_dead_man
+    ) as rov:
         print(f"connected to {rov.description}; dead-man {deadman_s:g} s", flush=True)
         try:
             for step in steps:
@@ -184,6 +198,25 @@ def teleoperate(url: str, steps: Iterable[Step], deadman_s: float) -> None:
                 log.error("could not send #stop!: %s", error)
             else:
                 print("motors off and locked", flush=True)
+
+
+def take_termination_as_ctrl_c() -> None:
+    """Have SIGTERM (``kill``, ``systemctl stop``), SIGHUP (the terminal or the SSH session
+    closed) and SIGQUIT (Ctrl-\\) end the program as Ctrl-C does: through the ``finally`` that
+    sends ``#stop!``.
+
+    Python's default for each ends the process at once, running no ``finally``: the robot would
+    keep its last command until the controller's link-loss failsafe stopped it. A signal ignored
+    on entry (``nohup``) stays ignored.
+    """
+
+    def as_ctrl_c(signum: int, frame: FrameType | None) -> None:
+        raise KeyboardInterrupt(signal.Signals(signum).name)
+
+    for name in ("SIGTERM", "SIGHUP", "SIGQUIT"):  # (Windows has neither of the last two)
+        signum = getattr(signal, name, None)
+        if signum is not None and signal.getsignal(signum) is signal.SIG_DFL:
+            signal.signal(signum, as_ctrl_c)
 
 
 def parse_arguments(argv: Sequence[str] | None) -> argparse.Namespace:
@@ -202,8 +235,17 @@ def parse_arguments(argv: Sequence[str] | None) -> argparse.Namespace:
         metavar="SECONDS",
         help="zero a thrust not renewed for this long (default: 1)",
     )
+    parser.add_argument(
+        "--checksum",
+        action="store_true",
+        help="checksum mode (CRC-8): a frame a noisy line damaged is dropped, never acted on",
+    )
     parser.add_argument("-v", "--verbose", action="store_true", help="show the driver's log")
     args = parser.parse_args(argv)
+    try:
+        parse_url(args.url)  # as connect checks it: a typo is a usage error, not a traceback
+    except ValueError as error:
+        parser.error(str(error))
     if not 0.05 <= args.deadman <= 10:
         parser.error(f"--deadman must be in 0.05–10 s, got {args.deadman:g}")
     return args
@@ -230,7 +272,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     else:
         steps = typed_steps(sys.stdin)
     try:
-        teleoperate(args.url, steps, args.deadman)
+        teleoperate(args.url, steps, args.deadman, checksum=args.checksum)
     except (ClientError, TimeoutError, ConnectionError) as error:
         log.error("%s", error)
         return 1
@@ -241,4 +283,5 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
+    take_termination_as_ctrl_c()
     sys.exit(main())

@@ -43,7 +43,8 @@ class Terminal:
     ``term``: the terminal's type (``TERM``); ``env``: more environment variables; ``size``:
     columns and rows; ``job_control``: the command is a job of a shell with job control (its
     own process group, in the foreground, that a SIGTSTP can stop: the kernel discards one sent
-    to the process group of a session's leader, which has no shell to continue it)."""
+    to the process group of a session's leader, which has no shell to continue it); ``script``:
+    a Python program to run in place of ``rovlink``, with the arguments."""
 
     def __init__(
         self,
@@ -53,6 +54,7 @@ class Terminal:
         env: dict[str, str] | None = None,
         size: tuple[int, int] = (80, 24),
         job_control: bool = False,
+        script: Path | None = None,
     ) -> None:
         self._master, slave = os.openpty()
         columns, rows = size
@@ -60,7 +62,8 @@ class Terminal:
         source = str(Path(__file__).resolve().parents[1] / "src")
         environment = {**os.environ, "PYTHONPATH": source, "TERM": term, **(env or {})}
         environment.pop("NO_COLOR", None)
-        command = [sys.executable, "-m", "rovlink", *arguments]
+        program = [str(script)] if script is not None else ["-m", "rovlink"]
+        command = [sys.executable, *program, *arguments]
         if job_control:  # (the shell says how the job ended: 148 if SIGTSTP stopped it)
             shell = 'set -m; "$@"; status=$?; echo "[job ended: $status]"; exit $status'
             command = ["bash", "--norc", "--noprofile", "-i", "-c", shell, "bash", *command]

@@ -2,7 +2,8 @@
 
 A program runs against the simulator in place of the serial port it names. The frames its
 comments name (``rov.move(0, 40)   # #th.0.40!``) must be among the frames it sent, and what a
-comment says it prints (``# prints "…"``) must be printed. A ``>>>`` example must give the value
+comment says it prints (``# prints "…"``) must be printed; a ```` ```text ```` block right after a
+program is all that it prints. A ``>>>`` example must give the value
 or the error shown, ``…`` standing for any text; a statement whose comment names a condition of
 :data:`CONDITIONS` ("the controller does not answer") runs against a controller in that state.
 A block that is not a program (a signature) is marked ``<!-- not run: why -->`` on the line
@@ -54,6 +55,8 @@ class Example:
     page: Path
     line: int
     code: str
+    #: The ```` ```text ```` block that follows a program: what it prints.
+    output: str | None = None
 
     def __str__(self) -> str:
         return f"{self.page.relative_to(ROOT)}:{self.line}"
@@ -62,6 +65,16 @@ class Example:
     def is_session(self) -> bool:
         """Whether it is an interactive session (``>>>``) rather than a program."""
         return self.code.lstrip().startswith(">>>")
+
+
+def _output_after(lines: list[str], index: int) -> str | None:
+    """The ```` ```text ```` block at ``lines[index]`` (after blank lines), if there is one."""
+    while index < len(lines) and not lines[index].strip():
+        index += 1
+    if index == len(lines) or lines[index].strip() != "```text":
+        return None
+    end = next(i for i in range(index + 1, len(lines)) if lines[i].strip() == "```")
+    return "\n".join(lines[index + 1 : end])
 
 
 def _examples() -> list[Example]:
@@ -75,7 +88,8 @@ def _examples() -> list[Example]:
                 end = next(i for i in range(start, len(lines)) if lines[i].strip() == "```")
                 marked = index > 0 and lines[index - 1].strip().startswith(NOT_RUN)
                 if not marked:
-                    found.append(Example(page, start + 1, "\n".join(lines[start:end])))
+                    code = "\n".join(lines[start:end])
+                    found.append(Example(page, start + 1, code, _output_after(lines, end + 1)))
                 index = end
             index += 1
     return found
@@ -173,6 +187,9 @@ def test_a_program_runs_and_sends_the_frames_its_comments_name(
             assert frame in frames_sent.frames, f"{example}: {frame} not sent ({comment!r})"
         for text in _PRINTS.findall(comment):
             assert text in printed.getvalue(), f"{example}: did not print {text!r}"
+    if example.output is not None:
+        got = printed.getvalue().strip()
+        assert _pattern(example.output.strip()).fullmatch(got), f"{example} printed {got!r}"
 
 
 # -- sessions ----------------------------------------------------------------------------------

@@ -7,15 +7,18 @@ controller's state once the example has closed its client. The simulation runs a
 CPU allows, so a dive takes a fraction of a second; its link-loss watchdog counts simulated
 seconds, which pass far faster than the examples' wall-clock polling, so it is off — and so a
 locked robot at the end is the example's doing, not the failsafe's. A few tests run an example
-as a script, in a process of its own, as a user does (Ctrl-C included).
+as a script, in a process of its own, as a user does (Ctrl-C, SIGTERM and a terminal that closes
+included).
 """
 
 from __future__ import annotations
 
+import contextlib
 import doctest
 import importlib.util
 import io
 import json
+import os
 import queue
 import re
 import signal
@@ -30,13 +33,16 @@ from typing import Any
 
 import pytest
 
+from rovlink.client.events import Unsolicited
 from rovlink.client.schemes import register_scheme, unregister_scheme
 from rovlink.controller.controller import ControllerState
+from rovlink.protocol import BadFrame, Frame, Reason, Response, Text
 from rovlink.sim.port import SimulatedPort
 from rovlink.sim.robot import load_sim_config
 from rovlink.sim.server import SimServer
 from tests.client.conftest import CONDITION_TIMEOUT_S, wait_until
 from tests.examples import kept_sim
+from tests.terminals import Terminal
 
 ROOT = Path(__file__).resolve().parents[2]
 EXAMPLES = ROOT / "examples"
@@ -162,13 +168,14 @@ def script_command(name: str, *argv: str) -> list[str]:
     return [sys.executable, str(EXAMPLES / f"{name}.py"), *argv]
 
 
-@pytest.fixture
-def pty_sim(tmp_path: Path) -> Iterator[tuple[SimServer, str]]:
-    """A fast simulator without the link-loss watchdog on a real pseudo-terminal, served from a
-    thread of the test (so the test reads its state), and the terminal's path."""
-    config = tmp_path / "fast.toml"
+@contextlib.contextmanager
+def served_on_a_pty(tmp_path: Path, speed: float) -> Iterator[tuple[SimServer, str]]:
+    """A simulator without the link-loss watchdog on a real pseudo-terminal at ``speed`` (0: as
+    fast as the CPU allows), served from a thread of the test (so the test reads its state), and
+    the terminal's path."""
+    config = tmp_path / "no-watchdog.toml"
     config.write_text("[controller]\nwatchdog_s = 0\n")
-    server = SimServer(load_sim_config(config), seed=1, speed=0)
+    server = SimServer(load_sim_config(config), seed=1, speed=speed)
     path = server.open_pty()
     stopping = threading.Event()
     thread = threading.Thread(target=server.serve, args=(stopping.is_set,), daemon=True)
@@ -179,6 +186,21 @@ def pty_sim(tmp_path: Path) -> Iterator[tuple[SimServer, str]]:
         stopping.set()
         thread.join(timeout=CONDITION_TIMEOUT_S)
         server.close()
+
+
+@pytest.fixture
+def pty_sim(tmp_path: Path) -> Iterator[tuple[SimServer, str]]:
+    """A fast simulator on a pseudo-terminal (:func:`served_on_a_pty`): a dive takes no time."""
+    with served_on_a_pty(tmp_path, speed=0) as served:
+        yield served
+
+
+@pytest.fixture
+def realtime_pty_sim(tmp_path: Path) -> Iterator[tuple[SimServer, str]]:
+    """A simulator on a pseudo-terminal (:func:`served_on_a_pty`) in real time: it leaves the
+    CPU to the example between its ticks."""
+    with served_on_a_pty(tmp_path, speed=1) as served:
+        yield served
 
 
 def interrupt_when_printed(command: list[str], marker: str) -> tuple[int, str]:
@@ -236,6 +258,72 @@ def test_every_example_runs_as_a_script_and_says_what_it_does(name: str) -> None
 def test_every_example_docstring_example_holds(name: str) -> None:
     results = doctest.testmod(load_example(name), raise_on_error=False, verbose=False)
     assert results.failed == 0
+
+
+@pytest.mark.parametrize("name", example_names())
+@pytest.mark.parametrize(
+    ("url", "said"),
+    [
+        ("sim://?speed=2", "unknown sim option 'speed'"),
+        ("/dev/ttyUSB0?baud=9600", "a serial device takes only ?baudrate=, not baud"),
+    ],
+)
+def test_every_example_refuses_a_bad_url_as_a_usage_error(
+    name: str, url: str, said: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # (It was a traceback of the ValueError raised by connect.)
+    with pytest.raises(SystemExit) as exit_info:
+        load_example(name).main([url])
+    assert exit_info.value.code == 2
+    err = capsys.readouterr().err
+    assert err.startswith("usage: ")
+    assert f"error: {url!r}: {said}" in err.splitlines()[-1]
+
+
+@pytest.mark.parametrize(
+    ("name", "option", "said"),
+    [
+        ("poll_sensors", "--duration", "--duration must not be negative, got nan"),
+        ("dive_and_hold", "--hold", "--hold must be 0 or more, got nan"),
+        ("dive_and_hold", "--reach-timeout", "--reach-timeout must be 0 or more, got nan"),
+        ("async_telemetry_and_control", "--leg", "--leg must be positive, got nan"),
+        ("async_telemetry_and_control", "--deadline", "--deadline must be positive, got nan"),
+        ("frame_logger", "--duration", "--duration must not be negative, got nan"),
+    ],
+)
+def test_every_example_refuses_a_number_of_seconds_that_is_not_a_number(
+    name: str, option: str, said: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # (argparse's float takes "nan": a hold that never ended, a deadline never reached.)
+    with pytest.raises(SystemExit) as exit_info:
+        load_example(name).parse_arguments([option, "nan"])
+    assert exit_info.value.code == 2
+    assert capsys.readouterr().err.splitlines()[-1].endswith(f"error: {said}")
+
+
+#: A short run of each example, its arguments after the URL ("SCRIPT": a file of two lines).
+SHORT_RUNS: dict[str, list[str]] = {
+    "poll_sensors": ["--duration", "0.05", "--rate", "50"],
+    "dive_and_hold": ["--depth", "20", "--hold", "0", "--interval", "0.05"],
+    "async_telemetry_and_control": ["--depth", "5", "--leg", "0.05", "--rate", "50"],
+    "frame_logger": ["--duration", "0", "--output", os.devnull],
+    "script_teleop": ["--script", "SCRIPT"],
+}
+
+
+@pytest.mark.parametrize("name", example_names())
+def test_every_example_runs_in_checksum_mode_when_asked(
+    name: str, sim: KeptSim, capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
+    # On a noisy tether a bit error can turn #mvd.100! into #mvd.900!: with --checksum the
+    # controller drops it instead.
+    script = tmp_path / "short.txt"
+    script.write_text("start\nqd\n")
+    arguments = [str(script) if word == "SCRIPT" else word for word in SHORT_RUNS[name]]
+    status, out = run_example(name, sim.url, "--checksum", *arguments, capsys=capsys)
+    assert status == 0, out
+    assert sim.state().checksum_enabled
+    sim.assert_stopped_and_locked()
 
 
 # -- poll_sensors.py -----------------------------------------------------------------------------
@@ -328,6 +416,38 @@ def test_dive_and_hold_does_not_start_with_the_leak_latch_set(
     sim.assert_stopped_and_locked()
 
 
+def test_dive_and_hold_aborts_when_the_controller_resets_while_it_holds(
+    sim: KeptSim, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # A reset (a brown-out, the board's own watchdog) or a failsafe of the controller locks the
+    # motors and the hull floats up: the hold must notice, not report the dive completed.
+    example = load_example("dive_and_hold")
+    hold = example.hold
+
+    def reset_then_hold(rov: object, plan: object) -> None:
+        port = sim.port()
+        with port.lock:
+            port.controller.reset()
+        hold(rov, plan)
+
+    monkeypatch.setattr(example, "hold", reset_then_hold)
+    status, out = run_example(
+        "dive_and_hold", sim.url, "--depth", "60", "--hold", "30", "--reach-timeout", "10",
+        "--interval", "0.05",
+        capsys=capsys,
+    )  # fmt: skip
+    assert status == 1, out
+    assert "dive completed" not in out
+    after_hold = out.split("holding")[1]
+    assert "surfacing" in after_hold
+    assert re.search(
+        r"motors off and locked\ndive aborted: lost the depth while holding 60 ± 10 cm: at \d+ cm "
+        r"for 3 readings \(did the controller reset or stop\?\)\n$",
+        out,
+    ), out
+    sim.assert_stopped_and_locked()
+
+
 def test_dive_and_hold_stops_the_robot_when_interrupted(
     sim: KeptSim, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
 ) -> None:
@@ -388,6 +508,125 @@ def test_dive_and_hold_stops_the_robot_on_ctrl_c_over_a_serial_line(
 ) -> None:
     arguments = ["--depth", "30", "--hold", "60", "--interval", "0.05"]
     stops_the_robot_on_ctrl_c(pty_sim, "dive_and_hold", arguments, "holding")
+
+
+def signal_when(
+    command: list[str],
+    server: SimServer,
+    moving: Callable[[ControllerState], bool],
+    signum: signal.Signals,
+) -> tuple[int, str]:
+    """Run ``command``, send it ``signum`` once the controller's state is ``moving``; its exit
+    status and everything it printed."""
+    process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    try:
+        controller = server.robot.controller
+        assert wait_until(lambda: moving(controller.state()) or process.poll() is not None)
+        assert process.poll() is None, process.communicate()[0]
+        process.send_signal(signum)
+        out, _ = process.communicate(timeout=CONDITION_TIMEOUT_S)
+    finally:
+        process.kill()
+        process.wait()
+    return process.returncode, out
+
+
+def assert_stopped(server: SimServer) -> None:
+    """The robot is locked, with no thrust and no depth asked for."""
+    state = server.robot.controller.state()
+    assert state.locked
+    assert state.power_percent == 0
+    assert state.vertical_thrust_percent == 0
+    assert state.target_depth_cm is None
+
+
+#: A script that drives ahead until stopped, for script_teleop.py.
+DRIVING_SCRIPT = "start\nth 0 40 for 60\n"
+
+#: Each example that moves the robot: its arguments after the URL ("SCRIPT" for a file holding
+#: DRIVING_SCRIPT), and when it is moving.
+MOVING: dict[str, tuple[list[str], Callable[[ControllerState], bool]]] = {
+    "dive_and_hold": (
+        ["--depth", "30", "--hold", "60", "--interval", "0.05"],
+        lambda state: not state.locked and state.target_depth_cm == 30,
+    ),
+    "async_telemetry_and_control": (  # (at 5 cm from the start: within the tolerance)
+        ["--depth", "5", "--leg", "60", "--rate", "20"],
+        lambda state: state.power_percent == 30,
+    ),
+    "frame_logger": (
+        ["--duration", "60", "--output", os.devnull],
+        lambda state: state.power_percent == 20,
+    ),
+    "script_teleop": (["--script", "SCRIPT"], lambda state: state.power_percent == 40),
+}
+
+
+def moving_arguments(name: str, tmp_path: Path) -> list[str]:
+    """The arguments of ``MOVING[name]``, with its script written out."""
+    script = tmp_path / "drive.txt"
+    script.write_text(DRIVING_SCRIPT)
+    return [str(script) if word == "SCRIPT" else word for word in MOVING[name][0]]
+
+
+@pytest.mark.integration
+@pytest.mark.parametrize(
+    ("name", "signum"),
+    [
+        *((name, signal.SIGTERM) for name in sorted(MOVING)),
+        ("dive_and_hold", signal.SIGQUIT),
+        ("async_telemetry_and_control", signal.SIGQUIT),
+    ],
+)
+def test_every_example_that_moves_stops_the_robot_on_sigterm_and_sigquit(
+    realtime_pty_sim: tuple[SimServer, str], name: str, signum: signal.Signals, tmp_path: Path
+) -> None:
+    # kill, systemctl stop, Ctrl-\: by Python's default the process ends at once, running no
+    # finally, and the robot drives on until the controller's own failsafe (off here) stops it.
+    server, path = realtime_pty_sim
+    command = script_command(name, path, *moving_arguments(name, tmp_path))
+    status, out = signal_when(command, server, MOVING[name][1], signum)
+    assert status == 130, out
+    assert out.endswith("interrupted\n") or name == "frame_logger", out
+    assert_stopped(server)
+
+
+@pytest.mark.integration
+@pytest.mark.parametrize("name", ["dive_and_hold", "async_telemetry_and_control"])
+def test_every_example_that_moves_stops_the_robot_when_its_terminal_closes(
+    realtime_pty_sim: tuple[SimServer, str], name: str, tmp_path: Path
+) -> None:
+    # An SSH session dropped: the kernel sends SIGHUP, and the terminal fails every write.
+    server, path = realtime_pty_sim
+    terminal = Terminal(path, *moving_arguments(name, tmp_path), script=EXAMPLES / f"{name}.py")
+    try:
+        controller = server.robot.controller
+        assert wait_until(lambda: MOVING[name][1](controller.state()))
+        terminal.hang_up()
+        terminal.process.wait(timeout=CONDITION_TIMEOUT_S)
+        assert terminal.process.returncode != -signal.SIGHUP
+    finally:
+        terminal.close()
+    assert_stopped(server)
+
+
+@pytest.mark.integration
+def test_script_teleop_stops_the_robot_when_the_terminal_it_is_typed_on_closes(
+    realtime_pty_sim: tuple[SimServer, str],
+) -> None:
+    server, path = realtime_pty_sim
+    terminal = Terminal(path, script=EXAMPLES / "script_teleop.py")
+    try:
+        assert terminal.wait_shown(b"dead-man 1 s")
+        terminal.type(DRIVING_SCRIPT)
+        controller = server.robot.controller
+        assert wait_until(lambda: controller.state().power_percent == 40)
+        terminal.hang_up()
+        terminal.process.wait(timeout=CONDITION_TIMEOUT_S)
+        assert terminal.process.returncode != -signal.SIGHUP
+    finally:
+        terminal.close()
+    assert_stopped(server)
 
 
 # -- async_telemetry_and_control.py -------------------------------------------------------------
@@ -458,6 +697,28 @@ def test_async_telemetry_and_control_ends_on_a_leak(
     sim.assert_stopped_and_locked()
 
 
+def test_async_telemetry_and_control_ends_when_the_controller_resets_while_it_drives(
+    sim: KeptSim, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # The controller comes back locked and the hull floats up: the run must not say completed.
+    reset = sim.when(
+        lambda port: port.controller.state().power_percent == 30,
+        lambda port: port.controller.reset(),
+    )
+    status, out = run_example(
+        "async_telemetry_and_control", sim.url, "--depth", "60", "--leg", "0.5", "--rate", "50",
+        capsys=capsys,
+    )  # fmt: skip
+    assert reset.is_set()
+    assert status == 1, out
+    assert re.search(
+        r"motors off and locked\nrun aborted: lost the depth while holding 60 ± 10 cm: at \d+ cm "
+        r"for 3 readings \(did the controller reset or stop\?\)\n$",
+        out,
+    ), out
+    sim.assert_stopped_and_locked()
+
+
 def test_async_telemetry_and_control_watchdog_ends_on_stale_telemetry() -> None:
     import asyncio
 
@@ -498,6 +759,30 @@ def test_frame_logger_writes_every_event_both_ways_as_json_lines(
     assert len(reply["responses"]) == 6
     assert reply["responses"][0].startswith("$qd.")
     sim.assert_stopped_and_locked()
+
+
+def test_frame_logger_keeps_the_event_name_of_what_answered_no_query() -> None:
+    # Unsolicited's own field is named "event": it overwrote the line's event name with a repr.
+    stream = io.StringIO()
+    frame_log = load_example("frame_logger").FrameLog(stream)
+    for what in (
+        Text("debug: max PWM 200 (was 255)"),
+        BadFrame(Reason.MALFORMED, b"$qr\x0e", "byte 0x0e inside a frame"),
+        Frame(Response("qd", (12,)), b"$qd.12!"),
+    ):
+        frame_log(Unsolicited(1.5, what))
+    records = [json.loads(line) for line in stream.getvalue().splitlines()]
+    assert [record["event"] for record in records] == ["Unsolicited"] * 3
+    assert [record["unsolicited"] for record in records] == [
+        {"type": "Text", "text": "debug: max PWM 200 (was 255)"},
+        {
+            "type": "BadFrame",
+            "reason": "malformed",
+            "raw": "$qr\x0e",
+            "detail": "byte 0x0e inside a frame",
+        },
+        {"type": "Frame", "message": "$qd.12!", "raw": "$qd.12!"},
+    ]
 
 
 @pytest.mark.skipif(not Path("/dev/full").exists(), reason="needs /dev/full (Linux)")
@@ -560,6 +845,20 @@ def test_script_teleop_runs_a_script_with_the_dead_man(
     replies = [line for line in lines if line.startswith("< $")]
     assert len(replies) == 1 + 6
     assert lines[-1] == "motors off and locked"
+    sim.assert_stopped_and_locked()
+
+
+def test_script_teleop_drives_the_vertical_thrusters_as_its_docstring_says(
+    sim: KeptSim, capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
+    # mvs acts in direct mode only: the docstring once showed it alone, and it did nothing.
+    assert "``mvdirect 1`` then ``mvs -20``" in load_example("script_teleop").__doc__
+    thrusting = sim.when(lambda port: port.controller.state().vertical_thrust_percent == -20)
+    script = tmp_path / "down.txt"
+    script.write_text("start\nmvdirect 1\nmvs -20 for 0.5\n")
+    status, out = run_example("script_teleop", sim.url, "--script", str(script), capsys=capsys)
+    assert status == 0, out
+    assert thrusting.wait(CONDITION_TIMEOUT_S)
     sim.assert_stopped_and_locked()
 
 
