@@ -246,6 +246,8 @@ class FaultyController:
             data = self._without_resync(data)
         if fault == "stop-needs-checksum" and self._checksum:
             data = data.replace(b"#stop!", b"")
+        if fault == "ignores-stop":  # #stop! has no effect at all, in either mode
+            data = data.replace(b"#stop!", b"")
         if fault == "direct-mode-only":
             data = data.replace(b"#mvdirect.0!", b"#mvdirect.1!")
         if fault == "debug-stuck-on":
@@ -417,6 +419,7 @@ FAULTS: dict[str, str] = {
     "clamps-out-of-range": "calibration-out-of-range-not-clamped",
     "range-ends-dropped": "calibration-range-ends-taken",
     "stop-needs-checksum": "motion-bare-stop-in-checksum-mode",
+    "ignores-stop": "motion-stop-halts",
     "direct-mode-only": "motion-mode-gating",
     "no-watchdog": "motion-link-loss-failsafe",
     "watchdog-fed-by-noise": "motion-link-loss-failsafe",
