@@ -65,6 +65,7 @@ class FaultyController:
         self._thrust: bytes | None = None
         self._zero: int | None = None  # the calibration sent (depth-off-by-one-count, -rounded)
         self._error_lines = b""  # error-line-with-debug-off: written after the next reply
+        self._hung = False  # hangs-on-overlong: it took a frame over 64 bytes
         self._k: int | None = None
         if fault in ("watchdog-fed-by-noise", "watchdog-fed-by-motion-only"):
             # Its own failsafe: fed by any byte at all, or only by motion commands.
@@ -87,6 +88,10 @@ class FaultyController:
         return len(self._output) if time.monotonic() >= self._release_at else 0
 
     def write(self, data: bytes) -> int:
+        if self.fault == "hangs-on-overlong" and re.search(rb"#[^#$!]{64,}!", data):
+            self._hung = True  # a line buffer overrun that crashed it: it never answers again
+        if self._hung:
+            return len(data)
         with self._lock:
             before = self._checksum
             incoming = self._incoming(bytes(data))
@@ -414,6 +419,7 @@ FAULTS: dict[str, str] = {
     "no-setting-debug-lines": "debug-setting-lines",
     "debug-stuck-on": "debug-off-silent",
     "no-length-limit": "overlong-frame-dropped",
+    "hangs-on-overlong": "overlong-frame-dropped",
     "no-resync": "resync-on-start",
     "case-insensitive": "unknown-and-malformed-dropped",
     "clamps-out-of-range": "calibration-out-of-range-not-clamped",

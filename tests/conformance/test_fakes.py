@@ -20,7 +20,7 @@ def test_each_fault_is_caught_by_its_check(fault: str) -> None:
     finally:
         link.close()
     results = {result.name: result for result in report.results}
-    assert results[expected].outcome is Outcome.FAILED, results[expected]
+    assert results[expected].failed, results[expected]  # (or aborted: hangs-on-overlong)
     assert results[expected].evidence  # the bytes that show it
     assert not report.passed
 
@@ -96,6 +96,30 @@ def test_a_plain_stop_still_works_on_the_controller_that_needs_a_checksummed_one
     finally:
         link.close()
     assert [result.outcome for result in report.results] == [Outcome.PASSED]
+
+
+def test_a_controller_that_stops_answering_aborts_the_run_at_the_check_it_failed() -> None:
+    # Before, every later check waited for its replies in vain and failed "no reply" (50 of 51
+    # in about a minute against a controller that hung), and the run ended with a hint that the
+    # controller might have no checksum mode.
+    fault = "hangs-on-overlong"
+    link = PortLink(FaultyController(fault), fault)
+    try:
+        report = run_checks(
+            link, fault, SuiteOptions(), select_checks(["overlong-", "resync-", "bad-byte-"])
+        )
+    finally:
+        link.close()
+    (result,) = report.results
+    assert result.name == "overlong-frame-dropped"
+    assert result.outcome is Outcome.ABORTED, result
+    assert "no reply" in result.message  # the check's own failure first
+    assert result.message.endswith(
+        "; then a plain #q.l! got no reply within 3 s either: the controller stopped answering "
+        "(hung, or reset and not back), run aborted"
+    ), result.message
+    assert report.not_run == ["resync-on-start", "bad-byte-discards"]
+    assert report.hint is None
 
 
 def test_every_fault_names_a_real_check() -> None:
