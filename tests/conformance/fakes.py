@@ -65,6 +65,7 @@ class FaultyController:
         self._thrust: bytes | None = None
         self._zero: int | None = None  # the calibration sent (depth-off-by-one-count, -rounded)
         self._error_lines = b""  # error-line-with-debug-off: written after the next reply
+        self._hung = False  # hangs-on-overlong: it took a frame over 64 bytes
         self._k: int | None = None
         if fault in ("watchdog-fed-by-noise", "watchdog-fed-by-motion-only"):
             # Its own failsafe: fed by any byte at all, or only by motion commands.
@@ -87,6 +88,10 @@ class FaultyController:
         return len(self._output) if time.monotonic() >= self._release_at else 0
 
     def write(self, data: bytes) -> int:
+        if self.fault == "hangs-on-overlong" and re.search(rb"#[^#$!]{64,}!", data):
+            self._hung = True  # a line buffer overrun that crashed it: it never answers again
+        if self._hung:
+            return len(data)
         with self._lock:
             before = self._checksum
             incoming = self._incoming(bytes(data))
@@ -245,6 +250,8 @@ class FaultyController:
         if fault == "no-resync":
             data = self._without_resync(data)
         if fault == "stop-needs-checksum" and self._checksum:
+            data = data.replace(b"#stop!", b"")
+        if fault == "ignores-stop":  # #stop! has no effect at all, in either mode
             data = data.replace(b"#stop!", b"")
         if fault == "direct-mode-only":
             data = data.replace(b"#mvdirect.0!", b"#mvdirect.1!")
@@ -412,11 +419,13 @@ FAULTS: dict[str, str] = {
     "no-setting-debug-lines": "debug-setting-lines",
     "debug-stuck-on": "debug-off-silent",
     "no-length-limit": "overlong-frame-dropped",
+    "hangs-on-overlong": "overlong-frame-dropped",
     "no-resync": "resync-on-start",
     "case-insensitive": "unknown-and-malformed-dropped",
     "clamps-out-of-range": "calibration-out-of-range-not-clamped",
     "range-ends-dropped": "calibration-range-ends-taken",
     "stop-needs-checksum": "motion-bare-stop-in-checksum-mode",
+    "ignores-stop": "motion-stop-halts",
     "direct-mode-only": "motion-mode-gating",
     "no-watchdog": "motion-link-loss-failsafe",
     "watchdog-fed-by-noise": "motion-link-loss-failsafe",

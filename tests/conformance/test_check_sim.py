@@ -2,8 +2,13 @@
 
 from __future__ import annotations
 
+import os
+import select
 import subprocess
 import sys
+import threading
+import time
+import tty
 from pathlib import Path
 from xml.etree import ElementTree
 
@@ -498,3 +503,56 @@ def test_ctrl_c_during_a_dive_leaves_the_robot_locked_with_zero_thrust(
             assert all(duty == 0 for duty in port.vehicle.duties)
     finally:
         link.close()
+
+
+class _LateOnAPseudoTerminal:
+    """A controller on a real pseudo-terminal that answers ``#qd!`` 5.5 ms late (and the
+    preflight's ``#q.l!`` at once)."""
+
+    LATE_S = 0.0055
+
+    def __init__(self) -> None:
+        self._master, self._slave = os.openpty()
+        tty.setraw(self._slave)
+        self.path = os.ttyname(self._slave)
+        self._closing = threading.Event()
+        self._thread = threading.Thread(target=self._serve, daemon=True)
+        self._thread.start()
+
+    def _serve(self) -> None:
+        pending = b""
+        while not self._closing.is_set():
+            if not select.select([self._master], [], [], 0.05)[0]:
+                continue
+            try:
+                pending += os.read(self._master, 4096)
+            except OSError:
+                return
+            *frames, pending = pending.split(b"!")
+            for frame in frames:
+                if frame.endswith(b"#q.l"):
+                    os.write(self._master, b"$q.l.0!")
+                elif frame.endswith(b"#qd"):
+                    time.sleep(self.LATE_S)
+                    os.write(self._master, b"$qd.5!")
+
+    def close(self) -> None:
+        self._closing.set()
+        self._thread.join()
+        os.close(self._master)
+        os.close(self._slave)
+
+
+@pytest.mark.integration
+def test_a_reply_late_on_a_pseudo_terminal_is_late(capsys: pytest.CaptureFixture[str]) -> None:
+    # A pseudo-terminal's bytes take no time on a line, whatever its baud rate: before, the
+    # check allowed for 115200 baud's 0.9 ms on it, and a simulator or a firmware's host build
+    # answering 5.5 ms late passed P19's 5 ms.
+    controller = _LateOnAPseudoTerminal()
+    try:
+        assert main(["check", controller.path, "--only", "reply-time"]) == 1
+    finally:
+        controller.close()
+    out = " ".join(capsys.readouterr().out.split())  # (the report wraps its lines)
+    assert "fail reply-time: 90th percentile reply time" in out
+    assert "> 5 ms (median" in out  # (no allowance for bytes on a line)

@@ -20,7 +20,7 @@ def test_each_fault_is_caught_by_its_check(fault: str) -> None:
     finally:
         link.close()
     results = {result.name: result for result in report.results}
-    assert results[expected].outcome is Outcome.FAILED, results[expected]
+    assert results[expected].failed, results[expected]  # (or aborted: hangs-on-overlong)
     assert results[expected].evidence  # the bytes that show it
     assert not report.passed
 
@@ -43,7 +43,43 @@ def test_each_motion_fault_is_caught_by_its_motion_check(fault: str) -> None:
         link.close()
     (result,) = report.results
     assert result.name == expected
-    assert result.outcome is Outcome.FAILED, result
+    assert result.failed, result  # (failed, or aborted the run: see ignores-stop below)
+
+
+def _motion_run(fault: str, names: list[str]) -> Report:
+    link = PortLink(FaultyController(fault), fault)
+    try:
+        return run_checks(link, fault, SuiteOptions(motion=True), select_checks(names, motion=True))
+    finally:
+        link.close()
+
+
+@pytest.mark.slow
+@pytest.mark.integration
+def test_a_motion_check_that_fails_with_the_vehicle_diving_leaves_it_at_rest_for_the_next() -> None:
+    # The bare #stop! is ignored in checksum mode: the check fails with the vehicle still
+    # diving. Before, the next check started while it coasted on and took that dive for its
+    # own: a full run failed the mode gating (P9) and the PWM cap (P8) too, rules the
+    # controller obeys.
+    report = _motion_run("stop-needs-checksum", ["motion-bare-stop", "motion-out-of-range"])
+    assert [(result.name, result.outcome) for result in report.results] == [
+        ("motion-bare-stop-in-checksum-mode", Outcome.FAILED),
+        ("motion-out-of-range-not-clamped", Outcome.PASSED),
+    ], report.results
+    # The evidence is still the failure's: the pressure rising after the #stop!.
+    assert b"#q.l" in report.results[0].evidence[-1].sent
+
+
+@pytest.mark.slow
+@pytest.mark.integration
+def test_a_vehicle_still_diving_after_a_failed_checks_stop_aborts_the_run() -> None:
+    # #stop! has no effect at all: more motion checks would only drive it deeper.
+    report = _motion_run("ignores-stop", ["motion-stop-halts", "motion-mode-gating"])
+    (result,) = report.results
+    assert result.outcome is Outcome.ABORTED, result
+    assert result.message.startswith("after #stop! the raw pressure went on"), result.message
+    assert "still went deeper" in result.message, result.message
+    assert report.not_run == ["motion-mode-gating"]
 
 
 @pytest.mark.slow
@@ -60,6 +96,30 @@ def test_a_plain_stop_still_works_on_the_controller_that_needs_a_checksummed_one
     finally:
         link.close()
     assert [result.outcome for result in report.results] == [Outcome.PASSED]
+
+
+def test_a_controller_that_stops_answering_aborts_the_run_at_the_check_it_failed() -> None:
+    # Before, every later check waited for its replies in vain and failed "no reply" (50 of 51
+    # in about a minute against a controller that hung), and the run ended with a hint that the
+    # controller might have no checksum mode.
+    fault = "hangs-on-overlong"
+    link = PortLink(FaultyController(fault), fault)
+    try:
+        report = run_checks(
+            link, fault, SuiteOptions(), select_checks(["overlong-", "resync-", "bad-byte-"])
+        )
+    finally:
+        link.close()
+    (result,) = report.results
+    assert result.name == "overlong-frame-dropped"
+    assert result.outcome is Outcome.ABORTED, result
+    assert "no reply" in result.message  # the check's own failure first
+    assert result.message.endswith(
+        "; then a plain #q.l! got no reply within 3 s either: the controller stopped answering "
+        "(hung, or reset and not back), run aborted"
+    ), result.message
+    assert report.not_run == ["resync-on-start", "bad-byte-discards"]
+    assert report.hint is None
 
 
 def test_every_fault_names_a_real_check() -> None:

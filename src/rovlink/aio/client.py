@@ -25,7 +25,11 @@ from rovlink.aio.transport import ByteTransport, transport_for
 from rovlink.aio.wakeup import wait_for_event
 from rovlink.client import links, operations
 from rovlink.client.counters import LinkCounters
-from rovlink.client.errors import ConnectError, ConnectionLostError, QueryTimeoutError
+from rovlink.client.errors import (
+    ConnectionLostError,
+    QueryTimeoutError,
+    checksum_mode_unconfirmed,
+)
 from rovlink.client.events import EventCallback, subscriber
 from rovlink.client.links import Link, SocketLink, open_link
 from rovlink.client.options import (
@@ -157,9 +161,8 @@ class AsyncClient(AsyncCommandMethods):
                 try:
                     await self._request(Command("qd"))
                 except QueryTimeoutError as error:
-                    raise ConnectError(
-                        f"{self._link.description}: the controller answers, but not in "
-                        f"checksum mode with {options.algorithm} (is that its algorithm?): {error}"
+                    raise checksum_mode_unconfirmed(
+                        self._link.description, options.algorithm, error
                     ) from error
         except BaseException:
             # A failed or cancelled open leaves nothing behind: the loop would go on watching a

@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import os
+import re
 import sys
 import time
 from pathlib import Path
@@ -21,6 +23,7 @@ from rovlink.cli.link_options import algorithm_name, bounded_int, confirmed, fil
 from rovlink.cli.output_file import check_writable
 
 if TYPE_CHECKING:
+    from rovlink.client.url import Endpoint
     from rovlink.conformance import Check, CheckResult, Report
 
 __all__ = ["EPILOG"]
@@ -134,7 +137,7 @@ def run(args: argparse.Namespace) -> int:
         motion=args.motion,
         motion_percent=args.motion_power,
         watchdog_s=args.watchdog,
-        baudrate=endpoint.baudrate if endpoint.is_device else None,
+        baudrate=_line_rate(endpoint),
         seed=args.seed,
     )
     try:
@@ -165,6 +168,20 @@ def run(args: argparse.Namespace) -> int:
         except OSError as error:
             raise CommandError(f"cannot write {args.junit}: {reason(error)}") from None
     return 0 if report.passed else 1
+
+
+def _line_rate(endpoint: Endpoint) -> int | None:
+    """The rate of the serial line the controller's bytes cross, for the reply-time allowance
+    (P19 counts from the query's arrival); None where no line is crossed: a URL (TCP,
+    ``sim://``) or a pseudo-terminal, whose bytes arrive at once whatever its baud rate (a
+    simulator's, or a firmware's host build's: given the line's time, a reply 0.9 ms late
+    passed at 115200 baud)."""
+    if not endpoint.is_device:
+        return None
+    path = os.path.realpath(endpoint.target)
+    if path.startswith("/dev/pts/") or re.fullmatch(r"/dev/ttys\d+", path):  # (Linux, macOS)
+        return None
+    return endpoint.baudrate
 
 
 def _write_interrupted(

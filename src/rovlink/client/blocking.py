@@ -25,7 +25,12 @@ from typing import TypeVar
 from rovlink.client import links, operations
 from rovlink.client.command_methods import CommandMethods
 from rovlink.client.counters import LinkCounters
-from rovlink.client.errors import ConnectError, ConnectionLostError, QueryTimeoutError
+from rovlink.client.errors import (
+    ConnectError,
+    ConnectionLostError,
+    QueryTimeoutError,
+    checksum_mode_unconfirmed,
+)
 from rovlink.client.events import EventCallback, subscriber
 from rovlink.client.links import Link, SocketLink, open_link
 from rovlink.client.options import (
@@ -929,9 +934,8 @@ class Client(CommandMethods):
         try:
             self._request(Command("qd"))
         except QueryTimeoutError as error:
-            raise ConnectError(
-                f"{self._link.description}: the controller answers, but not in checksum mode "
-                f"with {self._options.algorithm} (is that its algorithm?): {error}"
+            raise checksum_mode_unconfirmed(
+                self._link.description, self._options.algorithm, error
             ) from error
 
     def _flush_due(self) -> None:

@@ -109,6 +109,32 @@ class ConnectError(ClientError, ConnectionError):
     """
 
 
+def checksum_mode_unconfirmed(link: str, algorithm: str, error: QueryTimeoutError) -> ConnectError:
+    """The error of an open in checksum mode whose first checksummed query, ``error``, got no
+    valid reply. Its attempts tell the causes apart: every attempt timed out when the
+    controller dropped each query (another algorithm, or no checksum mode); a reply that failed
+    the check shows it took the query, and a noisy line (or replies checksummed otherwise)
+    spoilt the replies, which asking about the algorithm alone would hide.
+
+    >>> from rovlink.protocol import Command
+    >>> noisy = QueryTimeoutError(Command("qd"), ["corrupt", "timeout"], 0.5)
+    >>> print(checksum_mode_unconfirmed("sim", "crc8", noisy))
+    sim: the controller answers in checksum mode, but no reply passed the crc8 check (a noisy \
+line? more --retries; or its replies are checksummed with another algorithm): #qd! got no valid \
+reply within 0.5 s (2 attempts: corrupt, timeout)
+    """
+    if "corrupt" in error.failures:
+        return ConnectError(
+            f"{link}: the controller answers in checksum mode, but no reply passed the "
+            f"{algorithm} check (a noisy line? more --retries; or its replies are checksummed "
+            f"with another algorithm): {error}"
+        )
+    return ConnectError(
+        f"{link}: the controller answers, but not in checksum mode with {algorithm} (is that "
+        f"its algorithm?): {error}"
+    )
+
+
 class SupersededByStopError(ClientError):
     """A command that unlocks the motors or moves the robot was still waiting to be written
     when ``stop()`` was called (from another thread or task): it was not sent, as it would have

@@ -8,8 +8,10 @@ unanswered, sends ``#stop!`` and aborts the run.
 
 from __future__ import annotations
 
+import functools
 import itertools
 import time
+from collections.abc import Callable
 
 from rovlink.conformance.registry import CheckAbortedError, CheckContext, CheckFailedError, check
 from rovlink.conformance.replies import first_value
@@ -24,6 +26,8 @@ _MOVED_COUNTS = 3
 _POLL_S = 0.1
 #: How long the vehicle may coast on after #stop!, s.
 _COAST_S = 1.5
+#: After a failed check, how many coasts the vehicle is watched for to come to rest.
+_SETTLE_COASTS = 3
 #: Silence beyond the watchdog's time before the failsafe must have acted, s.
 _WATCHDOG_MARGIN_S = 0.5
 #: What the failsafe check sends instead of silence: nothing that P1 lets be a frame at all, so
@@ -77,6 +81,48 @@ def _watch(
     return start, deepest
 
 
+def _come_to_rest(ctx: CheckContext, failure: CheckFailedError) -> None:
+    """After ``failure``: stop the motors and watch the vehicle until it no longer goes deeper,
+    so that the next check does not take the coast of this one's dive for its own (and blame a
+    rule the controller obeys). Abort the run if it goes on diving: more checks would only
+    drive it deeper."""
+    settling = CheckContext(ctx.wire, ctx.options)  # (its exchanges are not the failure's)
+    # #crcoff! first, on its own: a failed check may have left checksum mode on. Nothing
+    # else: a depth mode entered now would hold the vehicle whether the #stop! worked or not.
+    settling.tell(b"#crcoff!")
+    settling.tell(b"#stop!")
+    ctx.wire.replies_checksummed = False
+    for _ in range(_SETTLE_COASTS):
+        start, deepest = _watch(settling, False, _COAST_S, coast=True)
+        if deepest - start < _MOVED_COUNTS:
+            return
+    _abort(
+        ctx,
+        f"{failure}; and after a plain #stop! the vehicle still went deeper (raw {start} to "
+        f"{deepest} in the last {_COAST_S:g} s of {_SETTLE_COASTS * _COAST_S:g})",
+    )
+
+
+def _motion_check(
+    name: str, rules: tuple[str, ...], description: str
+) -> Callable[[Callable[[CheckContext], None]], Callable[[CheckContext], None]]:
+    """Register a motion check that, when it fails, leaves the vehicle at rest for the next."""
+
+    def register(run: Callable[[CheckContext], None]) -> Callable[[CheckContext], None]:
+        @functools.wraps(run)
+        def ending_at_rest(ctx: CheckContext) -> None:
+            try:
+                run(ctx)
+            except CheckFailedError as failure:
+                _come_to_rest(ctx, failure)
+                raise
+
+        check(name, rules, description, motion=True)(ending_at_rest)
+        return run
+
+    return register
+
+
 def _down(ctx: CheckContext, checksum: bool) -> bytes:
     frame = ctx.frame
     # The PWM cap at its top (the set-* checks leave it at 0): the power is the thrust's %.
@@ -88,12 +134,11 @@ def _down(ctx: CheckContext, checksum: bool) -> bytes:
     )
 
 
-@check(
+@_motion_check(
     "motion-locked-after-stop",
     ("P7",),
     "after #stop!, down thrust in direct mode and a depth target far below in depth mode are "
     "dropped: the depth does not grow, nor after a #start! alone",
-    motion=True,
 )
 def _locked(ctx: CheckContext) -> None:
     frame = ctx.frame
@@ -165,22 +210,20 @@ def _start_is_neutral(ctx: CheckContext, checksum: bool) -> None:
         )
 
 
-@check(
+@_motion_check(
     "motion-stop-halts",
     ("P7",),
     "unlocked, down thrust dives; #stop! stops the motors and locks them, and clears the "
     "set-points: a #start! alone after it does not dive again",
-    motion=True,
 )
 def _stop_halts(ctx: CheckContext) -> None:
     _dive_then_stop(ctx, checksum=False, then_start=True)
 
 
-@check(
+@_motion_check(
     "motion-bare-stop-in-checksum-mode",
     ("P3", "P7"),
     "in checksum mode, a bare #stop! stops a checksummed dive",
-    motion=True,
 )
 def _bare_stop(ctx: CheckContext) -> None:
     ctx.tell(ctx.frame(Command("crcon")))
@@ -254,12 +297,11 @@ def _expect_dive(ctx: CheckContext, data: bytes, what: str, unseen: str) -> None
         )
 
 
-@check(
+@_motion_check(
     "motion-mode-gating",
     ("P9", "P6"),
     "in depth mode mvs is dropped, in direct mode mvd is dropped: the vehicle does not dive "
     "(nor for mvs.-101 and mvd.10000, out of range: dropped, not clamped)",
-    motion=True,
 )
 def _mode_gating(ctx: CheckContext) -> None:
     frame = ctx.frame
@@ -297,12 +339,11 @@ def _mode_gating(ctx: CheckContext) -> None:
     )
 
 
-@check(
+@_motion_check(
     "motion-out-of-range-not-clamped",
     ("P6", "P8"),
     "with the PWM cap at 0 and down thrust set, an out-of-range #mgmp.256! is dropped, not "
     "clamped to 255: the vehicle does not dive",
-    motion=True,
 )
 def _pwm_not_clamped(ctx: CheckContext) -> None:
     frame = ctx.frame
@@ -328,13 +369,12 @@ def _pwm_not_clamped(ctx: CheckContext) -> None:
 _GAINS = ("mvpdp", "mvpdi", "mvpidd")
 
 
-@check(
+@_motion_check(
     "motion-gains-out-of-range-not-clamped",
     ("P6", "P10"),
     "in depth mode, every PID gain at 0 and a target far below, #mvpdp.100! #mvpdi.100! "
     "#mvpidd.100! are dropped, not clamped to 99: the vehicle does not dive (#mvpdp.99! then does; "
     "a clamped derivative gain cannot show on a vehicle at rest)",
-    motion=True,
 )
 def _gains_not_clamped(ctx: CheckContext) -> None:
     # With every gain at 0 the PID drives nothing, however far the target; a proportional or
@@ -363,13 +403,12 @@ def _gains_not_clamped(ctx: CheckContext) -> None:
         )
 
 
-@check(
+@_motion_check(
     "motion-link-loss-failsafe",
     ("P17",),
     "unlocked and diving, queries alone keep the link alive past the watchdog's time; no valid "
     "frame for that time (only noise and broken frames: a control byte, over 64 bytes, "
     "unfinished) stops and locks the motors",
-    motion=True,
 )
 def _watchdog(ctx: CheckContext) -> None:
     ctx.tell(ctx.frame(Command("start")) + _down(ctx, checksum=False))

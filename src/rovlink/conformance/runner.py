@@ -107,11 +107,15 @@ def _preflight(wire: Wire, options: SuiteOptions) -> None:
     """Wait for the controller to answer ``#q.l!`` (a board may boot for up to 2 s after its
     port opens, P21), and refuse to go on if its leak latch is set or the link is lost."""
     try:
-        _wait_for_answer(wire, options)
+        leak = _wait_for_answer(wire, options)
     except ConnectionLostError as error:
         raise PreflightError(
             f"the link was lost before the first check: {error}{_what_it_said(wire)}"
         ) from None
+    if leak == (1,):
+        raise PreflightError(
+            "the leak latch is set: inspect the vehicle, then send #slreset! before checking"
+        )
 
 
 def _what_it_said(wire: Wire) -> str:
@@ -121,7 +125,9 @@ def _what_it_said(wire: Wire) -> str:
     return f'; it said: "{visible(lines[-1].text)}"' if lines else ""
 
 
-def _wait_for_answer(wire: Wire, options: SuiteOptions) -> None:
+def _wait_for_answer(wire: Wire, options: SuiteOptions) -> tuple[int, ...]:
+    """The values of the controller's first ``$q.l`` reply to a plain ``#q.l!``, waited for up
+    to the boot time; PreflightError if none comes."""
     context = CheckContext(wire, options)
     deadline = time.monotonic() + options.boot_timeout_s
     received = b""
@@ -156,10 +162,21 @@ def _wait_for_answer(wire: Wire, options: SuiteOptions) -> None:
                 f"the controller did not answer #q.l! within {options.boot_timeout_s:g} s "
                 f"(received {received[-200:]!r})"
             )
-    if values[0] == (1,):
-        raise PreflightError(
-            "the leak latch is set: inspect the vehicle, then send #slreset! before checking"
+    return values[0]
+
+
+def _stopped_answering(wire: Wire, options: SuiteOptions) -> str | None:
+    """After a failed check: what to add to its failure if the controller no longer answers a
+    plain ``#q.l!``, given the boot time (it may have reset, P21); None if it does. Every
+    later check would fail for want of a reply, and blame its own rule."""
+    try:
+        _wait_for_answer(wire, options)
+    except PreflightError:
+        return (
+            f"; then a plain #q.l! got no reply within {options.boot_timeout_s:g} s either: the "
+            "controller stopped answering (hung, or reset and not back), run aborted"
         )
+    return None
 
 
 def _run_one(item: Check, wire: Wire, options: SuiteOptions) -> CheckResult:
@@ -173,6 +190,12 @@ def _run_one(item: Check, wire: Wire, options: SuiteOptions) -> CheckResult:
         item.run(context)
     except CheckFailedError as failure:
         outcome, message = Outcome.FAILED, str(failure)
+        try:
+            silent = _stopped_answering(wire, options)
+        except ConnectionLostError as error:
+            silent = f"; then the link was lost: {error}"
+        if silent is not None:
+            outcome, message = Outcome.ABORTED, message + silent
     except CheckSkippedError as skip:
         outcome, message = Outcome.SKIPPED, str(skip)
     except CheckAbortedError as abort:

@@ -23,6 +23,11 @@ __all__ = ["FaultPort"]
 logger = get_logger(__name__)
 
 _READ_WAIT_S = 0.02
+#: How long close() waits for each of the port's threads to end, s.
+_JOIN_S = 1.0
+#: How long a close() waits for one under way in another thread, s: its joins and the write
+#: of the held-back bytes.
+_CLOSE_WAIT_S = 2 * _JOIN_S + 1.0
 
 
 class _Delayed:
@@ -81,6 +86,8 @@ class FaultPort:
         self._lock = threading.Condition()
         self._write_lock = threading.Lock()
         self._open = True
+        #: Set once close() has sent the held-back bytes and closed the inner link.
+        self._closed = threading.Event()
         self._lost: str | None = None
         self._reader = threading.Thread(target=self._read_loop, name="fault reader", daemon=True)
         self._reader.start()
@@ -142,23 +149,32 @@ class FaultPort:
 
     def close(self) -> None:
         """Send the host's bytes still held back by the delay, then close the inner link and
-        stop the threads (idempotent).
+        stop the threads (idempotent: called while another thread closes the port, it returns
+        once that close has ended).
 
         The held-back bytes go at once rather than being dropped: a program's last ``#stop!``
         is typically written just before it closes its link, and a serial line delivers what
         was written before it was closed.
         """
         with self._lock:
-            if not self._open:
-                return
+            closing = self._open
             self._open = False
             self._lock.notify_all()
-        self._inner.wake()
-        self._reader.join(timeout=1.0)
-        if self._writer is not None:
-            self._writer.join(timeout=1.0)
-            self._flush_delayed()
-        self._inner.close()
+        if not closing:
+            # Another thread's close is under way (the driver's abort_writes() closes the port
+            # from a thread of its own): returning before it has sent the held-back bytes let
+            # a program exit, its threads with it, without its last #stop!.
+            self._closed.wait(_CLOSE_WAIT_S)
+            return
+        try:
+            self._inner.wake()
+            self._reader.join(timeout=_JOIN_S)
+            if self._writer is not None:
+                self._writer.join(timeout=_JOIN_S)
+                self._flush_delayed()
+            self._inner.close()
+        finally:
+            self._closed.set()
         for direction, counters in self.counters.items():
             logger.info("%s %s: %s", self.name, direction, counters.summary())
 

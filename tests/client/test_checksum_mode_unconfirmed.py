@@ -1,0 +1,65 @@
+"""An open in checksum mode whose first checksummed query gets no valid reply says why it
+thinks so: replies that failed the check (a noisy line) are not blamed on the algorithm."""
+
+from __future__ import annotations
+
+import pytest
+
+from rovlink.aio import AsyncClient
+from rovlink.client import Client, ConnectError
+from rovlink.client.links import SocketLink
+from tests.client.conftest import NO_REPLY_TIMEOUT_S, client_options
+from tests.client.fake_controller import FakeController
+
+_NOISY = (
+    "the controller answers in checksum mode, but no reply passed the crc8 check (a noisy line?"
+)
+_OTHER_ALGORITHM = "the controller answers, but not in checksum mode with crc8 (is that its"
+
+
+def _fake(case: str) -> tuple[FakeController, SocketLink]:
+    if case == "noisy line":  # the readiness probe is answered, every checksummed reply spoilt
+        fake, sock = FakeController.on_socketpair()
+        fake.then("reply", *["corrupt"] * 10)
+    else:  # it checksums with xor: each crc8 query is dropped
+        fake, sock = FakeController.on_socketpair(algorithm="xor")
+    return fake, SocketLink(sock, "pair")
+
+
+_CASES = [("noisy line", _NOISY), ("another algorithm", _OTHER_ALGORITHM)]
+
+
+@pytest.mark.parametrize(("case", "says"), _CASES)
+def test_the_blocking_client_tells_a_noisy_line_from_another_algorithm(
+    case: str, says: str
+) -> None:
+    # Before, replies spoilt on a noisy line (fault://?ber=3e-3, rovlink send --checksum) were
+    # reported as a controller not in checksum mode with crc8: "is that its algorithm?".
+    fake, link = _fake(case)
+    options = client_options(
+        checksum=True, boot_timeout_s=1.0, retries=1, timeout_s=NO_REPLY_TIMEOUT_S
+    )
+    try:
+        with pytest.raises(ConnectError) as raised:
+            Client(link, options)
+        assert says in str(raised.value)
+    finally:
+        fake.close()
+
+
+@pytest.mark.parametrize(("case", "says"), _CASES)
+async def test_the_asyncio_client_tells_a_noisy_line_from_another_algorithm(
+    case: str, says: str
+) -> None:
+    fake, link = _fake(case)
+    options = client_options(
+        checksum=True, boot_timeout_s=1.0, retries=1, timeout_s=NO_REPLY_TIMEOUT_S
+    )
+    client = AsyncClient(link, options)
+    try:
+        with pytest.raises(ConnectError) as raised:
+            await client.open()
+        assert says in str(raised.value)
+    finally:
+        await client.close()
+        fake.close()
