@@ -33,6 +33,21 @@ def test_an_option_against_the_urls_algorithm_is_a_usage_error(run_cli: RunCli) 
     )
 
 
+@pytest.mark.parametrize("url", ["sim://?realtime=0", "sim://?realtime=0&algorithm=sum8"])
+def test_check_checks_a_simulated_controller_in_the_algorithm_asked(
+    run_cli: RunCli, url: str
+) -> None:
+    # Before, the simulated controller stayed on crc8 (or the URL's): 42 of 51 checks passed.
+    algorithm = "sum8" if "algorithm" in url else "xor"
+    options = ("--algorithm", algorithm) if algorithm == "xor" else ()
+    result = run_cli("check", url, *options, "--only", "checksum-replies")
+    assert result.status == 0, result.out + result.err
+    assert "1 of 1 checks passed" in result.out
+    refused = run_cli("check", "sim://?algorithm=sum8", "--algorithm", "xor", "--only", "query")
+    assert refused.status == 2
+    assert "the simulated controller's algorithm is sum8, not xor" in refused.err
+
+
 def test_a_replay_into_sim_uses_the_recordings_algorithm(run_cli: RunCli, tmp_path: Path) -> None:
     recording = tmp_path / "dive.jsonl"
     made = run_cli(

@@ -19,7 +19,15 @@ from pathlib import Path
 from typing import TYPE_CHECKING, NoReturn
 
 from rovlink.cli.failure import CommandError, UsageError, reason
-from rovlink.cli.link_options import algorithm_name, bounded_int, confirmed, file_name, seconds
+from rovlink.cli.link_options import (
+    GivenAlgorithm,
+    agree_on_algorithm_with_simulator,
+    algorithm_name,
+    bounded_int,
+    confirmed,
+    file_name,
+    seconds,
+)
 from rovlink.cli.output_file import check_writable
 
 if TYPE_CHECKING:
@@ -63,9 +71,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--algorithm",
         type=algorithm_name,
+        action=GivenAlgorithm,
         default="crc8",
         metavar="NAME",
-        help="the controller's checksum algorithm (default: %(default)s)",
+        help="the controller's checksum algorithm (default: %(default)s); a sim:// "
+        "controller is given it",
     )
     parser.add_argument(
         "--timeout",
@@ -124,6 +134,9 @@ def run(args: argparse.Namespace) -> int:
         endpoint = parse_url(args.url)
     except ValueError as error:
         raise UsageError(str(error)) from None
+    if endpoint.handler == "sim":  # (the simulated controller checked with the algorithm asked)
+        agree_on_algorithm_with_simulator(args)
+        endpoint = parse_url(args.url)
     if args.junit:
         check_writable("--junit", args.junit)
     # Asked only when a check that runs moves the robot: --motion with --only query-… moves

@@ -207,7 +207,7 @@ def add_checksum_options(parser: argparse.ArgumentParser, checksum_help: str) ->
     )
 
 
-class _GivenAlgorithm(argparse.Action):
+class GivenAlgorithm(argparse.Action):
     """``--algorithm NAME``, noting that it was given (``args.algorithm_given``): a simulated
     controller then takes it, where the default leaves it the one its URL or file names."""
 
@@ -244,7 +244,7 @@ def add_link_options(parser: argparse.ArgumentParser, *, url_required: bool = Fa
     group.add_argument(
         "--algorithm",
         type=algorithm_name,
-        action=_GivenAlgorithm,
+        action=GivenAlgorithm,
         default=DEFAULT_ALGORITHM,
         metavar="NAME",
         help=f"checksum algorithm: {', '.join(sorted(ALGORITHMS))}; a sim:// controller "
@@ -423,10 +423,10 @@ def check_url(args: argparse.Namespace) -> None:
     except ValueError as error:
         raise UsageError(f"URL: {error}") from None
     if endpoint.handler == "sim":
-        _agree_on_algorithm_with_simulator(args)
+        agree_on_algorithm_with_simulator(args)
 
 
-def _agree_on_algorithm_with_simulator(args: argparse.Namespace) -> None:
+def agree_on_algorithm_with_simulator(args: argparse.Namespace) -> None:
     """``--algorithm NAME`` goes into the ``sim://`` URL (``?algorithm=NAME``); without it, the
     host takes the algorithm the URL names, if it names one."""
     from rovlink.sim.url import parse_sim_url, with_algorithm  # noqa: PLC0415
