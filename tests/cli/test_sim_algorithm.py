@@ -48,6 +48,21 @@ def test_check_checks_a_simulated_controller_in_the_algorithm_asked(
     assert "the simulated controller's algorithm is sum8, not xor" in refused.err
 
 
+@pytest.mark.parametrize("algorithm", ["xor", "sum8"])
+def test_a_simulated_controller_behind_fault_takes_the_algorithm_given(
+    run_cli: RunCli, algorithm: str
+) -> None:
+    url = "fault://?inner=sim%3A%2F%2F%3Frealtime%3D0&seed=1"
+    result = run_cli("send", url, "--checksum", "--algorithm", algorithm, "qd")
+    assert result.status == 0, result.err  # (before: not in checksum mode with xor)
+    assert "depth_cm=" in result.out
+    # Named in the inner URL, it is the host's too.
+    named = url.replace("realtime%3D0", f"realtime%3D0%26algorithm%3D{algorithm}")
+    result = run_cli("send", named, "--checksum", "qd")
+    assert result.status == 0, result.err
+    assert "depth_cm=" in result.out
+
+
 def test_a_replay_into_sim_uses_the_recordings_algorithm(run_cli: RunCli, tmp_path: Path) -> None:
     recording = tmp_path / "dive.jsonl"
     made = run_cli(

@@ -134,9 +134,8 @@ def run(args: argparse.Namespace) -> int:
         endpoint = parse_url(args.url)
     except ValueError as error:
         raise UsageError(str(error)) from None
-    if endpoint.handler == "sim":  # (the simulated controller checked with the algorithm asked)
-        agree_on_algorithm_with_simulator(args)
-        endpoint = parse_url(args.url)
+    agree_on_algorithm_with_simulator(args)  # (a simulated controller: in the one asked)
+    endpoint = parse_url(args.url)
     if args.junit:
         check_writable("--junit", args.junit)
     # Asked only when a check that runs moves the robot: --motion with --only query-… moves

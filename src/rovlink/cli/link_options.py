@@ -419,27 +419,45 @@ def check_url(args: argparse.Namespace) -> None:
     from rovlink.client import parse_url  # noqa: PLC0415
 
     try:
-        endpoint = parse_url(args.url, args.baudrate)
+        parse_url(args.url, args.baudrate)
     except ValueError as error:
         raise UsageError(f"URL: {error}") from None
-    if endpoint.handler == "sim":
-        agree_on_algorithm_with_simulator(args)
+    agree_on_algorithm_with_simulator(args)
 
 
 def agree_on_algorithm_with_simulator(args: argparse.Namespace) -> None:
-    """``--algorithm NAME`` goes into the ``sim://`` URL (``?algorithm=NAME``); without it, the
-    host takes the algorithm the URL names, if it names one."""
+    """For a simulated controller (``sim://``, or one behind ``fault://?inner=sim://…``),
+    ``--algorithm NAME`` goes into its URL (``?algorithm=NAME``); without it, the host takes
+    the algorithm the URL names, if it names one. Other URLs are left as they are."""
+    from rovlink.client import parse_url  # noqa: PLC0415
+
+    handler = parse_url(args.url).handler
+    if handler == "sim":
+        args.url = _simulator_url_agreed(args, args.url)
+    elif handler == "fault":
+        from rovlink.faults.settings import fault_url, parse_fault_url  # noqa: PLC0415
+
+        inner, settings = parse_fault_url(args.url)
+        if parse_url(inner).handler == "sim":
+            agreed = _simulator_url_agreed(args, inner)
+            if agreed != inner:
+                args.url = fault_url(agreed, settings)
+
+
+def _simulator_url_agreed(args: argparse.Namespace, url: str) -> str:
+    """``url`` (a ``sim://`` URL) with the algorithm asked for; or, none asked for, as it is,
+    the host then taking the one it names."""
     from rovlink.sim.url import parse_sim_url, with_algorithm  # noqa: PLC0415
 
     if getattr(args, "algorithm_given", False):
         try:
-            args.url = with_algorithm(args.url, args.algorithm)
+            return with_algorithm(url, args.algorithm)
         except ValueError as error:
             raise UsageError(f"--algorithm {args.algorithm}: {error}") from None
-        return
-    named = parse_sim_url(args.url).algorithm
+    named = parse_sim_url(url).algorithm
     if named is not None:
         args.algorithm = named
+    return url
 
 
 def connection_failure(url: str, error: BaseException) -> CommandError:
