@@ -151,7 +151,7 @@ def _row_cells(row: RobotRow, now_s: float) -> dict[str, Text]:
     else:
         note = row.last_event or ""
     return {
-        "robot": _cell(row.robot),
+        "robot": _cell(f"{row.robot} (simulated)" if row.simulated else row.robot),
         "presence": _cell(presence, _PRESENCE_STYLES.get(presence, "")),
         "depth": _cell("—" if row.depth_cm is None else f"{row.depth_cm} cm"),
         "leak": _leak_cell(row.leak),

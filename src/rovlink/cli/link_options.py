@@ -444,6 +444,24 @@ def agree_on_algorithm_with_simulator(args: argparse.Namespace) -> None:
                 args.url = fault_url(agreed, settings)
 
 
+def names_simulator(url: str) -> bool:
+    """Whether ``url`` leads to rovlink's simulator (``sim://``, or one behind ``fault://``).
+
+    >>> names_simulator("sim://?seed=1"), names_simulator("fault://?inner=sim://&ber=1e-3")
+    (True, True)
+    >>> names_simulator("/dev/ttyUSB0")
+    False
+    """
+    from rovlink.client import parse_url  # noqa: PLC0415
+
+    handler = parse_url(url).handler
+    if handler == "fault":
+        from rovlink.faults.settings import parse_fault_url  # noqa: PLC0415
+
+        handler = parse_url(parse_fault_url(url)[0]).handler
+    return handler == "sim"
+
+
 def _simulator_url_agreed(args: argparse.Namespace, url: str) -> str:
     """``url`` (a ``sim://`` URL) with the algorithm asked for; or, none asked for, as it is,
     the host then taking the one it names."""

@@ -223,6 +223,7 @@ async def _serve(args: argparse.Namespace, broker: BrokerSettings) -> None:
             allow_commands=args.allow_commands,
             # Motion that reaches the bridge late is refused beyond the time it would have run.
             max_command_age_s=args.motion_timeout_s or DEFAULT_MAX_COMMAND_AGE_S,
+            simulated=link_options.names_simulator(args.url),
         )
         commands = "commands allowed" if args.allow_commands else "only stop accepted"
         say_ready(

@@ -224,6 +224,20 @@ async def test_fleet_lists_the_robots_after_a_state_it_cannot_parse(broker: Mosq
     assert not any(" bad " in line or " huge " in line for line in lines)
 
 
+@pytest.mark.integration
+async def test_fleet_marks_a_robot_whose_bridge_drives_the_simulator(broker: Mosquitto):
+    # A bridge started without its URL serves rovlink's simulator: before, it stood in the
+    # table as one more robot, under a real robot's id.
+    retained = {
+        "rovlink/rov-1/state": '{"online": true, "simulated": true}',
+        "rovlink/rov-2/state": '{"online": true, "simulated": false}',
+    }
+    lines = await _snapshot_after_retaining(broker, retained)
+    assert any(" rov-1 (simulated) " in line for line in lines), lines
+    rov_2 = next(line for line in lines if " rov-2 " in line)
+    assert "simulated" not in rov_2
+
+
 async def _snapshot_after_retaining(
     broker: Mosquitto, retained: Mapping[str, str | bytes]
 ) -> list[str]:

@@ -80,7 +80,9 @@ async def test_a_killed_bridge_leaves_its_last_will(broker: Mosquitto) -> None:
     process = _bridge_process(broker.url, "k1")
     try:
         async with subscriber(broker, "rovlink/k1/state") as watcher:
-            await watcher.wait_for("rovlink/k1/state", lambda s: s["online"])
+            online = await watcher.wait_for("rovlink/k1/state", lambda s: s["online"])
+            # Its controller is the simulator: the state says so.
+            assert online["simulated"] is True
             process.send_signal(signal.SIGKILL)
             offline = await watcher.wait_for("rovlink/k1/state", lambda s: not s["online"])
             assert offline == {

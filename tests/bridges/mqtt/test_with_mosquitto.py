@@ -41,6 +41,7 @@ async def test_a_subscriber_sees_three_robots_and_a_command_reaches_only_its_rob
             assert set(reading) >= {"depth_cm", "leak", "heading_deg", "seq", "at"}
             state = await watcher.wait_for(f"rovlink/{robot.robot_id}/state")
             assert state["online"] is True
+            assert state["simulated"] is False  # (a bridge made with no word of it)
 
         before = {robot.robot_id: len(robot.motion_and_lock_frames()) for robot in robots}
         assert (await watcher.command("r2", "start"))["ok"]

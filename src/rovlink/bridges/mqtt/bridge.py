@@ -161,8 +161,12 @@ class MqttBridge:
         max_command_age_s: float = DEFAULT_MAX_COMMAND_AGE_S,
         max_kept_events: int = DEFAULT_CAPACITY,
         wall_clock: Callable[[], float] = time.time,
+        simulated: bool = False,
     ) -> None:
         self.rov = rov
+        #: The controller is rovlink's simulator, not a robot: the state says so (a bridge
+        #: started without its URL would otherwise stand for a real robot on the fleet's view).
+        self.simulated = simulated
         self.broker = broker
         self.topics = Topics(robot_id)
         self.robot_id = robot_id
@@ -465,6 +469,7 @@ class MqttBridge:
             depth_cm=None if self._latest is None else self._latest.depth_cm,
             leak=None if self._latest is None else self._latest.leak_detected,
             commands_allowed=self.policy.allow_commands,
+            simulated=self.simulated,
             at_s=self._wall_clock(),
             now_s=self.rov.now_s(),
         )

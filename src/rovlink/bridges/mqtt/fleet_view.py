@@ -37,6 +37,8 @@ class RobotRow:
     last_heard_s: float | None = None
     #: What is wrong with the last state, if it is not a bridge's (its presence is not guessed).
     state_problem: str | None = None
+    #: Its bridge drives rovlink's simulator, not a robot (its state says ``"simulated": true``).
+    simulated: bool = False
 
     def presence(self, now_s: float) -> str:
         """``online``, ``silent`` (online, but quiet too long), ``offline``, ``malformed`` (the
@@ -133,6 +135,7 @@ class FleetView:
             row.offline_reason = reason if isinstance(reason, str) else json.dumps(reason)
             return
         row.offline_reason = None
+        row.simulated = data.get("simulated") is True
         row.depth_cm = _integer(data.get("depth_cm"), row.depth_cm)
         row.leak = _leak(data.get("leak"), row.leak)
         row.lock = data.get("lock") if isinstance(data.get("lock"), str) else row.lock

@@ -96,6 +96,7 @@ def state_payload(
     depth_cm: int | None,
     leak: bool | None,
     commands_allowed: bool,
+    simulated: bool = False,
     at_s: float,
     now_s: float,
 ) -> dict[str, Any]:
@@ -104,7 +105,8 @@ def state_payload(
     The lock is the one the controller announced, if it did after the bridge's last start or
     stop (debug output on), with where it came from in ``lock_heard_because``
     (``stopped by another line``); else as last sent, and ``lock_heard_because`` is ``None``.
-    ``depth_cm`` and ``leak`` are ``None`` until the first sensor reading.
+    ``depth_cm`` and ``leak`` are ``None`` until the first sensor reading. ``simulated``: the
+    controller is rovlink's simulator (``sim://``), not a robot.
     """
     silent_s = health.silent_s(now_s)
     return {
@@ -121,6 +123,7 @@ def state_payload(
         "depth_cm": depth_cm,
         "leak": leak,
         "commands_allowed": commands_allowed,
+        "simulated": simulated,
         "link": {
             "status": health.status,
             "average_reply_ms": None
