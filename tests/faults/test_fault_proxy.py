@@ -12,6 +12,7 @@ from typing import TypeVar
 import pytest
 
 from rovlink.busy_tcp import RefusedClients
+from rovlink.client.errors import ConnectionLostError
 from rovlink.client.links import PortLink, open_link
 from rovlink.client.url import parse_url
 from rovlink.faults import FaultPort, FaultSettings
@@ -172,6 +173,33 @@ def test_serve_returns_with_nothing_left_reading_the_port() -> None:
     assert proxy.lost is None
     assert controller.wait_for(b"#stop!")
     controller.close()
+
+
+def test_a_lost_link_is_named_once_in_the_proxys_error() -> None:
+    # Before: "fault proxy to tcp 127.0.0.1:N: tcp 127.0.0.1:N: closed by the other end".
+    with socket.create_server(("127.0.0.1", 0)) as listener:
+        host, port = listener.getsockname()[:2]
+        link = open_link(parse_url(f"socket://{host}:{port}"))
+        connection, _ = listener.accept()
+    fault_port = FaultPort(link, FaultSettings(), name=f"fault proxy to {link.description}")
+    fault_port.timeout = 0.05
+    try:
+        connection.close()  # the controller goes
+        said = _wait_until(lambda: _read_error(fault_port), lambda error: error is not None)
+        assert said is not None
+        assert said.startswith(f"fault proxy to {link.description}: ")
+        assert said.count(link.description) == 1, said
+    finally:
+        fault_port.close()
+
+
+def _read_error(port: FaultPort) -> str | None:
+    """What reading ``port`` raises, if it does (it waits ``port.timeout`` at the most)."""
+    try:
+        port.read(1)
+    except ConnectionLostError as error:
+        return str(error)
+    return None
 
 
 def test_bytes_still_delayed_when_the_port_closes_are_sent_not_dropped() -> None:

@@ -226,6 +226,15 @@ class FaultPort:
                 chunks.appendleft((due, data[room:]))
         return bytes(out)
 
+    def _lost_text(self, error: ConnectionLostError) -> str:
+        """Why the inner link was lost, without its name where this port's already gives it
+        (``fault proxy to tcp …: closed by the other end``, not the link named twice)."""
+        text = str(error)
+        prefix = f"{self._inner.description}: "
+        if self._inner.description in self.name and text.startswith(prefix):
+            return text[len(prefix) :]
+        return text
+
     def _check(self) -> None:
         if not self._open:
             raise ConnectionLostError(f"{self.name}: closed")
@@ -239,7 +248,7 @@ class FaultPort:
                 data = inner.read_available(_READ_WAIT_S)
             except ConnectionLostError as error:
                 with self._lock:
-                    self._lost = str(error)
+                    self._lost = self._lost_text(error)
                     self._lock.notify_all()
                 return
             if not data:
@@ -270,7 +279,7 @@ class FaultPort:
                         self._inner.write(data)
             except ConnectionLostError as error:
                 with self._lock:
-                    self._lost = str(error)
+                    self._lost = self._lost_text(error)
                     self._lock.notify_all()
                 return
 
