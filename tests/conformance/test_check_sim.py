@@ -271,7 +271,12 @@ def test_preflight_refuses_a_silent_port_and_a_latched_leak() -> None:
 def test_cli_says_which_algorithm_the_controller_answers_with(
     capsys: pytest.CaptureFixture[str],
 ) -> None:
-    status = main(["check", "sim://", "--only", "checksum-replies", "--algorithm", "xor"])
+    from tests.client.sim_process import running_sim
+
+    # (A controller on a line, with its own algorithm: a sim:// one would take --algorithm.)
+    with running_sim("--tcp", "127.0.0.1:0", "--speed", "0") as sim:
+        assert sim.tcp_url is not None
+        status = main(["check", sim.tcp_url, "--only", "checksum-replies", "--algorithm", "xor"])
     out = " ".join(capsys.readouterr().out.split())  # (the table's console wraps long lines)
     assert status == 1
     assert (
