@@ -429,19 +429,13 @@ def agree_on_algorithm_with_simulator(args: argparse.Namespace) -> None:
     """For a simulated controller (``sim://``, or one behind ``fault://?inner=sim://…``),
     ``--algorithm NAME`` goes into its URL (``?algorithm=NAME``); without it, the host takes
     the algorithm the URL names, if it names one. Other URLs are left as they are."""
-    from rovlink.client import parse_url  # noqa: PLC0415
-
-    handler = parse_url(args.url).handler
-    if handler == "sim":
-        args.url = _simulator_url_agreed(args, args.url)
-    elif handler == "fault":
-        from rovlink.faults.settings import fault_url, parse_fault_url  # noqa: PLC0415
-
-        inner, settings = parse_fault_url(args.url)
-        if parse_url(inner).handler == "sim":
-            agreed = _simulator_url_agreed(args, inner)
-            if agreed != inner:
-                args.url = fault_url(agreed, settings)
+    found = _simulator_in(args.url)
+    if found is None:
+        return
+    simulator, put_back = found
+    agreed = _simulator_url_agreed(args, simulator)
+    if agreed != simulator:
+        args.url = put_back(agreed)
 
 
 def names_simulator(url: str) -> bool:
@@ -452,14 +446,24 @@ def names_simulator(url: str) -> bool:
     >>> names_simulator("/dev/ttyUSB0")
     False
     """
+    return _simulator_in(url) is not None
+
+
+def _simulator_in(url: str) -> tuple[str, Callable[[str], str]] | None:
+    """The ``sim://`` URL ``url`` leads to (itself, or a ``fault://`` URL's inner one) and how
+    to put a changed one in its place; ``None`` for any other URL."""
     from rovlink.client import parse_url  # noqa: PLC0415
 
     handler = parse_url(url).handler
+    if handler == "sim":
+        return url, lambda changed: changed
     if handler == "fault":
-        from rovlink.faults.settings import parse_fault_url  # noqa: PLC0415
+        from rovlink.faults.settings import fault_url, parse_fault_url  # noqa: PLC0415
 
-        handler = parse_url(parse_fault_url(url)[0]).handler
-    return handler == "sim"
+        inner, settings = parse_fault_url(url)
+        if parse_url(inner).handler == "sim":
+            return inner, lambda changed: fault_url(changed, settings)
+    return None
 
 
 def _simulator_url_agreed(args: argparse.Namespace, url: str) -> str:

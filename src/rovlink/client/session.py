@@ -774,8 +774,7 @@ class Session:
                 # (no reply, no change) keeps the controller's link-loss failsafe fed instead.
                 # Else a timed-out qsa left the line silent for its timeout and the wait, 1.5 s
                 # by default, and a damaged frame or two around that gap tripped the failsafe.
-                mode = setting_command(Setting.CHECKSUM, self._checksum_enabled)
-                self._outbox.append((self.frame_for(mode), None, mode))
+                self._outbox.append(self._mode_entry())
         return settled
 
     def expire(self, now: float) -> list[PendingQuery]:
@@ -917,8 +916,7 @@ class Session:
         self._end_resync()
         self._consecutive_timeouts = 0
         self._reset_reported_at = None
-        mode = setting_command(Setting.CHECKSUM, self._checksum_enabled)
-        self._outbox.append((self.frame_for(mode), None, mode))
+        self._outbox.append(self._mode_entry())
         for command in self._rest_commands():
             self._outbox.append((self.frame_for(command), None, command))
 
@@ -1059,8 +1057,13 @@ class Session:
             self.counters.resets_suspected += 1
             self._note(ResetSuspected(now, self._consecutive_timeouts))
         self._consecutive_timeouts = 0
+        self._outbox.insert(0, self._mode_entry())
+
+    def _mode_entry(self) -> tuple[bytes, None, Command]:
+        """The outbox entry that asserts the checksum mode as it is (``#crcon!``/``#crcoff!``:
+        no reply; a controller in that mode already is unchanged)."""
         mode = setting_command(Setting.CHECKSUM, self._checksum_enabled)
-        self._outbox.insert(0, (self.frame_for(mode), None, mode))
+        return self.frame_for(mode), None, mode
 
     def _fail(self, query: PendingQuery, outcome: Outcome, now: float) -> list[PendingQuery]:
         """``query`` failed while its reply may still come: fail every query on the wire that
