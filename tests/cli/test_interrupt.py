@@ -114,6 +114,7 @@ def _interrupt(
 ENDING_SIGNALS = [signal.SIGINT, signal.SIGTERM, signal.SIGHUP, signal.SIGQUIT]
 
 
+@pytest.mark.realtime
 def test_ctrl_c_ends_send_waiting_for_a_silent_controller_at_once(silent: SilentController) -> None:
     process = _rovlink("send", silent.url, "qd", "--timeout", "60")
     assert silent.wait_for(b"#qd!")
@@ -125,6 +126,7 @@ def test_ctrl_c_ends_send_waiting_for_a_silent_controller_at_once(silent: Silent
 
 
 @pytest.mark.parametrize("how", ENDING_SIGNALS, ids=lambda how: how.name)
+@pytest.mark.realtime
 def test_a_signal_after_a_motion_command_sends_stop_first(
     silent: SilentController, how: signal.Signals
 ) -> None:
@@ -139,6 +141,7 @@ def test_a_signal_after_a_motion_command_sends_stop_first(
 
 
 @pytest.mark.parametrize("how", ENDING_SIGNALS, ids=lambda how: how.name)
+@pytest.mark.realtime
 def test_a_signal_ends_the_demo_with_stop_and_its_recording_finished(
     answering: DepthAnsweringController, how: signal.Signals, tmp_path: Path
 ) -> None:
@@ -171,6 +174,7 @@ def _write_cut_dive(path: Path, *, query_at_s: float) -> None:
 
 
 @pytest.mark.parametrize("how", ENDING_SIGNALS, ids=lambda how: how.name)
+@pytest.mark.realtime
 def test_a_signal_ends_a_replay_to_a_controller_with_stop(
     answering: DepthAnsweringController, how: signal.Signals, tmp_path: Path
 ) -> None:
@@ -233,6 +237,7 @@ def _drive_ahead_in_the_console(terminal: Terminal, silent: SilentController) ->
 
 
 @pytest.mark.parametrize("how", ENDING_SIGNALS, ids=lambda how: how.name)
+@pytest.mark.realtime
 def test_a_signal_ends_the_console_with_stop(silent: SilentController, how: signal.Signals) -> None:
     # kill -INT is no Ctrl-C key (the terminal is in raw mode, the key only drops the line):
     # it, kill and a closed terminal end the console, #stop! first.

@@ -84,6 +84,7 @@ def stuck() -> Iterator[_StuckLines]:
         far_end.close()
 
 
+@pytest.mark.realtime
 def test_a_stop_on_the_reopened_link_does_not_wait_for_a_write_blocked_on_the_lost_one(
     reopened: list[FakeController],
 ) -> None:
@@ -170,6 +171,7 @@ def device_name(tmp_path: Path) -> Path:
     return tmp_path / "ttyROV"
 
 
+@pytest.mark.realtime
 def test_a_stop_behind_a_write_that_times_out_is_the_reopened_links_first_frame(
     device_name: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
@@ -269,6 +271,7 @@ def _port_url(device_name: Path, port: str) -> str:
 
 @pytest.mark.parametrize("port", ["serial", "spy"])
 @pytest.mark.parametrize("what", ["#stop!", "#th.90.0!"])
+@pytest.mark.realtime
 async def test_the_asyncio_client_gives_up_a_line_that_takes_nothing_and_starts_the_next_with_it(
     device_name: Path, monkeypatch: pytest.MonkeyPatch, what: str, port: str
 ) -> None:
@@ -344,6 +347,7 @@ async def test_an_asyncio_stop_written_as_the_adapter_is_pulled_out_goes_first_o
             second.close()
 
 
+@pytest.mark.realtime
 def test_close_while_a_reopened_link_takes_nothing_returns_at_once_and_lets_the_port_go(
     reopened: list[FakeController], stuck: _StuckLines
 ) -> None:
@@ -439,6 +443,7 @@ def test_a_port_reopened_as_close_begins_is_let_go_untouched(
     assert late.raw == b""  # untouched
 
 
+@pytest.mark.realtime
 def test_a_stop_while_the_reopened_link_takes_nothing_returns_at_once(
     reopened: list[FakeController], stuck: _StuckLines, monkeypatch: pytest.MonkeyPatch
 ) -> None:
@@ -476,6 +481,7 @@ def test_a_stop_while_the_reopened_link_takes_nothing_returns_at_once(
         rov.close()
 
 
+@pytest.mark.realtime
 def test_close_as_a_reopened_port_becomes_the_link_being_readied_lets_it_go_at_once(
     reopened: list[FakeController], stuck: _StuckLines
 ) -> None:

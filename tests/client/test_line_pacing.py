@@ -111,6 +111,7 @@ def test_asyncio_a_stop_after_a_burst_of_moves_reaches_the_controller_at_once(
     assert _stop_latency_s(sim, stop_called_at_s) < STOP_LATENCY_LIMIT_S
 
 
+@pytest.mark.realtime
 def test_a_serial_link_times_what_it_wrote_at_its_baud_rate(sim: _ServedSim) -> None:
     port = serial.Serial(sim.path, BAUD, timeout=0, exclusive=True)
     link = SerialFdLink(port, "pty")

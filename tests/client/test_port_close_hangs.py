@@ -77,6 +77,7 @@ def test_the_blocking_client_does_not_wait_for_a_close_that_hangs(
         let_go.set()
 
 
+@pytest.mark.realtime
 async def test_the_asyncio_client_does_not_wait_for_a_close_that_hangs_nor_block_its_loop(
     pty_fake: tuple[FakeController, str], caplog: pytest.LogCaptureFixture
 ) -> None:

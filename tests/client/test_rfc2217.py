@@ -126,6 +126,7 @@ def test_a_server_that_does_not_acknowledge_modem_control_is_named_with_the_opti
 
 
 @pytest.mark.integration
+@pytest.mark.realtime
 async def test_closing_the_asyncio_client_does_not_stall_its_event_loop(served: Served) -> None:
     # pyserial's rfc2217:// close waits for its reader thread, then sleeps 0.3 s; done in the
     # event loop's thread, it held everything else up for as long (a bridge's heartbeats).

@@ -183,6 +183,7 @@ def test_no_thrust_without_the_dead_man(browser, station, line):
     page.context.close()
 
 
+@pytest.mark.realtime
 def test_a_frozen_pad_zeroes_the_thrust_within_500_ms(browser, station, line):
     page = flying_by_pad(browser, station, line, [0, -1, 0, 0], "#th.0.100!")
     mark = line.mark()
@@ -196,6 +197,7 @@ def test_a_frozen_pad_zeroes_the_thrust_within_500_ms(browser, station, line):
     page.context.close()
 
 
+@pytest.mark.realtime
 def test_a_page_whose_script_stalls_zeroes_the_thrust_within_500_ms(browser, station, line):
     page = flying_by_pad(browser, station, line, [0, -1, 0, 0], "#th.0.100!")
     mark = line.mark()
@@ -215,6 +217,7 @@ def test_a_page_whose_script_stalls_zeroes_the_thrust_within_500_ms(browser, sta
     page.context.close()
 
 
+@pytest.mark.realtime
 def test_closing_the_tab_zeroes_the_thrust_within_500_ms(browser, station, line):
     page = flying_by_pad(browser, station, line, [-1, 0, 0, 0], "#th.270.100!")
     mark = line.mark()
@@ -224,6 +227,7 @@ def test_closing_the_tab_zeroes_the_thrust_within_500_ms(browser, station, line)
     assert zero.at_s - closed_s < CUT_WITHIN_S
 
 
+@pytest.mark.realtime
 def test_unplugging_the_pad_zeroes_the_thrust(browser, station, line):
     page = flying_by_pad(browser, station, line, [0, 1, 0, 0], "#th.180.100!")
     mark = line.mark()
@@ -301,6 +305,7 @@ def test_stop_pressed_while_the_station_cannot_be_reached_goes_first_on_reconnec
     page.context.close()
 
 
+@pytest.mark.realtime
 def test_stop_pressed_on_a_connection_that_stopped_carrying_anything_gets_through(
     browser, station, line
 ):
@@ -762,6 +767,7 @@ def test_keyboard_flying_with_shift_as_the_dead_man(browser, station, line):
     page.context.close()
 
 
+@pytest.mark.realtime
 def test_leaving_the_window_with_keys_held_zeroes_the_thrust(browser, station, line):
     page = _flying_by_keyboard(browser, station, line)
     mark = line.mark()
@@ -794,6 +800,7 @@ REPEATING = """(code) => { window.repeating = setInterval(() => document.body.di
   new KeyboardEvent('keydown', {bubbles: true, code, repeat: true, shiftKey: true})), 30); }"""
 
 
+@pytest.mark.realtime
 def test_a_key_up_the_page_never_gets_zeroes_the_thrust(browser, station, line):
     # The system keeps a key-up for itself (macOS gives none for a key let go while Cmd is
     # down): before, the robot flew on that key for good.
@@ -877,6 +884,7 @@ HIDE_THE_TAB = """(hidden) => {
   document.dispatchEvent(new Event('visibilitychange')); }"""
 
 
+@pytest.mark.realtime
 def test_reloading_mid_dive_zeroes_the_thrust_and_comes_back_as_a_watcher(browser, station, line):
     page = flying_by_pad(browser, station, line, [0, -1, 0, 0], "#th.0.100!")
     mark = line.mark()

@@ -132,6 +132,7 @@ async def test_the_dead_man_must_be_released_first(station, line):
     await page.close()
 
 
+@pytest.mark.realtime
 async def test_a_dropped_websocket_zeroes_the_thrust_within_500_ms(station, line):
     page = await pilot(station)
     await fly(page, line)
@@ -142,6 +143,7 @@ async def test_a_dropped_websocket_zeroes_the_thrust_within_500_ms(station, line
     assert zero.at_s - dropped_s < CUT_WITHIN_S
 
 
+@pytest.mark.realtime
 async def test_a_silent_page_is_cut_after_300_ms_within_500_ms(station, line):
     page = await pilot(station)
     await fly(page, line)
@@ -154,6 +156,7 @@ async def test_a_silent_page_is_cut_after_300_ms_within_500_ms(station, line):
     await page.close()
 
 
+@pytest.mark.realtime
 async def test_a_frozen_pad_is_cut_though_the_page_keeps_sending(station, line):
     page = await pilot(station)
     await fly(page, line)
@@ -178,6 +181,7 @@ async def test_a_frozen_pad_is_cut_though_the_page_keeps_sending(station, line):
     await page.close()
 
 
+@pytest.mark.realtime
 async def test_input_that_arrives_late_is_not_relayed_though_it_keeps_arriving(station, line):
     # A network slower than the page's input (a weak Wi-Fi): every message gets through, each
     # later than the one before. Before, the stick flew on as it had been seconds ago, and the

@@ -92,6 +92,7 @@ def mavproxy_rig(tmp_path: Path) -> Iterator[tuple[BridgeRig, MavProxy]]:
             proxy.close()
 
 
+@pytest.mark.realtime
 def test_mavproxy_with_ftp_and_fence_gets_the_parameters_at_once_and_no_breach(
     tmp_path: Path,
 ) -> None:

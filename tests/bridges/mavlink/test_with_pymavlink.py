@@ -319,6 +319,7 @@ def test_arming_needs_a_disarm_button_as_in_ardusub(rig: BridgeRig, gcs: GroundS
     rig.wait_frame("#start!", since=mark)
 
 
+@pytest.mark.realtime
 def test_message_interval_raises_a_rate(rig: BridgeRig, gcs: GroundStation):
     assert gcs.command(SET_MESSAGE_INTERVAL, ATTITUDE_ID, 50_000) == ACCEPTED  # 20 Hz
     gcs.receive("ATTITUDE")
