@@ -533,7 +533,11 @@ def signal_when(
 
 def assert_stopped(server: SimServer) -> None:
     """The robot is locked, with no thrust and no depth asked for."""
-    state = server.robot.controller.state()
+    # The program's last frames can still be on their way through the pseudo-terminal when it
+    # has exited: the simulator reads them in its own time.
+    controller = server.robot.controller
+    wait_until(lambda: controller.state().locked)
+    state = controller.state()
     assert state.locked
     assert state.power_percent == 0
     assert state.vertical_thrust_percent == 0
