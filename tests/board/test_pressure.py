@@ -184,7 +184,8 @@ def test_a_bar30_configured_as_a_bar02_is_refused_at_start_not_read_as_the_surfa
     bus.devices[0x76] = FakeMs5837.reading(Ms5837Model.BA30, 1013.25)
     with pytest.raises(
         BoardStartError,
-        match=r"MS5837-02BA at 0x76: no reading at start: it reads 50\.\d+ mbar, below any "
+        match=r"MS5837-02BA at 0x76 on I²C bus 1: no reading at start: it reads 50\.\d+ mbar, "
+        r"below any "
         r"air or water \(300 mbar\): is \[pressure\.ms5837\] model right\? "
         r"\(30ba: Bar30, 02ba: Bar02\)",
     ):
