@@ -121,9 +121,16 @@ def _load(**changes: object) -> None:
         # (an ADS1115's config word lands in a PCA9685's MODE2, making its outputs open-drain).
         # TOML reads 40 as forty: the BNO055's 0x28, not the PCA9685's 0x40.
         (
-            {"imu__address": 0x40},
-            "rov.toml [imu] address: 0x40 (64) is already used by [pca9685] on I²C bus 1; "
-            "a TOML number is decimal unless written 0x…",
+            {"pca9685__address": 0x41, "pressure__ms5837__address": 0x41},
+            "rov.toml [pressure.ms5837] address: 0x41 (65) is already used by [pca9685] on I²C "
+            "bus 1; a TOML number is decimal unless written 0x…",
+        ),
+        # `address = 28` is 0x1c: no BNO055 answers there, and the controller, taking it for a
+        # dead IMU at start, ran without attitude.
+        (
+            {"imu__address": 28},
+            "rov.toml [imu]: address must be a BNO055's, 0x28 (ADR low) or 0x29 (ADR high), got "
+            "0x1c (28); a TOML number is decimal unless written 0x…",
         ),
         (
             {"pca9685__address": 40},
@@ -168,8 +175,8 @@ def test_a_wrong_config_is_refused_with_the_key_and_the_reason(
 @pytest.mark.parametrize(
     "changes",
     [
-        # The IMU on a bus of its own may share the PCA9685's address.
-        {"imu__bus": 3, "imu__address": 0x40},
+        # The IMU on a bus of its own may share an address of the main bus.
+        {"imu__bus": 3, "imu__address": 0x29, "pressure__ms5837__address": 0x29},
         # Only the pressure sensor chosen is on the bus.
         {"pressure__ads1115__address": 0x40},
         {"imu__sensor": "none", "imu__address": 0x40},

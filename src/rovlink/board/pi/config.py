@@ -356,6 +356,10 @@ class PressureConfig:
         )
 
 
+#: The BNO055's I²C addresses: its ADR pin low, high.
+_BNO055_ADDRESSES = (0x28, 0x29)
+
+
 @dataclass(frozen=True, slots=True)
 class ImuConfig:
     """``[imu]``: the IMU and its mounting."""
@@ -384,6 +388,13 @@ class ImuConfig:
 
     def __post_init__(self) -> None:
         _check_address("address", self.address)
+        # A BNO055 answers at these two only. Any other (`address = 28`, decimal: 0x1c) would
+        # be taken at start for a dead IMU, and the controller would run without attitude.
+        _require(
+            self.sensor is not ImuKind.BNO055 or self.address in _BNO055_ADDRESSES,
+            "address must be a BNO055's, 0x28 (ADR low) or 0x29 (ADR high), got "
+            f"{self.address:#04x} ({self.address}); a TOML number is decimal unless written 0x…",
+        )
         _require(-1 <= self.bus <= 255, f"bus must be 0–255 or -1, got {self.bus}")
         _require(
             self.placement in PLACEMENTS,
