@@ -63,7 +63,8 @@ class RawScale:
 
 #: Less than the air on the highest summit: no reading of a sensor in air or water.
 LEAST_PLAUSIBLE_MBAR = 300.0
-#: The top of each model's range (TE's datasheets: 0–30 bar, 0–2 bar), mbar.
+#: The top of each model's range, mbar: 30 bar for the 30BA (its datasheet's operating range), 2 bar
+#: for the 02BA (the 10 m a Bar02 is rated for; its compensated pressure is specified to 1.2 bar).
 FULL_SCALE_MBAR: dict[Ms5837Model, float] = {
     Ms5837Model.BA30: 30_000.0,
     Ms5837Model.BA02: 2_000.0,
