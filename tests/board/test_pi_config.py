@@ -121,8 +121,8 @@ def _load(**changes: object) -> None:
         # (an ADS1115's config word lands in a PCA9685's MODE2, making its outputs open-drain).
         # TOML reads 40 as forty: the BNO055's 0x28, not the PCA9685's 0x40.
         (
-            {"pca9685__address": 0x41, "pressure__ms5837__address": 0x41},
-            "rov.toml [pressure.ms5837] address: 0x41 (65) is already used by [pca9685] on I²C "
+            {"pca9685__address": 0x76},
+            "rov.toml [pressure.ms5837] address: 0x76 (118) is already used by [pca9685] on I²C "
             "bus 1; a TOML number is decimal unless written 0x…",
         ),
         # `address = 28` is 0x1c: no BNO055 answers there, and the controller, taking it for a
@@ -145,12 +145,20 @@ def _load(**changes: object) -> None:
             "rov.toml [pca9685]: address must be a PCA9685's, 0x40–0x77 but not 0x70",
         ),
         (
-            {"pressure__sensor": "ads1115", "pressure__ads1115__address": 0x40},
-            "rov.toml [pressure.ads1115] address: 0x40 (64) is already used by [pca9685]",
+            {"pressure__sensor": "ads1115", "pca9685__address": 0x48},
+            "rov.toml [pressure.ads1115] address: 0x48 (72) is already used by [pca9685]",
+        ),
+        # Addresses no such chip has (TOML read `76` and `48` as decimal): they failed only
+        # at start, naming an address the file did not seem to hold.
+        (
+            {"pressure__ms5837__address": 76},
+            "rov.toml [pressure.ms5837]: address must be the MS5837's, 0x76 (fixed on the chip), "
+            "got 0x4c (76); a TOML number is decimal unless written 0x…",
         ),
         (
-            {"pressure__ms5837__address": 0x28},
-            "rov.toml [imu] address: 0x28 (40) is already used by [pressure.ms5837]",
+            {"pressure__ads1115__address": 48},
+            "rov.toml [pressure.ads1115]: address must be an ADS1115's, 0x48–0x4b (by its ADDR "
+            "pin), got 0x30 (48); a TOML number is decimal unless written 0x…",
         ),
         ({"gpio": {"pin": 3}}, "unknown table [gpio]"),
         # A table written as a value: before, the six board tables' messages left the file out.
@@ -175,10 +183,10 @@ def test_a_wrong_config_is_refused_with_the_key_and_the_reason(
 @pytest.mark.parametrize(
     "changes",
     [
-        # The IMU on a bus of its own may share an address of the main bus.
-        {"imu__bus": 3, "imu__address": 0x29, "pressure__ms5837__address": 0x29},
+        # The IMU on a bus of its own.
+        {"imu__bus": 3, "imu__address": 0x29},
         # Only the pressure sensor chosen is on the bus.
-        {"pressure__ads1115__address": 0x40},
+        {"pca9685__address": 0x4B, "pressure__ads1115__address": 0x4B},
         {"imu__sensor": "none", "imu__address": 0x40},
     ],
 )

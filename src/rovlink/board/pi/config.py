@@ -248,6 +248,14 @@ class ClawConfig:
         )
 
 
+#: Said with an address a chip cannot have: `i2cdetect` shows hexadecimal, TOML reads decimal.
+_DECIMAL_HINT = "a TOML number is decimal unless written 0x…"
+#: The MS5837's I²C address (fixed on the chip).
+_MS5837_ADDRESS = 0x76
+#: The ADS1115's I²C addresses, by its ADDR pin (GND, VDD, SDA, SCL).
+_ADS1115_ADDRESSES = (0x48, 0x49, 0x4A, 0x4B)
+
+
 @dataclass(frozen=True, slots=True)
 class Ms5837Config:
     """``[pressure.ms5837]``: a Blue Robotics Bar30 (`30ba`) or Bar02 (`02ba`)."""
@@ -265,6 +273,13 @@ class Ms5837Config:
 
     def __post_init__(self) -> None:
         _check_address("address", self.address)
+        # The chip has one address. Another (`address = 76`, decimal: 0x4c) only failed at
+        # start, naming an address the file did not seem to hold.
+        _require(
+            self.address == _MS5837_ADDRESS,
+            f"address must be the MS5837's, {_MS5837_ADDRESS:#04x} (fixed on the chip), got "
+            f"{self.address:#04x} ({self.address}); {_DECIMAL_HINT}",
+        )
         _require(
             self.oversampling in OVERSAMPLING,
             f"oversampling must be one of {', '.join(map(str, OVERSAMPLING))}, "
@@ -302,6 +317,11 @@ class Ads1115Config:
 
     def __post_init__(self) -> None:
         _check_address("address", self.address)
+        _require(
+            self.address in _ADS1115_ADDRESSES,
+            f"address must be an ADS1115's, 0x48–0x4b (by its ADDR pin), got "
+            f"{self.address:#04x} ({self.address}); {_DECIMAL_HINT}",
+        )
         _require(0 <= self.channel <= 3, f"channel must be 0–3, got {self.channel}")
         _require(
             self.full_scale_v in FULL_SCALES_V,
@@ -393,7 +413,7 @@ class ImuConfig:
         _require(
             self.sensor is not ImuKind.BNO055 or self.address in _BNO055_ADDRESSES,
             "address must be a BNO055's, 0x28 (ADR low) or 0x29 (ADR high), got "
-            f"{self.address:#04x} ({self.address}); a TOML number is decimal unless written 0x…",
+            f"{self.address:#04x} ({self.address}); {_DECIMAL_HINT}",
         )
         _require(-1 <= self.bus <= 255, f"bus must be 0–255 or -1, got {self.bus}")
         _require(
