@@ -107,12 +107,13 @@ def test_a_pin_in_use_is_named() -> None:
 
 
 def test_a_pin_with_a_fixed_pull_is_named() -> None:
-    # GPIO 2 and 3 (I²C) have fixed pull-ups on a Pi: a pull-down cannot be set on them.
+    # GPIO 2 and 3 (I²C bus 1) have fixed pull-ups on a Pi: a pull-down cannot be set on
+    # them. (rov.toml refuses them while the board uses bus 1: here its devices are on bus 3.)
     from gpiozero.pins.mock import MockFactory
 
     factory = MockFactory()
     try:
-        config = example_config(imu={"sensor": "none"}, leak={"pin": 2})
+        config = example_config(imu={"sensor": "none"}, leak={"pin": 2}, i2c={"bus": 3})
         bus = fake_bus_for(config)
         with pytest.raises(BoardStartError, match=r"^leak probe on GPIO 2: .*fixed pull"):
             open_pi_board(config, bus=bus, pin_factory=factory)

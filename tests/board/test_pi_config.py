@@ -160,6 +160,16 @@ def _load(**changes: object) -> None:
             "rov.toml [pressure.ads1115]: address must be an ADS1115's, 0x48–0x4b (by its ADDR "
             "pin), got 0x30 (48); a TOML number is decimal unless written 0x…",
         ),
+        # An active-low probe on GPIO 2 (SDA): gpiozero takes its pull-up, and the pin would
+        # be taken from the bus every device is on.
+        (
+            {"leak__pin": 2, "leak__pull": "up", "leak__active_high": False},
+            "rov.toml [leak] pin: GPIO 2 is SDA of I²C bus 1, which the board's devices are on",
+        ),
+        (
+            {"leak__pin": 3, "i2c__bus": 3, "imu__bus": 1},
+            "rov.toml [leak] pin: GPIO 3 is SCL of I²C bus 1",
+        ),
         ({"gpio": {"pin": 3}}, "unknown table [gpio]"),
         # A table written as a value: before, the six board tables' messages left the file out.
         ({"i2c": 1}, "rov.toml [i2c] must be a table, got int"),
@@ -194,6 +204,10 @@ def test_an_address_on_another_bus_or_of_a_device_not_fitted_is_no_conflict(
     changes: dict[str, object],
 ) -> None:
     _load(**changes)
+
+
+def test_a_leak_probe_on_gpio_2_is_taken_when_i2c_bus_1_is_not_used() -> None:
+    _load(leak__pin=2, leak__pull="up", leak__active_high=False, i2c__bus=3)
 
 
 @pytest.mark.parametrize(

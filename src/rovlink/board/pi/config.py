@@ -571,7 +571,30 @@ def pi_config_from_mapping(data: Mapping[str, Any], source: str = "rov.toml") ->
     _check_outputs(config, source)
     _check_depth_scale(config, source)
     _check_watchdog(config, source)
+    _check_leak_pin(config, source)
     return config
+
+
+#: A Raspberry Pi's GPIOs that are I²C bus 1's lines.
+_I2C_BUS_1_LINES = {2: "SDA", 3: "SCL"}
+
+
+def _check_leak_pin(config: PiConfig, source: str) -> None:
+    """No leak probe on a line of the I²C bus the board uses: claimed as an input, the pin is
+    taken from the bus (every device on it stops answering, the PWM board included), and
+    what is left of the bus's traffic reads as leaks. gpiozero refuses a pull-down there
+    (the lines' pull-ups are fixed), not the pull-up of an active-low probe."""
+    line = _I2C_BUS_1_LINES.get(config.leak.pin)
+    buses = {config.i2c.bus}
+    if config.imu.sensor is ImuKind.BNO055 and config.imu.bus != -1:
+        buses.add(config.imu.bus)
+    if line is None or 1 not in buses:
+        return
+    raise ConfigError(
+        f"{source} [leak] pin: GPIO {config.leak.pin} is {line} of I²C bus 1, which the "
+        "board's devices are on: read as a leak probe it would be taken from the bus; wire "
+        "the probe to a free GPIO (27 in docs/hardware.md's wiring)"
+    )
 
 
 def load_pi_config(path: Path | str) -> PiConfig:
