@@ -22,6 +22,7 @@ from rovlink.board.pi.config import PiConfig, pi_config_from_mapping
 from rovlink.board.pi.fake_bus import FakeBno055, FakeI2cBus, FakeMs5837, FakePca9685
 from rovlink.board.server import BoardServer
 from rovlink.board.watchdog_bounds import MAX_BOARD_WATCHDOG_S
+from rovlink.controller import LeakAction
 from tests.board.rig import (
     CLAW_CHANNEL,
     COUNT_US,
@@ -295,6 +296,35 @@ def test_a_leak_pulse_stops_the_motors_with_leak_action_stop() -> None:
         assert wait_until(rig.neutral), rig.pulses()
         rig.send(b"#q.l!")
         assert wait_until(lambda: rig.saw(b"$q.l.1!"))
+
+
+#: The vertical thrusters' pulses at full up thrust (vertical_right is reversed).
+_FULL_UP_US = [1900.0, 1100.0]
+
+
+def test_a_pressure_sensor_that_dies_while_surfacing_for_a_leak_lets_it_surface() -> None:
+    # Water that set off the leak probe reaches the pressure sensor's wiring: the stale-sensor
+    # failsafe stopped the surfacing that leak_action = "surface" started, which needs no
+    # depth, and left the leaking robot where it was.
+    config = _quick(watchdog_s=MAX_BOARD_WATCHDOG_S, leak_action=LeakAction.SURFACE)
+    with running(config) as rig:
+        vertical = lambda: pulses(rig.bus.snapshot(), [4, 5])  # noqa: E731
+        rig.send(b"#debug1!#start!#th.90.50!")
+        assert wait_until(rig.moving_as_commanded)
+        rig.pins.pin(27).drive_high()
+        assert wait_until(lambda: vertical() == pytest.approx(_FULL_UP_US, abs=COUNT_US))
+        rig.bus.fail(0x76, 10**6)
+        pressure = rig.server.board.sensors[0]
+        assert wait_until(lambda: pressure.stale)
+        assert wait_until(lambda: rig.saw(b"surfacing for the leak goes on")), rig.received
+        assert not rig.server.controller.locked
+        assert vertical() == pytest.approx(_FULL_UP_US, abs=COUNT_US)
+        # A host that drives again drives a robot whose depth is not measured: stopped.
+        rig.send(b"#mvs.50!")
+        assert wait_until(lambda: rig.server.controller.locked)
+        assert wait_until(rig.neutral), rig.pulses()
+        assert wait_until(lambda: rig.saw(b"failsafe: pressure sensor"))
+    assert not rig.errors
 
 
 def test_the_claw_motor_runs_for_its_pulse_then_stops() -> None:

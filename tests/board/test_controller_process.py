@@ -6,6 +6,7 @@ from __future__ import annotations
 import contextlib
 import os
 import re
+import shlex
 import signal
 import socket
 import subprocess
@@ -28,6 +29,7 @@ from tests.board.rig import COUNT_US, EXAMPLE, is_neutral, pulses, read_log, wai
 from tests.board.rig import fake_toml as make_fake_toml
 from tests.client.conftest import REPLY_TIMEOUT_S
 from tests.client.sim_scenario import DebugLines, run_every_method
+from tests.rovlink_process import rovlink_command
 from tests.terminals import open_as_another_user
 
 pytestmark = pytest.mark.integration
@@ -81,6 +83,42 @@ def test_a_signal_ends_the_process_with_the_thrusters_at_neutral(
             r"0 device fault\(s\)",
             controller.stderr(),
         )
+
+
+def _bench_failsafe_step_command(pty_path: str) -> list[str]:
+    """The command docs/hardware.md's bench test has a user run to try the link-loss failsafe
+    (its step 7), for the controller's PTY at ``pty_path``."""
+    text = (EXAMPLE.parents[1] / "docs" / "hardware.md").read_text(encoding="utf-8")
+    step = re.search(r"^7\. \*\*The failsafes\*\*(.*?)^8\. ", text, re.MULTILINE | re.DOTALL)
+    assert step, "no step 7 in docs/hardware.md's bench test"
+    command = re.search(r"`([^`]*/dev/pts/N[^`]*)`", step.group(1))
+    assert command, "no command on /dev/pts/N in step 7 of the bench test"
+    line = command.group(1).replace("/dev/pts/N", shlex.quote(pty_path))
+    if line.startswith("rovlink "):
+        return rovlink_command(*shlex.split(line)[1:])
+    return ["sh", "-c", line]
+
+
+def test_the_bench_tests_failsafe_step_leaves_the_robot_to_the_watchdog(tmp_path: Path) -> None:
+    # The step ran `rovlink send`, which sends #stop! as it ends after moving the robot: the
+    # thrusters stopped at once, and the watchdog the step is there to try never acted.
+    log = tmp_path / "i2c.jsonl"
+    config = make_fake_toml(tmp_path, log, watchdog_s=0.5)
+    with running_controller(tmp_path, "--config", str(config), "--pty") as controller:
+        assert controller.pty_path is not None
+        result = subprocess.run(
+            _bench_failsafe_step_command(controller.pty_path),
+            capture_output=True,
+            text=True,
+            env=environment(),
+            timeout=60,
+            check=False,
+        )
+        assert result.returncode == 0, result.stderr
+        assert wait_until(lambda: "failsafe: no valid frame for 0.5 s" in controller.stderr()), (
+            controller.stderr()
+        )
+        assert is_neutral(pulses(read_log(log)))
 
 
 def _unit_line(key: str) -> list[str]:

@@ -127,6 +127,18 @@ def test_systemd_takes_the_unit_file(tmp_path: Path) -> None:
     assert result.returncode == 0, result.stderr
 
 
+def test_the_unit_runs_the_controller_where_lgpio_can_make_its_pipes() -> None:
+    """lgpio makes its notification pipes in the working directory as it loads; a service's is
+    / unless its unit sets one, which the service's user cannot write: the leak probe found no
+    pin library, and the controller did not start under systemd though it did by hand."""
+    settings = dict(
+        line.split("=", 1) for line in _unit_file().splitlines() if "=" in line and line[0] != "#"
+    )
+    # User='s home, or a runtime directory systemd makes for User=.
+    writable = {"~", f"/run/{settings.get('RuntimeDirectory')}"}
+    assert settings.get("WorkingDirectory") in writable, settings.get("WorkingDirectory")
+
+
 def test_the_unit_outlives_its_serial_device_going_away() -> None:
     """The failsafe table promises that a serial device gone away is opened again every second:
     BindsTo= on the device would have systemd stop the controller when the adapter is unplugged

@@ -121,9 +121,16 @@ def _load(**changes: object) -> None:
         # (an ADS1115's config word lands in a PCA9685's MODE2, making its outputs open-drain).
         # TOML reads 40 as forty: the BNO055's 0x28, not the PCA9685's 0x40.
         (
-            {"imu__address": 0x40},
-            "rov.toml [imu] address: 0x40 (64) is already used by [pca9685] on I²C bus 1; "
-            "a TOML number is decimal unless written 0x…",
+            {"pca9685__address": 0x76},
+            "rov.toml [pressure.ms5837] address: 0x76 (118) is already used by [pca9685] on I²C "
+            "bus 1; a TOML number is decimal unless written 0x…",
+        ),
+        # `address = 28` is 0x1c: no BNO055 answers there, and the controller, taking it for a
+        # dead IMU at start, ran without attitude.
+        (
+            {"imu__address": 28},
+            "rov.toml [imu]: address must be a BNO055's, 0x28 (ADR low) or 0x29 (ADR high), got "
+            "0x1c (28); a TOML number is decimal unless written 0x…",
         ),
         (
             {"pca9685__address": 40},
@@ -138,12 +145,30 @@ def _load(**changes: object) -> None:
             "rov.toml [pca9685]: address must be a PCA9685's, 0x40–0x77 but not 0x70",
         ),
         (
-            {"pressure__sensor": "ads1115", "pressure__ads1115__address": 0x40},
-            "rov.toml [pressure.ads1115] address: 0x40 (64) is already used by [pca9685]",
+            {"pressure__sensor": "ads1115", "pca9685__address": 0x48},
+            "rov.toml [pressure.ads1115] address: 0x48 (72) is already used by [pca9685]",
+        ),
+        # Addresses no such chip has (TOML read `76` and `48` as decimal): they failed only
+        # at start, naming an address the file did not seem to hold.
+        (
+            {"pressure__ms5837__address": 76},
+            "rov.toml [pressure.ms5837]: address must be the MS5837's, 0x76 (fixed on the chip), "
+            "got 0x4c (76); a TOML number is decimal unless written 0x…",
         ),
         (
-            {"pressure__ms5837__address": 0x28},
-            "rov.toml [imu] address: 0x28 (40) is already used by [pressure.ms5837]",
+            {"pressure__ads1115__address": 48},
+            "rov.toml [pressure.ads1115]: address must be an ADS1115's, 0x48–0x4b (by its ADDR "
+            "pin), got 0x30 (48); a TOML number is decimal unless written 0x…",
+        ),
+        # An active-low probe on GPIO 2 (SDA): gpiozero takes its pull-up, and the pin would
+        # be taken from the bus every device is on.
+        (
+            {"leak__pin": 2, "leak__pull": "up", "leak__active_high": False},
+            "rov.toml [leak] pin: GPIO 2 is SDA of I²C bus 1, which the board's devices are on",
+        ),
+        (
+            {"leak__pin": 3, "i2c__bus": 3, "imu__bus": 1},
+            "rov.toml [leak] pin: GPIO 3 is SCL of I²C bus 1",
         ),
         ({"gpio": {"pin": 3}}, "unknown table [gpio]"),
         # A table written as a value: before, the six board tables' messages left the file out.
@@ -168,10 +193,10 @@ def test_a_wrong_config_is_refused_with_the_key_and_the_reason(
 @pytest.mark.parametrize(
     "changes",
     [
-        # The IMU on a bus of its own may share the PCA9685's address.
-        {"imu__bus": 3, "imu__address": 0x40},
+        # The IMU on a bus of its own.
+        {"imu__bus": 3, "imu__address": 0x29},
         # Only the pressure sensor chosen is on the bus.
-        {"pressure__ads1115__address": 0x40},
+        {"pca9685__address": 0x4B, "pressure__ads1115__address": 0x4B},
         {"imu__sensor": "none", "imu__address": 0x40},
     ],
 )
@@ -179,6 +204,10 @@ def test_an_address_on_another_bus_or_of_a_device_not_fitted_is_no_conflict(
     changes: dict[str, object],
 ) -> None:
     _load(**changes)
+
+
+def test_a_leak_probe_on_gpio_2_is_taken_when_i2c_bus_1_is_not_used() -> None:
+    _load(leak__pin=2, leak__pull="up", leak__active_high=False, i2c__bus=3)
 
 
 @pytest.mark.parametrize(

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import contextlib
+
 import pytest
 
 from rovlink.board.board import BoardStartError
@@ -14,8 +16,14 @@ from rovlink.board.pi.fake_bus import (
     FakeMs5837,
     ms5837_prom,
 )
-from rovlink.board.pi.ms5837 import Ms5837Model
-from rovlink.board.pi.pressure import AnalogPressure, AnalogTransducer, RawScale
+from rovlink.board.pi.ms5837 import Ms5837, Ms5837Model
+from rovlink.board.pi.pressure import (
+    FULL_SCALE_MBAR,
+    AnalogPressure,
+    AnalogTransducer,
+    Ms5837Pressure,
+    RawScale,
+)
 from rovlink.board.sensors import SensorError
 from rovlink.controller import Controller
 from tests.board.rig import example_config, is_neutral, pulses, wait_until
@@ -176,7 +184,8 @@ def test_a_bar30_configured_as_a_bar02_is_refused_at_start_not_read_as_the_surfa
     bus.devices[0x76] = FakeMs5837.reading(Ms5837Model.BA30, 1013.25)
     with pytest.raises(
         BoardStartError,
-        match=r"MS5837-02BA at 0x76: no reading at start: it reads 50\.\d+ mbar, below any "
+        match=r"MS5837-02BA at 0x76 on I²C bus 1: no reading at start: it reads 50\.\d+ mbar, "
+        r"below any "
         r"air or water \(300 mbar\): is \[pressure\.ms5837\] model right\? "
         r"\(30ba: Bar30, 02ba: Bar02\)",
     ):
@@ -223,6 +232,59 @@ def test_an_implausible_pressure_while_running_is_a_failed_read() -> None:
         assert sensor.failures == 0
     finally:
         board.close()
+
+
+class _SteppedClock:
+    """A clock the test moves."""
+
+    def __init__(self) -> None:
+        self.now = 0.0
+
+    def now_s(self) -> float:
+        return self.now
+
+
+def _next_raw(pressure: Ms5837Pressure, clock: _SteppedClock) -> int:
+    """Step the clock a control period at a time until a D1–D2 pair completes; its raw value
+    (or the SensorError it gives)."""
+    for _ in range(10):
+        clock.now += 0.01
+        raw = pressure.poll(clock.now)
+        if raw is not None:
+            return raw
+    raise AssertionError("no reading in ten periods")
+
+
+def _settled_raw(pressure: Ms5837Pressure, clock: _SteppedClock) -> int:
+    """The raw value of the first D1 converted after a change to the fake (the one under way
+    at the change was latched before it)."""
+    with contextlib.suppress(SensorError):
+        _next_raw(pressure, clock)
+    return _next_raw(pressure, clock)
+
+
+@pytest.mark.parametrize("model", list(Ms5837Model))
+def test_a_corrupt_pressure_conversion_past_the_sensors_range_is_a_failed_read(
+    model: Ms5837Model,
+) -> None:
+    # A D1 read as all ones (a bus glitch) with a good D2: the temperature is plausible, the
+    # pressure tens of bar, which the raw scale clipped to its deepest reading: a depth hold
+    # answered it with full up thrust. Now it is a failed read, as one below any air or water.
+    fake = FakeMs5837.reading(model, _mbar_at(1.0))
+    clock = _SteppedClock()
+    sensor = Ms5837(FakeI2cBus({0x76: fake}), model=model, clock=clock)
+    sensor.start()
+    pressure = Ms5837Pressure(sensor, RawScale(20, 200, 1013.25, 997.0))
+    assert _next_raw(pressure, clock) == 70  # 1 m down: 50 counts of 2 cm past zero_raw 20
+    fake.d1 = 0xFFFFFF
+    full_scale = f"{FULL_SCALE_MBAR[model]:g}"
+    with pytest.raises(SensorError, match=rf"past the {full_scale} mbar range of an MS5837-"):
+        _settled_raw(pressure, clock)
+    assert pressure.last_mbar == pytest.approx(_mbar_at(1.0), abs=0.1)  # the last good one
+    fake.set_reading(FULL_SCALE_MBAR[model])  # the top of its range is a reading
+    assert _settled_raw(pressure, clock) == RawScale(20, 200, 1013.25, 997.0).raw(
+        FULL_SCALE_MBAR[model]
+    )
 
 
 def test_an_ads1115_reset_by_a_supply_dip_is_started_again() -> None:

@@ -101,7 +101,10 @@ def test_the_default_layout_is_four_vectored_thrusters_at_45_degrees() -> None:
         ("[depth_pid]\nkp = 100\n", ["[depth_pid]", "kp must be in 0–99"]),
         ("[depth_pid]\nkd_scale = -1.0\n", ["kd_scale"]),
         ("[[thrusters]]\nangle_deg = 3\n", ["[[thrusters]] #1", "needs a name"]),
-        ('[[thrusters]]\nname = "a"\n[[thrusters]]\nname = "a"\n', ["names must differ"]),
+        (
+            '[[thrusters]]\nname = "a"\n[[thrusters]]\nname = "b"\n[[thrusters]]\nname = "a"\n',
+            ["[[thrusters]] #3 name", "'a' is already the name of [[thrusters]] #1"],
+        ),
         ("thrusters = 3\n", ["array of tables"]),
         ("[controller\n", ["not valid TOML"]),
         ("controller = 1\n", ["[controller] must be a table"]),

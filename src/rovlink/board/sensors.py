@@ -8,7 +8,8 @@ A failed poll keeps the last good value and counts; once its polls have been fai
 between) the sensor is *stale*, whatever the loop's rate, until it gives a good reading again.
 One failed read never makes a sensor stale (unless ``stale_after_s`` is 0), however seldom
 the sensor is read. A sensor the controller drives by (the pressure sensor: depth hold and the
-depth limit) then stops the motors until it answers again; one it only reports (the IMU: the
+depth limit) then stops the motors until it answers again (unless the robot is surfacing for a
+leak, which needs no depth); one it only reports (the IMU: the
 protocol has no yaw command, so the controller holds no heading, P11) is said to be stale and
 driving goes on.
 """

@@ -162,7 +162,11 @@ class BoardServer:
                 if sensor.name not in self._stale:
                     self._stale.add(sensor.name)
                     self._went_stale(sensor)
-                if sensor.needed_to_drive and not controller.locked:
+                if (
+                    sensor.needed_to_drive
+                    and not controller.locked
+                    and not controller.surfacing_for_leak
+                ):
                     controller.failsafe(f"failsafe: {sensor.name} stale ({sensor.failing_text})")
             elif sensor.name in self._stale:
                 self._stale.discard(sensor.name)
@@ -179,8 +183,16 @@ class BoardServer:
     def _went_stale(self, sensor: PolledSensor[Any]) -> None:
         """Say that ``sensor`` went stale; one the controller does not drive by is said in a
         debug line too, as no failsafe line tells the pilot."""
-        if sensor.needed_to_drive:
+        if sensor.needed_to_drive and not self.controller.surfacing_for_leak:
             logger.warning("%s stale: %s", sensor.name, sensor.failing_text)
+            return
+        if sensor.needed_to_drive:  # (stopped, a leaking robot would stay where it is)
+            text = (
+                f"{sensor.name} stale ({sensor.failing_text}): surfacing for the leak goes on, "
+                "as it needs no depth; the motors stop once a host changes its thrust"
+            )
+            logger.warning("%s", text)
+            self.controller.debug(text)
             return
         text = (
             f"{sensor.name} stale ({sensor.failing_text}): "

@@ -362,6 +362,7 @@ def config_from_mapping(
             dataclass_from_table(ThrusterSpec, table, f"{source} [[thrusters]] #{index + 1}")
             for index, table in enumerate(tables)
         )
+        _refuse_repeated_names(thrusters, source)
     return dataclass_from_table(
         ControllerConfig,
         data.get("controller", {}),
@@ -370,6 +371,19 @@ def config_from_mapping(
         depth_pid=pid,
         thrusters=thrusters,
     )
+
+
+def _refuse_repeated_names(thrusters: Sequence[ThrusterSpec], source: str) -> None:
+    """A name given twice, named with both tables: a board finds each thruster's output by its
+    name, so a copied table left unrenamed must be told apart from a layout error."""
+    first_table: dict[str, int] = {}
+    for number, thruster in enumerate(thrusters, start=1):
+        if thruster.name in first_table:
+            raise ConfigError(
+                f"{source} [[thrusters]] #{number} name: {thruster.name!r} is already the name "
+                f"of [[thrusters]] #{first_table[thruster.name]}; every thruster needs its own"
+            )
+        first_table[thruster.name] = number
 
 
 def load_config(path: Path | str, *, other_tables: Sequence[str] = ()) -> ControllerConfig:

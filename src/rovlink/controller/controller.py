@@ -316,6 +316,19 @@ class Controller:
         return self._locked
 
     @property
+    def surfacing_for_leak(self) -> bool:
+        """Whether a leak is being answered with `leak_action = "surface"` (P14) and the robot
+        is still surfacing as it set (full up thrust in direct mode, horizontal power 0, not
+        stopped). Surfacing so needs no depth: a board whose pressure sensor dies keeps it
+        going rather than stop a leaking robot where it is."""
+        return (
+            self._leak_latched
+            and self.config.leak_action is LeakAction.SURFACE
+            and not self._locked
+            and self._surfacing()
+        )
+
+    @property
     def depth_cm(self) -> int:
         """The depth measured at the last tick, cm (P13)."""
         return self._depth_cm
@@ -553,12 +566,7 @@ class Controller:
                 if first:
                     self._debug("leak: motors are locked, not surfacing")
                 return
-            surfacing = (
-                self._vertical_mode is VerticalMode.DIRECT
-                and self._vertical_thrust_percent == _FULL_UP_PERCENT
-                and self._power_percent == 0
-            )
-            if surfacing:
+            if self._surfacing():
                 return
             self._vertical_mode = VerticalMode.DIRECT
             self._vertical_thrust_percent = _FULL_UP_PERCENT
@@ -567,6 +575,15 @@ class Controller:
             self._mixer.set_horizontal(0, 0)
             self._pid.reset()
             self._debug("leak: surfacing, full up thrust in direct mode")
+
+    def _surfacing(self) -> bool:
+        """Whether the set-points are the leak action's `surface`: full up thrust in direct
+        mode, horizontal power 0."""
+        return (
+            self._vertical_mode is VerticalMode.DIRECT
+            and self._vertical_thrust_percent == _FULL_UP_PERCENT
+            and self._power_percent == 0
+        )
 
     def _vertical_output(self, depth_cm: int, dt_s: float) -> float:
         max_depth_cm = self._max_depth_cm

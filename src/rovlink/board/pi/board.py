@@ -179,7 +179,7 @@ def open_pi_board(config: PiConfig, *, bus: I2cBus | None = None, pin_factory: A
         pressure = PolledSensor(
             pressure_name,
             pressure_source,
-            _first_reading(pressure_name, pressure_source, clock),
+            _first_reading(f"{pressure_name} {where}", pressure_source, clock),
             stale_after_s,
         )
         sensors: list[PolledSensor[Any]] = [pressure]
@@ -370,7 +370,7 @@ def _open_bno055(
     _starting(where, _bno055_library)
     try:
         _starting(where, bno.start)
-        first = _first_reading(name, bno, clock)
+        first = _first_reading(where, bno, clock)
     except BoardStartError as error:
         logger.error("%s; going on without it: %s", error, IMU_DID_NOT_START)
         warnings.append(f"{name} not answering: {IMU_DID_NOT_START}")
@@ -510,8 +510,9 @@ def _starting(what: str, action: Callable[[], _T]) -> _T:
         raise BoardStartError(f"{what}: {error}") from None
 
 
-def _first_reading(name: str, source: SensorSource[_T], clock: MonotonicClock) -> _T:
-    """Poll until the first reading (a conversion or two); :class:`BoardStartError` if none."""
+def _first_reading(what: str, source: SensorSource[_T], clock: MonotonicClock) -> _T:
+    """Poll until the first reading (a conversion or two); :class:`BoardStartError` naming
+    ``what`` (the device and its bus) if none."""
     deadline_s = clock.now_s() + _FIRST_READING_S
     error: Exception | None = None
     while clock.now_s() < deadline_s:
@@ -523,4 +524,4 @@ def _first_reading(name: str, source: SensorSource[_T], clock: MonotonicClock) -
         if reading is not None:
             return reading
         time.sleep(0.002)
-    raise BoardStartError(f"{name}: no reading at start" + (f": {error}" if error else ""))
+    raise BoardStartError(f"{what}: no reading at start" + (f": {error}" if error else ""))

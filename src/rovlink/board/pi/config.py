@@ -248,6 +248,14 @@ class ClawConfig:
         )
 
 
+#: Said with an address a chip cannot have: `i2cdetect` shows hexadecimal, TOML reads decimal.
+_DECIMAL_HINT = "a TOML number is decimal unless written 0x…"
+#: The MS5837's I²C address (fixed on the chip).
+_MS5837_ADDRESS = 0x76
+#: The ADS1115's I²C addresses, by its ADDR pin (GND, VDD, SDA, SCL).
+_ADS1115_ADDRESSES = (0x48, 0x49, 0x4A, 0x4B)
+
+
 @dataclass(frozen=True, slots=True)
 class Ms5837Config:
     """``[pressure.ms5837]``: a Blue Robotics Bar30 (`30ba`) or Bar02 (`02ba`)."""
@@ -265,6 +273,13 @@ class Ms5837Config:
 
     def __post_init__(self) -> None:
         _check_address("address", self.address)
+        # The chip has one address. Another (`address = 76`, decimal: 0x4c) only failed at
+        # start, naming an address the file did not seem to hold.
+        _require(
+            self.address == _MS5837_ADDRESS,
+            f"address must be the MS5837's, {_MS5837_ADDRESS:#04x} (fixed on the chip), got "
+            f"{self.address:#04x} ({self.address}); {_DECIMAL_HINT}",
+        )
         _require(
             self.oversampling in OVERSAMPLING,
             f"oversampling must be one of {', '.join(map(str, OVERSAMPLING))}, "
@@ -302,6 +317,11 @@ class Ads1115Config:
 
     def __post_init__(self) -> None:
         _check_address("address", self.address)
+        _require(
+            self.address in _ADS1115_ADDRESSES,
+            f"address must be an ADS1115's, 0x48–0x4b (by its ADDR pin), got "
+            f"{self.address:#04x} ({self.address}); {_DECIMAL_HINT}",
+        )
         _require(0 <= self.channel <= 3, f"channel must be 0–3, got {self.channel}")
         _require(
             self.full_scale_v in FULL_SCALES_V,
@@ -356,6 +376,10 @@ class PressureConfig:
         )
 
 
+#: The BNO055's I²C addresses: its ADR pin low, high.
+_BNO055_ADDRESSES = (0x28, 0x29)
+
+
 @dataclass(frozen=True, slots=True)
 class ImuConfig:
     """``[imu]``: the IMU and its mounting."""
@@ -384,6 +408,13 @@ class ImuConfig:
 
     def __post_init__(self) -> None:
         _check_address("address", self.address)
+        # A BNO055 answers at these two only. Any other (`address = 28`, decimal: 0x1c) would
+        # be taken at start for a dead IMU, and the controller would run without attitude.
+        _require(
+            self.sensor is not ImuKind.BNO055 or self.address in _BNO055_ADDRESSES,
+            "address must be a BNO055's, 0x28 (ADR low) or 0x29 (ADR high), got "
+            f"{self.address:#04x} ({self.address}); {_DECIMAL_HINT}",
+        )
         _require(-1 <= self.bus <= 255, f"bus must be 0–255 or -1, got {self.bus}")
         _require(
             self.placement in PLACEMENTS,
@@ -540,7 +571,30 @@ def pi_config_from_mapping(data: Mapping[str, Any], source: str = "rov.toml") ->
     _check_outputs(config, source)
     _check_depth_scale(config, source)
     _check_watchdog(config, source)
+    _check_leak_pin(config, source)
     return config
+
+
+#: A Raspberry Pi's GPIOs that are I²C bus 1's lines.
+_I2C_BUS_1_LINES = {2: "SDA", 3: "SCL"}
+
+
+def _check_leak_pin(config: PiConfig, source: str) -> None:
+    """No leak probe on a line of the I²C bus the board uses: claimed as an input, the pin is
+    taken from the bus (every device on it stops answering, the PWM board included), and
+    what is left of the bus's traffic reads as leaks. gpiozero refuses a pull-down there
+    (the lines' pull-ups are fixed), not the pull-up of an active-low probe."""
+    line = _I2C_BUS_1_LINES.get(config.leak.pin)
+    buses = {config.i2c.bus}
+    if config.imu.sensor is ImuKind.BNO055 and config.imu.bus != -1:
+        buses.add(config.imu.bus)
+    if line is None or 1 not in buses:
+        return
+    raise ConfigError(
+        f"{source} [leak] pin: GPIO {config.leak.pin} is {line} of I²C bus 1, which the "
+        "board's devices are on: read as a leak probe it would be taken from the bus; wire "
+        "the probe to a free GPIO (27 in docs/hardware.md's wiring)"
+    )
 
 
 def load_pi_config(path: Path | str) -> PiConfig:

@@ -6,6 +6,8 @@ period still sets the latch; the controller reads and clears it once per tick.
 
 from __future__ import annotations
 
+import os
+import tempfile
 import threading
 from typing import Any
 
@@ -17,6 +19,38 @@ NO_PIN_LIBRARY = (
     "gpiozero found no pin library: create the virtual environment with "
     "--system-site-packages (for the system's python3-lgpio) or pip install lgpio"
 )
+
+
+def _unwritable_working_directory() -> str | None:
+    """The working directory if this process cannot create a file in it, else None.
+
+    lgpio, gpiozero's pin library on a Pi, makes its notification pipes (``.lgd-nfy*``) in the
+    working directory as it loads, and fails to load where it cannot: a service's is ``/``
+    unless its unit says otherwise. Tried rather than asked (``os.access``), as root may be
+    refused by the filesystem itself.
+    """
+    try:
+        directory = os.getcwd()
+    except OSError:  # removed since the process entered it
+        return "(a removed directory)"
+    try:
+        with tempfile.TemporaryFile(dir=directory):
+            return None
+    except OSError:
+        return directory
+
+
+def _working_directory_hint() -> str:
+    """What to say about the working directory when gpiozero found no pin library ("" when it
+    can be written)."""
+    directory = _unwritable_working_directory()
+    if directory is None:
+        return ""
+    return (
+        f"; the working directory {directory} cannot be written, and lgpio makes its "
+        "notification pipes there: give the controller one it can (WorkingDirectory= in its "
+        "systemd unit, as docs/hardware.md's)"
+    )
 
 
 class GpioLeakSensor:
@@ -48,7 +82,13 @@ class GpioLeakSensor:
             # gpiozero loads its pin library with the first device: a missing one is a
             # ModuleNotFoundError (a factory named in GPIOZERO_PIN_FACTORY) or, when none of
             # its defaults loads, BadPinFactory, an ImportError of its own.
-            raise RuntimeError(f"{error}; {NO_PIN_LIBRARY}") from error
+            raise RuntimeError(f"{error}; {NO_PIN_LIBRARY}{_working_directory_hint()}") from error
+        except OSError as error:
+            # lgpio named in GPIOZERO_PIN_FACTORY fails to load so ('.lgd-nfy-3': no such file).
+            hint = _working_directory_hint()
+            if not hint:
+                raise
+            raise RuntimeError(f"{error}{hint}") from error
         device.when_activated = self._on_wet
         self._device = device
         wet = bool(device.is_active)  # already wet at start

@@ -6,10 +6,11 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from rovlink.board.pi.ads1115 import Ads1115
-from rovlink.board.pi.ms5837 import Ms5837
+from rovlink.board.pi.ms5837 import Ms5837, Ms5837Model
 from rovlink.board.sensors import SensorError
 
 __all__ = [
+    "FULL_SCALE_MBAR",
     "LEAST_PLAUSIBLE_MBAR",
     "MIN_SCALE_K",
     "AnalogPressure",
@@ -62,6 +63,15 @@ class RawScale:
 
 #: Less than the air on the highest summit: no reading of a sensor in air or water.
 LEAST_PLAUSIBLE_MBAR = 300.0
+#: The top of each model's range, mbar: 30 bar for the 30BA (its datasheet's operating range), 2 bar
+#: for the 02BA (the 10 m a Bar02 is rated for; its compensated pressure is specified to 1.2 bar).
+FULL_SCALE_MBAR: dict[Ms5837Model, float] = {
+    Ms5837Model.BA30: 30_000.0,
+    Ms5837Model.BA02: 2_000.0,
+}
+#: How far past its full scale a reading may go before it is taken for a corrupt conversion,
+#: as a share of the range (the analog transducer's rule).
+_OVER_RANGE_SHARE = 0.05
 
 
 class Ms5837Pressure:
@@ -71,6 +81,10 @@ class Ms5837Pressure:
     PROM of many parts does not say which model the sensor is (see
     :data:`~rovlink.board.pi.ms5837.PRODUCT_VERSIONS`), and a Bar30 computed as a Bar02 reads
     about a twentieth of its pressure, which the raw scale would clip to the surface at any depth.
+    So is one more than 5 % of the model's range past its :data:`FULL_SCALE_MBAR`: a D1
+    conversion corrupted on the bus (its temperature, from D2, still plausible) reads up to
+    tens of bar, which the raw scale would clip to its deepest reading and a depth hold would
+    answer with full up thrust.
     """
 
     def __init__(self, sensor: Ms5837, scale: RawScale) -> None:
@@ -88,6 +102,14 @@ class Ms5837Pressure:
                 f"it reads {reading.pressure_mbar:g} mbar, below any air or water "
                 f"({LEAST_PLAUSIBLE_MBAR:g} mbar): is [pressure.ms5837] model right? "
                 "(30ba: Bar30, 02ba: Bar02)"
+            )
+        model = self.sensor.model
+        highest_mbar = FULL_SCALE_MBAR[model] * (1.0 + _OVER_RANGE_SHARE)
+        if reading.pressure_mbar > highest_mbar:
+            raise SensorError(
+                f"it reads {reading.pressure_mbar:g} mbar, past the "
+                f"{FULL_SCALE_MBAR[model]:g} mbar range of an MS5837-{model.upper()}: "
+                "a corrupt conversion"
             )
         self.last_mbar = reading.pressure_mbar
         return self._scale.raw(reading.pressure_mbar)
