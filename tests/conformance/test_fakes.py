@@ -139,6 +139,7 @@ def test_the_wrapper_without_a_fault_passes_every_check() -> None:
     assert len(report.results) == len(select_checks())
 
 
+@pytest.mark.realtime
 def test_reply_time_allows_for_the_bytes_on_a_slow_line() -> None:
     # 15 ms late is too slow on a fast link, but at 4800 baud the query and its reply spend
     # about 23 ms on the wire, which P19 does not count (it counts from the query's arrival);

@@ -396,6 +396,7 @@ def _flood(url: str, message: str, count: int) -> None:
             flooder.send(message)
 
 
+@pytest.mark.realtime
 async def test_a_flooding_page_is_closed_and_the_pilot_flies_on(station, line):
     # (Before, a page's queued messages were handled without a pause: a watcher sending
     # garbage held up the pilot's input long enough for the watchdog to cut it, and the
