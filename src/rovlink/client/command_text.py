@@ -144,6 +144,8 @@ def parse_command_text(text: str) -> Command:
     ...     print(error)
     th: direction_deg must be in 0–360, got 400
     """
+    if not isinstance(text, str):  # (bytes would fail deep inside, naming no argument)
+        raise TypeError(f"parse_command_text: text must be a str, got {text!r}")
     stripped = text.strip()
     if not stripped:
         raise CommandTextError("empty command")
