@@ -253,7 +253,8 @@ def _builtin(line: str, name: str, words: list[re.Match[str]]) -> Action:
             try:
                 usage(topic)
             except CommandTextError as error:
-                raise InputError(str(error), words[1].start()) from None
+                message = _naming_console_words(str(error), topic)
+                raise InputError(message, words[1].start()) from None
             topic = lookup(topic).name
         return ShowHelp(topic)
     if name == "checksum":
