@@ -3,10 +3,12 @@ thinks so: replies that failed the check (a noisy line) are not blamed on the al
 
 from __future__ import annotations
 
+import contextlib
+
 import pytest
 
 from rovlink.aio import AsyncClient
-from rovlink.client import Client, ConnectError
+from rovlink.client import Client, ConnectError, QueryTimeoutError
 from rovlink.client.links import SocketLink
 from tests.client.conftest import NO_REPLY_TIMEOUT_S, client_options
 from tests.client.fake_controller import FakeController
@@ -62,4 +64,63 @@ async def test_the_asyncio_client_tells_a_noisy_line_from_another_algorithm(
         assert says in str(raised.value)
     finally:
         await client.close()
+        fake.close()
+
+
+def _reset_warnings(caplog: pytest.LogCaptureFixture) -> list[str]:
+    return [r.getMessage() for r in caplog.records if "reset suspected" in r.getMessage()]
+
+
+def test_the_blocking_client_suspects_no_reset_of_a_controller_on_another_algorithm(
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    # Before, `rovlink send --checksum --algorithm xor` on a crc8 controller first warned
+    # "controller reset suspected after 2 consecutive timeouts: … the robot is locked after a
+    # reset", then gave the error that says what the timeouts mean.
+    fake, link = _fake("another algorithm")
+    options = client_options(
+        checksum=True, boot_timeout_s=1.0, retries=2, timeout_s=NO_REPLY_TIMEOUT_S
+    )
+    caplog.set_level("WARNING", logger="rovlink")
+    try:
+        with pytest.raises(ConnectError, match="is that its algorithm"):
+            Client(link, options)
+        assert _reset_warnings(caplog) == []
+    finally:
+        fake.close()
+
+
+async def test_the_asyncio_client_suspects_no_reset_of_a_controller_on_another_algorithm(
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    fake, link = _fake("another algorithm")
+    options = client_options(
+        checksum=True, boot_timeout_s=1.0, retries=2, timeout_s=NO_REPLY_TIMEOUT_S
+    )
+    caplog.set_level("WARNING", logger="rovlink")
+    client = AsyncClient(link, options)
+    try:
+        with pytest.raises(ConnectError, match="is that its algorithm"):
+            await client.open()
+        assert _reset_warnings(caplog) == []
+    finally:
+        await client.close()
+        fake.close()
+
+
+def test_a_reset_suspected_once_connected_in_checksum_mode_is_still_a_warning(
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    fake, sock = FakeController.on_socketpair()
+    options = client_options(
+        checksum=True, boot_timeout_s=1.0, retries=2, timeout_s=NO_REPLY_TIMEOUT_S
+    )
+    caplog.set_level("WARNING", logger="rovlink")
+    try:
+        with Client(SocketLink(sock, "pair"), options) as client:
+            fake.then("drop", "drop", "drop")
+            with contextlib.suppress(QueryTimeoutError):  # (answered once the fence went)
+                client.depth_cm()
+        assert len(_reset_warnings(caplog)) == 1
+    finally:
         fake.close()

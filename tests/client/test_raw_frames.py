@@ -4,7 +4,9 @@ from __future__ import annotations
 
 import pytest
 
+from rovlink.client import parse_command_text
 from rovlink.client.events import BytesSent, ClientEvent
+from rovlink.client.operations import any_command
 from rovlink.client.session import Session
 from rovlink.protocol import Command, Response
 from tests.client.conftest import wait_until_async
@@ -47,12 +49,38 @@ WRONG_TYPES = [
         "send",
         "qd",
         r"send: command must be a rovlink\.protocol\.Command, got 'qd' \(text as "
-        r"typed: send\(parse_command_text\('qd'\)\); a frame as it is: send_raw\('qd'\)\)",
+        r"typed: send\(parse_command_text\('qd'\)\)\)$",
     ),
     ("send", b"#qd!", r"send: command must be a rovlink\.protocol\.Command, got b'#qd!'"),
     ("send", Response("qd", (1,)), r"send: command must be a rovlink\.protocol\.Command"),
     ("send_raw", 123, r"send_raw: frame must be text or bytes, got 123"),
 ]
+
+
+#: What ``send`` names for text or bytes: a way in that works for that argument. (Before, every
+#: one named both: ``send_raw('qd')`` sends two letters that are no frame, which the controller
+#: ignores, and ``parse_command_text(b'#qd!')`` failed with a TypeError of ``str.startswith``.)
+SEND_HINTS = [
+    ("qd", "(text as typed: send(parse_command_text('qd')))"),
+    ("th 90 40", "(text as typed: send(parse_command_text('th 90 40')))"),
+    ("#qd!", "(a frame: send(parse_command_text('#qd!')), or exactly as it is: send_raw('#qd!'))"),
+    (b"#qd!", "(a frame exactly as it is: send_raw(b'#qd!'))"),
+]
+
+
+@pytest.mark.parametrize(("argument", "hint"), SEND_HINTS)
+def test_send_names_a_way_in_that_works_for_its_argument(argument: str | bytes, hint: str) -> None:
+    with pytest.raises(TypeError) as raised:
+        any_command(argument)  # type: ignore[arg-type]
+    assert str(raised.value) == (
+        f"send: command must be a rovlink.protocol.Command, got {argument!r} {hint}"
+    )
+
+
+def test_the_way_in_named_for_a_frame_works() -> None:
+    assert parse_command_text("#qd!") == Command("qd")
+    with pytest.raises(TypeError, match=r"^parse_command_text: text must be a str, got b'#qd!'$"):
+        parse_command_text(b"#qd!")  # type: ignore[arg-type]
 
 
 @pytest.mark.parametrize(("method", "argument", "message"), WRONG_TYPES)

@@ -11,7 +11,7 @@ import pytest
 
 import rovlink
 import rovlink.aio
-from rovlink.client import ConnectionLostError, Sensors
+from rovlink.client import ConnectError, ConnectionLostError, Sensors
 from rovlink.client.links import PortLink, SerialFdLink, SocketLink
 from tests.client.conftest import REPLY_TIMEOUT_S, wait_until
 from tests.client.fake_controller import FakeController
@@ -110,6 +110,37 @@ def test_connecting_to_nothing_is_a_connect_error() -> None:
         rovlink.connect(f"socket://127.0.0.1:{port}")
     with pytest.raises(ConnectionError, match="No such file or directory"):
         rovlink.connect("/dev/nonexistent-rovlink-port")
+
+
+#: A port written as another program writes it, and how the error says to write it (before:
+#: "cannot open 127.0.0.1:5760: No such file or directory", and no word of socket://).
+MISWRITTEN_PORTS = [
+    ("127.0.0.1:5760", "No such file or directory (a TCP address is socket://127.0.0.1:5760)"),
+    ("localhost:5760", "No such file or directory (a TCP address is socket://localhost:5760)"),
+    (
+        "tcp://127.0.0.1:5760",
+        "invalid URL, protocol 'tcp' not known (a TCP address is socket://127.0.0.1:5760)",
+    ),
+    (
+        "/dev/nonexistent-rovlink-port:115200",
+        "No such file or directory (a speed is /dev/nonexistent-rovlink-port?baudrate=115200)",
+    ),
+    ("/dev/nonexistent-rovlink-port", "No such file or directory"),
+]
+
+
+@pytest.mark.parametrize(("url", "reason"), MISWRITTEN_PORTS)
+def test_a_miswritten_port_is_named_with_how_to_write_it(url: str, reason: str) -> None:
+    with pytest.raises(ConnectError) as raised:
+        rovlink.connect(url)
+    assert str(raised.value) == f"cannot open {url}: {reason}"
+
+
+@pytest.mark.parametrize(("url", "reason"), MISWRITTEN_PORTS[:1])
+async def test_the_asyncio_client_names_a_miswritten_port_alike(url: str, reason: str) -> None:
+    with pytest.raises(ConnectError) as raised:
+        await rovlink.aio.connect(url)
+    assert str(raised.value) == f"cannot open {url}: {reason}"
 
 
 async def test_async_client_over_a_pty(pty_fake: tuple[FakeController, str]) -> None:

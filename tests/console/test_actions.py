@@ -90,6 +90,31 @@ def test_errors_name_the_argument_and_range_and_point_at_it(
         assert word in error.message
 
 
+#: A console word mistyped, and the message: before, only the robot's commands were suggested
+#: ("stauts": did you mean start?, which a person trying to read the status would then send).
+MISTYPED_CONSOLE_WORDS = [
+    ("stauts", "stauts", "unknown command 'stauts'; did you mean status, start?"),
+    ("hlep", "hlep", "unknown command 'hlep'; did you mean help?"),
+    ("checksm on", "checksm", "unknown command 'checksm'; did you mean checksum?"),
+    ("qiut", "qiut", "unknown command 'qiut'; did you mean quit?"),
+    ("rwa #qd!", "rwa", "unknown command 'rwa'; did you mean raw?"),
+    ("help stauts", "stauts", "unknown command 'stauts'; did you mean status, start?"),
+    # the robot's commands as before
+    ("thrust 1", "thrust", "unknown command 'thrust'; did you mean th?"),
+    ("Start", "Start", "unknown command 'Start': commands are lower-case, did you mean start?"),
+]
+
+
+@pytest.mark.parametrize(("line", "culprit", "message"), MISTYPED_CONSOLE_WORDS)
+def test_a_mistyped_console_word_is_named_in_the_suggestion(
+    line: str, culprit: str, message: str
+) -> None:
+    with pytest.raises(InputError) as caught:
+        parse_line(line)
+    assert caught.value.message == message
+    assert caught.value.position == line.index(culprit)
+
+
 @pytest.mark.parametrize(
     ("line", "position"),
     [

@@ -158,12 +158,15 @@ class AsyncClient(AsyncCommandMethods):
             # The mode frame is the driver's own (a replay of a recording leaves it out).
             self._send(operations.checksum(options.checksum), by_session=True)
             if options.checksum and options.boot_timeout_s is not None:
+                self._session.reset_notices = False  # (the error below says what timeouts mean)
                 try:
                     await self._request(Command("qd"))
                 except QueryTimeoutError as error:
                     raise checksum_mode_unconfirmed(
                         self._link.description, options.algorithm, error
                     ) from error
+                finally:
+                    self._session.reset_notices = True
         except BaseException:
             # A failed or cancelled open leaves nothing behind: the loop would go on watching a
             # descriptor the caller then closes, and the next port opened under that number

@@ -931,12 +931,17 @@ class Client(CommandMethods):
                     self._session.count_outside(received_at, received=data)
 
     def _confirm_checksum_mode(self) -> None:
+        with self._state_lock:
+            self._session.reset_notices = False  # (the error below says what timeouts mean)
         try:
             self._request(Command("qd"))
         except QueryTimeoutError as error:
             raise checksum_mode_unconfirmed(
                 self._link.description, self._options.algorithm, error
             ) from error
+        finally:
+            with self._state_lock:
+                self._session.reset_notices = True
 
     def _flush_due(self) -> None:
         """Write what the session has due (state lock held on entry and on return)."""

@@ -22,7 +22,13 @@ from rovlink.protocol import (
 )
 from rovlink.protocol.commands import SPELLINGS
 
-__all__ = ["CommandTextError", "complete_names", "parse_command_text", "usage"]
+__all__ = [
+    "CommandTextError",
+    "complete_names",
+    "parse_command_text",
+    "similar_command_names",
+    "usage",
+]
 
 _SEPARATORS = re.compile(r"[\s,]+")
 # ASCII digits only (``\d`` would take "٣" for 3), and a "+" only where the argument is signed,
@@ -68,19 +74,30 @@ def complete_names(prefix: str) -> list[str]:
     return [spec.name for spec in COMMANDS if spec.name.startswith(prefix)]
 
 
+def similar_command_names(name: str) -> list[str]:
+    """The command spellings a mistyped ``name`` is probably meant to be, likeliest first.
+
+    >>> similar_command_names("thrust"), similar_command_names("qdd")
+    (['th'], ['qd'])
+    """
+    spellings = list(SPELLINGS[Kind.COMMAND])
+    typed = name.lower()  # (caps lock: a name in capitals is matched as it would be)
+    close = difflib.get_close_matches(typed, spellings, n=3, cutoff=0.6)
+    # A word that starts with a command's name ("thrust" for "th") is probably that command.
+    close += [s for s in spellings if len(s) > 1 and typed.startswith(s) and s not in close]
+    return close
+
+
 def _spec(name: str) -> Spec:
     try:
         return lookup(name)
     except UnknownCommandError:
-        spellings = list(SPELLINGS[Kind.COMMAND])
-        typed = name.lower()  # (caps lock: a name in capitals is matched as it would be)
-        if typed in spellings:  # (P6: commands are lower-case and case-sensitive)
+        typed = name.lower()
+        if typed in SPELLINGS[Kind.COMMAND]:  # (P6: commands are lower-case and case-sensitive)
             raise CommandTextError(
                 f"unknown command {name!r}: commands are lower-case, did you mean {typed}?"
             ) from None
-        close = difflib.get_close_matches(typed, spellings, n=3, cutoff=0.6)
-        # A word that starts with a command's name ("thrust" for "th") is probably that command.
-        close += [s for s in spellings if len(s) > 1 and typed.startswith(s) and s not in close]
+        close = similar_command_names(name)
         hint = f"; did you mean {', '.join(close)}?" if close else ""
         raise CommandTextError(f"unknown command {name!r}{hint}") from None
 
@@ -144,6 +161,8 @@ def parse_command_text(text: str) -> Command:
     ...     print(error)
     th: direction_deg must be in 0–360, got 400
     """
+    if not isinstance(text, str):  # (bytes would fail deep inside, naming no argument)
+        raise TypeError(f"parse_command_text: text must be a str, got {text!r}")
     stripped = text.strip()
     if not stripped:
         raise CommandTextError("empty command")

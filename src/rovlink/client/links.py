@@ -15,6 +15,7 @@ import contextlib
 import errno
 import logging
 import os
+import re
 import select
 import socket
 import sys
@@ -655,8 +656,33 @@ def _open_error(endpoint: Endpoint, error: BaseException) -> str:
         )
     reason = getattr(error, "strerror", None) or text
     if errno_value == errno.ENOENT or "No such file" in text:
-        reason = os.strerror(errno.ENOENT)
+        reason = os.strerror(errno.ENOENT) + _address_hint(name)
+    elif "protocol 'tcp' not known" in text:  # (pyserial's name for TCP is socket://)
+        reason = f"{text} (a TCP address is socket://{name.split('://', 1)[1]})"
     return f"cannot open {name}: {reason}"
+
+
+#: A name that is no device but ends in ``:NUMBER``: a TCP address or a speed written as a
+#: network tool or another program writes it (``127.0.0.1:5760``, ``/dev/ttyUSB0:115200``).
+_ENDS_IN_A_NUMBER = re.compile(r"(?P<before>[^:?]+):(?P<number>\d+)")
+
+
+def _address_hint(name: str) -> str:
+    """How to write what a missing device's name was probably meant to be, or nothing.
+
+    >>> _address_hint("127.0.0.1:5760")
+    ' (a TCP address is socket://127.0.0.1:5760)'
+    >>> _address_hint("/dev/ttyUSB0:115200")
+    ' (a speed is /dev/ttyUSB0?baudrate=115200)'
+    >>> _address_hint("/dev/ttyUSB9")
+    ''
+    """
+    match = _ENDS_IN_A_NUMBER.fullmatch(name)
+    if match is None:
+        return ""
+    if match["before"].startswith("/"):
+        return f" (a speed is {match['before']}?baudrate={match['number']})"
+    return f" (a TCP address is socket://{name})"
 
 
 def _open_tcp(endpoint: Endpoint) -> Link:

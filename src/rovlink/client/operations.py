@@ -227,20 +227,25 @@ def raw_frame(frame: str | bytes) -> bytes:
 
 def any_command(command: Command) -> Command:
     """The argument of ``send``, checked: a :class:`~rovlink.protocol.Command` (text and frames
-    have their own ways in, which a TypeError names).
+    have their own ways in, which a TypeError names: ``send_raw`` only for a frame, since words
+    sent raw are no frame and the controller ignores them).
 
     >>> any_command("th 90 40")  # doctest: +NORMALIZE_WHITESPACE
     Traceback (most recent call last):
     ...
     TypeError: send: command must be a rovlink.protocol.Command, got 'th 90 40' (text as typed:
-    send(parse_command_text('th 90 40')); a frame as it is: send_raw('th 90 40'))
+    send(parse_command_text('th 90 40')))
     """
     if isinstance(command, Command):
         return command
     hint = ""
-    if isinstance(command, str | bytes):
+    if isinstance(command, str) and command.lstrip().startswith("#"):
         hint = (
-            f" (text as typed: send(parse_command_text({command!r})); a frame as it is: "
+            f" (a frame: send(parse_command_text({command!r})), or exactly as it is: "
             f"send_raw({command!r}))"
         )
+    elif isinstance(command, str):
+        hint = f" (text as typed: send(parse_command_text({command!r})))"
+    elif isinstance(command, bytes):
+        hint = f" (a frame exactly as it is: send_raw({command!r}))"
     raise TypeError(f"send: command must be a rovlink.protocol.Command, got {command!r}{hint}")

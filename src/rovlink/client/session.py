@@ -227,6 +227,7 @@ class Session:
         "motion_timeout_s",
         "notices",
         "reset_after_timeouts",
+        "reset_notices",
         "timeout_s",
     )
 
@@ -254,6 +255,10 @@ class Session:
         self.keepalive_s = keepalive_s or None
         self.motion_timeout_s = motion_timeout_s or None
         self.reset_after_timeouts = reset_after_timeouts
+        #: Whether a suspected reset is a notice (a warning the driver logs) besides an event:
+        #: not while the driver confirms the checksum mode on connecting, where timeouts mean
+        #: a controller on another algorithm or without the mode, which its error then says.
+        self.reset_notices = True
         self.counters = LinkCounters()
         self.last_sent_at = float("-inf")
         self._last_progress_at = float("-inf")
@@ -1055,7 +1060,11 @@ class Session:
         if reported_at is None or self._last_progress_at >= reported_at:
             self._reset_reported_at = now
             self.counters.resets_suspected += 1
-            self._note(ResetSuspected(now, self._consecutive_timeouts))
+            suspected = ResetSuspected(now, self._consecutive_timeouts)
+            if self.reset_notices:
+                self._note(suspected)
+            elif self.events is not None:
+                self.events.append(suspected)
         self._consecutive_timeouts = 0
         self._outbox.insert(0, self._mode_entry())
 

@@ -6,10 +6,12 @@ so the prompt can put the cursor there; nothing is sent.
 
 from __future__ import annotations
 
+import difflib
 import re
 from dataclasses import dataclass
 
 from rovlink.client import CommandTextError, parse_command_text, usage
+from rovlink.client.command_text import similar_command_names
 from rovlink.protocol import BadFrame, Command, Decoder, Frame, Reason, lookup
 
 __all__ = [
@@ -132,7 +134,22 @@ def parse_line(line: str, checksum: str | None = None) -> Action | None:
             command = _checksummed_frame(line, checksum)
             if command is not None:
                 return SendCommand(command)
-        raise InputError(str(error), _error_position(line, error)) from None
+        message = _naming_console_words(str(error), first)
+        raise InputError(message, _error_position(line, error)) from None
+
+
+def _naming_console_words(message: str, first: str) -> str:
+    """An unknown command's message, naming first the console's own words that ``first`` is
+    close to: ``stauts`` is ``status`` mistyped, not ``start`` (the robot's command parser
+    knows only the robot's commands)."""
+    unknown = f"unknown command {first!r}"
+    if message != unknown and not message.startswith(f"{unknown}; did you mean"):
+        return message  # (another error, or a command in capitals: that message says why)
+    close = difflib.get_close_matches(first.lower(), sorted(_BUILTIN_NAMES), n=2, cutoff=0.6)
+    if not close:
+        return message
+    close += [name for name in similar_command_names(first) if name not in close]
+    return f"{unknown}; did you mean {', '.join(close)}?"
 
 
 def parse_lines(text: str, checksum: str | None = None) -> list[Action]:
@@ -236,7 +253,8 @@ def _builtin(line: str, name: str, words: list[re.Match[str]]) -> Action:
             try:
                 usage(topic)
             except CommandTextError as error:
-                raise InputError(str(error), words[1].start()) from None
+                message = _naming_console_words(str(error), topic)
+                raise InputError(message, words[1].start()) from None
             topic = lookup(topic).name
         return ShowHelp(topic)
     if name == "checksum":
