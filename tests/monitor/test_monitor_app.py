@@ -11,6 +11,7 @@ from collections.abc import Awaitable, Callable
 from typing import Any
 
 import pytest
+from textual import events
 from textual.pilot import Pilot
 
 import rovlink.aio.client
@@ -285,6 +286,25 @@ async def test_footer_shows_the_keys() -> None:
             "q quit",
         ):
             assert words in footer()
+        await pilot.press("q")
+
+
+async def test_a_click_on_the_footer_drives_nothing() -> None:
+    # Regression: a press of the mouse button on "s start" (the click that focuses the
+    # terminal's window) unlocked the motors, and one on "↑↓ power" sent thrust.
+    rig = Rig.simulated()
+    app = MonitorApp(rig.connect, description="bench", rate_hz=20)
+    async with app.run_test(size=SIZE) as pilot:
+        await until(lambda: _depth_shown(app) == 0 and "q quit" in screen_text(app))
+        footer_row = screen_text(app).splitlines()[SIZE[1] - 1]
+        for words in ("s start", "↑↓ power"):
+            column = footer_row.index(words) + 1
+            for event in (events.MouseDown, events.MouseUp):  # as the terminal reports a click
+                app.post_message(event(None, column, SIZE[1] - 1, 0, 0, 1, False, False, False))
+        await pilot.pause()
+        await pilot.press("space")  # (a frame behind any the clicks sent)
+        await until(lambda: "#stop!" in rig.frames())
+        assert _commands(rig)[1:] == ["#stop!"]
         await pilot.press("q")
 
 

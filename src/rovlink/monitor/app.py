@@ -285,6 +285,15 @@ class MonitorApp(App[None]):
         """Lay the boxes out for the terminal's new size."""
         self._fit_size(event.size.width, event.size.height)
 
+    async def on_event(self, event: events.Event) -> None:
+        """Only keys drive the robot: the terminal's mouse events are dropped here, before
+        textual hands them on. A footer key acts on a mere press of the button, so the click
+        that focuses the terminal's window, landing on ``s start`` or ``↑↓ power``, would
+        unlock the motors or add thrust."""
+        if isinstance(event, events.MouseEvent) and not event.is_forwarded:
+            return
+        await super().on_event(event)
+
     @property
     def needed_size(self) -> tuple[int, int]:
         """The smallest terminal the boxes fit in at the present width."""
