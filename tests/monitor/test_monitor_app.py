@@ -19,7 +19,7 @@ from rovlink.aio import AsyncClient
 from rovlink.cli import build_parser, main
 from rovlink.cli import monitor as cli_monitor
 from rovlink.cli.monitor import build_app
-from rovlink.client.links import Link
+from rovlink.client.links import Link, PortLink
 from rovlink.client.options import StrayCallback
 from rovlink.monitor.app import MonitorApp
 from rovlink.piloting.tracked import STOP_KEPT_NOTICE, STOP_UNSENT_NOTICE
@@ -32,7 +32,7 @@ from tests.client.conftest import (
 )
 from tests.client.fake_controller import FakeControllerServer
 from tests.monitor.screen import screen_text, shown
-from tests.piloting.rig import RecordingLink, Rig, SilentController, until
+from tests.piloting.rig import RecordingLink, Rig, SilenceableLink, SilentController, until
 
 SIZE = (100, 34)
 
@@ -252,6 +252,31 @@ async def test_a_depth_key_with_no_depth_reading_sends_no_target() -> None:
         assert b"#mvdirect." not in silent.received
         await pilot.press("q")
     silent.close()
+
+
+async def test_a_depth_key_with_only_a_stale_depth_reading_sends_no_target() -> None:
+    # Before, PgDn with the link gone quiet took its step from the last depth, however old:
+    # a robot read at 50 cm a minute ago, sinking since, was sent back up to 60 cm.
+    port = Rig.simulated().port
+    link = SilenceableLink(PortLink(port, "simulated controller"))
+    rig = Rig(port, link)
+
+    def connect(on_stray: StrayCallback) -> Awaitable[AsyncClient]:
+        return rig.connect(on_stray, timeout_s=NO_REPLY_TIMEOUT_S, retries=0)
+
+    clock = FakeClock()
+    app = MonitorApp(connect, description="bench", rate_hz=20, clock=clock)
+    notified = _record_notifications(app)
+    async with app.run_test(size=SIZE) as pilot:
+        await until(lambda: _depth_shown(app) == 0)
+        link.silent.set()  # the replies stop coming
+        clock.now_s += 6.5
+        await until(lambda: app.query_one("#depth-box").has_class("-stale"))
+        await pilot.press("s", "pagedown")
+        await until(lambda: "#start!" in rig.frames())
+        await until(lambda: any("the depth reading is stale: 6.5 s old" in t for t in notified))
+        assert not [frame for frame in rig.frames() if frame.startswith(("#mvd", "#mvdirect"))]
+        await pilot.press("q")
 
 
 async def test_a_failed_connection_is_shown_and_q_still_quits() -> None:

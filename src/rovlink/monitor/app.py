@@ -544,12 +544,17 @@ class MonitorApp(App[None]):
         """``mvd`` with the target moved by ``step_cm`` (after ``mvdirect 0`` if needed)."""
         if self.rov is not None:
             reading = self.readings.latest
+            # A stale depth is no "depth now": the robot may have moved since (a silent link),
+            # and a step deeper from where it was could send it up.
+            stale = stale_text(self.readings, now_s=self._clock(), period_s=self.period_s)
+            depth_now_cm = reading.depth_cm if reading is not None and stale is None else None
             try:
-                commands = controls.change_depth_target(
-                    self.rov.commanded, reading.depth_cm if reading else None, step_cm
-                )
+                commands = controls.change_depth_target(self.rov.commanded, depth_now_cm, step_cm)
             except controls.NoDepthReadingError as error:
-                self.notify(str(error), title="nothing sent", severity="warning")
+                message = str(error)
+                if reading is not None:  # (stale: "stale: 6.5 s old")
+                    message = f"the depth reading is {stale}: {controls.FIRST_TARGET_TEXT}"
+                self.notify(message, title="nothing sent", severity="warning")
                 return
             await self._send(*commands)
 
