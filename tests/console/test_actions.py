@@ -91,6 +91,27 @@ def test_errors_name_the_argument_and_range_and_point_at_it(
 
 
 @pytest.mark.parametrize(
+    ("line", "message"),
+    [
+        # Before: "did you mean start?", the command that unlocks the motors, for a typo of
+        # the console's own "status"; and no hint at all for its other words.
+        ("stauts", "unknown command 'stauts'; did you mean status, start?"),
+        ("Status", "unknown command 'Status': commands are lower-case, did you mean status?"),
+        ("QUIT", "unknown command 'QUIT': commands are lower-case, did you mean quit?"),
+        ("hlep th", "unknown command 'hlep'; did you mean help?"),
+        ("chksum on", "unknown command 'chksum'; did you mean checksum?"),
+        ("help stauts", "unknown command 'stauts'; did you mean status, start?"),
+        ("TH 90 30", "unknown command 'TH': commands are lower-case, did you mean th?"),
+    ],
+)
+def test_an_unknown_name_is_matched_among_the_console_s_words_too(line: str, message: str) -> None:
+    with pytest.raises(InputError) as caught:
+        parse_line(line)
+    assert caught.value.message == message
+    assert caught.value.position == line.rindex(message.split("'")[1])
+
+
+@pytest.mark.parametrize(
     ("line", "position"),
     [
         ("th 270", 6),  # a value missing: where it goes

@@ -10,6 +10,7 @@ import re
 from dataclasses import dataclass
 
 from rovlink.client import CommandTextError, parse_command_text, usage
+from rovlink.client.command_text import is_command_name, unknown_command_text
 from rovlink.protocol import BadFrame, Command, Decoder, Frame, Reason, lookup
 
 __all__ = [
@@ -31,6 +32,8 @@ _WORD = re.compile(r"[^\s,]+")
 #: A whole frame, as copied from a capture or a log: several on a line run one after another.
 _FRAME = re.compile(r"#[^#!\s]*!")
 _FRAMES_ONLY = re.compile(r"\s*(?:#[^#!\s]*!\s*){2,}")
+#: A first word that can only be a name (not a frame, nor a body such as th.90.30).
+_WORD_NAME = re.compile(r"[^#.!]+")
 
 
 @dataclass(frozen=True, slots=True)
@@ -125,6 +128,9 @@ def parse_line(line: str, checksum: str | None = None) -> Action | None:
     first = words[0].group()
     if first in _BUILTIN_NAMES:
         return _builtin(line, first, words)
+    if _WORD_NAME.fullmatch(first) and not is_command_name(first):
+        # (Named among the console's own words too: a typo of "status" is not "start"'s.)
+        raise InputError(unknown_command_text(first, _BUILTIN_NAMES), words[0].start())
     try:
         return SendCommand(parse_command_text(line))
     except CommandTextError as error:
@@ -233,6 +239,8 @@ def _builtin(line: str, name: str, words: list[re.Match[str]]) -> Action:
         if topic == "exit":  # (quit's other name: its help is quit's)
             topic = "quit"
         if topic not in _BUILTIN_NAMES:
+            if _WORD_NAME.fullmatch(topic) and not is_command_name(topic):
+                raise InputError(unknown_command_text(topic, _BUILTIN_NAMES), words[1].start())
             try:
                 usage(topic)
             except CommandTextError as error:
