@@ -16,7 +16,15 @@ from collections.abc import Awaitable, Callable
 from dataclasses import dataclass
 
 from rovlink.aio import AsyncClient
-from rovlink.client.events import BytesSent, ClientEvent, LinkState, ResetSuspected, Unsolicited
+from rovlink.client.events import (
+    BytesSent,
+    ClientEvent,
+    LinkState,
+    QueryFailed,
+    ReplyReceived,
+    ResetSuspected,
+    Unsolicited,
+)
 from rovlink.client.operations import SENSORS, raw_frame
 from rovlink.client.sensors import Sensors
 from rovlink.piloting.commanded import CommandedState
@@ -116,6 +124,9 @@ class TrackedClient:
         self.link_down = False
         self._stopped_while_down = False
         self._sent_while_down = False  # a frame of the tool's own went on the reopened link
+        #: The tool's own queries on the wire: replies and failures while there are none are
+        #: the driver's (keep-alives, fences), which say whether the link answers all the same.
+        self._own_queries = 0
         client.subscribe(self._on_event)
 
     def add_sent_listener(self, listener: SentCallback) -> None:
@@ -174,6 +185,14 @@ class TrackedClient:
         if isinstance(event, LinkState):
             self._on_link_state(event.state)
             return
+        if isinstance(event, ReplyReceived | QueryFailed) and not self._own_queries:
+            # (A console that is only typed into queries nothing: its link would show the last
+            # reply it asked for, "ok", while the controller had long gone silent.)
+            if isinstance(event, ReplyReceived):
+                self.health.record_heard(self._clock())
+            else:
+                self.health.record_unanswered(f"{event.query}: {event.outcome}")
+            return
         if not isinstance(event, BytesSent):
             if isinstance(event, Unsolicited) and isinstance(event.event, Text):
                 self._on_text(event.event.text)  # (text only: replies never get here)
@@ -224,11 +243,14 @@ class TrackedClient:
 
     async def _timed(self, request: Awaitable[tuple[Response, ...]]) -> tuple[Response, ...]:
         started_s = self._clock()
+        self._own_queries += 1
         try:
             replies = await request
         except TimeoutError as error:
             self.health.record_failure(str(error), self._clock())
             raise
+        finally:
+            self._own_queries -= 1
         if replies:  # a query's (a set command has none)
             now_s = self._clock()
             self.health.record_reply(now_s - started_s, now_s)
