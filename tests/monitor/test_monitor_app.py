@@ -314,6 +314,17 @@ async def test_footer_shows_the_keys() -> None:
         await pilot.press("q")
 
 
+async def test_with_caps_lock_on_the_letter_keys_do_what_they_say() -> None:
+    # Before, "Q" (caps lock on) did nothing, nor did "S": the dashboard would not quit.
+    rig = Rig.simulated()
+    app = MonitorApp(rig.connect, description="bench", rate_hz=20)
+    async with app.run_test(size=SIZE) as pilot:
+        await until(lambda: _depth_shown(app) == 0)
+        await pilot.press("S", "O", "C", "R", "Q")
+        await until(lambda: not app.is_running)
+    assert _commands(rig)[1:] == ["#start!", "#h+!", "#h-!", "#slreset!", "#stop!"]
+
+
 async def test_a_click_on_the_footer_drives_nothing() -> None:
     # Regression: a press of the mouse button on "s start" (the click that focuses the
     # terminal's window) unlocked the motors, and one on "↑↓ power" sent thrust.

@@ -205,6 +205,12 @@ class MonitorApp(App[None]):
         Binding("c", "claw('h-')", "claw", show=False, priority=True),
         Binding("r", "reset_leak", "reset leak", priority=True),
         Binding("q", "quit_safely", "quit", priority=True),
+        # Each letter in capitals too: with caps lock on, q did nothing, nor did s.
+        Binding("S", "start", "start", show=False, priority=True),
+        Binding("O", "claw('h+')", "claw", show=False, priority=True),
+        Binding("C", "claw('h-')", "claw", show=False, priority=True),
+        Binding("R", "reset_leak", "reset leak", show=False, priority=True),
+        Binding("Q", "quit_safely", "quit", show=False, priority=True),
         Binding("ctrl+q", "quit_safely", "quit", show=False, priority=True),
         Binding("ctrl+c", "quit_safely", "quit", show=False, priority=True),
     ]
