@@ -8,10 +8,10 @@ import rovlink.aio
 from rovlink.aio import AsyncClient
 from rovlink.client import ClientOptions, QueryTimeoutError
 from rovlink.client.events import BytesSent
-from rovlink.client.links import PortLink
+from rovlink.client.links import PortLink, SocketLink
 from rovlink.piloting import SentFrame, TrackedClient
 from rovlink.protocol import Command
-from tests.client.fake_controller import FakeControllerServer
+from tests.client.fake_controller import FakeController, FakeControllerServer
 from tests.piloting.rig import Rig, SilenceableLink, SilentController, until
 
 
@@ -82,6 +82,23 @@ async def test_the_drivers_keep_alives_tell_the_health_whether_the_link_answers(
     link.silent.clear()
     await until(lambda: rov.health.status == "ok")
     await rov.client.close()
+
+
+async def test_a_fence_answered_after_the_tools_query_failed_does_not_hide_the_failure() -> None:
+    # The driver's fence (a query of another name after a timeout) is answered: the tool's own
+    # query failed all the same, and the health says so.
+    fake, host_end = FakeController.on_socketpair(script=["drop"])
+    options = ClientOptions(timeout_s=0.05, retries=0, keepalive_s=None, boot_timeout_s=None)
+    client = await AsyncClient(SocketLink(host_end, "socket pair"), options).open()
+    rov = TrackedClient(client)
+    with pytest.raises(QueryTimeoutError):
+        await rov.send(Command("qd"))
+    await until(lambda: fake.queries_answered >= 1)  # the fence
+    await until(lambda: client.counters.replies >= 1)
+    assert rov.health.consecutive_failures == 1
+    assert rov.health.status != "ok"
+    await client.close()
+    fake.close()
 
 
 async def test_a_closed_client_sends_and_reports_nothing() -> None:
