@@ -136,3 +136,22 @@ def test_an_idle_dashboard_draws_again_only_the_box_that_changed() -> None:
         assert redrawn_boxes == set()
     finally:
         terminal.close()
+
+
+#: What asks a terminal to report the mouse's buttons (X10, normal, button- and any-motion
+#: tracking): once written, a click in the window reaches the program instead of the selection.
+_MOUSE_REPORTING_ON = re.compile(rb"\x1b\[\?(?:9|1000|1002|1003)h")
+
+
+@pytest.mark.integration
+def test_the_dashboard_leaves_the_mouse_to_the_terminal() -> None:
+    # Regression: the monitor turned mouse reporting on, and a press of the button on a footer
+    # key ran it: the click that focuses the window, on "s start", unlocked the motors.
+    terminal = Terminal("monitor", "sim://", stderr_on_terminal=True)
+    try:
+        assert terminal.wait_until(lambda shown: b"raw pressure 2" in _plain(shown))
+        assert _MOUSE_REPORTING_ON.search(bytes(terminal.shown)) is None
+        terminal.type("q")
+        assert terminal.process.wait(WAIT_S) == 0
+    finally:
+        terminal.close()

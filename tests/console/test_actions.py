@@ -92,6 +92,8 @@ def test_errors_name_the_argument_and_range_and_point_at_it(
 
 #: A console word mistyped, and the message: before, only the robot's commands were suggested
 #: ("stauts": did you mean start?, which a person trying to read the status would then send).
+#: Before, "did you mean start?" (the command that unlocks the motors) for a typo of the
+#: console's own "status", and no hint at all for its other words.
 MISTYPED_CONSOLE_WORDS = [
     ("stauts", "stauts", "unknown command 'stauts'; did you mean status, start?"),
     ("hlep", "hlep", "unknown command 'hlep'; did you mean help?"),
@@ -99,7 +101,11 @@ MISTYPED_CONSOLE_WORDS = [
     ("qiut", "qiut", "unknown command 'qiut'; did you mean quit?"),
     ("rwa #qd!", "rwa", "unknown command 'rwa'; did you mean raw?"),
     ("help stauts", "stauts", "unknown command 'stauts'; did you mean status, start?"),
+    ("chksum on", "chksum", "unknown command 'chksum'; did you mean checksum?"),
+    ("Status", "Status", "unknown command 'Status': commands are lower-case, did you mean status?"),
+    ("QUIT", "QUIT", "unknown command 'QUIT': commands are lower-case, did you mean quit?"),
     # the robot's commands as before
+    ("TH 90 30", "TH", "unknown command 'TH': commands are lower-case, did you mean th?"),
     ("thrust 1", "thrust", "unknown command 'thrust'; did you mean th?"),
     ("Start", "Start", "unknown command 'Start': commands are lower-case, did you mean start?"),
 ]

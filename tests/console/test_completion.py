@@ -95,3 +95,12 @@ def test_on_the_second_line_of_a_paste_the_completer_looks_at_that_line_only() -
     # taken for a value of start).
     completions = ConsoleCompleter().get_completions(Document("start\nmvp"), CompleteEvent())
     assert [completion.text for completion in completions] == ["mvpdp", "mvpdi", "mvpidd"]
+
+
+def test_exit_is_completed_and_hinted_as_quit() -> None:
+    # Before, "ex" completed to nothing and "exit" had no hint, though it is quit's other name.
+    assert [suggestion.text for suggestion in suggestions("ex")] == ["exit"]
+    assert "exit" not in [suggestion.text for suggestion in suggestions("")]  # (quit is there)
+    hint = argument_hint("exit")
+    assert hint is not None
+    assert hint.text().startswith("quit: leave (sends #stop! first")

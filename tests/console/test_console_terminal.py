@@ -194,6 +194,18 @@ async def test_at_80_columns_the_toolbar_shows_the_link_s_state_in_full(tmp_path
         await terminal.finish()
 
 
+async def test_in_a_terminal_8_rows_high_the_line_and_the_toolbar_are_drawn(tmp_path: Path) -> None:
+    # Before, the rows kept for the completion menu (8) and the toolbar's made the layout
+    # higher than the terminal: prompt_toolkit drew "Window too small..." in their place.
+    async with _console_on_a_terminal(tmp_path, columns=80, rows=8) as terminal:
+        terminal.type("qd\r")
+        await terminal.wait_shown(r"qd → \d+ cm")
+        await terminal.wait_shown(r"Ctrl-X: STOP.*\n?.*link ok, reply")
+        assert "Window too small" not in terminal.text()
+        terminal.type(CTRL_D)
+        await terminal.finish()
+
+
 async def test_at_40_columns_a_refused_line_s_message_is_shown_whole(tmp_path: Path) -> None:
     # Before, the message under the line was cut at the terminal's edge: at 40 columns
     # "th: direction_deg must be in 0–360, got" without the value that was refused.

@@ -11,6 +11,7 @@ from collections.abc import Awaitable, Callable
 from typing import Any
 
 import pytest
+from textual import events
 from textual.pilot import Pilot
 
 import rovlink.aio.client
@@ -18,7 +19,7 @@ from rovlink.aio import AsyncClient
 from rovlink.cli import build_parser, main
 from rovlink.cli import monitor as cli_monitor
 from rovlink.cli.monitor import build_app
-from rovlink.client.links import Link
+from rovlink.client.links import Link, PortLink
 from rovlink.client.options import StrayCallback
 from rovlink.monitor.app import MonitorApp
 from rovlink.piloting.tracked import STOP_KEPT_NOTICE, STOP_UNSENT_NOTICE
@@ -31,7 +32,7 @@ from tests.client.conftest import (
 )
 from tests.client.fake_controller import FakeControllerServer
 from tests.monitor.screen import screen_text, shown
-from tests.piloting.rig import RecordingLink, Rig, SilentController, until
+from tests.piloting.rig import RecordingLink, Rig, SilenceableLink, SilentController, until
 
 SIZE = (100, 34)
 
@@ -253,6 +254,31 @@ async def test_a_depth_key_with_no_depth_reading_sends_no_target() -> None:
     silent.close()
 
 
+async def test_a_depth_key_with_only_a_stale_depth_reading_sends_no_target() -> None:
+    # Before, PgDn with the link gone quiet took its step from the last depth, however old:
+    # a robot read at 50 cm a minute ago, sinking since, was sent back up to 60 cm.
+    port = Rig.simulated().port
+    link = SilenceableLink(PortLink(port, "simulated controller"))
+    rig = Rig(port, link)
+
+    def connect(on_stray: StrayCallback) -> Awaitable[AsyncClient]:
+        return rig.connect(on_stray, timeout_s=NO_REPLY_TIMEOUT_S, retries=0)
+
+    clock = FakeClock()
+    app = MonitorApp(connect, description="bench", rate_hz=20, clock=clock)
+    notified = _record_notifications(app)
+    async with app.run_test(size=SIZE) as pilot:
+        await until(lambda: _depth_shown(app) == 0)
+        link.silent.set()  # the replies stop coming
+        clock.now_s += 6.5
+        await until(lambda: app.query_one("#depth-box").has_class("-stale"))
+        await pilot.press("s", "pagedown")
+        await until(lambda: "#start!" in rig.frames())
+        await until(lambda: any("the depth reading is stale: 6.5 s old" in t for t in notified))
+        assert not [frame for frame in rig.frames() if frame.startswith(("#mvd", "#mvdirect"))]
+        await pilot.press("q")
+
+
 async def test_a_failed_connection_is_shown_and_q_still_quits() -> None:
     async def connect(on_stray: StrayCallback) -> AsyncClient:
         raise ConnectionRefusedError("nothing listening")
@@ -285,6 +311,36 @@ async def test_footer_shows_the_keys() -> None:
             "q quit",
         ):
             assert words in footer()
+        await pilot.press("q")
+
+
+async def test_with_caps_lock_on_the_letter_keys_do_what_they_say() -> None:
+    # Before, "Q" (caps lock on) did nothing, nor did "S": the dashboard would not quit.
+    rig = Rig.simulated()
+    app = MonitorApp(rig.connect, description="bench", rate_hz=20)
+    async with app.run_test(size=SIZE) as pilot:
+        await until(lambda: _depth_shown(app) == 0)
+        await pilot.press("S", "O", "C", "R", "Q")
+        await until(lambda: not app.is_running)
+    assert _commands(rig)[1:] == ["#start!", "#h+!", "#h-!", "#slreset!", "#stop!"]
+
+
+async def test_a_click_on_the_footer_drives_nothing() -> None:
+    # Regression: a press of the mouse button on "s start" (the click that focuses the
+    # terminal's window) unlocked the motors, and one on "↑↓ power" sent thrust.
+    rig = Rig.simulated()
+    app = MonitorApp(rig.connect, description="bench", rate_hz=20)
+    async with app.run_test(size=SIZE) as pilot:
+        await until(lambda: _depth_shown(app) == 0 and "q quit" in screen_text(app))
+        footer_row = screen_text(app).splitlines()[SIZE[1] - 1]
+        for words in ("s start", "↑↓ power"):
+            column = footer_row.index(words) + 1
+            for event in (events.MouseDown, events.MouseUp):  # as the terminal reports a click
+                app.post_message(event(None, column, SIZE[1] - 1, 0, 0, 1, False, False, False))
+        await pilot.pause()
+        await pilot.press("space")  # (a frame behind any the clicks sent)
+        await until(lambda: "#stop!" in rig.frames())
+        assert _commands(rig)[1:] == ["#stop!"]
         await pilot.press("q")
 
 

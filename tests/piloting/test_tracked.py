@@ -8,10 +8,11 @@ import rovlink.aio
 from rovlink.aio import AsyncClient
 from rovlink.client import ClientOptions, QueryTimeoutError
 from rovlink.client.events import BytesSent
+from rovlink.client.links import PortLink, SocketLink
 from rovlink.piloting import SentFrame, TrackedClient
 from rovlink.protocol import Command
-from tests.client.fake_controller import FakeControllerServer
-from tests.piloting.rig import Rig, SilentController, until
+from tests.client.fake_controller import FakeController, FakeControllerServer
+from tests.piloting.rig import Rig, SilenceableLink, SilentController, until
 
 
 async def test_sent_frames_are_reported_as_written_and_update_the_state() -> None:
@@ -65,6 +66,39 @@ async def test_a_silent_link_is_counted_as_failures() -> None:
     assert rov.health.status == "no reply"
     await client.close()
     silent.close()
+
+
+async def test_the_drivers_keep_alives_tell_the_health_whether_the_link_answers() -> None:
+    # Before, a tool that queried nothing itself (a console only typed into) showed its link
+    # "ok" for ever, from the last reply it had asked for, while the controller had long gone
+    # silent and the keep-alives went unanswered.
+    port = Rig.simulated().port
+    link = SilenceableLink(PortLink(port, "simulated controller"))
+    rov = TrackedClient(await Rig(port, link).connect(keepalive_s=0.02, timeout_s=0.05))
+    await until(lambda: rov.health.status == "ok")  # the keep-alives are answered
+    link.silent.set()
+    await until(lambda: rov.health.status == "no reply")
+    assert rov.health.failures == 0  # (none of the tool's own queries failed)
+    link.silent.clear()
+    await until(lambda: rov.health.status == "ok")
+    await rov.client.close()
+
+
+async def test_a_fence_answered_after_the_tools_query_failed_does_not_hide_the_failure() -> None:
+    # The driver's fence (a query of another name after a timeout) is answered: the tool's own
+    # query failed all the same, and the health says so.
+    fake, host_end = FakeController.on_socketpair(script=["drop"])
+    options = ClientOptions(timeout_s=0.05, retries=0, keepalive_s=None, boot_timeout_s=None)
+    client = await AsyncClient(SocketLink(host_end, "socket pair"), options).open()
+    rov = TrackedClient(client)
+    with pytest.raises(QueryTimeoutError):
+        await rov.send(Command("qd"))
+    await until(lambda: fake.queries_answered >= 1)  # the fence
+    await until(lambda: client.counters.replies >= 1)
+    assert rov.health.consecutive_failures == 1
+    assert rov.health.status != "ok"
+    await client.close()
+    fake.close()
 
 
 async def test_a_closed_client_sends_and_reports_nothing() -> None:

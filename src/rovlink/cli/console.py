@@ -13,7 +13,7 @@ import sys
 from typing import TYPE_CHECKING, TextIO
 
 from rovlink.cli import link_options
-from rovlink.cli.failure import CommandError, UsageError, reason
+from rovlink.cli.failure import CommandError, NoTerminalError, UsageError, reason
 
 if TYPE_CHECKING:
     from pathlib import Path
@@ -74,7 +74,17 @@ def run(args: argparse.Namespace) -> int:
     except ImportError as error:
         raise CommandError(f"needs {error.name}: pip install 'rovlink[console]'") from None
 
-    open_link = link_options.connect_async(args)
+    link_options.check_url(args)  # (a malformed URL is said first, as by every command)
+    from_terminal = _is_terminal(sys.stdin)
+    if from_terminal and not _is_terminal(sys.stdout):
+        # Typed into, its prompt, the replies and the toolbar would go to the file or the pipe
+        # (through tee, in pieces): the lines typed, start and th among them, would run unseen.
+        raise NoTerminalError(
+            "typed into, its prompt and replies need a terminal, but standard output is not "
+            "one: the lines typed would run unseen; to keep the session, use --record FILE "
+            "(lines read from a file may go to one: rovlink console URL < lines.txt > out.txt)"
+        )
+    open_link = link_options.connect_async(args)  # (after: a --record file is not made)
 
     async def connect(on_stray: StrayCallback) -> AsyncClient:
         # Only a failure here is one to open the port: an OSError later is the terminal's.
@@ -96,7 +106,6 @@ def run(args: argparse.Namespace) -> int:
             # service user's home that is not there): this session's history only.
             print(f"rovlink console: {error}; kept for this session only", file=sys.stderr)
             history = None
-    from_terminal = _is_terminal(sys.stdin)
     try:
         with contextlib.nullcontext() if from_terminal else script_input(sys.stdin):
             run_async(

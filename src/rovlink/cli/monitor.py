@@ -179,7 +179,9 @@ async def _connect_then_show(args: argparse.Namespace) -> bool:
             await link_options.hear_other_lines_if_asked(args, client)
             app = build_app(args, connected)
             try:
-                await app.run_async()
+                # No mouse reporting: the mouse drives nothing (see MonitorApp.on_event), and the
+                # terminal keeps its own text selection.
+                await app.run_async(mouse=False)
             finally:
                 if app.stop_unsent is not None:  # (once the dashboard has left the terminal)
                     with contextlib.suppress(OSError):  # (a terminal that hung up)

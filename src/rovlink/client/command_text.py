@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import difflib
 import re
+from collections.abc import Iterable
 
 from rovlink.protocol import (
     COMMANDS,
@@ -25,8 +26,9 @@ from rovlink.protocol.commands import SPELLINGS
 __all__ = [
     "CommandTextError",
     "complete_names",
+    "is_command_name",
     "parse_command_text",
-    "similar_command_names",
+    "unknown_command_text",
     "usage",
 ]
 
@@ -74,32 +76,41 @@ def complete_names(prefix: str) -> list[str]:
     return [spec.name for spec in COMMANDS if spec.name.startswith(prefix)]
 
 
-def similar_command_names(name: str) -> list[str]:
-    """The command spellings a mistyped ``name`` is probably meant to be, likeliest first.
+def is_command_name(word: str) -> bool:
+    """Whether ``word`` names a command of the table, as typed (an alias too).
 
-    >>> similar_command_names("thrust"), similar_command_names("qdd")
-    (['th'], ['qd'])
+    >>> is_command_name("q.l"), is_command_name("TH"), is_command_name("th.90.30")
+    (True, False, False)
     """
-    spellings = list(SPELLINGS[Kind.COMMAND])
+    return word in SPELLINGS[Kind.COMMAND]
+
+
+def unknown_command_text(name: str, other_names: Iterable[str] = ()) -> str:
+    """What to say of ``name``, which names no command: with the names it may have been
+    meant for, among the table's and ``other_names`` (the words of a tool's own, such as the
+    console's ``status``, that a typo of would otherwise be taken for a command's).
+
+    >>> unknown_command_text("stauts", ["status"])
+    "unknown command 'stauts'; did you mean status, start?"
+    >>> unknown_command_text("Quit", ["quit"])
+    "unknown command 'Quit': commands are lower-case, did you mean quit?"
+    """
+    spellings = [*SPELLINGS[Kind.COMMAND], *other_names]
     typed = name.lower()  # (caps lock: a name in capitals is matched as it would be)
+    if typed in spellings:  # (P6: commands are lower-case and case-sensitive)
+        return f"unknown command {name!r}: commands are lower-case, did you mean {typed}?"
     close = difflib.get_close_matches(typed, spellings, n=3, cutoff=0.6)
     # A word that starts with a command's name ("thrust" for "th") is probably that command.
     close += [s for s in spellings if len(s) > 1 and typed.startswith(s) and s not in close]
-    return close
+    hint = f"; did you mean {', '.join(close)}?" if close else ""
+    return f"unknown command {name!r}{hint}"
 
 
 def _spec(name: str) -> Spec:
     try:
         return lookup(name)
     except UnknownCommandError:
-        typed = name.lower()
-        if typed in SPELLINGS[Kind.COMMAND]:  # (P6: commands are lower-case and case-sensitive)
-            raise CommandTextError(
-                f"unknown command {name!r}: commands are lower-case, did you mean {typed}?"
-            ) from None
-        close = similar_command_names(name)
-        hint = f"; did you mean {', '.join(close)}?" if close else ""
-        raise CommandTextError(f"unknown command {name!r}{hint}") from None
+        raise CommandTextError(unknown_command_text(name)) from None
 
 
 def _from_body(body: str, text: str) -> Command:

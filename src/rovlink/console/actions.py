@@ -6,12 +6,11 @@ so the prompt can put the cursor there; nothing is sent.
 
 from __future__ import annotations
 
-import difflib
 import re
 from dataclasses import dataclass
 
 from rovlink.client import CommandTextError, parse_command_text, usage
-from rovlink.client.command_text import similar_command_names
+from rovlink.client.command_text import is_command_name, unknown_command_text
 from rovlink.protocol import BadFrame, Command, Decoder, Frame, Reason, lookup
 
 __all__ = [
@@ -33,6 +32,8 @@ _WORD = re.compile(r"[^\s,]+")
 #: A whole frame, as copied from a capture or a log: several on a line run one after another.
 _FRAME = re.compile(r"#[^#!\s]*!")
 _FRAMES_ONLY = re.compile(r"\s*(?:#[^#!\s]*!\s*){2,}")
+#: A first word that can only be a name (not a frame, nor a body such as th.90.30).
+_WORD_NAME = re.compile(r"[^#.!]+")
 
 
 @dataclass(frozen=True, slots=True)
@@ -127,6 +128,9 @@ def parse_line(line: str, checksum: str | None = None) -> Action | None:
     first = words[0].group()
     if first in _BUILTIN_NAMES:
         return _builtin(line, first, words)
+    if _WORD_NAME.fullmatch(first) and not is_command_name(first):
+        # (Named among the console's own words too: a typo of "status" is not "start"'s.)
+        raise InputError(unknown_command_text(first, _BUILTIN_NAMES), words[0].start())
     try:
         return SendCommand(parse_command_text(line))
     except CommandTextError as error:
@@ -134,22 +138,7 @@ def parse_line(line: str, checksum: str | None = None) -> Action | None:
             command = _checksummed_frame(line, checksum)
             if command is not None:
                 return SendCommand(command)
-        message = _naming_console_words(str(error), first)
-        raise InputError(message, _error_position(line, error)) from None
-
-
-def _naming_console_words(message: str, first: str) -> str:
-    """An unknown command's message, naming first the console's own words that ``first`` is
-    close to: ``stauts`` is ``status`` mistyped, not ``start`` (the robot's command parser
-    knows only the robot's commands)."""
-    unknown = f"unknown command {first!r}"
-    if message != unknown and not message.startswith(f"{unknown}; did you mean"):
-        return message  # (another error, or a command in capitals: that message says why)
-    close = difflib.get_close_matches(first.lower(), sorted(_BUILTIN_NAMES), n=2, cutoff=0.6)
-    if not close:
-        return message
-    close += [name for name in similar_command_names(first) if name not in close]
-    return f"{unknown}; did you mean {', '.join(close)}?"
+        raise InputError(str(error), _error_position(line, error)) from None
 
 
 def parse_lines(text: str, checksum: str | None = None) -> list[Action]:
@@ -250,11 +239,12 @@ def _builtin(line: str, name: str, words: list[re.Match[str]]) -> Action:
         if topic == "exit":  # (quit's other name: its help is quit's)
             topic = "quit"
         if topic not in _BUILTIN_NAMES:
+            if _WORD_NAME.fullmatch(topic) and not is_command_name(topic):
+                raise InputError(unknown_command_text(topic, _BUILTIN_NAMES), words[1].start())
             try:
                 usage(topic)
             except CommandTextError as error:
-                message = _naming_console_words(str(error), topic)
-                raise InputError(message, words[1].start()) from None
+                raise InputError(str(error), words[1].start()) from None
             topic = lookup(topic).name
         return ShowHelp(topic)
     if name == "checksum":

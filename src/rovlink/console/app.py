@@ -210,6 +210,19 @@ def _toolbar(rov: TrackedClient, queued: int) -> StyleAndTextTuples:
     return [*status, ("", "\n"), *_wrapped(help_line, width)]
 
 
+#: Rows kept under the line for the completion menu, where the terminal has them.
+_MENU_ROWS = 8
+
+
+def _fit_menu(session: PromptSession[str], toolbar: StyleAndTextTuples) -> None:
+    """Keep for the menu only the rows the line and the toolbar leave: in a short terminal (a
+    split pane of 8 rows) the rows kept for it made the layout too high, and prompt_toolkit
+    drew "Window too small..." in place of the line, the replies and the toolbar."""
+    toolbar_rows = 1 + sum(fragment[1].count("\n") for fragment in toolbar)
+    rows = session.app.output.get_size().rows
+    session.reserve_space_for_menu = max(0, min(_MENU_ROWS, rows - toolbar_rows - 1))
+
+
 #: The toolbar's width when no prompt is running to give the terminal's.
 _TOOLBAR_WIDTH = 80
 
@@ -352,7 +365,7 @@ async def _run_connected(
         history=history,
         completer=ConsoleCompleter() if from_terminal else None,
         complete_while_typing=from_terminal,
-        reserve_space_for_menu=8 if from_terminal else 0,
+        reserve_space_for_menu=_MENU_ROWS if from_terminal else 0,
         validator=ConsoleValidator(checksum) if check_in_place else None,
         validate_while_typing=False,
         key_bindings=_stop_bindings(engine),
@@ -360,6 +373,8 @@ async def _run_connected(
         refresh_interval=_TOOLBAR_REFRESH_S if from_terminal else 0,
         output=DummyOutput() if replies_alone else None,
     )
+    if from_terminal:
+        session.app.before_render += lambda app: _fit_menu(session, _toolbar(rov, engine.queued))
     stop_text = (
         f"{STOP_KEY_TEXT} sends #stop! at any time; 'help' lists commands"
         if from_terminal

@@ -17,6 +17,8 @@ __all__ = ["Hint", "Suggestion", "argument_hint", "suggestions"]
 
 _WORD = re.compile(r"[^\s,]+")
 _BUILTIN_BY_NAME = {builtin.name: builtin for builtin in BUILTINS}
+#: ``exit`` is ``quit``'s other name: completed and hinted as it (it had neither).
+_BUILTIN_BY_NAME["exit"] = _BUILTIN_BY_NAME["quit"]
 _CHECKSUM_WORDS = (("on", "checksum on every frame (#crcon!)"), ("off", "no checksums (#crcoff!)"))
 
 
@@ -63,9 +65,9 @@ def _name_suggestions(prefix: str, *, frame: bool = False) -> list[Suggestion]:
         found.append(Suggestion(text, -(len(prefix) + frame), text, spec.description))
     if not frame:
         found += [
-            Suggestion(builtin.name, -len(prefix), builtin.name, builtin.description)
-            for builtin in BUILTINS
-            if builtin.name.startswith(prefix)
+            Suggestion(name, -len(prefix), name, builtin.description)
+            for name, builtin in _BUILTIN_BY_NAME.items()
+            if name.startswith(prefix) and (name != "exit" or prefix.startswith("e"))
         ]
     return found
 

@@ -205,6 +205,12 @@ class MonitorApp(App[None]):
         Binding("c", "claw('h-')", "claw", show=False, priority=True),
         Binding("r", "reset_leak", "reset leak", priority=True),
         Binding("q", "quit_safely", "quit", priority=True),
+        # Each letter in capitals too: with caps lock on, q did nothing, nor did s.
+        Binding("S", "start", "start", show=False, priority=True),
+        Binding("O", "claw('h+')", "claw", show=False, priority=True),
+        Binding("C", "claw('h-')", "claw", show=False, priority=True),
+        Binding("R", "reset_leak", "reset leak", show=False, priority=True),
+        Binding("Q", "quit_safely", "quit", show=False, priority=True),
         Binding("ctrl+q", "quit_safely", "quit", show=False, priority=True),
         Binding("ctrl+c", "quit_safely", "quit", show=False, priority=True),
     ]
@@ -284,6 +290,15 @@ class MonitorApp(App[None]):
     def on_resize(self, event: events.Resize) -> None:
         """Lay the boxes out for the terminal's new size."""
         self._fit_size(event.size.width, event.size.height)
+
+    async def on_event(self, event: events.Event) -> None:
+        """Only keys drive the robot: the terminal's mouse events are dropped here, before
+        textual hands them on. A footer key acts on a mere press of the button, so the click
+        that focuses the terminal's window, landing on ``s start`` or ``↑↓ power``, would
+        unlock the motors or add thrust."""
+        if isinstance(event, events.MouseEvent) and not event.is_forwarded:
+            return
+        await super().on_event(event)
 
     @property
     def needed_size(self) -> tuple[int, int]:
@@ -535,12 +550,17 @@ class MonitorApp(App[None]):
         """``mvd`` with the target moved by ``step_cm`` (after ``mvdirect 0`` if needed)."""
         if self.rov is not None:
             reading = self.readings.latest
+            # A stale depth is no "depth now": the robot may have moved since (a silent link),
+            # and a step deeper from where it was could send it up.
+            stale = stale_text(self.readings, now_s=self._clock(), period_s=self.period_s)
+            depth_now_cm = reading.depth_cm if reading is not None and stale is None else None
             try:
-                commands = controls.change_depth_target(
-                    self.rov.commanded, reading.depth_cm if reading else None, step_cm
-                )
+                commands = controls.change_depth_target(self.rov.commanded, depth_now_cm, step_cm)
             except controls.NoDepthReadingError as error:
-                self.notify(str(error), title="nothing sent", severity="warning")
+                message = str(error)
+                if reading is not None:  # (stale: "stale: 6.5 s old")
+                    message = f"the depth reading is {stale}: {controls.FIRST_TARGET_TEXT}"
+                self.notify(message, title="nothing sent", severity="warning")
                 return
             await self._send(*commands)
 

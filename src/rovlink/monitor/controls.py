@@ -8,6 +8,7 @@ from rovlink.protocol import Command, Setting, VerticalMode, lookup, setting_com
 __all__ = [
     "DEPTH_STEP_CM",
     "DIRECTION_STEP_DEG",
+    "FIRST_TARGET_TEXT",
     "POWER_STEP_PERCENT",
     "NoDepthReadingError",
     "change_depth_target",
@@ -42,6 +43,10 @@ def change_power(state: CommandedState, step_percent: int) -> Command:
     return Command("th", (state.direction_deg, power))
 
 
+#: Why a first depth target needs a reading of the depth now.
+FIRST_TARGET_TEXT = "the first depth target is a step from the depth now"
+
+
 class NoDepthReadingError(ValueError):
     """A first depth target asked for with no depth reading to step from."""
 
@@ -64,9 +69,7 @@ def change_depth_target(state: CommandedState, depth_cm: int | None, step_cm: in
         target_cm = state.target_depth_cm + step_cm
     else:  # the next point of the step grid beyond the depth now, in the step's direction
         if depth_cm is None:
-            raise NoDepthReadingError(
-                "no depth reading yet: the first depth target is a step from the depth now"
-            )
+            raise NoDepthReadingError(f"no depth reading yet: {FIRST_TARGET_TEXT}")
         now_cm = depth_cm
         size_cm = abs(step_cm)
         if step_cm > 0:

@@ -50,6 +50,19 @@ class LinkHealth:
         self.consecutive_failures += 1
         self.last_error = error
 
+    def record_heard(self, now_s: float) -> None:
+        """A reply to a query of the driver's own (a keep-alive): the link answers, though
+        no reply time of the tool's is measured."""
+        self.consecutive_failures = 0
+        self.last_reply_at_s = now_s
+
+    def record_unanswered(self, error: str) -> None:
+        """A query of the driver's own got no valid reply: counted toward a silent link (a
+        tool that queries nothing itself would else show it ``ok`` for ever), not among the
+        tool's failed queries."""
+        self.consecutive_failures += 1
+        self.last_error = error
+
     def silent_s(self, now_s: float) -> float | None:
         """Seconds since the last reply; ``None`` before the first."""
         if self.last_reply_at_s is None:
@@ -64,4 +77,4 @@ class LinkHealth:
             return "no reply"
         if self.consecutive_failures:
             return "failing"
-        return "ok" if self.replies else "waiting"
+        return "ok" if self.last_reply_at_s is not None else "waiting"

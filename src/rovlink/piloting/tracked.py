@@ -12,11 +12,20 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import time
+from collections import deque
 from collections.abc import Awaitable, Callable
 from dataclasses import dataclass
 
 from rovlink.aio import AsyncClient
-from rovlink.client.events import BytesSent, ClientEvent, LinkState, ResetSuspected, Unsolicited
+from rovlink.client.events import (
+    BytesSent,
+    ClientEvent,
+    LinkState,
+    QueryFailed,
+    ReplyReceived,
+    ResetSuspected,
+    Unsolicited,
+)
 from rovlink.client.operations import SENSORS, raw_frame
 from rovlink.client.sensors import Sensors
 from rovlink.piloting.commanded import CommandedState
@@ -116,6 +125,12 @@ class TrackedClient:
         self.link_down = False
         self._stopped_while_down = False
         self._sent_while_down = False  # a frame of the tool's own went on the reopened link
+        #: The tool's own queries on the wire, and the names of the driver's queries written
+        #: while there were none: keep-alives, whose outcome says whether the link answers
+        #: when the tool asks nothing (a fence, written as a query of the tool's fails, is
+        #: left out: a reply to it would hide that failure).
+        self._own_queries = 0
+        self._idle_queries: deque[str] = deque()
         client.subscribe(self._on_event)
 
     def add_sent_listener(self, listener: SentCallback) -> None:
@@ -174,11 +189,26 @@ class TrackedClient:
         if isinstance(event, LinkState):
             self._on_link_state(event.state)
             return
+        if isinstance(event, ReplyReceived | QueryFailed):
+            # (A console that is only typed into queries nothing: its link would show the last
+            # reply it asked for, "ok", while the controller had long gone silent.)
+            idle = self._idle_queries
+            if idle and event.query.name == idle[0]:
+                idle.popleft()
+                if isinstance(event, ReplyReceived):
+                    self.health.record_heard(self._clock())
+                else:
+                    self.health.record_unanswered(f"{event.query}: {event.outcome}")
+            return
         if not isinstance(event, BytesSent):
             if isinstance(event, Unsolicited) and isinstance(event.event, Text):
                 self._on_text(event.event.text)  # (text only: replies never get here)
             return
         command = event.command
+        if event.by_session and command is not None and command.spec.is_query:
+            if not self._own_queries:
+                self._idle_queries.append(command.name)
+            return
         # A #stop! asked for while the link was down goes first on the reopened one, written
         # by the driver but the operator's all the same: it is "last sent".
         kept_stop = self.link_down and command is not None and command.name == "stop"
@@ -209,6 +239,7 @@ class TrackedClient:
             listener(announcement)
 
     def _on_link_state(self, state: str) -> None:
+        self._idle_queries.clear()  # (what was on the old link never settles)
         if state == "lost":
             self.link_down = True
             self._stopped_while_down = self._sent_while_down = False
@@ -224,11 +255,14 @@ class TrackedClient:
 
     async def _timed(self, request: Awaitable[tuple[Response, ...]]) -> tuple[Response, ...]:
         started_s = self._clock()
+        self._own_queries += 1
         try:
             replies = await request
         except TimeoutError as error:
             self.health.record_failure(str(error), self._clock())
             raise
+        finally:
+            self._own_queries -= 1
         if replies:  # a query's (a set command has none)
             now_s = self._clock()
             self.health.record_reply(now_s - started_s, now_s)
