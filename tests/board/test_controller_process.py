@@ -411,6 +411,11 @@ def test_usage_errors() -> None:
         "the simulator serves a pseudo-terminal or TCP"
         in _run("--board", "sim", "--port", "/dev/null").stderr
     )
+    # (Before, a --baud without a serial device was silently unused.)
+    assert (
+        "--baud is the rate of --port's serial device; rovlink sim --baud paces a simulated line"
+        in _run("--board", "sim", "--baud", "9600").stderr
+    )
 
 
 def test_the_same_rov_toml_runs_the_simulator(tmp_path: Path) -> None:

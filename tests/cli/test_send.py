@@ -232,6 +232,22 @@ def test_bad_link_options_are_one_line_usage_errors(
     assert "Traceback" not in result.err
 
 
+def test_an_algorithm_is_named_in_any_case(run_cli: RunCli) -> None:
+    # (Before, "CRC8" as a datasheet writes it was refused as unknown.)
+    result = run_cli(
+        "send",
+        "--checksum",
+        "--algorithm",
+        "SUM8",
+        "sim://?algorithm=sum8",
+        "qd",
+        "--timeout",
+        REPLY_TIMEOUT,
+    )
+    assert result.status == 0, result.err
+    assert "depth_cm=" in result.out
+
+
 def test_a_device_that_is_not_a_serial_port(run_cli: RunCli) -> None:
     result = run_cli("send", "/dev/null", "qd")
     assert result.status == 1

@@ -66,9 +66,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--baudrate",
         dest="baud",
         type=baud_rate,
-        default=_DEFAULT_BAUD,
         metavar="BAUD",
-        help="the serial device's rate, 8N1 (default: %(default)s)",
+        help=f"--port's rate, 8N1 (default: {_DEFAULT_BAUD})",
     )
     parser.add_argument(
         "--pty", action="store_true", help="serve on a pseudo-terminal (its path is printed)"
@@ -104,6 +103,10 @@ def run(args: argparse.Namespace) -> int:
     if args.neutral:
         return _set_neutral(args)
     address = _tcp_address(args)
+    if args.baud is not None and args.port is None:
+        # (Silently unused before: a pseudo-terminal or a TCP socket has no rate.)
+        paced = "; rovlink sim --baud paces a simulated line" if args.board == "sim" else ""
+        raise UsageError(f"--baud is the rate of --port's serial device{paced}")
     if args.port is None and not args.pty and address is None:
         if args.board == "pi":
             raise UsageError("give --port DEVICE, --pty and/or --tcp [HOST:]PORT to serve on")
@@ -224,11 +227,12 @@ def _open_endpoints(
     if args.port is not None:
         import serial  # noqa: PLC0415
 
+        baud = args.baud if args.baud is not None else _DEFAULT_BAUD
         try:
-            server.open_serial(args.port, args.baud)
+            server.open_serial(args.port, baud)
         except (serial.SerialException, OSError, ValueError) as error:
             raise CommandError(f"cannot open {args.port}: {error}") from None
-        endpoints.append(f"serial {args.port} {args.baud} baud")
+        endpoints.append(f"serial {args.port} {baud} baud")
     return endpoints + _open_pty_and_tcp(server, args, address)
 
 

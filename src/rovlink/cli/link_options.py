@@ -169,17 +169,21 @@ def file_name(text: str) -> str:
 
 
 def algorithm_name(text: str) -> str:
-    """A known checksum algorithm's name, for argparse's ``type=``.
+    """A known checksum algorithm's name, for argparse's ``type=``; in any case, as a datasheet
+    writes it (``CRC8``).
 
+    >>> algorithm_name("CRC8")
+    'crc8'
     >>> algorithm_name("md5")
     Traceback (most recent call last):
     ...
     argparse.ArgumentTypeError: unknown checksum algorithm 'md5'; known: crc8, sum8, xor
     """
-    if text not in ALGORITHMS:
+    name = text.lower()
+    if name not in ALGORITHMS:
         known = ", ".join(sorted(ALGORITHMS))
         raise argparse.ArgumentTypeError(f"unknown checksum algorithm {text!r}; known: {known}")
-    return text
+    return name
 
 
 class OnOff(argparse.BooleanOptionalAction):
