@@ -26,7 +26,7 @@ from rovlink.bridges.mavlink.modes import ButtonFunction, FlightMode
 from rovlink.bridges.mavlink.parameters import PILOT_SYSTEM, ParameterError, ParameterTable
 from rovlink.bridges.mavlink.pilot_input import PilotInput, all_buttons
 from rovlink.bridges.mavlink.rc_override import CHANNEL_OF_AXIS, RcOverride
-from rovlink.bridges.mavlink.telemetry_messages import TelemetryMessages
+from rovlink.bridges.mavlink.telemetry_messages import READING_MESSAGES, TelemetryMessages
 from rovlink.bridges.mavlink.telemetry_schedule import MAX_RATE_HZ, TelemetrySchedule
 from rovlink.bridges.mavlink.vehicle_state import VehicleState
 from rovlink.bridges.sensor_poll import SensorPoller, reopening
@@ -269,8 +269,11 @@ class MavlinkBridge:
         return Result.ACCEPTED
 
     def request_message(self, message_id: int) -> Result:
-        """Send one message now, if the bridge has it (DENIED if not)."""
+        """Send one message now, if the bridge has it (DENIED if not; TEMPORARILY_REJECTED for
+        one that carries readings while they are not current)."""
         name = self._message_name(message_id)
+        if name in READING_MESSAGES and not self.messages.readings_current():
+            return Result.TEMPORARILY_REJECTED
         if name is None or not self.messages.send(name):
             return Result.DENIED
         return Result.ACCEPTED
@@ -340,6 +343,8 @@ class MavlinkBridge:
             if expired:
                 self._say(_SEVERITY_WARNING, "Failsafe: pilot input stale, thrust zeroed")
             for name in self.schedule.due(now_s):
+                if name in READING_MESSAGES and not self.messages.readings_current():
+                    continue  # (HEARTBEAT CRITICAL and SYS_STATUS say why)
                 try:
                     self.messages.send(name)
                 except OSError as error:  # a ground station's socket gone: the next will do
