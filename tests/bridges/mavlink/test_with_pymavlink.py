@@ -642,6 +642,29 @@ def test_a_silent_controllers_last_reading_is_not_shown_as_current():
         assert gcs.command(REQUEST_MESSAGE, ATTITUDE_ID) == ACCEPTED
 
 
+def test_the_climb_rate_after_a_silence_is_not_the_one_from_before_it():
+    # Before, the climb rate went on averaging from the speed before the silence: a robot
+    # stopped meanwhile showed diving at most of its old speed once the controller answered.
+    with _silenced_controller(timeout_s=0.2) as (rig, gcs):
+        rig.link.silent.clear()
+        assert gcs.arm() == ACCEPTED
+
+        def diving_fast(hud: Any) -> bool:
+            gcs.send("manual_control", VEHICLE, 0, 0, 0, 0, 0)  # full down
+            return bool(hud.climb < -0.3)
+
+        gcs.receive_new("VFR_HUD", condition=diving_fast)
+        rig.link.silent.set()
+        gcs.receive_new(
+            "HEARTBEAT", condition=lambda m: m.type == SUBMARINE and m.system_status == CRITICAL
+        )
+        assert gcs.command(ARM_DISARM, 0) == ACCEPTED  # (the robot stops)
+        gcs.forget_kept()
+        rig.link.silent.clear()
+        hud = gcs.receive("VFR_HUD")  # the first since: from readings after the silence
+        assert hud.climb > -0.15
+
+
 def test_arming_fails_as_soon_as_the_controller_goes_silent():
     # Before any poll has failed: the pre-arm query finds the silence (before, the bridge armed
     # a controller that had stopped answering until a poll timed out, 1.5-2 s later).

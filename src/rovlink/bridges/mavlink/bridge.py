@@ -104,7 +104,9 @@ class MavlinkBridge:
         self._send_on_start = tuple(send_on_start)
         self.schedule = TelemetrySchedule(clock())
         self.messages = TelemetryMessages(endpoint, self.state, rov, self.parameters, clock)
-        self.poller = SensorPoller(rov, self._on_reading, rate_hz=self._poll_rate_hz())
+        self.poller = SensorPoller(
+            rov, self._on_reading, rate_hz=self._poll_rate_hz(), on_missed=self.state.missed
+        )
         self._inbox: asyncio.Queue[Any] = asyncio.Queue()
         #: Systems whose joystick was ignored (not SYSID_MYGCS), each said once.
         self._ignored_pilots: set[int] = set()

@@ -130,9 +130,9 @@ class TelemetryMessages:
         return self.link_up and self._rov.health.status in {"ok", "waiting"}
 
     def readings_current(self) -> bool:
-        """Whether the latest reading is the robot as it is now: there is one, and the
-        controller answers (its last query did not fail, its link is open)."""
-        return self._state.sensors is not None and self.link_ok()
+        """Whether the latest reading is the robot as it is now: there is one, none was missed
+        since, and the controller answers (its last query did not fail, its link is open)."""
+        return self._state.current and self.link_ok()
 
     def heartbeat(self) -> None:
         """HEARTBEAT: a submarine on ArduPilot, its custom mode, armed = unlocked."""
