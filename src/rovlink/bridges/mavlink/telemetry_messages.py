@@ -24,6 +24,7 @@ __all__ = [
 _UNKNOWN_VOLTAGE_MV = 65535  # SYS_STATUS: no battery monitor
 _UNKNOWN = -1
 _UNKNOWN_HEADING = 0xFFFF  # GLOBAL_POSITION_INT.hdg
+_INT16_MIN, _INT16_MAX = -0x8000, 0x7FFF  # GLOBAL_POSITION_INT.vz, cm/s
 #: STATUSTEXT carries at most 50 characters; a longer text is sent in chunks (MAVLink 2).
 STATUSTEXT_CHARS = 50
 _LAST_STATUSTEXT_ID = 0xFFFF  # ``id`` is a uint16; 0 means "a text of one chunk"
@@ -212,7 +213,9 @@ class TelemetryMessages:
             altitude_mm,
             0,
             0,
-            round(-self._state.climb_cm_s),  # vz: + down, cm/s
+            # vz: + down, cm/s, as far as an int16 goes (a depth reading that jumped between
+            # two fast polls is no reason for pymavlink to refuse the message, and end the bridge)
+            max(_INT16_MIN, min(_INT16_MAX, round(-self._state.climb_cm_s))),
             heading_cdeg,
         )
 
