@@ -67,7 +67,6 @@ def test_autopilot_version_on_request_and_an_empty_mission(gcs: GroundStation):
 
 def test_telemetry_carries_the_sensors(rig: BridgeRig, gcs: GroundStation):
     wait_for(lambda: rig.bridge.state.sensors is not None)
-    gcs.receive("VFR_HUD")  # (perhaps sent before the first reading)
     attitude = gcs.receive("ATTITUDE")
     hud = gcs.receive("VFR_HUD")
     position = gcs.receive("GLOBAL_POSITION_INT")
