@@ -28,6 +28,8 @@ class SensorPoller:
     A reading that times out is logged and counted in the client's link health (the bridges
     publish that health). A link being reopened (a client with ``reconnect``) skips readings
     until it is back; a connection lost for good ends :meth:`run` with ``ConnectionLostError``.
+    Each reading missed (timed out or skipped) calls ``on_missed``: the last one is no longer
+    the robot as it is.
     """
 
     def __init__(
@@ -36,9 +38,11 @@ class SensorPoller:
         on_reading: Callable[[Sensors], None],
         *,
         rate_hz: float = 5.0,
+        on_missed: Callable[[], None] = lambda: None,
     ) -> None:
         self._rov = rov
         self._on_reading = on_reading
+        self._on_missed = on_missed
         self.rate_hz = rate_hz
         self.latest: Sensors | None = None
         self._rate_changed = asyncio.Event()
@@ -59,10 +63,12 @@ class SensorPoller:
                 reading = await self._rov.sensors()
             except QueryTimeoutError as error:
                 logger.warning("sensor poll failed: %s", error)
+                self._on_missed()
             except ConnectionLostError as error:
                 if not reopening(self._rov, error):
                     raise
                 logger.debug("sensor poll skipped: %s", error)  # (the client says it is lost)
+                self._on_missed()
             else:
                 self.latest = reading
                 self._on_reading(reading)

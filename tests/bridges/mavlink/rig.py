@@ -128,6 +128,10 @@ class GroundStation:
         """The messages of ``kind`` received so far that no receive() took."""
         return [kept for kept in self._backlog if kept.get_type() == kind]
 
+    def forget_kept(self) -> None:
+        """Drop every message kept so far (received earlier, taken by no receive())."""
+        self._backlog.clear()
+
     def receive_new(self, kind: str, condition: Callable[[Any], bool] | None = None) -> Any:
         """The next message of ``kind`` received from now on (none kept from before)."""
         self._backlog = [kept for kept in self._backlog if kept.get_type() != kind]

@@ -90,6 +90,18 @@ def test_message_intervals_can_be_read(gcs: GroundStation):
     assert gcs.receive("MESSAGE_INTERVAL", condition=lambda m: m.interval_us == -1)
 
 
+def test_an_interval_or_message_id_message_interval_cannot_carry_is_denied(gcs: GroundStation):
+    # MESSAGE_INTERVAL carries an int32 of µs (35 min) and a uint16 message id. Before, an
+    # interval of an hour was accepted, and every GET_MESSAGE_INTERVAL for that message after
+    # it (or for a message id beyond 65535) went unanswered: pymavlink could not pack the reply.
+    an_hour_us = 3_600_000_000
+    assert gcs.command(SET_MESSAGE_INTERVAL, ATTITUDE_ID, an_hour_us) == DENIED
+    assert gcs.command(GET_MESSAGE_INTERVAL, ATTITUDE_ID) == ACCEPTED
+    reply = gcs.receive("MESSAGE_INTERVAL", condition=lambda m: m.message_id == ATTITUDE_ID)
+    assert reply.interval_us == 250_000  # the default 4 Hz, as before the refused change
+    assert gcs.command(GET_MESSAGE_INTERVAL, 70_000) == DENIED
+
+
 def test_a_known_command_asked_the_impossible_is_denied_not_unsupported(
     rig: BridgeRig, gcs: GroundStation
 ):

@@ -604,3 +604,28 @@ def test_the_heading_is_unknown_until_the_first_reading_not_north():
     state.update(Sensors(150, 95, False, 0, 0, 0), now_s=1.0)  # heading 0: north, now known
     messages.send("GLOBAL_POSITION_INT")
     assert [fields[-1] for fields in sent] == [65535, 0]  # hdg: UINT16_MAX is "unknown"
+
+
+def test_a_depth_glitch_does_not_overflow_the_vertical_speed():
+    # Before, GLOBAL_POSITION_INT.vz (an int16, cm/s) took the climb rate as it came: a depth
+    # reading that jumped (a loose sensor reads full scale) between two fast polls made it
+    # overflow, and pymavlink's struct.error ended the bridge.
+    from pymavlink.dialects.v20 import ardupilotmega as dialect
+
+    frames: list[bytes] = []
+    mav = dialect.MAVLink(SimpleNamespace(write=frames.append), srcSystem=1, srcComponent=1)
+    state = VehicleState()
+    messages = TelemetryMessages(
+        SimpleNamespace(mav=mav, dialect=dialect),  # type: ignore[arg-type]
+        state,
+        None,  # type: ignore[arg-type]
+        ParameterTable(),
+        lambda: 0.0,
+    )
+    vz = []
+    for start_s, depth_cm in [(0.0, 9999), (1.0, 0)]:  # down, back up: 40 ms (25 Hz polls)
+        state.update(Sensors(9999 - depth_cm, 20, False, 0, 0, 0), now_s=start_s)
+        state.update(Sensors(depth_cm, 20, False, 0, 0, 0), now_s=start_s + 0.04)
+        messages.send("GLOBAL_POSITION_INT")
+        vz.append(dialect.MAVLink(None).parse_char(frames[-1]).vz)
+    assert vz == [32767, -32768]  # + down, as far as the field goes

@@ -29,13 +29,13 @@ SUBMARINE = 12
 ARDUPILOTMEGA = 3
 MANUAL, ALT_HOLD, STABILIZE = 19, 2, 0
 ARMED_FLAG = 128
-ACCEPTED, DENIED, UNSUPPORTED, FAILED = 0, 2, 3, 4
+ACCEPTED, TEMPORARILY_REJECTED, DENIED, UNSUPPORTED, FAILED = 0, 1, 2, 3, 4
 STANDBY, CRITICAL = 3, 5  # MAV_STATE
 ARM_DISARM, DO_SET_MODE, DO_GRIPPER = 400, 176, 211
 SET_MODE_ID = 11  # the SET_MODE message's id: ArduPilot's COMMAND_ACK.command for it
 SET_MESSAGE_INTERVAL, REQUEST_MESSAGE = 511, 512
 NAV_TAKEOFF = 22
-ATTITUDE_ID, AUTOPILOT_VERSION_ID = 30, 148
+SYSTEM_TIME_ID, ATTITUDE_ID, AUTOPILOT_VERSION_ID = 2, 30, 148
 
 
 def _armed(gcs: GroundStation) -> bool:
@@ -67,7 +67,6 @@ def test_autopilot_version_on_request_and_an_empty_mission(gcs: GroundStation):
 
 def test_telemetry_carries_the_sensors(rig: BridgeRig, gcs: GroundStation):
     wait_for(lambda: rig.bridge.state.sensors is not None)
-    gcs.receive("VFR_HUD")  # (perhaps sent before the first reading)
     attitude = gcs.receive("ATTITUDE")
     hud = gcs.receive("VFR_HUD")
     position = gcs.receive("GLOBAL_POSITION_INT")
@@ -585,9 +584,10 @@ def test_messages_for_another_component_of_this_system_are_ignored(
 
 
 @contextmanager
-def _silenced_controller() -> Iterator[tuple[BridgeRig, GroundStation]]:
-    """A bridge whose controller answered, then fell silent just now; a ground station on it."""
-    with running_bridge(timeout_s=0.5) as rig:  # the command line's reply timeout
+def _silenced_controller(timeout_s: float = 0.5) -> Iterator[tuple[BridgeRig, GroundStation]]:
+    """A bridge whose controller answered, then fell silent just now; a ground station on it
+    (the reply timeout by default the command line's)."""
+    with running_bridge(timeout_s=timeout_s) as rig:
         gcs = GroundStation(rig.gcs_address)
         try:
             gcs.start_heartbeats()
@@ -615,6 +615,53 @@ def test_arming_fails_while_the_controller_does_not_answer():
         )
         assert gcs.arm() == ACCEPTED
         rig.wait_frame("#start!", since=mark)
+
+
+READING_MESSAGES = ("ATTITUDE", "VFR_HUD", "GLOBAL_POSITION_INT", "SCALED_PRESSURE2")
+
+
+def test_a_silent_controllers_last_reading_is_not_shown_as_current():
+    # Before, ATTITUDE, VFR_HUD and GLOBAL_POSITION_INT went on with the last reading under a
+    # fresh time_boot_ms: a robot that was diving showed diving at that rate for as long as
+    # its controller stayed silent.
+    with _silenced_controller(timeout_s=0.2) as (rig, gcs):
+        for message_id in (ATTITUDE_ID, SYSTEM_TIME_ID):  # both every 20 ms
+            assert gcs.command(SET_MESSAGE_INTERVAL, message_id, 20_000) == ACCEPTED
+        gcs.receive_new(
+            "HEARTBEAT", condition=lambda m: m.type == SUBMARINE and m.system_status == CRITICAL
+        )
+        gcs.forget_kept()  # what came before the CRITICAL heartbeat
+        for _ in range(10):  # ten periods of telemetry: ten ATTITUDEs were due in them
+            gcs.receive("SYSTEM_TIME")
+        assert [kind for kind in READING_MESSAGES if gcs.kept(kind)] == []
+        assert gcs.command(REQUEST_MESSAGE, ATTITUDE_ID) == TEMPORARILY_REJECTED
+
+        rig.link.silent.clear()  # the controller answers again: so does the telemetry
+        gcs.receive("ATTITUDE")
+        assert gcs.command(REQUEST_MESSAGE, ATTITUDE_ID) == ACCEPTED
+
+
+def test_the_climb_rate_after_a_silence_is_not_the_one_from_before_it():
+    # Before, the climb rate went on averaging from the speed before the silence: a robot
+    # stopped meanwhile showed diving at most of its old speed once the controller answered.
+    with _silenced_controller(timeout_s=0.2) as (rig, gcs):
+        rig.link.silent.clear()
+        assert gcs.arm() == ACCEPTED
+
+        def diving_fast(hud: Any) -> bool:
+            gcs.send("manual_control", VEHICLE, 0, 0, 0, 0, 0)  # full down
+            return bool(hud.climb < -0.3)
+
+        gcs.receive_new("VFR_HUD", condition=diving_fast)
+        rig.link.silent.set()
+        gcs.receive_new(
+            "HEARTBEAT", condition=lambda m: m.type == SUBMARINE and m.system_status == CRITICAL
+        )
+        assert gcs.command(ARM_DISARM, 0) == ACCEPTED  # (the robot stops)
+        gcs.forget_kept()
+        rig.link.silent.clear()
+        hud = gcs.receive("VFR_HUD")  # the first since: from readings after the silence
+        assert hud.climb > -0.15
 
 
 def test_arming_fails_as_soon_as_the_controller_goes_silent():

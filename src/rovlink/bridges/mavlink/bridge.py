@@ -26,7 +26,7 @@ from rovlink.bridges.mavlink.modes import ButtonFunction, FlightMode
 from rovlink.bridges.mavlink.parameters import PILOT_SYSTEM, ParameterError, ParameterTable
 from rovlink.bridges.mavlink.pilot_input import PilotInput, all_buttons
 from rovlink.bridges.mavlink.rc_override import CHANNEL_OF_AXIS, RcOverride
-from rovlink.bridges.mavlink.telemetry_messages import TelemetryMessages
+from rovlink.bridges.mavlink.telemetry_messages import READING_MESSAGES, TelemetryMessages
 from rovlink.bridges.mavlink.telemetry_schedule import MAX_RATE_HZ, TelemetrySchedule
 from rovlink.bridges.mavlink.vehicle_state import VehicleState
 from rovlink.bridges.sensor_poll import SensorPoller, reopening
@@ -104,7 +104,9 @@ class MavlinkBridge:
         self._send_on_start = tuple(send_on_start)
         self.schedule = TelemetrySchedule(clock())
         self.messages = TelemetryMessages(endpoint, self.state, rov, self.parameters, clock)
-        self.poller = SensorPoller(rov, self._on_reading, rate_hz=self._poll_rate_hz())
+        self.poller = SensorPoller(
+            rov, self._on_reading, rate_hz=self._poll_rate_hz(), on_missed=self.state.missed
+        )
         self._inbox: asyncio.Queue[Any] = asyncio.Queue()
         #: Systems whose joystick was ignored (not SYSID_MYGCS), each said once.
         self._ignored_pilots: set[int] = set()
@@ -269,8 +271,11 @@ class MavlinkBridge:
         return Result.ACCEPTED
 
     def request_message(self, message_id: int) -> Result:
-        """Send one message now, if the bridge has it (DENIED if not)."""
+        """Send one message now, if the bridge has it (DENIED if not; TEMPORARILY_REJECTED for
+        one that carries readings while they are not current)."""
         name = self._message_name(message_id)
+        if name in READING_MESSAGES and not self.messages.readings_current():
+            return Result.TEMPORARILY_REJECTED
         if name is None or not self.messages.send(name):
             return Result.DENIED
         return Result.ACCEPTED
@@ -340,6 +345,8 @@ class MavlinkBridge:
             if expired:
                 self._say(_SEVERITY_WARNING, "Failsafe: pilot input stale, thrust zeroed")
             for name in self.schedule.due(now_s):
+                if name in READING_MESSAGES and not self.messages.readings_current():
+                    continue  # (HEARTBEAT CRITICAL and SYS_STATUS say why)
                 try:
                     self.messages.send(name)
                 except OSError as error:  # a ground station's socket gone: the next will do

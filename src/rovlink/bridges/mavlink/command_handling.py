@@ -44,6 +44,10 @@ _CUSTOM_MODE_ENABLED = 1  # MAV_MODE_FLAG_CUSTOM_MODE_ENABLED
 _GRIPPER_RELEASE = 0  # GRIPPER_ACTION_RELEASE: open
 _GRIPPER_GRAB = 1  # GRIPPER_ACTION_GRAB: close
 _AUTOPILOT_VERSION = 148  # message id
+#: What MESSAGE_INTERVAL can carry: a uint16 message id and an int32 interval, µs (about 35
+#: min). Anything beyond is denied: accepted, the GET_MESSAGE_INTERVAL after it went unanswered.
+_LAST_MESSAGE_ID = 0xFFFF
+_LONGEST_INTERVAL_US = 0x7FFFFFFF
 
 
 class VehicleActions(Protocol):
@@ -113,8 +117,10 @@ async def handle_command(actions: VehicleActions, command: int, params: list[flo
         MAV_CMD.GET_MESSAGE_INTERVAL,
     ):
         message_id = _whole(p1)
-        if message_id is None or (command == MAV_CMD.SET_MESSAGE_INTERVAL and math.isnan(p2)):
+        if message_id is None or not 0 <= message_id <= _LAST_MESSAGE_ID:
             return Result.DENIED
+        if command == MAV_CMD.SET_MESSAGE_INTERVAL and not p2 <= _LONGEST_INTERVAL_US:
+            return Result.DENIED  # (NaN too)
         if command == MAV_CMD.REQUEST_MESSAGE:
             return actions.request_message(message_id)
         if command == MAV_CMD.GET_MESSAGE_INTERVAL:

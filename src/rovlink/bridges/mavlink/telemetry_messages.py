@@ -13,14 +13,25 @@ from rovlink.bridges.mavlink.vehicle_state import VehicleState
 from rovlink.piloting.commanded import LockState
 from rovlink.piloting.tracked import TrackedClient
 
-__all__ = ["STATUSTEXT_CHARS", "TelemetryMessages", "statustext_chunks", "version_number"]
+__all__ = [
+    "READING_MESSAGES",
+    "STATUSTEXT_CHARS",
+    "TelemetryMessages",
+    "statustext_chunks",
+    "version_number",
+]
 
 _UNKNOWN_VOLTAGE_MV = 65535  # SYS_STATUS: no battery monitor
 _UNKNOWN = -1
 _UNKNOWN_HEADING = 0xFFFF  # GLOBAL_POSITION_INT.hdg
+_INT16_MIN, _INT16_MAX = -0x8000, 0x7FFF  # GLOBAL_POSITION_INT.vz, cm/s
 #: STATUSTEXT carries at most 50 characters; a longer text is sent in chunks (MAVLink 2).
 STATUSTEXT_CHARS = 50
 _LAST_STATUSTEXT_ID = 0xFFFF  # ``id`` is a uint16; 0 means "a text of one chunk"
+#: The messages that carry the sensor readings: sent only while the readings are current
+#: (:meth:`TelemetryMessages.readings_current`). A fresh ``time_boot_ms`` on the last reading
+#: would show a silent controller's robot as it was, its climb rate and all, as if it were now.
+READING_MESSAGES = frozenset({"ATTITUDE", "VFR_HUD", "GLOBAL_POSITION_INT", "SCALED_PRESSURE2"})
 
 
 def statustext_chunks(text: str) -> list[bytes]:
@@ -119,6 +130,11 @@ class TelemetryMessages:
         """Whether the controller answers (its queries are not failing, its link is open)."""
         return self.link_up and self._rov.health.status in {"ok", "waiting"}
 
+    def readings_current(self) -> bool:
+        """Whether the latest reading is the robot as it is now: there is one, none was missed
+        since, and the controller answers (its last query did not fail, its link is open)."""
+        return self._state.current and self.link_ok()
+
     def heartbeat(self) -> None:
         """HEARTBEAT: a submarine on ArduPilot, its custom mode, armed = unlocked."""
         d = self._dialect
@@ -197,7 +213,9 @@ class TelemetryMessages:
             altitude_mm,
             0,
             0,
-            round(-self._state.climb_cm_s),  # vz: + down, cm/s
+            # vz: + down, cm/s, as far as an int16 goes (a depth reading that jumped between
+            # two fast polls is no reason for pymavlink to refuse the message, and end the bridge)
+            max(_INT16_MIN, min(_INT16_MAX, round(-self._state.climb_cm_s))),
             heading_cdeg,
         )
 

@@ -38,6 +38,8 @@ class VehicleState:
     sensors: Sensors | None = None
     #: Vertical speed from successive depth readings, cm/s, + up (MAVLink's climb).
     climb_cm_s: float = 0.0
+    #: Whether :attr:`sensors` is the robot as it is: no reading was missed since.
+    current: bool = False
     _previous_at_s: float | None = None
 
     def update(self, sensors: Sensors, now_s: float) -> bool:
@@ -50,7 +52,16 @@ class VehicleState:
                 self.climb_cm_s += _CLIMB_WEIGHT * (climb - self.climb_cm_s)
         self.sensors = sensors
         self._previous_at_s = now_s
+        self.current = True
         return sensors.leak_detected and (previous is None or not previous.leak_detected)
+
+    def missed(self) -> None:
+        """A reading did not come (the controller did not answer, its link is down): the last
+        one is no longer current, and the climb rate starts again from the next two, not
+        averaged with the speed of before the gap."""
+        self.current = False
+        self.climb_cm_s = 0.0
+        self._previous_at_s = None
 
     @property
     def depth_cm(self) -> int | None:
