@@ -265,6 +265,27 @@ def test_a_page_whose_socket_drops_reconnects_as_a_watcher(browser, station, lin
     page.context.close()
 
 
+def test_a_page_that_cannot_reach_the_station_does_not_say_who_has_control(browser, line, tmp_path):
+    with running_station(line.url, "--recordings", str(tmp_path)) as served:
+        page = open_page(browser, served, pad=False)
+        take_control(page)
+        page.click("#record")
+        page.wait_for_selector("#recording.active")
+        # The station cannot be reached: the socket drops and no new one opens.
+        page.evaluate(
+            "const c = window.rovlinkStation.connection; c.open = () => {}; c.socket.close()"
+        )
+        page.wait_for_selector("body.stale")
+        # Before, it read "watching: nobody has control", and the recording's time stood
+        # still at full strength, as live.
+        assert page.text_content("#control-status") == (
+            "not connected: who has control is not known"
+        )
+        opacity = page.eval_on_selector("#recording-status", "e => getComputedStyle(e).opacity")
+        assert float(opacity) < 1
+        page.context.close()
+
+
 # Every text the toast shows from now on, in window.toastsShown (one may follow another at once).
 TOASTS_SHOWN = """() => { const toast = document.getElementById('toast'); window.toastsShown = [];
   new MutationObserver(() => window.toastsShown.push(toast.textContent))

@@ -286,8 +286,11 @@ function setControl(pilotId, pilotLabel, why = null) {
   if (!mine) station.releasing = false;
   $("control").classList.toggle("pilot", mine);
   document.body.classList.toggle("watching", !mine);
+  // Not connected, the page cannot know who has control (another page may have taken it):
+  // it does not say "nobody".
   $("control-status").textContent = mine ? "you are the pilot"
-    : pilotId ? `watching: ${pilotLabel} has control` : "watching: nobody has control";
+    : !connection.isOpen ? "not connected: who has control is not known"
+      : pilotId ? `watching: ${pilotLabel} has control` : "watching: nobody has control";
   station.pilotLabel = pilotLabel;
   $("release-control").hidden = !mine;
   showTakeQuestion();
