@@ -1092,6 +1092,11 @@ def test_readings_that_stop_are_shown_as_missing(browser, station, line):
     line.close()  # the robot's end goes away: polls fail, the last reading is not current
     page.wait_for_selector("#stale-banner:has-text('no reading from the robot')", timeout=10_000)
     page.wait_for_selector("#depth-value:text-is('–')")  # once a poll has failed
+    # The last poll's round trip: there was none. Before, the last one answered was shown as
+    # the link's now ("0.4 ms (avg 0.7)").
+    round_trip = page.locator("#link-health tr:has(td:text-is('round trip')) td").nth(1)
+    assert round_trip.text_content().startswith("none now; last answered: ")
+    assert "bad" in (round_trip.get_attribute("class") or "")
     # A gap in the charts, not a line drawn across it.
     page.wait_for_function("window.rovlinkStation.charts.columns[1].includes(null)")
     # The heading tape says there is no reading, as the attitude does; before, it showed its

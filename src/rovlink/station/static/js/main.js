@@ -389,9 +389,17 @@ function showTelemetry(t) {
   showLeak(s);
 }
 
+// The last poll's round trip. A poll that failed (or a link that is down) had none: the last
+// one answered is not passed off as the link's now.
+function roundTripText(link) {
+  if (link.round_trip_ms === null) return "–";
+  const times = `${link.round_trip_ms.toFixed(1)} ms (avg ${link.average_round_trip_ms.toFixed(1)} ms)`;
+  return link.connected && link.status === "ok" ? times : `none now; last answered: ${times}`;
+}
+
 const LINK_ROWS = [
   ["status", (l) => (l.connected ? l.status : "disconnected"), (l) => !l.connected || l.status !== "ok"],
-  ["round trip", (l) => (l.round_trip_ms === null ? "–" : `${l.round_trip_ms.toFixed(1)} ms (avg ${l.average_round_trip_ms.toFixed(1)})`)],
+  ["round trip", roundTripText, (l) => !l.connected || l.status !== "ok"],
   ["timeouts", (l) => String(l.timeouts), (l) => l.timeouts > 0],
   ["retries", (l) => String(l.retries)],
   ["checksum errors", (l) => String(l.checksum_errors), (l) => l.checksum_errors > 0],
