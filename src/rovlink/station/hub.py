@@ -397,7 +397,15 @@ class Station:
                         f"#{message.command.name}: arrived {late_s:.1f} s late (a slow "
                         "network?): not sent; ask again"
                     )
-            await self.tracked.send(message.command)
+            try:
+                await self.tracked.send(message.command)
+            except ClientError as error:
+                # Not kept (it would act later, unasked): the pilot is told which command did
+                # not go, not only that the link failed.
+                self.log("warning", f"{peer.label}: {message.command} not sent: {error}")
+                raise MessageError(
+                    f"{message.command} not sent: the robot's link: {error}"
+                ) from None
             self.log("info", f"{peer.label}: {message.command}")
             dropped_because = self.tracked.commanded.last_dropped_because
             if dropped_because is not None:
