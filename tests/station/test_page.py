@@ -514,6 +514,13 @@ def test_a_leak_shows_the_alarm_and_reset_sends_slreset(browser, station, line):
     assert page.is_hidden("#leak-alarm")
     line.server.robot.inject_leak()
     page.wait_for_selector("#leak-alarm", state="visible")
+    # Nobody touched this page yet: the browser plays no sound, and the banner says so (before,
+    # it beeped in silence, as if heard).
+    assert "no sound: the browser plays none until the page is clicked" in page.text_content(
+        "#leak-detail"
+    )
+    page.click("#leak-alarm strong")
+    page.wait_for_selector("#leak-detail:not(:has-text('no sound'))")
     # A watcher may silence its own page, not reset the robot's latch (the station refuses).
     assert page.is_disabled("#leak-reset")
     assert page.is_enabled("#leak-silence")

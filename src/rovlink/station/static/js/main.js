@@ -438,11 +438,14 @@ function showLink(link) {
 function showLeak(sensors) {
   if (sensors) station.leak = Boolean(sensors.leak);
   const leak = station.leak;
-  text("leak-detail", sensors ? "the leak sensor fired (latched until reset)"
-    : "the leak sensor fired (latched until reset), as last read: no reading from the robot now");
-  $("leak-alarm").hidden = !leak;
   if (!leak) station.leakSilenced = false;
   if (leak && !station.leakSilenced) alarm.start(); else alarm.stop();
+  // The alarm the browser keeps silent is said to be silent, and how to hear it.
+  const muted = alarm.playing && !alarm.audible
+    ? " · no sound: the browser plays none until the page is clicked or a key pressed" : "";
+  text("leak-detail", (sensors ? "the leak sensor fired (latched until reset)"
+    : "the leak sensor fired (latched until reset), as last read: no reading from the robot now") + muted);
+  $("leak-alarm").hidden = !leak;
 }
 
 function addLog(entry) {
