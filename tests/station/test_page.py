@@ -286,6 +286,27 @@ def test_a_page_that_cannot_reach_the_station_does_not_say_who_has_control(brows
         page.context.close()
 
 
+def test_a_page_whose_token_is_no_longer_taken_says_so(browser, line):
+    with running_station(line.url, "--token", "deck-token-1") as served:
+        # (The URL's token set its cookie.) On Playwright's clock: the retries are hurried.
+        page = open_page(browser, served, pad=False, fake_clock=True)
+        # The token is no longer taken (as when the station restarted with a new one): before,
+        # the page said "reconnecting" for ever, the browser hiding the station's refusal.
+        page.context.clear_cookies()
+        page.evaluate("window.rovlinkStation.connection.socket.close()")
+        page.wait_for_selector("#stale-banner:has-text('the station refuses this page')")
+        assert "a token is needed: open the URL that rovlink web printed" in page.text_content(
+            "#stale-banner"
+        )
+        assert page.text_content("#connection") == "refused by the station"
+        # The URL with the token again: the next attempt is taken, and the refusal is no more.
+        page.context.new_page().goto(served.url)
+        page.clock.run_for(5000)  # (the longest wait between two attempts)
+        page.wait_for_function("window.rovlinkStation.connection.isOpen")
+        assert "refuses" not in page.text_content("#stale-banner")
+        page.context.close()
+
+
 # Every text the toast shows from now on, in window.toastsShown (one may follow another at once).
 TOASTS_SHOWN = """() => { const toast = document.getElementById('toast'); window.toastsShown = [];
   new MutationObserver(() => window.toastsShown.push(toast.textContent))

@@ -26,6 +26,9 @@ const station = {
   // The station closed this page's socket on its way out (not a connection that dropped):
   // said until a socket opens again.
   closed: false,
+  // Why the station refuses this page's sockets (a token it no longer takes), as it said;
+  // null: not refused.
+  refused: null,
 };
 // No word from the station (not even its heartbeat) for this long: the socket is given up and
 // a new one opened. By then the station has dropped the old one too (serve.py pings every 5 s
@@ -199,10 +202,26 @@ function onMessage(message) {
 // does: 1001 (going away) or 1012 (service restart). A connection that drops ends with 1006.
 const STATION_CLOSED_CODES = [1001, 1012];
 
-// ``closeCode``: how a socket that was open closed (null: given up by this page, or never open).
-function onConnectionState(state, closeCode = null) {
-  if (state === "open") station.closed = false;
+// A socket the station would not open: the browser does not say why (a refused WebSocket is
+// a dropped one to the page), so the page asks the station for itself. A token that is no
+// longer taken (the station restarted with a new one) is then said, not retried in silence.
+async function askWhyRefused() {
+  let refused = null;
+  try {
+    const response = await fetch("/", { cache: "no-store", credentials: "same-origin" });
+    if (response.status === 403) refused = (await response.text()).trim().replace(/^rovlink web: /, "");
+  } catch { /* not reachable: not refused */ }
+  if (connection.isOpen) return;
+  station.refused = refused;
+  showFreshness();
+}
+
+// ``closeCode``: how a socket that was open closed (null: given up by this page, or never
+// open); ``opened``: whether it ever opened.
+function onConnectionState(state, closeCode = null, opened = true) {
+  if (state === "open") { station.closed = false; station.refused = null; }
   else if (STATION_CLOSED_CODES.includes(closeCode)) station.closed = true;
+  if (state === "closed" && !opened) askWhyRefused();
   const badge = $("connection");
   badge.className = "badge " + (state === "open" ? "ok" : "bad");
   badge.textContent = state === "open" ? "station connected"
@@ -243,7 +262,10 @@ function showFreshness() {
   }
   let stale = "";
   let old = false;
-  if (!connection.isOpen) {
+  if (!connection.isOpen && station.refused) {
+    stale = `the station refuses this page (${station.refused}): everything shown is old`;
+    old = true;
+  } else if (!connection.isOpen) {
     stale = `${station.closed ? "the station closed" : "not connected to the station"}: everything shown is old`;
     old = true;
   } else if (station.heardAt !== null && now - station.heardAt > 2.5 * station.heartbeatMs) {
@@ -269,6 +291,7 @@ function showFreshness() {
     const badge = $("connection");
     badge.className = "badge bad";
     if (connection.isOpen) badge.textContent = "station silent";
+    else if (station.refused) text("connection", "refused by the station");
   }
 }
 setInterval(showFreshness, 250);
