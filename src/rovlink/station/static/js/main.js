@@ -463,11 +463,12 @@ function showLeak(sensors) {
   const leak = station.leak;
   if (!leak) station.leakSilenced = false;
   if (leak && !station.leakSilenced) alarm.start(); else alarm.stop();
-  // The alarm the browser keeps silent is said to be silent, and how to hear it.
-  const muted = alarm.playing && !alarm.audible
-    ? " · no sound: the browser plays none until the page is clicked or a key pressed" : "";
-  text("leak-detail", (sensors ? "the leak sensor fired (latched until reset)"
-    : "the leak sensor fired (latched until reset), as last read: no reading from the robot now") + muted);
+  // The alarm the browser keeps silent (it plays none until the page is clicked or a key
+  // pressed) is said to be silent, and how to hear it: short, the banner is on a phone too.
+  const muted = alarm.playing && !alarm.audible;
+  const fired = muted ? "latched until reset; no sound until the page is clicked"
+    : "the leak sensor fired (latched until reset)";
+  text("leak-detail", sensors ? fired : `${fired}, as last read: no reading from the robot now`);
   $("leak-alarm").hidden = !leak;
 }
 
