@@ -148,6 +148,10 @@ async def test_a_dead_man_pressed_again_while_the_link_was_down_flies_nothing_wh
     await hub.send(pilot, held())
     assert not hub.station.relay.armed
     assert "link was lost" in hub.station.relay.status
+    # The pages are not told to release the dead-man to arm: released, it arms nothing while
+    # the link is down (before: "...; release the dead-man to arm", and nothing changed).
+    shown = hub.station._telemetry(None)["relay"]["status"]
+    assert shown == "cut: the robot's link was lost; nothing is relayed until it is back"
     await hub.plugged_back()
     for _ in range(3):  # the page's re-sends while the dead-man is held
         await hub.send(pilot, held())
