@@ -823,6 +823,21 @@ def test_keyboard_flying_with_shift_as_the_dead_man(browser, station, line):
     page.context.close()
 
 
+def test_the_keys_on_a_page_flying_a_pad_say_why_they_fly_nothing(browser, station, line):
+    page = piloting_by_pad(browser, station, line)  # (the one standard pad: in use)
+    mark = line.mark()
+    page.keyboard.down("Shift")
+    page.keyboard.press("d")
+    # Before, nothing moved and nothing said why.
+    page.wait_for_selector("#toast:has-text('the keyboard flies nothing: the input device is')")
+    assert "Fake Xbox pad" in page.text_content("#toast")
+    page.keyboard.up("Shift")
+    page.click("#unlock")  # a fence
+    line.wait_for("#start!", after=mark)
+    assert not [f for f in line.frames(mark) if f.startswith("#th.") and not f.endswith(".0!")]
+    page.context.close()
+
+
 @pytest.mark.realtime
 def test_leaving_the_window_with_keys_held_zeroes_the_thrust(browser, station, line):
     page = _flying_by_keyboard(browser, station, line)

@@ -5,6 +5,7 @@ import { AlarmSound } from "./alarm.js";
 import { Charts } from "./charts.js";
 import { Connection } from "./connection.js";
 import { InputDevices } from "./input.js";
+import { isFlyingKey, typingIn } from "./keyboard.js";
 import { drawAttitude, drawDepth, drawHeading, drawThrust } from "./instruments.js";
 import { ACTIONS, AXES, loadMapping, pressed, resetMapping, saveMapping } from "./mapping.js";
 
@@ -749,6 +750,16 @@ addEventListener("keydown", (event) => {
 addEventListener("keyup", (event) => {
   if (isStopKey(event)) { event.preventDefault(); event.stopPropagation(); }
 }, { capture: true });
+
+// The pilot flying with the keys while another device is in use (a pad) flies nothing: told
+// why, not left pressing keys that do nothing.
+addEventListener("keydown", (event) => {
+  if (event.repeat || !event.shiftKey || !isFlyingKey(event.code) || typingIn(event.target)) return;
+  const device = devices.active();
+  if (!isPilot() || device.kind === "keyboard") return;
+  toast(`the keyboard flies nothing: the input device is ${device.kind ? device.label : "none"};`
+    + " choose \"keyboard\" under Input device and mapping");
+});
 
 document.addEventListener("visibilitychange", () => send({ type: "visibility", hidden: document.hidden }));
 addEventListener("pagehide", () => connection.close());
