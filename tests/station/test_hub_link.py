@@ -148,6 +148,10 @@ async def test_a_dead_man_pressed_again_while_the_link_was_down_flies_nothing_wh
     await hub.send(pilot, held())
     assert not hub.station.relay.armed
     assert "link was lost" in hub.station.relay.status
+    # The pages are not told to release the dead-man to arm: released, it arms nothing while
+    # the link is down (before: "...; release the dead-man to arm", and nothing changed).
+    shown = hub.station._telemetry(None)["relay"]["status"]
+    assert shown == "cut: the robot's link was lost; nothing is relayed until it is back"
     await hub.plugged_back()
     for _ in range(3):  # the page's re-sends while the dead-man is held
         await hub.send(pilot, held())
@@ -160,3 +164,28 @@ async def test_a_dead_man_pressed_again_while_the_link_was_down_flies_nothing_wh
     await hub.send(pilot, released())
     await hub.send(pilot, held())
     await hub.until(lambda: "#th.90.60!" in hub.controller(1).frames())  # released and again
+
+
+def error_messages(peer: Peer) -> list[str]:
+    messages = []
+    while not peer.outbox.empty():
+        message = peer.outbox.get_nowait()
+        if message["type"] == "error":
+            messages.append(message["message"])
+    return messages
+
+
+async def test_a_command_the_down_link_cannot_take_is_named_as_not_sent(hub):
+    pilot = await hub.flying()
+    await hub.unplugged()
+    error_messages(pilot)
+    await hub.send(pilot, {"type": "command", "name": "mvd", "values": [300]})
+    # Before: "the robot's link: connection lost: ..." and "sending failed: ...", which of
+    # the pilot's commands was lost left to guess.
+    [error] = error_messages(pilot)
+    assert error.startswith("#mvd.300! not sent: the robot's link: ")
+    assert hub.log()[-1].startswith("browser 1 (pilot): #mvd.300! not sent: ")
+    await hub.plugged_back()
+    await hub.send(pilot, {"type": "command", "name": "h+"})  # a fence
+    await hub.until(lambda: "#h+!" in hub.controller(1).frames())
+    assert "#mvd.300!" not in hub.controller(1).frames()  # not kept for later

@@ -265,6 +265,48 @@ def test_a_page_whose_socket_drops_reconnects_as_a_watcher(browser, station, lin
     page.context.close()
 
 
+def test_a_page_that_cannot_reach_the_station_does_not_say_who_has_control(browser, line, tmp_path):
+    with running_station(line.url, "--recordings", str(tmp_path)) as served:
+        page = open_page(browser, served, pad=False)
+        take_control(page)
+        page.click("#record")
+        page.wait_for_selector("#recording.active")
+        # The station cannot be reached: the socket drops and no new one opens.
+        page.evaluate(
+            "const c = window.rovlinkStation.connection; c.open = () => {}; c.socket.close()"
+        )
+        page.wait_for_selector("body.stale")
+        # Before, it read "watching: nobody has control", and the recording's time stood
+        # still at full strength, as live.
+        assert page.text_content("#control-status") == (
+            "not connected: who has control is not known"
+        )
+        opacity = page.eval_on_selector("#recording-status", "e => getComputedStyle(e).opacity")
+        assert float(opacity) < 1
+        page.context.close()
+
+
+def test_a_page_whose_token_is_no_longer_taken_says_so(browser, line):
+    with running_station(line.url, "--token", "deck-token-1") as served:
+        # (The URL's token set its cookie.) On Playwright's clock: the retries are hurried.
+        page = open_page(browser, served, pad=False, fake_clock=True)
+        # The token is no longer taken (as when the station restarted with a new one): before,
+        # the page said "reconnecting" for ever, the browser hiding the station's refusal.
+        page.context.clear_cookies()
+        page.evaluate("window.rovlinkStation.connection.socket.close()")
+        page.wait_for_selector("#stale-banner:has-text('the station refuses this page')")
+        assert "a token is needed: open the URL that rovlink web printed" in page.text_content(
+            "#stale-banner"
+        )
+        assert page.text_content("#connection") == "refused by the station"
+        # The URL with the token again: the next attempt is taken, and the refusal is no more.
+        page.context.new_page().goto(served.url)
+        page.clock.run_for(5000)  # (the longest wait between two attempts)
+        page.wait_for_function("window.rovlinkStation.connection.isOpen")
+        assert "refuses" not in page.text_content("#stale-banner")
+        page.context.close()
+
+
 # Every text the toast shows from now on, in window.toastsShown (one may follow another at once).
 TOASTS_SHOWN = """() => { const toast = document.getElementById('toast'); window.toastsShown = [];
   new MutationObserver(() => window.toastsShown.push(toast.textContent))
@@ -493,6 +535,11 @@ def test_a_leak_shows_the_alarm_and_reset_sends_slreset(browser, station, line):
     assert page.is_hidden("#leak-alarm")
     line.server.robot.inject_leak()
     page.wait_for_selector("#leak-alarm", state="visible")
+    # Nobody touched this page yet: the browser plays no sound, and the banner says so (before,
+    # it beeped in silence, as if heard).
+    assert "no sound until the page is clicked" in page.text_content("#leak-detail")
+    page.click("#leak-alarm strong")
+    page.wait_for_selector("#leak-detail:not(:has-text('no sound'))")
     # A watcher may silence its own page, not reset the robot's latch (the station refuses).
     assert page.is_disabled("#leak-reset")
     assert page.is_enabled("#leak-silence")
@@ -576,6 +623,15 @@ def test_a_phone_sized_window_shows_everything_whole_and_readable(browser, stati
         "ranges on one line": True,
         "inside the window": True,
     }
+    # The smallest phones (320 px) never scroll sideways either: before, the charts kept
+    # 300 px whatever the panel's width, and stuck out of it.
+    page.set_viewport_size({"width": 320, "height": 568})
+    page.wait_for_function(
+        "document.documentElement.scrollWidth <= innerWidth"
+        " && document.querySelector('#depth-chart canvas').getBoundingClientRect().right"
+        " <= document.querySelector('.charts').getBoundingClientRect().right",
+        timeout=2000,
+    )
     page.context.close()
 
 
@@ -764,6 +820,21 @@ def test_keyboard_flying_with_shift_as_the_dead_man(browser, station, line):
     page.keyboard.up("Shift")
     line.wait_for("#th.90.0!", after=mark)
     page.keyboard.up("d")
+    page.context.close()
+
+
+def test_the_keys_on_a_page_flying_a_pad_say_why_they_fly_nothing(browser, station, line):
+    page = piloting_by_pad(browser, station, line)  # (the one standard pad: in use)
+    mark = line.mark()
+    page.keyboard.down("Shift")
+    page.keyboard.press("d")
+    # Before, nothing moved and nothing said why.
+    page.wait_for_selector("#toast:has-text('the keyboard flies nothing: the input device is')")
+    assert "Fake Xbox pad" in page.text_content("#toast")
+    page.keyboard.up("Shift")
+    page.click("#unlock")  # a fence
+    line.wait_for("#start!", after=mark)
+    assert not [f for f in line.frames(mark) if f.startswith("#th.") and not f.endswith(".0!")]
     page.context.close()
 
 
@@ -1071,6 +1142,11 @@ def test_readings_that_stop_are_shown_as_missing(browser, station, line):
     line.close()  # the robot's end goes away: polls fail, the last reading is not current
     page.wait_for_selector("#stale-banner:has-text('no reading from the robot')", timeout=10_000)
     page.wait_for_selector("#depth-value:text-is('–')")  # once a poll has failed
+    # The last poll's round trip: there was none. Before, the last one answered was shown as
+    # the link's now ("0.4 ms (avg 0.7)").
+    round_trip = page.locator("#link-health tr:has(td:text-is('round trip')) td").nth(1)
+    assert round_trip.text_content().startswith("none now; last answered: ")
+    assert "bad" in (round_trip.get_attribute("class") or "")
     # A gap in the charts, not a line drawn across it.
     page.wait_for_function("window.rovlinkStation.charts.columns[1].includes(null)")
     # The heading tape says there is no reading, as the attitude does; before, it showed its

@@ -111,6 +111,9 @@ MESSAGE_BURST = 1000.0
 LATE_COMMAND_S = 1.0
 #: The relay's status while the station closes (:meth:`Station.stop_first`): only STOP is taken.
 CLOSING_STATUS = "the station is closing: nothing moves (only STOP is taken)"
+#: The relay's state while the robot's link is down: the pilot's input is not taken then, and
+#: releasing the dead-man (the relay's own word after a cut) would do nothing.
+LINK_DOWN_STATUS = "cut: the robot's link was lost; nothing is relayed until it is back"
 #: How far the page's clock may drift from the station's (0.1 %: quartz does far better): a
 #: page's input is measured late only beyond it.
 CLOCK_DRIFT = 1e-3
@@ -397,7 +400,15 @@ class Station:
                         f"#{message.command.name}: arrived {late_s:.1f} s late (a slow "
                         "network?): not sent; ask again"
                     )
-            await self.tracked.send(message.command)
+            try:
+                await self.tracked.send(message.command)
+            except ClientError as error:
+                # Not kept (it would act later, unasked): the pilot is told which command did
+                # not go, not only that the link failed.
+                self.log("warning", f"{peer.label}: {message.command} not sent: {error}")
+                raise MessageError(
+                    f"{message.command} not sent: the robot's link: {error}"
+                ) from None
             self.log("info", f"{peer.label}: {message.command}")
             dropped_because = self.tracked.commanded.last_dropped_because
             if dropped_because is not None:
@@ -718,12 +729,20 @@ class Station:
             "relay": {
                 "armed": relay.armed,
                 "moving": relay.moving,
-                "status": CLOSING_STATUS if self.closing else relay.status,
+                "status": self._relay_status(),
             },
             "link": self._link_health(),
             **self._control_state(),
             "pilot_input": self.pilot.input_source if self.pilot is not None else None,
         }
+
+    def _relay_status(self) -> str:
+        """The relay's state in words for the pages, the station's own state first."""
+        if self.closing:
+            return CLOSING_STATUS
+        if not self._link_up:
+            return LINK_DOWN_STATUS
+        return self.relay.status
 
     def _link_health(self) -> dict[str, Any]:
         client = self.tracked.client

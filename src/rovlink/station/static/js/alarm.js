@@ -16,6 +16,10 @@ export class AlarmSound {
 
   get playing() { return this.timer !== null; }
 
+  // Whether a beep is heard: none before the person interacted with the page (a watcher's
+  // screen on the deck that nobody touched, say).
+  get audible() { return this.context !== null && this.context.state === "running"; }
+
   start() {
     if (this.timer !== null) return;
     this.beep();

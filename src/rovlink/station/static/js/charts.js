@@ -2,7 +2,9 @@
 
 const WINDOW_S = 300;
 
-function sizeOf(element) { return { width: Math.max(300, element.clientWidth - 4), height: 180 }; }
+// As wide as its panel (a 320 px phone's too: the page never scrolls sideways), and no narrower
+// than its axes and a few ticks need.
+function sizeOf(element) { return { width: Math.max(200, element.clientWidth - 4), height: 180 }; }
 
 function series(label, stroke, extra = {}) {
   return { label, stroke, width: 1.5, spanGaps: false, points: { show: false }, ...extra };

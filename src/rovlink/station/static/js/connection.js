@@ -22,7 +22,8 @@ export class Connection {
     const socket = new WebSocket(socketUrl("/ws"));
     this.socket = socket;
     this.onState("connecting");
-    socket.addEventListener("open", () => { this.retryMs = 500; this.onState("open"); });
+    let opened = false;
+    socket.addEventListener("open", () => { opened = true; this.retryMs = 500; this.onState("open"); });
     socket.addEventListener("message", (event) => {
       let message;
       try { message = JSON.parse(event.data); } catch { return; }
@@ -31,7 +32,7 @@ export class Connection {
     socket.addEventListener("close", (event) => {
       if (this.socket !== socket) return;
       this.socket = null;
-      this.onState("closed", event.code);
+      this.onState("closed", event.code, opened);
       if (this.closedForGood) return;
       setTimeout(() => this.open(), this.retryMs);
       this.retryMs = Math.min(this.retryMs * 2, 5000);

@@ -37,6 +37,7 @@ const DEADMAN_KEYS = ["ShiftLeft", "ShiftRight"];
 // key held for something else says nothing of these).
 const FLYING_KEYS = ["KeyW", "KeyA", "KeyS", "KeyD", "ArrowUp", "ArrowDown", "ArrowLeft",
   "ArrowRight", "KeyR", "KeyF"];
+export const isFlyingKey = (code) => FLYING_KEYS.includes(code);
 // Keys that fly and that the browser would also act on: the arrows scroll the page.
 const SCROLLING_KEYS = ["ArrowUp", "ArrowDown", "ArrowLeft", "ArrowRight"];
 

@@ -5,6 +5,7 @@ import { AlarmSound } from "./alarm.js";
 import { Charts } from "./charts.js";
 import { Connection } from "./connection.js";
 import { InputDevices } from "./input.js";
+import { isFlyingKey, typingIn } from "./keyboard.js";
 import { drawAttitude, drawDepth, drawHeading, drawThrust } from "./instruments.js";
 import { ACTIONS, AXES, loadMapping, pressed, resetMapping, saveMapping } from "./mapping.js";
 
@@ -26,6 +27,9 @@ const station = {
   // The station closed this page's socket on its way out (not a connection that dropped):
   // said until a socket opens again.
   closed: false,
+  // Why the station refuses this page's sockets (a token it no longer takes), as it said;
+  // null: not refused.
+  refused: null,
 };
 // No word from the station (not even its heartbeat) for this long: the socket is given up and
 // a new one opened. By then the station has dropped the old one too (serve.py pings every 5 s
@@ -199,10 +203,26 @@ function onMessage(message) {
 // does: 1001 (going away) or 1012 (service restart). A connection that drops ends with 1006.
 const STATION_CLOSED_CODES = [1001, 1012];
 
-// ``closeCode``: how a socket that was open closed (null: given up by this page, or never open).
-function onConnectionState(state, closeCode = null) {
-  if (state === "open") station.closed = false;
+// A socket the station would not open: the browser does not say why (a refused WebSocket is
+// a dropped one to the page), so the page asks the station for itself. A token that is no
+// longer taken (the station restarted with a new one) is then said, not retried in silence.
+async function askWhyRefused() {
+  let refused = null;
+  try {
+    const response = await fetch("/", { cache: "no-store", credentials: "same-origin" });
+    if (response.status === 403) refused = (await response.text()).trim().replace(/^rovlink web: /, "");
+  } catch { /* not reachable: not refused */ }
+  if (connection.isOpen) return;
+  station.refused = refused;
+  showFreshness();
+}
+
+// ``closeCode``: how a socket that was open closed (null: given up by this page, or never
+// open); ``opened``: whether it ever opened.
+function onConnectionState(state, closeCode = null, opened = true) {
+  if (state === "open") { station.closed = false; station.refused = null; }
   else if (STATION_CLOSED_CODES.includes(closeCode)) station.closed = true;
+  if (state === "closed" && !opened) askWhyRefused();
   const badge = $("connection");
   badge.className = "badge " + (state === "open" ? "ok" : "bad");
   badge.textContent = state === "open" ? "station connected"
@@ -243,7 +263,10 @@ function showFreshness() {
   }
   let stale = "";
   let old = false;
-  if (!connection.isOpen) {
+  if (!connection.isOpen && station.refused) {
+    stale = `the station refuses this page (${station.refused}): everything shown is old`;
+    old = true;
+  } else if (!connection.isOpen) {
     stale = `${station.closed ? "the station closed" : "not connected to the station"}: everything shown is old`;
     old = true;
   } else if (station.heardAt !== null && now - station.heardAt > 2.5 * station.heartbeatMs) {
@@ -269,6 +292,7 @@ function showFreshness() {
     const badge = $("connection");
     badge.className = "badge bad";
     if (connection.isOpen) badge.textContent = "station silent";
+    else if (station.refused) text("connection", "refused by the station");
   }
 }
 setInterval(showFreshness, 250);
@@ -286,8 +310,11 @@ function setControl(pilotId, pilotLabel, why = null) {
   if (!mine) station.releasing = false;
   $("control").classList.toggle("pilot", mine);
   document.body.classList.toggle("watching", !mine);
+  // Not connected, the page cannot know who has control (another page may have taken it):
+  // it does not say "nobody".
   $("control-status").textContent = mine ? "you are the pilot"
-    : pilotId ? `watching: ${pilotLabel} has control` : "watching: nobody has control";
+    : !connection.isOpen ? "not connected: who has control is not known"
+      : pilotId ? `watching: ${pilotLabel} has control` : "watching: nobody has control";
   station.pilotLabel = pilotLabel;
   $("release-control").hidden = !mine;
   showTakeQuestion();
@@ -386,9 +413,17 @@ function showTelemetry(t) {
   showLeak(s);
 }
 
+// The last poll's round trip. A poll that failed (or a link that is down) had none: the last
+// one answered is not passed off as the link's now.
+function roundTripText(link) {
+  if (link.round_trip_ms === null) return "–";
+  const times = `${link.round_trip_ms.toFixed(1)} ms (avg ${link.average_round_trip_ms.toFixed(1)} ms)`;
+  return link.connected && link.status === "ok" ? times : `none now; last answered: ${times}`;
+}
+
 const LINK_ROWS = [
   ["status", (l) => (l.connected ? l.status : "disconnected"), (l) => !l.connected || l.status !== "ok"],
-  ["round trip", (l) => (l.round_trip_ms === null ? "–" : `${l.round_trip_ms.toFixed(1)} ms (avg ${l.average_round_trip_ms.toFixed(1)})`)],
+  ["round trip", roundTripText, (l) => !l.connected || l.status !== "ok"],
   ["timeouts", (l) => String(l.timeouts), (l) => l.timeouts > 0],
   ["retries", (l) => String(l.retries)],
   ["checksum errors", (l) => String(l.checksum_errors), (l) => l.checksum_errors > 0],
@@ -427,11 +462,15 @@ function showLink(link) {
 function showLeak(sensors) {
   if (sensors) station.leak = Boolean(sensors.leak);
   const leak = station.leak;
-  text("leak-detail", sensors ? "the leak sensor fired (latched until reset)"
-    : "the leak sensor fired (latched until reset), as last read: no reading from the robot now");
-  $("leak-alarm").hidden = !leak;
   if (!leak) station.leakSilenced = false;
   if (leak && !station.leakSilenced) alarm.start(); else alarm.stop();
+  // The alarm the browser keeps silent (it plays none until the page is clicked or a key
+  // pressed) is said to be silent, and how to hear it: short, the banner is on a phone too.
+  const muted = alarm.playing && !alarm.audible;
+  const fired = muted ? "latched until reset; no sound until the page is clicked"
+    : "the leak sensor fired (latched until reset)";
+  text("leak-detail", sensors ? fired : `${fired}, as last read: no reading from the robot now`);
+  $("leak-alarm").hidden = !leak;
 }
 
 function addLog(entry) {
@@ -711,6 +750,16 @@ addEventListener("keydown", (event) => {
 addEventListener("keyup", (event) => {
   if (isStopKey(event)) { event.preventDefault(); event.stopPropagation(); }
 }, { capture: true });
+
+// The pilot flying with the keys while another device is in use (a pad) flies nothing: told
+// why, not left pressing keys that do nothing.
+addEventListener("keydown", (event) => {
+  if (event.repeat || !event.shiftKey || !isFlyingKey(event.code) || typingIn(event.target)) return;
+  const device = devices.active();
+  if (!isPilot() || device.kind === "keyboard") return;
+  toast(`the keyboard flies nothing: the input device is ${device.kind ? device.label : "none"};`
+    + " choose \"keyboard\" under Input device and mapping");
+});
 
 document.addEventListener("visibilitychange", () => send({ type: "visibility", hidden: document.hidden }));
 addEventListener("pagehide", () => connection.close());
