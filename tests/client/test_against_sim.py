@@ -138,6 +138,45 @@ def test_a_mode_left_over_from_an_earlier_session_is_reset_on_connect() -> None:
         assert not _state_of(rov)().checksum_enabled
 
 
+def test_a_stop_lost_on_the_line_is_carried_again_by_the_keep_alives() -> None:
+    # Before, a #stop! lost on a noisy line left the robot driving: nothing answers a #stop!,
+    # and the keep-alive fed the controller's link-loss failsafe (P17). In simulated time, as
+    # in the test above.
+    port = SimulatedPort(SimConfig(controller=ControllerConfig(watchdog_s=2.0)), seed=4)
+
+    def simulated_clock() -> float:
+        with port.lock:
+            return port.robot.time_s
+
+    write = port.write
+    lost: list[bytes] = []
+
+    def losing_the_first_stop(data: bytes) -> int:
+        if data == b"#stop!" and not lost:
+            lost.append(data)
+            return len(data)
+        return write(data)
+
+    port.write = losing_the_first_stop  # type: ignore[method-assign]
+    options = ClientOptions(timeout_s=REPLY_TIMEOUT_S, keepalive_s=0.1)
+    with Client(PortLink(port, "sim"), options, clock=simulated_clock) as rov:
+        state = _state_of(rov)
+        rov.start()
+        rov.move(0, 30)
+        rov.stop()
+        assert lost
+        assert (state().locked, state().power_percent) == (False, 30)  # driving on
+        replies_before = rov.counters.replies
+        for step in range(1, 4):  # 0.45 simulated seconds: well within the failsafe's 2 s
+            port.advance(0.15)
+
+            def answered(count: int = replies_before + step) -> bool:
+                return rov.counters.replies >= count
+
+            assert wait_until(answered)
+        assert (state().locked, state().power_percent) == (True, 0)
+
+
 def test_the_leak_latch_through_the_driver() -> None:
     url = "sim://?leak_at=0.05&seed=3"
     with rovlink.connect(url, keepalive=None, timeout=REPLY_TIMEOUT_S) as rov:

@@ -6,7 +6,7 @@ import pytest
 
 from rovlink.client.errors import SupersededByStopError
 from rovlink.client.events import BytesSent
-from rovlink.client.session import FENCE_QUERIES, Outcome, PendingQuery, Session
+from rovlink.client.session import FENCE_QUERIES, STOP_REPEATS, Outcome, PendingQuery, Session
 from rovlink.protocol import COMMANDS, Command, Spec, Text
 
 QSA_REPLY = b"$qd.120!$qr.530!$q.l.0!$qro.-1!$qpi.+3!$qhe.275!"
@@ -565,3 +565,34 @@ def test_a_quiet_line_wait_keeps_the_link_alive_with_the_checksum_mode_as_it_is(
     assert session.resynchronising  # the wait goes on, to its end
     session.tick(now=1.5)
     assert not session.resynchronising
+
+
+def _keepalive_bytes(session: Session, now: float) -> bytes:
+    """What the session writes at its keep-alive due at ``now``, its query answered."""
+    session.tick(now=now)
+    data = session.take_outbox(now=now)
+    session.receive(b"$qd.0!", now=now)
+    return data
+
+
+def test_the_keep_alives_after_a_stop_carry_it_again() -> None:
+    # A #stop! lost on a noisy line has no reply to miss: before, the keep-alive then fed the
+    # controller's link-loss failsafe (P17) while the robot drove on, and the host showed it
+    # stopped.
+    session = Session(timeout_s=0.5, keepalive_s=1.0)
+    session.command(Command("start"), now=0.0)
+    session.command(Command("th", (90, 50)), now=0.0)
+    session.command(Command("stop"), now=0.5)
+    sent = [_keepalive_bytes(session, now=1.5 + step) for step in range(STOP_REPEATS + 1)]
+    assert sent == [b"#stop!#qd!"] * STOP_REPEATS + [b"#qd!"]
+
+
+@pytest.mark.parametrize("unlocked", [False, True])
+def test_a_stop_is_carried_again_until_something_moves_or_unlocks(unlocked: bool) -> None:
+    session = Session(timeout_s=0.5, keepalive_s=1.0)
+    session.command(Command("stop"), now=0.0)
+    assert _keepalive_bytes(session, now=1.0) == b"#stop!#qd!"
+    # A motion frame while locked as sent moves nothing if the stop arrived (P7), and if it was
+    # lost the next stop is what brings the robot to rest: only an unlock ends the repeats.
+    session.command(Command("start") if unlocked else Command("th", (0, 30)), now=1.2)
+    assert _keepalive_bytes(session, now=2.2) == (b"#qd!" if unlocked else b"#stop!#qd!")

@@ -98,6 +98,10 @@ _QUERY_BYTES_CACHED = 64
 #: (P17), and a query also proves the controller is still answering.
 KEEPALIVE_QUERY = Command("qd")
 _STOP = Command("stop")
+#: How many keep-alives after a ``#stop!`` carry it again, until something moves or unlocks: a
+#: ``#stop!`` lost on a noisy line has no reply to miss, and the keep-alive then fed a robot
+#: that drove on (P17 never tripped). Idempotent on a robot that got it.
+STOP_REPEATS = 2
 #: Fence candidates, in order of preference: single-reply queries.
 FENCE_QUERIES = (
     Command("qhe"),
@@ -217,6 +221,7 @@ class Session:
         "_readying",
         "_reset_reported_at",
         "_stop_on_reopen",
+        "_stop_repeats_due",
         "_stops_asked",
         "_unsure_motion",
         "_vertical_percent",
@@ -291,6 +296,7 @@ class Session:
         # and whether the motors are locked as last sent (None: not known, as on connecting).
         self._moved_since_stop = False
         self._locked_as_sent: bool | None = None
+        self._stop_repeats_due = 0
         # The names of motion commands (th, mvs) whose write failed with the link: on that
         # axis the controller may drive on with the thrust before, or with theirs.
         self._unsure_motion: set[str] = set()
@@ -770,6 +776,9 @@ class Session:
         if self.keepalive_s and not self._outbox and now - self.last_sent_at >= self.keepalive_s:
             self.counters.keepalives += 1
             if self._quiet_until is None:
+                if self._stop_repeats_due:
+                    self._stop_repeats_due -= 1
+                    self._outbox.append((self.frame_for(_STOP), None, _STOP))
                 pending = PendingQuery(KEEPALIVE_QUERY, now)
                 pending.keepalive = pending.internal = True
                 self._pending.append(pending)
@@ -1002,6 +1011,7 @@ class Session:
         # #start! follows it, it moves nothing.)
         if spec.moves_or_unlocks and (self._locked_as_sent is not True or not spec.motion):
             self._moved_since_stop = True
+            self._stop_repeats_due = 0
         name = command.name
         if name == "th":
             self._direction_deg, self._power_percent = command.values
@@ -1022,6 +1032,7 @@ class Session:
             if setting is Setting.LOCKED and value:  # stop: every set-point cleared (P7)
                 self._power_percent = self._vertical_percent = 0
                 self._moved_since_stop = False
+                self._stop_repeats_due = STOP_REPEATS
             elif setting is Setting.DIRECT_MODE:
                 if self._direct_mode is not None and value != self._direct_mode:
                     self._vertical_percent = 0  # a change of mode sets it to 0 (P9)
