@@ -132,5 +132,9 @@ def test_link_panel_healthy_and_silent() -> None:
     counters = LinkCounters(timeouts=9, retries=6, checksum_errors=2)
     text = link_text("bench", health, counters, readings, now_s=9.0, rate_hz=5).plain
     assert " no reply " in text
+    # (Before, "3.1 ms" as if the link answered in that time now.)
+    assert "reply time none now (last 3.1 ms, average 3.1 ms)" in text
     assert "last reading 4.0 s ago" in text
+    reopening = link_text("bench", health, counters, readings, now_s=9, rate_hz=5, reopening=True)
+    assert "none now (last 3.1 ms" in reopening.plain
     assert "timeouts 9 · retries 6 · checksum errors 2 · failed polls 3" in text

@@ -199,11 +199,17 @@ def link_text(
         Text(f"{description} · polling {rate_hz:g} Hz · ").append(f" {status} ", style=style),
     )
     if health.last_reply_s is not None and health.average_reply_s is not None:
-        _row(
-            text,
-            "reply time",
-            f"{health.last_reply_s * 1000:.1f} ms (average {health.average_reply_s * 1000:.1f} ms)",
-        )
+        last_ms, average_ms = health.last_reply_s * 1000, health.average_reply_s * 1000
+        if reopening or health.consecutive_failures:
+            # (Shown as it was, the last answer's time read as the link's now.)
+            _row(
+                text,
+                "reply time",
+                f"none now (last {last_ms:.1f} ms, average {average_ms:.1f} ms)",
+                "bold red",
+            )
+        else:
+            _row(text, "reply time", f"{last_ms:.1f} ms (average {average_ms:.1f} ms)")
     else:
         _row(text, "reply time", "—")
     age_s = readings.age_s(now_s)
