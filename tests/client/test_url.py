@@ -73,6 +73,7 @@ def test_sim_urls_go_to_the_registered_handler_which_reads_the_options() -> None
         ("sim://?leak_at=inf", "leak_at must be a non-negative number of seconds"),
         ("sim://?realtime=maybe", "realtime must be 1 or 0"),
         ("sim://host", "no host or path"),
+        ("sim://?seed=1&leak_at=5&seed=2", "sim option 'seed' given more than once"),
         ("/dev/ttyUSB0?baudrate=fast", "baudrate must be an integer in 1–12000000"),
         ("/dev/ttyUSB0?baudrate=99999999999999999999", "baudrate must be an integer in 1–"),
         ("/dev/ttyUSB0?baudrate=0", "baudrate must be an integer in 1–"),
