@@ -318,6 +318,36 @@ def test_baud_paces_the_byte_stream(start_server: StartServer) -> None:
     assert elapsed_s >= 0.9 * line_time_s
 
 
+def test_a_paced_tcp_client_that_stops_sending_still_gets_its_replies(
+    start_server: StartServer,
+) -> None:
+    # `echo '#qsa!' | socat - TCP:…` (or `nc -N`): the client sends its queries, shuts its side
+    # down and reads what comes. Before, at a paced rate the server closed the line as soon as
+    # it read the end of the stream: the queries still on their way over the line were never
+    # handled, and nothing came back.
+    server = start_server(pty=False, baud=9600)  # 1 ms a byte
+    with _connect(server) as connection:
+        connection.sendall(b"#start!#qsa!")
+        connection.shutdown(socket.SHUT_WR)
+        reply = b""
+        deadline = time.monotonic() + 5
+        while (chunk := _recv_until_closed(connection, deadline)) is not None:
+            reply += chunk
+    assert reply.startswith(b"$qd.0!$qr.20!$q.l.0!$qro."), reply
+    assert reply.count(b"!") == 6
+    # The client is gone once it has been answered: its motion stops as when a link closes.
+    assert wait_until(lambda: server.robot.controller.locked)
+
+
+def _recv_until_closed(connection: socket.socket, deadline: float) -> bytes | None:
+    """The next bytes from ``connection``, b"" if none yet, None once the server closed it."""
+    assert time.monotonic() < deadline, "the server neither answered nor closed the connection"
+    try:
+        return connection.recv(4096) or None
+    except TimeoutError:
+        return b""
+
+
 def test_a_paced_line_makes_its_writer_wait_as_a_full_serial_port_does(
     start_server: StartServer,
 ) -> None:

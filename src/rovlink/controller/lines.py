@@ -94,6 +94,9 @@ class Line:
         self.watched_events = 0
         #: When the line last read bytes (or opened), :func:`time.monotonic` seconds.
         self.last_bytes_s = time.monotonic()
+        #: Whether the peer has ended its stream and the line stays open only to finish its
+        #: output (see ``finishes_after_hangup`` of :class:`Lines`).
+        self.hung_up = False
 
     def read(self) -> bytes | None:
         """Bytes from the peer; b"" when it has gone; None when there is nothing after all."""
@@ -232,6 +235,11 @@ class Lines:
     disconnected, unless the first has sent nothing for ``silent_client_gives_way_s`` (0:
     never): a client whose link died without closing (a dropped Wi-Fi, a pulled cable: no FIN
     ever comes) would otherwise keep every host out, the robot's own included, for good.
+
+    A TCP client that ends its stream (a shutdown of its side: ``echo '#qd!' | socat - TCP:…``)
+    is let go at once, unless ``finishes_after_hangup(line)`` says the server still has that
+    line's bytes in hand (a paced line's, on their way to the controller or back): the line is
+    then no longer read, and stays open until the server calls :meth:`finish`.
     """
 
     def __init__(
@@ -242,8 +250,10 @@ class Lines:
         on_open: Callable[[Line], None] | None = None,
         on_close: Callable[[Line], None] | None = None,
         silent_client_gives_way_s: float = 0.0,
+        finishes_after_hangup: Callable[[Line], bool] | None = None,
     ) -> None:
         self._on_bytes = on_bytes
+        self._finishes_after_hangup = finishes_after_hangup
         self._silent_client_gives_way_s = silent_client_gives_way_s
         self._on_open = on_open
         self._on_close = on_close
@@ -319,9 +329,20 @@ class Lines:
         """Read ``line`` or leave its bytes in the kernel: a server whose controller is behind
         (a slow line's rate) stops reading, and the writer at the other end waits for room, as
         it would on a serial line whose buffer is full."""
+        if line.hung_up:  # (nothing more comes from it)
+            reading = False
         if line.reading != reading and line in self.lines:
             line.reading = reading
             self._watch(line)
+
+    def finish(self, line: Line) -> None:
+        """Let a hung-up ``line`` go now that its server has finished its output (what the
+        kernel has not taken by now is dropped)."""
+        if line in self.lines:
+            self._flush(line)
+        if line in self.lines:  # (a failed write has let it go already)
+            logger.info("%s disconnected", line.name)
+            self._remove(line)
 
     def close(self) -> None:
         """Close every line and the listener."""
@@ -382,6 +403,11 @@ class Lines:
         if data is None:
             return
         if not data:
+            finishes = self._finishes_after_hangup
+            if isinstance(line, TcpLine) and finishes is not None and finishes(line):
+                line.hung_up = True
+                self.set_reading(line, False)
+                return
             self._gone(line)
             return
         line.last_bytes_s = time.monotonic()
