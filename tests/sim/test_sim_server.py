@@ -6,6 +6,7 @@ import contextlib
 import os
 import select
 import socket
+import struct
 import time
 from collections.abc import Callable
 
@@ -15,6 +16,7 @@ import serial
 from rovlink.busy_tcp import RefusedClients
 from rovlink.controller import ControllerConfig
 from rovlink.controller import lines as lines_module
+from rovlink.controller.lines import TcpLine
 from rovlink.sim import SimConfig
 from rovlink.sim.server import BUSY_MESSAGE, LINE_BUFFER_BYTES, SimServer, parse_tcp_address
 from tests.client.conftest import wait_until
@@ -337,6 +339,26 @@ def test_a_paced_tcp_client_that_stops_sending_still_gets_its_replies(
     assert reply.count(b"!") == 6
     # The client is gone once it has been answered: its motion stops as when a link closes.
     assert wait_until(lambda: server.robot.controller.locked)
+
+
+def test_a_paced_tcp_client_whose_connection_fails_is_let_go_at_once(
+    start_server: StartServer,
+) -> None:
+    # A connection reset is no stream ended in order: what was still on its way over the paced
+    # line is not handled (nobody is left to stop what it would start).
+    server = start_server(pty=False, baud=300)  # `#start!` takes 0.23 s to arrive
+    connection = _connect(server)
+    assert wait_until(lambda: _served_tcp_client(server))  # accepted: the reset comes after
+    connection.setsockopt(socket.SOL_SOCKET, socket.SO_LINGER, struct.pack("ii", 1, 0))
+    connection.sendall(b"#start!#h+!")
+    connection.close()  # with a zero linger: a reset
+    assert wait_until(lambda: not _served_tcp_client(server))
+    assert server.robot.claw.history == []
+    assert server.robot.controller.locked
+
+
+def _served_tcp_client(server: SimServer) -> bool:
+    return any(isinstance(line, TcpLine) for line in list(server._lines.lines))
 
 
 def _recv_until_closed(connection: socket.socket, deadline: float) -> bytes | None:

@@ -205,6 +205,9 @@ class TcpLine(Line):
         peer = connection.getpeername()
         super().__init__(f"tcp client {peer[0]}:{peer[1]}", connection.fileno())
         self.connection = connection
+        #: Whether the connection failed (reset by the client, or its host unreachable) rather
+        #: than ended in order.
+        self.failed = False
 
     def read(self) -> bytes | None:
         """Bytes from the client; b"" when it has gone."""
@@ -213,6 +216,7 @@ class TcpLine(Line):
         except BlockingIOError:
             return None
         except OSError:
+            self.failed = True
             return b""
 
     def write(self, data: bytes) -> int:
@@ -404,7 +408,14 @@ class Lines:
             return
         if not data:
             finishes = self._finishes_after_hangup
-            if isinstance(line, TcpLine) and finishes is not None and finishes(line):
+            # Only a stream ended in order: a failed connection has nobody left to answer, and
+            # what it commanded must stop now.
+            if (
+                isinstance(line, TcpLine)
+                and not line.failed
+                and finishes is not None
+                and finishes(line)
+            ):
                 line.hung_up = True
                 self.set_reading(line, False)
                 return
@@ -449,7 +460,7 @@ class Lines:
         assert self._listener is not None
         try:
             connection, address = self._listener.accept()
-        except BlockingIOError:
+        except (BlockingIOError, ConnectionAbortedError):  # (gone before it was accepted)
             return
         current = self._tcp_line
         if current is not None:
@@ -459,15 +470,23 @@ class Lines:
                 logger.info("refused %s:%s: busy", address[0], address[1])
                 self._refused.refuse(connection)
                 return
+        try:
+            line = TcpLine(connection)
+        except OSError as error:
+            # Reset while it waited to be accepted (a port scan, a client killed as it
+            # connected): nobody to serve, and no reason to push out the one served. Before,
+            # this ended the server.
+            logger.info("%s:%s left before it was served (%s)", address[0], address[1], error)
+            connection.close()
+            return
+        if current is not None:
             logger.warning(
-                "%s sent nothing for %.1f s: disconnected for %s:%s",
+                "%s sent nothing for %.1f s: disconnected for %s",
                 current.name,
-                silent_s,
-                address[0],
-                address[1],
+                time.monotonic() - current.last_bytes_s,
+                line.name,
             )
             self._remove(current)
-        line = TcpLine(connection)
         self._tcp_line = line
         self._add(line)
         logger.info("%s connected", line.name)
