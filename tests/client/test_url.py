@@ -63,6 +63,19 @@ def test_sim_urls_go_to_the_registered_handler_which_reads_the_options() -> None
     assert parse_sim_url("sim://") == SimOptions()
 
 
+def test_a_registered_scheme_in_upper_case_is_refused_naming_the_scheme() -> None:
+    # Before, SIM:// went to pyserial, which said "protocol 'sim' not known" of rovlink's own.
+    with pytest.raises(
+        ValueError, match=r"'SIM://\?seed=1': write the scheme in lower case: sim://"
+    ):
+        parse_url("SIM://?seed=1")
+
+
+def test_a_sim_option_repeated_with_the_same_value_is_taken() -> None:
+    # As ?baudrate= given twice with one value: only a contradiction is refused.
+    assert parse_sim_url("sim://?seed=1&seed=1") == SimOptions(seed=1)
+
+
 @pytest.mark.parametrize(
     ("url", "message"),
     [
@@ -73,6 +86,7 @@ def test_sim_urls_go_to_the_registered_handler_which_reads_the_options() -> None
         ("sim://?leak_at=inf", "leak_at must be a non-negative number of seconds"),
         ("sim://?realtime=maybe", "realtime must be 1 or 0"),
         ("sim://host", "no host or path"),
+        ("sim://?seed=1&leak_at=5&seed=2", "sim option 'seed' given twice with different values"),
         ("/dev/ttyUSB0?baudrate=fast", "baudrate must be an integer in 1–12000000"),
         ("/dev/ttyUSB0?baudrate=99999999999999999999", "baudrate must be an integer in 1–"),
         ("/dev/ttyUSB0?baudrate=0", "baudrate must be an integer in 1–"),

@@ -48,6 +48,16 @@ def test_a_reset_puts_every_line_back_to_checksum_mode_off(rig: Rig) -> None:
     assert _send(rig, b"#qd!", PTY) == b"$qd.0!"
 
 
+def test_after_a_reset_no_line_drives(rig: Rig) -> None:
+    # A reset is power-on (P21): the first `#start!` after it takes over from nobody. Before,
+    # the line that drove before the reset was still taken for the driver, and that start was
+    # announced to every host as another line taking over the driving.
+    assert _send(rig, b"#start!#th.0.20!", TCP) == b""
+    rig.controller.reset()
+    assert _send(rig, b"#debug1!", PTY) == b"debug: debug output on\r\n"
+    assert _send(rig, b"#start!", PTY) == b"debug: motors unlocked\r\n"
+
+
 def test_a_stop_on_one_line_stops_the_motion_another_line_commanded(rig: Rig) -> None:
     # Locking and set-points are the controller's, whatever the lines' checksum modes.
     assert _send(rig, b"#start!#th.0.100!", TCP) == b""

@@ -6,6 +6,7 @@ import contextlib
 import os
 import select
 import socket
+import struct
 import time
 from collections.abc import Callable
 
@@ -15,6 +16,7 @@ import serial
 from rovlink.busy_tcp import RefusedClients
 from rovlink.controller import ControllerConfig
 from rovlink.controller import lines as lines_module
+from rovlink.controller.lines import TcpLine
 from rovlink.sim import SimConfig
 from rovlink.sim.server import BUSY_MESSAGE, LINE_BUFFER_BYTES, SimServer, parse_tcp_address
 from tests.client.conftest import wait_until
@@ -316,6 +318,56 @@ def test_baud_paces_the_byte_stream(start_server: StartServer) -> None:
     # the baud rate's is checked, without a wall clock, in test_sim_pacing.
     line_time_s = (len(b"#qsa!") + len(reply)) * 10 / 1200
     assert elapsed_s >= 0.9 * line_time_s
+
+
+def test_a_paced_tcp_client_that_stops_sending_still_gets_its_replies(
+    start_server: StartServer,
+) -> None:
+    # `echo '#qsa!' | socat - TCP:…` (or `nc -N`): the client sends its queries, shuts its side
+    # down and reads what comes. Before, at a paced rate the server closed the line as soon as
+    # it read the end of the stream: the queries still on their way over the line were never
+    # handled, and nothing came back.
+    server = start_server(pty=False, baud=9600)  # 1 ms a byte
+    with _connect(server) as connection:
+        connection.sendall(b"#start!#qsa!")
+        connection.shutdown(socket.SHUT_WR)
+        reply = b""
+        deadline = time.monotonic() + 5
+        while (chunk := _recv_until_closed(connection, deadline)) is not None:
+            reply += chunk
+    assert reply.startswith(b"$qd.0!$qr.20!$q.l.0!$qro."), reply
+    assert reply.count(b"!") == 6
+    # The client is gone once it has been answered: its motion stops as when a link closes.
+    assert wait_until(lambda: server.robot.controller.locked)
+
+
+def test_a_paced_tcp_client_whose_connection_fails_is_let_go_at_once(
+    start_server: StartServer,
+) -> None:
+    # A connection reset is no stream ended in order: what was still on its way over the paced
+    # line is not handled (nobody is left to stop what it would start).
+    server = start_server(pty=False, baud=300)  # `#start!` takes 0.23 s to arrive
+    connection = _connect(server)
+    assert wait_until(lambda: _served_tcp_client(server))  # accepted: the reset comes after
+    connection.setsockopt(socket.SOL_SOCKET, socket.SO_LINGER, struct.pack("ii", 1, 0))
+    connection.sendall(b"#start!#h+!")
+    connection.close()  # with a zero linger: a reset
+    assert wait_until(lambda: not _served_tcp_client(server))
+    assert server.robot.claw.history == []
+    assert server.robot.controller.locked
+
+
+def _served_tcp_client(server: SimServer) -> bool:
+    return any(isinstance(line, TcpLine) for line in list(server._lines.lines))
+
+
+def _recv_until_closed(connection: socket.socket, deadline: float) -> bytes | None:
+    """The next bytes from ``connection``, b"" if none yet, None once the server closed it."""
+    assert time.monotonic() < deadline, "the server neither answered nor closed the connection"
+    try:
+        return connection.recv(4096) or None
+    except TimeoutError:
+        return b""
 
 
 def test_a_paced_line_makes_its_writer_wait_as_a_full_serial_port_does(

@@ -23,21 +23,21 @@ def tcp_endpoint(host: str, port: int, logger_name: str) -> str:
     """``tcp HOST:PORT``; for a listener other computers reach (``0.0.0.0``, a LAN address),
     :data:`REMOTE_MARK` after it and a warning on ``logger_name`` that anyone can drive the robot.
 
-    >>> tcp_endpoint("127.0.0.1", 5760, "rovlink.sim")
-    'tcp 127.0.0.1:5760'
+    >>> tcp_endpoint("127.0.0.1", 5760, "rovlink.sim"), tcp_endpoint("::1", 5760, "rovlink.sim")
+    ('tcp 127.0.0.1:5760', 'tcp [::1]:5760')
     """
     import logging  # noqa: PLC0415 - kept off the command line's start-up path
 
     from rovlink.controller.lines import is_loopback  # noqa: PLC0415
 
+    address = listen_address(host, port)  # (an IPv6 host in brackets, as a URL takes it)
     if is_loopback(host):
-        return f"tcp {host}:{port}"
+        return f"tcp {address}"
     everywhere = " (every network interface)" if host in ("0.0.0.0", "::") else ""
     logging.getLogger(logger_name).warning(
-        "listening on %s:%d%s for any computer that reaches it; the protocol has no "
+        "listening on %s%s for any computer that reaches it; the protocol has no "
         "authentication: anyone connected can drive the robot",
-        host,
-        port,
+        address,
         everywhere,
     )
-    return f"tcp {host}:{port} {REMOTE_MARK}"
+    return f"tcp {address} {REMOTE_MARK}"

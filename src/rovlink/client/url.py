@@ -120,6 +120,10 @@ def parse_url(url: str, baudrate: int | None = None) -> Endpoint:
         if not 0 < baudrate <= MAX_BAUDRATE:
             raise ValueError(baudrate_text)
     scheme = url.partition(":")[0]
+    if scheme != scheme.lower() and handler_module(scheme.lower()) is not None:
+        # Before, SIM:// went to pyserial, which said "protocol 'sim' not known" of rovlink's
+        # own scheme.
+        raise ValueError(f"{url!r}: write the scheme in lower case: {scheme.lower()}://")
     if handler_module(scheme) is not None:
         return _parse_registered(url, scheme)
     base, pairs = _split_query(url)

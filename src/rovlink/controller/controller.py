@@ -170,6 +170,8 @@ class Controller:
             decoder.reset()
             decoder.checksum_enabled = False
         self._checksum_lines.clear()
+        # No line drives after power-on: the first `#start!` takes over from nobody.
+        self._driving_line = None
         self._debug_enabled = False
         self._locked = True
         self._vertical_mode = VerticalMode.DEPTH

@@ -94,6 +94,9 @@ class Line:
         self.watched_events = 0
         #: When the line last read bytes (or opened), :func:`time.monotonic` seconds.
         self.last_bytes_s = time.monotonic()
+        #: Whether the peer has ended its stream and the line stays open only to finish its
+        #: output (see ``finishes_after_hangup`` of :class:`Lines`).
+        self.hung_up = False
 
     def read(self) -> bytes | None:
         """Bytes from the peer; b"" when it has gone; None when there is nothing after all."""
@@ -202,6 +205,9 @@ class TcpLine(Line):
         peer = connection.getpeername()
         super().__init__(f"tcp client {peer[0]}:{peer[1]}", connection.fileno())
         self.connection = connection
+        #: Whether the connection failed (reset by the client, or its host unreachable) rather
+        #: than ended in order.
+        self.failed = False
 
     def read(self) -> bytes | None:
         """Bytes from the client; b"" when it has gone."""
@@ -210,6 +216,7 @@ class TcpLine(Line):
         except BlockingIOError:
             return None
         except OSError:
+            self.failed = True
             return b""
 
     def write(self, data: bytes) -> int:
@@ -232,6 +239,11 @@ class Lines:
     disconnected, unless the first has sent nothing for ``silent_client_gives_way_s`` (0:
     never): a client whose link died without closing (a dropped Wi-Fi, a pulled cable: no FIN
     ever comes) would otherwise keep every host out, the robot's own included, for good.
+
+    A TCP client that ends its stream (a shutdown of its side: ``echo '#qd!' | socat - TCP:…``)
+    is let go at once, unless ``finishes_after_hangup(line)`` says the server still has that
+    line's bytes in hand (a paced line's, on their way to the controller or back): the line is
+    then no longer read, and stays open until the server calls :meth:`finish`.
     """
 
     def __init__(
@@ -242,8 +254,10 @@ class Lines:
         on_open: Callable[[Line], None] | None = None,
         on_close: Callable[[Line], None] | None = None,
         silent_client_gives_way_s: float = 0.0,
+        finishes_after_hangup: Callable[[Line], bool] | None = None,
     ) -> None:
         self._on_bytes = on_bytes
+        self._finishes_after_hangup = finishes_after_hangup
         self._silent_client_gives_way_s = silent_client_gives_way_s
         self._on_open = on_open
         self._on_close = on_close
@@ -319,9 +333,20 @@ class Lines:
         """Read ``line`` or leave its bytes in the kernel: a server whose controller is behind
         (a slow line's rate) stops reading, and the writer at the other end waits for room, as
         it would on a serial line whose buffer is full."""
+        if line.hung_up:  # (nothing more comes from it)
+            reading = False
         if line.reading != reading and line in self.lines:
             line.reading = reading
             self._watch(line)
+
+    def finish(self, line: Line) -> None:
+        """Let a hung-up ``line`` go now that its server has finished its output (what the
+        kernel has not taken by now is dropped)."""
+        if line in self.lines:
+            self._flush(line)
+        if line in self.lines:  # (a failed write has let it go already)
+            logger.info("%s disconnected", line.name)
+            self._remove(line)
 
     def close(self) -> None:
         """Close every line and the listener."""
@@ -382,6 +407,18 @@ class Lines:
         if data is None:
             return
         if not data:
+            finishes = self._finishes_after_hangup
+            # Only a stream ended in order: a failed connection has nobody left to answer, and
+            # what it commanded must stop now.
+            if (
+                isinstance(line, TcpLine)
+                and not line.failed
+                and finishes is not None
+                and finishes(line)
+            ):
+                line.hung_up = True
+                self.set_reading(line, False)
+                return
             self._gone(line)
             return
         line.last_bytes_s = time.monotonic()
@@ -423,7 +460,7 @@ class Lines:
         assert self._listener is not None
         try:
             connection, address = self._listener.accept()
-        except BlockingIOError:
+        except (BlockingIOError, ConnectionAbortedError):  # (gone before it was accepted)
             return
         current = self._tcp_line
         if current is not None:
@@ -433,15 +470,23 @@ class Lines:
                 logger.info("refused %s:%s: busy", address[0], address[1])
                 self._refused.refuse(connection)
                 return
+        try:
+            line = TcpLine(connection)
+        except OSError as error:
+            # Reset while it waited to be accepted (a port scan, a client killed as it
+            # connected): nobody to serve, and no reason to push out the one served. Before,
+            # this ended the server.
+            logger.info("%s:%s left before it was served (%s)", address[0], address[1], error)
+            connection.close()
+            return
+        if current is not None:
             logger.warning(
-                "%s sent nothing for %.1f s: disconnected for %s:%s",
+                "%s sent nothing for %.1f s: disconnected for %s",
                 current.name,
-                silent_s,
-                address[0],
-                address[1],
+                time.monotonic() - current.last_bytes_s,
+                line.name,
             )
             self._remove(current)
-        line = TcpLine(connection)
         self._tcp_line = line
         self._add(line)
         logger.info("%s connected", line.name)

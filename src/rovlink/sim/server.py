@@ -83,6 +83,7 @@ class SimServer:
             on_open=self._on_open,
             on_close=self._on_close,
             silent_client_gives_way_s=silent_client_gives_way_s,
+            finishes_after_hangup=self._has_paced_bytes,
         )
         self._pacers: dict[Line, _Pacers] = {}
         # The line whose bytes the controller is handling: its output goes back there only.
@@ -178,6 +179,15 @@ class SimServer:
             data = pacers.from_controller.release(now)
             if data:  # anything still unsent waits for the selector to say it is writable
                 self._lines.send(line, data)
+        for line in [line for line in self._pacers if line.hung_up]:
+            if not self._has_paced_bytes(line):  # its last reply is on its way: let it go
+                self._lines.finish(line)
+
+    def _has_paced_bytes(self, line: Line) -> bool:
+        """Whether bytes of ``line`` are still on their way over the paced line, either way: a
+        client that ends its stream gets the replies to what it sent before it is let go."""
+        pacers = self._pacers[line]
+        return bool(len(pacers.to_controller) or len(pacers.from_controller))
 
     def _next_byte_wait_s(self) -> float:
         now = time.monotonic()

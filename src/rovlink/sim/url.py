@@ -69,6 +69,11 @@ def parse_sim_url(url: str) -> SimOptions:
     except ValueError:
         raise ValueError(f"{url!r}: malformed query {query!r}") from None
     values = dict(pairs)
+    # dict() keeps the last of a repeated option: `seed=1&leak_at=5&seed=2` ran with seed 2 and
+    # said nothing of the 1.
+    for name, value in pairs:
+        if values[name] != value:
+            raise ValueError(f"{url!r}: sim option {name!r} given twice with different values")
     unknown = [name for name in values if name not in SIM_OPTIONS]
     if unknown:
         known = ", ".join(SIM_OPTIONS)

@@ -1,0 +1,66 @@
+"""The controller's TCP line (shared by ``rovlink sim`` and ``rovlink controller``), stepped on
+the test's own thread: a selector turn happens only when the test calls ``wait``."""
+
+from __future__ import annotations
+
+import socket
+import struct
+
+from rovlink.controller.lines import Line, Lines, TcpLine
+
+
+def _reset_connection(address: tuple[str, int]) -> None:
+    """Connect, then abort the connection (a zero linger: the close sends a reset)."""
+    client = socket.create_connection(address, timeout=5)
+    client.setsockopt(socket.SOL_SOCKET, socket.SO_LINGER, struct.pack("ii", 1, 0))
+    client.close()
+
+
+def test_a_client_that_resets_before_it_is_accepted_does_not_end_the_server() -> None:
+    # A port scan, or a client killed as it connects: the connection is reset while it waits in
+    # the listener's queue. Before, asking its peer's address raised ENOTCONN out of the
+    # server's loop, and `rovlink sim` (or a robot's `rovlink controller`) ended with a
+    # traceback.
+    received: list[bytes] = []
+    lines = Lines(lambda line, data: received.append(data), busy_message=b"busy\r\n")
+    try:
+        address = lines.listen_tcp("127.0.0.1", 0)
+        _reset_connection(address)
+        lines.wait(1.0)  # accepts the reset connection
+        assert not any(isinstance(line, TcpLine) for line in lines.lines)
+        with socket.create_connection(address, timeout=5) as client:
+            client.sendall(b"#qd!")
+            for _ in range(100):  # turns of the loop until the bytes are read
+                if received:
+                    break
+                lines.wait(0.05)
+            assert received == [b"#qd!"]
+    finally:
+        lines.close()
+
+
+def test_lines_open_only_for_clients_that_are_still_connected() -> None:
+    opened: list[Line] = []
+    lines = Lines(lambda line, data: None, busy_message=b"busy\r\n", on_open=opened.append)
+    try:
+        _reset_connection(lines.listen_tcp("127.0.0.1", 0))
+        lines.wait(1.0)
+        assert opened == []
+    finally:
+        lines.close()
+
+
+def test_a_reset_connection_does_not_push_out_a_silent_client() -> None:
+    # A silent client gives way to a new one (its link may have died unseen), but not to one
+    # that has gone already.
+    lines = Lines(lambda line, data: None, busy_message=b"busy\r\n", silent_client_gives_way_s=1e-6)
+    try:
+        address = lines.listen_tcp("127.0.0.1", 0)
+        with socket.create_connection(address, timeout=5):
+            lines.wait(1.0)
+            (served,) = lines.lines
+            _reset_connection(address)
+            lines.wait(1.0)
+            assert lines.lines == [served]
+    finally:
+        lines.close()
