@@ -8,7 +8,7 @@ import contextlib
 import pytest
 
 from rovlink.aio import AsyncClient
-from rovlink.client import Client, ConnectError, QueryTimeoutError
+from rovlink.client import Client, ClientOptions, ConnectError, QueryTimeoutError
 from rovlink.client.links import SocketLink
 from tests.client.conftest import NO_REPLY_TIMEOUT_S, client_options
 from tests.client.fake_controller import FakeController
@@ -17,6 +17,12 @@ _NOISY = (
     "the controller answers in checksum mode, but no reply passed the crc8 check (a noisy line?"
 )
 _OTHER_ALGORITHM = "the controller answers, but not in checksum mode with crc8 (is that its"
+
+
+def _options_in_checksum_mode() -> ClientOptions:
+    return client_options(
+        checksum=True, boot_timeout_s=1.0, retries=2, timeout_s=NO_REPLY_TIMEOUT_S
+    )
 
 
 def _fake(case: str) -> tuple[FakeController, SocketLink]:
@@ -78,9 +84,7 @@ def test_the_blocking_client_suspects_no_reset_of_a_controller_on_another_algori
     # "controller reset suspected after 2 consecutive timeouts: … the robot is locked after a
     # reset", then gave the error that says what the timeouts mean.
     fake, link = _fake("another algorithm")
-    options = client_options(
-        checksum=True, boot_timeout_s=1.0, retries=2, timeout_s=NO_REPLY_TIMEOUT_S
-    )
+    options = _options_in_checksum_mode()
     caplog.set_level("WARNING", logger="rovlink")
     try:
         with pytest.raises(ConnectError, match="is that its algorithm"):
@@ -94,9 +98,7 @@ async def test_the_asyncio_client_suspects_no_reset_of_a_controller_on_another_a
     caplog: pytest.LogCaptureFixture,
 ) -> None:
     fake, link = _fake("another algorithm")
-    options = client_options(
-        checksum=True, boot_timeout_s=1.0, retries=2, timeout_s=NO_REPLY_TIMEOUT_S
-    )
+    options = _options_in_checksum_mode()
     caplog.set_level("WARNING", logger="rovlink")
     client = AsyncClient(link, options)
     try:
@@ -112,9 +114,7 @@ def test_a_reset_suspected_once_connected_in_checksum_mode_is_still_a_warning(
     caplog: pytest.LogCaptureFixture,
 ) -> None:
     fake, sock = FakeController.on_socketpair()
-    options = client_options(
-        checksum=True, boot_timeout_s=1.0, retries=2, timeout_s=NO_REPLY_TIMEOUT_S
-    )
+    options = _options_in_checksum_mode()
     caplog.set_level("WARNING", logger="rovlink")
     try:
         with Client(SocketLink(sock, "pair"), options) as client:
