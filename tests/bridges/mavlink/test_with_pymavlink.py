@@ -29,6 +29,7 @@ SUBMARINE = 12
 ARDUPILOTMEGA = 3
 MANUAL, ALT_HOLD, STABILIZE = 19, 2, 0
 ARMED_FLAG = 128
+POWEROFF = 7  # MAV_STATE_POWEROFF
 ACCEPTED, TEMPORARILY_REJECTED, DENIED, UNSUPPORTED, FAILED = 0, 1, 2, 3, 4
 STANDBY, CRITICAL = 3, 5  # MAV_STATE
 ARM_DISARM, DO_SET_MODE, DO_GRIPPER = 400, 176, 211
@@ -362,6 +363,25 @@ def test_ending_the_bridge_locks_the_robot():
         finally:
             gcs.close()
     assert "#stop!" in rig.frames_since(mark)
+
+
+def test_a_ground_station_is_told_the_bridge_stopped_and_the_vehicle_disarmed():
+    # Before, the bridge went silent: a ground station showed the vehicle armed until it
+    # noticed the silence, seconds later.
+    with running_bridge() as rig:
+        gcs = GroundStation(rig.gcs_address)
+        gcs.receive("HEARTBEAT", condition=lambda m: m.type == SUBMARINE)
+        gcs.start_heartbeats()
+        assert gcs.arm() == ACCEPTED
+        assert _armed(gcs)
+    try:
+        said = gcs.receive("STATUSTEXT", condition=lambda m: m.text.startswith("Bridge stopped"))
+        assert said.text == "Bridge stopped: motors locked (#stop! sent)"
+        last = gcs.receive_new("HEARTBEAT", condition=lambda m: m.type == SUBMARINE)
+        assert not last.base_mode & ARMED_FLAG
+        assert last.system_status == POWEROFF
+    finally:
+        gcs.close()
 
 
 def test_telemetry_to_a_broadcast_address_reaches_the_ground_station():

@@ -159,12 +159,14 @@ class MavlinkBridge:
         ``#stop!``. A link that a client with ``reconnect`` reopens is served through: the
         vehicle is disarmed while it is down, and commands meanwhile are refused for now."""
         loop = asyncio.get_running_loop()
+        serving = False
         try:
             await self.rov.stop()
             await self.rov.send(Command("mvdirect", (1,)))  # MANUAL, as ArduSub starts
             for command in self.parameters.commands(self._send_on_start):
                 await self.rov.send(command)
             self.endpoint.start(self._inbox.put_nowait, loop)
+            serving = True
             tasks = [
                 asyncio.ensure_future(self.poller.run()),
                 asyncio.ensure_future(self._receive()),
@@ -179,9 +181,27 @@ class MavlinkBridge:
                     task.cancel()
                 await asyncio.gather(*tasks, return_exceptions=True)
         finally:
-            with contextlib.suppress(ConnectionError):
+            stop_sent = True
+            try:
                 await self.rov.stop()
+            except ConnectionError:
+                stop_sent = False
+            if serving:
+                self._say_goodbye(stop_sent)
             self.endpoint.close()
+
+    def _say_goodbye(self, stop_sent: bool) -> None:
+        """The ground stations' last messages: why the vehicle goes silent, and a HEARTBEAT
+        disarmed and powering off (else one shows the last armed state until it notices the
+        silence, seconds later)."""
+        try:
+            if stop_sent:
+                self._say(_SEVERITY_WARNING, "Bridge stopped: motors locked (#stop! sent)")
+            else:
+                self._say(_SEVERITY_CRITICAL, "Bridge stopped: #stop! could not be sent")
+            self.messages.heartbeat(powering_off=True)
+        except OSError as error:  # (a ground station's socket gone already: nothing to tell)
+            logger.debug("the ground stations could not be told the bridge stopped: %s", error)
 
     # -- the vehicle's actions (command_handling.VehicleActions) ---------------------------------
 

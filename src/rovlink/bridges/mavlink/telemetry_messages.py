@@ -135,13 +135,16 @@ class TelemetryMessages:
         since, and the controller answers (its last query did not fail, its link is open)."""
         return self._state.current and self.link_ok()
 
-    def heartbeat(self) -> None:
-        """HEARTBEAT: a submarine on ArduPilot, its custom mode, armed = unlocked."""
+    def heartbeat(self, *, powering_off: bool = False) -> None:
+        """HEARTBEAT: a submarine on ArduPilot, its custom mode, armed = unlocked.
+        ``powering_off``: the bridge's last (MAV_STATE_POWEROFF)."""
         d = self._dialect
         base_mode = d.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED | d.MAV_MODE_FLAG_MANUAL_INPUT_ENABLED
         if self.armed:
             base_mode |= d.MAV_MODE_FLAG_SAFETY_ARMED
-        if self._state.leak or not self.link_ok():
+        if powering_off:
+            status = d.MAV_STATE_POWEROFF
+        elif self._state.leak or not self.link_ok():
             status = d.MAV_STATE_CRITICAL
         elif self.armed:
             status = d.MAV_STATE_ACTIVE
