@@ -483,7 +483,7 @@ class Lines:
             logger.warning(
                 "%s sent nothing for %.1f s: disconnected for %s",
                 current.name,
-                time.monotonic() - current.last_bytes_s,
+                silent_s,
                 line.name,
             )
             self._remove(current)
