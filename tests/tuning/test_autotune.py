@@ -361,13 +361,66 @@ def test_a_vehicle_that_never_reaches_the_target_is_said_so() -> None:
     # relay ran to its timeout and said only "no steady oscillation within 20 s".
     with simulated_plant("standard", 3) as (plant, port):
         plant.client.set_max_pwm(0)
+        # (stall_s past the timeout: the timeout's own line; the stall is tested below)
+        settings = RelaySettings(timeout_s=20.0, stall_s=30.0)
         with pytest.raises(TuneAbortedError) as aborted:
-            autotune(plant, RelaySettings(timeout_s=20.0), RULES["heave-poles"], SCALES, None)
+            autotune(plant, settings, RULES["heave-poles"], SCALES, None)
         assert port.controller.locked
     assert re.fullmatch(
         r"the vehicle did not get below 103 cm in 20 s of 30 % down thrust \(the deepest was "
         r"\d cm\): is it in the water, and is the PWM cap \(mgmp\) above 0\? \(rovlink check "
         r"leaves it at 0\): #stop! sent",
+        str(aborted.value),
+    )
+
+
+@pytest.mark.parametrize("fault", ["dead", "backwards", "bottom"])
+def test_a_depth_read_that_stops_getting_deeper_ends_the_dive(fault: str) -> None:
+    # A dead depth sensor (the same raw reading whatever the depth), one that reads backwards
+    # (less with depth: the depth clamped at 0), or a vehicle on a bottom at 60 cm. Before,
+    # the relay drove the vehicle down at 30 % for its whole 120 s, the --max-depth limit
+    # judged on a depth that never moved: the dead sensor's vehicle ended 31 m deep with a 3 m
+    # limit.
+    with simulated_plant("standard", 3, DepthLimits(20, 300)) as (plant, port):
+        sensor = port.robot.pressure
+        if fault == "dead":
+            sensor._per_m = 0.0
+        elif fault == "backwards":
+            sensor._per_m = -sensor._per_m
+        else:
+            port.vehicle._bottom_depth_m = 0.6
+        with pytest.raises(TuneAbortedError) as aborted:
+            autotune(plant, RelaySettings(), RULES["simc"], SCALES, None)
+        assert port.controller.locked
+        assert port.vehicle.duties == (0,) * len(port.vehicle.duties)
+        assert port.robot.time_s < 15.0  # (10 s of no deeper reading, after a dive of 2-3 s)
+        assert port.vehicle.depth_m < 3.0
+    deepest = "60" if fault == "bottom" else "0"
+    assert re.fullmatch(
+        rf"the depth read got no deeper than {deepest} cm \(raw \d+\) in 10 s of 30 % down "
+        r"thrust: a depth sensor that is dead or reads backwards would let the vehicle dive "
+        r"unchecked past the limits; or the vehicle cannot go deeper: is it in water deep "
+        r"enough, and is the PWM cap \(mgmp\) above 0\? \(rovlink check leaves it at 0\): "
+        r"#stop! sent",
+        str(aborted.value),
+    )
+
+
+def test_a_relay_switched_by_noise_is_refused() -> None:
+    # A depth reading with 3 counts of noise (6 cm at 2 cm a count) against a 3 cm hysteresis:
+    # the relay switched on the noise, every 0.1 to 3.5 s. Before, those cycles were taken for
+    # the vehicle's, and the gains from them were nonsense (mvpdp 0, mvpdi 0, mvpidd 0 on
+    # seed 2), applied by --no-verify --apply.
+    with simulated_plant("standard", 2) as (plant, port):
+        port.robot.pressure._noise_scale *= 15.0  # (0.2 counts rms by default)
+        with pytest.raises(TuneAbortedError) as aborted:
+            autotune(plant, RelaySettings(), RULES["simc"], SCALES, None)
+        assert port.controller.locked
+        assert port.vehicle.duties == (0,) * len(port.vehicle.duties)
+    assert re.fullmatch(
+        r"the relay's cycles are not steady \(the last 4 lasted \d\.\d\d to \d\.\d\d s\): a "
+        r"depth reading noisier than the hysteresis \(3 cm\) switches the relay on noise; raise "
+        r"--hysteresis: #stop! sent",
         str(aborted.value),
     )
 

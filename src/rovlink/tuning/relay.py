@@ -30,6 +30,11 @@ class RelaySettings:
     warmup_cycles: int = 2
     measured_cycles: int = 4
     timeout_s: float = 120.0
+    #: On the way down to the target, the depth read must get deeper (by a count or more)
+    #: within this long: a depth sensor that is dead or reads backwards (its depth stuck) would
+    #: let the relay drive the vehicle down unchecked until ``timeout_s``. The simulated
+    #: vehicles that dive at all go deeper every 2.6 s at most.
+    stall_s: float = 10.0
 
 
 @dataclass
@@ -62,6 +67,8 @@ def run_relay(plant: Plant, settings: RelaySettings) -> RelayResult:
     low = high = None
     result = RelayResult(0.0, 0.0, 0.0, 0.0)
     first: tuple[int, int | None] | None = None  # the depth and raw pressure at the start
+    # On the way down to the target: the depth read when it last got deeper, and when.
+    deeper: tuple[int, float] | None = None
     while True:
         now = plant.now_s()
         if now - start_s > settings.timeout_s:
@@ -70,6 +77,11 @@ def run_relay(plant: Plant, settings: RelaySettings) -> RelayResult:
         depth = plant.sample(enforce_min=bool(switch_times))
         first = first or (depth, plant.last_pressure_raw)
         _check_depth_follows_pressure(plant, first, depth)
+        if not switch_times:
+            if deeper is None or depth >= deeper[0] + _DEPTH_CHANGE_CM:
+                deeper = (depth, now)
+            elif now - deeper[1] > settings.stall_s:
+                plant.abort(_stalled(settings, max(depth, high or 0), plant.last_pressure_raw))
         result.times_s.append(now - start_s)
         result.depths_cm.append(depth)
         result.outputs_percent.append(output)
@@ -100,6 +112,15 @@ def run_relay(plant: Plant, settings: RelaySettings) -> RelayResult:
         b - a
         for a, b in zip(switch_times[-measured - 1 : -1], switch_times[-measured:], strict=True)
     ]
+    if max(periods) > _STEADY_RATIO * min(periods):
+        # Noise, not the vehicle, switched the relay: the cycles are short and uneven, and the
+        # gains from them nonsense (0 0 0 with 3 counts of noise in the simulated sensor).
+        spread = f"{min(periods):.2f} to {max(periods):.2f} s"
+        plant.abort(
+            f"the relay's cycles are not steady (the last {measured} lasted {spread}): a depth "
+            f"reading noisier than the hysteresis ({epsilon} cm) switches the relay on noise; "
+            "raise --hysteresis"
+        )
     amplitudes = [(hi - lo) / 2.0 for lo, hi in cycle_extremes[-measured:]]
     amplitude = statistics.mean(amplitudes)
     effective = math.sqrt(max(amplitude**2 - epsilon**2, (amplitude / 4.0) ** 2))
@@ -109,6 +130,11 @@ def run_relay(plant: Plant, settings: RelaySettings) -> RelayResult:
     result.bias_percent = bias
     return result
 
+
+#: The longest of the measured cycles may last at most this many times the shortest: on the
+#: simulated vehicles, waves and all, they are within 1.25 times; with a depth reading noisier
+#: than the hysteresis, 2 to 100 times.
+_STEADY_RATIO = 2.0
 
 #: A rise of the raw pressure (counts) that must show in the depth: 50 cm at the default
 #: calibration (2 cm a count). Well above what a vehicle floating at the surface, its depth
@@ -135,6 +161,17 @@ def _check_depth_follows_pressure(
             "the depth limits cannot be kept (rovlink check leaves sdk at a test value; "
             "calibrate with rovlink calibrate)"
         )
+
+
+def _stalled(settings: RelaySettings, deepest_cm: int, raw: int | None) -> str:
+    """Why the dive to the target stopped: the depth read no deeper for ``stall_s``."""
+    return (
+        f"the depth read got no deeper than {deepest_cm} cm (raw {raw}) in "
+        f"{settings.stall_s:g} s of {settings.amplitude_percent} % down thrust: a depth sensor "
+        "that is dead or reads backwards would let the vehicle dive unchecked past the limits; "
+        "or the vehicle cannot go deeper: is it in water deep enough, and is the PWM cap (mgmp) "
+        "above 0? (rovlink check leaves it at 0)"
+    )
 
 
 def _no_oscillation(settings: RelaySettings, reached: bool, deepest_cm: int | None) -> str:
