@@ -48,6 +48,16 @@ def test_a_no_at_a_confirmation_is_said_on_stderr_as_every_failure(
     assert "not sent" not in result.out
 
 
+def test_the_tune_prompt_says_the_most_thrust_the_relay_sends(run_cli: RunCli) -> None:
+    # The relay swings ±--relay-power around the hull's trim, which it finds as it runs: 45 %
+    # down on the heavy simulated hull at 30 %. Before, the prompt said "at up to 30 %".
+    result = run_cli("tune", "sim://", "--relay-power", "40", stdin=b"no\n", tty=True)
+    prompt = " ".join(result.err.split())
+    assert "at ±40 % around the thrust that holds the vehicle still" in prompt
+    assert "up to 80 %, around 100 cm (limits 20–300 cm)" in prompt
+    assert "at up to 40 %" not in prompt
+
+
 @pytest.mark.parametrize("answers", [b"", b"\n"], ids=["at the surface", "at the depth"])
 def test_the_end_of_the_input_while_calibrating_stops_there(
     run_cli: RunCli, answers: bytes

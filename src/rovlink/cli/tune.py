@@ -340,10 +340,14 @@ def _send_gains(client: Client, gains: ProtocolGains) -> None:
 def _confirm(args: argparse.Namespace) -> bool:
     if not sys.stdin.isatty():
         raise UsageError("tune runs the motors: --yes is needed when there is no terminal")
+    # The relay swings ±relay_power around a bias that it moves to the hull's trim, held
+    # within ±relay_power: the thrust goes up to twice the relay's power (45 % on the heavy
+    # simulated hull at 30 %), which the prompt said was the most.
     print(
-        f"The autotune unlocks the motors and drives the vertical thrusters at up to "
-        f"{args.relay_power} % around {args.depth} cm (limits {args.min_depth}–{args.max_depth} "
-        "cm). The vehicle must be in water and free to move.",
+        f"The autotune unlocks the motors and drives the vertical thrusters at ±"
+        f"{args.relay_power} % around the thrust that holds the vehicle still (its trim, found "
+        f"as it runs), up to {min(100, 2 * args.relay_power)} %, around {args.depth} cm (limits "
+        f"{args.min_depth}–{args.max_depth} cm). The vehicle must be in water and free to move.",
         file=sys.stderr,
     )
     return link_options.confirmed("Type yes to go on: ")

@@ -92,8 +92,11 @@ def run_relay(plant: Plant, settings: RelaySettings) -> RelayResult:
             up, phase_start_s = True, now
             if switch_times:
                 cycle_extremes.append((low, high))
-                # Balance the halves: a longer dive than rise needs more down bias.
+                # Balance the halves: a longer dive than rise needs more down bias. Held within
+                # ±h, so that the thrust stays within ±2h, as the command's prompt says (a hull
+                # whose trim is past h does not dive to the target at all).
                 bias += h * (up_s - down_s) / (up_s + down_s) * 0.5
+                bias = max(-h, min(h, bias))
             low = high = depth
             switch_times.append(now)
         elif up and depth < target - epsilon:
