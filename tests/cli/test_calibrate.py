@@ -108,6 +108,37 @@ def test_a_link_lost_between_the_two_values_says_which_one_went(
     assert _calibration_sent(deaf_controller) == ["#sdz.20!"]
 
 
+@pytest.mark.parametrize("at", ["set_depth_scale", "sensors"])
+def test_an_interrupt_after_the_zero_went_says_what_was_sent(
+    run_cli: RunCli, monkeypatch: pytest.MonkeyPatch, at: str
+) -> None:
+    # Ctrl-C (or SIGTERM, taken as it) as #sdk goes, or as the depth is read back. Before,
+    # only "interrupted": nothing said that the controller was left half calibrated, or that
+    # both values had gone unchecked.
+    def interrupted(self: object, *args: object) -> None:
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(f"rovlink.client.Client.{at}", interrupted)
+    server = FakeControllerServer()
+    try:
+        result = run_cli("calibrate", server.url, *_KNOWN_POINTS, "--yes", *_LINK)
+        sent = _calibration_sent(server)
+    finally:
+        server.close()
+    assert result.status == 130
+    said = result.err.splitlines()
+    assert said[-1] == "rovlink calibrate: interrupted"
+    if at == "sensors":
+        assert said[-2] == "sent #sdz.20! #sdk.100!; the depth was not read back"
+        assert sent == ["#sdz.20!", "#sdk.100!"]
+    else:
+        assert said[-2] == (
+            "sent #sdz.20!, interrupted while #sdk.100! was sent: the depth zero is new and "
+            "its scale may be old: calibrate again"
+        )
+        assert sent == ["#sdz.20!"]
+
+
 def test_given_readings_too_close_are_refused_before_the_port_opens(
     run_cli: RunCli, monkeypatch: pytest.MonkeyPatch
 ) -> None:

@@ -363,3 +363,31 @@ def test_the_experiment_is_said_on_stderr_as_it_goes(
         "motors unlocked: relay of ±30 % vertical thrust around 100 cm (up to 120 s)\n"
     ]
     assert capsys.readouterr().out.splitlines()[-1].endswith("motors locked")
+
+
+def test_an_interrupt_while_the_gains_are_sent_at_the_end_says_which_went(
+    capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # Ctrl-C (or SIGTERM, taken as it) lands as the gains to leave set go, one frame at a time,
+    # after the experiment's #stop!. Before, only "interrupted": nothing said that the depth
+    # PID was left half as tuned and half as before.
+    from rovlink.client import Client
+    from rovlink.protocol import Command
+    from rovlink.tuning import ProtocolGains
+
+    tuned = SimpleNamespace(gains=ProtocolGains(55, 20, 10), step=None)  # (--no-verify)
+    monkeypatch.setattr("rovlink.tuning.autotune", lambda *_, **__: tuned)
+    send = Client.send
+
+    def interrupted_after_the_first_gain(client: Client, command: Command) -> object:
+        if command.name != "mvpdp":
+            raise KeyboardInterrupt
+        return send(client, command)
+
+    monkeypatch.setattr(Client, "send", interrupted_after_the_first_gain)
+    assert main(["tune", "sim://", "--yes", "--no-verify", "--apply"]) == 130
+    assert capsys.readouterr().err.splitlines() == [
+        "interrupted while #mvpdi.20! was sent (only #mvpdp.55! went before it; the depth PID "
+        "may not be as asked: tune again or set it)",
+        "rovlink tune: interrupted",
+    ]

@@ -155,6 +155,18 @@ def _send(client: Client, result: Calibration) -> None:
         client.set_depth_scale(result.k)
         sent.append(scale)
         sensors = client.sensors()
+    except KeyboardInterrupt:
+        # (Ctrl-C or a SIGTERM taken as it: what went, before "interrupted", as for a failure)
+        if sent == [zero]:
+            print(
+                f"sent {zero}, interrupted while {scale} was sent: the depth zero is new and its "
+                "scale may be old: calibrate again",
+                file=sys.stderr,
+                flush=True,
+            )
+        elif sent:
+            print(f"sent {zero} {scale}; the depth was not read back", file=sys.stderr, flush=True)
+        raise
     except (ClientError, TimeoutError, ConnectionError) as error:
         if not sent:
             raise CommandError(f"{error}; nothing was sent") from None

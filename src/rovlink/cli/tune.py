@@ -326,10 +326,19 @@ def _send_gains(client: Client, gains: ProtocolGains) -> None:
 
     sent: list[str] = []
     for command in operations.depth_pid(gains.kp, gains.ki, gains.kd):
+        went = f"only {' '.join(sent)} went" if sent else "none went"
         try:
             client.send(command)
+        except KeyboardInterrupt:
+            # (Ctrl-C or a SIGTERM taken as it: which gains went, before "interrupted")
+            print(
+                f"interrupted while {command} was sent ({went} before it; the depth PID may not "
+                "be as asked: tune again or set it)",
+                file=sys.stderr,
+                flush=True,
+            )
+            raise
         except (ClientError, ConnectionError) as error:
-            went = f"only {' '.join(sent)} went" if sent else "none went"
             raise CommandError(
                 f"the experiment ended, but {command} could not be sent ({went}; the depth "
                 f"PID is not as asked: tune again or set it): {error}"
