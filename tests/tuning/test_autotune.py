@@ -406,6 +406,31 @@ def test_a_depth_read_that_stops_getting_deeper_ends_the_dive(fault: str) -> Non
     )
 
 
+def test_a_depth_sensor_that_sticks_in_the_relay_ends_it() -> None:
+    # The sensor sticks at its last reading once the relay has reached the target (a seized
+    # diaphragm, a frozen ADC). Before, the relay kept the thrust it had, down, until its
+    # timeout (120 s), the --max-depth limit judged on a depth that never moved.
+    with simulated_plant("standard", 3, DepthLimits(20, 300)) as (plant, port):
+        sensor = port.robot.pressure
+
+        def stick() -> None:
+            sensor._zero += port.vehicle.depth_m * sensor._per_m
+            sensor._per_m = sensor._noise_scale = 0.0
+
+        port.robot.schedule(12.0, stick)  # (the target is reached after 5 s)
+        with pytest.raises(TuneAbortedError) as aborted:
+            autotune(plant, RelaySettings(), RULES["simc"], SCALES, None)
+        assert port.controller.locked
+        assert port.vehicle.duties == (0,) * len(port.vehicle.duties)
+        assert port.robot.time_s < 23.0
+    assert re.fullmatch(
+        r"the depth read stayed within 1 cm of \d+ cm \(raw \d+\) for 10 s of the relay's "
+        r"thrust: a depth sensor that stopped would let the relay drive the vehicle unchecked "
+        r"past the limits: #stop! sent",
+        str(aborted.value),
+    )
+
+
 def test_a_relay_switched_by_noise_is_refused() -> None:
     # A depth reading with 3 counts of noise (6 cm at 2 cm a count) against a 3 cm hysteresis:
     # the relay switched on the noise, every 0.1 to 3.5 s. Before, those cycles were taken for

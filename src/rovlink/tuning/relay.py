@@ -31,9 +31,10 @@ class RelaySettings:
     measured_cycles: int = 4
     timeout_s: float = 120.0
     #: On the way down to the target, the depth read must get deeper (by a count or more)
-    #: within this long: a depth sensor that is dead or reads backwards (its depth stuck) would
-    #: let the relay drive the vehicle down unchecked until ``timeout_s``. The simulated
-    #: vehicles that dive at all go deeper every 2.6 s at most.
+    #: within this long, and in the relay move by a count: a depth sensor that is dead, stuck or
+    #: reads backwards would let the relay drive the vehicle unchecked until ``timeout_s``. The
+    #: simulated vehicles that dive at all go deeper every 2.6 s at most, and move in the relay
+    #: every 1.5 s.
     stall_s: float = 10.0
 
 
@@ -67,8 +68,10 @@ def run_relay(plant: Plant, settings: RelaySettings) -> RelayResult:
     low = high = None
     result = RelayResult(0.0, 0.0, 0.0, 0.0)
     first: tuple[int, int | None] | None = None  # the depth and raw pressure at the start
-    # On the way down to the target: the depth read when it last got deeper, and when.
-    deeper: tuple[int, float] | None = None
+    # The depth read when it last got deeper (on the way down to the target) or moved (in the
+    # relay, which keeps the vehicle moving: it stays within a count for 1.5 s at most on the
+    # simulated vehicles), and when.
+    moved: tuple[int, float] | None = None
     while True:
         now = plant.now_s()
         if now - start_s > settings.timeout_s:
@@ -77,11 +80,13 @@ def run_relay(plant: Plant, settings: RelaySettings) -> RelayResult:
         depth = plant.sample(enforce_min=bool(switch_times))
         first = first or (depth, plant.last_pressure_raw)
         _check_depth_follows_pressure(plant, first, depth)
-        if not switch_times:
-            if deeper is None or depth >= deeper[0] + _DEPTH_CHANGE_CM:
-                deeper = (depth, now)
-            elif now - deeper[1] > settings.stall_s:
-                plant.abort(_stalled(settings, max(depth, high or 0), plant.last_pressure_raw))
+        # (up as well as down, once in the relay: on the way down, a vehicle at rest on a
+        # bottom reads one count or the next)
+        change = depth - moved[0] if moved is not None else _DEPTH_CHANGE_CM
+        if change >= _DEPTH_CHANGE_CM or (switch_times and -change >= _DEPTH_CHANGE_CM):
+            moved = (depth, now)
+        elif moved is not None and now - moved[1] > settings.stall_s:
+            plant.abort(_stalled(settings, bool(switch_times), moved[0], plant.last_pressure_raw))
         result.times_s.append(now - start_s)
         result.depths_cm.append(depth)
         result.outputs_percent.append(output)
@@ -166,10 +171,17 @@ def _check_depth_follows_pressure(
         )
 
 
-def _stalled(settings: RelaySettings, deepest_cm: int, raw: int | None) -> str:
-    """Why the dive to the target stopped: the depth read no deeper for ``stall_s``."""
+def _stalled(settings: RelaySettings, reached: bool, depth_cm: int, raw: int | None) -> str:
+    """Why the relay stopped: the depth read got no deeper on the way down, or stopped moving
+    in the relay, for ``stall_s``."""
+    if reached:
+        return (
+            f"the depth read stayed within {_DEPTH_CHANGE_CM - 1} cm of {depth_cm} cm (raw "
+            f"{raw}) for {settings.stall_s:g} s of the relay's thrust: a depth sensor that "
+            "stopped would let the relay drive the vehicle unchecked past the limits"
+        )
     return (
-        f"the depth read got no deeper than {deepest_cm} cm (raw {raw}) in "
+        f"the depth read got no deeper than {depth_cm} cm (raw {raw}) in "
         f"{settings.stall_s:g} s of {settings.amplitude_percent} % down thrust: a depth sensor "
         "that is dead or reads backwards would let the vehicle dive unchecked past the limits; "
         "or the vehicle cannot go deeper: is it in water deep enough, and is the PWM cap (mgmp) "
