@@ -444,8 +444,9 @@ def test_a_relay_switched_by_noise_is_refused() -> None:
         assert port.vehicle.duties == (0,) * len(port.vehicle.duties)
     assert re.fullmatch(
         r"the relay's cycles are not steady \(the last 4 lasted \d\.\d\d to \d\.\d\d s\): a "
-        r"depth reading noisier than the hysteresis \(3 cm\) switches the relay on noise; raise "
-        r"--hysteresis: #stop! sent",
+        r"depth reading noisier than the hysteresis \(3 cm\) switches the relay on noise \(raise "
+        r"--hysteresis\), and a link that loses frames loses the relay's thrust commands \(see "
+        r"the link's counters\): #stop! sent",
         str(aborted.value),
     )
 
