@@ -176,6 +176,20 @@ def test_a_simulator_faster_than_real_time_is_refused_before_anything_is_sent(
     )
 
 
+def test_a_simulator_faster_than_real_time_behind_a_noisy_link_is_refused(
+    nothing_connects: None, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # Before, fault:// around sim://?realtime=0 ran: the simulated watchdog locked the motors
+    # between two samples, and the relay aborted blaming the depth sensor.
+    url = "fault://?inner=sim%3A%2F%2F%3Frealtime%3D0&seed=1"
+    assert main(["tune", url, "--yes"]) == 2
+    assert capsys.readouterr().err.strip().splitlines()[-1] == (
+        f"rovlink tune: error: {url}: realtime=0 runs the simulation faster than the tune's "
+        "clock, and its link-loss failsafe (P17) locks the motors between two samples; leave "
+        "realtime on"
+    )
+
+
 def test_the_default_step_starts_well_inside_the_limits() -> None:
     # Before, the step from 1 m above a 100 cm target started at 0 cm, above --min-depth 20;
     # then at 20 cm, which the hold's approach overshot (to 6-10 cm on the simulated

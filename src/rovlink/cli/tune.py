@@ -261,12 +261,20 @@ def _check_real_time(url: str) -> None:
     """Refuse a simulator that runs faster than real time: the experiment is paced by the wall
     clock, so between two samples the simulated controller saw no frame for seconds, and its
     link-loss failsafe (P17) locked the motors; the relay then ran to its timeout."""
-    if not url.startswith("sim:"):
+    simulated = url
+    if url.startswith("fault:"):  # (a noisy link to a simulator: the same clock within)
+        from rovlink.faults.settings import parse_fault_url  # noqa: PLC0415
+
+        try:
+            simulated, _ = parse_fault_url(url)
+        except ValueError:
+            return
+    if not simulated.startswith("sim:"):
         return
     from rovlink.sim.url import parse_sim_url  # noqa: PLC0415 - only for a sim:// URL
 
     try:
-        realtime = parse_sim_url(url).realtime
+        realtime = parse_sim_url(simulated).realtime
     except ValueError:
         return  # (opening the URL says what is wrong with it)
     if not realtime:
