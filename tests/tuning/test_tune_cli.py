@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import argparse
+import errno
+import io
 from collections.abc import Callable
 from pathlib import Path
 from types import SimpleNamespace
@@ -405,3 +407,32 @@ def test_an_interrupt_while_the_gains_are_sent_at_the_end_says_which_went(
         "may not be as asked: tune again or set it)",
         "rovlink tune: interrupted",
     ]
+
+
+class _ClosedTerminal(io.TextIOBase):
+    """The standard error of a closed terminal (SIGHUP): every write fails."""
+
+    def writable(self) -> bool:
+        return True
+
+    def write(self, text: str, /) -> int:
+        raise OSError(errno.EIO, "Input/output error")
+
+
+def test_a_closed_terminal_ends_an_interrupted_tune_with_130(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    # SIGHUP (a closed terminal or SSH session) ends the command as Ctrl-C does (status 130),
+    # after #stop! and the gains sent back. Before, the line saying so failed to be written
+    # and its OSError ended the command instead, in a traceback with status 1.
+    from rovlink.tuning import Plant
+
+    def interrupted(plant: Plant, *args: object, **kwargs: object) -> None:
+        plant.client.start()
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr("rovlink.tuning.autotune", interrupted)
+    sent = _sent_frames(monkeypatch)
+    monkeypatch.setattr("sys.stderr", _ClosedTerminal())
+    assert main(["tune", "sim://", "--yes"]) == 130
+    assert sent == ["#mvpdp.40!", "#mvpdi.30!", "#mvpidd.20!"]

@@ -157,15 +157,16 @@ def _send(client: Client, result: Calibration) -> None:
         sensors = client.sensors()
     except KeyboardInterrupt:
         # (Ctrl-C or a SIGTERM taken as it: what went, before "interrupted", as for a failure)
+        from rovlink.cli.interrupt import say_last  # noqa: PLC0415
+
+        # (said if it can be: a closed terminal, SIGHUP, fails every write)
         if sent == [zero]:
-            print(
+            say_last(
                 f"sent {zero}, interrupted while {scale} was sent: the depth zero is new and its "
-                "scale may be old: calibrate again",
-                file=sys.stderr,
-                flush=True,
+                "scale may be old: calibrate again"
             )
         elif sent:
-            print(f"sent {zero} {scale}; the depth was not read back", file=sys.stderr, flush=True)
+            say_last(f"sent {zero} {scale}; the depth was not read back")
         raise
     except (ClientError, TimeoutError, ConnectionError) as error:
         if not sent:

@@ -222,7 +222,10 @@ def run(args: argparse.Namespace) -> int:
         except KeyboardInterrupt:
             # What became of the motors and the gains, before "interrupted": the operator
             # pressed Ctrl-C to stop a running experiment and is told that it did.
-            print(f"{plant.stop()}{_gains_back(client, restore)}", file=sys.stderr, flush=True)
+            from rovlink.cli.interrupt import say_last  # noqa: PLC0415
+
+            # (said if it can be: a closed terminal, SIGHUP, fails every write)
+            say_last(f"{plant.stop()}{_gains_back(client, restore)}")
             raise
         # Gains the verification found wanting are not left set, --apply or not: they may
         # hold the depth worse than the ones they would replace.
@@ -339,11 +342,11 @@ def _send_gains(client: Client, gains: ProtocolGains) -> None:
             client.send(command)
         except KeyboardInterrupt:
             # (Ctrl-C or a SIGTERM taken as it: which gains went, before "interrupted")
-            print(
+            from rovlink.cli.interrupt import say_last  # noqa: PLC0415
+
+            say_last(
                 f"interrupted while {command} was sent ({went} before it; the depth PID may not "
-                "be as asked: tune again or set it)",
-                file=sys.stderr,
-                flush=True,
+                "be as asked: tune again or set it)"
             )
             raise
         except (ClientError, ConnectionError) as error:
