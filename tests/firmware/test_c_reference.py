@@ -286,3 +286,30 @@ def test_the_host_build_runs_on_while_nobody_reads_its_output(host_binary: Path)
             process.kill()
             process.communicate()
             pytest.fail("the host build did not stop on SIGTERM")
+
+
+@pytest.mark.integration
+@pytest.mark.parametrize(
+    ("arguments", "error"),
+    [
+        (["--leak", "30"], "unknown option --leak"),
+        (["--leak-at"], "--leak-at takes seconds, 0 or more, not ''"),
+        (["--leak-at", "30s"], "--leak-at takes seconds, 0 or more, not '30s'"),
+        (["--leak-at", "-1"], "--leak-at takes seconds, 0 or more, not '-1'"),
+    ],
+)
+def test_the_host_build_refuses_a_mistyped_option(
+    host_binary: Path, arguments: list[str], error: str
+) -> None:
+    # Before: an unknown option or a bad value was ignored (--leak-at 30s leaked at 30 s,
+    # --leak-at 1O at 1 s, --leak 30 never): the host build served a robot other than the one
+    # asked for, without a word.
+    try:
+        result = subprocess.run(
+            [str(host_binary), *arguments], capture_output=True, text=True, check=False, timeout=10
+        )
+    except subprocess.TimeoutExpired:
+        pytest.fail(f"{arguments}: the host build started instead of refusing them")
+    assert result.returncode == 2
+    assert error in result.stderr
+    assert result.stdout == ""
