@@ -144,6 +144,30 @@ def test_the_claw_runs_for_one_pulse(sketch: Path) -> None:
     assert stopped.claw == (0, 0)
 
 
+def test_the_claw_reverses_without_both_bridge_inputs_high(sketch: Path) -> None:
+    # Before: #h+! after #h-! set the open input HIGH while the close input was still HIGH; on
+    # a bridge of discrete transistors that is a short across the supply (the host stand-in
+    # exits with status 3 when it sees both HIGH). Each pulse turns the other input off first.
+    closing, opening, closing_again = _run(
+        sketch,
+        [
+            "run 20",
+            send(b"#start!#h-!"),
+            "run 10",
+            "show",
+            send(b"#h+!"),
+            "run 10",
+            "show",
+            send(b"#h-!"),
+            "run 10",
+            "show",
+        ],
+    )
+    assert closing.claw == (0, 1)
+    assert opening.claw == (1, 0)
+    assert closing_again.claw == (0, 1)
+
+
 #: millis() wraps to 0 after this many ms (49.7 days): it is 32 bits on the boards.
 _WRAP_MS = 2**32
 

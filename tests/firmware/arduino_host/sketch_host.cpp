@@ -14,6 +14,7 @@
  * (pty_host.cpp), for `rovlink check`.
  */
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 
 #include "Arduino.h"
@@ -39,7 +40,17 @@ static unsigned long tx_sent_us = 0; /* when the byte at the head of the buffer 
 
 unsigned long millis() { return host_millis & 0xFFFFFFFFul; }
 int digitalRead(uint8_t pin) { return host_pins[pin]; }
-void digitalWrite(uint8_t pin, int level) { host_pins[pin] = level; }
+/* The claw's H-bridge inputs (the sketch's pins 7 and 8): both HIGH at once, for however short a
+ * time, turns on both sides of a bridge of discrete transistors and shorts its supply. */
+#define HOST_BRIDGE_PIN_A 7
+#define HOST_BRIDGE_PIN_B 8
+void digitalWrite(uint8_t pin, int level) {
+    host_pins[pin] = level;
+    if (host_pins[HOST_BRIDGE_PIN_A] == HIGH && host_pins[HOST_BRIDGE_PIN_B] == HIGH) {
+        fprintf(stderr, "sketch_host: both H-bridge inputs HIGH at %lu ms\n", host_millis);
+        exit(3);
+    }
+}
 int analogRead(uint8_t pin) { return host_analog[pin]; }
 void pinMode(uint8_t pin, int mode) {
     if (mode == INPUT_PULLUP && !host_driven[pin]) host_pins[pin] = HIGH;

@@ -176,9 +176,9 @@ static void on_command(void *, rl_command_id command, const int32_t *values) {
         robot.leak_latched = false;
         rl_debug_flash(&link, RL_TEXT("leak latch reset"));
         break;
-    case RL_CMD_H_OPEN: case RL_CMD_H_CLOSE:
-        digitalWrite(CLAW_OPEN_PIN, command == RL_CMD_H_OPEN ? HIGH : LOW);
-        digitalWrite(CLAW_CLOSE_PIN, command == RL_CMD_H_CLOSE ? HIGH : LOW);
+    case RL_CMD_H_OPEN: case RL_CMD_H_CLOSE: /* (the other input off first: never both on) */
+        digitalWrite(command == RL_CMD_H_OPEN ? CLAW_CLOSE_PIN : CLAW_OPEN_PIN, LOW);
+        digitalWrite(command == RL_CMD_H_OPEN ? CLAW_OPEN_PIN : CLAW_CLOSE_PIN, HIGH);
         robot.claw_until_ms = (uint32_t)millis() + CLAW_PULSE_MS;
         robot.claw_running = true;
         rl_debug_number_flash(&link,
