@@ -16,7 +16,7 @@ from rovlink.client.url import parse_url
 from rovlink.conformance import CHECKS, SuiteOptions, run_checks, select_checks
 from rovlink.controller import Attitude, ControllerConfig, Hardware
 from rovlink.controller.controller import Controller
-from rovlink.protocol import COMMANDS, Argument, Decoder, Frame, Kind, Spec, c_table
+from rovlink.protocol import COMMANDS, RESPONSES, Argument, Decoder, Frame, Kind, Spec, c_table
 from tests.firmware.c_build import (
     CLANG,
     FIRMWARE,
@@ -44,6 +44,16 @@ def test_the_c_table_refuses_a_range_its_16_bit_fields_cannot_hold(
     monkeypatch.setattr(c_table, "COMMANDS", (*COMMANDS, wide))
     with pytest.raises(ValueError, match=r"wide: the range 0\.\.40000 of count does not fit"):
         c_table.render_source()
+
+
+def test_the_c_table_names_have_room_for_the_longest_reply_name(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    # Before: the name field was sized by the commands' spellings alone; a reply named longer
+    # filled it without its NUL (C allows that without a word) and strlen read past it.
+    long_reply = Spec("qtemperature", Kind.RESPONSE, "a long reply", (Argument("deg", 0, 99),))
+    monkeypatch.setattr(c_table, "RESPONSES", (*RESPONSES, long_reply))
+    assert "#define RL_NAME_BYTES 13\n" in c_table.render_header()
 
 
 #: Every C source of the reference: the layer, the host robot, its stepped build, the fuzz run
