@@ -4,6 +4,7 @@ sanitizers and a fuzz run."""
 from __future__ import annotations
 
 import os
+import shutil
 import subprocess
 import time
 from collections.abc import Callable, Iterator, Sequence
@@ -323,3 +324,43 @@ def test_the_host_build_refuses_a_mistyped_option(
     assert result.returncode == 2
     assert error in result.stderr
     assert result.stdout == ""
+
+
+@pytest.mark.integration
+def test_the_makefile_builds_and_fuzzes_as_the_readme_says(tmp_path: Path) -> None:
+    # The README's `make` and `make fuzz`, run as a firmware engineer runs them: with no CC
+    # given. Before: `CC ?= gcc` kept make's own default, cc (clang on some systems), and
+    # `make commands` called `python`, which Debian does not have.
+    if GCC is None:
+        pytest.skip("gcc is not installed (.ci/debian-packages)")
+    make = shutil.which("make")
+    if make is None:
+        pytest.skip("make is not installed")
+    copy = tmp_path / "c"
+    shutil.copytree(FIRMWARE, copy, ignore=shutil.ignore_patterns("build"))
+    environment = {name: value for name, value in os.environ.items() if name != "CC"}
+    result = subprocess.run(
+        [make, "all", "fuzz"],
+        cwd=copy,
+        env=environment,
+        capture_output=True,
+        text=True,
+        check=False,
+        timeout=300,
+    )
+    assert result.returncode == 0, result.stdout + result.stderr
+    compiles = [line for line in result.stdout.splitlines() if " -std=c99 " in line]
+    assert compiles
+    assert all(line.startswith("gcc ") for line in compiles), compiles
+    assert "fuzz-parser: 200000 iterations" in result.stdout
+    assert (copy / "build" / "rovlink-host").is_file()
+    planned = subprocess.run(
+        [make, "-n", "commands"],
+        cwd=copy,
+        env=environment,
+        capture_output=True,
+        text=True,
+        check=True,
+        timeout=60,
+    )
+    assert planned.stdout.startswith("python3 -m rovlink.protocol.c_table ."), planned.stdout
