@@ -10,6 +10,13 @@
  * pins 7/8. The ESCs take 1000-2000 us pulses, 1500 us stopped.
  */
 #include <Servo.h>
+/* The chip's watchdog, where the core has avr-libc's (AVR boards): see setup(). */
+#if defined(__has_include)
+#if __has_include(<avr/wdt.h>)
+#include <avr/wdt.h>
+#define HAS_WATCHDOG 1
+#endif
+#endif
 
 extern "C" {
 #include "rovlink_proto.h"
@@ -223,6 +230,14 @@ void setup() {
     check_leak_level();
     all_stop();
     rl_init(&link, &app, nullptr, RL_CRC8);
+#if defined(HAS_WATCHDOG)
+    /* A loop stuck in a call (an I2C read that never ends, say) would leave the ESCs on their
+     * last pulse, which the Servo library goes on sending from its interrupt, and the link
+     * watchdog below never comes: the chip's watchdog resets the board instead, which starts
+     * locked, at neutral (P21). The loop resets it each turn; it waits at most a few ms. (On
+     * another chip, use its watchdog likewise.) */
+    wdt_enable(WDTO_500MS);
+#endif
 }
 
 /* Serial.available() of a full receive buffer. The AVR core drops a byte that finds its buffer
@@ -254,6 +269,9 @@ static void receive() {
 
 void loop() {
     static uint32_t next_tick_ms = 0;
+#if defined(HAS_WATCHDOG)
+    wdt_reset();
+#endif
     receive();
 
     uint32_t now = (uint32_t)millis();
