@@ -10,12 +10,10 @@
  * pins 7/8. The ESCs take 1000-2000 us pulses, 1500 us stopped.
  */
 #include <Servo.h>
-/* The chip's watchdog, where the core has avr-libc's (AVR boards): see setup(). */
-#if defined(__has_include)
-#if __has_include(<avr/wdt.h>)
+/* The chip's watchdog on the AVR boards (Uno, Nano, Mega), avr-libc's: see setup(). */
+#if defined(ARDUINO_ARCH_AVR)
 #include <avr/wdt.h>
 #define HAS_WATCHDOG 1
-#endif
 #endif
 
 extern "C" {
