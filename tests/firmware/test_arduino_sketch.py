@@ -144,6 +144,71 @@ def test_the_claw_runs_for_one_pulse(sketch: Path) -> None:
     assert stopped.claw == (0, 0)
 
 
+def test_the_claw_reverses_without_both_bridge_inputs_high(sketch: Path) -> None:
+    # Before: #h+! after #h-! set the open input HIGH while the close input was still HIGH; on
+    # a bridge of discrete transistors that is a short across the supply (the host stand-in
+    # exits with status 3 when it sees both HIGH). Each pulse turns the other input off first.
+    closing, opening, closing_again = _run(
+        sketch,
+        [
+            "run 20",
+            send(b"#start!#h-!"),
+            "run 10",
+            "show",
+            send(b"#h+!"),
+            "run 10",
+            "show",
+            send(b"#h-!"),
+            "run 10",
+            "show",
+        ],
+    )
+    assert closing.claw == (0, 1)
+    assert opening.claw == (1, 0)
+    assert closing_again.claw == (0, 1)
+
+
+def test_a_hung_loop_resets_the_board_instead_of_running_on(sketch: Path) -> None:
+    # Before: a loop stuck in a call (an I2C read of an IMU that never ends, in on_reply) left
+    # the ESCs on their last pulse, which the Servo library goes on sending from its interrupt,
+    # and the link watchdog (P17), in the loop, never came. Now the chip's watchdog resets the
+    # board, which starts locked, at neutral (P21).
+    running, hung, after = _run(
+        sketch,
+        [
+            "run 20",
+            send(b"#start!#mvdirect.1!#mvs.+50!"),
+            "run 20",
+            "show",
+            "hang 1000",
+            "show",
+            send(b"#mvs.+50!"),
+            "run 20",
+            "show",
+        ],
+    )
+    assert running.vertical_us == (1750, 1750)
+    assert hung.vertical_us == (NEUTRAL_US, NEUTRAL_US)
+    assert hung.horizontal_us == (NEUTRAL_US,) * 4
+    assert after.vertical_us == (NEUTRAL_US, NEUTRAL_US)  # (locked after the reset)
+
+
+def test_the_loop_keeps_the_watchdog_fed(sketch: Path) -> None:
+    # Replies, debug lines and ticks never keep the loop from resetting the watchdog in time.
+    (shown,) = _run(
+        sketch,
+        [
+            "run 20",
+            send(b"#debug1!#start!#mvdirect.1!#mvs.+50!" + b"#qsa!" * 40 + b"#x!" * 100),
+            "run 1500",
+            send(b"#qd!"),
+            "run 20",
+            "show",
+        ],
+    )
+    assert shown.vertical_us == (1750, 1750)  # (no reset: still unlocked, still driving)
+
+
 #: millis() wraps to 0 after this many ms (49.7 days): it is 32 bits on the boards.
 _WRAP_MS = 2**32
 

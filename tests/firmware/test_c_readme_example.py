@@ -19,11 +19,13 @@ AVR_GCC = shutil.which("avr-gcc")
 #: output is printed, and a depth sensor.
 _BOARD = r"""
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 #include "rovlink_proto.h"
 
 void controller_start(void);
 void controller_poll(void);
+void controller_tick(uint32_t now_ms);
 
 static const char *input;
 static size_t input_left;
@@ -36,16 +38,34 @@ size_t uart_read(uint8_t *buffer, size_t size) {
     return count;
 }
 
-void uart_write(const char *data, size_t length) { fwrite(data, 1, length, stdout); }
+static unsigned long writes;
+
+void uart_write(const char *data, size_t length) {
+    writes++;
+    fwrite(data, 1, length, stdout);
+}
 
 int32_t depth_cm(void) { return 123; }
 
+void outputs_off(void) { fputs("<outputs off>", stdout); }
+
+/* The frames of argv[1], then with argv[2] (a clock's first reading, ms) 3 s of 10 ms ticks
+ * without a frame: "@MS" after each tick that wrote, MS since the first tick. */
 int main(int argc, char **argv) {
-    if (argc != 2) return 2;
+    unsigned long tick;
+    uint32_t start_ms;
+    if (argc != 2 && argc != 3) return 2;
     input = argv[1];
     input_left = strlen(input);
     controller_start();
     while (input_left) controller_poll();
+    if (argc == 2) return 0;
+    start_ms = (uint32_t)strtoul(argv[2], NULL, 10);
+    for (tick = 0; tick <= 300; tick++) {
+        unsigned long before = writes;
+        controller_tick(start_ms + (uint32_t)(tick * 10));
+        if (writes != before) printf("@%lu\n", tick * 10);
+    }
     return 0;
 }
 """
@@ -83,7 +103,29 @@ def test_the_readme_example_runs(example: Path) -> None:
     lines = output.splitlines()
     assert "debug: max PWM 200" in lines
     assert any(line.startswith("debug: dropped <mgmp.256>") for line in lines)
-    assert lines[-1] == "debug: stop command: motors stopped and locked"
+    assert lines[-1] == "<outputs off>debug: stop command: motors stopped and locked"
+
+
+@needs_gcc
+@pytest.mark.parametrize("start_ms", [0, 2**32 - 1000], ids=["clock-at-0", "clock-wraps"])
+def test_the_readme_example_stops_and_locks_when_the_link_is_lost(
+    example: Path, start_ms: int
+) -> None:
+    # Before: the example, "the whole of what a controller's code does with the layer", had no
+    # link-loss failsafe (P17): a port begun from it kept its thrusters running on a dead link.
+    program = build(
+        example / "example", [example / "example.c", example / "board.c", *LAYER], *STRICT, "-O1"
+    )
+    frames = "#debug1!#start!"
+    result = subprocess.run(
+        [str(program), frames, str(start_ms)], capture_output=True, check=True, timeout=10
+    )
+    after_frames = result.stdout.decode("ascii").split("motors unlocked\r\n", 1)[1]
+    # (the first tick that sees the frames counts from itself: 2 s later is the tick at 2010 ms;
+    # a clock compared as now > last + 2000 stopped the robot at the wrap, 1 s in)
+    assert after_frames == (
+        "<outputs off>debug: failsafe: no valid frame for 2 s: motors stopped and locked\r\n@2010\n"
+    )
 
 
 def test_the_readme_example_compiles_for_avr(example: Path) -> None:

@@ -4,6 +4,7 @@ sanitizers and a fuzz run."""
 from __future__ import annotations
 
 import os
+import shutil
 import subprocess
 import time
 from collections.abc import Callable, Iterator, Sequence
@@ -16,7 +17,7 @@ from rovlink.client.url import parse_url
 from rovlink.conformance import CHECKS, SuiteOptions, run_checks, select_checks
 from rovlink.controller import Attitude, ControllerConfig, Hardware
 from rovlink.controller.controller import Controller
-from rovlink.protocol import COMMANDS, Argument, Decoder, Frame, Kind, Spec, c_table
+from rovlink.protocol import COMMANDS, RESPONSES, Argument, Decoder, Frame, Kind, Spec, c_table
 from tests.firmware.c_build import (
     CLANG,
     FIRMWARE,
@@ -44,6 +45,16 @@ def test_the_c_table_refuses_a_range_its_16_bit_fields_cannot_hold(
     monkeypatch.setattr(c_table, "COMMANDS", (*COMMANDS, wide))
     with pytest.raises(ValueError, match=r"wide: the range 0\.\.40000 of count does not fit"):
         c_table.render_source()
+
+
+def test_the_c_table_names_have_room_for_the_longest_reply_name(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    # Before: the name field was sized by the commands' spellings alone; a reply named longer
+    # filled it without its NUL (C allows that without a word) and strlen read past it.
+    long_reply = Spec("qtemperature", Kind.RESPONSE, "a long reply", (Argument("deg", 0, 99),))
+    monkeypatch.setattr(c_table, "RESPONSES", (*RESPONSES, long_reply))
+    assert "#define RL_NAME_BYTES 13\n" in c_table.render_header()
 
 
 #: Every C source of the reference: the layer, the host robot, its stepped build, the fuzz run
@@ -286,3 +297,70 @@ def test_the_host_build_runs_on_while_nobody_reads_its_output(host_binary: Path)
             process.kill()
             process.communicate()
             pytest.fail("the host build did not stop on SIGTERM")
+
+
+@pytest.mark.integration
+@pytest.mark.parametrize(
+    ("arguments", "error"),
+    [
+        (["--leak", "30"], "unknown option --leak"),
+        (["--leak-at"], "--leak-at takes seconds, 0 or more, not ''"),
+        (["--leak-at", "30s"], "--leak-at takes seconds, 0 or more, not '30s'"),
+        (["--leak-at", "-1"], "--leak-at takes seconds, 0 or more, not '-1'"),
+    ],
+)
+def test_the_host_build_refuses_a_mistyped_option(
+    host_binary: Path, arguments: list[str], error: str
+) -> None:
+    # Before: an unknown option or a bad value was ignored (--leak-at 30s leaked at 30 s,
+    # --leak-at 1O at 1 s, --leak 30 never): the host build served a robot other than the one
+    # asked for, without a word.
+    try:
+        result = subprocess.run(
+            [str(host_binary), *arguments], capture_output=True, text=True, check=False, timeout=10
+        )
+    except subprocess.TimeoutExpired:
+        pytest.fail(f"{arguments}: the host build started instead of refusing them")
+    assert result.returncode == 2
+    assert error in result.stderr
+    assert result.stdout == ""
+
+
+@pytest.mark.integration
+def test_the_makefile_builds_and_fuzzes_as_the_readme_says(tmp_path: Path) -> None:
+    # The README's `make` and `make fuzz`, run as a firmware engineer runs them: with no CC
+    # given. Before: `CC ?= gcc` kept make's own default, cc (clang on some systems), and
+    # `make commands` called `python`, which Debian does not have.
+    if GCC is None:
+        pytest.skip("gcc is not installed (.ci/debian-packages)")
+    make = shutil.which("make")
+    if make is None:
+        pytest.skip("make is not installed")
+    copy = tmp_path / "c"
+    shutil.copytree(FIRMWARE, copy, ignore=shutil.ignore_patterns("build"))
+    environment = {name: value for name, value in os.environ.items() if name != "CC"}
+    result = subprocess.run(
+        [make, "all", "fuzz"],
+        cwd=copy,
+        env=environment,
+        capture_output=True,
+        text=True,
+        check=False,
+        timeout=300,
+    )
+    assert result.returncode == 0, result.stdout + result.stderr
+    compiles = [line for line in result.stdout.splitlines() if " -std=c99 " in line]
+    assert compiles
+    assert all(line.startswith("gcc ") for line in compiles), compiles
+    assert "fuzz-parser: 200000 iterations" in result.stdout
+    assert (copy / "build" / "rovlink-host").is_file()
+    planned = subprocess.run(
+        [make, "-n", "commands"],
+        cwd=copy,
+        env=environment,
+        capture_output=True,
+        text=True,
+        check=True,
+        timeout=60,
+    )
+    assert planned.stdout.startswith("python3 -m rovlink.protocol.c_table ."), planned.stdout

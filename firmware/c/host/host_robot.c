@@ -314,8 +314,19 @@ int main(int argc, char **argv) {
     int slave = -1, i;
     double next_tick_s;
     robot_init(&r);
-    for (i = 1; i + 1 < argc; i += 2) {
-        if (strcmp(argv[i], "--leak-at") == 0) r.leak_at_s = atof(argv[i + 1]);
+    for (i = 1; i < argc; i += 2) { /* a mistyped option is an error, not ignored */
+        const char *value = i + 1 < argc ? argv[i + 1] : "";
+        char *end;
+        if (strcmp(argv[i], "--leak-at") != 0) {
+            fprintf(stderr, "rovlink-c: unknown option %s; usage: %s [--leak-at SECONDS]\n",
+                    argv[i], argv[0]);
+            return 2;
+        }
+        r.leak_at_s = strtod(value, &end);
+        if (end == value || *end != '\0' || !(r.leak_at_s >= 0.0)) {
+            fprintf(stderr, "rovlink-c: --leak-at takes seconds, 0 or more, not '%s'\n", value);
+            return 2;
+        }
     }
     r.fd = open_pty(path, sizeof path, &slave);
     if (r.fd < 0) {

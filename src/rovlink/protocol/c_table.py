@@ -26,7 +26,6 @@ _NOTICE = (
     " *     python -m rovlink.protocol.c_table firmware/c\n"
     " * Do not edit: change the command table and regenerate. */\n"
 )
-_NAME_BYTES = max(len(spelling) for spec in COMMANDS for spelling in (spec.name, *spec.aliases))
 #: What the C table's int16_t range fields hold; the C parser (parse_number in rovlink_proto.c)
 #: stops counting a number past 99 999, so that it never overflows, which is beyond these too.
 _C_RANGE = (-(2**15), 2**15 - 1)
@@ -83,6 +82,14 @@ def _replies(spec: Spec) -> str:
     return "{" + ", ".join(items or ["0"]) + "}"
 
 
+def _name_bytes() -> int:
+    """The C tables' name field: the longest spelling of a command or a reply and its NUL (C
+    takes a string that fills the field without one, and strlen then reads past it)."""
+    return 1 + max(
+        len(spelling) for spec in (*COMMANDS, *RESPONSES) for spelling in (spec.name, *spec.aliases)
+    )
+
+
 def render_header() -> str:
     """``rovlink_commands.h``: the ids, the table's types and its declarations."""
     max_arguments = max(len(spec.arguments) for spec in COMMANDS)
@@ -101,7 +108,7 @@ def render_header() -> str:
 #define RL_MAX_FRAME_BYTES {MAX_FRAME_BYTES}
 #define RL_MAX_ARGUMENTS {max_arguments}
 #define RL_MAX_REPLIES {max_replies}
-#define RL_NAME_BYTES {_NAME_BYTES + 1}
+#define RL_NAME_BYTES {_name_bytes()}
 #define RL_SPELLING_COUNT {spellings}
 
 /* Flags of a command (P3, P7, P9). */

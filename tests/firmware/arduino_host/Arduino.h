@@ -18,6 +18,7 @@
 #define PI 3.14159265358979
 #define PIN_COUNT 20
 #define SERIAL_RX_BUFFER_SIZE 64 /* as the AVR core has it */
+#define ARDUINO_ARCH_AVR 1 /* as the AVR core's build defines it (avr/wdt.h: the stand-in's) */
 #define digitalPinToInterrupt(pin) (pin)
 #define constrain(value, low, high) ((value) < (low) ? (low) : (value) > (high) ? (high) : (value))
 

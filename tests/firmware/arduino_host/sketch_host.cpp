@@ -7,6 +7,9 @@
  *                     boards: it wraps to 0 after 4294967295, some 49.7 days)
  *   pin N LEVEL       a digital input (a falling edge runs its interrupt)
  *   analog N VALUE    an analog input, 0-1023
+ *   hang MS           MS milliseconds without loop(), as a loop stuck in a call (an I2C read
+ *                     that never ends): the ESC pulses go on; a watchdog the sketch armed
+ *                     and did not reset in time resets the board (setup() again)
  *   show              one line: "at MS pulses P3 P5 P6 P9 P10 P11 claw O C out HEX"
  *                     (the ESC pulses in us, the claw pins, what the sketch wrote since)
  *
@@ -14,6 +17,7 @@
  * (pty_host.cpp), for `rovlink check`.
  */
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 
 #include "Arduino.h"
@@ -39,7 +43,17 @@ static unsigned long tx_sent_us = 0; /* when the byte at the head of the buffer 
 
 unsigned long millis() { return host_millis & 0xFFFFFFFFul; }
 int digitalRead(uint8_t pin) { return host_pins[pin]; }
-void digitalWrite(uint8_t pin, int level) { host_pins[pin] = level; }
+/* The claw's H-bridge inputs (the sketch's pins 7 and 8): both HIGH at once, for however short a
+ * time, turns on both sides of a bridge of discrete transistors and shorts its supply. */
+#define HOST_BRIDGE_PIN_A 7
+#define HOST_BRIDGE_PIN_B 8
+void digitalWrite(uint8_t pin, int level) {
+    host_pins[pin] = level;
+    if (host_pins[HOST_BRIDGE_PIN_A] == HIGH && host_pins[HOST_BRIDGE_PIN_B] == HIGH) {
+        fprintf(stderr, "sketch_host: both H-bridge inputs HIGH at %lu ms\n", host_millis);
+        exit(3);
+    }
+}
 int analogRead(uint8_t pin) { return host_analog[pin]; }
 void pinMode(uint8_t pin, int mode) {
     if (mode == INPUT_PULLUP && !host_driven[pin]) host_pins[pin] = HIGH;
@@ -131,6 +145,15 @@ void HostSerial::host_send(const uint8_t *data, size_t length) {
     in_end += length;
 }
 
+/* The chip's watchdog: off, or its timeout and when the sketch last reset it. */
+static unsigned long wdt_timeout_us = 0, wdt_reset_us = 0;
+void wdt_enable(int timeout) {
+    wdt_timeout_us = 15000ul << timeout;
+    wdt_reset_us = host_micros;
+}
+void wdt_reset() { wdt_reset_us = host_micros; }
+void wdt_disable() { wdt_timeout_us = 0; }
+
 static int servo_pins[PIN_COUNT], servo_count = 0;
 void Servo::attach(int pin) {
     servo_pins[servo_count++] = pin;
@@ -140,6 +163,19 @@ void Servo::attach(int pin) {
 void Servo::writeMicroseconds(int microseconds) { host_pulse_us[pin_] = microseconds; }
 
 #include "rovlink_controller.ino"
+
+/* A reset by the watchdog: the pins and the servo pulses off, setup() again (the sketch's
+ * variables keep their values here, where a real reset sets them afresh). */
+static void watchdog_reset() {
+    size_t i;
+    for (i = 0; i < PIN_COUNT; i++) {
+        if (!host_driven[i]) host_pins[i] = LOW;
+        host_pulse_us[i] = 0;
+    }
+    servo_count = 0;
+    wdt_timeout_us = 0;
+    setup();
+}
 
 static void show() {
     size_t i;
@@ -186,6 +222,15 @@ int main(int argc, char **argv) {
                 loop();
                 host_micros += 100;
                 host_millis = host_micros / 1000;
+            }
+        } else if (strcmp(word, "hang") == 0 && sscanf(line, "%*s %lu", &a) == 1) {
+            unsigned long steps = a * 10;
+            while (steps--) {
+                host_micros += 100;
+                host_millis = host_micros / 1000;
+                if (wdt_timeout_us && host_micros - wdt_reset_us > wdt_timeout_us) {
+                    watchdog_reset();
+                }
             }
         } else if (strcmp(word, "clock") == 0 && sscanf(line, "%*s %lu", &a) == 1) {
             host_millis = a;

@@ -10,6 +10,11 @@
  * pins 7/8. The ESCs take 1000-2000 us pulses, 1500 us stopped.
  */
 #include <Servo.h>
+/* The chip's watchdog on the AVR boards (Uno, Nano, Mega), avr-libc's: see setup(). */
+#if defined(ARDUINO_ARCH_AVR)
+#include <avr/wdt.h>
+#define HAS_WATCHDOG 1
+#endif
 
 extern "C" {
 #include "rovlink_proto.h"
@@ -176,9 +181,9 @@ static void on_command(void *, rl_command_id command, const int32_t *values) {
         robot.leak_latched = false;
         rl_debug_flash(&link, RL_TEXT("leak latch reset"));
         break;
-    case RL_CMD_H_OPEN: case RL_CMD_H_CLOSE:
-        digitalWrite(CLAW_OPEN_PIN, command == RL_CMD_H_OPEN ? HIGH : LOW);
-        digitalWrite(CLAW_CLOSE_PIN, command == RL_CMD_H_CLOSE ? HIGH : LOW);
+    case RL_CMD_H_OPEN: case RL_CMD_H_CLOSE: /* (the other input off first: never both on) */
+        digitalWrite(command == RL_CMD_H_OPEN ? CLAW_CLOSE_PIN : CLAW_OPEN_PIN, LOW);
+        digitalWrite(command == RL_CMD_H_OPEN ? CLAW_OPEN_PIN : CLAW_CLOSE_PIN, HIGH);
         robot.claw_until_ms = (uint32_t)millis() + CLAW_PULSE_MS;
         robot.claw_running = true;
         rl_debug_number_flash(&link,
@@ -223,6 +228,14 @@ void setup() {
     check_leak_level();
     all_stop();
     rl_init(&link, &app, nullptr, RL_CRC8);
+#if defined(HAS_WATCHDOG)
+    /* A loop stuck in a call (an I2C read that never ends, say) would leave the ESCs on their
+     * last pulse, which the Servo library goes on sending from its interrupt, and the link
+     * watchdog below never comes: the chip's watchdog resets the board instead, which starts
+     * locked, at neutral (P21). The loop resets it each turn; it waits at most a few ms. (On
+     * another chip, use its watchdog likewise.) */
+    wdt_enable(WDTO_500MS);
+#endif
 }
 
 /* Serial.available() of a full receive buffer. The AVR core drops a byte that finds its buffer
@@ -254,6 +267,9 @@ static void receive() {
 
 void loop() {
     static uint32_t next_tick_ms = 0;
+#if defined(HAS_WATCHDOG)
+    wdt_reset();
+#endif
     receive();
 
     uint32_t now = (uint32_t)millis();
