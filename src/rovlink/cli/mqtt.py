@@ -10,6 +10,7 @@ the ROVLINK_MQTT_PASSWORD environment variable, never from the command line.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import dataclasses
 import os
 from pathlib import Path
@@ -213,7 +214,14 @@ async def _serve(args: argparse.Namespace, broker: BrokerSettings) -> None:
         client = await rovlink.aio.connect(args.url, baudrate=args.baudrate, options=options)
     except (ConnectionError, OSError) as error:
         raise link_options.connection_failure(args.url, error) from None
-    async with client:
+    async with contextlib.AsyncExitStack() as leaving:
+        if args.allow_commands:
+            await leaving.enter_async_context(client)  # (left by an error: #stop! first)
+        else:
+            # Telemetry leaves the robot as it is, however it ends: the client's own way out
+            # on an error (Ctrl-C, SIGTERM) would send #stop! to a robot another tool flies.
+            # close() stops only a robot this client moved, which telemetry never does.
+            leaving.push_async_callback(client.close)
         await link_options.hear_other_lines_if_asked(args, client)
         bridge = MqttBridge(
             TrackedClient(client, algorithm=args.algorithm),
