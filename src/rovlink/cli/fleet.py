@@ -202,7 +202,7 @@ def _cell(text: str, style: str = "") -> Text:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Show the table until Ctrl-C (or once, with ``--snapshot``)."""
+    """Show the table until Ctrl-C, SIGTERM or SIGHUP (or once, with ``--snapshot``)."""
     broker = broker_settings(args)
     if args.snapshot_s is None and not _is_terminal(sys.stdout):
         # Rich draws a live table on a terminal alone: elsewhere nothing would be written until
@@ -215,9 +215,14 @@ def run(args: argparse.Namespace) -> int:
         import aiomqtt  # noqa: F401, PLC0415 - the mqtt extra
     except ImportError:
         raise CommandError("needs aiomqtt: pip install 'rovlink[mqtt]'") from None
-    from rovlink.cli.async_run import run_async  # noqa: PLC0415 - not on the path of --help
+    from rovlink.cli.async_run import run_async, serve_async  # noqa: PLC0415 - not on --help
 
-    run_async(_watch(broker, args.snapshot_s))
+    if args.snapshot_s is not None:
+        run_async(_watch(broker, args.snapshot_s))  # (ended by a signal: interrupted, 130)
+    else:
+        # The live table runs until stopped, as a service: SIGTERM and SIGHUP end it cleanly
+        # (status 0); Ctrl-C says interrupted (130), as for every command.
+        serve_async(_watch(broker, None), "rovlink fleet")
     return 0
 
 

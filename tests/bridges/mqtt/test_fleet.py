@@ -5,6 +5,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import os
+import signal
 import sys
 import time
 from collections.abc import Mapping
@@ -286,6 +287,34 @@ def test_the_live_table_rides_out_a_broker_restart(broker: Mosquitto) -> None:
         retain("r2")
         assert terminal.wait_shown(b" r2 "), terminal.shown.decode(errors="replace")
         assert terminal.process.poll() is None
+    finally:
+        terminal.close()
+
+
+@pytest.mark.integration
+@pytest.mark.parametrize(
+    ("how", "status", "last_line"),
+    [
+        (signal.SIGTERM, 0, "rovlink fleet stopped"),
+        (signal.SIGHUP, 0, "rovlink fleet stopped"),
+        (signal.SIGINT, 130, "rovlink fleet: interrupted"),
+    ],
+    ids=lambda value: value.name if isinstance(value, signal.Signals) else None,
+)
+def test_the_live_table_stops_as_a_service_does(
+    broker: Mosquitto, how: signal.Signals, status: int, last_line: str
+) -> None:
+    # Before, SIGTERM (systemctl stop, kill) ended the live table with status 130,
+    # "interrupted", where the serving commands (the bridges it watches among them) end with 0.
+    from tests.terminals import Terminal
+
+    terminal = Terminal("fleet", "--broker", broker.url)
+    try:
+        assert terminal.wait_shown(b"no robot has published yet")
+        terminal.process.send_signal(how)
+        assert terminal.process.wait(timeout=15) == status
+        assert terminal.process.stderr is not None
+        assert terminal.process.stderr.read().decode().splitlines()[-1] == last_line
     finally:
         terminal.close()
 
