@@ -3,7 +3,8 @@
 Topics: rovlink/ID/telemetry (JSON readings, QoS 0), rovlink/ID/state (retained; the last will
 marks the robot offline), rovlink/ID/events (QoS 1), rovlink/ID/cmd (commands in the console's
 words; replies on rovlink/ID/cmd/reply or the request's MQTT 5 response topic). Commands other
-than stop are refused unless --allow-commands. The password is read from --password-file or
+than stop are refused unless --allow-commands; without it the bridge is telemetry and sends no
+#stop! of its own (at start, at exit). The password is read from --password-file or
 the ROVLINK_MQTT_PASSWORD environment variable, never from the command line.
 """
 
@@ -159,7 +160,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     group.add_argument(
         "--allow-commands",
         action="store_true",
-        help="act on every command of rovlink/ID/cmd (without it only stop is accepted)",
+        help="act on every command of rovlink/ID/cmd, and lock the robot at start and exit "
+        "(without it only stop is accepted, and the bridge, telemetry, sends no #stop! of its own)",
     )
     group.add_argument(
         "--motion-timeout",
