@@ -264,6 +264,8 @@ def _client(broker: BrokerSettings) -> aiomqtt.Client:
     """A client of the broker, not yet connected (``async with`` connects it)."""
     import aiomqtt  # noqa: PLC0415
 
+    from rovlink.bridges.mqtt.broker import KEEPALIVE_S  # noqa: PLC0415
+
     tls_params = (
         aiomqtt.TLSParameters(
             ca_certs=None if broker.ca_file is None else str(broker.ca_file),
@@ -281,6 +283,7 @@ def _client(broker: BrokerSettings) -> aiomqtt.Client:
         tls_params=tls_params,
         tls_insecure=broker.insecure if broker.tls else None,
         timeout=_REPLY_TIMEOUT_S,
+        keepalive=KEEPALIVE_S,  # (a broker gone silent is said, as the bridges notice it)
     )
 
 

@@ -292,6 +292,26 @@ def test_the_live_table_rides_out_a_broker_restart(broker: Mosquitto) -> None:
 
 
 @pytest.mark.integration
+@pytest.mark.slow
+@pytest.mark.realtime
+def test_the_live_table_says_so_when_the_broker_goes_silent(broker: Mosquitto) -> None:
+    # A broker that answers nothing any more (its network gone, its host stalled) was noticed
+    # only by paho-mqtt's default keep-alive, 60 s, a minute and more with no word in the
+    # caption; the bridges notice within 15 s (their keep-alive: 10 s), and so does the table.
+    from tests.terminals import Terminal
+
+    terminal = Terminal("fleet", "--broker", broker.url)
+    try:
+        assert terminal.wait_shown(b"no robot has published yet")
+        with broker.stalled():
+            assert terminal.wait_shown(b"reconnecting", timeout_s=30.0), terminal.shown.decode(
+                errors="replace"
+            )
+    finally:
+        terminal.close()
+
+
+@pytest.mark.integration
 @pytest.mark.parametrize(
     ("how", "status", "last_line"),
     [

@@ -35,7 +35,7 @@ from typing import Any
 
 from rovlink.aio.wakeup import wait_for_event
 from rovlink.bridges.kept_settings import KeptSettings
-from rovlink.bridges.mqtt.broker import BrokerSettings
+from rovlink.bridges.mqtt.broker import KEEPALIVE_S, BrokerSettings
 from rovlink.bridges.mqtt.broker_failure import broker_failure
 from rovlink.bridges.mqtt.command_age import (
     DEFAULT_MAX_COMMAND_AGE_S,
@@ -98,7 +98,6 @@ _RECONNECT_FIRST_S = 0.2
 _RECONNECT_MAX_S = 5.0
 #: Telemetry waiting for the broker beyond this drops its oldest (QoS 0 promises no more).
 _TELEMETRY_BACKLOG = 64
-_KEEPALIVE_S = 10
 #: How long the broker has to answer (CONNACK, SUBACK, PUBACK) before the connection is given up.
 REPLY_TIMEOUT_S = 5.0
 #: The offline state at the end is given up after this (the last will covers a lost broker).
@@ -347,7 +346,7 @@ class MqttBridge:
             identifier=f"rovlink-bridge-{self.robot_id}",
             protocol=aiomqtt.ProtocolVersion.V5,
             will=will,
-            keepalive=_KEEPALIVE_S,
+            keepalive=KEEPALIVE_S,
             tls_params=tls_params,
             tls_insecure=broker.insecure if broker.tls else None,
             timeout=self.reply_timeout_s,
