@@ -42,5 +42,10 @@ class SilentController:
         with self._changed:
             return self._changed.wait_for(lambda: holds(self.received), timeout_s)
 
+    def wait_closed(self, timeout_s: float = WAIT_S) -> bool:
+        """Whether the connection was closed (and all it carried read) within ``timeout_s``."""
+        self._thread.join(timeout_s)
+        return not self._thread.is_alive()
+
     def close(self) -> None:
         self._server.close()

@@ -545,7 +545,8 @@ def test_a_query_without_a_reply_fails_in_one_line(
     "bridge",
     [
         ("mavlink", "--out", "udpout:127.0.0.1:9"),  # (nobody listens: the bridge sends on)
-        ("mqtt", "--broker", "mqtt://127.0.0.1:9", "--robot", "r1"),  # (retried meanwhile)
+        # (the broker retried meanwhile; a bridge that takes commands locks the robot at exit)
+        ("mqtt", "--broker", "mqtt://127.0.0.1:9", "--robot", "r1", "--allow-commands"),
     ],
     ids=lambda bridge: bridge[0],
 )
@@ -562,6 +563,21 @@ def test_a_signal_ends_a_bridge_with_its_final_stop(
     assert process.returncode == 0, stderr
     assert stderr.decode().splitlines()[-1] == f"rovlink {command} stopped"
     assert silent.wait_until(lambda received: received.count(b"#stop!") > stops_before)
+
+
+@pytest.mark.parametrize("how", ENDING_SIGNALS, ids=lambda how: how.name)
+def test_a_signal_ends_a_telemetry_bridge_without_a_stop(
+    silent: SilentController, how: signal.Signals
+) -> None:
+    # Before, `rovlink mqtt` without --allow-commands sent #stop! as it started and again as it
+    # ended (the client's own way out on an error): restarting the deck's telemetry stopped the
+    # robot the pilot flew on another line.
+    process = _rovlink("mqtt", silent.url, "--broker", "mqtt://127.0.0.1:9", "--robot", "r1")
+    assert silent.wait_for(b"#qsa!")
+    _, stderr = _interrupt(process, how)
+    assert process.returncode == (0 if how in (signal.SIGTERM, signal.SIGHUP) else 130), stderr
+    assert silent.wait_closed()
+    assert b"#stop!" not in silent.received
 
 
 @pytest.mark.parametrize("how", [signal.SIGINT, signal.SIGQUIT], ids=lambda how: how.name)

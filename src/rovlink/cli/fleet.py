@@ -202,7 +202,7 @@ def _cell(text: str, style: str = "") -> Text:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Show the table until Ctrl-C (or once, with ``--snapshot``)."""
+    """Show the table until Ctrl-C, SIGTERM or SIGHUP (or once, with ``--snapshot``)."""
     broker = broker_settings(args)
     if args.snapshot_s is None and not _is_terminal(sys.stdout):
         # Rich draws a live table on a terminal alone: elsewhere nothing would be written until
@@ -215,9 +215,14 @@ def run(args: argparse.Namespace) -> int:
         import aiomqtt  # noqa: F401, PLC0415 - the mqtt extra
     except ImportError:
         raise CommandError("needs aiomqtt: pip install 'rovlink[mqtt]'") from None
-    from rovlink.cli.async_run import run_async  # noqa: PLC0415 - not on the path of --help
+    from rovlink.cli.async_run import run_async, serve_async  # noqa: PLC0415 - not on --help
 
-    run_async(_watch(broker, args.snapshot_s))
+    if args.snapshot_s is not None:
+        run_async(_watch(broker, args.snapshot_s))  # (ended by a signal: interrupted, 130)
+    else:
+        # The live table runs until stopped, as a service: SIGTERM and SIGHUP end it cleanly
+        # (status 0); Ctrl-C says interrupted (130), as for every command.
+        serve_async(_watch(broker, None), "rovlink fleet")
     return 0
 
 
@@ -259,6 +264,8 @@ def _client(broker: BrokerSettings) -> aiomqtt.Client:
     """A client of the broker, not yet connected (``async with`` connects it)."""
     import aiomqtt  # noqa: PLC0415
 
+    from rovlink.bridges.mqtt.broker import KEEPALIVE_S  # noqa: PLC0415
+
     tls_params = (
         aiomqtt.TLSParameters(
             ca_certs=None if broker.ca_file is None else str(broker.ca_file),
@@ -276,6 +283,7 @@ def _client(broker: BrokerSettings) -> aiomqtt.Client:
         tls_params=tls_params,
         tls_insecure=broker.insecure if broker.tls else None,
         timeout=_REPLY_TIMEOUT_S,
+        keepalive=KEEPALIVE_S,  # (a broker gone silent is said, as the bridges notice it)
     )
 
 

@@ -3,13 +3,15 @@
 Topics: rovlink/ID/telemetry (JSON readings, QoS 0), rovlink/ID/state (retained; the last will
 marks the robot offline), rovlink/ID/events (QoS 1), rovlink/ID/cmd (commands in the console's
 words; replies on rovlink/ID/cmd/reply or the request's MQTT 5 response topic). Commands other
-than stop are refused unless --allow-commands. The password is read from --password-file or
+than stop are refused unless --allow-commands; without it the bridge is telemetry and sends no
+#stop! of its own (at start, at exit). The password is read from --password-file or
 the ROVLINK_MQTT_PASSWORD environment variable, never from the command line.
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import dataclasses
 import os
 from pathlib import Path
@@ -158,7 +160,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     group.add_argument(
         "--allow-commands",
         action="store_true",
-        help="act on every command of rovlink/ID/cmd (without it only stop is accepted)",
+        help="act on every command of rovlink/ID/cmd, and lock the robot at start and exit "
+        "(without it only stop is accepted, and the bridge, telemetry, sends no #stop! of its own)",
     )
     group.add_argument(
         "--motion-timeout",
@@ -213,7 +216,14 @@ async def _serve(args: argparse.Namespace, broker: BrokerSettings) -> None:
         client = await rovlink.aio.connect(args.url, baudrate=args.baudrate, options=options)
     except (ConnectionError, OSError) as error:
         raise link_options.connection_failure(args.url, error) from None
-    async with client:
+    async with contextlib.AsyncExitStack() as leaving:
+        if args.allow_commands:
+            await leaving.enter_async_context(client)  # (left by an error: #stop! first)
+        else:
+            # Telemetry leaves the robot as it is, however it ends: the client's own way out
+            # on an error (Ctrl-C, SIGTERM) would send #stop! to a robot another tool flies.
+            # close() stops only a robot this client moved, which telemetry never does.
+            leaving.push_async_callback(client.close)
         await link_options.hear_other_lines_if_asked(args, client)
         bridge = MqttBridge(
             TrackedClient(client, algorithm=args.algorithm),

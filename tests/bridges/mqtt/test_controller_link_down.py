@@ -41,7 +41,7 @@ async def unplugged_bridge(
         task = asyncio.ensure_future(bridge.run())
         try:
             await until(bridge.connected.is_set)
-            await until(lambda: "#stop!" in controller.fakes[0].frames())  # the bridge's own
+            await until(lambda: "#qsa!" in controller.fakes[0].frames())  # it polls
             controller.refuse = True  # unplugged
             controller.fakes[0].close()
             await watcher.wait_for(

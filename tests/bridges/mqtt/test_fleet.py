@@ -5,6 +5,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import os
+import signal
 import sys
 import time
 from collections.abc import Mapping
@@ -286,6 +287,54 @@ def test_the_live_table_rides_out_a_broker_restart(broker: Mosquitto) -> None:
         retain("r2")
         assert terminal.wait_shown(b" r2 "), terminal.shown.decode(errors="replace")
         assert terminal.process.poll() is None
+    finally:
+        terminal.close()
+
+
+@pytest.mark.integration
+@pytest.mark.slow
+@pytest.mark.realtime
+def test_the_live_table_says_so_when_the_broker_goes_silent(broker: Mosquitto) -> None:
+    # A broker that answers nothing any more (its network gone, its host stalled) was noticed
+    # only by paho-mqtt's default keep-alive, 60 s, a minute and more with no word in the
+    # caption; the bridges notice within 15 s (their keep-alive: 10 s), and so does the table.
+    from tests.terminals import Terminal
+
+    terminal = Terminal("fleet", "--broker", broker.url)
+    try:
+        assert terminal.wait_shown(b"no robot has published yet")
+        with broker.stalled():
+            assert terminal.wait_shown(b"reconnecting", timeout_s=30.0), terminal.shown.decode(
+                errors="replace"
+            )
+    finally:
+        terminal.close()
+
+
+@pytest.mark.integration
+@pytest.mark.parametrize(
+    ("how", "status", "last_line"),
+    [
+        (signal.SIGTERM, 0, "rovlink fleet stopped"),
+        (signal.SIGHUP, 0, "rovlink fleet stopped"),
+        (signal.SIGINT, 130, "rovlink fleet: interrupted"),
+    ],
+    ids=lambda value: value.name if isinstance(value, signal.Signals) else None,
+)
+def test_the_live_table_stops_as_a_service_does(
+    broker: Mosquitto, how: signal.Signals, status: int, last_line: str
+) -> None:
+    # Before, SIGTERM (systemctl stop, kill) ended the live table with status 130,
+    # "interrupted", where the serving commands (the bridges it watches among them) end with 0.
+    from tests.terminals import Terminal
+
+    terminal = Terminal("fleet", "--broker", broker.url)
+    try:
+        assert terminal.wait_shown(b"no robot has published yet")
+        terminal.process.send_signal(how)
+        assert terminal.process.wait(timeout=15) == status
+        assert terminal.process.stderr is not None
+        assert terminal.process.stderr.read().decode().splitlines()[-1] == last_line
     finally:
         terminal.close()
 

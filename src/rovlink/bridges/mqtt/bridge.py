@@ -35,7 +35,7 @@ from typing import Any
 
 from rovlink.aio.wakeup import wait_for_event
 from rovlink.bridges.kept_settings import KeptSettings
-from rovlink.bridges.mqtt.broker import BrokerSettings
+from rovlink.bridges.mqtt.broker import KEEPALIVE_S, BrokerSettings
 from rovlink.bridges.mqtt.broker_failure import broker_failure
 from rovlink.bridges.mqtt.command_age import (
     DEFAULT_MAX_COMMAND_AGE_S,
@@ -98,7 +98,6 @@ _RECONNECT_FIRST_S = 0.2
 _RECONNECT_MAX_S = 5.0
 #: Telemetry waiting for the broker beyond this drops its oldest (QoS 0 promises no more).
 _TELEMETRY_BACKLOG = 64
-_KEEPALIVE_S = 10
 #: How long the broker has to answer (CONNACK, SUBACK, PUBACK) before the connection is given up.
 REPLY_TIMEOUT_S = 5.0
 #: The offline state at the end is given up after this (the last will covers a lost broker).
@@ -210,11 +209,17 @@ class MqttBridge:
 
     async def run(self) -> None:
         """Serve until cancelled (or the controller's connection is lost for good: a link that a
-        client with ``reconnect`` reopens is served through, commands refused meanwhile); the
-        robot is sent ``#stop!`` at the start, so that its state is known (locked) before anyone
-        commands it, and as soon as the bridge begins to end, before the state is marked offline
-        (and once more when it has)."""
-        await self.rov.stop()
+        client with ``reconnect`` reopens is served through, commands refused meanwhile).
+
+        A bridge that takes commands (``allow_commands``) sends the robot ``#stop!`` at the
+        start, so that its state is known (locked) before anyone commands it, and as soon as
+        it begins to end, before the state is marked offline (and once more when it has). A
+        telemetry bridge sends neither: it never moves the robot, and its start or end (a
+        service restarted) must not stop the robot another tool is flying. It sends ``#stop!``
+        when a ``stop`` is published, as any bridge does."""
+        drives = self.policy.allow_commands
+        if drives:
+            await self.rov.stop()
         poller = asyncio.ensure_future(self.poller.run())
         broker = asyncio.ensure_future(self._stay_connected())
         try:
@@ -229,8 +234,9 @@ class MqttBridge:
             # time, a disconnection's reply), and without a motion timeout it would drive on
             # meanwhile, after Ctrl-C. Stopped again at the very end, in case a command being
             # carried out went out after this.
-            with contextlib.suppress(ConnectionError):
-                await self.rov.stop()
+            if drives:
+                with contextlib.suppress(ConnectionError):
+                    await self.rov.stop()
             # The broker task says goodbye as it ends (the offline state), within the farewell
             # time and a disconnection's reply: cancelled again only if it runs on beyond that.
             ending = asyncio.ensure_future(
@@ -245,8 +251,9 @@ class MqttBridge:
                     "the bridge's tasks did not end within %g s; stopping the robot anyway",
                     _END_WAIT_S,
                 )
-            with contextlib.suppress(ConnectionError):
-                await self.rov.stop()
+            if drives:
+                with contextlib.suppress(ConnectionError):
+                    await self.rov.stop()
 
     # -- the broker connection ---------------------------------------------------------------
 
@@ -339,7 +346,7 @@ class MqttBridge:
             identifier=f"rovlink-bridge-{self.robot_id}",
             protocol=aiomqtt.ProtocolVersion.V5,
             will=will,
-            keepalive=_KEEPALIVE_S,
+            keepalive=KEEPALIVE_S,
             tls_params=tls_params,
             tls_insecure=broker.insecure if broker.tls else None,
             timeout=self.reply_timeout_s,
@@ -720,10 +727,11 @@ class MqttBridge:
                 f"{event.consecutive_timeouts} queries timed out: the controller may have reset "
                 "(it is locked after a reset)"
             )
-            if self.rov.commanded.lock is not LockState.LOCKED:
+            if self.policy.allow_commands and self.rov.commanded.lock is not LockState.LOCKED:
                 # The state says the lock as last sent: #stop! makes it say what a reset did
                 # (P21), rather than "unlocked" for a robot that no longer moves (or unknown:
-                # the suspicion has made the lock as last sent unknown already).
+                # the suspicion has made the lock as last sent unknown already). A telemetry
+                # bridge sends none: a suspicion is no proof, and another tool may be flying.
                 self._in_background(self._stop_quietly())
                 detail += "; #stop! sent"
             self._event("reset_suspected", detail)

@@ -6,9 +6,12 @@ from dataclasses import dataclass
 from pathlib import Path
 from urllib.parse import urlsplit
 
-__all__ = ["BrokerSettings", "parse_broker_url"]
+__all__ = ["KEEPALIVE_S", "BrokerSettings", "parse_broker_url"]
 
 _DEFAULT_PORTS = {"mqtt": 1883, "mqtts": 8883}
+#: The MQTT keep-alive of the bridges and the fleet's table, s: a broker that goes silent (its
+#: network gone) is noticed within one and a half of it, not paho-mqtt's default minute and more.
+KEEPALIVE_S = 10
 
 
 @dataclass(frozen=True, slots=True)
