@@ -328,7 +328,10 @@ class Client(CommandMethods):
         signal handler, in the thread whose call it interrupted) writes it itself, as
         ``stop()`` does: a thread of its own would wait for that lock until it gave up."""
         if _owns(self._wire_lock) or _owns(self._state_lock):
-            self._write_stop_on_close()
+            try:
+                self._write_stop_on_close()
+            except Exception:  # (logged, not raised, as stop_within does)
+                logger.exception("%s: writing #stop!", self._link.description)
             return
         stop_within(self._write_stop_on_close, self._link.description)
 
