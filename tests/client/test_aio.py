@@ -331,6 +331,10 @@ async def test_bad_options_are_rejected_before_connecting() -> None:
 
     with pytest.raises(ValueError, match="max_in_flight"):
         rovlink.aio.connect("sim://", max_in_flight=0)
+    # A value of the wrong type is a TypeError, as every other setting's is (it was a ValueError).
+    for wrong_type in (1.5, "8", True, None):
+        with pytest.raises(TypeError, match=r"max_in_flight must be an integer ≥ 1, got "):
+            rovlink.aio.connect("sim://", max_in_flight=wrong_type)  # type: ignore[arg-type]
     with pytest.raises(ValueError, match="timeout must be a positive number"):
         rovlink.aio.connect("sim://", timeout=-1)
     with pytest.raises(ValueError, match="unknown sim option"):

@@ -242,3 +242,23 @@ async def test_the_asyncio_client_refuses_it_too(
     with pytest.raises(TypeError, match=r"subscribe: callback must be callable .*, got None"):
         rov.subscribe(None)  # type: ignore[arg-type]
     assert await rov.depth_cm() == 123
+
+
+async def _an_async_callback(event: ClientEvent) -> None:
+    """A subscriber that would never run: its coroutine is awaited by nobody."""
+
+
+def test_subscribing_an_async_def_is_refused_at_once(make_client: Callable[..., Client]) -> None:
+    rov = make_client()
+    with pytest.raises(TypeError, match=r"subscribe: callback must be a plain function, not an"):
+        rov.subscribe(_an_async_callback)  # type: ignore[arg-type]
+    assert rov.depth_cm() == 123
+
+
+async def test_the_asyncio_client_refuses_an_async_def_subscriber_too(
+    make_async_client: Callable[..., Awaitable[AsyncClient]],
+) -> None:
+    rov = await make_async_client()
+    with pytest.raises(TypeError, match=r"subscribe: callback must be a plain function, not an"):
+        rov.subscribe(_an_async_callback)  # type: ignore[arg-type]
+    assert await rov.depth_cm() == 123

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import os
+import subprocess
+import sys
 from collections.abc import Iterator
 
 import pytest
@@ -31,13 +33,44 @@ def test_a_second_opener_of_a_port_gets_a_clear_error(pty_path: str) -> None:
     try:
         with pytest.raises(ConnectError) as raised:
             open_link(parse_url(pty_path))
+        # The same program: a client it did not close (a notebook's cell run again). Before,
+        # it was told of another program, and looked for one.
         assert str(raised.value) == (
-            f"{pty_path} is already open in another program (a port has one host at a time)"
+            f"{pty_path} is already open in this program: a client that was not closed? (close "
+            "it first, or connect in a `with` block; a port has one host at a time)"
         )
     finally:
         first.close()
     # Released on close: the port opens again.
     open_link(parse_url(pty_path)).close()
+
+
+def test_a_port_another_program_holds_is_said_to_be_open_in_another_program(
+    pty_path: str,
+) -> None:
+    holder = subprocess.Popen(
+        [
+            sys.executable,
+            "-c",
+            "import sys, serial; port = serial.Serial(sys.argv[1], exclusive=True); print('open', "
+            "flush=True); sys.stdin.read()",
+            pty_path,
+        ],
+        stdin=subprocess.PIPE,
+        stdout=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        assert holder.stdout is not None
+        assert holder.stdout.readline() == "open\n"
+        with pytest.raises(ConnectError) as raised:
+            open_link(parse_url(pty_path))
+        assert str(raised.value) == (
+            f"{pty_path} is already open in another program (a port has one host at a time)"
+        )
+    finally:
+        holder.kill()
+        holder.wait()
 
 
 def test_a_serial_device_is_closed_to_every_other_program_while_open(

@@ -70,3 +70,16 @@ def test_options_alone_or_with_keywords_at_their_defaults_are_taken() -> None:
     options = ClientOptions(timeout_s=0.3, keepalive_s=None)
     with rovlink.connect("sim://", options=options, timeout=0.5, keepalive=1.0) as rov:
         assert rov._options is options
+
+
+async def _an_async_callback(event: object) -> None:
+    """What a program on the asyncio client may pass as a callback, and never hear from."""
+
+
+@pytest.mark.parametrize("name", ["on_event", "on_stray"])
+@pytest.mark.parametrize("connect", [rovlink.connect, rovlink.aio.connect])
+def test_an_async_def_callback_is_refused_before_connecting(connect: Any, name: str) -> None:
+    # (Before, it was taken: each event made a coroutine that nothing awaited, a RuntimeWarning,
+    # and the program heard nothing.)
+    with pytest.raises(TypeError, match=rf"{name} must be a plain function, not an async def"):
+        connect("sim://", **{name: _an_async_callback})

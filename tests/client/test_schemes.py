@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 import subprocess
 import sys
 import types
@@ -93,3 +94,16 @@ def test_open_errors_name_the_port() -> None:
         open_link(parse_url("/dev/null"))
     with pytest.raises(ConnectError, match="cannot open /dev/ttyNOSUCH9: No such file"):
         open_link(parse_url("/dev/ttyNOSUCH9"))
+
+
+def test_the_example_of_register_scheme_leaves_rovlinks_own_schemes_alone() -> None:
+    # (Before, it re-pointed fault:// to rovlink.fault.url, a module that does not exist: a
+    # program that copied it could no longer open fault:// at all.)
+    assert schemes.register_scheme.__doc__ is not None
+    examples = re.findall(
+        r'register_scheme\("(\w+)", "([\w.]+)"\)', schemes.register_scheme.__doc__
+    )
+    assert examples
+    for scheme, module in examples:
+        assert schemes.handler_module(scheme) is None, f"{scheme}:// is rovlink's own"
+        assert not module.startswith("rovlink."), f"{module}: a handler of rovlink's own"

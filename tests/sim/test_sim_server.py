@@ -16,7 +16,7 @@ import serial
 from rovlink.busy_tcp import RefusedClients
 from rovlink.controller import ControllerConfig
 from rovlink.controller import lines as lines_module
-from rovlink.controller.lines import TcpLine
+from rovlink.controller.lines import Lines, TcpLine
 from rovlink.sim import SimConfig
 from rovlink.sim.server import BUSY_MESSAGE, LINE_BUFFER_BYTES, SimServer, parse_tcp_address
 from tests.client.conftest import wait_until
@@ -442,3 +442,28 @@ def test_tcp_addresses(text: str, address: tuple[str, int]) -> None:
 def test_bad_tcp_addresses(text: str) -> None:
     with pytest.raises(ValueError, match="HOST:PORT"):
         parse_tcp_address(text)
+
+
+def test_a_client_that_closed_just_before_the_next_connected_gives_way_to_it() -> None:
+    # A program run twice in a row: its last bytes and its hang-up, and the next one's
+    # connection, wait in the same turn of the server. Before, the connection was handled first
+    # (the listener's descriptor is the lower), and the new program read "busy".
+    served: list[bytes] = []
+    lines = Lines(lambda line, data: served.append(data), busy_message=BUSY_MESSAGE)
+    try:
+        address = lines.listen_tcp()
+        with socket.create_connection(address, timeout=5) as first:
+            deadline = time.monotonic() + 5
+            while not lines.lines and time.monotonic() < deadline:  # (served in a turn or two)
+                lines.wait(0.05)
+            assert len(lines.lines) == 1
+            first.sendall(b"#stop!")
+        with socket.create_connection(address, timeout=5) as second:
+            lines.wait(0.5)  # one turn: the first's hang-up and the second's connection
+            assert served == [b"#stop!"]
+            assert len(lines.lines) == 1
+            served_line = lines.lines[0]
+            assert isinstance(served_line, TcpLine)
+            assert served_line.connection.getpeername() == second.getsockname()
+    finally:
+        lines.close()

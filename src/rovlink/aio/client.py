@@ -20,7 +20,7 @@ from types import TracebackType
 from typing import TYPE_CHECKING, Any, TypeVar
 
 from rovlink.aio.command_methods import AsyncCommandMethods
-from rovlink.aio.slots import InFlightSlots
+from rovlink.aio.slots import InFlightSlots, check_max_in_flight
 from rovlink.aio.transport import ByteTransport, transport_for
 from rovlink.aio.wakeup import wait_for_event
 from rovlink.client import links, operations
@@ -95,12 +95,7 @@ class AsyncClient(AsyncCommandMethods):
             client = AsyncClient(open_link(parse_url("socket://localhost:5760")))
             await client.open()
         """
-        if (
-            isinstance(max_in_flight, bool)
-            or not isinstance(max_in_flight, int)
-            or max_in_flight < 1
-        ):
-            raise ValueError(f"max_in_flight must be an integer ≥ 1, got {max_in_flight!r}")
+        check_max_in_flight(max_in_flight)
         self._options = options or ClientOptions()
         self._link = link
         self._loop = asyncio.get_running_loop()
@@ -1198,6 +1193,5 @@ def connect(
         reconnect=reconnect,
         stop_on_close=stop_on_close,
     )
-    if isinstance(max_in_flight, bool) or not isinstance(max_in_flight, int) or max_in_flight < 1:
-        raise ValueError(f"max_in_flight must be an integer ≥ 1, got {max_in_flight!r}")
+    check_max_in_flight(max_in_flight)
     return _Connecting(url, options, baudrate, max_in_flight)

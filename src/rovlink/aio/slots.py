@@ -11,7 +11,27 @@ from __future__ import annotations
 import asyncio
 from collections import deque
 
-__all__ = ["InFlightSlots"]
+__all__ = ["InFlightSlots", "check_max_in_flight"]
+
+
+def check_max_in_flight(max_in_flight: object) -> None:
+    """``max_in_flight`` as ``connect`` takes it: TypeError for what is no integer, ValueError
+    for an integer below 1 (as every other setting's wrong type and wrong value are told apart).
+
+    >>> check_max_in_flight(1.5)
+    Traceback (most recent call last):
+    ...
+    TypeError: max_in_flight must be an integer ≥ 1, got 1.5
+    >>> check_max_in_flight(0)
+    Traceback (most recent call last):
+    ...
+    ValueError: max_in_flight must be an integer ≥ 1, got 0
+    """
+    text = f"max_in_flight must be an integer ≥ 1, got {max_in_flight!r}"
+    if isinstance(max_in_flight, bool) or not isinstance(max_in_flight, int):
+        raise TypeError(text)
+    if max_in_flight < 1:
+        raise ValueError(text)
 
 
 class InFlightSlots:

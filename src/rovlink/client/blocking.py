@@ -251,17 +251,25 @@ class Client(CommandMethods):
             if current not in (closer, self._background, self._reconnector):
                 self._released.wait()
             return
+        # close() from a signal handler, in the thread whose call it interrupted: that call
+        # holds what it holds until the handler returns (then it raises ConnectionLostError).
+        # Its query, on the wire, has no other reader, and what it holds is not close()'s to
+        # give back (the call would then release locks it no longer held).
+        interrupted_call = self._in_a_call()
         try:
             try:
                 if stop_due:
                     self._stop_on_close()
-                for query in on_the_wire:  # answered, or timed out, before the port closes
-                    self._wait(query, owned=False)
+                for query in () if interrupted_call else on_the_wire:
+                    self._wait(query, owned=False)  # answered, or timed out, before the close
             finally:  # (a Ctrl-C in that wait still releases the port: P22, a next open)
-                self._recover_after_error()  # (nothing, unless that wait was interrupted)
+                if not interrupted_call:
+                    self._recover_after_error()  # (nothing, unless that wait was interrupted)
                 self._connection_lost(ConnectionLostError(f"{self._link.description}: closed"))
                 self._link.wake()
-                for thread in (self._background, self._reconnector):
+                # (Not from an interrupted call: they wait for what it holds. They end once
+                # the handler returns, as the client is closed.)
+                for thread in () if interrupted_call else (self._background, self._reconnector):
                     if thread is not None and thread is not current and thread.ident is not None:
                         thread.join(timeout=2.0)  # (the reconnecting thread may hold a new port)
                 with self._changed:  # a caller may still be in a read: it stops at the wake-up
@@ -273,6 +281,18 @@ class Client(CommandMethods):
                 self._close_link_once_written()
         finally:
             self._released.set()
+
+    def _in_a_call(self) -> bool:
+        """Whether this thread is inside a call of this client: it holds one of its locks, the
+        reader role or a query (close() from a signal handler that interrupted that call)."""
+        me = _get_ident()
+        return (
+            _owns(self._wire_lock)
+            or _owns(self._readied_lock)
+            or _owns(self._state_lock)
+            or self._reader_ident == me
+            or me in self._callers
+        )
 
     def _forked(self, error: ConnectionLostError) -> None:
         """In a child made with ``os.fork()`` (its only thread, before it runs on): every call
@@ -304,7 +324,15 @@ class Client(CommandMethods):
         """Send ``#stop!`` as close() begins, waiting for it at most 0.5 s
         (:func:`~rovlink.client.stop_at_exit.stop_within`): a line that takes nothing (or a port
         that cannot give up a write) never holds close() up, and closing the port ends that
-        write."""
+        write. A thread that holds the wire lock or the state lock already (close() from a
+        signal handler, in the thread whose call it interrupted) writes it itself, as
+        ``stop()`` does: a thread of its own would wait for that lock until it gave up."""
+        if _owns(self._wire_lock) or _owns(self._state_lock):
+            try:
+                self._write_stop_on_close()
+            except Exception:  # (logged, not raised, as stop_within does)
+                logger.exception("%s: writing #stop!", self._link.description)
+            return
         stop_within(self._write_stop_on_close, self._link.description)
 
     def _stop_at_exit(self) -> None:

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from inspect import iscoroutinefunction
 from typing import ClassVar
 
 from rovlink.protocol import Command, Event, Response, Setting
@@ -35,6 +36,7 @@ __all__ = [
     "ReplyReceived",
     "ResetSuspected",
     "Unsolicited",
+    "check_not_async",
     "subscriber",
 ]
 
@@ -173,4 +175,26 @@ def subscriber(callback: EventCallback) -> EventCallback:
         raise TypeError(
             f"subscribe: callback must be callable (it is called with each event), got {callback!r}"
         )
+    check_not_async("subscribe: callback", callback)
     return callback
+
+
+def check_not_async(name: str, callback: object) -> None:
+    """TypeError for an ``async def`` given as a callback: it is called and its result
+    dropped, so the coroutine it returns would never run, and the program would hear nothing
+    (but a ``RuntimeWarning`` at each event).
+
+    >>> async def show(event: object) -> None: ...
+    >>> check_not_async("on_event", show)  # doctest: +ELLIPSIS, +NORMALIZE_WHITESPACE
+    Traceback (most recent call last):
+    ...
+    TypeError: on_event must be a plain function, not an async def: it is called with each
+    event in turn and nothing awaits what it returns, so <function show at ...> would never
+    run; call asyncio.get_running_loop().create_task(...) from a plain function instead
+    """
+    if iscoroutinefunction(callback):
+        raise TypeError(
+            f"{name} must be a plain function, not an async def: it is called with each event "
+            f"in turn and nothing awaits what it returns, so {callback!r} would never run; call "
+            "asyncio.get_running_loop().create_task(...) from a plain function instead"
+        )

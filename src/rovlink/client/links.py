@@ -644,6 +644,11 @@ def _open_error(endpoint: Endpoint, error: BaseException) -> str:
     text = str(error)
     errno_value = getattr(error, "errno", None)
     if "exclusively lock" in text or errno_value == errno.EBUSY:
+        if _locked_by_this_process(name):
+            return (
+                f"{name} is already open in this program: a client that was not closed? (close "
+                "it first, or connect in a `with` block; a port has one host at a time)"
+            )
         return f"{name} is already open in another program (a port has one host at a time)"
     if errno_value == errno.ENOTTY or "Inappropriate ioctl" in text:
         return f"{name}: not a serial port"
@@ -660,6 +665,30 @@ def _open_error(endpoint: Endpoint, error: BaseException) -> str:
     elif "protocol 'tcp' not known" in text:  # (pyserial's name for TCP is socket://)
         reason = f"{text} (a TCP address is socket://{name.split('://', 1)[1]})"
     return f"cannot open {name}: {reason}"
+
+
+def _locked_by_this_process(path: str) -> bool:
+    """Whether this process holds the exclusive lock on device ``path`` (Linux's
+    ``/proc/locks``; False where it cannot tell): a client that a program, a notebook or a
+    shell session never closed, not another program.
+
+    >>> _locked_by_this_process("/dev/no-such-port")
+    False
+    """
+    try:
+        status = os.stat(path)
+        with open("/proc/locks", encoding="ascii", errors="replace") as locks:
+            table = locks.read()
+    except OSError:
+        return False
+    device = f"{os.major(status.st_dev):02x}:{os.minor(status.st_dev):02x}:{status.st_ino}"
+    pid = str(os.getpid())
+    # "1: FLOCK  ADVISORY  WRITE 1234 00:1a:7 0 EOF": kind, ..., pid, device:inode, range.
+    return any(
+        fields[1] == "FLOCK" and fields[4] == pid and fields[5] == device
+        for fields in (line.split() for line in table.splitlines())
+        if len(fields) > 5
+    )
 
 
 #: A name that is no device but ends in ``:NUMBER``: a TCP address or a speed written as a

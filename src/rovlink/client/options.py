@@ -6,7 +6,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, fields
 from typing import Any
 
-from rovlink.client.events import EventCallback
+from rovlink.client.events import EventCallback, check_not_async
 from rovlink.protocol import ALGORITHMS, Event
 
 __all__ = [
@@ -99,6 +99,7 @@ class ClientOptions:
             callback = getattr(self, name)
             if callback is not None and not callable(callback):
                 raise TypeError(f"{name} must be callable, got {callback!r}")
+            check_not_async(name, callback)
 
 
 def _check_seconds(name: str, value: object, *, optional: bool) -> None:

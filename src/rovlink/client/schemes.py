@@ -45,7 +45,7 @@ def register_scheme(scheme: str, module: str) -> None:
 
     Example::
 
-        register_scheme("fault", "rovlink.fault.url")   # then connect("fault://?inner=sim://")
+        register_scheme("myrov", "myteam.rov_url")   # then rovlink.connect("myrov://...")
     """
     if not scheme.isidentifier() or scheme != scheme.lower():
         raise ValueError(f"a URL scheme must be a lower-case name, got {scheme!r}")
@@ -59,7 +59,7 @@ def unregister_scheme(scheme: str) -> None:
 
     Example::
 
-        unregister_scheme("fault")
+        unregister_scheme("myrov")
     """
     _HANDLERS.pop(scheme, None)
 

@@ -45,6 +45,9 @@ __all__ = [
 logger = get_logger(__name__)
 
 _READ_BYTES = 4096
+#: Reads of the TCP client being served when another connects, to see whether it has gone: its
+#: last bytes and its hang-up (what a client that ends sends last) take two.
+_DRAIN_READS = 4
 #: Output kept for a line that does not read it, bytes.
 MAX_PENDING_BYTES = 1 << 16
 #: Empty reads in a row, each after select(2) said the device was readable, that mean a serial
@@ -395,17 +398,24 @@ class Lines:
 
     def _on_line_event(self, line: Line) -> Callable[[selectors.SelectorKey, int], None]:
         def handle(key: selectors.SelectorKey, mask: int) -> None:
-            if mask & selectors.EVENT_READ:
+            if mask & selectors.EVENT_READ and line in self.lines:  # (not drained and let go)
                 self._on_readable(line)
             if mask & selectors.EVENT_WRITE and line in self.lines:
                 self._flush(line)
 
         return handle
 
-    def _on_readable(self, line: Line) -> None:
+    def _drain(self, line: TcpLine) -> None:
+        """Handle what ``line`` has sent by now, its hang-up included (a few reads at most)."""
+        for _ in range(_DRAIN_READS):
+            if line is not self._tcp_line or not line.reading or not self._on_readable(line):
+                return
+
+    def _on_readable(self, line: Line) -> bool:
+        """Read ``line`` once; True if it gave bytes (it may have more)."""
         data = line.read()
         if data is None:
-            return
+            return False
         if not data:
             finishes = self._finishes_after_hangup
             # Only a stream ended in order: a failed connection has nobody left to answer, and
@@ -418,11 +428,12 @@ class Lines:
             ):
                 line.hung_up = True
                 self.set_reading(line, False)
-                return
+                return False
             self._gone(line)
-            return
+            return False
         line.last_bytes_s = time.monotonic()
         self._on_bytes(line, data)
+        return True
 
     def _gone(self, line: Line, write_error: OSError | None = None) -> None:
         """Let ``line`` go (it hung up, or a write to it failed); a serial device is opened
@@ -463,6 +474,11 @@ class Lines:
         except (BlockingIOError, ConnectionAbortedError):  # (gone before it was accepted)
             return
         current = self._tcp_line
+        if current is not None:
+            # Its hang-up may be waiting in this same turn, behind its last bytes (a program
+            # that closed and connected again at once: run twice in a row, or reconnecting).
+            self._drain(current)
+            current = self._tcp_line
         if current is not None:
             silent_s = time.monotonic() - current.last_bytes_s
             gives_way_s = self._silent_client_gives_way_s
