@@ -53,6 +53,14 @@ def test_a_leak_is_marked_where_it_fired() -> None:
     assert [list(mark.get_xdata()) for mark in marks] == [[5.0, 5.0]]
 
 
+def test_a_leak_in_a_table_without_events_is_marked_where_it_fired() -> None:
+    # A .csv holds no leak event: a dive aborted by a leak showed it only as a step of the
+    # latch at the last row, at the right edge of the picture.
+    rows = [_row(100.0, leak=0), _row(102.5, leak=0), _row(105.0, leak=1), _row(105.1, leak=1)]
+    assert collect(rows).events == [(5.0, "leak")]
+    assert collect(_dive_ending_in_a_leak()).events == [(5.0, "leak")]  # (its event, once)
+
+
 def test_the_title_says_who_recorded_the_dive_and_when_it_started() -> None:
     # The image said only the file's name: a plot passed round a week later said neither when
     # nor on what.
