@@ -191,3 +191,14 @@ def test_the_listing_says_when_the_session_started() -> None:
         "    0.000 s  --   demo 1 on sim:// (no checksum), started 2026-11-27 19:07:12 UTC",
         "    0.000 s  --   demo 1 on sim:// (no checksum)",
     ]
+
+
+def test_a_taps_own_stop_is_listed_as_the_taps() -> None:
+    # The #stop! a tap sends when a program leaves mid-dive was listed "(by the driver)", in a
+    # session no rovlink driver took part in: a team asking why the robot stopped looked for
+    # it in the pilot's program.
+    stop = FrameEntry(12.0, 0, "out", "command", "stop", (), by_session=True)
+    tap = HeaderEntry(10.0, 0, "socket://rov:5760", False, "crc8", "rovlink record", "1")
+    driver = HeaderEntry(10.0, 0, "sim://", False, "crc8", "rovlink demo", "1")
+    assert list(session_lines([tap, stop]))[-1] == "    2.000 s  out  #stop!  (by the tap)"
+    assert list(session_lines([driver, stop]))[-1] == "    2.000 s  out  #stop!  (by the driver)"

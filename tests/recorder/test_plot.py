@@ -2,11 +2,21 @@
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Any
 
 import pytest
 
-from rovlink.recorder import Entry, EventEntry, FrameEntry, HeaderEntry, TelemetryEntry
+from rovlink.recorder import (
+    Entry,
+    EventEntry,
+    FrameEntry,
+    HeaderEntry,
+    TelemetryEntry,
+    read_entries,
+)
+from rovlink.recorder.entries import TELEMETRY_FIELDS
+from rovlink.recorder.formats import open_sink
 from rovlink.recorder.plot import collect, plot_dive
 
 pytest.importorskip("matplotlib", reason="matplotlib is in the test extra (plot)")
@@ -43,6 +53,14 @@ def test_a_leak_is_marked_where_it_fired() -> None:
     assert [list(mark.get_xdata()) for mark in marks] == [[5.0, 5.0]]
 
 
+def test_a_leak_in_a_table_without_events_is_marked_where_it_fired() -> None:
+    # A .csv holds no leak event: a dive aborted by a leak showed it only as a step of the
+    # latch at the last row, at the right edge of the picture.
+    rows = [_row(100.0, leak=0), _row(102.5, leak=0), _row(105.0, leak=1), _row(105.1, leak=1)]
+    assert collect(rows).events == [(5.0, "leak")]
+    assert collect(_dive_ending_in_a_leak()).events == [(5.0, "leak")]  # (its event, once)
+
+
 def test_the_title_says_who_recorded_the_dive_and_when_it_started() -> None:
     # The image said only the file's name: a plot passed round a week later said neither when
     # nor on what.
@@ -69,6 +87,23 @@ def test_a_value_that_never_changed_is_drawn_to_the_recordings_end() -> None:
     assert (series.time_s, series.columns) == ([0.0, 7.0], {"depth_cm": [0.0, 0.0]})
     (depth,) = (axis for axis in plot_dive([row, query]).axes if axis.get_ylabel() == "depth, cm")
     assert [list(line.get_xdata()) for line in depth.get_lines()] == [[0.0, 7.0]]
+
+
+@pytest.mark.parametrize("suffix", [".csv", ".jsonl", ".mcap"])
+def test_a_recording_is_plotted_to_its_end_in_every_format(tmp_path: Path, suffix: str) -> None:
+    # A .csv holds a row per change, and its reader dropped the closing row that says when the
+    # recording ended: a dive's last minute at one depth was plotted as none (and a value that
+    # never changed, one row, as nothing), where its .mcap and .jsonl went to the end.
+    path = str(tmp_path / f"dive{suffix}")
+    sink = open_sink(path)
+    sink.write(HeaderEntry(99.9, _START_WALL_NS, "sim://", False, "crc8", "demo", "1"))
+    row = _row(100.0, leak=0)
+    sink.write(
+        TelemetryEntry(row.t_s, row.wall_ns, {**dict.fromkeys(TELEMETRY_FIELDS), **row.values})
+    )
+    sink.write(FrameEntry(160.0, _START_WALL_NS + 60 * 10**9, "out", "command", "qd", ()))
+    sink.close()
+    assert collect(read_entries(path)).time_s == [0.0, 60.0]
 
 
 def test_no_legend_hides_the_data_of_its_panel() -> None:

@@ -8,6 +8,8 @@ from pathlib import Path
 
 import pytest
 
+import rovlink
+import rovlink.aio
 from rovlink.aio import AsyncClient
 from rovlink.client import Client, ClientOptions, QueryTimeoutError
 from rovlink.client.links import SocketLink
@@ -88,3 +90,32 @@ def test_a_program_asking_again_after_a_final_failure_is_replayed_both_times(
     finally:
         fake.close()
     assert _steps(path) == [(_QD, None, 1), (_QD, _ANSWER, 1)]
+
+
+@pytest.mark.parametrize("kind", ["blocking", "asyncio"])
+def test_the_drivers_checksum_confirmation_is_its_own(tmp_path: Path, kind: str) -> None:
+    # With checksums on, the driver confirms the mode with a #qd! of its own as it connects: it
+    # was recorded as the program's, listed without "(by the driver)", and a replay sent it
+    # as one of the program's queries (besides the replaying driver's own).
+    path = tmp_path / "dive.jsonl"
+    with Recorder(str(path), url="sim://?seed=1") as recorder:
+        if kind == "blocking":
+            with rovlink.connect("sim://?seed=1", checksum=True, on_event=recorder.on_event) as rov:
+                rov.depth_cm()
+        else:
+
+            async def drive() -> None:
+                url = "sim://?seed=1"
+                async with rovlink.aio.connect(
+                    url, checksum=True, on_event=recorder.on_event
+                ) as rov:
+                    await rov.depth_cm()
+
+            asyncio.run(drive())
+    queries = [
+        entry.by_session
+        for entry in read_entries(str(path))
+        if isinstance(entry, FrameEntry) and entry.name == "qd" and entry.direction == "out"
+    ]
+    assert queries == [True, False]  # (the connect probe's #qd! is on the wire alone)
+    assert [command for command, _, _ in _steps(path)] == [_QD]

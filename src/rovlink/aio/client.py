@@ -154,6 +154,7 @@ class AsyncClient(AsyncCommandMethods):
             self._send(operations.checksum(options.checksum), by_session=True)
             if options.checksum and options.boot_timeout_s is not None:
                 self._session.reset_notices = False  # (the error below says what timeouts mean)
+                self._session.own_queries = True
                 try:
                     await self._request(Command("qd"))
                 except QueryTimeoutError as error:
@@ -162,6 +163,7 @@ class AsyncClient(AsyncCommandMethods):
                     ) from error
                 finally:
                     self._session.reset_notices = True
+                    self._session.own_queries = False
         except BaseException:
             # A failed or cancelled open leaves nothing behind: the loop would go on watching a
             # descriptor the caller then closes, and the next port opened under that number

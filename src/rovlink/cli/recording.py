@@ -7,6 +7,7 @@ import contextlib
 import math
 import os
 import re
+import stat
 from typing import TYPE_CHECKING
 
 from rovlink.cli.failure import CommandError, UsageError, reason
@@ -223,8 +224,7 @@ def refuse_existing_recording(args: argparse.Namespace, path: str) -> None:
     recording that holds its header alone is removed (:func:`discard_empty_recording`)."""
     if getattr(args, "overwrite", False):
         return
-    # (A directory is no recording: its open says "Is a directory".)
-    taken = [path] if os.path.lexists(path) and not os.path.isdir(path) else []
+    taken = [path] if _holds_data(path) else []
     if _rotates(args):
         taken += _rotation_files(path)
     if taken:
@@ -233,6 +233,17 @@ def refuse_existing_recording(args: argparse.Namespace, path: str) -> None:
             f"{'exists' if len(taken) == 1 else 'exist'} already (a recording is "
             "never written over: remove it, record to another file, or add --overwrite)"
         )
+
+
+def _holds_data(path: str) -> bool:
+    """Whether writing to ``path`` would lose what is there: a file (or a link to one, or to
+    nothing). A directory is no recording (its open says "Is a directory"), and a pipe that
+    another program reads (``mkfifo live.jsonl``) or a device holds nothing to lose."""
+    try:
+        mode = os.stat(path).st_mode
+    except OSError:
+        return os.path.lexists(path)  # (a link to nothing: it is written through)
+    return stat.S_ISREG(mode)
 
 
 def report_recording(recorder: Recorder, elapsed_s: float) -> None:
@@ -266,7 +277,8 @@ def discard_empty_recording(recorder: Recorder, program: str) -> None:
     or one that carried nothing), and say so in one line as ``program`` (``rovlink send``): a
     file that looks like a recording of a session that never took place is not left behind."""
     for path in recorder.paths:
-        with contextlib.suppress(FileNotFoundError):
-            os.remove(path)
+        if _holds_data(path):  # (a pipe another program reads stays, as it was made)
+            with contextlib.suppress(FileNotFoundError):
+                os.remove(path)
     files = ", ".join(recorder.paths)
     say_last(f"{program}: nothing was recorded; {files} not kept")

@@ -961,6 +961,7 @@ class Client(CommandMethods):
     def _confirm_checksum_mode(self) -> None:
         with self._state_lock:
             self._session.reset_notices = False  # (the error below says what timeouts mean)
+            self._session.own_queries = True
         try:
             self._request(Command("qd"))
         except QueryTimeoutError as error:
@@ -970,6 +971,7 @@ class Client(CommandMethods):
         finally:
             with self._state_lock:
                 self._session.reset_notices = True
+                self._session.own_queries = False
 
     def _flush_due(self) -> None:
         """Write what the session has due (state lock held on entry and on return)."""

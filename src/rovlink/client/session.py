@@ -231,6 +231,7 @@ class Session:
         "last_sent_at",
         "motion_timeout_s",
         "notices",
+        "own_queries",
         "reset_after_timeouts",
         "reset_notices",
         "timeout_s",
@@ -264,6 +265,10 @@ class Session:
         #: not while the driver confirms the checksum mode on connecting, where timeouts mean
         #: a controller on another algorithm or without the mode, which its error then says.
         self.reset_notices = True
+        #: Whether the queries asked now are the driver's own (its confirmation of the checksum
+        #: mode on connecting): their frames are ``by_session``, as a fence's are, and a replay
+        #: of a recording leaves them out (it was resent as the program's).
+        self.own_queries = False
         self.counters = LinkCounters()
         self.last_sent_at = float("-inf")
         self._last_progress_at = float("-inf")
@@ -531,7 +536,7 @@ class Session:
             return self.take_outbox(now), pending
         data = self.take_outbox(now) if self._outbox else b""
         frame = self.query_bytes(command)
-        self._account(command, frame, now, retry=retry)
+        self._account(command, frame, now, by_session=self.own_queries, retry=retry)
         self._pending.append(pending)
         return data + frame, pending
 
@@ -549,7 +554,7 @@ class Session:
         counters.bytes_sent += len(data)
         self.last_sent_at = now
         if self.events is not None:
-            self.events.append(BytesSent(now, data, command))
+            self.events.append(BytesSent(now, data, command, self.own_queries))
         pending = PendingQuery(command, now)
         self._pending.append(pending)
         return data, pending

@@ -21,6 +21,7 @@ from typing import BinaryIO
 from rovlink.recorder.entries import (
     TELEMETRY_FIELDS,
     Entry,
+    EventEntry,
     TelemetryEntry,
     check_telemetry_range,
 )
@@ -103,7 +104,8 @@ class TelemetryCsvSink(FileSink):
 
 
 def read_csv(path: str) -> Iterator[Entry]:
-    """The telemetry rows of a ``.csv`` recording.
+    """The telemetry rows of a ``.csv`` recording, then (a file its recorder closed) its
+    closing row's time as a :data:`END_EVENT` event: when the recording ended.
 
     Each line is decoded on its own: a byte that is not UTF-8 damages its row alone, and the
     rows before it are read (a text stream decodes thousands of bytes at once, and failed on
@@ -181,6 +183,9 @@ def read_csv(path: str) -> Iterator[Entry]:
                 ) from None
             if event == END_EVENT:
                 ended = True
+                # When the recording ended, which only this row says in a table of changes:
+                # without it a dive's last minutes at one depth were plotted as none.
+                yield EventEntry(entry.t_s, entry.wall_ns, END_EVENT, "recording", "closed")
                 continue
             count += 1
             yield entry

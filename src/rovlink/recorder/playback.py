@@ -36,13 +36,24 @@ def _frame_text(entry: FrameEntry) -> str:
     return encode(message).decode("ascii")
 
 
-def describe(entry: Entry, *, wire: bool = False) -> str | None:
-    """The line of one entry (``None``: not shown; raw bytes only with ``wire``)."""
+#: The program whose recordings are a tap's: the frames it writes itself (its ``#stop!`` when a
+#: program leaves) are the tap's, not a driver's.
+_TAP_PROGRAM = "rovlink record"
+
+
+def describe(entry: Entry, *, wire: bool = False, writer: str = "the driver") -> str | None:
+    """The line of one entry (``None``: not shown; raw bytes only with ``wire``); ``writer``
+    wrote the frames the session wrote itself (``by_session``).
+
+    >>> stop = FrameEntry(2.0, 0, "out", "command", "stop", (), by_session=True)
+    >>> describe(stop, writer="the tap")
+    'out  #stop!  (by the tap)'
+    """
     if isinstance(entry, FrameEntry):
         text = f"{entry.direction:<4} {_frame_text(entry)}"
         notes = []
         if entry.by_session:
-            notes.append("by the driver")
+            notes.append(f"by {writer}")
         if entry.retry:
             notes.append("retry by the driver")
         if entry.query is not None:
@@ -115,8 +126,12 @@ def wait_until(
 def session_lines(entries: Iterable[Entry], *, wire: bool = False) -> Iterator[str]:
     """Each shown entry as ``"  12.345 s  <line>"`` from the first entry's time."""
     first_s: float | None = None
+    writer = "the driver"
     for entry in entries:
-        line = describe(entry, wire=wire)
+        if isinstance(entry, HeaderEntry):
+            # (A tap's #stop! was listed "by the driver" in a session no driver took part in.)
+            writer = "the tap" if entry.program == _TAP_PROGRAM else "the driver"
+        line = describe(entry, wire=wire, writer=writer)
         if line is None:
             continue
         if first_s is None and entry.t_s > 0:

@@ -67,9 +67,14 @@ def collect(entries: Iterable[Entry]) -> DiveSeries:
     series = DiveSeries()
     first_s: float | None = None
     last_s = -math.inf  # (the recording's end: its last entry of any channel)
+    # A table without events (a .csv has no header, and no leak event): the latch's changes are
+    # read from its column, or a leak that aborted a dive showed as a step at its last row.
+    events_recorded = False
+    leak: int | None = None
     for entry in entries:
         if isinstance(entry, HeaderEntry):  # (written as the file starts: not its end)
             series.recorded_by = f"{entry.program} on {entry.url}" if entry.url else entry.program
+            events_recorded = True
             continue
         last_s = max(last_s, entry.t_s)
         if isinstance(entry, TelemetryEntry):
@@ -77,6 +82,11 @@ def collect(entries: Iterable[Entry]) -> DiveSeries:
                 first_s = entry.t_s
                 series.start_wall_ns = entry.wall_ns
             series.time_s.append(entry.t_s - first_s)
+            now_leak = entry.values.get("leak")
+            if not events_recorded and now_leak is not None:
+                if leak is not None and now_leak != leak:
+                    series.events.append((entry.t_s - first_s, "leak"))
+                leak = now_leak
             for name, value in entry.values.items():
                 series.columns.setdefault(name, []).append(
                     float("nan") if value is None else float(value)
