@@ -51,9 +51,11 @@ class _Server(uvicorn.Server):
     """uvicorn's server, except that SIGINT, SIGTERM, SIGHUP and SIGQUIT only end the serving:
     uvicorn would raise the signal again as soon as it stops, and SIGTERM's default action would
     end the process before the station has sent ``#stop!`` and closed the link. :attr:`interrupted`:
-    whether the signal that ended it was Ctrl-C or Ctrl-\\ (the command's status is then 130)."""
+    whether the signal that ended it was Ctrl-C or Ctrl-\\ (the command's status is then 130);
+    :attr:`signalled`: whether a signal ended it at all."""
 
     interrupted = False
+    signalled = False
 
     def __init__(
         self, config: uvicorn.Config, *, stop_robot: Callable[[], Awaitable[None]]
@@ -68,6 +70,7 @@ class _Server(uvicorn.Server):
         # as SIGHUP then SIGINT, and the status depended on that race.
         if sig == signal.SIGINT or sig == getattr(signal, "SIGQUIT", None):  # (Ctrl-C, Ctrl-\\)
             self.interrupted = True
+        self.signalled = True
         super().handle_exit(sig, frame)
         try:
             asyncio.get_running_loop()
@@ -171,9 +174,10 @@ async def serve(
     *,
     description: str,
     ready: Callable[[list[str]], None],
-) -> bool:
+) -> str | None:
     """Connect, then serve until SIGINT, SIGTERM or SIGHUP; ``ready`` gets the page's URLs
-    once listening. Whether Ctrl-C (SIGINT) ended it.
+    once listening. How it ended: ``interrupted`` (Ctrl-C or Ctrl-\\), ``stopped`` (SIGTERM,
+    SIGHUP: a service stopped), or ``None`` (the station shut down by itself).
 
     On the way out the relay is disarmed and ``#stop!`` (every output to zero, the motors
     locked) is sent unless the robot is locked as last sent; then the link is closed.
@@ -231,4 +235,6 @@ async def serve(
             listener.close()
     finally:
         await client.close()
-    return server.interrupted
+    if server.interrupted:
+        return "interrupted"
+    return "stopped" if server.signalled else None
