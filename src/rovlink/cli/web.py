@@ -87,7 +87,11 @@ def run(args: argparse.Namespace) -> int:
     try:
         from rovlink.cli.async_run import run_async  # noqa: PLC0415
         from rovlink.station import access as station_access  # noqa: PLC0415
-        from rovlink.station.serve import ServeOptions, serve  # noqa: PLC0415
+        from rovlink.station.serve import (  # noqa: PLC0415
+            ServeOptions,
+            StationFailedError,
+            serve,
+        )
     except ImportError as error:
         raise CommandError(f"needs {error.name}: pip install 'rovlink[web]'") from None
     from pathlib import Path  # noqa: PLC0415
@@ -143,6 +147,8 @@ def run(args: argparse.Namespace) -> int:
         ending = run_async(serve(connect, options, description=args.url, ready=ready))
     except OSError as error:
         raise CommandError(f"cannot serve on {args.host}:{args.port}: {reason(error)}") from None
+    except StationFailedError as error:  # (its traceback is logged: a bug)
+        raise CommandError(f"{error}: the station shut down") from None
     if ending == "interrupted":  # Ctrl-C: status 130, as every command
         raise KeyboardInterrupt
     if ending == "stopped":  # SIGTERM, SIGHUP: a service stopped, 0

@@ -28,9 +28,14 @@ from rovlink.station.hub import Station
 from rovlink.station.messages import MAX_MESSAGE_BYTES
 from rovlink.station.recording import StationRecordings
 
-__all__ = ["ServeOptions", "bind", "page_urls", "serve"]
+__all__ = ["ServeOptions", "StationFailedError", "bind", "page_urls", "serve"]
 
 logger = logging.getLogger(__name__)
+
+
+class StationFailedError(Exception):
+    """The station's polling or watchdog failed: it shut down (``#stop!`` sent unless locked
+    as last sent), and the command that served it failed."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -177,7 +182,8 @@ async def serve(
 ) -> str | None:
     """Connect, then serve until SIGINT, SIGTERM or SIGHUP; ``ready`` gets the page's URLs
     once listening. How it ended: ``interrupted`` (Ctrl-C or Ctrl-\\), ``stopped`` (SIGTERM,
-    SIGHUP: a service stopped), or ``None`` (the station shut down by itself).
+    SIGHUP: a service stopped), or ``None`` (the server ended by itself); StationFailedError if
+    the station's polling or watchdog failed (which ends the serving).
 
     On the way out the relay is disarmed and ``#stop!`` (every output to zero, the motors
     locked) is sent unless the robot is locked as last sent; then the link is closed.
@@ -216,6 +222,7 @@ async def serve(
         # Without its watchdog the station must not go on serving: it shuts down (and sends
         # #stop! on the way out).
         running.add_done_callback(lambda _: setattr(server, "should_exit", True))
+        failure: Exception | None = None
         try:
             serving = asyncio.ensure_future(server.serve(sockets=[listener]))
             while not server.started and not serving.done():
@@ -229,12 +236,17 @@ async def serve(
                 await running
             except asyncio.CancelledError:
                 pass
-            except Exception:
+            except Exception as error:
                 logger.exception("the station's polling or watchdog failed; shutting down")
+                failure = error
             await station.shutdown()
             listener.close()
     finally:
         await client.close()
+    if failure is not None:
+        raise StationFailedError(
+            f"the station's polling or watchdog failed ({type(failure).__name__}: {failure})"
+        ) from failure
     if server.interrupted:
         return "interrupted"
     return "stopped" if server.signalled else None
