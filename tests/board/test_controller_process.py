@@ -78,11 +78,15 @@ def test_a_signal_ends_the_process_with_the_thrusters_at_neutral(
         transactions = read_log(log)
         assert is_neutral(pulses(transactions))
         assert "thrusters at neutral" in controller.stderr()
+        # One line says how it ended (before, Ctrl-C said "stopped" and "interrupted").
+        said = "rovlink controller stopped: " if status == 0 else "rovlink controller: "
         assert re.search(
-            r"stopped: thrusters at neutral; \d+ control periods, \d+ overrun\(s\), "
-            r"0 device fault\(s\)",
+            rf"^{said}thrusters at neutral; \d+ control periods, \d+ overrun\(s\), "
+            r"0 device fault\(s\)$",
             controller.stderr(),
+            re.MULTILINE,
         )
+        assert ("rovlink controller: interrupted" in controller.stderr()) is (status == 130)
 
 
 def _bench_failsafe_step_command(pty_path: str) -> list[str]:

@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 
 from rovlink.client.errors import SupersededByStopError
-from rovlink.client.events import BytesSent
+from rovlink.client.events import BytesSent, LateReply
 from rovlink.client.session import FENCE_QUERIES, STOP_REPEATS, Outcome, PendingQuery, Session
 from rovlink.protocol import COMMANDS, Command, Spec, Text
 
@@ -596,3 +596,23 @@ def test_a_stop_is_carried_again_until_something_moves_or_unlocks(unlocked: bool
     # lost the next stop is what brings the robot to rest: only an unlock ends the repeats.
     session.command(Command("start") if unlocked else Command("th", (0, 30)), now=1.2)
     assert _keepalive_bytes(session, now=2.2) == (b"#qd!" if unlocked else b"#stop!#qd!")
+
+
+def test_a_late_reply_says_whether_it_answers_a_query_of_the_sessions_own() -> None:
+    # Before, a keep-alive's reply that came after it timed out was a LateReply like any
+    # other: the console showed it to the pilot as the late answer to a query they never typed.
+    session = Session(timeout_s=0.5, keepalive_s=1.0, record_events=True)
+    session.tick(now=1.0)
+    assert session.take_outbox(now=1.0) == b"#qd!"  # the keep-alive
+    session.tick(now=1.5)  # it times out: qd is late, fenced by qhe
+    assert session.take_outbox(now=1.5) == b"#qhe!"
+    session.receive(b"$qd.5!$qhe.10!", now=1.6)
+    late = [event for event in session.take_events() if isinstance(event, LateReply)]
+    assert [(event.response.values, event.by_session) for event in late] == [((5,), True)]
+    # A program's query that times out: its late reply is the program's.
+    session.query(Command("qd"), now=2.0)
+    session.tick(now=2.5)
+    session.take_outbox(now=2.5)
+    session.receive(b"$qd.6!$qhe.11!", now=2.6)
+    late = [event for event in session.take_events() if isinstance(event, LateReply)]
+    assert [(event.response.values, event.by_session) for event in late] == [((6,), False)]

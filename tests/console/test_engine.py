@@ -4,9 +4,11 @@ the stop key jumps the queue, leaving sends #stop! unless locked as last sent.""
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import socket
 
 from rovlink.aio import AsyncClient
+from rovlink.client.events import ClientEvent, LateReply
 from rovlink.client.links import SocketLink
 from rovlink.console.actions import Quit, SendCommand, SendRaw, SetChecksum, ShowStatus, parse_line
 from rovlink.console.engine import ConsoleEngine
@@ -170,6 +172,33 @@ async def test_a_reply_after_its_query_timed_out_is_shown_as_late() -> None:
     controller_end.sendall(b"$qd.5!")
     await until(lambda: "late: its query had timed out" in screen.text())
     assert "  qd → 5 cm                 $qd.5!  late: its query had timed out" in screen.lines
+    await client.close()
+    controller_end.close()
+
+
+async def test_a_late_reply_to_a_keepalive_is_not_shown_as_a_reply() -> None:
+    # Before, the reply to the driver's own keep-alive that came after the keep-alive had timed
+    # out was shown as "qd → 5 cm … late": the pilot read it as the answer to a line they typed.
+    host_end, controller_end = socket.socketpair()
+    controller_end.setblocking(False)
+    options = client_options(timeout_s=NO_REPLY_TIMEOUT_S, retries=0, keepalive_s=0.05)
+    client = await AsyncClient(SocketLink(host_end, "slow controller"), options).open()
+    screen = Screen()
+    engine = ConsoleEngine(screen)
+    engine.attach(TrackedClient(client))
+    events: list[ClientEvent] = []
+    client.subscribe(events.append)  # (called after the engine's subscription)
+    received = bytearray()
+
+    def heard(frame: bytes) -> bool:
+        with contextlib.suppress(BlockingIOError):
+            received.extend(controller_end.recv(4096))
+        return frame in received
+
+    await until(lambda: heard(b"#qhe!"))  # the keep-alive's #qd! timed out: fenced
+    controller_end.sendall(b"$qd.5!$qhe.10!")  # the keep-alive's reply, late, then the fence's
+    await until(lambda: any(isinstance(event, LateReply) for event in events))
+    assert "qd →" not in screen.text()
     await client.close()
     controller_end.close()
 

@@ -178,6 +178,27 @@ async def test_every_reading_shown_is_marked_stale_when_the_link_is_cut() -> Non
         await pilot.press("q")
 
 
+async def test_the_controllers_last_message_shows_its_age_once_stale() -> None:
+    # Regression: a controller message of minutes ago was shown as one of now.
+    rig = Rig.simulated()
+    strays: list[StrayCallback] = []
+
+    async def connect(on_stray: StrayCallback) -> AsyncClient:
+        strays.append(on_stray)
+        return await rig.connect(on_stray)
+
+    clock = FakeClock()
+    app = MonitorApp(connect, description="bench", rate_hz=20, clock=clock)
+    async with app.run_test(size=SIZE) as pilot:
+        await until(lambda: _depth_shown(app) == 0)
+        strays[0](DebugText("debug: hold"))
+        await until(lambda: "debug: hold" in shown(app, "#commanded"))
+        assert "ago" not in shown(app, "#commanded")
+        clock.now_s += 6.5
+        await until(lambda: "debug: hold  (6.5 s ago)" in shown(app, "#commanded"))
+        await pilot.press("q")
+
+
 async def test_leak_alarm_and_reset() -> None:
     rig = Rig.simulated(leak_at_s=1.0)
     app = MonitorApp(rig.connect, description="bench", rate_hz=20)

@@ -6,6 +6,7 @@ from rovlink.client import LinkCounters, Sensors
 from rovlink.monitor.panels import (
     attitude_text,
     commanded_text,
+    controller_message_text,
     depth_text,
     leak_text,
     link_text,
@@ -41,6 +42,17 @@ def test_a_reading_goes_stale_after_three_polling_periods() -> None:
     assert stale_text(readings, now_s=10.6, period_s=0.2) is None
     assert stale_text(readings, now_s=11.0, period_s=0.2) == "stale: 1.0 s old"
     assert stale_text(Readings(), now_s=11.0, period_s=0.2) is None
+
+
+def test_the_controllers_last_message_goes_stale_as_a_reading_does() -> None:
+    # Regression: the controller's last message looked as current minutes later as when it came.
+    fresh = controller_message_text("debug: hold", age_s=0.6, period_s=0.2)
+    assert fresh.plain == "debug: hold"
+    assert "dim" not in str(fresh.style)
+    old = controller_message_text("debug: hold", age_s=125.0, period_s=0.2)
+    assert old.plain == "debug: hold  (125.0 s ago)"
+    assert "dim" in str(old.style)
+    assert "yellow" not in str(old.style)
 
 
 def test_stale_values_are_dimmed_and_a_stale_all_clear_is_no_all_clear() -> None:

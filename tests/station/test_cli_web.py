@@ -112,3 +112,19 @@ def test_the_station_names_the_simulators_algorithm(
     [(options, url)] = served
     assert options.algorithm == algorithm
     assert url == f"sim://?algorithm={algorithm}"
+
+
+@pytest.mark.integration
+def test_a_station_whose_polls_fail_ends_with_status_1(capsys, monkeypatch, tmp_path):
+    # Before, a station whose polling (or watchdog) task failed logged the traceback, shut down
+    # and exited with 0: a service manager took it for a clean stop and did not restart it.
+    async def failing_poll(self):
+        raise RuntimeError("a bug in the polls")
+
+    monkeypatch.setattr("rovlink.station.hub.Station._poll", failing_poll)
+    assert main(["web", "--port", "0", "--recordings", str(tmp_path)]) == 1
+    said = capsys.readouterr().err.strip().splitlines()[-1]
+    assert said == (
+        "rovlink web: the station's polling or watchdog failed (RuntimeError: a bug in the "
+        "polls): the station shut down"
+    )

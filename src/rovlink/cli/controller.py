@@ -8,7 +8,6 @@ whoever reaches the line drives the robot, so TCP listens on loopback unless --a
 from __future__ import annotations
 
 import argparse
-import threading
 from typing import TYPE_CHECKING, Protocol
 
 from rovlink.cli.failure import CommandError, InputError, UsageError, reason
@@ -115,9 +114,9 @@ def run(args: argparse.Namespace) -> int:
     signals = ServingSignals()
     try:
         if args.board == "sim":
-            status = _run_sim(args, address, signals.stopping)
+            status = _run_sim(args, address, signals)
         else:
-            status = _run_pi(args, address, signals.stopping)
+            status = _run_pi(args, address, signals)
     finally:
         signals.restore()
     signals.finish()  # (Ctrl-C: status 130; SIGTERM, SIGHUP: a service stopped, 0)
@@ -163,7 +162,7 @@ def _tcp_address(args: argparse.Namespace) -> tuple[str, int] | None:
 
 
 def _run_pi(
-    args: argparse.Namespace, address: tuple[str, int] | None, stop: threading.Event
+    args: argparse.Namespace, address: tuple[str, int] | None, signals: ServingSignals
 ) -> int:
     import logging  # noqa: PLC0415
 
@@ -194,7 +193,7 @@ def _run_pi(
         if service_notifier is not None:
             service_notifier.ready()
         try:
-            server.serve(stop.is_set)
+            server.serve(signals.stopping.is_set)
         except Exception as error:
             logging.getLogger("rovlink.board").exception("the control loop failed")
             outcome = (
@@ -212,9 +211,10 @@ def _run_pi(
         if service_notifier is not None:
             service_notifier.close()
     schedule = server.schedule
-    say_last(  # (a closed terminal, SIGHUP, takes no line)
-        f"rovlink controller stopped: thrusters at neutral; {schedule.periods} control periods, "
-        f"{schedule.overruns} overrun(s), {server.device_faults} device fault(s)"
+    signals.say_stopped(  # (a closed terminal, SIGHUP, takes no line)
+        "rovlink controller",
+        f"thrusters at neutral; {schedule.periods} control periods, "
+        f"{schedule.overruns} overrun(s), {server.device_faults} device fault(s)",
     )
     return 0
 
@@ -297,7 +297,7 @@ def _pi_outputs_config(args: argparse.Namespace) -> PiConfig:
 
 
 def _run_sim(
-    args: argparse.Namespace, address: tuple[str, int] | None, stop: threading.Event
+    args: argparse.Namespace, address: tuple[str, int] | None, signals: ServingSignals
 ) -> int:
     import dataclasses  # noqa: PLC0415
 
@@ -324,10 +324,10 @@ def _run_sim(
     try:
         endpoints = _open_pty_and_tcp(server, args, address)
         say_ready(f"rovlink controller ready: board sim, {', '.join(endpoints)}; Ctrl-C stops")
-        server.serve(stop.is_set)
+        server.serve(signals.stopping.is_set)
     finally:
         server.close()
-    say_last("rovlink controller stopped")
+    signals.say_stopped("rovlink controller")
     return 0
 
 

@@ -154,5 +154,6 @@ def run(args: argparse.Namespace) -> int:
     if proxy.lost is not None:
         raise CommandError(f"the controller's link was lost: {proxy.lost}")
     if signals is not None:
+        signals.say_stopped("rovlink fault")
         signals.finish()  # (Ctrl-C: status 130; SIGTERM, SIGHUP: a service stopped, 0)
     return 0

@@ -163,7 +163,7 @@ def run_in_worker(work: Callable[[], T]) -> T:
 
 #: The signals a terminal's keys send (Ctrl-C, Ctrl-\\): a serving command they end says
 #: "interrupted" (130), where a service manager's SIGTERM or a closed terminal's SIGHUP is a
-#: clean stop (0).
+#: clean stop (0), said ``PROGRAM stopped``.
 _KEYS_OF_A_TERMINAL = frozenset(
     getattr(signal, name) for name in ("SIGINT", "SIGQUIT") if hasattr(signal, name)
 )
@@ -174,8 +174,10 @@ class ServingSignals:
     SIGTERM, SIGHUP and SIGQUIT set :attr:`stopping`, and its loop ends cleanly (a file
     finished, a ``#stop!`` sent). Then :meth:`finish` raises KeyboardInterrupt if it was Ctrl-C
     or Ctrl-\\ (SIGQUIT), so that the status is 130 as for every command; SIGTERM and SIGHUP,
-    a service manager's way of stopping a service, end it with its own status (0). A signal
-    ignored on entry (``nohup``, SIGINT in a background job) stays ignored.
+    a service manager's way of stopping a service, end it with its own status (0). One line
+    says which: ``rovlink sim: interrupted`` (the command line's, as for every command) or
+    ``rovlink sim stopped`` (:meth:`say_stopped`). A signal ignored on entry (``nohup``, SIGINT
+    in a background job) stays ignored.
 
     Example::
 
@@ -184,13 +186,16 @@ class ServingSignals:
             server.serve(signals.stopping.is_set)
         finally:
             signals.restore()
+        signals.say_stopped("rovlink sim")
         signals.finish()
     """
 
     def __init__(self) -> None:
         self.stopping = threading.Event()
-        #: Whether Ctrl-C (SIGINT) ended the command.
+        #: Whether Ctrl-C (SIGINT) or Ctrl-\\ (SIGQUIT) ended the command.
         self.interrupted = False
+        #: Whether any of the signals came (the command may also end by itself: ``--duration``).
+        self.signalled = False
         self._previous: dict[int, Any] = {}
         for name in ("SIGINT", "SIGTERM", "SIGHUP", "SIGQUIT"):
             number = getattr(signal, name, None)  # (no SIGHUP, SIGQUIT on Windows)
@@ -199,9 +204,26 @@ class ServingSignals:
             self._previous[number] = signal.signal(number, self._handle)
 
     def _handle(self, signum: int, frame: FrameType | None) -> None:
+        # (Any Ctrl-C counts, also one after another signal, as the web station's server does.)
         if signum in _KEYS_OF_A_TERMINAL:
             self.interrupted = True
+        self.signalled = True
         self.stopping.set()
+
+    @property
+    def stopped_as_a_service(self) -> bool:
+        """Whether SIGTERM or SIGHUP (and no Ctrl-C) ended the command: status 0."""
+        return self.signalled and not self.interrupted
+
+    def say_stopped(self, program: str, detail: str = "") -> None:
+        """``PROGRAM stopped`` (with ``: DETAIL``) on stderr if SIGTERM or SIGHUP ended the
+        command. After Ctrl-C, only ``PROGRAM: DETAIL`` if there is a detail: :meth:`finish`
+        makes the end the command line's ``PROGRAM: interrupted``, which a ``stopped`` line
+        before it contradicted."""
+        if self.stopped_as_a_service:
+            say_last(f"{program} stopped{f': {detail}' if detail else ''}")
+        elif detail:
+            say_last(f"{program}: {detail}")
 
     def restore(self) -> None:
         """Put the handlers before back."""

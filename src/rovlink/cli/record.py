@@ -156,6 +156,7 @@ def run(args: argparse.Namespace) -> int:
         report_recording(recorder, time.monotonic() - started_s)
     if lost is not None:
         raise CommandError(f"{lost}; the recording ends here")
+    signals.say_stopped("rovlink record")  # (not after --duration: its end is no news)
     signals.finish()  # (Ctrl-C: status 130)
     return 1 if recorder.error else 0
 

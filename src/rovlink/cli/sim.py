@@ -7,7 +7,7 @@ import argparse
 from typing import TYPE_CHECKING
 
 from rovlink.cli.failure import CommandError, InputError, UsageError, reason
-from rovlink.cli.interrupt import ServingSignals, say_last, say_ready
+from rovlink.cli.interrupt import ServingSignals, say_ready
 from rovlink.cli.link_options import baud_rate, bounded_float, file_name, log_warnings, seconds
 from rovlink.cli.tcp_endpoint import listen_address, tcp_endpoint
 
@@ -148,7 +148,7 @@ def run(args: argparse.Namespace) -> int:
         server.close()
         if signals is not None:
             signals.restore()
-    say_last("rovlink sim stopped")  # (a closed terminal, SIGHUP, takes no line)
     if signals is not None:
+        signals.say_stopped("rovlink sim")  # (a closed terminal, SIGHUP, takes no line)
         signals.finish()  # (Ctrl-C: status 130; SIGTERM, SIGHUP: a service stopped, 0)
     return 0

@@ -87,13 +87,17 @@ def run(args: argparse.Namespace) -> int:
     try:
         from rovlink.cli.async_run import run_async  # noqa: PLC0415
         from rovlink.station import access as station_access  # noqa: PLC0415
-        from rovlink.station.serve import ServeOptions, serve  # noqa: PLC0415
+        from rovlink.station.serve import (  # noqa: PLC0415
+            ServeOptions,
+            StationFailedError,
+            serve,
+        )
     except ImportError as error:
         raise CommandError(f"needs {error.name}: pip install 'rovlink[web]'") from None
     from pathlib import Path  # noqa: PLC0415
 
     import rovlink.aio  # noqa: PLC0415
-    from rovlink.cli.interrupt import say_ready  # noqa: PLC0415
+    from rovlink.cli.interrupt import say_last, say_ready  # noqa: PLC0415
 
     link_options.check_url(args)  # (first: a sim:// URL's algorithm is the station's too)
     recordings = Path(args.recordings)
@@ -140,9 +144,13 @@ def run(args: argparse.Namespace) -> int:
         say_ready(f"rovlink web ready: {args.url} at " + " or ".join(urls) + "; Ctrl-C stops")
 
     try:
-        interrupted = run_async(serve(connect, options, description=args.url, ready=ready))
+        ending = run_async(serve(connect, options, description=args.url, ready=ready))
     except OSError as error:
         raise CommandError(f"cannot serve on {args.host}:{args.port}: {reason(error)}") from None
-    if interrupted:  # Ctrl-C: status 130, as every command; SIGTERM, SIGHUP: a service stopped
+    except StationFailedError as error:  # (its traceback is logged: a bug)
+        raise CommandError(f"{error}: the station shut down") from None
+    if ending == "interrupted":  # Ctrl-C: status 130, as every command
         raise KeyboardInterrupt
+    if ending == "stopped":  # SIGTERM, SIGHUP: a service stopped, 0
+        say_last("rovlink web stopped")
     return 0

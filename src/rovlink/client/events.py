@@ -77,11 +77,14 @@ class ReplyReceived:
 
 @dataclass(frozen=True, slots=True)
 class LateReply:
-    """A reply that came after its query had failed: counted and discarded, never handed on."""
+    """A reply that came after its query had failed: counted and discarded, never handed on.
+    ``by_session``: every query that failed with a reply of its name was the session's own (a
+    keep-alive, a fence), not the program's: nobody asked for it."""
 
     direction: ClassVar[str] = "in"
     at_s: float
     response: Response
+    by_session: bool = False
 
 
 @dataclass(frozen=True, slots=True)

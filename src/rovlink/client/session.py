@@ -209,6 +209,7 @@ class Session:
         "_last_query",
         "_last_query_bytes",
         "_late_names",
+        "_late_program_names",
         "_locked_as_sent",
         "_motion_renewed_at",
         "_moved_since_stop",
@@ -276,6 +277,8 @@ class Session:
         self._outbox: list[tuple[bytes, PendingQuery | None, Command | None]] = []
         # P20: reply names that are late until the fence is answered (or the line is quiet).
         self._late_names: set[str] = set()
+        # Those of them that a program's query failed with (the rest: keep-alives', fences').
+        self._late_program_names: set[str] = set()
         self._fence: PendingQuery | None = None
         self._quiet_until: float | None = None  # holding queries until then (no fence possible)
         self._held: deque[PendingQuery] = deque()
@@ -1101,7 +1104,10 @@ class Session:
                 other.outcome = Outcome.RESYNC
                 failed.append(other)
         for other in failed:
-            late.update(other.expected[len(other.responses) :])
+            names = other.expected[len(other.responses) :]
+            late.update(names)
+            if not other.internal:
+                self._late_program_names.update(names)
         fence = self._fence
         if fence is not None:
             if fence.outcome is not _PENDING:
@@ -1141,6 +1147,7 @@ class Session:
 
     def _end_resync(self) -> None:
         self._late_names.clear()
+        self._late_program_names.clear()
         self._fence = None
         self._quiet_until = None
 
@@ -1156,7 +1163,8 @@ class Session:
         if self._quiet_until is not None:
             self._quiet_until = now + self.quiet_window_s  # not quiet yet
         if self.events is not None:
-            self.events.append(LateReply(now, response))
+            by_session = response.name not in self._late_program_names
+            self.events.append(LateReply(now, response, by_session))
 
     def _settle(self, query: PendingQuery, outcome: Outcome) -> None:
         pending = self._pending

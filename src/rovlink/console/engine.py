@@ -270,7 +270,11 @@ class ConsoleEngine:
 
     def _on_client_event(self, event: ClientEvent) -> None:
         # A reply after its query timed out (the driver drops it): the link is slow, not dead.
+        # Not one to a keep-alive or a fence of the driver's own: nobody typed those (the
+        # link's counters have it).
         if isinstance(event, LateReply):
+            if event.by_session:
+                return
             algorithm = self.rov.algorithm if self.rov.checksum_enabled else None
             self._emit(late_reply_line(event.response, algorithm))
         elif isinstance(event, LinkState) and event.state == "reconnected":

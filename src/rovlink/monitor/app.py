@@ -37,6 +37,7 @@ from rovlink.monitor.chart import SAMPLE_MARK, TARGET_MARK, depth_chart
 from rovlink.monitor.panels import (
     attitude_text,
     commanded_text,
+    controller_message_text,
     depth_text,
     leak_text,
     link_text,
@@ -240,6 +241,7 @@ class MonitorApp(App[None]):
         self.sub_title = description
         self._link_state = "connecting…"
         self._last_message = ""
+        self._last_message_at_s = 0.0  # (on the clock of the readings)
         #: Set when the monitor left, unlocked, with the link down: what to say of the
         #: ``#stop!`` that never went (the dashboard is gone by then: the command says it).
         self.stop_unsent: str | None = None
@@ -395,6 +397,9 @@ class MonitorApp(App[None]):
         elif isinstance(event, BadFrame):
             raw = visible(event.raw.decode("ascii", errors="backslashreplace"))
             self._last_message = f"dropped reply {raw}: {event.detail}"
+        else:
+            return
+        self._last_message_at_s = self._clock()
 
     def _on_client_event(self, event: ClientEvent) -> None:
         if isinstance(event, LinkState) and event.state == "reconnected":
@@ -474,7 +479,10 @@ class MonitorApp(App[None]):
         text = commanded_text(self.rov.commanded)
         if self._last_message:
             text.append(f"\n{'controller':<11}", style="dim")
-            text.append(self._last_message, style="italic yellow")
+            age_s = self._clock() - self._last_message_at_s
+            text.append_text(
+                controller_message_text(self._last_message, age_s=age_s, period_s=self.period_s)
+            )
         return text
 
     def _draw_link(self, width: int, height: int) -> RenderableType:

@@ -14,6 +14,7 @@ __all__ = [
     "STALE_AFTER_POLLS",
     "attitude_text",
     "commanded_text",
+    "controller_message_text",
     "depth_text",
     "leak_text",
     "link_text",
@@ -57,6 +58,21 @@ def stale_text(readings: Readings, *, now_s: float, period_s: float) -> str | No
     if age_s is None or age_s <= STALE_AFTER_POLLS * period_s:
         return None
     return f"stale: {age_s:.1f} s old"
+
+
+def controller_message_text(message: str, *, age_s: float, period_s: float) -> Text:
+    """The controller's last message (debug text, a dropped reply): as it came while it is
+    fresh; dimmed, with its age, once it is older than ``STALE_AFTER_POLLS`` polling periods,
+    as a reading is (else a message of minutes ago looks like one of now).
+
+    >>> controller_message_text("debug: depth hold", age_s=0.4, period_s=0.2).plain
+    'debug: depth hold'
+    >>> controller_message_text("debug: depth hold", age_s=6.5, period_s=0.2).plain
+    'debug: depth hold  (6.5 s ago)'
+    """
+    if age_s <= STALE_AFTER_POLLS * period_s:
+        return Text(message, style="italic yellow")
+    return Text(f"{message}  ({age_s:.1f} s ago)", style=_value_style(True))
 
 
 def depth_text(readings: Readings, commanded: CommandedState, *, stale: bool = False) -> Text:

@@ -28,9 +28,14 @@ from rovlink.station.hub import Station
 from rovlink.station.messages import MAX_MESSAGE_BYTES
 from rovlink.station.recording import StationRecordings
 
-__all__ = ["ServeOptions", "bind", "page_urls", "serve"]
+__all__ = ["ServeOptions", "StationFailedError", "bind", "page_urls", "serve"]
 
 logger = logging.getLogger(__name__)
+
+
+class StationFailedError(Exception):
+    """The station's polling or watchdog failed: it shut down (``#stop!`` sent unless locked
+    as last sent), and the command that served it failed."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -51,9 +56,11 @@ class _Server(uvicorn.Server):
     """uvicorn's server, except that SIGINT, SIGTERM, SIGHUP and SIGQUIT only end the serving:
     uvicorn would raise the signal again as soon as it stops, and SIGTERM's default action would
     end the process before the station has sent ``#stop!`` and closed the link. :attr:`interrupted`:
-    whether the signal that ended it was Ctrl-C or Ctrl-\\ (the command's status is then 130)."""
+    whether the signal that ended it was Ctrl-C or Ctrl-\\ (the command's status is then 130);
+    :attr:`signalled`: whether a signal ended it at all."""
 
     interrupted = False
+    signalled = False
 
     def __init__(
         self, config: uvicorn.Config, *, stop_robot: Callable[[], Awaitable[None]]
@@ -68,6 +75,7 @@ class _Server(uvicorn.Server):
         # as SIGHUP then SIGINT, and the status depended on that race.
         if sig == signal.SIGINT or sig == getattr(signal, "SIGQUIT", None):  # (Ctrl-C, Ctrl-\\)
             self.interrupted = True
+        self.signalled = True
         super().handle_exit(sig, frame)
         try:
             asyncio.get_running_loop()
@@ -171,9 +179,11 @@ async def serve(
     *,
     description: str,
     ready: Callable[[list[str]], None],
-) -> bool:
+) -> str | None:
     """Connect, then serve until SIGINT, SIGTERM or SIGHUP; ``ready`` gets the page's URLs
-    once listening. Whether Ctrl-C (SIGINT) ended it.
+    once listening. How it ended: ``interrupted`` (Ctrl-C or Ctrl-\\), ``stopped`` (SIGTERM,
+    SIGHUP: a service stopped), or ``None`` (the server ended by itself); StationFailedError if
+    the station's polling or watchdog failed (which ends the serving).
 
     On the way out the relay is disarmed and ``#stop!`` (every output to zero, the motors
     locked) is sent unless the robot is locked as last sent; then the link is closed.
@@ -212,6 +222,7 @@ async def serve(
         # Without its watchdog the station must not go on serving: it shuts down (and sends
         # #stop! on the way out).
         running.add_done_callback(lambda _: setattr(server, "should_exit", True))
+        failure: Exception | None = None
         try:
             serving = asyncio.ensure_future(server.serve(sockets=[listener]))
             while not server.started and not serving.done():
@@ -225,10 +236,17 @@ async def serve(
                 await running
             except asyncio.CancelledError:
                 pass
-            except Exception:
+            except Exception as error:
                 logger.exception("the station's polling or watchdog failed; shutting down")
+                failure = error
             await station.shutdown()
             listener.close()
     finally:
         await client.close()
-    return server.interrupted
+    if failure is not None:
+        raise StationFailedError(
+            f"the station's polling or watchdog failed ({type(failure).__name__}: {failure})"
+        ) from failure
+    if server.interrupted:
+        return "interrupted"
+    return "stopped" if server.signalled else None
