@@ -290,3 +290,33 @@ def test_a_failure_for_want_of_a_frame_says_what_came_instead() -> None:
     assert result.message == (
         "expected $qd; no reply within 250 ms, but text came: b'E02 unknown command\\r\\n'"
     )
+
+
+class _Echoes(FaultyController):
+    """Writes back every byte it gets before its replies (a firmware with its UART's echo on)."""
+
+    def _outgoing(self, reply: bytes, sent: bytes, checksum: bool) -> bytes:
+        return sent + super()._outgoing(reply, sent, checksum)
+
+
+def test_a_controller_that_echoes_fails_the_checks_and_the_run_ends_with_its_report() -> None:
+    # Before: the echoed #qr! was taken for a $qr reply without a value, and the run ended in
+    # an IndexError traceback at longest-frame-accepted, with no table and no JUnit file.
+    link = PortLink(_Echoes(NO_FAULT), "echoes")
+    try:
+        report = run_checks(
+            link,
+            "echoes",
+            SuiteOptions(),
+            select_checks(["query-qd", "longest-frame-accepted", "calibration-applies"]),
+        )
+    finally:
+        link.close()
+    outcomes = {result.name: result.outcome for result in report.results}
+    assert outcomes == {
+        "query-qd": Outcome.FAILED,
+        "longest-frame-accepted": Outcome.FAILED,
+        "calibration-applies": Outcome.FAILED,
+    }, report.results
+    # The command that came back is named as a command, not as a second $qd.
+    assert report.results[0].message == "expected $qd; got #qd! $qd", report.results[0].message

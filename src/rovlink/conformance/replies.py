@@ -10,7 +10,7 @@ import math
 
 from rovlink.conformance.registry import CheckContext, CheckFailedError, check
 from rovlink.conformance.wire import Exchange
-from rovlink.protocol import COMMANDS, Command, Frame, Kind, Spec, encode, lookup
+from rovlink.protocol import COMMANDS, Command, Kind, Response, Spec, encode, lookup
 
 __all__ = ["QUERIES", "check_canonical", "expect_depth", "first_value"]
 
@@ -100,9 +100,10 @@ def _reply_time(ctx: CheckContext) -> None:
 
 
 def first_value(exchange: Exchange, name: str) -> int:
-    """The value of the first valid ``$name`` reply in ``exchange``."""
+    """The value of the first valid ``$name`` reply in ``exchange`` (a ``#name!`` that came
+    back, as from a controller that echoes, is no reply)."""
     for frame in exchange.valid_frames:
-        if isinstance(frame, Frame) and frame.message.name == name:
+        if isinstance(frame.message, Response) and frame.message.name == name:
             return frame.message.values[0]
     raise CheckFailedError(f"no ${name} reply")
 
