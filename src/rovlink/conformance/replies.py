@@ -39,10 +39,27 @@ def check_canonical(ctx: CheckContext, exchange: Exchange) -> None:
             )
 
 
+def _expect_nothing_more(ctx: CheckContext, query: str) -> None:
+    """Fail if another frame comes within a reply timeout after the replies to ``query``: each
+    query is answered exactly once (P4). A second reply a little later (a firmware that answers
+    from two places) would pass the query's check and land in a later check's wait, which
+    would blame its own rule."""
+    timeout_s = ctx.options.reply_timeout_s
+    exchange = ctx.wire.send(b"", timeout_s=timeout_s, linger_s=timeout_s)
+    ctx.exchanges.append(exchange)
+    if exchange.frames:
+        raw = b"".join(frame.raw for frame in exchange.frames)
+        raise CheckFailedError(
+            f"{query} was answered, and then within {timeout_s * 1000:.0f} ms more came: "
+            f"{raw!r} (P4: each query is answered exactly once)"
+        )
+
+
 def _query_check(spec: Spec) -> None:
     def run(ctx: CheckContext) -> None:
         exchange = ctx.expect_reply(ctx.frame(Command(spec.name)), spec.replies)
         check_canonical(ctx, exchange)
+        _expect_nothing_more(ctx, f"#{spec.name}!")
 
     names = " ".join(f"${name}" for name in spec.replies)
     check(
@@ -65,6 +82,7 @@ def _burst(ctx: CheckContext) -> None:
     data = b"".join(ctx.frame(Command(spec.name)) for spec in QUERIES)
     names = tuple(name for spec in QUERIES for name in spec.replies)
     check_canonical(ctx, ctx.expect_reply(data, names))
+    _expect_nothing_more(ctx, "every query of the burst")
 
 
 @check("reply-time", ("P19",), "queries are answered within 5 ms (90th percentile)")
