@@ -5,7 +5,14 @@ from __future__ import annotations
 import pytest
 
 from rovlink.client.links import PortLink
-from rovlink.conformance import Outcome, Report, SuiteOptions, run_checks, select_checks
+from rovlink.conformance import (
+    Outcome,
+    PreflightError,
+    Report,
+    SuiteOptions,
+    run_checks,
+    select_checks,
+)
 from tests.conformance.fakes import FAULTS, NO_FAULT, FaultyController
 
 _FAST = [name for name, check in FAULTS.items() if not check.startswith("motion-")]
@@ -337,3 +344,25 @@ def test_a_controller_that_echoes_fails_the_checks_and_the_run_ends_with_its_rep
     }, report.results
     # The command that came back is named as a command, not as a second $qd.
     assert report.results[0].message == "expected $qd; got #qd! $qd", report.results[0].message
+
+
+class _BannerThenSilent(FaultyController):
+    """Writes a boot banner and then never answers (a firmware whose parser never runs)."""
+
+    def __init__(self) -> None:
+        super().__init__(NO_FAULT)
+        self._output += b"BOOT v1.2\r\n"
+
+    def _outgoing(self, reply: bytes, sent: bytes, checksum: bool) -> bytes:
+        return b""
+
+
+def test_a_controller_that_does_not_answer_is_shown_with_what_it_did_write() -> None:
+    # Before: "did not answer #q.l! within 0.5 s (received b'')": the banner was read by the
+    # restore sent before each #q.l! and thrown away, and the line looked dead.
+    link = PortLink(_BannerThenSilent(), "banner")
+    try:
+        with pytest.raises(PreflightError, match=r"\(received b'BOOT v1\.2\\r\\n'\)"):
+            run_checks(link, "banner", SuiteOptions(boot_timeout_s=0.5))
+    finally:
+        link.close()

@@ -130,7 +130,7 @@ def _wait_for_answer(wire: Wire, options: SuiteOptions) -> tuple[int, ...]:
     to the boot time; PreflightError if none comes."""
     context = CheckContext(wire, options)
     deadline = time.monotonic() + options.boot_timeout_s
-    received = b""
+    first = len(wire.log)  # (what came while the restores were sent is said too: a banner)
     attempts = 0
     while True:
         attempts += 1
@@ -156,8 +156,8 @@ def _wait_for_answer(wire: Wire, options: SuiteOptions) -> tuple[int, ...]:
                 # now, or they would land in the first checks' waits.
                 wire.drain(LATE_WAIT_FACTOR * options.reply_timeout_s)
             break
-        received += exchange.received
         if time.monotonic() >= deadline:
+            received = b"".join(exchange.received for exchange in wire.log[first:])
             raise PreflightError(
                 f"the controller did not answer #q.l! within {options.boot_timeout_s:g} s "
                 f"(received {received[-200:]!r})"
