@@ -2,6 +2,10 @@
 
 from __future__ import annotations
 
+import queue
+import threading
+import time
+
 import pytest
 
 from rovlink.client.links import PortLink
@@ -366,3 +370,43 @@ def test_a_controller_that_does_not_answer_is_shown_with_what_it_did_write() -> 
             run_checks(link, "banner", SuiteOptions(boot_timeout_s=0.5))
     finally:
         link.close()
+
+
+class _AtNineSixHundredBaud(FaultyController):
+    """The simulated controller behind a 9600-baud line: the host's bytes reach it at 960 a
+    second, after those written before them (the serial driver holds what the line has not
+    sent yet, and write() returns at once)."""
+
+    BAUD = 9600
+
+    def __init__(self) -> None:
+        super().__init__(NO_FAULT)
+        self._line: queue.Queue[tuple[float, bytes]] = queue.Queue()
+        self._line_free_s = 0.0
+        threading.Thread(target=self._carry, daemon=True).start()
+
+    def write(self, data: bytes) -> int:
+        on_line_s = len(data) * 10 / self.BAUD  # (8N1: ten bits a byte)
+        self._line_free_s = max(time.monotonic(), self._line_free_s) + on_line_s
+        self._line.put((self._line_free_s, bytes(data)))
+        return len(data)
+
+    def _carry(self) -> None:
+        while True:
+            arrives_s, data = self._line.get()
+            time.sleep(max(arrives_s - time.monotonic(), 0.0))  # (the line's own time)
+            super().write(data)
+
+
+def test_a_long_write_on_a_slow_line_is_waited_for_before_its_query_is() -> None:
+    # garbage-survived writes 602 bytes, 0.63 s on a 9600-baud line, then a #qd! that waits
+    # behind them. Before, the reply waits counted from the end of write(), and a controller
+    # that answers at once failed: "$qd came late, about 540 ms after the query".
+    link = PortLink(_AtNineSixHundredBaud(), "9600 baud")
+    options = SuiteOptions(baudrate=_AtNineSixHundredBaud.BAUD)
+    try:
+        report = run_checks(link, "9600 baud", options, select_checks(["garbage-survived"]))
+    finally:
+        link.close()
+    (result,) = report.results
+    assert result.outcome is Outcome.PASSED, result.message

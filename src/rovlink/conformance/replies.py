@@ -9,7 +9,7 @@ from __future__ import annotations
 import math
 
 from rovlink.conformance.registry import CheckContext, CheckFailedError, check
-from rovlink.conformance.wire import Exchange
+from rovlink.conformance.wire import BITS_PER_BYTE, Exchange
 from rovlink.protocol import COMMANDS, Command, Kind, Response, Spec, encode, lookup
 
 __all__ = ["QUERIES", "check_canonical", "expect_depth", "first_value"]
@@ -19,8 +19,6 @@ QUERIES: tuple[Spec, ...] = tuple(spec for spec in COMMANDS if spec.is_query)
 
 #: P15: a heading is written below the table's maximum, which (360 ≡ 0) is only accepted.
 _HEADING_WRITTEN_MAX = lookup("qhe", Kind.RESPONSE).arguments[0].maximum - 1
-#: A byte on an 8N1 serial line: a start bit, eight data bits, a stop bit (P19).
-_BITS_PER_BYTE = 10
 
 
 def check_canonical(ctx: CheckContext, exchange: Exchange) -> None:
@@ -105,7 +103,7 @@ def _reply_time(ctx: CheckContext) -> None:
     limit_s = ctx.options.reply_limit_s
     line = ""
     if ctx.options.baudrate and slowest is not None:
-        wire_s = (len(slowest.sent) + len(slowest.received)) * _BITS_PER_BYTE / ctx.options.baudrate
+        wire_s = (len(slowest.sent) + len(slowest.received)) * BITS_PER_BYTE / ctx.options.baudrate
         limit_s += wire_s
         line = f" + {wire_s * 1000:.2f} ms of bytes on the line at {ctx.options.baudrate} baud"
     if p90_s > limit_s:

@@ -78,7 +78,7 @@ def run_checks(
     ``#stop!``, whatever happened.
     """
     options = options or SuiteOptions()
-    wire = Wire(link, algorithm=options.algorithm)
+    wire = Wire(link, algorithm=options.algorithm, baudrate=options.baudrate)
     selected = list(checks) if checks is not None else select_checks(motion=options.motion)
     report = Report(target)
     started = time.monotonic()
