@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import queue
+import re
 import threading
 import time
 
@@ -17,6 +18,7 @@ from rovlink.conformance import (
     run_checks,
     select_checks,
 )
+from rovlink.protocol import get_algorithm
 from tests.conformance.fakes import FAULTS, NO_FAULT, FaultyController
 
 _FAST = [name for name, check in FAULTS.items() if not check.startswith("motion-")]
@@ -381,9 +383,10 @@ class _AtNineSixHundredBaud(FaultyController):
 
     def __init__(self) -> None:
         super().__init__(NO_FAULT)
-        self._line: queue.Queue[tuple[float, bytes]] = queue.Queue()
+        self._line: queue.Queue[tuple[float, bytes] | None] = queue.Queue()
         self._line_free_s = 0.0
-        threading.Thread(target=self._carry, daemon=True).start()
+        self._carrier = threading.Thread(target=self._carry, daemon=True)
+        self._carrier.start()
 
     def write(self, data: bytes) -> int:
         on_line_s = len(data) * 10 / self.BAUD  # (8N1: ten bits a byte)
@@ -391,9 +394,14 @@ class _AtNineSixHundredBaud(FaultyController):
         self._line.put((self._line_free_s, bytes(data)))
         return len(data)
 
+    def close(self) -> None:
+        self._line.put(None)  # (what was written before the close still crosses the line)
+        self._carrier.join()
+        super().close()
+
     def _carry(self) -> None:
-        while True:
-            arrives_s, data = self._line.get()
+        while (item := self._line.get()) is not None:
+            arrives_s, data = item
             time.sleep(max(arrives_s - time.monotonic(), 0.0))  # (the line's own time)
             super().write(data)
 
@@ -410,3 +418,26 @@ def test_a_long_write_on_a_slow_line_is_waited_for_before_its_query_is() -> None
         link.close()
     (result,) = report.results
     assert result.outcome is Outcome.PASSED, result.message
+
+
+class _ChecksumsAlways(FaultyController):
+    """Puts a checksum on every reply, in plain mode too (P3: a reply carries one only in
+    checksum mode)."""
+
+    def _outgoing(self, reply: bytes, sent: bytes, checksum: bool) -> bytes:
+        reply = super()._outgoing(reply, sent, checksum)
+        if checksum:
+            return reply
+        crc8 = get_algorithm("crc8")
+        return re.sub(rb"\$([^!$]*)!", lambda m: b"$" + m[1] + crc8.digits(m[1]) + b"!", reply)
+
+
+def test_a_preflight_answer_the_decoder_refuses_is_named_with_why() -> None:
+    # Before: "did not answer #q.l! within 0.5 s (received b'$q.l.021!…')", and the reader was
+    # left to see that each answer came, with a checksum the plain mode does not have.
+    link = PortLink(_ChecksumsAlways(NO_FAULT), "checksums always")
+    try:
+        with pytest.raises(PreflightError, match=r"b'\$q\.l\.021!' is no valid frame: "):
+            run_checks(link, "checksums always", SuiteOptions(boot_timeout_s=0.5))
+    finally:
+        link.close()

@@ -22,7 +22,7 @@ from rovlink.conformance.registry import (
 from rovlink.conformance.results import CheckResult, Outcome, Report
 from rovlink.conformance.wire import Wire
 from rovlink.logs import get_logger
-from rovlink.protocol import Command, Response
+from rovlink.protocol import BadFrame, Command, Response
 from rovlink.protocol.visible import visible
 
 __all__ = ["PreflightError", "run_checks", "select_checks"]
@@ -157,10 +157,18 @@ def _wait_for_answer(wire: Wire, options: SuiteOptions) -> tuple[int, ...]:
                 wire.drain(LATE_WAIT_FACTOR * options.reply_timeout_s)
             break
         if time.monotonic() >= deadline:
-            received = b"".join(exchange.received for exchange in wire.log[first:])
+            since = wire.log[first:]
+            received = b"".join(exchange.received for exchange in since)
+            # (a reply the decoder refused is named with why: a checksum on a plain reply)
+            invalid = [
+                frame for item in since for frame in item.frames if isinstance(frame, BadFrame)
+            ]
+            why = (
+                f"; {invalid[-1].raw!r} is no valid frame: {invalid[-1].detail}" if invalid else ""
+            )
             raise PreflightError(
                 f"the controller did not answer #q.l! within {options.boot_timeout_s:g} s "
-                f"(received {received[-200:]!r})"
+                f"(received {received[-200:]!r}){why}"
             )
     return values[0]
 
