@@ -6,6 +6,7 @@ import queue
 import re
 import threading
 import time
+from pathlib import Path
 
 import pytest
 
@@ -138,6 +139,14 @@ def test_a_controller_that_stops_answering_aborts_the_run_at_the_check_it_failed
 def test_every_fault_names_a_real_check() -> None:
     names = {check.name for check in select_checks(motion=True)}
     assert set(FAULTS.values()) <= names
+
+
+def test_docs_list_every_broken_controller_with_the_check_that_catches_it() -> None:
+    # Before, no-checksum-mode and uppercase-checksums-only were tested and not listed.
+    docs = (Path(__file__).resolve().parents[2] / "docs" / "builders.md").read_text()
+    section = docs.split("### The broken controllers", 1)[1].split("\n## ", 1)[0]
+    rows = dict(re.findall(r"^\| `([a-z0-9-]+)` \| .* \| `([a-z0-9.+-]+)` \|$", section, re.M))
+    assert rows == FAULTS
 
 
 @pytest.mark.integration
