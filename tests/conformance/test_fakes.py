@@ -450,3 +450,26 @@ def test_a_preflight_answer_the_decoder_refuses_is_named_with_why() -> None:
             run_checks(link, "checksums always", SuiteOptions(boot_timeout_s=0.5))
     finally:
         link.close()
+
+
+class _NeverUnlocks(FaultyController):
+    """Takes #start! for nothing: its motors stay locked (P7)."""
+
+    def _incoming(self, data: bytes) -> bytes:
+        return super()._incoming(data).replace(b"#start!", b"")
+
+
+@pytest.mark.slow
+@pytest.mark.integration
+def test_a_controller_that_never_unlocks_is_named_as_a_cause_with_the_water() -> None:
+    # Before: "… (is the vehicle in water?)" alone, for every motion check, where the firmware
+    # engineer's bug was #start!.
+    link = PortLink(_NeverUnlocks(NO_FAULT), "never unlocks")
+    checks = select_checks(["motion-stop-halts", "motion-out-of-range-not-clamped"], motion=True)
+    try:
+        report = run_checks(link, "never unlocks", SuiteOptions(motion=True), checks)
+    finally:
+        link.close()
+    for result in report.results:
+        assert result.outcome is Outcome.FAILED, result
+        assert "unlock the motors on #start!?" in result.message, result.message
