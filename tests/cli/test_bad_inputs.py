@@ -86,8 +86,9 @@ _HANG_TIMEOUT_S = 30
             "--to: connection URL must be a non-empty string, got ''",
         ),
         (
-            ["fault", "--listen", "socket://127.0.0.1:0", "--to", "sim://"],
-            "--listen: 'socket://127.0.0.1:0': expected socket://HOST:PORT with a port in 1–65535",
+            ["fault", "--listen", "socket://127.0.0.1:65536", "--to", "sim://"],
+            "--listen: 'socket://127.0.0.1:65536': expected socket://HOST:PORT with a port in "
+            "0–65535 (0: a free one)",
         ),
         (
             ["fault", "--listen", "socket://127.0.0.1:1", "--to", "sim://", "--jitter-ms", "5"],

@@ -305,6 +305,9 @@ class FaultyController:
             reply = re.sub(rb"\$qd\.(\d+)!", rb"$qd.0\1!", reply)
         if fault == "unsigned-attitude":
             reply = re.sub(rb"\$qro\.[+-](\d+)!", rb"$qro.\1!", reply)
+        if fault == "late-extra-reply":  # answers #qd! again, 100 ms later
+            for again in re.findall(rb"\$qd\.[^!$]*!", reply):
+                threading.Timer(0.1, self._deliver_late, args=(again,)).start()
         if fault == "extra-reply":
             reply = re.sub(rb"(\$qd\.[^!]*!)", rb"\1\1", reply)
         if fault == "plain-replies-in-checksum-mode" and checksum:
@@ -406,6 +409,7 @@ FAULTS: dict[str, str] = {
     "leading-zeros": "query-qd",
     "unsigned-attitude": "query-qro",
     "extra-reply": "query-qd",
+    "late-extra-reply": "query-qd",
     "slow-replies": "reply-time",
     "ignores-checksum-value": "checksum-bad-dropped",
     "error-line-with-debug-off": "checksum-bad-dropped",

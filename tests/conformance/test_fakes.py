@@ -2,10 +2,24 @@
 
 from __future__ import annotations
 
+import queue
+import re
+import threading
+import time
+from pathlib import Path
+
 import pytest
 
 from rovlink.client.links import PortLink
-from rovlink.conformance import Outcome, Report, SuiteOptions, run_checks, select_checks
+from rovlink.conformance import (
+    Outcome,
+    PreflightError,
+    Report,
+    SuiteOptions,
+    run_checks,
+    select_checks,
+)
+from rovlink.protocol import get_algorithm
 from tests.conformance.fakes import FAULTS, NO_FAULT, FaultyController
 
 _FAST = [name for name, check in FAULTS.items() if not check.startswith("motion-")]
@@ -127,6 +141,14 @@ def test_every_fault_names_a_real_check() -> None:
     assert set(FAULTS.values()) <= names
 
 
+def test_docs_list_every_broken_controller_with_the_check_that_catches_it() -> None:
+    # Before, no-checksum-mode and uppercase-checksums-only were tested and not listed.
+    docs = (Path(__file__).resolve().parents[2] / "docs" / "builders.md").read_text()
+    section = docs.split("### The broken controllers", 1)[1].split("\n## ", 1)[0]
+    rows = dict(re.findall(r"^\| `([a-z0-9-]+)` \| .* \| `([a-z0-9.+-]+)` \|$", section, re.M))
+    assert rows == FAULTS
+
+
 @pytest.mark.integration
 @pytest.mark.slow
 def test_the_wrapper_without_a_fault_passes_every_check() -> None:
@@ -228,6 +250,24 @@ def test_a_late_reply_is_named_and_kept_out_of_the_next_check() -> None:
         assert "P19 allows 5 ms" in result.message
 
 
+def test_the_raw_reading_the_frame_length_checks_start_from_is_asked_as_any_query() -> None:
+    # Before, these checks read "no $qr reply", whatever came: a late $qr (then left to land in
+    # the next exchange, "an over-long #sdz, but the controller answered $qr…") or another
+    # reply ("$qd.20!"). They now say what they expected and what came, as the query checks.
+    # (0.3 s late: read in the 0.6 s the late reply is watched for, with room for a busy CPU)
+    link = PortLink(FaultyController(NO_FAULT, late_s=0.3), "late")
+    options = SuiteOptions(reply_timeout_s=0.2)
+    names = ["overlong-frame-dropped", "longest-frame-accepted"]
+    try:
+        report = run_checks(link, "late", options, select_checks(names))
+    finally:
+        link.close()
+    assert [result.name for result in report.results] == names
+    for result in report.results:
+        assert result.outcome is Outcome.FAILED
+        assert result.message.startswith("expected $qr; no reply within 200 ms; $qr came late")
+
+
 # Real-time motion (each watches the depth for seconds): on the newest Python only, as slow.
 @pytest.mark.slow
 @pytest.mark.integration
@@ -290,3 +330,147 @@ def test_a_failure_for_want_of_a_frame_says_what_came_instead() -> None:
     assert result.message == (
         "expected $qd; no reply within 250 ms, but text came: b'E02 unknown command\\r\\n'"
     )
+
+
+class _Echoes(FaultyController):
+    """Writes back every byte it gets before its replies (a firmware with its UART's echo on)."""
+
+    def _outgoing(self, reply: bytes, sent: bytes, checksum: bool) -> bytes:
+        return sent + super()._outgoing(reply, sent, checksum)
+
+
+def test_a_controller_that_echoes_fails_the_checks_and_the_run_ends_with_its_report() -> None:
+    # Before: the echoed #qr! was taken for a $qr reply without a value, and the run ended in
+    # an IndexError traceback at longest-frame-accepted, with no table and no JUnit file.
+    link = PortLink(_Echoes(NO_FAULT), "echoes")
+    try:
+        report = run_checks(
+            link,
+            "echoes",
+            SuiteOptions(),
+            select_checks(["query-qd", "longest-frame-accepted", "calibration-applies"]),
+        )
+    finally:
+        link.close()
+    outcomes = {result.name: result.outcome for result in report.results}
+    assert outcomes == {
+        "query-qd": Outcome.FAILED,
+        "longest-frame-accepted": Outcome.FAILED,
+        "calibration-applies": Outcome.FAILED,
+    }, report.results
+    # The command that came back is named as a command, not as a second $qd.
+    assert report.results[0].message == "expected $qd; got #qd! $qd", report.results[0].message
+
+
+class _BannerThenSilent(FaultyController):
+    """Writes a boot banner and then never answers (a firmware whose parser never runs)."""
+
+    def __init__(self) -> None:
+        super().__init__(NO_FAULT)
+        self._output += b"BOOT v1.2\r\n"
+
+    def _outgoing(self, reply: bytes, sent: bytes, checksum: bool) -> bytes:
+        return b""
+
+
+def test_a_controller_that_does_not_answer_is_shown_with_what_it_did_write() -> None:
+    # Before: "did not answer #q.l! within 0.5 s (received b'')": the banner was read by the
+    # restore sent before each #q.l! and thrown away, and the line looked dead.
+    link = PortLink(_BannerThenSilent(), "banner")
+    try:
+        with pytest.raises(PreflightError, match=r"\(received b'BOOT v1\.2\\r\\n'\)"):
+            run_checks(link, "banner", SuiteOptions(boot_timeout_s=0.5))
+    finally:
+        link.close()
+
+
+class _AtNineSixHundredBaud(FaultyController):
+    """The simulated controller behind a 9600-baud line: the host's bytes reach it at 960 a
+    second, after those written before them (the serial driver holds what the line has not
+    sent yet, and write() returns at once)."""
+
+    BAUD = 9600
+
+    def __init__(self) -> None:
+        super().__init__(NO_FAULT)
+        self._line: queue.Queue[tuple[float, bytes] | None] = queue.Queue()
+        self._line_free_s = 0.0
+        self._carrier = threading.Thread(target=self._carry, daemon=True)
+        self._carrier.start()
+
+    def write(self, data: bytes) -> int:
+        on_line_s = len(data) * 10 / self.BAUD  # (8N1: ten bits a byte)
+        self._line_free_s = max(time.monotonic(), self._line_free_s) + on_line_s
+        self._line.put((self._line_free_s, bytes(data)))
+        return len(data)
+
+    def close(self) -> None:
+        self._line.put(None)  # (what was written before the close still crosses the line)
+        self._carrier.join()
+        super().close()
+
+    def _carry(self) -> None:
+        while (item := self._line.get()) is not None:
+            arrives_s, data = item
+            time.sleep(max(arrives_s - time.monotonic(), 0.0))  # (the line's own time)
+            super().write(data)
+
+
+def test_a_long_write_on_a_slow_line_is_waited_for_before_its_query_is() -> None:
+    # garbage-survived writes 602 bytes, 0.63 s on a 9600-baud line, then a #qd! that waits
+    # behind them. Before, the reply waits counted from the end of write(), and a controller
+    # that answers at once failed: "$qd came late, about 540 ms after the query".
+    link = PortLink(_AtNineSixHundredBaud(), "9600 baud")
+    options = SuiteOptions(baudrate=_AtNineSixHundredBaud.BAUD)
+    try:
+        report = run_checks(link, "9600 baud", options, select_checks(["garbage-survived"]))
+    finally:
+        link.close()
+    (result,) = report.results
+    assert result.outcome is Outcome.PASSED, result.message
+
+
+class _ChecksumsAlways(FaultyController):
+    """Puts a checksum on every reply, in plain mode too (P3: a reply carries one only in
+    checksum mode)."""
+
+    def _outgoing(self, reply: bytes, sent: bytes, checksum: bool) -> bytes:
+        reply = super()._outgoing(reply, sent, checksum)
+        if checksum:
+            return reply
+        crc8 = get_algorithm("crc8")
+        return re.sub(rb"\$([^!$]*)!", lambda m: b"$" + m[1] + crc8.digits(m[1]) + b"!", reply)
+
+
+def test_a_preflight_answer_the_decoder_refuses_is_named_with_why() -> None:
+    # Before: "did not answer #q.l! within 0.5 s (received b'$q.l.021!…')", and the reader was
+    # left to see that each answer came, with a checksum the plain mode does not have.
+    link = PortLink(_ChecksumsAlways(NO_FAULT), "checksums always")
+    try:
+        with pytest.raises(PreflightError, match=r"b'\$q\.l\.021!' is no valid frame: "):
+            run_checks(link, "checksums always", SuiteOptions(boot_timeout_s=0.5))
+    finally:
+        link.close()
+
+
+class _NeverUnlocks(FaultyController):
+    """Takes #start! for nothing: its motors stay locked (P7)."""
+
+    def _incoming(self, data: bytes) -> bytes:
+        return super()._incoming(data).replace(b"#start!", b"")
+
+
+@pytest.mark.slow
+@pytest.mark.integration
+def test_a_controller_that_never_unlocks_is_named_as_a_cause_with_the_water() -> None:
+    # Before: "… (is the vehicle in water?)" alone, for every motion check, where the firmware
+    # engineer's bug was #start!.
+    link = PortLink(_NeverUnlocks(NO_FAULT), "never unlocks")
+    checks = select_checks(["motion-stop-halts", "motion-out-of-range-not-clamped"], motion=True)
+    try:
+        report = run_checks(link, "never unlocks", SuiteOptions(motion=True), checks)
+    finally:
+        link.close()
+    for result in report.results:
+        assert result.outcome is Outcome.FAILED, result
+        assert "unlock the motors on #start!?" in result.message, result.message

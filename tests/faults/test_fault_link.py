@@ -174,6 +174,21 @@ def test_the_ready_line_gives_an_ipv6_listener_as_a_url_that_opens() -> None:
 
 
 @pytest.mark.integration
+def test_listen_on_port_0_serves_a_free_port_and_the_ready_line_names_it() -> None:
+    # Before, port 0 was refused ("a port in 1–65535"), where rovlink sim --tcp 0 and
+    # rovlink record --tap take it: a CI job had to pick a port and hope it stayed free.
+    with running_rovlink(
+        "fault", "--listen", "socket://127.0.0.1:0", "--to", "sim://", ready_timeout_s=10
+    ) as (_, ready):
+        url = ready.split()[3]
+        port = int(url.rpartition(":")[2])
+        assert url == f"socket://127.0.0.1:{port}", ready
+        assert port != 0, ready
+        with rovlink.connect(url, timeout=0.5) as rov:
+            assert rov.depth_cm() >= 0
+
+
+@pytest.mark.integration
 def test_the_proxy_says_on_exit_how_many_clients_it_served_and_refused(tmp_path: Path) -> None:
     # Before, the counts were kept but never said: a program told "busy" and disconnected
     # showed in no report, only as a client that never got an answer.

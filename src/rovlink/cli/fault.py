@@ -23,14 +23,35 @@ examples:
   rovlink check 'fault://?inner=sim://&ber=1e-4&seed=3'     the same faults as a URL"""
 
 
+_MAX_PORT = 65535
+
+
 def _probability(maximum: float) -> Callable[[str], float]:
     return lambda text: bounded_float(text, 0.0, maximum)
+
+
+def _listen_address(text: str) -> tuple[str, int]:
+    """``--listen``'s host and port. Port 0 picks a free one, as ``rovlink sim --tcp 0`` and
+    ``rovlink record --tap`` do: the ready line says which (a test or a CI job needs no fixed
+    port)."""
+    if not text.startswith("socket://"):
+        raise UsageError(f"--listen: expected socket://HOST:PORT, got {text!r}")
+    host, colon, port = text[len("socket://") :].rstrip("/").rpartition(":")
+    if not colon or not host.strip("[]") or not port.isdigit() or int(port) > _MAX_PORT:
+        raise UsageError(
+            f"--listen: {text!r}: expected socket://HOST:PORT with a port in 0–{_MAX_PORT} "
+            "(0: a free one)"
+        )
+    return host.strip("[]"), int(port)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """``fault``'s options."""
     parser.add_argument(
-        "--listen", required=True, metavar="socket://HOST:PORT", help="where programs connect"
+        "--listen",
+        required=True,
+        metavar="socket://HOST:PORT",
+        help="where programs connect (port 0: a free one, named in the ready line)",
     )
     parser.add_argument("--to", required=True, metavar="URL", help="the controller's port or URL")
     parser.add_argument(
@@ -81,18 +102,16 @@ def run(args: argparse.Namespace) -> int:
     """Serve until Ctrl-C or SIGTERM; print what the faults did and how many clients came."""
     from rovlink.client.errors import ConnectError  # noqa: PLC0415
     from rovlink.client.links import open_link  # noqa: PLC0415
-    from rovlink.client.url import Scheme, parse_url  # noqa: PLC0415
+    from rovlink.client.url import parse_url  # noqa: PLC0415
     from rovlink.faults import FaultPort, FaultSettings  # noqa: PLC0415
     from rovlink.faults.proxy import FaultProxy  # noqa: PLC0415
 
     # Each URL's error names its option: both are URLs, and either may be the wrong one.
-    endpoints = []
-    for option, url in (("--listen", args.listen), ("--to", args.to)):
-        try:
-            endpoints.append(parse_url(url))
-        except ValueError as error:
-            raise UsageError(f"{option}: {error}") from None
-    listen, target = endpoints
+    listen_host, listen_port = _listen_address(args.listen)
+    try:
+        target = parse_url(args.to)
+    except ValueError as error:
+        raise UsageError(f"--to: {error}") from None
     log_warnings()  # (a listener other computers reach, a #stop! the lost link could not take)
     if args.jitter_ms > args.delay_ms:
         raise UsageError(
@@ -109,14 +128,12 @@ def run(args: argparse.Namespace) -> int:
         )
     except ValueError as error:
         raise UsageError(str(error)) from None
-    if listen.scheme is not Scheme.TCP:
-        raise UsageError(f"--listen: expected socket://HOST:PORT, got {args.listen!r}")
     # As rovlink controller: whoever reaches the port drives the robot, unauthenticated.
     from rovlink.controller.lines import is_loopback  # noqa: PLC0415
 
-    if not is_loopback(listen.host) and not args.allow_remote:
+    if not is_loopback(listen_host) and not args.allow_remote:
         raise UsageError(
-            f"--listen {args.listen}: {listen.host} is not a loopback address, and the protocol "
+            f"--listen {args.listen}: {listen_host} is not a loopback address, and the protocol "
             "has no authentication; add --allow-remote to let other computers drive the robot"
         )
     try:
@@ -127,9 +144,9 @@ def run(args: argparse.Namespace) -> int:
     signals: ServingSignals | None = None
     try:
         try:
-            proxy = FaultProxy(port, listen.host, listen.port)
+            proxy = FaultProxy(port, listen_host, listen_port)
         except OSError as error:
-            where = listen_address(listen.host, listen.port)
+            where = listen_address(listen_host, listen_port)
             raise CommandError(f"cannot listen on {where}: {reason(error)}") from None
         signals = ServingSignals()
         host, tcp_port = proxy.address

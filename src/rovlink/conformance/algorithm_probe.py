@@ -53,7 +53,9 @@ def algorithm_hint(link: Link, options: SuiteOptions, report: Report) -> str | N
 def _answers_with(link: Link, options: SuiteOptions) -> bool:
     """Whether, in checksum mode switched on with ``options.algorithm``, the controller answers
     ``#qd`` checksummed with it; the controller is put back in plain mode after."""
-    context = CheckContext(Wire(link, algorithm=options.algorithm), options)
+    context = CheckContext(
+        Wire(link, algorithm=options.algorithm, baudrate=options.baudrate), options
+    )
     context.restore()
     try:
         context.tell(context.frame(setting_command(Setting.CHECKSUM, True)))

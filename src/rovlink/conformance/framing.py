@@ -46,7 +46,7 @@ def _overlong(ctx: CheckContext) -> None:
     # move the depth zero above the raw reading: the depth would read 0.
     zero, k = 0, 100
     ctx.tell(ctx.frame(Command("sdz", (zero,))) + ctx.frame(Command("sdk", (k,))))
-    raw = first_value(ctx.ask(ctx.frame(Command("qr"))), "qr")
+    raw = first_value(ctx.expect_reply(ctx.frame(Command("qr")), ("qr",)), "qr")
     zero_arg = lookup("sdz").arguments[0]
     value = str(min(raw + 50, zero_arg.maximum)).encode()
     overlong = b"#sdz." + value.rjust(MAX_FRAME_BYTES, b"0") + b"!"
@@ -64,7 +64,7 @@ def _overlong(ctx: CheckContext) -> None:
 def _longest(ctx: CheckContext) -> None:
     zero, k = 0, 100
     ctx.tell(ctx.frame(Command("sdz", (zero,))) + ctx.frame(Command("sdk", (k,))))
-    raw = first_value(ctx.ask(ctx.frame(Command("qr"))), "qr")
+    raw = first_value(ctx.expect_reply(ctx.frame(Command("qr")), ("qr",)), "qr")
     # A zero above the raw reading makes the depth read 0, where the zero of 0 read raw.
     padded_zero = min(raw + 50, lookup("sdz").arguments[0].maximum)
     head = b"#sdz."

@@ -28,6 +28,9 @@ _POLL_S = 0.1
 _COAST_S = 1.5
 #: After a failed check, how many coasts the vehicle is watched for to come to rest.
 _SETTLE_COASTS = 3
+#: The other cause of a vehicle that does not dive when it must, said with "is it in water?":
+#: a controller that never unlocks fails every motion check for want of a dive.
+_UNLOCKS = "does the controller unlock the motors on #start!"
 #: Silence beyond the watchdog's time before the failsafe must have acted, s.
 _WATCHDOG_MARGIN_S = 0.5
 #: What the failsafe check sends instead of silence: nothing that P1 lets be a frame at all, so
@@ -180,7 +183,8 @@ def _dive_then_stop(ctx: CheckContext, checksum: bool, *, then_start: bool = Fal
         ctx.tell(b"#stop!")
         raise CheckFailedError(
             f"unlocked with {ctx.options.motion_percent} % down thrust, the pressure went only "
-            f"from raw {start} to {deepest} in {MOTION_WATCH_S:g} s (is the vehicle in water?)"
+            f"from raw {start} to {deepest} in {MOTION_WATCH_S:g} s (is the vehicle in water? "
+            f"{_UNLOCKS}?)"
         )
     ctx.tell(b"#stop!")  # bare, in either mode (P3)
     ctx.tell(_down(ctx, checksum))  # dropped while locked
@@ -293,7 +297,7 @@ def _expect_dive(ctx: CheckContext, data: bytes, what: str, unseen: str) -> None
         raise CheckFailedError(
             f"{what} did not dive the vehicle either (raw {start} to {deepest} in "
             f"{MOTION_WATCH_S:g} s), so {unseen} could not be seen (is the vehicle in water, "
-            f"and {ctx.options.motion_percent} % enough to dive it? --motion-power)"
+            f"and {ctx.options.motion_percent} % enough to dive it? --motion-power; {_UNLOCKS}?)"
         )
 
 
@@ -399,7 +403,7 @@ def _gains_not_clamped(ctx: CheckContext) -> None:
         raise CheckFailedError(
             f"with #{_GAINS[0]}.{top}! in range the depth hold did not dive either (raw {start} "
             f"to {deepest} in {MOTION_WATCH_S:g} s), so a clamped gain could not be seen (is the "
-            "vehicle in water?)"
+            f"vehicle in water? {_UNLOCKS}?)"
         )
 
 
@@ -420,7 +424,7 @@ def _watchdog(ctx: CheckContext) -> None:
         raise CheckFailedError(
             f"unlocked with {ctx.options.motion_percent} % down thrust the vehicle did not dive "
             f"(raw {start} to {deepest} in {MOTION_WATCH_S:g} s), so the failsafe could not be "
-            "seen (is the vehicle in water? --motion-power)"
+            f"seen (is the vehicle in water? --motion-power; {_UNLOCKS}?)"
         )
     # Queries alone, for longer than the watchdog and the coast after it: they are valid
     # frames, so they keep the link alive (P17), and the dive goes on. A failsafe that only

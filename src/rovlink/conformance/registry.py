@@ -11,7 +11,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 
 from rovlink.conformance.wire import Exchange, Wire
-from rovlink.protocol import BadFrame, Command, Frame, encode, get_algorithm
+from rovlink.protocol import BadFrame, Command, Frame, Response, encode, get_algorithm
 
 __all__ = [
     "CHECKS",
@@ -140,7 +140,7 @@ class CheckContext:
         sent_at = self.wire.now_s()
         exchange = self.ask(data, len(names))
         frames = exchange.frames
-        got = tuple(frame.message.name if isinstance(frame, Frame) else "?" for frame in frames)
+        got = tuple(_name_of(frame) for frame in frames)
         context = f" ({why})" if why else ""
         if not frames:
             # Text in place of the reply (an error line, a reply spoilt on the line) is named:
@@ -170,7 +170,8 @@ class CheckContext:
         )
         self.exchanges.append(exchange)
         for frame in exchange.valid_frames:
-            if frame.message.name == name and exchange.reply_s is not None:
+            late = isinstance(frame.message, Response) and frame.message.name == name
+            if late and exchange.reply_s is not None:
                 late_ms = (self.wire.now_s() - sent_at) * 1000
                 return (
                     f"; ${name} came late, about {late_ms:.0f} ms after the query: the controller "
@@ -188,8 +189,19 @@ class CheckContext:
         wire.drain(0.05)
 
 
+def _name_of(frame: Frame | BadFrame) -> str:
+    """A reply's name; ``#name`` for a command frame that came back (a controller that echoes
+    what it gets: no reply); ``?`` for an invalid frame."""
+    if isinstance(frame, BadFrame):
+        return "?"
+    return frame.message.name if isinstance(frame.message, Response) else "#" + frame.message.name
+
+
 def _names(names: tuple[str, ...]) -> str:
-    return " ".join(f"${name}" for name in names) or "nothing"
+    """``$qd $qr`` for reply names; a name that starts with ``#`` (a command frame that came
+    back) is shown as the command, ``#qd!``."""
+    shown = (f"{name}!" if name.startswith("#") else f"${name}" for name in names)
+    return " ".join(shown) or "nothing"
 
 
 @dataclass(frozen=True)

@@ -9,8 +9,8 @@ from __future__ import annotations
 import math
 
 from rovlink.conformance.registry import CheckContext, CheckFailedError, check
-from rovlink.conformance.wire import Exchange
-from rovlink.protocol import COMMANDS, Command, Frame, Kind, Spec, encode, lookup
+from rovlink.conformance.wire import BITS_PER_BYTE, Exchange
+from rovlink.protocol import COMMANDS, Command, Kind, Response, Spec, encode, lookup
 
 __all__ = ["QUERIES", "check_canonical", "expect_depth", "first_value"]
 
@@ -19,8 +19,6 @@ QUERIES: tuple[Spec, ...] = tuple(spec for spec in COMMANDS if spec.is_query)
 
 #: P15: a heading is written below the table's maximum, which (360 ≡ 0) is only accepted.
 _HEADING_WRITTEN_MAX = lookup("qhe", Kind.RESPONSE).arguments[0].maximum - 1
-#: A byte on an 8N1 serial line: a start bit, eight data bits, a stop bit (P19).
-_BITS_PER_BYTE = 10
 
 
 def check_canonical(ctx: CheckContext, exchange: Exchange) -> None:
@@ -39,10 +37,27 @@ def check_canonical(ctx: CheckContext, exchange: Exchange) -> None:
             )
 
 
+def _expect_nothing_more(ctx: CheckContext, query: str) -> None:
+    """Fail if another frame comes within a reply timeout after the replies to ``query``: each
+    query is answered exactly once (P4). A second reply a little later (a firmware that answers
+    from two places) would pass the query's check and land in a later check's wait, which
+    would blame its own rule."""
+    timeout_s = ctx.options.reply_timeout_s
+    exchange = ctx.wire.send(b"", timeout_s=timeout_s, linger_s=timeout_s)
+    ctx.exchanges.append(exchange)
+    if exchange.frames:
+        raw = b"".join(frame.raw for frame in exchange.frames)
+        raise CheckFailedError(
+            f"{query} was answered, and then within {timeout_s * 1000:.0f} ms more came: "
+            f"{raw!r} (P4: each query is answered exactly once)"
+        )
+
+
 def _query_check(spec: Spec) -> None:
     def run(ctx: CheckContext) -> None:
         exchange = ctx.expect_reply(ctx.frame(Command(spec.name)), spec.replies)
         check_canonical(ctx, exchange)
+        _expect_nothing_more(ctx, f"#{spec.name}!")
 
     names = " ".join(f"${name}" for name in spec.replies)
     check(
@@ -65,6 +80,7 @@ def _burst(ctx: CheckContext) -> None:
     data = b"".join(ctx.frame(Command(spec.name)) for spec in QUERIES)
     names = tuple(name for spec in QUERIES for name in spec.replies)
     check_canonical(ctx, ctx.expect_reply(data, names))
+    _expect_nothing_more(ctx, "every query of the burst")
 
 
 @check("reply-time", ("P19",), "queries are answered within 5 ms (90th percentile)")
@@ -87,7 +103,7 @@ def _reply_time(ctx: CheckContext) -> None:
     limit_s = ctx.options.reply_limit_s
     line = ""
     if ctx.options.baudrate and slowest is not None:
-        wire_s = (len(slowest.sent) + len(slowest.received)) * _BITS_PER_BYTE / ctx.options.baudrate
+        wire_s = (len(slowest.sent) + len(slowest.received)) * BITS_PER_BYTE / ctx.options.baudrate
         limit_s += wire_s
         line = f" + {wire_s * 1000:.2f} ms of bytes on the line at {ctx.options.baudrate} baud"
     if p90_s > limit_s:
@@ -100,9 +116,10 @@ def _reply_time(ctx: CheckContext) -> None:
 
 
 def first_value(exchange: Exchange, name: str) -> int:
-    """The value of the first valid ``$name`` reply in ``exchange``."""
+    """The value of the first valid ``$name`` reply in ``exchange`` (a ``#name!`` that came
+    back, as from a controller that echoes, is no reply)."""
     for frame in exchange.valid_frames:
-        if isinstance(frame, Frame) and frame.message.name == name:
+        if isinstance(frame.message, Response) and frame.message.name == name:
             return frame.message.values[0]
     raise CheckFailedError(f"no ${name} reply")
 

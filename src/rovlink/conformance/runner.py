@@ -22,7 +22,7 @@ from rovlink.conformance.registry import (
 from rovlink.conformance.results import CheckResult, Outcome, Report
 from rovlink.conformance.wire import Wire
 from rovlink.logs import get_logger
-from rovlink.protocol import Command, Response
+from rovlink.protocol import BadFrame, Command, Response
 from rovlink.protocol.visible import visible
 
 __all__ = ["PreflightError", "run_checks", "select_checks"]
@@ -78,7 +78,7 @@ def run_checks(
     ``#stop!``, whatever happened.
     """
     options = options or SuiteOptions()
-    wire = Wire(link, algorithm=options.algorithm)
+    wire = Wire(link, algorithm=options.algorithm, baudrate=options.baudrate)
     selected = list(checks) if checks is not None else select_checks(motion=options.motion)
     report = Report(target)
     started = time.monotonic()
@@ -130,7 +130,7 @@ def _wait_for_answer(wire: Wire, options: SuiteOptions) -> tuple[int, ...]:
     to the boot time; PreflightError if none comes."""
     context = CheckContext(wire, options)
     deadline = time.monotonic() + options.boot_timeout_s
-    received = b""
+    first = len(wire.log)  # (what came while the restores were sent is said too: a banner)
     attempts = 0
     while True:
         attempts += 1
@@ -156,11 +156,19 @@ def _wait_for_answer(wire: Wire, options: SuiteOptions) -> tuple[int, ...]:
                 # now, or they would land in the first checks' waits.
                 wire.drain(LATE_WAIT_FACTOR * options.reply_timeout_s)
             break
-        received += exchange.received
         if time.monotonic() >= deadline:
+            since = wire.log[first:]
+            received = b"".join(exchange.received for exchange in since)
+            # (a reply the decoder refused is named with why: a checksum on a plain reply)
+            invalid = [
+                frame for item in since for frame in item.frames if isinstance(frame, BadFrame)
+            ]
+            why = (
+                f"; {invalid[-1].raw!r} is no valid frame: {invalid[-1].detail}" if invalid else ""
+            )
             raise PreflightError(
                 f"the controller did not answer #q.l! within {options.boot_timeout_s:g} s "
-                f"(received {received[-200:]!r})"
+                f"(received {received[-200:]!r}){why}"
             )
     return values[0]
 

@@ -16,7 +16,10 @@ from dataclasses import dataclass, field
 from rovlink.client.links import Link
 from rovlink.protocol import BadFrame, Decoder, Event, Frame, Text
 
-__all__ = ["Exchange", "Wire"]
+__all__ = ["BITS_PER_BYTE", "Exchange", "Wire"]
+
+#: A byte on an 8N1 serial line: a start bit, eight data bits, a stop bit.
+BITS_PER_BYTE = 10
 
 
 @dataclass
@@ -50,6 +53,11 @@ class Wire:
 
     ``replies_checksummed`` is the checksum mode the replies are decoded in; the checks set it
     as they switch the controller's mode. Every exchange is recorded in :attr:`log`.
+
+    ``baudrate``: the rate of the serial line the bytes cross, if any. A write returns once
+    the serial driver holds the bytes, and the line takes ``10 / baudrate`` s a byte to carry
+    them, after the bytes written before: the waits for a reply, or for the silence after a
+    frame, count from when the bytes written so far have reached the controller.
     """
 
     def __init__(
@@ -57,11 +65,15 @@ class Wire:
         link: Link,
         *,
         algorithm: str = "crc8",
+        baudrate: int | None = None,
         clock: Callable[[], float] = time.monotonic,
     ) -> None:
         self.link = link
         self.algorithm = algorithm
+        self._baudrate = baudrate
         self._clock = clock
+        #: When the bytes written so far have crossed the line (the wire's clock).
+        self._line_free_s = 0.0
         self._decoder = Decoder(algorithm=algorithm)
         self.log: list[Exchange] = []
 
@@ -85,6 +97,9 @@ class Wire:
         self.log.append(exchange)
         if data:
             self.link.write(data)
+            if self._baudrate:
+                on_line_s = len(data) * BITS_PER_BYTE / self._baudrate
+                self._line_free_s = max(self._clock(), self._line_free_s) + on_line_s
         self._read(exchange, frames, timeout_s, linger_s)
         return exchange
 
@@ -95,8 +110,10 @@ class Wire:
     def _read(self, exchange: Exchange, frames: int, timeout_s: float, linger_s: float) -> None:
         clock = self._clock
         start = clock()
-        deadline = start + timeout_s
-        quiet_until = start + linger_s if frames == 0 else None
+        # (the reply time is measured from the write; the waits from the bytes' arrival)
+        arrived = max(start, self._line_free_s)
+        deadline = arrived + timeout_s
+        quiet_until = arrived + linger_s if frames == 0 else None
         received = bytearray()
         count = 0
         while True:
