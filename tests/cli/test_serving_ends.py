@@ -17,7 +17,7 @@ from pathlib import Path
 import pytest
 
 from tests.bridges.mavlink.rig import free_udp_port
-from tests.bridges.mqtt.broker import Mosquitto, free_tcp_port, mosquitto_available
+from tests.bridges.mqtt.broker import Mosquitto, mosquitto_available
 from tests.rovlink_process import rovlink_command, rovlink_environment
 
 pytestmark = pytest.mark.integration
@@ -62,8 +62,8 @@ def _arguments(name: str, tmp_path: Path, request: pytest.FixtureRequest) -> lis
         return ["sim", "--tcp", "127.0.0.1:0"]
     if name == "controller":
         return ["controller", "--board", "sim", "--tcp", "127.0.0.1:0"]
-    if name == "fault":  # (--listen takes no port 0)
-        return ["fault", "--listen", f"socket://127.0.0.1:{free_tcp_port()}", "--to", "sim://"]
+    if name == "fault":
+        return ["fault", "--listen", "socket://127.0.0.1:0", "--to", "sim://"]
     if name == "web":
         return ["web", "--port", "0"]
     if name == "record":
