@@ -581,15 +581,24 @@ def test_a_signal_ends_a_telemetry_bridge_without_a_stop(
 
 
 @pytest.mark.parametrize("how", [signal.SIGINT, signal.SIGQUIT], ids=lambda how: how.name)
+@pytest.mark.parametrize(
+    "bridge",
+    [
+        ("mavlink", "--out", "udpout:127.0.0.1:9"),
+        ("mqtt", "--broker", "mqtt://127.0.0.1:9", "--robot", "r1", "--allow-commands"),
+    ],
+    ids=lambda bridge: bridge[0],
+)
 def test_ctrl_c_ends_a_bridge_as_interrupted_with_its_final_stop(
-    silent: SilentController, how: signal.Signals
+    silent: SilentController, how: signal.Signals, bridge: tuple[str, ...]
 ) -> None:
-    process = _rovlink("mavlink", silent.url, "--out", "udpout:127.0.0.1:9")
+    command, *options = bridge
+    process = _rovlink(command, silent.url, *options)
     assert silent.wait_for(b"#qsa!")
     stops_before = silent.received.count(b"#stop!")
     _, stderr = _interrupt(process, how)
     assert process.returncode == 130, stderr
-    assert stderr.decode().splitlines()[-1] == "rovlink mavlink: interrupted"
+    assert stderr.decode().splitlines()[-1] == f"rovlink {command}: interrupted"
     assert silent.wait_until(lambda received: received.count(b"#stop!") > stops_before)
 
 
