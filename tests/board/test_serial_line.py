@@ -14,6 +14,7 @@ import pytest
 
 from rovlink.controller import lines as lines_module
 from rovlink.controller.lines import Line, Lines, SerialDeviceLine
+from tests.controller.controller_rig import make_rig
 
 pytestmark = pytest.mark.integration
 
@@ -136,3 +137,28 @@ def test_a_serial_device_found_gone_by_a_write_is_opened_again(
     assert _wait_for(lines, lambda: len(lines.lines) == 1)
     os.write(adapter.master, b"#qd!")
     assert _wait_for(lines, lambda: received == b"#qd!")
+
+
+def test_a_robot_driven_over_a_serial_device_that_is_unplugged_stops_at_once(
+    adapter: _UsbAdapter,
+) -> None:
+    # The cable pulled (the USB adapter gone) while it drives: the controller's lines let the
+    # device go and say so as they do for a TCP client that closed, so the robot stops at once,
+    # not a watchdog later (here off) nor ever.
+    rig = make_rig(watchdog_s=0.0)
+    lines = Lines(
+        lambda line, data: rig.controller.receive(data, line),
+        busy_message=b"",
+        on_close=rig.controller.forget_line,
+    )
+    try:
+        lines.open_serial(str(adapter.name), 115200)
+        os.write(adapter.master, b"#start!#th.0.100!")
+        assert _wait_for(lines, lambda: rig.controller.state().power_percent == 100)
+        adapter.unplug()
+        assert _wait_for(lines, lambda: not lines.lines)
+        state = rig.controller.state()
+        assert state.locked
+        assert state.power_percent == 0
+    finally:
+        lines.close()

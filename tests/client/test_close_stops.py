@@ -204,6 +204,27 @@ def test_leaving_with_by_an_error_stops_even_a_robot_left_as_it_is_on_close() ->
         fake.close()
 
 
+async def test_leaving_async_with_by_an_error_stops_even_a_robot_left_as_it_is_on_close() -> None:
+    fake, host_end = FakeController.on_socketpair()
+    try:
+        rov = await AsyncClient(
+            SocketLink(host_end, "socket pair"), client_options(stop_on_close=False)
+        ).open()
+
+        async def failing_program() -> None:
+            async with rov:
+                await rov.move(0, 40)
+                raise KeyError("the robot program failed")
+
+        with pytest.raises(KeyError):  # the program's error, not masked
+            await failing_program()
+        assert rov.closed
+        await asyncio.to_thread(fake._thread.join, CONDITION_TIMEOUT_S)  # (all read)
+        assert fake.frames()[1:] == ["#th.0.40!", "#stop!"]
+    finally:
+        fake.close()
+
+
 async def test_leaving_async_with_by_an_error_is_bounded_as_close_is(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
