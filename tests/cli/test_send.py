@@ -434,3 +434,14 @@ def test_raw_output_closed_before_the_first_line_ends_quietly() -> None:
     # the probe's bytes, shown as the link opened, were taken for the link's failure.
     result = run_into_a_closed_pipe("send", "sim://", "--raw", "qd")
     assert (result.returncode, result.stderr) == (0, "")
+
+
+def test_commands_that_leave_the_robot_moving_are_followed_by_stop_as_the_link_closes(
+    run_cli: RunCli,
+) -> None:
+    # `rovlink send URL start "th 0 50"`: the command ends at once, and the robot is not left
+    # driving until the controller's watchdog (or for good, with it off).
+    result = run_cli("send", "sim://?seed=3", "start", "th 0 50", "--raw")
+    assert result.status == 0, result.err
+    sent = [line for line in result.out.splitlines() if line.startswith(">> ")]
+    assert sent[-2:] == [">> #th.0.50!", ">> #stop!"]
