@@ -1,5 +1,5 @@
 """``rovlink tune`` and ``rovlink check --motion``, run as users run them and ended by a signal
-while the vehicle moves, leave it locked with zero thrust.
+(Ctrl-C, SIGTERM, SIGHUP, SIGQUIT) while the vehicle moves, leave it locked with zero thrust.
 
 They drive a simulated controller's pseudo-terminal with its link-loss watchdog off: a PTY has no
 connection whose end the controller sees, so only the ``#stop!`` the command sends on its way out
@@ -56,7 +56,11 @@ def _stopped(server: SimServer) -> bool:
     return controller.locked and not any(controller.duties)
 
 
-@pytest.mark.parametrize("how", [signal.SIGTERM, signal.SIGHUP], ids=lambda how: how.name)
+@pytest.mark.parametrize(
+    "how",
+    [signal.SIGINT, signal.SIGTERM, signal.SIGHUP, signal.SIGQUIT],
+    ids=lambda how: how.name,
+)
 @pytest.mark.parametrize("command", list(_COMMANDS))
 def test_a_driving_command_ended_by_a_signal_while_the_vehicle_moves_stops_it(
     robot: SimServer, command: str, how: signal.Signals

@@ -65,7 +65,11 @@ def _served_robot_without_watchdog() -> Iterator[tuple[SimServer, str]]:
         server.close()
 
 
-@pytest.mark.parametrize("how", [signal.SIGINT, signal.SIGTERM], ids=lambda how: how.name)
+@pytest.mark.parametrize(
+    "how",
+    [signal.SIGINT, signal.SIGTERM, signal.SIGHUP, signal.SIGQUIT],
+    ids=lambda how: how.name,
+)
 @pytest.mark.parametrize("relay", _RELAYS)
 def test_a_relay_ended_by_a_signal_while_its_program_drives_sends_stop(
     silent: SilentController, tmp_path: Path, relay: str, how: signal.Signals
