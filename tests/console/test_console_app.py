@@ -253,9 +253,12 @@ def test_a_script_s_output_to_a_file_keeps_the_console_s_own_remarks_on_stderr(
         "  qd → 0 cm                 $qd.0!",
         "  → #stop!",
     ]
-    assert capsys.readouterr().err.splitlines()[1:] == [
+    # (Among other remarks: "connected …", and on a busy machine the simulator's "behind the
+    # wall clock" warning.)
+    assert (
         "rovlink console: leaving: sending #stop! (motors unlocked (as last sent))"
-    ]
+        in capsys.readouterr().err.splitlines()
+    )
 
 
 def test_lines_read_from_a_file_that_fail_as_they_run_end_the_console_with_status_1(
