@@ -7,7 +7,7 @@ import pytest
 from rovlink.client.errors import SupersededByStopError
 from rovlink.client.events import BytesSent, LateReply
 from rovlink.client.session import FENCE_QUERIES, STOP_REPEATS, Outcome, PendingQuery, Session
-from rovlink.protocol import COMMANDS, Command, Spec, Text
+from rovlink.protocol import COMMANDS, Command, Response, Spec, Text, encode
 
 QSA_REPLY = b"$qd.120!$qr.530!$q.l.0!$qro.-1!$qpi.+3!$qhe.275!"
 
@@ -616,3 +616,34 @@ def test_a_late_reply_says_whether_it_answers_a_query_of_the_sessions_own() -> N
     session.receive(b"$qd.6!$qhe.11!", now=2.6)
     late = [event for event in session.take_events() if isinstance(event, LateReply)]
     assert [(event.response.values, event.by_session) for event in late] == [((6,), False)]
+
+
+@pytest.mark.parametrize("byte_by_byte", [False, True])
+@pytest.mark.parametrize("enabled", [True, False])
+def test_replies_to_queries_sent_before_a_mode_change_are_read_in_their_own_mode(
+    enabled: bool, byte_by_byte: bool
+) -> None:
+    # P3: in `#qd!#crcon!` the qd reply is plain, in `#qd8C!#crcoff!` it carries a checksum;
+    # a query sent after the mode frame is answered in the new mode.
+    session = Session(checksum_enabled=not enabled)
+    _, before = session.query(Command("qd"), now=0.0)
+    session.command(Command("crcon" if enabled else "crcoff"), now=0.0)
+    _, after = session.query(Command("qr"), now=0.0)
+    old, new = (None, "crc8") if enabled else ("crc8", None)
+    data = encode(Response("qd", (123,)), old) + encode(Response("qr", (5,)), new)
+    for chunk in [data[i : i + 1] for i in range(len(data))] if byte_by_byte else [data]:
+        session.receive(chunk, now=0.01)
+    assert before.responses == [Response("qd", (123,))]
+    assert after.responses == [Response("qr", (5,))]
+    assert session.counters.bad_frames == 0
+
+
+def test_after_a_mode_change_the_new_mode_holds_once_the_old_queries_are_settled() -> None:
+    session = Session()
+    _, before = session.query(Command("qd"), now=0.0)
+    session.command(Command("crcon"), now=0.0)
+    session.receive(b"$qd.1!", now=0.01)
+    _, after = session.query(Command("qd"), now=0.02)
+    session.receive(b"$qd.2!", now=0.03)  # plain: now dropped
+    assert before.outcome is Outcome.ANSWERED
+    assert after.outcome is Outcome.CORRUPT

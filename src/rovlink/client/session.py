@@ -213,6 +213,7 @@ class Session:
         "_locked_as_sent",
         "_motion_renewed_at",
         "_moved_since_stop",
+        "_old_mode_queries",
         "_outbox",
         "_pending",
         "_power_percent",
@@ -252,6 +253,9 @@ class Session:
         self._algorithm = get_algorithm(algorithm)
         self._checksum_enabled = checksum_enabled
         self._decoder = Decoder(checksum_enabled=checksum_enabled, algorithm=self._algorithm)
+        # The queries on the wire when the checksum mode last changed: their replies come in
+        # the mode they were sent in (P3), so the decoder switches once they are settled.
+        self._old_mode_queries: tuple[PendingQuery, ...] = ()
         self._raw_decoder = Decoder(algorithm=self._algorithm)
         self._pending: deque[PendingQuery] = deque()
         # Queries are few and repeat: their bytes in the current mode, encoded once.
@@ -663,7 +667,31 @@ class Session:
 
     def receive(self, data: bytes, now: float) -> Received:
         """Decode bytes from the controller; settle the queries they answer or break."""
+        if self._old_mode_queries:
+            return self._receive_across_mode_change(data, now)
         return self._receive_events(self._decoder.feed(data), data, now)
+
+    def _receive_across_mode_change(self, data: bytes, now: float) -> Received:
+        """:meth:`receive` while queries sent before a checksum mode change are unsettled:
+        their replies are decoded in the old mode, a frame at a time, and what follows them
+        in the new one (P3: a mode change never reaches back)."""
+        result = Received()
+        rest = data
+        while rest:
+            if all(query.settled for query in self._old_mode_queries):
+                self._old_mode_queries = ()
+                self._decoder.checksum_enabled = self._checksum_enabled
+                piece, rest = rest, b""
+            else:
+                end = rest.find(b"!") + 1 or len(rest)
+                piece, rest = rest[:end], rest[end:]
+            part = self._receive_events(self._decoder.feed(piece), piece, now)
+            result.settled += part.settled
+            result.unsolicited += part.unsolicited
+        if self._old_mode_queries and all(query.settled for query in self._old_mode_queries):
+            self._old_mode_queries = ()
+            self._decoder.checksum_enabled = self._checksum_enabled
+        return result
 
     def _receive_events(self, decoded: list[Event], data: bytes, now: float) -> Received:
         """:meth:`receive` once ``data`` is decoded (into ``decoded``)."""
@@ -738,7 +766,7 @@ class Session:
         True
         """
         pending = self._pending
-        if self.events is not None or self._late_names or not pending:
+        if self.events is not None or self._late_names or not pending or self._old_mode_queries:
             return self.receive(data, now)
         query = pending[0]
         expected = query.expected
@@ -933,6 +961,8 @@ class Session:
         :meth:`disconnect`.)
         """
         self._decoder.reset()
+        self._old_mode_queries = ()
+        self._decoder.checksum_enabled = self._checksum_enabled
         self._fragment = self._fragment_head = None
         self._outbox.clear()
         self._end_resync()
@@ -1008,7 +1038,14 @@ class Session:
         if enabled != self._checksum_enabled and self.events is not None:
             self.events.append(ModeChanged(now, Setting.CHECKSUM, enabled))
         self._checksum_enabled = enabled
-        self._decoder.checksum_enabled = enabled
+        # The replies of the queries on the wire come in the mode they were sent in (P3).
+        decoder = self._decoder
+        if enabled != decoder.checksum_enabled:
+            self._old_mode_queries = tuple(q for q in self.on_the_wire if not q.settled)
+        else:
+            self._old_mode_queries = ()
+        if not self._old_mode_queries:
+            decoder.checksum_enabled = enabled
         self._query_bytes.clear()
         self._last_query = None
 
