@@ -647,3 +647,29 @@ def test_after_a_mode_change_the_new_mode_holds_once_the_old_queries_are_settled
     session.receive(b"$qd.2!", now=0.03)  # plain: now dropped
     assert before.outcome is Outcome.ANSWERED
     assert after.outcome is Outcome.CORRUPT
+
+
+@pytest.mark.parametrize(
+    ("modes", "replies_checksummed"),
+    [
+        (["crcon", "crcon"], [False, True, True]),  # a mode asserted again (P21) changes nothing
+        (["crcon", "crcoff"], [False, True, False]),
+        (["crcoff", "crcon"], [True, False, True]),
+    ],
+)
+def test_each_reply_is_read_in_the_mode_its_query_went_out_in(
+    modes: list[str], replies_checksummed: list[bool]
+) -> None:
+    session = Session(checksum_enabled=replies_checksummed[0])
+    queries = [session.query(Command("qd"), now=0.0)[1]]
+    for mode in modes:
+        session.command(Command(mode), now=0.0)
+        queries.append(session.query(Command("qd"), now=0.0)[1])
+    data = b"".join(
+        encode(Response("qd", (value,)), "crc8" if checksummed else None)
+        for value, checksummed in enumerate(replies_checksummed)
+    )
+    session.receive(data, now=0.01)
+    assert [query.responses for query in queries] == [
+        [Response("qd", (value,))] for value in range(3)
+    ]
