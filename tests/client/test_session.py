@@ -673,3 +673,24 @@ def test_each_reply_is_read_in_the_mode_its_query_went_out_in(
     assert [query.responses for query in queries] == [
         [Response("qd", (value,))] for value in range(3)
     ]
+
+
+def test_a_suspected_reset_re_asserts_the_mode_and_never_unlocks_or_moves_again() -> None:
+    # P21: after a reset the controller is locked; a host re-asserts its checksum mode and
+    # never assumes the robot is still unlocked (no #start!, no motion sent again of itself).
+    session = Session(timeout_s=0.5, checksum_enabled=True)
+    written = session.command(Command("start"), now=0.0)
+    written += session.command(Command("th", (0, 50)), now=0.0)
+    assert written == b"#start3F!#th.0.5098!"
+    now = 0.0
+    after_start = b""
+    for _ in range(6):  # nothing answers
+        if not session.pending:
+            after_start += session.query(Command("qd"), now=now)[0]
+        now += 0.5
+        session.tick(now)
+        after_start += session.take_outbox(now)
+    assert session.counters.resets_suspected == 1
+    assert b"#crcon!" in after_start
+    assert b"#start" not in after_start
+    assert b"#th." not in after_start
