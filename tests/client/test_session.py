@@ -694,3 +694,16 @@ def test_a_suspected_reset_re_asserts_the_mode_and_never_unlocks_or_moves_again(
     assert b"#crcon!" in after_start
     assert b"#start" not in after_start
     assert b"#th." not in after_start
+
+
+def test_a_keepalive_written_ahead_of_a_mode_frame_is_answered_in_the_old_mode() -> None:
+    # The drivers send #crcon! once the program's queries are answered, but a keep-alive due
+    # then goes out first in the same write: its plain reply must not be a bad frame that
+    # starts a resynchronisation (P3, P17).
+    session = Session(keepalive_s=1.0)
+    session.tick(1.5)
+    assert session.command(Command("crcon"), now=1.5) == b"#qd!#crcon!"
+    session.receive(b"$qd.5!", now=1.51)
+    assert session.counters.bad_frames == 0
+    assert session.counters.replies == 1
+    assert not session.pending
