@@ -10,6 +10,7 @@ import pytest
 import rovlink
 import rovlink.aio
 from rovlink.client import ClientOptions
+from rovlink.controller import ControllerConfig
 
 
 @pytest.mark.parametrize("keepalive_s", [math.nan, math.inf, -1.0, 1e-9, 0.001, 1e10])
@@ -83,3 +84,13 @@ def test_an_async_def_callback_is_refused_before_connecting(connect: Any, name: 
     # and the program heard nothing.)
     with pytest.raises(TypeError, match=rf"{name} must be a plain function, not an async def"):
         connect("sim://", **{name: _an_async_callback})
+
+
+def test_the_default_keepalive_feeds_the_default_link_loss_failsafe() -> None:
+    # P17: an idle host keeps an unlocked robot alive with a query; by default the controller
+    # stops after 2 s without a valid frame, so the keep-alive comes well inside that.
+    keepalive_s = ClientOptions().keepalive_s
+    watchdog_s = ControllerConfig().watchdog_s
+    assert watchdog_s == 2.0
+    assert keepalive_s is not None
+    assert 0 < keepalive_s <= watchdog_s / 2

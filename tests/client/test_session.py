@@ -7,7 +7,7 @@ import pytest
 from rovlink.client.errors import SupersededByStopError
 from rovlink.client.events import BytesSent, LateReply
 from rovlink.client.session import FENCE_QUERIES, STOP_REPEATS, Outcome, PendingQuery, Session
-from rovlink.protocol import COMMANDS, Command, Spec, Text
+from rovlink.protocol import COMMANDS, Command, Response, Spec, Text, encode
 
 QSA_REPLY = b"$qd.120!$qr.530!$q.l.0!$qro.-1!$qpi.+3!$qhe.275!"
 
@@ -616,3 +616,94 @@ def test_a_late_reply_says_whether_it_answers_a_query_of_the_sessions_own() -> N
     session.receive(b"$qd.6!$qhe.11!", now=2.6)
     late = [event for event in session.take_events() if isinstance(event, LateReply)]
     assert [(event.response.values, event.by_session) for event in late] == [((6,), False)]
+
+
+@pytest.mark.parametrize("byte_by_byte", [False, True])
+@pytest.mark.parametrize("enabled", [True, False])
+def test_replies_to_queries_sent_before_a_mode_change_are_read_in_their_own_mode(
+    enabled: bool, byte_by_byte: bool
+) -> None:
+    # P3: in `#qd!#crcon!` the qd reply is plain, in `#qd8C!#crcoff!` it carries a checksum;
+    # a query sent after the mode frame is answered in the new mode.
+    session = Session(checksum_enabled=not enabled)
+    _, before = session.query(Command("qd"), now=0.0)
+    session.command(Command("crcon" if enabled else "crcoff"), now=0.0)
+    _, after = session.query(Command("qr"), now=0.0)
+    old, new = (None, "crc8") if enabled else ("crc8", None)
+    data = encode(Response("qd", (123,)), old) + encode(Response("qr", (5,)), new)
+    for chunk in [data[i : i + 1] for i in range(len(data))] if byte_by_byte else [data]:
+        session.receive(chunk, now=0.01)
+    assert before.responses == [Response("qd", (123,))]
+    assert after.responses == [Response("qr", (5,))]
+    assert session.counters.bad_frames == 0
+
+
+def test_after_a_mode_change_the_new_mode_holds_once_the_old_queries_are_settled() -> None:
+    session = Session()
+    _, before = session.query(Command("qd"), now=0.0)
+    session.command(Command("crcon"), now=0.0)
+    session.receive(b"$qd.1!", now=0.01)
+    _, after = session.query(Command("qd"), now=0.02)
+    session.receive(b"$qd.2!", now=0.03)  # plain: now dropped
+    assert before.outcome is Outcome.ANSWERED
+    assert after.outcome is Outcome.CORRUPT
+
+
+@pytest.mark.parametrize(
+    ("modes", "replies_checksummed"),
+    [
+        (["crcon", "crcon"], [False, True, True]),  # a mode asserted again (P21) changes nothing
+        (["crcon", "crcoff"], [False, True, False]),
+        (["crcoff", "crcon"], [True, False, True]),
+    ],
+)
+def test_each_reply_is_read_in_the_mode_its_query_went_out_in(
+    modes: list[str], replies_checksummed: list[bool]
+) -> None:
+    session = Session(checksum_enabled=replies_checksummed[0])
+    queries = [session.query(Command("qd"), now=0.0)[1]]
+    for mode in modes:
+        session.command(Command(mode), now=0.0)
+        queries.append(session.query(Command("qd"), now=0.0)[1])
+    data = b"".join(
+        encode(Response("qd", (value,)), "crc8" if checksummed else None)
+        for value, checksummed in enumerate(replies_checksummed)
+    )
+    session.receive(data, now=0.01)
+    assert [query.responses for query in queries] == [
+        [Response("qd", (value,))] for value in range(3)
+    ]
+
+
+def test_a_suspected_reset_re_asserts_the_mode_and_never_unlocks_or_moves_again() -> None:
+    # P21: after a reset the controller is locked; a host re-asserts its checksum mode and
+    # never assumes the robot is still unlocked (no #start!, no motion sent again of itself).
+    session = Session(timeout_s=0.5, checksum_enabled=True)
+    written = session.command(Command("start"), now=0.0)
+    written += session.command(Command("th", (0, 50)), now=0.0)
+    assert written == b"#start3F!#th.0.5098!"
+    now = 0.0
+    after_start = b""
+    for _ in range(6):  # nothing answers
+        if not session.pending:
+            after_start += session.query(Command("qd"), now=now)[0]
+        now += 0.5
+        session.tick(now)
+        after_start += session.take_outbox(now)
+    assert session.counters.resets_suspected == 1
+    assert b"#crcon!" in after_start
+    assert b"#start" not in after_start
+    assert b"#th." not in after_start
+
+
+def test_a_keepalive_written_ahead_of_a_mode_frame_is_answered_in_the_old_mode() -> None:
+    # The drivers send #crcon! once the program's queries are answered, but a keep-alive due
+    # then goes out first in the same write: its plain reply must not be a bad frame that
+    # starts a resynchronisation (P3, P17).
+    session = Session(keepalive_s=1.0)
+    session.tick(1.5)
+    assert session.command(Command("crcon"), now=1.5) == b"#qd!#crcon!"
+    session.receive(b"$qd.5!", now=1.51)
+    assert session.counters.bad_frames == 0
+    assert session.counters.replies == 1
+    assert not session.pending

@@ -6,6 +6,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from rovlink.controller import LeakAction
 from rovlink.protocol import BadFrame, Decoder, Frame, Text
 from tests.controller.controller_rig import Rig, make_rig
 
@@ -119,3 +120,58 @@ def test_text_between_frames_is_reported_without_its_frame_characters(debug_rig:
     output = debug_rig.send(b"boot ok!\r\nv1.2!!\r\n")
     assert output.count(b"ignored text between frames") == 2, output
     assert b"!" not in output
+
+
+@pytest.mark.parametrize(
+    ("frame", "words"),
+    [(b"#qd!", b"checksum"), (b"#qdFF!", b"checksum"), (b"#qd8C!", b"")],
+)
+def test_a_frame_dropped_in_checksum_mode_gets_a_line_naming_the_checksum(
+    debug_rig: Rig, frame: bytes, words: bytes
+) -> None:
+    # P3, P4, P5: a frame whose checksum is missing or wrong is dropped, and debug says why.
+    debug_rig.send(b"#crcon!")
+    output = debug_rig.send(frame)
+    if words:
+        lines = _lines(output)
+        assert len(lines) == 1
+        assert lines[0].startswith(b"debug: dropped <" + frame[1:-1] + b">: " + words)
+    else:
+        assert output.startswith(b"$qd.")
+
+
+def test_a_reply_sent_to_the_controller_gets_a_line(debug_rig: Rig) -> None:
+    assert _lines(debug_rig.send(b"$qd.1!")) == [b"debug: dropped <qd.1>: a reply, not a command"]
+
+
+@pytest.mark.parametrize(
+    ("setup", "frame"), [(b"#crcon!", b"#crcoff!"), (b"#mvdirect.1!", b"#mvdirect.0!")]
+)
+def test_switching_a_mode_back_gets_a_line_too(debug_rig: Rig, setup: bytes, frame: bytes) -> None:
+    debug_rig.send(setup)
+    assert len(_lines(debug_rig.send(frame))) == 1
+
+
+def test_a_vertical_thrust_set_point_gets_a_line(debug_rig: Rig) -> None:
+    debug_rig.send(b"#start!#mvdirect.1!")
+    assert _lines(debug_rig.send(b"#mvs.-50!")) == [b"debug: vertical thrust -50 %"]
+
+
+@pytest.mark.parametrize(
+    ("action", "words"),
+    [
+        (LeakAction.NONE, [b"leak detected, action none"]),
+        (LeakAction.STOP, [b"leak detected, action stop", b"leak: motors stopped and locked"]),
+        (LeakAction.SURFACE, [b"leak detected, action surface", b"leak: surfacing"]),
+    ],
+)
+def test_a_leak_and_its_action_get_a_line_each(action: LeakAction, words: list[bytes]) -> None:
+    # P5: every failsafe action gets a line; P14: the leak action is one.
+    rig = make_rig(leak_action=action, watchdog_s=0.0)
+    rig.send(b"#debug1!#start!#th.0.50!")
+    rig.controller.read_output()
+    rig.leak.pulse()
+    lines = _lines(rig.tick())
+    assert len(lines) == len(words)
+    for line, word in zip(lines, words, strict=True):
+        assert word in line

@@ -98,3 +98,16 @@ def test_surface_action_is_taken_again_by_the_next_leak_while_latched() -> None:
     state = rig.controller.state()
     assert (state.vertical_mode, state.vertical_thrust_percent) == (VerticalMode.DIRECT, 100)
     assert state.power_percent == 0
+
+
+def test_leak_action_stop_clears_the_set_points_as_stop_does() -> None:
+    rig = make_rig(leak_action=LeakAction.STOP, watchdog_s=0.0)
+    rig.send(b"#start!#mvd.300!#th.90.50!#h+!")
+    rig.leak.pulse()
+    rig.tick()
+    state = rig.controller.state()
+    assert (state.target_depth_cm, state.power_percent) == (None, 0)
+    assert rig.claw.direction == 0
+    rig.send(b"#start!")  # unlocking again resumes nothing
+    rig.tick(10)
+    assert set(rig.thrusters.duties) == {0}

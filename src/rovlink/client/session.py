@@ -143,6 +143,9 @@ class PendingQuery:
     # makes one of these a query, and every attribute set in __init__ costs it.
     #: A keep-alive of the session's (P17).
     keepalive: bool = False
+    #: The checksum mode it went out in, once the mode has changed behind it: its replies
+    #: come in that mode (P3). None: the session's mode now.
+    sent_checksummed: bool | None = None
     #: Sent by the session itself (a keep-alive or a fence): nobody waits for it.
     internal: bool = False
     #: A query sent again after an attempt of it failed (not a new one of the program's).
@@ -213,6 +216,7 @@ class Session:
         "_locked_as_sent",
         "_motion_renewed_at",
         "_moved_since_stop",
+        "_old_mode_queries",
         "_outbox",
         "_pending",
         "_power_percent",
@@ -252,6 +256,9 @@ class Session:
         self._algorithm = get_algorithm(algorithm)
         self._checksum_enabled = checksum_enabled
         self._decoder = Decoder(checksum_enabled=checksum_enabled, algorithm=self._algorithm)
+        # The queries on the wire when the checksum mode changed, oldest first: their replies
+        # come in the mode they were sent in (P3), which the decoder takes until they settle.
+        self._old_mode_queries: tuple[PendingQuery, ...] = ()
         self._raw_decoder = Decoder(algorithm=self._algorithm)
         self._pending: deque[PendingQuery] = deque()
         # Queries are few and repeat: their bytes in the current mode, encoded once.
@@ -663,7 +670,38 @@ class Session:
 
     def receive(self, data: bytes, now: float) -> Received:
         """Decode bytes from the controller; settle the queries they answer or break."""
+        if self._old_mode_queries:
+            return self._receive_across_mode_change(data, now)
         return self._receive_events(self._decoder.feed(data), data, now)
+
+    def _receive_across_mode_change(self, data: bytes, now: float) -> Received:
+        """:meth:`receive` while queries sent before a checksum mode change are unsettled:
+        the bytes are decoded a frame at a time, each in the mode of the oldest query still
+        waiting (P3: a mode change never reaches back)."""
+        result = Received()
+        rest = data
+        while rest:
+            if self._decode_in_reply_mode():
+                end = rest.find(b"!") + 1 or len(rest)
+                piece, rest = rest[:end], rest[end:]
+            else:
+                piece, rest = rest, b""
+            part = self._receive_events(self._decoder.feed(piece), piece, now)
+            result.settled += part.settled
+            result.unsolicited += part.unsolicited
+        self._decode_in_reply_mode()
+        return result
+
+    def _decode_in_reply_mode(self) -> bool:
+        """Put the decoder in the mode of the oldest query on the wire still waiting; whether
+        a query sent before a mode change still waits."""
+        waiting = self._old_mode_queries
+        while waiting and waiting[0].settled:
+            waiting = waiting[1:]
+        self._old_mode_queries = waiting
+        mode = waiting[0].sent_checksummed if waiting else None
+        self._decoder.checksum_enabled = self._checksum_enabled if mode is None else mode
+        return bool(waiting)
 
     def _receive_events(self, decoded: list[Event], data: bytes, now: float) -> Received:
         """:meth:`receive` once ``data`` is decoded (into ``decoded``)."""
@@ -738,7 +776,7 @@ class Session:
         True
         """
         pending = self._pending
-        if self.events is not None or self._late_names or not pending:
+        if self.events is not None or self._late_names or not pending or self._old_mode_queries:
             return self.receive(data, now)
         query = pending[0]
         expected = query.expected
@@ -933,6 +971,8 @@ class Session:
         :meth:`disconnect`.)
         """
         self._decoder.reset()
+        self._old_mode_queries = ()
+        self._decode_in_reply_mode()
         self._fragment = self._fragment_head = None
         self._outbox.clear()
         self._end_resync()
@@ -1007,8 +1047,16 @@ class Session:
     def _set_mode(self, enabled: bool, now: float) -> None:
         if enabled != self._checksum_enabled and self.events is not None:
             self.events.append(ModeChanged(now, Setting.CHECKSUM, enabled))
+        previous = self._checksum_enabled
         self._checksum_enabled = enabled
-        self._decoder.checksum_enabled = enabled
+        if enabled != previous:
+            # The replies of the queries on the wire come in the mode they were sent in (P3).
+            waiting = tuple(query for query in self.on_the_wire if not query.settled)
+            for query in waiting:
+                if query.sent_checksummed is None:
+                    query.sent_checksummed = previous
+            self._old_mode_queries = waiting
+        self._decode_in_reply_mode()
         self._query_bytes.clear()
         self._last_query = None
 
