@@ -134,7 +134,10 @@ class StreamStats:
 def _write_json(shown: dict[str, object]) -> None:
     """One JSON object per line, with DEL and C1 controls escaped (a terminal may act on them)."""
     line = json.dumps(shown, ensure_ascii=False)
-    sys.stdout.write(_DEL_AND_C1.sub(_json_escape, line) + "\n")
+    try:
+        sys.stdout.write(_DEL_AND_C1.sub(_json_escape, line) + "\n")
+    except UnicodeEncodeError:  # an output that is not UTF-8 (nothing of the line was written)
+        sys.stdout.write(_DEL_AND_C1.sub(_json_escape, json.dumps(shown)) + "\n")
 
 
 def decode_stream(stream: BinaryIO, decoder: Decoder, *, stats_only: bool) -> None:
