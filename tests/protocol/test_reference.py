@@ -48,7 +48,7 @@ def test_the_rules_the_reference_names_are_the_protocol_s() -> None:
 
 def _with(spec: Spec, **changes: object) -> Spec:
     fields = {name: getattr(spec, name) for name in Spec.__match_args__}
-    return Spec(**{**fields, **changes})  # type: ignore[arg-type]
+    return Spec(**{**fields, **changes})
 
 
 def test_the_frames_without_a_checksum_are_the_table_s(monkeypatch: pytest.MonkeyPatch) -> None:
