@@ -241,6 +241,8 @@ def _decode_recording(args: argparse.Namespace) -> int:
     from rovlink.recorder.link_decoding import LinkDecoder  # noqa: PLC0415
 
     link = LinkDecoder(checksum=bool(args.checksum), algorithm=args.algorithm)
+    checksum_given = args.checksum is not None
+    algorithm_given = getattr(args, "algorithm_given", False)
     stats = StreamStats()
     damage: RecordingDamagedError | None = None
 
@@ -261,11 +263,14 @@ def _decode_recording(args: argparse.Namespace) -> int:
             for entry in read_entries(args.file):
                 if isinstance(entry, WireEntry):
                     show(entry.direction, link.feed(entry.direction, entry.data))
-                elif isinstance(entry, HeaderEntry) and args.checksum is None:
-                    # The mode the link was in as this file starts (each file of a rotation
-                    # records its own), unless --checksum/--no-checksum says otherwise.
+                elif isinstance(entry, HeaderEntry) and not (checksum_given and algorithm_given):
+                    # The mode and algorithm the link was in as this file starts (each file of
+                    # a rotation records its own), each unless the command line says otherwise.
                     try:
-                        link.set_mode(entry.checksum, entry.algorithm)
+                        link.set_mode(
+                            args.checksum if checksum_given else entry.checksum,
+                            args.algorithm if algorithm_given else entry.algorithm,
+                        )
                     except ValueError as error:  # (a header damaged, or from a newer version)
                         raise CommandError(f"{args.file}: the header's {error}") from None
         except RecordingDamagedError as error:
