@@ -9,6 +9,7 @@ from pathlib import Path
 
 import pytest
 
+from rovlink.cli import main
 from rovlink.protocol.frames import Reason
 from tests.cli.conftest import RunCli
 
@@ -140,3 +141,16 @@ def test_decode_writes_noise_to_an_output_that_is_not_utf_8(
         assert lines[0] == {"event": "text", "text": "ab\ufffdcd"}
         assert lines[1]["raw"] == "#q"
         assert lines[3]["raw"] == "#zz"
+
+
+def test_decode_of_a_closed_standard_input_is_a_one_line_error(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # `rovlink decode <&-`: Python has no sys.stdin at all.
+    monkeypatch.setattr(sys, "stdin", None)
+    assert main(["decode"]) == 1
+    captured = capsys.readouterr()
+    assert (captured.out, captured.err) == (
+        "",
+        "rovlink decode: cannot read standard input: closed\n",
+    )

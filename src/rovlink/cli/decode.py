@@ -194,6 +194,8 @@ def run(args: argparse.Namespace) -> int:
     is no error: see ``rovlink.cli.main``)."""
     decoder = Decoder(checksum_enabled=bool(args.checksum), algorithm=args.algorithm)
     if args.file == "-":
+        if sys.stdin is None:  # (started with it closed: <&-)
+            raise CommandError("cannot read standard input: closed")
         try:
             decode_stream(sys.stdin.buffer, decoder, stats_only=args.stats)
         except _ReadError as error:
