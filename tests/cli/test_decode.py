@@ -2,11 +2,14 @@
 
 from __future__ import annotations
 
+import io
 import json
+import sys
 from pathlib import Path
 
 import pytest
 
+from rovlink.cli import main
 from rovlink.protocol.frames import Reason
 from tests.cli.conftest import RunCli
 
@@ -117,3 +120,37 @@ def test_the_json_schema_in_the_docs_names_every_event_s_keys_and_every_reason(
     assert {reason.value for reason in Reason} == {
         word.strip('`"') for word in rows["error"].split("(")[1].split(")")[0].split(", ")
     }
+
+
+@pytest.mark.parametrize("encoding", ["ascii", "latin-1"])
+@pytest.mark.parametrize("options", [[], ["--stats"]])
+def test_decode_writes_noise_to_an_output_that_is_not_utf_8(
+    run_cli: RunCli, monkeypatch: pytest.MonkeyPatch, encoding: str, options: list[str]
+) -> None:
+    # Line noise that is not UTF-8 is text with U+FFFD, and bytes in a bad frame are Latin-1
+    # characters: an ASCII or Latin-1 terminal gets them as JSON escapes, not a traceback.
+    output = io.BytesIO()
+    monkeypatch.setattr(sys, "stdout", io.TextIOWrapper(output, encoding=encoding))
+    result = run_cli("decode", *options, stdin=b"ab\xffcd\r\n#q\xe9d!#zz\x80!")
+    assert result.status == 0, result.err
+    sys.stdout.flush()
+    lines = [json.loads(line) for line in output.getvalue().decode(encoding).splitlines()]
+    if options:
+        assert lines[0]["events"] == {"error": 2, "text": 3}
+    else:
+        assert lines[0] == {"event": "text", "text": "ab\ufffdcd"}
+        assert lines[1]["raw"] == "#q"
+        assert lines[3]["raw"] == "#zz"
+
+
+def test_decode_of_a_closed_standard_input_is_a_one_line_error(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # `rovlink decode <&-`: Python has no sys.stdin at all.
+    monkeypatch.setattr(sys, "stdin", None)
+    assert main(["decode"]) == 1
+    captured = capsys.readouterr()
+    assert (captured.out, captured.err) == (
+        "",
+        "rovlink decode: cannot read standard input: closed\n",
+    )

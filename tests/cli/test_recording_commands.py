@@ -1095,6 +1095,28 @@ def test_decode_of_a_recording_starts_in_its_headers_mode(run_cli: RunCli, tmp_p
     assert json.loads(forced.out)["events"] == {"error": 2}
 
 
+def test_decode_of_a_recording_takes_the_mode_and_the_algorithm_each_as_given(
+    run_cli: RunCli, tmp_path: Path
+) -> None:
+    # docs/tools.md: the header's mode and algorithm, unless they are given. Before, a given
+    # --algorithm was ignored unless --checksum was given too, and a given --checksum threw
+    # away the header's algorithm.
+    path = tmp_path / "xor.jsonl"
+    wire = encode(Command("qd"), "xor") + encode(Response("qd", (5,)), "xor")
+    _write(
+        path,
+        HeaderEntry(1.0, 1, "sim://", True, "xor", "test", "0"),
+        WireEntry(2.0, 2, "in", wire),
+    )
+    as_recorded = run_cli("decode", str(path), "--stats", "--checksum")
+    assert as_recorded.status == 0, as_recorded.err
+    assert json.loads(as_recorded.out)["events"] == {"frame": 2}
+    other = run_cli("decode", str(path), "--stats", "--algorithm", "crc8")
+    assert other.status == 0, other.err
+    assert json.loads(other.out)["events"] == {"error": 2}
+    assert json.loads(other.out)["reasons"] == {"checksum": 2}
+
+
 def test_decode_of_a_recording_reads_each_reply_in_its_querys_mode(
     run_cli: RunCli, tmp_path: Path
 ) -> None:

@@ -351,3 +351,17 @@ def test_an_unknown_option_is_said_by_the_commands_own_parser(
     result = run_cli("--bogus")
     assert result.status == 2
     assert result.err.splitlines()[-1] == "rovlink: error: unrecognized arguments: --bogus"
+
+
+def test_reference_writes_the_docs_page_whatever_the_output_s_encoding(
+    run_cli: RunCli, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # `rovlink reference > docs/commands.md` under a locale that is not UTF-8 (or on a Windows
+    # console): the page is UTF-8 Markdown, byte for byte docs/commands.md, not a traceback.
+    output = io.BytesIO()
+    monkeypatch.setattr(sys, "stdout", io.TextIOWrapper(output, encoding="ascii"))
+    result = run_cli("reference")
+    assert (result.status, result.err) == (0, "")
+    sys.stdout.flush()
+    docs = Path(__file__).resolve().parents[2] / "docs" / "commands.md"
+    assert output.getvalue() == docs.read_bytes()

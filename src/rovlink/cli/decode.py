@@ -134,7 +134,10 @@ class StreamStats:
 def _write_json(shown: dict[str, object]) -> None:
     """One JSON object per line, with DEL and C1 controls escaped (a terminal may act on them)."""
     line = json.dumps(shown, ensure_ascii=False)
-    sys.stdout.write(_DEL_AND_C1.sub(_json_escape, line) + "\n")
+    try:
+        sys.stdout.write(_DEL_AND_C1.sub(_json_escape, line) + "\n")
+    except UnicodeEncodeError:  # an output that is not UTF-8 (nothing of the line was written)
+        sys.stdout.write(_DEL_AND_C1.sub(_json_escape, json.dumps(shown)) + "\n")
 
 
 def decode_stream(stream: BinaryIO, decoder: Decoder, *, stats_only: bool) -> None:
@@ -191,6 +194,8 @@ def run(args: argparse.Namespace) -> int:
     is no error: see ``rovlink.cli.main``)."""
     decoder = Decoder(checksum_enabled=bool(args.checksum), algorithm=args.algorithm)
     if args.file == "-":
+        if sys.stdin is None:  # (started with it closed: <&-)
+            raise CommandError("cannot read standard input: closed")
         try:
             decode_stream(sys.stdin.buffer, decoder, stats_only=args.stats)
         except _ReadError as error:
@@ -238,6 +243,8 @@ def _decode_recording(args: argparse.Namespace) -> int:
     from rovlink.recorder.link_decoding import LinkDecoder  # noqa: PLC0415
 
     link = LinkDecoder(checksum=bool(args.checksum), algorithm=args.algorithm)
+    checksum_given = args.checksum is not None
+    algorithm_given = getattr(args, "algorithm_given", False)
     stats = StreamStats()
     damage: RecordingDamagedError | None = None
 
@@ -258,11 +265,14 @@ def _decode_recording(args: argparse.Namespace) -> int:
             for entry in read_entries(args.file):
                 if isinstance(entry, WireEntry):
                     show(entry.direction, link.feed(entry.direction, entry.data))
-                elif isinstance(entry, HeaderEntry) and args.checksum is None:
-                    # The mode the link was in as this file starts (each file of a rotation
-                    # records its own), unless --checksum/--no-checksum says otherwise.
+                elif isinstance(entry, HeaderEntry) and not (checksum_given and algorithm_given):
+                    # The mode and algorithm the link was in as this file starts (each file of
+                    # a rotation records its own), each unless the command line says otherwise.
                     try:
-                        link.set_mode(entry.checksum, entry.algorithm)
+                        link.set_mode(
+                            args.checksum if checksum_given else entry.checksum,
+                            args.algorithm if algorithm_given else entry.algorithm,
+                        )
                     except ValueError as error:  # (a header damaged, or from a newer version)
                         raise CommandError(f"{args.file}: the header's {error}") from None
         except RecordingDamagedError as error:

@@ -18,6 +18,7 @@ from typing import TYPE_CHECKING, cast
 from rovlink.cli import link_options
 from rovlink.cli.failure import CommandError
 from rovlink.cli.interrupt import GatedClient, run_in_worker, say_stopped, send_stop
+from rovlink.protocol import lookup
 
 if TYPE_CHECKING:
     from rich.console import RenderableType
@@ -300,7 +301,9 @@ def _percent(text: str) -> int:
 
 
 def _depth_cm(text: str) -> int:
-    return link_options.bounded_int(text, 0, 9999)
+    """A dive depth, cm, in the range of ``#mvd`` (the command table's)."""
+    target = lookup("mvd").arguments[0]
+    return link_options.bounded_int(text, target.minimum, target.maximum)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -313,7 +316,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         type=_depth_cm,
         default=100,
         metavar="CM",
-        help="dive depth, cm, 0–9999 (default: %(default)s)",
+        help=f"dive depth, cm, {lookup('mvd').arguments[0].range_text()} (default: %(default)s)",
     )
     dive.add_argument(
         "--hold",

@@ -205,6 +205,7 @@ def add_checksum_options(parser: argparse.ArgumentParser, checksum_help: str) ->
     parser.add_argument(
         "--algorithm",
         type=algorithm_name,
+        action=GivenAlgorithm,
         default=DEFAULT_ALGORITHM,
         metavar="NAME",
         help=f"checksum algorithm: {', '.join(sorted(ALGORITHMS))} (default: %(default)s)",

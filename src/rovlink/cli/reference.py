@@ -22,5 +22,8 @@ def run(args: argparse.Namespace) -> int:
     """Print the reference."""
     from rovlink.protocol.reference import command_reference_markdown  # noqa: PLC0415
 
-    sys.stdout.write(command_reference_markdown())
+    # Bytes: the page is UTF-8 (docs/commands.md), whatever the locale's encoding would make it.
+    sys.stdout.flush()
+    sys.stdout.buffer.write(command_reference_markdown().encode("utf-8"))
+    sys.stdout.buffer.flush()
     return 0

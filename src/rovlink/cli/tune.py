@@ -16,6 +16,7 @@ from rovlink.cli import link_options
 from rovlink.cli.failure import CommandError, UsageError
 from rovlink.cli.link_options import bounded_int
 from rovlink.cli.output_file import check_image_suffix, check_writable, save_figure
+from rovlink.protocol import lookup
 
 if TYPE_CHECKING:
     from rovlink.client import Client
@@ -67,18 +68,32 @@ def _scales(text: str) -> tuple[float, float, float]:
     return values
 
 
+#: The commands that set the depth PID's gains, KP, KI, KD.
+_GAIN_COMMANDS = ("mvpdp", "mvpdi", "mvpidd")
+
+
 def _gains(text: str) -> tuple[int, int, int]:
     """``--restore``: gains as the protocol sends them, checked before the motors run rather
     than refused by the driver after the whole experiment."""
+    gains = [lookup(name).arguments[0] for name in _GAIN_COMMANDS]
     parts = text.split(",")
     values = tuple(int(part) for part in parts if part.strip().isdigit())
-    if len(parts) != 3 or len(values) != 3 or not all(value <= 99 for value in values):
-        raise argparse.ArgumentTypeError(f"expected three integers 0–99 as KP,KI,KD, got {text!r}")
+    if (
+        len(parts) != 3
+        or len(values) != 3
+        or not all(gain.check(value) for gain, value in zip(gains, values, strict=True))
+    ):
+        ranges = "/".join(sorted({gain.range_text() for gain in gains}))
+        raise argparse.ArgumentTypeError(
+            f"expected three integers {ranges} as KP,KI,KD, got {text!r}"
+        )
     return values[0], values[1], values[2]
 
 
 def _depth(text: str) -> int:
-    return bounded_int(text, 0, 9999)
+    """A target depth, cm, in the range of ``#mvd`` (the command table's)."""
+    target = lookup("mvd").arguments[0]
+    return bounded_int(text, target.minimum, target.maximum)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

@@ -98,7 +98,12 @@ class Argument:
         return self.minimum <= value <= self.maximum
 
     def range_text(self) -> str:
-        """The range as people write it, e.g. ``0–255`` or ``−100…+100``."""
+        """The range as people write it: ``0–255``, or for a signed argument with its signs
+        (ASCII, as in a frame).
+
+        >>> Argument("thrust_percent", -100, 100, signed=True).range_text()
+        '-100…+100'
+        """
         if self.signed:
             return f"{self.minimum:+d}…{self.maximum:+d}"
         return f"{self.minimum}–{self.maximum}"

@@ -44,9 +44,16 @@ def _notes(spec: Spec) -> str:
         notes.append("replies " + ", ".join(f"`${name}`" for name in spec.replies))
     if spec.aliases:
         notes.append("alias " + ", ".join(f"`{alias}`" for alias in spec.aliases))
-    if spec.name == "stop":
-        notes.append("bare `#stop!` honoured in checksum mode")
+    if spec.honoured_bare:
+        notes.append(f"bare `#{spec.name}!` honoured in checksum mode")
     return "; ".join(notes) or "—"
+
+
+def _unchecked_frames() -> str:
+    """The frames that go without a checksum in checksum mode (P3), in words."""
+    frames = [f"`#{spec.name}!`" for spec in COMMANDS if spec.exact_match]
+    frames += [f"the bare `#{spec.name}!`" for spec in COMMANDS if spec.honoured_bare]
+    return ", ".join(frames[:-1]) + " and " + frames[-1]
 
 
 def _table(specs: tuple[Spec, ...]) -> list[str]:
@@ -76,12 +83,13 @@ def command_reference_markdown() -> str:
         "",
         "Generated from the command table in `rovlink.protocol.commands` by",
         "`rovlink reference > docs/commands.md`; a test keeps this page current.",
-        "Rules (P1…P19) are those of the protocol specification.",
+        "The rules (P1, P2, …) are the decisions of the protocol specification, "
+        "[PROTOCOL.md](../PROTOCOL.md) Part 2.",
         "",
         f"A command is `#` BODY [checksum] `!`, a response `$` BODY [checksum] `!`; a frame is at "
         f"most {MAX_FRAME_BYTES} bytes. Values are decimal integers; signed values are written "
-        "with a sign (`+0` for zero). In checksum mode every frame but `#crcon!`, `#crcoff!` and "
-        "the bare `#stop!` carries two hex digits of the checksum of its body before the `!`.",
+        f"with a sign (`+0` for zero). In checksum mode every frame but {_unchecked_frames()} "
+        "carries two hex digits of the checksum of its body before the `!`.",
         "",
         f"## Commands (host → controller), {len(COMMANDS)}",
         "",
