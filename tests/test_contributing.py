@@ -39,3 +39,46 @@ def test_every_test_tool_is_named() -> None:
     unnamed = [tool for tool in tools if tool.lower() not in text]
     assert tools
     assert unnamed == []
+
+
+#: Each file derived from the command table, with the command its own notice says regenerates it.
+GENERATED = {
+    "src/rovlink/client/command_methods.py": "python -m rovlink.client.method_table",
+    "src/rovlink/aio/command_methods.py": "python -m rovlink.client.method_table",
+    "docs/driver.md": "python -m rovlink.client.method_table",
+    "docs/commands.md": "rovlink reference > docs/commands.md",
+    "firmware/c/rovlink_commands.h": "python -m rovlink.protocol.c_table firmware/c",
+    "firmware/c/rovlink_commands.c": "python -m rovlink.protocol.c_table firmware/c",
+}
+
+
+def _section(document: str, heading: str) -> str:
+    text = (ROOT / document).read_text(encoding="utf-8")
+    start = text.index(heading)
+    end = text.find("\n#", start + len(heading))
+    return text[start : end if end != -1 else len(text)]
+
+
+def test_each_generated_file_names_the_command_that_makes_it() -> None:
+    stale_notices = [
+        path
+        for path, command in GENERATED.items()
+        if command not in " ".join((ROOT / path).read_text(encoding="utf-8").split())
+    ]
+    assert stale_notices == []
+
+
+def test_a_new_command_regenerates_every_file_derived_from_the_command_table() -> None:
+    sections = {
+        "ARCHITECTURE.md": _section("ARCHITECTURE.md", "### A new command"),
+        "CONTRIBUTING.md": _section("CONTRIBUTING.md", "## Generated files"),
+    }
+    # (docs/builders.md's table of checks, one a command, is checks_markdown()'s output.)
+    commands = {*GENERATED.values(), "checks_markdown()"}
+    unsaid = sorted(
+        f"{document}: {command}"
+        for document, section in sections.items()
+        for command in commands
+        if command not in section
+    )
+    assert unsaid == []
