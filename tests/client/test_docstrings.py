@@ -1,7 +1,9 @@
 """House rule: every public function and method of the host driver has a docstring with an example.
 
-The public driver is what ``rovlink.client`` and ``rovlink.aio`` export, what the driver's link,
-port-closing, stop-at-exit, transport and stray-event modules export, with the methods and
+The public driver is what ``rovlink``, ``rovlink.client`` and ``rovlink.aio`` export, what the
+driver's link, port-closing, stop-at-exit, transport, stray-event, URL, URL-scheme,
+reconnection, in-flight-slot and wake-up modules export (the command line and the tools use
+them), with the methods and
 properties of the classes among them (inherited ones included), and the public functions of
 ``rovlink send`` and ``rovlink demo``.
 """
@@ -12,19 +14,31 @@ import inspect
 from collections.abc import Iterator
 from types import ModuleType
 
+import rovlink
 import rovlink.aio
+import rovlink.aio.slots
 import rovlink.aio.transport
+import rovlink.aio.wakeup
 import rovlink.cli.demo
 import rovlink.cli.send
 import rovlink.client
 import rovlink.client.links
 import rovlink.client.port_closing
+import rovlink.client.reconnection
+import rovlink.client.schemes
 import rovlink.client.stop_at_exit
 import rovlink.client.unsolicited
+import rovlink.client.url
 
 MODULES: tuple[ModuleType, ...] = (
+    rovlink,
     rovlink.client,
     rovlink.aio,
+    rovlink.aio.slots,
+    rovlink.aio.wakeup,
+    rovlink.client.reconnection,
+    rovlink.client.schemes,
+    rovlink.client.url,
     rovlink.client.links,
     rovlink.client.port_closing,
     rovlink.client.stop_at_exit,

@@ -56,7 +56,16 @@ class InFlightSlots:
         self.waiters: deque[asyncio.Future[None]] = deque()
 
     async def take(self) -> None:
-        """Wait for a slot and hold it (take ``free`` directly when it is non-zero)."""
+        """Wait for a slot and hold it (take ``free`` directly when it is non-zero).
+
+        Example::
+
+            await slots.take()   # returns at once while a slot is free
+            try:
+                await rov.depth_cm()
+            finally:
+                slots.release()
+        """
         if self.free:
             self.free -= 1
             return
@@ -72,7 +81,14 @@ class InFlightSlots:
             raise
 
     def release(self) -> None:
-        """Give a slot back: to the oldest waiter, or to ``free``."""
+        """Give a slot back: to the oldest waiter, or to ``free``.
+
+        >>> slots = InFlightSlots(1)
+        >>> slots.free -= 1   # taken
+        >>> slots.release()
+        >>> slots.free
+        1
+        """
         waiters = self.waiters
         while waiters:
             waiter = waiters.popleft()

@@ -10,10 +10,10 @@ import argparse
 import contextlib
 import errno
 import sys
-from typing import TYPE_CHECKING, TextIO
+from typing import TYPE_CHECKING
 
 from rovlink.cli import link_options
-from rovlink.cli.failure import CommandError, NoTerminalError, UsageError, reason
+from rovlink.cli.failure import CommandError, NoTerminalError, UsageError, is_terminal, reason
 
 if TYPE_CHECKING:
     from pathlib import Path
@@ -75,8 +75,8 @@ def run(args: argparse.Namespace) -> int:
         raise CommandError(f"needs {error.name}: pip install 'rovlink[console]'") from None
 
     link_options.check_url(args)  # (a malformed URL is said first, as by every command)
-    from_terminal = _is_terminal(sys.stdin)
-    if from_terminal and not _is_terminal(sys.stdout):
+    from_terminal = is_terminal(sys.stdin)
+    if from_terminal and not is_terminal(sys.stdout):
         # Typed into, its prompt, the replies and the toolbar would go to the file or the pipe
         # (through tee, in pieces): the lines typed, start and th among them, would run unseen.
         raise NoTerminalError(
@@ -138,13 +138,6 @@ def run(args: argparse.Namespace) -> int:
         # The terminal hung up (its window closed): #stop! went on the way out, as for Ctrl-C.
         raise KeyboardInterrupt from None
     return 0
-
-
-def _is_terminal(stream: TextIO | None) -> bool:
-    try:
-        return stream is not None and stream.isatty()
-    except (ValueError, OSError):  # closed
-        return False
 
 
 class _ConnectError(Exception):

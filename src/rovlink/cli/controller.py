@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING, Protocol
 from rovlink.cli.failure import CommandError, InputError, UsageError, reason
 from rovlink.cli.interrupt import ServingSignals, say_last, say_ready
 from rovlink.cli.link_options import baud_rate, file_name, seconds
-from rovlink.cli.tcp_endpoint import listen_address, tcp_endpoint
+from rovlink.cli.tcp_endpoint import listen_address, refuse_remote, tcp_endpoint
 
 if TYPE_CHECKING:
     from rovlink.board.pi.config import PiConfig
@@ -147,17 +147,13 @@ def _set_neutral(args: argparse.Namespace) -> int:
 def _tcp_address(args: argparse.Namespace) -> tuple[str, int] | None:
     if args.tcp is None:
         return None
-    from rovlink.controller.lines import is_loopback, parse_tcp_address  # noqa: PLC0415
+    from rovlink.controller.lines import parse_tcp_address  # noqa: PLC0415
 
     try:
         host, port = parse_tcp_address(args.tcp)
     except ValueError as error:
         raise UsageError(f"--tcp: {error}") from None
-    if not is_loopback(host) and not args.allow_remote:
-        raise UsageError(
-            f"--tcp {args.tcp}: {host} is not a loopback address, and the protocol has no "
-            "authentication; add --allow-remote to let other computers drive the robot"
-        )
+    refuse_remote("--tcp", args.tcp, host, allow_remote=args.allow_remote)
     return host, port
 
 

@@ -2,12 +2,17 @@
 
 from __future__ import annotations
 
+TYPE_CHECKING = False  # (typing stays off the command line's start-up path)
+if TYPE_CHECKING:
+    from typing import TextIO
+
 __all__ = [
     "CommandError",
     "InputError",
     "NoTerminalError",
     "UsageError",
     "error_number",
+    "is_terminal",
     "reason",
     "unreadable",
 ]
@@ -50,6 +55,20 @@ class NoTerminalError(CommandError):
     """
 
     exit_status = 2
+
+
+def is_terminal(stream: TextIO | None) -> bool:
+    """Whether ``stream`` is a terminal, the test before a :class:`NoTerminalError`: not when
+    there is no stream (``sys.stdin`` is ``None`` without one) or it is closed.
+
+    >>> import io
+    >>> is_terminal(io.StringIO()), is_terminal(None)
+    (False, False)
+    """
+    try:
+        return stream is not None and stream.isatty()
+    except (ValueError, OSError):  # closed
+        return False
 
 
 def reason(error: BaseException) -> str:

@@ -12,7 +12,7 @@ from collections.abc import Callable
 from rovlink.cli.failure import CommandError, UsageError, reason
 from rovlink.cli.interrupt import ServingSignals, say_last, say_ready
 from rovlink.cli.link_options import bounded_float, log_warnings
-from rovlink.cli.tcp_endpoint import REMOTE_MARK, listen_address, tcp_endpoint
+from rovlink.cli.tcp_endpoint import REMOTE_MARK, listen_address, refuse_remote, tcp_endpoint
 
 __all__ = ["EPILOG"]
 
@@ -129,13 +129,7 @@ def run(args: argparse.Namespace) -> int:
     except ValueError as error:
         raise UsageError(str(error)) from None
     # As rovlink controller: whoever reaches the port drives the robot, unauthenticated.
-    from rovlink.controller.lines import is_loopback  # noqa: PLC0415
-
-    if not is_loopback(listen_host) and not args.allow_remote:
-        raise UsageError(
-            f"--listen {args.listen}: {listen_host} is not a loopback address, and the protocol "
-            "has no authentication; add --allow-remote to let other computers drive the robot"
-        )
+    refuse_remote("--listen", args.listen, listen_host, allow_remote=args.allow_remote)
     try:
         link = open_link(target)
     except ConnectError as error:

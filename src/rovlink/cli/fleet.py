@@ -11,10 +11,10 @@ import contextlib
 import sys
 import time
 from collections.abc import Callable
-from typing import TYPE_CHECKING, TextIO
+from typing import TYPE_CHECKING
 
 from rovlink.cli import link_options
-from rovlink.cli.failure import CommandError, NoTerminalError
+from rovlink.cli.failure import CommandError, NoTerminalError, is_terminal
 from rovlink.cli.mqtt import add_broker_options, broker_settings
 
 if TYPE_CHECKING:
@@ -204,7 +204,7 @@ def _cell(text: str, style: str = "") -> Text:
 def run(args: argparse.Namespace) -> int:
     """Show the table until Ctrl-C, SIGTERM or SIGHUP (or once, with ``--snapshot``)."""
     broker = broker_settings(args)
-    if args.snapshot_s is None and not _is_terminal(sys.stdout):
+    if args.snapshot_s is None and not is_terminal(sys.stdout):
         # Rich draws a live table on a terminal alone: elsewhere nothing would be written until
         # the command was stopped (`rovlink fleet | head` would wait for ever).
         raise NoTerminalError(
@@ -224,13 +224,6 @@ def run(args: argparse.Namespace) -> int:
         # (status 0); Ctrl-C says interrupted (130), as for every command.
         serve_async(_watch(broker, None), "rovlink fleet")
     return 0
-
-
-def _is_terminal(stream: TextIO | None) -> bool:
-    try:
-        return stream is not None and stream.isatty()
-    except (ValueError, OSError):  # closed
-        return False
 
 
 async def _watch(broker: BrokerSettings, snapshot_s: float | None) -> None:

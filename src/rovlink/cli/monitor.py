@@ -11,10 +11,10 @@ import argparse
 import contextlib
 import errno
 import sys
-from typing import TYPE_CHECKING, TextIO
+from typing import TYPE_CHECKING
 
 from rovlink.cli import link_options
-from rovlink.cli.failure import CommandError, NoTerminalError, UsageError
+from rovlink.cli.failure import CommandError, NoTerminalError, UsageError, is_terminal
 
 if TYPE_CHECKING:
     from rovlink.aio import AsyncClient
@@ -81,18 +81,11 @@ def missing_terminal() -> str | None:
     missing = [
         name
         for name, stream in (("standard input", sys.stdin), ("standard output", sys.stdout))
-        if not _is_terminal(stream)
+        if not is_terminal(stream)
     ]
     if not missing:
         return None
     return f"{' and '.join(missing)} {'is' if len(missing) == 1 else 'are'} not a terminal"
-
-
-def _is_terminal(stream: TextIO | None) -> bool:
-    try:
-        return stream is not None and stream.isatty()
-    except (ValueError, OSError):  # closed
-        return False
 
 
 #: Characters the dashboard draws with: boxes, bars, the compass tape, arrows and units.

@@ -23,6 +23,7 @@ from rovlink.cli.recording import (
     refuse_existing_recording,
     report_recording,
 )
+from rovlink.cli.tcp_endpoint import refuse_remote
 
 __all__ = ["EPILOG"]
 
@@ -164,16 +165,10 @@ def run(args: argparse.Namespace) -> int:
 def _refuse_a_remote_tap(args: argparse.Namespace) -> None:
     """As ``rovlink fault`` and ``rovlink controller``: a tap on an address other computers
     reach lets anyone there drive the robot, unauthenticated, unless ``--allow-remote``."""
-    if args.tap is None or not args.tap.startswith("socket://") or args.allow_remote:
+    if args.tap is None or not args.tap.startswith("socket://"):
         return
-    from rovlink.controller.lines import is_loopback  # noqa: PLC0415
-
     host = args.tap[len("socket://") :].rpartition(":")[0] or "127.0.0.1"
-    if not is_loopback(host.strip("[]")):
-        raise UsageError(
-            f"--tap {args.tap}: {host} is not a loopback address, and the protocol has no "
-            "authentication; add --allow-remote to let other computers drive the robot"
-        )
+    refuse_remote("--tap", args.tap, host, allow_remote=args.allow_remote)
 
 
 class _FirstWords:

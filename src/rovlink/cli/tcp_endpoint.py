@@ -1,9 +1,12 @@
 """The ready line's ``tcp HOST:PORT`` for a robot served on TCP: said loudly, and warned of in
-the log, when other computers can reach it (the protocol has no authentication)."""
+the log, when other computers can reach it (the protocol has no authentication); and such an
+address refused unless ``--allow-remote`` (``rovlink controller``, ``fault``, ``record --tap``)."""
 
 from __future__ import annotations
 
-__all__ = ["REMOTE_MARK", "listen_address", "tcp_endpoint"]
+from rovlink.cli.failure import UsageError
+
+__all__ = ["REMOTE_MARK", "listen_address", "refuse_remote", "tcp_endpoint"]
 
 #: Follows the address in the ready line when it is not a loopback address.
 REMOTE_MARK = "(REMOTE, NO AUTHENTICATION)"
@@ -41,3 +44,22 @@ def tcp_endpoint(host: str, port: int, logger_name: str) -> str:
         everywhere,
     )
     return f"tcp {address} {REMOTE_MARK}"
+
+
+def refuse_remote(option: str, value: str, host: str, *, allow_remote: bool) -> None:
+    """A usage error naming ``option`` and its ``value`` unless ``host`` (an IPv6 one in
+    brackets or not) is a loopback address or ``allow_remote`` (``--allow-remote``) is set:
+    whoever reaches a robot served there drives it, unauthenticated.
+
+    >>> refuse_remote("--tcp", "5760", "127.0.0.1", allow_remote=False)
+    >>> refuse_remote("--tcp", "0.0.0.0:5760", "0.0.0.0", allow_remote=True)
+    """
+    if allow_remote:
+        return
+    from rovlink.controller.lines import is_loopback  # noqa: PLC0415
+
+    if not is_loopback(host.strip("[]")):
+        raise UsageError(
+            f"{option} {value}: {host} is not a loopback address, and the protocol has no "
+            "authentication; add --allow-remote to let other computers drive the robot"
+        )

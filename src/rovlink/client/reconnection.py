@@ -23,7 +23,12 @@ _MAX_DELAY_S = 2.0
 
 
 def reconnect_delays_s() -> Iterator[float]:
-    """The wait after each failed attempt, in seconds: 0.1, doubling up to 2, for ever."""
+    """The wait after each failed attempt, in seconds: 0.1, doubling up to 2, for ever.
+
+    >>> import itertools
+    >>> list(itertools.islice(reconnect_delays_s(), 7))
+    [0.1, 0.2, 0.4, 0.8, 1.6, 2.0, 2.0]
+    """
     delay_s = _FIRST_DELAY_S
     while True:
         yield delay_s

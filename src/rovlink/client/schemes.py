@@ -74,7 +74,11 @@ def registered_schemes() -> tuple[str, ...]:
 
 
 def handler_module(scheme: str) -> str | None:
-    """The dotted path of ``scheme``'s handler module, or None if it is not registered."""
+    """The dotted path of ``scheme``'s handler module, or None if it is not registered.
+
+    >>> handler_module("sim"), handler_module("ftp")
+    ('rovlink.sim.url', None)
+    """
     return _HANDLERS.get(scheme)
 
 

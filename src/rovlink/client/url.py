@@ -50,7 +50,11 @@ class Endpoint:
 
     @property
     def is_device(self) -> bool:
-        """Whether the endpoint is a device path (a serial port or pseudo-terminal), not a URL."""
+        """Whether the endpoint is a device path (a serial port or pseudo-terminal), not a URL.
+
+        >>> parse_url("/dev/ttyUSB0").is_device, parse_url("socket://127.0.0.1:5760").is_device
+        (True, False)
+        """
         return self.scheme is Scheme.SERIAL and "://" not in self.target
 
 

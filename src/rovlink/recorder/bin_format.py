@@ -9,7 +9,7 @@ from __future__ import annotations
 from collections.abc import Iterator
 
 from rovlink.recorder.entries import Entry, WireEntry
-from rovlink.recorder.sink import FileSink, RecordingError
+from rovlink.recorder.sink import FileSink, open_recording
 
 __all__ = ["RawWireSink", "read_bin"]
 
@@ -29,10 +29,7 @@ class RawWireSink(FileSink):
 
 def read_bin(path: str) -> Iterator[Entry]:
     """A raw capture as wire entries (direction ``in``: a capture does not say; times 0)."""
-    try:
-        stream = open(path, "rb")  # noqa: SIM115 - closed by the with below
-    except OSError as error:
-        raise RecordingError(f"{path}: {error.strerror}") from None
+    stream = open_recording(path)
     with stream:
         while chunk := stream.read(_READ_BYTES):
             yield WireEntry(0.0, 0, "in", chunk)

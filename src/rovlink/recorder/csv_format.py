@@ -25,7 +25,7 @@ from rovlink.recorder.entries import (
     TelemetryEntry,
     check_telemetry_range,
 )
-from rovlink.recorder.sink import FileSink, RecordingDamagedError, RecordingError
+from rovlink.recorder.sink import FileSink, RecordingDamagedError, RecordingError, open_recording
 
 __all__ = ["END_EVENT", "HEADER", "UNENDED_HEADER", "TelemetryCsvSink", "read_csv"]
 
@@ -111,10 +111,7 @@ def read_csv(path: str) -> Iterator[Entry]:
     rows before it are read (a text stream decodes thousands of bytes at once, and failed on
     the first row when the damage lay anywhere in the first of them).
     """
-    try:
-        stream = open(path, "rb")  # noqa: SIM115 - closed below
-    except OSError as error:
-        raise RecordingError(f"{path}: {error.strerror}") from None
+    stream = open_recording(path)
     count = 0
     with stream:
         lines = _TextLines(stream)

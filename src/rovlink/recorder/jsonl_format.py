@@ -18,7 +18,7 @@ from rovlink.recorder.entries import (
     HeaderEntry,
     entry_from_json,
 )
-from rovlink.recorder.sink import FileSink, RecordingDamagedError, RecordingError
+from rovlink.recorder.sink import FileSink, RecordingDamagedError, RecordingError, open_recording
 
 __all__ = ["END_EVENT", "JsonLinesSink", "read_jsonl"]
 
@@ -69,10 +69,7 @@ class JsonLinesSink(FileSink):
 
 def read_jsonl(path: str) -> Iterator[Entry]:
     """The entries of a ``.jsonl`` recording."""
-    try:
-        stream = open(path, "rb")  # noqa: SIM115 - closed by the with below
-    except OSError as error:
-        raise RecordingError(f"{path}: {error.strerror}") from None
+    stream = open_recording(path)
     count = 0
     version: int | None = None
     ended = False

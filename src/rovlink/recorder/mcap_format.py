@@ -20,7 +20,7 @@ from mcap.writer import Writer
 
 import rovlink
 from rovlink.recorder.entries import CHANNELS, Entry, EntryError, entry_from_json
-from rovlink.recorder.sink import FileSink, RecordingDamagedError, RecordingError
+from rovlink.recorder.sink import FileSink, RecordingDamagedError, RecordingError, open_recording
 
 __all__ = ["PROFILE", "TOPIC_PREFIX", "McapSink", "read_mcap"]
 
@@ -102,10 +102,7 @@ class McapSink(FileSink):
 
 def read_mcap(path: str) -> Iterator[Entry]:
     """The entries of a ``.mcap`` recording, in the order they were written."""
-    try:
-        stream = open(path, "rb")  # noqa: SIM115 - closed by the with below
-    except OSError as error:
-        raise RecordingError(f"{path}: {error.strerror}") from None
+    stream = open_recording(path)
     count = 0
     channels: dict[int, str] = {}
     profile = ""  # whose MCAP file it is: a ROS bag's says "ros2"

@@ -9,17 +9,32 @@ cut short or damaged, after everything readable before the damage.
 
 from __future__ import annotations
 
+import io
 import os
 import stat
 from typing import BinaryIO, Protocol
 
 from rovlink.recorder.entries import Entry
 
-__all__ = ["FileSink", "RecordingDamagedError", "RecordingError", "Sink"]
+__all__ = ["FileSink", "RecordingDamagedError", "RecordingError", "Sink", "open_recording"]
 
 
 class RecordingError(Exception):
     """A recording that cannot be read at all: missing, unreadable, or not a recording."""
+
+
+def open_recording(path: str) -> io.BufferedReader:
+    """``path`` opened for a reader, or a :class:`RecordingError` naming it and why not.
+
+    >>> open_recording("/nonexistent/dive.jsonl")
+    Traceback (most recent call last):
+    ...
+    rovlink.recorder.sink.RecordingError: /nonexistent/dive.jsonl: No such file or directory
+    """
+    try:
+        return open(path, "rb")
+    except OSError as error:
+        raise RecordingError(f"{path}: {error.strerror}") from None
 
 
 class RecordingDamagedError(RecordingError):
