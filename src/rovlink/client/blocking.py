@@ -171,6 +171,8 @@ class Client(CommandMethods):
         self._background_ident: int | None = None
         # Links over a descriptor write without blocking: queries then take a shorter path.
         self._send_now: Callable[[bytes], int] | None = getattr(link, "send_some", None)
+        # An in-process port (``sim://``): its writes take the port's own lock, never the line.
+        self._link_writes_never_wait = getattr(link, "writes_may_wait", True) is False
         self._queued_line_s = links.queued_line_s(link)
         # A caller waiting for its reply reads with this (the link's; a test interrupts it).
         self._read_reply: Callable[[float], bytes] = link.read_available
@@ -326,14 +328,29 @@ class Client(CommandMethods):
         that cannot give up a write) never holds close() up, and closing the port ends that
         write. A thread that holds the wire lock or the state lock already (close() from a
         signal handler, in the thread whose call it interrupted) writes it itself, as
-        ``stop()`` does: a thread of its own would wait for that lock until it gave up."""
+        ``stop()`` does: a thread of its own would wait for that lock until it gave up. So does
+        a thread interrupted in a read of an in-process port (``sim://``), whose own lock it
+        may hold there, if no other thread is writing."""
         if _owns(self._wire_lock) or _owns(self._state_lock):
+            self._write_stop_on_close_here()
+            return
+        if (
+            self._reader_ident == _get_ident()
+            and self._link_writes_never_wait
+            and self._wire_lock.acquire(blocking=False)
+        ):
             try:
-                self._write_stop_on_close()
-            except Exception:  # (logged, not raised, as stop_within does)
-                logger.exception("%s: writing #stop!", self._link.description)
+                self._write_stop_on_close_here()
+            finally:
+                self._wire_lock.release()
             return
         stop_within(self._write_stop_on_close, self._link.description)
+
+    def _write_stop_on_close_here(self) -> None:
+        try:
+            self._write_stop_on_close()
+        except Exception:  # (logged, not raised, as stop_within does)
+            logger.exception("%s: writing #stop!", self._link.description)
 
     def _stop_at_exit(self) -> None:
         """The program ends with the client open: the ``#stop!`` of close(), if due, and not
