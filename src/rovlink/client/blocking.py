@@ -258,6 +258,10 @@ class Client(CommandMethods):
         # Its query, on the wire, has no other reader, and what it holds is not close()'s to
         # give back (the call would then release locks it no longer held).
         interrupted_call = self._in_a_call()
+        # close() from an event callback: this thread is delivering events, and goes on with
+        # those of the close (its #stop!) once the callback returns. It keeps that role: another
+        # thread delivering them would call the callbacks while this one still runs.
+        delivering = self._deliverer == _get_ident()
         try:
             try:
                 if stop_due:
@@ -266,7 +270,8 @@ class Client(CommandMethods):
                     self._wait(query, owned=False)  # answered, or timed out, before the close
             finally:  # (a Ctrl-C in that wait still releases the port: P22, a next open)
                 if not interrupted_call:
-                    self._recover_after_error()  # (nothing, unless that wait was interrupted)
+                    # (nothing, unless that wait was interrupted)
+                    self._recover_after_error(keep_delivering=delivering)
                 self._connection_lost(ConnectionLostError(f"{self._link.description}: closed"))
                 self._link.wake()
                 # (Not from an interrupted call: they wait for what it holds. They end once
@@ -780,9 +785,10 @@ class Client(CommandMethods):
         # is active: not from here, which may run under the wire lock that writing takes.
         self._background_wakeup.notify()
 
-    def _recover_after_error(self) -> None:
+    def _recover_after_error(self, *, keep_delivering: bool = False) -> None:
         """Put back what this thread held when an exception ended its call (no lock needed on
-        entry; none held on return).
+        entry; none held on return); ``keep_delivering``: all but the delivery of events
+        (close() from a callback, which delivers the rest once the callback returns).
 
         A Ctrl-C lands between any two bytecodes of the main thread: right after a lock was
         taken (the per-query path takes its locks by hand, which costs half a ``with`` block),
@@ -803,7 +809,7 @@ class Client(CommandMethods):
                 self._background_wakeup.notify()
             if self._mode_switcher == me:
                 self._mode_switcher = None
-            if self._deliverer == me:
+            if self._deliverer == me and not keep_delivering:
                 self._deliverer = None
                 self._events_delivered = self._events_taken  # (what it held is gone)
                 self._delivered.notify_all()
