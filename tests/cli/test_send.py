@@ -434,3 +434,17 @@ def test_raw_output_closed_before_the_first_line_ends_quietly() -> None:
     # the probe's bytes, shown as the link opened, were taken for the link's failure.
     result = run_into_a_closed_pipe("send", "sim://", "--raw", "qd")
     assert (result.returncode, result.stderr) == (0, "")
+
+
+def test_a_noisy_line_on_connecting_asks_for_more_retries_as_the_option(
+    run_cli: RunCli,
+) -> None:
+    # The driver asks a program for `retries=N`; the command line names its own option.
+    port = FakeControllerServer(script=("reply", *["corrupt"] * 10))  # (the probe answered)
+    try:
+        result = run_cli("send", port.url, "--checksum", "--retries", "1", "--timeout", "0.2", "qd")
+    finally:
+        port.close()
+    assert result.status == 1
+    assert "(a noisy line? more attempts: --retries N;" in result.err
+    assert "retries=" not in result.err

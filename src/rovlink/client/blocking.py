@@ -1489,8 +1489,10 @@ def connect(
     ``boot_timeout`` (s) to wait for the controller to answer after the port opens (a board that
     resets on open boots for up to 2 s; ``None``: do not wait); ``motion_timeout`` (s) after which
     a motion command the program did not renew is expired with zero thrust (``None``: never);
-    ``on_stray`` is called (in the reader thread) with debug text and frames nobody asked for, and
-    ``on_event`` with every event of the connection (:mod:`rovlink.client.events`);
+    ``on_stray`` is called with debug text and frames nobody asked for, one call at a time and in
+    the order they came, in whichever thread read them (one of the program's threads waiting for
+    a reply, or the client's background reader), and ``on_event`` with every event of the
+    connection (:mod:`rovlink.client.events`);
     ``reconnect=True`` reopens a lost port (an adapter unplugged and plugged back) with backoff,
     waits for the controller again and restores the checksum mode: the calls on the wire when it
     was lost raise ConnectionLostError, later calls wait for it up to ``timeout``;
