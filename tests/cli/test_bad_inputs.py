@@ -363,3 +363,53 @@ def test_a_directory_as_the_port_is_said_once(run_cli: RunCli, tmp_path: Path) -
     result = run_cli("send", str(tmp_path), "qd")
     assert result.status == 1
     assert result.err == f"rovlink send: cannot open {tmp_path}: Is a directory\n"
+
+
+_UNKNOWN_SCHEME = "unknown URL scheme nosuch:// (known: "
+
+
+@pytest.mark.parametrize(
+    "command",
+    [
+        ("send", "nosuch://", "qd"),
+        ("monitor", "nosuch://"),
+        ("console", "nosuch://"),
+        ("check", "nosuch://"),
+        ("mavlink", "nosuch://"),
+        ("mqtt", "nosuch://", "--broker", "mqtt://127.0.0.1:1", "--robot", "r1"),
+        ("web", "nosuch://", "--port", "0"),
+        ("tune", "nosuch://", "--yes"),
+        (
+            "calibrate",
+            "nosuch://",
+            "--surface-raw",
+            "1",
+            "--depth-raw",
+            "90",
+            "--depth",
+            "9",
+            "--yes",
+        ),
+        ("demo", "nosuch://"),
+        ("fault", "--to", "nosuch://", "--listen", "socket://127.0.0.1:0"),
+    ],
+    ids=lambda command: command[0],
+)
+def test_a_mistyped_url_scheme_is_a_usage_error_naming_the_known_ones(
+    run_cli: RunCli, command: tuple[str, ...]
+) -> None:
+    # Before, the command tried to open it and exited 1: "cannot open nosuch://: invalid URL,
+    # protocol 'nosuch' not known".
+    result = run_cli(*command)
+    assert result.status == 2
+    assert _UNKNOWN_SCHEME in result.err
+    assert "sim://" in result.err
+    assert "cannot open" not in result.err
+
+
+def test_record_with_a_mistyped_url_scheme_makes_no_file(run_cli: RunCli, tmp_path: Path) -> None:
+    output = tmp_path / "dive.csv"
+    result = run_cli("record", "nosuch://", "-o", str(output))
+    assert result.status == 2
+    assert _UNKNOWN_SCHEME in result.err
+    assert not output.exists()

@@ -445,3 +445,17 @@ def test_commands_that_leave_the_robot_moving_are_followed_by_stop_as_the_link_c
     assert result.status == 0, result.err
     sent = [line for line in result.out.splitlines() if line.startswith(">> ")]
     assert sent[-2:] == [">> #th.0.50!", ">> #stop!"]
+
+
+def test_a_noisy_line_on_connecting_asks_for_more_retries_as_the_option(
+    run_cli: RunCli,
+) -> None:
+    # The driver asks a program for `retries=N`; the command line names its own option.
+    port = FakeControllerServer(script=("reply", *["corrupt"] * 10))  # (the probe answered)
+    try:
+        result = run_cli("send", port.url, "--checksum", "--retries", "1", "--timeout", "0.2", "qd")
+    finally:
+        port.close()
+    assert result.status == 1
+    assert "(a noisy line? more attempts: --retries N;" in result.err
+    assert "retries=" not in result.err

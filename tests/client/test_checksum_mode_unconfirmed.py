@@ -73,6 +73,34 @@ async def test_the_asyncio_client_tells_a_noisy_line_from_another_algorithm(
         fake.close()
 
 
+@pytest.mark.parametrize("client", ["blocking", "asyncio"])
+async def test_a_noisy_line_asks_a_program_for_more_retries_in_its_own_words(client: str) -> None:
+    # Before, a program was told "more --retries": the command line's option, which a program
+    # calling rovlink.connect has not got.
+    fake, link = _fake("noisy line")
+    options = client_options(
+        checksum=True, boot_timeout_s=1.0, retries=1, timeout_s=NO_REPLY_TIMEOUT_S
+    )
+    opening = AsyncClient(link, options) if client == "asyncio" else None
+
+    async def connect() -> None:
+        if opening is not None:
+            await opening.open()
+        else:
+            Client(link, options)
+
+    try:
+        with pytest.raises(ConnectError) as raised:
+            await connect()
+        assert "more attempts: retries=N;" in str(raised.value)
+        assert "--retries" not in str(raised.value)
+        assert raised.value.setting == "retries"
+    finally:
+        if opening is not None:
+            await opening.close()
+        fake.close()
+
+
 def _reset_warnings(caplog: pytest.LogCaptureFixture) -> list[str]:
     return [r.getMessage() for r in caplog.records if "reset suspected" in r.getMessage()]
 

@@ -191,3 +191,27 @@ def test_closing_in_a_later_event_loop_stops_the_robot_and_does_not_wait_for_a_c
         assert rov.closed
     finally:
         let_go.set()
+
+
+def test_the_warning_blames_a_serial_adapter_only_on_a_serial_link(
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    # Before, every link's warning named "a serial adapter whose driver hangs", sim:// too.
+    let_go = threading.Event()
+
+    class _InProcessLink:
+        description = "simulated controller"
+        writes_may_wait = False
+
+        def close(self) -> None:
+            let_go.wait(_STUCK_FOR_S)
+
+    try:
+        with caplog.at_level(logging.WARNING, logger="rovlink.client"):
+            closed = port_closing.close_within(_InProcessLink())  # type: ignore[arg-type]
+        assert not closed
+        assert "simulated controller: the port did not close within 0.2 s" in caplog.text
+        assert "serial adapter" not in caplog.text
+        assert "network port" not in caplog.text
+    finally:
+        let_go.set()

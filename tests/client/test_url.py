@@ -40,6 +40,27 @@ def test_serial_and_tcp_urls(url: str, scheme: Scheme, target: str, baudrate: in
     assert (endpoint.scheme, endpoint.target, endpoint.baudrate) == (scheme, target, baudrate)
 
 
+@pytest.mark.parametrize("url", ["nosuch://", "soket://localhost:5760", "sim2://?seed=1"])
+def test_an_unknown_scheme_is_refused_naming_it_and_the_known_ones(url: str) -> None:
+    # Before, it went to pyserial, and failed as a port that could not be opened ("protocol
+    # 'nosuch' not known"); `rovlink send nosuch:// qd` exited 1 with "cannot open".
+    scheme = url.partition("://")[0]
+    with pytest.raises(ValueError, match="unknown URL scheme") as raised:
+        parse_url(url)
+    message = str(raised.value)
+    assert f"unknown URL scheme {scheme}://" in message
+    for known in ("socket://", "loop://", "rfc2217://", "spy://", "sim://", "fault://"):
+        assert known in message
+    assert "/dev/ttyUSB0" in message
+
+
+@pytest.mark.parametrize(
+    "url", ["LOOP://", "spy://loop://", "hwgrep://0403", "alt://loop://?class=Serial", "COM3"]
+)
+def test_every_scheme_pyserial_opens_is_still_taken(url: str) -> None:
+    assert parse_url(url).scheme is Scheme.SERIAL
+
+
 def test_tcp_host_and_port() -> None:
     endpoint = parse_url("socket://[::1]:5760")
     assert (endpoint.host, endpoint.port) == ("::1", 5760)

@@ -31,7 +31,10 @@ def test_driver_opens_fault_urls_and_checksums_keep_replies_right() -> None:
 def test_bad_fault_url_is_a_clear_error() -> None:
     with pytest.raises(ValueError, match="inner URL"):
         rovlink.connect("fault://?inner=sim://?seed=x")
-    with pytest.raises(ConnectError, match=r"inner link.*nope"):
+    with pytest.raises(ConnectError, match=r"inner link.*nonexistent-rovlink-port"):
+        rovlink.connect("fault://?inner=/dev/nonexistent-rovlink-port")
+    # A mistyped scheme is refused before anything is opened (it was a ConnectError).
+    with pytest.raises(ValueError, match=r"inner URL: 'nope://x': unknown URL scheme nope://"):
         rovlink.connect("fault://?inner=nope://x")
     with pytest.raises(ValueError, match="inner=URL is required"):
         rovlink.connect("fault://?ber=0.1")

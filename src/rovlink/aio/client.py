@@ -112,6 +112,9 @@ class AsyncClient(AsyncCommandMethods):
         self._drops = DropLog()
         self._hook_failures = HookFailureLog()
         self._subscribers: list[EventCallback] = []
+        # Events are being handed to the callbacks: a callback that makes more (a stop(), a
+        # close() started as an eager task) has them delivered when it returns, not inside it.
+        self._delivering = False
         self._probe: ReadinessProbe | None = None  # while waiting for the controller (P21)
         self._probe_data = asyncio.Event()
         self._in_flight = InFlightSlots(max_in_flight)
@@ -769,13 +772,26 @@ class AsyncClient(AsyncCommandMethods):
         self._session.record_events()
 
     def _emit(self) -> None:
-        """Hand the session's events to ``on_event`` and the subscribers, log its notices."""
+        """Hand the session's events to ``on_event`` and the subscribers, log its notices.
+
+        Called from inside a callback (which made events: a ``stop()``, a ``close()`` started
+        as an eager task), it leaves them to the delivery under way, which hands them on once
+        the callback returns: in order, and no callback is called from inside itself (as the
+        blocking client's).
+        """
         session = self._session
-        if session.events or session.notices:
-            events = session.take_events()
-            deliver(events, session.take_notices(), self._options.on_event, self._hook_failures)
-            for subscriber in self._subscribers:
-                deliver(events, (), subscriber, self._hook_failures)
+        if not (session.events or session.notices) or self._delivering:
+            return
+        self._delivering = True
+        try:
+            while session.events or session.notices:
+                events = session.take_events()
+                notices = session.take_notices()
+                deliver(events, notices, self._options.on_event, self._hook_failures)
+                for subscriber in self._subscribers:
+                    deliver(events, (), subscriber, self._hook_failures)
+        finally:
+            self._delivering = False
 
     def _flush_due(self) -> None:
         """Write what the session has due (a fence, a keep-alive, zero thrust); while closing,

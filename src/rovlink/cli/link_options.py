@@ -494,14 +494,22 @@ def connection_failure(url: str, error: BaseException) -> CommandError:
     '/dev/null: not a serial port'
     >>> str(connection_failure("/dev/ttyUSB9", OSError(2, "[Errno 2] could not open port")))
     'cannot open /dev/ttyUSB9: No such file or directory'
+    >>> from rovlink.client.errors import ConnectError
+    >>> str(connection_failure("sim://", ConnectError("sim: more retries=N?", setting="retries")))
+    'sim: more --retries N?'
     """
     import errno  # noqa: PLC0415
 
     from rovlink.client.errors import ConnectError  # noqa: PLC0415
 
-    # The driver's words, unless they pass on pyserial's raw text ("[Errno 21] …: '/tmp'").
+    # The driver's words, unless they pass on pyserial's raw text ("[Errno 21] …: '/tmp'"); a
+    # setting they ask to change (``retries=N``) is named as its option here (``--retries N``).
     if isinstance(error, ConnectError) and "[Errno" not in str(error):
-        return CommandError(str(error))  # already one line in a user's words
+        text = str(error)  # already one line in a user's words
+        if error.setting is not None:
+            option = "--" + error.setting.replace("_", "-")
+            text = text.replace(f"{error.setting}=N", f"{option} N")
+        return CommandError(text)
     if error_number(error) == errno.ENOTTY:
         return CommandError(f"{url}: not a serial port")
     return CommandError(f"cannot open {url}: {reason(error)}")

@@ -171,6 +171,8 @@ class Client(CommandMethods):
         self._background_ident: int | None = None
         # Links over a descriptor write without blocking: queries then take a shorter path.
         self._send_now: Callable[[bytes], int] | None = getattr(link, "send_some", None)
+        # An in-process port (``sim://``): its writes take the port's own lock, never the line.
+        self._link_writes_never_wait = getattr(link, "writes_may_wait", True) is False
         self._queued_line_s = links.queued_line_s(link)
         # A caller waiting for its reply reads with this (the link's; a test interrupts it).
         self._read_reply: Callable[[float], bytes] = link.read_available
@@ -256,6 +258,10 @@ class Client(CommandMethods):
         # Its query, on the wire, has no other reader, and what it holds is not close()'s to
         # give back (the call would then release locks it no longer held).
         interrupted_call = self._in_a_call()
+        # close() from an event callback: this thread is delivering events, and goes on with
+        # those of the close (its #stop!) once the callback returns. It keeps that role: another
+        # thread delivering them would call the callbacks while this one still runs.
+        delivering = self._deliverer == _get_ident()
         try:
             try:
                 if stop_due:
@@ -264,7 +270,8 @@ class Client(CommandMethods):
                     self._wait(query, owned=False)  # answered, or timed out, before the close
             finally:  # (a Ctrl-C in that wait still releases the port: P22, a next open)
                 if not interrupted_call:
-                    self._recover_after_error()  # (nothing, unless that wait was interrupted)
+                    # (nothing, unless that wait was interrupted)
+                    self._recover_after_error(keep_delivering=delivering)
                 self._connection_lost(ConnectionLostError(f"{self._link.description}: closed"))
                 self._link.wake()
                 # (Not from an interrupted call: they wait for what it holds. They end once
@@ -326,14 +333,29 @@ class Client(CommandMethods):
         that cannot give up a write) never holds close() up, and closing the port ends that
         write. A thread that holds the wire lock or the state lock already (close() from a
         signal handler, in the thread whose call it interrupted) writes it itself, as
-        ``stop()`` does: a thread of its own would wait for that lock until it gave up."""
+        ``stop()`` does: a thread of its own would wait for that lock until it gave up. So does
+        a thread interrupted in a read of an in-process port (``sim://``), whose own lock it
+        may hold there, if no other thread is writing."""
         if _owns(self._wire_lock) or _owns(self._state_lock):
+            self._write_stop_on_close_here()
+            return
+        if (
+            self._reader_ident == _get_ident()
+            and self._link_writes_never_wait
+            and self._wire_lock.acquire(blocking=False)
+        ):
             try:
-                self._write_stop_on_close()
-            except Exception:  # (logged, not raised, as stop_within does)
-                logger.exception("%s: writing #stop!", self._link.description)
+                self._write_stop_on_close_here()
+            finally:
+                self._wire_lock.release()
             return
         stop_within(self._write_stop_on_close, self._link.description)
+
+    def _write_stop_on_close_here(self) -> None:
+        try:
+            self._write_stop_on_close()
+        except Exception:  # (logged, not raised, as stop_within does)
+            logger.exception("%s: writing #stop!", self._link.description)
 
     def _stop_at_exit(self) -> None:
         """The program ends with the client open: the ``#stop!`` of close(), if due, and not
@@ -763,9 +785,10 @@ class Client(CommandMethods):
         # is active: not from here, which may run under the wire lock that writing takes.
         self._background_wakeup.notify()
 
-    def _recover_after_error(self) -> None:
+    def _recover_after_error(self, *, keep_delivering: bool = False) -> None:
         """Put back what this thread held when an exception ended its call (no lock needed on
-        entry; none held on return).
+        entry; none held on return); ``keep_delivering``: all but the delivery of events
+        (close() from a callback, which delivers the rest once the callback returns).
 
         A Ctrl-C lands between any two bytecodes of the main thread: right after a lock was
         taken (the per-query path takes its locks by hand, which costs half a ``with`` block),
@@ -786,7 +809,7 @@ class Client(CommandMethods):
                 self._background_wakeup.notify()
             if self._mode_switcher == me:
                 self._mode_switcher = None
-            if self._deliverer == me:
+            if self._deliverer == me and not keep_delivering:
                 self._deliverer = None
                 self._events_delivered = self._events_taken  # (what it held is gone)
                 self._delivered.notify_all()
@@ -1466,8 +1489,10 @@ def connect(
     ``boot_timeout`` (s) to wait for the controller to answer after the port opens (a board that
     resets on open boots for up to 2 s; ``None``: do not wait); ``motion_timeout`` (s) after which
     a motion command the program did not renew is expired with zero thrust (``None``: never);
-    ``on_stray`` is called (in the reader thread) with debug text and frames nobody asked for, and
-    ``on_event`` with every event of the connection (:mod:`rovlink.client.events`);
+    ``on_stray`` is called with debug text and frames nobody asked for, one call at a time and in
+    the order they came, in whichever thread read them (one of the program's threads waiting for
+    a reply, or the client's background reader), and ``on_event`` with every event of the
+    connection (:mod:`rovlink.client.events`);
     ``reconnect=True`` reopens a lost port (an adapter unplugged and plugged back) with backoff,
     waits for the controller again and restores the checksum mode: the calls on the wire when it
     was lost raise ConnectionLostError, later calls wait for it up to ``timeout``;

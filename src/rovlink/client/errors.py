@@ -106,7 +106,15 @@ class ConnectError(ClientError, ConnectionError):
     Traceback (most recent call last):
     ...
     rovlink.client.errors.ConnectError: cannot open /dev/no-such-port: ...
+
+    ``setting`` names the setting of :func:`rovlink.connect` that the message asks to change,
+    as it says it there (``retries=N``), so that a command line can say its option instead.
     """
+
+    def __init__(self, *args: object, setting: str | None = None) -> None:
+        super().__init__(*args)
+        #: The keyword of ``connect`` the message names as ``keyword=N``, if any.
+        self.setting = setting
 
 
 def checksum_mode_unconfirmed(link: str, algorithm: str, error: QueryTimeoutError) -> ConnectError:
@@ -120,14 +128,15 @@ def checksum_mode_unconfirmed(link: str, algorithm: str, error: QueryTimeoutErro
     >>> noisy = QueryTimeoutError(Command("qd"), ["corrupt", "timeout"], 0.5)
     >>> print(checksum_mode_unconfirmed("sim", "crc8", noisy))
     sim: the controller answers in checksum mode, but no reply passed the crc8 check (a noisy \
-line? more --retries; or its replies are checksummed with another algorithm): #qd! got no valid \
-reply within 0.5 s (2 attempts: corrupt, timeout)
+line? more attempts: retries=N; or its replies are checksummed with another algorithm): #qd! got \
+no valid reply within 0.5 s (2 attempts: corrupt, timeout)
     """
     if "corrupt" in error.failures:
         return ConnectError(
             f"{link}: the controller answers in checksum mode, but no reply passed the "
-            f"{algorithm} check (a noisy line? more --retries; or its replies are checksummed "
-            f"with another algorithm): {error}"
+            f"{algorithm} check (a noisy line? more attempts: retries=N; or its replies are "
+            f"checksummed with another algorithm): {error}",
+            setting="retries",
         )
     return ConnectError(
         f"{link}: the controller answers, but not in checksum mode with {algorithm} (is that "

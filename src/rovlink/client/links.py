@@ -662,8 +662,6 @@ def _open_error(endpoint: Endpoint, error: BaseException) -> str:
     reason = getattr(error, "strerror", None) or text
     if errno_value == errno.ENOENT or "No such file" in text:
         reason = os.strerror(errno.ENOENT) + _address_hint(name)
-    elif "protocol 'tcp' not known" in text:  # (pyserial's name for TCP is socket://)
-        reason = f"{text} (a TCP address is socket://{name.split('://', 1)[1]})"
     return f"cannot open {name}: {reason}"
 
 

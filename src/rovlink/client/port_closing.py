@@ -14,7 +14,7 @@ from __future__ import annotations
 import threading
 from collections.abc import Callable
 
-from rovlink.client.links import Link
+from rovlink.client.links import Link, SerialFdLink, SocketLink
 from rovlink.logs import get_logger
 
 __all__ = ["CLOSE_TIMEOUT_S", "PortClosing", "close_within"]
@@ -99,11 +99,26 @@ class PortClosing:
             closing.report(2.0)
         """
         logger.warning(
-            "%s: the port did not close within %g s (a serial adapter whose driver hangs, or a "
-            "network port that does not answer); left to close in the background",
+            "%s: the port did not close within %g s (%s); left to close in the background",
             self._link.description,
             waited_s,
+            _why_a_close_hangs(self._link),
         )
+
+
+def _why_a_close_hangs(link: Link) -> str:
+    """What usually holds up the close of a link of ``link``'s kind, for the warning.
+
+    >>> _why_a_close_hangs(SocketLink.__new__(SocketLink))
+    'a network port that does not answer'
+    """
+    if isinstance(link, SerialFdLink):
+        return "a serial adapter whose driver hangs"
+    if isinstance(link, SocketLink):
+        return "a network port that does not answer"
+    if getattr(link, "writes_may_wait", True) is False:  # an in-process port (sim://)
+        return "the in-process port is busy"
+    return "the port's close is waiting for its device or its network peer"
 
 
 def close_within(link: Link, timeout_s: float | None = None) -> bool:

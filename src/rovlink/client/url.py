@@ -7,6 +7,9 @@
 * a registered scheme (:mod:`rovlink.client.schemes`), such as ``sim://`` — a simulated
   controller in this process (``sim://?seed=1&leak_at=5&realtime=0&config=vehicle.toml``); its
   handler checks the URL here, before anything is opened.
+
+Any other ``name://`` is a mistyped scheme, refused here (a ``ValueError`` naming it and the
+schemes there are), not a port that failed to open.
 """
 
 from __future__ import annotations
@@ -14,10 +17,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 from urllib.parse import quote_plus, unquote_plus, urlencode
 
-from rovlink.client.schemes import handler_module, load_handler
+from rovlink.client.schemes import handler_module, load_handler, registered_schemes
 from rovlink.protocol.text_enum import StrEnum
 
-__all__ = ["DEFAULT_BAUDRATE", "Endpoint", "Scheme", "parse_url"]
+__all__ = ["DEFAULT_BAUDRATE", "Endpoint", "Scheme", "parse_url", "pyserial_schemes"]
 
 DEFAULT_BAUDRATE = 115200
 #: The fastest USB-serial bridges run at 12 Mbaud; beyond, pyserial overflows a C int.
@@ -145,5 +148,48 @@ def parse_url(url: str, baudrate: int | None = None) -> Endpoint:
     if "://" not in base and rest:
         names = ", ".join(name for name, _ in rest)
         raise ValueError(f"{url!r}: a serial device takes only ?baudrate=, not {names}")
+    if "://" in base:
+        _check_pyserial_scheme(url, base)
     target = base + ("?" + _query_text(rest) if rest else "")
     return Endpoint(url, Scheme.SERIAL, target, rate)
+
+
+def _check_pyserial_scheme(url: str, base: str) -> None:
+    """ValueError naming the scheme of ``base`` (``name://…``), and the schemes there are, if
+    pyserial has no handler for it: a mistyped scheme is said before anything is opened (it
+    was a failure to open, in pyserial's words, "protocol 'nosuch' not known")."""
+    scheme = base.partition("://")[0].lower()  # (pyserial reads schemes in any case)
+    serial_schemes = pyserial_schemes()
+    if scheme in serial_schemes:
+        return
+    known = ", ".join(f"{name}://" for name in sorted({*serial_schemes, *registered_schemes()}))
+    tcp = f" (a TCP address is socket://{base.partition('://')[2]})" if scheme == "tcp" else ""
+    raise ValueError(
+        f"{url!r}: unknown URL scheme {scheme}:// (known: {known}; or a serial device's path, "
+        f"such as /dev/ttyUSB0 or COM3){tcp}"
+    )
+
+
+def pyserial_schemes() -> frozenset[str]:
+    """The URL schemes pyserial opens: a ``protocol_NAME`` module in one of its handler
+    packages (``serial.protocol_handler_packages``, which a program may extend), as pyserial's
+    ``serial_for_url`` looks them up.
+
+    >>> {"loop", "socket", "rfc2217", "spy"} <= pyserial_schemes()
+    True
+    """
+    import importlib  # noqa: PLC0415 - only for a URL with a scheme of pyserial's
+    import pkgutil  # noqa: PLC0415
+
+    import serial  # noqa: PLC0415 - pyserial is only needed when a serial port is opened
+
+    names: set[str] = set()
+    for package_name in serial.protocol_handler_packages:
+        try:
+            package = importlib.import_module(package_name)
+        except ImportError:
+            continue
+        for module in pkgutil.iter_modules(getattr(package, "__path__", [])):
+            if module.name.startswith("protocol_"):
+                names.add(module.name.removeprefix("protocol_"))
+    return frozenset(names)

@@ -27,6 +27,11 @@ logger = get_logger(__name__)
 #: Controller output kept for a reader that does not read (as a UART's buffer would overflow).
 _MAX_BUFFERED_BYTES = 1 << 16
 _YIELD_S = 50e-6  # between batches when running faster than real time
+#: The longest a read waits before it looks again whether the port was closed (a close that
+#: could not take the lock to wake it, see SimulatedPort.close).
+_READ_SLICE_S = 0.05
+#: How long close() waits for the lock (held by a reader that a signal handler interrupted).
+_CLOSE_LOCK_WAIT_S = 0.1
 
 
 class SimulatedPort:
@@ -102,12 +107,12 @@ class SimulatedPort:
             while not self._received:
                 self._check_open()
                 if deadline is None:
-                    self._data_ready.wait()
+                    self._data_ready.wait(_READ_SLICE_S)
                     continue
                 remaining = deadline - time.monotonic()
                 if remaining <= 0:
                     return b""
-                self._data_ready.wait(remaining)
+                self._data_ready.wait(min(remaining, _READ_SLICE_S))
             data = bytes(self._received[:size])
             del self._received[:size]
             return data
@@ -124,13 +129,23 @@ class SimulatedPort:
         """Nothing to do: writes reach the controller at once."""
 
     def close(self) -> None:
-        """Stop the simulation thread; later reads and writes raise ``SerialException``."""
+        """Stop the simulation thread; later reads and writes raise ``SerialException``.
+
+        It waits for :attr:`lock` at most :data:`_CLOSE_LOCK_WAIT_S`: a read interrupted by a
+        signal handler holds the lock until the handler returns, and a handler that closes the
+        port waits for the close. The port is closed all the same (a read looks at least every
+        :data:`_READ_SLICE_S` and raises), and the simulation thread ends on its own.
+        """
         if not self._is_open:
             return
         self._stopping.set()
-        with self._data_ready:
-            self._is_open = False
+        self._is_open = False
+        if not self.lock.acquire(timeout=_CLOSE_LOCK_WAIT_S):
+            return
+        try:
             self._data_ready.notify_all()
+        finally:
+            self.lock.release()
         if self._thread is not None and self._thread is not threading.current_thread():
             self._thread.join()
 
