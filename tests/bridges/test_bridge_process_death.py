@@ -31,8 +31,9 @@ _STOPPED_WITHIN_S = 8.0
 
 
 @contextmanager
-def served_robot() -> Iterator[tuple[SimServer, str]]:
-    server = SimServer(SimConfig(), seed=1)
+def served_robot(config: SimConfig | None = None) -> Iterator[tuple[SimServer, str]]:
+    """A simulated robot served on a loopback TCP port, and its URL."""
+    server = SimServer(config or SimConfig(), seed=1)
     _, port = server.listen_tcp()
     stopping = threading.Event()
     thread = threading.Thread(target=server.serve, args=(stopping.is_set,), daemon=True)

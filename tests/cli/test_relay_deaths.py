@@ -13,9 +13,7 @@ import re
 import signal
 import socket
 import subprocess
-import threading
-from collections.abc import Iterator
-from contextlib import contextmanager
+from contextlib import AbstractContextManager
 from pathlib import Path
 
 import pytest
@@ -23,7 +21,13 @@ import pytest
 from rovlink.controller import ControllerConfig
 from rovlink.sim import SimConfig
 from rovlink.sim.server import SimServer
-from tests.bridges.test_bridge_process_death import kill, rovlink_process, state, wait_until
+from tests.bridges.test_bridge_process_death import (
+    kill,
+    rovlink_process,
+    served_robot,
+    state,
+    wait_until,
+)
 from tests.cli.silent_controller import WAIT_S, SilentController
 
 pytestmark = pytest.mark.integration
@@ -50,19 +54,8 @@ def _start_relay(
     return process, found.group(1)
 
 
-@contextmanager
-def _served_robot_without_watchdog() -> Iterator[tuple[SimServer, str]]:
-    server = SimServer(SimConfig(controller=ControllerConfig(watchdog_s=0.0)), seed=1)
-    _, port = server.listen_tcp()
-    stopping = threading.Event()
-    thread = threading.Thread(target=server.serve, args=(stopping.is_set,), daemon=True)
-    thread.start()
-    try:
-        yield server, f"socket://127.0.0.1:{port}"
-    finally:
-        stopping.set()
-        thread.join(timeout=5)
-        server.close()
+def _served_robot_without_watchdog() -> AbstractContextManager[tuple[SimServer, str]]:
+    return served_robot(SimConfig(controller=ControllerConfig(watchdog_s=0.0)))
 
 
 @pytest.mark.parametrize(

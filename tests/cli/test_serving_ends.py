@@ -17,7 +17,7 @@ from pathlib import Path
 import pytest
 
 from tests.bridges.mavlink.rig import free_udp_port
-from tests.bridges.mqtt.broker import Mosquitto, mosquitto_available
+from tests.bridges.mqtt.broker import Mosquitto, running_broker
 from tests.rovlink_process import rovlink_command, rovlink_environment
 
 pytestmark = pytest.mark.integration
@@ -47,14 +47,7 @@ def _ready(process: subprocess.Popen[str]) -> str:
 
 @pytest.fixture
 def broker(tmp_path: Path) -> Iterator[Mosquitto]:
-    if not mosquitto_available():
-        pytest.skip("needs mosquitto (Debian package mosquitto)")
-    mosquitto = Mosquitto(tmp_path)
-    mosquitto.start()
-    try:
-        yield mosquitto
-    finally:
-        mosquitto.stop()
+    yield from running_broker(tmp_path)
 
 
 def _arguments(name: str, tmp_path: Path, request: pytest.FixtureRequest) -> list[str]:

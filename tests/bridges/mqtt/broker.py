@@ -12,6 +12,8 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
+import pytest
+
 _START_TIMEOUT_S = 10.0
 
 
@@ -93,3 +95,15 @@ class Mosquitto:
 
 def mosquitto_available() -> bool:
     return shutil.which("mosquitto") is not None or Path("/usr/sbin/mosquitto").exists()
+
+
+def running_broker(workdir: Path) -> Iterator[Mosquitto]:
+    """A started mosquitto for a fixture (skips the test where mosquitto is missing)."""
+    if not mosquitto_available():
+        pytest.skip("needs mosquitto (Debian package mosquitto)")
+    mosquitto = Mosquitto(workdir)
+    mosquitto.start()
+    try:
+        yield mosquitto
+    finally:
+        mosquitto.stop()

@@ -9,16 +9,9 @@ import pytest
 
 pytest.importorskip("aiomqtt", reason="needs aiomqtt: pip install 'rovlink[mqtt]'")
 
-from tests.bridges.mqtt.broker import Mosquitto, mosquitto_available
+from tests.bridges.mqtt.broker import Mosquitto, running_broker
 
 
 @pytest.fixture
 def broker(tmp_path: Path) -> Iterator[Mosquitto]:
-    if not mosquitto_available():
-        pytest.skip("needs mosquitto (Debian package mosquitto)")
-    mosquitto = Mosquitto(tmp_path)
-    mosquitto.start()
-    try:
-        yield mosquitto
-    finally:
-        mosquitto.stop()
+    yield from running_broker(tmp_path)
