@@ -80,6 +80,7 @@ __all__ = [
     "WATCHDOG_PERIOD_S",
     "Peer",
     "Station",
+    "telemetry_lost_after",
 ]
 
 logger = logging.getLogger(__name__)
@@ -123,6 +124,19 @@ LINK_DOWN_STATUS = "cut: the robot's link was lost; nothing is relayed until it 
 #: nothing, the station has it do when the station hears nothing. Four query timeouts of 0.5 s:
 #: a reply lost now and then (answered on its retry) never comes near it.
 TELEMETRY_LOST_S = 2.0
+
+
+def telemetry_lost_after(timeout_s: float) -> float:
+    """How long a controller may answer nothing before the station stops it, on a link whose
+    reply timeout is ``timeout_s``: four timeouts, at least :data:`TELEMETRY_LOST_S` (a slow
+    line's longer ``--timeout`` is not taken for a silent controller).
+
+    >>> telemetry_lost_after(0.5), telemetry_lost_after(2.0)
+    (2.0, 8.0)
+    """
+    return max(TELEMETRY_LOST_S, 4 * timeout_s)
+
+
 #: The relay's state while the controller does not answer: the pilot's input is not taken.
 TELEMETRY_LOST_STATUS = (
     "cut: the controller stopped answering (no telemetry): stopped; nothing is relayed"
