@@ -80,6 +80,13 @@ class ControllerLine:
         )
         self._thread.start()
 
+    def stop_replying(self) -> None:
+        """From now on the controller hears and obeys every frame but nothing it writes reaches
+        the station (its TX wire broke, or its reply path hangs while its motor loop runs)."""
+        controller = self.server.robot.controller
+        controller._write = lambda data: None
+        controller._write_to_every_line = lambda data: None
+
     @property
     def controller_locked(self) -> bool:
         return self.server.robot.controller.locked

@@ -21,7 +21,15 @@ from rovlink.piloting import LockState, TrackedClient
 from rovlink.recorder.entries import Entry
 from rovlink.recorder.formats import open_sink
 from rovlink.recorder.sink import Sink
-from rovlink.station.hub import CLOSING_STATUS, MESSAGE_BURST, MESSAGES_PER_S, Peer, Station
+from rovlink.station.hub import (
+    CLOSING_STATUS,
+    MESSAGE_BURST,
+    MESSAGES_PER_S,
+    TELEMETRY_LOST_S,
+    TELEMETRY_LOST_STATUS,
+    Peer,
+    Station,
+)
 from rovlink.station.recording import StationRecordings
 
 
@@ -460,3 +468,44 @@ async def test_a_command_that_arrives_seconds_late_is_not_sent(hub):
     # On time again (the network caught up): sent.
     await hub.send(pilot, {"type": "command", "name": "h+", "sent_ms": 5600.0})
     assert hub.sent[-1] == "#h+!"
+
+
+async def test_a_controller_silent_past_the_limit_is_stopped_and_flies_again_only_when_answering(
+    hub,
+):
+    """The controller hears but does not answer (the socket test shows it end to end): past the
+    limit, #stop!, and the pilot's input is not relayed, nor #start! sent, while it is silent;
+    answering again, it is unlocked and the dead-man released and pressed before anything
+    moves."""
+    station, health = hub.station, hub.station.tracked.health
+    peer = await hub.pilot()
+    await hub.send(peer, {"type": "command", "name": "start"})
+    await hub.send(peer, keys(False))
+    await hub.send(peer, keys(True, power_percent=60))
+    assert hub.sent[-1] == "#th.90.60!"
+    quiet_from_s = station.tracked.now_s() - (TELEMETRY_LOST_S - 0.5)
+    health.last_reply_at_s = station._answers_expected_from_s = quiet_from_s
+    await station._check_replies()
+    assert not station.telemetry_lost  # not yet
+    health.last_reply_at_s = station._answers_expected_from_s = quiet_from_s - 0.6
+    await station._check_replies()
+    assert station.telemetry_lost
+    assert hub.sent[-1] == "#stop!"
+    assert "stopped answering" in hub.warnings()[-1]
+    assert station._telemetry(None)["relay"]["status"] == TELEMETRY_LOST_STATUS
+    sent = len(hub.sent)
+    await hub.send(peer, keys(False))
+    await hub.send(peer, keys(True, power_percent=60))
+    await hub.send(peer, {"type": "command", "name": "start"})
+    assert hub.sent[sent:] == []  # flying blind is not taken up again
+    assert "not answering" in drain(peer)[-1]["message"]
+    health.record_reply(0.01, station.tracked.now_s())
+    await station._check_replies()
+    assert not station.telemetry_lost
+    assert "answers again" in hub.warnings()[-1]
+    await hub.send(peer, {"type": "command", "name": "start"})
+    await hub.send(peer, keys(True, power_percent=60))  # held through the silence: nothing
+    assert hub.sent[sent:] == ["#start!"]
+    await hub.send(peer, keys(False))
+    await hub.send(peer, keys(True, power_percent=60))
+    assert hub.sent[-1] == "#th.90.60!"

@@ -14,6 +14,7 @@ from typing import Any
 import pytest
 
 import rovlink
+from rovlink.station.hub import TELEMETRY_LOST_S
 from tests.station.rig import (
     CHROMIUM,
     CHROMIUM_ARGS,
@@ -1440,3 +1441,24 @@ def test_a_watchers_relay_row_says_unlocked_after_another_line_unlocks_with_hear
             watcher.context.close()
     finally:
         line.close()
+
+
+@pytest.mark.realtime
+def test_a_controller_that_stops_answering_is_stopped_and_the_pilot_sees_why(
+    browser, station, line
+):
+    # Its TX wire broke: it hears and obeys, answers nothing. Before, the pad kept flying it
+    # while the page showed old depth, leak and attitude.
+    page = flying_by_pad(browser, station, line, [1, 0, 0, 0], "#th.90.100!")
+    mark = line.mark()
+    silent_at_s = time.monotonic()
+    line.stop_replying()
+    stop = line.wait_for("#stop!", after=mark, timeout_s=5.0)
+    assert stop.at_s - silent_at_s < TELEMETRY_LOST_S + CUT_WITHIN_S
+    page.wait_for_selector("#flight-status:has-text('the controller stopped answering')")
+    page.wait_for_selector("#stale-banner:has-text('no reading from the robot')")
+    page.wait_for_selector("text=depth, leak and attitude are not known")  # the event log
+    assert line.controller_locked  # every output to zero
+    after = line.frames(mark, commands_only=True)
+    assert not [f for f in after[after.index("#stop!") :] if f.startswith(("#th.", "#mvs."))]
+    page.context.close()

@@ -20,6 +20,7 @@ from websockets.asyncio.client import connect
 from websockets.exceptions import ConnectionClosed, InvalidStatus
 
 from rovlink.protocol import lookup
+from rovlink.station.hub import TELEMETRY_LOST_S, TELEMETRY_LOST_STATUS
 from tests.client.fake_controller import FakeControllerServer
 from tests.station.page_socket import PageSocket
 from tests.station.rig import ControllerLine, StationProcess, running_station
@@ -530,6 +531,38 @@ async def test_a_lost_robot_link_is_shown_and_disarms_the_relay(station, line):
     reading = await page.next("telemetry", lambda m: not m["link"]["connected"], timeout_s=10)
     assert reading["relay"]["armed"] is False
     assert "link was lost" in reading["relay"]["status"]
+    await page.close()
+
+
+@pytest.mark.realtime
+async def test_a_controller_that_hears_but_stops_answering_is_stopped_and_the_pilot_told(
+    station, line
+):
+    """Its TX wire broke: the controller obeys every frame and answers none. Flying on, the
+    pilot would fly blind (old depth, leak and attitude on the screen): the station stops it
+    within its silence limit, and says why."""
+    page = await pilot(station)
+    await fly(page, line)
+    async with pad_kept_alive(page):
+        mark = line.mark()
+        silent_at_s = time.monotonic()
+        line.stop_replying()
+        stop = await asyncio.to_thread(line.wait_for, "#stop!", after=mark, timeout_s=5.0)
+        alarm = await page.next(
+            "log", lambda m: m["text"].startswith("the controller stopped answering")
+        )
+        reading = await page.next(
+            "telemetry", lambda m: m["relay"]["status"] == TELEMETRY_LOST_STATUS
+        )
+    assert stop.at_s - silent_at_s < TELEMETRY_LOST_S + CUT_WITHIN_S
+    assert line.controller_locked  # it heard the #stop!, and obeys it: every output at zero
+    assert alarm["level"] == "alarm"
+    assert "depth, leak and attitude" in alarm["text"]
+    assert reading["relay"]["armed"] is False
+    # The pad held all along flew nothing after the #stop!: nothing is relayed, blind.
+    after_stop = line.frames(mark, commands_only=True)
+    after_stop = after_stop[after_stop.index("#stop!") :]
+    assert not [f for f in after_stop if f.startswith(("#th.", "#mvs.", "#start"))], after_stop
     await page.close()
 
 

@@ -87,6 +87,7 @@ def run(args: argparse.Namespace) -> int:
     try:
         from rovlink.cli.async_run import run_async  # noqa: PLC0415
         from rovlink.station import access as station_access  # noqa: PLC0415
+        from rovlink.station.hub import telemetry_lost_after  # noqa: PLC0415
         from rovlink.station.serve import (  # noqa: PLC0415
             ServeOptions,
             StationFailedError,
@@ -108,14 +109,6 @@ def run(args: argparse.Namespace) -> int:
         token = station_access.generate_token()
     if token is not None and len(token) < 8:
         raise UsageError("--token must be at least 8 characters")
-    options = ServeOptions(
-        host=args.host,
-        port=args.port,
-        token=token,
-        rate_hz=args.rate_hz,
-        algorithm=args.algorithm,
-        recordings_dir=recordings,  # made when the first recording starts
-    )
     # The relay renews a held motion twice a second; the driver expires one not renewed within a
     # second (a second line of defence behind the station's own 300 ms watchdog). The
     # keep-alive runs on the station's event loop: a hung station stops feeding the
@@ -123,6 +116,15 @@ def run(args: argparse.Namespace) -> int:
     client_options = dataclasses.replace(
         link_options.client_options(args, keepalive_s=1.0, motion_timeout_s=_MOTION_BACKSTOP_S),
         reconnect=True,
+    )
+    options = ServeOptions(
+        host=args.host,
+        port=args.port,
+        token=token,
+        rate_hz=args.rate_hz,
+        algorithm=args.algorithm,
+        recordings_dir=recordings,  # made when the first recording starts
+        telemetry_lost_s=telemetry_lost_after(client_options.timeout_s),
     )
     link_options.log_warnings()  # cuts, leaks and lost links also reach the terminal
 

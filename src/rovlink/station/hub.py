@@ -75,9 +75,12 @@ __all__ = [
     "LATE_COMMAND_S",
     "MESSAGES_PER_S",
     "MESSAGE_BURST",
+    "TELEMETRY_LOST_S",
+    "TELEMETRY_LOST_STATUS",
     "WATCHDOG_PERIOD_S",
     "Peer",
     "Station",
+    "telemetry_lost_after",
 ]
 
 logger = logging.getLogger(__name__)
@@ -114,6 +117,31 @@ CLOSING_STATUS = "the station is closing: nothing moves (only STOP is taken)"
 #: The relay's state while the robot's link is down: the pilot's input is not taken then, and
 #: releasing the dead-man (the relay's own word after a cut) would do nothing.
 LINK_DOWN_STATUS = "cut: the robot's link was lost; nothing is relayed until it is back"
+#: The controller answered nothing for this long (no reply to a poll, a retry or a keep-alive)
+#: while its link is up: it may still hear (a broken TX wire, a reply path that hangs while the
+#: motor loop runs), but the pilot no longer sees depth, leak or attitude. The station stops it
+#: (``#stop!``): what the controller's own link-loss failsafe (P17, 2 s) does when it hears
+#: nothing, the station has it do when the station hears nothing. Four query timeouts of 0.5 s:
+#: a reply lost now and then (answered on its retry) never comes near it.
+TELEMETRY_LOST_S = 2.0
+
+
+def telemetry_lost_after(timeout_s: float) -> float:
+    """How long a controller may answer nothing before the station stops it, on a link whose
+    reply timeout is ``timeout_s``: four timeouts, at least :data:`TELEMETRY_LOST_S` (a slow
+    line's longer ``--timeout`` is not taken for a silent controller).
+
+    >>> telemetry_lost_after(0.5), telemetry_lost_after(2.0)
+    (2.0, 8.0)
+    """
+    return max(TELEMETRY_LOST_S, 4 * timeout_s)
+
+
+#: The relay's state while the controller does not answer: the pilot's input is not taken.
+TELEMETRY_LOST_STATUS = (
+    "cut: the controller stopped answering (no telemetry): stopped; nothing is relayed"
+    " until it answers"
+)
 #: How far the page's clock may drift from the station's (0.1 %: quartz does far better): a
 #: page's input is measured late only beyond it.
 CLOCK_DRIFT = 1e-3
@@ -195,6 +223,7 @@ class Station:
         rate_hz: float = DEFAULT_RATE_HZ,
         clock: Callable[[], float] = time.monotonic,
         recordings: StationRecordings | None = None,
+        telemetry_lost_s: float = TELEMETRY_LOST_S,
     ) -> None:
         self.tracked = tracked
         #: The record button's recordings (``None``: the button is off).
@@ -219,6 +248,14 @@ class Station:
         self._link_up = True
         #: A STOP asked for while the link was down: the reopened link's first frame.
         self._stop_kept = False
+        #: After this long without a reply the station stops the robot (:meth:`_check_replies`).
+        self.telemetry_lost_s = telemetry_lost_s
+        #: The controller stopped answering (and was stopped): nothing is relayed until it
+        #: answers again.
+        self.telemetry_lost = False
+        #: The silence is measured from the last reply, or from this (the station's start, the
+        #: link reopened) if later; on :meth:`TrackedClient.now_s`'s clock.
+        self._answers_expected_from_s = tracked.now_s()
         self._recording_told_s = 0.0
         #: The station is closing (:meth:`stop_first`): a page may only stop the robot.
         self.closing = False
@@ -377,9 +414,10 @@ class Station:
                             f"the page's input arrives {late_s:.1f} s late (a slow network?)"
                         )
                     return
-            if not self._link_up:
-                # Nothing can be relayed, and the relay, cut when the link was lost, stays so:
-                # armed or "flying" on the page would claim what the robot is not doing.
+            if not self._link_up or self.telemetry_lost:
+                # Nothing can be relayed (or nothing may, flying blind), and the relay, cut
+                # when the link was lost or went silent, stays so: armed or "flying" on the
+                # page would claim what the robot is not doing.
                 return
             depth = self.latest.depth_cm if self.latest is not None else None
             moving, armed = self.relay.moving, self.relay.armed
@@ -391,6 +429,11 @@ class Station:
                 await self._stop(peer.label)
                 return
             self._require_pilot(peer, "send commands")
+            if self.telemetry_lost and message.command.name == "start":
+                raise MessageError(
+                    "#start!: not sent: the controller is not answering (no depth, leak or "
+                    "attitude to fly by); unlock once it answers again"
+                )
             if message.sent_ms is not None:
                 late_s = peer.lateness_s(message.sent_ms, self._clock())
                 if late_s > LATE_COMMAND_S:
@@ -581,7 +624,9 @@ class Station:
     def _may_relay(self) -> bool:
         """Whether the pilot's motion may go out now: a pilot, on a shown page, relay armed."""
         pilot = self.pilot
-        return pilot is not None and not pilot.hidden and self.relay.armed
+        return (
+            pilot is not None and not pilot.hidden and self.relay.armed and not self.telemetry_lost
+        )
 
     async def _send_all(self, commands: list[Command]) -> None:
         for command in commands:
@@ -594,6 +639,12 @@ class Station:
         while True:
             await asyncio.sleep(WATCHDOG_PERIOD_S)
             try:
+                await self._check_replies()
+            except ClientError as error:
+                self.log("alarm", f"#stop! could not be sent: {error}")
+            except Exception:  # the watchdog must outlive any bug in what it calls
+                logger.exception("the station's watchdog failed once; it goes on")
+            try:
                 moving, armed = self.relay.moving, self.relay.armed
                 commands = self.relay.check(self._clock())  # a cut, or a held change now due
                 await self._send_all(commands)
@@ -602,6 +653,47 @@ class Station:
                 self.log("alarm", f"zero thrust could not be sent: {error}")
             except Exception:  # the watchdog must outlive any bug in what it calls
                 logger.exception("the station's watchdog failed once; it goes on")
+
+    async def _check_replies(self) -> None:
+        """The controller must keep answering: one that hears but no longer answers (a broken
+        TX wire, a hung reply path) would be flown blind, its depth, leak and attitude on every
+        page old while the thrust went on. Silent for :attr:`telemetry_lost_s` on a link that
+        is up, it is stopped (``#stop!``: it still hears, and obeys) and the pilot told why;
+        nothing is relayed until it answers again, and then it must be unlocked (``#start!``)
+        and the dead-man released and pressed."""
+        if self.closing or not self._link_up:
+            return  # closing: stopped already; the link lost: its own failsafe (P17)
+        health = self.tracked.health
+        since_s = self._answers_expected_from_s
+        if health.last_reply_at_s is not None:
+            since_s = max(since_s, health.last_reply_at_s)
+        silent_s = self.tracked.now_s() - since_s
+        if self.telemetry_lost:
+            if silent_s < self.telemetry_lost_s:
+                self.telemetry_lost = False
+                self.log(
+                    "warning",
+                    "the controller answers again: unlock (#start!), then release and press"
+                    " the dead-man to fly",
+                )
+            return
+        if silent_s < self.telemetry_lost_s:
+            return
+        self.telemetry_lost = True
+        reason = f"the controller stopped answering for {silent_s:.1f} s"
+        commands = self.relay.cut(reason)
+        locked = self.tracked.commanded.sent_lock is LockState.LOCKED
+        self.log(
+            "alarm",
+            f"{reason}: depth, leak and attitude are not known;"
+            f" {'zero thrust (locked)' if locked else '#stop!'}: it may still hear, and it"
+            " stops; nothing is relayed until it answers",
+        )
+        self._broadcast(self._telemetry(self.latest))
+        if locked:
+            await self._send_all(commands)  # dropped if locked; a lock it missed is covered
+        else:
+            await self.tracked.stop()  # (#stop! zeroes every output)
 
     async def _beat(self) -> None:
         """The heartbeat every page gets, whatever the polls do (see :data:`HEARTBEAT_S`)."""
@@ -742,6 +834,8 @@ class Station:
             return CLOSING_STATUS
         if not self._link_up:
             return LINK_DOWN_STATUS
+        if self.telemetry_lost:
+            return TELEMETRY_LOST_STATUS
         return self.relay.status
 
     def _link_health(self) -> dict[str, Any]:
@@ -813,6 +907,8 @@ class Station:
                 self.log("alarm", f"link lost{detail}")
             else:
                 self._link_up = True
+                # Reopened, the controller's silence is measured from now.
+                self._answers_expected_from_s = self.tracked.now_s()
                 if event.state == "reconnected":
                     # Input taken while the link was down (the dead-man let go and held again)
                     # does not fly the robot the moment the link is back: release and press

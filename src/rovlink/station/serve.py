@@ -24,7 +24,7 @@ from rovlink.aio import AsyncClient
 from rovlink.piloting import TrackedClient
 from rovlink.station.access import Access
 from rovlink.station.app import build_app
-from rovlink.station.hub import Station
+from rovlink.station.hub import TELEMETRY_LOST_S, Station
 from rovlink.station.messages import MAX_MESSAGE_BYTES
 from rovlink.station.recording import StationRecordings
 
@@ -50,6 +50,9 @@ class ServeOptions:
     rate_hz: float
     algorithm: str
     recordings_dir: Path | None = None
+    #: A controller that answers nothing for this long is stopped (see
+    #: :func:`rovlink.station.hub.telemetry_lost_after`).
+    telemetry_lost_s: float = TELEMETRY_LOST_S
 
 
 class _Server(uvicorn.Server):
@@ -205,7 +208,11 @@ async def serve(
                 algorithm=options.algorithm,
             )
         station = Station(
-            tracked, description=description, rate_hz=options.rate_hz, recordings=recordings
+            tracked,
+            description=description,
+            rate_hz=options.rate_hz,
+            recordings=recordings,
+            telemetry_lost_s=options.telemetry_lost_s,
         )
         config = uvicorn.Config(
             build_app(station, access),

@@ -989,3 +989,45 @@ def test_buttons_16_to_31_come_in_buttons2(rig: BridgeRig, gcs: GroundStation):
     rig.wait_frame("#start!", since=mark)
     gcs.send("manual_control", VEHICLE, 0, 0, 500, 0, 0, 1 << 15)  # button 31
     rig.wait_frame("#stop!", since=mark)
+
+
+@pytest.mark.realtime
+def test_a_controller_that_hears_but_stops_answering_is_stopped_while_flown_in_manual():
+    # Its TX wire broke: the controller obeys every frame and answers none. A ground station
+    # flying MANUAL goes on sending its joystick (fresh input, heartbeats beating): the bridge
+    # stops the robot a bounded time after the replies stop, and says why.
+    with _silenced_controller() as (rig, gcs):
+        rig.link.silent.clear()
+        controller = rig.port.robot.controller
+        assert gcs.arm() == ACCEPTED
+        gcs.send("manual_control", VEHICLE, 0, 1000, 500, 0, 0)  # right, full
+        wait_for(lambda: controller.state().power_percent == 100)
+        mark = len(rig.frames())
+        silent_at_s = time.monotonic()
+        rig.link.silent.set()
+
+        def stopped() -> bool:
+            gcs.send("manual_control", VEHICLE, 0, 1000, 500, 0, 0)  # the pilot flies on
+            return "#stop!" in rig.frames_since(mark)
+
+        wait_for(stopped, timeout_s=5.0)
+        assert time.monotonic() - silent_at_s < 2.5  # two reply timeouts of 0.5 s, and margin
+        wait_for(lambda: controller.state().locked)  # it heard the #stop!: every output zero
+        assert controller.state().power_percent == 0
+        gcs.receive("STATUSTEXT", condition=lambda m: "controller silent" in m.text)
+        after = rig.frames_since(mark)
+        assert not [f for f in after[after.index("#stop!") :] if f.startswith("#th.90.100")]
+
+
+def test_a_suspected_reset_of_a_disarmed_vehicle_does_not_say_disarmed():
+    # Before, the lock the reset had just made unknown was read as "may have been armed": a
+    # vehicle never armed was told "Disarmed: the controller may have reset", and #stop! sent.
+    with _silenced_controller() as (rig, gcs):
+        gcs.forget_kept()
+        mark = len(rig.frames())
+        wait_for(lambda: rig.bridge.rov.client.counters.resets_suspected >= 1)
+        rig.link.silent.clear()  # it answers: its settings go again, said after the reset's
+        gcs.receive("STATUSTEXT", condition=lambda m: "sent again" in m.text)
+        said = [m.text for m in gcs.kept("STATUSTEXT")]
+        assert not [text for text in said if "Disarmed" in text], said
+        assert "#stop!" not in rig.frames_since(mark)

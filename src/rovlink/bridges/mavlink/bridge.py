@@ -35,12 +35,14 @@ from rovlink.client.events import ClientEvent, LinkState, ResetSuspected
 from rovlink.client.sensors import Sensors
 from rovlink.logs import get_logger
 from rovlink.piloting.commanded import LockState
-from rovlink.piloting.tracked import TrackedClient
+from rovlink.piloting.tracked import SentFrame, TrackedClient
 from rovlink.protocol import Command
 from rovlink.protocol.announcements import Announcement, AnnouncementKind
 
 __all__ = ["LEAK_REPEAT_S", "MavlinkBridge"]
 
+#: The frames that lock or unlock the motors.
+_LOCK_COMMANDS = frozenset({"start", "stop"})
 logger = get_logger("rovlink.bridges.mavlink")
 
 #: How often "Leak detected" is said while the leak latch is set, s (ArduSub's period).
@@ -143,10 +145,11 @@ class MavlinkBridge:
         self.kept = KeptSettings()
         self.kept.follow(rov)
         rov.client.subscribe(self._on_client_event)
-        # What the pilot input measures changes and staleness against: the set-points as the
-        # controller has them after each frame (whoever sent it), not what the bridge expects.
-        rov.add_sent_listener(lambda _sent: self.pilot.sync(rov.commanded))
+        rov.add_sent_listener(self._on_sent)
         rov.add_heard_listener(self._on_heard)
+        #: The lock as last sent or heard, kept past a suspected reset (which forgets it before
+        #: the bridge hears of the reset): whether the vehicle was armed when it happened.
+        self._lock_known = rov.commanded.lock
 
     @property
     def armed(self) -> bool:
@@ -617,9 +620,10 @@ class MavlinkBridge:
     def _on_client_event(self, event: ClientEvent) -> None:
         lost = isinstance(event, LinkState) and event.state == "lost"
         reset = isinstance(event, ResetSuspected)
-        # (By a suspected reset the lock as last sent is forgotten already, unknown rather than
-        # unlocked: anything but locked may have been armed.)
-        may_be_armed = self.messages.link_up and self.rov.commanded.lock is not LockState.LOCKED
+        # (By a suspected reset the lock as last sent is forgotten already: the one known before
+        # it says whether the vehicle may have been armed. Locked then, it is locked still, and
+        # "Disarmed" would tell the pilot of a change that never was.)
+        may_be_armed = self.messages.link_up and self._lock_known is not LockState.LOCKED
         # Losing the link stops the robot if the bridge unlocked it itself (sent_lock): a stop
         # heard since is no reason to send less (another line may have unlocked it again).
         armed_by_bridge = (
@@ -628,7 +632,9 @@ class MavlinkBridge:
         if (lost and armed_by_bridge) or (reset and may_be_armed):
             # After a reset the controller is locked (P21): say so rather than show it armed.
             # (On a link being reopened, the #stop! waits to be its first frame.)
-            reason = "the controller link was lost" if lost else "the controller may have reset"
+            reason = (
+                "the controller link was lost" if lost else "controller silent (may have reset)"
+            )
             self._in_background(self._disarm_quietly(reason))
         back = isinstance(event, LinkState) and event.state == "reconnected"
         if lost:
@@ -642,12 +648,22 @@ class MavlinkBridge:
             # its settings are sent again once it answers.
             self.kept.reset_suspected()
 
+    def _on_sent(self, sent: SentFrame) -> None:
+        # What the pilot input measures changes and staleness against: the set-points as the
+        # controller has them after each frame (whoever sent it), not what the bridge expects.
+        self.pilot.sync(self.rov.commanded)
+        if sent.command is not None and sent.command.name in _LOCK_COMMANDS:
+            # (Only a lock change: the checksum mode the driver re-asserts on suspecting a
+            # reset goes out after the reset made the lock unknown, before the bridge hears.)
+            self._lock_known = self.rov.commanded.lock
+
     def _on_heard(self, announcement: Announcement) -> None:
         """The controller announced a lock change the bridge did not send (debug output on).
         A stop: the vehicle is DISARMED from the next HEARTBEAT on, and the next ARM sends
         ``#start!`` again. An unlock from another line leaves it disarmed: ARMED would make
         this ground station's sticks drive a robot its pilot never armed. Nothing is sent."""
         self.pilot.sync(self.rov.commanded)  # (a stop cleared the set-points)
+        self._lock_known = self.rov.commanded.lock
         because = self.rov.commanded.heard_lock_because
         if announcement.kind is AnnouncementKind.LOCKED:
             self._say(_SEVERITY_WARNING, f"Disarmed: {because}")
