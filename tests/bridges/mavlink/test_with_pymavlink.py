@@ -661,6 +661,7 @@ def test_a_silent_controllers_last_reading_is_not_shown_as_current():
         assert gcs.command(REQUEST_MESSAGE, ATTITUDE_ID) == ACCEPTED
 
 
+@pytest.mark.realtime  # (a climb rate by the wall clock, of a simulator run in bursts when busy)
 def test_the_climb_rate_after_a_silence_is_not_the_one_from_before_it():
     # Before, the climb rate went on averaging from the speed before the silence: a robot
     # stopped meanwhile showed diving at most of its old speed once the controller answered.
