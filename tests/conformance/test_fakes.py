@@ -494,7 +494,8 @@ def test_a_controller_whose_failsafe_cannot_be_seen_leaves_stop_unverified_and_s
     assert result.message.startswith("#stop! not verified without --motion: "), result.message
     _print_report(report)
     out = " ".join(capsys.readouterr().out.split())
-    assert "#stop! was not verified (stop-locks skipped, and no other check without " in out
+    assert "skip stop-locks: #stop! not verified without --motion: unlocked at zero " in out
+    assert "no other check without --motion shows that #stop! locks the motors" in out
     assert "0 of 1 checks passed" in out
     assert out.rstrip().endswith("; #stop! NOT verified"), out
 

@@ -305,8 +305,8 @@ def _print_report(report: Report, *, motion_not_run: int = 0) -> None:
     ]
     for result in stop_unverified:
         console.print(
-            f"\n[yellow]#stop! was not verified[/] ({STOP_LOCKS_CHECK} skipped, and no other "
-            f"check without --motion shows that it locks the motors): {escape(result.message)}"
+            f"\n[yellow]skip[/] [bold]{STOP_LOCKS_CHECK}[/]: {escape(result.message)}; no other "
+            "check without --motion shows that #stop! locks the motors"
         )
     passed = report.count(Outcome.PASSED)
     aborted = (

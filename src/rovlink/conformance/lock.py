@@ -37,7 +37,7 @@ STOP_LOCKS_CHECK = "stop-locks"
 _CONTROL_MARGIN_S = 1.5
 #: How much longer than the failsafe took in the positive control a locked controller must stay
 #: silent.
-_SILENCE_MARGIN_S = 0.5
+_SILENCE_MARGIN_S = 0.3
 #: How long each read of the watch waits, s.
 _READ_S = 0.05
 
