@@ -35,8 +35,8 @@ __all__ = ["STOP_LOCKS_CHECK"]
 STOP_LOCKS_CHECK = "stop-locks"
 #: How much longer than the watchdog's time the positive control waits for the failsafe's line.
 _CONTROL_MARGIN_S = 1.5
-#: How much longer than the failsafe took in the positive control a locked controller must stay
-#: silent.
+#: How much longer than the failsafe took in the positive control (or --watchdog, if longer) a
+#: locked controller must stay silent.
 _SILENCE_MARGIN_S = 0.3
 #: How long each read of the watch waits, s.
 _READ_S = 0.05
@@ -83,7 +83,8 @@ def _expect_locked(ctx: CheckContext, stop: bytes, silence_s: float, how: str, r
         raise CheckFailedError(
             f"after #start! and then {how}, {silence_s:.1f} s without a frame brought "
             f"{watched.received!r}, as the link-loss failsafe of an unlocked controller does "
-            f"(it came in the same time unlocked): {how} did not lock the motors ({rule})"
+            f"(unlocked, its line came after the same silence): {how} did not lock the motors "
+            f"({rule})"
         )
 
 
@@ -115,7 +116,8 @@ def _stop_locks(ctx: CheckContext) -> None:
         raise CheckFailedError(f"nothing was sent, but the controller answered {raw!r}")
     # (the failsafe's line may still be arriving, and the controller is locked again now)
     ctx.tell(b"")
-    silence_s = first_s + _SILENCE_MARGIN_S
+    # Never shorter than --watchdog: text that came sooner may be no failsafe's line.
+    silence_s = max(first_s, watchdog_s) + _SILENCE_MARGIN_S
     _expect_locked(ctx, ctx.frame(Command("stop")), silence_s, "#stop!", "P7")
     ctx.tell(ctx.frame(setting_command(Setting.CHECKSUM, True)))
     ctx.wire.replies_checksummed = True
