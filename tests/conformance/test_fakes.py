@@ -474,3 +474,38 @@ def test_a_controller_that_never_unlocks_is_named_as_a_cause_with_the_water() ->
     for result in report.results:
         assert result.outcome is Outcome.FAILED, result
         assert "unlock the motors on #start!?" in result.message, result.message
+
+
+def test_a_controller_whose_failsafe_cannot_be_seen_leaves_stop_unverified_and_says_so(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    # Without a link-loss failsafe (P17 allows a watchdog of 0) nothing without motion shows
+    # the lock: stop-locks is skipped, not passed, and the summary says #stop! went unverified.
+    from rovlink.cli.check import _print_report
+
+    fault = "no-watchdog"
+    link = PortLink(FaultyController(fault), fault)
+    try:
+        report = run_checks(link, fault, SuiteOptions(), select_checks(["stop-locks"]))
+    finally:
+        link.close()
+    (result,) = report.results
+    assert result.outcome is Outcome.SKIPPED, result
+    assert result.message.startswith("#stop! not verified without --motion: "), result.message
+    _print_report(report)
+    out = " ".join(capsys.readouterr().out.split())
+    assert "skip stop-locks: #stop! not verified without --motion: unlocked at zero " in out
+    assert "no other check without --motion shows that #stop! locks the motors" in out
+    assert "0 of 1 checks passed" in out
+    assert out.rstrip().endswith("; #stop! NOT verified"), out
+
+
+def test_the_summary_of_a_run_whose_stop_check_passed_does_not_call_stop_unverified(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    from rovlink.cli.check import _print_report
+    from rovlink.conformance import CheckResult
+
+    passed = CheckResult("stop-locks", ("P7",), "d", Outcome.PASSED)
+    _print_report(Report("sim://", [passed]))
+    assert "not verified" not in capsys.readouterr().out.replace("\n", " ")

@@ -270,6 +270,7 @@ def _print_report(report: Report, *, motion_not_run: int = 0) -> None:
     from rovlink.cli.rich_console import TableConsole  # noqa: PLC0415
     from rovlink.conformance import Outcome  # noqa: PLC0415
     from rovlink.conformance.junit import evidence_text  # noqa: PLC0415
+    from rovlink.conformance.lock import STOP_LOCKS_CHECK  # noqa: PLC0415
 
     console = TableConsole()
     table = Table("result", "check", "rules", "ms", box=None)
@@ -295,6 +296,18 @@ def _print_report(report: Report, *, motion_not_run: int = 0) -> None:
             f"\nthe checks set {', '.join(report.settings_sent)} to test values, which no query "
             "reads back: reset the controller (or set them again) before using it"
         )
+    # Skipped, the check that sees #stop! lock without motion leaves #stop! unverified: said
+    # in words, not left to a "skip" in the table.
+    stop_unverified = [
+        result
+        for result in report.results
+        if result.name == STOP_LOCKS_CHECK and result.outcome is Outcome.SKIPPED
+    ]
+    for result in stop_unverified:
+        console.print(
+            f"\n[yellow]skip[/] [bold]{STOP_LOCKS_CHECK}[/]: {escape(result.message)}; no other "
+            "check without --motion shows that #stop! locks the motors"
+        )
     passed = report.count(Outcome.PASSED)
     aborted = (
         f"; {len(report.not_run)} more not run: {report.stopped_because}" if report.not_run else ""
@@ -303,6 +316,7 @@ def _print_report(report: Report, *, motion_not_run: int = 0) -> None:
         f"\n{report.target}: {passed} of {len(report.results)} checks passed "
         f"in {report.duration_s:.1f} s"
         + aborted
+        + ("; #stop! NOT verified" if stop_unverified else "")
         + (
             f"; {motion_not_run} motion checks (#stop!, the link-loss failsafe) not run: "
             "add --motion"

@@ -7,7 +7,7 @@ from collections.abc import Callable, Sequence
 
 from rovlink.client.errors import ConnectionLostError
 from rovlink.client.links import Link
-from rovlink.conformance import checksums, debug, framing, motion, replies, sets
+from rovlink.conformance import checksums, debug, framing, lock, motion, replies, sets
 from rovlink.conformance.algorithm_probe import algorithm_hint
 from rovlink.conformance.registry import (
     CHECKS,
@@ -30,7 +30,7 @@ __all__ = ["PreflightError", "run_checks", "select_checks"]
 logger = get_logger(__name__)
 
 # The modules register their checks when imported; this is the order they run in.
-_MODULES = (replies, framing, sets, checksums, debug, motion)
+_MODULES = (replies, framing, sets, checksums, debug, lock, motion)
 
 
 class PreflightError(Exception):
