@@ -27,6 +27,7 @@ from rovlink.board.pi.config import (
 )
 from rovlink.board.pi.fake_bus import FakeAds1115, FakeBno055, FakeI2cBus, FakeMs5837, FakePca9685
 from rovlink.board.pi.i2c import I2cBus, Smbus2Bus
+from rovlink.board.pi.imu_retry import IMU_RETRY_INTERVAL_S, ImuStartedInBackground
 from rovlink.board.pi.leak import GpioLeakSensor
 from rovlink.board.pi.ms5837 import Ms5837
 from rovlink.board.pi.outputs import EscChannel, EscThrusters, MotorClaw, ServoClaw
@@ -38,7 +39,6 @@ from rovlink.board.sensors import (
     PolledImu,
     PolledPressure,
     PolledSensor,
-    SensorError,
     SensorSource,
 )
 from rovlink.controller import Attitude, Hardware
@@ -64,10 +64,11 @@ _FAKE_WATER_C = 20.0  # the fake pressure sensor's temperature
 IMU_LOST_WHEN_STALE = (
     "roll, pitch and heading are not measured, qro, qpi and qhe repeat the last good reading"
 )
-#: What an IMU that did not start takes from the pilot (until the controller is restarted).
+#: What an IMU that did not start takes from the pilot (until it starts: it is tried again in
+#: the background).
 IMU_DID_NOT_START = (
-    "roll, pitch and heading are not measured, qro, qpi and qhe read 0 until the controller is "
-    "restarted with it answering"
+    "roll, pitch and heading are not measured, qro, qpi and qhe read 0 until it answers "
+    f"(started again every {IMU_RETRY_INTERVAL_S:g} s)"
 )
 
 
@@ -374,13 +375,18 @@ def _open_bno055(
     except BoardStartError as error:
         logger.error("%s; going on without it: %s", error, IMU_DID_NOT_START)
         warnings.append(f"{name} not answering: {IMU_DID_NOT_START}")
-        return PolledSensor(
-            name,
-            _ImuThatDidNotStart(f"did not start ({error})"),
-            LEVEL,
-            config.board.stale_after_s,
-            lost_when_stale=IMU_DID_NOT_START,
+        sensor: PolledSensor[Attitude]
+
+        def started() -> None:  # (from now on, a stale IMU repeats its last good reading)
+            sensor.lost_when_stale = IMU_LOST_WHEN_STALE
+
+        retry = ImuStartedInBackground(bno, where, f"did not start ({error})", on_started=started)
+        # Before the bus's closer (which runs later: closers run in reverse).
+        closers.append(retry.close)
+        sensor = PolledSensor(
+            name, retry, LEVEL, config.board.stale_after_s, lost_when_stale=IMU_DID_NOT_START
         )
+        return sensor
     return PolledSensor(
         name, bno, first, config.board.stale_after_s, lost_when_stale=IMU_LOST_WHEN_STALE
     )
@@ -388,16 +394,6 @@ def _open_bno055(
 
 def _bno055_library() -> None:
     import adafruit_bno055  # noqa: F401, PLC0415 - the pi extra, needed on the board only
-
-
-class _ImuThatDidNotStart:
-    """The IMU's source when the chip did not start: every poll fails, saying why."""
-
-    def __init__(self, why: str) -> None:
-        self._why = why
-
-    def poll(self, now_s: float) -> Attitude | None:
-        raise SensorError(self._why)
 
 
 def _mock_pins() -> Any:
