@@ -419,6 +419,62 @@ def test_an_imu_that_did_not_start_is_started_again_in_the_background(
     assert not rig.errors
 
 
+def _hold_sda_low(bus: FakeI2cBus) -> None:
+    """A device reset in the middle of a transfer holds SDA low: nothing gets through."""
+    for address in list(bus.devices):
+        bus.fail(address, 1 << 30)
+
+
+def test_a_stuck_bus_in_the_control_loop_is_named_with_what_to_do(
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    # Before, the loop ended with the bare errno (`Remote I/O error`) and a restart failed the
+    # same way for good; now the bus is probed after neutral was tried, and the log and the
+    # failure name the bus, its silent devices and the remedy.
+    with running(_quick(watchdog_s=MAX_BOARD_WATCHDOG_S)) as rig:
+        rig.send(b"#start!#th.90.50!")
+        assert wait_until(rig.moving_as_commanded), rig.pulses()
+        _hold_sda_low(rig.bus)
+        assert wait_until(lambda: bool(rig.errors))
+        diagnosis = rig.server.failure_diagnosis
+    assert isinstance(rig.errors[0], OSError)
+    assert diagnosis is not None
+    assert diagnosis.startswith(
+        "no device on I²C bus 1 answers (PWM board PCA9685 at 0x40, MS5837 at 0x76): the bus "
+        "is stuck (SDA held low"
+    )
+    assert "power the I²C devices off and on" in diagnosis
+    assert "i2cdetect -y 1" in diagnosis
+    assert any(
+        record.levelname == "ERROR" and diagnosis in record.getMessage()
+        for record in caplog.records
+    )
+
+
+def test_one_silent_device_is_told_from_a_stuck_bus() -> None:
+    with running(_quick(watchdog_s=MAX_BOARD_WATCHDOG_S)) as rig:
+        rig.bus.fail(PCA_ADDRESS, 1 << 30)
+        rig.send(b"#start!#th.90.50!")
+        assert wait_until(lambda: bool(rig.errors))
+        diagnosis = rig.server.failure_diagnosis
+    assert diagnosis == (
+        "on I²C bus 1, PWM board PCA9685 at 0x40 does not answer while MS5837 at 0x76 does: "
+        "check its wiring and its supply"
+    )
+
+
+def test_a_stuck_bus_at_start_is_named_with_what_to_do() -> None:
+    config = _quick()
+    bus = fake_bus_for(config)
+    _hold_sda_low(bus)
+    with pytest.raises(BoardStartError) as raised:
+        open_pi_board(config, bus=bus)
+    assert str(raised.value).startswith("PWM board PCA9685 at 0x40 on I²C bus 1: ")
+    assert "; no device on I²C bus 1 answers (PWM board PCA9685 at 0x40, MS5837 at 0x76)" in (
+        str(raised.value)
+    )
+
+
 def test_a_pressure_sensor_with_a_corrupt_prom_is_refused_at_start() -> None:
     config = example_config(imu={"sensor": "none"})
     bus = fake_bus_for(config)

@@ -17,6 +17,7 @@ from typing import Any, TypeVar
 from rovlink.board.board import Board, BoardStartError, MonotonicClock
 from rovlink.board.pi.ads1115 import Ads1115
 from rovlink.board.pi.bno055 import Bno055Imu
+from rovlink.board.pi.bus_check import check_bus
 from rovlink.board.pi.claim import BoardInUseError, claim_exclusively
 from rovlink.board.pi.config import (
     ClawKind,
@@ -155,6 +156,7 @@ def open_pi_board(config: PiConfig, *, bus: I2cBus | None = None, pin_factory: A
     thrusters, claw = _pwm_outputs(config, bus)
     where = f"on I²C bus {config.i2c.bus}"
     started = False
+    devices = _devices_on_main_bus(config)
 
     def rest_pulses_us() -> dict[Pca9685, dict[int, float]]:
         return _rest_pulses_us(thrusters, claw)
@@ -202,13 +204,20 @@ def open_pi_board(config: PiConfig, *, bus: I2cBus | None = None, pin_factory: A
                 ),
             )
             closers.append(leak.close)
-    except BaseException:
+    except BaseException as error:
         if started:
             with contextlib.suppress(Exception):
                 thrusters.neutral()
+        stuck = None
+        if isinstance(error, BoardStartError):  # (after neutral: a probe may take its time)
+            with contextlib.suppress(Exception):
+                check = check_bus(bus, config.i2c.bus, devices)
+                stuck = str(check) if check.stuck else None
         for release in reversed(closers):
             with contextlib.suppress(Exception):
                 release()
+        if stuck is not None:
+            raise BoardStartError(f"{error}; {stuck}") from None
         raise
 
     def make_safe() -> None:
@@ -238,8 +247,28 @@ def open_pi_board(config: PiConfig, *, bus: I2cBus | None = None, pin_factory: A
         if pwm.check_interval_s > 0
     ]
     return Board(
-        "pi", hardware, make_safe, close_all, tuple(sensors), tuple(checks), tuple(warnings)
+        "pi",
+        hardware,
+        make_safe,
+        close_all,
+        tuple(sensors),
+        tuple(checks),
+        tuple(warnings),
+        diagnose=lambda: str(check_bus(bus, config.i2c.bus, devices)),
     )
+
+
+def _devices_on_main_bus(config: PiConfig) -> dict[int, str]:
+    """The devices of ``config`` on its [i2c] bus, address → name, for a probe of the bus."""
+    devices = {pwm.address: f"PWM board PCA9685 at {pwm.address:#04x}" for pwm in config.pwm_boards}
+    pressure = config.pressure
+    if pressure.sensor is PressureKind.MS5837:
+        devices[pressure.ms5837.address] = f"MS5837 at {pressure.ms5837.address:#04x}"
+    else:
+        devices[pressure.ads1115.address] = f"ADS1115 at {pressure.ads1115.address:#04x}"
+    if config.imu.sensor is ImuKind.BNO055 and not _imu_has_own_bus(config):
+        devices[config.imu.address] = f"BNO055 at {config.imu.address:#04x}"
+    return devices
 
 
 def set_pi_outputs_at_rest(config: PiConfig, *, bus: I2cBus | None = None) -> str:
