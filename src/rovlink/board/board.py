@@ -65,3 +65,6 @@ class Board:
     checks: Sequence[DeviceCheck] = field(default_factory=tuple)
     #: What the board started without (a dead IMU), for the controller's ready line.
     warnings: Sequence[str] = field(default_factory=tuple)
+    #: What an I/O failure of the board means (its bus probed: one device gone, or the whole
+    #: bus stuck) and what to do, for the failure's message; None: nothing to probe.
+    diagnose: Callable[[], str] | None = None

@@ -74,7 +74,7 @@ class BoardServer:
         self._lines = Lines(
             self._on_bytes,
             busy_message=BUSY_MESSAGE,
-            on_close=self.controller.forget_line,
+            on_close=self._forget_line,
             silent_client_gives_way_s=(
                 max(config.watchdog_s, SILENT_CLIENT_GIVES_WAY_S)
                 if silent_client_gives_way_s is None
@@ -88,6 +88,10 @@ class BoardServer:
         self.device_faults = 0
         #: Whether the thrusters are known to be at neutral (the board opens them so).
         self.at_rest = True
+        #: What the board's probe found after the control loop failed with an I/O error (one
+        #: device gone, the whole bus stuck) and what to do; None if it did not.
+        self.failure_diagnosis: str | None = None
+        self._closing = False
 
     # -- endpoints ---------------------------------------------------------------------------
 
@@ -119,6 +123,7 @@ class BoardServer:
         """Run until ``should_stop()`` is true; thrusters at neutral however it ends."""
         clock = self.clock
         schedule = self.schedule
+        failure: OSError | None = None
         try:
             self.at_rest = False
             schedule.next_s = clock.now_s()
@@ -129,8 +134,25 @@ class BoardServer:
                     if schedule.finished(started_s, clock.now_s()):
                         self._report_overruns()
                 self._lines.wait(min(schedule.seconds_until_due(clock.now_s()), _MAX_WAIT_S))
+        except OSError as error:
+            failure = error
+            raise
         finally:
             self.make_safe()
+            if failure is not None:  # (after neutral: probing a stuck bus takes its time)
+                self._diagnose(failure)
+
+    def _diagnose(self, failure: OSError) -> None:
+        """Say what the board's I/O ``failure`` means (its bus probed), in the log and in
+        :attr:`failure_diagnosis`; never raises (it runs on the way out)."""
+        if self.board.diagnose is None:
+            return
+        try:
+            self.failure_diagnosis = self.board.diagnose()
+        except Exception:
+            logger.exception("probing the board after %s failed", failure)
+            return
+        logger.error("the control loop failed (%s): %s", failure, self.failure_diagnosis)
 
     def make_safe(self) -> None:
         """Neutral on every thruster, retried; logged, never raised (it runs in ``finally``)."""
@@ -147,8 +169,22 @@ class BoardServer:
 
     def close(self) -> None:
         """Close every line and release the board."""
-        self._lines.close()
-        self.board.close()
+        self._closing = True
+        try:
+            self._lines.close()
+        finally:
+            self.board.close()
+
+    def _forget_line(self, line: Line) -> None:
+        """A line has closed: the controller stops what it commanded. While the server closes
+        (after :meth:`make_safe`, which says whether neutral was set), a bus that fails that
+        stop is logged, so that every line is still closed and the board released."""
+        try:
+            self.controller.forget_line(line)
+        except OSError as error:
+            if not self._closing:
+                raise
+            logger.warning("%s closed: its thrust could not be stopped again: %s", line.name, error)
 
     # -- one control period ------------------------------------------------------------------
 

@@ -197,8 +197,9 @@ def _run_pi(
                 if server.at_rest
                 else "NEUTRAL COULD NOT BE SET: cut the thruster power"
             )
+            found = f"; {server.failure_diagnosis}" if server.failure_diagnosis else ""
             raise CommandError(
-                f"the control loop failed ({type(error).__name__}: {error}); {outcome}"
+                f"the control loop failed ({type(error).__name__}: {error}); {outcome}{found}"
             ) from None
     finally:
         if not server.at_rest:

@@ -32,6 +32,7 @@ from rovlink.logs import get_logger
 from rovlink.serial_latency import ask_for_low_latency
 
 __all__ = [
+    "ACCEPT_PAUSE_S",
     "SILENT_CLIENT_GIVES_WAY_S",
     "Line",
     "Lines",
@@ -61,6 +62,11 @@ SERIAL_REOPEN_S = 1.0
 #: lost it (a dropped Wi-Fi, a pulled cable leave the connection open), and its motion was
 #: stopped by then.
 SILENT_CLIENT_GIVES_WAY_S = 3.0
+#: How long the listener is not watched after accept(2) failed for want of a file descriptor
+#: (EMFILE, ENFILE) or of kernel memory, s. The waiting connection stays readable, so watching
+#: it would spin the loop at 100 % CPU; the lines already connected are served meanwhile.
+ACCEPT_PAUSE_S = 0.5
+_ACCEPT_OUT_OF_RESOURCES = frozenset({errno.EMFILE, errno.ENFILE, errno.ENOBUFS, errno.ENOMEM})
 
 
 def parse_tcp_address(text: str, default_host: str = "127.0.0.1") -> tuple[str, int]:
@@ -277,6 +283,9 @@ class Lines:
         self.tcp_address: tuple[str, int] | None = None
         # Serial devices that went away, (path, baud), and when each is next opened again.
         self._gone_serial: dict[tuple[str, int], float] = {}
+        # When the listener, paused after accept(2) ran out of descriptors, is watched again.
+        self._accept_paused_until_s: float | None = None
+        self._accept_failures = 0
 
     # -- endpoints ---------------------------------------------------------------------------
 
@@ -315,12 +324,21 @@ class Lines:
         """Wait up to ``timeout_s`` for the lines, and handle what they have."""
         if self._gone_serial:
             timeout_s = min(timeout_s, max(0.0, min(self._gone_serial.values()) - time.monotonic()))
+        if self._accept_paused_until_s is not None:
+            timeout_s = min(timeout_s, max(0.0, self._accept_paused_until_s - time.monotonic()))
         for key, mask in self._selector.select(timeout_s):
             key.data(key, mask)
         if self._refused:
             self._refused.expire(time.monotonic())
         if self._gone_serial:
             self._reopen_serial(time.monotonic())
+        if (
+            self._accept_paused_until_s is not None
+            and time.monotonic() >= self._accept_paused_until_s
+            and self._listener is not None
+        ):
+            self._accept_paused_until_s = None
+            self._selector.register(self._listener, selectors.EVENT_READ, self._on_connection)
 
     def send(self, line: Line, data: bytes) -> None:
         """Write ``data`` to ``line``: now, what the kernel takes; the rest when it can."""
@@ -358,7 +376,9 @@ class Lines:
             self._remove(line)
         self._refused.close()
         if self._listener is not None:
-            self._selector.unregister(self._listener)
+            if self._accept_paused_until_s is None:
+                self._selector.unregister(self._listener)
+            self._accept_paused_until_s = None
             self._listener.close()
             self._listener = None
         self._selector.close()
@@ -473,6 +493,19 @@ class Lines:
             connection, address = self._listener.accept()
         except (BlockingIOError, ConnectionAbortedError):  # (gone before it was accepted)
             return
+        except OSError as error:
+            if error.errno not in _ACCEPT_OUT_OF_RESOURCES:
+                raise
+            self._pause_accepting(error)
+            return
+        if self._accept_failures:
+            logger.warning(
+                "TCP %s:%s: accepting connections again (%d failed accepts while out of file "
+                "descriptors)",
+                *self._listener.getsockname()[:2],
+                self._accept_failures,
+            )
+            self._accept_failures = 0
         current = self._tcp_line
         if current is not None:
             # Its hang-up may be waiting in this same turn, behind its last bytes (a program
@@ -506,6 +539,26 @@ class Lines:
         self._tcp_line = line
         self._add(line)
         logger.info("%s connected", line.name)
+
+    def _pause_accepting(self, error: OSError) -> None:
+        """Stop watching the listener for ``ACCEPT_PAUSE_S`` after accept(2) failed for want of
+        resources: the connection waiting stays in the kernel's queue, and would make select(2)
+        return at once for ever. Logged once until an accept succeeds again."""
+        assert self._listener is not None
+        if not self._accept_failures:
+            host, port = self._listener.getsockname()[:2]
+            logger.error(
+                "TCP %s:%s: cannot accept a connection: %s; the lines connected are still "
+                "served; trying again every %g s (raise the open-files limit: ulimit -n, or "
+                "LimitNOFILE= in the systemd unit)",
+                host,
+                port,
+                error.strerror or error,
+                ACCEPT_PAUSE_S,
+            )
+        self._accept_failures += 1
+        self._selector.unregister(self._listener)
+        self._accept_paused_until_s = time.monotonic() + ACCEPT_PAUSE_S
 
     def _add(self, line: Line) -> None:
         self.lines.append(line)

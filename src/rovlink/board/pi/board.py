@@ -17,6 +17,7 @@ from typing import Any, TypeVar
 from rovlink.board.board import Board, BoardStartError, MonotonicClock
 from rovlink.board.pi.ads1115 import Ads1115
 from rovlink.board.pi.bno055 import Bno055Imu
+from rovlink.board.pi.bus_check import check_bus
 from rovlink.board.pi.claim import BoardInUseError, claim_exclusively
 from rovlink.board.pi.config import (
     ClawKind,
@@ -27,6 +28,7 @@ from rovlink.board.pi.config import (
 )
 from rovlink.board.pi.fake_bus import FakeAds1115, FakeBno055, FakeI2cBus, FakeMs5837, FakePca9685
 from rovlink.board.pi.i2c import I2cBus, Smbus2Bus
+from rovlink.board.pi.imu_retry import IMU_RETRY_INTERVAL_S, ImuStartedInBackground
 from rovlink.board.pi.leak import GpioLeakSensor
 from rovlink.board.pi.ms5837 import Ms5837
 from rovlink.board.pi.outputs import EscChannel, EscThrusters, MotorClaw, ServoClaw
@@ -38,7 +40,6 @@ from rovlink.board.sensors import (
     PolledImu,
     PolledPressure,
     PolledSensor,
-    SensorError,
     SensorSource,
 )
 from rovlink.controller import Attitude, Hardware
@@ -64,10 +65,11 @@ _FAKE_WATER_C = 20.0  # the fake pressure sensor's temperature
 IMU_LOST_WHEN_STALE = (
     "roll, pitch and heading are not measured, qro, qpi and qhe repeat the last good reading"
 )
-#: What an IMU that did not start takes from the pilot (until the controller is restarted).
+#: What an IMU that did not start takes from the pilot (until it starts: it is tried again in
+#: the background).
 IMU_DID_NOT_START = (
-    "roll, pitch and heading are not measured, qro, qpi and qhe read 0 until the controller is "
-    "restarted with it answering"
+    "roll, pitch and heading are not measured, qro, qpi and qhe read 0 until it answers "
+    f"(started again every {IMU_RETRY_INTERVAL_S:g} s)"
 )
 
 
@@ -154,6 +156,7 @@ def open_pi_board(config: PiConfig, *, bus: I2cBus | None = None, pin_factory: A
     thrusters, claw = _pwm_outputs(config, bus)
     where = f"on I²C bus {config.i2c.bus}"
     started = False
+    devices = _devices_on_main_bus(config)
 
     def rest_pulses_us() -> dict[Pca9685, dict[int, float]]:
         return _rest_pulses_us(thrusters, claw)
@@ -201,13 +204,20 @@ def open_pi_board(config: PiConfig, *, bus: I2cBus | None = None, pin_factory: A
                 ),
             )
             closers.append(leak.close)
-    except BaseException:
+    except BaseException as error:
         if started:
             with contextlib.suppress(Exception):
                 thrusters.neutral()
+        stuck = None
+        if isinstance(error, BoardStartError):  # (after neutral: a probe may take its time)
+            with contextlib.suppress(Exception):
+                check = check_bus(bus, config.i2c.bus, devices)
+                stuck = str(check) if check.stuck else None
         for release in reversed(closers):
             with contextlib.suppress(Exception):
                 release()
+        if stuck is not None:
+            raise BoardStartError(f"{error}; {stuck}") from None
         raise
 
     def make_safe() -> None:
@@ -237,8 +247,28 @@ def open_pi_board(config: PiConfig, *, bus: I2cBus | None = None, pin_factory: A
         if pwm.check_interval_s > 0
     ]
     return Board(
-        "pi", hardware, make_safe, close_all, tuple(sensors), tuple(checks), tuple(warnings)
+        "pi",
+        hardware,
+        make_safe,
+        close_all,
+        tuple(sensors),
+        tuple(checks),
+        tuple(warnings),
+        diagnose=lambda: str(check_bus(bus, config.i2c.bus, devices)),
     )
+
+
+def _devices_on_main_bus(config: PiConfig) -> dict[int, str]:
+    """The devices of ``config`` on its [i2c] bus, address → name, for a probe of the bus."""
+    devices = {pwm.address: f"PWM board PCA9685 at {pwm.address:#04x}" for pwm in config.pwm_boards}
+    pressure = config.pressure
+    if pressure.sensor is PressureKind.MS5837:
+        devices[pressure.ms5837.address] = f"MS5837 at {pressure.ms5837.address:#04x}"
+    else:
+        devices[pressure.ads1115.address] = f"ADS1115 at {pressure.ads1115.address:#04x}"
+    if config.imu.sensor is ImuKind.BNO055 and not _imu_has_own_bus(config):
+        devices[config.imu.address] = f"BNO055 at {config.imu.address:#04x}"
+    return devices
 
 
 def set_pi_outputs_at_rest(config: PiConfig, *, bus: I2cBus | None = None) -> str:
@@ -374,13 +404,18 @@ def _open_bno055(
     except BoardStartError as error:
         logger.error("%s; going on without it: %s", error, IMU_DID_NOT_START)
         warnings.append(f"{name} not answering: {IMU_DID_NOT_START}")
-        return PolledSensor(
-            name,
-            _ImuThatDidNotStart(f"did not start ({error})"),
-            LEVEL,
-            config.board.stale_after_s,
-            lost_when_stale=IMU_DID_NOT_START,
+        sensor: PolledSensor[Attitude]
+
+        def started() -> None:  # (from now on, a stale IMU repeats its last good reading)
+            sensor.lost_when_stale = IMU_LOST_WHEN_STALE
+
+        retry = ImuStartedInBackground(bno, where, f"did not start ({error})", on_started=started)
+        # Before the bus's closer (which runs later: closers run in reverse).
+        closers.append(retry.close)
+        sensor = PolledSensor(
+            name, retry, LEVEL, config.board.stale_after_s, lost_when_stale=IMU_DID_NOT_START
         )
+        return sensor
     return PolledSensor(
         name, bno, first, config.board.stale_after_s, lost_when_stale=IMU_LOST_WHEN_STALE
     )
@@ -388,16 +423,6 @@ def _open_bno055(
 
 def _bno055_library() -> None:
     import adafruit_bno055  # noqa: F401, PLC0415 - the pi extra, needed on the board only
-
-
-class _ImuThatDidNotStart:
-    """The IMU's source when the chip did not start: every poll fails, saying why."""
-
-    def __init__(self, why: str) -> None:
-        self._why = why
-
-    def poll(self, now_s: float) -> Attitude | None:
-        raise SensorError(self._why)
 
 
 def _mock_pins() -> Any:

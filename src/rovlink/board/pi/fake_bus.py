@@ -375,6 +375,8 @@ class FakeMs5837:
         self._answer = b""
 
     def write(self, data: bytes) -> None:
+        if not data:  # a quick write (a probe): the chip acknowledges its address, nothing more
+            return
         command = data[0]
         if command == 0x1E:  # a conversion under way is lost (datasheet)
             self.resets += 1
