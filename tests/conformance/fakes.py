@@ -305,9 +305,9 @@ class FaultyController:
             reply = re.sub(rb"\$qd\.(\d+)!", rb"$qd.0\1!", reply)
         if fault == "unsigned-attitude":
             reply = re.sub(rb"\$qro\.[+-](\d+)!", rb"$qro.\1!", reply)
-        if fault == "late-extra-reply":  # answers #qd! again, 100 ms later
+        if fault == "late-extra-reply":  # answers #qd! again, 50 ms later
             for again in re.findall(rb"\$qd\.[^!$]*!", reply):
-                threading.Timer(0.1, self._deliver_late, args=(again,)).start()
+                threading.Timer(0.05, self._deliver_late, args=(again,)).start()
         if fault == "extra-reply":
             reply = re.sub(rb"(\$qd\.[^!]*!)", rb"\1\1", reply)
         if fault == "plain-replies-in-checksum-mode" and checksum:

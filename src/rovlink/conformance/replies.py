@@ -38,11 +38,12 @@ def check_canonical(ctx: CheckContext, exchange: Exchange) -> None:
 
 
 def _expect_nothing_more(ctx: CheckContext, query: str) -> None:
-    """Fail if another frame comes within a reply timeout after the replies to ``query``: each
-    query is answered exactly once (P4). A second reply a little later (a firmware that answers
-    from two places) would pass the query's check and land in a later check's wait, which
-    would blame its own rule."""
-    timeout_s = ctx.options.reply_timeout_s
+    """Fail if another frame comes within the suite's silence after the replies to ``query``:
+    each query is answered exactly once (P4). A second reply a little later (a firmware that
+    answers from two places) would pass the query's check and land in a later check's wait,
+    which would blame its own rule. (The silence that shows a command unanswered everywhere
+    else, not a reply timeout: eight query checks, and the suite's run has a time budget.)"""
+    timeout_s = ctx.options.silence_s
     exchange = ctx.wire.send(b"", timeout_s=timeout_s, linger_s=timeout_s)
     ctx.exchanges.append(exchange)
     if exchange.frames:
