@@ -20,6 +20,10 @@ SURFACE_PRESSURE_HPA = 1013.25
 WATER_HPA_PER_M = 98.0665
 #: Weight of the newest climb-rate sample in the running average (depth steps are 1 cm).
 _CLIMB_WEIGHT = 0.3
+#: The least time between the two readings of a climb-rate sample, s: readings that come close
+#: together (a poll caught up after a missed one, two replies in one read) would divide a 1 cm
+#: step or a sensor's noise by a few milliseconds, and show metres a second.
+_CLIMB_MIN_INTERVAL_S = 0.1
 
 
 @dataclass(slots=True)
@@ -40,18 +44,20 @@ class VehicleState:
     climb_cm_s: float = 0.0
     #: Whether :attr:`sensors` is the robot as it is: no reading was missed since.
     current: bool = False
-    _previous_at_s: float | None = None
+    #: The reading a climb-rate sample starts from: when, s, and its depth, cm.
+    _reference_at_s: float | None = None
+    _reference_depth_cm: int = 0
 
     def update(self, sensors: Sensors, now_s: float) -> bool:
         """Take a new reading; ``True`` when it is the first to show a leak."""
         previous = self.sensors
-        if previous is not None and self._previous_at_s is not None:
-            elapsed_s = now_s - self._previous_at_s
-            if elapsed_s > 0:
-                climb = (previous.depth_cm - sensors.depth_cm) / elapsed_s
-                self.climb_cm_s += _CLIMB_WEIGHT * (climb - self.climb_cm_s)
+        if self._reference_at_s is None:
+            self._reference_at_s, self._reference_depth_cm = now_s, sensors.depth_cm
+        elif now_s - self._reference_at_s >= _CLIMB_MIN_INTERVAL_S:
+            climb = (self._reference_depth_cm - sensors.depth_cm) / (now_s - self._reference_at_s)
+            self.climb_cm_s += _CLIMB_WEIGHT * (climb - self.climb_cm_s)
+            self._reference_at_s, self._reference_depth_cm = now_s, sensors.depth_cm
         self.sensors = sensors
-        self._previous_at_s = now_s
         self.current = True
         return sensors.leak_detected and (previous is None or not previous.leak_detected)
 
@@ -61,7 +67,7 @@ class VehicleState:
         averaged with the speed of before the gap."""
         self.current = False
         self.climb_cm_s = 0.0
-        self._previous_at_s = None
+        self._reference_at_s = None
 
     @property
     def depth_cm(self) -> int | None:
