@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import re
 import select
 import subprocess
 import sys
@@ -221,6 +222,13 @@ def test_docs_list_every_check() -> None:
 
     docs = Path(__file__).resolve().parents[2] / "docs" / "builders.md"
     assert checks_markdown() in docs.read_text(encoding="utf-8")
+
+
+def test_docs_count_the_checks_a_run_without_motion_makes() -> None:
+    # Regression: builders.md measured a noisy run as "of the 51 checks" when a run made 52.
+    docs = (Path(__file__).resolve().parents[2] / "docs" / "builders.md").read_text("utf-8")
+    counts = {int(count) for count in re.findall(r"of the (\d+) checks", docs)}
+    assert counts == {len(select_checks(motion=False))}
 
 
 @pytest.mark.integration
