@@ -108,3 +108,31 @@ def test_a_command_line_of_the_docs_is_accepted(command_line: CommandLine) -> No
         if ending.code not in (0, None):  # (--help and --version end with 0)
             shown = shlex.join(["rovlink", *words])
             pytest.fail(f"{command_line}: {shown}: {errors.getvalue().strip()}")
+
+
+def _value_of(option: str, words: tuple[str, ...]) -> str | None:
+    """The word after ``option`` in ``words``, if it is there."""
+    return words[words.index(option) + 1] if option in words[:-1] else None
+
+
+def test_a_replay_into_the_simulator_replays_a_dive_recorded_on_that_simulator() -> None:
+    # Regression: recording.md recorded `rovlink demo --record dive.mcap` on a simulator of a
+    # random seed and replayed it into 'sim://?seed=1': 120 of its 125 replies differed.
+    replays = [
+        line
+        for line in COMMAND_LINES
+        if line.words[:1] == ("replay",)
+        and (_value_of("--to", line.words) or "").startswith("sim:")
+    ]
+    assert replays
+    for replay in replays:
+        url, recording = _value_of("--to", replay.words), replay.words[1]
+        recorded_on = [
+            line.words
+            for line in COMMAND_LINES
+            if line.page == replay.page
+            and line.line < replay.line
+            and _value_of("--record", line.words) == recording
+        ]
+        assert recorded_on, f"{replay}: no command line before it records {recording}"
+        assert all(url in words for words in recorded_on), f"{replay}: {recorded_on} not on {url}"
