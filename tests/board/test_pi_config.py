@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import copy
+import re
 from pathlib import Path
 from typing import Any
 
@@ -357,3 +359,44 @@ def test_a_file_that_is_not_toml(tmp_path: Path) -> None:
     path.write_text("[pca9685\naddress = 1\n", encoding="utf-8")
     with pytest.raises(ConfigError, match="not valid TOML"):
         load_pi_config(path)
+
+
+def _comment_of(text: str, table: tuple[str, ...], key: str) -> str:
+    """The comment on the line of ``key`` in ``[table]`` of a TOML text ('' if none)."""
+    current: tuple[str, ...] = ()
+    for line in text.splitlines():
+        header = re.fullmatch(r"\[([\w.]+)\]\s*(#.*)?", line.strip())
+        if header:
+            current = tuple(header.group(1).split("."))
+        elif current == table and re.match(rf"{re.escape(key)}\s*=", line):
+            return line.partition("#")[2]
+    return ""
+
+
+def test_the_example_names_the_default_of_every_key_it_sets_otherwise() -> None:
+    # Regression: rov.toml said every key showed its default, but leak_action = "stop" is not
+    # (the default, "none", only reports a leak): a team that pruned the "default" lines of its
+    # copy left its robot driving on after a leak. The layout and the ESCs are the vehicle's own.
+    data = read_toml(EXAMPLE)
+    text = EXAMPLE.read_text(encoding="utf-8")
+    example = pi_config_from_mapping(data, "rov.toml")
+    for name, table in data.items():
+        if name in ("thrusters", "esc"):
+            continue
+        tables: dict[tuple[str, ...], Any] = {(name,): table}
+        tables.update(
+            {(name, key): value for key, value in table.items() if isinstance(value, dict)}
+        )
+        for path, values in tables.items():
+            for key in [key for key, value in values.items() if not isinstance(value, dict)]:
+                without = copy.deepcopy(data)
+                holder = without
+                for part in path:
+                    holder = holder[part]
+                del holder[key]
+                try:
+                    is_default = pi_config_from_mapping(without, "rov.toml") == example
+                except ConfigError:
+                    is_default = False
+                comment = _comment_of(text, path, key)
+                assert is_default or "default" in comment, f"[{'.'.join(path)}] {key}: {comment!r}"
