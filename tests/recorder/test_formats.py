@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import threading
 import time
 from pathlib import Path
@@ -100,6 +101,15 @@ def test_mcap_is_valid_for_the_mcap_library(make_recording: MakeRecording) -> No
         assert summary.chunk_indexes  # chunked and indexed
         counted = sum(1 for _ in reader.iter_messages())
     assert counted == recorder.entries_written
+
+
+def test_the_docs_name_every_topic_of_an_mcap_recording() -> None:
+    # Regression: recording.md listed four topics; Foxglove shows five (/rovlink/header too).
+    docs = Path(__file__).resolve().parents[2] / "docs" / "recording.md"
+    row = next(
+        line for line in docs.read_text("utf-8").splitlines() if line.startswith("| `.mcap`")
+    )
+    assert set(re.findall(r"`(/rovlink/\w+)`", row)) == {f"/rovlink/{name}" for name in CHANNELS}
 
 
 def test_csv_is_the_telemetry_table_pandas_reads(make_recording: MakeRecording) -> None:
