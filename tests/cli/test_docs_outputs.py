@@ -3,8 +3,10 @@
 In a ``console`` block, a line ``$ rovlink …`` and the lines of output after it are run as a
 shell runs them (``rovlink`` being this Python's), when the command ends by itself and needs no
 robot (``decode``, ``send`` to ``sim://``): its output must be the lines shown, ``…`` standing
-for any text (the simulator's noisy sensors). Nothing else is run: the command lines of every
-block are parsed in ``test_docs_command_lines.py``.
+for any text (the simulator's noisy sensors). A ``rovlink sim`` shown with its ready line is
+started (on a free TCP port) and stopped once it has said it: the line must be the one shown,
+but for what differs from run to run. Nothing else is run: the command lines of every block are
+parsed in ``test_docs_command_lines.py``.
 """
 
 from __future__ import annotations
@@ -13,6 +15,7 @@ import re
 import shlex
 import subprocess
 import sys
+import threading
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -90,3 +93,61 @@ def test_a_command_prints_what_the_page_shows(shown: ShownRun) -> None:
     assert re.fullmatch(pattern, result.stdout.rstrip("\n")), (
         f"{shown}: {shown.command} printed:\n{result.stdout}"
     )
+
+
+# -- a server's ready line ---------------------------------------------------------------------
+
+#: What differs from run to run in a ready line: the pseudo-terminal's path, a random seed, and
+#: the TCP port (each run takes a free one, not the page's).
+_VARYING = (
+    (re.compile(r"/dev/pts/\d+"), "/dev/pts/…"),
+    (re.compile(r"seed \d+"), "seed …"),
+    (re.compile(r"(tcp [\d.]+):\d+"), r"\1:…"),
+)
+
+
+def _serves(run: ShownRun) -> bool:
+    """Whether ``run`` starts ``rovlink sim``, which serves until it is stopped."""
+    return shlex.split(run.command, comments=True)[:2] == ["rovlink", "sim"]
+
+
+def _on_a_free_port(words: list[str]) -> list[str]:
+    """``words`` with the port of ``--tcp [HOST:]PORT`` made 0: any free one."""
+    return [
+        re.sub(r"\d+$", "0", word) if index and words[index - 1] == "--tcp" else word
+        for index, word in enumerate(words)
+    ]
+
+
+SERVING_RUNS = [run for run in _shown_runs() if _serves(run)]
+
+
+def test_the_pages_show_ready_lines_to_check() -> None:
+    # (The README's, controller.md's and driver.md's `rovlink sim`.)
+    assert len(SERVING_RUNS) >= 3, [str(run) for run in SERVING_RUNS]
+
+
+@pytest.mark.integration
+@pytest.mark.parametrize("shown", SERVING_RUNS, ids=str)
+def test_a_server_says_ready_as_the_page_shows(shown: ShownRun) -> None:
+    words = _on_a_free_port(shlex.split(shown.command, comments=True)[1:])
+    server = subprocess.Popen(
+        [sys.executable, "-m", "rovlink", *words],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    gives_up = threading.Timer(30.0, server.kill)  # (a server that never says it is ready)
+    gives_up.start()
+    try:
+        assert server.stdout is not None
+        ready = server.stdout.readline().rstrip("\n")  # (it ends when the server does)
+    finally:
+        gives_up.cancel()
+        server.terminate()
+        server.communicate(timeout=30)
+    expected = shown.output[0]
+    for varying, any_text in _VARYING:
+        expected = varying.sub(any_text, expected)
+    pattern = ".*".join(re.escape(part) for part in expected.split("…"))
+    assert re.fullmatch(pattern, ready), f"{shown}: {shown.command} printed {ready!r}"
