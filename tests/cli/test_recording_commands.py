@@ -173,6 +173,20 @@ def test_a_recording_name_of_no_format_is_a_usage_error_in_every_command(
     assert not Path("dive.png").exists()
 
 
+@pytest.mark.parametrize("name", ["dive.csv", "dive.bin"])
+def test_replay_of_a_missing_file_says_it_is_missing(
+    run_cli: RunCli, tmp_path: Path, name: str
+) -> None:
+    # Before, a missing .csv was said to hold only the telemetry table (and a .bin to be
+    # wire bytes): a mistyped name sent the user to plot a file that is not there.
+    path = tmp_path / name
+    result = run_cli("replay", str(path))
+    assert result.status == 1
+    assert result.err.strip().splitlines()[-1] == (
+        f"rovlink replay: {path}: No such file or directory"
+    )
+
+
 def _record(path: Path, url: str = "sim://?seed=4") -> None:
     recorder = Recorder(str(path), url=url)
     with recorder, rovlink.connect(url, on_event=recorder.on_event) as rov:

@@ -7,6 +7,8 @@ ends (its end, an error, Ctrl-C), #stop! is sent if its commands may have left t
 from __future__ import annotations
 
 import argparse
+import errno
+import os
 import sys
 from collections.abc import Iterator
 from typing import TYPE_CHECKING, cast
@@ -92,6 +94,9 @@ def _check_kind(path: str) -> None:
     from rovlink.cli.recording import check_recording_name  # noqa: PLC0415
 
     kind = check_recording_name(path)
+    if kind.suffix in (".bin", ".csv") and not os.path.exists(path):
+        # (said before the hint, which speaks of what the file holds)
+        raise CommandError(f"{path}: {os.strerror(errno.ENOENT)}")
     if kind.suffix == ".bin":
         raise CommandError(f"{path} is raw wire bytes without times: rovlink decode {path}")
     if kind.suffix == ".csv":
