@@ -712,8 +712,11 @@ def test_a_watcher_is_told_the_robot_holds_a_depth_not_that_it_has_no_thrust(
 
 def test_a_second_browser_cannot_command(browser, station, line):
     pilot = open_page(browser, station)
-    # Nobody has control: the relay row says so, not the pilot's "release the dead-man to arm".
-    pilot.wait_for_selector("#relay-state:text-is('no thrust; nobody has control')", timeout=2000)
+    # Nobody has control: the relay row says so, not the pilot's "release the dead-man to arm"
+    # (and the motors as the station left them when it started: locked).
+    pilot.wait_for_selector(
+        "#relay-state:text-is('motors locked; nobody has control')", timeout=2000
+    )
     take_control(pilot)
     watcher = open_page(browser, station)
     watcher.wait_for_function(
@@ -721,9 +724,9 @@ def test_a_second_browser_cannot_command(browser, station, line):
     )
     # A watcher sees what the robot does and who flies; the pilot, what to do.
     watcher.wait_for_selector(
-        "#relay-state:text-is('no thrust; browser 1 (127.0.0.1) has control')"
+        "#relay-state:text-is('motors locked; browser 1 (127.0.0.1) has control')"
     )
-    pilot.wait_for_selector("#relay-state:text-is('armed (dead-man released)')")
+    pilot.wait_for_selector("#relay-state:text-is('motors locked: unlock (#start!) to fly')")
     mark = line.mark()
     set_pad(watcher, axes=[1, 0, 0, 0], deadman=True, unlock=True)
     watcher.click("#claw-open", force=True)  # shown disabled; forced, the server still refuses
@@ -1009,6 +1012,7 @@ def test_no_silent_pick_of_the_input_device(browser, station, line):
     page.wait_for_selector("#flight-status:has-text('no gamepad with the standard mapping')")
     page.evaluate("fakePads.connect('Pad A (STANDARD GAMEPAD)')")
     page.wait_for_selector("#device-status:has-text('Pad A')")
+    page.click("#unlock")  # (the station locked the robot as it started)
     page.wait_for_function("!document.getElementById('flight-status').textContent")  # armed
     page.evaluate("fakePads.connect('Pad B (STANDARD GAMEPAD)')")
     page.wait_for_selector("#device-status:has-text('several gamepads: choose one')")
@@ -1426,6 +1430,10 @@ def test_a_watchers_relay_row_says_unlocked_after_another_line_unlocks_with_hear
             line.wait_for("#debug1!")
             watcher = open_page(browser, served, pad=False)
             with rovlink.connect(line.pty_path, timeout=1.0, keepalive=None) as bystander:
+                bystander.start()  # (the station locked the robot as it started)
+                watcher.wait_for_selector(
+                    "#lock-state:text-is('unlocked (started by another line)')"
+                )
                 bystander.stop()
                 watcher.wait_for_selector("#lock-state:text-is('locked (stopped by another line)')")
                 bystander.start()

@@ -336,6 +336,17 @@ class Station:
                 task.cancel()
             await asyncio.gather(*tasks, return_exceptions=True)
 
+    async def lock_at_start(self) -> None:
+        """The station starts by locking the robot (``#stop!``: every output to zero, the motors
+        locked), before any page is served. A station killed or crashed mid-dive and started
+        again within the controller's link-loss time (P17, 2 s: a service restarted at once, a
+        pilot quick on the keys) would otherwise find the robot still moving on the old
+        station's last motion, its failsafe fed by the new station's polls for good, while
+        every page showed no thrust and the motors as locked after a reset. Locked, the robot
+        is what the pages show, as after the failsafe the restart outran."""
+        await self.tracked.stop()
+        self.log("info", "the station started: #stop! (every output to zero, motors locked)")
+
     async def stop_first(self) -> None:
         """The station is about to close: thrust to zero and, unless locked as last sent,
         ``#stop!``, now, before the pages' connections are closed (a page whose socket is stuck
