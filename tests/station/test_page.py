@@ -348,6 +348,36 @@ def test_stop_pressed_while_the_station_cannot_be_reached_goes_first_on_reconnec
     page.context.close()
 
 
+@pytest.mark.slow  # (the station gives the dead connection up after its pings: some 10 s)
+def test_stop_pressed_while_the_network_is_gone_is_kept_until_the_station_takes_it(
+    browser, station, line
+):
+    page = open_page(browser, station, pad=False)
+    take_control(page)
+    mark = line.mark()
+    page.click("#unlock")
+    line.wait_for("#start!", after=mark)
+    watcher = open_page(browser, station, pad=False)
+    # The network goes (a Wi-Fi gone): the page's socket still reads open and takes what is
+    # sent on it, and the STOP's own socket cannot connect.
+    page.context.set_offline(True)
+    page.click("#stop")
+    # Before, nothing was said, and the STOP went nowhere: the motors stayed unlocked.
+    page.wait_for_selector("#toast:has-text('STOP not confirmed: the station cannot be reached')")
+    # The station gives that connection up (its pings), and the STOP sent on it with it.
+    watcher.wait_for_selector(
+        "#log li:has-text('browser 1 (127.0.0.1) disconnected')", timeout=15000
+    )
+    assert "#stop!" not in line.frames(mark)
+    page.context.set_offline(False)
+    line.wait_for("#stop!", after=mark)
+    line.wait_until(lambda: line.controller_locked)
+    page.wait_for_selector("#toast:has-text('STOP sent')")
+    assert line.frames(mark, commands_only=True).count("#stop!") == 1  # (taken once)
+    page.context.close()
+    watcher.context.close()
+
+
 @pytest.mark.realtime
 def test_stop_pressed_on_a_connection_that_stopped_carrying_anything_gets_through(
     browser, station, line
