@@ -8,6 +8,7 @@ import os
 import signal
 import time
 from collections.abc import Iterator
+from datetime import datetime, timedelta
 from pathlib import Path
 from typing import Any
 
@@ -215,6 +216,41 @@ def test_a_page_whose_script_stalls_zeroes_the_thrust_within_500_ms(browser, sta
     page.click("#claw-close")  # a fence
     line.wait_for("#h-!", after=mark)
     assert "#th.0.100!" not in line.frames(mark)
+    page.context.close()
+
+
+def test_a_pilot_whose_computer_slept_flies_again_once_the_dead_man_is_pressed_again(
+    browser, station, line
+):
+    page = open_page(browser, station, fake_clock=True)
+    take_control(page)
+    unlock_and_arm(page, line)
+    mark = line.mark()
+    set_pad(page, axes=[1, 0, 0, 0], deadman=True)
+    line.wait_for("#th.90.100!", after=mark)
+    # The pilot's computer sleeps (the station's does not): the page's timers stop, and so does
+    # performance.now(), which Chrome on Linux and macOS does not advance while asleep.
+    page_now = datetime.fromtimestamp(page.evaluate("Date.now()") / 1000)
+    page.clock.pause_at(page_now + timedelta(milliseconds=100))
+    asleep = line.mark()
+    line.wait_for("#th.90.0!", after=asleep)  # (the station's watchdog)
+    # Ten polls: the station's clock went on for 0.9 s at least, well over the 300 ms an
+    # input may arrive late.
+    line.wait_until(lambda: line.frames(asleep).count("#qsa!") >= 10)
+    # It wakes: the wall clock is right again, the steady clock goes on from where it stood.
+    page.clock.set_system_time(datetime.now())
+    page.clock.resume()
+    # Before, every input seemed to arrive as late as the sleep was long, for good: the
+    # release did not arm the relay, and the pilot could not fly again on that connection.
+    set_pad(page, deadman=False)
+    page.wait_for_function(
+        "window.rovlinkStation.station.telemetry.relay.status.startsWith('armed')",
+        timeout=5000,
+    )
+    woke = line.mark()
+    set_pad(page, deadman=True)
+    line.wait_for("#th.90.100!", after=woke)
+    set_pad(page, deadman=False)
     page.context.close()
 
 

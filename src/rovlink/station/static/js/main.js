@@ -3,6 +3,7 @@
 
 import { AlarmSound } from "./alarm.js";
 import { Charts } from "./charts.js";
+import { stampMs } from "./clock.js";
 import { Connection } from "./connection.js";
 import { InputDevices } from "./input.js";
 import { isFlyingKey, typingIn } from "./keyboard.js";
@@ -78,7 +79,7 @@ const ask = (message, what) => {
 // Stamped with this page's clock, as its input is: a command held up on a slow network is not
 // sent when it arrives seconds later (the station says so).
 const command = (name, values = []) => ask({ type: "command", name, values,
-  sent_ms: performance.now() }, `#${[name, ...values].join(".")}!`);
+  sent_ms: stampMs() }, `#${[name, ...values].join(".")}!`);
 // Each press of STOP goes over the page's WebSocket and over one of its own (/stop, opened for
 // it): the page's socket may be stuck behind what it has still to send (a network slower than
 // the pilot's input), or dead without either end knowing it yet (a Wi-Fi that roamed), and a
