@@ -149,6 +149,8 @@ CLOCK_DRIFT = 1e-3
 _STOPS_KEPT = 256
 #: Why the lock as last sent is no longer known once the robot's link is reopened.
 _REOPENED = "the link was reopened (the controller may have reset)"
+#: Why "unlocked" as last sent is no longer known once the robot's link is lost.
+_LOST = "the link was lost (a controller that stops hearing its line locks)"
 
 
 @dataclass(eq=False)
@@ -915,6 +917,10 @@ class Station:
                 # releases and presses the dead-man again.
                 self._link_up = False
                 self.relay.cut("the robot's link was lost")
+                if self.tracked.commanded.lock is LockState.UNLOCKED:
+                    # Its failsafe (P17), or the line that drove going, locks the robot: the
+                    # pages must not go on showing its motors unlocked. Locked stays locked.
+                    self.tracked.commanded.forget_lock(_LOST)
                 self.log("alarm", f"link lost{detail}")
             else:
                 self._link_up = True
