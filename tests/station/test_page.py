@@ -388,15 +388,13 @@ def test_stop_pressed_while_the_station_cannot_be_reached_goes_first_on_reconnec
 def test_stop_pressed_while_the_network_is_gone_is_kept_until_the_station_takes_it(
     browser, station, line
 ):
-    page = open_page(browser, station, pad=False)
-    take_control(page)
-    mark = line.mark()
-    page.click("#unlock")
-    line.wait_for("#start!", after=mark)
+    page = flying_by_pad(browser, station, line, [1, 0, 0, 0], "#th.90.100!")
     watcher = open_page(browser, station, pad=False)
     # The network goes (a Wi-Fi gone): the page's socket still reads open and takes what is
     # sent on it, and the STOP's own socket cannot connect.
+    mark = line.mark()
     page.context.set_offline(True)
+    line.wait_for("#th.90.0!", after=mark)  # (the station's watchdog: the page is not heard)
     page.click("#stop")
     # Before, nothing was said, and the STOP went nowhere: the motors stayed unlocked.
     page.wait_for_selector("#toast:has-text('STOP not confirmed: the station cannot be reached')")
@@ -410,6 +408,7 @@ def test_stop_pressed_while_the_network_is_gone_is_kept_until_the_station_takes_
     line.wait_until(lambda: line.controller_locked)
     page.wait_for_selector("#toast:has-text('STOP sent')")
     assert line.frames(mark, commands_only=True).count("#stop!") == 1  # (taken once)
+    set_pad(page, deadman=False)
     page.context.close()
     watcher.context.close()
 
