@@ -139,6 +139,19 @@ async def test_stop_while_the_link_is_down_goes_first_and_is_shown_as_sent(hub):
     assert hub.station._telemetry(None)["commanded"]["lock"] == "locked"
 
 
+async def test_a_lost_link_does_not_show_the_motors_unlocked(hub):
+    await hub.flying()
+    assert hub.station._telemetry(None)["commanded"]["lock"] == "unlocked"
+    await hub.unplugged()
+    # Before, "unlocked" (as last sent) stood for the whole outage, while the controller's
+    # failsafe, or its line going, had locked the robot.
+    commanded = hub.station._telemetry(None)["commanded"]
+    assert commanded["lock"] == "unknown"
+    assert commanded["lock_unknown_because"].startswith("the link was lost")
+    await hub.plugged_back()
+    assert hub.station._telemetry(None)["commanded"]["lock"] == "unknown"  # (as before)
+
+
 async def test_a_dead_man_pressed_again_while_the_link_was_down_flies_nothing_when_back(hub):
     pilot = await hub.flying()
     await hub.unplugged()

@@ -8,6 +8,7 @@ import os
 import signal
 import time
 from collections.abc import Iterator
+from datetime import datetime, timedelta
 from pathlib import Path
 from typing import Any
 
@@ -218,6 +219,41 @@ def test_a_page_whose_script_stalls_zeroes_the_thrust_within_500_ms(browser, sta
     page.context.close()
 
 
+def test_a_pilot_whose_computer_slept_flies_again_once_the_dead_man_is_pressed_again(
+    browser, station, line
+):
+    page = open_page(browser, station, fake_clock=True)
+    take_control(page)
+    unlock_and_arm(page, line)
+    mark = line.mark()
+    set_pad(page, axes=[1, 0, 0, 0], deadman=True)
+    line.wait_for("#th.90.100!", after=mark)
+    # The pilot's computer sleeps (the station's does not): the page's timers stop, and so does
+    # performance.now(), which Chrome on Linux and macOS does not advance while asleep.
+    page_now = datetime.fromtimestamp(page.evaluate("Date.now()") / 1000)
+    page.clock.pause_at(page_now + timedelta(milliseconds=100))
+    asleep = line.mark()
+    line.wait_for("#th.90.0!", after=asleep)  # (the station's watchdog)
+    # Ten polls: the station's clock went on for 0.9 s at least, well over the 300 ms an
+    # input may arrive late.
+    line.wait_until(lambda: line.frames(asleep).count("#qsa!") >= 10)
+    # It wakes: the wall clock is right again, the steady clock goes on from where it stood.
+    page.clock.set_system_time(datetime.now())
+    page.clock.resume()
+    # Before, every input seemed to arrive as late as the sleep was long, for good: the
+    # release did not arm the relay, and the pilot could not fly again on that connection.
+    set_pad(page, deadman=False)
+    page.wait_for_function(
+        "window.rovlinkStation.station.telemetry.relay.status.startsWith('armed')",
+        timeout=5000,
+    )
+    woke = line.mark()
+    set_pad(page, deadman=True)
+    line.wait_for("#th.90.100!", after=woke)
+    set_pad(page, deadman=False)
+    page.context.close()
+
+
 @pytest.mark.realtime
 def test_closing_the_tab_zeroes_the_thrust_within_500_ms(browser, station, line):
     page = flying_by_pad(browser, station, line, [-1, 0, 0, 0], "#th.270.100!")
@@ -346,6 +382,35 @@ def test_stop_pressed_while_the_station_cannot_be_reached_goes_first_on_reconnec
     page.wait_for_selector("#log li:has-text('STOP from browser 3')")
     assert page.text_content("#control-status") == "watching: nobody has control"
     page.context.close()
+
+
+@pytest.mark.slow  # (the station gives the dead connection up after its pings: some 10 s)
+def test_stop_pressed_while_the_network_is_gone_is_kept_until_the_station_takes_it(
+    browser, station, line
+):
+    page = flying_by_pad(browser, station, line, [1, 0, 0, 0], "#th.90.100!")
+    watcher = open_page(browser, station, pad=False)
+    # The network goes (a Wi-Fi gone): the page's socket still reads open and takes what is
+    # sent on it, and the STOP's own socket cannot connect.
+    mark = line.mark()
+    page.context.set_offline(True)
+    line.wait_for("#th.90.0!", after=mark)  # (the station's watchdog: the page is not heard)
+    page.click("#stop")
+    # Before, nothing was said, and the STOP went nowhere: the motors stayed unlocked.
+    page.wait_for_selector("#toast:has-text('STOP not confirmed: the station cannot be reached')")
+    # The station gives that connection up (its pings), and the STOP sent on it with it.
+    watcher.wait_for_selector(
+        "#log li:has-text('browser 1 (127.0.0.1) disconnected')", timeout=15000
+    )
+    assert "#stop!" not in line.frames(mark)
+    page.context.set_offline(False)
+    line.wait_for("#stop!", after=mark)
+    line.wait_until(lambda: line.controller_locked)
+    page.wait_for_selector("#toast:has-text('STOP sent')")
+    assert line.frames(mark, commands_only=True).count("#stop!") == 1  # (taken once)
+    set_pad(page, deadman=False)
+    page.context.close()
+    watcher.context.close()
 
 
 @pytest.mark.realtime
@@ -712,8 +777,11 @@ def test_a_watcher_is_told_the_robot_holds_a_depth_not_that_it_has_no_thrust(
 
 def test_a_second_browser_cannot_command(browser, station, line):
     pilot = open_page(browser, station)
-    # Nobody has control: the relay row says so, not the pilot's "release the dead-man to arm".
-    pilot.wait_for_selector("#relay-state:text-is('no thrust; nobody has control')", timeout=2000)
+    # Nobody has control: the relay row says so, not the pilot's "release the dead-man to arm"
+    # (and the motors as the station left them when it started: locked).
+    pilot.wait_for_selector(
+        "#relay-state:text-is('motors locked; nobody has control')", timeout=2000
+    )
     take_control(pilot)
     watcher = open_page(browser, station)
     watcher.wait_for_function(
@@ -721,9 +789,9 @@ def test_a_second_browser_cannot_command(browser, station, line):
     )
     # A watcher sees what the robot does and who flies; the pilot, what to do.
     watcher.wait_for_selector(
-        "#relay-state:text-is('no thrust; browser 1 (127.0.0.1) has control')"
+        "#relay-state:text-is('motors locked; browser 1 (127.0.0.1) has control')"
     )
-    pilot.wait_for_selector("#relay-state:text-is('armed (dead-man released)')")
+    pilot.wait_for_selector("#relay-state:text-is('motors locked: unlock (#start!) to fly')")
     mark = line.mark()
     set_pad(watcher, axes=[1, 0, 0, 0], deadman=True, unlock=True)
     watcher.click("#claw-open", force=True)  # shown disabled; forced, the server still refuses
@@ -1009,6 +1077,7 @@ def test_no_silent_pick_of_the_input_device(browser, station, line):
     page.wait_for_selector("#flight-status:has-text('no gamepad with the standard mapping')")
     page.evaluate("fakePads.connect('Pad A (STANDARD GAMEPAD)')")
     page.wait_for_selector("#device-status:has-text('Pad A')")
+    page.click("#unlock")  # (the station locked the robot as it started)
     page.wait_for_function("!document.getElementById('flight-status').textContent")  # armed
     page.evaluate("fakePads.connect('Pad B (STANDARD GAMEPAD)')")
     page.wait_for_selector("#device-status:has-text('several gamepads: choose one')")
@@ -1426,6 +1495,10 @@ def test_a_watchers_relay_row_says_unlocked_after_another_line_unlocks_with_hear
             line.wait_for("#debug1!")
             watcher = open_page(browser, served, pad=False)
             with rovlink.connect(line.pty_path, timeout=1.0, keepalive=None) as bystander:
+                bystander.start()  # (the station locked the robot as it started)
+                watcher.wait_for_selector(
+                    "#lock-state:text-is('unlocked (started by another line)')"
+                )
                 bystander.stop()
                 watcher.wait_for_selector("#lock-state:text-is('locked (stopped by another line)')")
                 bystander.start()

@@ -495,6 +495,33 @@ async def test_a_killed_station_leaves_the_robot_to_its_own_failsafe(line):
         assert line.server.robot.controller.state().power_percent == 0
 
 
+async def test_a_station_restarted_at_once_after_being_killed_locks_the_robot_it_left_moving():
+    """On a serial line (a PTY here: no connection ends with the process), a station killed
+    mid-dive and started again within the controller's failsafe time (P17) feeds that failsafe
+    with its polls. Before, it sent no frame of its own: the robot went on at the old station's
+    thrust for good, while every page showed no thrust and the motors locked after a reset."""
+    line = ControllerLine(pty=True)
+    try:
+        assert line.pty_path is not None
+        with running_station(line.pty_path) as served:
+            page = await pilot(served)
+            await fly(page, line)
+            async with pad_kept_alive(page):
+                os.kill(served.process.pid, signal.SIGKILL)
+                served.process.wait(timeout=5)
+        mark = line.mark()
+        with running_station(line.pty_path) as restarted:
+            # (The failsafe, had the restart been slow, would have locked it with no frame.)
+            await asyncio.to_thread(line.wait_for, "#stop!", after=mark)
+            assert line.controller_locked
+            assert line.server.robot.controller.state().power_percent == 0
+            watcher = await PageSocket.open(restarted.ws_url)
+            assert watcher.hello["telemetry"]["commanded"]["lock"] == "locked"
+            await watcher.close()
+    finally:
+        line.close()
+
+
 @pytest.mark.parametrize(
     ("signals", "status"),
     [

@@ -149,6 +149,8 @@ CLOCK_DRIFT = 1e-3
 _STOPS_KEPT = 256
 #: Why the lock as last sent is no longer known once the robot's link is reopened.
 _REOPENED = "the link was reopened (the controller may have reset)"
+#: Why "unlocked" as last sent is no longer known once the robot's link is lost.
+_LOST = "the link was lost (a controller that stops hearing its line locks)"
 
 
 @dataclass(eq=False)
@@ -335,6 +337,17 @@ class Station:
             for task in tasks:
                 task.cancel()
             await asyncio.gather(*tasks, return_exceptions=True)
+
+    async def lock_at_start(self) -> None:
+        """The station starts by locking the robot (``#stop!``: every output to zero, the motors
+        locked), before any page is served. A station killed or crashed mid-dive and started
+        again within the controller's link-loss time (P17, 2 s: a service restarted at once, a
+        pilot quick on the keys) would otherwise find the robot still moving on the old
+        station's last motion, its failsafe fed by the new station's polls for good, while
+        every page showed no thrust and the motors as locked after a reset. Locked, the robot
+        is what the pages show, as after the failsafe the restart outran."""
+        await self.tracked.stop()
+        self.log("info", "the station started: #stop! (every output to zero, motors locked)")
 
     async def stop_first(self) -> None:
         """The station is about to close: thrust to zero and, unless locked as last sent,
@@ -904,6 +917,10 @@ class Station:
                 # releases and presses the dead-man again.
                 self._link_up = False
                 self.relay.cut("the robot's link was lost")
+                if self.tracked.commanded.lock is LockState.UNLOCKED:
+                    # Its failsafe (P17), or the line that drove going, locks the robot: the
+                    # pages must not go on showing its motors unlocked. Locked stays locked.
+                    self.tracked.commanded.forget_lock(_LOST)
                 self.log("alarm", f"link lost{detail}")
             else:
                 self._link_up = True

@@ -224,6 +224,7 @@ async def serve(
             ws_ping_timeout=5.0,
             timeout_graceful_shutdown=1,
         )
+        await station.lock_at_start()
         server = _Server(config, stop_robot=station.stop_first)
         running = asyncio.ensure_future(station.run())
         # Without its watchdog the station must not go on serving: it shuts down (and sends

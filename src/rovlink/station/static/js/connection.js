@@ -63,16 +63,20 @@ export class Connection {
   }
 
   // A STOP on a WebSocket of its own (a new connection: see main.js); stopped() once the
-  // station says it stopped the robot. Nothing is said when it cannot be reached.
-  stopOnItsOwn(message, stopped) {
+  // station says it stopped the robot, unanswered() if the socket closed (or was given up)
+  // without that: the station could not be reached.
+  stopOnItsOwn(message, stopped, unanswered) {
+    let answered = false;
+    const giveUp = () => { if (!answered) { answered = true; unanswered(); } };
     let socket;
-    try { socket = new WebSocket(socketUrl("/stop")); } catch { return; }
+    try { socket = new WebSocket(socketUrl("/stop")); } catch { giveUp(); return; }
     socket.addEventListener("open", () => socket.send(JSON.stringify(message)));
     socket.addEventListener("message", (event) => {
-      if (event.data === "stopped") stopped();
+      if (!answered && event.data === "stopped") { answered = true; stopped(); }
       socket.close();
     });
-    setTimeout(() => socket.close(), STOP_SOCKET_MS);
+    socket.addEventListener("close", giveUp);
+    setTimeout(() => { socket.close(); giveUp(); }, STOP_SOCKET_MS);
   }
 
   send(message) {

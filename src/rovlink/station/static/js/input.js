@@ -18,6 +18,7 @@
 // at all. Its STOP is never guessed (any button of it, say): a headset's volume key, or a
 // button that reads "pressed" now and then on a worn pad, would stop the robot in mid-flight.
 
+import { stampMs } from "./clock.js";
 import { Keyboard, typingIn } from "./keyboard.js";
 import { DEFAULT_MAPPING, padInput, pressed } from "./mapping.js";
 
@@ -233,7 +234,7 @@ export class InputDevices {
       "vertical_percent", "source"].some((key) => input[key] !== this.lastSent[key]);
     if (changed || (input.deadman && now - this.lastSentAt >= this.resendMs)) {
       // Stamped with this page's clock: the station measures how late each one arrives.
-      if (this.send({ type: "input", ...input, sent_ms: performance.now() })) {
+      if (this.send({ type: "input", ...input, sent_ms: stampMs() })) {
         this.lastSent = input;
         this.lastSentAt = now;
       }

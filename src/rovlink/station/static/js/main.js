@@ -3,6 +3,7 @@
 
 import { AlarmSound } from "./alarm.js";
 import { Charts } from "./charts.js";
+import { stampMs } from "./clock.js";
 import { Connection } from "./connection.js";
 import { InputDevices } from "./input.js";
 import { isFlyingKey, typingIn } from "./keyboard.js";
@@ -19,8 +20,11 @@ const station = {
   heardAt: null, readingAt: null,
   // Why this page is no longer the pilot, shown until it takes control again.
   lostControl: null,
-  // STOP (its stop_id) pressed while the station could not be reached: sent first when it is.
+  // The last STOP pressed (its stop_id) until the station says it stopped the robot: sent
+  // again until it does, and first on a socket of the page's that opens.
   stopKept: null,
+  // The pilot was told that STOP has not gone yet (and is told when it has).
+  stopUnsent: false,
   // How long the fastest of this socket's timed messages took to arrive, the station's clock
   // against this page's (ms; null: none yet), and how much later than that the last one came.
   fastestArrivalMs: null, fastestAt: 0, lateMs: 0,
@@ -75,27 +79,47 @@ const ask = (message, what) => {
 // Stamped with this page's clock, as its input is: a command held up on a slow network is not
 // sent when it arrives seconds later (the station says so).
 const command = (name, values = []) => ask({ type: "command", name, values,
-  sent_ms: performance.now() }, `#${[name, ...values].join(".")}!`);
+  sent_ms: stampMs() }, `#${[name, ...values].join(".")}!`);
 // Each press of STOP goes over the page's WebSocket and over one of its own (/stop, opened for
 // it): the page's socket may be stuck behind what it has still to send (a network slower than
 // the pilot's input), or dead without either end knowing it yet (a Wi-Fi that roamed), and a
 // STOP sent on it would wait there, or be lost with it. A new WebSocket is a new connection
 // (an HTTP request may go on a kept-alive one, as dead). The station takes the first to arrive
-// (by its stop_id).
+// (by its stop_id). A STOP is kept until the station says it stopped the robot: with the
+// network gone, the page's socket still takes what is sent on it, and loses it with itself.
 const STOP_SESSION = Math.random().toString(36).slice(2, 10);
+// How long after its own socket failed a STOP not taken yet is sent on another.
+const STOP_RETRY_MS = 1000;
 let stopsPressed = 0;
 const stop = () => {
   stopsPressed += 1;
   const stopId = `${STOP_SESSION}-${stopsPressed}`;
-  connection.stopOnItsOwn({ stop_id: stopId, page_id: station.id }, () => {
-    if (station.stopKept !== stopId) return;
-    station.stopKept = null;  // it got through that way
-    toast("STOP sent (pressed while the station's connection was down)");
-  });
-  if (send({ type: "stop", stop_id: stopId })) return;
   station.stopKept = stopId;
-  toast("STOP not sent yet: the station cannot be reached; it goes first when it is", null);
+  stopOnItsOwn(stopId);
+  if (send({ type: "stop", stop_id: stopId })) return;
+  stopNotSent("STOP not sent yet: the station cannot be reached; it goes first when it is");
 };
+// The STOP kept (``stopId``) on a socket of its own, again every STOP_RETRY_MS until the
+// station takes it (the station does it once, whichever way it came first).
+function stopOnItsOwn(stopId) {
+  connection.stopOnItsOwn({ stop_id: stopId, page_id: station.id }, () => {
+    if (station.stopKept === stopId) stopTaken();
+  }, () => {
+    if (station.stopKept !== stopId) return;  // taken another way, or a newer STOP pressed
+    stopNotSent("STOP not confirmed: the station cannot be reached; it is sent again until it is");
+    setTimeout(() => { if (station.stopKept === stopId) stopOnItsOwn(stopId); }, STOP_RETRY_MS);
+  });
+}
+function stopNotSent(why) {
+  if (station.stopUnsent) return;
+  station.stopUnsent = true;
+  toast(why, null);
+}
+function stopTaken() {
+  station.stopKept = null;
+  if (station.stopUnsent) toast("STOP sent (pressed while the station could not be reached)");
+  station.stopUnsent = false;
+}
 
 const devices = new InputDevices({
   send,
@@ -232,10 +256,7 @@ function onConnectionState(state, closeCode = null, opened = true) {
   station.heardAt = state === "open" ? performance.now() : null;
   station.readingAt = null;
   if (state === "open") {
-    if (station.stopKept && send({ type: "stop", stop_id: station.stopKept })) {
-      station.stopKept = null;
-      toast("STOP sent (pressed while the station could not be reached)");
-    }
+    if (station.stopKept && send({ type: "stop", stop_id: station.stopKept })) stopTaken();
     // The station takes a new page as shown: one opened in a background tab says otherwise.
     if (document.hidden) send({ type: "visibility", hidden: true });
   } else {
