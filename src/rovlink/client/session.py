@@ -1143,19 +1143,26 @@ class Session:
 
     def _fail(self, query: PendingQuery, outcome: Outcome, now: float) -> list[PendingQuery]:
         """``query`` failed while its reply may still come: fail every query on the wire that
-        expects a reply of the same names, mark those names late, and fence (P20)."""
+        expects a reply of the same names, and so on with theirs, mark all those names late,
+        and fence (P20)."""
         late = set(query.expected[len(query.responses) :])
-        failed = [query]
         query.outcome = outcome
-        for other in self._pending:
-            if other is not query and late.intersection(other.expected[len(other.responses) :]):
-                other.outcome = Outcome.RESYNC
-                failed.append(other)
+        # Until nothing more fails: a query failed here makes all its names late, and a query
+        # expecting one of those would have its reply discarded as late, and time out.
+        spreading = True
+        while spreading:
+            spreading = False
+            for other in self._pending:
+                names = other.expected[len(other.responses) :]
+                if other.outcome is _PENDING and late.intersection(names):
+                    other.outcome = Outcome.RESYNC
+                    late.update(names)
+                    spreading = True
+        failed = [query]
+        failed += (other for other in self._pending if other.outcome is Outcome.RESYNC)
         for other in failed:
-            names = other.expected[len(other.responses) :]
-            late.update(names)
             if not other.internal:
-                self._late_program_names.update(names)
+                self._late_program_names.update(other.expected[len(other.responses) :])
         fence = self._fence
         if fence is not None:
             if fence.outcome is not _PENDING:
