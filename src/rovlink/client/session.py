@@ -213,6 +213,7 @@ class Session:
         "_last_query_bytes",
         "_late_names",
         "_late_program_names",
+        "_late_reply_at",
         "_locked_as_sent",
         "_motion_renewed_at",
         "_moved_since_stop",
@@ -286,6 +287,8 @@ class Session:
         self._late_names: set[str] = set()
         # Those of them that a program's query failed with (the rest: keep-alives', fences').
         self._late_program_names: set[str] = set()
+        # When a reply of each name was last discarded as late.
+        self._late_reply_at: dict[str, float] = {}
         self._fence: PendingQuery | None = None
         self._quiet_until: float | None = None  # holding queries until then (no fence possible)
         self._held: deque[PendingQuery] = deque()
@@ -1147,17 +1150,19 @@ class Session:
         and fence (P20)."""
         late = set(query.expected[len(query.responses) :])
         query.outcome = outcome
-        # Until nothing more fails: a query failed here makes all its names late, and a query
-        # expecting one of those would have its reply discarded as late, and time out.
-        spreading = True
-        while spreading:
-            spreading = False
+        self._spread_failure(late)
+        fence = self._fence
+        if fence is not None and fence.outcome is not _PENDING:
+            # The fence failed (its own reply lost): a query written after it whose reply came
+            # meanwhile, while its name was late, had that reply discarded, and fails too.
             for other in self._pending:
                 names = other.expected[len(other.responses) :]
-                if other.outcome is _PENDING and late.intersection(names):
+                if other.outcome is _PENDING and any(
+                    self._late_reply_at.get(name, -_NEVER) >= other.sent_at for name in names
+                ):
                     other.outcome = Outcome.RESYNC
                     late.update(names)
-                    spreading = True
+            self._spread_failure(late)
         failed = [query]
         failed += (other for other in self._pending if other.outcome is Outcome.RESYNC)
         for other in failed:
@@ -1185,6 +1190,20 @@ class Session:
                 self.events.append(QueryFailed(now, other.command, other.outcome.value))
         self._start_fence(now)
         return [other for other in failed if not other.internal]
+
+    def _spread_failure(self, late: set[str]) -> None:
+        """Fail (resync) every query on the wire that expects a name in ``late``, adding its
+        names to ``late``, until none is left: its reply would be discarded as late, and it
+        would time out though the controller answered."""
+        spreading = True
+        while spreading:
+            spreading = False
+            for other in self._pending:
+                names = other.expected[len(other.responses) :]
+                if other.outcome is _PENDING and late.intersection(names):
+                    other.outcome = Outcome.RESYNC
+                    late.update(names)
+                    spreading = True
 
     def _start_fence(self, now: float) -> None:
         if self._fence is not None or self._quiet_until is not None:
@@ -1215,6 +1234,7 @@ class Session:
 
     def _late(self, response: Response, now: float) -> None:
         self.counters.late_replies += 1
+        self._late_reply_at[response.name] = now
         if self._quiet_until is not None:
             self._quiet_until = now + self.quiet_window_s  # not quiet yet
         if self.events is not None:
