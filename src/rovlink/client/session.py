@@ -1039,6 +1039,8 @@ class Session:
         counters = self.counters
         counters.frames_sent += 1
         counters.bytes_sent += len(data)
+        if retry:  # (counted as written: one held back and never sent was no retry)
+            counters.retries += 1
         self.last_sent_at = now
         if self.events is not None:
             self.events.append(BytesSent(now, data, command, by_session, retry))
