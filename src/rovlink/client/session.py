@@ -21,10 +21,13 @@ before it lost their replies (the controller dropped them) and are settled as ``
 Late replies and fences (P20). The protocol has no sequence numbers, so after a query times out
 its reply may still come and cannot be told from the reply of a later query of the same name.
 When a query fails that way, the session fails with it every query on the wire that expects a
-reply of one of the same names (``resync``; the caller retries them), marks those names *late*,
-and writes a *fence*: a query of a name that is not late. Until the fence's reply arrives, every
-reply of a late name is a :class:`~rovlink.client.events.LateReply`, counted and discarded; the
-controller answers in order, so nothing sent before the fence can arrive after its reply. When
+reply of one of the same names, and in turn of theirs (``resync``; the caller retries them),
+marks all those names *late*, and writes a *fence*: a query of a name that is not late. Until
+the fence's reply arrives, every reply of a late name is a
+:class:`~rovlink.client.events.LateReply`, counted and discarded; the controller answers in
+order, so nothing sent before the fence can arrive after its reply. If the fence fails, a query
+sent behind it whose reply was discarded so fails with it (no query waits for a reply the
+session has thrown away). When
 every name is late (a ``qsa`` timed out), no fence can be told apart: the session then holds new
 queries back until the line has been quiet for twice ``timeout_s`` (:attr:`Session.quiet_window_s`)
 — nothing is sent, so nothing new can be confused with what is still on its way.
