@@ -12,7 +12,7 @@ from collections.abc import Awaitable, Callable
 import pytest
 
 from rovlink.aio import AsyncClient
-from rovlink.client import Client, ClientOptions
+from rovlink.client import Client, ClientOptions, ConnectionLostError
 from rovlink.client.events import (
     BytesReceived,
     BytesSent,
@@ -24,7 +24,13 @@ from rovlink.client.events import (
 )
 from rovlink.client.links import SocketLink
 from rovlink.protocol import BadFrame, Reason
-from tests.client.conftest import NO_REPLY_TIMEOUT_S
+from tests.client.conftest import (
+    CONDITION_TIMEOUT_S,
+    NO_REPLY_TIMEOUT_S,
+    ThreadCall,
+    wait_until,
+    wait_until_async,
+)
 from tests.client.fake_controller import FakeController
 
 
@@ -202,6 +208,40 @@ async def test_the_asyncio_clients_retries_are_marked_too(
     fake.then("drop", "drop")
     assert list(await asyncio.gather(rov.depth_cm(), rov.depth_cm())) == [123, 123]
     assert _retry_marks(events, "qd") == [False, False, True, True]
+
+
+def test_a_retry_held_back_and_never_sent_is_not_counted(
+    make_client: Callable[..., Client], fake: FakeController
+) -> None:
+    """``retries`` counts the attempts sent again, as the events marked ``retry`` do. A ``qsa``
+    that timed out makes every name late, so its retry waits for a quiet line (P20); a close
+    meanwhile ends it unsent. Before, the client counted it as it asked for it: the counter
+    said one more retry than went out (a few a run under stress)."""
+    events: list[ClientEvent] = []
+    rov = make_client(timeout_s=0.5, retries=1, on_event=events.append)
+    fake.then("drop")
+    asking = ThreadCall(rov.sensors)
+    assert wait_until(lambda: bool(rov._session._held))  # the retry, held back
+    rov.close()
+    assert asking.done.wait(CONDITION_TIMEOUT_S)
+    assert isinstance(asking.error, ConnectionLostError)
+    assert _retry_marks(events, "qsa") == [False]
+    assert rov.counters.retries == 0
+
+
+async def test_the_asyncio_client_counts_a_retry_held_back_and_never_sent_neither(
+    make_async_client: Callable[..., Awaitable[AsyncClient]], fake: FakeController
+) -> None:
+    events: list[ClientEvent] = []
+    rov = await make_async_client(timeout_s=0.5, retries=1, on_event=events.append)
+    fake.then("drop")
+    asking = asyncio.ensure_future(rov.sensors())
+    assert await wait_until_async(lambda: bool(rov._session._held))
+    await rov.close()
+    with pytest.raises(ConnectionLostError):
+        await asking
+    assert _retry_marks(events, "qsa") == [False]
+    assert rov.counters.retries == 0
 
 
 def test_an_on_stray_callback_failing_on_every_line_is_logged_once_then_counted(

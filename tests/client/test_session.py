@@ -133,6 +133,50 @@ def test_a_reply_stalled_past_the_timeout_answers_no_query_released_after_a_quie
     assert retried.responses[0].values == (120,)
 
 
+def test_a_query_whose_name_another_failed_query_made_late_fails_with_them_at_once() -> None:
+    """On the wire ``qro`` (its reply dropped), ``qhe``, ``qsa``. The qro's timeout fails the
+    qsa (it expects a ``$qro`` too), and the qsa's names are late from then on, ``qhe`` among
+    them: the ``qhe`` on the wire must fail with them (resync) and be retried after the
+    resynchronisation. Before, it was left pending, its reply was discarded as late, and it
+    timed out a whole timeout later, counted as a timeout of a controller that had answered."""
+    session = Session(timeout_s=0.5)
+    _, roll = session.query(Command("qro"), now=0.0)
+    _, heading = session.query(Command("qhe"), now=0.0)
+    _, sensors = session.query(Command("qsa"), now=0.0)
+    assert session.tick(now=0.5) == [roll, heading, sensors]
+    assert (roll.outcome, heading.outcome, sensors.outcome) == (
+        Outcome.TIMEOUT,
+        Outcome.RESYNC,
+        Outcome.RESYNC,
+    )
+    assert session.pending == ()
+    session.receive(b"$qhe.275!" + QSA_REPLY, now=0.51)
+    assert session.tick(now=1.2) == []
+    assert session.counters.timeouts == 1
+    assert session.counters.late_replies == 7
+
+
+def test_a_query_sent_behind_a_fence_whose_reply_is_lost_fails_with_the_fence() -> None:
+    """``qd`` times out, and the fence ``qhe`` goes out; the program's next ``qd`` goes behind
+    it. The fence's reply is lost, so the ``$qd`` that answers the new query comes while ``qd``
+    is still late, and is discarded. When the fence times out, that query fails with it
+    (resync) and is retried behind the next fence. Before, it was left waiting and timed out
+    too: with the fence, two timeouts in a row, and a controller reset was suspected (P21),
+    though the controller had answered."""
+    session = Session(timeout_s=0.5)
+    session.query(Command("qd"), now=0.0)
+    session.tick(now=0.5)
+    assert session.take_outbox(now=0.5) == b"#qhe!"
+    _, depth = session.query(Command("qd"), now=0.6)
+    session.receive(b"$qd.7!", now=0.61)  # (the fence's $qhe was lost)
+    assert session.counters.late_replies == 1
+    assert session.tick(now=1.1) == [depth]
+    assert depth.outcome is Outcome.RESYNC
+    assert session.take_outbox(now=1.1) == b"#qro!"
+    assert session.counters.timeouts == 2
+    assert session.counters.resets_suspected == 0
+
+
 def test_a_fence_that_fails_is_followed_by_another() -> None:
     session = Session(timeout_s=0.5)
     session.query(Command("qd"), now=0.0)

@@ -838,7 +838,6 @@ class AsyncClient(AsyncCommandMethods):
                 session = self._session
                 now = self._clock()
                 if attempt:  # (the general path: its event marks it a retry)
-                    session.counters.retries += 1
                     ready = session.query(command, now, retry=True)
                 else:  # the usual case (nothing due or held) without the general path's work
                     ready = session.fast_query(command, now) or session.query(command, now)

@@ -1179,9 +1179,6 @@ class Client(CommandMethods):
         for attempt in range(len(failures), retries + 1):
             if self._reconnecting:
                 self._await_link()
-            if attempt:
-                with self._state_lock:
-                    self._session.counters.retries += 1
             # (A retry takes the general path, which marks it one in its event.)
             fast = self._send_now is not None and not attempt
             pending = self._send_query_holding_state(command, me) if fast else None

@@ -21,10 +21,13 @@ before it lost their replies (the controller dropped them) and are settled as ``
 Late replies and fences (P20). The protocol has no sequence numbers, so after a query times out
 its reply may still come and cannot be told from the reply of a later query of the same name.
 When a query fails that way, the session fails with it every query on the wire that expects a
-reply of one of the same names (``resync``; the caller retries them), marks those names *late*,
-and writes a *fence*: a query of a name that is not late. Until the fence's reply arrives, every
-reply of a late name is a :class:`~rovlink.client.events.LateReply`, counted and discarded; the
-controller answers in order, so nothing sent before the fence can arrive after its reply. When
+reply of one of the same names, and in turn of theirs (``resync``; the caller retries them),
+marks all those names *late*, and writes a *fence*: a query of a name that is not late. Until
+the fence's reply arrives, every reply of a late name is a
+:class:`~rovlink.client.events.LateReply`, counted and discarded; the controller answers in
+order, so nothing sent before the fence can arrive after its reply. If the fence fails, a query
+sent behind it whose reply was discarded so fails with it (no query waits for a reply the
+session has thrown away). When
 every name is late (a ``qsa`` timed out), no fence can be told apart: the session then holds new
 queries back until the line has been quiet for twice ``timeout_s`` (:attr:`Session.quiet_window_s`)
 — nothing is sent, so nothing new can be confused with what is still on its way.
@@ -213,6 +216,7 @@ class Session:
         "_last_query_bytes",
         "_late_names",
         "_late_program_names",
+        "_late_reply_at",
         "_locked_as_sent",
         "_motion_renewed_at",
         "_moved_since_stop",
@@ -286,6 +290,8 @@ class Session:
         self._late_names: set[str] = set()
         # Those of them that a program's query failed with (the rest: keep-alives', fences').
         self._late_program_names: set[str] = set()
+        # When a reply of each name was last discarded as late.
+        self._late_reply_at: dict[str, float] = {}
         self._fence: PendingQuery | None = None
         self._quiet_until: float | None = None  # holding queries until then (no fence possible)
         self._held: deque[PendingQuery] = deque()
@@ -1036,6 +1042,8 @@ class Session:
         counters = self.counters
         counters.frames_sent += 1
         counters.bytes_sent += len(data)
+        if retry:  # (counted as written: one held back and never sent was no retry)
+            counters.retries += 1
         self.last_sent_at = now
         if self.events is not None:
             self.events.append(BytesSent(now, data, command, by_session, retry))
@@ -1143,19 +1151,28 @@ class Session:
 
     def _fail(self, query: PendingQuery, outcome: Outcome, now: float) -> list[PendingQuery]:
         """``query`` failed while its reply may still come: fail every query on the wire that
-        expects a reply of the same names, mark those names late, and fence (P20)."""
+        expects a reply of the same names, and so on with theirs, mark all those names late,
+        and fence (P20)."""
         late = set(query.expected[len(query.responses) :])
-        failed = [query]
         query.outcome = outcome
-        for other in self._pending:
-            if other is not query and late.intersection(other.expected[len(other.responses) :]):
-                other.outcome = Outcome.RESYNC
-                failed.append(other)
+        self._spread_failure(late)
+        fence = self._fence
+        if fence is not None and fence.outcome is not _PENDING:
+            # The fence failed (its own reply lost): a query written after it whose reply came
+            # meanwhile, while its name was late, had that reply discarded, and fails too.
+            for other in self._pending:
+                names = other.expected[len(other.responses) :]
+                if other.outcome is _PENDING and any(
+                    self._late_reply_at.get(name, -_NEVER) >= other.sent_at for name in names
+                ):
+                    other.outcome = Outcome.RESYNC
+                    late.update(names)
+            self._spread_failure(late)
+        failed = [query]
+        failed += (other for other in self._pending if other.outcome is Outcome.RESYNC)
         for other in failed:
-            names = other.expected[len(other.responses) :]
-            late.update(names)
             if not other.internal:
-                self._late_program_names.update(names)
+                self._late_program_names.update(other.expected[len(other.responses) :])
         fence = self._fence
         if fence is not None:
             if fence.outcome is not _PENDING:
@@ -1178,6 +1195,20 @@ class Session:
                 self.events.append(QueryFailed(now, other.command, other.outcome.value))
         self._start_fence(now)
         return [other for other in failed if not other.internal]
+
+    def _spread_failure(self, late: set[str]) -> None:
+        """Fail (resync) every query on the wire that expects a name in ``late``, adding its
+        names to ``late``, until none is left: its reply would be discarded as late, and it
+        would time out though the controller answered."""
+        spreading = True
+        while spreading:
+            spreading = False
+            for other in self._pending:
+                names = other.expected[len(other.responses) :]
+                if other.outcome is _PENDING and late.intersection(names):
+                    other.outcome = Outcome.RESYNC
+                    late.update(names)
+                    spreading = True
 
     def _start_fence(self, now: float) -> None:
         if self._fence is not None or self._quiet_until is not None:
@@ -1208,6 +1239,7 @@ class Session:
 
     def _late(self, response: Response, now: float) -> None:
         self.counters.late_replies += 1
+        self._late_reply_at[response.name] = now
         if self._quiet_until is not None:
             self._quiet_until = now + self.quiet_window_s  # not quiet yet
         if self.events is not None:
