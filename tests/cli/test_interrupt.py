@@ -318,6 +318,33 @@ def test_sigtstp_does_not_suspend_the_monitor(silent: SilentController) -> None:
         terminal.close()
 
 
+def test_ctrl_z_does_not_suspend_the_demo(answering: DepthAnsweringController) -> None:
+    # Before, Ctrl-Z stopped the demo mid-dive: the robot went on unattended with what it was
+    # last sent, and back in the foreground the dive called each step done though the
+    # controller's watchdog had locked the motors meanwhile.
+    terminal = Terminal(
+        "demo",
+        answering.url,
+        "--boot-timeout",
+        "0",
+        "--timeout",
+        "60",
+        job_control=True,
+        stderr_on_terminal=True,
+    )
+    try:
+        assert answering.wait_for(b"#qsa!")  # unlocked, diving, polling the sensors
+        terminal.type("\x1a")  # (its terminal is in cooked mode: SIGTSTP to the demo's group)
+        assert terminal.wait_until(lambda shown: b"does not suspend" in shown or b"job" in shown)
+        assert b"[job ended" not in terminal.shown
+        terminal.type("\x03")  # still running: Ctrl-C ends it, with #stop!
+        assert terminal.wait_shown(b"[job ended: 130]")
+        assert answering.wait_for(b"#stop!")
+        assert answering.received.rindex(b"#stop!") > answering.received.index(b"#mvd.")
+    finally:
+        terminal.close()
+
+
 def _end_of(terminal: Terminal) -> str:
     """What the command said on stderr once it has ended (within WAIT_S)."""
     _, stderr = terminal.process.communicate(timeout=WAIT_S)

@@ -33,6 +33,12 @@ examples:
   rovlink demo                         on the simulator
   rovlink demo /dev/ttyUSB0 --checksum --depth 50 --hold 10"""
 
+#: What SIGTSTP (Ctrl-Z, ``kill -TSTP``) does during the dive.
+NO_SUSPEND_TEXT = (
+    "Ctrl-Z does not suspend the demo (the robot would go on unattended): Ctrl-C stops the robot"
+    " and ends the dive"
+)
+
 _POLL_INTERVAL_S = 0.2
 _SETTLED_READINGS = 3  # consecutive readings within tolerance that count as "there"
 
@@ -358,11 +364,18 @@ def _take_down(live: Live) -> None:
         live.stop()
 
 
+def _say_not_suspended() -> None:
+    """Said on a SIGTSTP, above the live table (it takes what goes to stderr meanwhile)."""
+    with contextlib.suppress(OSError):  # (a terminal that hung up)
+        print(f"rovlink demo: {NO_SUSPEND_TEXT}", file=sys.stderr)
+
+
 def run(args: argparse.Namespace) -> int:
     """Run the dive with a live table; exit status 1 unless every step was done."""
     from rich.live import Live  # noqa: PLC0415
 
     from rovlink.cli.rich_console import TableConsole  # noqa: PLC0415
+    from rovlink.piloting.no_suspend import suspension_refused  # noqa: PLC0415
 
     plan = DivePlan(
         depth_cm=args.depth_cm,
@@ -374,8 +387,12 @@ def run(args: argparse.Namespace) -> int:
     rov = link_options.connect(args, keepalive_s=1.0)
     gate = GatedClient(rov)
     console = TableConsole()
+    # A suspended demo could not stop the robot: the leg it was on would go on unattended
+    # (or until the controller's watchdog), and back in the foreground the dive would carry on
+    # and call each step done after the watchdog had locked the motors.
     with (
         link_options.closing_unless_interrupted(rov),
+        suspension_refused(_say_not_suspended),
         Live(console=console, refresh_per_second=8) as live,
     ):
 
