@@ -3,6 +3,7 @@ or a pipe is their replies alone."""
 
 from __future__ import annotations
 
+import contextlib
 import os
 import subprocess
 import sys
@@ -152,3 +153,33 @@ def test_a_console_that_leaves_before_its_pipe_ends_exits_cleanly() -> None:
         if process.poll() is None:
             process.kill()
         process.wait(timeout=30)
+
+
+def test_a_script_drawn_on_a_terminal_asks_it_nothing(tmp_path: Path) -> None:
+    # Before, the prompt drawn on the terminal asked where its cursor was (ESC [6n): the
+    # answer came on the terminal's input, which nothing read under a script, and the terminal
+    # echoed it (^[[3;1R) among the replies and left it for the shell to read as typed.
+    script = tmp_path / "script.txt"
+    script.write_text(_SCRIPT, encoding="utf-8")
+    controller, terminal = os.openpty()
+    with script.open("rb") as lines:
+        process = subprocess.Popen(
+            [sys.executable, "-m", "rovlink", "console", "sim://", "--history", os.devnull],
+            stdin=lines,
+            stdout=terminal,
+            stderr=terminal,
+            env={**os.environ, "PYTHONPATH": _SRC, "TERM": "xterm-256color"},
+        )
+    os.close(terminal)
+    shown = bytearray()
+    try:
+        with contextlib.suppress(OSError):  # (EIO once the console has closed its terminal)
+            while data := os.read(controller, 4096):
+                shown += data
+        assert process.wait(timeout=30) == 0, shown
+    finally:
+        if process.poll() is None:
+            process.kill()
+        os.close(controller)
+    assert b"qd \xe2\x86\x92 0 cm" in shown  # (the replies were drawn)
+    assert b"\x1b[6n" not in shown

@@ -10,6 +10,10 @@ console's input is a pipe that holds 64 KB), and each line is handed on as text 
 descriptor itself: left waiting on a pipe when the console ends, it must hold no lock of
 ``sys.stdin``'s, which the interpreter takes as it exits (it aborted, "could not acquire lock
 ... at interpreter shutdown"). A closed standard input (``<&-``) is a script without lines.
+
+Drawn on a terminal, the prompt does not ask the terminal where its cursor is: the answer
+would come on the terminal's input, which nothing reads here; the terminal echoed it
+(``^[[3;1R``) in the middle of the replies, and left it for the shell to read as typed.
 """
 
 from __future__ import annotations
@@ -22,6 +26,8 @@ from typing import TextIO
 
 from prompt_toolkit.application import create_app_session
 from prompt_toolkit.input import PipeInput, create_pipe_input
+from prompt_toolkit.output import create_output
+from prompt_toolkit.output.vt100 import Vt100_Output
 
 __all__ = ["script_input", "typed_line"]
 
@@ -42,7 +48,10 @@ def script_input(stdin: TextIO | None) -> Iterator[None]:
     except (OSError, ValueError):
         yield
         return
-    with create_pipe_input() as keys, create_app_session(input=keys):
+    output = create_output()
+    if isinstance(output, Vt100_Output):
+        output.enable_cpr = False  # (no cursor position request)
+    with create_pipe_input() as keys, create_app_session(input=keys, output=output):
         feeder = threading.Thread(target=_feed, args=(descriptor, keys), daemon=True)
         feeder.start()
         yield
