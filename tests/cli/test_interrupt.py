@@ -265,11 +265,13 @@ def _drive_ahead_in_the_monitor(terminal: Terminal, silent: SilentController) ->
 
 @pytest.mark.parametrize("how", ENDING_SIGNALS, ids=lambda how: how.name)
 def test_a_signal_ends_the_monitor_with_stop(silent: SilentController, how: signal.Signals) -> None:
-    terminal = Terminal("monitor", silent.url, "--boot-timeout", "0", "--timeout", "0.2")
+    terminal = Terminal(
+        "monitor", silent.url, "--boot-timeout", "0", "--timeout", "0.2", stderr_on_terminal=True
+    )
     try:
         _drive_ahead_in_the_monitor(terminal, silent)
-        _, stderr = _interrupt(terminal.process, how)
-        assert terminal.process.returncode == 130, stderr  # (before: 0, as after `q`)
+        _interrupt(terminal.process, how)
+        assert terminal.process.returncode == 130, terminal.shown  # (before: 0, as after `q`)
         assert silent.wait_for(b"#stop!")
         assert silent.received.rindex(b"#stop!") > silent.received.index(b"#th.0.")
     finally:
@@ -279,12 +281,13 @@ def test_a_signal_ends_the_monitor_with_stop(silent: SilentController, how: sign
 def test_the_ctrl_c_key_quits_the_monitor_as_q_does(silent: SilentController) -> None:
     # In the dashboard's raw terminal Ctrl-C is a key, not SIGINT: #stop! then status 0, as
     # after q (a SIGINT ends it with 130: above). docs/tools.md says so.
-    terminal = Terminal("monitor", silent.url, "--boot-timeout", "0", "--timeout", "0.2")
+    terminal = Terminal(
+        "monitor", silent.url, "--boot-timeout", "0", "--timeout", "0.2", stderr_on_terminal=True
+    )
     try:
         _drive_ahead_in_the_monitor(terminal, silent)
         terminal.type("\x03")
-        _, stderr = terminal.process.communicate(timeout=WAIT_S)
-        assert terminal.process.returncode == 0, stderr
+        assert terminal.process.wait(timeout=WAIT_S) == 0, terminal.shown
         assert silent.wait_for(b"#stop!")
         assert silent.received.rindex(b"#stop!") > silent.received.index(b"#th.0.")
     finally:

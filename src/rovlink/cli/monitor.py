@@ -72,20 +72,25 @@ def _monitor_app_class() -> type[MonitorApp]:
 
 
 def missing_terminal() -> str | None:
-    """What the dashboard lacks to run, or ``None``: it draws on standard output and reads
-    its keys (space, the stop, among them) from standard input, both a terminal.
+    """What the dashboard lacks to run, or ``None``: standard input, output and error all a
+    terminal. It reads its keys (space, the stop, among them) from standard input, and textual
+    draws it on standard error.
 
-    Without one (run from a script, its output to a file) it would write escape sequences
-    until killed, and no key, not even the stop, could reach it.
+    Without a terminal (run from a script, its output to a file) it would write escape
+    sequences until killed, and no key, not even the stop, could reach it. With standard error
+    alone sent elsewhere (``2>monitor.log``, ``2>/dev/null``) the keys drove the robot from a
+    blank screen, the dashboard drawn into the file.
     """
-    missing = [
-        name
-        for name, stream in (("standard input", sys.stdin), ("standard output", sys.stdout))
-        if not is_terminal(stream)
-    ]
+    streams = (
+        ("standard input", sys.stdin),
+        ("standard output", sys.stdout),
+        ("standard error", sys.stderr),
+    )
+    missing = [name for name, stream in streams if not is_terminal(stream)]
     if not missing:
         return None
-    return f"{' and '.join(missing)} {'is' if len(missing) == 1 else 'are'} not a terminal"
+    names = missing[0] if len(missing) == 1 else f"{', '.join(missing[:-1])} and {missing[-1]}"
+    return f"{names} {'is' if len(missing) == 1 else 'are'} not a terminal"
 
 
 #: Characters the dashboard draws with: boxes, bars, the compass tape, arrows and units.
