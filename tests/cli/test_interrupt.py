@@ -294,6 +294,53 @@ def test_the_ctrl_c_key_quits_the_monitor_as_q_does(silent: SilentController) ->
         terminal.close()
 
 
+#: The monitor with a defect: its power keys fail once they have sent their frame.
+_FAILING_MONITOR = """\
+import sys
+
+from rovlink.cli import main
+from rovlink.monitor.app import MonitorApp
+
+power = MonitorApp.action_power
+
+
+async def failing_power(self: MonitorApp, step_percent: int) -> None:
+    await power(self, step_percent)
+    raise RuntimeError("a defect of the dashboard's")
+
+
+MonitorApp.action_power = failing_power
+sys.exit(main(sys.argv[1:]))
+"""
+
+
+def test_a_monitor_that_fails_stops_the_robot_and_exits_1(
+    silent: SilentController, tmp_path: Path
+) -> None:
+    # Before, an error inside the dashboard (textual shows it and ends the app) stopped the
+    # robot but ended the command with status 0, as if the pilot had quit.
+    script = tmp_path / "failing_monitor.py"
+    script.write_text(_FAILING_MONITOR, encoding="utf-8")
+    terminal = Terminal(
+        "monitor",
+        silent.url,
+        "--boot-timeout",
+        "0",
+        "--timeout",
+        "0.2",
+        script=script,
+        stderr_on_terminal=True,
+    )
+    try:
+        _drive_ahead_in_the_monitor(terminal, silent)  # (the up key fails)
+        assert terminal.process.wait(timeout=WAIT_S) == 1, terminal.shown
+        assert terminal.wait_shown(b"a defect of the dashboard's")
+        assert silent.wait_for(b"#stop!")
+        assert silent.received.rindex(b"#stop!") > silent.received.index(b"#th.0.")
+    finally:
+        terminal.close()
+
+
 def test_sigtstp_does_not_suspend_the_monitor(silent: SilentController) -> None:
     # Before, textual's handler stopped the process on SIGTSTP (a Ctrl-Z where the terminal's
     # signal keys are on, a `kill -TSTP`): the dashboard, its keys and its keep-alives stopped

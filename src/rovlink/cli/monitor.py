@@ -148,8 +148,10 @@ class _StrayRelay:
         self._early.clear()
 
 
-async def _connect_then_show(args: argparse.Namespace) -> bool:
-    """Run the dashboard; whether leaving found the link lost, unlocked: ``#stop!`` unsent."""
+async def _connect_then_show(args: argparse.Namespace) -> int:
+    """Run the dashboard; the exit status: 1 if leaving found the link lost, unlocked (the
+    ``#stop!`` unsent, said here), or if the dashboard failed (textual has shown the error; the
+    link's worker, cancelled, stopped the robot), else 0."""
     from rovlink.cli.async_run import StopOnTermination  # noqa: PLC0415 - as run_async
 
     # The port is opened first, as by every other command: one that is busy or missing is one
@@ -187,7 +189,7 @@ async def _connect_then_show(args: argparse.Namespace) -> bool:
         finally:
             if not client.closed:
                 await client.close()
-    return app.stop_unsent is not None
+    return 1 if app.stop_unsent is not None or app.return_code else 0
 
 
 def run(args: argparse.Namespace) -> int:
@@ -195,10 +197,9 @@ def run(args: argparse.Namespace) -> int:
     from rovlink.cli.async_run import run_async  # noqa: PLC0415 - not on the path of --help
 
     try:
-        stop_unsent = run_async(_connect_then_show(args))
+        # (1 after q with the link lost, unlocked, or a failure: the status tells a script.)
+        return run_async(_connect_then_show(args))
     except OSError as error:
         if error.errno != errno.EIO:
             raise
         raise KeyboardInterrupt from None  # its terminal hung up: ended as by Ctrl-C
-    # Left with q while the link was lost, unlocked: said on stderr; the status tells a script.
-    return 1 if stop_unsent else 0
