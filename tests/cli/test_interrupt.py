@@ -368,6 +368,35 @@ def test_sigtstp_does_not_suspend_the_monitor(silent: SilentController) -> None:
         terminal.close()
 
 
+def test_ctrl_z_does_not_suspend_send_that_has_moved_the_robot(silent: SilentController) -> None:
+    # Before, Ctrl-Z stopped `send` while it waited for a reply after a motion command: the
+    # robot went on with it unattended, and the #stop! that ends such a line never came.
+    terminal = Terminal(
+        "send",
+        silent.url,
+        "start",
+        "th 0 30",
+        "qd",
+        "--boot-timeout",
+        "0",
+        "--timeout",
+        "60",
+        job_control=True,
+        stderr_on_terminal=True,
+    )
+    try:
+        assert silent.wait_for(b"#qd!")  # moving, waiting for the reply
+        terminal.type("\x1a")  # (its terminal is in cooked mode: SIGTSTP to its group)
+        assert terminal.wait_until(lambda shown: b"does not suspend" in shown or b"job" in shown)
+        assert b"[job ended" not in terminal.shown
+        terminal.type("\x03")  # still running: Ctrl-C ends it, with #stop!
+        assert terminal.wait_shown(b"[job ended: 130]")
+        assert silent.wait_for(b"#stop!")
+        assert silent.received.rindex(b"#stop!") > silent.received.index(b"#th.0.30!")
+    finally:
+        terminal.close()
+
+
 def test_ctrl_z_does_not_suspend_the_demo(answering: DepthAnsweringController) -> None:
     # Before, Ctrl-Z stopped the demo mid-dive: the robot went on unattended with what it was
     # last sent, and back in the foreground the dive called each step done though the

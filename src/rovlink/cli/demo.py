@@ -17,7 +17,13 @@ from typing import TYPE_CHECKING, cast
 
 from rovlink.cli import link_options
 from rovlink.cli.failure import CommandError
-from rovlink.cli.interrupt import GatedClient, run_in_worker, say_stopped, send_stop
+from rovlink.cli.interrupt import (
+    GatedClient,
+    run_in_worker,
+    say_stopped,
+    send_stop,
+    suspension_refused_by,
+)
 from rovlink.protocol import lookup
 
 if TYPE_CHECKING:
@@ -32,12 +38,6 @@ EPILOG = """\
 examples:
   rovlink demo                         on the simulator
   rovlink demo /dev/ttyUSB0 --checksum --depth 50 --hold 10"""
-
-#: What SIGTSTP (Ctrl-Z, ``kill -TSTP``) does during the dive.
-NO_SUSPEND_TEXT = (
-    "Ctrl-Z does not suspend the demo (the robot would go on unattended): Ctrl-C stops the robot"
-    " and ends the dive"
-)
 
 _POLL_INTERVAL_S = 0.2
 _SETTLED_READINGS = 3  # consecutive readings within tolerance that count as "there"
@@ -364,18 +364,11 @@ def _take_down(live: Live) -> None:
         live.stop()
 
 
-def _say_not_suspended() -> None:
-    """Said on a SIGTSTP, above the live table (it takes what goes to stderr meanwhile)."""
-    with contextlib.suppress(OSError):  # (a terminal that hung up)
-        print(f"rovlink demo: {NO_SUSPEND_TEXT}", file=sys.stderr)
-
-
 def run(args: argparse.Namespace) -> int:
     """Run the dive with a live table; exit status 1 unless every step was done."""
     from rich.live import Live  # noqa: PLC0415
 
     from rovlink.cli.rich_console import TableConsole  # noqa: PLC0415
-    from rovlink.piloting.no_suspend import suspension_refused  # noqa: PLC0415
 
     plan = DivePlan(
         depth_cm=args.depth_cm,
@@ -389,10 +382,11 @@ def run(args: argparse.Namespace) -> int:
     console = TableConsole()
     # A suspended demo could not stop the robot: the leg it was on would go on unattended
     # (or until the controller's watchdog), and back in the foreground the dive would carry on
-    # and call each step done after the watchdog had locked the motors.
+    # and call each step done after the watchdog had locked the motors. (Said above the live
+    # table, which takes what goes to stderr meanwhile.)
     with (
         link_options.closing_unless_interrupted(rov),
-        suspension_refused(_say_not_suspended),
+        suspension_refused_by("rovlink demo"),
         Live(console=console, refresh_per_second=8) as live,
     ):
 
