@@ -1,6 +1,6 @@
-"""SIGTSTP, however it comes, never suspends a piloting tool (the console, the monitor, the
-demo's scripted dive): a stopped tool could not stop the robot, and what it last sent (thrust)
-would go on unattended.
+"""SIGTSTP, however it comes, never suspends a piloting tool (the console, the monitor) or a
+command that drives the robot (``demo``, ``send``): a stopped tool could not stop the robot,
+and what it last sent (thrust) would go on unattended.
 
 In the console, while a prompt reads keys the terminal is in raw mode and Ctrl-Z is a key (bound
 to say so). Between one prompt and the next, for the moment a submitted line takes to be handed
