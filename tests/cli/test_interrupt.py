@@ -265,11 +265,13 @@ def _drive_ahead_in_the_monitor(terminal: Terminal, silent: SilentController) ->
 
 @pytest.mark.parametrize("how", ENDING_SIGNALS, ids=lambda how: how.name)
 def test_a_signal_ends_the_monitor_with_stop(silent: SilentController, how: signal.Signals) -> None:
-    terminal = Terminal("monitor", silent.url, "--boot-timeout", "0", "--timeout", "0.2")
+    terminal = Terminal(
+        "monitor", silent.url, "--boot-timeout", "0", "--timeout", "0.2", stderr_on_terminal=True
+    )
     try:
         _drive_ahead_in_the_monitor(terminal, silent)
-        _, stderr = _interrupt(terminal.process, how)
-        assert terminal.process.returncode == 130, stderr  # (before: 0, as after `q`)
+        _interrupt(terminal.process, how)
+        assert terminal.process.returncode == 130, terminal.shown  # (before: 0, as after `q`)
         assert silent.wait_for(b"#stop!")
         assert silent.received.rindex(b"#stop!") > silent.received.index(b"#th.0.")
     finally:
@@ -279,12 +281,60 @@ def test_a_signal_ends_the_monitor_with_stop(silent: SilentController, how: sign
 def test_the_ctrl_c_key_quits_the_monitor_as_q_does(silent: SilentController) -> None:
     # In the dashboard's raw terminal Ctrl-C is a key, not SIGINT: #stop! then status 0, as
     # after q (a SIGINT ends it with 130: above). docs/tools.md says so.
-    terminal = Terminal("monitor", silent.url, "--boot-timeout", "0", "--timeout", "0.2")
+    terminal = Terminal(
+        "monitor", silent.url, "--boot-timeout", "0", "--timeout", "0.2", stderr_on_terminal=True
+    )
     try:
         _drive_ahead_in_the_monitor(terminal, silent)
         terminal.type("\x03")
-        _, stderr = terminal.process.communicate(timeout=WAIT_S)
-        assert terminal.process.returncode == 0, stderr
+        assert terminal.process.wait(timeout=WAIT_S) == 0, terminal.shown
+        assert silent.wait_for(b"#stop!")
+        assert silent.received.rindex(b"#stop!") > silent.received.index(b"#th.0.")
+    finally:
+        terminal.close()
+
+
+#: The monitor with a defect: its power keys fail once they have sent their frame.
+_FAILING_MONITOR = """\
+import sys
+
+from rovlink.cli import main
+from rovlink.monitor.app import MonitorApp
+
+power = MonitorApp.action_power
+
+
+async def failing_power(self: MonitorApp, step_percent: int) -> None:
+    await power(self, step_percent)
+    raise RuntimeError("a defect of the dashboard's")
+
+
+MonitorApp.action_power = failing_power
+sys.exit(main(sys.argv[1:]))
+"""
+
+
+def test_a_monitor_that_fails_stops_the_robot_and_exits_1(
+    silent: SilentController, tmp_path: Path
+) -> None:
+    # Before, an error inside the dashboard (textual shows it and ends the app) stopped the
+    # robot but ended the command with status 0, as if the pilot had quit.
+    script = tmp_path / "failing_monitor.py"
+    script.write_text(_FAILING_MONITOR, encoding="utf-8")
+    terminal = Terminal(
+        "monitor",
+        silent.url,
+        "--boot-timeout",
+        "0",
+        "--timeout",
+        "0.2",
+        script=script,
+        stderr_on_terminal=True,
+    )
+    try:
+        _drive_ahead_in_the_monitor(terminal, silent)  # (the up key fails)
+        assert terminal.process.wait(timeout=WAIT_S) == 1, terminal.shown
+        assert terminal.wait_shown(b"a defect of the dashboard's")
         assert silent.wait_for(b"#stop!")
         assert silent.received.rindex(b"#stop!") > silent.received.index(b"#th.0.")
     finally:
@@ -314,6 +364,62 @@ def test_sigtstp_does_not_suspend_the_monitor(silent: SilentController) -> None:
         terminal.type("q")  # still at the helm
         assert terminal.process.wait(timeout=WAIT_S) == 0
         assert silent.received.rindex(b"#stop!") > silent.received.index(b"#th.0.")
+    finally:
+        terminal.close()
+
+
+def test_ctrl_z_does_not_suspend_send_that_has_moved_the_robot(silent: SilentController) -> None:
+    # Before, Ctrl-Z stopped `send` while it waited for a reply after a motion command: the
+    # robot went on with it unattended, and the #stop! that ends such a line never came.
+    terminal = Terminal(
+        "send",
+        silent.url,
+        "start",
+        "th 0 30",
+        "qd",
+        "--boot-timeout",
+        "0",
+        "--timeout",
+        "60",
+        job_control=True,
+        stderr_on_terminal=True,
+    )
+    try:
+        assert silent.wait_for(b"#qd!")  # moving, waiting for the reply
+        terminal.type("\x1a")  # (its terminal is in cooked mode: SIGTSTP to its group)
+        assert terminal.wait_until(lambda shown: b"does not suspend" in shown or b"job" in shown)
+        assert b"[job ended" not in terminal.shown
+        terminal.type("\x03")  # still running: Ctrl-C ends it, with #stop!
+        assert terminal.wait_shown(b"[job ended: 130]")
+        assert silent.wait_for(b"#stop!")
+        assert silent.received.rindex(b"#stop!") > silent.received.index(b"#th.0.30!")
+    finally:
+        terminal.close()
+
+
+def test_ctrl_z_does_not_suspend_the_demo(answering: DepthAnsweringController) -> None:
+    # Before, Ctrl-Z stopped the demo mid-dive: the robot went on unattended with what it was
+    # last sent, and back in the foreground the dive called each step done though the
+    # controller's watchdog had locked the motors meanwhile.
+    terminal = Terminal(
+        "demo",
+        answering.url,
+        "--boot-timeout",
+        "0",
+        "--timeout",
+        "60",
+        job_control=True,
+        stderr_on_terminal=True,
+    )
+    try:
+        assert answering.wait_for(b"#qsa!")  # unlocked, diving, polling the sensors
+        terminal.type("\x1a")  # (its terminal is in cooked mode: SIGTSTP to the demo's group)
+        assert terminal.wait_until(lambda shown: b"does not suspend" in shown or b"job" in shown)
+        assert b"[job ended" not in terminal.shown
+        terminal.type("\x03")  # still running: Ctrl-C ends it, with #stop!
+        assert terminal.wait_shown(b"[job ended: 130]")
+        assert answering.wait_for(b"#stop!")
+        assert answering.received.rindex(b"#stop!") > answering.received.index(b"#mvd.")
     finally:
         terminal.close()
 

@@ -44,8 +44,9 @@ def test_the_monitor_without_a_terminal_is_refused_before_the_link_opens(
     assert result.status == 2
     assert result.out == ""
     assert result.err == (
-        "rovlink monitor: needs a terminal for its dashboard and keys, but standard input and "
-        "standard output are not a terminal; without one, read the sensors with "
+        "rovlink monitor: needs a terminal for its dashboard and keys, but standard input, "
+        "standard output and standard error are not a terminal; without one, read the sensors "
+        "with "
         "'rovlink send URL qsa', or record the link with 'rovlink record URL -o FILE'\n"
     )
     assert not recording.exists()
@@ -54,8 +55,24 @@ def test_the_monitor_without_a_terminal_is_refused_before_the_link_opens(
 def test_the_monitor_names_the_stream_that_is_not_a_terminal(run_cli: RunCli) -> None:
     result = run_cli("monitor", "sim://", tty=True)  # keys could come, but the output is a file
     assert result.status == 2
-    assert "but standard output is not a terminal;" in result.err
+    assert "but standard output and standard error are not a terminal;" in result.err
     assert "standard input" not in result.err
+
+
+def test_the_monitor_with_its_standard_error_elsewhere_is_refused() -> None:
+    # Before, with its keys and output on the terminal but standard error sent elsewhere
+    # (2>monitor.log, 2>/dev/null), the dashboard (which textual draws on standard error) went
+    # into the file: the screen stayed blank while the keys unlocked and drove the robot.
+    with _listener() as server:
+        url = f"socket://127.0.0.1:{server.getsockname()[1]}"
+        terminal = Terminal("monitor", url)  # (its standard error a pipe)
+        try:
+            _, stderr = terminal.process.communicate(timeout=WAIT_S)
+            assert not _connected(server)
+        finally:
+            terminal.close()
+    assert terminal.process.returncode == 2
+    assert "but standard error is not a terminal;" in stderr.decode()
 
 
 def test_a_malformed_url_is_still_said_first(run_cli: RunCli) -> None:
@@ -87,13 +104,13 @@ def test_on_a_terminal_whose_encoding_cannot_draw_it_the_monitor_is_refused() ->
     # Before, in a locale that is not UTF-8 every box and arrow of the dashboard came out as an
     # escape ("\\u256d\\u2500 depth, cm \\u2500…"), over the whole screen.
     ascii_locale = {"LC_ALL": "C", "PYTHONCOERCECLOCALE": "0", "PYTHONUTF8": "0"}
-    terminal = Terminal("monitor", "sim://", env=ascii_locale)
+    terminal = Terminal("monitor", "sim://", env=ascii_locale, stderr_on_terminal=True)
     try:
-        _, stderr = terminal.process.communicate(timeout=WAIT_S)
-        assert terminal.process.returncode == 2
-        assert stderr.decode() == (
-            "rovlink monitor: the terminal's encoding, ascii, cannot show the dashboard's boxes "
-            "and arrows; run it in a UTF-8 locale, e.g. LC_ALL=C.UTF-8\n"
+        assert terminal.process.wait(timeout=WAIT_S) == 2
+        assert terminal.wait_shown(b"LC_ALL=C.UTF-8\r\n")
+        assert bytes(terminal.shown) == (
+            b"rovlink monitor: the terminal's encoding, ascii, cannot show the dashboard's boxes "
+            b"and arrows; run it in a UTF-8 locale, e.g. LC_ALL=C.UTF-8\r\n"
         )
         assert b"\\u25" not in terminal.shown
     finally:

@@ -88,18 +88,24 @@ def test_the_monitor_whose_recording_fails_fails_naming_the_file_and_stops_the_r
 ) -> None:
     # Before: status 0 when the pilot quit, the failure seen only as a passing warning.
     terminal = Terminal(
-        "monitor", controller.url, "--boot-timeout", "0", "--record", str(full_disk), "--overwrite"
+        "monitor",
+        controller.url,
+        "--boot-timeout",
+        "0",
+        "--record",
+        str(full_disk),
+        "--overwrite",
+        stderr_on_terminal=True,
     )
+    failure = f"rovlink monitor: recording to {full_disk} stopped: No space left on device\r\n"
     try:
         assert wait_until(lambda: "#qsa!" in _frames(controller), timeout_s=WAIT_S)
         terminal.type("s")  # start: the robot may move now
         assert wait_until(lambda: "#start!" in _frames(controller), timeout_s=WAIT_S)
         terminal.type("q")
-        _, stderr = terminal.process.communicate(timeout=WAIT_S)
+        assert terminal.process.wait(timeout=WAIT_S) == 1
+        assert terminal.wait_shown(failure.encode())
+        assert terminal.shown.endswith(failure.encode())
     finally:
         terminal.close()
-    assert terminal.process.returncode == 1
-    assert stderr.decode().endswith(
-        f"rovlink monitor: recording to {full_disk} stopped: No space left on device\n"
-    )
     assert wait_until(lambda: controller.fakes[0].frames()[-1:] == ["#stop!"])

@@ -17,7 +17,13 @@ from typing import TYPE_CHECKING, cast
 
 from rovlink.cli import link_options
 from rovlink.cli.failure import CommandError
-from rovlink.cli.interrupt import GatedClient, run_in_worker, say_stopped, send_stop
+from rovlink.cli.interrupt import (
+    GatedClient,
+    run_in_worker,
+    say_stopped,
+    send_stop,
+    suspension_refused_by,
+)
 from rovlink.protocol import lookup
 
 if TYPE_CHECKING:
@@ -374,8 +380,13 @@ def run(args: argparse.Namespace) -> int:
     rov = link_options.connect(args, keepalive_s=1.0)
     gate = GatedClient(rov)
     console = TableConsole()
+    # A suspended demo could not stop the robot: the leg it was on would go on unattended
+    # (or until the controller's watchdog), and back in the foreground the dive would carry on
+    # and call each step done after the watchdog had locked the motors. (Said above the live
+    # table, which takes what goes to stderr meanwhile.)
     with (
         link_options.closing_unless_interrupted(rov),
+        suspension_refused_by("rovlink demo"),
         Live(console=console, refresh_per_second=8) as live,
     ):
 

@@ -33,6 +33,7 @@ __all__ = [
     "say_ready",
     "say_stopped",
     "send_stop",
+    "suspension_refused_by",
 ]
 
 T = TypeVar("T")
@@ -109,6 +110,23 @@ def send_stop(client: Any) -> str:
     except (ClientError, ConnectionError, TimeoutError) as error:
         return f"could not send #stop!: {error}"
     return "sent #stop!"
+
+
+def suspension_refused_by(program: str) -> contextlib.AbstractContextManager[None]:
+    """While in effect, SIGTSTP (Ctrl-Z, ``kill -TSTP``) does not suspend ``program``, a command
+    that drives the robot: suspended, it could not stop it, and what it last sent would go on
+    unattended (until the controller's watchdog, if it has one). Said on stderr instead."""
+    from rovlink.piloting.no_suspend import suspension_refused  # noqa: PLC0415 - asyncio
+
+    def say() -> None:
+        with contextlib.suppress(OSError):  # (a terminal that hung up)
+            print(
+                f"{program}: Ctrl-Z does not suspend it (the robot would go on unattended): "
+                "Ctrl-C stops the robot and ends it",
+                file=sys.stderr,
+            )
+
+    return suspension_refused(say)
 
 
 def say_stopped(program: str, outcome: str, why: str = "") -> None:

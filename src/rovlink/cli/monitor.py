@@ -72,20 +72,25 @@ def _monitor_app_class() -> type[MonitorApp]:
 
 
 def missing_terminal() -> str | None:
-    """What the dashboard lacks to run, or ``None``: it draws on standard output and reads
-    its keys (space, the stop, among them) from standard input, both a terminal.
+    """What the dashboard lacks to run, or ``None``: standard input, output and error all a
+    terminal. It reads its keys (space, the stop, among them) from standard input, and textual
+    draws it on standard error.
 
-    Without one (run from a script, its output to a file) it would write escape sequences
-    until killed, and no key, not even the stop, could reach it.
+    Without a terminal (run from a script, its output to a file) it would write escape
+    sequences until killed, and no key, not even the stop, could reach it. With standard error
+    alone sent elsewhere (``2>monitor.log``, ``2>/dev/null``) the keys drove the robot from a
+    blank screen, the dashboard drawn into the file.
     """
-    missing = [
-        name
-        for name, stream in (("standard input", sys.stdin), ("standard output", sys.stdout))
-        if not is_terminal(stream)
-    ]
+    streams = (
+        ("standard input", sys.stdin),
+        ("standard output", sys.stdout),
+        ("standard error", sys.stderr),
+    )
+    missing = [name for name, stream in streams if not is_terminal(stream)]
     if not missing:
         return None
-    return f"{' and '.join(missing)} {'is' if len(missing) == 1 else 'are'} not a terminal"
+    names = missing[0] if len(missing) == 1 else f"{', '.join(missing[:-1])} and {missing[-1]}"
+    return f"{names} {'is' if len(missing) == 1 else 'are'} not a terminal"
 
 
 #: Characters the dashboard draws with: boxes, bars, the compass tape, arrows and units.
@@ -143,8 +148,10 @@ class _StrayRelay:
         self._early.clear()
 
 
-async def _connect_then_show(args: argparse.Namespace) -> bool:
-    """Run the dashboard; whether leaving found the link lost, unlocked: ``#stop!`` unsent."""
+async def _connect_then_show(args: argparse.Namespace) -> int:
+    """Run the dashboard; the exit status: 1 if leaving found the link lost, unlocked (the
+    ``#stop!`` unsent, said here), or if the dashboard failed (textual has shown the error; the
+    link's worker, cancelled, stopped the robot), else 0."""
     from rovlink.cli.async_run import StopOnTermination  # noqa: PLC0415 - as run_async
 
     # The port is opened first, as by every other command: one that is busy or missing is one
@@ -182,7 +189,7 @@ async def _connect_then_show(args: argparse.Namespace) -> bool:
         finally:
             if not client.closed:
                 await client.close()
-    return app.stop_unsent is not None
+    return 1 if app.stop_unsent is not None or app.return_code else 0
 
 
 def run(args: argparse.Namespace) -> int:
@@ -190,10 +197,9 @@ def run(args: argparse.Namespace) -> int:
     from rovlink.cli.async_run import run_async  # noqa: PLC0415 - not on the path of --help
 
     try:
-        stop_unsent = run_async(_connect_then_show(args))
+        # (1 after q with the link lost, unlocked, or a failure: the status tells a script.)
+        return run_async(_connect_then_show(args))
     except OSError as error:
         if error.errno != errno.EIO:
             raise
         raise KeyboardInterrupt from None  # its terminal hung up: ended as by Ctrl-C
-    # Left with q while the link was lost, unlocked: said on stderr; the status tells a script.
-    return 1 if stop_unsent else 0

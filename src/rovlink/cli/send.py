@@ -13,6 +13,7 @@ as the link closes.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import re
 import sys
@@ -22,7 +23,14 @@ from typing import TYPE_CHECKING, cast
 
 from rovlink.cli import link_options
 from rovlink.cli.failure import CommandError, UsageError
-from rovlink.cli.interrupt import GatedClient, may_move, run_in_worker, say_stopped, send_stop
+from rovlink.cli.interrupt import (
+    GatedClient,
+    may_move,
+    run_in_worker,
+    say_stopped,
+    send_stop,
+    suspension_refused_by,
+)
 from rovlink.protocol import (
     Command,
     Decoder,
@@ -317,11 +325,14 @@ def run(args: argparse.Namespace) -> int:
             checksum = args.algorithm if client.checksum_enabled else None
             _show(sent, replies, checksum, as_json=args.as_json)
 
-    with link_options.closing_unless_interrupted(client):
+    moves = any(may_move(item.command) for item in outgoing)
+    # (A line that may move the robot is not suspended: see suspension_refused_by.)
+    refusing = suspension_refused_by("rovlink send") if moves else contextlib.nullcontext()
+    with link_options.closing_unless_interrupted(client), refusing:
         try:
             run_in_worker(send_all)
         except KeyboardInterrupt:
-            if any(may_move(item.command) for item in outgoing):
+            if moves:
                 say_stopped("rovlink send", gate.stop_for_good())
             raise
         except Exception as error:  # a failed command, a lost link, a closed output (| head)
