@@ -251,11 +251,12 @@ def test_a_late_reply_is_named_and_kept_out_of_the_next_check() -> None:
 
 
 def test_the_debug_lines_of_a_controller_150_ms_away_stay_out_of_the_next_check() -> None:
-    # The runner puts the controller back (debug off) between checks, and the next check
+    # The runner puts the controller back (debug off) between checks, and start-stop-silent
     # fails on any byte. Before, that restore waited for a fixed 100 ms of quiet: the lines a
-    # controller 150 ms away wrote for its #stop! and #debug0! came after it, and a correct
-    # controller failed start-stop-silent ("with debug off nothing at all"). The restore now
-    # waits for the reply to a #qd! sent after it (P20's fence).
+    # controller 150 ms away wrote for its #stop! and #debug0! came after it, and in a run that
+    # put start-stop-silent after a debug check, a correct controller failed it ("with debug
+    # off nothing at all"). The restore now waits for the reply to a #qd! sent after it (P20's
+    # fence). (The suite's own order puts no such check after a debug one.)
     link = PortLink(FaultyController(NO_FAULT, late_s=0.15), "150 ms away")
     options = SuiteOptions(silence_s=0.3)  # (the checks' own silences allow for the distance)
     checks = select_checks(["debug-text-clean"]) + select_checks(["start-stop-silent"])
