@@ -172,3 +172,46 @@ async def test_async_client_through_pyserials_own_handler(tcp_fake: _TcpFake) ->
     async with rovlink.aio.connect(url, keepalive=None, timeout=REPLY_TIMEOUT_S) as rov:
         assert await rov.heading_deg() == 275
         assert await rov.roll_deg() == -1
+
+
+class _TimedPort:
+    """A pyserial-like port that notes the timeout each read is made with (none comes)."""
+
+    def __init__(self, *, timeout_is_free: bool) -> None:
+        if timeout_is_free:
+            self.timeout_is_free = True
+        self.timeout: float | None = None
+        self.is_open = True
+        self.in_waiting = 0
+        self.read_timeouts: list[float | None] = []
+
+    def read(self, size: int = 1) -> bytes:
+        self.read_timeouts.append(self.timeout)
+        return b""
+
+    def write(self, data: bytes) -> int:
+        return len(data)
+
+    def close(self) -> None:
+        self.is_open = False
+
+
+def test_a_port_whose_timeout_is_free_is_read_for_the_time_asked_up_to_the_poll() -> None:
+    # The simulator's port: before, every read waited the full 50 ms poll, so a 20 ms wait of
+    # `rovlink check` took 50 ms and a run on the simulator 5 s longer than on a PTY.
+    free = _TimedPort(timeout_is_free=True)
+    link = PortLink(free, "free")
+    for asked_s in (0.02, 5.0, 0.0, -1.0):
+        assert link.read_available(asked_s) == b""
+    assert free.read_timeouts == [0.02, 0.05, 0.001, 0.001]
+    # A real port is reconfigured by a new timeout: read at the fixed poll, whatever is asked.
+    fixed = _TimedPort(timeout_is_free=False)
+    link = PortLink(fixed, "fixed")
+    link.read_available(0.02)
+    assert fixed.read_timeouts == [0.05]
+
+
+def test_the_simulators_port_says_its_timeout_is_free() -> None:
+    from rovlink.sim.port import SimulatedPort
+
+    assert SimulatedPort.timeout_is_free is True

@@ -250,6 +250,107 @@ def test_a_late_reply_is_named_and_kept_out_of_the_next_check() -> None:
         assert "P19 allows 5 ms" in result.message
 
 
+def test_the_debug_lines_of_a_controller_150_ms_away_stay_out_of_the_next_check() -> None:
+    # The runner puts the controller back (debug off) between checks, and start-stop-silent
+    # fails on any byte. Before, that restore waited for a fixed 100 ms of quiet: the lines a
+    # controller 150 ms away wrote for its #stop! and #debug0! came after it, and in a run that
+    # put start-stop-silent after a debug check, a correct controller failed it ("with debug
+    # off nothing at all"). The restore now waits for the reply to a #qd! sent after it (P20's
+    # fence). (The suite's own order puts no such check after a debug one.)
+    link = PortLink(FaultyController(NO_FAULT, late_s=0.15), "150 ms away")
+    options = SuiteOptions(silence_s=0.3)  # (the checks' own silences allow for the distance)
+    checks = select_checks(["debug-text-clean"]) + select_checks(["start-stop-silent"])
+    try:
+        report = run_checks(link, "far", options, checks)
+    finally:
+        link.close()
+    assert [(result.name, result.outcome, result.message) for result in report.results] == [
+        ("debug-text-clean", Outcome.PASSED, ""),
+        ("start-stop-silent", Outcome.PASSED, ""),
+    ]
+
+
+def test_the_restore_waits_for_its_fence_as_long_as_for_a_late_reply() -> None:
+    # A controller 0.5 s away, checked with --timeout 0.6: the restore's fence is answered
+    # after 0.5 s, which it waits for (three reply timeouts), so the $qd does not land in the
+    # next check as an answer to a setting.
+    link = PortLink(FaultyController(NO_FAULT, late_s=0.5), "0.5 s away")
+    options = SuiteOptions(reply_timeout_s=0.6, silence_s=0.2)
+    try:
+        report = run_checks(link, "far", options, select_checks(["set-mgmp", "set-sdk"]))
+    finally:
+        link.close()
+    assert [(result.outcome, result.message) for result in report.results] == [
+        (Outcome.PASSED, ""),
+        (Outcome.PASSED, ""),
+    ]
+
+
+def test_the_checks_that_set_a_calibration_wait_for_a_distant_controller_to_take_it() -> None:
+    # They wait for the reply to a #qd! sent after the settings (not for a silence), and that
+    # reply, 200 ms late, must be read there, not taken for a reply to the depth query. (A
+    # silence of 50 ms: a wait that ended on it would leave the reply to the next exchange.)
+    link = PortLink(FaultyController(NO_FAULT, late_s=0.2), "200 ms away")
+    names = [
+        "calibration-range-ends-taken",
+        "calibration-out-of-range-not-clamped",
+        "overlong-frame-dropped",
+        "longest-frame-accepted",
+    ]
+    options = SuiteOptions(reply_timeout_s=0.3, silence_s=0.05)
+    try:
+        report = run_checks(link, "far", options, select_checks(names))
+    finally:
+        link.close()
+    assert len(report.results) == len(names)
+    assert [(result.name, result.message) for result in report.failures] == []
+
+
+class _WriteLog:
+    """A link that keeps every write, in order."""
+
+    def __init__(self, link: PortLink) -> None:
+        self.description = link.description
+        self._link = link
+        self.writes: list[bytes] = []
+
+    def read_available(self, timeout_s: float) -> bytes:
+        return self._link.read_available(timeout_s)
+
+    def write(self, data: bytes) -> None:
+        self.writes.append(data)
+        self._link.write(data)
+
+    def wake(self) -> None:
+        self._link.wake()
+
+    def close(self) -> None:
+        self._link.close()
+
+
+def test_the_set_checks_send_each_command_with_the_motors_locked() -> None:
+    # The set- checks no longer send a #stop! of their own: the runner's restore before each
+    # check sends one, and nothing unlocks between it and the command checked.
+    link = _WriteLog(PortLink(FaultyController(NO_FAULT), "locked"))
+    try:
+        report = run_checks(link, "locked", SuiteOptions(), select_checks(["set-"]))
+    finally:
+        link.close()
+    assert report.passed
+    locked = False
+    checked = 0
+    for data in link.writes:
+        for frame in re.findall(rb"#[^#!]*!", data):
+            if frame in (b"#stop!", b"#crcoff!"):
+                locked = locked or frame == b"#stop!"
+            elif frame == b"#start!":
+                locked = False
+            elif frame.startswith((b"#th.", b"#mvs.", b"#mvd.", b"#h+", b"#h-")):
+                assert locked, f"{frame!r} was sent unlocked"
+                checked += 1
+    assert checked >= 5
+
+
 def test_the_raw_reading_the_frame_length_checks_start_from_is_asked_as_any_query() -> None:
     # Before, these checks read "no $qr reply", whatever came: a late $qr (then left to land in
     # the next exchange, "an over-long #sdz, but the controller answered $qr…") or another

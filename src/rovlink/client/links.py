@@ -47,6 +47,8 @@ POLL_INTERVAL_S = 0.05
 #: The most line time a client lets queue ahead of a frame it sends other than ``#stop!``, s:
 #: what a ``#stop!`` may wait behind (see :meth:`SerialFdLink.queued_s`).
 MAX_QUEUED_LINE_S = 0.02
+#: The shortest wait of a read on a port whose timeout is free to set, s (no busy loop).
+_MIN_READ_S = 0.001
 #: A write that cannot make progress for this long means the link is dead.
 WRITE_TIMEOUT_S = 2.0
 CONNECT_TIMEOUT_S = 5.0
@@ -465,6 +467,10 @@ class PortLink:
         #: asyncio client then writes from a thread of its own. A port whose writes never wait
         #: (an in-process one, such as the simulator's) says so with ``writes_may_wait = False``.
         self.writes_may_wait: bool = getattr(port, "writes_may_wait", True)
+        #: Whether setting the port's ``timeout`` costs nothing (no device to reconfigure, as
+        #: with the simulator's port, which says so with ``timeout_is_free = True``): each read
+        #: then waits its own time, up to :data:`POLL_INTERVAL_S`, not always that interval.
+        self._timeout_per_read: bool = getattr(port, "timeout_is_free", False)
         port.timeout = POLL_INTERVAL_S
         self._closed = False
         self._writes_aborted = False
@@ -480,13 +486,16 @@ class PortLink:
         return self._port
 
     def read_available(self, timeout_s: float) -> bytes:
-        """Wait up to :data:`POLL_INTERVAL_S` (not ``timeout_s``) for bytes; return all waiting.
+        """Wait up to :data:`POLL_INTERVAL_S` for bytes (up to ``timeout_s``, if shorter, on a
+        port whose timeout is free to set); return all waiting.
 
         Example::
 
             data = link.read_available(0.1)   # b"" if nothing came
         """
-        del timeout_s  # changing a pyserial timeout reconfigures the port: poll at a fixed rate
+        # (changing a pyserial timeout reconfigures the port: others poll at a fixed rate)
+        if self._timeout_per_read:
+            self._port.timeout = min(max(timeout_s, _MIN_READ_S), POLL_INTERVAL_S)
         if self._closed:
             raise ConnectionLostError(f"{self.description}: closed")
         try:

@@ -45,7 +45,7 @@ def _overlong(ctx: CheckContext) -> None:
     # A parser without the limit would take this #sdz (its value padded with leading zeros) and
     # move the depth zero above the raw reading: the depth would read 0.
     zero, k = 0, 100
-    ctx.tell(ctx.frame(Command("sdz", (zero,))) + ctx.frame(Command("sdk", (k,))))
+    ctx.settle(ctx.frame(Command("sdz", (zero,))) + ctx.frame(Command("sdk", (k,))))
     raw = first_value(ctx.expect_reply(ctx.frame(Command("qr")), ("qr",)), "qr")
     zero_arg = lookup("sdz").arguments[0]
     value = str(min(raw + 50, zero_arg.maximum)).encode()
@@ -63,7 +63,7 @@ def _overlong(ctx: CheckContext) -> None:
 )
 def _longest(ctx: CheckContext) -> None:
     zero, k = 0, 100
-    ctx.tell(ctx.frame(Command("sdz", (zero,))) + ctx.frame(Command("sdk", (k,))))
+    ctx.settle(ctx.frame(Command("sdz", (zero,))) + ctx.frame(Command("sdk", (k,))))
     raw = first_value(ctx.expect_reply(ctx.frame(Command("qr")), ("qr",)), "qr")
     # A zero above the raw reading makes the depth read 0, where the zero of 0 read raw.
     padded_zero = min(raw + 50, lookup("sdz").arguments[0].maximum)

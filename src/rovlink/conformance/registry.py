@@ -42,6 +42,13 @@ class CheckAbortedError(Exception):
 
 #: How a failure words a reply that did not come (the algorithm probe looks for it).
 NO_REPLY = "no reply within"
+#: What puts the controller back as after a reset, as far as a host can (every check starts so).
+_RESTORE = b"#crcoff!#stop!#debug0!#mvdirect.0!"
+#: The least time the restore waits for its fence's reply, s; it waits as long as a late reply
+#: is watched for (``LATE_WAIT_FACTOR`` reply timeouts) when that is longer.
+_RESTORE_WAIT_S = 0.3
+#: How long the line must then stay quiet before the next check, s.
+_RESTORE_QUIET_S = 0.05
 #: After a reply that did not come as expected, the line is watched this many reply timeouts
 #: longer for it: a late reply is named, and kept out of the next check.
 LATE_WAIT_FACTOR = 3
@@ -115,6 +122,20 @@ class CheckContext:
         self.exchanges.append(exchange)
         return exchange
 
+    def settle(self, data: bytes) -> Exchange:
+        """Send set-up ``data`` that must be answered by no frame, and wait until the
+        controller has taken it: the reply to a ``#qd!`` sent after it as a fence (P20). For
+        set-up whose silence is no part of what is checked (the set- checks check that); if
+        the fence is not answered, the silence is waited out as :meth:`tell` does."""
+        fence = self.frame(Command("qd"), checksum=self.wire.replies_checksummed)
+        exchange = self.wire.send(
+            data + fence, frames=1, timeout_s=self.options.reply_timeout_s, linger_s=0.02
+        )
+        self.exchanges.append(exchange)
+        if not _answered(exchange, "qd"):
+            self.tell(b"")
+        return exchange
+
     def expect_no_frames(self, data: bytes, why: str) -> Exchange:
         """Send ``data``; fail if any frame comes back, or with debug off anything at all: a
         controller writes nothing but replies then (P4, P5), so an ``OK`` or an error line a
@@ -180,13 +201,37 @@ class CheckContext:
                 )
         return ""
 
-    def restore(self) -> None:
+    def restore(self, limit_s: float | None = None) -> None:
         """Back to the state after reset as far as a host can: checksum and debug off, locked,
-        depth mode; whatever is still arriving is read and discarded."""
+        depth mode; whatever is still arriving is read and discarded.
+
+        A plain ``#qd!`` follows the frames as the fence of P20: what the controller says to
+        the frames before it comes before its ``$qd``, however far away the controller is (its
+        ``$qd`` is waited for as long as a late reply), and the line is then watched for
+        :data:`_RESTORE_QUIET_S` more. (A fixed quiet alone, 100 ms, let the debug lines of a
+        controller 150 ms away land in the next check, and cost every check 100 ms.) Without
+        that ``$qd`` (a controller that lost its way) the line is watched for twice that quiet.
+        ``limit_s``: wait for the ``$qd`` no longer than this (the preflight's boot time).
+        """
         wire = self.wire
-        wire.send(b"#crcoff!#stop!#debug0!#mvdirect.0!", timeout_s=0.3, linger_s=0.05)
-        wire.replies_checksummed = False
-        wire.drain(0.05)
+        wire.replies_checksummed = False  # (#crcoff! acts from the next frame: the fence, P3)
+        fence = self.frame(Command("qd"))
+        wait_s = max(_RESTORE_WAIT_S, LATE_WAIT_FACTOR * self.options.reply_timeout_s)
+        if limit_s is not None:
+            wait_s = min(wait_s, max(limit_s, 0.0))
+        exchange = wire.send(
+            _RESTORE + fence, frames=1, timeout_s=wait_s, linger_s=_RESTORE_QUIET_S
+        )
+        if not _answered(exchange, "qd"):
+            wire.drain(2 * _RESTORE_QUIET_S)
+
+
+def _answered(exchange: Exchange, name: str) -> bool:
+    """Whether a valid ``$name`` reply is among the frames of ``exchange``."""
+    return any(
+        isinstance(frame.message, Response) and frame.message.name == name
+        for frame in exchange.valid_frames
+    )
 
 
 def _name_of(frame: Frame | BadFrame) -> str:

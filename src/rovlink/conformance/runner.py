@@ -134,7 +134,7 @@ def _wait_for_answer(wire: Wire, options: SuiteOptions) -> tuple[int, ...]:
     attempts = 0
     while True:
         attempts += 1
-        context.restore()
+        context.restore(deadline - time.monotonic())
         # Longer than a check waits (a slow answer here is for the checks to report, and the
         # restore before the next attempt would read it and throw it away), but not past the
         # boot time unless a check's own wait is longer.

@@ -36,7 +36,7 @@ def _setter_check(spec: Spec) -> None:
     turns_debug_on = command == setting_command(Setting.DEBUG, True)
 
     def run(ctx: CheckContext) -> None:
-        ctx.tell(ctx.frame(Command("stop")))
+        # (the motors are locked: every check starts after the runner's #stop!)
         ctx.debug_on = turns_debug_on
         ctx.expect_no_frames(ctx.frame(command), f"{command} sets something: no reply (P4)")
         ctx.expect_reply(ctx.frame(Command("qd")), ("qd",), f"after {command}")
@@ -82,7 +82,7 @@ def _calibration(ctx: CheckContext) -> None:
     # controller that rounds is caught over the samples; the 1024 clamps at 0 and 9999.
     cases = ((0, 100), (max(raw - 5, 0), 175), (max(raw - 3, 0), 10000), (min(raw + 50, 1024), 500))
     for zero, k in cases:
-        ctx.tell(ctx.frame(Command("sdz", (zero,))) + ctx.frame(Command("sdk", (k,))))
+        ctx.settle(ctx.frame(Command("sdz", (zero,))) + ctx.frame(Command("sdk", (k,))))
         for _ in range(_SAMPLES):
             expect_depth(ctx, zero, k, "sdz and sdk take effect at once")
 
@@ -110,10 +110,10 @@ def _calibration_ends(ctx: CheckContext) -> None:
         ("sdz", zero_arg.maximum, k_arg.maximum),
         ("sdk", zero_arg.minimum, k_arg.minimum),
     ):
-        ctx.tell(deep)
+        ctx.settle(deep)
         value = zero if name == "sdz" else k
         argument = zero_arg if name == "sdz" else k_arg
-        ctx.tell(ctx.frame(Command(name, (value,))))
+        ctx.settle(ctx.frame(Command(name, (value,))))
         expect_depth(
             ctx,
             zero,
@@ -132,7 +132,7 @@ def _calibration_range(ctx: CheckContext) -> None:
     zero_arg = lookup("sdz").arguments[0]
     k_arg = lookup("sdk").arguments[0]
     zero, k = 0, 100
-    ctx.tell(ctx.frame(Command("sdz", (zero,))) + ctx.frame(Command("sdk", (k,))))
+    ctx.settle(ctx.frame(Command("sdz", (zero,))) + ctx.frame(Command("sdk", (k,))))
     too_big = f"#sdz.{zero_arg.maximum + 1}!#sdk.{k_arg.maximum + 1}!".encode()
     ctx.expect_no_frames(too_big, "out-of-range settings are dropped")
     expect_depth(ctx, zero, k, "after out-of-range #sdz! and #sdk!")

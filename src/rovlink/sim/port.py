@@ -46,6 +46,9 @@ class SimulatedPort:
     #: A write never waits: the controller takes the bytes at once (the host driver's asyncio
     #: client writes it in its event loop's thread).
     writes_may_wait = False
+    #: Setting :attr:`timeout` costs nothing (no device to reconfigure): a link may set it
+    #: before each read, so that a read waits its own time.
+    timeout_is_free = True
 
     def __init__(
         self,
