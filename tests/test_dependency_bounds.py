@@ -59,7 +59,7 @@ def _lower_bounds() -> dict[str, Version]:
 
 @pytest.mark.parametrize("library", sorted(OLDEST_WORKING))
 def test_no_extra_admits_a_release_the_code_fails_with(library: str) -> None:
-    # Before: mcap>=1.2 (a recording failed after its first second), textual>=0.80 (the monitor
+    # Before: mcap>=1.2 (a recording failed within its first second), textual>=0.80 (the monitor
     # refused its own style sheet), uvicorn>=0.30 (rovlink web: a KeyError traceback at start;
     # to 0.52.0, a pilot's page that stopped reading was never closed and kept control),
     # pymavlink>=2.4.40 (a ground station's AUTOPILOT_VERSION request: no reply, no ack),
