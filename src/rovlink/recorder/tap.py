@@ -48,6 +48,9 @@ BUSY_MESSAGE = b"busy: the recording tap already has a program\r\n"
 #: either checksum mode (P3).
 STOP_FRAME = b"#stop!"
 _BACKLOG = 8
+#: How long a connection waits for the tap to finish with a program that has already hung up
+#: (its last bytes forwarded, its ``#stop!`` sent) before it is told the tap is busy, s.
+_HUNG_UP_GRACE_S = 1.0
 
 
 class Record(Protocol):
@@ -223,7 +226,9 @@ class TcpEndpoint:
 
     A thread of its own accepts every connection as it comes: the first waits for
     :meth:`accept`, and any other while that program is served (until :meth:`release`) reads
-    :data:`BUSY_MESSAGE` and is disconnected, what it sent read and dropped.
+    :data:`BUSY_MESSAGE` and is disconnected, what it sent read and dropped. A program that
+    closed and connected again at once (a script that opens the tap per task) is served: a
+    connection that comes after the served program hung up waits for the tap to finish with it.
     """
 
     def __init__(self, host: str, port: int) -> None:
@@ -240,6 +245,7 @@ class TcpEndpoint:
         # Accepted, with its peer's address, not yet taken by accept().
         self._waiting: tuple[socket.socket, tuple[str, int]] | None = None
         self._busy = False  # a program is waiting or served
+        self._served: socket.socket | None = None  # the program taken by accept()
         self._closing = threading.Event()
         self._thread = threading.Thread(target=self._listen, name="rovlink-tap-listen", daemon=True)
         self._thread.start()
@@ -252,6 +258,7 @@ class TcpEndpoint:
                     return None
                 self._ready.wait(_POLL_S)
             (connection, peer), self._waiting = self._waiting, None
+            self._served = connection
         logger.info("tap: %s:%s connected", *peer[:2])
         return SocketLink(connection, f"tcp {peer[0]}:{peer[1]}")
 
@@ -265,6 +272,8 @@ class TcpEndpoint:
         """The program served has gone (and its ``#stop!`` is sent): the next may connect."""
         with self._ready:
             self._busy = False
+            self._served = None
+            self._ready.notify_all()
 
     def close(self) -> None:
         self._closing.set()
@@ -296,6 +305,8 @@ class TcpEndpoint:
             logger.debug("tap server: %s", error)
             return
         with self._ready:
+            if self._busy and self._served_hung_up():
+                self._ready.wait_for(lambda: not self._busy, _HUNG_UP_GRACE_S)
             if not self._busy:
                 self._busy = True
                 connection.setblocking(True)
@@ -307,6 +318,18 @@ class TcpEndpoint:
         logger.info("tap: refused %s:%s: busy", *peer[:2])
         self.refused += 1
         self._refused.refuse(connection)
+
+    def _served_hung_up(self) -> bool:
+        """Whether the program served has closed its end (the tap may not have read it yet)."""
+        served = self._served
+        if served is None:
+            return False
+        try:
+            return served.recv(1, socket.MSG_PEEK | socket.MSG_DONTWAIT) == b""
+        except BlockingIOError:
+            return False  # connected, nothing sent
+        except OSError:
+            return True  # reset, or closed by the tap already
 
 
 def parse_tap(text: str) -> PtyEndpoint | TcpEndpoint:
