@@ -303,6 +303,10 @@ class MqttBridge:
                         wait_s, short_lived = _RECONNECT_FIRST_S, 0
                     else:
                         short_lived += 1
+                else:
+                    # The broker itself is away (or refusing us): no other bridge is taking
+                    # turns with this one, whatever ended the connections before.
+                    short_lived = 0
                 logger.warning(
                     "broker %s: %s; retrying in %g s", self.broker.describe(), failure, wait_s
                 )
