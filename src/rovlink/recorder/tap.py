@@ -30,7 +30,7 @@ import time
 import tty
 from typing import Protocol
 
-from rovlink.busy_tcp import RefusedClients
+from rovlink.busy_tcp import HUNG_UP_GRACE_S, RefusedClients, has_hung_up
 from rovlink.client.errors import ConnectionLostError
 from rovlink.client.links import FdLink, Link, SocketLink
 from rovlink.protocol import Command, Decoder, Frame, Setting
@@ -48,9 +48,6 @@ BUSY_MESSAGE = b"busy: the recording tap already has a program\r\n"
 #: either checksum mode (P3).
 STOP_FRAME = b"#stop!"
 _BACKLOG = 8
-#: How long a connection waits for the tap to finish with a program that has already hung up
-#: (its last bytes forwarded, its ``#stop!`` sent) before it is told the tap is busy, s.
-_HUNG_UP_GRACE_S = 1.0
 
 
 class Record(Protocol):
@@ -305,8 +302,8 @@ class TcpEndpoint:
             logger.debug("tap server: %s", error)
             return
         with self._ready:
-            if self._busy and self._served_hung_up():
-                self._ready.wait_for(lambda: not self._busy, _HUNG_UP_GRACE_S)
+            if self._busy and self._served is not None and has_hung_up(self._served):
+                self._ready.wait_for(lambda: not self._busy, HUNG_UP_GRACE_S)
             if not self._busy:
                 self._busy = True
                 connection.setblocking(True)
@@ -318,18 +315,6 @@ class TcpEndpoint:
         logger.info("tap: refused %s:%s: busy", *peer[:2])
         self.refused += 1
         self._refused.refuse(connection)
-
-    def _served_hung_up(self) -> bool:
-        """Whether the program served has closed its end (the tap may not have read it yet)."""
-        served = self._served
-        if served is None:
-            return False
-        try:
-            return served.recv(1, socket.MSG_PEEK | socket.MSG_DONTWAIT) == b""
-        except BlockingIOError:
-            return False  # connected, nothing sent
-        except OSError:
-            return True  # reset, or closed by the tap already
 
 
 def parse_tap(text: str) -> PtyEndpoint | TcpEndpoint:
