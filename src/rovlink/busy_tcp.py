@@ -11,7 +11,23 @@ import selectors
 import socket
 import time
 
-__all__ = ["RefusedClients"]
+__all__ = ["HUNG_UP_GRACE_S", "RefusedClients", "has_hung_up"]
+
+#: How long a client that connects just after the served one hung up waits for the server to
+#: finish with that one (its last bytes passed on, its ``#stop!`` sent) rather than be refused,
+#: s: a program that closed and connected again at once is no second client.
+HUNG_UP_GRACE_S = 1.0
+
+
+def has_hung_up(connection: socket.socket) -> bool:
+    """Whether the client on ``connection`` has closed its end, though its server may not have
+    read that end yet (or the connection is closed here already)."""
+    try:
+        return connection.recv(1, socket.MSG_PEEK | socket.MSG_DONTWAIT) == b""
+    except BlockingIOError:
+        return False  # connected, nothing sent
+    except OSError:
+        return True  # reset, or closed by its server
 
 
 class RefusedClients:

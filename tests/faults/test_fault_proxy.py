@@ -118,6 +118,29 @@ def test_a_second_client_is_told_it_is_busy_and_its_commands_never_reach_the_con
         assert controller.wait_for(b"#qr!") == b"#debug1!#qd!#stop!#qr!"
 
 
+def test_a_client_that_closes_and_connects_again_at_once_is_served(
+    proxied: tuple[RecordingController, tuple[str, int]],
+) -> None:
+    # A test suite that opens the proxy per test case connects again as soon as it has closed:
+    # the proxy had not yet read the hang-up, and told about a third of them it was busy.
+    controller, address = proxied
+    for number in range(30):
+        with socket.create_connection(address, timeout=_TIMEOUT_S) as client:
+            frame = f"#mgmp.{number}!".encode()
+            client.sendall(frame)
+            # (Its frame passed on by the proxy, or the busy line instead, whichever comes.)
+            client.settimeout(0.01)
+            answer = b""
+            deadline = time.monotonic() + _TIMEOUT_S
+            while frame not in controller.received:
+                with contextlib.suppress(TimeoutError):
+                    answer += client.recv(len(BUSY_MESSAGE))
+                assert BUSY_MESSAGE not in answer, f"client {number} was told the proxy is busy"
+                assert time.monotonic() < deadline, f"client {number}'s frame never came"
+    # Each client's #stop! went before the next one's bytes.
+    assert controller.wait_for(b"#mgmp.29!#stop!").count(b"!#stop!#mgmp.") == 29
+
+
 def test_a_departed_clients_delayed_bytes_never_follow_its_stop() -> None:
     # Before, the #stop! went out at once while the client's delayed chunks were still queued:
     # they reached the controller after it, and its #start!#mvs.-50! dived again.

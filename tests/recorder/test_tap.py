@@ -187,6 +187,25 @@ def test_a_program_that_resets_its_connection_at_once_leaves_the_tap_free(tap: _
         tap.program_gone()
 
 
+def test_a_program_that_closes_and_connects_again_at_once_is_served(tap: _Tap) -> None:
+    # A script that opens the tap per task, run in one process, connects again as soon as it
+    # has closed: the tap had not yet read the hang-up, and told the program it was busy.
+    for number in range(30):
+        program = _program(tap.address)
+        frame = f"#mgmp.{number}!".encode()
+        program.sendall(frame)
+        # (Its frame read by the tap, or the busy line instead, whichever comes first.)
+        program.settimeout(0.01)
+        answer = b""
+        deadline = time.monotonic() + _TIMEOUT_S
+        while not tap.controller.received.endswith(frame):
+            with contextlib.suppress(TimeoutError):
+                answer += program.recv(len(BUSY_MESSAGE))
+            assert BUSY_MESSAGE not in answer, f"program {number} was told the tap is busy"
+            assert time.monotonic() < deadline, f"program {number}'s frame never came"
+        program.close()
+
+
 @dataclass
 class _PtyTap:
     controller: RecordingController

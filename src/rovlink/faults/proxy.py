@@ -17,7 +17,7 @@ import threading
 import time
 from collections.abc import Callable
 
-from rovlink.busy_tcp import RefusedClients
+from rovlink.busy_tcp import HUNG_UP_GRACE_S, RefusedClients, has_hung_up
 from rovlink.client.errors import ConnectionLostError
 from rovlink.faults.port import FaultPort
 from rovlink.logs import get_logger
@@ -41,7 +41,8 @@ class FaultProxy:
     """Serve ``port`` (a :class:`FaultPort`) on a TCP listener, one client at a time.
 
     A client that connects while another is served reads :data:`BUSY_MESSAGE` and is
-    disconnected; what it sent is read and dropped.
+    disconnected; what it sent is read and dropped. A client that closed and connected again at
+    once is served, after its first connection's ``#stop!``.
     """
 
     def __init__(self, port: FaultPort, host: str, tcp_port: int) -> None:
@@ -118,7 +119,11 @@ class FaultProxy:
         except (BlockingIOError, InterruptedError):
             return
         # Busy until the session's thread has sent its #stop!: a client that connected before
-        # then is refused, never served after the stop with what it sent meanwhile.
+        # then is refused, never served after the stop with what it sent meanwhile. One that
+        # came after the served client hung up (a program that closed and connected again at
+        # once) waits for that stop instead.
+        if not self._session_over.is_set() and self._client_has_hung_up():
+            self._session_over.wait(HUNG_UP_GRACE_S)
         if not self._session_over.is_set():
             logger.info("refused %s:%s: busy", address[0], address[1])
             self.clients_refused += 1
@@ -134,6 +139,12 @@ class FaultProxy:
             daemon=True,
         )
         self._session.start()
+
+    def _client_has_hung_up(self) -> bool:
+        """Whether the client served has closed its end (or its session is ending)."""
+        with self._client_lock:
+            client = self._client
+        return client is None or has_hung_up(client)
 
     def _serve_client(
         self,

@@ -30,7 +30,7 @@ import time
 import tty
 from typing import Protocol
 
-from rovlink.busy_tcp import RefusedClients
+from rovlink.busy_tcp import HUNG_UP_GRACE_S, RefusedClients, has_hung_up
 from rovlink.client.errors import ConnectionLostError
 from rovlink.client.links import FdLink, Link, SocketLink
 from rovlink.protocol import Command, Decoder, Frame, Setting
@@ -223,7 +223,9 @@ class TcpEndpoint:
 
     A thread of its own accepts every connection as it comes: the first waits for
     :meth:`accept`, and any other while that program is served (until :meth:`release`) reads
-    :data:`BUSY_MESSAGE` and is disconnected, what it sent read and dropped.
+    :data:`BUSY_MESSAGE` and is disconnected, what it sent read and dropped. A program that
+    closed and connected again at once (a script that opens the tap per task) is served: a
+    connection that comes after the served program hung up waits for the tap to finish with it.
     """
 
     def __init__(self, host: str, port: int) -> None:
@@ -240,6 +242,7 @@ class TcpEndpoint:
         # Accepted, with its peer's address, not yet taken by accept().
         self._waiting: tuple[socket.socket, tuple[str, int]] | None = None
         self._busy = False  # a program is waiting or served
+        self._served: socket.socket | None = None  # the program taken by accept()
         self._closing = threading.Event()
         self._thread = threading.Thread(target=self._listen, name="rovlink-tap-listen", daemon=True)
         self._thread.start()
@@ -252,6 +255,7 @@ class TcpEndpoint:
                     return None
                 self._ready.wait(_POLL_S)
             (connection, peer), self._waiting = self._waiting, None
+            self._served = connection
         logger.info("tap: %s:%s connected", *peer[:2])
         return SocketLink(connection, f"tcp {peer[0]}:{peer[1]}")
 
@@ -265,6 +269,8 @@ class TcpEndpoint:
         """The program served has gone (and its ``#stop!`` is sent): the next may connect."""
         with self._ready:
             self._busy = False
+            self._served = None
+            self._ready.notify_all()
 
     def close(self) -> None:
         self._closing.set()
@@ -296,6 +302,8 @@ class TcpEndpoint:
             logger.debug("tap server: %s", error)
             return
         with self._ready:
+            if self._busy and self._served is not None and has_hung_up(self._served):
+                self._ready.wait_for(lambda: not self._busy, HUNG_UP_GRACE_S)
             if not self._busy:
                 self._busy = True
                 connection.setblocking(True)

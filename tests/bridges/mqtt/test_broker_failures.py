@@ -68,6 +68,21 @@ async def test_a_port_nobody_listens_on_is_a_connection_refused(
     _said_plainly(warning)
 
 
+async def test_a_broker_that_stays_away_is_not_a_warning_at_every_attempt(
+    caplog: pytest.LogCaptureFixture, monkeypatch: pytest.MonkeyPatch
+):
+    # A warning at each attempt: one line every 5 s for as long as the broker is away (720 an
+    # hour, all day if the deck's broker is off), burying everything else in the log.
+    monkeypatch.setattr("rovlink.bridges.mqtt.bridge._RECONNECT_MAX_S", 0.01)
+    monkeypatch.setattr("rovlink.bridges.mqtt.bridge._RECONNECT_FIRST_S", 0.01)
+    caplog.set_level("DEBUG", logger="rovlink.bridges.mqtt")
+    async with _bridge(BrokerSettings("127.0.0.1", free_tcp_port())):
+        await until(lambda: len(_retry_warnings(caplog)) >= 20)  # (attempts, said or not)
+    warnings = [r for r in caplog.records if r.levelname == "WARNING"]
+    assert len(warnings) == 1, [r.getMessage() for r in warnings]
+    assert "cannot connect: connection refused" in warnings[0].getMessage()
+
+
 async def test_a_host_name_that_does_not_resolve_is_said_so(caplog: pytest.LogCaptureFixture):
     # Regression: "[Errno -2] Name or service not known".
     warning = await _first_retry_warning(BrokerSettings("nonexistent.invalid", 1883), caplog)

@@ -7,6 +7,7 @@ import contextlib
 import json
 import logging
 import time
+from collections.abc import Callable
 from typing import Any
 
 import aiomqtt
@@ -585,6 +586,32 @@ async def test_two_bridges_with_one_robot_id_are_named_and_do_not_flap_at_full_s
             if "retrying in" in record.getMessage()
         ]
         assert max(waits) >= 0.8  # backing off, not back at 0.2 s after every connection
+
+
+async def test_a_broker_that_restarts_again_and_again_is_not_taken_for_a_second_bridge(
+    broker: Mosquitto, caplog: pytest.LogCaptureFixture
+):
+    # A broker that restarts a few times within seconds (crash-looping under systemd) ended
+    # three connections "soon after they began": the bridge said a second bridge might be
+    # running, and said it again at every attempt while the broker stayed down. A connection
+    # refused is no other bridge taking the client id over.
+    caplog.set_level(logging.WARNING, logger="rovlink.bridges.mqtt")
+
+    def refusals() -> int:
+        return caplog.text.count("cannot connect: connection refused")
+
+    def more_refusals_than(count: int) -> Callable[[], bool]:
+        return lambda: refusals() > count
+
+    async with bridged_robot(broker, "flaky") as robot:
+        for restart in range(3):
+            await until(robot.bridge.connected.is_set)
+            refused_before = refusals()
+            broker.stop()
+            await until(more_refusals_than(refused_before))  # (the broker is down)
+            if restart < 2:
+                broker.start()
+        assert "second bridge" not in caplog.text
 
 
 def test_a_session_taken_over_is_told_by_the_brokers_reason():

@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import logging
 import time
 from collections.abc import Callable, Coroutine
 from dataclasses import dataclass
@@ -44,6 +45,7 @@ from rovlink.bridges.mqtt.command_age import (
 )
 from rovlink.bridges.mqtt.commands import CommandPolicy
 from rovlink.bridges.mqtt.connection import broker_connection
+from rovlink.bridges.mqtt.failure_notes import FailureNotes
 from rovlink.bridges.mqtt.outbox import DEFAULT_CAPACITY, KeptEvent, Outbox
 from rovlink.bridges.mqtt.payloads import (
     CommandRequest,
@@ -263,11 +265,13 @@ class MqttBridge:
         loop = asyncio.get_running_loop()
         wait_s = _RECONNECT_FIRST_S
         short_lived = 0  # connections in a row that the broker ended soon after they began
+        notes = FailureNotes()
         while True:
             connected_at_s: float | None = None
             try:
                 async with broker_connection(self._client(aiomqtt)) as mqtt:
                     connected_at_s = loop.time()
+                    notes.connected()
                     logger.info("connected to %s", self.broker.describe())
                     try:
                         await self._serve(mqtt)
@@ -303,8 +307,17 @@ class MqttBridge:
                         wait_s, short_lived = _RECONNECT_FIRST_S, 0
                     else:
                         short_lived += 1
-                logger.warning(
-                    "broker %s: %s; retrying in %g s", self.broker.describe(), failure, wait_s
+                else:
+                    # The broker itself is away (or refusing us): no other bridge is taking
+                    # turns with this one, whatever ended the connections before.
+                    short_lived = 0
+                said = notes.note(failure, loop.time())
+                logger.log(
+                    logging.DEBUG if said is None else logging.WARNING,
+                    "broker %s: %s; retrying in %g s",
+                    self.broker.describe(),
+                    failure if said is None else said,
+                    wait_s,
                 )
                 if short_lived >= _SHORT_LIVED_WARNING:
                     logger.error(
