@@ -424,6 +424,71 @@ def test_ctrl_z_does_not_suspend_the_demo(answering: DepthAnsweringController) -
         terminal.close()
 
 
+def _refuses_ctrl_z(terminal: Terminal) -> None:
+    """Type Ctrl-Z at a command that has set the robot moving (its terminal is in cooked mode:
+    SIGTSTP to its group): it goes on, saying so, and Ctrl-C then ends it (status 130)."""
+    terminal.type("\x1a")
+    assert terminal.wait_until(lambda shown: b"does not suspend" in shown or b"job" in shown)
+    assert b"[job ended" not in terminal.shown
+    terminal.type("\x03")
+    assert terminal.wait_shown(b"[job ended: 130]")
+
+
+def test_ctrl_z_does_not_suspend_a_replay_that_moves_the_robot(
+    answering: DepthAnsweringController, tmp_path: Path
+) -> None:
+    # Before, Ctrl-Z stopped a replay that had unlocked the robot and set it moving: it went
+    # on with the replayed thrust unattended, and the #stop! that ends a replay never came.
+    recording = tmp_path / "cut.jsonl"
+    _write_cut_dive(recording, query_at_s=60.0)  # the replay waits for its time
+    terminal = Terminal(
+        "replay", str(recording), "--to", answering.url, job_control=True, stderr_on_terminal=True
+    )
+    try:
+        assert answering.wait_for(b"#th.0.50!")
+        _refuses_ctrl_z(terminal)
+        assert answering.wait_for(b"#stop!")
+        assert answering.received.rindex(b"#stop!") > answering.received.index(b"#th.0.50!")
+    finally:
+        terminal.close()
+
+
+def test_ctrl_z_does_not_suspend_a_motion_check(answering: DepthAnsweringController) -> None:
+    # Before, Ctrl-Z stopped `check --motion` with the vertical thrusters running (here while
+    # the check waits for the #qr! it is never answered).
+    terminal = Terminal(
+        "check",
+        answering.url,
+        "--motion",
+        "--yes",
+        "--only",
+        "motion-stop-halts",
+        "--timeout",
+        "10",  # (its most)
+        job_control=True,
+        stderr_on_terminal=True,
+    )
+    try:
+        assert answering.wait_for(b"#mvs.-30!#qr!")  # unlocked, diving, waiting
+        _refuses_ctrl_z(terminal)
+        assert answering.wait_for(b"#stop!")
+        assert answering.received.rindex(b"#stop!") > answering.received.index(b"#mvs.-30!")
+    finally:
+        terminal.close()
+
+
+def test_ctrl_z_does_not_suspend_the_tune() -> None:
+    # Before, Ctrl-Z stopped the tune's relay experiment with its thrust on: the vehicle went
+    # on diving or rising unattended, past the depth limits the tune watches.
+    terminal = Terminal("tune", "sim://", "--yes", job_control=True, stderr_on_terminal=True)
+    try:
+        assert terminal.wait_shown(b"motors unlocked: relay")
+        _refuses_ctrl_z(terminal)
+        assert b"#stop! sent" in terminal.shown
+    finally:
+        terminal.close()
+
+
 def _end_of(terminal: Terminal) -> str:
     """What the command said on stderr once it has ended (within WAIT_S)."""
     _, stderr = terminal.process.communicate(timeout=WAIT_S)

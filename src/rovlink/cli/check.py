@@ -162,9 +162,14 @@ def run(args: argparse.Namespace) -> int:
         done.append(result)
         _progress(result)
 
+    from rovlink.cli.interrupt import suspension_refused_by  # noqa: PLC0415
+
+    # (Motion checks are not suspended: see suspension_refused_by.)
+    refusing = suspension_refused_by("rovlink check") if moves else contextlib.nullcontext()
     started_s = time.monotonic()
     try:
-        report = run_checks(link, args.url, options, checks, on_result=on_result)
+        with refusing:
+            report = run_checks(link, args.url, options, checks, on_result=on_result)
     except PreflightError as error:
         _not_started(args, f"{args.url}: {error}")
     except KeyboardInterrupt:  # (Ctrl-C, or a CI's timeout: SIGTERM)

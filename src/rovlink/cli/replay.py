@@ -7,6 +7,7 @@ ends (its end, an error, Ctrl-C), #stop! is sent if its commands may have left t
 from __future__ import annotations
 
 import argparse
+import contextlib
 import errno
 import os
 import sys
@@ -119,7 +120,13 @@ def _print_session(args: argparse.Namespace, damage: _Damage) -> None:
 
 def _replay_to(args: argparse.Namespace, damage: _Damage) -> int:
     import rovlink  # noqa: PLC0415
-    from rovlink.cli.interrupt import GatedClient, may_move, run_in_worker, say_stopped  # noqa: PLC0415
+    from rovlink.cli.interrupt import (  # noqa: PLC0415
+        GatedClient,
+        may_move,
+        run_in_worker,
+        say_stopped,
+        suspension_refused_by,
+    )
     from rovlink.cli.link_options import (  # noqa: PLC0415
         closing_unless_interrupted,
         connection_failure,
@@ -223,13 +230,16 @@ def _replay_to(args: argparse.Namespace, damage: _Damage) -> int:
         return summary
 
     print(_announcement(args.file, args.to, [step.command for step in steps]), file=sys.stderr)
-    with closing_unless_interrupted(client):
+    moves = any(may_move(step.command) for step in steps)
+    # (A replay that may move the robot is not suspended: see suspension_refused_by.)
+    refusing = suspension_refused_by("rovlink replay") if moves else contextlib.nullcontext()
+    with closing_unless_interrupted(client), refusing:
         try:
             summary = run_in_worker(replay)
         except KeyboardInterrupt:
             # The worker may be in the middle of a command: the gate makes #stop! the last
             # frame, sent as `rovlink send` does when any of its commands may move the robot.
-            if any(may_move(step.command) for step in steps):
+            if moves:
                 say_stopped("rovlink replay", gate.stop_for_good())
             raise
         except Exception:  # a lost link, a closed output: the worker has ended

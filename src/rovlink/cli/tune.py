@@ -222,6 +222,8 @@ def run(args: argparse.Namespace) -> int:
         _check_plot(args.plot)
     if not args.yes and not _confirm(args):
         raise CommandError("not confirmed; nothing was sent")
+    from rovlink.cli.interrupt import suspension_refused_by  # noqa: PLC0415
+
     client = link_options.connect(args)
     try:
         plant = Plant(client, limits)
@@ -231,7 +233,8 @@ def run(args: argparse.Namespace) -> int:
             hysteresis_cm=args.hysteresis,
         )
         try:
-            result = autotune(plant, relay, rule, scales, step, progress=_progress)
+            with suspension_refused_by("rovlink tune"):  # (the motors run: not suspended)
+                result = autotune(plant, relay, rule, scales, step, progress=_progress)
         except TuneAbortedError as error:
             raise CommandError(f"aborted: {error}{_gains_back(client, restore)}") from None
         except KeyboardInterrupt:
