@@ -20,7 +20,7 @@ from typing import TYPE_CHECKING, cast
 
 import pytest
 
-from rovlink.cli.interrupt import say_ready
+from rovlink.cli.interrupt import say_ready, suspension_refused_by
 from rovlink.recorder import FrameEntry, HeaderEntry, read_entries
 from rovlink.recorder.formats import open_sink
 from tests.board.rig import fake_toml
@@ -785,3 +785,23 @@ def test_a_signal_ends_a_background_bridge_with_its_final_stop(
     assert process.returncode == 0, stderr
     assert stderr.decode().splitlines()[-1] == "rovlink mavlink stopped"
     assert silent.wait_until(lambda received: received.count(b"#stop!") > stops_before)
+
+
+class _StderrWritingAlready(io.StringIO):
+    """A stderr that is in the middle of a write when the signal comes, as a buffered stream
+    says it: ``RuntimeError: reentrant call``."""
+
+    def write(self, text: str) -> int:
+        raise RuntimeError("reentrant call inside <_io.BufferedWriter name='<stderr>'>")
+
+
+@pytest.mark.skipif(not hasattr(signal, "SIGTSTP"), reason="no SIGTSTP on this system")
+def test_ctrl_z_refused_while_stderr_is_being_written_does_not_end_the_command(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    # The refusal is said from the signal handler in the command's own thread (tune, check): a
+    # Ctrl-Z that came while that thread was writing a progress line raised out of the line
+    # and ended the command mid-motion.
+    monkeypatch.setattr(sys, "stderr", _StderrWritingAlready())
+    with suspension_refused_by("rovlink tune"):
+        os.kill(os.getpid(), signal.SIGTSTP)  # (the handler runs before kill returns: no raise)

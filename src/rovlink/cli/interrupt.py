@@ -119,7 +119,10 @@ def suspension_refused_by(program: str) -> contextlib.AbstractContextManager[Non
     from rovlink.piloting.no_suspend import suspension_refused  # noqa: PLC0415 - asyncio
 
     def say() -> None:
-        with contextlib.suppress(OSError):  # (a terminal that hung up)
+        # OSError: a terminal that hung up; RuntimeError: said from the signal handler while
+        # the same thread was writing to stderr ("reentrant call"): the line is lost, and the
+        # command goes on rather than ending mid-motion.
+        with contextlib.suppress(OSError, RuntimeError):
             print(
                 f"{program}: Ctrl-Z does not suspend it (the robot would go on unattended): "
                 "Ctrl-C stops the robot and ends it",
