@@ -1,0 +1,159 @@
+"""The tap over a controller link that is lost and comes back (:mod:`rovlink.recorder.reopening`):
+its program stays connected, nothing it sent during the gap is queued, and a ``#stop!`` goes
+first on the reopened link when the program's commands may have left the robot moving."""
+
+from __future__ import annotations
+
+import socket
+import threading
+from collections.abc import Iterator
+
+import pytest
+
+from rovlink.client import parse_url
+from rovlink.client.links import open_link
+from rovlink.recorder.reopening import ReopeningLink
+from rovlink.recorder.tap import STOP_FRAME, TcpEndpoint, forward
+from tests.client.conftest import wait_until
+
+_TIMEOUT_S = 20.0
+
+
+class _DroppingController:
+    """A TCP 'controller' that keeps what each connection sent it, answers ``#qd!`` with
+    ``$qd.0!``, and can drop its connection (a USB-serial adapter's dropout)."""
+
+    def __init__(self) -> None:
+        self._listener = socket.create_server(("127.0.0.1", 0))
+        self.url = f"socket://127.0.0.1:{self._listener.getsockname()[1]}"
+        #: What each connection sent, in order of the connections.
+        self.received: list[bytearray] = []
+        self._current: socket.socket | None = None
+        self._thread = threading.Thread(target=self._serve, daemon=True)
+        self._thread.start()
+
+    def _serve(self) -> None:
+        while True:
+            try:
+                connection, _ = self._listener.accept()
+            except OSError:
+                return
+            self._current = connection
+            got = bytearray()
+            self.received.append(got)
+            try:
+                while data := connection.recv(4096):
+                    got += data
+                    if got.endswith(b"#qd!"):
+                        connection.sendall(b"$qd.0!")
+            except OSError:
+                pass
+            connection.close()
+
+    def drop(self) -> None:
+        """Drop the current connection, refusing others until :meth:`come_back`."""
+        connection = self._current
+        assert connection is not None
+        self._listener.close()
+        connection.shutdown(socket.SHUT_RDWR)
+
+    def come_back(self) -> None:
+        """Listen again on the same port."""
+        port = int(self.url.rsplit(":", 1)[1])
+        self._listener = socket.create_server(("127.0.0.1", port))
+        self._thread.join(_TIMEOUT_S)
+        self._thread = threading.Thread(target=self._serve, daemon=True)
+        self._thread.start()
+
+    def close(self) -> None:
+        self._listener.close()
+        if self._current is not None:
+            self._current.close()
+
+
+@pytest.fixture
+def controller() -> Iterator[_DroppingController]:
+    controller = _DroppingController()
+    yield controller
+    controller.close()
+
+
+def _tap_over(
+    controller: _DroppingController, stopping: threading.Event, states: list[str]
+) -> tuple[threading.Thread, TcpEndpoint, list[tuple[str, bytes, bool]]]:
+    endpoint = TcpEndpoint("127.0.0.1", 0)
+    recorded: list[tuple[str, bytes, bool]] = []
+
+    def record(direction: str, data: bytes, *, by_session: bool = False) -> None:
+        recorded.append((direction, data, by_session))
+
+    endpoint_url = parse_url(controller.url)
+    link = ReopeningLink(
+        open_link(endpoint_url),
+        lambda: open_link(endpoint_url),
+        stopping=stopping,
+        on_change=lambda state, _: states.append(state),
+        may_reopen=lambda: True,
+    )
+    thread = threading.Thread(target=forward, args=(endpoint, link, record, stopping), daemon=True)
+    thread.start()
+    return thread, endpoint, recorded
+
+
+def _ask(program: socket.socket) -> bytes:
+    program.sendall(b"#qd!")
+    return program.recv(64)
+
+
+@pytest.mark.parametrize("moved", [True, False])
+def test_a_reopened_link_gets_stop_first_only_if_the_program_may_have_moved_the_robot(
+    controller: _DroppingController, moved: bool
+) -> None:
+    stopping = threading.Event()
+    states: list[str] = []
+    thread, endpoint, recorded = _tap_over(controller, stopping, states)
+    host, port = endpoint.path.removeprefix("socket://").rsplit(":", 1)
+    program = socket.create_connection((host, int(port)), timeout=_TIMEOUT_S)
+    try:
+        if moved:
+            program.sendall(b"#start!#th.90.50!")
+        assert _ask(program) == b"$qd.0!"
+        controller.drop()
+        assert wait_until(lambda: states == ["lost"], _TIMEOUT_S)
+        program.sendall(b"#th.90.80!")  # during the gap: never to run after the return
+        controller.come_back()
+        assert wait_until(lambda: states == ["lost", "reconnected"], _TIMEOUT_S)
+        # The program was never disconnected, and is served again.
+        assert _ask(program) == b"$qd.0!"
+        assert bytes(controller.received[1]) == (STOP_FRAME if moved else b"") + b"#qd!"
+        stops = [chunk for chunk in recorded if chunk == ("out", STOP_FRAME, True)]
+        assert len(stops) == (1 if moved else 0)
+        assert not any(b"#th.90.80!" in data for _, data, _ in recorded)
+    finally:
+        program.close()
+        stopping.set()
+        thread.join(_TIMEOUT_S)
+        endpoint.close()
+
+
+def test_a_program_that_leaves_during_the_gap_is_followed_by_stop_on_the_return(
+    controller: _DroppingController,
+) -> None:
+    stopping = threading.Event()
+    states: list[str] = []
+    thread, endpoint, _ = _tap_over(controller, stopping, states)
+    host, port = endpoint.path.removeprefix("socket://").rsplit(":", 1)
+    try:
+        with socket.create_connection((host, int(port)), timeout=_TIMEOUT_S) as program:
+            program.sendall(b"#start!#th.90.50!")
+            assert _ask(program) == b"$qd.0!"
+            controller.drop()
+            assert wait_until(lambda: states == ["lost"], _TIMEOUT_S)
+        assert wait_until(lambda: not endpoint.serving, _TIMEOUT_S)  # (its #stop! could not go)
+        controller.come_back()
+        assert wait_until(lambda: len(controller.received) == 2, _TIMEOUT_S)
+        assert wait_until(lambda: bytes(controller.received[1]) == STOP_FRAME, _TIMEOUT_S)
+    finally:
+        stopping.set()
+        thread.join(_TIMEOUT_S)
+        endpoint.close()
