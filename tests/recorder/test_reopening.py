@@ -4,7 +4,9 @@ first on the reopened link when the program's commands may have left the robot m
 
 from __future__ import annotations
 
+import contextlib
 import socket
+import struct
 import threading
 from collections.abc import Iterator
 
@@ -29,6 +31,7 @@ class _DroppingController:
         #: What each connection sent, in order of the connections.
         self.received: list[bytearray] = []
         self._current: socket.socket | None = None
+        self._false_starts = 0  # connections to close at once, as a dying process's port does
         self._thread = threading.Thread(target=self._serve, daemon=True)
         self._thread.start()
 
@@ -41,6 +44,14 @@ class _DroppingController:
             self._current = connection
             got = bytearray()
             self.received.append(got)
+            if self._false_starts:
+                self._false_starts -= 1
+                connection.settimeout(_TIMEOUT_S)
+                with contextlib.suppress(OSError):
+                    got += connection.recv(4096)  # (what came before the close)
+                connection.setsockopt(socket.SOL_SOCKET, socket.SO_LINGER, struct.pack("ii", 1, 0))
+                connection.close()  # a reset
+                continue
             try:
                 while data := connection.recv(4096):
                     got += data
@@ -57,8 +68,10 @@ class _DroppingController:
         self._listener.close()
         connection.shutdown(socket.SHUT_RDWR)
 
-    def come_back(self) -> None:
-        """Listen again on the same port."""
+    def come_back(self, false_starts: int = 0) -> None:
+        """Listen again on the same port, closing the first ``false_starts`` connections at
+        once (after their first bytes)."""
+        self._false_starts = false_starts
         port = int(self.url.rsplit(":", 1)[1])
         self._listener = socket.create_server(("127.0.0.1", port))
         self._thread.join(_TIMEOUT_S)
@@ -154,6 +167,33 @@ def test_a_program_that_leaves_during_the_gap_is_followed_by_stop_on_the_return(
         assert wait_until(lambda: len(controller.received) == 2, _TIMEOUT_S)
         assert wait_until(lambda: bytes(controller.received[1]) == STOP_FRAME, _TIMEOUT_S)
     finally:
+        stopping.set()
+        thread.join(_TIMEOUT_S)
+        endpoint.close()
+
+
+def test_a_stop_is_sent_again_on_each_reopened_link_until_the_controller_is_heard(
+    controller: _DroppingController,
+) -> None:
+    # The first attempt after a loss may reach a port that takes it as its process dies: a
+    # #stop! written there never reached the controller, and the next link got none.
+    stopping = threading.Event()
+    states: list[str] = []
+    thread, endpoint, _ = _tap_over(controller, stopping, states)
+    host, port = endpoint.path.removeprefix("socket://").rsplit(":", 1)
+    program = socket.create_connection((host, int(port)), timeout=_TIMEOUT_S)
+    try:
+        program.sendall(b"#start!#th.90.50!")
+        assert _ask(program) == b"$qd.0!"
+        controller.drop()
+        assert wait_until(lambda: states == ["lost"], _TIMEOUT_S)
+        controller.come_back(false_starts=1)
+        assert wait_until(lambda: states[-1:] == ["reconnected"] and len(states) >= 4, _TIMEOUT_S)
+        assert _ask(program) == b"$qd.0!"
+        assert bytes(controller.received[1]) == STOP_FRAME
+        assert bytes(controller.received[2]) == STOP_FRAME + b"#qd!"
+    finally:
+        program.close()
         stopping.set()
         thread.join(_TIMEOUT_S)
         endpoint.close()

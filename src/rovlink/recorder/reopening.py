@@ -122,18 +122,19 @@ class ReopeningLink:
                 continue
             except Exception as error:  # a bug in the opener: no retry can help
                 raise reconnecting_failed(self.description, error, logger) from error
+            plural = "" if attempts == 1 else "s"
+            detail = f"{link.description} after {attempts} attempt{plural}"
             with self._lock:
+                self._link = link
+                self._on_change("reconnected", detail)  # (before what on_return writes)
                 try:
                     if self.on_return is not None:
                         self.on_return(link)
                 except ConnectionLostError as error:  # lost again at once: try again
-                    logger.debug("reconnect attempt %d: %s", attempts, error)
+                    self._link = None
                     link.close()
+                    self._on_change("lost", f"{error}; reconnecting")
                     self._stopping.wait(delay_s)
                     continue
-                self._link = link
-            plural = "" if attempts == 1 else "s"
-            detail = f"{link.description} after {attempts} attempt{plural}"
-            self._on_change("reconnected", detail)
             logger.warning("%s: reconnected", detail)
             return

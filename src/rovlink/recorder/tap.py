@@ -352,7 +352,9 @@ def forward(
     tap never lets a robot resume what it was doing before the gap unseen by its program."""
     program: list[Link | None] = [None]
     motion = _MayMove(checksum=checksum, algorithm=algorithm)
-    # A #stop! that could not go (a program left during the gap): sent on the return.
+    # A #stop! that could not go (a program left during the gap), or that went on a reopened
+    # link that no byte has come back on yet (it may have died at once: a port that took the
+    # connection as its process died): sent on the return.
     stop_owed = [False]
 
     def stop_robot() -> None:
@@ -369,7 +371,8 @@ def forward(
         if motion.moved or stop_owed[0]:
             link.write(STOP_FRAME)
             record("out", STOP_FRAME, by_session=True)
-            motion.moved = stop_owed[0] = False
+            motion.moved = False
+            stop_owed[0] = True  # (until the controller is heard on this link)
             logger.info("tap: #stop! sent first on the reopened link")
 
     controller.on_return = stop_on_return
@@ -415,6 +418,7 @@ def forward(
         while not stopping.is_set():
             data = controller.read_available(_POLL_S)
             if data:
+                stop_owed[0] = False
                 record("in", data)
                 side = program[0]
                 if side is not None:
