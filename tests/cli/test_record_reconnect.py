@@ -4,6 +4,7 @@ stable symlink removed and made again (a USB-serial adapter's dropout and its ud
 
 from __future__ import annotations
 
+import contextlib
 import os
 import re
 import signal
@@ -18,8 +19,13 @@ import pytest
 
 from rovlink.recorder import read_entries
 from rovlink.recorder.entries import EventEntry, FrameEntry, TelemetryEntry, WireEntry
+from rovlink.recorder.sink import RecordingDamagedError
+from tests.client.conftest import wait_until
 from tests.client.sim_process import SimProcess, running_sim
+from tests.recorder.test_reopening import DroppingController
 from tests.rovlink_process import rovlink_command, rovlink_environment
+
+pytestmark = pytest.mark.integration
 
 _TIMEOUT_S = 20.0
 _PROGRAM_SIDE = re.compile(r"program's side: (socket://[\d.]+:\d+)")
@@ -166,8 +172,6 @@ def _check(entries: list[object]) -> None:
     assert telemetry[-1].values["locked"] == 1
 
 
-@pytest.mark.integration
-@pytest.mark.slow
 def test_the_tap_and_its_program_live_through_the_simulator_restarted_on_the_same_port(
     tmp_path: Path,
 ) -> None:
@@ -184,8 +188,6 @@ def test_the_tap_and_its_program_live_through_the_simulator_restarted_on_the_sam
     )
 
 
-@pytest.mark.integration
-@pytest.mark.slow
 def test_the_tap_and_its_program_live_through_a_pseudo_terminal_made_again_behind_its_symlink(
     tmp_path: Path,
 ) -> None:
@@ -198,3 +200,39 @@ def test_the_tap_and_its_program_live_through_a_pseudo_terminal_made_again_behin
             lambda: os.unlink(link),
         )
     )
+
+
+def test_a_recorder_without_a_tap_records_on_across_a_dropout_and_sends_nothing(
+    tmp_path: Path,
+) -> None:
+    controller = DroppingController(hello=b"$qd.5!")
+    output = tmp_path / "line.jsonl"
+    recorder = _Recorder(controller.url, "-o", str(output))
+    try:
+        recorder.wait_for_line(re.compile(r"listening only"))
+        assert wait_until(lambda: len(controller.received) == 1, _TIMEOUT_S)
+        controller.drop()
+        recorder.wait_for_line(re.compile(r"reconnecting"))
+        controller.come_back()
+        recorder.wait_for_line(re.compile(r"reconnected"))
+        # (What the reopened link said is in the file once a flush, each second, put it there.)
+        assert wait_until(lambda: len(_replies(output)) == 2, _TIMEOUT_S)  # one each side
+        assert recorder.stop() == 0, "".join(recorder.lines)
+    finally:
+        recorder.kill()
+        controller.close()
+    assert [bytes(got) for got in controller.received] == [b"", b""]  # nothing of its own
+    entries = list(read_entries(str(output)))
+    links = [e.name for e in entries if isinstance(e, EventEntry) and e.event == "link"]
+    assert links == ["lost", "reconnected"]
+    assert len(_replies(output)) == 2
+
+
+def _replies(path: Path) -> list[FrameEntry]:
+    """The ``qd`` frames recorded in ``path`` so far (a file being written ends early)."""
+    replies: list[FrameEntry] = []
+    with contextlib.suppress(RecordingDamagedError):
+        for e in read_entries(str(path)):
+            if isinstance(e, FrameEntry) and e.name == "qd":
+                replies.append(e)
+    return replies

@@ -18,14 +18,19 @@ from rovlink.recorder.reopening import ReopeningLink
 from rovlink.recorder.tap import STOP_FRAME, TcpEndpoint, forward
 from tests.client.conftest import wait_until
 
+pytestmark = pytest.mark.integration
+
 _TIMEOUT_S = 20.0
 
 
-class _DroppingController:
+class DroppingController:
     """A TCP 'controller' that keeps what each connection sent it, answers ``#qd!`` with
-    ``$qd.0!``, and can drop its connection (a USB-serial adapter's dropout)."""
+    ``$qd.0!``, and can drop its connection (a USB-serial adapter's dropout); ``hello`` is sent
+    to each connection as it comes (a controller's own output, for a recorder that only
+    listens)."""
 
-    def __init__(self) -> None:
+    def __init__(self, hello: bytes = b"") -> None:
+        self._hello = hello
         self._listener = socket.create_server(("127.0.0.1", 0))
         self.url = f"socket://127.0.0.1:{self._listener.getsockname()[1]}"
         #: What each connection sent, in order of the connections.
@@ -42,6 +47,7 @@ class _DroppingController:
             except OSError:
                 return
             self._current = connection
+            connection.sendall(self._hello)
             got = bytearray()
             self.received.append(got)
             if self._false_starts:
@@ -85,14 +91,14 @@ class _DroppingController:
 
 
 @pytest.fixture
-def controller() -> Iterator[_DroppingController]:
-    controller = _DroppingController()
+def controller() -> Iterator[DroppingController]:
+    controller = DroppingController()
     yield controller
     controller.close()
 
 
 def _tap_over(
-    controller: _DroppingController, stopping: threading.Event, states: list[str]
+    controller: DroppingController, stopping: threading.Event, states: list[str]
 ) -> tuple[threading.Thread, TcpEndpoint, list[tuple[str, bytes, bool]]]:
     endpoint = TcpEndpoint("127.0.0.1", 0)
     recorded: list[tuple[str, bytes, bool]] = []
@@ -120,7 +126,7 @@ def _ask(program: socket.socket) -> bytes:
 
 @pytest.mark.parametrize("moved", [True, False])
 def test_a_reopened_link_gets_stop_first_only_if_the_program_may_have_moved_the_robot(
-    controller: _DroppingController, moved: bool
+    controller: DroppingController, moved: bool
 ) -> None:
     stopping = threading.Event()
     states: list[str] = []
@@ -150,7 +156,7 @@ def test_a_reopened_link_gets_stop_first_only_if_the_program_may_have_moved_the_
 
 
 def test_a_program_that_leaves_during_the_gap_is_followed_by_stop_on_the_return(
-    controller: _DroppingController,
+    controller: DroppingController,
 ) -> None:
     stopping = threading.Event()
     states: list[str] = []
@@ -173,7 +179,7 @@ def test_a_program_that_leaves_during_the_gap_is_followed_by_stop_on_the_return(
 
 
 def test_a_stop_is_sent_again_on_each_reopened_link_until_the_controller_is_heard(
-    controller: _DroppingController,
+    controller: DroppingController,
 ) -> None:
     # The first attempt after a loss may reach a port that takes it as its process dies: a
     # #stop! written there never reached the controller, and the next link got none.
