@@ -5,6 +5,7 @@ stable symlink removed and made again (a USB-serial adapter's dropout and its ud
 from __future__ import annotations
 
 import contextlib
+import json
 import os
 import re
 import signal
@@ -20,6 +21,7 @@ import pytest
 from rovlink.recorder import read_entries
 from rovlink.recorder.entries import EventEntry, FrameEntry, TelemetryEntry, WireEntry
 from rovlink.recorder.sink import RecordingDamagedError
+from tests.cli.conftest import RunCli
 from tests.client.conftest import wait_until
 from tests.client.sim_process import SimProcess, running_sim
 from tests.recorder.test_reopening import DroppingController
@@ -203,7 +205,7 @@ def test_the_tap_and_its_program_live_through_a_pseudo_terminal_made_again_behin
 
 
 def test_a_recorder_without_a_tap_records_on_across_a_dropout_and_sends_nothing(
-    tmp_path: Path,
+    run_cli: RunCli, tmp_path: Path
 ) -> None:
     controller = DroppingController(hello=b"$qd.5!")
     output = tmp_path / "line.jsonl"
@@ -226,6 +228,9 @@ def test_a_recorder_without_a_tap_records_on_across_a_dropout_and_sends_nothing(
     links = [e.name for e in entries if isinstance(e, EventEntry) and e.event == "link"]
     assert links == ["lost", "reconnected"]
     assert len(_replies(output)) == 2
+    # decode shows where the gap is, between the frames of each side.
+    decoded = [json.loads(line) for line in run_cli("decode", str(output)).out.splitlines()]
+    assert [d.get("state", d.get("name")) for d in decoded] == ["qd", "lost", "reconnected", "qd"]
 
 
 def _replies(path: Path) -> list[FrameEntry]:
