@@ -9,11 +9,13 @@ import socket
 import struct
 import threading
 from collections.abc import Iterator
+from typing import cast
 
 import pytest
 
 from rovlink.client import parse_url
-from rovlink.client.links import open_link
+from rovlink.client.errors import ConnectionLostError
+from rovlink.client.links import Link, open_link
 from rovlink.recorder.reopening import ReopeningLink
 from rovlink.recorder.tap import STOP_FRAME, TcpEndpoint, forward
 from tests.client.conftest import wait_until
@@ -203,3 +205,64 @@ def test_a_stop_is_sent_again_on_each_reopened_link_until_the_controller_is_hear
         stopping.set()
         thread.join(_TIMEOUT_S)
         endpoint.close()
+
+
+class _BusyLink:
+    """A controller's port that says it is busy and closes (:class:`~rovlink.client.links.Link`'s
+    calls that :class:`ReopeningLink` makes)."""
+
+    description = "busy"
+
+    def __init__(self) -> None:
+        self._said = False
+
+    def read_available(self, timeout_s: float) -> bytes:
+        if self._said:
+            raise ConnectionLostError("busy: closed by the other end")
+        self._said = True
+        return b"busy: the controller already has a client\r\n"
+
+    def write(self, data: bytes) -> None:
+        pass
+
+    def close(self) -> None:
+        pass
+
+
+class _NoWaiting(threading.Event):
+    """``stopping`` that records each wait instead of waiting, and is set after ``waits``."""
+
+    def __init__(self, waits: int) -> None:
+        super().__init__()
+        self.waited_s: list[float] = []
+        self._waits = waits
+
+    def wait(self, timeout: float | None = None) -> bool:
+        assert timeout is not None
+        self.waited_s.append(timeout)
+        if len(self.waited_s) >= self._waits:
+            self.set()
+        return self.is_set()
+
+
+def test_links_that_close_before_a_frame_comes_are_reopened_with_backoff_not_at_once() -> None:
+    # A controller busy with another client takes each connection, says so and closes it: each
+    # reopening started the backoff again at 0.1 s, a new connection (and a lost and a
+    # reconnected event) ten times a second for as long as it stayed busy.
+    stopping = _NoWaiting(waits=6)
+    states: list[str] = []
+    first = cast(Link, _BusyLink())
+    first.read_available(0)  # (what it said first)
+    link = ReopeningLink(
+        first,
+        lambda: cast(Link, _BusyLink()),
+        stopping=stopping,
+        on_change=lambda state, _: states.append(state),
+        may_reopen=lambda: True,
+    )
+    for _ in range(100):  # (reads, each a loss and a reopening)
+        if stopping.is_set():
+            break
+        link.read_available(0)
+    assert stopping.waited_s == [0.1, 0.2, 0.4, 0.8, 1.6, 2.0]
+    assert states[:2] == ["lost", "reconnected"]

@@ -52,6 +52,10 @@ class ReopeningLink:
         self._on_change = on_change
         self._may_reopen = may_reopen
         self._lock = threading.Lock()  # the current link: swapped and written under it
+        # The backoff goes on across reopened links that close before a frame comes on them
+        # (a controller busy with another client says so and closes): no attempt every 0.1 s.
+        self._delays_s = reconnect_delays_s()
+        self._heard = True  # a frame came on the current link (on the first: may_reopen)
 
     @property
     def up(self) -> bool:
@@ -66,7 +70,7 @@ class ReopeningLink:
             self._reconnect()
             return b""
         try:
-            return link.read_available(timeout_s)
+            data = link.read_available(timeout_s)
         except ConnectionLostError as error:
             self._lose(link)
             if not self._may_reopen():
@@ -75,6 +79,10 @@ class ReopeningLink:
             logger.warning("%s; reconnecting", error)
             self._reconnect()
             return b""
+        if not self._heard and b"!" in data:  # (the end of a frame; text never holds one, P5)
+            self._heard = True
+            self._delays_s = reconnect_delays_s()
+        return data
 
     def write(self, data: bytes) -> bool:
         """Write ``data`` if the link is up; whether it was (bytes for a link that is down are
@@ -109,16 +117,16 @@ class ReopeningLink:
 
     def _reconnect(self) -> None:
         """Reopen with the clients' backoff until it opens or ``stopping`` is set."""
+        if not self._heard:  # (lost before a frame came on it: as a failed attempt)
+            self._stopping.wait(next(self._delays_s))
         attempts = 0
-        for delay_s in reconnect_delays_s():
-            if self._stopping.is_set():
-                return
+        while not self._stopping.is_set():
             attempts += 1
             try:
                 link = self._reopen()
             except (OSError, ValueError) as error:  # ConnectionError too: not there yet
                 logger.debug("reconnect attempt %d: %s", attempts, error)
-                self._stopping.wait(delay_s)
+                self._stopping.wait(next(self._delays_s))
                 continue
             except Exception as error:  # a bug in the opener: no retry can help
                 raise reconnecting_failed(self.description, error, logger) from error
@@ -126,6 +134,7 @@ class ReopeningLink:
             detail = f"{link.description} after {attempts} attempt{plural}"
             with self._lock:
                 self._link = link
+                self._heard = False
                 self._on_change("reconnected", detail)  # (before what on_return writes)
                 try:
                     if self.on_return is not None:
@@ -134,7 +143,11 @@ class ReopeningLink:
                     self._link = None
                     link.close()
                     self._on_change("lost", f"{error}; reconnecting")
-                    self._stopping.wait(delay_s)
-                    continue
+                    lost_again = True
+                else:
+                    lost_again = False
+            if lost_again:  # (waited for with the lock free: writes find the link down)
+                self._stopping.wait(next(self._delays_s))
+                continue
             logger.warning("%s: reconnected", detail)
             return

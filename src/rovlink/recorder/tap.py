@@ -418,7 +418,8 @@ def forward(
         while not stopping.is_set():
             data = controller.read_available(_POLL_S)
             if data:
-                stop_owed[0] = False
+                if b"!" in data:  # a frame: the controller is there (a busy one says text)
+                    stop_owed[0] = False
                 record("in", data)
                 side = program[0]
                 if side is not None:
