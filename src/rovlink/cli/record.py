@@ -123,21 +123,24 @@ def run(args: argparse.Namespace) -> int:
     signals = ServingSignals()
     stopping = signals.stopping
     heard = _FirstWords()
+    answered = _FirstWords()  # (the controller's side alone)
 
     def link_changed(state: str, detail: str) -> None:
         recorder.on_event(LinkState(time.monotonic(), state, detail))
 
-    # (A controller that closed before any frame came turned us away: no use reopening.)
+    # (A controller that closed before a frame came from it turned us away: no use reopening.)
     link = ReopeningLink(
         first_link,
         lambda: open_link(endpoint),
         stopping=stopping,
         on_change=link_changed,
-        may_reopen=lambda: heard.frame and not args.exit_on_loss,
+        may_reopen=lambda: answered.frame and not args.exit_on_loss,
     )
 
     def record(direction: str, data: bytes, *, by_session: bool = False) -> None:
         heard.add(data)
+        if direction == "in":
+            answered.add(data)
         recorder.on_bytes(direction, data, by_session=by_session)
 
     where = f"; program's side: {tap.path}" if tap is not None else " (listening only)"

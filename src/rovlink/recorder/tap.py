@@ -353,7 +353,7 @@ def forward(
     program: list[Link | None] = [None]
     motion = _MayMove(checksum=checksum, algorithm=algorithm)
     # A #stop! that could not go (a program left during the gap), or that went on a reopened
-    # link that no byte has come back on yet (it may have died at once: a port that took the
+    # link that no frame has come back on yet (it may have died at once: a port that took the
     # connection as its process died): sent on the return.
     stop_owed = [False]
 
