@@ -9,13 +9,17 @@ import socket
 import struct
 import threading
 from collections.abc import Iterator
+from pathlib import Path
 from typing import cast
 
 import pytest
 
 from rovlink.client import parse_url
 from rovlink.client.errors import ConnectionLostError
+from rovlink.client.events import LinkState
 from rovlink.client.links import Link, open_link
+from rovlink.recorder import Recorder, read_entries
+from rovlink.recorder.entries import FrameEntry
 from rovlink.recorder.reopening import ReopeningLink
 from rovlink.recorder.tap import STOP_FRAME, TcpEndpoint, forward
 from tests.client.conftest import wait_until
@@ -266,3 +270,21 @@ def test_links_that_close_before_a_frame_comes_are_reopened_with_backoff_not_at_
         link.read_available(0)
     assert stopping.waited_s == [0.1, 0.2, 0.4, 0.8, 1.6, 2.0]
     assert states[:2] == ["lost", "reconnected"]
+
+
+def test_a_reply_after_the_gap_is_not_matched_to_a_query_the_gap_left_unanswered(
+    tmp_path: Path,
+) -> None:
+    # A tap's query in flight as the link dropped stayed awaited: every later reply of its
+    # name was matched to the query before its own, its round trip seconds too long.
+    path = tmp_path / "gap.jsonl"
+    with Recorder(str(path), url="socket://127.0.0.1:1") as recorder:
+        recorder.on_bytes("out", b"#qd!", at_s=1.0)
+        recorder.on_event(LinkState(1.1, "lost", "closed by the other end; reconnecting"))
+        recorder.on_event(LinkState(3.0, "reconnected", "after 3 attempts"))
+        recorder.on_bytes("out", b"#qd!", at_s=4.0)
+        recorder.on_bytes("in", b"$qd.7!", at_s=4.05)
+    replies = [
+        e for e in read_entries(str(path)) if isinstance(e, FrameEntry) and e.kind == "response"
+    ]
+    assert [(e.query, e.round_trip_ms) for e in replies] == [("qd", 50.0)]
