@@ -1078,7 +1078,9 @@ def test_record_of_a_link_lost_mid_recording_keeps_the_file_and_fails(
     output = tmp_path / "lost.jsonl"
     controller = _ClosingController(b"#qd!$qd.5!")
     try:
-        result = run_cli("record", controller.url, "-o", str(output), "--duration", "60")
+        result = run_cli(
+            "record", controller.url, "-o", str(output), "--duration", "60", "--exit-on-loss"
+        )
     finally:
         controller.close()
     assert result.status == 1, result.err

@@ -16,8 +16,9 @@ import pytest
 import serial
 
 from rovlink.client import parse_url
-from rovlink.client.links import open_link
+from rovlink.client.links import Link, open_link
 from rovlink.protocol import Command, encode
+from rovlink.recorder.reopening import ReopeningLink
 from rovlink.recorder.tap import BUSY_MESSAGE, STOP_FRAME, PtyEndpoint, TcpEndpoint, forward
 from tests.client.conftest import wait_until
 from tests.faults.test_fault_proxy import RecordingController
@@ -51,6 +52,17 @@ class _Tap:
         assert wait_until(lambda: not self.endpoint.serving, _TIMEOUT_S)
 
 
+def _held(link: Link, stopping: threading.Event) -> ReopeningLink:
+    """``link`` as ``rovlink record --exit-on-loss`` holds it: lost, it is not reopened."""
+
+    def reopen() -> Link:
+        raise AssertionError("not reopened")
+
+    return ReopeningLink(
+        link, reopen, stopping=stopping, on_change=lambda *_: None, may_reopen=lambda: False
+    )
+
+
 @contextlib.contextmanager
 def _forwarding(
     endpoint: TcpEndpoint | PtyEndpoint,
@@ -63,7 +75,7 @@ def _forwarding(
     recorded = _Chunks()
     stopping = threading.Event()
     forwarding = threading.Thread(
-        target=forward, args=(endpoint, link, recorded, stopping), daemon=True
+        target=forward, args=(endpoint, _held(link, stopping), recorded, stopping), daemon=True
     )
     forwarding.start()
     try:
@@ -286,7 +298,8 @@ def test_no_stop_is_recorded_as_sent_on_a_controller_link_that_is_lost() -> None
 
     def forwarding() -> None:
         try:
-            forward(endpoint, link, recorded, threading.Event())
+            stopping = threading.Event()
+            forward(endpoint, _held(link, stopping), recorded, stopping)
         except BaseException as error:  # (kept for the assertion)
             lost.append(error)
 

@@ -237,9 +237,10 @@ def _is_telemetry_table(path: str) -> bool:
 
 def _decode_recording(args: argparse.Namespace) -> int:
     """A recording's wire channel, each direction decoded as its end reads it (a reply in
-    its query's checksum mode, P3); damage is reported after it."""
+    its query's checksum mode, P3), with the link's own events (``lost``, ``reconnected``:
+    where a gap is); damage is reported after it."""
     from rovlink.recorder import RecordingDamagedError, RecordingError, read_entries  # noqa: PLC0415
-    from rovlink.recorder.entries import HeaderEntry, WireEntry  # noqa: PLC0415
+    from rovlink.recorder.entries import EventEntry, HeaderEntry, WireEntry  # noqa: PLC0415
     from rovlink.recorder.link_decoding import LinkDecoder  # noqa: PLC0415
 
     link = LinkDecoder(checksum=bool(args.checksum), algorithm=args.algorithm)
@@ -265,6 +266,8 @@ def _decode_recording(args: argparse.Namespace) -> int:
             for entry in read_entries(args.file):
                 if isinstance(entry, WireEntry):
                     show(entry.direction, link.feed(entry.direction, entry.data))
+                elif isinstance(entry, EventEntry) and entry.event == "link" and not args.stats:
+                    _write_json({"event": "link", "state": entry.name, "detail": entry.detail})
                 elif isinstance(entry, HeaderEntry) and not (checksum_given and algorithm_given):
                     # The mode and algorithm the link was in as this file starts (each file of
                     # a rotation records its own), each unless the command line says otherwise.

@@ -66,6 +66,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="let --tap socket:// use an address other computers reach; the protocol has no "
         "authentication, so anyone who reaches it drives the robot",
     )
+    parser.add_argument(
+        "--exit-on-loss",
+        action="store_true",
+        help="end (status 1) when the controller's link is lost, for a service manager to "
+        "restart; by default it is reopened, the recording and the tap's program going on",
+    )
     add_checksum_options(parser, "the link starts in checksum mode (to decode its frames)")
     add_rotation_options(parser)
 
@@ -73,13 +79,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     """Record until Ctrl-C, SIGTERM, SIGHUP or ``--duration``; the file is finished in every
     case. A link lost before any frame came (a controller that is busy, a connection closed at
-    once) did not open: status 1, and no file is kept. A link lost later ends the recording
-    with status 1 (as ``rovlink send`` ends on a lost link), the file kept."""
+    once) did not open: status 1, and no file is kept. A link lost later is reopened at the same
+    URL, a ``link`` event marking the loss and the return; with ``--exit-on-loss`` it ends the
+    recording with status 1 (as ``rovlink send`` ends on a lost link), the file kept."""
     from rovlink.cli.interrupt import ServingSignals, say_ready  # noqa: PLC0415
     from rovlink.client import parse_url  # noqa: PLC0415 - the driver loads when used
     from rovlink.client.errors import ConnectionLostError  # noqa: PLC0415
     from rovlink.client.events import LinkState  # noqa: PLC0415
     from rovlink.client.links import open_link  # noqa: PLC0415
+    from rovlink.recorder.reopening import ReopeningLink  # noqa: PLC0415
     from rovlink.recorder.tap import forward, parse_tap  # noqa: PLC0415
 
     try:
@@ -98,7 +106,7 @@ def run(args: argparse.Namespace) -> int:
     except OSError as error:
         raise CommandError(f"cannot serve the tap {args.tap}: {reason(error)}") from None
     try:
-        link = open_link(endpoint)
+        first_link = open_link(endpoint)
     except (ConnectionError, OSError) as error:
         if tap is not None:
             tap.close()
@@ -115,9 +123,24 @@ def run(args: argparse.Namespace) -> int:
     signals = ServingSignals()
     stopping = signals.stopping
     heard = _FirstWords()
+    answered = _FirstWords()  # (the controller's side alone)
+
+    def link_changed(state: str, detail: str) -> None:
+        recorder.on_event(LinkState(time.monotonic(), state, detail))
+
+    # (A controller that closed before a frame came from it turned us away: no use reopening.)
+    link = ReopeningLink(
+        first_link,
+        lambda: open_link(endpoint),
+        stopping=stopping,
+        on_change=link_changed,
+        may_reopen=lambda: answered.frame and not args.exit_on_loss,
+    )
 
     def record(direction: str, data: bytes, *, by_session: bool = False) -> None:
         heard.add(data)
+        if direction == "in":
+            answered.add(data)
         recorder.on_bytes(direction, data, by_session=by_session)
 
     where = f"; program's side: {tap.path}" if tap is not None else " (listening only)"
@@ -139,7 +162,7 @@ def run(args: argparse.Namespace) -> int:
     except ConnectionLostError as error:
         lost = str(error)
         # In the file too: read later, it must not look like one stopped by hand.
-        recorder.on_event(LinkState(time.monotonic(), "lost", lost))
+        link_changed("lost", lost)
     finally:
         link.close()
         if tap is not None:

@@ -69,6 +69,11 @@ class LinkDecoder:
             decoder.checksum_enabled = checksum
         self.checksum = checksum
 
+    def forget_awaited(self) -> None:
+        """The link was lost: no reply to a query sent before will come (else each later reply
+        of its name is matched to the query before its own, its round trip too long)."""
+        self._awaited.clear()
+
     def feed(self, direction: str, data: bytes) -> list[tuple[Event, str | None]]:
         """The events of ``data`` seen going ``direction`` (``out``: to the controller), each
         with the query it answered (``None`` for commands, text, bad and stray frames)."""

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 from types import TracebackType
 
 import rovlink
-from rovlink.client.events import ClientEvent
+from rovlink.client.events import ClientEvent, LinkState
 from rovlink.recorder.entries import Entry, HeaderEntry
 from rovlink.recorder.formats import format_of, open_sink
 from rovlink.recorder.sink import Sink
@@ -265,6 +265,8 @@ class Recorder:
                     item.at_s, wall_ns, item.direction, item.data, item.by_session
                 )
             else:
+                if isinstance(item, LinkState) and self._tapped:  # (a tap's link lost)
+                    tap.link_changed()
                 entries = events.entries(wall_ns, item)
             for entry in entries:
                 sink.write(entry)

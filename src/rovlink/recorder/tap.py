@@ -34,6 +34,7 @@ from rovlink.busy_tcp import HUNG_UP_GRACE_S, RefusedClients, has_hung_up
 from rovlink.client.errors import ConnectionLostError
 from rovlink.client.links import FdLink, Link, SocketLink
 from rovlink.protocol import Command, Decoder, Frame, Setting
+from rovlink.recorder.reopening import ReopeningLink
 
 __all__ = ["BUSY_MESSAGE", "STOP_FRAME", "PtyEndpoint", "TcpEndpoint", "forward", "parse_tap"]
 
@@ -334,40 +335,55 @@ def parse_tap(text: str) -> PtyEndpoint | TcpEndpoint:
 
 def forward(
     endpoint: PtyEndpoint | TcpEndpoint,
-    controller: Link,
+    controller: ReopeningLink,
     record: Record,
     stopping: threading.Event,
     *,
     checksum: bool = False,
     algorithm: str = "crc8",
 ) -> None:
-    """Forward bytes both ways until ``stopping`` is set or the controller's link is lost,
-    calling ``record(direction, data)`` for each chunk before passing it on. ``checksum`` and
-    ``algorithm``: the mode the link starts in, to read the program's frames."""
+    """Forward bytes both ways until ``stopping`` is set or the controller's link is lost for
+    good, calling ``record(direction, data)`` for each chunk before passing it on. ``checksum``
+    and ``algorithm``: the mode the link starts in, to read the program's frames.
+
+    While the controller's link is down (being reopened) the program stays connected: what it
+    sends is dropped and it gets no replies. When the link comes back, a ``#stop!`` goes first
+    if the program's commands may have left the robot moving (as when a program leaves): the
+    tap never lets a robot resume what it was doing before the gap unseen by its program."""
     program: list[Link | None] = [None]
-    # Set once a read found the controller's link lost: a write to it may still "succeed" (a
-    # TCP peer that closed takes bytes until its reset comes back), and a #stop! recorded as
-    # sent there would say the robot was stopped when nothing reached it.
-    controller_lost = threading.Event()
+    motion = _MayMove(checksum=checksum, algorithm=algorithm)
+    # A #stop! that could not go (a program left during the gap), or that went on a reopened
+    # link that no frame has come back on yet (it may have died at once: a port that took the
+    # connection as its process died): sent on the return.
+    stop_owed = [False]
 
     def stop_robot() -> None:
-        if controller_lost.is_set():
-            logger.warning("tap: could not send #stop!: the controller's link is lost")
-            return
-        try:
-            controller.write(STOP_FRAME)
-        except ConnectionLostError:
+        # (A link found lost takes nothing: a TCP peer that closed may take bytes until its
+        # reset comes back, and a #stop! recorded as sent there would be a lie.)
+        if not controller.write(STOP_FRAME):
+            stop_owed[0] = True
             logger.warning("tap: could not send #stop!: the controller's link is lost")
             return
         record("out", STOP_FRAME, by_session=True)
         logger.info("tap: #stop! sent (the program may have left the robot moving)")
 
-    motion = _MayMove(checksum=checksum, algorithm=algorithm)
+    def stop_on_return(link: Link) -> None:
+        if motion.moved or stop_owed[0]:
+            link.write(STOP_FRAME)
+            record("out", STOP_FRAME, by_session=True)
+            motion.moved = False
+            stop_owed[0] = True  # (until the controller is heard on this link)
+            logger.info("tap: #stop! sent first on the reopened link")
+
+    controller.on_return = stop_on_return
 
     def pass_on(data: bytes) -> None:
+        if not controller.up:
+            logger.debug("tap: dropped %d bytes of the program's: the link is down", len(data))
+            return
         record("out", data)
-        controller.write(data)
-        motion.feed(data)
+        if controller.write(data):
+            motion.feed(data)
 
     def to_controller() -> None:
         while not stopping.is_set():
@@ -402,14 +418,13 @@ def forward(
         while not stopping.is_set():
             data = controller.read_available(_POLL_S)
             if data:
+                if b"!" in data:  # a frame: the controller is there (a busy one says text)
+                    stop_owed[0] = False
                 record("in", data)
                 side = program[0]
                 if side is not None:
                     with contextlib.suppress(ConnectionLostError):
                         side.write(data)
-    except ConnectionLostError:
-        controller_lost.set()
-        raise
     finally:
         stopping.set()
         thread.join()

@@ -228,6 +228,10 @@ class TapLog:
         self.log = SessionLog(checksum=checksum)
         self._link = LinkDecoder(checksum=checksum, algorithm=algorithm)
 
+    def link_changed(self) -> None:
+        """The link was lost or reopened: the queries awaiting replies are forgotten."""
+        self._link.forget_awaited()
+
     def entries(
         self, t_s: float, wall_ns: int, direction: str, data: bytes, by_session: bool = False
     ) -> list[Entry]:
