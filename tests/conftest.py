@@ -85,7 +85,9 @@ class IntegrationGuard:
         original_popen_init = subprocess.Popen.__init__
 
         def guarded_popen_init(popen: Any, *args: Any, **kwargs: Any) -> None:
-            self.refuse(f"started a subprocess ({args[0] if args else kwargs.get('args')!r})")
+            command = args[0] if args else kwargs.get("args")
+            program = command[0] if isinstance(command, list | tuple) else command
+            self.refuse(f"started a subprocess ({program!r})")
             original_popen_init(popen, *args, **kwargs)  # pragma: no cover
 
         # asyncio.create_subprocess_* starts its process through subprocess.Popen too.
