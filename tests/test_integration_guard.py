@@ -92,7 +92,9 @@ def test_a_refusal_the_code_swallows_still_fails_the_test(
                 pass
         """
     )
-    result = pytester.runpytest_inprocess("-p", "no:cacheprovider")
+    result = pytester.runpytest_inprocess(
+        "-p", "no:cacheprovider", "-o", "asyncio_default_fixture_loop_scope=function"
+    )
     result.assert_outcomes(passed=1, errors=1)
     result.stdout.fnmatch_lines(["*test_hides_the_error called bind*is not marked integration*"])
 
