@@ -267,7 +267,17 @@ def _run(source: str, namespace: dict[str, object]) -> str:
     return ""
 
 
-@pytest.mark.parametrize("example", SESSIONS, ids=str)
+def _session_param(example: Example) -> Any:
+    """A session as a test case: one whose comment names a condition runs on a real
+    pseudo-terminal, so it is marked ``integration``."""
+    on_a_terminal = any(
+        source.partition("  # ")[2].strip() in CONDITIONS
+        for source, _shown in _statements(example.code)
+    )
+    return pytest.param(example, marks=[pytest.mark.integration] if on_a_terminal else [])
+
+
+@pytest.mark.parametrize("example", [_session_param(example) for example in SESSIONS], ids=str)
 def test_a_session_shows_what_it_says(example: Example) -> None:
     with rovlink.connect(SIMULATOR) as rov:
         namespace: dict[str, object] = {"rov": rov}

@@ -5,6 +5,10 @@ from __future__ import annotations
 import subprocess
 import sys
 
+import pytest
+
+pytestmark = pytest.mark.integration
+
 
 def test_an_unconfigured_program_gets_no_rovlink_log_lines_on_stderr() -> None:
     code = (

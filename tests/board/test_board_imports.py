@@ -5,8 +5,12 @@ from __future__ import annotations
 import subprocess
 import sys
 
+import pytest
+
 from tests.board.controller_process import environment
 from tests.board.rig import EXAMPLE
+
+pytestmark = pytest.mark.integration
 
 _HARDWARE = ("smbus2", "gpiozero", "adafruit_bno055", "adafruit_bus_device", "board", "busio")
 

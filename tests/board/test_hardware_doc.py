@@ -111,6 +111,7 @@ def _unit_file() -> str:
     return str(blocks[0])
 
 
+@pytest.mark.integration
 @pytest.mark.skipif(shutil.which("systemd-analyze") is None, reason="no systemd-analyze")
 def test_systemd_takes_the_unit_file(tmp_path: Path) -> None:
     # Its programs must exist for systemd to take the file: any executable stands in.

@@ -15,6 +15,8 @@ from pathlib import Path
 
 import pytest
 
+pytestmark = pytest.mark.integration
+
 #: The script's own wait is milliseconds; this bounds a hang.
 PROCESS_TIMEOUT_S = 30.0
 

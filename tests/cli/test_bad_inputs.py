@@ -266,6 +266,7 @@ def test_the_fleets_live_table_without_a_terminal_is_refused(run_cli: RunCli) ->
     )
 
 
+@pytest.mark.integration
 @pytest.mark.parametrize(
     ("broker", "why"),
     [

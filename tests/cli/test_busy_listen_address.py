@@ -9,6 +9,8 @@ import pytest
 
 from rovlink.cli import main
 
+pytestmark = pytest.mark.integration
+
 
 @pytest.fixture
 def taken_port() -> Iterator[int]:

@@ -33,6 +33,7 @@ def _calibration_sent(server: FakeControllerServer) -> list[str]:
     return [frame for frame in server.fakes[0].frames() if frame.startswith(("#sdz", "#sdk"))]
 
 
+@pytest.mark.integration
 def test_a_depth_read_back_that_times_out_says_both_values_were_sent(
     run_cli: RunCli, deaf_controller: FakeControllerServer
 ) -> None:
@@ -48,6 +49,7 @@ def test_a_depth_read_back_that_times_out_says_both_values_were_sent(
     assert _calibration_sent(deaf_controller) == ["#sdz.20!", "#sdk.100!"]
 
 
+@pytest.mark.integration
 def test_values_the_controller_did_not_take_are_an_error(run_cli: RunCli) -> None:
     # A controller that drops #sdz and #sdk (a reset, a firmware bug) and reads 123 cm at raw
     # 530, where sdz 20 sdk 100 give 510 cm. Before, calibrate said "sent ...; depth now
@@ -65,6 +67,7 @@ def test_values_the_controller_did_not_take_are_an_error(run_cli: RunCli) -> Non
     )
 
 
+@pytest.mark.integration
 def test_a_measurement_that_times_out_sends_nothing(
     run_cli: RunCli, deaf_controller: FakeControllerServer
 ) -> None:
@@ -90,6 +93,7 @@ def test_a_measurement_that_times_out_sends_nothing(
     assert _calibration_sent(deaf_controller) == []
 
 
+@pytest.mark.integration
 def test_a_link_lost_between_the_two_values_says_which_one_went(
     run_cli: RunCli, deaf_controller: FakeControllerServer, monkeypatch: pytest.MonkeyPatch
 ) -> None:
@@ -108,6 +112,7 @@ def test_a_link_lost_between_the_two_values_says_which_one_went(
     assert _calibration_sent(deaf_controller) == ["#sdz.20!"]
 
 
+@pytest.mark.integration
 @pytest.mark.parametrize("at", ["set_depth_scale", "sensors"])
 def test_an_interrupt_after_the_zero_went_says_what_was_sent(
     run_cli: RunCli, monkeypatch: pytest.MonkeyPatch, at: str
@@ -160,6 +165,7 @@ def test_given_readings_too_close_are_refused_before_the_port_opens(
     )
 
 
+@pytest.mark.integration
 def test_sending_without_a_terminal_to_ask_on_needs_yes(run_cli: RunCli) -> None:
     # As `tune` and `check --motion` refuse to act unasked. Before, calibrate asked only on a
     # terminal and, without one, sent #sdz and #sdk unasked (`calibrate … < /dev/null`).

@@ -81,6 +81,7 @@ def test_the_pages_show_runs_to_check() -> None:
     assert len(SHOWN_RUNS) >= 3, [str(run) for run in SHOWN_RUNS]
 
 
+@pytest.mark.integration
 @pytest.mark.parametrize("shown", SHOWN_RUNS, ids=str)
 def test_a_command_prints_what_the_page_shows(shown: ShownRun) -> None:
     script = f'rovlink() {{ "{sys.executable}" -m rovlink "$@"; }}\n{shown.command}\n'

@@ -31,6 +31,7 @@ def _connected(server: socket.socket) -> bool:
     return True
 
 
+@pytest.mark.integration
 def test_the_monitor_without_a_terminal_is_refused_before_the_link_opens(
     run_cli: RunCli, tmp_path: Path
 ) -> None:
@@ -59,6 +60,7 @@ def test_the_monitor_names_the_stream_that_is_not_a_terminal(run_cli: RunCli) ->
     assert "standard input" not in result.err
 
 
+@pytest.mark.integration
 def test_the_monitor_with_its_standard_error_elsewhere_is_refused() -> None:
     # Before, with its keys and output on the terminal but standard error sent elsewhere
     # (2>monitor.log, 2>/dev/null), the dashboard (which textual draws on standard error) went
@@ -82,6 +84,7 @@ def test_a_malformed_url_is_still_said_first(run_cli: RunCli) -> None:
     assert "terminal" not in result.err
 
 
+@pytest.mark.integration
 @pytest.mark.timeout(30)
 def test_the_monitor_with_its_output_to_a_file_ends_at_once(tmp_path: Path) -> None:
     output = tmp_path / "monitor.out"

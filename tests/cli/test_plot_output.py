@@ -27,6 +27,7 @@ def recording(tmp_path: Path) -> Path:
     return path
 
 
+@pytest.mark.integration
 def test_a_format_whose_program_is_missing_is_one_line(
     run_cli: RunCli, recording: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:

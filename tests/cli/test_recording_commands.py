@@ -600,6 +600,7 @@ def test_plot_show_without_a_display_writes_nothing_and_says_what_would(
     assert not image.exists()
 
 
+@pytest.mark.integration
 def test_plot_show_where_no_window_can_open_is_an_error(tmp_path: Path) -> None:
     # A display that cannot be opened (here, none at that number; elsewhere, no toolkit such as
     # tkinter): matplotlib draws without a window. Before, the command ended with status 0, a
@@ -852,6 +853,7 @@ def test_a_malformed_url_leaves_no_recording(
     assert not recording.exists()
 
 
+@pytest.mark.integration
 @pytest.mark.parametrize("command", RECORDING_COMMANDS, ids=lambda command: command[0])
 @pytest.mark.usefixtures("monitor_on_a_terminal")
 def test_a_link_that_does_not_open_leaves_no_recording(
@@ -868,6 +870,7 @@ def test_a_link_that_does_not_open_leaves_no_recording(
     assert not recording.exists()
 
 
+@pytest.mark.integration
 @pytest.mark.parametrize(
     "command", [*RECORDING_COMMANDS, ("record",)], ids=lambda command: command[0]
 )
@@ -972,6 +975,7 @@ def test_a_rotation_never_writes_over_an_earlier_rotations_file(
     assert earlier.read_bytes() == b"an earlier dive's second file\n"
 
 
+@pytest.mark.integration
 def test_record_to_a_directory_not_there_is_refused_before_the_link_opens(
     run_cli: RunCli, tmp_path: Path
 ) -> None:
@@ -986,6 +990,7 @@ def test_record_to_a_directory_not_there_is_refused_before_the_link_opens(
     )
 
 
+@pytest.mark.integration
 def test_a_tap_other_computers_reach_needs_allow_remote(run_cli: RunCli, tmp_path: Path) -> None:
     # Before, --tap socket://0.0.0.0:PORT served the robot to the whole network with no word:
     # anyone reaching it drove the robot, unauthenticated (fault and controller refuse so).

@@ -44,6 +44,7 @@ def _send(run_cli: RunCli, url: str, recording: Path, *line: str) -> tuple[int, 
     return result.status, result.err
 
 
+@pytest.mark.integration
 def test_send_whose_recording_fails_after_motion_fails_and_stops_the_robot(
     run_cli: RunCli, full_disk: Path, controller: FakeControllerServer
 ) -> None:
@@ -57,6 +58,7 @@ def test_send_whose_recording_fails_after_motion_fails_and_stops_the_robot(
     assert controller.fakes[0].frames() == ["#crcoff!", "#start!", "#th.90.20!", "#qd!", "#stop!"]
 
 
+@pytest.mark.integration
 def test_send_whose_recording_fails_without_motion_fails_and_sends_nothing_more(
     run_cli: RunCli, full_disk: Path, controller: FakeControllerServer
 ) -> None:

@@ -15,6 +15,8 @@ from tests.cli.conftest import RunCli
 from tests.client.conftest import wait_until
 from tests.client.fake_controller import FakeControllerServer
 
+pytestmark = pytest.mark.integration
+
 #: Longer than the driver's default motion timeout (2 s): the gap a program that holds a
 #: motion (the monitor, with no motion timeout) leaves between two frames.
 _HELD_S = 2.2

@@ -203,6 +203,7 @@ def test_unknown_command(run_cli: RunCli) -> None:
     assert "invalid choice: 'fly'" in result.err
 
 
+@pytest.mark.integration
 def test_version_imports_neither_the_driver_nor_pyserial_nor_rich() -> None:
     code = (
         "import sys\n"
@@ -216,6 +217,7 @@ def test_version_imports_neither_the_driver_nor_pyserial_nor_rich() -> None:
     subprocess.run([sys.executable, "-c", code], check=True, timeout=30)
 
 
+@pytest.mark.integration
 def test_decode_imports_no_driver() -> None:
     code = (
         "import sys\n"
@@ -229,6 +231,7 @@ def test_decode_imports_no_driver() -> None:
     subprocess.run([sys.executable, "-c", code], check=True, timeout=30, input=b"#qd!")
 
 
+@pytest.mark.integration
 def test_decode_imports_no_module_it_does_not_need() -> None:
     # Each of these costs as much as the rest of decode's start-up together: dataclasses
     # (with inspect and ast) and typing. Those the interpreter loaded itself (a .pth file
@@ -251,6 +254,7 @@ def test_decode_imports_no_module_it_does_not_need() -> None:
     )
 
 
+@pytest.mark.integration
 def test_help_imports_no_module_only_running_needs() -> None:
     # `rovlink calibrate --help` imported statistics (with decimal, fractions and random), a
     # sixth of its start-up, for the mean of the readings it takes when it runs.
@@ -276,6 +280,7 @@ def test_help_imports_no_module_only_running_needs() -> None:
     assert result.returncode == 0, result.stderr.splitlines()[-1:]
 
 
+@pytest.mark.integration
 @pytest.mark.parametrize(
     ("words", "said"),
     [
@@ -306,6 +311,7 @@ def test_a_word_that_is_not_utf8_is_said_with_its_bytes(
     assert result.stderr.splitlines(keepends=True)[-1] == said
 
 
+@pytest.mark.integration
 def test_output_to_a_full_device_is_a_one_line_error() -> None:
     with open("/dev/full", "wb") as full:
         result = subprocess.run(
@@ -320,12 +326,14 @@ def test_output_to_a_full_device_is_a_one_line_error() -> None:
     assert result.stderr == "rovlink reference: cannot write the output: No space left on device\n"
 
 
+@pytest.mark.integration
 def test_output_to_a_closed_pipe_ends_quietly() -> None:
     """``rovlink reference | head -0``: the reader is gone before the first write."""
     result = run_into_a_closed_pipe("reference")
     assert (result.returncode, result.stderr) == (0, "")
 
 
+@pytest.mark.integration
 @pytest.mark.parametrize(
     "words",
     [("check", "--list"), ("demo", "--depth", "5", "--hold", "0", "--leg", "0")],

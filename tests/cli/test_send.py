@@ -139,6 +139,7 @@ def test_a_raw_frame_the_controller_would_drop_is_refused(run_cli: RunCli) -> No
     assert result.out == ""
 
 
+@pytest.mark.integration
 def test_the_help_gives_the_statuses_the_command_ends_with(run_cli: RunCli) -> None:
     # Before, the help said a frame the controller would drop exits with status 1, as a failure
     # while sending does; it is refused before anything is sent, as a usage error (2).
@@ -347,6 +348,7 @@ def noisy() -> Iterator[NoisyController]:
     controller.close()
 
 
+@pytest.mark.integration
 def test_controller_text_is_printed_with_its_control_characters_escaped(
     run_cli: RunCli, noisy: NoisyController, tmp_path: Path
 ) -> None:
@@ -362,6 +364,7 @@ def test_controller_text_is_printed_with_its_control_characters_escaped(
     assert "\x1b" not in replayed.out
 
 
+@pytest.mark.integration
 @pytest.mark.parametrize(
     ("line", "stopped"),
     [(["start", "th 270 25", "qsa", "stop"], True), (["qd", "start"], False)],
@@ -383,6 +386,7 @@ def test_a_failed_query_after_motion_ends_the_line_with_stop(
         assert b"#start!" not in silent.received  # the rest of the line is not sent
 
 
+@pytest.mark.integration
 def test_an_output_closed_after_motion_still_ends_the_line_with_stop() -> None:
     # `send URL start "th 270 25" qd … stop | head -1`: before, the closed output ended the
     # line quietly, status 0, and the robot drove on at 25 % (its own `stop` never sent).
@@ -405,6 +409,7 @@ def test_an_output_closed_after_motion_still_ends_the_line_with_stop() -> None:
         port.close()
 
 
+@pytest.mark.integration
 def test_raw_output_closed_after_motion_still_ends_the_line_with_stop() -> None:
     # `send URL --raw start "th 270 25" … | head -4`: before, the closed output was raised by
     # the shown bytes of the next frame before it was written, and then by those of #stop!,
@@ -429,6 +434,7 @@ def test_raw_output_closed_after_motion_still_ends_the_line_with_stop() -> None:
         port.close()
 
 
+@pytest.mark.integration
 def test_raw_output_closed_before_the_first_line_ends_quietly() -> None:
     # `send sim:// --raw qd | head -0`: before, "cannot open sim://: Broken pipe", status 1:
     # the probe's bytes, shown as the link opened, were taken for the link's failure.
@@ -447,6 +453,7 @@ def test_commands_that_leave_the_robot_moving_are_followed_by_stop_as_the_link_c
     assert sent[-2:] == [">> #th.0.50!", ">> #stop!"]
 
 
+@pytest.mark.integration
 def test_a_noisy_line_on_connecting_asks_for_more_retries_as_the_option(
     run_cli: RunCli,
 ) -> None:

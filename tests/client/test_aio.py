@@ -341,6 +341,7 @@ async def test_bad_options_are_rejected_before_connecting() -> None:
         rovlink.aio.connect("sim://?bogus=1")
 
 
+@pytest.mark.integration
 async def test_a_query_queued_behind_max_in_flight_fails_when_the_tcp_link_is_lost() -> None:
     """A caller waiting for a free slot (max_in_flight) while the TCP link is lost fails with
     ConnectionLostError once it has the slot, instead of queueing its query on the dead link,

@@ -89,6 +89,7 @@ def test_dropped_frames_are_debug_lines_with_a_periodic_warning(
     assert "100 received frame(s)" in warnings[1].getMessage()
 
 
+@pytest.mark.integration
 def test_an_unconfigured_program_on_a_noisy_line_prints_nothing() -> None:
     code = (
         "import socket, threading, rovlink\n"

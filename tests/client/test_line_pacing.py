@@ -83,6 +83,7 @@ def _stop_latency_s(sim: _ServedSim, stop_called_at_s: float) -> float:
     return sim.stop_seen_at_s - stop_called_at_s
 
 
+@pytest.mark.integration
 def test_a_stop_after_a_burst_of_moves_reaches_the_controller_at_once(sim: _ServedSim) -> None:
     # Before, the fifty moves went into the kernel at once and the #stop! reached the
     # controller 0.5 s after stop() returned, behind them.
@@ -95,6 +96,7 @@ def test_a_stop_after_a_burst_of_moves_reaches_the_controller_at_once(sim: _Serv
         assert _stop_latency_s(sim, stop_called_at_s) < STOP_LATENCY_LIMIT_S
 
 
+@pytest.mark.integration
 def test_asyncio_a_stop_after_a_burst_of_moves_reaches_the_controller_at_once(
     sim: _ServedSim,
 ) -> None:
@@ -111,6 +113,7 @@ def test_asyncio_a_stop_after_a_burst_of_moves_reaches_the_controller_at_once(
     assert _stop_latency_s(sim, stop_called_at_s) < STOP_LATENCY_LIMIT_S
 
 
+@pytest.mark.integration
 @pytest.mark.realtime
 def test_a_serial_link_times_what_it_wrote_at_its_baud_rate(sim: _ServedSim) -> None:
     port = serial.Serial(sim.path, BAUD, timeout=0, exclusive=True)
@@ -215,6 +218,7 @@ def _move_of(number: int, how: str) -> object:
     return f"#th.90.{number % 50}!" if how == "send_raw" else Command("th", (90, number % 50))
 
 
+@pytest.mark.integration
 @pytest.mark.parametrize(("how", "stop_how"), [("send_raw", "stop"), ("send_raw", "raw #stop!")])
 def test_a_stop_after_a_burst_of_raw_moves_reaches_the_controller_at_once(
     sim: _ServedSim, how: str, stop_how: str
@@ -231,6 +235,7 @@ def test_a_stop_after_a_burst_of_raw_moves_reaches_the_controller_at_once(
         assert _stop_latency_s(sim, stop_called_at_s) < STOP_LATENCY_LIMIT_S
 
 
+@pytest.mark.integration
 @pytest.mark.parametrize(("how", "stop_how"), [("send_raw", "stop"), ("send", "raw #stop!")])
 def test_asyncio_a_stop_after_a_burst_of_raw_moves_reaches_the_controller_at_once(
     sim: _ServedSim, how: str, stop_how: str

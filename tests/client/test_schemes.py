@@ -16,6 +16,7 @@ from rovlink.client.links import open_link
 from rovlink.client.url import Scheme, parse_url
 
 
+@pytest.mark.integration
 def test_the_client_does_not_import_the_simulator() -> None:
     code = (
         "import sys, rovlink.client, rovlink.aio, rovlink.client.links\n"

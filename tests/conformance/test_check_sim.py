@@ -276,6 +276,7 @@ def test_preflight_refuses_a_silent_port_and_a_latched_leak() -> None:
         link.close()
 
 
+@pytest.mark.integration
 def test_cli_says_which_algorithm_the_controller_answers_with(
     capsys: pytest.CaptureFixture[str],
 ) -> None:
@@ -356,6 +357,7 @@ def test_a_run_aborted_by_a_lost_link_says_which_checks_did_not_run(
     assert skipped == report.not_run
 
 
+@pytest.mark.integration
 def test_a_link_lost_before_the_first_check_is_one_line(
     capsys: pytest.CaptureFixture[str],
 ) -> None:
@@ -394,6 +396,7 @@ def test_a_link_lost_before_the_first_check_is_one_line(
     assert "Traceback" not in "\n".join(err)
 
 
+@pytest.mark.integration
 @pytest.mark.parametrize(
     ("url", "why"),
     [

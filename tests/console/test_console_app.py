@@ -261,6 +261,7 @@ def test_a_script_s_output_to_a_file_keeps_the_console_s_own_remarks_on_stderr(
     )
 
 
+@pytest.mark.integration
 def test_lines_read_from_a_file_that_fail_as_they_run_end_the_console_with_status_1(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -434,6 +435,7 @@ async def test_ctrl_c_abandons_a_query_waiting_for_its_reply_and_the_lines_queue
     assert link.frames() == ["#crcoff!", "#qd!", "#mvd.10!", "#stop!"]
 
 
+@pytest.mark.integration
 def test_lines_read_from_a_file_all_run_in_order_before_leaving(tmp_path: Path) -> None:
     # `rovlink console URL < lines.txt`: the end of the file is no Ctrl-D key. Leaving at once
     # there dropped the lines still queued behind a query waiting for its reply.
@@ -521,6 +523,7 @@ async def test_ctrl_z_says_the_console_is_not_suspended_and_leaves_the_line_alon
     assert rig.frames() == ["#crcoff!", "#qd!", "#stop!"]  # (the lock not sent: made safe)
 
 
+@pytest.mark.integration
 def test_a_bad_line_read_from_a_file_ends_the_console_naming_it_and_stops(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -555,6 +558,7 @@ def test_a_bad_line_read_from_a_file_ends_the_console_naming_it_and_stops(
     silent.close()
 
 
+@pytest.mark.integration
 def test_lines_read_from_a_file_show_no_toolbar_nor_a_stop_key_that_cannot_be_pressed(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

@@ -16,6 +16,8 @@ import pytest
 from rovlink.controller import lines as lines_module
 from rovlink.controller.lines import Line, Lines, TcpLine
 
+pytestmark = pytest.mark.integration
+
 
 def _reset_connection(address: tuple[str, int]) -> None:
     """Connect, then abort the connection (a zero linger: the close sends a reset)."""

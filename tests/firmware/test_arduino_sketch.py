@@ -87,12 +87,14 @@ def _run(sketch: Path, script: list[str], *power_on: str) -> list[Shown]:
     return shown
 
 
+@pytest.mark.integration
 def test_the_sketch_answers_a_query_and_drives_nothing_while_locked(sketch: Path) -> None:
     (shown,) = _run(sketch, ["run 20", send(b"#qd!#th.0.100!"), "run 20", "show"])
     assert shown.output == b"$qd.0!"
     assert shown.vertical_us + shown.horizontal_us == (NEUTRAL_US,) * 6
 
 
+@pytest.mark.integration
 def test_stop_puts_every_esc_at_neutral_at_once(sketch: Path) -> None:
     moving, stopped = _run(
         sketch,
@@ -112,6 +114,7 @@ def test_stop_puts_every_esc_at_neutral_at_once(sketch: Path) -> None:
     assert stopped.claw == (0, 0)
 
 
+@pytest.mark.integration
 def test_link_loss_stops_and_locks_after_two_seconds(sketch: Path) -> None:
     before, after, refused = _run(
         sketch,
@@ -134,6 +137,7 @@ def test_link_loss_stops_and_locks_after_two_seconds(sketch: Path) -> None:
     assert b"motors are locked" in refused.output
 
 
+@pytest.mark.integration
 def test_the_claw_runs_for_one_pulse(sketch: Path) -> None:
     running, stopped = _run(
         # (the bytes take 1 ms to arrive at 115200 baud; the pulse ends at the tick after 50 ms)
@@ -144,6 +148,7 @@ def test_the_claw_runs_for_one_pulse(sketch: Path) -> None:
     assert stopped.claw == (0, 0)
 
 
+@pytest.mark.integration
 def test_the_claw_reverses_without_both_bridge_inputs_high(sketch: Path) -> None:
     # Before: #h+! after #h-! set the open input HIGH while the close input was still HIGH; on
     # a bridge of discrete transistors that is a short across the supply (the host stand-in
@@ -168,6 +173,7 @@ def test_the_claw_reverses_without_both_bridge_inputs_high(sketch: Path) -> None
     assert closing_again.claw == (0, 1)
 
 
+@pytest.mark.integration
 def test_a_hung_loop_resets_the_board_instead_of_running_on(sketch: Path) -> None:
     # Before: a loop stuck in a call (an I2C read of an IMU that never ends, in on_reply) left
     # the ESCs on their last pulse, which the Servo library goes on sending from its interrupt,
@@ -193,6 +199,7 @@ def test_a_hung_loop_resets_the_board_instead_of_running_on(sketch: Path) -> Non
     assert after.vertical_us == (NEUTRAL_US, NEUTRAL_US)  # (locked after the reset)
 
 
+@pytest.mark.integration
 def test_the_loop_keeps_the_watchdog_fed(sketch: Path) -> None:
     # Replies, debug lines and ticks never keep the loop from resetting the watchdog in time.
     (shown,) = _run(
@@ -222,6 +229,7 @@ def _days_later(at_ms: int) -> list[str]:
     ]
 
 
+@pytest.mark.integration
 def test_the_claw_stops_after_one_pulse_begun_50_ms_before_the_clock_wraps(
     sketch: Path,
 ) -> None:
@@ -244,6 +252,7 @@ def test_the_claw_stops_after_one_pulse_begun_50_ms_before_the_clock_wraps(
     assert stopped.claw == (0, 0)
 
 
+@pytest.mark.integration
 def test_the_ticks_and_the_link_watchdog_go_on_across_the_clock_wrap(sketch: Path) -> None:
     # A 32-bit clock wrapping (49.7 days on): the depth ticks go on, a link kept alive stays
     # unlocked, and a link lost just before the wrap still stops the robot 2 s after.
@@ -262,6 +271,7 @@ def test_the_ticks_and_the_link_watchdog_go_on_across_the_clock_wrap(sketch: Pat
     assert lost.vertical_us == (NEUTRAL_US, NEUTRAL_US)
 
 
+@pytest.mark.integration
 def test_a_leak_present_at_power_on_is_latched(sketch: Path) -> None:
     # Before: the latch was set only by a falling edge; a probe already wet at power-on never
     # made one, and the sketch answered $q.l.0! (P14).
@@ -269,6 +279,7 @@ def test_a_leak_present_at_power_on_is_latched(sketch: Path) -> None:
     assert shown.output == b"$q.l.1!"
 
 
+@pytest.mark.integration
 def test_a_leak_still_present_after_slreset_is_latched_again(sketch: Path) -> None:
     # Before: #slreset! cleared the latch for good while the probe stayed wet (no new edge).
     (shown,) = _run(
@@ -286,6 +297,7 @@ def test_a_leak_still_present_after_slreset_is_latched_again(sketch: Path) -> No
     assert shown.output == b"$q.l.1!$q.l.1!"
 
 
+@pytest.mark.integration
 def test_a_short_leak_pulse_is_latched_until_slreset(sketch: Path) -> None:
     latched, reset = _run(
         sketch,
@@ -308,6 +320,7 @@ def test_a_short_leak_pulse_is_latched_until_slreset(sketch: Path) -> None:
     assert reset.output == b"$q.l.0!$q.l.0!"
 
 
+@pytest.mark.integration
 def test_a_depth_hold_at_rest_starts_without_a_kick(sketch: Path) -> None:
     # Before: the speed estimate took the depth of its last hold (0 cm at power-on) as the
     # depth a tick ago, so a hold begun at rest at 300 cm saw 30 000 cm/s of descent and
@@ -329,6 +342,7 @@ def test_a_depth_hold_at_rest_starts_without_a_kick(sketch: Path) -> None:
         assert moment.vertical_us == (NEUTRAL_US, NEUTRAL_US), moment
 
 
+@pytest.mark.integration
 def test_a_new_target_after_a_stop_starts_without_a_kick(sketch: Path) -> None:
     # Before: the speed estimate of an earlier hold survived #stop! and #start!.
     shown = _run(
@@ -371,6 +385,7 @@ def test_rovlink_check_passes_against_the_sketch(sketch: Path) -> None:
     assert len(report.results) > 40
 
 
+@pytest.mark.integration
 def test_debug_output_never_holds_up_the_loop_on_an_uno(sketch: Path) -> None:
     # An Uno's core waits in Serial.write() for room in its 64-byte transmit buffer, which
     # drains at 11.5 bytes a ms: 200 '#' of line noise make 200 "dropped" lines, some 11 000
@@ -425,6 +440,7 @@ def _horizontal_after(sketch: Path, stream: bytes) -> tuple[int, int, int, int]:
     return shown.horizontal_us
 
 
+@pytest.mark.integration
 @pytest.mark.parametrize(("spaces", "frames"), _OVERRUNS, ids=("a", "b", "c"))
 def test_bytes_lost_in_a_receive_overrun_never_splice_two_frames_into_a_third(
     sketch: Path, spaces: int, frames: tuple[bytes, ...]

@@ -22,10 +22,13 @@ TARGET = ("-mmcu=atmega328p", "-Os")
 SKETCH = FIRMWARE / "arduino" / "rovlink_controller" / "rovlink_controller.ino"
 HOST = Path(__file__).with_name("arduino_host")
 
-pytestmark = pytest.mark.skipif(
-    AVR_GCC is None or AVR_GXX is None or AVR_OBJDUMP is None or AVR_NM is None,
-    reason="avr-gcc is not installed (.ci/debian-packages: gcc-avr, avr-libc)",
-)
+pytestmark = [
+    pytest.mark.integration,
+    pytest.mark.skipif(
+        AVR_GCC is None or AVR_GXX is None or AVR_OBJDUMP is None or AVR_NM is None,
+        reason="avr-gcc is not installed (.ci/debian-packages: gcc-avr, avr-libc)",
+    ),
+]
 
 
 def _compile(compiler: str | None, source: Path, output: Path, *flags: str) -> Path:

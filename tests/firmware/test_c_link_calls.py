@@ -10,7 +10,7 @@ import pytest
 from tests.firmware.c_build import LAYER, SANITIZE, STRICT, build, needs_gcc, run_script
 
 STEPS = Path(__file__).resolve().parent / "link_steps.c"
-pytestmark = needs_gcc
+pytestmark = [pytest.mark.integration, needs_gcc]
 
 
 @pytest.fixture(scope="module")

@@ -12,6 +12,8 @@ import pytest
 
 from tests.firmware.c_build import FIRMWARE, GCC, LAYER, STRICT, build, needs_gcc
 
+pytestmark = pytest.mark.integration
+
 README = FIRMWARE / "README.md"
 AVR_GCC = shutil.which("avr-gcc")
 

@@ -69,6 +69,7 @@ _SOURCES = (
 _COMPILERS = {"gcc": GCC, "clang": CLANG}
 
 
+@pytest.mark.integration
 @pytest.mark.parametrize("compiler", sorted(_COMPILERS))
 @pytest.mark.parametrize("flags", [("-O2",), SANITIZE], ids=["optimised", "sanitizers"])
 def test_every_c_source_compiles_without_a_warning(

@@ -18,7 +18,7 @@ from tests.firmware.c_build import FIRMWARE, LAYER, STRICT, build, needs_gcc
 from tests.protocol.spec_ranges import command_body, edge_cases
 from tests.protocol.test_frames import SEED_FRAMES
 
-pytestmark = needs_gcc
+pytestmark = [pytest.mark.integration, needs_gcc]
 
 
 @pytest.fixture(scope="module")

@@ -40,10 +40,13 @@ _ALLOWED_CALLS = {"memcmp", "memcpy", "memset", "strlen"}
 _TABLES = re.compile(r"rl_\w+")
 _INTEGER_HELPERS = re.compile(r"__aeabi_u?idiv(mod)?|__mspabi_(divu?l?|remu?l?i?|mpyi|mpyl)\w*")
 
-pytestmark = pytest.mark.skipif(
-    CLANG is None or LLVM_NM is None or LLVM_SIZE is None,
-    reason="clang, llvm-nm or llvm-size is not installed (.ci/debian-packages: clang, llvm)",
-)
+pytestmark = [
+    pytest.mark.integration,
+    pytest.mark.skipif(
+        CLANG is None or LLVM_NM is None or LLVM_SIZE is None,
+        reason="clang, llvm-nm or llvm-size is not installed (.ci/debian-packages: clang, llvm)",
+    ),
+]
 
 
 def _compile(target: str, source: Path, output: Path) -> Path:

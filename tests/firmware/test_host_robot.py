@@ -21,7 +21,7 @@ from rovlink.protocol.announcements import (
 from tests.firmware.c_build import LAYER, STRICT, build, needs_gcc, run_script, send
 
 STEPS = Path(__file__).resolve().parent / "host_robot_steps.c"
-pytestmark = needs_gcc
+pytestmark = [pytest.mark.integration, needs_gcc]
 
 
 @dataclass(frozen=True)

@@ -621,6 +621,7 @@ async def test_a_lost_link_is_reopened_and_the_polls_go_on() -> None:
     port.close()
 
 
+@pytest.mark.integration
 async def test_at_80_by_24_a_link_being_reopened_says_so_and_keeps_its_error_counts_on_screen() -> (
     None
 ):

@@ -30,6 +30,7 @@ def test_a_bad_url_leaves_no_recording(capsys, tmp_path):
     assert not recording.exists()
 
 
+@pytest.mark.integration
 def test_a_taken_port_is_one_line(capsys):
     with socket.socket() as taken:
         taken.bind(("127.0.0.1", 0))

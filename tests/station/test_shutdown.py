@@ -103,6 +103,7 @@ async def stuck_page(url: str) -> tuple[ClientConnection, socket.socket]:
     return page, stuck
 
 
+@pytest.mark.integration
 @pytest.mark.realtime
 async def test_a_shutdown_sends_stop_first_though_a_page_is_stuck_behind_full_buffers(
     monkeypatch: pytest.MonkeyPatch,

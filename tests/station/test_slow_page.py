@@ -187,6 +187,7 @@ async def test_the_endpoint_closes_a_page_too_far_behind_and_cuts_its_thrust_fir
     assert "fell too far behind" in hub.warnings()[-1]
 
 
+@pytest.mark.integration
 async def test_a_pilot_on_a_real_socket_that_stops_reading_is_closed_and_its_thrust_zeroed(
     hub, monkeypatch: pytest.MonkeyPatch
 ):

@@ -231,6 +231,7 @@ def test_a_plot_that_cannot_be_written_is_refused_before_anything_is_sent(
     assert last.startswith(f"rovlink tune: error: {error.format(tmp=tmp_path)}")
 
 
+@pytest.mark.integration
 @pytest.mark.parametrize("ending", ["abort", "ctrl-c"])
 def test_an_aborted_tune_sends_the_gains_back(
     monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str], ending: str
@@ -338,6 +339,7 @@ def test_apply_leaves_gains_set_that_met_the_targets(
     assert capsys.readouterr().out.splitlines()[-1] == "gains applied; motors locked"
 
 
+@pytest.mark.integration
 def test_a_plot_whose_format_needs_a_missing_program_is_one_line_after_the_gains_went_back(
     capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch, tmp_path: Path
 ) -> None:

@@ -51,6 +51,7 @@ def test_a_password_needs_a_user(
     assert "secret" not in result.err
 
 
+@pytest.mark.integration
 def test_a_key_without_its_certificate_is_a_usage_error_not_ignored(
     run_cli: RunCli, tmp_path: Path
 ) -> None:
