@@ -15,12 +15,14 @@ from hypothesis import settings
 # The guard's own test runs a small suite in-process with pytester.
 pytest_plugins = ["pytester"]
 
-# Many tests end a command with Ctrl-C (SIGINT) as a user does. A shell starts a background job
-# (`pytest &`, or two suites at once) with SIGINT ignored, every process it starts inherits that,
-# and rovlink keeps a signal ignored on entry (as `nohup` asks): those tests would then wait for an
-# exit that never comes. Python's own handler here makes each command start with the default.
+# Many tests end a command with Ctrl-C (SIGINT) or SIGQUIT as a user does. A shell starts a
+# background job (`pytest &`, or two suites at once) with both ignored, every process it starts
+# inherits that, and rovlink keeps a signal ignored on entry (as `nohup` asks): those tests would
+# then wait for an exit that never comes. A handler here makes each command start with the default.
 if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
     signal.signal(signal.SIGINT, signal.default_int_handler)
+if signal.getsignal(signal.SIGQUIT) is signal.SIG_IGN:
+    signal.signal(signal.SIGQUIT, signal.SIG_DFL)
 
 # Property tests check results, not speed: on a loaded machine one example can take longer than
 # Hypothesis's default deadline of 200 ms, which would fail the run through no fault of the code.
