@@ -53,7 +53,14 @@ class FailedAttempts:
         self.said = ""
 
     def note(self, attempt: int, error: Exception) -> None:
-        """Log failed attempt number ``attempt`` (from 1) and why."""
+        """Log failed attempt number ``attempt`` (from 1) and why.
+
+        >>> failed = FailedAttempts(logging.getLogger("x"))
+        >>> failed.note(1, OSError("cannot open /dev/ttyUSB0: permission denied"))
+        >>> failed.note(2, OSError("cannot open /dev/ttyUSB0: permission denied"))  # (debug)
+        >>> failed.said
+        'cannot open /dev/ttyUSB0: permission denied'
+        """
         reason = str(error)
         if reason == self.said:
             self._logger.debug("reconnect attempt %d: %s", attempt, reason)
