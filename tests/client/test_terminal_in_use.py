@@ -15,12 +15,13 @@ from pathlib import Path
 import pytest
 
 import rovlink
+import rovlink.aio
 from rovlink.client.errors import ConnectError
 from rovlink.client.events import ClientEvent, LinkState
 from rovlink.client.links import open_link
 from rovlink.client.terminal_owner import terminal_owner
 from rovlink.client.url import parse_url
-from tests.client.conftest import CONDITION_TIMEOUT_S, wait_until
+from tests.client.conftest import CONDITION_TIMEOUT_S, wait_until, wait_until_async
 from tests.client.fake_controller import FakeController
 from tests.terminals import TerminalWindow, refusal
 
@@ -109,3 +110,34 @@ def test_a_reused_pseudo_terminal_is_refused_on_reconnecting_until_a_controller_
             second.close()
             os.close(terminal)
     assert window.shown() == b""
+
+
+async def test_the_asyncio_client_refuses_a_reused_pseudo_terminal_on_reconnecting(
+    tmp_path: Path, window: TerminalWindow, caplog: pytest.LogCaptureFixture
+) -> None:
+    caplog.set_level(logging.DEBUG, logger="rovlink")
+    port = tmp_path / "rov"
+    master, terminal = os.openpty()
+    tty.setraw(terminal)
+    first = FakeController(master)
+    port.symlink_to(os.ttyname(terminal))
+    events: list[ClientEvent] = []
+    rov = await rovlink.aio.connect(str(port), reconnect=True, timeout=1.0, on_event=events.append)
+    try:
+        assert await rov.depth_cm() >= 0
+        port.unlink()
+        port.symlink_to(window.path)
+        first.close()
+        os.close(terminal)
+
+        def refusals() -> list[logging.LogRecord]:
+            return [r for r in caplog.records if refusal(window, str(port)) in r.getMessage()]
+
+        assert await wait_until_async(lambda: len(refusals()) >= 3)  # it keeps trying
+        said = [record for record in refusals() if record.levelno == logging.WARNING]
+        assert len(said) == 1, caplog.text
+        assert not any(isinstance(e, LinkState) and e.state == "reconnected" for e in events)
+    finally:
+        await rov.close()
+    assert window.shown() == b""
+    assert termios.tcgetattr(window.master) == window.modes
