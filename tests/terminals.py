@@ -130,3 +130,48 @@ class Terminal:
         self.hang_up()
         os.close(self._wake_r)
         os.close(self._wake_w)
+
+
+#: A shell stand-in: a session of its own whose controlling terminal is the path it is given.
+_SHELL = (
+    "import os, sys; os.setsid(); fd = os.open(sys.argv[1], os.O_RDWR); "
+    "print(os.getpid(), flush=True); sys.stdin.read()"
+)
+
+
+class TerminalWindow:
+    """A pseudo-terminal that is the controlling terminal of a child process, as a terminal
+    window's is its shell's; ``master`` is the window's side (what a program writes shows there)."""
+
+    def __init__(self) -> None:
+        self.master, terminal = os.openpty()
+        self.path = os.ttyname(terminal)
+        os.close(terminal)
+        self.shell = subprocess.Popen(
+            [sys.executable, "-c", _SHELL, self.path],
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+            text=True,
+        )
+        assert self.shell.stdout is not None
+        self.pid = int(self.shell.stdout.readline())
+        self.modes = termios.tcgetattr(self.master)
+
+    def shown(self) -> bytes:
+        """What programs wrote on the terminal so far."""
+        ready, _, _ = select.select([self.master], [], [], 0)
+        return os.read(self.master, 4096) if ready else b""
+
+    def close(self) -> None:
+        self.shell.kill()
+        self.shell.communicate()
+        os.close(self.master)
+
+
+def refusal(window: TerminalWindow, path: str | None = None) -> str:
+    """The one line a client refusing ``window`` says (``path``: the name it was given)."""
+    name = Path(sys.executable).name[:15]  # (the kernel keeps 15 characters of a name)
+    return (
+        f"{path or window.path} is the terminal of process {window.pid} ({name}), not a "
+        "controller's port (a pseudo-terminal's number is reused once its program ends)"
+    )

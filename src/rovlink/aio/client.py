@@ -41,7 +41,11 @@ from rovlink.client.options import (
 )
 from rovlink.client.port_closing import close_within
 from rovlink.client.readiness import ReadinessProbe
-from rovlink.client.reconnection import reconnect_delays_s, reconnecting_failed
+from rovlink.client.reconnection import (
+    FailedAttempts,
+    reconnect_delays_s,
+    reconnecting_failed,
+)
 from rovlink.client.sensors import Sensors
 from rovlink.client.session import Outcome, PendingQuery, Session
 from rovlink.client.stop_at_exit import stop_at_exit, stop_within
@@ -954,6 +958,7 @@ class AsyncClient(AsyncCommandMethods):
         with contextlib.suppress(Exception):
             await self._transport.close()
         delays_s = reconnect_delays_s()
+        failed = FailedAttempts(logger)
         attempts = 0
         while not self._closed:
             attempts += 1
@@ -962,7 +967,7 @@ class AsyncClient(AsyncCommandMethods):
                 # Shielded: when close() cancels this, the port being opened is closed once open.
                 link = await asyncio.shield(opening)
             except (OSError, ValueError) as error:  # ConnectError is an OSError
-                logger.debug("reconnect attempt %d: %s", attempts, error)
+                failed.note(attempts, error)
                 await asyncio.sleep(next(delays_s))
                 continue
             except asyncio.CancelledError:
@@ -990,7 +995,7 @@ class AsyncClient(AsyncCommandMethods):
                     raise self._attempt_lost
                 session.link_ready()  # (not before: a failed attempt leaves them to the next)
             except (OSError, ValueError) as error:  # ConnectionLostError is an OSError
-                logger.debug("reconnect attempt %d: %s", attempts, error)
+                failed.note(attempts, error)
                 session.reopen_failed()
                 with contextlib.suppress(Exception):
                     await self._transport.close()

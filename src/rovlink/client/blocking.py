@@ -42,7 +42,11 @@ from rovlink.client.options import (
 )
 from rovlink.client.port_closing import close_within
 from rovlink.client.readiness import ReadinessProbe
-from rovlink.client.reconnection import reconnect_delays_s, reconnecting_failed
+from rovlink.client.reconnection import (
+    FailedAttempts,
+    reconnect_delays_s,
+    reconnecting_failed,
+)
 from rovlink.client.session import Outcome, PendingQuery, Received, Session
 from rovlink.client.stop_at_exit import stop_at_exit, stop_within
 from rovlink.client.unsolicited import DropLog, HookFailureLog, deliver
@@ -638,6 +642,7 @@ class Client(CommandMethods):
         reopen = self._reopen
         assert reopen is not None
         delays_s = reconnect_delays_s()
+        failed = FailedAttempts(logger)
         attempts = 0
         while not self._stop_reconnecting.is_set():
             attempts += 1
@@ -671,7 +676,7 @@ class Client(CommandMethods):
                     return  # (closed meanwhile)
                 break
             except (OSError, ValueError) as error:  # ConnectError, ConnectionLostError too
-                logger.debug("reconnect attempt %d: %s", attempts, error)
+                failed.note(attempts, error)
                 self._drop_attempt(link)
                 self._stop_reconnecting.wait(next(delays_s))
             except Exception as error:  # a bug in reopen or a link scheme: no retry can help

@@ -26,6 +26,7 @@ from typing import Any, Protocol
 
 from rovlink.client.errors import ConnectError, ConnectionLostError
 from rovlink.client.schemes import load_handler
+from rovlink.client.terminal_owner import PSEUDO_TERMINAL_MAJORS, terminal_owner
 from rovlink.client.url import Endpoint, Scheme
 from rovlink.protocol.frames import BITS_PER_BYTE_8N1
 from rovlink.serial_latency import ask_for_low_latency
@@ -53,8 +54,6 @@ _MIN_READ_S = 0.001
 WRITE_TIMEOUT_S = 2.0
 CONNECT_TIMEOUT_S = 5.0
 _READ_BYTES = 65536
-#: Device numbers of Unix98 pseudo-terminals' terminal sides (Linux's devices.txt).
-_PSEUDO_TERMINAL_MAJORS = range(136, 144)
 
 if sys.platform != "win32":
     import fcntl
@@ -369,7 +368,7 @@ class SerialFdLink(FdLink):
 def _is_pseudo_terminal(fd: int) -> bool:
     """Whether ``fd`` is the terminal side of a Unix98 pseudo-terminal (``/dev/pts/N``)."""
     try:
-        return os.major(os.fstat(fd).st_rdev) in _PSEUDO_TERMINAL_MAJORS
+        return os.major(os.fstat(fd).st_rdev) in PSEUDO_TERMINAL_MAJORS
     except OSError:
         return False
 
@@ -628,6 +627,8 @@ def _open_serial(endpoint: Endpoint) -> Link:
     options: dict[str, Any] = (
         {"exclusive": True} if endpoint.is_device and os.name == "posix" else {}
     )
+    if endpoint.is_device:  # (before opening: opening sets the terminal's modes)
+        _refuse_a_terminal_in_use(endpoint.target)
     # pyserial's rfc2217:// refuses a write timeout (NotImplementedError); its writes wait at
     # most its socket's timeout, 5 s.
     if not endpoint.target.lower().startswith("rfc2217://"):
@@ -645,6 +646,17 @@ def _open_serial(endpoint: Endpoint) -> Link:
         ask_for_low_latency(port, endpoint.target)  # (a USB adapter's replies come at once)
         return SerialFdLink(port, description, exclusive="exclusive" in options)
     return PortLink(port, description)
+
+
+def _refuse_a_terminal_in_use(path: str) -> None:
+    """Raise ConnectError if pseudo-terminal ``path`` is a process's controlling terminal: a
+    person's terminal window (a reused or mistyped ``/dev/pts/N``), never a controller's."""
+    owner = terminal_owner(path)
+    if owner is not None:
+        raise ConnectError(
+            f"{path} is the terminal of process {owner.pid} ({owner.name}), not a controller's "
+            "port (a pseudo-terminal's number is reused once its program ends)"
+        )
 
 
 def _open_error(endpoint: Endpoint, error: BaseException) -> str:

@@ -16,7 +16,7 @@ from collections.abc import Iterator
 
 from rovlink.client.errors import ConnectionLostError
 
-__all__ = ["reconnect_delays_s", "reconnecting_failed"]
+__all__ = ["FailedAttempts", "reconnect_delays_s", "reconnecting_failed"]
 
 _FIRST_DELAY_S = 0.1
 _MAX_DELAY_S = 2.0
@@ -33,6 +33,40 @@ def reconnect_delays_s() -> Iterator[float]:
     while True:
         yield delay_s
         delay_s = min(delay_s * 2, _MAX_DELAY_S)
+
+
+class FailedAttempts:
+    """Says why reopening a port fails, once: the first failed attempt, and one that fails for
+    another reason, is a warning; the same reason again goes to the debug log (a port away all
+    day does not put a line in the log every 2 s).
+
+    >>> import logging
+    >>> failed = FailedAttempts(logging.getLogger("x"))
+    >>> failed.note(1, OSError("cannot open /dev/ttyUSB0: No such file or directory"))
+    >>> failed.said
+    'cannot open /dev/ttyUSB0: No such file or directory'
+    """
+
+    def __init__(self, logger: logging.Logger) -> None:
+        self._logger = logger
+        #: The reason last said as a warning ("" before the first failure).
+        self.said = ""
+
+    def note(self, attempt: int, error: Exception) -> None:
+        """Log failed attempt number ``attempt`` (from 1) and why.
+
+        >>> failed = FailedAttempts(logging.getLogger("x"))
+        >>> failed.note(1, OSError("cannot open /dev/ttyUSB0: permission denied"))
+        >>> failed.note(2, OSError("cannot open /dev/ttyUSB0: permission denied"))  # (debug)
+        >>> failed.said
+        'cannot open /dev/ttyUSB0: permission denied'
+        """
+        reason = str(error)
+        if reason == self.said:
+            self._logger.debug("reconnect attempt %d: %s", attempt, reason)
+            return
+        self.said = reason
+        self._logger.warning("reconnect attempt %d: %s; retrying", attempt, reason)
 
 
 def reconnecting_failed(

@@ -17,7 +17,11 @@ from collections.abc import Callable
 
 from rovlink.client.errors import ConnectionLostError
 from rovlink.client.links import Link
-from rovlink.client.reconnection import reconnect_delays_s, reconnecting_failed
+from rovlink.client.reconnection import (
+    FailedAttempts,
+    reconnect_delays_s,
+    reconnecting_failed,
+)
 
 __all__ = ["ReopeningLink"]
 
@@ -120,12 +124,13 @@ class ReopeningLink:
         if not self._heard:  # (lost before a frame came on it: as a failed attempt)
             self._stopping.wait(next(self._delays_s))
         attempts = 0
+        failed = FailedAttempts(logger)
         while not self._stopping.is_set():
             attempts += 1
             try:
                 link = self._reopen()
             except (OSError, ValueError) as error:  # ConnectionError too: not there yet
-                logger.debug("reconnect attempt %d: %s", attempts, error)
+                failed.note(attempts, error)
                 self._stopping.wait(next(self._delays_s))
                 continue
             except Exception as error:  # a bug in the opener: no retry can help
