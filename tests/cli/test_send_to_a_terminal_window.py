@@ -11,7 +11,10 @@ import pytest
 from tests.cli.conftest import RunCli
 from tests.terminals import TerminalWindow, refusal
 
-pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="Linux's /proc")
+pytestmark = [
+    pytest.mark.integration,
+    pytest.mark.skipif(not sys.platform.startswith("linux"), reason="Linux's /proc"),
+]
 
 
 @pytest.fixture
