@@ -97,6 +97,35 @@ def test_a_missing_library_is_said_with_the_install_line(
     assert result.err.count("\n") == 1
 
 
+@pytest.mark.parametrize(
+    ("source", "first_line"),
+    [
+        pytest.param(
+            "import collections\ncollections.Mapping\n",
+            "module 'collections' has no attribute 'Mapping'",
+            id="attribute",
+        ),
+        pytest.param(
+            "def f(async=1):\n    pass\n", "invalid syntax (aiomqtt.py, line 1)", id="syntax"
+        ),
+    ],
+)
+def test_a_library_too_old_for_this_python_is_said_installed_but_broken(
+    run_cli: RunCli, monkeypatch: pytest.MonkeyPatch, tmp_path: Path, source: str, first_line: str
+) -> None:
+    """Not only ImportError: a library written for an older Python can fail with any error as
+    it is imported, or not compile at all."""
+    monkeypatch.chdir(tmp_path)
+    _fake_library(monkeypatch, tmp_path, "aiomqtt", source)
+    result = run_cli("mqtt", "sim://", "--robot", "r1", "--broker", "mqtt://127.0.0.1:1")
+    assert result.status == 1
+    assert result.err.startswith(
+        f"rovlink mqtt: aiomqtt is installed but cannot be imported: {first_line}; "
+        "reinstall the mqtt extra"
+    ), result.err
+    assert result.err.count("\n") == 1
+
+
 def test_a_submodule_missing_from_an_installed_library_is_a_broken_install(
     run_cli: RunCli, monkeypatch: pytest.MonkeyPatch, tmp_path: Path
 ) -> None:

@@ -86,7 +86,8 @@ def _missing_library(error: Exception) -> str | None:
 def _failing_library(error: Exception) -> str | None:
     """The installed library whose import raised ``error``: the outermost module in its
     traceback that is neither rovlink's nor the import system's, else the module the error
-    names (an ``ImportError`` of a name the library lacks); ``None`` if it is rovlink's own."""
+    names (an ``ImportError`` of a name the library lacks) or whose file does not compile (a
+    ``SyntaxError``: written for an older Python); ``None`` if it is rovlink's own."""
     tb = error.__traceback__
     while tb is not None:
         module = str(tb.tb_frame.f_globals.get("__name__", ""))
@@ -95,5 +96,23 @@ def _failing_library(error: Exception) -> str | None:
             return top
         tb = tb.tb_next
     name = getattr(error, "name", None) or ""
+    if isinstance(error, SyntaxError) and error.filename:  # (the library's code never ran)
+        name = _module_of_file(error.filename)
     top = name.partition(".")[0]
     return top if top not in {"rovlink", ""} else None
+
+
+def _module_of_file(path: str) -> str:
+    """The top-level module that the file at ``path`` belongs to, found from the most specific
+    ``sys.path`` entry holding it (``""`` if none does)."""
+    from pathlib import Path  # noqa: PLC0415 - only as an import has failed
+
+    file = Path(path).resolve()
+    parts: tuple[str, ...] = ()
+    for entry in sys.path:
+        folder = Path(entry or ".").resolve()
+        if file.is_relative_to(folder) and (not parts or len(folder.parts) > len(parts)):
+            parts = folder.parts
+    if not parts:
+        return ""
+    return file.parts[len(parts)].removesuffix(".py")
