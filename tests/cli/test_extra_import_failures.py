@@ -3,12 +3,14 @@ installed but fails as it is imported is said as such (installing again would ch
 
 from __future__ import annotations
 
+import json
 import subprocess
 import sys
 from pathlib import Path
 
 import pytest
 
+from rovlink.cli.extras import needs_extra
 from tests.cli.conftest import RunCli
 from tests.rovlink_process import rovlink_command, rovlink_environment
 
@@ -169,3 +171,12 @@ def test_verbose_shows_the_traceback_of_the_failed_import(tmp_path: Path) -> Non
     assert "Traceback (most recent call last):" in verbose.stderr
     assert 'raise ImportError("/usr/lib/libfoo.so.1: undefined symbol' in verbose.stderr
     assert verbose.stderr.endswith(quiet.stderr)
+
+
+def test_a_failure_of_rovlink_or_of_python_itself_is_not_blamed_on_the_extra() -> None:
+    """A bug (an import of a name rovlink lacks, an error raised in the standard library) keeps
+    its traceback: no library of the extra is at fault, and reinstalling it would not help."""
+    with pytest.raises(ImportError, match="no_such_name"), needs_extra("web"):
+        from rovlink.cli import no_such_name  # type: ignore[attr-defined]  # noqa: F401
+    with pytest.raises(json.JSONDecodeError), needs_extra("web"):
+        json.loads("{")

@@ -85,21 +85,28 @@ def _missing_library(error: Exception) -> str | None:
 
 def _failing_library(error: Exception) -> str | None:
     """The installed library whose import raised ``error``: the outermost module in its
-    traceback that is neither rovlink's nor the import system's, else the module the error
-    names (an ``ImportError`` of a name the library lacks) or whose file does not compile (a
-    ``SyntaxError``: written for an older Python); ``None`` if it is rovlink's own."""
+    traceback that is neither rovlink's nor Python's own, else the module the error names (an
+    ``ImportError`` of a name the library lacks) or whose file does not compile (a
+    ``SyntaxError``: written for an older Python); ``None`` if it is rovlink's or Python's."""
     tb = error.__traceback__
+    tb = tb and tb.tb_next  # (the frames under the ``with``, not the command's own)
     while tb is not None:
-        module = str(tb.tb_frame.f_globals.get("__name__", ""))
-        top = module.partition(".")[0]
-        if top not in {"rovlink", "importlib", "_frozen_importlib", ""}:
-            return top
+        library = _library(str(tb.tb_frame.f_globals.get("__name__", "")))
+        if library is not None:
+            return library
         tb = tb.tb_next
     name = getattr(error, "name", None) or ""
     if isinstance(error, SyntaxError) and error.filename:  # (the library's code never ran)
         name = _module_of_file(error.filename)
-    top = name.partition(".")[0]
-    return top if top not in {"rovlink", ""} else None
+    return _library(name)
+
+
+def _library(module: str) -> str | None:
+    """The top-level name of ``module`` if it is another library's: not rovlink's, not one of
+    Python's own (the import system's frames are ``importlib``'s)."""
+    top = module.partition(".")[0]
+    ours = {"rovlink", "", "_frozen_importlib", "_frozen_importlib_external"}
+    return None if top in ours or top in sys.stdlib_module_names else top
 
 
 def _module_of_file(path: str) -> str:
