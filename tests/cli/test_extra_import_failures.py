@@ -180,3 +180,31 @@ def test_a_failure_of_rovlink_or_of_python_itself_is_not_blamed_on_the_extra() -
         from rovlink.cli import no_such_name  # type: ignore[attr-defined]  # noqa: F401
     with pytest.raises(json.JSONDecodeError), needs_extra("web"):
         json.loads("{")
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ("record", "sim://", "-o", "dive.mcap"),
+        ("replay", "dive.mcap"),
+        ("send", "--record", "dive.mcap", "sim://", "qd"),
+    ],
+    ids=["record", "replay", "send-record"],
+)
+def test_a_broken_recording_library_is_said_before_the_link_opens(
+    run_cli: RunCli, monkeypatch: pytest.MonkeyPatch, tmp_path: Path, argv: tuple[str, ...]
+) -> None:
+    """The record extra's library is imported by the recorder, not by the command: it is
+    checked with the recording's name, and said in one line as the others are."""
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.delitem(sys.modules, "rovlink.recorder.mcap_format", raising=False)
+    _fake_library(monkeypatch, tmp_path, "mcap", _BROKEN)
+    result = run_cli(*argv)
+    assert result.status == 1
+    assert result.err == (
+        f"rovlink {argv[0]}: mcap is installed but cannot be imported: "
+        "/usr/lib/libfoo.so.1: undefined symbol: PyFoo_Bar; reinstall the "
+        "record extra: pip install --upgrade --force-reinstall 'rovlink[record]' "
+        "(rovlink -v shows the traceback)\n"
+    )
+    assert not (tmp_path / "dive.mcap").exists()
