@@ -13,6 +13,7 @@ import sys
 from typing import TYPE_CHECKING
 
 from rovlink.cli import link_options
+from rovlink.cli.extras import needs_extra
 from rovlink.cli.failure import CommandError, NoTerminalError, UsageError, is_terminal, reason
 
 if TYPE_CHECKING:
@@ -62,7 +63,7 @@ def run(args: argparse.Namespace) -> int:
 
     from rovlink.cli.async_run import run_async  # noqa: PLC0415 - keep asyncio off other commands
 
-    try:
+    with needs_extra("console"):
         from rovlink.console.app import (  # noqa: PLC0415
             LinesFailedError,
             RefusedLineError,
@@ -71,8 +72,6 @@ def run(args: argparse.Namespace) -> int:
         )
         from rovlink.console.history import default_history_path  # noqa: PLC0415
         from rovlink.console.script_input import script_input  # noqa: PLC0415
-    except ImportError as error:
-        raise CommandError(f"needs {error.name}: pip install 'rovlink[console]'") from None
 
     link_options.check_url(args)  # (a malformed URL is said first, as by every command)
     from_terminal = is_terminal(sys.stdin)

@@ -14,6 +14,7 @@ from collections.abc import Callable
 from typing import TYPE_CHECKING
 
 from rovlink.cli import link_options
+from rovlink.cli.extras import needs_extra
 from rovlink.cli.failure import CommandError, NoTerminalError, is_terminal
 from rovlink.cli.mqtt import add_broker_options, broker_settings
 
@@ -211,10 +212,8 @@ def run(args: argparse.Namespace) -> int:
             "the live table needs a terminal, but standard output is not one; "
             "--snapshot SECONDS prints the table once"
         )
-    try:
+    with needs_extra("mqtt"):
         import aiomqtt  # noqa: F401, PLC0415 - the mqtt extra
-    except ImportError:
-        raise CommandError("needs aiomqtt: pip install 'rovlink[mqtt]'") from None
     from rovlink.cli.async_run import run_async, serve_async  # noqa: PLC0415 - not on --help
 
     if args.snapshot_s is not None:

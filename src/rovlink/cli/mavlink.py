@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from rovlink.cli import link_options
+from rovlink.cli.extras import needs_extra
 from rovlink.cli.failure import CommandError, InputError, UsageError, reason, unreadable
 
 if TYPE_CHECKING:
@@ -93,10 +94,8 @@ def run(args: argparse.Namespace) -> int:
             values = read_parameter_file(text, str(args.params))
         except ParameterError as error:
             raise InputError(str(error)) from None
-    try:
+    with needs_extra("mavlink"):
         import pymavlink  # noqa: F401, PLC0415 - the mavlink extra
-    except ImportError:
-        raise CommandError("needs pymavlink: pip install 'rovlink[mavlink]'") from None
     link_options.check_url(args)
     link_options.client_options(args)
     link_options.log_warnings()

@@ -14,7 +14,8 @@ import sys
 from typing import TYPE_CHECKING
 
 from rovlink.cli import link_options
-from rovlink.cli.failure import CommandError, NoTerminalError, UsageError, is_terminal
+from rovlink.cli.extras import needs_extra
+from rovlink.cli.failure import NoTerminalError, UsageError, is_terminal
 
 if TYPE_CHECKING:
     from rovlink.aio import AsyncClient
@@ -64,10 +65,8 @@ def build_app(
 
 
 def _monitor_app_class() -> type[MonitorApp]:
-    try:
+    with needs_extra("monitor"):
         from rovlink.monitor.app import MonitorApp  # noqa: PLC0415 - textual loads only here
-    except ImportError as error:
-        raise CommandError(f"needs {error.name}: pip install 'rovlink[monitor]'") from None
     return MonitorApp
 
 

@@ -18,6 +18,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from rovlink.cli import link_options
+from rovlink.cli.extras import needs_extra
 from rovlink.cli.failure import CommandError, InputError, UsageError, reason, unreadable
 
 if TYPE_CHECKING:
@@ -184,10 +185,8 @@ def run(args: argparse.Namespace) -> int:
     except ValueError as error:
         raise UsageError(str(error)) from None
     broker = broker_settings(args)
-    try:
+    with needs_extra("mqtt"):
         import aiomqtt  # noqa: F401, PLC0415 - the mqtt extra
-    except ImportError:
-        raise CommandError("needs aiomqtt: pip install 'rovlink[mqtt]'") from None
     link_options.check_url(args)
     link_options.client_options(args)
     link_options.log_warnings()

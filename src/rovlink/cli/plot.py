@@ -10,6 +10,7 @@ import sys
 from collections.abc import Iterator
 from typing import TYPE_CHECKING
 
+from rovlink.cli.extras import needs_extra
 from rovlink.cli.failure import CommandError, UsageError
 from rovlink.cli.link_options import file_name
 from rovlink.cli.output_file import check_image_suffix, save_figure
@@ -80,10 +81,8 @@ def run(args: argparse.Namespace) -> int:
             else "use -o IMAGE"
         )
         raise CommandError(f"--show needs a display (none here); {instead}")
-    try:
+    with needs_extra("plot", "plotting needs"):
         import matplotlib  # noqa: PLC0415 - the plot extra, only for this command
-    except ImportError:
-        raise CommandError("plotting needs matplotlib: pip install 'rovlink[plot]'") from None
     if args.show:
         _check_window(display)
     from rovlink.recorder import RecordingDamagedError, RecordingError, read_entries  # noqa: PLC0415

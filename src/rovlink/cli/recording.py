@@ -10,6 +10,7 @@ import re
 import stat
 from typing import TYPE_CHECKING
 
+from rovlink.cli.extras import needs_extra
 from rovlink.cli.failure import CommandError, UsageError, reason
 from rovlink.cli.interrupt import say_last
 from rovlink.cli.link_options import file_name
@@ -150,13 +151,22 @@ def refuse_rotation_without_record(args: argparse.Namespace) -> None:
 
 def check_recording_name(path: str) -> Format:
     """The format ``path``'s suffix names; a usage error (status 2) if it names none: the
-    name is what the command line got wrong, for every command given a recording's name."""
+    name is what the command line got wrong, for every command given a recording's name.
+
+    The format's module is imported now, before any link is opened: a library it needs (the
+    record extra's ``mcap``) that is missing or broken is said in one line (status 1).
+    """
+    import importlib  # noqa: PLC0415
+
     from rovlink.recorder import format_of  # noqa: PLC0415
 
     try:
-        return format_of(path)
+        kind = format_of(path)
     except ValueError as error:
         raise UsageError(str(error)) from None
+    with needs_extra("record", f"{kind.suffix} recordings need"):
+        importlib.import_module(kind.module)
+    return kind
 
 
 def open_recorder(

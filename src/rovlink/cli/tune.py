@@ -13,6 +13,7 @@ import sys
 from typing import TYPE_CHECKING
 
 from rovlink.cli import link_options
+from rovlink.cli.extras import needs_extra
 from rovlink.cli.failure import CommandError, UsageError
 from rovlink.cli.link_options import bounded_int
 from rovlink.cli.output_file import check_image_suffix, check_writable, save_figure
@@ -437,10 +438,8 @@ def _print(result: TuneResult, applied: bool, final: ProtocolGains, *, refused: 
 def _check_plot(path: str) -> None:
     """Refuse a ``--plot`` that could not be written before the motors run, not after the
     experiment: matplotlib missing, a name without an image suffix, a directory not there."""
-    try:
+    with needs_extra("plot", "--plot needs"):
         import matplotlib  # noqa: PLC0415, F401 - the plot extra, only with --plot
-    except ImportError:
-        raise CommandError("--plot needs matplotlib: pip install 'rovlink[plot]'") from None
     check_image_suffix("--plot", path)
     check_writable("--plot", path)
 

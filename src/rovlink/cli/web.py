@@ -7,6 +7,7 @@ import argparse
 import dataclasses
 
 from rovlink.cli import link_options
+from rovlink.cli.extras import needs_extra
 from rovlink.cli.failure import CommandError, UsageError, reason
 
 __all__ = ["EPILOG", "add_arguments", "run"]
@@ -84,7 +85,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     """Serve until Ctrl-C; the robot is sent ``#stop!`` on the way out (unless locked as last
     sent)."""
-    try:
+    with needs_extra("web"):
         from rovlink.cli.async_run import run_async  # noqa: PLC0415
         from rovlink.station import access as station_access  # noqa: PLC0415
         from rovlink.station.hub import telemetry_lost_after  # noqa: PLC0415
@@ -93,8 +94,6 @@ def run(args: argparse.Namespace) -> int:
             StationFailedError,
             serve,
         )
-    except ImportError as error:
-        raise CommandError(f"needs {error.name}: pip install 'rovlink[web]'") from None
     from pathlib import Path  # noqa: PLC0415
 
     import rovlink.aio  # noqa: PLC0415
