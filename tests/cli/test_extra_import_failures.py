@@ -148,6 +148,7 @@ def test_a_submodule_missing_from_an_installed_library_is_a_broken_install(
     ), result.err
 
 
+@pytest.mark.integration
 def test_verbose_shows_the_traceback_of_the_failed_import(tmp_path: Path) -> None:
     (tmp_path / "matplotlib.py").write_text(_BROKEN)
     environment = rovlink_environment()
