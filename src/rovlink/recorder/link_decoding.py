@@ -42,7 +42,7 @@ class _Awaited:
     sent_s: float = 0.0
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(slots=True)
 class Answer:
     """The query a reply answered: its name, when it was seen going out, and whether the reply
     came late (after the query timed out, P20)."""
@@ -214,7 +214,8 @@ class LinkDecoder:
         name = event.message.name
         found = _take_answered(self._awaited, name)
         if found is not None:
-            self._timed_out.clear()  # (answered in order: theirs will not come now)
+            if self._timed_out:
+                self._timed_out.clear()  # (answered in order: theirs will not come now)
             self._progress_s = self._at_s
             return Answer(found.query, found.sent_s)
         found = _take_answered(self._timed_out, name)
