@@ -1259,3 +1259,21 @@ def test_a_driving_command_whose_link_is_lost_ends_its_recording_saying_so(
     assert isinstance(last, EventEntry)
     assert (last.event, last.name) == ("link", "lost")
     assert "closed by the other end" in last.detail
+
+
+def test_record_reply_timeout_is_the_tapped_programs_own(tmp_path: Path) -> None:
+    # A program polling every 50 ms that waits 40 ms for a reply: one lost reply shifted
+    # every later round trip by a poll (51 ms instead of 1 ms) under the default 0.5 s.
+    from rovlink.cli import build_parser
+    from rovlink.cli.recording import open_recorder
+
+    output = tmp_path / "tap.jsonl"
+    argv = ["record", "sim://", "-o", str(output), "--tap", "pty", "--reply-timeout", "0.04"]
+    args = build_parser("record").parse_args(argv)
+    with open_recorder(args, str(output), url="sim://", program="test", checksum=False) as rec:
+        rec.on_bytes("out", b"#qd!", at_s=1.0)  # its reply lost
+        for at_s in (1.05, 1.1):
+            rec.on_bytes("out", b"#qd!", at_s=at_s)
+            rec.on_bytes("in", b"$qd.7!", at_s=at_s + 0.001)
+    frames = [e for e in read_entries(str(output)) if isinstance(e, FrameEntry)]
+    assert [f.round_trip_ms for f in frames if f.kind == "response"] == [1.0, 1.0]

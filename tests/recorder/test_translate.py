@@ -20,9 +20,10 @@ from rovlink.recorder.translate import ClientEventLog, TapLog
 
 
 def _feed(log: TapLog, *chunks: tuple[str, bytes]) -> list[Entry]:
+    """``chunks`` 10 ms apart: each reply well within the host's reply timeout."""
     entries: list[Entry] = []
-    for at_s, (direction, data) in enumerate(chunks):
-        entries += log.entries(float(at_s), at_s, direction, data)
+    for index, (direction, data) in enumerate(chunks):
+        entries += log.entries(index * 0.01, index, direction, data)
     return entries
 
 
@@ -181,3 +182,68 @@ def test_the_drivers_mode_frame_on_connecting_is_the_drivers_own() -> None:
     async_events: list[ClientEvent] = []
     asyncio.run(connect_async())
     assert _mode_frames_sent(async_events)[0] == ("crcoff", True)
+
+
+def _timed(log: TapLog, *chunks: tuple[float, str, bytes]) -> list[Entry]:
+    entries: list[Entry] = []
+    for at_s, direction, data in chunks:
+        entries += log.entries(at_s, 0, direction, data)
+    return entries
+
+
+def _late_flags(entries: list[Entry]) -> list[tuple[str | None, float | None, bool]]:
+    return [
+        (e.query, e.round_trip_ms, e.late)
+        for e in entries
+        if isinstance(e, FrameEntry) and e.kind == "response"
+    ]
+
+
+def test_a_query_that_timed_out_unanswered_is_not_matched_to_the_next_reply_of_its_name() -> None:
+    # P20: the first qd's reply was lost; the next qd's reply, 3 s later, was matched to it
+    # (3050 ms), and so was each later reply to the query before its own, for good.
+    entries = _timed(
+        TapLog(),
+        (0.0, "out", b"#qd!"),
+        (3.0, "out", b"#qd!"),
+        (3.05, "in", b"$qd.7!"),
+        (6.0, "out", b"#qd!"),
+        (6.05, "in", b"$qd.8!"),
+    )
+    assert _late_flags(entries) == [("qd", 50.0, False), ("qd", 50.0, False)]
+    assert _problems(entries) == []
+
+
+def test_a_program_polling_faster_than_the_default_timeout_is_timed_with_its_own() -> None:
+    # A program that waits 40 ms for each reply and polls every 50 ms: with its timeout given
+    # (record --reply-timeout), a lost reply shifts no later round trip.
+    entries = _timed(
+        TapLog(reply_timeout_s=0.04),
+        (0.0, "out", b"#qd!"),
+        (0.05, "out", b"#qd!"),
+        (0.051, "in", b"$qd.7!"),
+        (0.1, "out", b"#qd!"),
+        (0.101, "in", b"$qd.8!"),
+    )
+    assert _late_flags(entries) == [("qd", 1.0, False), ("qd", 1.0, False)]
+
+
+def test_a_reply_after_its_query_timed_out_is_late() -> None:
+    # No later query of its name awaits: the reply answers the one that timed out, late (the
+    # host discarded it), with no round trip, as the driver's recordings show one.
+    entries = _timed(TapLog(), (0.0, "out", b"#qd!"), (0.7, "in", b"$qd.7!"))
+    assert _late_flags(entries) == [("qd", None, True)]
+    late = [e for e in entries if isinstance(e, EventEntry) and e.event == "late_reply"]
+    assert [(e.name, e.detail) for e in late] == [("qd", "after its query timed out")]
+
+
+def test_a_pipelined_query_waits_a_timeout_from_the_last_reply_as_the_host_does() -> None:
+    # On a slow line the host's deadline runs from the last reply that moved its queue: the
+    # qr reply 800 ms after its query is on time, not late.
+    entries = _timed(
+        TapLog(),
+        (0.0, "out", b"#qd!#qr!"),
+        (0.4, "in", b"$qd.7!"),
+        (0.8, "in", b"$qr.9!"),
+    )
+    assert _late_flags(entries) == [("qd", 400.0, False), ("qr", 800.0, False)]

@@ -31,6 +31,7 @@ if TYPE_CHECKING:
     ShowBytes = Callable[[str, bytes], None]
 
 __all__ = [
+    "DEFAULT_REPLY_TIMEOUT_S",
     "DEFAULT_URL",
     "MAX_RETRIES",
     "MAX_TIMEOUT_S",
@@ -47,12 +48,15 @@ __all__ = [
     "hear_other_lines_if_asked",
     "log_warnings",
     "positive_int",
+    "reply_timeout",
     "seconds",
 ]
 
 DEFAULT_URL = "sim://"
 #: The driver's default (kept here as a number: the driver is not imported to show the help).
 DEFAULT_BOOT_TIMEOUT_S = 3.0
+#: The driver's reply timeout (``--timeout``), which ``record`` assumes of a tap's program.
+DEFAULT_REPLY_TIMEOUT_S = 0.5
 #: Longer than any controller takes to answer; larger values are typing mistakes.
 MAX_TIMEOUT_S = 3600.0
 MIN_TIMEOUT_S = 0.001
@@ -96,7 +100,8 @@ def seconds(text: str, *, minimum: float = 0.0, maximum: float = MAX_TIMEOUT_S) 
     return bounded_float(text, minimum, maximum, " s")
 
 
-def _timeout(text: str) -> float:
+def reply_timeout(text: str) -> float:
+    """A reply timeout, for argparse's ``type=``: :func:`seconds`, at least 1 ms."""
     return seconds(text, minimum=MIN_TIMEOUT_S)
 
 
@@ -265,8 +270,8 @@ def add_link_options(parser: argparse.ArgumentParser, *, url_required: bool = Fa
     group.add_argument(
         "--timeout",
         dest="timeout_s",
-        type=_timeout,
-        default=0.5,
+        type=reply_timeout,
+        default=DEFAULT_REPLY_TIMEOUT_S,
         metavar="SECONDS",
         help=f"wait for a reply, per attempt, {MIN_TIMEOUT_S:g}–{MAX_TIMEOUT_S:g} "
         "(default: %(default)s)",

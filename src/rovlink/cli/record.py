@@ -12,7 +12,14 @@ import threading
 import time
 
 from rovlink.cli.failure import CommandError, UsageError, reason
-from rovlink.cli.link_options import add_checksum_options, baud_rate, file_name, seconds
+from rovlink.cli.link_options import (
+    DEFAULT_REPLY_TIMEOUT_S,
+    add_checksum_options,
+    baud_rate,
+    file_name,
+    reply_timeout,
+    seconds,
+)
 from rovlink.cli.output_file import check_writable
 from rovlink.cli.recording import (
     add_rotation_options,
@@ -71,6 +78,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         action="store_true",
         help="end (status 1) when the controller's link is lost, for a service manager to "
         "restart; by default it is reopened, the recording and the tap's program going on",
+    )
+    parser.add_argument(
+        "--reply-timeout",
+        dest="reply_timeout_s",
+        type=reply_timeout,
+        default=DEFAULT_REPLY_TIMEOUT_S,
+        metavar="SECONDS",
+        help="how long the program waits for a reply (its --timeout): a reply after that is "
+        "recorded as late, not matched to a later query of its name (default: %(default)s)",
     )
     add_checksum_options(parser, "the link starts in checksum mode (to decode its frames)")
     add_rotation_options(parser)

@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING
 from rovlink.cli.extras import needs_extra
 from rovlink.cli.failure import CommandError, UsageError, reason
 from rovlink.cli.interrupt import say_last
-from rovlink.cli.link_options import file_name
+from rovlink.cli.link_options import DEFAULT_REPLY_TIMEOUT_S, file_name
 
 if TYPE_CHECKING:
     from rovlink.recorder import Recorder
@@ -191,6 +191,7 @@ def open_recorder(
             program=program,
             max_size_bytes=args.max_size,
             split_s=args.split,
+            reply_timeout_s=getattr(args, "reply_timeout_s", DEFAULT_REPLY_TIMEOUT_S),
         )
     except OSError as error:
         raise CommandError(f"cannot record to {path}: {reason(error)}") from None

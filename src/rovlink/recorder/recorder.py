@@ -26,6 +26,7 @@ import rovlink
 from rovlink.client.events import ClientEvent, LinkState
 from rovlink.recorder.entries import Entry, HeaderEntry
 from rovlink.recorder.formats import format_of, open_sink
+from rovlink.recorder.link_decoding import DEFAULT_REPLY_TIMEOUT_S
 from rovlink.recorder.sink import Sink
 from rovlink.recorder.translate import ClientEventLog, TapLog
 
@@ -79,7 +80,8 @@ class Recorder:
     ``checksum`` is the mode the link is in as the recording starts, which its header says:
     off for a driver about to connect (its connect probe and mode frame go plain; a
     ``--checksum`` driver's ``#crcon!`` is recorded as it switches), the link's mode for a tap
-    or a sniffer joining it.
+    or a sniffer joining it. ``reply_timeout_s``: how long the program behind a tap waits for a
+    reply; a reply after that is recorded as late, not matched to a later query (P20).
 
     The file is created when the recorder is made, so a path that cannot be written is an
     ``OSError`` at once.
@@ -97,6 +99,7 @@ class Recorder:
         split_s: float | None = None,
         queue_limit: int = DEFAULT_QUEUE_LIMIT,
         on_failure: Callable[[str], None] | None = None,
+        reply_timeout_s: float = DEFAULT_REPLY_TIMEOUT_S,
     ) -> None:
         format_of(path)  # an unknown suffix is refused before anything is created
         self.path = path
@@ -118,7 +121,7 @@ class Recorder:
         self._queue: deque[ClientEvent | TappedBytes] = deque()
         self._accepting = True
         self._events = ClientEventLog(checksum=checksum)
-        self._tap = TapLog(checksum=checksum, algorithm=algorithm)
+        self._tap = TapLog(checksum=checksum, algorithm=algorithm, reply_timeout_s=reply_timeout_s)
         self._tapped = False  # fed by a tap (on_bytes) rather than the driver's events
         self._sink: Sink | None = open_sink(path)
         #: The format's own unit of what its files hold: ``messages``, ``lines``, ``rows``,

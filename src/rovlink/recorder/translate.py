@@ -41,7 +41,7 @@ from rovlink.recorder.entries import (
     TelemetryEntry,
     WireEntry,
 )
-from rovlink.recorder.link_decoding import LinkDecoder
+from rovlink.recorder.link_decoding import DEFAULT_REPLY_TIMEOUT_S, LinkDecoder
 from rovlink.recorder.telemetry import TelemetryState
 
 __all__ = ["ClientEventLog", "SessionLog", "TapLog"]
@@ -222,11 +222,20 @@ class ClientEventLog:
 
 class TapLog:
     """Entries from bytes seen in each direction, decoded here (see :class:`LinkDecoder`:
-    each reply in its query's checksum mode, a sniffer's commands as commands)."""
+    each reply in its query's checksum mode, a sniffer's commands as commands; a reply after
+    its query timed out, ``reply_timeout_s`` as the host waits, is late, P20)."""
 
-    def __init__(self, *, checksum: bool = False, algorithm: str = "crc8") -> None:
+    def __init__(
+        self,
+        *,
+        checksum: bool = False,
+        algorithm: str = "crc8",
+        reply_timeout_s: float = DEFAULT_REPLY_TIMEOUT_S,
+    ) -> None:
         self.log = SessionLog(checksum=checksum)
-        self._link = LinkDecoder(checksum=checksum, algorithm=algorithm)
+        self._link = LinkDecoder(
+            checksum=checksum, algorithm=algorithm, reply_timeout_s=reply_timeout_s
+        )
 
     def link_changed(self) -> None:
         """The link was lost or reopened: the queries awaiting replies are forgotten."""
@@ -239,17 +248,29 @@ class TapLog:
         ``by_session``: written by the tap itself."""
         log = self.log
         out: list[Entry] = [log.wire(t_s, wall_ns, direction, data, by_session)]
-        for event, query, sent_s in self._link.feed_timed(direction, data, t_s):
+        for event, answer in self._link.feed_timed(direction, data, t_s):
             if isinstance(event, Frame):
                 message = event.message
                 if message.kind is Kind.COMMAND:
                     command = Command(message.name, message.values)
                     log.command(t_s, wall_ns, command, by_session and direction == "out", out)
                     continue
-                if query is not None:
+                if answer is not None:
                     response = Response(message.name, message.values)
-                    round_trip_ms = None if sent_s is None else _milliseconds(t_s - sent_s)
-                    log.replies(t_s, wall_ns, query, (response,), out, round_trip_ms=round_trip_ms)
+                    if answer.late:  # (no round trip, as the driver's late replies)
+                        log.replies(t_s, wall_ns, answer.query, (response,), out, late=True)
+                        detail = "after its query timed out"
+                        out.append(EventEntry(t_s, wall_ns, "late_reply", response.name, detail))
+                    else:
+                        round_trip_ms = _milliseconds(t_s - answer.sent_s)
+                        log.replies(
+                            t_s,
+                            wall_ns,
+                            answer.query,
+                            (response,),
+                            out,
+                            round_trip_ms=round_trip_ms,
+                        )
                     continue
             log.decoded(t_s, wall_ns, event, out)
         return out
