@@ -288,3 +288,54 @@ def test_a_reply_after_the_gap_is_not_matched_to_a_query_the_gap_left_unanswered
         e for e in read_entries(str(path)) if isinstance(e, FrameEntry) and e.kind == "response"
     ]
     assert [(e.query, e.round_trip_ms) for e in replies] == [("qd", 50.0)]
+
+
+def test_the_program_s_bytes_on_a_reopened_link_are_recorded_after_the_stop_that_precedes_them(
+    controller: DroppingController,
+) -> None:
+    # A program's bytes that came as the link came back went on the wire after the tap's
+    # #stop!, but were recorded before it: the file showed the robot stopped after the
+    # program's "#start!#th.90.60!" while it was moving.
+    stopping = threading.Event()
+    states: list[str] = []
+    endpoint = TcpEndpoint("127.0.0.1", 0)
+    recorded: list[tuple[str, bytes, bool]] = []
+    host, port = endpoint.path.removeprefix("socket://").rsplit(":", 1)
+    program = socket.create_connection((host, int(port)), timeout=_TIMEOUT_S)
+    after_gap = b"#start!#th.90.60!"
+
+    def record(direction: str, data: bytes, *, by_session: bool = False) -> None:
+        recorded.append((direction, data, by_session))
+
+    def on_change(state: str, _detail: str) -> None:
+        states.append(state)
+        if state == "reconnected":  # (the link is back; its #stop! is about to be written)
+            program.sendall(after_gap)
+            wait_until(lambda: any(after_gap in data for _, data, _ in recorded), 1.0)
+
+    url = parse_url(controller.url)
+    link = ReopeningLink(
+        open_link(url),
+        lambda: open_link(url),
+        stopping=stopping,
+        on_change=on_change,
+        may_reopen=lambda: True,
+    )
+    thread = threading.Thread(target=forward, args=(endpoint, link, record, stopping), daemon=True)
+    thread.start()
+    try:
+        program.sendall(b"#start!#th.90.50!")
+        assert _ask(program) == b"$qd.0!"
+        controller.drop()
+        assert wait_until(lambda: states == ["lost"], _TIMEOUT_S)
+        gap_ends = len(recorded)
+        controller.come_back()
+        assert wait_until(lambda: bytes(controller.received[-1]).endswith(after_gap), _TIMEOUT_S)
+        assert bytes(controller.received[1]) == STOP_FRAME + after_gap  # the wire's order
+        sent = b"".join(data for direction, data, _ in recorded[gap_ends:] if direction == "out")
+        assert sent == STOP_FRAME + after_gap  # the recording's order: the same
+    finally:
+        program.close()
+        stopping.set()
+        thread.join(_TIMEOUT_S)
+        endpoint.close()

@@ -61,11 +61,6 @@ class ReopeningLink:
         self._delays_s = reconnect_delays_s()
         self._heard = True  # a frame came on the current link (on the first: may_reopen)
 
-    @property
-    def up(self) -> bool:
-        """Whether the link is open (not lost, or reopened)."""
-        return self._link is not None
-
     def read_available(self, timeout_s: float) -> bytes:
         """What came within ``timeout_s``; a lost link is reopened here (this blocks until it
         is, or ``stopping`` is set) and gives ``b""``."""
@@ -88,13 +83,17 @@ class ReopeningLink:
             self._delays_s = reconnect_delays_s()
         return data
 
-    def write(self, data: bytes) -> bool:
+    def write(self, data: bytes, *, before: Callable[[], None] | None = None) -> bool:
         """Write ``data`` if the link is up; whether it was (bytes for a link that is down are
-        dropped: a loss seen here is left to the reader to announce and mend)."""
+        dropped: a loss seen here is left to the reader to announce and mend). ``before`` is
+        called just before, only if the link is up, under the lock that :attr:`on_return`
+        writes under: what it records is in the wire's order."""
         with self._lock:
             link = self._link
             if link is None:
                 return False
+            if before is not None:
+                before()
             try:
                 link.write(data)
             except ConnectionLostError as error:

@@ -378,12 +378,12 @@ def forward(
     controller.on_return = stop_on_return
 
     def pass_on(data: bytes) -> None:
-        if not controller.up:
-            logger.debug("tap: dropped %d bytes of the program's: the link is down", len(data))
-            return
-        record("out", data)
-        if controller.write(data):
+        # (Recorded as it goes, with the link's lock held: after a #stop! the return wrote
+        # first, and never for a link that is down.)
+        if controller.write(data, before=lambda: record("out", data)):
             motion.feed(data)
+        else:
+            logger.debug("tap: dropped %d bytes of the program's: the link is down", len(data))
 
     def to_controller() -> None:
         while not stopping.is_set():
