@@ -129,6 +129,7 @@ INPUTS_SENT = """() => { const connection = window.rovlinkStation.connection;
 }"""
 
 
+@pytest.mark.realtime
 def test_stick_right_with_the_dead_man_drives_and_release_stops(browser, station, line):
     page = flying_by_pad(browser, station, line, [1, 0, 0, 0], "#th.90.100!")
     page.wait_for_function("window.rovlinkStation.station.telemetry.relay.status === 'flying'")
@@ -276,6 +277,7 @@ def test_unplugging_the_pad_zeroes_the_thrust(browser, station, line):
     page.context.close()
 
 
+@pytest.mark.realtime
 def test_a_page_whose_socket_drops_reconnects_as_a_watcher(browser, station, line):
     page = flying_by_pad(browser, station, line, [1, 0, 0, 0], "#th.90.100!")
     page.wait_for_function("window.rovlinkStation.charts.columns[0].length > 3")
@@ -976,6 +978,7 @@ def test_a_key_up_the_page_never_gets_zeroes_the_thrust(browser, station, line):
     page.context.close()
 
 
+@pytest.mark.realtime
 def test_keys_let_go_where_the_page_cannot_hear_them_fly_nothing(browser, station, line):
     page = _flying_by_keyboard(browser, station, line)
     mark = line.mark()
