@@ -1376,7 +1376,9 @@ def test_a_spare_pad_without_the_standard_mapping_stops_once_its_stop_is_learnt(
     mark = line.mark()
     press_on(page, 1, {9: True})
     line.wait_for("#stop!", after=mark)
-    assert line.frames(mark, commands_only=True)[:1] == ["#stop!"]
+    sent = line.frames(mark, commands_only=True)
+    # (the first pad, still flying, may renew its thrust before the stop: nothing else)
+    assert set(sent[: sent.index("#stop!")]) <= {"#th.90.100!"}, sent
     # Kept in the browser: a page opened later reads it at once.
     later = open_page(browser, station, pad=False)
     later.evaluate(
